@@ -1,0 +1,1 @@
+//! `enhance` (work in progress).

@@ -1,0 +1,1 @@
+//! `krs` (work in progress).

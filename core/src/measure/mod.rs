@@ -1,0 +1,1 @@
+//! `measure` (work in progress).

@@ -1,0 +1,415 @@
+//! Triangle meshes shared by the importers, the voxelizer, skinning and the renderers.
+//!
+//! A [`MeshModel`] is what an importer produces: triangle lists ([`TriangleMesh`], one per glTF
+//! primitive or OBJ group) that index into a shared material table. Vertex attributes are
+//! parallel arrays; an optional attribute is an empty `Vec`, never a vector of defaults, so a
+//! mesh only stores what the source file had.
+
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+/// Why a mesh cannot be used as it is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum MeshError {
+    /// The index list is not a whole number of triangles.
+    #[error("index count {0} is not a multiple of 3")]
+    RaggedIndices(usize),
+    /// An index points past the vertex arrays.
+    #[error("index {index} at position {at} is out of range for {vertices} vertices")]
+    IndexOutOfRange {
+        /// The offending index value.
+        index: u32,
+        /// Its position in the index list.
+        at: usize,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// An optional attribute array has a different length from `positions`.
+    #[error("attribute {name} has {len} entries but there are {vertices} vertices")]
+    AttributeLength {
+        /// Attribute name (`normals`, `uvs`, …).
+        name: &'static str,
+        /// Its length.
+        len: usize,
+        /// Number of vertices.
+        vertices: usize,
+    },
+    /// A position is NaN or infinite.
+    #[error("vertex {0} has a non-finite position")]
+    NonFinite(usize),
+    /// The material index is past the material table.
+    #[error("material index {index} is out of range for {count} materials")]
+    MaterialOutOfRange {
+        /// The index.
+        index: usize,
+        /// Number of materials.
+        count: usize,
+    },
+}
+
+/// An RGBA8 image in sRGB, for base-colour textures.
+#[derive(Clone, PartialEq, Serialize, Deserialize, Default)]
+pub struct Texture {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height * 4` bytes, rows top to bottom, sRGB-encoded RGBA.
+    pub rgba8: Vec<u8>,
+}
+
+impl std::fmt::Debug for Texture {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "Texture({}x{})", self.width, self.height)
+    }
+}
+
+/// sRGB-encoded channel (0–1) to linear.
+#[must_use]
+pub fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        c / 12.92
+    } else {
+        ((c + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear channel (0–1) to sRGB-encoded.
+#[must_use]
+pub fn linear_to_srgb(c: f32) -> f32 {
+    let c = c.clamp(0.0, 1.0);
+    if c <= 0.003_130_8 {
+        c * 12.92
+    } else {
+        1.055 * c.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+impl Texture {
+    /// Bilinear sample with repeat wrapping, returned as linear RGBA. UV (0,0) is the top-left
+    /// corner of the image, as in glTF.
+    #[must_use]
+    pub fn sample_linear(&self, uv: Vec2) -> Vec4 {
+        if self.width == 0 || self.height == 0 || self.rgba8.len() < (self.width * self.height * 4) as usize {
+            return Vec4::ONE;
+        }
+        let u = uv.x - uv.x.floor();
+        let v = uv.y - uv.y.floor();
+        if !u.is_finite() || !v.is_finite() {
+            return Vec4::ONE;
+        }
+        let x = u * self.width as f32 - 0.5;
+        let y = v * self.height as f32 - 0.5;
+        let x0 = x.floor();
+        let y0 = y.floor();
+        let fx = x - x0;
+        let fy = y - y0;
+        let texel = |xi: i64, yi: i64| -> Vec4 {
+            let xi = xi.rem_euclid(i64::from(self.width)) as usize;
+            let yi = yi.rem_euclid(i64::from(self.height)) as usize;
+            let o = (yi * self.width as usize + xi) * 4;
+            let p = &self.rgba8[o..o + 4];
+            Vec4::new(
+                srgb_to_linear(f32::from(p[0]) / 255.0),
+                srgb_to_linear(f32::from(p[1]) / 255.0),
+                srgb_to_linear(f32::from(p[2]) / 255.0),
+                f32::from(p[3]) / 255.0,
+            )
+        };
+        let (xi, yi) = (x0 as i64, y0 as i64);
+        let top = texel(xi, yi).lerp(texel(xi + 1, yi), fx);
+        let bottom = texel(xi, yi + 1).lerp(texel(xi + 1, yi + 1), fx);
+        top.lerp(bottom, fy)
+    }
+}
+
+/// A surface material, reduced to what voxels and previews use.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Material {
+    /// Display name.
+    pub name: String,
+    /// Linear RGBA base colour factor.
+    pub base_color: Vec4,
+    /// Optional base-colour texture, multiplied with `base_color`.
+    pub base_color_texture: Option<Texture>,
+    /// `KHR_materials_unlit`: shade with the base colour alone.
+    pub unlit: bool,
+}
+
+impl Default for Material {
+    fn default() -> Self {
+        Self { name: String::new(), base_color: Vec4::ONE, base_color_texture: None, unlit: false }
+    }
+}
+
+/// One triangle list with optional per-vertex attributes.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TriangleMesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Per-vertex normals, or empty.
+    pub normals: Vec<Vec3>,
+    /// Per-vertex texture coordinates (set 0), or empty.
+    pub uvs: Vec<Vec2>,
+    /// Per-vertex linear RGBA colours, or empty.
+    pub colors: Vec<Vec4>,
+    /// Per-vertex joint indices (skin joint table), or empty.
+    pub joints: Vec<[u16; 4]>,
+    /// Per-vertex joint weights, or empty.
+    pub weights: Vec<[f32; 4]>,
+    /// Triangle list: three indices per triangle, counter-clockwise front faces.
+    pub indices: Vec<u32>,
+    /// Index into the owning [`MeshModel::materials`].
+    pub material: usize,
+}
+
+impl TriangleMesh {
+    /// Number of triangles.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.indices.len() / 3
+    }
+
+    /// The three vertex indices of triangle `t`.
+    #[must_use]
+    pub fn triangle(&self, t: usize) -> [usize; 3] {
+        let i = &self.indices[t * 3..t * 3 + 3];
+        [i[0] as usize, i[1] as usize, i[2] as usize]
+    }
+
+    /// Checks index ranges, attribute lengths and finiteness.
+    ///
+    /// # Errors
+    /// The first problem found.
+    pub fn validate(&self) -> Result<(), MeshError> {
+        let n = self.positions.len();
+        if self.indices.len() % 3 != 0 {
+            return Err(MeshError::RaggedIndices(self.indices.len()));
+        }
+        for (at, &index) in self.indices.iter().enumerate() {
+            if index as usize >= n {
+                return Err(MeshError::IndexOutOfRange { index, at, vertices: n });
+            }
+        }
+        let lens: [(&'static str, usize); 5] = [
+            ("normals", self.normals.len()),
+            ("uvs", self.uvs.len()),
+            ("colors", self.colors.len()),
+            ("joints", self.joints.len()),
+            ("weights", self.weights.len()),
+        ];
+        for (name, len) in lens {
+            if len != 0 && len != n {
+                return Err(MeshError::AttributeLength { name, len, vertices: n });
+            }
+        }
+        if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
+            return Err(MeshError::NonFinite(i));
+        }
+        Ok(())
+    }
+
+    /// Axis-aligned bounds of the positions; `None` when there are none.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        bounds_of(self.positions.iter().copied())
+    }
+
+    /// Area-weighted vertex normals from the triangles (replaces `normals`). Degenerate
+    /// triangles contribute nothing; vertices with no area get +Y.
+    pub fn compute_normals(&mut self) {
+        let mut acc = vec![Vec3::ZERO; self.positions.len()];
+        for t in 0..self.triangle_count() {
+            let [a, b, c] = self.triangle(t);
+            let n = (self.positions[b] - self.positions[a]).cross(self.positions[c] - self.positions[a]);
+            if n.is_finite() {
+                acc[a] += n;
+                acc[b] += n;
+                acc[c] += n;
+            }
+        }
+        self.normals = acc.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect();
+    }
+
+    /// Applies `world_from_mesh` to positions and its inverse transpose to normals.
+    pub fn transform(&mut self, world_from_mesh: Mat4) {
+        for p in &mut self.positions {
+            *p = world_from_mesh.transform_point3(*p);
+        }
+        let normal_matrix = Mat3::from_mat4(world_from_mesh).inverse().transpose();
+        let mirrored = world_from_mesh.determinant() < 0.0;
+        for n in &mut self.normals {
+            *n = (normal_matrix * *n).try_normalize().unwrap_or(Vec3::Y);
+        }
+        if mirrored {
+            // A mirroring transform turns counter-clockwise triangles clockwise.
+            for tri in self.indices.chunks_exact_mut(3) {
+                tri.swap(1, 2);
+            }
+        }
+    }
+
+    /// Total surface area.
+    #[must_use]
+    pub fn area(&self) -> f64 {
+        (0..self.triangle_count())
+            .map(|t| {
+                let [a, b, c] = self.triangle(t);
+                let n = (self.positions[b] - self.positions[a]).cross(self.positions[c] - self.positions[a]);
+                f64::from(n.length()) * 0.5
+            })
+            .sum()
+    }
+
+    /// Signed volume enclosed (positive for outward-facing closed meshes).
+    #[must_use]
+    pub fn signed_volume(&self) -> f64 {
+        (0..self.triangle_count())
+            .map(|t| {
+                let [a, b, c] = self.triangle(t);
+                let (a, b, c) =
+                    (self.positions[a].as_dvec3(), self.positions[b].as_dvec3(), self.positions[c].as_dvec3());
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+}
+
+/// A set of triangle lists and their materials: what an importer returns.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MeshModel {
+    /// Triangle lists, already placed in model space by their node transforms (skinned parts are
+    /// left in bind-pose mesh space, as glTF skinning ignores the skinned node's transform).
+    pub parts: Vec<TriangleMesh>,
+    /// Material table indexed by [`TriangleMesh::material`].
+    pub materials: Vec<Material>,
+}
+
+impl MeshModel {
+    /// Total triangles over all parts.
+    #[must_use]
+    pub fn triangle_count(&self) -> usize {
+        self.parts.iter().map(TriangleMesh::triangle_count).sum()
+    }
+
+    /// Total vertices over all parts.
+    #[must_use]
+    pub fn vertex_count(&self) -> usize {
+        self.parts.iter().map(|p| p.positions.len()).sum()
+    }
+
+    /// Bounds over all parts.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        bounds_of(self.parts.iter().flat_map(|p| p.positions.iter().copied()))
+    }
+
+    /// Validates every part and its material index.
+    ///
+    /// # Errors
+    /// The first problem found, with the part's index.
+    pub fn validate(&self) -> Result<(), (usize, MeshError)> {
+        for (i, part) in self.parts.iter().enumerate() {
+            part.validate().map_err(|e| (i, e))?;
+            if !self.materials.is_empty() && part.material >= self.materials.len() {
+                return Err((i, MeshError::MaterialOutOfRange { index: part.material, count: self.materials.len() }));
+            }
+        }
+        Ok(())
+    }
+
+    /// The material of a part, or the default white material.
+    #[must_use]
+    pub fn material_of(&self, part: &TriangleMesh) -> Material {
+        self.materials.get(part.material).cloned().unwrap_or_default()
+    }
+
+    /// Linear RGBA colour of a surface point: material factor × texture × vertex colour, the
+    /// per-vertex values interpolated with barycentric weights `bary` over triangle `t`.
+    #[must_use]
+    pub fn surface_color(&self, part: &TriangleMesh, t: usize, bary: Vec3) -> Vec4 {
+        let [a, b, c] = part.triangle(t);
+        let mut color = self.materials.get(part.material).map_or(Vec4::ONE, |m| m.base_color);
+        if let Some(tex) = self.materials.get(part.material).and_then(|m| m.base_color_texture.as_ref())
+            && !part.uvs.is_empty()
+        {
+            let uv = part.uvs[a] * bary.x + part.uvs[b] * bary.y + part.uvs[c] * bary.z;
+            color *= tex.sample_linear(uv);
+        }
+        if !part.colors.is_empty() {
+            color *= part.colors[a] * bary.x + part.colors[b] * bary.y + part.colors[c] * bary.z;
+        }
+        color
+    }
+}
+
+fn bounds_of(points: impl Iterator<Item = Vec3>) -> Option<(Vec3, Vec3)> {
+    points.fold(None, |acc, p| match acc {
+        None => Some((p, p)),
+        Some((lo, hi)) => Some((lo.min(p), hi.max(p))),
+    })
+}
+
+/// A unit cube centred at the origin, 12 triangles, outward faces (for tests and previews).
+#[must_use]
+pub fn unit_cube() -> TriangleMesh {
+    let p = [
+        Vec3::new(-0.5, -0.5, -0.5),
+        Vec3::new(0.5, -0.5, -0.5),
+        Vec3::new(0.5, 0.5, -0.5),
+        Vec3::new(-0.5, 0.5, -0.5),
+        Vec3::new(-0.5, -0.5, 0.5),
+        Vec3::new(0.5, -0.5, 0.5),
+        Vec3::new(0.5, 0.5, 0.5),
+        Vec3::new(-0.5, 0.5, 0.5),
+    ];
+    let indices = vec![
+        0, 2, 1, 0, 3, 2, // -z
+        4, 5, 6, 4, 6, 7, // +z
+        0, 1, 5, 0, 5, 4, // -y
+        3, 7, 6, 3, 6, 2, // +y
+        0, 4, 7, 0, 7, 3, // -x
+        1, 2, 6, 1, 6, 5, // +x
+    ];
+    let mut mesh = TriangleMesh { positions: p.to_vec(), indices, ..TriangleMesh::default() };
+    mesh.compute_normals();
+    mesh
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cube_is_closed_with_unit_volume() {
+        let cube = unit_cube();
+        assert!(cube.validate().is_ok());
+        assert!((cube.signed_volume() - 1.0).abs() < 1e-9);
+        assert!((cube.area() - 6.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn mirroring_transform_keeps_volume_positive() {
+        let mut cube = unit_cube();
+        cube.transform(Mat4::from_scale(Vec3::new(-2.0, 1.0, 1.0)));
+        assert!((cube.signed_volume() - 2.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn validation_reports_out_of_range_index() {
+        let mut cube = unit_cube();
+        cube.indices[5] = 99;
+        assert_eq!(cube.validate(), Err(MeshError::IndexOutOfRange { index: 99, at: 5, vertices: 8 }));
+    }
+
+    #[test]
+    fn srgb_round_trip() {
+        for i in 0..=255 {
+            let c = f32::from(i as u8) / 255.0;
+            assert!((linear_to_srgb(srgb_to_linear(c)) - c).abs() < 1e-5);
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! `skin` (work in progress).

@@ -1,0 +1,1 @@
+//! `svo` (work in progress).

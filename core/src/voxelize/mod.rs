@@ -1,0 +1,1 @@
+//! `voxelize` (work in progress).

@@ -1,0 +1,1 @@
+//! Shared helpers for Thicket's cross-crate tests.
