@@ -90,7 +90,10 @@ impl Texture {
     /// corner of the image, as in glTF.
     #[must_use]
     pub fn sample_linear(&self, uv: Vec2) -> Vec4 {
-        if self.width == 0 || self.height == 0 || self.rgba8.len() < (self.width * self.height * 4) as usize {
+        if self.width == 0
+            || self.height == 0
+            || self.rgba8.len() < (self.width * self.height * 4) as usize
+        {
             return Vec4::ONE;
         }
         let u = uv.x - uv.x.floor();
@@ -139,7 +142,12 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Self { name: String::new(), base_color: Vec4::ONE, base_color_texture: None, unlit: false }
+        Self {
+            name: String::new(),
+            base_color: Vec4::ONE,
+            base_color_texture: None,
+            unlit: false,
+        }
     }
 }
 
@@ -185,12 +193,16 @@ impl TriangleMesh {
     /// The first problem found.
     pub fn validate(&self) -> Result<(), MeshError> {
         let n = self.positions.len();
-        if self.indices.len() % 3 != 0 {
+        if !self.indices.len().is_multiple_of(3) {
             return Err(MeshError::RaggedIndices(self.indices.len()));
         }
         for (at, &index) in self.indices.iter().enumerate() {
             if index as usize >= n {
-                return Err(MeshError::IndexOutOfRange { index, at, vertices: n });
+                return Err(MeshError::IndexOutOfRange {
+                    index,
+                    at,
+                    vertices: n,
+                });
             }
         }
         let lens: [(&'static str, usize); 5] = [
@@ -202,7 +214,11 @@ impl TriangleMesh {
         ];
         for (name, len) in lens {
             if len != 0 && len != n {
-                return Err(MeshError::AttributeLength { name, len, vertices: n });
+                return Err(MeshError::AttributeLength {
+                    name,
+                    len,
+                    vertices: n,
+                });
             }
         }
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
@@ -223,14 +239,18 @@ impl TriangleMesh {
         let mut acc = vec![Vec3::ZERO; self.positions.len()];
         for t in 0..self.triangle_count() {
             let [a, b, c] = self.triangle(t);
-            let n = (self.positions[b] - self.positions[a]).cross(self.positions[c] - self.positions[a]);
+            let n = (self.positions[b] - self.positions[a])
+                .cross(self.positions[c] - self.positions[a]);
             if n.is_finite() {
                 acc[a] += n;
                 acc[b] += n;
                 acc[c] += n;
             }
         }
-        self.normals = acc.into_iter().map(|n| n.try_normalize().unwrap_or(Vec3::Y)).collect();
+        self.normals = acc
+            .into_iter()
+            .map(|n| n.try_normalize().unwrap_or(Vec3::Y))
+            .collect();
     }
 
     /// Applies `world_from_mesh` to positions and its inverse transpose to normals.
@@ -257,7 +277,8 @@ impl TriangleMesh {
         (0..self.triangle_count())
             .map(|t| {
                 let [a, b, c] = self.triangle(t);
-                let n = (self.positions[b] - self.positions[a]).cross(self.positions[c] - self.positions[a]);
+                let n = (self.positions[b] - self.positions[a])
+                    .cross(self.positions[c] - self.positions[a]);
                 f64::from(n.length()) * 0.5
             })
             .sum()
@@ -269,8 +290,11 @@ impl TriangleMesh {
         (0..self.triangle_count())
             .map(|t| {
                 let [a, b, c] = self.triangle(t);
-                let (a, b, c) =
-                    (self.positions[a].as_dvec3(), self.positions[b].as_dvec3(), self.positions[c].as_dvec3());
+                let (a, b, c) = (
+                    self.positions[a].as_dvec3(),
+                    self.positions[b].as_dvec3(),
+                    self.positions[c].as_dvec3(),
+                );
                 a.dot(b.cross(c)) / 6.0
             })
             .sum()
@@ -315,7 +339,13 @@ impl MeshModel {
         for (i, part) in self.parts.iter().enumerate() {
             part.validate().map_err(|e| (i, e))?;
             if !self.materials.is_empty() && part.material >= self.materials.len() {
-                return Err((i, MeshError::MaterialOutOfRange { index: part.material, count: self.materials.len() }));
+                return Err((
+                    i,
+                    MeshError::MaterialOutOfRange {
+                        index: part.material,
+                        count: self.materials.len(),
+                    },
+                ));
             }
         }
         Ok(())
@@ -324,7 +354,10 @@ impl MeshModel {
     /// The material of a part, or the default white material.
     #[must_use]
     pub fn material_of(&self, part: &TriangleMesh) -> Material {
-        self.materials.get(part.material).cloned().unwrap_or_default()
+        self.materials
+            .get(part.material)
+            .cloned()
+            .unwrap_or_default()
     }
 
     /// Linear RGBA colour of a surface point: material factor × texture × vertex colour, the
@@ -332,8 +365,14 @@ impl MeshModel {
     #[must_use]
     pub fn surface_color(&self, part: &TriangleMesh, t: usize, bary: Vec3) -> Vec4 {
         let [a, b, c] = part.triangle(t);
-        let mut color = self.materials.get(part.material).map_or(Vec4::ONE, |m| m.base_color);
-        if let Some(tex) = self.materials.get(part.material).and_then(|m| m.base_color_texture.as_ref())
+        let mut color = self
+            .materials
+            .get(part.material)
+            .map_or(Vec4::ONE, |m| m.base_color);
+        if let Some(tex) = self
+            .materials
+            .get(part.material)
+            .and_then(|m| m.base_color_texture.as_ref())
             && !part.uvs.is_empty()
         {
             let uv = part.uvs[a] * bary.x + part.uvs[b] * bary.y + part.uvs[c] * bary.z;
@@ -374,7 +413,11 @@ pub fn unit_cube() -> TriangleMesh {
         0, 4, 7, 0, 7, 3, // -x
         1, 2, 6, 1, 6, 5, // +x
     ];
-    let mut mesh = TriangleMesh { positions: p.to_vec(), indices, ..TriangleMesh::default() };
+    let mut mesh = TriangleMesh {
+        positions: p.to_vec(),
+        indices,
+        ..TriangleMesh::default()
+    };
     mesh.compute_normals();
     mesh
 }
@@ -402,7 +445,14 @@ mod tests {
     fn validation_reports_out_of_range_index() {
         let mut cube = unit_cube();
         cube.indices[5] = 99;
-        assert_eq!(cube.validate(), Err(MeshError::IndexOutOfRange { index: 99, at: 5, vertices: 8 }));
+        assert_eq!(
+            cube.validate(),
+            Err(MeshError::IndexOutOfRange {
+                index: 99,
+                at: 5,
+                vertices: 8
+            })
+        );
     }
 
     #[test]

@@ -1,1 +1,5 @@
-//! `render` (work in progress).
+//! CPU reference renderers.
+
+pub mod quality;
+
+pub use quality::{Quality, QualityError, QualityPreset};

@@ -1,1 +1,542 @@
-//! `scene` (work in progress).
+//! The document: objects (voxel models, meshes, KRS), their transforms, lights, the camera and
+//! the quality settings. Renderers read it; it knows nothing about them.
+//!
+//! Every struct is `#[serde(default)]` so files written by older versions load. Large payloads
+//! (octrees, meshes) are `#[serde(skip)]` here and stored in the project's `.bin` file by
+//! [`crate::io::project`].
+
+use glam::{Mat4, Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::MeshModel;
+use crate::render::Quality;
+use crate::svo::Svo;
+
+/// Current project file format version.
+pub const FORMAT_VERSION: u32 = 1;
+
+/// A value in the document that a renderer must not see.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SceneError {
+    /// A non-finite or out-of-range number, with where it is.
+    #[error("{what} of {context} is invalid: {detail}")]
+    Invalid {
+        /// What (e.g. "transform.scale").
+        what: String,
+        /// Which object / light.
+        context: String,
+        /// What is wrong.
+        detail: String,
+    },
+}
+
+fn invalid(what: &str, context: &str, detail: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        what: what.to_owned(),
+        context: context.to_owned(),
+        detail: detail.into(),
+    }
+}
+
+/// Translation, rotation, non-uniform scale.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Transform {
+    /// World-space translation.
+    pub translation: Vec3,
+    /// Rotation (unit quaternion).
+    pub rotation: Quat,
+    /// Per-axis scale (non-zero).
+    pub scale: Vec3,
+}
+
+impl Default for Transform {
+    fn default() -> Self {
+        Self {
+            translation: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            scale: Vec3::ONE,
+        }
+    }
+}
+
+impl Transform {
+    /// `world_from_object`.
+    #[must_use]
+    pub fn matrix(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
+    }
+
+    /// Finite values, a normalisable rotation and non-zero scale.
+    ///
+    /// # Errors
+    /// What is wrong, naming `context`.
+    pub fn validate(&self, context: &str) -> Result<(), SceneError> {
+        if !self.translation.is_finite() {
+            return Err(invalid(
+                "transform.translation",
+                context,
+                format!("{} is not finite", self.translation),
+            ));
+        }
+        if !self.rotation.is_finite() || self.rotation.length() < 1e-6 {
+            return Err(invalid(
+                "transform.rotation",
+                context,
+                format!("{} is not a rotation", self.rotation),
+            ));
+        }
+        if !self.scale.is_finite() || self.scale.abs().min_element() < 1e-12 {
+            return Err(invalid(
+                "transform.scale",
+                context,
+                format!("{} must be finite and non-zero", self.scale),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A voxel model: an octree plus how its voxels map to the object's space.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VoxelModel {
+    /// The voxels (stored in the `.bin` payload).
+    #[serde(skip)]
+    pub svo: Svo,
+    /// Edge length of one voxel in object units.
+    pub voxel_size: f32,
+    /// Object-space position of voxel (0,0,0)'s minimum corner.
+    pub origin: Vec3,
+    /// Names of material ids (index = `Voxel::material`), from the source file.
+    pub material_names: Vec<String>,
+}
+
+impl Default for VoxelModel {
+    fn default() -> Self {
+        Self {
+            svo: Svo::default(),
+            voxel_size: 1.0,
+            origin: Vec3::ZERO,
+            material_names: Vec::new(),
+        }
+    }
+}
+
+impl VoxelModel {
+    /// `object_from_voxel`: maps voxel coordinates (voxel `c` spans `[c, c+1)`) to object space.
+    #[must_use]
+    pub fn object_from_voxel(&self) -> Mat4 {
+        Mat4::from_translation(self.origin) * Mat4::from_scale(Vec3::splat(self.voxel_size))
+    }
+
+    /// Object-space bounds of the solid voxels.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.svo.bounds().map(|(lo, hi)| {
+            (
+                self.origin + lo.as_vec3() * self.voxel_size,
+                self.origin + (hi + 1).as_vec3() * self.voxel_size,
+            )
+        })
+    }
+}
+
+/// A triangle mesh object (for example a ground plane or a prop).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct MeshObject {
+    /// The mesh (stored in the `.bin` payload).
+    #[serde(skip)]
+    pub model: MeshModel,
+    /// Whether it casts shadows.
+    pub casts_shadows: bool,
+}
+
+/// What an object is.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type")]
+#[allow(
+    clippy::large_enum_variant,
+    reason = "a handful of objects per document; boxing would only add indirection"
+)]
+pub enum ObjectKind {
+    /// A sparse voxel octree model.
+    Voxels(VoxelModel),
+    /// A triangle mesh.
+    Mesh(MeshObject),
+}
+
+impl Default for ObjectKind {
+    fn default() -> Self {
+        Self::Voxels(VoxelModel::default())
+    }
+}
+
+/// One object in the scene.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Object {
+    /// Stable id, unique in the document.
+    pub id: u64,
+    /// Display name.
+    pub name: String,
+    /// Hidden objects are neither rendered nor exported by default.
+    pub visible: bool,
+    /// `world_from_object`.
+    pub transform: Transform,
+    /// The payload.
+    pub kind: ObjectKind,
+}
+
+impl Default for Object {
+    fn default() -> Self {
+        Self {
+            id: 0,
+            name: String::new(),
+            visible: true,
+            transform: Transform::default(),
+            kind: ObjectKind::default(),
+        }
+    }
+}
+
+impl Object {
+    /// A short word for the kind, for listings.
+    #[must_use]
+    pub fn kind_name(&self) -> &'static str {
+        match self.kind {
+            ObjectKind::Voxels(_) => "voxels",
+            ObjectKind::Mesh(_) => "mesh",
+        }
+    }
+
+    /// World-space bounds, if the object has any geometry.
+    #[must_use]
+    pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
+        let (lo, hi) = match &self.kind {
+            ObjectKind::Voxels(v) => v.bounds()?,
+            ObjectKind::Mesh(m) => m.model.bounds()?,
+        };
+        let m = self.transform.matrix();
+        let mut out: Option<(Vec3, Vec3)> = None;
+        for k in 0..8 {
+            let corner = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let p = m.transform_point3(corner);
+            out = Some(out.map_or((p, p), |(a, b)| (a.min(p), b.max(p))));
+        }
+        out
+    }
+}
+
+/// A directional light (the sun).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Light {
+    /// Display name.
+    pub name: String,
+    /// Direction the light travels (from the light toward the scene).
+    pub direction: Vec3,
+    /// Linear RGB colour.
+    pub color: Vec3,
+    /// Multiplier on `color`.
+    pub intensity: f32,
+    /// Whether it casts shadows.
+    pub casts_shadows: bool,
+}
+
+impl Default for Light {
+    fn default() -> Self {
+        Self {
+            name: "Sun".into(),
+            direction: Vec3::new(-0.4, -1.0, -0.3),
+            color: Vec3::ONE,
+            intensity: 1.0,
+            casts_shadows: true,
+        }
+    }
+}
+
+/// An orbit camera: looks at `target` from `distance` along yaw/pitch.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct OrbitCamera {
+    /// Point orbited around.
+    pub target: Vec3,
+    /// Rotation about +Y in degrees (0 looks along -Z).
+    pub yaw_deg: f32,
+    /// Elevation in degrees (positive looks down on the target).
+    pub pitch_deg: f32,
+    /// Eye distance from the target.
+    pub distance: f32,
+    /// Vertical field of view in degrees.
+    pub fov_y_deg: f32,
+    /// Near clip distance.
+    pub near: f32,
+    /// Far clip distance.
+    pub far: f32,
+}
+
+impl Default for OrbitCamera {
+    fn default() -> Self {
+        Self {
+            target: Vec3::ZERO,
+            yaw_deg: 30.0,
+            pitch_deg: 20.0,
+            distance: 5.0,
+            fov_y_deg: 45.0,
+            near: 0.05,
+            far: 1000.0,
+        }
+    }
+}
+
+impl OrbitCamera {
+    /// Eye position in world space.
+    #[must_use]
+    pub fn eye(&self) -> Vec3 {
+        let (yaw, pitch) = (self.yaw_deg.to_radians(), self.pitch_deg.to_radians());
+        let back = Vec3::new(
+            yaw.sin() * pitch.cos(),
+            pitch.sin(),
+            yaw.cos() * pitch.cos(),
+        );
+        self.target + back * self.distance
+    }
+
+    /// `view_from_world` (right-handed, Y up, looking down -Z).
+    #[must_use]
+    pub fn view_from_world(&self) -> Mat4 {
+        let up = if self.pitch_deg.abs() > 89.9 {
+            Vec3::Z
+        } else {
+            Vec3::Y
+        };
+        Mat4::look_at_rh(self.eye(), self.target, up)
+    }
+
+    /// `clip_from_view` for an aspect ratio (width / height), depth 0..1 (wgpu convention).
+    #[must_use]
+    pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
+        Mat4::perspective_rh(self.fov_y_deg.to_radians(), aspect, self.near, self.far)
+    }
+
+    /// `clip_from_world`.
+    #[must_use]
+    pub fn clip_from_world(&self, aspect: f32) -> Mat4 {
+        self.clip_from_view(aspect) * self.view_from_world()
+    }
+
+    /// Places the camera so a bounding box fills the view, keeping yaw and pitch.
+    pub fn frame(&mut self, lo: Vec3, hi: Vec3) {
+        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        self.target = (lo + hi) * 0.5;
+        self.distance = radius / (self.fov_y_deg.to_radians() * 0.5).sin() * 1.05;
+        self.near = (self.distance - radius * 1.5).max(self.distance * 1e-3);
+        self.far = self.distance + radius * 4.0;
+    }
+
+    /// Finite values, positive distances, a usable field of view.
+    ///
+    /// # Errors
+    /// What is wrong.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let ok = self.target.is_finite()
+            && self.yaw_deg.is_finite()
+            && self.pitch_deg.is_finite()
+            && self.distance.is_finite()
+            && self.distance > 0.0
+            && self.fov_y_deg > 0.1
+            && self.fov_y_deg < 179.0
+            && self.near > 0.0
+            && self.far > self.near
+            && self.far.is_finite();
+        if ok {
+            Ok(())
+        } else {
+            Err(invalid(
+                "camera",
+                "document",
+                format!("{self:?} is not a usable camera"),
+            ))
+        }
+    }
+}
+
+/// The whole document.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Document {
+    /// File format version ([`FORMAT_VERSION`] when written by this build).
+    pub format_version: u32,
+    /// Objects in outliner order.
+    pub objects: Vec<Object>,
+    /// Lights.
+    pub lights: Vec<Light>,
+    /// Linear RGB ambient light.
+    pub ambient: Vec3,
+    /// Linear RGB background colour.
+    pub background: Vec3,
+    /// The view camera.
+    pub camera: OrbitCamera,
+    /// Render quality.
+    pub quality: Quality,
+}
+
+impl Default for Document {
+    fn default() -> Self {
+        Self {
+            format_version: FORMAT_VERSION,
+            objects: Vec::new(),
+            lights: vec![Light::default()],
+            ambient: Vec3::splat(0.25),
+            background: Vec3::new(0.2, 0.22, 0.25),
+            camera: OrbitCamera::default(),
+            quality: Quality::default(),
+        }
+    }
+}
+
+impl Document {
+    /// Adds an object with a fresh id; returns the id.
+    pub fn add(&mut self, name: impl Into<String>, kind: ObjectKind) -> u64 {
+        let id = self.objects.iter().map(|o| o.id).max().map_or(1, |m| m + 1);
+        self.objects.push(Object {
+            id,
+            name: name.into(),
+            kind,
+            ..Object::default()
+        });
+        id
+    }
+
+    /// Looks an object up by name.
+    #[must_use]
+    pub fn object_by_name(&self, name: &str) -> Option<&Object> {
+        self.objects.iter().find(|o| o.name == name)
+    }
+
+    /// World bounds of every visible object.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
+        self.objects
+            .iter()
+            .filter(|o| o.visible)
+            .filter_map(Object::world_bounds)
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+    }
+
+    /// Checks every number a renderer will read.
+    ///
+    /// # Errors
+    /// The first invalid value, naming the object or light.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        for o in &self.objects {
+            let ctx = format!("object {:?} (id {})", o.name, o.id);
+            o.transform.validate(&ctx)?;
+            match &o.kind {
+                ObjectKind::Voxels(v) => {
+                    if !(v.voxel_size.is_finite() && v.voxel_size > 0.0) {
+                        return Err(invalid(
+                            "voxel_size",
+                            &ctx,
+                            format!("{} must be positive", v.voxel_size),
+                        ));
+                    }
+                    if !v.origin.is_finite() {
+                        return Err(invalid("origin", &ctx, "not finite"));
+                    }
+                }
+                ObjectKind::Mesh(m) => {
+                    m.model
+                        .validate()
+                        .map_err(|(part, e)| invalid("mesh", &ctx, format!("part {part}: {e}")))?;
+                }
+            }
+        }
+        for l in &self.lights {
+            let ctx = format!("light {:?}", l.name);
+            if !l.direction.is_finite() || l.direction.length_squared() < 1e-12 {
+                return Err(invalid("direction", &ctx, "must be finite and non-zero"));
+            }
+            if !l.color.is_finite() || !l.intensity.is_finite() || l.intensity < 0.0 {
+                return Err(invalid(
+                    "colour/intensity",
+                    &ctx,
+                    "must be finite and non-negative",
+                ));
+            }
+        }
+        if !self.ambient.is_finite() || !self.background.is_finite() {
+            return Err(invalid("ambient/background", "document", "not finite"));
+        }
+        self.camera.validate()?;
+        self.quality
+            .validate()
+            .map_err(|e| invalid("quality", "document", e.to_string()))?;
+        let mut ids: Vec<u64> = self.objects.iter().map(|o| o.id).collect();
+        ids.sort_unstable();
+        if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+            return Err(invalid(
+                "id",
+                "document",
+                format!("object id {} is used twice", w[0]),
+            ));
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation_names_the_bad_object() {
+        let mut doc = Document::default();
+        doc.add("Rock", ObjectKind::Voxels(VoxelModel::default()));
+        doc.validate().unwrap();
+        doc.objects[0].transform.translation.x = f32::NAN;
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(e.contains("Rock") && e.contains("translation"), "{e}");
+        doc.objects[0].transform = Transform {
+            scale: Vec3::new(1.0, 0.0, 1.0),
+            ..Transform::default()
+        };
+        assert!(doc.validate().unwrap_err().to_string().contains("scale"));
+    }
+
+    #[test]
+    fn camera_frames_a_box() {
+        let mut cam = OrbitCamera::default();
+        cam.frame(Vec3::splat(-1.0), Vec3::splat(1.0));
+        let clip = cam.clip_from_world(1.0);
+        for k in 0..8 {
+            let c = Vec3::new(
+                if k & 1 == 0 { -1.0 } else { 1.0 },
+                if k & 2 == 0 { -1.0 } else { 1.0 },
+                if k & 4 == 0 { -1.0 } else { 1.0 },
+            );
+            let p = clip.project_point3(c);
+            assert!(
+                p.x.abs() <= 1.0 && p.y.abs() <= 1.0 && (0.0..=1.0).contains(&p.z),
+                "{p}"
+            );
+        }
+    }
+
+    #[test]
+    fn old_files_with_missing_fields_load() {
+        let doc: Document = serde_json::from_str(
+            r#"{"format_version":1,"objects":[{"name":"a","kind":{"type":"Voxels"}}]}"#,
+        )
+        .unwrap();
+        assert_eq!(doc.objects[0].name, "a");
+        assert!(doc.objects[0].visible);
+        assert_eq!(doc.quality, Quality::default());
+    }
+}

@@ -1,1 +1,805 @@
-//! `svo` (work in progress).
+//! The sparse voxel octree (ASVO paper §2, §4): integer coordinates, depth up to 21, children
+//! stored together, leaf attributes in separate arrays, averaged attributes on internal nodes.
+//!
+//! # Layout
+//! Nodes above the leaf level ("inner" nodes) live in one pool as two parallel arrays: an 8-bit
+//! child mask and the index of the first child. A node's children are stored together, in octant
+//! order, so child `k` of node `i` is `first_child[i] + popcount(mask[i] & ((1 << k) - 1))`.
+//! The children of a node at level `depth - 1` are leaves and index the *leaf* pool, which has
+//! no mask or child pointer at all: a leaf costs only its attributes. Attributes (colour,
+//! normal, material, optional skin) are structure-of-arrays per pool, so a renderer that only
+//! needs colours touches only colours.
+//!
+//! Octant `k` has bit 0 = +x half, bit 1 = +y half, bit 2 = +z half.
+//!
+//! # Edits
+//! [`Svo::edit_region`] visits only the nodes that overlap the edited box, so the cost follows
+//! the edit, not the model. When a node's child set changes its child block is moved to a block
+//! of the right size (freed blocks are reused by size). Every edit returns an [`UndoDelta`] with
+//! the previous value of each voxel it changed; applying it restores the octree exactly
+//! ([`Svo`]'s `PartialEq` compares the logical tree: structure, leaf and internal attributes,
+//! not pool layout). [`Svo::compact`] rebuilds the pools tightly.
+
+mod build;
+mod morton;
+mod query;
+mod voxel;
+
+#[cfg(test)]
+mod tests;
+
+pub use morton::{morton_decode, morton_encode};
+pub use query::{RayHit, front_to_back_order};
+pub use voxel::{Skin4, Voxel, decode_normal, encode_normal};
+
+use glam::UVec3;
+use serde::{Deserialize, Serialize};
+
+/// Deepest supported octree: 2^21 voxels per axis, so x, y, z fit in a 63-bit Morton code.
+pub const MAX_DEPTH: u8 = 21;
+
+/// Why an octree operation was refused.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum SvoError {
+    /// Depth outside 1..=21.
+    #[error("octree depth {0} is out of range (1..={MAX_DEPTH})")]
+    BadDepth(u8),
+    /// A coordinate outside the octree's extent.
+    #[error("voxel coordinate {coord:?} is outside the {extent}³ octree")]
+    OutOfBounds {
+        /// The coordinate.
+        coord: [u32; 3],
+        /// Voxels per axis.
+        extent: u32,
+    },
+}
+
+/// Structure-of-arrays attributes of one node pool.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Attrs {
+    pub(crate) color: Vec<[u8; 4]>,
+    pub(crate) normal: Vec<u16>,
+    pub(crate) material: Vec<u8>,
+    /// Empty unless the octree carries skin weights.
+    pub(crate) skin: Vec<Skin4>,
+}
+
+impl Attrs {
+    fn len(&self) -> usize {
+        self.color.len()
+    }
+
+    fn push_empty(&mut self, n: usize, has_skin: bool) {
+        let len = self.len() + n;
+        self.color.resize(len, [0; 4]);
+        self.normal.resize(len, 0);
+        self.material.resize(len, 0);
+        if has_skin {
+            self.skin.resize(len, Skin4::default());
+        }
+    }
+
+    fn get(&self, i: usize) -> Voxel {
+        Voxel {
+            color: self.color[i],
+            normal: self.normal[i],
+            material: self.material[i],
+            skin: self.skin.get(i).copied().unwrap_or_default(),
+        }
+    }
+
+    fn set(&mut self, i: usize, v: &Voxel) {
+        self.color[i] = v.color;
+        self.normal[i] = v.normal;
+        self.material[i] = v.material;
+        if let Some(s) = self.skin.get_mut(i) {
+            *s = v.skin;
+        }
+    }
+
+    fn copy_within(&mut self, from: usize, to: usize) {
+        self.color[to] = self.color[from];
+        self.normal[to] = self.normal[from];
+        self.material[to] = self.material[from];
+        if !self.skin.is_empty() {
+            self.skin[to] = self.skin[from];
+        }
+    }
+
+    fn bytes_per_entry(&self) -> usize {
+        4 + 2 + 1 + if self.skin.is_empty() { 0 } else { 8 }
+    }
+}
+
+/// A node handle during traversal: its level (0 = root), its index in the pool of its level
+/// kind (inner or leaf), and the voxel coordinate of its minimum corner.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct NodeRef {
+    /// 0 at the root, `depth` at the leaves.
+    pub level: u8,
+    /// Index into the inner pool (level < depth) or the leaf pool (level == depth).
+    pub index: u32,
+    /// Minimum corner in voxel coordinates.
+    pub origin: UVec3,
+}
+
+/// The old value of every voxel an edit changed; applying it undoes the edit.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct UndoDelta {
+    /// `(coordinate, value before the edit)`; `None` means the voxel was empty.
+    pub entries: Vec<(UVec3, Option<Voxel>)>,
+}
+
+impl UndoDelta {
+    /// True when the edit changed nothing.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.entries.is_empty()
+    }
+
+    /// Bytes this delta holds (for memory-bounded undo history).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        self.entries.capacity() * size_of::<(UVec3, Option<Voxel>)>()
+    }
+}
+
+/// What an edit did.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct EditResult {
+    /// Inclusive bounding box of the voxels that changed, or `None` if nothing changed.
+    pub changed: Option<(UVec3, UVec3)>,
+    /// Restores the previous state when applied with [`Svo::apply_delta`].
+    pub delta: UndoDelta,
+}
+
+/// Memory used by an octree, by part.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct MemoryStats {
+    /// Live internal nodes.
+    pub inner_nodes: u64,
+    /// Live leaf voxels.
+    pub leaves: u64,
+    /// Bytes of internal node structure (mask + child index) and their LOD attributes.
+    pub inner_bytes: u64,
+    /// Bytes of leaf attributes.
+    pub leaf_bytes: u64,
+    /// Allocated slots not holding a live node (freed by edits, reusable).
+    pub free_slots: u64,
+    /// Everything allocated, live or free.
+    pub total_bytes: u64,
+    /// `total_bytes / leaves` (0 for an empty octree).
+    pub bytes_per_leaf: f64,
+}
+
+/// A sparse voxel octree. See the module documentation for the layout.
+#[derive(Debug, Clone)]
+pub struct Svo {
+    depth: u8,
+    has_skin: bool,
+    inner_mask: Vec<u8>,
+    inner_first: Vec<u32>,
+    inner_attr: Attrs,
+    leaf_attr: Attrs,
+    /// Free blocks by size (index = block length 1..=8).
+    inner_free: [Vec<u32>; 9],
+    leaf_free: [Vec<u32>; 9],
+    leaf_count: u64,
+    inner_count: u64,
+}
+
+/// Number of children before octant `k` in `mask`: the offset of child `k` in its block.
+#[inline]
+#[must_use]
+pub fn child_rank(mask: u8, k: u8) -> u32 {
+    (u32::from(mask) & ((1u32 << k) - 1)).count_ones()
+}
+
+/// Offset of octant `k`'s minimum corner from its parent's, for a child of edge `half`.
+#[inline]
+#[must_use]
+pub fn octant_offset(k: u8, half: u32) -> UVec3 {
+    UVec3::new(
+        u32::from(k & 1),
+        u32::from((k >> 1) & 1),
+        u32::from((k >> 2) & 1),
+    ) * half
+}
+
+impl Svo {
+    /// An empty octree of `depth` levels below the root (`2^depth` voxels per axis).
+    ///
+    /// # Errors
+    /// [`SvoError::BadDepth`] unless `1 <= depth <= 21`.
+    pub fn new(depth: u8, has_skin: bool) -> Result<Self, SvoError> {
+        if depth == 0 || depth > MAX_DEPTH {
+            return Err(SvoError::BadDepth(depth));
+        }
+        let mut svo = Self {
+            depth,
+            has_skin,
+            inner_mask: vec![0],
+            inner_first: vec![0],
+            inner_attr: Attrs::default(),
+            leaf_attr: Attrs::default(),
+            inner_free: Default::default(),
+            leaf_free: Default::default(),
+            leaf_count: 0,
+            inner_count: 1,
+        };
+        svo.inner_attr.push_empty(1, has_skin);
+        Ok(svo)
+    }
+
+    /// Levels below the root.
+    #[must_use]
+    pub fn depth(&self) -> u8 {
+        self.depth
+    }
+
+    /// Voxels per axis (`2^depth`).
+    #[must_use]
+    pub fn extent(&self) -> u32 {
+        1 << self.depth
+    }
+
+    /// Whether leaves carry skin weights.
+    #[must_use]
+    pub fn has_skin(&self) -> bool {
+        self.has_skin
+    }
+
+    /// Number of solid voxels.
+    #[must_use]
+    pub fn leaf_count(&self) -> u64 {
+        self.leaf_count
+    }
+
+    /// Number of live internal nodes (the root included).
+    #[must_use]
+    pub fn inner_count(&self) -> u64 {
+        self.inner_count
+    }
+
+    /// True when no voxel is solid.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.leaf_count == 0
+    }
+
+    /// Edge length in voxels of a node at `level`.
+    #[inline]
+    #[must_use]
+    pub fn node_size(&self, level: u8) -> u32 {
+        1 << (self.depth - level)
+    }
+
+    /// The root node.
+    #[must_use]
+    pub fn root(&self) -> NodeRef {
+        NodeRef {
+            level: 0,
+            index: 0,
+            origin: UVec3::ZERO,
+        }
+    }
+
+    /// Whether `node` is a leaf voxel.
+    #[inline]
+    #[must_use]
+    pub fn is_leaf(&self, node: &NodeRef) -> bool {
+        node.level == self.depth
+    }
+
+    /// Child mask of a node (0 for leaves).
+    #[inline]
+    #[must_use]
+    pub fn child_mask(&self, node: &NodeRef) -> u8 {
+        if self.is_leaf(node) {
+            0
+        } else {
+            self.inner_mask[node.index as usize]
+        }
+    }
+
+    /// Child `k` of `node`, if present.
+    #[inline]
+    #[must_use]
+    pub fn child(&self, node: &NodeRef, k: u8) -> Option<NodeRef> {
+        let mask = self.child_mask(node);
+        if mask & (1 << k) == 0 {
+            return None;
+        }
+        let half = self.node_size(node.level) / 2;
+        Some(NodeRef {
+            level: node.level + 1,
+            index: self.inner_first[node.index as usize] + child_rank(mask, k),
+            origin: node.origin + octant_offset(k, half),
+        })
+    }
+
+    /// Attributes of a node: a leaf's own, or an internal node's average over its subtree.
+    #[inline]
+    #[must_use]
+    pub fn node_voxel(&self, node: &NodeRef) -> Voxel {
+        if self.is_leaf(node) {
+            self.leaf_attr.get(node.index as usize)
+        } else {
+            self.inner_attr.get(node.index as usize)
+        }
+    }
+
+    fn check(&self, c: UVec3) -> Result<(), SvoError> {
+        if c.max_element() >= self.extent() {
+            return Err(SvoError::OutOfBounds {
+                coord: c.to_array(),
+                extent: self.extent(),
+            });
+        }
+        Ok(())
+    }
+
+    /// The voxel at `coord`, or `None` when empty or outside.
+    #[must_use]
+    pub fn get(&self, coord: UVec3) -> Option<Voxel> {
+        if self.check(coord).is_err() {
+            return None;
+        }
+        let mut node = self.root();
+        while !self.is_leaf(&node) {
+            let half = self.node_size(node.level) / 2;
+            let local = coord - node.origin;
+            let k = u8::from(local.x >= half)
+                | u8::from(local.y >= half) << 1
+                | u8::from(local.z >= half) << 2;
+            node = self.child(&node, k)?;
+        }
+        Some(self.leaf_attr.get(node.index as usize))
+    }
+
+    /// Sets one voxel; returns its previous value.
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`].
+    pub fn set(&mut self, coord: UVec3, voxel: Voxel) -> Result<Option<Voxel>, SvoError> {
+        let r = self.edit_region(coord, coord, |_, _| Some(voxel))?;
+        Ok(r.delta.entries.first().map_or(Some(voxel), |e| e.1))
+    }
+
+    /// Removes one voxel; returns its previous value.
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`].
+    pub fn remove(&mut self, coord: UVec3) -> Result<Option<Voxel>, SvoError> {
+        let r = self.edit_existing(coord, coord, |_, _| None)?;
+        Ok(r.delta.entries.first().and_then(|e| e.1))
+    }
+
+    /// Recolours one voxel if it is solid; returns whether it was.
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`].
+    pub fn paint(&mut self, coord: UVec3, color: [u8; 4]) -> Result<bool, SvoError> {
+        let mut found = false;
+        self.edit_existing(coord, coord, |_, v| {
+            found = true;
+            Some(Voxel { color, ..v })
+        })?;
+        Ok(found)
+    }
+
+    /// Edits every voxel in the inclusive box `lo..=hi` (clamped to the octree):
+    /// `f(coord, old) -> new`. Visits only nodes overlapping the box.
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`] when the box misses the octree entirely.
+    pub fn edit_region(
+        &mut self,
+        lo: UVec3,
+        hi: UVec3,
+        mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+    ) -> Result<EditResult, SvoError> {
+        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old))
+    }
+
+    /// Like [`Svo::edit_region`] but visits only voxels that are already solid (paint, remove,
+    /// smooth): `f(coord, old) -> new`, `None` removes.
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`] when the box misses the octree entirely.
+    pub fn edit_existing(
+        &mut self,
+        lo: UVec3,
+        hi: UVec3,
+        mut f: impl FnMut(UVec3, Voxel) -> Option<Voxel>,
+    ) -> Result<EditResult, SvoError> {
+        self.edit_impl(lo, hi, false, &mut |c, old| old.and_then(|v| f(c, v)))
+    }
+
+    /// Applies an undo delta; returns the delta that redoes what it undid.
+    pub fn apply_delta(&mut self, delta: &UndoDelta) -> UndoDelta {
+        let mut redo = UndoDelta::default();
+        for &(coord, value) in &delta.entries {
+            if self.check(coord).is_err() {
+                continue;
+            }
+            if let Ok(r) = self.edit_region(coord, coord, |_, _| value) {
+                redo.entries.extend(r.delta.entries);
+            }
+        }
+        redo.entries.reverse();
+        redo
+    }
+
+    fn edit_impl(
+        &mut self,
+        lo: UVec3,
+        hi: UVec3,
+        create: bool,
+        f: &mut dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+    ) -> Result<EditResult, SvoError> {
+        let max = UVec3::splat(self.extent() - 1);
+        if lo.cmpgt(max).any() || lo.cmpgt(hi).any() {
+            return Err(SvoError::OutOfBounds {
+                coord: lo.to_array(),
+                extent: self.extent(),
+            });
+        }
+        let hi = hi.min(max);
+        let mut result = EditResult::default();
+        let mut ctx = EditCtx {
+            lo,
+            hi,
+            create,
+            f,
+            result: &mut result,
+        };
+        self.edit_inner(0, 0, UVec3::ZERO, &mut ctx);
+        Ok(result)
+    }
+
+    fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) {
+        let iu = i as usize;
+        let half = self.node_size(level) / 2;
+        let child_is_leaf = level + 1 == self.depth;
+        let old_mask = self.inner_mask[iu];
+        let mut touched = 0u8;
+        for k in 0..8u8 {
+            let c_lo = origin + octant_offset(k, half);
+            let c_hi = c_lo + UVec3::splat(half - 1);
+            if c_lo.cmple(ctx.hi).all() && c_hi.cmpge(ctx.lo).all() {
+                touched |= 1 << k;
+            }
+        }
+        if !ctx.create {
+            touched &= old_mask;
+        }
+        if touched == 0 {
+            return;
+        }
+        let mask = old_mask | touched;
+        if mask != old_mask {
+            self.rebuild_block(iu, child_is_leaf, mask);
+        }
+        let first = self.inner_first[iu];
+        let mut present = 0u8;
+        for k in 0..8u8 {
+            if mask & (1 << k) == 0 {
+                continue;
+            }
+            let slot = first + child_rank(mask, k);
+            let existed = old_mask & (1 << k) != 0;
+            if touched & (1 << k) == 0 {
+                present |= 1 << k;
+                continue;
+            }
+            let c_origin = origin + octant_offset(k, half);
+            if child_is_leaf {
+                let old = existed.then(|| self.leaf_attr.get(slot as usize));
+                let new = (ctx.f)(c_origin, old);
+                if new != old {
+                    ctx.record(c_origin, old);
+                    match (old.is_some(), new.is_some()) {
+                        (false, true) => self.leaf_count += 1,
+                        (true, false) => self.leaf_count -= 1,
+                        _ => {}
+                    }
+                }
+                if let Some(v) = new {
+                    let v = if self.has_skin {
+                        v
+                    } else {
+                        Voxel {
+                            skin: Skin4::default(),
+                            ..v
+                        }
+                    };
+                    self.leaf_attr.set(slot as usize, &v);
+                    present |= 1 << k;
+                }
+            } else {
+                if !existed {
+                    self.inner_mask[slot as usize] = 0;
+                    self.inner_first[slot as usize] = 0;
+                    self.inner_count += 1;
+                }
+                self.edit_inner(level + 1, slot, c_origin, ctx);
+                if self.inner_mask[slot as usize] != 0 {
+                    present |= 1 << k;
+                } else {
+                    self.inner_count -= 1;
+                }
+            }
+        }
+        if present != mask {
+            if present == 0 {
+                self.free_block(child_is_leaf, first, mask.count_ones());
+                self.inner_mask[iu] = 0;
+                self.inner_first[iu] = 0;
+            } else {
+                self.rebuild_block(iu, child_is_leaf, present);
+            }
+        }
+        if self.inner_mask[iu] != 0 {
+            self.update_inner_attrs(level, i);
+        }
+    }
+
+    /// Moves node `iu`'s children into a block laid out for `new_mask`. Children in both masks
+    /// keep their data; new ones are left uninitialised for the caller to fill.
+    fn rebuild_block(&mut self, iu: usize, child_is_leaf: bool, new_mask: u8) {
+        let old_mask = self.inner_mask[iu];
+        let old_first = self.inner_first[iu];
+        let new_first = self.alloc_block(child_is_leaf, new_mask.count_ones());
+        for k in 0..8u8 {
+            if old_mask & new_mask & (1 << k) != 0 {
+                let from = (old_first + child_rank(old_mask, k)) as usize;
+                let to = (new_first + child_rank(new_mask, k)) as usize;
+                if child_is_leaf {
+                    self.leaf_attr.copy_within(from, to);
+                } else {
+                    self.inner_mask[to] = self.inner_mask[from];
+                    self.inner_first[to] = self.inner_first[from];
+                    self.inner_attr.copy_within(from, to);
+                }
+            }
+        }
+        if old_mask != 0 {
+            self.free_block(child_is_leaf, old_first, old_mask.count_ones());
+        }
+        self.inner_mask[iu] = new_mask;
+        self.inner_first[iu] = new_first;
+    }
+
+    fn alloc_block(&mut self, leaf: bool, n: u32) -> u32 {
+        let free = if leaf {
+            &mut self.leaf_free[n as usize]
+        } else {
+            &mut self.inner_free[n as usize]
+        };
+        if let Some(first) = free.pop() {
+            return first;
+        }
+        if leaf {
+            let first = self.leaf_attr.len() as u32;
+            self.leaf_attr.push_empty(n as usize, self.has_skin);
+            first
+        } else {
+            let first = self.inner_mask.len() as u32;
+            self.inner_mask
+                .resize(self.inner_mask.len() + n as usize, 0);
+            self.inner_first
+                .resize(self.inner_first.len() + n as usize, 0);
+            self.inner_attr.push_empty(n as usize, self.has_skin);
+            first
+        }
+    }
+
+    fn free_block(&mut self, leaf: bool, first: u32, n: u32) {
+        if n == 0 {
+            return;
+        }
+        if leaf {
+            self.leaf_free[n as usize].push(first);
+        } else {
+            self.inner_free[n as usize].push(first);
+        }
+    }
+
+    /// Recomputes an internal node's LOD attributes from its children.
+    fn update_inner_attrs(&mut self, level: u8, i: u32) {
+        let iu = i as usize;
+        let mask = self.inner_mask[iu];
+        let first = self.inner_first[iu] as usize;
+        let n = mask.count_ones() as usize;
+        let pool = if level + 1 == self.depth {
+            &self.leaf_attr
+        } else {
+            &self.inner_attr
+        };
+        let merged = voxel::merge(
+            (first..first + n).map(|c| (pool.color[c], pool.normal[c], pool.material[c])),
+            pool.skin.get(first..first + n),
+        );
+        self.inner_attr.set(iu, &merged);
+    }
+
+    /// Calls `f(coord, voxel)` for every solid voxel, in Morton order.
+    pub fn for_each_leaf(&self, mut f: impl FnMut(UVec3, Voxel)) {
+        if self.inner_mask[0] == 0 {
+            return;
+        }
+        let mut stack = vec![(self.root(), 0u8)];
+        while let Some((node, next_k)) = stack.pop() {
+            if self.is_leaf(&node) {
+                f(node.origin, self.leaf_attr.get(node.index as usize));
+                continue;
+            }
+            let mask = self.inner_mask[node.index as usize];
+            if let Some(k) = (next_k..8).find(|k| mask & (1 << k) != 0) {
+                stack.push((node, k + 1));
+                if let Some(child) = self.child(&node, k) {
+                    stack.push((child, 0));
+                }
+            }
+        }
+    }
+
+    /// Every solid voxel in Morton order.
+    #[must_use]
+    pub fn leaves(&self) -> Vec<(UVec3, Voxel)> {
+        let mut out = Vec::with_capacity(self.leaf_count as usize);
+        self.for_each_leaf(|c, v| out.push((c, v)));
+        out
+    }
+
+    /// Inclusive bounds of the solid voxels, by descending only along occupied children.
+    #[must_use]
+    pub fn bounds(&self) -> Option<(UVec3, UVec3)> {
+        if self.is_empty() {
+            return None;
+        }
+        let mut lo = UVec3::MAX;
+        let mut hi = UVec3::ZERO;
+        // Every leaf is visited; cheap next to anything that needs bounds.
+        self.for_each_leaf(|c, _| {
+            lo = lo.min(c);
+            hi = hi.max(c);
+        });
+        Some((lo, hi))
+    }
+
+    /// Memory used, by part.
+    #[must_use]
+    pub fn memory_stats(&self) -> MemoryStats {
+        let inner_slots = self.inner_mask.len() as u64;
+        let leaf_slots = self.leaf_attr.len() as u64;
+        let inner_entry = (1 + 4 + self.inner_attr.bytes_per_entry()) as u64;
+        let leaf_entry = self.leaf_attr.bytes_per_entry() as u64;
+        let total = inner_slots * inner_entry + leaf_slots * leaf_entry;
+        MemoryStats {
+            inner_nodes: self.inner_count,
+            leaves: self.leaf_count,
+            inner_bytes: self.inner_count * inner_entry,
+            leaf_bytes: self.leaf_count * leaf_entry,
+            free_slots: (inner_slots - self.inner_count) + (leaf_slots - self.leaf_count),
+            total_bytes: total,
+            bytes_per_leaf: if self.leaf_count == 0 {
+                0.0
+            } else {
+                total as f64 / self.leaf_count as f64
+            },
+        }
+    }
+
+    /// Rebuilds the pools tightly in Morton order (drops free slots left by edits).
+    pub fn compact(&mut self) {
+        let rebuilt = Self::from_voxels(self.depth, self.has_skin, self.leaves());
+        if let Ok(r) = rebuilt {
+            *self = r;
+        }
+    }
+
+    /// Raw pools for GPU upload: inner child masks.
+    #[must_use]
+    pub fn inner_masks(&self) -> &[u8] {
+        &self.inner_mask
+    }
+
+    /// Raw pools for GPU upload: inner first-child indices.
+    #[must_use]
+    pub fn inner_first_children(&self) -> &[u32] {
+        &self.inner_first
+    }
+
+    /// Raw pools for GPU upload: inner LOD colours (sRGB RGBA8).
+    #[must_use]
+    pub fn inner_colors(&self) -> &[[u8; 4]] {
+        &self.inner_attr.color
+    }
+
+    /// Raw pools for GPU upload: inner LOD normals (octahedral).
+    #[must_use]
+    pub fn inner_normals(&self) -> &[u16] {
+        &self.inner_attr.normal
+    }
+
+    /// Raw pools for GPU upload: leaf colours (sRGB RGBA8).
+    #[must_use]
+    pub fn leaf_colors(&self) -> &[[u8; 4]] {
+        &self.leaf_attr.color
+    }
+
+    /// Raw pools for GPU upload: leaf normals (octahedral).
+    #[must_use]
+    pub fn leaf_normals(&self) -> &[u16] {
+        &self.leaf_attr.normal
+    }
+
+    /// Raw pools: inner merged skin weights (empty without skin).
+    #[must_use]
+    pub fn inner_skin(&self) -> &[Skin4] {
+        &self.inner_attr.skin
+    }
+
+    /// Raw pools: leaf skin weights (empty without skin).
+    #[must_use]
+    pub fn leaf_skin(&self) -> &[Skin4] {
+        &self.leaf_attr.skin
+    }
+}
+
+impl Default for Svo {
+    /// An empty depth-1 octree.
+    fn default() -> Self {
+        Self::new(1, false).unwrap_or_else(|_| unreachable!("depth 1 is in range"))
+    }
+}
+
+struct EditCtx<'a, 'f> {
+    lo: UVec3,
+    hi: UVec3,
+    create: bool,
+    f: &'a mut (dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel> + 'f),
+    result: &'a mut EditResult,
+}
+
+impl EditCtx<'_, '_> {
+    fn record(&mut self, coord: UVec3, old: Option<Voxel>) {
+        self.result.delta.entries.push((coord, old));
+        self.result.changed = Some(match self.result.changed {
+            None => (coord, coord),
+            Some((lo, hi)) => (lo.min(coord), hi.max(coord)),
+        });
+    }
+}
+
+impl PartialEq for Svo {
+    /// Logical equality: same depth, skin flag, structure and attributes (leaf and internal),
+    /// whatever the pool layout.
+    fn eq(&self, other: &Self) -> bool {
+        if self.depth != other.depth
+            || self.has_skin != other.has_skin
+            || self.leaf_count != other.leaf_count
+        {
+            return false;
+        }
+        let mut stack = vec![(self.root(), other.root())];
+        while let Some((a, b)) = stack.pop() {
+            if self.child_mask(&a) != other.child_mask(&b) {
+                return false;
+            }
+            if (a.level > 0 || self.inner_mask[0] != 0)
+                && self.node_voxel(&a) != other.node_voxel(&b)
+            {
+                return false;
+            }
+            for k in 0..8 {
+                if let (Some(ca), Some(cb)) = (self.child(&a, k), other.child(&b, k)) {
+                    stack.push((ca, cb));
+                }
+            }
+        }
+        true
+    }
+}
