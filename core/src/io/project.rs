@@ -1,0 +1,698 @@
+//! Project files: `NAME.thicket.json` (the document's parameters, human-readable) plus, when the
+//! document holds voxel or mesh data, `NAME.thicket.bin` beside it with the binary payloads.
+//!
+//! The JSON carries `format_version`, every struct is `#[serde(default)]`, and each payload is
+//! addressed by offset and length with a CRC-32; the JSON also records the length and CRC-32 of
+//! the whole `.bin`, so a `.bin` that does not belong to the JSON is detected.
+//!
+//! # Atomic saves
+//! 1. write `NAME.thicket.bin.tmp` and `NAME.thicket.json.tmp`, flush and sync both;
+//! 2. rename the current `.bin` to `.bin.prev`;
+//! 3. rename the new `.bin` into place, then the new `.json`; sync the directory;
+//! 4. remove `.bin.prev`.
+//!
+//! Whatever moment the process dies, the JSON on disk is complete (old or new), and the `.bin` it
+//! names is either `.bin` or `.bin.prev` — the loader tries both and takes the one whose length
+//! and checksum match. So the previous save stays readable until the new one is whole.
+
+use std::fs::{self, File};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
+use crate::scene::{Document, FORMAT_VERSION, ObjectKind, SceneError};
+use crate::svo::{Skin4, Svo, Voxel, morton_decode, morton_encode};
+
+/// Largest project JSON we read (the JSON holds parameters only; payloads are in the `.bin`).
+const MAX_JSON_BYTES: u64 = 256 << 20;
+/// Largest `.bin` we read.
+const MAX_BIN_BYTES: u64 = 16 << 30;
+
+/// Why a project could not be loaded or saved.
+#[derive(Debug, thiserror::Error)]
+pub enum ProjectError {
+    /// The file system refused.
+    #[error("{path}: {source}")]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The JSON does not parse (with its line and column).
+    #[error("{path}: line {line}, column {column}: {message}")]
+    Json {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// 1-based column.
+        column: usize,
+        /// What the parser said.
+        message: String,
+    },
+    /// Written by a newer version of Thicket.
+    #[error(
+        "{path}: format_version {found} is newer than this build supports ({supported}); update Thicket"
+    )]
+    Version {
+        /// The file.
+        path: PathBuf,
+        /// Version in the file.
+        found: u32,
+        /// Newest version this build reads.
+        supported: u32,
+    },
+    /// A binary payload is missing, out of range, corrupt, or fails its checksum.
+    #[error("{path}: {detail}")]
+    Payload {
+        /// The file.
+        path: PathBuf,
+        /// What and where.
+        detail: String,
+    },
+    /// A file larger than we are willing to read.
+    #[error("{path}: {bytes} bytes is larger than the {limit}-byte limit for this kind of file")]
+    TooLarge {
+        /// The file.
+        path: PathBuf,
+        /// Its size.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The document parses but holds values a renderer must not see.
+    #[error("{path}: {source}")]
+    Invalid {
+        /// The file.
+        path: PathBuf,
+        /// What is invalid.
+        #[source]
+        source: SceneError,
+    },
+}
+
+/// Where a payload lives in the `.bin`.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+struct PayloadRef {
+    /// The object it belongs to.
+    object_id: u64,
+    /// Byte offset in the `.bin`.
+    offset: u64,
+    /// Byte length.
+    length: u64,
+    /// CRC-32 of those bytes.
+    crc32: u32,
+}
+
+/// Identity of the whole `.bin` the JSON was saved with.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+struct BinRef {
+    /// File name, relative to the JSON.
+    file: String,
+    /// Byte length.
+    length: u64,
+    /// CRC-32 of the whole file.
+    crc32: u32,
+}
+
+#[derive(Serialize, Deserialize, Default)]
+#[serde(default)]
+struct ProjectFile {
+    #[serde(flatten)]
+    document: Document,
+    bin: Option<BinRef>,
+    payloads: Vec<PayloadRef>,
+}
+
+/// The `.bin` path that belongs to a project JSON path (`a.thicket.json` → `a.thicket.bin`).
+#[must_use]
+pub fn bin_path_for(json_path: &Path) -> PathBuf {
+    let name = json_path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = name.strip_suffix(".json").unwrap_or(&name);
+    json_path.with_file_name(format!("{stem}.bin"))
+}
+
+fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
+    let mut s = path.as_os_str().to_owned();
+    s.push(suffix);
+    PathBuf::from(s)
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> ProjectError + '_ {
+    move |source| ProjectError::Io {
+        path: path.to_owned(),
+        source,
+    }
+}
+
+/// Writes `bytes` to `path` through a synced temporary sibling (not yet renamed).
+fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), ProjectError> {
+    let mut f = File::create(path).map_err(io_err(path))?;
+    f.write_all(bytes).map_err(io_err(path))?;
+    f.sync_all().map_err(io_err(path))
+}
+
+fn sync_dir(dir: &Path) {
+    // Directory fsync makes the renames durable; some file systems refuse it, which only
+    // weakens durability, never correctness, so a failure is ignored.
+    if let Ok(d) = File::open(dir) {
+        let _ = d.sync_all();
+    }
+}
+
+/// Saves a project atomically (see the module docs). Validates the document first, so what is
+/// written always loads.
+///
+/// # Errors
+/// [`ProjectError::Invalid`] for a document that does not validate, [`ProjectError::Io`] when
+/// the file system refuses; the previous save is untouched in both cases.
+pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
+    doc.validate().map_err(|source| ProjectError::Invalid {
+        path: json_path.to_owned(),
+        source,
+    })?;
+    let bin_path = bin_path_for(json_path);
+    let mut bin = Vec::new();
+    let mut payloads = Vec::new();
+    for o in &doc.objects {
+        let start = bin.len();
+        match &o.kind {
+            ObjectKind::Voxels(v) => encode_svo(&v.svo, &mut bin),
+            ObjectKind::Mesh(m) => encode_mesh(&m.model, &mut bin),
+        }
+        let bytes = &bin[start..];
+        payloads.push(PayloadRef {
+            object_id: o.id,
+            offset: start as u64,
+            length: bytes.len() as u64,
+            crc32: crc32fast::hash(bytes),
+        });
+    }
+    let bin_ref = (!payloads.is_empty()).then(|| BinRef {
+        file: bin_path
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default(),
+        length: bin.len() as u64,
+        crc32: crc32fast::hash(&bin),
+    });
+    let file = ProjectFile {
+        document: Document {
+            format_version: FORMAT_VERSION,
+            ..doc.clone()
+        },
+        bin: bin_ref,
+        payloads,
+    };
+    let json = serde_json::to_vec_pretty(&file).map_err(|e| ProjectError::Payload {
+        path: json_path.to_owned(),
+        detail: format!("cannot encode the document: {e}"),
+    })?;
+
+    let json_tmp = with_suffix(json_path, ".tmp");
+    let bin_tmp = with_suffix(&bin_path, ".tmp");
+    let bin_prev = with_suffix(&bin_path, ".prev");
+    let cleanup = |e: ProjectError| {
+        let _ = fs::remove_file(&json_tmp);
+        let _ = fs::remove_file(&bin_tmp);
+        e
+    };
+    if file.bin.is_some() {
+        write_synced(&bin_tmp, &bin).map_err(cleanup)?;
+    }
+    write_synced(&json_tmp, &json).map_err(cleanup)?;
+    if file.bin.is_some() {
+        if bin_path.exists() {
+            fs::rename(&bin_path, &bin_prev)
+                .map_err(io_err(&bin_path))
+                .map_err(cleanup)?;
+        }
+        fs::rename(&bin_tmp, &bin_path)
+            .map_err(io_err(&bin_path))
+            .map_err(cleanup)?;
+    }
+    fs::rename(&json_tmp, json_path)
+        .map_err(io_err(json_path))
+        .map_err(cleanup)?;
+    sync_dir(
+        json_path
+            .parent()
+            .filter(|p| !p.as_os_str().is_empty())
+            .unwrap_or(Path::new(".")),
+    );
+    let _ = fs::remove_file(&bin_prev);
+    Ok(())
+}
+
+fn read_capped(path: &Path, limit: u64) -> Result<Vec<u8>, ProjectError> {
+    let meta = fs::metadata(path).map_err(io_err(path))?;
+    if meta.len() > limit {
+        return Err(ProjectError::TooLarge {
+            path: path.to_owned(),
+            bytes: meta.len(),
+            limit,
+        });
+    }
+    fs::read(path).map_err(io_err(path))
+}
+
+/// Loads a project saved by [`save`].
+///
+/// # Errors
+/// A [`ProjectError`] naming the file and what is wrong; never panics on bad input.
+pub fn load(json_path: &Path) -> Result<Document, ProjectError> {
+    let text = read_capped(json_path, MAX_JSON_BYTES)?;
+    load_from_parts(json_path, &text, |bin_ref| {
+        let primary = json_path.with_file_name(&bin_ref.file);
+        if bin_ref.file.contains(['/', '\\']) || bin_ref.file.is_empty() {
+            return Err(ProjectError::Payload {
+                path: json_path.to_owned(),
+                detail: format!(
+                    "bin file name {:?} must be a plain file name beside the project",
+                    bin_ref.file
+                ),
+            });
+        }
+        let mut last_err = None;
+        for candidate in [primary.clone(), with_suffix(&primary, ".prev")] {
+            match read_capped(&candidate, MAX_BIN_BYTES) {
+                Ok(bytes)
+                    if bytes.len() as u64 == bin_ref.length
+                        && crc32fast::hash(&bytes) == bin_ref.crc32 =>
+                {
+                    return Ok(bytes);
+                }
+                Ok(bytes) => {
+                    last_err.get_or_insert(ProjectError::Payload {
+                        path: candidate,
+                        detail: format!(
+                            "does not belong to this project: {} bytes with CRC-32 {:08x}, the project expects {} bytes with CRC-32 {:08x}",
+                            bytes.len(),
+                            crc32fast::hash(&bytes),
+                            bin_ref.length,
+                            bin_ref.crc32
+                        ),
+                    });
+                }
+                Err(e) => {
+                    last_err.get_or_insert(e);
+                }
+            }
+        }
+        Err(last_err.unwrap_or(ProjectError::Payload {
+            path: primary,
+            detail: "missing".into(),
+        }))
+    })
+}
+
+/// Parses a project from its JSON bytes; `read_bin` supplies the `.bin` (checked against the
+/// [`BinRef`]). Separate from [`load`] so fuzzing needs no files.
+fn load_from_parts(
+    json_path: &Path,
+    text: &[u8],
+    read_bin: impl FnOnce(&BinRef) -> Result<Vec<u8>, ProjectError>,
+) -> Result<Document, ProjectError> {
+    let file: ProjectFile = serde_json::from_slice(text).map_err(|e| ProjectError::Json {
+        path: json_path.to_owned(),
+        line: e.line(),
+        column: e.column(),
+        message: e.to_string(),
+    })?;
+    let mut doc = file.document;
+    if doc.format_version > FORMAT_VERSION {
+        return Err(ProjectError::Version {
+            path: json_path.to_owned(),
+            found: doc.format_version,
+            supported: FORMAT_VERSION,
+        });
+    }
+    let payload_err = |detail: String| ProjectError::Payload {
+        path: json_path.to_owned(),
+        detail,
+    };
+    let bin = match &file.bin {
+        Some(r) => read_bin(r)?,
+        None => Vec::new(),
+    };
+    let bin_name = file.bin.as_ref().map_or(String::new(), |b| b.file.clone());
+    for o in &mut doc.objects {
+        let what = format!("object {:?} (id {})", o.name, o.id);
+        let p = file
+            .payloads
+            .iter()
+            .find(|p| p.object_id == o.id)
+            .ok_or_else(|| payload_err(format!("{what} has no payload in {bin_name:?}")))?;
+        let end = p
+            .offset
+            .checked_add(p.length)
+            .filter(|&e| e <= bin.len() as u64)
+            .ok_or_else(|| {
+                payload_err(format!(
+                    "{what}: payload at offset {} length {} lies outside {bin_name:?} ({} bytes)",
+                    p.offset,
+                    p.length,
+                    bin.len()
+                ))
+            })?;
+        let bytes = &bin[p.offset as usize..end as usize];
+        let crc = crc32fast::hash(bytes);
+        if crc != p.crc32 {
+            return Err(payload_err(format!(
+                "{what}: payload checksum mismatch in {bin_name:?} (expected {:08x}, found {crc:08x}); the file is corrupt",
+                p.crc32
+            )));
+        }
+        match &mut o.kind {
+            ObjectKind::Voxels(v) => {
+                v.svo = decode_svo(bytes)
+                    .map_err(|d| payload_err(format!("{what}: voxel payload: {d}")))?;
+            }
+            ObjectKind::Mesh(m) => {
+                m.model = decode_mesh(bytes)
+                    .map_err(|d| payload_err(format!("{what}: mesh payload: {d}")))?;
+            }
+        }
+    }
+    doc.validate().map_err(|source| ProjectError::Invalid {
+        path: json_path.to_owned(),
+        source,
+    })?;
+    Ok(doc)
+}
+
+// ---- binary encoding -------------------------------------------------------------------------
+
+const SVO_MAGIC: &[u8; 4] = b"SVO1";
+const MESH_MAGIC: &[u8; 4] = b"MSH1";
+
+/// Little-endian reader that checks every length before reading or allocating.
+struct Reader<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8], String> {
+        let end = self
+            .at
+            .checked_add(n)
+            .filter(|&e| e <= self.bytes.len())
+            .ok_or_else(|| {
+                format!(
+                    "truncated: needs {n} bytes at offset {} but only {} remain",
+                    self.at,
+                    self.bytes.len() - self.at
+                )
+            })?;
+        let s = &self.bytes[self.at..end];
+        self.at = end;
+        Ok(s)
+    }
+    fn u8(&mut self) -> Result<u8, String> {
+        Ok(self.take(1)?[0])
+    }
+    fn u16(&mut self) -> Result<u16, String> {
+        Ok(u16::from_le_bytes(
+            self.take(2)?.try_into().unwrap_or_default(),
+        ))
+    }
+    fn u32(&mut self) -> Result<u32, String> {
+        Ok(u32::from_le_bytes(
+            self.take(4)?.try_into().unwrap_or_default(),
+        ))
+    }
+    fn u64(&mut self) -> Result<u64, String> {
+        Ok(u64::from_le_bytes(
+            self.take(8)?.try_into().unwrap_or_default(),
+        ))
+    }
+    fn f32(&mut self) -> Result<f32, String> {
+        Ok(f32::from_bits(self.u32()?))
+    }
+    fn remaining(&self) -> usize {
+        self.bytes.len() - self.at
+    }
+    /// A count of elements of `elem` bytes each, refused if more than the bytes left could hold.
+    fn count(&mut self, elem: usize, what: &str) -> Result<usize, String> {
+        let n = self.u32()? as usize;
+        if n.saturating_mul(elem) > self.remaining() {
+            return Err(format!(
+                "{what}: declares {n} entries but only {} bytes remain",
+                self.remaining()
+            ));
+        }
+        Ok(n)
+    }
+    fn floats<const N: usize>(&mut self, n: usize) -> Result<Vec<[f32; N]>, String> {
+        (0..n)
+            .map(|_| {
+                (0..N)
+                    .map(|_| self.f32())
+                    .collect::<Result<Vec<_>, _>>()
+                    .map(|v| std::array::from_fn(|i| v[i]))
+            })
+            .collect()
+    }
+}
+
+fn put_u32(out: &mut Vec<u8>, v: u32) {
+    out.extend_from_slice(&v.to_le_bytes());
+}
+
+fn put_f32s(out: &mut Vec<u8>, v: &[f32]) {
+    for x in v {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+}
+
+fn put_len(out: &mut Vec<u8>, n: usize) {
+    put_u32(out, u32::try_from(n).unwrap_or(u32::MAX));
+}
+
+/// Canonical octree payload: header, then every leaf in Morton order.
+fn encode_svo(svo: &Svo, out: &mut Vec<u8>) {
+    out.extend_from_slice(SVO_MAGIC);
+    out.push(svo.depth());
+    out.push(u8::from(svo.has_skin()));
+    out.extend_from_slice(&[0, 0]);
+    out.extend_from_slice(&svo.leaf_count().to_le_bytes());
+    svo.for_each_leaf(|c, v| {
+        out.extend_from_slice(&morton_encode(c).to_le_bytes());
+        out.extend_from_slice(&v.color);
+        out.extend_from_slice(&v.normal.to_le_bytes());
+        out.push(v.material);
+        if svo.has_skin() {
+            out.extend_from_slice(&v.skin.joints);
+            out.extend_from_slice(&v.skin.weights);
+        }
+    });
+}
+
+fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(4)? != SVO_MAGIC {
+        return Err("bad magic (expected SVO1)".into());
+    }
+    let depth = r.u8()?;
+    let has_skin = match r.u8()? {
+        0 => false,
+        1 => true,
+        other => return Err(format!("skin flag {other} is not 0 or 1")),
+    };
+    r.take(2)?;
+    let count = r.u64()?;
+    let record = 8 + 4 + 2 + 1 + if has_skin { 8 } else { 0 };
+    if count.checked_mul(record) != Some(r.remaining() as u64) {
+        return Err(format!(
+            "declares {count} voxels of {record} bytes but {} bytes follow",
+            r.remaining()
+        ));
+    }
+    // Checks the depth before anything is allocated.
+    Svo::new(depth, has_skin).map_err(|e| e.to_string())?;
+    let limit = 1u64 << (3 * u32::from(depth));
+    let mut leaves = Vec::with_capacity(count as usize);
+    let mut prev: Option<u64> = None;
+    for i in 0..count {
+        let code = r.u64()?;
+        if code >= limit || prev.is_some_and(|p| p >= code) {
+            return Err(format!(
+                "voxel {i}: code {code} is out of order or outside the depth-{depth} octree"
+            ));
+        }
+        prev = Some(code);
+        let color: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
+        let normal = r.u16()?;
+        let material = r.u8()?;
+        let skin = if has_skin {
+            let joints: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
+            let weights: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
+            Skin4 { joints, weights }
+        } else {
+            Skin4::default()
+        };
+        leaves.push((
+            morton_decode(code),
+            Voxel {
+                color,
+                normal,
+                material,
+                skin,
+            },
+        ));
+    }
+    Svo::from_voxels(depth, has_skin, leaves).map_err(|e| e.to_string())
+}
+
+fn encode_mesh(model: &MeshModel, out: &mut Vec<u8>) {
+    out.extend_from_slice(MESH_MAGIC);
+    put_len(out, model.materials.len());
+    for m in &model.materials {
+        put_len(out, m.name.len());
+        out.extend_from_slice(m.name.as_bytes());
+        put_f32s(out, &m.base_color.to_array());
+        out.push(u8::from(m.unlit));
+        match &m.base_color_texture {
+            Some(t) => {
+                out.push(1);
+                put_u32(out, t.width);
+                put_u32(out, t.height);
+                put_len(out, t.rgba8.len());
+                out.extend_from_slice(&t.rgba8);
+            }
+            None => out.push(0),
+        }
+    }
+    put_len(out, model.parts.len());
+    for p in &model.parts {
+        put_len(out, p.material);
+        put_len(out, p.positions.len());
+        p.positions
+            .iter()
+            .for_each(|v| put_f32s(out, &v.to_array()));
+        put_len(out, p.normals.len());
+        p.normals.iter().for_each(|v| put_f32s(out, &v.to_array()));
+        put_len(out, p.uvs.len());
+        p.uvs.iter().for_each(|v| put_f32s(out, &v.to_array()));
+        put_len(out, p.colors.len());
+        p.colors.iter().for_each(|v| put_f32s(out, &v.to_array()));
+        put_len(out, p.joints.len());
+        for j in &p.joints {
+            j.iter()
+                .for_each(|x| out.extend_from_slice(&x.to_le_bytes()));
+        }
+        put_len(out, p.weights.len());
+        p.weights.iter().for_each(|w| put_f32s(out, w));
+        put_len(out, p.indices.len());
+        p.indices.iter().for_each(|&i| put_u32(out, i));
+    }
+}
+
+fn decode_mesh(bytes: &[u8]) -> Result<MeshModel, String> {
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(4)? != MESH_MAGIC {
+        return Err("bad magic (expected MSH1)".into());
+    }
+    let mut model = MeshModel::default();
+    let n_materials = r.count(22, "material table")?;
+    for i in 0..n_materials {
+        let name_len = r.count(1, "material name")?;
+        let name = String::from_utf8(r.take(name_len)?.to_vec())
+            .map_err(|_| format!("material {i}: name is not UTF-8"))?;
+        let c = r.floats::<4>(1)?[0];
+        let unlit = r.u8()? != 0;
+        let base_color_texture = match r.u8()? {
+            0 => None,
+            _ => {
+                let (width, height) = (r.u32()?, r.u32()?);
+                let len = r.count(1, "texture")?;
+                if u64::from(width) * u64::from(height) * 4 != len as u64 {
+                    return Err(format!(
+                        "material {i}: texture {width}x{height} does not match its {len} bytes"
+                    ));
+                }
+                Some(Texture {
+                    width,
+                    height,
+                    rgba8: r.take(len)?.to_vec(),
+                })
+            }
+        };
+        model.materials.push(Material {
+            name,
+            base_color: Vec4::from_array(c),
+            base_color_texture,
+            unlit,
+        });
+    }
+    let n_parts = r.count(32, "part table")?;
+    for _ in 0..n_parts {
+        let material = r.u32()? as usize;
+        let n = r.count(12, "positions")?;
+        let positions = r
+            .floats::<3>(n)?
+            .into_iter()
+            .map(Vec3::from_array)
+            .collect();
+        let n = r.count(12, "normals")?;
+        let normals = r
+            .floats::<3>(n)?
+            .into_iter()
+            .map(Vec3::from_array)
+            .collect();
+        let n = r.count(8, "uvs")?;
+        let uvs = r
+            .floats::<2>(n)?
+            .into_iter()
+            .map(Vec2::from_array)
+            .collect();
+        let n = r.count(16, "colors")?;
+        let colors = r
+            .floats::<4>(n)?
+            .into_iter()
+            .map(Vec4::from_array)
+            .collect();
+        let n = r.count(8, "joints")?;
+        let joints = (0..n)
+            .map(|_| Ok([r.u16()?, r.u16()?, r.u16()?, r.u16()?]))
+            .collect::<Result<Vec<_>, String>>()?;
+        let n = r.count(16, "weights")?;
+        let weights = r.floats::<4>(n)?;
+        let n = r.count(4, "indices")?;
+        let indices = (0..n).map(|_| r.u32()).collect::<Result<Vec<_>, _>>()?;
+        model.parts.push(TriangleMesh {
+            positions,
+            normals,
+            uvs,
+            colors,
+            joints,
+            weights,
+            indices,
+            material,
+        });
+    }
+    if r.remaining() != 0 {
+        return Err(format!(
+            "{} unexpected bytes after the last part",
+            r.remaining()
+        ));
+    }
+    model
+        .validate()
+        .map_err(|(part, e)| format!("part {part}: {e}"))?;
+    Ok(model)
+}
+
+#[cfg(test)]
+mod tests;

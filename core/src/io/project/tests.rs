@@ -1,0 +1,285 @@
+use glam::{Quat, UVec3, Vec2, Vec3, Vec4};
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+
+use super::*;
+use crate::mesh::unit_cube;
+use crate::scene::{Light, MeshObject, Transform, VoxelModel};
+
+fn sample_doc(seed: u64, skin: bool) -> Document {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let mut doc = Document::default();
+    let voxels: Vec<(UVec3, Voxel)> = (0..rng.random_range(0..300))
+        .map(|_| {
+            let c = UVec3::new(
+                rng.random_range(0..64),
+                rng.random_range(0..64),
+                rng.random_range(0..64),
+            );
+            let mut v = Voxel::new(
+                rng.random(),
+                Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5,
+            );
+            v.material = rng.random_range(0..4);
+            if skin {
+                v.skin = Skin4::from_influences(&[
+                    (rng.random_range(0..20), rng.random()),
+                    (rng.random_range(0..20), rng.random()),
+                ]);
+            }
+            (c, v)
+        })
+        .collect();
+    let svo = Svo::from_voxels(6, skin, voxels).unwrap();
+    doc.add(
+        "Model",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: rng.random_range(0.01..1.0),
+            origin: Vec3::new(rng.random(), -1.0, 2.5),
+            material_names: vec!["stone".into()],
+        }),
+    );
+    let mut cube = unit_cube();
+    cube.uvs = cube.positions.iter().map(|p| Vec2::new(p.x, p.y)).collect();
+    cube.colors = cube
+        .positions
+        .iter()
+        .map(|p| Vec4::new(p.x, p.y, p.z, 1.0).abs())
+        .collect();
+    let mut model = MeshModel {
+        parts: vec![cube],
+        materials: vec![Material {
+            name: "grey".into(),
+            base_color: Vec4::new(0.5, 0.5, 0.5, 1.0),
+            base_color_texture: Some(Texture {
+                width: 2,
+                height: 1,
+                rgba8: vec![1, 2, 3, 4, 5, 6, 7, 8],
+            }),
+            unlit: true,
+        }],
+    };
+    if skin {
+        model.parts[0].joints = vec![[0, 1, 2, 3]; 8];
+        model.parts[0].weights = vec![[0.25; 4]; 8];
+    }
+    doc.add(
+        "Ground",
+        ObjectKind::Mesh(MeshObject {
+            model,
+            casts_shadows: false,
+        }),
+    );
+    doc.objects[1].transform = Transform {
+        translation: Vec3::new(1.0, 2.0, 3.0),
+        rotation: Quat::from_rotation_y(rng.random()),
+        scale: Vec3::new(2.0, 0.1, 2.0),
+    };
+    doc.objects[1].visible = seed.is_multiple_of(2);
+    doc.lights.push(Light {
+        name: "Fill".into(),
+        intensity: 0.3,
+        ..Light::default()
+    });
+    doc.quality.lod_pixel_threshold = rng.random_range(0.5..4.0);
+    doc
+}
+
+#[test]
+fn save_then_load_is_identical_and_names_bin() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("scene.thicket.json");
+    let doc = sample_doc(1, true);
+    save(&doc, &path).unwrap();
+    assert!(dir.path().join("scene.thicket.bin").exists());
+    assert!(!dir.path().join("scene.thicket.bin.prev").exists());
+    assert_eq!(load(&path).unwrap(), doc);
+    // A document with no payloads writes no .bin.
+    let empty = Document::default();
+    let p2 = dir.path().join("empty.thicket.json");
+    save(&empty, &p2).unwrap();
+    assert!(!dir.path().join("empty.thicket.bin").exists());
+    assert_eq!(load(&p2).unwrap(), empty);
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    #[test]
+    fn round_trip_property(seed in any::<u64>(), skin in any::<bool>()) {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("p.thicket.json");
+        let doc = sample_doc(seed, skin);
+        save(&doc, &path).unwrap();
+        prop_assert_eq!(load(&path).unwrap(), doc);
+    }
+}
+
+#[test]
+fn wrong_checksum_is_reported_with_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.thicket.json");
+    save(&sample_doc(3, false), &path).unwrap();
+    let bin = dir.path().join("a.thicket.bin");
+    let mut bytes = fs::read(&bin).unwrap();
+    let n = bytes.len();
+    bytes[n / 2] ^= 0x40;
+    fs::write(&bin, &bytes).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(e.contains("a.thicket.bin") && e.contains("CRC-32"), "{e}");
+}
+
+#[test]
+fn a_corrupt_payload_with_a_matching_file_checksum_is_still_caught() {
+    // Rewrite the JSON so the whole-file CRC matches a tampered .bin: the per-payload CRC catches it.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("a.thicket.json");
+    save(&sample_doc(4, false), &path).unwrap();
+    let bin_path = dir.path().join("a.thicket.bin");
+    let mut bin = fs::read(&bin_path).unwrap();
+    bin[20] ^= 1;
+    fs::write(&bin_path, &bin).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    json["bin"]["crc32"] = crc32fast::hash(&bin).into();
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("checksum mismatch") && e.contains("Model"),
+        "{e}"
+    );
+}
+
+#[test]
+fn nan_in_a_transform_is_refused_with_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("n.thicket.json");
+    save(&Document::default(), &path).unwrap();
+    let text = r#"{"format_version":1,"objects":[{"id":1,"name":"x","kind":{"type":"Mesh"},
+      "transform":{"translation":[NaN,0,0]}}]}"#;
+    fs::write(&path, text).unwrap();
+    let e = load(&path).unwrap_err();
+    assert!(matches!(e, ProjectError::Json { line: 2, .. }), "{e}");
+    // null (what serde_json writes for NaN) is refused too.
+    fs::write(&path, text.replace("NaN", "null")).unwrap();
+    assert!(
+        load(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("n.thicket.json")
+    );
+    // 1e39 overflows f32: refused, never turned into an infinite translation.
+    fs::write(&path, text.replace("NaN", "1e39")).unwrap();
+    assert!(load(&path).is_err());
+}
+
+#[test]
+fn newer_versions_and_missing_payloads_are_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("v.thicket.json");
+    fs::write(&path, r#"{"format_version": 999}"#).unwrap();
+    assert!(
+        load(&path)
+            .unwrap_err()
+            .to_string()
+            .contains("format_version 999")
+    );
+    fs::write(
+        &path,
+        r#"{"objects":[{"id":7,"name":"lost","kind":{"type":"Voxels"}}]}"#,
+    )
+    .unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(e.contains("lost") && e.contains("no payload"), "{e}");
+    fs::write(&path, "").unwrap();
+    assert!(matches!(
+        load(&path).unwrap_err(),
+        ProjectError::Json { .. }
+    ));
+    assert!(matches!(
+        load(&dir.path().join("missing.json")).unwrap_err(),
+        ProjectError::Io { .. }
+    ));
+}
+
+#[test]
+fn invalid_documents_are_not_saved() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.thicket.json");
+    let mut doc = sample_doc(5, false);
+    doc.objects[0].transform.scale = Vec3::ZERO;
+    assert!(matches!(
+        save(&doc, &path),
+        Err(ProjectError::Invalid { .. })
+    ));
+    assert!(!path.exists());
+    assert!(
+        fs::read_dir(dir.path()).unwrap().next().is_none(),
+        "nothing written"
+    );
+}
+
+#[test]
+fn a_crash_between_renames_leaves_the_previous_save_loadable() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("c.thicket.json");
+    let old = sample_doc(6, false);
+    save(&old, &path).unwrap();
+    // Simulate dying after step 3a (new .bin in place, old .bin renamed to .prev, old JSON).
+    let new = sample_doc(7, false);
+    let other = dir.path().join("other.thicket.json");
+    save(&new, &other).unwrap();
+    let bin = dir.path().join("c.thicket.bin");
+    fs::rename(&bin, with_suffix(&bin, ".prev")).unwrap();
+    fs::copy(dir.path().join("other.thicket.bin"), &bin).unwrap();
+    assert_eq!(load(&path).unwrap(), old);
+    // And dying after step 2 (no .bin at all yet).
+    fs::remove_file(&bin).unwrap();
+    assert_eq!(load(&path).unwrap(), old);
+}
+
+#[test]
+fn mutated_project_files_never_panic() {
+    let doc = sample_doc(8, true);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("f.thicket.json");
+    save(&doc, &path).unwrap();
+    let json = fs::read(&path).unwrap();
+    let bin = fs::read(dir.path().join("f.thicket.bin")).unwrap();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
+    let cases = 10_000;
+    for case in 0..cases {
+        let (mut j, mut b) = (json.clone(), bin.clone());
+        let target = if case % 2 == 0 { &mut j } else { &mut b };
+        match rng.random_range(0..4) {
+            0 => {
+                for _ in 0..rng.random_range(1..6) {
+                    let i = rng.random_range(0..target.len());
+                    target[i] ^= 1 << rng.random_range(0..8);
+                }
+            }
+            1 => target.truncate(rng.random_range(0..target.len())),
+            2 => {
+                // Inflate a little-endian u32/u64 count somewhere.
+                let i = rng.random_range(0..target.len().saturating_sub(4).max(1));
+                let end = (i + 4).min(target.len());
+                target[i..end].fill(0xff);
+            }
+            _ => {
+                let i = rng.random_range(0..target.len());
+                target.insert(i, b"0123456789{}[],:\"-e"[rng.random_range(0..19)]);
+            }
+        }
+        let bin_for_case = b.clone();
+        let result = std::panic::catch_unwind(|| {
+            load_from_parts(&path, &j, |_| Ok(bin_for_case.clone())).and_then(|_| {
+                decode_svo(&b)
+                    .map(|_| ())
+                    .map_err(|d| ProjectError::Payload {
+                        path: path.clone(),
+                        detail: d,
+                    })
+            })
+        });
+        assert!(result.is_ok(), "case {case} panicked");
+    }
+}
