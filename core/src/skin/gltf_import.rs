@@ -31,6 +31,11 @@ pub struct SkinnedImport {
     pub weight_repair: WeightRepair,
     /// Things skipped or repaired, one human-readable line each (also logged as warnings).
     pub warnings: Vec<String>,
+    /// World transform of the first node carrying the skinned mesh, for reference only: glTF
+    /// skinning ignores it. In files like RiggedFigure and CesiumMan, whose inverse bind
+    /// matrices were made without the Z-up node above the skeleton, the rest pose skins the
+    /// bind-pose vertices to exactly `world_from_skinned_node · v`.
+    pub world_from_skinned_node: Mat4,
 }
 
 /// Imports the first skin of a `.gltf` / `.glb` file (the first node in the scene that has a
@@ -89,10 +94,19 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     let local_matrix = |n: usize| Mat4::from_cols_array_2d(&nodes[n].transform().matrix());
 
     // The skin: the first scene node with a mesh and a skin.
-    let Some(skin) = nodes.iter().filter(|n| in_scene[n.index()] && n.mesh().is_some()).find_map(gltf::Node::skin)
+    let Some((skin_node, skin)) = nodes
+        .iter()
+        .filter(|n| in_scene[n.index()] && n.mesh().is_some())
+        .find_map(|n| n.skin().map(|s| (n.index(), s)))
     else {
         return Err(SkinError::NoSkin { path: label.to_owned() });
     };
+    let mut world_from_skinned_node = local_matrix(skin_node);
+    let mut cur = parent_of[skin_node];
+    while let Some(a) = cur {
+        world_from_skinned_node = local_matrix(a) * world_from_skinned_node;
+        cur = parent_of[a];
+    }
     let skin_nodes: Vec<usize> = skin.joints().map(|n| n.index()).collect();
     if skin_nodes.is_empty() {
         return Err(cx.invalid(format!("skin {} has no joints", skin.index())));
@@ -274,7 +288,7 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     for w in &warnings {
         log::warn!("{label}: {w}");
     }
-    Ok(SkinnedImport { skeleton, clips, mesh: model, weight_repair, warnings })
+    Ok(SkinnedImport { skeleton, clips, mesh: model, weight_repair, warnings, world_from_skinned_node })
 }
 
 fn import_materials(doc: &gltf::Document, images: &[gltf::image::Data], warnings: &mut Vec<String>) -> Vec<Material> {
@@ -433,6 +447,9 @@ impl Ctx<'_> {
         let comp_size = dt.size();
         let elem_size = comps * comp_size;
         let count = acc.count();
+        if count == 0 {
+            return Err(bad("count is 0; glTF requires at least one element".into()));
+        }
         let Some(view) = acc.view() else {
             // No buffer view: all zeros by the spec; the count is bounded only by the JSON, so
             // cap it instead of trusting it.
@@ -441,9 +458,6 @@ impl Ctx<'_> {
             }
             return Ok(vec![T::default(); count * comps]);
         };
-        if count == 0 {
-            return Ok(Vec::new());
-        }
         let buffer = self
             .buffers
             .get(view.buffer().index())

@@ -79,7 +79,8 @@ fn simple_skin_rest_pose_is_identity_skinning() {
     }
 }
 
-/// Max distance between skinned (rest pose) and bind-pose vertices, and the bind bbox diagonal.
+/// Max distance between skinned (rest pose) vertices and the bind-pose vertices placed by the
+/// skinned node's world transform, and the bind bbox diagonal.
 fn rest_pose_error(import: &SkinnedImport) -> (f32, f32) {
     let skinning = import.skeleton.skinning_matrices(&Pose::rest(&import.skeleton));
     let (lo, hi) = import.mesh.bounds().expect("has vertices");
@@ -87,20 +88,28 @@ fn rest_pose_error(import: &SkinnedImport) -> (f32, f32) {
     for part in &import.mesh.parts {
         let skinned = skin_mesh(&skinning, part);
         for (a, b) in skinned.positions.iter().zip(&part.positions) {
-            err = err.max(a.distance(*b));
+            err = err.max(a.distance(import.world_from_skinned_node.transform_point3(*b)));
         }
     }
     (err, (hi - lo).length())
 }
 
 fn check_animated_asset(import: &SkinnedImport, clip: usize, times: &[f32]) {
-    let (lo, hi) = import.mesh.bounds().expect("has vertices");
+    // Bind pose placed in the world as the rest pose puts it (see `rest_pose_error`).
+    let placed: Vec<Vec3> = import
+        .mesh
+        .parts
+        .iter()
+        .flat_map(|p| &p.positions)
+        .map(|&v| import.world_from_skinned_node.transform_point3(v))
+        .collect();
+    let (lo, hi) = placed.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
     let diag = (hi - lo).length();
     let centre = (lo + hi) * 0.5;
     let mut moved = 0.0f32;
     for &t in times {
         let skinned = skinned_positions(import, clip, t);
-        for (p, bind) in skinned.iter().zip(import.mesh.parts.iter().flat_map(|p| &p.positions)) {
+        for (p, bind) in skinned.iter().zip(&placed) {
             assert!(p.is_finite(), "non-finite skinned vertex at t = {t}");
             // A walking or waving figure stays within about its own size of where it stood.
             assert!(p.distance(centre) < diag * 1.5, "vertex {p} far outside the bind bbox at t = {t}");
@@ -123,7 +132,9 @@ fn rigged_figure_loads_with_hierarchy_above_the_root_joint() {
     assert_eq!(root.name, "torso_joint_1");
     assert!(root.parent.is_none());
     assert!(!root.parent_from_attachment.abs_diff_eq(Mat4::IDENTITY, 1e-3), "Z-up matrix above the root is kept");
-    // With the ancestors included, the rest pose reproduces the bind pose.
+    // With the ancestors included, the rest pose stands the figure up (Z-up → Y-up) exactly as
+    // the node tree above the mesh would; without them it would lie on its back.
+    assert!(!import.world_from_skinned_node.abs_diff_eq(Mat4::IDENTITY, 1e-3));
     let (err, diag) = rest_pose_error(&import);
     assert!(err < diag * 1e-3, "rest pose moves vertices by {err} (diag {diag})");
     assert_eq!(import.weight_repair.all_zero, 0);
