@@ -12,18 +12,28 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use thicket_core::skin::stretch::{VoxelSkinInput, skinned_splat};
 use thicket_core::skin::{
-    JointMatrices, NodeSkin, Pose, StretchSettings, StretchStrategy, Wrap, import_skinned, skin_points,
+    JointMatrices, NodeSkin, Pose, StretchSettings, StretchStrategy, Wrap, import_skinned,
+    skin_points,
 };
 
-const CESIUM_MAN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/skinned/CesiumMan.glb");
+const CESIUM_MAN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/CesiumMan.glb"
+);
 
 /// 19 random rigid-ish skinning matrices, like a character's.
 fn random_skinning(rng: &mut Pcg64) -> Vec<Mat4> {
     (0..19)
         .map(|_| {
             let axis = Vec3::new(rng.random(), rng.random(), rng.random()) - 0.5;
-            let rot = Quat::from_axis_angle(axis.try_normalize().unwrap_or(Vec3::Y), rng.random::<f32>() * 3.0);
-            Mat4::from_rotation_translation(rot, Vec3::new(rng.random(), rng.random(), rng.random()))
+            let rot = Quat::from_axis_angle(
+                axis.try_normalize().unwrap_or(Vec3::Y),
+                rng.random::<f32>() * 3.0,
+            );
+            Mat4::from_rotation_translation(
+                rot,
+                Vec3::new(rng.random(), rng.random(), rng.random()),
+            )
         })
         .collect()
 }
@@ -93,24 +103,37 @@ fn bench_stretch(c: &mut Criterion) {
     let skinning = random_skinning(&mut rng);
     let nodes: Vec<(Vec3, NodeSkin, [NodeSkin; 8])> = (0..N)
         .map(|_| {
+            let center = Vec3::new(rng.random(), rng.random(), rng.random());
             let mut skin = || {
                 let (j, w) = random_skin(&mut rng);
                 NodeSkin::from_vertex(j, w)
             };
+            let own = skin();
             let corners = std::array::from_fn(|_| skin());
-            (Vec3::new(rng.random(), rng.random(), rng.random()), skin(), corners)
+            (center, own, corners)
         })
         .collect();
     let mut g = c.benchmark_group("stretch_100k_nodes");
     g.throughput(Throughput::Elements(N as u64));
     g.sample_size(20);
-    for strategy in [StretchStrategy::Off, StretchStrategy::Thesis, StretchStrategy::Corners, StretchStrategy::Adaptive] {
-        let settings = StretchSettings { strategy, ..StretchSettings::default() };
+    for strategy in [
+        StretchStrategy::Off,
+        StretchStrategy::Thesis,
+        StretchStrategy::Corners,
+        StretchStrategy::Adaptive,
+    ] {
+        let settings = StretchSettings {
+            strategy,
+            ..StretchSettings::default()
+        };
         for with_corners in [false, true] {
             if !with_corners && strategy == StretchStrategy::Corners {
                 continue; // falls back to Thesis
             }
-            let name = format!("{strategy:?}{}", if with_corners { "_corner_weights" } else { "" });
+            let name = format!(
+                "{strategy:?}{}",
+                if with_corners { "_corner_weights" } else { "" }
+            );
             g.bench_function(name, |b| {
                 b.iter(|| {
                     let mut acc = Vec3::ZERO;

@@ -77,12 +77,19 @@ impl Channel {
     /// A description of the first problem.
     pub fn check(&self, joint_count: usize) -> Result<(), String> {
         if self.joint >= joint_count {
-            return Err(format!("targets joint {} but the skeleton has {joint_count}", self.joint));
+            return Err(format!(
+                "targets joint {} but the skeleton has {joint_count}",
+                self.joint
+            ));
         }
         if self.times.is_empty() {
             return Err("has no keys".into());
         }
-        let per_key = if self.interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+        let per_key = if self.interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        };
         if self.values.len() != self.times.len() * per_key {
             return Err(format!(
                 "has {} key times but {} values ({per_key} per key expected for {:?})",
@@ -116,7 +123,13 @@ impl Channel {
         }
         let value = |k: usize| self.values[k * per_key + usize::from(cubic)];
         let rotation = self.property == Property::Rotation;
-        let finish = |v: Vec4| if rotation { Vec4::from(normalize_quat(Quat::from_vec4(v))) } else { v };
+        let finish = |v: Vec4| {
+            if rotation {
+                Vec4::from(normalize_quat(Quat::from_vec4(v)))
+            } else {
+                v
+            }
+        };
         // Index of the first key strictly after t.
         let next = self.times.partition_point(|&k| k <= t);
         if next == 0 {
@@ -128,12 +141,20 @@ impl Channel {
         let k = next - 1;
         let (t0, t1) = (self.times[k], self.times[next]);
         let dt = t1 - t0;
-        let s = if dt > 0.0 { ((t - t0) / dt).clamp(0.0, 1.0) } else { 0.0 };
+        let s = if dt > 0.0 {
+            ((t - t0) / dt).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         let out = match self.interpolation {
             Interpolation::Step => value(k),
             Interpolation::Linear => {
                 if rotation {
-                    Vec4::from(slerp_shortest(Quat::from_vec4(value(k)), Quat::from_vec4(value(next)), s))
+                    Vec4::from(slerp_shortest(
+                        Quat::from_vec4(value(k)),
+                        Quat::from_vec4(value(next)),
+                        s,
+                    ))
                 } else {
                     value(k).lerp(value(next), s)
                 }
@@ -154,7 +175,10 @@ impl Channel {
 pub fn hermite(p0: Vec4, m0: Vec4, p1: Vec4, m1: Vec4, s: f32) -> Vec4 {
     let s2 = s * s;
     let s3 = s2 * s;
-    p0 * (2.0 * s3 - 3.0 * s2 + 1.0) + m0 * (s3 - 2.0 * s2 + s) + p1 * (-2.0 * s3 + 3.0 * s2) + m1 * (s3 - s2)
+    p0 * (2.0 * s3 - 3.0 * s2 + 1.0)
+        + m0 * (s3 - 2.0 * s2 + s)
+        + p1 * (-2.0 * s3 + 3.0 * s2)
+        + m1 * (s3 - s2)
 }
 
 /// Spherical linear interpolation along the shorter arc; inputs are normalised first and the
@@ -188,17 +212,21 @@ impl AnimationClip {
     /// [`SkinError::BadChannel`] naming the clip and channel.
     pub fn validate(&self, joint_count: usize) -> Result<(), SkinError> {
         for (i, c) in self.channels.iter().enumerate() {
-            c.check(joint_count).map_err(|problem| SkinError::BadChannel {
-                clip: self.name.clone(),
-                channel: i,
-                problem,
-            })?;
+            c.check(joint_count)
+                .map_err(|problem| SkinError::BadChannel {
+                    clip: self.name.clone(),
+                    channel: i,
+                    problem,
+                })?;
         }
         if !self.duration_secs.is_finite() || self.duration_secs < 0.0 {
             return Err(SkinError::BadChannel {
                 clip: self.name.clone(),
                 channel: 0,
-                problem: format!("duration {} s is not a finite non-negative number", self.duration_secs),
+                problem: format!(
+                    "duration {} s is not a finite non-negative number",
+                    self.duration_secs
+                ),
             });
         }
         Ok(())
@@ -207,7 +235,11 @@ impl AnimationClip {
     /// The last key time over all channels (what glTF defines as the clip's length).
     #[must_use]
     pub fn last_key_time(&self) -> f32 {
-        self.channels.iter().filter_map(|c| c.times.last().copied()).filter(|t| t.is_finite()).fold(0.0, f32::max)
+        self.channels
+            .iter()
+            .filter_map(|c| c.times.last().copied())
+            .filter(|t| t.is_finite())
+            .fold(0.0, f32::max)
     }
 
     /// Maps `t` into the clip's time range.

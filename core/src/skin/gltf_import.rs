@@ -46,7 +46,10 @@ pub struct SkinnedImport {
 pub fn import_skinned(path: impl AsRef<Path>) -> Result<SkinnedImport, SkinError> {
     let path = path.as_ref();
     let label = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| SkinError::Io { path: label.clone(), source })?;
+    let bytes = std::fs::read(path).map_err(|source| SkinError::Io {
+        path: label.clone(),
+        source,
+    })?;
     import_impl(&bytes, path.parent(), &label)
 }
 
@@ -59,10 +62,19 @@ pub fn import_skinned_slice(bytes: &[u8], label: &str) -> Result<SkinnedImport, 
 }
 
 fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<SkinnedImport, SkinError> {
-    let gltf_err = |source| SkinError::Gltf { path: label.to_owned(), source };
-    let gltf::Gltf { document: doc, blob } = gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
+    let gltf_err = |source| SkinError::Gltf {
+        path: label.to_owned(),
+        source,
+    };
+    let gltf::Gltf {
+        document: doc,
+        blob,
+    } = gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
     let buffers = gltf::import_buffers(&doc, base, blob).map_err(gltf_err)?;
-    let cx = Ctx { label, buffers: &buffers };
+    let cx = Ctx {
+        label,
+        buffers: &buffers,
+    };
     let mut warnings = Vec::new();
 
     // Node hierarchy: parent links, and which nodes the scene reaches.
@@ -78,13 +90,17 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     }
     let roots: Vec<usize> = match doc.default_scene().or_else(|| doc.scenes().next()) {
         Some(scene) => scene.nodes().map(|n| n.index()).collect(),
-        None => (0..node_count).filter(|&i| parent_of[i].is_none()).collect(),
+        None => (0..node_count)
+            .filter(|&i| parent_of[i].is_none())
+            .collect(),
     };
     let mut in_scene = vec![false; node_count];
     let mut stack = roots.clone();
     while let Some(n) = stack.pop() {
         if std::mem::replace(&mut in_scene[n], true) {
-            return Err(cx.invalid(format!("node {n} is reached twice: the node hierarchy has a cycle")));
+            return Err(cx.invalid(format!(
+                "node {n} is reached twice: the node hierarchy has a cycle"
+            )));
         }
         if let Some(node) = doc.nodes().nth(n) {
             stack.extend(node.children().map(|c| c.index()));
@@ -99,7 +115,9 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         .filter(|n| in_scene[n.index()] && n.mesh().is_some())
         .find_map(|n| n.skin().map(|s| (n.index(), s)))
     else {
-        return Err(SkinError::NoSkin { path: label.to_owned() });
+        return Err(SkinError::NoSkin {
+            path: label.to_owned(),
+        });
     };
     let mut world_from_skinned_node = local_matrix(skin_node);
     let mut cur = parent_of[skin_node];
@@ -112,7 +130,11 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         return Err(cx.invalid(format!("skin {} has no joints", skin.index())));
     }
     if skin_nodes.len() > usize::from(u16::MAX) {
-        return Err(cx.invalid(format!("skin {} has {} joints; at most 65535 fit", skin.index(), skin_nodes.len())));
+        return Err(cx.invalid(format!(
+            "skin {} has {} joints; at most 65535 fit",
+            skin.index(),
+            skin_nodes.len()
+        )));
     }
     let mut joint_of_node = vec![None; node_count];
     for (j, &n) in skin_nodes.iter().enumerate() {
@@ -126,7 +148,11 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
             let flat = cx.read(&acc, &what, Dimensions::Mat4, &[DataType::F32])?;
             let mats: Vec<Mat4> = flat.chunks_exact(16).map(Mat4::from_cols_slice).collect();
             if mats.len() < skin_nodes.len() {
-                return Err(cx.invalid(format!("{what}: {} matrices for {} joints", mats.len(), skin_nodes.len())));
+                return Err(cx.invalid(format!(
+                    "{what}: {} matrices for {} joints",
+                    mats.len(),
+                    skin_nodes.len()
+                )));
             }
             mats
         }
@@ -154,22 +180,35 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
             }
         }
         let (scale, rotation, translation) = match nodes[n].transform() {
-            gltf::scene::Transform::Decomposed { translation, rotation, scale } => {
-                (Vec3::from(scale), Quat::from_array(rotation), Vec3::from(translation))
-            }
+            gltf::scene::Transform::Decomposed {
+                translation,
+                rotation,
+                scale,
+            } => (
+                Vec3::from(scale),
+                Quat::from_array(rotation),
+                Vec3::from(translation),
+            ),
             m @ gltf::scene::Transform::Matrix { .. } => {
                 Mat4::from_cols_array_2d(&m.matrix()).to_scale_rotation_translation()
             }
         };
         joints.push(Joint {
-            name: nodes[n].name().map_or_else(|| format!("node {n}"), str::to_owned),
+            name: nodes[n]
+                .name()
+                .map_or_else(|| format!("node {n}"), str::to_owned),
             parent,
-            rest: Transform { translation, rotation, scale },
+            rest: Transform {
+                translation,
+                rotation,
+                scale,
+            },
             inverse_bind: inverse_binds[j],
             parent_from_attachment: attachment,
         });
     }
-    let (skeleton, new_from_old) = Skeleton::new(joints).map_err(|e| cx.invalid(format!("skin {}: {e}", skin.index())))?;
+    let (skeleton, new_from_old) =
+        Skeleton::new(joints).map_err(|e| cx.invalid(format!("skin {}: {e}", skin.index())))?;
 
     // Meshes bound to this skin.
     let images = match gltf::import_images(&doc, base, &buffers) {
@@ -179,7 +218,10 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
             Vec::new()
         }
     };
-    let mut model = MeshModel { parts: Vec::new(), materials: import_materials(&doc, &images, &mut warnings) };
+    let mut model = MeshModel {
+        parts: Vec::new(),
+        materials: import_materials(&doc, &images, &mut warnings),
+    };
     let default_material = model.materials.len();
     let mut needs_default_material = false;
     for node in nodes.iter().filter(|n| in_scene[n.index()]) {
@@ -187,18 +229,29 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         match node.skin() {
             Some(s) if s.index() == skin.index() => {}
             Some(s) => {
-                warnings.push(format!("node {} uses skin {}, only skin {} is imported", node.index(), s.index(), skin.index()));
+                warnings.push(format!(
+                    "node {} uses skin {}, only skin {} is imported",
+                    node.index(),
+                    s.index(),
+                    skin.index()
+                ));
                 continue;
             }
             None => {
-                warnings.push(format!("node {} has a mesh without a skin; left out", node.index()));
+                warnings.push(format!(
+                    "node {} has a mesh without a skin; left out",
+                    node.index()
+                ));
                 continue;
             }
         }
         for prim in mesh.primitives() {
             let where_ = format!("mesh {} primitive {}", mesh.index(), prim.index());
             if prim.mode() != gltf::mesh::Mode::Triangles {
-                warnings.push(format!("{where_}: mode {:?} is not triangles; left out", prim.mode()));
+                warnings.push(format!(
+                    "{where_}: mode {:?} is not triangles; left out",
+                    prim.mode()
+                ));
                 continue;
             }
             let mut part = read_primitive(&cx, &prim, &where_, &new_from_old)?;
@@ -206,7 +259,8 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
                 needs_default_material = true;
                 default_material
             });
-            part.validate().map_err(|e| cx.invalid(format!("{where_}: {e}")))?;
+            part.validate()
+                .map_err(|e| cx.invalid(format!("{where_}: {e}")))?;
             model.parts.push(part);
         }
     }
@@ -214,7 +268,10 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         model.materials.push(Material::default());
     }
     if model.parts.is_empty() {
-        return Err(cx.invalid(format!("no triangle primitive is bound to skin {}", skin.index())));
+        return Err(cx.invalid(format!(
+            "no triangle primitive is bound to skin {}",
+            skin.index()
+        )));
     }
     let mut weight_repair = WeightRepair::default();
     for part in &mut model.parts {
@@ -227,8 +284,14 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     // Animations.
     let mut clips = Vec::new();
     for anim in doc.animations() {
-        let name = anim.name().map_or_else(|| format!("animation {}", anim.index()), str::to_owned);
-        let mut clip = AnimationClip { name: name.clone(), duration_secs: 0.0, channels: Vec::new() };
+        let name = anim
+            .name()
+            .map_or_else(|| format!("animation {}", anim.index()), str::to_owned);
+        let mut clip = AnimationClip {
+            name: name.clone(),
+            duration_secs: 0.0,
+            channels: Vec::new(),
+        };
         let mut skipped = 0usize;
         for ch in anim.channels() {
             let node = ch.target().node().index();
@@ -252,26 +315,48 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
                 gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
             };
             let what = format!("{name:?} channel {}", ch.index());
-            let times = cx.read(&sampler.input(), &format!("{what} key times"), Dimensions::Scalar, &[DataType::F32])?;
+            let times = cx.read(
+                &sampler.input(),
+                &format!("{what} key times"),
+                Dimensions::Scalar,
+                &[DataType::F32],
+            )?;
             let out = sampler.output();
             let values: Vec<Vec4> = match property {
                 Property::Rotation => {
-                    let types = [DataType::F32, DataType::I8, DataType::U8, DataType::I16, DataType::U16];
+                    let types = [
+                        DataType::F32,
+                        DataType::I8,
+                        DataType::U8,
+                        DataType::I16,
+                        DataType::U16,
+                    ];
                     cx.read(&out, &format!("{what} rotations"), Dimensions::Vec4, &types)?
                         .chunks_exact(4)
                         .map(Vec4::from_slice)
                         .collect()
                 }
                 Property::Translation | Property::Scale => cx
-                    .read(&out, &format!("{what} values"), Dimensions::Vec3, &[DataType::F32])?
+                    .read(
+                        &out,
+                        &format!("{what} values"),
+                        Dimensions::Vec3,
+                        &[DataType::F32],
+                    )?
                     .chunks_exact(3)
                     .map(|c| Vec3::from_slice(c).extend(0.0))
                     .collect(),
             };
-            let channel = Channel { joint: new_from_old[old_joint], property, interpolation, times, values };
-            channel
-                .check(skeleton.len())
-                .map_err(|problem| cx.invalid(format!("animation {what} (node {node}): {problem}")))?;
+            let channel = Channel {
+                joint: new_from_old[old_joint],
+                property,
+                interpolation,
+                times,
+                values,
+            };
+            channel.check(skeleton.len()).map_err(|problem| {
+                cx.invalid(format!("animation {what} (node {node}): {problem}"))
+            })?;
             clip.channels.push(channel);
         }
         if skipped > 0 {
@@ -288,10 +373,21 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     for w in &warnings {
         log::warn!("{label}: {w}");
     }
-    Ok(SkinnedImport { skeleton, clips, mesh: model, weight_repair, warnings, world_from_skinned_node })
+    Ok(SkinnedImport {
+        skeleton,
+        clips,
+        mesh: model,
+        weight_repair,
+        warnings,
+        world_from_skinned_node,
+    })
 }
 
-fn import_materials(doc: &gltf::Document, images: &[gltf::image::Data], warnings: &mut Vec<String>) -> Vec<Material> {
+fn import_materials(
+    doc: &gltf::Document,
+    images: &[gltf::image::Data],
+    warnings: &mut Vec<String>,
+) -> Vec<Material> {
     doc.materials()
         .enumerate()
         .map(|(i, m)| {
@@ -300,7 +396,9 @@ fn import_materials(doc: &gltf::Document, images: &[gltf::image::Data], warnings
                 let image = info.texture().source().index();
                 let tex = images.get(image).and_then(to_rgba8);
                 if tex.is_none() && !images.is_empty() {
-                    warnings.push(format!("material {i}: base colour image {image} has an unsupported format"));
+                    warnings.push(format!(
+                        "material {i}: base colour image {image} has an unsupported format"
+                    ));
                 }
                 tex
             });
@@ -319,13 +417,21 @@ fn to_rgba8(img: &gltf::image::Data) -> Option<Texture> {
     let px = (img.width as usize).checked_mul(img.height as usize)?;
     let rgba8 = match img.format {
         Format::R8G8B8A8 if img.pixels.len() >= px * 4 => img.pixels[..px * 4].to_vec(),
-        Format::R8G8B8 if img.pixels.len() >= px * 3 => {
-            img.pixels[..px * 3].chunks_exact(3).flat_map(|c| [c[0], c[1], c[2], 255]).collect()
-        }
-        Format::R8 if img.pixels.len() >= px => img.pixels[..px].iter().flat_map(|&g| [g, g, g, 255]).collect(),
+        Format::R8G8B8 if img.pixels.len() >= px * 3 => img.pixels[..px * 3]
+            .chunks_exact(3)
+            .flat_map(|c| [c[0], c[1], c[2], 255])
+            .collect(),
+        Format::R8 if img.pixels.len() >= px => img.pixels[..px]
+            .iter()
+            .flat_map(|&g| [g, g, g, 255])
+            .collect(),
         _ => return None,
     };
-    Some(Texture { width: img.width, height: img.height, rgba8 })
+    Some(Texture {
+        width: img.width,
+        height: img.height,
+        rgba8,
+    })
 }
 
 fn read_primitive(
@@ -340,7 +446,12 @@ fn read_primitive(
         return Err(cx.invalid(format!("{where_} has no POSITION")));
     };
     let positions: Vec<Vec3> = cx
-        .read(&pos_acc, &format!("{where_} POSITION"), Dimensions::Vec3, &[DataType::F32])?
+        .read(
+            &pos_acc,
+            &format!("{where_} POSITION"),
+            Dimensions::Vec3,
+            &[DataType::F32],
+        )?
         .chunks_exact(3)
         .map(Vec3::from_slice)
         .collect();
@@ -349,41 +460,86 @@ fn read_primitive(
         if v.len() == n * per {
             Ok(())
         } else {
-            Err(cx.invalid(format!("{where_} {name} has {} entries but POSITION has {n}", v.len() / per)))
+            Err(cx.invalid(format!(
+                "{where_} {name} has {} entries but POSITION has {n}",
+                v.len() / per
+            )))
         }
     };
-    let mut mesh = TriangleMesh { positions, ..TriangleMesh::default() };
+    let mut mesh = TriangleMesh {
+        positions,
+        ..TriangleMesh::default()
+    };
     if let Some(acc) = attr(&Semantic::Normals) {
-        let v = cx.read(&acc, &format!("{where_} NORMAL"), Dimensions::Vec3, &[DataType::F32])?;
+        let v = cx.read(
+            &acc,
+            &format!("{where_} NORMAL"),
+            Dimensions::Vec3,
+            &[DataType::F32],
+        )?;
         same_count(&v, 3, "NORMAL")?;
-        mesh.normals = v.chunks_exact(3).map(|c| Vec3::from_slice(c).normalize_or_zero()).collect();
+        mesh.normals = v
+            .chunks_exact(3)
+            .map(|c| Vec3::from_slice(c).normalize_or_zero())
+            .collect();
     }
     if let Some(acc) = attr(&Semantic::TexCoords(0)) {
-        let v = cx.read(&acc, &format!("{where_} TEXCOORD_0"), Dimensions::Vec2, &[DataType::F32, DataType::U8, DataType::U16])?;
+        let v = cx.read(
+            &acc,
+            &format!("{where_} TEXCOORD_0"),
+            Dimensions::Vec2,
+            &[DataType::F32, DataType::U8, DataType::U16],
+        )?;
         same_count(&v, 2, "TEXCOORD_0")?;
         mesh.uvs = v.chunks_exact(2).map(Vec2::from_slice).collect();
     }
     match (attr(&Semantic::Joints(0)), attr(&Semantic::Weights(0))) {
         (Some(ja), Some(wa)) => {
-            let j = cx.read_u32(&ja, &format!("{where_} JOINTS_0"), Dimensions::Vec4, &[DataType::U8, DataType::U16])?;
+            let j = cx.read_u32(
+                &ja,
+                &format!("{where_} JOINTS_0"),
+                Dimensions::Vec4,
+                &[DataType::U8, DataType::U16],
+            )?;
             if j.len() != n * 4 {
-                return Err(cx.invalid(format!("{where_} JOINTS_0 has {} entries but POSITION has {n}", j.len() / 4)));
+                return Err(cx.invalid(format!(
+                    "{where_} JOINTS_0 has {} entries but POSITION has {n}",
+                    j.len() / 4
+                )));
             }
-            let w = cx.read(&wa, &format!("{where_} WEIGHTS_0"), Dimensions::Vec4, &[DataType::F32, DataType::U8, DataType::U16])?;
+            let w = cx.read(
+                &wa,
+                &format!("{where_} WEIGHTS_0"),
+                Dimensions::Vec4,
+                &[DataType::F32, DataType::U8, DataType::U16],
+            )?;
             same_count(&w, 4, "WEIGHTS_0")?;
             mesh.joints = j
                 .chunks_exact(4)
                 // An index past the skin stays past it, so weight repair can zero its weight.
-                .map(|c| std::array::from_fn(|k| new_from_old.get(c[k] as usize).map_or(u16::MAX, |&x| x as u16)))
+                .map(|c| {
+                    std::array::from_fn(|k| {
+                        new_from_old
+                            .get(c[k] as usize)
+                            .map_or(u16::MAX, |&x| x as u16)
+                    })
+                })
                 .collect();
-            mesh.weights = w.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect();
+            mesh.weights = w
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect();
         }
         (None, None) => {}
         _ => return Err(cx.invalid(format!("{where_} has only one of JOINTS_0 and WEIGHTS_0"))),
     }
     mesh.indices = match prim.indices() {
-        Some(acc) => cx
-            .read_u32(&acc, &format!("{where_} indices"), Dimensions::Scalar, &[DataType::U8, DataType::U16, DataType::U32])?,
+        Some(acc) => cx.read_u32(
+            &acc,
+            &format!("{where_} indices"),
+            Dimensions::Scalar,
+            &[DataType::U8, DataType::U16, DataType::U32],
+        )?,
         None => (0..n as u32).collect(),
     };
     Ok(mesh)
@@ -396,7 +552,10 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn invalid(&self, problem: String) -> SkinError {
-        SkinError::Invalid { path: self.label.to_owned(), problem }
+        SkinError::Invalid {
+            path: self.label.to_owned(),
+            problem,
+        }
     }
 
     /// Decodes an accessor into flat `f32`s (`count × components`). Integer types decode as
@@ -410,7 +569,9 @@ impl Ctx<'_> {
         types: &[DataType],
     ) -> Result<Vec<f32>, SkinError> {
         let normalized = acc.normalized();
-        self.read_with(acc, what, dims, types, |dt, b| decode_f32(dt, b, normalized))
+        self.read_with(acc, what, dims, types, |dt, b| {
+            decode_f32(dt, b, normalized)
+        })
     }
 
     /// Decodes an integer accessor (indices, joints) exactly.
@@ -434,11 +595,16 @@ impl Ctx<'_> {
     ) -> Result<Vec<T>, SkinError> {
         let bad = |p: String| self.invalid(format!("{what} (accessor {}): {p}", acc.index()));
         if acc.dimensions() != dims {
-            return Err(bad(format!("type is {:?}, expected {dims:?}", acc.dimensions())));
+            return Err(bad(format!(
+                "type is {:?}, expected {dims:?}",
+                acc.dimensions()
+            )));
         }
         let dt = acc.data_type();
         if !types.contains(&dt) {
-            return Err(bad(format!("component type {dt:?} is not one of {types:?}")));
+            return Err(bad(format!(
+                "component type {dt:?} is not one of {types:?}"
+            )));
         }
         if acc.sparse().is_some() {
             return Err(bad("sparse accessors are not supported here".into()));
@@ -463,18 +629,22 @@ impl Ctx<'_> {
             .get(view.buffer().index())
             .ok_or_else(|| bad(format!("buffer {} is missing", view.buffer().index())))?;
         let view_end = view.offset().checked_add(view.length());
-        let view_bytes = view_end.and_then(|end| buffer.0.get(view.offset()..end)).ok_or_else(|| {
-            bad(format!(
-                "buffer view {} (offset {}, length {}) runs past its buffer of {} bytes",
-                view.index(),
-                view.offset(),
-                view.length(),
-                buffer.0.len()
-            ))
-        })?;
+        let view_bytes = view_end
+            .and_then(|end| buffer.0.get(view.offset()..end))
+            .ok_or_else(|| {
+                bad(format!(
+                    "buffer view {} (offset {}, length {}) runs past its buffer of {} bytes",
+                    view.index(),
+                    view.offset(),
+                    view.length(),
+                    buffer.0.len()
+                ))
+            })?;
         let stride = view.stride().unwrap_or(elem_size);
         if stride < elem_size {
-            return Err(bad(format!("byte stride {stride} is smaller than the element size {elem_size}")));
+            return Err(bad(format!(
+                "byte stride {stride} is smaller than the element size {elem_size}"
+            )));
         }
         let needed = (count - 1)
             .checked_mul(stride)
@@ -514,7 +684,14 @@ fn decode_f32(dt: DataType, b: &[u8], normalized: bool) -> f32 {
         DataType::U8 => (f32::from(b[0]), 255.0),
         DataType::I16 => (f32::from(i16::from_le_bytes([b[0], b[1]])), 32767.0),
         DataType::U16 => (f32::from(u16::from_le_bytes([b[0], b[1]])), 65535.0),
-        DataType::U32 => (u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32, 4_294_967_295.0),
+        DataType::U32 => (
+            u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+            4_294_967_295.0,
+        ),
     };
-    if normalized { (value / max).max(-1.0) } else { value }
+    if normalized {
+        (value / max).max(-1.0)
+    } else {
+        value
+    }
 }

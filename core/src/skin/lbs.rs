@@ -47,10 +47,17 @@ pub fn skin_point(skinning: &[Mat4], joints: [u16; 4], weights: [f32; 4], p: Vec
 /// `n`. Never NaN for finite input; unit length unless the input was zero.
 #[must_use]
 pub fn transform_normal(a: Mat3, n: Vec3) -> Vec3 {
-    let cofactor = Mat3::from_cols(a.y_axis.cross(a.z_axis), a.z_axis.cross(a.x_axis), a.x_axis.cross(a.y_axis));
+    let cofactor = Mat3::from_cols(
+        a.y_axis.cross(a.z_axis),
+        a.z_axis.cross(a.x_axis),
+        a.x_axis.cross(a.y_axis),
+    );
     let det = a.x_axis.dot(cofactor.x_axis);
     let sign = if det < 0.0 { -1.0 } else { 1.0 };
-    (cofactor * n * sign).try_normalize().or_else(|| (a * n).try_normalize()).unwrap_or_else(|| n.normalize_or_zero())
+    (cofactor * n * sign)
+        .try_normalize()
+        .or_else(|| (a * n).try_normalize())
+        .unwrap_or_else(|| n.normalize_or_zero())
 }
 
 /// Skins a normal with the same weights as its vertex (see [`transform_normal`]).
@@ -82,10 +89,17 @@ pub fn skin_mesh(skinning: &[Mat4], mesh: &TriangleMesh) -> TriangleMesh {
     if mesh.joints.len() != n || mesh.weights.len() != n {
         return out;
     }
-    skin_points(skinning, &mesh.joints, &mesh.weights, &mesh.positions, &mut out.positions);
+    skin_points(
+        skinning,
+        &mesh.joints,
+        &mesh.weights,
+        &mesh.positions,
+        &mut out.positions,
+    );
     if mesh.normals.len() == n {
         for i in 0..n {
-            out.normals[i] = skin_normal(skinning, mesh.joints[i], mesh.weights[i], mesh.normals[i]);
+            out.normals[i] =
+                skin_normal(skinning, mesh.joints[i], mesh.weights[i], mesh.normals[i]);
         }
     }
     out
@@ -132,7 +146,11 @@ const QUANTISATION_SUM_TOLERANCE: f32 = 0.01;
 /// 0; all-zero weights become weight 1 on joint 0 (the root after topological sorting, so such a
 /// vertex follows the character rather than staying behind in the bind pose); the rest are
 /// renormalised to sum to 1. `joint_count` 0 skips the range check.
-pub fn repair_weights(joints: &mut [u16; 4], weights: &mut [f32; 4], joint_count: usize) -> WeightRepair {
+pub fn repair_weights(
+    joints: &mut [u16; 4],
+    weights: &mut [f32; 4],
+    joint_count: usize,
+) -> WeightRepair {
     let mut r = WeightRepair::default();
     let (mut negative, mut non_finite, mut out_of_range) = (false, false, false);
     for k in 0..4 {

@@ -29,9 +29,11 @@ pub mod stretch;
 
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
 pub use gltf_import::{SkinnedImport, import_skinned, import_skinned_slice};
-pub use lbs::{WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points};
+pub use lbs::{
+    WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points,
+};
 pub use node::{NodeSkin, merge_node_skins};
-pub use skeleton::{JointMatrices, Joint, JointOverride, OverrideMode, Pose, Skeleton, Transform};
+pub use skeleton::{Joint, JointMatrices, JointOverride, OverrideMode, Pose, Skeleton, Transform};
 pub use stretch::{SplatBox, StretchSettings, StretchStrategy};
 
 /// Why a skeleton, clip or skinned file cannot be used.

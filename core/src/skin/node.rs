@@ -24,7 +24,10 @@ impl Default for NodeSkin {
 
 impl NodeSkin {
     /// Fully bound to joint 0 (the root): what a node with no weights at all gets.
-    pub const ROOT: Self = Self { joints: [0; 4], weights: [255, 0, 0, 0] };
+    pub const ROOT: Self = Self {
+        joints: [0; 4],
+        weights: [255, 0, 0, 0],
+    };
 
     /// Weights as floats summing to 1 (when the bytes sum to 255).
     #[inline]
@@ -146,6 +149,9 @@ impl Accumulator {
                 joints[k] = 0;
             }
         }
-        NodeSkin { joints, weights: bytes }
+        NodeSkin {
+            joints,
+            weights: bytes,
+        }
     }
 }

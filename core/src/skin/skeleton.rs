@@ -26,13 +26,21 @@ impl Default for Transform {
 
 impl Transform {
     /// No translation, rotation or scale.
-    pub const IDENTITY: Self = Self { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: Vec3::ONE };
+    pub const IDENTITY: Self = Self {
+        translation: Vec3::ZERO,
+        rotation: Quat::IDENTITY,
+        scale: Vec3::ONE,
+    };
 
     /// `parent_from_local` as a matrix; the rotation is normalised first (a zero or
     /// non-finite quaternion counts as identity).
     #[must_use]
     pub fn to_mat4(&self) -> Mat4 {
-        Mat4::from_scale_rotation_translation(self.scale, normalize_quat(self.rotation), self.translation)
+        Mat4::from_scale_rotation_translation(
+            self.scale,
+            normalize_quat(self.rotation),
+            self.translation,
+        )
     }
 
     /// True when every component is finite.
@@ -47,7 +55,11 @@ impl Transform {
 #[must_use]
 pub fn normalize_quat(q: Quat) -> Quat {
     let len_sq = q.length_squared();
-    if len_sq.is_finite() && len_sq > 1e-30 { q * len_sq.sqrt().recip() } else { Quat::IDENTITY }
+    if len_sq.is_finite() && len_sq > 1e-30 {
+        q * len_sq.sqrt().recip()
+    } else {
+        Quat::IDENTITY
+    }
 }
 
 /// One joint (bone) of a skeleton.
@@ -105,7 +117,12 @@ impl Skeleton {
             if let Some(parent) = j.parent
                 && parent >= count
             {
-                return Err(SkinError::ParentOutOfRange { joint: i, name: j.name.clone(), parent, count });
+                return Err(SkinError::ParentOutOfRange {
+                    joint: i,
+                    name: j.name.clone(),
+                    parent,
+                    count,
+                });
             }
             check_finite(i, j)?;
         }
@@ -124,7 +141,12 @@ impl Skeleton {
             loop {
                 match state[cur] {
                     PLACED => break,
-                    ON_PATH => return Err(SkinError::Cycle { joint: cur, name: joints[cur].name.clone() }),
+                    ON_PATH => {
+                        return Err(SkinError::Cycle {
+                            joint: cur,
+                            name: joints[cur].name.clone(),
+                        });
+                    }
                     _ => {}
                 }
                 state[cur] = ON_PATH;
@@ -161,12 +183,20 @@ impl Skeleton {
         for (i, j) in self.joints.iter().enumerate() {
             if let Some(parent) = j.parent {
                 if parent >= count {
-                    return Err(SkinError::ParentOutOfRange { joint: i, name: j.name.clone(), parent, count });
+                    return Err(SkinError::ParentOutOfRange {
+                        joint: i,
+                        name: j.name.clone(),
+                        parent,
+                        count,
+                    });
                 }
                 if parent >= i {
                     // Either a cycle or merely unsorted; `new` tells them apart.
                     Self::new(self.joints.clone())?;
-                    return Err(SkinError::Cycle { joint: i, name: j.name.clone() });
+                    return Err(SkinError::Cycle {
+                        joint: i,
+                        name: j.name.clone(),
+                    });
                 }
             }
             check_finite(i, j)?;
@@ -203,12 +233,22 @@ impl Skeleton {
         out.skinning.reserve(n);
         for (i, joint) in self.joints.iter().enumerate() {
             let local = pose.locals.get(i).unwrap_or(&joint.rest);
-            let local = if local.is_finite() { local } else { &joint.rest };
+            let local = if local.is_finite() {
+                local
+            } else {
+                &joint.rest
+            };
             // Parents come first, so the parent's world matrix is already there; an index that
             // breaks the order (unvalidated data) is treated as a root instead of panicking.
             let parent_world = joint
                 .parent
-                .and_then(|p| if p < i { out.world_from_joint.get(p).copied() } else { None })
+                .and_then(|p| {
+                    if p < i {
+                        out.world_from_joint.get(p).copied()
+                    } else {
+                        None
+                    }
+                })
                 .unwrap_or(Mat4::IDENTITY);
             let mut world = parent_world * joint.parent_from_attachment * local.to_mat4();
             if !world.is_finite() {
@@ -231,7 +271,11 @@ impl Skeleton {
 }
 
 fn check_finite(i: usize, j: &Joint) -> Result<(), SkinError> {
-    let bad = |what| SkinError::NonFiniteJoint { joint: i, name: j.name.clone(), what };
+    let bad = |what| SkinError::NonFiniteJoint {
+        joint: i,
+        name: j.name.clone(),
+        what,
+    };
     if !j.rest.translation.is_finite() {
         return Err(bad("rest translation"));
     }
@@ -273,7 +317,9 @@ impl Pose {
     /// normally the bind pose, in which skinning leaves vertices where they are.
     #[must_use]
     pub fn rest(skeleton: &Skeleton) -> Self {
-        Self { locals: skeleton.joints.iter().map(|j| j.rest).collect() }
+        Self {
+            locals: skeleton.joints.iter().map(|j| j.rest).collect(),
+        }
     }
 
     /// Resets to the skeleton's rest pose, reusing the allocation.
@@ -288,7 +334,8 @@ impl Pose {
     pub fn apply_overrides(&mut self, overrides: &[JointOverride]) -> usize {
         let mut skipped = 0;
         for o in overrides {
-            let finite = o.rotation.is_none_or(Quat::is_finite) && o.translation.is_none_or(Vec3::is_finite);
+            let finite =
+                o.rotation.is_none_or(Quat::is_finite) && o.translation.is_none_or(Vec3::is_finite);
             let Some(local) = self.locals.get_mut(o.joint).filter(|_| finite) else {
                 skipped += 1;
                 continue;
@@ -305,7 +352,8 @@ impl Pose {
                 OverrideMode::Relative => {
                     if let Some(r) = o.rotation {
                         // Rotate about the joint's own axes, after the clip's rotation.
-                        local.rotation = normalize_quat(normalize_quat(local.rotation) * normalize_quat(r));
+                        local.rotation =
+                            normalize_quat(normalize_quat(local.rotation) * normalize_quat(r));
                     }
                     if let Some(t) = o.translation {
                         local.translation += t;
@@ -344,6 +392,11 @@ pub struct JointOverride {
 
 impl Default for JointOverride {
     fn default() -> Self {
-        Self { joint: 0, rotation: None, translation: None, mode: OverrideMode::Replace }
+        Self {
+            joint: 0,
+            rotation: None,
+            translation: None,
+            mode: OverrideMode::Replace,
+        }
     }
 }

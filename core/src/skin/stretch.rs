@@ -62,7 +62,12 @@ pub struct StretchSettings {
 
 impl Default for StretchSettings {
     fn default() -> Self {
-        Self { strategy: StretchStrategy::Thesis, multiplier: 1.0, min_factor: 1.0, max_factor: 4.0 }
+        Self {
+            strategy: StretchStrategy::Thesis,
+            multiplier: 1.0,
+            min_factor: 1.0,
+            max_factor: 4.0,
+        }
     }
 }
 
@@ -75,7 +80,12 @@ impl StretchSettings {
         let fin = |v: f32, dflt: f32| if v.is_finite() && v >= 0.0 { v } else { dflt };
         let min_factor = fin(self.min_factor, d.min_factor);
         let max_factor = fin(self.max_factor, d.max_factor).max(min_factor);
-        Self { strategy: self.strategy, multiplier: fin(self.multiplier, d.multiplier), min_factor, max_factor }
+        Self {
+            strategy: self.strategy,
+            multiplier: fin(self.multiplier, d.multiplier),
+            min_factor,
+            max_factor,
+        }
     }
 }
 
@@ -106,16 +116,28 @@ pub fn voxel_corners(center: Vec3, half_size: f32) -> [Vec3; 8] {
 
 /// Skins the eight corners with their own weights (paper §8.1.3).
 #[must_use]
-pub fn skin_corners(skinning: &[Mat4], corners: &[Vec3; 8], corner_skins: &[NodeSkin; 8]) -> [Vec3; 8] {
-    std::array::from_fn(|k| skin_point(skinning, corner_skins[k].joints, corner_skins[k].weights_f32(), corners[k]))
+pub fn skin_corners(
+    skinning: &[Mat4],
+    corners: &[Vec3; 8],
+    corner_skins: &[NodeSkin; 8],
+) -> [Vec3; 8] {
+    std::array::from_fn(|k| {
+        skin_point(
+            skinning,
+            corner_skins[k].joints,
+            corner_skins[k].weights_f32(),
+            corners[k],
+        )
+    })
 }
 
 /// Axis-aligned bounds `(min, max)` of points.
 #[must_use]
 pub fn aabb(points: &[Vec3]) -> (Vec3, Vec3) {
-    points.iter().fold((Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)), |(lo, hi), &p| {
-        (lo.min(p), hi.max(p))
-    })
+    points.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &p| (lo.min(p), hi.max(p)),
+    )
 }
 
 /// Largest ratio of skinned to bind-pose distance over all pairs of sample points — a local
@@ -166,7 +188,10 @@ pub fn max_singular_value(a: Mat3) -> f32 {
     } else {
         // Overflow: fall back to the largest column norm (a lower bound that stays finite
         // as long as the columns are).
-        a.x_axis.length().max(a.y_axis.length()).max(a.z_axis.length())
+        a.x_axis
+            .length()
+            .max(a.y_axis.length())
+            .max(a.z_axis.length())
     }
 }
 
@@ -174,7 +199,11 @@ pub fn max_singular_value(a: Mat3) -> f32 {
 /// `Σ wᵢ Lᵢ`. Sees bone scale; blind to weight-gradient stretch (see [`StretchStrategy`]).
 #[must_use]
 pub fn blended_linear_factor(skinning: &[Mat4], skin: &NodeSkin) -> f32 {
-    max_singular_value(Mat3::from_mat4(blend_matrix(skinning, skin.joints, skin.weights_f32())))
+    max_singular_value(Mat3::from_mat4(blend_matrix(
+        skinning,
+        skin.joints,
+        skin.weights_f32(),
+    )))
 }
 
 /// Per-voxel override byte: 0 = none, otherwise the stretch factor in 1/64 steps
@@ -189,7 +218,11 @@ pub fn decode_override(code: u8) -> Option<f32> {
 /// non-finite or non-positive factor encodes as "no override".
 #[must_use]
 pub fn encode_override(factor: f32) -> u8 {
-    if factor.is_finite() && factor > 0.0 { (factor * 64.0).round().clamp(1.0, 255.0) as u8 } else { 0 }
+    if factor.is_finite() && factor > 0.0 {
+        (factor * 64.0).round().clamp(1.0, 255.0) as u8
+    } else {
+        0
+    }
 }
 
 /// Where and how large to draw one skinned voxel: an axis-aligned box in skeleton world space.
@@ -222,27 +255,42 @@ pub struct VoxelSkinInput<'a> {
 /// the half extent `S · half_size` (or the corner AABB for `Corners`), a per-voxel override
 /// replacing the strategy's `S`, then the global multiplier. Always finite for finite input.
 #[must_use]
-pub fn skinned_splat(settings: &StretchSettings, skinning: &[Mat4], v: &VoxelSkinInput<'_>) -> SplatBox {
+pub fn skinned_splat(
+    settings: &StretchSettings,
+    skinning: &[Mat4],
+    v: &VoxelSkinInput<'_>,
+) -> SplatBox {
     let s = settings.sanitized();
     let bound = |f: f32| f.clamp(s.min_factor, s.max_factor);
     let center = skin_point(skinning, v.skin.joints, v.skin.weights_f32(), v.center);
     let scalar = |f: f32| {
         let f = decode_override(v.override_code).unwrap_or_else(|| bound(f));
-        SplatBox { center, half_extent: Vec3::splat(f * v.half_size * s.multiplier) }
+        SplatBox {
+            center,
+            half_extent: Vec3::splat(f * v.half_size * s.multiplier),
+        }
     };
     match (s.strategy, v.corner_skins) {
         (StretchStrategy::Off, _) => scalar(1.0),
-        (StretchStrategy::Thesis, _) | (StretchStrategy::Corners, None) => scalar(thesis_factor(&v.skin)),
+        (StretchStrategy::Thesis, _) | (StretchStrategy::Corners, None) => {
+            scalar(thesis_factor(&v.skin))
+        }
         (StretchStrategy::Corners, Some(cs)) => {
             if let Some(f) = decode_override(v.override_code) {
-                return SplatBox { center, half_extent: Vec3::splat(f * v.half_size * s.multiplier) };
+                return SplatBox {
+                    center,
+                    half_extent: Vec3::splat(f * v.half_size * s.multiplier),
+                };
             }
             let skinned = skin_corners(skinning, &voxel_corners(v.center, v.half_size), cs);
             let (lo, hi) = aabb(&skinned);
             let mid = (lo + hi) * 0.5;
             // Cap the box like the scalar strategies so a degenerate pose stays bounded.
             let half = ((hi - lo) * 0.5).min(Vec3::splat(s.max_factor * v.half_size));
-            SplatBox { center: mid, half_extent: half * s.multiplier }
+            SplatBox {
+                center: mid,
+                half_extent: half * s.multiplier,
+            }
         }
         (StretchStrategy::Adaptive, Some(cs)) => {
             let bind = voxel_corners(v.center, v.half_size);

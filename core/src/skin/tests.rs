@@ -8,14 +8,23 @@ use glam::{Mat3, Mat4, Quat, Vec3, Vec4};
 use super::clip::{hermite, slerp_shortest};
 use super::lbs::{blend_matrix, skin_mesh, transform_normal};
 use super::stretch::{
-    VoxelSkinInput, aabb, decode_override, encode_override, max_singular_value, skin_corners, skinned_splat,
-    stretch_from_samples, thesis_factor, voxel_corners,
+    VoxelSkinInput, aabb, decode_override, encode_override, max_singular_value, skin_corners,
+    skinned_splat, stretch_from_samples, thesis_factor, voxel_corners,
 };
 use super::*;
 
-const SIMPLE_SKIN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/skinned/SimpleSkin.gltf");
-const RIGGED_FIGURE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/skinned/RiggedFigure.glb");
-const CESIUM_MAN: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/skinned/CesiumMan.glb");
+const SIMPLE_SKIN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/SimpleSkin.gltf"
+);
+const RIGGED_FIGURE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/RiggedFigure.glb"
+);
+const CESIUM_MAN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/CesiumMan.glb"
+);
 
 fn skinned_positions(import: &SkinnedImport, clip: usize, t: f32) -> Vec<Vec3> {
     let pose = import.clips[clip].sample(t, &import.skeleton);
@@ -23,14 +32,23 @@ fn skinned_positions(import: &SkinnedImport, clip: usize, t: f32) -> Vec<Vec3> {
     let mut out = Vec::new();
     for part in &import.mesh.parts {
         let mut skinned = vec![Vec3::ZERO; part.positions.len()];
-        skin_points(&skinning, &part.joints, &part.weights, &part.positions, &mut skinned);
+        skin_points(
+            &skinning,
+            &part.joints,
+            &part.weights,
+            &part.positions,
+            &mut skinned,
+        );
         out.extend(skinned);
     }
     out
 }
 
 fn assert_close(actual: Vec3, expected: Vec3, tol: f32, what: &str) {
-    assert!((actual - expected).abs().max_element() <= tol, "{what}: got {actual}, expected {expected} (±{tol})");
+    assert!(
+        (actual - expected).abs().max_element() <= tol,
+        "{what}: got {actual}, expected {expected} (±{tol})"
+    );
 }
 
 // ---------------------------------------------------------------- real assets
@@ -56,7 +74,12 @@ fn simple_skin_matches_expected_positions_at_one_second() {
     ];
     let skinned = skinned_positions(&import, 0, 1.0);
     for (i, (&got, &(x, y))) in skinned.iter().zip(&expected).enumerate() {
-        assert_close(got, Vec3::new(x, y, 0.0), 1e-4, &format!("vertex {i} at t = 1 s"));
+        assert_close(
+            got,
+            Vec3::new(x, y, 0.0),
+            1e-4,
+            &format!("vertex {i} at t = 1 s"),
+        );
     }
 }
 
@@ -64,25 +87,47 @@ fn simple_skin_matches_expected_positions_at_one_second() {
 fn simple_skin_matches_expected_top_vertices_at_half_second() {
     let import = import_skinned(SIMPLE_SKIN).expect("SimpleSkin imports");
     let skinned = skinned_positions(&import, 0, 0.5);
-    assert_close(skinned[8], Vec3::new(-1.0608, 1.353, 0.0), 1e-4, "vertex 8 at t = 0.5 s");
-    assert_close(skinned[9], Vec3::new(-0.3541, 2.0605, 0.0), 1e-4, "vertex 9 at t = 0.5 s");
+    assert_close(
+        skinned[8],
+        Vec3::new(-1.0608, 1.353, 0.0),
+        1e-4,
+        "vertex 8 at t = 0.5 s",
+    );
+    assert_close(
+        skinned[9],
+        Vec3::new(-0.3541, 2.0605, 0.0),
+        1e-4,
+        "vertex 9 at t = 0.5 s",
+    );
     // The bottom row is bound to the unanimated root joint and must not move.
-    assert_close(skinned[0], Vec3::new(-0.5, 0.0, 0.0), 1e-6, "vertex 0 at t = 0.5 s");
+    assert_close(
+        skinned[0],
+        Vec3::new(-0.5, 0.0, 0.0),
+        1e-6,
+        "vertex 0 at t = 0.5 s",
+    );
 }
 
 #[test]
 fn simple_skin_rest_pose_is_identity_skinning() {
     let import = import_skinned(SIMPLE_SKIN).expect("SimpleSkin imports");
-    let skinning = import.skeleton.skinning_matrices(&Pose::rest(&import.skeleton));
+    let skinning = import
+        .skeleton
+        .skinning_matrices(&Pose::rest(&import.skeleton));
     for m in &skinning {
-        assert!(m.abs_diff_eq(Mat4::IDENTITY, 1e-6), "rest skinning matrix {m}");
+        assert!(
+            m.abs_diff_eq(Mat4::IDENTITY, 1e-6),
+            "rest skinning matrix {m}"
+        );
     }
 }
 
 /// Max distance between skinned (rest pose) vertices and the bind-pose vertices placed by the
 /// skinned node's world transform, and the bind bbox diagonal.
 fn rest_pose_error(import: &SkinnedImport) -> (f32, f32) {
-    let skinning = import.skeleton.skinning_matrices(&Pose::rest(&import.skeleton));
+    let skinning = import
+        .skeleton
+        .skinning_matrices(&Pose::rest(&import.skeleton));
     let (lo, hi) = import.mesh.bounds().expect("has vertices");
     let mut err = 0.0f32;
     for part in &import.mesh.parts {
@@ -103,7 +148,11 @@ fn check_animated_asset(import: &SkinnedImport, clip: usize, times: &[f32]) {
         .flat_map(|p| &p.positions)
         .map(|&v| import.world_from_skinned_node.transform_point3(v))
         .collect();
-    let (lo, hi) = placed.iter().fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+    let (lo, hi) = placed
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        });
     let diag = (hi - lo).length();
     let centre = (lo + hi) * 0.5;
     let mut moved = 0.0f32;
@@ -112,11 +161,17 @@ fn check_animated_asset(import: &SkinnedImport, clip: usize, times: &[f32]) {
         for (p, bind) in skinned.iter().zip(&placed) {
             assert!(p.is_finite(), "non-finite skinned vertex at t = {t}");
             // A walking or waving figure stays within about its own size of where it stood.
-            assert!(p.distance(centre) < diag * 1.5, "vertex {p} far outside the bind bbox at t = {t}");
+            assert!(
+                p.distance(centre) < diag * 1.5,
+                "vertex {p} far outside the bind bbox at t = {t}"
+            );
             moved = moved.max(p.distance(*bind));
         }
     }
-    assert!(moved > diag * 0.01, "the clip should move some vertices (max move {moved}, diag {diag})");
+    assert!(
+        moved > diag * 0.01,
+        "the clip should move some vertices (max move {moved}, diag {diag})"
+    );
 }
 
 #[test]
@@ -126,17 +181,33 @@ fn rigged_figure_loads_with_hierarchy_above_the_root_joint() {
     assert_eq!(import.mesh.vertex_count(), 370);
     assert_eq!(import.clips.len(), 1);
     assert_eq!(import.clips[0].channels.len(), 57);
-    assert!((import.clips[0].duration_secs - 1.25).abs() < 1e-6, "{}", import.clips[0].duration_secs);
+    assert!(
+        (import.clips[0].duration_secs - 1.25).abs() < 1e-6,
+        "{}",
+        import.clips[0].duration_secs
+    );
     // The root joint hangs under Z_UP (a matrix) and Armature: that must be in the attachment.
     let root = &import.skeleton.joints[0];
     assert_eq!(root.name, "torso_joint_1");
     assert!(root.parent.is_none());
-    assert!(!root.parent_from_attachment.abs_diff_eq(Mat4::IDENTITY, 1e-3), "Z-up matrix above the root is kept");
+    assert!(
+        !root
+            .parent_from_attachment
+            .abs_diff_eq(Mat4::IDENTITY, 1e-3),
+        "Z-up matrix above the root is kept"
+    );
     // With the ancestors included, the rest pose stands the figure up (Z-up → Y-up) exactly as
     // the node tree above the mesh would; without them it would lie on its back.
-    assert!(!import.world_from_skinned_node.abs_diff_eq(Mat4::IDENTITY, 1e-3));
+    assert!(
+        !import
+            .world_from_skinned_node
+            .abs_diff_eq(Mat4::IDENTITY, 1e-3)
+    );
     let (err, diag) = rest_pose_error(&import);
-    assert!(err < diag * 1e-3, "rest pose moves vertices by {err} (diag {diag})");
+    assert!(
+        err < diag * 1e-3,
+        "rest pose moves vertices by {err} (diag {diag})"
+    );
     assert_eq!(import.weight_repair.all_zero, 0);
     check_animated_asset(&import, 0, &[0.0, 0.3, 0.625, 1.0, 1.25]);
 }
@@ -147,17 +218,35 @@ fn cesium_man_loads_with_texture_and_walk_cycle() {
     assert_eq!(import.skeleton.len(), 19);
     assert_eq!(import.mesh.vertex_count(), 3273);
     assert_eq!(import.clips.len(), 1);
-    assert!((import.clips[0].duration_secs - 2.0).abs() < 1e-6, "{}", import.clips[0].duration_secs);
-    let tex = import.mesh.materials[0].base_color_texture.as_ref().expect("CesiumMan has a base colour texture");
+    assert!(
+        (import.clips[0].duration_secs - 2.0).abs() < 1e-6,
+        "{}",
+        import.clips[0].duration_secs
+    );
+    let tex = import.mesh.materials[0]
+        .base_color_texture
+        .as_ref()
+        .expect("CesiumMan has a base colour texture");
     assert!(tex.width > 0 && tex.rgba8.len() == (tex.width * tex.height * 4) as usize);
     assert!(import.mesh.parts[0].uvs.len() == 3273 && import.mesh.parts[0].normals.len() == 3273);
     let (err, diag) = rest_pose_error(&import);
-    assert!(err < diag * 1e-3, "rest pose moves vertices by {err} (diag {diag})");
+    assert!(
+        err < diag * 1e-3,
+        "rest pose moves vertices by {err} (diag {diag})"
+    );
     check_animated_asset(&import, 0, &[0.0, 0.5, 1.0, 1.5, 2.0]);
     // Skinned normals stay unit length.
     let pose = import.clips[0].sample(0.7, &import.skeleton);
-    let skinned = skin_mesh(&import.skeleton.skinning_matrices(&pose), &import.mesh.parts[0]);
-    assert!(skinned.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-3));
+    let skinned = skin_mesh(
+        &import.skeleton.skinning_matrices(&pose),
+        &import.mesh.parts[0],
+    );
+    assert!(
+        skinned
+            .normals
+            .iter()
+            .all(|n| (n.length() - 1.0).abs() < 1e-3)
+    );
 }
 
 // ---------------------------------------------------------------- broken files
@@ -177,7 +266,10 @@ fn truncated_file_is_an_error_naming_the_file() {
 
     let glb = std::fs::read(CESIUM_MAN).expect("CesiumMan readable");
     for cut in [10, glb.len() / 3, glb.len() - 100] {
-        assert!(import_skinned_slice(&glb[..cut], "cut.glb").is_err(), "GLB cut at {cut} must fail");
+        assert!(
+            import_skinned_slice(&glb[..cut], "cut.glb").is_err(),
+            "GLB cut at {cut} must fail"
+        );
     }
 }
 
@@ -185,13 +277,20 @@ fn truncated_file_is_an_error_naming_the_file() {
 fn inflated_accessor_count_is_an_error_naming_the_accessor() {
     let dir = tempfile::tempdir().expect("temp dir");
     // Accessor 2 (JOINTS_0) claims 1000 elements in a 320-byte view.
-    let text = simple_skin_text().replacen("\"count\" : 10,\n    \"type\" : \"VEC4\"", "\"count\" : 1000,\n    \"type\" : \"VEC4\"", 1);
+    let text = simple_skin_text().replacen(
+        "\"count\" : 10,\n    \"type\" : \"VEC4\"",
+        "\"count\" : 1000,\n    \"type\" : \"VEC4\"",
+        1,
+    );
     assert!(text.contains("\"count\" : 1000"), "the edit applied");
     let path = dir.path().join("inflated.gltf");
     std::fs::write(&path, text).expect("write");
     let err = import_skinned(&path).expect_err("inflated count must fail");
     let msg = err.to_string();
-    assert!(msg.contains("inflated.gltf") && msg.contains("accessor 2"), "{msg}");
+    assert!(
+        msg.contains("inflated.gltf") && msg.contains("accessor 2"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -200,24 +299,47 @@ fn bad_inputs_never_panic() {
     // Inflate every count, shrink every byteLength, point strides below element size.
     let variants = [
         text.replace("\"count\" : 10,", "\"count\" : 4000000000,"),
-        text.replace("\"byteLength\" : 320,\n    \"byteStride\" : 16", "\"byteLength\" : 320,\n    \"byteStride\" : 4"),
+        text.replace(
+            "\"byteLength\" : 320,\n    \"byteStride\" : 16",
+            "\"byteLength\" : 320,\n    \"byteStride\" : 4",
+        ),
         text.replace("\"count\" : 12,", "\"count\" : 13,"),
         text.replace("\"count\" : 24,", "\"count\" : 0,"),
-        text.replace("\"componentType\" : 5126,\n    \"count\" : 2,", "\"componentType\" : 5123,\n    \"count\" : 2,"),
+        text.replace(
+            "\"componentType\" : 5126,\n    \"count\" : 2,",
+            "\"componentType\" : 5123,\n    \"count\" : 2,",
+        ),
         text.replace("\"joints\" : [ 1, 2 ]", "\"joints\" : [ 1, 1 ]"),
         text.replace("\"children\" : [ 2 ]", "\"children\" : [ 1 ]"),
         text.replace("\"byteLength\" : 168", "\"byteLength\" : 999"),
     ];
     for (i, v) in variants.iter().enumerate() {
-        assert!(import_skinned_slice(v.as_bytes(), "variant.gltf").is_err(), "variant {i} must fail");
+        assert!(
+            import_skinned_slice(v.as_bytes(), "variant.gltf").is_err(),
+            "variant {i} must fail"
+        );
     }
-    assert!(matches!(import_skinned("/nonexistent/file.glb"), Err(SkinError::Io { .. })));
+    assert!(matches!(
+        import_skinned("/nonexistent/file.glb"),
+        Err(SkinError::Io { .. })
+    ));
 }
 
 // ---------------------------------------------------------------- sampling
 
-fn channel(property: Property, interpolation: Interpolation, times: Vec<f32>, values: Vec<Vec4>) -> Channel {
-    Channel { joint: 0, property, interpolation, times, values }
+fn channel(
+    property: Property,
+    interpolation: Interpolation,
+    times: Vec<f32>,
+    values: Vec<Vec4>,
+) -> Channel {
+    Channel {
+        joint: 0,
+        property,
+        interpolation,
+        times,
+        values,
+    }
 }
 
 #[test]
@@ -231,32 +353,64 @@ fn cubic_spline_matches_hand_computed_hermite() {
         Vec4::new(5.0, 0.0, 0.0, 0.0),
         Vec4::ZERO,
     ];
-    let c = channel(Property::Translation, Interpolation::CubicSpline, vec![1.0, 3.0], values);
+    let c = channel(
+        Property::Translation,
+        Interpolation::CubicSpline,
+        vec![1.0, 3.0],
+        values,
+    );
     // s = 0.25: h00 = 0.84375, h10 = 0.140625, h01 = 0.15625, h11 = -0.046875;
     // p = 0.84375·1 + 0.140625·(2·2) + 0.15625·5 + (-0.046875)·(-1·2) = 2.28125.
     let v = c.sample(1.5).expect("samples");
     assert!((v.x - 2.281_25).abs() < 1e-6, "{v}");
     assert!((c.sample(1.0).expect("samples").x - 1.0).abs() < 1e-6);
     assert!((c.sample(3.0).expect("samples").x - 5.0).abs() < 1e-6);
-    assert!((c.sample(-4.0).expect("samples").x - 1.0).abs() < 1e-6, "before the first key holds it");
+    assert!(
+        (c.sample(-4.0).expect("samples").x - 1.0).abs() < 1e-6,
+        "before the first key holds it"
+    );
     let h = hermite(Vec4::ONE, Vec4::ZERO, Vec4::ONE, Vec4::ZERO, 0.37);
-    assert!((h - Vec4::ONE).abs().max_element() < 1e-6, "flat tangents between equal keys stay put");
+    assert!(
+        (h - Vec4::ONE).abs().max_element() < 1e-6,
+        "flat tangents between equal keys stay put"
+    );
 }
 
 #[test]
 fn cubic_spline_rotation_is_normalised() {
     let q0 = Quat::IDENTITY;
     let q1 = Quat::from_rotation_z(FRAC_PI_2);
-    let values = vec![Vec4::ZERO, Vec4::from(q0), Vec4::ZERO, Vec4::ZERO, Vec4::from(q1), Vec4::ZERO];
-    let c = channel(Property::Rotation, Interpolation::CubicSpline, vec![0.0, 1.0], values);
+    let values = vec![
+        Vec4::ZERO,
+        Vec4::from(q0),
+        Vec4::ZERO,
+        Vec4::ZERO,
+        Vec4::from(q1),
+        Vec4::ZERO,
+    ];
+    let c = channel(
+        Property::Rotation,
+        Interpolation::CubicSpline,
+        vec![0.0, 1.0],
+        values,
+    );
     let v = c.sample(0.5).expect("samples");
     assert!((v.length() - 1.0).abs() < 1e-6, "{v}");
 }
 
 #[test]
 fn step_holds_until_the_next_key() {
-    let values = vec![Vec4::new(1.0, 0.0, 0.0, 0.0), Vec4::new(2.0, 0.0, 0.0, 0.0), Vec4::new(3.0, 0.0, 0.0, 0.0)];
-    let c = channel(Property::Scale, Interpolation::Step, vec![0.0, 1.0, 2.0], values);
+    let values = vec![
+        Vec4::new(1.0, 0.0, 0.0, 0.0),
+        Vec4::new(2.0, 0.0, 0.0, 0.0),
+        Vec4::new(3.0, 0.0, 0.0, 0.0),
+    ];
+    let c = channel(
+        Property::Scale,
+        Interpolation::Step,
+        vec![0.0, 1.0, 2.0],
+        values,
+    );
     assert_eq!(c.sample(0.999).map(|v| v.x), Some(1.0));
     assert_eq!(c.sample(1.0).map(|v| v.x), Some(2.0));
     assert_eq!(c.sample(1.5).map(|v| v.x), Some(2.0));
@@ -277,12 +431,19 @@ fn linear_rotation_takes_the_shortest_path() {
     assert!((half.angle_between(Quat::IDENTITY) - FRAC_PI_2).abs() < 1e-4);
     // Identical and zero quaternions.
     assert!(slerp_shortest(a, a, 0.3).abs_diff_eq(a, 1e-6));
-    assert_eq!(slerp_shortest(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), Quat::IDENTITY, 0.5), Quat::IDENTITY);
+    assert_eq!(
+        slerp_shortest(Quat::from_xyzw(0.0, 0.0, 0.0, 0.0), Quat::IDENTITY, 0.5),
+        Quat::IDENTITY
+    );
 }
 
 #[test]
 fn wrap_modes_clamp_and_loop() {
-    let clip = AnimationClip { name: "c".into(), duration_secs: 2.0, channels: Vec::new() };
+    let clip = AnimationClip {
+        name: "c".into(),
+        duration_secs: 2.0,
+        channels: Vec::new(),
+    };
     assert_eq!(clip.wrap_time(5.0, Wrap::Clamp), 2.0);
     assert_eq!(clip.wrap_time(-1.0, Wrap::Clamp), 0.0);
     assert!((clip.wrap_time(5.0, Wrap::Loop) - 1.0).abs() < 1e-6);
@@ -297,11 +458,24 @@ fn clip_validation_reports_bad_channels() {
     let mut clip = AnimationClip {
         name: "bad".into(),
         duration_secs: 1.0,
-        channels: vec![channel(Property::Translation, Interpolation::CubicSpline, vec![0.0, 1.0], vec![Vec4::ZERO; 4])],
+        channels: vec![channel(
+            Property::Translation,
+            Interpolation::CubicSpline,
+            vec![0.0, 1.0],
+            vec![Vec4::ZERO; 4],
+        )],
     };
-    let err = clip.validate(1).expect_err("cubic needs 3 values per key").to_string();
+    let err = clip
+        .validate(1)
+        .expect_err("cubic needs 3 values per key")
+        .to_string();
     assert!(err.contains("bad") && err.contains("channel 0"), "{err}");
-    clip.channels[0] = channel(Property::Translation, Interpolation::Linear, vec![1.0, 0.5], vec![Vec4::ZERO; 2]);
+    clip.channels[0] = channel(
+        Property::Translation,
+        Interpolation::Linear,
+        vec![1.0, 0.5],
+        vec![Vec4::ZERO; 2],
+    );
     assert!(clip.validate(1).is_err(), "decreasing times");
     clip.channels[0].times = vec![0.0, 1.0];
     assert!(clip.validate(0).is_err(), "joint out of range");
@@ -317,7 +491,10 @@ fn joint(name: &str, parent: Option<usize>, translation: Vec3) -> Joint {
     Joint {
         name: name.into(),
         parent,
-        rest: Transform { translation, ..Transform::IDENTITY },
+        rest: Transform {
+            translation,
+            ..Transform::IDENTITY
+        },
         inverse_bind: Mat4::from_translation(-translation),
         ..Joint::default()
     }
@@ -326,7 +503,11 @@ fn joint(name: &str, parent: Option<usize>, translation: Vec3) -> Joint {
 #[test]
 fn skeleton_reorders_topologically_and_rejects_cycles() {
     // c's parent is b, b's parent is a, listed c, a, b.
-    let joints = vec![joint("c", Some(2), Vec3::X), joint("a", None, Vec3::ZERO), joint("b", Some(1), Vec3::Y)];
+    let joints = vec![
+        joint("c", Some(2), Vec3::X),
+        joint("a", None, Vec3::ZERO),
+        joint("b", Some(1), Vec3::Y),
+    ];
     let (sk, new_from_old) = Skeleton::new(joints).expect("valid forest");
     let names: Vec<&str> = sk.joints.iter().map(|j| j.name.as_str()).collect();
     assert_eq!(names, ["a", "b", "c"]);
@@ -334,23 +515,42 @@ fn skeleton_reorders_topologically_and_rejects_cycles() {
     assert_eq!(sk.joints[2].parent, Some(1));
     assert!(sk.validate().is_ok());
 
-    let cycle = vec![joint("x", Some(1), Vec3::ZERO), joint("y", Some(0), Vec3::ZERO)];
+    let cycle = vec![
+        joint("x", Some(1), Vec3::ZERO),
+        joint("y", Some(0), Vec3::ZERO),
+    ];
     let err = Skeleton::new(cycle).expect_err("cycle");
     assert!(matches!(err, SkinError::Cycle { .. }), "{err}");
     assert!(err.to_string().contains("cycle"));
-    assert!(matches!(Skeleton::new(vec![joint("s", Some(0), Vec3::ZERO)]), Err(SkinError::Cycle { .. })));
-    assert!(matches!(Skeleton::new(vec![joint("p", Some(5), Vec3::ZERO)]), Err(SkinError::ParentOutOfRange { .. })));
+    assert!(matches!(
+        Skeleton::new(vec![joint("s", Some(0), Vec3::ZERO)]),
+        Err(SkinError::Cycle { .. })
+    ));
+    assert!(matches!(
+        Skeleton::new(vec![joint("p", Some(5), Vec3::ZERO)]),
+        Err(SkinError::ParentOutOfRange { .. })
+    ));
     let mut nan = joint("n", None, Vec3::ZERO);
     nan.rest.scale.y = f32::NAN;
-    assert!(matches!(Skeleton::new(vec![nan]), Err(SkinError::NonFiniteJoint { .. })));
+    assert!(matches!(
+        Skeleton::new(vec![nan]),
+        Err(SkinError::NonFiniteJoint { .. })
+    ));
     // An unsorted skeleton from a file fails validation.
-    let unsorted = Skeleton { joints: vec![joint("c", Some(1), Vec3::X), joint("a", None, Vec3::ZERO)] };
+    let unsorted = Skeleton {
+        joints: vec![joint("c", Some(1), Vec3::X), joint("a", None, Vec3::ZERO)],
+    };
     assert!(unsorted.validate().is_err());
 }
 
 fn chain() -> Skeleton {
     // Root at the origin, child one unit up: a two-bone arm along +Y.
-    Skeleton::new(vec![joint("root", None, Vec3::ZERO), joint("tip", Some(0), Vec3::Y)]).expect("valid").0
+    Skeleton::new(vec![
+        joint("root", None, Vec3::ZERO),
+        joint("tip", Some(0), Vec3::Y),
+    ])
+    .expect("valid")
+    .0
 }
 
 #[test]
@@ -358,10 +558,27 @@ fn overrides_layer_on_the_rest_pose() {
     let sk = chain();
     let mut pose = Pose::rest(&sk);
     let skipped = pose.apply_overrides(&[
-        JointOverride { joint: 0, rotation: Some(Quat::from_rotation_z(FRAC_PI_2) * 2.0), ..JointOverride::default() },
-        JointOverride { joint: 1, translation: Some(Vec3::new(0.0, 1.0, 0.0)), mode: OverrideMode::Relative, ..JointOverride::default() },
-        JointOverride { joint: 7, rotation: Some(Quat::IDENTITY), ..JointOverride::default() },
-        JointOverride { joint: 0, translation: Some(Vec3::NAN), ..JointOverride::default() },
+        JointOverride {
+            joint: 0,
+            rotation: Some(Quat::from_rotation_z(FRAC_PI_2) * 2.0),
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 1,
+            translation: Some(Vec3::new(0.0, 1.0, 0.0)),
+            mode: OverrideMode::Relative,
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 7,
+            rotation: Some(Quat::IDENTITY),
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 0,
+            translation: Some(Vec3::NAN),
+            ..JointOverride::default()
+        },
     ]);
     assert_eq!(skipped, 2);
     let mut m = JointMatrices::default();
@@ -386,7 +603,8 @@ fn serde_defaults_fill_missing_fields() {
     let sk: Skeleton = serde_json::from_str(r#"{"joints":[{"name":"a"}]}"#).expect("parses");
     assert_eq!(sk.joints[0].inverse_bind, Mat4::IDENTITY);
     assert_eq!(sk.joints[0].rest, Transform::IDENTITY);
-    let clip: AnimationClip = serde_json::from_str(r#"{"channels":[{"times":[0.0]}]}"#).expect("parses");
+    let clip: AnimationClip =
+        serde_json::from_str(r#"{"channels":[{"times":[0.0]}]}"#).expect("parses");
     assert_eq!(clip.channels[0].interpolation, Interpolation::Linear);
     let s: StretchSettings = serde_json::from_str(r#"{"strategy":"Adaptive"}"#).expect("parses");
     assert_eq!(s.strategy, StretchStrategy::Adaptive);
@@ -412,27 +630,50 @@ fn joint_rotated_180_degrees_stays_finite_and_exact() {
     let skinning = sk.skinning_matrices(&pose);
     assert!(all_finite(&skinning));
     // A point one unit above the tip flips to one unit below it.
-    let p = skin_point(&skinning, [1, 0, 0, 0], [1.0, 0.0, 0.0, 0.0], Vec3::new(0.0, 2.0, 0.0));
+    let p = skin_point(
+        &skinning,
+        [1, 0, 0, 0],
+        [1.0, 0.0, 0.0, 0.0],
+        Vec3::new(0.0, 2.0, 0.0),
+    );
     assert!(p.abs_diff_eq(Vec3::ZERO, 1e-5), "{p}");
     // Half-and-half blend across a 180° joint collapses the linear part (candy wrapper): the
     // normal must still be finite and unit.
     let n = skin_normal(&skinning, [0, 1, 0, 0], [0.5, 0.5, 0.0, 0.0], Vec3::Z);
     assert!(n.is_finite() && (n.length() - 1.0).abs() < 1e-5, "{n}");
-    let q = skin_point(&skinning, [0, 1, 0, 0], [0.5, 0.5, 0.0, 0.0], Vec3::new(0.0, 1.5, 0.0));
+    let q = skin_point(
+        &skinning,
+        [0, 1, 0, 0],
+        [0.5, 0.5, 0.0, 0.0],
+        Vec3::new(0.0, 1.5, 0.0),
+    );
     assert!(q.is_finite());
 }
 
 #[test]
 fn zero_length_bone_and_zero_scale_give_no_nan() {
     // Child at the same place as its parent (zero-length bone), scaled to 0.
-    let sk = Skeleton::new(vec![joint("root", None, Vec3::ZERO), joint("tip", Some(0), Vec3::ZERO)]).expect("ok").0;
+    let sk = Skeleton::new(vec![
+        joint("root", None, Vec3::ZERO),
+        joint("tip", Some(0), Vec3::ZERO),
+    ])
+    .expect("ok")
+    .0;
     let mut pose = Pose::rest(&sk);
     pose.locals[1].scale = Vec3::ZERO;
     pose.locals[1].rotation = Quat::from_rotation_y(1.0);
     let skinning = sk.skinning_matrices(&pose);
     assert!(all_finite(&skinning));
-    let p = skin_point(&skinning, [1, 0, 0, 0], [1.0, 0.0, 0.0, 0.0], Vec3::new(0.3, 0.4, 0.5));
-    assert!(p.abs_diff_eq(Vec3::ZERO, 1e-6), "fully collapsed joint collapses its points: {p}");
+    let p = skin_point(
+        &skinning,
+        [1, 0, 0, 0],
+        [1.0, 0.0, 0.0, 0.0],
+        Vec3::new(0.3, 0.4, 0.5),
+    );
+    assert!(
+        p.abs_diff_eq(Vec3::ZERO, 1e-6),
+        "fully collapsed joint collapses its points: {p}"
+    );
     for n in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::ZERO] {
         let out = skin_normal(&skinning, [1, 0, 0, 0], [1.0, 0.0, 0.0, 0.0], n);
         assert!(out.is_finite(), "normal {n} → {out}");
@@ -491,7 +732,12 @@ fn weight_repair_fixes_and_counts() {
     assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6);
 
     // Unrepaired garbage through skin_point: out-of-range joints are skipped, no panic.
-    let p = skin_point(&[Mat4::IDENTITY], [5, 0, 0, 0], [1.0, 0.0, 0.0, 0.0], Vec3::ONE);
+    let p = skin_point(
+        &[Mat4::IDENTITY],
+        [5, 0, 0, 0],
+        [1.0, 0.0, 0.0, 0.0],
+        Vec3::ONE,
+    );
     assert_eq!(p, Vec3::ZERO);
     assert_eq!(blend_matrix(&[], [0; 4], [1.0, 0.0, 0.0, 0.0]), Mat4::ZERO);
 }
@@ -500,15 +746,25 @@ fn weight_repair_fixes_and_counts() {
 
 #[test]
 fn node_skin_quantises_to_255_and_keeps_the_strongest() {
-    let s = NodeSkin::from_weights([(3, 0.1), (5, 0.2), (3, 0.2), (7, 0.05), (9, 0.15), (11, 0.3)]);
+    let s = NodeSkin::from_weights([
+        (3, 0.1),
+        (5, 0.2),
+        (3, 0.2),
+        (7, 0.05),
+        (9, 0.15),
+        (11, 0.3),
+    ]);
     // Joint 3: 0.3 (summed), 11: 0.3, 5: 0.2, 9: 0.15; joint 7 (0.05) is dropped.
     assert_eq!(s.joints, [3, 11, 5, 9]);
     assert_eq!(s.weights.iter().map(|&w| u32::from(w)).sum::<u32>(), 255);
     let expected = [0.3, 0.3, 0.2, 0.15].map(|w| w / 0.95 * 255.0);
-    for k in 0..4 {
-        assert!((f32::from(s.weights[k]) - expected[k]).abs() <= 1.0, "{s:?}");
+    for (&got, want) in s.weights.iter().zip(expected) {
+        assert!((f32::from(got) - want).abs() <= 1.0, "{s:?}");
     }
-    assert_eq!(NodeSkin::from_weights([(4, -1.0), (2, f32::NAN)]), NodeSkin::ROOT);
+    assert_eq!(
+        NodeSkin::from_weights([(4, -1.0), (2, f32::NAN)]),
+        NodeSkin::ROOT
+    );
     assert_eq!(NodeSkin::from_weights(std::iter::empty()), NodeSkin::ROOT);
     let thirds = NodeSkin::from_vertex([1, 2, 3, 0], [1.0, 1.0, 1.0, 0.0]);
     assert_eq!(thirds.weights, [85, 85, 85, 0]);
@@ -520,30 +776,75 @@ fn node_skin_quantises_to_255_and_keeps_the_strongest() {
 
 #[test]
 fn merge_sums_children_weights() {
-    let a = NodeSkin { joints: [1, 2, 0, 0], weights: [200, 55, 0, 0] };
-    let b = NodeSkin { joints: [2, 3, 0, 0], weights: [155, 100, 0, 0] };
+    let a = NodeSkin {
+        joints: [1, 2, 0, 0],
+        weights: [200, 55, 0, 0],
+    };
+    let b = NodeSkin {
+        joints: [2, 3, 0, 0],
+        weights: [155, 100, 0, 0],
+    };
     let m = merge_node_skins(&[a, b]);
     // Joint 2: 210, joint 1: 200, joint 3: 100 out of 510.
     assert_eq!(&m.joints[..3], &[2, 1, 3]);
     assert_eq!(m.weights.iter().map(|&w| u32::from(w)).sum::<u32>(), 255);
     assert_eq!(m.weights[3], 0);
-    assert!((i32::from(m.weights[0]) - 105).abs() <= 1 && (i32::from(m.weights[1]) - 100).abs() <= 1);
+    assert!(
+        (i32::from(m.weights[0]) - 105).abs() <= 1 && (i32::from(m.weights[1]) - 100).abs() <= 1
+    );
     assert_eq!(merge_node_skins(&[]), NodeSkin::ROOT);
-    assert_eq!(merge_node_skins(&[a]), NodeSkin::from_vertex([1, 2, 0, 0], [200.0, 55.0, 0.0, 0.0]));
+    assert_eq!(
+        merge_node_skins(&[a]),
+        NodeSkin::from_vertex([1, 2, 0, 0], [200.0, 55.0, 0.0, 0.0])
+    );
     // Five joints over eight children: the weakest is dropped, ties go to the lower joint.
-    let kids: Vec<NodeSkin> = (0..8u16).map(|i| NodeSkin { joints: [i % 5, 0, 0, 0], weights: [255, 0, 0, 0] }).collect();
+    let kids: Vec<NodeSkin> = (0..8u16)
+        .map(|i| NodeSkin {
+            joints: [i % 5, 0, 0, 0],
+            weights: [255, 0, 0, 0],
+        })
+        .collect();
     let m = merge_node_skins(&kids);
-    assert_eq!(m.joints, [0, 1, 2, 3], "joints 0–2 have two children each, 3 and 4 tie: 3 wins");
+    assert_eq!(
+        m.joints,
+        [0, 1, 2, 3],
+        "joints 0–2 have two children each, 3 and 4 tie: 3 wins"
+    );
 }
 
 // ---------------------------------------------------------------- stretch
 
 #[test]
 fn thesis_factor_follows_the_paper() {
-    assert_eq!(thesis_factor(&NodeSkin { joints: [0; 4], weights: [255, 0, 0, 0] }), 1.0);
-    assert_eq!(thesis_factor(&NodeSkin { joints: [0, 1, 0, 0], weights: [200, 55, 0, 0] }), 2.0);
-    assert_eq!(thesis_factor(&NodeSkin { joints: [0, 1, 2, 3], weights: [100, 55, 50, 50] }), 2.0);
-    assert_eq!(thesis_factor(&NodeSkin { joints: [0; 4], weights: [0; 4] }), 1.0, "no weights: 1, not 0");
+    assert_eq!(
+        thesis_factor(&NodeSkin {
+            joints: [0; 4],
+            weights: [255, 0, 0, 0]
+        }),
+        1.0
+    );
+    assert_eq!(
+        thesis_factor(&NodeSkin {
+            joints: [0, 1, 0, 0],
+            weights: [200, 55, 0, 0]
+        }),
+        2.0
+    );
+    assert_eq!(
+        thesis_factor(&NodeSkin {
+            joints: [0, 1, 2, 3],
+            weights: [100, 55, 50, 50]
+        }),
+        2.0
+    );
+    assert_eq!(
+        thesis_factor(&NodeSkin {
+            joints: [0; 4],
+            weights: [0; 4]
+        }),
+        1.0,
+        "no weights: 1, not 0"
+    );
 }
 
 #[test]
@@ -551,18 +852,35 @@ fn singular_values_and_sample_stretch() {
     assert!((max_singular_value(Mat3::IDENTITY) - 1.0).abs() < 1e-6);
     let r = Mat3::from_quat(Quat::from_euler(glam::EulerRot::XYZ, 0.3, 1.1, -2.0));
     assert!((max_singular_value(r) - 1.0).abs() < 1e-5);
-    assert!((max_singular_value(r * Mat3::from_diagonal(Vec3::new(1.0, 3.0, 0.5))) - 3.0).abs() < 1e-4);
-    assert!((max_singular_value(Mat3::from_cols(Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Z)) - 1.618_034).abs() < 1e-4);
+    assert!(
+        (max_singular_value(r * Mat3::from_diagonal(Vec3::new(1.0, 3.0, 0.5))) - 3.0).abs() < 1e-4
+    );
+    assert!(
+        (max_singular_value(Mat3::from_cols(Vec3::X, Vec3::new(1.0, 1.0, 0.0), Vec3::Z))
+            - 1.618_034)
+            .abs()
+            < 1e-4
+    );
     assert_eq!(max_singular_value(Mat3::ZERO), 0.0);
     assert!(max_singular_value(Mat3::from_diagonal(Vec3::splat(1e25))).is_finite());
 
     let bind = voxel_corners(Vec3::new(1.0, 2.0, 3.0), 0.5);
-    let rotated: Vec<Vec3> = bind.iter().map(|&p| Mat3::from_rotation_z(0.7) * p + Vec3::X).collect();
-    assert!((stretch_from_samples(&bind, &rotated).expect("8 points") - 1.0).abs() < 1e-5, "rigid: S = 1");
+    let rotated: Vec<Vec3> = bind
+        .iter()
+        .map(|&p| Mat3::from_rotation_z(0.7) * p + Vec3::X)
+        .collect();
+    assert!(
+        (stretch_from_samples(&bind, &rotated).expect("8 points") - 1.0).abs() < 1e-5,
+        "rigid: S = 1"
+    );
     let stretched: Vec<Vec3> = bind.iter().map(|&p| p * Vec3::new(1.0, 1.0, 2.5)).collect();
     assert!((stretch_from_samples(&bind, &stretched).expect("8 points") - 2.5).abs() < 1e-5);
     assert_eq!(stretch_from_samples(&bind[..1], &rotated[..1]), None);
-    assert_eq!(stretch_from_samples(&[Vec3::ONE; 2], &[Vec3::ZERO, Vec3::X]), None, "coincident bind points");
+    assert_eq!(
+        stretch_from_samples(&[Vec3::ONE; 2], &[Vec3::ZERO, Vec3::X]),
+        None,
+        "coincident bind points"
+    );
 }
 
 #[test]
@@ -588,7 +906,17 @@ fn elbow() -> (Vec<Mat4>, [NodeSkin; 8], Vec3, f32) {
     let centre = Vec3::new(0.1, 1.0, 0.0);
     let half = 0.05;
     let corner_skins = std::array::from_fn(|k| {
-        if k & 2 == 0 { NodeSkin { joints: [0; 4], weights: [255, 0, 0, 0] } } else { NodeSkin { joints: [1, 0, 0, 0], weights: [255, 0, 0, 0] } }
+        if k & 2 == 0 {
+            NodeSkin {
+                joints: [0; 4],
+                weights: [255, 0, 0, 0],
+            }
+        } else {
+            NodeSkin {
+                joints: [1, 0, 0, 0],
+                weights: [255, 0, 0, 0],
+            }
+        }
     });
     (skinning, corner_skins, centre, half)
 }
@@ -596,9 +924,27 @@ fn elbow() -> (Vec<Mat4>, [NodeSkin; 8], Vec3, f32) {
 #[test]
 fn splat_strategies_order_holes_and_bloat() {
     let (skinning, corner_skins, center, half) = elbow();
-    let skin = NodeSkin { joints: [0, 1, 0, 0], weights: [128, 127, 0, 0] };
-    let input = VoxelSkinInput { center, half_size: half, skin, corner_skins: Some(&corner_skins), override_code: 0 };
-    let splat = |strategy| skinned_splat(&StretchSettings { strategy, ..StretchSettings::default() }, &skinning, &input);
+    let skin = NodeSkin {
+        joints: [0, 1, 0, 0],
+        weights: [128, 127, 0, 0],
+    };
+    let input = VoxelSkinInput {
+        center,
+        half_size: half,
+        skin,
+        corner_skins: Some(&corner_skins),
+        override_code: 0,
+    };
+    let splat = |strategy| {
+        skinned_splat(
+            &StretchSettings {
+                strategy,
+                ..StretchSettings::default()
+            },
+            &skinning,
+            &input,
+        )
+    };
     let off = splat(StretchStrategy::Off);
     let thesis = splat(StretchStrategy::Thesis);
     let corners = splat(StretchStrategy::Corners);
@@ -608,22 +954,60 @@ fn splat_strategies_order_holes_and_bloat() {
     // Corners: the box holds all eight skinned corners.
     let skinned = skin_corners(&skinning, &voxel_corners(center, half), &corner_skins);
     let (lo, hi) = aabb(&skinned);
-    assert!(corners.center.abs_diff_eq((lo + hi) * 0.5, 1e-6) && corners.half_extent.abs_diff_eq((hi - lo) * 0.5, 1e-6));
+    assert!(
+        corners.center.abs_diff_eq((lo + hi) * 0.5, 1e-6)
+            && corners.half_extent.abs_diff_eq((hi - lo) * 0.5, 1e-6)
+    );
     // Adaptive measures the stretch across the joint: more than 1, finite.
-    assert!(adaptive.half_extent.x > half * 1.01 && adaptive.half_extent.is_finite(), "{adaptive:?}");
+    assert!(
+        adaptive.half_extent.x > half * 1.01 && adaptive.half_extent.is_finite(),
+        "{adaptive:?}"
+    );
     // Without corner data Corners falls back to Thesis and Adaptive to the blended linear part
     // (a 50/50 blend of two rotations shrinks, so min_factor = 1 holds it at 1).
-    let bare = VoxelSkinInput { corner_skins: None, ..input };
-    let settings = |strategy| StretchSettings { strategy, ..StretchSettings::default() };
-    assert_eq!(skinned_splat(&settings(StretchStrategy::Corners), &skinning, &bare).half_extent, thesis.half_extent);
-    assert_eq!(skinned_splat(&settings(StretchStrategy::Adaptive), &skinning, &bare).half_extent, Vec3::splat(half));
+    let bare = VoxelSkinInput {
+        corner_skins: None,
+        ..input
+    };
+    let settings = |strategy| StretchSettings {
+        strategy,
+        ..StretchSettings::default()
+    };
+    assert_eq!(
+        skinned_splat(&settings(StretchStrategy::Corners), &skinning, &bare).half_extent,
+        thesis.half_extent
+    );
+    assert_eq!(
+        skinned_splat(&settings(StretchStrategy::Adaptive), &skinning, &bare).half_extent,
+        Vec3::splat(half)
+    );
     // Override replaces the strategy's factor; the multiplier scales everything.
-    let painted = VoxelSkinInput { override_code: encode_override(3.0), ..input };
-    let s = StretchSettings { strategy: StretchStrategy::Thesis, multiplier: 0.5, ..StretchSettings::default() };
-    assert!(skinned_splat(&s, &skinning, &painted).half_extent.abs_diff_eq(Vec3::splat(1.5 * half), 1e-6));
+    let painted = VoxelSkinInput {
+        override_code: encode_override(3.0),
+        ..input
+    };
+    let s = StretchSettings {
+        strategy: StretchStrategy::Thesis,
+        multiplier: 0.5,
+        ..StretchSettings::default()
+    };
+    assert!(
+        skinned_splat(&s, &skinning, &painted)
+            .half_extent
+            .abs_diff_eq(Vec3::splat(1.5 * half), 1e-6)
+    );
     // Garbage settings are sanitised.
-    let nan = StretchSettings { strategy: StretchStrategy::Adaptive, multiplier: f32::NAN, min_factor: -1.0, max_factor: f32::INFINITY };
-    assert!(skinned_splat(&nan, &skinning, &input).half_extent.is_finite());
+    let nan = StretchSettings {
+        strategy: StretchStrategy::Adaptive,
+        multiplier: f32::NAN,
+        min_factor: -1.0,
+        max_factor: f32::INFINITY,
+    };
+    assert!(
+        skinned_splat(&nan, &skinning, &input)
+            .half_extent
+            .is_finite()
+    );
 }
 
 #[test]
@@ -636,15 +1020,39 @@ fn splats_stay_finite_with_a_collapsed_joint() {
     let input = VoxelSkinInput {
         center,
         half_size: half,
-        skin: NodeSkin { joints: [1, 0, 0, 0], weights: [255, 0, 0, 0] },
+        skin: NodeSkin {
+            joints: [1, 0, 0, 0],
+            weights: [255, 0, 0, 0],
+        },
         corner_skins: Some(&corner_skins),
         override_code: 0,
     };
-    for strategy in [StretchStrategy::Off, StretchStrategy::Thesis, StretchStrategy::Corners, StretchStrategy::Adaptive] {
-        let s = StretchSettings { strategy, ..StretchSettings::default() };
+    for strategy in [
+        StretchStrategy::Off,
+        StretchStrategy::Thesis,
+        StretchStrategy::Corners,
+        StretchStrategy::Adaptive,
+    ] {
+        let s = StretchSettings {
+            strategy,
+            ..StretchSettings::default()
+        };
         let b = skinned_splat(&s, &skinning, &input);
-        assert!(b.center.is_finite() && b.half_extent.is_finite(), "{strategy:?}: {b:?}");
-        let bare = skinned_splat(&s, &skinning, &VoxelSkinInput { corner_skins: None, ..input });
-        assert!(bare.center.is_finite() && bare.half_extent.is_finite(), "{strategy:?}: {bare:?}");
+        assert!(
+            b.center.is_finite() && b.half_extent.is_finite(),
+            "{strategy:?}: {b:?}"
+        );
+        let bare = skinned_splat(
+            &s,
+            &skinning,
+            &VoxelSkinInput {
+                corner_skins: None,
+                ..input
+            },
+        );
+        assert!(
+            bare.center.is_finite() && bare.half_extent.is_finite(),
+            "{strategy:?}: {bare:?}"
+        );
     }
 }
