@@ -89,6 +89,19 @@ pub enum SkinError {
         /// Its name.
         name: String,
     },
+    /// A joint's parent comes after it in the list (a skeleton from a file that was not built by
+    /// [`Skeleton::new`], which sorts).
+    #[error(
+        "joint {joint} ({name:?}) comes before its parent {parent}; rebuild with Skeleton::new to sort"
+    )]
+    NotTopological {
+        /// The joint's index.
+        joint: usize,
+        /// Its name.
+        name: String,
+        /// The parent's index.
+        parent: usize,
+    },
     /// A transform or matrix holds NaN or infinity.
     #[error("joint {joint} ({name:?}) has a non-finite {what}")]
     NonFiniteJoint {

@@ -177,7 +177,8 @@ impl Skeleton {
     /// project file): parents before children, finite transforms.
     ///
     /// # Errors
-    /// The first problem found; an out-of-order parent is reported as a cycle or range error.
+    /// The first problem found: [`SkinError::Cycle`], [`SkinError::NotTopological`],
+    /// [`SkinError::ParentOutOfRange`] or [`SkinError::NonFiniteJoint`].
     pub fn validate(&self) -> Result<(), SkinError> {
         let count = self.joints.len();
         for (i, j) in self.joints.iter().enumerate() {
@@ -191,11 +192,12 @@ impl Skeleton {
                     });
                 }
                 if parent >= i {
-                    // Either a cycle or merely unsorted; `new` tells them apart.
+                    // Tell a real cycle from mere disorder.
                     Self::new(self.joints.clone())?;
-                    return Err(SkinError::Cycle {
+                    return Err(SkinError::NotTopological {
                         joint: i,
                         name: j.name.clone(),
+                        parent,
                     });
                 }
             }

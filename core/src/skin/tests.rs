@@ -540,7 +540,21 @@ fn skeleton_reorders_topologically_and_rejects_cycles() {
     let unsorted = Skeleton {
         joints: vec![joint("c", Some(1), Vec3::X), joint("a", None, Vec3::ZERO)],
     };
-    assert!(unsorted.validate().is_err());
+    assert!(matches!(
+        unsorted.validate(),
+        Err(SkinError::NotTopological {
+            joint: 0,
+            parent: 1,
+            ..
+        })
+    ));
+    let looped = Skeleton {
+        joints: vec![
+            joint("x", Some(1), Vec3::X),
+            joint("y", Some(0), Vec3::ZERO),
+        ],
+    };
+    assert!(matches!(looped.validate(), Err(SkinError::Cycle { .. })));
 }
 
 fn chain() -> Skeleton {
@@ -1055,4 +1069,44 @@ fn splats_stay_finite_with_a_collapsed_joint() {
             "{strategy:?}: {bare:?}"
         );
     }
+}
+
+#[test]
+fn adaptive_is_one_under_rigid_motion_where_thesis_doubles() {
+    let sk = chain();
+    let mut pose = Pose::rest(&sk);
+    pose.locals[0].rotation = Quat::from_rotation_y(0.7) * Quat::from_rotation_x(0.4);
+    pose.locals[0].translation = Vec3::new(3.0, -1.0, 2.0);
+    let skinning = sk.skinning_matrices(&pose);
+    // Two non-zero weights on joints that move rigidly together.
+    let skin = NodeSkin {
+        joints: [0, 1, 0, 0],
+        weights: [128, 127, 0, 0],
+    };
+    let corners = [skin; 8];
+    let input = VoxelSkinInput {
+        center: Vec3::new(0.0, 0.5, 0.0),
+        half_size: 0.05,
+        skin,
+        corner_skins: Some(&corners),
+        override_code: 0,
+    };
+    let settings = |strategy| StretchSettings {
+        strategy,
+        min_factor: 0.0,
+        ..StretchSettings::default()
+    };
+    let adaptive = skinned_splat(&settings(StretchStrategy::Adaptive), &skinning, &input);
+    let thesis = skinned_splat(&settings(StretchStrategy::Thesis), &skinning, &input);
+    assert!((adaptive.half_extent.x - 0.05).abs() < 1e-5, "{adaptive:?}");
+    assert!((thesis.half_extent.x - 0.1).abs() < 1e-6);
+    assert!(adaptive.center.abs_diff_eq(thesis.center, 1e-6));
+    // Shrinking the skeleton by half: Adaptive follows (with min_factor 0), Thesis does not.
+    pose.locals[0].scale = Vec3::splat(0.5);
+    let skinning = sk.skinning_matrices(&pose);
+    let adaptive = skinned_splat(&settings(StretchStrategy::Adaptive), &skinning, &input);
+    assert!(
+        (adaptive.half_extent.x - 0.025).abs() < 1e-5,
+        "{adaptive:?}"
+    );
 }
