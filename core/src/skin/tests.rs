@@ -1110,3 +1110,87 @@ fn adaptive_is_one_under_rigid_motion_where_thesis_doubles() {
         "{adaptive:?}"
     );
 }
+
+fn base64(bytes: &[u8]) -> String {
+    const ALPHABET: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
+    let mut out = String::new();
+    for chunk in bytes.chunks(3) {
+        let b = [
+            chunk[0],
+            chunk.get(1).copied().unwrap_or(0),
+            chunk.get(2).copied().unwrap_or(0),
+        ];
+        let n = (u32::from(b[0]) << 16) | (u32::from(b[1]) << 8) | u32::from(b[2]);
+        for k in 0..4 {
+            if k <= chunk.len() {
+                out.push(char::from(ALPHABET[((n >> (18 - 6 * k)) & 63) as usize]));
+            } else {
+                out.push('=');
+            }
+        }
+    }
+    out
+}
+
+/// SimpleSkin with JOINTS_0 as u8 and WEIGHTS_0 as unorm8 or unorm16, in a new buffer.
+fn simple_skin_quantised(weights_u16: bool) -> Vec<u8> {
+    let reference = import_skinned(SIMPLE_SKIN).expect("imports");
+    let part = &reference.mesh.parts[0];
+    let mut bytes: Vec<u8> = part
+        .joints
+        .iter()
+        .flat_map(|j| j.map(|x| x as u8))
+        .collect();
+    let joints_len = bytes.len();
+    for w in &part.weights {
+        for &x in w {
+            if weights_u16 {
+                bytes.extend(((x * 65535.0).round() as u16).to_le_bytes());
+            } else {
+                bytes.push((x * 255.0).round() as u8);
+            }
+        }
+    }
+    let mut doc: serde_json::Value = serde_json::from_str(&simple_skin_text()).expect("JSON");
+    doc["buffers"]
+        .as_array_mut()
+        .expect("buffers")
+        .push(serde_json::json!({
+            "uri": format!("data:application/gltf-buffer;base64,{}", base64(&bytes)),
+            "byteLength": bytes.len(),
+        }));
+    let views = doc["bufferViews"].as_array_mut().expect("views");
+    views.push(serde_json::json!({ "buffer": 4, "byteLength": joints_len }));
+    views.push(serde_json::json!({ "buffer": 4, "byteOffset": joints_len, "byteLength": bytes.len() - joints_len }));
+    doc["accessors"][2] =
+        serde_json::json!({ "bufferView": 5, "componentType": 5121, "count": 10, "type": "VEC4" });
+    let weight_type = if weights_u16 { 5123 } else { 5121 };
+    doc["accessors"][3] = serde_json::json!({ "bufferView": 6, "componentType": weight_type, "normalized": true, "count": 10, "type": "VEC4" });
+    serde_json::to_vec(&doc).expect("serialises")
+}
+
+#[test]
+fn u8_joints_and_unorm_weights_import() {
+    let reference = import_skinned(SIMPLE_SKIN).expect("imports");
+    let expected = skinned_positions(&reference, 0, 1.0);
+    for (weights_u16, tol) in [(false, 5e-3), (true, 1e-4)] {
+        let bytes = simple_skin_quantised(weights_u16);
+        let import =
+            import_skinned_slice(&bytes, "quantised.gltf").expect("quantised SimpleSkin imports");
+        assert_eq!(import.mesh.parts[0].joints, reference.mesh.parts[0].joints);
+        assert_eq!(
+            import.weight_repair.total(),
+            0,
+            "quantisation alone is not a repair"
+        );
+        let got = skinned_positions(&import, 0, 1.0);
+        for (i, (g, e)) in got.iter().zip(&expected).enumerate() {
+            assert_close(
+                *g,
+                *e,
+                tol,
+                &format!("vertex {i}, unorm{}", if weights_u16 { 16 } else { 8 }),
+            );
+        }
+    }
+}
