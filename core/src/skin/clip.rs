@@ -265,6 +265,14 @@ impl AnimationClip {
         pose
     }
 
+    /// [`AnimationClip::sample`] with a wrap mode ([`Wrap::Loop`] for cycles like a walk).
+    #[must_use]
+    pub fn sample_wrapped(&self, t: f32, wrap: Wrap, skeleton: &Skeleton) -> Pose {
+        let mut pose = Pose::default();
+        self.sample_into(t, wrap, skeleton, &mut pose);
+        pose
+    }
+
     /// [`AnimationClip::sample`] with a wrap mode, writing into a reused pose.
     pub fn sample_into(&self, t: f32, wrap: Wrap, skeleton: &Skeleton, pose: &mut Pose) {
         pose.reset_to_rest(skeleton);

@@ -449,6 +449,14 @@ fn wrap_modes_clamp_and_loop() {
     assert!((clip.wrap_time(5.0, Wrap::Loop) - 1.0).abs() < 1e-6);
     assert!((clip.wrap_time(-0.5, Wrap::Loop) - 1.5).abs() < 1e-6);
     assert_eq!(clip.wrap_time(f32::NAN, Wrap::Loop), 0.0);
+    // Looping a real clip: one period later gives the same pose.
+    let import = import_skinned(SIMPLE_SKIN).expect("imports");
+    let c = &import.clips[0];
+    let a = c.sample_wrapped(1.25, Wrap::Loop, &import.skeleton);
+    let b = c.sample_wrapped(1.25 + 2.0 * c.duration_secs, Wrap::Loop, &import.skeleton);
+    assert!(a.locals[1].rotation.abs_diff_eq(b.locals[1].rotation, 1e-5));
+    let clamped = c.sample(100.0, &import.skeleton);
+    assert_eq!(clamped, c.sample(c.duration_secs, &import.skeleton));
     let empty = AnimationClip::default();
     assert_eq!(empty.wrap_time(3.0, Wrap::Loop), 0.0);
 }
