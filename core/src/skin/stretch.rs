@@ -163,6 +163,29 @@ pub fn stretch_from_samples(bind: &[Vec3], skinned: &[Vec3]) -> Option<f32> {
     best
 }
 
+/// [`stretch_from_samples`] specialised to the eight corners of a cube of edge `2 · half_size`
+/// in [`voxel_corners`] order: the bind distances are known (edge, face and body diagonals),
+/// so the 28 pairs cost one squared distance each and a single square root at the end.
+#[must_use]
+pub fn stretch_from_corners(skinned: &[Vec3; 8], half_size: f32) -> Option<f32> {
+    let edge_sq = 4.0 * half_size * half_size;
+    if !(edge_sq.is_finite() && edge_sq > 1e-24) {
+        return None;
+    }
+    // Pairs differing in one coordinate bit are edges (k = 1), two bits face diagonals (k = 2),
+    // three bits body diagonals (k = 3): bind distance² = k · edge².
+    let inv_k = [0.0, 1.0, 0.5, 1.0 / 3.0];
+    let mut best_sq = 0.0f32;
+    for i in 0..8usize {
+        for j in i + 1..8 {
+            let k = (i ^ j).count_ones() as usize;
+            best_sq = best_sq.max(skinned[i].distance_squared(skinned[j]) * inv_k[k]);
+        }
+    }
+    let ratio = (best_sq / edge_sq).sqrt();
+    ratio.is_finite().then_some(ratio)
+}
+
 /// Largest singular value of a 3×3 matrix (the most it stretches any direction), from the
 /// largest eigenvalue of `aᵀa` in closed form. Finite for finite input; 0 for the zero matrix.
 #[must_use]
@@ -293,9 +316,8 @@ pub fn skinned_splat(
             }
         }
         (StretchStrategy::Adaptive, Some(cs)) => {
-            let bind = voxel_corners(v.center, v.half_size);
-            let skinned = skin_corners(skinning, &bind, cs);
-            scalar(stretch_from_samples(&bind, &skinned).unwrap_or(1.0))
+            let skinned = skin_corners(skinning, &voxel_corners(v.center, v.half_size), cs);
+            scalar(stretch_from_corners(&skinned, v.half_size).unwrap_or(1.0))
         }
         (StretchStrategy::Adaptive, None) => scalar(blended_linear_factor(skinning, &v.skin)),
     }

@@ -898,6 +898,15 @@ fn singular_values_and_sample_stretch() {
     let stretched: Vec<Vec3> = bind.iter().map(|&p| p * Vec3::new(1.0, 1.0, 2.5)).collect();
     assert!((stretch_from_samples(&bind, &stretched).expect("8 points") - 2.5).abs() < 1e-5);
     assert_eq!(stretch_from_samples(&bind[..1], &rotated[..1]), None);
+    // The cube-specialised form agrees with the generic one on arbitrary deformations.
+    let warped: [Vec3; 8] = std::array::from_fn(|k| {
+        let p = bind[k];
+        Vec3::new(p.x + 0.3 * p.y * p.y, p.y * 1.7, p.z - 0.2 * p.x)
+    });
+    let generic = stretch_from_samples(&bind, &warped).expect("8 points");
+    let cube = stretch::stretch_from_corners(&warped, 0.5).expect("valid cube");
+    assert!((generic - cube).abs() < 1e-4, "{generic} vs {cube}");
+    assert_eq!(stretch::stretch_from_corners(&warped, 0.0), None);
     assert_eq!(
         stretch_from_samples(&[Vec3::ONE; 2], &[Vec3::ZERO, Vec3::X]),
         None,
