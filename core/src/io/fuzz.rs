@@ -126,7 +126,8 @@ pub fn mutate(corpus: &[Vec<u8>], rng: &mut Pcg64) -> Vec<u8> {
     let mut data = source.clone();
     let rounds = rng.random_range(1..=3);
     for _ in 0..rounds {
-        match rng.random_range(0..6) {
+        match rng.random_range(0..8) {
+            6 | 7 if data.starts_with(b"glTF") => mutate_glb_chunks(&mut data, rng),
             0 => flip_bytes(&mut data, rng),
             1 => {
                 let keep = rng.random_range(0..=data.len());
@@ -145,6 +146,42 @@ pub fn mutate(corpus: &[Vec<u8>], rng: &mut Pcg64) -> Vec<u8> {
         }
     }
     data
+}
+
+/// GLB-aware mutation: mutates the JSON or BIN chunk and rewrites the container's lengths, so
+/// the mutation gets past the container checks to the JSON and accessor checks.
+fn mutate_glb_chunks(data: &mut Vec<u8>, rng: &mut Pcg64) {
+    let u32_at = |d: &[u8], at: usize| d.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
+    let Some(json_len) = u32_at(data, 12) else { return };
+    let Some(json) = data.get(20..20 + json_len) else { return };
+    let mut json = json.to_vec();
+    let rest_start = 20 + json_len;
+    let mut bin = match u32_at(data, rest_start) {
+        Some(len) => data.get(rest_start + 8..rest_start + 8 + len).map(<[u8]>::to_vec),
+        None => None,
+    };
+    match (rng.random_range(0..4), bin.as_mut()) {
+        (3, Some(bin)) => flip_bytes(bin, rng),
+        (2, _) => flip_bytes(&mut json, rng),
+        _ => inflate_decimal(&mut json, rng),
+    }
+    while json.len() % 4 != 0 {
+        json.push(b' ');
+    }
+    let mut out = Vec::with_capacity(data.len() + 16);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    let total = 20 + json.len() + bin.as_ref().map_or(0, |b| 8 + b.len());
+    out.extend_from_slice(&(total as u32).to_le_bytes());
+    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&json);
+    if let Some(bin) = bin {
+        out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&bin);
+    }
+    *data = out;
 }
 
 fn flip_bytes(data: &mut [u8], rng: &mut Pcg64) {
@@ -176,10 +213,15 @@ fn inflate_decimal(data: &mut Vec<u8>, rng: &mut Pcg64) {
         }
         runs
     };
-    if runs.is_empty() {
+    // Prefer whole number tokens (after ':', '[', ',' or a space) over digits inside strings
+    // such as base64 data, so JSON counts, offsets and indices get inflated.
+    let tokens: Vec<(usize, usize)> =
+        runs.iter().copied().filter(|&(s, _)| s > 0 && matches!(data[s - 1], b':' | b'[' | b',' | b' ')).collect();
+    let pool = if !tokens.is_empty() && rng.random_bool(0.75) { &tokens } else { &runs };
+    if pool.is_empty() {
         return;
     }
-    let (start, end) = runs[rng.random_range(0..runs.len())];
+    let (start, end) = pool[rng.random_range(0..pool.len())];
     let replacement = HUGE_DECIMALS[rng.random_range(0..HUGE_DECIMALS.len())].as_bytes();
     data.splice(start..end, replacement.iter().copied());
 }
@@ -300,20 +342,20 @@ mod tests {
     #[test]
     fn mutations_are_deterministic_and_change_the_input() {
         let corpus = vec![b"{\"count\": 24, \"byteLength\": 648}".to_vec()];
-        let a: Vec<Vec<u8>> = (0..50).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
-        let b: Vec<Vec<u8>> = (0..50).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
+        let a: Vec<Vec<u8>> = (0..200).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
+        let b: Vec<Vec<u8>> = (0..200).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
         assert_eq!(a, b);
-        assert!(a.iter().filter(|m| **m != corpus[0]).count() > 40);
+        assert!(a.iter().filter(|m| **m != corpus[0]).count() > 160);
         assert!(a.iter().any(|m| m.len() < corpus[0].len()), "some truncation");
-        assert!(a.iter().any(|m| m.windows(4).any(|w| w == b"4294")), "some inflated count");
+        assert!(a.iter().any(|m| m.windows(7).any(|w| w == b"4294967")), "some inflated count");
     }
 
     #[test]
     fn the_harness_catches_panics_and_measures_memory() {
         let corpus = vec![vec![1u8; 64]];
         let report = run(&corpus, 200, 1, |_| 1 << 20, |bytes: &[u8]| -> Result<(), ()> {
-            if bytes.first() == Some(&0) {
-                panic!("zero first byte");
+            if bytes.contains(&0) {
+                panic!("zero byte");
             }
             if bytes.len() > 64 {
                 // A loader that over-allocates for long inputs.
@@ -324,7 +366,7 @@ mod tests {
         });
         assert_eq!(report.cases, 200);
         assert!(!report.panics.is_empty(), "{report}");
-        assert!(report.panics.iter().all(|(_, m)| m == "zero first byte"));
+        assert!(report.panics.iter().all(|(_, m)| m == "zero byte"));
         assert!(!report.over_budget.is_empty(), "{report}");
         assert!(report.max_peak_bytes >= 4 << 20);
         let (v, peak) = peak_heap_bytes(|| vec![0u8; 1000]);
@@ -335,13 +377,26 @@ mod tests {
 /// The loaders in this crate under the harness: ≥ 10,000 cases each by default.
 #[cfg(test)]
 mod loaders {
+    use std::cell::RefCell;
+    use std::collections::BTreeMap;
     use std::path::Path;
 
     use super::{cases_from_env, run};
-    use crate::io::error::ImportLimits;
+    use crate::io::error::{ImportLimits, IoError};
     use crate::io::{gltf_mesh, obj};
 
     const SEED: u64 = 0x7417_C3E7;
+
+    fn kind(e: &IoError) -> &'static str {
+        match e {
+            IoError::Io { .. } => "Io",
+            IoError::Truncated { .. } => "Truncated",
+            IoError::Parse { .. } => "Parse",
+            IoError::Invalid { .. } => "Invalid",
+            IoError::TooLarge { .. } => "TooLarge",
+            IoError::Unsupported { .. } => "Unsupported",
+        }
+    }
 
     fn asset(relative: &str) -> Vec<u8> {
         let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/").to_owned() + relative;
@@ -362,10 +417,20 @@ mod loaders {
         }
         let cases = cases_from_env(10_000);
         let limits = ImportLimits::default();
+        let kinds: RefCell<BTreeMap<&'static str, u64>> = RefCell::default();
         let report = run(&corpus, cases, SEED, budget, |bytes| {
-            gltf_mesh::import_gltf_slice_with(bytes, None, Path::new("fuzz.glb"), &limits)
+            let result = gltf_mesh::import_gltf_slice_with(bytes, None, Path::new("fuzz.glb"), &limits);
+            if let Err(e) = &result {
+                *kinds.borrow_mut().entry(kind(e)).or_default() += 1;
+            }
+            result
         });
-        eprintln!("glTF fuzz: {report}");
+        let kinds = kinds.into_inner();
+        eprintln!("glTF fuzz: {report}; refusals by kind {kinds:?}");
+        // Every layer of checks is reached: container, JSON, accessor bounds, declared sizes.
+        for k in ["Truncated", "Parse", "Invalid", "TooLarge"] {
+            assert!(kinds.get(k).copied().unwrap_or(0) > 0, "no {k} refusals: {kinds:?}");
+        }
         assert!(report.panics.is_empty(), "seed {SEED:#x}: panics {:?}", &report.panics[..report.panics.len().min(10)]);
         assert!(report.over_budget.is_empty(), "seed {SEED:#x}: over budget {:?}", &report.over_budget[..report.over_budget.len().min(10)]);
         assert_eq!(report.cases, cases);

@@ -251,22 +251,24 @@ fn check_faces(text: &str, name: &Path) -> Result<(), IoError> {
             Some("f" | "l") => {
                 let line_number = line_index + 1;
                 for word in words {
+                    if word.split('/').count() > 3 {
+                        return Err(IoError::parse(
+                            name,
+                            format!("line {line_number}: face vertex '{word}' has more than three indices"),
+                        ));
+                    }
                     for (kind, part) in word.split('/').enumerate() {
                         if part.is_empty() {
                             continue;
                         }
-                        let Some(&total) = totals.get(kind) else {
-                            return Err(IoError::parse(
-                                name,
-                                format!("line {line_number}: face vertex '{word}' has more than three indices"),
-                            ));
-                        };
+                        // At most three parts, checked above.
+                        let (Some(&total), Some(&before)) = (totals.get(kind), so_far.get(kind)) else { continue };
                         let Ok(index) = part.parse::<i64>() else {
                             return Err(IoError::parse(name, format!("line {line_number}: bad face index '{part}'")));
                         };
                         let valid = match index {
                             i if i > 0 => (i as u64) <= total as u64,
-                            i if i < 0 => i.unsigned_abs() <= so_far[kind] as u64,
+                            i if i < 0 => i.unsigned_abs() <= before as u64,
                             _ => false,
                         };
                         if !valid {
@@ -276,7 +278,7 @@ fn check_faces(text: &str, name: &Path) -> Result<(), IoError> {
                                     "line {line_number}: face refers to {} {index}, but the file has {total} {}{}",
                                     KINDS[kind],
                                     PLURALS[kind],
-                                    if index < 0 { format!(" ({} before this line)", so_far[kind]) } else { String::new() }
+                                    if index < 0 { format!(" ({before} before this line)") } else { String::new() }
                                 ),
                             ));
                         }
