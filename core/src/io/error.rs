@@ -67,32 +67,50 @@ pub enum IoError {
 impl IoError {
     /// An operating-system error on `path`.
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Self::Io { path: path.into(), source }
+        Self::Io {
+            path: path.into(),
+            source,
+        }
     }
 
     /// [`IoError::Truncated`] on `path`.
     pub fn truncated(path: impl Into<PathBuf>, detail: impl Into<String>) -> Self {
-        Self::Truncated { path: path.into(), detail: detail.into() }
+        Self::Truncated {
+            path: path.into(),
+            detail: detail.into(),
+        }
     }
 
     /// [`IoError::Parse`] on `path`.
     pub fn parse(path: impl Into<PathBuf>, detail: impl Into<String>) -> Self {
-        Self::Parse { path: path.into(), detail: detail.into() }
+        Self::Parse {
+            path: path.into(),
+            detail: detail.into(),
+        }
     }
 
     /// [`IoError::Invalid`] on `path`.
     pub fn invalid(path: impl Into<PathBuf>, detail: impl Into<String>) -> Self {
-        Self::Invalid { path: path.into(), detail: detail.into() }
+        Self::Invalid {
+            path: path.into(),
+            detail: detail.into(),
+        }
     }
 
     /// [`IoError::TooLarge`] on `path`.
     pub fn too_large(path: impl Into<PathBuf>, detail: impl Into<String>) -> Self {
-        Self::TooLarge { path: path.into(), detail: detail.into() }
+        Self::TooLarge {
+            path: path.into(),
+            detail: detail.into(),
+        }
     }
 
     /// [`IoError::Unsupported`] on `path`.
     pub fn unsupported(path: impl Into<PathBuf>, detail: impl Into<String>) -> Self {
-        Self::Unsupported { path: path.into(), detail: detail.into() }
+        Self::Unsupported {
+            path: path.into(),
+            detail: detail.into(),
+        }
     }
 
     /// The file the error is about.
@@ -142,11 +160,16 @@ impl Default for ImportLimits {
 /// [`IoError::Io`] when the file cannot be opened or read, [`IoError::TooLarge`] when it is
 /// larger than `limits.max_file_bytes`.
 pub fn read_file_limited(path: &Path, limits: &ImportLimits) -> Result<Vec<u8>, IoError> {
-    let len = std::fs::metadata(path).map_err(|e| IoError::io(path, e))?.len();
+    let len = std::fs::metadata(path)
+        .map_err(|e| IoError::io(path, e))?
+        .len();
     if len > limits.max_file_bytes {
         return Err(IoError::too_large(
             path,
-            format!("file is {len} bytes; the limit is {} bytes", limits.max_file_bytes),
+            format!(
+                "file is {len} bytes; the limit is {} bytes",
+                limits.max_file_bytes
+            ),
         ));
     }
     std::fs::read(path).map_err(|e| IoError::io(path, e))
@@ -158,13 +181,25 @@ mod tests {
 
     #[test]
     fn messages_name_the_file_and_the_problem() {
-        let e = IoError::invalid("dir/model.gltf", "accessor 3 (POSITION of mesh 'Body' primitive 0): count too big");
-        assert_eq!(e.to_string(), "dir/model.gltf: invalid: accessor 3 (POSITION of mesh 'Body' primitive 0): count too big");
+        let e = IoError::invalid(
+            "dir/model.gltf",
+            "accessor 3 (POSITION of mesh 'Body' primitive 0): count too big",
+        );
+        assert_eq!(
+            e.to_string(),
+            "dir/model.gltf: invalid: accessor 3 (POSITION of mesh 'Body' primitive 0): count too big"
+        );
         assert_eq!(e.path(), Path::new("dir/model.gltf"));
-        let missing = read_file_limited(Path::new("/nonexistent/thicket/x.glb"), &ImportLimits::default());
+        let missing = read_file_limited(
+            Path::new("/nonexistent/thicket/x.glb"),
+            &ImportLimits::default(),
+        );
         let err = missing.expect_err("a missing file must be an error");
         assert!(matches!(err, IoError::Io { .. }));
-        assert!(err.to_string().starts_with("/nonexistent/thicket/x.glb: "), "{err}");
+        assert!(
+            err.to_string().starts_with("/nonexistent/thicket/x.glb: "),
+            "{err}"
+        );
     }
 
     #[test]
@@ -172,11 +207,21 @@ mod tests {
         let dir = tempfile::tempdir().expect("temp dir");
         let path = dir.path().join("big.bin");
         std::fs::write(&path, vec![0u8; 100]).expect("write");
-        let limits = ImportLimits { max_file_bytes: 99, ..ImportLimits::default() };
+        let limits = ImportLimits {
+            max_file_bytes: 99,
+            ..ImportLimits::default()
+        };
         let err = read_file_limited(&path, &limits).expect_err("over the limit");
         assert!(matches!(err, IoError::TooLarge { .. }), "{err}");
         assert!(err.to_string().contains("100 bytes"), "{err}");
-        let ok = read_file_limited(&path, &ImportLimits { max_file_bytes: 100, ..limits }).expect("at the limit");
+        let ok = read_file_limited(
+            &path,
+            &ImportLimits {
+                max_file_bytes: 100,
+                ..limits
+            },
+        )
+        .expect("at the limit");
         assert_eq!(ok.len(), 100);
     }
 }

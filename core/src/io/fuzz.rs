@@ -94,7 +94,10 @@ pub fn peak_heap_bytes<T>(f: impl FnOnce() -> T) -> (T, u64) {
 
 /// Number of cases per loader: `THICKET_FUZZ_CASES`, or `default`.
 pub fn cases_from_env(default: u64) -> u64 {
-    std::env::var("THICKET_FUZZ_CASES").ok().and_then(|v| v.trim().parse().ok()).unwrap_or(default)
+    std::env::var("THICKET_FUZZ_CASES")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+        .unwrap_or(default)
 }
 
 /// The generator for case `case` of run `seed`.
@@ -118,7 +121,17 @@ const HUGE_DECIMALS: &[&str] = &[
     "1e308",
     "3",
 ];
-const HUGE_U32: &[u32] = &[u32::MAX, 0x7FFF_FFFF, 0x8000_0000, 0x1000_0001, 0xFFFF, 0, 1, 11, 13];
+const HUGE_U32: &[u32] = &[
+    u32::MAX,
+    0x7FFF_FFFF,
+    0x8000_0000,
+    0x1000_0001,
+    0xFFFF,
+    0,
+    1,
+    11,
+    13,
+];
 
 /// One mutated copy of a corpus file: 1–3 mutations of random kinds.
 pub fn mutate(corpus: &[Vec<u8>], rng: &mut Pcg64) -> Vec<u8> {
@@ -151,13 +164,22 @@ pub fn mutate(corpus: &[Vec<u8>], rng: &mut Pcg64) -> Vec<u8> {
 /// GLB-aware mutation: mutates the JSON or BIN chunk and rewrites the container's lengths, so
 /// the mutation gets past the container checks to the JSON and accessor checks.
 fn mutate_glb_chunks(data: &mut Vec<u8>, rng: &mut Pcg64) {
-    let u32_at = |d: &[u8], at: usize| d.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize);
-    let Some(json_len) = u32_at(data, 12) else { return };
-    let Some(json) = data.get(20..20 + json_len) else { return };
+    let u32_at = |d: &[u8], at: usize| {
+        d.get(at..at + 4)
+            .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as usize)
+    };
+    let Some(json_len) = u32_at(data, 12) else {
+        return;
+    };
+    let Some(json) = data.get(20..20 + json_len) else {
+        return;
+    };
     let mut json = json.to_vec();
     let rest_start = 20 + json_len;
     let mut bin = match u32_at(data, rest_start) {
-        Some(len) => data.get(rest_start + 8..rest_start + 8 + len).map(<[u8]>::to_vec),
+        Some(len) => data
+            .get(rest_start + 8..rest_start + 8 + len)
+            .map(<[u8]>::to_vec),
         None => None,
     };
     match (rng.random_range(0..4), bin.as_mut()) {
@@ -165,7 +187,7 @@ fn mutate_glb_chunks(data: &mut Vec<u8>, rng: &mut Pcg64) {
         (2, _) => flip_bytes(&mut json, rng),
         _ => inflate_decimal(&mut json, rng),
     }
-    while json.len() % 4 != 0 {
+    while !json.len().is_multiple_of(4) {
         json.push(b' ');
     }
     let mut out = Vec::with_capacity(data.len() + 16);
@@ -215,9 +237,16 @@ fn inflate_decimal(data: &mut Vec<u8>, rng: &mut Pcg64) {
     };
     // Prefer whole number tokens (after ':', '[', ',' or a space) over digits inside strings
     // such as base64 data, so JSON counts, offsets and indices get inflated.
-    let tokens: Vec<(usize, usize)> =
-        runs.iter().copied().filter(|&(s, _)| s > 0 && matches!(data[s - 1], b':' | b'[' | b',' | b' ')).collect();
-    let pool = if !tokens.is_empty() && rng.random_bool(0.75) { &tokens } else { &runs };
+    let tokens: Vec<(usize, usize)> = runs
+        .iter()
+        .copied()
+        .filter(|&(s, _)| s > 0 && matches!(data[s - 1], b':' | b'[' | b',' | b' '))
+        .collect();
+    let pool = if !tokens.is_empty() && rng.random_bool(0.75) {
+        &tokens
+    } else {
+        &runs
+    };
     if pool.is_empty() {
         return;
     }
@@ -233,7 +262,11 @@ fn inflate_u32(data: &mut [u8], rng: &mut Pcg64) {
         return;
     }
     let words = data.len() / 4;
-    let word = if rng.random_bool(0.5) { rng.random_range(0..words.min(8)) } else { rng.random_range(0..words) };
+    let word = if rng.random_bool(0.5) {
+        rng.random_range(0..words.min(8))
+    } else {
+        rng.random_range(0..words)
+    };
     let value = if rng.random_bool(0.8) {
         HUGE_U32[rng.random_range(0..HUGE_U32.len())]
     } else {
@@ -312,7 +345,8 @@ pub fn run<T, E>(
     for case in 0..cases {
         let input = mutate(corpus, &mut case_rng(seed, case));
         let budget = budget_bytes(input.len());
-        let (outcome, peak) = peak_heap_bytes(|| catch_unwind(AssertUnwindSafe(|| load(&input).is_ok())));
+        let (outcome, peak) =
+            peak_heap_bytes(|| catch_unwind(AssertUnwindSafe(|| load(&input).is_ok())));
         report.cases += 1;
         report.max_peak_bytes = report.max_peak_bytes.max(peak);
         if peak > budget {
@@ -342,28 +376,44 @@ mod tests {
     #[test]
     fn mutations_are_deterministic_and_change_the_input() {
         let corpus = vec![b"{\"count\": 24, \"byteLength\": 648}".to_vec()];
-        let a: Vec<Vec<u8>> = (0..200).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
-        let b: Vec<Vec<u8>> = (0..200).map(|k| mutate(&corpus, &mut case_rng(7, k))).collect();
+        let a: Vec<Vec<u8>> = (0..200)
+            .map(|k| mutate(&corpus, &mut case_rng(7, k)))
+            .collect();
+        let b: Vec<Vec<u8>> = (0..200)
+            .map(|k| mutate(&corpus, &mut case_rng(7, k)))
+            .collect();
         assert_eq!(a, b);
         assert!(a.iter().filter(|m| **m != corpus[0]).count() > 160);
-        assert!(a.iter().any(|m| m.len() < corpus[0].len()), "some truncation");
-        assert!(a.iter().any(|m| m.windows(7).any(|w| w == b"4294967")), "some inflated count");
+        assert!(
+            a.iter().any(|m| m.len() < corpus[0].len()),
+            "some truncation"
+        );
+        assert!(
+            a.iter().any(|m| m.windows(7).any(|w| w == b"4294967")),
+            "some inflated count"
+        );
     }
 
     #[test]
     fn the_harness_catches_panics_and_measures_memory() {
         let corpus = vec![vec![1u8; 64]];
-        let report = run(&corpus, 200, 1, |_| 1 << 20, |bytes: &[u8]| -> Result<(), ()> {
-            if bytes.contains(&0) {
-                panic!("zero byte");
-            }
-            if bytes.len() > 64 {
-                // A loader that over-allocates for long inputs.
-                let v = vec![1u8; 4 << 20];
-                std::hint::black_box(&v);
-            }
-            Err(())
-        });
+        let report = run(
+            &corpus,
+            200,
+            1,
+            |_| 1 << 20,
+            |bytes: &[u8]| -> Result<(), ()> {
+                if bytes.contains(&0) {
+                    panic!("zero byte");
+                }
+                if bytes.len() > 64 {
+                    // A loader that over-allocates for long inputs.
+                    let v = vec![1u8; 4 << 20];
+                    std::hint::black_box(&v);
+                }
+                Err(())
+            },
+        );
         assert_eq!(report.cases, 200);
         assert!(!report.panics.is_empty(), "{report}");
         assert!(report.panics.iter().all(|(_, m)| m == "zero byte"));
@@ -399,7 +449,8 @@ mod loaders {
     }
 
     fn asset(relative: &str) -> Vec<u8> {
-        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/").to_owned() + relative;
+        let path =
+            concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/").to_owned() + relative;
         std::fs::read(path).expect("asset")
     }
 
@@ -411,15 +462,21 @@ mod loaders {
 
     #[test]
     fn gltf_survives_mutated_files() {
-        let corpus = vec![asset("skinned/SimpleSkin.gltf"), asset("static/Box.glb"), gltf_mesh::tests::textured_glb()];
+        let corpus = vec![
+            asset("skinned/SimpleSkin.gltf"),
+            asset("static/Box.glb"),
+            gltf_mesh::tests::textured_glb(),
+        ];
         for file in &corpus {
-            gltf_mesh::import_gltf_slice(file, None).expect("every seed file loads before mutation");
+            gltf_mesh::import_gltf_slice(file, None)
+                .expect("every seed file loads before mutation");
         }
         let cases = cases_from_env(10_000);
         let limits = ImportLimits::default();
         let kinds: RefCell<BTreeMap<&'static str, u64>> = RefCell::default();
         let report = run(&corpus, cases, SEED, budget, |bytes| {
-            let result = gltf_mesh::import_gltf_slice_with(bytes, None, Path::new("fuzz.glb"), &limits);
+            let result =
+                gltf_mesh::import_gltf_slice_with(bytes, None, Path::new("fuzz.glb"), &limits);
             if let Err(e) = &result {
                 *kinds.borrow_mut().entry(kind(e)).or_default() += 1;
             }
@@ -429,10 +486,21 @@ mod loaders {
         eprintln!("glTF fuzz: {report}; refusals by kind {kinds:?}");
         // Every layer of checks is reached: container, JSON, accessor bounds, declared sizes.
         for k in ["Truncated", "Parse", "Invalid", "TooLarge"] {
-            assert!(kinds.get(k).copied().unwrap_or(0) > 0, "no {k} refusals: {kinds:?}");
+            assert!(
+                kinds.get(k).copied().unwrap_or(0) > 0,
+                "no {k} refusals: {kinds:?}"
+            );
         }
-        assert!(report.panics.is_empty(), "seed {SEED:#x}: panics {:?}", &report.panics[..report.panics.len().min(10)]);
-        assert!(report.over_budget.is_empty(), "seed {SEED:#x}: over budget {:?}", &report.over_budget[..report.over_budget.len().min(10)]);
+        assert!(
+            report.panics.is_empty(),
+            "seed {SEED:#x}: panics {:?}",
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(
+            report.over_budget.is_empty(),
+            "seed {SEED:#x}: over budget {:?}",
+            &report.over_budget[..report.over_budget.len().min(10)]
+        );
         assert_eq!(report.cases, cases);
         // The mutations must not all be rejected at the door, or the deep checks go untested.
         assert!(report.accepted > cases / 50, "{report}");
@@ -445,13 +513,23 @@ mod loaders {
         let corpus = vec![obj::tests::CUBE_OBJ.as_bytes().to_vec()];
         let limits = ImportLimits::default();
         let options = obj::ObjOptions::default();
-        let load = |bytes: &[u8]| obj::import_obj_slice_with(bytes, &files, Path::new("fuzz.obj"), &options, &limits);
+        let load = |bytes: &[u8]| {
+            obj::import_obj_slice_with(bytes, &files, Path::new("fuzz.obj"), &options, &limits)
+        };
         load(&corpus[0]).expect("the seed file loads before mutation");
         let cases = cases_from_env(10_000);
         let report = run(&corpus, cases, SEED, budget, load);
         eprintln!("OBJ fuzz: {report}");
-        assert!(report.panics.is_empty(), "seed {SEED:#x}: panics {:?}", &report.panics[..report.panics.len().min(10)]);
-        assert!(report.over_budget.is_empty(), "seed {SEED:#x}: over budget {:?}", &report.over_budget[..report.over_budget.len().min(10)]);
+        assert!(
+            report.panics.is_empty(),
+            "seed {SEED:#x}: panics {:?}",
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(
+            report.over_budget.is_empty(),
+            "seed {SEED:#x}: over budget {:?}",
+            &report.over_budget[..report.over_budget.len().min(10)]
+        );
         assert!(report.accepted > cases / 50, "{report}");
 
         // The material library mutated, the OBJ fixed.
@@ -459,10 +537,20 @@ mod loaders {
         let mtl_cases = (cases / 5).max(1);
         let report = run(&mtl_corpus, mtl_cases, SEED, budget, |mtl_bytes| {
             let files = obj::tests::cube_files(mtl_bytes);
-            obj::import_obj_slice_with(obj::tests::CUBE_OBJ.as_bytes(), &files, Path::new("fuzz.obj"), &options, &limits)
+            obj::import_obj_slice_with(
+                obj::tests::CUBE_OBJ.as_bytes(),
+                &files,
+                Path::new("fuzz.obj"),
+                &options,
+                &limits,
+            )
         });
         eprintln!("MTL fuzz: {report}");
-        assert!(report.panics.is_empty(), "seed {SEED:#x}: panics {:?}", &report.panics[..report.panics.len().min(10)]);
+        assert!(
+            report.panics.is_empty(),
+            "seed {SEED:#x}: panics {:?}",
+            &report.panics[..report.panics.len().min(10)]
+        );
         assert!(report.over_budget.is_empty(), "{report}");
     }
 }

@@ -20,6 +20,7 @@
 
 use std::borrow::Cow;
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
@@ -51,7 +52,12 @@ pub fn import_gltf(path: &Path) -> Result<MeshModel, IoError> {
 pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel, IoError> {
     let bytes = read_file_limited(path, limits)?;
     let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
-    Importer { path, base_dir: Some(base_dir), limits }.run(&bytes)
+    Importer {
+        path,
+        base_dir: Some(base_dir),
+        limits,
+    }
+    .run(&bytes)
 }
 
 /// Imports glTF or GLB bytes. External (non-data) URIs are resolved against `base_dir`; with
@@ -61,7 +67,12 @@ pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel,
 /// # Errors
 /// See [`import_gltf`].
 pub fn import_gltf_slice(bytes: &[u8], base_dir: Option<&Path>) -> Result<MeshModel, IoError> {
-    import_gltf_slice_with(bytes, base_dir, Path::new("<memory>"), &ImportLimits::default())
+    import_gltf_slice_with(
+        bytes,
+        base_dir,
+        Path::new("<memory>"),
+        &ImportLimits::default(),
+    )
 }
 
 /// [`import_gltf_slice`] with the name used in error messages and explicit limits.
@@ -74,7 +85,12 @@ pub fn import_gltf_slice_with(
     name: &Path,
     limits: &ImportLimits,
 ) -> Result<MeshModel, IoError> {
-    Importer { path: name, base_dir, limits }.run(bytes)
+    Importer {
+        path: name,
+        base_dir,
+        limits,
+    }
+    .run(bytes)
 }
 
 /// One import: where messages point, where external files live, and the limits.
@@ -107,7 +123,9 @@ impl AccessorData<'_> {
     fn component(&self, i: usize, c: usize) -> f32 {
         let size = self.component.size();
         let at = i * self.stride + c * size;
-        let Some(b) = self.bytes.get(at..at + size) else { return 0.0 };
+        let Some(b) = self.bytes.get(at..at + size) else {
+            return 0.0;
+        };
         match self.component {
             ComponentType::F32 => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
             ComponentType::U8 => {
@@ -116,7 +134,11 @@ impl AccessorData<'_> {
             }
             ComponentType::I8 => {
                 let v = f32::from(b[0] as i8);
-                if self.normalized { (v / 127.0).max(-1.0) } else { v }
+                if self.normalized {
+                    (v / 127.0).max(-1.0)
+                } else {
+                    v
+                }
             }
             ComponentType::U16 => {
                 let v = f32::from(u16::from_le_bytes([b[0], b[1]]));
@@ -124,11 +146,19 @@ impl AccessorData<'_> {
             }
             ComponentType::I16 => {
                 let v = f32::from(i16::from_le_bytes([b[0], b[1]]));
-                if self.normalized { (v / 32767.0).max(-1.0) } else { v }
+                if self.normalized {
+                    (v / 32767.0).max(-1.0)
+                } else {
+                    v
+                }
             }
             ComponentType::U32 => {
                 let v = u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32;
-                if self.normalized { v / 4_294_967_295.0 } else { v }
+                if self.normalized {
+                    v / 4_294_967_295.0
+                } else {
+                    v
+                }
             }
         }
     }
@@ -137,7 +167,9 @@ impl AccessorData<'_> {
     fn integer(&self, i: usize, c: usize) -> u32 {
         let size = self.component.size();
         let at = i * self.stride + c * size;
-        let Some(b) = self.bytes.get(at..at + size) else { return u32::MAX };
+        let Some(b) = self.bytes.get(at..at + size) else {
+            return u32::MAX;
+        };
         match self.component {
             ComponentType::U8 => u32::from(b[0]),
             ComponentType::U16 => u32::from(u16::from_le_bytes([b[0], b[1]])),
@@ -201,55 +233,90 @@ impl<'a> Importer<'a> {
             if !SUPPORTED_REQUIRED_EXTENSIONS.contains(&ext.as_str()) {
                 return Err(IoError::unsupported(
                     self.path,
-                    format!("the file requires glTF extension {ext}, which Thicket does not implement"),
+                    format!(
+                        "the file requires glTF extension {ext}, which Thicket does not implement"
+                    ),
                 ));
             }
         }
         let buffers = self.load_buffers(&root, container.bin)?;
-        let mut model = MeshModel { parts: Vec::new(), materials: self.load_materials(&root, &buffers)? };
+        let mut model = MeshModel {
+            parts: Vec::new(),
+            materials: self.load_materials(&root, &buffers)?,
+        };
         // Primitives without a material share one default material appended at the end.
         let default_material = model.materials.len();
         let mut used_default = false;
-        let mut budget = Budget { vertices: 0, indices: 0 };
+        let mut budget = Budget {
+            vertices: 0,
+            indices: 0,
+        };
         let mut cache: HashMap<(usize, usize), Option<TriangleMesh>> = HashMap::new();
 
         for (node_index, world_from_node) in self.scene_nodes(&root)? {
-            let Some(node) = root.nodes.get(node_index) else { continue };
-            let Some(mesh_index) = node.mesh.map(|m| m.value()) else { continue };
-            let mesh = root
-                .meshes
-                .get(mesh_index)
-                .ok_or_else(|| self.invalid(format!("node {node_index} refers to mesh {mesh_index}, which does not exist")))?;
+            let Some(node) = root.nodes.get(node_index) else {
+                continue;
+            };
+            let Some(mesh_index) = node.mesh.map(|m| m.value()) else {
+                continue;
+            };
+            let mesh = root.meshes.get(mesh_index).ok_or_else(|| {
+                self.invalid(format!(
+                    "node {node_index} refers to mesh {mesh_index}, which does not exist"
+                ))
+            })?;
             let skin_joints = match node.skin {
                 Some(skin) => Some(
                     root.skins
                         .get(skin.value())
                         .ok_or_else(|| {
-                            self.invalid(format!("node {node_index} refers to skin {}, which does not exist", skin.value()))
+                            self.invalid(format!(
+                                "node {node_index} refers to skin {}, which does not exist",
+                                skin.value()
+                            ))
                         })?
                         .joints
                         .len(),
                 ),
                 None => None,
             };
-            let mesh_name = mesh.name.as_deref().map_or_else(|| format!("{mesh_index}"), |n| format!("'{n}'"));
+            let mesh_name = mesh
+                .name
+                .as_deref()
+                .map_or_else(|| format!("{mesh_index}"), |n| format!("'{n}'"));
             for (prim_index, primitive) in mesh.primitives.iter().enumerate() {
                 let key = (mesh_index, prim_index);
-                if !cache.contains_key(&key) {
-                    let part = self.read_primitive(&root, &buffers, &mesh_name, prim_index, primitive, &mut budget)?;
-                    cache.insert(key, part);
-                } else if let Some(Some(part)) = cache.get(&key) {
-                    // A second instance of the same primitive costs memory like the first.
-                    budget.charge(self, part.positions.len(), part.indices.len())?;
-                }
-                let Some(Some(template)) = cache.get(&key) else { continue };
-                let mut part = template.clone();
-                if let (Some(joint_count), false) = (skin_joints, part.joints.is_empty()) {
-                    if let Some(j) = part.joints.iter().flatten().find(|&&j| usize::from(j) >= joint_count) {
-                        return Err(self.invalid(format!(
-                            "mesh {mesh_name} primitive {prim_index}: JOINTS_0 value {j} is past the {joint_count} joints of the node's skin"
-                        )));
+                let template = match cache.entry(key) {
+                    Entry::Vacant(slot) => slot.insert(self.read_primitive(
+                        &root,
+                        &buffers,
+                        &mesh_name,
+                        prim_index,
+                        primitive,
+                        &mut budget,
+                    )?),
+                    Entry::Occupied(slot) => {
+                        if let Some(part) = slot.get() {
+                            // A second instance of the same primitive costs memory like the first.
+                            budget.charge(self, part.positions.len(), part.indices.len())?;
+                        }
+                        slot.into_mut()
                     }
+                };
+                let Some(template) = template else {
+                    continue;
+                };
+                let mut part = template.clone();
+                if let Some(joint_count) = skin_joints
+                    && let Some(j) = part
+                        .joints
+                        .iter()
+                        .flatten()
+                        .find(|&&j| usize::from(j) >= joint_count)
+                {
+                    return Err(self.invalid(format!(
+                        "mesh {mesh_name} primitive {prim_index}: JOINTS_0 value {j} is past the {joint_count} joints of the node's skin"
+                    )));
                 }
                 if skin_joints.is_none() {
                     part.transform(world_from_node);
@@ -271,7 +338,10 @@ impl<'a> Importer<'a> {
             }
         }
         if used_default {
-            model.materials.push(Material { name: "default".to_owned(), ..Material::default() });
+            model.materials.push(Material {
+                name: "default".to_owned(),
+                ..Material::default()
+            });
         }
         if let Err((part, e)) = model.validate() {
             return Err(self.invalid(format!("part {part}: {e}")));
@@ -301,23 +371,36 @@ impl<'a> Importer<'a> {
             ));
         }
         let u32_at = |at: usize| -> Option<u32> {
-            bytes.get(at..at + 4).map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+            bytes
+                .get(at..at + 4)
+                .map(|b| u32::from_le_bytes([b[0], b[1], b[2], b[3]]))
         };
         let (Some(version), Some(length)) = (u32_at(4), u32_at(8)) else {
-            return Err(IoError::truncated(self.path, format!("GLB header needs 12 bytes, the file has {}", bytes.len())));
+            return Err(IoError::truncated(
+                self.path,
+                format!("GLB header needs 12 bytes, the file has {}", bytes.len()),
+            ));
         };
         if version != 2 {
-            return Err(IoError::unsupported(self.path, format!("GLB version {version} (only version 2 is supported)")));
+            return Err(IoError::unsupported(
+                self.path,
+                format!("GLB version {version} (only version 2 is supported)"),
+            ));
         }
         let length = length as usize;
         if length > bytes.len() {
             return Err(IoError::truncated(
                 self.path,
-                format!("GLB header declares {length} bytes but the file has {}", bytes.len()),
+                format!(
+                    "GLB header declares {length} bytes but the file has {}",
+                    bytes.len()
+                ),
             ));
         }
         if length < 12 {
-            return Err(self.invalid(format!("GLB header declares a total length of {length} bytes, less than the header")));
+            return Err(self.invalid(format!(
+                "GLB header declares a total length of {length} bytes, less than the header"
+            )));
         }
         let bytes = &bytes[..length];
         let mut at = 12usize;
@@ -326,7 +409,10 @@ impl<'a> Importer<'a> {
         let mut chunk_index = 0;
         while at < bytes.len() {
             let (Some(chunk_len), Some(chunk_type)) = (u32_at(at), u32_at(at + 4)) else {
-                return Err(IoError::truncated(self.path, format!("GLB chunk {chunk_index} header at byte {at} is cut off")));
+                return Err(IoError::truncated(
+                    self.path,
+                    format!("GLB chunk {chunk_index} header at byte {at} is cut off"),
+                ));
             };
             let start = at + 8;
             let end = start.checked_add(chunk_len as usize).filter(|&e| e <= bytes.len()).ok_or_else(|| {
@@ -350,13 +436,18 @@ impl<'a> Importer<'a> {
             // Chunks are 4-byte aligned; a missing final pad is tolerated.
             at = end.saturating_add(3) & !3;
         }
-        let json = json.ok_or_else(|| IoError::truncated(self.path, "the GLB has no JSON chunk"))?;
+        let json =
+            json.ok_or_else(|| IoError::truncated(self.path, "the GLB has no JSON chunk"))?;
         Ok(Container { json, bin })
     }
 
     /// Every buffer's bytes, each checked to hold at least its declared `byteLength` and cut to
     /// exactly that length.
-    fn load_buffers<'b>(&self, root: &json::Root, bin: Option<&'b [u8]>) -> Result<Vec<Cow<'b, [u8]>>, IoError> {
+    fn load_buffers<'b>(
+        &self,
+        root: &json::Root,
+        bin: Option<&'b [u8]>,
+    ) -> Result<Vec<Cow<'b, [u8]>>, IoError> {
         let mut out = Vec::with_capacity(root.buffers.len());
         for (i, buffer) in root.buffers.iter().enumerate() {
             let declared = buffer.byte_length.0;
@@ -374,7 +465,10 @@ impl<'a> Importer<'a> {
             if (data.len() as u64) < declared {
                 return Err(IoError::truncated(
                     self.path,
-                    format!("buffer {i} declares byteLength {declared} but its data has {} bytes", data.len()),
+                    format!(
+                        "buffer {i} declares byteLength {declared} but its data has {} bytes",
+                        data.len()
+                    ),
                 ));
             }
             let declared = declared as usize;
@@ -396,26 +490,41 @@ impl<'a> Importer<'a> {
                 return Err(self.invalid(format!("{what}: data URI has no ','")));
             };
             if !header.ends_with(";base64") {
-                return Err(IoError::unsupported(self.path, format!("{what}: data URI is not base64-encoded")));
+                return Err(IoError::unsupported(
+                    self.path,
+                    format!("{what}: data URI is not base64-encoded"),
+                ));
             }
-            return decode_base64(payload).map_err(|at| self.invalid(format!("{what}: bad base64 in data URI at character {at}")));
+            return decode_base64(payload).map_err(|at| {
+                self.invalid(format!("{what}: bad base64 in data URI at character {at}"))
+            });
         }
         if uri.contains("://") {
-            return Err(IoError::unsupported(self.path, format!("{what}: URI '{uri}' is not a relative file path")));
+            return Err(IoError::unsupported(
+                self.path,
+                format!("{what}: URI '{uri}' is not a relative file path"),
+            ));
         }
         let Some(base_dir) = self.base_dir else {
             return Err(IoError::unsupported(
                 self.path,
-                format!("{what}: refers to external file '{uri}' but the glTF was loaded from memory"),
+                format!(
+                    "{what}: refers to external file '{uri}' but the glTF was loaded from memory"
+                ),
             ));
         };
-        let relative = percent_decode(uri).ok_or_else(|| self.invalid(format!("{what}: bad percent-encoding in URI '{uri}'")))?;
+        let relative = percent_decode(uri)
+            .ok_or_else(|| self.invalid(format!("{what}: bad percent-encoding in URI '{uri}'")))?;
         let file: PathBuf = base_dir.join(relative);
         read_file_limited(&file, self.limits)
     }
 
     /// glTF materials in file order.
-    fn load_materials(&self, root: &json::Root, buffers: &[Cow<'_, [u8]>]) -> Result<Vec<Material>, IoError> {
+    fn load_materials(
+        &self,
+        root: &json::Root,
+        buffers: &[Cow<'_, [u8]>],
+    ) -> Result<Vec<Material>, IoError> {
         let mut images: HashMap<usize, Texture> = HashMap::new();
         let mut out = Vec::with_capacity(root.materials.len());
         for (i, m) in root.materials.iter().enumerate() {
@@ -427,7 +536,10 @@ impl<'a> Importer<'a> {
                 None => None,
                 Some(info) => {
                     let tex = root.textures.get(info.index.value()).ok_or_else(|| {
-                        self.invalid(format!("material {i}: base-colour texture {} does not exist", info.index.value()))
+                        self.invalid(format!(
+                            "material {i}: base-colour texture {} does not exist",
+                            info.index.value()
+                        ))
                     })?;
                     let image = tex.source.value();
                     if let Some(t) = images.get(&image) {
@@ -451,13 +563,25 @@ impl<'a> Importer<'a> {
     }
 
     /// Decodes image `index` (PNG or JPEG) to RGBA8 within the texture limit.
-    fn load_image(&self, root: &json::Root, buffers: &[Cow<'_, [u8]>], index: usize) -> Result<Texture, IoError> {
+    fn load_image(
+        &self,
+        root: &json::Root,
+        buffers: &[Cow<'_, [u8]>],
+        index: usize,
+    ) -> Result<Texture, IoError> {
         let what = format!("image {index}");
-        let image = root.images.get(index).ok_or_else(|| self.invalid(format!("{what} does not exist")))?;
+        let image = root
+            .images
+            .get(index)
+            .ok_or_else(|| self.invalid(format!("{what} does not exist")))?;
         let encoded: Cow<'_, [u8]> = match (&image.uri, image.buffer_view) {
             (Some(uri), _) => Cow::Owned(self.load_uri(uri, &what)?),
-            (None, Some(view)) => Cow::Borrowed(self.view_bytes(root, buffers, view.value(), &what)?),
-            (None, None) => return Err(self.invalid(format!("{what} has neither a URI nor a buffer view"))),
+            (None, Some(view)) => {
+                Cow::Borrowed(self.view_bytes(root, buffers, view.value(), &what)?)
+            }
+            (None, None) => {
+                return Err(self.invalid(format!("{what} has neither a URI nor a buffer view")));
+            }
         };
         decode_texture(&encoded, self.limits).map_err(|e| match e {
             TextureError::TooLarge(d) => IoError::too_large(self.path, format!("{what}: {d}")),
@@ -478,9 +602,11 @@ impl<'a> Importer<'a> {
             .get(index)
             .ok_or_else(|| self.invalid(format!("{what}: buffer view {index} does not exist")))?;
         let buffer_index = view.buffer.value();
-        let buffer = buffers
-            .get(buffer_index)
-            .ok_or_else(|| self.invalid(format!("{what}: buffer view {index} refers to buffer {buffer_index}, which does not exist")))?;
+        let buffer = buffers.get(buffer_index).ok_or_else(|| {
+            self.invalid(format!(
+                "{what}: buffer view {index} refers to buffer {buffer_index}, which does not exist"
+            ))
+        })?;
         let offset = view.byte_offset.map_or(0, |o| o.0);
         let length = view.byte_length.0;
         let end = offset.checked_add(length).filter(|&e| e <= buffer.len() as u64).ok_or_else(|| {
@@ -503,11 +629,18 @@ impl<'a> Importer<'a> {
         types: &[Type],
         components: &[ComponentType],
     ) -> Result<AccessorData<'b>, IoError> {
-        let acc = root.accessors.get(index).ok_or_else(|| self.invalid(format!("{what} does not exist")))?;
+        let acc = root
+            .accessors
+            .get(index)
+            .ok_or_else(|| self.invalid(format!("{what} does not exist")))?;
         if acc.sparse.is_some() {
-            return Err(IoError::unsupported(self.path, format!("{what} is a sparse accessor")));
+            return Err(IoError::unsupported(
+                self.path,
+                format!("{what} is a sparse accessor"),
+            ));
         }
-        let (Checked::Valid(ty), Checked::Valid(component)) = (acc.type_, acc.component_type) else {
+        let (Checked::Valid(ty), Checked::Valid(component)) = (acc.type_, acc.component_type)
+        else {
             return Err(self.invalid(format!("{what} has an invalid type or componentType")));
         };
         let component = component.0;
@@ -521,20 +654,29 @@ impl<'a> Importer<'a> {
         let count = acc.count.0;
         let cap = self.limits.max_vertices.max(self.limits.max_indices);
         if count > cap {
-            return Err(IoError::too_large(self.path, format!("{what}: count {count} exceeds the limit of {cap}")));
+            return Err(IoError::too_large(
+                self.path,
+                format!("{what}: count {count} exceeds the limit of {cap}"),
+            ));
         }
         let dims = type_dims(ty);
         let element = (dims * component.size()) as u64;
         let Some(view_index) = acc.buffer_view.map(|v| v.value()) else {
-            return Err(IoError::unsupported(self.path, format!("{what} has no buffer view")));
+            return Err(IoError::unsupported(
+                self.path,
+                format!("{what} has no buffer view"),
+            ));
         };
         let bytes = self.view_bytes(root, buffers, view_index, what)?;
         // view_bytes has checked that the view exists.
-        let byte_stride = root.buffer_views.get(view_index).and_then(|v| v.byte_stride);
+        let byte_stride = root
+            .buffer_views
+            .get(view_index)
+            .and_then(|v| v.byte_stride);
         let stride = match byte_stride {
             Some(s) => {
                 let s = s.0 as u64;
-                if s < element || s > 252 || s % 4 != 0 {
+                if s < element || s > 252 || !s.is_multiple_of(4) {
                     return Err(self.invalid(format!(
                         "{what}: buffer view {view_index} byteStride {s} is invalid for {element}-byte elements"
                     )));
@@ -545,7 +687,14 @@ impl<'a> Importer<'a> {
         };
         let offset = acc.byte_offset.map_or(0, |o| o.0);
         if count == 0 {
-            return Ok(AccessorData { bytes: &[], stride: stride as usize, count: 0, component, dims, normalized: acc.normalized });
+            return Ok(AccessorData {
+                bytes: &[],
+                stride: stride as usize,
+                count: 0,
+                component,
+                dims,
+                normalized: acc.normalized,
+            });
         }
         // offset + stride * (count - 1) + element ≤ view length, without overflow.
         let needed = stride
@@ -585,22 +734,28 @@ impl<'a> Importer<'a> {
             (0..node_count).filter(|&i| !is_child[i]).collect()
         } else {
             let scene_index = root.scene.map_or(0, |s| s.value());
-            let scene = root
-                .scenes
-                .get(scene_index)
-                .ok_or_else(|| self.invalid(format!("default scene {scene_index} does not exist")))?;
+            let scene = root.scenes.get(scene_index).ok_or_else(|| {
+                self.invalid(format!("default scene {scene_index} does not exist"))
+            })?;
             scene.nodes.iter().map(json::Index::value).collect()
         };
         let mut visited = vec![false; node_count];
         let mut out = Vec::new();
-        let mut stack: Vec<(usize, Mat4)> = roots.into_iter().rev().map(|n| (n, Mat4::IDENTITY)).collect();
+        let mut stack: Vec<(usize, Mat4)> = roots
+            .into_iter()
+            .rev()
+            .map(|n| (n, Mat4::IDENTITY))
+            .collect();
         while let Some((index, parent_from_world)) = stack.pop() {
-            let node = root
-                .nodes
-                .get(index)
-                .ok_or_else(|| self.invalid(format!("scene refers to node {index}, which does not exist")))?;
+            let node = root.nodes.get(index).ok_or_else(|| {
+                self.invalid(format!(
+                    "scene refers to node {index}, which does not exist"
+                ))
+            })?;
             if std::mem::replace(&mut visited[index], true) {
-                return Err(self.invalid(format!("node {index} is reached twice (a cycle, or a node with two parents)")));
+                return Err(self.invalid(format!(
+                    "node {index} is reached twice (a cycle, or a node with two parents)"
+                )));
             }
             let world_from_node = parent_from_world * self.local_transform(node, index)?;
             out.push((index, world_from_node));
@@ -622,7 +777,9 @@ impl<'a> Importer<'a> {
             let q = Quat::from_array(r);
             let len = q.length();
             if !(len.is_finite() && len > 1e-6) {
-                return Err(self.invalid(format!("node {index}: rotation {r:?} is not a unit quaternion")));
+                return Err(self.invalid(format!(
+                    "node {index}: rotation {r:?} is not a unit quaternion"
+                )));
             }
             Mat4::from_scale_rotation_translation(s, q / len, t)
         };
@@ -644,30 +801,66 @@ impl<'a> Importer<'a> {
     ) -> Result<Option<TriangleMesh>, IoError> {
         let mode = match primitive.mode {
             Checked::Valid(m) => m,
-            Checked::Invalid => return Err(self.invalid(format!("mesh {mesh_name} primitive {prim_index}: invalid mode"))),
+            Checked::Invalid => {
+                return Err(self.invalid(format!(
+                    "mesh {mesh_name} primitive {prim_index}: invalid mode"
+                )));
+            }
         };
-        if matches!(mode, Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip) {
-            log::warn!("{}: mesh {mesh_name} primitive {prim_index} is {mode:?}, not triangles; skipped", self.path.display());
+        if matches!(
+            mode,
+            Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip
+        ) {
+            log::warn!(
+                "{}: mesh {mesh_name} primitive {prim_index} is {mode:?}, not triangles; skipped",
+                self.path.display()
+            );
             return Ok(None);
         }
-        let attr = |s: Semantic| primitive.attributes.get(&Checked::Valid(s)).map(json::Index::value);
+        let attr = |s: Semantic| {
+            primitive
+                .attributes
+                .get(&Checked::Valid(s))
+                .map(json::Index::value)
+        };
         let what = |index: usize, role: &str| describe(index, role, mesh_name, prim_index);
-        let float_like = [ComponentType::F32, ComponentType::U8, ComponentType::I8, ComponentType::U16, ComponentType::I16];
+        let float_like = [
+            ComponentType::F32,
+            ComponentType::U8,
+            ComponentType::I8,
+            ComponentType::U16,
+            ComponentType::I16,
+        ];
 
         let Some(pos_index) = attr(Semantic::Positions) else {
-            return Err(self.invalid(format!("mesh {mesh_name} primitive {prim_index} has no POSITION")));
+            return Err(self.invalid(format!(
+                "mesh {mesh_name} primitive {prim_index} has no POSITION"
+            )));
         };
-        let pos = self.accessor(root, buffers, pos_index, &what(pos_index, "POSITION"), &[Type::Vec3], &float_like)?;
+        let pos = self.accessor(
+            root,
+            buffers,
+            pos_index,
+            &what(pos_index, "POSITION"),
+            &[Type::Vec3],
+            &float_like,
+        )?;
         let vertex_count = pos.count;
         // Index count is charged below, once it is known.
         budget.charge(self, vertex_count, 0)?;
-        let mut part = TriangleMesh { positions: read_vec3(&pos), ..TriangleMesh::default() };
+        let mut part = TriangleMesh {
+            positions: read_vec3(&pos),
+            ..TriangleMesh::default()
+        };
 
         let same_count = |data: &AccessorData<'_>, what: String| -> Result<(), IoError> {
             if data.count == vertex_count {
                 Ok(())
             } else {
-                Err(self.invalid(format!("{what}: count {} differs from POSITION count {vertex_count}", data.count)))
+                Err(self.invalid(format!(
+                    "{what}: count {} differs from POSITION count {vertex_count}",
+                    data.count
+                )))
             }
         };
         if let Some(i) = attr(Semantic::Normals) {
@@ -683,9 +876,18 @@ impl<'a> Importer<'a> {
             .map_or(0, |info| info.tex_coord);
         if let Some(i) = attr(Semantic::TexCoords(material_uv_set)) {
             let w = what(i, &format!("TEXCOORD_{material_uv_set}"));
-            let data = self.accessor(root, buffers, i, &w, &[Type::Vec2], &[ComponentType::F32, ComponentType::U8, ComponentType::U16])?;
+            let data = self.accessor(
+                root,
+                buffers,
+                i,
+                &w,
+                &[Type::Vec2],
+                &[ComponentType::F32, ComponentType::U8, ComponentType::U16],
+            )?;
             same_count(&data, w)?;
-            part.uvs = (0..data.count).map(|v| Vec2::new(data.component(v, 0), data.component(v, 1))).collect();
+            part.uvs = (0..data.count)
+                .map(|v| Vec2::new(data.component(v, 0), data.component(v, 1)))
+                .collect();
         }
         if let Some(i) = attr(Semantic::Colors(0)) {
             let w = what(i, "COLOR_0");
@@ -700,23 +902,50 @@ impl<'a> Importer<'a> {
             same_count(&data, w)?;
             part.colors = (0..data.count)
                 .map(|v| {
-                    let a = if data.dims == 4 { data.component(v, 3) } else { 1.0 };
-                    Vec4::new(data.component(v, 0), data.component(v, 1), data.component(v, 2), a)
+                    let a = if data.dims == 4 {
+                        data.component(v, 3)
+                    } else {
+                        1.0
+                    };
+                    Vec4::new(
+                        data.component(v, 0),
+                        data.component(v, 1),
+                        data.component(v, 2),
+                        a,
+                    )
                 })
                 .collect();
         }
         if let Some(i) = attr(Semantic::Joints(0)) {
             let w = what(i, "JOINTS_0");
-            let data = self.accessor(root, buffers, i, &w, &[Type::Vec4], &[ComponentType::U8, ComponentType::U16])?;
+            let data = self.accessor(
+                root,
+                buffers,
+                i,
+                &w,
+                &[Type::Vec4],
+                &[ComponentType::U8, ComponentType::U16],
+            )?;
             same_count(&data, w)?;
             // Both allowed component types fit u16.
-            part.joints = (0..data.count).map(|v| std::array::from_fn(|c| data.integer(v, c) as u16)).collect();
+            part.joints = (0..data.count)
+                .map(|v| std::array::from_fn(|c| data.integer(v, c) as u16))
+                .collect();
         }
         if let Some(i) = attr(Semantic::Weights(0)) {
             let w = what(i, "WEIGHTS_0");
-            let data = self.accessor(root, buffers, i, &w, &[Type::Vec4], &[ComponentType::F32, ComponentType::U8, ComponentType::U16])?;
+            let data = self.accessor(
+                root,
+                buffers,
+                i,
+                &w,
+                &[Type::Vec4],
+                &[ComponentType::F32, ComponentType::U8, ComponentType::U16],
+            )?;
             same_count(&data, w)?;
-            part.weights = (0..data.count).map(|v| std::array::from_fn(|c| data.component(v, c))).collect();
+            part.weights = (0..data.count)
+                .map(|v| std::array::from_fn(|c| data.component(v, c)))
+                .collect();
         }
 
         // Vertex order as drawn: the index list, or 0..n.
@@ -750,7 +979,7 @@ impl<'a> Importer<'a> {
         };
         part.indices = match mode {
             Mode::Triangles => {
-                if order.len() % 3 != 0 {
+                if !order.len().is_multiple_of(3) {
                     return Err(self.invalid(format!(
                         "mesh {mesh_name} primitive {prim_index}: {} vertices is not a whole number of triangles",
                         order.len()
@@ -776,7 +1005,12 @@ struct Budget {
 }
 
 impl Budget {
-    fn charge(&mut self, importer: &Importer<'_>, vertices: usize, indices: usize) -> Result<(), IoError> {
+    fn charge(
+        &mut self,
+        importer: &Importer<'_>,
+        vertices: usize,
+        indices: usize,
+    ) -> Result<(), IoError> {
         self.vertices = self.vertices.saturating_add(vertices as u64);
         self.indices = self.indices.saturating_add(indices as u64);
         let l = importer.limits;
@@ -785,13 +1019,19 @@ impl Budget {
         if self.vertices > max_vertices {
             return Err(IoError::too_large(
                 importer.path,
-                format!("the scene has at least {} vertices; the limit is {max_vertices}", self.vertices),
+                format!(
+                    "the scene has at least {} vertices; the limit is {max_vertices}",
+                    self.vertices
+                ),
             ));
         }
         if self.indices > l.max_indices {
             return Err(IoError::too_large(
                 importer.path,
-                format!("the scene has at least {} indices; the limit is {}", self.indices, l.max_indices),
+                format!(
+                    "the scene has at least {} indices; the limit is {}",
+                    self.indices, l.max_indices
+                ),
             ));
         }
         Ok(())
@@ -799,7 +1039,15 @@ impl Budget {
 }
 
 fn read_vec3(data: &AccessorData<'_>) -> Vec<Vec3> {
-    (0..data.count).map(|v| Vec3::new(data.component(v, 0), data.component(v, 1), data.component(v, 2))).collect()
+    (0..data.count)
+        .map(|v| {
+            Vec3::new(
+                data.component(v, 0),
+                data.component(v, 1),
+                data.component(v, 2),
+            )
+        })
+        .collect()
 }
 
 /// glTF triangle strip → list: triangle i is (i, i+1, i+2) for even i and (i, i+2, i+1) for odd
@@ -808,7 +1056,11 @@ fn read_vec3(data: &AccessorData<'_>) -> Vec<Vec3> {
 fn strip_to_list(order: &[u32]) -> Vec<u32> {
     let mut out = Vec::with_capacity(order.len().saturating_sub(2) * 3);
     for (i, w) in order.windows(3).enumerate() {
-        let tri = if i % 2 == 0 { [w[0], w[1], w[2]] } else { [w[0], w[2], w[1]] };
+        let tri = if i % 2 == 0 {
+            [w[0], w[1], w[2]]
+        } else {
+            [w[0], w[2], w[1]]
+        };
         if tri[0] != tri[1] && tri[1] != tri[2] && tri[0] != tri[2] {
             out.extend_from_slice(&tri);
         }
@@ -818,7 +1070,9 @@ fn strip_to_list(order: &[u32]) -> Vec<u32> {
 
 /// glTF triangle fan → list: triangle i is (i+1, i+2, 0).
 fn fan_to_list(order: &[u32]) -> Vec<u32> {
-    let Some((&first, rest)) = order.split_first() else { return Vec::new() };
+    let Some((&first, rest)) = order.split_first() else {
+        return Vec::new();
+    };
     let mut out = Vec::with_capacity(rest.len().saturating_sub(1) * 3);
     for w in rest.windows(2) {
         out.extend_from_slice(&[w[0], w[1], first]);
@@ -836,16 +1090,29 @@ pub(crate) enum TextureError {
 
 /// PNG or JPEG bytes → RGBA8 texture, refusing images whose header declares more than
 /// `limits.max_texture_bytes` of RGBA8 before decoding the pixels.
-pub(crate) fn decode_texture(encoded: &[u8], limits: &ImportLimits) -> Result<Texture, TextureError> {
+pub(crate) fn decode_texture(
+    encoded: &[u8],
+    limits: &ImportLimits,
+) -> Result<Texture, TextureError> {
     let reader = image::ImageReader::new(std::io::Cursor::new(encoded))
         .with_guessed_format()
         .map_err(|e| TextureError::Decode(e.to_string()))?;
     match reader.format() {
         Some(image::ImageFormat::Png | image::ImageFormat::Jpeg) => {}
-        Some(other) => return Err(TextureError::Decode(format!("image format {other:?} is not PNG or JPEG"))),
-        None => return Err(TextureError::Decode("unknown image format (expected PNG or JPEG)".to_owned())),
+        Some(other) => {
+            return Err(TextureError::Decode(format!(
+                "image format {other:?} is not PNG or JPEG"
+            )));
+        }
+        None => {
+            return Err(TextureError::Decode(
+                "unknown image format (expected PNG or JPEG)".to_owned(),
+            ));
+        }
     }
-    let (w, h) = reader.into_dimensions().map_err(|e| TextureError::Decode(e.to_string()))?;
+    let (w, h) = reader
+        .into_dimensions()
+        .map_err(|e| TextureError::Decode(e.to_string()))?;
     let rgba_bytes = u64::from(w) * u64::from(h) * 4;
     if rgba_bytes > limits.max_texture_bytes {
         return Err(TextureError::TooLarge(format!(
@@ -860,10 +1127,16 @@ pub(crate) fn decode_texture(encoded: &[u8], limits: &ImportLimits) -> Result<Te
     // The decoder's own working memory on top of the RGBA8 result.
     image_limits.max_alloc = Some(limits.max_texture_bytes.saturating_mul(2));
     reader.limits(image_limits);
-    let decoded = reader.decode().map_err(|e| TextureError::Decode(e.to_string()))?;
+    let decoded = reader
+        .decode()
+        .map_err(|e| TextureError::Decode(e.to_string()))?;
     let rgba = decoded.to_rgba8();
     let (width, height) = rgba.dimensions();
-    Ok(Texture { width, height, rgba8: rgba.into_raw() })
+    Ok(Texture {
+        width,
+        height,
+        rgba8: rgba.into_raw(),
+    })
 }
 
 /// Standard base64 (with or without padding; whitespace ignored). The error is the position of
@@ -919,7 +1192,6 @@ fn percent_decode(uri: &str) -> Option<String> {
     String::from_utf8(out).ok()
 }
 
-
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -932,9 +1204,27 @@ pub(crate) mod tests {
         let mut doc = Doc::default();
         let pos = doc.floats(&QUAD, "VEC3", 3);
         let uv = doc.floats(&[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0], "VEC2", 2);
-        let colors = doc.accessor(&[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 128, 255, 255, 255, 0], "VEC4", 5121, 4);
-        let joints = doc.accessor(&[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0], "VEC4", 5121, 4);
-        let weights = doc.floats(&[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0], "VEC4", 4);
+        let colors = doc.accessor(
+            &[
+                255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 128, 255, 255, 255, 0,
+            ],
+            "VEC4",
+            5121,
+            4,
+        );
+        let joints = doc.accessor(
+            &[0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 1, 0, 0, 0],
+            "VEC4",
+            5121,
+            4,
+        );
+        let weights = doc.floats(
+            &[
+                1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0,
+            ],
+            "VEC4",
+            4,
+        );
         let indices = doc.accessor(&[0, 0, 1, 0, 3, 0, 2, 0], "SCALAR", 5123, 4);
         doc.accessors[colors]["normalized"] = json!(true);
         doc.accessor(&png, "SCALAR", 5121, png.len());
@@ -945,7 +1235,7 @@ pub(crate) mod tests {
             "scene": 0,
             "scenes": [{"nodes": [0, 2]}],
             "nodes": [
-                {"children": [1], "translation": [1.0, 2.0, 3.0], "rotation": [0.0, 0.7071068, 0.0, 0.7071068]},
+                {"children": [1], "translation": [1.0, 2.0, 3.0], "rotation": [0.0, 0.6, 0.0, 0.8]},
                 {"mesh": 0, "scale": [2.0, 2.0, 2.0]},
                 {"mesh": 0, "skin": 0, "matrix": [1.0,0.0,0.0,0.0, 0.0,1.0,0.0,0.0, 0.0,0.0,1.0,0.0, 0.0,0.0,0.0,1.0]}
             ],
@@ -969,7 +1259,10 @@ pub(crate) mod tests {
         assert_eq!(model.parts.len(), 4);
         assert_eq!(model.triangle_count(), 8);
         assert!(model.materials[0].unlit && model.materials[0].base_color_texture.is_some());
-        assert_eq!(model.parts[2].positions[..], QUAD.chunks(3).map(Vec3::from_slice).collect::<Vec<_>>()[..]);
+        assert_eq!(
+            model.parts[2].positions[..],
+            QUAD.chunks(3).map(Vec3::from_slice).collect::<Vec<_>>()[..]
+        );
         assert_eq!(model.parts[0].joints.len(), 4);
     }
 
@@ -1000,7 +1293,11 @@ pub(crate) mod tests {
         for mesh in json["meshes"].as_array().expect("meshes") {
             for p in mesh["primitives"].as_array().expect("primitives") {
                 let v = accessor_count(json, &p["attributes"]["POSITION"]);
-                let i = if p["indices"].is_null() { v } else { accessor_count(json, &p["indices"]) };
+                let i = if p["indices"].is_null() {
+                    v
+                } else {
+                    accessor_count(json, &p["indices"])
+                };
                 out.push((v, i / 3));
             }
         }
@@ -1009,7 +1306,11 @@ pub(crate) mod tests {
 
     fn check_counts(model: &MeshModel, path: &Path) {
         let declared = declared_counts(&file_json(path));
-        let found: Vec<(usize, usize)> = model.parts.iter().map(|p| (p.positions.len(), p.triangle_count())).collect();
+        let found: Vec<(usize, usize)> = model
+            .parts
+            .iter()
+            .map(|p| (p.positions.len(), p.triangle_count()))
+            .collect();
         assert_eq!(found, declared, "{}", path.display());
         assert!(model.validate().is_ok());
         for part in &model.parts {
@@ -1042,10 +1343,18 @@ pub(crate) mod tests {
         assert!((volume - 1.0).abs() < 1e-5, "volume {volume}");
         assert_eq!(model.materials.len(), 1);
         assert_eq!(model.materials[0].name, "Red");
-        assert!((model.materials[0].base_color - Vec4::new(0.8, 0.0, 0.0, 1.0)).abs().max_element() < 1e-6);
+        assert!(
+            (model.materials[0].base_color - Vec4::new(0.8, 0.0, 0.0, 1.0))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
         assert!(!model.materials[0].unlit);
         let (lo, hi) = model.bounds().expect("bounds");
-        assert!((lo + Vec3::splat(0.5)).abs().max_element() < 1e-6 && (hi - Vec3::splat(0.5)).abs().max_element() < 1e-6);
+        assert!(
+            (lo + Vec3::splat(0.5)).abs().max_element() < 1e-6
+                && (hi - Vec3::splat(0.5)).abs().max_element() < 1e-6
+        );
     }
 
     #[test]
@@ -1062,7 +1371,10 @@ pub(crate) mod tests {
         let acc = &json["accessors"][0];
         let file_y = acc["max"][1].as_f64().expect("max") - acc["min"][1].as_f64().expect("min");
         let (lo, hi) = model.bounds().expect("bounds");
-        assert!(((hi.z - lo.z) as f64 - file_y).abs() < 1e-4, "{lo} {hi} {file_y}");
+        assert!(
+            ((hi.z - lo.z) as f64 - file_y).abs() < 1e-4,
+            "{lo} {hi} {file_y}"
+        );
         assert!(model.parts[0].signed_volume() > 0.0);
     }
 
@@ -1076,8 +1388,18 @@ pub(crate) mod tests {
         assert_eq!((model.parts[0].material, model.parts[1].material), (0, 1));
         let (dirt, grass) = (&model.materials[0], &model.materials[1]);
         assert_eq!((dirt.name.as_str(), grass.name.as_str()), ("dirt", "grass"));
-        assert!((dirt.base_color - Vec4::new(0.886_274_5, 0.513_725_5, 0.341_176_48, 1.0)).abs().max_element() < 1e-6);
-        assert!((grass.base_color - Vec4::new(0.172_549, 0.847_058_83, 0.721_568_64, 1.0)).abs().max_element() < 1e-6);
+        assert!(
+            (dirt.base_color - Vec4::new(0.886_274_5, 0.513_725_5, 0.341_176_48, 1.0))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
+        assert!(
+            (grass.base_color - Vec4::new(0.172_549, 0.847_058_83, 0.721_568_64, 1.0))
+                .abs()
+                .max_element()
+                < 1e-6
+        );
         // extensionsUsed lists KHR_materials_unlit but neither material carries it.
         assert!(!dirt.unlit && !grass.unlit);
         // Node translation (0, -0.05, 0) applied; the file's POSITION min y is -2.9e-16.
@@ -1093,7 +1415,12 @@ pub(crate) mod tests {
         assert_eq!((model.vertex_count(), model.triangle_count()), (2930, 5856));
         assert!(is_watertight(&model.parts[0]));
         assert!(model.parts[0].signed_volume() > 0.0);
-        assert!(model.parts[0].normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
+        assert!(
+            model.parts[0]
+                .normals
+                .iter()
+                .all(|n| (n.length() - 1.0).abs() < 1e-4)
+        );
     }
 
     #[test]
@@ -1103,11 +1430,24 @@ pub(crate) mod tests {
         check_counts(&model, &path);
         assert_eq!((model.vertex_count(), model.triangle_count()), (3273, 4672));
         let part = &model.parts[0];
-        assert_eq!((part.joints.len(), part.weights.len(), part.uvs.len()), (3273, 3273, 3273));
+        assert_eq!(
+            (part.joints.len(), part.weights.len(), part.uvs.len()),
+            (3273, 3273, 3273)
+        );
         assert!(part.joints.iter().flatten().all(|&j| j < 19));
-        assert!(part.weights.iter().all(|w| (w.iter().sum::<f32>() - 1.0).abs() < 1e-3));
-        let texture = model.materials[0].base_color_texture.as_ref().expect("texture");
-        assert!(texture.width > 0 && texture.rgba8.len() == (texture.width * texture.height * 4) as usize);
+        assert!(
+            part.weights
+                .iter()
+                .all(|w| (w.iter().sum::<f32>() - 1.0).abs() < 1e-3)
+        );
+        let texture = model.materials[0]
+            .base_color_texture
+            .as_ref()
+            .expect("texture");
+        assert!(
+            texture.width > 0
+                && texture.rgba8.len() == (texture.width * texture.height * 4) as usize
+        );
         // Skinned: positions are the file's POSITION values, not moved by the Z_UP node.
         let json = file_json(&path);
         let acc = &json["accessors"][3];
@@ -1133,7 +1473,11 @@ pub(crate) mod tests {
         let part = &model.parts[0];
         assert_eq!((part.joints.len(), part.weights.len()), (10, 10));
         assert!(part.joints.iter().flatten().all(|&j| j < 2));
-        assert!(part.weights.iter().all(|w| (w.iter().sum::<f32>() - 1.0).abs() < 1e-6));
+        assert!(
+            part.weights
+                .iter()
+                .all(|w| (w.iter().sum::<f32>() - 1.0).abs() < 1e-6)
+        );
     }
 
     // ---- hand-built files ----
@@ -1142,7 +1486,10 @@ pub(crate) mod tests {
         const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
         let mut s = String::new();
         for chunk in bytes.chunks(3) {
-            let n = chunk.iter().enumerate().fold(0u32, |acc, (i, &b)| acc | u32::from(b) << (16 - 8 * i));
+            let n = chunk
+                .iter()
+                .enumerate()
+                .fold(0u32, |acc, (i, &b)| acc | u32::from(b) << (16 - 8 * i));
             for i in 0..4 {
                 if i <= chunk.len() {
                     s.push(T[(n >> (18 - 6 * i) & 63) as usize] as char);
@@ -1164,10 +1511,12 @@ pub(crate) mod tests {
 
     impl Doc {
         fn accessor(&mut self, bytes: &[u8], ty: &str, component: u32, count: usize) -> usize {
-            while self.bin.len() % 4 != 0 {
+            while !self.bin.len().is_multiple_of(4) {
                 self.bin.push(0);
             }
-            self.views.push(json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}));
+            self.views.push(
+                json!({"buffer": 0, "byteOffset": self.bin.len(), "byteLength": bytes.len()}),
+            );
             self.bin.extend_from_slice(bytes);
             self.accessors.push(json!({"bufferView": self.views.len() - 1, "type": ty, "componentType": component, "count": count}));
             self.accessors.len() - 1
@@ -1194,11 +1543,11 @@ pub(crate) mod tests {
             root["bufferViews"] = Value::Array(self.views.clone());
             root["accessors"] = Value::Array(self.accessors.clone());
             let mut json = serde_json::to_vec(&root).expect("json");
-            while json.len() % 4 != 0 {
+            while !json.len().is_multiple_of(4) {
                 json.push(b' ');
             }
             let mut bin = self.bin.clone();
-            while bin.len() % 4 != 0 {
+            while !bin.len().is_multiple_of(4) {
                 bin.push(0);
             }
             let mut out = Vec::new();
@@ -1219,9 +1568,11 @@ pub(crate) mod tests {
     const QUAD: [f32; 12] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
 
     fn png_2x1() -> Vec<u8> {
-        let img = image::RgbaImage::from_raw(2, 1, vec![255, 0, 0, 255, 0, 0, 255, 255]).expect("image");
+        let img =
+            image::RgbaImage::from_raw(2, 1, vec![255, 0, 0, 255, 0, 0, 255, 255]).expect("image");
         let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png).expect("png");
+        img.write_to(&mut out, image::ImageFormat::Png)
+            .expect("png");
         out.into_inner()
     }
 
@@ -1230,7 +1581,14 @@ pub(crate) mod tests {
         let mut doc = Doc::default();
         let pos = doc.floats(&QUAD, "VEC3", 3);
         let strip = doc.accessor(&[0, 1, 3, 2], "SCALAR", 5121, 4);
-        let colors = doc.accessor(&[255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 128, 255, 255, 255, 0], "VEC4", 5121, 4);
+        let colors = doc.accessor(
+            &[
+                255, 0, 0, 255, 0, 255, 0, 255, 0, 0, 255, 128, 255, 255, 255, 0,
+            ],
+            "VEC4",
+            5121,
+            4,
+        );
         let mut acc = doc.accessors.clone();
         acc[colors]["normalized"] = json!(true);
         doc.accessors = acc;
@@ -1246,7 +1604,10 @@ pub(crate) mod tests {
         }));
         // Triangles mode with 4 indices is not whole triangles.
         let err = import_gltf_slice(&bytes, None).expect_err("4 indices in triangles mode");
-        assert!(err.to_string().contains("not a whole number of triangles"), "{err}");
+        assert!(
+            err.to_string().contains("not a whole number of triangles"),
+            "{err}"
+        );
 
         let bytes = doc.gltf(json!({
             "nodes": [{"mesh": 0}],
@@ -1304,14 +1665,21 @@ pub(crate) mod tests {
             assert_eq!(t.rgba8, vec![255, 0, 0, 255, 0, 0, 255, 255]);
             // Left texel red, right texel blue; texture × factor 0.5.
             let c = model.surface_color(&model.parts[0], 0, Vec3::new(1.0, 0.0, 0.0));
-            assert!((c - Vec4::new(0.5, 0.0, 0.0, 1.0)).abs().max_element() < 1e-6, "{c}");
+            assert!(
+                (c - Vec4::new(0.5, 0.0, 0.0, 1.0)).abs().max_element() < 1e-6,
+                "{c}"
+            );
             assert!((model.parts[0].positions[0].z - 5.0).abs() < 1e-6);
         };
         // Embedded in the GLB binary chunk.
-        let glb = doc.glb(root(json!({"bufferView": image_view, "mimeType": "image/png"})));
+        let glb = doc.glb(root(
+            json!({"bufferView": image_view, "mimeType": "image/png"}),
+        ));
         check(&import_gltf_slice(&glb, None).expect("glb"));
         // Data URI.
-        let gltf = doc.gltf(root(json!({"uri": format!("data:image/png;base64,{}", base64(&png))})));
+        let gltf = doc.gltf(root(
+            json!({"uri": format!("data:image/png;base64,{}", base64(&png))}),
+        ));
         check(&import_gltf_slice(&gltf, None).expect("data uri"));
         // External file beside the .gltf (percent-encoded name).
         let dir = tempfile::tempdir().expect("temp dir");
@@ -1335,9 +1703,13 @@ pub(crate) mod tests {
                 "nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]})
         };
         assert!(import_gltf_slice(&doc.gltf(root(&[])), None).is_ok());
-        let err = import_gltf_slice(&doc.gltf(root(&["KHR_draco_mesh_compression"])), None).expect_err("draco");
+        let err = import_gltf_slice(&doc.gltf(root(&["KHR_draco_mesh_compression"])), None)
+            .expect_err("draco");
         assert!(matches!(err, IoError::Unsupported { .. }));
-        assert!(err.to_string().contains("KHR_draco_mesh_compression"), "{err}");
+        assert!(
+            err.to_string().contains("KHR_draco_mesh_compression"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -1346,22 +1718,48 @@ pub(crate) mod tests {
         let pos = doc.floats(&QUAD[..9], "VEC3", 3);
         let bad_index = doc.accessor(&[0, 1, 7], "SCALAR", 5121, 3);
         let cases: Vec<(Value, &str)> = vec![
-            (json!({"scenes": [{"nodes": [0]}], "nodes": [{"children": [1]}, {"children": [0]}]}), "node 0 is reached twice"),
-            (json!({"scenes": [{"nodes": [0]}], "nodes": [{"children": [1, 1]}, {}]}), "node 1 is reached twice"),
-            (json!({"scenes": [{"nodes": [3]}], "nodes": []}), "node 3, which does not exist"),
-            (json!({"scene": 2, "scenes": [{"nodes": []}]}), "default scene 2"),
-            (json!({"nodes": [{"mesh": 4}]}), "mesh 4, which does not exist"),
-            (json!({"nodes": [{"mesh": 0}], "meshes": [{"name": "Body", "primitives": [{"attributes": {"POSITION": 9}}]}]}),
-             "accessor 9 (POSITION of mesh 'Body' primitive 0) does not exist"),
-            (json!({"nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": bad_index}]}]}),
-             "index 7 at position 2 is not below the vertex count 3"),
-            (json!({"nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "material": 0}]}]}),
-             "material 0, which does not exist"),
-            (json!({"nodes": [{"mesh": 0, "rotation": [0.0, 0.0, 0.0, 0.0]}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}),
-             "not a unit quaternion"),
-            (json!({"nodes": [{"mesh": 0, "scale": [1e30, 1e30, 1e30], "matrix": [1e30,0,0,0, 0,1e30,0,0, 0,0,1e30,0, 0,0,0,1]}],
+            (
+                json!({"scenes": [{"nodes": [0]}], "nodes": [{"children": [1]}, {"children": [0]}]}),
+                "node 0 is reached twice",
+            ),
+            (
+                json!({"scenes": [{"nodes": [0]}], "nodes": [{"children": [1, 1]}, {}]}),
+                "node 1 is reached twice",
+            ),
+            (
+                json!({"scenes": [{"nodes": [3]}], "nodes": []}),
+                "node 3, which does not exist",
+            ),
+            (
+                json!({"scene": 2, "scenes": [{"nodes": []}]}),
+                "default scene 2",
+            ),
+            (
+                json!({"nodes": [{"mesh": 4}]}),
+                "mesh 4, which does not exist",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0}], "meshes": [{"name": "Body", "primitives": [{"attributes": {"POSITION": 9}}]}]}),
+                "accessor 9 (POSITION of mesh 'Body' primitive 0) does not exist",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "indices": bad_index}]}]}),
+                "index 7 at position 2 is not below the vertex count 3",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}, "material": 0}]}]}),
+                "material 0, which does not exist",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0, "rotation": [0.0, 0.0, 0.0, 0.0]}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}),
+                "not a unit quaternion",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0, "scale": [1e30, 1e30, 1e30], "matrix": [1e30,0,0,0, 0,1e30,0,0, 0,0,1e30,0, 0,0,0,1]}],
                     "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
-                    "accessors_extra": 0}), ""),
+                    "accessors_extra": 0}),
+                "",
+            ),
         ];
         for (root, expected) in cases {
             let result = import_gltf_slice(&doc.gltf(root.clone()), None);
@@ -1372,7 +1770,10 @@ pub(crate) mod tests {
             }
             let err = result.expect_err(expected);
             assert!(err.to_string().starts_with("<memory>: "), "{err}");
-            assert!(err.to_string().contains(expected), "expected '{expected}' in '{err}'");
+            assert!(
+                err.to_string().contains(expected),
+                "expected '{expected}' in '{err}'"
+            );
         }
     }
 
@@ -1388,7 +1789,10 @@ pub(crate) mod tests {
         };
         let empty = write("empty.glb", &[]);
         let err = import_gltf(&empty).expect_err("empty");
-        assert!(matches!(err, IoError::Truncated { .. }) && err.to_string().contains("empty.glb"), "{err}");
+        assert!(
+            matches!(err, IoError::Truncated { .. }) && err.to_string().contains("empty.glb"),
+            "{err}"
+        );
         assert!(err.to_string().contains("empty"), "{err}");
 
         let boxed = std::fs::read(asset("static/Box.glb")).expect("Box.glb");
@@ -1396,14 +1800,20 @@ pub(crate) mod tests {
             let p = write("cut.glb", &boxed[..cut]);
             let err = import_gltf(&p).expect_err("truncated");
             assert!(err.to_string().contains("cut.glb"), "{err}");
-            assert!(matches!(err, IoError::Truncated { .. }), "cut at {cut}: {err}");
+            assert!(
+                matches!(err, IoError::Truncated { .. }),
+                "cut at {cut}: {err}"
+            );
         }
         let mut wrong = boxed.clone();
         wrong[..4].copy_from_slice(b"glTX");
         let p = write("wrong_magic.glb", &wrong);
         let err = import_gltf(&p).expect_err("magic");
         assert!(matches!(err, IoError::Parse { .. }), "{err}");
-        assert!(err.to_string().contains("wrong_magic.glb") && err.to_string().contains("67 6c 54 58"), "{err}");
+        assert!(
+            err.to_string().contains("wrong_magic.glb") && err.to_string().contains("67 6c 54 58"),
+            "{err}"
+        );
 
         let mut version = boxed.clone();
         version[4] = 1;
@@ -1426,26 +1836,47 @@ pub(crate) mod tests {
         let text = err.to_string();
         assert!(matches!(err, IoError::Invalid { .. }), "{text}");
         assert!(text.contains("SimpleSkin_bad_count.gltf"), "{text}");
-        assert!(text.contains("accessor 1 (POSITION of mesh 0 primitive 0): count 4000"), "{text}");
+        assert!(
+            text.contains("accessor 1 (POSITION of mesh 0 primitive 0): count 4000"),
+            "{text}"
+        );
         assert!(text.contains("exceeds buffer view 1 length 120"), "{text}");
 
         // Buffer view past its buffer; buffer shorter than declared; count over the limits.
         let mut json = file_json(&asset("skinned/SimpleSkin.gltf"));
         json["bufferViews"][1]["byteLength"] = json!(1000);
-        let err = import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("view");
-        assert!(err.to_string().contains("runs past the 168 bytes of buffer 0"), "{err}");
+        let err =
+            import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("view");
+        assert!(
+            err.to_string()
+                .contains("runs past the 168 bytes of buffer 0"),
+            "{err}"
+        );
         let mut json = file_json(&asset("skinned/SimpleSkin.gltf"));
         json["buffers"][0]["byteLength"] = json!(1u64 << 40);
-        let err = import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("buffer");
-        assert!(matches!(err, IoError::Truncated { .. }) && err.to_string().contains("buffer 0 declares byteLength 1099511627776"), "{err}");
+        let err =
+            import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("buffer");
+        assert!(
+            matches!(err, IoError::Truncated { .. })
+                && err
+                    .to_string()
+                    .contains("buffer 0 declares byteLength 1099511627776"),
+            "{err}"
+        );
         let mut json = file_json(&asset("skinned/SimpleSkin.gltf"));
         json["accessors"][1]["count"] = json!(1u64 << 40);
-        let err = import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("huge count");
+        let err = import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None)
+            .expect_err("huge count");
         assert!(matches!(err, IoError::TooLarge { .. }), "{err}");
         let mut json = file_json(&asset("skinned/SimpleSkin.gltf"));
         json["bufferViews"][2]["byteStride"] = json!(4);
-        let err = import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("stride");
-        assert!(err.to_string().contains("byteStride 4 is invalid for 8-byte elements"), "{err}");
+        let err =
+            import_gltf_slice(&serde_json::to_vec(&json).expect("json"), None).expect_err("stride");
+        assert!(
+            err.to_string()
+                .contains("byteStride 4 is invalid for 8-byte elements"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -1456,9 +1887,16 @@ pub(crate) mod tests {
         let bytes = doc.gltf(json!({"nodes": nodes, "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}));
         let model = import_gltf_slice(&bytes, None).expect("100 instances");
         assert_eq!(model.vertex_count(), 300);
-        let limits = ImportLimits { max_vertices: 299, ..ImportLimits::default() };
-        let err = import_gltf_slice_with(&bytes, None, Path::new("many.gltf"), &limits).expect_err("limit");
-        assert!(matches!(err, IoError::TooLarge { .. }) && err.to_string().contains("limit is 299"), "{err}");
+        let limits = ImportLimits {
+            max_vertices: 299,
+            ..ImportLimits::default()
+        };
+        let err = import_gltf_slice_with(&bytes, None, Path::new("many.gltf"), &limits)
+            .expect_err("limit");
+        assert!(
+            matches!(err, IoError::TooLarge { .. }) && err.to_string().contains("limit is 299"),
+            "{err}"
+        );
     }
 
     #[test]
@@ -1470,7 +1908,10 @@ pub(crate) mod tests {
         assert_eq!(decode_base64("QUJD\nRA=="), Ok(b"ABCD".to_vec()));
         assert_eq!(decode_base64("QU*J"), Err(2));
         assert_eq!(decode_base64("QQ==QQ"), Err(4));
-        assert_eq!(percent_decode("a%20b%2Fc.bin").as_deref(), Some("a b/c.bin"));
+        assert_eq!(
+            percent_decode("a%20b%2Fc.bin").as_deref(),
+            Some("a b/c.bin")
+        );
         assert_eq!(percent_decode("bad%2"), None);
         assert_eq!(percent_decode("bad%zz"), None);
     }

@@ -22,6 +22,9 @@ use super::error::{ImportLimits, IoError, read_file_limited};
 use super::gltf_mesh::{TextureError, decode_texture};
 use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
 
+/// Reads a file named by an OBJ or MTL (relative to the OBJ): `Ok(None)` when it does not exist.
+pub type SideFiles<'f> = dyn Fn(&str) -> Result<Option<Vec<u8>>, IoError> + 'f;
+
 /// OBJ import settings.
 #[derive(Debug, Clone, Default, PartialEq, Eq)]
 pub struct ObjOptions {
@@ -43,14 +46,23 @@ pub fn import_obj(path: &Path) -> Result<MeshModel, IoError> {
 ///
 /// # Errors
 /// See [`import_obj`].
-pub fn import_obj_with(path: &Path, options: &ObjOptions, limits: &ImportLimits) -> Result<MeshModel, IoError> {
+pub fn import_obj_with(
+    path: &Path,
+    options: &ObjOptions,
+    limits: &ImportLimits,
+) -> Result<MeshModel, IoError> {
     let bytes = read_file_limited(path, limits)?;
-    let base_dir = path.parent().unwrap_or_else(|| Path::new(".")).to_path_buf();
+    let base_dir = path
+        .parent()
+        .unwrap_or_else(|| Path::new("."))
+        .to_path_buf();
     let files = move |relative: &str| -> Result<Option<Vec<u8>>, IoError> {
         let file = base_dir.join(relative);
         match read_file_limited(&file, limits) {
             Ok(b) => Ok(Some(b)),
-            Err(IoError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            Err(IoError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+                Ok(None)
+            }
             Err(e) => Err(e),
         }
     };
@@ -65,7 +77,7 @@ pub fn import_obj_with(path: &Path, options: &ObjOptions, limits: &ImportLimits)
 /// See [`import_obj`].
 pub fn import_obj_slice_with(
     bytes: &[u8],
-    files: &dyn Fn(&str) -> Result<Option<Vec<u8>>, IoError>,
+    files: &SideFiles<'_>,
     name: &Path,
     options: &ObjOptions,
     limits: &ImportLimits,
@@ -73,7 +85,11 @@ pub fn import_obj_slice_with(
     if bytes.len() as u64 > limits.max_file_bytes {
         return Err(IoError::too_large(
             name,
-            format!("file is {} bytes; the limit is {} bytes", bytes.len(), limits.max_file_bytes),
+            format!(
+                "file is {} bytes; the limit is {} bytes",
+                bytes.len(),
+                limits.max_file_bytes
+            ),
         ));
     }
     if bytes.iter().all(u8::is_ascii_whitespace) {
@@ -93,16 +109,20 @@ pub fn import_obj_slice_with(
         let mtl_bytes = match files(&relative) {
             Ok(Some(b)) => b,
             Ok(None) => {
-                log::warn!("{}: material library '{relative}' not found; using default materials", name.display());
+                log::warn!(
+                    "{}: material library '{relative}' not found; using default materials",
+                    name.display()
+                );
                 return Err(tobj::LoadError::OpenFileFailed);
             }
             Err(e) => return fail(e),
         };
         let mtl_name = name.with_file_name(mtl);
-        let mtl_text = match utf8(&mtl_bytes, &mtl_name).and_then(|t| check_mtl(t, &mtl_name).map(|()| t)) {
-            Ok(t) => t,
-            Err(e) => return fail(e),
-        };
+        let mtl_text =
+            match utf8(&mtl_bytes, &mtl_name).and_then(|t| check_mtl(t, &mtl_name).map(|()| t)) {
+                Ok(t) => t,
+                Err(e) => return fail(e),
+            };
         tobj::load_mtl_buf(&mut std::io::Cursor::new(mtl_text.as_bytes()))
     };
     let load_options = tobj::LoadOptions {
@@ -110,16 +130,22 @@ pub fn import_obj_slice_with(
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
-        ..tobj::LoadOptions::default()
     };
-    let loaded = tobj::load_obj_buf(&mut std::io::Cursor::new(text.as_bytes()), &load_options, load_mtl);
+    let loaded = tobj::load_obj_buf(
+        &mut std::io::Cursor::new(text.as_bytes()),
+        &load_options,
+        load_mtl,
+    );
     if let Some(e) = material_error.into_inner() {
         return Err(e);
     }
     let (models, materials) = loaded.map_err(|e| IoError::parse(name, format!("OBJ: {e}")))?;
     let materials = materials.unwrap_or_else(|e| {
         if e != tobj::LoadError::OpenFileFailed {
-            log::warn!("{}: material library not loaded ({e}); using default materials", name.display());
+            log::warn!(
+                "{}: material library not loaded ({e}); using default materials",
+                name.display()
+            );
         }
         Vec::new()
     });
@@ -135,11 +161,19 @@ pub fn import_obj_slice_with(
     for m in &materials {
         let [r, g, b] = m.diffuse.unwrap_or([1.0; 3]);
         let alpha = m.dissolve.unwrap_or(1.0);
-        let base_color = Vec4::new(r as f32, g as f32, b as f32, alpha as f32);
+        let base_color = Vec4::new(r, g, b, alpha);
         if !base_color.is_finite() {
-            return Err(IoError::invalid(name, format!("material '{}': Kd or d is not finite", m.name)));
+            return Err(IoError::invalid(
+                name,
+                format!("material '{}': Kd or d is not finite", m.name),
+            ));
         }
-        let texture = match m.diffuse_texture.as_deref().map(str::trim).filter(|t| !t.is_empty()) {
+        let texture = match m
+            .diffuse_texture
+            .as_deref()
+            .map(str::trim)
+            .filter(|t| !t.is_empty())
+        {
             Some(map) => load_map(map, files, name, limits)?,
             None => None,
         };
@@ -163,29 +197,52 @@ pub fn import_obj_slice_with(
         if total_vertices > limits.max_vertices {
             return Err(IoError::too_large(
                 name,
-                format!("at least {total_vertices} vertices; the limit is {}", limits.max_vertices),
+                format!(
+                    "at least {total_vertices} vertices; the limit is {}",
+                    limits.max_vertices
+                ),
             ));
         }
-        let positions: Vec<Vec3> =
-            mesh.positions.chunks_exact(3).map(|p| Vec3::new(p[0] as f32, p[1] as f32, p[2] as f32)).collect();
+        let positions: Vec<Vec3> = mesh
+            .positions
+            .chunks_exact(3)
+            .map(|p| Vec3::new(p[0], p[1], p[2]))
+            .collect();
         let normals: Vec<Vec3> = if mesh.normals.len() == vertex_count * 3 {
-            mesh.normals.chunks_exact(3).map(|n| Vec3::new(n[0] as f32, n[1] as f32, n[2] as f32)).collect()
+            mesh.normals
+                .chunks_exact(3)
+                .map(|n| Vec3::new(n[0], n[1], n[2]))
+                .collect()
         } else {
             if !mesh.normals.is_empty() {
-                log::warn!("{}: object '{}' has normals on only some faces; recomputing", name.display(), model.name);
+                log::warn!(
+                    "{}: object '{}' has normals on only some faces; recomputing",
+                    name.display(),
+                    model.name
+                );
             }
             Vec::new()
         };
         let uvs: Vec<Vec2> = if mesh.texcoords.len() == vertex_count * 2 {
-            mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0] as f32, 1.0 - t[1] as f32)).collect()
+            mesh.texcoords
+                .chunks_exact(2)
+                .map(|t| Vec2::new(t[0], 1.0 - t[1]))
+                .collect()
         } else {
             if !mesh.texcoords.is_empty() {
-                log::warn!("{}: object '{}' has UVs on only some faces; dropping them", name.display(), model.name);
+                log::warn!(
+                    "{}: object '{}' has UVs on only some faces; dropping them",
+                    name.display(),
+                    model.name
+                );
             }
             Vec::new()
         };
         let colors: Vec<Vec4> = if mesh.vertex_color.len() == vertex_count * 3 {
-            mesh.vertex_color.chunks_exact(3).map(|c| Vec4::new(c[0] as f32, c[1] as f32, c[2] as f32, 1.0)).collect()
+            mesh.vertex_color
+                .chunks_exact(3)
+                .map(|c| Vec4::new(c[0], c[1], c[2], 1.0))
+                .collect()
         } else {
             Vec::new()
         };
@@ -196,10 +253,21 @@ pub fn import_obj_slice_with(
                 default_material
             }
         };
-        let mut part = TriangleMesh { positions, normals, uvs, colors, indices: mesh.indices, material, ..TriangleMesh::default() };
+        let mut part = TriangleMesh {
+            positions,
+            normals,
+            uvs,
+            colors,
+            indices: mesh.indices,
+            material,
+            ..TriangleMesh::default()
+        };
         // Checked before compute_normals, which indexes positions by these indices.
         if let Err(e) = part.validate() {
-            return Err(IoError::invalid(name, format!("object '{}': {e}", model.name)));
+            return Err(IoError::invalid(
+                name,
+                format!("object '{}': {e}", model.name),
+            ));
         }
         if part.normals.is_empty() {
             part.compute_normals();
@@ -223,7 +291,10 @@ fn utf8<'b>(bytes: &'b [u8], name: &Path) -> Result<&'b str, IoError> {
     std::str::from_utf8(bytes).map_err(|e| {
         let at = e.valid_up_to();
         let line = bytes[..at].iter().filter(|&&b| b == b'\n').count() + 1;
-        IoError::parse(name, format!("not UTF-8 text: bad byte at offset {at} (line {line})"))
+        IoError::parse(
+            name,
+            format!("not UTF-8 text: bad byte at offset {at} (line {line})"),
+        )
     })
 }
 
@@ -254,7 +325,9 @@ fn check_faces(text: &str, name: &Path) -> Result<(), IoError> {
                     if word.split('/').count() > 3 {
                         return Err(IoError::parse(
                             name,
-                            format!("line {line_number}: face vertex '{word}' has more than three indices"),
+                            format!(
+                                "line {line_number}: face vertex '{word}' has more than three indices"
+                            ),
                         ));
                     }
                     for (kind, part) in word.split('/').enumerate() {
@@ -262,9 +335,15 @@ fn check_faces(text: &str, name: &Path) -> Result<(), IoError> {
                             continue;
                         }
                         // At most three parts, checked above.
-                        let (Some(&total), Some(&before)) = (totals.get(kind), so_far.get(kind)) else { continue };
+                        let (Some(&total), Some(&before)) = (totals.get(kind), so_far.get(kind))
+                        else {
+                            continue;
+                        };
                         let Ok(index) = part.parse::<i64>() else {
-                            return Err(IoError::parse(name, format!("line {line_number}: bad face index '{part}'")));
+                            return Err(IoError::parse(
+                                name,
+                                format!("line {line_number}: bad face index '{part}'"),
+                            ));
                         };
                         let valid = match index {
                             i if i > 0 => (i as u64) <= total as u64,
@@ -278,7 +357,11 @@ fn check_faces(text: &str, name: &Path) -> Result<(), IoError> {
                                     "line {line_number}: face refers to {} {index}, but the file has {total} {}{}",
                                     KINDS[kind],
                                     PLURALS[kind],
-                                    if index < 0 { format!(" ({before} before this line)") } else { String::new() }
+                                    if index < 0 {
+                                        format!(" ({before} before this line)")
+                                    } else {
+                                        String::new()
+                                    }
                                 ),
                             ));
                         }
@@ -298,7 +381,10 @@ fn check_mtl(text: &str, name: &Path) -> Result<(), IoError> {
         if let Some(key @ ("Ka" | "Kd" | "Ks" | "Ke")) = words.next()
             && words.count() < 3
         {
-            return Err(IoError::parse(name, format!("line {}: {key} needs three numbers", line_index + 1)));
+            return Err(IoError::parse(
+                name,
+                format!("line {}: {key} needs three numbers", line_index + 1),
+            ));
         }
     }
     Ok(())
@@ -307,18 +393,22 @@ fn check_mtl(text: &str, name: &Path) -> Result<(), IoError> {
 /// A `map_Kd` value (which may carry options such as `-s 1 1 1` before the file name).
 fn load_map(
     map: &str,
-    files: &dyn Fn(&str) -> Result<Option<Vec<u8>>, IoError>,
+    files: &SideFiles<'_>,
     name: &Path,
     limits: &ImportLimits,
 ) -> Result<Option<Texture>, IoError> {
     let mut encoded = files(map)?;
-    if encoded.is_none() && map.starts_with('-') {
-        if let Some(last) = map.split_whitespace().last() {
-            encoded = files(last)?;
-        }
+    if encoded.is_none()
+        && map.starts_with('-')
+        && let Some(last) = map.split_whitespace().last()
+    {
+        encoded = files(last)?;
     }
     let Some(encoded) = encoded else {
-        log::warn!("{}: texture '{map}' not found; the material keeps its colour", name.display());
+        log::warn!(
+            "{}: texture '{map}' not found; the material keeps its colour",
+            name.display()
+        );
         return Ok(None);
     };
     decode(&encoded, &name.with_file_name(map), limits).map(Some)
@@ -341,9 +431,11 @@ pub(crate) mod tests {
 
     /// A 2×1 PNG: red, blue.
     pub(crate) fn png_2x1() -> Vec<u8> {
-        let img = image::RgbaImage::from_raw(2, 1, vec![255, 0, 0, 255, 0, 0, 255, 255]).expect("image");
+        let img =
+            image::RgbaImage::from_raw(2, 1, vec![255, 0, 0, 255, 0, 0, 255, 255]).expect("image");
         let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png).expect("png");
+        img.write_to(&mut out, image::ImageFormat::Png)
+            .expect("png");
         out.into_inner()
     }
 
@@ -404,23 +496,40 @@ map_Kd tex.png
 
     #[test]
     fn spot_imports_with_its_texture() {
-        let options = ObjOptions { default_texture: Some(asset("static/spot/spot_texture.png")) };
-        let model = import_obj_with(&asset("static/spot/spot_triangulated.obj"), &options, &ImportLimits::default())
-            .expect("spot");
+        let options = ObjOptions {
+            default_texture: Some(asset("static/spot/spot_texture.png")),
+        };
+        let model = import_obj_with(
+            &asset("static/spot/spot_triangulated.obj"),
+            &options,
+            &ImportLimits::default(),
+        )
+        .expect("spot");
         assert_eq!(model.triangle_count(), 5856);
         // One vertex per distinct (position, uv) pair in the file's faces.
         assert_eq!(model.vertex_count(), 3225);
         let part = &model.parts[0];
         assert_eq!((part.uvs.len(), part.normals.len()), (3225, 3225));
-        let texture = model.materials[part.material].base_color_texture.as_ref().expect("texture");
+        let texture = model.materials[part.material]
+            .base_color_texture
+            .as_ref()
+            .expect("texture");
         assert_eq!((texture.width, texture.height), (1024, 1024));
         assert!(part.signed_volume() > 0.0);
         // Same surface as the derived .glb.
-        let glb = super::super::gltf_mesh::import_gltf(&asset("static/spot/spot_triangulated.derived.glb")).expect("glb");
+        let glb = super::super::gltf_mesh::import_gltf(&asset(
+            "static/spot/spot_triangulated.derived.glb",
+        ))
+        .expect("glb");
         assert!((glb.parts[0].signed_volume() - part.signed_volume()).abs() < 1e-5);
         // Without the option, Spot has no texture (no .mtl) and still imports.
         let plain = import_obj(&asset("static/spot/spot_triangulated.obj")).expect("plain");
-        assert!(plain.materials.iter().all(|m| m.base_color_texture.is_none()));
+        assert!(
+            plain
+                .materials
+                .iter()
+                .all(|m| m.base_color_texture.is_none())
+        );
     }
 
     #[test]
@@ -434,16 +543,34 @@ map_Kd tex.png
         assert_eq!(model.materials[0].base_color, Vec4::new(1.0, 0.0, 0.0, 1.0));
         let painted = &model.materials[1];
         assert_eq!(painted.base_color, Vec4::new(0.5, 0.5, 0.5, 0.5));
-        assert_eq!(painted.base_color_texture.as_ref().map(|t| (t.width, t.height)), Some((2, 1)));
+        assert_eq!(
+            painted
+                .base_color_texture
+                .as_ref()
+                .map(|t| (t.width, t.height)),
+            Some((2, 1))
+        );
         // UVs exist on one face only, so they are dropped for that part (warned), never misaligned.
-        assert!(model.parts.iter().all(|p| p.uvs.is_empty() || p.uvs.len() == p.positions.len()));
+        assert!(
+            model
+                .parts
+                .iter()
+                .all(|p| p.uvs.is_empty() || p.uvs.len() == p.positions.len())
+        );
     }
 
     #[test]
     fn uvs_are_flipped_to_the_gltf_convention() {
         let obj = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 0.25\nf 1/1 2/2 3/3\n";
         let model = cube(obj, "").expect("triangle");
-        assert_eq!(model.parts[0].uvs, vec![Vec2::new(0.0, 1.0), Vec2::new(1.0, 1.0), Vec2::new(0.0, 0.75)]);
+        assert_eq!(
+            model.parts[0].uvs,
+            vec![
+                Vec2::new(0.0, 1.0),
+                Vec2::new(1.0, 1.0),
+                Vec2::new(0.0, 0.75)
+            ]
+        );
         assert_eq!(model.materials.len(), 1, "default material");
     }
 
@@ -455,31 +582,56 @@ map_Kd tex.png
         let err = import_obj(&bad).expect_err("index out of range");
         let text = err.to_string();
         assert!(matches!(err, IoError::Invalid { .. }), "{text}");
-        assert!(text.contains("bad_index.obj") && text.contains("line 5") && text.contains("vertex 99"), "{text}");
+        assert!(
+            text.contains("bad_index.obj") && text.contains("line 5") && text.contains("vertex 99"),
+            "{text}"
+        );
         assert!(text.contains("but the file has 3 vertices"), "{text}");
 
         let empty = dir.path().join("empty.obj");
         std::fs::write(&empty, "").expect("write");
         let err = import_obj(&empty).expect_err("empty");
-        assert!(matches!(err, IoError::Truncated { .. }) && err.to_string().contains("empty.obj"), "{err}");
+        assert!(
+            matches!(err, IoError::Truncated { .. }) && err.to_string().contains("empty.obj"),
+            "{err}"
+        );
 
         let cases: [(&str, &str); 7] = [
             ("v 0 0 0\nf 1 1 -2\n", "vertex -2"),
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 0\n", "vertex 0"),
-            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/9 2 3\n", "texture coordinate 9"),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/9 2 3\n",
+                "texture coordinate 9",
+            ),
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1//-1 2 3\n", "normal -1"),
-            ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n", "more than three indices"),
+            (
+                "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1/1/1/1 2 3\n",
+                "more than three indices",
+            ),
             ("v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 x\n", "bad face index 'x'"),
             ("v 0 0\n", "OBJ: position parse error"),
         ];
         for (obj, expected) in cases {
             let err = cube(obj, "").expect_err(expected);
             assert!(err.to_string().starts_with("cube.obj: "), "{err}");
-            assert!(err.to_string().contains(expected), "expected '{expected}' in '{err}'");
+            assert!(
+                err.to_string().contains(expected),
+                "expected '{expected}' in '{err}'"
+            );
         }
-        let err = import_obj_slice_with(b"v 0 0 0\n\xff\n", &|_| Ok(None), Path::new("x.obj"), &ObjOptions::default(), &ImportLimits::default())
-            .expect_err("utf8");
-        assert!(err.to_string().contains("not UTF-8 text: bad byte at offset 8 (line 2)"), "{err}");
+        let err = import_obj_slice_with(
+            b"v 0 0 0\n\xff\n",
+            &|_| Ok(None),
+            Path::new("x.obj"),
+            &ObjOptions::default(),
+            &ImportLimits::default(),
+        )
+        .expect_err("utf8");
+        assert!(
+            err.to_string()
+                .contains("not UTF-8 text: bad byte at offset 8 (line 2)"),
+            "{err}"
+        );
         let err = cube("v 0 0 0\nv 1 0 0\nv 0 1 0\n", "").expect_err("no faces");
         assert!(err.to_string().contains("no faces"), "{err}");
     }
@@ -488,7 +640,11 @@ map_Kd tex.png
     fn bad_mtl_and_texture_input_is_a_clear_error() {
         // tobj would panic on a colour with two values; the scan refuses it with the line.
         let err = cube(CUBE_OBJ, "newmtl red\nKd 1 0\n").expect_err("short Kd");
-        assert!(err.to_string().contains("cube.mtl: cannot parse: line 2: Kd needs three numbers"), "{err}");
+        assert!(
+            err.to_string()
+                .contains("cube.mtl: cannot parse: line 2: Kd needs three numbers"),
+            "{err}"
+        );
         // A texture that is present but corrupt is an error naming the texture.
         let files = |name: &str| -> Result<Option<Vec<u8>>, IoError> {
             Ok(match name {
@@ -497,18 +653,51 @@ map_Kd tex.png
                 _ => None,
             })
         };
-        let err = import_obj_slice_with(CUBE_OBJ.as_bytes(), &files, Path::new("cube.obj"), &ObjOptions::default(), &ImportLimits::default())
-            .expect_err("corrupt png");
-        assert!(err.to_string().starts_with("tex.png: invalid: texture:"), "{err}");
+        let err = import_obj_slice_with(
+            CUBE_OBJ.as_bytes(),
+            &files,
+            Path::new("cube.obj"),
+            &ObjOptions::default(),
+            &ImportLimits::default(),
+        )
+        .expect_err("corrupt png");
+        assert!(
+            err.to_string().starts_with("tex.png: invalid: texture:"),
+            "{err}"
+        );
         // A missing .mtl or texture is only a warning.
-        let model = import_obj_slice_with(CUBE_OBJ.as_bytes(), &|_| Ok(None), Path::new("cube.obj"), &ObjOptions::default(), &ImportLimits::default())
-            .expect("missing side files");
+        let model = import_obj_slice_with(
+            CUBE_OBJ.as_bytes(),
+            &|_| Ok(None),
+            Path::new("cube.obj"),
+            &ObjOptions::default(),
+            &ImportLimits::default(),
+        )
+        .expect("missing side files");
         assert_eq!(model.triangle_count(), 12);
-        assert!(model.materials.iter().all(|m| m.base_color_texture.is_none()));
+        assert!(
+            model
+                .materials
+                .iter()
+                .all(|m| m.base_color_texture.is_none())
+        );
         // Over the texture limit before decoding.
-        let limits = ImportLimits { max_texture_bytes: 7, ..ImportLimits::default() };
-        let err = import_obj_slice_with(CUBE_OBJ.as_bytes(), &cube_files(CUBE_MTL.as_bytes()), Path::new("cube.obj"), &ObjOptions::default(), &limits)
-            .expect_err("texture limit");
-        assert!(matches!(err, IoError::TooLarge { .. }) && err.to_string().contains("2×1 pixels need 8 bytes"), "{err}");
+        let limits = ImportLimits {
+            max_texture_bytes: 7,
+            ..ImportLimits::default()
+        };
+        let err = import_obj_slice_with(
+            CUBE_OBJ.as_bytes(),
+            &cube_files(CUBE_MTL.as_bytes()),
+            Path::new("cube.obj"),
+            &ObjOptions::default(),
+            &limits,
+        )
+        .expect_err("texture limit");
+        assert!(
+            matches!(err, IoError::TooLarge { .. })
+                && err.to_string().contains("2×1 pixels need 8 bytes"),
+            "{err}"
+        );
     }
 }
