@@ -21,7 +21,11 @@ pub struct Distortion {
 
 impl Default for Distortion {
     fn default() -> Self {
-        Self { amplitude: 0.05, frequency: 1.0, seed: 1 }
+        Self {
+            amplitude: 0.05,
+            frequency: 1.0,
+            seed: 1,
+        }
     }
 }
 
@@ -44,10 +48,16 @@ impl Distortion {
     /// Checks that the parameters are finite and non-negative.
     pub fn validate(&self) -> Result<(), String> {
         if !(self.amplitude.is_finite() && self.amplitude >= 0.0) {
-            return Err(format!("amplitude {} must be finite and ≥ 0", self.amplitude));
+            return Err(format!(
+                "amplitude {} must be finite and ≥ 0",
+                self.amplitude
+            ));
         }
         if !(self.frequency.is_finite() && self.frequency >= 0.0) {
-            return Err(format!("frequency {} must be finite and ≥ 0", self.frequency));
+            return Err(format!(
+                "frequency {} must be finite and ≥ 0",
+                self.frequency
+            ));
         }
         if !self.lipschitz_bound().is_finite() {
             return Err("amplitude × frequency overflows".to_owned());
@@ -93,7 +103,12 @@ fn value_noise3(p: Vec3, seed: u32) -> Vec3 {
     let mut corners = [Vec3::ZERO; 8];
     for (i, c) in corners.iter_mut().enumerate() {
         let (dx, dy, dz) = ((i & 1) as i64, ((i >> 1) & 1) as i64, ((i >> 2) & 1) as i64);
-        let h = hash(ix.wrapping_add(dx), iy.wrapping_add(dy), iz.wrapping_add(dz), seed);
+        let h = hash(
+            ix.wrapping_add(dx),
+            iy.wrapping_add(dy),
+            iz.wrapping_add(dz),
+            seed,
+        );
         *c = Vec3::new(
             unit_value(h),
             unit_value(hash(h as i64, 1, 0, seed)),

@@ -22,7 +22,10 @@ pub struct Material {
 
 impl Default for Material {
     fn default() -> Self {
-        Self { colour: Vec3::splat(0.6), id: 0 }
+        Self {
+            colour: Vec3::splat(0.6),
+            id: 0,
+        }
     }
 }
 
@@ -47,7 +50,11 @@ pub struct SphereKernel {
 
 impl Default for SphereKernel {
     fn default() -> Self {
-        Self { centre: Vec3::ZERO, radius: 1.0, material: Material::default() }
+        Self {
+            centre: Vec3::ZERO,
+            radius: 1.0,
+            material: Material::default(),
+        }
     }
 }
 
@@ -65,7 +72,11 @@ pub struct PlaneKernel {
 
 impl Default for PlaneKernel {
     fn default() -> Self {
-        Self { normal: Vec3::Y, offset: 0.0, material: Material::default() }
+        Self {
+            normal: Vec3::Y,
+            offset: 0.0,
+            material: Material::default(),
+        }
     }
 }
 
@@ -85,7 +96,12 @@ pub struct CapsuleKernel {
 
 impl Default for CapsuleKernel {
     fn default() -> Self {
-        Self { start: Vec3::ZERO, end: Vec3::Y, radius: 0.1, material: Material::default() }
+        Self {
+            start: Vec3::ZERO,
+            end: Vec3::Y,
+            radius: 0.1,
+            material: Material::default(),
+        }
     }
 }
 
@@ -226,16 +242,31 @@ pub enum KernelBound {
 pub(crate) const MIN_DIRECTION_LENGTH: f32 = 1e-12;
 
 fn finite3(v: Vec3, name: &'static str) -> Result<(), KernelProblem> {
-    if v.is_finite() { Ok(()) } else { Err(KernelProblem::NonFinite(name)) }
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(KernelProblem::NonFinite(name))
+    }
 }
 
 fn finite1(v: f32, name: &'static str) -> Result<(), KernelProblem> {
-    if v.is_finite() { Ok(()) } else { Err(KernelProblem::NonFinite(name)) }
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(KernelProblem::NonFinite(name))
+    }
 }
 
 fn non_negative(v: f32, name: &'static str) -> Result<(), KernelProblem> {
     finite1(v, name)?;
-    if v >= 0.0 { Ok(()) } else { Err(KernelProblem::Negative { field: name, value: v }) }
+    if v >= 0.0 {
+        Ok(())
+    } else {
+        Err(KernelProblem::Negative {
+            field: name,
+            value: v,
+        })
+    }
 }
 
 fn unit(v: Vec3, name: &'static str) -> Result<Vec3, KernelProblem> {
@@ -245,7 +276,9 @@ fn unit(v: Vec3, name: &'static str) -> Result<Vec3, KernelProblem> {
     if m < MIN_DIRECTION_LENGTH {
         return Err(KernelProblem::ZeroDirection(name));
     }
-    (v / m).try_normalize().ok_or(KernelProblem::ZeroDirection(name))
+    (v / m)
+        .try_normalize()
+        .ok_or(KernelProblem::ZeroDirection(name))
 }
 
 fn validate_material(m: &Material) -> Result<(), KernelProblem> {
@@ -263,8 +296,9 @@ impl TorusKernel {
         finite3(self.centre, "centre")?;
         let axis = unit(self.axis, "axis")?;
         let start = unit(self.start_dir, "start_dir")?;
-        let start_dir =
-            (start - axis * axis.dot(start)).try_normalize().ok_or(KernelProblem::StartAlongAxis)?;
+        let start_dir = (start - axis * axis.dot(start))
+            .try_normalize()
+            .ok_or(KernelProblem::StartAlongAxis)?;
         non_negative(self.major_radius, "major_radius")?;
         non_negative(self.minor_radius, "minor_radius")?;
         finite1(self.sweep_radians, "sweep_radians")?;
@@ -272,7 +306,11 @@ impl TorusKernel {
             return Err(KernelProblem::SweepOutOfRange(self.sweep_radians));
         }
         validate_material(&self.material)?;
-        Ok(Self { axis, start_dir, ..*self })
+        Ok(Self {
+            axis,
+            start_dir,
+            ..*self
+        })
     }
 
     /// In-plane basis: (start_dir, axis × start_dir).
@@ -328,8 +366,16 @@ impl TorusKernel {
         let (s, c) = self.sweep_radians.sin_cos();
         let tangent_end = -s * u + c * w;
         let h1 = q.dot(tangent_end);
-        let use_first = if self.sweep_radians <= std::f32::consts::PI { h0 >= h1 } else { h0 <= h1 };
-        if use_first { (h0, -w) } else { (h1, tangent_end) }
+        let use_first = if self.sweep_radians <= std::f32::consts::PI {
+            h0 >= h1
+        } else {
+            h0 <= h1
+        };
+        if use_first {
+            (h0, -w)
+        } else {
+            (h1, tangent_end)
+        }
     }
 }
 
@@ -368,8 +414,16 @@ impl Kernel {
                 let normal = unit(k.normal, "normal")?;
                 validate_material(&k.material)?;
                 // Keep the same plane: n·p = c with |n| ≠ 1 is (n/|n|)·p = c/|n|.
-                let offset = if len.is_finite() && len > 0.0 { k.offset / len } else { k.offset };
-                Kernel::InfinitePlane(PlaneKernel { normal, offset, ..*k })
+                let offset = if len.is_finite() && len > 0.0 {
+                    k.offset / len
+                } else {
+                    k.offset
+                };
+                Kernel::InfinitePlane(PlaneKernel {
+                    normal,
+                    offset,
+                    ..*k
+                })
             }
             Kernel::Capsule(k) => {
                 finite3(k.start, "start")?;
@@ -383,7 +437,8 @@ impl Kernel {
                 if !k.rotation.is_finite() {
                     return Err(KernelProblem::NonFinite("rotation"));
                 }
-                let rotation = normalized_quat(k.rotation).ok_or(KernelProblem::ZeroDirection("rotation"))?;
+                let rotation =
+                    normalized_quat(k.rotation).ok_or(KernelProblem::ZeroDirection("rotation"))?;
                 finite3(k.half_extents, "half_extents")?;
                 if k.half_extents.min_element() < 0.0 {
                     return Err(KernelProblem::Negative {
@@ -472,7 +527,11 @@ impl Kernel {
                 let (c, _) = k.closest_on_arc(p);
                 let tube = p.distance(c) - k.minor_radius;
                 let (wedge, wedge_normal) = k.wedge(p);
-                if wedge > tube { wedge_normal } else { torus_tube_normal(k, p) }
+                if wedge > tube {
+                    wedge_normal
+                } else {
+                    torus_tube_normal(k, p)
+                }
             }
         };
         n.normalize_or(Vec3::Y)
@@ -486,7 +545,10 @@ impl Kernel {
             Kernel::Empty => Vec2::ZERO,
             Kernel::Sphere(k) => {
                 let q = (p - k.centre).normalize_or(Vec3::Y);
-                Vec2::new(q.z.atan2(q.x) * k.radius, q.y.clamp(-1.0, 1.0).asin() * k.radius)
+                Vec2::new(
+                    q.z.atan2(q.x) * k.radius,
+                    q.y.clamp(-1.0, 1.0).asin() * k.radius,
+                )
             }
             Kernel::InfinitePlane(k) => {
                 let u = any_perpendicular(k.normal);
@@ -520,6 +582,20 @@ impl Kernel {
                 let around = q.dot(k.axis).atan2(q.dot(radial));
                 Vec2::new(theta * k.major_radius, around * k.minor_radius)
             }
+        }
+    }
+
+    /// How far `p` is from a crease of the kernel's own distance field, measured as the gap
+    /// between the two competing terms (∞ for kernels without creases outside the solid). The
+    /// normal is undefined on a crease; tests of normals stay away from them.
+    pub fn crease_gap(&self, p: Vec3) -> f32 {
+        match self {
+            Kernel::TorusSegment(k) => {
+                let (c, _) = k.closest_on_arc(p);
+                let tube = p.distance(c) - k.minor_radius;
+                (tube - k.wedge(p).0).abs()
+            }
+            _ => f32::INFINITY,
         }
     }
 

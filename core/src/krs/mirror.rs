@@ -16,20 +16,29 @@ pub struct MirrorPlane {
 
 impl Default for MirrorPlane {
     fn default() -> Self {
-        Self { normal: Vec3::X, offset: 0.0 }
+        Self {
+            normal: Vec3::X,
+            offset: 0.0,
+        }
     }
 }
 
 impl MirrorPlane {
     /// A mirror with the given normal (normalised here; zero becomes +X) and offset.
     pub fn new(normal: Vec3, offset: f32) -> Self {
-        Self { normal: normal.normalize_or(Vec3::X), offset }
+        Self {
+            normal: normal.normalize_or(Vec3::X),
+            offset,
+        }
     }
 
     /// The mirror through `point` with the given normal.
     pub fn through(point: Vec3, normal: Vec3) -> Self {
         let normal = normal.normalize_or(Vec3::X);
-        Self { normal, offset: normal.dot(point) }
+        Self {
+            normal,
+            offset: normal.dot(point),
+        }
     }
 
     /// Signed distance of `p` to the plane (positive on the side that gets folded).

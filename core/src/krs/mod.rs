@@ -40,11 +40,12 @@ pub use kernel::{
 };
 pub use mirror::MirrorPlane;
 pub use object::{
-    EmptyZone, KrsError, KrsObject, KrsScene, PreparedObject, PreparedScene, Similarity, Sample,
+    EmptyZone, KrsError, KrsObject, KrsScene, PreparedObject, PreparedScene, Sample, Similarity,
 };
 pub use query::{KernelInstance, SurfaceQuery};
 pub use shade::{
-    Pattern, SmoothShading, TextureMode, Texturing, shade_colour, shading_threshold, triplanar_colour,
+    Pattern, SmoothShading, TextureMode, Texturing, shade_colour, shading_threshold,
+    triplanar_colour,
 };
 pub use trace::{
     AoSettings, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, shadow, tile_cone,

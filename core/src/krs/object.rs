@@ -1,6 +1,6 @@
 //! KRS objects and scenes: validation, Algorithm 1, the brute-force reference, normals (§6.1).
 
-use glam::{Mat3, Quat, Vec3};
+use glam::{DVec3, Mat3, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::distort::Distortion;
@@ -22,7 +22,11 @@ pub struct Similarity {
 
 impl Default for Similarity {
     fn default() -> Self {
-        Self { translation: Vec3::ZERO, rotation: Quat::IDENTITY, scale: 1.0 }
+        Self {
+            translation: Vec3::ZERO,
+            rotation: Quat::IDENTITY,
+            scale: 1.0,
+        }
     }
 }
 
@@ -53,7 +57,10 @@ pub struct EmptyZone {
 
 impl Default for EmptyZone {
     fn default() -> Self {
-        Self { centre: Vec3::ZERO, radius: 1.0 }
+        Self {
+            centre: Vec3::ZERO,
+            radius: 1.0,
+        }
     }
 }
 
@@ -217,14 +224,20 @@ impl KrsObject {
             }
             let scale = m.normal.abs().max_element();
             if scale < MIN_DIRECTION_LENGTH {
-                return Err(KrsError::ZeroMirrorNormal { object, mirror, normal: m.normal });
+                return Err(KrsError::ZeroMirrorNormal {
+                    object,
+                    mirror,
+                    normal: m.normal,
+                });
             }
             // Normalise in two stages so huge and tiny normals both work, keeping the plane.
             let scaled = m.normal / scale;
             let len = scaled.length();
-            let normal = scaled
-                .try_normalize()
-                .ok_or(KrsError::ZeroMirrorNormal { object, mirror, normal: m.normal })?;
+            let normal = scaled.try_normalize().ok_or(KrsError::ZeroMirrorNormal {
+                object,
+                mirror,
+                normal: m.normal,
+            })?;
             let offset = m.offset / scale / len;
             if !offset.is_finite() {
                 return Err(KrsError::NonFiniteMirror { object, mirror });
@@ -232,11 +245,18 @@ impl KrsObject {
             *m = MirrorPlane { normal, offset };
         }
         for (kernel, k) in out.kernels.iter_mut().enumerate() {
-            *k = k.validated().map_err(|problem| KrsError::Kernel { object, kernel, problem })?;
+            *k = k.validated().map_err(|problem| KrsError::Kernel {
+                object,
+                kernel,
+                problem,
+            })?;
         }
         let t = &mut out.world_from_object;
         if !t.translation.is_finite() || !t.rotation.is_finite() || !t.scale.is_finite() {
-            return Err(KrsError::Transform { object, reason: "is not finite".to_owned() });
+            return Err(KrsError::Transform {
+                object,
+                reason: "is not finite".to_owned(),
+            });
         }
         if t.scale <= 0.0 {
             return Err(KrsError::Transform {
@@ -249,10 +269,11 @@ impl KrsObject {
             reason: "rotation quaternion has zero length".to_owned(),
         })?;
         if let Some(d) = &out.distortion {
-            d.validate().map_err(|reason| KrsError::Distortion { object, reason })?;
+            d.validate()
+                .map_err(|reason| KrsError::Distortion { object, reason })?;
         }
         for (zone, z) in out.empty_zones.iter().enumerate() {
-            if !z.centre.is_finite() || !(z.radius.is_finite() && z.radius >= 0.0) {
+            if !(z.centre.is_finite() && z.radius.is_finite() && z.radius >= 0.0) {
                 return Err(KrsError::EmptyZone { object, zone });
             }
         }
@@ -266,14 +287,23 @@ impl KrsObject {
     #[inline]
     pub fn distance_object(&self, p: Vec3) -> f32 {
         let n = self.mirrors.len();
-        let mut p = p;
-        let mut d = self.kernels.get(n).map_or(f32::INFINITY, |k| k.distance(p));
+        // Fold in f64: mirrors of a forest sit thousands of units out, and f32 folding there
+        // loses ~1e-4 per level (enough to break the Lipschitz bound). Kernels stay f32: the
+        // folded point is back near them.
+        let mut p = p.as_dvec3();
+        let mut d = self
+            .kernels
+            .get(n)
+            .map_or(f32::INFINITY, |k| k.distance(p.as_vec3()));
         for (m, k) in self.mirrors.iter().zip(&self.kernels).rev() {
-            let e = m.signed_distance(p);
+            let normal = m.normal.as_dvec3();
+            let e = normal.dot(p) - m.offset as f64;
             if e > 0.0 {
-                p -= (2.0 * e) * m.normal;
+                p -= (2.0 * e) * normal;
             }
-            d = d.min(k.distance(p));
+            if !k.is_empty() {
+                d = d.min(k.distance(p.as_vec3()));
+            }
         }
         d
     }
@@ -281,7 +311,7 @@ impl KrsObject {
     /// Algorithm 1 with the nearest kernel, its kernel-space point and the reflection product.
     pub fn sample_object(&self, p: Vec3) -> Sample {
         let n = self.mirrors.len();
-        let mut p = p;
+        let mut p64 = p.as_dvec3();
         let mut frame = Mat3::IDENTITY;
         let mut clearance = f32::INFINITY;
         let mut best = Sample {
@@ -316,13 +346,14 @@ impl KrsObject {
         consider(n, p, frame, clearance, &mut best);
         for i in (0..n).rev() {
             let m = &self.mirrors[i];
-            let e = m.signed_distance(p);
-            clearance = clearance.min(e.abs());
+            let normal = m.normal.as_dvec3();
+            let e = normal.dot(p64) - m.offset as f64;
+            clearance = clearance.min(e.abs() as f32);
             if e > 0.0 {
-                p -= (2.0 * e) * m.normal;
+                p64 -= (2.0 * e) * normal;
                 frame *= m.matrix();
             }
-            consider(i, p, frame, clearance, &mut best);
+            consider(i, p64.as_vec3(), frame, clearance, &mut best);
         }
         best.kernel_gap = second - best.distance;
         best
@@ -332,16 +363,22 @@ impl KrsObject {
     /// kernel evaluations), i.e. the union of all instances without clipping. Only for tests and
     /// benchmarks with small n.
     pub fn distance_brute_force(&self, p: Vec3) -> f32 {
-        self.brute_level(self.mirrors.len(), p)
+        self.brute_level(self.mirrors.len(), p.as_dvec3())
     }
 
-    fn brute_level(&self, level: usize, p: Vec3) -> f32 {
-        let own = self.kernels.get(level).map_or(f32::INFINITY, |k| k.distance(p));
+    fn brute_level(&self, level: usize, p: DVec3) -> f32 {
+        let own = self
+            .kernels
+            .get(level)
+            .map_or(f32::INFINITY, |k| k.distance(p.as_vec3()));
         if level == 0 {
             return own;
         }
         let m = &self.mirrors[level - 1];
-        own.min(self.brute_level(level - 1, p)).min(self.brute_level(level - 1, m.reflect_point(p)))
+        let normal = m.normal.as_dvec3();
+        let reflected = p - 2.0 * (normal.dot(p) - m.offset as f64) * normal;
+        own.min(self.brute_level(level - 1, p))
+            .min(self.brute_level(level - 1, reflected))
     }
 
     /// Number of kernel instances, Σ over non-empty K_j of 2^(n−j), saturating at `u128::MAX`.
@@ -364,11 +401,11 @@ impl KrsObject {
     pub fn bounding_sphere_object(&self) -> Option<(Vec3, f32)> {
         let mut acc: Option<(Vec3, f32)> = None;
         for level in 0..self.kernels.len() {
-            if level > 0 {
-                if let (Some((c, r)), Some(m)) = (acc, self.mirrors.get(level - 1)) {
-                    let c2 = m.reflect_point(c);
-                    acc = Some((0.5 * (c + c2), 0.5 * c.distance(c2) + r));
-                }
+            if level > 0
+                && let (Some((c, r)), Some(m)) = (acc, self.mirrors.get(level - 1))
+            {
+                let c2 = m.reflect_point(c);
+                acc = Some((0.5 * (c + c2), 0.5 * c.distance(c2) + r));
             }
             match self.kernels[level].bound() {
                 KernelBound::Empty => {}
@@ -455,7 +492,8 @@ impl PreparedObject {
     /// World point → object space.
     #[inline]
     pub fn object_from_world(&self, p_world: Vec3) -> Vec3 {
-        self.inverse_rotation * (p_world - self.object.world_from_object.translation)
+        self.inverse_rotation
+            * (p_world - self.object.world_from_object.translation)
             * self.inverse_scale
     }
 
@@ -480,8 +518,8 @@ impl PreparedObject {
             Some(d) => d.warp(p),
             None => p,
         };
-        let mut d = self.object.distance_object(q) * self.object.world_from_object.scale
-            / self.lipschitz;
+        let mut d =
+            self.object.distance_object(q) * self.object.world_from_object.scale / self.lipschitz;
         for z in &self.object.empty_zones {
             // CSG subtraction: max(d, −ball) stays a lower bound of the distance.
             d = d.max(z.radius - p_world.distance(z.centre));
@@ -540,8 +578,9 @@ impl PreparedScene {
         let mut best = f32::INFINITY;
         for o in &self.objects {
             if let Some((c, r)) = o.bound_world {
-                // Objects whose bounding ball is already farther than the best cannot win.
-                if p_world.distance(c) - r >= best {
+                // The estimate is never below (ball distance)/Lipschitz, so an object whose
+                // bound is already past the best cannot change the minimum: culling is exact.
+                if (p_world.distance(c) - r) / o.lipschitz >= best {
                     continue;
                 }
             }
@@ -554,10 +593,10 @@ impl PreparedScene {
     pub fn nearest_object(&self, p_world: Vec3) -> Option<(usize, f32)> {
         let mut best: Option<(usize, f32)> = None;
         for (i, o) in self.objects.iter().enumerate() {
-            if let (Some((c, r)), Some((_, b))) = (o.bound_world, best) {
-                if p_world.distance(c) - r >= b {
-                    continue;
-                }
+            if let (Some((c, r)), Some((_, b))) = (o.bound_world, best)
+                && (p_world.distance(c) - r) / o.lipschitz >= b
+            {
+                continue;
             }
             let d = o.distance_world(p_world);
             if d.is_finite() && best.is_none_or(|(_, b)| d < b) {

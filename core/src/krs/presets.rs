@@ -10,7 +10,9 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
 use super::distort::Distortion;
-use super::kernel::{CapsuleKernel, Kernel, Material, PlaneKernel, SphereKernel, TorusKernel};
+use super::kernel::{
+    CapsuleKernel, Kernel, KernelBound, Material, PlaneKernel, SphereKernel, TorusKernel,
+};
 use super::mirror::MirrorPlane;
 use super::object::{KrsObject, KrsScene, Similarity};
 use super::shade::{Pattern, TextureMode, Texturing};
@@ -49,7 +51,11 @@ pub fn bush() -> KrsObject {
             Vec3::new(0.85, 1.05, 0.3),
             Vec3::new(0.95, 1.12, 0.35),
         ],
-        bends: vec![Vec3::ZERO, Vec3::new(-0.04, 0.0, 0.0), Vec3::new(0.0, 0.03, 0.03)],
+        bends: vec![
+            Vec3::ZERO,
+            Vec3::new(-0.04, 0.0, 0.0),
+            Vec3::new(0.0, 0.03, 0.03),
+        ],
         widths: vec![0.06, 0.04, 0.03, 0.02, 0.014, 0.01],
         fork_normals: vec![
             Vec3::new(1.0, 0.1, 0.2),
@@ -77,7 +83,8 @@ pub fn grass_tuft() -> KrsObject {
     let green = Material::new(Vec3::new(0.2, 0.45, 0.1), 3);
     let blade = Kernel::ToroidalCapsule(TorusKernel {
         centre: Vec3::new(0.9, 0.0, 0.0),
-        axis: Vec3::Z,
+        // axis × start_dir = +Y: the blade rises from the origin and curls outward.
+        axis: Vec3::NEG_Z,
         start_dir: Vec3::new(-1.0, 0.0, 0.0),
         major_radius: 0.9,
         minor_radius: 0.008,
@@ -92,7 +99,11 @@ pub fn grass_tuft() -> KrsObject {
         let tilt = rng.random_range(-0.08..0.08);
         let normal = Vec3::new(azimuth.cos(), tilt, azimuth.sin());
         // The first mirrors fan the blade around the stem; the last two spread clumps apart.
-        let offset = if i < 6 { rng.random_range(-0.01..0.01) } else { 0.06 + 0.05 * (i - 5) as f32 };
+        let offset = if i < 6 {
+            rng.random_range(-0.01..0.01)
+        } else {
+            0.06 + 0.05 * (i - 5) as f32
+        };
         mirrors.push(MirrorPlane::new(normal, offset));
         kernels.push(if i == 3 {
             // A shorter, straighter blade among the others.
@@ -106,7 +117,12 @@ pub fn grass_tuft() -> KrsObject {
             Kernel::Empty
         });
     }
-    KrsObject { name: "grass tuft".to_owned(), kernels, mirrors, ..KrsObject::default() }
+    KrsObject {
+        name: "grass tuft".to_owned(),
+        kernels,
+        mirrors,
+        ..KrsObject::default()
+    }
 }
 
 const GOLDEN: f32 = 2.399_963;
@@ -129,13 +145,17 @@ pub fn rock() -> KrsObject {
         MirrorPlane::new(Vec3::X, 0.0),
     ];
     let plane = |n: Vec3, offset: f32| {
-        Kernel::InfinitePlane(PlaneKernel { normal: n.normalize_or(-Vec3::ONE), offset, material: stone })
+        Kernel::InfinitePlane(PlaneKernel {
+            normal: n.normalize_or(-Vec3::ONE),
+            offset,
+            material: stone,
+        })
     };
     let kernels = vec![
-        plane(Vec3::new(-0.3, -1.0, -0.5), 0.95),
-        plane(Vec3::new(-1.0, -0.2, -0.7), 0.9),
-        plane(Vec3::new(-0.6, -0.6, -1.0), 1.05),
-        plane(Vec3::new(-1.0, -0.8, -0.3), 0.85),
+        plane(Vec3::new(-1.0, -0.8, -0.9), 0.95),
+        plane(Vec3::new(-0.7, -1.0, -0.85), 0.9),
+        plane(Vec3::new(-0.9, -0.75, -1.0), 1.0),
+        plane(Vec3::new(-1.0, -1.0, -0.6), 0.92),
         Kernel::Empty,
         Kernel::Empty,
         Kernel::Empty,
@@ -149,7 +169,11 @@ pub fn rock() -> KrsObject {
             rotation: Quat::from_euler(glam::EulerRot::YXZ, 0.4, 0.3, 0.2),
             scale: 1.0,
         },
-        distortion: Some(Distortion { amplitude: 0.06, frequency: 1.5, seed: 11 }),
+        distortion: Some(Distortion {
+            amplitude: 0.06,
+            frequency: 1.5,
+            seed: 11,
+        }),
         texturing: Texturing {
             mode: TextureMode::Triplanar,
             pattern: Pattern::Bark,
@@ -168,13 +192,25 @@ pub fn terrain() -> KrsObject {
     let mut rng = Pcg32::seed_from_u64(3);
     let levels = 14;
     let mut mirrors = Vec::new();
-    let mut kernels = vec![Kernel::InfinitePlane(PlaneKernel { normal: Vec3::Y, offset: 0.0, material: soil })];
+    let mut kernels = vec![Kernel::InfinitePlane(PlaneKernel {
+        normal: Vec3::Y,
+        offset: 0.0,
+        material: soil,
+    })];
     for i in 0..levels {
         let azimuth: f32 = rng.random_range(0.0..TAU);
-        let tilt: f32 = rng.random_range(0.05..0.14) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = Vec3::new(azimuth.cos() * tilt.cos(), tilt.sin(), azimuth.sin() * tilt.cos());
+        let tilt: f32 =
+            rng.random_range(0.05..0.14) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let normal = Vec3::new(
+            azimuth.cos() * tilt.cos(),
+            tilt.sin(),
+            azimuth.sin() * tilt.cos(),
+        );
         let spacing = 1.5 * 1.45f32.powi(i);
-        mirrors.push(MirrorPlane::new(normal, spacing * rng.random_range(0.5..1.0)));
+        mirrors.push(MirrorPlane::new(
+            normal,
+            spacing * rng.random_range(0.5..1.0),
+        ));
         kernels.push(Kernel::Empty);
     }
     KrsObject {
@@ -223,7 +259,11 @@ pub fn coral() -> KrsObject {
     };
     let mut obj = params.build().unwrap_or_default();
     obj.name = "coral".to_owned();
-    obj.distortion = Some(Distortion { amplitude: 0.01, frequency: 4.0, seed: 5 });
+    obj.distortion = Some(Distortion {
+        amplitude: 0.01,
+        frequency: 4.0,
+        seed: 5,
+    });
     obj
 }
 
@@ -231,44 +271,82 @@ pub fn coral() -> KrsObject {
 /// tunnels between them; best seen with ambient occlusion.
 pub fn sponge() -> KrsObject {
     let m = Material::new(Vec3::new(0.8, 0.7, 0.45), 7);
-    let mut kernels = vec![Kernel::Sphere(SphereKernel { centre: Vec3::splat(0.5), radius: 0.62, material: m })];
+    let mut kernels = vec![Kernel::Sphere(SphereKernel {
+        centre: Vec3::splat(0.5),
+        radius: 0.58,
+        material: m,
+    })];
     let mut mirrors = Vec::new();
     for level in 0..3 {
         let c = (1 << level) as f32;
-        for axis in [Vec3::X, Vec3::Y, Vec3::Z] {
+        for (j, axis) in [Vec3::X, Vec3::Y, Vec3::Z].into_iter().enumerate() {
+            // Slightly unaligned mirrors: the lattice warps and pores vary in size.
+            let tilt = 0.03 * ((3 * level + j) as f32 * 2.4).sin();
+            let axis = (axis + Vec3::new(tilt, -tilt, 0.5 * tilt)).normalize_or(axis);
             mirrors.push(MirrorPlane::new(axis, c));
             kernels.push(Kernel::Empty);
         }
     }
     // A few small balls at coarser levels break the lattice's regularity.
-    kernels[4] = Kernel::Sphere(SphereKernel { centre: Vec3::new(1.0, 1.0, 0.4), radius: 0.3, material: m });
-    kernels[7] = Kernel::Sphere(SphereKernel { centre: Vec3::new(2.0, 0.6, 2.0), radius: 0.45, material: m });
-    KrsObject { name: "sponge".to_owned(), kernels, mirrors, ..KrsObject::default() }
+    kernels[4] = Kernel::Sphere(SphereKernel {
+        centre: Vec3::new(1.0, 1.0, 0.4),
+        radius: 0.3,
+        material: m,
+    });
+    kernels[7] = Kernel::Sphere(SphereKernel {
+        centre: Vec3::new(2.0, 0.6, 2.0),
+        radius: 0.45,
+        material: m,
+    });
+    KrsObject {
+        name: "sponge".to_owned(),
+        kernels,
+        mirrors,
+        ..KrsObject::default()
+    }
 }
 
 /// Number of extra reflections the forest preset adds to the tree.
-pub const FOREST_MIRRORS: usize = 16;
+pub const FOREST_MIRRORS: usize = 17;
 
-/// The forest: the default tree multiplied by 16 extra reflections with empty kernels
-/// (2^16 trees on a jittered, unaligned grid; ≥ 2^24 kernel instances). The mirrors are placed
+/// The forest: the default tree multiplied by 17 extra reflections with empty kernels
+/// (2^17 trees on a jittered, unaligned grid; ≥ 2^24 kernel instances). The mirrors are placed
 /// so each level's trees lie on the kept side (kernel separation holds between trees).
 pub fn forest() -> KrsObject {
     let mut params = TreeParams::default();
-    // Horizontal reach of one tree around its origin (conservative, from its bounding ball).
+    // Horizontal reach of one tree around its origin, from its kernel instances' bounds.
     let tree_radius = params
         .build()
         .ok()
-        .and_then(|o| o.bounding_sphere_object())
-        .map_or(7.0, |(c, r)| Vec3::new(c.x, 0.0, c.z).length() + r);
+        .and_then(|o| KrsScene { objects: vec![o] }.prepare().ok())
+        .map_or(7.0, |scene| {
+            let obj = &scene.objects[0];
+            obj.instances(1 << 12)
+                .iter()
+                .filter_map(|i| match obj.object.kernels[i.kernel].bound() {
+                    KernelBound::Sphere(c, r) => {
+                        let c = i.world_from_kernel.transform_point3(c);
+                        Some(Vec3::new(c.x, 0.0, c.z).length() + r)
+                    }
+                    _ => None,
+                })
+                .fold(0.0f32, f32::max)
+        });
     let mut rng = Pcg32::seed_from_u64(42);
     // Track tree origins (x, z) to place each mirror just beyond the current set.
     let mut origins = vec![Vec3::ZERO];
     for i in 0..FOREST_MIRRORS {
         let base = if i % 2 == 0 { 0.0 } else { FRAC_PI_2 };
-        let angle = base + rng.random_range(-0.06..0.06);
+        // Unaligned mirrors hide symmetry locally; at large scales a tilt would open wide gaps
+        // between tree rows, so the jitter shrinks there.
+        let jitter = if i < 6 { 0.05 } else { 0.004 };
+        let angle = base + rng.random_range(-jitter..jitter);
         let normal = Vec3::new(angle.cos(), 0.0, angle.sin());
-        let reach = origins.iter().map(|o| o.dot(normal)).fold(f32::NEG_INFINITY, f32::max);
-        let gap = rng.random_range(0.05..0.3) * tree_radius;
+        let reach = origins
+            .iter()
+            .map(|o| o.dot(normal))
+            .fold(f32::NEG_INFINITY, f32::max);
+        let gap = rng.random_range(0.02..0.3) * tree_radius;
         let mirror = MirrorPlane::new(normal, reach + tree_radius + gap);
         let reflected: Vec<Vec3> = origins.iter().map(|o| mirror.reflect_point(*o)).collect();
         origins.extend(reflected);
@@ -291,7 +369,9 @@ pub fn forest_scene() -> KrsScene {
         })],
         ..KrsObject::default()
     };
-    KrsScene { objects: vec![forest(), ground] }
+    KrsScene {
+        objects: vec![forest(), ground],
+    }
 }
 
 /// All single-object presets with their names.

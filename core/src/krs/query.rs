@@ -36,7 +36,12 @@ impl PreparedScene {
     pub fn query(&self, p_world: Vec3) -> Option<SurfaceQuery> {
         let (object, _) = self.nearest_object(p_world)?;
         let (s, normal) = self.objects[object].sample_world(p_world);
-        Some(SurfaceQuery { distance: s.distance, normal, object, kernel: s.kernel })
+        Some(SurfaceQuery {
+            distance: s.distance,
+            normal,
+            object,
+            kernel: s.kernel,
+        })
     }
 }
 
@@ -51,7 +56,15 @@ impl PreparedObject {
             t.translation,
         );
         let mut out = Vec::new();
-        enumerate(&self.object, self.object.mirrors.len(), world_from_object, false, limit, &mut out, &|_, _| true);
+        enumerate(
+            &self.object,
+            self.object.mirrors.len(),
+            world_from_object,
+            false,
+            limit,
+            &mut out,
+            &|_, _| true,
+        );
         out
     }
 
@@ -74,7 +87,15 @@ impl PreparedObject {
                 c_world.distance(zone.centre) <= r * t.scale + zone.radius
             }
         };
-        enumerate(&self.object, self.object.mirrors.len(), world_from_object, false, limit, &mut out, &touches);
+        enumerate(
+            &self.object,
+            self.object.mirrors.len(),
+            world_from_object,
+            false,
+            limit,
+            &mut out,
+            &touches,
+        );
         out
     }
 }
@@ -95,7 +116,10 @@ fn level_bounds(obj: &KrsObject) -> Vec<Option<(Vec3, f32)>> {
 
 fn reflection_affine(m: &super::mirror::MirrorPlane) -> Affine3A {
     let mat = Mat3A::from(m.matrix());
-    Affine3A { matrix3: mat, translation: Vec3A::from(2.0 * m.offset * m.normal) }
+    Affine3A {
+        matrix3: mat,
+        translation: Vec3A::from(2.0 * m.offset * m.normal),
+    }
 }
 
 /// L_level = K_level ∪ L_(level−1) ∪ R_(level−1) L_(level−1), placed by `xf`.
@@ -117,7 +141,11 @@ fn enumerate(
             _ => !matches!(k, Kernel::Empty),
         };
         if visible {
-            out.push(KernelInstance { kernel: level, world_from_kernel: xf, mirrored });
+            out.push(KernelInstance {
+                kernel: level,
+                world_from_kernel: xf,
+                mirrored,
+            });
         }
     }
     if level == 0 {
@@ -125,5 +153,13 @@ fn enumerate(
     }
     let m = &obj.mirrors[level - 1];
     enumerate(obj, level - 1, xf, mirrored, limit, out, keep);
-    enumerate(obj, level - 1, xf * reflection_affine(m), !mirrored, limit, out, keep);
+    enumerate(
+        obj,
+        level - 1,
+        xf * reflection_affine(m),
+        !mirrored,
+        limit,
+        out,
+        keep,
+    );
 }

@@ -45,7 +45,9 @@ impl PreparedObject {
         if let Some(d) = &self.object.distortion {
             p = d.warp(p);
         }
-        let light0 = self.object_dir_from_world(light_world).normalize_or(Vec3::Y);
+        let light0 = self
+            .object_dir_from_world(light_world)
+            .normalize_or(Vec3::Y);
         let e_threshold = (e_threshold_world / self.object.world_from_object.scale).max(0.0);
         let obj = &self.object;
         let n = obj.mirrors.len();
@@ -77,7 +79,9 @@ impl PreparedObject {
                 0.0
             };
             // Re-normalise: the blend of two unit vectors is shorter than unit.
-            omega = omega.lerp(rho, w).normalize_or(if e > 0.0 { rho } else { omega });
+            omega = omega
+                .lerp(rho, w)
+                .normalize_or(if e > 0.0 { rho } else { omega });
             consider(i, p, omega);
         }
         match best {
@@ -143,7 +147,13 @@ pub struct Texturing {
 
 impl Default for Texturing {
     fn default() -> Self {
-        Self { mode: TextureMode::None, pattern: Pattern::Checker, scale: 4.0, contrast: 0.4, sharpness: 4.0 }
+        Self {
+            mode: TextureMode::None,
+            pattern: Pattern::Checker,
+            scale: 4.0,
+            contrast: 0.4,
+            sharpness: 4.0,
+        }
     }
 }
 
@@ -173,7 +183,11 @@ impl Pattern {
         match self {
             Pattern::Checker => {
                 let cell = uv.floor();
-                if (cell.x as i64 + cell.y as i64).rem_euclid(2) == 0 { 1.0 } else { 0.0 }
+                if (cell.x as i64 + cell.y as i64).rem_euclid(2) == 0 {
+                    1.0
+                } else {
+                    0.0
+                }
             }
             Pattern::Bark => {
                 // Streaks along x (the branch), broken up by a second octave.
@@ -194,7 +208,11 @@ fn modulate(base: Vec3, value: f32, contrast: f32) -> Vec3 {
 pub fn triplanar_colour(p: Vec3, n: Vec3, base: Vec3, texturing: &Texturing) -> Vec3 {
     let w = n.abs().powf(texturing.sharpness.max(1.0));
     let sum = w.x + w.y + w.z;
-    let w = if sum > 0.0 && sum.is_finite() { w / sum } else { Vec3::splat(1.0 / 3.0) };
+    let w = if sum > 0.0 && sum.is_finite() {
+        w / sum
+    } else {
+        Vec3::splat(1.0 / 3.0)
+    };
     let q = p * texturing.scale;
     let v = w.x * texturing.pattern.value(Vec2::new(q.y, q.z))
         + w.y * texturing.pattern.value(Vec2::new(q.x, q.z))
@@ -205,7 +223,9 @@ pub fn triplanar_colour(p: Vec3, n: Vec3, base: Vec3, texturing: &Texturing) -> 
 /// Albedo of a hit: the kernel's material colour, textured as its object asks.
 pub fn shade_colour(scene: &PreparedScene, hit: &TraceHit) -> Vec3 {
     let base = hit.material.colour;
-    let Some(obj) = scene.objects.get(hit.object) else { return base };
+    let Some(obj) = scene.objects.get(hit.object) else {
+        return base;
+    };
     let tex = &obj.object.texturing;
     match tex.mode {
         TextureMode::None => base,
@@ -214,8 +234,10 @@ pub fn shade_colour(scene: &PreparedScene, hit: &TraceHit) -> Vec3 {
             let n = obj.object_dir_from_world(hit.normal);
             triplanar_colour(p, n, base, tex)
         }
-        TextureMode::KernelParam => {
-            modulate(base, tex.pattern.value(hit.kernel_uv * tex.scale), tex.contrast)
-        }
+        TextureMode::KernelParam => modulate(
+            base,
+            tex.pattern.value(hit.kernel_uv * tex.scale),
+            tex.contrast,
+        ),
     }
 }

@@ -109,7 +109,17 @@ impl TraceHit {
 /// The ray-parameter interval in which any geometry can lie (bounding balls of the objects,
 /// computed in f64 so a ray from 1e6 units away still lands on them), clipped to
 /// `[start, max]`. `None` when the ray misses every object.
-fn ray_interval(scene: &PreparedScene, o: DVec3, d: DVec3, start: f64, max: f64) -> Option<(f64, f64)> {
+///
+/// Each ball is inflated by Lipschitz · epsilon so that no point outside the interval has a
+/// distance estimate below epsilon: skipping it cannot change which point the tracer reports.
+fn ray_interval(
+    scene: &PreparedScene,
+    o: DVec3,
+    d: DVec3,
+    start: f64,
+    max: f64,
+    epsilon: impl Fn(f64) -> f64,
+) -> Option<(f64, f64)> {
     let mut lo = f64::INFINITY;
     let mut hi = f64::NEG_INFINITY;
     for obj in scene.objects.iter().filter(|o| !o.is_empty) {
@@ -117,8 +127,10 @@ fn ray_interval(scene: &PreparedScene, o: DVec3, d: DVec3, start: f64, max: f64)
             return Some((start, max)).filter(|(a, b)| a <= b);
         };
         let oc = o - c.as_dvec3();
+        let r = r as f64;
+        let far = oc.length() + r;
+        let r = r * (1.0 + 1e-6) + 1e-6 + 1.01 * obj.lipschitz as f64 * epsilon(far);
         let b = oc.dot(d);
-        let r = r as f64 * (1.0 + 1e-6) + 1e-6;
         let disc = b * b - (oc.length_squared() - r * r);
         if disc < 0.0 {
             continue;
@@ -132,43 +144,122 @@ fn ray_interval(scene: &PreparedScene, o: DVec3, d: DVec3, start: f64, max: f64)
     (lo <= hi).then_some((lo, hi))
 }
 
+/// Safety factor on epsilon when certifying that a stretch of the ray holds no hit, so float
+/// rounding in the distance cannot make two traces of the same ray disagree.
+const CERTIFY_MARGIN: f64 = 1.001;
+
+/// The canonical sample positions along a ray: spaced ε(t)/2 (uniform where the `min_epsilon`
+/// floor rules, geometric where the pixel cone does). Hits are only reported on these
+/// positions, so any tracer that skips only certified stretches reports the same hit.
+#[derive(Debug, Clone, Copy)]
+struct SampleGrid {
+    /// Spacing in the uniform part.
+    q0: f64,
+    /// Ray parameter where the cone epsilon overtakes the floor (∞ without a cone).
+    t0: f64,
+    /// ln(1 + cone/2): index step of the geometric part.
+    log_step: f64,
+    /// Index at t0.
+    u0: f64,
+}
+
+impl SampleGrid {
+    fn new(settings: &TraceSettings) -> Self {
+        let cone = (settings.eps_scale as f64 * settings.pixel_cone_ratio as f64).max(0.0);
+        let floor = (settings.min_epsilon as f64).max(1e-12);
+        let q0 = 0.5 * floor;
+        if cone > 0.0 && cone.is_finite() {
+            let t0 = floor / cone;
+            Self {
+                q0,
+                t0,
+                log_step: (0.5 * cone).ln_1p(),
+                u0: t0 / q0,
+            }
+        } else {
+            Self {
+                q0,
+                t0: f64::INFINITY,
+                log_step: 1.0,
+                u0: f64::INFINITY,
+            }
+        }
+    }
+
+    /// Continuous index of ray parameter t.
+    fn index(&self, t: f64) -> f64 {
+        if t < self.t0 {
+            t / self.q0
+        } else {
+            self.u0 + (t / self.t0).ln() / self.log_step
+        }
+    }
+
+    /// Ray parameter of index u.
+    fn param(&self, u: f64) -> f64 {
+        if u < self.u0 {
+            u * self.q0
+        } else {
+            self.t0 * ((u - self.u0) * self.log_step).exp()
+        }
+    }
+}
+
 /// Sphere-traces one ray from `origin` along `dir` (normalised here) through `scene`.
 ///
-/// Steps by the distance estimate (times ω when over-relaxing) until it falls below
-/// [`TraceSettings::epsilon`] (hit), the ray leaves the scene's bounds or `max_distance`
-/// (miss), or `max_steps` is spent (`exhausted`, reported as a miss). An over-relaxed step is
-/// kept only when its unbounding sphere overlaps the previous one (and the new point is not
-/// inside); otherwise the ray returns to the plain step from the previous point.
+/// The ray is sampled on a canonical grid of positions spaced ε(t)/2 (see
+/// [`TraceSettings::epsilon`]); the hit is the first grid position whose distance estimate is
+/// below ε. A sample with estimate d certifies, by the 1-Lipschitz bound, that no position up
+/// to t + d − ε can be a hit, so the tracer jumps to the first grid position past that. With
+/// over-relaxation (ω > 1, Keinert et al. 2014) it also probes at t + ω·d; a probe whose
+/// certified stretch overlaps the previous one extends the jump (and probing continues from
+/// it), otherwise it is discarded (a fallback) and tracing resumes on the grid. Because only
+/// certified positions are skipped, plain, over-relaxed and tile-started traces report exactly
+/// the same hit (mask and t). A miss is reported when the ray leaves the scene's bounds or
+/// `max_distance`, or `max_steps` is spent (`exhausted`).
 pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSettings) -> TraceHit {
     let Some(dir) = dir.try_normalize() else {
         return TraceHit::miss(origin, Vec3::Z, 0.0, 0);
     };
-    let max_distance = if settings.max_distance.is_finite() { settings.max_distance } else { 1e30 };
+    let max_distance = if settings.max_distance.is_finite() {
+        settings.max_distance
+    } else {
+        1e30
+    };
     if !origin.is_finite() {
         return TraceHit::miss(Vec3::ZERO, dir, 0.0, 0);
     }
-    let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+    // Re-normalise in f64: an f32-unit vector is off by ~1e-8, which at 1e6 units turns a
+    // clear miss of a bounding ball into a hit.
+    let (o, d) = (origin.as_dvec3(), dir.as_dvec3().normalize_or_zero());
     let start = settings.start_distance.max(0.0) as f64;
-    let Some((t_lo, t_hi)) = ray_interval(scene, o, d, start, max_distance as f64) else {
+    let eps = |t: f64| settings.epsilon(t) as f64;
+    let Some((t_lo, t_hi)) = ray_interval(scene, o, d, start, max_distance as f64, eps) else {
         return TraceHit::miss(origin, dir, max_distance, 0);
     };
     let at = |t: f64| (o + d * t).as_vec3();
-    let omega = if settings.over_relaxation.is_finite() {
+    let mut omega = if settings.over_relaxation.is_finite() {
         settings.over_relaxation.clamp(1.0, 1.99)
     } else {
         1.0
     } as f64;
+    let grid = SampleGrid::new(settings);
+    // Certified-free radius of a sample at t with estimate dist.
+    let free = |t: f64, dist: f64| dist - CERTIFY_MARGIN * eps(t + dist.max(0.0));
 
-    let mut t = t_lo;
+    let mut k = grid.index(t_lo).ceil();
     let mut steps = 0u32;
     let mut fallbacks = 0u32;
-    // The last accepted point and its radius, and whether we left it with a relaxed step.
-    let mut prev_t = t;
-    let mut prev_d = 0.0f64;
-    let mut relaxed_step = false;
     let mut exhausted = true;
-    let mut hit = false;
+    let mut hit_t = None;
+    let omega_max = omega;
+    // Previous grid sample's estimate, to notice when the ray moves away from geometry again.
+    let mut last_grid_d = f64::INFINITY;
+
+    // A rejected probe's certified stretch: still true, used once the march closes the gap.
+    let mut pending: Option<(f64, f64)> = None;
     while steps < settings.max_steps {
+        let t = grid.param(k);
         if t > t_hi {
             exhausted = false;
             break;
@@ -179,37 +270,60 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
             exhausted = false;
             break;
         }
-        if relaxed_step && (dist < 0.0 || dist + prev_d < t - prev_t) {
-            // The two unbounding spheres do not overlap (or we jumped inside): the gap may
-            // hide a surface, so take the safe plain step from the previous point instead.
-            fallbacks += 1;
-            t = prev_t + prev_d;
-            relaxed_step = false;
-            continue;
-        }
-        let eps = settings.epsilon(t) as f64;
-        if dist < eps {
-            hit = true;
-            exhausted = false;
+        if dist < eps(t) {
+            hit_t = Some(t);
             break;
         }
-        prev_t = t;
-        prev_d = dist;
-        // Near the surface relaxation gains little and would make the termination point (and
-        // so the hit mask at silhouettes) depend on ω; step plainly there.
-        relaxed_step = omega > 1.0 && dist > 4.0 * eps;
-        t += if relaxed_step { omega * dist } else { dist };
+        if omega_max > 1.0 && dist > last_grid_d {
+            // Past the obstacle that made a probe fail: relax again.
+            omega = omega_max;
+        }
+        last_grid_d = dist;
+        let mut reach = t + free(t, dist);
+        let (mut cur_t, mut cur_d) = (t, dist);
+        // Over-relaxed probes: far from the surface only (near it they rarely pass the
+        // overlap test and would cost evaluations for nothing).
+        while omega > 1.0 && cur_d > 4.0 * eps(cur_t) && steps < settings.max_steps {
+            let t2 = cur_t + omega * cur_d;
+            if t2 > t_hi {
+                reach = reach.max(t_hi);
+                break;
+            }
+            let d2 = scene.distance(at(t2)) as f64;
+            steps += 1;
+            let r2 = if d2.is_finite() { free(t2, d2) } else { -1.0 };
+            if !(r2 > 0.0 && t2 - r2 <= reach) {
+                // Overshoot: the ray is heading into something. As in Keinert et al., stop
+                // relaxing (until the ray moves away from geometry again); keep what the probe
+                // certified for when the plain march reaches it.
+                fallbacks += 1;
+                omega = 1.0;
+                if r2 > 0.0 {
+                    pending = Some((t2 - r2, t2 + r2));
+                }
+                break;
+            }
+            reach = t2 + r2;
+            (cur_t, cur_d) = (t2, d2);
+        }
+        if let Some((lo, hi)) = pending
+            && reach >= lo
+        {
+            reach = reach.max(hi);
+            pending = None;
+        }
+        k = (k + 1.0).max(grid.index(reach.max(t)).floor() + 1.0);
     }
-    if !hit {
-        let mut miss = TraceHit::miss(origin, dir, t.min(max_distance as f64) as f32, steps);
+    let Some(t) = hit_t else {
+        let t_end = grid.param(k).min(max_distance as f64);
+        let mut miss = TraceHit::miss(origin, dir, t_end as f32, steps);
         miss.exhausted = exhausted;
         miss.relaxation_fallbacks = fallbacks;
         return miss;
-    }
+    };
     let position = at(t);
-    let eps = settings.epsilon(t);
-    let (object, normal, kernel, kernel_point, material, kernel_uv) =
-        surface_at(scene, position).unwrap_or((0, -dir, None, Vec3::ZERO, Material::default(), Vec2::ZERO));
+    let (object, normal, kernel, kernel_point, material, kernel_uv) = surface_at(scene, position)
+        .unwrap_or((0, -dir, None, Vec3::ZERO, Material::default(), Vec2::ZERO));
     TraceHit {
         hit: true,
         t: t as f32,
@@ -221,7 +335,7 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
         kernel_point,
         kernel_uv,
         steps,
-        epsilon: eps,
+        epsilon: settings.epsilon(t),
         exhausted: false,
         relaxation_fallbacks: fallbacks,
     }
@@ -237,7 +351,14 @@ fn surface_at(scene: &PreparedScene, p: Vec3) -> Option<SurfaceInfo> {
         .kernel
         .and_then(|k| obj.object.kernels.get(k))
         .map_or(Vec2::ZERO, |k| k.param_coords(s.kernel_point));
-    Some((i, normal, s.kernel, s.kernel_point, obj.material(s.kernel), uv))
+    Some((
+        i,
+        normal,
+        s.kernel,
+        s.kernel_point,
+        obj.material(s.kernel),
+        uv,
+    ))
 }
 
 /// Axis and half-angle (radians) of the cone from the eye that contains the given ray
@@ -272,8 +393,10 @@ pub fn tile_start_distance(
     half_angle: f32,
     settings: &TraceSettings,
 ) -> f32 {
-    let Some(axis) = axis.try_normalize() else { return 0.0 };
-    if !(half_angle.is_finite() && (0.0..1.5).contains(&half_angle)) || !eye.is_finite() {
+    let Some(axis) = axis.try_normalize() else {
+        return 0.0;
+    };
+    if !(half_angle.is_finite() && (0.0..1.5).contains(&half_angle) && eye.is_finite()) {
         return 0.0;
     }
     let tan = half_angle.tan() as f64;
@@ -286,8 +409,9 @@ pub fn tile_start_distance(
             return max_distance as f32;
         }
         let w = (t + dist) * tan;
-        // Keep every covered point at least epsilon away, as the per-pixel tracer would.
-        let radius = dist - settings.epsilon(t + dist) as f64;
+        // Keep every covered point at least epsilon away: those are exactly the positions the
+        // per-pixel tracer may skip, so starting later cannot change its hit.
+        let radius = dist - CERTIFY_MARGIN * settings.epsilon(t + dist.max(0.0)) as f64;
         if radius <= w {
             break;
         }
@@ -319,7 +443,13 @@ pub struct ShadowSettings {
 
 impl Default for ShadowSettings {
     fn default() -> Self {
-        Self { start_offset: 1e-3, max_distance: 100.0, max_steps: 128, epsilon: 1e-4, softness: None }
+        Self {
+            start_offset: 1e-3,
+            max_distance: 100.0,
+            max_steps: 128,
+            epsilon: 1e-4,
+            softness: None,
+        }
     }
 }
 
@@ -327,18 +457,26 @@ impl Default for ShadowSettings {
 /// (1 = lit). Hard: 0 when an occluder is hit. Soft: the smallest `k·d/t` met along the ray
 /// (the unbounding sphere's angular size), clamped to [0, 1].
 pub fn shadow(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &ShadowSettings) -> f32 {
-    let Some(dir) = dir.try_normalize() else { return 1.0 };
+    let Some(dir) = dir.try_normalize() else {
+        return 1.0;
+    };
     if !origin.is_finite() {
         return 1.0;
     }
-    let (o, d) = (origin.as_dvec3(), dir.as_dvec3());
+    let (o, d) = (origin.as_dvec3(), dir.as_dvec3().normalize_or_zero());
     let start = settings.start_offset.max(0.0) as f64;
-    let Some((t_lo, t_hi)) = ray_interval(scene, o, d, start, settings.max_distance as f64) else {
+    let eps = settings.epsilon as f64;
+    let Some((t_lo, t_hi)) =
+        ray_interval(scene, o, d, start, settings.max_distance as f64, |_| eps)
+    else {
         return 1.0;
     };
     let mut t = t_lo.max(start);
     let mut visibility = 1.0f64;
-    let k = settings.softness.filter(|k| k.is_finite() && *k > 0.0).map(f64::from);
+    let k = settings
+        .softness
+        .filter(|k| k.is_finite() && *k > 0.0)
+        .map(f64::from);
     for _ in 0..settings.max_steps {
         if t > t_hi {
             break;
@@ -372,7 +510,11 @@ pub struct AoSettings {
 
 impl Default for AoSettings {
     fn default() -> Self {
-        Self { samples: 5, spacing: 0.05, strength: 1.0 }
+        Self {
+            samples: 5,
+            spacing: 0.05,
+            strength: 1.0,
+        }
     }
 }
 
@@ -380,7 +522,9 @@ impl Default for AoSettings {
 /// h_i = i·spacing the free distance should be h_i on an open surface; the shortfall
 /// (h_i − d)/h_i is averaged with weights halving per sample.
 pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoSettings) -> f32 {
-    let Some(n) = n.try_normalize() else { return 1.0 };
+    let Some(n) = n.try_normalize() else {
+        return 1.0;
+    };
     if settings.samples == 0 || !(settings.spacing.is_finite() && settings.spacing > 0.0) {
         return 1.0;
     }
@@ -390,7 +534,11 @@ pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoS
     for i in 1..=settings.samples {
         let h = i as f32 * settings.spacing;
         let d = scene.distance(p + n * h);
-        let shortfall = if d.is_finite() { ((h - d) / h).clamp(0.0, 1.0) } else { 0.0 };
+        let shortfall = if d.is_finite() {
+            ((h - d) / h).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         occlusion += weight * shortfall;
         total += weight;
         weight *= 0.5;

@@ -66,33 +66,50 @@ pub struct TreeParams {
 
 impl Default for TreeParams {
     fn default() -> Self {
+        let lengths = [2.2, 1.3, 1.0, 0.8, 0.6, 0.45, 0.35];
         Self {
-            route: vec![
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(0.0, 2.2, 0.0),
-                Vec3::new(0.35, 3.4, 0.1),
-                Vec3::new(0.75, 4.3, 0.3),
-                Vec3::new(1.05, 5.0, 0.35),
-                Vec3::new(1.3, 5.5, 0.5),
-                Vec3::new(1.5, 5.9, 0.55),
-                Vec3::new(1.62, 6.2, 0.62),
-            ],
+            route: spiral_route(&lengths, 1.45, 0.75),
             bends: vec![
-                Vec3::new(0.08, 0.0, 0.0),
-                Vec3::new(-0.1, 0.0, 0.05),
-                Vec3::new(0.0, 0.05, -0.08),
-                Vec3::new(0.05, 0.0, 0.05),
-                Vec3::new(-0.04, 0.02, 0.0),
-                Vec3::new(0.0, 0.0, 0.03),
+                Vec3::new(0.06, 0.0, 0.0),
+                Vec3::new(-0.08, 0.0, 0.04),
+                Vec3::new(0.0, 0.05, -0.06),
+                Vec3::new(0.04, 0.0, 0.04),
+                Vec3::new(-0.03, 0.02, 0.0),
+                Vec3::new(0.0, 0.0, 0.02),
                 Vec3::ZERO,
             ],
-            widths: vec![0.22, 0.14, 0.09, 0.06, 0.04, 0.028, 0.018],
+            widths: vec![0.2, 0.12, 0.08, 0.055, 0.038, 0.026, 0.017],
             fork_normals: Vec::new(),
             bark: Material::new(Vec3::new(0.32, 0.22, 0.14), 1),
             leaf: Some(LeafParams::default()),
             forest_mirrors: Vec::new(),
         }
     }
+}
+
+/// A route whose branch k has length `lengths[k]`, leans from vertical by an angle growing
+/// linearly from 0 (trunk) to `final_lean` radians, and turns by the golden angle in azimuth
+/// per fork, so the forks spread around the trunk instead of lying in one plane.
+pub fn spiral_route(lengths: &[f32], final_lean: f32, first_lean: f32) -> Vec<Vec3> {
+    let mut p = Vec3::ZERO;
+    let mut route = vec![p];
+    let last = lengths.len().saturating_sub(1).max(1) as f32;
+    for (k, &len) in lengths.iter().enumerate() {
+        let lean = if k == 0 {
+            0.0
+        } else {
+            first_lean + (final_lean - first_lean) * (k as f32 - 1.0) / last
+        };
+        let azimuth = GOLDEN_ANGLE * k as f32;
+        let dir = Vec3::new(
+            lean.sin() * azimuth.cos(),
+            lean.cos(),
+            lean.sin() * azimuth.sin(),
+        );
+        p += dir * len;
+        route.push(p);
+    }
+    route
 }
 
 /// Why tree parameters cannot be built.
@@ -144,7 +161,10 @@ impl TreeParams {
         finite("fork_normals", &self.fork_normals)?;
         for (branch, &width) in self.widths.iter().enumerate() {
             if !width.is_finite() {
-                return Err(TreeError::NonFinite { field: "widths", index: branch });
+                return Err(TreeError::NonFinite {
+                    field: "widths",
+                    index: branch,
+                });
             }
             if width < 0.0 {
                 return Err(TreeError::NegativeWidth { branch, width });
@@ -159,7 +179,11 @@ impl TreeParams {
     }
 
     fn width(&self, branch: usize) -> f32 {
-        self.widths.get(branch).or(self.widths.last()).copied().unwrap_or(0.05)
+        self.widths
+            .get(branch)
+            .or(self.widths.last())
+            .copied()
+            .unwrap_or(0.05)
     }
 
     /// The mirror at the fork `route[fork]` (1 ≤ fork < route.len() − 1), oriented so the
@@ -168,13 +192,25 @@ impl TreeParams {
         let point = self.route[fork];
         let incoming = (point - self.route[fork - 1]).normalize_or(Vec3::Y);
         let outgoing = (self.route[fork + 1] - point).normalize_or(incoming);
-        let given = self.fork_normals.get(fork - 1).and_then(|n| n.try_normalize());
+        let given = self
+            .fork_normals
+            .get(fork - 1)
+            .and_then(|n| n.try_normalize());
+        // Default: the plane containing the incoming branch, facing the way the route turns,
+        // so the reflected sibling leaves the fork symmetrically on the other side (a Y fork).
         let normal = given.unwrap_or_else(|| {
-            let a = GOLDEN_ANGLE * fork as f32;
-            let h = Vec3::new(a.cos(), 0.0, a.sin());
-            (h - incoming * incoming.dot(h)).normalize_or(incoming.any_orthonormal_vector())
+            let turn = outgoing - incoming * incoming.dot(outgoing);
+            turn.try_normalize().unwrap_or_else(|| {
+                let a = GOLDEN_ANGLE * fork as f32;
+                let h = Vec3::new(a.cos(), 0.0, a.sin());
+                (h - incoming * incoming.dot(h)).normalize_or(incoming.any_orthonormal_vector())
+            })
         });
-        let normal = if normal.dot(outgoing) > 0.0 { -normal } else { normal };
+        let normal = if normal.dot(outgoing) > 0.0 {
+            -normal
+        } else {
+            normal
+        };
         MirrorPlane::through(point, normal)
     }
 
@@ -185,7 +221,12 @@ impl TreeParams {
         let bend = self.bends.get(b).copied().unwrap_or(Vec3::ZERO);
         let radius = self.width(b);
         let material = self.bark;
-        let straight = Kernel::Capsule(CapsuleKernel { start: a, end: e, radius, material });
+        let straight = Kernel::Capsule(CapsuleKernel {
+            start: a,
+            end: e,
+            radius,
+            material,
+        });
         if bend.length() <= 1e-4 * a.distance(e) {
             return straight;
         }
@@ -212,9 +253,14 @@ impl TreeParams {
         let mut kernels = Vec::new();
         let mut mirrors = Vec::new();
         if let Some(leaf) = &self.leaf {
-            if !(leaf.radius.is_finite() && leaf.offset.is_finite() && leaf.mirror_normal.is_finite())
+            if !(leaf.radius.is_finite()
+                && leaf.offset.is_finite()
+                && leaf.mirror_normal.is_finite())
             {
-                return Err(TreeError::NonFinite { field: "leaf", index: 0 });
+                return Err(TreeError::NonFinite {
+                    field: "leaf",
+                    index: 0,
+                });
             }
             let tip = self.route[branches];
             let centre = tip + leaf.offset;
@@ -237,13 +283,22 @@ impl TreeParams {
             mirrors.push(*m);
             kernels.push(Kernel::Empty);
         }
-        Ok(KrsObject { name: "tree".to_owned(), kernels, mirrors, ..KrsObject::default() })
+        Ok(KrsObject {
+            name: "tree".to_owned(),
+            kernels,
+            mirrors,
+            ..KrsObject::default()
+        })
     }
 }
 
 /// Circle through a → c → b: (centre, axis, unit start direction, radius, sweep from a to b in
 /// the direction that passes c). `None` when the points are (nearly) collinear.
-pub(crate) fn circle_through(a: DVec3, c: DVec3, b: DVec3) -> Option<(DVec3, DVec3, DVec3, f64, f64)> {
+pub(crate) fn circle_through(
+    a: DVec3,
+    c: DVec3,
+    b: DVec3,
+) -> Option<(DVec3, DVec3, DVec3, f64, f64)> {
     let (u, v) = (a - c, b - c);
     let uxv = u.cross(v);
     let denom = 2.0 * uxv.length_squared();
