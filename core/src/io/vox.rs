@@ -35,7 +35,9 @@ mod tests;
 
 use std::path::{Path, PathBuf};
 
-pub use export::{VoxExportOptions, VoxExportReport, export_vox, export_vox_bytes, export_vox_with};
+pub use export::{
+    VoxExportOptions, VoxExportReport, export_vox, export_vox_bytes, export_vox_with,
+};
 pub use import::{VoxImportOptions, VoxScene, import_vox, import_vox_bytes, import_vox_with};
 
 #[allow(unused_imports, reason = "named in the module docs")]

@@ -124,7 +124,10 @@ pub(crate) fn validate(bytes: &[u8], path: &Path) -> Result<Layout, VoxError> {
             return Err(malformed(
                 path,
                 "header",
-                format!("the file ends after {} bytes, inside the magic", bytes.len()),
+                format!(
+                    "the file ends after {} bytes, inside the magic",
+                    bytes.len()
+                ),
             ));
         }
         return Err(VoxError::NotVox {
@@ -298,8 +301,7 @@ fn check_xyzi(c: &mut Cursor<'_>, size: Option<[u32; 3]>) -> Result<([u32; 3], u
     }
     let data = c.take(n * 4, "voxels")?;
     for (i, v) in data.chunks_exact(4).enumerate() {
-        if u32::from(v[0]) >= size[0] || u32::from(v[1]) >= size[1] || u32::from(v[2]) >= size[2]
-        {
+        if u32::from(v[0]) >= size[0] || u32::from(v[1]) >= size[1] || u32::from(v[2]) >= size[2] {
             return Err(format!(
                 "voxel {i} at ({}, {}, {}) lies outside the model's size {} × {} × {}",
                 v[0], v[1], v[2], size[0], size[1], size[2]

@@ -117,7 +117,9 @@ pub fn export_vox_bytes(
         || {
             chosen
                 .iter()
-                .map(|(o, v)| f64::from(v.voxel_size) * f64::from(o.transform.scale.abs().min_element()))
+                .map(|(o, v)| {
+                    f64::from(v.voxel_size) * f64::from(o.transform.scale.abs().min_element())
+                })
                 .fold(f64::INFINITY, f64::min)
         },
         f64::from,
@@ -160,8 +162,8 @@ pub fn export_vox_bytes(
             let mut lo = DVec3::INFINITY;
             let mut hi = DVec3::NEG_INFINITY;
             for k in 0..8u32 {
-                let corner = base
-                    + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
+                let corner =
+                    base + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
                 let p = grid_from_voxel.transform_point3(corner);
                 lo = lo.min(p);
                 hi = hi.max(p);
@@ -170,7 +172,9 @@ pub fn export_vox_bytes(
             // least the nearest one, so no voxel disappears.
             let a = lo.round();
             let b = hi.round().max(a + 1.0);
-            if a.abs().max_element() > f64::from(1 << 30) || b.abs().max_element() > f64::from(1 << 30) {
+            if a.abs().max_element() > f64::from(1 << 30)
+                || b.abs().max_element() > f64::from(1 << 30)
+            {
                 failure = Some(format!(
                     "a voxel lands at {a} grid cells from the origin, beyond the .vox range"
                 ));
@@ -207,7 +211,10 @@ pub fn export_vox_bytes(
         return Err(VoxError::Object {
             path: path.to_owned(),
             object: "(all)".into(),
-            detail: format!("{} material names; .vox holds at most 256", material_names.len()),
+            detail: format!(
+                "{} material names; .vox holds at most 256",
+                material_names.len()
+            ),
         });
     }
 
@@ -247,9 +254,8 @@ pub fn export_vox_bytes(
         let parts = blocks.len();
         for (part, (block, mut voxels)) in blocks.into_iter().enumerate() {
             voxels.sort_unstable();
-            let size = [0, 1, 2].map(|a| {
-                u32::from(voxels.iter().map(|v| v[a]).max().unwrap_or(0)) + 1
-            });
+            let size =
+                [0, 1, 2].map(|a| u32::from(voxels.iter().map(|v| v[a]).max().unwrap_or(0)) + 1);
             let block_min = [0, 1, 2].map(|a| lo[a] + block[a] * edge);
             // Import places voxel v at pivot + (v - floor(size / 2)); choose the pivot so that
             // voxel (0,0,0) lands on block_min.
@@ -380,7 +386,11 @@ pub(crate) fn build_palette(keys: &[(([u8; 4], u16), u64)]) -> Palette {
     if keys.len() <= 255 {
         return Palette {
             entries: keys.iter().map(|k| k.0).collect(),
-            index: keys.iter().enumerate().map(|(i, k)| (k.0, i as u8)).collect(),
+            index: keys
+                .iter()
+                .enumerate()
+                .map(|(i, k)| (k.0, i as u8))
+                .collect(),
             exact: true,
             max_channel_error: 0,
         };
@@ -498,13 +508,13 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), VoxError> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
-    let file_name = path.file_name().map_or_else(
-        || "export.vox".into(),
-        |n| n.to_string_lossy().into_owned(),
-    );
+    let file_name = path
+        .file_name()
+        .map_or_else(|| "export.vox".into(), |n| n.to_string_lossy().into_owned());
     let tmp = dir.join(format!(".{file_name}.tmp-{}", std::process::id()));
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp).map_err(|e| io("creating the temporary file", e))?;
+        let mut f =
+            std::fs::File::create(&tmp).map_err(|e| io("creating the temporary file", e))?;
         f.write_all(bytes)
             .map_err(|e| io("writing the temporary file", e))?;
         f.sync_all()

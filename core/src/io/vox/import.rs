@@ -42,10 +42,13 @@ pub struct VoxScene {
     pub version: u32,
     /// Models stored in the file (before instancing).
     pub model_count: usize,
+    /// Voxels stored in the file's models (before instancing; [`VoxScene::voxel_count`] counts
+    /// every placed instance).
+    pub stored_voxels: u64,
 }
 
 impl VoxScene {
-    /// Voxels over all objects.
+    /// Voxels over all objects (every instance counted).
     #[must_use]
     pub fn voxel_count(&self) -> u64 {
         self.objects
@@ -196,6 +199,7 @@ pub fn import_vox_bytes(
         material_names,
         version: data.version,
         model_count: data.models.len(),
+        stored_voxels: layout.total_voxels,
     })
 }
 
@@ -302,7 +306,9 @@ impl ModelVoxels {
                 return false;
             }
             let i = index(x as usize, y as usize, z as usize);
-            occupied.get(i / 64).is_some_and(|w| w & (1 << (i % 64)) != 0)
+            occupied
+                .get(i / 64)
+                .is_some_and(|w| w & (1 << (i % 64)) != 0)
         };
         // Fallback order when exposed faces cancel (a one-voxel wall): up (+Z here) first.
         const DIRS: [[i8; 3]; 6] = [
@@ -321,8 +327,11 @@ impl ModelVoxels {
                 let mut sum = [0i8; 3];
                 let mut first_exposed = None;
                 for d in DIRS {
-                    if !solid(p[0] + i64::from(d[0]), p[1] + i64::from(d[1]), p[2] + i64::from(d[2]))
-                    {
+                    if !solid(
+                        p[0] + i64::from(d[0]),
+                        p[1] + i64::from(d[1]),
+                        p[2] + i64::from(d[2]),
+                    ) {
                         first_exposed.get_or_insert(d);
                         for a in 0..3 {
                             sum[a] += d[a];
@@ -389,8 +398,12 @@ fn instances(
             .collect());
     }
     let root = layout.node_index.get(&0).copied().unwrap_or(0);
-    let layer_hidden =
-        |id: u32| usize::try_from(id).ok().and_then(|i| data.layers.get(i)).is_some_and(dot_vox::Layer::hidden);
+    let layer_hidden = |id: u32| {
+        usize::try_from(id)
+            .ok()
+            .and_then(|i| data.layers.get(i))
+            .is_some_and(dot_vox::Layer::hidden)
+    };
     struct Visit {
         index: usize,
         rotation: IMat3,
@@ -415,7 +428,10 @@ fn instances(
         if visits > MAX_INSTANCES * 8 {
             return Err(VoxError::TooLarge {
                 path: path.to_owned(),
-                detail: format!("the scene graph visits more than {} nodes", MAX_INSTANCES * 8),
+                detail: format!(
+                    "the scene graph visits more than {} nodes",
+                    MAX_INSTANCES * 8
+                ),
             });
         }
         if v.depth > MAX_SCENE_DEPTH {
@@ -427,7 +443,11 @@ fn instances(
         }
         let lookup = |child: u32| {
             layout.node_index.get(&child).copied().ok_or_else(|| {
-                scene_error(path, node_id, format!("references node {child}, which does not exist"))
+                scene_error(
+                    path,
+                    node_id,
+                    format!("references node {child}, which does not exist"),
+                )
             })
         };
         let Some(node) = data.scenes.get(v.index) else {
@@ -444,7 +464,11 @@ fn instances(
                 let local_t = match frame.and_then(|f| f.get("_t")) {
                     None => [0; 3],
                     Some(s) => parse_translation(s).ok_or_else(|| {
-                        scene_error(path, node_id, format!("translation _t {s:?} is not three integers"))
+                        scene_error(
+                            path,
+                            node_id,
+                            format!("translation _t {s:?} is not three integers"),
+                        )
                     })?,
                 };
                 let local_r = match frame.and_then(|f| f.get("_r")) {
@@ -555,7 +579,10 @@ fn build_instance(
         })
         .collect();
     let Some(first) = cells.first() else {
-        return Ok((Svo::new(1, false).map_err(|e| e.to_string())?, yup_from_mv(inst.pivot_world)));
+        return Ok((
+            Svo::new(1, false).map_err(|e| e.to_string())?,
+            yup_from_mv(inst.pivot_world),
+        ));
     };
     let mut lo = *first;
     let mut hi = *first;

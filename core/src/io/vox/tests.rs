@@ -14,7 +14,11 @@ use crate::scene::{Object, ObjectKind, Transform, VoxelModel};
 use crate::svo::{Svo, Voxel, decode_normal};
 
 fn asset(rel: &str) -> PathBuf {
-    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/vox/")).join(rel)
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/vox/"
+    ))
+    .join(rel)
 }
 
 const HOUSE: &str = "mmmm/obj_house4.vox";
@@ -46,12 +50,32 @@ fn voxels_of(o: &Object) -> &VoxelModel {
 fn exact_counts_on_real_files() {
     let house = import_vox(&asset(HOUSE)).unwrap();
     assert_eq!(house.voxel_count(), 180_202);
+    assert_eq!(house.stored_voxels, 180_202);
     assert_eq!(house.objects.len(), 1);
     let army = import_vox(&asset(ARMY)).unwrap();
     assert_eq!(army.voxel_count(), 341);
-    let scene = import_vox(&asset(SCENE)).unwrap();
+    let path = asset(SCENE);
+    let scene = import_vox(&path).unwrap();
     assert_eq!(scene.model_count, 41);
-    assert_eq!(scene.voxel_count(), 6_053);
+    assert_eq!(scene.stored_voxels, 6_053);
+    // The scene graph places those 41 models 104 times; count the instances independently.
+    let raw = dot_vox::load(path.to_str().unwrap()).unwrap();
+    let dot_vox::SceneNode::Group { children, .. } = &raw.scenes[1] else {
+        panic!("node 1 is not the top group")
+    };
+    let mut placed = 0u64;
+    for &c in children {
+        let dot_vox::SceneNode::Transform { child, .. } = &raw.scenes[c as usize] else {
+            panic!("group child {c} is not a transform")
+        };
+        let dot_vox::SceneNode::Shape { models, .. } = &raw.scenes[*child as usize] else {
+            panic!("transform {c} does not hold a shape")
+        };
+        placed += raw.models[models[0].model_id as usize].voxels.len() as u64;
+    }
+    assert_eq!(scene.objects.len(), children.len());
+    assert_eq!(scene.objects.len(), 104);
+    assert_eq!(scene.voxel_count(), placed);
     let placeholder = import_vox(&asset(PLACEHOLDER)).unwrap();
     assert_eq!(placeholder.voxel_count(), 4);
 }
@@ -98,9 +122,9 @@ fn shape_translations(raw: &dot_vox::DotVoxData) -> Vec<(u32, [i64; 3])> {
         let SceneNode::Shape { models, .. } = &raw.scenes[*child as usize] else {
             continue;
         };
-        let t = frames[0].position().map_or([0; 3], |p| {
-            [i64::from(p.x), i64::from(p.y), i64::from(p.z)]
-        });
+        let t = frames[0]
+            .position()
+            .map_or([0; 3], |p| [i64::from(p.x), i64::from(p.y), i64::from(p.z)]);
         let has_r = frames[0].attributes.contains_key("_r");
         if !has_r {
             out.push((models[0].model_id, t));
@@ -142,7 +166,11 @@ fn scene_objects_are_placed_by_their_transforms() {
             })
             .collect();
         expected.sort_unstable();
-        assert_eq!(world_set(std::slice::from_ref(o)), expected, "model {model_id}");
+        assert_eq!(
+            world_set(std::slice::from_ref(o)),
+            expected,
+            "model {model_id}"
+        );
         checked += 1;
     }
     assert!(checked >= 2);
@@ -170,7 +198,11 @@ fn axes_scene_graph_instances_models_and_nests_groups() {
     let mut objects = scene.objects.clone();
     let count = voxels_of(&objects[1]).svo.leaf_count();
     let twin = (0..objects.len())
-        .find(|&k| k != 0 && voxels_of(&objects[k]).svo.leaf_count() == voxels_of(&objects[0]).svo.leaf_count())
+        .find(|&k| {
+            k != 0
+                && voxels_of(&objects[k]).svo.leaf_count()
+                    == voxels_of(&objects[0]).svo.leaf_count()
+        })
         .unwrap_or(1);
     let before = voxels_of(&objects[twin]).svo.clone();
     if let ObjectKind::Voxels(v) = &mut objects[0].kind {
@@ -203,7 +235,13 @@ fn metal_material_names_are_kept() {
     let used: Vec<u8> = scene
         .objects
         .iter()
-        .flat_map(|o| voxels_of(o).svo.leaves().into_iter().map(|(_, v)| v.material))
+        .flat_map(|o| {
+            voxels_of(o)
+                .svo
+                .leaves()
+                .into_iter()
+                .map(|(_, v)| v.material)
+        })
         .collect();
     assert!(used.contains(&(metal as u8)), "{used:?}");
     // Cross-check with dot_vox: the voxel's palette index i uses MATL id i + 1.
@@ -219,7 +257,10 @@ fn metal_material_names_are_kept() {
                 == Some("_metal")
         })
         .count();
-    assert_eq!(used.iter().filter(|&&m| m == metal as u8).count(), metal_voxels);
+    assert_eq!(
+        used.iter().filter(|&&m| m == metal as u8).count(),
+        metal_voxels
+    );
     for o in &scene.objects {
         assert_eq!(voxels_of(o).material_names, scene.material_names);
     }
@@ -286,14 +327,21 @@ fn solid(color: [u8; 4]) -> Voxel {
 #[test]
 fn normals_point_out_of_the_surface_and_interior_is_up() {
     let cube: Vec<(UVec3, Voxel)> = (0..27)
-        .map(|i| (UVec3::new(i % 3, (i / 3) % 3, i / 9), solid([200, 10, 10, 255])))
+        .map(|i| {
+            (
+                UVec3::new(i % 3, (i / 3) % 3, i / 9),
+                solid([200, 10, 10, 255]),
+            )
+        })
         .collect();
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("cube.vox");
     export_vox(&[object("cube", cube, 2)], &path).unwrap();
     let back = import_vox(&path).unwrap();
     let cells = world_cells(&back.objects[0]);
-    let lo = cells.iter().fold([i64::MAX; 3], |m, (c, _)| [0, 1, 2].map(|a| m[a].min(c[a])));
+    let lo = cells
+        .iter()
+        .fold([i64::MAX; 3], |m, (c, _)| [0, 1, 2].map(|a| m[a].min(c[a])));
     for (c, v) in &cells {
         let rel = [0, 1, 2].map(|a| c[a] - lo[a] - 1);
         let n = decode_normal(v.normal);
@@ -314,7 +362,12 @@ fn round_trip(rel: &str) {
     let report = export_vox(&first.objects, &out).unwrap();
     assert!(report.exact_colors, "{report:?}");
     let second = import_vox(&out).unwrap();
-    let visible: Vec<Object> = first.objects.iter().filter(|o| o.visible).cloned().collect();
+    let visible: Vec<Object> = first
+        .objects
+        .iter()
+        .filter(|o| o.visible)
+        .cloned()
+        .collect();
     let (a, b) = (world_set(&visible), world_set(&second.objects));
     assert_eq!(a.len(), b.len(), "{rel}");
     assert!(a == b, "{rel}: positions or colours changed");
@@ -347,7 +400,8 @@ fn models_larger_than_256_split_and_round_trip() {
         .flat_map(|x| {
             (0..10u32).flat_map(move |y| {
                 (0..10u32).map(move |z| {
-                    let c = [(x % 7 * 30) as u8, (y * 20) as u8, (z * 25) as u8, 255];
+                    // 7 × 10 × 2 = 140 colours: the palette stays exact.
+                    let c = [(x % 7 * 30) as u8, (y * 20) as u8, (z % 2 * 99) as u8, 255];
                     (UVec3::new(x, y, z), solid(c))
                 })
             })
@@ -400,8 +454,8 @@ fn rotated_and_scaled_objects_export_on_the_grid() {
 fn bytes_round_trip(objects: &[Object]) -> Vec<([i64; 3], [u8; 4])> {
     let (bytes, _) =
         export_vox_bytes(objects, Path::new("mem.vox"), &VoxExportOptions::default()).unwrap();
-    let scene = import_vox_bytes(&bytes, Path::new("mem.vox"), &VoxImportOptions::default())
-        .unwrap();
+    let scene =
+        import_vox_bytes(&bytes, Path::new("mem.vox"), &VoxImportOptions::default()).unwrap();
     world_set(&scene.objects)
 }
 
@@ -409,13 +463,19 @@ fn bytes_round_trip(objects: &[Object]) -> Vec<([i64; 3], [u8; 4])> {
 fn more_than_255_colours_are_quantised_deterministically() {
     let voxels: Vec<(UVec3, Voxel)> = (0..4096u32)
         .map(|i| {
-            let c = [(i % 16 * 17) as u8, (i / 16 % 16 * 17) as u8, (i / 256 * 17) as u8, 255];
+            let c = [
+                (i % 16 * 17) as u8,
+                (i / 16 % 16 * 17) as u8,
+                (i / 256 * 17) as u8,
+                255,
+            ];
             (UVec3::new(i % 16, i / 16 % 16, i / 256), solid(c))
         })
         .collect();
     let o = object("rainbow", voxels, 4);
     let opts = VoxExportOptions::default();
-    let (a, report) = export_vox_bytes(std::slice::from_ref(&o), Path::new("q.vox"), &opts).unwrap();
+    let (a, report) =
+        export_vox_bytes(std::slice::from_ref(&o), Path::new("q.vox"), &opts).unwrap();
     let (b, _) = export_vox_bytes(std::slice::from_ref(&o), Path::new("q.vox"), &opts).unwrap();
     assert_eq!(a, b, "export is deterministic");
     assert!(!report.exact_colors);
@@ -434,9 +494,15 @@ fn more_than_255_colours_are_quantised_deterministically() {
     }
     // Exactly 255 colours stay exact.
     let voxels: Vec<(UVec3, Voxel)> = (0..255u32)
-        .map(|i| (UVec3::new(i % 16, i / 16, 0), solid([i as u8, 0, 255 - i as u8, 255])))
+        .map(|i| {
+            (
+                UVec3::new(i % 16, i / 16, 0),
+                solid([i as u8, 0, 255 - i as u8, 255]),
+            )
+        })
         .collect();
-    let (_, report) = export_vox_bytes(&[object("p", voxels, 4)], Path::new("p.vox"), &opts).unwrap();
+    let (_, report) =
+        export_vox_bytes(&[object("p", voxels, 4)], Path::new("p.vox"), &opts).unwrap();
     assert!(report.exact_colors && report.palette_colors == 255);
 }
 
@@ -456,7 +522,10 @@ fn not_a_vox_and_empty_files_give_clear_errors() {
     let e = import_vox(&path).unwrap_err();
     assert!(matches!(e, VoxError::NotVox { .. }), "{e}");
     let msg = e.to_string();
-    assert!(msg.contains("not_a.vox") && msg.contains("not a MagicaVoxel file"), "{msg}");
+    assert!(
+        msg.contains("not_a.vox") && msg.contains("not a MagicaVoxel file"),
+        "{msg}"
+    );
     let dir = tempfile::tempdir().unwrap();
     let empty = dir.path().join("empty.vox");
     std::fs::write(&empty, b"").unwrap();
@@ -464,7 +533,10 @@ fn not_a_vox_and_empty_files_give_clear_errors() {
     assert!(msg.contains("empty.vox") && msg.contains("empty"), "{msg}");
     let missing = dir.path().join("missing.vox");
     let msg = import_vox(&missing).unwrap_err().to_string();
-    assert!(msg.contains("missing.vox") && msg.contains("reading"), "{msg}");
+    assert!(
+        msg.contains("missing.vox") && msg.contains("reading"),
+        "{msg}"
+    );
 }
 
 #[test]
@@ -505,7 +577,10 @@ fn inflated_counts_are_refused_with_where_and_what() {
     let mut b = bytes.clone();
     b[size + 12..size + 16].copy_from_slice(&1000u32.to_le_bytes());
     let msg = err_text(&b, "army.vox");
-    assert!(msg.contains("chunk SIZE of model 0") && msg.contains("1000 ×"), "{msg}");
+    assert!(
+        msg.contains("chunk SIZE of model 0") && msg.contains("1000 ×"),
+        "{msg}"
+    );
     // A smaller SIZE than the voxels need.
     let mut b = bytes.clone();
     b[size + 12..size + 16].copy_from_slice(&1u32.to_le_bytes());
@@ -515,11 +590,17 @@ fn inflated_counts_are_refused_with_where_and_what() {
     let mut b = bytes.clone();
     b[xyzi + 4..xyzi + 8].copy_from_slice(&u32::MAX.to_le_bytes());
     let msg = err_text(&b, "army.vox");
-    assert!(msg.contains("truncated or inflated") && msg.contains("XYZI"), "{msg}");
+    assert!(
+        msg.contains("truncated or inflated") && msg.contains("XYZI"),
+        "{msg}"
+    );
     let mut b = bytes.clone();
     b[16..20].copy_from_slice(&u32::MAX.to_le_bytes());
     let msg = err_text(&b, "army.vox");
-    assert!(msg.contains("MAIN") && msg.contains("truncated or inflated"), "{msg}");
+    assert!(
+        msg.contains("MAIN") && msg.contains("truncated or inflated"),
+        "{msg}"
+    );
     // A voxel budget smaller than the file.
     let e = import_vox_bytes(
         &bytes,
@@ -596,7 +677,8 @@ fn rotated_instances_are_baked_exactly() {
     transform_chunk(&mut s, 4, 5, &[("_t", "-10 0 0"), ("_r", &rs)]);
     shape_chunk(&mut s, 5, 0);
     let bytes = file_with_scene(&s);
-    let scene = import_vox_bytes(&bytes, Path::new("rot.vox"), &VoxImportOptions::default()).unwrap();
+    let scene =
+        import_vox_bytes(&bytes, Path::new("rot.vox"), &VoxImportOptions::default()).unwrap();
     assert_eq!(scene.objects.len(), 2);
     // Unrotated: pivot (1,1,1); voxel (0,0,0) → MV cell (9,-1,-1); (1,1,1) → (10,0,0).
     let a = world_set(&scene.objects[..1]);
@@ -610,7 +692,10 @@ fn rotated_instances_are_baked_exactly() {
     let mut want_b = vec![to_yup([-10, -1, -1]), to_yup([-11, 0, 0])];
     want_b.sort_unstable();
     assert_eq!(b.iter().map(|e| e.0).collect::<Vec<_>>(), want_b);
-    assert_eq!(scene.objects[1].transform.translation, Vec3::new(-10.0, 0.0, 0.0));
+    assert_eq!(
+        scene.objects[1].transform.translation,
+        Vec3::new(-10.0, 0.0, 0.0)
+    );
 }
 
 #[test]
@@ -620,7 +705,10 @@ fn broken_scene_graphs_are_errors() {
     transform_chunk(&mut s, 0, 1, &[]);
     group_chunk(&mut s, 1, &[1]);
     let msg = err_text(&file_with_scene(&s), "cycle.vox");
-    assert!(msg.contains("cycle.vox") && msg.contains("deeper than"), "{msg}");
+    assert!(
+        msg.contains("cycle.vox") && msg.contains("deeper than"),
+        "{msg}"
+    );
     // A child that does not exist.
     let mut s = Vec::new();
     transform_chunk(&mut s, 0, 7, &[]);
@@ -633,7 +721,10 @@ fn broken_scene_graphs_are_errors() {
     let msg = err_text(&file_with_scene(&s), "model.vox");
     assert!(msg.contains("uses model 3"), "{msg}");
     // A rotation byte dot_vox would panic on, and a bad translation.
-    for (key, value, want) in [("_r", "15", "not a signed permutation"), ("_t", "1 x 2", "not three integers")] {
+    for (key, value, want) in [
+        ("_r", "15", "not a signed permutation"),
+        ("_t", "1 x 2", "not three integers"),
+    ] {
         let mut s = Vec::new();
         transform_chunk(&mut s, 0, 1, &[(key, value)]);
         shape_chunk(&mut s, 1, 0);
@@ -648,8 +739,12 @@ fn broken_scene_graphs_are_errors() {
     }
     group_chunk(&mut s, 140, &[141]);
     shape_chunk(&mut s, 141, 0);
-    let e = import_vox_bytes(&file_with_scene(&s), Path::new("bomb.vox"), &VoxImportOptions::default())
-        .unwrap_err();
+    let e = import_vox_bytes(
+        &file_with_scene(&s),
+        Path::new("bomb.vox"),
+        &VoxImportOptions::default(),
+    )
+    .unwrap_err();
     assert!(matches!(e, VoxError::TooLarge { .. }), "{e}");
     // A duplicate node id.
     let mut s = Vec::new();
@@ -680,7 +775,10 @@ fn failed_exports_write_nothing() {
     let mut bad = object("Bad", vec![(UVec3::ZERO, solid([1, 1, 1, 255]))], 1);
     bad.transform.translation.x = f32::NAN;
     let msg = export_vox(&[bad], &target).unwrap_err().to_string();
-    assert!(msg.contains("out.vox") && msg.contains("Bad") && msg.contains("translation"), "{msg}");
+    assert!(
+        msg.contains("out.vox") && msg.contains("Bad") && msg.contains("translation"),
+        "{msg}"
+    );
     assert_eq!(std::fs::read(&target).unwrap(), b"old");
     // A budget overflow from a huge scale.
     let mut huge = object("Huge", vec![(UVec3::ZERO, solid([1, 1, 1, 255]))], 1);
@@ -822,7 +920,11 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
                 panics += 1;
                 let dump = std::env::temp_dir().join(format!("thicket-vox-fuzz-panic-{case}.vox"));
                 let _ = std::fs::write(&dump, &data);
-                eprintln!("case {case} ({}) panicked; input saved to {}", files[k].0, dump.display());
+                eprintln!(
+                    "case {case} ({}) panicked; input saved to {}",
+                    files[k].0,
+                    dump.display()
+                );
             }
         }
     }
