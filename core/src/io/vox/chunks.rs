@@ -228,6 +228,12 @@ fn walk_children(bytes: &[u8], start: usize, end: usize, path: &Path) -> Result<
                 format!("has {children_len} children bytes; this chunk type has none"),
             ));
         }
+        if !known && children_len != 0 {
+            // dot_vox parses unknown chunks' children recursively: deep nesting in a small
+            // file would overflow the stack (an abort, which `catch_unwind` cannot stop).
+            let children = &bytes[pos + 12 + content_len..pos + 12 + content_len + children_len];
+            nesting_within(children, 1).map_err(|detail| malformed(path, &at, detail))?;
+        }
         let mut c = Cursor::new(content);
         let checked: Result<(), String> = match id {
             "MAIN" => Err("a second MAIN chunk inside MAIN".into()),
@@ -286,6 +292,34 @@ fn walk_children(bytes: &[u8], start: usize, end: usize, path: &Path) -> Result<
         pos += 12 + content_len + children_len;
     }
     Ok(layout)
+}
+
+/// Deepest nesting of chunks inside MAIN's children that is accepted (MagicaVoxel writes none).
+const MAX_NESTING: usize = 4;
+
+/// Checks that chunks nested in `children` (as dot_vox will parse them) stay within
+/// [`MAX_NESTING`] levels. Malformed nested chunks are fine: dot_vox stops at them.
+fn nesting_within(children: &[u8], depth: usize) -> Result<(), String> {
+    if depth > MAX_NESTING {
+        return Err(format!(
+            "chunks are nested more than {MAX_NESTING} levels deep"
+        ));
+    }
+    let mut pos = 0;
+    while children.len() - pos >= 12 {
+        let content = le_u32(children, pos + 4) as usize;
+        let nested = le_u32(children, pos + 8) as usize;
+        let body = children.len() - pos - 12;
+        if content > body || nested > body - content {
+            break;
+        }
+        if nested != 0 {
+            let start = pos + 12 + content;
+            nesting_within(&children[start..start + nested], depth + 1)?;
+        }
+        pos += 12 + content + nested;
+    }
+    Ok(())
 }
 
 /// Checks an `XYZI` chunk; returns the size it uses and its voxel count.

@@ -11,6 +11,9 @@ use super::chunks::{write_chunk, write_dict};
 use super::{MAX_MODEL_EDGE, VoxError, mv_cell_from_yup};
 use crate::scene::{Object, ObjectKind};
 
+/// MagicaVoxel-space cell → (sRGB colour, index into the export's material table).
+type CellMap = HashMap<[i64; 3], ([u8; 4], u16)>;
+
 /// Settings for [`export_vox_with`].
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VoxExportOptions {
@@ -94,7 +97,7 @@ pub fn export_vox_bytes(
                 o.transform
                     .validate(&o.name)
                     .map_err(|e| object_error(o, e.to_string()))?;
-                if !(v.voxel_size.is_finite() && v.voxel_size > 0.0) || !v.origin.is_finite() {
+                if !(v.voxel_size.is_finite() && v.voxel_size > 0.0 && v.origin.is_finite()) {
                     return Err(object_error(
                         o,
                         format!(
@@ -134,7 +137,7 @@ pub fn export_vox_bytes(
 
     // Global material table: name → index, "diffuse" = 0.
     let mut material_names: Vec<String> = vec!["diffuse".into()];
-    let mut per_object_cells: Vec<(String, HashMap<[i64; 3], ([u8; 4], u16)>)> = Vec::new();
+    let mut per_object_cells: Vec<(String, CellMap)> = Vec::new();
     let mut total_cells = 0u64;
     for (o, v) in &chosen {
         let local_materials: Vec<u16> = v
@@ -152,7 +155,7 @@ pub fn export_vox_bytes(
         let grid_from_voxel = DMat4::from_scale(DVec3::splat(1.0 / unit))
             * o.transform.matrix().as_dmat4()
             * v.object_from_voxel().as_dmat4();
-        let mut cells: HashMap<[i64; 3], ([u8; 4], u16)> = HashMap::new();
+        let mut cells = CellMap::new();
         let mut failure = None;
         v.svo.for_each_leaf(|c, vox| {
             if failure.is_some() {

@@ -755,6 +755,36 @@ fn broken_scene_graphs_are_errors() {
 }
 
 #[test]
+fn deeply_nested_chunks_are_refused_without_recursing() {
+    // 20,000 unknown chunks each holding the next: dot_vox would recurse once per level.
+    let levels = 20_000usize;
+    let mut inner: Vec<u8> = Vec::with_capacity(levels * 12);
+    for k in 0..levels {
+        inner.extend_from_slice(b"ABCD");
+        inner.extend_from_slice(&0u32.to_le_bytes());
+        inner.extend_from_slice(&(((levels - k - 1) * 12) as u32).to_le_bytes());
+    }
+    let msg = err_text(&file_with_scene(&inner), "deep.vox");
+    assert!(
+        msg.contains("deep.vox") && msg.contains("nested more than"),
+        "{msg}"
+    );
+    // A little nesting (as some tools write) is accepted.
+    let mut two = b"ABCD".to_vec();
+    two.extend_from_slice(&0u32.to_le_bytes());
+    two.extend_from_slice(&12u32.to_le_bytes());
+    two.extend_from_slice(b"EFGH");
+    two.extend_from_slice(&[0; 8]);
+    let ok = import_vox_bytes(
+        &file_with_scene(&two),
+        Path::new("two.vox"),
+        &VoxImportOptions::default(),
+    )
+    .unwrap();
+    assert_eq!(ok.voxel_count(), 2);
+}
+
+#[test]
 fn failed_exports_write_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let target = dir.path().join("out.vox");
