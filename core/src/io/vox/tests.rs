@@ -547,6 +547,14 @@ fn every_truncation_of_a_small_file_is_an_error_naming_the_file() {
         assert!(msg.starts_with("army.vox: "), "prefix {len}: {msg}");
     }
     assert!(import_vox_bytes(&bytes, Path::new("army.vox"), &VoxImportOptions::default()).is_ok());
+    // The larger files: every prefix up to 64 bytes, then every 61st (cut chunks of all kinds).
+    for rel in [PLACEHOLDER, METAL, AXES, SCENE] {
+        let bytes = read(rel);
+        for len in (0..64).chain((64..bytes.len()).step_by(61)) {
+            let msg = err_text(&bytes[..len], rel);
+            assert!(msg.starts_with(rel), "{rel} prefix {len}: {msg}");
+        }
+    }
 }
 
 /// Byte offset of the first chunk with this id inside MAIN.
