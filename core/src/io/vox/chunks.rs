@@ -80,8 +80,13 @@ impl<'a> Cursor<'a> {
         }
         let mut found = None;
         for i in 0..n {
-            let k = self.string(&format!("{what} key {i}"))?;
-            let v = self.string(&format!("{what} value {i}"))?;
+            // Context strings are built only on failure: validation runs on every import.
+            let k = self
+                .string("key")
+                .map_err(|e| format!("{what} entry {i}: {e}"))?;
+            let v = self
+                .string("value")
+                .map_err(|e| format!("{what} entry {i}: {e}"))?;
             if k == key {
                 found = Some(v);
             }
@@ -348,27 +353,33 @@ fn check_xyzi(c: &mut Cursor<'_>, size: Option<[u32; 3]>) -> Result<([u32; 3], u
 /// Checks a scene node's structure; returns its id.
 fn check_node(id: &str, c: &mut Cursor<'_>) -> Result<u32, String> {
     let node_id = c.u32("node id")?;
-    let ctx = |s: &str| format!("node {node_id}: {s}");
+    check_node_body(id, c).map_err(|e| format!("node {node_id}: {e}"))?;
+    Ok(node_id)
+}
+
+fn check_node_body(id: &str, c: &mut Cursor<'_>) -> Result<(), String> {
+    c.dict("attributes", "")?;
     match id {
         "nTRN" => {
-            c.dict(&ctx("attributes"), "")?;
-            c.u32(&ctx("child id"))?;
-            c.u32(&ctx("reserved id"))?;
-            c.u32(&ctx("layer id"))?;
-            let frames = c.count(&ctx("frame count"), 4)?;
+            c.u32("child id")?;
+            c.u32("reserved id")?;
+            c.u32("layer id")?;
+            let frames = c.count("frame count", 4)?;
             if frames == 0 {
-                return Err(ctx("a transform needs at least one frame"));
+                return Err("a transform needs at least one frame".into());
             }
             for f in 0..frames {
-                let what = ctx(&format!("frame {f}"));
-                if let Some(r) = c.dict(&what, "_r")? {
+                let rotation = c
+                    .dict("frame", "_r")
+                    .map_err(|e| format!("frame {f}: {e}"))?;
+                if let Some(r) = rotation {
                     let byte: u8 = r
                         .trim()
                         .parse()
-                        .map_err(|_| format!("{what}: rotation _r {r:?} is not a byte"))?;
+                        .map_err(|_| format!("frame {f}: rotation _r {r:?} is not a byte"))?;
                     if super::decode_rotation(byte).is_none() {
                         return Err(format!(
-                            "{what}: rotation _r {byte} is not a signed permutation"
+                            "frame {f}: rotation _r {byte} is not a signed permutation"
                         ));
                     }
                 }
@@ -376,23 +387,22 @@ fn check_node(id: &str, c: &mut Cursor<'_>) -> Result<u32, String> {
             // `_t` is re-read (and its syntax checked) when the graph is applied.
         }
         "nGRP" => {
-            c.dict(&ctx("attributes"), "")?;
-            let n = c.count(&ctx("child count"), 4)?;
-            c.take(n * 4, &ctx("children"))?;
+            let n = c.count("child count", 4)?;
+            c.take(n * 4, "children")?;
         }
         _ => {
-            c.dict(&ctx("attributes"), "")?;
-            let n = c.count(&ctx("model count"), 8)?;
+            let n = c.count("model count", 8)?;
             if n == 0 {
-                return Err(ctx("a shape needs at least one model"));
+                return Err("a shape needs at least one model".into());
             }
             for m in 0..n {
-                c.u32(&ctx("model id"))?;
-                c.dict(&ctx(&format!("model {m} attributes")), "")?;
+                c.u32("model id")?;
+                c.dict("model attributes", "")
+                    .map_err(|e| format!("model {m}: {e}"))?;
             }
         }
     }
-    Ok(node_id)
+    Ok(())
 }
 
 /// Appends one chunk (no children).

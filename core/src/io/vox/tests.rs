@@ -943,7 +943,14 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
         max_voxels: 1 << 20,
     };
     let (mut ok, mut err, mut panics) = (0, 0, 0);
+    let start = Instant::now();
     for case in 0..cases {
+        if case > 0 && case % 100_000 == 0 {
+            eprintln!(
+                "vox fuzz: {case} cases, {panics} panics, {:.0} s",
+                start.elapsed().as_secs_f64()
+            );
+        }
         let k = (case % files.len() as u64) as usize;
         let data = mutate(&mut rng, &files[k].1, &headers[k]);
         let name = Path::new(&files[k].0);
