@@ -82,6 +82,9 @@ pub(crate) struct PassSettings {
     pub(crate) shadow_casters_only: bool,
 }
 
+/// One block's output: children for the next pass, splats with their nodes, counters.
+type ChunkPart = (Vec<QNode>, Vec<(Splat, QNode)>, LevelStats);
+
 enum Action {
     Frustum,
     Occluded,
@@ -159,7 +162,7 @@ pub(crate) fn draw_voxels(
         for chunk in queue.chunks(chunk_len) {
             let t0 = Instant::now();
             let target_ref: &DepthTarget = target;
-            let parts: Vec<(Vec<QNode>, Vec<(Splat, QNode)>, LevelStats)> = chunk
+            let parts: Vec<ChunkPart> = chunk
                 .par_chunks(512)
                 .map(|block| {
                     let mut children = Vec::new();

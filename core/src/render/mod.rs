@@ -202,8 +202,12 @@ pub fn render_scene(
     for light in scene.lights {
         let map = match bounds {
             Some((lo, hi)) if quality.shadows && light.casts_shadows => {
-                shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size).map(
-                    |lc| {
+                // Two texels per view pixel where the scene comes nearest the eye.
+                let eye = cam.eye();
+                let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
+                let finest = 0.5 * cam.pixel_world_size(nearest);
+                shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, finest)
+                    .map(|lc| {
                         shade::ShadowMap::render(
                             lc,
                             &scene.voxels,
@@ -212,8 +216,7 @@ pub fn render_scene(
                             quality,
                             &mut stats.shadow_levels,
                         )
-                    },
-                )
+                    })
             }
             _ => None,
         };

@@ -24,8 +24,17 @@ pub(crate) struct ShadowMap {
     pub(crate) texel_world: f32,
 }
 
-/// An orthographic camera looking along `direction` whose image tightly holds the box.
-pub(crate) fn fit_light_camera(direction: Vec3, lo: Vec3, hi: Vec3, size: u32) -> Option<Camera> {
+/// An orthographic camera looking along `direction` whose image tightly holds the box, with at
+/// most `max_size` texels per edge and texels no finer than `finest_texel_world` (finer texels
+/// than the view can resolve only cost time: this keeps the shadow pass bound by the view's
+/// resolution, like the view's own traversal).
+pub(crate) fn fit_light_camera(
+    direction: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+    max_size: u32,
+    finest_texel_world: f32,
+) -> Option<Camera> {
     let dir = direction.try_normalize()?;
     let center = (lo + hi) * 0.5;
     let radius = ((hi - lo).length() * 0.5).max(1e-4);
@@ -49,6 +58,12 @@ pub(crate) fn fit_light_camera(direction: Vec3, lo: Vec3, hi: Vec3, size: u32) -
     let shift = Mat4::from_translation(Vec3::new(-mid.x, -mid.y, 0.0));
     let half = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
     let margin = 0.01 * radius + 1e-4;
+    let wanted = (2.0 * half / finest_texel_world.max(1e-30)).ceil();
+    let size = if wanted.is_finite() {
+        (wanted as u32).clamp(16, max_size.max(16))
+    } else {
+        max_size
+    };
     Some(Camera::new(
         shift * view,
         Projection::Orthographic {

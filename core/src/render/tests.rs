@@ -63,9 +63,11 @@ fn golden_mixed() {
 
 #[test]
 fn camera_fast_paths_match_clip_matrix() {
-    let mut orbit = OrbitCamera::default();
-    orbit.yaw_deg = 37.0;
-    orbit.pitch_deg = -12.0;
+    let orbit = OrbitCamera {
+        yaw_deg: 37.0,
+        pitch_deg: -12.0,
+        ..OrbitCamera::default()
+    };
     let cam = Camera::from_orbit(&orbit, 320, 200);
     for p in [
         Vec3::ZERO,
