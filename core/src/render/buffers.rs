@@ -118,9 +118,11 @@ impl DepthTarget {
             .par_iter_mut()
             .enumerate()
             .map(|(t, m)| {
-                if !dirty[t].swap(false, Ordering::Relaxed) {
+                // A plain load first: most tiles are clean, and a swap is a read-modify-write.
+                if !dirty[t].load(Ordering::Relaxed) {
                     return false;
                 }
+                dirty[t].store(false, Ordering::Relaxed);
                 let (tx, ty) = (t as u32 % tx_n, t as u32 / tx_n);
                 let mut max = 0.0f32;
                 'rows: for y in ty * TILE..((ty + 1) * TILE).min(h) {
