@@ -1,5 +1,284 @@
-//! CPU reference renderers.
+//! CPU reference renderers (ASVO paper §4, Fig. 8, Fig. 10, §8.1), multi-threaded with rayon.
+//!
+//! A frame: shadow maps (one per shadow-casting light, orthographic, fit to the scene) →
+//! triangles into the view's packed depth+id target → voxel objects by the breadth-first ASVO
+//! traversal into the same target → resolve ids to a G-buffer → deferred Phong. Depth is NDC z
+//! (0 near, 1 far, as `clip_from_world`); see `docs/rendering.md` for the conventions a GPU
+//! renderer must match.
+//!
+//! Entry points: [`render_document`] for a [`Document`], [`render_scene`] for callers that bring
+//! their own per-node transform ([`NodeDeform`], e.g. skinning).
 
+mod asvo;
+mod buffers;
+mod camera;
+mod deform;
 pub mod quality;
+mod raster;
+pub mod scenes;
+mod shade;
+mod stats;
 
+#[cfg(test)]
+mod tests;
+
+use std::time::Instant;
+
+use glam::Vec3;
+
+pub use asvo::VoxelInstance;
+pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
+pub use camera::{Camera, Projection};
+pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
 pub use quality::{Quality, QualityError, QualityPreset};
+pub use raster::MeshInstance;
+pub use stats::{FrameStats, LevelStats, StageTimes};
+
+use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
+
+/// Largest accepted image edge in pixels.
+pub const MAX_IMAGE_SIZE: u32 = 16384;
+
+/// Ids with this bit set are triangles; below it, voxel splats.
+pub(crate) const MESH_ID_FLAG: u32 = 1 << 31;
+
+/// Why a frame could not be rendered.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RenderError {
+    /// Width or height is zero.
+    #[error("image size {width}×{height} is empty: both edges must be at least 1 pixel")]
+    ZeroSize {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+    },
+    /// Width or height is above [`MAX_IMAGE_SIZE`].
+    #[error(
+        "image size {width}×{height} is too large: the limit is {MAX_IMAGE_SIZE} pixels per edge"
+    )]
+    TooLarge {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+    },
+    /// The document has a value a renderer must not see.
+    #[error("cannot render the document: {0}")]
+    InvalidDocument(#[from] SceneError),
+    /// A quality knob is out of range.
+    #[error("cannot render with these quality settings: {0}")]
+    InvalidQuality(#[from] QualityError),
+}
+
+/// What to render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderRequest {
+    /// Image width in pixels (1..=16384).
+    pub width: u32,
+    /// Image height in pixels (1..=16384).
+    pub height: u32,
+    /// The view; `None` uses the document's camera.
+    pub camera: Option<OrbitCamera>,
+    /// Quality knobs (the document's own are ignored: the caller decides).
+    pub quality: Quality,
+}
+
+impl RenderRequest {
+    /// A request at a size with the document's camera and the default quality.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            camera: None,
+            quality: Quality::default(),
+        }
+    }
+}
+
+/// A scene as the renderer sees it: instances with their transforms resolved.
+pub struct RenderScene<'a> {
+    /// Voxel objects.
+    pub voxels: Vec<VoxelInstance<'a>>,
+    /// Triangle-mesh objects.
+    pub meshes: Vec<MeshInstance<'a>>,
+    /// Directional lights.
+    pub lights: &'a [Light],
+    /// Linear RGB ambient light.
+    pub ambient: Vec3,
+    /// Linear RGB background.
+    pub background: Vec3,
+}
+
+fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
+    if width == 0 || height == 0 {
+        return Err(RenderError::ZeroSize { width, height });
+    }
+    if width > MAX_IMAGE_SIZE || height > MAX_IMAGE_SIZE {
+        return Err(RenderError::TooLarge { width, height });
+    }
+    Ok(())
+}
+
+/// Renders a document: validates it, places every visible object with its rigid transform and
+/// renders with [`render_scene`].
+///
+/// # Errors
+/// [`RenderError`] for an empty or oversized image, an invalid document, camera or quality.
+pub fn render_document(
+    doc: &Document,
+    req: &RenderRequest,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    check_size(req.width, req.height)?;
+    doc.validate()?;
+    req.quality.validate()?;
+    let orbit = req.camera.unwrap_or(doc.camera);
+    orbit.validate()?;
+    let cam = Camera::from_orbit(&orbit, req.width, req.height);
+
+    let deforms: Vec<Option<RigidDeform>> = doc
+        .objects
+        .iter()
+        .map(|o| match &o.kind {
+            ObjectKind::Voxels(v) => Some(RigidDeform::new(
+                o.transform.matrix() * v.object_from_voxel(),
+            )),
+            ObjectKind::Mesh(_) => None,
+        })
+        .collect();
+    let mut scene = RenderScene {
+        voxels: Vec::new(),
+        meshes: Vec::new(),
+        lights: &doc.lights,
+        ambient: doc.ambient,
+        background: doc.background,
+    };
+    for (i, (o, d)) in doc.objects.iter().zip(&deforms).enumerate() {
+        if !o.visible {
+            continue;
+        }
+        let label = i as u32 + 1;
+        match (&o.kind, d) {
+            (ObjectKind::Voxels(v), Some(d)) => scene.voxels.push(VoxelInstance {
+                svo: &v.svo,
+                deform: d,
+                casts_shadows: true,
+                label,
+            }),
+            (ObjectKind::Mesh(m), _) => scene.meshes.push(MeshInstance {
+                model: &m.model,
+                world_from_object: o.transform.matrix(),
+                casts_shadows: m.casts_shadows,
+                label,
+            }),
+            (ObjectKind::Voxels(_), None) => {}
+        }
+    }
+    render_scene(&scene, &cam, &req.quality)
+}
+
+/// Renders a scene from a camera.
+///
+/// # Errors
+/// [`RenderError`] for an empty or oversized image or invalid quality.
+pub fn render_scene(
+    scene: &RenderScene<'_>,
+    cam: &Camera,
+    quality: &Quality,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    check_size(cam.width, cam.height)?;
+    quality.validate()?;
+    let t_start = Instant::now();
+    let mut stats = FrameStats::default();
+
+    let tris = raster::world_triangles(&scene.meshes);
+    stats.triangles = tris.len() as u64;
+
+    // Shadow maps.
+    let t0 = Instant::now();
+    let mut shadows = Vec::with_capacity(scene.lights.len());
+    let bounds = scene_bounds(scene, &tris);
+    for light in scene.lights {
+        let map = match bounds {
+            Some((lo, hi)) if quality.shadows && light.casts_shadows => {
+                // Two texels per view pixel where the scene comes nearest the eye.
+                let eye = cam.eye();
+                let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
+                let finest = 0.5 * cam.pixel_world_size(nearest);
+                shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, finest)
+                    .map(|lc| {
+                        shade::ShadowMap::render(
+                            lc,
+                            &scene.voxels,
+                            &scene.meshes,
+                            &tris,
+                            quality,
+                            &mut stats.shadow_levels,
+                        )
+                    })
+            }
+            _ => None,
+        };
+        shadows.push(map);
+    }
+    stats.times.shadow_ms = ms_since(t0);
+
+    // View: triangles, then voxels into the same depth.
+    let t0 = Instant::now();
+    let mut target = buffers::DepthTarget::new(cam.width, cam.height);
+    stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
+    target.mark_all_dirty();
+    if quality.occlusion_culling {
+        target.update_tiles();
+    }
+    stats.times.triangles_ms = ms_since(t0);
+    let pass = asvo::draw_voxels(
+        &scene.voxels,
+        cam,
+        &mut target,
+        &asvo::PassSettings {
+            lod_pixel_threshold: quality.lod_pixel_threshold,
+            occlusion_culling: quality.occlusion_culling,
+            id_base: 0,
+            keep_refs: true,
+            shadow_casters_only: false,
+        },
+    );
+    stats.levels = pass.levels;
+    stats.times.traversal_ms = pass.traversal_ms;
+    stats.times.splat_ms = pass.splat_ms;
+
+    let t0 = Instant::now();
+    let keys = target.into_keys();
+    let fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    stats.times.resolve_ms = ms_since(t0);
+    stats.covered_pixels = fb.covered_pixels() as u64;
+
+    let t0 = Instant::now();
+    let lighting = shade::Lighting {
+        lights: scene.lights,
+        shadows,
+        ambient: scene.ambient,
+        background: scene.background,
+    };
+    let img = shade::shade(&fb, cam, &lighting, quality);
+    stats.times.shade_ms = ms_since(t0);
+    stats.times.total_ms = ms_since(t_start);
+    Ok((img, fb, stats))
+}
+
+fn ms_since(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// World bounds of everything drawn (casters and receivers), for fitting shadow maps.
+fn scene_bounds(scene: &RenderScene<'_>, tris: &[raster::WorldTriangle]) -> Option<(Vec3, Vec3)> {
+    let mut b = asvo::voxel_bounds(&scene.voxels, false);
+    for t in tris {
+        for p in t.world {
+            b = Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))));
+        }
+    }
+    b.filter(|(lo, hi)| lo.is_finite() && hi.is_finite())
+}

@@ -1,0 +1,116 @@
+//! CPU reference renderer benchmarks (issue 3): frame time at 800×800 for a ~3M-voxel surface
+//! model with shading and shadows; resolution-bound LOD (depth 9 vs depth 12, same view); LOD
+//! vs splatting every leaf.
+//!
+//! `cargo bench -p thicket-core --bench render -- --warm-up-time 1 --measurement-time 5`
+
+use std::hint::black_box;
+
+use criterion::{Criterion, criterion_group, criterion_main};
+use thicket_core::render::scenes::{sphere_shell, voxel_object};
+use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::scene::{Document, OrbitCamera};
+
+/// A sphere shell of world radius 1 whose voxel radius is `fraction` of half the octree.
+fn sphere_doc(depth: u8, fraction: f32) -> Document {
+    let svo = sphere_shell(depth, fraction).expect("depth in range");
+    let mut doc = Document::default();
+    doc.add("Sphere", voxel_object(svo, 1.0 / fraction));
+    doc
+}
+
+fn request(distance: f32, quality: Quality) -> RenderRequest {
+    RenderRequest {
+        width: 800,
+        height: 800,
+        camera: Some(OrbitCamera {
+            distance,
+            ..OrbitCamera::default()
+        }),
+        quality,
+    }
+}
+
+fn report(name: &str, doc: &Document, req: &RenderRequest) {
+    if let Ok((_, fb, st)) = render_document(doc, req) {
+        let leaves = doc
+            .objects
+            .iter()
+            .map(|o| match &o.kind {
+                thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
+                thicket_core::scene::ObjectKind::Mesh(_) => 0,
+            })
+            .sum::<u64>();
+        eprintln!(
+            "{name}: {leaves} voxels, {} covered px, {} visited, {} splats, {} occlusion-culled, \
+             times {:?}",
+            fb.covered_pixels(),
+            st.nodes_visited(),
+            st.splats(),
+            st.totals().occlusion_culled,
+            st.times
+        );
+    }
+}
+
+fn benches(c: &mut Criterion) {
+    // ~3M voxels: radius 0.36 × 1024 ≈ 369 voxels in a depth-11 octree.
+    let big = sphere_doc(11, 0.36);
+    // Near view: the sphere spans about 480 px; far view: about 75 px.
+    let near = 4.0;
+    let far = 26.0;
+    let shaded = Quality::default();
+    let no_shadows = Quality {
+        shadows: false,
+        ..Quality::default()
+    };
+
+    let mut g = c.benchmark_group("frame_800");
+    g.sample_size(10);
+    for (name, q) in [("shadows", &shaded), ("no_shadows", &no_shadows)] {
+        let req = request(near, q.clone());
+        report(&format!("frame_800/{name}"), &big, &req);
+        g.bench_function(name, |b| b.iter(|| black_box(render_document(&big, &req))));
+    }
+    let draft = Quality {
+        shadow_map_size: 1024,
+        ..Quality::default()
+    };
+    let req = request(near, draft);
+    report("frame_800/shadows_1024", &big, &req);
+    g.bench_function("shadows_1024", |b| {
+        b.iter(|| black_box(render_document(&big, &req)));
+    });
+    g.finish();
+
+    // Resolution bound: the same shape (radius 0.18 of the octree) at depth 9 (≈46k voxels) and
+    // depth 12 (≈3M), far enough that depth-9 voxels are below a pixel.
+    let mut g = c.benchmark_group("resolution_bound");
+    g.sample_size(10);
+    for depth in [9u8, 12] {
+        let doc = sphere_doc(depth, 0.18);
+        let req = request(far, shaded.clone());
+        report(&format!("resolution_bound/depth{depth}"), &doc, &req);
+        g.bench_function(format!("depth{depth}"), |b| {
+            b.iter(|| black_box(render_document(&doc, &req)));
+        });
+    }
+    g.finish();
+
+    // LOD vs every leaf: the 3M model in the far view (voxels about 0.1 px).
+    let mut g = c.benchmark_group("lod");
+    g.sample_size(10);
+    let leaves = Quality {
+        lod_pixel_threshold: 0.05,
+        ..no_shadows.clone()
+    };
+    for (name, q) in [("lod", &no_shadows), ("every_leaf", &leaves)] {
+        let req = request(far, q.clone());
+        report(&format!("lod/{name}"), &big, &req);
+        g.bench_function(name, |b| b.iter(|| black_box(render_document(&big, &req))));
+    }
+    g.finish();
+}
+
+criterion_group!(render_benches, benches);
+criterion_main!(render_benches);

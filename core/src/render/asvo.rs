@@ -1,0 +1,399 @@
+//! ASVO drawing (paper §4, Fig. 8): a queue-based breadth-first traversal, one octree level per
+//! pass. Each node is placed in the world by its object's [`NodeDeform`] when its screen position
+//! is computed, frustum- and occlusion-culled, then split (children go to the next pass in
+//! front-to-back order, Fig. 10) while its projected edge exceeds the LOD threshold, otherwise
+//! splatted as the screen rectangle of its projected box at the depth of its nearest point.
+//!
+//! Determinism: the queue is processed in fixed-size chunks whose results are concatenated in
+//! queue order, splat ids are queue positions, and depth+id is an atomic minimum — so the
+//! image does not depend on the thread count.
+
+use std::time::Instant;
+
+use glam::{Mat3, Vec3};
+use rayon::prelude::*;
+
+use super::buffers::{DepthTarget, pack_key};
+use super::camera::Camera;
+use super::deform::{NodeDeform, NodeInfo};
+use super::stats::LevelStats;
+use crate::svo::{NodeRef, Svo, front_to_back_order};
+
+/// One voxel object to draw.
+#[derive(Clone, Copy)]
+pub struct VoxelInstance<'a> {
+    /// The octree.
+    pub svo: &'a Svo,
+    /// Places its nodes in the world (rigid transform, skinning, …).
+    pub deform: &'a dyn NodeDeform,
+    /// Whether it is drawn into shadow maps.
+    pub casts_shadows: bool,
+    /// Reported in [`super::PixelId::object`] (use 1-based; 0 means background).
+    pub label: u32,
+}
+
+/// A queued node: which object, and where in its octree.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct QNode {
+    pub(crate) obj: u32,
+    pub(crate) node: NodeRef,
+}
+
+/// A splat waiting to be written: an inclusive pixel rectangle and its depth.
+#[derive(Debug, Clone, Copy)]
+struct Splat {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    ndc_depth: f32,
+}
+
+/// Per-object, per-camera constants of the rigid fast path.
+#[derive(Clone, Copy)]
+struct Fast {
+    /// `view_from_voxel` linear part and translation.
+    linear: Mat3,
+    translation: Vec3,
+    /// View-space AABB half extent of a node of edge 1 voxel (rows of |linear| summed / 2).
+    half_extent_unit: Vec3,
+    /// Longest world edge of a node of edge 1 voxel.
+    edge_unit: f32,
+}
+
+/// What a traversal produced.
+pub(crate) struct VoxelPass {
+    /// `refs[i]` is the node drawn with id `id_base + i` (empty when refs were not requested).
+    pub(crate) refs: Vec<QNode>,
+    pub(crate) levels: Vec<LevelStats>,
+    pub(crate) traversal_ms: f64,
+    pub(crate) splat_ms: f64,
+}
+
+/// Traversal settings.
+pub(crate) struct PassSettings {
+    pub(crate) lod_pixel_threshold: f32,
+    pub(crate) occlusion_culling: bool,
+    /// First id to hand out (ids are `id_base + splat index`).
+    pub(crate) id_base: u32,
+    /// Keep the node of every splat (the view needs them to resolve; shadow maps do not).
+    pub(crate) keep_refs: bool,
+    /// Only objects with `casts_shadows`.
+    pub(crate) shadow_casters_only: bool,
+}
+
+/// One block's output: children for the next pass, splats with their nodes, counters.
+type ChunkPart = (Vec<QNode>, Vec<(Splat, QNode)>, LevelStats);
+
+enum Action {
+    Frustum,
+    Occluded,
+    /// Split; carries the node's view-space centre and axes for the child order.
+    Split(Vec3, Mat3),
+    Splat(Splat),
+}
+
+/// Nodes per chunk between hierarchical-depth updates: small enough that nodes late in a pass
+/// are culled by splats from earlier in the same pass, large enough to keep threads busy.
+/// Scaled with the image (a chunk of about 1/16 of its pixels rarely overlaps itself).
+const MIN_CHUNK: usize = 1 << 10;
+const MAX_CHUNK: usize = 1 << 16;
+
+/// Draws voxel objects into `target`.
+pub(crate) fn draw_voxels(
+    objects: &[VoxelInstance<'_>],
+    cam: &Camera,
+    target: &mut DepthTarget,
+    settings: &PassSettings,
+) -> VoxelPass {
+    let view_rot = cam.view_rotation();
+    let fast: Vec<Option<Fast>> = objects
+        .iter()
+        .map(|o| {
+            o.deform.uniform_affine().map(|a| {
+                let view_from_voxel = cam.view_from_world * glam::Mat4::from(a);
+                let linear = Mat3::from_mat4(view_from_voxel);
+                let abs = Mat3::from_cols(
+                    linear.x_axis.abs(),
+                    linear.y_axis.abs(),
+                    linear.z_axis.abs(),
+                );
+                let wl = Mat3::from(a.matrix3);
+                Fast {
+                    linear,
+                    translation: view_from_voxel.w_axis.truncate(),
+                    half_extent_unit: abs * Vec3::splat(0.5),
+                    edge_unit: wl
+                        .x_axis
+                        .length()
+                        .max(wl.y_axis.length())
+                        .max(wl.z_axis.length()),
+                }
+            })
+        })
+        .collect();
+
+    let mut queue: Vec<QNode> = objects
+        .iter()
+        .enumerate()
+        .filter(|(_, o)| !o.svo.is_empty() && (!settings.shadow_casters_only || o.casts_shadows))
+        .map(|(i, o)| QNode {
+            obj: i as u32,
+            node: o.svo.root(),
+        })
+        .collect();
+
+    let mut out = VoxelPass {
+        refs: Vec::new(),
+        levels: Vec::new(),
+        traversal_ms: 0.0,
+        splat_ms: 0.0,
+    };
+    let mut splat_count: u64 = 0;
+    let mut level = 0usize;
+    while !queue.is_empty() {
+        let chunk_len = if settings.occlusion_culling {
+            ((cam.width as usize * cam.height as usize) / 16).clamp(MIN_CHUNK, MAX_CHUNK)
+        } else {
+            queue.len()
+        };
+        let mut next: Vec<QNode> = Vec::new();
+        let mut stats = LevelStats::default();
+        for chunk in queue.chunks(chunk_len) {
+            let t0 = Instant::now();
+            let target_ref: &DepthTarget = target;
+            let parts: Vec<ChunkPart> = chunk
+                .par_chunks(512)
+                .map(|block| {
+                    let mut children = Vec::new();
+                    let mut splats = Vec::new();
+                    let mut st = LevelStats::default();
+                    for q in block {
+                        st.visited += 1;
+                        let obj = &objects[q.obj as usize];
+                        match classify(
+                            obj,
+                            fast[q.obj as usize].as_ref(),
+                            q,
+                            cam,
+                            view_rot,
+                            target_ref,
+                            settings,
+                        ) {
+                            Action::Frustum => st.frustum_culled += 1,
+                            Action::Occluded => st.occlusion_culled += 1,
+                            Action::Split(c, axes) => {
+                                st.split += 1;
+                                push_children(obj, q, cam, c, axes, &mut children);
+                            }
+                            Action::Splat(s) => {
+                                st.splatted += 1;
+                                splats.push((s, *q));
+                            }
+                        }
+                    }
+                    (children, splats, st)
+                })
+                .collect();
+            let mut splats: Vec<(Splat, QNode)> = Vec::new();
+            for (c, s, st) in parts {
+                next.extend(c);
+                splats.extend(s);
+                stats.add(&st);
+            }
+            let t1 = Instant::now();
+            let base = u64::from(settings.id_base) + splat_count;
+            splats.par_iter().enumerate().for_each(|(i, (s, _))| {
+                let id = (base + i as u64).min(u64::from(super::MESH_ID_FLAG - 1)) as u32;
+                target_ref.write_rect(s.x0, s.y0, s.x1, s.y1, pack_key(s.ndc_depth, id));
+            });
+            splat_count += splats.len() as u64;
+            if settings.keep_refs {
+                out.refs.extend(splats.iter().map(|(_, q)| *q));
+            }
+            if settings.occlusion_culling {
+                target.update_tiles();
+            }
+            let t2 = Instant::now();
+            out.traversal_ms += (t1 - t0).as_secs_f64() * 1e3;
+            out.splat_ms += (t2 - t1).as_secs_f64() * 1e3;
+        }
+        if out.levels.len() <= level {
+            out.levels.resize(level + 1, LevelStats::default());
+        }
+        out.levels[level].add(&stats);
+        queue = next;
+        level += 1;
+    }
+    out
+}
+
+/// View-space centre and AABB half extents of a node, and its longest world edge.
+#[inline]
+fn node_in_view(
+    obj: &VoxelInstance<'_>,
+    fast: Option<&Fast>,
+    q: &QNode,
+    cam: &Camera,
+    view_rot: Mat3,
+) -> (Vec3, Vec3, f32, Mat3) {
+    let size = obj.svo.node_size(q.node.level) as f32;
+    if let Some(f) = fast {
+        let center_voxel = q.node.origin.as_vec3() + Vec3::splat(0.5 * size);
+        let c = f.linear * center_voxel + f.translation;
+        (c, f.half_extent_unit * size, f.edge_unit * size, f.linear)
+    } else {
+        let info = NodeInfo {
+            svo: obj.svo,
+            node: q.node,
+        };
+        let d = obj.deform.deform(&info);
+        let c = cam.view_from_world.transform_point3(d.center_world);
+        let axes = view_rot * d.half_axes_world;
+        let abs = Mat3::from_cols(axes.x_axis.abs(), axes.y_axis.abs(), axes.z_axis.abs());
+        let edge = 2.0
+            * d.half_axes_world
+                .x_axis
+                .length()
+                .max(d.half_axes_world.y_axis.length())
+                .max(d.half_axes_world.z_axis.length());
+        (c, abs * Vec3::ONE, edge, axes)
+    }
+}
+
+#[inline]
+fn classify(
+    obj: &VoxelInstance<'_>,
+    fast: Option<&Fast>,
+    q: &QNode,
+    cam: &Camera,
+    view_rot: Mat3,
+    target: &DepthTarget,
+    settings: &PassSettings,
+) -> Action {
+    let (c, he, edge_world, axes_view) = node_in_view(obj, fast, q, cam, view_rot);
+    let d = -c.z;
+    let (d_near, d_far) = (d - he.z, d + he.z);
+    if !(d_near.is_finite() && d_far.is_finite()) {
+        return Action::Frustum;
+    }
+    let (near, far) = (cam.near, cam.far);
+    if d_far <= near || d_near > far {
+        return Action::Frustum;
+    }
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    let crosses_near = cam.perspective && d_near < near;
+    let dn = d_near.max(near);
+    let (x_lo, x_hi, y_lo, y_hi, edge_px) = if cam.perspective {
+        // Extremes of x/d over the box's view-space AABB lie at its nearest (clamped to the
+        // near plane) or farthest depth.
+        let (xl, xh, yl, yh) = (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y);
+        (
+            (xl / dn).min(xl / d_far),
+            (xh / dn).max(xh / d_far),
+            (yl / dn).min(yl / d_far),
+            (yh / dn).max(yh / d_far),
+            edge_world * cam.fy / dn,
+        )
+    } else {
+        (
+            c.x - he.x,
+            c.x + he.x,
+            c.y - he.y,
+            c.y + he.y,
+            edge_world * cam.fy.max(cam.fx),
+        )
+    };
+    let sx0 = 0.5 * w + cam.fx * x_lo;
+    let sx1 = 0.5 * w + cam.fx * x_hi;
+    let sy0 = 0.5 * h - cam.fy * y_hi;
+    let sy1 = 0.5 * h - cam.fy * y_lo;
+    if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
+        return Action::Frustum;
+    }
+    let has_children = !obj.svo.is_leaf(&q.node);
+    let (x0, x1) = pixel_span(sx0, sx1, cam.width);
+    let (y0, y1) = pixel_span(sy0, sy1, cam.height);
+    let ndc_depth = cam.ndc_depth(dn);
+    if settings.occlusion_culling && !crosses_near && target.occluded(x0, y0, x1, y1, ndc_depth) {
+        return Action::Occluded;
+    }
+    if has_children && (crosses_near || edge_px > settings.lod_pixel_threshold) {
+        return Action::Split(c, axes_view);
+    }
+    Action::Splat(Splat {
+        x0,
+        y0,
+        x1,
+        y1,
+        ndc_depth,
+    })
+}
+
+/// Pixels whose centres lie in `[s0, s1]`, or the pixel under the span's centre when none do
+/// (so sub-pixel nodes never vanish), clamped to the image.
+#[inline]
+fn pixel_span(s0: f32, s1: f32, n: u32) -> (u32, u32) {
+    let max = n as f32 - 1.0;
+    let mut a = (s0 - 0.5).ceil();
+    let mut b = (s1 - 0.5).floor();
+    if b < a {
+        a = (0.5 * (s0 + s1)).floor();
+        b = a;
+    }
+    (a.clamp(0.0, max) as u32, b.clamp(0.0, max) as u32)
+}
+
+/// Queues a node's children, nearest octant first (Fig. 10): the octant order follows the
+/// direction from the eye to the node expressed along the node's own voxel axes.
+#[inline]
+fn push_children(
+    obj: &VoxelInstance<'_>,
+    q: &QNode,
+    cam: &Camera,
+    c: Vec3,
+    axes_view: Mat3,
+    out: &mut Vec<QNode>,
+) {
+    let dir_view = if cam.perspective { c } else { Vec3::NEG_Z };
+    let dir_voxel = axes_view.transpose() * dir_view;
+    for k in front_to_back_order(dir_voxel) {
+        if let Some(child) = obj.svo.child(&q.node, k) {
+            out.push(QNode {
+                obj: q.obj,
+                node: child,
+            });
+        }
+    }
+}
+
+/// World-space AABB of the objects, from their nodes a few levels down (tight enough to fit a
+/// shadow map, cheap whatever the model size).
+pub(crate) fn voxel_bounds(
+    objects: &[VoxelInstance<'_>],
+    casters_only: bool,
+) -> Option<(Vec3, Vec3)> {
+    let mut out: Option<(Vec3, Vec3)> = None;
+    for o in objects {
+        if o.svo.is_empty() || (casters_only && !o.casts_shadows) {
+            continue;
+        }
+        let stop = o.svo.depth().min(5);
+        let mut stack = vec![o.svo.root()];
+        while let Some(n) = stack.pop() {
+            if n.level < stop {
+                stack.extend((0..8).filter_map(|k| o.svo.child(&n, k)));
+                continue;
+            }
+            let d = o.deform.deform(&NodeInfo {
+                svo: o.svo,
+                node: n,
+            });
+            let a = d.half_axes_world;
+            let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+            let (lo, hi) = (d.center_world - he, d.center_world + he);
+            out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
+    }
+    out
+}

@@ -1,0 +1,341 @@
+//! Frame buffers: the packed depth+id target every splat and triangle writes, its
+//! hierarchical max-depth tiles (occlusion culling), the resolved G-buffer and the final image.
+
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+/// Packed `(depth bits << 32) | id`: an atomic minimum keeps the nearest fragment and, at equal
+/// depth, the lowest id, whatever order threads write in (the GPU path uses the same packing
+/// with a 64-bit atomic min).
+pub(crate) const EMPTY_KEY: u64 = u64::MAX;
+
+/// Packs an NDC depth (clamped to 0..=1, so its bit pattern orders like the value) and an id.
+#[inline]
+pub(crate) fn pack_key(ndc_depth: f32, id: u32) -> u64 {
+    let d = ndc_depth.clamp(0.0, 1.0);
+    (u64::from(d.to_bits()) << 32) | u64::from(id)
+}
+
+/// Depth of a packed key (`INFINITY` for an empty pixel).
+#[inline]
+pub(crate) fn key_depth(key: u64) -> f32 {
+    if key == EMPTY_KEY {
+        f32::INFINITY
+    } else {
+        f32::from_bits((key >> 32) as u32)
+    }
+}
+
+/// Edge of the fine occlusion tiles in pixels.
+pub(crate) const TILE: u32 = 4;
+/// Fine tiles per coarse tile edge.
+pub(crate) const SUPER: u32 = 8;
+
+/// The depth+id target with max-depth tiles for hierarchical occlusion culling.
+pub(crate) struct DepthTarget {
+    pub(crate) width: u32,
+    pub(crate) height: u32,
+    pub(crate) keys: Vec<AtomicU64>,
+    tiles_x: u32,
+    tiles_y: u32,
+    /// Max depth per fine tile (INFINITY while any pixel is empty).
+    tile_max: Vec<f32>,
+    tile_dirty: Vec<AtomicBool>,
+    supers_x: u32,
+    super_max: Vec<f32>,
+}
+
+impl DepthTarget {
+    pub(crate) fn new(width: u32, height: u32) -> Self {
+        let n = width as usize * height as usize;
+        let tiles_x = width.div_ceil(TILE);
+        let tiles_y = height.div_ceil(TILE);
+        let supers_x = tiles_x.div_ceil(SUPER);
+        let supers_y = tiles_y.div_ceil(SUPER);
+        let nt = tiles_x as usize * tiles_y as usize;
+        Self {
+            width,
+            height,
+            keys: (0..n)
+                .into_par_iter()
+                .map(|_| AtomicU64::new(EMPTY_KEY))
+                .collect(),
+            tiles_x,
+            tiles_y,
+            tile_max: vec![f32::INFINITY; nt],
+            tile_dirty: (0..nt).map(|_| AtomicBool::new(false)).collect(),
+            supers_x,
+            super_max: vec![f32::INFINITY; supers_x as usize * supers_y as usize],
+        }
+    }
+
+    /// Writes one fragment (keeps the minimum key).
+    #[inline]
+    pub(crate) fn write(&self, x: u32, y: u32, key: u64) {
+        let k = &self.keys[y as usize * self.width as usize + x as usize];
+        // A plain load first: most fragments of a front-to-back traversal lose, and a load
+        // costs far less than a read-modify-write.
+        if key < k.load(Ordering::Relaxed) {
+            k.fetch_min(key, Ordering::Relaxed);
+        }
+    }
+
+    /// Fills the inclusive pixel rectangle with `key` and marks its tiles dirty.
+    #[inline]
+    pub(crate) fn write_rect(&self, x0: u32, y0: u32, x1: u32, y1: u32, key: u64) {
+        for y in y0..=y1 {
+            for x in x0..=x1 {
+                self.write(x, y, key);
+            }
+        }
+        for ty in y0 / TILE..=y1 / TILE {
+            for tx in x0 / TILE..=x1 / TILE {
+                let d = &self.tile_dirty[(ty * self.tiles_x + tx) as usize];
+                if !d.load(Ordering::Relaxed) {
+                    d.store(true, Ordering::Relaxed);
+                }
+            }
+        }
+    }
+
+    /// Marks every tile dirty (after triangles were rasterised).
+    pub(crate) fn mark_all_dirty(&self) {
+        for d in &self.tile_dirty {
+            d.store(true, Ordering::Relaxed);
+        }
+    }
+
+    /// Recomputes the max depth of dirty tiles and their coarse tiles.
+    pub(crate) fn update_tiles(&mut self) {
+        let (w, h, tx_n) = (self.width, self.height, self.tiles_x);
+        let keys = &self.keys;
+        let dirty = &self.tile_dirty;
+        let any_dirty = self
+            .tile_max
+            .par_iter_mut()
+            .enumerate()
+            .map(|(t, m)| {
+                // A plain load first: most tiles are clean, and a swap is a read-modify-write.
+                if !dirty[t].load(Ordering::Relaxed) {
+                    return false;
+                }
+                dirty[t].store(false, Ordering::Relaxed);
+                let (tx, ty) = (t as u32 % tx_n, t as u32 / tx_n);
+                let mut max = 0.0f32;
+                'rows: for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                    let row = y as usize * w as usize;
+                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                        let d = key_depth(keys[row + x as usize].load(Ordering::Relaxed));
+                        max = max.max(d);
+                        if d == f32::INFINITY {
+                            break 'rows;
+                        }
+                    }
+                }
+                *m = max;
+                true
+            })
+            .reduce(|| false, |a, b| a || b);
+        if !any_dirty {
+            return;
+        }
+        let (sx_n, tiles_y) = (self.supers_x, self.tiles_y);
+        let tile_max = &self.tile_max;
+        self.super_max
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(s, m)| {
+                let (sx, sy) = (s as u32 % sx_n, s as u32 / sx_n);
+                let mut max = 0.0f32;
+                for ty in sy * SUPER..((sy + 1) * SUPER).min(tiles_y) {
+                    for tx in sx * SUPER..((sx + 1) * SUPER).min(tx_n) {
+                        max = max.max(tile_max[(ty * tx_n + tx) as usize]);
+                    }
+                }
+                *m = max;
+            });
+    }
+
+    /// True when every pixel of the inclusive rectangle already holds something nearer than
+    /// `ndc_depth` (conservatively, by tile maxima).
+    #[inline]
+    pub(crate) fn occluded(&self, x0: u32, y0: u32, x1: u32, y1: u32, ndc_depth: f32) -> bool {
+        let (tx0, ty0, tx1, ty1) = (x0 / TILE, y0 / TILE, x1 / TILE, y1 / TILE);
+        if (tx1 - tx0 + 1) * (ty1 - ty0 + 1) <= 16 {
+            for ty in ty0..=ty1 {
+                for tx in tx0..=tx1 {
+                    if self.tile_max[(ty * self.tiles_x + tx) as usize] >= ndc_depth {
+                        return false;
+                    }
+                }
+            }
+            return true;
+        }
+        let (sx0, sy0, sx1, sy1) = (tx0 / SUPER, ty0 / SUPER, tx1 / SUPER, ty1 / SUPER);
+        if (sx1 - sx0 + 1) * (sy1 - sy0 + 1) > 64 {
+            return false;
+        }
+        for sy in sy0..=sy1 {
+            for sx in sx0..=sx1 {
+                if self.super_max[(sy * self.supers_x + sx) as usize] >= ndc_depth {
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    /// The packed keys as plain values.
+    pub(crate) fn into_keys(self) -> Vec<u64> {
+        self.keys.into_iter().map(AtomicU64::into_inner).collect()
+    }
+}
+
+/// Why an image could not be written.
+#[derive(Debug, thiserror::Error)]
+pub enum ImageError {
+    /// The PNG encoder or the file system failed.
+    #[error("cannot write image {path}: {source}")]
+    Write {
+        /// The target path.
+        path: String,
+        /// The cause.
+        source: image::ImageError,
+    },
+    /// The PNG decoder or the file system failed.
+    #[error("cannot read image {path}: {source}")]
+    Read {
+        /// The source path.
+        path: String,
+        /// The cause.
+        source: image::ImageError,
+    },
+}
+
+/// An 8-bit sRGB RGBA image, rows top to bottom.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct RgbaImage {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width * height * 4` bytes.
+    pub pixels: Vec<u8>,
+}
+
+impl RgbaImage {
+    /// A blank (transparent black) image.
+    #[must_use]
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            pixels: vec![0; width as usize * height as usize * 4],
+        }
+    }
+
+    /// The RGBA bytes of pixel `(x, y)`.
+    #[must_use]
+    pub fn pixel(&self, x: u32, y: u32) -> [u8; 4] {
+        let o = (y as usize * self.width as usize + x as usize) * 4;
+        [
+            self.pixels[o],
+            self.pixels[o + 1],
+            self.pixels[o + 2],
+            self.pixels[o + 3],
+        ]
+    }
+
+    /// As an `image` crate buffer.
+    #[must_use]
+    pub fn to_rgba8(&self) -> image::RgbaImage {
+        image::RgbaImage::from_raw(self.width, self.height, self.pixels.clone())
+            .unwrap_or_else(|| image::RgbaImage::new(self.width, self.height))
+    }
+
+    /// From an `image` crate buffer.
+    #[must_use]
+    pub fn from_rgba8(img: &image::RgbaImage) -> Self {
+        Self {
+            width: img.width(),
+            height: img.height(),
+            pixels: img.as_raw().clone(),
+        }
+    }
+
+    /// Writes a PNG.
+    ///
+    /// # Errors
+    /// Encoder or file-system failure, with the path.
+    pub fn save_png(&self, path: impl AsRef<Path>) -> Result<(), ImageError> {
+        let path = path.as_ref();
+        self.to_rgba8()
+            .save_with_format(path, image::ImageFormat::Png)
+            .map_err(|source| ImageError::Write {
+                path: path.display().to_string(),
+                source,
+            })
+    }
+
+    /// Reads a PNG (any colour type, converted to RGBA8).
+    ///
+    /// # Errors
+    /// Decoder or file-system failure, with the path.
+    pub fn load_png(path: impl AsRef<Path>) -> Result<Self, ImageError> {
+        let path = path.as_ref();
+        let img = image::open(path).map_err(|source| ImageError::Read {
+            path: path.display().to_string(),
+            source,
+        })?;
+        Ok(Self::from_rgba8(&img.to_rgba8()))
+    }
+}
+
+/// What a pixel shows (object and node), for picking, coverage and GPU parity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct PixelId {
+    /// 1-based index of the object in the rendered scene (0 = background).
+    pub object: u32,
+    /// Voxels: `(level << 32) | node index in its pool`; meshes: `(part << 32) | triangle`.
+    pub node: u64,
+}
+
+/// The resolved buffers of a frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameBuffers {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// NDC depth, 0 at near, 1 at far (1 for background). See [`super::camera`].
+    pub depth: Vec<f32>,
+    /// Object and node per pixel.
+    pub ids: Vec<PixelId>,
+    /// World-space unit normal (zero for background).
+    pub normal: Vec<Vec3>,
+    /// Linear albedo (zero for background).
+    pub albedo: Vec<Vec3>,
+}
+
+impl FrameBuffers {
+    /// True where something was drawn.
+    #[must_use]
+    pub fn coverage(&self) -> Vec<bool> {
+        self.ids.iter().map(|p| p.object != 0).collect()
+    }
+
+    /// Number of pixels showing anything.
+    #[must_use]
+    pub fn covered_pixels(&self) -> usize {
+        self.ids.iter().filter(|p| p.object != 0).count()
+    }
+
+    /// The id at `(x, y)`.
+    #[must_use]
+    pub fn id(&self, x: u32, y: u32) -> PixelId {
+        self.ids[y as usize * self.width as usize + x as usize]
+    }
+}

@@ -1,0 +1,228 @@
+//! Procedural scenes for tests, benchmarks and quick previews: surface-only voxel spheres and
+//! terrain built with [`Svo::from_fn`] (work follows the surface), a ground-plane mesh, and a
+//! mixed scene. Sizes are parameters so a test can stay small and a benchmark can go to
+//! millions of voxels.
+
+use glam::{Quat, UVec3, Vec3, Vec4};
+
+use crate::mesh::{Material, MeshModel, TriangleMesh, unit_cube};
+use crate::scene::{Document, Light, MeshObject, ObjectKind, Transform, VoxelModel};
+use crate::svo::{Svo, SvoError, Voxel};
+
+/// A hollow sphere shell about `thickness` voxels thick, centred in a `2^depth` octree with
+/// radius `radius_fraction` of half the extent. Normals point outward; colour varies smoothly
+/// with the normal so LOD averages stay close to their leaves.
+///
+/// # Errors
+/// [`SvoError::BadDepth`].
+pub fn sphere_shell(depth: u8, radius_fraction: f32) -> Result<Svo, SvoError> {
+    let extent = (1u64 << depth) as f32;
+    let center = Vec3::splat(0.5 * extent);
+    let radius = 0.5 * extent * radius_fraction.clamp(0.0, 1.0);
+    // Half of √3: the shell is closed for rays in every direction.
+    let half_thickness = 0.87f32;
+    Svo::from_fn(
+        depth,
+        false,
+        move |origin: UVec3, size: u32| {
+            let lo = origin.as_vec3();
+            let hi = lo + Vec3::splat(size as f32);
+            let nearest = center.clamp(lo, hi);
+            let min_d = (nearest - center).length();
+            let far_corner = Vec3::new(
+                if center.x - lo.x > hi.x - center.x {
+                    lo.x
+                } else {
+                    hi.x
+                },
+                if center.y - lo.y > hi.y - center.y {
+                    lo.y
+                } else {
+                    hi.y
+                },
+                if center.z - lo.z > hi.z - center.z {
+                    lo.z
+                } else {
+                    hi.z
+                },
+            );
+            let max_d = (far_corner - center).length();
+            min_d <= radius + half_thickness + 1.0 && max_d >= radius - half_thickness - 1.0
+        },
+        move |c: UVec3| {
+            let p = c.as_vec3() + Vec3::splat(0.5) - center;
+            let d = p.length();
+            if (d - radius).abs() > half_thickness {
+                return None;
+            }
+            let n = p.normalize_or_zero();
+            let color = [
+                (150.0 + 90.0 * n.x) as u8,
+                (140.0 + 80.0 * n.y) as u8,
+                (120.0 + 60.0 * n.z) as u8,
+                255,
+            ];
+            Some(Voxel::new(color, n))
+        },
+    )
+}
+
+/// Height of the procedural terrain at column `(x, z)` for an octree of `extent` voxels.
+fn terrain_height(x: f32, z: f32, extent: f32) -> f32 {
+    let (u, v) = (x / extent, z / extent);
+    extent
+        * (0.3
+            + 0.08 * (u * 9.0).sin() * (v * 7.0).cos()
+            + 0.04 * (u * 23.0 + 1.0).sin() * (v * 19.0 + 2.0).sin())
+}
+
+/// A rolling heightfield surface, one or two voxels thick, filling the octree's x and z.
+/// Colour goes from green (low) to brown-white (high).
+///
+/// # Errors
+/// [`SvoError::BadDepth`].
+pub fn terrain(depth: u8) -> Result<Svo, SvoError> {
+    let extent = (1u64 << depth) as f32;
+    // |∂h/∂x| ≤ extent · (0.08·9 + 0.04·23) / extent = 1.64 voxels per voxel.
+    let slope = 1.7f32;
+    Svo::from_fn(
+        depth,
+        false,
+        move |origin: UVec3, size: u32| {
+            let s = size as f32;
+            let (cx, cz) = (origin.x as f32 + 0.5 * s, origin.z as f32 + 0.5 * s);
+            let h = terrain_height(cx, cz, extent);
+            let reach = slope * s + 2.0;
+            let (y0, y1) = (origin.y as f32, origin.y as f32 + s);
+            y1 >= h - reach && y0 <= h + reach
+        },
+        move |c: UVec3| {
+            let (x, z) = (c.x as f32 + 0.5, c.z as f32 + 0.5);
+            let h = terrain_height(x, z, extent);
+            let y = c.y as f32 + 0.5;
+            // Thick enough where steep that columns stay connected.
+            let dx = terrain_height(x + 1.0, z, extent) - h;
+            let dz = terrain_height(x, z + 1.0, extent) - h;
+            let thickness = 1.0 + dx.abs().max(dz.abs());
+            if y > h || y < h - thickness {
+                return None;
+            }
+            let n = Vec3::new(-dx, 1.0, -dz).normalize_or_zero();
+            let t = ((h / extent - 0.2) / 0.2).clamp(0.0, 1.0);
+            let color = [
+                (70.0 + 130.0 * t) as u8,
+                (130.0 + 60.0 * t) as u8,
+                (60.0 + 120.0 * t) as u8,
+                255,
+            ];
+            Some(Voxel::new(color, n))
+        },
+    )
+}
+
+/// A voxel object spanning the world box `[-half, half]³`.
+#[must_use]
+pub fn voxel_object(svo: Svo, half: f32) -> ObjectKind {
+    let extent = svo.extent() as f32;
+    ObjectKind::Voxels(VoxelModel {
+        svo,
+        voxel_size: 2.0 * half / extent,
+        origin: Vec3::splat(-half),
+        material_names: Vec::new(),
+    })
+}
+
+/// A square in the XZ plane at height 0, `2 × half` wide, facing +Y, one colour.
+#[must_use]
+pub fn ground_plane(half: f32, color: Vec4) -> MeshModel {
+    let mut mesh = TriangleMesh {
+        positions: vec![
+            Vec3::new(-half, 0.0, -half),
+            Vec3::new(half, 0.0, -half),
+            Vec3::new(half, 0.0, half),
+            Vec3::new(-half, 0.0, half),
+        ],
+        indices: vec![0, 2, 1, 0, 3, 2],
+        ..TriangleMesh::default()
+    };
+    mesh.compute_normals();
+    MeshModel {
+        parts: vec![mesh],
+        materials: vec![Material {
+            name: "ground".into(),
+            base_color: color,
+            ..Material::default()
+        }],
+    }
+}
+
+/// A document with one voxel sphere shell (world radius about `radius_fraction`) at the origin.
+///
+/// # Errors
+/// [`SvoError::BadDepth`].
+pub fn sphere_document(depth: u8, radius_fraction: f32) -> Result<Document, SvoError> {
+    let mut doc = Document::default();
+    doc.add(
+        "Sphere",
+        voxel_object(sphere_shell(depth, radius_fraction)?, 1.0),
+    );
+    Ok(doc)
+}
+
+/// A mixed scene: a voxel sphere resting above a ground-plane mesh, a triangle-mesh cube beside
+/// it, one sun casting shadows. Meshes cast shadows too.
+///
+/// # Errors
+/// [`SvoError::BadDepth`].
+pub fn mixed_document(sphere_depth: u8) -> Result<Document, SvoError> {
+    let mut doc = Document::default();
+    let sphere = doc.add(
+        "Sphere",
+        voxel_object(sphere_shell(sphere_depth, 0.9)?, 0.5),
+    );
+    let cube = doc.add(
+        "Cube",
+        ObjectKind::Mesh(MeshObject {
+            model: MeshModel {
+                parts: vec![unit_cube()],
+                materials: vec![Material {
+                    name: "cube".into(),
+                    base_color: Vec4::new(0.8, 0.2, 0.15, 1.0),
+                    ..Material::default()
+                }],
+            },
+            casts_shadows: true,
+        }),
+    );
+    let ground = doc.add(
+        "Ground",
+        ObjectKind::Mesh(MeshObject {
+            model: ground_plane(2.0, Vec4::new(0.6, 0.6, 0.55, 1.0)),
+            casts_shadows: true,
+        }),
+    );
+    for o in &mut doc.objects {
+        if o.id == sphere {
+            o.transform.translation = Vec3::new(0.0, 0.7, 0.0);
+        } else if o.id == cube {
+            o.transform = Transform {
+                translation: Vec3::new(0.9, 0.3, 0.4),
+                rotation: Quat::from_rotation_y(0.5),
+                scale: Vec3::splat(0.6),
+            };
+        } else if o.id == ground {
+            o.transform = Transform::default();
+        }
+    }
+    doc.lights = vec![Light {
+        direction: Vec3::new(-0.5, -1.0, -0.35),
+        ..Light::default()
+    }];
+    doc.camera.target = Vec3::new(0.2, 0.4, 0.0);
+    doc.camera.distance = 4.2;
+    doc.camera.pitch_deg = 25.0;
+    doc.camera.yaw_deg = 20.0;
+    doc.camera.near = 0.05;
+    doc.camera.far = 50.0;
+    Ok(doc)
+}

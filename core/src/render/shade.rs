@@ -1,0 +1,342 @@
+//! Shadow maps, the resolve pass (depth + id → G-buffer) and deferred Phong shading.
+
+use glam::{Mat3, Mat4, Vec3, Vec4Swizzles};
+use rayon::prelude::*;
+
+use super::MESH_ID_FLAG;
+use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
+use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
+use super::camera::{Camera, Projection};
+use super::deform::NodeInfo;
+use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
+use super::stats::LevelStats;
+use crate::mesh::{linear_to_srgb, srgb_to_linear};
+use crate::render::Quality;
+use crate::scene::Light;
+use crate::svo::decode_normal;
+
+/// A directional light's depth map.
+pub(crate) struct ShadowMap {
+    pub(crate) cam: Camera,
+    /// NDC depth per texel, `INFINITY` where nothing casts.
+    pub(crate) depth: Vec<f32>,
+    /// World size of one texel.
+    pub(crate) texel_world: f32,
+}
+
+/// An orthographic camera looking along `direction` whose image tightly holds the box, with at
+/// most `max_size` texels per edge and texels no finer than `finest_texel_world` (finer texels
+/// than the view can resolve only cost time: this keeps the shadow pass bound by the view's
+/// resolution, like the view's own traversal).
+pub(crate) fn fit_light_camera(
+    direction: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+    max_size: u32,
+    finest_texel_world: f32,
+) -> Option<Camera> {
+    let dir = direction.try_normalize()?;
+    let center = (lo + hi) * 0.5;
+    let radius = ((hi - lo).length() * 0.5).max(1e-4);
+    let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+    let eye = center - dir * (2.0 * radius);
+    let view = Mat4::look_at_rh(eye, center, up);
+    let (mut vlo, mut vhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+    for k in 0..8 {
+        let c = Vec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        );
+        let v = view.transform_point3(c);
+        vlo = vlo.min(v);
+        vhi = vhi.max(v);
+    }
+    // Re-centre the view on the box's footprint so the symmetric orthographic frustum wastes
+    // no texels, and keep texels square so one bias fits both axes.
+    let mid = (vlo + vhi) * 0.5;
+    let shift = Mat4::from_translation(Vec3::new(-mid.x, -mid.y, 0.0));
+    let half = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
+    let margin = 0.01 * radius + 1e-4;
+    let wanted = (2.0 * half / finest_texel_world.max(1e-30)).ceil();
+    let size = if wanted.is_finite() {
+        (wanted as u32).clamp(16, max_size.max(16))
+    } else {
+        max_size
+    };
+    Some(Camera::new(
+        shift * view,
+        Projection::Orthographic {
+            half_width: half,
+            half_height: half,
+            near: -vhi.z - margin,
+            far: -vlo.z + margin,
+        },
+        size,
+        size,
+    ))
+}
+
+impl ShadowMap {
+    /// Renders casters from the light with the same traversal and rasteriser as the view.
+    pub(crate) fn render(
+        cam: Camera,
+        voxels: &[VoxelInstance<'_>],
+        meshes: &[MeshInstance<'_>],
+        tris: &[WorldTriangle],
+        quality: &Quality,
+        levels: &mut Vec<LevelStats>,
+    ) -> Self {
+        let mut target = DepthTarget::new(cam.width, cam.height);
+        draw_triangles(tris, meshes, &cam, &target, true);
+        target.mark_all_dirty();
+        if quality.occlusion_culling {
+            target.update_tiles();
+        }
+        let pass = draw_voxels(
+            voxels,
+            &cam,
+            &mut target,
+            &PassSettings {
+                lod_pixel_threshold: quality.lod_pixel_threshold,
+                occlusion_culling: quality.occlusion_culling,
+                id_base: 0,
+                keep_refs: false,
+                shadow_casters_only: true,
+            },
+        );
+        super::stats::FrameStats::merge_levels(levels, &pass.levels);
+        let texel_world = 2.0 / cam.fy;
+        let depth = target.into_keys().into_par_iter().map(key_depth).collect();
+        Self {
+            cam,
+            depth,
+            texel_world,
+        }
+    }
+
+    /// Fraction of light reaching a world point (1 = lit), with a normal offset, a depth bias
+    /// of a few texels plus the receiver's own splat size, and PCF.
+    fn visibility(&self, p_world: Vec3, n_world: Vec3, receiver_size_world: f32, pcf: i32) -> f32 {
+        // Splat depth is the nearest corner of a node, so a flat voxel surface is a staircase
+        // up to one node deep in both maps: bias by both node sizes, and offset along the normal
+        // so grazing receivers do not sample their own texel.
+        let offset = n_world * (1.5 * self.texel_world);
+        let q = self.cam.view_from_world.transform_point3(p_world + offset);
+        let s = self.cam.project_view(q);
+        let bias = 2.0 * self.texel_world + 1.5 * receiver_size_world;
+        let recv = self.cam.ndc_depth(s.z - bias);
+        let (w, h) = (self.cam.width as i32, self.cam.height as i32);
+        let (ix, iy) = (s.x.floor() as i32, s.y.floor() as i32);
+        let mut lit = 0u32;
+        let mut taps = 0u32;
+        for dy in -pcf..=pcf {
+            for dx in -pcf..=pcf {
+                let (x, y) = (ix + dx, iy + dy);
+                taps += 1;
+                if x < 0 || y < 0 || x >= w || y >= h {
+                    lit += 1;
+                    continue;
+                }
+                if recv <= self.depth[(y * w + x) as usize] {
+                    lit += 1;
+                }
+            }
+        }
+        lit as f32 / taps as f32
+    }
+}
+
+/// Turns packed keys into the G-buffer.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "one call site; the arguments are the frame's parts"
+)]
+pub(crate) fn resolve(
+    keys: &[u64],
+    cam: &Camera,
+    voxels: &[VoxelInstance<'_>],
+    refs: &[QNode],
+    meshes: &[MeshInstance<'_>],
+    tris: &[WorldTriangle],
+) -> FrameBuffers {
+    let (w, h) = (cam.width, cam.height);
+    let normal_mats: Vec<Mat3> = meshes
+        .iter()
+        .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose())
+        .collect();
+    let eye = cam.eye();
+    let n = keys.len();
+    let mut fb = FrameBuffers {
+        width: w,
+        height: h,
+        depth: vec![1.0; n],
+        ids: vec![PixelId::default(); n],
+        normal: vec![Vec3::ZERO; n],
+        albedo: vec![Vec3::ZERO; n],
+    };
+    let FrameBuffers {
+        depth,
+        ids,
+        normal,
+        albedo,
+        ..
+    } = &mut fb;
+    depth
+        .par_iter_mut()
+        .zip(ids.par_iter_mut())
+        .zip(normal.par_iter_mut())
+        .zip(albedo.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, (((d, id), nrm), alb))| {
+            let key = keys[i];
+            if key == EMPTY_KEY {
+                return;
+            }
+            *d = key_depth(key);
+            let raw = (key & 0xffff_ffff) as u32;
+            if raw & MESH_ID_FLAG != 0 {
+                let Some(t) = tris.get((raw & !MESH_ID_FLAG) as usize) else {
+                    return;
+                };
+                let m = &meshes[t.mesh as usize];
+                let part = &m.model.parts[t.part as usize];
+                let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+                let p = cam.unproject(x, y, *d);
+                let bary = barycentric(p, t.world);
+                let color = m.model.surface_color(part, t.tri as usize, bary);
+                let [a, b, c] = t.world;
+                let face = (b - a).cross(c - a);
+                let mut nw = if part.normals.is_empty() {
+                    face
+                } else {
+                    let [ia, ib, ic] = part.triangle(t.tri as usize);
+                    normal_mats[t.mesh as usize]
+                        * (part.normals[ia] * bary.x
+                            + part.normals[ib] * bary.y
+                            + part.normals[ic] * bary.z)
+                }
+                .normalize_or_zero();
+                // Two-sided: light the side facing the viewer.
+                if face.dot(eye - p) < 0.0 {
+                    nw = -nw;
+                }
+                *nrm = nw;
+                *alb = color.xyz();
+                *id = PixelId {
+                    object: m.label,
+                    node: (u64::from(t.part) << 32) | u64::from(t.tri),
+                };
+            } else {
+                let Some(q) = refs.get(raw as usize) else {
+                    return;
+                };
+                let o = &voxels[q.obj as usize];
+                let info = NodeInfo {
+                    svo: o.svo,
+                    node: q.node,
+                };
+                let v = info.voxel();
+                *nrm = o.deform.normal_to_world(&info, decode_normal(v.normal));
+                *alb = Vec3::new(
+                    srgb_to_linear(f32::from(v.color[0]) / 255.0),
+                    srgb_to_linear(f32::from(v.color[1]) / 255.0),
+                    srgb_to_linear(f32::from(v.color[2]) / 255.0),
+                );
+                *id = PixelId {
+                    object: o.label,
+                    node: (u64::from(q.node.level) << 32) | u64::from(q.node.index),
+                };
+            }
+        });
+    fb
+}
+
+/// Barycentric weights of `p` (on or near the triangle's plane), clamped into the triangle.
+fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
+    let n = (b - a).cross(c - a);
+    let nn = n.length_squared();
+    if nn <= 0.0 || !nn.is_finite() {
+        return Vec3::new(1.0, 0.0, 0.0);
+    }
+    let wa = (b - p).cross(c - p).dot(n) / nn;
+    let wb = (c - p).cross(a - p).dot(n) / nn;
+    let bary = Vec3::new(wa, wb, 1.0 - wa - wb).max(Vec3::ZERO);
+    let s = bary.x + bary.y + bary.z;
+    if s > 0.0 {
+        bary / s
+    } else {
+        Vec3::new(1.0, 0.0, 0.0)
+    }
+}
+
+/// Scene lighting for the shading pass.
+pub(crate) struct Lighting<'a> {
+    pub(crate) lights: &'a [Light],
+    /// One entry per light: its shadow map when it casts shadows this frame.
+    pub(crate) shadows: Vec<Option<ShadowMap>>,
+    pub(crate) ambient: Vec3,
+    pub(crate) background: Vec3,
+}
+
+/// Deferred Phong over the G-buffer; writes an sRGB image.
+pub(crate) fn shade(
+    fb: &FrameBuffers,
+    cam: &Camera,
+    lighting: &Lighting<'_>,
+    quality: &Quality,
+) -> RgbaImage {
+    let (w, h) = (fb.width, fb.height);
+    let mut img = RgbaImage::new(w, h);
+    let eye = cam.eye();
+    let pcf = quality.shadow_pcf_radius.min(8) as i32;
+    let to8 = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
+    let bg = [
+        to8(lighting.background.x),
+        to8(lighting.background.y),
+        to8(lighting.background.z),
+        255,
+    ];
+    let lights: Vec<(Vec3, Vec3)> = lighting
+        .lights
+        .iter()
+        .map(|l| (-l.direction.normalize_or_zero(), l.color * l.intensity))
+        .collect();
+    img.pixels
+        .par_chunks_mut(4)
+        .enumerate()
+        .for_each(|(i, out)| {
+            if fb.ids[i].object == 0 {
+                out.copy_from_slice(&bg);
+                return;
+            }
+            let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+            let p = cam.unproject(x, y, fb.depth[i]);
+            let n = fb.normal[i];
+            let v = (eye - p).normalize_or_zero();
+            let receiver = cam.pixel_world_size(cam.view_depth(fb.depth[i]))
+                * quality.lod_pixel_threshold.max(1.0);
+            let mut light = lighting.ambient;
+            let mut spec = Vec3::ZERO;
+            for (li, &(l, color)) in lights.iter().enumerate() {
+                let ndotl = n.dot(l);
+                if ndotl <= 0.0 {
+                    continue;
+                }
+                let vis = match lighting.shadows.get(li) {
+                    Some(Some(sm)) => sm.visibility(p, n, receiver, pcf),
+                    _ => 1.0,
+                };
+                if vis <= 0.0 {
+                    continue;
+                }
+                light += color * (ndotl * vis);
+                let half = (l + v).normalize_or_zero();
+                spec += color * (0.25 * n.dot(half).max(0.0).powi(32) * vis);
+            }
+            let c = fb.albedo[i] * light + spec;
+            out.copy_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
+        });
+    let _ = h;
+    img
+}
