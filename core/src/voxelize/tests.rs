@@ -108,23 +108,33 @@ fn solid_set(v: &Voxelized) -> HashSet<UVec3> {
     v.svo.leaves().into_iter().map(|(c, _)| c).collect()
 }
 
-/// Every point sampled on every triangle lies in a solid voxel.
+/// Every point sampled on every triangle lies in a solid voxel. Samples are computed in f64 so
+/// they lie on the triangle (f32 interpolation can step outside the bounding box).
 fn assert_covers(v: &Voxelized, mesh: &TriangleMesh, samples: u32) {
+    let origin = v.origin.as_dvec3();
+    let size = f64::from(v.voxel_size);
+    let last = f64::from(v.svo.extent() - 1);
     for t in 0..mesh.triangle_count() {
-        let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i]);
+        let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i].as_dvec3());
         for i in 0..=samples {
             for j in 0..=samples - i {
-                let (u, w) = (i as f32 / samples as f32, j as f32 / samples as f32);
-                let p = a + (b - a) * u + (c - a) * w;
-                let coord = v
-                    .voxel_of(p)
-                    .unwrap_or_else(|| panic!("{p} outside the grid"));
-                // Points exactly on the far boundary of the grid are clamped into the last voxel.
-                let coord = coord.min(UVec3::splat(v.svo.extent() - 1));
-                assert!(
-                    v.svo.get(coord).is_some(),
-                    "triangle {t} point {p} in empty voxel {coord}"
+                let (u, w) = (
+                    f64::from(i) / f64::from(samples),
+                    f64::from(j) / f64::from(samples),
                 );
+                let p = a * (1.0 - u - w) + b * u + c * w;
+                // Interpolation rounding can push a sample on a voxel face across it: accept
+                // either voxel within 1e-9 voxels (the voxelizer's own test is closed).
+                let g = (p - origin) / size;
+                assert!(g.min_element() >= -1e-9, "{p} below the grid");
+                let lo = (g - 1e-9).floor().max(glam::DVec3::ZERO);
+                let hi = (g + 1e-9).floor().min(glam::DVec3::splat(last));
+                let found = (0..8).any(|k: u32| {
+                    let pick = |axis: usize| if k >> axis & 1 == 0 { lo[axis] } else { hi[axis] };
+                    let c = glam::DVec3::new(pick(0), pick(1), pick(2)).as_uvec3();
+                    v.svo.get(c).is_some()
+                });
+                assert!(found, "triangle {t} point {p} (grid {g}) in an empty voxel");
             }
         }
     }
@@ -780,4 +790,43 @@ fn settings_round_trip_through_json() {
         serde_json::from_str(r#"{"mode":"Solid"}"#).expect("defaults fill the rest");
     assert_eq!(partial.mode, Mode::Solid);
     assert_eq!(partial.resolution, VoxelizeSettings::default().resolution);
+}
+
+fn asset(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets")).join(rel)
+}
+
+#[test]
+fn box_glb_solid_at_one_64th_has_unit_volume() {
+    let m = crate::io::import_gltf(&asset("static/Box.glb")).expect("Box.glb imports");
+    let v = voxelize(
+        &m,
+        &settings(Resolution::VoxelSize(1.0 / 64.0), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let volume = v.svo.leaf_count() as f64 * f64::from(v.voxel_size).powi(3);
+    assert!((volume - 1.0).abs() < 0.02, "volume {volume}");
+    // Box.glb is the unit cube with faces on voxel boundaries: exact.
+    assert_eq!(v.svo.leaf_count(), 64 * 64 * 64);
+}
+
+#[test]
+fn cesium_man_surface_is_skinned_and_covers_its_triangles() {
+    let m = crate::io::import_gltf(&asset("skinned/CesiumMan.glb")).expect("CesiumMan imports");
+    let v = voxelize(
+        &m,
+        &settings(Resolution::Depth(7), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert!(v.svo.has_skin());
+    assert_eq!(v.stats.triangles, m.triangle_count() as u64);
+    for (c, vox) in v.svo.leaves() {
+        let sum: u32 = vox.skin.weights.iter().map(|&w| u32::from(w)).sum();
+        assert_eq!(sum, 255, "voxel {c}: {:?}", vox.skin);
+    }
+    for part in &m.parts {
+        assert_covers(&v, part, 3);
+    }
 }
