@@ -289,7 +289,8 @@ pub fn plan_grid(
     let mut dims = [0u32; 3];
     for axis in 0..3 {
         let cells = (size[axis] / s).ceil().clamp(1.0, cap) + 2.0 * pad;
-        if !(cells <= max_axis) {
+        // NaN cannot reach here (sizes are finite, the voxel size positive), but refuse it too.
+        if cells.is_nan() || cells > max_axis {
             return Err(VoxelizeError::GridTooLarge {
                 axis: ['x', 'y', 'z'][axis],
                 voxels: cells,

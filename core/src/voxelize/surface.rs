@@ -101,20 +101,22 @@ pub(crate) fn emit_triangle(
         let mut column = 0u64;
         for iv in lo[v_axis] as i64..=hi[v_axis] as i64 {
             // The plane's w over this column's square is linear: its extremes are at corners.
-            // One voxel of slack each side absorbs rounding; the exact test decides.
+            // Closed boxes [k, k + 1] meet [wmin, wmax] for k in ceil(wmin) - 1 ..= floor(wmax);
+            // a little slack absorbs rounding and the exact test decides.
             let (mut wmin, mut wmax) = (f64::INFINITY, f64::NEG_INFINITY);
             for (du, dv) in [(0.0, 0.0), (1.0, 0.0), (0.0, 1.0), (1.0, 1.0)] {
                 let w = (plane_d - nu * (iu as f64 + du) - nv * (iv as f64 + dv)) / nw;
                 wmin = wmin.min(w);
                 wmax = wmax.max(w);
             }
+            const SLACK: f64 = 1e-6;
             let k_lo = if wmin.is_finite() {
-                (wmin.floor() as i64 - 1).max(lo_w)
+                ((wmin - SLACK).ceil() as i64 - 1).max(lo_w)
             } else {
                 lo_w
             };
             let k_hi = if wmax.is_finite() {
-                (wmax.floor() as i64 + 1).min(hi_w)
+                ((wmax + SLACK).floor() as i64).min(hi_w)
             } else {
                 hi_w
             };

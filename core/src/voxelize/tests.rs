@@ -130,7 +130,13 @@ fn assert_covers(v: &Voxelized, mesh: &TriangleMesh, samples: u32) {
                 let lo = (g - 1e-9).floor().max(glam::DVec3::ZERO);
                 let hi = (g + 1e-9).floor().min(glam::DVec3::splat(last));
                 let found = (0..8).any(|k: u32| {
-                    let pick = |axis: usize| if k >> axis & 1 == 0 { lo[axis] } else { hi[axis] };
+                    let pick = |axis: usize| {
+                        if k >> axis & 1 == 0 {
+                            lo[axis]
+                        } else {
+                            hi[axis]
+                        }
+                    };
                     let c = glam::DVec3::new(pick(0), pick(1), pick(2)).as_uvec3();
                     v.svo.get(c).is_some()
                 });
@@ -828,5 +834,59 @@ fn cesium_man_surface_is_skinned_and_covers_its_triangles() {
     }
     for part in &m.parts {
         assert_covers(&v, part, 3);
+    }
+}
+
+#[test]
+fn column_walk_finds_exactly_what_brute_force_finds() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let dims = UVec3::splat(16);
+    let budget = surface::Budget::new(u64::MAX);
+    for case in 0..400 {
+        let mut v = [glam::DVec3::ZERO; 3];
+        for p in &mut v {
+            *p = glam::DVec3::new(
+                rng.random_range(0.0..16.0),
+                rng.random_range(0.0..16.0),
+                rng.random_range(0.0..16.0),
+            );
+        }
+        if case % 4 == 0 {
+            // Slivers, and vertices snapped to grid planes.
+            v[2] = v[1] + (v[1] - v[0]) * 1e-4;
+        }
+        if case % 3 == 0 {
+            v[0] = v[0].floor();
+            v[1].x = v[1].x.floor();
+        }
+        let tri = geometry::GridTriangle::new(v);
+        if tri.is_degenerate() {
+            continue;
+        }
+        let mut out = Vec::new();
+        assert!(surface::emit_triangle(&tri, 0, dims, &budget, &mut out));
+        let walked: HashSet<u64> = out.iter().map(|r| r.0).collect();
+        assert_eq!(walked.len(), out.len(), "case {case}: duplicate voxels");
+        let lo = tri
+            .min()
+            .floor()
+            .clamp(glam::DVec3::ZERO, glam::DVec3::splat(15.0));
+        let hi = tri
+            .max()
+            .floor()
+            .clamp(glam::DVec3::ZERO, glam::DVec3::splat(15.0));
+        let mut brute = HashSet::new();
+        for z in lo.z as u32..=hi.z as u32 {
+            for y in lo.y as u32..=hi.y as u32 {
+                for x in lo.x as u32..=hi.x as u32 {
+                    let c = UVec3::new(x, y, z);
+                    if tri.overlaps_unit_box(c.as_dvec3()) {
+                        brute.insert(crate::svo::morton_encode(c));
+                    }
+                }
+            }
+        }
+        assert_eq!(walked, brute, "case {case}: {v:?}");
     }
 }
