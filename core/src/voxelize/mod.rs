@@ -1,1 +1,666 @@
-//! `voxelize` (work in progress).
+//! Triangle meshes → sparse voxel octree: conservative surface voxelization, interior fill for
+//! closed meshes, and attribute transfer (colour, normal, material, skin weights) by
+//! barycentric interpolation at the closest point of the surface. See `docs/voxelize.md`.
+//!
+//! # Grid
+//! The grid's voxel `(i, j, k)` spans `origin + [i, i + 1) × voxel_size` (and likewise for j,
+//! k) in the mesh's object space, with `origin` the minimum corner of the bounding box of the
+//! referenced vertices, less `padding` voxels. All predicates run in grid space in `f64`.
+//!
+//! # Determinism
+//! Triangles are processed in parallel, but every candidate is keyed by a total order (Morton
+//! code, then distance to the voxel centre, then triangle index) and sorted before use, so the
+//! octree is identical whatever the thread count.
+
+mod geometry;
+mod solid;
+mod surface;
+
+#[cfg(test)]
+mod tests;
+
+use glam::{DVec3, UVec3, Vec3};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::{MeshError, MeshModel, TriangleMesh, linear_to_srgb};
+use crate::svo::{MAX_DEPTH, Skin4, Svo, SvoError, Voxel, encode_normal, morton_decode};
+use geometry::GridTriangle;
+use solid::{Crossing, Interval};
+use surface::{Budget, SurfaceRecord};
+
+/// How fine the grid is.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum Resolution {
+    /// The longest side of the mesh's bounding box spans `2^n` voxels (`n` in 1..=21).
+    Depth(u8),
+    /// Edge length of one voxel in the mesh's units; the octree depth is the smallest that fits.
+    VoxelSize(f32),
+}
+
+/// Which voxels are solid.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum Mode {
+    /// Every voxel the surface touches (a conservative, gap-free shell).
+    #[default]
+    Surface,
+    /// Voxels whose centre is inside the (closed) mesh, plus the surface voxels needed to keep
+    /// sub-voxel-thin parts; see [`VoxelizeSettings::keep_outer_surface`].
+    Solid,
+}
+
+/// Which column positions count as inside in [`Mode::Solid`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum FillRule {
+    /// Inside where the winding number is non-zero: overlapping closed parts fill as a union.
+    /// Needs consistently oriented triangles (either orientation).
+    #[default]
+    NonZero,
+    /// Inside after an odd number of crossings: ignores orientation, but overlaps cancel.
+    EvenOdd,
+}
+
+/// Parameters of [`voxelize`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct VoxelizeSettings {
+    /// Grid resolution.
+    pub resolution: Resolution,
+    /// Surface only, or surface and interior.
+    pub mode: Mode,
+    /// Empty voxels added on every side of the bounding box (room to sculpt outward). With
+    /// [`Resolution::Depth`] padding can make the octree one level deeper than `n`.
+    pub padding: u32,
+    /// Inside test for [`Mode::Solid`].
+    pub fill_rule: FillRule,
+    /// [`Mode::Solid`] only: also keep the surface voxels whose centre lies outside the mesh
+    /// (the whole conservative shell). Off by default: those voxels add about half a voxel
+    /// layer of volume; thin parts are kept either way.
+    pub keep_outer_surface: bool,
+    /// Refuse (with [`VoxelizeError::TooManyVoxels`]) rather than produce more voxels than
+    /// this. Working memory is about 16 bytes per voxel–triangle overlap, capped at 4× this.
+    pub max_voxels: u64,
+}
+
+impl Default for VoxelizeSettings {
+    fn default() -> Self {
+        Self {
+            resolution: Resolution::Depth(8),
+            mode: Mode::Surface,
+            padding: 0,
+            fill_rule: FillRule::NonZero,
+            keep_outer_surface: false,
+            max_voxels: 1 << 27,
+        }
+    }
+}
+
+/// Why a mesh could not be voxelized.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum VoxelizeError {
+    /// A part of the mesh is malformed (NaN position, index out of range, …).
+    #[error("mesh part {part} is invalid: {source}")]
+    InvalidMesh {
+        /// Index into [`MeshModel::parts`].
+        part: usize,
+        /// The problem.
+        source: MeshError,
+    },
+    /// `Resolution::Depth(n)` with `n` outside 1..=21.
+    #[error("voxelization depth {0} is out of range (1..={MAX_DEPTH})")]
+    BadDepth(u8),
+    /// `Resolution::VoxelSize(s)` with `s` NaN, infinite, zero or negative.
+    #[error("voxel size {0} must be finite and positive")]
+    BadVoxelSize(f32),
+    /// `max_voxels` is zero.
+    #[error("max_voxels must be at least 1")]
+    BadVoxelLimit,
+    /// All referenced vertices coincide, so `Resolution::Depth` cannot derive a voxel size.
+    #[error("the mesh has zero extent; give a voxel size instead of a depth")]
+    ZeroExtent,
+    /// The grid would be larger than 2^21 voxels along some axis.
+    #[error(
+        "the grid would be {voxels:.3e} voxels along {axis} (max {max}); use a larger voxel size \
+         or less padding"
+    )]
+    GridTooLarge {
+        /// `x`, `y` or `z`.
+        axis: char,
+        /// Voxels needed along that axis.
+        voxels: f64,
+        /// 2^21.
+        max: u32,
+    },
+    /// The result would exceed [`VoxelizeSettings::max_voxels`].
+    #[error(
+        "voxelization would produce more than {limit} voxels ({what}); use a larger voxel size or \
+         raise max_voxels"
+    )]
+    TooManyVoxels {
+        /// The limit.
+        limit: u64,
+        /// What hit it.
+        what: &'static str,
+    },
+    /// The progress callback asked to stop.
+    #[error("voxelization cancelled")]
+    Cancelled,
+    /// The octree refused the result (should not happen: coordinates are clamped to the grid).
+    #[error("octree build failed: {0}")]
+    Svo(#[from] SvoError),
+}
+
+/// Where the grid lies, before any voxel is computed (cheap; lets a UI show the resulting size).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct GridPlan {
+    /// Object-space minimum corner of voxel (0, 0, 0).
+    pub origin: Vec3,
+    /// Voxel edge in object units.
+    pub voxel_size: f32,
+    /// Voxels per axis actually used (padding included).
+    pub dims: [u32; 3],
+    /// Octree depth (`2^depth >= max(dims)`).
+    pub depth: u8,
+}
+
+/// Counts describing one voxelization.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
+pub struct VoxelizeStats {
+    /// Triangles in the model.
+    pub triangles: u64,
+    /// Zero-area or non-finite triangles skipped (they have no surface).
+    pub degenerate_triangles: u64,
+    /// Voxel–triangle overlaps found (≥ surface voxels: neighbouring triangles share voxels).
+    pub overlaps: u64,
+    /// Voxels the surface touches (before solid mode drops outer ones).
+    pub surface_voxels: u64,
+    /// Voxels whose centre is inside (solid mode).
+    pub interior_voxels: u64,
+    /// Solid voxels in the result.
+    pub voxels: u64,
+}
+
+/// The result of [`voxelize`].
+#[derive(Debug, Clone)]
+pub struct Voxelized {
+    /// The octree.
+    pub svo: Svo,
+    /// Voxel edge in object units.
+    pub voxel_size: f32,
+    /// Object-space minimum corner of voxel (0, 0, 0).
+    pub origin: Vec3,
+    /// Counts.
+    pub stats: VoxelizeStats,
+}
+
+impl Voxelized {
+    /// The voxel holding object-space point `p`, or `None` outside the octree.
+    #[must_use]
+    pub fn voxel_of(&self, p: Vec3) -> Option<UVec3> {
+        // f64, exactly as the voxelizer maps vertices, so a point on a triangle maps to a voxel
+        // the triangle marked.
+        let g = (p.as_dvec3() - self.origin.as_dvec3()) / f64::from(self.voxel_size);
+        let extent = f64::from(self.svo.extent());
+        if !g.is_finite() || g.min_element() < 0.0 || g.max_element() >= extent {
+            return None;
+        }
+        Some(g.floor().as_uvec3())
+    }
+
+    /// Object-space centre of voxel `c`.
+    #[must_use]
+    pub fn voxel_center(&self, c: UVec3) -> Vec3 {
+        self.origin + (c.as_vec3() + 0.5) * self.voxel_size
+    }
+}
+
+/// Bounds of the vertices the triangles use (unreferenced vertices do not widen the grid).
+fn referenced_bounds(model: &MeshModel) -> Option<(DVec3, DVec3)> {
+    let mut acc: Option<(DVec3, DVec3)> = None;
+    for part in &model.parts {
+        for &i in &part.indices {
+            let p = part.positions[i as usize].as_dvec3();
+            acc = Some(acc.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))));
+        }
+    }
+    acc
+}
+
+/// Checks `settings` and works out the grid for `model` without voxelizing.
+///
+/// # Errors
+/// [`VoxelizeError::InvalidMesh`], [`VoxelizeError::BadDepth`],
+/// [`VoxelizeError::BadVoxelSize`], [`VoxelizeError::BadVoxelLimit`],
+/// [`VoxelizeError::ZeroExtent`] or [`VoxelizeError::GridTooLarge`].
+pub fn plan_grid(
+    model: &MeshModel,
+    settings: &VoxelizeSettings,
+) -> Result<GridPlan, VoxelizeError> {
+    model
+        .validate()
+        .map_err(|(part, source)| VoxelizeError::InvalidMesh { part, source })?;
+    match settings.resolution {
+        Resolution::Depth(n) if n == 0 || n > MAX_DEPTH => return Err(VoxelizeError::BadDepth(n)),
+        Resolution::VoxelSize(s) if !s.is_finite() || s <= 0.0 => {
+            return Err(VoxelizeError::BadVoxelSize(s));
+        }
+        _ => {}
+    }
+    if settings.max_voxels == 0 {
+        return Err(VoxelizeError::BadVoxelLimit);
+    }
+    let max_axis = f64::from(1u32 << MAX_DEPTH);
+    let pad = f64::from(settings.padding);
+    let Some((lo, hi)) = referenced_bounds(model) else {
+        // No triangles: an empty octree of the requested depth.
+        let depth = match settings.resolution {
+            Resolution::Depth(n) => n,
+            Resolution::VoxelSize(_) => 1,
+        };
+        let voxel_size = match settings.resolution {
+            Resolution::Depth(_) => 1.0,
+            Resolution::VoxelSize(s) => s,
+        };
+        return Ok(GridPlan {
+            origin: Vec3::ZERO,
+            voxel_size,
+            dims: [1; 3],
+            depth,
+        });
+    };
+    let size = hi - lo;
+    let (voxel_size, cap) = match settings.resolution {
+        Resolution::Depth(n) => {
+            let longest = size.max_element();
+            if longest <= 0.0 || !longest.is_finite() {
+                return Err(VoxelizeError::ZeroExtent);
+            }
+            let cells = f64::from(1u32 << n);
+            // Rounding must not turn the longest side's 2^n voxels into 2^n + 1.
+            ((longest / cells) as f32, cells)
+        }
+        Resolution::VoxelSize(s) => (s, f64::INFINITY),
+    };
+    if voxel_size <= 0.0 || !voxel_size.is_finite() {
+        // A depth-derived size can underflow for a microscopic mesh.
+        return Err(VoxelizeError::BadVoxelSize(voxel_size));
+    }
+    let s = f64::from(voxel_size);
+    let mut dims = [0u32; 3];
+    for axis in 0..3 {
+        let cells = (size[axis] / s).ceil().clamp(1.0, cap) + 2.0 * pad;
+        // NaN cannot reach here (sizes are finite, the voxel size positive), but refuse it too.
+        if cells.is_nan() || cells > max_axis {
+            return Err(VoxelizeError::GridTooLarge {
+                axis: ['x', 'y', 'z'][axis],
+                voxels: cells,
+                max: 1 << MAX_DEPTH,
+            });
+        }
+        dims[axis] = cells as u32;
+    }
+    let longest = dims.iter().copied().max().unwrap_or(1).max(2);
+    let depth = (32 - (longest - 1).leading_zeros()) as u8;
+    let origin = lo - DVec3::splat(pad * s);
+    Ok(GridPlan {
+        origin: origin.as_vec3(),
+        voxel_size,
+        dims,
+        depth,
+    })
+}
+
+/// Flat triangle addressing: `offsets[p]` is the global index of part `p`'s first triangle.
+struct Triangles<'a> {
+    model: &'a MeshModel,
+    offsets: Vec<u32>,
+    origin: DVec3,
+    voxel_size: f64,
+}
+
+impl Triangles<'_> {
+    fn total(&self) -> u32 {
+        self.offsets.last().copied().unwrap_or(0)
+    }
+
+    /// `(part, local triangle)` of global triangle `g`.
+    fn locate(&self, g: u32) -> (usize, usize) {
+        let part = self.offsets.partition_point(|&o| o <= g) - 1;
+        (part, (g - self.offsets[part]) as usize)
+    }
+
+    fn grid(&self, g: u32) -> GridTriangle {
+        let (part, t) = self.locate(g);
+        let mesh = &self.model.parts[part];
+        let idx = mesh.triangle(t);
+        GridTriangle::new(
+            idx.map(|i| (mesh.positions[i].as_dvec3() - self.origin) / self.voxel_size),
+        )
+    }
+}
+
+/// Runs `work` over all triangles in chunks, in parallel within a chunk, reporting progress
+/// between chunks (the callback is not `Sync`, so it is only called from this thread).
+fn for_triangles<R: Send>(
+    tris: &Triangles<'_>,
+    progress: &dyn Fn(f32) -> bool,
+    (p0, p1): (f32, f32),
+    work: impl Fn(u32, &GridTriangle, &mut Vec<R>) + Sync,
+) -> Result<Vec<R>, VoxelizeError> {
+    let total = tris.total();
+    let chunk = (total / 32).max(1024);
+    let mut out: Vec<R> = Vec::new();
+    let mut start = 0u32;
+    while start < total {
+        let end = start.saturating_add(chunk).min(total);
+        let parts: Vec<Vec<R>> = (start..end)
+            .into_par_iter()
+            .fold(Vec::new, |mut acc, g| {
+                let tri = tris.grid(g);
+                if !tri.is_degenerate() {
+                    work(g, &tri, &mut acc);
+                }
+                acc
+            })
+            .collect();
+        for p in parts {
+            out.extend(p);
+        }
+        start = end;
+        if !progress(p0 + (p1 - p0) * (start as f32 / total as f32)) {
+            return Err(VoxelizeError::Cancelled);
+        }
+    }
+    Ok(out)
+}
+
+/// Voxelizes `model` (in its object space) into an octree.
+///
+/// `progress(fraction)` is called from the calling thread now and then; returning `false`
+/// cancels with [`VoxelizeError::Cancelled`]. An empty model gives an empty octree.
+///
+/// # Errors
+/// Bad settings or mesh (see [`plan_grid`]), [`VoxelizeError::TooManyVoxels`] before large
+/// allocations, [`VoxelizeError::Cancelled`].
+pub fn voxelize(
+    model: &MeshModel,
+    settings: &VoxelizeSettings,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<Voxelized, VoxelizeError> {
+    let plan = plan_grid(model, settings)?;
+    let has_skin = model
+        .parts
+        .iter()
+        .any(|p| !p.joints.is_empty() && !p.weights.is_empty());
+    let mut offsets = Vec::with_capacity(model.parts.len() + 1);
+    let mut acc = 0u64;
+    for part in &model.parts {
+        offsets.push(acc as u32);
+        acc += part.triangle_count() as u64;
+    }
+    offsets.push(acc as u32);
+    if acc > u64::from(u32::MAX) {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit: settings.max_voxels,
+            what: "more than 2^32 triangles",
+        });
+    }
+    let mut stats = VoxelizeStats {
+        triangles: acc,
+        ..VoxelizeStats::default()
+    };
+    let empty = |stats| -> Result<Voxelized, VoxelizeError> {
+        Ok(Voxelized {
+            svo: Svo::new(plan.depth, has_skin)?,
+            voxel_size: plan.voxel_size,
+            origin: plan.origin,
+            stats,
+        })
+    };
+    if acc == 0 {
+        return empty(stats);
+    }
+    let s = f64::from(plan.voxel_size);
+    let tris = Triangles {
+        model,
+        offsets,
+        origin: plan.origin.as_dvec3(),
+        voxel_size: s,
+    };
+    let dims = UVec3::from_array(plan.dims);
+
+    // A flat triangle of area A touches at least A / √2 voxels (no plane cuts a unit cube in
+    // more than √2), so this refuses hopeless requests before any allocation.
+    let overlap_limit = settings.max_voxels.saturating_mul(4);
+    let mut min_overlaps = 0.0f64;
+    for g in 0..tris.total() {
+        let t = tris.grid(g);
+        if !t.is_degenerate() {
+            min_overlaps += 0.5 * t.normal.length() / std::f64::consts::SQRT_2;
+        } else {
+            stats.degenerate_triangles += 1;
+        }
+    }
+    if min_overlaps > overlap_limit as f64 {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit: settings.max_voxels,
+            what: "estimated from the surface area",
+        });
+    }
+    if !progress(0.02) {
+        return Err(VoxelizeError::Cancelled);
+    }
+
+    // Surface: all (voxel, triangle) overlaps, sorted so the nearest triangle comes first.
+    let budget = Budget::new(overlap_limit);
+    let mut records: Vec<SurfaceRecord> =
+        for_triangles(&tris, progress, (0.02, 0.55), |g, tri, out| {
+            surface::emit_triangle(tri, g, dims, &budget, out);
+        })?;
+    if budget.is_exceeded() {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit: settings.max_voxels,
+            what: "voxel–triangle overlaps",
+        });
+    }
+    stats.overlaps = records.len() as u64;
+    records.par_sort_unstable();
+    records.dedup_by_key(|r| r.0);
+    stats.surface_voxels = records.len() as u64;
+    if stats.surface_voxels > settings.max_voxels {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit: settings.max_voxels,
+            what: "surface voxels",
+        });
+    }
+
+    // Solid: column crossings → inside intervals.
+    let (mut crossings, intervals) = if settings.mode == Mode::Solid {
+        let budget = Budget::new(overlap_limit);
+        let mut crossings: Vec<Crossing> =
+            for_triangles(&tris, progress, (0.55, 0.7), |g, tri, out| {
+                solid::emit_crossings(tri, g, dims, &budget, out);
+            })?;
+        if budget.is_exceeded() {
+            return Err(VoxelizeError::TooManyVoxels {
+                limit: settings.max_voxels,
+                what: "column crossings",
+            });
+        }
+        let intervals = solid::intervals(&mut crossings, dims.z, settings.fill_rule);
+        stats.interior_voxels = intervals
+            .iter()
+            .map(|iv| u64::from(iv.k_hi - iv.k_lo) + 1)
+            .sum();
+        if stats.interior_voxels.saturating_add(stats.surface_voxels) > settings.max_voxels {
+            return Err(VoxelizeError::TooManyVoxels {
+                limit: settings.max_voxels,
+                what: "interior voxels",
+            });
+        }
+        (crossings, intervals)
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    if !progress(0.75) {
+        return Err(VoxelizeError::Cancelled);
+    }
+
+    // Attributes of each surface voxel from its nearest triangle; in solid mode drop the ones
+    // outside the mesh that an interior voxel already represents.
+    let solid = settings.mode == Mode::Solid;
+    let keep_outer = settings.keep_outer_surface;
+    let surface_voxels: Vec<(UVec3, Voxel)> = records
+        .par_iter()
+        .filter_map(|&(code, key)| {
+            let coord = morton_decode(code);
+            let g = surface::key_triangle(key);
+            let tri = tris.grid(g);
+            let centre = coord.as_dvec3() + DVec3::splat(0.5);
+            let bary = tri.closest_barycentric(centre);
+            if solid && !keep_outer && !solid::is_interior(&intervals, coord) {
+                let q = tri.point(bary);
+                if represented_inside(&intervals, dims, centre, q, &tri) {
+                    return None;
+                }
+            }
+            let (part, t) = tris.locate(g);
+            Some((
+                coord,
+                transfer(model, &model.parts[part], t, bary, has_skin),
+            ))
+        })
+        .collect();
+    if !progress(0.85) {
+        return Err(VoxelizeError::Cancelled);
+    }
+
+    let interior_voxels = if solid {
+        let crossing_voxels: Vec<Voxel> = crossings
+            .par_iter()
+            .map(|c| {
+                let (part, t) = tris.locate(c.gtri);
+                transfer(model, &model.parts[part], t, c.bary, has_skin)
+            })
+            .collect();
+        crossings.clear();
+        fill_intervals(&intervals, &crossing_voxels)
+    } else {
+        Vec::new()
+    };
+    if !progress(0.9) {
+        return Err(VoxelizeError::Cancelled);
+    }
+
+    // Interior first: the octree builder keeps the later of duplicates, so a voxel that is both
+    // interior and surface takes the surface's (nearest-triangle) attributes.
+    let svo = Svo::from_voxels(
+        plan.depth,
+        has_skin,
+        interior_voxels.into_iter().chain(surface_voxels),
+    )?;
+    stats.voxels = svo.leaf_count();
+    progress(1.0);
+    Ok(Voxelized {
+        svo,
+        voxel_size: plan.voxel_size,
+        origin: plan.origin,
+        stats,
+    })
+}
+
+/// Solid mode: a surface voxel whose centre is outside the mesh is dropped when the solid
+/// beneath its nearest surface point is already interior voxels. The probe goes √3 voxels past
+/// that point, away from the centre, so for a locally flat solid at least one voxel thick it
+/// lands in a voxel whose centre is inside; for a part thinner than a voxel it passes through
+/// and lands outside, and the voxel is kept so thin parts do not vanish or detach.
+fn represented_inside(
+    intervals: &[Interval],
+    dims: UVec3,
+    centre: DVec3,
+    q: DVec3,
+    tri: &GridTriangle,
+) -> bool {
+    let dir = (q - centre)
+        .try_normalize()
+        .or_else(|| (-tri.normal).try_normalize());
+    let Some(dir) = dir else {
+        return false;
+    };
+    let probe = (q + dir * 3f64.sqrt()).floor();
+    if probe.min_element() < 0.0 || probe.cmpge(dims.as_dvec3()).any() {
+        return false;
+    }
+    solid::is_interior(intervals, probe.as_uvec3())
+}
+
+/// Interior voxels with the attributes of the nearer of their interval's two crossings.
+fn fill_intervals(intervals: &[Interval], crossing_voxels: &[Voxel]) -> Vec<(UVec3, Voxel)> {
+    intervals
+        .par_iter()
+        .flat_map_iter(|iv| {
+            let x = (iv.column & 0x1f_ffff) as u32;
+            let y = (iv.column >> 21) as u32;
+            (iv.k_lo..=iv.k_hi).map(move |k| {
+                let zc = f64::from(k) + 0.5;
+                let from = if zc - iv.z_in <= iv.z_out - zc {
+                    iv.entry
+                } else {
+                    iv.exit
+                };
+                (UVec3::new(x, y, k), crossing_voxels[from])
+            })
+        })
+        .collect()
+}
+
+/// Attributes of the surface point with barycentric weights `bary` on triangle `t` of `part`:
+/// colour (material factor × base-colour texture × vertex colour, stored sRGB), interpolated
+/// vertex normal (or the face normal), material index clamped to 255, and the four strongest
+/// interpolated joint influences when the part is skinned.
+fn transfer(
+    model: &MeshModel,
+    part: &TriangleMesh,
+    t: usize,
+    bary: DVec3,
+    has_skin: bool,
+) -> Voxel {
+    let b = bary.as_vec3();
+    let linear = model.surface_color(part, t, b);
+    let to8 = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
+    let color = [
+        to8(linear.x),
+        to8(linear.y),
+        to8(linear.z),
+        (linear.w.clamp(0.0, 1.0) * 255.0).round() as u8,
+    ];
+    let idx = part.triangle(t);
+    let face = (part.positions[idx[1]] - part.positions[idx[0]])
+        .cross(part.positions[idx[2]] - part.positions[idx[0]])
+        .try_normalize();
+    let normal = if part.normals.is_empty() {
+        face
+    } else {
+        (part.normals[idx[0]] * b.x + part.normals[idx[1]] * b.y + part.normals[idx[2]] * b.z)
+            .try_normalize()
+            .or(face)
+    }
+    .unwrap_or(Vec3::Z);
+    let skin = if has_skin && !part.joints.is_empty() && !part.weights.is_empty() {
+        let mut influences = [(0u16, 0.0f32); 12];
+        for (corner, (&vi, w)) in idx.iter().zip(b.to_array()).enumerate() {
+            for slot in 0..4 {
+                influences[corner * 4 + slot] = (part.joints[vi][slot], part.weights[vi][slot] * w);
+            }
+        }
+        Skin4::from_influences(&influences)
+    } else {
+        Skin4::default()
+    };
+    Voxel {
+        color,
+        normal: encode_normal(normal),
+        material: part.material.min(255) as u8,
+        skin,
+    }
+}

@@ -1,0 +1,165 @@
+//! Interior fill: one ray per (x, y) voxel column, through the column centre along +z. Each
+//! triangle whose xy projection owns the column centre (top-left rule, see
+//! [`super::geometry::point_in_ccw_triangle`]) gives a crossing; a crossing enters when the
+//! triangle faces −z. A voxel is interior when its centre lies where the winding number (or the
+//! crossing parity) says inside.
+
+use glam::{DVec2, DVec3, UVec3};
+
+use super::FillRule;
+use super::geometry::{GridTriangle, point_in_ccw_triangle};
+use super::surface::Budget;
+
+/// Column key: `y << 21 | x`.
+pub(crate) fn column_key(x: u32, y: u32) -> u64 {
+    (u64::from(y) << 21) | u64::from(x)
+}
+
+/// Where a column ray crosses a triangle.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Crossing {
+    pub(crate) column: u64,
+    /// Grid-space z of the crossing.
+    pub(crate) z: f64,
+    pub(crate) gtri: u32,
+    /// +1 entering (triangle faces −z), −1 leaving.
+    pub(crate) sign: i8,
+    /// Barycentric weights of the crossing point, in the triangle's own vertex order.
+    pub(crate) bary: DVec3,
+}
+
+/// Appends the column crossings of `tri` to `out`. Returns false when the budget ran out.
+pub(crate) fn emit_crossings(
+    tri: &GridTriangle,
+    gtri: u32,
+    dims: UVec3,
+    budget: &Budget,
+    out: &mut Vec<Crossing>,
+) -> bool {
+    if budget.is_exceeded() {
+        return false;
+    }
+    let p = tri.v.map(|v| DVec2::new(v.x, v.y));
+    // Projected signed area (= normal.z). Zero: the triangle is parallel to the rays and its
+    // neighbours' shared edges account for the crossing.
+    let area = tri.normal.z;
+    if area == 0.0 || !area.is_finite() {
+        return true;
+    }
+    // Counter-clockwise order for the top-left rule; `order` maps back to vertex indices.
+    let order = if area > 0.0 { [0, 1, 2] } else { [0, 2, 1] };
+    let ccw = order.map(|i| p[i]);
+    let sign = if area < 0.0 { 1 } else { -1 };
+    let min = tri.min();
+    let max = tri.max();
+    let x_lo = (min.x - 0.5).ceil().max(0.0);
+    let x_hi = (max.x - 0.5).floor().min(f64::from(dims.x) - 1.0);
+    let y_lo = (min.y - 0.5).ceil().max(0.0);
+    let y_hi = (max.y - 0.5).floor().min(f64::from(dims.y) - 1.0);
+    if x_lo > x_hi || y_lo > y_hi {
+        return true;
+    }
+    for y in y_lo as u32..=y_hi as u32 {
+        let mut row = 0u64;
+        for x in x_lo as u32..=x_hi as u32 {
+            let centre = DVec2::new(f64::from(x) + 0.5, f64::from(y) + 0.5);
+            let Some(w_ccw) = point_in_ccw_triangle(ccw, centre) else {
+                continue;
+            };
+            let mut bary = DVec3::ZERO;
+            for (slot, &vi) in order.iter().enumerate() {
+                bary[vi] = w_ccw[slot];
+            }
+            out.push(Crossing {
+                column: column_key(x, y),
+                z: tri.point(bary).z,
+                gtri,
+                sign,
+                bary,
+            });
+            row += 1;
+        }
+        if !budget.charge(row) {
+            return false;
+        }
+    }
+    true
+}
+
+/// A run of interior voxels `k_lo..=k_hi` in one column, with the crossings that bound it.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Interval {
+    pub(crate) column: u64,
+    pub(crate) k_lo: u32,
+    pub(crate) k_hi: u32,
+    pub(crate) z_in: f64,
+    pub(crate) z_out: f64,
+    /// Indices into the sorted crossing list.
+    pub(crate) entry: usize,
+    pub(crate) exit: usize,
+}
+
+/// Sorts crossings (column, z, triangle — a total order, so the result does not depend on the
+/// order threads produced them) and turns each column into inside intervals. A column that ends
+/// inside (an open mesh) drops its unfinished interval.
+pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule) -> Vec<Interval> {
+    use rayon::prelude::*;
+    crossings.par_sort_unstable_by(|a, b| {
+        a.column
+            .cmp(&b.column)
+            .then(a.z.total_cmp(&b.z))
+            .then(a.gtri.cmp(&b.gtri))
+    });
+    let inside = |winding: i64, count: u64| match rule {
+        FillRule::NonZero => winding != 0,
+        FillRule::EvenOdd => count % 2 == 1,
+    };
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < crossings.len() {
+        let column = crossings[i].column;
+        let mut winding = 0i64;
+        let mut count = 0u64;
+        let mut open: Option<usize> = None;
+        while i < crossings.len() && crossings[i].column == column {
+            winding += i64::from(crossings[i].sign);
+            count += 1;
+            let now = inside(winding, count);
+            match (open, now) {
+                (None, true) => open = Some(i),
+                (Some(entry), false) => {
+                    let z_in = crossings[entry].z;
+                    let z_out = crossings[i].z;
+                    // Centres k + 0.5 in [z_in, z_out).
+                    let k_lo = (z_in - 0.5).ceil().max(0.0);
+                    let k_hi = ((z_out - 0.5).ceil() - 1.0).min(f64::from(dims_z) - 1.0);
+                    if k_lo <= k_hi {
+                        out.push(Interval {
+                            column,
+                            k_lo: k_lo as u32,
+                            k_hi: k_hi as u32,
+                            z_in,
+                            z_out,
+                            entry,
+                            exit: i,
+                        });
+                    }
+                    open = None;
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+    }
+    out
+}
+
+/// Whether voxel `(x, y, z)` is interior; `intervals` sorted by column then z.
+pub(crate) fn is_interior(intervals: &[Interval], c: UVec3) -> bool {
+    let column = column_key(c.x, c.y);
+    let start = intervals.partition_point(|iv| iv.column < column);
+    intervals[start..]
+        .iter()
+        .take_while(|iv| iv.column == column)
+        .any(|iv| (iv.k_lo..=iv.k_hi).contains(&c.z))
+}

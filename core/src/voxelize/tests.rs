@@ -1,0 +1,892 @@
+use std::collections::{HashSet, VecDeque};
+use std::f32::consts::{PI, TAU};
+
+use glam::{Mat4, UVec3, Vec2, Vec3, Vec4};
+
+use super::*;
+use crate::mesh::{Material, unit_cube};
+
+fn all_progress(_: f32) -> bool {
+    true
+}
+
+fn model(parts: Vec<TriangleMesh>) -> MeshModel {
+    MeshModel {
+        parts,
+        materials: Vec::new(),
+    }
+}
+
+fn settings(resolution: Resolution, mode: Mode) -> VoxelizeSettings {
+    VoxelizeSettings {
+        resolution,
+        mode,
+        ..VoxelizeSettings::default()
+    }
+}
+
+/// A closed UV sphere with outward counter-clockwise faces and vertex normals.
+fn uv_sphere(radius: f32, stacks: u32, slices: u32) -> TriangleMesh {
+    let mut positions = Vec::new();
+    for i in 0..=stacks {
+        let theta = PI * i as f32 / stacks as f32;
+        for j in 0..slices {
+            let phi = TAU * j as f32 / slices as f32;
+            positions.push(
+                Vec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.cos(),
+                    theta.sin() * phi.sin(),
+                ) * radius,
+            );
+        }
+    }
+    let at = |i: u32, j: u32| i * slices + j % slices;
+    let mut indices = Vec::new();
+    for i in 0..stacks {
+        for j in 0..slices {
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j), at(i + 1, j + 1));
+            if i != 0 {
+                indices.extend([a, b, c]);
+            }
+            if i + 1 != stacks {
+                indices.extend([b, d, c]);
+            }
+        }
+    }
+    let mut mesh = TriangleMesh {
+        positions,
+        indices,
+        ..TriangleMesh::default()
+    };
+    mesh.compute_normals();
+    mesh
+}
+
+/// A closed torus around +y: ring radius `big`, tube radius `small`.
+fn torus(big: f32, small: f32, ring: u32, tube: u32) -> TriangleMesh {
+    let mut positions = Vec::new();
+    for i in 0..ring {
+        let u = TAU * i as f32 / ring as f32;
+        for j in 0..tube {
+            let v = TAU * j as f32 / tube as f32;
+            let r = big + small * v.cos();
+            positions.push(Vec3::new(r * u.cos(), small * v.sin(), r * u.sin()));
+        }
+    }
+    let at = |i: u32, j: u32| (i % ring) * tube + j % tube;
+    let mut indices = Vec::new();
+    for i in 0..ring {
+        for j in 0..tube {
+            let (a, b, c, d) = (at(i, j), at(i + 1, j), at(i, j + 1), at(i + 1, j + 1));
+            indices.extend([a, b, d, a, d, c]);
+        }
+    }
+    let mut mesh = TriangleMesh {
+        positions,
+        indices,
+        ..TriangleMesh::default()
+    };
+    if mesh.signed_volume() < 0.0 {
+        for t in mesh.indices.chunks_exact_mut(3) {
+            t.swap(1, 2);
+        }
+    }
+    mesh.compute_normals();
+    mesh
+}
+
+fn triangle(a: Vec3, b: Vec3, c: Vec3) -> TriangleMesh {
+    TriangleMesh {
+        positions: vec![a, b, c],
+        indices: vec![0, 1, 2],
+        ..TriangleMesh::default()
+    }
+}
+
+fn solid_set(v: &Voxelized) -> HashSet<UVec3> {
+    v.svo.leaves().into_iter().map(|(c, _)| c).collect()
+}
+
+/// Every point sampled on every triangle lies in a solid voxel. Samples are computed in f64 so
+/// they lie on the triangle (f32 interpolation can step outside the bounding box).
+fn assert_covers(v: &Voxelized, mesh: &TriangleMesh, samples: u32) {
+    let origin = v.origin.as_dvec3();
+    let size = f64::from(v.voxel_size);
+    let last = f64::from(v.svo.extent() - 1);
+    for t in 0..mesh.triangle_count() {
+        let [a, b, c] = mesh.triangle(t).map(|i| mesh.positions[i].as_dvec3());
+        for i in 0..=samples {
+            for j in 0..=samples - i {
+                let (u, w) = (
+                    f64::from(i) / f64::from(samples),
+                    f64::from(j) / f64::from(samples),
+                );
+                let p = a * (1.0 - u - w) + b * u + c * w;
+                // Interpolation rounding can push a sample on a voxel face across it: accept
+                // either voxel within 1e-9 voxels (the voxelizer's own test is closed).
+                let g = (p - origin) / size;
+                assert!(g.min_element() >= -1e-9, "{p} below the grid");
+                let lo = (g - 1e-9).floor().max(glam::DVec3::ZERO);
+                let hi = (g + 1e-9).floor().min(glam::DVec3::splat(last));
+                let found = (0..8).any(|k: u32| {
+                    let pick = |axis: usize| {
+                        if k >> axis & 1 == 0 {
+                            lo[axis]
+                        } else {
+                            hi[axis]
+                        }
+                    };
+                    let c = glam::DVec3::new(pick(0), pick(1), pick(2)).as_uvec3();
+                    v.svo.get(c).is_some()
+                });
+                assert!(found, "triangle {t} point {p} (grid {g}) in an empty voxel");
+            }
+        }
+    }
+}
+
+#[test]
+fn cube_solid_at_one_64th_is_exactly_64_cubed() {
+    // Box.glb's geometry: the unit cube. Its faces lie on voxel boundaries, so centre sampling
+    // is exact; the surface voxels outside the +x/+y/+z faces are represented by the interior
+    // and dropped.
+    for padding in [0, 1, 3] {
+        let s = VoxelizeSettings {
+            padding,
+            ..settings(Resolution::VoxelSize(1.0 / 64.0), Mode::Solid)
+        };
+        let v = voxelize(&model(vec![unit_cube()]), &s, &all_progress).expect("voxelize");
+        assert_eq!(v.svo.leaf_count(), 64 * 64 * 64, "padding {padding}");
+        let volume = v.svo.leaf_count() as f64 * f64::from(v.voxel_size).powi(3);
+        assert!((volume - 1.0).abs() < 0.02);
+        let expected_lo = UVec3::splat(padding);
+        assert_eq!(
+            v.svo.bounds(),
+            Some((expected_lo, expected_lo + UVec3::splat(63)))
+        );
+    }
+}
+
+#[test]
+fn unaligned_rotated_cube_volume_within_two_percent() {
+    let mut cube = unit_cube();
+    cube.transform(
+        Mat4::from_translation(Vec3::new(0.0123, -0.037, 0.0071))
+            * Mat4::from_rotation_y(0.3)
+            * Mat4::from_rotation_x(0.2),
+    );
+    let v = voxelize(
+        &model(vec![cube]),
+        &settings(Resolution::VoxelSize(1.0 / 64.0), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let volume = v.svo.leaf_count() as f64 * f64::from(v.voxel_size).powi(3);
+    assert!((volume - 1.0).abs() < 0.02, "volume {volume}");
+    // The full conservative shell is a strictly larger superset.
+    let with_shell = voxelize(
+        &model(vec![unit_cube()]),
+        &VoxelizeSettings {
+            keep_outer_surface: true,
+            padding: 1,
+            ..settings(Resolution::VoxelSize(1.0 / 64.0), Mode::Solid)
+        },
+        &all_progress,
+    )
+    .expect("voxelize");
+    // Faces on voxel boundaries: the +x/+y/+z faces mark the voxel layer beyond them.
+    assert_eq!(with_shell.svo.leaf_count(), 65 * 65 * 65);
+}
+
+#[test]
+fn cube_at_extreme_scales_and_offsets() {
+    for (scale, offset) in [(1.0e6f32, 1.0e7f32), (1.0e-6, -3.0e-5), (1.0, 1.0e5)] {
+        let mut cube = unit_cube();
+        cube.transform(
+            Mat4::from_translation(Vec3::splat(offset)) * Mat4::from_scale(Vec3::splat(scale)),
+        );
+        let v = voxelize(
+            &model(vec![cube]),
+            &settings(Resolution::Depth(5), Mode::Solid),
+            &all_progress,
+        )
+        .expect("voxelize");
+        let n = v.svo.leaf_count();
+        // The grid is set from the bounding box itself, so the faces land on voxel boundaries
+        // at any scale or offset and the count is exact.
+        assert_eq!(n, 32 * 32 * 32, "scale {scale} offset {offset}");
+        assert_eq!(v.svo.depth(), 5);
+    }
+}
+
+#[test]
+fn depth_resolution_spans_the_longest_side() {
+    let mut cube = unit_cube();
+    cube.transform(Mat4::from_scale(Vec3::new(2.0, 1.0, 0.5)));
+    let v = voxelize(
+        &model(vec![cube]),
+        &settings(Resolution::Depth(5), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_eq!(v.svo.depth(), 5);
+    assert!((v.voxel_size - 2.0 / 32.0).abs() < 1e-7);
+    assert_eq!(v.origin, Vec3::new(-1.0, -0.5, -0.25));
+    assert_eq!(v.svo.bounds(), Some((UVec3::ZERO, UVec3::new(31, 15, 7))));
+}
+
+#[test]
+fn sphere_surface_separates_inside_from_outside() {
+    let sphere = uv_sphere(1.0, 24, 48);
+    let v = voxelize(
+        &model(vec![sphere.clone()]),
+        &VoxelizeSettings {
+            padding: 1,
+            ..settings(Resolution::Depth(5), Mode::Surface)
+        },
+        &all_progress,
+    )
+    .expect("voxelize");
+    let solid = solid_set(&v);
+    let n = 34u32;
+    // Flood fill through empty voxels, 6-connected, from a padding corner.
+    let mut seen = HashSet::new();
+    let mut queue = VecDeque::from([UVec3::ZERO]);
+    seen.insert(UVec3::ZERO);
+    while let Some(c) = queue.pop_front() {
+        for d in [
+            [1i32, 0, 0],
+            [-1, 0, 0],
+            [0, 1, 0],
+            [0, -1, 0],
+            [0, 0, 1],
+            [0, 0, -1],
+        ] {
+            let nc = c.as_ivec3() + glam::IVec3::from_array(d);
+            if nc.min_element() < 0 || nc.max_element() >= n as i32 {
+                continue;
+            }
+            let nc = nc.as_uvec3();
+            if !solid.contains(&nc) && seen.insert(nc) {
+                queue.push_back(nc);
+            }
+        }
+    }
+    let centre = v.voxel_of(Vec3::ZERO).expect("centre in grid");
+    assert!(!solid.contains(&centre));
+    assert!(!seen.contains(&centre), "outside leaks into the sphere");
+    // Tight: every surface voxel's centre is within half a voxel diagonal of the sphere (plus the
+    // tessellation's sag, < 0.01 here).
+    for c in &solid {
+        let r = v.voxel_center(*c).length();
+        assert!(
+            (r - 1.0).abs() <= 0.87 * v.voxel_size + 0.01,
+            "voxel {c} at radius {r}"
+        );
+    }
+    assert_covers(&v, &sphere, 6);
+}
+
+#[test]
+fn thin_sloped_triangle_is_covered() {
+    let sliver = triangle(
+        Vec3::ZERO,
+        Vec3::new(10.0, 3.3, 7.1),
+        Vec3::new(10.0, 3.31, 7.1),
+    );
+    let v = voxelize(
+        &model(vec![sliver.clone()]),
+        &settings(Resolution::VoxelSize(0.37), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_covers(&v, &sliver, 400);
+    // Conservative, but not bloated: a 13-unit needle at 0.37 crosses at most ~3 voxels per
+    // step along it.
+    assert!(v.svo.leaf_count() < 3 * 36 * 3, "{}", v.svo.leaf_count());
+}
+
+#[test]
+fn sub_voxel_triangle_gets_a_voxel() {
+    let big = triangle(
+        Vec3::ZERO,
+        Vec3::new(4.0, 0.0, 0.0),
+        Vec3::new(0.0, 4.0, 0.0),
+    );
+    let tiny = triangle(
+        Vec3::new(3.1, 3.2, 3.3),
+        Vec3::new(3.1001, 3.2, 3.3),
+        Vec3::new(3.1, 3.2001, 3.3002),
+    );
+    let v = voxelize(
+        &model(vec![big, tiny.clone()]),
+        &settings(Resolution::VoxelSize(0.5), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_covers(&v, &tiny, 4);
+    // Alone: the grid is one voxel, and it is solid.
+    let alone = voxelize(
+        &model(vec![tiny]),
+        &settings(Resolution::VoxelSize(0.5), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_eq!(alone.svo.leaf_count(), 1);
+}
+
+#[test]
+fn colours_come_from_the_nearest_side() {
+    let mut sphere = uv_sphere(1.0, 16, 32);
+    sphere.colors = sphere
+        .positions
+        .iter()
+        .map(|p| {
+            if p.y > 0.0 {
+                Vec4::new(1.0, 0.0, 0.0, 1.0)
+            } else {
+                Vec4::new(0.0, 0.0, 1.0, 1.0)
+            }
+        })
+        .collect();
+    let v = voxelize(
+        &model(vec![sphere]),
+        &settings(Resolution::Depth(5), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let (mut red, mut blue) = (0, 0);
+    for (c, vox) in v.svo.leaves() {
+        let y = v.voxel_center(c).y;
+        if y > 0.25 {
+            assert_eq!(vox.color, [255, 0, 0, 255], "voxel {c}");
+            red += 1;
+        } else if y < -0.25 {
+            assert_eq!(vox.color, [0, 0, 255, 255], "voxel {c}");
+            blue += 1;
+        }
+    }
+    assert!(red > 1000 && blue > 1000);
+}
+
+#[test]
+fn materials_normals_and_texture_transfer() {
+    let mut left = unit_cube();
+    left.transform(Mat4::from_translation(Vec3::new(-1.0, 0.0, 0.0)));
+    let mut right = unit_cube();
+    right.transform(Mat4::from_translation(Vec3::new(1.0, 0.0, 0.0)));
+    right.material = 1;
+    // A 4×1 texture, green then white; the right cube samples between its two green texels.
+    right.uvs = vec![Vec2::new(0.25, 0.5); right.positions.len()];
+    let texture = crate::mesh::Texture {
+        width: 4,
+        height: 1,
+        rgba8: [[0, 255, 0, 255], [0, 255, 0, 255], [255; 4], [255; 4]].concat(),
+    };
+    let m = MeshModel {
+        parts: vec![left, right],
+        materials: vec![
+            Material {
+                base_color: Vec4::new(0.5, 0.5, 0.5, 1.0),
+                ..Material::default()
+            },
+            Material {
+                base_color: Vec4::new(1.0, 1.0, 1.0, 0.5),
+                base_color_texture: Some(texture),
+                ..Material::default()
+            },
+        ],
+    };
+    let v = voxelize(
+        &m,
+        &settings(Resolution::VoxelSize(0.1), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let grey = (linear_to_srgb(0.5) * 255.0).round() as u8;
+    for (c, vox) in v.svo.leaves() {
+        let p = v.voxel_center(c);
+        if p.x < 0.0 {
+            assert_eq!(vox.material, 0);
+            assert_eq!(vox.color, [grey, grey, grey, 255]);
+        } else {
+            assert_eq!(vox.material, 1);
+            assert_eq!(vox.color, [0, 255, 0, 128]);
+        }
+        // Vertex normals of a cube point diagonally out of the corners: never inward.
+        let centre = Vec3::new(p.x.signum(), 0.0, 0.0);
+        assert!(vox.normal_vec().dot(p - centre) > 0.0, "voxel {c}");
+    }
+}
+
+#[test]
+fn material_index_clamps_and_face_normal_without_vertex_normals() {
+    let mut t = triangle(Vec3::ZERO, Vec3::X, Vec3::Y);
+    t.material = 300;
+    let v = voxelize(
+        &model(vec![t]),
+        &settings(Resolution::Depth(3), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert!(!v.svo.is_empty());
+    for (_, vox) in v.svo.leaves() {
+        assert_eq!(vox.material, 255);
+        assert!(vox.normal_vec().dot(Vec3::Z) > 0.99);
+    }
+}
+
+#[test]
+fn skin_weights_are_interpolated_and_normalised() {
+    let mut t = triangle(
+        Vec3::ZERO,
+        Vec3::new(8.0, 0.0, 0.0),
+        Vec3::new(0.0, 8.0, 0.0),
+    );
+    t.joints = vec![[0, 5, 0, 0], [1, 5, 0, 0], [2, 5, 0, 0]];
+    t.weights = vec![
+        [0.8, 0.2, 0.0, 0.0],
+        [0.8, 0.2, 0.0, 0.0],
+        [0.8, 0.2, 0.0, 0.0],
+    ];
+    // A second, unskinned part gets the empty skin.
+    let mut other = triangle(
+        Vec3::new(0.0, 0.0, 4.0),
+        Vec3::new(1.0, 0.0, 4.0),
+        Vec3::new(0.0, 1.0, 4.0),
+    );
+    other.material = 1;
+    let v = voxelize(
+        &model(vec![t, other]),
+        &settings(Resolution::VoxelSize(0.5), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert!(v.svo.has_skin());
+    let mut checked = 0;
+    for (c, vox) in v.svo.leaves() {
+        if vox.material == 1 {
+            assert!(vox.skin.is_empty());
+            continue;
+        }
+        let sum: u32 = vox.skin.weights.iter().map(|&w| u32::from(w)).sum();
+        assert_eq!(sum, 255, "voxel {c}");
+        let p = v.voxel_center(c);
+        // Near vertex 0 joint 0 leads, near vertex 1 joint 1; joint 5 always holds ~20 %.
+        let w5: u32 = (0..4)
+            .filter(|&i| vox.skin.joints[i] == 5)
+            .map(|i| u32::from(vox.skin.weights[i]))
+            .sum();
+        assert!((45..=57).contains(&w5), "voxel {c}: joint 5 weight {w5}");
+        if p.x < 1.0 && p.y < 1.0 {
+            assert_eq!(vox.skin.joints[0], 0, "voxel {c}: {:?}", vox.skin);
+            checked += 1;
+        } else if p.x > 6.5 && p.y < 1.0 {
+            assert_eq!(vox.skin.joints[0], 1, "voxel {c}: {:?}", vox.skin);
+            checked += 1;
+        }
+    }
+    assert!(checked >= 4);
+}
+
+#[test]
+fn identical_result_for_any_thread_count() {
+    let m = model(vec![uv_sphere(1.0, 12, 24), torus(0.7, 0.2, 24, 12)]);
+    let s = settings(Resolution::Depth(6), Mode::Solid);
+    let run = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("thread pool")
+            .install(|| voxelize(&m, &s, &all_progress).expect("voxelize"))
+    };
+    let one = run(1);
+    for threads in [2, 5] {
+        let many = run(threads);
+        assert_eq!(one.svo, many.svo, "{threads} threads");
+        assert_eq!(one.svo.leaves(), many.svo.leaves());
+        assert_eq!(one.stats, many.stats);
+    }
+}
+
+#[test]
+fn torus_solid_keeps_its_hole() {
+    let (big, small) = (0.7f32, 0.25f32);
+    let v = voxelize(
+        &model(vec![torus(big, small, 64, 32)]),
+        &settings(Resolution::Depth(6), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let hole = v.voxel_of(Vec3::ZERO).expect("in grid");
+    assert!(v.svo.get(hole).is_none());
+    let tube = v.voxel_of(Vec3::new(big, 0.0, 0.0)).expect("in grid");
+    assert!(v.svo.get(tube).is_some());
+    let exact = 2.0 * PI * PI * big * small * small;
+    let volume = v.svo.leaf_count() as f32 * v.voxel_size.powi(3);
+    assert!(
+        ((volume - exact) / exact).abs() < 0.03,
+        "volume {volume} vs {exact}"
+    );
+    // Interior voxels take the colour-bearing attributes of a surface, never the default.
+    assert!(v.stats.interior_voxels > v.stats.surface_voxels);
+}
+
+#[test]
+fn solid_keeps_parts_thinner_than_a_voxel() {
+    // A closed slab 0.3 voxels thick: no voxel centre is inside, yet it must not vanish.
+    let mut slab = unit_cube();
+    slab.transform(Mat4::from_scale(Vec3::new(1.0, 0.3 / 16.0, 1.0)));
+    let v = voxelize(
+        &model(vec![slab.clone()]),
+        &VoxelizeSettings {
+            padding: 2,
+            ..settings(Resolution::VoxelSize(1.0 / 16.0), Mode::Solid)
+        },
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_covers(&v, &slab, 20);
+}
+
+#[test]
+fn even_odd_and_nonzero_differ_on_overlap() {
+    let mut a = unit_cube();
+    a.transform(Mat4::from_translation(Vec3::new(-0.25, 0.0, 0.0)));
+    let mut b = unit_cube();
+    b.transform(Mat4::from_translation(Vec3::new(0.25, 0.0, 0.0)));
+    let m = model(vec![a, b]);
+    let base = settings(Resolution::VoxelSize(1.0 / 16.0), Mode::Solid);
+    let nonzero = voxelize(&m, &base, &all_progress).expect("voxelize");
+    let even_odd = voxelize(
+        &m,
+        &VoxelizeSettings {
+            fill_rule: FillRule::EvenOdd,
+            ..base
+        },
+        &all_progress,
+    )
+    .expect("voxelize");
+    // Union of two unit cubes overlapping by half: 1.5 × 1 × 1.
+    assert_eq!(nonzero.svo.leaf_count(), 24 * 16 * 16);
+    let overlap_centre = nonzero.voxel_of(Vec3::new(0.0, 0.0, 0.0)).expect("in grid");
+    assert!(nonzero.svo.get(overlap_centre).is_some());
+    assert!(even_odd.svo.get(overlap_centre).is_none());
+}
+
+#[test]
+fn open_mesh_in_solid_mode_gives_its_surface() {
+    let t = triangle(Vec3::ZERO, Vec3::X, Vec3::Y);
+    let solid = voxelize(
+        &model(vec![t.clone()]),
+        &settings(Resolution::Depth(4), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let surface = voxelize(
+        &model(vec![t]),
+        &settings(Resolution::Depth(4), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_eq!(solid.svo, surface.svo);
+}
+
+#[test]
+fn degenerate_triangles_are_skipped() {
+    let mut mesh = unit_cube();
+    mesh.normals.clear();
+    let n = mesh.positions.len() as u32;
+    mesh.positions.push(Vec3::new(3.0, 3.0, 3.0));
+    // Repeated vertex, collinear points, and all three the same.
+    mesh.indices.extend([0, 0, 1, 0, 6, 6, n, n, n]);
+    mesh.positions.push(Vec3::new(0.0, 0.0, 0.0));
+    mesh.indices.extend([0, n + 1, 6]); // (-.5,-.5,-.5), origin, (.5,.5,.5): collinear
+    let v = voxelize(
+        &model(vec![mesh]),
+        &settings(Resolution::VoxelSize(0.25), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert_eq!(v.stats.degenerate_triangles, 4);
+    // The lone degenerate triangle at (3,3,3) widened the grid but produced no voxel there.
+    let far = v.voxel_of(Vec3::splat(2.99)).expect("in grid");
+    assert!(v.svo.get(far).is_none());
+    assert_eq!(v.stats.triangles, 16);
+
+    // Only degenerate triangles: empty octree; a point-sized model cannot derive a voxel size.
+    let point = triangle(Vec3::ONE, Vec3::ONE, Vec3::ONE);
+    let v = voxelize(
+        &model(vec![point.clone()]),
+        &settings(Resolution::VoxelSize(0.1), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert!(v.svo.is_empty());
+    assert_eq!(
+        voxelize(
+            &model(vec![point]),
+            &settings(Resolution::Depth(4), Mode::Surface),
+            &all_progress
+        )
+        .err(),
+        Some(VoxelizeError::ZeroExtent)
+    );
+}
+
+#[test]
+fn bad_meshes_are_errors() {
+    let mut nan = unit_cube();
+    nan.positions[3].y = f32::NAN;
+    let err = voxelize(
+        &model(vec![unit_cube(), nan]),
+        &VoxelizeSettings::default(),
+        &all_progress,
+    )
+    .err();
+    assert_eq!(
+        err,
+        Some(VoxelizeError::InvalidMesh {
+            part: 1,
+            source: MeshError::NonFinite(3)
+        })
+    );
+    let mut inf = unit_cube();
+    inf.positions[0].x = f32::INFINITY;
+    assert!(matches!(
+        voxelize(
+            &model(vec![inf]),
+            &VoxelizeSettings::default(),
+            &all_progress
+        ),
+        Err(VoxelizeError::InvalidMesh { part: 0, .. })
+    ));
+    let mut bad_index = unit_cube();
+    bad_index.indices[7] = 1000;
+    assert!(matches!(
+        voxelize(
+            &model(vec![bad_index]),
+            &VoxelizeSettings::default(),
+            &all_progress
+        ),
+        Err(VoxelizeError::InvalidMesh {
+            source: MeshError::IndexOutOfRange { .. },
+            ..
+        })
+    ));
+}
+
+#[test]
+fn empty_mesh_gives_empty_octree() {
+    for m in [MeshModel::default(), model(vec![TriangleMesh::default()])] {
+        for mode in [Mode::Surface, Mode::Solid] {
+            let v = voxelize(&m, &settings(Resolution::Depth(7), mode), &all_progress)
+                .expect("voxelize");
+            assert!(v.svo.is_empty());
+            assert_eq!(v.svo.depth(), 7);
+        }
+    }
+}
+
+#[test]
+fn bad_settings_and_huge_requests_are_refused() {
+    let cube = model(vec![unit_cube()]);
+    let err = |s: VoxelizeSettings| voxelize(&cube, &s, &all_progress).err();
+    assert_eq!(
+        err(settings(Resolution::Depth(0), Mode::Surface)),
+        Some(VoxelizeError::BadDepth(0))
+    );
+    assert_eq!(
+        err(settings(Resolution::Depth(22), Mode::Surface)),
+        Some(VoxelizeError::BadDepth(22))
+    );
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        assert!(matches!(
+            err(settings(Resolution::VoxelSize(bad), Mode::Surface)),
+            Some(VoxelizeError::BadVoxelSize(_))
+        ));
+    }
+    assert_eq!(
+        err(VoxelizeSettings {
+            max_voxels: 0,
+            ..VoxelizeSettings::default()
+        }),
+        Some(VoxelizeError::BadVoxelLimit)
+    );
+    // 10^9 voxels per axis: refused by the grid check, before anything is allocated.
+    assert!(matches!(
+        err(settings(Resolution::VoxelSize(1e-9), Mode::Surface)),
+        Some(VoxelizeError::GridTooLarge { axis: 'x', .. })
+    ));
+    assert!(matches!(
+        err(settings(
+            Resolution::VoxelSize(f32::MIN_POSITIVE),
+            Mode::Solid
+        )),
+        Some(VoxelizeError::GridTooLarge { .. })
+    ));
+    // Depth 21 plus padding no longer fits.
+    assert!(matches!(
+        err(VoxelizeSettings {
+            padding: 1,
+            ..settings(Resolution::Depth(21), Mode::Surface)
+        }),
+        Some(VoxelizeError::GridTooLarge { .. })
+    ));
+    // Fits the grid (2^20 per axis) but its surface alone is ~6·10^12 voxels.
+    assert!(matches!(
+        err(settings(Resolution::Depth(20), Mode::Surface)),
+        Some(VoxelizeError::TooManyVoxels { .. })
+    ));
+    // A small explicit limit is enforced for surface and for interior voxels.
+    assert!(matches!(
+        err(VoxelizeSettings {
+            max_voxels: 1000,
+            ..settings(Resolution::Depth(6), Mode::Surface)
+        }),
+        Some(VoxelizeError::TooManyVoxels { .. })
+    ));
+    assert!(matches!(
+        err(VoxelizeSettings {
+            max_voxels: 30_000,
+            ..settings(Resolution::Depth(6), Mode::Solid)
+        }),
+        Some(VoxelizeError::TooManyVoxels {
+            what: "interior voxels",
+            ..
+        })
+    ));
+}
+
+#[test]
+fn progress_is_monotonic_and_cancel_stops() {
+    let m = model(vec![uv_sphere(1.0, 8, 16)]);
+    let seen = std::cell::RefCell::new(Vec::new());
+    let v = voxelize(&m, &settings(Resolution::Depth(5), Mode::Solid), &|f| {
+        seen.borrow_mut().push(f);
+        true
+    });
+    assert!(v.is_ok());
+    let seen = seen.into_inner();
+    assert!(seen.windows(2).all(|w| w[0] <= w[1]));
+    assert_eq!(seen.last().copied(), Some(1.0));
+    let calls = std::cell::Cell::new(0);
+    let cancelled = voxelize(&m, &settings(Resolution::Depth(5), Mode::Solid), &|_| {
+        calls.set(calls.get() + 1);
+        calls.get() < 3
+    });
+    assert_eq!(cancelled.err(), Some(VoxelizeError::Cancelled));
+}
+
+#[test]
+fn settings_round_trip_through_json() {
+    let s = VoxelizeSettings {
+        resolution: Resolution::VoxelSize(0.125),
+        mode: Mode::Solid,
+        padding: 2,
+        fill_rule: FillRule::EvenOdd,
+        keep_outer_surface: true,
+        max_voxels: 12345,
+    };
+    let json = serde_json::to_string(&s).expect("serialise");
+    let back: VoxelizeSettings = serde_json::from_str(&json).expect("parse");
+    assert_eq!(back, s);
+    let partial: VoxelizeSettings =
+        serde_json::from_str(r#"{"mode":"Solid"}"#).expect("defaults fill the rest");
+    assert_eq!(partial.mode, Mode::Solid);
+    assert_eq!(partial.resolution, VoxelizeSettings::default().resolution);
+}
+
+fn asset(rel: &str) -> std::path::PathBuf {
+    std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets")).join(rel)
+}
+
+#[test]
+fn box_glb_solid_at_one_64th_has_unit_volume() {
+    let m = crate::io::import_gltf(&asset("static/Box.glb")).expect("Box.glb imports");
+    let v = voxelize(
+        &m,
+        &settings(Resolution::VoxelSize(1.0 / 64.0), Mode::Solid),
+        &all_progress,
+    )
+    .expect("voxelize");
+    let volume = v.svo.leaf_count() as f64 * f64::from(v.voxel_size).powi(3);
+    assert!((volume - 1.0).abs() < 0.02, "volume {volume}");
+    // Box.glb is the unit cube with faces on voxel boundaries: exact.
+    assert_eq!(v.svo.leaf_count(), 64 * 64 * 64);
+}
+
+#[test]
+fn cesium_man_surface_is_skinned_and_covers_its_triangles() {
+    let m = crate::io::import_gltf(&asset("skinned/CesiumMan.glb")).expect("CesiumMan imports");
+    let v = voxelize(
+        &m,
+        &settings(Resolution::Depth(7), Mode::Surface),
+        &all_progress,
+    )
+    .expect("voxelize");
+    assert!(v.svo.has_skin());
+    assert_eq!(v.stats.triangles, m.triangle_count() as u64);
+    for (c, vox) in v.svo.leaves() {
+        let sum: u32 = vox.skin.weights.iter().map(|&w| u32::from(w)).sum();
+        assert_eq!(sum, 255, "voxel {c}: {:?}", vox.skin);
+    }
+    for part in &m.parts {
+        assert_covers(&v, part, 3);
+    }
+}
+
+#[test]
+fn column_walk_finds_exactly_what_brute_force_finds() {
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let dims = UVec3::splat(16);
+    let budget = surface::Budget::new(u64::MAX);
+    for case in 0..400 {
+        let mut v = [glam::DVec3::ZERO; 3];
+        for p in &mut v {
+            *p = glam::DVec3::new(
+                rng.random_range(0.0..16.0),
+                rng.random_range(0.0..16.0),
+                rng.random_range(0.0..16.0),
+            );
+        }
+        if case % 4 == 0 {
+            // Slivers, and vertices snapped to grid planes.
+            v[2] = v[1] + (v[1] - v[0]) * 1e-4;
+        }
+        if case % 3 == 0 {
+            v[0] = v[0].floor();
+            v[1].x = v[1].x.floor();
+        }
+        let tri = geometry::GridTriangle::new(v);
+        if tri.is_degenerate() {
+            continue;
+        }
+        let mut out = Vec::new();
+        assert!(surface::emit_triangle(&tri, 0, dims, &budget, &mut out));
+        let walked: HashSet<u64> = out.iter().map(|r| r.0).collect();
+        assert_eq!(walked.len(), out.len(), "case {case}: duplicate voxels");
+        let lo = tri
+            .min()
+            .floor()
+            .clamp(glam::DVec3::ZERO, glam::DVec3::splat(15.0));
+        let hi = tri
+            .max()
+            .floor()
+            .clamp(glam::DVec3::ZERO, glam::DVec3::splat(15.0));
+        let mut brute = HashSet::new();
+        for z in lo.z as u32..=hi.z as u32 {
+            for y in lo.y as u32..=hi.y as u32 {
+                for x in lo.x as u32..=hi.x as u32 {
+                    let c = UVec3::new(x, y, z);
+                    if tri.overlaps_unit_box(c.as_dvec3()) {
+                        brute.insert(crate::svo::morton_encode(c));
+                    }
+                }
+            }
+        }
+        assert_eq!(walked, brute, "case {case}: {v:?}");
+    }
+}
