@@ -11,7 +11,7 @@ use rand_pcg::Pcg32;
 
 use super::grid::{CoarseGrid, cell_key};
 use super::{CellState, Engine, Scratch};
-use crate::mesh::{linear_to_srgb, srgb_to_linear};
+use crate::mesh::linear_to_srgb;
 
 /// Lighting settings turned into working units.
 pub(crate) struct LightParams {
@@ -87,7 +87,7 @@ impl LightParams {
         let light = Vec3::splat(self.ambient)
             + self.sun_color * frac(sun, self.sun_n)
             + self.sky_color * frac(sky, self.sky_n);
-        let lin = |c: u8| srgb_to_linear(f32::from(c) / 255.0);
+        let lin = super::srgb_byte_to_linear;
         let out = Vec3::new(lin(albedo[0]), lin(albedo[1]), lin(albedo[2])) * light;
         let to8 = |v: f32| (linear_to_srgb(v) * 255.0).round() as u8;
         [to8(out.x), to8(out.y), to8(out.z), albedo[3]]

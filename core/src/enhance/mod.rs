@@ -43,8 +43,8 @@ pub use settings::{
     ColorMode, EnhanceSettings, LightingSettings, MAX_FACTOR, MAX_PROBES, MAX_SPREAD,
     MaterialThreshold, Method, ResampleSettings, SubdivideSettings, ThresholdPattern,
 };
-use subdivide::{CellThresholds, Region, subdivide_cell};
 pub use subdivide::{CFG_CENTRE, LUT, rule_direct, subdivide_dense};
+use subdivide::{CellThresholds, Region, subdivide_cell};
 pub use terrain::{MAT_DIRT, MAT_GRASS, MAT_ROCK, sample_terrain};
 
 /// Most configurations the resampling cache keeps (beyond it results are computed, not kept).
@@ -155,7 +155,10 @@ enum CellState {
 
 enum Kind {
     /// `thresholds[material or 256 for empty][parity]`, counts 1..=4.
-    Subdivide { k: u32, thresholds: Vec<[u8; 2]> },
+    Subdivide {
+        k: u32,
+        thresholds: Vec<[u8; 2]>,
+    },
     Resample(Box<Resampler>),
 }
 
@@ -197,7 +200,11 @@ impl Scratch {
 }
 
 fn ceil_log2(v: u64) -> u32 {
-    if v <= 1 { 0 } else { 64 - (v - 1).leading_zeros() }
+    if v <= 1 {
+        0
+    } else {
+        64 - (v - 1).leading_zeros()
+    }
 }
 
 impl Engine {
@@ -245,8 +252,10 @@ impl Engine {
                 let count = r.probe_count;
                 // hits > need; need at most count - 1 so a fragment whose probes all hit is
                 // solid (keeps uniform solid windows solid: surface-only stays exact).
-                let need = |t: f32| ((f64::from(t) * f64::from(count)).floor() as u64)
-                    .min(u64::from(count - 1)) as u32;
+                let need = |t: f32| {
+                    ((f64::from(t) * f64::from(count)).floor() as u64).min(u64::from(count - 1))
+                        as u32
+                };
                 let mut even = Vec::with_capacity(257);
                 let mut odd = Vec::with_capacity(257);
                 for m in 0..=256 {
@@ -316,10 +325,7 @@ impl Engine {
             }
             Kind::Resample(res) => {
                 let key = res.key(win, d, c.y);
-                CellState::Mixed(
-                    self.cache
-                        .get_or_compute(key, || res.cell(win, d, c.y)),
-                )
+                CellState::Mixed(self.cache.get_or_compute(key, || res.cell(win, d, c.y)))
             }
         }
     }
@@ -527,6 +533,14 @@ impl Engine {
     }
 }
 
+/// `srgb_to_linear(v / 255)` for every byte: the colour rule runs per shell fragment and the
+/// transfer function's `powf` dominated it. Same values as the function, so results match.
+fn srgb_byte_to_linear(v: u8) -> f32 {
+    static TABLE: std::sync::LazyLock<[f32; 256]> =
+        std::sync::LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
+    TABLE[usize::from(v)]
+}
+
 /// Majority material by weight (ties: lowest id), then that material's colour.
 fn pick_color(win: &Window, contrib: &[(usize, f32)], mode: ColorMode) -> ([u8; 4], u8) {
     if contrib.is_empty() {
@@ -566,7 +580,7 @@ fn pick_color(win: &Window, contrib: &[(usize, f32)], mode: ColorMode) -> ([u8; 
                 }
                 let col = win.color[i];
                 for ch in 0..3 {
-                    acc[ch] += w * srgb_to_linear(f32::from(col[ch]) / 255.0);
+                    acc[ch] += w * srgb_byte_to_linear(col[ch]);
                 }
                 acc[3] += w * f32::from(col[3]) / 255.0;
                 total += w;
@@ -585,7 +599,11 @@ fn pick_color(win: &Window, contrib: &[(usize, f32)], mode: ColorMode) -> ([u8; 
 
 #[inline]
 fn low(n: usize) -> u128 {
-    if n >= 128 { u128::MAX } else { (1u128 << n) - 1 }
+    if n >= 128 {
+        u128::MAX
+    } else {
+        (1u128 << n) - 1
+    }
 }
 
 /// Interior `F³` of an `(F+2)³` region.

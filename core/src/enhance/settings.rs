@@ -307,13 +307,19 @@ impl EnhanceSettings {
             check_color("lighting.sun_color", l.sun_color)?;
             check_color("lighting.sky_color", l.sky_color)?;
             if !l.ambient.is_finite() || !(0.0..=16.0).contains(&l.ambient) {
-                return Err(bad("lighting.ambient", format!("{} not in 0..=16", l.ambient)));
+                return Err(bad(
+                    "lighting.ambient",
+                    format!("{} not in 0..=16", l.ambient),
+                ));
             }
             if l.sun_particles > 1024 || l.sky_particles > 1024 {
                 return Err(bad("lighting.particles", "at most 1024 per kind"));
             }
             if l.steps == 0 || l.steps > 1024 {
-                return Err(bad("lighting.steps", format!("{} outside 1..=1024", l.steps)));
+                return Err(bad(
+                    "lighting.steps",
+                    format!("{} outside 1..=1024", l.steps),
+                ));
             }
             if !l.step_length.is_finite() || l.step_length <= 0.0 || l.step_length > 4.0 {
                 return Err(bad(
@@ -329,7 +335,10 @@ impl EnhanceSettings {
                 ));
             }
             if !l.sun_bias.is_finite() || !(0.0..=1.0).contains(&l.sun_bias) {
-                return Err(bad("lighting.sun_bias", format!("{} not in 0..=1", l.sun_bias)));
+                return Err(bad(
+                    "lighting.sun_bias",
+                    format!("{} not in 0..=1", l.sun_bias),
+                ));
             }
         }
         Ok(())

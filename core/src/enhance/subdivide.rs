@@ -28,9 +28,21 @@ const fn bit(config: u8, b: u8) -> u8 {
 /// voxel with 7-voxel configuration `config` is solid for threshold `t`.
 #[must_use]
 pub const fn rule_direct(config: u8, octant: u8, t: u8) -> bool {
-    let x = if octant & 1 != 0 { bit(config, 2) } else { bit(config, 1) };
-    let y = if octant & 2 != 0 { bit(config, 4) } else { bit(config, 3) };
-    let z = if octant & 4 != 0 { bit(config, 6) } else { bit(config, 5) };
+    let x = if octant & 1 != 0 {
+        bit(config, 2)
+    } else {
+        bit(config, 1)
+    };
+    let y = if octant & 2 != 0 {
+        bit(config, 4)
+    } else {
+        bit(config, 3)
+    };
+    let z = if octant & 4 != 0 {
+        bit(config, 6)
+    } else {
+        bit(config, 5)
+    };
     bit(config, 0) + x + y + z >= t
 }
 
@@ -103,7 +115,11 @@ fn spread(x: u64) -> u128 {
 
 #[inline]
 fn low_mask(n: usize) -> u128 {
-    if n >= 128 { u128::MAX } else { (1u128 << n) - 1 }
+    if n >= 128 {
+        u128::MAX
+    } else {
+        (1u128 << n) - 1
+    }
 }
 
 /// Bit-parallel `count(a, b, c, d) >= t`.
@@ -256,7 +272,8 @@ pub fn subdivide_dense(
                     cfg |= u8::from(at(p + *d)) << (b + 1);
                 }
                 for o in 0..8u8 {
-                    let f = p * 2 + IVec3::new(i32::from(o & 1), i32::from(o >> 1 & 1), i32::from(o >> 2));
+                    let f = p * 2
+                        + IVec3::new(i32::from(o & 1), i32::from(o >> 1 & 1), i32::from(o >> 2));
                     let t = threshold(p, f).clamp(1, 4);
                     if LUT[usize::from(t - 1)][usize::from(cfg)] >> o & 1 == 1 {
                         out[(f.z as usize * m + f.y as usize) * m + f.x as usize] = true;

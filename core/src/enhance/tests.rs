@@ -188,18 +188,32 @@ fn resampling_rule_on_hand_made_neighbourhoods() {
     // of a factor-2 cell (centre at ¾) they reach the centre voxel and its +x, +y, +z
     // neighbours: the subdivision neighbourhood of octant 7. For the (0,0,0) fragment (centre
     // at ¼) all four stay in the centre voxel.
-    let offsets = [[0.0, 0.0, 0.0], [0.5, 0.0, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5]];
+    let offsets = [
+        [0.0, 0.0, 0.0],
+        [0.5, 0.0, 0.0],
+        [0.0, 0.5, 0.0],
+        [0.0, 0.0, 0.5],
+    ];
     let pattern = resample::ProbePattern::from_offsets(&offsets, 2);
     assert_eq!(pattern.r, 1);
     for (cells, hits7, hits0) in [
         (vec![(IVec3::ZERO, true)], 1u32, 4u32),
         (vec![(IVec3::ZERO, true), (IVec3::X, true)], 2, 4),
         (
-            vec![(IVec3::ZERO, true), (IVec3::X, true), (IVec3::Y, true), (IVec3::Z, true)],
+            vec![
+                (IVec3::ZERO, true),
+                (IVec3::X, true),
+                (IVec3::Y, true),
+                (IVec3::Z, true),
+            ],
             4,
             4,
         ),
-        (vec![(IVec3::X, true), (IVec3::Y, true), (IVec3::Z, true)], 3, 0),
+        (
+            vec![(IVec3::X, true), (IVec3::Y, true), (IVec3::Z, true)],
+            3,
+            0,
+        ),
     ] {
         let win = window_from(&cells, 2);
         // Threshold "t of 4 probes" is the fraction (t - 1) / 4: solid when hits > t - 1.
@@ -223,7 +237,8 @@ fn resampling_rule_on_hand_made_neighbourhoods() {
 fn resample_direct(map: &Svo, s: &EnhanceSettings, p: UVec3) -> bool {
     let r = &s.resample;
     let f = s.factor as usize;
-    let pattern = resample::ProbePattern::new(r.probe_count as usize, f64::from(r.spread), r.seed, f);
+    let pattern =
+        resample::ProbePattern::new(r.probe_count as usize, f64::from(r.spread), r.seed, f);
     let c = p / s.factor;
     let l = p - c * s.factor;
     let mut hits = 0;
@@ -272,13 +287,25 @@ fn subdivision_kernel_equals_lut_reference_for_all_patterns() {
         constant(2.0),
         constant(3.0),
         constant(4.0),
-        ThresholdPattern::Alternating { even: 3.0, odd: 4.0 },
-        ThresholdPattern::Alternating { even: 1.0, odd: 2.0 },
+        ThresholdPattern::Alternating {
+            even: 3.0,
+            odd: 4.0,
+        },
+        ThresholdPattern::Alternating {
+            even: 1.0,
+            odd: 2.0,
+        },
         ThresholdPattern::PerMaterial {
             default: 2.0,
             materials: vec![
-                MaterialThreshold { material: 1, threshold: 1.0 },
-                MaterialThreshold { material: 2, threshold: 4.0 },
+                MaterialThreshold {
+                    material: 1,
+                    threshold: 1.0,
+                },
+                MaterialThreshold {
+                    material: 2,
+                    threshold: 4.0,
+                },
             ],
         },
     ];
@@ -286,7 +313,14 @@ fn subdivision_kernel_equals_lut_reference_for_all_patterns() {
         let map = random_map(8, fill, seed);
         let n = 8usize;
         let coarse: Vec<bool> = (0..n * n * n)
-            .map(|i| map.get(UVec3::new((i % n) as u32, (i / n % n) as u32, (i / n / n) as u32)).is_some())
+            .map(|i| {
+                map.get(UVec3::new(
+                    (i % n) as u32,
+                    (i / n % n) as u32,
+                    (i / n / n) as u32,
+                ))
+                .is_some()
+            })
             .collect();
         for pattern in &patterns {
             let mut occ = coarse.clone();
@@ -317,7 +351,9 @@ fn subdivision_kernel_equals_lut_reference_for_all_patterns() {
 #[test]
 fn threshold_one_grows_sierpinski_triangles_on_a_45_degree_facet() {
     // Coarse facet x + y + z <= 12 on a 8³ map (45° to every axis).
-    let map = map_from(8, |p| (p.x + p.y + p.z <= 12).then(|| vox([200, 200, 200], 0)));
+    let map = map_from(8, |p| {
+        (p.x + p.y + p.z <= 12).then(|| vox([200, 200, 200], 0))
+    });
     let mut top_counts = Vec::new();
     for k in 1..=4u32 {
         let f = 1 << k;
@@ -337,7 +373,10 @@ fn threshold_one_grows_sierpinski_triangles_on_a_45_degree_facet() {
             }
             n
         };
-        let top = (0..i64::from(30 * f)).rev().find(|&s| count(s) > 0).unwrap();
+        let top = (0..i64::from(30 * f))
+            .rev()
+            .find(|&s| count(s) > 0)
+            .unwrap();
         // The outermost plane lies a fixed number of fine layers past the coarse facet.
         assert_eq!(top, i64::from(16 * f) - 4, "factor {f}");
         top_counts.push(i64::from(count(top)));
@@ -360,9 +399,13 @@ fn materials_keep_crisp_edges_and_same_material_blends() {
     let red = [220, 30, 30];
     let blue = [30, 30, 220];
     // Left half material 1 red, right half material 2 blue; flat top at y = 4.
-    let crisp = map_from(8, |p| (p.y < 4).then(|| if p.x < 4 { vox(red, 1) } else { vox(blue, 2) }));
+    let crisp = map_from(8, |p| {
+        (p.y < 4).then(|| if p.x < 4 { vox(red, 1) } else { vox(blue, 2) })
+    });
     // Same halves, one material: colours blend across the seam.
-    let blend = map_from(8, |p| (p.y < 4).then(|| if p.x < 4 { vox(red, 1) } else { vox(blue, 1) }));
+    let blend = map_from(8, |p| {
+        (p.y < 4).then(|| if p.x < 4 { vox(red, 1) } else { vox(blue, 1) })
+    });
     for s in [subdivide(8, constant(2.0)), resample(6, 16, 1.0, 0.3)] {
         let fine = enhance(&crisp, &s).unwrap();
         for (p, v) in fine.leaves() {
@@ -378,7 +421,10 @@ fn materials_keep_crisp_edges_and_same_material_blends() {
             .count();
         assert!(mixed > 0, "same material must blend");
         // Nearest mode never invents a colour.
-        let near = EnhanceSettings { color: ColorMode::Nearest, ..s.clone() };
+        let near = EnhanceSettings {
+            color: ColorMode::Nearest,
+            ..s.clone()
+        };
         for (_, v) in enhance(&blend, &near).unwrap().leaves() {
             let c = [v.color[0], v.color[1], v.color[2]];
             assert!(c == red || c == blue);
@@ -394,7 +440,11 @@ fn normals_follow_the_surface() {
     let mut tops = 0;
     for (p, v) in fine.leaves() {
         if p.y == 15 && (4..28).contains(&p.x) && (4..28).contains(&p.z) {
-            assert!(v.normal_vec().dot(Vec3::Y) > 0.99, "{p}: {}", v.normal_vec());
+            assert!(
+                v.normal_vec().dot(Vec3::Y) > 0.99,
+                "{p}: {}",
+                v.normal_vec()
+            );
             tops += 1;
         }
     }
@@ -409,7 +459,11 @@ fn normals_follow_the_surface() {
             sum += v.normal_vec();
         }
     }
-    assert!(sum.normalize_or_zero().dot(want) > 0.98, "mean normal {sum} of {}", fine.leaf_count());
+    assert!(
+        sum.normalize_or_zero().dot(want) > 0.98,
+        "mean normal {sum} of {}",
+        fine.leaf_count()
+    );
 }
 
 fn lit(factor: u32) -> EnhanceSettings {
@@ -441,12 +495,20 @@ fn snowflake_lighting_darkens_under_a_roof() {
             }
         }
     }
-    let (under, open) = (shade[0].0 / f64::from(shade[0].1), shade[1].0 / f64::from(shade[1].1));
+    let (under, open) = (
+        shade[0].0 / f64::from(shade[0].1),
+        shade[1].0 / f64::from(shade[1].1),
+    );
     assert!(shade[0].1 > 100 && shade[1].1 > 100);
     assert!(under + 30.0 < open, "under roof {under}, open {open}");
     // Off: the albedo itself.
     let plain = enhance(&map, &subdivide(4, constant(2.0))).unwrap();
-    assert!(plain.leaves().iter().all(|(_, v)| v.color == [200, 200, 200, 255]));
+    assert!(
+        plain
+            .leaves()
+            .iter()
+            .all(|(_, v)| v.color == [200, 200, 200, 255])
+    );
 }
 
 // ---------------------------------------------------------------- determinism
@@ -483,17 +545,33 @@ fn same_input_and_seed_give_identical_output_across_runs_and_thread_counts() {
 
 fn random_edit(map: &mut Svo, rng: &mut Pcg32) -> EditResult {
     let n = map.extent();
-    let p = UVec3::new(rng.random_range(0..n), rng.random_range(0..n), rng.random_range(0..n));
+    let p = UVec3::new(
+        rng.random_range(0..n),
+        rng.random_range(0..n),
+        rng.random_range(0..n),
+    );
     match rng.random_range(0..10) {
         0 => {
             // A small box of one material.
             let hi = (p + UVec3::splat(rng.random_range(0..3))).min(UVec3::splat(n - 1));
-            let v = rng.random_bool(0.5).then(|| vox([rng.random(), 90, 60], rng.random_range(1..=3)));
+            let v = rng
+                .random_bool(0.5)
+                .then(|| vox([rng.random(), 90, 60], rng.random_range(1..=3)));
             map.edit_region(p, hi, |_, _| v).unwrap()
         }
-        1 => map.edit_existing(p, p, |_, v| Some(Voxel { color: [10, 200, 10, 255], ..v })).unwrap(),
+        1 => map
+            .edit_existing(p, p, |_, v| {
+                Some(Voxel {
+                    color: [10, 200, 10, 255],
+                    ..v
+                })
+            })
+            .unwrap(),
         _ => {
-            let v = map.get(p).is_none().then(|| vox([rng.random(), 120, 80], rng.random_range(1..=3)));
+            let v = map
+                .get(p)
+                .is_none()
+                .then(|| vox([rng.random(), 120, 80], rng.random_range(1..=3)));
             map.edit_region(p, p, |_, _| v).unwrap()
         }
     }
@@ -520,13 +598,19 @@ fn incremental_equals_full_after_1000_random_edits() {
         4,
         ThresholdPattern::PerMaterial {
             default: 2.0,
-            materials: vec![MaterialThreshold { material: 1, threshold: 1.0 }],
+            materials: vec![MaterialThreshold {
+                material: 1,
+                threshold: 1.0,
+            }],
         },
     );
     s.color = ColorMode::Blend;
     check_incremental(sample_terrain(16, 2).unwrap(), &s, 1000, 1, 4);
     let mut r = resample(3, 6, 1.2, 0.3);
-    r.resample.threshold = ThresholdPattern::Alternating { even: 0.2, odd: 0.5 };
+    r.resample.threshold = ThresholdPattern::Alternating {
+        even: 0.2,
+        odd: 0.5,
+    };
     check_incremental(sample_terrain(16, 3).unwrap(), &r, 1000, 2, 2);
 }
 
@@ -595,7 +679,9 @@ fn factor_64_on_a_small_map() {
         assert!(n > 0 && n <= 6 * surface * 64 * 64, "{n} fragments");
     }
     // 65 is refused with a clear error.
-    let err = Enhancer::new(&map, &resample(65, 4, 1.0, 0.25)).err().unwrap();
+    let err = Enhancer::new(&map, &resample(65, 4, 1.0, 0.25))
+        .err()
+        .unwrap();
     assert!(err.to_string().contains("factor"), "{err}");
 }
 
@@ -654,14 +740,21 @@ fn empty_and_full_maps() {
     let full = map_from(8, |_| Some(vox([1, 2, 3], 1)));
     let mut lit_one = lit(2);
     lit_one.subdivide.threshold = constant(1.0);
-    for s in [subdivide(4, constant(1.0)), resample(3, 6, 0.0, 0.5), lit_one] {
+    for s in [
+        subdivide(4, constant(1.0)),
+        resample(3, 6, 0.0, 0.5),
+        lit_one,
+    ] {
         let e = Enhancer::new(&empty, &s).unwrap();
         assert!(e.fine().is_empty());
         assert_eq!(e.stats().candidate_cells, 0);
         let e = Enhancer::new(&full, &s).unwrap();
         // The shell of the fine cube: (8F)³ - (8F - 2)³.
         let m = u64::from(8 * s.factor);
-        assert_eq!(e.fine().leaf_count(), m * m * m - (m - 2) * (m - 2) * (m - 2));
+        assert_eq!(
+            e.fine().leaf_count(),
+            m * m * m - (m - 2) * (m - 2) * (m - 2)
+        );
         // Interior cells never did any work.
         assert!(e.stats().candidate_cells < 8 * 8 * 8 - 4 * 4 * 4 + 1);
         assert!(e.is_solid_fine(UVec3::splat(m as u32 / 2)));
@@ -670,7 +763,10 @@ fn empty_and_full_maps() {
     for s in [subdivide(4, constant(3.0)), resample(4, 8, 1.0, 0.5)] {
         let m = u64::from(8 * s.factor);
         let n = enhance(&full, &s).unwrap().leaf_count();
-        assert!(n < m * m * m - (m - 2) * (m - 2) * (m - 2) && n > 4 * m * m, "{n}");
+        assert!(
+            n < m * m * m - (m - 2) * (m - 2) * (m - 2) && n > 4 * m * m,
+            "{n}"
+        );
     }
 }
 
@@ -681,7 +777,13 @@ fn fragment_count_is_bounded_by_the_surface() {
     for s in [
         subdivide(4, constant(1.0)),
         subdivide(8, constant(2.0)),
-        subdivide(8, ThresholdPattern::Alternating { even: 3.0, odd: 4.0 }),
+        subdivide(
+            8,
+            ThresholdPattern::Alternating {
+                even: 3.0,
+                odd: 4.0,
+            },
+        ),
         resample(6, 16, 1.0, 0.25),
         resample(7, 4, 2.0, 0.5),
     ] {
@@ -690,7 +792,10 @@ fn fragment_count_is_bounded_by_the_surface() {
         let f = u64::from(s.factor);
         // A terrain's shell is a height field: a few fragments per fine column and per
         // exposed side; 6 × surface × F² is generous and still quadratic, not cubic.
-        assert!(n <= 6 * surface * f * f, "{n} fragments, surface {surface}, {s:?}");
+        assert!(
+            n <= 6 * surface * f * f,
+            "{n} fragments, surface {surface}, {s:?}"
+        );
         assert!(n >= surface * f * f / 4);
         // Candidates are near the surface only.
         assert!(e.stats().candidate_cells <= 27 * surface);
@@ -712,7 +817,13 @@ fn settings_are_validated_with_clear_errors() {
         let err = s.validate().err().unwrap();
         assert!(err.to_string().contains(field), "{err} lacks {field}");
     };
-    bad(EnhanceSettings { factor: 0, ..EnhanceSettings::default() }, "factor");
+    bad(
+        EnhanceSettings {
+            factor: 0,
+            ..EnhanceSettings::default()
+        },
+        "factor",
+    );
     bad(subdivide(6, constant(2.0)), "power of two");
     bad(subdivide(4, constant(2.5)), "subdivide.threshold");
     bad(subdivide(4, constant(f32::NAN)), "subdivide.threshold");
@@ -723,7 +834,11 @@ fn settings_are_validated_with_clear_errors() {
     let mut s = lit(2);
     s.lighting.sun_direction = [0.0; 3];
     bad(s.clone(), "sun_direction");
-    s.lighting = LightingSettings { enabled: true, step_length: 0.0, ..LightingSettings::default() };
+    s.lighting = LightingSettings {
+        enabled: true,
+        step_length: 0.0,
+        ..LightingSettings::default()
+    };
     bad(s, "step_length");
     // Too deep: depth 20 map × 4 needs 22 levels.
     let deep = Svo::new(20, false).unwrap();
@@ -744,13 +859,19 @@ fn progress_and_cancel() {
     let terrain = sample_terrain(16, 1).unwrap();
     let seen = std::sync::Mutex::new(Vec::new());
     let progress = |p: f32| seen.lock().unwrap().push(p);
-    let control = Control { progress: Some(&progress), cancel: None };
+    let control = Control {
+        progress: Some(&progress),
+        cancel: None,
+    };
     Enhancer::with_control(&terrain, &subdivide(2, constant(2.0)), control).unwrap();
     let seen = seen.into_inner().unwrap();
     assert!(seen.windows(2).all(|w| w[0] <= w[1]));
     assert_eq!(seen.last().copied(), Some(1.0));
     let cancel = AtomicBool::new(true);
-    let control = Control { progress: None, cancel: Some(&cancel) };
+    let control = Control {
+        progress: None,
+        cancel: Some(&cancel),
+    };
     assert_eq!(
         Enhancer::with_control(&terrain, &subdivide(2, constant(2.0)), control).err(),
         Some(EnhanceError::Cancelled)
@@ -776,7 +897,12 @@ fn sample_terrain_has_three_materials() {
     for (_, v) in t.leaves() {
         mats[usize::from(v.material.min(3))] += 1;
     }
-    assert!(mats[usize::from(MAT_GRASS)] > 500 && mats[usize::from(MAT_ROCK)] > 500 && mats[usize::from(MAT_DIRT)] > 500, "{mats:?}");
+    assert!(
+        mats[usize::from(MAT_GRASS)] > 500
+            && mats[usize::from(MAT_ROCK)] > 500
+            && mats[usize::from(MAT_DIRT)] > 500,
+        "{mats:?}"
+    );
     assert_eq!(t, sample_terrain(64, 1).unwrap());
     assert!(sample_terrain(2, 1).is_err());
 }
