@@ -173,7 +173,7 @@ pub struct MemoryStats {
 }
 
 /// A sparse voxel octree. See the module documentation for the layout.
-#[derive(Debug, Clone)]
+#[derive(Clone)]
 pub struct Svo {
     depth: u8,
     has_skin: bool,
@@ -746,6 +746,18 @@ impl Svo {
     #[must_use]
     pub fn leaf_skin(&self) -> &[Skin4] {
         &self.leaf_attr.skin
+    }
+}
+
+impl std::fmt::Debug for Svo {
+    /// A summary: the pools are far too large to print.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Svo")
+            .field("depth", &self.depth)
+            .field("has_skin", &self.has_skin)
+            .field("leaves", &self.leaf_count)
+            .field("inner_nodes", &self.inner_count)
+            .finish_non_exhaustive()
     }
 }
 

@@ -1,0 +1,13 @@
+#!/usr/bin/env bash
+# Everything CI checks, in the same order: a green run here means a green CI.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+cargo fmt --all -- --check
+cargo clippy --workspace --all-targets -- -D warnings
+# The core crate must stay free of GPU and UI crates (ARCHITECTURE.md: app -> core only).
+forbidden='^(wgpu|wgpu-core|wgpu-hal|naga|egui|egui-wgpu|eframe|winit|rfd) v'
+if cargo tree -p thicket-core -e normal,build,dev --prefix none | grep -E "$forbidden"; then
+  echo "error: thicket-core depends on a GPU/UI crate (listed above)" >&2
+  exit 1
+fi
+cargo test --workspace

@@ -1,0 +1,18 @@
+#!/usr/bin/env bash
+# System packages Thicket needs on Debian: the software Vulkan driver (GPU tests run on
+# llvmpipe/lavapipe), X11/Wayland client libraries for the editor window, Xvfb for screenshots.
+set -euo pipefail
+pkgs=(mesa-vulkan-drivers libvulkan1 vulkan-tools libx11-6 libxcursor1 libxrandr2 libxi6
+      libxkbcommon0 libxkbcommon-x11-0 libwayland-client0 libwayland-cursor0 libwayland-egl1
+      libegl1 libgl1 xvfb xauth fonts-dejavu-core)
+missing=()
+for p in "${pkgs[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if [ ${#missing[@]} -gt 0 ]; then
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
+fi
