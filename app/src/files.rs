@@ -55,7 +55,7 @@ impl FileKind {
     /// Whether this build can read the format (the loaders land one by one).
     #[must_use]
     pub fn is_readable(self) -> bool {
-        matches!(self, Self::Project)
+        matches!(self, Self::Project | Self::Gltf | Self::Obj)
     }
 }
 
@@ -94,13 +94,12 @@ fn kind_of(path: &Path) -> anyhow::Result<FileKind> {
 /// # Errors
 /// The loader's message, which names the file and the problem.
 pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
-    match kind_of(path)? {
-        other => bail!(
-            "{}: {} mesh import is not available in this build yet",
-            path.display(),
-            other.label()
-        ),
-    }
+    let model = match kind_of(path)? {
+        FileKind::Gltf => thicket_core::io::import_gltf(path)?,
+        FileKind::Obj => thicket_core::io::import_obj(path)?,
+        other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
+    };
+    Ok(model)
 }
 
 /// Opens any supported file as a document: a project as it is, a mesh file as one mesh object,

@@ -187,3 +187,48 @@ fn failing_info_writes_nothing() {
     assert!(stdout(&o).is_empty(), "no partial report on stdout");
     assert_eq!(files_in(dir.path()), before);
 }
+
+#[test]
+fn info_on_mesh_files_matches_the_importer() {
+    for (rel, triangles) in [
+        ("static/Box.glb", Some(12usize)),
+        ("static/spot/spot_triangulated.obj", None),
+        ("skinned/CesiumMan.glb", None),
+    ] {
+        let path = PathBuf::from(format!("{ASSETS}/{rel}"));
+        let model = if rel.ends_with(".obj") {
+            thicket_core::io::import_obj(&path).unwrap()
+        } else {
+            thicket_core::io::import_gltf(&path).unwrap()
+        };
+        let o = thicket(&["info", "--json", path.to_str().unwrap()]);
+        assert!(o.status.success(), "{rel}: {}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let obj = &json["objects"][0];
+        assert_eq!(obj["kind"], "mesh", "{rel}");
+        assert_eq!(obj["triangles"].as_u64(), Some(model.triangle_count() as u64), "{rel}");
+        assert_eq!(obj["vertices"].as_u64(), Some(model.vertex_count() as u64), "{rel}");
+        assert_eq!(json["total_triangles"].as_u64(), Some(model.triangle_count() as u64));
+        if let Some(t) = triangles {
+            assert_eq!(model.triangle_count(), t, "{rel}");
+        }
+        assert!(json["total_bytes"].as_u64().unwrap() > 0);
+    }
+    let o = thicket(&["info", &format!("{ASSETS}/static/Box.glb")]);
+    assert!(stdout(&o).contains("12 triangles"), "{}", stdout(&o));
+}
+
+#[test]
+fn truncated_glb_fails_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(format!("{ASSETS}/static/Box.glb")).unwrap();
+    let p = dir.path().join("cut.glb");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    assert_fails_naming(&thicket(&["info", p.to_str().unwrap()]), &p);
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, b"").unwrap();
+    let o = thicket(&["info", empty.to_str().unwrap()]);
+    // An empty OBJ is either an empty mesh or refused; never a crash.
+    assert!(o.status.code().is_some(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"));
+}
