@@ -15,3 +15,6 @@ pub mod obj;
 pub use error::{ImportLimits, IoError};
 pub use gltf_mesh::{import_gltf, import_gltf_slice};
 pub use obj::{ObjOptions, import_obj};
+
+/// MagicaVoxel `.vox` import (models, scene graph, palette, materials) and export.
+pub mod vox;

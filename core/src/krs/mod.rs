@@ -1,1 +1,57 @@
-//! `krs` (work in progress).
+//! Kernel-reflection sequences (KRS, Szécsi): procedural geometry whose distance function over
+//! 2^n kernel instances costs O(n).
+//!
+//! A [`KrsObject`] holds kernels K0..Kn and mirror planes R0..R(n−1). Its distance is Algorithm 1
+//! of the paper ([`KrsObject::distance_object`]): walk the mirrors from n−1 down to 0, fold the
+//! point onto the negative side of each, and take the minimum with the kernel of that level.
+//! A [`KrsScene`] is a union of objects; [`KrsScene::prepare`] validates it once and gives a
+//! [`PreparedScene`] that the per-ray tracer ([`trace()`]), shadow and AO rays, shading
+//! (Algorithm 2) and the collision/picking queries read.
+//!
+//! | file | owns |
+//! |---|---|
+//! | `kernel.rs` | kernel shapes, materials, analytic distance, normal, parametrisation |
+//! | `mirror.rs` | mirror planes |
+//! | `object.rs` | objects, scenes, validation, Algorithm 1, brute force, normals |
+//! | `distort.rs` | the Lipschitz-bounded noise warp (symmetry hiding, §5.2) |
+//! | `trace.rs` | sphere tracing, over-relaxation, tile start distances (§4.1), shadows, AO |
+//! | `shade.rs` | Algorithm 2 (smooth shading), triplanar and kernel-parametrised texturing |
+//! | `tree.rs` | the tree builder (§7.2) |
+//! | `presets.rs` | tree, bush, grass, rock, terrain, coral, sponge, forest |
+//! | `query.rs` | distance + normal, bounding spheres, instance enumeration, empty zones |
+//!
+//! The design notes (reflection order, epsilon, Lipschitz bounds, tree mapping) are in
+//! `docs/krs.md`.
+
+mod distort;
+mod kernel;
+mod mirror;
+mod object;
+pub mod presets;
+mod query;
+mod shade;
+mod trace;
+mod tree;
+
+pub use distort::Distortion;
+pub use kernel::{
+    BoxKernel, CapsuleKernel, Kernel, KernelBound, KernelProblem, Material, PlaneKernel,
+    SphereKernel, TorusKernel,
+};
+pub use mirror::MirrorPlane;
+pub use object::{
+    EmptyZone, KrsError, KrsObject, KrsScene, PreparedObject, PreparedScene, Sample, Similarity,
+};
+pub use query::{KernelInstance, SurfaceQuery};
+pub use shade::{
+    Pattern, SmoothShading, TextureMode, Texturing, shade_colour, shading_threshold,
+    triplanar_colour,
+};
+pub use trace::{
+    AoSettings, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, shadow, tile_cone,
+    tile_start_distance, trace,
+};
+pub use tree::{LeafParams, TreeError, TreeParams};
+
+#[cfg(test)]
+mod tests;
