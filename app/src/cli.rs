@@ -32,6 +32,21 @@ pub enum Command {
     ///
     /// Reads .thicket.json projects, .vox, .glb/.gltf and .obj files.
     Info(InfoArgs),
+    /// Write the visible voxel objects of a project (or any supported file) as MagicaVoxel .vox.
+    ///
+    /// Models larger than 256 voxels in a dimension are split; colours are quantised to the
+    /// 255-entry palette (the report says how far).
+    ExportVox(ExportVoxArgs),
+}
+
+/// `thicket export-vox`.
+#[derive(Debug, Args)]
+pub struct ExportVoxArgs {
+    /// The project to export.
+    pub project: PathBuf,
+    /// The .vox file to write (written atomically, only when the export succeeded).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// `thicket info`.
@@ -56,7 +71,31 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         None => crate::ui::run_editor(cli.project),
         Some(Command::Info(args)) => info(&args),
+        Some(Command::ExportVox(args)) => export_vox(&args),
     }
+}
+
+fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
+    let doc = files::load_document(&args.project)?;
+    let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
+    let mut text = format!(
+        "wrote {}: {} voxels in {} model(s), {} palette colours",
+        args.output.display(),
+        thousands(report.voxels),
+        report.models,
+        report.palette_colors
+    );
+    if !report.exact_colors {
+        text.push_str(&format!(
+            " ({} distinct colours quantised; largest channel error {})",
+            report.distinct_colors, report.max_channel_error
+        ));
+    }
+    if !report.skipped.is_empty() {
+        text.push_str(&format!("; skipped (hidden, mesh or empty): {}", report.skipped.join(", ")));
+    }
+    text.push('\n');
+    write_stdout(&text)
 }
 
 fn info(args: &InfoArgs) -> anyhow::Result<()> {
@@ -101,6 +140,14 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
         info.lights,
         human_bytes(info.total_bytes)
     );
+    if let (Some(models), Some(voxels)) = (info.source.stored_models, info.source.stored_voxels) {
+        let _ = writeln!(
+            s,
+            "  the file stores {} voxels in {models} model(s); its scene graph places them as {} object(s)",
+            thousands(voxels),
+            info.objects.len()
+        );
+    }
     if let Some(size) = info.world_size {
         let _ = writeln!(s, "  world size: {}", fmt_size(size));
     }

@@ -55,7 +55,7 @@ impl FileKind {
     /// Whether this build can read the format (the loaders land one by one).
     #[must_use]
     pub fn is_readable(self) -> bool {
-        matches!(self, Self::Project | Self::Gltf | Self::Obj)
+        matches!(self, Self::Project | Self::Vox | Self::Gltf | Self::Obj)
     }
 }
 
@@ -108,17 +108,45 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
 /// # Errors
 /// A message naming the file and what is wrong with it.
 pub fn load_document(path: &Path) -> anyhow::Result<Document> {
+    Ok(load_document_with_source(path)?.0)
+}
+
+/// What a source file held beyond the document (for `info`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SourceCounts {
+    /// Models stored in a `.vox` file (before the scene graph places them).
+    pub stored_models: Option<usize>,
+    /// Voxels stored in a `.vox` file's models (each model once).
+    pub stored_voxels: Option<u64>,
+}
+
+/// [`load_document`], plus counts only the source format knows.
+///
+/// # Errors
+/// See [`load_document`].
+pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, SourceCounts)> {
+    let mut counts = SourceCounts::default();
     let doc = match kind_of(path)? {
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {
             let model = load_mesh(path)?;
             document_from_mesh(&object_name_for(path), model)
         }
-        FileKind::Vox => bail!("{}: .vox import is not available yet", path.display()),
+        FileKind::Vox => {
+            let scene = thicket_core::io::vox::import_vox(path)?;
+            counts.stored_models = Some(scene.model_count);
+            counts.stored_voxels = Some(scene.stored_voxels);
+            let mut doc = Document::default();
+            scene.add_to(&mut doc);
+            if let Some((lo, hi)) = doc.bounds() {
+                doc.camera.frame(lo, hi);
+            }
+            doc
+        }
     };
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok(doc)
+    Ok((doc, counts))
 }
 
 fn load_project(path: &Path) -> anyhow::Result<Document> {
@@ -241,6 +269,8 @@ pub struct DocumentInfo {
     pub total_bytes: u64,
     /// Size of the world-space bounding box of the visible objects.
     pub world_size: Option<[f32; 3]>,
+    /// Counts from the source file (stored `.vox` models and voxels before instancing).
+    pub source: SourceCounts,
 }
 
 fn mesh_memory(model: &MeshModel) -> MemoryInfo {
@@ -331,6 +361,7 @@ pub fn document_info(doc: &Document, file: &Path, format: FileKind) -> DocumentI
         total_bytes: objects.iter().map(|o| o.memory.total_bytes).sum(),
         lights: doc.lights.len(),
         world_size: doc.bounds().map(|(lo, hi)| (hi - lo).to_array()),
+        source: SourceCounts::default(),
         objects,
     }
 }
@@ -341,8 +372,11 @@ pub fn document_info(doc: &Document, file: &Path, format: FileKind) -> DocumentI
 /// See [`load_document`].
 pub fn info(path: &Path) -> anyhow::Result<DocumentInfo> {
     let kind = kind_of(path)?;
-    let doc = load_document(path)?;
-    Ok(document_info(&doc, path, kind))
+    let (doc, source) = load_document_with_source(path)?;
+    Ok(DocumentInfo {
+        source,
+        ..document_info(&doc, path, kind)
+    })
 }
 
 /// `1234567` → `1,234,567`.

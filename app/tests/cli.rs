@@ -232,3 +232,61 @@ fn truncated_glb_fails_naming_it() {
     assert!(o.status.code().is_some(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("panicked"));
 }
+
+fn info_json(path: &str) -> serde_json::Value {
+    let o = thicket(&["info", "--json", path]);
+    assert!(o.status.success(), "{path}: {}", stderr(&o));
+    serde_json::from_str(&stdout(&o)).unwrap()
+}
+
+#[test]
+fn info_on_vox_files_reports_exact_counts() {
+    let house = info_json(&format!("{ASSETS}/vox/mmmm/obj_house4.vox"));
+    assert_eq!(house["total_voxels"], 180_202);
+    let army = info_json(&format!("{ASSETS}/vox/mmmm/chr_army1.vox"));
+    assert_eq!(army["total_voxels"], 341);
+    let scene = info_json(&format!("{ASSETS}/vox/opengametools/test_multiple_model_scene.vox"));
+    assert_eq!(scene["source"]["stored_voxels"], 6_053);
+    assert_eq!(scene["source"]["stored_models"], 41);
+    let o = thicket(&["info", &format!("{ASSETS}/vox/mmmm/obj_house4.vox")]);
+    assert!(stdout(&o).contains("180,202 voxels"), "{}", stdout(&o));
+}
+
+#[test]
+fn export_vox_round_trips_the_voxel_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("house.vox");
+    let o = thicket(&[
+        "export-vox",
+        &format!("{ASSETS}/vox/mmmm/chr_army1.vox"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("341 voxels"), "{}", stdout(&o));
+    assert_eq!(info_json(out.to_str().unwrap())["total_voxels"], 341);
+
+    // A project saved by the library exports too.
+    let project = sample_project(dir.path());
+    let out2 = dir.path().join("two.vox");
+    let o = thicket(&["export-vox", project.to_str().unwrap(), "-o", out2.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(info_json(out2.to_str().unwrap())["total_voxels"], 13);
+}
+
+#[test]
+fn failing_export_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("bad.thicket.json");
+    std::fs::write(&garbage, "[1,2").unwrap();
+    let out = dir.path().join("out.vox");
+    let o = thicket(&["export-vox", garbage.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    assert_fails_naming(&o, &garbage);
+    assert!(!out.exists());
+    assert_eq!(files_in(dir.path()), vec![garbage.clone()]);
+
+    let not_vox = format!("{ASSETS}/vox/dot_vox/not_a.vox");
+    let o = thicket(&["export-vox", &not_vox, "-o", out.to_str().unwrap()]);
+    assert_fails_naming(&o, Path::new(&not_vox));
+    assert!(!out.exists());
+}
