@@ -92,7 +92,10 @@ fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
         ));
     }
     if !report.skipped.is_empty() {
-        text.push_str(&format!("; skipped (hidden, mesh or empty): {}", report.skipped.join(", ")));
+        text.push_str(&format!(
+            "; skipped (hidden, mesh or empty): {}",
+            report.skipped.join(", ")
+        ));
     }
     text.push('\n');
     write_stdout(&text)

@@ -188,10 +188,7 @@ pub fn object_name_for(path: &Path) -> String {
     let stem = name
         .strip_suffix(".thicket.json")
         .map(str::to_owned)
-        .or_else(|| {
-            path.file_stem()
-                .map(|s| s.to_string_lossy().into_owned())
-        })
+        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
         .unwrap_or_default();
     if stem.is_empty() {
         "Object".to_owned()
@@ -451,7 +448,10 @@ mod tests {
             FileKind::from_path(Path::new("a/b.thicket.json")),
             Some(FileKind::Project)
         );
-        assert_eq!(FileKind::from_path(Path::new("x.GLB")), Some(FileKind::Gltf));
+        assert_eq!(
+            FileKind::from_path(Path::new("x.GLB")),
+            Some(FileKind::Gltf)
+        );
         assert_eq!(FileKind::from_path(Path::new("x.vox")), Some(FileKind::Vox));
         assert_eq!(FileKind::from_path(Path::new("x.json")), None);
         assert_eq!(FileKind::from_path(Path::new("noext")), None);
@@ -480,8 +480,11 @@ mod tests {
         use thicket_core::svo::{Svo, Voxel};
         let mut svo = Svo::new(4, false).unwrap();
         for x in 0..3 {
-            svo.set(glam::UVec3::new(x, 1, 2), Voxel::new([255, 0, 0, 255], glam::Vec3::Y))
-                .unwrap();
+            svo.set(
+                glam::UVec3::new(x, 1, 2),
+                Voxel::new([255, 0, 0, 255], glam::Vec3::Y),
+            )
+            .unwrap();
         }
         let mut doc = Document::default();
         doc.add(

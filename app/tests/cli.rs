@@ -96,7 +96,10 @@ fn info_on_a_project_reports_counts_and_sizes() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = stdout(&o);
     assert!(text.contains("2 object(s), 13 voxels"), "{text}");
-    assert!(text.contains("\"row\"") && text.contains("3 voxels"), "{text}");
+    assert!(
+        text.contains("\"row\"") && text.contains("3 voxels"),
+        "{text}"
+    );
     assert!(text.contains("10 × 1 × 1 voxels"), "{text}");
     assert!(text.contains("bytes/voxel"), "{text}");
 
@@ -106,11 +109,16 @@ fn info_on_a_project_reports_counts_and_sizes() {
     assert_eq!(json["total_voxels"], 13);
     assert_eq!(json["objects"][1]["name"], "long");
     assert_eq!(json["objects"][1]["voxels"], 10);
-    assert_eq!(json["objects"][1]["dimensions_voxels"], serde_json::json!([10, 1, 1]));
+    assert_eq!(
+        json["objects"][1]["dimensions_voxels"],
+        serde_json::json!([10, 1, 1])
+    );
     assert_eq!(json["objects"][0]["depth"], 5);
     let bpv = json["objects"][0]["bytes_per_voxel"].as_f64().unwrap();
     assert!(bpv > 0.0 && bpv.is_finite(), "{bpv}");
-    let total = json["objects"][0]["memory"]["total_bytes"].as_u64().unwrap();
+    let total = json["objects"][0]["memory"]["total_bytes"]
+        .as_u64()
+        .unwrap();
     assert!(total > 0);
     // World size: 10 voxels of 0.5 along x.
     let wx = json["objects"][1]["world_size"][0].as_f64().unwrap();
@@ -206,9 +214,20 @@ fn info_on_mesh_files_matches_the_importer() {
         let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
         let obj = &json["objects"][0];
         assert_eq!(obj["kind"], "mesh", "{rel}");
-        assert_eq!(obj["triangles"].as_u64(), Some(model.triangle_count() as u64), "{rel}");
-        assert_eq!(obj["vertices"].as_u64(), Some(model.vertex_count() as u64), "{rel}");
-        assert_eq!(json["total_triangles"].as_u64(), Some(model.triangle_count() as u64));
+        assert_eq!(
+            obj["triangles"].as_u64(),
+            Some(model.triangle_count() as u64),
+            "{rel}"
+        );
+        assert_eq!(
+            obj["vertices"].as_u64(),
+            Some(model.vertex_count() as u64),
+            "{rel}"
+        );
+        assert_eq!(
+            json["total_triangles"].as_u64(),
+            Some(model.triangle_count() as u64)
+        );
         if let Some(t) = triangles {
             assert_eq!(model.triangle_count(), t, "{rel}");
         }
@@ -245,7 +264,9 @@ fn info_on_vox_files_reports_exact_counts() {
     assert_eq!(house["total_voxels"], 180_202);
     let army = info_json(&format!("{ASSETS}/vox/mmmm/chr_army1.vox"));
     assert_eq!(army["total_voxels"], 341);
-    let scene = info_json(&format!("{ASSETS}/vox/opengametools/test_multiple_model_scene.vox"));
+    let scene = info_json(&format!(
+        "{ASSETS}/vox/opengametools/test_multiple_model_scene.vox"
+    ));
     assert_eq!(scene["source"]["stored_voxels"], 6_053);
     assert_eq!(scene["source"]["stored_models"], 41);
     let o = thicket(&["info", &format!("{ASSETS}/vox/mmmm/obj_house4.vox")]);
@@ -269,7 +290,12 @@ fn export_vox_round_trips_the_voxel_count() {
     // A project saved by the library exports too.
     let project = sample_project(dir.path());
     let out2 = dir.path().join("two.vox");
-    let o = thicket(&["export-vox", project.to_str().unwrap(), "-o", out2.to_str().unwrap()]);
+    let o = thicket(&[
+        "export-vox",
+        project.to_str().unwrap(),
+        "-o",
+        out2.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(info_json(out2.to_str().unwrap())["total_voxels"], 13);
 }
@@ -280,7 +306,12 @@ fn failing_export_writes_nothing() {
     let garbage = dir.path().join("bad.thicket.json");
     std::fs::write(&garbage, "[1,2").unwrap();
     let out = dir.path().join("out.vox");
-    let o = thicket(&["export-vox", garbage.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+    let o = thicket(&[
+        "export-vox",
+        garbage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     assert_fails_naming(&o, &garbage);
     assert!(!out.exists());
     assert_eq!(files_in(dir.path()), vec![garbage.clone()]);

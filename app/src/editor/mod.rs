@@ -90,11 +90,10 @@ impl Editor {
     /// A title for the window: file name and a `*` when there are unsaved changes.
     #[must_use]
     pub fn title(&self) -> String {
-        let name = self
-            .path
-            .as_deref()
-            .and_then(Path::file_name)
-            .map_or_else(|| "untitled".to_owned(), |n| n.to_string_lossy().into_owned());
+        let name = self.path.as_deref().and_then(Path::file_name).map_or_else(
+            || "untitled".to_owned(),
+            |n| n.to_string_lossy().into_owned(),
+        );
         let star = if self.is_dirty() { " *" } else { "" };
         format!("{name}{star} — Thicket")
     }
@@ -373,7 +372,10 @@ impl Editor {
             )));
         }
         if *current != light {
-            self.apply(Edit::SetLight { index, light }, Some(MergeKey::Light(index)));
+            self.apply(
+                Edit::SetLight { index, light },
+                Some(MergeKey::Light(index)),
+            );
         }
         Ok(())
     }

@@ -8,8 +8,11 @@ use super::*;
 fn voxels(n: u32) -> ObjectKind {
     let mut svo = Svo::new(5, false).unwrap();
     for x in 0..n {
-        svo.set(UVec3::new(x, 0, 0), Voxel::new([200, 100, 50, 255], Vec3::Y))
-            .unwrap();
+        svo.set(
+            UVec3::new(x, 0, 0),
+            Voxel::new([200, 100, 50, 255], Vec3::Y),
+        )
+        .unwrap();
     }
     ObjectKind::Voxels(VoxelModel {
         svo,
@@ -35,11 +38,18 @@ fn add_rename_delete_undo_redo_round_trip() {
     assert_eq!(ed.object(a).unwrap().name, "Rock");
     ed.delete(b).unwrap();
     assert!(ed.object(b).is_none());
-    assert_eq!(ed.selection, None, "selection of a deleted object is dropped");
+    assert_eq!(
+        ed.selection, None,
+        "selection of a deleted object is dropped"
+    );
 
     assert!(ed.undo());
     assert_eq!(ed.object(b).unwrap().name, "B");
-    assert_eq!(ed.doc().objects[1].id, b, "undo restores the outliner position");
+    assert_eq!(
+        ed.doc().objects[1].id,
+        b,
+        "undo restores the outliner position"
+    );
     assert!(ed.undo());
     assert_eq!(ed.doc(), &after_add);
     assert!(ed.redo());
@@ -62,7 +72,10 @@ fn undo_everything_returns_to_the_start_and_clears_dirty() {
     assert!(ed.is_dirty());
     while ed.undo() {}
     assert_eq!(ed.doc(), &start);
-    assert!(!ed.is_dirty(), "back at the loaded state means nothing to save");
+    assert!(
+        !ed.is_dirty(),
+        "back at the loaded state means nothing to save"
+    );
 }
 
 #[test]
@@ -124,7 +137,10 @@ fn invalid_transforms_are_refused_and_change_nothing() {
     ] {
         let e = ed.set_transform(a, bad).unwrap_err();
         assert!(matches!(e, CommandError::Invalid(_)), "{e}");
-        assert!(e.to_string().contains('A'), "the message names the object: {e}");
+        assert!(
+            e.to_string().contains('A'),
+            "the message names the object: {e}"
+        );
     }
     assert_eq!(ed.doc(), &doc);
     assert_eq!(ed.history().undo_len(), undo_len);
@@ -178,7 +194,10 @@ fn camera_moves_are_not_edits() {
     let mut cam = ed.doc().camera;
     cam.distance = -1.0;
     ed.set_camera(cam);
-    assert!(ed.doc().camera.distance > 0.0, "an invalid camera is ignored");
+    assert!(
+        ed.doc().camera.distance > 0.0,
+        "an invalid camera is ignored"
+    );
 }
 
 #[test]
@@ -205,5 +224,11 @@ fn recent_files_are_unique_and_bounded() {
     ed.push_recent("p3.thicket.json".into());
     assert_eq!(ed.recent.len(), MAX_RECENT);
     assert_eq!(ed.recent[0], std::path::PathBuf::from("p3.thicket.json"));
-    assert_eq!(ed.recent.iter().filter(|p| p.ends_with("p3.thicket.json")).count(), 1);
+    assert_eq!(
+        ed.recent
+            .iter()
+            .filter(|p| p.ends_with("p3.thicket.json"))
+            .count(),
+        1
+    );
 }

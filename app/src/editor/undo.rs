@@ -102,7 +102,9 @@ impl Edit {
                 },
                 None => Edit::Group(Vec::new()),
             },
-            Edit::SetQuality(q) => Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q))),
+            Edit::SetQuality(q) => {
+                Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q)))
+            }
             Edit::Group(edits) => {
                 let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
                 inverses.reverse();

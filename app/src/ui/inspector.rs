@@ -193,7 +193,11 @@ fn vec3_ui(ui: &mut egui::Ui, v: &mut Vec3, speed: f64, tip: &str) -> bool {
     ui.horizontal(|ui| {
         for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
             changed |= ui
-                .add(egui::DragValue::new(c).speed(speed).prefix(format!("{axis} ")))
+                .add(
+                    egui::DragValue::new(c)
+                        .speed(speed)
+                        .prefix(format!("{axis} ")),
+                )
                 .on_hover_text(tip)
                 .changed();
         }
@@ -208,10 +212,20 @@ fn transform_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorSta
     let mut changed = false;
     egui::Grid::new("transform").num_columns(2).show(ui, |ui| {
         ui.label("Position");
-        changed |= vec3_ui(ui, &mut t.translation, 0.01, "World-space translation; drag or type a number");
+        changed |= vec3_ui(
+            ui,
+            &mut t.translation,
+            0.01,
+            "World-space translation; drag or type a number",
+        );
         ui.end_row();
         ui.label("Rotation °");
-        let rot_changed = vec3_ui(ui, &mut euler_deg, 0.5, "Rotation in degrees about X, Y, Z (applied Y, X, Z)");
+        let rot_changed = vec3_ui(
+            ui,
+            &mut euler_deg,
+            0.5,
+            "Rotation in degrees about X, Y, Z (applied Y, X, Z)",
+        );
         if rot_changed {
             t.rotation = Quat::from_euler(
                 EulerRot::YXZ,
@@ -223,7 +237,12 @@ fn transform_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorSta
         }
         ui.end_row();
         ui.label("Scale");
-        changed |= vec3_ui(ui, &mut t.scale, 0.01, "Per-axis scale: finite and non-zero");
+        changed |= vec3_ui(
+            ui,
+            &mut t.scale,
+            0.01,
+            "Per-axis scale: finite and non-zero",
+        );
         ui.end_row();
     });
     if ui
@@ -271,7 +290,11 @@ fn light_ui(
         ui.end_row();
         ui.label("Intensity");
         changed |= ui
-            .add(egui::DragValue::new(&mut light.intensity).speed(0.01).range(0.0..=1000.0))
+            .add(
+                egui::DragValue::new(&mut light.intensity)
+                    .speed(0.01)
+                    .range(0.0..=1000.0),
+            )
             .on_hover_text("Multiplier on the colour (≥ 0)")
             .changed();
         ui.end_row();
@@ -292,52 +315,140 @@ fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState
         for (label, preset, tip) in [
             ("Draft", QualityPreset::Draft, "Fastest preview"),
             ("Balanced", QualityPreset::Balanced, "The editor default"),
-            ("Final", QualityPreset::Final, "Offline renders and references"),
+            (
+                "Final",
+                QualityPreset::Final,
+                "Offline renders and references",
+            ),
         ] {
             let active = editor.doc().quality == Quality::preset(preset);
-            if ui.selectable_label(active, label).on_hover_text(tip).clicked() {
+            if ui
+                .selectable_label(active, label)
+                .on_hover_text(tip)
+                .clicked()
+            {
                 editor.apply_quality_preset(preset);
             }
         }
     });
     let mut q = editor.doc().quality.clone();
     let mut changed = false;
-    egui::Grid::new("quality").num_columns(2).striped(true).show(ui, |ui| {
-        let mut f = |ui: &mut egui::Ui, label: &str, v: &mut f32, range: std::ops::RangeInclusive<f32>, tip: &str| {
-            ui.label(label).on_hover_text(tip);
-            changed |= ui
-                .add(egui::DragValue::new(v).speed(0.01).range(range))
-                .on_hover_text(tip)
-                .changed();
-            ui.end_row();
-        };
-        f(ui, "LOD threshold px", &mut q.lod_pixel_threshold, 0.05..=64.0, "ASVO: a node is split while its projected size exceeds this many pixels");
-        f(ui, "KRS epsilon ×", &mut q.krs_epsilon_scale, 0.01..=100.0, "KRS: pixel-cone epsilon multiplier (1 = one pixel)");
-        f(ui, "KRS over-relaxation", &mut q.krs_over_relaxation, 1.0..=1.95, "KRS: sphere-tracing over-relaxation (1 = off)");
-        f(ui, "Stretch ×", &mut q.stretch_multiplier, 0.0..=8.0, "Skinning: multiplier on every stretch factor");
-        let mut u = |ui: &mut egui::Ui, label: &str, v: &mut u32, range: std::ops::RangeInclusive<u32>, tip: &str| {
-            ui.label(label).on_hover_text(tip);
-            changed |= ui
-                .add(egui::DragValue::new(v).range(range))
-                .on_hover_text(tip)
-                .changed();
-            ui.end_row();
-        };
-        u(ui, "Shadow map", &mut q.shadow_map_size, 16..=16384, "Shadow map edge in texels");
-        u(ui, "Shadow PCF radius", &mut q.shadow_pcf_radius, 0..=8, "Shadow filter radius in texels (0 = hard)");
-        u(ui, "AO samples", &mut q.ao_samples, 0..=64, "Ambient-occlusion samples (0 = off)");
-        u(ui, "KRS max steps", &mut q.krs_max_steps, 1..=10_000, "KRS: most sphere-tracing steps per ray");
-        u(ui, "Enhancement samples", &mut q.enhancement_samples, 1..=1024, "Detail enhancement: probes per fragment");
-        let mut b = |ui: &mut egui::Ui, label: &str, v: &mut bool, tip: &str| {
-            ui.label(label).on_hover_text(tip);
-            changed |= ui.checkbox(v, "").on_hover_text(tip).changed();
-            ui.end_row();
-        };
-        b(ui, "Occlusion culling", &mut q.occlusion_culling, "ASVO: hierarchical occlusion culling");
-        b(ui, "Shadows", &mut q.shadows, "Shadow maps on/off");
-        b(ui, "KRS tile acceleration", &mut q.krs_tile_acceleration, "KRS: screen-tile cone acceleration");
-        b(ui, "KRS soft shadows", &mut q.krs_soft_shadows, "KRS: soft instead of hard shadows");
-    });
+    egui::Grid::new("quality")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            let mut f = |ui: &mut egui::Ui,
+                         label: &str,
+                         v: &mut f32,
+                         range: std::ops::RangeInclusive<f32>,
+                         tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui
+                    .add(egui::DragValue::new(v).speed(0.01).range(range))
+                    .on_hover_text(tip)
+                    .changed();
+                ui.end_row();
+            };
+            f(
+                ui,
+                "LOD threshold px",
+                &mut q.lod_pixel_threshold,
+                0.05..=64.0,
+                "ASVO: a node is split while its projected size exceeds this many pixels",
+            );
+            f(
+                ui,
+                "KRS epsilon ×",
+                &mut q.krs_epsilon_scale,
+                0.01..=100.0,
+                "KRS: pixel-cone epsilon multiplier (1 = one pixel)",
+            );
+            f(
+                ui,
+                "KRS over-relaxation",
+                &mut q.krs_over_relaxation,
+                1.0..=1.95,
+                "KRS: sphere-tracing over-relaxation (1 = off)",
+            );
+            f(
+                ui,
+                "Stretch ×",
+                &mut q.stretch_multiplier,
+                0.0..=8.0,
+                "Skinning: multiplier on every stretch factor",
+            );
+            let mut u = |ui: &mut egui::Ui,
+                         label: &str,
+                         v: &mut u32,
+                         range: std::ops::RangeInclusive<u32>,
+                         tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui
+                    .add(egui::DragValue::new(v).range(range))
+                    .on_hover_text(tip)
+                    .changed();
+                ui.end_row();
+            };
+            u(
+                ui,
+                "Shadow map",
+                &mut q.shadow_map_size,
+                16..=16384,
+                "Shadow map edge in texels",
+            );
+            u(
+                ui,
+                "Shadow PCF radius",
+                &mut q.shadow_pcf_radius,
+                0..=8,
+                "Shadow filter radius in texels (0 = hard)",
+            );
+            u(
+                ui,
+                "AO samples",
+                &mut q.ao_samples,
+                0..=64,
+                "Ambient-occlusion samples (0 = off)",
+            );
+            u(
+                ui,
+                "KRS max steps",
+                &mut q.krs_max_steps,
+                1..=10_000,
+                "KRS: most sphere-tracing steps per ray",
+            );
+            u(
+                ui,
+                "Enhancement samples",
+                &mut q.enhancement_samples,
+                1..=1024,
+                "Detail enhancement: probes per fragment",
+            );
+            let mut b = |ui: &mut egui::Ui, label: &str, v: &mut bool, tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui.checkbox(v, "").on_hover_text(tip).changed();
+                ui.end_row();
+            };
+            b(
+                ui,
+                "Occlusion culling",
+                &mut q.occlusion_culling,
+                "ASVO: hierarchical occlusion culling",
+            );
+            b(ui, "Shadows", &mut q.shadows, "Shadow maps on/off");
+            b(
+                ui,
+                "KRS tile acceleration",
+                &mut q.krs_tile_acceleration,
+                "KRS: screen-tile cone acceleration",
+            );
+            b(
+                ui,
+                "KRS soft shadows",
+                &mut q.krs_soft_shadows,
+                "KRS: soft instead of hard shadows",
+            );
+        });
     if changed {
         state.error = editor.set_quality(q).err().map(|e| e.to_string());
     }

@@ -31,7 +31,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Delete", "Delete the selected object"),
     ("F2", "Rename the selected object"),
     ("H", "Hide / show the selected object"),
-    ("F", "Frame the selection (everything when nothing is selected)"),
+    (
+        "F",
+        "Frame the selection (everything when nothing is selected)",
+    ),
     ("Drag in the view", "Orbit"),
     ("Scroll in the view", "Zoom"),
     ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
@@ -257,7 +260,11 @@ impl EditorApp {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
             JobResult::Imported(path, Ok(doc)) => {
                 let n = self.editor.add_objects_from(doc).len();
-                self.toast(ctx, format!("Imported {n} object(s) from {}", path.display()), false);
+                self.toast(
+                    ctx,
+                    format!("Imported {n} object(s) from {}", path.display()),
+                    false,
+                );
             }
             JobResult::Opened(_, Err(e)) | JobResult::Imported(_, Err(e)) => {
                 // The current document is untouched.
@@ -310,10 +317,10 @@ impl EditorApp {
 
     fn ask_path(&mut self, purpose: PathPurpose) {
         let text = match purpose {
-            PathPurpose::SaveAs => self
-                .editor
-                .path()
-                .map_or_else(|| "untitled.thicket.json".into(), |p| p.display().to_string()),
+            PathPurpose::SaveAs => self.editor.path().map_or_else(
+                || "untitled.thicket.json".into(),
+                |p| p.display().to_string(),
+            ),
             _ => String::new(),
         };
         self.prompt = Some(PathPrompt { purpose, text });
@@ -346,7 +353,12 @@ impl EditorApp {
                 .resizable(true)
                 .default_size(260.0)
                 .show(ui, |ui| {
-                    outliner::outliner_ui(ui, &mut self.editor, &mut self.outliner, &mut self.status);
+                    outliner::outliner_ui(
+                        ui,
+                        &mut self.editor,
+                        &mut self.outliner,
+                        &mut self.status,
+                    );
                 });
         }
         if self.show_inspector {
@@ -372,8 +384,13 @@ impl EditorApp {
     }
 
     fn handle_dropped_files(&mut self, ctx: &egui::Context) {
-        let dropped: Vec<PathBuf> =
-            ctx.input(|i| i.raw.dropped_files.iter().filter_map(|f| f.path.clone()).collect());
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .collect()
+        });
         for path in dropped {
             // A project replaces the document; a model is imported into it.
             if FileKind::from_path(&path) == Some(FileKind::Project) {
@@ -397,10 +414,9 @@ impl EditorApp {
     fn handle_shortcuts(&mut self, ctx: &egui::Context) {
         let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
-        let mut consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
+        let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
         // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
-        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y))
-        {
+        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
             self.editor.redo();
         }
         if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
@@ -670,7 +686,7 @@ impl EditorApp {
 
     fn dialogs(&mut self, ctx: &egui::Context) {
         if let Some(message) = self.error_dialog.clone() {
-            egui::Modal::new(egui::Id::new("error_dialog")).show(ctx, |ui| {
+            egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
                 ui.heading("Could not complete the operation");
                 ui.label(message);
                 ui.add_space(8.0);
@@ -681,16 +697,21 @@ impl EditorApp {
         }
         if let Some(pending) = self.pending.clone() {
             let mut decision = None;
-            egui::Modal::new(egui::Id::new("unsaved_dialog")).show(ctx, |ui| {
+            egui::Modal::new(egui::Id::unique("unsaved_dialog")).show(ctx, |ui| {
                 ui.heading("Unsaved changes");
                 ui.label(format!(
                     "Save the changes to {} first?",
-                    self.editor
-                        .path()
-                        .map_or_else(|| "the untitled project".to_owned(), |p| p.display().to_string())
+                    self.editor.path().map_or_else(
+                        || "the untitled project".to_owned(),
+                        |p| p.display().to_string()
+                    )
                 ));
                 ui.horizontal(|ui| {
-                    if ui.button("Save").on_hover_text("Save, then continue").clicked() {
+                    if ui
+                        .button("Save")
+                        .on_hover_text("Save, then continue")
+                        .clicked()
+                    {
                         decision = Some(1);
                     }
                     if ui
@@ -700,7 +721,11 @@ impl EditorApp {
                     {
                         decision = Some(2);
                     }
-                    if ui.button("Cancel").on_hover_text("Go back to editing").clicked() {
+                    if ui
+                        .button("Cancel")
+                        .on_hover_text("Go back to editing")
+                        .clicked()
+                    {
                         decision = Some(0);
                     }
                 });
@@ -724,7 +749,7 @@ impl EditorApp {
         if let Some(mut prompt) = self.prompt.take() {
             let mut accepted = None;
             let mut keep = true;
-            egui::Modal::new(egui::Id::new("path_prompt")).show(ctx, |ui| {
+            egui::Modal::new(egui::Id::unique("path_prompt")).show(ctx, |ui| {
                 ui.heading(prompt.purpose.title());
                 ui.label(match prompt.purpose {
                     PathPurpose::SaveAs => "Project file (.thicket.json):".to_owned(),
@@ -789,7 +814,7 @@ impl EditorApp {
         if self.toasts.is_empty() {
             return;
         }
-        egui::Area::new(egui::Id::new("toasts"))
+        egui::Area::new(egui::Id::unique("toasts"))
             .anchor(egui::Align2::RIGHT_BOTTOM, egui::vec2(-12.0, -36.0))
             .show(ctx, |ui| {
                 for t in &self.toasts {
@@ -807,9 +832,17 @@ impl EditorApp {
 }
 
 const PRESETS: &[(&str, QualityPreset, &str)] = &[
-    ("Draft", QualityPreset::Draft, "Fastest preview: coarse LOD, no AO, small shadow maps"),
+    (
+        "Draft",
+        QualityPreset::Draft,
+        "Fastest preview: coarse LOD, no AO, small shadow maps",
+    ),
     ("Balanced", QualityPreset::Balanced, "The editor default"),
-    ("Final", QualityPreset::Final, "Offline quality: fine LOD, soft shadows, more AO samples"),
+    (
+        "Final",
+        QualityPreset::Final,
+        "Offline quality: fine LOD, soft shadows, more AO samples",
+    ),
 ];
 
 fn readable_list() -> String {

@@ -84,8 +84,13 @@ pub fn outliner_ui(
                     actions.push((o.id, RowAction::Visible(visible)));
                 }
                 let (icon, count, kind_tip) = kind_summary(o);
-                ui.label(egui::RichText::new(icon).small().monospace().color(kind_color(icon)))
-                    .on_hover_text(kind_tip);
+                ui.label(
+                    egui::RichText::new(icon)
+                        .small()
+                        .monospace()
+                        .color(kind_color(icon)),
+                )
+                .on_hover_text(kind_tip);
                 match &mut state.renaming {
                     Some((id, text)) if *id == o.id => {
                         let edit = ui.add(egui::TextEdit::singleline(text).desired_width(120.0));
@@ -100,9 +105,9 @@ pub fn outliner_ui(
                         }
                     }
                     _ => {
-                        let row = ui
-                            .selectable_label(selected, &o.name)
-                            .on_hover_text("Click to select, double-click to rename, right-click for more");
+                        let row = ui.selectable_label(selected, &o.name).on_hover_text(
+                            "Click to select, double-click to rename, right-click for more",
+                        );
                         if row.clicked() {
                             actions.push((o.id, RowAction::Select));
                         }
@@ -150,10 +155,11 @@ pub fn outliner_ui(
         }
         ui.add_space(8.0);
         ui.label(egui::RichText::new("Lights").strong());
-        for (i, l) in editor.doc().lights.iter().enumerate() {
+        let lights: Vec<String> = editor.doc().lights.iter().map(|l| l.name.clone()).collect();
+        for (i, name) in lights.iter().enumerate() {
             let selected = editor.selection == Some(Selection::Light(i));
             if ui
-                .selectable_label(selected, format!("☀ {}", l.name))
+                .selectable_label(selected, format!("☀ {name}"))
                 .on_hover_text("Directional light: select to edit")
                 .clicked()
             {
