@@ -231,10 +231,10 @@ impl EditorApp {
 
     /// Waits for the running job (tests; the UI polls instead).
     pub fn wait_for_job(&mut self, ctx: &egui::Context) {
-        if let Some(job) = self.job.take() {
-            if let Ok(result) = job.rx.recv() {
-                self.finish_job(ctx, result);
-            }
+        if let Some(job) = self.job.take()
+            && let Ok(result) = job.rx.recv()
+        {
+            self.finish_job(ctx, result);
         }
     }
 
@@ -441,10 +441,10 @@ impl EditorApp {
             Some(Selection::Object(id)) => Some(id),
             _ => None,
         };
-        if consume(shortcut(Modifiers::COMMAND, Key::D)) {
-            if let Some(id) = selected {
-                let _ = self.editor.duplicate(id);
-            }
+        if consume(shortcut(Modifiers::COMMAND, Key::D))
+            && let Some(id) = selected
+        {
+            let _ = self.editor.duplicate(id);
         }
         // Single keys only when no text field has the keyboard.
         if ctx.egui_wants_keyboard_input() {
@@ -460,10 +460,10 @@ impl EditorApp {
             if consume(shortcut(Modifiers::NONE, Key::Delete)) {
                 let _ = self.editor.delete(id);
             }
-            if consume(shortcut(Modifiers::NONE, Key::H)) {
-                if let Some(visible) = self.editor.object(id).map(|o| o.visible) {
-                    let _ = self.editor.set_visible(id, !visible);
-                }
+            if consume(shortcut(Modifiers::NONE, Key::H))
+                && let Some(visible) = self.editor.object(id).map(|o| o.visible)
+            {
+                let _ = self.editor.set_visible(id, !visible);
             }
             if consume(shortcut(Modifiers::NONE, Key::F2)) {
                 self.outliner.start_rename(&self.editor, id);
@@ -566,19 +566,17 @@ impl EditorApp {
                     .add_enabled(selected.is_some(), egui::Button::new("Duplicate").shortcut_text("Ctrl+D"))
                     .on_hover_text("Copy the selected object")
                     .clicked()
+                    && let Some(id) = selected
                 {
-                    if let Some(id) = selected {
-                        let _ = self.editor.duplicate(id);
-                    }
+                    let _ = self.editor.duplicate(id);
                 }
                 if ui
                     .add_enabled(selected.is_some(), egui::Button::new("Delete").shortcut_text("Del"))
                     .on_hover_text("Delete the selected object (undoable)")
                     .clicked()
+                    && let Some(id) = selected
                 {
-                    if let Some(id) = selected {
-                        let _ = self.editor.delete(id);
-                    }
+                    let _ = self.editor.delete(id);
                 }
             });
             ui.menu_button("View", |ui| {
@@ -695,7 +693,9 @@ impl EditorApp {
                 }
             });
         }
-        if let Some(pending) = self.pending.clone() {
+        if let Some(pending) = self.pending.clone()
+            && self.prompt.is_none()
+        {
             let mut decision = None;
             egui::Modal::new(egui::Id::unique("unsaved_dialog")).show(ctx, |ui| {
                 ui.heading("Unsaved changes");
@@ -732,12 +732,10 @@ impl EditorApp {
             });
             match decision {
                 Some(0) => self.pending = None,
-                Some(1) => {
-                    if self.save(ctx) {
-                        self.pending = None;
-                        self.resolve_pending(ctx, pending);
-                    }
-                    // Untitled: Save asked for a path; the pending action waits for that save.
+                // Untitled: Save asks for a path and the pending action waits for that save.
+                Some(1) if self.save(ctx) => {
+                    self.pending = None;
+                    self.resolve_pending(ctx, pending);
                 }
                 Some(2) => {
                     self.pending = None;
@@ -775,10 +773,11 @@ impl EditorApp {
                 let purpose = prompt.purpose;
                 self.accept_path(ctx, purpose, path);
                 // A Save As that finished lets a waiting Quit / New / Open go on.
-                if purpose == PathPurpose::SaveAs && !self.editor.is_dirty() {
-                    if let Some(pending) = self.pending.take() {
-                        self.resolve_pending(ctx, pending);
-                    }
+                if purpose == PathPurpose::SaveAs
+                    && !self.editor.is_dirty()
+                    && let Some(pending) = self.pending.take()
+                {
+                    self.resolve_pending(ctx, pending);
                 }
             } else if keep {
                 self.prompt = Some(prompt);
@@ -896,13 +895,13 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
         Box::new(move |cc| {
             cc.egui_ctx.set_theme(egui::Theme::Dark);
             let mut app = EditorApp::open_startup(project);
-            if let Some(storage) = cc.storage {
-                if let Some(recent) = eframe::get_value::<Vec<PathBuf>>(storage, RECENT_KEY) {
-                    let current = std::mem::take(&mut app.editor.recent);
-                    app.editor.recent = recent;
-                    for p in current.into_iter().rev() {
-                        app.editor.push_recent(p);
-                    }
+            if let Some(storage) = cc.storage
+                && let Some(recent) = eframe::get_value::<Vec<PathBuf>>(storage, RECENT_KEY)
+            {
+                let current = std::mem::take(&mut app.editor.recent);
+                app.editor.recent = recent;
+                for p in current.into_iter().rev() {
+                    app.editor.push_recent(p);
                 }
             }
             Ok(Box::new(app))

@@ -10,13 +10,16 @@ use thicket_core::scene::{Object, ObjectKind, OrbitCamera};
 
 use crate::editor::{Editor, Selection};
 
+/// Minimum and maximum corners.
+type Aabb = (Vec3, Vec3);
+
 /// View options.
 #[derive(Debug)]
 pub struct Preview {
     show_bounds: bool,
     show_grid: bool,
     /// Object-space bounds by object id, for one document content (bounds visit every voxel).
-    bounds_cache: ((u64, u64), HashMap<u64, Option<(Vec3, Vec3)>>),
+    bounds_cache: ((u64, u64), HashMap<u64, Option<Aabb>>),
 }
 
 impl Default for Preview {
