@@ -265,7 +265,7 @@ fn light_ui(
     index: usize,
     mut light: Light,
 ) {
-    ui.label(egui::RichText::new(format!("☀ {}", light.name)).heading());
+    ui.label(egui::RichText::new(format!("Light: {}", light.name)).heading());
     ui.weak("Directional light");
     let mut changed = false;
     egui::Grid::new("light").num_columns(2).show(ui, |ui| {
@@ -295,7 +295,7 @@ fn light_ui(
                     .speed(0.01)
                     .range(0.0..=1000.0),
             )
-            .on_hover_text("Multiplier on the colour (≥ 0)")
+            .on_hover_text("Multiplier on the colour (0 or more)")
             .changed();
         ui.end_row();
         ui.label("Shadows");

@@ -660,7 +660,7 @@ impl EditorApp {
                 .map_or_else(|| "untitled".to_owned(), |p| p.display().to_string());
             ui.label(file).on_hover_text("The project file");
             if self.editor.is_dirty() {
-                ui.colored_label(ui.visuals().warn_fg_color, "● unsaved")
+                ui.colored_label(ui.visuals().warn_fg_color, "* unsaved")
                     .on_hover_text("There are changes since the last save");
             }
             ui.separator();

@@ -136,14 +136,14 @@ pub fn outliner_ui(
                 }
                 ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
                     if ui
-                        .small_button("🗑")
+                        .small_button("Del")
                         .on_hover_text(format!("Delete {:?} (undoable)", o.name))
                         .clicked()
                     {
                         actions.push((o.id, RowAction::Delete));
                     }
                     if ui
-                        .small_button("📋")
+                        .small_button("Dup")
                         .on_hover_text(format!("Duplicate {:?}", o.name))
                         .clicked()
                     {
@@ -159,7 +159,7 @@ pub fn outliner_ui(
         for (i, name) in lights.iter().enumerate() {
             let selected = editor.selection == Some(Selection::Light(i));
             if ui
-                .selectable_label(selected, format!("☀ {name}"))
+                .selectable_label(selected, format!("Light: {name}"))
                 .on_hover_text("Directional light: select to edit")
                 .clicked()
             {
