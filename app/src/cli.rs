@@ -1,0 +1,240 @@
+//! The `thicket` command line: `thicket [PROJECT]` opens the editor; subcommands work on files
+//! without a window. Outputs are written only after the work succeeded (the savers are atomic),
+//! so a failed command leaves nothing behind.
+
+use std::io::Write as _;
+use std::path::PathBuf;
+
+use anyhow::Context as _;
+use clap::{Args, Parser, Subcommand};
+
+use crate::files::{self, DocumentInfo, human_bytes, thousands};
+
+/// Thicket: sculpt voxel models, pose and skin them, grow procedural trees, export assets.
+///
+/// Without a subcommand, opens the editor (on PROJECT if given, else on the first sample
+/// project in `projects/`).
+#[derive(Debug, Parser)]
+#[command(name = "thicket", version, args_conflicts_with_subcommands = true)]
+pub struct Cli {
+    /// Project (or any supported file) to open in the editor.
+    pub project: Option<PathBuf>,
+
+    /// What to do instead of opening the editor.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Describe a file: objects, voxel counts, dimensions, bytes per voxel, triangles.
+    ///
+    /// Reads .thicket.json projects, .vox, .glb/.gltf and .obj files.
+    Info(InfoArgs),
+    /// Write the visible voxel objects of a project (or any supported file) as MagicaVoxel .vox.
+    ///
+    /// Models larger than 256 voxels in a dimension are split; colours are quantised to the
+    /// 255-entry palette (the report says how far).
+    ExportVox(ExportVoxArgs),
+}
+
+/// `thicket export-vox`.
+#[derive(Debug, Args)]
+pub struct ExportVoxArgs {
+    /// The project to export.
+    pub project: PathBuf,
+    /// The .vox file to write (written atomically, only when the export succeeded).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `thicket info`.
+#[derive(Debug, Args)]
+pub struct InfoArgs {
+    /// The file to describe.
+    pub file: PathBuf,
+    /// Print machine-readable JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Add a per-object memory report (octree structure, attributes, free slots, textures).
+    #[arg(long)]
+    pub memory: bool,
+}
+
+/// Runs a parsed command line.
+///
+/// # Errors
+/// Any failure, with a message that names the file and the problem; the caller prints it and
+/// exits with a non-zero code.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        None => crate::ui::run_editor(cli.project),
+        Some(Command::Info(args)) => info(&args),
+        Some(Command::ExportVox(args)) => export_vox(&args),
+    }
+}
+
+fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
+    let doc = files::load_document(&args.project)?;
+    let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
+    let mut text = format!(
+        "wrote {}: {} voxels in {} model(s), {} palette colours",
+        args.output.display(),
+        thousands(report.voxels),
+        report.models,
+        report.palette_colors
+    );
+    if !report.exact_colors {
+        text.push_str(&format!(
+            " ({} distinct colours quantised; largest channel error {})",
+            report.distinct_colors, report.max_channel_error
+        ));
+    }
+    if !report.skipped.is_empty() {
+        text.push_str(&format!(
+            "; skipped (hidden, mesh or empty): {}",
+            report.skipped.join(", ")
+        ));
+    }
+    text.push('\n');
+    write_stdout(&text)
+}
+
+fn info(args: &InfoArgs) -> anyhow::Result<()> {
+    let info = files::info(&args.file)?;
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&info).context("encoding the report as JSON")?;
+        s.push('\n');
+        s
+    } else {
+        format_info(&info, args.memory)
+    };
+    write_stdout(&text)
+}
+
+/// Writes to stdout; a closed pipe (`thicket info x | head`) is not an error.
+fn write_stdout(text: &str) -> anyhow::Result<()> {
+    let mut out = std::io::stdout().lock();
+    match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
+            Err(e).context("writing to standard output")
+        }
+        _ => Ok(()),
+    }
+}
+
+fn fmt_size(v: [f32; 3]) -> String {
+    format!("{:.3} × {:.3} × {:.3}", v[0], v[1], v[2])
+}
+
+/// The text report of `thicket info`.
+#[must_use]
+pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(s, "{} ({})", info.file, info.format);
+    let _ = writeln!(
+        s,
+        "  {} object(s), {} voxels, {} triangles, {} light(s), {} in memory",
+        info.objects.len(),
+        thousands(info.total_voxels),
+        thousands(info.total_triangles as u64),
+        info.lights,
+        human_bytes(info.total_bytes)
+    );
+    if let (Some(models), Some(voxels)) = (info.source.stored_models, info.source.stored_voxels) {
+        let _ = writeln!(
+            s,
+            "  the file stores {} voxels in {models} model(s); its scene graph places them as {} object(s)",
+            thousands(voxels),
+            info.objects.len()
+        );
+    }
+    if let Some(size) = info.world_size {
+        let _ = writeln!(s, "  world size: {}", fmt_size(size));
+    }
+    for o in &info.objects {
+        let hidden = if o.visible { "" } else { ", hidden" };
+        let _ = writeln!(s, "  [{}] {:?} ({}{hidden})", o.id, o.name, o.kind);
+        if let Some(voxels) = o.voxels {
+            let _ = write!(s, "      {} voxels", thousands(voxels));
+            if let Some(d) = o.dimensions_voxels {
+                let _ = write!(s, ", {} × {} × {} voxels", d[0], d[1], d[2]);
+            }
+            if let (Some(depth), Some(extent)) = (o.depth, o.extent) {
+                let _ = write!(s, ", depth {depth} ({extent}³)");
+            }
+            if let Some(vs) = o.voxel_size {
+                let _ = write!(s, ", voxel size {vs}");
+            }
+            if let Some(bpv) = o.bytes_per_voxel {
+                let _ = write!(s, ", {bpv:.2} bytes/voxel");
+            }
+            s.push('\n');
+        }
+        if let (Some(t), Some(v)) = (o.triangles, o.vertices) {
+            let _ = writeln!(
+                s,
+                "      {} triangles, {} vertices, {} material(s)",
+                thousands(t as u64),
+                thousands(v as u64),
+                o.materials
+            );
+        }
+        if let Some(size) = o.world_size {
+            let _ = writeln!(s, "      world size {}", fmt_size(size));
+        }
+        if memory {
+            let m = &o.memory;
+            let _ = writeln!(
+                s,
+                "      memory: {} total = {} structure + {} attributes + {} textures + {} free slots",
+                human_bytes(m.total_bytes),
+                human_bytes(m.structure_bytes),
+                human_bytes(m.payload_bytes),
+                human_bytes(m.texture_bytes),
+                human_bytes(m.free_bytes)
+            );
+        }
+    }
+    s
+}
+
+/// A progress bar on stderr for long work; indicatif hides it when stderr is not a terminal.
+#[must_use]
+pub fn progress_bar(len: u64, message: &str) -> indicatif::ProgressBar {
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{msg:>12} [{bar:40}] {percent:>3}% ({elapsed}, ETA {eta})",
+    ) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar.set_message(message.to_owned());
+    bar
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory as _;
+
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    #[test]
+    fn parses_editor_and_info_forms() {
+        let cli = Cli::try_parse_from(["thicket"]).unwrap();
+        assert!(cli.project.is_none() && cli.command.is_none());
+        let cli = Cli::try_parse_from(["thicket", "p.thicket.json"]).unwrap();
+        assert_eq!(cli.project, Some(PathBuf::from("p.thicket.json")));
+        let cli = Cli::try_parse_from(["thicket", "info", "x.vox", "--json", "--memory"]).unwrap();
+        match cli.command {
+            Some(Command::Info(a)) => assert!(a.json && a.memory && a.file.ends_with("x.vox")),
+            other => panic!("{other:?}"),
+        }
+        assert!(Cli::try_parse_from(["thicket", "info"]).is_err());
+    }
+}

@@ -1,0 +1,435 @@
+//! Editor state without any UI: the open document, its file, the selection, undo/redo and the
+//! commands the panels call. Everything here runs headless, so tests drive the editor through
+//! the same commands as the buttons.
+
+mod undo;
+
+use std::path::{Path, PathBuf};
+
+use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
+
+pub use undo::{Edit, History, MergeKey};
+
+/// What the inspector shows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Selection {
+    /// An object, by id.
+    Object(u64),
+    /// A light, by index.
+    Light(usize),
+}
+
+/// How many recent files the File menu keeps.
+pub const MAX_RECENT: usize = 10;
+
+/// Why a command was refused. The message is shown to the user as it is.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum CommandError {
+    /// The object id is not in the document (deleted meanwhile).
+    #[error("no object with id {0}")]
+    NoObject(u64),
+    /// The light index is not in the document.
+    #[error("no light number {0}")]
+    NoLight(usize),
+    /// A value the renderer must not see.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+/// The editor's document state.
+#[derive(Debug)]
+pub struct Editor {
+    doc: Document,
+    path: Option<PathBuf>,
+    /// The selected object or light, if any.
+    pub selection: Option<Selection>,
+    history: History,
+    /// Files opened or saved, most recent first.
+    pub recent: Vec<PathBuf>,
+    /// Increases whenever the document changes in a way a renderer sees (edits, undo, camera).
+    revision: u64,
+    /// Increases whenever the whole document is replaced (New, Open): ids may repeat across.
+    generation: u64,
+}
+
+impl Default for Editor {
+    fn default() -> Self {
+        Self::new(Document::default(), None)
+    }
+}
+
+impl Editor {
+    /// An editor on `doc`, read from `path` if it came from a file.
+    #[must_use]
+    pub fn new(doc: Document, path: Option<PathBuf>) -> Self {
+        let selection = doc.objects.first().map(|o| Selection::Object(o.id));
+        Self {
+            doc,
+            path,
+            selection,
+            history: History::default(),
+            recent: Vec::new(),
+            revision: 0,
+            generation: 0,
+        }
+    }
+
+    /// The document (read-only: every change goes through a command so it can be undone).
+    #[must_use]
+    pub fn doc(&self) -> &Document {
+        &self.doc
+    }
+
+    /// The file the document was read from or last saved to.
+    #[must_use]
+    pub fn path(&self) -> Option<&Path> {
+        self.path.as_deref()
+    }
+
+    /// A title for the window: file name and a `*` when there are unsaved changes.
+    #[must_use]
+    pub fn title(&self) -> String {
+        let name = self.path.as_deref().and_then(Path::file_name).map_or_else(
+            || "untitled".to_owned(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        let star = if self.is_dirty() { " *" } else { "" };
+        format!("{name}{star} — Thicket")
+    }
+
+    /// Whether there are edits since the last save or load.
+    #[must_use]
+    pub fn is_dirty(&self) -> bool {
+        self.history.is_dirty()
+    }
+
+    /// Changes whenever what a renderer would draw changes.
+    #[must_use]
+    pub fn revision(&self) -> u64 {
+        self.revision
+    }
+
+    /// Changes whenever the whole document is replaced (New / Open).
+    #[must_use]
+    pub fn generation(&self) -> u64 {
+        self.generation
+    }
+
+    /// Identifies the document's content within one generation (see [`History::state_id`]).
+    #[must_use]
+    pub fn content_key(&self) -> (u64, u64) {
+        (self.generation, self.history.state_id())
+    }
+
+    /// The undo history.
+    #[must_use]
+    pub fn history(&self) -> &History {
+        &self.history
+    }
+
+    /// Replaces the document (New / Open); the history starts afresh.
+    pub fn replace_document(&mut self, doc: Document, path: Option<PathBuf>) {
+        *self = Self {
+            recent: std::mem::take(&mut self.recent),
+            revision: self.revision + 1,
+            generation: self.generation + 1,
+            ..Self::new(doc, path)
+        };
+        if let Some(p) = self.path.clone() {
+            self.push_recent(p);
+        }
+    }
+
+    /// Records that the document was saved to `path`.
+    pub fn mark_saved(&mut self, path: PathBuf) {
+        self.history.mark_saved();
+        self.path = Some(path.clone());
+        self.push_recent(path);
+    }
+
+    /// Puts `path` at the top of the recent-files list.
+    pub fn push_recent(&mut self, path: PathBuf) {
+        self.recent.retain(|p| p != &path);
+        self.recent.insert(0, path);
+        self.recent.truncate(MAX_RECENT);
+    }
+
+    /// The selected object, if any.
+    #[must_use]
+    pub fn selected_object(&self) -> Option<&Object> {
+        match self.selection? {
+            Selection::Object(id) => self.object(id),
+            Selection::Light(_) => None,
+        }
+    }
+
+    /// An object by id.
+    #[must_use]
+    pub fn object(&self, id: u64) -> Option<&Object> {
+        self.doc.objects.iter().find(|o| o.id == id)
+    }
+
+    fn index_of(&self, id: u64) -> Result<usize, CommandError> {
+        self.doc
+            .objects
+            .iter()
+            .position(|o| o.id == id)
+            .ok_or(CommandError::NoObject(id))
+    }
+
+    fn apply(&mut self, edit: Edit, merge: Option<MergeKey>) {
+        let inverse = edit.apply(&mut self.doc);
+        self.history.push(inverse, merge);
+        self.revision += 1;
+        self.fix_selection();
+    }
+
+    fn fix_selection(&mut self) {
+        let valid = match self.selection {
+            Some(Selection::Object(id)) => self.object(id).is_some(),
+            Some(Selection::Light(i)) => i < self.doc.lights.len(),
+            None => true,
+        };
+        if !valid {
+            self.selection = None;
+        }
+    }
+
+    /// Ends the current interaction (a slider drag): the next edit starts a new undo step.
+    pub fn end_interaction(&mut self) {
+        self.history.seal();
+    }
+
+    /// Undoes the last step; false when there is none.
+    pub fn undo(&mut self) -> bool {
+        let done = self.history.undo(&mut self.doc);
+        if done {
+            self.revision += 1;
+            self.fix_selection();
+        }
+        done
+    }
+
+    /// Redoes the last undone step; false when there is none.
+    pub fn redo(&mut self) -> bool {
+        let done = self.history.redo(&mut self.doc);
+        if done {
+            self.revision += 1;
+            self.fix_selection();
+        }
+        done
+    }
+
+    /// Adds an object at the end of the outliner and selects it; returns its id.
+    pub fn add_object(&mut self, name: &str, kind: ObjectKind) -> u64 {
+        let id = next_id(&self.doc);
+        let object = Object {
+            id,
+            name: name.to_owned(),
+            kind,
+            ..Object::default()
+        };
+        let index = self.doc.objects.len();
+        self.apply(
+            Edit::Insert {
+                index,
+                object: Box::new(object),
+            },
+            None,
+        );
+        self.selection = Some(Selection::Object(id));
+        id
+    }
+
+    /// Adds every object of another document (Import), keeping their names; returns the new ids.
+    pub fn add_objects_from(&mut self, other: Document) -> Vec<u64> {
+        let mut ids = Vec::new();
+        for mut object in other.objects {
+            object.id = next_id(&self.doc);
+            ids.push(object.id);
+            let index = self.doc.objects.len();
+            self.apply(
+                Edit::Insert {
+                    index,
+                    object: Box::new(object),
+                },
+                None,
+            );
+        }
+        if let Some(&id) = ids.last() {
+            self.selection = Some(Selection::Object(id));
+        }
+        ids
+    }
+
+    /// Renames an object. Empty names are refused (the outliner needs something to click).
+    ///
+    /// # Errors
+    /// Unknown id or an empty name.
+    pub fn rename(&mut self, id: u64, name: &str) -> Result<(), CommandError> {
+        let name = name.trim();
+        if name.is_empty() {
+            return Err(CommandError::Invalid("a name cannot be empty".into()));
+        }
+        let index = self.index_of(id)?;
+        if self.doc.objects[index].name == name {
+            return Ok(());
+        }
+        self.apply(
+            Edit::Rename {
+                id,
+                name: name.to_owned(),
+            },
+            None,
+        );
+        Ok(())
+    }
+
+    /// Shows or hides an object.
+    ///
+    /// # Errors
+    /// Unknown id.
+    pub fn set_visible(&mut self, id: u64, visible: bool) -> Result<(), CommandError> {
+        let index = self.index_of(id)?;
+        if self.doc.objects[index].visible != visible {
+            self.apply(Edit::SetVisible { id, visible }, None);
+        }
+        Ok(())
+    }
+
+    /// Sets an object's transform after validating it. Consecutive calls during one interaction
+    /// (a drag) merge into one undo step.
+    ///
+    /// # Errors
+    /// Unknown id, or a non-finite value / zero scale (the document is left unchanged).
+    pub fn set_transform(&mut self, id: u64, transform: Transform) -> Result<(), CommandError> {
+        let index = self.index_of(id)?;
+        let ctx = format!("object {:?}", self.doc.objects[index].name);
+        transform
+            .validate(&ctx)
+            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        if self.doc.objects[index].transform != transform {
+            self.apply(
+                Edit::SetTransform { id, transform },
+                Some(MergeKey::Transform(id)),
+            );
+        }
+        Ok(())
+    }
+
+    /// Deletes an object.
+    ///
+    /// # Errors
+    /// Unknown id.
+    pub fn delete(&mut self, id: u64) -> Result<(), CommandError> {
+        let index = self.index_of(id)?;
+        self.apply(Edit::Remove { index }, None);
+        Ok(())
+    }
+
+    /// Duplicates an object (placed right after it, named "NAME copy") and selects the copy.
+    ///
+    /// # Errors
+    /// Unknown id.
+    pub fn duplicate(&mut self, id: u64) -> Result<u64, CommandError> {
+        let index = self.index_of(id)?;
+        let mut copy = self.doc.objects[index].clone();
+        copy.id = next_id(&self.doc);
+        copy.name = format!("{} copy", copy.name);
+        let new_id = copy.id;
+        self.apply(
+            Edit::Insert {
+                index: index + 1,
+                object: Box::new(copy),
+            },
+            None,
+        );
+        self.selection = Some(Selection::Object(new_id));
+        Ok(new_id)
+    }
+
+    /// Sets a light after validating it; drags merge into one step.
+    ///
+    /// # Errors
+    /// Unknown light, non-finite or zero direction, negative intensity.
+    pub fn set_light(&mut self, index: usize, light: Light) -> Result<(), CommandError> {
+        let current = self
+            .doc
+            .lights
+            .get(index)
+            .ok_or(CommandError::NoLight(index))?;
+        if !light.direction.is_finite() || light.direction.length_squared() < 1e-12 {
+            return Err(CommandError::Invalid(format!(
+                "light {:?}: the direction must be finite and non-zero",
+                light.name
+            )));
+        }
+        if !light.color.is_finite() || !light.intensity.is_finite() || light.intensity < 0.0 {
+            return Err(CommandError::Invalid(format!(
+                "light {:?}: colour and intensity must be finite and non-negative",
+                light.name
+            )));
+        }
+        if *current != light {
+            self.apply(
+                Edit::SetLight { index, light },
+                Some(MergeKey::Light(index)),
+            );
+        }
+        Ok(())
+    }
+
+    /// Sets the quality knobs after validating them; drags merge into one step.
+    ///
+    /// # Errors
+    /// A knob out of range (the message names it).
+    pub fn set_quality(&mut self, quality: Quality) -> Result<(), CommandError> {
+        quality
+            .validate()
+            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        if self.doc.quality != quality {
+            self.apply(Edit::SetQuality(Box::new(quality)), Some(MergeKey::Quality));
+        }
+        Ok(())
+    }
+
+    /// Applies a draft / balanced / final preset (one undo step).
+    pub fn apply_quality_preset(&mut self, preset: QualityPreset) {
+        let quality = Quality::preset(preset);
+        if self.doc.quality != quality {
+            self.history.seal();
+            self.apply(Edit::SetQuality(Box::new(quality)), None);
+        }
+    }
+
+    /// Moves the view camera. The view is saved with the document but is not an undoable edit
+    /// and does not mark the document as changed (orbiting is not editing).
+    pub fn set_camera(&mut self, camera: thicket_core::scene::OrbitCamera) {
+        if camera.validate().is_ok() && camera != self.doc.camera {
+            self.doc.camera = camera;
+            self.revision += 1;
+        }
+    }
+
+    /// Frames the selected object, or everything when nothing (or a light) is selected.
+    pub fn frame_selection(&mut self) {
+        let bounds = self
+            .selected_object()
+            .and_then(Object::world_bounds)
+            .or_else(|| self.doc.bounds());
+        if let Some((lo, hi)) = bounds {
+            let mut camera = self.doc.camera;
+            camera.frame(lo, hi);
+            self.set_camera(camera);
+        }
+    }
+}
+
+/// A fresh object id: one past the largest in use.
+fn next_id(doc: &Document) -> u64 {
+    doc.objects.iter().map(|o| o.id).max().map_or(1, |m| m + 1)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,261 @@
+//! Undo/redo as reversible edits (Fyrox-style): applying an [`Edit`] returns the edit that
+//! reverts it, so a step stores only what it changed — a deleted object's payload, an old
+//! transform — never a snapshot of the whole document with its octrees.
+
+use thicket_core::render::Quality;
+use thicket_core::scene::{Document, Light, Object, Transform};
+
+/// One reversible change to the document.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Edit {
+    /// Insert an object at an outliner position.
+    Insert {
+        /// Position in `Document::objects`.
+        index: usize,
+        /// The object.
+        object: Box<Object>,
+    },
+    /// Remove the object at an outliner position.
+    Remove {
+        /// Position in `Document::objects`.
+        index: usize,
+    },
+    /// Rename an object.
+    Rename {
+        /// Object id.
+        id: u64,
+        /// New name.
+        name: String,
+    },
+    /// Show or hide an object.
+    SetVisible {
+        /// Object id.
+        id: u64,
+        /// New visibility.
+        visible: bool,
+    },
+    /// Move, rotate or scale an object.
+    SetTransform {
+        /// Object id.
+        id: u64,
+        /// New transform.
+        transform: Transform,
+    },
+    /// Change a light.
+    SetLight {
+        /// Light index.
+        index: usize,
+        /// New value.
+        light: Light,
+    },
+    /// Change the quality knobs.
+    SetQuality(Box<Quality>),
+    /// Several edits as one step (applied in order, reverted in reverse order).
+    Group(Vec<Edit>),
+}
+
+impl Edit {
+    /// Applies the edit and returns its inverse. The editor validates edits before they get
+    /// here; an edit naming an object that no longer exists does nothing (and its inverse does
+    /// nothing either).
+    pub fn apply(self, doc: &mut Document) -> Edit {
+        let find = |doc: &mut Document, id: u64| doc.objects.iter().position(|o| o.id == id);
+        match self {
+            Edit::Insert { index, object } => {
+                let index = index.min(doc.objects.len());
+                doc.objects.insert(index, *object);
+                Edit::Remove { index }
+            }
+            Edit::Remove { index } => {
+                if index < doc.objects.len() {
+                    let object = Box::new(doc.objects.remove(index));
+                    Edit::Insert { index, object }
+                } else {
+                    Edit::Group(Vec::new())
+                }
+            }
+            Edit::Rename { id, name } => match find(doc, id) {
+                Some(i) => Edit::Rename {
+                    id,
+                    name: std::mem::replace(&mut doc.objects[i].name, name),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetVisible { id, visible } => match find(doc, id) {
+                Some(i) => Edit::SetVisible {
+                    id,
+                    visible: std::mem::replace(&mut doc.objects[i].visible, visible),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetTransform { id, transform } => match find(doc, id) {
+                Some(i) => Edit::SetTransform {
+                    id,
+                    transform: std::mem::replace(&mut doc.objects[i].transform, transform),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetLight { index, light } => match doc.lights.get_mut(index) {
+                Some(slot) => Edit::SetLight {
+                    index,
+                    light: std::mem::replace(slot, light),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetQuality(q) => {
+                Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q)))
+            }
+            Edit::Group(edits) => {
+                let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
+                inverses.reverse();
+                Edit::Group(inverses)
+            }
+        }
+    }
+}
+
+/// Which continuous edits merge into one step while an interaction lasts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MergeKey {
+    /// An object's transform.
+    Transform(u64),
+    /// A light.
+    Light(usize),
+    /// The quality knobs.
+    Quality,
+}
+
+#[derive(Debug)]
+struct Step {
+    /// The edit that leaves state `from` for state `to`.
+    revert: Edit,
+    /// The state the step applies to.
+    from: u64,
+    /// The state applying it restores.
+    to: u64,
+}
+
+/// Undo and redo stacks of inverse edits, bounded in length; always keeps the latest step.
+#[derive(Debug)]
+pub struct History {
+    undo: Vec<Step>,
+    redo: Vec<Step>,
+    /// Open merge group: a following edit with this key joins the top step.
+    open: Option<MergeKey>,
+    /// Identifies the document state; a new edit gets a fresh id, undo/redo restore old ones.
+    state: u64,
+    next_state: u64,
+    saved_state: u64,
+    /// Most steps kept.
+    pub capacity: usize,
+}
+
+impl Default for History {
+    fn default() -> Self {
+        Self {
+            undo: Vec::new(),
+            redo: Vec::new(),
+            open: None,
+            state: 0,
+            next_state: 1,
+            saved_state: 0,
+            capacity: 200,
+        }
+    }
+}
+
+impl History {
+    /// Records an applied edit by its inverse. With a merge key equal to the open group's, the
+    /// step joins the previous one (the first inverse is kept: it restores the state before the
+    /// whole drag).
+    pub fn push(&mut self, revert: Edit, merge: Option<MergeKey>) {
+        self.redo.clear();
+        let new_state = self.next_state;
+        self.next_state += 1;
+        match (merge, self.open, self.undo.last_mut()) {
+            (Some(key), Some(open), Some(top)) if key == open => {
+                top.from = new_state;
+            }
+            _ => {
+                self.undo.push(Step {
+                    revert,
+                    from: new_state,
+                    to: self.state,
+                });
+                if self.undo.len() > self.capacity.max(1) {
+                    let excess = self.undo.len() - self.capacity.max(1);
+                    self.undo.drain(..excess);
+                }
+            }
+        }
+        self.state = new_state;
+        self.open = merge;
+    }
+
+    /// Closes the open merge group.
+    pub fn seal(&mut self) {
+        self.open = None;
+    }
+
+    /// Reverts the top step.
+    pub fn undo(&mut self, doc: &mut Document) -> bool {
+        self.open = None;
+        let Some(step) = self.undo.pop() else {
+            return false;
+        };
+        let forward = step.revert.apply(doc);
+        self.state = step.to;
+        self.redo.push(Step {
+            revert: forward,
+            from: step.to,
+            to: step.from,
+        });
+        true
+    }
+
+    /// Re-applies the last undone step.
+    pub fn redo(&mut self, doc: &mut Document) -> bool {
+        self.open = None;
+        let Some(step) = self.redo.pop() else {
+            return false;
+        };
+        let backward = step.revert.apply(doc);
+        self.state = step.to;
+        self.undo.push(Step {
+            revert: backward,
+            from: step.to,
+            to: step.from,
+        });
+        true
+    }
+
+    /// Steps that can be undone.
+    #[must_use]
+    pub fn undo_len(&self) -> usize {
+        self.undo.len()
+    }
+
+    /// Steps that can be redone.
+    #[must_use]
+    pub fn redo_len(&self) -> usize {
+        self.redo.len()
+    }
+
+    /// Identifies the document's content: equal ids mean equal documents (edits get fresh ids;
+    /// undo and redo return to earlier ones). Caches key on it.
+    #[must_use]
+    pub fn state_id(&self) -> u64 {
+        self.state
+    }
+
+    /// Marks the current state as the saved one.
+    pub fn mark_saved(&mut self) {
+        self.saved_state = self.state;
+    }
+
+    /// Whether the document differs from the saved state.
+    #[must_use]
+    pub fn is_dirty(&self) -> bool {
+        self.state != self.saved_state
+    }
+}

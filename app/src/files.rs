@@ -1,0 +1,506 @@
+//! Opening any supported file as a [`Document`], and summarising a document for `thicket info`
+//! and the editor's inspector.
+//!
+//! Every loader in `thicket_core::io` names the file in its errors already; this module adds
+//! the file name only where it would otherwise be missing (unknown extensions).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context as _, bail};
+use serde::Serialize;
+use thicket_core::mesh::MeshModel;
+use thicket_core::scene::{Document, Object, ObjectKind};
+
+/// The file formats Thicket reads, by extension.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub enum FileKind {
+    /// `NAME.thicket.json` (+ `NAME.thicket.bin`).
+    Project,
+    /// MagicaVoxel `.vox`.
+    Vox,
+    /// glTF 2.0, `.gltf` or `.glb`.
+    Gltf,
+    /// Wavefront `.obj`.
+    Obj,
+}
+
+impl FileKind {
+    /// The kind a path's extension names, if Thicket knows it.
+    #[must_use]
+    pub fn from_path(path: &Path) -> Option<Self> {
+        let name = path.file_name()?.to_string_lossy().to_ascii_lowercase();
+        if name.ends_with(".thicket.json") {
+            return Some(Self::Project);
+        }
+        let ext = path.extension()?.to_string_lossy().to_ascii_lowercase();
+        match ext.as_str() {
+            "vox" => Some(Self::Vox),
+            "gltf" | "glb" => Some(Self::Gltf),
+            "obj" => Some(Self::Obj),
+            _ => None,
+        }
+    }
+
+    /// A short name for listings and `--json`.
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Project => "thicket project",
+            Self::Vox => "MagicaVoxel .vox",
+            Self::Gltf => "glTF 2.0",
+            Self::Obj => "Wavefront OBJ",
+        }
+    }
+
+    /// Whether this build can read the format (the loaders land one by one).
+    #[must_use]
+    pub fn is_readable(self) -> bool {
+        matches!(self, Self::Project | Self::Vox | Self::Gltf | Self::Obj)
+    }
+}
+
+/// File-dialog filters for formats this build can open or import.
+#[must_use]
+pub fn readable_extensions() -> Vec<(&'static str, &'static [&'static str])> {
+    let all: [(FileKind, &'static [&'static str]); 4] = [
+        (FileKind::Project, &["json"]),
+        (FileKind::Vox, &["vox"]),
+        (FileKind::Gltf, &["glb", "gltf"]),
+        (FileKind::Obj, &["obj"]),
+    ];
+    all.into_iter()
+        .filter(|(k, _)| k.is_readable())
+        .map(|(k, e)| (k.label(), e))
+        .collect()
+}
+
+fn kind_of(path: &Path) -> anyhow::Result<FileKind> {
+    match FileKind::from_path(path) {
+        Some(k) if k.is_readable() => Ok(k),
+        Some(k) => bail!(
+            "{}: {} files are not supported by this build yet",
+            path.display(),
+            k.label()
+        ),
+        None => bail!(
+            "{}: unknown file type (expected .thicket.json, .vox, .glb, .gltf or .obj)",
+            path.display()
+        ),
+    }
+}
+
+/// Reads a mesh file (glTF or OBJ).
+///
+/// # Errors
+/// The loader's message, which names the file and the problem.
+pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
+    let model = match kind_of(path)? {
+        FileKind::Gltf => thicket_core::io::import_gltf(path)?,
+        FileKind::Obj => thicket_core::io::import_obj(path)?,
+        other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
+    };
+    Ok(model)
+}
+
+/// Opens any supported file as a document: a project as it is, a mesh file as one mesh object,
+/// a `.vox` file as its voxel objects. The result is validated.
+///
+/// # Errors
+/// A message naming the file and what is wrong with it.
+pub fn load_document(path: &Path) -> anyhow::Result<Document> {
+    Ok(load_document_with_source(path)?.0)
+}
+
+/// What a source file held beyond the document (for `info`).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct SourceCounts {
+    /// Models stored in a `.vox` file (before the scene graph places them).
+    pub stored_models: Option<usize>,
+    /// Voxels stored in a `.vox` file's models (each model once).
+    pub stored_voxels: Option<u64>,
+}
+
+/// [`load_document`], plus counts only the source format knows.
+///
+/// # Errors
+/// See [`load_document`].
+pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, SourceCounts)> {
+    let mut counts = SourceCounts::default();
+    let doc = match kind_of(path)? {
+        FileKind::Project => load_project(path)?,
+        FileKind::Gltf | FileKind::Obj => {
+            let model = load_mesh(path)?;
+            document_from_mesh(&object_name_for(path), model)
+        }
+        FileKind::Vox => {
+            let scene = thicket_core::io::vox::import_vox(path)?;
+            counts.stored_models = Some(scene.model_count);
+            counts.stored_voxels = Some(scene.stored_voxels);
+            let mut doc = Document::default();
+            scene.add_to(&mut doc);
+            if let Some((lo, hi)) = doc.bounds() {
+                doc.camera.frame(lo, hi);
+            }
+            doc
+        }
+    };
+    doc.validate()
+        .with_context(|| format!("{}: invalid document", path.display()))?;
+    Ok((doc, counts))
+}
+
+fn load_project(path: &Path) -> anyhow::Result<Document> {
+    Ok(thicket_core::io::project::load(path)?)
+}
+
+/// Saves a project atomically (the previous save stays readable until the new one is whole).
+///
+/// # Errors
+/// The saver's message, naming the file.
+pub fn save_project(doc: &Document, path: &Path) -> anyhow::Result<()> {
+    Ok(thicket_core::io::project::save(doc, path)?)
+}
+
+/// A document holding one mesh object (framed by the camera).
+#[must_use]
+pub fn document_from_mesh(name: &str, model: MeshModel) -> Document {
+    let mut doc = Document::default();
+    doc.add(
+        name,
+        ObjectKind::Mesh(thicket_core::scene::MeshObject {
+            model,
+            casts_shadows: true,
+        }),
+    );
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
+/// An object name from a file name: `models/Box.glb` → `Box`, `a/tree.thicket.json` → `tree`.
+#[must_use]
+pub fn object_name_for(path: &Path) -> String {
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    let stem = name
+        .strip_suffix(".thicket.json")
+        .map(str::to_owned)
+        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
+        .unwrap_or_default();
+    if stem.is_empty() {
+        "Object".to_owned()
+    } else {
+        stem
+    }
+}
+
+/// Memory an object holds, by part, in bytes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct MemoryInfo {
+    /// Internal octree nodes with their LOD attributes (0 for meshes).
+    pub structure_bytes: u64,
+    /// Leaf voxel attributes, or mesh vertex and index arrays.
+    pub payload_bytes: u64,
+    /// Texture pixels (meshes).
+    pub texture_bytes: u64,
+    /// Allocated but unused slots left by edits (voxels).
+    pub free_bytes: u64,
+    /// Everything.
+    pub total_bytes: u64,
+}
+
+/// One object of a document, as `thicket info` reports it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ObjectInfo {
+    /// Stable id in the document.
+    pub id: u64,
+    /// Display name.
+    pub name: String,
+    /// `voxels` or `mesh`.
+    pub kind: &'static str,
+    /// Hidden objects are not rendered.
+    pub visible: bool,
+    /// Solid voxels.
+    pub voxels: Option<u64>,
+    /// Octree depth (levels below the root).
+    pub depth: Option<u8>,
+    /// Octree extent in voxels per axis (`2^depth`).
+    pub extent: Option<u32>,
+    /// Size of the solid voxels' bounding box, in voxels.
+    pub dimensions_voxels: Option<[u32; 3]>,
+    /// Edge of one voxel in object units.
+    pub voxel_size: Option<f32>,
+    /// Bytes per solid voxel over the whole octree (nodes, attributes, free slots).
+    pub bytes_per_voxel: Option<f64>,
+    /// Triangles (meshes).
+    pub triangles: Option<usize>,
+    /// Vertices (meshes).
+    pub vertices: Option<usize>,
+    /// Materials (meshes) or named voxel materials.
+    pub materials: usize,
+    /// Size of the world-space bounding box.
+    pub world_size: Option<[f32; 3]>,
+    /// Memory by part.
+    pub memory: MemoryInfo,
+}
+
+/// A document summary.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DocumentInfo {
+    /// The file it came from.
+    pub file: String,
+    /// Its format.
+    pub format: &'static str,
+    /// Every object, in outliner order.
+    pub objects: Vec<ObjectInfo>,
+    /// Number of lights.
+    pub lights: usize,
+    /// Solid voxels over all objects.
+    pub total_voxels: u64,
+    /// Triangles over all objects.
+    pub total_triangles: usize,
+    /// Bytes over all objects.
+    pub total_bytes: u64,
+    /// Size of the world-space bounding box of the visible objects.
+    pub world_size: Option<[f32; 3]>,
+    /// Counts from the source file (stored `.vox` models and voxels before instancing).
+    pub source: SourceCounts,
+}
+
+fn mesh_memory(model: &MeshModel) -> MemoryInfo {
+    let mut payload = 0usize;
+    for p in &model.parts {
+        payload += p.positions.len() * 12
+            + p.normals.len() * 12
+            + p.uvs.len() * 8
+            + p.colors.len() * 16
+            + p.joints.len() * 8
+            + p.weights.len() * 16
+            + p.indices.len() * 4;
+    }
+    let texture: usize = model
+        .materials
+        .iter()
+        .filter_map(|m| m.base_color_texture.as_ref())
+        .map(|t| t.rgba8.len())
+        .sum();
+    MemoryInfo {
+        structure_bytes: 0,
+        payload_bytes: payload as u64,
+        texture_bytes: texture as u64,
+        free_bytes: 0,
+        total_bytes: (payload + texture) as u64,
+    }
+}
+
+/// Summarises one object.
+#[must_use]
+pub fn object_info(o: &Object) -> ObjectInfo {
+    let world_size = o.world_bounds().map(|(lo, hi)| (hi - lo).to_array());
+    let mut info = ObjectInfo {
+        id: o.id,
+        name: o.name.clone(),
+        kind: o.kind_name(),
+        visible: o.visible,
+        voxels: None,
+        depth: None,
+        extent: None,
+        dimensions_voxels: None,
+        voxel_size: None,
+        bytes_per_voxel: None,
+        triangles: None,
+        vertices: None,
+        materials: 0,
+        world_size,
+        memory: MemoryInfo::default(),
+    };
+    match &o.kind {
+        ObjectKind::Voxels(v) => {
+            let stats = v.svo.memory_stats();
+            info.voxels = Some(v.svo.leaf_count());
+            info.depth = Some(v.svo.depth());
+            info.extent = Some(v.svo.extent());
+            info.dimensions_voxels = v.svo.bounds().map(|(lo, hi)| (hi - lo + 1).to_array());
+            info.voxel_size = Some(v.voxel_size);
+            info.bytes_per_voxel = (stats.leaves > 0).then_some(stats.bytes_per_leaf);
+            info.materials = v.material_names.len();
+            let live = stats.inner_bytes + stats.leaf_bytes;
+            info.memory = MemoryInfo {
+                structure_bytes: stats.inner_bytes,
+                payload_bytes: stats.leaf_bytes,
+                texture_bytes: 0,
+                free_bytes: stats.total_bytes.saturating_sub(live),
+                total_bytes: stats.total_bytes,
+            };
+        }
+        ObjectKind::Mesh(m) => {
+            info.triangles = Some(m.model.triangle_count());
+            info.vertices = Some(m.model.vertex_count());
+            info.materials = m.model.materials.len();
+            info.memory = mesh_memory(&m.model);
+        }
+    }
+    info
+}
+
+/// Summarises a document read from `file`.
+#[must_use]
+pub fn document_info(doc: &Document, file: &Path, format: FileKind) -> DocumentInfo {
+    let objects: Vec<ObjectInfo> = doc.objects.iter().map(object_info).collect();
+    DocumentInfo {
+        file: file.display().to_string(),
+        format: format.label(),
+        total_voxels: objects.iter().filter_map(|o| o.voxels).sum(),
+        total_triangles: objects.iter().filter_map(|o| o.triangles).sum(),
+        total_bytes: objects.iter().map(|o| o.memory.total_bytes).sum(),
+        lights: doc.lights.len(),
+        world_size: doc.bounds().map(|(lo, hi)| (hi - lo).to_array()),
+        source: SourceCounts::default(),
+        objects,
+    }
+}
+
+/// Reads any supported file and summarises it.
+///
+/// # Errors
+/// See [`load_document`].
+pub fn info(path: &Path) -> anyhow::Result<DocumentInfo> {
+    let kind = kind_of(path)?;
+    let (doc, source) = load_document_with_source(path)?;
+    Ok(DocumentInfo {
+        source,
+        ..document_info(&doc, path, kind)
+    })
+}
+
+/// `1234567` → `1,234,567`.
+#[must_use]
+pub fn thousands(n: u64) -> String {
+    let digits = n.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// Bytes in a human unit: `1.5 MiB`.
+#[must_use]
+pub fn human_bytes(bytes: u64) -> String {
+    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
+    let mut v = bytes as f64;
+    let mut unit = 0;
+    while v >= 1024.0 && unit + 1 < UNITS.len() {
+        v /= 1024.0;
+        unit += 1;
+    }
+    if unit == 0 {
+        format!("{bytes} B")
+    } else {
+        format!("{v:.1} {}", UNITS[unit])
+    }
+}
+
+/// The default project the editor opens: the first `*.thicket.json` (by name) in a `projects/`
+/// folder beside the executable's workspace or the current directory.
+#[must_use]
+pub fn default_project() -> Option<PathBuf> {
+    let mut roots: Vec<PathBuf> = Vec::new();
+    if let Ok(cwd) = std::env::current_dir() {
+        roots.push(cwd);
+    }
+    // target/<profile>/thicket → the workspace is three levels up.
+    if let Ok(exe) = std::env::current_exe() {
+        roots.extend(exe.ancestors().skip(1).take(4).map(Path::to_path_buf));
+    }
+    roots.push(PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/..")));
+    for root in roots {
+        let dir = root.join("projects");
+        let Ok(entries) = std::fs::read_dir(&dir) else {
+            continue;
+        };
+        let mut found: Vec<PathBuf> = entries
+            .filter_map(Result::ok)
+            .map(|e| e.path())
+            .filter(|p| FileKind::from_path(p) == Some(FileKind::Project))
+            .collect();
+        found.sort();
+        if let Some(first) = found.into_iter().next() {
+            return Some(first);
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn kinds_by_extension() {
+        assert_eq!(
+            FileKind::from_path(Path::new("a/b.thicket.json")),
+            Some(FileKind::Project)
+        );
+        assert_eq!(
+            FileKind::from_path(Path::new("x.GLB")),
+            Some(FileKind::Gltf)
+        );
+        assert_eq!(FileKind::from_path(Path::new("x.vox")), Some(FileKind::Vox));
+        assert_eq!(FileKind::from_path(Path::new("x.json")), None);
+        assert_eq!(FileKind::from_path(Path::new("noext")), None);
+    }
+
+    #[test]
+    fn names_from_files() {
+        assert_eq!(object_name_for(Path::new("m/Box.glb")), "Box");
+        assert_eq!(object_name_for(Path::new("tree.thicket.json")), "tree");
+        assert_eq!(object_name_for(Path::new("")), "Object");
+    }
+
+    #[test]
+    fn number_formatting() {
+        assert_eq!(thousands(0), "0");
+        assert_eq!(thousands(999), "999");
+        assert_eq!(thousands(180_202), "180,202");
+        assert_eq!(thousands(1_234_567), "1,234,567");
+        assert_eq!(human_bytes(12), "12 B");
+        assert_eq!(human_bytes(1536), "1.5 KiB");
+    }
+
+    #[test]
+    fn voxel_object_info_counts() {
+        use thicket_core::scene::VoxelModel;
+        use thicket_core::svo::{Svo, Voxel};
+        let mut svo = Svo::new(4, false).unwrap();
+        for x in 0..3 {
+            svo.set(
+                glam::UVec3::new(x, 1, 2),
+                Voxel::new([255, 0, 0, 255], glam::Vec3::Y),
+            )
+            .unwrap();
+        }
+        let mut doc = Document::default();
+        doc.add(
+            "row",
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                ..VoxelModel::default()
+            }),
+        );
+        let info = document_info(&doc, Path::new("x.thicket.json"), FileKind::Project);
+        let o = &info.objects[0];
+        assert_eq!(o.voxels, Some(3));
+        assert_eq!(o.dimensions_voxels, Some([3, 1, 1]));
+        assert_eq!(o.extent, Some(16));
+        assert!(o.bytes_per_voxel.unwrap() > 0.0);
+        assert_eq!(info.total_voxels, 3);
+        assert!(info.total_bytes > 0);
+    }
+}

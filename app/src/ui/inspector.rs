@@ -1,0 +1,455 @@
+//! The inspector: the selection's real values. Transforms and lights are edited through
+//! validated commands (a refused value leaves the document unchanged and shows why); the
+//! quality knobs have a draft / balanced / final preset row.
+
+use glam::{EulerRot, Quat, Vec3};
+use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::scene::{Light, Object, ObjectKind, Transform};
+
+use crate::editor::{Editor, Selection};
+use crate::files::{ObjectInfo, human_bytes, object_info, thousands};
+
+/// UI-only state: the last refusal message and a cache of the selected object's summary
+/// (bounds and memory statistics visit every voxel, so they are not recomputed every frame).
+#[derive(Debug, Default)]
+pub struct InspectorState {
+    /// Why the last edit was refused, shown under the field.
+    pub error: Option<String>,
+    cache: Option<(CacheKey, ObjectInfo)>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct CacheKey {
+    content: (u64, u64),
+    id: u64,
+}
+
+/// Draws the inspector.
+pub fn inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState) {
+    ui.heading("Inspector");
+    ui.separator();
+    egui::ScrollArea::vertical().show(ui, |ui| {
+        match editor.selection {
+            Some(Selection::Object(id)) => {
+                if let Some(object) = editor.object(id).cloned() {
+                    object_ui(ui, editor, state, &object);
+                }
+            }
+            Some(Selection::Light(i)) => {
+                if let Some(light) = editor.doc().lights.get(i).cloned() {
+                    light_ui(ui, editor, state, i, light);
+                }
+            }
+            None => {
+                ui.weak("Nothing selected. Click an object or a light in the outliner.");
+            }
+        }
+        if let Some(e) = &state.error {
+            ui.colored_label(ui.visuals().error_fg_color, format!("Refused: {e}"));
+        }
+        ui.add_space(8.0);
+        egui::CollapsingHeader::new("Render quality")
+            .default_open(false)
+            .show(ui, |ui| quality_ui(ui, editor, state));
+    });
+}
+
+fn cached_info<'a>(editor: &Editor, state: &'a mut InspectorState, o: &Object) -> &'a ObjectInfo {
+    let key = CacheKey {
+        content: editor.content_key(),
+        id: o.id,
+    };
+    if state.cache.as_ref().is_none_or(|(k, _)| *k != key) {
+        state.cache = Some((key, object_info(o)));
+    }
+    let (_, info) = state.cache.get_or_insert_with(|| (key, object_info(o)));
+    info
+}
+
+fn row(ui: &mut egui::Ui, label: &str, value: impl Into<egui::WidgetText>, tip: &str) {
+    ui.label(label).on_hover_text(tip);
+    ui.label(value);
+    ui.end_row();
+}
+
+fn object_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState, o: &Object) {
+    ui.label(egui::RichText::new(&o.name).heading());
+    ui.weak(format!("{} · id {}", o.kind_name(), o.id));
+    ui.add_space(4.0);
+
+    egui::CollapsingHeader::new("Transform")
+        .default_open(true)
+        .show(ui, |ui| transform_ui(ui, editor, state, o));
+
+    let info = cached_info(editor, state, o).clone();
+    egui::CollapsingHeader::new(match o.kind {
+        ObjectKind::Voxels(_) => "Voxels",
+        ObjectKind::Mesh(_) => "Mesh",
+    })
+    .default_open(true)
+    .show(ui, |ui| {
+        egui::Grid::new("object_stats")
+            .num_columns(2)
+            .striped(true)
+            .show(ui, |ui| match &o.kind {
+                ObjectKind::Voxels(v) => {
+                    row(ui, "Voxels", thousands(info.voxels.unwrap_or(0)), "Solid leaf voxels");
+                    row(
+                        ui,
+                        "Depth",
+                        format!("{} ({}³)", v.svo.depth(), v.svo.extent()),
+                        "Octree levels below the root; the grid is 2^depth voxels per axis",
+                    );
+                    if let Some(d) = info.dimensions_voxels {
+                        row(
+                            ui,
+                            "Extent",
+                            format!("{} × {} × {} voxels", d[0], d[1], d[2]),
+                            "Bounding box of the solid voxels",
+                        );
+                    }
+                    row(
+                        ui,
+                        "Voxel size",
+                        format!("{}", v.voxel_size),
+                        "Edge of one voxel in object units",
+                    );
+                    row(
+                        ui,
+                        "Origin",
+                        format!("{:.3} {:.3} {:.3}", v.origin.x, v.origin.y, v.origin.z),
+                        "Object-space position of voxel (0,0,0)",
+                    );
+                    if let Some(bpv) = info.bytes_per_voxel {
+                        row(
+                            ui,
+                            "Bytes / voxel",
+                            format!("{bpv:.2}"),
+                            "Whole octree (nodes, LOD and leaf attributes, free slots) per solid voxel",
+                        );
+                    }
+                    row(
+                        ui,
+                        "Memory",
+                        human_bytes(info.memory.total_bytes),
+                        &format!(
+                            "{} structure + {} leaf attributes + {} free slots",
+                            human_bytes(info.memory.structure_bytes),
+                            human_bytes(info.memory.payload_bytes),
+                            human_bytes(info.memory.free_bytes)
+                        ),
+                    );
+                    row(
+                        ui,
+                        "Skin weights",
+                        if v.svo.has_skin() { "yes" } else { "no" },
+                        "Whether voxels carry bone indices and weights",
+                    );
+                    if !v.material_names.is_empty() {
+                        row(
+                            ui,
+                            "Materials",
+                            v.material_names.join(", "),
+                            "Named materials from the source file",
+                        );
+                    }
+                }
+                ObjectKind::Mesh(m) => {
+                    row(ui, "Triangles", thousands(m.model.triangle_count() as u64), "");
+                    row(ui, "Vertices", thousands(m.model.vertex_count() as u64), "");
+                    row(ui, "Parts", m.model.parts.len().to_string(), "Triangle lists");
+                    let names: Vec<&str> =
+                        m.model.materials.iter().map(|mat| mat.name.as_str()).collect();
+                    row(
+                        ui,
+                        "Materials",
+                        format!("{} {}", names.len(), names.join(", ")),
+                        "Material table",
+                    );
+                    row(
+                        ui,
+                        "Memory",
+                        human_bytes(info.memory.total_bytes),
+                        &format!(
+                            "{} vertex and index arrays + {} textures",
+                            human_bytes(info.memory.payload_bytes),
+                            human_bytes(info.memory.texture_bytes)
+                        ),
+                    );
+                }
+            });
+        if let Some(size) = info.world_size {
+            ui.weak(format!(
+                "World size {:.3} × {:.3} × {:.3}",
+                size[0], size[1], size[2]
+            ));
+        }
+    });
+}
+
+/// Three DragValues for a vector; returns whether any changed.
+fn vec3_ui(ui: &mut egui::Ui, v: &mut Vec3, speed: f64, tip: &str) -> bool {
+    let mut changed = false;
+    ui.horizontal(|ui| {
+        for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
+            changed |= ui
+                .add(
+                    egui::DragValue::new(c)
+                        .speed(speed)
+                        .prefix(format!("{axis} ")),
+                )
+                .on_hover_text(tip)
+                .changed();
+        }
+    });
+    changed
+}
+
+fn transform_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState, o: &Object) {
+    let mut t = o.transform;
+    let (ry, rx, rz) = t.rotation.to_euler(EulerRot::YXZ);
+    let mut euler_deg = Vec3::new(rx.to_degrees(), ry.to_degrees(), rz.to_degrees());
+    let mut changed = false;
+    egui::Grid::new("transform").num_columns(2).show(ui, |ui| {
+        ui.label("Position");
+        changed |= vec3_ui(
+            ui,
+            &mut t.translation,
+            0.01,
+            "World-space translation; drag or type a number",
+        );
+        ui.end_row();
+        ui.label("Rotation °");
+        let rot_changed = vec3_ui(
+            ui,
+            &mut euler_deg,
+            0.5,
+            "Rotation in degrees about X, Y, Z (applied Y, X, Z)",
+        );
+        if rot_changed {
+            t.rotation = Quat::from_euler(
+                EulerRot::YXZ,
+                euler_deg.y.to_radians(),
+                euler_deg.x.to_radians(),
+                euler_deg.z.to_radians(),
+            );
+            changed = true;
+        }
+        ui.end_row();
+        ui.label("Scale");
+        changed |= vec3_ui(
+            ui,
+            &mut t.scale,
+            0.01,
+            "Per-axis scale: finite and non-zero",
+        );
+        ui.end_row();
+    });
+    if ui
+        .small_button("Reset")
+        .on_hover_text("Identity transform (undoable)")
+        .clicked()
+    {
+        t = Transform::default();
+        changed = true;
+    }
+    if changed {
+        state.error = editor.set_transform(o.id, t).err().map(|e| e.to_string());
+    }
+}
+
+fn light_ui(
+    ui: &mut egui::Ui,
+    editor: &mut Editor,
+    state: &mut InspectorState,
+    index: usize,
+    mut light: Light,
+) {
+    ui.label(egui::RichText::new(format!("Light: {}", light.name)).heading());
+    ui.weak("Directional light");
+    let mut changed = false;
+    egui::Grid::new("light").num_columns(2).show(ui, |ui| {
+        ui.label("Direction");
+        changed |= vec3_ui(
+            ui,
+            &mut light.direction,
+            0.01,
+            "Direction the light travels (from the light toward the scene); must be non-zero",
+        );
+        ui.end_row();
+        ui.label("Colour");
+        let mut rgb = light.color.to_array();
+        if ui
+            .color_edit_button_rgb(&mut rgb)
+            .on_hover_text("Linear RGB colour")
+            .changed()
+        {
+            light.color = Vec3::from_array(rgb);
+            changed = true;
+        }
+        ui.end_row();
+        ui.label("Intensity");
+        changed |= ui
+            .add(
+                egui::DragValue::new(&mut light.intensity)
+                    .speed(0.01)
+                    .range(0.0..=1000.0),
+            )
+            .on_hover_text("Multiplier on the colour (0 or more)")
+            .changed();
+        ui.end_row();
+        ui.label("Shadows");
+        changed |= ui
+            .checkbox(&mut light.casts_shadows, "")
+            .on_hover_text("Whether this light casts shadows")
+            .changed();
+        ui.end_row();
+    });
+    if changed {
+        state.error = editor.set_light(index, light).err().map(|e| e.to_string());
+    }
+}
+
+fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState) {
+    ui.horizontal(|ui| {
+        for (label, preset, tip) in [
+            ("Draft", QualityPreset::Draft, "Fastest preview"),
+            ("Balanced", QualityPreset::Balanced, "The editor default"),
+            (
+                "Final",
+                QualityPreset::Final,
+                "Offline renders and references",
+            ),
+        ] {
+            let active = editor.doc().quality == Quality::preset(preset);
+            if ui
+                .selectable_label(active, label)
+                .on_hover_text(tip)
+                .clicked()
+            {
+                editor.apply_quality_preset(preset);
+            }
+        }
+    });
+    let mut q = editor.doc().quality.clone();
+    let mut changed = false;
+    egui::Grid::new("quality")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            let mut f = |ui: &mut egui::Ui,
+                         label: &str,
+                         v: &mut f32,
+                         range: std::ops::RangeInclusive<f32>,
+                         tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui
+                    .add(egui::DragValue::new(v).speed(0.01).range(range))
+                    .on_hover_text(tip)
+                    .changed();
+                ui.end_row();
+            };
+            f(
+                ui,
+                "LOD threshold px",
+                &mut q.lod_pixel_threshold,
+                0.05..=64.0,
+                "ASVO: a node is split while its projected size exceeds this many pixels",
+            );
+            f(
+                ui,
+                "KRS epsilon ×",
+                &mut q.krs_epsilon_scale,
+                0.01..=100.0,
+                "KRS: pixel-cone epsilon multiplier (1 = one pixel)",
+            );
+            f(
+                ui,
+                "KRS over-relaxation",
+                &mut q.krs_over_relaxation,
+                1.0..=1.95,
+                "KRS: sphere-tracing over-relaxation (1 = off)",
+            );
+            f(
+                ui,
+                "Stretch ×",
+                &mut q.stretch_multiplier,
+                0.0..=8.0,
+                "Skinning: multiplier on every stretch factor",
+            );
+            let mut u = |ui: &mut egui::Ui,
+                         label: &str,
+                         v: &mut u32,
+                         range: std::ops::RangeInclusive<u32>,
+                         tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui
+                    .add(egui::DragValue::new(v).range(range))
+                    .on_hover_text(tip)
+                    .changed();
+                ui.end_row();
+            };
+            u(
+                ui,
+                "Shadow map",
+                &mut q.shadow_map_size,
+                16..=16384,
+                "Shadow map edge in texels",
+            );
+            u(
+                ui,
+                "Shadow PCF radius",
+                &mut q.shadow_pcf_radius,
+                0..=8,
+                "Shadow filter radius in texels (0 = hard)",
+            );
+            u(
+                ui,
+                "AO samples",
+                &mut q.ao_samples,
+                0..=64,
+                "Ambient-occlusion samples (0 = off)",
+            );
+            u(
+                ui,
+                "KRS max steps",
+                &mut q.krs_max_steps,
+                1..=10_000,
+                "KRS: most sphere-tracing steps per ray",
+            );
+            u(
+                ui,
+                "Enhancement samples",
+                &mut q.enhancement_samples,
+                1..=1024,
+                "Detail enhancement: probes per fragment",
+            );
+            let mut b = |ui: &mut egui::Ui, label: &str, v: &mut bool, tip: &str| {
+                ui.label(label).on_hover_text(tip);
+                changed |= ui.checkbox(v, "").on_hover_text(tip).changed();
+                ui.end_row();
+            };
+            b(
+                ui,
+                "Occlusion culling",
+                &mut q.occlusion_culling,
+                "ASVO: hierarchical occlusion culling",
+            );
+            b(ui, "Shadows", &mut q.shadows, "Shadow maps on/off");
+            b(
+                ui,
+                "KRS tile acceleration",
+                &mut q.krs_tile_acceleration,
+                "KRS: screen-tile cone acceleration",
+            );
+            b(
+                ui,
+                "KRS soft shadows",
+                &mut q.krs_soft_shadows,
+                "KRS: soft instead of hard shadows",
+            );
+        });
+    if changed {
+        state.error = editor.set_quality(q).err().map(|e| e.to_string());
+    }
+}

@@ -1,0 +1,928 @@
+//! The eframe app: menu bar, outliner, inspector, status bar and the central preview.
+//!
+//! [`EditorApp::ui_root`] draws the whole window into a [`egui::Ui`]; eframe calls it through
+//! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
+
+mod inspector;
+mod outliner;
+mod preview;
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc;
+use std::time::Duration;
+
+use egui::{Key, KeyboardShortcut, Modifiers};
+use thicket_core::render::QualityPreset;
+use thicket_core::scene::Document;
+
+use crate::editor::{Editor, Selection};
+use crate::files::{self, FileKind, thousands};
+
+/// Keyboard shortcuts, listed in Help → Keyboard shortcuts.
+pub const SHORTCUTS: &[(&str, &str)] = &[
+    ("Ctrl+N", "New project"),
+    ("Ctrl+O", "Open a project or model"),
+    ("Ctrl+S", "Save"),
+    ("Ctrl+Shift+S", "Save as"),
+    ("Ctrl+I", "Import objects into this project"),
+    ("Ctrl+Z", "Undo"),
+    ("Ctrl+Shift+Z / Ctrl+Y", "Redo"),
+    ("Ctrl+D", "Duplicate the selected object"),
+    ("Delete", "Delete the selected object"),
+    ("F2", "Rename the selected object"),
+    ("H", "Hide / show the selected object"),
+    (
+        "F",
+        "Frame the selection (everything when nothing is selected)",
+    ),
+    ("Drag in the view", "Orbit"),
+    ("Scroll in the view", "Zoom"),
+    ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
+    ("F1", "This list"),
+];
+
+/// A short-lived notice in the corner.
+#[derive(Debug, Clone)]
+struct Toast {
+    text: String,
+    is_error: bool,
+    until_secs: f64,
+}
+
+/// What a path prompt is for.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum PathPurpose {
+    Open,
+    Import,
+    SaveAs,
+}
+
+impl PathPurpose {
+    fn title(self) -> &'static str {
+        match self {
+            Self::Open => "Open",
+            Self::Import => "Import",
+            Self::SaveAs => "Save as",
+        }
+    }
+}
+
+#[derive(Debug, Clone)]
+struct PathPrompt {
+    purpose: PathPurpose,
+    text: String,
+}
+
+/// An action waiting for the unsaved-changes prompt.
+#[derive(Debug, Clone, PartialEq)]
+enum Pending {
+    New,
+    Open(PathBuf),
+    Quit,
+}
+
+/// What a background job hands back.
+enum JobResult {
+    Opened(PathBuf, anyhow::Result<Document>),
+    Imported(PathBuf, anyhow::Result<Document>),
+}
+
+struct Job {
+    label: String,
+    rx: mpsc::Receiver<JobResult>,
+}
+
+/// The editor window's state: the [`Editor`] plus everything only the UI needs.
+pub struct EditorApp {
+    /// The document state and its commands.
+    pub editor: Editor,
+    toasts: Vec<Toast>,
+    /// An error shown in a dialog until dismissed (for example a file that would not open).
+    pub error_dialog: Option<String>,
+    prompt: Option<PathPrompt>,
+    pending: Option<Pending>,
+    allow_close: bool,
+    job: Option<Job>,
+    show_shortcuts: bool,
+    show_about: bool,
+    show_outliner: bool,
+    show_inspector: bool,
+    outliner: outliner::OutlinerState,
+    inspector: inspector::InspectorState,
+    preview: preview::Preview,
+    /// Last status-bar message.
+    status: String,
+}
+
+impl Default for EditorApp {
+    fn default() -> Self {
+        Self::new(Editor::default())
+    }
+}
+
+impl EditorApp {
+    /// An app around an editor.
+    #[must_use]
+    pub fn new(editor: Editor) -> Self {
+        Self {
+            editor,
+            toasts: Vec::new(),
+            error_dialog: None,
+            prompt: None,
+            pending: None,
+            allow_close: false,
+            job: None,
+            show_shortcuts: false,
+            show_about: false,
+            show_outliner: true,
+            show_inspector: true,
+            outliner: outliner::OutlinerState::default(),
+            inspector: inspector::InspectorState::default(),
+            preview: preview::Preview::default(),
+            status: String::from("Ready"),
+        }
+    }
+
+    /// Opens `path` (or the first sample project when `None`), or an empty document if that
+    /// fails; a failure is shown in the error dialog.
+    #[must_use]
+    pub fn open_startup(path: Option<PathBuf>) -> Self {
+        let mut app = Self::default();
+        let Some(path) = path.or_else(files::default_project) else {
+            app.status = "No project given and no sample in projects/: empty document".into();
+            return app;
+        };
+        match files::load_document(&path) {
+            Ok(doc) => app.install_document(doc, &path),
+            Err(e) => app.error_dialog = Some(format!("{e:#}")),
+        }
+        app
+    }
+
+    fn install_document(&mut self, doc: Document, path: &Path) {
+        // Only projects are saved back to where they came from; a model opened directly becomes
+        // an untitled project so Save cannot overwrite the .glb / .vox.
+        let project_path =
+            (FileKind::from_path(path) == Some(FileKind::Project)).then(|| path.to_path_buf());
+        self.editor.replace_document(doc, project_path);
+        self.editor.push_recent(path.to_path_buf());
+        self.status = format!("Opened {}", path.display());
+    }
+
+    fn toast(&mut self, ctx: &egui::Context, text: impl Into<String>, is_error: bool) {
+        let text = text.into();
+        if is_error {
+            log::warn!("{text}");
+        }
+        self.status.clone_from(&text);
+        let now = ctx.input(|i| i.time);
+        self.toasts.push(Toast {
+            text,
+            is_error,
+            until_secs: now + if is_error { 8.0 } else { 3.0 },
+        });
+    }
+
+    // ---------------------------------------------------------------- file commands
+
+    /// File → New (asks about unsaved changes first).
+    pub fn request_new(&mut self) {
+        if self.editor.is_dirty() {
+            self.pending = Some(Pending::New);
+        } else {
+            self.do_new();
+        }
+    }
+
+    fn do_new(&mut self) {
+        self.editor.replace_document(Document::default(), None);
+        self.status = "New project".into();
+    }
+
+    /// File → Open a path (asks about unsaved changes first). Loads on a worker thread.
+    pub fn request_open(&mut self, path: PathBuf) {
+        if self.editor.is_dirty() {
+            self.pending = Some(Pending::Open(path));
+        } else {
+            self.start_open(path);
+        }
+    }
+
+    fn start_open(&mut self, path: PathBuf) {
+        let (tx, rx) = mpsc::channel();
+        let label = format!("Opening {}", path.display());
+        std::thread::spawn(move || {
+            let result = files::load_document(&path);
+            let _ = tx.send(JobResult::Opened(path, result));
+        });
+        self.job = Some(Job { label, rx });
+    }
+
+    /// File → Import: adds the objects of any supported file to the document.
+    pub fn start_import(&mut self, path: PathBuf) {
+        let (tx, rx) = mpsc::channel();
+        let label = format!("Importing {}", path.display());
+        std::thread::spawn(move || {
+            let result = files::load_document(&path);
+            let _ = tx.send(JobResult::Imported(path, result));
+        });
+        self.job = Some(Job { label, rx });
+    }
+
+    /// Waits for the running job (tests; the UI polls instead).
+    pub fn wait_for_job(&mut self, ctx: &egui::Context) {
+        if let Some(job) = self.job.take()
+            && let Ok(result) = job.rx.recv()
+        {
+            self.finish_job(ctx, result);
+        }
+    }
+
+    fn poll_job(&mut self, ctx: &egui::Context) {
+        let Some(job) = &self.job else { return };
+        match job.rx.try_recv() {
+            Ok(result) => {
+                self.job = None;
+                self.finish_job(ctx, result);
+            }
+            Err(mpsc::TryRecvError::Empty) => {
+                ctx.request_repaint_after(Duration::from_millis(50));
+            }
+            Err(mpsc::TryRecvError::Disconnected) => {
+                self.job = None;
+                self.toast(ctx, "The background job stopped unexpectedly", true);
+            }
+        }
+    }
+
+    fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
+        match result {
+            JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
+            JobResult::Imported(path, Ok(doc)) => {
+                let n = self.editor.add_objects_from(doc).len();
+                self.toast(
+                    ctx,
+                    format!("Imported {n} object(s) from {}", path.display()),
+                    false,
+                );
+            }
+            JobResult::Opened(_, Err(e)) | JobResult::Imported(_, Err(e)) => {
+                // The current document is untouched.
+                self.error_dialog = Some(format!("{e:#}"));
+                self.status = "Could not open the file; the current document is unchanged".into();
+            }
+        }
+    }
+
+    /// File → Save: to the current path, or asks for one. Returns whether it saved.
+    pub fn save(&mut self, ctx: &egui::Context) -> bool {
+        match self.editor.path().map(Path::to_path_buf) {
+            Some(path) => self.save_to(ctx, path),
+            None => {
+                self.prompt = Some(PathPrompt {
+                    purpose: PathPurpose::SaveAs,
+                    text: "untitled.thicket.json".into(),
+                });
+                false
+            }
+        }
+    }
+
+    /// Saves to `path` (a `.thicket.json` name is enforced). Returns whether it saved.
+    pub fn save_to(&mut self, ctx: &egui::Context, path: PathBuf) -> bool {
+        let path = with_project_extension(path);
+        match files::save_project(self.editor.doc(), &path) {
+            Ok(()) => {
+                self.editor.mark_saved(path.clone());
+                self.toast(ctx, format!("Saved {}", path.display()), false);
+                true
+            }
+            Err(e) => {
+                self.error_dialog = Some(format!("{e:#}"));
+                false
+            }
+        }
+    }
+
+    fn resolve_pending(&mut self, ctx: &egui::Context, pending: Pending) {
+        match pending {
+            Pending::New => self.do_new(),
+            Pending::Open(path) => self.start_open(path),
+            Pending::Quit => {
+                self.allow_close = true;
+                ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+            }
+        }
+    }
+
+    fn ask_path(&mut self, purpose: PathPurpose) {
+        let text = match purpose {
+            PathPurpose::SaveAs => self.editor.path().map_or_else(
+                || "untitled.thicket.json".into(),
+                |p| p.display().to_string(),
+            ),
+            _ => String::new(),
+        };
+        self.prompt = Some(PathPrompt { purpose, text });
+    }
+
+    fn accept_path(&mut self, ctx: &egui::Context, purpose: PathPurpose, path: PathBuf) {
+        match purpose {
+            PathPurpose::Open => self.request_open(path),
+            PathPurpose::Import => self.start_import(path),
+            PathPurpose::SaveAs => {
+                self.save_to(ctx, path);
+            }
+        }
+    }
+
+    // ---------------------------------------------------------------- frame
+
+    /// Draws the whole editor into `ui` (the root of the window, or a test harness).
+    pub fn ui_root(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        self.poll_job(&ctx);
+        self.handle_dropped_files(&ctx);
+        self.handle_shortcuts(&ctx);
+        self.handle_close_request(&ctx);
+
+        egui::Panel::top("menu_bar").show(ui, |ui| self.menu_bar(ui));
+        egui::Panel::bottom("status_bar").show(ui, |ui| self.status_bar(ui));
+        if self.show_outliner {
+            egui::Panel::left("outliner")
+                .resizable(true)
+                .default_size(260.0)
+                .show(ui, |ui| {
+                    outliner::outliner_ui(
+                        ui,
+                        &mut self.editor,
+                        &mut self.outliner,
+                        &mut self.status,
+                    );
+                });
+        }
+        if self.show_inspector {
+            egui::Panel::right("inspector")
+                .resizable(true)
+                .default_size(320.0)
+                .show(ui, |ui| {
+                    inspector::inspector_ui(ui, &mut self.editor, &mut self.inspector);
+                });
+        }
+        egui::CentralPanel::default().show(ui, |ui| {
+            self.preview.ui(ui, &mut self.editor);
+        });
+
+        self.dialogs(&ctx);
+        self.toasts_ui(&ctx);
+        ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));
+
+        // A drag (slider, DragValue) is one undo step: the step closes when the pointer is up.
+        if !ctx.input(|i| i.pointer.any_down()) {
+            self.editor.end_interaction();
+        }
+    }
+
+    fn handle_dropped_files(&mut self, ctx: &egui::Context) {
+        let dropped: Vec<PathBuf> = ctx.input(|i| {
+            i.raw
+                .dropped_files
+                .iter()
+                .map(|f| f.path().to_path_buf())
+                .collect()
+        });
+        for path in dropped {
+            // A project replaces the document; a model is imported into it.
+            if FileKind::from_path(&path) == Some(FileKind::Project) {
+                self.request_open(path);
+            } else {
+                self.start_import(path);
+            }
+        }
+    }
+
+    fn handle_close_request(&mut self, ctx: &egui::Context) {
+        if ctx.input(|i| i.viewport().close_requested())
+            && self.editor.is_dirty()
+            && !self.allow_close
+        {
+            ctx.send_viewport_cmd(egui::ViewportCommand::CancelClose);
+            self.pending = Some(Pending::Quit);
+        }
+    }
+
+    fn handle_shortcuts(&mut self, ctx: &egui::Context) {
+        let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
+        let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
+        let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
+        // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
+        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
+            self.editor.redo();
+        }
+        if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
+            self.editor.undo();
+        }
+        if consume(shortcut(cmd_shift, Key::S)) {
+            self.ask_path(PathPurpose::SaveAs);
+        }
+        if consume(shortcut(Modifiers::COMMAND, Key::S)) {
+            self.save(ctx);
+        }
+        if consume(shortcut(Modifiers::COMMAND, Key::N)) {
+            self.request_new();
+        }
+        if consume(shortcut(Modifiers::COMMAND, Key::O)) {
+            self.ask_path(PathPurpose::Open);
+        }
+        if consume(shortcut(Modifiers::COMMAND, Key::I)) {
+            self.ask_path(PathPurpose::Import);
+        }
+        let selected = match self.editor.selection {
+            Some(Selection::Object(id)) => Some(id),
+            _ => None,
+        };
+        if consume(shortcut(Modifiers::COMMAND, Key::D))
+            && let Some(id) = selected
+        {
+            let _ = self.editor.duplicate(id);
+        }
+        // Single keys only when no text field has the keyboard.
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        if consume(shortcut(Modifiers::NONE, Key::F1)) {
+            self.show_shortcuts = !self.show_shortcuts;
+        }
+        if consume(shortcut(Modifiers::NONE, Key::F)) {
+            self.editor.frame_selection();
+        }
+        if let Some(id) = selected {
+            if consume(shortcut(Modifiers::NONE, Key::Delete)) {
+                let _ = self.editor.delete(id);
+            }
+            if consume(shortcut(Modifiers::NONE, Key::H))
+                && let Some(visible) = self.editor.object(id).map(|o| o.visible)
+            {
+                let _ = self.editor.set_visible(id, !visible);
+            }
+            if consume(shortcut(Modifiers::NONE, Key::F2)) {
+                self.outliner.start_rename(&self.editor, id);
+            }
+        }
+    }
+
+    // ---------------------------------------------------------------- panels
+
+    fn menu_bar(&mut self, ui: &mut egui::Ui) {
+        let busy = self.job.is_some();
+        egui::MenuBar::new().ui(ui, |ui| {
+            ui.menu_button("File", |ui| {
+                if ui
+                    .add_enabled(!busy, egui::Button::new("New").shortcut_text("Ctrl+N"))
+                    .on_hover_text("Start an empty project")
+                    .clicked()
+                {
+                    self.request_new();
+                }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Open…").shortcut_text("Ctrl+O"))
+                    .on_hover_text("Open a project (.thicket.json) or a model to start a new project from")
+                    .clicked()
+                {
+                    self.ask_path(PathPurpose::Open);
+                }
+                ui.menu_button("Recent", |ui| {
+                    if self.editor.recent.is_empty() {
+                        ui.weak("No recent files");
+                    }
+                    let mut chosen = None;
+                    for path in &self.editor.recent {
+                        if ui
+                            .add_enabled(!busy, egui::Button::new(path.display().to_string()))
+                            .clicked()
+                        {
+                            chosen = Some(path.clone());
+                        }
+                    }
+                    if let Some(path) = chosen {
+                        self.request_open(path);
+                    }
+                });
+                ui.separator();
+                if ui
+                    .add(egui::Button::new("Save").shortcut_text("Ctrl+S"))
+                    .on_hover_text("Save the project (atomically: the previous save stays readable until this one is complete)")
+                    .clicked()
+                {
+                    let ctx = ui.ctx().clone();
+                    self.save(&ctx);
+                }
+                if ui
+                    .add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S"))
+                    .on_hover_text("Save the project under a new name")
+                    .clicked()
+                {
+                    self.ask_path(PathPurpose::SaveAs);
+                }
+                ui.separator();
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Import…").shortcut_text("Ctrl+I"))
+                    .on_hover_text(format!(
+                        "Add the objects of another file to this project ({})",
+                        readable_list()
+                    ))
+                    .clicked()
+                {
+                    self.ask_path(PathPurpose::Import);
+                }
+                ui.separator();
+                if ui.button("Quit").on_hover_text("Close the editor").clicked() {
+                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
+                }
+            });
+            ui.menu_button("Edit", |ui| {
+                let h = self.editor.history();
+                let (can_undo, can_redo) = (h.undo_len() > 0, h.redo_len() > 0);
+                if ui
+                    .add_enabled(can_undo, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
+                    .on_hover_text("Undo the last edit")
+                    .clicked()
+                {
+                    self.editor.undo();
+                }
+                if ui
+                    .add_enabled(can_redo, egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z"))
+                    .on_hover_text("Redo the last undone edit")
+                    .clicked()
+                {
+                    self.editor.redo();
+                }
+                ui.separator();
+                let selected = match self.editor.selection {
+                    Some(Selection::Object(id)) => Some(id),
+                    _ => None,
+                };
+                if ui
+                    .add_enabled(selected.is_some(), egui::Button::new("Duplicate").shortcut_text("Ctrl+D"))
+                    .on_hover_text("Copy the selected object")
+                    .clicked()
+                    && let Some(id) = selected
+                {
+                    let _ = self.editor.duplicate(id);
+                }
+                if ui
+                    .add_enabled(selected.is_some(), egui::Button::new("Delete").shortcut_text("Del"))
+                    .on_hover_text("Delete the selected object (undoable)")
+                    .clicked()
+                    && let Some(id) = selected
+                {
+                    let _ = self.editor.delete(id);
+                }
+            });
+            ui.menu_button("View", |ui| {
+                ui.checkbox(&mut self.show_outliner, "Outliner")
+                    .on_hover_text("Show the list of objects and lights");
+                ui.checkbox(&mut self.show_inspector, "Inspector")
+                    .on_hover_text("Show the properties of the selection");
+                ui.separator();
+                if ui
+                    .add(egui::Button::new("Frame selection").shortcut_text("F"))
+                    .on_hover_text("Point the camera at the selection, or at everything")
+                    .clicked()
+                {
+                    self.editor.frame_selection();
+                }
+                ui.separator();
+                ui.label("UI scale");
+                ui.horizontal(|ui| {
+                    for zoom in [1.0_f32, 1.25, 1.5, 2.0] {
+                        if ui
+                            .button(format!("{}%", (zoom * 100.0).round()))
+                            .on_hover_text("Scale the whole interface (for high-DPI screens)")
+                            .clicked()
+                        {
+                            ui.ctx().set_zoom_factor(zoom);
+                        }
+                    }
+                });
+            });
+            ui.menu_button("Render", |ui| {
+                ui.label("Quality preset");
+                for (label, preset, tip) in PRESETS {
+                    if ui.button(*label).on_hover_text(*tip).clicked() {
+                        self.editor.apply_quality_preset(*preset);
+                    }
+                }
+                ui.separator();
+                self.preview.menu_ui(ui);
+            });
+            ui.menu_button("Help", |ui| {
+                if ui
+                    .add(egui::Button::new("Keyboard shortcuts").shortcut_text("F1"))
+                    .clicked()
+                {
+                    self.show_shortcuts = true;
+                }
+                if ui.button("About Thicket").clicked() {
+                    self.show_about = true;
+                }
+            });
+        });
+    }
+
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal(|ui| {
+            if let Some(job) = &self.job {
+                ui.spinner();
+                ui.label(&job.label);
+                ui.separator();
+            }
+            let doc = self.editor.doc();
+            let voxels: u64 = doc
+                .objects
+                .iter()
+                .filter_map(|o| match &o.kind {
+                    thicket_core::scene::ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
+                    thicket_core::scene::ObjectKind::Mesh(_) => None,
+                })
+                .sum();
+            let triangles: usize = doc
+                .objects
+                .iter()
+                .filter_map(|o| match &o.kind {
+                    thicket_core::scene::ObjectKind::Mesh(m) => Some(m.model.triangle_count()),
+                    thicket_core::scene::ObjectKind::Voxels(_) => None,
+                })
+                .sum();
+            let file = self
+                .editor
+                .path()
+                .map_or_else(|| "untitled".to_owned(), |p| p.display().to_string());
+            ui.label(file).on_hover_text("The project file");
+            if self.editor.is_dirty() {
+                ui.colored_label(ui.visuals().warn_fg_color, "* unsaved")
+                    .on_hover_text("There are changes since the last save");
+            }
+            ui.separator();
+            ui.label(format!(
+                "{} objects · {} voxels · {} triangles",
+                doc.objects.len(),
+                thousands(voxels),
+                thousands(triangles as u64)
+            ));
+            ui.separator();
+            ui.label(format!(
+                "undo {} / redo {}",
+                self.editor.history().undo_len(),
+                self.editor.history().redo_len()
+            ))
+            .on_hover_text("Steps in the undo and redo history");
+            ui.separator();
+            ui.weak(&self.status);
+        });
+    }
+
+    fn dialogs(&mut self, ctx: &egui::Context) {
+        if let Some(message) = self.error_dialog.clone() {
+            egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
+                ui.heading("Could not complete the operation");
+                ui.label(message);
+                ui.add_space(8.0);
+                if ui.button("OK").clicked() {
+                    self.error_dialog = None;
+                }
+            });
+        }
+        if let Some(pending) = self.pending.clone()
+            && self.prompt.is_none()
+        {
+            let mut decision = None;
+            egui::Modal::new(egui::Id::unique("unsaved_dialog")).show(ctx, |ui| {
+                ui.heading("Unsaved changes");
+                ui.label(format!(
+                    "Save the changes to {} first?",
+                    self.editor.path().map_or_else(
+                        || "the untitled project".to_owned(),
+                        |p| p.display().to_string()
+                    )
+                ));
+                ui.horizontal(|ui| {
+                    if ui
+                        .button("Save")
+                        .on_hover_text("Save, then continue")
+                        .clicked()
+                    {
+                        decision = Some(1);
+                    }
+                    if ui
+                        .button("Don't save")
+                        .on_hover_text("Discard the changes and continue")
+                        .clicked()
+                    {
+                        decision = Some(2);
+                    }
+                    if ui
+                        .button("Cancel")
+                        .on_hover_text("Go back to editing")
+                        .clicked()
+                    {
+                        decision = Some(0);
+                    }
+                });
+            });
+            match decision {
+                Some(0) => self.pending = None,
+                // Untitled: Save asks for a path and the pending action waits for that save.
+                Some(1) if self.save(ctx) => {
+                    self.pending = None;
+                    self.resolve_pending(ctx, pending);
+                }
+                Some(2) => {
+                    self.pending = None;
+                    self.resolve_pending(ctx, pending);
+                }
+                _ => {}
+            }
+        }
+        if let Some(mut prompt) = self.prompt.take() {
+            let mut accepted = None;
+            let mut keep = true;
+            egui::Modal::new(egui::Id::unique("path_prompt")).show(ctx, |ui| {
+                ui.heading(prompt.purpose.title());
+                ui.label(match prompt.purpose {
+                    PathPurpose::SaveAs => "Project file (.thicket.json):".to_owned(),
+                    _ => format!("File ({}):", readable_list()),
+                });
+                let edit = ui.add(
+                    egui::TextEdit::singleline(&mut prompt.text)
+                        .desired_width(480.0)
+                        .hint_text("path/to/file"),
+                );
+                edit.request_focus();
+                ui.horizontal(|ui| {
+                    let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
+                    if (ui.button("OK").clicked() || enter) && !prompt.text.trim().is_empty() {
+                        accepted = Some(PathBuf::from(prompt.text.trim()));
+                    }
+                    if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(Key::Escape)) {
+                        keep = false;
+                    }
+                });
+            });
+            if let Some(path) = accepted {
+                let purpose = prompt.purpose;
+                self.accept_path(ctx, purpose, path);
+                // A Save As that finished lets a waiting Quit / New / Open go on.
+                if purpose == PathPurpose::SaveAs
+                    && !self.editor.is_dirty()
+                    && let Some(pending) = self.pending.take()
+                {
+                    self.resolve_pending(ctx, pending);
+                }
+            } else if keep {
+                self.prompt = Some(prompt);
+            }
+        }
+        if self.show_shortcuts {
+            egui::Window::new("Keyboard shortcuts")
+                .open(&mut self.show_shortcuts)
+                .resizable(false)
+                .show(ctx, |ui| {
+                    egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                        for (keys, what) in SHORTCUTS {
+                            ui.strong(*keys);
+                            ui.label(*what);
+                            ui.end_row();
+                        }
+                    });
+                });
+        }
+        if self.show_about {
+            egui::Window::new("About Thicket")
+                .open(&mut self.show_about)
+                .show(ctx, |ui| {
+                    ui.label(format!("Thicket {}", env!("CARGO_PKG_VERSION")));
+                    ui.label("Voxel sculpting, skinning and procedural trees.");
+                });
+        }
+    }
+
+    fn toasts_ui(&mut self, ctx: &egui::Context) {
+        let now = ctx.input(|i| i.time);
+        self.toasts.retain(|t| t.until_secs > now);
+        if self.toasts.is_empty() {
+            return;
+        }
+        egui::Area::new(egui::Id::unique("toasts"))
+            .anchor(egui::Align2::RIGHT_BOTTOM, egui::vec2(-12.0, -36.0))
+            .show(ctx, |ui| {
+                for t in &self.toasts {
+                    egui::Frame::popup(ui.style()).show(ui, |ui| {
+                        if t.is_error {
+                            ui.colored_label(ui.visuals().error_fg_color, &t.text);
+                        } else {
+                            ui.label(&t.text);
+                        }
+                    });
+                }
+            });
+        ctx.request_repaint_after(Duration::from_millis(250));
+    }
+}
+
+const PRESETS: &[(&str, QualityPreset, &str)] = &[
+    (
+        "Draft",
+        QualityPreset::Draft,
+        "Fastest preview: coarse LOD, no AO, small shadow maps",
+    ),
+    ("Balanced", QualityPreset::Balanced, "The editor default"),
+    (
+        "Final",
+        QualityPreset::Final,
+        "Offline quality: fine LOD, soft shadows, more AO samples",
+    ),
+];
+
+fn readable_list() -> String {
+    files::readable_extensions()
+        .iter()
+        .map(|(label, exts)| format!("{label}: .{}", exts.join(", .")))
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
+/// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.
+fn with_project_extension(path: PathBuf) -> PathBuf {
+    if FileKind::from_path(&path) == Some(FileKind::Project) {
+        path
+    } else {
+        let mut s = path.into_os_string();
+        s.push(".thicket.json");
+        PathBuf::from(s)
+    }
+}
+
+impl eframe::App for EditorApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.ui_root(ui);
+    }
+
+    fn save(&mut self, storage: &mut dyn eframe::Storage) {
+        eframe::set_value(storage, RECENT_KEY, &self.editor.recent);
+    }
+}
+
+const RECENT_KEY: &str = "thicket.recent_files";
+
+/// Opens the editor window (blocks until it is closed).
+///
+/// # Errors
+/// When no window can be created (no display, no GPU adapter).
+pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
+    let options = eframe::NativeOptions {
+        renderer: eframe::Renderer::Wgpu,
+        viewport: egui::ViewportBuilder::default()
+            .with_title("Thicket")
+            .with_inner_size([1280.0, 800.0])
+            .with_min_inner_size([640.0, 400.0])
+            .with_drag_and_drop(true),
+        ..Default::default()
+    };
+    eframe::run_native(
+        "Thicket",
+        options,
+        Box::new(move |cc| {
+            cc.egui_ctx.set_theme(egui::Theme::Dark);
+            let mut app = EditorApp::open_startup(project);
+            if let Some(storage) = cc.storage
+                && let Some(recent) = eframe::get_value::<Vec<PathBuf>>(storage, RECENT_KEY)
+            {
+                let current = std::mem::take(&mut app.editor.recent);
+                app.editor.recent = recent;
+                for p in current.into_iter().rev() {
+                    app.editor.push_recent(p);
+                }
+            }
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| anyhow::anyhow!("cannot open the editor window: {e}"))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn project_extension_is_added_once() {
+        assert_eq!(
+            with_project_extension("a/b".into()),
+            PathBuf::from("a/b.thicket.json")
+        );
+        assert_eq!(
+            with_project_extension("a/b.thicket.json".into()),
+            PathBuf::from("a/b.thicket.json")
+        );
+    }
+}

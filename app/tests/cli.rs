@@ -1,0 +1,323 @@
+//! Runs the real `thicket` binary: help, `info` on projects, and bad input (exit code ≠ 0, a
+//! message naming the file, nothing written).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use glam::{UVec3, Vec3};
+use thicket_core::scene::{Document, ObjectKind, VoxelModel};
+use thicket_core::svo::{Svo, Voxel};
+
+const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets");
+
+fn thicket(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_thicket"))
+        .args(args)
+        .env("RUST_LOG", "off")
+        .output()
+        .expect("the thicket binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// Asserts a clean failure: non-zero exit, one `error:` line naming the file, no panic.
+fn assert_fails_naming(o: &Output, file: &Path) {
+    let err = stderr(o);
+    assert!(!o.status.success(), "expected failure, got success: {err}");
+    assert_eq!(o.status.code(), Some(1), "exit code 1, not a crash: {err}");
+    assert!(err.starts_with("error: "), "{err}");
+    let name = file.file_name().unwrap().to_string_lossy();
+    assert!(err.contains(name.as_ref()), "message names {name}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+}
+
+fn files_in(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    v.sort();
+    v
+}
+
+/// A project with two voxel objects (3 and 10 voxels) and its path.
+fn sample_project(dir: &Path) -> PathBuf {
+    let mut doc = Document::default();
+    for (name, n) in [("row", 3u32), ("long", 10)] {
+        let mut svo = Svo::new(5, false).unwrap();
+        for x in 0..n {
+            svo.set(UVec3::new(x, 2, 1), Voxel::new([10, 200, 30, 255], Vec3::Y))
+                .unwrap();
+        }
+        doc.add(
+            name,
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                voxel_size: 0.5,
+                ..VoxelModel::default()
+            }),
+        );
+    }
+    let path = dir.join("two.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    path
+}
+
+#[test]
+fn help_lists_the_commands() {
+    let o = thicket(&["--help"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("info"), "{out}");
+    assert!(out.contains("PROJECT"), "{out}");
+    let o = thicket(&["info", "--help"]);
+    assert!(o.status.success());
+    assert!(stdout(&o).contains("--json") && stdout(&o).contains("--memory"));
+}
+
+#[test]
+fn unknown_subcommand_or_flag_is_a_usage_error() {
+    let o = thicket(&["info", "--no-such-flag", "x.vox"]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--no-such-flag"));
+}
+
+#[test]
+fn info_on_a_project_reports_counts_and_sizes() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = sample_project(dir.path());
+    let o = thicket(&["info", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("2 object(s), 13 voxels"), "{text}");
+    assert!(
+        text.contains("\"row\"") && text.contains("3 voxels"),
+        "{text}"
+    );
+    assert!(text.contains("10 × 1 × 1 voxels"), "{text}");
+    assert!(text.contains("bytes/voxel"), "{text}");
+
+    let o = thicket(&["info", "--json", "--memory", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(json["total_voxels"], 13);
+    assert_eq!(json["objects"][1]["name"], "long");
+    assert_eq!(json["objects"][1]["voxels"], 10);
+    assert_eq!(
+        json["objects"][1]["dimensions_voxels"],
+        serde_json::json!([10, 1, 1])
+    );
+    assert_eq!(json["objects"][0]["depth"], 5);
+    let bpv = json["objects"][0]["bytes_per_voxel"].as_f64().unwrap();
+    assert!(bpv > 0.0 && bpv.is_finite(), "{bpv}");
+    let total = json["objects"][0]["memory"]["total_bytes"]
+        .as_u64()
+        .unwrap();
+    assert!(total > 0);
+    // World size: 10 voxels of 0.5 along x.
+    let wx = json["objects"][1]["world_size"][0].as_f64().unwrap();
+    assert!((wx - 5.0).abs() < 1e-5, "{wx}");
+
+    let o = thicket(&["info", "--memory", path.to_str().unwrap()]);
+    assert!(stdout(&o).contains("memory:"), "{}", stdout(&o));
+}
+
+#[test]
+fn missing_file_fails_naming_it() {
+    let o = thicket(&["info", "/nonexistent/dir/ghost.thicket.json"]);
+    assert_fails_naming(&o, Path::new("ghost.thicket.json"));
+}
+
+#[test]
+fn unknown_extension_fails_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("notes.txt");
+    std::fs::write(&p, "hello").unwrap();
+    let o = thicket(&["info", p.to_str().unwrap()]);
+    assert_fails_naming(&o, &p);
+}
+
+#[test]
+fn not_a_vox_fails_naming_it() {
+    let p = PathBuf::from(format!("{ASSETS}/vox/dot_vox/not_a.vox"));
+    assert!(p.exists(), "asset missing: {}", p.display());
+    let o = thicket(&["info", p.to_str().unwrap()]);
+    assert_fails_naming(&o, &p);
+}
+
+#[test]
+fn garbage_and_corrupt_projects_fail_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("garbage.thicket.json");
+    std::fs::write(&garbage, b"\x00\x01 this is not json {").unwrap();
+    let o = thicket(&["info", garbage.to_str().unwrap()]);
+    assert_fails_naming(&o, &garbage);
+
+    let empty = dir.path().join("empty.thicket.json");
+    std::fs::write(&empty, b"").unwrap();
+    assert_fails_naming(&thicket(&["info", empty.to_str().unwrap()]), &empty);
+
+    // A real project whose .bin is damaged: the checksum catches it.
+    let path = sample_project(dir.path());
+    let bin = thicket_core::io::project::bin_path_for(&path);
+    let mut bytes = std::fs::read(&bin).unwrap();
+    let last = bytes.len() - 1;
+    bytes[last] ^= 0xff;
+    std::fs::write(&bin, &bytes).unwrap();
+    let o = thicket(&["info", path.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("two.thicket"), "{}", stderr(&o));
+
+    // NaN in a transform.
+    let nan = dir.path().join("nan.thicket.json");
+    std::fs::write(
+        &nan,
+        r#"{"format_version":1,"objects":[{"id":1,"name":"bad","transform":{"translation":[NaN,0,0]},"kind":{"type":"Mesh"}}]}"#,
+    )
+    .unwrap();
+    assert_fails_naming(&thicket(&["info", nan.to_str().unwrap()]), &nan);
+}
+
+#[test]
+fn failing_info_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("g.thicket.json");
+    std::fs::write(&garbage, "{").unwrap();
+    let before = files_in(dir.path());
+    let o = thicket(&["info", "--json", garbage.to_str().unwrap()]);
+    assert!(!o.status.success());
+    assert!(stdout(&o).is_empty(), "no partial report on stdout");
+    assert_eq!(files_in(dir.path()), before);
+}
+
+#[test]
+fn info_on_mesh_files_matches_the_importer() {
+    for (rel, triangles) in [
+        ("static/Box.glb", Some(12usize)),
+        ("static/spot/spot_triangulated.obj", None),
+        ("skinned/CesiumMan.glb", None),
+    ] {
+        let path = PathBuf::from(format!("{ASSETS}/{rel}"));
+        let model = if rel.ends_with(".obj") {
+            thicket_core::io::import_obj(&path).unwrap()
+        } else {
+            thicket_core::io::import_gltf(&path).unwrap()
+        };
+        let o = thicket(&["info", "--json", path.to_str().unwrap()]);
+        assert!(o.status.success(), "{rel}: {}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let obj = &json["objects"][0];
+        assert_eq!(obj["kind"], "mesh", "{rel}");
+        assert_eq!(
+            obj["triangles"].as_u64(),
+            Some(model.triangle_count() as u64),
+            "{rel}"
+        );
+        assert_eq!(
+            obj["vertices"].as_u64(),
+            Some(model.vertex_count() as u64),
+            "{rel}"
+        );
+        assert_eq!(
+            json["total_triangles"].as_u64(),
+            Some(model.triangle_count() as u64)
+        );
+        if let Some(t) = triangles {
+            assert_eq!(model.triangle_count(), t, "{rel}");
+        }
+        assert!(json["total_bytes"].as_u64().unwrap() > 0);
+    }
+    let o = thicket(&["info", &format!("{ASSETS}/static/Box.glb")]);
+    assert!(stdout(&o).contains("12 triangles"), "{}", stdout(&o));
+}
+
+#[test]
+fn truncated_glb_fails_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let bytes = std::fs::read(format!("{ASSETS}/static/Box.glb")).unwrap();
+    let p = dir.path().join("cut.glb");
+    std::fs::write(&p, &bytes[..bytes.len() / 2]).unwrap();
+    assert_fails_naming(&thicket(&["info", p.to_str().unwrap()]), &p);
+    let empty = dir.path().join("empty.obj");
+    std::fs::write(&empty, b"").unwrap();
+    let o = thicket(&["info", empty.to_str().unwrap()]);
+    // An empty OBJ is either an empty mesh or refused; never a crash.
+    assert!(o.status.code().is_some(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"));
+}
+
+fn info_json(path: &str) -> serde_json::Value {
+    let o = thicket(&["info", "--json", path]);
+    assert!(o.status.success(), "{path}: {}", stderr(&o));
+    serde_json::from_str(&stdout(&o)).unwrap()
+}
+
+#[test]
+fn info_on_vox_files_reports_exact_counts() {
+    let house = info_json(&format!("{ASSETS}/vox/mmmm/obj_house4.vox"));
+    assert_eq!(house["total_voxels"], 180_202);
+    let army = info_json(&format!("{ASSETS}/vox/mmmm/chr_army1.vox"));
+    assert_eq!(army["total_voxels"], 341);
+    let scene = info_json(&format!(
+        "{ASSETS}/vox/opengametools/test_multiple_model_scene.vox"
+    ));
+    assert_eq!(scene["source"]["stored_voxels"], 6_053);
+    assert_eq!(scene["source"]["stored_models"], 41);
+    let o = thicket(&["info", &format!("{ASSETS}/vox/mmmm/obj_house4.vox")]);
+    assert!(stdout(&o).contains("180,202 voxels"), "{}", stdout(&o));
+}
+
+#[test]
+fn export_vox_round_trips_the_voxel_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("house.vox");
+    let o = thicket(&[
+        "export-vox",
+        &format!("{ASSETS}/vox/mmmm/chr_army1.vox"),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("341 voxels"), "{}", stdout(&o));
+    assert_eq!(info_json(out.to_str().unwrap())["total_voxels"], 341);
+
+    // A project saved by the library exports too.
+    let project = sample_project(dir.path());
+    let out2 = dir.path().join("two.vox");
+    let o = thicket(&[
+        "export-vox",
+        project.to_str().unwrap(),
+        "-o",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(info_json(out2.to_str().unwrap())["total_voxels"], 13);
+}
+
+#[test]
+fn failing_export_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let garbage = dir.path().join("bad.thicket.json");
+    std::fs::write(&garbage, "[1,2").unwrap();
+    let out = dir.path().join("out.vox");
+    let o = thicket(&[
+        "export-vox",
+        garbage.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails_naming(&o, &garbage);
+    assert!(!out.exists());
+    assert_eq!(files_in(dir.path()), vec![garbage.clone()]);
+
+    let not_vox = format!("{ASSETS}/vox/dot_vox/not_a.vox");
+    let o = thicket(&["export-vox", &not_vox, "-o", out.to_str().unwrap()]);
+    assert_fails_naming(&o, Path::new(&not_vox));
+    assert!(!out.exists());
+}
