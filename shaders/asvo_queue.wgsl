@@ -3,6 +3,10 @@
 // queued for a level into that level's indirect dispatch size.
 // #import common/asvo.wgsl
 
+// Indirect dispatch arguments, 3 per level. In its own group so the traversal dispatches,
+// which read it as INDIRECT, do not also bind it as storage.
+@group(3) @binding(0) var<storage, read_write> indirect: array<u32>;
+
 @compute @workgroup_size(32)
 fn seed(@builtin(local_invocation_index) lid: u32) {
     atomicStore(&counters[QUEUE_COUNTS + lid], select(0u, 1u, lid == 0u));

@@ -48,7 +48,9 @@ fn every_wgsl_file_is_embedded_and_validates() {
         let on_disk = std::fs::read_to_string(f).expect("readable");
         match shaders::source(&rel) {
             Ok(embedded) => assert_eq!(embedded, on_disk, "{rel}: embedded copy is stale"),
-            Err(e) => failures.push(format!("{rel}: not embedded in gpu::shaders::SOURCES ({e})")),
+            Err(e) => failures.push(format!(
+                "{rel}: not embedded in gpu::shaders::SOURCES ({e})"
+            )),
         }
         if let Err(e) = validate(&rel) {
             failures.push(e);

@@ -9,8 +9,6 @@
 @group(0) @binding(1) var<storage, read_write> counters: array<atomic<u32>>;
 // Inner nodes of every object: x = first child (object-local), y = child mask.
 @group(0) @binding(2) var<storage, read> inner_nodes: array<vec2<u32>>;
-// Indirect dispatch arguments, 3 per level.
-@group(0) @binding(3) var<storage, read_write> indirect: array<u32>;
 @group(1) @binding(0) var<uniform> params: NodeParams;
 // Queue entries: x = node index (object-local; inner pool, or leaf pool at the leaf level),
 // yzw = the node's minimum corner in voxel coordinates.

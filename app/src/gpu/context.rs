@@ -15,7 +15,10 @@ impl ErrorSlot {
     /// Records an error (the first one is kept until taken: later errors are usually
     /// consequences of it).
     pub fn record(&self, e: GpuError) {
-        let mut slot = self.0.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let mut slot = self
+            .0
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner);
         if slot.is_none() {
             log::error!("GPU: {e}");
             *slot = Some(e);
@@ -151,9 +154,9 @@ impl GpuContext {
 pub fn request_device(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Queue), GpuError> {
     let features = adapter.features() & wanted_features();
     // 64-bit atomics are only usable with 64-bit integers in the shader.
-    let features = if features.contains(
-        wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX,
-    ) {
+    let features = if features
+        .contains(wgpu::Features::SHADER_INT64 | wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX)
+    {
         features
     } else {
         features - wgpu::Features::SHADER_INT64_ATOMIC_MIN_MAX

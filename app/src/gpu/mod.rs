@@ -23,31 +23,23 @@ use thicket_core::render::{Quality, QualityError};
 use thicket_core::scene::{Document, OrbitCamera, SceneError};
 
 /// Why the GPU could not render.
-#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[derive(Debug, Clone, PartialEq)]
 pub enum GpuError {
     /// No adapter on the Vulkan or GL backends.
-    #[error("no GPU adapter found (Vulkan or GL; a software driver such as lavapipe works): {0}")]
     NoAdapter(String),
     /// The adapter refused the device.
-    #[error("could not create the GPU device: {0}")]
     RequestDevice(String),
     /// A validation or internal error reported by wgpu.
-    #[error("GPU error: {0}")]
     Device(String),
     /// The device ran out of memory.
-    #[error("GPU out of memory: {0}")]
     OutOfMemory(String),
     /// The device was lost (driver reset, removal).
-    #[error("GPU device lost: {0}")]
     DeviceLost(String),
     /// A WGSL file is missing or its imports are broken.
-    #[error("shader: {0}")]
     Shader(String),
     /// Reading a buffer back failed.
-    #[error("reading GPU data back failed: {0}")]
     Readback(String),
     /// The image size is zero or above the device's texture limit.
-    #[error("image size {width}×{height} is not renderable (1..={max} pixels per edge)")]
     BadSize {
         /// Requested width.
         width: u32,
@@ -57,7 +49,6 @@ pub enum GpuError {
         max: u32,
     },
     /// Scene data does not fit a buffer binding.
-    #[error("{what} needs {bytes} bytes, above this device's limit of {limit} bytes per binding")]
     TooLarge {
         /// Which buffer.
         what: &'static str,
@@ -67,11 +58,59 @@ pub enum GpuError {
         limit: u64,
     },
     /// The document holds a value a renderer must not see.
-    #[error("cannot render the document: {0}")]
-    InvalidDocument(#[from] SceneError),
+    InvalidDocument(SceneError),
     /// A quality knob is out of range.
-    #[error("cannot render with these quality settings: {0}")]
-    InvalidQuality(#[from] QualityError),
+    InvalidQuality(QualityError),
+}
+
+// Written out because the app crate does not depend on `thiserror`.
+impl std::fmt::Display for GpuError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NoAdapter(e) => write!(
+                f,
+                "no GPU adapter found (Vulkan or GL; a software driver such as lavapipe works): {e}"
+            ),
+            Self::RequestDevice(e) => write!(f, "could not create the GPU device: {e}"),
+            Self::Device(e) => write!(f, "GPU error: {e}"),
+            Self::OutOfMemory(e) => write!(f, "GPU out of memory: {e}"),
+            Self::DeviceLost(e) => write!(f, "GPU device lost: {e}"),
+            Self::Shader(e) => write!(f, "shader: {e}"),
+            Self::Readback(e) => write!(f, "reading GPU data back failed: {e}"),
+            Self::BadSize { width, height, max } => write!(
+                f,
+                "image size {width}×{height} is not renderable (1..={max} pixels per edge)"
+            ),
+            Self::TooLarge { what, bytes, limit } => write!(
+                f,
+                "{what} needs {bytes} bytes, above this device's limit of {limit} bytes per binding"
+            ),
+            Self::InvalidDocument(e) => write!(f, "cannot render the document: {e}"),
+            Self::InvalidQuality(e) => write!(f, "cannot render with these quality settings: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for GpuError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::InvalidDocument(e) => Some(e),
+            Self::InvalidQuality(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<SceneError> for GpuError {
+    fn from(e: SceneError) -> Self {
+        Self::InvalidDocument(e)
+    }
+}
+
+impl From<QualityError> for GpuError {
+    fn from(e: QualityError) -> Self {
+        Self::InvalidQuality(e)
+    }
 }
 
 /// Which splat path a frame used.

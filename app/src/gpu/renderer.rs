@@ -3,7 +3,6 @@
 use std::collections::HashMap;
 use std::time::Instant;
 
-use bytemuck::Zeroable;
 use glam::{Mat3, Mat4, Vec3, Vec4};
 use thicket_core::render::Quality;
 use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
@@ -92,7 +91,8 @@ pub fn read_rgba8(
     target: &RenderTarget,
 ) -> Result<Vec<u8>, GpuError> {
     let row = target.width * 4;
-    let padded = row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
     let size = u64::from(padded) * u64::from(target.height);
     let staging = device.create_buffer(&wgpu::BufferDescriptor {
         label: Some("thicket readback"),
@@ -141,7 +141,10 @@ fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, Gpu
     rx.recv()
         .map_err(|e| GpuError::Readback(e.to_string()))?
         .map_err(|e| GpuError::Readback(e.to_string()))?;
-    let bytes = slice.get_mapped_range().to_vec();
+    let bytes = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::Readback(e.to_string()))?
+        .to_vec();
     buffer.unmap();
     Ok(bytes)
 }
@@ -318,7 +321,9 @@ impl ScenePack {
                             .map(|(&f, &m)| [f, u32::from(m)]),
                     );
                     let attr_inner_base = p.attrs.len() as u64;
-                    let pack = |c: &[u8; 4], n: &u16| [u32::from_le_bytes(*c), u32::from(*n) | (obj << 16)];
+                    let pack = |c: &[u8; 4], n: &u16| {
+                        [u32::from_le_bytes(*c), u32::from(*n) | (obj << 16)]
+                    };
                     p.attrs.extend(
                         svo.inner_colors()
                             .iter()
@@ -339,9 +344,7 @@ impl ScenePack {
                             limit: u64::from(super::gpu_data::MESH_ID_FLAG),
                         });
                     }
-                    p.queue_capacity = p
-                        .queue_capacity
-                        .max(svo.inner_count() + svo.leaf_count());
+                    p.queue_capacity = p.queue_capacity.max(svo.inner_count() + svo.leaf_count());
                     voxel_world_bounds(svo, world_from_voxel, &mut p.bounds);
                     p.voxels.push(VoxelEntry {
                         world_from_voxel,
@@ -368,8 +371,9 @@ impl ScenePack {
                             let idx = part.triangle(t);
                             let mut rec = [[0.0f32; 4]; TRI_VEC4S];
                             for (k, &i) in idx.iter().enumerate() {
-                                let pw = world_from_object
-                                    .transform_point3(part.positions.get(i).copied().unwrap_or_default());
+                                let pw = world_from_object.transform_point3(
+                                    part.positions.get(i).copied().unwrap_or_default(),
+                                );
                                 grow(&mut p.bounds, pw, pw);
                                 rec[k] = pw.extend(1.0).to_array();
                                 rec[3 + k] = match part.normals.get(i) {
@@ -414,6 +418,7 @@ pub struct Renderer {
     caps: Capabilities,
     force_two_pass: bool,
     trav_bgl: [wgpu::BindGroupLayout; 3],
+    indirect_bgl: wgpu::BindGroupLayout,
     clear_bgl: wgpu::BindGroupLayout,
     mesh_bgl: wgpu::BindGroupLayout,
     resolve_bgl: wgpu::BindGroupLayout,
@@ -434,7 +439,11 @@ pub struct Renderer {
     last_size: (u32, u32),
 }
 
-fn storage(binding: u32, read_only: bool, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+fn storage(
+    binding: u32,
+    read_only: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -447,7 +456,11 @@ fn storage(binding: u32, read_only: bool, visibility: wgpu::ShaderStages) -> wgp
     }
 }
 
-fn uniform(binding: u32, dynamic: bool, visibility: wgpu::ShaderStages) -> wgpu::BindGroupLayoutEntry {
+fn uniform(
+    binding: u32,
+    dynamic: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
     wgpu::BindGroupLayoutEntry {
         binding,
         visibility,
@@ -496,7 +509,10 @@ struct Timestamps {
 const MAX_TIMED_PASSES: u32 = 16;
 
 impl Timestamps {
-    fn compute<'a>(&'a mut self, name: &'static str) -> Option<wgpu::ComputePassTimestampWrites<'a>> {
+    fn compute<'a>(
+        &'a mut self,
+        name: &'static str,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'a>> {
         let q = self.used.len() as u32 * 2;
         if q / 2 >= MAX_TIMED_PASSES {
             return None;
@@ -565,13 +581,13 @@ impl Renderer {
                     uniform(0, false, cs),
                     storage(1, false, cs),
                     storage(2, true, cs),
-                    storage(3, false, cs),
                     storage(4, false, cs),
                 ],
             ),
             bgl("traverse 1", &[uniform(0, true, cs)]),
             bgl("traverse 2", &[storage(0, true, cs), storage(1, false, cs)]),
         ];
+        let indirect_bgl = bgl("indirect", &[storage(0, false, cs)]);
         let clear_bgl = bgl("clear", &[uniform(0, false, cs), storage(1, false, cs)]);
         let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let mesh_bgl = bgl(
@@ -615,14 +631,18 @@ impl Renderer {
             ],
         );
         let layout = |label: &str, groups: &[&wgpu::BindGroupLayout]| {
-            let groups: Vec<Option<&wgpu::BindGroupLayout>> = groups.iter().map(|g| Some(*g)).collect();
+            let groups: Vec<Option<&wgpu::BindGroupLayout>> =
+                groups.iter().map(|g| Some(*g)).collect();
             device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
                 label: Some(label),
                 bind_group_layouts: &groups,
                 immediate_size: 0,
             })
         };
-        let compute = |label: &str, layout: &wgpu::PipelineLayout, module: &wgpu::ShaderModule, entry: &str| {
+        let compute = |label: &str,
+                       layout: &wgpu::PipelineLayout,
+                       module: &wgpu::ShaderModule,
+                       entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
                 label: Some(label),
                 layout: Some(layout),
@@ -634,22 +654,46 @@ impl Renderer {
         };
         let trav_layout = layout("traverse", &[&trav_bgl[0], &trav_bgl[1], &trav_bgl[2]]);
         let queue_mod = module("asvo_queue.wgsl")?;
-        let seed = compute("seed", &trav_layout, &queue_mod, "seed");
-        let prepare = compute("prepare", &trav_layout, &queue_mod, "prepare_indirect");
-        let traverse32 = compute("traverse32", &trav_layout, &module("asvo_splat32.wgsl")?, "traverse");
+        let queue_layout = layout(
+            "traverse queue",
+            &[&trav_bgl[0], &trav_bgl[1], &trav_bgl[2], &indirect_bgl],
+        );
+        let seed = compute("seed", &queue_layout, &queue_mod, "seed");
+        let prepare = compute("prepare", &queue_layout, &queue_mod, "prepare_indirect");
+        let traverse32 = compute(
+            "traverse32",
+            &trav_layout,
+            &module("asvo_splat32.wgsl")?,
+            "traverse",
+        );
         let traverse64 = if caps.int64_atomics {
-            Some(compute("traverse64", &trav_layout, &module("asvo_splat64.wgsl")?, "traverse"))
+            Some(compute(
+                "traverse64",
+                &trav_layout,
+                &module("asvo_splat64.wgsl")?,
+                "traverse",
+            ))
         } else {
             None
         };
-        let clear = compute("clear", &layout("clear", &[&clear_bgl]), &module("clear.wgsl")?, "clear");
+        let clear = compute(
+            "clear",
+            &layout("clear", &[&clear_bgl]),
+            &module("clear.wgsl")?,
+            "clear",
+        );
         let resolve = compute(
             "resolve",
             &layout("resolve", &[&resolve_bgl]),
             &module("resolve.wgsl")?,
             "resolve",
         );
-        let shade = compute("shade", &layout("shade", &[&shade_bgl]), &module("shade.wgsl")?, "shade");
+        let shade = compute(
+            "shade",
+            &layout("shade", &[&shade_bgl]),
+            &module("shade.wgsl")?,
+            "shade",
+        );
         let mesh_layout = layout("mesh", &[&mesh_bgl]);
         let mesh_pipeline = |label: &str, m: &wgpu::ShaderModule| {
             device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
@@ -693,6 +737,7 @@ impl Renderer {
             caps,
             force_two_pass: false,
             trav_bgl,
+            indirect_bgl,
             clear_bgl,
             mesh_bgl,
             resolve_bgl,
@@ -734,7 +779,13 @@ impl Renderer {
     }
 
     /// A buffer of at least `size` bytes under `name`, reused across frames.
-    fn buffer(&mut self, device: &wgpu::Device, name: &'static str, size: u64, usage: wgpu::BufferUsages) -> wgpu::Buffer {
+    fn buffer(
+        &mut self,
+        device: &wgpu::Device,
+        name: &'static str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
         let size = size.max(16).next_multiple_of(16);
         if let Some(b) = self.buffers.get(name)
             && b.size() >= size
@@ -818,7 +869,11 @@ impl Renderer {
     ///
     /// # Errors
     /// [`GpuError::Readback`] when nothing was rendered yet or mapping fails.
-    pub fn read_gbuffer(&mut self, device: &wgpu::Device, queue: &wgpu::Queue) -> Result<GBuffer, GpuError> {
+    pub fn read_gbuffer(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<GBuffer, GpuError> {
         let (w, h) = self.last_size;
         let gbuf = self
             .buffers
@@ -900,10 +955,13 @@ impl Renderer {
             .position(|l| l.casts_shadows)
             .filter(|_| quality.shadows);
         let shadow = match (shadow_light, scene.bounds) {
-            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => {
-                ViewSpec::fit_light(doc.lights[i].direction, lo, hi, quality.shadow_map_size.max(1))
-                    .map(|v| (i, v))
-            }
+            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => ViewSpec::fit_light(
+                doc.lights[i].direction,
+                lo,
+                hi,
+                quality.shadow_map_size.max(1),
+            )
+            .map(|v| (i, v)),
             _ => None,
         };
 
@@ -929,14 +987,22 @@ impl Renderer {
 
         // Scene buffers.
         let upload = |name: &str, data: &[u8], usage: U| {
-            let contents: Vec<u8> = if data.is_empty() { vec![0; 16] } else { data.to_vec() };
+            let contents: Vec<u8> = if data.is_empty() {
+                vec![0; 256]
+            } else {
+                data.to_vec()
+            };
             device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
                 label: Some(name),
                 contents: &contents,
                 usage,
             })
         };
-        let inner_buf = upload("inner nodes", bytemuck::cast_slice(&scene.inner), U::STORAGE);
+        let inner_buf = upload(
+            "inner nodes",
+            bytemuck::cast_slice(&scene.inner),
+            U::STORAGE,
+        );
         let attr_buf = upload("attributes", bytemuck::cast_slice(&scene.attrs), U::STORAGE);
         let object_buf = upload("objects", bytemuck::cast_slice(&scene.objects), U::STORAGE);
         let tri_buf = upload("triangles", bytemuck::cast_slice(&scene.tris), U::STORAGE);
@@ -948,7 +1014,11 @@ impl Renderer {
                 let c = l.color * l.intensity;
                 LightGpu {
                     to_light: (-l.direction.normalize_or_zero())
-                        .extend(if shadow.is_some_and(|(s, _)| s == i) { 1.0 } else { 0.0 })
+                        .extend(if shadow.is_some_and(|(s, _)| s == i) {
+                            1.0
+                        } else {
+                            0.0
+                        })
                         .to_array(),
                     color: c.extend(0.0).to_array(),
                 }
@@ -959,23 +1029,50 @@ impl Renderer {
         // Frame buffers.
         let keys_main = self.buffer(device, "keys", key_bytes, U::STORAGE);
         let keys_shadow = self.buffer(device, "shadow keys", shadow_key_bytes, U::STORAGE);
-        let gbuffer = self.buffer(device, "gbuffer", pixels * GBUFFER_TEXEL_BYTES, U::STORAGE | U::COPY_SRC);
+        let gbuffer = self.buffer(
+            device,
+            "gbuffer",
+            pixels * GBUFFER_TEXEL_BYTES,
+            U::STORAGE | U::COPY_SRC,
+        );
         let counters = self.buffer(
             device,
             "counters",
             u64::from(COUNTER_WORDS) * 4,
             U::STORAGE | U::COPY_SRC | U::COPY_DST,
         );
-        let counters_read = self.buffer(device, "counters readback", u64::from(COUNTER_WORDS) * 4, U::MAP_READ | U::COPY_DST);
-        let indirect = self.buffer(device, "indirect", u64::from(MAX_LEVELS) * 12, U::STORAGE | U::INDIRECT);
+        let counters_read = self.buffer(
+            device,
+            "counters readback",
+            u64::from(COUNTER_WORDS) * 4,
+            U::MAP_READ | U::COPY_DST,
+        );
+        let indirect = self.buffer(
+            device,
+            "indirect",
+            u64::from(MAX_LEVELS) * 12,
+            U::STORAGE | U::INDIRECT,
+        );
         let cap = scene.queue_capacity;
         let queue_a = self.buffer(device, "queue a", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
         let queue_b = self.buffer(device, "queue b", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
 
         // Uniforms: views and per-dispatch node parameters.
-        let first_mode = if path == AtomicPath::Key64 { MODE_KEY64 } else { MODE_DEPTH };
-        let view_main = upload("view", bytemuck::bytes_of(&main.uniform(first_mode, lod)), U::UNIFORM);
-        let view_main_id = upload("view id pass", bytemuck::bytes_of(&main.uniform(MODE_ID, lod)), U::UNIFORM);
+        let first_mode = if path == AtomicPath::Key64 {
+            MODE_KEY64
+        } else {
+            MODE_DEPTH
+        };
+        let view_main = upload(
+            "view",
+            bytemuck::bytes_of(&main.uniform(first_mode, lod)),
+            U::UNIFORM,
+        );
+        let view_main_id = upload(
+            "view id pass",
+            bytemuck::bytes_of(&main.uniform(MODE_ID, lod)),
+            U::UNIFORM,
+        );
         let shadow_spec = shadow.map_or(main, |(_, v)| v);
         let view_shadow = upload(
             "shadow view",
@@ -989,7 +1086,10 @@ impl Renderer {
                 .iter()
                 .map(|v| {
                     let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
-                    let base = NodeParams::for_object(spec.view_from_world * v.world_from_voxel, v.world_from_voxel);
+                    let base = NodeParams::for_object(
+                        spec.view_from_world * v.world_from_voxel,
+                        v.world_from_voxel,
+                    );
                     for level in 0..=u32::from(v.depth) {
                         let p = NodeParams {
                             level,
@@ -1004,7 +1104,10 @@ impl Renderer {
                             ..base
                         };
                         slots.extend_from_slice(bytemuck::bytes_of(&p));
-                        slots.resize(slots.len() + (NODE_PARAMS_STRIDE as usize - size_of::<NodeParams>()), 0);
+                        slots.resize(
+                            slots.len() + (NODE_PARAMS_STRIDE as usize - size_of::<NodeParams>()),
+                            0,
+                        );
                     }
                     Traversal {
                         first_slot,
@@ -1051,8 +1154,30 @@ impl Renderer {
 
         // Bind groups.
         let trav0 = |view: &wgpu::Buffer, keys: &wgpu::Buffer| {
-            bind_group(device, &self.trav_bgl[0], "traverse 0", &[view, &counters, &inner_buf, &indirect, keys])
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("traverse 0"),
+                layout: &self.trav_bgl[0],
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: view.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: counters.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: inner_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: keys.as_entire_binding(),
+                    },
+                ],
+            })
         };
+        let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
         let bg_main = trav0(&view_main, &keys_main);
         let bg_main_id = trav0(&view_main_id, &keys_main);
         let bg_shadow = trav0(&view_shadow, &keys_shadow);
@@ -1068,18 +1193,60 @@ impl Renderer {
                 }),
             }],
         });
-        let bg_ab = bind_group(device, &self.trav_bgl[2], "queues a→b", &[&queue_a, &queue_b]);
-        let bg_ba = bind_group(device, &self.trav_bgl[2], "queues b→a", &[&queue_b, &queue_a]);
-        let bg_clear_main = bind_group(device, &self.clear_bgl, "clear keys", &[&clear_main, &keys_main]);
-        let bg_clear_shadow = bind_group(device, &self.clear_bgl, "clear shadow", &[&clear_shadow, &keys_shadow]);
-        let bg_mesh_main = bind_group(device, &self.mesh_bgl, "mesh", &[&view_main, &tri_buf, &keys_main]);
-        let bg_mesh_main_id = bind_group(device, &self.mesh_bgl, "mesh id", &[&view_main_id, &tri_buf, &keys_main]);
-        let bg_mesh_shadow = bind_group(device, &self.mesh_bgl, "mesh shadow", &[&view_shadow, &tri_buf, &keys_shadow]);
+        let bg_ab = bind_group(
+            device,
+            &self.trav_bgl[2],
+            "queues a→b",
+            &[&queue_a, &queue_b],
+        );
+        let bg_ba = bind_group(
+            device,
+            &self.trav_bgl[2],
+            "queues b→a",
+            &[&queue_b, &queue_a],
+        );
+        let bg_clear_main = bind_group(
+            device,
+            &self.clear_bgl,
+            "clear keys",
+            &[&clear_main, &keys_main],
+        );
+        let bg_clear_shadow = bind_group(
+            device,
+            &self.clear_bgl,
+            "clear shadow",
+            &[&clear_shadow, &keys_shadow],
+        );
+        let bg_mesh_main = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh",
+            &[&view_main, &tri_buf, &keys_main],
+        );
+        let bg_mesh_main_id = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh id",
+            &[&view_main_id, &tri_buf, &keys_main],
+        );
+        let bg_mesh_shadow = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh shadow",
+            &[&view_shadow, &tri_buf, &keys_shadow],
+        );
         let bg_resolve = bind_group(
             device,
             &self.resolve_bgl,
             "resolve",
-            &[&view_main, &keys_main, &attr_buf, &object_buf, &tri_buf, &gbuffer],
+            &[
+                &view_main,
+                &keys_main,
+                &attr_buf,
+                &object_buf,
+                &tri_buf,
+                &gbuffer,
+            ],
         );
         let bg_shade = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),
@@ -1132,7 +1299,9 @@ impl Renderer {
         };
 
         // Encoding, in pass order.
-        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor { label: Some("frame") });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame"),
+        });
         enc.clear_buffer(&counters, 0, None);
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -1140,7 +1309,10 @@ impl Renderer {
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute("clear")),
             });
             pass.set_pipeline(&self.clear);
-            for (bg, words) in [(&bg_clear_main, pixels * 2), (&bg_clear_shadow, shadow_key_bytes / 4)] {
+            for (bg, words) in [
+                (&bg_clear_main, pixels * 2),
+                (&bg_clear_shadow, shadow_key_bytes / 4),
+            ] {
                 let groups = words.div_ceil(256);
                 let gx = groups.min(65535) as u32;
                 let gy = groups.div_ceil(u64::from(gx.max(1))) as u32;
@@ -1191,6 +1363,7 @@ impl Renderer {
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
             });
             pass.set_bind_group(0, bg0, &[]);
+            pass.set_bind_group(3, &bg_indirect, &[]);
             for t in travs {
                 let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
                 pass.set_pipeline(&self.seed);
@@ -1218,19 +1391,64 @@ impl Renderer {
                 &shadow_attachment,
                 scene.caster_tris,
             );
-            traverse_pass(&mut enc, &mut ts, "shadow voxels", &self.traverse32, &bg_shadow, &shadow_trav);
+            traverse_pass(
+                &mut enc,
+                &mut ts,
+                "shadow voxels",
+                &self.traverse32,
+                &bg_shadow,
+                &shadow_trav,
+            );
         }
         let tri_count = scene.tri_count();
         match (path, &self.mesh64, &self.traverse64) {
             (AtomicPath::Key64, Some(mesh64), Some(trav64)) => {
-                mesh_pass(&mut enc, &mut ts, "meshes", mesh64, &bg_mesh_main, &main_attachment, tri_count);
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    mesh64,
+                    &bg_mesh_main,
+                    &main_attachment,
+                    tri_count,
+                );
                 traverse_pass(&mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav);
             }
             _ => {
-                mesh_pass(&mut enc, &mut ts, "meshes", &self.mesh32, &bg_mesh_main, &main_attachment, tri_count);
-                traverse_pass(&mut enc, &mut ts, "voxels", &self.traverse32, &bg_main, &main_trav);
-                mesh_pass(&mut enc, &mut ts, "meshes", &self.mesh32, &bg_mesh_main_id, &main_attachment, tri_count);
-                traverse_pass(&mut enc, &mut ts, "voxels", &self.traverse32, &bg_main_id, &main_trav);
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    &self.mesh32,
+                    &bg_mesh_main,
+                    &main_attachment,
+                    tri_count,
+                );
+                traverse_pass(
+                    &mut enc,
+                    &mut ts,
+                    "voxels",
+                    &self.traverse32,
+                    &bg_main,
+                    &main_trav,
+                );
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    &self.mesh32,
+                    &bg_mesh_main_id,
+                    &main_attachment,
+                    tri_count,
+                );
+                traverse_pass(
+                    &mut enc,
+                    &mut ts,
+                    "voxels",
+                    &self.traverse32,
+                    &bg_main_id,
+                    &main_trav,
+                );
             }
         }
         {
@@ -1251,7 +1469,13 @@ impl Renderer {
             pass.set_bind_group(0, &bg_shade, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
-        enc.copy_buffer_to_buffer(&counters, 0, &counters_read, 0, u64::from(COUNTER_WORDS) * 4);
+        enc.copy_buffer_to_buffer(
+            &counters,
+            0,
+            &counters_read,
+            0,
+            u64::from(COUNTER_WORDS) * 4,
+        );
         let ts_read = ts.as_ref().filter(|t| !t.used.is_empty()).map(|t| {
             let n = t.used.len() as u32 * 2;
             let resolve = device.create_buffer(&wgpu::BufferDescriptor {
