@@ -1,0 +1,213 @@
+//! Structs shared between Rust and WGSL: `#[repr(C)]`, `bytemuck::Pod`, with compile-time size
+//! assertions so a field added on one side only fails the build.
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Mat3, Mat4, Vec3};
+
+/// A camera with its image size.
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`View`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ViewUniform {
+    /// `view_from_world`.
+    pub view_from_world: [[f32; 4]; 4],
+    /// `clip_from_world` (depth 0..1).
+    pub clip_from_world: [[f32; 4]; 4],
+    /// `world_from_view` (its last column is the eye).
+    pub world_from_view: [[f32; 4]; 4],
+    /// Image width and height in pixels.
+    pub size: [u32; 2],
+    /// 1 for a perspective camera, 0 for orthographic.
+    pub perspective: u32,
+    /// How splats write keys: [`MODE_KEY64`], [`MODE_DEPTH`] or [`MODE_ID`].
+    pub write_mode: u32,
+    /// Pixels per view unit at view depth 1 (perspective) or per unit (orthographic), x.
+    pub fx: f32,
+    /// Same for y.
+    pub fy: f32,
+    /// Near plane view depth.
+    pub near: f32,
+    /// Far plane view depth.
+    pub far: f32,
+    /// ASVO: split while the projected edge exceeds this many pixels.
+    pub lod_pixel_threshold: f32,
+    /// Padding to a 16-byte multiple.
+    pub pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<ViewUniform>() == 240);
+
+/// 64-bit path: one `atomicMin` of the packed key.
+pub const MODE_KEY64: u32 = 0;
+/// 32-bit path pass 1 (and shadow maps): `atomicMin` of the depth bits.
+pub const MODE_DEPTH: u32 = 1;
+/// 32-bit path pass 2: `atomicMin` of the id where the depth matches.
+pub const MODE_ID: u32 = 2;
+
+/// Index of the first per-view statistics counter in the counter buffer.
+pub const STATS_START: u32 = 64;
+/// Most octree levels a traversal counts (depth ≤ 21, so 22 levels are used).
+pub const MAX_LEVELS: u32 = 32;
+/// Counters per level: visited, split, splatted, frustum culled.
+pub const STATS_PER_LEVEL: u32 = 4;
+/// Index of the queue-overflow counter.
+pub const OVERFLOW_COUNTER: u32 = 32;
+/// Length of the counter buffer in u32: queue counts, overflow, two views' statistics.
+pub const COUNTER_WORDS: u32 = STATS_START + 2 * MAX_LEVELS * STATS_PER_LEVEL;
+
+/// One traversal dispatch: an object seen from a view at one level.
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`NodeParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct NodeParams {
+    /// Columns of the linear part of `view_from_voxel` (w unused).
+    pub linear: [[f32; 4]; 3],
+    /// xyz: translation of `view_from_voxel`; w: longest world edge of a 1-voxel node.
+    pub translation_edge: [f32; 4],
+    /// View-space AABB half extent of a 1-voxel node (w unused).
+    pub half_extent_unit: [f32; 4],
+    /// Octree level of this dispatch (0 = root).
+    pub level: u32,
+    /// Edge of a node at this level, in voxels.
+    pub node_size: u32,
+    /// The octree depth: nodes at this level are leaves.
+    pub leaf_level: u32,
+    /// Entries each queue holds.
+    pub queue_capacity: u32,
+    /// Object's first inner node in the scene's inner pool.
+    pub inner_base: u32,
+    /// Object's first leaf in the scene's leaf numbering (unused by the shader; kept for
+    /// symmetry and debugging).
+    pub leaf_base: u32,
+    /// Attribute index of the object's inner node 0.
+    pub attr_inner_base: u32,
+    /// Attribute index of the object's leaf 0.
+    pub attr_leaf_base: u32,
+    /// First statistics counter of this view.
+    pub stats_base: u32,
+    /// Padding to a 16-byte multiple.
+    pub pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<NodeParams>() == 128);
+
+/// Dynamic-offset stride of [`NodeParams`] slots (the minimum uniform offset alignment wgpu
+/// guarantees).
+pub const NODE_PARAMS_STRIDE: u64 = 256;
+
+impl NodeParams {
+    /// Per-object constants for `view_from_voxel` (the CPU reference's rigid fast path).
+    #[must_use]
+    pub fn for_object(view_from_voxel: Mat4, world_from_voxel: Mat4) -> Self {
+        let linear = Mat3::from_mat4(view_from_voxel);
+        let abs = Mat3::from_cols(
+            linear.x_axis.abs(),
+            linear.y_axis.abs(),
+            linear.z_axis.abs(),
+        );
+        let half = abs * Vec3::splat(0.5);
+        let wl = Mat3::from_mat4(world_from_voxel);
+        let edge = wl
+            .x_axis
+            .length()
+            .max(wl.y_axis.length())
+            .max(wl.z_axis.length());
+        let t = view_from_voxel.w_axis.truncate();
+        Self {
+            linear: [
+                linear.x_axis.extend(0.0).to_array(),
+                linear.y_axis.extend(0.0).to_array(),
+                linear.z_axis.extend(0.0).to_array(),
+            ],
+            translation_edge: [t.x, t.y, t.z, edge],
+            half_extent_unit: half.extend(0.0).to_array(),
+            ..Self::zeroed()
+        }
+    }
+}
+
+/// Per-object constants of the resolve pass.
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`ObjectInfo`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ObjectInfo {
+    /// Columns of the inverse transpose of `world_from_voxel`'s linear part (w unused).
+    pub normal_from_voxel: [[f32; 4]; 3],
+}
+const _: () = assert!(std::mem::size_of::<ObjectInfo>() == 48);
+
+/// One directional light.
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`LightGpu`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct LightGpu {
+    /// xyz: unit vector toward the light; w: 1 when this light samples the shadow map.
+    pub to_light: [f32; 4],
+    /// Linear colour × intensity (w unused).
+    pub color: [f32; 4],
+}
+const _: () = assert!(std::mem::size_of::<LightGpu>() == 32);
+
+/// Deferred-shading constants.
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`Shading`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ShadingUniform {
+    /// Linear ambient (w unused).
+    pub ambient: [f32; 4],
+    /// Linear background (w unused).
+    pub background: [f32; 4],
+    /// Lights in the light buffer.
+    pub light_count: u32,
+    /// PCF radius in shadow texels.
+    pub pcf_radius: u32,
+    /// The receiver's splat size in pixels (max(1, LOD threshold)).
+    pub receiver_px: f32,
+    /// Padding.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<ShadingUniform>() == 48);
+
+/// Parameters of the clear pass.
+///
+/// Keep in sync with `shaders/clear.wgsl` (`ClearParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ClearParams {
+    /// Words to fill.
+    pub count: u32,
+    /// Padding.
+    pub pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<ClearParams>() == 16);
+
+/// Bytes of one queue entry (`vec4<u32>`: node index, origin xyz).
+pub const QUEUE_ENTRY_BYTES: u64 = 16;
+/// Bytes of one packed key (depth bits << 32 | id).
+pub const KEY_BYTES: u64 = 8;
+/// Bytes of one G-buffer texel (`vec4<u32>`).
+pub const GBUFFER_TEXEL_BYTES: u64 = 16;
+/// `vec4<f32>` per world triangle in the mesh buffer.
+pub const TRI_VEC4S: usize = 9;
+/// Bit marking triangle ids.
+pub const MESH_ID_FLAG: u32 = 1 << 31;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn node_params_half_extent_of_rotated_voxel() {
+        // A 45° turn about y widens the view AABB of a unit voxel to √2/2 in x and z.
+        let r = Mat4::from_rotation_y(std::f32::consts::FRAC_PI_4);
+        let p = NodeParams::for_object(r, r);
+        let h = std::f32::consts::FRAC_1_SQRT_2;
+        assert!((p.half_extent_unit[0] - h).abs() < 1e-6);
+        assert!((p.half_extent_unit[1] - 0.5).abs() < 1e-6);
+        assert!((p.half_extent_unit[2] - h).abs() < 1e-6);
+        assert!((p.translation_edge[3] - 1.0).abs() < 1e-6);
+    }
+}

@@ -1,0 +1,197 @@
+//! The wgpu renderer (ASVO paper §4, Fig. 8; §8.1): the same algorithms as the CPU reference
+//! renderer in `thicket_core::render`, on the GPU, headless-capable.
+//!
+//! A frame (see `docs/gpu.md`): clear the packed depth+id key buffers → shadow map from the
+//! first shadow-casting light (meshes rasterised, voxels traversed, depth only) → the view:
+//! meshes rasterised and voxels splatted into one key buffer (64-bit `atomicMin` of
+//! `depth << 32 | id` when the adapter has `SHADER_INT64_ATOMIC_MIN_MAX`, else two 32-bit
+//! passes) → resolve ids to a G-buffer → deferred Phong with PCF shadows → RGBA8 target.
+//!
+//! - [`context`]: headless device creation and error handlers.
+//! - [`Renderer`]: pipelines and layouts created once; [`Renderer::render`] per frame.
+//! - [`render_document_to_image`]: one call for the CLI (creates its own device).
+
+pub mod context;
+pub mod gpu_data;
+mod renderer;
+pub mod shaders;
+
+pub use context::{Capabilities, ErrorSlot, GpuContext};
+pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
+
+use thicket_core::render::{Quality, QualityError};
+use thicket_core::scene::{Document, OrbitCamera, SceneError};
+
+/// Why the GPU could not render.
+#[derive(Debug, Clone, PartialEq)]
+pub enum GpuError {
+    /// No adapter on the Vulkan or GL backends.
+    NoAdapter(String),
+    /// The adapter refused the device.
+    RequestDevice(String),
+    /// A validation or internal error reported by wgpu.
+    Device(String),
+    /// The device ran out of memory.
+    OutOfMemory(String),
+    /// The device was lost (driver reset, removal).
+    DeviceLost(String),
+    /// A WGSL file is missing or its imports are broken.
+    Shader(String),
+    /// Reading a buffer back failed.
+    Readback(String),
+    /// The image size is zero or above the device's texture limit.
+    BadSize {
+        /// Requested width.
+        width: u32,
+        /// Requested height.
+        height: u32,
+        /// The device's limit.
+        max: u32,
+    },
+    /// Scene data does not fit a buffer binding.
+    TooLarge {
+        /// Which buffer.
+        what: &'static str,
+        /// Bytes needed.
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
+    /// The document holds a value a renderer must not see.
+    InvalidDocument(SceneError),
+    /// A quality knob is out of range.
+    InvalidQuality(QualityError),
+}
+
+// Written out because the app crate does not depend on `thiserror`.
+impl std::fmt::Display for GpuError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Self::NoAdapter(e) => write!(
+                f,
+                "no GPU adapter found (Vulkan or GL; a software driver such as lavapipe works): {e}"
+            ),
+            Self::RequestDevice(e) => write!(f, "could not create the GPU device: {e}"),
+            Self::Device(e) => write!(f, "GPU error: {e}"),
+            Self::OutOfMemory(e) => write!(f, "GPU out of memory: {e}"),
+            Self::DeviceLost(e) => write!(f, "GPU device lost: {e}"),
+            Self::Shader(e) => write!(f, "shader: {e}"),
+            Self::Readback(e) => write!(f, "reading GPU data back failed: {e}"),
+            Self::BadSize { width, height, max } => write!(
+                f,
+                "image size {width}×{height} is not renderable (1..={max} pixels per edge)"
+            ),
+            Self::TooLarge { what, bytes, limit } => write!(
+                f,
+                "{what} needs {bytes} bytes, above this device's limit of {limit} bytes per binding"
+            ),
+            Self::InvalidDocument(e) => write!(f, "cannot render the document: {e}"),
+            Self::InvalidQuality(e) => write!(f, "cannot render with these quality settings: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for GpuError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Self::InvalidDocument(e) => Some(e),
+            Self::InvalidQuality(e) => Some(e),
+            _ => None,
+        }
+    }
+}
+
+impl From<SceneError> for GpuError {
+    fn from(e: SceneError) -> Self {
+        Self::InvalidDocument(e)
+    }
+}
+
+impl From<QualityError> for GpuError {
+    fn from(e: QualityError) -> Self {
+        Self::InvalidQuality(e)
+    }
+}
+
+/// Which splat path a frame used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum AtomicPath {
+    /// One 64-bit `atomicMin` of (depth << 32 | id).
+    #[default]
+    Key64,
+    /// Two passes of 32-bit atomics (depth, then id where the depth matches).
+    TwoPass32,
+}
+
+/// Counters for one octree level (summed over objects).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GpuLevelStats {
+    /// Nodes taken from the queue.
+    pub visited: u64,
+    /// Nodes whose children were queued.
+    pub split: u64,
+    /// Nodes drawn as one splat.
+    pub splatted: u64,
+    /// Nodes outside the view frustum.
+    pub frustum_culled: u64,
+}
+
+/// What a GPU frame did and how long it took.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct GpuFrameStats {
+    /// View traversal counters per level.
+    pub levels: Vec<GpuLevelStats>,
+    /// Shadow-map traversal counters per level.
+    pub shadow_levels: Vec<GpuLevelStats>,
+    /// Splats drawn in the view (sum of `levels[..].splatted`).
+    pub splats: u64,
+    /// Children dropped because a traversal queue was full (0 unless the scene is huge).
+    pub queue_overflow: u64,
+    /// Triangles submitted for the view.
+    pub triangles: u64,
+    /// Milliseconds per pass: GPU timestamps when `gpu_timestamps`, else empty.
+    pub pass_ms: Vec<(&'static str, f64)>,
+    /// Whether `pass_ms` comes from timestamp queries.
+    pub gpu_timestamps: bool,
+    /// CPU-side milliseconds from the start of encoding to the end of the wait.
+    pub total_ms: f64,
+    /// The splat path used.
+    pub atomic_path: AtomicPath,
+}
+
+/// Renders a document on a fresh headless device (for the CLI): returns the sRGB RGBA8 image
+/// (row-major, top row first) and the frame's statistics.
+///
+/// # Errors
+/// [`GpuError`] when there is no adapter, the document or quality is invalid, or the GPU fails.
+pub fn render_document_to_image(
+    doc: &Document,
+    width: u32,
+    height: u32,
+    quality: &Quality,
+) -> Result<(Vec<u8>, GpuFrameStats), GpuError> {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+    render_with_context(&ctx, doc, &doc.camera, width, height, quality)
+}
+
+/// Renders a document with an existing context (tests and benches reuse one device).
+///
+/// # Errors
+/// As [`render_document_to_image`].
+pub fn render_with_context(
+    ctx: &GpuContext,
+    doc: &Document,
+    camera: &OrbitCamera,
+    width: u32,
+    height: u32,
+    quality: &Quality,
+) -> Result<(Vec<u8>, GpuFrameStats), GpuError> {
+    let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
+    let target = RenderTarget::new(&ctx.device, width, height)?;
+    let stats = renderer.render(&ctx.device, &ctx.queue, doc, camera, quality, &target)?;
+    let image = read_rgba8(&ctx.device, &ctx.queue, &target)?;
+    if let Some(e) = ctx.errors.take() {
+        return Err(e);
+    }
+    Ok((image, stats))
+}

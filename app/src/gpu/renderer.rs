@@ -1,0 +1,1568 @@
+//! The long-lived [`Renderer`] (layouts and pipelines, created once) and one frame's work.
+
+use std::collections::HashMap;
+use std::time::Instant;
+
+use glam::{Mat3, Mat4, Vec3, Vec4};
+use thicket_core::render::Quality;
+use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
+use thicket_core::svo::Svo;
+use wgpu::util::DeviceExt;
+
+use super::context::Capabilities;
+use super::gpu_data::{
+    COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
+    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OVERFLOW_COUNTER, ObjectInfo,
+    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, TRI_VEC4S, ViewUniform,
+};
+use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
+
+/// An RGBA8 colour target the renderer writes (sRGB-encoded values in an `Rgba8Unorm`
+/// texture: display it as already encoded).
+pub struct RenderTarget {
+    /// The texture (`STORAGE_BINDING | COPY_SRC | TEXTURE_BINDING`).
+    pub texture: wgpu::Texture,
+    /// A view of it.
+    pub view: wgpu::TextureView,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+}
+
+impl RenderTarget {
+    /// A target of `width × height` pixels.
+    ///
+    /// # Errors
+    /// [`GpuError::BadSize`] for a zero size or one above the device's texture limit.
+    pub fn new(device: &wgpu::Device, width: u32, height: u32) -> Result<Self, GpuError> {
+        let max = device.limits().max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(GpuError::BadSize { width, height, max });
+        }
+        let texture = device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("thicket target"),
+            size: wgpu::Extent3d {
+                width,
+                height,
+                depth_or_array_layers: 1,
+            },
+            mip_level_count: 1,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            usage: wgpu::TextureUsages::STORAGE_BINDING
+                | wgpu::TextureUsages::COPY_SRC
+                | wgpu::TextureUsages::TEXTURE_BINDING,
+            view_formats: &[],
+        });
+        let view = texture.create_view(&wgpu::TextureViewDescriptor::default());
+        Ok(Self {
+            texture,
+            view,
+            width,
+            height,
+        })
+    }
+}
+
+/// The last frame's G-buffer, read back (tests, parity checks, picking).
+#[derive(Debug, Clone, PartialEq)]
+pub struct GBuffer {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// NDC depth per pixel (0 near, 1 far); `INFINITY` where nothing was drawn.
+    pub depth: Vec<f32>,
+    /// World normal per pixel (zero where empty).
+    pub normal: Vec<Vec3>,
+    /// Linear albedo per pixel (zero where empty).
+    pub albedo: Vec<Vec3>,
+}
+
+/// Reads an [`RenderTarget`] back as tightly packed RGBA8 rows, top row first.
+///
+/// # Errors
+/// [`GpuError::Readback`] when mapping fails.
+pub fn read_rgba8(
+    device: &wgpu::Device,
+    queue: &wgpu::Queue,
+    target: &RenderTarget,
+) -> Result<Vec<u8>, GpuError> {
+    let row = target.width * 4;
+    let padded =
+        row.div_ceil(wgpu::COPY_BYTES_PER_ROW_ALIGNMENT) * wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+    let size = u64::from(padded) * u64::from(target.height);
+    let staging = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("thicket readback"),
+        size,
+        usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+    enc.copy_texture_to_buffer(
+        target.texture.as_image_copy(),
+        wgpu::TexelCopyBufferInfo {
+            buffer: &staging,
+            layout: wgpu::TexelCopyBufferLayout {
+                offset: 0,
+                bytes_per_row: Some(padded),
+                rows_per_image: Some(target.height),
+            },
+        },
+        wgpu::Extent3d {
+            width: target.width,
+            height: target.height,
+            depth_or_array_layers: 1,
+        },
+    );
+    queue.submit([enc.finish()]);
+    let bytes = map_read(device, &staging)?;
+    let mut out = Vec::with_capacity((row * target.height) as usize);
+    for y in 0..target.height as usize {
+        let start = y * padded as usize;
+        out.extend_from_slice(&bytes[start..start + row as usize]);
+    }
+    Ok(out)
+}
+
+/// Maps a `MAP_READ` buffer, waits, copies its bytes out and unmaps it.
+fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+    let slice = buffer.slice(..);
+    let (tx, rx) = std::sync::mpsc::channel();
+    slice.map_async(wgpu::MapMode::Read, move |r| {
+        // The receiver only disappears if this function already returned an error.
+        let _ = tx.send(r);
+    });
+    device
+        .poll(wgpu::PollType::wait_indefinitely())
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    rx.recv()
+        .map_err(|e| GpuError::Readback(e.to_string()))?
+        .map_err(|e| GpuError::Readback(e.to_string()))?;
+    let bytes = slice
+        .get_mapped_range()
+        .map_err(|e| GpuError::Readback(e.to_string()))?
+        .to_vec();
+    buffer.unmap();
+    Ok(bytes)
+}
+
+/// A camera as the passes see it.
+#[derive(Clone, Copy)]
+struct ViewSpec {
+    view_from_world: Mat4,
+    clip_from_view: Mat4,
+    width: u32,
+    height: u32,
+    perspective: bool,
+    fx: f32,
+    fy: f32,
+    near: f32,
+    far: f32,
+}
+
+impl ViewSpec {
+    fn from_orbit(orbit: &OrbitCamera, width: u32, height: u32) -> Self {
+        let fov = orbit.fov_y_deg.to_radians();
+        let fy = 0.5 * height as f32 / (0.5 * fov).tan();
+        Self {
+            view_from_world: orbit.view_from_world(),
+            clip_from_view: orbit.clip_from_view(width as f32 / height as f32),
+            width,
+            height,
+            perspective: true,
+            fx: fy,
+            fy,
+            near: orbit.near,
+            far: orbit.far,
+        }
+    }
+
+    /// An orthographic camera looking along `direction` whose image tightly holds the box
+    /// (the CPU reference's `fit_light_camera`).
+    fn fit_light(direction: Vec3, lo: Vec3, hi: Vec3, size: u32) -> Option<Self> {
+        let dir = direction.try_normalize()?;
+        let center = (lo + hi) * 0.5;
+        let radius = ((hi - lo).length() * 0.5).max(1e-4);
+        let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
+        let eye = center - dir * (2.0 * radius);
+        let view = Mat4::look_at_rh(eye, center, up);
+        let (mut vlo, mut vhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for k in 0..8 {
+            let c = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let v = view.transform_point3(c);
+            vlo = vlo.min(v);
+            vhi = vhi.max(v);
+        }
+        let mid = (vlo + vhi) * 0.5;
+        let shift = Mat4::from_translation(Vec3::new(-mid.x, -mid.y, 0.0));
+        let half = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
+        let margin = 0.01 * radius + 1e-4;
+        let (near, far) = (-vhi.z - margin, -vlo.z + margin);
+        let f = 0.5 * size as f32 / half;
+        Some(Self {
+            view_from_world: shift * view,
+            clip_from_view: Mat4::orthographic_rh(-half, half, -half, half, near, far),
+            width: size,
+            height: size,
+            perspective: false,
+            fx: f,
+            fy: f,
+            near,
+            far,
+        })
+    }
+
+    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32) -> ViewUniform {
+        ViewUniform {
+            view_from_world: self.view_from_world.to_cols_array_2d(),
+            clip_from_world: (self.clip_from_view * self.view_from_world).to_cols_array_2d(),
+            world_from_view: self.view_from_world.inverse().to_cols_array_2d(),
+            size: [self.width, self.height],
+            perspective: u32::from(self.perspective),
+            write_mode,
+            fx: self.fx,
+            fy: self.fy,
+            near: self.near,
+            far: self.far,
+            lod_pixel_threshold,
+            pad: [0; 3],
+        }
+    }
+}
+
+/// A voxel object packed into the scene pools.
+struct VoxelEntry {
+    world_from_voxel: Mat4,
+    depth: u8,
+    inner_base: u32,
+    attr_inner_base: u32,
+    attr_leaf_base: u32,
+}
+
+/// The scene's data in CPU form, ready to upload.
+#[derive(Default)]
+struct ScenePack {
+    voxels: Vec<VoxelEntry>,
+    inner: Vec<[u32; 2]>,
+    attrs: Vec<[u32; 2]>,
+    objects: Vec<ObjectInfo>,
+    /// World triangles, casters first.
+    tris: Vec<[f32; 4]>,
+    caster_tris: u32,
+    queue_capacity: u64,
+    bounds: Option<(Vec3, Vec3)>,
+}
+
+fn grow(b: &mut Option<(Vec3, Vec3)>, lo: Vec3, hi: Vec3) {
+    *b = Some(b.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
+}
+
+/// World AABB of a voxel object from its nodes a few levels down (the CPU reference's
+/// `voxel_bounds`).
+fn voxel_world_bounds(svo: &Svo, world_from_voxel: Mat4, out: &mut Option<(Vec3, Vec3)>) {
+    let stop = svo.depth().min(5);
+    let lin = Mat3::from_mat4(world_from_voxel);
+    let mut stack = vec![svo.root()];
+    while let Some(n) = stack.pop() {
+        if n.level < stop {
+            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+            continue;
+        }
+        let half = 0.5 * svo.node_size(n.level) as f32;
+        let c = world_from_voxel.transform_point3(n.origin.as_vec3() + Vec3::splat(half));
+        let a = lin * half;
+        let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+        grow(out, c - he, c + he);
+    }
+}
+
+impl ScenePack {
+    fn build(doc: &Document, limits: &wgpu::Limits) -> Result<Self, GpuError> {
+        let mut p = Self::default();
+        let mut casters: Vec<[f32; 4]> = Vec::new();
+        let mut others: Vec<[f32; 4]> = Vec::new();
+        for o in doc.objects.iter().filter(|o| o.visible) {
+            let world_from_object = o.transform.matrix();
+            match &o.kind {
+                ObjectKind::Voxels(v) => {
+                    let svo = &v.svo;
+                    if svo.is_empty() {
+                        continue;
+                    }
+                    let world_from_voxel = world_from_object * v.object_from_voxel();
+                    let obj = u32::try_from(p.objects.len())
+                        .ok()
+                        .filter(|&i| i <= 0xffff)
+                        .ok_or(GpuError::TooLarge {
+                            what: "voxel object count",
+                            bytes: p.objects.len() as u64,
+                            limit: 0xffff,
+                        })?;
+                    let nm = Mat3::from_mat4(world_from_voxel).inverse().transpose();
+                    p.objects.push(ObjectInfo {
+                        normal_from_voxel: [
+                            nm.x_axis.extend(0.0).to_array(),
+                            nm.y_axis.extend(0.0).to_array(),
+                            nm.z_axis.extend(0.0).to_array(),
+                        ],
+                    });
+                    let inner_base = p.inner.len() as u64;
+                    p.inner.extend(
+                        svo.inner_first_children()
+                            .iter()
+                            .zip(svo.inner_masks())
+                            .map(|(&f, &m)| [f, u32::from(m)]),
+                    );
+                    let attr_inner_base = p.attrs.len() as u64;
+                    let pack = |c: &[u8; 4], n: &u16| {
+                        [u32::from_le_bytes(*c), u32::from(*n) | (obj << 16)]
+                    };
+                    p.attrs.extend(
+                        svo.inner_colors()
+                            .iter()
+                            .zip(svo.inner_normals())
+                            .map(|(c, n)| pack(c, n)),
+                    );
+                    let attr_leaf_base = p.attrs.len() as u64;
+                    p.attrs.extend(
+                        svo.leaf_colors()
+                            .iter()
+                            .zip(svo.leaf_normals())
+                            .map(|(c, n)| pack(c, n)),
+                    );
+                    if p.attrs.len() as u64 >= u64::from(super::gpu_data::MESH_ID_FLAG) {
+                        return Err(GpuError::TooLarge {
+                            what: "voxel node ids",
+                            bytes: p.attrs.len() as u64,
+                            limit: u64::from(super::gpu_data::MESH_ID_FLAG),
+                        });
+                    }
+                    p.queue_capacity = p.queue_capacity.max(svo.inner_count() + svo.leaf_count());
+                    voxel_world_bounds(svo, world_from_voxel, &mut p.bounds);
+                    p.voxels.push(VoxelEntry {
+                        world_from_voxel,
+                        depth: svo.depth(),
+                        inner_base: inner_base as u32,
+                        attr_inner_base: attr_inner_base as u32,
+                        attr_leaf_base: attr_leaf_base as u32,
+                    });
+                }
+                ObjectKind::Mesh(m) => {
+                    let normal_m = Mat3::from_mat4(world_from_object).inverse().transpose();
+                    let out = if m.casts_shadows {
+                        &mut casters
+                    } else {
+                        &mut others
+                    };
+                    for part in &m.model.parts {
+                        let base = m
+                            .model
+                            .materials
+                            .get(part.material)
+                            .map_or(Vec4::ONE, |mat| mat.base_color);
+                        for t in 0..part.triangle_count() {
+                            let idx = part.triangle(t);
+                            let mut rec = [[0.0f32; 4]; TRI_VEC4S];
+                            for (k, &i) in idx.iter().enumerate() {
+                                let pw = world_from_object.transform_point3(
+                                    part.positions.get(i).copied().unwrap_or_default(),
+                                );
+                                grow(&mut p.bounds, pw, pw);
+                                rec[k] = pw.extend(1.0).to_array();
+                                rec[3 + k] = match part.normals.get(i) {
+                                    Some(n) => (normal_m * *n).extend(1.0).to_array(),
+                                    None => [0.0; 4],
+                                };
+                                let vc = part.colors.get(i).copied().unwrap_or(Vec4::ONE);
+                                rec[6 + k] = (base * vc).to_array();
+                            }
+                            out.extend_from_slice(&rec);
+                        }
+                    }
+                }
+            }
+        }
+        p.caster_tris = (casters.len() / TRI_VEC4S) as u32;
+        p.tris = casters;
+        p.tris.extend(others);
+        let limit = limits.max_storage_buffer_binding_size;
+        for (what, bytes) in [
+            ("inner node pool", p.inner.len() as u64 * 8),
+            ("attribute pool", p.attrs.len() as u64 * 8),
+            ("triangle buffer", p.tris.len() as u64 * 16),
+        ] {
+            if bytes > limit {
+                return Err(GpuError::TooLarge { what, bytes, limit });
+            }
+        }
+        p.queue_capacity = p
+            .queue_capacity
+            .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX)));
+        Ok(p)
+    }
+
+    fn tri_count(&self) -> u32 {
+        (self.tris.len() / TRI_VEC4S) as u32
+    }
+}
+
+/// Layouts and pipelines, created once per device.
+pub struct Renderer {
+    caps: Capabilities,
+    force_two_pass: bool,
+    trav_bgl: [wgpu::BindGroupLayout; 3],
+    indirect_bgl: wgpu::BindGroupLayout,
+    clear_bgl: wgpu::BindGroupLayout,
+    mesh_bgl: wgpu::BindGroupLayout,
+    resolve_bgl: wgpu::BindGroupLayout,
+    shade_bgl: wgpu::BindGroupLayout,
+    seed: wgpu::ComputePipeline,
+    prepare: wgpu::ComputePipeline,
+    traverse32: wgpu::ComputePipeline,
+    traverse64: Option<wgpu::ComputePipeline>,
+    clear: wgpu::ComputePipeline,
+    mesh32: wgpu::RenderPipeline,
+    mesh64: Option<wgpu::RenderPipeline>,
+    resolve: wgpu::ComputePipeline,
+    shade: wgpu::ComputePipeline,
+    /// Per-frame buffers, reused while large enough.
+    buffers: HashMap<&'static str, wgpu::Buffer>,
+    /// Dummy depth attachments for the mesh passes (the atomics do the depth test).
+    attachments: HashMap<(u32, u32), wgpu::Texture>,
+    last_size: (u32, u32),
+}
+
+fn storage(
+    binding: u32,
+    read_only: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Storage { read_only },
+            has_dynamic_offset: false,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn uniform(
+    binding: u32,
+    dynamic: bool,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::Buffer {
+            ty: wgpu::BufferBindingType::Uniform,
+            has_dynamic_offset: dynamic,
+            min_binding_size: None,
+        },
+        count: None,
+    }
+}
+
+fn bind_group(
+    device: &wgpu::Device,
+    layout: &wgpu::BindGroupLayout,
+    label: &str,
+    buffers: &[&wgpu::Buffer],
+) -> wgpu::BindGroup {
+    let entries: Vec<wgpu::BindGroupEntry<'_>> = buffers
+        .iter()
+        .enumerate()
+        .map(|(i, b)| wgpu::BindGroupEntry {
+            binding: i as u32,
+            resource: b.as_entire_binding(),
+        })
+        .collect();
+    device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some(label),
+        layout,
+        entries: &entries,
+    })
+}
+
+/// Which pass a timestamp pair measures.
+struct Timed {
+    name: &'static str,
+    first_query: u32,
+}
+
+/// Timestamp bookkeeping for one frame.
+struct Timestamps {
+    set: wgpu::QuerySet,
+    used: Vec<Timed>,
+}
+
+const MAX_TIMED_PASSES: u32 = 16;
+
+impl Timestamps {
+    fn compute<'a>(
+        &'a mut self,
+        name: &'static str,
+    ) -> Option<wgpu::ComputePassTimestampWrites<'a>> {
+        let q = self.used.len() as u32 * 2;
+        if q / 2 >= MAX_TIMED_PASSES {
+            return None;
+        }
+        self.used.push(Timed {
+            name,
+            first_query: q,
+        });
+        Some(wgpu::ComputePassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(q),
+            end_of_pass_write_index: Some(q + 1),
+        })
+    }
+
+    fn render<'a>(&'a mut self, name: &'static str) -> Option<wgpu::RenderPassTimestampWrites<'a>> {
+        let q = self.used.len() as u32 * 2;
+        if q / 2 >= MAX_TIMED_PASSES {
+            return None;
+        }
+        self.used.push(Timed {
+            name,
+            first_query: q,
+        });
+        Some(wgpu::RenderPassTimestampWrites {
+            query_set: &self.set,
+            beginning_of_pass_write_index: Some(q),
+            end_of_pass_write_index: Some(q + 1),
+        })
+    }
+}
+
+/// One traversal to encode: an object seen from a view.
+struct Traversal {
+    first_slot: u32,
+    depth: u8,
+}
+
+impl Renderer {
+    /// Creates every layout and pipeline. The 64-bit splat pipelines exist only when the
+    /// device has `SHADER_INT64_ATOMIC_MIN_MAX`.
+    ///
+    /// # Errors
+    /// [`GpuError::Shader`] when an embedded shader's imports are broken; pipeline creation
+    /// errors surface through the device's error handler.
+    pub fn new(device: &wgpu::Device, _queue: &wgpu::Queue) -> Result<Self, GpuError> {
+        let caps = Capabilities::of(device);
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let module = |path: &str| -> Result<wgpu::ShaderModule, GpuError> {
+            let src = shaders::compose(path)?;
+            Ok(device.create_shader_module(wgpu::ShaderModuleDescriptor {
+                label: Some(path),
+                source: wgpu::ShaderSource::Wgsl(src.into()),
+            }))
+        };
+        let bgl = |label: &str, entries: &[wgpu::BindGroupLayoutEntry]| {
+            device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+                label: Some(label),
+                entries,
+            })
+        };
+        let trav_bgl = [
+            bgl(
+                "traverse 0",
+                &[
+                    uniform(0, false, cs),
+                    storage(1, false, cs),
+                    storage(2, true, cs),
+                    storage(4, false, cs),
+                ],
+            ),
+            bgl("traverse 1", &[uniform(0, true, cs)]),
+            bgl("traverse 2", &[storage(0, true, cs), storage(1, false, cs)]),
+        ];
+        let indirect_bgl = bgl("indirect", &[storage(0, false, cs)]);
+        let clear_bgl = bgl("clear", &[uniform(0, false, cs), storage(1, false, cs)]);
+        let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+        let mesh_bgl = bgl(
+            "mesh",
+            &[
+                uniform(0, false, vf),
+                storage(1, true, wgpu::ShaderStages::VERTEX),
+                storage(2, false, wgpu::ShaderStages::FRAGMENT),
+            ],
+        );
+        let resolve_bgl = bgl(
+            "resolve",
+            &[
+                uniform(0, false, cs),
+                storage(1, true, cs),
+                storage(2, true, cs),
+                storage(3, true, cs),
+                storage(4, true, cs),
+                storage(5, false, cs),
+            ],
+        );
+        let shade_bgl = bgl(
+            "shade",
+            &[
+                uniform(0, false, cs),
+                uniform(1, false, cs),
+                uniform(2, false, cs),
+                storage(3, true, cs),
+                storage(4, true, cs),
+                storage(5, true, cs),
+                wgpu::BindGroupLayoutEntry {
+                    binding: 6,
+                    visibility: cs,
+                    ty: wgpu::BindingType::StorageTexture {
+                        access: wgpu::StorageTextureAccess::WriteOnly,
+                        format: wgpu::TextureFormat::Rgba8Unorm,
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                    },
+                    count: None,
+                },
+            ],
+        );
+        let layout = |label: &str, groups: &[&wgpu::BindGroupLayout]| {
+            let groups: Vec<Option<&wgpu::BindGroupLayout>> =
+                groups.iter().map(|g| Some(*g)).collect();
+            device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+                label: Some(label),
+                bind_group_layouts: &groups,
+                immediate_size: 0,
+            })
+        };
+        let compute = |label: &str,
+                       layout: &wgpu::PipelineLayout,
+                       module: &wgpu::ShaderModule,
+                       entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(label),
+                layout: Some(layout),
+                module,
+                entry_point: Some(entry),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                cache: None,
+            })
+        };
+        let trav_layout = layout("traverse", &[&trav_bgl[0], &trav_bgl[1], &trav_bgl[2]]);
+        let queue_mod = module("asvo_queue.wgsl")?;
+        let queue_layout = layout(
+            "traverse queue",
+            &[&trav_bgl[0], &trav_bgl[1], &trav_bgl[2], &indirect_bgl],
+        );
+        let seed = compute("seed", &queue_layout, &queue_mod, "seed");
+        let prepare = compute("prepare", &queue_layout, &queue_mod, "prepare_indirect");
+        let traverse32 = compute(
+            "traverse32",
+            &trav_layout,
+            &module("asvo_splat32.wgsl")?,
+            "traverse",
+        );
+        let traverse64 = if caps.int64_atomics {
+            Some(compute(
+                "traverse64",
+                &trav_layout,
+                &module("asvo_splat64.wgsl")?,
+                "traverse",
+            ))
+        } else {
+            None
+        };
+        let clear = compute(
+            "clear",
+            &layout("clear", &[&clear_bgl]),
+            &module("clear.wgsl")?,
+            "clear",
+        );
+        let resolve = compute(
+            "resolve",
+            &layout("resolve", &[&resolve_bgl]),
+            &module("resolve.wgsl")?,
+            "resolve",
+        );
+        let shade = compute(
+            "shade",
+            &layout("shade", &[&shade_bgl]),
+            &module("shade.wgsl")?,
+            "shade",
+        );
+        let mesh_layout = layout("mesh", &[&mesh_bgl]);
+        let mesh_pipeline = |label: &str, m: &wgpu::ShaderModule| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some(label),
+                layout: Some(&mesh_layout),
+                vertex: wgpu::VertexState {
+                    module: m,
+                    entry_point: Some("vs_main"),
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                    buffers: &[],
+                },
+                primitive: wgpu::PrimitiveState {
+                    cull_mode: None,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: wgpu::TextureFormat::Depth32Float,
+                    depth_write_enabled: Some(false),
+                    depth_compare: Some(wgpu::CompareFunction::Always),
+                    stencil: wgpu::StencilState::default(),
+                    bias: wgpu::DepthBiasState::default(),
+                }),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: m,
+                    entry_point: Some("fs_main"),
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                    targets: &[],
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let mesh32 = mesh_pipeline("mesh32", &module("mesh32.wgsl")?);
+        let mesh64 = if caps.int64_atomics {
+            Some(mesh_pipeline("mesh64", &module("mesh64.wgsl")?))
+        } else {
+            None
+        };
+        Ok(Self {
+            caps,
+            force_two_pass: false,
+            trav_bgl,
+            indirect_bgl,
+            clear_bgl,
+            mesh_bgl,
+            resolve_bgl,
+            shade_bgl,
+            seed,
+            prepare,
+            traverse32,
+            traverse64,
+            clear,
+            mesh32,
+            mesh64,
+            resolve,
+            shade,
+            buffers: HashMap::new(),
+            attachments: HashMap::new(),
+            last_size: (0, 0),
+        })
+    }
+
+    /// What the device offers.
+    #[must_use]
+    pub fn capabilities(&self) -> Capabilities {
+        self.caps
+    }
+
+    /// Forces the two-pass 32-bit splat path even when 64-bit atomics exist (tests, A/B).
+    pub fn set_force_two_pass(&mut self, force: bool) {
+        self.force_two_pass = force;
+    }
+
+    /// The splat path the next frame uses.
+    #[must_use]
+    pub fn atomic_path(&self) -> AtomicPath {
+        if self.traverse64.is_some() && !self.force_two_pass {
+            AtomicPath::Key64
+        } else {
+            AtomicPath::TwoPass32
+        }
+    }
+
+    /// A buffer of at least `size` bytes under `name`, reused across frames.
+    fn buffer(
+        &mut self,
+        device: &wgpu::Device,
+        name: &'static str,
+        size: u64,
+        usage: wgpu::BufferUsages,
+    ) -> wgpu::Buffer {
+        let size = size.max(16).next_multiple_of(16);
+        if let Some(b) = self.buffers.get(name)
+            && b.size() >= size
+            && b.usage().contains(usage)
+        {
+            return b.clone();
+        }
+        let b = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some(name),
+            size,
+            usage,
+            mapped_at_creation: false,
+        });
+        self.buffers.insert(name, b.clone());
+        b
+    }
+
+    fn attachment(&mut self, device: &wgpu::Device, w: u32, h: u32) -> wgpu::TextureView {
+        self.attachments
+            .entry((w, h))
+            .or_insert_with(|| {
+                device.create_texture(&wgpu::TextureDescriptor {
+                    label: Some("mesh pass attachment"),
+                    size: wgpu::Extent3d {
+                        width: w,
+                        height: h,
+                        depth_or_array_layers: 1,
+                    },
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format: wgpu::TextureFormat::Depth32Float,
+                    usage: wgpu::TextureUsages::RENDER_ATTACHMENT,
+                    view_formats: &[],
+                })
+            })
+            .create_view(&wgpu::TextureViewDescriptor::default())
+    }
+
+    /// Renders `doc` from `camera` into `target`: waits for the GPU and reads the counters
+    /// (and timestamps when the device has them) back into the returned statistics.
+    ///
+    /// # Errors
+    /// [`GpuError`] for an invalid document, camera or quality, scene data over the device's
+    /// binding limit, or a validation / out-of-memory error raised while encoding the frame.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's inputs: device, queue, scene, view, knobs, target"
+    )]
+    pub fn render(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        camera: &OrbitCamera,
+        quality: &Quality,
+        target: &RenderTarget,
+    ) -> Result<GpuFrameStats, GpuError> {
+        doc.validate()?;
+        camera.validate()?;
+        quality.validate()?;
+        let t_start = Instant::now();
+        let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let result = self.encode_and_run(device, queue, doc, camera, quality, target);
+        let oom_err = pollster::block_on(oom.pop());
+        let val_err = pollster::block_on(validation.pop());
+        if let Some(e) = oom_err {
+            return Err(GpuError::OutOfMemory(e.to_string()));
+        }
+        if let Some(e) = val_err {
+            return Err(GpuError::Device(e.to_string()));
+        }
+        let mut stats = result?;
+        stats.total_ms = t_start.elapsed().as_secs_f64() * 1e3;
+        self.last_size = (target.width, target.height);
+        Ok(stats)
+    }
+
+    /// Reads the last frame's G-buffer back.
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`] when nothing was rendered yet or mapping fails.
+    pub fn read_gbuffer(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<GBuffer, GpuError> {
+        let (w, h) = self.last_size;
+        let gbuf = self
+            .buffers
+            .get("gbuffer")
+            .cloned()
+            .filter(|_| w > 0)
+            .ok_or_else(|| GpuError::Readback("no frame rendered yet".into()))?;
+        let bytes = u64::from(w) * u64::from(h) * GBUFFER_TEXEL_BYTES;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("gbuffer readback"),
+            size: bytes,
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        enc.copy_buffer_to_buffer(&gbuf, 0, &staging, 0, bytes);
+        queue.submit([enc.finish()]);
+        let raw = map_read(device, &staging)?;
+        let texels: &[[u32; 4]] = bytemuck::cast_slice(&raw);
+        let unorm = |bits: u32| -> [f32; 2] {
+            [
+                f32::from((bits & 0xffff) as u16) / 65535.0,
+                f32::from((bits >> 16) as u16) / 65535.0,
+            ]
+        };
+        let snorm = |bits: u32| -> [f32; 2] {
+            let s = |b: u16| (f32::from(b as i16) / 32767.0).max(-1.0);
+            [s((bits & 0xffff) as u16), s((bits >> 16) as u16)]
+        };
+        let mut g = GBuffer {
+            width: w,
+            height: h,
+            depth: Vec::with_capacity(texels.len()),
+            normal: Vec::with_capacity(texels.len()),
+            albedo: Vec::with_capacity(texels.len()),
+        };
+        for t in texels {
+            if t[3] == u32::MAX {
+                g.depth.push(f32::INFINITY);
+                g.normal.push(Vec3::ZERO);
+                g.albedo.push(Vec3::ZERO);
+                continue;
+            }
+            let [r, gr] = unorm(t[0]);
+            let [b, nz] = unorm(t[1]);
+            let [nx, ny] = snorm(t[2]);
+            g.depth.push(f32::from_bits(t[3]));
+            g.normal.push(Vec3::new(nx, ny, nz * 2.0 - 1.0));
+            g.albedo.push(Vec3::new(r, gr, b));
+        }
+        Ok(g)
+    }
+
+    #[allow(
+        clippy::too_many_lines,
+        reason = "one frame's encoding, in pass order; splitting it would scatter the ordering"
+    )]
+    fn encode_and_run(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        camera: &OrbitCamera,
+        quality: &Quality,
+        target: &RenderTarget,
+    ) -> Result<GpuFrameStats, GpuError> {
+        use wgpu::BufferUsages as U;
+        let limits = device.limits();
+        let scene = ScenePack::build(doc, &limits)?;
+        let (w, h) = (target.width, target.height);
+        let main = ViewSpec::from_orbit(camera, w, h);
+        let lod = quality.lod_pixel_threshold;
+        let path = self.atomic_path();
+
+        // Shadow camera: the first shadow-casting light, fit to everything drawn.
+        let shadow_light = doc
+            .lights
+            .iter()
+            .position(|l| l.casts_shadows)
+            .filter(|_| quality.shadows);
+        let shadow = match (shadow_light, scene.bounds) {
+            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => ViewSpec::fit_light(
+                doc.lights[i].direction,
+                lo,
+                hi,
+                quality.shadow_map_size.max(1),
+            )
+            .map(|v| (i, v)),
+            _ => None,
+        };
+
+        let pixels = u64::from(w) * u64::from(h);
+        let key_bytes = pixels * KEY_BYTES;
+        let binding_limit = limits.max_storage_buffer_binding_size;
+        if key_bytes > binding_limit || pixels * GBUFFER_TEXEL_BYTES > binding_limit {
+            return Err(GpuError::TooLarge {
+                what: "G-buffer",
+                bytes: pixels * GBUFFER_TEXEL_BYTES,
+                limit: binding_limit,
+            });
+        }
+        let (sw, sh) = shadow.map_or((1, 1), |(_, v)| (v.width, v.height));
+        let shadow_key_bytes = u64::from(sw) * u64::from(sh) * KEY_BYTES;
+        if shadow_key_bytes > binding_limit {
+            return Err(GpuError::TooLarge {
+                what: "shadow map",
+                bytes: shadow_key_bytes,
+                limit: binding_limit,
+            });
+        }
+
+        // Scene buffers.
+        let upload = |name: &str, data: &[u8], usage: U| {
+            let contents: Vec<u8> = if data.is_empty() {
+                vec![0; 256]
+            } else {
+                data.to_vec()
+            };
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(name),
+                contents: &contents,
+                usage,
+            })
+        };
+        let inner_buf = upload(
+            "inner nodes",
+            bytemuck::cast_slice(&scene.inner),
+            U::STORAGE,
+        );
+        let attr_buf = upload("attributes", bytemuck::cast_slice(&scene.attrs), U::STORAGE);
+        let object_buf = upload("objects", bytemuck::cast_slice(&scene.objects), U::STORAGE);
+        let tri_buf = upload("triangles", bytemuck::cast_slice(&scene.tris), U::STORAGE);
+        let lights: Vec<LightGpu> = doc
+            .lights
+            .iter()
+            .enumerate()
+            .map(|(i, l)| {
+                let c = l.color * l.intensity;
+                LightGpu {
+                    to_light: (-l.direction.normalize_or_zero())
+                        .extend(if shadow.is_some_and(|(s, _)| s == i) {
+                            1.0
+                        } else {
+                            0.0
+                        })
+                        .to_array(),
+                    color: c.extend(0.0).to_array(),
+                }
+            })
+            .collect();
+        let light_buf = upload("lights", bytemuck::cast_slice(&lights), U::STORAGE);
+
+        // Frame buffers.
+        let keys_main = self.buffer(device, "keys", key_bytes, U::STORAGE);
+        let keys_shadow = self.buffer(device, "shadow keys", shadow_key_bytes, U::STORAGE);
+        let gbuffer = self.buffer(
+            device,
+            "gbuffer",
+            pixels * GBUFFER_TEXEL_BYTES,
+            U::STORAGE | U::COPY_SRC,
+        );
+        let counters = self.buffer(
+            device,
+            "counters",
+            u64::from(COUNTER_WORDS) * 4,
+            U::STORAGE | U::COPY_SRC | U::COPY_DST,
+        );
+        let counters_read = self.buffer(
+            device,
+            "counters readback",
+            u64::from(COUNTER_WORDS) * 4,
+            U::MAP_READ | U::COPY_DST,
+        );
+        let indirect = self.buffer(
+            device,
+            "indirect",
+            u64::from(MAX_LEVELS) * 12,
+            U::STORAGE | U::INDIRECT,
+        );
+        let cap = scene.queue_capacity;
+        let queue_a = self.buffer(device, "queue a", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
+        let queue_b = self.buffer(device, "queue b", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
+
+        // Uniforms: views and per-dispatch node parameters.
+        let first_mode = if path == AtomicPath::Key64 {
+            MODE_KEY64
+        } else {
+            MODE_DEPTH
+        };
+        let view_main = upload(
+            "view",
+            bytemuck::bytes_of(&main.uniform(first_mode, lod)),
+            U::UNIFORM,
+        );
+        let view_main_id = upload(
+            "view id pass",
+            bytemuck::bytes_of(&main.uniform(MODE_ID, lod)),
+            U::UNIFORM,
+        );
+        let shadow_spec = shadow.map_or(main, |(_, v)| v);
+        let view_shadow = upload(
+            "shadow view",
+            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod)),
+            U::UNIFORM,
+        );
+        let mut slots: Vec<u8> = Vec::new();
+        let mut make_traversals = |spec: &ViewSpec, stats_base: u32| -> Vec<Traversal> {
+            scene
+                .voxels
+                .iter()
+                .map(|v| {
+                    let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
+                    let base = NodeParams::for_object(
+                        spec.view_from_world * v.world_from_voxel,
+                        v.world_from_voxel,
+                    );
+                    for level in 0..=u32::from(v.depth) {
+                        let p = NodeParams {
+                            level,
+                            node_size: 1u32 << (u32::from(v.depth) - level),
+                            leaf_level: u32::from(v.depth),
+                            queue_capacity: cap as u32,
+                            inner_base: v.inner_base,
+                            leaf_base: 0,
+                            attr_inner_base: v.attr_inner_base,
+                            attr_leaf_base: v.attr_leaf_base,
+                            stats_base,
+                            ..base
+                        };
+                        slots.extend_from_slice(bytemuck::bytes_of(&p));
+                        slots.resize(
+                            slots.len() + (NODE_PARAMS_STRIDE as usize - size_of::<NodeParams>()),
+                            0,
+                        );
+                    }
+                    Traversal {
+                        first_slot,
+                        depth: v.depth,
+                    }
+                })
+                .collect()
+        };
+        let main_trav = make_traversals(&main, STATS_START);
+        let shadow_trav = if shadow.is_some() {
+            make_traversals(&shadow_spec, STATS_START + MAX_LEVELS * STATS_PER_LEVEL)
+        } else {
+            Vec::new()
+        };
+        if slots.is_empty() {
+            slots.resize(NODE_PARAMS_STRIDE as usize, 0);
+        }
+        let params_buf = upload("node params", &slots, U::UNIFORM);
+        let clear_main = upload(
+            "clear keys",
+            bytemuck::bytes_of(&ClearParams {
+                count: (pixels * 2) as u32,
+                pad: [0; 3],
+            }),
+            U::UNIFORM,
+        );
+        let clear_shadow = upload(
+            "clear shadow keys",
+            bytemuck::bytes_of(&ClearParams {
+                count: u32::try_from(shadow_key_bytes / 4).unwrap_or(u32::MAX),
+                pad: [0; 3],
+            }),
+            U::UNIFORM,
+        );
+        let shading = ShadingUniform {
+            ambient: doc.ambient.extend(0.0).to_array(),
+            background: doc.background.extend(0.0).to_array(),
+            light_count: lights.len() as u32,
+            pcf_radius: quality.shadow_pcf_radius.min(8),
+            receiver_px: lod.max(1.0),
+            pad: 0,
+        };
+        let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
+
+        // Bind groups.
+        let trav0 = |view: &wgpu::Buffer, keys: &wgpu::Buffer| {
+            device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: Some("traverse 0"),
+                layout: &self.trav_bgl[0],
+                entries: &[
+                    wgpu::BindGroupEntry {
+                        binding: 0,
+                        resource: view.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 1,
+                        resource: counters.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 2,
+                        resource: inner_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 4,
+                        resource: keys.as_entire_binding(),
+                    },
+                ],
+            })
+        };
+        let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
+        let bg_main = trav0(&view_main, &keys_main);
+        let bg_main_id = trav0(&view_main_id, &keys_main);
+        let bg_shadow = trav0(&view_shadow, &keys_shadow);
+        let bg_params = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("node params"),
+            layout: &self.trav_bgl[1],
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                    buffer: &params_buf,
+                    offset: 0,
+                    size: wgpu::BufferSize::new(size_of::<NodeParams>() as u64),
+                }),
+            }],
+        });
+        let bg_ab = bind_group(
+            device,
+            &self.trav_bgl[2],
+            "queues a→b",
+            &[&queue_a, &queue_b],
+        );
+        let bg_ba = bind_group(
+            device,
+            &self.trav_bgl[2],
+            "queues b→a",
+            &[&queue_b, &queue_a],
+        );
+        let bg_clear_main = bind_group(
+            device,
+            &self.clear_bgl,
+            "clear keys",
+            &[&clear_main, &keys_main],
+        );
+        let bg_clear_shadow = bind_group(
+            device,
+            &self.clear_bgl,
+            "clear shadow",
+            &[&clear_shadow, &keys_shadow],
+        );
+        let bg_mesh_main = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh",
+            &[&view_main, &tri_buf, &keys_main],
+        );
+        let bg_mesh_main_id = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh id",
+            &[&view_main_id, &tri_buf, &keys_main],
+        );
+        let bg_mesh_shadow = bind_group(
+            device,
+            &self.mesh_bgl,
+            "mesh shadow",
+            &[&view_shadow, &tri_buf, &keys_shadow],
+        );
+        let bg_resolve = bind_group(
+            device,
+            &self.resolve_bgl,
+            "resolve",
+            &[
+                &view_main,
+                &keys_main,
+                &attr_buf,
+                &object_buf,
+                &tri_buf,
+                &gbuffer,
+            ],
+        );
+        let bg_shade = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("shade"),
+            layout: &self.shade_bgl,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: view_main.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: view_shadow.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 2,
+                    resource: shading_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 3,
+                    resource: light_buf.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 4,
+                    resource: gbuffer.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 5,
+                    resource: keys_shadow.as_entire_binding(),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 6,
+                    resource: wgpu::BindingResource::TextureView(&target.view),
+                },
+            ],
+        });
+        let main_attachment = self.attachment(device, w, h);
+        let shadow_attachment = self.attachment(device, sw, sh);
+
+        let mut ts = if self.caps.timestamps {
+            Some(Timestamps {
+                set: device.create_query_set(&wgpu::QuerySetDescriptor {
+                    label: Some("pass timestamps"),
+                    ty: wgpu::QueryType::Timestamp,
+                    count: MAX_TIMED_PASSES * 2,
+                }),
+                used: Vec::new(),
+            })
+        } else {
+            None
+        };
+
+        // Encoding, in pass order.
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("frame"),
+        });
+        enc.clear_buffer(&counters, 0, None);
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("clear"),
+                timestamp_writes: ts.as_mut().and_then(|t| t.compute("clear")),
+            });
+            pass.set_pipeline(&self.clear);
+            for (bg, words) in [
+                (&bg_clear_main, pixels * 2),
+                (&bg_clear_shadow, shadow_key_bytes / 4),
+            ] {
+                let groups = words.div_ceil(256);
+                let gx = groups.min(65535) as u32;
+                let gy = groups.div_ceil(u64::from(gx.max(1))) as u32;
+                pass.set_bind_group(0, bg, &[]);
+                pass.dispatch_workgroups(gx, gy, 1);
+            }
+        }
+        let mesh_pass = |enc: &mut wgpu::CommandEncoder,
+                         ts: &mut Option<Timestamps>,
+                         name: &'static str,
+                         pipeline: &wgpu::RenderPipeline,
+                         bg: &wgpu::BindGroup,
+                         attachment: &wgpu::TextureView,
+                         tris: u32| {
+            if tris == 0 {
+                return;
+            }
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(name),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: attachment,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: ts.as_mut().and_then(|t| t.render(name)),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, bg, &[]);
+            pass.draw(0..tris * 3, 0..1);
+        };
+        let traverse_pass = |enc: &mut wgpu::CommandEncoder,
+                             ts: &mut Option<Timestamps>,
+                             name: &'static str,
+                             pipeline: &wgpu::ComputePipeline,
+                             bg0: &wgpu::BindGroup,
+                             travs: &[Traversal]| {
+            if travs.is_empty() {
+                return;
+            }
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some(name),
+                timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
+            });
+            pass.set_bind_group(0, bg0, &[]);
+            pass.set_bind_group(3, &bg_indirect, &[]);
+            for t in travs {
+                let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
+                pass.set_pipeline(&self.seed);
+                pass.set_bind_group(1, &bg_params, &[slot(0)]);
+                pass.set_bind_group(2, &bg_ba, &[]);
+                pass.dispatch_workgroups(1, 1, 1);
+                for level in 0..=u32::from(t.depth) {
+                    pass.set_bind_group(1, &bg_params, &[slot(level)]);
+                    pass.set_pipeline(&self.prepare);
+                    pass.dispatch_workgroups(1, 1, 1);
+                    pass.set_pipeline(pipeline);
+                    pass.set_bind_group(2, if level % 2 == 0 { &bg_ab } else { &bg_ba }, &[]);
+                    pass.dispatch_workgroups_indirect(&indirect, u64::from(level) * 12);
+                }
+            }
+        };
+
+        if shadow.is_some() {
+            mesh_pass(
+                &mut enc,
+                &mut ts,
+                "shadow meshes",
+                &self.mesh32,
+                &bg_mesh_shadow,
+                &shadow_attachment,
+                scene.caster_tris,
+            );
+            traverse_pass(
+                &mut enc,
+                &mut ts,
+                "shadow voxels",
+                &self.traverse32,
+                &bg_shadow,
+                &shadow_trav,
+            );
+        }
+        let tri_count = scene.tri_count();
+        match (path, &self.mesh64, &self.traverse64) {
+            (AtomicPath::Key64, Some(mesh64), Some(trav64)) => {
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    mesh64,
+                    &bg_mesh_main,
+                    &main_attachment,
+                    tri_count,
+                );
+                traverse_pass(&mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav);
+            }
+            _ => {
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    &self.mesh32,
+                    &bg_mesh_main,
+                    &main_attachment,
+                    tri_count,
+                );
+                traverse_pass(
+                    &mut enc,
+                    &mut ts,
+                    "voxels",
+                    &self.traverse32,
+                    &bg_main,
+                    &main_trav,
+                );
+                mesh_pass(
+                    &mut enc,
+                    &mut ts,
+                    "meshes",
+                    &self.mesh32,
+                    &bg_mesh_main_id,
+                    &main_attachment,
+                    tri_count,
+                );
+                traverse_pass(
+                    &mut enc,
+                    &mut ts,
+                    "voxels",
+                    &self.traverse32,
+                    &bg_main_id,
+                    &main_trav,
+                );
+            }
+        }
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("resolve"),
+                timestamp_writes: ts.as_mut().and_then(|t| t.compute("resolve")),
+            });
+            pass.set_pipeline(&self.resolve);
+            pass.set_bind_group(0, &bg_resolve, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        {
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                label: Some("shade"),
+                timestamp_writes: ts.as_mut().and_then(|t| t.compute("shade")),
+            });
+            pass.set_pipeline(&self.shade);
+            pass.set_bind_group(0, &bg_shade, &[]);
+            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        enc.copy_buffer_to_buffer(
+            &counters,
+            0,
+            &counters_read,
+            0,
+            u64::from(COUNTER_WORDS) * 4,
+        );
+        let ts_read = ts.as_ref().filter(|t| !t.used.is_empty()).map(|t| {
+            let n = t.used.len() as u32 * 2;
+            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps"),
+                size: u64::from(n) * 8,
+                usage: U::QUERY_RESOLVE | U::COPY_SRC,
+                mapped_at_creation: false,
+            });
+            let read = device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("timestamps readback"),
+                size: u64::from(n) * 8,
+                usage: U::MAP_READ | U::COPY_DST,
+                mapped_at_creation: false,
+            });
+            enc.resolve_query_set(&t.set, 0..n, &resolve, 0);
+            enc.copy_buffer_to_buffer(&resolve, 0, &read, 0, u64::from(n) * 8);
+            read
+        });
+        queue.submit([enc.finish()]);
+
+        // Read back the counters (and timestamps).
+        let raw = map_read(device, &counters_read)?;
+        let words: &[u32] = bytemuck::cast_slice(&raw);
+        let levels_of = |base: u32| -> Vec<GpuLevelStats> {
+            let mut v: Vec<GpuLevelStats> = (0..MAX_LEVELS)
+                .map(|l| {
+                    let i = (base + l * STATS_PER_LEVEL) as usize;
+                    GpuLevelStats {
+                        visited: u64::from(words[i]),
+                        split: u64::from(words[i + 1]),
+                        splatted: u64::from(words[i + 2]),
+                        frustum_culled: u64::from(words[i + 3]),
+                    }
+                })
+                .collect();
+            while v.last().is_some_and(|l| l.visited == 0) {
+                v.pop();
+            }
+            v
+        };
+        let levels = levels_of(STATS_START);
+        let mut stats = GpuFrameStats {
+            splats: levels.iter().map(|l| l.splatted).sum(),
+            levels,
+            shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
+            queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+            triangles: u64::from(tri_count),
+            atomic_path: path,
+            ..GpuFrameStats::default()
+        };
+        if let (Some(t), Some(read)) = (&ts, ts_read) {
+            let raw = map_read(device, &read)?;
+            let ticks: &[u64] = bytemuck::cast_slice(&raw);
+            let period_ns = f64::from(queue.get_timestamp_period());
+            for timed in &t.used {
+                let q = timed.first_query as usize;
+                let ms = ticks[q + 1].saturating_sub(ticks[q]) as f64 * period_ns * 1e-6;
+                match stats.pass_ms.iter_mut().find(|(n, _)| *n == timed.name) {
+                    Some((_, acc)) => *acc += ms,
+                    None => stats.pass_ms.push((timed.name, ms)),
+                }
+            }
+            stats.gpu_timestamps = true;
+        }
+        Ok(stats)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn light_camera_holds_the_box() {
+        let (lo, hi) = (Vec3::new(-1.0, 0.0, -2.0), Vec3::new(3.0, 1.0, 0.5));
+        let v = ViewSpec::fit_light(Vec3::new(-0.4, -1.0, -0.3), lo, hi, 256).expect("direction");
+        let clip = v.clip_from_view * v.view_from_world;
+        for k in 0..8 {
+            let c = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            );
+            let ndc = clip.project_point3(c);
+            assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "{ndc}");
+            assert!((0.0..=1.0).contains(&ndc.z), "{ndc}");
+        }
+        assert!(ViewSpec::fit_light(Vec3::ZERO, lo, hi, 256).is_none());
+    }
+}

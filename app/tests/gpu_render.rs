@@ -1,0 +1,499 @@
+//! GPU renderer tests on whatever adapter is present (lavapipe in CI): never skipped — no
+//! adapter is a failure.
+
+use glam::{Mat3, UVec3, Vec3, Vec4};
+use thicket::gpu::{
+    AtomicPath, GpuContext, GpuError, GpuFrameStats, RenderTarget, Renderer, read_rgba8,
+};
+use thicket_core::mesh::{Material, MeshModel, TriangleMesh, unit_cube};
+use thicket_core::render::Quality;
+use thicket_core::scene::{Document, MeshObject, ObjectKind, OrbitCamera, Transform, VoxelModel};
+use thicket_core::svo::{Svo, Voxel};
+
+const SPHERE_RGB: [u8; 3] = [200, 80, 40];
+
+fn context() -> GpuContext {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
+        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    eprintln!("adapter: {}", ctx.describe());
+    ctx
+}
+
+/// A one-voxel-thick sphere shell in a `2^depth` grid, scaled to radius `0.9` world units at
+/// the origin.
+fn sphere_model(depth: u8) -> VoxelModel {
+    let n = 1u32 << depth;
+    let c = Vec3::splat(n as f32 * 0.5);
+    let r = n as f32 * 0.45;
+    let svo = Svo::from_fn(
+        depth,
+        false,
+        |origin, size| {
+            let lo = origin.as_vec3();
+            let hi = lo + Vec3::splat(size as f32);
+            let nearest = c.clamp(lo, hi).distance(c);
+            let farthest = (c - lo).abs().max((c - hi).abs()).length();
+            nearest <= r + 1.0 && farthest >= r - 1.0
+        },
+        |v: UVec3| {
+            let p = v.as_vec3() + 0.5 - c;
+            ((p.length() - r).abs() <= 0.87).then(|| {
+                Voxel::new(
+                    [SPHERE_RGB[0], SPHERE_RGB[1], SPHERE_RGB[2], 255],
+                    p.normalize_or_zero(),
+                )
+            })
+        },
+    )
+    .expect("valid depth");
+    VoxelModel {
+        svo,
+        voxel_size: 2.0 / n as f32,
+        origin: Vec3::splat(-1.0),
+        ..VoxelModel::default()
+    }
+}
+
+fn camera() -> OrbitCamera {
+    OrbitCamera {
+        target: Vec3::ZERO,
+        yaw_deg: 30.0,
+        pitch_deg: 20.0,
+        distance: 4.0,
+        fov_y_deg: 45.0,
+        near: 0.1,
+        far: 20.0,
+    }
+}
+
+fn sphere_doc(depth: u8) -> Document {
+    let mut doc = Document::default();
+    doc.add("sphere", ObjectKind::Voxels(sphere_model(depth)));
+    doc.camera = camera();
+    doc
+}
+
+fn plane(size: f32, y: f32, color: Vec4) -> MeshModel {
+    let h = size * 0.5;
+    MeshModel {
+        parts: vec![TriangleMesh {
+            positions: vec![
+                Vec3::new(-h, y, -h),
+                Vec3::new(h, y, -h),
+                Vec3::new(h, y, h),
+                Vec3::new(-h, y, h),
+            ],
+            normals: vec![Vec3::Y; 4],
+            indices: vec![0, 2, 1, 0, 3, 2],
+            ..TriangleMesh::default()
+        }],
+        materials: vec![Material {
+            base_color: color,
+            ..Material::default()
+        }],
+    }
+}
+
+struct Frame {
+    rgba: Vec<u8>,
+    gbuffer: thicket::gpu::GBuffer,
+    stats: GpuFrameStats,
+}
+
+fn render(
+    ctx: &GpuContext,
+    doc: &Document,
+    size: u32,
+    quality: &Quality,
+    force_two_pass: bool,
+) -> Frame {
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    r.set_force_two_pass(force_two_pass);
+    let target = RenderTarget::new(&ctx.device, size, size).expect("target");
+    let stats = r
+        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
+        .expect("frame renders");
+    let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    let gbuffer = r.read_gbuffer(&ctx.device, &ctx.queue).expect("gbuffer");
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    Frame {
+        rgba,
+        gbuffer,
+        stats,
+    }
+}
+
+/// Distance from the sphere centre (origin) to the ray through a pixel centre, and the
+/// distance along the ray to the centre's foot point.
+fn ray_distance(cam: &OrbitCamera, size: u32, x: u32, y: u32) -> (f32, f32) {
+    let f = 0.5 * size as f32 / (0.5 * cam.fov_y_deg.to_radians()).tan();
+    let dir_view = Vec3::new(
+        (x as f32 + 0.5 - 0.5 * size as f32) / f,
+        (0.5 * size as f32 - y as f32 - 0.5) / f,
+        -1.0,
+    );
+    let world_from_view = cam.view_from_world().inverse();
+    let dir = (Mat3::from_mat4(world_from_view) * dir_view).normalize_or_zero();
+    let eye = cam.eye();
+    let to_c = -eye;
+    let along = to_c.dot(dir);
+    ((to_c - dir * along).length(), along)
+}
+
+#[test]
+fn adapter_and_atomic_path_are_reported() {
+    let ctx = context();
+    let r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let caps = r.capabilities();
+    eprintln!(
+        "int64 atomics: {}, timestamps: {}",
+        caps.int64_atomics, caps.timestamps
+    );
+    assert_eq!(
+        r.atomic_path(),
+        if caps.int64_atomics {
+            AtomicPath::Key64
+        } else {
+            AtomicPath::TwoPass32
+        }
+    );
+    assert!(ctx.errors.take().is_none());
+}
+
+#[test]
+fn sphere_silhouette_matches_the_analytic_projection() {
+    let ctx = context();
+    let doc = sphere_doc(7);
+    let size = 128;
+    let q = Quality::default();
+    let frame = render(&ctx, &doc, size, &q, false);
+    let cam = doc.camera;
+    let f = 0.5 * size as f32 / (0.5 * cam.fov_y_deg.to_radians()).tan();
+    let voxel = 2.0 / 128.0;
+    let (r_in, r_out) = (0.9 - voxel, 0.9 + voxel);
+    let (mut inside, mut outside, mut wrong) = (0, 0, Vec::new());
+    for y in 0..size {
+        for x in 0..size {
+            let (d, along) = ray_distance(&cam, size, x, y);
+            let px = along / f; // world size of a pixel at the sphere's distance
+            let covered = frame.gbuffer.depth[(y * size + x) as usize].is_finite();
+            if d < r_in - 1.0 * px {
+                inside += 1;
+                if !covered {
+                    wrong.push((x, y, d));
+                }
+            } else if d > r_out + 1.0 * px {
+                outside += 1;
+                if covered {
+                    wrong.push((x, y, d));
+                }
+            }
+        }
+    }
+    assert!(inside > 3000 && outside > 3000, "{inside} {outside}");
+    assert!(
+        wrong.is_empty(),
+        "{} pixels disagree: {:?}",
+        wrong.len(),
+        &wrong[..wrong.len().min(10)]
+    );
+    // Every covered pixel: finite depth in 0..1, unit normal, the sphere's albedo.
+    let albedo = Vec3::new(
+        thicket_core::mesh::srgb_to_linear(f32::from(SPHERE_RGB[0]) / 255.0),
+        thicket_core::mesh::srgb_to_linear(f32::from(SPHERE_RGB[1]) / 255.0),
+        thicket_core::mesh::srgb_to_linear(f32::from(SPHERE_RGB[2]) / 255.0),
+    );
+    for i in 0..(size * size) as usize {
+        let d = frame.gbuffer.depth[i];
+        if d.is_finite() {
+            assert!((0.0..=1.0).contains(&d), "depth {d}");
+            let n = frame.gbuffer.normal[i];
+            assert!((n.length() - 1.0).abs() < 2e-3, "normal {n}");
+            assert!((frame.gbuffer.albedo[i] - albedo).abs().max_element() < 2e-3);
+        }
+    }
+    assert!(frame.stats.splats > 0);
+    assert_eq!(frame.stats.queue_overflow, 0);
+}
+
+#[test]
+fn depth_agrees_with_the_analytic_sphere() {
+    // Where the view ray hits the sphere squarely, the splat depth is the near-side surface:
+    // within a voxel (plus a pixel's footprint) of the ray/sphere intersection.
+    let ctx = context();
+    let doc = sphere_doc(7);
+    let size = 96;
+    let frame = render(&ctx, &doc, size, &Quality::default(), false);
+    let cam = doc.camera;
+    let (near, far) = (cam.near, cam.far);
+    let view_depth = |ndc: f32| near / (1.0 - ndc * (far - near) / far);
+    let mut checked = 0;
+    for y in 0..size {
+        for x in 0..size {
+            let (d, along) = ray_distance(&cam, size, x, y);
+            if d > 0.6 {
+                continue;
+            }
+            let t_hit = along - (0.9f32 * 0.9 - d * d).sqrt();
+            // View depth = t · cos(angle to the optical axis).
+            let (dx, dy) = (
+                (x as f32 + 0.5 - 0.5 * size as f32),
+                (0.5 * size as f32 - y as f32 - 0.5),
+            );
+            let f = 0.5 * size as f32 / (0.5 * cam.fov_y_deg.to_radians()).tan();
+            let cos = f / (dx * dx + dy * dy + f * f).sqrt();
+            let expect = t_hit * cos;
+            let got = view_depth(frame.gbuffer.depth[(y * size + x) as usize]);
+            assert!(
+                (got - expect).abs() < 0.05,
+                "pixel {x},{y}: {got} vs {expect}"
+            );
+            checked += 1;
+        }
+    }
+    assert!(checked > 500, "{checked}");
+}
+
+#[test]
+fn both_atomic_paths_give_the_same_image() {
+    let ctx = context();
+    let mut doc = sphere_doc(7);
+    let mut cube = unit_cube();
+    cube.colors = vec![Vec4::new(0.1, 0.2, 0.9, 1.0); cube.positions.len()];
+    doc.add(
+        "cube",
+        ObjectKind::Mesh(MeshObject {
+            model: MeshModel {
+                parts: vec![cube],
+                materials: Vec::new(),
+            },
+            casts_shadows: true,
+        }),
+    );
+    if let Some(o) = doc.objects.last_mut() {
+        o.transform = Transform {
+            translation: Vec3::new(0.5, 0.2, 0.9),
+            ..Transform::default()
+        };
+    }
+    let q = Quality::default();
+    let two_pass = render(&ctx, &doc, 96, &q, true);
+    assert_eq!(two_pass.stats.atomic_path, AtomicPath::TwoPass32);
+    let r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    if r.capabilities().int64_atomics {
+        let key64 = render(&ctx, &doc, 96, &q, false);
+        assert_eq!(key64.stats.atomic_path, AtomicPath::Key64);
+        assert_eq!(key64.stats.levels, two_pass.stats.levels);
+        assert!(key64.rgba == two_pass.rgba, "images differ");
+        assert!(key64.gbuffer == two_pass.gbuffer, "G-buffers differ");
+    } else {
+        panic!(
+            "this adapter has no SHADER_INT64_ATOMIC_MIN_MAX: the 64-bit path cannot be tested here"
+        );
+    }
+}
+
+#[test]
+fn splat_count_is_resolution_bound() {
+    // The same sphere at 8× the voxel resolution (depth 9 vs 6; a depth-12 shell has ~80M
+    // leaves, too many for a test) draws about as many splats: LOD follows pixels.
+    let ctx = context();
+    let q = Quality::default();
+    let mut doc_lo = sphere_doc(6);
+    let mut doc_hi = sphere_doc(9);
+    // A small image so that depth-6 leaves are already below one pixel.
+    for d in [&mut doc_lo, &mut doc_hi] {
+        d.camera.distance = 6.0;
+    }
+    let lo = render(&ctx, &doc_lo, 40, &q, false).stats.splats as f64;
+    let hi = render(&ctx, &doc_hi, 40, &q, false).stats.splats as f64;
+    eprintln!("splats depth 6: {lo}, depth 9: {hi}");
+    assert!(lo > 100.0);
+    assert!(
+        (hi / lo - 1.0).abs() <= 0.10,
+        "depth 6: {lo}, depth 9: {hi}"
+    );
+}
+
+fn mixed_doc(with_sphere: bool, with_cube: bool) -> Document {
+    let mut doc = Document {
+        camera: camera(),
+        ..Document::default()
+    };
+    if with_sphere {
+        doc.add("sphere", ObjectKind::Voxels(sphere_model(7)));
+    }
+    doc.add(
+        "ground",
+        ObjectKind::Mesh(MeshObject {
+            model: plane(6.0, -0.9, Vec4::new(0.5, 0.5, 0.5, 1.0)),
+            casts_shadows: true,
+        }),
+    );
+    if with_cube {
+        let mut cube = unit_cube();
+        cube.colors = vec![Vec4::new(0.1, 0.2, 0.9, 1.0); cube.positions.len()];
+        doc.add(
+            "cube",
+            ObjectKind::Mesh(MeshObject {
+                model: MeshModel {
+                    parts: vec![cube],
+                    materials: Vec::new(),
+                },
+                casts_shadows: true,
+            }),
+        );
+        if let Some(o) = doc.objects.last_mut() {
+            o.transform = Transform {
+                translation: Vec3::new(0.6, 0.1, 1.0),
+                ..Transform::default()
+            };
+        }
+    }
+    doc
+}
+
+#[derive(Clone, Copy, PartialEq, Debug)]
+enum Surface {
+    Empty,
+    Sphere,
+    Ground,
+    Cube,
+}
+
+fn classify(g: &thicket::gpu::GBuffer) -> Vec<Surface> {
+    (0..g.depth.len())
+        .map(|i| {
+            if !g.depth[i].is_finite() {
+                return Surface::Empty;
+            }
+            let a = g.albedo[i];
+            if a.z > 0.7 {
+                Surface::Cube
+            } else if (a.x - a.y).abs() < 0.01 {
+                Surface::Ground
+            } else {
+                Surface::Sphere
+            }
+        })
+        .collect()
+}
+
+#[test]
+fn meshes_and_voxels_occlude_each_other_and_cast_shadows() {
+    let ctx = context();
+    let q = Quality::default();
+    let size = 128;
+    let full = render(&ctx, &mixed_doc(true, true), size, &q, false);
+    let no_cube = render(&ctx, &mixed_doc(true, false), size, &q, false);
+    let ground_only = render(&ctx, &mixed_doc(false, false), size, &q, false);
+    let (f, nc, g) = (
+        classify(&full.gbuffer),
+        classify(&no_cube.gbuffer),
+        classify(&ground_only.gbuffer),
+    );
+    let n = f.len();
+    let count = |v: &[Surface], s: Surface| v.iter().filter(|&&x| x == s).count();
+    for (name, v) in [("full", &f), ("no cube", &nc), ("ground only", &g)] {
+        eprintln!(
+            "{name}: empty {} sphere {} ground {} cube {}",
+            count(v, Surface::Empty),
+            count(v, Surface::Sphere),
+            count(v, Surface::Ground),
+            count(v, Surface::Cube)
+        );
+    }
+    // Mesh in front of voxels.
+    let cube_over_sphere = (0..n)
+        .filter(|&i| f[i] == Surface::Cube && nc[i] == Surface::Sphere)
+        .count();
+    // Voxels in front of a mesh.
+    let sphere_over_ground = (0..n)
+        .filter(|&i| nc[i] == Surface::Sphere && g[i] == Surface::Ground)
+        .count();
+    assert!(cube_over_sphere > 50, "{cube_over_sphere}");
+    assert!(sphere_over_ground > 500, "{sphere_over_ground}");
+    // The ground is flat and lit by one directional light: without shadows its brightness is
+    // nearly uniform; with shadows the sphere darkens part of it.
+    let luminance = |rgba: &[u8], i: usize| u32::from(rgba[4 * i]) + u32::from(rgba[4 * i + 1]);
+    let ground_px: Vec<usize> = (0..n).filter(|&i| nc[i] == Surface::Ground).collect();
+    let lit = ground_px
+        .iter()
+        .map(|&i| luminance(&no_cube.rgba, i))
+        .max()
+        .unwrap_or(0);
+    let shadowed = ground_px
+        .iter()
+        .filter(|&&i| luminance(&no_cube.rgba, i) * 10 < lit * 6)
+        .count();
+    assert!(shadowed > 100, "shadowed ground pixels: {shadowed}");
+    let mut q_off = q.clone();
+    q_off.shadows = false;
+    let unshadowed = render(&ctx, &mixed_doc(true, false), size, &q_off, false);
+    let dark = ground_px
+        .iter()
+        .filter(|&&i| luminance(&unshadowed.rgba, i) * 10 < lit * 6)
+        .count();
+    assert_eq!(dark, 0);
+    assert!(full.stats.shadow_levels.iter().any(|l| l.splatted > 0));
+    assert_eq!(full.stats.triangles, 14);
+}
+
+#[test]
+fn bad_inputs_are_errors_not_panics() {
+    let ctx = context();
+    assert!(matches!(
+        RenderTarget::new(&ctx.device, 0, 16),
+        Err(GpuError::BadSize { .. })
+    ));
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let target = RenderTarget::new(&ctx.device, 8, 8).expect("target");
+    let doc = sphere_doc(4);
+    let q = Quality {
+        lod_pixel_threshold: f32::NAN,
+        ..Quality::default()
+    };
+    assert!(matches!(
+        r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target),
+        Err(GpuError::InvalidQuality(_))
+    ));
+    let mut cam = doc.camera;
+    cam.near = -1.0;
+    assert!(matches!(
+        r.render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &cam,
+            &Quality::default(),
+            &target
+        ),
+        Err(GpuError::InvalidDocument(_))
+    ));
+    // An empty document renders the background.
+    let empty = Document::default();
+    let stats = r
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &empty,
+            &empty.camera,
+            &Quality::default(),
+            &target,
+        )
+        .expect("empty frame");
+    assert_eq!(stats.splats, 0);
+    let img = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    assert!(img.chunks(4).all(|p| p == img[..4].as_ref()));
+    assert!(ctx.errors.take().is_none());
+}
+
+#[test]
+fn render_document_to_image_works_headless() {
+    let doc = sphere_doc(6);
+    let (img, stats) =
+        thicket::gpu::render_document_to_image(&doc, 64, 48, &Quality::default()).expect("frame");
+    assert_eq!(img.len(), 64 * 48 * 4);
+    assert!(stats.splats > 0);
+    assert!(stats.total_ms > 0.0);
+}

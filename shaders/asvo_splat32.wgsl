@@ -1,0 +1,32 @@
+// ASVO traversal with the two-pass 32-bit splat (adapters without 64-bit atomics, and shadow
+// maps, which need depth only). The key buffer has the 64-bit layout as two u32 per pixel:
+// [2p] = id, [2p + 1] = depth bits. MODE_DEPTH: atomicMin the depth. MODE_ID (a second full
+// traversal after every depth write of the frame): atomicMin the id where the stored depth
+// equals ours, which picks the same winner as the 64-bit minimum.
+// #import common/asvo.wgsl
+
+@group(0) @binding(4) var<storage, read_write> keys: array<atomic<u32>>;
+
+@compute @workgroup_size(64)
+fn traverse(
+    @builtin(workgroup_id) wid: vec3<u32>,
+    @builtin(num_workgroups) nwg: vec3<u32>,
+    @builtin(local_invocation_index) lid: u32,
+) {
+    let v = visit(invocation_index(wid, nwg, lid));
+    if v.kind == VISIT_SPLAT {
+        for (var y = v.rect.y; y <= v.rect.w; y++) {
+            for (var x = v.rect.x; x <= v.rect.z; x++) {
+                let p = y * view.size.x + x;
+                if view.write_mode == MODE_ID {
+                    if atomicLoad(&keys[2u * p + 1u]) == v.depth_bits {
+                        atomicMin(&keys[2u * p], v.id);
+                    }
+                } else {
+                    atomicMin(&keys[2u * p + 1u], v.depth_bits);
+                }
+            }
+        }
+    }
+    flush_stats(lid);
+}

@@ -1,0 +1,155 @@
+// ASVO traversal (paper §4, Fig. 8): one octree level per dispatch. Each invocation takes one
+// queued node, places it in view space with its object's transform, culls it against the
+// frustum, then either queues its children for the next level (projected edge above the LOD
+// threshold and it has children) or returns the splat: the pixel rectangle of its projected
+// box at the NDC depth of its nearest point. Mirrors core::render's CPU traversal.
+// #import common/types.wgsl
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read_write> counters: array<atomic<u32>>;
+// Inner nodes of every object: x = first child (object-local), y = child mask.
+@group(0) @binding(2) var<storage, read> inner_nodes: array<vec2<u32>>;
+@group(1) @binding(0) var<uniform> params: NodeParams;
+// Queue entries: x = node index (object-local; inner pool, or leaf pool at the leaf level),
+// yzw = the node's minimum corner in voxel coordinates.
+@group(2) @binding(0) var<storage, read> queue_in: array<vec4<u32>>;
+@group(2) @binding(1) var<storage, read_write> queue_out: array<vec4<u32>>;
+
+const VISIT_NONE: u32 = 0u;
+const VISIT_SPLAT: u32 = 1u;
+const WORKGROUP: u32 = 64u;
+
+// Per-workgroup counters (visited, split, splatted, frustum culled), flushed once per group.
+var<workgroup> wg_stats: array<atomic<u32>, 4>;
+
+struct Visit {
+    kind: u32,
+    // Inclusive pixel rectangle x0, y0, x1, y1.
+    rect: vec4<u32>,
+    depth_bits: u32,
+    id: u32,
+}
+
+// Pixels whose centres lie in [s0, s1], or the one under the centre when none do (sub-pixel
+// nodes never vanish), clamped to the image.
+fn pixel_span(s0: f32, s1: f32, n: u32) -> vec2<u32> {
+    let max_px = f32(n) - 1.0;
+    var a = ceil(s0 - 0.5);
+    var b = floor(s1 - 0.5);
+    if b < a {
+        a = floor(0.5 * (s0 + s1));
+        b = a;
+    }
+    return vec2<u32>(u32(clamp(a, 0.0, max_px)), u32(clamp(b, 0.0, max_px)));
+}
+
+fn count_stat(k: u32) {
+    if view.write_mode != MODE_ID {
+        atomicAdd(&wg_stats[k], 1u);
+    }
+}
+
+fn push_children(entry: vec4<u32>) {
+    let node = inner_nodes[params.inner_base + entry.x];
+    let mask = node.y & 0xffu;
+    let n = countOneBits(mask);
+    let base = atomicAdd(&counters[QUEUE_COUNTS + params.level + 1u], n);
+    let half = params.node_size / 2u;
+    var r = 0u;
+    for (var k = 0u; k < 8u; k++) {
+        if (mask & (1u << k)) == 0u {
+            continue;
+        }
+        let slot = base + r;
+        if slot < params.queue_capacity {
+            let offset = vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u) * half;
+            queue_out[slot] = vec4<u32>(node.x + r, entry.yzw + offset);
+        } else {
+            atomicAdd(&counters[OVERFLOW_COUNTER], 1u);
+        }
+        r++;
+    }
+}
+
+// Processes queue entry `i` of the current level.
+fn visit(i: u32) -> Visit {
+    var out: Visit;
+    out.kind = VISIT_NONE;
+    let queued = min(atomicLoad(&counters[QUEUE_COUNTS + params.level]), params.queue_capacity);
+    if i >= queued {
+        return out;
+    }
+    count_stat(0u);
+    let entry = queue_in[i];
+    let size = f32(params.node_size);
+    let center_voxel = vec3<f32>(entry.yzw) + vec3<f32>(0.5 * size);
+    let c = params.linear_x.xyz * center_voxel.x + params.linear_y.xyz * center_voxel.y
+        + params.linear_z.xyz * center_voxel.z + params.translation_edge.xyz;
+    let he = params.half_extent_unit.xyz * size;
+    let edge_world = params.translation_edge.w * size;
+    let d = -c.z;
+    let d_near = d - he.z;
+    let d_far = d + he.z;
+    if d_far <= view.near || d_near > view.far {
+        count_stat(3u);
+        return out;
+    }
+    let w = f32(view.size.x);
+    let h = f32(view.size.y);
+    let perspective = view.perspective != 0u;
+    let crosses_near = perspective && d_near < view.near;
+    let dn = max(d_near, view.near);
+    var lo = c.xy - he.xy;
+    var hi = c.xy + he.xy;
+    var edge_px = edge_world * max(view.fx, view.fy);
+    if perspective {
+        // Extremes of x/d over the box lie at its nearest (clamped) or farthest depth.
+        let l = min(lo / dn, lo / d_far);
+        let u = max(hi / dn, hi / d_far);
+        lo = l;
+        hi = u;
+        edge_px = edge_world * view.fy / dn;
+    }
+    let sx0 = 0.5 * w + view.fx * lo.x;
+    let sx1 = 0.5 * w + view.fx * hi.x;
+    let sy0 = 0.5 * h - view.fy * hi.y;
+    let sy1 = 0.5 * h - view.fy * lo.y;
+    if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
+        count_stat(3u);
+        return out;
+    }
+    let has_children = params.level < params.leaf_level;
+    if has_children && (crosses_near || edge_px > view.lod_pixel_threshold) {
+        count_stat(1u);
+        push_children(entry);
+        return out;
+    }
+    count_stat(2u);
+    let xs = pixel_span(sx0, sx1, view.size.x);
+    let ys = pixel_span(sy0, sy1, view.size.y);
+    out.kind = VISIT_SPLAT;
+    out.rect = vec4<u32>(xs.x, ys.x, xs.y, ys.y);
+    out.depth_bits = bitcast<u32>(clamp(ndc_depth(view, dn), 0.0, 1.0));
+    if has_children {
+        out.id = params.attr_inner_base + entry.x;
+    } else {
+        out.id = params.attr_leaf_base + entry.x;
+    }
+    return out;
+}
+
+// Linear invocation index of a 2D indirect dispatch (x is capped at 65535 groups).
+fn invocation_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
+    return (wid.y * nwg.x + wid.x) * WORKGROUP + lid;
+}
+
+// Adds the workgroup's counters to the level's totals (call in uniform control flow).
+fn flush_stats(lid: u32) {
+    workgroupBarrier();
+    if lid < 4u {
+        let s = atomicLoad(&wg_stats[lid]);
+        if s > 0u {
+            atomicAdd(&counters[params.stats_base + 4u * params.level + lid], s);
+        }
+    }
+}

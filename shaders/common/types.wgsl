@@ -1,0 +1,185 @@
+// Shared constants, structs and helpers for every pass.
+// Keep in sync with app/src/gpu/gpu_data.rs (sizes are asserted there).
+
+// An empty pixel: both halves of the packed key are all ones (depth bits above any finite
+// depth in 0..1, id above any id), so an atomic minimum replaces it with the first splat.
+const EMPTY: u32 = 0xffffffffu;
+// Ids with this bit set are triangles (bits 0..30: triangle index); below it, voxel attribute
+// indices (paper's node id).
+const MESH_ID_FLAG: u32 = 0x80000000u;
+
+// How splats and fragments write the key buffer (View::write_mode).
+// 64-bit path: one atomicMin of (depth << 32 | id).
+const MODE_KEY64: u32 = 0u;
+// 32-bit path, pass 1 (and shadow maps): atomicMin of the depth bits.
+const MODE_DEPTH: u32 = 1u;
+// 32-bit path, pass 2: atomicMin of the id where the stored depth equals ours.
+const MODE_ID: u32 = 2u;
+
+// Counter buffer layout (array<atomic<u32>>).
+const QUEUE_COUNTS: u32 = 0u;   // 32 entries: nodes queued for each level
+const OVERFLOW_COUNTER: u32 = 32u; // children dropped because a queue was full
+const MAX_LEVELS: u32 = 32u;
+
+// A camera with its image size (the view, or a light's shadow camera).
+struct View {
+    view_from_world: mat4x4<f32>,
+    clip_from_world: mat4x4<f32>,
+    world_from_view: mat4x4<f32>,
+    size: vec2<u32>,
+    perspective: u32,
+    write_mode: u32,
+    // Pixels per view unit at view depth 1 (perspective) or per unit (orthographic).
+    fx: f32,
+    fy: f32,
+    near: f32,
+    far: f32,
+    lod_pixel_threshold: f32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// One traversal dispatch: an object seen from a view, at one octree level.
+struct NodeParams {
+    // Columns of the linear part of view_from_voxel.
+    linear_x: vec4<f32>,
+    linear_y: vec4<f32>,
+    linear_z: vec4<f32>,
+    // xyz: translation of view_from_voxel; w: longest world edge of a 1-voxel node.
+    translation_edge: vec4<f32>,
+    // View-space AABB half extent of a 1-voxel node.
+    half_extent_unit: vec4<f32>,
+    level: u32,
+    node_size: u32,
+    leaf_level: u32,
+    queue_capacity: u32,
+    inner_base: u32,
+    leaf_base: u32,
+    attr_inner_base: u32,
+    attr_leaf_base: u32,
+    stats_base: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+// Per-object constants the resolve pass needs.
+struct ObjectInfo {
+    // Columns of the inverse transpose of world_from_voxel's linear part.
+    normal_x: vec4<f32>,
+    normal_y: vec4<f32>,
+    normal_z: vec4<f32>,
+}
+
+// One directional light.
+struct LightGpu {
+    // xyz: unit vector toward the light; w: 1 when it uses the shadow map.
+    to_light: vec4<f32>,
+    // Linear colour × intensity.
+    color: vec4<f32>,
+}
+
+// Deferred-shading constants.
+struct Shading {
+    ambient: vec4<f32>,
+    background: vec4<f32>,
+    light_count: u32,
+    pcf_radius: u32,
+    // max(1, lod pixel threshold): the receiver's splat size in pixels, for the shadow bias.
+    receiver_px: f32,
+    _pad0: u32,
+}
+
+// NDC depth (0 near, 1 far) of a view depth.
+fn ndc_depth(v: View, view_depth: f32) -> f32 {
+    if v.perspective != 0u {
+        return v.far / (v.far - v.near) * (1.0 - v.near / view_depth);
+    }
+    return (view_depth - v.near) / (v.far - v.near);
+}
+
+// Inverse of ndc_depth.
+fn view_depth_of(v: View, ndc: f32) -> f32 {
+    if v.perspective != 0u {
+        return v.near / (1.0 - ndc * (v.far - v.near) / v.far);
+    }
+    return v.near + ndc * (v.far - v.near);
+}
+
+// Screen position (pixels, row 0 at the top) and view depth of a view-space point.
+fn project_view(v: View, p_view: vec3<f32>) -> vec3<f32> {
+    let d = -p_view.z;
+    var s = p_view.xy;
+    if v.perspective != 0u {
+        s = p_view.xy / d;
+    }
+    let size = vec2<f32>(v.size);
+    return vec3<f32>(0.5 * size.x + v.fx * s.x, 0.5 * size.y - v.fy * s.y, d);
+}
+
+// World position of a screen point at an NDC depth.
+fn unproject(v: View, screen: vec2<f32>, ndc: f32) -> vec3<f32> {
+    let d = view_depth_of(v, ndc);
+    let size = vec2<f32>(v.size);
+    let sx = (screen.x - 0.5 * size.x) / v.fx;
+    let sy = (0.5 * size.y - screen.y) / v.fy;
+    var p_view = vec3<f32>(sx, sy, -d);
+    if v.perspective != 0u {
+        p_view = vec3<f32>(sx * d, sy * d, -d);
+    }
+    return (v.world_from_view * vec4<f32>(p_view, 1.0)).xyz;
+}
+
+// World size of one pixel at a view depth.
+fn pixel_world_size(v: View, view_depth: f32) -> f32 {
+    if v.perspective != 0u {
+        return abs(view_depth) / v.fy;
+    }
+    return 1.0 / min(v.fx, v.fy);
+}
+
+fn oct_wrap(p: vec2<f32>) -> vec2<f32> {
+    let s = select(vec2<f32>(-1.0), vec2<f32>(1.0), p >= vec2<f32>(0.0));
+    return (vec2<f32>(1.0) - abs(p.yx)) * s;
+}
+
+// Inverse of core::svo::encode_normal (8+8-bit octahedral).
+fn decode_normal(e: u32) -> vec3<f32> {
+    let p = vec2<f32>(f32(e & 0xffu), f32((e >> 8u) & 0xffu)) / 255.0 * 2.0 - 1.0;
+    let z = 1.0 - abs(p.x) - abs(p.y);
+    var xy = p;
+    if z < 0.0 {
+        xy = oct_wrap(p);
+    }
+    let n = vec3<f32>(xy, z);
+    let len = length(n);
+    if len > 0.0 {
+        return n / len;
+    }
+    return vec3<f32>(0.0, 0.0, 1.0);
+}
+
+fn srgb_to_linear(c: f32) -> f32 {
+    if c <= 0.04045 {
+        return c / 12.92;
+    }
+    return pow((c + 0.055) / 1.055, 2.4);
+}
+
+fn linear_to_srgb(c_in: f32) -> f32 {
+    let c = clamp(c_in, 0.0, 1.0);
+    if c <= 0.0031308 {
+        return c * 12.92;
+    }
+    return 1.055 * pow(c, 1.0 / 2.4) - 0.055;
+}
+
+// Unit vector or zero (never NaN).
+fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
+    let l = length(v);
+    if l > 0.0 && l < 3.0e38 {
+        return v / l;
+    }
+    return vec3<f32>(0.0);
+}

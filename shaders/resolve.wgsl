@@ -1,0 +1,84 @@
+// Resolve: packed depth+id keys → G-buffer. Voxel ids index the attribute pool (colour, the
+// node's normal and its object); mesh ids index the world-space triangle list, whose
+// attributes are interpolated at the pixel's unprojected position (as the CPU reference).
+// G-buffer texel: x = unorm16 albedo.rg, y = unorm16 (albedo.b, normal.z · 0.5 + 0.5),
+// z = snorm16 normal.xy, w = NDC depth bits (EMPTY: background). 16-bit channels keep the
+// final 8-bit sRGB exact without needing f16 support.
+// #import common/types.wgsl
+
+const TRI_STRIDE: u32 = 9u;
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
+// x = sRGB RGBA8 colour, y = octahedral normal (bits 0..15) | object index (bits 16..31).
+@group(0) @binding(2) var<storage, read> attrs: array<vec2<u32>>;
+@group(0) @binding(3) var<storage, read> objects: array<ObjectInfo>;
+@group(0) @binding(4) var<storage, read> tris: array<vec4<f32>>;
+@group(0) @binding(5) var<storage, read_write> gbuffer: array<vec4<u32>>;
+
+fn barycentric(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let n = cross(b - a, c - a);
+    let nn = dot(n, n);
+    if !(nn > 0.0) {
+        return vec3<f32>(1.0, 0.0, 0.0);
+    }
+    let wa = dot(cross(b - p, c - p), n) / nn;
+    let wb = dot(cross(c - p, a - p), n) / nn;
+    let bary = max(vec3<f32>(wa, wb, 1.0 - wa - wb), vec3<f32>(0.0));
+    let s = bary.x + bary.y + bary.z;
+    if s > 0.0 {
+        return bary / s;
+    }
+    return vec3<f32>(1.0, 0.0, 0.0);
+}
+
+@compute @workgroup_size(8, 8)
+fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= view.size.x || gid.y >= view.size.y {
+        return;
+    }
+    let pixel = gid.y * view.size.x + gid.x;
+    let key = keys[pixel];
+    if key.y == EMPTY {
+        gbuffer[pixel] = vec4<u32>(0u, 0u, 0u, EMPTY);
+        return;
+    }
+    let id = key.x;
+    var albedo = vec3<f32>(0.0);
+    var normal = vec3<f32>(0.0);
+    if (id & MESH_ID_FLAG) != 0u {
+        let t = TRI_STRIDE * (id & ~MESH_ID_FLAG);
+        let a = tris[t].xyz;
+        let b = tris[t + 1u].xyz;
+        let c = tris[t + 2u].xyz;
+        let depth = bitcast<f32>(key.y);
+        let p = unproject(view, vec2<f32>(gid.xy) + 0.5, depth);
+        let bary = barycentric(p, a, b, c);
+        albedo = (tris[t + 6u] * bary.x + tris[t + 7u] * bary.y + tris[t + 8u] * bary.z).xyz;
+        let face = cross(b - a, c - a);
+        var n = face;
+        if tris[t + 3u].w > 0.0 {
+            n = (tris[t + 3u] * bary.x + tris[t + 4u] * bary.y + tris[t + 5u] * bary.z).xyz;
+        }
+        n = normalize_or_zero(n);
+        // Two-sided: light the side facing the viewer.
+        let eye = view.world_from_view[3].xyz;
+        if dot(face, eye - p) < 0.0 {
+            n = -n;
+        }
+        normal = n;
+    } else {
+        let attr = attrs[id];
+        let rgba = unpack4x8unorm(attr.x);
+        albedo = vec3<f32>(srgb_to_linear(rgba.x), srgb_to_linear(rgba.y), srgb_to_linear(rgba.z));
+        let o = objects[attr.y >> 16u];
+        let nv = decode_normal(attr.y & 0xffffu);
+        normal = normalize_or_zero(o.normal_x.xyz * nv.x + o.normal_y.xyz * nv.y + o.normal_z.xyz * nv.z);
+    }
+    gbuffer[pixel] = vec4<u32>(
+        pack2x16unorm(albedo.xy),
+        pack2x16unorm(vec2<f32>(albedo.z, normal.z * 0.5 + 0.5)),
+        pack2x16snorm(normal.xy),
+        key.y,
+    );
+}

@@ -1,0 +1,94 @@
+// Deferred Phong over the G-buffer (directional lights + ambient, Blinn half-vector specular
+// 0.25·(n·h)^32), the first shadow-casting light looked up in its shadow map with a normal
+// offset, a slope-free bias of two texels plus the receiver's splat size, and PCF. Writes
+// sRGB RGBA8 (rounded like the CPU reference). Mirrors core::render's `shade`.
+// #import common/types.wgsl
+
+@group(0) @binding(0) var<uniform> view: View;
+@group(0) @binding(1) var<uniform> shadow_view: View;
+@group(0) @binding(2) var<uniform> shading: Shading;
+@group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
+@group(0) @binding(4) var<storage, read> gbuffer: array<vec4<u32>>;
+// Shadow keys, 32-bit layout: [2p + 1] = depth bits.
+@group(0) @binding(5) var<storage, read> shadow_keys: array<u32>;
+@group(0) @binding(6) var output: texture_storage_2d<rgba8unorm, write>;
+
+fn visibility(p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f32 {
+    let texel_world = 2.0 / shadow_view.fy;
+    let offset = n_world * (1.5 * texel_world);
+    let q = (shadow_view.view_from_world * vec4<f32>(p_world + offset, 1.0)).xyz;
+    let s = project_view(shadow_view, q);
+    let bias = 2.0 * texel_world + 1.5 * receiver_world;
+    let recv = ndc_depth(shadow_view, s.z - bias);
+    let w = i32(shadow_view.size.x);
+    let h = i32(shadow_view.size.y);
+    let ix = i32(floor(s.x));
+    let iy = i32(floor(s.y));
+    let r = i32(shading.pcf_radius);
+    var lit = 0u;
+    var taps = 0u;
+    for (var dy = -r; dy <= r; dy++) {
+        for (var dx = -r; dx <= r; dx++) {
+            let x = ix + dx;
+            let y = iy + dy;
+            taps++;
+            if x < 0 || y < 0 || x >= w || y >= h {
+                lit++;
+                continue;
+            }
+            let bits = shadow_keys[2u * u32(y * w + x) + 1u];
+            if bits == EMPTY || recv <= bitcast<f32>(bits) {
+                lit++;
+            }
+        }
+    }
+    return f32(lit) / f32(taps);
+}
+
+fn to_unorm8(c: f32) -> f32 {
+    // The CPU writes round(srgb · 255) as u8; store exactly that value.
+    return round(linear_to_srgb(c) * 255.0) / 255.0;
+}
+
+@compute @workgroup_size(8, 8)
+fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
+    if gid.x >= view.size.x || gid.y >= view.size.y {
+        return;
+    }
+    let g = gbuffer[gid.y * view.size.x + gid.x];
+    var c = shading.background.xyz;
+    if g.w != EMPTY {
+        let ab = unpack2x16unorm(g.x);
+        let bz = unpack2x16unorm(g.y);
+        let nxy = unpack2x16snorm(g.z);
+        let albedo = vec3<f32>(ab, bz.x);
+        let n = normalize_or_zero(vec3<f32>(nxy, bz.y * 2.0 - 1.0));
+        let depth = bitcast<f32>(g.w);
+        let p = unproject(view, vec2<f32>(gid.xy) + 0.5, depth);
+        let eye = view.world_from_view[3].xyz;
+        let v = normalize_or_zero(eye - p);
+        let receiver = pixel_world_size(view, view_depth_of(view, depth)) * shading.receiver_px;
+        var light = shading.ambient.xyz;
+        var spec = vec3<f32>(0.0);
+        for (var i = 0u; i < shading.light_count; i++) {
+            let l = lights[i].to_light.xyz;
+            let color = lights[i].color.xyz;
+            let ndotl = dot(n, l);
+            if ndotl <= 0.0 {
+                continue;
+            }
+            var vis = 1.0;
+            if lights[i].to_light.w > 0.0 {
+                vis = visibility(p, n, receiver);
+            }
+            if vis <= 0.0 {
+                continue;
+            }
+            light += color * (ndotl * vis);
+            let half_v = normalize_or_zero(l + v);
+            spec += color * (0.25 * pow(max(dot(n, half_v), 0.0), 32.0) * vis);
+        }
+        c = albedo * light + spec;
+    }
+    textureStore(output, vec2<i32>(gid.xy), vec4<f32>(to_unorm8(c.x), to_unorm8(c.y), to_unorm8(c.z), 1.0));
+}
