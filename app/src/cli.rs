@@ -37,6 +37,54 @@ pub enum Command {
     /// Models larger than 256 voxels in a dimension are split; colours are quantised to the
     /// 255-entry palette (the report says how far).
     ExportVox(ExportVoxArgs),
+    /// Turn a mesh (.glb/.gltf/.obj) or a .vox file into a project.
+    ///
+    /// Meshes are voxelized (surface by default, `--solid` fills closed meshes); .vox models
+    /// come in as they are, placed by their scene graph.
+    Import(ImportArgs),
+    /// Render a project with the CPU reference renderer to a PNG.
+    Render(RenderArgs),
+}
+
+/// `thicket import`.
+#[derive(Debug, Args)]
+pub struct ImportArgs {
+    /// The file to import (.glb, .gltf, .obj or .vox).
+    pub input: PathBuf,
+    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Octree depth: the longest side of the mesh spans 2^N voxels (default 7).
+    #[arg(long, conflicts_with = "voxel_size")]
+    pub depth: Option<u8>,
+    /// Voxel edge length in the mesh's units.
+    #[arg(long)]
+    pub voxel_size: Option<f32>,
+    /// Fill the inside of closed meshes instead of voxelizing only the surface.
+    #[arg(long)]
+    pub solid: bool,
+}
+
+/// `thicket render`.
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The project (or any supported file) to render.
+    pub project: PathBuf,
+    /// The PNG to write.
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x800")]
+    pub size: String,
+    /// Orbit camera as YAW,PITCH,DISTANCE in degrees and scene units (default: the project's).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Quality knob as KEY=VALUE (repeatable), e.g. lod_pixel_threshold=2.
+    #[arg(long = "quality", value_name = "KEY=VALUE")]
+    pub quality: Vec<String>,
+    /// Print frame statistics (per level, splats, culling, stage times).
+    #[arg(long)]
+    pub stats: bool,
 }
 
 /// `thicket export-vox`.
@@ -72,7 +120,134 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         None => crate::ui::run_editor(cli.project),
         Some(Command::Info(args)) => info(&args),
         Some(Command::ExportVox(args)) => export_vox(&args),
+        Some(Command::Import(args)) => import(&args),
+        Some(Command::Render(args)) => render(&args),
     }
+}
+
+fn import(args: &ImportArgs) -> anyhow::Result<()> {
+    use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
+    let is_vox = args
+        .input
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vox"));
+    let doc = if is_vox {
+        files::load_document(&args.input)?
+    } else {
+        let model = files::load_mesh(&args.input)?;
+        let settings = VoxelizeSettings {
+            resolution: match (args.depth, args.voxel_size) {
+                (_, Some(s)) => Resolution::VoxelSize(s),
+                (d, None) => Resolution::Depth(d.unwrap_or(7)),
+            },
+            mode: if args.solid {
+                Mode::Solid
+            } else {
+                Mode::Surface
+            },
+            ..VoxelizeSettings::default()
+        };
+        let bar = progress_bar(1000, "voxelizing");
+        let result = voxelize(&model, &settings, &|f| {
+            bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+            true
+        });
+        bar.finish_and_clear();
+        let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
+        let mut doc = thicket_core::scene::Document::default();
+        doc.add(
+            files::object_name_for(&args.input),
+            thicket_core::scene::ObjectKind::Voxels(thicket_core::scene::VoxelModel {
+                svo: v.svo,
+                voxel_size: v.voxel_size,
+                origin: v.origin,
+                material_names: model.materials.iter().map(|m| m.name.clone()).collect(),
+            }),
+        );
+        if let Some((lo, hi)) = doc.bounds() {
+            doc.camera.frame(lo, hi);
+        }
+        doc
+    };
+    files::save_project(&doc, &args.output)?;
+    let voxels: u64 = doc
+        .objects
+        .iter()
+        .map(|o| match &o.kind {
+            thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
+            thicket_core::scene::ObjectKind::Mesh(_) => 0,
+        })
+        .sum();
+    write_stdout(&format!(
+        "wrote {}: {} object(s), {} voxels\n",
+        args.output.display(),
+        doc.objects.len(),
+        thousands(voxels)
+    ))
+}
+
+fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = text
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 800x600"))?;
+    let parse = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .with_context(|| format!("--size {text:?}: {v:?} is not a whole number"))
+    };
+    Ok((parse(w)?, parse(h)?))
+}
+
+fn render(args: &RenderArgs) -> anyhow::Result<()> {
+    use thicket_core::render::{RenderRequest, render_document};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    let mut quality = doc.quality.clone();
+    for kv in &args.quality {
+        let (k, v) = kv
+            .split_once('=')
+            .with_context(|| format!("--quality {kv:?}: expected KEY=VALUE"))?;
+        quality
+            .set(k.trim(), v)
+            .with_context(|| format!("--quality {kv:?}"))?;
+    }
+    let mut camera = doc.camera;
+    if let Some(c) = &args.camera {
+        let parts: Vec<f32> = c
+            .split(',')
+            .map(|p| p.trim().parse::<f32>())
+            .collect::<Result<_, _>>()
+            .with_context(|| format!("--camera {c:?}: expected YAW,PITCH,DISTANCE numbers"))?;
+        let [yaw, pitch, distance] = parts[..] else {
+            anyhow::bail!("--camera {c:?}: expected three numbers YAW,PITCH,DISTANCE");
+        };
+        camera.yaw_deg = yaw;
+        camera.pitch_deg = pitch;
+        camera.distance = distance;
+        camera.far = camera.far.max(distance * 4.0);
+    }
+    let request = RenderRequest {
+        width,
+        height,
+        camera: Some(camera),
+        quality,
+    };
+    let (image, _buffers, stats) = render_document(&doc, &request)
+        .with_context(|| format!("{}: rendering", args.project.display()))?;
+    // Write through a temporary sibling so a failed write leaves no partial PNG.
+    let tmp = args.output.with_extension("png.tmp");
+    if let Err(e) = image.save_png(&tmp) {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(e).with_context(|| format!("{}: writing PNG", args.output.display()));
+    }
+    std::fs::rename(&tmp, &args.output)
+        .with_context(|| format!("{}: writing PNG", args.output.display()))?;
+    let mut text = format!("wrote {} ({width}x{height})\n", args.output.display());
+    if args.stats {
+        text.push_str(&serde_json::to_string_pretty(&stats).context("encoding the statistics")?);
+        text.push('\n');
+    }
+    write_stdout(&text)
 }
 
 fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {

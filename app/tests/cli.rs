@@ -321,3 +321,63 @@ fn failing_export_writes_nothing() {
     assert_fails_naming(&o, Path::new(&not_vox));
     assert!(!out.exists());
 }
+
+#[test]
+fn import_a_solid_box_then_render_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = dir.path().join("box.thicket.json");
+    let input = format!("{ASSETS}/static/Box.glb");
+    let o = thicket(&[
+        "import",
+        &input,
+        "-o",
+        project.to_str().unwrap(),
+        "--voxel-size",
+        "0.015625",
+        "--solid",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Box.glb is a unit cube: solid at 1/64 gives 64³ voxels (volume 1).
+    assert!(stdout(&o).contains("262,144 voxels"), "{}", stdout(&o));
+    let png = dir.path().join("box.png");
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "64x48",
+        "--stats",
+        "--quality",
+        "shadow_map_size=256",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&png).unwrap();
+    assert_eq!((img.width(), img.height()), (64, 48));
+    assert!(stdout(&o).contains("\"levels\""));
+}
+
+#[test]
+fn render_refuses_bad_arguments_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let png = dir.path().join("out.png");
+    for extra in [
+        &["--size", "0x10"][..],
+        &["--size", "abc"],
+        &["--quality", "lod_pixel_threshold=NaN"],
+        &["--quality", "nope=1"],
+        &["--camera", "1,2"],
+    ] {
+        let mut args = vec![
+            "render",
+            project.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        let o = thicket(&args);
+        assert!(!o.status.success(), "{extra:?} should fail");
+        assert!(!png.exists(), "{extra:?} wrote a file");
+    }
+}

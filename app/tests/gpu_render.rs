@@ -484,7 +484,7 @@ fn bad_inputs_are_errors_not_panics() {
         .expect("empty frame");
     assert_eq!(stats.splats, 0);
     let img = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    assert!(img.chunks(4).all(|p| p == img[..4].as_ref()));
+    assert!(img.chunks(4).all(|p| p == &img[..4]));
     assert!(ctx.errors.take().is_none());
 }
 
