@@ -131,7 +131,7 @@ impl Preview {
     fn summary_ui(&self, ui: &mut egui::Ui, rect: egui::Rect, editor: &Editor) {
         let c = editor.doc().camera;
         let text = format!(
-            "Preview: bounding boxes only (the renderer is not in this build yet)\n\
+            "Preview: bounds and grid (the rendered viewport is being connected; meanwhile `thicket render` draws it)\n\
              camera yaw {:.1}°, pitch {:.1}°, distance {:.3}, target {:.2} {:.2} {:.2}",
             c.yaw_deg, c.pitch_deg, c.distance, c.target.x, c.target.y, c.target.z
         );
