@@ -181,33 +181,13 @@ impl ViewSpec {
     }
 
     /// An orthographic camera looking along `direction` whose image tightly holds the box
-    /// (the CPU reference's `fit_light_camera`).
+    /// (the same fit as the CPU reference: `core::render::shade::fit_light_view`).
     fn fit_light(direction: Vec3, lo: Vec3, hi: Vec3, size: u32) -> Option<Self> {
-        let dir = direction.try_normalize()?;
-        let center = (lo + hi) * 0.5;
-        let radius = ((hi - lo).length() * 0.5).max(1e-4);
-        let up = if dir.y.abs() > 0.99 { Vec3::Z } else { Vec3::Y };
-        let eye = center - dir * (2.0 * radius);
-        let view = Mat4::look_at_rh(eye, center, up);
-        let (mut vlo, mut vhi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
-        for k in 0..8 {
-            let c = Vec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            let v = view.transform_point3(c);
-            vlo = vlo.min(v);
-            vhi = vhi.max(v);
-        }
-        let mid = (vlo + vhi) * 0.5;
-        let shift = Mat4::from_translation(Vec3::new(-mid.x, -mid.y, 0.0));
-        let half = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
-        let margin = 0.01 * radius + 1e-4;
-        let (near, far) = (-vhi.z - margin, -vlo.z + margin);
+        let fit = thicket_core::render::shade::fit_light_view(direction, lo, hi)?;
+        let (half, near, far) = (fit.half_extent, fit.near, fit.far);
         let f = 0.5 * size as f32 / half;
         Some(Self {
-            view_from_world: shift * view,
+            view_from_world: fit.view_from_world,
             clip_from_view: Mat4::orthographic_rh(-half, half, -half, half, near, far),
             width: size,
             height: size,

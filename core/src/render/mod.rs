@@ -16,7 +16,7 @@ mod deform;
 pub mod quality;
 mod raster;
 pub mod scenes;
-mod shade;
+pub mod shade;
 mod stats;
 
 #[cfg(test)]

@@ -24,17 +24,25 @@ pub(crate) struct ShadowMap {
     pub(crate) texel_world: f32,
 }
 
-/// An orthographic camera looking along `direction` whose image tightly holds the box, with at
-/// most `max_size` texels per edge and texels no finer than `finest_texel_world` (finer texels
-/// than the view can resolve only cost time: this keeps the shadow pass bound by the view's
-/// resolution, like the view's own traversal).
-pub(crate) fn fit_light_camera(
-    direction: Vec3,
-    lo: Vec3,
-    hi: Vec3,
-    max_size: u32,
-    finest_texel_world: f32,
-) -> Option<Camera> {
+/// An orthographic light view that tightly holds a box: what both the CPU reference and the
+/// GPU renderer fit their shadow maps with, so their shadows agree.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightFit {
+    /// `view_from_world`, re-centred on the box's footprint.
+    pub view_from_world: Mat4,
+    /// Half the edge of the square orthographic window (square so texels are square and one
+    /// bias fits both axes).
+    pub half_extent: f32,
+    /// Near plane distance.
+    pub near: f32,
+    /// Far plane distance.
+    pub far: f32,
+}
+
+/// Fits an orthographic view looking along `direction` around the box `lo..hi`; `None` when
+/// the direction is zero or not finite.
+#[must_use]
+pub fn fit_light_view(direction: Vec3, lo: Vec3, hi: Vec3) -> Option<LightFit> {
     let dir = direction.try_normalize()?;
     let center = (lo + hi) * 0.5;
     let radius = ((hi - lo).length() * 0.5).max(1e-4);
@@ -53,11 +61,32 @@ pub(crate) fn fit_light_camera(
         vhi = vhi.max(v);
     }
     // Re-centre the view on the box's footprint so the symmetric orthographic frustum wastes
-    // no texels, and keep texels square so one bias fits both axes.
+    // no texels.
     let mid = (vlo + vhi) * 0.5;
     let shift = Mat4::from_translation(Vec3::new(-mid.x, -mid.y, 0.0));
-    let half = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
+    let half_extent = (0.5 * (vhi.x - vlo.x)).max(0.5 * (vhi.y - vlo.y)).max(1e-4) * 1.01;
     let margin = 0.01 * radius + 1e-4;
+    Some(LightFit {
+        view_from_world: shift * view,
+        half_extent,
+        near: -vhi.z - margin,
+        far: -vlo.z + margin,
+    })
+}
+
+/// An orthographic camera looking along `direction` whose image tightly holds the box, with at
+/// most `max_size` texels per edge and texels no finer than `finest_texel_world` (finer texels
+/// than the view can resolve only cost time: this keeps the shadow pass bound by the view's
+/// resolution, like the view's own traversal).
+pub(crate) fn fit_light_camera(
+    direction: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+    max_size: u32,
+    finest_texel_world: f32,
+) -> Option<Camera> {
+    let fit = fit_light_view(direction, lo, hi)?;
+    let (half, near, far) = (fit.half_extent, fit.near, fit.far);
     let wanted = (2.0 * half / finest_texel_world.max(1e-30)).ceil();
     let size = if wanted.is_finite() {
         (wanted as u32).clamp(16, max_size.max(16))
@@ -65,12 +94,12 @@ pub(crate) fn fit_light_camera(
         max_size
     };
     Some(Camera::new(
-        shift * view,
+        fit.view_from_world,
         Projection::Orthographic {
             half_width: half,
             half_height: half,
-            near: -vhi.z - margin,
-            far: -vlo.z + margin,
+            near,
+            far,
         },
         size,
         size,
