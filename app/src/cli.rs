@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 
-use crate::files::{self, DocumentInfo, human_bytes, thousands};
+use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
 
 /// Thicket: sculpt voxel models, pose and skin them, grow procedural trees, export assets.
 ///
@@ -175,7 +175,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .iter()
         .map(|o| match &o.kind {
             thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
-            thicket_core::scene::ObjectKind::Mesh(_) => 0,
+            thicket_core::scene::ObjectKind::Mesh(_) | thicket_core::scene::ObjectKind::Krs(_) => 0,
         })
         .sum();
     write_stdout(&format!(
@@ -357,6 +357,23 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
                 o.materials
             );
         }
+        if let Some(k) = &o.krs {
+            let _ = writeln!(
+                s,
+                "      KRS: {} kernel instances, {} mirrors, {} kernel sets ({} non-empty: {}){}{}",
+                thousands_u128(k.kernel_instances),
+                k.mirrors,
+                k.kernel_sets,
+                k.kernels.len(),
+                summarise_kinds(&k.kernels),
+                if k.distorted { ", distorted" } else { "" },
+                if k.empty_zones > 0 {
+                    format!(", {} empty zone(s)", k.empty_zones)
+                } else {
+                    String::new()
+                }
+            );
+        }
         if let Some(size) = o.world_size {
             let _ = writeln!(s, "      world size {}", fmt_size(size));
         }
@@ -374,6 +391,28 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
         }
     }
     s
+}
+
+/// `["Sphere", "Capsule", "Capsule"]` → `Sphere, 2 x Capsule` (first-seen order).
+fn summarise_kinds(kinds: &[&str]) -> String {
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for k in kinds {
+        match counts.iter_mut().find(|(name, _)| name == k) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((k, 1)),
+        }
+    }
+    counts
+        .iter()
+        .map(|(name, n)| {
+            if *n == 1 {
+                (*name).to_owned()
+            } else {
+                format!("{n} x {name}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// A progress bar on stderr for long work; indicatif hides it when stderr is not a terminal.

@@ -381,3 +381,38 @@ fn render_refuses_bad_arguments_and_writes_nothing() {
         assert!(!png.exists(), "{extra:?} wrote a file");
     }
 }
+
+#[test]
+fn info_reports_krs_objects() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = Document::default();
+    doc.add(
+        "Forest",
+        ObjectKind::Krs(thicket_core::krs::presets::forest()),
+    );
+    doc.add("Rock", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    let path = dir.path().join("krs.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+
+    let o = thicket(&["info", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("\"Forest\" (krs)"), "{text}");
+    assert!(text.contains("33,423,360 kernel instances"), "{text}");
+    assert!(text.contains("ToroidalCapsule"), "{text}");
+    assert!(text.contains("distorted"), "{text}");
+
+    let o = thicket(&["info", "--json", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let forest = &json["objects"][0]["krs"];
+    assert_eq!(forest["kernel_instances"], 33_423_360);
+    assert_eq!(
+        forest["mirrors"].as_u64().unwrap() + 1,
+        forest["kernel_sets"].as_u64().unwrap()
+    );
+    let rock = &json["objects"][1]["krs"];
+    assert_eq!(rock["mirrors"], 6);
+    assert_eq!(rock["kernels"].as_array().unwrap().len(), 4);
+    assert_eq!(rock["distorted"], true);
+}

@@ -38,7 +38,8 @@ fn report(name: &str, doc: &Document, req: &RenderRequest) {
             .iter()
             .map(|o| match &o.kind {
                 thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
-                thicket_core::scene::ObjectKind::Mesh(_) => 0,
+                thicket_core::scene::ObjectKind::Mesh(_)
+                | thicket_core::scene::ObjectKind::Krs(_) => 0,
             })
             .sum::<u64>();
         eprintln!(

@@ -367,6 +367,9 @@ impl ScenePack {
                         }
                     }
                 }
+                // KRS objects are sphere-traced by the CPU reference renderer only; the GPU
+                // renderer has no KRS pass yet, so they are left out of its frame.
+                ObjectKind::Krs(_) => {}
             }
         }
         p.caster_tris = (casters.len() / TRI_VEC4S) as u32;

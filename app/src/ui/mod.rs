@@ -643,7 +643,8 @@ impl EditorApp {
                 .iter()
                 .filter_map(|o| match &o.kind {
                     thicket_core::scene::ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
-                    thicket_core::scene::ObjectKind::Mesh(_) => None,
+                    thicket_core::scene::ObjectKind::Mesh(_)
+                    | thicket_core::scene::ObjectKind::Krs(_) => None,
                 })
                 .sum();
             let triangles: usize = doc
@@ -651,7 +652,8 @@ impl EditorApp {
                 .iter()
                 .filter_map(|o| match &o.kind {
                     thicket_core::scene::ObjectKind::Mesh(m) => Some(m.model.triangle_count()),
-                    thicket_core::scene::ObjectKind::Voxels(_) => None,
+                    thicket_core::scene::ObjectKind::Voxels(_)
+                    | thicket_core::scene::ObjectKind::Krs(_) => None,
                 })
                 .sum();
             let file = self

@@ -36,12 +36,19 @@ fn kind_summary(o: &Object) -> (&'static str, String, String) {
             format!("{} tri", thousands(m.model.triangle_count() as u64)),
             "Triangle mesh".to_owned(),
         ),
+        ObjectKind::Krs(k) => (
+            "KRS",
+            format!("{} inst", crate::files::thousands_u128(k.instance_count())),
+            "Kernel-reflection sequence (procedural kernel instances)".to_owned(),
+        ),
     }
 }
 
 fn kind_color(icon: &str) -> egui::Color32 {
     if icon == "VOX" {
         egui::Color32::from_rgb(120, 190, 255)
+    } else if icon == "KRS" {
+        egui::Color32::from_rgb(140, 210, 120)
     } else {
         egui::Color32::from_rgb(230, 180, 100)
     }

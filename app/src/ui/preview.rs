@@ -149,6 +149,15 @@ fn local_bounds(o: &Object) -> Option<(Vec3, Vec3)> {
     match &o.kind {
         ObjectKind::Voxels(v) => v.bounds(),
         ObjectKind::Mesh(m) => m.model.bounds(),
+        // The KRS's own placement is inside its bounding ball; callers apply the object's
+        // transform on top, which is what `KrsObject::world_from_object` sits under.
+        ObjectKind::Krs(k) => {
+            let (c, r) = k.bounding_sphere_object()?;
+            let t = k.world_from_object;
+            let c = t.transform_point(c);
+            let r = r * t.scale + k.distortion.map_or(0.0, |d| d.max_displacement() * t.scale);
+            Some((c - Vec3::splat(r), c + Vec3::splat(r)))
+        }
     }
 }
 

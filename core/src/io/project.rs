@@ -1,5 +1,6 @@
 //! Project files: `NAME.thicket.json` (the document's parameters, human-readable) plus, when the
 //! document holds voxel or mesh data, `NAME.thicket.bin` beside it with the binary payloads.
+//! KRS objects are parametric: kernels, mirrors and transform live in the JSON, with no payload.
 //!
 //! The JSON carries `format_version`, every struct is `#[serde(default)]`, and each payload is
 //! addressed by offset and length with a CRC-32; the JSON also records the length and CRC-32 of
@@ -189,6 +190,8 @@ pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
         match &o.kind {
             ObjectKind::Voxels(v) => encode_svo(&v.svo, &mut bin),
             ObjectKind::Mesh(m) => encode_mesh(&m.model, &mut bin),
+            // Parametric: everything is in the JSON.
+            ObjectKind::Krs(_) => continue,
         }
         let bytes = &bin[start..];
         payloads.push(PayloadRef {
@@ -347,6 +350,10 @@ fn load_from_parts(
     };
     let bin_name = file.bin.as_ref().map_or(String::new(), |b| b.file.clone());
     for o in &mut doc.objects {
+        if matches!(o.kind, ObjectKind::Krs(_)) {
+            // Parametric: nothing in the `.bin`.
+            continue;
+        }
         let what = format!("object {:?} (id {})", o.name, o.id);
         let p = file
             .payloads
@@ -382,6 +389,7 @@ fn load_from_parts(
                 m.model = decode_mesh(bytes)
                     .map_err(|d| payload_err(format!("{what}: mesh payload: {d}")))?;
             }
+            ObjectKind::Krs(_) => {}
         }
     }
     doc.validate().map_err(|source| ProjectError::Invalid {

@@ -144,7 +144,7 @@ pub fn render_document(
             ObjectKind::Voxels(v) => Some(RigidDeform::new(
                 o.transform.matrix() * v.object_from_voxel(),
             )),
-            ObjectKind::Mesh(_) => None,
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
         .collect();
     let mut scene = RenderScene {
@@ -172,7 +172,8 @@ pub fn render_document(
                 casts_shadows: m.casts_shadows,
                 label,
             }),
-            (ObjectKind::Voxels(_), None) => {}
+            // Drawn by the KRS pass (sphere tracing), not placed here.
+            (ObjectKind::Voxels(_), None) | (ObjectKind::Krs(_), _) => {}
         }
     }
     render_scene(&scene, &cam, &req.quality)
