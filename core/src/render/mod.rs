@@ -39,6 +39,11 @@ use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
 /// Largest accepted image edge in pixels.
 pub const MAX_IMAGE_SIZE: u32 = 16384;
 
+/// Ambient-occlusion sample radius as a fraction of the scene bounds' diagonal (the same bounds
+/// the shadow maps are fit to): scale-free, so a house of 128 voxel units and a 2-unit sphere
+/// get the same look.
+pub const AO_RADIUS_OF_SCENE: f32 = 0.05;
+
 /// Ids with this bit set are triangles; below it, voxel splats.
 pub(crate) const MESH_ID_FLAG: u32 = 1 << 31;
 
@@ -203,10 +208,12 @@ pub fn render_scene(
     for light in scene.lights {
         let map = match bounds {
             Some((lo, hi)) if quality.shadows && light.casts_shadows => {
-                // Two texels per view pixel where the scene comes nearest the eye.
+                // One texel per view pixel where the scene comes nearest the eye: each halving of
+                // the texel quadruples the shadow traversal for detail the view cannot resolve
+                // (PCF blurs over three texels anyway).
                 let eye = cam.eye();
                 let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
-                let finest = 0.5 * cam.pixel_world_size(nearest);
+                let finest = cam.pixel_world_size(nearest);
                 shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, finest)
                     .map(|lc| {
                         shade::ShadowMap::render(
@@ -229,9 +236,8 @@ pub fn render_scene(
     let t0 = Instant::now();
     let mut target = buffers::DepthTarget::new(cam.width, cam.height);
     stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
-    target.mark_all_dirty();
     if quality.occlusion_culling {
-        target.update_tiles();
+        target.update_all_tiles();
     }
     stats.times.triangles_ms = ms_since(t0);
     let pass = asvo::draw_voxels(
@@ -262,6 +268,7 @@ pub fn render_scene(
         shadows,
         ambient: scene.ambient,
         background: scene.background,
+        ao_radius_world: bounds.map_or(0.0, |(lo, hi)| AO_RADIUS_OF_SCENE * (hi - lo).length()),
     };
     let img = shade::shade(&fb, cam, &lighting, quality);
     stats.times.shade_ms = ms_since(t0);
