@@ -26,7 +26,7 @@ pub struct BenchLevel {
     pub splatted: u64,
     /// Nodes outside the frustum.
     pub frustum_culled: u64,
-    /// Nodes behind the hierarchical depth (CPU only).
+    /// Nodes behind the hierarchical depth.
     pub occlusion_culled: u64,
 }
 
@@ -227,7 +227,7 @@ pub fn bench_gpu(
                 split: l.split,
                 splatted: l.splatted,
                 frustum_culled: l.frustum_culled,
-                occlusion_culled: 0,
+                occlusion_culled: l.occlusion_culled,
             })
             .collect(),
         splats: stats.splats,

@@ -136,6 +136,8 @@ pub struct GpuLevelStats {
     pub splatted: u64,
     /// Nodes outside the view frustum.
     pub frustum_culled: u64,
+    /// Nodes behind the hierarchical depth (paper §8.1.2; `Quality::occlusion_culling`).
+    pub occlusion_culled: u64,
 }
 
 /// What a GPU frame did and how long it took.

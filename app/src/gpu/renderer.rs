@@ -15,8 +15,8 @@ use super::scene::{SceneCache, UploadStats};
 use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
-    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES,
-    STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform,
+    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE, OVERFLOW_COUNTER,
+    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -217,7 +217,7 @@ impl ViewSpec {
         })
     }
 
-    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32) -> ViewUniform {
+    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32, occlusion: bool) -> ViewUniform {
         ViewUniform {
             view_from_world: self.view_from_world.to_cols_array_2d(),
             clip_from_world: (self.clip_from_view * self.view_from_world).to_cols_array_2d(),
@@ -230,7 +230,9 @@ impl ViewSpec {
             near: self.near,
             far: self.far,
             lod_pixel_threshold,
-            pad: [0; 3],
+            occlusion: u32::from(occlusion),
+            tiles_x: self.width.div_ceil(OCCLUSION_TILE),
+            pad: 0,
         }
     }
 }
@@ -245,6 +247,8 @@ pub struct Renderer {
     mesh_bgl: wgpu::BindGroupLayout,
     resolve_bgl: wgpu::BindGroupLayout,
     shade_bgl: wgpu::BindGroupLayout,
+    hiz_bgl: wgpu::BindGroupLayout,
+    hiz: wgpu::ComputePipeline,
     seed: wgpu::ComputePipeline,
     prepare: wgpu::ComputePipeline,
     traverse32: wgpu::ComputePipeline,
@@ -412,12 +416,21 @@ impl Renderer {
                     storage(1, false, cs),
                     storage(2, true, cs),
                     storage(4, false, cs),
+                    storage(5, true, cs),
                 ],
             ),
             bgl("traverse 1", &[uniform(0, true, cs)]),
             bgl("traverse 2", &[storage(0, true, cs), storage(1, false, cs)]),
         ];
         let indirect_bgl = bgl("indirect", &[storage(0, false, cs)]);
+        let hiz_bgl = bgl(
+            "hiz",
+            &[
+                uniform(0, false, cs),
+                storage(1, true, cs),
+                storage(2, false, cs),
+            ],
+        );
         let clear_bgl = bgl("clear", &[uniform(0, false, cs), storage(1, false, cs)]);
         let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let mesh_bgl = bgl(
@@ -506,6 +519,12 @@ impl Renderer {
         } else {
             None
         };
+        let hiz = compute(
+            "hiz",
+            &layout("hiz", &[&hiz_bgl]),
+            &module("hiz.wgsl")?,
+            "build_tiles",
+        );
         let clear = compute(
             "clear",
             &layout("clear", &[&clear_bgl]),
@@ -572,6 +591,8 @@ impl Renderer {
             mesh_bgl,
             resolve_bgl,
             shade_bgl,
+            hiz_bgl,
+            hiz,
             seed,
             prepare,
             traverse32,
@@ -1020,6 +1041,12 @@ impl Renderer {
         // Frame buffers.
         let keys_main = self.buffer(device, "keys", key_bytes, U::STORAGE);
         let keys_shadow = self.buffer(device, "shadow keys", shadow_key_bytes, U::STORAGE);
+        let tiles = self.buffer(
+            device,
+            "occlusion tiles",
+            u64::from(w.div_ceil(OCCLUSION_TILE)) * u64::from(h.div_ceil(OCCLUSION_TILE)) * 4,
+            U::STORAGE,
+        );
         let gbuffer = self.buffer(
             device,
             "gbuffer",
@@ -1049,18 +1076,19 @@ impl Renderer {
         };
         let view_main = upload(
             "view",
-            bytemuck::bytes_of(&main.uniform(first_mode, lod)),
+            bytemuck::bytes_of(&main.uniform(first_mode, lod, quality.occlusion_culling)),
             U::UNIFORM,
         );
         let view_main_id = upload(
             "view id pass",
-            bytemuck::bytes_of(&main.uniform(MODE_ID, lod)),
+            // The id pass must visit every node the depth pass drew: no culling there.
+            bytemuck::bytes_of(&main.uniform(MODE_ID, lod, false)),
             U::UNIFORM,
         );
         let shadow_spec = shadow.map_or(main, |(_, v)| v);
         let view_shadow = upload(
             "shadow view",
-            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod)),
+            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod, false)),
             U::UNIFORM,
         );
         let mut slots: Vec<u8> = Vec::new();
@@ -1157,9 +1185,24 @@ impl Renderer {
                         binding: 4,
                         resource: keys.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: tiles.as_entire_binding(),
+                    },
                 ],
             })
         };
+        let bg_hiz = bind_group(
+            device,
+            &self.hiz_bgl,
+            "hiz",
+            &[&view_main, &keys_main, &tiles],
+        );
+        let hiz_groups = (
+            w.div_ceil(OCCLUSION_TILE).div_ceil(8),
+            h.div_ceil(OCCLUSION_TILE).div_ceil(8),
+        );
+        let occlusion = quality.occlusion_culling;
         let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
         let bg_main = trav0(&view_main, &keys_main);
         let bg_main_id = trav0(&view_main_id, &keys_main);
@@ -1337,7 +1380,8 @@ impl Renderer {
                              name: &'static str,
                              pipeline: &wgpu::ComputePipeline,
                              bg0: &wgpu::BindGroup,
-                             travs: &[Traversal]| {
+                             travs: &[Traversal],
+                             hiz: bool| {
             if travs.is_empty() {
                 return;
             }
@@ -1345,15 +1389,26 @@ impl Renderer {
                 label: Some(name),
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
             });
-            pass.set_bind_group(0, bg0, &[]);
-            pass.set_bind_group(3, &bg_indirect, &[]);
             for t in travs {
                 let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
+                pass.set_bind_group(0, bg0, &[]);
+                pass.set_bind_group(3, &bg_indirect, &[]);
                 pass.set_pipeline(&self.seed);
                 pass.set_bind_group(1, &bg_params, &[slot(0)]);
                 pass.set_bind_group(2, &bg_ba, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
                 for level in 0..=u32::from(t.depth) {
+                    if hiz {
+                        // Occlusion tiles from everything drawn so far (meshes, earlier
+                        // levels and objects); its layout differs, so rebind after it.
+                        pass.set_pipeline(&self.hiz);
+                        pass.set_bind_group(0, &bg_hiz, &[]);
+                        pass.dispatch_workgroups(hiz_groups.0, hiz_groups.1, 1);
+                        pass.set_pipeline(&self.prepare);
+                        pass.set_bind_group(0, bg0, &[]);
+                        pass.set_bind_group(2, &bg_ba, &[]);
+                        pass.set_bind_group(3, &bg_indirect, &[]);
+                    }
                     pass.set_bind_group(1, &bg_params, &[slot(level)]);
                     pass.set_pipeline(&self.prepare);
                     pass.dispatch_workgroups(1, 1, 1);
@@ -1381,6 +1436,7 @@ impl Renderer {
                 &self.traverse32,
                 &bg_shadow,
                 &shadow_trav,
+                false,
             );
         }
         match (path, &self.mesh64, &self.traverse64) {
@@ -1394,7 +1450,9 @@ impl Renderer {
                     &main_attachment,
                     tri_count,
                 );
-                traverse_pass(&mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav);
+                traverse_pass(
+                    &mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav, occlusion,
+                );
             }
             _ => {
                 mesh_pass(
@@ -1413,6 +1471,7 @@ impl Renderer {
                     &self.traverse32,
                     &bg_main,
                     &main_trav,
+                    occlusion,
                 );
                 mesh_pass(
                     &mut enc,
@@ -1430,6 +1489,7 @@ impl Renderer {
                     &self.traverse32,
                     &bg_main_id,
                     &main_trav,
+                    false,
                 );
             }
         }
@@ -1639,6 +1699,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
                     split: u64::from(words[i + 1]),
                     splatted: u64::from(words[i + 2]),
                     frustum_culled: u64::from(words[i + 3]),
+                    occlusion_culled: u64::from(words[i + 4]),
                 }
             })
             .collect();
