@@ -42,8 +42,45 @@ pub enum Command {
     /// Meshes are voxelized (surface by default, `--solid` fills closed meshes); .vox models
     /// come in as they are, placed by their scene graph.
     Import(ImportArgs),
-    /// Render a project with the CPU reference renderer to a PNG.
+    /// Render a project with the CPU reference renderer (or the GPU renderer, `--gpu`) to a PNG.
     Render(RenderArgs),
+    /// Time N frames of a project: frame times, fps, per-pass milliseconds, counters.
+    ///
+    /// The CPU reference renderer by default; `--gpu` for the GPU renderer (per-pass times from
+    /// timestamp queries when the adapter has them); `--compare` runs both in one process and
+    /// prints the CPU/GPU ratio.
+    Bench(BenchArgs),
+}
+
+/// `thicket bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The project (or any supported file) to render.
+    pub project: PathBuf,
+    /// Time the GPU renderer instead of the CPU reference renderer.
+    #[arg(long, conflicts_with = "compare")]
+    pub gpu: bool,
+    /// Time both renderers, one after the other, and print the ratio.
+    #[arg(long)]
+    pub compare: bool,
+    /// GPU: use the two-pass 32-bit splat path even when 64-bit atomics exist.
+    #[arg(long)]
+    pub two_pass: bool,
+    /// Timed frames (after one warm-up frame).
+    #[arg(long, default_value_t = 20)]
+    pub frames: u32,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x800")]
+    pub size: String,
+    /// Orbit camera as YAW,PITCH,DISTANCE in degrees and scene units (default: the project's).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Quality knob as KEY=VALUE (repeatable), e.g. lod_pixel_threshold=2.
+    #[arg(long = "quality", value_name = "KEY=VALUE")]
+    pub quality: Vec<String>,
+    /// Print machine-readable JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `thicket import`.
@@ -85,6 +122,9 @@ pub struct RenderArgs {
     /// Print frame statistics (per level, splats, culling, stage times).
     #[arg(long)]
     pub stats: bool,
+    /// Render with the GPU renderer (wgpu; any adapter, including a software one).
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// `thicket export-vox`.
@@ -122,6 +162,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::ExportVox(args)) => export_vox(&args),
         Some(Command::Import(args)) => import(&args),
         Some(Command::Render(args)) => render(&args),
+        Some(Command::Bench(args)) => bench(&args),
     }
 }
 
@@ -198,12 +239,18 @@ fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {
     Ok((parse(w)?, parse(h)?))
 }
 
-fn render(args: &RenderArgs) -> anyhow::Result<()> {
-    use thicket_core::render::{RenderRequest, render_document};
-    let doc = files::load_document(&args.project)?;
-    let (width, height) = parse_size(&args.size)?;
+/// The document's quality with `--quality KEY=VALUE` overrides, and its camera with a
+/// `--camera YAW,PITCH,DISTANCE` override.
+fn view_options(
+    doc: &thicket_core::scene::Document,
+    quality_args: &[String],
+    camera_arg: Option<&String>,
+) -> anyhow::Result<(
+    thicket_core::render::Quality,
+    thicket_core::scene::OrbitCamera,
+)> {
     let mut quality = doc.quality.clone();
-    for kv in &args.quality {
+    for kv in quality_args {
         let (k, v) = kv
             .split_once('=')
             .with_context(|| format!("--quality {kv:?}: expected KEY=VALUE"))?;
@@ -212,7 +259,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
             .with_context(|| format!("--quality {kv:?}"))?;
     }
     let mut camera = doc.camera;
-    if let Some(c) = &args.camera {
+    if let Some(c) = camera_arg {
         let parts: Vec<f32> = c
             .split(',')
             .map(|p| p.trim().parse::<f32>())
@@ -226,14 +273,55 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         camera.distance = distance;
         camera.far = camera.far.max(distance * 4.0);
     }
-    let request = RenderRequest {
-        width,
-        height,
-        camera: Some(camera),
-        quality,
+    Ok((quality, camera))
+}
+
+fn render(args: &RenderArgs) -> anyhow::Result<()> {
+    use thicket_core::render::{RenderRequest, RgbaImage, render_document};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let (image, stats_json) = if args.gpu {
+        let ctx = crate::gpu::GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+        let (pixels, stats) =
+            crate::gpu::render_with_context(&ctx, &doc, &camera, width, height, &quality)
+                .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
+        let json = serde_json::json!({
+            "device": ctx.describe(),
+            "atomic_path": format!("{:?}", stats.atomic_path),
+            "splats": stats.splats,
+            "triangles": stats.triangles,
+            "queue_overflow": stats.queue_overflow,
+            "levels": stats.levels.iter().map(|l| serde_json::json!({
+                "visited": l.visited, "split": l.split, "splatted": l.splatted,
+                "frustum_culled": l.frustum_culled,
+            })).collect::<Vec<_>>(),
+            "pass_ms": stats.pass_ms.iter().map(|(n, ms)| serde_json::json!([n, ms])).collect::<Vec<_>>(),
+            "gpu_timestamps": stats.gpu_timestamps,
+            "total_ms": stats.total_ms,
+        });
+        (
+            RgbaImage {
+                width,
+                height,
+                pixels,
+            },
+            json,
+        )
+    } else {
+        let request = RenderRequest {
+            width,
+            height,
+            camera: Some(camera),
+            quality,
+        };
+        let (image, _buffers, stats) = render_document(&doc, &request)
+            .with_context(|| format!("{}: rendering", args.project.display()))?;
+        (
+            image,
+            serde_json::to_value(&stats).context("encoding the statistics")?,
+        )
     };
-    let (image, _buffers, stats) = render_document(&doc, &request)
-        .with_context(|| format!("{}: rendering", args.project.display()))?;
     // Write through a temporary sibling so a failed write leaves no partial PNG.
     let tmp = args.output.with_extension("png.tmp");
     if let Err(e) = image.save_png(&tmp) {
@@ -244,9 +332,73 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: writing PNG", args.output.display()))?;
     let mut text = format!("wrote {} ({width}x{height})\n", args.output.display());
     if args.stats {
-        text.push_str(&serde_json::to_string_pretty(&stats).context("encoding the statistics")?);
+        text.push_str(
+            &serde_json::to_string_pretty(&stats_json).context("encoding the statistics")?,
+        );
         text.push('\n');
     }
+    write_stdout(&text)
+}
+
+fn bench(args: &BenchArgs) -> anyhow::Result<()> {
+    use crate::bench::{bench_cpu, bench_gpu, format_report};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    if width == 0 || height == 0 {
+        anyhow::bail!(
+            "--size {:?}: both edges must be at least 1 pixel",
+            args.size
+        );
+    }
+    if args.frames == 0 {
+        anyhow::bail!("--frames 0: time at least one frame");
+    }
+    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let name = args.project.display().to_string();
+    let run_gpu = || {
+        bench_gpu(
+            &doc,
+            camera,
+            width,
+            height,
+            &quality,
+            args.frames,
+            args.two_pass,
+        )
+        .with_context(|| format!("{name}: GPU bench"))
+    };
+    let run_cpu = || {
+        bench_cpu(&doc, camera, width, height, &quality, args.frames)
+            .with_context(|| format!("{name}: CPU bench"))
+    };
+    let reports = if args.compare {
+        vec![run_cpu()?, run_gpu()?]
+    } else if args.gpu {
+        vec![run_gpu()?]
+    } else {
+        vec![run_cpu()?]
+    };
+    let ratio = (reports.len() == 2 && reports[1].mean_ms > 0.0)
+        .then(|| reports[0].mean_ms / reports[1].mean_ms);
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&serde_json::json!({
+            "project": name,
+            "runs": reports,
+            "cpu_over_gpu_frame_time": ratio,
+        }))
+        .context("encoding the report as JSON")?;
+        s.push('\n');
+        s
+    } else {
+        let mut s: String = reports.iter().map(|r| format_report(&name, r)).collect();
+        if let Some(r) = ratio {
+            s.push_str(&format!(
+                "CPU/GPU frame time: {r:.2} (CPU {:.2} ms, GPU {:.2} ms, same process)\n",
+                reports[0].mean_ms, reports[1].mean_ms
+            ));
+        }
+        s
+    };
     write_stdout(&text)
 }
 

@@ -2,12 +2,14 @@
 //!
 //! | module | owns |
 //! |---|---|
+//! | [`bench`] | `thicket bench`: timing the CPU and GPU renderers |
 //! | [`cli`] | the `thicket` command line |
 //! | [`files`] | opening any supported file as a document; `info` summaries |
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
 //! | [`ui`] | the eframe app: menu bar, outliner, inspector, status bar, preview |
 
+pub mod bench;
 pub mod cli;
 pub mod editor;
 pub mod files;

@@ -25,6 +25,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("asvo_splat64.wgsl"),
     shader!("asvo_splat32.wgsl"),
     shader!("clear.wgsl"),
+    shader!("hiz.wgsl"),
     shader!("mesh64.wgsl"),
     shader!("mesh32.wgsl"),
     shader!("resolve.wgsl"),
