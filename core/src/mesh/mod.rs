@@ -454,10 +454,7 @@ mod tests {
     #[test]
     fn srgb_byte_tables_match_the_transfer_functions() {
         for b in 0..=255u8 {
-            assert_eq!(
-                srgb_byte_to_linear(b),
-                srgb_to_linear(f32::from(b) / 255.0)
-            );
+            assert_eq!(srgb_byte_to_linear(b), srgb_to_linear(f32::from(b) / 255.0));
             assert_eq!(linear_to_srgb_byte(srgb_byte_to_linear(b)), b);
         }
         // Against the powf route on a fine sweep: equal but for float ties at midpoints.
