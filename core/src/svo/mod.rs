@@ -528,8 +528,10 @@ impl Svo {
                     continue;
                 }
                 let c_origin = origin + octant_offset(k, half);
-                let old = (old_mask & (1 << k) != 0)
-                    .then(|| self.leaf_attr.get((old_first + child_rank(old_mask, k)) as usize));
+                let old = (old_mask & (1 << k) != 0).then(|| {
+                    self.leaf_attr
+                        .get((old_first + child_rank(old_mask, k)) as usize)
+                });
                 let new = (ctx.f)(c_origin, old).map(|v| self.stored(v));
                 if new != old {
                     ctx.record(c_origin, old);
@@ -711,8 +713,10 @@ impl Svo {
                     continue;
                 }
                 let (c, new) = items[e - 1];
-                let old = (old_mask & (1 << k) != 0)
-                    .then(|| self.leaf_attr.get((old_first + child_rank(old_mask, k)) as usize));
+                let old = (old_mask & (1 << k) != 0).then(|| {
+                    self.leaf_attr
+                        .get((old_first + child_rank(old_mask, k)) as usize)
+                });
                 if new != old {
                     if let Some(r) = record.as_deref_mut() {
                         record_change(r, c, old);
@@ -747,8 +751,7 @@ impl Svo {
             let mut add = 0u8;
             for k in 0..8u8 {
                 let (s, e) = runs[k as usize];
-                if s < e && old_mask & (1 << k) == 0 && items[s..e].iter().any(|x| x.1.is_some())
-                {
+                if s < e && old_mask & (1 << k) == 0 && items[s..e].iter().any(|x| x.1.is_some()) {
                     add |= 1 << k;
                 }
             }
