@@ -50,6 +50,13 @@ pub enum Command {
     /// timestamp queries when the adapter has them); `--compare` runs both in one process and
     /// prints the CPU/GPU ratio.
     Bench(BenchArgs),
+    /// Enhance a voxel object: coarse voxels become fine, deterministic fragments (Smith 2011).
+    ///
+    /// Adds the result as a new object "NAME (enhanced)" (replacing an earlier one of that
+    /// name) and hides the coarse original, so renders and exports show the fine model while
+    /// the coarse one stays editable; `--replace` swaps the object in place instead.
+    /// See docs/enhance.md for the rules and options.
+    Enhance(EnhanceArgs),
 }
 
 /// `thicket bench`.
@@ -81,6 +88,86 @@ pub struct BenchArgs {
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
     pub json: bool,
+}
+
+/// Enhancement operator for `thicket enhance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EnhanceMethodArg {
+    /// Recursive subdivision (power-of-two factors).
+    Subdivide,
+    /// Direct resampling with a stored random probe pattern (any factor).
+    Resample,
+}
+
+/// Colour rule for `thicket enhance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EnhanceColorArg {
+    /// Weighted average of same-material contributors.
+    Blend,
+    /// The strongest same-material contributor.
+    Nearest,
+}
+
+/// `thicket enhance`.
+#[derive(Debug, Args)]
+pub struct EnhanceArgs {
+    /// The project holding the coarse voxel object.
+    pub project: PathBuf,
+    /// Name of the voxel object to enhance.
+    #[arg(long)]
+    pub object: String,
+    /// Recursive subdivision or direct resampling.
+    #[arg(long, value_enum, default_value = "subdivide")]
+    pub method: EnhanceMethodArg,
+    /// Fragments per voxel edge (subdivide: 2, 4, 8, 16, 32, 64; resample: 1..=64).
+    #[arg(long)]
+    pub factor: u32,
+    /// Threshold everywhere. Subdivide: solid voxels among 4 (1..=4, default 2); resample:
+    /// fraction of probes that must hit (default 0.25).
+    #[arg(long)]
+    pub threshold: Option<f32>,
+    /// Alternating thresholds EVEN,ODD by the parity of the fragment's altitude (the paper's
+    /// strata, e.g. 3,4).
+    #[arg(long, value_name = "EVEN,ODD", conflicts_with = "threshold")]
+    pub strata: Option<String>,
+    /// Per-material threshold MATERIAL=THRESHOLD (repeatable); other materials use
+    /// --threshold or its default.
+    #[arg(
+        long = "material-threshold",
+        value_name = "MATERIAL=THRESHOLD",
+        conflicts_with = "strata"
+    )]
+    pub material_threshold: Vec<String>,
+    /// Resample: probes per fragment (default 16).
+    #[arg(long)]
+    pub probes: Option<u32>,
+    /// Resample: probe spread in coarse voxels (default 1.0).
+    #[arg(long)]
+    pub spread: Option<f32>,
+    /// Resample: seed of the probe pattern (default 1).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Colour rule.
+    #[arg(long, value_enum, default_value = "blend")]
+    pub color: EnhanceColorArg,
+    /// Bake random-walk ("snowflake") lighting into the fragment colours.
+    #[arg(long)]
+    pub lighting: bool,
+    /// Lighting: direction toward the sun as X,Y,Z (Y up; default: the document's first light).
+    #[arg(long, value_name = "X,Y,Z", requires = "lighting")]
+    pub sun: Option<String>,
+    /// Lighting: sun and sky particles per fragment (default 8 each).
+    #[arg(long, requires = "lighting")]
+    pub particles: Option<u32>,
+    /// Lighting: seed of the walks (default 7).
+    #[arg(long, requires = "lighting")]
+    pub light_seed: Option<u64>,
+    /// Replace the object with its enhancement (same name and id) instead of adding one.
+    #[arg(long)]
+    pub replace: bool,
+    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
 }
 
 /// `thicket import`.
@@ -163,7 +250,193 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Import(args)) => import(&args),
         Some(Command::Render(args)) => render(&args),
         Some(Command::Bench(args)) => bench(&args),
+        Some(Command::Enhance(args)) => enhance(&args),
     }
+}
+
+/// Parses "A,B,..." into exactly `N` finite numbers for option `flag`.
+fn parse_floats<const N: usize>(flag: &str, text: &str) -> anyhow::Result<[f32; N]> {
+    let parts: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    let arr: [f32; N] = parts
+        .try_into()
+        .map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    anyhow::ensure!(
+        arr.iter().all(|v| v.is_finite()),
+        "{flag} {text:?}: numbers must be finite"
+    );
+    Ok(arr)
+}
+
+/// The settings `thicket enhance` asks for; options of the other method are refused so a typo
+/// does not silently do nothing.
+fn enhance_settings(
+    args: &EnhanceArgs,
+    doc: &thicket_core::scene::Document,
+) -> anyhow::Result<thicket_core::enhance::EnhanceSettings> {
+    use thicket_core::enhance::{
+        ColorMode, EnhanceSettings, MaterialThreshold, Method, ThresholdPattern,
+    };
+    let mut s = EnhanceSettings {
+        factor: args.factor,
+        ..EnhanceSettings::default()
+    };
+    s.method = match args.method {
+        EnhanceMethodArg::Subdivide => {
+            for (flag, given) in [
+                ("--probes", args.probes.is_some()),
+                ("--spread", args.spread.is_some()),
+                ("--seed", args.seed.is_some()),
+            ] {
+                anyhow::ensure!(!given, "{flag} applies to --method resample, not subdivide");
+            }
+            Method::Subdivide
+        }
+        EnhanceMethodArg::Resample => Method::Resample,
+    };
+    let default_threshold = match s.method {
+        Method::Subdivide => 2.0,
+        Method::Resample => 0.25,
+    };
+    let base = args.threshold.unwrap_or(default_threshold);
+    let pattern = if let Some(text) = &args.strata {
+        let [even, odd] = parse_floats::<2>("--strata", text)?;
+        ThresholdPattern::Alternating { even, odd }
+    } else if !args.material_threshold.is_empty() {
+        let mut materials = Vec::new();
+        for kv in &args.material_threshold {
+            let (m, t) = kv.split_once('=').with_context(|| {
+                format!("--material-threshold {kv:?}: expected MATERIAL=THRESHOLD, e.g. 2=3")
+            })?;
+            let material = m.trim().parse::<u8>().with_context(|| {
+                format!("--material-threshold {kv:?}: material {m:?} is not an id 0..=255")
+            })?;
+            let threshold = t.trim().parse::<f32>().with_context(|| {
+                format!("--material-threshold {kv:?}: threshold {t:?} is not a number")
+            })?;
+            materials.push(MaterialThreshold {
+                material,
+                threshold,
+            });
+        }
+        ThresholdPattern::PerMaterial {
+            default: base,
+            materials,
+        }
+    } else {
+        ThresholdPattern::Constant { value: base }
+    };
+    match s.method {
+        Method::Subdivide => s.subdivide.threshold = pattern,
+        Method::Resample => {
+            let r = &mut s.resample;
+            r.threshold = pattern;
+            r.probe_count = args.probes.unwrap_or(r.probe_count);
+            r.spread = args.spread.unwrap_or(r.spread);
+            r.seed = args.seed.unwrap_or(r.seed);
+        }
+    }
+    s.color = match args.color {
+        EnhanceColorArg::Blend => ColorMode::Blend,
+        EnhanceColorArg::Nearest => ColorMode::Nearest,
+    };
+    if args.lighting {
+        let l = &mut s.lighting;
+        l.enabled = true;
+        if let Some(text) = &args.sun {
+            l.sun_direction = parse_floats::<3>("--sun", text)?;
+        } else if let Some(light) = doc.lights.first() {
+            // Lights store the direction light travels; the walks go toward the sun.
+            l.sun_direction = (-light.direction).to_array();
+        }
+        if let Some(n) = args.particles {
+            l.sun_particles = n;
+            l.sky_particles = n;
+        }
+        l.seed = args.light_seed.unwrap_or(l.seed);
+    }
+    Ok(s)
+}
+
+fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
+    use thicket_core::enhance::{Control, enhance_model};
+    use thicket_core::scene::ObjectKind;
+    let mut doc = files::load_document(&args.project)?;
+    let project = args.project.display();
+    let Some(index) = doc.objects.iter().position(|o| o.name == args.object) else {
+        let names: Vec<String> = doc
+            .objects
+            .iter()
+            .map(|o| format!("{:?}", o.name))
+            .collect();
+        anyhow::bail!(
+            "{project}: no object named {:?}; the project has {}",
+            args.object,
+            if names.is_empty() {
+                "no objects".to_owned()
+            } else {
+                names.join(", ")
+            }
+        );
+    };
+    let ObjectKind::Voxels(model) = &doc.objects[index].kind else {
+        anyhow::bail!(
+            "{project}: object {:?} is a {}, not a voxel object; only voxel objects can be enhanced",
+            args.object,
+            doc.objects[index].kind_name()
+        );
+    };
+    let settings = enhance_settings(args, &doc)
+        .with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
+    let bar = progress_bar(1000, "enhancing");
+    let report = |f: f32| bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+    let result = enhance_model(
+        model,
+        &settings,
+        Control {
+            progress: Some(&report),
+            cancel: None,
+        },
+    );
+    bar.finish_and_clear();
+    let coarse_voxels = model.svo.leaf_count();
+    let (fine, stats) =
+        result.with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
+    let fragments = fine.svo.leaf_count();
+    let depth = fine.svo.depth();
+    let name = if args.replace {
+        doc.objects[index].kind = ObjectKind::Voxels(fine);
+        args.object.clone()
+    } else {
+        let name = format!("{} (enhanced)", args.object);
+        let transform = doc.objects[index].transform;
+        doc.objects[index].visible = false;
+        let id = match doc.objects.iter().position(|o| o.name == name) {
+            Some(i) => {
+                doc.objects[i].kind = ObjectKind::Voxels(fine);
+                doc.objects[i].id
+            }
+            None => doc.add(name.clone(), ObjectKind::Voxels(fine)),
+        };
+        if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
+            o.transform = transform;
+            o.visible = true;
+        }
+        name
+    };
+    files::save_project(&doc, &args.output)?;
+    write_stdout(&format!(
+        "wrote {}: object {name:?} with {} fragments (shell) from {} coarse voxels, factor {}, \
+         depth {depth}, {:.2} s\n",
+        args.output.display(),
+        thousands(fragments),
+        thousands(coarse_voxels),
+        settings.factor,
+        stats.seconds
+    ))
 }
 
 fn import(args: &ImportArgs) -> anyhow::Result<()> {

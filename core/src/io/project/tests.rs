@@ -246,7 +246,12 @@ fn mutated_project_files_never_panic() {
     let json = fs::read(&path).unwrap();
     let bin = fs::read(dir.path().join("f.thicket.bin")).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
-    let cases = 10_000;
+    // THICKET_FUZZ_CASES raises the count for long runs (in release, see io::fuzz).
+    let cases = crate::io::fuzz::cases_from_env(10_000);
+    let start = std::time::Instant::now();
+    let (mut accepted, mut refused) = (0u64, 0u64);
+    let mut panics: Vec<u64> = Vec::new();
+    let mut max_peak = 0u64;
     for case in 0..cases {
         let (mut j, mut b) = (json.clone(), bin.clone());
         let target = if case % 2 == 0 { &mut j } else { &mut b };
@@ -270,18 +275,41 @@ fn mutated_project_files_never_panic() {
             }
         }
         let bin_for_case = b.clone();
-        let result = std::panic::catch_unwind(|| {
-            load_from_parts(&path, &j, |_| Ok(bin_for_case.clone())).and_then(|_| {
-                decode_svo(&b)
-                    .map(|_| ())
-                    .map_err(|d| ProjectError::Payload {
-                        path: path.clone(),
-                        detail: d,
-                    })
-            })
+        // The loader proper (JSON, checksums, payloads), and the payload decoder fed the raw
+        // mutated bytes directly (past the checksum, so its own checks run).
+        let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let loaded = load_from_parts(&path, &j, |_| Ok(bin_for_case.clone())).is_ok();
+                let _ = decode_svo(&b);
+                loaded
+            }))
         });
-        assert!(result.is_ok(), "case {case} panicked");
+        max_peak = max_peak.max(peak);
+        match result {
+            Ok(true) => accepted += 1,
+            Ok(false) => refused += 1,
+            Err(_) => panics.push(case),
+        }
     }
+    eprintln!(
+        "project fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
+         max peak heap per case {max_peak} bytes, {:.1} s",
+        panics.len(),
+        start.elapsed().as_secs_f64()
+    );
+    // Declared sizes are checked before allocating: no case may hold much more than its input.
+    let input = (json.len() + bin.len()) as u64;
+    assert!(
+        max_peak < 64 * input + (16 << 20),
+        "a case held {max_peak} bytes for {input} bytes of input"
+    );
+    assert!(
+        panics.is_empty(),
+        "{} cases panicked, first {:?}",
+        panics.len(),
+        &panics[..panics.len().min(10)]
+    );
+    assert!(refused > 0, "the mutations never reached an error path");
 }
 
 /// A document with KRS objects (tree, rock with distortion and texturing, forest) beside a voxel
