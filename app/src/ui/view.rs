@@ -145,13 +145,8 @@ impl View {
     pub fn ui(&mut self, ui: &mut egui::Ui, editor: &mut Editor, sculpt: &mut SculptTool) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
-        let response = ui
-            .allocate_rect(rect, egui::Sense::click_and_drag())
-            .on_hover_text(if sculpt.active {
-                "Drag to sculpt; Alt+drag or middle-drag to orbit, Shift to pan, scroll to zoom"
-            } else {
-                "Drag to orbit, Shift+drag or right-drag to pan, scroll to zoom, F to frame"
-            });
+        // No tooltip over the view (it would cover the scene); the hint is in the corner text.
+        let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let aspect = rect.aspect_ratio().max(1e-3);
 
         // Where the pointer points in the scene (for the brush and for picking).
@@ -203,7 +198,7 @@ impl View {
         {
             brush_preview(&painter, &to_screen, &camera, &pick, sculpt);
         }
-        self.status_text(ui, rect, editor);
+        self.status_text(ui, rect, editor, sculpt.active);
     }
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
@@ -359,7 +354,7 @@ impl View {
         }
     }
 
-    fn status_text(&self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) {
+    fn status_text(&self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor, sculpt_active: bool) {
         let painter = ui.painter_at(rect);
         let origin = rect.left_top() + egui::vec2(8.0, 8.0);
         let weak = ui.visuals().weak_text_color();
@@ -386,6 +381,11 @@ impl View {
             return;
         }
         let c = editor.doc().camera;
+        let hint = if sculpt_active {
+            "Drag: sculpt   Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate"
+        } else {
+            "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
+        };
         let text = match &status.stats {
             // Timings are in the performance overlay (F3): this line stays stable for snapshots.
             Some(s) => format!(
@@ -399,7 +399,11 @@ impl View {
             ),
             None => "Rendering...".to_owned(),
         };
-        painter.text(origin, egui::Align2::LEFT_TOP, text, font, weak);
+        let text = format!("{text}\n{hint}");
+        let galley = painter.layout_no_wrap(text, font, egui::Color32::from_gray(220));
+        let backdrop = egui::Rect::from_min_size(origin, galley.size()).expand(4.0);
+        painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(140));
+        painter.galley(origin, galley, weak);
     }
 }
 
