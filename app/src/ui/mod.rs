@@ -107,7 +107,11 @@ enum JobResult {
     Opened(PathBuf, anyhow::Result<Document>),
     Imported(PathBuf, anyhow::Result<Document>),
     /// An enhanced copy of a voxel object: (source id, source name, result).
-    Enhanced(u64, String, anyhow::Result<thicket_core::scene::VoxelModel>),
+    Enhanced(
+        u64,
+        String,
+        anyhow::Result<Box<thicket_core::scene::VoxelModel>>,
+    ),
     Exported(anyhow::Result<String>),
 }
 
@@ -339,11 +343,13 @@ impl EditorApp {
             };
             let result =
                 thicket_core::enhance::Enhancer::with_control(&model.svo, &settings, control)
-                    .map(|e| thicket_core::scene::VoxelModel {
-                        svo: e.into_fine(),
-                        voxel_size: model.voxel_size / factor as f32,
-                        origin: model.origin,
-                        material_names: model.material_names.clone(),
+                    .map(|e| {
+                        Box::new(thicket_core::scene::VoxelModel {
+                            svo: e.into_fine(),
+                            voxel_size: model.voxel_size / factor as f32,
+                            origin: model.origin,
+                            material_names: model.material_names.clone(),
+                        })
                     })
                     .map_err(anyhow::Error::from);
             JobResult::Enhanced(source, name, result)
@@ -425,7 +431,7 @@ impl EditorApp {
                 let voxels = model.svo.leaf_count();
                 let id = self.editor.add_object(
                     &format!("{name} enhanced"),
-                    thicket_core::scene::ObjectKind::Voxels(model),
+                    thicket_core::scene::ObjectKind::Voxels(*model),
                 );
                 // The copy sits where the source is.
                 if let Some(t) = self.editor.object(source).map(|o| o.transform) {

@@ -12,6 +12,9 @@ use crate::viewport::ViewportLink;
 /// Frames kept in the graph.
 const HISTORY: usize = 300;
 
+/// Object names and bytes, for one document content key.
+type MemoryRows = ((u64, u64), Vec<(String, u64)>);
+
 /// The overlay's state.
 #[derive(Default)]
 pub struct PerfOverlay {
@@ -24,7 +27,7 @@ pub struct PerfOverlay {
     frame: u64,
     last_rendered: u64,
     /// Memory by object for one content key (summaries visit every voxel).
-    memory: Option<((u64, u64), Vec<(String, u64)>)>,
+    memory: Option<MemoryRows>,
 }
 
 impl PerfOverlay {
