@@ -7,7 +7,8 @@
 //! | [`files`] | opening any supported file as a document; `info` summaries |
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
-//! | [`ui`] | the eframe app: menu bar, outliner, inspector, status bar, preview |
+//! | [`viewport`] | the one bridge between egui and the GPU renderer (paint callback) |
+//! | [`ui`] | the eframe app: menu bar, tool bar, outliner, inspector, 3D view, perf overlay |
 
 pub mod bench;
 pub mod cli;
@@ -15,3 +16,4 @@ pub mod editor;
 pub mod files;
 pub mod gpu;
 pub mod ui;
+pub mod viewport;

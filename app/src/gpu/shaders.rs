@@ -30,6 +30,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("mesh32.wgsl"),
     shader!("resolve.wgsl"),
     shader!("shade.wgsl"),
+    shader!("viewport_blit.wgsl"),
 ];
 
 /// Whether a module needs 64-bit integer atomics (`SHADER_INT64` and
