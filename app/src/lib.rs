@@ -6,10 +6,12 @@
 //! | [`files`] | opening any supported file as a document; `info` summaries |
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
+//! | [`tradeoff`] | `thicket tradeoff`: quality sweep reports and plots |
 //! | [`ui`] | the eframe app: menu bar, outliner, inspector, status bar, preview |
 
 pub mod cli;
 pub mod editor;
 pub mod files;
 pub mod gpu;
+pub mod tradeoff;
 pub mod ui;
