@@ -135,17 +135,17 @@ pub fn default_knobs() -> Vec<KnobValues> {
 
 /// The reference setting: the `final` preset raised further on every knob where more is
 /// closer to the ideal image — LOD threshold 0.25 px (every voxel splat below a quarter pixel),
-/// shadow maps up to 8192 texels, PCF radius 3, 32 AO samples, KRS epsilon 0.25 px with
+/// shadow maps up to 8192 texels, 32 AO samples, KRS epsilon 0.25 px with
 /// 2000 steps and no over-relaxation (it can step over thin features), 128 enhancement probes.
-/// Knobs that are choices rather than precision (culling, stretch multiplier, tile
-/// acceleration, soft shadows) keep their `final` values.
+/// Knobs that are choices rather than precision keep their `final` values: culling, stretch
+/// multiplier, tile acceleration, soft shadows, and the PCF radius (a softness filter: a wider
+/// reference filter would rank any blur, even a too-small shadow map, as "closer").
 #[must_use]
 pub fn reference_quality() -> Quality {
     let mut q = Quality::preset(QualityPreset::Final);
     for (name, value) in [
         ("lod_pixel_threshold", "0.25"),
         ("shadow_map_size", "8192"),
-        ("shadow_pcf_radius", "3"),
         ("ao_samples", "32"),
         ("krs_epsilon_scale", "0.25"),
         ("krs_max_steps", "2000"),
