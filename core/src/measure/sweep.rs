@@ -313,9 +313,10 @@ pub fn settings_of(s: &SweepSettings) -> Result<Vec<Setting>, SweepError> {
 /// Deterministic work of a frame, a cost that does not depend on machine load: octree nodes
 /// visited for the view and the shadow maps, triangles rasterised, and shading taps (each
 /// covered pixel costs one tap, plus `(2r+1)²` shadow-map taps per shadow-casting light for
-/// PCF radius r, plus one per AO sample). Counted from [`FrameStats`] where the renderer counts
-/// (nodes, triangles, pixels); the per-pixel tap count follows the knobs, since the shading
-/// loop does exactly that many lookups per pixel.
+/// PCF radius r). Counted from [`FrameStats`] where the renderer counts (nodes, triangles,
+/// pixels); the per-pixel tap count follows the knobs, since the shading loop does exactly that
+/// many lookups per pixel. AO samples are not counted: the CPU renderer does not shade AO yet;
+/// whoever adds it adds its samples here (or a counter to `FrameStats`).
 #[must_use]
 pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -> u64 {
     let nodes: u64 = stats
@@ -330,7 +331,7 @@ pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -
     } else {
         0
     };
-    let taps = 1 + shadow_taps + u64::from(quality.ao_samples);
+    let taps = 1 + shadow_taps;
     nodes + stats.triangles_rasterised + stats.covered_pixels * taps
 }
 
