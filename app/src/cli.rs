@@ -57,6 +57,9 @@ pub enum Command {
     /// the coarse one stays editable; `--replace` swaps the object in place instead.
     /// See docs/enhance.md for the rules and options.
     Enhance(EnhanceArgs),
+    /// Measure the speed/accuracy trade: render a high-quality reference, then each setting of
+    /// the given quality knobs; write report.json, report.csv and tradeoff.png to a directory.
+    Tradeoff(TradeoffArgs),
 }
 
 /// `thicket bench`.
@@ -170,6 +173,32 @@ pub struct EnhanceArgs {
     pub output: PathBuf,
 }
 
+/// `thicket tradeoff`.
+#[derive(Debug, Args)]
+pub struct TradeoffArgs {
+    /// The project (or any supported file) to measure.
+    pub project: PathBuf,
+    /// The directory for report.json, report.csv and tradeoff.png (created if missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// A knob and its values as NAME=V1,V2,... (repeatable); default: the knobs the CPU
+    /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
+    #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
+    pub knobs: Vec<String>,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "256x256")]
+    pub size: String,
+    /// Renders per setting; the reported time is their median.
+    #[arg(long, default_value_t = 3)]
+    pub frames: usize,
+    /// Render every combination of the knob values instead of one knob at a time.
+    #[arg(long)]
+    pub grid: bool,
+    /// Leave the draft / balanced / final presets out of the sweep.
+    #[arg(long)]
+    pub no_presets: bool,
+}
+
 /// `thicket import`.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
@@ -251,6 +280,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Render(args)) => render(&args),
         Some(Command::Bench(args)) => bench(&args),
         Some(Command::Enhance(args)) => enhance(&args),
+        Some(Command::Tradeoff(args)) => tradeoff(&args),
     }
 }
 
@@ -672,6 +702,62 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         }
         s
     };
+    write_stdout(&text)
+}
+
+fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
+    use thicket_core::measure::{KnobValues, SweepSettings, sweep_document};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    let knobs = if args.knobs.is_empty() {
+        thicket_core::measure::default_knobs()
+    } else {
+        args.knobs
+            .iter()
+            .map(|k| KnobValues::parse(k).with_context(|| format!("--knob {k:?}")))
+            .collect::<anyhow::Result<_>>()?
+    };
+    let settings = SweepSettings {
+        knobs,
+        grid: args.grid,
+        presets: !args.no_presets,
+        repeats: args.frames,
+        ..SweepSettings::default()
+    };
+    let bar = progress_bar(1, "reference");
+    let report = sweep_document(&doc, width, height, &settings, |done, total, label| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(label.to_owned());
+    })
+    .with_context(|| format!("{}: sweeping", args.project.display()))?;
+    bar.finish_and_clear();
+    let name = files::object_name_for(&args.project);
+    crate::tradeoff::write_outputs(&report, &name, &args.output)?;
+    let mut text = format!(
+        "wrote {}/report.json, report.csv, tradeoff.png: {} settings at {width}x{height}, \
+         reference {:.1} ms\n",
+        args.output.display(),
+        report.points.len(),
+        report.reference_time_ms
+    );
+    for p in &report.points {
+        text.push_str(&format!(
+            "  {:<40} {:>9.1} ms {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
+            p.setting.label,
+            p.time_ms,
+            p.work,
+            p.error.rmse,
+            p.error.holes,
+            p.error.bloat,
+            match (p.on_time_front, p.on_work_front) {
+                (true, true) => "  front (time, work)",
+                (true, false) => "  front (time)",
+                (false, true) => "  front (work)",
+                (false, false) => "",
+            }
+        ));
+    }
     write_stdout(&text)
 }
 

@@ -8,6 +8,7 @@
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
 //! | [`viewport`] | the one bridge between egui and the GPU renderer (paint callback) |
+//! | [`tradeoff`] | `thicket tradeoff`: quality sweep reports and plots |
 //! | [`ui`] | the eframe app: menu bar, tool bar, outliner, inspector, 3D view, perf overlay |
 
 pub mod bench;
@@ -15,5 +16,6 @@ pub mod cli;
 pub mod editor;
 pub mod files;
 pub mod gpu;
+pub mod tradeoff;
 pub mod ui;
 pub mod viewport;
