@@ -73,8 +73,7 @@ impl KrsLayer {
             .filter(|o| !o.is_empty)
             .map(|o| o.object.world_from_object.scale)
             .fold(f32::INFINITY, f32::min)
-            .min(1e30)
-            .max(1e-30)
+            .clamp(1e-30, 1e30)
     }
 }
 
