@@ -2,23 +2,28 @@
 //!
 //! A frame: shadow maps (one per shadow-casting light, orthographic, fit to the scene) →
 //! triangles into the view's packed depth+id target → voxel objects by the breadth-first ASVO
-//! traversal into the same target → resolve ids to a G-buffer → deferred Phong. Depth is NDC z
-//! (0 near, 1 far, as `clip_from_world`); see `docs/rendering.md` for the conventions a GPU
-//! renderer must match.
+//! traversal into the same target → KRS objects by sphere tracing into the same target →
+//! resolve ids to a G-buffer → deferred Phong (shadow maps for voxel and mesh casters, shadow
+//! rays for KRS casters). Depth is NDC z (0 near, 1 far, as `clip_from_world`); see
+//! `docs/rendering.md` for the conventions a GPU renderer must match.
 //!
 //! Entry points: [`render_document`] for a [`Document`], [`render_scene`] for callers that bring
-//! their own per-node transform ([`NodeDeform`], e.g. skinning).
+//! their own per-node transform ([`NodeDeform`], e.g. skinning), [`render_scene_with_krs`] to
+//! add KRS objects to such a scene.
 
 mod asvo;
 mod buffers;
 mod camera;
 mod deform;
+mod krs;
 pub mod quality;
 mod raster;
 pub mod scenes;
 pub mod shade;
 mod stats;
 
+#[cfg(test)]
+mod krs_tests;
 #[cfg(test)]
 mod tests;
 
@@ -30,6 +35,7 @@ pub use asvo::VoxelInstance;
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
 pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
+pub use krs::{KRS_TILE, KrsLayer, KrsStats};
 pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
 pub use stats::{FrameStats, LevelStats, StageTimes};
@@ -159,11 +165,17 @@ pub fn render_document(
         ambient: doc.ambient,
         background: doc.background,
     };
+    let mut krs_objects = Vec::new();
+    let mut krs_labels = Vec::new();
     for (i, (o, d)) in doc.objects.iter().zip(&deforms).enumerate() {
         if !o.visible {
             continue;
         }
         let label = i as u32 + 1;
+        if let Some(k) = o.krs_in_world() {
+            krs_objects.push(k);
+            krs_labels.push(label);
+        }
         match (&o.kind, d) {
             (ObjectKind::Voxels(v), Some(d)) => scene.voxels.push(VoxelInstance {
                 svo: &v.svo,
@@ -177,11 +189,28 @@ pub fn render_document(
                 casts_shadows: m.casts_shadows,
                 label,
             }),
-            // Drawn by the KRS pass (sphere tracing), not placed here.
+            // KRS objects were collected above for the sphere-tracing pass.
             (ObjectKind::Voxels(_), None) | (ObjectKind::Krs(_), _) => {}
         }
     }
-    render_scene(&scene, &cam, &req.quality)
+    // Validated above, so preparing cannot fail; the error is still reported, never unwrapped.
+    let krs_scene = crate::krs::KrsScene {
+        objects: krs_objects,
+    }
+    .prepare()
+    .map_err(|e| {
+        RenderError::InvalidDocument(SceneError::Invalid {
+            what: "krs".into(),
+            context: "document".into(),
+            detail: e.to_string(),
+        })
+    })?;
+    let krs = KrsLayer {
+        scene: krs_scene,
+        labels: krs_labels,
+        casts_shadows: true,
+    };
+    render_scene_with_krs(&scene, &krs, &cam, &req.quality)
 }
 
 /// Renders a scene from a camera.
@@ -190,6 +219,22 @@ pub fn render_document(
 /// [`RenderError`] for an empty or oversized image or invalid quality.
 pub fn render_scene(
     scene: &RenderScene<'_>,
+    cam: &Camera,
+    quality: &Quality,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_scene_with_krs(scene, &KrsLayer::default(), cam, quality)
+}
+
+/// Renders a scene plus KRS objects from a camera: the KRS is sphere-traced into the same
+/// depth+id target after triangles and voxels, so all three occlude each other; KRS casters
+/// shadow every pixel by shadow rays, voxel and mesh casters shadow KRS pixels through the
+/// shadow maps.
+///
+/// # Errors
+/// [`RenderError`] for an empty or oversized image or invalid quality.
+pub fn render_scene_with_krs(
+    scene: &RenderScene<'_>,
+    krs_layer: &KrsLayer,
     cam: &Camera,
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
@@ -257,8 +302,14 @@ pub fn render_scene(
     stats.times.splat_ms = pass.splat_ms;
 
     let t0 = Instant::now();
+    let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, &target, quality);
+    stats.krs = krs_pass.stats;
+    stats.times.krs_ms = ms_since(t0);
+
+    let t0 = Instant::now();
     let keys = target.into_keys();
-    let fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    let mut fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    shade::resolve_krs(&mut fb, &keys, &krs_pass, &krs_layer.labels);
     stats.times.resolve_ms = ms_since(t0);
     stats.covered_pixels = fb.covered_pixels() as u64;
 
@@ -269,8 +320,13 @@ pub fn render_scene(
         ambient: scene.ambient,
         background: scene.background,
         ao_radius_world: bounds.map_or(0.0, |(lo, hi)| AO_RADIUS_OF_SCENE * (hi - lo).length()),
+        krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
     };
     let img = shade::shade(&fb, cam, &lighting, quality);
+    stats.krs.shadow_rays = lighting
+        .krs
+        .shadow_rays
+        .load(std::sync::atomic::Ordering::Relaxed);
     stats.times.shade_ms = ms_since(t0);
     stats.times.total_ms = ms_since(t_start);
     Ok((img, fb, stats))

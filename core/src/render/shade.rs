@@ -8,6 +8,7 @@ use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
+use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
 use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
 use super::stats::LevelStats;
 use crate::mesh::{linear_to_srgb, srgb_to_linear};
@@ -223,6 +224,10 @@ pub(crate) fn resolve(
             }
             *d = key_depth(key);
             let raw = (key & 0xffff_ffff) as u32;
+            if raw & KRS_ID_FLAG == KRS_ID_FLAG {
+                // Filled by `resolve_krs` from the pass's own records.
+                return;
+            }
             if raw & MESH_ID_FLAG != 0 {
                 let Some(t) = tris.get((raw & !MESH_ID_FLAG) as usize) else {
                     return;
@@ -343,6 +348,31 @@ fn srgb_byte_to_linear(v: u8) -> f32 {
     TABLE[usize::from(v)]
 }
 
+/// Fills the G-buffer of pixels the KRS won: object label, kernel as node, the §6.1 normal and
+/// the textured albedo recorded when the ray hit.
+pub(crate) fn resolve_krs(fb: &mut FrameBuffers, keys: &[u64], pass: &KrsPass, labels: &[u32]) {
+    fb.ids
+        .par_iter_mut()
+        .zip(fb.normal.par_iter_mut())
+        .zip(fb.albedo.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, ((id, nrm), alb))| {
+            let raw = (keys[i] & 0xffff_ffff) as u32;
+            if keys[i] == EMPTY_KEY || raw & KRS_ID_FLAG != KRS_ID_FLAG {
+                return;
+            }
+            let Some(Some(px)) = pass.pixels.get(i) else {
+                return;
+            };
+            *id = PixelId {
+                object: labels.get(px.object as usize).copied().unwrap_or(0),
+                node: u64::from(px.kernel),
+            };
+            *nrm = px.normal;
+            *alb = px.albedo;
+        });
+}
+
 /// Barycentric weights of `p` (on or near the triangle's plane), clamped into the triangle.
 fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
     let n = (b - a).cross(c - a);
@@ -370,6 +400,8 @@ pub(crate) struct Lighting<'a> {
     pub(crate) background: Vec3,
     /// World radius of the ambient-occlusion samples (see [`AoKernel`]).
     pub(crate) ao_radius_world: f32,
+    /// KRS shadow rays, AO and Algorithm 2 diffuse factors.
+    pub(crate) krs: KrsLighting<'a>,
 }
 
 /// The golden angle in radians: successive AO sample azimuths are this far apart.
@@ -481,24 +513,36 @@ pub(crate) fn shade(
                 return;
             }
             let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
-            let p = cam.unproject(x, y, fb.depth[i]);
+            let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
+            // A KRS pixel keeps its exact hit point; others come back from 32-bit NDC depth.
+            let p = krs_px.map_or_else(|| cam.unproject(x, y, fb.depth[i]), |px| px.position);
             let n = fb.normal[i];
             let v = (eye - p).normalize_or_zero();
             let receiver = cam.pixel_world_size(cam.view_depth(fb.depth[i]))
                 * quality.lod_pixel_threshold.max(1.0);
             // The AO staircase tolerance: the receiver term of the shadow bias.
             let open = ao.openness(fb, cam, p, n, 1.5 * receiver);
-            let mut light = lighting.ambient * open;
+            let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
+            // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
+            // (occlusion by KRS geometry, also outside the screen).
+            let mut light = lighting.ambient * (open * lighting.krs.ambient(p, n));
             let mut spec = Vec3::ZERO;
             for (li, &(l, color)) in lights.iter().enumerate() {
-                let ndotl = n.dot(l);
+                // Algorithm 2 replaces n·l on KRS pixels (smooth across mirror planes).
+                let ndotl = lighting
+                    .krs
+                    .diffuse(i, li, lights.len())
+                    .unwrap_or_else(|| n.dot(l));
                 if ndotl <= 0.0 {
                     continue;
                 }
-                let vis = match lighting.shadows.get(li) {
+                let mut vis = match lighting.shadows.get(li) {
                     Some(Some(sm)) => sm.visibility(p, n, receiver, pcf),
                     _ => 1.0,
                 };
+                if vis > 0.0 && lighting.lights[li].casts_shadows {
+                    vis *= lighting.krs.shadow(p, n, l, footprint);
+                }
                 if vis <= 0.0 {
                     continue;
                 }
