@@ -70,7 +70,6 @@ fn every_sample_export_passes_the_khronos_validator() {
     // KRS objects (tree and rock presets) as they will be exported from documents: the
     // distance-field mesh, and the tree's kernels instanced (the rock's half-spaces cannot be).
     for (name, object, mode) in [
-        ("tree", presets::tree(), ExportMode::Cubes),
         ("rock", presets::rock(), ExportMode::Cubes),
         ("tree-instances", presets::tree(), ExportMode::Instances),
     ] {
