@@ -396,7 +396,7 @@ fn assert_watertight(indices: &[u32], what: &str) {
 }
 
 #[test]
-fn krs_meshes_of_the_tree_and_rock_are_watertight() {
+fn krs_mesh_of_the_rock_is_watertight() {
     for (name, object, resolution) in [("rock", presets::rock(), 48)] {
         let scene = KrsScene {
             objects: vec![object],
