@@ -464,6 +464,7 @@ fn voxel_model<'a>(
     match &o.kind {
         ObjectKind::Voxels(v) => (o, v),
         ObjectKind::Mesh(_) => panic!("{name:?} is a mesh"),
+        ObjectKind::Krs(_) => panic!("{name:?} is a KRS object"),
     }
 }
 

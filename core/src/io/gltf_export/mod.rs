@@ -446,6 +446,36 @@ pub fn build_scene(
                 charge(&mut budget, tris, options, path, &o.name)?;
                 out.mesh_node(o, &m.model)
             }
+            ObjectKind::Krs(_) => {
+                // Meshed in world space (the object's transform composed with the KRS's own
+                // placement); its nodes carry the identity transform.
+                let krs = o.krs_in_world().ok_or_else(|| {
+                    object_error("a KRS object's scale must be uniform and positive".to_owned())
+                })?;
+                let prepared = crate::krs::KrsScene { objects: vec![krs] }
+                    .prepare()
+                    .map_err(|e| object_error(e.to_string()))?;
+                let krs_options = GltfExportOptions {
+                    max_triangles: budget,
+                    ..options.clone()
+                };
+                let tris = add_krs_object(
+                    &mut out.scene,
+                    &o.name,
+                    &prepared.objects[0],
+                    &krs_options,
+                    &|_| true,
+                )
+                .map_err(|e| field_error(path, &o.name, e))?;
+                charge(&mut budget, tris, options, path, &o.name)?;
+                report.objects += 1;
+                if !progress((i + 1) as f32 / total) {
+                    return Err(GltfExportError::Cancelled {
+                        path: path.to_owned(),
+                    });
+                }
+                continue;
+            }
         };
         out.scene.nodes.push(node);
         report.objects += 1;
