@@ -389,7 +389,7 @@ fn splat_count_of_a_sphere_follows_pixels_not_voxels() {
 fn svo_mut(doc: &mut Document) -> &mut Svo {
     match &mut doc.objects[0].kind {
         ObjectKind::Voxels(v) => &mut v.svo,
-        ObjectKind::Mesh(_) => unreachable!("the first object is voxels"),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!("the first object is voxels"),
     }
 }
 
