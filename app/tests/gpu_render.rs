@@ -311,8 +311,12 @@ fn plate_model(depth: u8) -> VoxelModel {
         },
         |v: UVec3| {
             let c = (v.x + v.z) / (n / 64).max(1);
-            (v.y == 0 && (lo..hi).contains(&v.x) && (lo..hi).contains(&v.z))
-                .then(|| Voxel::new([if c % 2 == 0 { 220 } else { 60 }, 120, 90, 255], Vec3::Y))
+            (v.y == 0 && (lo..hi).contains(&v.x) && (lo..hi).contains(&v.z)).then(|| {
+                Voxel::new(
+                    [if c.is_multiple_of(2) { 220 } else { 60 }, 120, 90, 255],
+                    Vec3::Y,
+                )
+            })
         },
     )
     .expect("valid depth");
@@ -389,7 +393,7 @@ fn splat_count_of_a_sphere_follows_pixels_not_voxels() {
 fn svo_mut(doc: &mut Document) -> &mut Svo {
     match &mut doc.objects[0].kind {
         ObjectKind::Voxels(v) => &mut v.svo,
-        ObjectKind::Mesh(_) => unreachable!("the first object is voxels"),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!("the first object is voxels"),
     }
 }
 
