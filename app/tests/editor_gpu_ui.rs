@@ -205,7 +205,7 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
     let leaves =
         |h: &Harness<'static, EditorApp>| match &h.state().editor.object(house_id).unwrap().kind {
             ObjectKind::Voxels(v) => v.svo.leaf_count(),
-            ObjectKind::Mesh(_) => unreachable!(),
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!(),
         };
     let before = leaves(&h);
     let steps_before = h.state().editor.history().undo_len();
