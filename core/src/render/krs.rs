@@ -200,14 +200,17 @@ pub(crate) fn draw_krs(
 ) -> KrsPass {
     let (w, h) = (cam.width, cam.height);
     let n = w as usize * h as usize;
+    // Without KRS objects the per-pixel records stay unallocated (readers use `get`): at
+    // 8192² they would be 3.7 GB for nothing.
     let mut pass = KrsPass {
-        pixels: vec![None; n],
+        pixels: Vec::new(),
         diffuse: Vec::new(),
         stats: KrsStats::default(),
     };
     if layer.is_empty() {
         return pass;
     }
+    pass.pixels = vec![None; n];
     let base = trace_settings(cam, quality);
     let (tiles_x, tiles_y) = (w.div_ceil(KRS_TILE), h.div_ceil(KRS_TILE));
     let use_tiles = quality.krs_tile_acceleration && cam.perspective;
