@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 
-use crate::files::{self, DocumentInfo, human_bytes, thousands};
+use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
 
 /// Thicket: sculpt voxel models, pose and skin them, grow procedural trees, export assets.
 ///
@@ -42,8 +42,24 @@ pub enum Command {
     /// Meshes are voxelized (surface by default, `--solid` fills closed meshes); .vox models
     /// come in as they are, placed by their scene graph.
     Import(ImportArgs),
-    /// Render a project with the CPU reference renderer to a PNG.
+    /// Render a project with the CPU reference renderer (or the GPU renderer, `--gpu`) to a PNG.
     Render(RenderArgs),
+    /// Time N frames of a project: frame times, fps, per-pass milliseconds, counters.
+    ///
+    /// The CPU reference renderer by default; `--gpu` for the GPU renderer (per-pass times from
+    /// timestamp queries when the adapter has them); `--compare` runs both in one process and
+    /// prints the CPU/GPU ratio.
+    Bench(BenchArgs),
+    /// Enhance a voxel object: coarse voxels become fine, deterministic fragments (Smith 2011).
+    ///
+    /// Adds the result as a new object "NAME (enhanced)" (replacing an earlier one of that
+    /// name) and hides the coarse original, so renders and exports show the fine model while
+    /// the coarse one stays editable; `--replace` swaps the object in place instead.
+    /// See docs/enhance.md for the rules and options.
+    Enhance(EnhanceArgs),
+    /// Measure the speed/accuracy trade: render a high-quality reference, then each setting of
+    /// the given quality knobs; write report.json, report.csv and tradeoff.png to a directory.
+    Tradeoff(TradeoffArgs),
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
     /// The voxels are drawn with each strategy and compared with the source mesh skinned with
@@ -69,6 +85,143 @@ pub struct SkinReportArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+/// `thicket bench`.
+#[derive(Debug, Args)]
+pub struct BenchArgs {
+    /// The project (or any supported file) to render.
+    pub project: PathBuf,
+    /// Time the GPU renderer instead of the CPU reference renderer.
+    #[arg(long, conflicts_with = "compare")]
+    pub gpu: bool,
+    /// Time both renderers, one after the other, and print the ratio.
+    #[arg(long)]
+    pub compare: bool,
+    /// GPU: use the two-pass 32-bit splat path even when 64-bit atomics exist.
+    #[arg(long)]
+    pub two_pass: bool,
+    /// Timed frames (after one warm-up frame).
+    #[arg(long, default_value_t = 20)]
+    pub frames: u32,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x800")]
+    pub size: String,
+    /// Orbit camera as YAW,PITCH,DISTANCE in degrees and scene units (default: the project's).
+    #[arg(long)]
+    pub camera: Option<String>,
+    /// Quality knob as KEY=VALUE (repeatable), e.g. lod_pixel_threshold=2.
+    #[arg(long = "quality", value_name = "KEY=VALUE")]
+    pub quality: Vec<String>,
+    /// Print machine-readable JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Enhancement operator for `thicket enhance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EnhanceMethodArg {
+    /// Recursive subdivision (power-of-two factors).
+    Subdivide,
+    /// Direct resampling with a stored random probe pattern (any factor).
+    Resample,
+}
+
+/// Colour rule for `thicket enhance`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum EnhanceColorArg {
+    /// Weighted average of same-material contributors.
+    Blend,
+    /// The strongest same-material contributor.
+    Nearest,
+}
+
+/// `thicket enhance`.
+#[derive(Debug, Args)]
+pub struct EnhanceArgs {
+    /// The project holding the coarse voxel object.
+    pub project: PathBuf,
+    /// Name of the voxel object to enhance.
+    #[arg(long)]
+    pub object: String,
+    /// Recursive subdivision or direct resampling.
+    #[arg(long, value_enum, default_value = "subdivide")]
+    pub method: EnhanceMethodArg,
+    /// Fragments per voxel edge (subdivide: 2, 4, 8, 16, 32, 64; resample: 1..=64).
+    #[arg(long)]
+    pub factor: u32,
+    /// Threshold everywhere. Subdivide: solid voxels among 4 (1..=4, default 2); resample:
+    /// fraction of probes that must hit (default 0.25).
+    #[arg(long)]
+    pub threshold: Option<f32>,
+    /// Alternating thresholds EVEN,ODD by the parity of the fragment's altitude (the paper's
+    /// strata, e.g. 3,4).
+    #[arg(long, value_name = "EVEN,ODD", conflicts_with = "threshold")]
+    pub strata: Option<String>,
+    /// Per-material threshold MATERIAL=THRESHOLD (repeatable); other materials use
+    /// --threshold or its default.
+    #[arg(
+        long = "material-threshold",
+        value_name = "MATERIAL=THRESHOLD",
+        conflicts_with = "strata"
+    )]
+    pub material_threshold: Vec<String>,
+    /// Resample: probes per fragment (default 16).
+    #[arg(long)]
+    pub probes: Option<u32>,
+    /// Resample: probe spread in coarse voxels (default 1.0).
+    #[arg(long)]
+    pub spread: Option<f32>,
+    /// Resample: seed of the probe pattern (default 1).
+    #[arg(long)]
+    pub seed: Option<u64>,
+    /// Colour rule.
+    #[arg(long, value_enum, default_value = "blend")]
+    pub color: EnhanceColorArg,
+    /// Bake random-walk ("snowflake") lighting into the fragment colours.
+    #[arg(long)]
+    pub lighting: bool,
+    /// Lighting: direction toward the sun as X,Y,Z (Y up; default: the document's first light).
+    #[arg(long, value_name = "X,Y,Z", requires = "lighting")]
+    pub sun: Option<String>,
+    /// Lighting: sun and sky particles per fragment (default 8 each).
+    #[arg(long, requires = "lighting")]
+    pub particles: Option<u32>,
+    /// Lighting: seed of the walks (default 7).
+    #[arg(long, requires = "lighting")]
+    pub light_seed: Option<u64>,
+    /// Replace the object with its enhancement (same name and id) instead of adding one.
+    #[arg(long)]
+    pub replace: bool,
+    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
+}
+
+/// `thicket tradeoff`.
+#[derive(Debug, Args)]
+pub struct TradeoffArgs {
+    /// The project (or any supported file) to measure.
+    pub project: PathBuf,
+    /// The directory for report.json, report.csv and tradeoff.png (created if missing).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// A knob and its values as NAME=V1,V2,... (repeatable); default: the knobs the CPU
+    /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
+    #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
+    pub knobs: Vec<String>,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "256x256")]
+    pub size: String,
+    /// Renders per setting; the reported time is their median.
+    #[arg(long, default_value_t = 3)]
+    pub frames: usize,
+    /// Render every combination of the knob values instead of one knob at a time.
+    #[arg(long)]
+    pub grid: bool,
+    /// Leave the draft / balanced / final presets out of the sweep.
+    #[arg(long)]
+    pub no_presets: bool,
 }
 
 /// `thicket import`.
@@ -120,6 +273,9 @@ pub struct RenderArgs {
     /// Animation clip of skinned models, by name (default: the project's).
     #[arg(long)]
     pub clip: Option<String>,
+    /// Render with the GPU renderer (wgpu; any adapter, including a software one).
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// `thicket export-vox`.
@@ -158,7 +314,195 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Import(args)) => import(&args),
         Some(Command::Render(args)) => render(&args),
         Some(Command::SkinReport(args)) => skin_report(&args),
+        Some(Command::Bench(args)) => bench(&args),
+        Some(Command::Enhance(args)) => enhance(&args),
+        Some(Command::Tradeoff(args)) => tradeoff(&args),
     }
+}
+
+/// Parses "A,B,..." into exactly `N` finite numbers for option `flag`.
+fn parse_floats<const N: usize>(flag: &str, text: &str) -> anyhow::Result<[f32; N]> {
+    let parts: Vec<f32> = text
+        .split(',')
+        .map(|p| p.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .with_context(|| format!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    let arr: [f32; N] = parts
+        .try_into()
+        .map_err(|_| anyhow::anyhow!("{flag} {text:?}: expected {N} comma-separated numbers"))?;
+    anyhow::ensure!(
+        arr.iter().all(|v| v.is_finite()),
+        "{flag} {text:?}: numbers must be finite"
+    );
+    Ok(arr)
+}
+
+/// The settings `thicket enhance` asks for; options of the other method are refused so a typo
+/// does not silently do nothing.
+fn enhance_settings(
+    args: &EnhanceArgs,
+    doc: &thicket_core::scene::Document,
+) -> anyhow::Result<thicket_core::enhance::EnhanceSettings> {
+    use thicket_core::enhance::{
+        ColorMode, EnhanceSettings, MaterialThreshold, Method, ThresholdPattern,
+    };
+    let mut s = EnhanceSettings {
+        factor: args.factor,
+        ..EnhanceSettings::default()
+    };
+    s.method = match args.method {
+        EnhanceMethodArg::Subdivide => {
+            for (flag, given) in [
+                ("--probes", args.probes.is_some()),
+                ("--spread", args.spread.is_some()),
+                ("--seed", args.seed.is_some()),
+            ] {
+                anyhow::ensure!(!given, "{flag} applies to --method resample, not subdivide");
+            }
+            Method::Subdivide
+        }
+        EnhanceMethodArg::Resample => Method::Resample,
+    };
+    let default_threshold = match s.method {
+        Method::Subdivide => 2.0,
+        Method::Resample => 0.25,
+    };
+    let base = args.threshold.unwrap_or(default_threshold);
+    let pattern = if let Some(text) = &args.strata {
+        let [even, odd] = parse_floats::<2>("--strata", text)?;
+        ThresholdPattern::Alternating { even, odd }
+    } else if !args.material_threshold.is_empty() {
+        let mut materials = Vec::new();
+        for kv in &args.material_threshold {
+            let (m, t) = kv.split_once('=').with_context(|| {
+                format!("--material-threshold {kv:?}: expected MATERIAL=THRESHOLD, e.g. 2=3")
+            })?;
+            let material = m.trim().parse::<u8>().with_context(|| {
+                format!("--material-threshold {kv:?}: material {m:?} is not an id 0..=255")
+            })?;
+            let threshold = t.trim().parse::<f32>().with_context(|| {
+                format!("--material-threshold {kv:?}: threshold {t:?} is not a number")
+            })?;
+            materials.push(MaterialThreshold {
+                material,
+                threshold,
+            });
+        }
+        ThresholdPattern::PerMaterial {
+            default: base,
+            materials,
+        }
+    } else {
+        ThresholdPattern::Constant { value: base }
+    };
+    match s.method {
+        Method::Subdivide => s.subdivide.threshold = pattern,
+        Method::Resample => {
+            let r = &mut s.resample;
+            r.threshold = pattern;
+            r.probe_count = args.probes.unwrap_or(r.probe_count);
+            r.spread = args.spread.unwrap_or(r.spread);
+            r.seed = args.seed.unwrap_or(r.seed);
+        }
+    }
+    s.color = match args.color {
+        EnhanceColorArg::Blend => ColorMode::Blend,
+        EnhanceColorArg::Nearest => ColorMode::Nearest,
+    };
+    if args.lighting {
+        let l = &mut s.lighting;
+        l.enabled = true;
+        if let Some(text) = &args.sun {
+            l.sun_direction = parse_floats::<3>("--sun", text)?;
+        } else if let Some(light) = doc.lights.first() {
+            // Lights store the direction light travels; the walks go toward the sun.
+            l.sun_direction = (-light.direction).to_array();
+        }
+        if let Some(n) = args.particles {
+            l.sun_particles = n;
+            l.sky_particles = n;
+        }
+        l.seed = args.light_seed.unwrap_or(l.seed);
+    }
+    Ok(s)
+}
+
+fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
+    use thicket_core::enhance::{Control, enhance_model};
+    use thicket_core::scene::ObjectKind;
+    let mut doc = files::load_document(&args.project)?;
+    let project = args.project.display();
+    let Some(index) = doc.objects.iter().position(|o| o.name == args.object) else {
+        let names: Vec<String> = doc
+            .objects
+            .iter()
+            .map(|o| format!("{:?}", o.name))
+            .collect();
+        anyhow::bail!(
+            "{project}: no object named {:?}; the project has {}",
+            args.object,
+            if names.is_empty() {
+                "no objects".to_owned()
+            } else {
+                names.join(", ")
+            }
+        );
+    };
+    let ObjectKind::Voxels(model) = &doc.objects[index].kind else {
+        anyhow::bail!(
+            "{project}: object {:?} is a {}, not a voxel object; only voxel objects can be enhanced",
+            args.object,
+            doc.objects[index].kind_name()
+        );
+    };
+    let settings = enhance_settings(args, &doc)
+        .with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
+    let bar = progress_bar(1000, "enhancing");
+    let report = |f: f32| bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+    let result = enhance_model(
+        model,
+        &settings,
+        Control {
+            progress: Some(&report),
+            cancel: None,
+        },
+    );
+    bar.finish_and_clear();
+    let coarse_voxels = model.svo.leaf_count();
+    let (fine, stats) =
+        result.with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
+    let fragments = fine.svo.leaf_count();
+    let depth = fine.svo.depth();
+    let name = if args.replace {
+        doc.objects[index].kind = ObjectKind::Voxels(fine);
+        args.object.clone()
+    } else {
+        let name = format!("{} (enhanced)", args.object);
+        let transform = doc.objects[index].transform;
+        doc.objects[index].visible = false;
+        let id = match doc.objects.iter().position(|o| o.name == name) {
+            Some(i) => {
+                doc.objects[i].kind = ObjectKind::Voxels(fine);
+                doc.objects[i].id
+            }
+            None => doc.add(name.clone(), ObjectKind::Voxels(fine)),
+        };
+        if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
+            o.transform = transform;
+            o.visible = true;
+        }
+        name
+    };
+    files::save_project(&doc, &args.output)?;
+    write_stdout(&format!(
+        "wrote {}: object {name:?} with {} fragments (shell) from {} coarse voxels, factor {}, \
+         depth {depth}, {:.2} s\n",
+        args.output.display(),
+        thousands(fragments),
+        thousands(coarse_voxels),
+        settings.factor,
+        stats.seconds
+    ))
 }
 
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
@@ -252,7 +596,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .iter()
         .map(|o| match &o.kind {
             thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
-            thicket_core::scene::ObjectKind::Mesh(_) => 0,
+            thicket_core::scene::ObjectKind::Mesh(_) | thicket_core::scene::ObjectKind::Krs(_) => 0,
         })
         .sum();
     write_stdout(&format!(
@@ -322,13 +666,18 @@ pub fn set_playback(
     Ok(())
 }
 
-fn render(args: &RenderArgs) -> anyhow::Result<()> {
-    use thicket_core::render::{RenderRequest, render_document};
-    let mut doc = files::load_document(&args.project)?;
-    set_playback(&mut doc, args.time, args.clip.as_deref())?;
-    let (width, height) = parse_size(&args.size)?;
+/// The document's quality with `--quality KEY=VALUE` overrides, and its camera with a
+/// `--camera YAW,PITCH,DISTANCE` override.
+fn view_options(
+    doc: &thicket_core::scene::Document,
+    quality_args: &[String],
+    camera_arg: Option<&String>,
+) -> anyhow::Result<(
+    thicket_core::render::Quality,
+    thicket_core::scene::OrbitCamera,
+)> {
     let mut quality = doc.quality.clone();
-    for kv in &args.quality {
+    for kv in quality_args {
         let (k, v) = kv
             .split_once('=')
             .with_context(|| format!("--quality {kv:?}: expected KEY=VALUE"))?;
@@ -337,7 +686,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
             .with_context(|| format!("--quality {kv:?}"))?;
     }
     let mut camera = doc.camera;
-    if let Some(c) = &args.camera {
+    if let Some(c) = camera_arg {
         let parts: Vec<f32> = c
             .split(',')
             .map(|p| p.trim().parse::<f32>())
@@ -351,14 +700,56 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         camera.distance = distance;
         camera.far = camera.far.max(distance * 4.0);
     }
-    let request = RenderRequest {
-        width,
-        height,
-        camera: Some(camera),
-        quality,
+    Ok((quality, camera))
+}
+
+fn render(args: &RenderArgs) -> anyhow::Result<()> {
+    use thicket_core::render::{RenderRequest, RgbaImage, render_document};
+    let mut doc = files::load_document(&args.project)?;
+    set_playback(&mut doc, args.time, args.clip.as_deref())?;
+    let (width, height) = parse_size(&args.size)?;
+    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let (image, stats_json) = if args.gpu {
+        let ctx = crate::gpu::GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+        let (pixels, stats) =
+            crate::gpu::render_with_context(&ctx, &doc, &camera, width, height, &quality)
+                .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
+        let json = serde_json::json!({
+            "device": ctx.describe(),
+            "atomic_path": format!("{:?}", stats.atomic_path),
+            "splats": stats.splats,
+            "triangles": stats.triangles,
+            "queue_overflow": stats.queue_overflow,
+            "levels": stats.levels.iter().map(|l| serde_json::json!({
+                "visited": l.visited, "split": l.split, "splatted": l.splatted,
+                "frustum_culled": l.frustum_culled,
+            })).collect::<Vec<_>>(),
+            "pass_ms": stats.pass_ms.iter().map(|(n, ms)| serde_json::json!([n, ms])).collect::<Vec<_>>(),
+            "gpu_timestamps": stats.gpu_timestamps,
+            "total_ms": stats.total_ms,
+        });
+        (
+            RgbaImage {
+                width,
+                height,
+                pixels,
+            },
+            json,
+        )
+    } else {
+        let request = RenderRequest {
+            width,
+            height,
+            camera: Some(camera),
+            quality,
+        };
+        let (image, _buffers, stats) = render_document(&doc, &request)
+            .with_context(|| format!("{}: rendering", args.project.display()))?;
+        (
+            image,
+            serde_json::to_value(&stats).context("encoding the statistics")?,
+        )
     };
-    let (image, _buffers, stats) = render_document(&doc, &request)
-        .with_context(|| format!("{}: rendering", args.project.display()))?;
     // Write through a temporary sibling so a failed write leaves no partial PNG.
     let tmp = args.output.with_extension("png.tmp");
     if let Err(e) = image.save_png(&tmp) {
@@ -369,8 +760,128 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{}: writing PNG", args.output.display()))?;
     let mut text = format!("wrote {} ({width}x{height})\n", args.output.display());
     if args.stats {
-        text.push_str(&serde_json::to_string_pretty(&stats).context("encoding the statistics")?);
+        text.push_str(
+            &serde_json::to_string_pretty(&stats_json).context("encoding the statistics")?,
+        );
         text.push('\n');
+    }
+    write_stdout(&text)
+}
+
+fn bench(args: &BenchArgs) -> anyhow::Result<()> {
+    use crate::bench::{bench_cpu, bench_gpu, format_report};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    if width == 0 || height == 0 {
+        anyhow::bail!(
+            "--size {:?}: both edges must be at least 1 pixel",
+            args.size
+        );
+    }
+    if args.frames == 0 {
+        anyhow::bail!("--frames 0: time at least one frame");
+    }
+    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let name = args.project.display().to_string();
+    let run_gpu = || {
+        bench_gpu(
+            &doc,
+            camera,
+            width,
+            height,
+            &quality,
+            args.frames,
+            args.two_pass,
+        )
+        .with_context(|| format!("{name}: GPU bench"))
+    };
+    let run_cpu = || {
+        bench_cpu(&doc, camera, width, height, &quality, args.frames)
+            .with_context(|| format!("{name}: CPU bench"))
+    };
+    let reports = if args.compare {
+        vec![run_cpu()?, run_gpu()?]
+    } else if args.gpu {
+        vec![run_gpu()?]
+    } else {
+        vec![run_cpu()?]
+    };
+    let ratio = (reports.len() == 2 && reports[1].mean_ms > 0.0)
+        .then(|| reports[0].mean_ms / reports[1].mean_ms);
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&serde_json::json!({
+            "project": name,
+            "runs": reports,
+            "cpu_over_gpu_frame_time": ratio,
+        }))
+        .context("encoding the report as JSON")?;
+        s.push('\n');
+        s
+    } else {
+        let mut s: String = reports.iter().map(|r| format_report(&name, r)).collect();
+        if let Some(r) = ratio {
+            s.push_str(&format!(
+                "CPU/GPU frame time: {r:.2} (CPU {:.2} ms, GPU {:.2} ms, same process)\n",
+                reports[0].mean_ms, reports[1].mean_ms
+            ));
+        }
+        s
+    };
+    write_stdout(&text)
+}
+
+fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
+    use thicket_core::measure::{KnobValues, SweepSettings, sweep_document};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    let knobs = if args.knobs.is_empty() {
+        thicket_core::measure::default_knobs()
+    } else {
+        args.knobs
+            .iter()
+            .map(|k| KnobValues::parse(k).with_context(|| format!("--knob {k:?}")))
+            .collect::<anyhow::Result<_>>()?
+    };
+    let settings = SweepSettings {
+        knobs,
+        grid: args.grid,
+        presets: !args.no_presets,
+        repeats: args.frames,
+        ..SweepSettings::default()
+    };
+    let bar = progress_bar(1, "reference");
+    let report = sweep_document(&doc, width, height, &settings, |done, total, label| {
+        bar.set_length(total as u64);
+        bar.set_position(done as u64);
+        bar.set_message(label.to_owned());
+    })
+    .with_context(|| format!("{}: sweeping", args.project.display()))?;
+    bar.finish_and_clear();
+    let name = files::object_name_for(&args.project);
+    crate::tradeoff::write_outputs(&report, &name, &args.output)?;
+    let mut text = format!(
+        "wrote {}/report.json, report.csv, tradeoff.png: {} settings at {width}x{height}, \
+         reference {:.1} ms\n",
+        args.output.display(),
+        report.points.len(),
+        report.reference_time_ms
+    );
+    for p in &report.points {
+        text.push_str(&format!(
+            "  {:<40} {:>9.1} ms {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
+            p.setting.label,
+            p.time_ms,
+            p.work,
+            p.error.rmse,
+            p.error.holes,
+            p.error.bloat,
+            match (p.on_time_front, p.on_work_front) {
+                (true, true) => "  front (time, work)",
+                (true, false) => "  front (time)",
+                (false, true) => "  front (work)",
+                (false, false) => "",
+            }
+        ));
     }
     write_stdout(&text)
 }
@@ -553,6 +1064,23 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
                 o.materials
             );
         }
+        if let Some(k) = &o.krs {
+            let _ = writeln!(
+                s,
+                "      KRS: {} kernel instances, {} mirrors, {} kernel sets ({} non-empty: {}){}{}",
+                thousands_u128(k.kernel_instances),
+                k.mirrors,
+                k.kernel_sets,
+                k.kernels.len(),
+                summarise_kinds(&k.kernels),
+                if k.distorted { ", distorted" } else { "" },
+                if k.empty_zones > 0 {
+                    format!(", {} empty zone(s)", k.empty_zones)
+                } else {
+                    String::new()
+                }
+            );
+        }
         if let Some(size) = o.world_size {
             let _ = writeln!(s, "      world size {}", fmt_size(size));
         }
@@ -570,6 +1098,28 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
         }
     }
     s
+}
+
+/// `["Sphere", "Capsule", "Capsule"]` → `Sphere, 2 x Capsule` (first-seen order).
+fn summarise_kinds(kinds: &[&str]) -> String {
+    let mut counts: Vec<(&str, usize)> = Vec::new();
+    for k in kinds {
+        match counts.iter_mut().find(|(name, _)| name == k) {
+            Some((_, n)) => *n += 1,
+            None => counts.push((k, 1)),
+        }
+    }
+    counts
+        .iter()
+        .map(|(name, n)| {
+            if *n == 1 {
+                (*name).to_owned()
+            } else {
+                format!("{n} x {name}")
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// A progress bar on stderr for long work; indicatif hides it when stderr is not a terminal.

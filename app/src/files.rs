@@ -264,6 +264,25 @@ pub struct ObjectInfo {
     pub world_size: Option<[f32; 3]>,
     /// Memory by part.
     pub memory: MemoryInfo,
+    /// Kernel-reflection-sequence objects.
+    pub krs: Option<KrsInfo>,
+}
+
+/// What `thicket info` says about a KRS object.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct KrsInfo {
+    /// Mirror planes (reflection levels n).
+    pub mirrors: usize,
+    /// Kernel sets K0..Kn, empty ones included (n + 1).
+    pub kernel_sets: usize,
+    /// Kinds of the non-empty kernel sets, finest level first.
+    pub kernels: Vec<&'static str>,
+    /// Kernel instances, sum over non-empty K_j of 2^(n-j) (saturating).
+    pub kernel_instances: u128,
+    /// Whether a Lipschitz-bounded distortion warps it.
+    pub distorted: bool,
+    /// Carved-out empty zones.
+    pub empty_zones: usize,
 }
 
 /// A document summary.
@@ -335,6 +354,7 @@ pub fn object_info(o: &Object) -> ObjectInfo {
         materials: 0,
         world_size,
         memory: MemoryInfo::default(),
+        krs: None,
     };
     match &o.kind {
         ObjectKind::Voxels(v) => {
@@ -360,6 +380,30 @@ pub fn object_info(o: &Object) -> ObjectInfo {
             info.vertices = Some(m.model.vertex_count());
             info.materials = m.model.materials.len();
             info.memory = mesh_memory(&m.model);
+        }
+        ObjectKind::Krs(k) => {
+            let kernels: Vec<&'static str> = k
+                .kernels
+                .iter()
+                .filter(|kernel| !kernel.is_empty())
+                .map(thicket_core::krs::Kernel::kind_name)
+                .collect();
+            let bytes = (std::mem::size_of_val(k.kernels.as_slice())
+                + std::mem::size_of_val(k.mirrors.as_slice())
+                + std::mem::size_of_val(k.empty_zones.as_slice())) as u64;
+            info.memory = MemoryInfo {
+                payload_bytes: bytes,
+                total_bytes: bytes,
+                ..MemoryInfo::default()
+            };
+            info.krs = Some(KrsInfo {
+                mirrors: k.mirrors.len(),
+                kernel_sets: k.kernels.len(),
+                kernels,
+                kernel_instances: k.instance_count(),
+                distorted: k.distortion.is_some(),
+                empty_zones: k.empty_zones.len(),
+            });
         }
     }
     info
@@ -398,6 +442,12 @@ pub fn info(path: &Path) -> anyhow::Result<DocumentInfo> {
 /// `1234567` → `1,234,567`.
 #[must_use]
 pub fn thousands(n: u64) -> String {
+    thousands_u128(u128::from(n))
+}
+
+/// [`thousands`] for counts beyond `u64` (KRS kernel instances).
+#[must_use]
+pub fn thousands_u128(n: u128) -> String {
     let digits = n.to_string();
     let mut out = String::with_capacity(digits.len() + digits.len() / 3);
     for (i, c) in digits.chars().enumerate() {

@@ -2,14 +2,20 @@
 //!
 //! | module | owns |
 //! |---|---|
+//! | [`bench`] | `thicket bench`: timing the CPU and GPU renderers |
 //! | [`cli`] | the `thicket` command line |
 //! | [`files`] | opening any supported file as a document; `info` summaries |
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
-//! | [`ui`] | the eframe app: menu bar, outliner, inspector, status bar, preview |
+//! | [`viewport`] | the one bridge between egui and the GPU renderer (paint callback) |
+//! | [`tradeoff`] | `thicket tradeoff`: quality sweep reports and plots |
+//! | [`ui`] | the eframe app: menu bar, tool bar, outliner, inspector, 3D view, perf overlay |
 
+pub mod bench;
 pub mod cli;
 pub mod editor;
 pub mod files;
 pub mod gpu;
+pub mod tradeoff;
 pub mod ui;
+pub mod viewport;

@@ -381,3 +381,276 @@ fn render_refuses_bad_arguments_and_writes_nothing() {
         assert!(!png.exists(), "{extra:?} wrote a file");
     }
 }
+
+#[test]
+fn info_reports_krs_objects() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = Document::default();
+    doc.add(
+        "Forest",
+        ObjectKind::Krs(thicket_core::krs::presets::forest()),
+    );
+    doc.add("Rock", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    let path = dir.path().join("krs.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+
+    let o = thicket(&["info", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(text.contains("\"Forest\" (krs)"), "{text}");
+    assert!(text.contains("33,423,360 kernel instances"), "{text}");
+    assert!(text.contains("ToroidalCapsule"), "{text}");
+    assert!(text.contains("distorted"), "{text}");
+
+    let o = thicket(&["info", "--json", path.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let forest = &json["objects"][0]["krs"];
+    assert_eq!(forest["kernel_instances"], 33_423_360);
+    assert_eq!(
+        forest["mirrors"].as_u64().unwrap() + 1,
+        forest["kernel_sets"].as_u64().unwrap()
+    );
+    let rock = &json["objects"][1]["krs"];
+    assert_eq!(rock["mirrors"], 6);
+    assert_eq!(rock["kernels"].as_array().unwrap().len(), 4);
+    assert_eq!(rock["distorted"], true);
+}
+
+/// A project with a coarse 16³ voxel hill ("hill", 0.5 units per voxel) and a mesh ("cube").
+fn enhance_project(dir: &Path) -> PathBuf {
+    let mut doc = Document::default();
+    let mut svo = Svo::new(4, false).unwrap();
+    for z in 0..16u32 {
+        for x in 0..16u32 {
+            let h = 3 + (x * 7 + z * 3) % 5;
+            for y in 0..h {
+                let mut v = Voxel::new([120, 90 + y as u8 * 10, 40, 255], Vec3::Y);
+                v.material = u8::from(y + 1 == h);
+                svo.set(UVec3::new(x, y, z), v).unwrap();
+            }
+        }
+    }
+    doc.add(
+        "hill",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: 0.5,
+            ..VoxelModel::default()
+        }),
+    );
+    doc.add(
+        "cube",
+        ObjectKind::Mesh(thicket_core::scene::MeshObject {
+            model: thicket_core::mesh::MeshModel {
+                parts: vec![thicket_core::mesh::unit_cube()],
+                materials: vec![thicket_core::mesh::Material::default()],
+            },
+            casts_shadows: true,
+        }),
+    );
+    let path = dir.join("hill.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    path
+}
+
+fn voxel_model<'a>(
+    doc: &'a Document,
+    name: &str,
+) -> (&'a thicket_core::scene::Object, &'a VoxelModel) {
+    let o = doc
+        .object_by_name(name)
+        .unwrap_or_else(|| panic!("no object {name:?}"));
+    match &o.kind {
+        ObjectKind::Voxels(v) => (o, v),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("{name:?} is not voxels"),
+    }
+}
+
+#[test]
+fn enhance_adds_the_fine_object_and_hides_the_coarse_one() {
+    use thicket_core::enhance::{EnhanceSettings, ThresholdPattern, enhance};
+    let dir = tempfile::tempdir().unwrap();
+    let project = enhance_project(dir.path());
+    let out = dir.path().join("fine.thicket.json");
+    let o = thicket(&[
+        "enhance",
+        project.to_str().unwrap(),
+        "--object",
+        "hill",
+        "--factor",
+        "4",
+        "--strata",
+        "3,4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("\"hill (enhanced)\""), "{}", stdout(&o));
+    let doc = thicket_core::io::project::load(&out).unwrap();
+    let source = thicket_core::io::project::load(&project).unwrap();
+    let (coarse_obj, coarse) = voxel_model(&doc, "hill");
+    assert!(!coarse_obj.visible, "the coarse original is hidden");
+    assert_eq!(coarse.svo, voxel_model(&source, "hill").1.svo);
+    let (fine_obj, fine) = voxel_model(&doc, "hill (enhanced)");
+    assert!(fine_obj.visible);
+    assert_eq!(fine.voxel_size, 0.125);
+    // The CLI writes exactly what the library computes for the same settings.
+    let settings = EnhanceSettings {
+        factor: 4,
+        subdivide: thicket_core::enhance::SubdivideSettings {
+            threshold: ThresholdPattern::Alternating {
+                even: 3.0,
+                odd: 4.0,
+            },
+        },
+        ..EnhanceSettings::default()
+    };
+    let expected = enhance(&coarse.svo, &settings).unwrap();
+    assert!(expected.leaf_count() > 0);
+    assert!(
+        fine.svo == expected,
+        "CLI output differs from core::enhance"
+    );
+    assert_eq!(doc.objects.len(), 3, "hill, cube and the enhanced hill");
+
+    // Enhancing the result again with other settings replaces "hill (enhanced)", and
+    // --replace swaps the object in place.
+    let out2 = dir.path().join("again.thicket.json");
+    let o = thicket(&[
+        "enhance",
+        out.to_str().unwrap(),
+        "--object",
+        "hill",
+        "--method",
+        "resample",
+        "--factor",
+        "3",
+        "--probes",
+        "8",
+        "--spread",
+        "0.75",
+        "--seed",
+        "5",
+        "--lighting",
+        "--particles",
+        "2",
+        "-o",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let doc2 = thicket_core::io::project::load(&out2).unwrap();
+    assert_eq!(doc2.objects.len(), 3);
+    let (_, fine2) = voxel_model(&doc2, "hill (enhanced)");
+    assert!((fine2.voxel_size - 0.5 / 3.0).abs() < 1e-7);
+    assert_ne!(fine2.svo, fine.svo);
+
+    let out3 = dir.path().join("replaced.thicket.json");
+    let o = thicket(&[
+        "enhance",
+        project.to_str().unwrap(),
+        "--object",
+        "hill",
+        "--factor",
+        "2",
+        "--replace",
+        "-o",
+        out3.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let doc3 = thicket_core::io::project::load(&out3).unwrap();
+    assert_eq!(doc3.objects.len(), 2);
+    let (obj3, fine3) = voxel_model(&doc3, "hill");
+    assert!(obj3.visible);
+    assert_eq!(obj3.id, voxel_model(&source, "hill").0.id);
+    assert_eq!(fine3.svo.depth(), 5);
+}
+
+#[test]
+fn enhance_refuses_bad_arguments_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = enhance_project(dir.path());
+    let out = dir.path().join("out.thicket.json");
+    let p = project.to_str().unwrap();
+    for (extra, says) in [
+        (
+            &["--object", "ghost", "--factor", "4"][..],
+            "no object named \"ghost\"",
+        ),
+        (
+            &["--object", "cube", "--factor", "4"][..],
+            "not a voxel object",
+        ),
+        (&["--object", "hill", "--factor", "3"][..], "power of two"),
+        (&["--object", "hill", "--factor", "0"][..], "factor"),
+        (
+            &["--object", "hill", "--method", "resample", "--factor", "65"][..],
+            "factor",
+        ),
+        (
+            &["--object", "hill", "--factor", "4", "--probes", "8"][..],
+            "--probes",
+        ),
+        (
+            &["--object", "hill", "--factor", "4", "--threshold", "2.5"][..],
+            "whole voxel count",
+        ),
+        (
+            &["--object", "hill", "--factor", "4", "--strata", "3"][..],
+            "--strata",
+        ),
+        (
+            &[
+                "--object",
+                "hill",
+                "--factor",
+                "4",
+                "--material-threshold",
+                "x=2",
+            ][..],
+            "--material-threshold",
+        ),
+        (
+            &[
+                "--object",
+                "hill",
+                "--method",
+                "resample",
+                "--factor",
+                "4",
+                "--spread=-1",
+            ][..],
+            "spread",
+        ),
+        (
+            &[
+                "--object",
+                "hill",
+                "--factor",
+                "4",
+                "--lighting",
+                "--sun",
+                "0,0,0",
+            ][..],
+            "sun_direction",
+        ),
+    ] {
+        let mut args = vec!["enhance", p, "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = thicket(&args);
+        assert_fails_naming(&o, &project);
+        assert!(stderr(&o).contains(says), "{extra:?}: {}", stderr(&o));
+        assert!(!out.exists(), "{extra:?} wrote a file");
+    }
+    let o = thicket(&[
+        "enhance",
+        "/nonexistent/ghost.thicket.json",
+        "--object",
+        "a",
+        "--factor",
+        "2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert_fails_naming(&o, Path::new("ghost.thicket.json"));
+}

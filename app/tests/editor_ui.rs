@@ -105,3 +105,89 @@ fn opening_a_broken_file_keeps_the_document_and_shows_the_error() {
     h.run_steps(2);
     assert!(h.state().error_dialog.is_none());
 }
+
+#[test]
+fn autosave_goes_to_the_recovery_file_and_is_offered_on_the_next_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = app_with_two_objects();
+    app.recovery_dir = dir.path().to_path_buf();
+    let rock = app.editor.doc().objects[0].id;
+    app.editor.rename(rock, "Boulder").unwrap();
+    app.autosave_now();
+    app.wait_for_autosave()
+        .expect("ran")
+        .expect("autosave wrote");
+
+    // The next start finds it and offers it in a dialog.
+    let mut next = EditorApp::default();
+    next.recovery_dir = dir.path().to_path_buf();
+    next.check_recovery();
+    let mut h = harness(next);
+    h.get_by_label("Recover unsaved work?");
+    h.get_by_label("Recover").click();
+    h.run_steps(2);
+    let app = h.state();
+    assert!(app.recovery.is_none());
+    assert_eq!(app.editor.doc().objects[0].name, "Boulder");
+    assert!(app.editor.is_dirty(), "recovered work is unsaved");
+
+    // Discard deletes it.
+    let mut again = EditorApp::default();
+    again.recovery_dir = dir.path().to_path_buf();
+    again.check_recovery();
+    assert!(again.recovery.is_some());
+    again.discard_recovery();
+    again.check_recovery();
+    assert!(again.recovery.is_none());
+}
+
+#[test]
+fn enhance_runs_as_a_job_and_cancel_keeps_the_document() {
+    let mut app = app_with_two_objects();
+    let mut svo = Svo::new(4, false).unwrap();
+    for x in 2..8 {
+        for y in 2..8 {
+            for z in 2..8 {
+                svo.set(UVec3::new(x, y, z), Voxel::new([90, 90, 90, 255], Vec3::Y))
+                    .unwrap();
+            }
+        }
+    }
+    app.editor.add_object(
+        "Block",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        }),
+    );
+    let mut h = harness(app);
+    let ctx = h.ctx.clone();
+    h.state_mut().start_enhance(2);
+    assert!(h.state().job_running());
+    // Cancel at once (the worker may finish a tiny job before a frame could show the button):
+    // its result is dropped whenever it arrives.
+    h.state_mut().cancel_job(&ctx);
+    std::thread::sleep(std::time::Duration::from_millis(200));
+    h.run_steps(2);
+    assert!(!h.state().job_running());
+    assert_eq!(
+        h.state().editor.doc().objects.len(),
+        3,
+        "cancelled: nothing added"
+    );
+
+    // Run to completion: a new enhanced object with more, smaller voxels.
+    h.state_mut().start_enhance(2);
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(1);
+    let doc = h.state().editor.doc();
+    assert_eq!(doc.objects.len(), 4);
+    assert_eq!(doc.objects[3].name, "Block enhanced");
+    match (&doc.objects[2].kind, &doc.objects[3].kind) {
+        (ObjectKind::Voxels(src), ObjectKind::Voxels(fine)) => {
+            assert_eq!(fine.voxel_size, src.voxel_size / 2.0);
+            assert!(fine.svo.leaf_count() > src.svo.leaf_count());
+        }
+        _ => panic!("voxel models"),
+    }
+}

@@ -293,10 +293,81 @@ fn both_atomic_paths_give_the_same_image() {
     }
 }
 
+/// A square plate one voxel thick lying in the first voxel layer (y = 0), covering the middle
+/// eighth of the octree in x and z: the same shape at any depth (its nodes at a level up to the
+/// shallower depth are the same boxes), `(2^depth / 8)^2` leaves.
+fn plate_model(depth: u8) -> VoxelModel {
+    let n = 1u32 << depth;
+    let (lo, hi) = (n / 2 - n / 16, n / 2 + n / 16);
+    let svo = Svo::from_fn(
+        depth,
+        false,
+        |origin, size| {
+            origin.y == 0
+                && origin.x < hi
+                && origin.x + size > lo
+                && origin.z < hi
+                && origin.z + size > lo
+        },
+        |v: UVec3| {
+            let c = (v.x + v.z) / (n / 64).max(1);
+            (v.y == 0 && (lo..hi).contains(&v.x) && (lo..hi).contains(&v.z))
+                .then(|| Voxel::new([if c % 2 == 0 { 220 } else { 60 }, 120, 90, 255], Vec3::Y))
+        },
+    )
+    .expect("valid depth");
+    VoxelModel {
+        svo,
+        voxel_size: 2.0 / n as f32,
+        origin: Vec3::splat(-1.0),
+        ..VoxelModel::default()
+    }
+}
+
 #[test]
 fn splat_count_is_resolution_bound() {
-    // The same sphere at 8× the voxel resolution (depth 9 vs 6; a depth-12 shell has ~80M
-    // leaves, too many for a test) draws about as many splats: LOD follows pixels.
+    // Paper Fig. 3 on the GPU: the same plate at depth 9 (4,096 leaves) and depth 12 (262,144
+    // leaves), seen obliquely with depth-9 voxels below half a pixel: the LOD stops at the
+    // pixels, above the leaves of both, so both draw the same splats (within 10 %) whatever the
+    // model's resolution.
+    let ctx = context();
+    let q = Quality {
+        shadows: false,
+        ..Quality::default()
+    };
+    let splats = |depth: u8| {
+        let mut doc = Document::default();
+        doc.add("plate", ObjectKind::Voxels(plate_model(depth)));
+        doc.camera = OrbitCamera {
+            target: Vec3::new(0.0, -1.0, 0.0),
+            pitch_deg: 35.0,
+            distance: 1.6,
+            ..OrbitCamera::default()
+        };
+        let f = render(&ctx, &doc, 160, &q, false);
+        assert_eq!(f.stats.queue_overflow, 0);
+        let covered = f.gbuffer.depth.iter().filter(|d| d.is_finite()).count();
+        (f.stats.splats as f64, f.stats.levels.len(), covered)
+    };
+    let (s9, l9, c9) = splats(9);
+    let (s12, l12, c12) = splats(12);
+    eprintln!(
+        "depth 9: {s9} splats, {l9} levels, {c9} px; depth 12: {s12} splats, {l12} levels, {c12} px"
+    );
+    assert!(c9 > 300, "the plate covers {c9} pixels");
+    // The depth-12 traversal went no deeper than the depth-9 one, and both drew far fewer
+    // splats than the depth-9 plate has leaves (4,096): the LOD stopped at the pixels.
+    assert_eq!(l12, l9);
+    assert!(s9 < 0.5 * 4096.0, "{s9}");
+    assert!(
+        (s12 / s9 - 1.0).abs() <= 0.10,
+        "depth 9: {s9}, depth 12: {s12}"
+    );
+}
+
+#[test]
+fn splat_count_of_a_sphere_follows_pixels_not_voxels() {
+    // The same sphere at 8x the voxel resolution (depth 9 vs 6) draws about as many splats.
     let ctx = context();
     let q = Quality::default();
     let mut doc_lo = sphere_doc(6);
@@ -313,6 +384,164 @@ fn splat_count_is_resolution_bound() {
         (hi / lo - 1.0).abs() <= 0.10,
         "depth 6: {lo}, depth 9: {hi}"
     );
+}
+
+fn svo_mut(doc: &mut Document) -> &mut Svo {
+    match &mut doc.objects[0].kind {
+        ObjectKind::Voxels(v) => &mut v.svo,
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!("the first object is voxels"),
+    }
+}
+
+#[test]
+fn incremental_upload_equals_a_full_upload() {
+    use thicket_core::svo::Voxel;
+    let ctx = context();
+    let q = Quality::default();
+    let mut doc = sphere_doc(6);
+    let id = doc.objects[0].id;
+    let size = 64;
+    let target = RenderTarget::new(&ctx.device, size, size).expect("target");
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let first = r
+        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("frame");
+    assert!(first.upload.full);
+    let full_bytes = first.upload.bytes;
+    let image = |r: &mut Renderer, incremental: bool, doc: &Document| {
+        let stats = if incremental {
+            r.render_uploaded(&ctx.device, &ctx.queue, doc, &doc.camera, &q, &target)
+        } else {
+            r.render(&ctx.device, &ctx.queue, doc, &doc.camera, &q, &target)
+        }
+        .expect("frame");
+        let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+        let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("gbuffer");
+        (rgba, g, stats)
+    };
+
+    // 1. Paint in place: the pools keep their lengths, so only the announced region can tell
+    // the renderer what changed.
+    let (lo, hi) = (UVec3::new(0, 24, 32), UVec3::new(63, 63, 63));
+    let edit = svo_mut(&mut doc)
+        .edit_existing(lo, hi, |_, v| {
+            Some(Voxel {
+                color: [30, 200, 60, 255],
+                ..v
+            })
+        })
+        .expect("edit");
+    let (clo, chi) = edit.changed.expect("voxels changed");
+    let (stale, _, _) = image(&mut r, true, &doc);
+    let up = r
+        .update_voxel_region(&ctx.device, &ctx.queue, &doc, id, clo, chi)
+        .expect("update");
+    assert!(!up.full, "{up:?}");
+    assert!(
+        up.bytes > 0 && up.bytes < full_bytes / 2,
+        "{up:?} vs {full_bytes}"
+    );
+    let (inc, inc_g, inc_stats) = image(&mut r, true, &doc);
+    assert!(!inc_stats.upload.full);
+    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let (full, full_g, _) = image(&mut fresh, false, &doc);
+    assert!(
+        stale != full,
+        "the paint is visible (else this test proves nothing)"
+    );
+    assert!(
+        inc == full,
+        "image after the incremental upload differs from a full upload"
+    );
+    assert!(inc_g == full_g, "G-buffers differ");
+
+    // 2. A brush-sized add and remove: child blocks move (reusing freed blocks), pools grow
+    // within their reserved room. 3. A huge edit outgrows the room: a full upload, same result.
+    let edits = [
+        (
+            UVec3::new(10, 30, 40),
+            UVec3::new(30, 45, 63),
+            14,
+            62,
+            false,
+        ),
+        (UVec3::new(0, 0, 0), UVec3::new(63, 63, 63), 8, 40, true),
+    ];
+    for (lo, hi, cut_x, slab_z, expect_full) in edits {
+        let edit = svo_mut(&mut doc)
+            .edit_region(lo, hi, |c, old| {
+                if c.x < cut_x {
+                    None
+                } else if c.z >= slab_z {
+                    Some(Voxel::new([240, 240, 20, 255], Vec3::Z))
+                } else {
+                    old
+                }
+            })
+            .expect("edit");
+        let (clo, chi) = edit.changed.expect("voxels changed");
+        let up = r
+            .update_voxel_region(&ctx.device, &ctx.queue, &doc, id, clo, chi)
+            .expect("update");
+        assert_eq!(up.full, expect_full, "{up:?}");
+        let (inc, inc_g, _) = image(&mut r, true, &doc);
+        let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let (full, full_g, _) = image(&mut fresh, false, &doc);
+        assert!(
+            inc == full,
+            "after add/remove {lo}..{hi}: incremental differs from full"
+        );
+        assert!(
+            inc_g == full_g,
+            "after add/remove {lo}..{hi}: G-buffers differ"
+        );
+    }
+    assert!(ctx.errors.take().is_none());
+}
+
+#[test]
+fn counters_arrive_asynchronously_and_match_a_waiting_frame() {
+    let ctx = context();
+    let doc = mixed_doc(true, true);
+    let q = Quality::default();
+    let target = RenderTarget::new(&ctx.device, 64, 64).expect("target");
+    let mut waiting = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let expect = waiting
+        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("frame");
+    assert_eq!(expect.counters_frame, Some(expect.frame));
+
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    r.set_async_readback(true);
+    let mut last_frame = 0;
+    for _ in 0..3 {
+        let s = r
+            .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+            .expect("frame");
+        // Counters, when present, come from this or an earlier frame, never a later one.
+        assert!(s.counters_frame.is_none_or(|f| f <= s.frame), "{s:?}");
+        last_frame = s.frame;
+    }
+    assert_eq!(last_frame, 3);
+    // Poll (never blocking) until the last frame's counters arrive.
+    let start = std::time::Instant::now();
+    let got = loop {
+        if let Some(s) = r.poll_counters(&ctx.device).expect("poll")
+            && s.counters_frame == Some(last_frame)
+        {
+            break s;
+        }
+        assert!(
+            start.elapsed().as_secs() < 30,
+            "counters of frame {last_frame} never arrived"
+        );
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    };
+    assert_eq!(got.levels, expect.levels);
+    assert_eq!(got.shadow_levels, expect.shadow_levels);
+    assert_eq!(got.splats, expect.splats);
+    assert!(got.splats > 0);
+    assert!(ctx.errors.take().is_none());
 }
 
 fn mixed_doc(with_sphere: bool, with_cube: bool) -> Document {

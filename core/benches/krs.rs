@@ -1,6 +1,10 @@
 //! KRS benchmarks: Algorithm 1 cost per level (n = 8 → 32), brute force vs Algorithm 1 at
-//! n = 12, and primary-ray throughput on the tree preset (64×64 rays) with and without
-//! over-relaxation and tile starts.
+//! n = 12, primary-ray throughput on the tree preset (64×64 rays) with and without
+//! over-relaxation and tile starts; frame time of a fixed view of the forest as n grows
+//! (8 → 32), a whole frame sphere-traced with Algorithm 1 vs brute force at the largest n brute
+//! force finishes, and 800×800 frames of the tree and forest samples on 2 threads (primary rays
+//! per second). Step counts (over-relaxation and tile gains, identical hit masks) are printed
+//! to stderr before the timings.
 //!
 //! `cargo bench -p thicket-core --bench krs -- --warm-up-time 1 --measurement-time 3`
 
@@ -14,6 +18,8 @@ use thicket_core::krs::{
     Kernel, KrsObject, KrsScene, MirrorPlane, PreparedScene, SphereKernel, TorusKernel,
     TraceSettings, presets, tile_cone, tile_start_distance, trace,
 };
+use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
 
 fn unit(rng: &mut Pcg32) -> Vec3 {
     Vec3::new(
@@ -214,5 +220,243 @@ fn tracer(c: &mut Criterion) {
     group.finish();
 }
 
-criterion_group!(benches, distance_per_level, brute_vs_algorithm1, tracer);
+/// The fixed view of the growing forest: from outside the forest's first corner, looking in.
+const FOREST_EYE: Vec3 = Vec3::new(-8.0, 4.0, -8.0);
+const FOREST_TARGET: Vec3 = Vec3::new(40.0, 1.0, 35.0);
+
+/// The default tree has this many mirrors; the forest adds reflections on top.
+fn tree_levels() -> usize {
+    presets::tree().mirrors.len()
+}
+
+/// Plain sphere tracing of `dirs` from `eye` with any distance function (the same loop for
+/// Algorithm 1 and brute force, so only the distance differs). Returns the hit mask.
+fn sphere_trace_frame(
+    dist: &dyn Fn(Vec3) -> f32,
+    eye: Vec3,
+    dirs: &[Vec3],
+    cone: f32,
+) -> Vec<bool> {
+    dirs.iter()
+        .map(|&d| {
+            let mut t = 0.0f32;
+            for _ in 0..256 {
+                let r = dist(eye + d * t);
+                if r < cone * t.max(1.0) {
+                    return true;
+                }
+                t += r;
+                if t > 200.0 {
+                    break;
+                }
+            }
+            false
+        })
+        .collect()
+}
+
+fn frame_levels(c: &mut Criterion) {
+    let (dirs, cone) = rays(FOREST_EYE, FOREST_TARGET);
+    let settings = TraceSettings {
+        pixel_cone_ratio: cone,
+        max_steps: 1000,
+        max_distance: 500.0,
+        ..Default::default()
+    };
+    let mut group = c.benchmark_group("krs_frame_64x64_forest_levels");
+    group.throughput(Throughput::Elements(dirs.len() as u64));
+    let base = tree_levels();
+    for n in [8usize, 12, 16, 20, 24, 28, 32] {
+        let obj = presets::forest_with_mirrors(n.saturating_sub(base));
+        let levels = obj.mirrors.len();
+        let scene = KrsScene { objects: vec![obj] }
+            .prepare()
+            .expect("valid preset");
+        let (hits, steps) = dirs.iter().fold((0u32, 0u64), |(h, s), &d| {
+            let r = trace(&scene, FOREST_EYE, d, &settings);
+            (h + u32::from(r.hit), s + u64::from(r.steps))
+        });
+        eprintln!(
+            "forest n = {levels}: {hits} hits, {steps} steps over {} rays",
+            dirs.len()
+        );
+        group.bench_with_input(BenchmarkId::from_parameter(levels), &scene, |b, scene| {
+            b.iter(|| {
+                dirs.iter()
+                    .map(|&d| u32::from(trace(scene, FOREST_EYE, d, &settings).hit))
+                    .sum::<u32>()
+            });
+        });
+    }
+    group.finish();
+}
+
+fn frame_brute_force(c: &mut Criterion) {
+    // 32×32 rays of the forest view at n = 12 (2^12 trees' worth of reflections would be too
+    // many for brute force per step; 12 levels is 8191 kernel evaluations per distance).
+    let (all_dirs, cone) = rays(FOREST_EYE, FOREST_TARGET);
+    let dirs: Vec<Vec3> = all_dirs
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| (i % 64) % 2 == 0 && (i / 64) % 2 == 0)
+        .map(|(_, d)| *d)
+        .collect();
+    let n = 12usize;
+    let obj = presets::forest_with_mirrors(n.saturating_sub(tree_levels()))
+        .validated(0)
+        .expect("valid preset");
+    let alg1 = |p: Vec3| obj.distance_object(p);
+    let brute = |p: Vec3| obj.distance_brute_force(p);
+    let a = sphere_trace_frame(&alg1, FOREST_EYE, &dirs, cone);
+    let b = sphere_trace_frame(&brute, FOREST_EYE, &dirs, cone);
+    let same = a.iter().zip(&b).filter(|(x, y)| x == y).count();
+    eprintln!(
+        "forest n = {}: Algorithm 1 and brute force agree on {same} of {} hit-mask pixels ({} hits)",
+        obj.mirrors.len(),
+        dirs.len(),
+        a.iter().filter(|h| **h).count()
+    );
+    let mut group = c.benchmark_group("krs_frame_32x32_n12");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(dirs.len() as u64));
+    group.bench_function("algorithm1", |bch| {
+        bch.iter(|| black_box(sphere_trace_frame(&alg1, FOREST_EYE, &dirs, cone)));
+    });
+    group.bench_function("brute_force", |bch| {
+        bch.iter(|| black_box(sphere_trace_frame(&brute, FOREST_EYE, &dirs, cone)));
+    });
+    group.finish();
+}
+
+/// Steps spent on the 64×64 views with and without over-relaxation (several ω) and tiles, and
+/// whether the hit masks are identical. Printed, not timed: step counts are exact.
+fn step_report() {
+    let views = [
+        (
+            "tree",
+            KrsScene {
+                objects: vec![presets::tree()],
+            },
+            Vec3::new(7.0, 3.5, 7.0),
+            Vec3::new(0.8, 3.8, 0.3),
+        ),
+        ("forest", presets::forest_scene(), FOREST_EYE, FOREST_TARGET),
+    ];
+    for (name, scene, eye, target) in views {
+        let scene = scene.prepare().expect("valid preset");
+        let (dirs, cone) = rays(eye, target);
+        let plain = TraceSettings {
+            pixel_cone_ratio: cone,
+            max_steps: 1000,
+            max_distance: 500.0,
+            ..Default::default()
+        };
+        let run = |s: &TraceSettings| -> (Vec<(bool, u32)>, u64) {
+            let mut steps = 0u64;
+            let hits = dirs
+                .iter()
+                .map(|&d| {
+                    let r = trace(&scene, eye, d, s);
+                    steps += u64::from(r.steps);
+                    (r.hit, r.t.to_bits())
+                })
+                .collect();
+            (hits, steps)
+        };
+        let (mask0, steps0) = run(&plain);
+        for omega in [1.2f32, 1.4, 1.6, 1.8, 1.9] {
+            let (mask, steps) = run(&TraceSettings {
+                over_relaxation: omega,
+                ..plain
+            });
+            eprintln!(
+                "{name}: over-relaxation {omega}: {steps} steps vs {steps0} plain ({:.1}% fewer), hit mask and t identical: {}",
+                100.0 * (1.0 - steps as f64 / steps0 as f64),
+                mask == mask0
+            );
+        }
+    }
+}
+
+fn report_then_trace(c: &mut Criterion) {
+    step_report();
+    tracer(c);
+}
+
+/// 800×800 frames of the sample views through the renderer on a 2-thread pool: KRS pass time
+/// and primary rays per second, tiles on and off (shadows and AO off, so only primary rays).
+fn frames_800(c: &mut Criterion) {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .expect("a 2-thread pool");
+    let mut tree = Document::default();
+    tree.add("Tree", ObjectKind::Krs(presets::tree()));
+    tree.camera = OrbitCamera {
+        target: Vec3::new(0.0, 2.6, 0.0),
+        yaw_deg: 30.0,
+        pitch_deg: 12.0,
+        distance: 11.0,
+        near: 0.1,
+        far: 100.0,
+        ..OrbitCamera::default()
+    };
+    let mut forest = Document::default();
+    for o in presets::forest_scene().objects {
+        forest.add(o.name.clone(), ObjectKind::Krs(o));
+    }
+    forest.camera = OrbitCamera {
+        target: Vec3::new(40.0, 2.0, 40.0),
+        yaw_deg: 225.0,
+        pitch_deg: 14.0,
+        distance: 70.0,
+        near: 0.5,
+        far: 4000.0,
+        ..OrbitCamera::default()
+    };
+    let mut group = c.benchmark_group("krs_frame_800x800_2threads");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(800 * 800));
+    for (name, doc) in [("tree", &tree), ("forest", &forest)] {
+        for tiles in [false, true] {
+            let req = RenderRequest {
+                quality: Quality {
+                    shadows: false,
+                    ao_samples: 0,
+                    krs_tile_acceleration: tiles,
+                    ..Quality::default()
+                },
+                ..RenderRequest::new(800, 800)
+            };
+            if let Ok((_, fb, st)) = pool.install(|| render_document(doc, &req)) {
+                eprintln!(
+                    "{name} 800x800 tiles={tiles}: {} rays, {} hits, {} steps + {} tile steps, {} exhausted, KRS pass {:.0} ms ({:.2} M primary rays/s), covered {}",
+                    st.krs.rays,
+                    st.krs.hits,
+                    st.krs.steps,
+                    st.krs.tile_steps,
+                    st.krs.exhausted,
+                    st.times.krs_ms,
+                    st.krs.rays as f64 / st.times.krs_ms / 1e3,
+                    fb.covered_pixels()
+                );
+            }
+            let label = if tiles { "tiles" } else { "no_tiles" };
+            group.bench_function(BenchmarkId::new(name, label), |b| {
+                b.iter(|| pool.install(|| black_box(render_document(doc, &req).is_ok())));
+            });
+        }
+    }
+    group.finish();
+}
+
+criterion_group!(
+    benches,
+    distance_per_level,
+    brute_vs_algorithm1,
+    report_then_trace,
+    frame_levels,
+    frame_brute_force,
+    frames_800
+);
 criterion_main!(benches);

@@ -38,7 +38,8 @@ fn report(name: &str, doc: &Document, req: &RenderRequest) {
             .iter()
             .map(|o| match &o.kind {
                 thicket_core::scene::ObjectKind::Voxels(v) => v.svo.leaf_count(),
-                thicket_core::scene::ObjectKind::Mesh(_) => 0,
+                thicket_core::scene::ObjectKind::Mesh(_)
+                | thicket_core::scene::ObjectKind::Krs(_) => 0,
             })
             .sum::<u64>();
         eprintln!(
@@ -65,9 +66,17 @@ fn benches(c: &mut Criterion) {
         ..Quality::default()
     };
 
+    let no_ao = Quality {
+        ao_samples: 0,
+        ..Quality::default()
+    };
     let mut g = c.benchmark_group("frame_800");
     g.sample_size(10);
-    for (name, q) in [("shadows", &shaded), ("no_shadows", &no_shadows)] {
+    for (name, q) in [
+        ("shadows", &shaded),
+        ("shadows_no_ao", &no_ao),
+        ("no_shadows", &no_shadows),
+    ] {
         let req = request(near, q.clone());
         report(&format!("frame_800/{name}"), &big, &req);
         g.bench_function(name, |b| b.iter(|| black_box(render_document(&big, &req))));

@@ -9,6 +9,8 @@
 @group(0) @binding(1) var<storage, read_write> counters: array<atomic<u32>>;
 // Inner nodes of every object: x = first child (object-local), y = child mask.
 @group(0) @binding(2) var<storage, read> inner_nodes: array<vec2<u32>>;
+// Farthest depth bits per occlusion tile, refreshed between levels (hiz.wgsl).
+@group(0) @binding(5) var<storage, read> occlusion_tiles: array<u32>;
 @group(1) @binding(0) var<uniform> params: NodeParams;
 // Queue entries: x = node index (object-local; inner pool, or leaf pool at the leaf level),
 // yzw = the node's minimum corner in voxel coordinates.
@@ -19,8 +21,10 @@ const VISIT_NONE: u32 = 0u;
 const VISIT_SPLAT: u32 = 1u;
 const WORKGROUP: u32 = 64u;
 
-// Per-workgroup counters (visited, split, splatted, frustum culled), flushed once per group.
-var<workgroup> wg_stats: array<atomic<u32>, 4>;
+// Per-workgroup counters (visited, split, splatted, frustum culled, occlusion culled), flushed
+// once per group.
+const STATS_PER_LEVEL: u32 = 5u;
+var<workgroup> wg_stats: array<atomic<u32>, STATS_PER_LEVEL>;
 
 struct Visit {
     kind: u32,
@@ -71,6 +75,25 @@ fn push_children(entry: vec4<u32>) {
     }
 }
 
+// Whether everything drawn so far under the pixel rectangle is nearer than `depth_bits` (paper
+// §8.1.2, as the CPU's `DepthTarget::occluded`): then neither the node nor its children can
+// show. Conservative: ties are kept, and rectangles over OCCLUSION_MAX_TILES tiles are kept.
+fn occluded(xs: vec2<u32>, ys: vec2<u32>, depth_bits: u32) -> bool {
+    let t0 = vec2<u32>(xs.x, ys.x) / OCCLUSION_TILE;
+    let t1 = vec2<u32>(xs.y, ys.y) / OCCLUSION_TILE;
+    if (t1.x - t0.x + 1u) * (t1.y - t0.y + 1u) > OCCLUSION_MAX_TILES {
+        return false;
+    }
+    for (var ty = t0.y; ty <= t1.y; ty++) {
+        for (var tx = t0.x; tx <= t1.x; tx++) {
+            if occlusion_tiles[ty * view.tiles_x + tx] >= depth_bits {
+                return false;
+            }
+        }
+    }
+    return true;
+}
+
 // Processes queue entry `i` of the current level.
 fn visit(i: u32) -> Visit {
     var out: Visit;
@@ -119,17 +142,22 @@ fn visit(i: u32) -> Visit {
         return out;
     }
     let has_children = params.level < params.leaf_level;
+    let xs = pixel_span(sx0, sx1, view.size.x);
+    let ys = pixel_span(sy0, sy1, view.size.y);
+    let depth_bits = bitcast<u32>(clamp(ndc_depth(view, dn), 0.0, 1.0));
+    if view.occlusion != 0u && !crosses_near && occluded(xs, ys, depth_bits) {
+        count_stat(4u);
+        return out;
+    }
     if has_children && (crosses_near || edge_px > view.lod_pixel_threshold) {
         count_stat(1u);
         push_children(entry);
         return out;
     }
     count_stat(2u);
-    let xs = pixel_span(sx0, sx1, view.size.x);
-    let ys = pixel_span(sy0, sy1, view.size.y);
     out.kind = VISIT_SPLAT;
     out.rect = vec4<u32>(xs.x, ys.x, xs.y, ys.y);
-    out.depth_bits = bitcast<u32>(clamp(ndc_depth(view, dn), 0.0, 1.0));
+    out.depth_bits = depth_bits;
     if has_children {
         out.id = params.attr_inner_base + entry.x;
     } else {
@@ -146,10 +174,10 @@ fn invocation_index(wid: vec3<u32>, nwg: vec3<u32>, lid: u32) -> u32 {
 // Adds the workgroup's counters to the level's totals (call in uniform control flow).
 fn flush_stats(lid: u32) {
     workgroupBarrier();
-    if lid < 4u {
+    if lid < STATS_PER_LEVEL {
         let s = atomicLoad(&wg_stats[lid]);
         if s > 0u {
-            atomicAdd(&counters[params.stats_base + 4u * params.level + lid], s);
+            atomicAdd(&counters[params.stats_base + STATS_PER_LEVEL * params.level + lid], s);
         }
     }
 }

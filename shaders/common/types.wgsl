@@ -35,10 +35,17 @@ struct View {
     near: f32,
     far: f32,
     lod_pixel_threshold: f32,
+    // 1: cull nodes behind the hierarchical depth tiles (hiz.wgsl); 0: no occlusion culling.
+    occlusion: u32,
+    // Occlusion tiles per row (ceil(width / OCCLUSION_TILE)).
+    tiles_x: u32,
     _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
 }
+
+// Edge of an occlusion tile in pixels.
+const OCCLUSION_TILE: u32 = 8u;
+// Most tiles a node's rectangle may span for the occlusion test (larger nodes are not tested).
+const OCCLUSION_MAX_TILES: u32 = 16u;
 
 // One traversal dispatch: an object seen from a view, at one octree level.
 struct NodeParams {

@@ -13,7 +13,7 @@ use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, Transform};
 use crate::asset;
 
 /// Names of the samples, as in `projects/NAME.thicket.json`.
-pub const SAMPLES: [&str; 2] = ["house", "mixed"];
+pub const SAMPLES: [&str; 3] = ["house", "mixed", "terrain"];
 
 /// A flat square ground plane of half-size `half` at height `y`, facing +Y.
 #[must_use]
@@ -109,8 +109,111 @@ pub fn build(name: &str) -> Result<Document> {
             }];
             frame(&mut doc, 25.0, 22.0);
         }
+        "terrain" => terrain(&mut doc)?,
         other => anyhow::bail!("unknown sample {other:?}; known: {}", SAMPLES.join(", ")),
     }
     doc.validate()?;
     Ok(doc)
+}
+
+/// Coarse voxels per axis of the sample terrain (the paper's Fig. 1 is a coarse noise terrain).
+pub const TERRAIN_SIZE: u32 = 64;
+/// Expansion factor of the sample terrain's enhancement.
+pub const TERRAIN_FACTOR: u32 = 16;
+/// The coarse columns `lo..hi` (x and z) whose enhancement the sample stores. The whole map at
+/// 16x is about 6 M shell fragments (about 90 MB of payload at 15 bytes each), too much for the
+/// repository, so the sample keeps the editable coarse map whole and stores the enhancement of
+/// this block: exactly the fragments a full enhancement has there (see `terrain`).
+pub const TERRAIN_BLOCK: (u32, u32) = (20, 44);
+
+/// The enhancement settings of the sample terrain: subdivision with the paper's strata
+/// (thresholds 3 and 4 by altitude parity), colours blended within a material.
+#[must_use]
+pub fn terrain_settings() -> thicket_core::enhance::EnhanceSettings {
+    use thicket_core::enhance::{EnhanceSettings, Method, SubdivideSettings, ThresholdPattern};
+    EnhanceSettings {
+        method: Method::Subdivide,
+        factor: TERRAIN_FACTOR,
+        subdivide: SubdivideSettings {
+            threshold: ThresholdPattern::Alternating {
+                even: 3.0,
+                odd: 4.0,
+            },
+        },
+        ..EnhanceSettings::default()
+    }
+}
+
+/// The coarse 64³ noise terrain (hidden: the editable source) and the 16x enhancement of the
+/// block [`TERRAIN_BLOCK`] of its columns, as "terrain (enhanced)" (the names `thicket
+/// enhance` gives). Only the block plus the rule's one-voxel dependency margin is enhanced, then
+/// the fragments outside the block are dropped, which gives exactly what enhancing the whole
+/// map and cropping would.
+fn terrain(doc: &mut Document) -> Result<()> {
+    use thicket_core::enhance::{Enhancer, sample_terrain};
+    use thicket_core::scene::VoxelModel;
+    use thicket_core::svo::Svo;
+
+    let coarse = sample_terrain(TERRAIN_SIZE, 1)?;
+    let (lo, hi) = TERRAIN_BLOCK;
+    let margin = 1;
+    let (mlo, mhi) = (lo.saturating_sub(margin), (hi + margin).min(TERRAIN_SIZE));
+    let window = Svo::from_voxels(
+        coarse.depth(),
+        false,
+        coarse
+            .leaves()
+            .into_iter()
+            .filter(|(c, _)| (mlo..mhi).contains(&c.x) && (mlo..mhi).contains(&c.z)),
+    )?;
+    let settings = terrain_settings();
+    let enhancer = Enhancer::new(&window, &settings)?;
+    anyhow::ensure!(
+        enhancer.dependency_radius() <= margin,
+        "the sample's margin is smaller than the rule's dependency radius"
+    );
+    let f = TERRAIN_FACTOR;
+    let fine = enhancer.into_fine();
+    let block = Svo::from_voxels(
+        fine.depth(),
+        false,
+        fine.leaves().into_iter().filter(|(p, _)| {
+            let c = *p / f;
+            (lo..hi).contains(&c.x) && (lo..hi).contains(&c.z)
+        }),
+    )?;
+    // 4 units across for the coarse map.
+    let voxel_size = 4.0 / TERRAIN_SIZE as f32;
+    let names = vec![
+        "default".to_owned(),
+        "grass".to_owned(),
+        "rock".to_owned(),
+        "dirt".to_owned(),
+    ];
+    let coarse_id = doc.add(
+        "terrain",
+        ObjectKind::Voxels(VoxelModel {
+            svo: coarse,
+            voxel_size,
+            origin: Vec3::ZERO,
+            material_names: names.clone(),
+            rig: None,
+        }),
+    );
+    if let Some(o) = doc.objects.iter_mut().find(|o| o.id == coarse_id) {
+        o.visible = false;
+    }
+    doc.add(
+        "terrain (enhanced)",
+        ObjectKind::Voxels(VoxelModel {
+            svo: block,
+            voxel_size: voxel_size / f as f32,
+            origin: Vec3::ZERO,
+            material_names: names,
+            rig: None,
+        }),
+    );
+    doc.lights[0].direction = Vec3::new(-0.45, -1.0, -0.3);
+    frame(doc, 30.0, 30.0);
+    Ok(())
 }

@@ -31,3 +31,45 @@ fn house_has_the_exact_voxel_count() {
         .sum();
     assert_eq!(voxels, 180_202);
 }
+
+/// The terrain sample (coarse 64³ noise terrain, a block of it enhanced 16x) renders as its
+/// golden image. `THICKET_BLESS=1` rewrites the golden after an intended change.
+#[test]
+fn terrain_sample_renders_as_its_golden_image() {
+    use thicket_core::measure::image::{Tolerance, assert_images_match};
+    use thicket_core::render::Quality;
+    use thicket_core::render::{RenderRequest, render_document};
+
+    let path = thicket_tests::repo_root().join("projects/terrain.thicket.json");
+    let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let fine = doc
+        .object_by_name("terrain (enhanced)")
+        .expect("the enhanced object");
+    assert!(fine.visible);
+    assert!(
+        !doc.object_by_name("terrain")
+            .expect("the coarse object")
+            .visible,
+        "the coarse source is hidden"
+    );
+    let request = RenderRequest {
+        width: 200,
+        height: 200,
+        camera: None,
+        quality: Quality {
+            shadow_map_size: 512,
+            ..doc.quality.clone()
+        },
+    };
+    let (image, buffers, _) = render_document(&doc, &request).unwrap();
+    assert!(
+        buffers.covered_pixels() > 200 * 200 / 20,
+        "the terrain is in view: {} pixels",
+        buffers.covered_pixels()
+    );
+    assert_images_match(
+        &image,
+        thicket_tests::repo_root().join("tests/golden/terrain_sample.png"),
+        Tolerance::CPU_GOLDEN,
+    );
+}

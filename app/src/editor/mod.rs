@@ -2,6 +2,8 @@
 //! commands the panels call. Everything here runs headless, so tests drive the editor through
 //! the same commands as the buttons.
 
+pub mod autosave;
+mod sculpt;
 mod undo;
 
 use std::path::{Path, PathBuf};
@@ -9,7 +11,8 @@ use std::path::{Path, PathBuf};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
-pub use undo::{Edit, History, MergeKey};
+pub use sculpt::{VoxelPick, ray_through};
+pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};
 
 /// What the inspector shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -146,6 +149,11 @@ impl Editor {
         self.history.mark_saved();
         self.path = Some(path.clone());
         self.push_recent(path);
+    }
+
+    /// Marks the document as changed since its file (a recovered document is unsaved work).
+    pub fn mark_modified(&mut self) {
+        self.history.mark_unsaved();
     }
 
     /// Puts `path` at the top of the recent-files list.

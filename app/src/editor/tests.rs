@@ -232,3 +232,177 @@ fn recent_files_are_unique_and_bounded() {
         1
     );
 }
+
+/// A 16³ model with a solid 8×4×8 slab at the bottom.
+fn slab_editor() -> (Editor, u64) {
+    let mut svo = Svo::new(4, false).unwrap();
+    for x in 0..8 {
+        for y in 0..4 {
+            for z in 0..8 {
+                svo.set(UVec3::new(x, y, z), Voxel::new([90, 90, 90, 255], Vec3::Y))
+                    .unwrap();
+            }
+        }
+    }
+    let mut ed = Editor::default();
+    let id = ed.add_object(
+        "Slab",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        }),
+    );
+    (ed, id)
+}
+
+fn svo_of(ed: &Editor, id: u64) -> Svo {
+    match &ed.object(id).unwrap().kind {
+        ObjectKind::Voxels(v) => v.svo.clone(),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
+    }
+}
+
+#[test]
+fn picking_hits_the_top_face_of_the_slab() {
+    let (ed, id) = slab_editor();
+    // Straight down onto voxel column (2, *, 5): the top voxel is y = 3, entered through +Y.
+    let pick = ed
+        .pick_voxel(Vec3::new(2.5, 20.0, 5.5), Vec3::NEG_Y)
+        .expect("a hit");
+    assert_eq!(pick.object, id);
+    assert_eq!(pick.voxel, UVec3::new(2, 3, 5));
+    assert_eq!(pick.normal, glam::IVec3::Y);
+    assert!((pick.t - 16.0).abs() < 1e-4, "t = {}", pick.t);
+    assert!(
+        ed.pick_voxel(Vec3::new(12.5, 20.0, 12.5), Vec3::NEG_Y)
+            .is_none()
+    );
+    // A moved object is picked where it is drawn.
+    let mut ed = ed;
+    let t = Transform {
+        translation: Vec3::new(100.0, 0.0, 0.0),
+        ..Transform::default()
+    };
+    ed.set_transform(id, t).unwrap();
+    assert!(
+        ed.pick_voxel(Vec3::new(2.5, 20.0, 5.5), Vec3::NEG_Y)
+            .is_none()
+    );
+    assert!(
+        ed.pick_voxel(Vec3::new(102.5, 20.0, 5.5), Vec3::NEG_Y)
+            .is_some()
+    );
+}
+
+#[test]
+fn a_stroke_is_one_undo_step_and_undo_restores_every_voxel() {
+    let (mut ed, id) = slab_editor();
+    let before = svo_of(&ed, id);
+    let steps_before = ed.history().undo_len();
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.5,
+        ..Default::default()
+    };
+    ed.begin_stroke();
+    // Overlapping dabs along x: later dabs touch voxels earlier dabs already changed.
+    for x in 0..6 {
+        ed.sculpt_dab(id, &brush, Vec3::new(x as f32 + 0.5, 3.5, 3.5), Vec3::ZERO)
+            .unwrap();
+    }
+    let painted = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Paint,
+        color: [255, 0, 0, 255],
+        radius: 2.0,
+        ..Default::default()
+    };
+    ed.sculpt_dab(id, &painted, Vec3::new(3.5, 2.5, 3.5), Vec3::ZERO)
+        .unwrap();
+    let after = svo_of(&ed, id);
+    assert_ne!(after, before);
+    assert!(after.leaf_count() < before.leaf_count());
+    assert_eq!(ed.history().undo_len(), steps_before + 1, "one step");
+    assert!(ed.is_dirty());
+
+    ed.end_interaction();
+    assert!(ed.undo());
+    assert_eq!(svo_of(&ed, id).leaves(), before.leaves());
+    assert!(ed.redo());
+    assert_eq!(svo_of(&ed, id).leaves(), after.leaves());
+
+    // A second stroke is a second step.
+    ed.begin_stroke();
+    ed.sculpt_dab(id, &brush, Vec3::new(6.5, 3.5, 6.5), Vec3::ZERO)
+        .unwrap();
+    assert_eq!(ed.history().undo_len(), steps_before + 2);
+}
+
+#[test]
+fn symmetric_dabs_mirror_across_the_model_centre() {
+    let (mut ed, id) = slab_editor();
+    let center = ed.voxel_center(id).unwrap();
+    assert_eq!(center, Vec3::new(4.0, 2.0, 4.0));
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 0.5,
+        symmetry: [true, false, false],
+        ..Default::default()
+    };
+    ed.begin_stroke();
+    ed.sculpt_dab(id, &brush, Vec3::new(1.5, 3.5, 2.5), center)
+        .unwrap();
+    let svo = svo_of(&ed, id);
+    assert!(svo.get(UVec3::new(1, 3, 2)).is_none());
+    assert!(svo.get(UVec3::new(6, 3, 2)).is_none(), "mirrored along x");
+    assert!(svo.get(UVec3::new(1, 3, 5)).is_some(), "not along z");
+}
+
+#[test]
+fn sculpting_a_mesh_or_with_a_bad_brush_is_refused() {
+    let (mut ed, id) = slab_editor();
+    let bad = thicket_core::sculpt::Brush {
+        radius: f32::NAN,
+        ..Default::default()
+    };
+    let before = svo_of(&ed, id);
+    assert!(ed.sculpt_dab(id, &bad, Vec3::ONE, Vec3::ZERO).is_err());
+    assert_eq!(svo_of(&ed, id), before);
+    assert!(
+        ed.sculpt_dab(999, &Default::default(), Vec3::ONE, Vec3::ZERO)
+            .is_err()
+    );
+}
+
+#[test]
+fn history_memory_bound_drops_old_steps_but_keeps_the_latest() {
+    let (mut ed, id) = slab_editor();
+    ed.history.max_bytes = 1;
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.0,
+        ..Default::default()
+    };
+    for z in 0..3 {
+        ed.begin_stroke();
+        ed.sculpt_dab(
+            id,
+            &brush,
+            Vec3::new(1.5, 3.5, z as f32 * 2.5 + 0.5),
+            Vec3::ZERO,
+        )
+        .unwrap();
+    }
+    assert_eq!(ed.history().undo_len(), 1, "only the latest step fits");
+    let before_undo = svo_of(&ed, id).leaf_count();
+    assert!(ed.undo());
+    assert!(svo_of(&ed, id).leaf_count() > before_undo);
+}
+
+#[test]
+fn rays_through_the_view_centre_point_at_the_target() {
+    let cam = thicket_core::scene::OrbitCamera::default();
+    let (origin, dir) = ray_through(cam.clip_from_world(1.5), glam::Vec2::ZERO).unwrap();
+    let to_target = (cam.target - origin).normalize_or_zero();
+    assert!(dir.dot(to_target) > 0.9999, "{dir} vs {to_target}");
+    assert!(origin.distance(cam.eye()) < cam.near * 2.0);
+}

@@ -3,7 +3,8 @@
 //! transform — never a snapshot of the whole document with its octrees.
 
 use thicket_core::render::Quality;
-use thicket_core::scene::{Document, Light, Object, Transform};
+use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
+use thicket_core::svo::UndoDelta;
 
 /// One reversible change to the document.
 #[derive(Debug, Clone, PartialEq)]
@@ -50,6 +51,14 @@ pub enum Edit {
     },
     /// Change the quality knobs.
     SetQuality(Box<Quality>),
+    /// Set voxels of a voxel object to stored values (a sculpt stroke's undo: only the
+    /// voxels the stroke touched, with their values before it).
+    Voxels {
+        /// Object id.
+        id: u64,
+        /// `(coordinate, value)` pairs to write, in order.
+        delta: UndoDelta,
+    },
     /// Several edits as one step (applied in order, reverted in reverse order).
     Group(Vec<Edit>),
 }
@@ -105,11 +114,43 @@ impl Edit {
             Edit::SetQuality(q) => {
                 Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q)))
             }
+            Edit::Voxels { id, delta } => match find(doc, id) {
+                Some(i) => match &mut doc.objects[i].kind {
+                    ObjectKind::Voxels(v) => Edit::Voxels {
+                        id,
+                        delta: v.svo.apply_delta(&delta),
+                    },
+                    ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
+                },
+                None => Edit::Group(Vec::new()),
+            },
             Edit::Group(edits) => {
                 let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
                 inverses.reverse();
                 Edit::Group(inverses)
             }
+        }
+    }
+}
+
+impl Edit {
+    /// Approximate heap bytes the edit holds (for the memory bound of the history).
+    #[must_use]
+    pub fn heap_bytes(&self) -> usize {
+        match self {
+            Edit::Insert { object, .. } => match &object.kind {
+                ObjectKind::Voxels(v) => v.svo.memory_stats().total_bytes as usize,
+                ObjectKind::Mesh(m) => m.model.triangle_count() * 3 * 48,
+                ObjectKind::Krs(k) => {
+                    std::mem::size_of_val(k.kernels.as_slice())
+                        + std::mem::size_of_val(k.mirrors.as_slice())
+                        + std::mem::size_of_val(k.empty_zones.as_slice())
+                }
+            },
+            Edit::Voxels { delta, .. } => delta.heap_bytes(),
+            Edit::Group(edits) => edits.iter().map(Edit::heap_bytes).sum(),
+            Edit::SetQuality(_) => size_of::<Quality>(),
+            _ => 64,
         }
     }
 }
@@ -123,6 +164,8 @@ pub enum MergeKey {
     Light(usize),
     /// The quality knobs.
     Quality,
+    /// A sculpt stroke on an object: its dabs' undo deltas are concatenated.
+    Stroke(u64),
 }
 
 #[derive(Debug)]
@@ -135,7 +178,8 @@ struct Step {
     to: u64,
 }
 
-/// Undo and redo stacks of inverse edits, bounded in length; always keeps the latest step.
+/// Undo and redo stacks of inverse edits, bounded in length and in memory; always keeps the
+/// latest step.
 #[derive(Debug)]
 pub struct History {
     undo: Vec<Step>,
@@ -148,7 +192,12 @@ pub struct History {
     saved_state: u64,
     /// Most steps kept.
     pub capacity: usize,
+    /// Most bytes the undo steps may hold (the oldest go first; the latest always stays).
+    pub max_bytes: usize,
 }
+
+/// Default memory bound of the undo history.
+pub const DEFAULT_UNDO_BYTES: usize = 512 << 20;
 
 impl Default for History {
     fn default() -> Self {
@@ -160,6 +209,7 @@ impl Default for History {
             next_state: 1,
             saved_state: 0,
             capacity: 200,
+            max_bytes: DEFAULT_UNDO_BYTES,
         }
     }
 }
@@ -174,6 +224,22 @@ impl History {
         self.next_state += 1;
         match (merge, self.open, self.undo.last_mut()) {
             (Some(key), Some(open), Some(top)) if key == open => {
+                // Voxel deltas only restore what their own dab changed, so a stroke keeps all
+                // of them: the later dab's old values go first, so undo ends at the values
+                // from before the whole stroke.
+                if let (
+                    Edit::Voxels { id, delta: newer },
+                    Edit::Voxels {
+                        id: top_id,
+                        delta: older,
+                    },
+                ) = (revert, &mut top.revert)
+                    && id == *top_id
+                {
+                    let mut entries = newer.entries;
+                    entries.append(&mut older.entries);
+                    older.entries = entries;
+                }
                 top.from = new_state;
             }
             _ => {
@@ -182,14 +248,32 @@ impl History {
                     from: new_state,
                     to: self.state,
                 });
-                if self.undo.len() > self.capacity.max(1) {
-                    let excess = self.undo.len() - self.capacity.max(1);
-                    self.undo.drain(..excess);
-                }
             }
         }
+        self.enforce_bounds();
         self.state = new_state;
         self.open = merge;
+    }
+
+    /// Drops the oldest undo steps beyond the step and memory bounds (never the latest).
+    fn enforce_bounds(&mut self) {
+        if self.undo.len() > self.capacity.max(1) {
+            let excess = self.undo.len() - self.capacity.max(1);
+            self.undo.drain(..excess);
+        }
+        let mut total: usize = self.undo.iter().map(|s| s.revert.heap_bytes()).sum();
+        let mut drop = 0;
+        while total > self.max_bytes && drop + 1 < self.undo.len() {
+            total -= self.undo[drop].revert.heap_bytes();
+            drop += 1;
+        }
+        self.undo.drain(..drop);
+    }
+
+    /// Bytes the undo steps hold.
+    #[must_use]
+    pub fn undo_bytes(&self) -> usize {
+        self.undo.iter().map(|s| s.revert.heap_bytes()).sum()
     }
 
     /// Closes the open merge group.
@@ -251,6 +335,11 @@ impl History {
     /// Marks the current state as the saved one.
     pub fn mark_saved(&mut self) {
         self.saved_state = self.state;
+    }
+
+    /// Marks the document as differing from every saved state.
+    pub fn mark_unsaved(&mut self) {
+        self.saved_state = u64::MAX;
     }
 
     /// Whether the document differs from the saved state.

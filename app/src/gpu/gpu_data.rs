@@ -32,8 +32,12 @@ pub struct ViewUniform {
     pub far: f32,
     /// ASVO: split while the projected edge exceeds this many pixels.
     pub lod_pixel_threshold: f32,
+    /// 1: the traversal culls nodes behind the occlusion tiles; 0: no occlusion culling.
+    pub occlusion: u32,
+    /// Occlusion tiles per row.
+    pub tiles_x: u32,
     /// Padding to a 16-byte multiple.
-    pub pad: [u32; 3],
+    pub pad: u32,
 }
 const _: () = assert!(std::mem::size_of::<ViewUniform>() == 240);
 
@@ -48,8 +52,10 @@ pub const MODE_ID: u32 = 2;
 pub const STATS_START: u32 = 64;
 /// Most octree levels a traversal counts (depth ≤ 21, so 22 levels are used).
 pub const MAX_LEVELS: u32 = 32;
-/// Counters per level: visited, split, splatted, frustum culled.
-pub const STATS_PER_LEVEL: u32 = 4;
+/// Counters per level: visited, split, splatted, frustum culled, occlusion culled.
+pub const STATS_PER_LEVEL: u32 = 5;
+/// Edge of an occlusion tile in pixels (`OCCLUSION_TILE` in `common/types.wgsl`).
+pub const OCCLUSION_TILE: u32 = 8;
 /// Index of the queue-overflow counter.
 pub const OVERFLOW_COUNTER: u32 = 32;
 /// Length of the counter buffer in u32: queue counts, overflow, two views' statistics.

@@ -14,10 +14,12 @@
 pub mod context;
 pub mod gpu_data;
 mod renderer;
+mod scene;
 pub mod shaders;
 
 pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
+pub use scene::UploadStats;
 
 use thicket_core::render::{Quality, QualityError};
 use thicket_core::scene::{Document, OrbitCamera, SceneError};
@@ -134,6 +136,8 @@ pub struct GpuLevelStats {
     pub splatted: u64,
     /// Nodes outside the view frustum.
     pub frustum_culled: u64,
+    /// Nodes behind the hierarchical depth (paper §8.1.2; `Quality::occlusion_culling`).
+    pub occlusion_culled: u64,
 }
 
 /// What a GPU frame did and how long it took.
@@ -157,6 +161,26 @@ pub struct GpuFrameStats {
     pub total_ms: f64,
     /// The splat path used.
     pub atomic_path: AtomicPath,
+    /// This frame's number (1 for a renderer's first frame).
+    pub frame: u64,
+    /// The frame the counters and timings came from: this frame when waiting, an earlier one
+    /// (or `None` before any arrived) with asynchronous readback.
+    pub counters_frame: Option<u64>,
+    /// What the frame uploaded before drawing.
+    pub upload: UploadStats,
+}
+
+impl GpuFrameStats {
+    /// Copies counters and timings from a decoded frame (asynchronous readback).
+    pub(crate) fn fill_counters_from(&mut self, from: &Self) {
+        self.levels.clone_from(&from.levels);
+        self.shadow_levels.clone_from(&from.shadow_levels);
+        self.splats = from.splats;
+        self.queue_overflow = from.queue_overflow;
+        self.pass_ms.clone_from(&from.pass_ms);
+        self.gpu_timestamps = from.gpu_timestamps;
+        self.counters_frame = from.counters_frame;
+    }
 }
 
 /// Renders a document on a fresh headless device (for the CLI): returns the sRGB RGBA8 image

@@ -1,19 +1,22 @@
 //! The long-lived [`Renderer`] (layouts and pipelines, created once) and one frame's work.
 
 use std::collections::HashMap;
+use std::sync::Arc;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::time::Instant;
 
-use glam::{Mat3, Mat4, Vec3, Vec4};
+use glam::{Mat4, UVec3, Vec3};
 use thicket_core::render::Quality;
-use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
-use thicket_core::svo::Svo;
+use thicket_core::scene::{Document, OrbitCamera};
 use wgpu::util::DeviceExt;
+
+use super::scene::{SceneCache, UploadStats};
 
 use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
-    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OVERFLOW_COUNTER, ObjectInfo,
-    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, TRI_VEC4S, ViewUniform,
+    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE, OVERFLOW_COUNTER,
+    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -181,10 +184,25 @@ impl ViewSpec {
     }
 
     /// An orthographic camera looking along `direction` whose image tightly holds the box
-    /// (the same fit as the CPU reference: `core::render::shade::fit_light_view`).
-    fn fit_light(direction: Vec3, lo: Vec3, hi: Vec3, size: u32) -> Option<Self> {
+    /// (the same fit as the CPU reference: `core::render::shade::fit_light_view`), with at most
+    /// `max_size` texels per edge and texels no finer than `finest_texel_world`: the CPU reference's
+    /// `fit_light_camera` (`core/src/render/shade.rs`), which keeps the shadow pass bound by the
+    /// view's resolution. Kept identical so both renderers sample the same shadow texels.
+    fn fit_light_bound(
+        direction: Vec3,
+        lo: Vec3,
+        hi: Vec3,
+        max_size: u32,
+        finest_texel_world: f32,
+    ) -> Option<Self> {
         let fit = thicket_core::render::shade::fit_light_view(direction, lo, hi)?;
         let (half, near, far) = (fit.half_extent, fit.near, fit.far);
+        let wanted = (2.0 * half / finest_texel_world.max(1e-30)).ceil();
+        let size = if wanted.is_finite() {
+            (wanted as u32).clamp(16, max_size.max(16))
+        } else {
+            max_size
+        };
         let f = 0.5 * size as f32 / half;
         Some(Self {
             view_from_world: fit.view_from_world,
@@ -199,7 +217,7 @@ impl ViewSpec {
         })
     }
 
-    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32) -> ViewUniform {
+    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32, occlusion: bool) -> ViewUniform {
         ViewUniform {
             view_from_world: self.view_from_world.to_cols_array_2d(),
             clip_from_world: (self.clip_from_view * self.view_from_world).to_cols_array_2d(),
@@ -212,184 +230,10 @@ impl ViewSpec {
             near: self.near,
             far: self.far,
             lod_pixel_threshold,
-            pad: [0; 3],
+            occlusion: u32::from(occlusion),
+            tiles_x: self.width.div_ceil(OCCLUSION_TILE),
+            pad: 0,
         }
-    }
-}
-
-/// A voxel object packed into the scene pools.
-struct VoxelEntry {
-    world_from_voxel: Mat4,
-    depth: u8,
-    inner_base: u32,
-    attr_inner_base: u32,
-    attr_leaf_base: u32,
-}
-
-/// The scene's data in CPU form, ready to upload.
-#[derive(Default)]
-struct ScenePack {
-    voxels: Vec<VoxelEntry>,
-    inner: Vec<[u32; 2]>,
-    attrs: Vec<[u32; 2]>,
-    objects: Vec<ObjectInfo>,
-    /// World triangles, casters first.
-    tris: Vec<[f32; 4]>,
-    caster_tris: u32,
-    queue_capacity: u64,
-    bounds: Option<(Vec3, Vec3)>,
-}
-
-fn grow(b: &mut Option<(Vec3, Vec3)>, lo: Vec3, hi: Vec3) {
-    *b = Some(b.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
-}
-
-/// World AABB of a voxel object from its nodes a few levels down (the CPU reference's
-/// `voxel_bounds`).
-fn voxel_world_bounds(svo: &Svo, world_from_voxel: Mat4, out: &mut Option<(Vec3, Vec3)>) {
-    let stop = svo.depth().min(5);
-    let lin = Mat3::from_mat4(world_from_voxel);
-    let mut stack = vec![svo.root()];
-    while let Some(n) = stack.pop() {
-        if n.level < stop {
-            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
-            continue;
-        }
-        let half = 0.5 * svo.node_size(n.level) as f32;
-        let c = world_from_voxel.transform_point3(n.origin.as_vec3() + Vec3::splat(half));
-        let a = lin * half;
-        let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
-        grow(out, c - he, c + he);
-    }
-}
-
-impl ScenePack {
-    fn build(doc: &Document, limits: &wgpu::Limits) -> Result<Self, GpuError> {
-        let mut p = Self::default();
-        let mut casters: Vec<[f32; 4]> = Vec::new();
-        let mut others: Vec<[f32; 4]> = Vec::new();
-        for o in doc.objects.iter().filter(|o| o.visible) {
-            let world_from_object = o.transform.matrix();
-            match &o.kind {
-                ObjectKind::Voxels(v) => {
-                    let svo = &v.svo;
-                    if svo.is_empty() {
-                        continue;
-                    }
-                    let world_from_voxel = world_from_object * v.object_from_voxel();
-                    let obj = u32::try_from(p.objects.len())
-                        .ok()
-                        .filter(|&i| i <= 0xffff)
-                        .ok_or(GpuError::TooLarge {
-                            what: "voxel object count",
-                            bytes: p.objects.len() as u64,
-                            limit: 0xffff,
-                        })?;
-                    let nm = Mat3::from_mat4(world_from_voxel).inverse().transpose();
-                    p.objects.push(ObjectInfo {
-                        normal_from_voxel: [
-                            nm.x_axis.extend(0.0).to_array(),
-                            nm.y_axis.extend(0.0).to_array(),
-                            nm.z_axis.extend(0.0).to_array(),
-                        ],
-                    });
-                    let inner_base = p.inner.len() as u64;
-                    p.inner.extend(
-                        svo.inner_first_children()
-                            .iter()
-                            .zip(svo.inner_masks())
-                            .map(|(&f, &m)| [f, u32::from(m)]),
-                    );
-                    let attr_inner_base = p.attrs.len() as u64;
-                    let pack = |c: &[u8; 4], n: &u16| {
-                        [u32::from_le_bytes(*c), u32::from(*n) | (obj << 16)]
-                    };
-                    p.attrs.extend(
-                        svo.inner_colors()
-                            .iter()
-                            .zip(svo.inner_normals())
-                            .map(|(c, n)| pack(c, n)),
-                    );
-                    let attr_leaf_base = p.attrs.len() as u64;
-                    p.attrs.extend(
-                        svo.leaf_colors()
-                            .iter()
-                            .zip(svo.leaf_normals())
-                            .map(|(c, n)| pack(c, n)),
-                    );
-                    if p.attrs.len() as u64 >= u64::from(super::gpu_data::MESH_ID_FLAG) {
-                        return Err(GpuError::TooLarge {
-                            what: "voxel node ids",
-                            bytes: p.attrs.len() as u64,
-                            limit: u64::from(super::gpu_data::MESH_ID_FLAG),
-                        });
-                    }
-                    p.queue_capacity = p.queue_capacity.max(svo.inner_count() + svo.leaf_count());
-                    voxel_world_bounds(svo, world_from_voxel, &mut p.bounds);
-                    p.voxels.push(VoxelEntry {
-                        world_from_voxel,
-                        depth: svo.depth(),
-                        inner_base: inner_base as u32,
-                        attr_inner_base: attr_inner_base as u32,
-                        attr_leaf_base: attr_leaf_base as u32,
-                    });
-                }
-                ObjectKind::Mesh(m) => {
-                    let normal_m = Mat3::from_mat4(world_from_object).inverse().transpose();
-                    let out = if m.casts_shadows {
-                        &mut casters
-                    } else {
-                        &mut others
-                    };
-                    for part in &m.model.parts {
-                        let base = m
-                            .model
-                            .materials
-                            .get(part.material)
-                            .map_or(Vec4::ONE, |mat| mat.base_color);
-                        for t in 0..part.triangle_count() {
-                            let idx = part.triangle(t);
-                            let mut rec = [[0.0f32; 4]; TRI_VEC4S];
-                            for (k, &i) in idx.iter().enumerate() {
-                                let pw = world_from_object.transform_point3(
-                                    part.positions.get(i).copied().unwrap_or_default(),
-                                );
-                                grow(&mut p.bounds, pw, pw);
-                                rec[k] = pw.extend(1.0).to_array();
-                                rec[3 + k] = match part.normals.get(i) {
-                                    Some(n) => (normal_m * *n).extend(1.0).to_array(),
-                                    None => [0.0; 4],
-                                };
-                                let vc = part.colors.get(i).copied().unwrap_or(Vec4::ONE);
-                                rec[6 + k] = (base * vc).to_array();
-                            }
-                            out.extend_from_slice(&rec);
-                        }
-                    }
-                }
-            }
-        }
-        p.caster_tris = (casters.len() / TRI_VEC4S) as u32;
-        p.tris = casters;
-        p.tris.extend(others);
-        let limit = limits.max_storage_buffer_binding_size;
-        for (what, bytes) in [
-            ("inner node pool", p.inner.len() as u64 * 8),
-            ("attribute pool", p.attrs.len() as u64 * 8),
-            ("triangle buffer", p.tris.len() as u64 * 16),
-        ] {
-            if bytes > limit {
-                return Err(GpuError::TooLarge { what, bytes, limit });
-            }
-        }
-        p.queue_capacity = p
-            .queue_capacity
-            .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX)));
-        Ok(p)
-    }
-
-    fn tri_count(&self) -> u32 {
-        (self.tris.len() / TRI_VEC4S) as u32
     }
 }
 
@@ -403,6 +247,8 @@ pub struct Renderer {
     mesh_bgl: wgpu::BindGroupLayout,
     resolve_bgl: wgpu::BindGroupLayout,
     shade_bgl: wgpu::BindGroupLayout,
+    hiz_bgl: wgpu::BindGroupLayout,
+    hiz: wgpu::ComputePipeline,
     seed: wgpu::ComputePipeline,
     prepare: wgpu::ComputePipeline,
     traverse32: wgpu::ComputePipeline,
@@ -417,6 +263,14 @@ pub struct Renderer {
     /// Dummy depth attachments for the mesh passes (the atomics do the depth test).
     attachments: HashMap<(u32, u32), wgpu::Texture>,
     last_size: (u32, u32),
+    /// The scene on the GPU (`None` until the first upload).
+    scene: Option<SceneCache>,
+    /// Counters and timestamps read back through a ring of staging buffers.
+    readback: ReadbackRing,
+    /// When set, `render` returns without waiting for the frame's counters.
+    async_readback: bool,
+    /// Frames submitted so far.
+    frame_index: u64,
 }
 
 fn storage(
@@ -562,12 +416,21 @@ impl Renderer {
                     storage(1, false, cs),
                     storage(2, true, cs),
                     storage(4, false, cs),
+                    storage(5, true, cs),
                 ],
             ),
             bgl("traverse 1", &[uniform(0, true, cs)]),
             bgl("traverse 2", &[storage(0, true, cs), storage(1, false, cs)]),
         ];
         let indirect_bgl = bgl("indirect", &[storage(0, false, cs)]);
+        let hiz_bgl = bgl(
+            "hiz",
+            &[
+                uniform(0, false, cs),
+                storage(1, true, cs),
+                storage(2, false, cs),
+            ],
+        );
         let clear_bgl = bgl("clear", &[uniform(0, false, cs), storage(1, false, cs)]);
         let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
         let mesh_bgl = bgl(
@@ -656,6 +519,12 @@ impl Renderer {
         } else {
             None
         };
+        let hiz = compute(
+            "hiz",
+            &layout("hiz", &[&hiz_bgl]),
+            &module("hiz.wgsl")?,
+            "build_tiles",
+        );
         let clear = compute(
             "clear",
             &layout("clear", &[&clear_bgl]),
@@ -722,6 +591,8 @@ impl Renderer {
             mesh_bgl,
             resolve_bgl,
             shade_bgl,
+            hiz_bgl,
+            hiz,
             seed,
             prepare,
             traverse32,
@@ -734,6 +605,10 @@ impl Renderer {
             buffers: HashMap::new(),
             attachments: HashMap::new(),
             last_size: (0, 0),
+            scene: None,
+            readback: ReadbackRing::default(),
+            async_readback: false,
+            frame_index: 0,
         })
     }
 
@@ -805,8 +680,12 @@ impl Renderer {
             .create_view(&wgpu::TextureViewDescriptor::default())
     }
 
-    /// Renders `doc` from `camera` into `target`: waits for the GPU and reads the counters
-    /// (and timestamps when the device has them) back into the returned statistics.
+    /// Renders `doc` from `camera` into `target`. Uploads the whole scene first (any change to
+    /// the document shows); an editor that knows what changed uploads with
+    /// [`Renderer::update_voxel_region`] and draws with [`Renderer::render_uploaded`].
+    ///
+    /// Waits for the GPU and returns this frame's counters (and timestamps when the device has
+    /// them), unless [`Renderer::set_async_readback`] is on.
     ///
     /// # Errors
     /// [`GpuError`] for an invalid document, camera or quality, scene data over the device's
@@ -824,13 +703,137 @@ impl Renderer {
         quality: &Quality,
         target: &RenderTarget,
     ) -> Result<GpuFrameStats, GpuError> {
+        self.frame(device, queue, doc, camera, quality, target, true)
+    }
+
+    /// Renders with the scene as last uploaded: only transforms, lights and camera are read
+    /// from `doc` each frame, plus what can be seen without an edit region (objects added,
+    /// removed or hidden, or a pool that changed length, cause an upload of what changed). A
+    /// voxel edit that keeps the pool lengths must be announced with
+    /// [`Renderer::update_voxel_region`] first, or the frame shows the old voxels.
+    ///
+    /// # Errors
+    /// As [`Renderer::render`].
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's inputs: device, queue, scene, view, knobs, target"
+    )]
+    pub fn render_uploaded(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        camera: &OrbitCamera,
+        quality: &Quality,
+        target: &RenderTarget,
+    ) -> Result<GpuFrameStats, GpuError> {
+        self.frame(device, queue, doc, camera, quality, target, false)
+    }
+
+    /// Packs and uploads the whole scene.
+    ///
+    /// # Errors
+    /// [`GpuError::InvalidDocument`], [`GpuError::TooLarge`], or an error raised by the device.
+    pub fn upload_document(
+        &mut self,
+        device: &wgpu::Device,
+        doc: &Document,
+    ) -> Result<UploadStats, GpuError> {
+        doc.validate()?;
+        let scene = SceneCache::build(device, doc, &device.limits())?;
+        let stats = UploadStats {
+            full: true,
+            bytes: scene.bytes(),
+            writes: 3,
+        };
+        self.scene = Some(scene);
+        Ok(stats)
+    }
+
+    /// After an edit of voxel object `object_id` inside the inclusive box `lo..=hi` (voxel
+    /// coordinates, e.g. a sculpt's changed region): uploads only the node ranges the edit can
+    /// have changed. Falls back to a full upload when nothing is uploaded yet, the scene's
+    /// objects changed, or the object's pools outgrew the room reserved for them.
+    ///
+    /// # Errors
+    /// As [`Renderer::upload_document`].
+    pub fn update_voxel_region(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        object_id: u64,
+        lo: UVec3,
+        hi: UVec3,
+    ) -> Result<UploadStats, GpuError> {
+        if let Some(s) = self
+            .scene
+            .as_mut()
+            .and_then(|s| s.update_voxel_region(queue, doc, object_id, lo, hi))
+        {
+            return Ok(s);
+        }
+        self.upload_document(device, doc)
+    }
+
+    /// With `on`, [`Renderer::render`] returns as soon as the frame is submitted: its
+    /// statistics carry the newest counters that have arrived (from an earlier frame, see
+    /// [`GpuFrameStats::counters_frame`]), read through a ring of staging buffers mapped with
+    /// `map_async`, so the GPU never waits for the CPU. Off (the default) waits for each frame.
+    pub fn set_async_readback(&mut self, on: bool) {
+        self.async_readback = on;
+    }
+
+    /// The newest frame statistics that have arrived, after a non-blocking device poll (for a
+    /// perf overlay between frames).
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`] when polling the device fails.
+    pub fn poll_counters(
+        &mut self,
+        device: &wgpu::Device,
+    ) -> Result<Option<GpuFrameStats>, GpuError> {
+        device
+            .poll(wgpu::PollType::Poll)
+            .map_err(|e| GpuError::Readback(e.to_string()))?;
+        self.readback.collect();
+        Ok(self.readback.latest.clone())
+    }
+
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "render's inputs plus whether to upload the whole scene"
+    )]
+    fn frame(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        camera: &OrbitCamera,
+        quality: &Quality,
+        target: &RenderTarget,
+        full_upload: bool,
+    ) -> Result<GpuFrameStats, GpuError> {
         doc.validate()?;
         camera.validate()?;
         quality.validate()?;
         let t_start = Instant::now();
         let validation = device.push_error_scope(wgpu::ErrorFilter::Validation);
         let oom = device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
-        let result = self.encode_and_run(device, queue, doc, camera, quality, target);
+        let result: Result<GpuFrameStats, GpuError> = (|| {
+            let refreshed = if full_upload {
+                None
+            } else {
+                self.scene.as_mut().and_then(|s| s.refresh(queue, doc))
+            };
+            let upload = match refreshed {
+                Some(u) => u,
+                None => self.upload_document(device, doc)?,
+            };
+            let mut stats = self.encode_and_run(device, queue, doc, camera, quality, target)?;
+            stats.upload = upload;
+            Ok(stats)
+        })();
         let oom_err = pollster::block_on(oom.pop());
         let val_err = pollster::block_on(validation.pop());
         if let Some(e) = oom_err {
@@ -922,7 +925,32 @@ impl Renderer {
     ) -> Result<GpuFrameStats, GpuError> {
         use wgpu::BufferUsages as U;
         let limits = device.limits();
-        let scene = ScenePack::build(doc, &limits)?;
+        let scene = self
+            .scene
+            .as_ref()
+            .ok_or_else(|| GpuError::Device("no scene uploaded".into()))?;
+        let frame_objects = scene.frame_objects(doc);
+        let (inner_buf, attr_buf, tri_buf) = (
+            scene.inner_buf.clone(),
+            scene.attr_buf.clone(),
+            scene.tri_buf.clone(),
+        );
+        let (caster_tris, tri_count, cap) =
+            (scene.caster_tris, scene.tri_count, scene.queue_capacity);
+        let voxel_entries: Vec<(Mat4, u8, u32, u32, u32)> = scene
+            .voxels
+            .iter()
+            .zip(&frame_objects.world_from_voxel)
+            .map(|(e, &m)| {
+                (
+                    m,
+                    e.depth,
+                    e.inner_base,
+                    e.attr_inner_base,
+                    e.attr_leaf_base,
+                )
+            })
+            .collect();
         let (w, h) = (target.width, target.height);
         let main = ViewSpec::from_orbit(camera, w, h);
         let lod = quality.lod_pixel_threshold;
@@ -934,14 +962,21 @@ impl Renderer {
             .iter()
             .position(|l| l.casts_shadows)
             .filter(|_| quality.shadows);
-        let shadow = match (shadow_light, scene.bounds) {
-            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => ViewSpec::fit_light(
-                doc.lights[i].direction,
-                lo,
-                hi,
-                quality.shadow_map_size.max(1),
-            )
-            .map(|v| (i, v)),
+        let shadow = match (shadow_light, frame_objects.bounds) {
+            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => {
+                // Two texels per view pixel where the scene comes nearest the eye (as the CPU).
+                let eye = camera.eye();
+                let nearest = (eye.clamp(lo, hi) - eye).length().max(main.near);
+                let finest = 0.5 * nearest / main.fy;
+                ViewSpec::fit_light_bound(
+                    doc.lights[i].direction,
+                    lo,
+                    hi,
+                    quality.shadow_map_size,
+                    finest,
+                )
+                .map(|v| (i, v))
+            }
             _ => None,
         };
 
@@ -978,14 +1013,11 @@ impl Renderer {
                 usage,
             })
         };
-        let inner_buf = upload(
-            "inner nodes",
-            bytemuck::cast_slice(&scene.inner),
+        let object_buf = upload(
+            "objects",
+            bytemuck::cast_slice(&frame_objects.objects),
             U::STORAGE,
         );
-        let attr_buf = upload("attributes", bytemuck::cast_slice(&scene.attrs), U::STORAGE);
-        let object_buf = upload("objects", bytemuck::cast_slice(&scene.objects), U::STORAGE);
-        let tri_buf = upload("triangles", bytemuck::cast_slice(&scene.tris), U::STORAGE);
         let lights: Vec<LightGpu> = doc
             .lights
             .iter()
@@ -1009,6 +1041,12 @@ impl Renderer {
         // Frame buffers.
         let keys_main = self.buffer(device, "keys", key_bytes, U::STORAGE);
         let keys_shadow = self.buffer(device, "shadow keys", shadow_key_bytes, U::STORAGE);
+        let tiles = self.buffer(
+            device,
+            "occlusion tiles",
+            u64::from(w.div_ceil(OCCLUSION_TILE)) * u64::from(h.div_ceil(OCCLUSION_TILE)) * 4,
+            U::STORAGE,
+        );
         let gbuffer = self.buffer(
             device,
             "gbuffer",
@@ -1021,19 +1059,12 @@ impl Renderer {
             u64::from(COUNTER_WORDS) * 4,
             U::STORAGE | U::COPY_SRC | U::COPY_DST,
         );
-        let counters_read = self.buffer(
-            device,
-            "counters readback",
-            u64::from(COUNTER_WORDS) * 4,
-            U::MAP_READ | U::COPY_DST,
-        );
         let indirect = self.buffer(
             device,
             "indirect",
             u64::from(MAX_LEVELS) * 12,
             U::STORAGE | U::INDIRECT,
         );
-        let cap = scene.queue_capacity;
         let queue_a = self.buffer(device, "queue a", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
         let queue_b = self.buffer(device, "queue b", cap * QUEUE_ENTRY_BYTES, U::STORAGE);
 
@@ -1045,55 +1076,55 @@ impl Renderer {
         };
         let view_main = upload(
             "view",
-            bytemuck::bytes_of(&main.uniform(first_mode, lod)),
+            bytemuck::bytes_of(&main.uniform(first_mode, lod, quality.occlusion_culling)),
             U::UNIFORM,
         );
         let view_main_id = upload(
             "view id pass",
-            bytemuck::bytes_of(&main.uniform(MODE_ID, lod)),
+            // The id pass must visit every node the depth pass drew: no culling there.
+            bytemuck::bytes_of(&main.uniform(MODE_ID, lod, false)),
             U::UNIFORM,
         );
         let shadow_spec = shadow.map_or(main, |(_, v)| v);
         let view_shadow = upload(
             "shadow view",
-            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod)),
+            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod, false)),
             U::UNIFORM,
         );
         let mut slots: Vec<u8> = Vec::new();
         let mut make_traversals = |spec: &ViewSpec, stats_base: u32| -> Vec<Traversal> {
-            scene
-                .voxels
+            voxel_entries
                 .iter()
-                .map(|v| {
-                    let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
-                    let base = NodeParams::for_object(
-                        spec.view_from_world * v.world_from_voxel,
-                        v.world_from_voxel,
-                    );
-                    for level in 0..=u32::from(v.depth) {
-                        let p = NodeParams {
-                            level,
-                            node_size: 1u32 << (u32::from(v.depth) - level),
-                            leaf_level: u32::from(v.depth),
-                            queue_capacity: cap as u32,
-                            inner_base: v.inner_base,
-                            leaf_base: 0,
-                            attr_inner_base: v.attr_inner_base,
-                            attr_leaf_base: v.attr_leaf_base,
-                            stats_base,
-                            ..base
-                        };
-                        slots.extend_from_slice(bytemuck::bytes_of(&p));
-                        slots.resize(
-                            slots.len() + (NODE_PARAMS_STRIDE as usize - size_of::<NodeParams>()),
-                            0,
+                .map(
+                    |&(world_from_voxel, depth, inner_base, attr_inner_base, attr_leaf_base)| {
+                        let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
+                        let base = NodeParams::for_object(
+                            spec.view_from_world * world_from_voxel,
+                            world_from_voxel,
                         );
-                    }
-                    Traversal {
-                        first_slot,
-                        depth: v.depth,
-                    }
-                })
+                        for level in 0..=u32::from(depth) {
+                            let p = NodeParams {
+                                level,
+                                node_size: 1u32 << (u32::from(depth) - level),
+                                leaf_level: u32::from(depth),
+                                queue_capacity: cap as u32,
+                                inner_base,
+                                leaf_base: 0,
+                                attr_inner_base,
+                                attr_leaf_base,
+                                stats_base,
+                                ..base
+                            };
+                            slots.extend_from_slice(bytemuck::bytes_of(&p));
+                            slots.resize(
+                                slots.len()
+                                    + (NODE_PARAMS_STRIDE as usize - size_of::<NodeParams>()),
+                                0,
+                            );
+                        }
+                        Traversal { first_slot, depth }
+                    },
+                )
                 .collect()
         };
         let main_trav = make_traversals(&main, STATS_START);
@@ -1154,9 +1185,24 @@ impl Renderer {
                         binding: 4,
                         resource: keys.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 5,
+                        resource: tiles.as_entire_binding(),
+                    },
                 ],
             })
         };
+        let bg_hiz = bind_group(
+            device,
+            &self.hiz_bgl,
+            "hiz",
+            &[&view_main, &keys_main, &tiles],
+        );
+        let hiz_groups = (
+            w.div_ceil(OCCLUSION_TILE).div_ceil(8),
+            h.div_ceil(OCCLUSION_TILE).div_ceil(8),
+        );
+        let occlusion = quality.occlusion_culling;
         let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
         let bg_main = trav0(&view_main, &keys_main);
         let bg_main_id = trav0(&view_main_id, &keys_main);
@@ -1334,7 +1380,8 @@ impl Renderer {
                              name: &'static str,
                              pipeline: &wgpu::ComputePipeline,
                              bg0: &wgpu::BindGroup,
-                             travs: &[Traversal]| {
+                             travs: &[Traversal],
+                             hiz: bool| {
             if travs.is_empty() {
                 return;
             }
@@ -1342,15 +1389,26 @@ impl Renderer {
                 label: Some(name),
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
             });
-            pass.set_bind_group(0, bg0, &[]);
-            pass.set_bind_group(3, &bg_indirect, &[]);
             for t in travs {
                 let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
+                pass.set_bind_group(0, bg0, &[]);
+                pass.set_bind_group(3, &bg_indirect, &[]);
                 pass.set_pipeline(&self.seed);
                 pass.set_bind_group(1, &bg_params, &[slot(0)]);
                 pass.set_bind_group(2, &bg_ba, &[]);
                 pass.dispatch_workgroups(1, 1, 1);
                 for level in 0..=u32::from(t.depth) {
+                    if hiz {
+                        // Occlusion tiles from everything drawn so far (meshes, earlier
+                        // levels and objects); its layout differs, so rebind after it.
+                        pass.set_pipeline(&self.hiz);
+                        pass.set_bind_group(0, &bg_hiz, &[]);
+                        pass.dispatch_workgroups(hiz_groups.0, hiz_groups.1, 1);
+                        pass.set_pipeline(&self.prepare);
+                        pass.set_bind_group(0, bg0, &[]);
+                        pass.set_bind_group(2, &bg_ba, &[]);
+                        pass.set_bind_group(3, &bg_indirect, &[]);
+                    }
                     pass.set_bind_group(1, &bg_params, &[slot(level)]);
                     pass.set_pipeline(&self.prepare);
                     pass.dispatch_workgroups(1, 1, 1);
@@ -1369,7 +1427,7 @@ impl Renderer {
                 &self.mesh32,
                 &bg_mesh_shadow,
                 &shadow_attachment,
-                scene.caster_tris,
+                caster_tris,
             );
             traverse_pass(
                 &mut enc,
@@ -1378,9 +1436,9 @@ impl Renderer {
                 &self.traverse32,
                 &bg_shadow,
                 &shadow_trav,
+                false,
             );
         }
-        let tri_count = scene.tri_count();
         match (path, &self.mesh64, &self.traverse64) {
             (AtomicPath::Key64, Some(mesh64), Some(trav64)) => {
                 mesh_pass(
@@ -1392,7 +1450,9 @@ impl Renderer {
                     &main_attachment,
                     tri_count,
                 );
-                traverse_pass(&mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav);
+                traverse_pass(
+                    &mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav, occlusion,
+                );
             }
             _ => {
                 mesh_pass(
@@ -1411,6 +1471,7 @@ impl Renderer {
                     &self.traverse32,
                     &bg_main,
                     &main_trav,
+                    occlusion,
                 );
                 mesh_pass(
                     &mut enc,
@@ -1428,6 +1489,7 @@ impl Renderer {
                     &self.traverse32,
                     &bg_main_id,
                     &main_trav,
+                    false,
                 );
             }
         }
@@ -1449,79 +1511,228 @@ impl Renderer {
             pass.set_bind_group(0, &bg_shade, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
-        enc.copy_buffer_to_buffer(
-            &counters,
-            0,
-            &counters_read,
-            0,
-            u64::from(COUNTER_WORDS) * 4,
-        );
-        let ts_read = ts.as_ref().filter(|t| !t.used.is_empty()).map(|t| {
-            let n = t.used.len() as u32 * 2;
-            let resolve = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps"),
-                size: u64::from(n) * 8,
-                usage: U::QUERY_RESOLVE | U::COPY_SRC,
-                mapped_at_creation: false,
-            });
-            let read = device.create_buffer(&wgpu::BufferDescriptor {
-                label: Some("timestamps readback"),
-                size: u64::from(n) * 8,
-                usage: U::MAP_READ | U::COPY_DST,
-                mapped_at_creation: false,
-            });
-            enc.resolve_query_set(&t.set, 0..n, &resolve, 0);
-            enc.copy_buffer_to_buffer(&resolve, 0, &read, 0, u64::from(n) * 8);
-            read
-        });
-        queue.submit([enc.finish()]);
-
-        // Read back the counters (and timestamps).
-        let raw = map_read(device, &counters_read)?;
-        let words: &[u32] = bytemuck::cast_slice(&raw);
-        let levels_of = |base: u32| -> Vec<GpuLevelStats> {
-            let mut v: Vec<GpuLevelStats> = (0..MAX_LEVELS)
-                .map(|l| {
-                    let i = (base + l * STATS_PER_LEVEL) as usize;
-                    GpuLevelStats {
-                        visited: u64::from(words[i]),
-                        split: u64::from(words[i + 1]),
-                        splatted: u64::from(words[i + 2]),
-                        frustum_culled: u64::from(words[i + 3]),
-                    }
-                })
-                .collect();
-            while v.last().is_some_and(|l| l.visited == 0) {
-                v.pop();
+        // Counters and timestamps go to a free staging slot of the ring; with no free slot
+        // (async readback running behind), this frame's counters are skipped rather than
+        // waited for.
+        let slot = self.readback.free_slot(device);
+        if let Some(slot) = slot {
+            let staging = self.readback.slots[slot].buffer.clone();
+            enc.copy_buffer_to_buffer(&counters, 0, &staging, 0, COUNTER_BYTES);
+            if let Some(t) = ts.as_ref().filter(|t| !t.used.is_empty()) {
+                let n = t.used.len() as u32 * 2;
+                let resolve = self.buffer(
+                    device,
+                    "timestamp resolve",
+                    u64::from(MAX_TIMED_PASSES * 2) * 8,
+                    U::QUERY_RESOLVE | U::COPY_SRC,
+                );
+                enc.resolve_query_set(&t.set, 0..n, &resolve, 0);
+                enc.copy_buffer_to_buffer(&resolve, 0, &staging, COUNTER_BYTES, u64::from(n) * 8);
             }
-            v
-        };
-        let levels = levels_of(STATS_START);
-        let mut stats = GpuFrameStats {
-            splats: levels.iter().map(|l| l.splatted).sum(),
-            levels,
-            shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
-            queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+        }
+        queue.submit([enc.finish()]);
+        self.frame_index += 1;
+        let meta = FrameMeta {
+            frame: self.frame_index,
+            timed: ts
+                .as_ref()
+                .map(|t| t.used.iter().map(|u| (u.name, u.first_query)).collect())
+                .unwrap_or_default(),
             triangles: u64::from(tri_count),
             atomic_path: path,
+            period_ns: f64::from(queue.get_timestamp_period()),
+        };
+        let mut stats = GpuFrameStats {
+            triangles: u64::from(tri_count),
+            atomic_path: path,
+            frame: self.frame_index,
             ..GpuFrameStats::default()
         };
-        if let (Some(t), Some(read)) = (&ts, ts_read) {
-            let raw = map_read(device, &read)?;
-            let ticks: &[u64] = bytemuck::cast_slice(&raw);
-            let period_ns = f64::from(queue.get_timestamp_period());
-            for timed in &t.used {
-                let q = timed.first_query as usize;
-                let ms = ticks[q + 1].saturating_sub(ticks[q]) as f64 * period_ns * 1e-6;
-                match stats.pass_ms.iter_mut().find(|(n, _)| *n == timed.name) {
-                    Some((_, acc)) => *acc += ms,
-                    None => stats.pass_ms.push((timed.name, ms)),
-                }
+        if let Some(slot) = slot {
+            self.readback.start(slot, meta);
+        }
+        if self.async_readback {
+            device
+                .poll(wgpu::PollType::Poll)
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            self.readback.collect();
+            if let Some(latest) = &self.readback.latest {
+                stats.fill_counters_from(latest);
             }
-            stats.gpu_timestamps = true;
+        } else {
+            let slot = slot.ok_or_else(|| GpuError::Readback("no staging slot".into()))?;
+            device
+                .poll(wgpu::PollType::wait_indefinitely())
+                .map_err(|e| GpuError::Readback(e.to_string()))?;
+            self.readback.collect();
+            let got = self
+                .readback
+                .latest
+                .as_ref()
+                .filter(|l| l.frame == self.frame_index)
+                .ok_or_else(|| {
+                    GpuError::Readback(format!(
+                        "counters of frame {} did not arrive (slot {slot})",
+                        self.frame_index
+                    ))
+                })?;
+            stats.fill_counters_from(got);
         }
         Ok(stats)
     }
+}
+
+/// Bytes of the counter buffer.
+const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
+/// Staging slots in the readback ring: a frame's counters arrive a few frames later without
+/// the GPU ever waiting for the CPU.
+const READBACK_SLOTS: usize = 4;
+
+/// What is needed to decode a frame's counters once they arrive.
+#[derive(Clone)]
+struct FrameMeta {
+    frame: u64,
+    timed: Vec<(&'static str, u32)>,
+    triangles: u64,
+    atomic_path: AtomicPath,
+    period_ns: f64,
+}
+
+/// Slot states (shared with the `map_async` callback).
+const SLOT_IDLE: u32 = 0;
+const SLOT_PENDING: u32 = 1;
+const SLOT_MAPPED: u32 = 2;
+const SLOT_FAILED: u32 = 3;
+
+struct ReadbackSlot {
+    buffer: wgpu::Buffer,
+    state: Arc<AtomicU32>,
+    meta: Option<FrameMeta>,
+}
+
+/// A ring of `MAP_READ` buffers that counters and timestamps are copied into at the end of a
+/// frame and mapped asynchronously (`map_async`), so reading them never stalls the GPU.
+#[derive(Default)]
+struct ReadbackRing {
+    slots: Vec<ReadbackSlot>,
+    /// The newest decoded frame statistics.
+    latest: Option<GpuFrameStats>,
+}
+
+impl ReadbackRing {
+    /// An idle slot (created on first use, up to [`READBACK_SLOTS`]).
+    fn free_slot(&mut self, device: &wgpu::Device) -> Option<usize> {
+        if let Some(i) = self
+            .slots
+            .iter()
+            .position(|s| s.state.load(Ordering::Acquire) == SLOT_IDLE)
+        {
+            return Some(i);
+        }
+        if self.slots.len() >= READBACK_SLOTS {
+            return None;
+        }
+        self.slots.push(ReadbackSlot {
+            buffer: device.create_buffer(&wgpu::BufferDescriptor {
+                label: Some("counters readback"),
+                size: COUNTER_BYTES + u64::from(MAX_TIMED_PASSES * 2) * 8,
+                usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                mapped_at_creation: false,
+            }),
+            state: Arc::new(AtomicU32::new(SLOT_IDLE)),
+            meta: None,
+        });
+        Some(self.slots.len() - 1)
+    }
+
+    /// Requests the mapping of a slot whose copy was just submitted.
+    fn start(&mut self, i: usize, meta: FrameMeta) {
+        let slot = &mut self.slots[i];
+        slot.meta = Some(meta);
+        slot.state.store(SLOT_PENDING, Ordering::Release);
+        let state = slot.state.clone();
+        slot.buffer
+            .slice(..)
+            .map_async(wgpu::MapMode::Read, move |r| {
+                state.store(
+                    if r.is_ok() { SLOT_MAPPED } else { SLOT_FAILED },
+                    Ordering::Release,
+                );
+            });
+    }
+
+    /// Decodes every slot whose mapping completed (call after a device poll); keeps the newest.
+    fn collect(&mut self) {
+        for slot in &mut self.slots {
+            match slot.state.load(Ordering::Acquire) {
+                SLOT_MAPPED => {
+                    let decoded = slot
+                        .buffer
+                        .slice(..)
+                        .get_mapped_range()
+                        .ok()
+                        .and_then(|view| slot.meta.as_ref().map(|m| decode_counters(&view, m)));
+                    slot.buffer.unmap();
+                    if let Some(d) = decoded
+                        && self.latest.as_ref().is_none_or(|l| l.frame < d.frame)
+                    {
+                        self.latest = Some(d);
+                    }
+                    slot.state.store(SLOT_IDLE, Ordering::Release);
+                }
+                SLOT_FAILED => slot.state.store(SLOT_IDLE, Ordering::Release),
+                _ => {}
+            }
+        }
+    }
+}
+
+/// Frame statistics from a staging slot's bytes: counters, then timestamp pairs.
+fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
+    let words: &[u32] = bytemuck::cast_slice(&raw[..COUNTER_BYTES as usize]);
+    let levels_of = |base: u32| -> Vec<GpuLevelStats> {
+        let mut v: Vec<GpuLevelStats> = (0..MAX_LEVELS)
+            .map(|l| {
+                let i = (base + l * STATS_PER_LEVEL) as usize;
+                GpuLevelStats {
+                    visited: u64::from(words[i]),
+                    split: u64::from(words[i + 1]),
+                    splatted: u64::from(words[i + 2]),
+                    frustum_culled: u64::from(words[i + 3]),
+                    occlusion_culled: u64::from(words[i + 4]),
+                }
+            })
+            .collect();
+        while v.last().is_some_and(|l| l.visited == 0) {
+            v.pop();
+        }
+        v
+    };
+    let levels = levels_of(STATS_START);
+    let mut stats = GpuFrameStats {
+        splats: levels.iter().map(|l| l.splatted).sum(),
+        levels,
+        shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
+        queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+        triangles: meta.triangles,
+        atomic_path: meta.atomic_path,
+        frame: meta.frame,
+        counters_frame: Some(meta.frame),
+        ..GpuFrameStats::default()
+    };
+    if !meta.timed.is_empty() {
+        let ticks: &[u64] = bytemuck::cast_slice(&raw[COUNTER_BYTES as usize..]);
+        for &(name, q) in &meta.timed {
+            let q = q as usize;
+            let ms = ticks[q + 1].saturating_sub(ticks[q]) as f64 * meta.period_ns * 1e-6;
+            match stats.pass_ms.iter_mut().find(|(n, _)| *n == name) {
+                Some((_, acc)) => *acc += ms,
+                None => stats.pass_ms.push((name, ms)),
+            }
+        }
+        stats.gpu_timestamps = true;
+    }
+    stats
 }
 
 #[cfg(test)]
@@ -1531,7 +1742,8 @@ mod tests {
     #[test]
     fn light_camera_holds_the_box() {
         let (lo, hi) = (Vec3::new(-1.0, 0.0, -2.0), Vec3::new(3.0, 1.0, 0.5));
-        let v = ViewSpec::fit_light(Vec3::new(-0.4, -1.0, -0.3), lo, hi, 256).expect("direction");
+        let v = ViewSpec::fit_light_bound(Vec3::new(-0.4, -1.0, -0.3), lo, hi, 256, 0.0)
+            .expect("direction");
         let clip = v.clip_from_view * v.view_from_world;
         for k in 0..8 {
             let c = Vec3::new(
@@ -1543,6 +1755,6 @@ mod tests {
             assert!(ndc.x.abs() <= 1.0 && ndc.y.abs() <= 1.0, "{ndc}");
             assert!((0.0..=1.0).contains(&ndc.z), "{ndc}");
         }
-        assert!(ViewSpec::fit_light(Vec3::ZERO, lo, hi, 256).is_none());
+        assert!(ViewSpec::fit_light_bound(Vec3::ZERO, lo, hi, 256, 0.0).is_none());
     }
 }

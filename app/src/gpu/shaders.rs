@@ -25,10 +25,12 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("asvo_splat64.wgsl"),
     shader!("asvo_splat32.wgsl"),
     shader!("clear.wgsl"),
+    shader!("hiz.wgsl"),
     shader!("mesh64.wgsl"),
     shader!("mesh32.wgsl"),
     shader!("resolve.wgsl"),
     shader!("shade.wgsl"),
+    shader!("viewport_blit.wgsl"),
 ];
 
 /// Whether a module needs 64-bit integer atomics (`SHADER_INT64` and

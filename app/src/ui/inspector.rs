@@ -85,6 +85,7 @@ fn object_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState,
     egui::CollapsingHeader::new(match o.kind {
         ObjectKind::Voxels(_) => "Voxels",
         ObjectKind::Mesh(_) => "Mesh",
+        ObjectKind::Krs(_) => "KRS",
     })
     .default_open(true)
     .show(ui, |ui| {
@@ -175,6 +176,33 @@ fn object_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState,
                             human_bytes(info.memory.payload_bytes),
                             human_bytes(info.memory.texture_bytes)
                         ),
+                    );
+                }
+                ObjectKind::Krs(k) => {
+                    row(
+                        ui,
+                        "Instances",
+                        crate::files::thousands_u128(k.instance_count()),
+                        "Kernel instances: sum over non-empty kernel sets K_j of 2^(n-j)",
+                    );
+                    row(ui, "Mirrors", k.mirrors.len().to_string(), "Reflection levels n");
+                    let kinds: Vec<&str> = k
+                        .kernels
+                        .iter()
+                        .filter(|kernel| !kernel.is_empty())
+                        .map(thicket_core::krs::Kernel::kind_name)
+                        .collect();
+                    row(
+                        ui,
+                        "Kernels",
+                        format!("{} of {}", kinds.len(), k.kernels.len()),
+                        &kinds.join(", "),
+                    );
+                    row(
+                        ui,
+                        "Distortion",
+                        if k.distortion.is_some() { "yes" } else { "no" },
+                        "Lipschitz-bounded noise warp hiding the symmetry",
                     );
                 }
             });

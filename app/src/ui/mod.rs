@@ -5,16 +5,20 @@
 
 mod inspector;
 mod outliner;
-mod preview;
+mod perf;
+pub mod sculpt;
+pub mod view;
 
 use std::path::{Path, PathBuf};
-use std::sync::mpsc;
-use std::time::Duration;
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, mpsc};
+use std::time::{Duration, Instant};
 
 use egui::{Key, KeyboardShortcut, Modifiers};
 use thicket_core::render::QualityPreset;
 use thicket_core::scene::Document;
 
+use crate::editor::autosave::{self, Recovery};
 use crate::editor::{Editor, Selection};
 use crate::files::{self, FileKind, thousands};
 
@@ -35,8 +39,23 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
         "F",
         "Frame the selection (everything when nothing is selected)",
     ),
-    ("Drag in the view", "Orbit"),
-    ("Scroll in the view", "Zoom"),
+    (
+        "Drag in the view",
+        "Orbit (with the sculpt tool: sculpt; Alt+drag orbits)",
+    ),
+    ("Middle-drag / Alt+drag", "Orbit"),
+    ("Shift+drag / right-drag", "Pan"),
+    ("Scroll / pinch", "Zoom"),
+    ("Two-finger trackpad scroll", "Orbit (Shift: pan)"),
+    (
+        "1 / 3 / 7",
+        "Front / right / top view (Ctrl: back / left / bottom)",
+    ),
+    ("Click in the view", "Select the object under the pointer"),
+    ("S", "Sculpt tool"),
+    ("Esc", "Navigate tool"),
+    ("[ / ]", "Smaller / larger brush"),
+    ("F3", "Performance overlay"),
     ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
     ("F1", "This list"),
 ];
@@ -55,6 +74,7 @@ enum PathPurpose {
     Open,
     Import,
     SaveAs,
+    ExportVox,
 }
 
 impl PathPurpose {
@@ -63,6 +83,7 @@ impl PathPurpose {
             Self::Open => "Open",
             Self::Import => "Import",
             Self::SaveAs => "Save as",
+            Self::ExportVox => "Export MagicaVoxel (.vox)",
         }
     }
 }
@@ -85,11 +106,57 @@ enum Pending {
 enum JobResult {
     Opened(PathBuf, anyhow::Result<Document>),
     Imported(PathBuf, anyhow::Result<Document>),
+    /// An enhanced copy of a voxel object: (source id, source name, result).
+    Enhanced(
+        u64,
+        String,
+        anyhow::Result<Box<thicket_core::scene::VoxelModel>>,
+    ),
+    Exported(anyhow::Result<String>),
 }
 
+/// A background job: a worker thread, its progress and its cancel flag.
 struct Job {
     label: String,
     rx: mpsc::Receiver<JobResult>,
+    /// Fraction done as `f32` bits; NaN while the job cannot tell.
+    progress: Arc<AtomicU32>,
+    cancel: Arc<AtomicBool>,
+}
+
+impl Job {
+    /// Runs `work` on a worker thread; it gets the progress and cancel handles.
+    fn spawn(
+        label: String,
+        work: impl FnOnce(&AtomicU32, &AtomicBool) -> JobResult + Send + 'static,
+    ) -> Self {
+        let (tx, rx) = mpsc::channel();
+        let progress = Arc::new(AtomicU32::new(f32::NAN.to_bits()));
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (p, c) = (Arc::clone(&progress), Arc::clone(&cancel));
+        std::thread::spawn(move || {
+            let result = work(&p, &c);
+            // The receiver is gone when the job was cancelled: nothing to hand back.
+            let _ = tx.send(result);
+        });
+        Self {
+            label,
+            rx,
+            progress,
+            cancel,
+        }
+    }
+
+    fn fraction(&self) -> Option<f32> {
+        let f = f32::from_bits(self.progress.load(Ordering::Relaxed));
+        f.is_finite().then_some(f.clamp(0.0, 1.0))
+    }
+}
+
+/// A native dialog running on its own thread.
+struct NativeDialog {
+    purpose: PathPurpose,
+    rx: mpsc::Receiver<Option<PathBuf>>,
 }
 
 /// The editor window's state: the [`Editor`] plus everything only the UI needs.
@@ -103,13 +170,29 @@ pub struct EditorApp {
     pending: Option<Pending>,
     allow_close: bool,
     job: Option<Job>,
+    dialog: Option<NativeDialog>,
+    /// Use the desktop's file dialogs (xdg portal or zenity) when there are any.
+    pub native_dialogs: bool,
+    /// Autosave interval in seconds (0: off).
+    pub autosave_secs: u32,
+    /// Where recovery files go.
+    pub recovery_dir: PathBuf,
+    autosave_due: Option<Instant>,
+    autosaved_key: Option<(u64, u64)>,
+    autosave_job: Option<mpsc::Receiver<anyhow::Result<()>>>,
+    /// A recovery file found at start-up, offered until recovered or discarded.
+    pub recovery: Option<Recovery>,
     show_shortcuts: bool,
     show_about: bool,
     show_outliner: bool,
     show_inspector: bool,
     outliner: outliner::OutlinerState,
     inspector: inspector::InspectorState,
-    preview: preview::Preview,
+    /// The 3D view.
+    pub view: view::View,
+    /// The sculpt tool and its brush.
+    pub sculpt: sculpt::SculptTool,
+    perf: perf::PerfOverlay,
     /// Last status-bar message.
     status: String,
 }
@@ -132,13 +215,23 @@ impl EditorApp {
             pending: None,
             allow_close: false,
             job: None,
+            dialog: None,
+            native_dialogs: true,
+            autosave_secs: autosave::DEFAULT_AUTOSAVE_SECS,
+            recovery_dir: autosave::recovery_dir(),
+            autosave_due: None,
+            autosaved_key: None,
+            autosave_job: None,
+            recovery: None,
             show_shortcuts: false,
             show_about: false,
             show_outliner: true,
             show_inspector: true,
             outliner: outliner::OutlinerState::default(),
             inspector: inspector::InspectorState::default(),
-            preview: preview::Preview::default(),
+            view: view::View::default(),
+            sculpt: sculpt::SculptTool::default(),
+            perf: perf::PerfOverlay::default(),
             status: String::from("Ready"),
         }
     }
@@ -209,24 +302,94 @@ impl EditorApp {
     }
 
     fn start_open(&mut self, path: PathBuf) {
-        let (tx, rx) = mpsc::channel();
         let label = format!("Opening {}", path.display());
-        std::thread::spawn(move || {
+        self.job = Some(Job::spawn(label, move |_, _| {
             let result = files::load_document(&path);
-            let _ = tx.send(JobResult::Opened(path, result));
-        });
-        self.job = Some(Job { label, rx });
+            JobResult::Opened(path, result)
+        }));
     }
 
     /// File → Import: adds the objects of any supported file to the document.
     pub fn start_import(&mut self, path: PathBuf) {
-        let (tx, rx) = mpsc::channel();
         let label = format!("Importing {}", path.display());
-        std::thread::spawn(move || {
+        self.job = Some(Job::spawn(label, move |_, _| {
             let result = files::load_document(&path);
-            let _ = tx.send(JobResult::Imported(path, result));
-        });
-        self.job = Some(Job { label, rx });
+            JobResult::Imported(path, result)
+        }));
+    }
+
+    /// Object → Enhance: a detail-enhanced copy of the selected voxel model (paper 001) on a
+    /// worker thread, with progress and Cancel; the copy is added as a new object.
+    pub fn start_enhance(&mut self, factor: u32) {
+        let Some(o) = self.editor.selected_object() else {
+            self.status = "Select a voxel model to enhance".into();
+            return;
+        };
+        let thicket_core::scene::ObjectKind::Voxels(v) = &o.kind else {
+            self.status = format!("{:?} is not a voxel model", o.name);
+            return;
+        };
+        let (source, name, model) = (o.id, o.name.clone(), v.clone());
+        let label = format!("Enhancing {name} x{factor}");
+        self.job = Some(Job::spawn(label, move |progress, cancel| {
+            let settings = thicket_core::enhance::EnhanceSettings {
+                factor,
+                ..Default::default()
+            };
+            let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
+            let control = thicket_core::enhance::Control {
+                progress: Some(&report),
+                cancel: Some(cancel),
+            };
+            let result =
+                thicket_core::enhance::Enhancer::with_control(&model.svo, &settings, control)
+                    .map(|e| {
+                        Box::new(thicket_core::scene::VoxelModel {
+                            svo: e.into_fine(),
+                            voxel_size: model.voxel_size / factor as f32,
+                            origin: model.origin,
+                            material_names: model.material_names.clone(),
+                            // The fine octree carries no joint weights: the result is static.
+                            rig: None,
+                        })
+                    })
+                    .map_err(anyhow::Error::from);
+            JobResult::Enhanced(source, name, result)
+        }));
+    }
+
+    /// File → Export .vox: the visible voxel models, on a worker thread.
+    pub fn start_export_vox(&mut self, path: PathBuf) {
+        let objects = self.editor.doc().objects.clone();
+        let label = format!("Exporting {}", path.display());
+        self.job = Some(Job::spawn(label, move |_, _| {
+            let result = thicket_core::io::vox::export_vox(&objects, &path)
+                .map(|r| {
+                    format!(
+                        "Exported {} voxels in {} model(s) to {}",
+                        thousands(r.voxels),
+                        r.models,
+                        path.display()
+                    )
+                })
+                .map_err(anyhow::Error::from);
+            JobResult::Exported(result)
+        }));
+    }
+
+    /// Cancels the running job: its result is dropped and the document stays as it is; jobs
+    /// that check the flag (enhancement) stop early.
+    pub fn cancel_job(&mut self, ctx: &egui::Context) {
+        if let Some(job) = self.job.take() {
+            job.cancel.store(true, Ordering::Relaxed);
+            self.toast(ctx, format!("Cancelled: {}", job.label), false);
+        }
+    }
+
+    /// Whether a background job is running.
+    #[must_use]
+    pub fn job_running(&self) -> bool {
+        self.job.is_some()
     }
 
     /// Waits for the running job (tests; the UI polls instead).
@@ -266,6 +429,27 @@ impl EditorApp {
                     false,
                 );
             }
+            JobResult::Enhanced(source, name, Ok(model)) => {
+                let voxels = model.svo.leaf_count();
+                let id = self.editor.add_object(
+                    &format!("{name} enhanced"),
+                    thicket_core::scene::ObjectKind::Voxels(*model),
+                );
+                // The copy sits where the source is.
+                if let Some(t) = self.editor.object(source).map(|o| o.transform) {
+                    let _ = self.editor.set_transform(id, t);
+                    self.editor.end_interaction();
+                }
+                self.toast(
+                    ctx,
+                    format!("Enhanced {name}: {} voxels", thousands(voxels)),
+                    false,
+                );
+            }
+            JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
+            JobResult::Enhanced(_, _, Err(e)) | JobResult::Exported(Err(e)) => {
+                self.error_dialog = Some(format!("{e:#}"));
+            }
             JobResult::Opened(_, Err(e)) | JobResult::Imported(_, Err(e)) => {
                 // The current document is untouched.
                 self.error_dialog = Some(format!("{e:#}"));
@@ -294,6 +478,10 @@ impl EditorApp {
         match files::save_project(self.editor.doc(), &path) {
             Ok(()) => {
                 self.editor.mark_saved(path.clone());
+                // The user's file now holds the work: the recovery file is stale.
+                if self.autosave_job.is_none() {
+                    autosave::discard_recovery(&self.recovery_dir);
+                }
                 self.toast(ctx, format!("Saved {}", path.display()), false);
                 true
             }
@@ -316,14 +504,147 @@ impl EditorApp {
     }
 
     fn ask_path(&mut self, purpose: PathPurpose) {
+        if self.native_dialogs && self.dialog.is_none() && native_dialogs_available() {
+            self.open_native_dialog(purpose);
+            return;
+        }
         let text = match purpose {
             PathPurpose::SaveAs => self.editor.path().map_or_else(
                 || "untitled.thicket.json".into(),
                 |p| p.display().to_string(),
             ),
+            PathPurpose::ExportVox => "export.vox".into(),
             _ => String::new(),
         };
         self.prompt = Some(PathPrompt { purpose, text });
+    }
+
+    /// A desktop file dialog on its own thread (it blocks until the user answers).
+    fn open_native_dialog(&mut self, purpose: PathPurpose) {
+        let start_dir = self
+            .editor
+            .path()
+            .and_then(Path::parent)
+            .map(Path::to_path_buf);
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let mut d = rfd::FileDialog::new().set_title(purpose.title());
+            if let Some(dir) = start_dir {
+                d = d.set_directory(dir);
+            }
+            let path = match purpose {
+                PathPurpose::Open | PathPurpose::Import => {
+                    for (label, exts) in files::readable_extensions() {
+                        d = d.add_filter(label, exts);
+                    }
+                    d.pick_file()
+                }
+                PathPurpose::SaveAs => d
+                    .add_filter("Thicket project", &["json"])
+                    .set_file_name("untitled.thicket.json")
+                    .save_file(),
+                PathPurpose::ExportVox => d
+                    .add_filter("MagicaVoxel", &["vox"])
+                    .set_file_name("export.vox")
+                    .save_file(),
+            };
+            let _ = tx.send(path);
+        });
+        self.dialog = Some(NativeDialog { purpose, rx });
+    }
+
+    fn poll_dialog(&mut self, ctx: &egui::Context) {
+        let Some(d) = &self.dialog else { return };
+        match d.rx.try_recv() {
+            Ok(Some(path)) => {
+                let purpose = d.purpose;
+                self.dialog = None;
+                self.accept_path(ctx, purpose, path);
+            }
+            Ok(None) | Err(mpsc::TryRecvError::Disconnected) => self.dialog = None,
+            Err(mpsc::TryRecvError::Empty) => ctx.request_repaint_after(Duration::from_millis(100)),
+        }
+    }
+
+    /// Autosaves to the recovery folder when the interval has passed and the document changed
+    /// since the last autosave; the write runs on a worker thread.
+    fn autosave_tick(&mut self, ctx: &egui::Context) {
+        if let Some(rx) = &self.autosave_job {
+            match rx.try_recv() {
+                Ok(Ok(())) => {
+                    self.autosave_job = None;
+                    self.status = "Autosaved to the recovery file".into();
+                }
+                Ok(Err(e)) => {
+                    self.autosave_job = None;
+                    self.toast(ctx, format!("Autosave failed: {e:#}"), true);
+                }
+                Err(mpsc::TryRecvError::Disconnected) => self.autosave_job = None,
+                Err(mpsc::TryRecvError::Empty) => return,
+            }
+        }
+        if self.autosave_secs == 0 {
+            self.autosave_due = None;
+            return;
+        }
+        let now = Instant::now();
+        let interval = Duration::from_secs(u64::from(self.autosave_secs));
+        let due = *self.autosave_due.get_or_insert(now + interval);
+        if now < due {
+            ctx.request_repaint_after(due - now);
+            return;
+        }
+        self.autosave_due = Some(now + interval);
+        let key = self.editor.content_key();
+        if self.editor.is_dirty() && self.autosaved_key != Some(key) {
+            self.autosave_now();
+        }
+    }
+
+    /// Starts an autosave now (also used by tests). The document is copied for the worker.
+    pub fn autosave_now(&mut self) {
+        let doc = self.editor.doc().clone();
+        let original = self.editor.path().map(Path::to_path_buf);
+        let dir = self.recovery_dir.clone();
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            let _ = tx.send(autosave::write_recovery(&dir, &doc, original.as_deref()));
+        });
+        self.autosaved_key = Some(self.editor.content_key());
+        self.autosave_job = Some(rx);
+    }
+
+    /// Waits for a running autosave (tests).
+    pub fn wait_for_autosave(&mut self) -> Option<anyhow::Result<()>> {
+        self.autosave_job.take().and_then(|rx| rx.recv().ok())
+    }
+
+    /// Looks for a recovery file from an earlier session (offered in a dialog).
+    pub fn check_recovery(&mut self) {
+        self.recovery = autosave::find_recovery(&self.recovery_dir);
+    }
+
+    /// Opens the recovery file as the document (unsaved, under its original path).
+    pub fn recover(&mut self) {
+        let Some(r) = self.recovery.take() else {
+            return;
+        };
+        match files::load_document(&r.path) {
+            Ok(doc) => {
+                self.editor.replace_document(doc, r.meta.original.clone());
+                self.editor.mark_modified();
+                self.status = "Recovered the autosaved work: save it to keep it".into();
+            }
+            Err(e) => {
+                self.error_dialog = Some(format!("The recovery file could not be read: {e:#}"));
+            }
+        }
+    }
+
+    /// Deletes the recovery file.
+    pub fn discard_recovery(&mut self) {
+        self.recovery = None;
+        autosave::discard_recovery(&self.recovery_dir);
     }
 
     fn accept_path(&mut self, ctx: &egui::Context, purpose: PathPurpose, path: PathBuf) {
@@ -333,6 +654,7 @@ impl EditorApp {
             PathPurpose::SaveAs => {
                 self.save_to(ctx, path);
             }
+            PathPurpose::ExportVox => self.start_export_vox(path),
         }
     }
 
@@ -340,13 +662,17 @@ impl EditorApp {
 
     /// Draws the whole editor into `ui` (the root of the window, or a test harness).
     pub fn ui_root(&mut self, ui: &mut egui::Ui) {
+        let started = std::time::Instant::now();
         let ctx = ui.ctx().clone();
         self.poll_job(&ctx);
+        self.poll_dialog(&ctx);
+        self.autosave_tick(&ctx);
         self.handle_dropped_files(&ctx);
         self.handle_shortcuts(&ctx);
         self.handle_close_request(&ctx);
 
         egui::Panel::top("menu_bar").show(ui, |ui| self.menu_bar(ui));
+        egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui));
         egui::Panel::bottom("status_bar").show(ui, |ui| self.status_bar(ui));
         if self.show_outliner {
             egui::Panel::left("outliner")
@@ -369,18 +695,28 @@ impl EditorApp {
                     inspector::inspector_ui(ui, &mut self.editor, &mut self.inspector);
                 });
         }
-        egui::CentralPanel::default().show(ui, |ui| {
-            self.preview.ui(ui, &mut self.editor);
-        });
+        egui::CentralPanel::default()
+            .frame(egui::Frame::NONE)
+            .show(ui, |ui| {
+                self.view.ui(ui, &mut self.editor, &mut self.sculpt);
+            });
 
         self.dialogs(&ctx);
         self.toasts_ui(&ctx);
+        self.perf.ui(&ctx, &self.editor, self.view.gpu());
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));
 
         // A drag (slider, DragValue) is one undo step: the step closes when the pointer is up.
         if !ctx.input(|i| i.pointer.any_down()) {
             self.editor.end_interaction();
         }
+        self.perf
+            .record(started.elapsed().as_secs_f64() * 1e3, self.view.gpu());
+    }
+
+    /// Connects the GPU viewport (see [`crate::viewport::install`]).
+    pub fn attach_gpu(&mut self, link: crate::viewport::ViewportLink) {
+        self.view.attach_gpu(link);
     }
 
     fn handle_dropped_files(&mut self, ctx: &egui::Context) {
@@ -455,6 +791,34 @@ impl EditorApp {
         }
         if consume(shortcut(Modifiers::NONE, Key::F)) {
             self.editor.frame_selection();
+        }
+        if consume(shortcut(Modifiers::NONE, Key::F3)) {
+            self.perf.open = !self.perf.open;
+        }
+        if consume(shortcut(Modifiers::NONE, Key::S)) {
+            self.sculpt.active = true;
+        }
+        if consume(shortcut(Modifiers::NONE, Key::Escape)) {
+            self.sculpt.active = false;
+        }
+        if consume(shortcut(Modifiers::NONE, Key::OpenBracket)) {
+            self.sculpt.brush.radius = (self.sculpt.brush.radius / 1.25).max(0.5);
+        }
+        if consume(shortcut(Modifiers::NONE, Key::CloseBracket)) {
+            self.sculpt.brush.radius =
+                (self.sculpt.brush.radius * 1.25).min(thicket_core::sculpt::MAX_RADIUS);
+        }
+        for (key, near, far) in [
+            (Key::Num1, view::AxisView::Front, view::AxisView::Back),
+            (Key::Num3, view::AxisView::Right, view::AxisView::Left),
+            (Key::Num7, view::AxisView::Top, view::AxisView::Bottom),
+        ] {
+            if consume(shortcut(Modifiers::COMMAND, key)) {
+                view::set_axis_view(&mut self.editor, far);
+            }
+            if consume(shortcut(Modifiers::NONE, key)) {
+                view::set_axis_view(&mut self.editor, near);
+            }
         }
         if let Some(id) = selected {
             if consume(shortcut(Modifiers::NONE, Key::Delete)) {
@@ -535,6 +899,26 @@ impl EditorApp {
                 {
                     self.ask_path(PathPurpose::Import);
                 }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Export .vox..."))
+                    .on_hover_text("Write the visible voxel models as a MagicaVoxel file (on a worker thread)")
+                    .clicked()
+                {
+                    self.ask_path(PathPurpose::ExportVox);
+                }
+                ui.separator();
+                ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
+                    .on_hover_text("Use the desktop's file dialogs (xdg portal or zenity) when available; otherwise a path entry");
+                ui.horizontal(|ui| {
+                    ui.label("Autosave");
+                    for (secs, label) in [(0, "Off"), (60, "1 min"), (120, "2 min"), (300, "5 min")] {
+                        ui.selectable_value(&mut self.autosave_secs, secs, label)
+                            .on_hover_text(format!(
+                                "Write unsaved work to a recovery file in {} (never over your file)",
+                                self.recovery_dir.display()
+                            ));
+                    }
+                });
                 ui.separator();
                 if ui.button("Quit").on_hover_text("Close the editor").clicked() {
                     ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
@@ -570,6 +954,17 @@ impl EditorApp {
                 {
                     let _ = self.editor.duplicate(id);
                 }
+                ui.menu_button("Enhance detail", |ui| {
+                    for factor in [2u32, 4, 8] {
+                        if ui
+                            .add_enabled(selected.is_some() && !busy, egui::Button::new(format!("x{factor}")))
+                            .on_hover_text("Add a detail-enhanced copy of the selected voxel model (worker thread, cancellable)")
+                            .clicked()
+                        {
+                            self.start_enhance(factor);
+                        }
+                    }
+                });
                 if ui
                     .add_enabled(selected.is_some(), egui::Button::new("Delete").shortcut_text("Del"))
                     .on_hover_text("Delete the selected object (undoable)")
@@ -592,6 +987,10 @@ impl EditorApp {
                 {
                     self.editor.frame_selection();
                 }
+                ui.checkbox(&mut self.perf.open, "Performance overlay (F3)")
+                    .on_hover_text("Frame times, GPU time per pass, nodes per level, memory");
+                ui.separator();
+                self.view.menu_ui(ui, &mut self.editor);
                 ui.separator();
                 ui.label("UI scale");
                 ui.horizontal(|ui| {
@@ -614,7 +1013,7 @@ impl EditorApp {
                     }
                 }
                 ui.separator();
-                self.preview.menu_ui(ui);
+                self.view.render_menu_ui(ui);
             });
             ui.menu_button("Help", |ui| {
                 if ui
@@ -632,10 +1031,30 @@ impl EditorApp {
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
+            let mut cancel = false;
             if let Some(job) = &self.job {
-                ui.spinner();
+                match job.fraction() {
+                    Some(f) => {
+                        ui.add(
+                            egui::ProgressBar::new(f)
+                                .desired_width(140.0)
+                                .show_percentage(),
+                        );
+                    }
+                    None => {
+                        ui.spinner();
+                    }
+                }
                 ui.label(&job.label);
+                cancel = ui
+                    .button("Cancel")
+                    .on_hover_text("Stop the job; the document stays as it is")
+                    .clicked();
                 ui.separator();
+            }
+            if cancel {
+                let ctx = ui.ctx().clone();
+                self.cancel_job(&ctx);
             }
             let doc = self.editor.doc();
             let voxels: u64 = doc
@@ -643,7 +1062,8 @@ impl EditorApp {
                 .iter()
                 .filter_map(|o| match &o.kind {
                     thicket_core::scene::ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
-                    thicket_core::scene::ObjectKind::Mesh(_) => None,
+                    thicket_core::scene::ObjectKind::Mesh(_)
+                    | thicket_core::scene::ObjectKind::Krs(_) => None,
                 })
                 .sum();
             let triangles: usize = doc
@@ -651,7 +1071,8 @@ impl EditorApp {
                 .iter()
                 .filter_map(|o| match &o.kind {
                     thicket_core::scene::ObjectKind::Mesh(m) => Some(m.model.triangle_count()),
-                    thicket_core::scene::ObjectKind::Voxels(_) => None,
+                    thicket_core::scene::ObjectKind::Voxels(_)
+                    | thicket_core::scene::ObjectKind::Krs(_) => None,
                 })
                 .sum();
             let file = self
@@ -683,6 +1104,46 @@ impl EditorApp {
     }
 
     fn dialogs(&mut self, ctx: &egui::Context) {
+        if let Some(r) = self.recovery.clone() {
+            let mut choice = None;
+            egui::Modal::new(egui::Id::unique("recovery_dialog")).show(ctx, |ui| {
+                ui.heading("Recover unsaved work?");
+                let what = r.meta.original.as_ref().map_or_else(
+                    || "an untitled project".to_owned(),
+                    |p| p.display().to_string(),
+                );
+                let age = std::time::SystemTime::now()
+                    .duration_since(std::time::UNIX_EPOCH)
+                    .map_or(0, |d| d.as_secs())
+                    .saturating_sub(r.meta.saved_unix_secs);
+                ui.label(format!(
+                    "The editor stopped before saving {what}. An autosave from {} ago is in {}.",
+                    human_age(age),
+                    r.path.display()
+                ));
+                ui.horizontal(|ui| {
+                    if ui
+                        .button("Recover")
+                        .on_hover_text("Open the autosaved work (save it to keep it)")
+                        .clicked()
+                    {
+                        choice = Some(true);
+                    }
+                    if ui
+                        .button("Discard")
+                        .on_hover_text("Delete the autosave and continue")
+                        .clicked()
+                    {
+                        choice = Some(false);
+                    }
+                });
+            });
+            match choice {
+                Some(true) => self.recover(),
+                Some(false) => self.discard_recovery(),
+                None => {}
+            }
+        }
         if let Some(message) = self.error_dialog.clone() {
             egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
                 ui.heading("Could not complete the operation");
@@ -870,6 +1331,37 @@ impl eframe::App for EditorApp {
 
     fn save(&mut self, storage: &mut dyn eframe::Storage) {
         eframe::set_value(storage, RECENT_KEY, &self.editor.recent);
+        eframe::set_value(storage, AUTOSAVE_KEY, &self.autosave_secs);
+        eframe::set_value(storage, NATIVE_DIALOGS_KEY, &self.native_dialogs);
+    }
+
+    fn on_exit(&mut self) {
+        // A clean exit (saved, or the user chose not to save) leaves nothing to recover.
+        if !self.editor.is_dirty() || self.allow_close {
+            let _ = self.wait_for_autosave();
+            autosave::discard_recovery(&self.recovery_dir);
+        }
+    }
+}
+
+const AUTOSAVE_KEY: &str = "thicket.autosave_secs";
+const NATIVE_DIALOGS_KEY: &str = "thicket.native_dialogs";
+
+/// Whether a desktop file dialog can appear: an xdg portal needs a D-Bus session; zenity is
+/// rfd's own fallback. Without either, rfd would return "cancelled" at once.
+fn native_dialogs_available() -> bool {
+    let dbus = std::env::var_os("DBUS_SESSION_BUS_ADDRESS").is_some_and(|v| !v.is_empty());
+    let zenity = std::env::var_os("PATH")
+        .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join("zenity").is_file()));
+    dbus || zenity
+}
+
+fn human_age(secs: u64) -> String {
+    match secs {
+        0..=59 => format!("{secs} s"),
+        60..=3599 => format!("{} min", secs / 60),
+        3600..=86_399 => format!("{} h", secs / 3600),
+        _ => format!("{} days", secs / 86_400),
     }
 }
 
@@ -882,6 +1374,10 @@ const RECENT_KEY: &str = "thicket.recent_files";
 pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
     let options = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
+        wgpu_options: egui_wgpu::WgpuConfiguration {
+            wgpu_setup: crate::viewport::wgpu_setup(),
+            ..Default::default()
+        },
         viewport: egui::ViewportBuilder::default()
             .with_title("Thicket")
             .with_inner_size([1280.0, 800.0])
@@ -895,6 +1391,9 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
         Box::new(move |cc| {
             cc.egui_ctx.set_theme(egui::Theme::Dark);
             let mut app = EditorApp::open_startup(project);
+            if let Some(rs) = cc.wgpu_render_state.as_ref() {
+                app.attach_gpu(crate::viewport::install(rs));
+            }
             if let Some(storage) = cc.storage
                 && let Some(recent) = eframe::get_value::<Vec<PathBuf>>(storage, RECENT_KEY)
             {
@@ -904,6 +1403,15 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
                     app.editor.push_recent(p);
                 }
             }
+            if let Some(storage) = cc.storage {
+                if let Some(secs) = eframe::get_value::<u32>(storage, AUTOSAVE_KEY) {
+                    app.autosave_secs = secs;
+                }
+                if let Some(native) = eframe::get_value::<bool>(storage, NATIVE_DIALOGS_KEY) {
+                    app.native_dialogs = native;
+                }
+            }
+            app.check_recovery();
             Ok(Box::new(app))
         }),
     )

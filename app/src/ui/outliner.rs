@@ -36,12 +36,19 @@ fn kind_summary(o: &Object) -> (&'static str, String, String) {
             format!("{} tri", thousands(m.model.triangle_count() as u64)),
             "Triangle mesh".to_owned(),
         ),
+        ObjectKind::Krs(k) => (
+            "KRS",
+            format!("{} inst", crate::files::thousands_u128(k.instance_count())),
+            "Kernel-reflection sequence (procedural kernel instances)".to_owned(),
+        ),
     }
 }
 
 fn kind_color(icon: &str) -> egui::Color32 {
     if icon == "VOX" {
         egui::Color32::from_rgb(120, 190, 255)
+    } else if icon == "KRS" {
+        egui::Color32::from_rgb(140, 210, 120)
     } else {
         egui::Color32::from_rgb(230, 180, 100)
     }
@@ -70,7 +77,7 @@ pub fn outliner_ui(
     let mut actions: Vec<(u64, RowAction)> = Vec::new();
     egui::ScrollArea::vertical().show(ui, |ui| {
         if editor.doc().objects.is_empty() {
-            ui.weak("No objects. Use File → Import… to add a model.");
+            ui.weak("No objects. Use File > Import… to add a model.");
         }
         for o in &editor.doc().objects {
             let selected = editor.selection == Some(Selection::Object(o.id));
@@ -90,7 +97,7 @@ pub fn outliner_ui(
                         .monospace()
                         .color(kind_color(icon)),
                 )
-                .on_hover_text(kind_tip);
+                .on_hover_text(kind_tip.clone());
                 match &mut state.renaming {
                     Some((id, text)) if *id == o.id => {
                         let edit = ui.add(egui::TextEdit::singleline(text).desired_width(120.0));
@@ -149,7 +156,10 @@ pub fn outliner_ui(
                     {
                         actions.push((o.id, RowAction::Duplicate));
                     }
-                    ui.weak(count);
+                    // Only when it fits: in a narrow panel it would run under the name.
+                    if ui.available_width() >= count.len() as f32 * 7.0 + 4.0 {
+                        ui.weak(count).on_hover_text(kind_tip);
+                    }
                 });
             });
         }

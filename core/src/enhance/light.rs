@@ -11,7 +11,7 @@ use rand_pcg::Pcg32;
 
 use super::grid::{CoarseGrid, cell_key};
 use super::{CellState, Engine, Scratch};
-use crate::mesh::linear_to_srgb;
+use crate::mesh::linear_to_srgb_byte;
 
 /// Lighting settings turned into working units.
 pub(crate) struct LightParams {
@@ -89,8 +89,12 @@ impl LightParams {
             + self.sky_color * frac(sky, self.sky_n);
         let lin = super::srgb_byte_to_linear;
         let out = Vec3::new(lin(albedo[0]), lin(albedo[1]), lin(albedo[2])) * light;
-        let to8 = |v: f32| (linear_to_srgb(v) * 255.0).round() as u8;
-        [to8(out.x), to8(out.y), to8(out.z), albedo[3]]
+        [
+            linear_to_srgb_byte(out.x),
+            linear_to_srgb_byte(out.y),
+            linear_to_srgb_byte(out.z),
+            albedo[3],
+        ]
     }
 
     fn walk(&self, w: &mut Walker<'_, '_>, rng: &mut Pcg32, start: Vec3, sun: bool) -> bool {

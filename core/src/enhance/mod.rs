@@ -34,7 +34,7 @@ use glam::{IVec3, UVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::mesh::{linear_to_srgb, srgb_to_linear};
+use crate::mesh::{linear_to_srgb_byte, srgb_byte_to_linear};
 use crate::svo::{EditResult, MAX_DEPTH, Svo, SvoError, Voxel, encode_normal};
 
 use grid::{CoarseGrid, FastMap, Window, cell_key};
@@ -146,6 +146,32 @@ pub fn enhance(coarse: &Svo, settings: &EnhanceSettings) -> Result<Svo, EnhanceE
     Ok(Enhancer::new(coarse, settings)?.into_fine())
 }
 
+/// Enhances a document's voxel model. The result covers the same space: voxel size divided by
+/// the factor, same origin, same material names (fragment `i` of coarse voxel `c` is fine voxel
+/// `c·F + i`). Skin weights are not carried over (fragments have none).
+///
+/// # Errors
+/// See [`Enhancer::with_control`].
+pub fn enhance_model(
+    model: &crate::scene::VoxelModel,
+    settings: &EnhanceSettings,
+    control: Control<'_>,
+) -> Result<(crate::scene::VoxelModel, EnhanceStats), EnhanceError> {
+    let e = Enhancer::with_control(&model.svo, settings, control)?;
+    let stats = e.stats();
+    Ok((
+        crate::scene::VoxelModel {
+            svo: e.into_fine(),
+            voxel_size: model.voxel_size / settings.factor as f32,
+            origin: model.origin,
+            material_names: model.material_names.clone(),
+            // The fine octree carries no joint weights: the enhanced model is static.
+            rig: None,
+        },
+        stats,
+    ))
+}
+
 /// Fine occupancy of one coarse cell, for lighting and [`Enhancer::is_solid_fine`].
 #[derive(Clone)]
 enum CellState {
@@ -186,6 +212,7 @@ struct Scratch {
     sub_win: Window,
     region: Region,
     contrib: Vec<(usize, f32)>,
+    tally: Vec<(u8, f32)>,
 }
 
 impl Scratch {
@@ -195,6 +222,7 @@ impl Scratch {
             sub_win: Window::default(),
             region: Region::default(),
             contrib: Vec::new(),
+            tally: Vec::new(),
         }
     }
 }
@@ -473,11 +501,14 @@ impl Engine {
         let f = self.f as f32;
         match &self.kind {
             Kind::Subdivide { .. } => {
-                // Trilinear weights of the 2×2×2 nearest cell centres, solid cells only.
+                // Trilinear weights of the 2×2×2 nearest cell centres, solid cells only. Only
+                // offsets within 1 of `u` per axis can weigh anything: two per axis, visited in
+                // the same ascending order as a full 3×3×3 scan.
                 let u = (local.as_vec3() + 0.5) / f - 0.5;
-                for dz in -1..=1 {
-                    for dy in -1..=1 {
-                        for dx in -1..=1 {
+                let range = |v: f32| if v < 0.0 { -1..=0 } else { 0..=1 };
+                for dz in range(u.z) {
+                    for dy in range(u.y) {
+                        for dx in range(u.x) {
                             let d = IVec3::new(dx, dy, dz);
                             let i = win.idx(d);
                             if !win.occ[i] {
@@ -529,24 +560,21 @@ impl Engine {
                 }
             }
         }
-        pick_color(win, contrib, self.settings.color)
+        pick_color(win, contrib, &mut scratch.tally, self.settings.color)
     }
-}
-
-/// `srgb_to_linear(v / 255)` for every byte: the colour rule runs per shell fragment and the
-/// transfer function's `powf` dominated it. Same values as the function, so results match.
-fn srgb_byte_to_linear(v: u8) -> f32 {
-    static TABLE: std::sync::LazyLock<[f32; 256]> =
-        std::sync::LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
-    TABLE[usize::from(v)]
 }
 
 /// Majority material by weight (ties: lowest id), then that material's colour.
-fn pick_color(win: &Window, contrib: &[(usize, f32)], mode: ColorMode) -> ([u8; 4], u8) {
+fn pick_color(
+    win: &Window,
+    contrib: &[(usize, f32)],
+    tally: &mut Vec<(u8, f32)>,
+    mode: ColorMode,
+) -> ([u8; 4], u8) {
     if contrib.is_empty() {
         return ([255; 4], 0);
     }
-    let mut tally: Vec<(u8, f32)> = Vec::with_capacity(4);
+    tally.clear();
     for &(i, w) in contrib {
         let m = win.material[i];
         match tally.iter_mut().find(|e| e.0 == m) {
@@ -585,7 +613,7 @@ fn pick_color(win: &Window, contrib: &[(usize, f32)], mode: ColorMode) -> ([u8; 
                 acc[3] += w * f32::from(col[3]) / 255.0;
                 total += w;
             }
-            let to8 = |v: f32| (linear_to_srgb(v / total) * 255.0).round() as u8;
+            let to8 = |v: f32| linear_to_srgb_byte(v / total);
             [
                 to8(acc[0]),
                 to8(acc[1]),
@@ -622,33 +650,42 @@ fn crop(e: &Region, f: usize) -> Region {
 
 /// Outward normal from the occupancy of the 26 neighbours: minus the gradient of occupancy,
 /// each neighbour weighted by `1 / |d|²`; falls back to the open face directions, then +Y.
+/// Weights are kept as integers (`6 / |d|²`: 6, 3, 2), so the sum is exact and a fragment's
+/// normal never depends on summation order; `x >= 1` (positions are in the margin-extended
+/// region).
 fn normal_at(e: &Region, x: usize, y: usize, z: usize) -> Vec3 {
-    let mut g = Vec3::ZERO;
-    let mut open = Vec3::ZERO;
+    let mut g = IVec3::ZERO;
     for dz in -1i32..=1 {
         for dy in -1i32..=1 {
-            for dx in -1i32..=1 {
-                let n2 = dx * dx + dy * dy + dz * dz;
-                if n2 == 0 {
-                    continue;
-                }
-                let d = Vec3::new(dx as f32, dy as f32, dz as f32);
-                let solid = e.get(
-                    (x as i32 + dx) as usize,
-                    (y as i32 + dy) as usize,
-                    (z as i32 + dz) as usize,
-                );
-                if solid {
-                    g += d / n2 as f32;
-                } else if n2 == 1 {
-                    open += d;
+            // Bits 0, 1, 2 = dx -1, 0, +1.
+            let bits = (e.row((y as i32 + dy) as usize, (z as i32 + dz) as usize) >> (x - 1)) & 7;
+            if bits == 0 {
+                continue;
+            }
+            let base = dy * dy + dz * dz;
+            for (bit, dx) in [(0, -1i32), (1, 0), (2, 1)] {
+                let n2 = base + dx * dx;
+                if n2 != 0 && bits >> bit & 1 == 1 {
+                    g += IVec3::new(dx, dy, dz) * (6 / n2);
                 }
             }
         }
     }
-    (-g).try_normalize()
-        .or_else(|| open.try_normalize())
-        .unwrap_or(Vec3::Y)
+    let open = |dx: i32, dy: i32, dz: i32| -> i32 {
+        i32::from(!e.get(
+            (x as i32 + dx) as usize,
+            (y as i32 + dy) as usize,
+            (z as i32 + dz) as usize,
+        ))
+    };
+    (-g.as_vec3()).try_normalize().unwrap_or_else(|| {
+        let o = IVec3::new(
+            open(1, 0, 0) - open(-1, 0, 0),
+            open(0, 1, 0) - open(0, -1, 0),
+            open(0, 0, 1) - open(0, 0, -1),
+        );
+        o.as_vec3().try_normalize().unwrap_or(Vec3::Y)
+    })
 }
 
 /// Enhancement state: the coarse map's copy, the fine octree and the caches that make
@@ -862,26 +899,29 @@ impl Enhancer {
         for (any, out) in results {
             with_fragments += u64::from(any);
             for (p, v) in out {
-                fresh.insert(cell_key(p.as_ivec3()), v);
+                // `pack`, not `cell_key`: fine coordinates reach 2^21 - 1.
+                fresh.insert(pack(p.as_ivec3()), v);
             }
         }
         let fragments = fresh.len() as u64;
         let f = self.engine.f;
         let fine_lo = (alo * f).as_uvec3();
         let fine_hi = ((ahi + IVec3::ONE) * f - IVec3::ONE).as_uvec3();
-        self.fine.edit_existing(fine_lo, fine_hi, |p, _old| {
-            fresh.remove(&cell_key(p.as_ivec3()))
-        })?;
-        let mut rest: Vec<(u64, Voxel)> = fresh.into_iter().collect();
-        rest.sort_unstable_by_key(|e| e.0);
-        for (key, v) in rest {
-            let p = UVec3::new(
-                (key & 0x1f_ffff) as u32 - (1 << 20),
-                ((key >> 21) & 0x1f_ffff) as u32 - (1 << 20),
-                ((key >> 42) & 0x1f_ffff) as u32 - (1 << 20),
-            );
-            self.fine.set(p, v)?;
-        }
+        // Write only what differs: most fragments in the window come out as they were, and each
+        // write re-averages every internal node above it.
+        let mut changes: Vec<(UVec3, Option<Voxel>)> = Vec::new();
+        self.fine.for_each_leaf_in(fine_lo, fine_hi, |p, old| {
+            match fresh.remove(&pack(p.as_ivec3())) {
+                Some(v) if v == old => {}
+                new => changes.push((p, new)),
+            }
+        });
+        changes.extend(
+            fresh
+                .into_iter()
+                .map(|(key, v)| (unpack(key).as_uvec3(), Some(v))),
+        );
+        self.fine.apply_changes(changes)?;
         self.stats = EnhanceStats {
             coarse_surface_voxels: self.stats.coarse_surface_voxels,
             candidate_cells: cells.len() as u64,

@@ -1,5 +1,6 @@
 //! Project files: `NAME.thicket.json` (the document's parameters, human-readable) plus, when the
 //! document holds voxel or mesh data, `NAME.thicket.bin` beside it with the binary payloads.
+//! KRS objects are parametric: kernels, mirrors and transform live in the JSON, with no payload.
 //!
 //! The JSON carries `format_version`, every struct is `#[serde(default)]`, and each payload is
 //! addressed by offset and length with a CRC-32; the JSON also records the length and CRC-32 of
@@ -198,6 +199,8 @@ pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
         match &o.kind {
             ObjectKind::Voxels(v) => encode_svo(&v.svo, &mut bin),
             ObjectKind::Mesh(m) => encode_mesh(&m.model, &mut bin),
+            // Parametric: everything is in the JSON.
+            ObjectKind::Krs(_) => continue,
         }
         let bytes = &bin[start..];
         payloads.push(PayloadRef {
@@ -406,6 +409,10 @@ fn load_from_parts(
         Ok(bytes)
     };
     for o in &mut doc.objects {
+        if matches!(o.kind, ObjectKind::Krs(_)) {
+            // Parametric: nothing in the `.bin`.
+            continue;
+        }
         let what = format!("object {:?} (id {})", o.name, o.id);
         let bytes = payload(&what, o.id, "")?;
         match &mut o.kind {
@@ -428,6 +435,7 @@ fn load_from_parts(
                 m.model = decode_mesh(bytes)
                     .map_err(|d| payload_err(format!("{what}: mesh payload: {d}")))?;
             }
+            ObjectKind::Krs(_) => {}
         }
     }
     doc.validate().map_err(|source| ProjectError::Invalid {

@@ -380,6 +380,19 @@ impl TorusKernel {
 }
 
 impl Kernel {
+    /// The variant's name as written in project files (`"Sphere"`, `"ToroidalCapsule"`, …).
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            Kernel::Empty => "Empty",
+            Kernel::Sphere(_) => "Sphere",
+            Kernel::InfinitePlane(_) => "InfinitePlane",
+            Kernel::Capsule(_) => "Capsule",
+            Kernel::RoundedBox(_) => "RoundedBox",
+            Kernel::TorusSegment(_) => "TorusSegment",
+            Kernel::ToroidalCapsule(_) => "ToroidalCapsule",
+        }
+    }
+
     /// The kernel's material, `None` for [`Kernel::Empty`].
     pub fn material(&self) -> Option<&Material> {
         match self {

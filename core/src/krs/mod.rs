@@ -49,7 +49,7 @@ pub use shade::{
 };
 pub use trace::{
     AoSettings, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, shadow, tile_cone,
-    tile_start_distance, trace,
+    tile_start_distance, tile_start_distance_counted, trace,
 };
 pub use tree::{LeafParams, TreeError, TreeParams};
 

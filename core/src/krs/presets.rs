@@ -313,6 +313,13 @@ pub const FOREST_MIRRORS: usize = 17;
 /// (2^17 trees on a jittered, unaligned grid; ≥ 2^24 kernel instances). The mirrors are placed
 /// so each level's trees lie on the kept side (kernel separation holds between trees).
 pub fn forest() -> KrsObject {
+    forest_with_mirrors(FOREST_MIRRORS)
+}
+
+/// The forest with `count` extra reflections (2^count trees; the mirror placement of
+/// [`forest`], whose first `count` mirrors these are). `count = 0` is the tree alone. Benchmarks
+/// use it to grow n with a fixed view.
+pub fn forest_with_mirrors(count: usize) -> KrsObject {
     let mut params = TreeParams::default();
     // Horizontal reach of one tree around its origin, from its kernel instances' bounds.
     let tree_radius = params
@@ -335,7 +342,7 @@ pub fn forest() -> KrsObject {
     let mut rng = Pcg32::seed_from_u64(42);
     // Track tree origins (x, z) to place each mirror just beyond the current set.
     let mut origins = vec![Vec3::ZERO];
-    for i in 0..FOREST_MIRRORS {
+    for i in 0..count {
         let base = if i % 2 == 0 { 0.0 } else { FRAC_PI_2 };
         // Unaligned mirrors hide symmetry locally; at large scales a tilt would open wide gaps
         // between tree rows, so the jitter shrinks there.

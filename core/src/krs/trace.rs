@@ -393,20 +393,34 @@ pub fn tile_start_distance(
     half_angle: f32,
     settings: &TraceSettings,
 ) -> f32 {
+    tile_start_distance_counted(scene, eye, axis, half_angle, settings).0
+}
+
+/// [`tile_start_distance`] with the number of distance evaluations it spent (to weigh the
+/// tile gain against its cost).
+pub fn tile_start_distance_counted(
+    scene: &PreparedScene,
+    eye: Vec3,
+    axis: Vec3,
+    half_angle: f32,
+    settings: &TraceSettings,
+) -> (f32, u32) {
     let Some(axis) = axis.try_normalize() else {
-        return 0.0;
+        return (0.0, 0);
     };
     if !(half_angle.is_finite() && (0.0..1.5).contains(&half_angle) && eye.is_finite()) {
-        return 0.0;
+        return (0.0, 0);
     }
     let tan = half_angle.tan() as f64;
     let (o, d) = (eye.as_dvec3(), axis.as_dvec3());
     let max_distance = settings.max_distance.min(1e30) as f64;
     let mut t = 0.0f64;
+    let mut steps = 0u32;
     for _ in 0..settings.max_steps {
         let dist = scene.distance((o + d * t).as_vec3()) as f64;
+        steps += 1;
         if !dist.is_finite() {
-            return max_distance as f32;
+            return (max_distance as f32, steps);
         }
         let w = (t + dist) * tan;
         // Keep every covered point at least epsilon away: those are exactly the positions the
@@ -418,11 +432,11 @@ pub fn tile_start_distance(
         let h = (radius * radius - w * w).sqrt();
         t += h;
         if t >= max_distance {
-            return max_distance as f32;
+            return (max_distance as f32, steps);
         }
     }
     // Round down so f64→f32 conversion never moves the start past the safe range.
-    (t * (1.0 - 1e-6)) as f32
+    ((t * (1.0 - 1e-6)) as f32, steps)
 }
 
 /// Shadow-ray knobs.

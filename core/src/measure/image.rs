@@ -152,6 +152,89 @@ impl Tolerance {
     };
 }
 
+impl Tolerance {
+    /// GPU renders compared with the CPU reference renderer of the same frame: the G-buffer
+    /// holds 16-bit albedo and normals and the GPU evaluates `pow`/`exp` in its own precision,
+    /// which moves a channel by a few steps; rasteriser fill rules and depth ties at silhouettes
+    /// move a few edge pixels. At least 99 % of pixels within 3/255.
+    pub const GPU_PARITY: Self = Self {
+        channel: 3,
+        max_differing_fraction: 0.01,
+    };
+}
+
+/// How two renders of one frame compare (colour, coverage and depth), for parity tests and
+/// reports.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Parity {
+    /// Pixels in the image.
+    pub total: usize,
+    /// Pixels where a channel differs by more than the tolerance's `channel`.
+    pub differing: usize,
+    /// Pixels covered in exactly one of the two renders.
+    pub coverage_mismatch: usize,
+    /// Pixels covered in both whose depths differ by more than the depth tolerance.
+    pub depth_mismatch: usize,
+    /// Pixels covered in both.
+    pub both_covered: usize,
+    /// Root-mean-square colour error (0..=1).
+    pub rmse: f64,
+}
+
+impl Parity {
+    /// Whether colour, coverage and depth all stay within `tolerance.max_differing_fraction`
+    /// of the pixels.
+    #[must_use]
+    pub fn within(&self, tolerance: Tolerance) -> bool {
+        let allowed = (tolerance.max_differing_fraction * self.total as f64).floor() as usize;
+        self.differing <= allowed
+            && self.coverage_mismatch <= allowed
+            && self.depth_mismatch <= allowed
+    }
+}
+
+/// Compares two renders of one frame: their images (`tolerance.channel`), their coverage masks,
+/// and the depths (any monotonic depth, e.g. view depth) of pixels both cover, which agree when
+/// `|a − b| <= depth_tolerance · max(|a|, |b|)` (relative, so one tolerance fits near and far).
+///
+/// # Errors
+/// [`MeasureError`] when sizes differ.
+pub fn parity(
+    a: &RgbaImage,
+    b: &RgbaImage,
+    depth_a: &[Option<f32>],
+    depth_b: &[Option<f32>],
+    tolerance: Tolerance,
+    depth_tolerance: f32,
+) -> Result<Parity, MeasureError> {
+    let differing = count_differing(a, b, tolerance.channel)?;
+    let n = a.width as usize * a.height as usize;
+    if depth_a.len() != n || depth_b.len() != n {
+        return Err(MeasureError::MaskLength(depth_a.len(), depth_b.len()));
+    }
+    let (mut coverage_mismatch, mut depth_mismatch, mut both_covered) = (0, 0, 0);
+    for (da, db) in depth_a.iter().zip(depth_b) {
+        match (da, db) {
+            (Some(x), Some(y)) => {
+                both_covered += 1;
+                if !((x - y).abs() <= depth_tolerance * x.abs().max(y.abs())) {
+                    depth_mismatch += 1;
+                }
+            }
+            (None, None) => {}
+            _ => coverage_mismatch += 1,
+        }
+    }
+    Ok(Parity {
+        total: n,
+        differing,
+        coverage_mismatch,
+        depth_mismatch,
+        both_covered,
+        rmse: rmse(a, b)?,
+    })
+}
+
 /// Why a render does not match its golden image.
 #[derive(Debug, thiserror::Error)]
 pub enum GoldenError {
@@ -313,6 +396,27 @@ mod tests {
             rmse(&RgbaImage::new(0, 0), &RgbaImage::new(0, 0)).unwrap(),
             0.0
         );
+    }
+
+    #[test]
+    fn parity_counts_colour_coverage_and_depth() {
+        let a = solid(4, 1, [100, 100, 100, 255]);
+        let mut b = a.clone();
+        b.pixels[0] = 103; // within 3
+        b.pixels[4] = 110; // beyond
+        let da = [Some(1.0), Some(2.0), None, Some(4.0)];
+        let db = [Some(1.0005), None, None, Some(4.1)];
+        let p = parity(&a, &b, &da, &db, Tolerance::GPU_PARITY, 1e-3).unwrap();
+        assert_eq!(p.differing, 1);
+        assert_eq!(p.coverage_mismatch, 1);
+        assert_eq!(p.both_covered, 2);
+        assert_eq!(p.depth_mismatch, 1);
+        assert!(!p.within(Tolerance::GPU_PARITY));
+        assert!(p.within(Tolerance {
+            channel: 3,
+            max_differing_fraction: 0.25,
+        }));
+        assert!(parity(&a, &b, &da[..3], &db, Tolerance::GPU_PARITY, 1e-3).is_err());
     }
 
     #[test]

@@ -1,3 +1,14 @@
-//! Measurements: image error metrics now; quality sweeps (time vs error) and reports later.
+//! Measurements: image error metrics, frame error against a reference render, quality sweeps
+//! (time and work vs error) and their Pareto fronts.
 
+pub mod compare;
 pub mod image;
+pub mod pareto;
+pub mod sweep;
+
+pub use compare::{Frame, FrameError, compare_frames};
+pub use pareto::{Dominance, pareto_front};
+pub use sweep::{
+    KnobValues, SweepError, SweepPoint, SweepReport, SweepSettings, default_knobs,
+    reference_quality, sweep, sweep_document, work_units,
+};

@@ -74,6 +74,31 @@ pub fn srgb_to_linear(c: f32) -> f32 {
     }
 }
 
+/// [`srgb_to_linear`] of an 8-bit channel (`v / 255`), from a 256-entry table: octree merges
+/// and the enhancer convert every child colour, and `powf` dominated them. Same values as the
+/// function, so results do not change.
+#[must_use]
+pub fn srgb_byte_to_linear(v: u8) -> f32 {
+    static TABLE: std::sync::LazyLock<[f32; 256]> =
+        std::sync::LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
+    TABLE[usize::from(v)]
+}
+
+/// `round(linear_to_srgb(c) * 255)` without `powf`: a binary search over the 255 linear values
+/// halfway between sRGB bytes. May differ from the `powf` route by one where `c` lies within
+/// float rounding of a midpoint; every byte round-trips through [`srgb_byte_to_linear`]. NaN
+/// maps to 0.
+#[must_use]
+pub fn linear_to_srgb_byte(c: f32) -> u8 {
+    static MIDPOINTS: std::sync::LazyLock<[f32; 255]> = std::sync::LazyLock::new(|| {
+        std::array::from_fn(|i| srgb_to_linear((i as f32 + 0.5) / 255.0))
+    });
+    if c.is_nan() {
+        return 0;
+    }
+    MIDPOINTS.partition_point(|&m| m <= c) as u8
+}
+
 /// Linear channel (0–1) to sRGB-encoded.
 #[must_use]
 pub fn linear_to_srgb(c: f32) -> f32 {
@@ -425,6 +450,28 @@ pub fn unit_cube() -> TriangleMesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn srgb_byte_tables_match_the_transfer_functions() {
+        for b in 0..=255u8 {
+            assert_eq!(srgb_byte_to_linear(b), srgb_to_linear(f32::from(b) / 255.0));
+            assert_eq!(linear_to_srgb_byte(srgb_byte_to_linear(b)), b);
+        }
+        // Against the powf route on a fine sweep: equal but for float ties at midpoints.
+        let mut differing = 0;
+        for i in 0..=100_000 {
+            let c = i as f32 / 100_000.0;
+            let exact = (linear_to_srgb(c) * 255.0).round() as i32;
+            let fast = i32::from(linear_to_srgb_byte(c));
+            assert!((exact - fast).abs() <= 1, "{c}: {exact} vs {fast}");
+            differing += i32::from(exact != fast);
+        }
+        assert!(differing < 20, "{differing} of 100001 differ");
+        assert_eq!(linear_to_srgb_byte(-1.0), 0);
+        assert_eq!(linear_to_srgb_byte(2.0), 255);
+        assert_eq!(linear_to_srgb_byte(f32::NAN), 0);
+        assert_eq!(linear_to_srgb_byte(f32::INFINITY), 255);
+    }
 
     #[test]
     fn cube_is_closed_with_unit_volume() {

@@ -17,7 +17,7 @@ use super::buffers::{DepthTarget, pack_key};
 use super::camera::Camera;
 use super::deform::{NodeDeform, NodeInfo};
 use super::stats::LevelStats;
-use crate::svo::{NodeRef, Svo, front_to_back_order};
+use crate::svo::{NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
 
 /// One voxel object to draw.
 #[derive(Clone, Copy)]
@@ -59,6 +59,8 @@ struct Fast {
     half_extent_unit: Vec3,
     /// Longest world edge of a node of edge 1 voxel.
     edge_unit: f32,
+    /// `view_from_voxel` for normals (inverse transpose of `linear`).
+    normal_view: Mat3,
 }
 
 /// What a traversal produced.
@@ -82,22 +84,76 @@ pub(crate) struct PassSettings {
     pub(crate) shadow_casters_only: bool,
 }
 
-/// One block's output: children for the next pass, splats with their nodes, counters.
-type ChunkPart = (Vec<QNode>, Vec<(Splat, QNode)>, LevelStats);
-
+/// What classifying one node decided.
 enum Action {
     Frustum,
     Occluded,
     /// Split; carries the node's view-space centre and axes for the child order.
     Split(Vec3, Mat3),
     Splat(Splat),
+    /// Visible so far but facing away from the eye: decided again after the next pass (see
+    /// [`Deferred`]). `split` tells what it wanted.
+    Defer {
+        rect: Splat,
+        occ: [u32; 4],
+        split: bool,
+    },
+}
+
+/// A back-facing node whose splat or split waits until the end of the next pass.
+///
+/// Why: breadth-first order draws a closed surface's far side first wherever its nodes are
+/// smaller on screen than the near side's, because the near side is split one level further
+/// and so drawn one pass later. Holding back-facing nodes (by their LOD normal) until the near
+/// side's next level is in the depth buffer lets occlusion culling drop them (and, for a split,
+/// their whole subtree). Only the order changes, never the set of visible fragments, since
+/// culling is conservative.
+#[derive(Debug, Clone, Copy)]
+struct Deferred {
+    q: QNode,
+    rect: Splat,
+    /// The occlusion-test rectangle (see [`overlapped_span`]).
+    occ: [u32; 4],
+    split: bool,
+}
+
+/// One parallel block's output, kept across chunks and passes so its buffers are reused.
+#[derive(Default)]
+struct BlockOut {
+    children: Vec<QNode>,
+    splats: Vec<(Splat, QNode)>,
+    deferred: Vec<Deferred>,
+    dirty: Vec<u32>,
+    stats: Vec<LevelStats>,
+}
+
+impl BlockOut {
+    fn clear(&mut self, levels: usize) {
+        self.children.clear();
+        self.splats.clear();
+        self.deferred.clear();
+        self.dirty.clear();
+        self.stats.clear();
+        self.stats.resize(levels, LevelStats::default());
+    }
 }
 
 /// Nodes per chunk between hierarchical-depth updates: small enough that nodes late in a pass
 /// are culled by splats from earlier in the same pass, large enough to keep threads busy.
-/// Scaled with the image (a chunk of about 1/16 of its pixels rarely overlaps itself).
-const MIN_CHUNK: usize = 1 << 10;
+/// Scaled with the image (a chunk of about 1/64 of its pixels rarely overlaps itself).
+const MIN_CHUNK: usize = 1 << 8;
 const MAX_CHUNK: usize = 1 << 16;
+/// Nodes per parallel block within a chunk.
+const BLOCK: usize = 1024;
+
+/// Everything a chunk needs to read.
+struct Ctx<'a, 'b> {
+    objects: &'a [VoxelInstance<'b>],
+    fast: &'a [Option<Fast>],
+    cam: &'a Camera,
+    view_rot: Mat3,
+    settings: &'a PassSettings,
+}
 
 /// Draws voxel objects into `target`.
 pub(crate) fn draw_voxels(
@@ -128,10 +184,19 @@ pub(crate) fn draw_voxels(
                         .length()
                         .max(wl.y_axis.length())
                         .max(wl.z_axis.length()),
+                    normal_view: linear.inverse().transpose(),
                 }
             })
         })
         .collect();
+    let ctx = Ctx {
+        objects,
+        fast: &fast,
+        cam,
+        view_rot,
+        settings,
+    };
+    let levels = usize::from(crate::svo::MAX_DEPTH) + 1;
 
     let mut queue: Vec<QNode> = objects
         .iter()
@@ -145,87 +210,193 @@ pub(crate) fn draw_voxels(
 
     let mut out = VoxelPass {
         refs: Vec::new(),
-        levels: Vec::new(),
+        levels: vec![LevelStats::default(); levels],
         traversal_ms: 0.0,
         splat_ms: 0.0,
     };
+    let chunk_len = ((cam.width as usize * cam.height as usize) / 64).clamp(MIN_CHUNK, MAX_CHUNK);
+    let mut blocks: Vec<BlockOut> = Vec::new();
     let mut splat_count: u64 = 0;
-    let mut level = 0usize;
-    while !queue.is_empty() {
+    let mut deferred: Vec<Deferred> = Vec::new();
+    let mut next: Vec<QNode> = Vec::new();
+    let mut next_deferred: Vec<Deferred> = Vec::new();
+    while !queue.is_empty() || !deferred.is_empty() {
+        next.clear();
+        next_deferred.clear();
         let chunk_len = if settings.occlusion_culling {
-            ((cam.width as usize * cam.height as usize) / 16).clamp(MIN_CHUNK, MAX_CHUNK)
+            chunk_len
         } else {
-            queue.len()
+            queue.len().max(1)
         };
-        let mut next: Vec<QNode> = Vec::new();
-        let mut stats = LevelStats::default();
         for chunk in queue.chunks(chunk_len) {
-            let t0 = Instant::now();
-            let target_ref: &DepthTarget = target;
-            let parts: Vec<ChunkPart> = chunk
-                .par_chunks(512)
-                .map(|block| {
-                    let mut children = Vec::new();
-                    let mut splats = Vec::new();
-                    let mut st = LevelStats::default();
-                    for q in block {
-                        st.visited += 1;
-                        let obj = &objects[q.obj as usize];
-                        match classify(
-                            obj,
-                            fast[q.obj as usize].as_ref(),
-                            q,
-                            cam,
-                            view_rot,
-                            target_ref,
-                            settings,
-                        ) {
-                            Action::Frustum => st.frustum_culled += 1,
-                            Action::Occluded => st.occlusion_culled += 1,
-                            Action::Split(c, axes) => {
-                                st.split += 1;
-                                push_children(obj, q, cam, c, axes, &mut children);
-                            }
-                            Action::Splat(s) => {
-                                st.splatted += 1;
-                                splats.push((s, *q));
-                            }
-                        }
-                    }
-                    (children, splats, st)
-                })
-                .collect();
-            let mut splats: Vec<(Splat, QNode)> = Vec::new();
-            for (c, s, st) in parts {
-                next.extend(c);
-                splats.extend(s);
-                stats.add(&st);
-            }
-            let t1 = Instant::now();
-            let base = u64::from(settings.id_base) + splat_count;
-            splats.par_iter().enumerate().for_each(|(i, (s, _))| {
-                let id = (base + i as u64).min(u64::from(super::MESH_ID_FLAG - 1)) as u32;
-                target_ref.write_rect(s.x0, s.y0, s.x1, s.y1, pack_key(s.ndc_depth, id));
-            });
-            splat_count += splats.len() as u64;
-            if settings.keep_refs {
-                out.refs.extend(splats.iter().map(|(_, q)| *q));
-            }
-            if settings.occlusion_culling {
-                target.update_tiles();
-            }
-            let t2 = Instant::now();
-            out.traversal_ms += (t1 - t0).as_secs_f64() * 1e3;
-            out.splat_ms += (t2 - t1).as_secs_f64() * 1e3;
+            run_chunk(
+                chunk,
+                &ctx,
+                target,
+                &mut blocks,
+                levels,
+                &mut splat_count,
+                &mut out,
+                &mut next,
+                &mut next_deferred,
+                |q, t, b| classify_node(&ctx, q, t, b),
+            );
         }
-        if out.levels.len() <= level {
-            out.levels.resize(level + 1, LevelStats::default());
+        // The previous pass's back-facing nodes, now that this pass's nodes are drawn.
+        for chunk in deferred.chunks(chunk_len) {
+            run_chunk(
+                chunk,
+                &ctx,
+                target,
+                &mut blocks,
+                levels,
+                &mut splat_count,
+                &mut out,
+                &mut next,
+                &mut next_deferred,
+                |d, t, b| redecide(&ctx, d, t, b),
+            );
         }
-        out.levels[level].add(&stats);
-        queue = next;
-        level += 1;
+        std::mem::swap(&mut queue, &mut next);
+        std::mem::swap(&mut deferred, &mut next_deferred);
+    }
+    while out.levels.last().is_some_and(|l| l.visited == 0) {
+        out.levels.pop();
     }
     out
+}
+
+/// Classifies a chunk in parallel blocks, writes its splats (ids in chunk order), queues its
+/// children and deferred nodes, and refreshes the occlusion tiles it dirtied.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the traversal's state, split out of one loop so the deferred pass shares it"
+)]
+fn run_chunk<T: Sync>(
+    chunk: &[T],
+    ctx: &Ctx<'_, '_>,
+    target: &mut DepthTarget,
+    blocks: &mut Vec<BlockOut>,
+    levels: usize,
+    splat_count: &mut u64,
+    out: &mut VoxelPass,
+    next: &mut Vec<QNode>,
+    next_deferred: &mut Vec<Deferred>,
+    per_item: impl Fn(&T, &DepthTarget, &mut BlockOut) + Sync,
+) {
+    let t0 = Instant::now();
+    let n_blocks = chunk.len().div_ceil(BLOCK);
+    if blocks.len() < n_blocks {
+        blocks.resize_with(n_blocks, BlockOut::default);
+    }
+    let target_ref: &DepthTarget = target;
+    chunk
+        .par_chunks(BLOCK)
+        .zip(blocks[..n_blocks].par_iter_mut())
+        .for_each(|(items, b)| {
+            b.clear(levels);
+            for it in items {
+                per_item(it, target_ref, b);
+            }
+        });
+    let t1 = Instant::now();
+    // Ids are positions in chunk order, so the image does not depend on the thread count.
+    let mut bases = Vec::with_capacity(n_blocks);
+    let mut base = u64::from(ctx.settings.id_base) + *splat_count;
+    for b in &blocks[..n_blocks] {
+        bases.push(base);
+        base += b.splats.len() as u64;
+    }
+    *splat_count = base - u64::from(ctx.settings.id_base);
+    blocks[..n_blocks]
+        .par_iter_mut()
+        .zip(bases.par_iter())
+        .for_each(|(b, &base)| {
+            let BlockOut { splats, dirty, .. } = b;
+            for (i, (s, _)) in splats.iter().enumerate() {
+                let id = (base + i as u64).min(u64::from(super::MESH_ID_FLAG - 1)) as u32;
+                target_ref.write_rect(s.x0, s.y0, s.x1, s.y1, pack_key(s.ndc_depth, id), dirty);
+            }
+        });
+    let mut dirty: Vec<u32> = Vec::new();
+    for b in &blocks[..n_blocks] {
+        next.extend_from_slice(&b.children);
+        next_deferred.extend_from_slice(&b.deferred);
+        if ctx.settings.keep_refs {
+            out.refs.extend(b.splats.iter().map(|(_, q)| *q));
+        }
+        dirty.extend_from_slice(&b.dirty);
+        for (a, s) in out.levels.iter_mut().zip(&b.stats) {
+            a.add(s);
+        }
+    }
+    if ctx.settings.occlusion_culling {
+        target.update_dirty(&dirty);
+    } else {
+        target.clear_dirty(&dirty);
+    }
+    let t2 = Instant::now();
+    out.traversal_ms += (t1 - t0).as_secs_f64() * 1e3;
+    out.splat_ms += (t2 - t1).as_secs_f64() * 1e3;
+}
+
+/// First visit of a queued node.
+#[inline]
+fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut BlockOut) {
+    let st = &mut b.stats[usize::from(q.node.level)];
+    st.visited += 1;
+    let obj = &ctx.objects[q.obj as usize];
+    match classify(
+        obj,
+        ctx.fast[q.obj as usize].as_ref(),
+        q,
+        ctx.cam,
+        ctx.view_rot,
+        target,
+        ctx.settings,
+    ) {
+        Action::Frustum => st.frustum_culled += 1,
+        Action::Occluded => st.occlusion_culled += 1,
+        Action::Split(c, axes) => {
+            st.split += 1;
+            push_children(obj, q, ctx.cam, c, axes, &mut b.children);
+        }
+        Action::Splat(s) => {
+            st.splatted += 1;
+            b.splats.push((s, *q));
+        }
+        Action::Defer { rect, occ, split } => b.deferred.push(Deferred {
+            q: *q,
+            rect,
+            occ,
+            split,
+        }),
+    }
+}
+
+/// Second look at a deferred node: culled if the nearer surface now hides it, otherwise drawn
+/// or split as first decided.
+#[inline]
+fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut BlockOut) {
+    let st = &mut b.stats[usize::from(d.q.node.level)];
+    let [x0, y0, x1, y1] = d.occ;
+    if ctx.settings.occlusion_culling && target.occluded(x0, y0, x1, y1, d.rect.ndc_depth) {
+        st.occlusion_culled += 1;
+    } else if d.split {
+        st.split += 1;
+        let obj = &ctx.objects[d.q.obj as usize];
+        let (c, _, _, axes) = node_in_view(
+            obj,
+            ctx.fast[d.q.obj as usize].as_ref(),
+            &d.q,
+            ctx.cam,
+            ctx.view_rot,
+        );
+        push_children(obj, &d.q, ctx.cam, c, axes, &mut b.children);
+    } else {
+        st.splatted += 1;
+        b.splats.push((d.rect, d.q));
+    }
 }
 
 /// View-space centre and AABB half extents of a node, and its longest world edge.
@@ -269,6 +440,11 @@ struct Footprint {
     y0: u32,
     x1: u32,
     y1: u32,
+    /// Every pixel the rectangle touches (for conservative occlusion tests).
+    ox0: u32,
+    oy0: u32,
+    ox1: u32,
+    oy1: u32,
     ndc_depth: f32,
     /// Nearest view depth, clamped to the near plane.
     d_near: f32,
@@ -311,11 +487,17 @@ fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
     }
     let (x0, x1) = pixel_span(sx0, sx1, cam.width);
     let (y0, y1) = pixel_span(sy0, sy1, cam.height);
+    let (ox0, ox1) = overlapped_span(sx0, sx1, cam.width);
+    let (oy0, oy1) = overlapped_span(sy0, sy1, cam.height);
     Some(Footprint {
         x0,
         y0,
         x1,
         y1,
+        ox0,
+        oy0,
+        ox1,
+        oy1,
         ndc_depth: cam.ndc_depth(dn),
         d_near: dn,
         crosses_near,
@@ -361,39 +543,99 @@ fn classify(
     let Some(cull_fp) = cull.as_ref().or(splat.as_ref()) else {
         return Action::Frustum;
     };
+    // The occlusion test covers every pixel the culling rectangle touches: a child's splat
+    // may fall back to the pixel under its own centre, outside the parent's pixel span.
     if settings.occlusion_culling
         && !cull_fp.crosses_near
         && target.occluded(
-            cull_fp.x0,
-            cull_fp.y0,
-            cull_fp.x1,
-            cull_fp.y1,
+            cull_fp.ox0,
+            cull_fp.oy0,
+            cull_fp.ox1,
+            cull_fp.oy1,
             cull_fp.ndc_depth,
         )
     {
         return Action::Occluded;
     }
-    let edge_px = |dn: f32| {
-        if cam.perspective {
-            edge_world * cam.fy / dn
-        } else {
-            edge_world * cam.fy.max(cam.fx)
-        }
-    };
     let Some(fp) = splat else {
         // The node's own box is off screen but its subtree may not be.
         return Action::Split(c, axes_view);
     };
-    if has_children && (fp.crosses_near || edge_px(fp.d_near) > settings.lod_pixel_threshold) {
-        return Action::Split(c, axes_view);
-    }
-    Action::Splat(Splat {
+    let edge_px = if cam.perspective {
+        edge_world * cam.fy / fp.d_near
+    } else {
+        edge_world * cam.fy.max(cam.fx)
+    };
+    let split = has_children && (fp.crosses_near || edge_px > settings.lod_pixel_threshold);
+    let rect = Splat {
         x0: fp.x0,
         y0: fp.y0,
         x1: fp.x1,
         y1: fp.y1,
         ndc_depth: fp.ndc_depth,
-    })
+    };
+    // Rigid objects only (`fast`): a deformed node's normal would need its blended transform.
+    if settings.occlusion_culling
+        && !fp.crosses_near
+        && let Some(f) = fast
+        && faces_away(obj, f, q, c, cam.perspective)
+    {
+        return Action::Defer {
+            rect,
+            occ: [fp.ox0, fp.oy0, fp.ox1, fp.oy1],
+            split,
+        };
+    }
+    if split {
+        return Action::Split(c, axes_view);
+    }
+    Action::Splat(rect)
+}
+
+/// Whether a node's LOD normal points away from the eye (rigid objects only: a deformed
+/// node's normal would need its blended transform).
+#[inline]
+fn faces_away(
+    obj: &VoxelInstance<'_>,
+    f: &Fast,
+    q: &QNode,
+    c_view: Vec3,
+    perspective: bool,
+) -> bool {
+    let svo = obj.svo;
+    let i = q.node.index as usize;
+    let e = if svo.is_leaf(&q.node) {
+        svo.leaf_normals()[i]
+    } else {
+        svo.inner_normals()[i]
+    };
+    // The octahedral decoding of `decode_normal` without its normalisation (a sign test).
+    let (px, py) = (
+        f32::from(e & 0xff) / 255.0 * 2.0 - 1.0,
+        f32::from(e >> 8) / 255.0 * 2.0 - 1.0,
+    );
+    let z = 1.0 - px.abs() - py.abs();
+    let (x, y) = if z < 0.0 {
+        (
+            (1.0 - py.abs()) * px.signum(),
+            (1.0 - px.abs()) * py.signum(),
+        )
+    } else {
+        (px, py)
+    };
+    let n_view = f.normal_view * Vec3::new(x, y, z);
+    let to_eye = if perspective { -c_view } else { Vec3::Z };
+    n_view.dot(to_eye) < 0.0
+}
+
+/// Every pixel that `[s0, s1]` touches, clamped to the image.
+#[inline]
+fn overlapped_span(s0: f32, s1: f32, n: u32) -> (u32, u32) {
+    let max = n as f32 - 1.0;
+    (
+        s0.floor().clamp(0.0, max) as u32,
+        s1.floor().clamp(0.0, max) as u32,
+    )
 }
 
 /// Pixels whose centres lie in `[s0, s1]`, or the pixel under the span's centre when none do
@@ -423,11 +665,23 @@ fn push_children(
 ) {
     let dir_view = if cam.perspective { c } else { Vec3::NEG_Z };
     let dir_voxel = axes_view.transpose() * dir_view;
+    let svo = obj.svo;
+    let mask = svo.child_mask(&q.node);
+    if mask == 0 {
+        return;
+    }
+    // `Svo::child` for each octant, with the node's mask and first child read once.
+    let first = svo.inner_first_children()[q.node.index as usize];
+    let half = svo.node_size(q.node.level) / 2;
     for k in front_to_back_order(dir_voxel) {
-        if let Some(child) = obj.svo.child(&q.node, k) {
+        if mask & (1 << k) != 0 {
             out.push(QNode {
                 obj: q.obj,
-                node: child,
+                node: NodeRef {
+                    level: q.node.level + 1,
+                    index: first + child_rank(mask, k),
+                    origin: q.node.origin + octant_offset(k, half),
+                },
             });
         }
     }

@@ -46,6 +46,10 @@ pub(crate) struct DepthTarget {
     tile_dirty: Vec<AtomicBool>,
     supers_x: u32,
     super_max: Vec<f32>,
+    /// Depth per pixel as of the last tile update (INFINITY where empty): small nodes are
+    /// tested pixel by pixel, which culls at silhouettes where a tile is partly background.
+    /// Updated only with the tiles, so culling decisions do not depend on thread timing.
+    pixel_depth: Vec<f32>,
 }
 
 impl DepthTarget {
@@ -69,6 +73,7 @@ impl DepthTarget {
             tile_dirty: (0..nt).map(|_| AtomicBool::new(false)).collect(),
             supers_x,
             super_max: vec![f32::INFINITY; supers_x as usize * supers_y as usize],
+            pixel_depth: vec![f32::INFINITY; n],
         }
     }
 
@@ -83,86 +88,134 @@ impl DepthTarget {
         }
     }
 
-    /// Fills the inclusive pixel rectangle with `key` and marks its tiles dirty.
+    /// Fills the inclusive pixel rectangle with `key`; appends the fine tiles it made dirty
+    /// (each tile once until the next [`Self::update_dirty`]) to `dirty`.
     #[inline]
-    pub(crate) fn write_rect(&self, x0: u32, y0: u32, x1: u32, y1: u32, key: u64) {
+    pub(crate) fn write_rect(
+        &self,
+        x0: u32,
+        y0: u32,
+        x1: u32,
+        y1: u32,
+        key: u64,
+        dirty: &mut Vec<u32>,
+    ) {
+        let w = self.width as usize;
         for y in y0..=y1 {
-            for x in x0..=x1 {
-                self.write(x, y, key);
+            let row = &self.keys[y as usize * w..y as usize * w + w];
+            for k in &row[x0 as usize..=x1 as usize] {
+                // A plain load first: most fragments of a front-to-back traversal lose, and a
+                // load costs far less than a read-modify-write.
+                if key < k.load(Ordering::Relaxed) {
+                    k.fetch_min(key, Ordering::Relaxed);
+                }
             }
         }
         for ty in y0 / TILE..=y1 / TILE {
             for tx in x0 / TILE..=x1 / TILE {
-                let d = &self.tile_dirty[(ty * self.tiles_x + tx) as usize];
-                if !d.load(Ordering::Relaxed) {
-                    d.store(true, Ordering::Relaxed);
+                let t = ty * self.tiles_x + tx;
+                let d = &self.tile_dirty[t as usize];
+                if !d.load(Ordering::Relaxed) && !d.swap(true, Ordering::Relaxed) {
+                    dirty.push(t);
                 }
             }
         }
     }
 
-    /// Marks every tile dirty (after triangles were rasterised).
-    pub(crate) fn mark_all_dirty(&self) {
+    /// Recomputes every tile (after triangles were rasterised straight into the keys).
+    pub(crate) fn update_all_tiles(&mut self) {
+        let all: Vec<u32> = (0..self.tile_max.len() as u32).collect();
         for d in &self.tile_dirty {
             d.store(true, Ordering::Relaxed);
         }
+        self.update_dirty(&all);
     }
 
-    /// Recomputes the max depth of dirty tiles and their coarse tiles.
-    pub(crate) fn update_tiles(&mut self) {
-        let (w, h, tx_n) = (self.width, self.height, self.tiles_x);
-        let keys = &self.keys;
-        let dirty = &self.tile_dirty;
-        let any_dirty = self
-            .tile_max
-            .par_iter_mut()
-            .enumerate()
-            .map(|(t, m)| {
-                // A plain load first: most tiles are clean, and a swap is a read-modify-write.
-                if !dirty[t].load(Ordering::Relaxed) {
-                    return false;
-                }
-                dirty[t].store(false, Ordering::Relaxed);
-                let (tx, ty) = (t as u32 % tx_n, t as u32 / tx_n);
-                let mut max = 0.0f32;
-                'rows: for y in ty * TILE..((ty + 1) * TILE).min(h) {
-                    let row = y as usize * w as usize;
-                    for x in tx * TILE..((tx + 1) * TILE).min(w) {
-                        let d = key_depth(keys[row + x as usize].load(Ordering::Relaxed));
-                        max = max.max(d);
-                        if d == f32::INFINITY {
-                            break 'rows;
-                        }
-                    }
-                }
-                *m = max;
-                true
-            })
-            .reduce(|| false, |a, b| a || b);
-        if !any_dirty {
+    /// Clears the dirty flags of the listed tiles without recomputing them (no culling).
+    pub(crate) fn clear_dirty(&self, dirty: &[u32]) {
+        for &t in dirty {
+            self.tile_dirty[t as usize].store(false, Ordering::Relaxed);
+        }
+    }
+
+    /// Depths of fine tile `t`'s pixels, row by row (INFINITY where empty or outside).
+    fn tile_depths(&self, t: u32) -> [f32; (TILE * TILE) as usize] {
+        let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+        let (w, h) = (self.width, self.height);
+        let mut out = [f32::INFINITY; (TILE * TILE) as usize];
+        for y in ty * TILE..((ty + 1) * TILE).min(h) {
+            let row = y as usize * w as usize;
+            for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                out[((y - ty * TILE) * TILE + (x - tx * TILE)) as usize] =
+                    key_depth(self.keys[row + x as usize].load(Ordering::Relaxed));
+            }
+        }
+        out
+    }
+
+    /// Recomputes the listed fine tiles (each listed once, all flagged dirty): their pixels'
+    /// depths, max depths, and their coarse tiles. Work follows the tiles written, not the
+    /// image size.
+    pub(crate) fn update_dirty(&mut self, dirty: &[u32]) {
+        if dirty.is_empty() {
             return;
         }
-        let (sx_n, tiles_y) = (self.supers_x, self.tiles_y);
-        let tile_max = &self.tile_max;
-        self.super_max
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(s, m)| {
-                let (sx, sy) = (s as u32 % sx_n, s as u32 / sx_n);
-                let mut max = 0.0f32;
-                for ty in sy * SUPER..((sy + 1) * SUPER).min(tiles_y) {
-                    for tx in sx * SUPER..((sx + 1) * SUPER).min(tx_n) {
-                        max = max.max(tile_max[(ty * tx_n + tx) as usize]);
+        let this = &*self;
+        let depths: Vec<[f32; (TILE * TILE) as usize]> = if dirty.len() > 1024 {
+            dirty.par_iter().map(|&t| this.tile_depths(t)).collect()
+        } else {
+            dirty.iter().map(|&t| this.tile_depths(t)).collect()
+        };
+        let mut supers: Vec<u32> = Vec::with_capacity(dirty.len());
+        let (w, h) = (self.width, self.height);
+        for (&t, d) in dirty.iter().zip(&depths) {
+            let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
+            let mut max = 0.0f32;
+            for y in ty * TILE..((ty + 1) * TILE).min(h) {
+                for x in tx * TILE..((tx + 1) * TILE).min(w) {
+                    let v = d[((y - ty * TILE) * TILE + (x - tx * TILE)) as usize];
+                    self.pixel_depth[y as usize * w as usize + x as usize] = v;
+                    max = max.max(v);
+                }
+            }
+            self.tile_max[t as usize] = max;
+            self.tile_dirty[t as usize].store(false, Ordering::Relaxed);
+            supers.push((ty / SUPER) * self.supers_x + tx / SUPER);
+        }
+        supers.sort_unstable();
+        supers.dedup();
+        let (tx_n, tiles_y, sx_n) = (self.tiles_x, self.tiles_y, self.supers_x);
+        for s in supers {
+            let (sx, sy) = (s % sx_n, s / sx_n);
+            let mut max = 0.0f32;
+            'tiles: for ty in sy * SUPER..((sy + 1) * SUPER).min(tiles_y) {
+                for tx in sx * SUPER..((sx + 1) * SUPER).min(tx_n) {
+                    max = max.max(self.tile_max[(ty * tx_n + tx) as usize]);
+                    if max == f32::INFINITY {
+                        break 'tiles;
                     }
                 }
-                *m = max;
-            });
+            }
+            self.super_max[s as usize] = max;
+        }
     }
 
     /// True when every pixel of the inclusive rectangle already holds something nearer than
-    /// `ndc_depth` (conservatively, by tile maxima).
+    /// `ndc_depth`: pixel by pixel for rectangles of up to 16 pixels, else conservatively by
+    /// tile maxima (both as of the last tile update).
     #[inline]
     pub(crate) fn occluded(&self, x0: u32, y0: u32, x1: u32, y1: u32, ndc_depth: f32) -> bool {
+        if (x1 - x0 + 1) * (y1 - y0 + 1) <= 16 {
+            for y in y0..=y1 {
+                let row = &self.pixel_depth[y as usize * self.width as usize..];
+                for &d in &row[x0 as usize..=x1 as usize] {
+                    if d >= ndc_depth {
+                        return false;
+                    }
+                }
+            }
+            return true;
+        }
         let (tx0, ty0, tx1, ty1) = (x0 / TILE, y0 / TILE, x1 / TILE, y1 / TILE);
         if (tx1 - tx0 + 1) * (ty1 - ty0 + 1) <= 16 {
             for ty in ty0..=ty1 {

@@ -2,23 +2,28 @@
 //!
 //! A frame: shadow maps (one per shadow-casting light, orthographic, fit to the scene) →
 //! triangles into the view's packed depth+id target → voxel objects by the breadth-first ASVO
-//! traversal into the same target → resolve ids to a G-buffer → deferred Phong. Depth is NDC z
-//! (0 near, 1 far, as `clip_from_world`); see `docs/rendering.md` for the conventions a GPU
-//! renderer must match.
+//! traversal into the same target → KRS objects by sphere tracing into the same target →
+//! resolve ids to a G-buffer → deferred Phong (shadow maps for voxel and mesh casters, shadow
+//! rays for KRS casters). Depth is NDC z (0 near, 1 far, as `clip_from_world`); see
+//! `docs/rendering.md` for the conventions a GPU renderer must match.
 //!
 //! Entry points: [`render_document`] for a [`Document`], [`render_scene`] for callers that bring
-//! their own per-node transform ([`NodeDeform`], e.g. skinning).
+//! their own per-node transform ([`NodeDeform`], e.g. skinning), [`render_scene_with_krs`] to
+//! add KRS objects to such a scene.
 
 mod asvo;
 mod buffers;
 mod camera;
 mod deform;
+mod krs;
 pub mod quality;
 mod raster;
 pub mod scenes;
 pub mod shade;
 mod stats;
 
+#[cfg(test)]
+mod krs_tests;
 #[cfg(test)]
 mod tests;
 
@@ -30,6 +35,7 @@ pub use asvo::VoxelInstance;
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
 pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
+pub use krs::{KRS_TILE, KrsLayer, KrsStats};
 pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
 pub use stats::{FrameStats, LevelStats, StageTimes};
@@ -38,6 +44,11 @@ use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
 
 /// Largest accepted image edge in pixels.
 pub const MAX_IMAGE_SIZE: u32 = 16384;
+
+/// Ambient-occlusion sample radius as a fraction of the scene bounds' diagonal (the same bounds
+/// the shadow maps are fit to): scale-free, so a house of 128 voxel units and a 2-unit sphere
+/// get the same look.
+pub const AO_RADIUS_OF_SCENE: f32 = 0.05;
 
 /// Ids with this bit set are triangles; below it, voxel splats.
 pub(crate) const MESH_ID_FLAG: u32 = 1 << 31;
@@ -145,11 +156,17 @@ pub fn render_document(
         ambient: doc.ambient,
         background: doc.background,
     };
+    let mut krs_objects = Vec::new();
+    let mut krs_labels = Vec::new();
     for (i, (o, d)) in doc.objects.iter().zip(&deforms).enumerate() {
         if !o.visible {
             continue;
         }
         let label = i as u32 + 1;
+        if let Some(k) = o.krs_in_world() {
+            krs_objects.push(k);
+            krs_labels.push(label);
+        }
         match (&o.kind, d) {
             (ObjectKind::Voxels(v), Some(d)) => scene.voxels.push(VoxelInstance {
                 svo: &v.svo,
@@ -163,10 +180,28 @@ pub fn render_document(
                 casts_shadows: m.casts_shadows,
                 label,
             }),
-            (ObjectKind::Voxels(_), None) => {}
+            // KRS objects were collected above for the sphere-tracing pass.
+            (ObjectKind::Voxels(_), None) | (ObjectKind::Krs(_), _) => {}
         }
     }
-    render_scene(&scene, &cam, &req.quality)
+    // Validated above, so preparing cannot fail; the error is still reported, never unwrapped.
+    let krs_scene = crate::krs::KrsScene {
+        objects: krs_objects,
+    }
+    .prepare()
+    .map_err(|e| {
+        RenderError::InvalidDocument(SceneError::Invalid {
+            what: "krs".into(),
+            context: "document".into(),
+            detail: e.to_string(),
+        })
+    })?;
+    let krs = KrsLayer {
+        scene: krs_scene,
+        labels: krs_labels,
+        casts_shadows: true,
+    };
+    render_scene_with_krs(&scene, &krs, &cam, &req.quality)
 }
 
 /// The per-node transform of every voxel object of a document (`None` for meshes): rigid
@@ -201,7 +236,7 @@ pub fn document_deforms<'a>(
                     o.transform.matrix() * v.object_from_voxel(),
                 )),
             }),
-            ObjectKind::Mesh(_) => None,
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
         .collect()
 }
@@ -212,6 +247,22 @@ pub fn document_deforms<'a>(
 /// [`RenderError`] for an empty or oversized image or invalid quality.
 pub fn render_scene(
     scene: &RenderScene<'_>,
+    cam: &Camera,
+    quality: &Quality,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_scene_with_krs(scene, &KrsLayer::default(), cam, quality)
+}
+
+/// Renders a scene plus KRS objects from a camera: the KRS is sphere-traced into the same
+/// depth+id target after triangles and voxels, so all three occlude each other; KRS casters
+/// shadow every pixel by shadow rays, voxel and mesh casters shadow KRS pixels through the
+/// shadow maps.
+///
+/// # Errors
+/// [`RenderError`] for an empty or oversized image or invalid quality.
+pub fn render_scene_with_krs(
+    scene: &RenderScene<'_>,
+    krs_layer: &KrsLayer,
     cam: &Camera,
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
@@ -230,10 +281,12 @@ pub fn render_scene(
     for light in scene.lights {
         let map = match bounds {
             Some((lo, hi)) if quality.shadows && light.casts_shadows => {
-                // Two texels per view pixel where the scene comes nearest the eye.
+                // One texel per view pixel where the scene comes nearest the eye: each halving of
+                // the texel quadruples the shadow traversal for detail the view cannot resolve
+                // (PCF blurs over three texels anyway).
                 let eye = cam.eye();
                 let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
-                let finest = 0.5 * cam.pixel_world_size(nearest);
+                let finest = cam.pixel_world_size(nearest);
                 shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, finest)
                     .map(|lc| {
                         shade::ShadowMap::render(
@@ -256,9 +309,8 @@ pub fn render_scene(
     let t0 = Instant::now();
     let mut target = buffers::DepthTarget::new(cam.width, cam.height);
     stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
-    target.mark_all_dirty();
     if quality.occlusion_culling {
-        target.update_tiles();
+        target.update_all_tiles();
     }
     stats.times.triangles_ms = ms_since(t0);
     let pass = asvo::draw_voxels(
@@ -278,8 +330,14 @@ pub fn render_scene(
     stats.times.splat_ms = pass.splat_ms;
 
     let t0 = Instant::now();
+    let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, &target, quality);
+    stats.krs = krs_pass.stats;
+    stats.times.krs_ms = ms_since(t0);
+
+    let t0 = Instant::now();
     let keys = target.into_keys();
-    let fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    let mut fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    shade::resolve_krs(&mut fb, &keys, &krs_pass, &krs_layer.labels);
     stats.times.resolve_ms = ms_since(t0);
     stats.covered_pixels = fb.covered_pixels() as u64;
 
@@ -289,8 +347,14 @@ pub fn render_scene(
         shadows,
         ambient: scene.ambient,
         background: scene.background,
+        ao_radius_world: bounds.map_or(0.0, |(lo, hi)| AO_RADIUS_OF_SCENE * (hi - lo).length()),
+        krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
     };
     let img = shade::shade(&fb, cam, &lighting, quality);
+    stats.krs.shadow_rays = lighting
+        .krs
+        .shadow_rays
+        .load(std::sync::atomic::Ordering::Relaxed);
     stats.times.shade_ms = ms_since(t0);
     stats.times.total_ms = ms_since(t_start);
     Ok((img, fb, stats))

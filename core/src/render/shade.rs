@@ -8,6 +8,7 @@ use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
+use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
 use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
 use super::stats::LevelStats;
 use crate::mesh::{linear_to_srgb, srgb_to_linear};
@@ -118,9 +119,8 @@ impl ShadowMap {
     ) -> Self {
         let mut target = DepthTarget::new(cam.width, cam.height);
         draw_triangles(tris, meshes, &cam, &target, true);
-        target.mark_all_dirty();
         if quality.occlusion_culling {
-            target.update_tiles();
+            target.update_all_tiles();
         }
         let pass = draw_voxels(
             voxels,
@@ -224,6 +224,10 @@ pub(crate) fn resolve(
             }
             *d = key_depth(key);
             let raw = (key & 0xffff_ffff) as u32;
+            if raw & KRS_ID_FLAG == KRS_ID_FLAG {
+                // Filled by `resolve_krs` from the pass's own records.
+                return;
+            }
             if raw & MESH_ID_FLAG != 0 {
                 let Some(t) = tris.get((raw & !MESH_ID_FLAG) as usize) else {
                     return;
@@ -268,9 +272,9 @@ pub(crate) fn resolve(
                 let v = info.voxel();
                 *nrm = o.deform.normal_to_world(&info, decode_normal(v.normal));
                 *alb = Vec3::new(
-                    srgb_to_linear(f32::from(v.color[0]) / 255.0),
-                    srgb_to_linear(f32::from(v.color[1]) / 255.0),
-                    srgb_to_linear(f32::from(v.color[2]) / 255.0),
+                    srgb_byte_to_linear(v.color[0]),
+                    srgb_byte_to_linear(v.color[1]),
+                    srgb_byte_to_linear(v.color[2]),
                 );
                 *id = PixelId {
                     object: o.label,
@@ -279,6 +283,94 @@ pub(crate) fn resolve(
             }
         });
     fb
+}
+
+/// `(linear_to_srgb(c) * 255).round() as u8`, exactly, without `powf`: the byte is a monotonic
+/// step function of `c`, so it is found from the first float at which each byte starts.
+pub(crate) fn linear_to_srgb8(c: f32) -> u8 {
+    struct Table {
+        /// `starts[k]`: the smallest `c` in `0..=1` whose byte is at least `k` (`starts[0] = 0`).
+        starts: [f32; 257],
+        /// The byte at `i / BUCKETS`.
+        bucket_byte: [u8; BUCKETS + 1],
+    }
+    const BUCKETS: usize = 4096;
+    fn exact(c: f32) -> u8 {
+        (linear_to_srgb(c) * 255.0).round() as u8
+    }
+    static TABLE: std::sync::LazyLock<Table> = std::sync::LazyLock::new(|| {
+        let mut starts = [f32::INFINITY; 257];
+        starts[0] = 0.0;
+        for (k, start) in starts.iter_mut().enumerate().take(256).skip(1) {
+            // Binary search over the bit patterns of 0..=1 (ordered like the values).
+            let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+            if exact(f32::from_bits(hi)) < k as u8 {
+                continue;
+            }
+            while lo < hi {
+                let mid = lo + (hi - lo) / 2;
+                if exact(f32::from_bits(mid)) >= k as u8 {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            *start = f32::from_bits(lo);
+        }
+        let bucket_byte = std::array::from_fn(|i| exact(i as f32 / BUCKETS as f32));
+        Table {
+            starts,
+            bucket_byte,
+        }
+    });
+    if !(c > 0.0) {
+        // Zero, negatives and NaN all give 0, as `linear_to_srgb` clamps (NaN: `as u8` of NaN).
+        return 0;
+    }
+    if c >= 1.0 {
+        return 255;
+    }
+    let t = &*TABLE;
+    // The byte at the bucket's lower edge, then at most a few steps up (the transfer function's
+    // slope is at most 12.92 · 255 / 4096 < 1 byte per bucket).
+    let mut b = t.bucket_byte[(c * BUCKETS as f32) as usize];
+    while b < 255 && c >= t.starts[usize::from(b) + 1] {
+        b += 1;
+    }
+    b
+}
+
+/// `srgb_to_linear(v / 255)` for every byte: three `powf` per pixel dominated the resolve.
+/// Same values as the function, so results are unchanged.
+fn srgb_byte_to_linear(v: u8) -> f32 {
+    static TABLE: std::sync::LazyLock<[f32; 256]> =
+        std::sync::LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
+    TABLE[usize::from(v)]
+}
+
+/// Fills the G-buffer of pixels the KRS won: object label, kernel as node, the §6.1 normal and
+/// the textured albedo recorded when the ray hit.
+pub(crate) fn resolve_krs(fb: &mut FrameBuffers, keys: &[u64], pass: &KrsPass, labels: &[u32]) {
+    fb.ids
+        .par_iter_mut()
+        .zip(fb.normal.par_iter_mut())
+        .zip(fb.albedo.par_iter_mut())
+        .enumerate()
+        .for_each(|(i, ((id, nrm), alb))| {
+            let raw = (keys[i] & 0xffff_ffff) as u32;
+            if keys[i] == EMPTY_KEY || raw & KRS_ID_FLAG != KRS_ID_FLAG {
+                return;
+            }
+            let Some(Some(px)) = pass.pixels.get(i) else {
+                return;
+            };
+            *id = PixelId {
+                object: labels.get(px.object as usize).copied().unwrap_or(0),
+                node: u64::from(px.kernel),
+            };
+            *nrm = px.normal;
+            *alb = px.albedo;
+        });
 }
 
 /// Barycentric weights of `p` (on or near the triangle's plane), clamped into the triangle.
@@ -306,6 +398,86 @@ pub(crate) struct Lighting<'a> {
     pub(crate) shadows: Vec<Option<ShadowMap>>,
     pub(crate) ambient: Vec3,
     pub(crate) background: Vec3,
+    /// World radius of the ambient-occlusion samples (see [`AoKernel`]).
+    pub(crate) ao_radius_world: f32,
+    /// KRS shadow rays, AO and Algorithm 2 diffuse factors.
+    pub(crate) krs: KrsLighting<'a>,
+}
+
+/// The golden angle in radians: successive AO sample azimuths are this far apart.
+const GOLDEN_ANGLE: f32 = 2.399_963_2;
+
+/// Screen-space ambient occlusion from the resolved depth buffer (`quality.ao_samples`).
+///
+/// Why screen space: it treats voxels and meshes alike (both are in the one depth buffer), costs
+/// a fixed number of depth reads per pixel whatever the scene, and a GPU renderer can do the
+/// same reads. Sample `i` of `n` (all fixed, no per-pixel noise, so both renderers agree):
+/// `u = (i + ½)/n`, a cosine-weighted hemisphere direction with `cos θ = √(1 − u)`, azimuth
+/// `φ = i · golden angle` around the normal, at distance `r · (¼ + ¾ · fract((i + ½) · 0.618034))`.
+/// See `docs/rendering.md` for the occlusion test.
+pub(crate) struct AoKernel {
+    /// Per sample: tangent-frame direction scaled by its distance (x, y along the tangents,
+    /// z along the normal).
+    samples: Vec<Vec3>,
+    radius_world: f32,
+}
+
+impl AoKernel {
+    pub(crate) fn new(count: u32, radius_world: f32) -> Self {
+        let n = count as f32;
+        let samples = (0..count)
+            .map(|i| {
+                let fi = i as f32 + 0.5;
+                let u = fi / n;
+                let cos_t = (1.0 - u).sqrt();
+                let sin_t = u.sqrt();
+                let phi = i as f32 * GOLDEN_ANGLE;
+                let frac = (fi * 0.618_034).fract();
+                let dist = radius_world * (0.25 + 0.75 * frac);
+                Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t) * dist
+            })
+            .collect();
+        Self {
+            samples,
+            radius_world,
+        }
+    }
+
+    /// Fraction of samples not occluded (1 = open) at world point `p` with unit normal `n`.
+    /// A sample is occluded when the depth buffer at its pixel holds a surface nearer the eye
+    /// than the sample by more than `eps_world` (the voxel staircase: splats store a node's
+    /// nearest depth) and by less than the radius (a far foreground object does not darken).
+    fn openness(&self, fb: &FrameBuffers, cam: &Camera, p: Vec3, n: Vec3, eps_world: f32) -> f32 {
+        if self.samples.is_empty() || n == Vec3::ZERO {
+            return 1.0;
+        }
+        let helper = if n.y.abs() < 0.99 { Vec3::Y } else { Vec3::X };
+        let t = n.cross(helper).normalize_or_zero();
+        let b = n.cross(t);
+        let (w, h) = (cam.width as f32, cam.height as f32);
+        let mut occluded = 0u32;
+        for s in &self.samples {
+            let q = p + t * s.x + b * s.y + n * s.z;
+            let qv = cam.view_from_world.transform_point3(q);
+            let d_q = -qv.z;
+            if cam.perspective && d_q <= cam.near {
+                continue;
+            }
+            let sp = cam.project_view(qv);
+            if !(sp.x >= 0.0 && sp.y >= 0.0 && sp.x < w && sp.y < h) {
+                continue;
+            }
+            let idx = sp.y as usize * fb.width as usize + sp.x as usize;
+            if fb.ids[idx].object == 0 {
+                continue;
+            }
+            let gap = d_q - cam.view_depth(fb.depth[idx]);
+            if gap > eps_world && gap < self.radius_world {
+                occluded += 1;
+            }
+        }
+        1.0 - occluded as f32 / self.samples.len() as f32
+    }
 }
 
 /// Deferred Phong over the G-buffer; writes an sRGB image.
@@ -319,13 +491,14 @@ pub(crate) fn shade(
     let mut img = RgbaImage::new(w, h);
     let eye = cam.eye();
     let pcf = quality.shadow_pcf_radius.min(8) as i32;
-    let to8 = |c: f32| (linear_to_srgb(c) * 255.0).round() as u8;
+    let to8 = linear_to_srgb8;
     let bg = [
         to8(lighting.background.x),
         to8(lighting.background.y),
         to8(lighting.background.z),
         255,
     ];
+    let ao = AoKernel::new(quality.ao_samples, lighting.ao_radius_world);
     let lights: Vec<(Vec3, Vec3)> = lighting
         .lights
         .iter()
@@ -340,22 +513,36 @@ pub(crate) fn shade(
                 return;
             }
             let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
-            let p = cam.unproject(x, y, fb.depth[i]);
+            let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
+            // A KRS pixel keeps its exact hit point; others come back from 32-bit NDC depth.
+            let p = krs_px.map_or_else(|| cam.unproject(x, y, fb.depth[i]), |px| px.position);
             let n = fb.normal[i];
             let v = (eye - p).normalize_or_zero();
             let receiver = cam.pixel_world_size(cam.view_depth(fb.depth[i]))
                 * quality.lod_pixel_threshold.max(1.0);
-            let mut light = lighting.ambient;
+            // The AO staircase tolerance: the receiver term of the shadow bias.
+            let open = ao.openness(fb, cam, p, n, 1.5 * receiver);
+            let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
+            // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
+            // (occlusion by KRS geometry, also outside the screen).
+            let mut light = lighting.ambient * (open * lighting.krs.ambient(p, n));
             let mut spec = Vec3::ZERO;
             for (li, &(l, color)) in lights.iter().enumerate() {
-                let ndotl = n.dot(l);
+                // Algorithm 2 replaces n·l on KRS pixels (smooth across mirror planes).
+                let ndotl = lighting
+                    .krs
+                    .diffuse(i, li, lights.len())
+                    .unwrap_or_else(|| n.dot(l));
                 if ndotl <= 0.0 {
                     continue;
                 }
-                let vis = match lighting.shadows.get(li) {
+                let mut vis = match lighting.shadows.get(li) {
                     Some(Some(sm)) => sm.visibility(p, n, receiver, pcf),
                     _ => 1.0,
                 };
+                if vis > 0.0 && lighting.lights[li].casts_shadows {
+                    vis *= lighting.krs.shadow(p, n, l, footprint);
+                }
                 if vis <= 0.0 {
                     continue;
                 }

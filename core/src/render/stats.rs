@@ -42,6 +42,8 @@ pub struct StageTimes {
     pub shade_ms: f64,
     /// Rendering the shadow map(s): traversal, splats and triangles from the light.
     pub shadow_ms: f64,
+    /// Sphere tracing KRS objects into the view (tile cones and primary rays).
+    pub krs_ms: f64,
     /// Whole frame.
     pub total_ms: f64,
 }
@@ -61,6 +63,8 @@ pub struct FrameStats {
     pub covered_pixels: u64,
     /// Stage timings.
     pub times: StageTimes,
+    /// KRS sphere-tracing counters.
+    pub krs: super::krs::KrsStats,
 }
 
 impl FrameStats {

@@ -505,3 +505,120 @@ fn occlusion_culling_culls_without_changing_the_image() {
     // nearest fragment per pixel is unchanged (ids may differ only at exact depth ties).
     assert_eq!(count_differing(&a, &b, 0).unwrap(), 0);
 }
+
+#[test]
+fn srgb_byte_table_equals_the_transfer_function() {
+    let exact = |c: f32| (crate::mesh::linear_to_srgb(c) * 255.0).round() as u8;
+    // Every byte boundary and its neighbouring floats, plus an even sweep and the odd values.
+    let mut checked = 0;
+    for i in 0..=200_000u32 {
+        let c = i as f32 / 200_000.0;
+        for bits in c.to_bits().saturating_sub(2)..=c.to_bits() + 2 {
+            let v = f32::from_bits(bits);
+            assert_eq!(shade::linear_to_srgb8(v), exact(v), "{v:e}");
+            checked += 1;
+        }
+    }
+    for k in 1..=255u32 {
+        // The float where the byte changes, found by bisection on the exact function.
+        let (mut lo, mut hi) = (0u32, 1.0f32.to_bits());
+        while lo < hi {
+            let mid = lo + (hi - lo) / 2;
+            if u32::from(exact(f32::from_bits(mid))) >= k {
+                hi = mid;
+            } else {
+                lo = mid + 1;
+            }
+        }
+        for bits in lo.saturating_sub(64)..=lo + 64 {
+            let v = f32::from_bits(bits);
+            assert_eq!(shade::linear_to_srgb8(v), exact(v), "{v:e}");
+        }
+    }
+    for v in [
+        -1.0,
+        -0.0,
+        0.0,
+        1.0,
+        1.5,
+        f32::NAN,
+        f32::INFINITY,
+        f32::NEG_INFINITY,
+    ] {
+        assert_eq!(shade::linear_to_srgb8(v), exact(v), "{v}");
+    }
+    assert!(checked > 1_000_000);
+}
+
+/// A floor slab and a wall meeting in a concave edge along z, all one colour; floor normals +Y,
+/// wall normals +X.
+fn corner_document() -> Document {
+    let svo = crate::svo::Svo::from_fn(
+        6,
+        false,
+        |o, _s| o.y <= 1 || o.x <= 1,
+        |c| {
+            if c.y <= 1 {
+                Some(crate::svo::Voxel::new([180, 180, 180, 255], Vec3::Y))
+            } else if c.x <= 1 {
+                Some(crate::svo::Voxel::new([180, 180, 180, 255], Vec3::X))
+            } else {
+                None
+            }
+        },
+    )
+    .unwrap();
+    let mut doc = Document::default();
+    doc.add("Corner", voxel_object(svo, 1.0));
+    // Ambient only: a pixel's colour is albedo × ambient × openness.
+    doc.lights.clear();
+    doc.ambient = Vec3::splat(0.8);
+    doc.camera = OrbitCamera {
+        target: Vec3::new(-0.4, -0.8, 0.0),
+        yaw_deg: 60.0,
+        pitch_deg: 35.0,
+        distance: 2.2,
+        ..OrbitCamera::default()
+    };
+    doc
+}
+
+#[test]
+fn ambient_occlusion_darkens_a_concave_corner_and_nothing_at_zero_samples() {
+    let doc = corner_document();
+    let render = |samples: u32| {
+        let q = Quality {
+            ao_samples: samples,
+            shadows: false,
+            ..Quality::default()
+        };
+        render_document(&doc, &req(128, 128, q)).unwrap()
+    };
+    let cam = Camera::from_orbit(&doc.camera, 128, 128);
+    let voxel = 2.0 / 64.0;
+    let floor_y = -1.0 + 2.0 * voxel;
+    let at = |p: Vec3| {
+        let s = cam.world_to_screen(p);
+        (s.x as u32, s.y as u32)
+    };
+    // On the floor: half a voxel from the wall, and far out in the open.
+    let corner = at(Vec3::new(-1.0 + 2.5 * voxel, floor_y, 0.0));
+    let open = at(Vec3::new(0.3, floor_y, 0.3));
+    let (plain, fb, _) = render(0);
+    let (ao, _, _) = render(16);
+    for (x, y) in [corner, open] {
+        assert_eq!(fb.id(x, y).object, 1, "({x}, {y}) must show the floor");
+        assert!(fb.normal[(y * 128 + x) as usize].y > 0.99);
+    }
+    // No AO at 0 samples: the same albedo and normal shade the same in the corner and the open.
+    assert_eq!(plain.pixel(corner.0, corner.1), plain.pixel(open.0, open.1));
+    // AO: the open floor keeps its colour, the corner is clearly darker.
+    assert_eq!(ao.pixel(open.0, open.1), plain.pixel(open.0, open.1));
+    let (c, o) = (ao.pixel(corner.0, corner.1)[0], ao.pixel(open.0, open.1)[0]);
+    // Clearly darker: at least 4 % in sRGB (a 90-degree edge hides at most a quarter of the
+    // cosine-weighted hemisphere, less with the finite radius).
+    assert!(
+        u32::from(c) * 100 <= u32::from(o) * 96,
+        "corner {c}, open {o}"
+    );
+}

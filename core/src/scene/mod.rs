@@ -8,6 +8,7 @@
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+use crate::krs::{KrsObject, Similarity};
 use crate::mesh::MeshModel;
 use crate::render::Quality;
 use crate::skin::Rig;
@@ -188,7 +189,16 @@ pub enum ObjectKind {
     Voxels(VoxelModel),
     /// A triangle mesh.
     Mesh(MeshObject),
+    /// A kernel-reflection sequence (procedural: stored as parameters in the project JSON, no
+    /// binary payload). Placed by the object's transform composed with the KRS's own
+    /// `world_from_object`; the transform's scale must be uniform and positive.
+    Krs(KrsObject),
 }
+
+/// Most reflection levels a KRS object in a document may have. Each level costs one fold per
+/// distance evaluation, so this bounds the work a (possibly hostile) file can ask for per ray;
+/// it is far above anything the paper needs (a forest of 2^17 trees of 2^8 leaves is 25 levels).
+pub const MAX_KRS_LEVELS: usize = 4096;
 
 impl Default for ObjectKind {
     fn default() -> Self {
@@ -231,7 +241,35 @@ impl Object {
         match self.kind {
             ObjectKind::Voxels(_) => "voxels",
             ObjectKind::Mesh(_) => "mesh",
+            ObjectKind::Krs(_) => "krs",
         }
+    }
+
+    /// For a KRS object: its KRS with `world_from_object` composed with the object's transform,
+    /// ready for [`crate::krs::KrsScene::prepare`]. `None` for other kinds, or when the transform
+    /// is not a similarity (non-uniform or non-positive scale; [`Document::validate`] refuses
+    /// those).
+    #[must_use]
+    pub fn krs_in_world(&self) -> Option<KrsObject> {
+        let ObjectKind::Krs(k) = &self.kind else {
+            return None;
+        };
+        let s = uniform_scale(self.transform.scale)?;
+        let t = &self.transform;
+        let rotation = Quat::from_vec4(glam::Vec4::from(t.rotation).try_normalize()?);
+        let inner = k.world_from_object;
+        let mut out = k.clone();
+        out.world_from_object = Similarity {
+            translation: t.translation + rotation * (s * inner.translation),
+            rotation: rotation * inner.rotation,
+            scale: s * inner.scale,
+        };
+        // Empty zones are in the KRS's world; carry them along with the object.
+        for z in &mut out.empty_zones {
+            z.centre = t.translation + rotation * (s * z.centre);
+            z.radius *= s;
+        }
+        Some(out)
     }
 
     /// World-space bounds, if the object has any geometry.
@@ -240,6 +278,18 @@ impl Object {
         let (lo, hi) = match &self.kind {
             ObjectKind::Voxels(v) => v.posed_bounds()?,
             ObjectKind::Mesh(m) => m.model.bounds()?,
+            ObjectKind::Krs(_) => {
+                // The bounding ball is already in world space once the transform is composed;
+                // unbounded KRS (half-space kernels: terrain, ground) have no bounds.
+                let k = self.krs_in_world()?;
+                let (c, r) = crate::krs::KrsScene { objects: vec![k] }
+                    .prepare()
+                    .ok()?
+                    .objects
+                    .first()?
+                    .bound_world?;
+                return Some((c - Vec3::splat(r), c + Vec3::splat(r)));
+            }
         };
         let m = self.transform.matrix();
         let mut out: Option<(Vec3, Vec3)> = None;
@@ -490,6 +540,7 @@ impl Document {
                         .validate()
                         .map_err(|(part, e)| invalid("mesh", &ctx, format!("part {part}: {e}")))?;
                 }
+                ObjectKind::Krs(k) => validate_krs(o, k, &ctx)?,
             }
         }
         for l in &self.lights {
@@ -523,6 +574,52 @@ impl Document {
         }
         Ok(())
     }
+}
+
+/// The common scale of a uniform, positive per-axis scale (relative tolerance 1e-6).
+fn uniform_scale(scale: Vec3) -> Option<f32> {
+    let s = scale.x;
+    let tol = 1e-6 * s.abs();
+    (s.is_finite() && s > 0.0 && (scale.y - s).abs() <= tol && (scale.z - s).abs() <= tol)
+        .then_some(s)
+}
+
+fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> {
+    if uniform_scale(o.transform.scale).is_none() {
+        return Err(invalid(
+            "transform.scale",
+            ctx,
+            format!(
+                "{} must be uniform and positive for a KRS object: distance estimates stay \
+                 exact only under similarities (scale the KRS uniformly, or rebuild it)",
+                o.transform.scale
+            ),
+        ));
+    }
+    if k.mirrors.len() > MAX_KRS_LEVELS {
+        return Err(invalid(
+            "krs.mirrors",
+            ctx,
+            format!(
+                "{} mirrors exceed the limit of {MAX_KRS_LEVELS} reflection levels",
+                k.mirrors.len()
+            ),
+        ));
+    }
+    // Validate the KRS as the renderer will see it (transform composed), so a product of
+    // scales that overflows is caught too.
+    let placed = o.krs_in_world().unwrap_or_else(|| k.clone());
+    placed.validated(0).map_err(|e| {
+        // The KRS error counts objects within a KRS scene; here the context names the object.
+        let msg = e.to_string();
+        let detail = msg
+            .strip_prefix("KRS object 0")
+            .map_or(msg.as_str(), |rest| {
+                rest.trim_start_matches([',', ':', ' '])
+            });
+        invalid("krs", ctx, detail)
+    })?;
+    Ok(())
 }
 
 #[cfg(test)]
@@ -561,6 +658,72 @@ mod tests {
                 "{p}"
             );
         }
+    }
+
+    #[test]
+    fn krs_objects_validate_and_compose_their_transform() {
+        let mut doc = Document::default();
+        let id = doc.add("Tree", ObjectKind::Krs(crate::krs::presets::tree()));
+        doc.validate().unwrap();
+        let local = doc.objects[0].world_bounds().unwrap();
+        let o = &mut doc.objects[0];
+        assert_eq!(o.kind_name(), "krs");
+        o.transform = Transform {
+            translation: Vec3::new(5.0, 1.0, -2.0),
+            rotation: Quat::from_rotation_y(1.1),
+            scale: Vec3::splat(2.0),
+        };
+        doc.validate().unwrap();
+        // The composed KRS is the original moved by the transform: distances scale by 2.
+        let o = &doc.objects[0];
+        let ObjectKind::Krs(k) = &o.kind else {
+            unreachable!()
+        };
+        let world = crate::krs::KrsScene {
+            objects: vec![o.krs_in_world().unwrap()],
+        }
+        .prepare()
+        .unwrap();
+        let plain = crate::krs::KrsScene {
+            objects: vec![k.clone()],
+        }
+        .prepare()
+        .unwrap();
+        for p in [Vec3::new(0.3, 1.0, 0.2), Vec3::new(-1.0, 3.0, 0.5)] {
+            let q = o.transform.matrix().transform_point3(p);
+            let (a, b) = (world.distance(q), 2.0 * plain.distance(p));
+            assert!((a - b).abs() < 1e-4 * b.abs().max(1.0), "{a} vs {b}");
+        }
+        let moved = o.world_bounds().unwrap();
+        let size = |(lo, hi): (Vec3, Vec3)| (hi - lo).x;
+        assert!(
+            (size(moved) - 2.0 * size(local)).abs() < 1e-3,
+            "{moved:?} {local:?}"
+        );
+
+        // Non-uniform scale, a zero mirror normal and too many levels are refused, naming the
+        // object.
+        doc.objects[0].transform.scale = Vec3::new(1.0, 1.0, 3.0);
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(e.contains("Tree") && e.contains("uniform"), "{e}");
+        doc.objects[0].transform.scale = Vec3::splat(-1.0);
+        assert!(doc.validate().unwrap_err().to_string().contains("uniform"));
+        doc.objects[0].transform = Transform::default();
+        if let ObjectKind::Krs(k) = &mut doc.objects[0].kind {
+            k.mirrors[2].normal = Vec3::ZERO;
+        }
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(
+            e.contains("Tree") && e.contains("mirror 2") && e.contains("zero length"),
+            "{e}"
+        );
+        if let ObjectKind::Krs(k) = &mut doc.objects[0].kind {
+            k.mirrors = vec![crate::krs::MirrorPlane::default(); MAX_KRS_LEVELS + 1];
+            k.kernels = vec![crate::krs::Kernel::Empty; MAX_KRS_LEVELS + 2];
+        }
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(e.contains("limit"), "{e}");
+        assert_eq!(doc.objects[0].id, id);
     }
 
     #[test]

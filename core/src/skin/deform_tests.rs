@@ -46,7 +46,7 @@ fn rigged_figure() -> &'static Document {
 fn model_of(doc: &Document) -> (&VoxelModel, &Rig) {
     match &doc.objects[0].kind {
         ObjectKind::Voxels(v) => (v, v.rig.as_ref().expect("rig")),
-        ObjectKind::Mesh(_) => panic!("not voxels"),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
     }
 }
 

@@ -159,7 +159,7 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
                 let rig = v.rig.as_ref()?;
                 Some((o, v, rig, rig.reference_mesh.as_ref()?))
             }
-            ObjectKind::Mesh(_) => None,
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
         .ok_or(MetricsError::NoSkinnedModel)?;
     let clip = match &settings.clip {

@@ -416,19 +416,19 @@ impl Svo {
         self.edit_impl(lo, hi, false, &mut |c, old| old.and_then(|v| f(c, v)))
     }
 
-    /// Applies an undo delta; returns the delta that redoes what it undid.
+    /// Applies an undo delta (entries outside the octree are skipped; for a coordinate listed
+    /// twice the later entry wins); returns the delta that redoes what it undid. One pass over
+    /// the touched paths ([`Svo::apply_changes`]), so undo costs what the edit did.
     pub fn apply_delta(&mut self, delta: &UndoDelta) -> UndoDelta {
-        let mut redo = UndoDelta::default();
-        for &(coord, value) in &delta.entries {
-            if self.check(coord).is_err() {
-                continue;
-            }
-            if let Ok(r) = self.edit_region(coord, coord, |_, _| value) {
-                redo.entries.extend(r.delta.entries);
-            }
-        }
-        redo.entries.reverse();
-        redo
+        let extent = self.extent();
+        let entries = delta
+            .entries
+            .iter()
+            .copied()
+            .filter(|e| e.0.max_element() < extent);
+        self.apply_changes(entries)
+            .map(|r| r.delta)
+            .unwrap_or_default()
     }
 
     fn edit_impl(
@@ -453,95 +453,377 @@ impl Svo {
             create,
             f,
             result: &mut result,
+            pending: Vec::new(),
         };
         self.edit_inner(0, 0, UVec3::ZERO, &mut ctx);
         Ok(result)
     }
 
-    fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) {
-        let iu = i as usize;
-        let half = self.node_size(level) / 2;
-        let child_is_leaf = level + 1 == self.depth;
-        let old_mask = self.inner_mask[iu];
+    /// Strips skin weights the octree does not store, so comparisons see what is stored.
+    #[inline]
+    fn stored(&self, v: Voxel) -> Voxel {
+        if self.has_skin {
+            v
+        } else {
+            Voxel {
+                skin: Skin4::default(),
+                ..v
+            }
+        }
+    }
+
+    /// Octants of the node at `origin` (children of edge `half`) that overlap `lo..=hi`.
+    fn overlapping(origin: UVec3, half: u32, lo: UVec3, hi: UVec3) -> u8 {
         let mut touched = 0u8;
         for k in 0..8u8 {
             let c_lo = origin + octant_offset(k, half);
             let c_hi = c_lo + UVec3::splat(half - 1);
-            if c_lo.cmple(ctx.hi).all() && c_hi.cmpge(ctx.lo).all() {
+            if c_lo.cmple(hi).all() && c_hi.cmpge(lo).all() {
                 touched |= 1 << k;
             }
         }
+        touched
+    }
+
+    /// Gives node `iu` the child set `mask` (freeing its block when empty).
+    fn set_child_mask(&mut self, iu: usize, child_is_leaf: bool, mask: u8) {
+        let old = self.inner_mask[iu];
+        if mask == old {
+            return;
+        }
+        if mask == 0 {
+            self.free_block(child_is_leaf, self.inner_first[iu], old.count_ones());
+            self.inner_mask[iu] = 0;
+            self.inner_first[iu] = 0;
+        } else {
+            self.rebuild_block(iu, child_is_leaf, mask);
+        }
+    }
+
+    /// Edits the subtree of inner node `i`; returns whether anything in it changed.
+    ///
+    /// The callback runs once per voxel of the box, in Morton order. Children that do not exist
+    /// yet are not allocated up front: a missing subtree is first *planned* (the callback runs
+    /// over its part of the box and the voxels it returns are collected), and only built when
+    /// that plan holds a voxel. So a brush's empty corners cost callback calls, not nodes.
+    fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) -> bool {
+        let iu = i as usize;
+        let half = self.node_size(level) / 2;
+        let child_is_leaf = level + 1 == self.depth;
+        let old_mask = self.inner_mask[iu];
+        let mut touched = Self::overlapping(origin, half, ctx.lo, ctx.hi);
         if !ctx.create {
             touched &= old_mask;
         }
         if touched == 0 {
-            return;
+            return false;
         }
-        let mask = old_mask | touched;
-        if mask != old_mask {
-            self.rebuild_block(iu, child_is_leaf, mask);
-        }
-        let first = self.inner_first[iu];
-        let mut present = 0u8;
-        for k in 0..8u8 {
-            if mask & (1 << k) == 0 {
-                continue;
-            }
-            let slot = first + child_rank(mask, k);
-            let existed = old_mask & (1 << k) != 0;
-            if touched & (1 << k) == 0 {
-                present |= 1 << k;
-                continue;
-            }
-            let c_origin = origin + octant_offset(k, half);
-            if child_is_leaf {
-                let old = existed.then(|| self.leaf_attr.get(slot as usize));
-                let new = (ctx.f)(c_origin, old);
+        let old_first = self.inner_first[iu];
+        let mut changed = false;
+        let mut present = old_mask & !touched;
+        if child_is_leaf {
+            let mut new_values = [None; 8];
+            for k in 0..8u8 {
+                if touched & (1 << k) == 0 {
+                    continue;
+                }
+                let c_origin = origin + octant_offset(k, half);
+                let old = (old_mask & (1 << k) != 0).then(|| {
+                    self.leaf_attr
+                        .get((old_first + child_rank(old_mask, k)) as usize)
+                });
+                let new = (ctx.f)(c_origin, old).map(|v| self.stored(v));
                 if new != old {
                     ctx.record(c_origin, old);
+                    changed = true;
                     match (old.is_some(), new.is_some()) {
                         (false, true) => self.leaf_count += 1,
                         (true, false) => self.leaf_count -= 1,
                         _ => {}
                     }
                 }
-                if let Some(v) = new {
-                    let v = if self.has_skin {
-                        v
+                if new.is_some() {
+                    present |= 1 << k;
+                }
+                new_values[k as usize] = new;
+            }
+            if !changed {
+                return false;
+            }
+            self.set_child_mask(iu, true, present);
+            let first = self.inner_first[iu];
+            for k in 0..8u8 {
+                if let Some(v) = new_values[k as usize] {
+                    self.leaf_attr
+                        .set((first + child_rank(present, k)) as usize, &v);
+                }
+            }
+        } else {
+            // Plans for missing children: (octant, range in ctx.pending).
+            let base = ctx.pending.len();
+            let mut planned: [(usize, usize); 8] = [(0, 0); 8];
+            for k in 0..8u8 {
+                if touched & (1 << k) == 0 {
+                    continue;
+                }
+                let c_origin = origin + octant_offset(k, half);
+                if old_mask & (1 << k) != 0 {
+                    let slot = old_first + child_rank(old_mask, k);
+                    changed |= self.edit_inner(level + 1, slot, c_origin, ctx);
+                    if self.inner_mask[slot as usize] != 0 {
+                        present |= 1 << k;
                     } else {
-                        Voxel {
-                            skin: Skin4::default(),
-                            ..v
-                        }
-                    };
-                    self.leaf_attr.set(slot as usize, &v);
-                    present |= 1 << k;
-                }
-            } else {
-                if !existed {
-                    self.inner_mask[slot as usize] = 0;
-                    self.inner_first[slot as usize] = 0;
-                    self.inner_count += 1;
-                }
-                self.edit_inner(level + 1, slot, c_origin, ctx);
-                if self.inner_mask[slot as usize] != 0 {
-                    present |= 1 << k;
+                        self.inner_count -= 1;
+                    }
                 } else {
-                    self.inner_count -= 1;
+                    let start = ctx.pending.len();
+                    self.plan_missing(level + 1, c_origin, ctx);
+                    planned[k as usize] = (start, ctx.pending.len());
+                    if ctx.pending.len() > start {
+                        present |= 1 << k;
+                    }
                 }
             }
-        }
-        if present != mask {
-            if present == 0 {
-                self.free_block(child_is_leaf, first, mask.count_ones());
-                self.inner_mask[iu] = 0;
-                self.inner_first[iu] = 0;
-            } else {
-                self.rebuild_block(iu, child_is_leaf, present);
+            if !changed && ctx.pending.len() == base {
+                return false;
             }
+            self.set_child_mask(iu, false, present);
+            let first = self.inner_first[iu];
+            for k in 0..8u8 {
+                let (s, e) = planned[k as usize];
+                if s == e {
+                    continue;
+                }
+                let slot = first + child_rank(present, k);
+                self.inner_mask[slot as usize] = 0;
+                self.inner_first[slot as usize] = 0;
+                self.inner_count += 1;
+                let c_origin = origin + octant_offset(k, half);
+                self.apply_sorted(level + 1, slot, c_origin, &ctx.pending[s..e], None);
+            }
+            ctx.pending.truncate(base);
+            changed = true;
         }
         if self.inner_mask[iu] != 0 {
             self.update_inner_attrs(level, i);
+        }
+        changed
+    }
+
+    /// Runs the callback over the box's part of a subtree that does not exist (every old value
+    /// is empty) and collects, in Morton order, the voxels it creates.
+    fn plan_missing(&mut self, level: u8, origin: UVec3, ctx: &mut EditCtx<'_, '_>) {
+        let half = self.node_size(level) / 2;
+        let touched = Self::overlapping(origin, half, ctx.lo, ctx.hi);
+        for k in 0..8u8 {
+            if touched & (1 << k) == 0 {
+                continue;
+            }
+            let c_origin = origin + octant_offset(k, half);
+            if level + 1 == self.depth {
+                if let Some(v) = (ctx.f)(c_origin, None) {
+                    ctx.record(c_origin, None);
+                    let v = self.stored(v);
+                    ctx.pending.push((c_origin, Some(v)));
+                }
+            } else {
+                self.plan_missing(level + 1, c_origin, ctx);
+            }
+        }
+    }
+
+    /// Sets or removes many voxels in one pass: `changes` holds `(coordinate, new value)`,
+    /// `None` removing. Only the paths to those voxels are visited and each internal node on
+    /// them is re-averaged once, so the cost follows the number of changes, not the box they
+    /// span (an incremental re-enhancement writes its few changed fragments this way). Later
+    /// duplicates win. Returns the changed box and the undo delta (in Morton order).
+    ///
+    /// # Errors
+    /// [`SvoError::OutOfBounds`] for the first coordinate outside; nothing is changed then.
+    pub fn apply_changes(
+        &mut self,
+        changes: impl IntoIterator<Item = (UVec3, Option<Voxel>)>,
+    ) -> Result<EditResult, SvoError> {
+        let mut coded: Vec<(u64, UVec3, Option<Voxel>)> = Vec::new();
+        for (c, v) in changes {
+            self.check(c)?;
+            coded.push((morton_encode(c), c, v.map(|v| self.stored(v))));
+        }
+        // Stable: among duplicates the input order survives, and the last one is kept.
+        coded.sort_by_key(|e| e.0);
+        let mut unique: Vec<(UVec3, Option<Voxel>)> = Vec::with_capacity(coded.len());
+        let mut last_code = None;
+        for (code, c, v) in coded {
+            if last_code == Some(code) {
+                if let Some(l) = unique.last_mut() {
+                    *l = (c, v);
+                }
+            } else {
+                unique.push((c, v));
+                last_code = Some(code);
+            }
+        }
+        let mut result = EditResult::default();
+        if !unique.is_empty() {
+            self.apply_sorted(0, 0, UVec3::ZERO, &unique, Some(&mut result));
+        }
+        Ok(result)
+    }
+
+    /// Applies `items` (Morton-sorted, unique, all inside the node, skin already stripped) to
+    /// the subtree of inner node `i`; returns whether anything changed. Records undo entries
+    /// into `record` when given.
+    fn apply_sorted(
+        &mut self,
+        level: u8,
+        i: u32,
+        origin: UVec3,
+        items: &[(UVec3, Option<Voxel>)],
+        mut record: Option<&mut EditResult>,
+    ) -> bool {
+        let iu = i as usize;
+        let half = self.node_size(level) / 2;
+        let shift = self.depth - level - 1;
+        let child_is_leaf = level + 1 == self.depth;
+        let octant = |c: UVec3| -> u8 {
+            let b = (c >> u32::from(shift)) & UVec3::ONE;
+            (b.x | b.y << 1 | b.z << 2) as u8
+        };
+        // Items are in Morton order, so each octant's items are one contiguous run.
+        let mut runs: [(usize, usize); 8] = [(0, 0); 8];
+        let mut start = 0;
+        while start < items.len() {
+            let k = octant(items[start].0);
+            let mut end = start + 1;
+            while end < items.len() && octant(items[end].0) == k {
+                end += 1;
+            }
+            runs[k as usize] = (start, end);
+            start = end;
+        }
+        let old_mask = self.inner_mask[iu];
+        let old_first = self.inner_first[iu];
+        let mut changed = false;
+        if child_is_leaf {
+            let mut present = old_mask;
+            let mut new_values = [None; 8];
+            for k in 0..8u8 {
+                let (s, e) = runs[k as usize];
+                if s == e {
+                    continue;
+                }
+                let (c, new) = items[e - 1];
+                let old = (old_mask & (1 << k) != 0).then(|| {
+                    self.leaf_attr
+                        .get((old_first + child_rank(old_mask, k)) as usize)
+                });
+                if new != old {
+                    if let Some(r) = record.as_deref_mut() {
+                        record_change(r, c, old);
+                    }
+                    changed = true;
+                    match (old.is_some(), new.is_some()) {
+                        (false, true) => self.leaf_count += 1,
+                        (true, false) => self.leaf_count -= 1,
+                        _ => {}
+                    }
+                }
+                if new.is_some() {
+                    present |= 1 << k;
+                } else {
+                    present &= !(1 << k);
+                }
+                new_values[k as usize] = new;
+            }
+            if !changed {
+                return false;
+            }
+            self.set_child_mask(iu, true, present);
+            let first = self.inner_first[iu];
+            for k in 0..8u8 {
+                if let Some(v) = new_values[k as usize] {
+                    self.leaf_attr
+                        .set((first + child_rank(present, k)) as usize, &v);
+                }
+            }
+        } else {
+            // Missing children that will hold a voxel are created before descending.
+            let mut add = 0u8;
+            for k in 0..8u8 {
+                let (s, e) = runs[k as usize];
+                if s < e && old_mask & (1 << k) == 0 && items[s..e].iter().any(|x| x.1.is_some()) {
+                    add |= 1 << k;
+                }
+            }
+            if add != 0 {
+                self.set_child_mask(iu, false, old_mask | add);
+                let first = self.inner_first[iu];
+                for k in 0..8u8 {
+                    if add & (1 << k) != 0 {
+                        let slot = (first + child_rank(old_mask | add, k)) as usize;
+                        self.inner_mask[slot] = 0;
+                        self.inner_first[slot] = 0;
+                        self.inner_count += 1;
+                    }
+                }
+                changed = true;
+            }
+            let mask = old_mask | add;
+            let first = self.inner_first[iu];
+            let mut present = mask;
+            for k in 0..8u8 {
+                let (s, e) = runs[k as usize];
+                if s == e || mask & (1 << k) == 0 {
+                    continue;
+                }
+                let slot = first + child_rank(mask, k);
+                let c_origin = origin + octant_offset(k, half);
+                changed |= self.apply_sorted(
+                    level + 1,
+                    slot,
+                    c_origin,
+                    &items[s..e],
+                    record.as_deref_mut(),
+                );
+                if self.inner_mask[slot as usize] == 0 {
+                    present &= !(1 << k);
+                    self.inner_count -= 1;
+                }
+            }
+            if !changed {
+                return false;
+            }
+            self.set_child_mask(iu, false, present);
+        }
+        if self.inner_mask[iu] != 0 {
+            self.update_inner_attrs(level, i);
+        }
+        changed
+    }
+
+    /// Calls `f(coord, voxel)` for every solid voxel in the inclusive box `lo..=hi`, in Morton
+    /// order, visiting only nodes that overlap the box.
+    pub fn for_each_leaf_in(&self, lo: UVec3, hi: UVec3, mut f: impl FnMut(UVec3, Voxel)) {
+        if lo.cmpgt(hi).any() || self.inner_mask[0] == 0 {
+            return;
+        }
+        self.leaves_in(&self.root(), lo, hi, &mut f);
+    }
+
+    fn leaves_in(&self, node: &NodeRef, lo: UVec3, hi: UVec3, f: &mut impl FnMut(UVec3, Voxel)) {
+        if self.is_leaf(node) {
+            f(node.origin, self.leaf_attr.get(node.index as usize));
+            return;
+        }
+        let half = self.node_size(node.level) / 2;
+        let touched =
+            Self::overlapping(node.origin, half, lo, hi) & self.inner_mask[node.index as usize];
+        for k in 0..8u8 {
+            if touched & (1 << k) != 0
+                && let Some(child) = self.child(node, k)
+            {
+                self.leaves_in(&child, lo, hi, f);
+            }
         }
     }
 
@@ -774,16 +1056,22 @@ struct EditCtx<'a, 'f> {
     create: bool,
     f: &'a mut (dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel> + 'f),
     result: &'a mut EditResult,
+    /// Voxels planned for subtrees that do not exist yet (see `Svo::edit_inner`).
+    pending: Vec<(UVec3, Option<Voxel>)>,
 }
 
 impl EditCtx<'_, '_> {
     fn record(&mut self, coord: UVec3, old: Option<Voxel>) {
-        self.result.delta.entries.push((coord, old));
-        self.result.changed = Some(match self.result.changed {
-            None => (coord, coord),
-            Some((lo, hi)) => (lo.min(coord), hi.max(coord)),
-        });
+        record_change(self.result, coord, old);
     }
+}
+
+fn record_change(result: &mut EditResult, coord: UVec3, old: Option<Voxel>) {
+    result.delta.entries.push((coord, old));
+    result.changed = Some(match result.changed {
+        None => (coord, coord),
+        Some((lo, hi)) => (lo.min(coord), hi.max(coord)),
+    });
 }
 
 impl PartialEq for Svo {

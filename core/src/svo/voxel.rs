@@ -3,7 +3,7 @@
 use glam::{Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
-use crate::mesh::{linear_to_srgb, srgb_to_linear};
+use crate::mesh::{linear_to_srgb, srgb_byte_to_linear};
 
 /// Up to four joint influences of a voxel or octree node, strongest first, weights as unsigned
 /// normalised bytes summing to exactly 255 (all zero: no skin). 8 bytes, two `u32` on a GPU.
@@ -280,9 +280,9 @@ pub(crate) fn merge(
     let mut count = 0.0f32;
     for (color, n, m) in children {
         rgb += Vec3::new(
-            srgb_to_linear(f32::from(color[0]) / 255.0),
-            srgb_to_linear(f32::from(color[1]) / 255.0),
-            srgb_to_linear(f32::from(color[2]) / 255.0),
+            srgb_byte_to_linear(color[0]),
+            srgb_byte_to_linear(color[1]),
+            srgb_byte_to_linear(color[2]),
         );
         alpha += f32::from(color[3]) / 255.0;
         normal += decode_normal(n);

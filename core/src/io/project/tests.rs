@@ -247,7 +247,12 @@ fn mutated_project_files_never_panic() {
     let json = fs::read(&path).unwrap();
     let bin = fs::read(dir.path().join("f.thicket.bin")).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
-    let cases = 10_000;
+    // THICKET_FUZZ_CASES raises the count for long runs (in release, see io::fuzz).
+    let cases = crate::io::fuzz::cases_from_env(10_000);
+    let start = std::time::Instant::now();
+    let (mut accepted, mut refused) = (0u64, 0u64);
+    let mut panics: Vec<u64> = Vec::new();
+    let mut max_peak = 0u64;
     for case in 0..cases {
         let (mut j, mut b) = (json.clone(), bin.clone());
         let target = if case % 2 == 0 { &mut j } else { &mut b };
@@ -271,18 +276,161 @@ fn mutated_project_files_never_panic() {
             }
         }
         let bin_for_case = b.clone();
-        let result = std::panic::catch_unwind(|| {
-            load_from_parts(&path, &j, |_| Ok(bin_for_case.clone())).and_then(|_| {
-                decode_svo(&b)
-                    .map(|_| ())
-                    .map_err(|d| ProjectError::Payload {
-                        path: path.clone(),
-                        detail: d,
-                    })
-            })
+        // The loader proper (JSON, checksums, payloads), and the payload decoder fed the raw
+        // mutated bytes directly (past the checksum, so its own checks run).
+        let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                let loaded = load_from_parts(&path, &j, |_| Ok(bin_for_case.clone())).is_ok();
+                let _ = decode_svo(&b);
+                loaded
+            }))
         });
-        assert!(result.is_ok(), "case {case} panicked");
+        max_peak = max_peak.max(peak);
+        match result {
+            Ok(true) => accepted += 1,
+            Ok(false) => refused += 1,
+            Err(_) => panics.push(case),
+        }
     }
+    eprintln!(
+        "project fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
+         max peak heap per case {max_peak} bytes, {:.1} s",
+        panics.len(),
+        start.elapsed().as_secs_f64()
+    );
+    // Declared sizes are checked before allocating: no case may hold much more than its input.
+    let input = (json.len() + bin.len()) as u64;
+    assert!(
+        max_peak < 64 * input + (16 << 20),
+        "a case held {max_peak} bytes for {input} bytes of input"
+    );
+    assert!(
+        panics.is_empty(),
+        "{} cases panicked, first {:?}",
+        panics.len(),
+        &panics[..panics.len().min(10)]
+    );
+    assert!(refused > 0, "the mutations never reached an error path");
+}
+
+/// A document with KRS objects (tree, rock with distortion and texturing, forest) beside a voxel
+/// object, so payload and parametric objects mix.
+fn krs_doc() -> Document {
+    use crate::krs::presets;
+    let mut doc = sample_doc(11, false);
+    let tree = doc.add("Tree", ObjectKind::Krs(presets::tree()));
+    doc.add("Rock", ObjectKind::Krs(presets::rock()));
+    doc.add("Forest", ObjectKind::Krs(presets::forest()));
+    let o = doc.objects.iter_mut().find(|o| o.id == tree).unwrap();
+    o.transform = Transform {
+        translation: Vec3::new(3.0, 0.0, -1.0),
+        rotation: Quat::from_rotation_y(0.7),
+        scale: Vec3::splat(1.5),
+    };
+    doc
+}
+
+#[test]
+fn krs_objects_round_trip_as_parameters() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("k.thicket.json");
+    let doc = krs_doc();
+    save(&doc, &path).unwrap();
+    assert_eq!(load(&path).unwrap(), doc);
+    // Parametric: kernels and mirrors are readable JSON, and only payload objects are in the
+    // .bin's payload table.
+    let json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let forest = &json["objects"][4]["kind"];
+    assert_eq!(forest["type"], "Krs");
+    assert_eq!(
+        forest["mirrors"].as_array().unwrap().len(),
+        crate::krs::presets::forest().mirrors.len()
+    );
+    assert!(forest["kernels"][1]["kind"].is_string());
+    assert_eq!(json["payloads"].as_array().unwrap().len(), 2);
+
+    // A document of KRS objects only writes no .bin at all.
+    let mut only = Document::default();
+    only.add("Rock", ObjectKind::Krs(crate::krs::presets::rock()));
+    let p2 = dir.path().join("only.thicket.json");
+    save(&only, &p2).unwrap();
+    assert!(!dir.path().join("only.thicket.bin").exists());
+    assert_eq!(load(&p2).unwrap(), only);
+
+    // Missing fields take their defaults (#[serde(default)] on every KRS struct).
+    fs::write(
+        &p2,
+        r#"{"objects":[{"id":1,"name":"ball","kind":{"type":"Krs",
+            "kernels":[{"kind":"Sphere","radius":0.5}]}}]}"#,
+    )
+    .unwrap();
+    let doc = load(&p2).unwrap();
+    let ObjectKind::Krs(k) = &doc.objects[0].kind else {
+        panic!("not a KRS object")
+    };
+    assert!(k.mirrors.is_empty() && k.instance_count() == 1);
+}
+
+#[test]
+fn bad_krs_values_are_refused_with_what_and_where() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.thicket.json");
+    let cases = [
+        // zero-length mirror normal
+        (
+            r#"{"kernels":[{"kind":"Empty"},{"kind":"Sphere"}],
+                "mirrors":[{"normal":[0,0,0],"offset":1}]}"#,
+            &["Stump", "mirror 0", "zero length"][..],
+        ),
+        // negative radius
+        (
+            r#"{"kernels":[{"kind":"Capsule","radius":-0.1}]}"#,
+            &["Stump", "kernel 0", "radius", "-0.1"][..],
+        ),
+        // kernel count does not match the mirrors
+        (
+            r#"{"kernels":[{"kind":"Sphere"}],"mirrors":[{"normal":[1,0,0]}]}"#,
+            &["Stump", "1 kernels and 1 mirrors"][..],
+        ),
+        // torus sweep out of range
+        (
+            r#"{"kernels":[{"kind":"ToroidalCapsule","sweep_radians":7.5}]}"#,
+            &["Stump", "sweep_radians"][..],
+        ),
+        // zero scale of the KRS's own transform
+        (
+            r#"{"kernels":[{"kind":"Sphere"}],"world_from_object":{"scale":0}}"#,
+            &["Stump", "scale"][..],
+        ),
+        // negative distortion amplitude
+        (
+            r#"{"kernels":[{"kind":"Sphere"}],"distortion":{"amplitude":-1}}"#,
+            &["Stump", "distortion", "amplitude"][..],
+        ),
+        // unknown kernel kind: a JSON error with line and column
+        (
+            r#"{"kernels":[{"kind":"Teapot"}]}"#,
+            &["bad.thicket.json", "Teapot"][..],
+        ),
+    ];
+    for (krs, expect) in cases {
+        let text = format!(
+            r#"{{"objects":[{{"id":1,"name":"Stump","kind":{{"type":"Krs",{}}}]}}"#,
+            &krs[1..]
+        );
+        fs::write(&path, text).unwrap();
+        let e = load(&path).unwrap_err().to_string();
+        for word in expect {
+            assert!(e.contains(word), "{word:?} missing from: {e}");
+        }
+    }
+    // A non-uniform object scale is refused (distance estimates need a similarity), on load
+    // and on save.
+    let mut doc = Document::default();
+    doc.add("Tree", ObjectKind::Krs(crate::krs::presets::tree()));
+    doc.objects[0].transform.scale = Vec3::new(1.0, 2.0, 1.0);
+    let e = save(&doc, &path).unwrap_err().to_string();
+    assert!(e.contains("Tree") && e.contains("uniform"), "{e}");
 }
 
 // ---------------------------------------------------------------- skinned voxel models
@@ -395,7 +543,7 @@ fn skinned_doc() -> Document {
 fn rig_of(doc: &Document) -> &crate::skin::Rig {
     match &doc.objects[0].kind {
         ObjectKind::Voxels(v) => v.rig.as_ref().expect("rig"),
-        ObjectKind::Mesh(_) => panic!("not voxels"),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
     }
 }
 

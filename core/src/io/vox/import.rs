@@ -55,7 +55,7 @@ impl VoxScene {
             .iter()
             .map(|o| match &o.kind {
                 ObjectKind::Voxels(v) => v.svo.leaf_count(),
-                ObjectKind::Mesh(_) => 0,
+                ObjectKind::Mesh(_) | ObjectKind::Krs(_) => 0,
             })
             .sum()
     }

@@ -42,7 +42,7 @@ fn world_set(objects: &[Object]) -> Vec<([i64; 3], [u8; 4])> {
 fn voxels_of(o: &Object) -> &VoxelModel {
     match &o.kind {
         ObjectKind::Voxels(v) => v,
-        ObjectKind::Mesh(_) => panic!("{} is not a voxel object", o.name),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("{} is not a voxel object", o.name),
     }
 }
 

@@ -1,0 +1,293 @@
+//! `thicket bench`: renders a project N times with the CPU reference renderer or the GPU
+//! renderer and reports frame times, frames per second, per-pass milliseconds (CPU stage
+//! timers; GPU timestamp queries when the adapter has them) and the traversal counters.
+//!
+//! Both renderers are timed the same way: one warm-up frame, then `frames` frames, each timed
+//! on the CPU clock from the call to its return (the GPU frame waits for its counters, so the
+//! time includes the GPU work). The GPU renders with the scene uploaded once, as the editor
+//! does between edits.
+
+use std::time::Instant;
+
+use serde::Serialize;
+use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::scene::{Document, OrbitCamera};
+
+use crate::gpu::{GpuContext, GpuError, RenderTarget, Renderer};
+
+/// Counters for one octree level (view traversal).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct BenchLevel {
+    /// Nodes visited.
+    pub visited: u64,
+    /// Nodes split.
+    pub split: u64,
+    /// Nodes splatted.
+    pub splatted: u64,
+    /// Nodes outside the frustum.
+    pub frustum_culled: u64,
+    /// Nodes behind the hierarchical depth.
+    pub occlusion_culled: u64,
+}
+
+/// One bench run.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct BenchReport {
+    /// "cpu" or "gpu".
+    pub renderer: &'static str,
+    /// The GPU adapter and driver, or the CPU thread count.
+    pub device: String,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Timed frames.
+    pub frames: u32,
+    /// Mean wall milliseconds per frame.
+    pub mean_ms: f64,
+    /// Median wall milliseconds per frame.
+    pub median_ms: f64,
+    /// Fastest frame.
+    pub min_ms: f64,
+    /// 1000 / mean.
+    pub fps: f64,
+    /// Mean milliseconds per pass (stage timers on the CPU, timestamps on the GPU).
+    pub pass_ms: Vec<(String, f64)>,
+    /// Whether `pass_ms` comes from GPU timestamp queries.
+    pub gpu_timestamps: bool,
+    /// View traversal counters of the last frame, per level.
+    pub levels: Vec<BenchLevel>,
+    /// Splats drawn for the view.
+    pub splats: u64,
+    /// Triangles submitted.
+    pub triangles: u64,
+    /// The GPU splat path ("Key64" or "TwoPass32"); empty for the CPU.
+    pub atomic_path: String,
+}
+
+fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
+    times_ms.sort_by(f64::total_cmp);
+    let n = times_ms.len().max(1) as f64;
+    let mean = times_ms.iter().sum::<f64>() / n;
+    let median = times_ms.get(times_ms.len() / 2).copied().unwrap_or(0.0);
+    let min = times_ms.first().copied().unwrap_or(0.0);
+    (mean, median, min)
+}
+
+/// Times `frames` CPU frames (after one warm-up).
+///
+/// # Errors
+/// When the document cannot be rendered.
+pub fn bench_cpu(
+    doc: &Document,
+    camera: OrbitCamera,
+    width: u32,
+    height: u32,
+    quality: &Quality,
+    frames: u32,
+) -> anyhow::Result<BenchReport> {
+    let req = RenderRequest {
+        width,
+        height,
+        camera: Some(camera),
+        quality: quality.clone(),
+    };
+    render_document(doc, &req)?;
+    let mut times = Vec::with_capacity(frames as usize);
+    let mut stage = [0.0f64; 6];
+    let mut last = None;
+    for _ in 0..frames.max(1) {
+        let t0 = Instant::now();
+        let (_, _, stats) = render_document(doc, &req)?;
+        times.push(t0.elapsed().as_secs_f64() * 1e3);
+        let t = &stats.times;
+        for (acc, v) in stage.iter_mut().zip([
+            t.shadow_ms,
+            t.triangles_ms,
+            t.traversal_ms,
+            t.splat_ms,
+            t.resolve_ms,
+            t.shade_ms,
+        ]) {
+            *acc += v;
+        }
+        last = Some(stats);
+    }
+    let n = times.len() as f64;
+    let (mean, median, min) = summarise(&mut times);
+    let stats = last.unwrap_or_default();
+    let names = [
+        "shadow",
+        "triangles",
+        "traversal",
+        "splat",
+        "resolve",
+        "shade",
+    ];
+    Ok(BenchReport {
+        renderer: "cpu",
+        device: format!("CPU, {} threads (rayon)", rayon_threads()),
+        width,
+        height,
+        frames: times.len() as u32,
+        mean_ms: mean,
+        median_ms: median,
+        min_ms: min,
+        fps: if mean > 0.0 { 1e3 / mean } else { 0.0 },
+        pass_ms: names
+            .iter()
+            .zip(stage)
+            .map(|(n_, v)| ((*n_).to_owned(), v / n))
+            .collect(),
+        gpu_timestamps: false,
+        levels: stats
+            .levels
+            .iter()
+            .map(|l| BenchLevel {
+                visited: l.visited,
+                split: l.split,
+                splatted: l.splatted,
+                frustum_culled: l.frustum_culled,
+                occlusion_culled: l.occlusion_culled,
+            })
+            .collect(),
+        splats: stats.splats(),
+        triangles: stats.triangles,
+        atomic_path: String::new(),
+    })
+}
+
+fn rayon_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
+}
+
+/// Times `frames` GPU frames on a headless device (after one warm-up that uploads the scene).
+///
+/// # Errors
+/// [`GpuError`] when there is no adapter or the frame fails.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the bench's inputs, as for bench_cpu plus the splat path"
+)]
+pub fn bench_gpu(
+    doc: &Document,
+    camera: OrbitCamera,
+    width: u32,
+    height: u32,
+    quality: &Quality,
+    frames: u32,
+    force_two_pass: bool,
+) -> Result<BenchReport, GpuError> {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+    let mut r = Renderer::new(&ctx.device, &ctx.queue)?;
+    r.set_force_two_pass(force_two_pass);
+    let target = RenderTarget::new(&ctx.device, width, height)?;
+    r.render(&ctx.device, &ctx.queue, doc, &camera, quality, &target)?;
+    let mut times = Vec::with_capacity(frames as usize);
+    let mut pass: Vec<(String, f64)> = Vec::new();
+    let mut last = None;
+    for _ in 0..frames.max(1) {
+        let t0 = Instant::now();
+        let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &camera, quality, &target)?;
+        times.push(t0.elapsed().as_secs_f64() * 1e3);
+        for (name, ms) in &stats.pass_ms {
+            match pass.iter_mut().find(|(n, _)| n == name) {
+                Some((_, acc)) => *acc += ms,
+                None => pass.push(((*name).to_owned(), *ms)),
+            }
+        }
+        last = Some(stats);
+    }
+    if let Some(e) = ctx.errors.take() {
+        return Err(e);
+    }
+    let n = times.len() as f64;
+    for (_, v) in &mut pass {
+        *v /= n;
+    }
+    let (mean, median, min) = summarise(&mut times);
+    let stats = last.unwrap_or_default();
+    Ok(BenchReport {
+        renderer: "gpu",
+        device: ctx.describe(),
+        width,
+        height,
+        frames: times.len() as u32,
+        mean_ms: mean,
+        median_ms: median,
+        min_ms: min,
+        fps: if mean > 0.0 { 1e3 / mean } else { 0.0 },
+        pass_ms: pass,
+        gpu_timestamps: stats.gpu_timestamps,
+        levels: stats
+            .levels
+            .iter()
+            .map(|l| BenchLevel {
+                visited: l.visited,
+                split: l.split,
+                splatted: l.splatted,
+                frustum_culled: l.frustum_culled,
+                occlusion_culled: l.occlusion_culled,
+            })
+            .collect(),
+        splats: stats.splats,
+        triangles: stats.triangles,
+        atomic_path: format!("{:?}", stats.atomic_path),
+    })
+}
+
+/// The text report.
+#[must_use]
+pub fn format_report(project: &str, r: &BenchReport) -> String {
+    use std::fmt::Write as _;
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "{project}: {} renderer on {}, {}x{}, {} frames",
+        r.renderer, r.device, r.width, r.height, r.frames
+    );
+    let _ = writeln!(
+        s,
+        "  frame: mean {:.2} ms, median {:.2} ms, min {:.2} ms, {:.1} fps",
+        r.mean_ms, r.median_ms, r.min_ms, r.fps
+    );
+    if !r.atomic_path.is_empty() {
+        let _ = writeln!(s, "  splat path: {}", r.atomic_path);
+    }
+    let source = match (r.renderer, r.gpu_timestamps) {
+        ("gpu", true) => "GPU timestamp queries",
+        ("gpu", false) => "not available: the adapter has no timestamp queries",
+        _ => "CPU stage timers",
+    };
+    let _ = writeln!(s, "  passes, mean ms ({source}):");
+    for (name, ms) in &r.pass_ms {
+        let _ = writeln!(s, "    {name:<14} {ms:>9.3}");
+    }
+    let _ = writeln!(
+        s,
+        "  splats {}, triangles {}; view traversal per level (visited / split / splatted / frustum culled / occluded):",
+        r.splats, r.triangles
+    );
+    for (i, l) in r.levels.iter().enumerate() {
+        let _ = writeln!(
+            s,
+            "    {i:>2}: {:>9} {:>9} {:>9} {:>9} {:>9}",
+            l.visited, l.split, l.splatted, l.frustum_culled, l.occlusion_culled
+        );
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn summary_of_frame_times() {
+        let mut t = vec![3.0, 1.0, 2.0, 10.0];
+        let (mean, median, min) = summarise(&mut t);
+        assert!((mean - 4.0).abs() < 1e-12);
+        assert!((median - 3.0).abs() < 1e-12);
+        assert!((min - 1.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,105 @@
+//! Autosave to a recovery project beside the user's files (never over them), and finding it on
+//! the next start.
+//!
+//! The recovery project is written with the same atomic save as File → Save (temporary
+//! sibling, sync, rename), so whatever moment the process dies, the previous recovery file
+//! stays loadable. A small `recovery.meta.json` written after it says which file the work
+//! belonged to; it is informative only: a missing or stale one never hides the recovery
+//! project itself.
+
+use std::path::{Path, PathBuf};
+use std::time::{SystemTime, UNIX_EPOCH};
+
+use serde::{Deserialize, Serialize};
+use thicket_core::scene::Document;
+
+/// Default autosave interval.
+pub const DEFAULT_AUTOSAVE_SECS: u32 = 120;
+
+/// File name of the recovery project inside the recovery folder.
+pub const RECOVERY_FILE: &str = "recovery.thicket.json";
+const META_FILE: &str = "recovery.meta.json";
+
+/// What the recovery folder holds.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default)]
+pub struct RecoveryMeta {
+    /// The project the unsaved work belonged to (`None`: untitled).
+    pub original: Option<PathBuf>,
+    /// Seconds since the Unix epoch when it was written.
+    pub saved_unix_secs: u64,
+}
+
+/// A recovery project found on start-up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Recovery {
+    /// The recovery project file.
+    pub path: PathBuf,
+    /// What the meta file says (default when it is missing or unreadable).
+    pub meta: RecoveryMeta,
+}
+
+/// The recovery folder: `$THICKET_RECOVERY_DIR`, else `$XDG_DATA_HOME/thicket/recovery`, else
+/// `~/.local/share/thicket/recovery`, else a folder in the temporary directory.
+#[must_use]
+pub fn recovery_dir() -> PathBuf {
+    if let Some(d) = std::env::var_os("THICKET_RECOVERY_DIR") {
+        return PathBuf::from(d);
+    }
+    if let Some(d) = std::env::var_os("XDG_DATA_HOME").filter(|d| !d.is_empty()) {
+        return PathBuf::from(d).join("thicket").join("recovery");
+    }
+    if let Some(h) = std::env::var_os("HOME").filter(|d| !d.is_empty()) {
+        return PathBuf::from(h).join(".local/share/thicket/recovery");
+    }
+    std::env::temp_dir().join("thicket-recovery")
+}
+
+/// Writes `doc` as the recovery project in `dir` (atomically), then the meta file.
+///
+/// # Errors
+/// The folder cannot be created or the save fails (the previous recovery file is kept).
+pub fn write_recovery(dir: &Path, doc: &Document, original: Option<&Path>) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| anyhow::anyhow!("cannot create the recovery folder {}: {e}", dir.display()))?;
+    crate::files::save_project(doc, &dir.join(RECOVERY_FILE))?;
+    let meta = RecoveryMeta {
+        original: original.map(Path::to_path_buf),
+        saved_unix_secs: SystemTime::now()
+            .duration_since(UNIX_EPOCH)
+            .map_or(0, |d| d.as_secs()),
+    };
+    let meta_path = dir.join(META_FILE);
+    let tmp = dir.join(format!("{META_FILE}.tmp"));
+    let text = serde_json::to_vec_pretty(&meta)?;
+    std::fs::write(&tmp, text)
+        .and_then(|()| std::fs::rename(&tmp, &meta_path))
+        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", meta_path.display()))?;
+    Ok(())
+}
+
+/// The recovery project in `dir`, if there is one.
+#[must_use]
+pub fn find_recovery(dir: &Path) -> Option<Recovery> {
+    let path = dir.join(RECOVERY_FILE);
+    if !path.is_file() {
+        return None;
+    }
+    let meta = std::fs::read(dir.join(META_FILE))
+        .ok()
+        .and_then(|b| serde_json::from_slice(&b).ok())
+        .unwrap_or_default();
+    Some(Recovery { path, meta })
+}
+
+/// Removes the recovery project (after a save, a clean exit, or when the user discards it).
+pub fn discard_recovery(dir: &Path) {
+    for name in [
+        RECOVERY_FILE.to_owned(),
+        RECOVERY_FILE.replace(".json", ".bin"),
+        format!("{}.prev", RECOVERY_FILE.replace(".json", ".bin")),
+        META_FILE.to_owned(),
+    ] {
+        let _ = std::fs::remove_file(dir.join(name));
+    }
+}

@@ -1,0 +1,151 @@
+//! Picking voxels with the octree ray cast and sculpting them with brushes: one undo step per
+//! stroke, holding only the voxels the stroke touched.
+
+use glam::{IVec3, Mat4, UVec3, Vec3};
+use thicket_core::scene::ObjectKind;
+use thicket_core::sculpt::{Brush, BrushOp, apply_dab};
+
+use super::{CommandError, Edit, Editor, MergeKey};
+
+/// What a ray hit.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxelPick {
+    /// The voxel object.
+    pub object: u64,
+    /// The solid voxel hit.
+    pub voxel: UVec3,
+    /// Outward normal of the face the ray entered through (unit axis).
+    pub normal: IVec3,
+    /// The hit point in world space.
+    pub point_in_world: Vec3,
+    /// Ray parameter of the hit (world units when the ray direction has length 1).
+    pub t: f32,
+    /// `voxel_from_world` of the object (for placing the brush).
+    pub voxel_from_world: Mat4,
+    /// World size of one voxel along its largest axis (for drawing the brush).
+    pub voxel_size_world: f32,
+}
+
+impl VoxelPick {
+    /// Where a dab of `op` goes, in voxel coordinates: for Add the empty neighbour in front of
+    /// the face hit (so the surface grows toward the viewer), otherwise the voxel hit.
+    #[must_use]
+    pub fn dab_center(&self, op: BrushOp) -> Vec3 {
+        let base = self.voxel.as_vec3() + 0.5;
+        if op == BrushOp::Add {
+            base + self.normal.as_vec3()
+        } else {
+            base
+        }
+    }
+}
+
+impl Editor {
+    /// Casts a world-space ray (unit direction) against every visible voxel object and returns
+    /// the nearest solid voxel.
+    #[must_use]
+    pub fn pick_voxel(&self, origin_in_world: Vec3, dir_in_world: Vec3) -> Option<VoxelPick> {
+        let dir = dir_in_world.try_normalize()?;
+        let mut best: Option<VoxelPick> = None;
+        for o in self.doc.objects.iter().filter(|o| o.visible) {
+            let ObjectKind::Voxels(v) = &o.kind else {
+                continue;
+            };
+            let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
+            let voxel_from_world = world_from_voxel.inverse();
+            if !voxel_from_world.is_finite() {
+                continue;
+            }
+            // Same parameter t in both spaces: the direction is transformed, not normalised.
+            let origin_v = voxel_from_world.transform_point3(origin_in_world);
+            let dir_v = voxel_from_world.transform_vector3(dir);
+            let max_t = best.map_or(f64::INFINITY, |b| f64::from(b.t));
+            let Some(hit) = v.svo.raycast(origin_v.as_dvec3(), dir_v.as_dvec3(), max_t) else {
+                continue;
+            };
+            let t = hit.t as f32;
+            if best.is_none_or(|b| t < b.t) {
+                let size = world_from_voxel
+                    .transform_vector3(Vec3::ONE)
+                    .abs()
+                    .max_element()
+                    .max(1e-9);
+                best = Some(VoxelPick {
+                    object: o.id,
+                    voxel: hit.coord,
+                    normal: hit.normal,
+                    point_in_world: origin_in_world + dir * t,
+                    t,
+                    voxel_from_world,
+                    voxel_size_world: size,
+                });
+            }
+        }
+        best
+    }
+
+    /// Starts a sculpt stroke: the next dab begins a new undo step.
+    pub fn begin_stroke(&mut self) {
+        self.history.seal();
+    }
+
+    /// Applies one dab of `brush` to voxel object `id` at `center` (voxel coordinates), with
+    /// symmetric copies mirrored across `symmetry_center`. The dabs of one stroke (until
+    /// [`Editor::end_interaction`] or [`Editor::begin_stroke`]) are one undo step. Returns the
+    /// inclusive box of changed voxels.
+    ///
+    /// # Errors
+    /// Unknown id, an object that is not a voxel model, or a brush setting out of range.
+    pub fn sculpt_dab(
+        &mut self,
+        id: u64,
+        brush: &Brush,
+        center: Vec3,
+        symmetry_center: Vec3,
+    ) -> Result<Option<(UVec3, UVec3)>, CommandError> {
+        let index = self.index_of(id)?;
+        let ObjectKind::Voxels(v) = &mut self.doc.objects[index].kind else {
+            return Err(CommandError::Invalid(format!(
+                "{:?} is not a voxel model: only voxel models can be sculpted",
+                self.doc.objects[index].name
+            )));
+        };
+        let dab = apply_dab(&mut v.svo, brush, center, symmetry_center)
+            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        if dab.delta.is_empty() {
+            return Ok(None);
+        }
+        self.history.push(
+            Edit::Voxels {
+                id,
+                delta: dab.delta,
+            },
+            Some(MergeKey::Stroke(id)),
+        );
+        self.revision += 1;
+        Ok(dab.changed)
+    }
+
+    /// The centre of a voxel object's solid voxels in voxel coordinates (the symmetry centre
+    /// of a stroke), or `None` for an empty or non-voxel object.
+    #[must_use]
+    pub fn voxel_center(&self, id: u64) -> Option<Vec3> {
+        let o = self.object(id)?;
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return None;
+        };
+        let (lo, hi) = v.svo.bounds()?;
+        Some((lo.as_vec3() + (hi + 1).as_vec3()) * 0.5)
+    }
+}
+
+/// A world-space ray through a point of the view: `ndc` in [-1, 1]² (y up).
+#[must_use]
+pub fn ray_through(clip_from_world: Mat4, ndc: glam::Vec2) -> Option<(Vec3, Vec3)> {
+    let world_from_clip = clip_from_world.inverse();
+    // wgpu depth range 0..1: near plane at 0, a point at depth 0.5 is still in front.
+    let near = world_from_clip.project_point3(ndc.extend(0.0));
+    let far = world_from_clip.project_point3(ndc.extend(0.5));
+    let dir = (far - near).try_normalize()?;
+    near.is_finite().then_some((near, dir))
+}

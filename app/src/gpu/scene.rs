@@ -1,0 +1,592 @@
+//! The scene as the GPU holds it: every visible voxel object's node pools packed into one inner
+//! pool and one attribute pool (each object with spare room so edits that grow its pools stay
+//! in place), and world-space triangles. Uploaded once; afterwards an edit uploads only the
+//! node ranges it changed ([`SceneCache::update_voxel_region`]), a transform change only the
+//! small per-object data.
+
+use std::ops::Range;
+
+use glam::{Mat3, Mat4, UVec3, Vec3, Vec4};
+use thicket_core::scene::{Document, ObjectKind};
+use thicket_core::svo::Svo;
+use wgpu::util::DeviceExt;
+
+use super::GpuError;
+use super::gpu_data::{MESH_ID_FLAG, ObjectInfo, QUEUE_ENTRY_BYTES, TRI_VEC4S};
+
+/// What an upload wrote.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct UploadStats {
+    /// The whole scene was packed and uploaded (first frame, objects added or removed, a pool
+    /// outgrew its spare room).
+    pub full: bool,
+    /// Bytes written to GPU buffers.
+    pub bytes: u64,
+    /// Separate buffer writes.
+    pub writes: u32,
+}
+
+/// A voxel object's place in the packed pools.
+pub(super) struct VoxelEntry {
+    pub(super) object_id: u64,
+    pub(super) depth: u8,
+    /// First slot of its inner pool in the scene's inner pool.
+    pub(super) inner_base: u32,
+    /// Slots reserved for its inner pool.
+    inner_cap: u32,
+    /// Slots of its inner pool at the last upload.
+    inner_len: u32,
+    /// Attribute index of its inner node 0 (`attr_inner_base + inner_cap` is leaf 0).
+    pub(super) attr_inner_base: u32,
+    pub(super) attr_leaf_base: u32,
+    leaf_cap: u32,
+    leaf_len: u32,
+    /// Live nodes (inner + leaves): an upper bound on any level's queue.
+    live_nodes: u64,
+}
+
+/// A mesh object's triangles in the triangle buffer.
+struct MeshEntry {
+    object_id: u64,
+    world_from_object: Mat4,
+}
+
+/// The visible objects, in document order, as (id, is voxel).
+fn layout_of(doc: &Document) -> Vec<(u64, bool)> {
+    doc.objects
+        .iter()
+        .filter(|o| o.visible)
+        .filter_map(|o| match &o.kind {
+            ObjectKind::Voxels(v) if !v.svo.is_empty() => Some((o.id, true)),
+            ObjectKind::Voxels(_) => None,
+            ObjectKind::Mesh(_) => Some((o.id, false)),
+            // KRS objects are sphere-traced by the CPU reference renderer only; the GPU
+            // renderer has no KRS pass yet, so they are left out of its frame.
+            ObjectKind::Krs(_) => None,
+        })
+        .collect()
+}
+
+/// Slots reserved for an object's pool: its length plus a quarter, so the edits of a sculpting
+/// session (which add nodes and, moving child blocks, leave freed blocks behind) fill them in
+/// place; an edit beyond that re-uploads the scene.
+fn with_room(len: usize) -> u32 {
+    (len + len / 4 + 256).min(u32::MAX as usize) as u32
+}
+
+fn pack_attr(color: [u8; 4], normal: u16, obj: u32) -> [u32; 2] {
+    [u32::from_le_bytes(color), u32::from(normal) | (obj << 16)]
+}
+
+/// The uploaded scene: layout, CPU copies of what the incremental paths need, GPU buffers.
+pub(super) struct SceneCache {
+    layout: Vec<(u64, bool)>,
+    pub(super) voxels: Vec<VoxelEntry>,
+    meshes: Vec<MeshEntry>,
+    pub(super) inner_buf: wgpu::Buffer,
+    pub(super) attr_buf: wgpu::Buffer,
+    pub(super) tri_buf: wgpu::Buffer,
+    pub(super) caster_tris: u32,
+    pub(super) tri_count: u32,
+    /// Entries each traversal queue needs.
+    pub(super) queue_capacity: u64,
+}
+
+/// Per-frame data derived from the document's current transforms.
+pub(super) struct FrameObjects {
+    /// `world_from_voxel` per entry of [`SceneCache::voxels`].
+    pub(super) world_from_voxel: Vec<Mat4>,
+    pub(super) objects: Vec<ObjectInfo>,
+    /// World bounds of everything drawn (for fitting the shadow map).
+    pub(super) bounds: Option<(Vec3, Vec3)>,
+}
+
+fn grow(b: &mut Option<(Vec3, Vec3)>, lo: Vec3, hi: Vec3) {
+    *b = Some(b.map_or((lo, hi), |(a, c)| (a.min(lo), c.max(hi))));
+}
+
+/// World AABB of a voxel object from its nodes a few levels down (the CPU reference's
+/// `voxel_bounds`).
+fn voxel_world_bounds(svo: &Svo, world_from_voxel: Mat4, out: &mut Option<(Vec3, Vec3)>) {
+    let stop = svo.depth().min(5);
+    let lin = Mat3::from_mat4(world_from_voxel);
+    let mut stack = vec![svo.root()];
+    while let Some(n) = stack.pop() {
+        if n.level < stop {
+            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+            continue;
+        }
+        let half = 0.5 * svo.node_size(n.level) as f32;
+        let c = world_from_voxel.transform_point3(n.origin.as_vec3() + Vec3::splat(half));
+        let a = lin * half;
+        let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+        grow(out, c - he, c + he);
+    }
+}
+
+/// Triangles of the visible meshes in world space, casters first: (records, caster count,
+/// entries).
+fn pack_triangles(doc: &Document) -> (Vec<[f32; 4]>, u32, Vec<MeshEntry>) {
+    let mut casters: Vec<[f32; 4]> = Vec::new();
+    let mut others: Vec<[f32; 4]> = Vec::new();
+    let mut entries = Vec::new();
+    for o in doc.objects.iter().filter(|o| o.visible) {
+        let ObjectKind::Mesh(m) = &o.kind else {
+            continue;
+        };
+        let world_from_object = o.transform.matrix();
+        entries.push(MeshEntry {
+            object_id: o.id,
+            world_from_object,
+        });
+        let normal_m = Mat3::from_mat4(world_from_object).inverse().transpose();
+        let out = if m.casts_shadows {
+            &mut casters
+        } else {
+            &mut others
+        };
+        for part in &m.model.parts {
+            let base = m
+                .model
+                .materials
+                .get(part.material)
+                .map_or(Vec4::ONE, |mat| mat.base_color);
+            for t in 0..part.triangle_count() {
+                let idx = part.triangle(t);
+                let mut rec = [[0.0f32; 4]; TRI_VEC4S];
+                for (k, &i) in idx.iter().enumerate() {
+                    let pw = world_from_object
+                        .transform_point3(part.positions.get(i).copied().unwrap_or_default());
+                    rec[k] = pw.extend(1.0).to_array();
+                    rec[3 + k] = match part.normals.get(i) {
+                        Some(n) => (normal_m * *n).extend(1.0).to_array(),
+                        None => [0.0; 4],
+                    };
+                    let vc = part.colors.get(i).copied().unwrap_or(Vec4::ONE);
+                    rec[6 + k] = (base * vc).to_array();
+                }
+                out.extend_from_slice(&rec);
+            }
+        }
+    }
+    let caster_tris = (casters.len() / TRI_VEC4S) as u32;
+    casters.extend(others);
+    (casters, caster_tris, entries)
+}
+
+fn check_binding(what: &'static str, bytes: u64, limit: u64) -> Result<(), GpuError> {
+    if bytes > limit {
+        return Err(GpuError::TooLarge { what, bytes, limit });
+    }
+    Ok(())
+}
+
+/// A storage buffer holding `data` (at least 256 bytes, so empty scenes bind).
+fn storage_init(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+    let mut contents = data.to_vec();
+    contents.resize(contents.len().max(256).next_multiple_of(16), 0);
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &contents,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+    })
+}
+
+/// The sorted, merged index ranges an edit of the box `lo..=hi` can have changed: every inner
+/// node overlapping the box and the child block of each (children of a node are stored
+/// together, and an edit that changes a node's child set moves its block, possibly into a
+/// reused block anywhere in the pool — but always one its visited parent points to).
+fn region_ranges(svo: &Svo, lo: UVec3, hi: UVec3) -> (Vec<Range<u32>>, Vec<Range<u32>>) {
+    let firsts = svo.inner_first_children();
+    let masks = svo.inner_masks();
+    let (mut inner, mut leaf) = (Vec::new(), Vec::new());
+    if masks.is_empty() {
+        return (inner, leaf);
+    }
+    let mut stack = vec![svo.root()];
+    while let Some(n) = stack.pop() {
+        let i = n.index as usize;
+        inner.push(n.index..n.index + 1);
+        let mask = masks.get(i).copied().unwrap_or(0);
+        let first = firsts.get(i).copied().unwrap_or(0);
+        let block = first..first + mask.count_ones();
+        if mask == 0 {
+            continue;
+        }
+        if n.level + 1 == svo.depth() {
+            leaf.push(block);
+            continue;
+        }
+        inner.push(block);
+        for k in 0..8 {
+            if let Some(c) = svo.child(&n, k) {
+                let size = svo.node_size(c.level);
+                let c_hi = c.origin + UVec3::splat(size - 1);
+                if c.origin.cmple(hi).all() && c_hi.cmpge(lo).all() {
+                    stack.push(c);
+                }
+            }
+        }
+    }
+    (merge_ranges(inner), merge_ranges(leaf))
+}
+
+/// Sorts ranges and merges those that overlap or lie within a few slots of each other (one
+/// larger write is cheaper than many tiny ones).
+fn merge_ranges(mut v: Vec<Range<u32>>) -> Vec<Range<u32>> {
+    const GAP: u32 = 16;
+    v.sort_by_key(|r| r.start);
+    let mut out: Vec<Range<u32>> = Vec::with_capacity(v.len());
+    for r in v.into_iter().filter(|r| !r.is_empty()) {
+        match out.last_mut() {
+            Some(last) if r.start <= last.end.saturating_add(GAP) => {
+                last.end = last.end.max(r.end);
+            }
+            _ => out.push(r),
+        }
+    }
+    out
+}
+
+impl SceneCache {
+    /// Packs and uploads every visible object.
+    pub(super) fn build(
+        device: &wgpu::Device,
+        doc: &Document,
+        limits: &wgpu::Limits,
+    ) -> Result<Self, GpuError> {
+        let mut inner: Vec<[u32; 2]> = Vec::new();
+        let mut attrs: Vec<[u32; 2]> = Vec::new();
+        let mut voxels = Vec::new();
+        let mut queue_capacity = 1u64;
+        for o in doc.objects.iter().filter(|o| o.visible) {
+            let ObjectKind::Voxels(v) = &o.kind else {
+                continue;
+            };
+            let svo = &v.svo;
+            if svo.is_empty() {
+                continue;
+            }
+            let obj = u32::try_from(voxels.len())
+                .ok()
+                .filter(|&i| i <= 0xffff)
+                .ok_or(GpuError::TooLarge {
+                    what: "voxel object count",
+                    bytes: voxels.len() as u64,
+                    limit: 0xffff,
+                })?;
+            let inner_len = svo.inner_masks().len();
+            let leaf_len = svo.leaf_colors().len();
+            let (inner_cap, leaf_cap) = (with_room(inner_len), with_room(leaf_len));
+            let inner_base = inner.len();
+            inner.extend(
+                svo.inner_first_children()
+                    .iter()
+                    .zip(svo.inner_masks())
+                    .map(|(&f, &m)| [f, u32::from(m)]),
+            );
+            inner.resize(inner_base + inner_cap as usize, [0, 0]);
+            let attr_inner_base = attrs.len();
+            attrs.extend(
+                svo.inner_colors()
+                    .iter()
+                    .zip(svo.inner_normals())
+                    .map(|(&c, &n)| pack_attr(c, n, obj)),
+            );
+            attrs.resize(attr_inner_base + inner_cap as usize, [0, 0]);
+            let attr_leaf_base = attrs.len();
+            attrs.extend(
+                svo.leaf_colors()
+                    .iter()
+                    .zip(svo.leaf_normals())
+                    .map(|(&c, &n)| pack_attr(c, n, obj)),
+            );
+            attrs.resize(attr_leaf_base + leaf_cap as usize, [0, 0]);
+            if attrs.len() as u64 >= u64::from(MESH_ID_FLAG) || inner.len() > u32::MAX as usize {
+                return Err(GpuError::TooLarge {
+                    what: "voxel node ids",
+                    bytes: attrs.len() as u64,
+                    limit: u64::from(MESH_ID_FLAG),
+                });
+            }
+            let live_nodes = svo.inner_count() + svo.leaf_count();
+            queue_capacity = queue_capacity.max(live_nodes);
+            voxels.push(VoxelEntry {
+                object_id: o.id,
+                depth: svo.depth(),
+                inner_base: inner_base as u32,
+                inner_cap,
+                inner_len: inner_len as u32,
+                attr_inner_base: attr_inner_base as u32,
+                attr_leaf_base: attr_leaf_base as u32,
+                leaf_cap,
+                leaf_len: leaf_len as u32,
+                live_nodes,
+            });
+        }
+        let (tris, caster_tris, meshes) = pack_triangles(doc);
+        let limit = limits.max_storage_buffer_binding_size;
+        check_binding("inner node pool", inner.len() as u64 * 8, limit)?;
+        check_binding("attribute pool", attrs.len() as u64 * 8, limit)?;
+        check_binding("triangle buffer", tris.len() as u64 * 16, limit)?;
+        Ok(Self {
+            layout: layout_of(doc),
+            voxels,
+            meshes,
+            inner_buf: storage_init(device, "inner nodes", bytemuck::cast_slice(&inner)),
+            attr_buf: storage_init(device, "attributes", bytemuck::cast_slice(&attrs)),
+            tri_buf: storage_init(device, "triangles", bytemuck::cast_slice(&tris)),
+            caster_tris,
+            tri_count: (tris.len() / TRI_VEC4S) as u32,
+            queue_capacity: queue_capacity
+                .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX))),
+        })
+    }
+
+    /// Bytes the scene's buffers hold.
+    pub(super) fn bytes(&self) -> u64 {
+        self.inner_buf.size() + self.attr_buf.size() + self.tri_buf.size()
+    }
+
+    /// Whether the document still has the uploaded layout: the same visible objects in the
+    /// same order, each voxel pool within its reserved room and at its uploaded depth.
+    fn fits(&self, doc: &Document) -> bool {
+        if layout_of(doc) != self.layout {
+            return false;
+        }
+        self.voxels.iter().all(|e| {
+            voxels_of(doc, e.object_id).is_some_and(|svo| {
+                svo.depth() == e.depth
+                    && svo.inner_masks().len() <= e.inner_cap as usize
+                    && svo.leaf_colors().len() <= e.leaf_cap as usize
+            })
+        })
+    }
+
+    /// Makes the GPU copy follow `doc` where that can be seen without an edit region: mesh
+    /// transforms (re-packs the triangles) and voxel pools whose length changed (re-uploads
+    /// that object). Returns `None` when the layout changed and a full upload is needed.
+    pub(super) fn refresh(&mut self, queue: &wgpu::Queue, doc: &Document) -> Option<UploadStats> {
+        if !self.fits(doc) {
+            return None;
+        }
+        let mut stats = UploadStats::default();
+        let meshes_moved = self.meshes.iter().any(|m| {
+            object_of(doc, m.object_id).is_none_or(|o| o.transform.matrix() != m.world_from_object)
+        });
+        if meshes_moved {
+            let (tris, caster_tris, entries) = pack_triangles(doc);
+            if tris.len() as u64 * 16 > self.tri_buf.size() {
+                return None;
+            }
+            queue.write_buffer(&self.tri_buf, 0, bytemuck::cast_slice(&tris));
+            stats.bytes += tris.len() as u64 * 16;
+            stats.writes += 1;
+            self.caster_tris = caster_tris;
+            self.meshes = entries;
+        }
+        for i in 0..self.voxels.len() {
+            let Some(svo) = voxels_of(doc, self.voxels[i].object_id) else {
+                return None;
+            };
+            let e = &self.voxels[i];
+            if svo.inner_masks().len() as u32 != e.inner_len
+                || svo.leaf_colors().len() as u32 != e.leaf_len
+            {
+                let all_inner = [0..svo.inner_masks().len() as u32];
+                let all_leaf = [0..svo.leaf_colors().len() as u32];
+                let s = self.write_ranges(queue, i, svo, &all_inner, &all_leaf);
+                stats.bytes += s.bytes;
+                stats.writes += s.writes;
+            }
+        }
+        Some(stats)
+    }
+
+    /// Uploads the node ranges an edit of the box `lo..=hi` (voxel coordinates, inclusive) in
+    /// object `object_id` can have changed. `None` when the object is not in the uploaded
+    /// scene or its pools outgrew their room (then a full upload is needed).
+    pub(super) fn update_voxel_region(
+        &mut self,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        object_id: u64,
+        lo: UVec3,
+        hi: UVec3,
+    ) -> Option<UploadStats> {
+        if !self.fits(doc) {
+            return None;
+        }
+        let i = self.voxels.iter().position(|e| e.object_id == object_id)?;
+        let svo = voxels_of(doc, object_id)?;
+        let (inner, leaf) = region_ranges(svo, lo, hi);
+        Some(self.write_ranges(queue, i, svo, &inner, &leaf))
+    }
+
+    /// Writes the given inner and leaf slot ranges of entry `i` from `svo`.
+    fn write_ranges(
+        &mut self,
+        queue: &wgpu::Queue,
+        i: usize,
+        svo: &Svo,
+        inner: &[Range<u32>],
+        leaf: &[Range<u32>],
+    ) -> UploadStats {
+        let obj = i as u32;
+        let e = &mut self.voxels[i];
+        let mut stats = UploadStats::default();
+        let firsts = svo.inner_first_children();
+        let masks = svo.inner_masks();
+        let (ic, inn) = (svo.inner_colors(), svo.inner_normals());
+        let (lc, ln) = (svo.leaf_colors(), svo.leaf_normals());
+        for r in inner {
+            let r = r.start as usize..(r.end as usize).min(masks.len());
+            if r.is_empty() {
+                continue;
+            }
+            let nodes: Vec<[u32; 2]> = r
+                .clone()
+                .map(|k| [firsts[k], u32::from(masks[k])])
+                .collect();
+            let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(ic[k], inn[k], obj)).collect();
+            queue.write_buffer(
+                &self.inner_buf,
+                (u64::from(e.inner_base) + r.start as u64) * 8,
+                bytemuck::cast_slice(&nodes),
+            );
+            queue.write_buffer(
+                &self.attr_buf,
+                (u64::from(e.attr_inner_base) + r.start as u64) * 8,
+                bytemuck::cast_slice(&a),
+            );
+            stats.bytes += 16 * r.len() as u64;
+            stats.writes += 2;
+        }
+        for r in leaf {
+            let r = r.start as usize..(r.end as usize).min(lc.len());
+            if r.is_empty() {
+                continue;
+            }
+            let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(lc[k], ln[k], obj)).collect();
+            queue.write_buffer(
+                &self.attr_buf,
+                (u64::from(e.attr_leaf_base) + r.start as u64) * 8,
+                bytemuck::cast_slice(&a),
+            );
+            stats.bytes += 8 * r.len() as u64;
+            stats.writes += 1;
+        }
+        e.inner_len = masks.len() as u32;
+        e.leaf_len = lc.len() as u32;
+        e.live_nodes = svo.inner_count() + svo.leaf_count();
+        self.queue_capacity = self
+            .voxels
+            .iter()
+            .map(|v| v.live_nodes)
+            .max()
+            .unwrap_or(1)
+            .max(1);
+        stats
+    }
+
+    /// Transforms, normal matrices and bounds from the document's current state.
+    pub(super) fn frame_objects(&self, doc: &Document) -> FrameObjects {
+        let mut f = FrameObjects {
+            world_from_voxel: Vec::with_capacity(self.voxels.len()),
+            objects: Vec::with_capacity(self.voxels.len()),
+            bounds: None,
+        };
+        for e in &self.voxels {
+            let (m, svo) = match object_of(doc, e.object_id).map(|o| (o, &o.kind)) {
+                Some((o, ObjectKind::Voxels(v))) => {
+                    (o.transform.matrix() * v.object_from_voxel(), Some(&v.svo))
+                }
+                _ => (Mat4::IDENTITY, None),
+            };
+            let nm = Mat3::from_mat4(m).inverse().transpose();
+            f.objects.push(ObjectInfo {
+                normal_from_voxel: [
+                    nm.x_axis.extend(0.0).to_array(),
+                    nm.y_axis.extend(0.0).to_array(),
+                    nm.z_axis.extend(0.0).to_array(),
+                ],
+            });
+            if let Some(svo) = svo {
+                voxel_world_bounds(svo, m, &mut f.bounds);
+            }
+            f.world_from_voxel.push(m);
+        }
+        for o in doc.objects.iter().filter(|o| o.visible) {
+            if let ObjectKind::Mesh(m) = &o.kind {
+                let w = o.transform.matrix();
+                for part in &m.model.parts {
+                    for t in 0..part.triangle_count() {
+                        for i in part.triangle(t) {
+                            let p = w.transform_point3(
+                                part.positions.get(i).copied().unwrap_or_default(),
+                            );
+                            grow(&mut f.bounds, p, p);
+                        }
+                    }
+                }
+            }
+        }
+        f
+    }
+}
+
+fn object_of(doc: &Document, id: u64) -> Option<&thicket_core::scene::Object> {
+    doc.objects.iter().find(|o| o.id == id)
+}
+
+fn voxels_of(doc: &Document, id: u64) -> Option<&Svo> {
+    match &object_of(doc, id)?.kind {
+        ObjectKind::Voxels(v) => Some(&v.svo),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_merge_when_close() {
+        let m = merge_ranges(vec![10..12, 0..1, 13..20, 100..101, 1..3]);
+        assert_eq!(m, vec![0..20, 100..101]);
+        assert!(merge_ranges(vec![5..5]).is_empty());
+    }
+
+    #[test]
+    fn region_ranges_cover_the_path_and_the_changed_leaves() {
+        let mut svo = Svo::new(4, false).expect("depth");
+        for x in 0..16 {
+            svo.set(
+                UVec3::new(x, 3, 3),
+                thicket_core::svo::Voxel::new([1, 2, 3, 255], Vec3::Y),
+            )
+            .expect("in bounds");
+        }
+        let (inner, leaf) = region_ranges(&svo, UVec3::new(15, 3, 3), UVec3::new(15, 3, 3));
+        assert!(inner.iter().any(|r| r.contains(&0)), "root: {inner:?}");
+        // The leaf at x = 15 is in one of the ranges.
+        let mut found = false;
+        svo.for_each_leaf(|_, _| {});
+        let root = svo.root();
+        let mut n = root;
+        while n.level < svo.depth() {
+            let half = svo.node_size(n.level) / 2;
+            let p = UVec3::new(15, 3, 3) - n.origin;
+            let k =
+                u8::from(p.x >= half) | (u8::from(p.y >= half) << 1) | (u8::from(p.z >= half) << 2);
+            n = svo.child(&n, k).expect("present");
+        }
+        for r in &leaf {
+            found |= r.contains(&n.index);
+        }
+        assert!(found, "leaf {} in {leaf:?}", n.index);
+        // A far box touches only the root's block, not all leaves.
+        let total_leaf: u32 = leaf.iter().map(|r| r.end - r.start).sum();
+        assert!(total_leaf < 16, "{leaf:?}");
+    }
+}

@@ -1,0 +1,207 @@
+//! `thicket tradeoff`: sweep quality knobs on a project against a high-quality reference and
+//! write `report.json`, `report.csv` and `tradeoff.png` (time vs error and work vs error, each
+//! with its Pareto front marked).
+//!
+//! The plot is drawn with plotters' bitmap backend and its pure-Rust `ab_glyph` text, with the
+//! Ubuntu Light font egui already ships (`epaint_default_fonts`): no fontconfig or freetype.
+
+use std::path::Path;
+use std::sync::Once;
+
+use anyhow::{Context as _, anyhow};
+use plotters::prelude::*;
+use thicket_core::measure::{SweepPoint, SweepReport};
+use thicket_core::render::{QualityPreset, RgbaImage};
+
+/// Plot size in pixels.
+pub const PLOT_SIZE: (u32, u32) = (1200, 520);
+
+fn register_font() -> anyhow::Result<()> {
+    static ONCE: Once = Once::new();
+    let mut result = Ok(());
+    ONCE.call_once(|| {
+        result = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            epaint_default_fonts::UBUNTU_LIGHT,
+        )
+        .map_err(|_| anyhow!("the bundled plot font does not load"));
+    });
+    result
+}
+
+fn preset_name(p: &SweepPoint) -> Option<&'static str> {
+    p.setting.preset.map(|p| match p {
+        QualityPreset::Draft => "draft",
+        QualityPreset::Balanced => "balanced",
+        QualityPreset::Final => "final",
+    })
+}
+
+/// Draws one panel: `x(p)` against RMSE, every point, the front joined by a line, presets
+/// named.
+fn panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    x_desc: &str,
+    points: &[SweepPoint],
+    x: impl Fn(&SweepPoint) -> f64,
+    on_front: impl Fn(&SweepPoint) -> bool,
+) -> anyhow::Result<()>
+where
+    DB::ErrorType: 'static,
+{
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("drawing the plot: {e:?}");
+    let xs: Vec<f64> = points.iter().map(&x).filter(|v| *v > 0.0).collect();
+    let (x_lo, x_hi) = xs.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| {
+        (lo.min(v), hi.max(v))
+    });
+    let (x_lo, x_hi) = if x_lo.is_finite() && x_hi > 0.0 {
+        (x_lo * 0.8, x_hi * 1.25)
+    } else {
+        (0.1, 1.0)
+    };
+    let y_hi = points
+        .iter()
+        .map(|p| p.error.rmse)
+        .filter(|v| v.is_finite())
+        .fold(0.0f64, f64::max)
+        .max(1e-4)
+        * 1.15;
+    let mut chart = ChartBuilder::on(area)
+        .caption(title, ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(42)
+        .y_label_area_size(64)
+        .build_cartesian_2d((x_lo..x_hi).log_scale(), 0.0..y_hi)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc(x_desc)
+        .y_desc("RMSE vs reference")
+        .label_style(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    let others = points.iter().filter(|p| !on_front(p) && x(p) > 0.0);
+    chart
+        .draw_series(others.map(|p| Circle::new((x(p), p.error.rmse), 4, BLUE.mix(0.6).filled())))
+        .map_err(err)?;
+    let mut front: Vec<(f64, f64)> = points
+        .iter()
+        .filter(|p| on_front(p) && x(p) > 0.0)
+        .map(|p| (x(p), p.error.rmse))
+        .collect();
+    front.sort_by(|a, b| a.0.total_cmp(&b.0));
+    chart
+        .draw_series(LineSeries::new(front.iter().copied(), RED.stroke_width(2)))
+        .map_err(err)?
+        .label("Pareto front")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], RED.stroke_width(2)));
+    chart
+        .draw_series(
+            front
+                .iter()
+                .map(|&(a, b)| Circle::new((a, b), 5, RED.filled())),
+        )
+        .map_err(err)?;
+    for p in points.iter().filter(|p| x(p) > 0.0) {
+        if let Some(name) = preset_name(p) {
+            chart
+                .draw_series([EmptyElement::at((x(p), p.error.rmse))
+                    + Circle::new((0, 0), 8, BLACK.stroke_width(2))
+                    + Text::new(name, (10, -18), ("sans-serif", 15).into_font())])
+                .map_err(err)?;
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .label_font(("sans-serif", 14))
+        .draw()
+        .map_err(err)?;
+    Ok(())
+}
+
+/// Draws the two-panel plot of a sweep into an image.
+///
+/// # Errors
+/// The font does not load or plotters fails to draw.
+pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
+    register_font()?;
+    let (w, h) = PLOT_SIZE;
+    let mut rgb = vec![255u8; (w * h * 3) as usize];
+    {
+        let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
+        root.fill(&WHITE)
+            .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        let root = root
+            .titled(title, ("sans-serif", 22))
+            .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        let (left, right) = root.split_horizontally(w / 2);
+        panel(
+            &left,
+            "time vs error",
+            "median frame time (ms, log)",
+            &report.points,
+            |p| p.time_ms,
+            |p| p.on_time_front,
+        )?;
+        panel(
+            &right,
+            "work vs error (deterministic)",
+            "work units: nodes + triangles + shading taps (log)",
+            &report.points,
+            |p| p.work as f64,
+            |p| p.on_work_front,
+        )?;
+        root.present()
+            .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+    }
+    let mut img = RgbaImage::new(w, h);
+    for (o, i) in img.pixels.chunks_exact_mut(4).zip(rgb.chunks_exact(3)) {
+        o.copy_from_slice(&[i[0], i[1], i[2], 255]);
+    }
+    Ok(img)
+}
+
+/// Writes `bytes` to `path` through a temporary sibling, so a failure leaves no partial file.
+fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
+    let tmp = path.with_extension("tmp");
+    std::fs::write(&tmp, bytes)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            e
+        })
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+/// Writes `report.json`, `report.csv` and `tradeoff.png` into `dir` (created if missing).
+///
+/// # Errors
+/// The directory or a file cannot be written, or the plot fails.
+pub fn write_outputs(report: &SweepReport, project_name: &str, dir: &Path) -> anyhow::Result<()> {
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    let json = serde_json::json!({
+        "project": project_name,
+        "renderer": "cpu",
+        "error_metric_for_fronts": "rmse",
+        "report": report,
+    });
+    let mut text = serde_json::to_string_pretty(&json).context("encoding report.json")?;
+    text.push('\n');
+    write_atomic(&dir.join("report.json"), text.as_bytes())?;
+    write_atomic(&dir.join("report.csv"), report.to_csv().as_bytes())?;
+    let title = format!(
+        "{project_name}: {}x{}, CPU renderer, median of {} render(s), reference {:.0} ms",
+        report.width, report.height, report.repeats, report.reference_time_ms
+    );
+    let img = plot(report, &title)?;
+    let png = dir.join("tradeoff.png");
+    let tmp = dir.join("tradeoff.png.tmp");
+    img.save_png(&tmp)
+        .with_context(|| format!("writing {}", png.display()))?;
+    std::fs::rename(&tmp, &png).with_context(|| format!("writing {}", png.display()))?;
+    Ok(())
+}

@@ -1,0 +1,188 @@
+//! The performance overlay (F3): frame-time graph, the renderer's per-pass GPU times, nodes
+//! per octree level, splats, and memory per object.
+
+use std::collections::VecDeque;
+
+use egui_plot::{Legend, Line, Plot, PlotPoints};
+
+use crate::editor::Editor;
+use crate::files::{human_bytes, object_info, thousands};
+use crate::viewport::ViewportLink;
+
+/// Frames kept in the graph.
+const HISTORY: usize = 300;
+
+/// Object names and bytes, for one document content key.
+type MemoryRows = ((u64, u64), Vec<(String, u64)>);
+
+/// The overlay's state.
+#[derive(Default)]
+pub struct PerfOverlay {
+    /// Whether the overlay window is open.
+    pub open: bool,
+    /// Milliseconds the UI code took per frame (CPU).
+    ui_ms: VecDeque<f64>,
+    /// Milliseconds the viewport's last render took, per frame it rendered.
+    render_ms: VecDeque<(u64, f64)>,
+    frame: u64,
+    last_rendered: u64,
+    /// Memory by object for one content key (summaries visit every voxel).
+    memory: Option<MemoryRows>,
+}
+
+impl PerfOverlay {
+    /// Records one frame's UI time and whether the viewport rendered since the last frame.
+    pub fn record(&mut self, ui_ms: f64, link: Option<&ViewportLink>) {
+        self.frame += 1;
+        push_bounded(&mut self.ui_ms, ui_ms);
+        if let Some(link) = link {
+            let s = link.lock();
+            if s.frames_rendered != self.last_rendered {
+                self.last_rendered = s.frames_rendered;
+                push_bounded(&mut self.render_ms, (self.frame, s.last_render_ms));
+            }
+        }
+    }
+
+    /// Draws the overlay window when open.
+    pub fn ui(&mut self, ctx: &egui::Context, editor: &Editor, link: Option<&ViewportLink>) {
+        if !self.open {
+            return;
+        }
+        let mut open = self.open;
+        egui::Window::new("Performance")
+            .open(&mut open)
+            .default_width(420.0)
+            .default_pos(egui::pos2(300.0, 80.0))
+            .show(ctx, |ui| self.contents_ui(ui, editor, link));
+        self.open = open;
+    }
+
+    fn contents_ui(&mut self, ui: &mut egui::Ui, editor: &Editor, link: Option<&ViewportLink>) {
+        let first = self.frame.saturating_sub(self.ui_ms.len() as u64);
+        let ui_points: PlotPoints<'_> = self
+            .ui_ms
+            .iter()
+            .enumerate()
+            .map(|(i, &ms)| [(first + i as u64) as f64, ms])
+            .collect();
+        let render_points: PlotPoints<'_> = self
+            .render_ms
+            .iter()
+            .filter(|(f, _)| *f >= first)
+            .map(|&(f, ms)| [f as f64, ms])
+            .collect();
+        let last_ui = self.ui_ms.back().copied().unwrap_or(0.0);
+        ui.label(format!(
+            "UI {last_ui:.2} ms per frame (CPU). The viewport renders only when the camera, \
+             the document or the settings change."
+        ));
+        Plot::new("frame_times")
+            .height(140.0)
+            .legend(Legend::default())
+            .allow_scroll(false)
+            .y_axis_label("ms")
+            .include_y(0.0)
+            .show(ui, |plot| {
+                plot.line(Line::new("UI (CPU)", ui_points));
+                plot.line(Line::new("Viewport render", render_points));
+            });
+
+        ui.separator();
+        match link {
+            None => {
+                ui.label("No GPU renderer in this window.");
+            }
+            Some(link) => {
+                let s = link.lock().clone();
+                ui.label(format!("Adapter: {}", s.adapter));
+                ui.label(format!(
+                    "Frames rendered {} / composited {}; last render {:.1} ms at {} x {} px",
+                    s.frames_rendered,
+                    s.frames_painted,
+                    s.last_render_ms,
+                    s.size_px[0],
+                    s.size_px[1]
+                ));
+                if let Some(stats) = &s.stats {
+                    ui.label(format!(
+                        "Splats {}   triangles {}   splat path {:?}   queue overflow {}",
+                        thousands(stats.splats),
+                        thousands(stats.triangles),
+                        stats.atomic_path,
+                        stats.queue_overflow
+                    ));
+                    if stats.pass_ms.is_empty() {
+                        ui.weak("GPU time per pass: this adapter has no timestamp queries.");
+                    } else {
+                        egui::Grid::new("pass_ms").striped(true).show(ui, |ui| {
+                            ui.strong("Pass");
+                            ui.strong("GPU ms");
+                            ui.end_row();
+                            for (name, ms) in &stats.pass_ms {
+                                ui.label(*name);
+                                ui.label(format!("{ms:.3}"));
+                                ui.end_row();
+                            }
+                        });
+                    }
+                    ui.collapsing("Nodes per level (view)", |ui| {
+                        egui::Grid::new("levels").striped(true).show(ui, |ui| {
+                            for h in ["Level", "Visited", "Split", "Splatted", "Culled"] {
+                                ui.strong(h);
+                            }
+                            ui.end_row();
+                            for (i, l) in stats.levels.iter().enumerate() {
+                                if l.visited == 0 {
+                                    continue;
+                                }
+                                ui.label(i.to_string());
+                                ui.label(thousands(l.visited));
+                                ui.label(thousands(l.split));
+                                ui.label(thousands(l.splatted));
+                                ui.label(thousands(l.frustum_culled));
+                                ui.end_row();
+                            }
+                        });
+                    });
+                }
+            }
+        }
+
+        ui.separator();
+        let key = editor.content_key();
+        if self.memory.as_ref().is_none_or(|(k, _)| *k != key) {
+            let rows = editor
+                .doc()
+                .objects
+                .iter()
+                .map(|o| (o.name.clone(), object_info(o).memory.total_bytes))
+                .collect();
+            self.memory = Some((key, rows));
+        }
+        ui.collapsing("Memory per object", |ui| {
+            egui::Grid::new("memory").striped(true).show(ui, |ui| {
+                ui.strong("Object");
+                ui.strong("Memory");
+                ui.end_row();
+                if let Some((_, rows)) = &self.memory {
+                    for (name, bytes) in rows {
+                        ui.label(name);
+                        ui.label(human_bytes(*bytes));
+                        ui.end_row();
+                    }
+                }
+                ui.label("Undo history");
+                ui.label(human_bytes(editor.history().undo_bytes() as u64));
+                ui.end_row();
+            });
+        });
+    }
+}
+
+fn push_bounded<T>(q: &mut VecDeque<T>, v: T) {
+    if q.len() == HISTORY {
+        q.pop_front();
+    }
+    q.push_back(v);
+}

@@ -1,0 +1,159 @@
+//! `thicket render --gpu` and `thicket bench` through the real binary (GPU runs use whatever
+//! adapter is present: lavapipe in CI).
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn thicket(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_thicket"))
+        .args(args)
+        .env("RUST_LOG", "off")
+        .output()
+        .expect("the thicket binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn sample(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../projects")
+        .join(format!("{name}.thicket.json"))
+}
+
+#[test]
+fn render_gpu_writes_the_same_picture_as_the_cpu() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample("mixed");
+    let (gpu_png, cpu_png) = (dir.path().join("gpu.png"), dir.path().join("cpu.png"));
+    let o = thicket(&[
+        "render",
+        "--gpu",
+        project.to_str().unwrap(),
+        "-o",
+        gpu_png.to_str().unwrap(),
+        "--size",
+        "72x56",
+        "--stats",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("wrote") && out.contains("72x56"), "{out}");
+    let json: serde_json::Value =
+        serde_json::from_str(&out[out.find('{').expect("stats JSON")..]).expect("JSON");
+    assert!(json["splats"].as_u64().unwrap() > 0, "{json}");
+    assert!(!json["levels"].as_array().unwrap().is_empty());
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        cpu_png.to_str().unwrap(),
+        "--size",
+        "72x56",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let gpu = thicket_core::render::RgbaImage::load_png(&gpu_png).unwrap();
+    let cpu = thicket_core::render::RgbaImage::load_png(&cpu_png).unwrap();
+    assert_eq!((gpu.width, gpu.height), (72, 56));
+    let tol = thicket_core::measure::image::Tolerance::GPU_PARITY;
+    let differing = thicket_core::measure::image::count_differing(&gpu, &cpu, tol.channel).unwrap();
+    assert!(
+        differing as f64 <= tol.max_differing_fraction * f64::from(72 * 56),
+        "{differing} pixels differ"
+    );
+}
+
+#[test]
+fn render_gpu_bad_size_fails_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.png");
+    let o = thicket(&[
+        "render",
+        "--gpu",
+        sample("house").to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "0x10",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("house.thicket.json"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("panicked"));
+    assert!(!out.exists());
+}
+
+fn bench_json(args: &[&str]) -> serde_json::Value {
+    let o = thicket(args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    serde_json::from_str(&stdout(&o)).expect("bench prints JSON")
+}
+
+#[test]
+fn bench_gpu_and_cpu_report_times_and_counters() {
+    let project = sample("mixed");
+    let p = project.to_str().unwrap();
+    let j = bench_json(&[
+        "bench",
+        "--compare",
+        p,
+        "--frames",
+        "2",
+        "--size",
+        "48x40",
+        "--json",
+    ]);
+    let runs = j["runs"].as_array().expect("runs");
+    assert_eq!(runs.len(), 2);
+    for (run, name) in runs.iter().zip(["cpu", "gpu"]) {
+        assert_eq!(run["renderer"], name);
+        assert_eq!(run["frames"], 2);
+        assert_eq!(run["width"], 48);
+        assert!(run["mean_ms"].as_f64().unwrap() > 0.0, "{run}");
+        assert!(run["fps"].as_f64().unwrap() > 0.0, "{run}");
+        assert!(run["splats"].as_u64().unwrap() > 0, "{run}");
+        let levels = run["levels"].as_array().unwrap();
+        assert!(levels.len() > 3, "{run}");
+        // Level 0 is the root of each voxel object: one node visited, split.
+        assert_eq!(levels[0]["visited"], 1, "{run}");
+        assert!(!run["pass_ms"].as_array().unwrap().is_empty(), "{run}");
+    }
+    assert!(j["cpu_over_gpu_frame_time"].as_f64().unwrap() > 0.0);
+    // Same LOD decisions: the level-by-level splat counts of both renderers are close (the CPU
+    // occlusion-culls hidden nodes; the GPU does not).
+    let (c, g) = (
+        runs[0]["splats"].as_u64().unwrap(),
+        runs[1]["splats"].as_u64().unwrap(),
+    );
+    assert!(g >= c, "GPU {g} < CPU {c}");
+
+    let o = thicket(&["bench", "--gpu", p, "--frames", "1", "--size", "32x32"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains("gpu renderer on") && text.contains("fps"),
+        "{text}"
+    );
+    assert!(
+        text.contains("voxels") || text.contains("not available"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bench_bad_arguments_fail_cleanly() {
+    let p = sample("mixed");
+    let o = thicket(&["bench", p.to_str().unwrap(), "--frames", "0"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--frames"), "{}", stderr(&o));
+    let o = thicket(&["bench", "--gpu", "/nonexistent/ghost.thicket.json"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("ghost.thicket.json"), "{}", stderr(&o));
+    let o = thicket(&["bench", p.to_str().unwrap(), "--size", "12"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--size"), "{}", stderr(&o));
+}

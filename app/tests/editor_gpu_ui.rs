@@ -1,0 +1,255 @@
+//! The real editor with its GPU viewport, driven by egui_kittest on the wgpu software adapter
+//! (lavapipe here and in CI): open each sample project, click through the panels by label,
+//! navigate, sculpt a stroke in the view, undo and redo it, and snapshot the window including
+//! the rendered viewport.
+//!
+//! Snapshots live in `tests/snapshots/`; on a mismatch egui_kittest writes `NAME.new.png` and
+//! `NAME.diff.png` beside them (`UPDATE_SNAPSHOTS=1` accepts the new images).
+
+use std::path::PathBuf;
+
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state};
+use egui_kittest::{Harness, SnapshotOptions};
+use thicket::editor::{Editor, Selection};
+use thicket::ui::EditorApp;
+use thicket::viewport::ViewportLink;
+use thicket_core::scene::ObjectKind;
+
+/// Small enough to keep software rendering quick, large enough for every panel.
+const SIZE: egui::Vec2 = egui::vec2(1100.0, 700.0);
+
+fn sample(name: &str) -> PathBuf {
+    // Relative, so the path shown in the status bar (and the snapshots) is the same in every
+    // checkout.
+    PathBuf::from(format!("../projects/{name}.thicket.json"))
+}
+
+/// The app on a sample, with the GPU viewport installed on a fresh software device.
+fn gpu_harness(name: &str) -> (Harness<'static, EditorApp>, ViewportLink) {
+    let render_state = create_render_state(
+        thicket::viewport::wgpu_setup(),
+        egui_wgpu::RendererOptions::PREDICTABLE,
+    );
+    let link = thicket::viewport::install(&render_state);
+    let path = sample(name);
+    let mut doc = thicket::files::load_document(&path).expect("the sample loads");
+    // Shadow maps are the slow part on a software rasteriser (the 2048² shadow splats take
+    // seconds on lavapipe): these tests check the editor, not shadows.
+    doc.quality.shadows = false;
+    let mut app = EditorApp::new(Editor::new(doc, Some(path)));
+    // The UI tests must not touch the user's recovery folder or depend on it.
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    app.attach_gpu(link.clone());
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .renderer(WgpuTestRenderer::from_render_state(render_state))
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    (h, link)
+}
+
+fn view_center(h: &Harness<'static, EditorApp>) -> egui::Pos2 {
+    h.state().view.last_rect.center()
+}
+
+/// Standard deviation of the luminance inside the view rectangle: a flat background is ~0.
+fn view_contrast(image: &image::RgbaImage, rect: egui::Rect) -> f64 {
+    let mut n = 0.0;
+    let (mut sum, mut sum2) = (0.0, 0.0);
+    for y in (rect.top() as u32 + 30)..(rect.bottom() as u32).min(image.height()) {
+        for x in (rect.left() as u32)..(rect.right() as u32).min(image.width()) {
+            let p = image.get_pixel(x, y);
+            let l = f64::from(p[0]) * 0.3 + f64::from(p[1]) * 0.59 + f64::from(p[2]) * 0.11;
+            n += 1.0;
+            sum += l;
+            sum2 += l * l;
+        }
+    }
+    let mean = sum / n;
+    (sum2 / n - mean * mean).max(0.0).sqrt()
+}
+
+fn snapshot(h: &mut Harness<'static, EditorApp>, name: &str) {
+    // Software rasterisation is deterministic, but allow a few pixels of driver variation.
+    h.snapshot_options(name, &SnapshotOptions::new().max_failed_pixels(200));
+}
+
+/// Opens a sample, checks the view shows it, that idle frames do not render and that an orbit
+/// renders once, and snapshots the window.
+fn sample_opens_renders_once_and_rerenders_only_on_change(name: &str) {
+    {
+        let (mut h, link) = gpu_harness(name);
+        let image = h.render().expect("render");
+        let s = link.lock().clone();
+        assert!(s.error.is_none(), "{name}: {:?}", s.error);
+        assert_eq!(s.frames_rendered, 1, "{name}");
+        assert!(s.stats.as_ref().is_some_and(|st| st.splats > 0), "{name}");
+        // Figures for the report (not asserted: the machine is shared and noisy).
+        eprintln!(
+            "{name}: viewport render {:.1} ms at {} x {} px on {}",
+            s.last_render_ms, s.size_px[0], s.size_px[1], s.adapter
+        );
+        if let Some(st) = &s.stats {
+            eprintln!(
+                "{name}: passes {:?}, total {:.1} ms",
+                st.pass_ms, st.total_ms
+            );
+        }
+        let rect = h.state().view.last_rect;
+        assert!(
+            view_contrast(&image, rect) > 5.0,
+            "{name}: the viewport shows the scene, not a flat background"
+        );
+        snapshot(&mut h, &format!("sample_{name}"));
+
+        // Nothing changed: the next frames composite the same image without rendering.
+        h.run_steps(3);
+        h.render().expect("render");
+        assert_eq!(
+            link.lock().frames_rendered,
+            1,
+            "{name}: idle frames do not render"
+        );
+
+        // Orbit with a drag: the camera changes and the view renders again.
+        let c = view_center(&h);
+        let yaw = h.state().editor.doc().camera.yaw_deg;
+        h.drag_at(c);
+        h.step();
+        h.hover_at(c + egui::vec2(60.0, 0.0));
+        h.step();
+        h.drop_at(c + egui::vec2(60.0, 0.0));
+        h.run_steps(2);
+        assert_ne!(h.state().editor.doc().camera.yaw_deg, yaw, "{name}: orbit");
+        assert!(!h.state().editor.is_dirty(), "orbiting is not editing");
+        h.render().expect("render");
+        assert_eq!(
+            link.lock().frames_rendered,
+            2,
+            "{name}: one render after the orbit"
+        );
+        eprintln!(
+            "{name}: after the orbit {:.1} ms",
+            link.lock().last_render_ms
+        );
+    }
+}
+
+#[test]
+fn house_opens_renders_once_and_rerenders_only_on_change() {
+    sample_opens_renders_once_and_rerenders_only_on_change("house");
+}
+
+#[test]
+fn mixed_opens_renders_once_and_rerenders_only_on_change() {
+    sample_opens_renders_once_and_rerenders_only_on_change("mixed");
+}
+
+#[test]
+fn panels_sculpt_stroke_undo_redo_and_snapshot() {
+    let (mut h, link) = gpu_harness("house");
+
+    // View menu: axis view and the perf overlay, by label.
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Front").click();
+    h.run_steps(2);
+    let cam = h.state().editor.doc().camera;
+    assert_eq!((cam.yaw_deg, cam.pitch_deg), (0.0, 0.0));
+    h.key_press(egui::Key::F3);
+    h.run_steps(2);
+    h.get_by_label("Performance");
+    h.key_press(egui::Key::F3);
+    h.run_steps(2);
+
+    // Render menu: the draft preset is one undoable edit.
+    h.get_by_label("Render").click();
+    h.run_steps(2);
+    h.get_by_label("Draft").click();
+    h.run_steps(2);
+    assert!(h.state().editor.is_dirty());
+    h.key_press(egui::Key::Escape);
+    h.run_steps(1);
+
+    // The outliner selects the house model.
+    let house_id = h
+        .state()
+        .editor
+        .doc()
+        .objects
+        .iter()
+        .find(|o| matches!(o.kind, ObjectKind::Voxels(_)))
+        .expect("a voxel model")
+        .id;
+    let house_name = h.state().editor.object(house_id).unwrap().name.clone();
+    h.query_all_by_label(&house_name)
+        .next()
+        .expect("an outliner row")
+        .click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.selection,
+        Some(Selection::Object(house_id))
+    );
+    h.key_press(egui::Key::F);
+    h.run_steps(2);
+
+    // Sculpt tool from the tool bar, Remove, bigger brush.
+    h.get_by_label("Sculpt").click();
+    h.run_steps(1);
+    h.get_by_label("Remove").click();
+    h.run_steps(1);
+    h.state_mut().sculpt.brush.radius = 3.0;
+    let leaves =
+        |h: &Harness<'static, EditorApp>| match &h.state().editor.object(house_id).unwrap().kind {
+            ObjectKind::Voxels(v) => v.svo.leaf_count(),
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!(),
+        };
+    let before = leaves(&h);
+    let steps_before = h.state().editor.history().undo_len();
+    h.render().expect("render");
+    let rendered_before = link.lock().frames_rendered;
+
+    // A stroke across the middle of the view.
+    let c = view_center(&h);
+    h.hover_at(c);
+    h.step();
+    h.drag_at(c);
+    h.step();
+    for k in 1..=6 {
+        h.hover_at(c + egui::vec2(8.0 * k as f32, 0.0));
+        h.step();
+    }
+    // The dab is visible in the next frame: the view renders with the edited document.
+    h.render().expect("render");
+    assert!(link.lock().frames_rendered > rendered_before);
+    h.drop_at(c + egui::vec2(48.0, 0.0));
+    h.run_steps(2);
+    let after = leaves(&h);
+    assert!(
+        after < before,
+        "the stroke removed voxels: {before} -> {after}"
+    );
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps_before + 1,
+        "one undo step per stroke"
+    );
+    snapshot(&mut h, "house_after_stroke");
+
+    // Undo and redo through the Edit menu.
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Undo").click();
+    h.run_steps(2);
+    assert_eq!(leaves(&h), before);
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.run_steps(2);
+    assert_eq!(leaves(&h), after);
+    assert!(link.lock().error.is_none());
+}

@@ -1,0 +1,195 @@
+//! GPU renderer against the CPU reference renderer (`thicket_core::render::render_document`),
+//! frame by frame: the sample projects and synthetic scenes, both splat paths. One tolerance
+//! (`Tolerance::GPU_PARITY`, in `thicket_core::measure::image`) for every scene: at least 99 %
+//! of pixels within a few 8-bit steps, the same coverage, the same depth.
+//!
+//! On failure the three images (CPU, GPU, difference) are written to the system temp directory
+//! and named in the message. Runs on whatever adapter is present (lavapipe in CI); never skipped.
+
+use std::path::{Path, PathBuf};
+
+use glam::{Quat, Vec3};
+use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
+use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
+use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::scene::{Document, OrbitCamera};
+
+/// Relative view-depth agreement: the splat depth is the same formula on both sides; a mesh's
+/// depth is interpolated by the rasteriser in its own precision.
+const DEPTH_TOLERANCE: f32 = 2e-3;
+
+fn context() -> GpuContext {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
+        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    eprintln!("adapter: {}", ctx.describe());
+    ctx
+}
+
+fn project(name: &str) -> Document {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../projects")
+        .join(format!("{name}.thicket.json"));
+    thicket::files::load_document(&path).expect("sample project loads")
+}
+
+/// NDC depth to view depth for a perspective camera (what both renderers store is NDC).
+fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
+    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
+}
+
+struct Comparison {
+    parity: Parity,
+    splats_cpu: u64,
+    splats_gpu: u64,
+}
+
+/// Renders `doc` on the CPU and on the GPU (the 64-bit path when the adapter has it, unless
+/// `two_pass`), compares them and writes the images on failure.
+fn compare(
+    ctx: &GpuContext,
+    name: &str,
+    doc: &Document,
+    size: (u32, u32),
+    quality: &Quality,
+    two_pass: bool,
+) -> Comparison {
+    let cam = doc.camera;
+    let req = RenderRequest {
+        width: size.0,
+        height: size.1,
+        camera: Some(cam),
+        quality: quality.clone(),
+    };
+    let (cpu, fb, cpu_stats) = render_document(doc, &req).expect("CPU frame");
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    r.set_force_two_pass(two_pass);
+    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
+    let stats = r
+        .render(&ctx.device, &ctx.queue, doc, &cam, quality, &target)
+        .expect("GPU frame");
+    let gpu = RgbaImage {
+        width: size.0,
+        height: size.1,
+        pixels: read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"),
+    };
+    let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    let depth_cpu: Vec<Option<f32>> = fb
+        .ids
+        .iter()
+        .zip(&fb.depth)
+        .map(|(id, &d)| (id.object != 0).then(|| view_depth(&cam, d)))
+        .collect();
+    let depth_gpu: Vec<Option<f32>> = g
+        .depth
+        .iter()
+        .map(|&d| d.is_finite().then(|| view_depth(&cam, d)))
+        .collect();
+    let p = parity(
+        &cpu,
+        &gpu,
+        &depth_cpu,
+        &depth_gpu,
+        Tolerance::GPU_PARITY,
+        DEPTH_TOLERANCE,
+    )
+    .expect("same size");
+    let path = if two_pass {
+        "two-pass 32-bit"
+    } else {
+        "64-bit"
+    };
+    eprintln!(
+        "{name} ({path}): {p:?}; splats CPU {} GPU {}",
+        cpu_stats.splats(),
+        stats.splats
+    );
+    if !p.within(Tolerance::GPU_PARITY) {
+        let dir: PathBuf = std::env::temp_dir().join("thicket-gpu-parity");
+        let _ = std::fs::create_dir_all(&dir);
+        let stem = format!("{name}-{}", if two_pass { "32" } else { "64" });
+        let _ = cpu.save_png(dir.join(format!("{stem}-cpu.png")));
+        let _ = gpu.save_png(dir.join(format!("{stem}-gpu.png")));
+        if let Ok(d) = difference_image(&cpu, &gpu, Tolerance::GPU_PARITY.channel) {
+            let _ = d.save_png(dir.join(format!("{stem}-difference.png")));
+        }
+        panic!(
+            "{name} ({path}): GPU differs from the CPU reference: {p:?}; images in {}",
+            dir.display()
+        );
+    }
+    Comparison {
+        parity: p,
+        splats_cpu: cpu_stats.splats(),
+        splats_gpu: stats.splats,
+    }
+}
+
+fn both_paths(ctx: &GpuContext, name: &str, doc: &Document, size: (u32, u32), q: &Quality) {
+    let key64 = Renderer::new(&ctx.device, &ctx.queue)
+        .expect("renderer")
+        .capabilities()
+        .int64_atomics;
+    assert!(
+        key64,
+        "this adapter has no SHADER_INT64_ATOMIC_MIN_MAX: the 64-bit path cannot be tested here"
+    );
+    for two_pass in [false, true] {
+        let c = compare(ctx, name, doc, size, q, two_pass);
+        // Same LOD decisions on both sides: the splat counts agree (occlusion culling on the
+        // CPU only removes hidden nodes, so the GPU may splat a few more).
+        assert!(c.parity.both_covered > 0, "{name}: nothing drawn");
+        assert!(
+            c.splats_gpu >= c.splats_cpu,
+            "{name}: GPU {} splats < CPU {}",
+            c.splats_gpu,
+            c.splats_cpu
+        );
+    }
+}
+
+#[test]
+fn house_sample_matches_the_cpu_reference() {
+    let ctx = context();
+    let doc = project("house");
+    both_paths(&ctx, "house", &doc, (96, 80), &doc.quality.clone());
+}
+
+#[test]
+fn mixed_sample_matches_the_cpu_reference() {
+    let ctx = context();
+    let doc = project("mixed");
+    both_paths(&ctx, "mixed", &doc, (96, 80), &doc.quality.clone());
+}
+
+#[test]
+fn synthetic_mixed_scene_matches_the_cpu_reference() {
+    // Voxel sphere, rotated and scaled mesh cube, ground: meshes and voxels occluding and
+    // shadowing each other, PCF 2.
+    let ctx = context();
+    let doc = scenes::mixed_document(7).expect("scene");
+    let q = Quality {
+        shadow_pcf_radius: 2,
+        ..Quality::default()
+    };
+    both_paths(&ctx, "synthetic-mixed", &doc, (112, 96), &q);
+}
+
+#[test]
+fn rotated_voxels_without_shadows_match_the_cpu_reference() {
+    // A voxel object under a rotation and non-uniform scale, close enough that the LOD stops
+    // above the leaves, and a coarse LOD threshold (splats several pixels wide).
+    let ctx = context();
+    let mut doc = scenes::sphere_document(7, 0.8).expect("scene");
+    if let Some(o) = doc.objects.first_mut() {
+        o.transform.rotation = Quat::from_euler(glam::EulerRot::YXZ, 0.6, 0.3, 0.1);
+        o.transform.scale = Vec3::new(1.0, 0.7, 1.2);
+    }
+    doc.camera.distance = 3.0;
+    let q = Quality {
+        shadows: false,
+        lod_pixel_threshold: 3.0,
+        ..Quality::default()
+    };
+    both_paths(&ctx, "rotated-sphere", &doc, (80, 80), &q);
+}

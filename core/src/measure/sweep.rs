@@ -1,0 +1,739 @@
+//! Quality sweeps: render a reference, then each setting of any [`Quality`] knob (by name, so
+//! knobs added later are sweepable without changing this code); per setting, the median time
+//! of N renders, a deterministic work count and the error against the reference.
+
+use std::time::Instant;
+
+use serde::{Deserialize, Serialize};
+
+use super::compare::{Frame, FrameError, compare_frames};
+use super::image::MeasureError;
+use super::pareto::{Dominance, pareto_front};
+use crate::render::{
+    Camera, FrameBuffers, FrameStats, Quality, QualityError, QualityPreset, RenderError,
+    RenderRequest, RgbaImage, render_document,
+};
+use crate::scene::Document;
+
+/// Most settings one sweep may render (a grid over many knobs grows fast).
+pub const MAX_SWEEP_POINTS: usize = 4096;
+
+/// Why a sweep could not run.
+#[derive(Debug, thiserror::Error)]
+pub enum SweepError {
+    /// A `NAME=V1,V2,...` specification that does not parse.
+    #[error(
+        "knob specification {spec:?}: {why} (expected NAME=V1,V2,... e.g. lod_pixel_threshold=0.5,1,2)"
+    )]
+    BadSpec {
+        /// The text given.
+        spec: String,
+        /// What is wrong with it.
+        why: &'static str,
+    },
+    /// A knob name or value the quality settings refuse.
+    #[error("knob {name}={value}: {source}")]
+    Knob {
+        /// Knob name.
+        name: String,
+        /// The value.
+        value: String,
+        /// Why it was refused.
+        source: QualityError,
+    },
+    /// Zero renders per point.
+    #[error("a sweep needs at least one render per setting (got 0)")]
+    NoRepeats,
+    /// Too many settings.
+    #[error(
+        "the sweep has {0} settings; the limit is {MAX_SWEEP_POINTS} (sweep fewer values or not as a grid)"
+    )]
+    TooManyPoints(usize),
+    /// A render failed.
+    #[error("rendering setting {label}: {source}")]
+    Render {
+        /// The setting being rendered.
+        label: String,
+        /// The renderer's error.
+        source: RenderError,
+    },
+    /// The frames cannot be compared.
+    #[error("comparing setting {label} with the reference: {source}")]
+    Measure {
+        /// The setting.
+        label: String,
+        /// Why.
+        source: MeasureError,
+    },
+}
+
+/// One knob and the values to try, as text (what [`Quality::set`] parses).
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KnobValues {
+    /// Knob name, one of [`Quality::KNOBS`].
+    pub name: String,
+    /// Values to try.
+    pub values: Vec<String>,
+}
+
+impl KnobValues {
+    /// Parses `NAME=V1,V2,...` and checks every value against [`Quality::set`].
+    ///
+    /// # Errors
+    /// [`SweepError::BadSpec`] for malformed text, [`SweepError::Knob`] for an unknown knob or
+    /// a value out of range.
+    pub fn parse(spec: &str) -> Result<Self, SweepError> {
+        let bad = |why| SweepError::BadSpec {
+            spec: spec.to_owned(),
+            why,
+        };
+        let (name, values) = spec.split_once('=').ok_or_else(|| bad("no '='"))?;
+        let name = name.trim();
+        if name.is_empty() {
+            return Err(bad("empty knob name"));
+        }
+        let values: Vec<String> = values.split(',').map(|v| v.trim().to_owned()).collect();
+        if values.iter().any(String::is_empty) {
+            return Err(bad("empty value"));
+        }
+        let kv = Self {
+            name: name.to_owned(),
+            values,
+        };
+        kv.check()?;
+        Ok(kv)
+    }
+
+    fn check(&self) -> Result<(), SweepError> {
+        for v in &self.values {
+            let mut q = Quality::default();
+            q.set(&self.name, v).map_err(|source| SweepError::Knob {
+                name: self.name.clone(),
+                value: v.clone(),
+                source,
+            })?;
+        }
+        Ok(())
+    }
+}
+
+/// The knobs the CPU reference renderer reads today, with values around the presets: what a
+/// sweep covers when none are given.
+#[must_use]
+pub fn default_knobs() -> Vec<KnobValues> {
+    let k = |name: &str, values: &[&str]| KnobValues {
+        name: name.to_owned(),
+        values: values.iter().map(|v| (*v).to_owned()).collect(),
+    };
+    vec![
+        k("lod_pixel_threshold", &["0.5", "1", "2", "4", "8"]),
+        k("shadow_map_size", &["256", "512", "1024", "2048", "4096"]),
+        k("shadow_pcf_radius", &["0", "1", "2", "3"]),
+        k("ao_samples", &["0", "4", "8", "16"]),
+    ]
+}
+
+/// The reference setting: the `final` preset raised further on every knob where more is
+/// closer to the ideal image — LOD threshold 0.25 px (every voxel splat below a quarter pixel),
+/// shadow maps up to 8192 texels, 32 AO samples, KRS epsilon 0.25 px with
+/// 2000 steps and no over-relaxation (it can step over thin features), 128 enhancement probes.
+/// Knobs that are choices rather than precision keep their `final` values: culling, stretch
+/// multiplier, tile acceleration, soft shadows, and the PCF radius (a softness filter: a wider
+/// reference filter would rank any blur, even a too-small shadow map, as "closer").
+#[must_use]
+pub fn reference_quality() -> Quality {
+    let mut q = Quality::preset(QualityPreset::Final);
+    for (name, value) in [
+        ("lod_pixel_threshold", "0.25"),
+        ("shadow_map_size", "8192"),
+        ("ao_samples", "32"),
+        ("krs_epsilon_scale", "0.25"),
+        ("krs_max_steps", "2000"),
+        ("krs_over_relaxation", "1"),
+        ("enhancement_samples", "128"),
+    ] {
+        // Every value is in range for its knob (the unit test checks the result validates);
+        // a knob that was renamed keeps its `final` value rather than failing every sweep.
+        let _ = q.set(name, value);
+    }
+    q
+}
+
+/// Which settings a sweep renders.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepSettings {
+    /// The setting every variation starts from.
+    pub base: Quality,
+    /// Knobs and their values.
+    pub knobs: Vec<KnobValues>,
+    /// `false`: vary one knob at a time from `base`; `true`: every combination.
+    pub grid: bool,
+    /// Also render the draft / balanced / final presets as points.
+    pub presets: bool,
+    /// Renders per setting; the time is their median.
+    pub repeats: usize,
+}
+
+impl Default for SweepSettings {
+    fn default() -> Self {
+        Self {
+            base: Quality::default(),
+            knobs: default_knobs(),
+            grid: false,
+            presets: true,
+            repeats: 3,
+        }
+    }
+}
+
+/// A setting to render: a label, the knob changes from the base, the resulting quality.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Setting {
+    /// e.g. `lod_pixel_threshold=2` or `preset draft`.
+    pub label: String,
+    /// `(knob, value)` changes applied to the base (empty for presets and the base itself).
+    pub changes: Vec<(String, String)>,
+    /// The preset this setting is, if any.
+    pub preset: Option<QualityPreset>,
+    /// The full quality.
+    pub quality: Quality,
+}
+
+/// The settings a sweep renders, duplicates (same quality) merged into one with both labels.
+///
+/// # Errors
+/// [`SweepError::Knob`] for a refused value, [`SweepError::TooManyPoints`].
+pub fn settings_of(s: &SweepSettings) -> Result<Vec<Setting>, SweepError> {
+    let mut out: Vec<Setting> = Vec::new();
+    let mut push = |mut st: Setting| {
+        if let Some(same) = out.iter_mut().find(|o| o.quality == st.quality) {
+            same.label = format!("{} / {}", same.label, st.label);
+            same.preset = same.preset.or(st.preset);
+            if same.changes.is_empty() {
+                same.changes = std::mem::take(&mut st.changes);
+            }
+        } else {
+            out.push(st);
+        }
+    };
+    let apply = |changes: &[(String, String)]| -> Result<Quality, SweepError> {
+        let mut q = s.base.clone();
+        for (name, value) in changes {
+            q.set(name, value).map_err(|source| SweepError::Knob {
+                name: name.clone(),
+                value: value.clone(),
+                source,
+            })?;
+        }
+        Ok(q)
+    };
+    let label = |changes: &[(String, String)]| {
+        if changes.is_empty() {
+            "base".to_owned()
+        } else {
+            changes
+                .iter()
+                .map(|(n, v)| format!("{n}={v}"))
+                .collect::<Vec<_>>()
+                .join(" ")
+        }
+    };
+    let count: usize = if s.grid {
+        s.knobs
+            .iter()
+            .map(|k| k.values.len().max(1))
+            .try_fold(1usize, usize::checked_mul)
+            .unwrap_or(usize::MAX)
+    } else {
+        s.knobs.iter().map(|k| k.values.len()).sum::<usize>() + 1
+    };
+    if count > MAX_SWEEP_POINTS {
+        return Err(SweepError::TooManyPoints(count));
+    }
+    if s.presets {
+        for (p, name) in [
+            (QualityPreset::Draft, "draft"),
+            (QualityPreset::Balanced, "balanced"),
+            (QualityPreset::Final, "final"),
+        ] {
+            push(Setting {
+                label: format!("preset {name}"),
+                changes: Vec::new(),
+                preset: Some(p),
+                quality: Quality::preset(p),
+            });
+        }
+    }
+    push(Setting {
+        label: "base".to_owned(),
+        changes: Vec::new(),
+        preset: None,
+        quality: s.base.clone(),
+    });
+    if s.grid {
+        let mut combos: Vec<Vec<(String, String)>> = vec![Vec::new()];
+        for k in &s.knobs {
+            combos = combos
+                .into_iter()
+                .flat_map(|c| {
+                    k.values.iter().map(move |v| {
+                        let mut c = c.clone();
+                        c.push((k.name.clone(), v.clone()));
+                        c
+                    })
+                })
+                .collect();
+        }
+        for c in combos {
+            let quality = apply(&c)?;
+            push(Setting {
+                label: label(&c),
+                changes: c,
+                preset: None,
+                quality,
+            });
+        }
+    } else {
+        for k in &s.knobs {
+            for v in &k.values {
+                let c = vec![(k.name.clone(), v.clone())];
+                let quality = apply(&c)?;
+                push(Setting {
+                    label: label(&c),
+                    changes: c,
+                    preset: None,
+                    quality,
+                });
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Deterministic work of a frame, a cost that does not depend on machine load: octree nodes
+/// visited for the view and the shadow maps, triangles rasterised, and shading taps (each
+/// covered pixel costs one tap, plus `(2r+1)²` shadow-map taps per shadow-casting light for
+/// PCF radius r). Counted from [`FrameStats`] where the renderer counts (nodes, triangles,
+/// pixels); the per-pixel tap count follows the knobs, since the shading loop does exactly that
+/// many lookups per pixel. AO samples are not counted: the CPU renderer does not shade AO yet;
+/// whoever adds it adds its samples here (or a counter to `FrameStats`).
+#[must_use]
+pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -> u64 {
+    let nodes: u64 = stats
+        .levels
+        .iter()
+        .chain(&stats.shadow_levels)
+        .map(|l| l.visited)
+        .sum();
+    let pcf = u64::from(2 * quality.shadow_pcf_radius + 1);
+    let shadow_taps = if quality.shadows {
+        shadow_lights as u64 * pcf * pcf
+    } else {
+        0
+    };
+    let taps = 1 + shadow_taps;
+    nodes + stats.triangles_rasterised + stats.covered_pixels * taps
+}
+
+/// One measured setting.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepPoint {
+    /// The setting.
+    pub setting: Setting,
+    /// Every render's wall time in milliseconds.
+    pub times_ms: Vec<f64>,
+    /// Median of `times_ms`.
+    pub time_ms: f64,
+    /// [`work_units`] of the frame.
+    pub work: u64,
+    /// Error against the reference.
+    pub error: FrameError,
+    /// Counters of the (first) render.
+    pub stats: FrameStats,
+    /// On the (median time, RMSE) Pareto front.
+    pub on_time_front: bool,
+    /// On the (work, RMSE) Pareto front.
+    pub on_work_front: bool,
+}
+
+/// A whole sweep.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct SweepReport {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Renders per setting.
+    pub repeats: usize,
+    /// The reference setting ([`reference_quality`] unless the caller chose another).
+    pub reference_quality: Quality,
+    /// Median reference render time in milliseconds.
+    pub reference_time_ms: f64,
+    /// Work of the reference frame.
+    pub reference_work: u64,
+    /// The measured settings, in render order.
+    pub points: Vec<SweepPoint>,
+    /// Margins used for the fronts.
+    pub time_dominance: Dominance,
+    /// Margins used for the work front.
+    pub work_dominance: Dominance,
+}
+
+impl SweepReport {
+    /// The point of a preset, if the sweep rendered presets.
+    #[must_use]
+    pub fn preset_point(&self, p: QualityPreset) -> Option<&SweepPoint> {
+        self.points.iter().find(|pt| pt.setting.preset == Some(p))
+    }
+
+    /// Marks the two fronts.
+    fn mark_fronts(&mut self) {
+        let by_time: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .map(|p| (p.time_ms, p.error.rmse))
+            .collect();
+        let by_work: Vec<(f64, f64)> = self
+            .points
+            .iter()
+            .map(|p| (p.work as f64, p.error.rmse))
+            .collect();
+        let tf = pareto_front(&by_time, &self.time_dominance);
+        let wf = pareto_front(&by_work, &self.work_dominance);
+        for (i, p) in self.points.iter_mut().enumerate() {
+            p.on_time_front = tf.contains(&i);
+            p.on_work_front = wf.contains(&i);
+        }
+    }
+
+    /// CSV: one row per point (label, knob changes, time, work, every error metric, fronts).
+    #[must_use]
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from(
+            "label,changes,preset,time_ms,work,rmse,psnr_db,coverage_mismatch,holes,bloat,\
+             depth_mean_rel,depth_max_rel,splats,nodes_visited,on_time_front,on_work_front\n",
+        );
+        for p in &self.points {
+            let e = &p.error;
+            let changes: Vec<String> = p
+                .setting
+                .changes
+                .iter()
+                .map(|(n, v)| format!("{n}={v}"))
+                .collect();
+            s.push_str(&format!(
+                "{},{},{},{:.3},{},{:.6},{:.3},{},{},{},{:.6},{:.6},{},{},{},{}\n",
+                csv_field(&p.setting.label),
+                csv_field(&changes.join(" ")),
+                p.setting
+                    .preset
+                    .map_or(String::new(), |p| format!("{p:?}").to_lowercase()),
+                p.time_ms,
+                p.work,
+                e.rmse,
+                e.psnr_db,
+                e.coverage_mismatch,
+                e.holes,
+                e.bloat,
+                e.depth_mean_rel,
+                e.depth_max_rel,
+                p.stats.splats(),
+                p.stats.nodes_visited(),
+                p.on_time_front,
+                p.on_work_front,
+            ));
+        }
+        s
+    }
+}
+
+fn csv_field(s: &str) -> String {
+    if s.contains([',', '"', '\n']) {
+        format!("\"{}\"", s.replace('"', "\"\""))
+    } else {
+        s.to_owned()
+    }
+}
+
+/// Dominance margins for time: medians of a few renders on a shared machine move by ~10 %.
+pub const TIME_DOMINANCE: Dominance = Dominance {
+    cost_rel_margin: 0.10,
+    error_abs_margin: 1e-4,
+};
+
+/// Dominance margins for work: the count is exact; 1 % keeps a setting that differs by a few
+/// nodes from counting as better. RMSE below 1e-4 (0.026 of an 8-bit level) is rounding.
+pub const WORK_DOMINANCE: Dominance = Dominance {
+    cost_rel_margin: 0.01,
+    error_abs_margin: 1e-4,
+};
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+type Rendered = (RgbaImage, FrameBuffers, FrameStats);
+
+/// Renders `q` `repeats` times; returns the first frame and every time.
+fn timed<F>(
+    render: &mut F,
+    q: &Quality,
+    repeats: usize,
+) -> Result<(Rendered, Vec<f64>), RenderError>
+where
+    F: FnMut(&Quality) -> Result<Rendered, RenderError>,
+{
+    let mut first = None;
+    let mut times = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let frame = render(q)?;
+        times.push(t.elapsed().as_secs_f64() * 1e3);
+        first.get_or_insert(frame);
+    }
+    // `repeats >= 1` is checked by the caller, so a frame exists.
+    first.map(|f| (f, times)).ok_or(RenderError::ZeroSize {
+        width: 0,
+        height: 0,
+    })
+}
+
+/// Runs a sweep with any renderer: `render` draws one frame for a quality (the CPU reference
+/// or a GPU renderer), `camera` is the view it draws (for depth), `shadow_lights` the number of
+/// shadow-casting lights (for [`work_units`]). `progress` is told each finished setting.
+///
+/// # Errors
+/// [`SweepError`] for bad settings or a failing render.
+pub fn sweep<F>(
+    settings: &SweepSettings,
+    reference: &Quality,
+    camera: &Camera,
+    shadow_lights: usize,
+    mut render: F,
+    mut progress: impl FnMut(usize, usize, &str),
+) -> Result<SweepReport, SweepError>
+where
+    F: FnMut(&Quality) -> Result<Rendered, RenderError>,
+{
+    if settings.repeats == 0 {
+        return Err(SweepError::NoRepeats);
+    }
+    for k in &settings.knobs {
+        k.check()?;
+    }
+    let list = settings_of(settings)?;
+    let ((ref_img, ref_fb, ref_stats), mut ref_times) =
+        timed(&mut render, reference, settings.repeats).map_err(|source| SweepError::Render {
+            label: "reference".into(),
+            source,
+        })?;
+    progress(0, list.len(), "reference");
+    let mut points = Vec::with_capacity(list.len());
+    for (i, setting) in list.into_iter().enumerate() {
+        let ((img, fb, stats), mut times) = timed(&mut render, &setting.quality, settings.repeats)
+            .map_err(|source| SweepError::Render {
+                label: setting.label.clone(),
+                source,
+            })?;
+        let error = compare_frames(
+            Frame {
+                image: &ref_img,
+                buffers: &ref_fb,
+            },
+            Frame {
+                image: &img,
+                buffers: &fb,
+            },
+            camera,
+        )
+        .map_err(|source| SweepError::Measure {
+            label: setting.label.clone(),
+            source,
+        })?;
+        progress(i + 1, points.capacity(), &setting.label);
+        points.push(SweepPoint {
+            work: work_units(&stats, &setting.quality, shadow_lights),
+            time_ms: median(&mut times),
+            times_ms: times,
+            error,
+            stats,
+            setting,
+            on_time_front: false,
+            on_work_front: false,
+        });
+    }
+    let mut report = SweepReport {
+        width: ref_img.width,
+        height: ref_img.height,
+        repeats: settings.repeats,
+        reference_quality: reference.clone(),
+        reference_time_ms: median(&mut ref_times),
+        reference_work: work_units(&ref_stats, reference, shadow_lights),
+        points,
+        time_dominance: TIME_DOMINANCE,
+        work_dominance: WORK_DOMINANCE,
+    };
+    report.mark_fronts();
+    Ok(report)
+}
+
+/// [`sweep`] with the CPU reference renderer on a document, from its camera, against
+/// [`reference_quality`].
+///
+/// # Errors
+/// [`SweepError`].
+pub fn sweep_document(
+    doc: &Document,
+    width: u32,
+    height: u32,
+    settings: &SweepSettings,
+    progress: impl FnMut(usize, usize, &str),
+) -> Result<SweepReport, SweepError> {
+    let camera = Camera::from_orbit(&doc.camera, width, height);
+    let shadow_lights = doc.lights.iter().filter(|l| l.casts_shadows).count();
+    sweep(
+        settings,
+        &reference_quality(),
+        &camera,
+        shadow_lights,
+        |q| {
+            let mut req = RenderRequest::new(width, height);
+            req.quality = q.clone();
+            render_document(doc, &req)
+        },
+        progress,
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn knob_specs_parse_and_refuse() {
+        let k = KnobValues::parse("lod_pixel_threshold=0.5, 1,2").unwrap();
+        assert_eq!(k.name, "lod_pixel_threshold");
+        assert_eq!(k.values, ["0.5", "1", "2"]);
+        for bad in ["lod_pixel_threshold", "=1", "lod_pixel_threshold=1,,2"] {
+            assert!(
+                matches!(KnobValues::parse(bad), Err(SweepError::BadSpec { .. })),
+                "{bad}"
+            );
+        }
+        let e = KnobValues::parse("lod_pixel_threshold=1,NaN").unwrap_err();
+        assert!(e.to_string().contains("lod_pixel_threshold=NaN"), "{e}");
+        assert!(matches!(
+            KnobValues::parse("no_such_knob=1"),
+            Err(SweepError::Knob { .. })
+        ));
+        // Every knob the quality settings know is sweepable by name.
+        for name in Quality::KNOBS {
+            let v = if name == "shadow_map_size" { "64" } else { "1" };
+            KnobValues::parse(&format!("{name}={v}")).unwrap();
+        }
+        for k in default_knobs() {
+            k.check().unwrap();
+        }
+    }
+
+    #[test]
+    fn reference_is_valid_and_finer_than_final() {
+        let r = reference_quality();
+        r.validate().unwrap();
+        let f = Quality::preset(QualityPreset::Final);
+        assert!(r.lod_pixel_threshold < f.lod_pixel_threshold);
+        assert!(r.shadow_map_size > f.shadow_map_size);
+        assert!(r.krs_epsilon_scale < f.krs_epsilon_scale);
+        assert!(r.krs_max_steps > f.krs_max_steps);
+    }
+
+    #[test]
+    fn settings_one_at_a_time_grid_and_merging() {
+        let base = Quality::default();
+        let s = SweepSettings {
+            base: base.clone(),
+            knobs: vec![
+                KnobValues::parse("lod_pixel_threshold=1,2").unwrap(),
+                KnobValues::parse("shadows=on,off").unwrap(),
+            ],
+            grid: false,
+            presets: false,
+            repeats: 1,
+        };
+        let one = settings_of(&s).unwrap();
+        // base (= lod 1 = shadows on, merged), lod 2, shadows off.
+        assert_eq!(one.len(), 3, "{one:#?}");
+        assert!(one[0].label.contains("base") && one[0].label.contains("shadows=on"));
+        let grid = settings_of(&SweepSettings {
+            grid: true,
+            ..s.clone()
+        })
+        .unwrap();
+        assert_eq!(grid.len(), 4);
+        assert!(
+            grid.iter()
+                .any(|g| !g.quality.shadows && g.quality.lod_pixel_threshold == 2.0)
+        );
+        let with_presets = settings_of(&SweepSettings {
+            presets: true,
+            ..s.clone()
+        })
+        .unwrap();
+        // Balanced is the base: merged, so 3 presets + lod 2 + shadows off.
+        assert_eq!(with_presets.len(), 5);
+        let too_many = SweepSettings {
+            grid: true,
+            knobs: (0..13)
+                .map(|_| KnobValues::parse("lod_pixel_threshold=1,2").unwrap())
+                .collect(),
+            ..s
+        };
+        assert!(matches!(
+            settings_of(&too_many),
+            Err(SweepError::TooManyPoints(8192))
+        ));
+    }
+
+    #[test]
+    fn sweep_on_a_small_scene_measures_error_against_the_reference() {
+        let doc = crate::render::scenes::sphere_document(5, 0.4).unwrap();
+        let settings = SweepSettings {
+            knobs: vec![KnobValues::parse("lod_pixel_threshold=0.25,4,16").unwrap()],
+            presets: false,
+            repeats: 2,
+            ..SweepSettings::default()
+        };
+        let mut calls = 0;
+        let r = sweep_document(&doc, 48, 48, &settings, |_, _, _| calls += 1).unwrap();
+        assert_eq!(calls, r.points.len() + 1);
+        assert!(r.points.iter().all(|p| p.times_ms.len() == 2));
+        let find = |l: &str| {
+            r.points
+                .iter()
+                .find(|p| p.setting.label.contains(l))
+                .unwrap()
+        };
+        // Coarser LOD: fewer nodes visited, more error and coverage mismatch (bigger splats
+        // bloat the silhouette, which also means more shaded pixels: work is not monotonic).
+        let (fine, coarse) = (find("=0.25"), find("=16"));
+        let (nf, nc) = (fine.stats.nodes_visited(), coarse.stats.nodes_visited());
+        assert!(nc < nf, "{nc} vs {nf}");
+        assert!(coarse.error.rmse > fine.error.rmse);
+        assert!(coarse.error.bloat > 0 && coarse.error.coverage_mismatch >= coarse.error.bloat);
+        // The cheapest point cannot be dominated on work.
+        let cheapest = r.points.iter().min_by_key(|p| p.work).unwrap();
+        assert!(cheapest.on_work_front);
+        let csv = r.to_csv();
+        assert_eq!(csv.lines().count(), r.points.len() + 1);
+        let json = serde_json::to_string(&r).unwrap();
+        assert!(json.contains("reference_quality"));
+    }
+}
