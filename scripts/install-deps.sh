@@ -16,3 +16,19 @@ if [ ${#missing[@]} -gt 0 ]; then
   $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}"
 fi
+
+# The Khronos glTF-Validator (npm `gltf-validator`, version pinned by the lock file) that the
+# export tests run over every exported file. Needs node; once installed it runs offline.
+if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
+  SUDO=""
+  [ "$(id -u)" -ne 0 ] && SUDO="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $SUDO apt-get update -qq
+  $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
+fi
+validator_dir="$(cd "$(dirname "$0")/.." && pwd)/tools/gltf-validator"
+wanted="$(node -e 'console.log(require(process.argv[1]).packages["node_modules/gltf-validator"].version)' "$validator_dir/package-lock.json")"
+have="$(node -e 'try{console.log(require(process.argv[1]).version)}catch(e){console.log("none")}' "$validator_dir/node_modules/gltf-validator/package.json")"
+if [ "$have" != "$wanted" ]; then
+  (cd "$validator_dir" && npm ci --no-audit --no-fund --loglevel=error)
+fi

@@ -1,7 +1,8 @@
 // Deferred Phong over the G-buffer (directional lights + ambient, Blinn half-vector specular
 // 0.25·(n·h)^32), the first shadow-casting light looked up in its shadow map with a normal
 // offset, a slope-free bias of two texels plus the receiver's splat size, and PCF. Writes
-// sRGB RGBA8 (rounded like the CPU reference). Mirrors core::render's `shade`.
+// sRGB RGBA8 (rounded like the CPU reference); screen-space ambient occlusion scales the
+// ambient term. Mirrors core::render's `shade`.
 // #import common/types.wgsl
 
 @group(0) @binding(0) var<uniform> view: View;
@@ -45,6 +46,46 @@ fn visibility(p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f3
     return f32(lit) / f32(taps);
 }
 
+// Screen-space ambient occlusion, the CPU's `AoKernel::openness` (docs/rendering.md "Ambient
+// occlusion"): fraction of the fixed samples around p not occluded by a depth-buffer surface
+// nearer the eye than the sample by more than eps_world and less than the radius.
+fn ao_openness(p: vec3<f32>, n: vec3<f32>, eps_world: f32) -> f32 {
+    if shading.ao_count == 0u || all(n == vec3<f32>(0.0)) {
+        return 1.0;
+    }
+    var helper = vec3<f32>(1.0, 0.0, 0.0);
+    if abs(n.y) < 0.99 {
+        helper = vec3<f32>(0.0, 1.0, 0.0);
+    }
+    let t = normalize_or_zero(cross(n, helper));
+    let b = cross(n, t);
+    let w = f32(view.size.x);
+    let h = f32(view.size.y);
+    var occluded = 0u;
+    for (var i = 0u; i < shading.ao_count; i++) {
+        let s = shading.ao_kernel[i].xyz;
+        let q = p + t * s.x + b * s.y + n * s.z;
+        let qv = (view.view_from_world * vec4<f32>(q, 1.0)).xyz;
+        let d_q = -qv.z;
+        if view.perspective != 0u && d_q <= view.near {
+            continue;
+        }
+        let sp = project_view(view, qv);
+        if !(sp.x >= 0.0 && sp.y >= 0.0 && sp.x < w && sp.y < h) {
+            continue;
+        }
+        let g = gbuffer[u32(sp.y) * view.size.x + u32(sp.x)];
+        if g.w == EMPTY {
+            continue;
+        }
+        let gap = d_q - view_depth_of(view, bitcast<f32>(g.w));
+        if gap > eps_world && gap < shading.ao_radius {
+            occluded++;
+        }
+    }
+    return 1.0 - f32(occluded) / f32(shading.ao_count);
+}
+
 fn to_unorm8(c: f32) -> f32 {
     // The CPU writes round(srgb · 255) as u8; store exactly that value.
     return round(linear_to_srgb(c) * 255.0) / 255.0;
@@ -68,7 +109,9 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         let eye = view.world_from_view[3].xyz;
         let v = normalize_or_zero(eye - p);
         let receiver = pixel_world_size(view, view_depth_of(view, depth)) * shading.receiver_px;
-        var light = shading.ambient.xyz;
+        // The AO staircase tolerance: the receiver term of the shadow bias.
+        let open = ao_openness(p, n, 1.5 * receiver);
+        var light = shading.ambient.xyz * open;
         var spec = vec3<f32>(0.0);
         for (var i = 0u; i < shading.light_count; i++) {
             let l = lights[i].to_light.xyz;

@@ -60,6 +60,12 @@ pub enum Command {
     /// Measure the speed/accuracy trade: render a high-quality reference, then each setting of
     /// the given quality knobs; write report.json, report.csv and tradeoff.png to a directory.
     Tradeoff(TradeoffArgs),
+    /// Export a project (or any supported file) as glTF 2.0: OUT.glb, or OUT.gltf + OUT.bin.
+    ///
+    /// Voxel models become their exposed faces greedy-merged into quads (`cubes`) or a smooth
+    /// closed surface (`smooth`); meshes are written as they are. The file is written
+    /// atomically, only when the export succeeded.
+    Export(ExportArgs),
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
     /// The voxels are drawn with each strategy and compared with the source mesh skinned with
@@ -224,6 +230,37 @@ pub struct TradeoffArgs {
     pub no_presets: bool,
 }
 
+/// How `thicket export` meshes voxel models.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum ExportModeArg {
+    /// Exposed voxel faces, greedy-merged per colour and material.
+    Cubes,
+    /// A smooth closed surface through the voxel centres.
+    Smooth,
+}
+
+/// `thicket export`.
+#[derive(Debug, Args)]
+pub struct ExportArgs {
+    /// The project (or any supported file) to export.
+    pub project: PathBuf,
+    /// The file to write: .glb, or .gltf (a .bin with the same stem is written beside it).
+    #[arg(short, long)]
+    pub output: PathBuf,
+    /// Export only this object (by name); default: every visible object.
+    #[arg(long)]
+    pub object: Option<String>,
+    /// How voxel models become triangles.
+    #[arg(long, value_enum, default_value = "cubes")]
+    pub mode: ExportModeArg,
+    /// KRS meshing resolution: cells along the longest side of each KRS object.
+    #[arg(long, default_value_t = 256)]
+    pub resolution: u32,
+    /// Store colours in a palette texture instead of COLOR_0 vertex colours.
+    #[arg(long)]
+    pub palette_texture: bool,
+}
+
 /// `thicket import`.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
@@ -317,6 +354,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Bench(args)) => bench(&args),
         Some(Command::Enhance(args)) => enhance(&args),
         Some(Command::Tradeoff(args)) => tradeoff(&args),
+        Some(Command::Export(args)) => export(&args),
     }
 }
 
@@ -503,6 +541,69 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
         settings.factor,
         stats.seconds
     ))
+}
+
+fn export(args: &ExportArgs) -> anyhow::Result<()> {
+    use thicket_core::io::gltf_export::{
+        ColorMode, ExportMode, GltfExportOptions, MAX_RESOLUTION, export_gltf,
+    };
+    if !(2..=MAX_RESOLUTION).contains(&args.resolution) {
+        anyhow::bail!(
+            "--resolution {}: must be between 2 and {MAX_RESOLUTION}",
+            args.resolution
+        );
+    }
+    let doc = files::load_document(&args.project)?;
+    let options = GltfExportOptions {
+        mode: match args.mode {
+            ExportModeArg::Cubes => ExportMode::Cubes,
+            ExportModeArg::Smooth => ExportMode::Smooth,
+        },
+        colors: if args.palette_texture {
+            ColorMode::PaletteTexture
+        } else {
+            ColorMode::VertexColors
+        },
+        object: args.object.clone(),
+        resolution: args.resolution,
+        ..GltfExportOptions::default()
+    };
+    let bar = progress_bar(1000, "exporting");
+    let result = export_gltf(&doc, &args.output, &options, &|f| {
+        bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+        true
+    });
+    bar.finish_and_clear();
+    let report = result?;
+    let mut text = format!(
+        "wrote {}: {} object(s), {} triangles, {} vertices, {}\n",
+        report
+            .files
+            .iter()
+            .map(|f| f.display().to_string())
+            .collect::<Vec<_>>()
+            .join(" + "),
+        report.objects,
+        thousands(report.triangles),
+        thousands(report.vertices),
+        human_bytes(report.bytes)
+    );
+    for (name, faces, quads) in &report.voxel_faces {
+        text.push_str(&format!(
+            "  {name:?}: {} exposed faces merged into {} quads ({} triangles instead of {})\n",
+            thousands(*faces),
+            thousands(*quads),
+            thousands(quads * 2),
+            thousands(faces * 2)
+        ));
+    }
+    if !report.skipped.is_empty() {
+        text.push_str(&format!(
+            "  skipped (hidden or empty): {}\n",
+            report.skipped.join(", ")
+        ));
+    }
+    write_stdout(&text)
 }
 
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
@@ -1157,5 +1258,37 @@ mod tests {
             other => panic!("{other:?}"),
         }
         assert!(Cli::try_parse_from(["thicket", "info"]).is_err());
+    }
+
+    #[test]
+    fn parses_export() {
+        let cli = Cli::try_parse_from([
+            "thicket",
+            "export",
+            "p.thicket.json",
+            "-o",
+            "out.glb",
+            "--object",
+            "Tree",
+            "--mode",
+            "smooth",
+            "--resolution",
+            "512",
+        ])
+        .unwrap();
+        match cli.command {
+            Some(Command::Export(a)) => {
+                assert_eq!(a.output, PathBuf::from("out.glb"));
+                assert_eq!(a.object.as_deref(), Some("Tree"));
+                assert_eq!(a.mode, ExportModeArg::Smooth);
+                assert_eq!(a.resolution, 512);
+                assert!(!a.palette_texture);
+            }
+            other => panic!("{other:?}"),
+        }
+        assert!(
+            Cli::try_parse_from(["thicket", "export", "p", "-o", "x", "--mode", "blobs"]).is_err()
+        );
+        assert!(Cli::try_parse_from(["thicket", "export", "p"]).is_err());
     }
 }

@@ -463,7 +463,8 @@ fn voxel_model<'a>(
         .unwrap_or_else(|| panic!("no object {name:?}"));
     match &o.kind {
         ObjectKind::Voxels(v) => (o, v),
-        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("{name:?} is not voxels"),
+        ObjectKind::Mesh(_) => panic!("{name:?} is a mesh"),
+        ObjectKind::Krs(_) => panic!("{name:?} is a KRS object"),
     }
 }
 
@@ -653,4 +654,98 @@ fn enhance_refuses_bad_arguments_and_writes_nothing() {
         out.to_str().unwrap(),
     ]);
     assert_fails_naming(&o, Path::new("ghost.thicket.json"));
+}
+
+#[test]
+fn export_writes_glb_and_gltf_that_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let glb = dir.path().join("two.glb");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        glb.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Two rows of 3 and 10 voxels: each is one box, 6 quads, after greedy merging.
+    let out = stdout(&o);
+    assert!(out.contains("2 object(s), 24 triangles"), "{out}");
+    assert!(
+        out.contains("14 exposed faces merged into 6 quads"),
+        "{out}"
+    );
+    let info = info_json(glb.to_str().unwrap());
+    assert_eq!(info["total_triangles"], 24, "{info}");
+
+    // .gltf + .bin, one object, smooth mode, palette texture.
+    let gltf = dir.path().join("long.gltf");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        gltf.to_str().unwrap(),
+        "--object",
+        "long",
+        "--mode",
+        "smooth",
+        "--palette-texture",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("long.bin").exists());
+    let info = info_json(gltf.to_str().unwrap());
+    assert_eq!(info["objects"].as_array().unwrap().len(), 1, "{info}");
+    assert!(info["total_triangles"].as_u64().unwrap() > 24, "{info}");
+}
+
+#[test]
+fn failing_gltf_export_names_the_problem_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let before = files_in(dir.path());
+    // Unknown object: the message lists the real ones.
+    let out = dir.path().join("x.glb");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--object",
+        "Tree",
+    ]);
+    assert_fails_naming(&o, &out);
+    assert!(stderr(&o).contains("\"row\""), "{}", stderr(&o));
+    // A folder that does not exist.
+    let nowhere = dir.path().join("missing").join("x.glb");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        nowhere.to_str().unwrap(),
+    ]);
+    assert_fails_naming(&o, &nowhere);
+    // Not a glTF name, and a resolution out of range.
+    let obj = dir.path().join("x.obj");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        obj.to_str().unwrap(),
+    ]);
+    assert_fails_naming(&o, &obj);
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--resolution",
+        "2097152",
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("--resolution 2097152"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(files_in(dir.path()), before);
 }

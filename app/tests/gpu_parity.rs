@@ -193,3 +193,46 @@ fn rotated_voxels_without_shadows_match_the_cpu_reference() {
     };
     both_paths(&ctx, "rotated-sphere", &doc, (80, 80), &q);
 }
+
+#[test]
+fn ambient_occlusion_darkens_on_the_gpu_as_on_the_cpu() {
+    // AO on the GPU is not a no-op that happens to agree: without it the same frame differs,
+    // only ever brighter (it scales the ambient term alone); with another sample count (8,
+    // another kernel than the default 4) both renderers still agree on both paths.
+    let ctx = context();
+    let doc = scenes::mixed_document(7).expect("scene");
+    let size = (112, 96);
+    let gpu_image = |q: &Quality| {
+        let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
+        r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, q, &target)
+            .expect("GPU frame");
+        read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback")
+    };
+    let with = Quality {
+        ao_samples: 8,
+        ..Quality::default()
+    };
+    let without = Quality {
+        ao_samples: 0,
+        ..Quality::default()
+    };
+    let (a, b) = (gpu_image(&with), gpu_image(&without));
+    let mut darker = 0;
+    for (pa, pb) in a.chunks_exact(4).zip(b.chunks_exact(4)) {
+        assert!(
+            pa.iter().zip(pb).all(|(x, y)| x <= y),
+            "AO brightened a pixel: {pa:?} vs {pb:?} without AO"
+        );
+        if pa != pb {
+            darker += 1;
+        }
+    }
+    let pixels = size.0 * size.1;
+    assert!(
+        darker * 100 >= pixels,
+        "AO darkened only {darker} of {pixels} pixels"
+    );
+    eprintln!("AO darkened {darker} of {pixels} pixels");
+    both_paths(&ctx, "synthetic-mixed-ao8", &doc, size, &with);
+}

@@ -311,8 +311,12 @@ fn plate_model(depth: u8) -> VoxelModel {
         },
         |v: UVec3| {
             let c = (v.x + v.z) / (n / 64).max(1);
-            (v.y == 0 && (lo..hi).contains(&v.x) && (lo..hi).contains(&v.z))
-                .then(|| Voxel::new([if c % 2 == 0 { 220 } else { 60 }, 120, 90, 255], Vec3::Y))
+            (v.y == 0 && (lo..hi).contains(&v.x) && (lo..hi).contains(&v.z)).then(|| {
+                Voxel::new(
+                    [if c.is_multiple_of(2) { 220 } else { 60 }, 120, 90, 255],
+                    Vec3::Y,
+                )
+            })
         },
     )
     .expect("valid depth");

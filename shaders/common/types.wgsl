@@ -95,7 +95,13 @@ struct Shading {
     pcf_radius: u32,
     // max(1, lod pixel threshold): the receiver's splat size in pixels, for the shadow bias.
     receiver_px: f32,
+    // Ambient occlusion: sample count (0 = off), world radius, tangent-frame offsets.
+    ao_count: u32,
+    ao_radius: f32,
     _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+    ao_kernel: array<vec4<f32>, 64>,
 }
 
 // NDC depth (0 near, 1 far) of a view depth.

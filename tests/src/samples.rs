@@ -5,7 +5,7 @@
 //! never silently drift from the code that made it.
 
 use anyhow::{Context, Result};
-use glam::{Vec2, Vec3, Vec4};
+use glam::{UVec3, Vec2, Vec3, Vec4};
 use thicket_core::io::vox::import_vox;
 use thicket_core::mesh::{Material, MeshModel, TriangleMesh};
 use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, Transform};
@@ -120,11 +120,13 @@ pub fn build(name: &str) -> Result<Document> {
 pub const TERRAIN_SIZE: u32 = 64;
 /// Expansion factor of the sample terrain's enhancement.
 pub const TERRAIN_FACTOR: u32 = 16;
-/// The coarse columns `lo..hi` (x and z) whose enhancement the sample stores. The whole map at
-/// 16x is about 6 M shell fragments (about 90 MB of payload at 15 bytes each), too much for the
-/// repository, so the sample keeps the editable coarse map whole and stores the enhancement of
-/// this block: exactly the fragments a full enhancement has there (see `terrain`).
+/// The coarse columns `lo..hi` (x and z) of the 64³ map that the sample cuts out as a map of its
+/// own and enhances whole. The whole map at 16x is about 6.4 M shell fragments (about 96 MB of
+/// payload at 15 bytes each), too much for the repository, so the sample takes a block of it.
 pub const TERRAIN_BLOCK: (u32, u32) = (20, 44);
+/// Coarse layers kept below the lowest column top of the block: the piece keeps a base of dirt
+/// and rock under its lowest point instead of standing on the full 64-voxel-deep map.
+pub const TERRAIN_BASE: u32 = 3;
 
 /// The enhancement settings of the sample terrain: subdivision with the paper's strata
 /// (thresholds 3 and 4 by altitude parity), colours blended within a material.
@@ -144,44 +146,43 @@ pub fn terrain_settings() -> thicket_core::enhance::EnhanceSettings {
     }
 }
 
-/// The coarse 64³ noise terrain (hidden: the editable source) and the 16x enhancement of the
-/// block [`TERRAIN_BLOCK`] of its columns, as "terrain (enhanced)" (the names `thicket
-/// enhance` gives). Only the block plus the rule's one-voxel dependency margin is enhanced, then
-/// the fragments outside the block are dropped, which gives exactly what enhancing the whole
-/// map and cropping would.
+/// A block of the coarse 64³ noise terrain, cut out as a map of its own (hidden: the editable
+/// source, "terrain"), and its 16x enhancement, "terrain (enhanced)": what `thicket enhance
+/// --object terrain --factor 16` makes of it. Enhancing the cut-out block, rather than cropping
+/// an enhancement of the whole map, closes its sides into cliffs: the enhancer sees empty space
+/// past the cut and makes fragments there, so the piece is a closed solid.
 fn terrain(doc: &mut Document) -> Result<()> {
     use thicket_core::enhance::{Enhancer, sample_terrain};
     use thicket_core::scene::VoxelModel;
     use thicket_core::svo::Svo;
 
-    let coarse = sample_terrain(TERRAIN_SIZE, 1)?;
+    let map = sample_terrain(TERRAIN_SIZE, 1)?;
     let (lo, hi) = TERRAIN_BLOCK;
-    let margin = 1;
-    let (mlo, mhi) = (lo.saturating_sub(margin), (hi + margin).min(TERRAIN_SIZE));
-    let window = Svo::from_voxels(
-        coarse.depth(),
-        false,
-        coarse
-            .leaves()
-            .into_iter()
-            .filter(|(c, _)| (mlo..mhi).contains(&c.x) && (mlo..mhi).contains(&c.z)),
-    )?;
-    let settings = terrain_settings();
-    let enhancer = Enhancer::new(&window, &settings)?;
-    anyhow::ensure!(
-        enhancer.dependency_radius() <= margin,
-        "the sample's margin is smaller than the rule's dependency radius"
-    );
+    let in_block = |c: UVec3| (lo..hi).contains(&c.x) && (lo..hi).contains(&c.z);
+    let mut tops = std::collections::HashMap::new();
+    for (c, _) in map.leaves() {
+        if in_block(c) {
+            let top = tops.entry((c.x, c.z)).or_insert(0);
+            *top = (*top).max(c.y + 1);
+        }
+    }
+    let lowest = tops
+        .values()
+        .copied()
+        .min()
+        .context("the block holds no terrain")?;
+    let base = lowest.saturating_sub(TERRAIN_BASE);
+    let block: Vec<(UVec3, thicket_core::svo::Voxel)> = map
+        .leaves()
+        .into_iter()
+        .filter(|(c, _)| in_block(*c) && c.y >= base)
+        .map(|(c, v)| (c - UVec3::new(lo, base, lo), v))
+        .collect();
+    let extent = (hi - lo).max(TERRAIN_SIZE - base);
+    let depth = extent.next_power_of_two().trailing_zeros() as u8;
+    let coarse = Svo::from_voxels(depth, false, block)?;
+    let fine = Enhancer::new(&coarse, &terrain_settings())?.into_fine();
     let f = TERRAIN_FACTOR;
-    let fine = enhancer.into_fine();
-    let block = Svo::from_voxels(
-        fine.depth(),
-        false,
-        fine.leaves().into_iter().filter(|(p, _)| {
-            let c = *p / f;
-            (lo..hi).contains(&c.x) && (lo..hi).contains(&c.z)
-        }),
-    )?;
     // 4 units across for the coarse map.
     let voxel_size = 4.0 / TERRAIN_SIZE as f32;
     let names = vec![
@@ -206,7 +207,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
     doc.add(
         "terrain (enhanced)",
         ObjectKind::Voxels(VoxelModel {
-            svo: block,
+            svo: fine,
             voxel_size: voxel_size / f as f32,
             origin: Vec3::ZERO,
             material_names: names,

@@ -32,7 +32,7 @@ fn house_has_the_exact_voxel_count() {
     assert_eq!(voxels, 180_202);
 }
 
-/// The terrain sample (coarse 64³ noise terrain, a block of it enhanced 16x) renders as its
+/// The terrain sample (a block cut from a coarse 64³ noise terrain, enhanced 16x) renders as its
 /// golden image. `THICKET_BLESS=1` rewrites the golden after an intended change.
 #[test]
 fn terrain_sample_renders_as_its_golden_image() {
@@ -62,8 +62,11 @@ fn terrain_sample_renders_as_its_golden_image() {
         },
     };
     let (image, buffers, _) = render_document(&doc, &request).unwrap();
+    // Measured: the closed piece covers 10,972 of the 40,000 pixels (27 %); more than a fifth
+    // means the piece is in view and framed, not a sliver at the edge or an empty frame.
+    eprintln!("terrain sample covers {} pixels", buffers.covered_pixels());
     assert!(
-        buffers.covered_pixels() > 200 * 200 / 20,
+        buffers.covered_pixels() > 200 * 200 / 5,
         "the terrain is in view: {} pixels",
         buffers.covered_pixels()
     );

@@ -16,7 +16,7 @@ use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
     MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE, OVERFLOW_COUNTER,
-    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform,
+    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform, ao_kernel,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -183,11 +183,9 @@ impl ViewSpec {
         }
     }
 
-    /// An orthographic camera looking along `direction` whose image tightly holds the box
-    /// (the same fit as the CPU reference: `core::render::shade::fit_light_view`), with at most
-    /// `max_size` texels per edge and texels no finer than `finest_texel_world`: the CPU reference's
-    /// `fit_light_camera` (`core/src/render/shade.rs`), which keeps the shadow pass bound by the
-    /// view's resolution. Kept identical so both renderers sample the same shadow texels.
+    /// The shadow camera of the CPU reference: `core::render::shade::fit_light_camera` (the
+    /// box fit, at most `max_size` texels per edge, texels no finer than `finest_texel_world`),
+    /// called rather than copied so both renderers sample the same shadow texels.
     fn fit_light_bound(
         direction: Vec3,
         lo: Vec3,
@@ -195,23 +193,38 @@ impl ViewSpec {
         max_size: u32,
         finest_texel_world: f32,
     ) -> Option<Self> {
-        let fit = thicket_core::render::shade::fit_light_view(direction, lo, hi)?;
-        let (half, near, far) = (fit.half_extent, fit.near, fit.far);
-        let wanted = (2.0 * half / finest_texel_world.max(1e-30)).ceil();
-        let size = if wanted.is_finite() {
-            (wanted as u32).clamp(16, max_size.max(16))
-        } else {
-            max_size
+        let cam = thicket_core::render::shade::fit_light_camera(
+            direction,
+            lo,
+            hi,
+            max_size,
+            finest_texel_world,
+        )?;
+        let thicket_core::render::Projection::Orthographic {
+            half_width,
+            half_height,
+            near,
+            far,
+        } = cam.projection
+        else {
+            return None;
         };
-        let f = 0.5 * size as f32 / half;
+        let f = 0.5 * cam.width as f32 / half_width;
         Some(Self {
-            view_from_world: fit.view_from_world,
-            clip_from_view: Mat4::orthographic_rh(-half, half, -half, half, near, far),
-            width: size,
-            height: size,
+            view_from_world: cam.view_from_world,
+            clip_from_view: Mat4::orthographic_rh(
+                -half_width,
+                half_width,
+                -half_height,
+                half_height,
+                near,
+                far,
+            ),
+            width: cam.width,
+            height: cam.height,
             perspective: false,
             fx: f,
-            fy: f,
+            fy: 0.5 * cam.height as f32 / half_height,
             near,
             far,
         })
@@ -964,10 +977,11 @@ impl Renderer {
             .filter(|_| quality.shadows);
         let shadow = match (shadow_light, frame_objects.bounds) {
             (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => {
-                // Two texels per view pixel where the scene comes nearest the eye (as the CPU).
+                // One texel per view pixel where the scene comes nearest the eye (as the CPU's
+                // `render_scene`: `cam.pixel_world_size(nearest)`).
                 let eye = camera.eye();
                 let nearest = (eye.clamp(lo, hi) - eye).length().max(main.near);
-                let finest = 0.5 * nearest / main.fy;
+                let finest = nearest / main.fy;
                 ViewSpec::fit_light_bound(
                     doc.lights[i].direction,
                     lo,
@@ -1153,13 +1167,22 @@ impl Renderer {
             }),
             U::UNIFORM,
         );
+        // Ambient occlusion as the CPU's `render_scene`: radius from the same scene bounds the
+        // shadow map is fitted to (0 without bounds: no sample can then be occluded).
+        let ao_radius = frame_objects.bounds.map_or(0.0, |(lo, hi)| {
+            thicket_core::render::AO_RADIUS_OF_SCENE * (hi - lo).length()
+        });
+        let (ao_count, ao_kernel) = ao_kernel(quality.ao_samples, ao_radius);
         let shading = ShadingUniform {
             ambient: doc.ambient.extend(0.0).to_array(),
             background: doc.background.extend(0.0).to_array(),
             light_count: lights.len() as u32,
             pcf_radius: quality.shadow_pcf_radius.min(8),
             receiver_px: lod.max(1.0),
-            pad: 0,
+            ao_count,
+            ao_radius,
+            pad: [0; 3],
+            ao_kernel,
         };
         let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
 

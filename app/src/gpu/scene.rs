@@ -386,16 +386,20 @@ impl SceneCache {
             self.meshes = entries;
         }
         for i in 0..self.voxels.len() {
-            let Some(svo) = voxels_of(doc, self.voxels[i].object_id) else {
-                return None;
-            };
+            let svo = voxels_of(doc, self.voxels[i].object_id)?;
             let e = &self.voxels[i];
             if svo.inner_masks().len() as u32 != e.inner_len
                 || svo.leaf_colors().len() as u32 != e.leaf_len
             {
-                let all_inner = [0..svo.inner_masks().len() as u32];
-                let all_leaf = [0..svo.leaf_colors().len() as u32];
-                let s = self.write_ranges(queue, i, svo, &all_inner, &all_leaf);
+                let all_inner = 0..svo.inner_masks().len() as u32;
+                let all_leaf = 0..svo.leaf_colors().len() as u32;
+                let s = self.write_ranges(
+                    queue,
+                    i,
+                    svo,
+                    std::slice::from_ref(&all_inner),
+                    std::slice::from_ref(&all_leaf),
+                );
                 stats.bytes += s.bytes;
                 stats.writes += s.writes;
             }
@@ -554,7 +558,8 @@ mod tests {
     fn ranges_merge_when_close() {
         let m = merge_ranges(vec![10..12, 0..1, 13..20, 100..101, 1..3]);
         assert_eq!(m, vec![0..20, 100..101]);
-        assert!(merge_ranges(vec![5..5]).is_empty());
+        // One empty range (a struct literal: `vec![5..5]` reads like a mistaken `vec![5; 5]`).
+        assert!(merge_ranges(vec![Range { start: 5, end: 5 }]).is_empty());
     }
 
     #[test]

@@ -9,6 +9,7 @@ pub mod project;
 pub mod error;
 #[cfg(test)]
 pub(crate) mod fuzz;
+pub mod gltf_export;
 pub mod gltf_mesh;
 pub mod obj;
 

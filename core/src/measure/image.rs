@@ -217,7 +217,9 @@ pub fn parity(
         match (da, db) {
             (Some(x), Some(y)) => {
                 both_covered += 1;
-                if !((x - y).abs() <= depth_tolerance * x.abs().max(y.abs())) {
+                // Written as "not close" so a NaN depth counts as a mismatch.
+                let close = (x - y).abs() <= depth_tolerance * x.abs().max(y.abs());
+                if !close {
                     depth_mismatch += 1;
                 }
             }

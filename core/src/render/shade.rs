@@ -78,8 +78,10 @@ pub fn fit_light_view(direction: Vec3, lo: Vec3, hi: Vec3) -> Option<LightFit> {
 /// An orthographic camera looking along `direction` whose image tightly holds the box, with at
 /// most `max_size` texels per edge and texels no finer than `finest_texel_world` (finer texels
 /// than the view can resolve only cost time: this keeps the shadow pass bound by the view's
-/// resolution, like the view's own traversal).
-pub(crate) fn fit_light_camera(
+/// resolution, like the view's own traversal). Public so the GPU renderer sizes its shadow map
+/// with this very function. `None` when the direction is zero or not finite.
+#[must_use]
+pub fn fit_light_camera(
     direction: Vec3,
     lo: Vec3,
     hi: Vec3,

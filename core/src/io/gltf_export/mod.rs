@@ -1,0 +1,882 @@
+//! glTF 2.0 export (`.glb`, or `.gltf` with a `.bin` beside it) of a document's objects.
+//!
+//! | object | `Cubes` mode | `Smooth` mode |
+//! |---|---|---|
+//! | voxel model | faces between solid and empty voxels, greedy-merged per (colour, material) into quads ([`greedy`]) | a closed surface through the voxel centres, relaxed ([`fields::mesh_voxels_smooth`]) |
+//! | triangle mesh | written as it is (positions, normals, UVs, colours, material colour and texture) | same |
+//! | KRS | a closed mesh of the distance field at [`GltfExportOptions::resolution`] ([`fields::mesh_krs`]) | same |
+//!
+//! Colours go out as `COLOR_0` (linear, unsigned-short normalised) or, with
+//! [`ColorMode::PaletteTexture`], as UVs into a palette image with one texel per distinct
+//! colour (nearest filtering). Each object is a node with its transform; each material id of a
+//! voxel model is a glTF material named after it. Conventions: right-handed, +Y up, the
+//! document's units as metres.
+//!
+//! Files are written to a temporary sibling, synced and renamed over the target, so a failed
+//! export (or a crash) never leaves a partial file. Sizes are checked before the big
+//! allocations: the exposed faces are counted before any quad is built, KRS surface blocks
+//! before any cell is marched.
+
+pub mod fields;
+pub mod greedy;
+pub mod instances;
+pub mod iso;
+mod writer;
+
+#[cfg(test)]
+mod tests;
+
+use std::collections::HashMap;
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use glam::{Vec2, Vec3, Vec4};
+use serde::{Deserialize, Serialize};
+
+use crate::mesh::{MeshModel, Texture, srgb_to_linear};
+use crate::scene::{Document, Object, ObjectKind, VoxelModel};
+pub use fields::{
+    ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
+};
+pub use instances::{InstanceTransform, KernelInstances, krs_instances};
+pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene};
+
+/// How voxel models become triangles.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ExportMode {
+    /// Faces between solid and empty voxels, greedy-merged into quads: exact blocks.
+    #[default]
+    Cubes,
+    /// A smooth closed surface through the voxel centres.
+    Smooth,
+    /// KRS objects as one mesh per kernel drawn once per kernel instance
+    /// (`EXT_mesh_gpu_instancing`); voxel models as in `Cubes`.
+    Instances,
+}
+
+/// How colours are stored.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ColorMode {
+    /// `COLOR_0` vertex colours.
+    #[default]
+    VertexColors,
+    /// A palette texture (one texel per distinct colour) and UVs; no vertex colours.
+    PaletteTexture,
+}
+
+/// File layout.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum GltfFormat {
+    /// One binary `.glb` file.
+    Glb,
+    /// A `.gltf` JSON file and a `.bin` buffer beside it (same stem).
+    Gltf,
+}
+
+impl GltfFormat {
+    /// The format a path's extension names (`.glb` or `.gltf`, any case).
+    #[must_use]
+    pub fn from_path(path: &Path) -> Option<Self> {
+        let ext = path.extension()?.to_str()?.to_ascii_lowercase();
+        match ext.as_str() {
+            "glb" => Some(Self::Glb),
+            "gltf" => Some(Self::Gltf),
+            _ => None,
+        }
+    }
+}
+
+/// Settings of [`export_gltf`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct GltfExportOptions {
+    /// Voxel meshing.
+    pub mode: ExportMode,
+    /// Vertex colours or a palette texture.
+    pub colors: ColorMode,
+    /// Export only the object with this name (hidden or not); `None`: every visible object.
+    pub object: Option<String>,
+    /// KRS meshing: cells along the longest side of the object's region.
+    pub resolution: u32,
+    /// Smooth mode: rounds of relaxation.
+    pub smoothing: u32,
+    /// Instances mode: cells across each kernel's bounding ball.
+    pub kernel_resolution: u32,
+    /// Instances mode: most kernel instances one KRS object may have.
+    pub max_instances: usize,
+    /// Refuse (before building it) an export with more triangles than this.
+    pub max_triangles: u64,
+}
+
+impl Default for GltfExportOptions {
+    fn default() -> Self {
+        Self {
+            mode: ExportMode::Cubes,
+            colors: ColorMode::VertexColors,
+            object: None,
+            resolution: 256,
+            smoothing: 4,
+            kernel_resolution: 24,
+            max_instances: 1 << 20,
+            // 2^26 triangles: about 2.5 GiB of GLB, under the format's 4 GiB limit.
+            max_triangles: 1 << 26,
+        }
+    }
+}
+
+/// What an export wrote.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct GltfExportReport {
+    /// Objects written.
+    pub objects: usize,
+    /// Triangles written.
+    pub triangles: u64,
+    /// Vertices written.
+    pub vertices: u64,
+    /// Bytes written (all files).
+    pub bytes: u64,
+    /// Files written (the `.gltf` and `.bin`, or the `.glb`).
+    pub files: Vec<PathBuf>,
+    /// Per voxel object: (name, exposed faces, quads after greedy merging), `Cubes` mode.
+    pub voxel_faces: Vec<(String, u64, u64)>,
+    /// Names of objects left out (hidden, empty).
+    pub skipped: Vec<String>,
+}
+
+/// Why an export failed. Nothing is left on disk when it does.
+#[derive(Debug, thiserror::Error)]
+pub enum GltfExportError {
+    /// Nothing to export: no visible object with geometry, an unknown or empty object.
+    #[error("{}: nothing to export: {detail}", path.display())]
+    NothingToExport {
+        /// The target file.
+        path: PathBuf,
+        /// Why.
+        detail: String,
+    },
+    /// An object cannot be exported as it is.
+    #[error("{}: object {object:?}: {detail}", path.display())]
+    Object {
+        /// The target file.
+        path: PathBuf,
+        /// The object.
+        object: String,
+        /// What is wrong.
+        detail: String,
+    },
+    /// The export would be too large (checked before allocating).
+    #[error("{}: too large: {detail}", path.display())]
+    TooLarge {
+        /// The target file.
+        path: PathBuf,
+        /// What and the limit.
+        detail: String,
+    },
+    /// The path does not name a `.glb` or `.gltf` file.
+    #[error("{}: unsupported: {detail}", path.display())]
+    Unsupported {
+        /// The target file.
+        path: PathBuf,
+        /// What.
+        detail: String,
+    },
+    /// The operating system refused.
+    #[error("{}: {action}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What was being done.
+        action: &'static str,
+        /// Its error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The progress callback asked to stop.
+    #[error("{}: export cancelled", path.display())]
+    Cancelled {
+        /// The target file.
+        path: PathBuf,
+    },
+}
+
+/// Exports `doc` to `path` (`.glb` or `.gltf`, by extension).
+///
+/// `progress(fraction)` is called now and then from the calling thread; returning `false`
+/// cancels. The report says what was written.
+///
+/// # Errors
+/// [`GltfExportError`]; on any error no file is created or changed.
+pub fn export_gltf(
+    doc: &Document,
+    path: &Path,
+    options: &GltfExportOptions,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<GltfExportReport, GltfExportError> {
+    let format = GltfFormat::from_path(path).ok_or_else(|| GltfExportError::Unsupported {
+        path: path.to_owned(),
+        detail: "the file name must end in .glb or .gltf".to_owned(),
+    })?;
+    let (scene, mut report) = build_scene(doc, path, options, &|f| progress(f * 0.9))?;
+    let files = write_scene(&scene, path, format)?;
+    report.bytes = files.iter().map(|f| f.1).sum();
+    report.files = files.into_iter().map(|f| f.0).collect();
+    progress(1.0);
+    Ok(report)
+}
+
+/// Encodes an [`ExportScene`] as GLB bytes (for tests and in-memory use).
+///
+/// # Errors
+/// [`GltfExportError::TooLarge`] past glTF's 32-bit sizes, [`GltfExportError::Object`] for
+/// inconsistent primitives; `path` only names the target in messages.
+pub fn encode_glb(scene: &ExportScene, path: &Path) -> Result<Vec<u8>, GltfExportError> {
+    let encoded = writer::encode(scene, None, generator()).map_err(|e| encode_error(path, e))?;
+    writer::glb(&encoded).map_err(|e| encode_error(path, e))
+}
+
+fn generator() -> &'static str {
+    concat!("Thicket ", env!("CARGO_PKG_VERSION"))
+}
+
+fn encode_error(path: &Path, e: writer::EncodeError) -> GltfExportError {
+    match e {
+        writer::EncodeError::TooLarge(detail) => GltfExportError::TooLarge {
+            path: path.to_owned(),
+            detail,
+        },
+        writer::EncodeError::Invalid(detail) | writer::EncodeError::Encoding(detail) => {
+            GltfExportError::Object {
+                path: path.to_owned(),
+                object: String::new(),
+                detail,
+            }
+        }
+    }
+}
+
+/// Writes the scene; returns each file written with its size.
+fn write_scene(
+    scene: &ExportScene,
+    path: &Path,
+    format: GltfFormat,
+) -> Result<Vec<(PathBuf, u64)>, GltfExportError> {
+    match format {
+        GltfFormat::Glb => {
+            let bytes = encode_glb(scene, path)?;
+            write_atomic(path, &[(path, &bytes)])?;
+            Ok(vec![(path.to_owned(), bytes.len() as u64)])
+        }
+        GltfFormat::Gltf => {
+            let bin_path = path.with_extension("bin");
+            let bin_name = bin_path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .ok_or_else(|| GltfExportError::Unsupported {
+                    path: path.to_owned(),
+                    detail: "the file name is not valid UTF-8".to_owned(),
+                })?
+                .to_owned();
+            // The URI is relative to the .gltf; percent-encode what a URI cannot hold.
+            let uri: String = bin_name
+                .bytes()
+                .map(|b| match b {
+                    b'A'..=b'Z' | b'a'..=b'z' | b'0'..=b'9' | b'-' | b'_' | b'.' | b'~' => {
+                        char::from(b).to_string()
+                    }
+                    _ => format!("%{b:02X}"),
+                })
+                .collect();
+            let encoded = writer::encode(scene, Some(&uri), generator())
+                .map_err(|e| encode_error(path, e))?;
+            let mut files: Vec<(&Path, &[u8])> = Vec::new();
+            if !encoded.bin.is_empty() {
+                files.push((&bin_path, &encoded.bin));
+            }
+            files.push((path, &encoded.json));
+            write_atomic(path, &files)?;
+            Ok(files
+                .iter()
+                .map(|(p, b)| (p.to_path_buf(), b.len() as u64))
+                .collect())
+        }
+    }
+}
+
+/// Writes each `(file, bytes)` to a temporary sibling, syncs them all, then renames them into
+/// place in order (the `.bin` before the `.gltf` that names it) and syncs the directory. On any
+/// failure before the renames every temporary file is removed and no target is touched.
+fn write_atomic(target: &Path, files: &[(&Path, &[u8])]) -> Result<(), GltfExportError> {
+    let io = |path: &Path, action, source| GltfExportError::Io {
+        path: path.to_owned(),
+        action,
+        source,
+    };
+    let dir = target
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .map_or_else(|| PathBuf::from("."), Path::to_path_buf);
+    let tmp_of = |p: &Path| {
+        let name = p
+            .file_name()
+            .map_or_else(|| "export".into(), |n| n.to_string_lossy().into_owned());
+        dir.join(format!(".{name}.tmp-{}", std::process::id()))
+    };
+    let mut written: Vec<PathBuf> = Vec::new();
+    let result = (|| {
+        for (p, bytes) in files {
+            let tmp = tmp_of(p);
+            let mut f =
+                std::fs::File::create(&tmp).map_err(|e| io(p, "creating the temporary file", e))?;
+            written.push(tmp.clone());
+            f.write_all(bytes)
+                .map_err(|e| io(p, "writing the temporary file", e))?;
+            f.sync_all()
+                .map_err(|e| io(p, "syncing the temporary file", e))?;
+        }
+        for (p, _) in files {
+            std::fs::rename(tmp_of(p), p).map_err(|e| io(p, "renaming the temporary file", e))?;
+        }
+        Ok(())
+    })();
+    if result.is_err() {
+        // Best effort: the error that matters is the one returned.
+        for tmp in &written {
+            let _ = std::fs::remove_file(tmp);
+        }
+        return result;
+    }
+    if let Ok(d) = std::fs::File::open(&dir) {
+        let _ = d.sync_all();
+    }
+    Ok(())
+}
+
+/// Builds the scene to write: one node per exported object.
+///
+/// # Errors
+/// See [`export_gltf`]; `path` only names the target in messages.
+pub fn build_scene(
+    doc: &Document,
+    path: &Path,
+    options: &GltfExportOptions,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<(ExportScene, GltfExportReport), GltfExportError> {
+    let mut report = GltfExportReport::default();
+    let chosen: Vec<&Object> = match &options.object {
+        Some(name) => {
+            let o = doc
+                .object_by_name(name)
+                .ok_or_else(|| GltfExportError::NothingToExport {
+                    path: path.to_owned(),
+                    detail: format!(
+                        "no object named {name:?}; the document has: {}",
+                        doc.objects
+                            .iter()
+                            .map(|o| format!("{:?}", o.name))
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                })?;
+            vec![o]
+        }
+        None => {
+            let (shown, hidden): (Vec<&Object>, Vec<&Object>) =
+                doc.objects.iter().partition(|o| o.visible);
+            report.skipped = hidden.iter().map(|o| o.name.clone()).collect();
+            shown
+        }
+    };
+    let mut out = SceneBuilder {
+        scene: ExportScene::default(),
+        materials: HashMap::new(),
+        palette: Palette::default(),
+        options,
+    };
+    let mut budget = options.max_triangles;
+    let total = chosen.len().max(1) as f32;
+    for (i, o) in chosen.iter().enumerate() {
+        let object_error = |detail: String| GltfExportError::Object {
+            path: path.to_owned(),
+            object: o.name.clone(),
+            detail,
+        };
+        o.transform
+            .validate(&o.name)
+            .map_err(|e| object_error(e.to_string()))?;
+        let node = match &o.kind {
+            ObjectKind::Voxels(v) => {
+                if v.svo.is_empty() {
+                    if options.object.is_some() {
+                        return Err(GltfExportError::NothingToExport {
+                            path: path.to_owned(),
+                            detail: format!("object {:?} has no voxels", o.name),
+                        });
+                    }
+                    report.skipped.push(o.name.clone());
+                    continue;
+                }
+                if !(v.voxel_size.is_finite() && v.voxel_size > 0.0 && v.origin.is_finite()) {
+                    return Err(object_error(format!(
+                        "voxel size {} and origin {} must be finite (size positive)",
+                        v.voxel_size, v.origin
+                    )));
+                }
+                out.voxel_node(o, v, path, &mut budget, &mut report)?
+            }
+            ObjectKind::Mesh(m) => {
+                if m.model.parts.iter().all(|p| p.indices.is_empty()) {
+                    if options.object.is_some() {
+                        return Err(GltfExportError::NothingToExport {
+                            path: path.to_owned(),
+                            detail: format!("object {:?} has no triangles", o.name),
+                        });
+                    }
+                    report.skipped.push(o.name.clone());
+                    continue;
+                }
+                m.model
+                    .validate()
+                    .map_err(|(part, e)| object_error(format!("mesh part {part}: {e}")))?;
+                let tris = m
+                    .model
+                    .parts
+                    .iter()
+                    .map(|p| p.triangle_count() as u64)
+                    .sum();
+                charge(&mut budget, tris, options, path, &o.name)?;
+                out.mesh_node(o, &m.model)
+            }
+            ObjectKind::Krs(_) => {
+                // Meshed in world space (the object's transform composed with the KRS's own
+                // placement); its nodes carry the identity transform.
+                let krs = o.krs_in_world().ok_or_else(|| {
+                    object_error("a KRS object's scale must be uniform and positive".to_owned())
+                })?;
+                let prepared = crate::krs::KrsScene { objects: vec![krs] }
+                    .prepare()
+                    .map_err(|e| object_error(e.to_string()))?;
+                let krs_options = GltfExportOptions {
+                    max_triangles: budget,
+                    ..options.clone()
+                };
+                let tris = add_krs_object(
+                    &mut out.scene,
+                    &o.name,
+                    &prepared.objects[0],
+                    &krs_options,
+                    &|_| true,
+                )
+                .map_err(|e| field_error(path, &o.name, e))?;
+                charge(&mut budget, tris, options, path, &o.name)?;
+                report.objects += 1;
+                if !progress((i + 1) as f32 / total) {
+                    return Err(GltfExportError::Cancelled {
+                        path: path.to_owned(),
+                    });
+                }
+                continue;
+            }
+        };
+        out.scene.nodes.push(node);
+        report.objects += 1;
+        if !progress((i + 1) as f32 / total) {
+            return Err(GltfExportError::Cancelled {
+                path: path.to_owned(),
+            });
+        }
+    }
+    if out.scene.nodes.is_empty() {
+        return Err(GltfExportError::NothingToExport {
+            path: path.to_owned(),
+            detail: if doc.objects.is_empty() {
+                "the document has no objects".to_owned()
+            } else {
+                format!(
+                    "every object is hidden or empty ({})",
+                    report.skipped.join(", ")
+                )
+            },
+        });
+    }
+    out.finish_palette();
+    report.triangles = out.scene.triangle_count();
+    report.vertices = out.scene.vertex_count();
+    Ok((out.scene, report))
+}
+
+/// Takes `n` triangles from the budget or refuses with the limit in the message.
+fn charge(
+    budget: &mut u64,
+    n: u64,
+    options: &GltfExportOptions,
+    path: &Path,
+    object: &str,
+) -> Result<(), GltfExportError> {
+    if n > *budget {
+        return Err(GltfExportError::TooLarge {
+            path: path.to_owned(),
+            detail: format!(
+                "object {object:?} needs {n} triangles; the export may have at most {} in all \
+                 (GltfExportOptions::max_triangles)",
+                options.max_triangles
+            ),
+        });
+    }
+    *budget -= n;
+    Ok(())
+}
+
+/// sRGB RGBA8 → linear RGBA.
+fn linear(c: [u8; 4]) -> Vec4 {
+    Vec4::new(
+        srgb_to_linear(f32::from(c[0]) / 255.0),
+        srgb_to_linear(f32::from(c[1]) / 255.0),
+        srgb_to_linear(f32::from(c[2]) / 255.0),
+        f32::from(c[3]) / 255.0,
+    )
+}
+
+/// Distinct colours of a palette texture; UVs are filled in once every colour is known.
+#[derive(Default)]
+struct Palette {
+    index: HashMap<[u8; 4], u32>,
+    colors: Vec<[u8; 4]>,
+    /// (node, primitive, per-vertex palette index) to turn into UVs at the end.
+    pending: Vec<(usize, usize, Vec<u32>)>,
+    material_ids: Vec<usize>,
+}
+
+impl Palette {
+    fn add(&mut self, c: [u8; 4]) -> u32 {
+        *self.index.entry(c).or_insert_with(|| {
+            self.colors.push(c);
+            (self.colors.len() - 1) as u32
+        })
+    }
+
+    /// Texture width: up to 256 texels a row.
+    fn width(&self) -> u32 {
+        (self.colors.len() as u32).clamp(1, 256)
+    }
+
+    fn texture(&self) -> Texture {
+        let w = self.width();
+        let h = (self.colors.len() as u32).div_ceil(w).max(1);
+        let mut rgba8 = vec![255u8; (w * h * 4) as usize];
+        for (i, c) in self.colors.iter().enumerate() {
+            rgba8[i * 4..i * 4 + 4].copy_from_slice(c);
+        }
+        Texture {
+            width: w,
+            height: h,
+            rgba8,
+        }
+    }
+
+    /// The centre of texel `i`, so nearest filtering reads exactly that colour.
+    fn uv(&self, i: u32) -> Vec2 {
+        let w = self.width();
+        let h = (self.colors.len() as u32).div_ceil(w).max(1);
+        Vec2::new(
+            ((i % w) as f32 + 0.5) / w as f32,
+            ((i / w) as f32 + 0.5) / h as f32,
+        )
+    }
+}
+
+struct SceneBuilder<'o> {
+    scene: ExportScene,
+    /// (material name, palette-textured) → index, so objects share materials by name.
+    materials: HashMap<(String, bool), usize>,
+    palette: Palette,
+    options: &'o GltfExportOptions,
+}
+
+impl SceneBuilder<'_> {
+    fn material(
+        &mut self,
+        name: &str,
+        palette: bool,
+        make: impl FnOnce() -> ExportMaterial,
+    ) -> usize {
+        let key = (name.to_owned(), palette);
+        if let Some(&i) = self.materials.get(&key) {
+            return i;
+        }
+        let i = self.scene.materials.len();
+        let mut m = make();
+        m.name = name.to_owned();
+        self.scene.materials.push(m);
+        self.materials.insert(key, i);
+        if palette {
+            self.palette.material_ids.push(i);
+        }
+        i
+    }
+
+    /// The glTF material for a voxel material id.
+    fn voxel_material(&mut self, v: &VoxelModel, id: u8) -> usize {
+        let name = v
+            .material_names
+            .get(usize::from(id))
+            .filter(|n| !n.is_empty())
+            .cloned()
+            .unwrap_or_else(|| format!("voxel material {id}"));
+        let palette = self.options.colors == ColorMode::PaletteTexture;
+        self.material(&name, palette, || ExportMaterial {
+            nearest: palette,
+            ..ExportMaterial::default()
+        })
+    }
+
+    fn voxel_node(
+        &mut self,
+        o: &Object,
+        v: &VoxelModel,
+        path: &Path,
+        budget: &mut u64,
+        report: &mut GltfExportReport,
+    ) -> Result<ExportNode, GltfExportError> {
+        let to_object = |p: Vec3| v.origin + p * v.voxel_size;
+        // Per material id: (positions, normals, colours).
+        let mut by_material: Vec<(u8, ExportPrimitive, Vec<u32>)> = Vec::new();
+        let prim_for = |id: u8, by_material: &mut Vec<(u8, ExportPrimitive, Vec<u32>)>| {
+            if let Some(i) = by_material.iter().position(|e| e.0 == id) {
+                i
+            } else {
+                by_material.push((id, ExportPrimitive::default(), Vec::new()));
+                by_material.len() - 1
+            }
+        };
+        match self.options.mode {
+            ExportMode::Cubes | ExportMode::Instances => {
+                // Count first: refuses a huge model before any face list is built.
+                let faces = greedy::count_exposed_faces(&v.svo);
+                charge(
+                    &mut { *budget },
+                    faces.saturating_mul(2),
+                    self.options,
+                    path,
+                    &o.name,
+                )?;
+                let quads = greedy::greedy_quads(&v.svo);
+                let tris = quads.len() as u64 * 2;
+                charge(budget, tris, self.options, path, &o.name)?;
+                report
+                    .voxel_faces
+                    .push((o.name.clone(), faces, quads.len() as u64));
+                for q in &quads {
+                    let i = prim_for(q.key.1, &mut by_material);
+                    let (_, prim, pal) = &mut by_material[i];
+                    let base = prim.positions.len() as u32;
+                    for c in q.corners() {
+                        prim.positions.push(to_object(c));
+                        prim.normals.push(q.normal());
+                    }
+                    match self.options.colors {
+                        ColorMode::VertexColors => prim.colors.extend([linear(q.key.0); 4]),
+                        ColorMode::PaletteTexture => {
+                            let p = self.palette.add(q.key.0);
+                            pal.extend([p; 4]);
+                        }
+                    }
+                    prim.indices
+                        .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                }
+            }
+            ExportMode::Smooth => {
+                let mesh = fields::mesh_voxels_smooth(&v.svo, self.options.smoothing, *budget)
+                    .map_err(|e| field_error(path, &o.name, e))?;
+                charge(
+                    budget,
+                    mesh.triangle_count() as u64,
+                    self.options,
+                    path,
+                    &o.name,
+                )?;
+                // Smooth surfaces blend across materials; one primitive, material of the first
+                // voxel's id.
+                let id = v.svo.leaves().first().map_or(0, |l| l.1.material);
+                let i = prim_for(id, &mut by_material);
+                let (_, prim, pal) = &mut by_material[i];
+                prim.positions = mesh.positions.iter().map(|&p| to_object(p)).collect();
+                prim.normals = mesh.normals;
+                prim.indices = mesh.indices;
+                match self.options.colors {
+                    ColorMode::VertexColors => prim.colors = mesh.colors,
+                    ColorMode::PaletteTexture => {
+                        for c in &mesh.colors {
+                            let s = |x: f32| (crate::mesh::linear_to_srgb(x) * 255.0).round() as u8;
+                            let p = self.palette.add([
+                                s(c.x),
+                                s(c.y),
+                                s(c.z),
+                                (c.w * 255.0).round() as u8,
+                            ]);
+                            pal.push(p);
+                        }
+                    }
+                }
+            }
+        }
+        by_material.sort_by_key(|e| e.0);
+        let node_index = self.scene.nodes.len();
+        let mut primitives = Vec::with_capacity(by_material.len());
+        for (pi, (id, mut prim, pal)) in by_material.into_iter().enumerate() {
+            prim.material = self.voxel_material(v, id);
+            if !pal.is_empty() {
+                self.palette.pending.push((node_index, pi, pal));
+            }
+            primitives.push(prim);
+        }
+        Ok(ExportNode {
+            name: o.name.clone(),
+            transform: o.transform,
+            primitives,
+            instances: Vec::new(),
+        })
+    }
+
+    fn mesh_node(&mut self, o: &Object, model: &MeshModel) -> ExportNode {
+        let mut primitives = Vec::with_capacity(model.parts.len());
+        for part in &model.parts {
+            if part.indices.is_empty() {
+                continue;
+            }
+            let src = model.materials.get(part.material);
+            let name = src
+                .map(|m| m.name.clone())
+                .filter(|n| !n.is_empty())
+                .unwrap_or_else(|| format!("{} material {}", o.name, part.material));
+            // An open mesh (a ground plane) should be visible from below as it is in the editor.
+            let material = self.material(&name, false, || ExportMaterial {
+                base_color: src.map_or(Vec4::ONE, |m| m.base_color),
+                texture: src.and_then(|m| m.base_color_texture.clone()),
+                nearest: false,
+                double_sided: true,
+                ..ExportMaterial::default()
+            });
+            let has_texture = src.is_some_and(|m| m.base_color_texture.is_some());
+            primitives.push(ExportPrimitive {
+                positions: part.positions.clone(),
+                normals: part.normals.clone(),
+                colors: part.colors.clone(),
+                // UVs only matter with a texture; without one they are dead weight.
+                uvs: if has_texture {
+                    part.uvs.clone()
+                } else {
+                    Vec::new()
+                },
+                indices: part.indices.clone(),
+                material,
+            });
+        }
+        ExportNode {
+            name: o.name.clone(),
+            transform: o.transform,
+            primitives,
+            instances: Vec::new(),
+        }
+    }
+
+    /// Turns pending palette indices into UVs and gives palette materials the texture.
+    fn finish_palette(&mut self) {
+        if self.palette.colors.is_empty() {
+            return;
+        }
+        let texture = self.palette.texture();
+        for &m in &self.palette.material_ids {
+            self.scene.materials[m].texture = Some(texture.clone());
+        }
+        for (node, prim, indices) in std::mem::take(&mut self.palette.pending) {
+            let uvs = indices.iter().map(|&i| self.palette.uv(i)).collect();
+            self.scene.nodes[node].primitives[prim].uvs = uvs;
+        }
+    }
+}
+
+fn field_error(path: &Path, object: &str, e: FieldError) -> GltfExportError {
+    match e {
+        FieldError::TooManyTriangles { .. } => GltfExportError::TooLarge {
+            path: path.to_owned(),
+            detail: format!("object {object:?}: {e}"),
+        },
+        FieldError::Empty => GltfExportError::NothingToExport {
+            path: path.to_owned(),
+            detail: format!("object {object:?}: {e}"),
+        },
+        FieldError::Cancelled => GltfExportError::Cancelled {
+            path: path.to_owned(),
+        },
+        FieldError::BadResolution(_) | FieldError::Unbounded(_) => GltfExportError::Object {
+            path: path.to_owned(),
+            object: object.to_owned(),
+            detail: e.to_string(),
+        },
+    }
+}
+
+/// Adds a KRS object (in world space: its node gets the identity transform) to `scene`: the
+/// distance-field mesh ([`mesh_krs`] at `options.resolution`) in `Cubes` and `Smooth` modes,
+/// or in `Instances` mode one node per kernel (and one for its mirrored instances) drawing the
+/// kernel's mesh once per instance ([`krs_instances`]). Colours go out as `COLOR_0`. Returns
+/// the triangles added (drawn once per node; instancing multiplies them on screen only).
+///
+/// # Errors
+/// [`FieldError`] from the meshers.
+pub fn add_krs_object(
+    scene: &mut ExportScene,
+    name: &str,
+    object: &crate::krs::PreparedObject,
+    options: &GltfExportOptions,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<u64, FieldError> {
+    let material = scene.materials.len();
+    scene.materials.push(ExportMaterial {
+        name: name.to_owned(),
+        ..ExportMaterial::default()
+    });
+    let to_primitive = |m: ColoredMesh| ExportPrimitive {
+        positions: m.positions,
+        normals: m.normals,
+        colors: m.colors,
+        uvs: Vec::new(),
+        indices: m.indices,
+        material,
+    };
+    match options.mode {
+        ExportMode::Cubes | ExportMode::Smooth => {
+            let mesh = mesh_krs(object, options.resolution, options.max_triangles, progress)?;
+            let tris = mesh.triangle_count() as u64;
+            scene.nodes.push(ExportNode {
+                name: name.to_owned(),
+                primitives: vec![to_primitive(mesh)],
+                ..ExportNode::default()
+            });
+            Ok(tris)
+        }
+        ExportMode::Instances => {
+            let kernels = krs_instances(object, options.kernel_resolution, options.max_instances)?;
+            let mut tris = 0u64;
+            for k in kernels {
+                for (suffix, mesh, transforms) in [
+                    ("", k.mesh, k.transforms),
+                    (" mirrored", k.mirrored_mesh, k.mirrored_transforms),
+                ] {
+                    if transforms.is_empty() {
+                        continue;
+                    }
+                    tris += mesh.triangle_count() as u64;
+                    scene.nodes.push(ExportNode {
+                        name: format!("{name} kernel {}{suffix}", k.kernel),
+                        primitives: vec![to_primitive(mesh)],
+                        instances: transforms,
+                        ..ExportNode::default()
+                    });
+                }
+            }
+            progress(1.0);
+            Ok(tris)
+        }
+    }
+}

@@ -1,0 +1,607 @@
+use std::collections::{BTreeSet, HashSet};
+use std::path::{Path, PathBuf};
+
+use glam::{UVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use rand_pcg::Pcg64;
+
+use super::greedy::{count_exposed_faces, greedy_quads};
+use super::iso::edge_use;
+use super::*;
+use crate::krs::{KrsScene, presets};
+use crate::scene::{Document, ObjectKind, VoxelModel};
+use crate::svo::{Svo, Voxel};
+use crate::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
+
+const NO_PROGRESS: &dyn Fn(f32) -> bool = &|_| true;
+
+fn house_path() -> PathBuf {
+    PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/vox/mmmm/obj_house4.vox"
+    ))
+}
+
+fn doc_with(name: &str, svo: Svo, voxel_size: f32, origin: Vec3) -> Document {
+    let mut doc = Document::default();
+    doc.add(
+        name,
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size,
+            origin,
+            material_names: vec!["stone".into(), "moss".into()],
+            rig: None,
+        }),
+    );
+    doc
+}
+
+/// A random blob: a union of boxes, with a few colours and two materials.
+fn blob(seed: u64, depth: u8, boxes: usize) -> Svo {
+    let mut rng = Pcg64::seed_from_u64(seed);
+    let extent = 1u32 << depth;
+    let colors = [[200, 30, 30, 255], [20, 180, 40, 255], [30, 40, 220, 255]];
+    let mut voxels = Vec::new();
+    for _ in 0..boxes {
+        let lo = UVec3::new(
+            rng.random_range(1..extent - 4),
+            rng.random_range(1..extent - 4),
+            rng.random_range(1..extent - 4),
+        );
+        // At least 2 voxels thick: the solid voxelizer keeps the surface voxels of parts
+        // thinner than about 1.7 voxels (so thin parts never vanish), which would add a layer
+        // to one-voxel walls in the round trip below.
+        let size = UVec3::new(
+            rng.random_range(2..5),
+            rng.random_range(2..5),
+            rng.random_range(2..5),
+        );
+        let color = colors[rng.random_range(0..colors.len())];
+        let material = rng.random_range(0..2u8);
+        for z in lo.z..(lo.z + size.z).min(extent) {
+            for y in lo.y..(lo.y + size.y).min(extent) {
+                for x in lo.x..(lo.x + size.x).min(extent) {
+                    let mut v = Voxel::new(color, Vec3::Y);
+                    v.material = material;
+                    voxels.push((UVec3::new(x, y, z), v));
+                }
+            }
+        }
+    }
+    Svo::from_voxels(depth, false, voxels).unwrap()
+}
+
+/// Exposed unit faces by brute force over a hash set: (voxel, axis, positive).
+fn brute_faces(svo: &Svo) -> BTreeSet<([u32; 3], u8, bool)> {
+    let solid: HashSet<UVec3> = svo.leaves().into_iter().map(|l| l.0).collect();
+    let mut out = BTreeSet::new();
+    for &c in &solid {
+        for axis in 0..3u8 {
+            for positive in [false, true] {
+                let mut n = c.as_ivec3();
+                n[usize::from(axis)] += if positive { 1 } else { -1 };
+                if n.min_element() < 0 || !solid.contains(&n.as_uvec3()) {
+                    out.insert((c.to_array(), axis, positive));
+                }
+            }
+        }
+    }
+    out
+}
+
+#[test]
+fn greedy_quads_cover_exactly_the_exposed_faces_with_their_colours() {
+    for seed in 0..6 {
+        let svo = blob(seed, 5, 12);
+        let expected = brute_faces(&svo);
+        assert_eq!(count_exposed_faces(&svo), expected.len() as u64);
+        let quads = greedy_quads(&svo);
+        let mut covered = BTreeSet::new();
+        for q in &quads {
+            let a = usize::from(q.axis);
+            for dv in 0..q.height {
+                for du in 0..q.width {
+                    let mut c = [0u32; 3];
+                    c[(a + 1) % 3] = q.u + du;
+                    c[(a + 2) % 3] = q.v + dv;
+                    c[a] = if q.positive { q.layer - 1 } else { q.layer };
+                    let v = svo
+                        .get(UVec3::from_array(c))
+                        .expect("a quad covers a solid voxel");
+                    assert_eq!((v.color, v.material), q.key, "quad mixes colours");
+                    assert!(
+                        covered.insert((c, q.axis, q.positive)),
+                        "two quads cover {c:?}"
+                    );
+                }
+            }
+            // Corners wind counter-clockwise around the outward normal.
+            let p = q.corners();
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            assert!(n.dot(q.normal()) > 0.0, "{q:?}");
+        }
+        assert_eq!(covered, expected, "seed {seed}");
+        assert!(quads.len() < expected.len(), "merging merged something");
+    }
+}
+
+#[test]
+fn one_voxel_is_six_quads_and_a_uniform_box_too() {
+    let mut svo = Svo::new(4, false).unwrap();
+    svo.set(UVec3::new(3, 4, 5), Voxel::new([1, 2, 3, 255], Vec3::Y))
+        .unwrap();
+    assert_eq!(greedy_quads(&svo).len(), 6);
+    let cube = Svo::from_voxels(
+        4,
+        false,
+        (0..125).map(|i| {
+            (
+                UVec3::new(i % 5, (i / 5) % 5, i / 25),
+                Voxel::new([9, 9, 9, 255], Vec3::Y),
+            )
+        }),
+    )
+    .unwrap();
+    assert_eq!(count_exposed_faces(&cube), 150);
+    assert_eq!(greedy_quads(&cube).len(), 6);
+}
+
+/// The voxel set back from a glTF file: import with the gltf crate, voxelize solid at the
+/// export's voxel size, shift to the original grid.
+fn reimport(path: &Path, voxel_size: f32, lo: UVec3) -> BTreeSet<([u32; 3], [u8; 4])> {
+    let model = crate::io::import_gltf(path).unwrap();
+    let settings = VoxelizeSettings {
+        resolution: Resolution::VoxelSize(voxel_size),
+        mode: Mode::Solid,
+        ..VoxelizeSettings::default()
+    };
+    let v = voxelize(&model, &settings, NO_PROGRESS).unwrap();
+    v.svo
+        .leaves()
+        .into_iter()
+        .map(|(c, vox)| ((c + lo).to_array(), vox.color))
+        .collect()
+}
+
+#[test]
+fn export_import_voxelize_reproduces_the_voxel_set() {
+    let dir = tempfile::tempdir().unwrap();
+    for (seed, ext, colors) in [
+        (1, "glb", ColorMode::VertexColors),
+        (2, "gltf", ColorMode::VertexColors),
+    ] {
+        let svo = blob(seed, 5, 10);
+        let expected: BTreeSet<([u32; 3], [u8; 4])> = svo
+            .leaves()
+            .into_iter()
+            .map(|(c, v)| (c.to_array(), v.color))
+            .collect();
+        let (lo, _) = svo.bounds().unwrap();
+        // Grid origin at the model's minimum corner: the voxelizer puts its grid there too.
+        let voxel_size = 0.25;
+        let doc = doc_with("blob", svo, voxel_size, Vec3::ZERO);
+        let path = dir.path().join(format!("blob{seed}.{ext}"));
+        let options = GltfExportOptions {
+            colors,
+            ..GltfExportOptions::default()
+        };
+        let report = export_gltf(&doc, &path, &options, NO_PROGRESS).unwrap();
+        assert_eq!(report.objects, 1);
+        let got = reimport(&path, voxel_size, lo);
+        let coords = |set: &BTreeSet<([u32; 3], [u8; 4])>| -> BTreeSet<[u32; 3]> {
+            set.iter().map(|e| e.0).collect()
+        };
+        let (want, have) = (coords(&expected), coords(&got));
+        let lost: Vec<_> = want.difference(&have).take(5).collect();
+        let gained: Vec<_> = have.difference(&want).take(5).collect();
+        assert!(
+            lost.is_empty() && gained.is_empty(),
+            "seed {seed} {ext} {colors:?}: {} vs {} voxels; lost {lost:?}, gained {gained:?}",
+            want.len(),
+            have.len()
+        );
+    }
+}
+
+#[test]
+fn house_greedy_mesh_has_far_fewer_triangles_than_per_face_cubes() {
+    let scene = crate::io::vox::import_vox(&house_path()).unwrap();
+    let ObjectKind::Voxels(v) = &scene.objects[0].kind else {
+        panic!("the house is voxels")
+    };
+    let per_face = count_exposed_faces(&v.svo) * 2;
+    let greedy = greedy_quads(&v.svo).len() as u64 * 2;
+    assert!(
+        greedy * 3 <= per_face,
+        "greedy {greedy} triangles vs {per_face} per face"
+    );
+}
+
+#[test]
+fn gltf_writes_a_bin_beside_it_and_the_crate_reads_both_forms() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = doc_with("b", blob(7, 4, 4), 1.0, Vec3::new(1.0, 2.0, 3.0));
+    let gltf_path = dir.path().join("my model.gltf");
+    let report = export_gltf(&doc, &gltf_path, &GltfExportOptions::default(), NO_PROGRESS).unwrap();
+    assert_eq!(report.files.len(), 2);
+    assert!(dir.path().join("my model.bin").exists());
+    let (gltf, buffers, _) = gltf::import(&gltf_path).unwrap();
+    assert_eq!(buffers.len(), 1);
+    let tris: usize = gltf
+        .meshes()
+        .flat_map(|m| m.primitives())
+        .map(|p| p.indices().unwrap().count() / 3)
+        .sum();
+    assert_eq!(tris as u64, report.triangles);
+    let glb_path = dir.path().join("m.glb");
+    export_gltf(&doc, &glb_path, &GltfExportOptions::default(), NO_PROGRESS).unwrap();
+    let (glb, _, _) = gltf::import(&glb_path).unwrap();
+    let prim = glb.meshes().next().unwrap().primitives().next().unwrap();
+    assert!(prim.get(&gltf::Semantic::Colors(0)).is_some());
+    assert!(prim.get(&gltf::Semantic::Normals).is_some());
+    // Nothing but the outputs is left in the folder.
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["m.glb", "my model.bin", "my model.gltf"]);
+}
+
+fn assert_nothing_written(dir: &Path) {
+    let left: Vec<_> = std::fs::read_dir(dir).unwrap().collect();
+    assert!(left.is_empty(), "{left:?}");
+}
+
+#[test]
+fn bad_exports_fail_clearly_and_leave_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("out.glb");
+    // An empty object, asked for by name; and a document with only empty objects.
+    let empty = doc_with("Nothing", Svo::new(4, false).unwrap(), 1.0, Vec3::ZERO);
+    let options = GltfExportOptions {
+        object: Some("Nothing".into()),
+        ..GltfExportOptions::default()
+    };
+    let e = export_gltf(&empty, &out, &options, NO_PROGRESS).unwrap_err();
+    assert!(matches!(e, GltfExportError::NothingToExport { .. }), "{e}");
+    assert!(
+        e.to_string().contains("Nothing") && e.to_string().contains("out.glb"),
+        "{e}"
+    );
+    let e = export_gltf(&empty, &out, &GltfExportOptions::default(), NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("hidden or empty"), "{e}");
+    // An unknown object name lists the real ones.
+    let doc = doc_with("Rock", blob(1, 4, 3), 1.0, Vec3::ZERO);
+    let options = GltfExportOptions {
+        object: Some("Tree".into()),
+        ..GltfExportOptions::default()
+    };
+    let e = export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("\"Rock\""), "{e}");
+    // Too many triangles: refused before the faces are built.
+    let options = GltfExportOptions {
+        max_triangles: 10,
+        ..GltfExportOptions::default()
+    };
+    let e = export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap_err();
+    assert!(matches!(e, GltfExportError::TooLarge { .. }), "{e}");
+    assert!(e.to_string().contains("max_triangles"), "{e}");
+    // Wrong extension.
+    let e = export_gltf(
+        &doc,
+        &dir.path().join("x.obj"),
+        &GltfExportOptions::default(),
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains(".glb or .gltf"), "{e}");
+    assert_nothing_written(dir.path());
+    // An unwritable place: a folder that does not exist, and a folder in place of the file.
+    let e = export_gltf(
+        &doc,
+        &dir.path().join("no/such/dir/x.glb"),
+        &GltfExportOptions::default(),
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    assert!(matches!(e, GltfExportError::Io { .. }), "{e}");
+    std::fs::create_dir(dir.path().join("taken.glb")).unwrap();
+    let e = export_gltf(
+        &doc,
+        &dir.path().join("taken.glb"),
+        &GltfExportOptions::default(),
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("taken.glb"), "{e}");
+    let names: Vec<_> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(names, ["taken.glb"], "no temporary file is left behind");
+    // A failing export leaves an existing file as it was.
+    let keep = dir.path().join("keep.glb");
+    std::fs::write(&keep, b"old").unwrap();
+    let options = GltfExportOptions {
+        max_triangles: 10,
+        ..GltfExportOptions::default()
+    };
+    export_gltf(&doc, &keep, &options, NO_PROGRESS).unwrap_err();
+    assert_eq!(std::fs::read(&keep).unwrap(), b"old");
+}
+
+#[test]
+fn a_model_2_pow_21_voxels_wide_exports_exactly_or_is_refused_before_allocating() {
+    let dir = tempfile::tempdir().unwrap();
+    let far = (1u32 << 21) - 1;
+    // Two voxels at opposite corners of a depth-21 octree: the sparse mesher costs 12 quads.
+    let svo = Svo::from_voxels(
+        21,
+        false,
+        [UVec3::ZERO, UVec3::splat(far)].map(|c| (c, Voxel::new([5, 6, 7, 255], Vec3::Y))),
+    )
+    .unwrap();
+    let doc = doc_with("wide", svo, 1.0, Vec3::ZERO);
+    let path = dir.path().join("wide.glb");
+    let report = export_gltf(&doc, &path, &GltfExportOptions::default(), NO_PROGRESS).unwrap();
+    assert_eq!(report.triangles, 24);
+    let model = crate::io::import_gltf(&path).unwrap();
+    let (lo, hi) = model.bounds().unwrap();
+    assert_eq!(lo, Vec3::ZERO);
+    // 2^21 is exact in f32: the far corner lands exactly.
+    assert_eq!(hi, Vec3::splat((1u32 << 21) as f32));
+    // A full 2^21-wide slab cannot be built in a test, but its face count is what the limit
+    // checks first: a 64×64 wall over a 10-triangle limit is refused without building quads.
+    let wall = Svo::from_voxels(
+        21,
+        false,
+        (0..64 * 64).map(|i| {
+            (
+                UVec3::new(far - i % 64, i / 64, 0),
+                Voxel::new([1, 1, 1, 255], Vec3::Y),
+            )
+        }),
+    )
+    .unwrap();
+    let doc = doc_with("wall", wall, 1.0, Vec3::ZERO);
+    let options = GltfExportOptions {
+        max_triangles: 10,
+        ..GltfExportOptions::default()
+    };
+    let out = dir.path().join("wall.glb");
+    let e = export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("wall"), "{e}");
+    assert!(!out.exists());
+    // KRS meshing at a 2^21 resolution is refused up front.
+    let scene = KrsScene {
+        objects: vec![presets::tree()],
+    }
+    .prepare()
+    .unwrap();
+    let e = mesh_krs(&scene.objects[0], 1 << 21, 1 << 26, NO_PROGRESS).unwrap_err();
+    assert_eq!(e, FieldError::BadResolution(1 << 21));
+}
+
+/// Every undirected edge is used by exactly two triangles, once in each direction.
+fn assert_watertight(indices: &[u32], what: &str) {
+    assert!(!indices.is_empty(), "{what}: empty mesh");
+    let (edges, repeated) = edge_use(indices);
+    let bad: Vec<_> = edges.iter().filter(|e| *e.1 != 2).take(5).collect();
+    assert!(
+        bad.is_empty(),
+        "{what}: edges not shared by two triangles: {bad:?}"
+    );
+    assert_eq!(repeated, 0, "{what}: inconsistent winding");
+}
+
+#[test]
+fn krs_mesh_of_the_rock_is_watertight() {
+    for (name, object, resolution) in [("rock", presets::rock(), 48)] {
+        let scene = KrsScene {
+            objects: vec![object],
+        }
+        .prepare()
+        .unwrap();
+        let o = &scene.objects[0];
+        let mesh = mesh_krs(o, resolution, 1 << 24, NO_PROGRESS).unwrap();
+        assert_watertight(&mesh.indices, name);
+        // Vertices lie on the surface to within a cell.
+        let (lo, hi) = krs_region(o).unwrap();
+        let cell = (hi - lo).max_element() / resolution as f32;
+        let worst = mesh
+            .positions
+            .iter()
+            .map(|&p| o.distance_world(p).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < cell,
+            "{name}: vertex {worst} from the surface, cell {cell}"
+        );
+        // Outward winding: the normal of each triangle agrees with the field's normal.
+        let mut agree = 0usize;
+        for t in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| mesh.positions[i as usize]);
+            let n = (b - a).cross(c - a);
+            let field = mesh.normals[t[0] as usize];
+            if n.dot(field) > 0.0 {
+                agree += 1;
+            }
+        }
+        let total = mesh.triangle_count();
+        assert!(
+            agree * 10 >= total * 9,
+            "{name}: {agree} of {total} triangles face out"
+        );
+    }
+}
+
+#[test]
+fn krs_meshing_visits_only_cells_near_the_surface() {
+    let scene = KrsScene {
+        objects: vec![presets::rock()],
+    }
+    .prepare()
+    .unwrap();
+    let o = &scene.objects[0];
+    let coarse = mesh_krs(o, 32, 1 << 24, NO_PROGRESS).unwrap();
+    let fine = mesh_krs(o, 64, 1 << 24, NO_PROGRESS).unwrap();
+    // Surface work: doubling the resolution multiplies triangles by about 4, not 8.
+    let ratio = fine.triangle_count() as f64 / coarse.triangle_count() as f64;
+    assert!((3.0..5.5).contains(&ratio), "ratio {ratio}");
+}
+
+#[test]
+fn smooth_voxel_surface_is_watertight_and_keeps_thin_parts() {
+    // A blob plus a one-voxel-thick wall and a lone voxel.
+    let mut svo = blob(5, 5, 8);
+    for y in 0..6 {
+        for z in 0..6 {
+            svo.set(UVec3::new(30, y, z), Voxel::new([1, 2, 3, 255], Vec3::X))
+                .unwrap();
+        }
+    }
+    svo.set(UVec3::new(0, 31, 0), Voxel::new([1, 2, 3, 255], Vec3::X))
+        .unwrap();
+    let mesh = fields::mesh_voxels_smooth(&svo, 4, 1 << 24).unwrap();
+    assert_watertight(&mesh.indices, "smooth");
+    // Every voxel centre is inside the surface: a ray to +x from each centre crosses it an odd
+    // number of times (checked for the thin wall and the lone voxel).
+    for c in [UVec3::new(30, 2, 2), UVec3::new(0, 31, 0)] {
+        let p = c.as_vec3() + 0.5 + Vec3::new(0.0, 0.013, 0.007);
+        let mut crossings = 0;
+        for t in mesh.indices.chunks_exact(3) {
+            let [a, b, cc] = [t[0], t[1], t[2]].map(|i| mesh.positions[i as usize]);
+            if ray_hits_triangle(p, Vec3::X, a, b, cc) {
+                crossings += 1;
+            }
+        }
+        assert_eq!(crossings % 2, 1, "voxel {c} is inside the smooth surface");
+    }
+}
+
+/// Möller–Trumbore, for the inside test above.
+fn ray_hits_triangle(o: Vec3, d: Vec3, a: Vec3, b: Vec3, c: Vec3) -> bool {
+    let (e1, e2) = (b - a, c - a);
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-9 {
+        return false;
+    }
+    let s = o - a;
+    let u = s.dot(p) / det;
+    let q = s.cross(e1);
+    let v = d.dot(q) / det;
+    let t = e2.dot(q) / det;
+    (0.0..=1.0).contains(&u) && v >= 0.0 && u + v <= 1.0 && t > 0.0
+}
+
+#[test]
+fn mesh_objects_and_smooth_mode_export_and_read_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = doc_with("blob", blob(9, 4, 5), 0.5, Vec3::ZERO);
+    let quad = crate::mesh::TriangleMesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::new(1.0, 0.0, 1.0), Vec3::Z],
+        normals: vec![Vec3::Y; 4],
+        indices: vec![0, 2, 1, 0, 3, 2],
+        ..Default::default()
+    };
+    doc.add(
+        "Ground",
+        ObjectKind::Mesh(crate::scene::MeshObject {
+            model: crate::mesh::MeshModel {
+                parts: vec![quad],
+                materials: vec![crate::mesh::Material::default()],
+            },
+            casts_shadows: false,
+        }),
+    );
+    doc.objects[1].transform.translation = Vec3::new(0.0, -1.0, 0.0);
+    let path = dir.path().join("smooth.glb");
+    let options = GltfExportOptions {
+        mode: ExportMode::Smooth,
+        ..GltfExportOptions::default()
+    };
+    let report = export_gltf(&doc, &path, &options, NO_PROGRESS).unwrap();
+    assert_eq!(report.objects, 2);
+    let model = crate::io::import_gltf(&path).unwrap();
+    let tris: usize = model.parts.iter().map(|p| p.triangle_count()).sum();
+    assert_eq!(tris as u64, report.triangles);
+    // The ground keeps its transform: its vertices come back at y = -1.
+    assert!(
+        model
+            .parts
+            .iter()
+            .any(|p| p.triangle_count() == 2 && p.positions.iter().all(|v| v.y == -1.0))
+    );
+}
+
+/// Share of triangles whose winding normal agrees with the stored vertex normal.
+fn outward_share(mesh: &ColoredMesh) -> f64 {
+    let agree = mesh
+        .indices
+        .chunks_exact(3)
+        .filter(|t| {
+            let [a, b, c] = [t[0], t[1], t[2]].map(|i| mesh.positions[i as usize]);
+            (b - a).cross(c - a).dot(mesh.normals[t[0] as usize]) > 0.0
+        })
+        .count();
+    agree as f64 / mesh.triangle_count().max(1) as f64
+}
+
+#[test]
+fn krs_instances_place_every_kernel_instance_without_mirroring_transforms() {
+    let prepared = KrsScene {
+        objects: vec![presets::tree()],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    let kernels = krs_instances(o, 12, 1 << 20).unwrap();
+    let total: usize = kernels
+        .iter()
+        .map(|k| k.transforms.len() + k.mirrored_transforms.len())
+        .sum();
+    assert_eq!(total as u128, o.object.instance_count());
+    assert!(kernels.iter().any(|k| !k.mirrored_transforms.is_empty()));
+    // Kernels thicker than a cell mesh closed, and their mirrored copies wind outward too.
+    // (A kernel thinner than a cell at this resolution, a twig, meshes empty: see the report.)
+    let meshed: Vec<_> = kernels
+        .iter()
+        .filter(|k| !k.mesh.indices.is_empty())
+        .collect();
+    assert!(!meshed.is_empty());
+    for k in meshed {
+        assert_watertight(&k.mesh.indices, "kernel mesh");
+        assert_watertight(&k.mirrored_mesh.indices, "mirrored kernel mesh");
+        assert!(outward_share(&k.mesh) > 0.9);
+        assert!(
+            outward_share(&k.mirrored_mesh) > 0.9,
+            "mirrored winding flipped"
+        );
+    }
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    for inst in o.instances(1 << 20) {
+        let (trs, mirrored) = super::instances::proper_trs(&inst.world_from_kernel);
+        assert_eq!(mirrored, inst.mirrored);
+        assert!(trs.scale.min_element() > 0.0);
+        for p in [Vec3::X, Vec3::Y, Vec3::Z, Vec3::new(0.3, -0.2, 0.5)] {
+            let q = if mirrored { p * flip } else { p };
+            let a = trs.transform_point(q);
+            let b = inst.world_from_kernel.transform_point3(p);
+            assert!((a - b).length() < 1e-4, "{a} vs {b}");
+        }
+    }
+    // Half-spaces cannot be instanced: a clear error, not an empty file.
+    let rock = KrsScene {
+        objects: vec![presets::rock()],
+    }
+    .prepare()
+    .unwrap();
+    let e = krs_instances(&rock.objects[0], 12, 1 << 20).unwrap_err();
+    assert!(e.to_string().contains("cubes mode"), "{e}");
+    // The instance count is checked before any instance is enumerated.
+    let e = krs_instances(o, 12, 10).unwrap_err();
+    assert!(matches!(e, FieldError::TooManyTriangles { .. }), "{e}");
+}

@@ -1,0 +1,617 @@
+//! [`ExportScene`] → glTF 2.0 JSON (built with `gltf::json`'s types, never by string) and one
+//! binary buffer; packed as `.glb` or written as `.gltf` + `.bin`.
+
+use std::collections::BTreeMap;
+
+use glam::{Vec2, Vec3, Vec4};
+use gltf::json;
+use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
+use gltf::json::validation::{Checked, USize64};
+
+use super::instances::InstanceTransform;
+use crate::mesh::Texture;
+use crate::scene::Transform;
+
+/// One triangle list ready to write, in its node's space.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExportPrimitive {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Unit normals (same length as `positions`) or empty.
+    pub normals: Vec<Vec3>,
+    /// Linear RGBA vertex colours (same length) or empty.
+    pub colors: Vec<Vec4>,
+    /// Texture coordinates, (0, 0) = the image's top-left (same length) or empty.
+    pub uvs: Vec<Vec2>,
+    /// Three indices per triangle, counter-clockwise front faces.
+    pub indices: Vec<u32>,
+    /// Index into [`ExportScene::materials`].
+    pub material: usize,
+}
+
+/// A material: base colour factor and optional base-colour texture.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportMaterial {
+    /// Display name.
+    pub name: String,
+    /// Linear RGBA factor.
+    pub base_color: Vec4,
+    /// Base-colour texture (sRGB RGBA8).
+    pub texture: Option<Texture>,
+    /// Sample the texture with nearest filtering (palette textures: one texel per colour).
+    pub nearest: bool,
+    /// Render both sides (open meshes such as a ground plane).
+    pub double_sided: bool,
+}
+
+impl Default for ExportMaterial {
+    fn default() -> Self {
+        Self {
+            name: String::new(),
+            base_color: Vec4::ONE,
+            texture: None,
+            nearest: false,
+            double_sided: false,
+        }
+    }
+}
+
+/// A node: a name, its transform and its triangle lists (none: an empty node).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExportNode {
+    /// Display name.
+    pub name: String,
+    /// `parent_from_node`.
+    pub transform: Transform,
+    /// The mesh's primitives.
+    pub primitives: Vec<ExportPrimitive>,
+    /// With any entries, the mesh is drawn once per entry (`EXT_mesh_gpu_instancing`), each
+    /// placement applied before the node's transform.
+    pub instances: Vec<InstanceTransform>,
+}
+
+/// Everything one glTF file holds.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExportScene {
+    /// Root nodes, in order.
+    pub nodes: Vec<ExportNode>,
+    /// Materials the primitives index.
+    pub materials: Vec<ExportMaterial>,
+}
+
+impl ExportScene {
+    /// Total triangles.
+    #[must_use]
+    pub fn triangle_count(&self) -> u64 {
+        self.primitives().map(|p| p.indices.len() as u64 / 3).sum()
+    }
+
+    /// Total vertices.
+    #[must_use]
+    pub fn vertex_count(&self) -> u64 {
+        self.primitives().map(|p| p.positions.len() as u64).sum()
+    }
+
+    fn primitives(&self) -> impl Iterator<Item = &ExportPrimitive> {
+        self.nodes.iter().flat_map(|n| n.primitives.iter())
+    }
+}
+
+/// The encoded file(s).
+pub(crate) struct Encoded {
+    /// The glTF JSON.
+    pub(crate) json: Vec<u8>,
+    /// The binary buffer.
+    pub(crate) bin: Vec<u8>,
+}
+
+/// Why a scene cannot be encoded.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) enum EncodeError {
+    /// Too big for glTF's 32-bit lengths or the GLB container.
+    TooLarge(String),
+    /// A primitive's arrays disagree, or a value is not finite.
+    Invalid(String),
+    /// PNG encoding or JSON serialization failed.
+    Encoding(String),
+}
+
+/// Builds the glTF: `bin_uri` is `None` for GLB (buffer 0 is the GLB binary chunk) or the
+/// file name of the `.bin` beside a `.gltf`.
+pub(crate) fn encode(
+    scene: &ExportScene,
+    bin_uri: Option<&str>,
+    generator: &str,
+) -> Result<Encoded, EncodeError> {
+    let mut b = Builder::default();
+    b.root.asset = json::Asset {
+        generator: Some(generator.to_owned()),
+        ..json::Asset::default()
+    };
+    let materials: Vec<json::Index<json::Material>> = scene
+        .materials
+        .iter()
+        .map(|m| b.material(m))
+        .collect::<Result<_, _>>()?;
+    let mut node_indices = Vec::with_capacity(scene.nodes.len());
+    for (ni, node) in scene.nodes.iter().enumerate() {
+        let mesh = if node.primitives.iter().any(|p| !p.indices.is_empty()) {
+            let mut prims = Vec::new();
+            for (pi, p) in node.primitives.iter().enumerate() {
+                if p.indices.is_empty() {
+                    continue;
+                }
+                let what = format!("node {:?} primitive {pi}", node.name);
+                let material = *materials.get(p.material).ok_or_else(|| {
+                    EncodeError::Invalid(format!("{what}: material {} is missing", p.material))
+                })?;
+                prims.push(b.primitive(p, material, &what)?);
+            }
+            Some(b.root.push(json::Mesh {
+                extensions: None,
+                extras: None,
+                name: Some(node.name.clone()),
+                primitives: prims,
+                weights: None,
+            }))
+        } else {
+            None
+        };
+        let t = &node.transform;
+        let trs_is_identity = *t == Transform::default();
+        let extensions = if node.instances.is_empty() || mesh.is_none() {
+            None
+        } else {
+            Some(b.instancing(&node.instances)?)
+        };
+        node_indices.push(
+            b.root.push(json::Node {
+                extensions,
+                mesh,
+                name: Some(if node.name.is_empty() {
+                    format!("node {ni}")
+                } else {
+                    node.name.clone()
+                }),
+                translation: (!trs_is_identity).then(|| t.translation.to_array()),
+                rotation: (!trs_is_identity)
+                    .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
+                scale: (!trs_is_identity).then(|| t.scale.to_array()),
+                ..json::Node::default()
+            }),
+        );
+    }
+    let scene_index = b.root.push(json::Scene {
+        extensions: None,
+        extras: None,
+        name: Some("Scene".to_owned()),
+        nodes: node_indices,
+    });
+    b.root.scene = Some(scene_index);
+    b.finish(bin_uri)
+}
+
+#[derive(Default)]
+struct Builder {
+    root: json::Root,
+    bin: Vec<u8>,
+    sampler_linear: Option<json::Index<json::texture::Sampler>>,
+    sampler_nearest: Option<json::Index<json::texture::Sampler>>,
+}
+
+fn too_large(what: &str) -> EncodeError {
+    EncodeError::TooLarge(format!(
+        "{what}: the binary buffer would pass glTF's 4 GiB limit"
+    ))
+}
+
+/// `q` normalised, or the identity when it cannot be (glTF requires unit quaternions).
+pub(crate) fn unit_quat(q: glam::Quat) -> glam::Quat {
+    glam::Quat::from_vec4(Vec4::from(q).normalize_or(Vec4::W))
+}
+
+/// The extension that draws a node's mesh once per instance.
+const INSTANCING: &str = "EXT_mesh_gpu_instancing";
+
+impl Builder {
+    /// The node extension object for `EXT_mesh_gpu_instancing`: TRANSLATION, ROTATION and
+    /// SCALE accessors (float), one element per instance.
+    fn instancing(
+        &mut self,
+        instances: &[InstanceTransform],
+    ) -> Result<json::extensions::scene::Node, EncodeError> {
+        if let Some(i) = instances.iter().position(|t| {
+            !(t.translation.is_finite() && t.rotation.is_finite() && t.scale.is_finite())
+        }) {
+            return Err(EncodeError::Invalid(format!(
+                "instance {i} has a non-finite transform"
+            )));
+        }
+        let t: Vec<f32> = instances
+            .iter()
+            .flat_map(|t| t.translation.to_array())
+            .collect();
+        let r: Vec<f32> = instances
+            .iter()
+            .flat_map(|t| unit_quat(t.rotation).to_array())
+            .collect();
+        let s: Vec<f32> = instances.iter().flat_map(|t| t.scale.to_array()).collect();
+        let mut map = serde_json::Map::new();
+        for (name, data, dims, type_) in [
+            ("TRANSLATION", &t, 3, Type::Vec3),
+            ("ROTATION", &r, 4, Type::Vec4),
+            ("SCALE", &s, 3, Type::Vec3),
+        ] {
+            // Instance attributes are not vertex data: no buffer-view target.
+            let view = self.view(bytemuck::cast_slice(data), None)?;
+            let acc = self.accessor(
+                view,
+                data.len() / dims,
+                ComponentType::F32,
+                type_,
+                false,
+                None,
+            );
+            map.insert(name.to_owned(), json::Value::from(acc.value() as u64));
+        }
+        let mut ext = serde_json::Map::new();
+        ext.insert("attributes".to_owned(), json::Value::Object(map));
+        if !self.root.extensions_used.iter().any(|e| e == INSTANCING) {
+            self.root.extensions_used.push(INSTANCING.to_owned());
+            // Without the extension a viewer would draw one instance at the origin: wrong, so
+            // it must refuse instead.
+            self.root.extensions_required.push(INSTANCING.to_owned());
+        }
+        let mut node = json::extensions::scene::Node::default();
+        node.others
+            .insert(INSTANCING.to_owned(), json::Value::Object(ext));
+        Ok(node)
+    }
+
+    /// Appends `bytes` (4-byte aligned) as a buffer view.
+    fn view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::buffer::Target>,
+    ) -> Result<json::Index<json::buffer::View>, EncodeError> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        let offset = self.bin.len();
+        if (offset as u64).saturating_add(bytes.len() as u64) > u64::from(u32::MAX) - 64 {
+            return Err(too_large("buffer view"));
+        }
+        self.bin.extend_from_slice(bytes);
+        Ok(self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: target.map(Checked::Valid),
+            extensions: None,
+            extras: None,
+        }))
+    }
+
+    fn accessor(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        component: ComponentType,
+        type_: Type,
+        normalized: bool,
+        min_max: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        let (min, max) = min_max.map_or((None, None), |(lo, hi)| {
+            (Some(json::Value::from(lo)), Some(json::Value::from(hi)))
+        });
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: Some(USize64(0)),
+            count: USize64::from(count),
+            component_type: Checked::Valid(GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Checked::Valid(type_),
+            min,
+            max,
+            name: None,
+            normalized,
+            sparse: None,
+        })
+    }
+
+    fn floats(
+        &mut self,
+        data: &[f32],
+        dims: usize,
+        type_: Type,
+        with_bounds: bool,
+    ) -> Result<json::Index<json::Accessor>, EncodeError> {
+        let bytes: &[u8] = bytemuck::cast_slice(data);
+        let view = self.view(bytes, Some(json::buffer::Target::ArrayBuffer))?;
+        let bounds = with_bounds.then(|| {
+            let mut lo = vec![f32::INFINITY; dims];
+            let mut hi = vec![f32::NEG_INFINITY; dims];
+            for e in data.chunks_exact(dims) {
+                for c in 0..dims {
+                    lo[c] = lo[c].min(e[c]);
+                    hi[c] = hi[c].max(e[c]);
+                }
+            }
+            (lo, hi)
+        });
+        Ok(self.accessor(
+            view,
+            data.len() / dims,
+            ComponentType::F32,
+            type_,
+            false,
+            bounds,
+        ))
+    }
+
+    fn primitive(
+        &mut self,
+        p: &ExportPrimitive,
+        material: json::Index<json::Material>,
+        what: &str,
+    ) -> Result<json::mesh::Primitive, EncodeError> {
+        let n = p.positions.len();
+        for (name, len) in [
+            ("normals", p.normals.len()),
+            ("colours", p.colors.len()),
+            ("uvs", p.uvs.len()),
+        ] {
+            if len != 0 && len != n {
+                return Err(EncodeError::Invalid(format!(
+                    "{what}: {len} {name} for {n} vertices"
+                )));
+            }
+        }
+        if !p.indices.len().is_multiple_of(3) {
+            return Err(EncodeError::Invalid(format!(
+                "{what}: {} indices is not a whole number of triangles",
+                p.indices.len()
+            )));
+        }
+        if let Some(&i) = p.indices.iter().find(|&&i| i as usize >= n) {
+            return Err(EncodeError::Invalid(format!(
+                "{what}: index {i} is past the {n} vertices"
+            )));
+        }
+        if let Some(i) = p.positions.iter().position(|v| !v.is_finite()) {
+            return Err(EncodeError::Invalid(format!(
+                "{what}: vertex {i} has a non-finite position"
+            )));
+        }
+        let mut attributes = BTreeMap::new();
+        let positions: Vec<f32> = p.positions.iter().flat_map(|v| v.to_array()).collect();
+        let pos = self.floats(&positions, 3, Type::Vec3, true)?;
+        attributes.insert(Checked::Valid(json::mesh::Semantic::Positions), pos);
+        if !p.normals.is_empty() {
+            // The validator wants unit normals; a zero or broken one becomes +Y.
+            let normals: Vec<f32> = p
+                .normals
+                .iter()
+                .flat_map(|v| v.try_normalize().unwrap_or(Vec3::Y).to_array())
+                .collect();
+            let acc = self.floats(&normals, 3, Type::Vec3, false)?;
+            attributes.insert(Checked::Valid(json::mesh::Semantic::Normals), acc);
+        }
+        if !p.uvs.is_empty() {
+            let uvs: Vec<f32> = p
+                .uvs
+                .iter()
+                .flat_map(|v| {
+                    if v.is_finite() {
+                        v.to_array()
+                    } else {
+                        [0.0; 2]
+                    }
+                })
+                .collect();
+            let acc = self.floats(&uvs, 2, Type::Vec2, false)?;
+            attributes.insert(Checked::Valid(json::mesh::Semantic::TexCoords(0)), acc);
+        }
+        if !p.colors.is_empty() {
+            // Unsigned-short normalised RGBA: 8 bytes a vertex (4-byte aligned, as vertex
+            // attributes must be), 1/65535 precision in linear space, which 8-bit sRGB needs.
+            let colors: Vec<u16> = p
+                .colors
+                .iter()
+                .flat_map(|c| {
+                    c.to_array().map(|x| {
+                        let x = if x.is_finite() {
+                            x.clamp(0.0, 1.0)
+                        } else {
+                            1.0
+                        };
+                        (x * 65535.0).round() as u16
+                    })
+                })
+                .collect();
+            let view = self.view(
+                bytemuck::cast_slice(&colors),
+                Some(json::buffer::Target::ArrayBuffer),
+            )?;
+            let acc = self.accessor(view, n, ComponentType::U16, Type::Vec4, true, None);
+            attributes.insert(Checked::Valid(json::mesh::Semantic::Colors(0)), acc);
+        }
+        let (index_bytes, component): (Vec<u8>, ComponentType) = if n <= usize::from(u16::MAX) {
+            let v: Vec<u16> = p.indices.iter().map(|&i| i as u16).collect();
+            (bytemuck::cast_slice(&v).to_vec(), ComponentType::U16)
+        } else {
+            (
+                bytemuck::cast_slice(&p.indices).to_vec(),
+                ComponentType::U32,
+            )
+        };
+        let view = self.view(&index_bytes, Some(json::buffer::Target::ElementArrayBuffer))?;
+        let indices = self.accessor(view, p.indices.len(), component, Type::Scalar, false, None);
+        Ok(json::mesh::Primitive {
+            attributes,
+            extensions: None,
+            extras: None,
+            indices: Some(indices),
+            material: Some(material),
+            mode: Checked::Valid(json::mesh::Mode::Triangles),
+            targets: None,
+        })
+    }
+
+    fn material(&mut self, m: &ExportMaterial) -> Result<json::Index<json::Material>, EncodeError> {
+        let base_color_texture = match &m.texture {
+            Some(tex) => Some(json::texture::Info {
+                index: self.texture(tex, m.nearest, &m.name)?,
+                tex_coord: 0,
+                extensions: None,
+                extras: None,
+            }),
+            None => None,
+        };
+        let c = m.base_color.to_array().map(|x| {
+            if x.is_finite() {
+                x.clamp(0.0, 1.0)
+            } else {
+                1.0
+            }
+        });
+        Ok(self.root.push(json::Material {
+            name: Some(m.name.clone()),
+            double_sided: m.double_sided,
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor(c),
+                base_color_texture,
+                // Voxel art and KRS colours are matte albedo, not metal.
+                metallic_factor: json::material::StrengthFactor(0.0),
+                roughness_factor: json::material::StrengthFactor(1.0),
+                ..json::material::PbrMetallicRoughness::default()
+            },
+            ..json::Material::default()
+        }))
+    }
+
+    fn texture(
+        &mut self,
+        tex: &Texture,
+        nearest: bool,
+        name: &str,
+    ) -> Result<json::Index<json::Texture>, EncodeError> {
+        let expected = u64::from(tex.width) * u64::from(tex.height) * 4;
+        if tex.width == 0 || tex.height == 0 || tex.rgba8.len() as u64 != expected {
+            return Err(EncodeError::Invalid(format!(
+                "texture of {name:?}: {}×{} with {} bytes",
+                tex.width,
+                tex.height,
+                tex.rgba8.len()
+            )));
+        }
+        let mut png = Vec::new();
+        image::ImageEncoder::write_image(
+            image::codecs::png::PngEncoder::new(&mut png),
+            &tex.rgba8,
+            tex.width,
+            tex.height,
+            image::ExtendedColorType::Rgba8,
+        )
+        .map_err(|e| EncodeError::Encoding(format!("PNG for {name:?}: {e}")))?;
+        let view = self.view(&png, None)?;
+        let image = self.root.push(json::Image {
+            buffer_view: Some(view),
+            mime_type: Some(json::image::MimeType("image/png".to_owned())),
+            name: Some(name.to_owned()),
+            uri: None,
+            extensions: None,
+            extras: None,
+        });
+        let sampler = self.sampler(nearest);
+        Ok(self.root.push(json::Texture {
+            name: Some(name.to_owned()),
+            sampler: Some(sampler),
+            source: image,
+            extensions: None,
+            extras: None,
+        }))
+    }
+
+    fn sampler(&mut self, nearest: bool) -> json::Index<json::texture::Sampler> {
+        use json::texture::{MagFilter, MinFilter, Sampler, WrappingMode};
+        let slot = if nearest {
+            &mut self.sampler_nearest
+        } else {
+            &mut self.sampler_linear
+        };
+        if let Some(s) = *slot {
+            return s;
+        }
+        let sampler = if nearest {
+            Sampler {
+                mag_filter: Some(Checked::Valid(MagFilter::Nearest)),
+                min_filter: Some(Checked::Valid(MinFilter::Nearest)),
+                wrap_s: Checked::Valid(WrappingMode::ClampToEdge),
+                wrap_t: Checked::Valid(WrappingMode::ClampToEdge),
+                ..Sampler::default()
+            }
+        } else {
+            Sampler::default()
+        };
+        let index = self.root.push(sampler);
+        if nearest {
+            self.sampler_nearest = Some(index);
+        } else {
+            self.sampler_linear = Some(index);
+        }
+        index
+    }
+
+    fn finish(mut self, bin_uri: Option<&str>) -> Result<Encoded, EncodeError> {
+        while !self.bin.len().is_multiple_of(4) {
+            self.bin.push(0);
+        }
+        if !self.bin.is_empty() {
+            self.root.push(json::Buffer {
+                byte_length: USize64::from(self.bin.len()),
+                name: None,
+                uri: bin_uri.map(str::to_owned),
+                extensions: None,
+                extras: None,
+            });
+        }
+        let json = self
+            .root
+            .to_vec()
+            .map_err(|e| EncodeError::Encoding(format!("glTF JSON: {e}")))?;
+        Ok(Encoded {
+            json,
+            bin: self.bin,
+        })
+    }
+}
+
+/// Packs JSON and binary chunks into a GLB container (both padded to 4 bytes: JSON with
+/// spaces, binary with zeros, as the specification asks).
+pub(crate) fn glb(encoded: &Encoded) -> Result<Vec<u8>, EncodeError> {
+    let pad = |n: usize| (4 - n % 4) % 4;
+    let json_len = encoded.json.len() + pad(encoded.json.len());
+    let bin_len = encoded.bin.len() + pad(encoded.bin.len());
+    let bin_chunk = if bin_len > 0 { 8 + bin_len } else { 0 };
+    let total = 12 + 8 + json_len + bin_chunk;
+    let total32 = u32::try_from(total).map_err(|_| too_large("GLB file"))?;
+    let mut out = Vec::with_capacity(total);
+    out.extend_from_slice(b"glTF");
+    out.extend_from_slice(&2u32.to_le_bytes());
+    out.extend_from_slice(&total32.to_le_bytes());
+    out.extend_from_slice(&(json_len as u32).to_le_bytes());
+    out.extend_from_slice(b"JSON");
+    out.extend_from_slice(&encoded.json);
+    out.resize(out.len() + pad(encoded.json.len()), b' ');
+    if bin_len > 0 {
+        out.extend_from_slice(&(bin_len as u32).to_le_bytes());
+        out.extend_from_slice(b"BIN\0");
+        out.extend_from_slice(&encoded.bin);
+        out.resize(out.len() + pad(encoded.bin.len()), 0);
+    }
+    Ok(out)
+}
