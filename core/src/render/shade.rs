@@ -325,7 +325,7 @@ pub(crate) fn linear_to_srgb8(c: f32) -> u8 {
             bucket_byte,
         }
     });
-    if !(c > 0.0) {
+    if c.is_nan() || c <= 0.0 {
         // Zero, negatives and NaN all give 0, as `linear_to_srgb` clamps (NaN: `as u8` of NaN).
         return 0;
     }

@@ -93,8 +93,7 @@ impl SkinTables {
         t.inner_corners = vec![[Skin4::ROOT; 8]; svo.inner_skin().len()];
         t.inner_joint_range = vec![(0, 0); svo.inner_skin().len()];
         // Post-order walk: children's joint sets are known before their parent's.
-        let mut child_joints: Vec<Vec<u8>> = Vec::new();
-        walk(svo, svo.root(), &merged, &mut t, &mut child_joints);
+        walk(svo, svo.root(), &merged, &mut t);
         t
     }
 
@@ -123,7 +122,6 @@ fn walk(
     node: crate::svo::NodeRef,
     lattice: &HashMap<UVec3, Skin4>,
     t: &mut SkinTables,
-    scratch: &mut Vec<Vec<u8>>,
 ) -> Vec<u8> {
     let size = svo.node_size(node.level);
     let own = svo.node_voxel(&node).skin;
@@ -157,7 +155,7 @@ fn walk(
     let mut joints: Vec<u8> = Vec::new();
     for k in 0..8 {
         if let Some(child) = svo.child(&node, k) {
-            joints.extend(walk(svo, child, lattice, t, scratch));
+            joints.extend(walk(svo, child, lattice, t));
         }
     }
     joints.extend(own.influences().map(|(j, _)| j as u8));

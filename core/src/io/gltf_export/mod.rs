@@ -466,7 +466,7 @@ pub fn build_scene(
                     &krs_options,
                     &|_| true,
                 )
-                .map_err(|e| field_error(path, &o.name, e))?;
+                .map_err(|e| field_error(path, &o.name, &e))?;
                 charge(&mut budget, tris, options, path, &o.name)?;
                 report.objects += 1;
                 if !progress((i + 1) as f32 / total) {
@@ -686,7 +686,7 @@ impl SceneBuilder<'_> {
             }
             ExportMode::Smooth => {
                 let mesh = fields::mesh_voxels_smooth(&v.svo, self.options.smoothing, *budget)
-                    .map_err(|e| field_error(path, &o.name, e))?;
+                    .map_err(|e| field_error(path, &o.name, &e))?;
                 charge(
                     budget,
                     mesh.triangle_count() as u64,
@@ -795,7 +795,7 @@ impl SceneBuilder<'_> {
     }
 }
 
-fn field_error(path: &Path, object: &str, e: FieldError) -> GltfExportError {
+fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
     match e {
         FieldError::TooManyTriangles { .. } => GltfExportError::TooLarge {
             path: path.to_owned(),
