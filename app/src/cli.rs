@@ -66,6 +66,31 @@ pub enum Command {
     /// closed surface (`smooth`); meshes are written as they are. The file is written
     /// atomically, only when the export succeeded.
     Export(ExportArgs),
+    /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
+    ///
+    /// The voxels are drawn with each strategy and compared with the source mesh skinned with
+    /// the same pose from the same camera: holes are mesh pixels no voxel covers, bloat is
+    /// voxel pixels outside the mesh.
+    SkinReport(SkinReportArgs),
+}
+
+/// `thicket skin-report`.
+#[derive(Debug, Args)]
+pub struct SkinReportArgs {
+    /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF).
+    pub project: PathBuf,
+    /// Frames, evenly spaced over the clip.
+    #[arg(long, default_value_t = 20)]
+    pub frames: u32,
+    /// Image size as WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x800")]
+    pub size: String,
+    /// Clip by name (default: the project's).
+    #[arg(long)]
+    pub clip: Option<String>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
 }
 
 /// `thicket bench`.
@@ -253,6 +278,10 @@ pub struct ImportArgs {
     /// Fill the inside of closed meshes instead of voxelizing only the surface.
     #[arg(long)]
     pub solid: bool,
+    /// Import a skinned glTF as a static model (by default its skeleton and clips come along
+    /// and the voxels carry joint weights).
+    #[arg(long)]
+    pub no_skin: bool,
 }
 
 /// `thicket render`.
@@ -275,6 +304,12 @@ pub struct RenderArgs {
     /// Print frame statistics (per level, splats, culling, stage times).
     #[arg(long)]
     pub stats: bool,
+    /// Animation time in seconds for skinned models (default: the project's playhead).
+    #[arg(long)]
+    pub time: Option<f32>,
+    /// Animation clip of skinned models, by name (default: the project's).
+    #[arg(long)]
+    pub clip: Option<String>,
     /// Render with the GPU renderer (wgpu; any adapter, including a software one).
     #[arg(long)]
     pub gpu: bool,
@@ -315,6 +350,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::ExportVox(args)) => export_vox(&args),
         Some(Command::Import(args)) => import(&args),
         Some(Command::Render(args)) => render(&args),
+        Some(Command::SkinReport(args)) => skin_report(&args),
         Some(Command::Bench(args)) => bench(&args),
         Some(Command::Enhance(args)) => enhance(&args),
         Some(Command::Tradeoff(args)) => tradeoff(&args),
@@ -576,22 +612,62 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .input
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("vox"));
+    let settings = VoxelizeSettings {
+        resolution: match (args.depth, args.voxel_size) {
+            (_, Some(s)) => Resolution::VoxelSize(s),
+            (d, None) => Resolution::Depth(d.unwrap_or(7)),
+        },
+        mode: if args.solid {
+            Mode::Solid
+        } else {
+            Mode::Surface
+        },
+        ..VoxelizeSettings::default()
+    };
+    let mut notes = String::new();
     let doc = if is_vox {
         files::load_document(&args.input)?
+    } else if let Some(skinned) = (!args.no_skin)
+        .then(|| files::load_skinned(&args.input))
+        .transpose()?
+        .flatten()
+    {
+        let bar = progress_bar(1000, "voxelizing the bind pose");
+        let result = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
+            bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+            true
+        });
+        bar.finish_and_clear();
+        let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
+        let rig = v.model.rig.as_ref();
+        notes.push_str(&format!(
+            "skinned: {} joints, {} clip(s){}\n",
+            skinned.skeleton.len(),
+            skinned.clips.len(),
+            rig.and_then(|r| r.clips.first())
+                .map(|c| format!(" (playing {:?}, {:.2} s)", c.name, c.duration_secs))
+                .unwrap_or_default()
+        ));
+        if skinned.weight_repair.total() > 0 {
+            notes.push_str(&format!(
+                "warning: repaired vertex weights: {:?}\n",
+                skinned.weight_repair
+            ));
+        }
+        for w in &skinned.warnings {
+            notes.push_str(&format!("warning: {w}\n"));
+        }
+        let mut doc = thicket_core::scene::Document::default();
+        doc.add(
+            files::object_name_for(&args.input),
+            thicket_core::scene::ObjectKind::Voxels(v.model),
+        );
+        if let Some((lo, hi)) = doc.bounds() {
+            doc.camera.frame(lo, hi);
+        }
+        doc
     } else {
         let model = files::load_mesh(&args.input)?;
-        let settings = VoxelizeSettings {
-            resolution: match (args.depth, args.voxel_size) {
-                (_, Some(s)) => Resolution::VoxelSize(s),
-                (d, None) => Resolution::Depth(d.unwrap_or(7)),
-            },
-            mode: if args.solid {
-                Mode::Solid
-            } else {
-                Mode::Surface
-            },
-            ..VoxelizeSettings::default()
-        };
         let bar = progress_bar(1000, "voxelizing");
         let result = voxelize(&model, &settings, &|f| {
             bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
@@ -607,6 +683,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
                 voxel_size: v.voxel_size,
                 origin: v.origin,
                 material_names: model.materials.iter().map(|m| m.name.clone()).collect(),
+                rig: None,
             }),
         );
         if let Some((lo, hi)) = doc.bounds() {
@@ -624,7 +701,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         })
         .sum();
     write_stdout(&format!(
-        "wrote {}: {} object(s), {} voxels\n",
+        "{notes}wrote {}: {} object(s), {} voxels\n",
         args.output.display(),
         doc.objects.len(),
         thousands(voxels)
@@ -641,6 +718,53 @@ fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {
             .with_context(|| format!("--size {text:?}: {v:?} is not a whole number"))
     };
     Ok((parse(w)?, parse(h)?))
+}
+
+/// Sets the playhead (and clip, by name) of every skinned model of `doc`.
+///
+/// # Errors
+/// A non-finite time, a clip name no skinned model has (listing the names it has), or a clip
+/// or time given for a document without skinned models.
+pub fn set_playback(
+    doc: &mut thicket_core::scene::Document,
+    time: Option<f32>,
+    clip: Option<&str>,
+) -> anyhow::Result<()> {
+    if time.is_none() && clip.is_none() {
+        return Ok(());
+    }
+    if let Some(t) = time
+        && !t.is_finite()
+    {
+        anyhow::bail!("--time {t}: must be a finite number of seconds");
+    }
+    let mut rigged = 0;
+    for o in &mut doc.objects {
+        let thicket_core::scene::ObjectKind::Voxels(v) = &mut o.kind else {
+            continue;
+        };
+        let Some(rig) = v.rig.as_mut() else {
+            continue;
+        };
+        rigged += 1;
+        if let Some(name) = clip {
+            let index = rig.clip_index(name).with_context(|| {
+                let names: Vec<&str> = rig.clips.iter().map(|c| c.name.as_str()).collect();
+                format!(
+                    "--clip {name:?}: object {:?} has no such clip (it has {names:?})",
+                    o.name
+                )
+            })?;
+            rig.playback.clip = Some(index);
+        }
+        if let Some(t) = time {
+            rig.playback.time_secs = t;
+        }
+    }
+    if rigged == 0 {
+        anyhow::bail!("--time/--clip: the document has no skinned model");
+    }
+    Ok(())
 }
 
 /// The document's quality with `--quality KEY=VALUE` overrides, and its camera with a
@@ -682,7 +806,8 @@ fn view_options(
 
 fn render(args: &RenderArgs) -> anyhow::Result<()> {
     use thicket_core::render::{RenderRequest, RgbaImage, render_document};
-    let doc = files::load_document(&args.project)?;
+    let mut doc = files::load_document(&args.project)?;
+    set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
     let (image, stats_json) = if args.gpu {
@@ -860,6 +985,77 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         ));
     }
     write_stdout(&text)
+}
+
+fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
+    use thicket_core::skin::metrics::{ReportSettings, skin_report};
+    use thicket_core::skin::{StretchSettings, StretchStrategy};
+    let doc = files::load_document(&args.project)?;
+    let (width, height) = parse_size(&args.size)?;
+    let strategies = [
+        StretchStrategy::Off,
+        StretchStrategy::Thesis,
+        StretchStrategy::Corners,
+        StretchStrategy::Adaptive,
+    ]
+    .map(|strategy| StretchSettings {
+        strategy,
+        ..StretchSettings::default()
+    })
+    .to_vec();
+    let report = skin_report(
+        &doc,
+        &ReportSettings {
+            frames: args.frames,
+            width,
+            height,
+            clip: args.clip.clone(),
+            strategies,
+            quality: doc.quality.clone(),
+        },
+    )
+    .with_context(|| format!("{}: skin report", args.project.display()))?;
+    let text = if args.json {
+        let mut s = serde_json::to_string_pretty(&report).context("encoding the report")?;
+        s.push('\n');
+        s
+    } else {
+        format_skin_report(&report, width, height)
+    };
+    write_stdout(&text)
+}
+
+/// The `skin-report` table.
+#[must_use]
+pub fn format_skin_report(
+    report: &thicket_core::skin::metrics::SkinReport,
+    width: u32,
+    height: u32,
+) -> String {
+    let mut s = format!(
+        "{} / clip {:?}: {} frames at {width}x{height}, {} silhouette pixels in all\n",
+        report.object,
+        report.clip,
+        report.times.len(),
+        thousands(report.rows.first().map_or(0, |r| r.total.mesh_pixels))
+    );
+    s.push_str(
+        "strategy    holes      holes %   bloat      bloat %   worst IoU  draw ms  frame ms\n",
+    );
+    for r in &report.rows {
+        s.push_str(&format!(
+            "{:<10}  {:>9}  {:>7.4}%  {:>9}  {:>7.3}%  {:>9.4}  {:>7.2}  {:>8.2}\n",
+            format!("{:?}", r.settings.strategy),
+            thousands(r.total.holes),
+            100.0 * r.total.hole_fraction(),
+            thousands(r.total.bloat),
+            100.0 * r.total.bloat_fraction(),
+            r.worst_iou,
+            r.draw_ms,
+            r.frame_ms
+        ));
+    }
+    s
 }
 
 fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {

@@ -102,6 +102,25 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
     Ok(model)
 }
 
+/// Reads the skin of a glTF file: `Ok(None)` when the file is not glTF or has no skinned mesh,
+/// an error when it has one that cannot be read.
+///
+/// # Errors
+/// The skinned importer's message, naming the file and the problem.
+pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::SkinnedImport>> {
+    if kind_of(path)? != FileKind::Gltf {
+        return Ok(None);
+    }
+    match thicket_core::skin::import_skinned(path) {
+        Ok(s) => Ok(Some(s)),
+        Err(thicket_core::skin::SkinError::NoSkin { .. }) => Ok(None),
+        Err(e) => Err(anyhow::Error::new(e).context(format!(
+            "{}: the file has a skin that cannot be imported (use --no-skin to import it as a static model)",
+            path.display()
+        ))),
+    }
+}
+
 /// Opens any supported file as a document: a project as it is, a mesh file as one mesh object,
 /// a `.vox` file as its voxel objects. The result is validated.
 ///

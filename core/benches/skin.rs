@@ -12,8 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 use thicket_core::skin::stretch::{VoxelSkinInput, skinned_splat};
 use thicket_core::skin::{
-    JointMatrices, NodeSkin, Pose, StretchSettings, StretchStrategy, Wrap, import_skinned,
-    skin_points,
+    JointMatrices, Pose, Skin4, StretchSettings, StretchStrategy, Wrap, import_skinned, skin_points,
 };
 
 const CESIUM_MAN: &str = concat!(
@@ -101,12 +100,12 @@ fn bench_stretch(c: &mut Criterion) {
     const N: usize = 100_000;
     let mut rng = Pcg64::seed_from_u64(11);
     let skinning = random_skinning(&mut rng);
-    let nodes: Vec<(Vec3, NodeSkin, [NodeSkin; 8])> = (0..N)
+    let nodes: Vec<(Vec3, Skin4, [Skin4; 8])> = (0..N)
         .map(|_| {
             let center = Vec3::new(rng.random(), rng.random(), rng.random());
             let mut skin = || {
                 let (j, w) = random_skin(&mut rng);
-                NodeSkin::from_vertex(j, w)
+                Skin4::from_vertex(j, w)
             };
             let own = skin();
             let corners = std::array::from_fn(|_| skin());
@@ -156,5 +155,66 @@ fn bench_stretch(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bench_lbs, bench_sampling, bench_stretch);
+/// A whole CPU frame of voxelized CesiumMan (depth 8, 800×800, shadows off), static (rigid
+/// transform) against skinned mid-stride with each strategy, same model and view: the paper's
+/// claim is that skinning is nearly free because node positions are computed anyway.
+fn bench_frames(c: &mut Criterion) {
+    use thicket_core::render::{RenderRequest, render_document};
+    use thicket_core::scene::{Document, ObjectKind};
+    use thicket_core::voxelize::{Resolution, VoxelizeSettings};
+    let import = import_skinned(CESIUM_MAN).expect("CesiumMan imports");
+    let v = thicket_core::skin::voxelize_skinned(
+        &import,
+        &VoxelizeSettings {
+            resolution: Resolution::Depth(8),
+            ..VoxelizeSettings::default()
+        },
+        &|_| true,
+    )
+    .expect("voxelizes");
+    let mut skinned = Document::default();
+    skinned.add("CesiumMan", ObjectKind::Voxels(v.model));
+    if let Some((lo, hi)) = skinned.bounds() {
+        skinned.camera.frame(lo, hi);
+    }
+    let mut rigid = skinned.clone();
+    if let ObjectKind::Voxels(m) = &mut rigid.objects[0].kind {
+        m.rig = None;
+    }
+    // The static model shows the bind pose; orient it as the skinned one (the rig's Z-up root).
+    rigid.objects[0].transform.rotation = glam::Quat::from_mat4(&import.world_from_skinned_node);
+    let mut req = RenderRequest::new(800, 800);
+    req.quality.shadows = false;
+    let mut g = c.benchmark_group("frame_cesium_man_800");
+    g.sample_size(10);
+    g.bench_function("static", |b| {
+        b.iter(|| black_box(render_document(&rigid, &req).expect("renders").2));
+    });
+    for strategy in [
+        StretchStrategy::Off,
+        StretchStrategy::Thesis,
+        StretchStrategy::Corners,
+        StretchStrategy::Adaptive,
+    ] {
+        let mut doc = skinned.clone();
+        if let ObjectKind::Voxels(m) = &mut doc.objects[0].kind
+            && let Some(rig) = m.rig.as_mut()
+        {
+            rig.playback.time_secs = 0.5;
+            rig.stretch.strategy = strategy;
+        }
+        g.bench_function(format!("skinned_{strategy:?}"), |b| {
+            b.iter(|| black_box(render_document(&doc, &req).expect("renders").2));
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    bench_lbs,
+    bench_sampling,
+    bench_stretch,
+    bench_frames
+);
 criterion_main!(benches);

@@ -198,6 +198,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
             voxel_size,
             origin: Vec3::ZERO,
             material_names: names.clone(),
+            rig: None,
         }),
     );
     if let Some(o) = doc.objects.iter_mut().find(|o| o.id == coarse_id) {
@@ -210,6 +211,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
             voxel_size: voxel_size / f as f32,
             origin: Vec3::ZERO,
             material_names: names,
+            rig: None,
         }),
     );
     doc.lights[0].direction = Vec3::new(-0.45, -1.0, -0.3);

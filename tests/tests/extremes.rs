@@ -91,6 +91,7 @@ fn depth_21_model_renders_without_nan() {
             voxel_size: 1e-3,
             origin: Vec3::splat(-1048.576),
             material_names: Vec::new(),
+            rig: None,
         }),
     );
     let (lo, hi) = doc.bounds().unwrap();

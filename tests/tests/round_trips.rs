@@ -28,6 +28,7 @@ fn gltf_to_svo_to_project_and_back_is_identical() {
                 voxel_size: v.voxel_size,
                 origin: v.origin,
                 material_names: vec![],
+                rig: None,
             }),
         );
         let dir = tempfile::tempdir().unwrap();

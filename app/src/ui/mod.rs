@@ -349,6 +349,8 @@ impl EditorApp {
                             voxel_size: model.voxel_size / factor as f32,
                             origin: model.origin,
                             material_names: model.material_names.clone(),
+                            // The fine octree carries no joint weights: the result is static.
+                            rig: None,
                         })
                     })
                     .map_err(anyhow::Error::from);

@@ -165,6 +165,8 @@ pub fn enhance_model(
             voxel_size: model.voxel_size / settings.factor as f32,
             origin: model.origin,
             material_names: model.material_names.clone(),
+            // The fine octree carries no joint weights: the enhanced model is static.
+            rig: None,
         },
         stats,
     ))

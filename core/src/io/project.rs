@@ -25,6 +25,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
 use crate::scene::{Document, FORMAT_VERSION, ObjectKind, SceneError};
+use crate::skin::{AnimationClip, Channel, Interpolation, Property, Rig, StretchOverrides};
 use crate::svo::{Skin4, Svo, Voxel, morton_decode, morton_encode};
 
 /// Largest project JSON we read (the JSON holds parameters only; payloads are in the `.bin`).
@@ -109,7 +110,15 @@ struct PayloadRef {
     length: u64,
     /// CRC-32 of those bytes.
     crc32: u32,
+    /// Which payload of the object: empty for the main one (octree or mesh), `"skin"` for a
+    /// skinned voxel model's clips and per-voxel stretch overrides. Omitted when empty, so
+    /// files without skin are unchanged.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    part: String,
 }
+
+/// [`PayloadRef::part`] of a skinned voxel model's clip and override payload.
+const SKIN_PART: &str = "skin";
 
 /// Identity of the whole `.bin` the JSON was saved with.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -199,7 +208,22 @@ pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
             offset: start as u64,
             length: bytes.len() as u64,
             crc32: crc32fast::hash(bytes),
+            part: String::new(),
         });
+        if let ObjectKind::Voxels(v) = &o.kind
+            && let Some(rig) = &v.rig
+        {
+            let start = bin.len();
+            encode_skin(rig, &mut bin);
+            let bytes = &bin[start..];
+            payloads.push(PayloadRef {
+                object_id: o.id,
+                offset: start as u64,
+                length: bytes.len() as u64,
+                crc32: crc32fast::hash(bytes),
+                part: SKIN_PART.into(),
+            });
+        }
     }
     let bin_ref = (!payloads.is_empty()).then(|| BinRef {
         file: bin_path
@@ -349,17 +373,19 @@ fn load_from_parts(
         None => Vec::new(),
     };
     let bin_name = file.bin.as_ref().map_or(String::new(), |b| b.file.clone());
-    for o in &mut doc.objects {
-        if matches!(o.kind, ObjectKind::Krs(_)) {
-            // Parametric: nothing in the `.bin`.
-            continue;
-        }
-        let what = format!("object {:?} (id {})", o.name, o.id);
+    let payload = |what: &str, id: u64, part: &str| -> Result<&[u8], ProjectError> {
         let p = file
             .payloads
             .iter()
-            .find(|p| p.object_id == o.id)
-            .ok_or_else(|| payload_err(format!("{what} has no payload in {bin_name:?}")))?;
+            .find(|p| p.object_id == id && p.part == part)
+            .ok_or_else(|| {
+                let which = if part.is_empty() {
+                    String::new()
+                } else {
+                    format!("{part} ")
+                };
+                payload_err(format!("{what} has no {which}payload in {bin_name:?}"))
+            })?;
         let end = p
             .offset
             .checked_add(p.length)
@@ -380,10 +406,30 @@ fn load_from_parts(
                 p.crc32
             )));
         }
+        Ok(bytes)
+    };
+    for o in &mut doc.objects {
+        if matches!(o.kind, ObjectKind::Krs(_)) {
+            // Parametric: nothing in the `.bin`.
+            continue;
+        }
+        let what = format!("object {:?} (id {})", o.name, o.id);
+        let bytes = payload(&what, o.id, "")?;
         match &mut o.kind {
             ObjectKind::Voxels(v) => {
                 v.svo = decode_svo(bytes)
                     .map_err(|d| payload_err(format!("{what}: voxel payload: {d}")))?;
+                if let Some(rig) = &mut v.rig {
+                    let bytes = payload(&what, o.id, SKIN_PART)?;
+                    decode_skin(bytes, rig)
+                        .map_err(|d| payload_err(format!("{what}: skin payload: {d}")))?;
+                    // Clip and skeleton consistency first, so the weight check below can
+                    // trust the joint count and its message is about the weights.
+                    rig.validate()
+                        .map_err(|e| payload_err(format!("{what}: {e}")))?;
+                    crate::skin::rig::check_weights(&v.svo, rig.skeleton.len())
+                        .map_err(|e| payload_err(format!("{what}: {e}")))?;
+                }
             }
             ObjectKind::Mesh(m) => {
                 m.model = decode_mesh(bytes)
@@ -403,6 +449,7 @@ fn load_from_parts(
 
 const SVO_MAGIC: &[u8; 4] = b"SVO1";
 const MESH_MAGIC: &[u8; 4] = b"MSH1";
+const SKIN_MAGIC: &[u8; 4] = b"SKN1";
 
 /// Little-endian reader that checks every length before reading or allocating.
 struct Reader<'a> {
@@ -561,6 +608,133 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         ));
     }
     Svo::from_voxels(depth, has_skin, leaves).map_err(|e| e.to_string())
+}
+
+/// A skinned voxel model's clips (key arrays) and per-voxel stretch overrides; the skeleton and
+/// settings are in the JSON.
+fn encode_skin(rig: &Rig, out: &mut Vec<u8>) {
+    out.extend_from_slice(SKIN_MAGIC);
+    put_len(out, rig.clips.len());
+    for c in &rig.clips {
+        put_len(out, c.name.len());
+        out.extend_from_slice(c.name.as_bytes());
+        put_f32s(out, &[c.duration_secs]);
+        put_len(out, c.channels.len());
+        for ch in &c.channels {
+            put_len(out, ch.joint);
+            out.push(match ch.property {
+                Property::Translation => 0,
+                Property::Rotation => 1,
+                Property::Scale => 2,
+            });
+            out.push(match ch.interpolation {
+                Interpolation::Step => 0,
+                Interpolation::Linear => 1,
+                Interpolation::CubicSpline => 2,
+            });
+            out.extend_from_slice(&[0, 0]);
+            put_len(out, ch.times.len());
+            put_f32s(out, &ch.times);
+            put_len(out, ch.values.len());
+            ch.values.iter().for_each(|v| put_f32s(out, &v.to_array()));
+        }
+    }
+    let entries = rig.stretch_overrides.entries();
+    put_len(out, entries.len());
+    for &(code, byte) in entries {
+        out.extend_from_slice(&code.to_le_bytes());
+        out.push(byte);
+    }
+    match &rig.reference_mesh {
+        Some(m) => {
+            out.push(1);
+            encode_mesh(m, out);
+        }
+        None => out.push(0),
+    }
+}
+
+/// Reads [`encode_skin`]'s payload into `rig` (clips and overrides). Structural checks only;
+/// the caller validates the clips against the skeleton.
+fn decode_skin(bytes: &[u8], rig: &mut Rig) -> Result<(), String> {
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(4)? != SKIN_MAGIC {
+        return Err("bad magic (expected SKN1)".into());
+    }
+    let n_clips = r.count(12, "clip table")?;
+    let mut clips = Vec::with_capacity(n_clips);
+    for i in 0..n_clips {
+        let len = r.count(1, "clip name")?;
+        let name = String::from_utf8(r.take(len)?.to_vec())
+            .map_err(|_| format!("clip {i}: name is not UTF-8"))?;
+        let duration_secs = r.f32()?;
+        let n_channels = r.count(16, "channel table")?;
+        let mut channels = Vec::with_capacity(n_channels);
+        for k in 0..n_channels {
+            let joint = r.u32()? as usize;
+            let property = match r.u8()? {
+                0 => Property::Translation,
+                1 => Property::Rotation,
+                2 => Property::Scale,
+                b => {
+                    return Err(format!(
+                        "clip {i} ({name:?}), channel {k}: property {b} is not 0, 1 or 2"
+                    ));
+                }
+            };
+            let interpolation = match r.u8()? {
+                0 => Interpolation::Step,
+                1 => Interpolation::Linear,
+                2 => Interpolation::CubicSpline,
+                b => {
+                    return Err(format!(
+                        "clip {i} ({name:?}), channel {k}: interpolation {b} is not 0, 1 or 2"
+                    ));
+                }
+            };
+            r.take(2)?;
+            let n = r.count(4, "key times")?;
+            let times = (0..n).map(|_| r.f32()).collect::<Result<Vec<_>, _>>()?;
+            let n = r.count(16, "key values")?;
+            let values = r
+                .floats::<4>(n)?
+                .into_iter()
+                .map(Vec4::from_array)
+                .collect();
+            channels.push(Channel {
+                joint,
+                property,
+                interpolation,
+                times,
+                values,
+            });
+        }
+        clips.push(AnimationClip {
+            name,
+            duration_secs,
+            channels,
+        });
+    }
+    let n = r.count(9, "stretch overrides")?;
+    let mut entries = Vec::with_capacity(n);
+    for _ in 0..n {
+        entries.push((r.u64()?, r.u8()?));
+    }
+    let reference_mesh = match r.u8()? {
+        0 if r.remaining() == 0 => None,
+        0 => {
+            return Err(format!(
+                "{} unexpected bytes after the stretch overrides",
+                r.remaining()
+            ));
+        }
+        1 => Some(decode_mesh(&bytes[r.at..]).map_err(|e| format!("reference mesh: {e}"))?),
+        b => return Err(format!("reference-mesh flag {b} is not 0 or 1")),
+    };
+    rig.reference_mesh = reference_mesh;
+    rig.clips = clips;
+    rig.stretch_overrides = StretchOverrides::from_sorted(entries)?;
+    Ok(())
 }
 
 fn encode_mesh(model: &MeshModel, out: &mut Vec<u8>) {

@@ -432,6 +432,78 @@ fn node_in_view(
     }
 }
 
+/// Screen-space footprint of a view-space box: the pixel rectangle (inclusive) and the NDC depth
+/// of its nearest point, or `None` when it lies outside the frustum. `crosses_near` tells
+/// whether the box reaches in front of the near plane.
+struct Footprint {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    /// Every pixel the rectangle touches (for conservative occlusion tests).
+    ox0: u32,
+    oy0: u32,
+    ox1: u32,
+    oy1: u32,
+    ndc_depth: f32,
+    /// Nearest view depth, clamped to the near plane.
+    d_near: f32,
+    crosses_near: bool,
+}
+
+#[inline]
+fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
+    let d = -c.z;
+    let (d_near, d_far) = (d - he.z, d + he.z);
+    if !(d_near.is_finite() && d_far.is_finite()) {
+        return None;
+    }
+    let (near, far) = (cam.near, cam.far);
+    if d_far <= near || d_near > far {
+        return None;
+    }
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    let crosses_near = cam.perspective && d_near < near;
+    let dn = d_near.max(near);
+    let (x_lo, x_hi, y_lo, y_hi) = if cam.perspective {
+        // Extremes of x/d over the box's view-space AABB lie at its nearest (clamped to the
+        // near plane) or farthest depth.
+        let (xl, xh, yl, yh) = (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y);
+        (
+            (xl / dn).min(xl / d_far),
+            (xh / dn).max(xh / d_far),
+            (yl / dn).min(yl / d_far),
+            (yh / dn).max(yh / d_far),
+        )
+    } else {
+        (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y)
+    };
+    let sx0 = 0.5 * w + cam.fx * x_lo;
+    let sx1 = 0.5 * w + cam.fx * x_hi;
+    let sy0 = 0.5 * h - cam.fy * y_hi;
+    let sy1 = 0.5 * h - cam.fy * y_lo;
+    if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
+        return None;
+    }
+    let (x0, x1) = pixel_span(sx0, sx1, cam.width);
+    let (y0, y1) = pixel_span(sy0, sy1, cam.height);
+    let (ox0, ox1) = overlapped_span(sx0, sx1, cam.width);
+    let (oy0, oy1) = overlapped_span(sy0, sy1, cam.height);
+    Some(Footprint {
+        x0,
+        y0,
+        x1,
+        y1,
+        ox0,
+        oy0,
+        ox1,
+        oy1,
+        ndc_depth: cam.ndc_depth(dn),
+        d_near: dn,
+        crosses_near,
+    })
+}
+
 #[inline]
 fn classify(
     obj: &VoxelInstance<'_>,
@@ -443,73 +515,74 @@ fn classify(
     settings: &PassSettings,
 ) -> Action {
     let (c, he, edge_world, axes_view) = node_in_view(obj, fast, q, cam, view_rot);
-    let d = -c.z;
-    let (d_near, d_far) = (d - he.z, d + he.z);
-    if !(d_near.is_finite() && d_far.is_finite()) {
-        return Action::Frustum;
-    }
-    let (near, far) = (cam.near, cam.far);
-    if d_far <= near || d_near > far {
-        return Action::Frustum;
-    }
-    let (w, h) = (cam.width as f32, cam.height as f32);
-    let crosses_near = cam.perspective && d_near < near;
-    let dn = d_near.max(near);
-    let (x_lo, x_hi, y_lo, y_hi, edge_px) = if cam.perspective {
-        // Extremes of x/d over the box's view-space AABB lie at its nearest (clamped to the
-        // near plane) or farthest depth.
-        let (xl, xh, yl, yh) = (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y);
-        (
-            (xl / dn).min(xl / d_far),
-            (xh / dn).max(xh / d_far),
-            (yl / dn).min(yl / d_far),
-            (yh / dn).max(yh / d_far),
-            edge_world * cam.fy / dn,
-        )
-    } else {
-        (
-            c.x - he.x,
-            c.x + he.x,
-            c.y - he.y,
-            c.y + he.y,
-            edge_world * cam.fy.max(cam.fx),
-        )
-    };
-    let sx0 = 0.5 * w + cam.fx * x_lo;
-    let sx1 = 0.5 * w + cam.fx * x_hi;
-    let sy0 = 0.5 * h - cam.fy * y_hi;
-    let sy1 = 0.5 * h - cam.fy * y_lo;
-    if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
-        return Action::Frustum;
-    }
     let has_children = !obj.svo.is_leaf(&q.node);
-    let (x0, x1) = pixel_span(sx0, sx1, cam.width);
-    let (y0, y1) = pixel_span(sy0, sy1, cam.height);
-    let ndc_depth = cam.ndc_depth(dn);
-    // The occlusion test covers every pixel the node's rectangle touches: a child's splat
+    // Deformers whose internal-node boxes may not contain their subtree (skinning) give a
+    // separate, conservative box for culling.
+    let cull_box = if has_children && fast.is_none() {
+        obj.deform
+            .subtree_bounds(&NodeInfo {
+                svo: obj.svo,
+                node: q.node,
+            })
+            .map(|d| {
+                let axes = view_rot * d.half_axes_world;
+                (
+                    cam.view_from_world.transform_point3(d.center_world),
+                    Mat3::from_cols(axes.x_axis.abs(), axes.y_axis.abs(), axes.z_axis.abs())
+                        * Vec3::ONE,
+                )
+            })
+    } else {
+        None
+    };
+    let splat = footprint(c, he, cam);
+    let cull = match cull_box {
+        Some((cc, che)) => footprint(cc, che, cam),
+        None => None,
+    };
+    let Some(cull_fp) = cull.as_ref().or(splat.as_ref()) else {
+        return Action::Frustum;
+    };
+    // The occlusion test covers every pixel the culling rectangle touches: a child's splat
     // may fall back to the pixel under its own centre, outside the parent's pixel span.
-    let (ox0, ox1) = overlapped_span(sx0, sx1, cam.width);
-    let (oy0, oy1) = overlapped_span(sy0, sy1, cam.height);
-    if settings.occlusion_culling && !crosses_near && target.occluded(ox0, oy0, ox1, oy1, ndc_depth)
+    if settings.occlusion_culling
+        && !cull_fp.crosses_near
+        && target.occluded(
+            cull_fp.ox0,
+            cull_fp.oy0,
+            cull_fp.ox1,
+            cull_fp.oy1,
+            cull_fp.ndc_depth,
+        )
     {
         return Action::Occluded;
     }
-    let split = has_children && (crosses_near || edge_px > settings.lod_pixel_threshold);
-    let rect = Splat {
-        x0,
-        y0,
-        x1,
-        y1,
-        ndc_depth,
+    let Some(fp) = splat else {
+        // The node's own box is off screen but its subtree may not be.
+        return Action::Split(c, axes_view);
     };
+    let edge_px = if cam.perspective {
+        edge_world * cam.fy / fp.d_near
+    } else {
+        edge_world * cam.fy.max(cam.fx)
+    };
+    let split = has_children && (fp.crosses_near || edge_px > settings.lod_pixel_threshold);
+    let rect = Splat {
+        x0: fp.x0,
+        y0: fp.y0,
+        x1: fp.x1,
+        y1: fp.y1,
+        ndc_depth: fp.ndc_depth,
+    };
+    // Rigid objects only (`fast`): a deformed node's normal would need its blended transform.
     if settings.occlusion_culling
-        && !crosses_near
+        && !fp.crosses_near
         && let Some(f) = fast
         && faces_away(obj, f, q, c, cam.perspective)
     {
         return Action::Defer {
             rect,
-            occ: [ox0, oy0, ox1, oy1],
+            occ: [fp.ox0, fp.oy0, fp.ox1, fp.oy1],
             split,
         };
     }
@@ -632,10 +705,15 @@ pub(crate) fn voxel_bounds(
                 stack.extend((0..8).filter_map(|k| o.svo.child(&n, k)));
                 continue;
             }
-            let d = o.deform.deform(&NodeInfo {
+            let info = NodeInfo {
                 svo: o.svo,
                 node: n,
-            });
+            };
+            // The subtree box where the deformer has one (skinning), so nothing sticks out.
+            let d = o
+                .deform
+                .subtree_bounds(&info)
+                .unwrap_or_else(|| o.deform.deform(&info));
             let a = d.half_axes_world;
             let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
             let (lo, hi) = (d.center_world - he, d.center_world + he);

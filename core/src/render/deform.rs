@@ -62,6 +62,14 @@ pub trait NodeDeform: Sync {
     /// A node's normal (voxel space, unit) in world space (unit or zero).
     fn normal_to_world(&self, node: &NodeInfo<'_>, normal_voxel: Vec3) -> Vec3;
 
+    /// A world box containing the node *and everything below it*, when that differs from
+    /// [`Self::deform`] (skinning: an internal node's splat does not contain its descendants
+    /// once bones bend). Frustum and occlusion culling of nodes with children use it, so
+    /// culling stays conservative; LOD and splatting use [`Self::deform`]. `None`: the same.
+    fn subtree_bounds(&self, _node: &NodeInfo<'_>) -> Option<DeformedNode> {
+        None
+    }
+
     /// `Some(world_from_voxel)` when every node undergoes the same affine map. The traversal
     /// then folds it into the camera once per object instead of calling [`Self::deform`] per
     /// node; results are identical up to float rounding.

@@ -148,16 +148,7 @@ pub fn render_document(
     orbit.validate()?;
     let cam = Camera::from_orbit(&orbit, req.width, req.height);
 
-    let deforms: Vec<Option<RigidDeform>> = doc
-        .objects
-        .iter()
-        .map(|o| match &o.kind {
-            ObjectKind::Voxels(v) => Some(RigidDeform::new(
-                o.transform.matrix() * v.object_from_voxel(),
-            )),
-            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
-        })
-        .collect();
+    let deforms = document_deforms(doc, &req.quality);
     let mut scene = RenderScene {
         voxels: Vec::new(),
         meshes: Vec::new(),
@@ -179,7 +170,7 @@ pub fn render_document(
         match (&o.kind, d) {
             (ObjectKind::Voxels(v), Some(d)) => scene.voxels.push(VoxelInstance {
                 svo: &v.svo,
-                deform: d,
+                deform: d.as_ref(),
                 casts_shadows: true,
                 label,
             }),
@@ -211,6 +202,43 @@ pub fn render_document(
         casts_shadows: true,
     };
     render_scene_with_krs(&scene, &krs, &cam, &req.quality)
+}
+
+/// The per-node transform of every voxel object of a document (`None` for meshes): rigid
+/// objects get a [`RigidDeform`]; skinned ones (with a [`crate::skin::Rig`]) a
+/// [`crate::skin::SkinDeform`] at the rig's playback clip and time with its stretch settings,
+/// the multiplier scaled by [`Quality::stretch_multiplier`].
+#[must_use]
+pub fn document_deforms<'a>(
+    doc: &'a Document,
+    quality: &Quality,
+) -> Vec<Option<Box<dyn NodeDeform + 'a>>> {
+    doc.objects
+        .iter()
+        .map(|o| match &o.kind {
+            ObjectKind::Voxels(v) => Some(match &v.rig {
+                Some(rig) => {
+                    let mut stretch = rig.stretch;
+                    stretch.multiplier *= quality.stretch_multiplier;
+                    Box::new(
+                        crate::skin::SkinDeform::for_rig(
+                            rig,
+                            &v.svo,
+                            o.transform.matrix(),
+                            v.object_from_voxel(),
+                            rig.playback.clip,
+                            rig.playback.time_secs,
+                        )
+                        .with_settings(stretch),
+                    ) as Box<dyn NodeDeform>
+                }
+                None => Box::new(RigidDeform::new(
+                    o.transform.matrix() * v.object_from_voxel(),
+                )),
+            }),
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
+        })
+        .collect()
 }
 
 /// Renders a scene from a camera.

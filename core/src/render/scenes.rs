@@ -129,6 +129,7 @@ pub fn voxel_object(svo: Svo, half: f32) -> ObjectKind {
         voxel_size: 2.0 * half / extent,
         origin: Vec3::splat(-half),
         material_names: Vec::new(),
+        rig: None,
     })
 }
 

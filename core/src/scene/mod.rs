@@ -11,6 +11,7 @@ use serde::{Deserialize, Serialize};
 use crate::krs::{KrsObject, Similarity};
 use crate::mesh::MeshModel;
 use crate::render::Quality;
+use crate::skin::Rig;
 use crate::svo::Svo;
 
 /// Current project file format version.
@@ -111,6 +112,12 @@ pub struct VoxelModel {
     pub origin: Vec3,
     /// Names of material ids (index = `Voxel::material`), from the source file.
     pub material_names: Vec<String>,
+    /// Skeleton, clips and animation state when the model is skinned (its leaves then carry
+    /// [`crate::svo::Skin4`] weights indexing the rig's joints, and voxel space maps through
+    /// [`VoxelModel::object_from_voxel`] to the skeleton's bind-pose mesh space). `None`: a
+    /// rigid model. (Omitted from the JSON when `None`, so rigid models save as before.)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub rig: Option<Rig>,
 }
 
 impl Default for VoxelModel {
@@ -120,6 +127,7 @@ impl Default for VoxelModel {
             voxel_size: 1.0,
             origin: Vec3::ZERO,
             material_names: Vec::new(),
+            rig: None,
         }
     }
 }
@@ -131,7 +139,22 @@ impl VoxelModel {
         Mat4::from_translation(self.origin) * Mat4::from_scale(Vec3::splat(self.voxel_size))
     }
 
-    /// Object-space bounds of the solid voxels.
+    /// Object-space bounds as the model is shown: for a skinned model, posed by its rig's
+    /// current playback state (see [`crate::skin::rig::posed_bounds`]), otherwise
+    /// [`VoxelModel::bounds`].
+    #[must_use]
+    pub fn posed_bounds(&self) -> Option<(Vec3, Vec3)> {
+        match &self.rig {
+            Some(rig) => crate::skin::rig::posed_bounds(
+                &self.svo,
+                self.object_from_voxel(),
+                &rig.current_skinning(),
+            ),
+            None => self.bounds(),
+        }
+    }
+
+    /// Object-space bounds of the solid voxels (for a skinned model: in the bind pose).
     #[must_use]
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         self.svo.bounds().map(|(lo, hi)| {
@@ -253,7 +276,7 @@ impl Object {
     #[must_use]
     pub fn world_bounds(&self) -> Option<(Vec3, Vec3)> {
         let (lo, hi) = match &self.kind {
-            ObjectKind::Voxels(v) => v.bounds()?,
+            ObjectKind::Voxels(v) => v.posed_bounds()?,
             ObjectKind::Mesh(m) => m.model.bounds()?,
             ObjectKind::Krs(_) => {
                 // The bounding ball is already in world space once the transform is composed;
@@ -499,6 +522,17 @@ impl Document {
                     }
                     if !v.origin.is_finite() {
                         return Err(invalid("origin", &ctx, "not finite"));
+                    }
+                    if let Some(rig) = &v.rig {
+                        rig.validate()
+                            .map_err(|e| invalid("rig", &ctx, e.to_string()))?;
+                        if !v.svo.has_skin() {
+                            return Err(invalid(
+                                "rig",
+                                &ctx,
+                                "the model has a rig but its voxels carry no skin weights",
+                            ));
+                        }
                     }
                 }
                 ObjectKind::Mesh(m) => {

@@ -9,9 +9,12 @@
 //! |---|---|
 //! | [`skeleton`] | [`Skeleton`], [`Joint`], [`Transform`], [`Pose`], manual overrides, forward kinematics |
 //! | [`clip`] | [`AnimationClip`] and its channels; STEP / LINEAR (slerp) / CUBICSPLINE sampling |
+//! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
-//! | [`node`] | [`NodeSkin`]: four joints and unorm8 weights per octree node, merging for LOD |
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
+//! | [`metrics`] | hole and bloat pixels against the skinned source mesh, per strategy |
+//! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
+//! | [`voxelize`] | skinned glTF → skinned voxel model (bind-pose voxelization, four strongest weights) |
 //! | [`gltf_import`] | skins, joint hierarchies and animations from glTF |
 //!
 //! Spaces: a skinned mesh's vertices are in *bind-pose mesh space*; the skinning matrix of a
@@ -21,20 +24,28 @@
 //! skinned mesh is ignored. See `docs/skinning.md`.
 
 pub mod clip;
+pub mod deform;
 pub mod gltf_import;
 pub mod lbs;
-pub mod node;
+pub mod metrics;
+pub mod rig;
 pub mod skeleton;
 pub mod stretch;
+pub mod voxelize;
 
+/// The per-node skin (four byte joints, unorm8 weights summing to 255) lives with the octree;
+/// see [`Skin4`] for why there is only one representation.
+pub use crate::svo::{MAX_SKIN_JOINTS, Skin4};
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
+pub use deform::{SkinDeform, SkinTables};
 pub use gltf_import::{SkinnedImport, import_skinned, import_skinned_slice};
 pub use lbs::{
     WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points,
 };
-pub use node::{NodeSkin, merge_node_skins};
+pub use rig::{Playback, Rig, StretchOverrides};
 pub use skeleton::{Joint, JointMatrices, JointOverride, OverrideMode, Pose, Skeleton, Transform};
 pub use stretch::{SplatBox, StretchSettings, StretchStrategy};
+pub use voxelize::{SkinnedVoxels, voxelize_skinned};
 
 /// Why a skeleton, clip or skinned file cannot be used.
 #[derive(Debug, thiserror::Error)]
@@ -112,6 +123,18 @@ pub enum SkinError {
         /// Which field (`rest translation`, `inverse bind matrix`, …).
         what: &'static str,
     },
+    /// The bind-pose mesh could not be voxelized.
+    #[error("voxelizing the bind-pose mesh: {source}")]
+    Voxelize {
+        /// The voxelizer's error.
+        source: crate::voxelize::VoxelizeError,
+    },
+    /// A voxel model's rig (skeleton, clips, playback, overrides, settings) is inconsistent.
+    #[error("skin: {problem}")]
+    Rig {
+        /// What is wrong and where.
+        problem: String,
+    },
     /// A clip's channel is malformed.
     #[error("clip {clip:?}, channel {channel}: {problem}")]
     BadChannel {
@@ -124,5 +147,7 @@ pub enum SkinError {
     },
 }
 
+#[cfg(test)]
+mod deform_tests;
 #[cfg(test)]
 mod tests;

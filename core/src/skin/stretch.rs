@@ -9,7 +9,7 @@
 //! | [`StretchStrategy::Off`] | `S = 1` | one skinned point | §3.2 (rigid) |
 //! | [`StretchStrategy::Thesis`] | `S = min(2, W)`, W = non-zero weights | one skinned point | §3.3 |
 //! | [`StretchStrategy::Corners`] | AABB of the 8 skinned corners | 8 skinned points | §8.1.3 |
-//! | [`StretchStrategy::Adaptive`] | `S` = measured local stretch | 8 skinned points, or one blended matrix | §6, §8.1.3 |
+//! | [`StretchStrategy::Adaptive`] | smallest `S` whose box holds the 8 skinned corners | 8 skinned points + a 3×3 inverse | §6, §8.1.3 |
 //!
 //! On top of every strategy: a per-voxel artist override (§8.1.3: "stretch factors could be
 //! automatically computed, manually refined and stored per voxel") and a global multiplier.
@@ -18,7 +18,7 @@ use glam::{Mat3, Mat4, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::lbs::{blend_matrix, skin_point};
-use super::node::NodeSkin;
+use crate::svo::Skin4;
 
 /// How a skinned voxel's drawn size is chosen.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -34,11 +34,12 @@ pub enum StretchStrategy {
     /// skinned corners (paper §8.1.3). Hole-free for a closed bind-pose surface because
     /// neighbours share corners, at the cost of oversized voxels and eight skinned points.
     Corners,
-    /// `S` from this frame's actual deformation around the voxel: the largest ratio of
-    /// skinned to bind-pose distance between sample points around it (its corners, or its
-    /// children / neighbours when the caller has them). `S = 1` where nothing stretches,
-    /// including rigid rotation; `S < 1` where the surface is compressed (bounded below by
-    /// [`StretchSettings::min_factor`]). Without sample points it falls back to the largest
+    /// `S` from this frame's actual deformation around the voxel: the smallest factor for
+    /// which the voxel, carried by its blended matrix, contains its eight corners skinned with
+    /// their own weights (the corners it shares with its neighbours: "where its neighbours
+    /// went"), see [`containing_factor`]. `S = 1` where nothing stretches, including rigid
+    /// rotation; `S < 1` where the surface is compressed (bounded below by
+    /// [`StretchSettings::min_factor`]). Without corner weights it falls back to the largest
     /// singular value of the blended 3×3 linear part, which sees bone scaling but not the
     /// stretch that comes from weights varying across a joint.
     Adaptive,
@@ -72,6 +73,34 @@ impl Default for StretchSettings {
 }
 
 impl StretchSettings {
+    /// Checks values read from a file or typed by a user: finite, `0 < multiplier <= 16`,
+    /// `0 <= min_factor <= max_factor <= 16`.
+    ///
+    /// # Errors
+    /// Which setting is out of range and why.
+    pub fn validate(&self) -> Result<(), String> {
+        let ok = |v: f32| v.is_finite() && (0.0..=16.0).contains(&v);
+        if !(ok(self.multiplier) && self.multiplier > 0.0) {
+            return Err(format!(
+                "multiplier {} must be finite, above 0 and at most 16",
+                self.multiplier
+            ));
+        }
+        if !ok(self.min_factor) {
+            return Err(format!(
+                "min_factor {} must be finite, in 0..=16",
+                self.min_factor
+            ));
+        }
+        if !(ok(self.max_factor) && self.max_factor >= self.min_factor) {
+            return Err(format!(
+                "max_factor {} must be finite, at most 16 and at least min_factor {}",
+                self.max_factor, self.min_factor
+            ));
+        }
+        Ok(())
+    }
+
     /// Replaces non-finite or out-of-range values with defaults / clamps (settings come from
     /// files and the UI).
     #[must_use]
@@ -93,7 +122,7 @@ impl StretchSettings {
 /// 1, not the paper's theoretical 0 (§6), so it does not vanish.
 #[inline]
 #[must_use]
-pub fn thesis_factor(skin: &NodeSkin) -> f32 {
+pub fn thesis_factor(skin: &Skin4) -> f32 {
     skin.nonzero_count().clamp(1, 2) as f32
 }
 
@@ -119,13 +148,13 @@ pub fn voxel_corners(center: Vec3, half_size: f32) -> [Vec3; 8] {
 pub fn skin_corners(
     skinning: &[Mat4],
     corners: &[Vec3; 8],
-    corner_skins: &[NodeSkin; 8],
+    corner_skins: &[Skin4; 8],
 ) -> [Vec3; 8] {
     std::array::from_fn(|k| {
         skin_point(
             skinning,
-            corner_skins[k].joints,
-            corner_skins[k].weights_f32(),
+            corner_skins[k].joints_u16(),
+            corner_skins[k].blend_weights(),
             corners[k],
         )
     })
@@ -186,6 +215,39 @@ pub fn stretch_from_corners(skinned: &[Vec3; 8], half_size: f32) -> Option<f32> 
     ratio.is_finite().then_some(ratio)
 }
 
+/// `Adaptive`'s factor: the smallest `S` for which the box `center ± linear · (S · half)` — the
+/// voxel carried by its blended matrix and scaled about its skinned centre — contains the eight
+/// corners skinned with their own weights (`skinned`, [`voxel_corners`] order):
+/// `max ‖linear⁻¹ (p − center)‖∞ / half`. Exactly 1 under rigid motion; above 1 where the
+/// weights change across the voxel and its neighbours pull its corners away; below 1 where the
+/// surface is compressed. Neighbouring voxels share corners, so boxes that contain their
+/// corners leave no gap between them. `None` when the blended frame has collapsed (a joint
+/// scaled to 0) and cannot be inverted, or `half` is not positive.
+#[must_use]
+pub fn containing_factor(
+    skinned: &[Vec3; 8],
+    half: f32,
+    center: Vec3,
+    linear: Mat3,
+) -> Option<f32> {
+    let det = linear.determinant();
+    let scale = linear
+        .x_axis
+        .length()
+        .max(linear.y_axis.length())
+        .max(linear.z_axis.length());
+    if !(det.abs() > 1e-6 * scale * scale * scale && half > 0.0) {
+        return None;
+    }
+    let inv = linear.inverse();
+    let worst = skinned
+        .iter()
+        .map(|&p| (inv * (p - center)).abs().max_element())
+        .fold(0.0f32, f32::max);
+    let f = worst / half;
+    f.is_finite().then_some(f)
+}
+
 /// Largest singular value of a 3×3 matrix (the most it stretches any direction), from the
 /// largest eigenvalue of `aᵀa` in closed form. Finite for finite input; 0 for the zero matrix.
 #[must_use]
@@ -221,11 +283,11 @@ pub fn max_singular_value(a: Mat3) -> f32 {
 /// `Adaptive` without sample points: the largest singular value of the blended 3×3 linear part
 /// `Σ wᵢ Lᵢ`. Sees bone scale; blind to weight-gradient stretch (see [`StretchStrategy`]).
 #[must_use]
-pub fn blended_linear_factor(skinning: &[Mat4], skin: &NodeSkin) -> f32 {
+pub fn blended_linear_factor(skinning: &[Mat4], skin: &Skin4) -> f32 {
     max_singular_value(Mat3::from_mat4(blend_matrix(
         skinning,
-        skin.joints,
-        skin.weights_f32(),
+        skin.joints_u16(),
+        skin.blend_weights(),
     )))
 }
 
@@ -265,11 +327,11 @@ pub struct VoxelSkinInput<'a> {
     /// Half the node's edge length in bind-pose mesh space.
     pub half_size: f32,
     /// The node's own (merged) weights.
-    pub skin: NodeSkin,
+    pub skin: Skin4,
     /// Weights at the node's eight corners ([`voxel_corners`] order), when the model has them;
     /// `Corners` and the sample-based `Adaptive` need them and fall back to `Thesis` / the
     /// blended-linear `Adaptive` without.
-    pub corner_skins: Option<&'a [NodeSkin; 8]>,
+    pub corner_skins: Option<&'a [Skin4; 8]>,
     /// Per-voxel override byte ([`decode_override`]); 0 for none.
     pub override_code: u8,
 }
@@ -285,7 +347,12 @@ pub fn skinned_splat(
 ) -> SplatBox {
     let s = settings.sanitized();
     let bound = |f: f32| f.clamp(s.min_factor, s.max_factor);
-    let center = skin_point(skinning, v.skin.joints, v.skin.weights_f32(), v.center);
+    let center = skin_point(
+        skinning,
+        v.skin.joints_u16(),
+        v.skin.blend_weights(),
+        v.center,
+    );
     let scalar = |f: f32| {
         let f = decode_override(v.override_code).unwrap_or_else(|| bound(f));
         SplatBox {
@@ -316,8 +383,17 @@ pub fn skinned_splat(
             }
         }
         (StretchStrategy::Adaptive, Some(cs)) => {
+            let blended = blend_matrix(skinning, v.skin.joints_u16(), v.skin.blend_weights());
             let skinned = skin_corners(skinning, &voxel_corners(v.center, v.half_size), cs);
-            scalar(stretch_from_corners(&skinned, v.half_size).unwrap_or(1.0))
+            let linear = Mat3::from_mat4(blended);
+            // This API's box is a scalar cube in skinned space, so the factor measured in the
+            // voxel's own (blended) frame is scaled by how much that frame grows.
+            scalar(
+                containing_factor(&skinned, v.half_size, center, linear).map_or_else(
+                    || thesis_factor(&v.skin),
+                    |f| f * max_singular_value(linear),
+                ),
+            )
         }
         (StretchStrategy::Adaptive, None) => scalar(blended_linear_factor(skinning, &v.skin)),
     }

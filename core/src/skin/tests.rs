@@ -768,7 +768,7 @@ fn weight_repair_fixes_and_counts() {
 
 #[test]
 fn node_skin_quantises_to_255_and_keeps_the_strongest() {
-    let s = NodeSkin::from_weights([
+    let s = Skin4::from_influences(&[
         (3, 0.1),
         (5, 0.2),
         (3, 0.2),
@@ -783,30 +783,34 @@ fn node_skin_quantises_to_255_and_keeps_the_strongest() {
     for (&got, want) in s.weights.iter().zip(expected) {
         assert!((f32::from(got) - want).abs() <= 1.0, "{s:?}");
     }
-    assert_eq!(
-        NodeSkin::from_weights([(4, -1.0), (2, f32::NAN)]),
-        NodeSkin::ROOT
-    );
-    assert_eq!(NodeSkin::from_weights(std::iter::empty()), NodeSkin::ROOT);
-    let thirds = NodeSkin::from_vertex([1, 2, 3, 0], [1.0, 1.0, 1.0, 0.0]);
+    assert!(Skin4::from_influences(&[(4, -1.0), (2, f32::NAN)]).is_empty());
+    assert!(Skin4::from_influences(&[]).is_empty());
+    let thirds = Skin4::from_vertex([1, 2, 3, 0], [1.0, 1.0, 1.0, 0.0]);
     assert_eq!(thirds.weights, [85, 85, 85, 0]);
     assert_eq!(thirds.nonzero_count(), 3);
     // Many distinct joints (more than the fixed accumulator holds).
-    let many = NodeSkin::from_weights((0..100u16).map(|j| (j, f32::from(j))));
-    assert_eq!(many.joints, [99, 98, 97, 96]);
+    let many: Vec<(u16, f32)> = (0..100u16).map(|j| (j, f32::from(j))).collect();
+    assert_eq!(Skin4::from_influences(&many).joints, [99, 98, 97, 96]);
+    // Joints a byte cannot address are refused, never wrapped onto another joint.
+    let wide = Skin4::from_influences(&[(300, 0.9), (2, 0.1)]);
+    assert_eq!((wide.joints[0], wide.weights[0]), (2, 255));
+    // The empty skin blends as the root; a real one as its weights.
+    assert_eq!(Skin4::default().blend_weights(), [1.0, 0.0, 0.0, 0.0]);
+    let w = thirds.blend_weights();
+    assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-6, "{w:?}");
 }
 
 #[test]
 fn merge_sums_children_weights() {
-    let a = NodeSkin {
+    let a = Skin4 {
         joints: [1, 2, 0, 0],
         weights: [200, 55, 0, 0],
     };
-    let b = NodeSkin {
+    let b = Skin4 {
         joints: [2, 3, 0, 0],
         weights: [155, 100, 0, 0],
     };
-    let m = merge_node_skins(&[a, b]);
+    let m = Skin4::merge(&[a, b]);
     // Joint 2: 210, joint 1: 200, joint 3: 100 out of 510.
     assert_eq!(&m.joints[..3], &[2, 1, 3]);
     assert_eq!(m.weights.iter().map(|&w| u32::from(w)).sum::<u32>(), 255);
@@ -814,19 +818,20 @@ fn merge_sums_children_weights() {
     assert!(
         (i32::from(m.weights[0]) - 105).abs() <= 1 && (i32::from(m.weights[1]) - 100).abs() <= 1
     );
-    assert_eq!(merge_node_skins(&[]), NodeSkin::ROOT);
+    assert!(Skin4::merge(&[]).is_empty());
+    assert!(Skin4::merge(&[Skin4::default(), Skin4::default()]).is_empty());
     assert_eq!(
-        merge_node_skins(&[a]),
-        NodeSkin::from_vertex([1, 2, 0, 0], [200.0, 55.0, 0.0, 0.0])
+        Skin4::merge(&[a]),
+        Skin4::from_vertex([1, 2, 0, 0], [200.0, 55.0, 0.0, 0.0])
     );
     // Five joints over eight children: the weakest is dropped, ties go to the lower joint.
-    let kids: Vec<NodeSkin> = (0..8u16)
-        .map(|i| NodeSkin {
+    let kids: Vec<Skin4> = (0..8u8)
+        .map(|i| Skin4 {
             joints: [i % 5, 0, 0, 0],
             weights: [255, 0, 0, 0],
         })
         .collect();
-    let m = merge_node_skins(&kids);
+    let m = Skin4::merge(&kids);
     assert_eq!(
         m.joints,
         [0, 1, 2, 3],
@@ -839,28 +844,28 @@ fn merge_sums_children_weights() {
 #[test]
 fn thesis_factor_follows_the_paper() {
     assert_eq!(
-        thesis_factor(&NodeSkin {
+        thesis_factor(&Skin4 {
             joints: [0; 4],
             weights: [255, 0, 0, 0]
         }),
         1.0
     );
     assert_eq!(
-        thesis_factor(&NodeSkin {
+        thesis_factor(&Skin4 {
             joints: [0, 1, 0, 0],
             weights: [200, 55, 0, 0]
         }),
         2.0
     );
     assert_eq!(
-        thesis_factor(&NodeSkin {
+        thesis_factor(&Skin4 {
             joints: [0, 1, 2, 3],
             weights: [100, 55, 50, 50]
         }),
         2.0
     );
     assert_eq!(
-        thesis_factor(&NodeSkin {
+        thesis_factor(&Skin4 {
             joints: [0; 4],
             weights: [0; 4]
         }),
@@ -928,7 +933,7 @@ fn override_codes_round_trip() {
 }
 
 /// A bent elbow: joint 1 rotates 90° about Z around the point (0, 1, 0).
-fn elbow() -> (Vec<Mat4>, [NodeSkin; 8], Vec3, f32) {
+fn elbow() -> (Vec<Mat4>, [Skin4; 8], Vec3, f32) {
     let sk = chain();
     let mut pose = Pose::rest(&sk);
     pose.locals[1].rotation = Quat::from_rotation_z(FRAC_PI_2);
@@ -938,12 +943,12 @@ fn elbow() -> (Vec<Mat4>, [NodeSkin; 8], Vec3, f32) {
     let half = 0.05;
     let corner_skins = std::array::from_fn(|k| {
         if k & 2 == 0 {
-            NodeSkin {
+            Skin4 {
                 joints: [0; 4],
                 weights: [255, 0, 0, 0],
             }
         } else {
-            NodeSkin {
+            Skin4 {
                 joints: [1, 0, 0, 0],
                 weights: [255, 0, 0, 0],
             }
@@ -955,7 +960,7 @@ fn elbow() -> (Vec<Mat4>, [NodeSkin; 8], Vec3, f32) {
 #[test]
 fn splat_strategies_order_holes_and_bloat() {
     let (skinning, corner_skins, center, half) = elbow();
-    let skin = NodeSkin {
+    let skin = Skin4 {
         joints: [0, 1, 0, 0],
         weights: [128, 127, 0, 0],
     };
@@ -1051,7 +1056,7 @@ fn splats_stay_finite_with_a_collapsed_joint() {
     let input = VoxelSkinInput {
         center,
         half_size: half,
-        skin: NodeSkin {
+        skin: Skin4 {
             joints: [1, 0, 0, 0],
             weights: [255, 0, 0, 0],
         },
@@ -1096,7 +1101,7 @@ fn adaptive_is_one_under_rigid_motion_where_thesis_doubles() {
     pose.locals[0].translation = Vec3::new(3.0, -1.0, 2.0);
     let skinning = sk.skinning_matrices(&pose);
     // Two non-zero weights on joints that move rigidly together.
-    let skin = NodeSkin {
+    let skin = Skin4 {
         joints: [0, 1, 0, 0],
         weights: [128, 127, 0, 0],
     };
@@ -1210,4 +1215,192 @@ fn u8_joints_and_unorm_weights_import() {
             );
         }
     }
+}
+
+// ---------------------------------------------------------------- skinned voxel models
+
+#[test]
+fn rigged_figure_voxelizes_with_normalised_weights_that_follow_the_mesh() {
+    use crate::voxelize::{Resolution, VoxelizeSettings};
+    let import = import_skinned(RIGGED_FIGURE).expect("RiggedFigure imports");
+    let settings = VoxelizeSettings {
+        resolution: Resolution::Depth(6),
+        ..VoxelizeSettings::default()
+    };
+    let v = voxelize_skinned(&import, &settings, &|_| true).expect("voxelizes");
+    let model = &v.model;
+    let rig = model.rig.as_ref().expect("rig attached");
+    assert_eq!(rig.skeleton.len(), 19);
+    assert_eq!(rig.clips.len(), 1);
+    assert_eq!(rig.playback.clip, Some(0));
+    assert!(model.svo.has_skin() && model.svo.leaf_count() > 500);
+    // Every leaf and internal node: weights sum to 255, joints exist, strongest first.
+    let check = |s: &Skin4| {
+        assert_eq!(
+            s.weights.iter().map(|&w| u32::from(w)).sum::<u32>(),
+            255,
+            "{s:?}"
+        );
+        assert!(s.weights.windows(2).all(|w| w[0] >= w[1]), "{s:?}");
+        assert!(s.influences().all(|(j, _)| usize::from(j) < 19), "{s:?}");
+    };
+    model.svo.for_each_leaf(|_, vx| check(&vx.skin));
+    model.svo.inner_skin().iter().for_each(check);
+    // In the rest pose every joint's skinning matrix is the skinned node's transform, so any
+    // weights put a voxel exactly where the rigid model would be.
+    let object_from_voxel = model.object_from_voxel();
+    let rest = rig.skinning_at(None, 0.0);
+    model.svo.for_each_leaf(|c, vx| {
+        let centre = object_from_voxel.transform_point3(c.as_vec3() + 0.5);
+        let p = lbs::skin_point(&rest, vx.skin.joints_u16(), vx.skin.blend_weights(), centre);
+        let want = import.world_from_skinned_node.transform_point3(centre);
+        assert!(
+            p.distance(want) < 1e-3 * model.voxel_size,
+            "voxel {c}: {p} vs {want}"
+        );
+    });
+    // Animated: each voxel centre, skinned with its own weights, stays near the skinned mesh
+    // surface (a surface voxel's centre starts within √3/2 voxel of it).
+    for t in [0.3, 0.9] {
+        let skinning = rig.skinning_at(Some(0), t);
+        let mut tris: Vec<[Vec3; 3]> = Vec::new();
+        for part in &import.mesh.parts {
+            let mut skinned = vec![Vec3::ZERO; part.positions.len()];
+            skin_points(
+                &skinning,
+                &part.joints,
+                &part.weights,
+                &part.positions,
+                &mut skinned,
+            );
+            tris.extend(part.indices.chunks_exact(3).map(|i| {
+                [
+                    skinned[i[0] as usize],
+                    skinned[i[1] as usize],
+                    skinned[i[2] as usize],
+                ]
+            }));
+        }
+        let mut worst = 0.0f32;
+        model.svo.for_each_leaf(|c, vx| {
+            let centre = object_from_voxel.transform_point3(c.as_vec3() + 0.5);
+            let p = lbs::skin_point(
+                &skinning,
+                vx.skin.joints_u16(),
+                vx.skin.blend_weights(),
+                centre,
+            );
+            let d = tris
+                .iter()
+                .map(|t| point_triangle_distance(p, t))
+                .fold(f32::INFINITY, f32::min);
+            worst = worst.max(d / model.voxel_size);
+        });
+        assert!(
+            worst < 2.0,
+            "t = {t}: a voxel lies {worst} voxels off the skinned surface"
+        );
+    }
+}
+
+/// Distance from `p` to a triangle (closest point by region, Ericson's "Real-Time Collision
+/// Detection" §5.1.5).
+fn point_triangle_distance(p: Vec3, [a, b, c]: &[Vec3; 3]) -> f32 {
+    let (ab, ac, ap) = (*b - *a, *c - *a, p - *a);
+    let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return p.distance(*a);
+    }
+    let bp = p - *b;
+    let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return p.distance(*b);
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return p.distance(*a + ab * (d1 / (d1 - d3)));
+    }
+    let cp = p - *c;
+    let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return p.distance(*c);
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return p.distance(*a + ac * (d2 / (d2 - d6)));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        return p.distance(*b + (*c - *b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    if !denom.is_finite() {
+        // Degenerate triangle: the nearest vertex.
+        return p.distance(*a).min(p.distance(*b)).min(p.distance(*c));
+    }
+    p.distance(*a + ab * (vb * denom) + ac * (vc * denom))
+}
+
+#[test]
+fn rig_pose_uses_playback_clip_time_and_overrides() {
+    let import = import_skinned(RIGGED_FIGURE).expect("RiggedFigure imports");
+    let mut rig = Rig::new(import.skeleton.clone(), import.clips.clone());
+    rig.validate().expect("valid");
+    let at = |rig: &Rig| rig.current_skinning();
+    rig.playback.time_secs = 0.5;
+    let sampled = import.clips[0].sample(0.5, &import.skeleton);
+    assert_eq!(rig.current_pose(), sampled);
+    // Looping: 0.5 + duration is the same pose.
+    rig.playback.time_secs = 0.5 + import.clips[0].duration_secs;
+    assert!(
+        at(&rig)
+            .iter()
+            .zip(import.skeleton.skinning_matrices(&sampled))
+            .all(|(a, b)| a.abs_diff_eq(b, 1e-4))
+    );
+    // No clip: the rest pose; an override on top moves only its subtree.
+    rig.playback.clip = None;
+    assert_eq!(rig.current_pose(), Pose::rest(&import.skeleton));
+    rig.pose_overrides.push(JointOverride {
+        joint: 5,
+        rotation: Some(Quat::from_rotation_x(1.0)),
+        ..JointOverride::default()
+    });
+    let posed = rig.current_pose();
+    assert_ne!(posed.locals[5], Pose::rest(&import.skeleton).locals[5]);
+    // Bad values are named.
+    rig.playback.clip = Some(3);
+    assert!(
+        rig.validate()
+            .unwrap_err()
+            .to_string()
+            .contains("playback.clip 3")
+    );
+    rig.playback.clip = None;
+    rig.stretch.multiplier = f32::NAN;
+    assert!(
+        rig.validate()
+            .unwrap_err()
+            .to_string()
+            .contains("multiplier")
+    );
+}
+
+#[test]
+fn skeletons_wider_than_a_byte_are_refused_for_voxels() {
+    let joints: Vec<Joint> = (0..300)
+        .map(|i| joint(&format!("j{i}"), (i > 0).then(|| i - 1), Vec3::Y))
+        .collect();
+    let import = SkinnedImport {
+        skeleton: Skeleton::new(joints).expect("chain").0,
+        ..SkinnedImport::default()
+    };
+    let e = voxelize_skinned(
+        &import,
+        &crate::voxelize::VoxelizeSettings::default(),
+        &|_| true,
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("300 joints") && e.contains("256"), "{e}");
 }

@@ -30,7 +30,7 @@ mod tests;
 
 pub use morton::{morton_decode, morton_encode};
 pub use query::{RayHit, front_to_back_order};
-pub use voxel::{Skin4, Voxel, decode_normal, encode_normal};
+pub use voxel::{MAX_SKIN_JOINTS, Skin4, Voxel, decode_normal, encode_normal};
 
 use glam::UVec3;
 use serde::{Deserialize, Serialize};

@@ -5,8 +5,14 @@ use serde::{Deserialize, Serialize};
 
 use crate::mesh::{linear_to_srgb, srgb_byte_to_linear};
 
-/// Up to four joint influences, weights as unsigned normalised bytes summing to 255
-/// (all zero: no skin).
+/// Up to four joint influences of a voxel or octree node, strongest first, weights as unsigned
+/// normalised bytes summing to exactly 255 (all zero: no skin). 8 bytes, two `u32` on a GPU.
+///
+/// This is Thicket's one per-node skin representation: the voxelizer writes it, internal nodes
+/// merge it for LOD ([`Skin4::merge`]), project files store it, and `core::skin` and the
+/// renderers skin with it. Joint indices are bytes, so a skinned voxel model addresses at most
+/// [`MAX_SKIN_JOINTS`] joints; the skinned-glTF import refuses larger skeletons with an error
+/// rather than dropping influences.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
 pub struct Skin4 {
     /// Joint indices into the model's skeleton.
@@ -15,48 +21,84 @@ pub struct Skin4 {
     pub weights: [u8; 4],
 }
 
+/// Joints a [`Skin4`] can address (its joint indices are bytes).
+pub const MAX_SKIN_JOINTS: usize = 256;
+
 impl Skin4 {
-    /// Keeps the four strongest of `(joint, weight)` influences and normalises them to sum to
-    /// 255, giving the rounding remainder to the strongest. Negative, NaN and zero weights are
-    /// dropped; all-zero input gives the empty skin. Ties break toward the lower joint index so
-    /// the result does not depend on input order.
+    /// Fully bound to joint 0 (the root of a topologically sorted skeleton).
+    pub const ROOT: Self = Self {
+        joints: [0; 4],
+        weights: [255, 0, 0, 0],
+    };
+
+    /// Keeps the four strongest of `(joint, weight)` influences (duplicates summed) and
+    /// quantises them to sum to exactly 255 (largest remainder). Negative, NaN, infinite and
+    /// zero weights, and joints above 255, are dropped; nothing left gives the empty skin.
+    /// Ties break toward the lower joint index so the result does not depend on input order.
     #[must_use]
     pub fn from_influences(influences: &[(u16, f32)]) -> Self {
-        let mut list: Vec<(u16, f32)> = Vec::with_capacity(influences.len());
+        let mut acc = Accumulator::default();
         for &(j, w) in influences {
-            if w.is_nan() || w <= 0.0 || !w.is_finite() || j > 255 {
-                continue;
+            acc.add(j, w);
+        }
+        acc.finish()
+    }
+
+    /// From one vertex's (or surface point's) four joints and float weights.
+    #[must_use]
+    pub fn from_vertex(joints: [u16; 4], weights: [f32; 4]) -> Self {
+        let mut acc = Accumulator::default();
+        for k in 0..4 {
+            acc.add(joints[k], weights[k]);
+        }
+        acc.finish()
+    }
+
+    /// Merges the skins of an internal node's children (or any set of nodes): sums each joint's
+    /// weight, keeps the four strongest, renormalises. Empty skins contribute nothing; all
+    /// empty gives the empty skin. Allocation-free for up to 32 distinct joints.
+    #[must_use]
+    pub fn merge(children: &[Self]) -> Self {
+        let mut acc = Accumulator::default();
+        for c in children {
+            for k in 0..4 {
+                acc.add(u16::from(c.joints[k]), f32::from(c.weights[k]));
             }
-            if let Some(e) = list.iter_mut().find(|e| e.0 == j) {
-                e.1 += w;
-            } else {
-                list.push((j, w));
-            }
         }
-        list.sort_by(|a, b| b.1.total_cmp(&a.1).then(a.0.cmp(&b.0)));
-        list.truncate(4);
-        let total: f32 = list.iter().map(|e| e.1).sum();
-        if list.is_empty() || total.is_nan() || total <= 0.0 {
-            return Self::default();
-        }
-        let mut skin = Self::default();
-        let mut sum = 0u32;
-        for (slot, &(j, w)) in list.iter().enumerate() {
-            skin.joints[slot] = j as u8;
-            let q = ((w / total) * 255.0).round().clamp(0.0, 255.0) as u32;
-            skin.weights[slot] = q as u8;
-            sum += q;
-        }
-        // Rounding can miss 255 by a few units; the strongest influence absorbs the difference.
-        let fixed = (i64::from(skin.weights[0]) + 255 - i64::from(sum)).clamp(0, 255);
-        skin.weights[0] = fixed as u8;
-        skin
+        acc.finish()
     }
 
     /// True when no joint influences the voxel.
     #[must_use]
     pub fn is_empty(&self) -> bool {
         self.weights == [0; 4]
+    }
+
+    /// Number of non-zero weights (the ASVO paper's W, §3.3).
+    #[inline]
+    #[must_use]
+    pub fn nonzero_count(&self) -> u32 {
+        self.weights.iter().filter(|&&w| w > 0).count() as u32
+    }
+
+    /// Joint indices widened for indexing matrix tables.
+    #[inline]
+    #[must_use]
+    pub fn joints_u16(&self) -> [u16; 4] {
+        self.joints.map(u16::from)
+    }
+
+    /// Weights as floats for blending (they sum to 1). The empty skin blends as full weight on
+    /// joint 0, so a voxel without weights follows the character's root instead of collapsing
+    /// to the origin.
+    #[inline]
+    #[must_use]
+    pub fn blend_weights(&self) -> [f32; 4] {
+        if self.is_empty() {
+            [1.0, 0.0, 0.0, 0.0]
+        } else {
+            self.weights.map(|w| f32::from(w) * (1.0 / 255.0))
+        }
     }
 
     /// Influences as `(joint, weight 0..1)`, zero weights skipped.
@@ -67,6 +109,94 @@ impl Skin4 {
                 f32::from(self.weights[i]) / 255.0,
             )
         })
+    }
+}
+
+/// Sums weights per joint without allocating for up to 32 distinct joints (8 children × 4),
+/// spilling to a `Vec` beyond that.
+struct Accumulator {
+    fixed: [(u16, f32); 32],
+    len: usize,
+    spill: Vec<(u16, f32)>,
+}
+
+impl Default for Accumulator {
+    fn default() -> Self {
+        Self {
+            fixed: [(0, 0.0); 32],
+            len: 0,
+            spill: Vec::new(),
+        }
+    }
+}
+
+impl Accumulator {
+    fn add(&mut self, joint: u16, w: f32) {
+        if !(w.is_finite() && w > 0.0) || usize::from(joint) >= MAX_SKIN_JOINTS {
+            return;
+        }
+        if let Some(e) = self.fixed[..self.len].iter_mut().find(|e| e.0 == joint) {
+            e.1 += w;
+        } else if let Some(e) = self.spill.iter_mut().find(|e| e.0 == joint) {
+            e.1 += w;
+        } else if self.len < self.fixed.len() {
+            self.fixed[self.len] = (joint, w);
+            self.len += 1;
+        } else {
+            self.spill.push((joint, w));
+        }
+    }
+
+    fn finish(self) -> Skin4 {
+        let mut top = [(0u16, 0.0f32); 4];
+        // Heavier first, lower joint first on ties.
+        let better = |a: (u16, f32), b: (u16, f32)| a.1 > b.1 || (a.1 == b.1 && a.0 < b.0);
+        for &(j, w) in self.fixed[..self.len].iter().chain(self.spill.iter()) {
+            if !better((j, w), top[3]) {
+                continue;
+            }
+            top[3] = (j, w);
+            let mut k = 3;
+            while k > 0 && better(top[k], top[k - 1]) {
+                top.swap(k, k - 1);
+                k -= 1;
+            }
+        }
+        let sum: f32 = top.iter().map(|e| e.1).sum();
+        if !(sum > 0.0 && sum.is_finite()) {
+            return Skin4::default();
+        }
+        // Largest-remainder quantisation: floors, then the missing units go to the largest
+        // remainders, so the bytes sum to exactly 255 and no weight is off by more than one.
+        let scaled = top.map(|e| e.1 / sum * 255.0);
+        let mut bytes = scaled.map(|s| s.floor().clamp(0.0, 255.0) as u8);
+        let mut missing = 255 - bytes.iter().map(|&b| u32::from(b)).sum::<u32>().min(255);
+        let mut order = [0usize, 1, 2, 3];
+        order.sort_by(|&a, &b| {
+            let ra = scaled[a] - scaled[a].floor();
+            let rb = scaled[b] - scaled[b].floor();
+            rb.total_cmp(&ra).then(a.cmp(&b))
+        });
+        for &k in order.iter().cycle().take(8) {
+            if missing == 0 {
+                break;
+            }
+            if top[k].1 > 0.0 && bytes[k] < 255 {
+                bytes[k] += 1;
+                missing -= 1;
+            }
+        }
+        let mut joints = [0u8; 4];
+        for k in 0..4 {
+            if bytes[k] > 0 {
+                // `add` refused joints above 255.
+                joints[k] = top[k].0 as u8;
+            }
+        }
+        Skin4 {
+            joints,
+            weights: bytes,
+        }
     }
 }
 
@@ -176,13 +306,7 @@ pub(crate) fn merge(
             best = e;
         }
     }
-    let skin = skins.map_or(Skin4::default(), |skins| {
-        let mut acc: Vec<(u16, f32)> = Vec::with_capacity(32);
-        for s in skins {
-            acc.extend(s.influences());
-        }
-        Skin4::from_influences(&acc)
-    });
+    let skin = skins.map_or(Skin4::default(), Skin4::merge);
     Voxel {
         color: [
             to8(rgb.x),

@@ -31,6 +31,7 @@ fn doc_with(name: &str, svo: Svo, voxel_size: f32, origin: Vec3) -> Document {
             voxel_size,
             origin,
             material_names: vec!["stone".into(), "moss".into()],
+            rig: None,
         }),
     );
     doc

@@ -38,6 +38,7 @@ fn sample_doc(seed: u64, skin: bool) -> Document {
             voxel_size: rng.random_range(0.01..1.0),
             origin: Vec3::new(rng.random(), -1.0, 2.5),
             material_names: vec!["stone".into()],
+            rig: None,
         }),
     );
     let mut cube = unit_cube();
@@ -430,4 +431,251 @@ fn bad_krs_values_are_refused_with_what_and_where() {
     doc.objects[0].transform.scale = Vec3::new(1.0, 2.0, 1.0);
     let e = save(&doc, &path).unwrap_err().to_string();
     assert!(e.contains("Tree") && e.contains("uniform"), "{e}");
+}
+
+// ---------------------------------------------------------------- skinned voxel models
+
+/// A three-joint chain with two clips, playback state, pose and stretch overrides, over a
+/// column of voxels weighted to the joints.
+fn skinned_doc() -> Document {
+    use crate::skin::{
+        AnimationClip, Channel, Interpolation, Joint, JointOverride, OverrideMode, Playback,
+        Property, Rig, Skeleton, StretchSettings, StretchStrategy, Transform as JointTransform,
+        Wrap,
+    };
+    let joints = (0..3)
+        .map(|i| Joint {
+            name: format!("bone{i}"),
+            parent: (i > 0).then(|| i - 1),
+            rest: JointTransform {
+                translation: Vec3::new(0.0, if i == 0 { 0.0 } else { 1.0 }, 0.0),
+                ..JointTransform::IDENTITY
+            },
+            inverse_bind: glam::Mat4::from_translation(Vec3::new(0.0, -(i as f32), 0.0)),
+            ..Joint::default()
+        })
+        .collect();
+    let (skeleton, _) = Skeleton::new(joints).unwrap();
+    let walk = AnimationClip {
+        name: "walk".into(),
+        duration_secs: 2.0,
+        channels: vec![
+            Channel {
+                joint: 1,
+                property: Property::Rotation,
+                interpolation: Interpolation::Linear,
+                times: vec![0.0, 1.0, 2.0],
+                values: vec![
+                    Vec4::new(0.0, 0.0, 0.0, 1.0),
+                    Vec4::new(0.0, 0.0, 0.38, 0.92),
+                    Vec4::new(0.0, 0.0, 0.0, 1.0),
+                ],
+            },
+            Channel {
+                joint: 2,
+                property: Property::Translation,
+                interpolation: Interpolation::CubicSpline,
+                times: vec![0.0, 2.0],
+                values: vec![Vec4::ZERO, Vec4::Y, Vec4::X, Vec4::ZERO, Vec4::Y, Vec4::Z],
+            },
+        ],
+    };
+    let wave = AnimationClip {
+        name: "wave".into(),
+        duration_secs: 0.5,
+        channels: vec![Channel {
+            joint: 2,
+            property: Property::Scale,
+            interpolation: Interpolation::Step,
+            times: vec![0.0, 0.5],
+            values: vec![Vec4::ONE, Vec4::splat(2.0)],
+        }],
+    };
+    let voxels: Vec<(UVec3, Voxel)> = (0..24u32)
+        .map(|y| {
+            let mut v = Voxel::new([200, 100, 50, 255], Vec3::X);
+            let t = y as f32 / 8.0;
+            let j = (t as u16).min(2);
+            v.skin = Skin4::from_influences(&[(j, 1.0 - t.fract()), ((j + 1).min(2), t.fract())]);
+            (UVec3::new(3, y, 4), v)
+        })
+        .collect();
+    let svo = Svo::from_voxels(5, true, voxels).unwrap();
+    let mut rig = Rig::new(skeleton, vec![walk, wave]);
+    rig.playback = Playback {
+        clip: Some(1),
+        time_secs: 0.25,
+        wrap: Wrap::Clamp,
+    };
+    rig.pose_overrides = vec![JointOverride {
+        joint: 2,
+        rotation: Some(Quat::from_rotation_x(0.5)),
+        translation: None,
+        mode: OverrideMode::Relative,
+    }];
+    rig.stretch = StretchSettings {
+        strategy: StretchStrategy::Adaptive,
+        multiplier: 1.25,
+        ..StretchSettings::default()
+    };
+    rig.stretch_overrides.set(UVec3::new(3, 5, 4), 128);
+    rig.stretch_overrides.set(UVec3::new(3, 1, 4), 70);
+    let mut reference = unit_cube();
+    reference.joints = vec![[0, 1, 2, 0]; reference.positions.len()];
+    reference.weights = vec![[0.5, 0.25, 0.25, 0.0]; reference.positions.len()];
+    rig.reference_mesh = Some(MeshModel {
+        parts: vec![reference],
+        materials: Vec::new(),
+    });
+    let mut doc = Document::default();
+    doc.add(
+        "Figure",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: 1.0 / 8.0,
+            rig: Some(rig),
+            ..VoxelModel::default()
+        }),
+    );
+    doc
+}
+
+fn rig_of(doc: &Document) -> &crate::skin::Rig {
+    match &doc.objects[0].kind {
+        ObjectKind::Voxels(v) => v.rig.as_ref().expect("rig"),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
+    }
+}
+
+#[test]
+fn skinned_models_round_trip_with_clips_playback_and_overrides() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rig.thicket.json");
+    let doc = skinned_doc();
+    save(&doc, &path).unwrap();
+    let loaded = load(&path).unwrap();
+    assert_eq!(loaded, doc);
+    let rig = rig_of(&loaded);
+    assert_eq!(rig.clips.len(), 2);
+    assert_eq!(rig.stretch_overrides.get(UVec3::new(3, 5, 4)), 128);
+    assert_eq!(rig.reference_mesh.as_ref().map(|m| m.parts.len()), Some(1));
+    // The JSON is readable: joint names and the strategy are there, key arrays are not.
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(
+        text.contains("bone2") && text.contains("Adaptive"),
+        "{text}"
+    );
+    assert!(text.contains(r#""part": "skin""#), "{text}");
+    // A file without skin writes no part field (older readers see exactly what they know).
+    let plain = dir.path().join("plain.thicket.json");
+    save(&sample_doc(2, true), &plain).unwrap();
+    assert!(!fs::read_to_string(&plain).unwrap().contains("part"));
+}
+
+/// Saves [`skinned_doc`], lets `edit` change the JSON, returns the load error.
+fn load_error_after(edit: impl FnOnce(&mut serde_json::Value)) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("bad.thicket.json");
+    save(&skinned_doc(), &path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    edit(&mut json);
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    load(&path).unwrap_err().to_string()
+}
+
+#[test]
+fn bad_skin_values_are_clear_errors() {
+    let rig = |j: &mut serde_json::Value| j["objects"][0]["kind"]["rig"].clone();
+    let e = load_error_after(|j| {
+        j["objects"][0]["kind"]["rig"]["playback"]["clip"] = 5.into();
+    });
+    assert!(e.contains("Figure") && e.contains("playback.clip 5"), "{e}");
+    let e = load_error_after(|j| {
+        j["objects"][0]["kind"]["rig"]["stretch"]["multiplier"] = (-1.0).into();
+    });
+    assert!(e.contains("multiplier -1"), "{e}");
+    let e = load_error_after(|j| {
+        j["objects"][0]["kind"]["rig"]["pose_overrides"][0]["joint"] = 9.into();
+    });
+    assert!(e.contains("pose override 0 targets joint 9"), "{e}");
+    let e = load_error_after(|j| {
+        j["objects"][0]["kind"]["rig"]["stretch"]["strategy"] = "Sideways".into();
+    });
+    assert!(e.contains("Sideways") && e.contains("line"), "{e}");
+    // A skeleton cut to two joints: the clips (and voxels) that use joint 2 are named.
+    let e = load_error_after(|j| {
+        let mut r = rig(j);
+        r["skeleton"]["joints"].as_array_mut().unwrap().pop();
+        j["objects"][0]["kind"]["rig"] = r;
+    });
+    assert!(e.contains("Figure") && e.contains("joint 2"), "{e}");
+    // The skin payload dropped from the table.
+    let e = load_error_after(|j| {
+        j["payloads"]
+            .as_array_mut()
+            .unwrap()
+            .retain(|p| p.get("part").is_none());
+    });
+    assert!(e.contains("Figure") && e.contains("no skin payload"), "{e}");
+}
+
+#[test]
+fn voxels_weighted_to_missing_joints_are_refused() {
+    // Clips that only use joints 0 and 1, but a voxel weighted to joint 2 of a 2-joint skeleton.
+    let mut doc = skinned_doc();
+    let ObjectKind::Voxels(v) = &mut doc.objects[0].kind else {
+        unreachable!()
+    };
+    let rig = v.rig.as_mut().unwrap();
+    rig.clips.clear();
+    rig.playback.clip = None;
+    rig.pose_overrides.clear();
+    rig.reference_mesh = None;
+    rig.skeleton.joints.pop();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("w.thicket.json");
+    // Saving validates the rig but not every voxel (that is a load-time scan).
+    save(&doc, &path).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("weighted to joint 2") && e.contains("2 joints"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_corrupt_skin_payload_is_caught() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("s.thicket.json");
+    save(&skinned_doc(), &path).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let skin = json["payloads"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|p| p["part"] == "skin")
+        .unwrap()
+        .clone();
+    let bin_path = dir.path().join("s.thicket.bin");
+    let mut bin = fs::read(&bin_path).unwrap();
+    let at = skin["offset"].as_u64().unwrap() as usize + 6;
+    bin[at] ^= 0x10;
+    fs::write(&bin_path, &bin).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(e.contains("CRC-32") || e.contains("checksum"), "{e}");
+}
+
+#[test]
+fn stretch_overrides_set_get_and_refuse_disorder() {
+    use crate::skin::StretchOverrides;
+    let mut o = StretchOverrides::default();
+    assert_eq!(o.set(UVec3::new(1, 2, 3), 90), 0);
+    assert_eq!(o.set(UVec3::new(1, 2, 3), 100), 90);
+    assert_eq!(o.get(UVec3::new(1, 2, 3)), 100);
+    assert_eq!(o.get(UVec3::new(3, 2, 1)), 0);
+    assert_eq!(o.set(UVec3::new(1, 2, 3), 0), 100);
+    assert!(o.is_empty());
+    assert!(StretchOverrides::from_sorted(vec![(5, 1), (5, 2)]).is_err());
+    assert!(StretchOverrides::from_sorted(vec![(5, 1), (4, 2)]).is_err());
+    assert!(StretchOverrides::from_sorted(vec![(5, 0)]).is_err());
 }

@@ -190,6 +190,7 @@ pub fn import_vox_bytes(
                     (lo[2] - pivot[2]) as f32,
                 ),
                 material_names: material_names.clone(),
+                rig: None,
             }),
         });
     }

@@ -1,0 +1,316 @@
+//! Tests for skinned drawing: the deformer against the rigid path, culling bounds, extremes,
+//! and hole/bloat metrics on the real assets.
+
+use std::sync::{Arc, OnceLock};
+
+use glam::{Mat4, Quat, Vec3};
+
+use super::metrics::{ReportSettings, Silhouette, skin_report};
+use super::*;
+use crate::render::{
+    Camera, NodeDeform, NodeInfo, Quality, RenderRequest, RenderScene, VoxelInstance,
+    render_document, render_scene,
+};
+use crate::scene::{Document, ObjectKind, VoxelModel};
+use crate::voxelize::{Resolution, VoxelizeSettings};
+
+const RIGGED_FIGURE: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/RiggedFigure.glb"
+);
+/// A skinned voxel document of an asset, voxelized once per test binary.
+fn skinned_doc(path: &str, depth: u8) -> Document {
+    let import = import_skinned(path).expect("asset imports");
+    let v = voxelize_skinned(
+        &import,
+        &VoxelizeSettings {
+            resolution: Resolution::Depth(depth),
+            ..VoxelizeSettings::default()
+        },
+        &|_| true,
+    )
+    .expect("voxelizes");
+    let mut doc = Document::default();
+    doc.add("Figure", ObjectKind::Voxels(v.model));
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
+fn rigged_figure() -> &'static Document {
+    static DOC: OnceLock<Document> = OnceLock::new();
+    DOC.get_or_init(|| skinned_doc(RIGGED_FIGURE, 7))
+}
+
+fn model_of(doc: &Document) -> (&VoxelModel, &Rig) {
+    match &doc.objects[0].kind {
+        ObjectKind::Voxels(v) => (v, v.rig.as_ref().expect("rig")),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
+    }
+}
+
+fn quality() -> Quality {
+    Quality {
+        shadows: false,
+        ..Quality::default()
+    }
+}
+
+#[test]
+fn identity_skinning_with_s_one_draws_exactly_the_rigid_model() {
+    // A sphere whose every voxel is bound to one joint left at identity.
+    let svo = crate::render::scenes::sphere_shell(6, 0.9).expect("sphere");
+    let leaves: Vec<_> = svo
+        .leaves()
+        .into_iter()
+        .map(|(c, mut v)| {
+            v.skin = crate::svo::Skin4::ROOT;
+            (c, v)
+        })
+        .collect();
+    let skinned_svo = crate::svo::Svo::from_voxels(6, true, leaves).expect("svo");
+    let ObjectKind::Voxels(mut model) = crate::render::scenes::voxel_object(skinned_svo, 1.0)
+    else {
+        unreachable!()
+    };
+    let rigid = Document {
+        objects: vec![crate::scene::Object {
+            id: 1,
+            kind: ObjectKind::Voxels(model.clone()),
+            ..crate::scene::Object::default()
+        }],
+        ..Document::default()
+    };
+    let (sk, _) = Skeleton::new(vec![Joint::default()]).expect("one joint");
+    let mut rig = Rig::new(sk, Vec::new());
+    rig.stretch.strategy = StretchStrategy::Off;
+    model.rig = Some(rig);
+    let mut skinned = rigid.clone();
+    skinned.objects[0].kind = ObjectKind::Voxels(model);
+    skinned.objects[0].transform.translation = Vec3::new(0.1, 0.0, 0.0);
+    let mut rigid = rigid;
+    rigid.objects[0].transform.translation = Vec3::new(0.1, 0.0, 0.0);
+    let req = RenderRequest {
+        quality: quality(),
+        ..RenderRequest::new(96, 96)
+    };
+    let (a, fa, _) = render_document(&rigid, &req).expect("rigid");
+    let (b, fb, _) = render_document(&skinned, &req).expect("skinned");
+    assert!(fa.covered_pixels() > 800, "{}", fa.covered_pixels());
+    assert_eq!(fa.coverage(), fb.coverage(), "same silhouette");
+    let differing = crate::measure::image::count_differing(&a, &b, 2).expect("same size");
+    assert!(differing <= 10, "{differing} pixels differ");
+}
+
+#[test]
+fn subtree_bounds_contain_every_descendant_splat() {
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    for t in [0.3f32, 0.9] {
+        let deform = SkinDeform::for_rig(
+            rig,
+            &model.svo,
+            Mat4::IDENTITY,
+            model.object_from_voxel(),
+            Some(0),
+            t,
+        )
+        .with_settings(StretchSettings {
+            strategy: StretchStrategy::Adaptive,
+            ..StretchSettings::default()
+        });
+        let aabb = |d: crate::render::DeformedNode| {
+            let a = d.half_axes_world;
+            let he =
+                glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+            (d.center_world - he, d.center_world + he)
+        };
+        // Every internal node at levels 2..=4 against all splats of its subtree.
+        let svo = &model.svo;
+        let mut stack = vec![svo.root()];
+        let mut checked = 0;
+        while let Some(n) = stack.pop() {
+            if svo.is_leaf(&n) {
+                continue;
+            }
+            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+            if !(2..=4).contains(&n.level) {
+                continue;
+            }
+            let info = NodeInfo { svo, node: n };
+            let (lo, hi) = aabb(deform.subtree_bounds(&info).expect("internal node"));
+            let mut sub = vec![n];
+            while let Some(d) = sub.pop() {
+                sub.extend((0..8).filter_map(|k| svo.child(&d, k)));
+                let (dl, dh) = aabb(deform.deform(&NodeInfo { svo, node: d }));
+                assert!(
+                    dl.cmpge(lo - 1e-3).all() && dh.cmple(hi + 1e-3).all(),
+                    "t = {t}: node at level {} escapes its ancestor at level {}",
+                    d.level,
+                    n.level
+                );
+            }
+            checked += 1;
+        }
+        assert!(checked > 20, "{checked}");
+    }
+}
+
+#[test]
+fn occlusion_culling_never_removes_a_visible_skinned_voxel() {
+    let mut doc = rigged_figure().clone();
+    let ObjectKind::Voxels(v) = &mut doc.objects[0].kind else {
+        unreachable!()
+    };
+    v.rig.as_mut().expect("rig").playback.time_secs = 0.6;
+    let mut q = quality();
+    let req = |q: &Quality| RenderRequest {
+        quality: q.clone(),
+        ..RenderRequest::new(160, 160)
+    };
+    let (_, culled, stats) = render_document(&doc, &req(&q)).expect("render");
+    q.occlusion_culling = false;
+    let (_, full, _) = render_document(&doc, &req(&q)).expect("render");
+    assert!(stats.totals().occlusion_culled > 0, "culling was exercised");
+    assert_eq!(
+        culled.coverage(),
+        full.coverage(),
+        "culling changed the silhouette"
+    );
+}
+
+#[test]
+fn extreme_poses_render_without_nan() {
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let mut rig = rig.clone();
+    rig.playback.clip = None;
+    // A joint turned 180°, another scaled to zero, a third with a huge translation.
+    rig.pose_overrides = vec![
+        JointOverride {
+            joint: 3,
+            rotation: Some(Quat::from_rotation_x(std::f32::consts::PI)),
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 6,
+            translation: Some(Vec3::splat(1e6)),
+            mode: OverrideMode::Relative,
+            ..JointOverride::default()
+        },
+    ];
+    let mut pose = rig.current_pose();
+    pose.locals[8].scale = Vec3::ZERO;
+    let mut m = JointMatrices::default();
+    rig.skeleton.compute_matrices(&pose, &mut m);
+    let cam = Camera::from_orbit(&doc.camera, 96, 96);
+    for strategy in [
+        StretchStrategy::Off,
+        StretchStrategy::Thesis,
+        StretchStrategy::Corners,
+        StretchStrategy::Adaptive,
+    ] {
+        let deform = SkinDeform::new(
+            Mat4::IDENTITY,
+            model.object_from_voxel(),
+            &m.skinning,
+            StretchSettings {
+                strategy,
+                ..StretchSettings::default()
+            },
+            &rig.stretch_overrides,
+            rig.tables(&model.svo),
+        );
+        let scene = RenderScene {
+            voxels: vec![VoxelInstance {
+                svo: &model.svo,
+                deform: &deform,
+                casts_shadows: true,
+                label: 1,
+            }],
+            meshes: Vec::new(),
+            lights: &doc.lights,
+            ambient: doc.ambient,
+            background: doc.background,
+        };
+        let (img, fb, _) = render_scene(&scene, &cam, &Quality::default()).expect("renders");
+        assert!(fb.covered_pixels() > 100, "{strategy:?}");
+        assert!(fb.depth.iter().all(|d| !d.is_nan()), "{strategy:?}");
+        assert!(fb.normal.iter().all(|n| n.is_finite()), "{strategy:?}");
+        assert_eq!(img.pixels.len(), 96 * 96 * 4);
+    }
+}
+
+#[test]
+fn adaptive_is_one_where_the_figure_moves_rigidly() {
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let tables = rig.tables(&model.svo);
+    // The whole figure carried rigidly: every joint gets the same rotation and translation.
+    let rigid =
+        Mat4::from_rotation_translation(Quat::from_rotation_y(0.8), Vec3::new(1.0, 2.0, 3.0));
+    let skinning = vec![rigid; rig.skeleton.len()];
+    let deform = SkinDeform::new(
+        Mat4::IDENTITY,
+        model.object_from_voxel(),
+        &skinning,
+        StretchSettings {
+            strategy: StretchStrategy::Adaptive,
+            min_factor: 0.0,
+            ..StretchSettings::default()
+        },
+        &rig.stretch_overrides,
+        Arc::clone(&tables),
+    );
+    // Leaves reached by a traversal, so their pool indices (for the corner table) are real.
+    let svo = &model.svo;
+    let mut stack = vec![svo.root()];
+    let mut checked = 0;
+    let voxel = model.voxel_size;
+    while let Some(nd) = stack.pop() {
+        stack.extend((0..8).filter_map(|k| svo.child(&nd, k)));
+        if !svo.is_leaf(&nd) {
+            continue;
+        }
+        let d = deform.deform(&NodeInfo { svo, node: nd });
+        let edge = d.half_axes_world.x_axis.length() * 2.0;
+        assert!(
+            (edge - voxel).abs() < voxel * 1e-3,
+            "rigid motion must leave S = 1, got edge {edge} for voxel {voxel}"
+        );
+        checked += 1;
+    }
+    assert!(checked > 1000, "{checked}");
+}
+
+#[test]
+fn silhouette_counts() {
+    let mesh = [true, true, false, false];
+    let vox = [true, false, true, false];
+    let s = Silhouette::from_coverage(&mesh, &vox);
+    assert_eq!(
+        (s.mesh_pixels, s.voxel_pixels, s.holes, s.bloat),
+        (2, 2, 1, 1)
+    );
+    assert!((s.iou() - 1.0 / 3.0).abs() < 1e-12);
+    assert_eq!(Silhouette::default().iou(), 1.0);
+}
+
+#[test]
+fn a_document_without_skin_has_nothing_to_report() {
+    let doc = crate::render::scenes::sphere_document(4, 0.8).expect("doc");
+    let e = skin_report(
+        &doc,
+        &ReportSettings {
+            frames: 2,
+            width: 8,
+            height: 8,
+            clip: None,
+            strategies: vec![StretchSettings::default()],
+            quality: Quality::default(),
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("no skinned voxel model"), "{e}");
+}
