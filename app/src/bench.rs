@@ -15,20 +15,8 @@ use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::{GpuContext, GpuError, RenderTarget, Renderer};
 
-/// Counters for one octree level (view traversal).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
-pub struct BenchLevel {
-    /// Nodes visited.
-    pub visited: u64,
-    /// Nodes split.
-    pub split: u64,
-    /// Nodes splatted.
-    pub splatted: u64,
-    /// Nodes outside the frustum.
-    pub frustum_culled: u64,
-    /// Nodes behind the hierarchical depth.
-    pub occlusion_culled: u64,
-}
+/// Counters for one octree level (view traversal), as both renderers count them.
+pub type BenchLevel = thicket_core::render::LevelStats;
 
 /// One bench run.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -140,17 +128,7 @@ pub fn bench_cpu(
             .map(|(n_, v)| ((*n_).to_owned(), v / n))
             .collect(),
         gpu_timestamps: false,
-        levels: stats
-            .levels
-            .iter()
-            .map(|l| BenchLevel {
-                visited: l.visited,
-                split: l.split,
-                splatted: l.splatted,
-                frustum_culled: l.frustum_culled,
-                occlusion_culled: l.occlusion_culled,
-            })
-            .collect(),
+        levels: stats.levels.clone(),
         splats: stats.splats(),
         triangles: stats.triangles,
         atomic_path: String::new(),
@@ -219,17 +197,7 @@ pub fn bench_gpu(
         fps: if mean > 0.0 { 1e3 / mean } else { 0.0 },
         pass_ms: pass,
         gpu_timestamps: stats.gpu_timestamps,
-        levels: stats
-            .levels
-            .iter()
-            .map(|l| BenchLevel {
-                visited: l.visited,
-                split: l.split,
-                splatted: l.splatted,
-                frustum_culled: l.frustum_culled,
-                occlusion_culled: l.occlusion_culled,
-            })
-            .collect(),
+        levels: stats.levels.clone(),
         splats: stats.splats,
         triangles: stats.triangles,
         atomic_path: format!("{:?}", stats.atomic_path),

@@ -125,20 +125,9 @@ pub enum AtomicPath {
     TwoPass32,
 }
 
-/// Counters for one octree level (summed over objects).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct GpuLevelStats {
-    /// Nodes taken from the queue.
-    pub visited: u64,
-    /// Nodes whose children were queued.
-    pub split: u64,
-    /// Nodes drawn as one splat.
-    pub splatted: u64,
-    /// Nodes outside the view frustum.
-    pub frustum_culled: u64,
-    /// Nodes behind the hierarchical depth (paper §8.1.2; `Quality::occlusion_culling`).
-    pub occlusion_culled: u64,
-}
+/// Counters for one octree level (summed over objects): the same counters as the CPU
+/// reference renderer's, so overlays and benches read both alike.
+pub type GpuLevelStats = thicket_core::render::LevelStats;
 
 /// What a GPU frame did and how long it took.
 #[derive(Debug, Clone, Default, PartialEq)]
