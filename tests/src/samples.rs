@@ -13,7 +13,10 @@ use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, Transform};
 use crate::asset;
 
 /// Names of the samples, as in `projects/NAME.thicket.json`.
-pub const SAMPLES: [&str; 3] = ["house", "mixed", "terrain"];
+pub const SAMPLES: [&str; 4] = ["house", "mixed", "terrain", "cesiumman"];
+
+/// Octree depth of the CesiumMan sample: 256 voxels over its longest side (about 7 mm voxels).
+pub const CESIUM_MAN_DEPTH: u8 = 8;
 
 /// A flat square ground plane of half-size `half` at height `y`, facing +Y.
 #[must_use]
@@ -110,6 +113,31 @@ pub fn build(name: &str) -> Result<Document> {
             frame(&mut doc, 25.0, 22.0);
         }
         "terrain" => terrain(&mut doc)?,
+        // CesiumMan (© 2017 Cesium, CC BY 4.0) voxelized in its bind pose with joint weights,
+        // carrying its skeleton and walk cycle; shown mid-stride.
+        "cesiumman" => {
+            use thicket_core::skin::{StretchStrategy, import_skinned, voxelize_skinned};
+            use thicket_core::voxelize::{Resolution, VoxelizeSettings};
+            let path = asset("skinned/CesiumMan.glb");
+            let import =
+                import_skinned(&path).with_context(|| format!("loading {}", path.display()))?;
+            let mut v = voxelize_skinned(
+                &import,
+                &VoxelizeSettings {
+                    resolution: Resolution::Depth(CESIUM_MAN_DEPTH),
+                    ..VoxelizeSettings::default()
+                },
+                &|_| true,
+            )
+            .with_context(|| format!("voxelizing {}", path.display()))?;
+            if let Some(rig) = v.model.rig.as_mut() {
+                rig.playback.time_secs = 0.5;
+                rig.stretch.strategy = StretchStrategy::Adaptive;
+            }
+            doc.add("CesiumMan", ObjectKind::Voxels(v.model));
+            doc.lights[0].direction = Vec3::new(-0.4, -1.0, -0.5);
+            frame(&mut doc, 60.0, 12.0);
+        }
         other => anyhow::bail!("unknown sample {other:?}; known: {}", SAMPLES.join(", ")),
     }
     doc.validate()?;

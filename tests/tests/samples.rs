@@ -76,3 +76,49 @@ fn terrain_sample_renders_as_its_golden_image() {
         Tolerance::CPU_GOLDEN,
     );
 }
+
+#[test]
+fn cesium_man_sample_walks_and_matches_its_golden_mid_stride() {
+    use thicket_core::measure::image::{Tolerance, assert_images_match};
+    use thicket_core::render::{Quality, RenderRequest, render_document};
+    use thicket_core::scene::ObjectKind;
+    let path = thicket_tests::repo_root().join("projects/cesiumman.thicket.json");
+    let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        panic!("CesiumMan is a voxel object")
+    };
+    let rig = v.rig.as_ref().expect("the sample is skinned");
+    assert_eq!(rig.skeleton.len(), 19);
+    assert_eq!(rig.clips.len(), 1);
+    assert!(rig.reference_mesh.is_some());
+    let req = RenderRequest {
+        quality: Quality {
+            shadow_map_size: 512,
+            ..Quality::default()
+        },
+        ..RenderRequest::new(160, 160)
+    };
+    let (img, fb, _) = render_document(&doc, &req).unwrap();
+    assert!(fb.covered_pixels() > 1500, "{}", fb.covered_pixels());
+    assert_images_match(
+        &img,
+        thicket_tests::repo_root().join("tests/golden/cesiumman_t0.5.png"),
+        Tolerance::CPU_GOLDEN,
+    );
+    // A different time moves the legs: the silhouette changes.
+    let mut later = doc.clone();
+    if let ObjectKind::Voxels(v) = &mut later.objects[0].kind {
+        v.rig.as_mut().expect("rig").playback.time_secs = 1.1;
+    }
+    let (_, fb2, _) = render_document(&later, &req).unwrap();
+    let changed = fb
+        .coverage()
+        .iter()
+        .zip(fb2.coverage())
+        .filter(|(a, b)| **a != *b)
+        .count();
+    assert!(
+        changed > 100,
+        "{changed} pixels changed between t = 0.5 and 1.1"
+    );
+}

@@ -7,10 +7,13 @@ use thicket_tests::samples::{SAMPLES, build};
 
 fn main() -> Result<()> {
     let only: Vec<String> = std::env::args().skip(1).collect();
-    for name in SAMPLES {
-        if !only.is_empty() && !only.iter().any(|n| n == name) {
-            continue;
-        }
+    if let Some(bad) = only.iter().find(|n| !SAMPLES.contains(&n.as_str())) {
+        anyhow::bail!("unknown sample {bad:?}; known: {}", SAMPLES.join(", "));
+    }
+    for name in SAMPLES
+        .into_iter()
+        .filter(|n| only.is_empty() || only.iter().any(|o| o == n))
+    {
         let path = thicket_tests::repo_root()
             .join("projects")
             .join(format!("{name}.thicket.json"));
