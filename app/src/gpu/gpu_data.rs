@@ -213,29 +213,21 @@ pub const TRI_VEC4S: usize = 9;
 /// Bit marking triangle ids.
 pub const MESH_ID_FLAG: u32 = 1 << 31;
 
-/// The CPU reference's ambient-occlusion sample offsets (`core::render::shade::AoKernel`, specified
-/// in docs/rendering.md "Ambient occlusion"): sample `i` of `count`, `u = (i + 1/2)/count`,
-/// `cos t = sqrt(1 - u)`, azimuth `i` golden angles, length
-/// `radius (1/4 + 3/4 fract((i + 1/2) 0.618034))`, in the tangent frame (x, y along the
-/// tangents, z along the normal). Computed here in `f32` with the same operations in the same
-/// order as the CPU, so the shader reads bit-identical offsets. `count` is clamped to
-/// [`MAX_AO_SAMPLES`]; returns the count used.
+/// The ambient-occlusion sample offsets of the CPU reference
+/// ([`thicket_core::render::shade::ao_sample_offsets`], specified in docs/rendering.md "Ambient
+/// occlusion"), packed for the shader's uniform. `count` is clamped to [`MAX_AO_SAMPLES`];
+/// returns the count used.
 #[must_use]
 pub fn ao_kernel(count: u32, radius_world: f32) -> (u32, [[f32; 4]; MAX_AO_SAMPLES]) {
-    /// The golden angle in radians (the CPU's `GOLDEN_ANGLE`).
-    const GOLDEN_ANGLE: f32 = 2.399_963_2;
     let count = count.min(MAX_AO_SAMPLES as u32);
-    let n = count as f32;
     let mut out = [[0.0; 4]; MAX_AO_SAMPLES];
-    for (i, slot) in out.iter_mut().enumerate().take(count as usize) {
-        let fi = i as f32 + 0.5;
-        let u = fi / n;
-        let cos_t = (1.0 - u).sqrt();
-        let sin_t = u.sqrt();
-        let phi = i as f32 * GOLDEN_ANGLE;
-        let frac = (fi * 0.618_034).fract();
-        let dist = radius_world * (0.25 + 0.75 * frac);
-        let v = Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t) * dist;
+    for (slot, v) in out
+        .iter_mut()
+        .zip(thicket_core::render::shade::ao_sample_offsets(
+            count,
+            radius_world,
+        ))
+    {
         *slot = [v.x, v.y, v.z, 0.0];
     }
     (count, out)

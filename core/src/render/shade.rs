@@ -417,6 +417,28 @@ const GOLDEN_ANGLE: f32 = 2.399_963_2;
 /// `u = (i + ½)/n`, a cosine-weighted hemisphere direction with `cos θ = √(1 − u)`, azimuth
 /// `φ = i · golden angle` around the normal, at distance `r · (¼ + ¾ · fract((i + ½) · 0.618034))`.
 /// See `docs/rendering.md` for the occlusion test.
+/// The screen-space AO sample offsets, in the tangent frame of the shaded point (x, y along the
+/// tangents, z along the normal) and scaled by their distance: `count` points of a
+/// cosine-weighted hemisphere on a golden-angle spiral, at distances from a quarter of
+/// `radius_world` to all of it. The GPU renderer uploads exactly these, so both renderers
+/// occlude with bit-identical offsets.
+#[must_use]
+pub fn ao_sample_offsets(count: u32, radius_world: f32) -> Vec<Vec3> {
+    let n = count as f32;
+    (0..count)
+        .map(|i| {
+            let fi = i as f32 + 0.5;
+            let u = fi / n;
+            let cos_t = (1.0 - u).sqrt();
+            let sin_t = u.sqrt();
+            let phi = i as f32 * GOLDEN_ANGLE;
+            let frac = (fi * 0.618_034).fract();
+            let dist = radius_world * (0.25 + 0.75 * frac);
+            Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t) * dist
+        })
+        .collect()
+}
+
 pub(crate) struct AoKernel {
     /// Per sample: tangent-frame direction scaled by its distance (x, y along the tangents,
     /// z along the normal).
@@ -426,21 +448,8 @@ pub(crate) struct AoKernel {
 
 impl AoKernel {
     pub(crate) fn new(count: u32, radius_world: f32) -> Self {
-        let n = count as f32;
-        let samples = (0..count)
-            .map(|i| {
-                let fi = i as f32 + 0.5;
-                let u = fi / n;
-                let cos_t = (1.0 - u).sqrt();
-                let sin_t = u.sqrt();
-                let phi = i as f32 * GOLDEN_ANGLE;
-                let frac = (fi * 0.618_034).fract();
-                let dist = radius_world * (0.25 + 0.75 * frac);
-                Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t) * dist
-            })
-            .collect();
         Self {
-            samples,
+            samples: ao_sample_offsets(count, radius_world),
             radius_world,
         }
     }
