@@ -1,0 +1,504 @@
+//! The KRS editor in the inspector: presets, the kernel list with typed parameter editors and
+//! the mirror-plane list. Every change goes through [`Editor::set_krs`] (core's validation: a
+//! refused value leaves the document unchanged and the message says which field and why); a
+//! drag is one undo step. The mirror planes are drawn over the view as outlined quads.
+
+use glam::{EulerRot, Quat, Vec3};
+use thicket_core::krs::{
+    BoxKernel, CapsuleKernel, Kernel, KrsObject, Material, MirrorPlane, PlaneKernel, SphereKernel,
+    TorusKernel, presets,
+};
+
+use super::view::Projector;
+use crate::editor::{Editor, Selection};
+
+/// UI state of the KRS editor.
+#[derive(Debug, Default)]
+pub struct KrsPanel {
+    /// The mirror plane highlighted in the view.
+    pub mirror: Option<usize>,
+    /// The preset picked in the combo box.
+    preset: usize,
+    /// Preset names from core (read once).
+    names: Vec<&'static str>,
+    /// Why the last change was refused.
+    pub error: Option<String>,
+}
+
+const KINDS: [(&str, &str); 7] = [
+    (
+        "Empty",
+        "No geometry at this level (an extra reflection only)",
+    ),
+    ("Sphere", "A ball"),
+    ("InfinitePlane", "A half-space (rock and terrain)"),
+    ("Capsule", "A segment swept by a ball"),
+    ("RoundedBox", "An oriented box with rounded edges"),
+    ("TorusSegment", "A torus segment with flat ends"),
+    (
+        "ToroidalCapsule",
+        "A torus segment with capping spheres: the branch kernel",
+    ),
+];
+
+fn default_kernel(kind: &str, material: Material) -> Kernel {
+    match kind {
+        "Sphere" => Kernel::Sphere(SphereKernel {
+            material,
+            ..SphereKernel::default()
+        }),
+        "InfinitePlane" => Kernel::InfinitePlane(PlaneKernel {
+            material,
+            ..PlaneKernel::default()
+        }),
+        "Capsule" => Kernel::Capsule(CapsuleKernel {
+            material,
+            ..CapsuleKernel::default()
+        }),
+        "RoundedBox" => Kernel::RoundedBox(BoxKernel {
+            material,
+            ..BoxKernel::default()
+        }),
+        "TorusSegment" => Kernel::TorusSegment(TorusKernel {
+            material,
+            ..TorusKernel::default()
+        }),
+        "ToroidalCapsule" => Kernel::ToroidalCapsule(TorusKernel {
+            material,
+            ..TorusKernel::default()
+        }),
+        _ => Kernel::Empty,
+    }
+}
+
+/// A grid row of three DragValues; returns whether one changed.
+fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64, tip: &str) -> bool {
+    ui.label(label).on_hover_text(tip);
+    let mut changed = false;
+    ui.horizontal(|ui| {
+        for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
+            changed |= ui
+                .add(
+                    egui::DragValue::new(c)
+                        .speed(speed)
+                        .max_decimals(4)
+                        .prefix(format!("{axis} ")),
+                )
+                .on_hover_text(tip)
+                .changed();
+        }
+    });
+    ui.end_row();
+    changed
+}
+
+/// A grid row of one DragValue limited to `range`; returns whether it changed.
+fn f32_row(
+    ui: &mut egui::Ui,
+    label: &str,
+    v: &mut f32,
+    speed: f64,
+    range: std::ops::RangeInclusive<f32>,
+    tip: &str,
+) -> bool {
+    ui.label(label).on_hover_text(tip);
+    let changed = ui
+        .add(
+            egui::DragValue::new(v)
+                .speed(speed)
+                .max_decimals(4)
+                .range(range),
+        )
+        .on_hover_text(tip)
+        .changed();
+    ui.end_row();
+    changed
+}
+
+fn material_rows(ui: &mut egui::Ui, m: &mut Material) -> bool {
+    ui.label("Colour").on_hover_text("Linear RGB albedo");
+    let mut rgb = m.colour.to_array();
+    let mut changed = ui
+        .color_edit_button_rgb(&mut rgb)
+        .on_hover_text("Linear RGB albedo of this kernel")
+        .changed();
+    if changed {
+        m.colour = Vec3::from_array(rgb);
+    }
+    ui.end_row();
+    ui.label("Material id")
+        .on_hover_text("Index in the renderer's material table");
+    changed |= ui
+        .add(egui::DragValue::new(&mut m.id).range(0..=255))
+        .on_hover_text("Index in the renderer's material table")
+        .changed();
+    ui.end_row();
+    changed
+}
+
+fn torus_rows(ui: &mut egui::Ui, k: &mut TorusKernel) -> bool {
+    let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the torus");
+    c |= vec3_row(
+        ui,
+        "Axis",
+        &mut k.axis,
+        0.01,
+        "Axis of the torus (non-zero; normalised when accepted)",
+    );
+    c |= vec3_row(
+        ui,
+        "Start direction",
+        &mut k.start_dir,
+        0.01,
+        "Where the arc starts: must not be parallel to the axis",
+    );
+    c |= f32_row(
+        ui,
+        "Major radius",
+        &mut k.major_radius,
+        0.005,
+        0.0..=1.0e4,
+        "Radius of the arc (0 or more)",
+    );
+    c |= f32_row(
+        ui,
+        "Minor radius",
+        &mut k.minor_radius,
+        0.002,
+        0.0..=1.0e4,
+        "Radius of the tube (0 or more)",
+    );
+    let mut sweep_deg = k.sweep_radians.to_degrees();
+    if f32_row(
+        ui,
+        "Sweep deg",
+        &mut sweep_deg,
+        0.5,
+        0.0..=360.0,
+        "Angle the arc covers, 0 to 360 degrees",
+    ) {
+        k.sweep_radians = sweep_deg.to_radians().min(std::f32::consts::TAU);
+        c = true;
+    }
+    c |= material_rows(ui, &mut k.material);
+    c
+}
+
+/// Parameter rows of one kernel; returns whether a value changed.
+fn kernel_rows(ui: &mut egui::Ui, kernel: &mut Kernel) -> bool {
+    match kernel {
+        Kernel::Empty => {
+            ui.weak("No parameters");
+            ui.end_row();
+            false
+        }
+        Kernel::Sphere(k) => {
+            let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the ball");
+            c |= f32_row(
+                ui,
+                "Radius",
+                &mut k.radius,
+                0.005,
+                0.0..=1.0e4,
+                "Radius of the ball (0 or more)",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::InfinitePlane(k) => {
+            let mut c = vec3_row(
+                ui,
+                "Normal",
+                &mut k.normal,
+                0.01,
+                "Outward normal (non-zero; normalised when accepted)",
+            );
+            c |= f32_row(
+                ui,
+                "Offset",
+                &mut k.offset,
+                0.01,
+                -1.0e5..=1.0e5,
+                "The solid is normal . p <= offset",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::Capsule(k) => {
+            let mut c = vec3_row(ui, "Start", &mut k.start, 0.01, "First end of the segment");
+            c |= vec3_row(ui, "End", &mut k.end, 0.01, "Second end of the segment");
+            c |= f32_row(
+                ui,
+                "Radius",
+                &mut k.radius,
+                0.002,
+                0.0..=1.0e4,
+                "Radius of the swept ball (0 or more)",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::RoundedBox(k) => {
+            let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the box");
+            let (y, x, z) = k.rotation.to_euler(EulerRot::YXZ);
+            let mut e = Vec3::new(x, y, z) * 180.0 / std::f32::consts::PI;
+            if vec3_row(
+                ui,
+                "Rotation deg",
+                &mut e,
+                0.5,
+                "Orientation as X, Y, Z Euler angles in degrees (applied Y, X, Z)",
+            ) {
+                let r = e * std::f32::consts::PI / 180.0;
+                k.rotation = Quat::from_euler(EulerRot::YXZ, r.y, r.x, r.z);
+                c = true;
+            }
+            c |= vec3_row(
+                ui,
+                "Half extents",
+                &mut k.half_extents,
+                0.005,
+                "Half the box's size per axis (0 or more)",
+            );
+            c |= f32_row(
+                ui,
+                "Rounding",
+                &mut k.rounding,
+                0.002,
+                0.0..=1.0e4,
+                "Edge rounding radius: at most the smallest half extent",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::TorusSegment(k) | Kernel::ToroidalCapsule(k) => torus_rows(ui, k),
+    }
+}
+
+/// The KRS section of the inspector for object `id`.
+pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel, id: u64) {
+    let Some(current) = editor.krs(id).cloned() else {
+        return;
+    };
+    if panel.names.is_empty() {
+        panel.names = presets::all().into_iter().map(|(n, _)| n).collect();
+    }
+    let mut k = current.clone();
+    let mut changed = false;
+    egui::CollapsingHeader::new("KRS editor")
+        .default_open(true)
+        .show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("Preset")
+                    .on_hover_text("Core's ready-made KRS objects");
+                let selected = panel.names.get(panel.preset).copied().unwrap_or("");
+                egui::ComboBox::from_id_salt("krs_preset")
+                    .selected_text(selected)
+                    .show_ui(ui, |ui| {
+                        for (i, name) in panel.names.iter().enumerate() {
+                            ui.selectable_value(&mut panel.preset, i, *name)
+                                .on_hover_text("Pick this preset, then Apply");
+                        }
+                    })
+                    .response
+                    .on_hover_text("Core's ready-made KRS objects");
+                if ui
+                    .button("Apply preset")
+                    .on_hover_text(
+                        "Replace this object's kernels and mirrors with the preset (undoable)",
+                    )
+                    .clicked()
+                    && let Some(name) = panel.names.get(panel.preset).copied()
+                {
+                    panel.error = editor
+                        .apply_krs_preset(id, name)
+                        .err()
+                        .map(|e| e.to_string());
+                }
+            });
+            if let Some(e) = &panel.error {
+                ui.colored_label(ui.visuals().error_fg_color, format!("Refused: {e}"));
+            }
+            ui.weak(format!(
+                "{} kernels, {} mirror planes, {} instances",
+                k.kernels.len(),
+                k.mirrors.len(),
+                crate::files::thousands_u128(k.instance_count())
+            ));
+
+            ui.separator();
+            ui.strong("Kernels")
+                .on_hover_text("K0..Kn: kernel K_i is reached after folding by mirrors n-1..i");
+            for (i, kernel) in k.kernels.iter_mut().enumerate() {
+                egui::CollapsingHeader::new(format!("K{i}: {}", kernel.kind_name()))
+                    .id_salt(("krs_kernel", id, i))
+                    .default_open(false)
+                    .show(ui, |ui| {
+                        egui::Grid::new(("krs_kernel_grid", i))
+                            .num_columns(2)
+                            .show(ui, |ui| {
+                                ui.label("Kind").on_hover_text("The kernel's shape");
+                                let kind = kernel.kind_name();
+                                egui::ComboBox::from_id_salt(("krs_kind", i))
+                                    .selected_text(kind)
+                                    .show_ui(ui, |ui| {
+                                        for (name, tip) in KINDS {
+                                            if ui
+                                                .selectable_label(kind == name, name)
+                                                .on_hover_text(tip)
+                                                .clicked()
+                                                && kind != name
+                                            {
+                                                let m =
+                                                    kernel.material().copied().unwrap_or_default();
+                                                *kernel = default_kernel(name, m);
+                                                changed = true;
+                                            }
+                                        }
+                                    })
+                                    .response
+                                    .on_hover_text(
+                                        "The kernel's shape (a new kind starts from its defaults)",
+                                    );
+                                ui.end_row();
+                                changed |= kernel_rows(ui, kernel);
+                            });
+                    });
+            }
+
+            ui.separator();
+            ui.strong("Mirror planes").on_hover_text(
+                "R0..R(n-1): normal . p = offset; points on the normal's side are folded over",
+            );
+            egui::Grid::new("krs_mirrors")
+                .num_columns(3)
+                .striped(true)
+                .show(ui, |ui| {
+                    for (i, m) in k.mirrors.iter_mut().enumerate() {
+                        if ui
+                            .selectable_label(panel.mirror == Some(i), format!("R{i}"))
+                            .on_hover_text("Highlight this plane in the view")
+                            .clicked()
+                        {
+                            panel.mirror = (panel.mirror != Some(i)).then_some(i);
+                        }
+                        ui.horizontal(|ui| {
+                            for (axis, c) in ["x", "y", "z"].iter().zip([
+                                &mut m.normal.x,
+                                &mut m.normal.y,
+                                &mut m.normal.z,
+                            ]) {
+                                changed |= ui
+                                    .add(
+                                        egui::DragValue::new(c)
+                                            .speed(0.01)
+                                            .max_decimals(4)
+                                            .prefix(format!("n{axis} ")),
+                                    )
+                                    .on_hover_text(
+                                        "Plane normal: non-zero, normalised when accepted",
+                                    )
+                                    .changed();
+                            }
+                        });
+                        changed |= ui
+                            .add(
+                                egui::DragValue::new(&mut m.offset)
+                                    .speed(0.01)
+                                    .max_decimals(4)
+                                    .prefix("c "),
+                            )
+                            .on_hover_text("Offset of the plane along its normal")
+                            .changed();
+                        ui.end_row();
+                    }
+                });
+            ui.horizontal(|ui| {
+                if ui
+                    .button("Add level")
+                    .on_hover_text(
+                        "Add a mirror plane (through the origin, normal +X) and an empty kernel",
+                    )
+                    .clicked()
+                {
+                    k.mirrors.push(MirrorPlane::default());
+                    k.kernels.push(Kernel::Empty);
+                    changed = true;
+                }
+                if ui
+                    .add_enabled(
+                        !k.mirrors.is_empty(),
+                        egui::Button::new("Remove last level"),
+                    )
+                    .on_hover_text("Remove the last mirror plane and the last kernel")
+                    .clicked()
+                {
+                    k.mirrors.pop();
+                    k.kernels.pop();
+                    changed = true;
+                }
+            });
+        });
+    if changed && k != current {
+        // A structural change (kind, level) is its own step; value drags merge while they last.
+        panel.error = editor.set_krs(id, &k).err().map(|e| e.to_string());
+    }
+    if panel
+        .mirror
+        .is_some_and(|m| m >= editor.krs(id).map_or(0, |k| k.mirrors.len()))
+    {
+        panel.mirror = None;
+    }
+}
+
+/// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
+/// brighter and filled), sized by the object's bounding ball.
+pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    let Some(Selection::Object(id)) = editor.selection else {
+        return;
+    };
+    let Some(o) = editor.object(id).filter(|o| o.visible) else {
+        return;
+    };
+    let Some(world) = o.krs_in_world() else {
+        return;
+    };
+    let k: &KrsObject = &world;
+    let (centre, radius) = k.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+    let radius = radius.clamp(1e-3, 1e4);
+    let t = k.world_from_object;
+    for (i, m) in k.mirrors.iter().enumerate() {
+        let Some(n) = m.normal.try_normalize() else {
+            continue;
+        };
+        let on_plane = centre - n * (n.dot(centre) - m.offset);
+        let (u, v) = n.any_orthonormal_pair();
+        let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|(a, b)| proj.to_screen(t.transform_point(on_plane + (u * *a + v * *b) * radius)))
+            .collect();
+        let Some(mut corners) = corners else { continue };
+        let highlighted = panel.mirror == Some(i);
+        let color = if highlighted {
+            egui::Color32::from_rgb(120, 220, 255)
+        } else {
+            egui::Color32::from_rgba_unmultiplied(120, 200, 255, 110)
+        };
+        if highlighted {
+            painter.add(egui::Shape::convex_polygon(
+                corners.clone(),
+                egui::Color32::from_rgba_unmultiplied(120, 220, 255, 30),
+                egui::Stroke::NONE,
+            ));
+        }
+        let label_at = corners[2];
+        corners.push(corners[0]);
+        painter.add(egui::Shape::line(
+            corners,
+            egui::Stroke::new(if highlighted { 2.5 } else { 1.0 }, color),
+        ));
+        painter.text(
+            label_at,
+            egui::Align2::LEFT_BOTTOM,
+            format!("R{i}"),
+            egui::FontId::proportional(11.0),
+            color,
+        );
+    }
+}

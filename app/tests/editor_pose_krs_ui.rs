@@ -1,0 +1,255 @@
+//! The pose tool, the timeline and the KRS editor on the real app, driven by egui_kittest:
+//! pick a joint in the inspector's tree, drag its gizmo ring in the view, undo and redo the
+//! drag; play the timeline; change a KRS mirror plane through its DragValues (a zero normal is
+//! refused with a message), undo and redo; snapshot both, the view included.
+//!
+//! No GPU viewport is attached: the view draws with core's CPU preview renderer, which is what
+//! the editor uses for rigged models and KRS objects (the GPU renderer has neither yet).
+
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::{Harness, SnapshotOptions};
+use glam::Vec3;
+use thicket::editor::Editor;
+use thicket::ui::EditorApp;
+use thicket::ui::view::Projector;
+use thicket_core::scene::{Document, ObjectKind};
+
+const SIZE: egui::Vec2 = egui::vec2(1100.0, 720.0);
+
+fn harness(doc: Document) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(Editor::new(doc, None));
+    // The UI tests must not touch the user's recovery folder or depend on it.
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h
+}
+
+/// Lets the CPU preview catch up with the document and shows its image.
+fn settle_preview(h: &mut Harness<'static, EditorApp>) {
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+}
+
+fn snapshot(h: &mut Harness<'static, EditorApp>, name: &str) {
+    h.snapshot_options(name, &SnapshotOptions::new().max_failed_pixels(200));
+}
+
+/// RiggedFigure (Khronos sample, CC BY 4.0; see shared/assets/LICENSES.md) voxelized in its bind
+/// pose at a coarse depth, with its skeleton and clip.
+fn rigged_figure() -> Document {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/skinned/RiggedFigure.glb"
+    );
+    let import = thicket_core::skin::import_skinned(path).expect("RiggedFigure imports");
+    let settings = thicket_core::voxelize::VoxelizeSettings {
+        resolution: thicket_core::voxelize::Resolution::Depth(5),
+        ..Default::default()
+    };
+    let v = thicket_core::skin::voxelize_skinned(&import, &settings, &|_| true)
+        .expect("RiggedFigure voxelizes");
+    let mut doc = Document::default();
+    doc.add("Figure", ObjectKind::Voxels(v.model));
+    doc.quality.shadows = false;
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
+#[test]
+fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
+    let mut h = harness(rigged_figure());
+    let id = h.state().editor.doc().objects[0].id;
+    let rig = h.state().editor.rig(id).expect("rigged").clone();
+    assert!(rig.skeleton.len() > 2);
+
+    // The inspector lists the joints as a tree; pick one that has a parent.
+    let joint = 2;
+    let name = rig.skeleton.joints[joint].name.clone();
+    assert!(!name.is_empty());
+    h.get_by_label(&name).click_accesskit();
+    h.run_steps(2);
+    let sel = h.state().pose.joint.expect("a joint is selected");
+    assert_eq!((sel.object, sel.joint), (id, joint));
+
+    // Pause at the clip's start so the skeleton holds still while we aim at it.
+    let steps = h.state().editor.history().undo_len();
+    let frames = h.state().editor.joint_frames(id).expect("joint frames");
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let p = frames.position(joint).unwrap();
+    let w = frames.world_from_joint[joint];
+    // The ring that faces the camera most: a drag along it turns the joint by the angle swept.
+    let view_dir = (p - proj.eye()).normalize_or_zero();
+    let axis = (0..3)
+        .max_by(|&a, &b| {
+            let fa = w.col(a).truncate().normalize_or_zero().dot(view_dir).abs();
+            let fb = w.col(b).truncate().normalize_or_zero().dot(view_dir).abs();
+            fa.total_cmp(&fb)
+        })
+        .unwrap();
+    let a = w.col(axis).truncate().normalize_or_zero();
+    let (u, v) = a.any_orthonormal_pair();
+    let size = 70.0 * proj.world_per_point(p);
+    let on_ring = |t: f32| {
+        proj.to_screen(p + size * (t.cos() * u + t.sin() * v))
+            .expect("the ring is in front of the camera")
+    };
+    h.hover_at(on_ring(0.0));
+    h.step();
+    h.drag_at(on_ring(0.0));
+    h.step();
+    for k in 1..=6 {
+        h.hover_at(on_ring(0.1 * k as f32));
+        h.step();
+    }
+    h.drop_at(on_ring(0.6));
+    h.run_steps(2);
+
+    let ed = &h.state().editor;
+    let o = ed
+        .joint_override(id, joint)
+        .expect("the drag posed the joint");
+    let (_, angle) = o.rotation.expect("a rotation").to_axis_angle();
+    assert!(
+        (0.3..=0.9).contains(&angle),
+        "the joint turned by about the swept 0.6 rad: {angle}"
+    );
+    assert_eq!(ed.history().undo_len(), steps + 1, "one undo step per drag");
+    assert_eq!(
+        ed.doc().camera,
+        proj.camera,
+        "dragging the gizmo does not orbit"
+    );
+    let posed_tip = ed.joint_frames(id).unwrap().position(joint + 1);
+    assert!(ed.is_dirty());
+    settle_preview(&mut h);
+    snapshot(&mut h, "pose_rigged_figure");
+
+    // Undo and redo through the Edit menu and the keyboard.
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Undo").click();
+    h.run_steps(2);
+    assert!(h.state().editor.joint_override(id, joint).is_none());
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.run_steps(2);
+    assert_eq!(h.state().editor.joint_override(id, joint), Some(o));
+    assert_eq!(
+        h.state()
+            .editor
+            .joint_frames(id)
+            .unwrap()
+            .position(joint + 1),
+        posed_tip
+    );
+
+    // The timeline plays the clip; playing moves the playhead but is not an edit.
+    let key = h.state().editor.animation_key();
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Play").click();
+    h.run_steps(3);
+    let t = h.state().editor.rig(id).unwrap().playback.time_secs;
+    assert!(t > 0.0, "the playhead moved: {t}");
+    assert_ne!(h.state().editor.animation_key(), key);
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps,
+        "playing is not an edit"
+    );
+    h.get_by_label("Pause").click();
+    h.run_steps(1);
+    assert!(!h.state().pose.playing);
+}
+
+#[test]
+fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
+    let mut doc = Document::default();
+    doc.add(
+        "Coral",
+        ObjectKind::Krs(thicket_core::krs::presets::coral()),
+    );
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    let original = h.state().editor.krs(id).unwrap().clone();
+    assert!(!original.mirrors.is_empty());
+
+    // The inspector's KRS editor lists the mirror planes; highlight R0 in the view.
+    h.get_by_label("R0").click_accesskit();
+    h.run_steps(1);
+    assert_eq!(h.state().krs.mirror, Some(0));
+
+    // Type a new normal through the DragValues of R0 (the first "nx", "ny", "nz").
+    let steps = h.state().editor.history().undo_len();
+    h.query_all_by_label("nx")
+        .next()
+        .unwrap()
+        .set_value_accesskit(1.0);
+    h.run_steps(1);
+    h.query_all_by_label("ny")
+        .next()
+        .unwrap()
+        .set_value_accesskit(1.0);
+    h.run_steps(1);
+    h.query_all_by_label("nz")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(2);
+    let m = h.state().editor.krs(id).unwrap().mirrors[0];
+    let expected = Vec3::new(1.0, 1.0, 0.0).normalize_or_zero();
+    assert!(
+        (m.normal - expected).length() < 1e-3,
+        "the normal is stored normalised: {m:?}"
+    );
+    let changed = h.state().editor.history().undo_len() - steps;
+    assert!((1..=3).contains(&changed), "{changed} steps");
+
+    // A zero normal is refused with a message; the document keeps the last good plane.
+    h.query_all_by_label("nx")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(1);
+    h.query_all_by_label("ny")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(2);
+    let now = h.state().editor.krs(id).unwrap().mirrors[0];
+    assert!(now.normal.length() > 0.99, "{now:?}");
+    h.get_by_label_contains("zero length");
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_mirror_edited");
+
+    // Undo every step of the edit: the preset's plane is back; redo brings the change back.
+    let after = h.state().editor.krs(id).unwrap().clone();
+    let n = h.state().editor.history().undo_len() - steps;
+    for _ in 0..n {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
+    for _ in 0..n {
+        h.key_press_modifiers(
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+            egui::Key::Z,
+        );
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap(), &after);
+}
