@@ -130,6 +130,9 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
     let posed_tip = ed.joint_frames(id).unwrap().position(joint + 1);
     assert!(ed.is_dirty());
     settle_preview(&mut h);
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+        eprintln!("CPU preview of the posed figure: {ms:.1} ms at {w} x {hh} px");
+    }
     snapshot(&mut h, "pose_rigged_figure");
 
     // Undo and redo through the Edit menu and the keyboard.
@@ -169,6 +172,29 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
     h.get_by_label("Pause").click();
     h.run_steps(1);
     assert!(!h.state().pose.playing);
+
+    // Stretch: the strategy picker is one undoable edit.
+    let steps = h.state().editor.history().undo_len();
+    h.get(
+        egui_kittest::kittest::by()
+            .role(egui::accesskit::Role::ComboBox)
+            .value("Thesis"),
+    )
+    .click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Adaptive").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.rig(id).unwrap().stretch.strategy,
+        thicket_core::skin::StretchStrategy::Adaptive
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(
+        h.state().editor.rig(id).unwrap().stretch.strategy,
+        thicket_core::skin::StretchStrategy::Thesis
+    );
 }
 
 #[test]
@@ -234,6 +260,9 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     assert!(now.normal.length() > 0.99, "{now:?}");
     h.get_by_label_contains("zero length");
     settle_preview(&mut h);
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+        eprintln!("CPU preview of the coral: {ms:.1} ms at {w} x {hh} px");
+    }
     snapshot(&mut h, "krs_mirror_edited");
 
     // Undo every step of the edit: the preset's plane is back; redo brings the change back.

@@ -735,7 +735,12 @@ impl EditorApp {
 
         self.dialogs(&ctx);
         self.toasts_ui(&ctx);
-        self.perf.ui(&ctx, &self.editor, self.view.gpu());
+        self.perf.ui(
+            &ctx,
+            &self.editor,
+            self.view.gpu(),
+            self.view.cpu_preview_stats(),
+        );
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));
 
         // A drag (slider, DragValue) is one undo step: the step closes when the pointer is up.

@@ -355,6 +355,13 @@ impl View {
         self.cpu.renders
     }
 
+    /// Wall-clock milliseconds of the last CPU preview render, and its size in pixels.
+    #[must_use]
+    pub fn cpu_preview_stats(&self) -> Option<(f64, [u32; 2])> {
+        let size = self.cpu.shown.as_ref()?.size_px;
+        (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
+    }
+
     /// Waits for the CPU preview render in flight, if any (tests; the UI polls instead). Its
     /// image is shown from the next frame.
     pub fn wait_for_cpu_preview(&mut self) {
