@@ -219,6 +219,42 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     h.run_steps(1);
     assert_eq!(h.state().krs.mirror, Some(0));
 
+    // Drag R0's gizmo arrow (along the plane's normal) in the view: the plane moves along its
+    // normal, in one undo step, and the camera stays.
+    let steps = h.state().editor.history().undo_len();
+    let camera = h.state().editor.doc().camera;
+    let proj = Projector::new(camera, h.state().view.last_rect);
+    let handles = h.state().krs.mirror_handles(&h.state().editor, &proj);
+    let arrow = handles
+        .iter()
+        .find(|s| s.handle == thicket::ui::krs_panel::MirrorHandle::Offset)
+        .expect("the highlighted plane has an arrow");
+    let (a, b) = (arrow.points[0], arrow.points[1]);
+    let grab = a + (b - a) * 0.7;
+    let along = (b - a).normalized() * 30.0;
+    h.hover_at(grab);
+    h.step();
+    h.drag_at(grab);
+    h.step();
+    for k in 1..=3 {
+        h.hover_at(grab + along * (k as f32 / 3.0));
+        h.step();
+    }
+    h.drop_at(grab + along);
+    h.run_steps(2);
+    let moved = h.state().editor.krs(id).unwrap().mirrors[0];
+    assert_eq!(moved.normal, original.mirrors[0].normal.normalize_or_zero());
+    assert!(
+        moved.offset > original.mirrors[0].offset + 1e-3,
+        "dragging the arrow outward moves the plane along its normal: {:?} -> {moved:?}",
+        original.mirrors[0]
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    assert_eq!(h.state().editor.doc().camera, camera, "no orbit");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
+
     // Type a new normal through the DragValues of R0 (the first "nx", "ny", "nz").
     let steps = h.state().editor.history().undo_len();
     h.query_all_by_label("nx")

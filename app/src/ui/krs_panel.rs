@@ -5,10 +5,11 @@
 
 use glam::{EulerRot, Quat, Vec3};
 use thicket_core::krs::{
-    BoxKernel, CapsuleKernel, Kernel, KrsObject, Material, MirrorPlane, PlaneKernel, SphereKernel,
+    BoxKernel, CapsuleKernel, Kernel, Material, MirrorPlane, PlaneKernel, SphereKernel,
     TorusKernel, presets,
 };
 
+use super::pose::distance_to_polyline;
 use super::view::Projector;
 use crate::editor::{Editor, Selection};
 
@@ -23,6 +24,8 @@ pub struct KrsPanel {
     names: Vec<&'static str>,
     /// Why the last change was refused.
     pub error: Option<String>,
+    /// A mirror-gizmo drag in progress.
+    drag: Option<MirrorDrag>,
 }
 
 const KINDS: [(&str, &str); 7] = [
@@ -447,22 +450,23 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
     }
 }
 
-/// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
-/// brighter and filled), sized by the object's bounding ball.
-pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+/// The selected KRS object's mirror planes on the screen: a quad per plane through the centre
+/// of the object's bounding ball, as large as the ball.
+fn mirror_quads(editor: &Editor, proj: &Projector) -> Vec<(usize, Vec<egui::Pos2>)> {
     let Some(Selection::Object(id)) = editor.selection else {
-        return;
+        return Vec::new();
     };
-    let Some(o) = editor.object(id).filter(|o| o.visible) else {
-        return;
+    let Some(k) = editor
+        .object(id)
+        .filter(|o| o.visible)
+        .and_then(thicket_core::scene::Object::krs_in_world)
+    else {
+        return Vec::new();
     };
-    let Some(world) = o.krs_in_world() else {
-        return;
-    };
-    let k: &KrsObject = &world;
     let (centre, radius) = k.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
     let radius = radius.clamp(1e-3, 1e4);
     let t = k.world_from_object;
+    let mut out = Vec::new();
     for (i, m) in k.mirrors.iter().enumerate() {
         let Some(n) = m.normal.try_normalize() else {
             continue;
@@ -473,7 +477,31 @@ pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel,
             .iter()
             .map(|(a, b)| proj.to_screen(t.transform_point(on_plane + (u * *a + v * *b) * radius)))
             .collect();
-        let Some(mut corners) = corners else { continue };
+        if let Some(corners) = corners {
+            out.push((i, corners));
+        }
+    }
+    out
+}
+
+/// The mirror plane of the selected KRS object whose outline passes under `pointer`.
+#[must_use]
+pub fn pick_mirror(editor: &Editor, proj: &Projector, pointer: egui::Pos2) -> Option<usize> {
+    mirror_quads(editor, proj)
+        .into_iter()
+        .map(|(i, mut q)| {
+            q.push(q[0]);
+            (distance_to_polyline(pointer, &q), i)
+        })
+        .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, i)| i)
+}
+
+/// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
+/// brighter and filled, with its gizmo), sized by the object's bounding ball.
+pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    for (i, mut corners) in mirror_quads(editor, proj) {
         let highlighted = panel.mirror == Some(i);
         let color = if highlighted {
             egui::Color32::from_rgb(120, 220, 255)
@@ -500,5 +528,246 @@ pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel,
             egui::FontId::proportional(11.0),
             color,
         );
+    }
+    let active = panel.drag.map(|d| d.handle);
+    for h in panel.mirror_handles(editor, proj) {
+        let color = match h.handle {
+            MirrorHandle::Offset => egui::Color32::from_rgb(255, 230, 90),
+            MirrorHandle::Tilt(0) => egui::Color32::from_rgb(240, 120, 200),
+            MirrorHandle::Tilt(_) => egui::Color32::from_rgb(150, 230, 120),
+        };
+        let width = if active == Some(h.handle) { 3.5 } else { 2.0 };
+        if h.handle == MirrorHandle::Offset
+            && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
+        {
+            let dir = (*b - *a).normalized();
+            let side = egui::vec2(-dir.y, dir.x) * 5.0;
+            painter.add(egui::Shape::convex_polygon(
+                vec![*b + dir * 10.0, *b + side, *b - side],
+                color,
+                egui::Stroke::NONE,
+            ));
+        }
+        painter.add(egui::Shape::line(h.points, egui::Stroke::new(width, color)));
+    }
+}
+
+/// Gizmo size in view points (arrow length, ring radius).
+const MIRROR_GIZMO_PX: f32 = 60.0;
+/// How close (points) the pointer must be to a handle to grab it.
+const MIRROR_GRAB_PX: f32 = 8.0;
+
+/// A handle of the mirror-plane gizmo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MirrorHandle {
+    /// The arrow along the normal: moves the plane (its offset).
+    Offset,
+    /// A ring about one of the plane's two in-plane axes: tilts the plane about its centre.
+    Tilt(usize),
+}
+
+/// A handle as drawn: what it does and its polyline on the screen.
+#[derive(Debug, Clone)]
+pub struct MirrorHandleShape {
+    /// What the handle does.
+    pub handle: MirrorHandle,
+    /// The polyline (arrow: from the plane's centre to the tip).
+    pub points: Vec<egui::Pos2>,
+}
+
+/// The highlighted plane of the selected KRS object: its KRS-space centre and basis, and the
+/// KRS's placement in the world.
+struct MirrorFrame {
+    id: u64,
+    index: usize,
+    plane: MirrorPlane,
+    centre: Vec3,
+    axes: [Vec3; 2],
+    world: thicket_core::krs::Similarity,
+}
+
+impl MirrorFrame {
+    fn of(editor: &Editor, panel: &KrsPanel) -> Option<Self> {
+        let Some(Selection::Object(id)) = editor.selection else {
+            return None;
+        };
+        let index = panel.mirror?;
+        let world = editor.object(id).filter(|o| o.visible)?.krs_in_world()?;
+        let plane = *world.mirrors.get(index)?;
+        let n = plane.normal.try_normalize()?;
+        let (centre, _) = world.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+        let (u, v) = n.any_orthonormal_pair();
+        Some(Self {
+            id,
+            index,
+            plane: MirrorPlane { normal: n, ..plane },
+            centre: centre - n * (n.dot(centre) - plane.offset),
+            axes: [u, v],
+            world: world.world_from_object,
+        })
+    }
+
+    fn dir_world(&self, v: Vec3) -> Vec3 {
+        self.world.rotation * v
+    }
+}
+
+/// A mirror-gizmo drag in progress (measured from where it started).
+#[derive(Debug, Clone, Copy)]
+struct MirrorDrag {
+    id: u64,
+    index: usize,
+    handle: MirrorHandle,
+    base: MirrorPlane,
+    centre: Vec3,
+    axes: [Vec3; 2],
+    start: egui::Pos2,
+    center_px: egui::Pos2,
+    sign: f32,
+    arrow_px: egui::Vec2,
+    /// KRS-space length of the arrow.
+    arrow_krs: f32,
+}
+
+impl KrsPanel {
+    /// The highlighted mirror plane's gizmo handles on the screen (empty when no plane of the
+    /// selected KRS object is highlighted).
+    #[must_use]
+    pub fn mirror_handles(&self, editor: &Editor, proj: &Projector) -> Vec<MirrorHandleShape> {
+        let Some(f) = MirrorFrame::of(editor, self) else {
+            return Vec::new();
+        };
+        let p = f.world.transform_point(f.centre);
+        let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
+        let n = f.dir_world(f.plane.normal);
+        let mut out = Vec::new();
+        if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + n * size)) {
+            out.push(MirrorHandleShape {
+                handle: MirrorHandle::Offset,
+                points: vec![a, b],
+            });
+        }
+        for k in 0..2 {
+            // The ring about in-plane axis k lies in the plane of the other axis and the normal.
+            let other = f.dir_world(f.axes[1 - k]);
+            let points: Option<Vec<egui::Pos2>> = (0..=48)
+                .map(|i| {
+                    let t = i as f32 / 48.0 * std::f32::consts::TAU;
+                    proj.to_screen(p + size * (t.cos() * other + t.sin() * n))
+                })
+                .collect();
+            if let Some(points) = points {
+                out.push(MirrorHandleShape {
+                    handle: MirrorHandle::Tilt(k),
+                    points,
+                });
+            }
+        }
+        out
+    }
+
+    /// Whether a mirror-gizmo drag is in progress.
+    #[must_use]
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
+    /// Handles the mirror-plane gizmo: the arrow moves the plane along its normal, the rings
+    /// tilt it about its centre; a drag is one undo step. Returns whether the gizmo owns the
+    /// pointer this frame.
+    pub fn interact(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        editor: &mut Editor,
+        proj: &Projector,
+    ) -> bool {
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
+            && let Some(start) = ui.input(|i| i.pointer.press_origin())
+            && let Some(f) = MirrorFrame::of(editor, self)
+        {
+            let grabbed = self
+                .mirror_handles(editor, proj)
+                .into_iter()
+                .map(|h| (distance_to_polyline(start, &h.points), h))
+                .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let p = f.world.transform_point(f.centre);
+            if let Some((_, h)) = grabbed
+                && let Some(center_px) = proj.to_screen(p)
+            {
+                let sign = match h.handle {
+                    MirrorHandle::Tilt(k) if f.dir_world(f.axes[k]).dot(proj.eye() - p) < 0.0 => {
+                        -1.0
+                    }
+                    _ => 1.0,
+                };
+                let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
+                let arrow_px = h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center_px);
+                editor.end_interaction();
+                self.drag = Some(MirrorDrag {
+                    id: f.id,
+                    index: f.index,
+                    handle: h.handle,
+                    base: f.plane,
+                    centre: f.centre,
+                    axes: f.axes,
+                    start,
+                    center_px,
+                    sign,
+                    arrow_px,
+                    arrow_krs: size / f.world.scale.max(1e-12),
+                });
+            }
+        }
+        let Some(d) = self.drag else {
+            return false;
+        };
+        if !ui.input(|i| i.pointer.primary_down()) {
+            self.drag = None;
+            return true;
+        }
+        let (Some(pointer), Some(mut k)) = (
+            ui.input(|i| i.pointer.interact_pos()),
+            editor.krs(d.id).cloned(),
+        ) else {
+            return true;
+        };
+        let Some(slot) = k.mirrors.get_mut(d.index) else {
+            self.drag = None;
+            return true;
+        };
+        *slot = match d.handle {
+            MirrorHandle::Offset => {
+                let len2 = d.arrow_px.length_sq();
+                if len2 < 1.0 {
+                    return true;
+                }
+                let along = (pointer - d.start).dot(d.arrow_px) / len2;
+                MirrorPlane {
+                    normal: d.base.normal,
+                    offset: d.base.offset + along * d.arrow_krs,
+                }
+            }
+            MirrorHandle::Tilt(axis) => {
+                let mut screen = (pointer - d.center_px).angle() - (d.start - d.center_px).angle();
+                if screen > std::f32::consts::PI {
+                    screen -= std::f32::consts::TAU;
+                } else if screen < -std::f32::consts::PI {
+                    screen += std::f32::consts::TAU;
+                }
+                // Screen y points down: a counter-clockwise turn lowers the angle.
+                let theta = -screen * d.sign;
+                let normal = Quat::from_axis_angle(d.axes[axis], theta) * d.base.normal;
+                // Tilt about the plane's centre: the plane keeps passing through it.
+                MirrorPlane {
+                    normal,
+                    offset: normal.dot(d.centre),
+                }
+            }
+        };
+        self.error = editor.set_krs(d.id, &k).err().map(|e| e.to_string());
+        true
     }
 }

@@ -729,7 +729,7 @@ impl EditorApp {
                     &mut self.editor,
                     &mut self.sculpt,
                     &mut self.pose,
-                    &self.krs,
+                    &mut self.krs,
                 );
             });
 

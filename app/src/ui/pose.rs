@@ -96,7 +96,8 @@ struct Handle {
     points: Vec<egui::Pos2>,
 }
 
-fn distance_to_polyline(p: egui::Pos2, points: &[egui::Pos2]) -> f32 {
+/// Distance in points from `p` to a polyline.
+pub(super) fn distance_to_polyline(p: egui::Pos2, points: &[egui::Pos2]) -> f32 {
     points
         .windows(2)
         .map(|w| {

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use glam::{Mat4, Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera};
 
-use super::krs_panel::{KrsPanel, paint_mirrors};
+use super::krs_panel::{KrsPanel, paint_mirrors, pick_mirror};
 use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
@@ -272,7 +272,7 @@ impl View {
         editor: &mut Editor,
         sculpt: &mut SculptTool,
         pose: &mut PoseTool,
-        krs: &KrsPanel,
+        krs: &mut KrsPanel,
     ) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
@@ -291,7 +291,9 @@ impl View {
         let hover_pick = pointer_ray.and_then(|(o, d)| editor.pick_voxel(o, d));
 
         let proj = Projector::new(editor.doc().camera, rect);
-        let gizmo = !sculpt.active && pose.interact(ui, &response, editor, &proj);
+        let gizmo = !sculpt.active
+            && (pose.interact(ui, &response, editor, &proj)
+                || krs.interact(ui, &response, editor, &proj));
         let navigating = self.navigate(ui, &response, editor, sculpt.active, gizmo, rect);
         if sculpt.active && !navigating {
             sculpt.handle(&response, editor, hover_pick);
@@ -300,9 +302,15 @@ impl View {
             let joint = response
                 .interact_pointer_pos()
                 .and_then(|p| pose.pick_joint(editor, &proj, p));
+            let mirror = response
+                .interact_pointer_pos()
+                .and_then(|p| pick_mirror(editor, &proj, p));
             if let Some(j) = joint {
                 editor.selection = Some(Selection::Object(j.object));
                 pose.joint = Some(j);
+            } else if let Some(m) = mirror {
+                // The selected KRS object stays selected; its plane is highlighted.
+                krs.mirror = Some(m);
             } else {
                 editor.selection = hover_pick.map(|p| Selection::Object(p.object));
             }
