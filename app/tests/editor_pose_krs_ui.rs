@@ -318,3 +318,28 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     }
     assert_eq!(h.state().editor.krs(id).unwrap(), &after);
 }
+
+#[test]
+fn importing_a_skinned_gltf_gives_a_rigged_model_with_a_timeline() {
+    let mut h = harness(Document::default());
+    let path = std::path::PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/skinned/RiggedFigure.glb"
+    ));
+    h.state_mut().start_import(path);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    let o = ed.doc().objects.last().expect("an imported object");
+    let rig = ed.rig(o.id).expect("the skin came along as a rig");
+    assert_eq!(rig.skeleton.len(), 19, "RiggedFigure has 19 joints");
+    assert_eq!(rig.clips.len(), 1);
+    match &o.kind {
+        ObjectKind::Voxels(v) => assert!(v.svo.has_skin() && v.svo.leaf_count() > 1000),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("expected voxels"),
+    }
+    // The timeline appears for it and shows the clip's length.
+    h.get_by_label("Play");
+    h.get_by_label_contains("/ 1.25 s");
+}
