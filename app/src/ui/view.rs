@@ -102,7 +102,9 @@ struct PreviewKey {
     size_px: [u32; 2],
 }
 
-type PreviewResult = Result<(egui::ColorImage, f64), String>;
+/// A finished preview: the image, the object label per pixel (1-based document index, 0 for
+/// the background) and the render time in milliseconds.
+type PreviewResult = Result<(egui::ColorImage, Vec<u32>, f64), String>;
 
 /// The CPU preview: one render at a time on a worker thread; the newest key wins.
 #[derive(Default)]
@@ -114,6 +116,40 @@ struct CpuPreview {
     error: Option<String>,
     last_ms: f64,
     renders: u64,
+    /// Object labels of the shown image, row by row.
+    labels: Vec<u32>,
+    /// The selection outline drawn from `labels`: for which render and label.
+    outline: Option<((u64, u32), egui::TextureHandle)>,
+}
+
+/// Outline colour of the selection.
+const SELECTION_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 170, 60);
+
+/// An image that is transparent except on the border pixels of the region labelled `label`
+/// (pixels of the region with a 4-neighbour outside it or on the image edge).
+fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorImage {
+    let [w, h] = size;
+    let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
+    let at = |x: usize, y: usize| labels.get(y * w + x).copied().unwrap_or(0);
+    for y in 0..h {
+        for x in 0..w {
+            if at(x, y) != label {
+                continue;
+            }
+            let edge = x == 0
+                || y == 0
+                || x + 1 == w
+                || y + 1 == h
+                || at(x - 1, y) != label
+                || at(x + 1, y) != label
+                || at(x, y - 1) != label
+                || at(x, y + 1) != label;
+            if edge {
+                image.pixels[y * w + x] = SELECTION_COLOR;
+            }
+        }
+    }
+    image
 }
 
 /// Minimum and maximum corners.
@@ -319,11 +355,12 @@ impl View {
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, srgb_color(editor.doc().background));
         let cpu = self.uses_cpu(editor);
-        if cpu {
-            self.cpu_image(ui, rect, editor);
+        let silhouette = if cpu {
+            self.cpu_image(ui, rect, editor)
         } else {
             self.gpu_image(ui, rect, editor);
-        }
+            false
+        };
 
         let proj = Projector::new(editor.doc().camera, rect);
         let camera = proj.camera;
@@ -336,7 +373,7 @@ impl View {
         if self.show_grid {
             grid(&camera, &line);
         }
-        self.outlines(editor, &line, &to_screen, &painter);
+        self.outlines(editor, &line, &to_screen, &painter, silhouette);
         paint_mirrors(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
         if sculpt.active
@@ -396,7 +433,9 @@ impl View {
         }
     }
 
-    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) {
+    /// Shows the CPU preview (starting a render when the document, camera or size changed);
+    /// returns whether the selection's outline was drawn from its pixels.
+    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) -> bool {
         let ppp = ui.ctx().pixels_per_point();
         let size = rect.size() * ppp * self.render_scale * CPU_PREVIEW_SCALE;
         let size_px = [
@@ -426,7 +465,8 @@ impl View {
         }
         if let Some((k, result)) = self.cpu.ready.take() {
             match result {
-                Ok((image, ms)) => {
+                Ok((image, labels, ms)) => {
+                    self.cpu.labels = labels;
                     match &mut self.cpu.texture {
                         Some(t) => t.set(image, egui::TextureOptions::LINEAR),
                         None => {
@@ -461,10 +501,11 @@ impl View {
             std::thread::spawn(move || {
                 let t0 = Instant::now();
                 let result = thicket_core::render::render_document(&doc, &request)
-                    .map(|(image, _, _)| {
+                    .map(|(image, buffers, _)| {
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
-                        (color, t0.elapsed().as_secs_f64() * 1e3)
+                        let labels = buffers.ids.iter().map(|id| id.object).collect();
+                        (color, labels, t0.elapsed().as_secs_f64() * 1e3)
                     })
                     .map_err(|e| e.to_string());
                 // The view may be gone (window closed): nothing to hand back then.
@@ -473,14 +514,54 @@ impl View {
             self.cpu.job = Some((key, rx));
             ui.ctx().request_repaint_after(Duration::from_millis(30));
         }
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         if let Some(t) = &self.cpu.texture {
-            ui.painter_at(rect).image(
-                t.id(),
-                rect,
-                egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0)),
-                egui::Color32::WHITE,
-            );
+            ui.painter_at(rect)
+                .image(t.id(), rect, uv, egui::Color32::WHITE);
         }
+        match self.selection_outline(ui, editor) {
+            Some(t) => {
+                ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The selection's outline from the shown preview's object labels, when the preview shows
+    /// the current document (labels are document indices).
+    fn selection_outline(&mut self, ui: &egui::Ui, editor: &Editor) -> Option<egui::TextureId> {
+        let shown = self.cpu.shown.as_ref()?;
+        if shown.content != editor.content_key() || self.cpu.error.is_some() {
+            return None;
+        }
+        let Some(Selection::Object(id)) = editor.selection else {
+            return None;
+        };
+        let label = editor.doc().objects.iter().position(|o| o.id == id)? as u32 + 1;
+        let size = [shown.size_px[0] as usize, shown.size_px[1] as usize];
+        if self.cpu.labels.len() != size[0] * size[1] {
+            return None;
+        }
+        let key = (self.cpu.renders, label);
+        if self.cpu.outline.as_ref().is_none_or(|(k, _)| *k != key) {
+            let image = outline_image(&self.cpu.labels, size, label);
+            match &mut self.cpu.outline {
+                Some((k, t)) => {
+                    t.set(image, egui::TextureOptions::NEAREST);
+                    *k = key;
+                }
+                None => {
+                    let t = ui.ctx().load_texture(
+                        "selection_outline",
+                        image,
+                        egui::TextureOptions::NEAREST,
+                    );
+                    self.cpu.outline = Some((key, t));
+                }
+            }
+        }
+        self.cpu.outline.as_ref().map(|(_, t)| t.id())
     }
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
@@ -621,6 +702,7 @@ impl View {
         line: &impl Fn(Vec3, Vec3, egui::Stroke),
         to_screen: &impl Fn(Vec3) -> Option<egui::Pos2>,
         painter: &egui::Painter,
+        silhouette: bool,
     ) {
         // Posed bounds follow the playhead as well as the content.
         let key = (editor.content_key(), editor.animation_key());
@@ -639,11 +721,15 @@ impl View {
                 .or_insert_with(|| local_bounds(o));
             let Some((lo, hi)) = local else { continue };
             let stroke = if selected {
-                egui::Stroke::new(2.0, egui::Color32::from_rgb(255, 170, 60))
+                egui::Stroke::new(2.0, SELECTION_COLOR)
             } else {
                 egui::Stroke::new(1.0, egui::Color32::from_gray(200))
             };
-            oriented_box_lines(o, lo, hi, stroke, line);
+            // With the CPU preview the selection is outlined from its pixels instead; the box
+            // stays for the GPU view (its object ids are not read back) and "All bounding boxes".
+            if !(selected && silhouette) || self.show_bounds {
+                oriented_box_lines(o, lo, hi, stroke, line);
+            }
             if let Some(p) = to_screen(o.transform.matrix().transform_point3(hi)) {
                 painter.text(
                     p,
@@ -902,5 +988,33 @@ fn brush_preview(
     }
     if let Some(n) = to_screen(center + pick.normal.as_vec3() * radius_world) {
         painter.line_segment([c, n], egui::Stroke::new(1.0, color));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_outline_is_the_border_of_the_selected_label_only() {
+        // A 3x3 block of label 2 inside a 5x5 image of label 1 (another object).
+        let mut labels = vec![1u32; 25];
+        for y in 1..4 {
+            for x in 1..4 {
+                labels[y * 5 + x] = 2;
+            }
+        }
+        let image = outline_image(&labels, [5, 5], 2);
+        let lit: Vec<(usize, usize)> = (0..25)
+            .filter(|&i| image.pixels[i] == SELECTION_COLOR)
+            .map(|i| (i % 5, i / 5))
+            .collect();
+        assert_eq!(
+            lit.len(),
+            8,
+            "the ring of the block, not its centre: {lit:?}"
+        );
+        assert!(!lit.contains(&(2, 2)));
+        assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
     }
 }
