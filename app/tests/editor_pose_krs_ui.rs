@@ -343,3 +343,63 @@ fn importing_a_skinned_gltf_gives_a_rigged_model_with_a_timeline() {
     h.get_by_label("Play");
     h.get_by_label_contains("/ 1.25 s");
 }
+
+#[test]
+fn the_tree_builder_rebuilds_from_a_dragged_fork_and_undoes() {
+    let mut doc = Document::default();
+    doc.add("Tree", ObjectKind::Krs(thicket_core::krs::presets::tree()));
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    // The tree's bounding ball is loose; aim at the tree itself.
+    doc.camera.target = glam::Vec3::new(0.0, 3.0, 0.0);
+    doc.camera.distance = 11.0;
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    let original = h.state().editor.krs(id).unwrap().clone();
+
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    let route = h
+        .state()
+        .krs
+        .tree
+        .as_ref()
+        .expect("the builder is open")
+        .1
+        .route
+        .clone();
+    let steps = h.state().editor.history().undo_len();
+
+    // Drag the twig tip's handle 40 points to the right in the view.
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let tips = h.state().krs.route_points(&h.state().editor, &proj);
+    let tip = tips
+        .last()
+        .copied()
+        .flatten()
+        .expect("the tip is on screen");
+    h.hover_at(tip);
+    h.step();
+    h.drag_at(tip);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(tip + egui::vec2(10.0 * k as f32, 0.0));
+        h.step();
+    }
+    h.drop_at(tip + egui::vec2(40.0, 0.0));
+    h.run_steps(2);
+    let moved = h.state().krs.tree.as_ref().unwrap().1.route.clone();
+    let last = route.len() - 1;
+    assert_ne!(moved[last], route[last], "the tip moved");
+    assert_eq!(moved[..last], route[..last], "only the tip moved");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    let rebuilt = h.state().editor.krs(id).unwrap().clone();
+    assert_ne!(rebuilt.kernels, original.kernels, "the object was rebuilt");
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_tree_builder");
+
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_ne!(h.state().editor.krs(id).unwrap(), &rebuilt);
+}

@@ -1,7 +1,7 @@
 //! Editing KRS objects: parameters go through core's validation before they reach the document
 //! (a refused value leaves it unchanged and says why), and presets replace the whole object.
 
-use thicket_core::krs::{KrsObject, presets};
+use thicket_core::krs::{KrsObject, TreeParams, presets};
 use thicket_core::scene::{MAX_KRS_LEVELS, ObjectKind};
 
 use super::{CommandError, Edit, Editor, MergeKey};
@@ -75,5 +75,25 @@ impl Editor {
         let result = self.set_krs(id, &k);
         self.history.seal();
         result
+    }
+
+    /// Rebuilds KRS object `id` from tree-builder parameters (paper section 7.2), keeping the
+    /// object's name, texturing and placement; calls during one drag merge into one undo step.
+    ///
+    /// # Errors
+    /// Unknown object, not a KRS object, or parameters the builder or core's validation
+    /// refuses (the message names the parameter).
+    pub fn build_tree(&mut self, id: u64, params: &TreeParams) -> Result<(), CommandError> {
+        let current = self.krs(id).ok_or_else(|| match self.object(id) {
+            Some(o) => CommandError::Invalid(format!("{:?} is not a KRS object", o.name)),
+            None => CommandError::NoObject(id),
+        })?;
+        let mut built = params
+            .build()
+            .map_err(|e| CommandError::Invalid(format!("tree builder: {e}")))?;
+        built.name.clone_from(&current.name);
+        built.texturing = current.texturing;
+        built.world_from_object = current.world_from_object;
+        self.set_krs(id, &built)
     }
 }

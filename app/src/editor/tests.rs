@@ -645,3 +645,32 @@ fn voxel_edits_report_their_region_for_incremental_uploads() {
         .unwrap();
     assert_eq!(ed.take_voxel_region().unwrap().from, renamed);
 }
+
+#[test]
+fn the_tree_builder_rebuilds_a_krs_object_and_refuses_bad_parameters() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("Shrub", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    let rock = ed.krs(id).unwrap().clone();
+    let mut params = thicket_core::krs::TreeParams::default();
+    params.widths[0] = -1.0;
+    let err = ed.build_tree(id, &params).unwrap_err().to_string();
+    assert!(err.contains("negative width"), "{err}");
+    assert_eq!(ed.krs(id).unwrap(), &rock);
+
+    let steps = ed.history().undo_len();
+    let mut params = thicket_core::krs::TreeParams::default();
+    for dy in [0.1_f32, 0.2, 0.3] {
+        let last = params.route.len() - 1;
+        params.route[last].y += dy;
+        ed.build_tree(id, &params).unwrap();
+    }
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1, "a drag is one step");
+    let built = ed.krs(id).unwrap();
+    assert_eq!(built.name, rock.name, "the object keeps its name");
+    let expected = params.build().unwrap().validated(0).unwrap();
+    assert_eq!(built.kernels, expected.kernels);
+    assert_eq!(built.mirrors, expected.mirrors);
+    assert!(ed.undo());
+    assert_eq!(ed.krs(id).unwrap(), &rock);
+}

@@ -6,7 +6,7 @@
 use glam::{EulerRot, Quat, Vec3};
 use thicket_core::krs::{
     BoxKernel, CapsuleKernel, Kernel, Material, MirrorPlane, PlaneKernel, SphereKernel,
-    TorusKernel, presets,
+    TorusKernel, TreeParams, presets,
 };
 
 use super::pose::distance_to_polyline;
@@ -26,6 +26,11 @@ pub struct KrsPanel {
     pub error: Option<String>,
     /// A mirror-gizmo drag in progress.
     drag: Option<MirrorDrag>,
+    /// Tree-builder parameters and the KRS object they build (None: the builder is closed).
+    pub tree: Option<(u64, TreeParams)>,
+    /// A route-point drag in progress: (point index, its KRS-space position at the start,
+    /// where the pointer started).
+    tree_drag: Option<(usize, Vec3, egui::Pos2)>,
 }
 
 const KINDS: [(&str, &str); 7] = [
@@ -437,6 +442,8 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                     changed = true;
                 }
             });
+            ui.separator();
+            tree_builder_ui(ui, editor, panel, id);
         });
     if changed && k != current {
         // A structural change (kind, level) is its own step; value drags merge while they last.
@@ -464,8 +471,12 @@ fn mirror_quads(editor: &Editor, proj: &Projector) -> Vec<(usize, Vec<egui::Pos2
         return Vec::new();
     };
     let (centre, radius) = k.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
-    let radius = radius.clamp(1e-3, 1e4);
     let t = k.world_from_object;
+    // The bounding ball of a tree is loose (reflections can reach far): keep the quads within
+    // a part of the view so they do not hide what they cut.
+    let radius = radius
+        .min(proj.camera.distance * 0.4 / t.scale.max(1e-12))
+        .clamp(1e-3, 1e4);
     let mut out = Vec::new();
     for (i, m) in k.mirrors.iter().enumerate() {
         let Some(n) = m.normal.try_normalize() else {
@@ -682,6 +693,9 @@ impl KrsPanel {
         editor: &mut Editor,
         proj: &Projector,
     ) -> bool {
+        if self.drag.is_none() && self.interact_route(ui, response, editor, proj) {
+            return true;
+        }
         if response.drag_started_by(egui::PointerButton::Primary)
             && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
             && let Some(start) = ui.input(|i| i.pointer.press_origin())
@@ -769,5 +783,255 @@ impl KrsPanel {
         };
         self.error = editor.set_krs(d.id, &k).err().map(|e| e.to_string());
         true
+    }
+}
+
+/// The tree builder (paper section 7.2): fork positions along one route, a bend (control point)
+/// and a width per branch, the leaf. Every change rebuilds the object (a drag is one undo step);
+/// the fork positions can also be dragged in the view.
+fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel, id: u64) {
+    let open = panel.tree.as_ref().is_some_and(|(t, _)| *t == id);
+    ui.horizontal(|ui| {
+        ui.strong("Tree builder")
+            .on_hover_text("Build this object as a tree from fork positions, bends and widths");
+        if !open
+            && ui
+                .button("Start from the default tree")
+                .on_hover_text(
+                    "Open the builder with the default parameters and rebuild this object from them (undoable)",
+                )
+                .clicked()
+        {
+            let params = TreeParams::default();
+            editor.end_interaction();
+            panel.error = editor.build_tree(id, &params).err().map(|e| e.to_string());
+            editor.end_interaction();
+            panel.tree = Some((id, params));
+        }
+        if open
+            && ui
+                .button("Close builder")
+                .on_hover_text("Hide the builder and its handles (the object keeps its shape)")
+                .clicked()
+        {
+            panel.tree = None;
+        }
+    });
+    let Some((_, params)) = panel.tree.as_ref().filter(|(t, _)| *t == id) else {
+        return;
+    };
+    let mut p = params.clone();
+    let mut changed = false;
+    let branches = p.route.len().saturating_sub(1);
+    egui::Grid::new("tree_builder")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            for i in 0..p.route.len() {
+                let label = if i == 0 {
+                    "Trunk base".to_owned()
+                } else if i == branches {
+                    "Twig tip".to_owned()
+                } else {
+                    format!("Fork {i}")
+                };
+                changed |= vec3_row(
+                    ui,
+                    &label,
+                    &mut p.route[i],
+                    0.01,
+                    "Position along the route from trunk base to twig tip (also draggable in the view)",
+                );
+            }
+            for b in 0..branches {
+                if p.bends.len() <= b {
+                    p.bends.resize(b + 1, Vec3::ZERO);
+                }
+                changed |= vec3_row(
+                    ui,
+                    &format!("Bend {b}"),
+                    &mut p.bends[b],
+                    0.005,
+                    "Offset of the branch's control point from its chord midpoint (0: straight)",
+                );
+                if p.widths.len() <= b {
+                    let last = p.widths.last().copied().unwrap_or(0.05);
+                    p.widths.resize(b + 1, last);
+                }
+                changed |= f32_row(
+                    ui,
+                    &format!("Width {b}"),
+                    &mut p.widths[b],
+                    0.002,
+                    0.0..=100.0,
+                    "Branch radius (0 or more)",
+                );
+            }
+            if let Some(leaf) = p.leaf.as_mut() {
+                changed |= f32_row(
+                    ui,
+                    "Leaf radius",
+                    &mut leaf.radius,
+                    0.002,
+                    0.0..=100.0,
+                    "Radius of the leaf ball at the twig tip",
+                );
+            }
+        });
+    ui.horizontal(|ui| {
+        if ui
+            .button("Add fork")
+            .on_hover_text("Extend the route by a shorter branch beyond the twig tip")
+            .clicked()
+        {
+            let n = p.route.len();
+            let last = p.route[n - 1];
+            let dir = if n >= 2 {
+                last - p.route[n - 2]
+            } else {
+                Vec3::Y
+            };
+            p.route.push(last + dir * 0.7);
+            changed = true;
+        }
+        if ui
+            .add_enabled(p.route.len() > 2, egui::Button::new("Remove fork"))
+            .on_hover_text("Remove the twig tip (the route keeps at least two points)")
+            .clicked()
+        {
+            p.route.pop();
+            changed = true;
+        }
+    });
+    if changed {
+        match editor.build_tree(id, &p) {
+            Ok(()) => {
+                panel.error = None;
+                panel.tree = Some((id, p));
+            }
+            Err(e) => panel.error = Some(e.to_string()),
+        }
+    }
+}
+
+impl KrsPanel {
+    /// The tree builder's route points on the screen, when the builder is open for the
+    /// selected object.
+    #[must_use]
+    pub fn route_points(&self, editor: &Editor, proj: &Projector) -> Vec<Option<egui::Pos2>> {
+        let Some(Selection::Object(id)) = editor.selection else {
+            return Vec::new();
+        };
+        let Some((_, params)) = self.tree.as_ref().filter(|(t, _)| *t == id) else {
+            return Vec::new();
+        };
+        let Some(world) = editor
+            .object(id)
+            .and_then(thicket_core::scene::Object::krs_in_world)
+        else {
+            return Vec::new();
+        };
+        params
+            .route
+            .iter()
+            .map(|p| proj.to_screen(world.world_from_object.transform_point(*p)))
+            .collect()
+    }
+
+    /// Drags a route point of the open tree builder in the view plane; returns whether it owns
+    /// the pointer this frame.
+    fn interact_route(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        editor: &mut Editor,
+        proj: &Projector,
+    ) -> bool {
+        let Some(Selection::Object(id)) = editor.selection else {
+            self.tree_drag = None;
+            return false;
+        };
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
+            && let Some(start) = ui.input(|i| i.pointer.press_origin())
+        {
+            let grabbed = self
+                .route_points(editor, proj)
+                .iter()
+                .enumerate()
+                .filter_map(|(i, s)| s.map(|s| (s.distance(start), i)))
+                .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, i)) = grabbed
+                && let Some((_, params)) = self.tree.as_ref()
+            {
+                editor.end_interaction();
+                self.tree_drag = Some((i, params.route[i], start));
+            }
+        }
+        let Some((index, base, start)) = self.tree_drag else {
+            return false;
+        };
+        if !ui.input(|i| i.pointer.primary_down()) {
+            self.tree_drag = None;
+            return true;
+        }
+        let (Some(pointer), Some(world)) = (
+            ui.input(|i| i.pointer.interact_pos()),
+            editor
+                .object(id)
+                .and_then(thicket_core::scene::Object::krs_in_world),
+        ) else {
+            return true;
+        };
+        let Some((_, params)) = self.tree.as_ref() else {
+            self.tree_drag = None;
+            return true;
+        };
+        // Move in the plane facing the camera through the point's position at the start.
+        let t = world.world_from_object;
+        let p_world = t.transform_point(base);
+        let eye = proj.eye();
+        let forward = (proj.camera.target - eye).normalize_or_zero();
+        let right = forward.cross(Vec3::Y).try_normalize().unwrap_or(Vec3::X);
+        let up = right.cross(forward);
+        let d = pointer - start;
+        let delta_world = (right * d.x - up * d.y) * proj.world_per_point(p_world);
+        let delta = t.rotation.inverse() * delta_world / t.scale.max(1e-12);
+        let mut p = params.clone();
+        if let Some(slot) = p.route.get_mut(index) {
+            *slot = base + delta;
+        }
+        match editor.build_tree(id, &p) {
+            Ok(()) => {
+                self.error = None;
+                self.tree = Some((id, p));
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
+        true
+    }
+}
+
+/// Draws the open tree builder's route: the fork positions as handles joined by lines.
+pub fn paint_route(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    let points = panel.route_points(editor, proj);
+    let color = egui::Color32::from_rgb(255, 240, 160);
+    for w in points.windows(2) {
+        if let (Some(a), Some(b)) = (w[0], w[1]) {
+            painter.line_segment([a, b], egui::Stroke::new(1.5, color));
+        }
+    }
+    let dragged = panel.tree_drag.map(|(i, _, _)| i);
+    for (i, p) in points.iter().enumerate() {
+        if let Some(p) = p {
+            let r = if dragged == Some(i) { 6.0 } else { 4.5 };
+            painter.circle(
+                *p,
+                r,
+                egui::Color32::from_rgb(90, 60, 30),
+                egui::Stroke::new(1.5, color),
+            );
+        }
     }
 }

@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use glam::{Mat4, Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera};
 
-use super::krs_panel::{KrsPanel, paint_mirrors, pick_mirror};
+use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
 use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
@@ -375,6 +375,7 @@ impl View {
         }
         self.outlines(editor, &line, &to_screen, &painter, silhouette);
         paint_mirrors(&painter, editor, krs, &proj);
+        paint_route(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
         if sculpt.active
             && let Some(pick) = hover_pick
