@@ -156,6 +156,53 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
         posed_tip
     );
 
+    // G switches the gizmo to arrows; dragging one moves the joint along that axis of its
+    // parent's frame (one more undo step), and undo takes only that step back.
+    h.key_press(egui::Key::G);
+    h.run_steps(1);
+    assert_eq!(h.state().pose.mode, thicket::ui::pose::GizmoMode::Translate);
+    let steps = h.state().editor.history().undo_len();
+    let frames = h.state().editor.joint_frames(id).unwrap();
+    let p = frames.position(joint).unwrap();
+    let parent = frames.world_from_parent[joint];
+    let size = 70.0 * proj.world_per_point(p);
+    let center = proj.to_screen(p).unwrap();
+    let (axis, arrow) = (0..3)
+        .map(|k| {
+            let d = parent.col(k).truncate().normalize_or_zero();
+            (k, proj.to_screen(p + d * size).unwrap() - center)
+        })
+        .max_by(|a, b| a.1.length().total_cmp(&b.1.length()))
+        .unwrap();
+    let grab = center + arrow * 0.7;
+    let pull = arrow.normalized() * 25.0;
+    h.hover_at(grab);
+    h.step();
+    h.drag_at(grab);
+    h.step();
+    for k in 1..=3 {
+        h.hover_at(grab + pull * (k as f32 / 3.0));
+        h.step();
+    }
+    h.drop_at(grab + pull);
+    h.run_steps(2);
+    let moved = h
+        .state()
+        .editor
+        .joint_override(id, joint)
+        .and_then(|o| o.translation)
+        .expect("the arrow moved the joint");
+    assert!(moved[axis] > 0.0, "along +{axis}: {moved}");
+    let others = (0..3)
+        .filter(|&k| k != axis)
+        .map(|k| moved[k].abs())
+        .sum::<f32>();
+    assert!(others < 1e-6, "only along the dragged axis: {moved}");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(h.state().editor.joint_override(id, joint), Some(o));
+
     // The timeline plays the clip; playing moves the playhead but is not an edit.
     let key = h.state().editor.animation_key();
     let steps = h.state().editor.history().undo_len();
