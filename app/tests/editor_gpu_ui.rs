@@ -241,7 +241,10 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
         "the stroke uploaded its region only: {upload:?}"
     );
     assert_eq!(link.lock().region_uploads, region_uploads + 1);
-    eprintln!("stroke frame uploaded {upload:?}");
+    eprintln!(
+        "stroke frame uploaded {upload:?}, rendered in {:.1} ms",
+        link.lock().last_render_ms
+    );
     h.drop_at(c + egui::vec2(48.0, 0.0));
     h.run_steps(2);
     let after = leaves(&h);
