@@ -6,7 +6,10 @@
 //!   snapshot (shared, not copied), the content key, camera and target size.
 //! - `prepare` renders only when that key differs from the last rendered one (the camera, the
 //!   document or its quality settings changed, or the view was resized); otherwise the last
-//!   image is composited again. `paint` only draws the image into the view rectangle.
+//!   image is composited again. When the only change since the last upload is a voxel edit
+//!   (a sculpt dab), the callback carries its region and `prepare` uploads just that region
+//!   ([`Renderer::update_voxel_region`]) instead of the whole scene. `paint` only draws the
+//!   image into the view rectangle.
 //! - A failure (no adapter features, invalid document, device loss) is logged once and handed
 //!   to the UI through the [`ViewportLink`]; it never panics and the document stays editable.
 
@@ -16,7 +19,9 @@ use std::time::Instant;
 use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::context::{install_error_handlers, wanted_features, wanted_limits};
-use crate::gpu::{ErrorSlot, GpuError, GpuFrameStats, RenderTarget, Renderer, shaders};
+use crate::gpu::{
+    ErrorSlot, GpuError, GpuFrameStats, RenderTarget, Renderer, UploadStats, shaders,
+};
 
 /// What the last rendered frame did, shared between the callback and the UI.
 #[derive(Debug, Clone, Default)]
@@ -35,6 +40,10 @@ pub struct ViewportStatus {
     pub size_px: [u32; 2],
     /// The last error, shown in the view until a frame renders again.
     pub error: Option<String>,
+    /// What the last rendered frame uploaded before drawing.
+    pub last_upload: Option<UploadStats>,
+    /// Frames that uploaded only an edited voxel region.
+    pub region_uploads: u64,
 }
 
 /// A handle to the [`ViewportStatus`] (cloning shares it).
@@ -110,6 +119,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> ViewportLink {
             errors,
             frame: None,
             last_key: None,
+            uploaded: None,
             link: link.clone(),
         });
     link
@@ -213,6 +223,8 @@ struct Resources {
     errors: ErrorSlot,
     frame: Option<Frame>,
     last_key: Option<FrameKey>,
+    /// The content key of the document the GPU buffers hold (after a successful render).
+    uploaded: Option<(u64, u64)>,
     link: ViewportLink,
 }
 
@@ -227,12 +239,32 @@ pub struct FrameKey {
     pub size_px: [u32; 2],
 }
 
+/// A voxel edit between two document states: only voxels of `object` inside `lo..=hi`
+/// (inclusive voxel coordinates) changed from state `from` to state `to`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RegionHint {
+    /// The content key before the edit.
+    pub from: (u64, u64),
+    /// The content key after it.
+    pub to: (u64, u64),
+    /// The edited voxel object.
+    pub object: u64,
+    /// Minimum changed voxel.
+    pub lo: glam::UVec3,
+    /// Maximum changed voxel.
+    pub hi: glam::UVec3,
+}
+
 /// The per-frame paint callback: plain values and a shared document snapshot.
 pub struct ViewportCallback {
     /// What decides the image.
     pub key: FrameKey,
     /// The document as of `key.content` (shared with the UI, not copied per frame).
     pub doc: Arc<Document>,
+    /// A chain of voxel edits ending at `key.content` (each starts where the one before ends).
+    /// When the GPU holds the document at one of their `from` states, uploading the regions
+    /// from there on brings it to `doc`.
+    pub regions: Vec<RegionHint>,
 }
 
 impl Resources {
@@ -289,28 +321,89 @@ impl Resources {
             return;
         };
         let t0 = Instant::now();
-        let result = renderer.render(
-            device,
-            queue,
-            &cb.doc,
-            &cb.key.camera,
-            &cb.doc.quality,
-            &frame.target,
-        );
+        // The GPU holds the document at `uploaded`: when the only change since is a voxel
+        // edit, upload that region and draw with the rest of the scene as it is.
+        let unchanged = self.uploaded == Some(cb.key.content);
+        let chained = cb.regions.last().is_some_and(|r| r.to == cb.key.content);
+        let region = cb
+            .regions
+            .iter()
+            .position(|r| self.uploaded == Some(r.from))
+            .filter(|_| chained && !unchanged)
+            .map(|start| &cb.regions[start..]);
+        let result = match region {
+            Some(regions) => regions
+                .iter()
+                .try_fold(UploadStats::default(), |acc, r| {
+                    renderer
+                        .update_voxel_region(device, queue, &cb.doc, r.object, r.lo, r.hi)
+                        .map(|up| UploadStats {
+                            full: acc.full || up.full,
+                            bytes: acc.bytes + up.bytes,
+                            writes: acc.writes + up.writes,
+                        })
+                })
+                .and_then(|up| {
+                    renderer
+                        .render_uploaded(
+                            device,
+                            queue,
+                            &cb.doc,
+                            &cb.key.camera,
+                            &cb.doc.quality,
+                            &frame.target,
+                        )
+                        .map(|s| (s, up))
+                }),
+            // Same document (the camera or the size changed): nothing to upload.
+            None if unchanged => renderer
+                .render_uploaded(
+                    device,
+                    queue,
+                    &cb.doc,
+                    &cb.key.camera,
+                    &cb.doc.quality,
+                    &frame.target,
+                )
+                .map(|s| {
+                    let up = s.upload;
+                    (s, up)
+                }),
+            None => renderer
+                .render(
+                    device,
+                    queue,
+                    &cb.doc,
+                    &cb.key.camera,
+                    &cb.doc.quality,
+                    &frame.target,
+                )
+                .map(|s| {
+                    let up = s.upload;
+                    (s, up)
+                }),
+        };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let lost = self.errors.take();
         match (result, lost) {
-            (Ok(stats), None) => {
+            (Ok((stats, upload)), None) => {
                 frame.valid = true;
+                self.uploaded = Some(cb.key.content);
                 let mut status = self.link.lock();
                 status.stats = Some(stats);
                 status.frames_rendered += 1;
                 status.last_render_ms = ms;
                 status.size_px = [w, h];
                 status.error = None;
+                status.last_upload = Some(upload);
+                if region.is_some() && !upload.full {
+                    status.region_uploads += 1;
+                }
             }
             (Err(e), _) | (Ok(_), Some(e)) => {
                 frame.valid = false;
+                // What the GPU holds is unknown now: the next frame uploads everything.
+                self.uploaded = None;
                 self.report(&e);
             }
         }

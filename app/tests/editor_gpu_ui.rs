@@ -131,8 +131,15 @@ fn sample_opens_renders_once_and_rerenders_only_on_change(name: &str) {
             "{name}: one render after the orbit"
         );
         eprintln!(
-            "{name}: after the orbit {:.1} ms",
-            link.lock().last_render_ms
+            "{name}: after the orbit {:.1} ms; first frame uploaded {:?}",
+            link.lock().last_render_ms,
+            s.last_upload
+        );
+        // Only the camera moved: the scene on the GPU is reused as it is.
+        let upload = link.lock().last_upload.expect("an upload record");
+        assert!(
+            !upload.full && upload.bytes == 0,
+            "{name}: an orbit uploads nothing: {upload:?}"
         );
     }
 }
@@ -222,9 +229,22 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
         h.hover_at(c + egui::vec2(8.0 * k as f32, 0.0));
         h.step();
     }
-    // The dab is visible in the next frame: the view renders with the edited document.
+    // The dab is visible in the next frame: the view renders with the edited document. Only
+    // the stroke's region is uploaded (the snapshot below, made with whole-scene uploads,
+    // checks that the image is the same).
+    let region_uploads = link.lock().region_uploads;
     h.render().expect("render");
     assert!(link.lock().frames_rendered > rendered_before);
+    let upload = link.lock().last_upload.expect("an upload");
+    assert!(
+        !upload.full,
+        "the stroke uploaded its region only: {upload:?}"
+    );
+    assert_eq!(link.lock().region_uploads, region_uploads + 1);
+    eprintln!(
+        "stroke frame uploaded {upload:?}, rendered in {:.1} ms",
+        link.lock().last_render_ms
+    );
     h.drop_at(c + egui::vec2(48.0, 0.0));
     h.run_steps(2);
     let after = leaves(&h);

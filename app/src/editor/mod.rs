@@ -3,6 +3,8 @@
 //! the same commands as the buttons.
 
 pub mod autosave;
+mod krs;
+mod pose;
 mod sculpt;
 mod undo;
 
@@ -11,6 +13,7 @@ use std::path::{Path, PathBuf};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
+pub use pose::JointFrames;
 pub use sculpt::{VoxelPick, ray_through};
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};
 
@@ -54,6 +57,26 @@ pub struct Editor {
     revision: u64,
     /// Increases whenever the whole document is replaced (New, Open): ids may repeat across.
     generation: u64,
+    /// Increases whenever a rig's playback (clip, time) changes: not an edit, but drawn.
+    anim_revision: u64,
+    /// Voxel edits since the view last took them (see [`Editor::take_voxel_region`]).
+    voxel_region: Option<VoxelRegion>,
+}
+
+/// Consecutive voxel edits of one object: the document went from state `from` to state `to`
+/// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VoxelRegion {
+    /// Content key before the first edit.
+    pub from: (u64, u64),
+    /// Content key after the last edit.
+    pub to: (u64, u64),
+    /// The voxel object.
+    pub object: u64,
+    /// Minimum changed voxel.
+    pub lo: glam::UVec3,
+    /// Maximum changed voxel.
+    pub hi: glam::UVec3,
 }
 
 impl Default for Editor {
@@ -75,6 +98,8 @@ impl Editor {
             recent: Vec::new(),
             revision: 0,
             generation: 0,
+            anim_revision: 0,
+            voxel_region: None,
         }
     }
 
@@ -125,6 +150,33 @@ impl Editor {
         (self.generation, self.history.state_id())
     }
 
+    /// The voxel edits since the last call, when the document changed only by them (a renderer
+    /// that holds the document at `from` can upload just the region). `None` when there were
+    /// none.
+    pub fn take_voxel_region(&mut self) -> Option<VoxelRegion> {
+        self.voxel_region.take()
+    }
+
+    /// Records a voxel edit from state `from` to the current state.
+    fn note_voxel_edit(&mut self, from: (u64, u64), object: u64, lo: glam::UVec3, hi: glam::UVec3) {
+        let to = self.content_key();
+        self.voxel_region = Some(match self.voxel_region {
+            Some(r) if r.to == from && r.object == object => VoxelRegion {
+                to,
+                lo: r.lo.min(lo),
+                hi: r.hi.max(hi),
+                ..r
+            },
+            _ => VoxelRegion {
+                from,
+                to,
+                object,
+                lo,
+                hi,
+            },
+        });
+    }
+
     /// The undo history.
     #[must_use]
     pub fn history(&self) -> &History {
@@ -137,6 +189,7 @@ impl Editor {
             recent: std::mem::take(&mut self.recent),
             revision: self.revision + 1,
             generation: self.generation + 1,
+            anim_revision: self.anim_revision + 1,
             ..Self::new(doc, path)
         };
         if let Some(p) = self.path.clone() {

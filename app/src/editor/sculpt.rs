@@ -115,6 +115,7 @@ impl Editor {
         if dab.delta.is_empty() {
             return Ok(None);
         }
+        let before = self.content_key();
         self.history.push(
             Edit::Voxels {
                 id,
@@ -123,6 +124,12 @@ impl Editor {
             Some(MergeKey::Stroke(id)),
         );
         self.revision += 1;
+        if let Some((lo, hi)) = dab.changed {
+            self.note_voxel_edit(before, id, lo, hi);
+        } else {
+            // A delta without a region: no renderer may take the shortcut.
+            self.voxel_region = None;
+        }
         Ok(dab.changed)
     }
 

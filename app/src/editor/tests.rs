@@ -406,3 +406,271 @@ fn rays_through_the_view_centre_point_at_the_target() {
     assert!(dir.dot(to_target) > 0.9999, "{dir} vs {to_target}");
     assert!(origin.distance(cam.eye()) < cam.near * 2.0);
 }
+
+/// A two-joint rig (root at the origin, a child one unit up) on a few voxels, with a clip that
+/// moves the root up by one unit over one second.
+fn rigged_editor() -> (Editor, u64) {
+    use thicket_core::skin::{
+        AnimationClip, Channel, Interpolation, Joint, Property, Rig, Skeleton,
+        Transform as JointTransform,
+    };
+    let joints = vec![
+        Joint {
+            name: "root".into(),
+            ..Joint::default()
+        },
+        Joint {
+            name: "tip".into(),
+            parent: Some(0),
+            rest: JointTransform {
+                translation: Vec3::Y,
+                ..JointTransform::IDENTITY
+            },
+            inverse_bind: glam::Mat4::from_translation(-Vec3::Y),
+            ..Joint::default()
+        },
+    ];
+    let (skeleton, _) = Skeleton::new(joints).unwrap();
+    let clip = AnimationClip {
+        name: "rise".into(),
+        duration_secs: 1.0,
+        channels: vec![Channel {
+            joint: 0,
+            property: Property::Translation,
+            interpolation: Interpolation::Linear,
+            times: vec![0.0, 1.0],
+            values: vec![glam::Vec4::ZERO, glam::Vec4::new(0.0, 1.0, 0.0, 0.0)],
+        }],
+    };
+    let ObjectKind::Voxels(mut model) = voxels(3) else {
+        unreachable!()
+    };
+    model.rig = Some(Rig::new(skeleton, vec![clip]));
+    let mut ed = Editor::default();
+    let id = ed.add_object("Figure", ObjectKind::Voxels(model));
+    ed.mark_saved(std::path::PathBuf::from("figure.thicket.json"));
+    (ed, id)
+}
+
+#[test]
+fn a_joint_drag_is_one_undo_step_and_moves_the_children() {
+    let (mut ed, id) = rigged_editor();
+    let tip_before = ed.joint_frames(id).unwrap().position(1).unwrap();
+    assert!((tip_before - Vec3::Y).length() < 1e-5, "{tip_before}");
+    let steps = ed.history().undo_len();
+    // A gizmo drag: several updates from the same base, then release.
+    for deg in [10.0_f32, 45.0, 90.0] {
+        ed.rotate_joint(id, 0, None, glam::Quat::from_rotation_z(deg.to_radians()))
+            .unwrap();
+    }
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step per drag");
+    assert_eq!(ed.rig(id).unwrap().pose_overrides.len(), 1);
+    // The root turned 90 degrees about Z: the tip one unit up is now one unit along -X.
+    let tip = ed.joint_frames(id).unwrap().position(1).unwrap();
+    assert!((tip - Vec3::NEG_X).length() < 1e-5, "{tip}");
+    assert!(ed.is_dirty());
+
+    // A second drag on the tip, translating it, is a second step.
+    ed.translate_joint(id, 1, None, Vec3::new(0.0, 0.5, 0.0))
+        .unwrap();
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 2);
+    let tip = ed.joint_frames(id).unwrap().position(1).unwrap();
+    assert!((tip - Vec3::new(-1.5, 0.0, 0.0)).length() < 1e-5, "{tip}");
+
+    assert!(ed.undo());
+    assert!(ed.undo());
+    assert!(ed.rig(id).unwrap().pose_overrides.is_empty());
+    assert!(!ed.is_dirty(), "back at the saved state");
+    assert!(ed.redo());
+    let tip = ed.joint_frames(id).unwrap().position(1).unwrap();
+    assert!((tip - Vec3::NEG_X).length() < 1e-5, "{tip}");
+}
+
+#[test]
+fn pose_overrides_are_validated_and_reset() {
+    let (mut ed, id) = rigged_editor();
+    let bad = thicket_core::skin::JointOverride {
+        joint: 7,
+        ..Default::default()
+    };
+    assert!(ed.set_joint_override(id, bad).is_err());
+    let nan = thicket_core::skin::JointOverride {
+        joint: 1,
+        translation: Some(Vec3::NAN),
+        ..Default::default()
+    };
+    let err = ed.set_joint_override(id, nan).unwrap_err().to_string();
+    assert!(err.contains("tip"), "{err}");
+    assert!(ed.rig(id).unwrap().pose_overrides.is_empty());
+    // Posing an object without a rig is refused with its name.
+    let plain = ed.add_object("Plain", voxels(2));
+    let err = ed
+        .rotate_joint(plain, 0, None, glam::Quat::IDENTITY)
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("Plain"), "{err}");
+
+    ed.rotate_joint(id, 1, None, glam::Quat::from_rotation_x(0.3))
+        .unwrap();
+    ed.end_interaction();
+    ed.clear_pose(id, Some(1)).unwrap();
+    assert!(ed.rig(id).unwrap().pose_overrides.is_empty());
+    assert!(ed.undo());
+    assert_eq!(ed.rig(id).unwrap().pose_overrides.len(), 1);
+}
+
+#[test]
+fn playback_is_not_an_edit_but_changes_the_animation_key() {
+    let (mut ed, id) = rigged_editor();
+    let key = ed.animation_key();
+    let content = ed.content_key();
+    let mut p = ed.rig(id).unwrap().playback;
+    assert_eq!(p.clip, Some(0));
+    p.time_secs = 0.5;
+    ed.set_playback(id, p).unwrap();
+    assert_ne!(ed.animation_key(), key);
+    assert_eq!(ed.content_key(), content, "scrubbing is not an edit");
+    assert!(!ed.is_dirty());
+    // Half way through the clip the root has risen by half a unit.
+    let root = ed.joint_frames(id).unwrap().position(0).unwrap();
+    assert!((root - Vec3::new(0.0, 0.5, 0.0)).length() < 1e-5, "{root}");
+    p.clip = Some(3);
+    assert!(ed.set_playback(id, p).is_err());
+    p.clip = Some(0);
+    p.time_secs = f32::NAN;
+    assert!(ed.set_playback(id, p).is_err());
+    assert_eq!(ed.rig(id).unwrap().playback.time_secs, 0.5);
+}
+
+#[test]
+fn stretch_settings_are_validated_and_one_step_per_drag() {
+    let (mut ed, id) = rigged_editor();
+    let mut s = ed.rig(id).unwrap().stretch;
+    s.multiplier = 0.0;
+    let err = ed.set_stretch(id, s).unwrap_err().to_string();
+    assert!(err.contains("multiplier"), "{err}");
+    let steps = ed.history().undo_len();
+    for m in [1.2_f32, 1.4, 1.6] {
+        s.multiplier = m;
+        s.strategy = thicket_core::skin::StretchStrategy::Adaptive;
+        ed.set_stretch(id, s).unwrap();
+    }
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1);
+    assert_eq!(ed.rig(id).unwrap().stretch.multiplier, 1.6);
+    assert!(ed.undo());
+    assert_eq!(
+        ed.rig(id).unwrap().stretch,
+        thicket_core::skin::StretchSettings::default()
+    );
+}
+
+#[test]
+fn krs_edits_are_validated_normalised_and_undoable() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("Tree", ObjectKind::Krs(thicket_core::krs::presets::tree()));
+    let original = ed.krs(id).unwrap().clone();
+    assert!(!original.mirrors.is_empty());
+
+    // A zero mirror normal is refused with a message naming the object and the mirror.
+    let mut k = original.clone();
+    k.mirrors[0].normal = Vec3::ZERO;
+    let err = ed.set_krs(id, &k).unwrap_err().to_string();
+    assert!(
+        err.contains("\"Tree\"") && err.contains("mirror 0"),
+        "{err}"
+    );
+    assert_eq!(ed.krs(id).unwrap(), &original);
+
+    // A non-unit normal is stored normalised, keeping the plane.
+    let mut k = original.clone();
+    k.mirrors[0] = thicket_core::krs::MirrorPlane {
+        normal: Vec3::new(0.0, 2.0, 0.0),
+        offset: 1.0,
+    };
+    ed.set_krs(id, &k).unwrap();
+    ed.end_interaction();
+    let m = ed.krs(id).unwrap().mirrors[0];
+    assert!(
+        (m.normal - Vec3::Y).length() < 1e-6 && (m.offset - 0.5).abs() < 1e-6,
+        "{m:?}"
+    );
+
+    // A kernel parameter out of range is refused by core's validation.
+    let mut k = ed.krs(id).unwrap().clone();
+    k.kernels[0] = thicket_core::krs::Kernel::RoundedBox(thicket_core::krs::BoxKernel {
+        half_extents: Vec3::splat(0.1),
+        rounding: 0.5,
+        ..Default::default()
+    });
+    let err = ed.set_krs(id, &k).unwrap_err().to_string();
+    assert!(err.contains("rounding"), "{err}");
+
+    // A preset is one step; undo twice gets the original back.
+    ed.apply_krs_preset(id, "coral").unwrap();
+    let coral = thicket_core::krs::presets::coral().validated(0).unwrap();
+    assert_eq!(ed.krs(id).unwrap().kernels, coral.kernels);
+    assert!(ed.apply_krs_preset(id, "no such").is_err());
+    assert!(ed.undo());
+    assert!(ed.undo());
+    assert_eq!(ed.krs(id).unwrap(), &original);
+}
+
+#[test]
+fn voxel_edits_report_their_region_for_incremental_uploads() {
+    let (mut ed, id) = slab_editor();
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.5,
+        ..Default::default()
+    };
+    let start = ed.content_key();
+    ed.begin_stroke();
+    ed.sculpt_dab(id, &brush, Vec3::new(2.5, 3.5, 3.5), Vec3::ZERO)
+        .unwrap();
+    ed.sculpt_dab(id, &brush, Vec3::new(6.5, 3.5, 3.5), Vec3::ZERO)
+        .unwrap();
+    let r = ed.take_voxel_region().expect("a region");
+    assert_eq!((r.from, r.to, r.object), (start, ed.content_key(), id));
+    assert!(r.lo.x <= 2 && r.hi.x >= 6, "{r:?}");
+    assert!(ed.take_voxel_region().is_none(), "taken");
+    // After another kind of edit the next dab starts a new region from there.
+    ed.end_interaction();
+    ed.rename(id, "Slab 2").unwrap();
+    let renamed = ed.content_key();
+    ed.begin_stroke();
+    ed.sculpt_dab(id, &brush, Vec3::new(2.5, 2.5, 6.5), Vec3::ZERO)
+        .unwrap();
+    assert_eq!(ed.take_voxel_region().unwrap().from, renamed);
+}
+
+#[test]
+fn the_tree_builder_rebuilds_a_krs_object_and_refuses_bad_parameters() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("Shrub", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    let rock = ed.krs(id).unwrap().clone();
+    let mut params = thicket_core::krs::TreeParams::default();
+    params.widths[0] = -1.0;
+    let err = ed.build_tree(id, &params).unwrap_err().to_string();
+    assert!(err.contains("negative width"), "{err}");
+    assert_eq!(ed.krs(id).unwrap(), &rock);
+
+    let steps = ed.history().undo_len();
+    let mut params = thicket_core::krs::TreeParams::default();
+    for dy in [0.1_f32, 0.2, 0.3] {
+        let last = params.route.len() - 1;
+        params.route[last].y += dy;
+        ed.build_tree(id, &params).unwrap();
+    }
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1, "a drag is one step");
+    let built = ed.krs(id).unwrap();
+    assert_eq!(built.name, rock.name, "the object keeps its name");
+    let expected = params.build().unwrap().validated(0).unwrap();
+    assert_eq!(built.kernels, expected.kernels);
+    assert_eq!(built.mirrors, expected.mirrors);
+    assert!(ed.undo());
+    assert_eq!(ed.krs(id).unwrap(), &rock);
+}

@@ -2,8 +2,10 @@
 //! reverts it, so a step stores only what it changed — a deleted object's payload, an old
 //! transform — never a snapshot of the whole document with its octrees.
 
+use thicket_core::krs::KrsObject;
 use thicket_core::render::Quality;
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
+use thicket_core::skin::{JointOverride, StretchSettings};
 use thicket_core::svo::UndoDelta;
 
 /// One reversible change to the document.
@@ -58,6 +60,27 @@ pub enum Edit {
         id: u64,
         /// `(coordinate, value)` pairs to write, in order.
         delta: UndoDelta,
+    },
+    /// Replace the manual pose overrides of a rigged voxel model.
+    SetPose {
+        /// Object id.
+        id: u64,
+        /// The new overrides (the rig's whole list).
+        overrides: Vec<JointOverride>,
+    },
+    /// Replace the stretch settings of a rigged voxel model.
+    SetStretch {
+        /// Object id.
+        id: u64,
+        /// The new settings.
+        stretch: StretchSettings,
+    },
+    /// Replace the parameters of a KRS object (kernels, mirrors, placement, distortion).
+    SetKrs {
+        /// Object id.
+        id: u64,
+        /// The new parameters.
+        krs: Box<KrsObject>,
     },
     /// Several edits as one step (applied in order, reverted in reverse order).
     Group(Vec<Edit>),
@@ -124,12 +147,44 @@ impl Edit {
                 },
                 None => Edit::Group(Vec::new()),
             },
+            Edit::SetPose { id, overrides } => match rig_of(doc, id) {
+                Some(rig) => Edit::SetPose {
+                    id,
+                    overrides: std::mem::replace(&mut rig.pose_overrides, overrides),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetStretch { id, stretch } => match rig_of(doc, id) {
+                Some(rig) => Edit::SetStretch {
+                    id,
+                    stretch: std::mem::replace(&mut rig.stretch, stretch),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetKrs { id, krs } => match find(doc, id) {
+                Some(i) => match &mut doc.objects[i].kind {
+                    ObjectKind::Krs(k) => Edit::SetKrs {
+                        id,
+                        krs: Box::new(std::mem::replace(k, *krs)),
+                    },
+                    ObjectKind::Voxels(_) | ObjectKind::Mesh(_) => Edit::Group(Vec::new()),
+                },
+                None => Edit::Group(Vec::new()),
+            },
             Edit::Group(edits) => {
                 let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
                 inverses.reverse();
                 Edit::Group(inverses)
             }
         }
+    }
+}
+
+/// The rig of voxel object `id`, if it has one.
+fn rig_of(doc: &mut Document, id: u64) -> Option<&mut thicket_core::skin::Rig> {
+    match &mut doc.objects.iter_mut().find(|o| o.id == id)?.kind {
+        ObjectKind::Voxels(v) => v.rig.as_mut(),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
     }
 }
 
@@ -148,6 +203,13 @@ impl Edit {
                 }
             },
             Edit::Voxels { delta, .. } => delta.heap_bytes(),
+            Edit::SetPose { overrides, .. } => std::mem::size_of_val(overrides.as_slice()) + 64,
+            Edit::SetKrs { krs, .. } => {
+                std::mem::size_of_val(krs.kernels.as_slice())
+                    + std::mem::size_of_val(krs.mirrors.as_slice())
+                    + std::mem::size_of_val(krs.empty_zones.as_slice())
+                    + size_of::<KrsObject>()
+            }
             Edit::Group(edits) => edits.iter().map(Edit::heap_bytes).sum(),
             Edit::SetQuality(_) => size_of::<Quality>(),
             _ => 64,
@@ -166,6 +228,12 @@ pub enum MergeKey {
     Quality,
     /// A sculpt stroke on an object: its dabs' undo deltas are concatenated.
     Stroke(u64),
+    /// A joint drag (gizmo or inspector) on a rigged object.
+    Pose(u64),
+    /// A stretch-setting drag on a rigged object.
+    Stretch(u64),
+    /// A KRS parameter drag on an object.
+    Krs(u64),
 }
 
 #[derive(Debug)]

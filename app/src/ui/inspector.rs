@@ -6,6 +6,8 @@ use glam::{EulerRot, Quat, Vec3};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Light, Object, ObjectKind, Transform};
 
+use super::krs_panel::{KrsPanel, krs_inspector_ui};
+use super::pose::{PoseTool, rig_inspector_ui};
 use crate::editor::{Editor, Selection};
 use crate::files::{ObjectInfo, human_bytes, object_info, thousands};
 
@@ -25,7 +27,13 @@ struct CacheKey {
 }
 
 /// Draws the inspector.
-pub fn inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState) {
+pub fn inspector_ui(
+    ui: &mut egui::Ui,
+    editor: &mut Editor,
+    state: &mut InspectorState,
+    pose: &mut PoseTool,
+    krs: &mut KrsPanel,
+) {
     ui.heading("Inspector");
     ui.separator();
     egui::ScrollArea::vertical().show(ui, |ui| {
@@ -33,6 +41,13 @@ pub fn inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut Inspecto
             Some(Selection::Object(id)) => {
                 if let Some(object) = editor.object(id).cloned() {
                     object_ui(ui, editor, state, &object);
+                    match &object.kind {
+                        ObjectKind::Voxels(v) if v.rig.is_some() => {
+                            rig_inspector_ui(ui, editor, pose, id);
+                        }
+                        ObjectKind::Krs(_) => krs_inspector_ui(ui, editor, krs, id),
+                        ObjectKind::Voxels(_) | ObjectKind::Mesh(_) => {}
+                    }
                 }
             }
             Some(Selection::Light(i)) => {

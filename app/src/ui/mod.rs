@@ -4,8 +4,10 @@
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
 mod inspector;
+pub mod krs_panel;
 mod outliner;
 mod perf;
+pub mod pose;
 pub mod sculpt;
 pub mod view;
 
@@ -53,6 +55,9 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ),
     ("Click in the view", "Select the object under the pointer"),
     ("S", "Sculpt tool"),
+    ("Click a joint dot", "Select the joint (rigged models)"),
+    ("R / G", "Pose gizmo: rotate / move the selected joint"),
+    ("Space", "Play / pause the timeline"),
     ("Esc", "Navigate tool"),
     ("[ / ]", "Smaller / larger brush"),
     ("F3", "Performance overlay"),
@@ -192,6 +197,10 @@ pub struct EditorApp {
     pub view: view::View,
     /// The sculpt tool and its brush.
     pub sculpt: sculpt::SculptTool,
+    /// The pose tool (joint selection, gizmo, timeline).
+    pub pose: pose::PoseTool,
+    /// The KRS editor's state.
+    pub krs: krs_panel::KrsPanel,
     perf: perf::PerfOverlay,
     /// Last status-bar message.
     status: String,
@@ -231,6 +240,8 @@ impl EditorApp {
             inspector: inspector::InspectorState::default(),
             view: view::View::default(),
             sculpt: sculpt::SculptTool::default(),
+            pose: pose::PoseTool::default(),
+            krs: krs_panel::KrsPanel::default(),
             perf: perf::PerfOverlay::default(),
             status: String::from("Ready"),
         }
@@ -309,11 +320,13 @@ impl EditorApp {
         }));
     }
 
-    /// File → Import: adds the objects of any supported file to the document.
+    /// File → Import: adds the objects of any supported file to the document. A glTF file
+    /// with a skin becomes a rigged voxel model (voxelized in its bind pose, with its skeleton
+    /// and clips, ready to pose); other files load as `thicket open` reads them.
     pub fn start_import(&mut self, path: PathBuf) {
         let label = format!("Importing {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, _| {
-            let result = files::load_document(&path);
+        self.job = Some(Job::spawn(label, move |progress, cancel| {
+            let result = import_document(&path, progress, cancel);
             JobResult::Imported(path, result)
         }));
     }
@@ -674,6 +687,13 @@ impl EditorApp {
         egui::Panel::top("menu_bar").show(ui, |ui| self.menu_bar(ui));
         egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui));
         egui::Panel::bottom("status_bar").show(ui, |ui| self.status_bar(ui));
+        if let Some(id) = pose::timeline_target(&self.editor) {
+            egui::Panel::bottom("timeline").show(ui, |ui| {
+                pose::timeline_ui(ui, &mut self.editor, &mut self.pose, id);
+            });
+        } else {
+            self.pose.playing = false;
+        }
         if self.show_outliner {
             egui::Panel::left("outliner")
                 .resizable(true)
@@ -692,18 +712,35 @@ impl EditorApp {
                 .resizable(true)
                 .default_size(320.0)
                 .show(ui, |ui| {
-                    inspector::inspector_ui(ui, &mut self.editor, &mut self.inspector);
+                    inspector::inspector_ui(
+                        ui,
+                        &mut self.editor,
+                        &mut self.inspector,
+                        &mut self.pose,
+                        &mut self.krs,
+                    );
                 });
         }
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
             .show(ui, |ui| {
-                self.view.ui(ui, &mut self.editor, &mut self.sculpt);
+                self.view.ui(
+                    ui,
+                    &mut self.editor,
+                    &mut self.sculpt,
+                    &mut self.pose,
+                    &mut self.krs,
+                );
             });
 
         self.dialogs(&ctx);
         self.toasts_ui(&ctx);
-        self.perf.ui(&ctx, &self.editor, self.view.gpu());
+        self.perf.ui(
+            &ctx,
+            &self.editor,
+            self.view.gpu(),
+            self.view.cpu_preview_stats(),
+        );
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));
 
         // A drag (slider, DragValue) is one undo step: the step closes when the pointer is up.
@@ -800,6 +837,19 @@ impl EditorApp {
         }
         if consume(shortcut(Modifiers::NONE, Key::Escape)) {
             self.sculpt.active = false;
+        }
+        if self.pose.joint.is_some() {
+            if consume(shortcut(Modifiers::NONE, Key::R)) {
+                self.pose.mode = pose::GizmoMode::Rotate;
+            }
+            if consume(shortcut(Modifiers::NONE, Key::G)) {
+                self.pose.mode = pose::GizmoMode::Translate;
+            }
+        }
+        if pose::timeline_target(&self.editor).is_some()
+            && consume(shortcut(Modifiers::NONE, Key::Space))
+        {
+            self.pose.playing = !self.pose.playing;
         }
         if consume(shortcut(Modifiers::NONE, Key::OpenBracket)) {
             self.sculpt.brush.radius = (self.sculpt.brush.radius / 1.25).max(0.5);
@@ -954,6 +1004,20 @@ impl EditorApp {
                 {
                     let _ = self.editor.duplicate(id);
                 }
+                ui.menu_button("Add KRS object", |ui| {
+                    for (name, krs) in thicket_core::krs::presets::all() {
+                        if ui
+                            .button(name)
+                            .on_hover_text("Add this procedural KRS preset as a new object (edit it in the inspector)")
+                            .clicked()
+                        {
+                            let label = format!("KRS {name}");
+                            self.editor
+                                .add_object(&label, thicket_core::scene::ObjectKind::Krs(krs));
+                            ui.close();
+                        }
+                    }
+                });
                 ui.menu_button("Enhance detail", |ui| {
                     for factor in [2u32, 4, 8] {
                         if ui
@@ -1304,6 +1368,44 @@ const PRESETS: &[(&str, QualityPreset, &str)] = &[
         "Offline quality: fine LOD, soft shadows, more AO samples",
     ),
 ];
+
+/// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
+const SKINNED_IMPORT_DEPTH: u8 = 7;
+
+/// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
+/// cancel from the job), anything else goes through [`files::load_document`].
+fn import_document(
+    path: &Path,
+    progress: &AtomicU32,
+    cancel: &AtomicBool,
+) -> anyhow::Result<Document> {
+    use anyhow::Context as _;
+    let skinned = if FileKind::from_path(path) == Some(FileKind::Gltf) {
+        files::load_skinned(path)?
+    } else {
+        None
+    };
+    let Some(skinned) = skinned else {
+        return files::load_document(path);
+    };
+    let settings = thicket_core::voxelize::VoxelizeSettings {
+        resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
+        ..Default::default()
+    };
+    let v = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
+        progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
+        !cancel.load(Ordering::Relaxed)
+    })
+    .with_context(|| format!("{}: voxelizing the skinned mesh", path.display()))?;
+    let mut doc = Document::default();
+    doc.add(
+        files::object_name_for(path),
+        thicket_core::scene::ObjectKind::Voxels(v.model),
+    );
+    doc.validate()
+        .with_context(|| format!("{}: invalid document", path.display()))?;
+    Ok(doc)
+}
 
 fn readable_list() -> String {
     files::readable_extensions()

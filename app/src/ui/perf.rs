@@ -45,7 +45,13 @@ impl PerfOverlay {
     }
 
     /// Draws the overlay window when open.
-    pub fn ui(&mut self, ctx: &egui::Context, editor: &Editor, link: Option<&ViewportLink>) {
+    pub fn ui(
+        &mut self,
+        ctx: &egui::Context,
+        editor: &Editor,
+        link: Option<&ViewportLink>,
+        cpu_preview: Option<(f64, [u32; 2])>,
+    ) {
         if !self.open {
             return;
         }
@@ -54,7 +60,14 @@ impl PerfOverlay {
             .open(&mut open)
             .default_width(420.0)
             .default_pos(egui::pos2(300.0, 80.0))
-            .show(ctx, |ui| self.contents_ui(ui, editor, link));
+            .show(ctx, |ui| {
+                if let Some((ms, [w, h])) = cpu_preview {
+                    ui.label(format!(
+                        "CPU preview (rigged models, KRS): last render {ms:.1} ms at {w} x {h} px"
+                    ));
+                }
+                self.contents_ui(ui, editor, link);
+            });
         self.open = open;
     }
 
@@ -104,6 +117,15 @@ impl PerfOverlay {
                     s.size_px[0],
                     s.size_px[1]
                 ));
+                if let Some(up) = s.last_upload {
+                    ui.label(format!(
+                        "Last upload: {} in {} write(s){}; {} region-only uploads",
+                        human_bytes(up.bytes),
+                        up.writes,
+                        if up.full { " (whole scene)" } else { "" },
+                        s.region_uploads
+                    ));
+                }
                 if let Some(stats) = &s.stats {
                     ui.label(format!(
                         "Splats {}   triangles {}   splat path {:?}   queue overflow {}",

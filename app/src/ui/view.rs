@@ -1,22 +1,162 @@
 //! The central 3D view: the GPU image through [`crate::viewport`], camera navigation (orbit,
 //! pan, zoom with mouse and trackpad; axis views; frame selection), overlays (ground grid,
-//! world axes, the selected object's outline box, the brush preview) and sculpt strokes.
+//! world axes, the selected object's outline box, the brush preview, skeletons and the pose
+//! gizmo, KRS mirror planes) and sculpt strokes.
 //!
-//! Without a GPU (no wgpu render state, as in the plain UI tests) the view still navigates and
-//! draws the overlays, and says that no renderer is attached.
+//! The GPU renderer draws rigid voxels and meshes; it has no skinning and no KRS pass yet. A
+//! document with a rigged model or a KRS object is therefore drawn by core's CPU reference
+//! renderer on a worker thread (the CPU preview), as is every document when no GPU is attached
+//! (the plain UI tests). Render -> Viewport renderer chooses.
 
 use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, mpsc};
+use std::time::{Duration, Instant};
 
-use glam::{Vec2, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera};
 
+use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
+use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
-use crate::viewport::{FrameKey, ViewportCallback, ViewportLink, paint_callback};
+use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
+
+/// Linear fraction of the view's pixels the CPU preview renders (it is a preview: a quarter of
+/// the pixels keeps it interactive on a laptop CPU).
+const CPU_PREVIEW_SCALE: f32 = 0.5;
+
+/// Most voxel edits kept for the GPU's incremental upload (older ones cost a full upload).
+const MAX_REGION_CHAIN: usize = 64;
+
+/// Which renderer draws the view.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ViewRenderer {
+    /// The GPU when attached and the document has nothing it cannot draw (rigged models, KRS);
+    /// otherwise the CPU preview.
+    Auto,
+    /// Always the GPU renderer (rigged models in their bind pose, no KRS).
+    Gpu,
+    /// Always core's CPU reference renderer on a worker thread.
+    Cpu,
+}
+
+/// Maps world points to view points for the overlays.
+#[derive(Debug, Clone, Copy)]
+pub struct Projector {
+    /// The camera's `clip_from_world` for the view's aspect ratio.
+    pub clip_from_world: Mat4,
+    /// The view rectangle.
+    pub rect: egui::Rect,
+    /// The camera.
+    pub camera: OrbitCamera,
+}
+
+impl Projector {
+    /// The projector of `camera` into `rect`.
+    #[must_use]
+    pub fn new(camera: OrbitCamera, rect: egui::Rect) -> Self {
+        Self {
+            clip_from_world: camera.clip_from_world(rect.aspect_ratio().max(1e-3)),
+            rect,
+            camera,
+        }
+    }
+
+    /// The view point of a world point, `None` behind the camera.
+    #[must_use]
+    pub fn to_screen(&self, p: Vec3) -> Option<egui::Pos2> {
+        let clip = self.clip_from_world * p.extend(1.0);
+        if clip.w <= self.camera.near * 0.5 {
+            return None;
+        }
+        let ndc = clip.truncate() / clip.w;
+        let pos = egui::pos2(
+            self.rect.left() + (ndc.x * 0.5 + 0.5) * self.rect.width(),
+            self.rect.top() + (0.5 - ndc.y * 0.5) * self.rect.height(),
+        );
+        (pos.x.is_finite() && pos.y.is_finite()).then_some(pos)
+    }
+
+    /// World units per view point at the depth of `p` (to keep handles a constant size).
+    #[must_use]
+    pub fn world_per_point(&self, p: Vec3) -> f32 {
+        let eye = self.camera.eye();
+        let forward = (self.camera.target - eye).normalize_or_zero();
+        let depth = (p - eye).dot(forward).max(self.camera.near);
+        2.0 * depth * (self.camera.fov_y_deg.to_radians() * 0.5).tan() / self.rect.height().max(1.0)
+    }
+
+    /// The camera position.
+    #[must_use]
+    pub fn eye(&self) -> Vec3 {
+        self.camera.eye()
+    }
+}
+
+/// What decides a CPU preview image.
+#[derive(Debug, Clone, PartialEq)]
+struct PreviewKey {
+    content: (u64, u64),
+    animation: u64,
+    camera: OrbitCamera,
+    size_px: [u32; 2],
+}
+
+/// A finished preview: the image, the object label per pixel (1-based document index, 0 for
+/// the background) and the render time in milliseconds.
+type PreviewResult = Result<(egui::ColorImage, Vec<u32>, f64), String>;
+
+/// The CPU preview: one render at a time on a worker thread; the newest key wins.
+#[derive(Default)]
+struct CpuPreview {
+    shown: Option<PreviewKey>,
+    texture: Option<egui::TextureHandle>,
+    job: Option<(PreviewKey, mpsc::Receiver<PreviewResult>)>,
+    ready: Option<(PreviewKey, PreviewResult)>,
+    error: Option<String>,
+    last_ms: f64,
+    renders: u64,
+    /// Object labels of the shown image, row by row.
+    labels: Vec<u32>,
+    /// The selection outline drawn from `labels`: for which render and label.
+    outline: Option<((u64, u32), egui::TextureHandle)>,
+}
+
+/// Outline colour of the selection.
+const SELECTION_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 170, 60);
+
+/// An image that is transparent except on the border pixels of the region labelled `label`
+/// (pixels of the region with a 4-neighbour outside it or on the image edge).
+fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorImage {
+    let [w, h] = size;
+    let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
+    let at = |x: usize, y: usize| labels.get(y * w + x).copied().unwrap_or(0);
+    for y in 0..h {
+        for x in 0..w {
+            if at(x, y) != label {
+                continue;
+            }
+            let edge = x == 0
+                || y == 0
+                || x + 1 == w
+                || y + 1 == h
+                || at(x - 1, y) != label
+                || at(x + 1, y) != label
+                || at(x, y - 1) != label
+                || at(x, y + 1) != label;
+            if edge {
+                image.pixels[y * w + x] = SELECTION_COLOR;
+            }
+        }
+    }
+    image
+}
 
 /// Minimum and maximum corners.
 type Aabb = (Vec3, Vec3);
+
+/// What a renderer draws: the document's content key and its animation key.
+type RenderKey = ((u64, u64), u64);
 
 /// Degrees of orbit per dragged point.
 const ORBIT_DEG_PER_POINT: f32 = 0.4;
@@ -71,11 +211,17 @@ pub struct View {
     pub show_bounds: bool,
     /// Fraction of the view's pixels the renderer draws (lower is faster on slow adapters).
     pub render_scale: f32,
+    /// Which renderer draws the view.
+    pub renderer: ViewRenderer,
     gpu: Option<ViewportLink>,
-    /// The document as the renderer sees it, for one content key (cloned when it changes).
-    snapshot: Option<((u64, u64), Arc<Document>)>,
+    /// The document as the renderer sees it, for one content and animation key (cloned when
+    /// either changes).
+    snapshot: Option<(RenderKey, Arc<Document>)>,
+    cpu: CpuPreview,
+    /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
+    regions: Vec<RegionHint>,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
-    bounds_cache: ((u64, u64), HashMap<u64, Option<Aabb>>),
+    bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The last view rectangle (for tests that aim at it).
     pub last_rect: egui::Rect,
 }
@@ -86,9 +232,12 @@ impl Default for View {
             show_grid: true,
             show_bounds: false,
             render_scale: 1.0,
+            renderer: ViewRenderer::Auto,
             gpu: None,
             snapshot: None,
-            bounds_cache: ((u64::MAX, u64::MAX), HashMap::new()),
+            cpu: CpuPreview::default(),
+            regions: Vec::new(),
+            bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             last_rect: egui::Rect::NOTHING,
         }
     }
@@ -130,6 +279,17 @@ impl View {
 
     /// Entries for the Render menu.
     pub fn render_menu_ui(&mut self, ui: &mut egui::Ui) {
+        ui.label("Viewport renderer");
+        ui.horizontal(|ui| {
+            for (mode, label, tip) in [
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview for rigged models and KRS objects, which the GPU renderer cannot draw yet"),
+                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (rigged models in their bind pose, no KRS)"),
+                (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
+            ] {
+                ui.selectable_value(&mut self.renderer, mode, label)
+                    .on_hover_text(tip);
+            }
+        });
         ui.label("Viewport resolution");
         ui.horizontal(|ui| {
             for (scale, label) in [(1.0_f32, "100%"), (0.5, "50%"), (0.25, "25%")] {
@@ -141,8 +301,15 @@ impl View {
         });
     }
 
-    /// Draws the view, handles navigation and sculpting.
-    pub fn ui(&mut self, ui: &mut egui::Ui, editor: &mut Editor, sculpt: &mut SculptTool) {
+    /// Draws the view, handles navigation, sculpting and the pose gizmo.
+    pub fn ui(
+        &mut self,
+        ui: &mut egui::Ui,
+        editor: &mut Editor,
+        sculpt: &mut SculptTool,
+        pose: &mut PoseTool,
+        krs: &mut KrsPanel,
+    ) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
         // No tooltip over the view (it would cover the scene); the hint is in the corner text.
@@ -159,46 +326,243 @@ impl View {
         });
         let hover_pick = pointer_ray.and_then(|(o, d)| editor.pick_voxel(o, d));
 
-        let navigating = self.navigate(ui, &response, editor, sculpt.active, rect);
+        let proj = Projector::new(editor.doc().camera, rect);
+        let gizmo = !sculpt.active
+            && (pose.interact(ui, &response, editor, &proj)
+                || krs.interact(ui, &response, editor, &proj));
+        let navigating = self.navigate(ui, &response, editor, sculpt.active, gizmo, rect);
         if sculpt.active && !navigating {
             sculpt.handle(&response, editor, hover_pick);
-        } else if response.clicked() {
-            // Click to select what is under the pointer (or nothing).
-            editor.selection = hover_pick.map(|p| Selection::Object(p.object));
+        } else if response.clicked() && !gizmo {
+            // Click to select a joint (its dot) or what is under the pointer (or nothing).
+            let joint = response
+                .interact_pointer_pos()
+                .and_then(|p| pose.pick_joint(editor, &proj, p));
+            let mirror = response
+                .interact_pointer_pos()
+                .and_then(|p| pick_mirror(editor, &proj, p));
+            if let Some(j) = joint {
+                editor.selection = Some(Selection::Object(j.object));
+                pose.joint = Some(j);
+            } else if let Some(m) = mirror {
+                // The selected KRS object stays selected; its plane is highlighted.
+                krs.mirror = Some(m);
+            } else {
+                editor.selection = hover_pick.map(|p| Selection::Object(p.object));
+            }
         }
 
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, srgb_color(editor.doc().background));
-        self.gpu_image(ui, rect, editor);
-
-        let camera = editor.doc().camera;
-        let clip_from_world = camera.clip_from_world(aspect);
-        let to_screen = |p: Vec3| -> Option<egui::Pos2> {
-            let clip = clip_from_world * p.extend(1.0);
-            if clip.w <= camera.near * 0.5 {
-                return None;
-            }
-            let ndc = clip.truncate() / clip.w;
-            Some(egui::pos2(
-                rect.left() + (ndc.x * 0.5 + 0.5) * rect.width(),
-                rect.top() + (0.5 - ndc.y * 0.5) * rect.height(),
-            ))
+        let cpu = self.uses_cpu(editor);
+        let silhouette = if cpu {
+            self.cpu_image(ui, rect, editor)
+        } else {
+            self.gpu_image(ui, rect, editor);
+            false
         };
+
+        let proj = Projector::new(editor.doc().camera, rect);
+        let camera = proj.camera;
         let line = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
-            if let (Some(pa), Some(pb)) = (to_screen(a), to_screen(b)) {
+            if let (Some(pa), Some(pb)) = (proj.to_screen(a), proj.to_screen(b)) {
                 painter.line_segment([pa, pb], stroke);
             }
         };
+        let to_screen = |p: Vec3| proj.to_screen(p);
         if self.show_grid {
             grid(&camera, &line);
         }
-        self.outlines(editor, &line, &to_screen, &painter);
+        self.outlines(editor, &line, &to_screen, &painter, silhouette);
+        paint_mirrors(&painter, editor, krs, &proj);
+        paint_route(&painter, editor, krs, &proj);
+        pose.paint(&painter, editor, &proj);
         if sculpt.active
             && let Some(pick) = hover_pick
         {
             brush_preview(&painter, &to_screen, &camera, &pick, sculpt);
         }
-        self.status_text(ui, rect, editor, sculpt.active);
+        self.status_text(ui, rect, editor, sculpt.active, cpu);
+    }
+
+    /// Whether the CPU preview draws the view (see [`ViewRenderer`]).
+    #[must_use]
+    pub fn uses_cpu(&self, editor: &Editor) -> bool {
+        match self.renderer {
+            ViewRenderer::Cpu => true,
+            ViewRenderer::Gpu => self.gpu.is_none(),
+            ViewRenderer::Auto => self.gpu.is_none() || needs_cpu(editor.doc()),
+        }
+    }
+
+    /// CPU preview renders finished so far (tests and the perf overlay).
+    #[must_use]
+    pub fn cpu_renders(&self) -> u64 {
+        self.cpu.renders
+    }
+
+    /// Wall-clock milliseconds of the last CPU preview render, and its size in pixels.
+    #[must_use]
+    pub fn cpu_preview_stats(&self) -> Option<(f64, [u32; 2])> {
+        let size = self.cpu.shown.as_ref()?.size_px;
+        (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
+    }
+
+    /// Waits for the CPU preview render in flight, if any (tests; the UI polls instead). Its
+    /// image is shown from the next frame.
+    pub fn wait_for_cpu_preview(&mut self) {
+        if let Some((key, rx)) = self.cpu.job.take() {
+            let result = rx
+                .recv()
+                .unwrap_or_else(|_| Err("the preview worker stopped".to_owned()));
+            self.cpu.ready = Some((key, result));
+        }
+    }
+
+    fn snapshot(&mut self, editor: &Editor) -> Arc<Document> {
+        let key = (editor.content_key(), editor.animation_key());
+        match &self.snapshot {
+            Some((k, doc)) if *k == key => Arc::clone(doc),
+            _ => {
+                // The renderer reads the document after this frame's UI (in `prepare`, or on
+                // the preview's worker): it gets its own copy, made only when the content
+                // changed (a dab, an edit, undo, a new playhead time).
+                let doc = Arc::new(editor.doc().clone());
+                self.snapshot = Some((key, Arc::clone(&doc)));
+                doc
+            }
+        }
+    }
+
+    /// Shows the CPU preview (starting a render when the document, camera or size changed);
+    /// returns whether the selection's outline was drawn from its pixels.
+    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) -> bool {
+        let ppp = ui.ctx().pixels_per_point();
+        let size = rect.size() * ppp * self.render_scale * CPU_PREVIEW_SCALE;
+        let size_px = [
+            (size.x.round() as u32).clamp(1, 4096),
+            (size.y.round() as u32).clamp(1, 4096),
+        ];
+        let key = PreviewKey {
+            content: editor.content_key(),
+            animation: editor.animation_key(),
+            camera: editor.doc().camera,
+            size_px,
+        };
+        if let Some((k, rx)) = &self.cpu.job {
+            match rx.try_recv() {
+                Ok(result) => {
+                    self.cpu.ready = Some((k.clone(), result));
+                    self.cpu.job = None;
+                }
+                Err(mpsc::TryRecvError::Empty) => {
+                    ui.ctx().request_repaint_after(Duration::from_millis(30));
+                }
+                Err(mpsc::TryRecvError::Disconnected) => {
+                    self.cpu.ready = Some((k.clone(), Err("the preview worker stopped".into())));
+                    self.cpu.job = None;
+                }
+            }
+        }
+        if let Some((k, result)) = self.cpu.ready.take() {
+            match result {
+                Ok((image, labels, ms)) => {
+                    self.cpu.labels = labels;
+                    match &mut self.cpu.texture {
+                        Some(t) => t.set(image, egui::TextureOptions::LINEAR),
+                        None => {
+                            self.cpu.texture = Some(ui.ctx().load_texture(
+                                "cpu_preview",
+                                image,
+                                egui::TextureOptions::LINEAR,
+                            ));
+                        }
+                    }
+                    self.cpu.last_ms = ms;
+                    self.cpu.renders += 1;
+                    self.cpu.error = None;
+                }
+                Err(e) => {
+                    log::warn!("CPU preview: {e}");
+                    self.cpu.error = Some(e);
+                }
+            }
+            self.cpu.shown = Some(k);
+        }
+        // One render at a time; when it lands, the newest key starts the next.
+        if self.cpu.job.is_none() && self.cpu.shown.as_ref() != Some(&key) {
+            let doc = self.snapshot(editor);
+            let (tx, rx) = mpsc::channel();
+            let request = thicket_core::render::RenderRequest {
+                width: size_px[0],
+                height: size_px[1],
+                camera: Some(key.camera),
+                quality: doc.quality.clone(),
+            };
+            std::thread::spawn(move || {
+                let t0 = Instant::now();
+                let result = thicket_core::render::render_document(&doc, &request)
+                    .map(|(image, buffers, _)| {
+                        let size = [image.width as usize, image.height as usize];
+                        let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
+                        let labels = buffers.ids.iter().map(|id| id.object).collect();
+                        (color, labels, t0.elapsed().as_secs_f64() * 1e3)
+                    })
+                    .map_err(|e| e.to_string());
+                // The view may be gone (window closed): nothing to hand back then.
+                let _ = tx.send(result);
+            });
+            self.cpu.job = Some((key, rx));
+            ui.ctx().request_repaint_after(Duration::from_millis(30));
+        }
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        if let Some(t) = &self.cpu.texture {
+            ui.painter_at(rect)
+                .image(t.id(), rect, uv, egui::Color32::WHITE);
+        }
+        match self.selection_outline(ui, editor) {
+            Some(t) => {
+                ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// The selection's outline from the shown preview's object labels, when the preview shows
+    /// the current document (labels are document indices).
+    fn selection_outline(&mut self, ui: &egui::Ui, editor: &Editor) -> Option<egui::TextureId> {
+        let shown = self.cpu.shown.as_ref()?;
+        if shown.content != editor.content_key() || self.cpu.error.is_some() {
+            return None;
+        }
+        let Some(Selection::Object(id)) = editor.selection else {
+            return None;
+        };
+        let label = editor.doc().objects.iter().position(|o| o.id == id)? as u32 + 1;
+        let size = [shown.size_px[0] as usize, shown.size_px[1] as usize];
+        if self.cpu.labels.len() != size[0] * size[1] {
+            return None;
+        }
+        let key = (self.cpu.renders, label);
+        if self.cpu.outline.as_ref().is_none_or(|(k, _)| *k != key) {
+            let image = outline_image(&self.cpu.labels, size, label);
+            match &mut self.cpu.outline {
+                Some((k, t)) => {
+                    t.set(image, egui::TextureOptions::NEAREST);
+                    *k = key;
+                }
+                None => {
+                    let t = ui.ctx().load_texture(
+                        "selection_outline",
+                        image,
+                        egui::TextureOptions::NEAREST,
+                    );
+                    self.cpu.outline = Some((key, t));
+                }
+            }
+        }
+        self.cpu.outline.as_ref().map(|(_, t)| t.id())
     }
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
@@ -208,6 +572,7 @@ impl View {
         response: &egui::Response,
         editor: &mut Editor,
         sculpting: bool,
+        gizmo: bool,
         rect: egui::Rect,
     ) -> bool {
         let mut camera = editor.doc().camera;
@@ -219,8 +584,9 @@ impl View {
                 i.pointer.primary_down(),
             )
         });
-        // With the sculpt tool the primary button sculpts; Alt turns it back into orbit.
-        let primary_navigates = !sculpting || modifiers.alt;
+        // With the sculpt tool the primary button sculpts; Alt turns it back into orbit. A drag
+        // that grabbed the pose gizmo moves the joint, not the camera.
+        let primary_navigates = !gizmo && (!sculpting || modifiers.alt);
         let navigating =
             response.dragged() && (middle || secondary || (primary && primary_navigates));
         if navigating {
@@ -283,19 +649,34 @@ impl View {
         navigating
     }
 
-    fn gpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) {
+    fn gpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &mut Editor) {
         if self.gpu.is_none() {
             return;
         }
         let key = editor.content_key();
-        if self.snapshot.as_ref().is_none_or(|(k, _)| *k != key) {
-            // The renderer reads the document in `prepare`, after this frame's UI: it gets its
-            // own copy, made only when the content changed (a dab, an edit, undo).
-            self.snapshot = Some((key, Arc::new(editor.doc().clone())));
+        // Voxel edits since the last frame extend the chain the renderer may upload from;
+        // anything else breaks it. `prepare` may not run every frame, so the chain is kept
+        // (bounded) until the document changes in another way.
+        if let Some(r) = editor.take_voxel_region() {
+            let hint = RegionHint {
+                from: r.from,
+                to: r.to,
+                object: r.object,
+                lo: r.lo,
+                hi: r.hi,
+            };
+            if self.regions.last().is_none_or(|last| last.to != hint.from) {
+                self.regions.clear();
+            }
+            self.regions.push(hint);
+            if self.regions.len() > MAX_REGION_CHAIN {
+                self.regions.remove(0);
+            }
         }
-        let Some((_, doc)) = &self.snapshot else {
-            return;
-        };
+        if self.regions.last().is_some_and(|last| last.to != key) {
+            self.regions.clear();
+        }
+        let doc = self.snapshot(editor);
         let ppp = ui.ctx().pixels_per_point();
         let size = rect.size() * ppp * self.render_scale;
         let size_px = [
@@ -310,7 +691,8 @@ impl View {
                     camera: editor.doc().camera,
                     size_px,
                 },
-                doc: Arc::clone(doc),
+                doc,
+                regions: self.regions.clone(),
             },
         ));
     }
@@ -321,9 +703,12 @@ impl View {
         line: &impl Fn(Vec3, Vec3, egui::Stroke),
         to_screen: &impl Fn(Vec3) -> Option<egui::Pos2>,
         painter: &egui::Painter,
+        silhouette: bool,
     ) {
-        if self.bounds_cache.0 != editor.content_key() {
-            self.bounds_cache = (editor.content_key(), HashMap::new());
+        // Posed bounds follow the playhead as well as the content.
+        let key = (editor.content_key(), editor.animation_key());
+        if self.bounds_cache.0 != key {
+            self.bounds_cache = (key, HashMap::new());
         }
         for o in &editor.doc().objects {
             let selected = editor.selection == Some(Selection::Object(o.id));
@@ -337,11 +722,15 @@ impl View {
                 .or_insert_with(|| local_bounds(o));
             let Some((lo, hi)) = local else { continue };
             let stroke = if selected {
-                egui::Stroke::new(2.0, egui::Color32::from_rgb(255, 170, 60))
+                egui::Stroke::new(2.0, SELECTION_COLOR)
             } else {
                 egui::Stroke::new(1.0, egui::Color32::from_gray(200))
             };
-            oriented_box_lines(o, lo, hi, stroke, line);
+            // With the CPU preview the selection is outlined from its pixels instead; the box
+            // stays for the GPU view (its object ids are not read back) and "All bounding boxes".
+            if !(selected && silhouette) || self.show_bounds {
+                oriented_box_lines(o, lo, hi, stroke, line);
+            }
             if let Some(p) = to_screen(o.transform.matrix().transform_point3(hi)) {
                 painter.text(
                     p,
@@ -354,11 +743,48 @@ impl View {
         }
     }
 
-    fn status_text(&self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor, sculpt_active: bool) {
+    fn status_text(
+        &self,
+        ui: &egui::Ui,
+        rect: egui::Rect,
+        editor: &Editor,
+        sculpt_active: bool,
+        cpu: bool,
+    ) {
         let painter = ui.painter_at(rect);
         let origin = rect.left_top() + egui::vec2(8.0, 8.0);
         let weak = ui.visuals().weak_text_color();
         let font = egui::FontId::proportional(12.0);
+        if cpu {
+            let (text, color) = match (&self.cpu.error, &self.cpu.shown) {
+                (Some(e), _) => (
+                    format!("CPU preview: {e}\nThe document is still editable and saveable."),
+                    ui.visuals().error_fg_color,
+                ),
+                (None, Some(k)) => (
+                    format!(
+                        "CPU preview {} x {} px ({})\nDrag: orbit   Click a joint dot: pose   F: frame   F3: stats",
+                        k.size_px[0],
+                        k.size_px[1],
+                        if self.gpu.is_some() {
+                            "skinning and KRS: the GPU renderer has no pass for them yet"
+                        } else {
+                            "no GPU renderer in this window"
+                        },
+                    ),
+                    egui::Color32::from_gray(220),
+                ),
+                (None, None) => (
+                    "Rendering (CPU preview)...".to_owned(),
+                    egui::Color32::from_gray(220),
+                ),
+            };
+            let galley = painter.layout_no_wrap(text, font, color);
+            let backdrop = egui::Rect::from_min_size(origin, galley.size()).expand(4.0);
+            painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(140));
+            painter.galley(origin, galley, weak);
+            return;
+        }
         let Some(link) = &self.gpu else {
             painter.text(
                 origin,
@@ -407,6 +833,19 @@ impl View {
     }
 }
 
+/// Whether the document holds something the GPU renderer cannot draw: a visible KRS object or
+/// a rigged voxel model (the GPU renderer has no KRS pass and no skinning yet).
+fn needs_cpu(doc: &Document) -> bool {
+    doc.objects
+        .iter()
+        .filter(|o| o.visible)
+        .any(|o| match &o.kind {
+            ObjectKind::Krs(_) => true,
+            ObjectKind::Voxels(v) => v.rig.is_some(),
+            ObjectKind::Mesh(_) => false,
+        })
+}
+
 /// Points the camera along an axis, keeping target and distance.
 pub fn set_axis_view(editor: &mut Editor, view: AxisView) {
     let mut camera = editor.doc().camera;
@@ -432,7 +871,8 @@ fn pan(camera: &mut OrbitCamera, d: egui::Vec2, height: f32) {
 
 fn local_bounds(o: &Object) -> Option<Aabb> {
     match &o.kind {
-        ObjectKind::Voxels(v) => v.bounds(),
+        // A rigged model is drawn posed (skinned into its skeleton's space).
+        ObjectKind::Voxels(v) => v.posed_bounds(),
         ObjectKind::Mesh(m) => m.model.bounds(),
         // The KRS's own placement is inside its bounding ball; callers apply the object's
         // transform on top, which is what `KrsObject::world_from_object` sits under.
@@ -549,5 +989,33 @@ fn brush_preview(
     }
     if let Some(n) = to_screen(center + pick.normal.as_vec3() * radius_world) {
         painter.line_segment([c, n], egui::Stroke::new(1.0, color));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_outline_is_the_border_of_the_selected_label_only() {
+        // A 3x3 block of label 2 inside a 5x5 image of label 1 (another object).
+        let mut labels = vec![1u32; 25];
+        for y in 1..4 {
+            for x in 1..4 {
+                labels[y * 5 + x] = 2;
+            }
+        }
+        let image = outline_image(&labels, [5, 5], 2);
+        let lit: Vec<(usize, usize)> = (0..25)
+            .filter(|&i| image.pixels[i] == SELECTION_COLOR)
+            .map(|i| (i % 5, i / 5))
+            .collect();
+        assert_eq!(
+            lit.len(),
+            8,
+            "the ring of the block, not its centre: {lit:?}"
+        );
+        assert!(!lit.contains(&(2, 2)));
+        assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
     }
 }

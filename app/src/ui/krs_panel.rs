@@ -1,0 +1,1037 @@
+//! The KRS editor in the inspector: presets, the kernel list with typed parameter editors and
+//! the mirror-plane list. Every change goes through [`Editor::set_krs`] (core's validation: a
+//! refused value leaves the document unchanged and the message says which field and why); a
+//! drag is one undo step. The mirror planes are drawn over the view as outlined quads.
+
+use glam::{EulerRot, Quat, Vec3};
+use thicket_core::krs::{
+    BoxKernel, CapsuleKernel, Kernel, Material, MirrorPlane, PlaneKernel, SphereKernel,
+    TorusKernel, TreeParams, presets,
+};
+
+use super::pose::distance_to_polyline;
+use super::view::Projector;
+use crate::editor::{Editor, Selection};
+
+/// UI state of the KRS editor.
+#[derive(Debug, Default)]
+pub struct KrsPanel {
+    /// The mirror plane highlighted in the view.
+    pub mirror: Option<usize>,
+    /// The preset picked in the combo box.
+    preset: usize,
+    /// Preset names from core (read once).
+    names: Vec<&'static str>,
+    /// Why the last change was refused.
+    pub error: Option<String>,
+    /// A mirror-gizmo drag in progress.
+    drag: Option<MirrorDrag>,
+    /// Tree-builder parameters and the KRS object they build (None: the builder is closed).
+    pub tree: Option<(u64, TreeParams)>,
+    /// A route-point drag in progress: (point index, its KRS-space position at the start,
+    /// where the pointer started).
+    tree_drag: Option<(usize, Vec3, egui::Pos2)>,
+}
+
+const KINDS: [(&str, &str); 7] = [
+    (
+        "Empty",
+        "No geometry at this level (an extra reflection only)",
+    ),
+    ("Sphere", "A ball"),
+    ("InfinitePlane", "A half-space (rock and terrain)"),
+    ("Capsule", "A segment swept by a ball"),
+    ("RoundedBox", "An oriented box with rounded edges"),
+    ("TorusSegment", "A torus segment with flat ends"),
+    (
+        "ToroidalCapsule",
+        "A torus segment with capping spheres: the branch kernel",
+    ),
+];
+
+fn default_kernel(kind: &str, material: Material) -> Kernel {
+    match kind {
+        "Sphere" => Kernel::Sphere(SphereKernel {
+            material,
+            ..SphereKernel::default()
+        }),
+        "InfinitePlane" => Kernel::InfinitePlane(PlaneKernel {
+            material,
+            ..PlaneKernel::default()
+        }),
+        "Capsule" => Kernel::Capsule(CapsuleKernel {
+            material,
+            ..CapsuleKernel::default()
+        }),
+        "RoundedBox" => Kernel::RoundedBox(BoxKernel {
+            material,
+            ..BoxKernel::default()
+        }),
+        "TorusSegment" => Kernel::TorusSegment(TorusKernel {
+            material,
+            ..TorusKernel::default()
+        }),
+        "ToroidalCapsule" => Kernel::ToroidalCapsule(TorusKernel {
+            material,
+            ..TorusKernel::default()
+        }),
+        _ => Kernel::Empty,
+    }
+}
+
+/// A grid row of three DragValues; returns whether one changed.
+fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64, tip: &str) -> bool {
+    ui.label(label).on_hover_text(tip);
+    let mut changed = false;
+    ui.horizontal(|ui| {
+        for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
+            changed |= ui
+                .add(
+                    egui::DragValue::new(c)
+                        .speed(speed)
+                        .max_decimals(4)
+                        .prefix(format!("{axis} ")),
+                )
+                .on_hover_text(tip)
+                .changed();
+        }
+    });
+    ui.end_row();
+    changed
+}
+
+/// A grid row of one DragValue limited to `range`; returns whether it changed.
+fn f32_row(
+    ui: &mut egui::Ui,
+    label: &str,
+    v: &mut f32,
+    speed: f64,
+    range: std::ops::RangeInclusive<f32>,
+    tip: &str,
+) -> bool {
+    ui.label(label).on_hover_text(tip);
+    let changed = ui
+        .add(
+            egui::DragValue::new(v)
+                .speed(speed)
+                .max_decimals(4)
+                .range(range),
+        )
+        .on_hover_text(tip)
+        .changed();
+    ui.end_row();
+    changed
+}
+
+fn material_rows(ui: &mut egui::Ui, m: &mut Material) -> bool {
+    ui.label("Colour").on_hover_text("Linear RGB albedo");
+    let mut rgb = m.colour.to_array();
+    let mut changed = ui
+        .color_edit_button_rgb(&mut rgb)
+        .on_hover_text("Linear RGB albedo of this kernel")
+        .changed();
+    if changed {
+        m.colour = Vec3::from_array(rgb);
+    }
+    ui.end_row();
+    ui.label("Material id")
+        .on_hover_text("Index in the renderer's material table");
+    changed |= ui
+        .add(egui::DragValue::new(&mut m.id).range(0..=255))
+        .on_hover_text("Index in the renderer's material table")
+        .changed();
+    ui.end_row();
+    changed
+}
+
+fn torus_rows(ui: &mut egui::Ui, k: &mut TorusKernel) -> bool {
+    let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the torus");
+    c |= vec3_row(
+        ui,
+        "Axis",
+        &mut k.axis,
+        0.01,
+        "Axis of the torus (non-zero; normalised when accepted)",
+    );
+    c |= vec3_row(
+        ui,
+        "Start direction",
+        &mut k.start_dir,
+        0.01,
+        "Where the arc starts: must not be parallel to the axis",
+    );
+    c |= f32_row(
+        ui,
+        "Major radius",
+        &mut k.major_radius,
+        0.005,
+        0.0..=1.0e4,
+        "Radius of the arc (0 or more)",
+    );
+    c |= f32_row(
+        ui,
+        "Minor radius",
+        &mut k.minor_radius,
+        0.002,
+        0.0..=1.0e4,
+        "Radius of the tube (0 or more)",
+    );
+    let mut sweep_deg = k.sweep_radians.to_degrees();
+    if f32_row(
+        ui,
+        "Sweep deg",
+        &mut sweep_deg,
+        0.5,
+        0.0..=360.0,
+        "Angle the arc covers, 0 to 360 degrees",
+    ) {
+        k.sweep_radians = sweep_deg.to_radians().min(std::f32::consts::TAU);
+        c = true;
+    }
+    c |= material_rows(ui, &mut k.material);
+    c
+}
+
+/// Parameter rows of one kernel; returns whether a value changed.
+fn kernel_rows(ui: &mut egui::Ui, kernel: &mut Kernel) -> bool {
+    match kernel {
+        Kernel::Empty => {
+            ui.weak("No parameters");
+            ui.end_row();
+            false
+        }
+        Kernel::Sphere(k) => {
+            let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the ball");
+            c |= f32_row(
+                ui,
+                "Radius",
+                &mut k.radius,
+                0.005,
+                0.0..=1.0e4,
+                "Radius of the ball (0 or more)",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::InfinitePlane(k) => {
+            let mut c = vec3_row(
+                ui,
+                "Normal",
+                &mut k.normal,
+                0.01,
+                "Outward normal (non-zero; normalised when accepted)",
+            );
+            c |= f32_row(
+                ui,
+                "Offset",
+                &mut k.offset,
+                0.01,
+                -1.0e5..=1.0e5,
+                "The solid is normal . p <= offset",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::Capsule(k) => {
+            let mut c = vec3_row(ui, "Start", &mut k.start, 0.01, "First end of the segment");
+            c |= vec3_row(ui, "End", &mut k.end, 0.01, "Second end of the segment");
+            c |= f32_row(
+                ui,
+                "Radius",
+                &mut k.radius,
+                0.002,
+                0.0..=1.0e4,
+                "Radius of the swept ball (0 or more)",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::RoundedBox(k) => {
+            let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the box");
+            let (y, x, z) = k.rotation.to_euler(EulerRot::YXZ);
+            let mut e = Vec3::new(x, y, z) * 180.0 / std::f32::consts::PI;
+            if vec3_row(
+                ui,
+                "Rotation deg",
+                &mut e,
+                0.5,
+                "Orientation as X, Y, Z Euler angles in degrees (applied Y, X, Z)",
+            ) {
+                let r = e * std::f32::consts::PI / 180.0;
+                k.rotation = Quat::from_euler(EulerRot::YXZ, r.y, r.x, r.z);
+                c = true;
+            }
+            c |= vec3_row(
+                ui,
+                "Half extents",
+                &mut k.half_extents,
+                0.005,
+                "Half the box's size per axis (0 or more)",
+            );
+            c |= f32_row(
+                ui,
+                "Rounding",
+                &mut k.rounding,
+                0.002,
+                0.0..=1.0e4,
+                "Edge rounding radius: at most the smallest half extent",
+            );
+            c | material_rows(ui, &mut k.material)
+        }
+        Kernel::TorusSegment(k) | Kernel::ToroidalCapsule(k) => torus_rows(ui, k),
+    }
+}
+
+/// The KRS section of the inspector for object `id`.
+pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel, id: u64) {
+    let Some(current) = editor.krs(id).cloned() else {
+        return;
+    };
+    if panel.names.is_empty() {
+        panel.names = presets::all().into_iter().map(|(n, _)| n).collect();
+    }
+    let mut k = current.clone();
+    let mut changed = false;
+    egui::CollapsingHeader::new("KRS editor")
+        .default_open(true)
+        .show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.label("Preset")
+                    .on_hover_text("Core's ready-made KRS objects");
+                let selected = panel.names.get(panel.preset).copied().unwrap_or("");
+                egui::ComboBox::from_id_salt("krs_preset")
+                    .selected_text(selected)
+                    .show_ui(ui, |ui| {
+                        for (i, name) in panel.names.iter().enumerate() {
+                            ui.selectable_value(&mut panel.preset, i, *name)
+                                .on_hover_text("Pick this preset, then Apply");
+                        }
+                    })
+                    .response
+                    .on_hover_text("Core's ready-made KRS objects");
+                if ui
+                    .button("Apply preset")
+                    .on_hover_text(
+                        "Replace this object's kernels and mirrors with the preset (undoable)",
+                    )
+                    .clicked()
+                    && let Some(name) = panel.names.get(panel.preset).copied()
+                {
+                    panel.error = editor
+                        .apply_krs_preset(id, name)
+                        .err()
+                        .map(|e| e.to_string());
+                }
+            });
+            if let Some(e) = &panel.error {
+                ui.colored_label(ui.visuals().error_fg_color, format!("Refused: {e}"));
+            }
+            ui.weak(format!(
+                "{} kernels, {} mirror planes, {} instances",
+                k.kernels.len(),
+                k.mirrors.len(),
+                crate::files::thousands_u128(k.instance_count())
+            ));
+
+            ui.separator();
+            ui.strong("Kernels")
+                .on_hover_text("K0..Kn: kernel K_i is reached after folding by mirrors n-1..i");
+            for (i, kernel) in k.kernels.iter_mut().enumerate() {
+                egui::CollapsingHeader::new(format!("K{i}: {}", kernel.kind_name()))
+                    .id_salt(("krs_kernel", id, i))
+                    .default_open(false)
+                    .show(ui, |ui| {
+                        egui::Grid::new(("krs_kernel_grid", i))
+                            .num_columns(2)
+                            .show(ui, |ui| {
+                                ui.label("Kind").on_hover_text("The kernel's shape");
+                                let kind = kernel.kind_name();
+                                egui::ComboBox::from_id_salt(("krs_kind", i))
+                                    .selected_text(kind)
+                                    .show_ui(ui, |ui| {
+                                        for (name, tip) in KINDS {
+                                            if ui
+                                                .selectable_label(kind == name, name)
+                                                .on_hover_text(tip)
+                                                .clicked()
+                                                && kind != name
+                                            {
+                                                let m =
+                                                    kernel.material().copied().unwrap_or_default();
+                                                *kernel = default_kernel(name, m);
+                                                changed = true;
+                                            }
+                                        }
+                                    })
+                                    .response
+                                    .on_hover_text(
+                                        "The kernel's shape (a new kind starts from its defaults)",
+                                    );
+                                ui.end_row();
+                                changed |= kernel_rows(ui, kernel);
+                            });
+                    });
+            }
+
+            ui.separator();
+            ui.strong("Mirror planes").on_hover_text(
+                "R0..R(n-1): normal . p = offset; points on the normal's side are folded over",
+            );
+            egui::Grid::new("krs_mirrors")
+                .num_columns(3)
+                .striped(true)
+                .show(ui, |ui| {
+                    for (i, m) in k.mirrors.iter_mut().enumerate() {
+                        if ui
+                            .selectable_label(panel.mirror == Some(i), format!("R{i}"))
+                            .on_hover_text("Highlight this plane in the view")
+                            .clicked()
+                        {
+                            panel.mirror = (panel.mirror != Some(i)).then_some(i);
+                        }
+                        ui.horizontal(|ui| {
+                            for (axis, c) in ["x", "y", "z"].iter().zip([
+                                &mut m.normal.x,
+                                &mut m.normal.y,
+                                &mut m.normal.z,
+                            ]) {
+                                changed |= ui
+                                    .add(
+                                        egui::DragValue::new(c)
+                                            .speed(0.01)
+                                            .max_decimals(4)
+                                            .prefix(format!("n{axis} ")),
+                                    )
+                                    .on_hover_text(
+                                        "Plane normal: non-zero, normalised when accepted",
+                                    )
+                                    .changed();
+                            }
+                        });
+                        changed |= ui
+                            .add(
+                                egui::DragValue::new(&mut m.offset)
+                                    .speed(0.01)
+                                    .max_decimals(4)
+                                    .prefix("c "),
+                            )
+                            .on_hover_text("Offset of the plane along its normal")
+                            .changed();
+                        ui.end_row();
+                    }
+                });
+            ui.horizontal(|ui| {
+                if ui
+                    .button("Add level")
+                    .on_hover_text(
+                        "Add a mirror plane (through the origin, normal +X) and an empty kernel",
+                    )
+                    .clicked()
+                {
+                    k.mirrors.push(MirrorPlane::default());
+                    k.kernels.push(Kernel::Empty);
+                    changed = true;
+                }
+                if ui
+                    .add_enabled(
+                        !k.mirrors.is_empty(),
+                        egui::Button::new("Remove last level"),
+                    )
+                    .on_hover_text("Remove the last mirror plane and the last kernel")
+                    .clicked()
+                {
+                    k.mirrors.pop();
+                    k.kernels.pop();
+                    changed = true;
+                }
+            });
+            ui.separator();
+            tree_builder_ui(ui, editor, panel, id);
+        });
+    if changed && k != current {
+        // A structural change (kind, level) is its own step; value drags merge while they last.
+        panel.error = editor.set_krs(id, &k).err().map(|e| e.to_string());
+    }
+    if panel
+        .mirror
+        .is_some_and(|m| m >= editor.krs(id).map_or(0, |k| k.mirrors.len()))
+    {
+        panel.mirror = None;
+    }
+}
+
+/// The selected KRS object's mirror planes on the screen: a quad per plane through the centre
+/// of the object's bounding ball, as large as the ball.
+fn mirror_quads(editor: &Editor, proj: &Projector) -> Vec<(usize, Vec<egui::Pos2>)> {
+    let Some(Selection::Object(id)) = editor.selection else {
+        return Vec::new();
+    };
+    let Some(k) = editor
+        .object(id)
+        .filter(|o| o.visible)
+        .and_then(thicket_core::scene::Object::krs_in_world)
+    else {
+        return Vec::new();
+    };
+    let (centre, radius) = k.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+    let t = k.world_from_object;
+    // The bounding ball of a tree is loose (reflections can reach far): keep the quads within
+    // a part of the view so they do not hide what they cut.
+    let radius = radius
+        .min(proj.camera.distance * 0.4 / t.scale.max(1e-12))
+        .clamp(1e-3, 1e4);
+    let mut out = Vec::new();
+    for (i, m) in k.mirrors.iter().enumerate() {
+        let Some(n) = m.normal.try_normalize() else {
+            continue;
+        };
+        let on_plane = centre - n * (n.dot(centre) - m.offset);
+        let (u, v) = n.any_orthonormal_pair();
+        let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
+            .iter()
+            .map(|(a, b)| proj.to_screen(t.transform_point(on_plane + (u * *a + v * *b) * radius)))
+            .collect();
+        if let Some(corners) = corners {
+            out.push((i, corners));
+        }
+    }
+    out
+}
+
+/// The mirror plane of the selected KRS object whose outline passes under `pointer`.
+#[must_use]
+pub fn pick_mirror(editor: &Editor, proj: &Projector, pointer: egui::Pos2) -> Option<usize> {
+    mirror_quads(editor, proj)
+        .into_iter()
+        .map(|(i, mut q)| {
+            q.push(q[0]);
+            (distance_to_polyline(pointer, &q), i)
+        })
+        .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+        .min_by(|a, b| a.0.total_cmp(&b.0))
+        .map(|(_, i)| i)
+}
+
+/// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
+/// brighter and filled, with its gizmo), sized by the object's bounding ball.
+pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    for (i, mut corners) in mirror_quads(editor, proj) {
+        let highlighted = panel.mirror == Some(i);
+        let color = if highlighted {
+            egui::Color32::from_rgb(120, 220, 255)
+        } else {
+            egui::Color32::from_rgba_unmultiplied(120, 200, 255, 110)
+        };
+        if highlighted {
+            painter.add(egui::Shape::convex_polygon(
+                corners.clone(),
+                egui::Color32::from_rgba_unmultiplied(120, 220, 255, 30),
+                egui::Stroke::NONE,
+            ));
+        }
+        let label_at = corners[2];
+        corners.push(corners[0]);
+        painter.add(egui::Shape::line(
+            corners,
+            egui::Stroke::new(if highlighted { 2.5 } else { 1.0 }, color),
+        ));
+        painter.text(
+            label_at,
+            egui::Align2::LEFT_BOTTOM,
+            format!("R{i}"),
+            egui::FontId::proportional(11.0),
+            color,
+        );
+    }
+    let active = panel.drag.map(|d| d.handle);
+    for h in panel.mirror_handles(editor, proj) {
+        let color = match h.handle {
+            MirrorHandle::Offset => egui::Color32::from_rgb(255, 230, 90),
+            MirrorHandle::Tilt(0) => egui::Color32::from_rgb(240, 120, 200),
+            MirrorHandle::Tilt(_) => egui::Color32::from_rgb(150, 230, 120),
+        };
+        let width = if active == Some(h.handle) { 3.5 } else { 2.0 };
+        if h.handle == MirrorHandle::Offset
+            && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
+        {
+            let dir = (*b - *a).normalized();
+            let side = egui::vec2(-dir.y, dir.x) * 5.0;
+            painter.add(egui::Shape::convex_polygon(
+                vec![*b + dir * 10.0, *b + side, *b - side],
+                color,
+                egui::Stroke::NONE,
+            ));
+        }
+        painter.add(egui::Shape::line(h.points, egui::Stroke::new(width, color)));
+    }
+}
+
+/// Gizmo size in view points (arrow length, ring radius).
+const MIRROR_GIZMO_PX: f32 = 60.0;
+/// How close (points) the pointer must be to a handle to grab it.
+const MIRROR_GRAB_PX: f32 = 8.0;
+
+/// A handle of the mirror-plane gizmo.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum MirrorHandle {
+    /// The arrow along the normal: moves the plane (its offset).
+    Offset,
+    /// A ring about one of the plane's two in-plane axes: tilts the plane about its centre.
+    Tilt(usize),
+}
+
+/// A handle as drawn: what it does and its polyline on the screen.
+#[derive(Debug, Clone)]
+pub struct MirrorHandleShape {
+    /// What the handle does.
+    pub handle: MirrorHandle,
+    /// The polyline (arrow: from the plane's centre to the tip).
+    pub points: Vec<egui::Pos2>,
+}
+
+/// The highlighted plane of the selected KRS object: its KRS-space centre and basis, and the
+/// KRS's placement in the world.
+struct MirrorFrame {
+    id: u64,
+    index: usize,
+    plane: MirrorPlane,
+    centre: Vec3,
+    axes: [Vec3; 2],
+    world: thicket_core::krs::Similarity,
+}
+
+impl MirrorFrame {
+    fn of(editor: &Editor, panel: &KrsPanel) -> Option<Self> {
+        let Some(Selection::Object(id)) = editor.selection else {
+            return None;
+        };
+        let index = panel.mirror?;
+        let world = editor.object(id).filter(|o| o.visible)?.krs_in_world()?;
+        let plane = *world.mirrors.get(index)?;
+        let n = plane.normal.try_normalize()?;
+        let (centre, _) = world.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+        let (u, v) = n.any_orthonormal_pair();
+        Some(Self {
+            id,
+            index,
+            plane: MirrorPlane { normal: n, ..plane },
+            centre: centre - n * (n.dot(centre) - plane.offset),
+            axes: [u, v],
+            world: world.world_from_object,
+        })
+    }
+
+    fn dir_world(&self, v: Vec3) -> Vec3 {
+        self.world.rotation * v
+    }
+}
+
+/// A mirror-gizmo drag in progress (measured from where it started).
+#[derive(Debug, Clone, Copy)]
+struct MirrorDrag {
+    id: u64,
+    index: usize,
+    handle: MirrorHandle,
+    base: MirrorPlane,
+    centre: Vec3,
+    axes: [Vec3; 2],
+    start: egui::Pos2,
+    center_px: egui::Pos2,
+    sign: f32,
+    arrow_px: egui::Vec2,
+    /// KRS-space length of the arrow.
+    arrow_krs: f32,
+}
+
+impl KrsPanel {
+    /// The highlighted mirror plane's gizmo handles on the screen (empty when no plane of the
+    /// selected KRS object is highlighted).
+    #[must_use]
+    pub fn mirror_handles(&self, editor: &Editor, proj: &Projector) -> Vec<MirrorHandleShape> {
+        let Some(f) = MirrorFrame::of(editor, self) else {
+            return Vec::new();
+        };
+        let p = f.world.transform_point(f.centre);
+        let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
+        let n = f.dir_world(f.plane.normal);
+        let mut out = Vec::new();
+        if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + n * size)) {
+            out.push(MirrorHandleShape {
+                handle: MirrorHandle::Offset,
+                points: vec![a, b],
+            });
+        }
+        for k in 0..2 {
+            // The ring about in-plane axis k lies in the plane of the other axis and the normal.
+            let other = f.dir_world(f.axes[1 - k]);
+            let points: Option<Vec<egui::Pos2>> = (0..=48)
+                .map(|i| {
+                    let t = i as f32 / 48.0 * std::f32::consts::TAU;
+                    proj.to_screen(p + size * (t.cos() * other + t.sin() * n))
+                })
+                .collect();
+            if let Some(points) = points {
+                out.push(MirrorHandleShape {
+                    handle: MirrorHandle::Tilt(k),
+                    points,
+                });
+            }
+        }
+        out
+    }
+
+    /// Whether a mirror-gizmo drag is in progress.
+    #[must_use]
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
+    /// Handles the mirror-plane gizmo: the arrow moves the plane along its normal, the rings
+    /// tilt it about its centre; a drag is one undo step. Returns whether the gizmo owns the
+    /// pointer this frame.
+    pub fn interact(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        editor: &mut Editor,
+        proj: &Projector,
+    ) -> bool {
+        if self.drag.is_none() && self.interact_route(ui, response, editor, proj) {
+            return true;
+        }
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
+            && let Some(start) = ui.input(|i| i.pointer.press_origin())
+            && let Some(f) = MirrorFrame::of(editor, self)
+        {
+            let grabbed = self
+                .mirror_handles(editor, proj)
+                .into_iter()
+                .map(|h| (distance_to_polyline(start, &h.points), h))
+                .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let p = f.world.transform_point(f.centre);
+            if let Some((_, h)) = grabbed
+                && let Some(center_px) = proj.to_screen(p)
+            {
+                let sign = match h.handle {
+                    MirrorHandle::Tilt(k) if f.dir_world(f.axes[k]).dot(proj.eye() - p) < 0.0 => {
+                        -1.0
+                    }
+                    _ => 1.0,
+                };
+                let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
+                let arrow_px = h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center_px);
+                editor.end_interaction();
+                self.drag = Some(MirrorDrag {
+                    id: f.id,
+                    index: f.index,
+                    handle: h.handle,
+                    base: f.plane,
+                    centre: f.centre,
+                    axes: f.axes,
+                    start,
+                    center_px,
+                    sign,
+                    arrow_px,
+                    arrow_krs: size / f.world.scale.max(1e-12),
+                });
+            }
+        }
+        let Some(d) = self.drag else {
+            return false;
+        };
+        if !ui.input(|i| i.pointer.primary_down()) {
+            self.drag = None;
+            return true;
+        }
+        let (Some(pointer), Some(mut k)) = (
+            ui.input(|i| i.pointer.interact_pos()),
+            editor.krs(d.id).cloned(),
+        ) else {
+            return true;
+        };
+        let Some(slot) = k.mirrors.get_mut(d.index) else {
+            self.drag = None;
+            return true;
+        };
+        *slot = match d.handle {
+            MirrorHandle::Offset => {
+                let len2 = d.arrow_px.length_sq();
+                if len2 < 1.0 {
+                    return true;
+                }
+                let along = (pointer - d.start).dot(d.arrow_px) / len2;
+                MirrorPlane {
+                    normal: d.base.normal,
+                    offset: d.base.offset + along * d.arrow_krs,
+                }
+            }
+            MirrorHandle::Tilt(axis) => {
+                let mut screen = (pointer - d.center_px).angle() - (d.start - d.center_px).angle();
+                if screen > std::f32::consts::PI {
+                    screen -= std::f32::consts::TAU;
+                } else if screen < -std::f32::consts::PI {
+                    screen += std::f32::consts::TAU;
+                }
+                // Screen y points down: a counter-clockwise turn lowers the angle.
+                let theta = -screen * d.sign;
+                let normal = Quat::from_axis_angle(d.axes[axis], theta) * d.base.normal;
+                // Tilt about the plane's centre: the plane keeps passing through it.
+                MirrorPlane {
+                    normal,
+                    offset: normal.dot(d.centre),
+                }
+            }
+        };
+        self.error = editor.set_krs(d.id, &k).err().map(|e| e.to_string());
+        true
+    }
+}
+
+/// The tree builder (paper section 7.2): fork positions along one route, a bend (control point)
+/// and a width per branch, the leaf. Every change rebuilds the object (a drag is one undo step);
+/// the fork positions can also be dragged in the view.
+fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel, id: u64) {
+    let open = panel.tree.as_ref().is_some_and(|(t, _)| *t == id);
+    ui.horizontal(|ui| {
+        ui.strong("Tree builder")
+            .on_hover_text("Build this object as a tree from fork positions, bends and widths");
+        if !open
+            && ui
+                .button("Start from the default tree")
+                .on_hover_text(
+                    "Open the builder with the default parameters and rebuild this object from them (undoable)",
+                )
+                .clicked()
+        {
+            let params = TreeParams::default();
+            editor.end_interaction();
+            panel.error = editor.build_tree(id, &params).err().map(|e| e.to_string());
+            editor.end_interaction();
+            panel.tree = Some((id, params));
+        }
+        if open
+            && ui
+                .button("Close builder")
+                .on_hover_text("Hide the builder and its handles (the object keeps its shape)")
+                .clicked()
+        {
+            panel.tree = None;
+        }
+    });
+    let Some((_, params)) = panel.tree.as_ref().filter(|(t, _)| *t == id) else {
+        return;
+    };
+    let mut p = params.clone();
+    let mut changed = false;
+    let branches = p.route.len().saturating_sub(1);
+    egui::Grid::new("tree_builder")
+        .num_columns(2)
+        .striped(true)
+        .show(ui, |ui| {
+            for i in 0..p.route.len() {
+                let label = if i == 0 {
+                    "Trunk base".to_owned()
+                } else if i == branches {
+                    "Twig tip".to_owned()
+                } else {
+                    format!("Fork {i}")
+                };
+                changed |= vec3_row(
+                    ui,
+                    &label,
+                    &mut p.route[i],
+                    0.01,
+                    "Position along the route from trunk base to twig tip (also draggable in the view)",
+                );
+            }
+            for b in 0..branches {
+                if p.bends.len() <= b {
+                    p.bends.resize(b + 1, Vec3::ZERO);
+                }
+                changed |= vec3_row(
+                    ui,
+                    &format!("Bend {b}"),
+                    &mut p.bends[b],
+                    0.005,
+                    "Offset of the branch's control point from its chord midpoint (0: straight)",
+                );
+                if p.widths.len() <= b {
+                    let last = p.widths.last().copied().unwrap_or(0.05);
+                    p.widths.resize(b + 1, last);
+                }
+                changed |= f32_row(
+                    ui,
+                    &format!("Width {b}"),
+                    &mut p.widths[b],
+                    0.002,
+                    0.0..=100.0,
+                    "Branch radius (0 or more)",
+                );
+            }
+            if let Some(leaf) = p.leaf.as_mut() {
+                changed |= f32_row(
+                    ui,
+                    "Leaf radius",
+                    &mut leaf.radius,
+                    0.002,
+                    0.0..=100.0,
+                    "Radius of the leaf ball at the twig tip",
+                );
+            }
+        });
+    ui.horizontal(|ui| {
+        if ui
+            .button("Add fork")
+            .on_hover_text("Extend the route by a shorter branch beyond the twig tip")
+            .clicked()
+        {
+            let n = p.route.len();
+            let last = p.route[n - 1];
+            let dir = if n >= 2 {
+                last - p.route[n - 2]
+            } else {
+                Vec3::Y
+            };
+            p.route.push(last + dir * 0.7);
+            changed = true;
+        }
+        if ui
+            .add_enabled(p.route.len() > 2, egui::Button::new("Remove fork"))
+            .on_hover_text("Remove the twig tip (the route keeps at least two points)")
+            .clicked()
+        {
+            p.route.pop();
+            changed = true;
+        }
+    });
+    if changed {
+        match editor.build_tree(id, &p) {
+            Ok(()) => {
+                panel.error = None;
+                panel.tree = Some((id, p));
+            }
+            Err(e) => panel.error = Some(e.to_string()),
+        }
+    }
+}
+
+impl KrsPanel {
+    /// The tree builder's route points on the screen, when the builder is open for the
+    /// selected object.
+    #[must_use]
+    pub fn route_points(&self, editor: &Editor, proj: &Projector) -> Vec<Option<egui::Pos2>> {
+        let Some(Selection::Object(id)) = editor.selection else {
+            return Vec::new();
+        };
+        let Some((_, params)) = self.tree.as_ref().filter(|(t, _)| *t == id) else {
+            return Vec::new();
+        };
+        let Some(world) = editor
+            .object(id)
+            .and_then(thicket_core::scene::Object::krs_in_world)
+        else {
+            return Vec::new();
+        };
+        params
+            .route
+            .iter()
+            .map(|p| proj.to_screen(world.world_from_object.transform_point(*p)))
+            .collect()
+    }
+
+    /// Drags a route point of the open tree builder in the view plane; returns whether it owns
+    /// the pointer this frame.
+    fn interact_route(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        editor: &mut Editor,
+        proj: &Projector,
+    ) -> bool {
+        let Some(Selection::Object(id)) = editor.selection else {
+            self.tree_drag = None;
+            return false;
+        };
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
+            && let Some(start) = ui.input(|i| i.pointer.press_origin())
+        {
+            let grabbed = self
+                .route_points(editor, proj)
+                .iter()
+                .enumerate()
+                .filter_map(|(i, s)| s.map(|s| (s.distance(start), i)))
+                .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, i)) = grabbed
+                && let Some((_, params)) = self.tree.as_ref()
+            {
+                editor.end_interaction();
+                self.tree_drag = Some((i, params.route[i], start));
+            }
+        }
+        let Some((index, base, start)) = self.tree_drag else {
+            return false;
+        };
+        if !ui.input(|i| i.pointer.primary_down()) {
+            self.tree_drag = None;
+            return true;
+        }
+        let (Some(pointer), Some(world)) = (
+            ui.input(|i| i.pointer.interact_pos()),
+            editor
+                .object(id)
+                .and_then(thicket_core::scene::Object::krs_in_world),
+        ) else {
+            return true;
+        };
+        let Some((_, params)) = self.tree.as_ref() else {
+            self.tree_drag = None;
+            return true;
+        };
+        // Move in the plane facing the camera through the point's position at the start.
+        let t = world.world_from_object;
+        let p_world = t.transform_point(base);
+        let eye = proj.eye();
+        let forward = (proj.camera.target - eye).normalize_or_zero();
+        let right = forward.cross(Vec3::Y).try_normalize().unwrap_or(Vec3::X);
+        let up = right.cross(forward);
+        let d = pointer - start;
+        let delta_world = (right * d.x - up * d.y) * proj.world_per_point(p_world);
+        let delta = t.rotation.inverse() * delta_world / t.scale.max(1e-12);
+        let mut p = params.clone();
+        if let Some(slot) = p.route.get_mut(index) {
+            *slot = base + delta;
+        }
+        match editor.build_tree(id, &p) {
+            Ok(()) => {
+                self.error = None;
+                self.tree = Some((id, p));
+            }
+            Err(e) => self.error = Some(e.to_string()),
+        }
+        true
+    }
+}
+
+/// Draws the open tree builder's route: the fork positions as handles joined by lines.
+pub fn paint_route(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    let points = panel.route_points(editor, proj);
+    let color = egui::Color32::from_rgb(255, 240, 160);
+    for w in points.windows(2) {
+        if let (Some(a), Some(b)) = (w[0], w[1]) {
+            painter.line_segment([a, b], egui::Stroke::new(1.5, color));
+        }
+    }
+    let dragged = panel.tree_drag.map(|(i, _, _)| i);
+    for (i, p) in points.iter().enumerate() {
+        if let Some(p) = p {
+            let r = if dragged == Some(i) { 6.0 } else { 4.5 };
+            painter.circle(
+                *p,
+                r,
+                egui::Color32::from_rgb(90, 60, 30),
+                egui::Stroke::new(1.5, color),
+            );
+        }
+    }
+}

@@ -1,0 +1,779 @@
+//! The pose tool: the skeleton drawn over the view, joint picking (tree or view), a transform
+//! gizmo (axis rings to rotate, axis arrows to move) whose drag is one undo step, the joint's
+//! override values, the stretch settings, and the timeline that plays and scrubs clips.
+
+use glam::{Quat, Vec3};
+use thicket_core::scene::ObjectKind;
+use thicket_core::skin::{JointOverride, OverrideMode, StretchStrategy, Wrap};
+
+use super::view::Projector;
+use crate::editor::{Editor, JointFrames, Selection};
+
+/// Gizmo ring radius / arrow length in view points.
+const GIZMO_PX: f32 = 70.0;
+/// How close (points) the pointer must be to a handle or a joint dot to grab it.
+const GRAB_PX: f32 = 8.0;
+/// Segments of a rotation ring.
+const RING_SEGMENTS: usize = 48;
+
+const AXIS_COLORS: [egui::Color32; 3] = [
+    egui::Color32::from_rgb(230, 80, 80),
+    egui::Color32::from_rgb(90, 210, 90),
+    egui::Color32::from_rgb(80, 140, 240),
+];
+const AXIS_NAMES: [&str; 3] = ["X", "Y", "Z"];
+
+/// What the gizmo does.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum GizmoMode {
+    /// Rings about the joint's own axes.
+    Rotate,
+    /// Arrows along the axes of the joint's parent frame (where its translation lives).
+    Translate,
+}
+
+/// A joint of a rigged object.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JointRef {
+    /// The object id.
+    pub object: u64,
+    /// The joint index in its skeleton.
+    pub joint: usize,
+}
+
+/// A gizmo drag in progress: everything is measured from where it started, so the joint
+/// follows the pointer without accumulating error.
+#[derive(Debug, Clone, Copy)]
+struct GizmoDrag {
+    joint: JointRef,
+    axis: usize,
+    mode: GizmoMode,
+    /// The joint's override when the drag started.
+    base: Option<JointOverride>,
+    start: egui::Pos2,
+    /// The joint on the screen when the drag started.
+    center: egui::Pos2,
+    /// +1 when the ring's axis points toward the viewer (a counter-clockwise drag on the
+    /// screen is then a positive rotation), -1 otherwise.
+    sign: f32,
+    /// Translate: the arrow on the screen (points) and the local translation it stands for.
+    arrow_px: egui::Vec2,
+    arrow_local: f32,
+}
+
+/// The pose tool's state.
+#[derive(Debug)]
+pub struct PoseTool {
+    /// The selected joint.
+    pub joint: Option<JointRef>,
+    /// Rotate or translate.
+    pub mode: GizmoMode,
+    /// Draw skeletons over the view.
+    pub show_skeleton: bool,
+    /// The timeline is playing.
+    pub playing: bool,
+    drag: Option<GizmoDrag>,
+    /// Why the last pose / stretch / playback change was refused.
+    pub error: Option<String>,
+}
+
+impl Default for PoseTool {
+    fn default() -> Self {
+        Self {
+            joint: None,
+            mode: GizmoMode::Rotate,
+            show_skeleton: true,
+            playing: false,
+            drag: None,
+            error: None,
+        }
+    }
+}
+
+/// A drawn handle: its axis and its polyline on the screen.
+struct Handle {
+    axis: usize,
+    points: Vec<egui::Pos2>,
+}
+
+/// Distance in points from `p` to a polyline.
+pub(super) fn distance_to_polyline(p: egui::Pos2, points: &[egui::Pos2]) -> f32 {
+    points
+        .windows(2)
+        .map(|w| {
+            let (a, b) = (w[0], w[1]);
+            let ab = b - a;
+            let t = ((p - a).dot(ab) / ab.length_sq().max(1e-6)).clamp(0.0, 1.0);
+            p.distance(a + ab * t)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+impl PoseTool {
+    /// The selected joint, when it still exists in the document.
+    #[must_use]
+    pub fn valid_joint(&self, editor: &Editor) -> Option<JointRef> {
+        let j = self.joint?;
+        (editor.rig(j.object)?.skeleton.len() > j.joint).then_some(j)
+    }
+
+    /// Whether a gizmo drag is in progress.
+    #[must_use]
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
+    fn handles(&self, frames: &JointFrames, joint: usize, proj: &Projector) -> Vec<Handle> {
+        let (Some(w), Some(parent)) = (
+            frames.world_from_joint.get(joint),
+            frames.world_from_parent.get(joint),
+        ) else {
+            return Vec::new();
+        };
+        let p = w.w_axis.truncate();
+        let size = GIZMO_PX * proj.world_per_point(p);
+        let mut out = Vec::new();
+        for axis in 0..3 {
+            match self.mode {
+                GizmoMode::Rotate => {
+                    let Some(a) = w.col(axis).truncate().try_normalize() else {
+                        continue;
+                    };
+                    let (u, v) = a.any_orthonormal_pair();
+                    let points: Option<Vec<egui::Pos2>> = (0..=RING_SEGMENTS)
+                        .map(|i| {
+                            let t = i as f32 / RING_SEGMENTS as f32 * std::f32::consts::TAU;
+                            proj.to_screen(p + size * (t.cos() * u + t.sin() * v))
+                        })
+                        .collect();
+                    if let Some(points) = points {
+                        out.push(Handle { axis, points });
+                    }
+                }
+                GizmoMode::Translate => {
+                    let Some(d) = parent.col(axis).truncate().try_normalize() else {
+                        continue;
+                    };
+                    if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + d * size)) {
+                        out.push(Handle {
+                            axis,
+                            points: vec![a, b],
+                        });
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// Handles the gizmo: a drag that starts on a handle moves the selected joint (one undo
+    /// step). Returns whether the gizmo owns the pointer this frame (the view then does not
+    /// orbit).
+    pub fn interact(
+        &mut self,
+        ui: &egui::Ui,
+        response: &egui::Response,
+        editor: &mut Editor,
+        proj: &Projector,
+    ) -> bool {
+        let Some(sel) = self.valid_joint(editor) else {
+            self.drag = None;
+            return false;
+        };
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
+            && let Some(start) = ui.input(|i| i.pointer.press_origin())
+            && let Some(frames) = editor.joint_frames(sel.object)
+        {
+            let grabbed = self
+                .handles(&frames, sel.joint, proj)
+                .into_iter()
+                .map(|h| (distance_to_polyline(start, &h.points), h))
+                .filter(|(d, _)| *d <= GRAB_PX)
+                .min_by(|a, b| a.0.total_cmp(&b.0));
+            if let Some((_, h)) = grabbed
+                && let Some(p) = frames.position(sel.joint)
+                && let Some(center) = proj.to_screen(p)
+            {
+                let w = frames.world_from_joint[sel.joint];
+                let parent = frames.world_from_parent[sel.joint];
+                let axis_world = w.col(h.axis).truncate();
+                let sign = if axis_world.dot(proj.eye() - p) >= 0.0 {
+                    1.0
+                } else {
+                    -1.0
+                };
+                let parent_axis = parent.col(h.axis).truncate();
+                let size = GIZMO_PX * proj.world_per_point(p);
+                // The arrow is `size` world units long; a unit of local translation moves the
+                // joint by the parent axis's length.
+                let (arrow_px, arrow_local) =
+                    if self.mode == GizmoMode::Translate && parent_axis.length_squared() > 1e-24 {
+                        (
+                            h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
+                            size / parent_axis.length(),
+                        )
+                    } else {
+                        (egui::Vec2::ZERO, 0.0)
+                    };
+                // A new drag is a new undo step.
+                editor.end_interaction();
+                self.drag = Some(GizmoDrag {
+                    joint: sel,
+                    axis: h.axis,
+                    mode: self.mode,
+                    base: editor.joint_override(sel.object, sel.joint),
+                    start,
+                    center,
+                    sign,
+                    arrow_px,
+                    arrow_local,
+                });
+            }
+        }
+        let Some(drag) = self.drag else {
+            return false;
+        };
+        if !ui.input(|i| i.pointer.primary_down()) {
+            self.drag = None;
+            return true;
+        }
+        let Some(pointer) = ui.input(|i| i.pointer.interact_pos()) else {
+            return true;
+        };
+        let JointRef { object, joint } = drag.joint;
+        let mut e_k = Vec3::ZERO;
+        e_k[drag.axis] = 1.0;
+        let result = match drag.mode {
+            GizmoMode::Rotate => {
+                let a0 = (drag.start - drag.center).angle();
+                let a1 = (pointer - drag.center).angle();
+                // Screen y points down: a counter-clockwise turn lowers the angle.
+                let mut screen = a1 - a0;
+                if screen > std::f32::consts::PI {
+                    screen -= std::f32::consts::TAU;
+                } else if screen < -std::f32::consts::PI {
+                    screen += std::f32::consts::TAU;
+                }
+                let theta = -screen * drag.sign;
+                editor.rotate_joint(object, joint, drag.base, Quat::from_axis_angle(e_k, theta))
+            }
+            GizmoMode::Translate => {
+                let len2 = drag.arrow_px.length_sq();
+                if len2 < 1.0 {
+                    Ok(())
+                } else {
+                    let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
+                    editor.translate_joint(object, joint, drag.base, e_k * along * drag.arrow_local)
+                }
+            }
+        };
+        self.error = result.err().map(|e| e.to_string());
+        true
+    }
+
+    /// The joint whose dot is under `pointer`, over every visible rigged object.
+    #[must_use]
+    pub fn pick_joint(
+        &self,
+        editor: &Editor,
+        proj: &Projector,
+        pointer: egui::Pos2,
+    ) -> Option<JointRef> {
+        if !self.show_skeleton {
+            return None;
+        }
+        let mut best: Option<(f32, JointRef)> = None;
+        for o in editor.doc().objects.iter().filter(|o| o.visible) {
+            let Some(frames) = editor.joint_frames(o.id) else {
+                continue;
+            };
+            for j in 0..frames.world_from_joint.len() {
+                let Some(s) = frames.position(j).and_then(|p| proj.to_screen(p)) else {
+                    continue;
+                };
+                let d = s.distance(pointer);
+                if d <= GRAB_PX && best.is_none_or(|(bd, _)| d < bd) {
+                    best = Some((
+                        d,
+                        JointRef {
+                            object: o.id,
+                            joint: j,
+                        },
+                    ));
+                }
+            }
+        }
+        best.map(|(_, j)| j)
+    }
+
+    /// Draws every visible skeleton and the selected joint's gizmo.
+    pub fn paint(&self, painter: &egui::Painter, editor: &Editor, proj: &Projector) {
+        if !self.show_skeleton {
+            return;
+        }
+        let selected = self.valid_joint(editor);
+        for o in editor.doc().objects.iter().filter(|o| o.visible) {
+            let Some(frames) = editor.joint_frames(o.id) else {
+                continue;
+            };
+            let is_selected_object = editor.selection == Some(Selection::Object(o.id));
+            let bone = if is_selected_object {
+                egui::Color32::from_rgb(255, 200, 120)
+            } else {
+                egui::Color32::from_gray(170)
+            };
+            let screen: Vec<Option<egui::Pos2>> = (0..frames.world_from_joint.len())
+                .map(|j| frames.position(j).and_then(|p| proj.to_screen(p)))
+                .collect();
+            for (j, parent) in frames.parents.iter().enumerate() {
+                if let (Some(a), Some(Some(b))) =
+                    (screen[j], parent.and_then(|p| screen.get(p).copied()))
+                {
+                    painter.line_segment([b, a], egui::Stroke::new(2.0, bone));
+                }
+            }
+            for (j, s) in screen.iter().enumerate() {
+                let Some(s) = *s else { continue };
+                let this = JointRef {
+                    object: o.id,
+                    joint: j,
+                };
+                if selected == Some(this) {
+                    painter.circle_filled(s, 5.5, egui::Color32::from_rgb(255, 230, 60));
+                } else {
+                    painter.circle_filled(s, 3.5, bone);
+                }
+            }
+        }
+        let Some(sel) = selected else { return };
+        let Some(frames) = editor.joint_frames(sel.object) else {
+            return;
+        };
+        let active = self.drag.map(|d| d.axis);
+        for h in self.handles(&frames, sel.joint, proj) {
+            let width = if active == Some(h.axis) { 3.5 } else { 2.0 };
+            let stroke = egui::Stroke::new(width, AXIS_COLORS[h.axis]);
+            painter.add(egui::Shape::line(h.points.clone(), stroke));
+            if self.mode == GizmoMode::Translate
+                && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
+            {
+                let dir = (*b - *a).normalized();
+                let side = egui::vec2(-dir.y, dir.x) * 5.0;
+                painter.add(egui::Shape::convex_polygon(
+                    vec![*b + dir * 10.0, *b + side, *b - side],
+                    AXIS_COLORS[h.axis],
+                    egui::Stroke::NONE,
+                ));
+            }
+        }
+        if let (Some(p), Some(rig)) = (frames.position(sel.joint), editor.rig(sel.object))
+            && let Some(s) = proj.to_screen(p)
+        {
+            painter.text(
+                s + egui::vec2(8.0, -8.0),
+                egui::Align2::LEFT_BOTTOM,
+                &rig.skeleton.joints[sel.joint].name,
+                egui::FontId::proportional(12.0),
+                egui::Color32::from_rgb(255, 230, 60),
+            );
+        }
+    }
+}
+
+fn joint_label(name: &str, j: usize) -> String {
+    if name.is_empty() {
+        format!("joint {j}")
+    } else {
+        name.to_owned()
+    }
+}
+
+/// The Pose and Stretch sections of the inspector for a rigged voxel model.
+pub fn rig_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    let Some(rig) = editor.rig(id).cloned() else {
+        return;
+    };
+    if let Some(e) = &tool.error {
+        ui.colored_label(ui.visuals().error_fg_color, format!("Refused: {e}"));
+    }
+    egui::CollapsingHeader::new("Pose")
+        .default_open(true)
+        .show(ui, |ui| {
+            ui.horizontal(|ui| {
+                ui.checkbox(&mut tool.show_skeleton, "Show skeleton")
+                    .on_hover_text("Draw the joints and bones over the view");
+                ui.separator();
+                ui.selectable_value(&mut tool.mode, GizmoMode::Rotate, "Rotate")
+                    .on_hover_text("Gizmo rings turn the joint about its own axes (R)");
+                ui.selectable_value(&mut tool.mode, GizmoMode::Translate, "Move")
+                    .on_hover_text("Gizmo arrows move the joint in its parent's frame (G)");
+            });
+            ui.weak(format!(
+                "{} joints, {} override(s). Click a joint here or its dot in the view, then drag a gizmo handle.",
+                rig.skeleton.len(),
+                rig.pose_overrides.len()
+            ));
+            let depth = |mut j: usize| {
+                let mut d = 0;
+                while let Some(p) = rig.skeleton.joints[j].parent {
+                    if p >= j || d > 64 {
+                        break;
+                    }
+                    j = p;
+                    d += 1;
+                }
+                d
+            };
+            egui::ScrollArea::vertical()
+                .id_salt("joint_tree")
+                .max_height(220.0)
+                .show(ui, |ui| {
+                    for (j, joint) in rig.skeleton.joints.iter().enumerate() {
+                        let this = JointRef { object: id, joint: j };
+                        let posed = rig.pose_overrides.iter().any(|o| o.joint == j);
+                        let label = format!(
+                            "{}{}",
+                            joint_label(&joint.name, j),
+                            if posed { " (posed)" } else { "" }
+                        );
+                        ui.horizontal(|ui| {
+                            ui.add_space(12.0 * depth(j) as f32);
+                            if ui
+                                .selectable_label(tool.joint == Some(this), label)
+                                .on_hover_text(format!(
+                                    "Select joint {j}; drag its gizmo in the view"
+                                ))
+                                .clicked()
+                            {
+                                tool.joint = Some(this);
+                            }
+                        });
+                    }
+                });
+            if let Some(sel) = tool.valid_joint(editor).filter(|s| s.object == id) {
+                joint_ui(ui, editor, tool, sel);
+            }
+            if ui
+                .add_enabled(!rig.pose_overrides.is_empty(), egui::Button::new("Reset pose"))
+                .on_hover_text("Remove every joint override (undoable)")
+                .clicked()
+            {
+                tool.error = editor.clear_pose(id, None).err().map(|e| e.to_string());
+            }
+        });
+    egui::CollapsingHeader::new("Stretch")
+        .default_open(true)
+        .show(ui, |ui| stretch_ui(ui, editor, tool, id));
+}
+
+fn joint_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, sel: JointRef) {
+    let current = editor.joint_override(sel.object, sel.joint);
+    let mut o = current.unwrap_or(JointOverride {
+        joint: sel.joint,
+        mode: OverrideMode::Relative,
+        ..JointOverride::default()
+    });
+    let name = editor
+        .rig(sel.object)
+        .map(|r| joint_label(&r.skeleton.joints[sel.joint].name, sel.joint))
+        .unwrap_or_default();
+    ui.separator();
+    ui.strong(format!("Joint: {name}"));
+    let mut changed = false;
+    egui::Grid::new("joint_override")
+        .num_columns(2)
+        .show(ui, |ui| {
+            ui.label("Mode")
+                .on_hover_text("How the override combines with the clip");
+            ui.horizontal(|ui| {
+                changed |= ui
+                    .selectable_value(&mut o.mode, OverrideMode::Relative, "On top of clip")
+                    .on_hover_text(
+                        "Rotation after the clip's, translation added: the clip keeps playing",
+                    )
+                    .changed();
+                changed |= ui
+                    .selectable_value(&mut o.mode, OverrideMode::Replace, "Replace clip")
+                    .on_hover_text("The override's values replace the clip's for this joint")
+                    .changed();
+            });
+            ui.end_row();
+            ui.label("Rotation deg")
+                .on_hover_text("Override rotation as X, Y, Z Euler angles in degrees");
+            let q = o.rotation.unwrap_or(Quat::IDENTITY);
+            let (x, y, z) = q.to_euler(glam::EulerRot::XYZ);
+            let mut e = Vec3::new(x, y, z) * 180.0 / std::f32::consts::PI;
+            let mut rot_changed = false;
+            ui.horizontal(|ui| {
+                for (k, c) in [&mut e.x, &mut e.y, &mut e.z].into_iter().enumerate() {
+                    rot_changed |= ui
+                        .add(
+                            egui::DragValue::new(c)
+                                .speed(0.5)
+                                .range(-360.0..=360.0)
+                                .prefix(format!("{} ", AXIS_NAMES[k].to_lowercase())),
+                        )
+                        .on_hover_text("Degrees; drag or type a number")
+                        .changed();
+                }
+            });
+            if rot_changed {
+                let r = e * std::f32::consts::PI / 180.0;
+                o.rotation = Some(Quat::from_euler(glam::EulerRot::XYZ, r.x, r.y, r.z));
+                changed = true;
+            }
+            ui.end_row();
+            ui.label("Translation")
+                .on_hover_text("Override translation in the parent's frame");
+            let mut t = o.translation.unwrap_or(Vec3::ZERO);
+            let mut t_changed = false;
+            ui.horizontal(|ui| {
+                for (k, c) in [&mut t.x, &mut t.y, &mut t.z].into_iter().enumerate() {
+                    t_changed |= ui
+                        .add(
+                            egui::DragValue::new(c)
+                                .speed(0.005)
+                                .prefix(format!("{} ", AXIS_NAMES[k].to_lowercase())),
+                        )
+                        .on_hover_text("Units of the skeleton; drag or type a number")
+                        .changed();
+                }
+            });
+            if t_changed {
+                o.translation = Some(t);
+                changed = true;
+            }
+            ui.end_row();
+        });
+    if changed {
+        tool.error = editor
+            .set_joint_override(sel.object, o)
+            .err()
+            .map(|e| e.to_string());
+    }
+    if ui
+        .add_enabled(current.is_some(), egui::Button::new("Reset joint"))
+        .on_hover_text("Remove this joint's override (undoable)")
+        .clicked()
+    {
+        tool.error = editor
+            .clear_pose(sel.object, Some(sel.joint))
+            .err()
+            .map(|e| e.to_string());
+    }
+}
+
+const STRATEGIES: [(StretchStrategy, &str, &str); 4] = [
+    (
+        StretchStrategy::Off,
+        "Off",
+        "Voxels keep their size: shows the holes skinning opens",
+    ),
+    (
+        StretchStrategy::Thesis,
+        "Thesis",
+        "S = min(2, number of bone weights) (paper 3.3): static, doubles voxels near joints",
+    ),
+    (
+        StretchStrategy::Corners,
+        "Corners",
+        "Box around the eight skinned voxel corners: hole-free, some bloat",
+    ),
+    (
+        StretchStrategy::Adaptive,
+        "Adaptive",
+        "From this frame's deformation around each voxel: grows only where the surface stretches",
+    ),
+];
+
+fn stretch_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    let Some(rig) = editor.rig(id) else { return };
+    let mut s = rig.stretch;
+    let overrides = rig.stretch_overrides.len();
+    let mut changed = false;
+    egui::Grid::new("stretch").num_columns(2).show(ui, |ui| {
+        ui.label("Strategy")
+            .on_hover_text("How skinned voxels are enlarged to close holes");
+        let current = STRATEGIES
+            .iter()
+            .find(|(k, _, _)| *k == s.strategy)
+            .map_or("?", |(_, n, _)| n);
+        egui::ComboBox::from_id_salt("stretch_strategy")
+            .selected_text(current)
+            .show_ui(ui, |ui| {
+                for (k, name, tip) in STRATEGIES {
+                    changed |= ui
+                        .selectable_value(&mut s.strategy, k, name)
+                        .on_hover_text(tip)
+                        .changed();
+                }
+            })
+            .response
+            .on_hover_text("How skinned voxels are enlarged to close holes");
+        ui.end_row();
+        let mut f = |ui: &mut egui::Ui, label: &str, v: &mut f32, tip: &str| {
+            ui.label(label).on_hover_text(tip);
+            changed |= ui
+                .add(egui::DragValue::new(v).speed(0.01).range(0.0..=16.0))
+                .on_hover_text(tip)
+                .changed();
+            ui.end_row();
+        };
+        f(
+            ui,
+            "Multiplier",
+            &mut s.multiplier,
+            "Multiplier on every stretch factor of this model (above 0, at most 16)",
+        );
+        f(
+            ui,
+            "Min factor",
+            &mut s.min_factor,
+            "Lower bound on a voxel's stretch factor (0 to 16, at most the max)",
+        );
+        f(
+            ui,
+            "Max factor",
+            &mut s.max_factor,
+            "Upper bound on a voxel's stretch factor (at least the min, at most 16)",
+        );
+    });
+    ui.weak(format!(
+        "{overrides} voxel(s) with a painted stretch override"
+    ));
+    if changed {
+        tool.error = editor.set_stretch(id, s).err().map(|e| e.to_string());
+    }
+}
+
+/// The rigged object the timeline drives: the selection when it is rigged, else the first
+/// rigged object.
+#[must_use]
+pub fn timeline_target(editor: &Editor) -> Option<u64> {
+    if let Some(Selection::Object(id)) = editor.selection
+        && editor.rig(id).is_some()
+    {
+        return Some(id);
+    }
+    editor
+        .doc()
+        .objects
+        .iter()
+        .find(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some()))
+        .map(|o| o.id)
+}
+
+/// The timeline: clip picker, play / pause, scrub slider and time. Advances the playhead while
+/// playing.
+pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    let Some(rig) = editor.rig(id) else { return };
+    let mut playback = rig.playback;
+    let clips: Vec<(String, f32)> = rig
+        .clips
+        .iter()
+        .map(|c| (c.name.clone(), c.duration_secs.max(0.0)))
+        .collect();
+    let name = editor
+        .object(id)
+        .map(|o| o.name.clone())
+        .unwrap_or_default();
+    let clip_label = |c: Option<usize>| match c {
+        None => "Rest pose".to_owned(),
+        Some(i) => clips.get(i).map_or_else(
+            || format!("clip {i}"),
+            |(n, _)| {
+                if n.is_empty() {
+                    format!("clip {i}")
+                } else {
+                    n.clone()
+                }
+            },
+        ),
+    };
+    let duration = playback
+        .clip
+        .and_then(|c| clips.get(c))
+        .map_or(0.0, |(_, d)| *d);
+    ui.horizontal(|ui| {
+        ui.strong("Timeline")
+            .on_hover_text(format!("Animation of {name}"));
+        ui.label(&name);
+        egui::ComboBox::from_id_salt("timeline_clip")
+            .selected_text(clip_label(playback.clip))
+            .show_ui(ui, |ui| {
+                ui.selectable_value(&mut playback.clip, None, "Rest pose")
+                    .on_hover_text("The skeleton's rest pose plus the overrides");
+                for i in 0..clips.len() {
+                    ui.selectable_value(&mut playback.clip, Some(i), clip_label(Some(i)))
+                        .on_hover_text("Play this clip under the overrides");
+                }
+            })
+            .response
+            .on_hover_text("Which clip plays");
+        let has_clip = playback.clip.is_some() && duration > 0.0;
+        if ui
+            .add_enabled(
+                has_clip,
+                egui::Button::new(if tool.playing { "Pause" } else { "Play" }),
+            )
+            .on_hover_text("Play or pause the clip (Space)")
+            .clicked()
+        {
+            tool.playing = !tool.playing;
+        }
+        if ui
+            .add_enabled(has_clip, egui::Button::new("Start"))
+            .on_hover_text("Go to the clip's first frame")
+            .clicked()
+        {
+            playback.time_secs = 0.0;
+        }
+        let mut loop_on = playback.wrap == Wrap::Loop;
+        if ui
+            .checkbox(&mut loop_on, "Loop")
+            .on_hover_text("Repeat the clip (otherwise hold its last frame)")
+            .changed()
+        {
+            playback.wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
+        }
+        if !has_clip {
+            tool.playing = false;
+        }
+        if tool.playing {
+            let dt = ui.input(|i| i.stable_dt).min(0.1);
+            playback.time_secs += dt;
+            if playback.time_secs > duration {
+                playback.time_secs = if playback.wrap == Wrap::Loop {
+                    playback.time_secs.rem_euclid(duration.max(1e-6))
+                } else {
+                    tool.playing = false;
+                    duration
+                };
+            }
+            ui.ctx().request_repaint();
+        }
+        let mut t = playback.time_secs.clamp(0.0, duration);
+        let width = (ui.available_width() - 110.0).max(80.0);
+        ui.spacing_mut().slider_width = width;
+        if ui
+            .add_enabled(
+                has_clip,
+                egui::Slider::new(&mut t, 0.0..=duration.max(1e-3)).show_value(false),
+            )
+            .on_hover_text("Scrub: drag to any time of the clip")
+            .changed()
+        {
+            playback.time_secs = t;
+            tool.playing = false;
+        }
+        ui.monospace(format!("{:.2} / {:.2} s", t, duration))
+            .on_hover_text("Playhead / clip length");
+    });
+    if playback != editor.rig(id).map_or(playback, |r| r.playback) {
+        tool.error = editor
+            .set_playback(id, playback)
+            .err()
+            .map(|e| e.to_string());
+    }
+}

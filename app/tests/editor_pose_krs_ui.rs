@@ -1,0 +1,452 @@
+//! The pose tool, the timeline and the KRS editor on the real app, driven by egui_kittest:
+//! pick a joint in the inspector's tree, drag its gizmo ring in the view, undo and redo the
+//! drag; play the timeline; change a KRS mirror plane through its DragValues (a zero normal is
+//! refused with a message), undo and redo; snapshot both, the view included.
+//!
+//! No GPU viewport is attached: the view draws with core's CPU preview renderer, which is what
+//! the editor uses for rigged models and KRS objects (the GPU renderer has neither yet).
+
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::{Harness, SnapshotOptions};
+use glam::Vec3;
+use thicket::editor::Editor;
+use thicket::ui::EditorApp;
+use thicket::ui::view::Projector;
+use thicket_core::scene::{Document, ObjectKind};
+
+const SIZE: egui::Vec2 = egui::vec2(1100.0, 720.0);
+
+fn harness(doc: Document) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(Editor::new(doc, None));
+    // The UI tests must not touch the user's recovery folder or depend on it.
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h
+}
+
+/// Lets the CPU preview catch up with the document and shows its image.
+fn settle_preview(h: &mut Harness<'static, EditorApp>) {
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+}
+
+fn snapshot(h: &mut Harness<'static, EditorApp>, name: &str) {
+    h.snapshot_options(name, &SnapshotOptions::new().max_failed_pixels(200));
+}
+
+/// RiggedFigure (Khronos sample, CC BY 4.0; see shared/assets/LICENSES.md) voxelized in its bind
+/// pose at a coarse depth, with its skeleton and clip.
+fn rigged_figure() -> Document {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/skinned/RiggedFigure.glb"
+    );
+    let import = thicket_core::skin::import_skinned(path).expect("RiggedFigure imports");
+    let settings = thicket_core::voxelize::VoxelizeSettings {
+        resolution: thicket_core::voxelize::Resolution::Depth(5),
+        ..Default::default()
+    };
+    let v = thicket_core::skin::voxelize_skinned(&import, &settings, &|_| true)
+        .expect("RiggedFigure voxelizes");
+    let mut doc = Document::default();
+    doc.add("Figure", ObjectKind::Voxels(v.model));
+    doc.quality.shadows = false;
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
+#[test]
+fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
+    let mut h = harness(rigged_figure());
+    let id = h.state().editor.doc().objects[0].id;
+    let rig = h.state().editor.rig(id).expect("rigged").clone();
+    assert!(rig.skeleton.len() > 2);
+
+    // The inspector lists the joints as a tree; pick one that has a parent.
+    let joint = 2;
+    let name = rig.skeleton.joints[joint].name.clone();
+    assert!(!name.is_empty());
+    h.get_by_label(&name).click_accesskit();
+    h.run_steps(2);
+    let sel = h.state().pose.joint.expect("a joint is selected");
+    assert_eq!((sel.object, sel.joint), (id, joint));
+
+    // Pause at the clip's start so the skeleton holds still while we aim at it.
+    let steps = h.state().editor.history().undo_len();
+    let frames = h.state().editor.joint_frames(id).expect("joint frames");
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let p = frames.position(joint).unwrap();
+    let w = frames.world_from_joint[joint];
+    // The ring that faces the camera most: a drag along it turns the joint by the angle swept.
+    let view_dir = (p - proj.eye()).normalize_or_zero();
+    let axis = (0..3)
+        .max_by(|&a, &b| {
+            let fa = w.col(a).truncate().normalize_or_zero().dot(view_dir).abs();
+            let fb = w.col(b).truncate().normalize_or_zero().dot(view_dir).abs();
+            fa.total_cmp(&fb)
+        })
+        .unwrap();
+    let a = w.col(axis).truncate().normalize_or_zero();
+    let (u, v) = a.any_orthonormal_pair();
+    let size = 70.0 * proj.world_per_point(p);
+    let on_ring = |t: f32| {
+        proj.to_screen(p + size * (t.cos() * u + t.sin() * v))
+            .expect("the ring is in front of the camera")
+    };
+    h.hover_at(on_ring(0.0));
+    h.step();
+    h.drag_at(on_ring(0.0));
+    h.step();
+    for k in 1..=6 {
+        h.hover_at(on_ring(0.1 * k as f32));
+        h.step();
+    }
+    h.drop_at(on_ring(0.6));
+    h.run_steps(2);
+
+    let ed = &h.state().editor;
+    let o = ed
+        .joint_override(id, joint)
+        .expect("the drag posed the joint");
+    let (_, angle) = o.rotation.expect("a rotation").to_axis_angle();
+    assert!(
+        (0.3..=0.9).contains(&angle),
+        "the joint turned by about the swept 0.6 rad: {angle}"
+    );
+    assert_eq!(ed.history().undo_len(), steps + 1, "one undo step per drag");
+    assert_eq!(
+        ed.doc().camera,
+        proj.camera,
+        "dragging the gizmo does not orbit"
+    );
+    let posed_tip = ed.joint_frames(id).unwrap().position(joint + 1);
+    assert!(ed.is_dirty());
+    settle_preview(&mut h);
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+        eprintln!("CPU preview of the posed figure: {ms:.1} ms at {w} x {hh} px");
+    }
+    snapshot(&mut h, "pose_rigged_figure");
+
+    // Undo and redo through the Edit menu and the keyboard.
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Undo").click();
+    h.run_steps(2);
+    assert!(h.state().editor.joint_override(id, joint).is_none());
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.run_steps(2);
+    assert_eq!(h.state().editor.joint_override(id, joint), Some(o));
+    assert_eq!(
+        h.state()
+            .editor
+            .joint_frames(id)
+            .unwrap()
+            .position(joint + 1),
+        posed_tip
+    );
+
+    // G switches the gizmo to arrows; dragging one moves the joint along that axis of its
+    // parent's frame (one more undo step), and undo takes only that step back.
+    h.key_press(egui::Key::G);
+    h.run_steps(1);
+    assert_eq!(h.state().pose.mode, thicket::ui::pose::GizmoMode::Translate);
+    let steps = h.state().editor.history().undo_len();
+    let frames = h.state().editor.joint_frames(id).unwrap();
+    let p = frames.position(joint).unwrap();
+    let parent = frames.world_from_parent[joint];
+    let size = 70.0 * proj.world_per_point(p);
+    let center = proj.to_screen(p).unwrap();
+    let (axis, arrow) = (0..3)
+        .map(|k| {
+            let d = parent.col(k).truncate().normalize_or_zero();
+            (k, proj.to_screen(p + d * size).unwrap() - center)
+        })
+        .max_by(|a, b| a.1.length().total_cmp(&b.1.length()))
+        .unwrap();
+    let grab = center + arrow * 0.7;
+    let pull = arrow.normalized() * 25.0;
+    h.hover_at(grab);
+    h.step();
+    h.drag_at(grab);
+    h.step();
+    for k in 1..=3 {
+        h.hover_at(grab + pull * (k as f32 / 3.0));
+        h.step();
+    }
+    h.drop_at(grab + pull);
+    h.run_steps(2);
+    let moved = h
+        .state()
+        .editor
+        .joint_override(id, joint)
+        .and_then(|o| o.translation)
+        .expect("the arrow moved the joint");
+    assert!(moved[axis] > 0.0, "along +{axis}: {moved}");
+    let others = (0..3)
+        .filter(|&k| k != axis)
+        .map(|k| moved[k].abs())
+        .sum::<f32>();
+    assert!(others < 1e-6, "only along the dragged axis: {moved}");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(h.state().editor.joint_override(id, joint), Some(o));
+
+    // The timeline plays the clip; playing moves the playhead but is not an edit.
+    let key = h.state().editor.animation_key();
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Play").click();
+    h.run_steps(3);
+    let t = h.state().editor.rig(id).unwrap().playback.time_secs;
+    assert!(t > 0.0, "the playhead moved: {t}");
+    assert_ne!(h.state().editor.animation_key(), key);
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps,
+        "playing is not an edit"
+    );
+    h.get_by_label("Pause").click();
+    h.run_steps(1);
+    assert!(!h.state().pose.playing);
+
+    // Stretch: the strategy picker is one undoable edit.
+    let steps = h.state().editor.history().undo_len();
+    h.get(
+        egui_kittest::kittest::by()
+            .role(egui::accesskit::Role::ComboBox)
+            .value("Thesis"),
+    )
+    .click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Adaptive").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.rig(id).unwrap().stretch.strategy,
+        thicket_core::skin::StretchStrategy::Adaptive
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(
+        h.state().editor.rig(id).unwrap().stretch.strategy,
+        thicket_core::skin::StretchStrategy::Thesis
+    );
+}
+
+#[test]
+fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
+    let mut doc = Document::default();
+    doc.add(
+        "Coral",
+        ObjectKind::Krs(thicket_core::krs::presets::coral()),
+    );
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    let original = h.state().editor.krs(id).unwrap().clone();
+    assert!(!original.mirrors.is_empty());
+
+    // The inspector's KRS editor lists the mirror planes; highlight R0 in the view.
+    h.get_by_label("R0").click_accesskit();
+    h.run_steps(1);
+    assert_eq!(h.state().krs.mirror, Some(0));
+
+    // Drag R0's gizmo arrow (along the plane's normal) in the view: the plane moves along its
+    // normal, in one undo step, and the camera stays.
+    let steps = h.state().editor.history().undo_len();
+    let camera = h.state().editor.doc().camera;
+    let proj = Projector::new(camera, h.state().view.last_rect);
+    let handles = h.state().krs.mirror_handles(&h.state().editor, &proj);
+    let arrow = handles
+        .iter()
+        .find(|s| s.handle == thicket::ui::krs_panel::MirrorHandle::Offset)
+        .expect("the highlighted plane has an arrow");
+    let (a, b) = (arrow.points[0], arrow.points[1]);
+    let grab = a + (b - a) * 0.7;
+    let along = (b - a).normalized() * 30.0;
+    h.hover_at(grab);
+    h.step();
+    h.drag_at(grab);
+    h.step();
+    for k in 1..=3 {
+        h.hover_at(grab + along * (k as f32 / 3.0));
+        h.step();
+    }
+    h.drop_at(grab + along);
+    h.run_steps(2);
+    let moved = h.state().editor.krs(id).unwrap().mirrors[0];
+    assert_eq!(moved.normal, original.mirrors[0].normal.normalize_or_zero());
+    assert!(
+        moved.offset > original.mirrors[0].offset + 1e-3,
+        "dragging the arrow outward moves the plane along its normal: {:?} -> {moved:?}",
+        original.mirrors[0]
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    assert_eq!(h.state().editor.doc().camera, camera, "no orbit");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
+
+    // Type a new normal through the DragValues of R0 (the first "nx", "ny", "nz").
+    let steps = h.state().editor.history().undo_len();
+    h.query_all_by_label("nx")
+        .next()
+        .unwrap()
+        .set_value_accesskit(1.0);
+    h.run_steps(1);
+    h.query_all_by_label("ny")
+        .next()
+        .unwrap()
+        .set_value_accesskit(1.0);
+    h.run_steps(1);
+    h.query_all_by_label("nz")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(2);
+    let m = h.state().editor.krs(id).unwrap().mirrors[0];
+    let expected = Vec3::new(1.0, 1.0, 0.0).normalize_or_zero();
+    assert!(
+        (m.normal - expected).length() < 1e-3,
+        "the normal is stored normalised: {m:?}"
+    );
+    let changed = h.state().editor.history().undo_len() - steps;
+    assert!((1..=3).contains(&changed), "{changed} steps");
+
+    // A zero normal is refused with a message; the document keeps the last good plane.
+    h.query_all_by_label("nx")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(1);
+    h.query_all_by_label("ny")
+        .next()
+        .unwrap()
+        .set_value_accesskit(0.0);
+    h.run_steps(2);
+    let now = h.state().editor.krs(id).unwrap().mirrors[0];
+    assert!(now.normal.length() > 0.99, "{now:?}");
+    h.get_by_label_contains("zero length");
+    settle_preview(&mut h);
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+        eprintln!("CPU preview of the coral: {ms:.1} ms at {w} x {hh} px");
+    }
+    snapshot(&mut h, "krs_mirror_edited");
+
+    // Undo every step of the edit: the preset's plane is back; redo brings the change back.
+    let after = h.state().editor.krs(id).unwrap().clone();
+    let n = h.state().editor.history().undo_len() - steps;
+    for _ in 0..n {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
+    for _ in 0..n {
+        h.key_press_modifiers(
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+            egui::Key::Z,
+        );
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap(), &after);
+}
+
+#[test]
+fn importing_a_skinned_gltf_gives_a_rigged_model_with_a_timeline() {
+    let mut h = harness(Document::default());
+    let path = std::path::PathBuf::from(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/skinned/RiggedFigure.glb"
+    ));
+    h.state_mut().start_import(path);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    let o = ed.doc().objects.last().expect("an imported object");
+    let rig = ed.rig(o.id).expect("the skin came along as a rig");
+    assert_eq!(rig.skeleton.len(), 19, "RiggedFigure has 19 joints");
+    assert_eq!(rig.clips.len(), 1);
+    match &o.kind {
+        ObjectKind::Voxels(v) => assert!(v.svo.has_skin() && v.svo.leaf_count() > 1000),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("expected voxels"),
+    }
+    // The timeline appears for it and shows the clip's length.
+    h.get_by_label("Play");
+    h.get_by_label_contains("/ 1.25 s");
+}
+
+#[test]
+fn the_tree_builder_rebuilds_from_a_dragged_fork_and_undoes() {
+    let mut doc = Document::default();
+    doc.add("Tree", ObjectKind::Krs(thicket_core::krs::presets::tree()));
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    // The tree's bounding ball is loose; aim at the tree itself.
+    doc.camera.target = glam::Vec3::new(0.0, 3.0, 0.0);
+    doc.camera.distance = 11.0;
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    let original = h.state().editor.krs(id).unwrap().clone();
+
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    let route = h
+        .state()
+        .krs
+        .tree
+        .as_ref()
+        .expect("the builder is open")
+        .1
+        .route
+        .clone();
+    let steps = h.state().editor.history().undo_len();
+
+    // Drag the twig tip's handle 40 points to the right in the view.
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let tips = h.state().krs.route_points(&h.state().editor, &proj);
+    let tip = tips
+        .last()
+        .copied()
+        .flatten()
+        .expect("the tip is on screen");
+    h.hover_at(tip);
+    h.step();
+    h.drag_at(tip);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(tip + egui::vec2(10.0 * k as f32, 0.0));
+        h.step();
+    }
+    h.drop_at(tip + egui::vec2(40.0, 0.0));
+    h.run_steps(2);
+    let moved = h.state().krs.tree.as_ref().unwrap().1.route.clone();
+    let last = route.len() - 1;
+    assert_ne!(moved[last], route[last], "the tip moved");
+    assert_eq!(moved[..last], route[..last], "only the tip moved");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    let rebuilt = h.state().editor.krs(id).unwrap().clone();
+    assert_ne!(rebuilt.kernels, original.kernels, "the object was rebuilt");
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_tree_builder");
+
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_ne!(h.state().editor.krs(id).unwrap(), &rebuilt);
+}
