@@ -1,5 +1,5 @@
 //! Voxel model → quads: only faces between a solid and an empty voxel, merged greedily into
-//! rectangles of one (colour, material) per slice.
+//! rectangles of one (colour, material, joint weights) per slice.
 //!
 //! Work and memory follow the exposed faces, never the model's bounding box: solid neighbours
 //! are found by binary search in the octree's Morton-ordered leaf codes, and each slice is
@@ -10,7 +10,7 @@ use std::collections::HashMap;
 
 use glam::{UVec3, Vec3};
 
-use crate::svo::{Svo, morton_encode};
+use crate::svo::{Skin4, Svo, morton_encode};
 
 /// One exposed face: the voxel it belongs to faces empty space across `axis` in direction
 /// `positive`.
@@ -22,6 +22,7 @@ struct Face {
     v: u32,
     u: u32,
     key: FaceKey,
+    skin: Skin4,
 }
 
 /// What must match for two faces to merge: sRGB colour and material id.
@@ -46,6 +47,9 @@ pub struct Quad {
     pub height: u32,
     /// Colour and material shared by every face in the quad.
     pub key: FaceKey,
+    /// Joint weights shared by every face in the quad (the empty skin for static models), so a
+    /// skinned export moves each quad with exactly its voxels' blend.
+    pub skin: Skin4,
 }
 
 impl Quad {
@@ -140,7 +144,7 @@ pub fn count_exposed_faces(svo: &Svo) -> u64 {
 
 /// Greedy meshing: the exposed faces of `svo` merged into the fewest rectangles this simple
 /// scan finds (per slice, faces in (v, u) order; each unused face grows first along u, then
-/// along v while the whole row matches). Only faces of equal (colour, material) merge.
+/// along v while the whole row matches). Only faces of equal (colour, material, skin) merge.
 ///
 /// The caller should check [`count_exposed_faces`] against its limits first: this allocates
 /// about 24 bytes per exposed face.
@@ -161,6 +165,7 @@ pub fn greedy_quads(svo: &Svo) -> Vec<Quad> {
                     v: c[(axis + 2) % 3],
                     u: c[(axis + 1) % 3],
                     key,
+                    skin: voxel.skin,
                 });
             }
         }
@@ -194,7 +199,7 @@ fn merge_slice(faces: &[Face], out: &mut Vec<Quad>) {
         let f = faces[i];
         let free = |u: u32, v: u32, used: &[bool]| {
             at.get(&(u, v))
-                .is_some_and(|&j| !used[j] && faces[j].key == f.key)
+                .is_some_and(|&j| !used[j] && faces[j].key == f.key && faces[j].skin == f.skin)
         };
         let mut width = 1;
         while free(f.u + width, f.v, &used) {
@@ -220,6 +225,7 @@ fn merge_slice(faces: &[Face], out: &mut Vec<Quad>) {
             width,
             height,
             key: f.key,
+            skin: f.skin,
         });
     }
 }

@@ -24,6 +24,8 @@ pub mod iso;
 mod writer;
 
 #[cfg(test)]
+mod skin_tests;
+#[cfg(test)]
 mod tests;
 
 use std::collections::HashMap;
@@ -39,7 +41,7 @@ pub use fields::{
     ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
 };
 pub use instances::{InstanceTransform, KernelInstances, krs_instances};
-pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene};
+pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin};
 
 /// How voxel models become triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -673,6 +675,9 @@ impl SceneBuilder<'_> {
                         prim.positions.push(to_object(c));
                         prim.normals.push(q.normal());
                     }
+                    if v.rig.is_some() {
+                        prim.skin.extend([q.skin; 4]);
+                    }
                     match self.options.colors {
                         ColorMode::VertexColors => prim.colors.extend([linear(q.key.0); 4]),
                         ColorMode::PaletteTexture => {
@@ -729,11 +734,21 @@ impl SceneBuilder<'_> {
             }
             primitives.push(prim);
         }
+        // Cubes carry their voxels' weights; a smooth surface blends across voxels, so it is
+        // exported as the bind pose without a skeleton.
+        let skin = match (&v.rig, self.options.mode) {
+            (Some(rig), ExportMode::Cubes | ExportMode::Instances) => Some(ExportSkin {
+                skeleton: rig.skeleton.clone(),
+                clips: rig.clips.clone(),
+            }),
+            _ => None,
+        };
         Ok(ExportNode {
             name: o.name.clone(),
             transform: o.transform,
             primitives,
             instances: Vec::new(),
+            skin,
         })
     }
 
@@ -769,13 +784,14 @@ impl SceneBuilder<'_> {
                 },
                 indices: part.indices.clone(),
                 material,
+                skin: Vec::new(),
             });
         }
         ExportNode {
             name: o.name.clone(),
             transform: o.transform,
             primitives,
-            instances: Vec::new(),
+            ..ExportNode::default()
         }
     }
 
@@ -843,6 +859,7 @@ pub fn add_krs_object(
         uvs: Vec::new(),
         indices: m.indices,
         material,
+        skin: Vec::new(),
     };
     match options.mode {
         ExportMode::Cubes | ExportMode::Smooth => {

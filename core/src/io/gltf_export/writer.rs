@@ -3,7 +3,7 @@
 
 use std::collections::BTreeMap;
 
-use glam::{Vec2, Vec3, Vec4};
+use glam::{Mat4, Vec2, Vec3, Vec4};
 use gltf::json;
 use gltf::json::accessor::{ComponentType, GenericComponentType, Type};
 use gltf::json::validation::{Checked, USize64};
@@ -11,6 +11,8 @@ use gltf::json::validation::{Checked, USize64};
 use super::instances::InstanceTransform;
 use crate::mesh::Texture;
 use crate::scene::Transform;
+use crate::skin::{AnimationClip, Interpolation, Property, Skeleton};
+use crate::svo::Skin4;
 
 /// One triangle list ready to write, in its node's space.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -27,6 +29,9 @@ pub struct ExportPrimitive {
     pub indices: Vec<u32>,
     /// Index into [`ExportScene::materials`].
     pub material: usize,
+    /// Per-vertex joints and weights (same length) for a node with a [`ExportNode::skin`], or
+    /// empty. Written as `JOINTS_0` (unsigned byte) and `WEIGHTS_0` (normalised unsigned byte).
+    pub skin: Vec<Skin4>,
 }
 
 /// A material: base colour factor and optional base-colour texture.
@@ -68,6 +73,18 @@ pub struct ExportNode {
     /// With any entries, the mesh is drawn once per entry (`EXT_mesh_gpu_instancing`), each
     /// placement applied before the node's transform.
     pub instances: Vec<InstanceTransform>,
+    /// With a skin, the mesh is skinned: its vertices are in bind space and move with the
+    /// skeleton, which is written under a node carrying [`ExportNode::transform`].
+    pub skin: Option<ExportSkin>,
+}
+
+/// A skeleton and its animation clips, for a skinned node (see [`ExportNode::skin`]).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ExportSkin {
+    /// Joints in topological order; [`ExportPrimitive::skin`] joint bytes index it.
+    pub skeleton: Skeleton,
+    /// Clips, written as glTF animations targeting the joint nodes.
+    pub clips: Vec<AnimationClip>,
 }
 
 /// Everything one glTF file holds.
@@ -157,6 +174,19 @@ pub(crate) fn encode(
         } else {
             None
         };
+        if let Some(skin) = &node.skin {
+            let (root, skin_index) = b.skin(skin, &node.name, &node.transform)?;
+            node_indices.push(root);
+            // A skinned mesh's node transform is ignored (glTF 2.0 §3.7.3.3): it sits at the
+            // root, untransformed, and the skeleton's root node carries the placement.
+            node_indices.push(b.root.push(json::Node {
+                mesh,
+                skin: Some(skin_index),
+                name: Some(node.name.clone()),
+                ..json::Node::default()
+            }));
+            continue;
+        }
         let t = &node.transform;
         let trs_is_identity = *t == Transform::default();
         let extensions = if node.instances.is_empty() || mesh.is_none() {
@@ -203,6 +233,22 @@ fn too_large(what: &str) -> EncodeError {
     EncodeError::TooLarge(format!(
         "{what}: the binary buffer would pass glTF's 4 GiB limit"
     ))
+}
+
+/// A voxel skin as glTF wants it: weights summing to exactly 255 (the empty skin becomes the
+/// root joint, as the renderer blends it), and joint 0 in every slot of weight zero, so no
+/// joint index repeats among the used slots.
+fn gltf_skin(s: Skin4) -> ([u8; 4], [u8; 4]) {
+    if s.weights.iter().map(|&w| u32::from(w)).sum::<u32>() != 255 {
+        return (Skin4::ROOT.joints, Skin4::ROOT.weights);
+    }
+    let mut joints = s.joints;
+    for (j, w) in joints.iter_mut().zip(s.weights) {
+        if w == 0 {
+            *j = 0;
+        }
+    }
+    (joints, s.weights)
 }
 
 /// `q` normalised, or the identity when it cannot be (glTF requires unit quaternions).
@@ -266,6 +312,239 @@ impl Builder {
         node.others
             .insert(INSTANCING.to_owned(), json::Value::Object(ext));
         Ok(node)
+    }
+
+    /// Writes a skeleton as nodes under a root node placed by `placement`, its skin and its
+    /// clips as animations. Returns the root node and the skin.
+    fn skin(
+        &mut self,
+        skin: &ExportSkin,
+        name: &str,
+        placement: &Transform,
+    ) -> Result<(json::Index<json::Node>, json::Index<json::Skin>), EncodeError> {
+        let joints = &skin.skeleton.joints;
+        if joints.is_empty() {
+            return Err(EncodeError::Invalid(format!(
+                "skinned node {name:?} has no joints"
+            )));
+        }
+        // Node indices are assigned in push order, so children can be listed up front: joint
+        // i gets `first + i`, its attachment node (when its parent frame is not the identity)
+        // follows the joints.
+        let first = self.root.nodes.len() as u32;
+        let attachments: Vec<Option<u32>> = {
+            let mut next = first + joints.len() as u32;
+            joints
+                .iter()
+                .map(|j| {
+                    (j.parent_from_attachment != Mat4::IDENTITY).then(|| {
+                        next += 1;
+                        next - 1
+                    })
+                })
+                .collect()
+        };
+        let entry = |i: usize| attachments[i].unwrap_or(first + i as u32);
+        let mut children: Vec<Vec<json::Index<json::Node>>> = vec![Vec::new(); joints.len()];
+        let mut roots = Vec::new();
+        for (i, j) in joints.iter().enumerate() {
+            match j.parent {
+                Some(p) if p < i => children[p].push(json::Index::new(entry(i))),
+                _ => roots.push(json::Index::new(entry(i))),
+            }
+        }
+        for (i, j) in joints.iter().enumerate() {
+            let r = &j.rest;
+            if !r.is_finite() {
+                return Err(EncodeError::Invalid(format!(
+                    "skinned node {name:?}: joint {:?} has a non-finite rest pose",
+                    j.name
+                )));
+            }
+            self.root.push(json::Node {
+                name: Some(j.name.clone()),
+                translation: Some(r.translation.to_array()),
+                rotation: Some(json::scene::UnitQuaternion(
+                    unit_quat(r.rotation).to_array(),
+                )),
+                scale: Some(r.scale.to_array()),
+                children: (!children[i].is_empty()).then(|| std::mem::take(&mut children[i])),
+                ..json::Node::default()
+            });
+        }
+        for (i, j) in joints.iter().enumerate() {
+            if attachments[i].is_none() {
+                continue;
+            }
+            let (scale, rotation, translation) =
+                j.parent_from_attachment.to_scale_rotation_translation();
+            self.root.push(json::Node {
+                name: Some(format!("{} attachment", j.name)),
+                translation: Some(translation.to_array()),
+                rotation: Some(json::scene::UnitQuaternion(unit_quat(rotation).to_array())),
+                scale: Some(scale.to_array()),
+                children: Some(vec![json::Index::new(first + i as u32)]),
+                ..json::Node::default()
+            });
+        }
+        let t = placement;
+        let root = self.root.push(json::Node {
+            name: Some(format!("{name} skeleton")),
+            translation: Some(t.translation.to_array()),
+            rotation: Some(json::scene::UnitQuaternion(
+                unit_quat(t.rotation).to_array(),
+            )),
+            scale: Some(t.scale.to_array()),
+            children: Some(roots),
+            ..json::Node::default()
+        });
+        let ibm: Vec<f32> = joints
+            .iter()
+            .flat_map(|j| j.inverse_bind.to_cols_array())
+            .collect();
+        let view = self.view(bytemuck::cast_slice(&ibm), None)?;
+        let ibm = self.accessor(
+            view,
+            joints.len(),
+            ComponentType::F32,
+            Type::Mat4,
+            false,
+            None,
+        );
+        let skin_index = self.root.push(json::Skin {
+            extensions: None,
+            extras: None,
+            inverse_bind_matrices: Some(ibm),
+            joints: (0..joints.len() as u32)
+                .map(|i| json::Index::new(first + i))
+                .collect(),
+            name: Some(name.to_owned()),
+            skeleton: Some(root),
+        });
+        for clip in &skin.clips {
+            self.animation(clip, first, joints.len(), name)?;
+        }
+        Ok((root, skin_index))
+    }
+
+    /// One clip as a glTF animation: a sampler per channel (key times with bounds, values as
+    /// stored, rotations normalised), targeting joint node `first + joint`.
+    fn animation(
+        &mut self,
+        clip: &AnimationClip,
+        first: u32,
+        joint_count: usize,
+        name: &str,
+    ) -> Result<(), EncodeError> {
+        let mut channels = Vec::new();
+        let mut samplers = Vec::new();
+        for (ci, ch) in clip.channels.iter().enumerate() {
+            let what = || format!("skinned node {name:?}, clip {:?}, channel {ci}", clip.name);
+            let cubic = ch.interpolation == Interpolation::CubicSpline;
+            let per_key = if cubic { 3 } else { 1 };
+            if ch.joint >= joint_count
+                || ch.times.is_empty()
+                || ch.values.len() != ch.times.len() * per_key
+                || !ch.times.iter().all(|t| t.is_finite())
+                || !ch.values.iter().all(|v| v.is_finite())
+            {
+                return Err(EncodeError::Invalid(format!(
+                    "{}: joint {}, {} keys, {} values",
+                    what(),
+                    ch.joint,
+                    ch.times.len(),
+                    ch.values.len()
+                )));
+            }
+            // Animation data is not vertex data: no buffer-view target. Inputs need bounds.
+            let view = self.view(bytemuck::cast_slice(&ch.times), None)?;
+            let (lo, hi) = ch
+                .times
+                .iter()
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &t| {
+                    (a.min(t), b.max(t))
+                });
+            let input = self.accessor(
+                view,
+                ch.times.len(),
+                ComponentType::F32,
+                Type::Scalar,
+                false,
+                Some((vec![lo], vec![hi])),
+            );
+            let rotation = ch.property == Property::Rotation;
+            let values: Vec<f32> = ch
+                .values
+                .iter()
+                .enumerate()
+                .flat_map(|(k, v)| {
+                    // Tangents of a cubic spline are not quaternions; key values are.
+                    let is_value = !cubic || k % 3 == 1;
+                    if rotation {
+                        let v = if is_value {
+                            Vec4::from(unit_quat(glam::Quat::from_vec4(*v)))
+                        } else {
+                            *v
+                        };
+                        v.to_array().to_vec()
+                    } else {
+                        v.truncate().to_array().to_vec()
+                    }
+                })
+                .collect();
+            let (dims, type_) = if rotation {
+                (4, Type::Vec4)
+            } else {
+                (3, Type::Vec3)
+            };
+            let view = self.view(bytemuck::cast_slice(&values), None)?;
+            let output = self.accessor(
+                view,
+                values.len() / dims,
+                ComponentType::F32,
+                type_,
+                false,
+                None,
+            );
+            let sampler = json::Index::new(samplers.len() as u32);
+            samplers.push(json::animation::Sampler {
+                extensions: None,
+                extras: None,
+                input,
+                interpolation: Checked::Valid(match ch.interpolation {
+                    Interpolation::Step => json::animation::Interpolation::Step,
+                    Interpolation::Linear => json::animation::Interpolation::Linear,
+                    Interpolation::CubicSpline => json::animation::Interpolation::CubicSpline,
+                }),
+                output,
+            });
+            channels.push(json::animation::Channel {
+                sampler,
+                target: json::animation::Target {
+                    extensions: None,
+                    extras: None,
+                    node: json::Index::new(first + ch.joint as u32),
+                    path: Checked::Valid(match ch.property {
+                        Property::Translation => json::animation::Property::Translation,
+                        Property::Rotation => json::animation::Property::Rotation,
+                        Property::Scale => json::animation::Property::Scale,
+                    }),
+                },
+                extensions: None,
+                extras: None,
+            });
+        }
+        if channels.is_empty() {
+            return Ok(());
+        }
+        self.root.push(json::Animation {
+            extensions: None,
+            extras: None,
+            channels,
+            name: Some(clip.name.clone()),
+            samplers,
+        });
+        Ok(())
     }
 
     /// Appends `bytes` (4-byte aligned) as a buffer view.
@@ -438,6 +717,28 @@ impl Builder {
             )?;
             let acc = self.accessor(view, n, ComponentType::U16, Type::Vec4, true, None);
             attributes.insert(Checked::Valid(json::mesh::Semantic::Colors(0)), acc);
+        }
+        if !p.skin.is_empty() {
+            if p.skin.len() != n {
+                return Err(EncodeError::Invalid(format!(
+                    "{what}: {} skins for {n} vertices",
+                    p.skin.len()
+                )));
+            }
+            let (joints, weights): (Vec<[u8; 4]>, Vec<[u8; 4]>) =
+                p.skin.iter().map(|s| gltf_skin(*s)).unzip();
+            let view = self.view(
+                bytemuck::cast_slice(&joints),
+                Some(json::buffer::Target::ArrayBuffer),
+            )?;
+            let acc = self.accessor(view, n, ComponentType::U8, Type::Vec4, false, None);
+            attributes.insert(Checked::Valid(json::mesh::Semantic::Joints(0)), acc);
+            let view = self.view(
+                bytemuck::cast_slice(&weights),
+                Some(json::buffer::Target::ArrayBuffer),
+            )?;
+            let acc = self.accessor(view, n, ComponentType::U8, Type::Vec4, true, None);
+            attributes.insert(Checked::Valid(json::mesh::Semantic::Weights(0)), acc);
         }
         let (index_bytes, component): (Vec<u8>, ComponentType) = if n <= usize::from(u16::MAX) {
             let v: Vec<u16> = p.indices.iter().map(|&i| i as u16).collect();

@@ -1,0 +1,128 @@
+//! Skinned voxel export (issue 9): the exported CesiumMan voxels, skinned on the CPU from the
+//! file's own joints, weights, inverse bind matrices, joint hierarchy and animation, land where
+//! the editor's skinned voxels are, at 10 times of the walk.
+
+use glam::{Mat4, Quat, UVec3, Vec3};
+
+use super::{ExportMode, GltfExportOptions, export_gltf};
+use crate::scene::{Document, ObjectKind, Transform};
+use crate::skin::{Rig, import_skinned, voxelize_skinned};
+use crate::voxelize::{Resolution, VoxelizeSettings};
+
+const CESIUM_MAN: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../shared/assets/skinned/CesiumMan.glb"
+);
+
+/// `Σ wₖ · skinning[jₖ]`.
+fn blend(skinning: &[Mat4], influences: impl Iterator<Item = (usize, f32)>) -> Mat4 {
+    let mut m = Mat4::ZERO;
+    for (j, w) in influences {
+        m += skinning[j] * w;
+    }
+    m
+}
+
+fn skinned_cesium_man(depth: u8) -> Document {
+    let import = import_skinned(CESIUM_MAN).expect("CesiumMan imports");
+    let v = voxelize_skinned(
+        &import,
+        &VoxelizeSettings {
+            resolution: Resolution::Depth(depth),
+            ..VoxelizeSettings::default()
+        },
+        &|_| true,
+    )
+    .expect("voxelizes");
+    let mut doc = Document::default();
+    doc.add("CesiumMan", ObjectKind::Voxels(v.model));
+    // A placement, so the skeleton's root node has a transform to carry.
+    doc.objects[0].transform = Transform {
+        translation: Vec3::new(1.0, -2.0, 0.5),
+        rotation: Quat::from_rotation_y(0.7),
+        scale: Vec3::splat(1.5),
+    };
+    doc
+}
+
+#[test]
+fn exported_skinned_voxels_walk_exactly_like_the_editors() {
+    let doc = skinned_cesium_man(6);
+    let object = &doc.objects[0];
+    let ObjectKind::Voxels(model) = &object.kind else {
+        panic!("a voxel model")
+    };
+    let rig = model.rig.as_ref().expect("skinned");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("cesium-man-voxels.glb");
+    let report =
+        export_gltf(&doc, &path, &GltfExportOptions::default(), &|_| true).expect("exports");
+    assert!(report.triangles > 1000, "{report:?}");
+
+    let back = import_skinned(&path).expect("the export imports as a skinned file");
+    assert_eq!(back.skeleton.len(), rig.skeleton.len());
+    assert_eq!(back.clips.len(), rig.clips.len());
+    assert!(back.warnings.is_empty(), "{:?}", back.warnings);
+    let back_rig = Rig::new(back.skeleton.clone(), back.clips.clone());
+
+    let world_from_object = object.transform.matrix();
+    let duration = rig.clips[0].duration_secs;
+    let mut vertices = 0usize;
+    let mut worst = 0.0f32;
+    for k in 0..10 {
+        let t = duration * k as f32 / 10.0;
+        let ours = rig.skinning_at(Some(0), t);
+        let theirs = back_rig.skinning_at(Some(0), t);
+        for part in &back.mesh.parts {
+            assert_eq!(part.joints.len(), part.positions.len());
+            for tri in part.indices.chunks_exact(3) {
+                let p = [0, 1, 2].map(|k| part.positions[tri[k] as usize]);
+                // The voxel behind this face: half a voxel inward from the triangle's centroid.
+                let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
+                let inside = (p[0] + p[1] + p[2]) / 3.0 - n * (0.5 * model.voxel_size);
+                let c = ((inside - model.origin) / model.voxel_size).floor();
+                let voxel = model
+                    .svo
+                    .get(UVec3::new(c.x as u32, c.y as u32, c.z as u32))
+                    .expect("every exported face belongs to a voxel");
+                let s = voxel.skin;
+                let editor = world_from_object
+                    * blend(
+                        &ours,
+                        (0..4).map(|k| (usize::from(s.joints[k]), f32::from(s.weights[k]) / 255.0)),
+                    );
+                for &i in tri {
+                    let i = i as usize;
+                    let file = blend(
+                        &theirs,
+                        (0..4).map(|k| (usize::from(part.joints[i][k]), part.weights[i][k])),
+                    );
+                    let v = part.positions[i];
+                    let d = file
+                        .transform_point3(v)
+                        .distance(editor.transform_point3(v));
+                    worst = worst.max(d);
+                    vertices += 1;
+                }
+            }
+        }
+    }
+    eprintln!("{vertices} vertex samples, worst distance {worst:e}");
+    assert!(vertices > 10_000, "{vertices}");
+    // The model is about 2.3 units tall once placed; f32 round-off is ~1e-6 of that.
+    assert!(worst < 1e-4, "worst vertex distance {worst}");
+}
+
+#[test]
+fn smooth_export_of_a_skinned_model_is_a_static_bind_pose() {
+    let doc = skinned_cesium_man(5);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("smooth.glb");
+    let options = GltfExportOptions {
+        mode: ExportMode::Smooth,
+        ..GltfExportOptions::default()
+    };
+    export_gltf(&doc, &path, &options, &|_| true).expect("exports");
+    let e = import_skinned(&path).expect_err("no skin in a smooth export");
+    assert!(e.to_string().contains("skin"), "{e}");
+}
