@@ -41,15 +41,15 @@ fn snapshot(h: &mut Harness<'static, EditorApp>, name: &str) {
 }
 
 /// RiggedFigure (Khronos sample, CC BY 4.0; see shared/assets/LICENSES.md) voxelized in its bind
-/// pose at a coarse depth, with its skeleton and clip.
-fn rigged_figure() -> Document {
+/// pose at octree depth `depth`, with its skeleton and clip.
+fn rigged_figure(depth: u8) -> Document {
     let path = concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../../shared/assets/skinned/RiggedFigure.glb"
     );
     let import = thicket_core::skin::import_skinned(path).expect("RiggedFigure imports");
     let settings = thicket_core::voxelize::VoxelizeSettings {
-        resolution: thicket_core::voxelize::Resolution::Depth(5),
+        resolution: thicket_core::voxelize::Resolution::Depth(depth),
         ..Default::default()
     };
     let v = thicket_core::skin::voxelize_skinned(&import, &settings, &|_| true)
@@ -65,7 +65,7 @@ fn rigged_figure() -> Document {
 
 #[test]
 fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
-    let mut h = harness(rigged_figure());
+    let mut h = harness(rigged_figure(5));
     let id = h.state().editor.doc().objects[0].id;
     let rig = h.state().editor.rig(id).expect("rigged").clone();
     assert!(rig.skeleton.len() > 2);
@@ -449,4 +449,49 @@ fn the_tree_builder_rebuilds_from_a_dragged_fork_and_undoes() {
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(1);
     assert_ne!(h.state().editor.krs(id).unwrap(), &rebuilt);
+}
+
+#[test]
+fn the_hole_overlay_counts_fewer_holes_with_corner_stretch_than_without() {
+    // Fine enough voxels that stretching matters (coarse ones bloat over every hole).
+    let mut h = harness(rigged_figure(7));
+    let id = h.state().editor.doc().objects[0].id;
+    // A posed frame of the clip.
+    let mut playback = h.state().editor.rig(id).unwrap().playback;
+    playback.time_secs = 0.6;
+    h.state_mut().editor.set_playback(id, playback).unwrap();
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Hole / bloat overlay").click();
+    h.run_steps(2);
+    h.key_press(egui::Key::Escape);
+    assert!(h.state().view.show_holes);
+
+    let mut counts = Vec::new();
+    for strategy in [
+        thicket_core::skin::StretchStrategy::Off,
+        thicket_core::skin::StretchStrategy::Corners,
+    ] {
+        let mut s = h.state().editor.rig(id).unwrap().stretch;
+        s.strategy = strategy;
+        h.state_mut().editor.set_stretch(id, s).unwrap();
+        settle_preview(&mut h);
+        let c = h.state().view.hole_counts().expect("hole counts");
+        eprintln!("{strategy:?}: {c:?}");
+        counts.push(c);
+    }
+    assert!(counts[0].mesh_pixels > 1000, "{counts:?}");
+    assert!(
+        counts[0].holes > 0,
+        "unstretched voxels leave holes in this pose: {counts:?}"
+    );
+    assert_eq!(
+        counts[0].mesh_pixels, counts[1].mesh_pixels,
+        "same pose, same mesh"
+    );
+    assert!(
+        counts[1].holes <= counts[0].holes,
+        "corner stretch closes holes: {counts:?}"
+    );
+    snapshot(&mut h, "pose_hole_overlay");
 }

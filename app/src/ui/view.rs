@@ -100,11 +100,32 @@ struct PreviewKey {
     animation: u64,
     camera: OrbitCamera,
     size_px: [u32; 2],
+    holes: bool,
 }
 
-/// A finished preview: the image, the object label per pixel (1-based document index, 0 for
-/// the background) and the render time in milliseconds.
-type PreviewResult = Result<(egui::ColorImage, Vec<u32>, f64), String>;
+/// Silhouette counts of the rigged models in the view against their skinned source meshes.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct HoleCounts {
+    /// Pixels inside the skinned meshes' silhouettes.
+    pub mesh_pixels: u64,
+    /// Mesh pixels no voxel covers.
+    pub holes: u64,
+    /// Voxel pixels outside the meshes.
+    pub bloat: u64,
+}
+
+/// A finished preview frame.
+struct PreviewFrame {
+    image: egui::ColorImage,
+    /// Object label per pixel (1-based document index, 0 for the background).
+    labels: Vec<u32>,
+    ms: f64,
+    /// The hole / bloat overlay and its counts, when asked for and there is a rigged model
+    /// with its source mesh.
+    holes: Option<(egui::ColorImage, HoleCounts)>,
+}
+
+type PreviewResult = Result<PreviewFrame, String>;
 
 /// The CPU preview: one render at a time on a worker thread; the newest key wins.
 #[derive(Default)]
@@ -120,6 +141,8 @@ struct CpuPreview {
     labels: Vec<u32>,
     /// The selection outline drawn from `labels`: for which render and label.
     outline: Option<((u64, u32), egui::TextureHandle)>,
+    /// The hole / bloat overlay of the shown image and its counts.
+    holes: Option<(egui::TextureHandle, HoleCounts)>,
 }
 
 /// Outline colour of the selection.
@@ -213,6 +236,9 @@ pub struct View {
     pub render_scale: f32,
     /// Which renderer draws the view.
     pub renderer: ViewRenderer,
+    /// Overlay the CPU preview with the hole (red) and bloat (blue) pixels of rigged models
+    /// against their skinned source meshes.
+    pub show_holes: bool,
     gpu: Option<ViewportLink>,
     /// The document as the renderer sees it, for one content and animation key (cloned when
     /// either changes).
@@ -233,6 +259,7 @@ impl Default for View {
             show_bounds: false,
             render_scale: 1.0,
             renderer: ViewRenderer::Auto,
+            show_holes: false,
             gpu: None,
             snapshot: None,
             cpu: CpuPreview::default(),
@@ -261,6 +288,10 @@ impl View {
             .on_hover_text("Draw the ground grid and the world axes over the view");
         ui.checkbox(&mut self.show_bounds, "All bounding boxes")
             .on_hover_text("Draw every object's bounding box (the selection's is always drawn)");
+        ui.checkbox(&mut self.show_holes, "Hole / bloat overlay")
+            .on_hover_text(
+                "CPU preview of rigged models: red where the skinned source mesh shows but no voxel does (holes), blue where voxels cover more (bloat)",
+            );
         ui.separator();
         ui.label("Axis views");
         for (view, label, key) in AxisView::ALL {
@@ -401,6 +432,12 @@ impl View {
         self.cpu.renders
     }
 
+    /// Hole and bloat counts of the shown CPU preview (with [`View::show_holes`]).
+    #[must_use]
+    pub fn hole_counts(&self) -> Option<HoleCounts> {
+        self.cpu.holes.as_ref().map(|(_, c)| *c)
+    }
+
     /// Wall-clock milliseconds of the last CPU preview render, and its size in pixels.
     #[must_use]
     pub fn cpu_preview_stats(&self) -> Option<(f64, [u32; 2])> {
@@ -448,6 +485,7 @@ impl View {
             animation: editor.animation_key(),
             camera: editor.doc().camera,
             size_px,
+            holes: self.show_holes,
         };
         if let Some((k, rx)) = &self.cpu.job {
             match rx.try_recv() {
@@ -466,8 +504,21 @@ impl View {
         }
         if let Some((k, result)) = self.cpu.ready.take() {
             match result {
-                Ok((image, labels, ms)) => {
+                Ok(PreviewFrame {
+                    image,
+                    labels,
+                    ms,
+                    holes,
+                }) => {
                     self.cpu.labels = labels;
+                    self.cpu.holes = holes.map(|(overlay, counts)| {
+                        let t = ui.ctx().load_texture(
+                            "hole_overlay",
+                            overlay,
+                            egui::TextureOptions::NEAREST,
+                        );
+                        (t, counts)
+                    });
                     match &mut self.cpu.texture {
                         Some(t) => t.set(image, egui::TextureOptions::LINEAR),
                         None => {
@@ -499,6 +550,7 @@ impl View {
                 camera: Some(key.camera),
                 quality: doc.quality.clone(),
             };
+            let holes = key.holes;
             std::thread::spawn(move || {
                 let t0 = Instant::now();
                 let result = thicket_core::render::render_document(&doc, &request)
@@ -506,7 +558,17 @@ impl View {
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
                         let labels = buffers.ids.iter().map(|id| id.object).collect();
-                        (color, labels, t0.elapsed().as_secs_f64() * 1e3)
+                        let ms = t0.elapsed().as_secs_f64() * 1e3;
+                        PreviewFrame {
+                            image: color,
+                            labels,
+                            ms,
+                            holes: if holes {
+                                hole_overlay(&doc, &request)
+                            } else {
+                                None
+                            },
+                        }
                     })
                     .map_err(|e| e.to_string());
                 // The view may be gone (window closed): nothing to hand back then.
@@ -517,6 +579,12 @@ impl View {
         }
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
         if let Some(t) = &self.cpu.texture {
+            ui.painter_at(rect)
+                .image(t.id(), rect, uv, egui::Color32::WHITE);
+        }
+        if self.show_holes
+            && let Some((t, _)) = &self.cpu.holes
+        {
             ui.painter_at(rect)
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
         }
@@ -763,13 +831,24 @@ impl View {
                 ),
                 (None, Some(k)) => (
                     format!(
-                        "CPU preview {} x {} px ({})\nDrag: orbit   Click a joint dot: pose   F: frame   F3: stats",
+                        "CPU preview {} x {} px ({}){}\nDrag: orbit   Click a joint dot: pose   F: frame   F3: stats",
                         k.size_px[0],
                         k.size_px[1],
                         if self.gpu.is_some() {
                             "skinning and KRS: the GPU renderer has no pass for them yet"
                         } else {
                             "no GPU renderer in this window"
+                        },
+                        match (self.show_holes, self.hole_counts()) {
+                            (true, Some(c)) => format!(
+                                "\nHoles {} px ({:.2} % of the mesh), bloat {} px (red / blue)",
+                                c.holes,
+                                100.0 * c.holes as f64 / c.mesh_pixels.max(1) as f64,
+                                c.bloat
+                            ),
+                            (true, None) =>
+                                "\nHole overlay: no rigged model with its source mesh".to_owned(),
+                            (false, _) => String::new(),
                         },
                     ),
                     egui::Color32::from_gray(220),
@@ -831,6 +910,103 @@ impl View {
         painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(140));
         painter.galley(origin, galley, weak);
     }
+}
+
+/// Renders every visible rigged voxel model alone and its skinned source mesh alone with the
+/// preview's camera and compares the silhouettes (as `thicket skin-report` does): red where
+/// the mesh shows and no voxel does (holes), blue where voxels cover more (bloat). Occluders
+/// are left out on purpose: they would hide holes.
+fn hole_overlay(
+    doc: &Document,
+    req: &thicket_core::render::RenderRequest,
+) -> Option<(egui::ColorImage, HoleCounts)> {
+    use thicket_core::render::{
+        Camera, MeshInstance, RenderScene, VoxelInstance, document_deforms, render_scene,
+    };
+    let (w, h) = (req.width as usize, req.height as usize);
+    let cam = Camera::from_orbit(&req.camera.unwrap_or(doc.camera), req.width, req.height);
+    let quality = thicket_core::render::Quality {
+        shadows: false,
+        ao_samples: 0,
+        ..req.quality.clone()
+    };
+    let deforms = document_deforms(doc, &quality);
+    let mut mesh_cov = vec![false; w * h];
+    let mut voxel_cov = vec![false; w * h];
+    let mut any = false;
+    for (o, d) in doc.objects.iter().zip(&deforms) {
+        let (ObjectKind::Voxels(v), Some(d)) = (&o.kind, d) else {
+            continue;
+        };
+        let Some(rig) = v.rig.as_ref().filter(|_| o.visible) else {
+            continue;
+        };
+        let Some(reference) = &rig.reference_mesh else {
+            continue;
+        };
+        let skinning = rig.current_skinning();
+        let mesh = thicket_core::mesh::MeshModel {
+            parts: reference
+                .parts
+                .iter()
+                .map(|p| thicket_core::skin::lbs::skin_mesh(&skinning, p))
+                .collect(),
+            materials: reference.materials.clone(),
+        };
+        let scene = |voxels: Vec<VoxelInstance<'_>>, meshes: Vec<MeshInstance<'_>>| {
+            let s = RenderScene {
+                voxels,
+                meshes,
+                lights: &doc.lights,
+                ambient: doc.ambient,
+                background: doc.background,
+            };
+            render_scene(&s, &cam, &quality)
+                .ok()
+                .map(|(_, fb, _)| fb.coverage())
+        };
+        let mesh_only = scene(
+            Vec::new(),
+            vec![MeshInstance {
+                model: &mesh,
+                world_from_object: o.transform.matrix(),
+                casts_shadows: false,
+                label: 1,
+            }],
+        )?;
+        let voxels_only = scene(
+            vec![VoxelInstance {
+                svo: &v.svo,
+                deform: d.as_ref(),
+                casts_shadows: false,
+                label: 1,
+            }],
+            Vec::new(),
+        )?;
+        for (acc, c) in mesh_cov.iter_mut().zip(mesh_only) {
+            *acc |= c;
+        }
+        for (acc, c) in voxel_cov.iter_mut().zip(voxels_only) {
+            *acc |= c;
+        }
+        any = true;
+    }
+    if !any {
+        return None;
+    }
+    let mut counts = HoleCounts::default();
+    let mut image = egui::ColorImage::filled([w, h], egui::Color32::TRANSPARENT);
+    for (i, (&m, &v)) in mesh_cov.iter().zip(&voxel_cov).enumerate() {
+        counts.mesh_pixels += u64::from(m);
+        if m && !v {
+            counts.holes += 1;
+            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(255, 40, 40, 220);
+        } else if v && !m {
+            counts.bloat += 1;
+            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(60, 120, 255, 150);
+        }
+    }
+    Some((image, counts))
 }
 
 /// Whether the document holds something the GPU renderer cannot draw: a visible KRS object or
