@@ -191,3 +191,58 @@ fn enhance_runs_as_a_job_and_cancel_keeps_the_document() {
         _ => panic!("voxel models"),
     }
 }
+
+#[test]
+fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tree.glb");
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    let mut h = harness(app);
+    let ctx = h.ctx.clone();
+    outliner_row(&h, "Tree").click();
+    h.run_steps(2);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export glTF...").click();
+    h.run_steps(2);
+    assert!(h.state().gltf_export.open);
+    h.get_by_label("Smooth").click();
+    h.get_by_label("Selected object only").click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().gltf_export.options.mode,
+        thicket_core::io::gltf_export::ExportMode::Smooth
+    );
+    assert!(h.state().gltf_export.selected_only);
+    h.get_by_label("Export...").click();
+    // The click, then the prompt's first (invisible, sizing) frame, then the prompt.
+    h.run_steps(3);
+    // No native dialog here: the path prompt asks for the file.
+    h.get_by_label("Export glTF (.glb or .gltf)");
+    let options = h.state().gltf_export.options_for(Some("Tree"));
+    assert_eq!(
+        options.mode,
+        thicket_core::io::gltf_export::ExportMode::Smooth
+    );
+    assert_eq!(options.object.as_deref(), Some("Tree"));
+
+    // What the prompt's OK starts: the job, then its toast.
+    h.state_mut().start_export_gltf(path.clone());
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let bytes = std::fs::read(&path).expect("the export was written");
+    assert_eq!(&bytes[..4], b"glTF", "a GLB file");
+    let (gltf_doc, _, _) = gltf::import(&path).expect("the file loads");
+    let names: Vec<_> = gltf_doc
+        .nodes()
+        .filter_map(|n| n.name().map(str::to_owned))
+        .collect();
+    assert_eq!(names, ["Tree"], "only the selection");
+    // The toast and the status bar.
+    assert!(
+        h.query_all_by_label_contains("Exported 1 object(s)")
+            .count()
+            >= 1
+    );
+}

@@ -57,7 +57,7 @@ fn report(doc: &Document, strategies: &[StretchStrategy]) -> SkinReport {
     .expect("the model is skinned and has a clip")
 }
 
-fn row<'a>(r: &'a SkinReport, s: StretchStrategy) -> &'a StrategyRow {
+fn row(r: &SkinReport, s: StretchStrategy) -> &StrategyRow {
     r.rows
         .iter()
         .find(|row| row.settings.strategy == s)

@@ -3,6 +3,7 @@
 //! [`EditorApp::ui_root`] draws the whole window into a [`egui::Ui`]; eframe calls it through
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
+pub mod export_gltf;
 mod inspector;
 pub mod krs_panel;
 mod outliner;
@@ -80,6 +81,7 @@ enum PathPurpose {
     Import,
     SaveAs,
     ExportVox,
+    ExportGltf,
 }
 
 impl PathPurpose {
@@ -89,6 +91,7 @@ impl PathPurpose {
             Self::Import => "Import",
             Self::SaveAs => "Save as",
             Self::ExportVox => "Export MagicaVoxel (.vox)",
+            Self::ExportGltf => "Export glTF (.glb or .gltf)",
         }
     }
 }
@@ -202,6 +205,8 @@ pub struct EditorApp {
     /// The KRS editor's state.
     pub krs: krs_panel::KrsPanel,
     perf: perf::PerfOverlay,
+    /// File → Export glTF's window and settings.
+    pub gltf_export: export_gltf::GltfExportPanel,
     /// Last status-bar message.
     status: String,
 }
@@ -243,6 +248,7 @@ impl EditorApp {
             pose: pose::PoseTool::default(),
             krs: krs_panel::KrsPanel::default(),
             perf: perf::PerfOverlay::default(),
+            gltf_export: export_gltf::GltfExportPanel::default(),
             status: String::from("Ready"),
         }
     }
@@ -390,6 +396,32 @@ impl EditorApp {
         }));
     }
 
+    /// File → Export glTF: the document with the export window's settings, on a worker thread
+    /// with progress and Cancel (the same code as `thicket export`).
+    pub fn start_export_gltf(&mut self, path: PathBuf) {
+        let doc = self.editor.doc().clone();
+        let selected = self.editor.selected_object().map(|o| o.name.clone());
+        let options = self.gltf_export.options_for(selected.as_deref());
+        let label = format!("Exporting {}", path.display());
+        self.job = Some(Job::spawn(label, move |progress, cancel| {
+            let report = |f: f32| {
+                progress.store(f.to_bits(), Ordering::Relaxed);
+                !cancel.load(Ordering::Relaxed)
+            };
+            let result = thicket_core::io::gltf_export::export_gltf(&doc, &path, &options, &report)
+                .map(|r| {
+                    format!(
+                        "Exported {} object(s), {} triangles, to {}",
+                        r.objects,
+                        thousands(r.triangles),
+                        path.display()
+                    )
+                })
+                .map_err(anyhow::Error::from);
+            JobResult::Exported(result)
+        }));
+    }
+
     /// Cancels the running job: its result is dropped and the document stays as it is; jobs
     /// that check the flag (enhancement) stop early.
     pub fn cancel_job(&mut self, ctx: &egui::Context) {
@@ -527,6 +559,7 @@ impl EditorApp {
                 |p| p.display().to_string(),
             ),
             PathPurpose::ExportVox => "export.vox".into(),
+            PathPurpose::ExportGltf => "export.glb".into(),
             _ => String::new(),
         };
         self.prompt = Some(PathPrompt { purpose, text });
@@ -559,6 +592,10 @@ impl EditorApp {
                 PathPurpose::ExportVox => d
                     .add_filter("MagicaVoxel", &["vox"])
                     .set_file_name("export.vox")
+                    .save_file(),
+                PathPurpose::ExportGltf => d
+                    .add_filter("glTF", &["glb", "gltf"])
+                    .set_file_name("export.glb")
                     .save_file(),
             };
             let _ = tx.send(path);
@@ -668,6 +705,7 @@ impl EditorApp {
                 self.save_to(ctx, path);
             }
             PathPurpose::ExportVox => self.start_export_vox(path),
+            PathPurpose::ExportGltf => self.start_export_gltf(path),
         }
     }
 
@@ -955,6 +993,14 @@ impl EditorApp {
                     .clicked()
                 {
                     self.ask_path(PathPurpose::ExportVox);
+                }
+                if ui
+                    .add_enabled(!busy, egui::Button::new("Export glTF..."))
+                    .on_hover_text("Write the scene, or the selected object, as .glb or .gltf: cubes, smooth surfaces, KRS meshes or instances, skinned characters with their clips")
+                    .clicked()
+                {
+                    self.gltf_export.open = true;
+                    ui.close();
                 }
                 ui.separator();
                 ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
@@ -1276,6 +1322,8 @@ impl EditorApp {
                 ui.heading(prompt.purpose.title());
                 ui.label(match prompt.purpose {
                     PathPurpose::SaveAs => "Project file (.thicket.json):".to_owned(),
+                    PathPurpose::ExportVox => "MagicaVoxel file (.vox):".to_owned(),
+                    PathPurpose::ExportGltf => "glTF file (.glb or .gltf):".to_owned(),
                     _ => format!("File ({}):", readable_list()),
                 });
                 let edit = ui.add(
@@ -1307,6 +1355,13 @@ impl EditorApp {
             } else if keep {
                 self.prompt = Some(prompt);
             }
+        }
+        let selected = self.editor.selected_object().map(|o| o.name.clone());
+        if self
+            .gltf_export
+            .ui(ctx, selected.as_deref(), self.job.is_some())
+        {
+            self.ask_path(PathPurpose::ExportGltf);
         }
         if self.show_shortcuts {
             egui::Window::new("Keyboard shortcuts")
