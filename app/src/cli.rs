@@ -313,7 +313,14 @@ pub struct RenderArgs {
     /// Render with the GPU renderer (wgpu; any adapter, including a software one).
     #[arg(long)]
     pub gpu: bool,
+    /// Render a turntable of N frames instead of one image: the camera orbits 360 degrees
+    /// about the target in N equal steps, written as OUTPUT's stem + `_000.png`, `_001.png`, ...
+    #[arg(long, value_name = "N")]
+    pub turntable: Option<u32>,
 }
+
+/// Most frames a turntable may have.
+const MAX_TURNTABLE_FRAMES: u32 = 3600;
 
 /// `thicket export-vox`.
 #[derive(Debug, Args)]
@@ -805,15 +812,49 @@ fn view_options(
 }
 
 fn render(args: &RenderArgs) -> anyhow::Result<()> {
-    use thicket_core::render::{RenderRequest, RgbaImage, render_document};
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let Some(frames) = args.turntable else {
+        return render_one(args, &doc, camera, &quality, width, height, &args.output);
+    };
+    if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
+        anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
+    }
+    let stem = args
+        .output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .with_context(|| format!("{}: not a file name", args.output.display()))?;
+    let digits = (frames - 1).max(1).ilog10() as usize + 1;
+    let digits = digits.max(3);
+    for i in 0..frames {
+        let mut cam = camera;
+        cam.yaw_deg = camera.yaw_deg + 360.0 * i as f32 / frames as f32;
+        let path = args
+            .output
+            .with_file_name(format!("{stem}_{i:0digits$}.png"));
+        render_one(args, &doc, cam, &quality, width, height, &path)?;
+    }
+    Ok(())
+}
+
+/// Renders one frame of `doc` from `camera` and writes it to `output` (atomically).
+fn render_one(
+    args: &RenderArgs,
+    doc: &thicket_core::scene::Document,
+    camera: thicket_core::scene::OrbitCamera,
+    quality: &thicket_core::render::Quality,
+    width: u32,
+    height: u32,
+    output: &std::path::Path,
+) -> anyhow::Result<()> {
+    use thicket_core::render::{RenderRequest, RgbaImage, render_document};
     let (image, stats_json) = if args.gpu {
         let ctx = crate::gpu::GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
         let (pixels, stats) =
-            crate::gpu::render_with_context(&ctx, &doc, &camera, width, height, &quality)
+            crate::gpu::render_with_context(&ctx, doc, &camera, width, height, quality)
                 .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
         let json = serde_json::json!({
             "device": ctx.describe(),
@@ -842,9 +883,9 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
             width,
             height,
             camera: Some(camera),
-            quality,
+            quality: quality.clone(),
         };
-        let (image, _buffers, stats) = render_document(&doc, &request)
+        let (image, _buffers, stats) = render_document(doc, &request)
             .with_context(|| format!("{}: rendering", args.project.display()))?;
         (
             image,
@@ -852,14 +893,13 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         )
     };
     // Write through a temporary sibling so a failed write leaves no partial PNG.
-    let tmp = args.output.with_extension("png.tmp");
+    let tmp = output.with_extension("png.tmp");
     if let Err(e) = image.save_png(&tmp) {
         let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("{}: writing PNG", args.output.display()));
+        return Err(e).with_context(|| format!("{}: writing PNG", output.display()));
     }
-    std::fs::rename(&tmp, &args.output)
-        .with_context(|| format!("{}: writing PNG", args.output.display()))?;
-    let mut text = format!("wrote {} ({width}x{height})\n", args.output.display());
+    std::fs::rename(&tmp, output).with_context(|| format!("{}: writing PNG", output.display()))?;
+    let mut text = format!("wrote {} ({width}x{height})\n", output.display());
     if args.stats {
         text.push_str(
             &serde_json::to_string_pretty(&stats_json).context("encoding the statistics")?,

@@ -749,3 +749,50 @@ fn failing_gltf_export_names_the_problem_and_writes_nothing() {
     );
     assert_eq!(files_in(dir.path()), before);
 }
+
+#[test]
+fn render_turntable_orbits_the_camera_over_numbered_frames() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/mixed.thicket.json"
+    );
+    let out = dir.path().join("spin.png");
+    let o = thicket(&[
+        "render",
+        project,
+        "-o",
+        out.to_str().unwrap(),
+        "--size",
+        "48x48",
+        "--turntable",
+        "3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let frames: Vec<Vec<u8>> = (0..3)
+        .map(|i| {
+            let p = dir.path().join(format!("spin_{i:03}.png"));
+            image::open(&p)
+                .unwrap_or_else(|e| panic!("{}: {e}", p.display()))
+                .to_rgba8()
+                .into_raw()
+        })
+        .collect();
+    assert_eq!(files_in(dir.path()).len(), 3, "only the frames");
+    // Each step turns the camera by 120 degrees: every frame differs from the others.
+    assert_ne!(frames[0], frames[1]);
+    assert_ne!(frames[1], frames[2]);
+    assert_ne!(frames[0], frames[2]);
+
+    let o = thicket(&[
+        "render",
+        project,
+        "-o",
+        dir.path().join("none.png").to_str().unwrap(),
+        "--turntable",
+        "0",
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("--turntable 0"), "{}", stderr(&o));
+    assert_eq!(files_in(dir.path()).len(), 3, "nothing written");
+}
