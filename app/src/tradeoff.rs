@@ -30,6 +30,93 @@ fn register_font() -> anyhow::Result<()> {
     result
 }
 
+/// Tick values for a log axis over `lo..=hi`: the finest "nice" mantissas (1-1.5-2-3-5-…)
+/// that give at most `max` ticks, so a narrow range (one decade or less, e.g. frame times of
+/// 1.3 to 2.7 ms) still gets labels and a wide one does not crowd them. Falls back to evenly
+/// spaced values when no nice mantissa falls in the range.
+#[must_use]
+pub fn log_ticks(lo: f64, hi: f64, max: usize) -> Vec<f64> {
+    if !(lo.is_finite() && hi.is_finite() && lo > 0.0 && hi > lo) || max == 0 {
+        return Vec::new();
+    }
+    const MANTISSAS: [&[f64]; 5] = [
+        &[1.0, 1.2, 1.5, 2.0, 2.5, 3.0, 4.0, 5.0, 6.0, 8.0],
+        &[1.0, 1.5, 2.0, 3.0, 5.0, 7.0],
+        &[1.0, 2.0, 5.0],
+        &[1.0, 3.0],
+        &[1.0],
+    ];
+    let ticks_with = |mantissas: &[f64], decade_stride: i32| -> Vec<f64> {
+        let (k_lo, k_hi) = (lo.log10().floor() as i32, hi.log10().ceil() as i32);
+        let mut v = Vec::new();
+        for k in (k_lo..=k_hi).filter(|k| k.rem_euclid(decade_stride) == 0) {
+            for m in mantissas {
+                let t = m * 10f64.powi(k);
+                // Relative slack: 1e-9 keeps a tick that is the range's own end.
+                if t >= lo * (1.0 - 1e-9) && t <= hi * (1.0 + 1e-9) {
+                    v.push(t);
+                }
+            }
+        }
+        v
+    };
+    let mut best = Vec::new();
+    for m in MANTISSAS {
+        let v = ticks_with(m, 1);
+        if v.len() <= max {
+            best = v;
+            break;
+        }
+    }
+    let mut stride = 2;
+    while best.is_empty() || best.len() > max {
+        let v = ticks_with(&[1.0], stride);
+        if v.len() <= max || stride > 64 {
+            best = v;
+            break;
+        }
+        stride *= 2;
+    }
+    if best.len() < 2 {
+        // A range narrower than the gap between nice mantissas: evenly spaced values.
+        let n = max.clamp(2, 5);
+        best = (0..n)
+            .map(|i| lo + (hi - lo) * (i as f64 + 0.5) / n as f64)
+            .collect();
+    }
+    best
+}
+
+/// A short axis label: `850`, `1.5`, `0.25`, `12k`, `1.2M`.
+#[must_use]
+pub fn compact_number(v: f64) -> String {
+    fn trim(s: String) -> String {
+        if s.contains('.') {
+            s.trim_end_matches('0').trim_end_matches('.').to_owned()
+        } else {
+            s
+        }
+    }
+    let a = v.abs();
+    if !v.is_finite() {
+        format!("{v}")
+    } else if a >= 1e6 {
+        trim(format!("{:.2}", v / 1e6)) + "M"
+    } else if a >= 1e4 {
+        trim(format!("{:.0}", v / 1e3)) + "k"
+    } else if a >= 1e3 {
+        trim(format!("{:.1}", v / 1e3)) + "k"
+    } else if a >= 100.0 {
+        format!("{v:.0}")
+    } else if a >= 10.0 {
+        trim(format!("{v:.1}"))
+    } else if a >= 0.1 {
+        trim(format!("{v:.2}"))
+    } else {
+        trim(format!("{v:.4}"))
+    }
+}
+
 fn preset_name(p: &SweepPoint) -> Option<&'static str> {
     p.setting.preset.map(|p| match p {
         QualityPreset::Draft => "draft",
@@ -73,12 +160,21 @@ where
         .margin(12)
         .x_label_area_size(42)
         .y_label_area_size(64)
-        .build_cartesian_2d((x_lo..x_hi).log_scale(), 0.0..y_hi)
+        .build_cartesian_2d(
+            (x_lo..x_hi)
+                .log_scale()
+                .with_key_points(log_ticks(x_lo, x_hi, 6)),
+            0.0..y_hi,
+        )
         .map_err(err)?;
     chart
         .configure_mesh()
         .x_desc(x_desc)
         .y_desc("RMSE vs reference")
+        .x_label_formatter(&|v| compact_number(*v))
+        // One light line between labelled ones: ten made the grid read as a texture.
+        .max_light_lines(1)
+        .y_label_formatter(&|v| format!("{v:.3}"))
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;
@@ -150,7 +246,7 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
         panel(
             &right,
             "work vs error (deterministic)",
-            "work units: nodes + triangles + shading taps (log)",
+            "work units: nodes, triangles, KRS steps, shading reads (log)",
             &report.points,
             |p| p.work as f64,
             |p| p.on_work_front,
@@ -203,4 +299,44 @@ pub fn write_outputs(report: &SweepReport, project_name: &str, dir: &Path) -> an
         .with_context(|| format!("writing {}", png.display()))?;
     std::fs::rename(&tmp, &png).with_context(|| format!("writing {}", png.display()))?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_ticks_label_narrow_and_wide_ranges() {
+        // Frame times within one decade still get several labels.
+        let t = log_ticks(1.28, 2.75, 6);
+        assert!(t.len() >= 3 && t.len() <= 6, "{t:?}");
+        assert!(t.iter().all(|v| (1.28..=2.75).contains(v)), "{t:?}");
+        // Five decades: no more than asked for, all inside, increasing.
+        let t = log_ticks(3_000.0, 900_000_000.0, 6);
+        assert!(t.len() >= 2 && t.len() <= 6, "{t:?}");
+        assert!(t.windows(2).all(|w| w[0] < w[1]), "{t:?}");
+        // A very narrow range falls back to evenly spaced values.
+        let t = log_ticks(1.61, 1.65, 6);
+        assert!(
+            t.len() >= 2 && t.iter().all(|v| (1.61..=1.65).contains(v)),
+            "{t:?}"
+        );
+        assert!(log_ticks(0.0, 1.0, 6).is_empty() && log_ticks(2.0, 1.0, 6).is_empty());
+    }
+
+    #[test]
+    fn compact_numbers_are_short() {
+        for (v, s) in [
+            (850.0, "850"),
+            (1.5, "1.5"),
+            (2.0, "2"),
+            (0.25, "0.25"),
+            (1500.0, "1.5k"),
+            (12_000.0, "12k"),
+            (1_200_000.0, "1.2M"),
+            (0.0012, "0.0012"),
+        ] {
+            assert_eq!(compact_number(v), s);
+        }
+    }
 }

@@ -10,6 +10,7 @@ mod outliner;
 mod perf;
 pub mod pose;
 pub mod sculpt;
+pub mod tradeoff;
 pub mod view;
 
 use std::path::{Path, PathBuf};
@@ -121,6 +122,8 @@ enum JobResult {
         anyhow::Result<Box<thicket_core::scene::VoxelModel>>,
     ),
     Exported(anyhow::Result<String>),
+    /// A Trade-off sweep of the editor at a revision.
+    Swept(u64, anyhow::Result<thicket_core::measure::SweepReport>),
 }
 
 /// A background job: a worker thread, its progress and its cancel flag.
@@ -130,6 +133,8 @@ struct Job {
     /// Fraction done as `f32` bits; NaN while the job cannot tell.
     progress: Arc<AtomicU32>,
     cancel: Arc<AtomicBool>,
+    /// A Trade-off sweep (its panel shows the progress and a Cancel button too).
+    sweep: bool,
 }
 
 impl Job {
@@ -152,6 +157,7 @@ impl Job {
             rx,
             progress,
             cancel,
+            sweep: false,
         }
     }
 
@@ -207,6 +213,8 @@ pub struct EditorApp {
     perf: perf::PerfOverlay,
     /// File → Export glTF's window and settings.
     pub gltf_export: export_gltf::GltfExportPanel,
+    /// The Trade-off panel (View menu).
+    pub tradeoff: tradeoff::TradeoffPanel,
     /// Last status-bar message.
     status: String,
 }
@@ -249,6 +257,7 @@ impl EditorApp {
             krs: krs_panel::KrsPanel::default(),
             perf: perf::PerfOverlay::default(),
             gltf_export: export_gltf::GltfExportPanel::default(),
+            tradeoff: tradeoff::TradeoffPanel::default(),
             status: String::from("Ready"),
         }
     }
@@ -422,6 +431,36 @@ impl EditorApp {
         }));
     }
 
+    /// View → Trade-off → Run sweep: the panel's sweep of the current view on a worker thread,
+    /// with progress and Cancel.
+    pub fn start_tradeoff_sweep(&mut self) {
+        let job = self
+            .tradeoff
+            .job(&self.editor, self.view.last_rect.aspect_ratio());
+        self.spawn_sweep(job);
+    }
+
+    fn spawn_sweep(&mut self, job: tradeoff::SweepJob) {
+        let label = format!("Trade-off sweep at {} x {} px", job.width, job.height);
+        let mut spawned = Job::spawn(label, move |progress, cancel| {
+            let report = thicket_core::measure::sweep_document_with_cancel(
+                &job.doc,
+                job.width,
+                job.height,
+                &job.settings,
+                |done, total, _| {
+                    let f = done as f32 / total.max(1) as f32;
+                    progress.store(f.to_bits(), Ordering::Relaxed);
+                },
+                cancel,
+            )
+            .map_err(anyhow::Error::from);
+            JobResult::Swept(job.revision, report)
+        });
+        spawned.sweep = true;
+        self.job = Some(spawned);
+    }
+
     /// Cancels the running job: its result is dropped and the document stays as it is; jobs
     /// that check the flag (enhancement) stop early.
     pub fn cancel_job(&mut self, ctx: &egui::Context) {
@@ -492,6 +531,16 @@ impl EditorApp {
                 );
             }
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
+            JobResult::Swept(revision, Ok(report)) => {
+                let n = report.points.len();
+                self.tradeoff.set_report(report, revision);
+                self.toast(
+                    ctx,
+                    format!("Trade-off sweep: {n} settings measured"),
+                    false,
+                );
+            }
+            JobResult::Swept(_, Err(e)) => self.error_dialog = Some(format!("{e:#}")),
             JobResult::Enhanced(_, _, Err(e)) | JobResult::Exported(Err(e)) => {
                 self.error_dialog = Some(format!("{e:#}"));
             }
@@ -779,6 +828,7 @@ impl EditorApp {
             self.view.gpu(),
             self.view.cpu_preview_stats(),
         );
+        self.tradeoff_ui(&ctx);
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));
 
         // A drag (slider, DragValue) is one undo step: the step closes when the pointer is up.
@@ -787,6 +837,31 @@ impl EditorApp {
         }
         self.perf
             .record(started.elapsed().as_secs_f64() * 1e3, self.view.gpu());
+    }
+
+    fn tradeoff_ui(&mut self, ctx: &egui::Context) {
+        let running = self.job.as_ref().filter(|j| j.sweep).map(Job::fraction);
+        let action = self.tradeoff.ui(
+            ctx,
+            &self.editor,
+            self.view.last_rect.aspect_ratio(),
+            running,
+            self.job.is_some(),
+        );
+        match action {
+            Some(tradeoff::PanelAction::Run(job)) => self.spawn_sweep(*job),
+            Some(tradeoff::PanelAction::Cancel) => self.cancel_job(ctx),
+            Some(tradeoff::PanelAction::Apply(quality, label)) => {
+                // Its own undo step, never merged with a slider drag before or after.
+                self.editor.end_interaction();
+                match self.editor.set_quality(*quality) {
+                    Ok(()) => self.toast(ctx, format!("Quality set to: {label}"), false),
+                    Err(e) => self.toast(ctx, format!("Quality not changed: {e}"), true),
+                }
+                self.editor.end_interaction();
+            }
+            None => {}
+        }
     }
 
     /// Connects the GPU viewport (see [`crate::viewport::install`]).
@@ -1099,6 +1174,8 @@ impl EditorApp {
                 }
                 ui.checkbox(&mut self.perf.open, "Performance overlay (F3)")
                     .on_hover_text("Frame times, GPU time per pass, nodes per level, memory");
+                ui.checkbox(&mut self.tradeoff.open, "Trade-off")
+                    .on_hover_text("Measure time against error for each quality setting on this view, and pick one");
                 ui.separator();
                 self.view.menu_ui(ui, &mut self.editor);
                 ui.separator();

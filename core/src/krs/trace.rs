@@ -471,11 +471,22 @@ impl Default for ShadowSettings {
 /// (1 = lit). Hard: 0 when an occluder is hit. Soft: the smallest `k·d/t` met along the ray
 /// (the unbounding sphere's angular size), clamped to [0, 1].
 pub fn shadow(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &ShadowSettings) -> f32 {
+    shadow_counted(scene, origin, dir, settings).0
+}
+
+/// [`shadow`] and the number of distance evaluations it took (the renderer's work count).
+#[must_use]
+pub fn shadow_counted(
+    scene: &PreparedScene,
+    origin: Vec3,
+    dir: Vec3,
+    settings: &ShadowSettings,
+) -> (f32, u32) {
     let Some(dir) = dir.try_normalize() else {
-        return 1.0;
+        return (1.0, 0);
     };
     if !origin.is_finite() {
-        return 1.0;
+        return (1.0, 0);
     }
     let (o, d) = (origin.as_dvec3(), dir.as_dvec3().normalize_or_zero());
     let start = settings.start_offset.max(0.0) as f64;
@@ -483,7 +494,7 @@ pub fn shadow(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &ShadowS
     let Some((t_lo, t_hi)) =
         ray_interval(scene, o, d, start, settings.max_distance as f64, |_| eps)
     else {
-        return 1.0;
+        return (1.0, 0);
     };
     let mut t = t_lo.max(start);
     let mut visibility = 1.0f64;
@@ -491,23 +502,25 @@ pub fn shadow(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &ShadowS
         .softness
         .filter(|k| k.is_finite() && *k > 0.0)
         .map(f64::from);
+    let mut steps = 0u32;
     for _ in 0..settings.max_steps {
         if t > t_hi {
             break;
         }
+        steps += 1;
         let dist = scene.distance((o + d * t).as_vec3()) as f64;
         if !dist.is_finite() {
             break;
         }
         if dist < settings.epsilon as f64 {
-            return 0.0;
+            return (0.0, steps);
         }
         if let Some(k) = k {
             visibility = visibility.min(k * dist / t.max(1e-12));
         }
         t += dist;
     }
-    visibility.clamp(0.0, 1.0) as f32
+    (visibility.clamp(0.0, 1.0) as f32, steps)
 }
 
 /// Ambient-occlusion knobs.

@@ -2,6 +2,7 @@
 //! knobs added later are sweepable without changing this code); per setting, the median time
 //! of N renders, a deterministic work count and the error against the reference.
 
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Instant;
 
 use serde::{Deserialize, Serialize};
@@ -57,6 +58,9 @@ pub enum SweepError {
         /// The renderer's error.
         source: RenderError,
     },
+    /// The caller's cancel flag was set (the editor's Cancel button).
+    #[error("the sweep was cancelled")]
+    Cancelled,
     /// The frames cannot be compared.
     #[error("comparing setting {label} with the reference: {source}")]
     Measure {
@@ -310,13 +314,17 @@ pub fn settings_of(s: &SweepSettings) -> Result<Vec<Setting>, SweepError> {
     Ok(out)
 }
 
-/// Deterministic work of a frame, a cost that does not depend on machine load: octree nodes
-/// visited for the view and the shadow maps, triangles rasterised, and shading taps (each
-/// covered pixel costs one tap, plus `(2r+1)²` shadow-map taps per shadow-casting light for
-/// PCF radius r). Counted from [`FrameStats`] where the renderer counts (nodes, triangles,
-/// pixels); the per-pixel tap count follows the knobs, since the shading loop does exactly that
-/// many lookups per pixel. AO samples are not counted: the CPU renderer does not shade AO yet;
-/// whoever adds it adds its samples here (or a counter to `FrameStats`).
+/// Deterministic work of a frame, a cost that does not depend on machine load, from the
+/// renderer's own counters: octree nodes visited for the view and the shadow maps, triangles
+/// rasterised, KRS distance evaluations (primary rays, tile cones, shadow rays, KRS ambient
+/// occlusion), one shading tap per covered pixel, and the shading pass's shadow-map reads
+/// (PCF taps and the tile bounds that decide whole filter windows) and screen-space AO samples.
+///
+/// Passes every frame makes over all its pixels or texels whatever the knobs (clears, depth
+/// conversion, resolve, the shadow-map tile bounds) are not counted. A renderer that does not
+/// count its shading lookups ([`FrameStats::shading`] is `None`, e.g. a GPU renderer) is
+/// charged the full filter: `(2r+1)²` taps per pixel and shadow-casting light for PCF radius
+/// r (`shadow_lights` of them), plus `ao_samples` per pixel.
 #[must_use]
 pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -> u64 {
     let nodes: u64 = stats
@@ -325,14 +333,21 @@ pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -
         .chain(&stats.shadow_levels)
         .map(|l| l.visited)
         .sum();
-    let pcf = u64::from(2 * quality.shadow_pcf_radius + 1);
-    let shadow_taps = if quality.shadows {
-        shadow_lights as u64 * pcf * pcf
-    } else {
-        0
+    let k = &stats.krs;
+    let krs = k.steps + k.tile_steps + k.shadow_steps + k.ao_evals;
+    let shading = match stats.shading {
+        Some(s) => s.shadow_taps + s.ao_taps,
+        None => {
+            let pcf = u64::from(2 * quality.shadow_pcf_radius + 1);
+            let shadow_taps = if quality.shadows {
+                shadow_lights as u64 * pcf * pcf
+            } else {
+                0
+            };
+            stats.covered_pixels * (shadow_taps + u64::from(quality.ao_samples))
+        }
     };
-    let taps = 1 + shadow_taps;
-    nodes + stats.triangles_rasterised + stats.covered_pixels * taps
+    nodes + stats.triangles_rasterised + krs + stats.covered_pixels + shading
 }
 
 /// One measured setting.
@@ -487,9 +502,9 @@ fn timed<F>(
     render: &mut F,
     q: &Quality,
     repeats: usize,
-) -> Result<(Rendered, Vec<f64>), RenderError>
+) -> Result<(Rendered, Vec<f64>), Option<RenderError>>
 where
-    F: FnMut(&Quality) -> Result<Rendered, RenderError>,
+    F: FnMut(&Quality) -> Result<Rendered, Option<RenderError>>,
 {
     let mut first = None;
     let mut times = Vec::with_capacity(repeats);
@@ -500,10 +515,10 @@ where
         first.get_or_insert(frame);
     }
     // `repeats >= 1` is checked by the caller, so a frame exists.
-    first.map(|f| (f, times)).ok_or(RenderError::ZeroSize {
+    first.map(|f| (f, times)).ok_or(Some(RenderError::ZeroSize {
         width: 0,
         height: 0,
-    })
+    }))
 }
 
 /// Runs a sweep with any renderer: `render` draws one frame for a quality (the CPU reference
@@ -517,12 +532,47 @@ pub fn sweep<F>(
     reference: &Quality,
     camera: &Camera,
     shadow_lights: usize,
-    mut render: F,
-    mut progress: impl FnMut(usize, usize, &str),
+    render: F,
+    progress: impl FnMut(usize, usize, &str),
 ) -> Result<SweepReport, SweepError>
 where
     F: FnMut(&Quality) -> Result<Rendered, RenderError>,
 {
+    sweep_with_cancel(
+        settings,
+        reference,
+        camera,
+        shadow_lights,
+        render,
+        progress,
+        &AtomicBool::new(false),
+    )
+}
+
+/// [`sweep`] that checks `cancel` before every render and stops with
+/// [`SweepError::Cancelled`] once it is set (a background sweep in the editor).
+///
+/// # Errors
+/// [`SweepError`] for bad settings, a failing render or a cancel.
+pub fn sweep_with_cancel<F>(
+    settings: &SweepSettings,
+    reference: &Quality,
+    camera: &Camera,
+    shadow_lights: usize,
+    mut render: F,
+    mut progress: impl FnMut(usize, usize, &str),
+    cancel: &AtomicBool,
+) -> Result<SweepReport, SweepError>
+where
+    F: FnMut(&Quality) -> Result<Rendered, RenderError>,
+{
+    let mut render = |q: &Quality| {
+        if cancel.load(Ordering::Relaxed) {
+            Err(None)
+        } else {
+            render(q).map_err(Some)
+        }
+    };
     if settings.repeats == 0 {
         return Err(SweepError::NoRepeats);
     }
@@ -530,19 +580,24 @@ where
         k.check()?;
     }
     let list = settings_of(settings)?;
+    fn failed(label: &str) -> impl FnOnce(Option<RenderError>) -> SweepError + '_ {
+        move |e| match e {
+            Some(source) => SweepError::Render {
+                label: label.to_owned(),
+                source,
+            },
+            None => SweepError::Cancelled,
+        }
+    }
     let ((ref_img, ref_fb, ref_stats), mut ref_times) =
-        timed(&mut render, reference, settings.repeats).map_err(|source| SweepError::Render {
-            label: "reference".into(),
-            source,
-        })?;
-    progress(0, list.len(), "reference");
-    let mut points = Vec::with_capacity(list.len());
+        timed(&mut render, reference, settings.repeats).map_err(failed("reference"))?;
+    // `Vec::capacity` may exceed the length asked for: the total is the list's length.
+    let total = list.len();
+    progress(0, total, "reference");
+    let mut points = Vec::with_capacity(total);
     for (i, setting) in list.into_iter().enumerate() {
         let ((img, fb, stats), mut times) = timed(&mut render, &setting.quality, settings.repeats)
-            .map_err(|source| SweepError::Render {
-                label: setting.label.clone(),
-                source,
-            })?;
+            .map_err(failed(&setting.label))?;
         let error = compare_frames(
             Frame {
                 image: &ref_img,
@@ -558,7 +613,7 @@ where
             label: setting.label.clone(),
             source,
         })?;
-        progress(i + 1, points.capacity(), &setting.label);
+        progress(i + 1, total, &setting.label);
         points.push(SweepPoint {
             work: work_units(&stats, &setting.quality, shadow_lights),
             time_ms: median(&mut times),
@@ -597,9 +652,32 @@ pub fn sweep_document(
     settings: &SweepSettings,
     progress: impl FnMut(usize, usize, &str),
 ) -> Result<SweepReport, SweepError> {
+    sweep_document_with_cancel(
+        doc,
+        width,
+        height,
+        settings,
+        progress,
+        &AtomicBool::new(false),
+    )
+}
+
+/// [`sweep_document`] that stops with [`SweepError::Cancelled`] once `cancel` is set (checked
+/// before every render).
+///
+/// # Errors
+/// [`SweepError`].
+pub fn sweep_document_with_cancel(
+    doc: &Document,
+    width: u32,
+    height: u32,
+    settings: &SweepSettings,
+    progress: impl FnMut(usize, usize, &str),
+    cancel: &AtomicBool,
+) -> Result<SweepReport, SweepError> {
     let camera = Camera::from_orbit(&doc.camera, width, height);
     let shadow_lights = doc.lights.iter().filter(|l| l.casts_shadows).count();
-    sweep(
+    sweep_with_cancel(
         settings,
         &reference_quality(),
         &camera,
@@ -610,6 +688,7 @@ pub fn sweep_document(
             render_document(doc, &req)
         },
         progress,
+        cancel,
     )
 }
 
@@ -700,6 +779,81 @@ mod tests {
             settings_of(&too_many),
             Err(SweepError::TooManyPoints(8192))
         ));
+    }
+
+    #[test]
+    fn work_counts_what_the_shading_knobs_cost() {
+        let doc = crate::render::scenes::mixed_document(5).unwrap();
+        let frame = |ao: u32, pcf: u32| {
+            let mut req = RenderRequest::new(48, 48);
+            req.quality.ao_samples = ao;
+            req.quality.shadow_pcf_radius = pcf;
+            let (_, _, stats) = render_document(&doc, &req).unwrap();
+            let q = req.quality;
+            (work_units(&stats, &q, 1), stats)
+        };
+        let (w0, s0) = frame(0, 1);
+        let (w8, s8) = frame(8, 1);
+        // Every covered pixel with a normal takes 8 AO samples, and the work says so.
+        let ao = s8.shading.unwrap().ao_taps;
+        assert!(ao > 0 && ao <= 8 * s8.covered_pixels, "{ao}");
+        assert_eq!(w8 - w0, ao);
+        assert_eq!(s0.shading.unwrap().ao_taps, 0);
+        // A wider filter reads more shadow-map texels; never more than the full filter.
+        let (w2, s2) = frame(0, 2);
+        let (t1, t2) = (
+            s0.shading.unwrap().shadow_taps,
+            s2.shading.unwrap().shadow_taps,
+        );
+        assert!(t2 > t1 && w2 > w0, "{t1} {t2}");
+        assert!(t2 <= s2.covered_pixels * (25 + 4), "{t2}");
+        // A renderer that does not count is charged the full filter.
+        let uncounted = FrameStats {
+            shading: None,
+            ..s2.clone()
+        };
+        let q = Quality {
+            shadow_pcf_radius: 2,
+            ao_samples: 0,
+            ..Quality::default()
+        };
+        assert_eq!(
+            work_units(&uncounted, &q, 1) - work_units(&s2, &q, 1) + t2,
+            25 * s2.covered_pixels
+        );
+    }
+
+    #[test]
+    fn a_set_cancel_flag_stops_the_sweep_before_the_next_render() {
+        let doc = crate::render::scenes::sphere_document(4, 0.4).unwrap();
+        let settings = SweepSettings {
+            knobs: vec![KnobValues::parse("lod_pixel_threshold=1,2,4,8").unwrap()],
+            presets: false,
+            repeats: 1,
+            ..SweepSettings::default()
+        };
+        let cancel = AtomicBool::new(true);
+        let r = sweep_document_with_cancel(&doc, 16, 16, &settings, |_, _, _| {}, &cancel);
+        assert!(matches!(r, Err(SweepError::Cancelled)), "{r:?}");
+        // Cancelled after the second setting: no further render is started.
+        let cancel = AtomicBool::new(false);
+        let mut seen = Vec::new();
+        let r = sweep_document_with_cancel(
+            &doc,
+            16,
+            16,
+            &settings,
+            |done, total, _| {
+                seen.push((done, total));
+                if done == 2 {
+                    cancel.store(true, Ordering::Relaxed);
+                }
+            },
+            &cancel,
+        );
+        assert!(matches!(r, Err(SweepError::Cancelled)), "{r:?}");
+        // base (= lod 1, merged), lod 2, 4, 8.
+        assert_eq!(seen, [(0, 4), (1, 4), (2, 4)]);
     }
 
     #[test]

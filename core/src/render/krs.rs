@@ -21,7 +21,7 @@ use super::camera::Camera;
 use super::quality::Quality;
 use crate::krs::{
     AoSettings, PreparedScene, ShadowSettings, TraceSettings, ambient_occlusion, shade_colour,
-    shading_threshold, shadow, tile_cone, tile_start_distance_counted, trace,
+    shading_threshold, shadow_counted, tile_cone, tile_start_distance_counted, trace,
 };
 use crate::scene::Light;
 
@@ -94,6 +94,12 @@ pub struct KrsStats {
     pub relaxation_fallbacks: u64,
     /// Shadow rays traced through the KRS.
     pub shadow_rays: u64,
+    /// Distance evaluations of those shadow rays.
+    #[serde(default)]
+    pub shadow_steps: u64,
+    /// Distance evaluations of the KRS ambient occlusion (samples per shaded pixel).
+    #[serde(default)]
+    pub ao_evals: u64,
 }
 
 /// One KRS fragment that won its pixel's depth test when it was written.
@@ -387,9 +393,10 @@ impl<'a> KrsLighting<'a> {
 
     /// Light visibility through the KRS from a receiver at `p` with normal `n`; `footprint` is
     /// how far the receiver point may be from its true surface (pixel size or hit epsilon).
-    pub(crate) fn shadow(&self, p: Vec3, n: Vec3, to_light: Vec3, footprint: f32) -> f32 {
+    /// Also returns the distance evaluations the shadow ray took.
+    pub(crate) fn shadow(&self, p: Vec3, n: Vec3, to_light: Vec3, footprint: f32) -> (f32, u32) {
         if !self.shadows {
-            return 1.0;
+            return (1.0, 0);
         }
         self.shadow_rays.fetch_add(1, Ordering::Relaxed);
         let settings = ShadowSettings {
@@ -400,7 +407,7 @@ impl<'a> KrsLighting<'a> {
             epsilon: 0.5 * footprint,
             softness: self.soft.then_some(SOFT_SHADOW_K),
         };
-        shadow(
+        shadow_counted(
             &self.layer.scene,
             p + n * (2.0 * footprint),
             to_light,
@@ -408,12 +415,13 @@ impl<'a> KrsLighting<'a> {
         )
     }
 
-    /// Ambient accessibility from the KRS around `p` (1 when AO is off).
-    pub(crate) fn ambient(&self, p: Vec3, n: Vec3) -> f32 {
+    /// Ambient accessibility from the KRS around `p` (1 when AO is off), and the distance
+    /// evaluations it took (one per sample).
+    pub(crate) fn ambient(&self, p: Vec3, n: Vec3) -> (f32, u32) {
         if self.ao_samples == 0 {
-            return 1.0;
+            return (1.0, 0);
         }
-        ambient_occlusion(
+        let open = ambient_occlusion(
             &self.layer.scene,
             p,
             n,
@@ -422,6 +430,7 @@ impl<'a> KrsLighting<'a> {
                 spacing: self.ao_spacing,
                 strength: 1.0,
             },
-        )
+        );
+        (open, self.ao_samples)
     }
 }

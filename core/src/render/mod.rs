@@ -38,7 +38,7 @@ pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
 pub use krs::{KRS_TILE, KrsLayer, KrsStats};
 pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
-pub use stats::{FrameStats, LevelStats, StageTimes};
+pub use stats::{FrameStats, LevelStats, ShadingStats, StageTimes};
 
 use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
 
@@ -350,7 +350,10 @@ pub fn render_scene_with_krs(
         ao_radius_world: bounds.map_or(0.0, |(lo, hi)| AO_RADIUS_OF_SCENE * (hi - lo).length()),
         krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
     };
-    let img = shade::shade(&fb, cam, &lighting, quality);
+    let (img, counts) = shade::shade(&fb, cam, &lighting, quality);
+    stats.shading = Some(counts.shading);
+    stats.krs.shadow_steps = counts.krs_shadow_steps;
+    stats.krs.ao_evals = counts.krs_ao_evals;
     stats.krs.shadow_rays = lighting
         .krs
         .shadow_rays

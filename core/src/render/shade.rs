@@ -16,6 +16,10 @@ use crate::render::Quality;
 use crate::scene::Light;
 use crate::svo::decode_normal;
 
+/// Edge in texels of the shadow map's bound tiles (see [`ShadowMap::bounds`]). Large against
+/// the usual PCF windows (3×3, 5×5), so most windows lie in one tile and cost one read.
+const SHADOW_TILE: i32 = 16;
+
 /// A directional light's depth map.
 pub(crate) struct ShadowMap {
     pub(crate) cam: Camera,
@@ -23,6 +27,13 @@ pub(crate) struct ShadowMap {
     pub(crate) depth: Vec<f32>,
     /// World size of one texel.
     pub(crate) texel_world: f32,
+    /// Per `SHADOW_TILE`² block of texels, row by row: the nearest and the farthest depth in
+    /// it. A PCF window whose receiver is nearer than every texel of the blocks it touches is
+    /// wholly lit (farther than every texel: wholly shadowed), so it needs no taps: the filter
+    /// costs only where a shadow edge is within its reach, and the result is exactly the full
+    /// filter's.
+    bounds: Vec<(f32, f32)>,
+    tiles_x: i32,
 }
 
 /// An orthographic light view that tightly holds a box: what both the CPU reference and the
@@ -138,17 +149,27 @@ impl ShadowMap {
         );
         super::stats::FrameStats::merge_levels(levels, &pass.levels);
         let texel_world = 2.0 / cam.fy;
-        let depth = target.into_keys().into_par_iter().map(key_depth).collect();
+        let depth: Vec<f32> = target.into_keys().into_par_iter().map(key_depth).collect();
+        let (bounds, tiles_x) = tile_bounds(&depth, cam.width as i32, cam.height as i32);
         Self {
             cam,
             depth,
             texel_world,
+            bounds,
+            tiles_x,
         }
     }
 
     /// Fraction of light reaching a world point (1 = lit), with a normal offset, a depth bias
-    /// of a few texels plus the receiver's own splat size, and PCF.
-    fn visibility(&self, p_world: Vec3, n_world: Vec3, receiver_size_world: f32, pcf: i32) -> f32 {
+    /// of a few texels plus the receiver's own splat size, and PCF; and the shadow-map reads it
+    /// took (tile bounds and taps).
+    fn visibility(
+        &self,
+        p_world: Vec3,
+        n_world: Vec3,
+        receiver_size_world: f32,
+        pcf: i32,
+    ) -> (f32, u32) {
         // Splat depth is the nearest corner of a node, so a flat voxel surface is a staircase
         // up to one node deep in both maps: bias by both node sizes, and offset along the normal
         // so grazing receivers do not sample their own texel.
@@ -159,6 +180,33 @@ impl ShadowMap {
         let recv = self.cam.ndc_depth(s.z - bias);
         let (w, h) = (self.cam.width as i32, self.cam.height as i32);
         let (ix, iy) = (s.x.floor() as i32, s.y.floor() as i32);
+        let mut reads = 0u32;
+        if pcf > 0 {
+            // The window's texels inside the map (taps outside count as lit).
+            let (x0, x1) = ((ix - pcf).max(0), (ix + pcf).min(w - 1));
+            let (y0, y1) = ((iy - pcf).max(0), (iy + pcf).min(h - 1));
+            if x0 > x1 || y0 > y1 {
+                return (1.0, 0);
+            }
+            let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
+            for ty in y0 / SHADOW_TILE..=y1 / SHADOW_TILE {
+                for tx in x0 / SHADOW_TILE..=x1 / SHADOW_TILE {
+                    let (lo, hi) = self.bounds[(ty * self.tiles_x + tx) as usize];
+                    near = near.min(lo);
+                    far = far.max(hi);
+                    reads += 1;
+                }
+            }
+            // The same comparison as each tap below, against the extremes of a superset of
+            // the window's texels: the answer is the full filter's, exactly.
+            if recv <= near {
+                return (1.0, reads);
+            }
+            let inside = ix - pcf >= 0 && iy - pcf >= 0 && ix + pcf < w && iy + pcf < h;
+            if inside && recv > far {
+                return (0.0, reads);
+            }
+        }
         let mut lit = 0u32;
         let mut taps = 0u32;
         for dy in -pcf..=pcf {
@@ -174,8 +222,33 @@ impl ShadowMap {
                 }
             }
         }
-        lit as f32 / taps as f32
+        (lit as f32 / taps as f32, reads + taps)
     }
+}
+
+/// Nearest and farthest depth per `SHADOW_TILE`² block of a `w`×`h` depth map, and the number
+/// of blocks per row.
+fn tile_bounds(depth: &[f32], w: i32, h: i32) -> (Vec<(f32, f32)>, i32) {
+    let (tiles_x, tiles_y) = (
+        (w + SHADOW_TILE - 1) / SHADOW_TILE,
+        (h + SHADOW_TILE - 1) / SHADOW_TILE,
+    );
+    let bounds = (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|t| {
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let mut b = (f32::INFINITY, f32::NEG_INFINITY);
+            for y in ty * SHADOW_TILE..((ty + 1) * SHADOW_TILE).min(h) {
+                let row = (y * w) as usize;
+                for x in tx * SHADOW_TILE..((tx + 1) * SHADOW_TILE).min(w) {
+                    let d = depth[row + x as usize];
+                    b = (b.0.min(d), b.1.max(d));
+                }
+            }
+            b
+        })
+        .collect();
+    (bounds, tiles_x)
 }
 
 /// Turns packed keys into the G-buffer.
@@ -491,13 +564,31 @@ impl AoKernel {
     }
 }
 
-/// Deferred Phong over the G-buffer; writes an sRGB image.
+/// What the shading pass counted.
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct ShadeCounts {
+    pub(crate) shading: super::stats::ShadingStats,
+    pub(crate) krs_shadow_steps: u64,
+    pub(crate) krs_ao_evals: u64,
+}
+
+impl ShadeCounts {
+    fn add(mut self, o: Self) -> Self {
+        self.shading.shadow_taps += o.shading.shadow_taps;
+        self.shading.ao_taps += o.shading.ao_taps;
+        self.krs_shadow_steps += o.krs_shadow_steps;
+        self.krs_ao_evals += o.krs_ao_evals;
+        self
+    }
+}
+
+/// Deferred Phong over the G-buffer; writes an sRGB image and counts the lookups.
 pub(crate) fn shade(
     fb: &FrameBuffers,
     cam: &Camera,
     lighting: &Lighting<'_>,
     quality: &Quality,
-) -> RgbaImage {
+) -> (RgbaImage, ShadeCounts) {
     let (w, h) = (fb.width, fb.height);
     let mut img = RgbaImage::new(w, h);
     let eye = cam.eye();
@@ -515,13 +606,15 @@ pub(crate) fn shade(
         .iter()
         .map(|l| (-l.direction.normalize_or_zero(), l.color * l.intensity))
         .collect();
-    img.pixels
+    let counts = img
+        .pixels
         .par_chunks_mut(4)
         .enumerate()
-        .for_each(|(i, out)| {
+        .map(|(i, out)| {
+            let mut count = ShadeCounts::default();
             if fb.ids[i].object == 0 {
                 out.copy_from_slice(&bg);
-                return;
+                return count;
             }
             let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
             let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
@@ -533,10 +626,15 @@ pub(crate) fn shade(
                 * quality.lod_pixel_threshold.max(1.0);
             // The AO staircase tolerance: the receiver term of the shadow bias.
             let open = ao.openness(fb, cam, p, n, 1.5 * receiver);
+            if n != Vec3::ZERO {
+                count.shading.ao_taps += ao.samples.len() as u64;
+            }
             let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
             // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
             // (occlusion by KRS geometry, also outside the screen).
-            let mut light = lighting.ambient * (open * lighting.krs.ambient(p, n));
+            let (krs_open, krs_evals) = lighting.krs.ambient(p, n);
+            count.krs_ao_evals += u64::from(krs_evals);
+            let mut light = lighting.ambient * (open * krs_open);
             let mut spec = Vec3::ZERO;
             for (li, &(l, color)) in lights.iter().enumerate() {
                 // Algorithm 2 replaces n·l on KRS pixels (smooth across mirror planes).
@@ -548,11 +646,17 @@ pub(crate) fn shade(
                     continue;
                 }
                 let mut vis = match lighting.shadows.get(li) {
-                    Some(Some(sm)) => sm.visibility(p, n, receiver, pcf),
+                    Some(Some(sm)) => {
+                        let (vis, reads) = sm.visibility(p, n, receiver, pcf);
+                        count.shading.shadow_taps += u64::from(reads);
+                        vis
+                    }
                     _ => 1.0,
                 };
                 if vis > 0.0 && lighting.lights[li].casts_shadows {
-                    vis *= lighting.krs.shadow(p, n, l, footprint);
+                    let (krs_vis, steps) = lighting.krs.shadow(p, n, l, footprint);
+                    count.krs_shadow_steps += u64::from(steps);
+                    vis *= krs_vis;
                 }
                 if vis <= 0.0 {
                     continue;
@@ -563,7 +667,101 @@ pub(crate) fn shade(
             }
             let c = fb.albedo[i] * light + spec;
             out.copy_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
-        });
+            count
+        })
+        .reduce(ShadeCounts::default, ShadeCounts::add);
     let _ = h;
-    img
+    (img, counts)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::{Rng, SeedableRng};
+
+    /// The tile bounds only skip taps whose answer they know: visibility equals the plain
+    /// percentage-closer filter at every radius, for receivers in front of, inside and behind
+    /// a rough depth map, at its edges and outside it.
+    #[test]
+    fn tile_bounds_give_exactly_the_full_filter() {
+        let (w, h) = (53u32, 40u32);
+        let cam = fit_light_camera(
+            Vec3::new(0.3, -1.0, 0.2),
+            Vec3::splat(-1.0),
+            Vec3::splat(1.0),
+            w,
+            1e-6,
+        )
+        .unwrap();
+        let cam = Camera::new(
+            cam.view_from_world,
+            Projection::Orthographic {
+                half_width: 1.2,
+                half_height: 1.2,
+                near: 0.1,
+                far: 4.0,
+            },
+            w,
+            h,
+        );
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        // Smooth regions, steps and empty texels (INFINITY).
+        let depth: Vec<f32> = (0..w * h)
+            .map(|i| {
+                let (x, y) = ((i % w) as f32, (i / w) as f32);
+                if x > 40.0 && y < 10.0 {
+                    f32::INFINITY
+                } else if (x - 20.0).abs() < 6.0 && (y - 20.0).abs() < 5.0 {
+                    0.3 + 0.01 * rng.random::<f32>()
+                } else {
+                    0.5 + 0.004 * x + 0.002 * y
+                }
+            })
+            .collect();
+        let (bounds, tiles_x) = tile_bounds(&depth, w as i32, h as i32);
+        let map = ShadowMap {
+            cam,
+            depth,
+            texel_world: 2.0 / cam.fy,
+            bounds,
+            tiles_x,
+        };
+        let mut skipped = 0;
+        for _ in 0..4000 {
+            let p = Vec3::new(
+                rng.random_range(-1.6..1.6),
+                rng.random_range(-1.6..1.6),
+                rng.random_range(-1.6..1.6),
+            );
+            let n = Vec3::new(rng.random(), rng.random(), rng.random()).normalize_or_zero();
+            for pcf in 0..=3 {
+                let (v, reads) = map.visibility(p, n, 0.001, pcf);
+                // The plain filter, as the GPU shader computes it.
+                let offset = n * (1.5 * map.texel_world);
+                let s = map
+                    .cam
+                    .project_view(map.cam.view_from_world.transform_point3(p + offset));
+                let recv = map
+                    .cam
+                    .ndc_depth(s.z - (2.0 * map.texel_world + 1.5 * 0.001));
+                let (ix, iy) = (s.x.floor() as i32, s.y.floor() as i32);
+                let (mut lit, mut taps) = (0, 0);
+                for dy in -pcf..=pcf {
+                    for dx in -pcf..=pcf {
+                        let (x, y) = (ix + dx, iy + dy);
+                        taps += 1;
+                        let inside = x >= 0 && y >= 0 && x < w as i32 && y < h as i32;
+                        if !inside || recv <= map.depth[(y * w as i32 + x) as usize] {
+                            lit += 1;
+                        }
+                    }
+                }
+                assert_eq!(v, lit as f32 / taps as f32, "{p} {n} pcf {pcf}");
+                if pcf > 0 && reads < taps {
+                    skipped += 1;
+                }
+            }
+        }
+        assert!(skipped > 1000, "the bounds decided {skipped} windows");
+    }
 }

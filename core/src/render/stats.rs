@@ -48,6 +48,16 @@ pub struct StageTimes {
     pub total_ms: f64,
 }
 
+/// Lookups the shading pass made: what the shadow filter and AO knobs cost per pixel.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct ShadingStats {
+    /// Shadow-map reads: one per PCF tap, plus the tile bounds read to decide a whole filter
+    /// window at once (where no shadow edge is near, a window costs those reads alone).
+    pub shadow_taps: u64,
+    /// Screen-space ambient-occlusion samples (depth-buffer reads).
+    pub ao_taps: u64,
+}
+
 /// What a frame cost.
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct FrameStats {
@@ -65,6 +75,9 @@ pub struct FrameStats {
     pub times: StageTimes,
     /// KRS sphere-tracing counters.
     pub krs: super::krs::KrsStats,
+    /// Shading-pass lookups (`None` from a renderer that does not count them).
+    #[serde(default)]
+    pub shading: Option<ShadingStats>,
 }
 
 impl FrameStats {

@@ -1,0 +1,152 @@
+//! `thicket tradeoff` on a small project: the report, the CSV and the plot are written and
+//! agree; bad knobs fail naming the knob and write nothing. `thicket info --memory` reports
+//! memory per object that follows the surface.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn thicket(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_thicket"))
+        .args(args)
+        .env("RUST_LOG", "off")
+        .output()
+        .expect("the thicket binary runs")
+}
+
+/// A small voxel sphere over a ground plane with a shadow-casting sun.
+fn small_project(dir: &Path) -> PathBuf {
+    let doc = thicket_core::render::scenes::mixed_document(5).unwrap();
+    let path = dir.join("small.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    path
+}
+
+#[test]
+fn tradeoff_writes_report_csv_and_plot() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = small_project(dir.path());
+    let out = dir.path().join("out");
+    let o = thicket(&[
+        "tradeoff",
+        project.to_str().unwrap(),
+        "--knob",
+        "lod_pixel_threshold=1,4,16",
+        "--knob",
+        "shadow_pcf_radius=0,2",
+        "--size",
+        "40x32",
+        "--frames",
+        "2",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = &json["report"];
+    assert_eq!(
+        (report["width"].as_u64(), report["height"].as_u64()),
+        (Some(40), Some(32))
+    );
+    let points = report["points"].as_array().unwrap();
+    // 3 presets + (base merged with balanced, lod 1 and pcf 1) + lod 4, lod 16, pcf 0, pcf 2.
+    assert!(points.len() >= 6, "{}", points.len());
+    for p in points {
+        assert_eq!(p["times_ms"].as_array().unwrap().len(), 2);
+        let rmse = p["error"]["rmse"].as_f64().unwrap();
+        assert!((0.0..=1.0).contains(&rmse));
+    }
+    let on_front = |key: &str| points.iter().filter(|p| p[key] == true).count();
+    assert!(on_front("on_work_front") >= 1 && on_front("on_time_front") >= 1);
+    // The coarsest LOD has more coverage error than the finest measured setting.
+    let find = |label: &str| {
+        points
+            .iter()
+            .find(|p| p["setting"]["label"].as_str().unwrap().contains(label))
+            .unwrap()
+    };
+    assert!(
+        find("lod_pixel_threshold=16")["error"]["rmse"].as_f64()
+            > find("preset final")["error"]["rmse"].as_f64()
+    );
+    let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
+    assert_eq!(csv.lines().count(), points.len() + 1);
+    assert!(csv.starts_with("label,changes,preset,time_ms,work,rmse"));
+    let png = image::open(out.join("tradeoff.png")).unwrap().to_rgb8();
+    assert_eq!(png.dimensions(), (1200, 520));
+    // Drawn, not blank: red front markers and dark text/axes are present.
+    let red = png
+        .pixels()
+        .filter(|p| p[0] > 200 && p[1] < 60 && p[2] < 60)
+        .count();
+    let dark = png
+        .pixels()
+        .filter(|p| p[0] < 80 && p[1] < 80 && p[2] < 80)
+        .count();
+    assert!(red > 50 && dark > 500, "red {red}, dark {dark}");
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("report.json") && stdout.contains("preset draft"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn tradeoff_refuses_bad_knobs_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = small_project(dir.path());
+    for (knob, names) in [
+        ("no_such_knob=1,2", "no_such_knob"),
+        ("lod_pixel_threshold=1,NaN", "lod_pixel_threshold=NaN"),
+        ("lod_pixel_threshold", "NAME=V1,V2"),
+    ] {
+        let out = dir.path().join("bad");
+        let o = thicket(&[
+            "tradeoff",
+            project.to_str().unwrap(),
+            "--knob",
+            knob,
+            "--size",
+            "16x16",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(names) && !err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "nothing written for {knob}");
+    }
+}
+
+/// A project with one voxel sphere shell of octree depth `depth`.
+fn sphere_project(dir: &Path, depth: u8) -> PathBuf {
+    let doc = thicket_core::render::scenes::sphere_document(depth, 0.8).unwrap();
+    let path = dir.join(format!("sphere{depth}.thicket.json"));
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    path
+}
+
+#[test]
+fn info_memory_per_object_follows_the_surface() {
+    let dir = tempfile::tempdir().unwrap();
+    let total = |depth: u8| {
+        let path = sphere_project(dir.path(), depth);
+        let o = thicket(&["info", "--json", "--memory", path.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        let objects = json["objects"].as_array().unwrap();
+        assert_eq!(objects.len(), 1);
+        objects[0]["memory"]["total_bytes"].as_u64().unwrap()
+    };
+    // Doubling the resolution of a surface multiplies its memory by about 4, not 8.
+    let (a, b) = (total(6), total(7));
+    let ratio = b as f64 / a as f64;
+    assert!((3.3..4.7).contains(&ratio), "{a} -> {b} bytes: x{ratio:.2}");
+    let text = thicket(&[
+        "info",
+        "--memory",
+        sphere_project(dir.path(), 5).to_str().unwrap(),
+    ]);
+    assert!(String::from_utf8_lossy(&text.stdout).contains("memory:"));
+}
