@@ -18,8 +18,9 @@ const RIGGED_FIGURE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
     "/../../shared/assets/skinned/RiggedFigure.glb"
 );
-/// A skinned voxel document of an asset, voxelized once per test binary.
-fn skinned_doc(path: &str, depth: u8) -> Document {
+/// A skinned voxel document of an asset at octree `depth`, framed by its camera (also used by
+/// the skinned-export tests).
+pub(crate) fn skinned_doc(path: &str, depth: u8) -> Document {
     let import = import_skinned(path).expect("asset imports");
     let v = voxelize_skinned(
         &import,

@@ -148,6 +148,6 @@ pub enum SkinError {
 }
 
 #[cfg(test)]
-mod deform_tests;
+pub(crate) mod deform_tests;
 #[cfg(test)]
 mod tests;

@@ -6,8 +6,7 @@ use glam::{Mat4, Quat, UVec3, Vec3};
 
 use super::{ExportMode, GltfExportOptions, export_gltf};
 use crate::scene::{Document, ObjectKind, Transform};
-use crate::skin::{Rig, import_skinned, voxelize_skinned};
-use crate::voxelize::{Resolution, VoxelizeSettings};
+use crate::skin::{Rig, import_skinned};
 
 const CESIUM_MAN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -24,18 +23,7 @@ fn blend(skinning: &[Mat4], influences: impl Iterator<Item = (usize, f32)>) -> M
 }
 
 fn skinned_cesium_man(depth: u8) -> Document {
-    let import = import_skinned(CESIUM_MAN).expect("CesiumMan imports");
-    let v = voxelize_skinned(
-        &import,
-        &VoxelizeSettings {
-            resolution: Resolution::Depth(depth),
-            ..VoxelizeSettings::default()
-        },
-        &|_| true,
-    )
-    .expect("voxelizes");
-    let mut doc = Document::default();
-    doc.add("CesiumMan", ObjectKind::Voxels(v.model));
+    let mut doc = crate::skin::deform_tests::skinned_doc(CESIUM_MAN, depth);
     // A placement, so the skeleton's root node has a transform to carry.
     doc.objects[0].transform = Transform {
         translation: Vec3::new(1.0, -2.0, 0.5),
