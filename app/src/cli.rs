@@ -63,8 +63,9 @@ pub enum Command {
     /// Export a project (or any supported file) as glTF 2.0: OUT.glb, or OUT.gltf + OUT.bin.
     ///
     /// Voxel models become their exposed faces greedy-merged into quads (`cubes`) or a smooth
-    /// closed surface (`smooth`); meshes are written as they are. The file is written
-    /// atomically, only when the export succeeded.
+    /// closed surface (`smooth`); KRS objects a closed mesh of their distance field, or with
+    /// `instances` one mesh per kernel drawn once per kernel instance; meshes are written as
+    /// they are. The file is written atomically, only when the export succeeded.
     Export(ExportArgs),
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
@@ -230,13 +231,17 @@ pub struct TradeoffArgs {
     pub no_presets: bool,
 }
 
-/// How `thicket export` meshes voxel models.
+/// How `thicket export` meshes voxel models and KRS objects.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
 pub enum ExportModeArg {
-    /// Exposed voxel faces, greedy-merged per colour and material.
+    /// Exposed voxel faces, greedy-merged per colour and material; KRS objects as a closed mesh
+    /// of their distance field at --resolution.
     Cubes,
-    /// A smooth closed surface through the voxel centres.
+    /// A smooth closed surface through the voxel centres; KRS objects as in cubes.
     Smooth,
+    /// KRS objects as one mesh per kernel drawn once per kernel instance
+    /// (EXT_mesh_gpu_instancing); voxel models as in cubes.
+    Instances,
 }
 
 /// `thicket export`.
@@ -250,7 +255,7 @@ pub struct ExportArgs {
     /// Export only this object (by name); default: every visible object.
     #[arg(long)]
     pub object: Option<String>,
-    /// How voxel models become triangles.
+    /// How voxel models and KRS objects become triangles.
     #[arg(long, value_enum, default_value = "cubes")]
     pub mode: ExportModeArg,
     /// KRS meshing resolution: cells along the longest side of each KRS object.
@@ -565,6 +570,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         mode: match args.mode {
             ExportModeArg::Cubes => ExportMode::Cubes,
             ExportModeArg::Smooth => ExportMode::Smooth,
+            ExportModeArg::Instances => ExportMode::Instances,
         },
         colors: if args.palette_texture {
             ColorMode::PaletteTexture
@@ -1326,6 +1332,11 @@ mod tests {
             }
             other => panic!("{other:?}"),
         }
+        let cli = Cli::try_parse_from(["thicket", "export", "p", "-o", "x", "--mode", "instances"])
+            .unwrap();
+        assert!(
+            matches!(cli.command, Some(Command::Export(a)) if a.mode == ExportModeArg::Instances)
+        );
         assert!(
             Cli::try_parse_from(["thicket", "export", "p", "-o", "x", "--mode", "blobs"]).is_err()
         );

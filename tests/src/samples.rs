@@ -7,13 +7,22 @@
 use anyhow::{Context, Result};
 use glam::{UVec3, Vec2, Vec3, Vec4};
 use thicket_core::io::vox::import_vox;
+use thicket_core::krs;
 use thicket_core::mesh::{Material, MeshModel, TriangleMesh};
-use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, Transform};
+use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, OrbitCamera, Transform};
 
 use crate::asset;
 
 /// Names of the samples, as in `projects/NAME.thicket.json`.
-pub const SAMPLES: [&str; 4] = ["house", "mixed", "terrain", "cesiumman"];
+pub const SAMPLES: [&str; 7] = [
+    "house",
+    "mixed",
+    "terrain",
+    "cesiumman",
+    "tree",
+    "forest",
+    "rock",
+];
 
 /// Octree depth of the CesiumMan sample: 256 voxels over its longest side (about 7 mm voxels).
 pub const CESIUM_MAN_DEPTH: u8 = 8;
@@ -138,6 +147,9 @@ pub fn build(name: &str) -> Result<Document> {
             doc.lights[0].direction = Vec3::new(-0.4, -1.0, -0.5);
             frame(&mut doc, 60.0, 12.0);
         }
+        "tree" => krs_tree(&mut doc),
+        "forest" => krs_forest(&mut doc),
+        "rock" => krs_rock(&mut doc)?,
         other => anyhow::bail!("unknown sample {other:?}; known: {}", SAMPLES.join(", ")),
     }
     doc.validate()?;
@@ -244,5 +256,136 @@ fn terrain(doc: &mut Document) -> Result<()> {
     );
     doc.lights[0].direction = Vec3::new(-0.45, -1.0, -0.3);
     frame(doc, 30.0, 30.0);
+    Ok(())
+}
+
+/// Height of a KRS surface above `(x, z)`: a ray traced straight down from high above.
+fn surface_height(scene: &krs::PreparedScene, x: f32, z: f32) -> Option<f32> {
+    let top = 1000.0;
+    let hit = krs::trace(
+        scene,
+        Vec3::new(x, top, z),
+        Vec3::NEG_Y,
+        &krs::TraceSettings {
+            pixel_cone_ratio: 0.0,
+            min_epsilon: 1e-4,
+            max_steps: 4096,
+            max_distance: 2.0 * top,
+            ..krs::TraceSettings::default()
+        },
+    );
+    hit.hit.then_some(hit.position.y)
+}
+
+/// The KRS tree preset (2^8 leaves, 7 branches on its route) on a triangle-mesh ground: KRS
+/// and mesh share the depth buffer and shadow each other (the tree by shadow rays, the ground
+/// through the shadow map).
+fn krs_tree(doc: &mut Document) {
+    doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
+    let ground = MeshModel {
+        parts: vec![ground_plane(7.0, 0.0)],
+        materials: vec![Material {
+            name: "grass".into(),
+            base_color: Vec4::new(0.35, 0.45, 0.25, 1.0),
+            ..Material::default()
+        }],
+    };
+    doc.add(
+        "Ground",
+        ObjectKind::Mesh(MeshObject {
+            model: ground,
+            casts_shadows: true,
+        }),
+    );
+    doc.lights = vec![Light {
+        direction: Vec3::new(-0.5, -1.0, -0.35),
+        ..Light::default()
+    }];
+    doc.camera = OrbitCamera {
+        target: Vec3::new(0.0, 2.6, 0.0),
+        yaw_deg: 30.0,
+        pitch_deg: 12.0,
+        distance: 11.0,
+        near: 0.1,
+        far: 100.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.55, 0.65, 0.8);
+}
+
+/// The forest preset (the tree reflected by 17 more mirrors: 2^17 trees, 33,423,360 kernel
+/// instances) on a KRS ground plane, seen from the forest's corner.
+fn krs_forest(doc: &mut Document) {
+    for o in krs::presets::forest_scene().objects {
+        let name = match o.name.as_str() {
+            "forest" => "Forest".to_owned(),
+            "ground" => "Ground".to_owned(),
+            other => other.to_owned(),
+        };
+        doc.add(name, ObjectKind::Krs(o));
+    }
+    doc.lights = vec![Light {
+        direction: Vec3::new(0.4, -0.8, 0.5),
+        ..Light::default()
+    }];
+    doc.camera = OrbitCamera {
+        target: Vec3::new(40.0, 2.0, 40.0),
+        yaw_deg: 225.0,
+        pitch_deg: 14.0,
+        distance: 70.0,
+        near: 0.5,
+        far: 4000.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.55, 0.65, 0.8);
+}
+
+/// KRS terrain (a ground half-space folded by 14 tilted mirrors) with three planar-kernel rocks
+/// (§7.1) resting on it, each placed at the terrain height traced under it.
+fn krs_rock(doc: &mut Document) -> Result<()> {
+    let terrain = krs::presets::terrain();
+    let ground = krs::KrsScene {
+        objects: vec![terrain.clone()],
+    }
+    .prepare()?;
+    doc.add("Terrain", ObjectKind::Krs(terrain));
+    for (i, (x, z, scale, yaw)) in [
+        (0.0f32, 0.0f32, 1.0f32, 0.0f32),
+        (2.6, -1.4, 0.6, 1.3),
+        (-2.2, 1.2, 0.45, 2.4),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let y = surface_height(&ground, x, z)
+            .with_context(|| format!("terrain height under rock {i}"))?;
+        let id = doc.add(
+            format!("Rock {}", i + 1),
+            ObjectKind::Krs(krs::presets::rock()),
+        );
+        if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
+            // The rock preset sits 0.6 above its origin; sink it a little into the soil.
+            o.transform = Transform {
+                translation: Vec3::new(x, y - 0.25 * scale, z),
+                rotation: glam::Quat::from_rotation_y(yaw),
+                scale: Vec3::splat(scale),
+            };
+        }
+    }
+    doc.lights = vec![Light {
+        direction: Vec3::new(-0.6, -0.7, -0.3),
+        ..Light::default()
+    }];
+    let y0 = surface_height(&ground, 0.0, 0.0).context("terrain height")?;
+    doc.camera = OrbitCamera {
+        target: Vec3::new(0.0, y0 + 0.6, 0.0),
+        yaw_deg: 20.0,
+        pitch_deg: 22.0,
+        distance: 9.0,
+        near: 0.1,
+        far: 500.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.6, 0.68, 0.78);
     Ok(())
 }

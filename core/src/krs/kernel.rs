@@ -331,6 +331,30 @@ impl TorusKernel {
         self.centre + self.major_radius * self.start_dir
     }
 
+    /// A ball containing the arc (the tube's centre line). For a sweep up to π it is the ball
+    /// on the chord: a point at angle φ from the arc's middle is at squared distance
+    /// R²(1 − 2 cos φ cos(s/2) + cos²(s/2)) ≤ R² sin²(s/2) from the chord's midpoint when
+    /// |φ| ≤ s/2 ≤ π/2. A gently bent branch has a huge major radius, and the whole circle's
+    /// ball (used for larger sweeps) would be far larger than the branch: it would swell the
+    /// object's bounding ball, which clips rays and sets the export mesher's region.
+    #[must_use]
+    pub fn arc_bound(&self) -> (Vec3, f32) {
+        let circle = (self.centre, self.major_radius);
+        // Only a validated kernel has the orthonormal basis the chord formula relies on.
+        let orthonormal = (self.axis.length() - 1.0).abs() < 1e-4
+            && (self.start_dir.length() - 1.0).abs() < 1e-4
+            && self.axis.dot(self.start_dir).abs() < 1e-4;
+        if !orthonormal || !(self.sweep_radians <= std::f32::consts::PI) {
+            return circle;
+        }
+        let (a, b) = (self.start_point(), self.end_point());
+        // f32 rounding of the end points grows with their magnitude.
+        let slack =
+            8.0 * f32::EPSILON * (self.major_radius + self.centre.abs().max_element() + 1.0);
+        let chord = (0.5 * (a + b), 0.5 * a.distance(b) + slack);
+        if chord.1 < circle.1 { chord } else { circle }
+    }
+
     /// Closest point on the arc and its angle from the start, in [0, sweep].
     #[inline]
     fn closest_on_arc(&self, p: Vec3) -> (Vec3, f32) {
@@ -624,7 +648,8 @@ impl Kernel {
             ),
             Kernel::RoundedBox(k) => KernelBound::Sphere(k.centre, k.half_extents.length()),
             Kernel::TorusSegment(k) | Kernel::ToroidalCapsule(k) => {
-                KernelBound::Sphere(k.centre, k.major_radius + k.minor_radius)
+                let (c, r) = k.arc_bound();
+                KernelBound::Sphere(c, r + k.minor_radius)
             }
         }
     }

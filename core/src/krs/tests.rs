@@ -501,6 +501,59 @@ fn analytic_normals_match_central_differences_away_from_mirrors() {
     }
 }
 
+/// The torus kernels' bounding balls hold the whole tube (arc points offset by the section
+/// radius in every direction, which also covers the capping spheres), and a gently bent branch
+/// (huge major radius, small sweep) gets a ball about its own size, not the circle's.
+#[test]
+fn torus_bounds_hold_the_tube_and_hug_gently_bent_branches() {
+    let mut rng = Pcg32::seed_from_u64(23);
+    for case in 0..400 {
+        let axis = rand_unit(&mut rng);
+        let major = 10f32.powf(rng.random_range(-2.0..3.0));
+        let t = TorusKernel {
+            centre: rand_unit(&mut rng) * rng.random_range(0.0..50.0),
+            axis,
+            start_dir: rand_unit(&mut rng),
+            major_radius: major,
+            minor_radius: major * rng.random_range(0.0..0.5),
+            sweep_radians: if case % 4 == 0 {
+                std::f32::consts::PI
+            } else {
+                rng.random_range(0.0..TAU)
+            },
+            ..Default::default()
+        };
+        for kernel in [Kernel::TorusSegment(t), Kernel::ToroidalCapsule(t)] {
+            let kernel = kernel.validated().unwrap();
+            let (Kernel::TorusSegment(v) | Kernel::ToroidalCapsule(v)) = kernel else {
+                unreachable!()
+            };
+            let (c, r) = bound_of(&kernel).unwrap();
+            let (u, w) = (v.start_dir, v.axis.cross(v.start_dir));
+            for _ in 0..50 {
+                let theta = rng.random_range(0.0..=v.sweep_radians);
+                let on_arc = v.centre + v.major_radius * (theta.cos() * u + theta.sin() * w);
+                let p = on_arc + rand_unit(&mut rng) * v.minor_radius;
+                let slack = 1e-5 * (v.major_radius + v.centre.length() + 1.0);
+                assert!(
+                    p.distance(c) <= r + slack,
+                    "case {case}: {p} is {} from the ball centre, radius {r} ({v:?})",
+                    p.distance(c)
+                );
+            }
+        }
+    }
+    // A branch 2 units long bent by 1% of its length: major radius about 50.
+    let branch = Kernel::ToroidalCapsule(TorusKernel {
+        major_radius: 50.0,
+        minor_radius: 0.1,
+        sweep_radians: 0.04,
+        ..Default::default()
+    });
+    let (_, r) = bound_of(&branch).unwrap();
+    assert!(r < 1.2, "a 2-unit branch has a bound of radius {r}");
+}
+
 #[test]
 fn kernel_distances_are_exact_on_simple_cases() {
     let cap = Kernel::Capsule(CapsuleKernel {
@@ -573,9 +626,12 @@ fn render_mask(
     (hits.iter().map(|h| h.hit).collect(), steps, hits)
 }
 
+/// Over-relaxation skips only certified stretches, so the hit mask and every hit's t are
+/// those of plain tracing, for any ω (1.9 and 1.99 once lost a hit on the tree: a probe past
+/// the bounding interval used to end the march there); the step count is deterministic, so
+/// the saving is asserted: the issue's ≥ 20% on the forest view.
 #[test]
 fn over_relaxation_keeps_hit_mask_and_saves_steps() {
-    let mut reductions = Vec::new();
     let cases = [
         (
             "tree",
@@ -603,44 +659,50 @@ fn over_relaxation_keeps_hit_mask_and_saves_steps() {
             max_distance: 500.0,
             ..Default::default()
         };
-        let relaxed = TraceSettings {
-            over_relaxation: 1.6,
-            ..plain
-        };
         let (mask_a, steps_a, hits_a) = render_mask(&scene, eye, &dirs, &plain);
-        let (mask_b, steps_b, hits_b) = render_mask(&scene, eye, &dirs, &relaxed);
         let hits = mask_a.iter().filter(|h| **h).count();
         assert!(
             hits > dirs.len() / 20 && hits < dirs.len(),
             "{name}: degenerate view ({hits} hits)"
         );
-        let differ = mask_a.iter().zip(&mask_b).filter(|(a, b)| a != b).count();
-        assert_eq!(differ, 0, "{name}: hit masks differ in {differ} rays");
-        for (a, b) in hits_a.iter().zip(&hits_b).filter(|(a, _)| a.hit) {
-            assert_eq!(a.t, b.t, "{name}: same canonical hit sample");
+        for omega in [1.5f32, 1.9, 1.99] {
+            let relaxed = TraceSettings {
+                over_relaxation: omega,
+                ..plain
+            };
+            let (mask_b, steps_b, hits_b) = render_mask(&scene, eye, &dirs, &relaxed);
+            let differ = mask_a.iter().zip(&mask_b).filter(|(a, b)| a != b).count();
+            assert_eq!(
+                differ, 0,
+                "{name} ω={omega}: hit masks differ in {differ} rays"
+            );
+            for (a, b) in hits_a.iter().zip(&hits_b).filter(|(a, _)| a.hit) {
+                assert_eq!(a.t, b.t, "{name} ω={omega}: same canonical hit sample");
+            }
+            assert!(
+                hits_a
+                    .iter()
+                    .chain(&hits_b)
+                    .all(|h| hit_is_finite(h) && !h.exhausted),
+                "{name} ω={omega}"
+            );
+            let reduction = 1.0 - steps_b as f64 / steps_a as f64;
+            println!(
+                "{name} ω={omega}: plain {steps_a} steps, relaxed {steps_b} steps, reduction {:.1}%",
+                reduction * 100.0
+            );
+            if omega == 1.5 {
+                // Measured: forest 20.9%, tree 6.9% (the tree's rays are mostly clipped by
+                // its tight bounding ball, and a hit's last approach, where probes cannot
+                // pass, dominates what is left).
+                let goal = if name == "forest" { 0.20 } else { 0.03 };
+                assert!(
+                    reduction >= goal,
+                    "{name}: only {:.1}% fewer steps",
+                    reduction * 100.0
+                );
+            }
         }
-        assert!(
-            hits_a
-                .iter()
-                .chain(&hits_b)
-                .all(|h| hit_is_finite(h) && !h.exhausted),
-            "{name}"
-        );
-        let reduction = 1.0 - steps_b as f64 / steps_a as f64;
-        println!(
-            "{name}: plain {steps_a} steps, relaxed {steps_b} steps, reduction {:.1}%",
-            reduction * 100.0
-        );
-        reductions.push((name, reduction));
-    }
-    // The target is 20% on the forest; measured ≈ 19.5% (tree ≈ 21%), see the
-    // report. Guard against regressions below 15%.
-    for (name, reduction) in reductions {
-        assert!(
-            reduction >= 0.15,
-            "{name}: only {:.1}% fewer steps",
-            reduction * 100.0
-        );
     }
 }
 

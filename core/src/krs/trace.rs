@@ -211,9 +211,10 @@ impl SampleGrid {
 /// [`TraceSettings::epsilon`]); the hit is the first grid position whose distance estimate is
 /// below ε. A sample with estimate d certifies, by the 1-Lipschitz bound, that no position up
 /// to t + d − ε can be a hit, so the tracer jumps to the first grid position past that. With
-/// over-relaxation (ω > 1, Keinert et al. 2014) it also probes at t + ω·d; a probe whose
-/// certified stretch overlaps the previous one extends the jump (and probing continues from
-/// it), otherwise it is discarded (a fallback) and tracing resumes on the grid. Because only
+/// over-relaxation (ω > 1, Keinert et al. 2014) it also probes at t + ω'·(d − ε), with ω' ≤ ω
+/// lowered where the estimate falls fast along the ray (a probe could not pass there); a probe
+/// whose certified stretch overlaps the previous one extends the jump (and probing continues
+/// from it), otherwise it is discarded (a fallback) and tracing resumes on the grid. Because only
 /// certified positions are skipped, plain, over-relaxed and tile-started traces report exactly
 /// the same hit (mask and t). A miss is reported when the ray leaves the scene's bounds or
 /// `max_distance`, or `max_steps` is spent (`exhausted`).
@@ -258,6 +259,10 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
 
     // A rejected probe's certified stretch: still true, used once the march closes the gap.
     let mut pending: Option<(f64, f64)> = None;
+    // The last evaluated sample in ray order and the estimate's rate of decrease along the
+    // ray, for choosing the relaxation factor.
+    let mut prev: Option<(f64, f64)> = None;
+    let mut slope = 0.0f64;
     while steps < settings.max_steps {
         let t = grid.param(k);
         if t > t_hi {
@@ -274,6 +279,12 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
             hit_t = Some(t);
             break;
         }
+        if let Some((tp, dp)) = prev
+            && t > tp
+        {
+            slope = (dp - dist) / (t - tp);
+        }
+        prev = Some((t, dist));
         if omega_max > 1.0 && dist > last_grid_d {
             // Past the obstacle that made a probe fail: relax again.
             omega = omega_max;
@@ -281,17 +292,29 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
         last_grid_d = dist;
         let mut reach = t + free(t, dist);
         let (mut cur_t, mut cur_d) = (t, dist);
-        // Over-relaxed probes: far from the surface only (near it they rarely pass the
-        // overlap test and would cost evaluations for nothing).
-        while omega > 1.0 && cur_d > 4.0 * eps(cur_t) && steps < settings.max_steps {
-            let t2 = cur_t + omega * cur_d;
+        // Over-relaxed probes. The step is relative to the certified radius r = d − ε: for a
+        // plane met at angle θ (the estimate falls by s = sin θ per unit of t), a probe at
+        // t + ω·r certifies back to its own start exactly when ω ≤ 2 / (1 + s), so ω is capped
+        // there with s estimated from the last two samples; a probe that gains less than a
+        // grid spacing (ε/2) over the plain step is not worth its evaluation.
+        while omega > 1.0 && steps < settings.max_steps {
+            let r = free(cur_t, cur_d);
+            let w = (2.0 / (1.0 + slope.max(0.0))).min(omega);
+            if w <= 1.0 || (w - 1.0) * r < 0.5 * eps(cur_t) {
+                break;
+            }
+            let t2 = cur_t + w * r;
             if t2 > t_hi {
-                reach = reach.max(t_hi);
+                // The probe would land past the bounds; the stretch up to them is not
+                // certified by anything yet, so the plain march goes on.
                 break;
             }
             let d2 = scene.distance(at(t2)) as f64;
             steps += 1;
             let r2 = if d2.is_finite() { free(t2, d2) } else { -1.0 };
+            if d2.is_finite() {
+                slope = (cur_d - d2) / (t2 - cur_t);
+            }
             if !(r2 > 0.0 && t2 - r2 <= reach) {
                 // Overshoot: the ray is heading into something. As in Keinert et al., stop
                 // relaxing (until the ray moves away from geometry again); keep what the probe
@@ -303,6 +326,7 @@ pub fn trace(scene: &PreparedScene, origin: Vec3, dir: Vec3, settings: &TraceSet
                 }
                 break;
             }
+            prev = Some((t2, d2));
             reach = t2 + r2;
             (cur_t, cur_d) = (t2, d2);
         }

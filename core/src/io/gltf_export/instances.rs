@@ -11,8 +11,8 @@
 use glam::{Affine3A, Mat3, Quat, Vec3};
 use rayon::prelude::*;
 
-use super::fields::{ColoredMesh, FieldError, mesh_distance_field};
-use crate::krs::{KernelBound, PreparedObject};
+use super::fields::{ColoredMesh, FieldError, MAX_RESOLUTION, mesh_distance_field};
+use crate::krs::{Kernel, KernelBound, PreparedObject};
 
 /// One instance placement: `world = translation + rotation · (scale · p)`.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -70,9 +70,39 @@ pub(crate) fn proper_trs(xf: &Affine3A) -> (InstanceTransform, bool) {
     )
 }
 
+/// Cells across the thinnest section of a kernel (a twig's diameter, a leaf ball's) that the
+/// kernel mesh gets at least: with fewer, a tube thinner than a cell falls between the lattice
+/// points and meshes empty.
+pub const MIN_CELLS_ACROSS: f32 = 4.0;
+
+/// Half the thinnest extent of a kernel's solid: a sphere's, capsule's or tube's radius, a
+/// box's smallest half extent. `None` for empty and unbounded kernels.
+fn thinnest_half_extent(kernel: &Kernel) -> Option<f32> {
+    match kernel {
+        Kernel::Empty | Kernel::InfinitePlane(_) => None,
+        Kernel::Sphere(k) => Some(k.radius),
+        Kernel::Capsule(k) => Some(k.radius),
+        Kernel::RoundedBox(k) => Some(k.half_extents.min_element()),
+        Kernel::TorusSegment(k) | Kernel::ToroidalCapsule(k) => Some(k.minor_radius),
+    }
+}
+
+/// Cells along the side `box_size` of a kernel's meshing box: `kernel_resolution`, raised so
+/// that the thinnest section spans [`MIN_CELLS_ACROSS`] cells (the lattice is sparse, so a long
+/// thin twig costs cells along its surface only), at most [`MAX_RESOLUTION`].
+fn kernel_mesh_resolution(kernel: &Kernel, box_size: f32, kernel_resolution: u32) -> u32 {
+    let needed = thinnest_half_extent(kernel)
+        .filter(|h| *h > 0.0)
+        .map_or(0.0, |h| (box_size * MIN_CELLS_ACROSS / (2.0 * h)).ceil());
+    // `as` saturates: a degenerate (zero-width) kernel asks for the maximum.
+    (needed.min(MAX_RESOLUTION as f32) as u32)
+        .max(kernel_resolution)
+        .min(MAX_RESOLUTION)
+}
+
 /// The kernels of `object` as meshes (each kernel's own distance field at
-/// `kernel_resolution` cells across its bounding ball) and the placements of all its
-/// instances.
+/// `kernel_resolution` cells across its bounding ball, more for thin kernels: see
+/// [`MIN_CELLS_ACROSS`]) and the placements of all its instances.
 ///
 /// # Errors
 /// [`FieldError::TooManyTriangles`] when the object has more than `max_instances` instances
@@ -117,11 +147,12 @@ pub fn krs_instances(
         };
         let margin = Vec3::splat(r * 1.05 + 1e-6);
         let distance = |p: Vec3| kernel.distance(p);
+        let resolution = kernel_mesh_resolution(kernel, 2.0 * margin.x, kernel_resolution);
         let (positions, indices) = mesh_distance_field(
             &distance,
             c - margin,
             c + margin,
-            kernel_resolution,
+            resolution,
             u64::MAX,
             &|_| true,
         )?;

@@ -40,7 +40,7 @@ use crate::scene::{Document, Object, ObjectKind, VoxelModel};
 pub use fields::{
     ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
 };
-pub use instances::{InstanceTransform, KernelInstances, krs_instances};
+pub use instances::{InstanceTransform, KernelInstances, MIN_CELLS_ACROSS, krs_instances};
 pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin};
 
 /// How voxel models become triangles.
@@ -102,7 +102,8 @@ pub struct GltfExportOptions {
     pub resolution: u32,
     /// Smooth mode: rounds of relaxation.
     pub smoothing: u32,
-    /// Instances mode: cells across each kernel's bounding ball.
+    /// Instances mode: cells across each kernel's bounding ball (at least; a thin kernel gets
+    /// enough for [`MIN_CELLS_ACROSS`] cells across its section).
     pub kernel_resolution: u32,
     /// Instances mode: most kernel instances one KRS object may have.
     pub max_instances: usize,

@@ -437,6 +437,91 @@ fn krs_mesh_of_the_rock_is_watertight() {
     }
 }
 
+/// A KRS object in a document exports through `export_gltf` (the CLI's path) as a non-empty
+/// closed mesh in world space, placed by the object's transform. The tree preset at resolution
+/// 96 used to come out empty: the whole-circle bounds of its gently bent branches (major radii
+/// in the tens) swelled the object's bounding ball, the mesher's region, until its cells were
+/// wider than the trunk.
+#[test]
+fn krs_tree_in_a_document_exports_a_watertight_mesh() {
+    let mut doc = Document::default();
+    let id = doc.add("Tree", ObjectKind::Krs(presets::tree()));
+    let transform = crate::scene::Transform {
+        translation: Vec3::new(5.0, 0.0, -3.0),
+        rotation: glam::Quat::from_rotation_y(0.7),
+        scale: Vec3::splat(2.0),
+    };
+    doc.objects
+        .iter_mut()
+        .find(|o| o.id == id)
+        .unwrap()
+        .transform = transform;
+    let world = doc.objects[0].krs_in_world().unwrap();
+    let prepared = KrsScene {
+        objects: vec![world],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    let resolution = 96;
+    let (lo, hi) = krs_region(o).unwrap();
+    let cell = (hi - lo).max_element() / resolution as f32;
+    // The trunk (the route's first branch, the last kernel) is at least two cells wide.
+    let trunk = match o.object.kernels.last().unwrap() {
+        crate::krs::Kernel::Capsule(k) => k.radius,
+        crate::krs::Kernel::ToroidalCapsule(k) | crate::krs::Kernel::TorusSegment(k) => {
+            k.minor_radius
+        }
+        other => panic!("the trunk is a branch kernel, not {other:?}"),
+    } * o.object.world_from_object.scale;
+    assert!(
+        trunk > cell,
+        "trunk {trunk} vs cell {cell}: the region is far larger than the tree"
+    );
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("tree.glb");
+    let options = GltfExportOptions {
+        resolution,
+        ..GltfExportOptions::default()
+    };
+    let report = export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap();
+    assert_eq!(report.objects, 1);
+    let (gltf, buffers, _) = gltf::import(&out).unwrap();
+    let mut positions = Vec::new();
+    let mut indices = Vec::new();
+    for prim in gltf.meshes().flat_map(|m| m.primitives()) {
+        let reader = prim.reader(|b| Some(&buffers[b.index()]));
+        let base = positions.len() as u32;
+        positions.extend(reader.read_positions().unwrap().map(Vec3::from));
+        indices.extend(reader.read_indices().unwrap().into_u32().map(|i| i + base));
+    }
+    assert_eq!(indices.len() as u64 / 3, report.triangles);
+    assert!(report.triangles > 1000, "{} triangles", report.triangles);
+    assert_watertight(&indices, "exported tree");
+    // In world space, on the placed tree: every vertex within a cell of its surface, and the
+    // mesh spans the trunk base (at the translation) to near the crown's top.
+    let worst = positions
+        .iter()
+        .map(|&p| o.distance_world(p).abs())
+        .fold(0.0f32, f32::max);
+    assert!(worst < cell, "vertex {worst} from the surface, cell {cell}");
+    let (mlo, mhi) = positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(a, b), &p| (a.min(p), b.max(p)),
+    );
+    // The trunk's capsule ends in a half ball below the route's first point.
+    assert!(
+        (mlo.y - (transform.translation.y - trunk)).abs() < 2.0 * cell,
+        "base at {}",
+        mlo.y
+    );
+    assert!(
+        mhi.y - mlo.y > 0.5 * (hi.y - lo.y),
+        "{mlo}..{mhi} in {lo}..{hi}"
+    );
+}
+
 #[test]
 fn krs_meshing_visits_only_cells_near_the_surface() {
     let scene = KrsScene {
@@ -565,14 +650,12 @@ fn krs_instances_place_every_kernel_instance_without_mirroring_transforms() {
         .sum();
     assert_eq!(total as u128, o.object.instance_count());
     assert!(kernels.iter().any(|k| !k.mirrored_transforms.is_empty()));
-    // Kernels thicker than a cell mesh closed, and their mirrored copies wind outward too.
-    // (A kernel thinner than a cell at this resolution, a twig, meshes empty: see the report.)
-    let meshed: Vec<_> = kernels
-        .iter()
-        .filter(|k| !k.mesh.indices.is_empty())
-        .collect();
-    assert!(!meshed.is_empty());
-    for k in meshed {
+    // Every kernel meshes closed, the thinnest twig too (a kernel thinner than a cell of the
+    // 12-cell box used to mesh empty: thin kernels get MIN_CELLS_ACROSS cells across), and
+    // the mirrored copies wind outward too.
+    let non_empty = o.object.kernels.iter().filter(|k| !k.is_empty()).count();
+    assert_eq!(kernels.len(), non_empty);
+    for k in &kernels {
         assert_watertight(&k.mesh.indices, "kernel mesh");
         assert_watertight(&k.mirrored_mesh.indices, "mirrored kernel mesh");
         assert!(outward_share(&k.mesh) > 0.9);
