@@ -6,7 +6,7 @@
 //! per second). Step counts (over-relaxation and tile gains, identical hit masks) are printed
 //! to stderr before the timings.
 //!
-//! `cargo bench -p thicket-core --bench krs -- --warm-up-time 1 --measurement-time 3`
+//! `cargo bench --workspace --bench krs -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
 
@@ -351,20 +351,21 @@ fn step_report() {
             max_distance: 500.0,
             ..Default::default()
         };
-        let run = |s: &TraceSettings| -> (Vec<(bool, u32)>, u64) {
+        // A miss's t is where that march stopped (path-dependent); only hits have a canonical t.
+        let run = |s: &TraceSettings| -> (Vec<Option<u32>>, u64) {
             let mut steps = 0u64;
             let hits = dirs
                 .iter()
                 .map(|&d| {
                     let r = trace(&scene, eye, d, s);
                     steps += u64::from(r.steps);
-                    (r.hit, r.t.to_bits())
+                    r.hit.then_some(r.t.to_bits())
                 })
                 .collect();
             (hits, steps)
         };
         let (mask0, steps0) = run(&plain);
-        for omega in [1.2f32, 1.4, 1.6, 1.8, 1.9] {
+        for omega in [1.2f32, 1.4, 1.5, 1.6, 1.8, 1.9] {
             let (mask, steps) = run(&TraceSettings {
                 over_relaxation: omega,
                 ..plain
