@@ -344,7 +344,8 @@ impl TorusKernel {
         let orthonormal = (self.axis.length() - 1.0).abs() < 1e-4
             && (self.start_dir.length() - 1.0).abs() < 1e-4
             && self.axis.dot(self.start_dir).abs() < 1e-4;
-        if !orthonormal || !(self.sweep_radians <= std::f32::consts::PI) {
+        if !orthonormal || self.sweep_radians.is_nan() || self.sweep_radians > std::f32::consts::PI
+        {
             return circle;
         }
         let (a, b) = (self.start_point(), self.end_point());
