@@ -15,7 +15,9 @@ use thicket_core::io::project;
 use thicket_core::krs::{KrsScene, presets};
 use thicket_core::scene::ObjectKind;
 
-const SAMPLES: [&str; 2] = ["house", "mixed"];
+// Not forest and rock: their KRS grounds are unbounded (a half-space terrain), which the
+// distance-field mesher refuses with an error; `thicket export --object` exports their parts.
+const SAMPLES: [&str; 5] = ["house", "mixed", "terrain", "cesiumman", "tree"];
 
 fn sample(name: &str) -> thicket_core::scene::Document {
     let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
