@@ -264,6 +264,10 @@ pub struct ExportArgs {
     /// Store colours in a palette texture instead of COLOR_0 vertex colours.
     #[arg(long)]
     pub palette_texture: bool,
+    /// Cubes mode: add N coarser levels of detail per static voxel model (MSFT_lod), each at
+    /// half the resolution of the one before.
+    #[arg(long, default_value_t = 0, value_name = "N")]
+    pub lod: u8,
 }
 
 /// `thicket import`.
@@ -579,6 +583,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         },
         object: args.object.clone(),
         resolution: args.resolution,
+        lod_levels: args.lod,
         ..GltfExportOptions::default()
     };
     let bar = progress_bar(1000, "exporting");

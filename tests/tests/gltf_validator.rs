@@ -53,11 +53,18 @@ fn every_sample_export_passes_the_khronos_validator() {
             continue;
         }
         let forms = [
-            ("cubes.glb", ExportMode::Cubes, ColorMode::VertexColors),
-            ("palette.gltf", ExportMode::Cubes, ColorMode::PaletteTexture),
-            ("smooth.glb", ExportMode::Smooth, ColorMode::VertexColors),
+            ("cubes.glb", ExportMode::Cubes, ColorMode::VertexColors, 0),
+            (
+                "palette.gltf",
+                ExportMode::Cubes,
+                ColorMode::PaletteTexture,
+                0,
+            ),
+            ("smooth.glb", ExportMode::Smooth, ColorMode::VertexColors, 0),
+            // Two coarser levels of detail (MSFT_lod).
+            ("lod.glb", ExportMode::Cubes, ColorMode::VertexColors, 2),
         ];
-        for (suffix, mode, colors) in forms {
+        for (suffix, mode, colors, lod_levels) in forms {
             // Smooth meshing of the 180k-voxel house takes seconds in a debug build; the
             // character sample covers smooth mode.
             if name == "house" && mode == ExportMode::Smooth {
@@ -67,6 +74,7 @@ fn every_sample_export_passes_the_khronos_validator() {
             let options = GltfExportOptions {
                 mode,
                 colors,
+                lod_levels,
                 ..GltfExportOptions::default()
             };
             export_gltf(&doc, &out, &options, &|_| true).unwrap_or_else(|e| panic!("{e}"));

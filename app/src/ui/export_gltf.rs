@@ -82,6 +82,13 @@ impl GltfExportPanel {
                          object. Doubling it gives about 4x the triangles.",
                         );
                         ui.end_row();
+                        ui.label("Levels of detail");
+                        ui.add(egui::DragValue::new(&mut self.options.lod_levels).range(0..=6))
+                            .on_hover_text(
+                                "Cubes mode: coarser copies of each static voxel model (MSFT_lod), \
+                             each at half the resolution of the one before; needs vertex colours",
+                            );
+                        ui.end_row();
                         ui.label("Colours");
                         ui.horizontal(|ui| {
                             ui.radio_value(

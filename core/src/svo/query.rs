@@ -3,7 +3,7 @@
 
 use glam::{DVec3, IVec3, UVec3, Vec3};
 
-use super::{NodeRef, Svo};
+use super::{NodeRef, Svo, SvoError};
 
 /// The order in which to visit the 8 children so nearer ones come first for a view direction
 /// `dir` (from the eye into the scene): octant `k ^ flip` for `k = 0..8`, where `flip` sets the
@@ -76,6 +76,30 @@ impl Svo {
                 }
             }
         }
+    }
+
+    /// A copy `levels` levels coarser: one voxel per node of this octree at depth
+    /// `depth − levels`, carrying the node's averaged attributes (the LOD the renderer draws
+    /// when it stops there). `levels = 0` copies the leaves.
+    ///
+    /// # Errors
+    /// [`SvoError::BadDepth`] (depth 0) when `levels` is not below the depth.
+    pub fn coarsened(&self, levels: u8) -> Result<Svo, SvoError> {
+        let depth = self.depth();
+        if levels >= depth {
+            return Err(SvoError::BadDepth(0));
+        }
+        let target = depth - levels;
+        let shift = u32::from(levels);
+        let mut voxels = Vec::new();
+        self.traverse(Vec3::Z, |n| {
+            if n.level == target {
+                voxels.push((n.origin >> shift, self.node_voxel(n)));
+                return false;
+            }
+            true
+        });
+        Svo::from_voxels(target, self.has_skin(), voxels)
     }
 
     /// Casts a ray given in voxel coordinates (voxel `c` spans `[c, c + 1)`); returns the first

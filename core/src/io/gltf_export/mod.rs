@@ -109,6 +109,10 @@ pub struct GltfExportOptions {
     pub max_instances: usize,
     /// Refuse (before building it) an export with more triangles than this.
     pub max_triangles: u64,
+    /// Cubes mode: coarser levels of detail added per static voxel model (`MSFT_lod`), each
+    /// from the octree one level up (half the resolution, averaged attributes). 0: none.
+    /// Needs vertex colours; rigged models get none (their weights would need a skin per level).
+    pub lod_levels: u8,
 }
 
 impl Default for GltfExportOptions {
@@ -123,6 +127,7 @@ impl Default for GltfExportOptions {
             max_instances: 1 << 20,
             // 2^26 triangles: about 2.5 GiB of GLB, under the format's 4 GiB limit.
             max_triangles: 1 << 26,
+            lod_levels: 0,
         }
     }
 }
@@ -389,6 +394,12 @@ pub fn build_scene(
             shown
         }
     };
+    if options.lod_levels > 0 && options.colors == ColorMode::PaletteTexture {
+        return Err(GltfExportError::Unsupported {
+            path: path.to_owned(),
+            detail: "levels of detail need vertex colours, not a palette texture".to_owned(),
+        });
+    }
     let mut out = SceneBuilder {
         scene: ExportScene::default(),
         materials: HashMap::new(),
@@ -744,12 +755,52 @@ impl SceneBuilder<'_> {
             }),
             _ => None,
         };
+        let mut lods = Vec::new();
+        if self.options.mode == ExportMode::Cubes && v.rig.is_none() {
+            for k in 1..=self.options.lod_levels.min(v.svo.depth().saturating_sub(1)) {
+                let coarse = v.svo.coarsened(k).map_err(|e| GltfExportError::Object {
+                    path: path.to_owned(),
+                    object: o.name.clone(),
+                    detail: format!("level of detail {k}: {e}"),
+                })?;
+                let size = v.voxel_size * f32::from(1u16 << k);
+                let quads = greedy::greedy_quads(&coarse);
+                charge(budget, quads.len() as u64 * 2, self.options, path, &o.name)?;
+                let mut level: Vec<(u8, ExportPrimitive)> = Vec::new();
+                for q in &quads {
+                    let i = match level.iter().position(|e| e.0 == q.key.1) {
+                        Some(i) => i,
+                        None => {
+                            level.push((q.key.1, ExportPrimitive::default()));
+                            level.len() - 1
+                        }
+                    };
+                    let prim = &mut level[i].1;
+                    let base = prim.positions.len() as u32;
+                    for c in q.corners() {
+                        prim.positions.push(v.origin + c * size);
+                        prim.normals.push(q.normal());
+                    }
+                    prim.colors.extend([linear(q.key.0); 4]);
+                    prim.indices
+                        .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                }
+                level.sort_by_key(|e| e.0);
+                let mut prims = Vec::with_capacity(level.len());
+                for (id, mut prim) in level {
+                    prim.material = self.voxel_material(v, id);
+                    prims.push(prim);
+                }
+                lods.push(prims);
+            }
+        }
         Ok(ExportNode {
             name: o.name.clone(),
             transform: o.transform,
             primitives,
             instances: Vec::new(),
             skin,
+            lods,
         })
     }
 

@@ -1,4 +1,4 @@
-//! Skinned voxel export (issue 9): the exported CesiumMan voxels, skinned on the CPU from the
+//! Skinned voxel export and levels of detail (issue 9): the exported CesiumMan voxels, skinned on the CPU from the
 //! file's own joints, weights, inverse bind matrices, joint hierarchy and animation, land where
 //! the editor's skinned voxels are, at 10 times of the walk.
 
@@ -113,4 +113,75 @@ fn smooth_export_of_a_skinned_model_is_a_static_bind_pose() {
     export_gltf(&doc, &path, &options, &|_| true).expect("exports");
     let e = import_skinned(&path).expect_err("no skin in a smooth export");
     assert!(e.to_string().contains("skin"), "{e}");
+}
+
+#[test]
+fn lod_levels_are_coarser_msft_lod_alternatives() {
+    use crate::io::vox::import_vox;
+    let house = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/vox/mmmm/obj_house4.vox"
+    );
+    let scene = import_vox(std::path::Path::new(house)).expect("the house imports");
+    let mut doc = Document::default();
+    for o in scene.objects {
+        doc.add(&o.name, o.kind);
+    }
+    let dir = tempfile::tempdir().expect("temp dir");
+    let path = dir.path().join("house-lod.glb");
+    let options = GltfExportOptions {
+        lod_levels: 2,
+        ..GltfExportOptions::default()
+    };
+    export_gltf(&doc, &path, &options, &|_| true).expect("exports");
+    let (g, _, _) = gltf::import(&path).expect("loads");
+    assert!(g.extensions_used().any(|e| e == "MSFT_lod"));
+    let triangles = |n: &gltf::Node<'_>| -> usize {
+        n.mesh().map_or(0, |m| {
+            m.primitives()
+                .map(|p| p.indices().map_or(0, |a| a.count() / 3))
+                .sum()
+        })
+    };
+    let scene_roots: Vec<usize> = g
+        .default_scene()
+        .expect("a scene")
+        .nodes()
+        .map(|n| n.index())
+        .collect();
+    for root in g.nodes().filter(|n| scene_roots.contains(&n.index())) {
+        let full = triangles(&root);
+        let lod = root
+            .extensions()
+            .and_then(|e| e.get("MSFT_lod"))
+            .expect("every voxel model lists its levels");
+        let ids: Vec<usize> = lod["ids"]
+            .as_array()
+            .expect("ids")
+            .iter()
+            .map(|v| v.as_u64().expect("index") as usize)
+            .collect();
+        assert_eq!(ids.len(), 2);
+        let mut previous = full;
+        for id in ids {
+            assert!(
+                !scene_roots.contains(&id),
+                "levels are not drawn by the scene"
+            );
+            let level = g.nodes().nth(id).expect("the level node");
+            let t = triangles(&level);
+            assert!(t > 0 && t < previous, "{t} vs {previous}");
+            previous = t;
+        }
+    }
+    // Palette textures cannot carry levels: refused before anything is written.
+    let options = GltfExportOptions {
+        lod_levels: 1,
+        colors: super::ColorMode::PaletteTexture,
+        ..GltfExportOptions::default()
+    };
+    let bad = dir.path().join("refused.glb");
+    let e = export_gltf(&doc, &bad, &options, &|_| true).expect_err("refused");
+    assert!(e.to_string().contains("vertex colours"), "{e}");
+    assert!(!bad.exists());
 }

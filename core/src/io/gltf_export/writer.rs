@@ -76,6 +76,10 @@ pub struct ExportNode {
     /// With a skin, the mesh is skinned: its vertices are in bind space and move with the
     /// skeleton, which is written under a node carrying [`ExportNode::transform`].
     pub skin: Option<ExportSkin>,
+    /// Coarser levels of detail of the mesh, finest first, written as `MSFT_lod` alternatives
+    /// (each level for half the screen coverage of the one before). A viewer without the
+    /// extension shows the full mesh.
+    pub lods: Vec<Vec<ExportPrimitive>>,
 }
 
 /// A skeleton and its animation clips, for a skinned node (see [`ExportNode::skin`]).
@@ -189,11 +193,17 @@ pub(crate) fn encode(
         }
         let t = &node.transform;
         let trs_is_identity = *t == Transform::default();
-        let extensions = if node.instances.is_empty() || mesh.is_none() {
+        let mut extensions = if node.instances.is_empty() || mesh.is_none() {
             None
         } else {
             Some(b.instancing(&node.instances)?)
         };
+        let mut extras = None;
+        if !node.lods.is_empty() && mesh.is_some() && node.instances.is_empty() {
+            let (ext, coverage) = b.lods(node, &materials)?;
+            extensions = Some(ext);
+            extras = coverage;
+        }
         node_indices.push(
             b.root.push(json::Node {
                 extensions,
@@ -207,6 +217,7 @@ pub(crate) fn encode(
                 rotation: (!trs_is_identity)
                     .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
                 scale: (!trs_is_identity).then(|| t.scale.to_array()),
+                extras,
                 ..json::Node::default()
             }),
         );
@@ -258,6 +269,9 @@ pub(crate) fn unit_quat(q: glam::Quat) -> glam::Quat {
 
 /// The extension that draws a node's mesh once per instance.
 const INSTANCING: &str = "EXT_mesh_gpu_instancing";
+
+/// The extension that lists a node's coarser levels of detail.
+const LOD: &str = "MSFT_lod";
 
 impl Builder {
     /// The node extension object for `EXT_mesh_gpu_instancing`: TRANSLATION, ROTATION and
@@ -312,6 +326,67 @@ impl Builder {
         node.others
             .insert(INSTANCING.to_owned(), json::Value::Object(ext));
         Ok(node)
+    }
+
+    /// Writes `node`'s coarser levels as nodes outside the scene (same transform) and returns
+    /// the `MSFT_lod` extension that lists them, and the node extras with
+    /// `MSFT_screencoverage` (1/2, 1/4, ... of the screen, then 0 for the coarsest).
+    fn lods(
+        &mut self,
+        node: &ExportNode,
+        materials: &[json::Index<json::Material>],
+    ) -> Result<(json::extensions::scene::Node, json::Extras), EncodeError> {
+        let mut ids = Vec::new();
+        for (k, prims) in node.lods.iter().enumerate() {
+            let mut out = Vec::new();
+            for (pi, p) in prims.iter().enumerate() {
+                if p.indices.is_empty() {
+                    continue;
+                }
+                let what = format!("node {:?} LOD {} primitive {pi}", node.name, k + 1);
+                let material = *materials.get(p.material).ok_or_else(|| {
+                    EncodeError::Invalid(format!("{what}: material {} is missing", p.material))
+                })?;
+                out.push(self.primitive(p, material, &what)?);
+            }
+            let name = format!("{} LOD{}", node.name, k + 1);
+            let mesh = self.root.push(json::Mesh {
+                extensions: None,
+                extras: None,
+                name: Some(name.clone()),
+                primitives: out,
+                weights: None,
+            });
+            let t = &node.transform;
+            let id = self.root.push(json::Node {
+                mesh: Some(mesh),
+                name: Some(name),
+                translation: Some(t.translation.to_array()),
+                rotation: Some(json::scene::UnitQuaternion(
+                    unit_quat(t.rotation).to_array(),
+                )),
+                scale: Some(t.scale.to_array()),
+                ..json::Node::default()
+            });
+            ids.push(json::Value::from(id.value() as u64));
+        }
+        if !self.root.extensions_used.iter().any(|e| e == LOD) {
+            self.root.extensions_used.push(LOD.to_owned());
+        }
+        let mut ext = serde_json::Map::new();
+        ext.insert("ids".to_owned(), json::Value::Array(ids));
+        let mut n = json::extensions::scene::Node::default();
+        n.others.insert(LOD.to_owned(), json::Value::Object(ext));
+        let levels = node.lods.len() + 1;
+        let coverage: Vec<f64> = (1..levels)
+            .map(|k| 0.5f64.powi(k as i32))
+            .chain(std::iter::once(0.0))
+            .collect();
+        let extras = serde_json::value::to_raw_value(&serde_json::json!({
+            "MSFT_screencoverage": coverage
+        }))
+        .map_err(|e| EncodeError::Encoding(format!("node {:?} LOD extras: {e}", node.name)))?;
+        Ok((n, Some(extras)))
     }
 
     /// Writes a skeleton as nodes under a root node placed by `placement`, its skin and its
