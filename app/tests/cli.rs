@@ -2,29 +2,16 @@
 //! message naming the file, nothing written).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
 use glam::{UVec3, Vec3};
 use thicket_core::scene::{Document, ObjectKind, VoxelModel};
 use thicket_core::svo::{Svo, Voxel};
 
+mod common;
+use common::{stderr, stdout, thicket};
+
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets");
-
-fn thicket(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_thicket"))
-        .args(args)
-        .env("RUST_LOG", "off")
-        .output()
-        .expect("the thicket binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
 
 /// Asserts a clean failure: non-zero exit, one `error:` line naming the file, no panic.
 fn assert_fails_naming(o: &Output, file: &Path) {

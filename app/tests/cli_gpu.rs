@@ -2,23 +2,9 @@
 //! adapter is present: lavapipe in CI).
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn thicket(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_thicket"))
-        .args(args)
-        .env("RUST_LOG", "off")
-        .output()
-        .expect("the thicket binary runs")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
-
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
+mod common;
+use common::{stderr, stdout, thicket};
 
 fn sample(name: &str) -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))

@@ -3,15 +3,9 @@
 //! memory per object that follows the surface.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
 
-fn thicket(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_thicket"))
-        .args(args)
-        .env("RUST_LOG", "off")
-        .output()
-        .expect("the thicket binary runs")
-}
+mod common;
+use common::thicket;
 
 /// A small voxel sphere over a ground plane with a shadow-casting sun.
 fn small_project(dir: &Path) -> PathBuf {
