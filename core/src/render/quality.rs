@@ -109,7 +109,7 @@ impl Quality {
             ao_samples: 4,
             krs_epsilon_scale: 1.0,
             krs_max_steps: 160,
-            krs_over_relaxation: 1.4,
+            krs_over_relaxation: 1.5,
             krs_tile_acceleration: true,
             krs_soft_shadows: false,
             stretch_multiplier: 1.0,
