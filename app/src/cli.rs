@@ -827,8 +827,25 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    // One GPU context for every frame of a turntable.
+    let gpu = if args.gpu {
+        Some(crate::gpu::GpuContext::new_headless(
+            wgpu::PowerPreference::HighPerformance,
+        )?)
+    } else {
+        None
+    };
+    let gpu = gpu.as_ref();
     let Some(frames) = args.turntable else {
-        return render_one(args, &doc, camera, &quality, width, height, &args.output);
+        return render_one(
+            args,
+            gpu,
+            &doc,
+            camera,
+            &quality,
+            (width, height),
+            &args.output,
+        );
     };
     if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
         anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
@@ -846,26 +863,26 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         let path = args
             .output
             .with_file_name(format!("{stem}_{i:0digits$}.png"));
-        render_one(args, &doc, cam, &quality, width, height, &path)?;
+        render_one(args, gpu, &doc, cam, &quality, (width, height), &path)?;
     }
     Ok(())
 }
 
-/// Renders one frame of `doc` from `camera` and writes it to `output` (atomically).
+/// Renders one frame of `doc` from `camera`, on `gpu` when given, and writes it to `output`
+/// (atomically).
 fn render_one(
     args: &RenderArgs,
+    gpu: Option<&crate::gpu::GpuContext>,
     doc: &thicket_core::scene::Document,
     camera: thicket_core::scene::OrbitCamera,
     quality: &thicket_core::render::Quality,
-    width: u32,
-    height: u32,
+    (width, height): (u32, u32),
     output: &std::path::Path,
 ) -> anyhow::Result<()> {
     use thicket_core::render::{RenderRequest, RgbaImage, render_document};
-    let (image, stats_json) = if args.gpu {
-        let ctx = crate::gpu::GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+    let (image, stats_json) = if let Some(ctx) = gpu {
         let (pixels, stats) =
-            crate::gpu::render_with_context(&ctx, doc, &camera, width, height, quality)
+            crate::gpu::render_with_context(ctx, doc, &camera, width, height, quality)
                 .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
         let json = serde_json::json!({
             "device": ctx.describe(),
