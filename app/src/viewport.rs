@@ -331,7 +331,10 @@ impl Resources {
             .position(|r| self.uploaded == Some(r.from))
             .filter(|_| chained && !unchanged)
             .map(|start| &cb.regions[start..]);
-        let result = match region {
+        // Upload the edited regions, if that is what changed, then draw: uploading the whole
+        // scene first unless nothing or only the regions changed. The upload reported is the
+        // regions', else the frame's own.
+        let regions_upload = match region {
             Some(regions) => regions
                 .iter()
                 .try_fold(UploadStats::default(), |acc, r| {
@@ -343,46 +346,20 @@ impl Resources {
                             writes: acc.writes + up.writes,
                         })
                 })
-                .and_then(|up| {
-                    renderer
-                        .render_uploaded(
-                            device,
-                            queue,
-                            &cb.doc,
-                            &cb.key.camera,
-                            &cb.doc.quality,
-                            &frame.target,
-                        )
-                        .map(|s| (s, up))
-                }),
-            // Same document (the camera or the size changed): nothing to upload.
-            None if unchanged => renderer
-                .render_uploaded(
-                    device,
-                    queue,
-                    &cb.doc,
-                    &cb.key.camera,
-                    &cb.doc.quality,
-                    &frame.target,
-                )
-                .map(|s| {
-                    let up = s.upload;
-                    (s, up)
-                }),
-            None => renderer
-                .render(
-                    device,
-                    queue,
-                    &cb.doc,
-                    &cb.key.camera,
-                    &cb.doc.quality,
-                    &frame.target,
-                )
-                .map(|s| {
-                    let up = s.upload;
-                    (s, up)
-                }),
+                .map(Some),
+            None => Ok(None),
         };
+        let full = region.is_none() && !unchanged;
+        let result = regions_upload.and_then(|regions_up| {
+            let (doc, camera, quality) = (&cb.doc, &cb.key.camera, &cb.doc.quality);
+            let stats = if full {
+                renderer.render(device, queue, doc, camera, quality, &frame.target)
+            } else {
+                renderer.render_uploaded(device, queue, doc, camera, quality, &frame.target)
+            }?;
+            let up = regions_up.unwrap_or(stats.upload);
+            Ok((stats, up))
+        });
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         let lost = self.errors.take();
         match (result, lost) {

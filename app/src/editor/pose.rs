@@ -167,17 +167,10 @@ impl Editor {
         base: Option<JointOverride>,
         delta: Quat,
     ) -> Result<(), CommandError> {
-        let current_local = self
-            .rig(id)
-            .and_then(|r| r.current_pose().locals.get(joint).copied());
-        let mut o = base.unwrap_or(JointOverride {
-            joint,
-            mode: OverrideMode::Relative,
-            ..JointOverride::default()
-        });
+        let (mut o, current) = self.drag_start(id, joint, base);
         let start = o.rotation.unwrap_or(match o.mode {
             OverrideMode::Relative => Quat::IDENTITY,
-            OverrideMode::Replace => current_local.map_or(Quat::IDENTITY, |l| l.rotation),
+            OverrideMode::Replace => current.map_or(Quat::IDENTITY, |l| l.rotation),
         });
         o.rotation = Some((start * delta).normalize());
         self.set_joint_override(id, o)
@@ -195,20 +188,32 @@ impl Editor {
         base: Option<JointOverride>,
         delta: Vec3,
     ) -> Result<(), CommandError> {
-        let current_local = self
+        let (mut o, current) = self.drag_start(id, joint, base);
+        let start = o.translation.unwrap_or(match o.mode {
+            OverrideMode::Relative => Vec3::ZERO,
+            OverrideMode::Replace => current.map_or(Vec3::ZERO, |l| l.translation),
+        });
+        o.translation = Some(start + delta);
+        self.set_joint_override(id, o)
+    }
+
+    /// What a joint drag starts from: the override it began with (or a new relative one) and
+    /// the joint's current local transform (for replacing overrides).
+    fn drag_start(
+        &self,
+        id: u64,
+        joint: usize,
+        base: Option<JointOverride>,
+    ) -> (JointOverride, Option<thicket_core::skin::Transform>) {
+        let current = self
             .rig(id)
             .and_then(|r| r.current_pose().locals.get(joint).copied());
-        let mut o = base.unwrap_or(JointOverride {
+        let o = base.unwrap_or(JointOverride {
             joint,
             mode: OverrideMode::Relative,
             ..JointOverride::default()
         });
-        let start = o.translation.unwrap_or(match o.mode {
-            OverrideMode::Relative => Vec3::ZERO,
-            OverrideMode::Replace => current_local.map_or(Vec3::ZERO, |l| l.translation),
-        });
-        o.translation = Some(start + delta);
-        self.set_joint_override(id, o)
+        (o, current)
     }
 
     /// Sets what plays and when. Like the camera this is saved with the document but is not an
