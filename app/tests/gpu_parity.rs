@@ -165,11 +165,12 @@ fn mixed_sample_matches_the_cpu_reference() {
 #[test]
 fn synthetic_mixed_scene_matches_the_cpu_reference() {
     // Voxel sphere, rotated and scaled mesh cube, ground: meshes and voxels occluding and
-    // shadowing each other, PCF 2.
+    // shadowing each other, PCF 2, 4 AO samples (the presets ship AO off or at 16).
     let ctx = context();
     let doc = scenes::mixed_document(7).expect("scene");
     let q = Quality {
         shadow_pcf_radius: 2,
+        ao_samples: 4,
         ..Quality::default()
     };
     both_paths(&ctx, "synthetic-mixed", &doc, (112, 96), &q);
@@ -198,7 +199,7 @@ fn rotated_voxels_without_shadows_match_the_cpu_reference() {
 fn ambient_occlusion_darkens_on_the_gpu_as_on_the_cpu() {
     // AO on the GPU is not a no-op that happens to agree: without it the same frame differs,
     // only ever brighter (it scales the ambient term alone); with another sample count (8,
-    // another kernel than the default 4) both renderers still agree on both paths.
+    // another kernel than the synthetic parity scene's 4) both renderers still agree on both paths.
     let ctx = context();
     let doc = scenes::mixed_document(7).expect("scene");
     let size = (112, 96);

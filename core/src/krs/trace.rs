@@ -570,8 +570,12 @@ impl Default for AoSettings {
 }
 
 /// Ambient accessibility in [0, 1] (1 = open) at surface point `p` with normal `n`: at heights
-/// h_i = i·spacing the free distance should be h_i on an open surface; the shortfall
-/// (h_i − d)/h_i is averaged with weights halving per sample.
+/// h_i = i·spacing (i = 1..=samples) the free distance should be h_i on an open surface; the
+/// shortfall (h_i − d)/h_i is averaged with weights that halve every quarter of the reach
+/// `samples·spacing` (w_i = 2^(−4(i−1)/samples)). At 4 samples that is the classic halving per
+/// sample; with more samples over the same reach the sum refines towards one integral instead
+/// of the weights shrinking the reach (halving per sample, 16 samples over a reach would look
+/// only at its first quarter).
 pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoSettings) -> f32 {
     let Some(n) = n.try_normalize() else {
         return 1.0;
@@ -582,6 +586,7 @@ pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoS
     let mut occlusion = 0.0f32;
     let mut total = 0.0f32;
     let mut weight = 1.0f32;
+    let decay = 0.5f32.powf(4.0 / settings.samples as f32);
     for i in 1..=settings.samples {
         let h = i as f32 * settings.spacing;
         let d = scene.distance(p + n * h);
@@ -592,7 +597,7 @@ pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoS
         };
         occlusion += weight * shortfall;
         total += weight;
-        weight *= 0.5;
+        weight *= decay;
     }
     (1.0 - settings.strength * occlusion / total).clamp(0.0, 1.0)
 }

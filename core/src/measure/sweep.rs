@@ -139,7 +139,7 @@ pub fn default_knobs() -> Vec<KnobValues> {
 
 /// The reference setting: the `final` preset raised further on every knob where more is
 /// closer to the ideal image — LOD threshold 0.25 px (every voxel splat below a quarter pixel),
-/// shadow maps up to 8192 texels, 32 AO samples, KRS epsilon 0.25 px with
+/// shadow maps up to 8192 texels, 32 AO samples, KRS epsilon 0.125 px with
 /// 2000 steps and no over-relaxation (it can step over thin features), 128 enhancement probes.
 /// Knobs that are choices rather than precision keep their `final` values: culling, stretch
 /// multiplier, tile acceleration, soft shadows, and the PCF radius (a softness filter: a wider
@@ -151,7 +151,7 @@ pub fn reference_quality() -> Quality {
         ("lod_pixel_threshold", "0.25"),
         ("shadow_map_size", "8192"),
         ("ao_samples", "32"),
-        ("krs_epsilon_scale", "0.25"),
+        ("krs_epsilon_scale", "0.125"),
         ("krs_max_steps", "2000"),
         ("krs_over_relaxation", "1"),
         ("enhancement_samples", "128"),

@@ -45,10 +45,38 @@ use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
 /// Largest accepted image edge in pixels.
 pub const MAX_IMAGE_SIZE: u32 = 16384;
 
-/// Ambient-occlusion sample radius as a fraction of the scene bounds' diagonal (the same bounds
-/// the shadow maps are fit to): scale-free, so a house of 128 voxel units and a 2-unit sphere
-/// get the same look.
+/// Ambient-occlusion sample radius as a fraction of the scene bounds' diagonal (voxels, meshes
+/// and the bounding balls of bounded KRS objects): scale-free, so a house of 128 voxel units
+/// and a 2-unit sphere get the same look.
 pub const AO_RADIUS_OF_SCENE: f32 = 0.05;
+
+/// The screen-space AO radius in world units for a scene whose drawn content has `bounds`
+/// (0 when there are none: AO then has nothing to sample and costs nothing). Both renderers
+/// use this, so their AO kernels agree.
+#[must_use]
+pub fn ao_radius_world(bounds: Option<(Vec3, Vec3)>) -> f32 {
+    bounds.map_or(0.0, |(lo, hi)| {
+        let r = AO_RADIUS_OF_SCENE * (hi - lo).length();
+        if r.is_finite() { r } else { 0.0 }
+    })
+}
+
+/// `bounds` grown by the world bounding balls of a KRS layer's bounded objects (unbounded ones,
+/// such as an endless ground, add nothing: they have no size to scale by).
+#[must_use]
+pub fn with_krs_bounds(bounds: Option<(Vec3, Vec3)>, layer: &KrsLayer) -> Option<(Vec3, Vec3)> {
+    layer
+        .scene
+        .objects
+        .iter()
+        .filter(|o| !o.is_empty)
+        .filter_map(|o| o.bound_world)
+        .filter(|(c, r)| c.is_finite() && r.is_finite())
+        .fold(bounds, |b, (c, r)| {
+            let (lo, hi) = (c - Vec3::splat(r), c + Vec3::splat(r));
+            Some(b.map_or((lo, hi), |(a, z)| (a.min(lo), z.max(hi))))
+        })
+}
 
 /// Ids with this bit set are triangles; below it, voxel splats.
 pub(crate) const MESH_ID_FLAG: u32 = 1 << 31;
@@ -278,9 +306,17 @@ pub fn render_scene_with_krs(
     let t0 = Instant::now();
     let mut shadows = Vec::with_capacity(scene.lights.len());
     let bounds = scene_bounds(scene, &tris);
+    // A shadow map with nothing drawn into it would only cost every pixel its filter taps.
+    let has_casters = scene
+        .voxels
+        .iter()
+        .any(|v| v.casts_shadows && !v.svo.is_empty())
+        || tris
+            .iter()
+            .any(|t| scene.meshes[t.mesh as usize].casts_shadows);
     for light in scene.lights {
         let map = match bounds {
-            Some((lo, hi)) if quality.shadows && light.casts_shadows => {
+            Some((lo, hi)) if quality.shadows && light.casts_shadows && has_casters => {
                 // One texel per view pixel where the scene comes nearest the eye: each halving of
                 // the texel quadruples the shadow traversal for detail the view cannot resolve
                 // (PCF blurs over three texels anyway).
@@ -347,7 +383,7 @@ pub fn render_scene_with_krs(
         shadows,
         ambient: scene.ambient,
         background: scene.background,
-        ao_radius_world: bounds.map_or(0.0, |(lo, hi)| AO_RADIUS_OF_SCENE * (hi - lo).length()),
+        ao_radius_world: ao_radius_world(with_krs_bounds(bounds, krs_layer)),
         krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
     };
     let (img, counts) = shade::shade(&fb, cam, &lighting, quality);

@@ -521,6 +521,13 @@ pub(crate) struct AoKernel {
 
 impl AoKernel {
     pub(crate) fn new(count: u32, radius_world: f32) -> Self {
+        // A zero radius (nothing with a size in the scene) would sample the shaded point itself:
+        // no occlusion, so no samples and no cost.
+        let count = if radius_world > 0.0 && radius_world.is_finite() {
+            count
+        } else {
+            0
+        };
         Self {
             samples: ao_sample_offsets(count, radius_world),
             radius_world,
@@ -531,7 +538,19 @@ impl AoKernel {
     /// A sample is occluded when the depth buffer at its pixel holds a surface nearer the eye
     /// than the sample by more than `eps_world` (the voxel staircase: splats store a node's
     /// nearest depth) and by less than the radius (a far foreground object does not darken).
-    fn openness(&self, fb: &FrameBuffers, cam: &Camera, p: Vec3, n: Vec3, eps_world: f32) -> f32 {
+    /// Pixels for which `is_krs` holds are not occluders here: KRS geometry occludes through
+    /// the KRS distance AO, which every pixel also gets (exact, and it sees off screen);
+    /// counting it twice darkened everything near a KRS surface, and made the screen term
+    /// flicker with the sub-pixel foliage of a tree.
+    fn openness(
+        &self,
+        fb: &FrameBuffers,
+        cam: &Camera,
+        p: Vec3,
+        n: Vec3,
+        eps_world: f32,
+        is_krs: impl Fn(usize) -> bool,
+    ) -> f32 {
         if self.samples.is_empty() || n == Vec3::ZERO {
             return 1.0;
         }
@@ -552,7 +571,7 @@ impl AoKernel {
                 continue;
             }
             let idx = sp.y as usize * fb.width as usize + sp.x as usize;
-            if fb.ids[idx].object == 0 {
+            if fb.ids[idx].object == 0 || is_krs(idx) {
                 continue;
             }
             let gap = d_q - cam.view_depth(fb.depth[idx]);
@@ -625,7 +644,10 @@ pub(crate) fn shade(
             let receiver = cam.pixel_world_size(cam.view_depth(fb.depth[i]))
                 * quality.lod_pixel_threshold.max(1.0);
             // The AO staircase tolerance: the receiver term of the shadow bias.
-            let open = ao.openness(fb, cam, p, n, 1.5 * receiver);
+            let krs_pixels = &lighting.krs.pass.pixels;
+            let open = ao.openness(fb, cam, p, n, 1.5 * receiver, |j| {
+                krs_pixels.get(j).is_some_and(Option::is_some)
+            });
             if n != Vec3::ZERO {
                 count.shading.ao_taps += ao.samples.len() as u64;
             }
