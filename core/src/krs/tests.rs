@@ -831,6 +831,63 @@ fn shadows_and_ambient_occlusion() {
     );
 }
 
+#[test]
+fn ambient_occlusion_refines_one_integral_as_samples_grow() {
+    // Ground with a ball of radius 1 resting above it: points on the ground near the ball see
+    // it within the reach. Over a fixed reach, more samples must converge (each count is a
+    // Riemann sum of the same weighted integral), and 4 samples must keep the classic weights
+    // 1, 1/2, 1/4, 1/8.
+    let ground = Kernel::InfinitePlane(PlaneKernel::default());
+    let ball = Kernel::Sphere(SphereKernel {
+        centre: Vec3::new(0.0, 1.2, 0.0),
+        radius: 1.0,
+        ..Default::default()
+    });
+    let scene = prepared(KrsObject {
+        kernels: vec![ball, ground],
+        mirrors: vec![MirrorPlane::new(Vec3::X, 5.0)],
+        ..Default::default()
+    });
+    let reach = 1.5;
+    let at = |p: Vec3, samples: u32| {
+        ambient_occlusion(
+            &scene,
+            p,
+            Vec3::Y,
+            &AoSettings {
+                samples,
+                spacing: reach / samples as f32,
+                strength: 1.0,
+            },
+        )
+    };
+    for x in [0.3f32, 0.7, 1.1] {
+        let p = Vec3::new(x, 0.0, 0.0);
+        let fine = at(p, 512);
+        let errs: Vec<f32> = [4u32, 16, 64]
+            .iter()
+            .map(|&n| (at(p, n) - fine).abs())
+            .collect();
+        // First order, like any Riemann sum: 4x the samples, about a quarter of the error.
+        assert!(
+            errs[2] < 0.02 && errs[2] * 3.0 < errs[1] && errs[1] * 3.0 < errs[0],
+            "x = {x}: errors at 4/16/64 samples {errs:?}"
+        );
+        assert!(fine < 0.95, "x = {x}: the ball must occlude ({fine})");
+        // The classic four-sample sum, by hand.
+        let (mut occ, mut total, mut w) = (0.0f32, 0.0f32, 1.0f32);
+        for i in 1..=4 {
+            let h = i as f32 * reach / 4.0;
+            let d = scene.distance(p + Vec3::Y * h);
+            occ += w * ((h - d) / h).clamp(0.0, 1.0);
+            total += w;
+            w *= 0.5;
+        }
+        let classic = 1.0 - occ / total;
+        assert!((at(p, 4) - classic).abs() < 1e-6, "x = {x}");
+    }
+}
+
 // ---------------------------------------------------------------- shading & texturing
 
 #[test]

@@ -233,6 +233,60 @@ fn ao_darkens_the_ground_next_to_a_trunk() {
 }
 
 #[test]
+fn ao_in_a_krs_only_scene_counts_the_krs_once_and_costs_nothing_without_a_size() {
+    // A KRS ball resting on an endless KRS ground, nothing else: the screen AO takes its radius
+    // from the ball's bounding ball (before, KRS-only scenes had no bounds, paid for every
+    // sample and got no occlusion), and skips KRS occluders, which the KRS distance AO counts.
+    let ground = Kernel::InfinitePlane(PlaneKernel::default());
+    let mut doc = Document::default();
+    doc.add(
+        "Ball",
+        ball(Vec3::new(0.0, 1.02, 0.0), 1.0, Vec3::new(0.8, 0.8, 0.8)),
+    );
+    doc.add(
+        "Ground",
+        ObjectKind::Krs(KrsObject {
+            kernels: vec![ground],
+            ..KrsObject::default()
+        }),
+    );
+    doc.camera = OrbitCamera {
+        target: Vec3::new(0.0, 0.5, 0.0),
+        yaw_deg: 20.0,
+        pitch_deg: 25.0,
+        distance: 5.0,
+        near: 0.1,
+        far: 100.0,
+        ..OrbitCamera::default()
+    };
+    doc.lights.clear();
+    let render = |doc: &Document, ao: u32| {
+        let q = Quality {
+            ao_samples: ao,
+            ..quality()
+        };
+        render_document(doc, &request(64, q)).unwrap()
+    };
+    let (img, _, st) = render(&doc, 8);
+    let taps = st.shading.expect("shading stats").ao_taps;
+    assert!(taps > 0, "the ball gives the scene a size, so AO samples");
+    // Only the KRS distance AO darkens here (no voxels or meshes to occlude on screen).
+    let cam = Camera::from_orbit(&doc.camera, 64, 64);
+    let contact = pixel_of(&cam, Vec3::new(0.0, 0.0, 0.35));
+    let plain_img = render(&doc, 0).0;
+    assert!(
+        img.pixel(contact.0, contact.1)[1] < plain_img.pixel(contact.0, contact.1)[1],
+        "the ground under the ball is darker with AO"
+    );
+    // The endless ground alone has no size: no AO radius, so no samples at all.
+    let mut flat = doc.clone();
+    flat.objects.retain(|o| o.name == "Ground");
+    let (flat_img, _, st) = render(&flat, 8);
+    assert_eq!(st.shading.expect("shading stats").ao_taps, 0);
+    assert_eq!(flat_img, render(&flat, 0).0);
+}
+
+#[test]
 fn tiles_and_over_relaxation_do_not_change_the_image() {
     let mut doc = Document::default();
     doc.add("Tree", ObjectKind::Krs(presets::tree()));
