@@ -229,6 +229,10 @@ pub struct TradeoffArgs {
     /// Leave the draft / balanced / final presets out of the sweep.
     #[arg(long)]
     pub no_presets: bool,
+    /// Draw every setting with the GPU renderer (the reference stays the CPU reference
+    /// renderer's image, so GPU-only differences count as error).
+    #[arg(long)]
+    pub gpu: bool,
 }
 
 /// How `thicket export` meshes voxel models and KRS objects.
@@ -1019,20 +1023,32 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         ..SweepSettings::default()
     };
     let bar = progress_bar(1, "reference");
-    let report = sweep_document(&doc, width, height, &settings, |done, total, label| {
+    let progress = |done: usize, total: usize, label: &str| {
         bar.set_length(total as u64);
         bar.set_position(done as u64);
         bar.set_message(label.to_owned());
-    })
+    };
+    let report = if args.gpu {
+        let ctx = crate::gpu::GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+        crate::tradeoff::gpu_sweep(&ctx, &doc, (width, height), &settings, progress)
+    } else {
+        sweep_document(&doc, width, height, &settings, progress).map_err(anyhow::Error::from)
+    }
     .with_context(|| format!("{}: sweeping", args.project.display()))?;
     bar.finish_and_clear();
     let name = files::object_name_for(&args.project);
-    crate::tradeoff::write_outputs(&report, &name, &args.output)?;
+    let renderer = if args.gpu {
+        crate::tradeoff::SweepRenderer::Gpu
+    } else {
+        crate::tradeoff::SweepRenderer::Cpu
+    };
+    crate::tradeoff::write_outputs(&report, &name, renderer, &args.output)?;
     let mut text = format!(
-        "wrote {}/report.json, report.csv, tradeoff.png: {} settings at {width}x{height}, \
-         reference {:.1} ms\n",
+        "wrote {}/report.json, report.csv, tradeoff.png: {} settings at {width}x{height} on the \
+         {} renderer, reference {:.1} ms (CPU)\n",
         args.output.display(),
         report.points.len(),
+        if args.gpu { "GPU" } else { "CPU" },
         report.reference_time_ms
     );
     for p in &report.points {

@@ -10,8 +10,12 @@ use std::sync::Once;
 
 use anyhow::{Context as _, anyhow};
 use plotters::prelude::*;
-use thicket_core::measure::{SweepPoint, SweepReport};
-use thicket_core::render::{QualityPreset, RgbaImage};
+use thicket_core::measure::{SweepPoint, SweepReport, SweepSettings, reference_quality, sweep};
+use thicket_core::render::{
+    Camera, FrameBuffers, FrameStats, PixelId, QualityPreset, RenderError, RenderRequest,
+    RgbaImage, render_document,
+};
+use thicket_core::scene::Document;
 
 /// Plot size in pixels.
 pub const PLOT_SIZE: (u32, u32) = (1200, 520);
@@ -272,15 +276,45 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
         .with_context(|| format!("writing {}", path.display()))
 }
 
+/// Which renderer drew a sweep's settings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SweepRenderer {
+    /// The CPU reference renderer.
+    Cpu,
+    /// The GPU renderer (the reference image is still the CPU's).
+    Gpu,
+}
+
+impl SweepRenderer {
+    fn key(self) -> &'static str {
+        match self {
+            Self::Cpu => "cpu",
+            Self::Gpu => "gpu",
+        }
+    }
+
+    fn title(self) -> &'static str {
+        match self {
+            Self::Cpu => "CPU renderer",
+            Self::Gpu => "GPU renderer vs CPU reference",
+        }
+    }
+}
+
 /// Writes `report.json`, `report.csv` and `tradeoff.png` into `dir` (created if missing).
 ///
 /// # Errors
 /// The directory or a file cannot be written, or the plot fails.
-pub fn write_outputs(report: &SweepReport, project_name: &str, dir: &Path) -> anyhow::Result<()> {
+pub fn write_outputs(
+    report: &SweepReport,
+    project_name: &str,
+    renderer: SweepRenderer,
+    dir: &Path,
+) -> anyhow::Result<()> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let json = serde_json::json!({
         "project": project_name,
-        "renderer": "cpu",
+        "renderer": renderer.key(),
         "error_metric_for_fronts": "rmse",
         "report": report,
     });
@@ -289,8 +323,12 @@ pub fn write_outputs(report: &SweepReport, project_name: &str, dir: &Path) -> an
     write_atomic(&dir.join("report.json"), text.as_bytes())?;
     write_atomic(&dir.join("report.csv"), report.to_csv().as_bytes())?;
     let title = format!(
-        "{project_name}: {}x{}, CPU renderer, median of {} render(s), reference {:.0} ms",
-        report.width, report.height, report.repeats, report.reference_time_ms
+        "{project_name}: {}x{}, {}, median of {} render(s), reference {:.0} ms",
+        report.width,
+        report.height,
+        renderer.title(),
+        report.repeats,
+        report.reference_time_ms
     );
     let img = plot(report, &title)?;
     let png = dir.join("tradeoff.png");
@@ -299,6 +337,100 @@ pub fn write_outputs(report: &SweepReport, project_name: &str, dir: &Path) -> an
         .with_context(|| format!("writing {}", png.display()))?;
     std::fs::rename(&tmp, &png).with_context(|| format!("writing {}", png.display()))?;
     Ok(())
+}
+
+/// [`thicket_core::measure::sweep`] with the GPU renderer drawing every setting, measured against
+/// the CPU reference renderer's image at [`reference_quality`]: the reference stays the one
+/// every GPU image is tested against, so a GPU-only difference shows up as error instead of
+/// cancelling out. Times are wall time of the GPU frame plus its two read-backs (image and
+/// G-buffer); the reference time is the CPU's. Work is counted from the GPU's own counters
+/// (nodes per level for the view and the shadow map, triangles, covered pixels and the
+/// shading taps they imply).
+///
+/// # Errors
+/// A GPU failure (device, limits, read-back) or a sweep error, with what and where.
+pub fn gpu_sweep(
+    ctx: &crate::gpu::GpuContext,
+    doc: &Document,
+    (width, height): (u32, u32),
+    settings: &SweepSettings,
+    progress: impl FnMut(usize, usize, &str),
+) -> anyhow::Result<SweepReport> {
+    use crate::gpu::{GpuError, RenderTarget, Renderer, read_rgba8};
+    let camera = Camera::from_orbit(&doc.camera, width, height);
+    let shadow_lights = doc.lights.iter().filter(|l| l.casts_shadows).count();
+    let reference = reference_quality();
+    let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
+    let target = RenderTarget::new(&ctx.device, width, height)?;
+    let backend = |e: GpuError| RenderError::Backend {
+        renderer: "GPU",
+        message: e.to_string(),
+    };
+    let report = sweep(
+        settings,
+        &reference,
+        &camera,
+        shadow_lights,
+        |q| {
+            if *q == reference {
+                let mut req = RenderRequest::new(width, height);
+                req.quality = q.clone();
+                return render_document(doc, &req);
+            }
+            let stats = renderer
+                .render(&ctx.device, &ctx.queue, doc, &doc.camera, q, &target)
+                .map_err(backend)?;
+            let pixels = read_rgba8(&ctx.device, &ctx.queue, &target).map_err(backend)?;
+            let g = renderer
+                .read_gbuffer(&ctx.device, &ctx.queue)
+                .map_err(backend)?;
+            if let Some(e) = ctx.errors.take() {
+                return Err(backend(e));
+            }
+            let fb = frame_buffers_of(&g);
+            let frame_stats = FrameStats {
+                levels: stats.levels.clone(),
+                shadow_levels: stats.shadow_levels.clone(),
+                triangles: stats.triangles,
+                triangles_rasterised: stats.triangles,
+                covered_pixels: fb.covered_pixels() as u64,
+                ..FrameStats::default()
+            };
+            let image = RgbaImage {
+                width,
+                height,
+                pixels,
+            };
+            Ok((image, fb, frame_stats))
+        },
+        progress,
+    )?;
+    Ok(report)
+}
+
+/// The GPU G-buffer as the CPU's frame buffers (what the error metrics read): coverage from
+/// depth, since the GPU G-buffer carries no object ids (every covered pixel reports object 1).
+fn frame_buffers_of(g: &crate::gpu::GBuffer) -> FrameBuffers {
+    let ids = g
+        .depth
+        .iter()
+        .map(|d| PixelId {
+            object: u32::from(d.is_finite()),
+            node: 0,
+        })
+        .collect();
+    FrameBuffers {
+        width: g.width,
+        height: g.height,
+        depth: g
+            .depth
+            .iter()
+            .map(|d| if d.is_finite() { *d } else { 1.0 })
+            .collect(),
+        ids,
+        normal: g.normal.clone(),
+        albedo: g.albedo.clone(),
+    }
 }
 
 #[cfg(test)]

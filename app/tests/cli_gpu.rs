@@ -143,3 +143,71 @@ fn bench_bad_arguments_fail_cleanly() {
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--size"), "{}", stderr(&o));
 }
+
+#[test]
+fn tradeoff_gpu_measures_gpu_frames_against_the_cpu_reference() {
+    // The same sweep on both renderers: the GPU points are measured against the CPU reference
+    // image, and the GPU matches the CPU renderer (parity), so each point's error agrees; the
+    // work comes from the GPU's own counters.
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample("mixed");
+    let sweep = |gpu: bool| {
+        let out = dir.path().join(if gpu { "gpu" } else { "cpu" });
+        let mut args = vec![
+            "tradeoff",
+            project.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            "64x48",
+            "--frames",
+            "1",
+            "--no-presets",
+            "--knob",
+            "shadow_pcf_radius=0,2",
+            "--knob",
+            "lod_pixel_threshold=1,4",
+        ];
+        if gpu {
+            args.push("--gpu");
+        }
+        let o = thicket(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(
+            stdout(&o).contains(if gpu { "GPU renderer" } else { "CPU renderer" }),
+            "{}",
+            stdout(&o)
+        );
+        assert!(out.join("tradeoff.png").is_file());
+        let json: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap())
+                .unwrap();
+        assert_eq!(json["renderer"], if gpu { "gpu" } else { "cpu" });
+        json["report"]["points"].as_array().unwrap().clone()
+    };
+    let (cpu, gpu) = (sweep(false), sweep(true));
+    assert_eq!(cpu.len(), 4);
+    assert_eq!(cpu.len(), gpu.len());
+    for (c, g) in cpu.iter().zip(&gpu) {
+        assert_eq!(c["setting"]["label"], g["setting"]["label"]);
+        let (ce, ge) = (
+            c["error"]["rmse"].as_f64().unwrap(),
+            g["error"]["rmse"].as_f64().unwrap(),
+        );
+        assert!(
+            (ce - ge).abs() < 2e-3,
+            "{}: CPU {ce} GPU {ge}",
+            c["setting"]["label"]
+        );
+        assert!(g["work"].as_u64().unwrap() > 0);
+    }
+    // The knob moves the GPU's error the way it moves the CPU's: LOD 4 is worse than the base
+    // (balanced, LOD 1; a knob value equal to the base is merged into its point).
+    let rmse = |label: &str| {
+        gpu.iter()
+            .find(|p| p["setting"]["label"].as_str().unwrap().starts_with(label))
+            .and_then(|p| p["error"]["rmse"].as_f64())
+            .unwrap()
+    };
+    assert!(rmse("lod_pixel_threshold=4") > rmse("base"));
+}

@@ -108,6 +108,15 @@ pub enum RenderError {
     /// A quality knob is out of range.
     #[error("cannot render with these quality settings: {0}")]
     InvalidQuality(#[from] QualityError),
+    /// Another renderer behind the same interface failed (the GPU renderer in a sweep: its
+    /// device, driver or limits); the text says what and where.
+    #[error("the {renderer} renderer failed: {message}")]
+    Backend {
+        /// Which renderer.
+        renderer: &'static str,
+        /// Its error, as text.
+        message: String,
+    },
 }
 
 /// What to render.
