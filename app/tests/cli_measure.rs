@@ -144,3 +144,63 @@ fn info_memory_per_object_follows_the_surface() {
     ]);
     assert!(String::from_utf8_lossy(&text.stdout).contains("memory:"));
 }
+
+#[test]
+fn tradeoff_sweeps_the_stretch_strategy_of_a_skinned_sample() {
+    // The strategy is a quality knob that overrides every model's own: "model" keeps the
+    // sample's (Adaptive), so it equals "adaptive"; "off" (voxels keep their size) opens holes.
+    let dir = tempfile::tempdir().unwrap();
+    let project = Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/cesiumman.thicket.json");
+    let out = dir.path().join("out");
+    let o = thicket(&[
+        "tradeoff",
+        project.to_str().unwrap(),
+        "--knob",
+        "stretch_strategy=model,off,adaptive",
+        "--no-presets",
+        "--size",
+        "96x96",
+        "--frames",
+        "1",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let points = json["report"]["points"].as_array().unwrap();
+    let point = |label: &str| {
+        points
+            .iter()
+            .find(|p| p["setting"]["label"].as_str().unwrap().ends_with(label))
+            .unwrap_or_else(|| panic!("no point {label}"))
+    };
+    let (model, off, adaptive) = (
+        point("stretch_strategy=model"),
+        point("stretch_strategy=off"),
+        point("stretch_strategy=adaptive"),
+    );
+    assert_eq!(model["error"], adaptive["error"]);
+    assert_eq!(model["work"], adaptive["work"]);
+    assert!(
+        off["error"]["holes"].as_u64().unwrap() > adaptive["error"]["holes"].as_u64().unwrap(),
+        "off {} vs adaptive {}",
+        off["error"],
+        adaptive["error"]
+    );
+    // A bad strategy name is refused, naming the knob.
+    let o = thicket(&[
+        "tradeoff",
+        project.to_str().unwrap(),
+        "--knob",
+        "stretch_strategy=wide",
+        "-o",
+        dir.path().join("bad").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("stretch_strategy"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -5,6 +5,7 @@
 use glam::{EulerRot, Quat, Vec3};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Light, Object, ObjectKind, Transform};
+use thicket_core::skin::StretchStrategy;
 
 use super::krs_panel::{KrsPanel, krs_inspector_ui};
 use super::pose::{PoseTool, rig_inspector_ui};
@@ -491,6 +492,34 @@ fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState
                 &mut q.krs_soft_shadows,
                 "KRS: soft instead of hard shadows",
             );
+            let tip = "Skinning: one stretch strategy for every skinned model, or each \
+                       model's own (set in its stretch panel)";
+            ui.label("Stretch strategy").on_hover_text(tip);
+            let name = |s: Option<StretchStrategy>| match s {
+                None => "Per model",
+                Some(StretchStrategy::Off) => "Off",
+                Some(StretchStrategy::Thesis) => "Thesis",
+                Some(StretchStrategy::Corners) => "Corners",
+                Some(StretchStrategy::Adaptive) => "Adaptive",
+            };
+            egui::ComboBox::from_id_salt("quality_stretch_strategy")
+                .selected_text(name(q.stretch_strategy))
+                .show_ui(ui, |ui| {
+                    for s in [
+                        None,
+                        Some(StretchStrategy::Off),
+                        Some(StretchStrategy::Thesis),
+                        Some(StretchStrategy::Corners),
+                        Some(StretchStrategy::Adaptive),
+                    ] {
+                        changed |= ui
+                            .selectable_value(&mut q.stretch_strategy, s, name(s))
+                            .changed();
+                    }
+                })
+                .response
+                .on_hover_text(tip);
+            ui.end_row();
         });
     if changed {
         state.error = editor.set_quality(q).err().map(|e| e.to_string());

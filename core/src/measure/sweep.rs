@@ -715,7 +715,11 @@ mod tests {
         ));
         // Every knob the quality settings know is sweepable by name.
         for name in Quality::KNOBS {
-            let v = if name == "shadow_map_size" { "64" } else { "1" };
+            let v = match name {
+                "shadow_map_size" => "64",
+                "stretch_strategy" => "corners",
+                _ => "1",
+            };
             KnobValues::parse(&format!("{name}={v}")).unwrap();
         }
         for k in default_knobs() {

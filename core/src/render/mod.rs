@@ -257,6 +257,9 @@ pub fn document_deforms<'a>(
                 Some(rig) => {
                     let mut stretch = rig.stretch;
                     stretch.multiplier *= quality.stretch_multiplier;
+                    if let Some(strategy) = quality.stretch_strategy {
+                        stretch.strategy = strategy;
+                    }
                     Box::new(
                         crate::skin::SkinDeform::for_rig(
                             rig,

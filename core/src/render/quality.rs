@@ -1,6 +1,7 @@
 //! The one set of quality knobs read by every renderer. Each knob trades time for error; the
 //! trade is measured by `measure` sweeps, and the presets are chosen from its Pareto front.
 
+use crate::skin::StretchStrategy;
 use serde::{Deserialize, Serialize};
 
 /// A named preset row: draft / balanced / final.
@@ -69,6 +70,10 @@ pub struct Quality {
     pub krs_soft_shadows: bool,
     /// Skinning: global multiplier applied to every stretch factor.
     pub stretch_multiplier: f32,
+    /// Skinning: one stretch strategy for every skinned model, overriding each model's own
+    /// (`None`: each model keeps its own). Knob values: `model`, `off`, `thesis`, `corners`,
+    /// `adaptive`; a sweep over it measures the strategies against each other on one view.
+    pub stretch_strategy: Option<StretchStrategy>,
     /// Enhancement: probe count for direct resampling.
     pub enhancement_samples: u32,
 }
@@ -81,7 +86,7 @@ impl Default for Quality {
 
 impl Quality {
     /// Knob names accepted by [`Quality::set`].
-    pub const KNOBS: [&'static str; 13] = [
+    pub const KNOBS: [&'static str; 14] = [
         "lod_pixel_threshold",
         "occlusion_culling",
         "shadows",
@@ -94,6 +99,7 @@ impl Quality {
         "krs_tile_acceleration",
         "krs_soft_shadows",
         "stretch_multiplier",
+        "stretch_strategy",
         "enhancement_samples",
     ];
 
@@ -113,6 +119,7 @@ impl Quality {
             krs_tile_acceleration: true,
             krs_soft_shadows: false,
             stretch_multiplier: 1.0,
+            stretch_strategy: None,
             enhancement_samples: 16,
         };
         match p {
@@ -257,6 +264,16 @@ impl Quality {
             "krs_tile_acceleration" => q.krs_tile_acceleration = b()?,
             "krs_soft_shadows" => q.krs_soft_shadows = b()?,
             "stretch_multiplier" => q.stretch_multiplier = f()?,
+            "stretch_strategy" => {
+                q.stretch_strategy = match value.trim().to_ascii_lowercase().as_str() {
+                    "model" => None,
+                    "off" => Some(StretchStrategy::Off),
+                    "thesis" => Some(StretchStrategy::Thesis),
+                    "corners" => Some(StretchStrategy::Corners),
+                    "adaptive" => Some(StretchStrategy::Adaptive),
+                    _ => return Err(parse_err()),
+                }
+            }
             "enhancement_samples" => q.enhancement_samples = u()?,
             _ => return Err(QualityError::Unknown(name.to_owned())),
         }
@@ -301,6 +318,15 @@ mod tests {
         assert_eq!(q, Quality::default());
         q.set("shadows", "off").unwrap();
         assert!(!q.shadows);
+        q.set("stretch_strategy", "Corners").unwrap();
+        assert_eq!(q.stretch_strategy, Some(StretchStrategy::Corners));
+        assert!(matches!(
+            q.set("stretch_strategy", "wide"),
+            Err(QualityError::Parse { .. })
+        ));
+        assert_eq!(q.stretch_strategy, Some(StretchStrategy::Corners));
+        q.set("stretch_strategy", "model").unwrap();
+        assert_eq!(q.stretch_strategy, None);
         for name in Quality::KNOBS {
             assert!(
                 !matches!(q.clone().set(name, "1"), Err(QualityError::Unknown(_))),
