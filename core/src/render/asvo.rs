@@ -125,6 +125,7 @@ struct BlockOut {
     deferred: Vec<Deferred>,
     dirty: Vec<u32>,
     stats: Vec<LevelStats>,
+    local: LocalDepth,
 }
 
 impl BlockOut {
@@ -135,6 +136,103 @@ impl BlockOut {
         self.dirty.clear();
         self.stats.clear();
         self.stats.resize(levels, LevelStats::default());
+        self.local.clear();
+    }
+
+    /// Queues a splat unless earlier splats of this block already cover every pixel of it at
+    /// a depth no farther (see [`LocalDepth`]); returns whether it was queued.
+    fn push_splat(&mut self, s: Splat, q: QNode, width: u32, cull: bool) -> bool {
+        if cull && !self.local.record(&s, width) {
+            return false;
+        }
+        self.splats.push((s, q));
+        true
+    }
+}
+
+/// The nearest depth each pixel got from the splats queued so far in one block, for splats of
+/// at most [`LocalDepth::MAX_PIXELS`] pixels (the LOD cut's sub-pixel nodes).
+///
+/// Why: siblings at the cut are queued next to each other, so they fall in the same block and
+/// none sees the others in the occlusion tiles (those are refreshed between chunks). On a
+/// closed surface two or three sub-pixel voxels of the shell's layers land on one pixel, and
+/// all were drawn. A later splat whose every pixel already holds an earlier splat of the same
+/// block at a nearer or equal depth cannot win any of them: depth is compared first, and at
+/// equal depth the earlier splat has the lower id. So dropping it leaves the image identical,
+/// and the decision depends only on the block's own order, not on threads.
+#[derive(Default)]
+struct LocalDepth {
+    /// Open-addressed table of (pixel index + 1, depth); 0 marks an empty slot.
+    slots: Vec<(u32, f32)>,
+    /// Slots in use, to clear them.
+    used: Vec<u32>,
+}
+
+impl LocalDepth {
+    const BITS: u32 = 12;
+    const MAX_PIXELS: u32 = 4;
+
+    fn clear(&mut self) {
+        for &i in &self.used {
+            self.slots[i as usize] = (0, 0.0);
+        }
+        self.used.clear();
+    }
+
+    fn slot(&mut self, pixel: u32) -> usize {
+        let mask = (1usize << Self::BITS) - 1;
+        let mut i = (pixel.wrapping_mul(0x9E37_79B9) >> (32 - Self::BITS)) as usize;
+        loop {
+            let (k, _) = self.slots[i];
+            if k == 0 || k == pixel + 1 {
+                return i;
+            }
+            i = (i + 1) & mask;
+        }
+    }
+
+    /// Records the splat's pixels; false when every one of them already held a nearer or
+    /// equal depth (then nothing is recorded). Large splats, and a full table, always pass.
+    fn record(&mut self, s: &Splat, width: u32) -> bool {
+        let pixels = (s.x1 - s.x0 + 1) * (s.y1 - s.y0 + 1);
+        if pixels > Self::MAX_PIXELS {
+            return true;
+        }
+        if self.slots.is_empty() {
+            self.slots = vec![(0, 0.0); 1 << Self::BITS];
+        }
+        // Keep the table at most half full so probing stays short.
+        if self.used.len() + Self::MAX_PIXELS as usize > (1 << (Self::BITS - 1)) {
+            return true;
+        }
+        let mut hidden = true;
+        for y in s.y0..=s.y1 {
+            for x in s.x0..=s.x1 {
+                let p = y * width + x;
+                let i = self.slot(p);
+                let (k, d) = self.slots[i];
+                if k == 0 || d > s.ndc_depth {
+                    hidden = false;
+                }
+            }
+        }
+        if hidden {
+            return false;
+        }
+        for y in s.y0..=s.y1 {
+            for x in s.x0..=s.x1 {
+                let p = y * width + x;
+                let i = self.slot(p);
+                let (k, d) = self.slots[i];
+                if k == 0 {
+                    self.slots[i] = (p + 1, s.ndc_depth);
+                    self.used.push(i as u32);
+                } else if s.ndc_depth < d {
+                    self.slots[i].1 = s.ndc_depth;
+                }
+            }
+        }
+        true
     }
 }
 
@@ -362,8 +460,11 @@ fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut Blo
             push_children(obj, q, ctx.cam, c, axes, &mut b.children);
         }
         Action::Splat(s) => {
-            st.splatted += 1;
-            b.splats.push((s, *q));
+            if b.push_splat(s, *q, ctx.cam.width, ctx.settings.occlusion_culling) {
+                b.stats[usize::from(q.node.level)].splatted += 1;
+            } else {
+                b.stats[usize::from(q.node.level)].occlusion_culled += 1;
+            }
         }
         Action::Defer { rect, occ, split } => b.deferred.push(Deferred {
             q: *q,
@@ -393,9 +494,10 @@ fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut Block
             ctx.view_rot,
         );
         push_children(obj, &d.q, ctx.cam, c, axes, &mut b.children);
+    } else if b.push_splat(d.rect, d.q, ctx.cam.width, ctx.settings.occlusion_culling) {
+        b.stats[usize::from(d.q.node.level)].splatted += 1;
     } else {
-        st.splatted += 1;
-        b.splats.push((d.rect, d.q));
+        b.stats[usize::from(d.q.node.level)].occlusion_culled += 1;
     }
 }
 
