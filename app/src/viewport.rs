@@ -344,6 +344,8 @@ impl Resources {
                             full: acc.full || up.full,
                             bytes: acc.bytes + up.bytes,
                             writes: acc.writes + up.writes,
+                            joint_bytes: acc.joint_bytes + up.joint_bytes,
+                            skin_data: acc.skin_data || up.skin_data,
                         })
                 })
                 .map(Some),
