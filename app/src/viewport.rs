@@ -233,6 +233,10 @@ struct Resources {
 pub struct FrameKey {
     /// The document's content key ([`crate::editor::Editor::content_key`]).
     pub content: (u64, u64),
+    /// The document's animation key ([`crate::editor::Editor::animation_key`]): a new clip
+    /// time or pose redraws with the uploaded scene (rigged models upload only their joint
+    /// matrices).
+    pub animation: u64,
     /// The view camera.
     pub camera: OrbitCamera,
     /// Target size in pixels.

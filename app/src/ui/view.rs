@@ -422,7 +422,12 @@ impl View {
         match self.renderer {
             ViewRenderer::Cpu => true,
             ViewRenderer::Gpu => self.gpu.is_none(),
-            ViewRenderer::Auto => self.gpu.is_none() || needs_cpu(editor.doc()),
+            ViewRenderer::Auto => {
+                self.gpu.is_none()
+                    || needs_cpu(editor.doc())
+                    // The hole / bloat overlay is computed with the CPU preview's image.
+                    || (self.show_holes && has_rig(editor.doc()))
+            }
         }
     }
 
@@ -756,6 +761,7 @@ impl View {
             ViewportCallback {
                 key: FrameKey {
                     content: key,
+                    animation: editor.animation_key(),
                     camera: editor.doc().camera,
                     size_px,
                 },
@@ -1009,17 +1015,24 @@ fn hole_overlay(
     Some((image, counts))
 }
 
-/// Whether the document holds something the GPU renderer cannot draw: a visible KRS object or
-/// a rigged voxel model (the GPU renderer has no KRS pass and no skinning yet).
+/// Whether the document holds something the GPU renderer cannot draw: a visible KRS object
+/// (the GPU renderer has no KRS pass yet). Rigged voxel models are skinned on the GPU.
 fn needs_cpu(doc: &Document) -> bool {
     doc.objects
         .iter()
         .filter(|o| o.visible)
         .any(|o| match &o.kind {
             ObjectKind::Krs(_) => true,
-            ObjectKind::Voxels(v) => v.rig.is_some(),
-            ObjectKind::Mesh(_) => false,
+            ObjectKind::Voxels(_) | ObjectKind::Mesh(_) => false,
         })
+}
+
+/// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).
+fn has_rig(doc: &Document) -> bool {
+    doc.objects
+        .iter()
+        .filter(|o| o.visible)
+        .any(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some()))
 }
 
 /// Points the camera along an axis, keeping target and distance.
