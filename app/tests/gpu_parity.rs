@@ -325,7 +325,7 @@ fn every_stretch_strategy_and_overrides_match_the_cpu_reference() {
             let rig = rig_mut(&mut doc);
             svo.for_each_leaf(|c, _| {
                 n += 1;
-                if n % 7 == 0 {
+                if n.is_multiple_of(7) {
                     rig.stretch_overrides
                         .set(c, thicket_core::skin::stretch::encode_override(3.0));
                 }

@@ -85,7 +85,7 @@ fn skin_words(s: &Skin4) -> [u32; 2] {
     [u32::from_le_bytes(s.joints), u32::from_le_bytes(s.weights)]
 }
 
-fn rig_of<'a>(doc: &'a Document, id: u64) -> Option<(&'a Rig, &'a Svo, Mat4, Mat4)> {
+fn rig_of(doc: &Document, id: u64) -> Option<(&Rig, &Svo, Mat4, Mat4)> {
     let o = object_of(doc, id)?;
     match &o.kind {
         ObjectKind::Voxels(v) => v
