@@ -432,3 +432,56 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
         "the pose change did not show"
     );
 }
+
+#[test]
+fn sculpting_a_rigged_model_rebuilds_its_skin_data_and_matches_a_full_upload() {
+    // An edit of a rigged model's voxels uploads the changed node ranges and rebuilds the skin
+    // data (node weights, corner weights and subtree joints follow the new pools); the frame
+    // equals a fresh full upload and shows the cut.
+    let ctx = context();
+    let mut doc = cesiumman_at(0.5);
+    let size = (64, 64);
+    let q = doc.quality.clone();
+    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("first frame");
+    let before = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    let (id, svo) = doc
+        .objects
+        .iter_mut()
+        .find_map(|o| match &mut o.kind {
+            ObjectKind::Voxels(v) if v.rig.is_some() => Some((o.id, &mut v.svo)),
+            _ => None,
+        })
+        .expect("the rigged model");
+    // A slab through the torso removed.
+    let edit = svo
+        .edit_region(
+            glam::UVec3::new(0, 110, 0),
+            glam::UVec3::new(63, 125, 255),
+            |_, _| None,
+        )
+        .expect("edit");
+    let (lo, hi) = edit.changed.expect("voxels removed");
+    let up = r
+        .update_voxel_region(&ctx.device, &ctx.queue, &doc, id, lo, hi)
+        .expect("region upload");
+    assert!(!up.full, "{up:?}");
+    let s = r
+        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("edited frame");
+    assert!(s.upload.skin_data && !s.upload.full, "{:?}", s.upload);
+    let incremental = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    fresh
+        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("full frame");
+    let full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    assert!(
+        incremental == full,
+        "incremental upload differs from a full upload"
+    );
+    assert!(before != full, "the cut does not show");
+    assert!(ctx.errors.take().is_none());
+}
