@@ -3,10 +3,11 @@
 //! world axes, the selected object's outline box, the brush preview, skeletons and the pose
 //! gizmo, KRS mirror planes) and sculpt strokes.
 //!
-//! The GPU renderer draws rigid voxels and meshes; it has no skinning and no KRS pass yet. A
-//! document with a rigged model or a KRS object is therefore drawn by core's CPU reference
-//! renderer on a worker thread (the CPU preview), as is every document when no GPU is attached
-//! (the plain UI tests). Render -> Viewport renderer chooses.
+//! The GPU renderer draws rigid and skinned voxels and meshes; it has no KRS pass yet. A
+//! document with a KRS object is therefore drawn by core's CPU reference renderer on a worker
+//! thread (the CPU preview), as is a rigged model while the hole / bloat overlay is on (the
+//! overlay is computed from that image) and every document when no GPU is attached (the plain
+//! UI tests). Render -> Viewport renderer chooses.
 
 use std::collections::HashMap;
 use std::sync::{Arc, mpsc};
@@ -313,8 +314,8 @@ impl View {
         ui.label("Viewport renderer");
         ui.horizontal(|ui| {
             for (mode, label, tip) in [
-                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview for rigged models and KRS objects, which the GPU renderer cannot draw yet"),
-                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (rigged models in their bind pose, no KRS)"),
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview for KRS objects, which the GPU renderer cannot draw yet, and for the hole / bloat overlay"),
+                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no KRS, no hole / bloat overlay)"),
                 (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
             ] {
                 ui.selectable_value(&mut self.renderer, mode, label)
