@@ -317,6 +317,30 @@ fn rigged_sample_draws_on_the_gpu_and_scrubbing_uploads_only_joints() {
             && upload.joint_bytes == 19 * 64,
         "a new clip time uploads only the joint matrices: {upload:?}"
     );
+
+    // Turning a joint with the pose tool is an undoable edit of the rig, not of voxels: the
+    // view redraws once and, again, uploads only the joint matrices.
+    h.state_mut()
+        .editor
+        .rotate_joint(id, 1, None, glam::Quat::from_rotation_z(0.5))
+        .expect("pose edit");
+    h.state_mut().editor.end_interaction();
+    h.run_steps(2);
+    h.render().expect("render");
+    let s = link.lock().clone();
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.frames_rendered, 3, "one render after the pose edit");
+    let upload = s.last_upload.expect("an upload record");
+    assert!(
+        !upload.full && upload.bytes == 19 * 64 && upload.joint_bytes == 19 * 64,
+        "a pose edit uploads only the joint matrices: {upload:?}"
+    );
+    // Undo is another kind of change: uploaded in full (correct, not minimal).
+    assert!(h.state_mut().editor.undo());
+    h.run_steps(2);
+    h.render().expect("render");
+    assert_eq!(link.lock().frames_rendered, 4);
+
     h.state_mut().view.show_holes = true;
     assert!(h.state().view.uses_cpu(&h.state().editor));
 }

@@ -777,7 +777,9 @@ impl Renderer {
     /// After an edit of voxel object `object_id` inside the inclusive box `lo..=hi` (voxel
     /// coordinates, e.g. a sculpt's changed region): uploads only the node ranges the edit can
     /// have changed. Falls back to a full upload when nothing is uploaded yet, the scene's
-    /// objects changed, or the object's pools outgrew the room reserved for them.
+    /// objects changed, or the object's pools outgrew the room reserved for them. An empty box
+    /// (`lo > hi` on some axis: an edit that changed no voxel, such as a rig's pose) uploads
+    /// nothing; frames read rigs themselves.
     ///
     /// # Errors
     /// As [`Renderer::upload_document`].

@@ -32,6 +32,20 @@ pub struct UploadStats {
     pub writes: u32,
 }
 
+impl UploadStats {
+    /// Two uploads together (e.g. an edit's regions and the frame drawn after them).
+    #[must_use]
+    pub fn combined(self, o: Self) -> Self {
+        Self {
+            full: self.full || o.full,
+            joint_bytes: self.joint_bytes + o.joint_bytes,
+            skin_data: self.skin_data || o.skin_data,
+            bytes: self.bytes + o.bytes,
+            writes: self.writes + o.writes,
+        }
+    }
+}
+
 /// A voxel object's place in the packed pools.
 pub(super) struct VoxelEntry {
     pub(super) object_id: u64,
@@ -432,6 +446,10 @@ impl SceneCache {
         }
         let i = self.voxels.iter().position(|e| e.object_id == object_id)?;
         let svo = voxels_of(doc, object_id)?;
+        if lo.cmpgt(hi).any() {
+            // An empty box: no voxel changed (e.g. a rig edit, which frames read anyway).
+            return Some(UploadStats::default());
+        }
         let (inner, leaf) = region_ranges(svo, lo, hi);
         Some(self.write_ranges(queue, i, svo, &inner, &leaf))
     }
