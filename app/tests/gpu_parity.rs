@@ -431,6 +431,30 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
         differing(&full, &first_image) > 0,
         "the pose change did not show"
     );
+
+    // Switching from Adaptive to Thesis drops the corner weights (a skin-data rebuild, smaller),
+    // and the frame still equals a fresh full upload.
+    rig_mut(&mut doc).stretch.strategy = StretchStrategy::Thesis;
+    let switched = r
+        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("switched frame");
+    assert!(
+        switched.upload.skin_data && !switched.upload.full,
+        "{:?}",
+        switched.upload
+    );
+    assert!(
+        switched.upload.bytes < first.upload.bytes,
+        "{:?} vs {:?}",
+        switched.upload,
+        first.upload
+    );
+    let thesis = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    fresh
+        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("full frame");
+    let thesis_full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    assert_eq!(differing(&thesis, &thesis_full), 0);
 }
 
 #[test]

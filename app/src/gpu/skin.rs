@@ -5,9 +5,10 @@
 //! Two buffers, bound at group 0 slots 6 and 7 of both passes (`shaders/common/skin.wgsl`):
 //!
 //! * the skin data, built from the octree and its rig's derived tables and uploaded with the
-//!   pools: per node its own weights (2 words), its eight corner weights (16 words; the
-//!   `Corners` and `Adaptive` strategies), per inner node the joints used in its subtree (the
-//!   culling box), per leaf the artist's stretch override byte;
+//!   pools: per node its own weights (2 words), its eight corner weights (16 words; only under
+//!   the `Corners` and `Adaptive` strategies, so switching to or from them rebuilds it), per
+//!   inner node the joints used in its subtree (the culling box), per leaf the artist's
+//!   stretch override byte;
 //! * the joint matrices, `world_from_object · skinning[j] · object_from_voxel` per joint, the
 //!   only upload when a pose, clip time or object transform changes.
 //!
@@ -40,8 +41,8 @@ struct Layout {
     params: SkinParams,
     /// The rig's derived tables at build time (kept for the culling bounds).
     tables: Arc<SkinTables>,
-    /// What the data depends on besides the pools: joint count and the overrides.
-    signature: (u32, u64),
+    /// What the data depends on besides the pools (see [`signature`]).
+    signature: (u32, u64, bool),
 }
 
 /// Skin data and joint matrices of the uploaded scene.
@@ -96,12 +97,26 @@ fn rig_of(doc: &Document, id: u64) -> Option<(&Rig, &Svo, Mat4, Mat4)> {
     }
 }
 
-/// What the data depends on besides the pools (a change rebuilds it).
-fn signature(rig: &Rig) -> (u32, u64) {
+/// Whether the strategy reads corner weights (only `Corners` and `Adaptive` do: the others
+/// skip 64 of the 72 bytes per node).
+fn needs_corners(rig: &Rig) -> bool {
+    matches!(
+        rig.stretch.strategy,
+        StretchStrategy::Corners | StretchStrategy::Adaptive
+    )
+}
+
+/// What the data depends on besides the pools (a change rebuilds it): joint count, the
+/// overrides, whether corner weights are uploaded.
+fn signature(rig: &Rig) -> (u32, u64, bool) {
     use std::hash::{Hash, Hasher};
     let mut h = std::collections::hash_map::DefaultHasher::new();
     rig.stretch_overrides.entries().hash(&mut h);
-    (rig.skeleton.joints.len() as u32, h.finish())
+    (
+        rig.skeleton.joints.len() as u32,
+        h.finish(),
+        needs_corners(rig),
+    )
 }
 
 /// Appends one rigged octree's sections to `data`; returns its parameters (offsets filled).
@@ -123,8 +138,13 @@ fn append_object(data: &mut Vec<u32>, svo: &Svo, rig: &Rig, tables: &SkinTables)
     p.leaf_skin = words(data.len());
     node_skins(data, svo.leaf_skin(), leaf_len);
     let (ic, lc) = (tables.inner_corner_skins(), tables.leaf_corner_skins());
-    // The CPU uses corner weights only where the tables have them (an octree with skin).
-    if ic.len() >= inner_len && lc.len() >= leaf_len && (inner_len + leaf_len) > 0 {
+    // The CPU uses corner weights only where the tables have them (an octree with skin), and
+    // only the strategies that read them need them here.
+    if needs_corners(rig)
+        && ic.len() >= inner_len
+        && lc.len() >= leaf_len
+        && (inner_len + leaf_len) > 0
+    {
         p.flags |= SKIN_HAS_CORNERS;
         let corners = |data: &mut Vec<u32>, c: &[[Skin4; 8]], len: usize| {
             for cs in &c[..len] {
