@@ -449,6 +449,10 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
         switched.upload,
         first.upload
     );
+    eprintln!(
+        "uploads: first frame (pools + Adaptive skin data + joints) {:?}; Thesis skin data {:?}",
+        first.upload, switched.upload
+    );
     let thesis = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     fresh
         .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
