@@ -5,6 +5,7 @@
 // z = snorm16 normal.xy, w = NDC depth bits (EMPTY: background). 16-bit channels keep the
 // final 8-bit sRGB exact without needing f16 support.
 // #import common/types.wgsl
+// #import common/skin.wgsl
 
 const TRI_STRIDE: u32 = 9u;
 
@@ -73,7 +74,13 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
         albedo = vec3<f32>(srgb_to_linear(rgba.x), srgb_to_linear(rgba.y), srgb_to_linear(rgba.z));
         let o = objects[attr.y >> 16u];
         let nv = decode_normal(attr.y & 0xffffu);
-        normal = normalize_or_zero(o.normal_x.xyz * nv.x + o.normal_y.xyz * nv.y + o.normal_z.xyz * nv.z);
+        if o.skin_attr.x != 0u {
+            // A rigged object's node: its own blended matrix turns the normal.
+            let leaf = id >= o.skin_attr.z;
+            normal = skinned_normal(o.skin, leaf, id - select(o.skin_attr.y, o.skin_attr.z, leaf), nv);
+        } else {
+            normal = normalize_or_zero(o.normal_x.xyz * nv.x + o.normal_y.xyz * nv.y + o.normal_z.xyz * nv.z);
+        }
     }
     gbuffer[pixel] = vec4<u32>(
         pack2x16unorm(albedo.xy),

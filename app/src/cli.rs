@@ -123,6 +123,12 @@ pub struct BenchArgs {
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Animation time in seconds for skinned models (default: the project's playhead).
+    #[arg(long)]
+    pub time: Option<f32>,
+    /// Animation clip of skinned models, by name (default: the project's).
+    #[arg(long)]
+    pub clip: Option<String>,
 }
 
 /// Enhancement operator for `thicket enhance`.
@@ -943,7 +949,8 @@ fn render_one(
 
 fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     use crate::bench::{bench_cpu, bench_gpu, format_report};
-    let doc = files::load_document(&args.project)?;
+    let mut doc = files::load_document(&args.project)?;
+    set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
     if width == 0 || height == 0 {
         anyhow::bail!(

@@ -233,6 +233,10 @@ struct Resources {
 pub struct FrameKey {
     /// The document's content key ([`crate::editor::Editor::content_key`]).
     pub content: (u64, u64),
+    /// The document's animation key ([`crate::editor::Editor::animation_key`]): a new clip
+    /// time or pose redraws with the uploaded scene (rigged models upload only their joint
+    /// matrices).
+    pub animation: u64,
     /// The view camera.
     pub camera: OrbitCamera,
     /// Target size in pixels.
@@ -333,18 +337,14 @@ impl Resources {
             .map(|start| &cb.regions[start..]);
         // Upload the edited regions, if that is what changed, then draw: uploading the whole
         // scene first unless nothing or only the regions changed. The upload reported is the
-        // regions', else the frame's own.
+        // regions' and the frame's own.
         let regions_upload = match region {
             Some(regions) => regions
                 .iter()
                 .try_fold(UploadStats::default(), |acc, r| {
                     renderer
                         .update_voxel_region(device, queue, &cb.doc, r.object, r.lo, r.hi)
-                        .map(|up| UploadStats {
-                            full: acc.full || up.full,
-                            bytes: acc.bytes + up.bytes,
-                            writes: acc.writes + up.writes,
-                        })
+                        .map(|up| acc.combined(up))
                 })
                 .map(Some),
             None => Ok(None),
@@ -357,7 +357,9 @@ impl Resources {
             } else {
                 renderer.render_uploaded(device, queue, doc, camera, quality, &frame.target)
             }?;
-            let up = regions_up.unwrap_or(stats.upload);
+            // The regions' upload plus what the frame itself uploaded (a pool that changed
+            // length, a rig's joint matrices).
+            let up = regions_up.map_or(stats.upload, |r| r.combined(stats.upload));
             Ok((stats, up))
         });
         let ms = t0.elapsed().as_secs_f64() * 1e3;

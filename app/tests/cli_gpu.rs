@@ -211,3 +211,31 @@ fn tradeoff_gpu_measures_gpu_frames_against_the_cpu_reference() {
     };
     assert!(rmse("lod_pixel_threshold=4") > rmse("base"));
 }
+
+#[test]
+fn bench_gpu_times_the_skinned_sample_at_a_given_clip_time() {
+    // The rigged sample is skinned on the GPU: `--time` poses it (other times give other
+    // splat counts), and a time for a document without a rig is refused.
+    let project = sample("cesiumman");
+    let p = project.to_str().unwrap();
+    let splats_at = |t: &str| {
+        let j = bench_json(&[
+            "bench", "--gpu", p, "--time", t, "--frames", "1", "--size", "48x48", "--json",
+        ]);
+        let run = &j["runs"][0];
+        assert_eq!(run["renderer"], "gpu", "{j}");
+        run["splats"].as_u64().expect("splats")
+    };
+    let (a, b) = (splats_at("0"), splats_at("1.1"));
+    assert!(a > 0 && b > 0);
+    assert_ne!(a, b, "two poses drew the same number of splats");
+    let o = thicket(&[
+        "bench",
+        "--gpu",
+        sample("mixed").to_str().unwrap(),
+        "--time",
+        "1",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no skinned model"), "{}", stderr(&o));
+}

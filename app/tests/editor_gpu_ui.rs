@@ -273,3 +273,74 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
     assert_eq!(leaves(&h), after);
     assert!(link.lock().error.is_none());
 }
+
+#[test]
+fn rigged_sample_draws_on_the_gpu_and_scrubbing_uploads_only_joints() {
+    // A rigged model no longer sends the view to the CPU preview: the GPU skins it. Moving
+    // the playhead redraws once, uploading only the 19 joint matrices; the hole / bloat overlay
+    // (computed from the CPU preview's image) still switches the view to the CPU preview.
+    let (mut h, link) = gpu_harness("cesiumman");
+    h.render().expect("render");
+    assert!(
+        !h.state().view.uses_cpu(&h.state().editor),
+        "the rigged sample is drawn by the GPU"
+    );
+    let s = link.lock().clone();
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.frames_rendered, 1);
+    assert!(s.stats.as_ref().is_some_and(|st| st.splats > 0));
+    let id = h
+        .state()
+        .editor
+        .doc()
+        .objects
+        .iter()
+        .find(|o| matches!(&o.kind, thicket_core::scene::ObjectKind::Voxels(v) if v.rig.is_some()))
+        .expect("the rigged model")
+        .id;
+    let mut playback = h.state().editor.rig(id).expect("rigged").playback;
+    playback.time_secs += 0.4;
+    h.state_mut()
+        .editor
+        .set_playback(id, playback)
+        .expect("playback");
+    h.run_steps(2);
+    h.render().expect("render");
+    let s = link.lock().clone();
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.frames_rendered, 2, "one render after the time change");
+    let upload = s.last_upload.expect("an upload record");
+    assert!(
+        !upload.full
+            && !upload.skin_data
+            && upload.bytes == 19 * 64
+            && upload.joint_bytes == 19 * 64,
+        "a new clip time uploads only the joint matrices: {upload:?}"
+    );
+
+    // Turning a joint with the pose tool is an undoable edit of the rig, not of voxels: the
+    // view redraws once and, again, uploads only the joint matrices.
+    h.state_mut()
+        .editor
+        .rotate_joint(id, 1, None, glam::Quat::from_rotation_z(0.5))
+        .expect("pose edit");
+    h.state_mut().editor.end_interaction();
+    h.run_steps(2);
+    h.render().expect("render");
+    let s = link.lock().clone();
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.frames_rendered, 3, "one render after the pose edit");
+    let upload = s.last_upload.expect("an upload record");
+    assert!(
+        !upload.full && upload.bytes == 19 * 64 && upload.joint_bytes == 19 * 64,
+        "a pose edit uploads only the joint matrices: {upload:?}"
+    );
+    // Undo is another kind of change: uploaded in full (correct, not minimal).
+    assert!(h.state_mut().editor.undo());
+    h.run_steps(2);
+    h.render().expect("render");
+    assert_eq!(link.lock().frames_rendered, 4);
+
+    h.state_mut().view.show_holes = true;
+    assert!(h.state().view.uses_cpu(&h.state().editor));
+}

@@ -3,8 +3,9 @@
 //! drag; play the timeline; change a KRS mirror plane through its DragValues (a zero normal is
 //! refused with a message), undo and redo; snapshot both, the view included.
 //!
-//! No GPU viewport is attached: the view draws with core's CPU preview renderer, which is what
-//! the editor uses for rigged models and KRS objects (the GPU renderer has neither yet).
+//! No GPU viewport is attached: the view draws with core's CPU preview renderer (what the
+//! editor uses without a GPU, for KRS objects, and for the hole / bloat overlay of rigged
+//! models).
 
 use egui_kittest::kittest::Queryable as _;
 use egui_kittest::{Harness, SnapshotOptions};

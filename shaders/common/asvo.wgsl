@@ -4,6 +4,7 @@
 // threshold and it has children) or returns the splat: the pixel rectangle of its projected
 // box at the NDC depth of its nearest point. Mirrors core::render's CPU traversal.
 // #import common/types.wgsl
+// #import common/skin.wgsl
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read_write> counters: array<atomic<u32>>;
@@ -104,6 +105,9 @@ fn visit(i: u32) -> Visit {
     }
     count_stat(0u);
     let entry = queue_in[i];
+    if params.skin.strategy != SKIN_RIGID {
+        return visit_skinned(entry);
+    }
     let size = f32(params.node_size);
     let center_voxel = vec3<f32>(entry.yzw) + vec3<f32>(0.5 * size);
     let c = params.linear_x.xyz * center_voxel.x + params.linear_y.xyz * center_voxel.y
@@ -180,4 +184,134 @@ fn flush_stats(lid: u32) {
             atomicAdd(&counters[params.stats_base + STATS_PER_LEVEL * params.level + lid], s);
         }
     }
+}
+
+// Screen footprint of a view-space box (the CPU's `asvo::footprint`).
+struct Footprint {
+    ok: bool,
+    // Pixels whose centres it covers (the splat), inclusive.
+    xs: vec2<u32>,
+    ys: vec2<u32>,
+    // Every pixel it touches (the occlusion test).
+    oxs: vec2<u32>,
+    oys: vec2<u32>,
+    depth_bits: u32,
+    d_near: f32,
+    crosses_near: bool,
+}
+
+// Every pixel that [s0, s1] touches, clamped to the image.
+fn overlapped_span(s0: f32, s1: f32, n: u32) -> vec2<u32> {
+    let max_px = f32(n) - 1.0;
+    return vec2<u32>(u32(clamp(floor(s0), 0.0, max_px)), u32(clamp(floor(s1), 0.0, max_px)));
+}
+
+fn footprint(c: vec3<f32>, he: vec3<f32>) -> Footprint {
+    var fp: Footprint;
+    fp.ok = false;
+    let d = -c.z;
+    let d_near = d - he.z;
+    let d_far = d + he.z;
+    if !(abs(d_near) <= 3.4028235e38 && abs(d_far) <= 3.4028235e38) {
+        return fp;
+    }
+    if d_far <= view.near || d_near > view.far {
+        return fp;
+    }
+    let w = f32(view.size.x);
+    let h = f32(view.size.y);
+    let perspective = view.perspective != 0u;
+    fp.crosses_near = perspective && d_near < view.near;
+    let dn = max(d_near, view.near);
+    var lo = c.xy - he.xy;
+    var hi = c.xy + he.xy;
+    if perspective {
+        let l = min(lo / dn, lo / d_far);
+        let u = max(hi / dn, hi / d_far);
+        lo = l;
+        hi = u;
+    }
+    let sx0 = 0.5 * w + view.fx * lo.x;
+    let sx1 = 0.5 * w + view.fx * hi.x;
+    let sy0 = 0.5 * h - view.fy * hi.y;
+    let sy1 = 0.5 * h - view.fy * lo.y;
+    if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
+        return fp;
+    }
+    fp.ok = true;
+    fp.xs = pixel_span(sx0, sx1, view.size.x);
+    fp.ys = pixel_span(sy0, sy1, view.size.y);
+    fp.oxs = overlapped_span(sx0, sx1, view.size.x);
+    fp.oys = overlapped_span(sy0, sy1, view.size.y);
+    fp.depth_bits = bitcast<u32>(clamp(ndc_depth(view, dn), 0.0, 1.0));
+    fp.d_near = dn;
+    return fp;
+}
+
+// A node of a rigged object: placed by linear-blend skinning with the object's stretch
+// strategy (common/skin.wgsl), culled with the box that holds its whole subtree, split or
+// splatted by its own box, as the CPU reference's `classify` without the rigid fast path.
+fn visit_skinned(entry: vec4<u32>) -> Visit {
+    var out: Visit;
+    out.kind = VISIT_NONE;
+    let s = params.skin;
+    let size = f32(params.node_size);
+    let has_children = params.level < params.leaf_level;
+    let placed = place_skinned(s, !has_children, entry.x, entry.yzw, size);
+    let vfw = view.view_from_world;
+    let view_rot = mat3x3<f32>(vfw[0].xyz, vfw[1].xyz, vfw[2].xyz);
+    let c = (vfw * vec4<f32>(placed.center, 1.0)).xyz;
+    let he = abs_rows(view_rot * placed.half_axes);
+    let edge_world = 2.0 * column_scale(placed.half_axes);
+    let splat = footprint(c, he);
+    var cull = splat;
+    if has_children {
+        let cb = subtree_box(s, placed, entry.x, entry.yzw, size);
+        if cb.ok {
+            let cc = (vfw * vec4<f32>(cb.center, 1.0)).xyz;
+            let ch = abs_rows(view_rot * mat3x3<f32>(
+                vec3<f32>(cb.half_extent.x, 0.0, 0.0),
+                vec3<f32>(0.0, cb.half_extent.y, 0.0),
+                vec3<f32>(0.0, 0.0, cb.half_extent.z),
+            ));
+            let f = footprint(cc, ch);
+            // As the CPU: a culling box off screen falls back to the splat's footprint.
+            if f.ok {
+                cull = f;
+            }
+        }
+    }
+    if !cull.ok {
+        count_stat(3u);
+        return out;
+    }
+    if view.occlusion != 0u && !cull.crosses_near && occluded(cull.oxs, cull.oys, cull.depth_bits) {
+        count_stat(4u);
+        return out;
+    }
+    if !splat.ok {
+        // The node's own box is off screen but its subtree may not be.
+        count_stat(1u);
+        push_children(entry);
+        return out;
+    }
+    var edge_px = edge_world * max(view.fx, view.fy);
+    if view.perspective != 0u {
+        edge_px = edge_world * view.fy / splat.d_near;
+    }
+    if has_children && (splat.crosses_near || edge_px > view.lod_pixel_threshold) {
+        count_stat(1u);
+        push_children(entry);
+        return out;
+    }
+    count_stat(2u);
+    out.kind = VISIT_SPLAT;
+    out.rect = vec4<u32>(splat.xs.x, splat.ys.x, splat.xs.y, splat.ys.y);
+    out.depth_bits = splat.depth_bits;
+    if has_children {
+        out.id = params.attr_inner_base + entry.x;
+    } else {
+        out.id = params.attr_leaf_base + entry.x;
+    }
+    return out;
 }

@@ -69,6 +69,41 @@ struct NodeParams {
     _pad0: u32,
     _pad1: u32,
     _pad2: u32,
+    // Rigged objects: how nodes are skinned (strategy SKIN_RIGID for rigid objects).
+    skin: SkinParams,
+}
+
+// SkinParams::strategy: a rigid object, or a rigged one's stretch strategy.
+const SKIN_RIGID: u32 = 0u;
+const SKIN_OFF: u32 = 1u;
+const SKIN_THESIS: u32 = 2u;
+const SKIN_CORNERS: u32 = 3u;
+const SKIN_ADAPTIVE: u32 = 4u;
+// SkinParams::flags.
+const SKIN_HAS_CORNERS: u32 = 1u;
+const SKIN_HAS_OVERRIDES: u32 = 2u;
+
+// Per-object skinning constants (app/src/gpu/skin.rs): joint matrices in `joints`, word
+// offsets of the object's sections of `skin_data` (common/skin.wgsl), stretch settings.
+struct SkinParams {
+    joint_base: u32,
+    joint_count: u32,
+    strategy: u32,
+    flags: u32,
+    inner_skin: u32,
+    leaf_skin: u32,
+    inner_corners: u32,
+    leaf_corners: u32,
+    subtree_ranges: u32,
+    subtree_joints: u32,
+    overrides: u32,
+    _pad0: u32,
+    multiplier: f32,
+    min_factor: f32,
+    max_factor: f32,
+    // Largest factor a descendant may be drawn with (culling boxes): max(1, max_factor,
+    // largest override) × multiplier.
+    grow: f32,
 }
 
 // Per-object constants the resolve pass needs.
@@ -77,6 +112,11 @@ struct ObjectInfo {
     normal_x: vec4<f32>,
     normal_y: vec4<f32>,
     normal_z: vec4<f32>,
+    // Rigged objects: x = 1, y = attribute index of inner node 0, z = of leaf 0 (to tell the
+    // pool of an id); SKIN_RIGID objects have x = 0.
+    skin_attr: vec4<u32>,
+    // Rigged objects: the SkinParams the resolve needs (joints, node-skin offsets).
+    skin: SkinParams,
 }
 
 // One directional light.

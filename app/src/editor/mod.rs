@@ -64,7 +64,8 @@ pub struct Editor {
 }
 
 /// Consecutive voxel edits of one object: the document went from state `from` to state `to`
-/// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates).
+/// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates), and, when the box is
+/// empty (`lo > hi` on some axis), the object's rig.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct VoxelRegion {
     /// Content key before the first edit.
@@ -175,6 +176,13 @@ impl Editor {
                 hi,
             },
         });
+    }
+
+    /// Records an edit of object `id`'s rig (pose overrides, stretch settings) from state
+    /// `from`: a voxel edit of an empty box, since no voxel changed. A renderer that reads rigs
+    /// every frame (the GPU renderer uploads only the joint matrices) keeps its upload.
+    fn note_rig_edit(&mut self, from: (u64, u64), id: u64) {
+        self.note_voxel_edit(from, id, glam::UVec3::MAX, glam::UVec3::ZERO);
     }
 
     /// The undo history.

@@ -130,7 +130,9 @@ impl Editor {
             .collect();
         overrides.push(o);
         if overrides != rig.pose_overrides {
+            let before = self.content_key();
             self.apply(Edit::SetPose { id, overrides }, Some(MergeKey::Pose(id)));
+            self.note_rig_edit(before, id);
         }
         Ok(())
     }
@@ -149,7 +151,9 @@ impl Editor {
             .collect();
         if overrides != rig.pose_overrides {
             self.history.seal();
+            let before = self.content_key();
             self.apply(Edit::SetPose { id, overrides }, None);
+            self.note_rig_edit(before, id);
         }
         Ok(())
     }
@@ -262,10 +266,12 @@ impl Editor {
             .validate()
             .map_err(|e| CommandError::Invalid(format!("stretch: {e}")))?;
         if rig.stretch != stretch {
+            let before = self.content_key();
             self.apply(
                 Edit::SetStretch { id, stretch },
                 Some(MergeKey::Stretch(id)),
             );
+            self.note_rig_edit(before, id);
         }
         Ok(())
     }

@@ -94,8 +94,70 @@ pub struct NodeParams {
     pub stats_base: u32,
     /// Padding to a 16-byte multiple.
     pub pad: [u32; 3],
+    /// How a rigged object's nodes are skinned ([`SkinParams::strategy`] is [`SKIN_RIGID`] for
+    /// rigid objects).
+    pub skin: SkinParams,
 }
-const _: () = assert!(std::mem::size_of::<NodeParams>() == 128);
+const _: () = assert!(std::mem::size_of::<NodeParams>() == 192);
+const _: () = assert!(std::mem::offset_of!(NodeParams, skin) == 128);
+const _: () = assert!(std::mem::size_of::<NodeParams>() as u64 <= NODE_PARAMS_STRIDE);
+
+/// [`SkinParams::strategy`] of a rigid object.
+pub const SKIN_RIGID: u32 = 0;
+/// [`SkinParams::strategy`]: `StretchStrategy::Off`.
+pub const SKIN_OFF: u32 = 1;
+/// [`SkinParams::strategy`]: `StretchStrategy::Thesis`.
+pub const SKIN_THESIS: u32 = 2;
+/// [`SkinParams::strategy`]: `StretchStrategy::Corners`.
+pub const SKIN_CORNERS: u32 = 3;
+/// [`SkinParams::strategy`]: `StretchStrategy::Adaptive`.
+pub const SKIN_ADAPTIVE: u32 = 4;
+/// [`SkinParams::flags`]: the object's corner weights are uploaded.
+pub const SKIN_HAS_CORNERS: u32 = 1;
+/// [`SkinParams::flags`]: the object's per-leaf stretch overrides are uploaded.
+pub const SKIN_HAS_OVERRIDES: u32 = 2;
+
+/// Per-object skinning constants: where its joint matrices and skin data lie, and its stretch
+/// settings (see `app/src/gpu/skin.rs`).
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`SkinParams`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Default, PartialEq, Pod, Zeroable)]
+pub struct SkinParams {
+    /// First matrix of the object in the joint buffer.
+    pub joint_base: u32,
+    /// Joints of its skeleton.
+    pub joint_count: u32,
+    /// [`SKIN_RIGID`] or the stretch strategy ([`SKIN_OFF`] .. [`SKIN_ADAPTIVE`]).
+    pub strategy: u32,
+    /// [`SKIN_HAS_CORNERS`] | [`SKIN_HAS_OVERRIDES`].
+    pub flags: u32,
+    /// Word offset of inner node 0's skin pair in the skin data.
+    pub inner_skin: u32,
+    /// Word offset of leaf 0's skin pair.
+    pub leaf_skin: u32,
+    /// Word offset of inner node 0's corner block (16 words per node).
+    pub inner_corners: u32,
+    /// Word offset of leaf 0's corner block.
+    pub leaf_corners: u32,
+    /// Word offset of inner node 0's subtree joint range (start, count).
+    pub subtree_ranges: u32,
+    /// Word offset of the object's subtree joint list.
+    pub subtree_joints: u32,
+    /// Word offset of the leaves' override bytes (4 per word).
+    pub overrides: u32,
+    /// Padding.
+    pub pad: u32,
+    /// Global stretch multiplier (the rig's times the quality's).
+    pub multiplier: f32,
+    /// Lower bound on a scalar stretch factor.
+    pub min_factor: f32,
+    /// Upper bound on a scalar stretch factor.
+    pub max_factor: f32,
+    /// Largest factor a descendant may be drawn with, times the multiplier (culling boxes).
+    pub grow: f32,
+}
+const _: () = assert!(std::mem::size_of::<SkinParams>() == 64);
 
 /// Dynamic-offset stride of [`NodeParams`] slots (the minimum uniform offset alignment wgpu
 /// guarantees).
@@ -140,8 +202,13 @@ impl NodeParams {
 pub struct ObjectInfo {
     /// Columns of the inverse transpose of `world_from_voxel`'s linear part (w unused).
     pub normal_from_voxel: [[f32; 4]; 3],
+    /// Rigged objects: `[1, attribute index of inner node 0, of leaf 0, 0]`; rigid: zeros.
+    pub skin_attr: [u32; 4],
+    /// Rigged objects: the skinning constants the resolve needs for normals.
+    pub skin: SkinParams,
 }
-const _: () = assert!(std::mem::size_of::<ObjectInfo>() == 48);
+const _: () = assert!(std::mem::size_of::<ObjectInfo>() == 128);
+const _: () = assert!(std::mem::offset_of!(ObjectInfo, skin) == 64);
 
 /// One directional light.
 ///

@@ -16,6 +16,7 @@ pub mod gpu_data;
 mod renderer;
 mod scene;
 pub mod shaders;
+mod skin;
 
 pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};

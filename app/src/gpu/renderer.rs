@@ -11,6 +11,7 @@ use thicket_core::scene::{Document, OrbitCamera};
 use wgpu::util::DeviceExt;
 
 use super::scene::{SceneCache, UploadStats};
+use super::skin::{SkinCache, SkinFrame};
 
 use super::context::Capabilities;
 use super::gpu_data::{
@@ -284,6 +285,8 @@ pub struct Renderer {
     async_readback: bool,
     /// Frames submitted so far.
     frame_index: u64,
+    /// Rigged objects' skin data and joint matrices.
+    skin: SkinCache,
 }
 
 fn storage(
@@ -430,6 +433,9 @@ impl Renderer {
                     storage(2, true, cs),
                     storage(4, false, cs),
                     storage(5, true, cs),
+                    // Skin data and joint matrices (gpu/skin.rs).
+                    storage(6, true, cs),
+                    storage(7, true, cs),
                 ],
             ),
             bgl("traverse 1", &[uniform(0, true, cs)]),
@@ -463,6 +469,8 @@ impl Renderer {
                 storage(3, true, cs),
                 storage(4, true, cs),
                 storage(5, false, cs),
+                storage(6, true, cs),
+                storage(7, true, cs),
             ],
         );
         let shade_bgl = bgl(
@@ -622,6 +630,7 @@ impl Renderer {
             readback: ReadbackRing::default(),
             async_readback: false,
             frame_index: 0,
+            skin: SkinCache::default(),
         })
     }
 
@@ -758,15 +767,19 @@ impl Renderer {
             full: true,
             bytes: scene.bytes(),
             writes: 3,
+            ..UploadStats::default()
         };
         self.scene = Some(scene);
+        self.skin.invalidate();
         Ok(stats)
     }
 
     /// After an edit of voxel object `object_id` inside the inclusive box `lo..=hi` (voxel
     /// coordinates, e.g. a sculpt's changed region): uploads only the node ranges the edit can
     /// have changed. Falls back to a full upload when nothing is uploaded yet, the scene's
-    /// objects changed, or the object's pools outgrew the room reserved for them.
+    /// objects changed, or the object's pools outgrew the room reserved for them. An empty box
+    /// (`lo > hi` on some axis: an edit that changed no voxel, such as a rig's pose) uploads
+    /// nothing; frames read rigs themselves.
     ///
     /// # Errors
     /// As [`Renderer::upload_document`].
@@ -839,11 +852,21 @@ impl Renderer {
             } else {
                 self.scene.as_mut().and_then(|s| s.refresh(queue, doc))
             };
-            let upload = match refreshed {
+            let mut upload = match refreshed {
                 Some(u) => u,
                 None => self.upload_document(device, doc)?,
             };
-            let mut stats = self.encode_and_run(device, queue, doc, camera, quality, target)?;
+            let scene = self
+                .scene
+                .as_mut()
+                .ok_or_else(|| GpuError::Device("no scene uploaded".into()))?;
+            let skin = self.skin.prepare(device, queue, doc, scene, quality)?;
+            upload.bytes += skin.upload.bytes;
+            upload.writes += skin.upload.writes;
+            upload.joint_bytes += skin.upload.joint_bytes;
+            upload.skin_data |= skin.upload.skin_data;
+            let mut stats =
+                self.encode_and_run(device, queue, doc, camera, quality, target, &skin)?;
             stats.upload = upload;
             Ok(stats)
         })();
@@ -927,6 +950,10 @@ impl Renderer {
         clippy::too_many_lines,
         reason = "one frame's encoding, in pass order; splitting it would scatter the ordering"
     )]
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "render's inputs plus the frame's skinning data"
+    )]
     fn encode_and_run(
         &mut self,
         device: &wgpu::Device,
@@ -935,6 +962,7 @@ impl Renderer {
         camera: &OrbitCamera,
         quality: &Quality,
         target: &RenderTarget,
+        skin: &SkinFrame,
     ) -> Result<GpuFrameStats, GpuError> {
         use wgpu::BufferUsages as U;
         let limits = device.limits();
@@ -942,7 +970,8 @@ impl Renderer {
             .scene
             .as_ref()
             .ok_or_else(|| GpuError::Device("no scene uploaded".into()))?;
-        let frame_objects = scene.frame_objects(doc);
+        let mut frame_objects = scene.frame_objects(doc);
+        skin.apply(scene, &mut frame_objects);
         let (inner_buf, attr_buf, tri_buf) = (
             scene.inner_buf.clone(),
             scene.attr_buf.clone(),
@@ -1109,8 +1138,12 @@ impl Renderer {
         let mut make_traversals = |spec: &ViewSpec, stats_base: u32| -> Vec<Traversal> {
             voxel_entries
                 .iter()
+                .zip(&skin.params)
                 .map(
-                    |&(world_from_voxel, depth, inner_base, attr_inner_base, attr_leaf_base)| {
+                    |(
+                        &(world_from_voxel, depth, inner_base, attr_inner_base, attr_leaf_base),
+                        &skin_params,
+                    )| {
                         let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
                         let base = NodeParams::for_object(
                             spec.view_from_world * world_from_voxel,
@@ -1127,6 +1160,7 @@ impl Renderer {
                                 attr_inner_base,
                                 attr_leaf_base,
                                 stats_base,
+                                skin: skin_params,
                                 ..base
                             };
                             slots.extend_from_slice(bytemuck::bytes_of(&p));
@@ -1212,6 +1246,14 @@ impl Renderer {
                         binding: 5,
                         resource: tiles.as_entire_binding(),
                     },
+                    wgpu::BindGroupEntry {
+                        binding: 6,
+                        resource: skin.data_buf.as_entire_binding(),
+                    },
+                    wgpu::BindGroupEntry {
+                        binding: 7,
+                        resource: skin.joint_buf.as_entire_binding(),
+                    },
                 ],
             })
         };
@@ -1295,6 +1337,8 @@ impl Renderer {
                 &object_buf,
                 &tri_buf,
                 &gbuffer,
+                &skin.data_buf,
+                &skin.joint_buf,
             ],
         );
         let bg_shade = device.create_bind_group(&wgpu::BindGroupDescriptor {

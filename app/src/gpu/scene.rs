@@ -6,6 +6,7 @@
 
 use std::ops::Range;
 
+use bytemuck::Zeroable;
 use glam::{Mat3, Mat4, UVec3, Vec3, Vec4};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::Svo;
@@ -20,10 +21,29 @@ pub struct UploadStats {
     /// The whole scene was packed and uploaded (first frame, objects added or removed, a pool
     /// outgrew its spare room).
     pub full: bool,
+    /// Of [`Self::bytes`], joint matrices of rigged objects (a pose or time change uploads
+    /// only these).
+    pub joint_bytes: u64,
+    /// Rigged objects' per-node skin data was (re-)uploaded.
+    pub skin_data: bool,
     /// Bytes written to GPU buffers.
     pub bytes: u64,
     /// Separate buffer writes.
     pub writes: u32,
+}
+
+impl UploadStats {
+    /// Two uploads together (e.g. an edit's regions and the frame drawn after them).
+    #[must_use]
+    pub fn combined(self, o: Self) -> Self {
+        Self {
+            full: self.full || o.full,
+            joint_bytes: self.joint_bytes + o.joint_bytes,
+            skin_data: self.skin_data || o.skin_data,
+            bytes: self.bytes + o.bytes,
+            writes: self.writes + o.writes,
+        }
+    }
 }
 
 /// A voxel object's place in the packed pools.
@@ -35,12 +55,12 @@ pub(super) struct VoxelEntry {
     /// Slots reserved for its inner pool.
     inner_cap: u32,
     /// Slots of its inner pool at the last upload.
-    inner_len: u32,
+    pub(super) inner_len: u32,
     /// Attribute index of its inner node 0 (`attr_inner_base + inner_cap` is leaf 0).
     pub(super) attr_inner_base: u32,
     pub(super) attr_leaf_base: u32,
     leaf_cap: u32,
-    leaf_len: u32,
+    pub(super) leaf_len: u32,
     /// Live nodes (inner + leaves): an upper bound on any level's queue.
     live_nodes: u64,
 }
@@ -90,6 +110,8 @@ pub(super) struct SceneCache {
     pub(super) tri_count: u32,
     /// Entries each traversal queue needs.
     pub(super) queue_capacity: u64,
+    /// Node pools were rewritten since the skin data was last built (`skin::SkinCache`).
+    pub(super) skin_stale: bool,
 }
 
 /// Per-frame data derived from the document's current transforms.
@@ -340,6 +362,7 @@ impl SceneCache {
             tri_count: (tris.len() / TRI_VEC4S) as u32,
             queue_capacity: queue_capacity
                 .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX))),
+            skin_stale: true,
         })
     }
 
@@ -423,6 +446,10 @@ impl SceneCache {
         }
         let i = self.voxels.iter().position(|e| e.object_id == object_id)?;
         let svo = voxels_of(doc, object_id)?;
+        if lo.cmpgt(hi).any() {
+            // An empty box: no voxel changed (e.g. a rig edit, which frames read anyway).
+            return Some(UploadStats::default());
+        }
         let (inner, leaf) = region_ranges(svo, lo, hi);
         Some(self.write_ranges(queue, i, svo, &inner, &leaf))
     }
@@ -437,6 +464,7 @@ impl SceneCache {
         leaf: &[Range<u32>],
     ) -> UploadStats {
         let obj = i as u32;
+        self.skin_stale = true;
         let e = &mut self.voxels[i];
         let mut stats = UploadStats::default();
         let firsts = svo.inner_first_children();
@@ -514,8 +542,10 @@ impl SceneCache {
                     nm.y_axis.extend(0.0).to_array(),
                     nm.z_axis.extend(0.0).to_array(),
                 ],
+                ..ObjectInfo::zeroed()
             });
-            if let Some(svo) = svo {
+            // A rigged object's bounds depend on its pose: `skin::SkinCache` adds them.
+            if let Some(svo) = svo.filter(|_| !is_rigged(doc, e.object_id)) {
                 voxel_world_bounds(svo, m, &mut f.bounds);
             }
             f.world_from_voxel.push(m);
@@ -539,8 +569,12 @@ impl SceneCache {
     }
 }
 
-fn object_of(doc: &Document, id: u64) -> Option<&thicket_core::scene::Object> {
+pub(super) fn object_of(doc: &Document, id: u64) -> Option<&thicket_core::scene::Object> {
     doc.objects.iter().find(|o| o.id == id)
+}
+
+fn is_rigged(doc: &Document, id: u64) -> bool {
+    matches!(object_of(doc, id).map(|o| &o.kind), Some(ObjectKind::Voxels(v)) if v.rig.is_some())
 }
 
 fn voxels_of(doc: &Document, id: u64) -> Option<&Svo> {

@@ -21,6 +21,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("common/types.wgsl"),
     shader!("common/asvo.wgsl"),
     shader!("common/mesh.wgsl"),
+    shader!("common/skin.wgsl"),
     shader!("asvo_queue.wgsl"),
     shader!("asvo_splat64.wgsl"),
     shader!("asvo_splat32.wgsl"),

@@ -63,7 +63,7 @@ impl PerfOverlay {
             .show(ctx, |ui| {
                 if let Some((ms, [w, h])) = cpu_preview {
                     ui.label(format!(
-                        "CPU preview (rigged models, KRS): last render {ms:.1} ms at {w} x {h} px"
+                        "CPU preview (KRS, hole overlay): last render {ms:.1} ms at {w} x {h} px"
                     ));
                 }
                 self.contents_ui(ui, editor, link);

@@ -105,7 +105,23 @@ impl SkinTables {
         }
     }
 
-    fn subtree_joints(&self, index: u32) -> &[u8] {
+    /// Corner weights per leaf-pool index ([`super::stretch::voxel_corners`] order); empty for
+    /// an octree without skin. For renderers that upload the tables (the GPU renderer).
+    #[must_use]
+    pub fn leaf_corner_skins(&self) -> &[[Skin4; 8]] {
+        &self.leaf_corners
+    }
+
+    /// Corner weights per inner-pool index (as [`Self::leaf_corner_skins`]).
+    #[must_use]
+    pub fn inner_corner_skins(&self) -> &[[Skin4; 8]] {
+        &self.inner_corners
+    }
+
+    /// The joints used anywhere in inner node `index`'s subtree (sorted, unique; empty when
+    /// unknown), from which [`SkinDeform`]'s culling box is built.
+    #[must_use]
+    pub fn subtree_joints(&self, index: u32) -> &[u8] {
         self.inner_joint_range
             .get(index as usize)
             .and_then(|&(start, len)| {
