@@ -61,12 +61,14 @@ pub fn ao_radius_world(bounds: Option<(Vec3, Vec3)>) -> f32 {
     })
 }
 
-/// `bounds` grown by the world bounding balls of a KRS layer's bounded objects (unbounded ones,
-/// such as an endless ground, add nothing: they have no size to scale by).
+/// `bounds` grown by the world bounding balls of a prepared KRS scene's bounded objects
+/// (unbounded ones, such as an endless ground, add nothing: they have no size to scale by).
 #[must_use]
-pub fn with_krs_bounds(bounds: Option<(Vec3, Vec3)>, layer: &KrsLayer) -> Option<(Vec3, Vec3)> {
-    layer
-        .scene
+pub fn with_krs_bounds(
+    bounds: Option<(Vec3, Vec3)>,
+    scene: &crate::krs::PreparedScene,
+) -> Option<(Vec3, Vec3)> {
+    scene
         .objects
         .iter()
         .filter(|o| !o.is_empty)
@@ -395,7 +397,7 @@ pub fn render_scene_with_krs(
         shadows,
         ambient: scene.ambient,
         background: scene.background,
-        ao_radius_world: ao_radius_world(with_krs_bounds(bounds, krs_layer)),
+        ao_radius_world: ao_radius_world(with_krs_bounds(bounds, &krs_layer.scene)),
         krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
     };
     let (img, counts) = shade::shade(&fb, cam, &lighting, quality);
