@@ -13,6 +13,7 @@
 
 pub mod context;
 pub mod gpu_data;
+pub mod krs;
 mod renderer;
 mod scene;
 pub mod shaders;
@@ -157,6 +158,8 @@ pub struct GpuFrameStats {
     pub counters_frame: Option<u64>,
     /// What the frame uploaded before drawing.
     pub upload: UploadStats,
+    /// Counters of the KRS pass (zero without KRS objects).
+    pub krs: krs::GpuKrsStats,
 }
 
 impl GpuFrameStats {
@@ -166,6 +169,7 @@ impl GpuFrameStats {
         self.shadow_levels.clone_from(&from.shadow_levels);
         self.splats = from.splats;
         self.queue_overflow = from.queue_overflow;
+        self.krs = from.krs;
         self.pass_ms.clone_from(&from.pass_ms);
         self.gpu_timestamps = from.gpu_timestamps;
         self.counters_frame = from.counters_frame;

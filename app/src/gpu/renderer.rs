@@ -271,6 +271,8 @@ pub struct Renderer {
     mesh64: Option<wgpu::RenderPipeline>,
     resolve: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
+    /// The KRS pass (trace and lighting).
+    krs: super::krs::KrsPipelines,
     /// Per-frame buffers, reused while large enough.
     buffers: HashMap<&'static str, wgpu::Buffer>,
     /// Dummy depth attachments for the mesh passes (the atomics do the depth test).
@@ -484,6 +486,7 @@ impl Renderer {
                     },
                     count: None,
                 },
+                storage(7, true, cs),
             ],
         );
         let layout = |label: &str, groups: &[&wgpu::BindGroupLayout]| {
@@ -615,6 +618,7 @@ impl Renderer {
             mesh64,
             resolve,
             shade,
+            krs: super::krs::KrsPipelines::new(device)?,
             buffers: HashMap::new(),
             attachments: HashMap::new(),
             last_size: (0, 0),
@@ -1167,6 +1171,32 @@ impl Renderer {
             }),
             U::UNIFORM,
         );
+        // KRS objects: traced after resolve into the same G-buffer (see gpu/krs.rs).
+        let krs_frame = self.krs.prepare(
+            device,
+            doc,
+            quality,
+            super::krs::KrsCamera {
+                fx: main.fx,
+                fy: main.fy,
+                near: main.near,
+                perspective: main.perspective,
+            },
+            (w, h),
+            &super::krs::KrsBindings {
+                view: &view_main,
+                gbuffer: &gbuffer,
+                counters: &counters,
+            },
+        )?;
+        let krs_light_dummy;
+        let krs_light = match &krs_frame {
+            Some(k) => &k.light_buf,
+            None => {
+                krs_light_dummy = upload("krs lighting (none)", &[], U::STORAGE);
+                &krs_light_dummy
+            }
+        };
         // Ambient occlusion as the CPU's `render_scene`: radius from the same scene bounds the
         // shadow map is fitted to (0 without bounds: no sample can then be occluded).
         let ao_radius = frame_objects.bounds.map_or(0.0, |(lo, hi)| {
@@ -1181,7 +1211,8 @@ impl Renderer {
             receiver_px: lod.max(1.0),
             ao_count,
             ao_radius,
-            pad: [0; 3],
+            krs_stride: krs_frame.as_ref().map_or(0, |k| k.stride),
+            pad: [0; 2],
             ao_kernel,
         };
         let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
@@ -1328,6 +1359,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 6,
                     resource: wgpu::BindingResource::TextureView(&target.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: krs_light.as_entire_binding(),
                 },
             ],
         });
@@ -1524,6 +1559,19 @@ impl Renderer {
             pass.set_pipeline(&self.resolve);
             pass.set_bind_group(0, &bg_resolve, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        if let Some(k) = &krs_frame {
+            for (name, trace) in [("krs trace", true), ("krs light", false)] {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(name),
+                    timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
+                });
+                if trace {
+                    self.krs.trace(&mut pass, k);
+                } else {
+                    self.krs.light(&mut pass, k);
+                }
+            }
         }
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -1737,6 +1785,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
         levels,
         shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
         queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+        krs: super::krs::GpuKrsStats::from_counters(words),
         triangles: meta.triangles,
         atomic_path: meta.atomic_path,
         frame: meta.frame,

@@ -1,0 +1,223 @@
+//! The GPU KRS pass (`shaders/krs_trace.wgsl`) against the CPU reference renderer on the KRS
+//! sample projects and on a scene where KRS, voxels and meshes occlude each other. Same
+//! tolerance as `gpu_parity.rs` (`Tolerance::GPU_PARITY`: at least 99 % of pixels within
+//! 3/255, the same coverage, the same depth); never loosened. On failure the CPU, GPU and
+//! difference images are written to the system temp directory and named in the message.
+
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
+use thicket_core::krs::{
+    CapsuleKernel, Kernel, KrsObject, Material, MirrorPlane, Similarity, SphereKernel,
+};
+use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
+use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
+
+/// Relative view-depth agreement (as `gpu_parity.rs`).
+const DEPTH_TOLERANCE: f32 = 2e-3;
+
+fn context() -> GpuContext {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
+        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    eprintln!("adapter: {}", ctx.describe());
+    ctx
+}
+
+fn project(name: &str) -> Document {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../projects")
+        .join(format!("{name}.thicket.json"));
+    thicket::files::load_document(&path).expect("sample project loads")
+}
+
+fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
+    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
+}
+
+fn gpu_frame(
+    ctx: &GpuContext,
+    doc: &Document,
+    size: (u32, u32),
+    quality: &Quality,
+) -> (RgbaImage, GBuffer, GpuFrameStats) {
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
+    let stats = r
+        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
+        .expect("GPU frame");
+    let img = RgbaImage {
+        width: size.0,
+        height: size.1,
+        pixels: read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"),
+    };
+    let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    (img, g, stats)
+}
+
+/// Renders `doc` on both renderers and asserts parity; returns the comparison and the GPU
+/// frame's statistics.
+fn compare(
+    ctx: &GpuContext,
+    name: &str,
+    doc: &Document,
+    size: (u32, u32),
+) -> (Parity, GpuFrameStats) {
+    let quality = doc.quality.clone();
+    let cam = doc.camera;
+    let req = RenderRequest {
+        width: size.0,
+        height: size.1,
+        camera: Some(cam),
+        quality: quality.clone(),
+    };
+    let (cpu, fb, cpu_stats) = render_document(doc, &req).expect("CPU frame");
+    let (gpu, g, stats) = gpu_frame(ctx, doc, size, &quality);
+    let depth_cpu: Vec<Option<f32>> = fb
+        .ids
+        .iter()
+        .zip(&fb.depth)
+        .map(|(id, &d)| (id.object != 0).then(|| view_depth(&cam, d)))
+        .collect();
+    let depth_gpu: Vec<Option<f32>> = g
+        .depth
+        .iter()
+        .map(|&d| d.is_finite().then(|| view_depth(&cam, d)))
+        .collect();
+    let p = parity(
+        &cpu,
+        &gpu,
+        &depth_cpu,
+        &depth_gpu,
+        Tolerance::GPU_PARITY,
+        DEPTH_TOLERANCE,
+    )
+    .expect("same size");
+    eprintln!(
+        "{name}: {p:?}\n  CPU KRS: rays {} hits {} steps {} ({:.1}/ray) exhausted {}\n  GPU KRS: {:?} ({:.1}/ray)",
+        cpu_stats.krs.rays,
+        cpu_stats.krs.hits,
+        cpu_stats.krs.steps,
+        cpu_stats.krs.steps as f64 / cpu_stats.krs.rays.max(1) as f64,
+        cpu_stats.krs.exhausted,
+        stats.krs,
+        stats.krs.steps_per_ray(),
+    );
+    if !p.within(Tolerance::GPU_PARITY) {
+        let dir: PathBuf = std::env::temp_dir().join("thicket-gpu-krs");
+        let _ = std::fs::create_dir_all(&dir);
+        let _ = cpu.save_png(dir.join(format!("{name}-cpu.png")));
+        let _ = gpu.save_png(dir.join(format!("{name}-gpu.png")));
+        if let Ok(d) = difference_image(&cpu, &gpu, Tolerance::GPU_PARITY.channel) {
+            let _ = d.save_png(dir.join(format!("{name}-difference.png")));
+        }
+        panic!(
+            "{name}: GPU differs from the CPU reference: {p:?}; images in {}",
+            dir.display()
+        );
+    }
+    // The KRS pass did the drawing: it traced rays and hit, as the CPU's did.
+    assert!(
+        stats.krs.rays > 0 && stats.krs.hits > 0,
+        "{name}: {:?}",
+        stats.krs
+    );
+    assert!(cpu_stats.krs.hits > 0, "{name}: the CPU drew no KRS");
+    assert!(p.both_covered > 0, "{name}: nothing drawn");
+    (p, stats)
+}
+
+#[test]
+fn tree_sample_matches_the_cpu_reference() {
+    let ctx = context();
+    compare(&ctx, "tree", &project("tree"), (96, 96));
+}
+
+#[test]
+fn rock_sample_matches_the_cpu_reference() {
+    // Distorted (Lipschitz-bounded warp) and triplanar-textured objects.
+    let ctx = context();
+    compare(&ctx, "rock", &project("rock"), (96, 96));
+}
+
+#[test]
+fn forest_sample_matches_the_cpu_reference() {
+    // 33M kernel instances, mirrors thousands of units out: the f32 folding must hold.
+    let ctx = context();
+    let (_, stats) = compare(&ctx, "forest", &project("forest"), (96, 96));
+    assert!(stats.krs.max_steps > 0 && stats.krs.max_steps <= 160);
+}
+
+/// A KRS (a sphere and a capsule, the capsule mirrored) placed across the voxel sphere, the
+/// mesh cube and the ground of the synthetic mixed scene.
+fn mixed_with_krs() -> Document {
+    let mut doc = scenes::mixed_document(6).expect("scene");
+    let blue = Material::new(Vec3::new(0.15, 0.3, 0.8), 1);
+    let krs = KrsObject {
+        name: "crossing".into(),
+        kernels: vec![
+            Kernel::Capsule(CapsuleKernel {
+                start: Vec3::new(-0.9, 0.35, 0.25),
+                end: Vec3::new(0.2, 0.8, 0.3),
+                radius: 0.14,
+                material: blue,
+            }),
+            Kernel::Sphere(SphereKernel {
+                centre: Vec3::new(-0.55, 0.45, 0.75),
+                radius: 0.3,
+                material: Material::new(Vec3::new(0.2, 0.7, 0.3), 2),
+            }),
+        ],
+        mirrors: vec![MirrorPlane::new(Vec3::new(1.0, 0.0, 0.2), 0.35)],
+        world_from_object: Similarity::default(),
+        ..KrsObject::default()
+    };
+    doc.add("KRS", ObjectKind::Krs(krs));
+    doc.quality = Quality::default();
+    doc
+}
+
+#[test]
+fn krs_voxels_and_meshes_occlude_each_other_as_on_the_cpu() {
+    let ctx = context();
+    let doc = mixed_with_krs();
+    let size = (112, 96);
+    compare(&ctx, "mixed-krs", &doc, size);
+
+    // The same frame with only the KRS, and with everything but the KRS: in the full frame
+    // the KRS must win some pixels that the others cover and lose some that it covers.
+    let only = |keep_krs: bool| {
+        let mut d = doc.clone();
+        for o in &mut d.objects {
+            o.visible = matches!(o.kind, ObjectKind::Krs(_)) == keep_krs;
+        }
+        gpu_frame(&ctx, &d, size, &d.quality.clone()).1
+    };
+    let (krs, rest) = (only(true), only(false));
+    let (_, all, _) = gpu_frame(&ctx, &doc, size, &doc.quality.clone());
+    let (mut krs_in_front, mut krs_behind) = (0, 0);
+    for i in 0..all.depth.len() {
+        let (a, k, r) = (all.depth[i], krs.depth[i], rest.depth[i]);
+        if !(k.is_finite() && r.is_finite()) {
+            continue;
+        }
+        if k < r && a == k {
+            krs_in_front += 1;
+        }
+        if r < k && a == r {
+            krs_behind += 1;
+        }
+        assert!(
+            a == k.min(r),
+            "pixel {i}: depth {a} is not the nearer of {k} and {r}"
+        );
+    }
+    eprintln!("KRS in front on {krs_in_front} pixels, behind on {krs_behind}");
+    assert!(
+        krs_in_front > 20,
+        "KRS in front on only {krs_in_front} pixels"
+    );
+    assert!(krs_behind > 20, "KRS behind on only {krs_behind} pixels");
+}
