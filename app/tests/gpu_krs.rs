@@ -38,11 +38,11 @@ fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
 
 fn gpu_frame(
     ctx: &GpuContext,
+    r: &mut Renderer,
     doc: &Document,
     size: (u32, u32),
     quality: &Quality,
 ) -> (RgbaImage, GBuffer, GpuFrameStats) {
-    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let stats = r
         .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
@@ -64,7 +64,7 @@ fn compare(
     name: &str,
     doc: &Document,
     size: (u32, u32),
-) -> (Parity, GpuFrameStats) {
+) -> (Parity, GpuFrameStats, Renderer) {
     let quality = doc.quality.clone();
     let cam = doc.camera;
     let req = RenderRequest {
@@ -73,8 +73,18 @@ fn compare(
         camera: Some(cam),
         quality: quality.clone(),
     };
+    let t0 = std::time::Instant::now();
     let (cpu, fb, cpu_stats) = render_document(doc, &req).expect("CPU frame");
-    let (gpu, g, stats) = gpu_frame(ctx, doc, size, &quality);
+    let t1 = std::time::Instant::now();
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let t2 = std::time::Instant::now();
+    let (gpu, g, stats) = gpu_frame(ctx, &mut r, doc, size, &quality);
+    eprintln!(
+        "{name}: CPU frame {:.0} ms, renderer {:.0} ms, GPU frame {:.0} ms (incl. readback)",
+        (t1 - t0).as_secs_f64() * 1e3,
+        (t2 - t1).as_secs_f64() * 1e3,
+        t2.elapsed().as_secs_f64() * 1e3
+    );
     let depth_cpu: Vec<Option<f32>> = fb
         .ids
         .iter()
@@ -126,7 +136,7 @@ fn compare(
     );
     assert!(cpu_stats.krs.hits > 0, "{name}: the CPU drew no KRS");
     assert!(p.both_covered > 0, "{name}: nothing drawn");
-    (p, stats)
+    (p, stats, r)
 }
 
 #[test]
@@ -146,7 +156,7 @@ fn rock_sample_matches_the_cpu_reference() {
 fn forest_sample_matches_the_cpu_reference() {
     // 33M kernel instances, mirrors thousands of units out: the f32 folding must hold.
     let ctx = context();
-    let (_, stats) = compare(&ctx, "forest", &project("forest"), (96, 96));
+    let (_, stats, _) = compare(&ctx, "forest", &project("forest"), (96, 96));
     assert!(stats.krs.max_steps > 0 && stats.krs.max_steps <= 160);
 }
 
@@ -183,20 +193,20 @@ fn mixed_with_krs() -> Document {
 fn krs_voxels_and_meshes_occlude_each_other_as_on_the_cpu() {
     let ctx = context();
     let doc = mixed_with_krs();
-    let size = (112, 96);
-    compare(&ctx, "mixed-krs", &doc, size);
+    let size = (96, 80);
+    let (_, _, mut r) = compare(&ctx, "mixed-krs", &doc, size);
 
     // The same frame with only the KRS, and with everything but the KRS: in the full frame
     // the KRS must win some pixels that the others cover and lose some that it covers.
-    let only = |keep_krs: bool| {
+    let mut only = |keep_krs: bool| {
         let mut d = doc.clone();
         for o in &mut d.objects {
             o.visible = matches!(o.kind, ObjectKind::Krs(_)) == keep_krs;
         }
-        gpu_frame(&ctx, &d, size, &d.quality.clone()).1
+        gpu_frame(&ctx, &mut r, &d, size, &d.quality.clone()).1
     };
     let (krs, rest) = (only(true), only(false));
-    let (_, all, _) = gpu_frame(&ctx, &doc, size, &doc.quality.clone());
+    let (_, all, _) = gpu_frame(&ctx, &mut r, &doc, size, &doc.quality.clone());
     let (mut krs_in_front, mut krs_behind) = (0, 0);
     for i in 0..all.depth.len() {
         let (a, k, r) = (all.depth[i], krs.depth[i], rest.depth[i]);

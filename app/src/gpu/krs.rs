@@ -412,25 +412,26 @@ impl KrsPipelines {
         })
     }
 
-    /// Packs the document's KRS objects and creates this frame's buffers; `None` when the
-    /// document has no visible, non-empty KRS object.
+    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and creates this
+    /// frame's buffers; `None` without KRS objects or pipelines.
     #[allow(
         clippy::too_many_arguments,
         reason = "the frame's inputs the pass needs, each a different kind"
     )]
     pub(super) fn prepare(
-        &self,
+        pipelines: Option<&Self>,
         device: &wgpu::Device,
+        scene: Option<&PreparedScene>,
         doc: &Document,
         quality: &Quality,
         cam: KrsCamera,
         size: (u32, u32),
         bindings: &KrsBindings<'_>,
     ) -> Result<Option<KrsFrame>, GpuError> {
-        let Some(scene) = prepared_krs(doc)? else {
+        let (Some(pipelines), Some(scene)) = (pipelines, scene) else {
             return Ok(None);
         };
-        let mut packed = PackedKrs::pack(&scene);
+        let mut packed = PackedKrs::pack(scene);
         let light_base = packed.vectors.len() as u32;
         packed.vectors.extend(doc.lights.iter().map(|l| {
             v4(
@@ -513,7 +514,7 @@ impl KrsPipelines {
             .collect();
         let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("krs"),
-            layout: &self.bgl,
+            layout: &pipelines.bgl,
             entries: &entries,
         });
         Ok(Some(KrsFrame {

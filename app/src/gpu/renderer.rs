@@ -271,8 +271,9 @@ pub struct Renderer {
     mesh64: Option<wgpu::RenderPipeline>,
     resolve: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
-    /// The KRS pass (trace and lighting).
-    krs: super::krs::KrsPipelines,
+    /// The KRS pass (trace and lighting), built with the first frame that has KRS objects (its
+    /// shader is the largest; frames without KRS never pay for compiling it).
+    krs: Option<super::krs::KrsPipelines>,
     /// Per-frame buffers, reused while large enough.
     buffers: HashMap<&'static str, wgpu::Buffer>,
     /// Dummy depth attachments for the mesh passes (the atomics do the depth test).
@@ -618,7 +619,7 @@ impl Renderer {
             mesh64,
             resolve,
             shade,
-            krs: super::krs::KrsPipelines::new(device)?,
+            krs: None,
             buffers: HashMap::new(),
             attachments: HashMap::new(),
             last_size: (0, 0),
@@ -1172,8 +1173,14 @@ impl Renderer {
             U::UNIFORM,
         );
         // KRS objects: traced after resolve into the same G-buffer (see gpu/krs.rs).
-        let krs_frame = self.krs.prepare(
+        let krs_scene = super::krs::prepared_krs(doc)?;
+        if krs_scene.is_some() && self.krs.is_none() {
+            self.krs = Some(super::krs::KrsPipelines::new(device)?);
+        }
+        let krs_frame = super::krs::KrsPipelines::prepare(
+            self.krs.as_ref(),
             device,
+            krs_scene.as_ref(),
             doc,
             quality,
             super::krs::KrsCamera {
@@ -1560,16 +1567,16 @@ impl Renderer {
             pass.set_bind_group(0, &bg_resolve, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
-        if let Some(k) = &krs_frame {
+        if let (Some(k), Some(krs)) = (&krs_frame, &self.krs) {
             for (name, trace) in [("krs trace", true), ("krs light", false)] {
                 let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                     label: Some(name),
                     timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
                 });
                 if trace {
-                    self.krs.trace(&mut pass, k);
+                    krs.trace(&mut pass, k);
                 } else {
-                    self.krs.light(&mut pass, k);
+                    krs.light(&mut pass, k);
                 }
             }
         }

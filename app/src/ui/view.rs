@@ -1009,16 +1009,16 @@ fn hole_overlay(
     Some((image, counts))
 }
 
-/// Whether the document holds something the GPU renderer cannot draw: a visible KRS object or
-/// a rigged voxel model (the GPU renderer has no KRS pass and no skinning yet).
+/// Whether the document holds something the GPU renderer cannot draw: a rigged voxel model
+/// (the GPU renderer has no skinning yet). KRS objects are sphere-traced on the GPU
+/// (`gpu::krs`).
 fn needs_cpu(doc: &Document) -> bool {
     doc.objects
         .iter()
         .filter(|o| o.visible)
         .any(|o| match &o.kind {
-            ObjectKind::Krs(_) => true,
             ObjectKind::Voxels(v) => v.rig.is_some(),
-            ObjectKind::Mesh(_) => false,
+            ObjectKind::Krs(_) | ObjectKind::Mesh(_) => false,
         })
 }
 
