@@ -160,6 +160,24 @@ fn forest_sample_matches_the_cpu_reference() {
     assert!(stats.krs.max_steps > 0 && stats.krs.max_steps <= 160);
 }
 
+#[test]
+fn forest_far_from_the_origin_matches_in_f32() {
+    // The GPU folds in f32 (the CPU in f64): close to trees 2,000 units out, where an f32
+    // fold loses the most (ulp 1.2e-4 per level, 24 levels) and the pixel-cone epsilon is
+    // smallest (a few centimetres at 12 units), the images must still agree.
+    let ctx = context();
+    let mut doc = project("forest");
+    doc.camera.target = Vec3::new(2000.0, 3.0, -1900.0);
+    doc.camera.distance = 12.0;
+    doc.camera.pitch_deg = 10.0;
+    let (p, stats, _) = compare(&ctx, "forest-far", &doc, (80, 80));
+    assert!(
+        stats.krs.hits * 2 > u64::from(p.total as u32),
+        "the view is mostly KRS: {:?}",
+        stats.krs
+    );
+}
+
 /// A KRS (a sphere and a capsule, the capsule mirrored) placed across the voxel sphere, the
 /// mesh cube and the ground of the synthetic mixed scene.
 fn mixed_with_krs() -> Document {

@@ -5,7 +5,8 @@
 //! first shadow-casting light (meshes rasterised, voxels traversed, depth only) → the view:
 //! meshes rasterised and voxels splatted into one key buffer (64-bit `atomicMin` of
 //! `depth << 32 | id` when the adapter has `SHADER_INT64_ATOMIC_MIN_MAX`, else two 32-bit
-//! passes) → resolve ids to a G-buffer → deferred Phong with PCF shadows → RGBA8 target.
+//! passes) → resolve ids to a G-buffer → KRS objects sphere-traced into the same G-buffer
+//! ([`krs`]) → deferred Phong with PCF shadows → RGBA8 target.
 //!
 //! - [`context`]: headless device creation and error handlers.
 //! - [`Renderer`]: pipelines and layouts created once; [`Renderer::render`] per frame.
