@@ -243,6 +243,11 @@ fn krs_voxels_and_meshes_occlude_each_other_as_on_the_cpu() {
         );
     }
     eprintln!("KRS in front on {krs_in_front} pixels, behind on {krs_behind}");
+    // The two-pass 32-bit splat path leaves the same G-buffer for the KRS pass to trace into.
+    r.set_force_two_pass(true);
+    let (_, all32, _) = gpu_frame(&ctx, &mut r, &doc, size, &doc.quality.clone());
+    assert_eq!(all32.depth, all.depth, "two-pass path: other depths");
+    assert_eq!(all32.normal, all.normal, "two-pass path: other normals");
     assert!(
         krs_in_front > 20,
         "KRS in front on only {krs_in_front} pixels"
