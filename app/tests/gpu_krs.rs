@@ -6,14 +6,15 @@
 
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{Quat, Vec3};
 use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
 use thicket_core::krs::{
-    CapsuleKernel, Kernel, KrsObject, Material, MirrorPlane, Similarity, SphereKernel,
+    BoxKernel, CapsuleKernel, Distortion, EmptyZone, Kernel, KrsObject, Material, MirrorPlane,
+    Pattern, PlaneKernel, Similarity, SphereKernel, TextureMode, Texturing, TorusKernel,
 };
 use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
 use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
-use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
+use thicket_core::scene::{Document, Light, ObjectKind, OrbitCamera};
 
 /// Relative view-depth agreement (as `gpu_parity.rs`).
 const DEPTH_TOLERANCE: f32 = 2e-3;
@@ -176,6 +177,133 @@ fn forest_far_from_the_origin_matches_in_f32() {
         "the view is mostly KRS: {:?}",
         stats.krs
     );
+}
+
+/// Every kernel kind (rotated rounded box, torus segments with sweeps above and below π,
+/// sphere, half-space ground, a distorted toroidal capsule), mirrors, an empty zone, both
+/// texture modes and patterns, a rotated and scaled object, two lights, soft shadows.
+fn every_kernel_kind() -> Document {
+    let mut doc = Document::default();
+    let m = |r: f32, g: f32, b: f32| Material::new(Vec3::new(r, g, b), 0);
+    let torus = |centre: Vec3, axis: Vec3, sweep: f32, major: f32, minor: f32| TorusKernel {
+        centre,
+        axis,
+        start_dir: Vec3::X,
+        major_radius: major,
+        minor_radius: minor,
+        sweep_radians: sweep,
+        material: m(0.8, 0.5, 0.2),
+    };
+    let shapes = KrsObject {
+        name: "shapes".into(),
+        kernels: vec![
+            Kernel::RoundedBox(BoxKernel {
+                centre: Vec3::new(0.6, 0.35, 0.0),
+                rotation: Quat::from_euler(glam::EulerRot::YXZ, 0.4, 0.3, 0.2),
+                half_extents: Vec3::new(0.25, 0.2, 0.3),
+                rounding: 0.05,
+                material: m(0.7, 0.2, 0.2),
+            }),
+            Kernel::TorusSegment(torus(Vec3::new(0.0, 0.6, 0.0), Vec3::Z, 4.0, 0.45, 0.08)),
+            Kernel::TorusSegment(torus(
+                Vec3::new(-0.5, 0.35, 0.3),
+                Vec3::new(0.2, 1.0, 0.1),
+                1.2,
+                0.4,
+                0.1,
+            )),
+            Kernel::Sphere(SphereKernel {
+                centre: Vec3::new(0.0, 1.0, 0.4),
+                radius: 0.2,
+                material: m(0.2, 0.6, 0.3),
+            }),
+            Kernel::InfinitePlane(PlaneKernel {
+                normal: Vec3::Y,
+                offset: 0.0,
+                material: m(0.6, 0.6, 0.55),
+            }),
+        ],
+        mirrors: vec![
+            MirrorPlane::new(Vec3::new(1.0, 0.0, 0.3), 0.1),
+            MirrorPlane::new(Vec3::Z, 0.2),
+            MirrorPlane::new(Vec3::new(1.0, 0.0, -1.0), 0.5),
+            MirrorPlane::new(Vec3::new(0.3, 1.0, 0.0), 1.5),
+        ],
+        texturing: Texturing {
+            mode: TextureMode::Triplanar,
+            pattern: Pattern::Checker,
+            scale: 6.0,
+            ..Texturing::default()
+        },
+        empty_zones: vec![EmptyZone {
+            centre: Vec3::new(0.6, 0.45, 0.0),
+            radius: 0.15,
+        }],
+        ..KrsObject::default()
+    };
+    let branch = KrsObject {
+        name: "branch".into(),
+        kernels: vec![
+            Kernel::ToroidalCapsule(torus(Vec3::new(0.0, 0.0, 0.0), Vec3::Z, 2.0, 0.5, 0.12)),
+            Kernel::Capsule(CapsuleKernel {
+                start: Vec3::new(0.0, -0.5, 0.0),
+                end: Vec3::new(0.3, 0.6, 0.2),
+                radius: 0.1,
+                material: m(0.4, 0.3, 0.7),
+            }),
+        ],
+        mirrors: vec![MirrorPlane::new(Vec3::new(1.0, 0.2, 0.0), 0.2)],
+        world_from_object: Similarity {
+            translation: Vec3::new(-0.2, 0.7, -0.8),
+            rotation: Quat::from_rotation_x(0.5),
+            scale: 0.8,
+        },
+        distortion: Some(Distortion {
+            amplitude: 0.04,
+            frequency: 3.0,
+            seed: 7,
+        }),
+        texturing: Texturing {
+            mode: TextureMode::KernelParam,
+            pattern: Pattern::Bark,
+            ..Texturing::default()
+        },
+        ..KrsObject::default()
+    };
+    doc.add("shapes", ObjectKind::Krs(shapes));
+    let id = doc.add("branch", ObjectKind::Krs(branch));
+    if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
+        o.transform.translation = Vec3::new(0.1, 0.0, 0.0);
+        o.transform.scale = Vec3::splat(1.2);
+    }
+    doc.lights = vec![
+        Light {
+            direction: Vec3::new(-0.4, -1.0, -0.3),
+            casts_shadows: true,
+            ..Light::default()
+        },
+        Light {
+            direction: Vec3::new(0.6, -0.5, 0.4),
+            intensity: 0.4,
+            casts_shadows: false,
+            ..Light::default()
+        },
+    ];
+    doc.camera.target = Vec3::new(0.0, 0.4, 0.0);
+    doc.camera.distance = 3.5;
+    doc.camera.pitch_deg = 25.0;
+    doc.camera.yaw_deg = 30.0;
+    doc.quality = Quality {
+        krs_soft_shadows: true,
+        ..Quality::default()
+    };
+    doc
+}
+
+#[test]
+fn every_kernel_kind_matches_the_cpu_reference() {
+    let ctx = context();
+    compare(&ctx, "every-kernel", &every_kernel_kind(), (96, 80));
 }
 
 /// A KRS (a sphere and a capsule, the capsule mirrored) placed across the voxel sphere, the
