@@ -13,6 +13,10 @@
 // Shadow keys, 32-bit layout: [2p + 1] = depth bits.
 @group(0) @binding(5) var<storage, read> shadow_keys: array<u32>;
 @group(0) @binding(6) var output: texture_storage_2d<rgba8unorm, write>;
+// KRS lighting inputs (krs_trace.wgsl `light`), `shading.krs_stride` entries per pixel:
+// [0] = (shading point, KRS ambient accessibility, + 2 on KRS pixels), [1 + l] = (Algorithm 2 factor, 1 when it
+// replaces n·l, visibility of light l through the KRS, 0).
+@group(0) @binding(7) var<storage, read> krs_light: array<vec4<f32>>;
 
 fn visibility(p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f32 {
     let texel_world = 2.0 / shadow_view.fy;
@@ -74,8 +78,13 @@ fn ao_openness(p: vec3<f32>, n: vec3<f32>, eps_world: f32) -> f32 {
         if !(sp.x >= 0.0 && sp.y >= 0.0 && sp.x < w && sp.y < h) {
             continue;
         }
-        let g = gbuffer[u32(sp.y) * view.size.x + u32(sp.x)];
+        let q_pixel = u32(sp.y) * view.size.x + u32(sp.x);
+        let g = gbuffer[q_pixel];
         if g.w == EMPTY {
+            continue;
+        }
+        // KRS surfaces occlude through the KRS distance AO instead (the CPU's `is_krs`).
+        if shading.krs_stride > 0u && krs_light[q_pixel * shading.krs_stride].w >= 2.0 {
             continue;
         }
         let gap = d_q - view_depth_of(view, bitcast<f32>(g.w));
@@ -105,18 +114,37 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         let albedo = vec3<f32>(ab, bz.x);
         let n = normalize_or_zero(vec3<f32>(nxy, bz.y * 2.0 - 1.0));
         let depth = bitcast<f32>(g.w);
-        let p = unproject(view, vec2<f32>(gid.xy) + 0.5, depth);
+        var p = unproject(view, vec2<f32>(gid.xy) + 0.5, depth);
+        let ks = shading.krs_stride;
+        let kbase = (gid.y * view.size.x + gid.x) * ks;
+        var krs_open = 1.0;
+        if ks > 0u {
+            // A KRS pixel keeps its exact hit point (the same unprojection elsewhere).
+            let e = krs_light[kbase];
+            p = e.xyz;
+            // KRS pixels carry their accessibility plus 2 (krs_trace.wgsl `light`).
+            krs_open = select(e.w, e.w - 2.0, e.w >= 2.0);
+        }
         let eye = view.world_from_view[3].xyz;
         let v = normalize_or_zero(eye - p);
         let receiver = pixel_world_size(view, view_depth_of(view, depth)) * shading.receiver_px;
         // The AO staircase tolerance: the receiver term of the shadow bias.
         let open = ao_openness(p, n, 1.5 * receiver);
-        var light = shading.ambient.xyz * open;
+        var light = shading.ambient.xyz * (open * krs_open);
         var spec = vec3<f32>(0.0);
         for (var i = 0u; i < shading.light_count; i++) {
             let l = lights[i].to_light.xyz;
             let color = lights[i].color.xyz;
-            let ndotl = dot(n, l);
+            var ndotl = dot(n, l);
+            var krs_vis = 1.0;
+            if ks > 0u {
+                // Algorithm 2 replaces n·l on KRS pixels; KRS shadow rays from every pixel.
+                let e = krs_light[kbase + 1u + i];
+                if e.y > 0.0 {
+                    ndotl = e.x;
+                }
+                krs_vis = e.z;
+            }
             if ndotl <= 0.0 {
                 continue;
             }
@@ -124,6 +152,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             if lights[i].to_light.w > 0.0 {
                 vis = visibility(p, n, receiver);
             }
+            vis *= krs_vis;
             if vis <= 0.0 {
                 continue;
             }

@@ -51,6 +51,29 @@ pub struct BenchReport {
     pub triangles: u64,
     /// The GPU splat path ("Key64" or "TwoPass32"); empty for the CPU.
     pub atomic_path: String,
+    /// KRS sphere-tracing counters of the last frame (zero without KRS objects).
+    pub krs: BenchKrs,
+}
+
+/// KRS counters of one frame, the same on both renderers.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Serialize)]
+pub struct BenchKrs {
+    /// Primary rays traced.
+    pub rays: u64,
+    /// Rays that hit.
+    pub hits: u64,
+    /// Distance evaluations of primary rays.
+    pub steps: u64,
+    /// Most evaluations of one ray (GPU only; `None` on the CPU).
+    pub max_steps: Option<u64>,
+    /// Rays that ran out of steps.
+    pub exhausted: u64,
+    /// Shadow rays through the KRS.
+    pub shadow_rays: u64,
+    /// Their distance evaluations.
+    pub shadow_steps: u64,
+    /// KRS ambient-occlusion evaluations.
+    pub ao_evals: u64,
 }
 
 fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
@@ -82,7 +105,7 @@ pub fn bench_cpu(
     };
     render_document(doc, &req)?;
     let mut times = Vec::with_capacity(frames as usize);
-    let mut stage = [0.0f64; 6];
+    let mut stage = [0.0f64; 7];
     let mut last = None;
     for _ in 0..frames.max(1) {
         let t0 = Instant::now();
@@ -94,6 +117,7 @@ pub fn bench_cpu(
             t.triangles_ms,
             t.traversal_ms,
             t.splat_ms,
+            t.krs_ms,
             t.resolve_ms,
             t.shade_ms,
         ]) {
@@ -109,6 +133,7 @@ pub fn bench_cpu(
         "triangles",
         "traversal",
         "splat",
+        "krs",
         "resolve",
         "shade",
     ];
@@ -132,6 +157,16 @@ pub fn bench_cpu(
         splats: stats.splats(),
         triangles: stats.triangles,
         atomic_path: String::new(),
+        krs: BenchKrs {
+            rays: stats.krs.rays,
+            hits: stats.krs.hits,
+            steps: stats.krs.steps,
+            max_steps: None,
+            exhausted: stats.krs.exhausted,
+            shadow_rays: stats.krs.shadow_rays,
+            shadow_steps: stats.krs.shadow_steps,
+            ao_evals: stats.krs.ao_evals,
+        },
     })
 }
 
@@ -201,6 +236,16 @@ pub fn bench_gpu(
         splats: stats.splats,
         triangles: stats.triangles,
         atomic_path: format!("{:?}", stats.atomic_path),
+        krs: BenchKrs {
+            rays: stats.krs.rays,
+            hits: stats.krs.hits,
+            steps: stats.krs.steps,
+            max_steps: Some(stats.krs.max_steps),
+            exhausted: stats.krs.exhausted,
+            shadow_rays: stats.krs.shadow_rays,
+            shadow_steps: stats.krs.shadow_steps,
+            ao_evals: stats.krs.ao_evals,
+        },
     })
 }
 
@@ -241,6 +286,16 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
             s,
             "    {i:>2}: {:>9} {:>9} {:>9} {:>9} {:>9}",
             l.visited, l.split, l.splatted, l.frustum_culled, l.occlusion_culled
+        );
+    }
+    let k = &r.krs;
+    if k.rays > 0 {
+        let per_ray = k.steps as f64 / k.rays as f64;
+        let max = k.max_steps.map_or(String::new(), |m| format!(", max {m}"));
+        let _ = writeln!(
+            s,
+            "  KRS: {} rays, {} hits, {} steps ({per_ray:.1} per ray{max}), {} exhausted; {} shadow rays ({} steps), {} AO evaluations",
+            k.rays, k.hits, k.steps, k.exhausted, k.shadow_rays, k.shadow_steps, k.ao_evals
         );
     }
     s

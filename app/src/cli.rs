@@ -907,6 +907,12 @@ fn render_one(
             "pass_ms": stats.pass_ms.iter().map(|(n, ms)| serde_json::json!([n, ms])).collect::<Vec<_>>(),
             "gpu_timestamps": stats.gpu_timestamps,
             "total_ms": stats.total_ms,
+            "krs": {
+                "rays": stats.krs.rays, "hits": stats.krs.hits, "steps": stats.krs.steps,
+                "max_steps": stats.krs.max_steps, "exhausted": stats.krs.exhausted,
+                "shadow_rays": stats.krs.shadow_rays, "shadow_steps": stats.krs.shadow_steps,
+                "ao_evals": stats.krs.ao_evals,
+            },
         });
         (
             RgbaImage {

@@ -27,6 +27,14 @@ fn sample(name: &str) -> PathBuf {
 
 /// The app on a sample, with the GPU viewport installed on a fresh software device.
 fn gpu_harness(name: &str) -> (Harness<'static, EditorApp>, ViewportLink) {
+    gpu_harness_scaled(name, 1.0)
+}
+
+/// [`gpu_harness`] with the view rendered at `render_scale` of its pixels from the first frame.
+fn gpu_harness_scaled(
+    name: &str,
+    render_scale: f32,
+) -> (Harness<'static, EditorApp>, ViewportLink) {
     let render_state = create_render_state(
         thicket::viewport::wgpu_setup(),
         egui_wgpu::RendererOptions::PREDICTABLE,
@@ -42,6 +50,7 @@ fn gpu_harness(name: &str) -> (Harness<'static, EditorApp>, ViewportLink) {
     app.autosave_secs = 0;
     app.native_dialogs = false;
     app.attach_gpu(link.clone());
+    app.view.render_scale = render_scale;
     let mut h = Harness::builder()
         .with_size(SIZE)
         .renderer(WgpuTestRenderer::from_render_state(render_state))
@@ -152,6 +161,29 @@ fn house_opens_renders_once_and_rerenders_only_on_change() {
 #[test]
 fn mixed_opens_renders_once_and_rerenders_only_on_change() {
     sample_opens_renders_once_and_rerenders_only_on_change("mixed");
+}
+
+#[test]
+fn forest_draws_its_krs_on_the_gpu() {
+    // KRS documents no longer fall back to the CPU preview: the GPU viewport sphere-traces the
+    // forest (33M kernel instances). A quarter of the view's pixels keeps lavapipe quick.
+    let (mut h, link) = gpu_harness_scaled("forest", 0.25);
+    let image = h.render().expect("render");
+    let s = link.lock().clone();
+    assert!(s.error.is_none(), "{:?}", s.error);
+    assert_eq!(s.frames_rendered, 1);
+    let st = s.stats.as_ref().expect("GPU frame statistics");
+    assert!(st.krs.rays > 0 && st.krs.hits > 0, "{:?}", st.krs);
+    eprintln!(
+        "forest: viewport render {:.1} ms at {} x {} px on {}; KRS {:?}",
+        s.last_render_ms, s.size_px[0], s.size_px[1], s.adapter, st.krs
+    );
+    let rect = h.state().view.last_rect;
+    assert!(
+        view_contrast(&image, rect) > 5.0,
+        "the viewport shows the forest, not a flat background"
+    );
+    snapshot(&mut h, "sample_forest");
 }
 
 #[test]

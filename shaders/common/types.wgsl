@@ -138,7 +138,8 @@ struct Shading {
     // Ambient occlusion: sample count (0 = off), world radius, tangent-frame offsets.
     ao_count: u32,
     ao_radius: f32,
-    _pad0: u32,
+    // Entries per pixel of the KRS lighting buffer (0: no KRS this frame; krs_trace.wgsl).
+    krs_stride: u32,
     _pad1: u32,
     _pad2: u32,
     ao_kernel: array<vec4<f32>, 64>,

@@ -243,8 +243,11 @@ pub struct ShadingUniform {
     pub ao_count: u32,
     /// World radius of the ambient-occlusion samples.
     pub ao_radius: f32,
+    /// Entries per pixel of the KRS lighting buffer (0: no KRS this frame; see
+    /// `shaders/krs_trace.wgsl`).
+    pub krs_stride: u32,
     /// Padding.
-    pub pad: [u32; 3],
+    pub pad: [u32; 2],
     /// Ambient-occlusion sample offsets in the tangent frame (xyz; w unused), computed on the
     /// CPU with the reference's formulas so both renderers use bit-identical offsets.
     pub ao_kernel: [[f32; 4]; MAX_AO_SAMPLES],
@@ -286,7 +289,12 @@ pub const MESH_ID_FLAG: u32 = 1 << 31;
 /// returns the count used.
 #[must_use]
 pub fn ao_kernel(count: u32, radius_world: f32) -> (u32, [[f32; 4]; MAX_AO_SAMPLES]) {
-    let count = count.min(MAX_AO_SAMPLES as u32);
+    // As the CPU's `AoKernel`: no radius (nothing with a size in the scene), no samples.
+    let count = if radius_world > 0.0 && radius_world.is_finite() {
+        count.min(MAX_AO_SAMPLES as u32)
+    } else {
+        0
+    };
     let mut out = [[0.0; 4]; MAX_AO_SAMPLES];
     for (slot, v) in out
         .iter_mut()
@@ -299,6 +307,139 @@ pub fn ao_kernel(count: u32, radius_world: f32) -> (u32, [[f32; 4]; MAX_AO_SAMPL
     }
     (count, out)
 }
+
+/// One KRS object of the KRS pass (`core::krs::PreparedObject`, flattened).
+///
+/// Keep in sync with `shaders/krs_trace.wgsl` (`KrsObject`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct KrsObjectGpu {
+    /// `object_from_world` rotation (quaternion xyzw).
+    pub inv_rotation: [f32; 4],
+    /// `world_from_object` rotation (quaternion xyzw).
+    pub rotation: [f32; 4],
+    /// xyz: translation; w: uniform scale.
+    pub translation_scale: [f32; 4],
+    /// World bounding ball (centre, radius), valid with [`KRS_OBJ_BOUNDED`].
+    pub bound: [f32; 4],
+    /// First mirror in the vector buffer.
+    pub first_mirror: u32,
+    /// Mirrors (the object has one kernel more).
+    pub mirror_count: u32,
+    /// First kernel in the kernel buffer.
+    pub first_kernel: u32,
+    /// First empty zone in the vector buffer.
+    pub first_zone: u32,
+    /// Empty zones.
+    pub zone_count: u32,
+    /// [`KRS_OBJ_EMPTY`] | [`KRS_OBJ_DISTORTED`] | [`KRS_OBJ_BOUNDED`].
+    pub flags: u32,
+    /// 0 plain, 1 triplanar, 2 kernel-parametrised (`TextureMode`).
+    pub texture_mode: u32,
+    /// 0 checker, 1 bark (`Pattern`).
+    pub pattern: u32,
+    /// 1 / scale.
+    pub inv_scale: f32,
+    /// Lipschitz bound of the warp (1 without distortion).
+    pub lipschitz: f32,
+    /// Distortion amplitude.
+    pub amplitude: f32,
+    /// Distortion frequency.
+    pub frequency: f32,
+    /// Distortion seed.
+    pub seed: u32,
+    /// Texture cells per object unit.
+    pub tex_scale: f32,
+    /// Texture contrast.
+    pub tex_contrast: f32,
+    /// Triplanar sharpness.
+    pub tex_sharpness: f32,
+}
+const _: () = assert!(std::mem::size_of::<KrsObjectGpu>() == 128);
+
+/// [`KrsObjectGpu::flags`]: every kernel is empty.
+pub const KRS_OBJ_EMPTY: u32 = 1;
+/// [`KrsObjectGpu::flags`]: the object has a distortion.
+pub const KRS_OBJ_DISTORTED: u32 = 2;
+/// [`KrsObjectGpu::flags`]: `bound` holds a bounding ball.
+pub const KRS_OBJ_BOUNDED: u32 = 4;
+
+/// One kernel of the KRS pass. Field use by kind is documented in `shaders/krs_trace.wgsl`
+/// (`torus_closest` for tori); kinds are the `KRS_*` constants there.
+///
+/// Keep in sync with `shaders/krs_trace.wgsl` (`KrsKernel`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct KrsKernelGpu {
+    /// x: kind (0 empty, 1 sphere, 2 plane, 3 capsule, 4 box, 5 torus segment, 6 toroidal
+    /// capsule).
+    pub kind: [u32; 4],
+    /// Linear material colour (w unused).
+    pub colour: [f32; 4],
+    /// Shape parameters.
+    pub params: [[f32; 4]; 6],
+}
+const _: () = assert!(std::mem::size_of::<KrsKernelGpu>() == 128);
+
+/// Per-frame constants of the KRS pass.
+///
+/// Keep in sync with `shaders/krs_trace.wgsl` (`KrsFrame`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct KrsFrameUniform {
+    /// Epsilon scale (`quality.krs_epsilon_scale`).
+    pub eps_scale: f32,
+    /// Pixel footprint per unit distance.
+    pub pixel_cone: f32,
+    /// Epsilon floor.
+    pub min_epsilon: f32,
+    /// Step budget per ray.
+    pub max_steps: u32,
+    /// Over-relaxation factor.
+    pub over_relaxation: f32,
+    /// Sample grid: spacing of the uniform part.
+    pub grid_q0: f32,
+    /// Sample grid: parameter where the cone takes over.
+    pub grid_t0: f32,
+    /// Sample grid: index step of the geometric part.
+    pub grid_log_step: f32,
+    /// Sample grid: index at `grid_t0`.
+    pub grid_u0: f32,
+    /// Objects in the object buffer.
+    pub object_count: u32,
+    /// Lights (at `light_base` in the vector buffer).
+    pub light_count: u32,
+    /// First light in the vector buffer.
+    pub light_base: u32,
+    /// [`KRS_FRAME_TILES`] | [`KRS_FRAME_SHADOWS`] | [`KRS_FRAME_SOFT`].
+    pub flags: u32,
+    /// KRS ambient-occlusion samples (0 = off).
+    pub ao_samples: u32,
+    /// Their spacing in world units.
+    pub ao_spacing: f32,
+    /// The receiver's splat size in pixels (as `ShadingUniform::receiver_px`).
+    pub receiver_px: f32,
+    /// Entries of the per-pixel KRS lighting buffer per pixel (1 + lights).
+    pub stride: u32,
+    /// Algorithm 2 blend width in pixels.
+    pub smoothing_px: f32,
+    /// Soft-shadow penumbra factor.
+    pub soft_k: f32,
+    /// Padding.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<KrsFrameUniform>() == 80);
+
+/// [`KrsFrameUniform::flags`]: §4.1 tile cones start the rays.
+pub const KRS_FRAME_TILES: u32 = 1;
+/// [`KrsFrameUniform::flags`]: shadow rays through the KRS.
+pub const KRS_FRAME_SHADOWS: u32 = 2;
+/// [`KrsFrameUniform::flags`]: soft KRS shadows.
+pub const KRS_FRAME_SOFT: u32 = 4;
+/// First KRS word of the counter buffer (`KRS_COUNTERS` in `krs_trace.wgsl`), in the unused
+/// range between the overflow counter and the per-view statistics.
+pub const KRS_COUNTERS: u32 = 40;
+const _: () = assert!(KRS_COUNTERS > OVERFLOW_COUNTER && KRS_COUNTERS + 13 <= STATS_START);
 
 #[cfg(test)]
 mod tests {

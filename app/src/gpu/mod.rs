@@ -5,7 +5,8 @@
 //! first shadow-casting light (meshes rasterised, voxels traversed, depth only) → the view:
 //! meshes rasterised and voxels splatted into one key buffer (64-bit `atomicMin` of
 //! `depth << 32 | id` when the adapter has `SHADER_INT64_ATOMIC_MIN_MAX`, else two 32-bit
-//! passes) → resolve ids to a G-buffer → deferred Phong with PCF shadows → RGBA8 target.
+//! passes) → resolve ids to a G-buffer → KRS objects sphere-traced into the same G-buffer
+//! ([`krs`]) → deferred Phong with PCF shadows → RGBA8 target.
 //!
 //! - [`context`]: headless device creation and error handlers.
 //! - [`Renderer`]: pipelines and layouts created once; [`Renderer::render`] per frame.
@@ -13,6 +14,7 @@
 
 pub mod context;
 pub mod gpu_data;
+pub mod krs;
 mod renderer;
 mod scene;
 pub mod shaders;
@@ -158,6 +160,8 @@ pub struct GpuFrameStats {
     pub counters_frame: Option<u64>,
     /// What the frame uploaded before drawing.
     pub upload: UploadStats,
+    /// Counters of the KRS pass (zero without KRS objects).
+    pub krs: krs::GpuKrsStats,
 }
 
 impl GpuFrameStats {
@@ -167,6 +171,7 @@ impl GpuFrameStats {
         self.shadow_levels.clone_from(&from.shadow_levels);
         self.splats = from.splats;
         self.queue_overflow = from.queue_overflow;
+        self.krs = from.krs;
         self.pass_ms.clone_from(&from.pass_ms);
         self.gpu_timestamps = from.gpu_timestamps;
         self.counters_frame = from.counters_frame;

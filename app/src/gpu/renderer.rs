@@ -272,6 +272,9 @@ pub struct Renderer {
     mesh64: Option<wgpu::RenderPipeline>,
     resolve: wgpu::ComputePipeline,
     shade: wgpu::ComputePipeline,
+    /// The KRS pass (trace and lighting), built with the first frame that has KRS objects (its
+    /// shader is the largest; frames without KRS never pay for compiling it).
+    krs: Option<super::krs::KrsPipelines>,
     /// Per-frame buffers, reused while large enough.
     buffers: HashMap<&'static str, wgpu::Buffer>,
     /// Dummy depth attachments for the mesh passes (the atomics do the depth test).
@@ -492,6 +495,7 @@ impl Renderer {
                     },
                     count: None,
                 },
+                storage(7, true, cs),
             ],
         );
         let layout = |label: &str, groups: &[&wgpu::BindGroupLayout]| {
@@ -623,6 +627,7 @@ impl Renderer {
             mesh64,
             resolve,
             shade,
+            krs: None,
             buffers: HashMap::new(),
             attachments: HashMap::new(),
             last_size: (0, 0),
@@ -1201,10 +1206,44 @@ impl Renderer {
             }),
             U::UNIFORM,
         );
-        // Ambient occlusion as the CPU's `render_scene`: radius from the same scene bounds the
-        // shadow map is fitted to (0 without bounds: no sample can then be occluded).
-        let ao_radius = frame_objects.bounds.map_or(0.0, |(lo, hi)| {
-            thicket_core::render::AO_RADIUS_OF_SCENE * (hi - lo).length()
+        // KRS objects: traced after resolve into the same G-buffer (see gpu/krs.rs).
+        let krs_scene = super::krs::prepared_krs(doc)?;
+        if krs_scene.is_some() && self.krs.is_none() {
+            self.krs = Some(super::krs::KrsPipelines::new(device)?);
+        }
+        let krs_frame = super::krs::KrsPipelines::prepare(
+            self.krs.as_ref(),
+            device,
+            krs_scene.as_ref(),
+            doc,
+            quality,
+            super::krs::KrsCamera {
+                fx: main.fx,
+                fy: main.fy,
+                near: main.near,
+                perspective: main.perspective,
+            },
+            (w, h),
+            &super::krs::KrsBindings {
+                view: &view_main,
+                gbuffer: &gbuffer,
+                counters: &counters,
+            },
+        )?;
+        let krs_light_dummy;
+        let krs_light = match &krs_frame {
+            Some(k) => &k.light_buf,
+            None => {
+                krs_light_dummy = upload("krs lighting (none)", &[], U::STORAGE);
+                &krs_light_dummy
+            }
+        };
+        // Ambient occlusion as the CPU's `render_scene`: radius from the scene bounds the shadow
+        // map is fitted to, grown by the bounded KRS objects' balls (0 without bounds: no
+        // sample can then be occluded, and none is taken).
+        let ao_radius = thicket_core::render::ao_radius_world(match &krs_scene {
+            Some(k) => thicket_core::render::with_krs_bounds(frame_objects.bounds, k),
+            None => frame_objects.bounds,
         });
         let (ao_count, ao_kernel) = ao_kernel(quality.ao_samples, ao_radius);
         let shading = ShadingUniform {
@@ -1215,7 +1254,8 @@ impl Renderer {
             receiver_px: lod.max(1.0),
             ao_count,
             ao_radius,
-            pad: [0; 3],
+            krs_stride: krs_frame.as_ref().map_or(0, |k| k.stride),
+            pad: [0; 2],
             ao_kernel,
         };
         let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
@@ -1372,6 +1412,10 @@ impl Renderer {
                 wgpu::BindGroupEntry {
                     binding: 6,
                     resource: wgpu::BindingResource::TextureView(&target.view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 7,
+                    resource: krs_light.as_entire_binding(),
                 },
             ],
         });
@@ -1568,6 +1612,19 @@ impl Renderer {
             pass.set_pipeline(&self.resolve);
             pass.set_bind_group(0, &bg_resolve, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+        }
+        if let (Some(k), Some(krs)) = (&krs_frame, &self.krs) {
+            for (name, trace) in [("krs trace", true), ("krs light", false)] {
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                    label: Some(name),
+                    timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
+                });
+                if trace {
+                    krs.trace(&mut pass, k);
+                } else {
+                    krs.light(&mut pass, k);
+                }
+            }
         }
         {
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
@@ -1781,6 +1838,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
         levels,
         shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
         queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+        krs: super::krs::GpuKrsStats::from_counters(words),
         triangles: meta.triangles,
         atomic_path: meta.atomic_path,
         frame: meta.frame,

@@ -80,8 +80,7 @@ fn layout_of(doc: &Document) -> Vec<(u64, bool)> {
             ObjectKind::Voxels(v) if !v.svo.is_empty() => Some((o.id, true)),
             ObjectKind::Voxels(_) => None,
             ObjectKind::Mesh(_) => Some((o.id, false)),
-            // KRS objects are sphere-traced by the CPU reference renderer only; the GPU
-            // renderer has no KRS pass yet, so they are left out of its frame.
+            // KRS objects have no pools: the KRS pass (`gpu::krs`) packs them every frame.
             ObjectKind::Krs(_) => None,
         })
         .collect()

@@ -31,6 +31,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("mesh32.wgsl"),
     shader!("resolve.wgsl"),
     shader!("shade.wgsl"),
+    shader!("krs_trace.wgsl"),
     shader!("viewport_blit.wgsl"),
 ];
 

@@ -3,11 +3,11 @@
 //! world axes, the selected object's outline box, the brush preview, skeletons and the pose
 //! gizmo, KRS mirror planes) and sculpt strokes.
 //!
-//! The GPU renderer draws rigid and skinned voxels and meshes; it has no KRS pass yet. A
-//! document with a KRS object is therefore drawn by core's CPU reference renderer on a worker
-//! thread (the CPU preview), as is a rigged model while the hole / bloat overlay is on (the
-//! overlay is computed from that image) and every document when no GPU is attached (the plain
-//! UI tests). Render -> Viewport renderer chooses.
+//! The GPU renderer draws rigid and skinned voxels, meshes and KRS objects. Core's CPU
+//! reference renderer draws the view on a worker thread (the CPU preview) only for a rigged
+//! model while the hole / bloat overlay is on (the overlay is computed from that image) and for
+//! every document when no GPU is attached (the plain UI tests). Render -> Viewport renderer
+//! chooses.
 
 use std::collections::HashMap;
 use std::sync::{Arc, mpsc};
@@ -314,8 +314,8 @@ impl View {
         ui.label("Viewport renderer");
         ui.horizontal(|ui| {
             for (mode, label, tip) in [
-                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview for KRS objects, which the GPU renderer cannot draw yet, and for the hole / bloat overlay"),
-                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no KRS, no hole / bloat overlay)"),
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview only for the hole / bloat overlay, which compares its image with the skinned mesh"),
+                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no hole / bloat overlay)"),
                 (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
             ] {
                 ui.selectable_value(&mut self.renderer, mode, label)
@@ -424,10 +424,9 @@ impl View {
             ViewRenderer::Cpu => true,
             ViewRenderer::Gpu => self.gpu.is_none(),
             ViewRenderer::Auto => {
-                self.gpu.is_none()
-                    || needs_cpu(editor.doc())
-                    // The hole / bloat overlay is computed with the CPU preview's image.
-                    || (self.show_holes && has_rig(editor.doc()))
+                // The GPU draws voxels (rigid and skinned), meshes and KRS; the hole / bloat
+                // overlay is computed with the CPU preview's image.
+                self.gpu.is_none() || (self.show_holes && has_rig(editor.doc()))
             }
         }
     }
@@ -1014,18 +1013,6 @@ fn hole_overlay(
         }
     }
     Some((image, counts))
-}
-
-/// Whether the document holds something the GPU renderer cannot draw: a visible KRS object
-/// (the GPU renderer has no KRS pass yet). Rigged voxel models are skinned on the GPU.
-fn needs_cpu(doc: &Document) -> bool {
-    doc.objects
-        .iter()
-        .filter(|o| o.visible)
-        .any(|o| match &o.kind {
-            ObjectKind::Krs(_) => true,
-            ObjectKind::Voxels(_) | ObjectKind::Mesh(_) => false,
-        })
 }
 
 /// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).

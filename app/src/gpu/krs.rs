@@ -1,0 +1,584 @@
+//! The KRS pass (KRS paper §4, §6; `shaders/krs_trace.wgsl`): KRS objects packed into storage
+//! buffers, a per-pixel sphere tracer that writes the shared G-buffer after the resolve pass
+//! (so voxels, meshes and KRS share one depth), and a lighting pass that computes what the
+//! CPU's `shade` takes from the KRS: the exact hit point, Algorithm 2 diffuse factors, shadow
+//! rays through the KRS from every covered pixel and distance-sampled ambient occlusion.
+//!
+//! The design mirrors `core::render::krs` step for step (same epsilon rule, sample grid,
+//! over-relaxation, bounding interval, §4.1 tile cones, shadow and AO settings), in f32; see
+//! `docs/gpu.md` "KRS pass" for the precision argument.
+
+use glam::Vec3;
+use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, TextureMode};
+use thicket_core::render::Quality;
+use thicket_core::scene::{Document, Light, SceneError};
+use wgpu::util::DeviceExt;
+
+use super::GpuError;
+use super::gpu_data::{
+    KRS_COUNTERS, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT, KRS_FRAME_TILES, KRS_OBJ_BOUNDED,
+    KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsObjectGpu,
+};
+
+/// Algorithm 2 blend width in pixels (core `render::krs::SMOOTHING_PX`; the parity tests fail
+/// if the two drift apart).
+const SMOOTHING_PX: f32 = 2.0;
+/// Soft-shadow penumbra factor (core `render::krs::SOFT_SHADOW_K`).
+const SOFT_SHADOW_K: f32 = 16.0;
+/// Reach of the KRS ambient occlusion in object units of the smallest-scale object (core
+/// `render::krs::AO_REACH_OBJECT_UNITS`).
+const AO_REACH_OBJECT_UNITS: f32 = 0.4;
+
+/// Counters of the KRS pass, read back with the frame's other counters.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct GpuKrsStats {
+    /// Primary rays traced (pixels not already covered at the near plane).
+    pub rays: u64,
+    /// Rays that hit a KRS surface in front of what the pixel held.
+    pub hits: u64,
+    /// Distance evaluations of primary rays (rejected over-relaxed probes included).
+    pub steps: u64,
+    /// Most evaluations one primary ray took.
+    pub max_steps: u64,
+    /// Primary rays that ran out of steps.
+    pub exhausted: u64,
+    /// Over-relaxed probes taken back.
+    pub relaxation_fallbacks: u64,
+    /// Evaluations spent by the §4.1 tile cones.
+    pub tile_steps: u64,
+    /// Shadow rays traced through the KRS.
+    pub shadow_rays: u64,
+    /// Distance evaluations of those shadow rays.
+    pub shadow_steps: u64,
+    /// Distance evaluations of the KRS ambient occlusion.
+    pub ao_evals: u64,
+}
+
+impl GpuKrsStats {
+    /// Decodes the KRS words of the counter buffer.
+    pub(super) fn from_counters(words: &[u32]) -> Self {
+        let base = KRS_COUNTERS as usize;
+        let w = |i: usize| u64::from(words.get(base + i).copied().unwrap_or(0));
+        let w64 = |i: usize| w(i) | (w(i + 1) << 32);
+        Self {
+            rays: w(0),
+            hits: w(1),
+            steps: w64(2),
+            max_steps: w(4),
+            exhausted: w(5),
+            relaxation_fallbacks: w(6),
+            tile_steps: w(7),
+            shadow_rays: w(8),
+            shadow_steps: w64(9),
+            ao_evals: w64(11),
+        }
+    }
+
+    /// Mean distance evaluations per primary ray (0 without rays).
+    #[must_use]
+    pub fn steps_per_ray(&self) -> f64 {
+        if self.rays == 0 {
+            0.0
+        } else {
+            self.steps as f64 / self.rays as f64
+        }
+    }
+}
+
+/// The visible KRS objects of a document in world space, validated and prepared as the CPU
+/// reference's `render_document` prepares them (`None` when there are none).
+///
+/// # Errors
+/// [`GpuError::InvalidDocument`] when an object does not validate.
+pub fn prepared_krs(doc: &Document) -> Result<Option<PreparedScene>, GpuError> {
+    let objects: Vec<_> = doc
+        .objects
+        .iter()
+        .filter(|o| o.visible)
+        .filter_map(thicket_core::scene::Object::krs_in_world)
+        .collect();
+    if objects.is_empty() {
+        return Ok(None);
+    }
+    let scene = KrsScene { objects }.prepare().map_err(|e| {
+        GpuError::InvalidDocument(SceneError::Invalid {
+            what: "krs".into(),
+            context: "document".into(),
+            detail: e.to_string(),
+        })
+    })?;
+    Ok(Some(scene).filter(|s| s.objects.iter().any(|o| !o.is_empty)))
+}
+
+/// KRS objects flattened for the shader.
+#[derive(Debug, Clone, Default)]
+pub struct PackedKrs {
+    /// One entry per prepared object.
+    pub objects: Vec<KrsObjectGpu>,
+    /// Every object's kernels, in order.
+    pub kernels: Vec<KrsKernelGpu>,
+    /// Mirrors (normal, offset), then empty zones (centre, radius); lights are appended per
+    /// frame.
+    pub vectors: Vec<[f32; 4]>,
+    /// Smallest object scale (sets the AO reach).
+    pub min_scale: f32,
+}
+
+fn v4(v: Vec3, w: f32) -> [f32; 4] {
+    v.extend(w).to_array()
+}
+
+fn pack_kernel(k: &Kernel) -> KrsKernelGpu {
+    let mut out = KrsKernelGpu {
+        kind: [0; 4],
+        colour: [0.0; 4],
+        params: [[0.0; 4]; 6],
+    };
+    if let Some(m) = k.material() {
+        out.colour = v4(m.colour, 0.0);
+    }
+    match k {
+        Kernel::Empty => {}
+        Kernel::Sphere(s) => {
+            out.kind[0] = 1;
+            out.params[0] = v4(s.centre, s.radius);
+        }
+        Kernel::InfinitePlane(p) => {
+            out.kind[0] = 2;
+            out.params[0] = v4(p.normal, p.offset);
+        }
+        Kernel::Capsule(c) => {
+            out.kind[0] = 3;
+            out.params[0] = v4(c.start, c.radius);
+            out.params[1] = v4(c.end, 0.0);
+        }
+        Kernel::RoundedBox(b) => {
+            out.kind[0] = 4;
+            out.params[0] = v4(b.centre, b.rounding);
+            out.params[1] = b.rotation.inverse().to_array();
+            out.params[2] = v4(b.half_extents, 0.0);
+            out.params[3] = b.rotation.to_array();
+        }
+        Kernel::TorusSegment(t) | Kernel::ToroidalCapsule(t) => {
+            out.kind[0] = if matches!(k, Kernel::TorusSegment(_)) {
+                5
+            } else {
+                6
+            };
+            // The same f32 values the CPU derives (basis, sin/cos of the sweep, end points),
+            // so both sides compare the same numbers.
+            let (s, c) = t.sweep_radians.sin_cos();
+            out.params[0] = v4(t.centre, t.major_radius);
+            out.params[1] = v4(t.axis, t.minor_radius);
+            out.params[2] = v4(t.start_dir, t.sweep_radians);
+            out.params[3] = v4(t.axis.cross(t.start_dir), s);
+            out.params[4] = v4(t.end_point(), c);
+            out.params[5] = v4(t.start_point(), 0.0);
+        }
+    }
+    out
+}
+
+impl PackedKrs {
+    /// Flattens a prepared scene.
+    #[must_use]
+    pub fn pack(scene: &PreparedScene) -> Self {
+        let mut out = Self::default();
+        let mut zones: Vec<[f32; 4]> = Vec::new();
+        let mut zone_owner: Vec<(usize, u32)> = Vec::new();
+        for o in &scene.objects {
+            let obj = &o.object;
+            let t = obj.world_from_object;
+            let first_mirror = out.vectors.len() as u32;
+            out.vectors
+                .extend(obj.mirrors.iter().map(|m| v4(m.normal, m.offset)));
+            let first_kernel = out.kernels.len() as u32;
+            out.kernels.extend(obj.kernels.iter().map(pack_kernel));
+            zone_owner.push((out.objects.len(), zones.len() as u32));
+            zones.extend(obj.empty_zones.iter().map(|z| v4(z.centre, z.radius)));
+            let mut flags = 0;
+            if o.is_empty {
+                flags |= KRS_OBJ_EMPTY;
+            }
+            if obj.distortion.is_some() {
+                flags |= KRS_OBJ_DISTORTED;
+            }
+            let bound = o.bound_world.map_or([0.0; 4], |(c, r)| {
+                flags |= KRS_OBJ_BOUNDED;
+                v4(c, r)
+            });
+            let d = obj.distortion.unwrap_or_default();
+            let tex = &obj.texturing;
+            out.objects.push(KrsObjectGpu {
+                inv_rotation: t.rotation.inverse().to_array(),
+                rotation: t.rotation.to_array(),
+                translation_scale: v4(t.translation, t.scale),
+                bound,
+                first_mirror,
+                mirror_count: obj.mirrors.len() as u32,
+                first_kernel,
+                first_zone: 0,
+                zone_count: obj.empty_zones.len() as u32,
+                flags,
+                texture_mode: match tex.mode {
+                    TextureMode::None => 0,
+                    TextureMode::Triplanar => 1,
+                    TextureMode::KernelParam => 2,
+                },
+                pattern: match tex.pattern {
+                    Pattern::Checker => 0,
+                    Pattern::Bark => 1,
+                },
+                inv_scale: 1.0 / t.scale,
+                lipschitz: o.lipschitz,
+                amplitude: d.amplitude,
+                frequency: d.frequency,
+                seed: d.seed,
+                tex_scale: tex.scale,
+                tex_contrast: tex.contrast,
+                tex_sharpness: tex.sharpness,
+            });
+        }
+        let zone_base = out.vectors.len() as u32;
+        for (i, first) in zone_owner {
+            out.objects[i].first_zone = zone_base + first;
+        }
+        out.vectors.extend(zones);
+        out.min_scale = scene
+            .objects
+            .iter()
+            .filter(|o| !o.is_empty)
+            .map(|o| o.object.world_from_object.scale)
+            .fold(f32::INFINITY, f32::min)
+            .clamp(1e-30, 1e30);
+        out
+    }
+}
+
+/// What the KRS pass needs to know about the main camera.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct KrsCamera {
+    pub(super) fx: f32,
+    pub(super) fy: f32,
+    pub(super) near: f32,
+    pub(super) perspective: bool,
+}
+
+/// The per-frame constants: the CPU's `trace_settings` and `SampleGrid` for this camera.
+fn frame_uniform(
+    cam: KrsCamera,
+    quality: &Quality,
+    objects: u32,
+    lights: &[Light],
+    light_base: u32,
+    min_scale: f32,
+) -> KrsFrameUniform {
+    let pixel = 1.0 / cam.fy.min(cam.fx).max(1e-30);
+    let (cone, floor) = if cam.perspective {
+        (pixel, quality.krs_epsilon_scale * pixel * cam.near)
+    } else {
+        (0.0, quality.krs_epsilon_scale * pixel)
+    };
+    let min_epsilon = floor.max(1e-9);
+    let grid_cone = (f64::from(quality.krs_epsilon_scale) * f64::from(cone)).max(0.0);
+    let grid_floor = f64::from(min_epsilon).max(1e-12);
+    let q0 = 0.5 * grid_floor;
+    let (t0, log_step, u0) = if grid_cone > 0.0 && grid_cone.is_finite() {
+        let t0 = grid_floor / grid_cone;
+        (
+            t0 as f32,
+            (0.5 * grid_cone).ln_1p() as f32,
+            (t0 / q0) as f32,
+        )
+    } else {
+        (f32::MAX, 1.0, f32::MAX)
+    };
+    let mut flags = 0;
+    if quality.krs_tile_acceleration && cam.perspective {
+        flags |= KRS_FRAME_TILES;
+    }
+    if quality.shadows {
+        flags |= KRS_FRAME_SHADOWS;
+    }
+    if quality.krs_soft_shadows {
+        flags |= KRS_FRAME_SOFT;
+    }
+    let ao_samples = quality.ao_samples;
+    KrsFrameUniform {
+        eps_scale: quality.krs_epsilon_scale,
+        pixel_cone: cone,
+        min_epsilon,
+        max_steps: quality.krs_max_steps,
+        over_relaxation: if quality.krs_over_relaxation.is_finite() {
+            quality.krs_over_relaxation
+        } else {
+            1.0
+        },
+        grid_q0: q0 as f32,
+        grid_t0: t0,
+        grid_log_step: log_step,
+        grid_u0: u0,
+        object_count: objects,
+        light_count: lights.len() as u32,
+        light_base,
+        flags,
+        ao_samples,
+        ao_spacing: AO_REACH_OBJECT_UNITS * min_scale / ao_samples.max(1) as f32,
+        receiver_px: quality.lod_pixel_threshold.max(1.0),
+        stride: 1 + lights.len() as u32,
+        smoothing_px: SMOOTHING_PX,
+        soft_k: SOFT_SHADOW_K,
+        pad: 0,
+    }
+}
+
+/// Layout and pipelines of the KRS pass, created once per device.
+pub(super) struct KrsPipelines {
+    bgl: wgpu::BindGroupLayout,
+    trace: wgpu::ComputePipeline,
+    light: wgpu::ComputePipeline,
+}
+
+/// One frame's KRS work: its bind group and the per-pixel lighting buffer shade.wgsl reads.
+pub(super) struct KrsFrame {
+    bind_group: wgpu::BindGroup,
+    /// `stride` vec4 per pixel (see `krs_trace.wgsl`).
+    pub(super) light_buf: wgpu::Buffer,
+    /// Entries per pixel.
+    pub(super) stride: u32,
+    groups: (u32, u32),
+}
+
+/// The frame's buffers the KRS pass binds.
+pub(super) struct KrsBindings<'a> {
+    pub(super) view: &'a wgpu::Buffer,
+    pub(super) gbuffer: &'a wgpu::Buffer,
+    pub(super) counters: &'a wgpu::Buffer,
+}
+
+impl KrsPipelines {
+    pub(super) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
+        let cs = wgpu::ShaderStages::COMPUTE;
+        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
+            binding,
+            visibility: cs,
+            ty: wgpu::BindingType::Buffer {
+                ty,
+                has_dynamic_offset: false,
+                min_binding_size: None,
+            },
+            count: None,
+        };
+        let ro = wgpu::BufferBindingType::Storage { read_only: true };
+        let rw = wgpu::BufferBindingType::Storage { read_only: false };
+        let uni = wgpu::BufferBindingType::Uniform;
+        let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("krs"),
+            entries: &[
+                entry(0, uni),
+                entry(1, uni),
+                entry(2, ro),
+                entry(3, ro),
+                entry(4, ro),
+                entry(5, rw),
+                entry(6, rw),
+                entry(7, rw),
+            ],
+        });
+        let src = super::shaders::compose("krs_trace.wgsl")?;
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("krs_trace.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(src.into()),
+        });
+        let layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("krs"),
+            bind_group_layouts: &[Some(&bgl)],
+            immediate_size: 0,
+        });
+        let pipeline = |entry_point: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry_point),
+                layout: Some(&layout),
+                module: &module,
+                entry_point: Some(entry_point),
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+                cache: None,
+            })
+        };
+        Ok(Self {
+            trace: pipeline("trace"),
+            light: pipeline("light"),
+            bgl,
+        })
+    }
+
+    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and creates this
+    /// frame's buffers; `None` without KRS objects or pipelines.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's inputs the pass needs, each a different kind"
+    )]
+    pub(super) fn prepare(
+        pipelines: Option<&Self>,
+        device: &wgpu::Device,
+        scene: Option<&PreparedScene>,
+        doc: &Document,
+        quality: &Quality,
+        cam: KrsCamera,
+        size: (u32, u32),
+        bindings: &KrsBindings<'_>,
+    ) -> Result<Option<KrsFrame>, GpuError> {
+        let (Some(pipelines), Some(scene)) = (pipelines, scene) else {
+            return Ok(None);
+        };
+        let mut packed = PackedKrs::pack(scene);
+        let light_base = packed.vectors.len() as u32;
+        packed.vectors.extend(doc.lights.iter().map(|l| {
+            v4(
+                -l.direction.normalize_or_zero(),
+                if l.casts_shadows { 1.0 } else { 0.0 },
+            )
+        }));
+        let uniform = frame_uniform(
+            cam,
+            quality,
+            packed.objects.len() as u32,
+            &doc.lights,
+            light_base,
+            packed.min_scale,
+        );
+        let pixels = u64::from(size.0) * u64::from(size.1);
+        let light_bytes = pixels * u64::from(uniform.stride) * 16;
+        let limit = device.limits().max_storage_buffer_binding_size;
+        if light_bytes > limit {
+            return Err(GpuError::TooLarge {
+                what: "KRS lighting buffer",
+                bytes: light_bytes,
+                limit,
+            });
+        }
+        let upload = |label: &str, data: &[u8], usage: wgpu::BufferUsages| {
+            let mut contents = data.to_vec();
+            // Empty bindings are not allowed; a zeroed pad is never read (counts are 0).
+            contents.resize(contents.len().max(256), 0);
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some(label),
+                contents: &contents,
+                usage,
+            })
+        };
+        let storage = wgpu::BufferUsages::STORAGE;
+        let frame_buf = upload(
+            "krs frame",
+            bytemuck::bytes_of(&uniform),
+            wgpu::BufferUsages::UNIFORM,
+        );
+        let objects = upload(
+            "krs objects",
+            bytemuck::cast_slice(&packed.objects),
+            storage,
+        );
+        let kernels = upload(
+            "krs kernels",
+            bytemuck::cast_slice(&packed.kernels),
+            storage,
+        );
+        let vectors = upload(
+            "krs vectors",
+            bytemuck::cast_slice(&packed.vectors),
+            storage,
+        );
+        let light_buf = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("krs lighting"),
+            size: light_bytes.max(256),
+            usage: storage,
+            mapped_at_creation: false,
+        });
+        let buffers = [
+            bindings.view,
+            &frame_buf,
+            &objects,
+            &kernels,
+            &vectors,
+            bindings.gbuffer,
+            &light_buf,
+            bindings.counters,
+        ];
+        let entries: Vec<wgpu::BindGroupEntry<'_>> = buffers
+            .iter()
+            .enumerate()
+            .map(|(i, b)| wgpu::BindGroupEntry {
+                binding: i as u32,
+                resource: b.as_entire_binding(),
+            })
+            .collect();
+        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("krs"),
+            layout: &pipelines.bgl,
+            entries: &entries,
+        });
+        Ok(Some(KrsFrame {
+            bind_group,
+            light_buf,
+            stride: uniform.stride,
+            groups: (size.0.div_ceil(8), size.1.div_ceil(8)),
+        }))
+    }
+
+    /// Records the trace pass (after resolve).
+    pub(super) fn trace(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
+        pass.set_pipeline(&self.trace);
+        pass.set_bind_group(0, &frame.bind_group, &[]);
+        pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
+    }
+
+    /// Records the lighting pass (after trace, before shade).
+    pub(super) fn light(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
+        pass.set_pipeline(&self.light);
+        pass.set_bind_group(0, &frame.bind_group, &[]);
+        pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counters_decode_64_bit_sums() {
+        let mut words = vec![0u32; 64];
+        let b = KRS_COUNTERS as usize;
+        words[b] = 10;
+        words[b + 2] = 5;
+        words[b + 3] = 2;
+        words[b + 4] = 77;
+        words[b + 11] = 1;
+        words[b + 12] = 1;
+        let s = GpuKrsStats::from_counters(&words);
+        assert_eq!(s.rays, 10);
+        assert_eq!(s.steps, 5 + (2 << 32));
+        assert_eq!(s.max_steps, 77);
+        assert_eq!(s.ao_evals, 1 + (1 << 32));
+        assert!((s.steps_per_ray() - s.steps as f64 / 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn packing_keeps_every_kernel_and_mirror_of_the_tree() {
+        let path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/tree.thicket.json");
+        let doc = crate::files::load_document(&path).expect("tree sample loads");
+        let scene = prepared_krs(&doc).expect("valid").expect("has KRS");
+        let packed = PackedKrs::pack(&scene);
+        let mirrors: usize = scene.objects.iter().map(|o| o.object.mirrors.len()).sum();
+        let kernels: usize = scene.objects.iter().map(|o| o.object.kernels.len()).sum();
+        assert_eq!(packed.objects.len(), scene.objects.len());
+        assert_eq!(packed.kernels.len(), kernels);
+        let zones: usize = scene
+            .objects
+            .iter()
+            .map(|o| o.object.empty_zones.len())
+            .sum();
+        assert_eq!(packed.vectors.len(), mirrors + zones);
+        assert!(packed.min_scale > 0.0 && packed.min_scale.is_finite());
+    }
+}
