@@ -164,6 +164,15 @@ fn mixed_sample_matches_the_cpu_reference() {
 }
 
 #[test]
+fn terrain_sample_matches_the_cpu_reference() {
+    // The enhanced terrain (the fine model detail enhancement made from the coarse one) under
+    // the low sun that makes its terraces cast shadows.
+    let ctx = context();
+    let doc = project("terrain");
+    both_paths(&ctx, "terrain", &doc, (96, 80), &doc.quality.clone());
+}
+
+#[test]
 fn synthetic_mixed_scene_matches_the_cpu_reference() {
     // Voxel sphere, rotated and scaled mesh cube, ground: meshes and voxels occluding and
     // shadowing each other, PCF 2, 4 AO samples (the presets ship AO off or at 16).
