@@ -446,7 +446,7 @@ pub fn rig_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseT
                     .on_hover_text("Gizmo rings turn the joint about its own axes (R)");
                 ui.selectable_value(&mut tool.mode, GizmoMode::Translate, "Move")
                     .on_hover_text("Gizmo arrows move the joint in its parent's frame (G)");
-                ui.selectable_value(&mut tool.mode, GizmoMode::Scale, "Scale")
+                ui.selectable_value(&mut tool.mode, GizmoMode::Scale, "Scale joint")
                     .on_hover_text(
                         "Gizmo handles stretch the joint along its own axes (E); its children follow",
                     );

@@ -200,7 +200,7 @@ impl SculptTool {
                 }
             }
             if ui
-                .selectable_label(self.stretch_paint, "Stretch")
+                .selectable_label(self.stretch_paint, "Stretch paint")
                 .on_hover_text(
                     "Paint per-voxel stretch overrides on a rigged model where the view shows it (CPU preview); one undo step per stroke, saved with the project",
                 )

@@ -1467,7 +1467,7 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
     );
     let backdrop = egui::Rect::from_min_max(
         bar.min - egui::vec2(6.0, 22.0),
-        bar.max + egui::vec2(70.0, 26.0),
+        bar.max + egui::vec2(84.0, 26.0),
     );
     painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(160));
     let steps = 36;
@@ -1502,7 +1502,7 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
         );
     }
     painter.text(
-        egui::pos2(bar.max.x + 8.0, bar.center().y),
+        egui::pos2(bar.max.x + 18.0, bar.center().y),
         egui::Align2::LEFT_CENTER,
         format!(
             "min {:.2}\nmean {:.2}\nmax {:.2}",
