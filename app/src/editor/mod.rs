@@ -73,6 +73,9 @@ pub struct Editor {
     pub enhance_error: Option<String>,
 }
 
+/// A box of voxels an edit wrote: object id and inclusive voxel bounds.
+type VoxelBox = (u64, glam::UVec3, glam::UVec3);
+
 /// Consecutive voxel edits of one object: the document went from state `from` to state `to`
 /// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -305,11 +308,7 @@ impl Editor {
     /// After undo / redo applied an edit: linked enhancements follow the voxels it wrote;
     /// any other edit may have changed links or models wholesale, so the live enhancers are
     /// rebuilt when next needed.
-    fn after_history_step(
-        &mut self,
-        before: (u64, u64),
-        edit: Option<(bool, Vec<(u64, glam::UVec3, glam::UVec3)>)>,
-    ) {
+    fn after_history_step(&mut self, before: (u64, u64), edit: Option<(bool, Vec<VoxelBox>)>) {
         self.revision += 1;
         self.fix_selection();
         self.voxel_region = None;

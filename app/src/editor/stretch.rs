@@ -41,7 +41,7 @@ impl Editor {
                 o.name
             )));
         };
-        if !(radius.is_finite() && (0.5..=64.0).contains(&radius)) || !center.is_finite() {
+        if !(radius.is_finite() && (0.5..=64.0).contains(&radius) && center.is_finite()) {
             return Err(CommandError::Invalid(format!(
                 "stretch brush: radius {radius} must be in 0.5..=64 voxels"
             )));

@@ -774,7 +774,18 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
         assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
         let coarse = svo_of(&ed, id);
         assert_ne!(coarse, original);
+        let t0 = std::time::Instant::now();
         let fresh = enhance(&coarse, &settings).unwrap();
+        // Figures for the report (no timing assert: the machine is shared).
+        eprintln!(
+            "{:?} x{}: full enhancement {:.2} ms, last incremental update {:.2} ms ({} cells, {} fine voxels written)",
+            settings.method,
+            settings.factor,
+            t0.elapsed().as_secs_f64() * 1e3,
+            ed.last_enhance_update().map_or(0.0, |u| u.millis),
+            ed.last_enhance_update().map_or(0, |u| u.cells),
+            ed.last_enhance_update().map_or(0, |u| u.fine_changes),
+        );
         assert_eq!(svo_of(&ed, fine_id), fresh, "{:?}", settings.method);
         assert_ne!(svo_of(&ed, fine_id), fine_before);
         let u = ed.last_enhance_update().expect("an update ran");

@@ -1270,34 +1270,6 @@ fn brush_preview(
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_outline_is_the_border_of_the_selected_label_only() {
-        // A 3x3 block of label 2 inside a 5x5 image of label 1 (another object).
-        let mut labels = vec![1u32; 25];
-        for y in 1..4 {
-            for x in 1..4 {
-                labels[y * 5 + x] = 2;
-            }
-        }
-        let image = outline_image(&labels, [5, 5], 2);
-        let lit: Vec<(usize, usize)> = (0..25)
-            .filter(|&i| image.pixels[i] == SELECTION_COLOR)
-            .map(|i| (i % 5, i / 5))
-            .collect();
-        assert_eq!(
-            lit.len(),
-            8,
-            "the ring of the block, not its centre: {lit:?}"
-        );
-        assert!(!lit.contains(&(2, 2)));
-        assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
-    }
-}
-
 /// Heat-map colour of a stretch factor: blue at [`STRETCH_SCALE_MIN`], green at 1, yellow,
 /// red at [`STRETCH_SCALE_MAX`] and above.
 #[must_use]
@@ -1511,4 +1483,48 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
         font,
         text,
     );
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_outline_is_the_border_of_the_selected_label_only() {
+        // A 3x3 block of label 2 inside a 5x5 image of label 1 (another object).
+        let mut labels = vec![1u32; 25];
+        for y in 1..4 {
+            for x in 1..4 {
+                labels[y * 5 + x] = 2;
+            }
+        }
+        let image = outline_image(&labels, [5, 5], 2);
+        let lit: Vec<(usize, usize)> = (0..25)
+            .filter(|&i| image.pixels[i] == SELECTION_COLOR)
+            .map(|i| (i % 5, i / 5))
+            .collect();
+        assert_eq!(
+            lit.len(),
+            8,
+            "the ring of the block, not its centre: {lit:?}"
+        );
+        assert!(!lit.contains(&(2, 2)));
+        assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
+    }
+
+    #[test]
+    fn stretch_colours_run_blue_green_red_and_clamp() {
+        use super::{STRETCH_SCALE_MAX, STRETCH_SCALE_MIN, stretch_color};
+        let blue = stretch_color(STRETCH_SCALE_MIN);
+        let green = stretch_color(1.0);
+        let red = stretch_color(STRETCH_SCALE_MAX);
+        assert!(blue.b() > blue.r() && blue.b() > blue.g());
+        assert!(green.g() > green.r() && green.g() > green.b());
+        assert!(red.r() > red.g() && red.r() > red.b());
+        assert_eq!(stretch_color(0.01), blue);
+        assert_eq!(stretch_color(99.0), red);
+        assert_eq!(stretch_color(f32::NAN), red);
+        // Between stops the colour moves monotonically toward the next one.
+        assert!(stretch_color(1.4).r() > green.r());
+    }
 }

@@ -472,7 +472,7 @@ pub struct Document {
 /// A voxel model (`source`, the coarse one the artist edits) and the object that holds its
 /// detail enhancement (`target`), with the settings that made it. A link naming an object that
 /// no longer exists is ignored.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct EnhancementLink {
     /// Id of the coarse voxel model.
@@ -481,16 +481,6 @@ pub struct EnhancementLink {
     pub target: u64,
     /// The settings of the enhancement.
     pub settings: crate::enhance::EnhanceSettings,
-}
-
-impl Default for EnhancementLink {
-    fn default() -> Self {
-        Self {
-            source: 0,
-            target: 0,
-            settings: crate::enhance::EnhanceSettings::default(),
-        }
-    }
 }
 
 /// The tree-builder parameters a KRS object was last built from.
