@@ -199,6 +199,45 @@ impl Editor {
         self.enhancers.by_source.clear();
     }
 
+    /// Builds the live enhancer of linked model `source` from its coarse model when there is
+    /// none, *before* an edit, so the edit's update is incremental; a stored fine model that
+    /// differs from what the link's settings make of the coarse model is replaced (it was made
+    /// elsewhere or from other voxels).
+    pub(super) fn ensure_enhancer(&mut self, source: u64) {
+        let Some(link) = self.doc.enhancement_of(source).cloned() else {
+            return;
+        };
+        if self
+            .enhancers
+            .by_source
+            .get(&source)
+            .is_some_and(|e| e.settings() == &link.settings)
+        {
+            return;
+        }
+        let (Ok(si), Ok(ti)) = (self.index_of(source), self.index_of(link.target)) else {
+            return;
+        };
+        let ObjectKind::Voxels(coarse) = &self.doc.objects[si].kind else {
+            return;
+        };
+        match Enhancer::new(&coarse.svo, &link.settings) {
+            Ok(e) => {
+                if let ObjectKind::Voxels(fine) = &mut self.doc.objects[ti].kind
+                    && fine.svo != *e.fine()
+                {
+                    fine.svo = e.fine().clone();
+                    self.voxel_region = None;
+                    self.revision += 1;
+                }
+                self.enhancers.by_source.insert(source, e);
+            }
+            Err(e) => {
+                self.enhance_error = Some(format!("detail enhancement of object id {source}: {e}"));
+            }
+        }
+    }
+
     /// Re-enhances the region of linked model `source` around the coarse voxels `lo..=hi`
     /// (just written) and patches the linked object with the fine voxels that changed. Returns
     /// the fine box written, or `None` when `source` has no live link.
@@ -244,10 +283,12 @@ impl Editor {
             )));
         };
         let n = changes.len();
+        let mut whole = false;
         if rebuilt && fine.svo != *enhancer.fine() {
             // The stored fine model was not made from this coarse model with these settings
             // (an older file, or a model edited elsewhere): take the enhancer's, whole.
             fine.svo = enhancer.fine().clone();
+            whole = true;
         } else {
             fine.svo
                 .apply_changes(changes)
@@ -268,6 +309,9 @@ impl Editor {
             millis: start.elapsed().as_secs_f64() * 1e3,
             rebuilt,
         });
+        if whole {
+            return Ok(Some((UVec3::ZERO, UVec3::splat(fine_ext - 1))));
+        }
         Ok(Some((fine_lo, fine_hi)))
     }
 }

@@ -283,6 +283,7 @@ impl Editor {
             .history
             .next_undo()
             .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        self.ensure_enhancers_for(next.as_ref());
         let before = self.content_key();
         let done = self.history.undo(&mut self.doc);
         if done {
@@ -297,12 +298,22 @@ impl Editor {
             .history
             .next_redo()
             .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        self.ensure_enhancers_for(next.as_ref());
         let before = self.content_key();
         let done = self.history.redo(&mut self.doc);
         if done {
             self.after_history_step(before, next);
         }
         done
+    }
+
+    /// Before undo / redo writes voxels: the linked enhancements of those models are live.
+    fn ensure_enhancers_for(&mut self, edit: Option<&(bool, Vec<VoxelBox>)>) {
+        if let Some((_, boxes)) = edit {
+            for &(id, _, _) in boxes {
+                self.ensure_enhancer(id);
+            }
+        }
     }
 
     /// After undo / redo applied an edit: linked enhancements follow the voxels it wrote;

@@ -127,6 +127,9 @@ impl Editor {
                 self.doc.objects[index].name
             )));
         }
+        // A linked enhancement is brought up to date before the dab, so the dab's update is
+        // incremental.
+        self.ensure_enhancer(id);
         let ObjectKind::Voxels(v) = &mut self.doc.objects[index].kind else {
             return Err(CommandError::Invalid(format!(
                 "{:?} is not a voxel model: only voxel models can be sculpted",

@@ -772,6 +772,9 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
         }
         ed.end_interaction();
         assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
+        // Only the fine model is drawn: a renderer uploads its changed box.
+        let region = ed.take_voxel_region().expect("a region");
+        assert_eq!(region.object, fine_id);
         let coarse = svo_of(&ed, id);
         assert_ne!(coarse, original);
         let t0 = std::time::Instant::now();
@@ -790,6 +793,10 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
         assert_ne!(svo_of(&ed, fine_id), fine_before);
         let u = ed.last_enhance_update().expect("an update ran");
         assert!(u.source == id && u.fine_changes > 0 && u.cells > 0);
+        assert!(
+            !u.rebuilt,
+            "built before the first dab, updated incrementally"
+        );
 
         // Undo restores the coarse model and its enhancement; redo both again.
         assert!(ed.undo());
