@@ -504,6 +504,8 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     s.strategy = thicket_core::skin::StretchStrategy::Off;
     h.state_mut().editor.set_stretch(id, s).unwrap();
     h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+    let plain_ms = h.state().view.cpu_preview_stats().map(|(ms, _)| ms);
     h.get_by_label("View").click();
     h.run_steps(2);
     h.get_by_label("Stretch heat map").click();
@@ -513,6 +515,11 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     settle_preview(&mut h);
     // No stretch: every splat has its voxel's own size.
     let off = h.state().view.stretch_stats().expect("heat map statistics");
+    // Figures for the report (no timing assert).
+    eprintln!(
+        "CPU preview without / with the heat map: {plain_ms:?} / {:?} ms",
+        h.state().view.cpu_preview_stats().map(|(ms, _)| ms)
+    );
     assert!(off.pixels > 500, "{off:?}");
     assert!(
         (off.min - 1.0).abs() < 1e-4 && (off.max - 1.0).abs() < 1e-4,
