@@ -454,6 +454,12 @@ impl View {
         {
             brush_preview(&painter, &to_screen, &camera, &pick, sculpt);
         }
+        if sculpt.active
+            && sculpt.stretch_paint
+            && let Some(pos) = response.hover_pos()
+        {
+            self.stretch_brush_preview(&painter, editor, &proj, rect, pos, sculpt);
+        }
         self.status_text(ui, rect, editor, sculpt.active, cpu);
     }
 
@@ -498,6 +504,46 @@ impl View {
             ObjectKind::Voxels(v) if v.rig.is_some() => Some((o.id, node)),
             _ => None,
         }
+    }
+
+    /// The stretch brush over the rigged model under the pointer: a circle of the brush's
+    /// radius (sized at the node's bind-pose place, which the pose moves but hardly scales),
+    /// in the heat map's colour of the factor it paints (grey when erasing).
+    fn stretch_brush_preview(
+        &self,
+        painter: &egui::Painter,
+        editor: &Editor,
+        proj: &Projector,
+        rect: egui::Rect,
+        pos: egui::Pos2,
+        sculpt: &SculptTool,
+    ) {
+        let Some((id, node)) = self.preview_hit(editor, rect, pos) else {
+            return;
+        };
+        let (Some(o), Some(c)) = (editor.object(id), editor.node_center(id, node)) else {
+            return;
+        };
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return;
+        };
+        let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
+        let p = world_from_voxel.transform_point3(c);
+        let voxel_world = world_from_voxel
+            .transform_vector3(Vec3::X)
+            .length()
+            .max(1e-9);
+        let radius_px = sculpt.brush.radius * voxel_world / proj.world_per_point(p).max(1e-9);
+        let color = if sculpt.stretch_erase {
+            egui::Color32::from_gray(200)
+        } else {
+            stretch_color(sculpt.stretch_factor)
+        };
+        painter.circle_stroke(
+            pos,
+            radius_px.clamp(2.0, 400.0),
+            egui::Stroke::new(2.0, color),
+        );
     }
 
     /// Stretch-factor statistics of the shown CPU preview (with [`View::show_stretch`]).
