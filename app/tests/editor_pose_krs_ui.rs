@@ -603,14 +603,21 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     h.key_press(egui::Key::Escape);
     h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
     h.run_steps(1);
-    assert!(
-        h.state()
-            .editor
-            .rig(id)
-            .unwrap()
-            .stretch_overrides
-            .is_empty()
+    let count =
+        |h: &Harness<'static, EditorApp>| h.state().editor.rig(id).unwrap().stretch_overrides.len();
+    assert_eq!(count(&h), 0);
+    // Redo, then the inspector's Clear overrides removes them all in one step.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
     );
+    h.run_steps(2);
+    assert_eq!(count(&h), painted);
+    h.get_by_label_contains(&format!("{painted} voxel(s) with a painted"));
+    // The inspector scrolls: an accessibility click reaches a button below the fold.
+    h.get_by_label("Clear overrides").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(count(&h), 0);
 }
 
 #[test]

@@ -85,6 +85,32 @@ impl Editor {
         Ok(n)
     }
 
+    /// Removes every painted stretch override of rigged model `id` (one undo step).
+    ///
+    /// # Errors
+    /// Unknown id or a model without a rig.
+    pub fn clear_stretch_overrides(&mut self, id: u64) -> Result<usize, CommandError> {
+        let o = self.object(id).ok_or(CommandError::NoObject(id))?;
+        let rig = match &o.kind {
+            ObjectKind::Voxels(v) => v.rig.as_ref(),
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
+        }
+        .ok_or_else(|| {
+            CommandError::Invalid(format!(
+                "{:?} has no skeleton: stretch overrides belong to rigged voxel models",
+                o.name
+            ))
+        })?;
+        let entries: Vec<(UVec3, u8)> = rig.stretch_overrides.iter().map(|(p, _)| (p, 0)).collect();
+        let n = entries.len();
+        if n > 0 {
+            self.history.seal();
+            self.apply(Edit::StretchOverrides { id, entries }, None);
+            self.history.seal();
+        }
+        Ok(n)
+    }
+
     /// The stretch override of a leaf voxel of rigged model `id` (`None`: none painted).
     #[must_use]
     pub fn stretch_override(&self, id: u64, voxel: UVec3) -> Option<f32> {

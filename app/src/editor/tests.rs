@@ -944,6 +944,11 @@ fn a_stretch_paint_stroke_is_one_step_erases_and_saves() {
     }
     assert!(ed.redo());
     assert_eq!(ed.stretch_override(id, UVec3::new(1, 0, 0)), Some(1.5));
+    // Clear removes all of them in one step; undo restores them.
+    assert_eq!(ed.clear_stretch_overrides(id).unwrap(), 3);
+    assert_eq!(ed.stretch_override(id, UVec3::new(0, 0, 0)), None);
+    assert!(ed.undo());
+    assert_eq!(ed.stretch_override(id, UVec3::new(0, 0, 0)), Some(2.0));
     // Refusals name the problem.
     let e = ed
         .paint_stretch(id, Vec3::ZERO, 1.0, Some(9.0))

@@ -683,7 +683,18 @@ fn stretch_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u
     });
     ui.weak(format!(
         "{overrides} voxel(s) with a painted stretch override"
-    ));
+    ))
+    .on_hover_text("Paint them with the tool bar's Stretch paint brush (Sculpt tool)");
+    if ui
+        .add_enabled(overrides > 0, egui::Button::new("Clear overrides"))
+        .on_hover_text("Remove every painted stretch override of this model (undoable)")
+        .clicked()
+    {
+        tool.error = editor
+            .clear_stretch_overrides(id)
+            .err()
+            .map(|e| e.to_string());
+    }
     if changed {
         tool.error = editor.set_stretch(id, s).err().map(|e| e.to_string());
     }
@@ -834,7 +845,9 @@ fn paint_keys(
     if duration <= 0.0 {
         return;
     }
-    let Some(rig) = editor.rig(id) else { return };
+    let Some(rig) = editor.rig(id) else {
+        return;
+    };
     let Some(clip) = rig.playback.clip.and_then(|c| rig.clips.get(c)) else {
         return;
     };
