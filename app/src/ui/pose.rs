@@ -858,7 +858,10 @@ fn paint_keys(
     };
     let painter = ui.painter();
     let y = rail.center().y;
-    let selected = tool.joint.filter(|j| j.object == id).map(|j| j.joint);
+    let selected = tool
+        .valid_joint(editor)
+        .filter(|j| j.object == id)
+        .map(|j| j.joint);
     for c in clip.channels.iter().filter(|c| Some(c.joint) != selected) {
         for &t in &c.times {
             let x = x_of(t);
@@ -911,7 +914,10 @@ fn keys_ui(
             playback.time_secs = t;
             tool.playing = false;
         }
-        let joint = tool.joint.filter(|j| j.object == id).map(|j| j.joint);
+        let joint = tool
+            .valid_joint(editor)
+            .filter(|j| j.object == id)
+            .map(|j| j.joint);
         let name = joint
             .and_then(|j| editor.rig(id).map(|r| joint_label(&r.skeleton.joints[j].name, j)))
             .unwrap_or_else(|| "no joint selected".to_owned());
