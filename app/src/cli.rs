@@ -54,8 +54,9 @@ pub enum Command {
     ///
     /// Adds the result as a new object "NAME (enhanced)" (replacing an earlier one of that
     /// name) and hides the coarse original, so renders and exports show the fine model while
-    /// the coarse one stays editable; `--replace` swaps the object in place instead.
-    /// See docs/enhance.md for the rules and options.
+    /// the coarse one stays editable; `--replace` swaps the object in place instead. The
+    /// project records the link with its settings, so the editor re-enhances the fine model
+    /// where strokes change the coarse one. See docs/enhance.md for the rules and options.
     Enhance(EnhanceArgs),
     /// Measure the speed/accuracy trade: render a high-quality reference, then each setting of
     /// the given quality knobs; write report.json, report.csv and tradeoff.png to a directory.
@@ -537,8 +538,12 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
         result.with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
     let fragments = fine.svo.leaf_count();
     let depth = fine.svo.depth();
+    let source = doc.objects[index].id;
     let name = if args.replace {
         doc.objects[index].kind = ObjectKind::Voxels(fine);
+        // The coarse model is gone: nothing is left for a link to follow.
+        doc.enhancements
+            .retain(|l| l.source != source && l.target != source);
         args.object.clone()
     } else {
         let name = format!("{} (enhanced)", args.object);
@@ -555,6 +560,13 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
             o.transform = transform;
             o.visible = true;
         }
+        // The editor keeps the fine model in step with strokes on the coarse one.
+        doc.enhancements.retain(|l| l.source != source);
+        doc.enhancements.push(thicket_core::scene::EnhancementLink {
+            source,
+            target: id,
+            settings: settings.clone(),
+        });
         name
     };
     files::save_project(&doc, &args.output)?;

@@ -501,6 +501,10 @@ fn enhance_adds_the_fine_object_and_hides_the_coarse_one() {
         "CLI output differs from core::enhance"
     );
     assert_eq!(doc.objects.len(), 3, "hill, cube and the enhanced hill");
+    // The link the editor uses to keep the fine model in step with strokes.
+    let link = doc.enhancement_of(coarse_obj.id).expect("a link");
+    assert_eq!(link.target, fine_obj.id);
+    assert_eq!(link.settings, settings);
 
     // Enhancing the result again with other settings replaces "hill (enhanced)", and
     // --replace swaps the object in place.
@@ -532,6 +536,8 @@ fn enhance_adds_the_fine_object_and_hides_the_coarse_one() {
     let (_, fine2) = voxel_model(&doc2, "hill (enhanced)");
     assert!((fine2.voxel_size - 0.5 / 3.0).abs() < 1e-7);
     assert_ne!(fine2.svo, fine.svo);
+    assert_eq!(doc2.enhancements.len(), 1, "the link was replaced");
+    assert_eq!(doc2.enhancements[0].settings.factor, 3);
 
     let out3 = dir.path().join("replaced.thicket.json");
     let o = thicket(&[
@@ -552,6 +558,7 @@ fn enhance_adds_the_fine_object_and_hides_the_coarse_one() {
     assert!(obj3.visible);
     assert_eq!(obj3.id, voxel_model(&source, "hill").0.id);
     assert_eq!(fine3.svo.depth(), 5);
+    assert!(doc3.enhancements.is_empty());
 }
 
 #[test]

@@ -375,4 +375,9 @@ fn rigged_sample_draws_on_the_gpu_and_scrubbing_uploads_only_joints() {
 
     h.state_mut().view.show_holes = true;
     assert!(h.state().view.uses_cpu(&h.state().editor));
+    // So do the stretch heat map and stretch painting (they read the preview's image and ids).
+    h.state_mut().view.show_holes = false;
+    assert!(!h.state().view.uses_cpu(&h.state().editor));
+    h.state_mut().view.show_stretch = true;
+    assert!(h.state().view.uses_cpu(&h.state().editor));
 }

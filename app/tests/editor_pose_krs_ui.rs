@@ -496,3 +496,256 @@ fn the_hole_overlay_counts_fewer_holes_with_corner_stretch_than_without() {
     );
     snapshot(&mut h, "pose_hole_overlay");
 }
+
+#[test]
+fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
+    let mut h = harness(rigged_figure(5));
+    let id = h.state().editor.doc().objects[0].id;
+    let mut s = h.state().editor.rig(id).unwrap().stretch;
+    s.strategy = thicket_core::skin::StretchStrategy::Off;
+    h.state_mut().editor.set_stretch(id, s).unwrap();
+    h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+    let plain_ms = h.state().view.cpu_preview_stats().map(|(ms, _)| ms);
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Stretch heat map").click();
+    h.run_steps(2);
+    h.key_press(egui::Key::Escape);
+    assert!(h.state().view.show_stretch);
+    settle_preview(&mut h);
+    // No stretch: every splat has its voxel's own size.
+    let off = h.state().view.stretch_stats().expect("heat map statistics");
+    // Figures for the report (no timing assert).
+    eprintln!(
+        "CPU preview without / with the heat map: {plain_ms:?} / {:?} ms",
+        h.state().view.cpu_preview_stats().map(|(ms, _)| ms)
+    );
+    assert!(off.pixels > 500, "{off:?}");
+    assert!(
+        (off.min - 1.0).abs() < 1e-4 && (off.max - 1.0).abs() < 1e-4,
+        "{off:?}"
+    );
+    // Thesis: min(2, W) for W joints with weight, within the settings' range.
+    s.strategy = thicket_core::skin::StretchStrategy::Thesis;
+    h.state_mut().editor.set_stretch(id, s).unwrap();
+    h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+    let base = h.state().view.stretch_stats().unwrap();
+    eprintln!("Thesis x1: {base:?}");
+    assert!(base.min >= 1.0 - 1e-4 && base.max <= 2.0 + 1e-4, "{base:?}");
+    assert!(base.mean > 1.0, "blended voxels stretch: {base:?}");
+
+    // The multiplier scales every factor.
+    s.multiplier = 1.5;
+    h.state_mut().editor.set_stretch(id, s).unwrap();
+    h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+    let scaled = h.state().view.stretch_stats().unwrap();
+    assert!(
+        (scaled.max - 1.5 * base.max).abs() < 1e-3,
+        "{scaled:?} vs {base:?}"
+    );
+    assert!(
+        (scaled.min - 1.5 * base.min).abs() < 1e-3,
+        "{scaled:?} vs {base:?}"
+    );
+    s.multiplier = 1.0;
+    h.state_mut().editor.set_stretch(id, s).unwrap();
+    h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+
+    // Paint overrides with the stretch brush across the figure's middle: S, Stretch, factor
+    // 3.5, one stroke, one undo step; the heat map shows the painted factor.
+    h.key_press(egui::Key::S);
+    h.run_steps(1);
+    h.get_by_label("Stretch paint").click();
+    h.run_steps(2);
+    assert!(h.state().sculpt.stretch_paint);
+    h.state_mut().sculpt.stretch_factor = 3.5;
+    h.state_mut().sculpt.brush.radius = 3.0;
+    let rect = h.state().view.last_rect;
+    let (lo, hi) = h
+        .state()
+        .editor
+        .object(id)
+        .and_then(thicket_core::scene::Object::world_bounds)
+        .unwrap();
+    let proj = Projector::new(h.state().editor.doc().camera, rect);
+    let mid = proj.to_screen((lo + hi) * 0.5).expect("on screen");
+    let hit = h.state().view.preview_hit(&h.state().editor, rect, mid);
+    assert!(
+        hit.is_some_and(|(o, _)| o == id),
+        "the figure is under the brush"
+    );
+    let steps = h.state().editor.history().undo_len();
+    h.hover_at(mid);
+    h.step();
+    h.drag_at(mid);
+    h.step();
+    for k in 1..=5 {
+        h.hover_at(mid + egui::vec2(0.0, 8.0 * k as f32));
+        h.step();
+    }
+    h.drop_at(mid + egui::vec2(0.0, 40.0));
+    h.run_steps(2);
+    let painted = h.state().editor.rig(id).unwrap().stretch_overrides.len();
+    assert!(painted > 0, "the stroke painted overrides");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    settle_preview(&mut h);
+    let with = h.state().view.stretch_stats().unwrap();
+    // Leaves drawn as leaves show the painted 3.5; LOD may draw some as their parents.
+    assert!(
+        with.max > 2.1 && with.max <= 3.5 + 0.02,
+        "the painted factor shows: {with:?}"
+    );
+    snapshot(&mut h, "pose_stretch_heatmap");
+
+    h.key_press(egui::Key::Escape);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    let count =
+        |h: &Harness<'static, EditorApp>| h.state().editor.rig(id).unwrap().stretch_overrides.len();
+    assert_eq!(count(&h), 0);
+    // Redo, then the inspector's Clear overrides removes them all in one step.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::Z,
+    );
+    h.run_steps(2);
+    assert_eq!(count(&h), painted);
+    h.get_by_label_contains(&format!("{painted} voxel(s) with a painted"));
+    // The inspector scrolls: an accessibility click reaches a button below the fold.
+    h.get_by_label("Clear overrides").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(count(&h), 0);
+}
+
+#[test]
+fn scale_a_joint_and_key_it_on_the_timeline() {
+    let mut h = harness(rigged_figure(5));
+    let id = h.state().editor.doc().objects[0].id;
+    let rig = h.state().editor.rig(id).unwrap().clone();
+    let joint = 2;
+    h.get_by_label(&rig.skeleton.joints[joint].name)
+        .click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Scale joint").click();
+    h.run_steps(2);
+    // Drag the handle of the axis that shows longest on the screen outward by half its length.
+    let frames = h.state().editor.joint_frames(id).unwrap();
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let p = frames.position(joint).unwrap();
+    let w = frames.world_from_joint[joint];
+    let size = 70.0 * proj.world_per_point(p);
+    let c = proj.to_screen(p).unwrap();
+    let (axis, end) = (0..3)
+        .filter_map(|a| {
+            let d = w.col(a).truncate().normalize_or_zero();
+            proj.to_screen(p + d * size).map(|e| (a, e))
+        })
+        .max_by(|x, y| (x.1 - c).length().total_cmp(&(y.1 - c).length()))
+        .unwrap();
+    let steps = h.state().editor.history().undo_len();
+    h.hover_at(end);
+    h.step();
+    h.drag_at(end);
+    h.step();
+    let out = (end - c) * 0.5;
+    for k in 1..=4 {
+        h.hover_at(end + out * (k as f32 / 4.0));
+        h.step();
+    }
+    h.drop_at(end + out);
+    h.run_steps(2);
+    let o = h
+        .state()
+        .editor
+        .joint_override(id, joint)
+        .expect("the drag scaled the joint");
+    let scale = o.scale.expect("a scale");
+    assert!(
+        (scale[axis] - 1.5).abs() < 0.1,
+        "about 1.5 along the dragged axis: {scale}"
+    );
+    assert!((scale[(axis + 1) % 3] - 1.0).abs() < 1e-6);
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps + 1,
+        "one step per drag"
+    );
+
+    // Set key at the playhead, through the timeline's button: the clip holds the pose.
+    let mut playback = h.state().editor.rig(id).unwrap().playback;
+    playback.time_secs = 0.5;
+    playback.wrap = thicket_core::skin::Wrap::Clamp;
+    h.state_mut().editor.set_playback(id, playback).unwrap();
+    h.run_steps(1);
+    let posed = h.state().editor.rig(id).unwrap().current_pose().locals[joint];
+    h.get_by_label("Set key").click();
+    h.run_steps(2);
+    assert!(h.state().editor.joint_override(id, joint).is_none());
+    let keyed = h.state().editor.rig(id).unwrap().current_pose().locals[joint];
+    assert!(
+        (keyed.scale - posed.scale).length() < 1e-4,
+        "{keyed:?} vs {posed:?}"
+    );
+    let times = h.state().editor.joint_key_times(id, joint);
+    assert!(times.iter().any(|t| (t - 0.5).abs() < 1e-3), "{times:?}");
+    h.get_by_label_contains("key(s) in this clip");
+    settle_preview(&mut h);
+    snapshot(&mut h, "pose_scaled_keyed");
+    // Delete key removes it again (one step), undo brings it back.
+    h.get_by_label("Delete key").click();
+    h.run_steps(2);
+    let after = h.state().editor.joint_key_times(id, joint);
+    assert!(!after.iter().any(|t| (t - 0.5).abs() < 1e-3), "{after:?}");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(h.state().editor.joint_key_times(id, joint), times);
+}
+
+#[test]
+fn a_saved_tree_reopens_in_the_builder_with_its_parameters() {
+    let mut doc = Document::default();
+    doc.add("Tree", ObjectKind::Krs(thicket_core::krs::presets::tree()));
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    // Thicken the trunk through the builder's state and a rebuild (what the width field does).
+    let mut params = h.state().krs.tree.as_ref().unwrap().1.clone();
+    params.widths[0] *= 1.4;
+    h.state_mut().editor.build_tree(id, &params).unwrap();
+    h.state_mut().editor.end_interaction();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().krs.tree.as_ref().unwrap().1,
+        params,
+        "the builder shows the document's"
+    );
+
+    // Save, open the file in a fresh editor: the builder reopens with those parameters.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tree.thicket.json");
+    thicket_core::io::project::save(h.state().editor.doc(), &path).unwrap();
+    let loaded = thicket_core::io::project::load(&path).unwrap();
+    assert_eq!(loaded.tree_params_of(id), Some(&params));
+    let mut h = harness(loaded);
+    h.get_by_label("Edit tree").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().krs.tree.as_ref().map(|t| &t.1), Some(&params));
+    assert!(h.query_by_label("Start from the default tree").is_none());
+    // Undo after a rebuild in the reopened builder returns the saved parameters to it.
+    let mut p2 = params.clone();
+    p2.widths[0] *= 0.5;
+    h.state_mut().editor.build_tree(id, &p2).unwrap();
+    h.state_mut().editor.end_interaction();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(h.state().krs.tree.as_ref().map(|t| &t.1), Some(&params));
+}

@@ -246,3 +246,111 @@ fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
             >= 1
     );
 }
+
+#[test]
+fn an_enhanced_model_follows_a_sculpt_stroke_and_undo() {
+    let mut app = app_with_two_objects();
+    app.autosave_secs = 0;
+    let mut svo = Svo::new(4, false).unwrap();
+    for x in 2..10 {
+        for y in 2..8 {
+            for z in 2..10 {
+                svo.set(UVec3::new(x, y, z), Voxel::new([90, 140, 90, 255], Vec3::Y))
+                    .unwrap();
+            }
+        }
+    }
+    let block = app.editor.add_object(
+        "Block",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        }),
+    );
+    app.editor.frame_selection();
+    let mut h = harness(app);
+    let ctx = h.ctx.clone();
+    // The inspector's Detail enhancement section: settings, then Enhance (a job).
+    h.get_by_label("Detail enhancement").click();
+    h.run_steps(3);
+    h.get_by_label("Subdivide");
+    h.get_by_label("Enhance").click();
+    h.run_steps(1);
+    assert!(h.state().job_running());
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(3);
+    let settings = {
+        let doc = h.state().editor.doc();
+        let link = doc.enhancement_of(block).expect("linked");
+        assert!(
+            !h.state().editor.object(block).unwrap().visible,
+            "source hidden"
+        );
+        assert_eq!(doc.objects.last().unwrap().name, "Block enhanced");
+        link.settings.clone()
+    };
+    // The enhancement is selected; its section points at the source.
+    h.get_by_label_contains("Enhancement of Block");
+    h.get_by_label("Select source").click();
+    h.run_steps(2);
+    h.get_by_label_contains("updated while sculpting");
+
+    // Sculpt a stroke through the view on the (hidden) coarse block: S, Remove, drag.
+    h.key_press(egui::Key::S);
+    h.run_steps(1);
+    h.get_by_label("Remove").click();
+    h.run_steps(1);
+    let proj =
+        thicket::ui::view::Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let center = proj.to_screen(Vec3::new(6.0, 5.0, 6.0)).expect("on screen");
+    let steps = h.state().editor.history().undo_len();
+    h.hover_at(center);
+    h.step();
+    h.drag_at(center);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(center + egui::vec2(6.0 * k as f32, 0.0));
+        h.step();
+    }
+    h.drop_at(center + egui::vec2(24.0, 0.0));
+    h.run_steps(3);
+    let ed = &h.state().editor;
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
+    let coarse = match &ed.object(block).unwrap().kind {
+        ObjectKind::Voxels(v) => v.svo.clone(),
+        _ => unreachable!(),
+    };
+    assert!(
+        coarse.leaf_count() < 8 * 6 * 8,
+        "the stroke carved the block"
+    );
+    let target = ed.doc().enhancement_of(block).unwrap().target;
+    let fine = match &ed.object(target).unwrap().kind {
+        ObjectKind::Voxels(v) => v.svo.clone(),
+        _ => unreachable!(),
+    };
+    let fresh = thicket_core::enhance::enhance(&coarse, &settings).unwrap();
+    assert_eq!(fine, fresh, "the fine model equals a fresh enhancement");
+    // The inspector reports the incremental update.
+    h.get_by_label_contains("Last update:");
+
+    // Edit -> Undo restores both models.
+    h.key_press(egui::Key::Escape);
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Undo").click();
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    let (coarse, fine) = match (
+        &ed.object(block).unwrap().kind,
+        &ed.object(target).unwrap().kind,
+    ) {
+        (ObjectKind::Voxels(c), ObjectKind::Voxels(f)) => (c.svo.clone(), f.svo.clone()),
+        _ => unreachable!(),
+    };
+    assert_eq!(coarse.leaf_count(), 8 * 6 * 8);
+    assert_eq!(
+        fine,
+        thicket_core::enhance::enhance(&coarse, &settings).unwrap()
+    );
+}

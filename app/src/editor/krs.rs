@@ -72,7 +72,27 @@ impl Editor {
             k.name.clone_from(&current.name);
         }
         self.history.seal();
-        let result = self.set_krs(id, &k);
+        let result = if self.doc.tree_params_of(id).is_some() {
+            // A preset is not a built tree: the builder's parameters go with the old shape,
+            // in the same step.
+            self.krs(id).ok_or(CommandError::NoObject(id))?;
+            let validated = k
+                .validated(0)
+                .map_err(|e| CommandError::Invalid(e.to_string()))?;
+            self.apply(
+                Edit::Group(vec![
+                    Edit::SetKrs {
+                        id,
+                        krs: Box::new(validated),
+                    },
+                    Edit::SetTreeParams { id, params: None },
+                ]),
+                None,
+            );
+            Ok(())
+        } else {
+            self.set_krs(id, &k)
+        };
         self.history.seal();
         result
     }
@@ -94,6 +114,37 @@ impl Editor {
         built.name.clone_from(&current.name);
         built.texturing = current.texturing;
         built.world_from_object = current.world_from_object;
-        self.set_krs(id, &built)
+        let name = self.object(id).map(|o| o.name.clone()).unwrap_or_default();
+        let validated = built.validated(0).map_err(|e| {
+            CommandError::Invalid(e.to_string().replacen(
+                "KRS object 0",
+                &format!("KRS object {name:?}"),
+                1,
+            ))
+        })?;
+        // The parameters are saved with the object, so reopening it keeps editing the tree.
+        // Both always go in the step: a drag keeps only its first step's inverse.
+        if self.krs(id) != Some(&validated) || self.doc.tree_params_of(id) != Some(params) {
+            self.apply(
+                Edit::Group(vec![
+                    Edit::SetKrs {
+                        id,
+                        krs: Box::new(validated),
+                    },
+                    Edit::SetTreeParams {
+                        id,
+                        params: Some(Box::new(params.clone())),
+                    },
+                ]),
+                Some(MergeKey::Krs(id)),
+            );
+        }
+        Ok(())
+    }
+
+    /// The tree-builder parameters KRS object `id` was last built from, if any.
+    #[must_use]
+    pub fn tree_params(&self, id: u64) -> Option<&TreeParams> {
+        self.doc.tree_params_of(id)
     }
 }

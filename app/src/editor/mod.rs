@@ -3,9 +3,12 @@
 //! the same commands as the buttons.
 
 pub mod autosave;
+mod enhance;
+mod keys;
 mod krs;
 mod pose;
 mod sculpt;
+mod stretch;
 mod undo;
 
 use std::path::{Path, PathBuf};
@@ -13,8 +16,11 @@ use std::path::{Path, PathBuf};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
+pub use enhance::EnhanceUpdate;
+pub use keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
 pub use pose::JointFrames;
 pub use sculpt::{VoxelPick, ray_through};
+pub use stretch::MAX_STRETCH_OVERRIDE;
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};
 
 /// What the inspector shows.
@@ -61,7 +67,14 @@ pub struct Editor {
     anim_revision: u64,
     /// Voxel edits since the view last took them (see [`Editor::take_voxel_region`]).
     voxel_region: Option<VoxelRegion>,
+    /// Live enhancers of the linked models (derived state, rebuilt when missing).
+    enhancers: enhance::Enhancers,
+    /// Why the last incremental re-enhancement failed, if it did.
+    pub enhance_error: Option<String>,
 }
+
+/// A box of voxels an edit wrote: object id and inclusive voxel bounds.
+type VoxelBox = (u64, glam::UVec3, glam::UVec3);
 
 /// Consecutive voxel edits of one object: the document went from state `from` to state `to`
 /// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates), and, when the box is
@@ -101,6 +114,8 @@ impl Editor {
             generation: 0,
             anim_revision: 0,
             voxel_region: None,
+            enhancers: enhance::Enhancers::default(),
+            enhance_error: None,
         }
     }
 
@@ -272,22 +287,63 @@ impl Editor {
 
     /// Undoes the last step; false when there is none.
     pub fn undo(&mut self) -> bool {
+        let next = self
+            .history
+            .next_undo()
+            .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        self.ensure_enhancers_for(next.as_ref());
+        let before = self.content_key();
         let done = self.history.undo(&mut self.doc);
         if done {
-            self.revision += 1;
-            self.fix_selection();
+            self.after_history_step(before, next);
         }
         done
     }
 
     /// Redoes the last undone step; false when there is none.
     pub fn redo(&mut self) -> bool {
+        let next = self
+            .history
+            .next_redo()
+            .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        self.ensure_enhancers_for(next.as_ref());
+        let before = self.content_key();
         let done = self.history.redo(&mut self.doc);
         if done {
-            self.revision += 1;
-            self.fix_selection();
+            self.after_history_step(before, next);
         }
         done
+    }
+
+    /// Before undo / redo writes voxels: the linked enhancements of those models are live.
+    fn ensure_enhancers_for(&mut self, edit: Option<&(bool, Vec<VoxelBox>)>) {
+        if let Some((_, boxes)) = edit {
+            for &(id, _, _) in boxes {
+                self.ensure_enhancer(id);
+            }
+        }
+    }
+
+    /// After undo / redo applied an edit: linked enhancements follow the voxels it wrote;
+    /// any other edit may have changed links or models wholesale, so the live enhancers are
+    /// rebuilt when next needed.
+    fn after_history_step(&mut self, before: (u64, u64), edit: Option<(bool, Vec<VoxelBox>)>) {
+        self.revision += 1;
+        self.fix_selection();
+        self.voxel_region = None;
+        let Some((only_voxels, boxes)) = edit else {
+            return;
+        };
+        if !only_voxels {
+            self.drop_enhancers();
+        }
+        for (id, lo, hi) in boxes {
+            if self.doc.enhancement_of(id).is_some() {
+                self.after_voxel_write(before, id, lo, hi);
+                // Regions of several objects do not chain: upload in full.
+                self.voxel_region = None;
+            }
+        }
     }
 
     /// Adds an object at the end of the outliner and selects it; returns its id.
@@ -393,7 +449,26 @@ impl Editor {
     /// Unknown id.
     pub fn delete(&mut self, id: u64) -> Result<(), CommandError> {
         let index = self.index_of(id)?;
-        self.apply(Edit::Remove { index }, None);
+        // Links and builder parameters naming the object go with it (and come back on undo).
+        let mut edits: Vec<Edit> = self
+            .doc
+            .enhancements
+            .iter()
+            .filter(|l| l.source == id || l.target == id)
+            .map(|l| Edit::SetEnhancement {
+                source: l.source,
+                link: None,
+            })
+            .collect();
+        if self.doc.tree_params_of(id).is_some() {
+            edits.push(Edit::SetTreeParams { id, params: None });
+        }
+        if edits.is_empty() {
+            self.apply(Edit::Remove { index }, None);
+        } else {
+            edits.push(Edit::Remove { index });
+            self.apply(Edit::Group(edits), None);
+        }
         Ok(())
     }
 
@@ -496,7 +571,7 @@ impl Editor {
 }
 
 /// A fresh object id: one past the largest in use.
-fn next_id(doc: &Document) -> u64 {
+pub(crate) fn next_id(doc: &Document) -> u64 {
     doc.objects.iter().map(|o| o.id).max().map_or(1, |m| m + 1)
 }
 

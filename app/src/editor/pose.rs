@@ -40,7 +40,7 @@ impl Editor {
         }
     }
 
-    fn rig_or_err(&self, id: u64) -> Result<&Rig, CommandError> {
+    pub(super) fn rig_or_err(&self, id: u64) -> Result<&Rig, CommandError> {
         let o = self.object(id).ok_or(CommandError::NoObject(id))?;
         self.rig(id).ok_or_else(|| {
             CommandError::Invalid(format!(

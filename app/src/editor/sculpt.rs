@@ -47,7 +47,20 @@ impl Editor {
     pub fn pick_voxel(&self, origin_in_world: Vec3, dir_in_world: Vec3) -> Option<VoxelPick> {
         let dir = dir_in_world.try_normalize()?;
         let mut best: Option<VoxelPick> = None;
-        for o in self.doc.objects.iter().filter(|o| o.visible) {
+        // An enhancement is derived from its coarse model: strokes go to the coarse model
+        // (hidden, so the fine one shows) and the fine one follows.
+        let pickable = |o: &&thicket_core::scene::Object| {
+            if self.doc.enhancement_into(o.id).is_some() {
+                return false;
+            }
+            o.visible
+                || self
+                    .doc
+                    .enhancement_of(o.id)
+                    .and_then(|l| self.object(l.target))
+                    .is_some_and(|t| t.visible)
+        };
+        for o in self.doc.objects.iter().filter(pickable) {
             let ObjectKind::Voxels(v) = &o.kind else {
                 continue;
             };
@@ -104,6 +117,19 @@ impl Editor {
         symmetry_center: Vec3,
     ) -> Result<Option<(UVec3, UVec3)>, CommandError> {
         let index = self.index_of(id)?;
+        if let Some(l) = self.doc.enhancement_into(id) {
+            let source = self
+                .object(l.source)
+                .map_or("its source", |o| o.name.as_str());
+            return Err(CommandError::Invalid(format!(
+                "{:?} is the detail enhancement of {source:?} and follows it: sculpt \
+                 {source:?}, or unlink the enhancement in the inspector to edit this one",
+                self.doc.objects[index].name
+            )));
+        }
+        // A linked enhancement is brought up to date before the dab, so the dab's update is
+        // incremental.
+        self.ensure_enhancer(id);
         let ObjectKind::Voxels(v) = &mut self.doc.objects[index].kind else {
             return Err(CommandError::Invalid(format!(
                 "{:?} is not a voxel model: only voxel models can be sculpted",
@@ -125,12 +151,44 @@ impl Editor {
         );
         self.revision += 1;
         if let Some((lo, hi)) = dab.changed {
-            self.note_voxel_edit(before, id, lo, hi);
+            self.after_voxel_write(before, id, lo, hi);
         } else {
             // A delta without a region: no renderer may take the shortcut.
             self.voxel_region = None;
         }
         Ok(dab.changed)
+    }
+
+    /// After the voxels `lo..=hi` of object `id` were written (a dab, an undo or a redo of
+    /// one): keeps a linked enhancement in step and records what a renderer must upload.
+    pub(super) fn after_voxel_write(&mut self, before: (u64, u64), id: u64, lo: UVec3, hi: UVec3) {
+        let fine = match self.sync_enhancement(id, lo, hi) {
+            Ok(f) => f,
+            Err(e) => {
+                self.enhance_error = Some(e.to_string());
+                self.voxel_region = None;
+                return;
+            }
+        };
+        let Some((fine_lo, fine_hi)) = fine else {
+            self.note_voxel_edit(before, id, lo, hi);
+            return;
+        };
+        self.enhance_error = None;
+        let target = self.doc.enhancement_of(id).map(|l| l.target);
+        let visible =
+            |ed: &Self, id: Option<u64>| id.and_then(|id| ed.object(id)).is_some_and(|o| o.visible);
+        // A renderer holds only visible objects: the region shortcut fits when just one of
+        // the two changed objects is drawn.
+        match (visible(self, Some(id)), visible(self, target)) {
+            (true, true) => self.voxel_region = None,
+            (false, true) => {
+                if let Some(t) = target {
+                    self.note_voxel_edit(before, t, fine_lo, fine_hi);
+                }
+            }
+            _ => self.note_voxel_edit(before, id, lo, hi),
+        }
     }
 
     /// The centre of a voxel object's solid voxels in voxel coordinates (the symmetry centre

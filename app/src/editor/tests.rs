@@ -674,3 +674,373 @@ fn the_tree_builder_rebuilds_a_krs_object_and_refuses_bad_parameters() {
     assert!(ed.undo());
     assert_eq!(ed.krs(id).unwrap(), &rock);
 }
+
+/// A bumpy 16³ model: a slab with columns, so enhancement has surface to work on.
+fn bumpy_editor() -> (Editor, u64) {
+    let mut svo = Svo::new(4, false).unwrap();
+    for x in 1..14 {
+        for z in 1..14 {
+            let h = 3 + (x * 7 + z * 3) % 4;
+            for y in 0..h {
+                let mut v = Voxel::new([60 + 10 * x as u8, 90, 40 + 12 * z as u8, 255], Vec3::Y);
+                v.material = u8::from(y > 3);
+                svo.set(UVec3::new(x, y, z), v).unwrap();
+            }
+        }
+    }
+    let mut ed = Editor::default();
+    let id = ed.add_object(
+        "Bumps",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        }),
+    );
+    (ed, id)
+}
+
+fn enhance_linked(
+    ed: &mut Editor,
+    id: u64,
+    settings: thicket_core::enhance::EnhanceSettings,
+) -> u64 {
+    let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+        panic!("voxels")
+    };
+    let (fine, _) = thicket_core::enhance::enhance_model(
+        v,
+        &settings,
+        thicket_core::enhance::Control::default(),
+    )
+    .unwrap();
+    // No live enhancer handed over: the first dab builds one (the file-open path).
+    ed.add_enhancement(id, settings, fine, None).unwrap()
+}
+
+#[test]
+fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
+    use thicket_core::enhance::{EnhanceSettings, Method, enhance};
+    for settings in [
+        EnhanceSettings {
+            factor: 4,
+            ..EnhanceSettings::default()
+        },
+        EnhanceSettings {
+            method: Method::Resample,
+            factor: 3,
+            ..EnhanceSettings::default()
+        },
+    ] {
+        let (mut ed, id) = bumpy_editor();
+        let original = svo_of(&ed, id);
+        let fine_id = enhance_linked(&mut ed, id, settings.clone());
+        let fine_before = svo_of(&ed, fine_id);
+        assert!(
+            !ed.object(id).unwrap().visible,
+            "the coarse model is hidden"
+        );
+        assert_eq!(ed.doc().enhancement_of(id).unwrap().target, fine_id);
+        // Picking goes through the visible fine model to the hidden coarse one.
+        let pick = ed
+            .pick_voxel(Vec3::new(6.5, 40.0, 6.5), Vec3::NEG_Y)
+            .expect("a hit");
+        assert_eq!(pick.object, id);
+
+        let steps = ed.history().undo_len();
+        ed.begin_stroke();
+        for (i, op) in [
+            thicket_core::sculpt::BrushOp::Remove,
+            thicket_core::sculpt::BrushOp::Add,
+            thicket_core::sculpt::BrushOp::Paint,
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let brush = thicket_core::sculpt::Brush {
+                op,
+                radius: 2.0,
+                color: [250, 20, 20, 255],
+                ..Default::default()
+            };
+            ed.sculpt_dab(
+                id,
+                &brush,
+                Vec3::new(4.5 + 2.0 * i as f32, 5.5, 6.5),
+                Vec3::ZERO,
+            )
+            .unwrap();
+        }
+        ed.end_interaction();
+        assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
+        // Only the fine model is drawn: a renderer uploads its changed box.
+        let region = ed.take_voxel_region().expect("a region");
+        assert_eq!(region.object, fine_id);
+        let coarse = svo_of(&ed, id);
+        assert_ne!(coarse, original);
+        let t0 = std::time::Instant::now();
+        let fresh = enhance(&coarse, &settings).unwrap();
+        // Figures for the report (no timing assert: the machine is shared).
+        eprintln!(
+            "{:?} x{}: full enhancement {:.2} ms, last incremental update {:.2} ms ({} cells, {} fine voxels written)",
+            settings.method,
+            settings.factor,
+            t0.elapsed().as_secs_f64() * 1e3,
+            ed.last_enhance_update().map_or(0.0, |u| u.millis),
+            ed.last_enhance_update().map_or(0, |u| u.cells),
+            ed.last_enhance_update().map_or(0, |u| u.fine_changes),
+        );
+        assert_eq!(svo_of(&ed, fine_id), fresh, "{:?}", settings.method);
+        assert_ne!(svo_of(&ed, fine_id), fine_before);
+        let u = ed.last_enhance_update().expect("an update ran");
+        assert!(u.source == id && u.fine_changes > 0 && u.cells > 0);
+        assert!(
+            !u.rebuilt,
+            "built before the first dab, updated incrementally"
+        );
+
+        // Undo restores the coarse model and its enhancement; redo both again.
+        assert!(ed.undo());
+        assert_eq!(svo_of(&ed, id).leaves(), original.leaves());
+        assert_eq!(svo_of(&ed, fine_id).leaves(), fine_before.leaves());
+        assert!(ed.redo());
+        assert_eq!(svo_of(&ed, fine_id).leaves(), fresh.leaves());
+
+        // The fine model cannot be sculpted itself while linked; unlinked it can.
+        let brush = thicket_core::sculpt::Brush::default();
+        let e = ed
+            .sculpt_dab(fine_id, &brush, Vec3::splat(20.5), Vec3::ZERO)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("detail enhancement of \"Bumps\""), "{e}");
+        ed.unlink_enhancement(id).unwrap();
+        assert!(ed.doc().enhancements.is_empty());
+        ed.begin_stroke();
+        ed.sculpt_dab(id, &brush, Vec3::new(8.5, 6.5, 8.5), Vec3::ZERO)
+            .unwrap();
+        assert_eq!(svo_of(&ed, fine_id), fresh, "unlinked: no longer follows");
+        assert!(ed.undo() && ed.undo());
+        assert_eq!(ed.doc().enhancement_of(id).unwrap().target, fine_id);
+    }
+}
+
+#[test]
+fn enhancement_links_go_with_deleted_objects_and_come_back_on_undo() {
+    let (mut ed, id) = bumpy_editor();
+    let fine_id = enhance_linked(&mut ed, id, Default::default());
+    ed.delete(fine_id).unwrap();
+    assert!(ed.doc().enhancements.is_empty());
+    assert!(ed.undo());
+    assert_eq!(ed.doc().enhancement_of(id).unwrap().target, fine_id);
+    // Undoing the enhancement removes the object and the link and shows the source again.
+    assert!(ed.undo());
+    assert!(ed.object(fine_id).is_none() && ed.doc().enhancements.is_empty());
+    assert!(ed.object(id).unwrap().visible);
+    // Bad settings are refused and change nothing.
+    let bad = thicket_core::enhance::EnhanceSettings {
+        factor: 3,
+        ..Default::default()
+    };
+    let e = ed
+        .add_enhancement(id, bad, VoxelModel::default(), None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("power of two"), "{e}");
+    assert!(ed.doc().enhancements.is_empty());
+}
+
+#[test]
+fn tree_builder_parameters_are_stored_undone_and_dropped_by_a_preset() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("Tree", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    assert!(ed.tree_params(id).is_none());
+    let mut params = thicket_core::krs::TreeParams::default();
+    ed.build_tree(id, &params).unwrap();
+    ed.end_interaction();
+    assert_eq!(ed.tree_params(id), Some(&params));
+    params.widths[0] *= 1.5;
+    ed.build_tree(id, &params).unwrap();
+    ed.end_interaction();
+    assert_eq!(ed.tree_params(id), Some(&params));
+    assert!(ed.undo());
+    assert_eq!(
+        ed.tree_params(id),
+        Some(&thicket_core::krs::TreeParams::default())
+    );
+    assert!(ed.redo());
+    ed.apply_krs_preset(id, "rock").unwrap();
+    assert!(ed.tree_params(id).is_none(), "a preset is not a built tree");
+    assert!(ed.undo());
+    assert_eq!(ed.tree_params(id), Some(&params));
+    // Deleting the object drops its parameters with it (and undo restores them).
+    ed.delete(id).unwrap();
+    assert!(ed.doc().tree_builders.is_empty());
+    assert!(ed.undo());
+    assert_eq!(ed.tree_params(id), Some(&params));
+}
+
+#[test]
+fn a_stretch_paint_stroke_is_one_step_erases_and_saves() {
+    let (mut ed, id) = rigged_editor();
+    let steps = ed.history().undo_len();
+    ed.begin_stroke();
+    // voxels(3): voxels (0..3, 0, 0). Two dabs of radius 1, overlapping at x = 1.
+    assert_eq!(
+        ed.paint_stretch(id, Vec3::new(0.5, 0.5, 0.5), 1.0, Some(2.0))
+            .unwrap(),
+        2
+    );
+    assert_eq!(
+        ed.paint_stretch(id, Vec3::new(2.5, 0.5, 0.5), 1.0, Some(1.5))
+            .unwrap(),
+        2
+    );
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
+    assert_eq!(ed.stretch_override(id, UVec3::new(0, 0, 0)), Some(2.0));
+    assert_eq!(ed.stretch_override(id, UVec3::new(1, 0, 0)), Some(1.5));
+    assert_eq!(ed.stretch_override(id, UVec3::new(2, 0, 0)), Some(1.5));
+    // Painting the same value again changes nothing and makes no step.
+    ed.begin_stroke();
+    assert_eq!(
+        ed.paint_stretch(id, Vec3::new(1.5, 0.5, 0.5), 0.6, Some(1.5))
+            .unwrap(),
+        0
+    );
+    assert_eq!(ed.history().undo_len(), steps + 1);
+
+    // Saved and loaded with the project.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("figure.thicket.json");
+    let mut doc = ed.doc().clone();
+    // The bare test model has no skin weights; give it some so the file validates.
+    if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+        let mut svo = Svo::new(v.svo.depth(), true).unwrap();
+        for (p, mut vox) in v.svo.leaves() {
+            vox.skin = thicket_core::svo::Skin4::from_influences(&[(0, 1.0)]);
+            svo.set(p, vox).unwrap();
+        }
+        v.svo = svo;
+    }
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    let back = thicket_core::io::project::load(&path).unwrap();
+    let ObjectKind::Voxels(v) = &back.objects[0].kind else {
+        panic!("voxels")
+    };
+    assert_eq!(v.rig.as_ref().unwrap().stretch_overrides.len(), 3);
+
+    // Erase, then undo the erase and the paint: every override comes and goes exactly.
+    ed.begin_stroke();
+    assert_eq!(
+        ed.paint_stretch(id, Vec3::new(0.5, 0.5, 0.5), 1.0, None)
+            .unwrap(),
+        2
+    );
+    assert_eq!(ed.stretch_override(id, UVec3::ZERO), None);
+    assert!(ed.undo());
+    assert_eq!(ed.stretch_override(id, UVec3::ZERO), Some(2.0));
+    assert!(ed.undo());
+    for x in 0..3 {
+        assert_eq!(ed.stretch_override(id, UVec3::new(x, 0, 0)), None);
+    }
+    assert!(ed.redo());
+    assert_eq!(ed.stretch_override(id, UVec3::new(1, 0, 0)), Some(1.5));
+    // Clear removes all of them in one step; undo restores them.
+    assert_eq!(ed.clear_stretch_overrides(id).unwrap(), 3);
+    assert_eq!(ed.stretch_override(id, UVec3::new(0, 0, 0)), None);
+    assert!(ed.undo());
+    assert_eq!(ed.stretch_override(id, UVec3::new(0, 0, 0)), Some(2.0));
+    // Refusals name the problem.
+    let e = ed
+        .paint_stretch(id, Vec3::ZERO, 1.0, Some(9.0))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("stretch override 9"), "{e}");
+    let plain = ed.add_object("Plain", voxels(2));
+    let e = ed
+        .paint_stretch(plain, Vec3::ZERO, 1.0, Some(1.0))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("no skeleton"), "{e}");
+    // The node a preview pixel shows maps back to its voxel.
+    let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+        panic!("voxels")
+    };
+    let depth = u64::from(v.svo.depth());
+    let centers: Vec<Vec3> = (0..3)
+        .filter_map(|i| ed.node_center(id, (depth << 32) | i))
+        .collect();
+    assert_eq!(centers.len(), 3);
+    assert!(centers.contains(&Vec3::new(2.5, 0.5, 0.5)));
+    assert_eq!(ed.node_center(id, (depth << 32) | 99), None);
+}
+
+#[test]
+fn keys_store_the_posed_joint_in_the_clip_and_undo() {
+    let (mut ed, id) = rigged_editor();
+    // Pose the tip at t = 0.5 and key it: the clip gets rotation, translation and scale keys
+    // and samples to the same pose with the override gone.
+    let mut p = ed.rig(id).unwrap().playback;
+    p.time_secs = 0.5;
+    ed.set_playback(id, p).unwrap();
+    ed.rotate_joint(id, 1, None, glam::Quat::from_rotation_z(0.8))
+        .unwrap();
+    ed.end_interaction();
+    ed.scale_joint(id, 1, ed.joint_override(id, 1), Vec3::new(1.0, 2.0, 1.0))
+        .unwrap();
+    ed.end_interaction();
+    let posed = ed.rig(id).unwrap().current_pose().locals[1];
+    assert!((posed.scale - Vec3::new(1.0, 2.0, 1.0)).length() < 1e-6);
+    let steps = ed.history().undo_len();
+    ed.set_joint_key(id, 1).unwrap();
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    assert!(ed.joint_override(id, 1).is_none(), "folded into the keys");
+    let keyed = ed.rig(id).unwrap().current_pose().locals[1];
+    assert!(keyed.rotation.angle_between(posed.rotation) < 1e-4);
+    assert!((keyed.scale - posed.scale).length() < 1e-5);
+    assert!((keyed.translation - posed.translation).length() < 1e-5);
+    assert_eq!(ed.joint_key_times(id, 1), vec![0.5]);
+    // Keying again at the same time replaces; at another time past the end extends the clip.
+    ed.set_joint_key(id, 1).unwrap();
+    assert_eq!(ed.joint_key_times(id, 1), vec![0.5]);
+    // (Looping, 1.5 s would wrap to 0.5 s: hold the last frame instead.)
+    p.time_secs = 1.5;
+    p.wrap = thicket_core::skin::Wrap::Clamp;
+    ed.set_playback(id, p).unwrap();
+    ed.set_joint_key(id, 1).unwrap();
+    assert_eq!(ed.joint_key_times(id, 1), vec![0.5, 1.5]);
+    assert!((ed.rig(id).unwrap().clips[0].duration_secs - 1.5).abs() < 1e-6);
+    assert!(ed.rig(id).unwrap().validate().is_ok());
+    // Delete the key at 1.5: the clip is 1 s long again (its other channel ends there).
+    assert!(ed.delete_joint_key(id, 1).unwrap());
+    assert_eq!(ed.joint_key_times(id, 1), vec![0.5]);
+    assert!((ed.rig(id).unwrap().clips[0].duration_secs - 1.0).abs() < 1e-6);
+    assert!(
+        !ed.delete_joint_key(id, 1).unwrap(),
+        "no key at 1.5 any more"
+    );
+    assert!(ed.undo());
+    assert_eq!(ed.joint_key_times(id, 1), vec![0.5, 1.5]);
+    assert!(ed.undo() && ed.undo() && ed.undo());
+    assert!(ed.joint_key_times(id, 1).is_empty());
+    assert!(ed.joint_override(id, 1).is_some(), "the override is back");
+
+    // On the rest pose a key makes a clip "Pose" and plays it; undo removes it and the
+    // playhead leaves the missing clip.
+    p.clip = None;
+    p.time_secs = 0.0;
+    ed.set_playback(id, p).unwrap();
+    ed.set_joint_key(id, 0).unwrap();
+    let rig = ed.rig(id).unwrap();
+    assert_eq!(rig.clips.len(), 2);
+    assert_eq!(rig.clips[1].name, "Pose");
+    assert_eq!(rig.playback.clip, Some(1));
+    assert!(ed.undo());
+    assert_eq!(ed.rig(id).unwrap().clips.len(), 1);
+    assert_eq!(ed.rig(id).unwrap().playback.clip, None);
+    // Bad scale factors are refused.
+    assert!(
+        ed.scale_joint(id, 1, None, Vec3::new(0.0, 1.0, 1.0))
+            .is_err()
+    );
+    assert!(ed.scale_joint(id, 1, None, Vec3::NAN).is_err());
+}

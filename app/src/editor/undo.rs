@@ -2,10 +2,14 @@
 //! reverts it, so a step stores only what it changed — a deleted object's payload, an old
 //! transform — never a snapshot of the whole document with its octrees.
 
+use glam::UVec3;
 use thicket_core::krs::KrsObject;
+use thicket_core::krs::TreeParams;
 use thicket_core::render::Quality;
-use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
-use thicket_core::skin::{JointOverride, StretchSettings};
+use thicket_core::scene::{
+    Document, EnhancementLink, Light, Object, ObjectKind, Transform, TreeBuilderLink, VoxelModel,
+};
+use thicket_core::skin::{AnimationClip, JointOverride, StretchSettings};
 use thicket_core::svo::UndoDelta;
 
 /// One reversible change to the document.
@@ -81,6 +85,42 @@ pub enum Edit {
         id: u64,
         /// The new parameters.
         krs: Box<KrsObject>,
+    },
+    /// Set, replace or remove (`None`) the detail-enhancement link of voxel model `source`.
+    SetEnhancement {
+        /// Id of the coarse model.
+        source: u64,
+        /// The new link.
+        link: Option<Box<EnhancementLink>>,
+    },
+    /// Replace a voxel object's whole model (a re-enhancement with new settings).
+    SetVoxelModel {
+        /// Object id.
+        id: u64,
+        /// The new model.
+        model: Box<VoxelModel>,
+    },
+    /// Set or remove (`None`) the tree-builder parameters stored for KRS object `id`.
+    SetTreeParams {
+        /// Object id.
+        id: u64,
+        /// The new parameters.
+        params: Option<Box<TreeParams>>,
+    },
+    /// Write per-voxel stretch override codes of a rigged model (a stretch-paint stroke's
+    /// undo: only the voxels it touched, with their codes before it; 0 removes an override).
+    StretchOverrides {
+        /// Object id.
+        id: u64,
+        /// `(voxel, code)` pairs to write, in order.
+        entries: Vec<(UVec3, u8)>,
+    },
+    /// Replace the animation clips of a rigged model (a key set or deleted, a clip added).
+    SetClips {
+        /// Object id.
+        id: u64,
+        /// The new clips.
+        clips: Vec<AnimationClip>,
     },
     /// Several edits as one step (applied in order, reverted in reverse order).
     Group(Vec<Edit>),
@@ -171,6 +211,65 @@ impl Edit {
                 },
                 None => Edit::Group(Vec::new()),
             },
+            Edit::SetEnhancement { source, link } => {
+                let old = doc
+                    .enhancements
+                    .iter()
+                    .position(|l| l.source == source)
+                    .map(|i| Box::new(doc.enhancements.remove(i)));
+                if let Some(link) = link {
+                    doc.enhancements.push(*link);
+                }
+                Edit::SetEnhancement { source, link: old }
+            }
+            Edit::SetVoxelModel { id, model } => match find(doc, id) {
+                Some(i) => match &mut doc.objects[i].kind {
+                    ObjectKind::Voxels(v) => Edit::SetVoxelModel {
+                        id,
+                        model: Box::new(std::mem::replace(v, *model)),
+                    },
+                    ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetTreeParams { id, params } => {
+                let old = doc
+                    .tree_builders
+                    .iter()
+                    .position(|l| l.object == id)
+                    .map(|i| Box::new(doc.tree_builders.remove(i).params));
+                if let Some(params) = params {
+                    doc.tree_builders.push(TreeBuilderLink {
+                        object: id,
+                        params: *params,
+                    });
+                }
+                Edit::SetTreeParams { id, params: old }
+            }
+            Edit::StretchOverrides { id, entries } => match rig_of(doc, id) {
+                Some(rig) => {
+                    let mut old: Vec<(UVec3, u8)> = entries
+                        .into_iter()
+                        .map(|(p, code)| (p, rig.stretch_overrides.set(p, code)))
+                        .collect();
+                    // Reverting in reverse order restores the first old value of a voxel
+                    // written twice.
+                    old.reverse();
+                    Edit::StretchOverrides { id, entries: old }
+                }
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetClips { id, clips } => match rig_of(doc, id) {
+                Some(rig) => {
+                    let old = std::mem::replace(&mut rig.clips, clips);
+                    // Undoing an added clip must not leave the playhead on a missing clip.
+                    if rig.playback.clip.is_some_and(|c| c >= rig.clips.len()) {
+                        rig.playback.clip = None;
+                    }
+                    Edit::SetClips { id, clips: old }
+                }
+                None => Edit::Group(Vec::new()),
+            },
             Edit::Group(edits) => {
                 let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
                 inverses.reverse();
@@ -212,7 +311,51 @@ impl Edit {
             }
             Edit::Group(edits) => edits.iter().map(Edit::heap_bytes).sum(),
             Edit::SetQuality(_) => size_of::<Quality>(),
+            Edit::SetVoxelModel { model, .. } => model.svo.memory_stats().total_bytes as usize,
+            Edit::StretchOverrides { entries, .. } => entries.capacity() * size_of::<(UVec3, u8)>(),
+            Edit::SetClips { clips, .. } => clips
+                .iter()
+                .flat_map(|c| &c.channels)
+                .map(|c| c.times.len() * 4 + c.values.len() * 16 + 64)
+                .sum(),
+            Edit::SetTreeParams { .. } => size_of::<TreeParams>() + 256,
             _ => 64,
+        }
+    }
+}
+
+impl Edit {
+    /// The voxel objects this edit writes voxels of, each with the inclusive box of the
+    /// voxels it writes (a stroke's undo or redo): what a derived enhancement must recompute.
+    #[must_use]
+    pub fn voxel_boxes(&self) -> Vec<(u64, UVec3, UVec3)> {
+        let mut out = Vec::new();
+        self.collect_voxel_boxes(&mut out);
+        out
+    }
+
+    fn collect_voxel_boxes(&self, out: &mut Vec<(u64, UVec3, UVec3)>) {
+        match self {
+            Edit::Voxels { id, delta } => {
+                let mut it = delta.entries.iter().map(|e| e.0);
+                if let Some(first) = it.next() {
+                    let (lo, hi) = it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
+                    out.push((*id, lo, hi));
+                }
+            }
+            Edit::Group(edits) => edits.iter().for_each(|e| e.collect_voxel_boxes(out)),
+            _ => {}
+        }
+    }
+
+    /// Whether the edit only writes voxels (a stroke): other edits may change what an
+    /// enhancement is built from (its settings, the models, the links).
+    #[must_use]
+    pub fn only_voxels(&self) -> bool {
+        match self {
+            Edit::Voxels { .. } | Edit::StretchOverrides { .. } => true,
+            Edit::Group(edits) => edits.iter().all(Edit::only_voxels),
+            _ => false,
         }
     }
 }
@@ -234,6 +377,8 @@ pub enum MergeKey {
     Stretch(u64),
     /// A KRS parameter drag on an object.
     Krs(u64),
+    /// A stretch-paint stroke on a rigged object: its dabs' old codes are concatenated.
+    StretchPaint(u64),
 }
 
 #[derive(Debug)]
@@ -295,18 +440,31 @@ impl History {
                 // Voxel deltas only restore what their own dab changed, so a stroke keeps all
                 // of them: the later dab's old values go first, so undo ends at the values
                 // from before the whole stroke.
-                if let (
-                    Edit::Voxels { id, delta: newer },
-                    Edit::Voxels {
-                        id: top_id,
-                        delta: older,
-                    },
-                ) = (revert, &mut top.revert)
-                    && id == *top_id
-                {
-                    let mut entries = newer.entries;
-                    entries.append(&mut older.entries);
-                    older.entries = entries;
+                match (revert, &mut top.revert) {
+                    (
+                        Edit::Voxels { id, delta: newer },
+                        Edit::Voxels {
+                            id: top_id,
+                            delta: older,
+                        },
+                    ) if id == *top_id => {
+                        let mut entries = newer.entries;
+                        entries.append(&mut older.entries);
+                        older.entries = entries;
+                    }
+                    (
+                        Edit::StretchOverrides { id, entries: newer },
+                        Edit::StretchOverrides {
+                            id: top_id,
+                            entries: older,
+                        },
+                    ) if id == *top_id => {
+                        // Same rule: the later dab's old codes go first.
+                        let mut entries = newer;
+                        entries.append(older);
+                        *older = entries;
+                    }
+                    _ => {}
                 }
                 top.from = new_state;
             }
@@ -379,6 +537,18 @@ impl History {
             to: step.from,
         });
         true
+    }
+
+    /// The edit undo would apply next.
+    #[must_use]
+    pub fn next_undo(&self) -> Option<&Edit> {
+        self.undo.last().map(|s| &s.revert)
+    }
+
+    /// The edit redo would apply next.
+    #[must_use]
+    pub fn next_redo(&self) -> Option<&Edit> {
+        self.redo.last().map(|s| &s.revert)
     }
 
     /// Steps that can be undone.

@@ -19,6 +19,8 @@ pub struct InspectorState {
     /// Why the last edit was refused, shown under the field.
     pub error: Option<String>,
     cache: Option<(CacheKey, ObjectInfo)>,
+    /// The Detail enhancement section.
+    pub enhance: super::enhance_panel::EnhancePanel,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -42,6 +44,9 @@ pub fn inspector_ui(
             Some(Selection::Object(id)) => {
                 if let Some(object) = editor.object(id).cloned() {
                     object_ui(ui, editor, state, &object);
+                    if matches!(object.kind, ObjectKind::Voxels(_)) {
+                        super::enhance_panel::enhance_ui(ui, editor, &mut state.enhance, id);
+                    }
                     match &object.kind {
                         ObjectKind::Voxels(v) if v.rig.is_some() => {
                             rig_inspector_ui(ui, editor, pose, id);

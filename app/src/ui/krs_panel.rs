@@ -790,10 +790,31 @@ impl KrsPanel {
 /// and a width per branch, the leaf. Every change rebuilds the object (a drag is one undo step);
 /// the fork positions can also be dragged in the view.
 fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel, id: u64) {
+    // The document holds the parameters the object was built from (saved, undoable): an open
+    // builder shows them, so undo / redo and reopening a saved tree continue from there.
+    if let Some(stored) = editor.tree_params(id)
+        && let Some((t, p)) = panel.tree.as_mut()
+        && *t == id
+        && p != stored
+    {
+        p.clone_from(stored);
+    }
     let open = panel.tree.as_ref().is_some_and(|(t, _)| *t == id);
     ui.horizontal(|ui| {
         ui.strong("Tree builder")
             .on_hover_text("Build this object as a tree from fork positions, bends and widths");
+        if !open
+            && let Some(stored) = editor.tree_params(id).cloned()
+            && ui
+                .button("Edit tree")
+                .on_hover_text(
+                    "Open the builder with the parameters this tree was built from (saved with the project)",
+                )
+                .clicked()
+        {
+            panel.tree = Some((id, stored));
+            return;
+        }
         if !open
             && ui
                 .button("Start from the default tree")

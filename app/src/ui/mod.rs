@@ -3,6 +3,7 @@
 //! [`EditorApp::ui_root`] draws the whole window into a [`egui::Ui`]; eframe calls it through
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
+mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
 pub mod krs_panel;
@@ -58,10 +59,17 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Click in the view", "Select the object under the pointer"),
     ("S", "Sculpt tool"),
     ("Click a joint dot", "Select the joint (rigged models)"),
-    ("R / G", "Pose gizmo: rotate / move the selected joint"),
+    (
+        "R / G / E",
+        "Pose gizmo: rotate / move / scale the selected joint",
+    ),
+    (
+        "K / Shift+K",
+        "Set / delete the selected joint's key at the playhead",
+    ),
     ("Space", "Play / pause the timeline"),
     ("Esc", "Navigate tool"),
-    ("[ / ]", "Smaller / larger brush"),
+    ("[ / ]", "Smaller / larger brush (also the stretch brush)"),
     ("F3", "Performance overlay"),
     ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
     ("F1", "This list"),
@@ -115,15 +123,24 @@ enum Pending {
 enum JobResult {
     Opened(PathBuf, anyhow::Result<Document>),
     Imported(PathBuf, anyhow::Result<Document>),
-    /// An enhanced copy of a voxel object: (source id, source name, result).
-    Enhanced(
-        u64,
-        String,
-        anyhow::Result<Box<thicket_core::scene::VoxelModel>>,
-    ),
+    /// An enhancement of a voxel object: source id, source name, the settings, the coarse
+    /// model it was made from, and the fine model with the enhancer that made it.
+    Enhanced(Box<Enhanced>),
     Exported(anyhow::Result<String>),
     /// A Trade-off sweep of the editor at a revision.
     Swept(u64, anyhow::Result<thicket_core::measure::SweepReport>),
+}
+
+/// What an enhancement job hands back.
+struct Enhanced {
+    source: u64,
+    name: String,
+    settings: thicket_core::enhance::EnhanceSettings,
+    coarse: thicket_core::svo::Svo,
+    result: anyhow::Result<(
+        thicket_core::scene::VoxelModel,
+        thicket_core::enhance::Enhancer,
+    )>,
 }
 
 /// A background job: a worker thread, its progress and its cancel flag.
@@ -346,10 +363,38 @@ impl EditorApp {
         }));
     }
 
-    /// Object → Enhance: a detail-enhanced copy of the selected voxel model (paper 001) on a
-    /// worker thread, with progress and Cancel; the copy is added as a new object.
+    /// Edit → Enhance detail: enhances the selected voxel model (paper 001) by `factor` with
+    /// its stored settings (the defaults for a model not enhanced yet).
     pub fn start_enhance(&mut self, factor: u32) {
         let Some(o) = self.editor.selected_object() else {
+            self.status = "Select a voxel model to enhance".into();
+            return;
+        };
+        // The enhancement itself is selected: enhance its source.
+        let id = self
+            .editor
+            .doc()
+            .enhancement_into(o.id)
+            .map_or(o.id, |l| l.source);
+        let mut settings = self
+            .editor
+            .doc()
+            .enhancement_of(id)
+            .map(|l| l.settings.clone())
+            .unwrap_or_default();
+        settings.factor = factor;
+        self.start_enhance_with(id, settings);
+    }
+
+    /// Enhances voxel model `source` with `settings` on a worker thread, with progress and
+    /// Cancel. The result is linked to the model (a new object, the model hidden), or replaces
+    /// its linked enhancement; strokes then keep it up to date.
+    pub fn start_enhance_with(
+        &mut self,
+        source: u64,
+        settings: thicket_core::enhance::EnhanceSettings,
+    ) {
+        let Some(o) = self.editor.object(source) else {
             self.status = "Select a voxel model to enhance".into();
             return;
         };
@@ -357,13 +402,9 @@ impl EditorApp {
             self.status = format!("{:?} is not a voxel model", o.name);
             return;
         };
-        let (source, name, model) = (o.id, o.name.clone(), v.clone());
-        let label = format!("Enhancing {name} x{factor}");
+        let (name, model) = (o.name.clone(), v.clone());
+        let label = format!("Enhancing {name} x{}", settings.factor);
         self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let settings = thicket_core::enhance::EnhanceSettings {
-                factor,
-                ..Default::default()
-            };
             let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
             let control = thicket_core::enhance::Control {
                 progress: Some(&report),
@@ -372,17 +413,24 @@ impl EditorApp {
             let result =
                 thicket_core::enhance::Enhancer::with_control(&model.svo, &settings, control)
                     .map(|e| {
-                        Box::new(thicket_core::scene::VoxelModel {
-                            svo: e.into_fine(),
-                            voxel_size: model.voxel_size / factor as f32,
+                        let fine = thicket_core::scene::VoxelModel {
+                            svo: e.fine().clone(),
+                            voxel_size: model.voxel_size / settings.factor as f32,
                             origin: model.origin,
                             material_names: model.material_names.clone(),
                             // The fine octree carries no joint weights: the result is static.
                             rig: None,
-                        })
+                        };
+                        (fine, e)
                     })
                     .map_err(anyhow::Error::from);
-            JobResult::Enhanced(source, name, result)
+            JobResult::Enhanced(Box::new(Enhanced {
+                source,
+                name,
+                settings,
+                coarse: model.svo,
+                result,
+            }))
         }));
     }
 
@@ -513,23 +561,7 @@ impl EditorApp {
                     false,
                 );
             }
-            JobResult::Enhanced(source, name, Ok(model)) => {
-                let voxels = model.svo.leaf_count();
-                let id = self.editor.add_object(
-                    &format!("{name} enhanced"),
-                    thicket_core::scene::ObjectKind::Voxels(*model),
-                );
-                // The copy sits where the source is.
-                if let Some(t) = self.editor.object(source).map(|o| o.transform) {
-                    let _ = self.editor.set_transform(id, t);
-                    self.editor.end_interaction();
-                }
-                self.toast(
-                    ctx,
-                    format!("Enhanced {name}: {} voxels", thousands(voxels)),
-                    false,
-                );
-            }
+            JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
             JobResult::Swept(revision, Ok(report)) => {
                 let n = report.points.len();
@@ -541,7 +573,7 @@ impl EditorApp {
                 );
             }
             JobResult::Swept(_, Err(e)) => self.error_dialog = Some(format!("{e:#}")),
-            JobResult::Enhanced(_, _, Err(e)) | JobResult::Exported(Err(e)) => {
+            JobResult::Exported(Err(e)) => {
                 self.error_dialog = Some(format!("{e:#}"));
             }
             JobResult::Opened(_, Err(e)) | JobResult::Imported(_, Err(e)) => {
@@ -549,6 +581,61 @@ impl EditorApp {
                 self.error_dialog = Some(format!("{e:#}"));
                 self.status = "Could not open the file; the current document is unchanged".into();
             }
+        }
+    }
+
+    fn finish_enhance(&mut self, ctx: &egui::Context, job: Enhanced) {
+        let Enhanced {
+            source,
+            name,
+            settings,
+            coarse,
+            result,
+        } = job;
+        let (fine, enhancer) = match result {
+            Ok(r) => r,
+            Err(e) => {
+                self.error_dialog = Some(format!("{e:#}"));
+                return;
+            }
+        };
+        // Strokes made while the job ran are not in its result.
+        let current = match self.editor.object(source).map(|o| &o.kind) {
+            Some(thicket_core::scene::ObjectKind::Voxels(v)) => &v.svo,
+            _ => {
+                self.toast(ctx, format!("{name} was removed while enhancing"), true);
+                return;
+            }
+        };
+        if *current != coarse {
+            self.toast(
+                ctx,
+                format!("{name} changed while enhancing: enhance it again"),
+                true,
+            );
+            return;
+        }
+        let voxels = fine.svo.leaf_count();
+        let result = if self
+            .editor
+            .doc()
+            .enhancement_of(source)
+            .is_some_and(|l| self.editor.object(l.target).is_some())
+        {
+            self.editor
+                .replace_enhancement(source, settings, fine, Some(enhancer))
+        } else {
+            self.editor
+                .add_enhancement(source, settings, fine, Some(enhancer))
+                .map(|_| ())
+        };
+        match result {
+            Ok(()) => self.toast(
+                ctx,
+                format!("Enhanced {name}: {} voxels", thousands(voxels)),
+                false,
+            ),
+            Err(e) => self.error_dialog = Some(e.to_string()),
         }
     }
 
@@ -807,6 +894,9 @@ impl EditorApp {
                         &mut self.krs,
                     );
                 });
+            if let Some((id, settings)) = self.inspector.enhance.request.take() {
+                self.start_enhance_with(id, settings);
+            }
         }
         egui::CentralPanel::default()
             .frame(egui::Frame::NONE)
@@ -957,6 +1047,24 @@ impl EditorApp {
             }
             if consume(shortcut(Modifiers::NONE, Key::G)) {
                 self.pose.mode = pose::GizmoMode::Translate;
+            }
+            if consume(shortcut(Modifiers::NONE, Key::E)) {
+                self.pose.mode = pose::GizmoMode::Scale;
+            }
+            if let Some(j) = self.pose.valid_joint(&self.editor) {
+                if consume(shortcut(Modifiers::SHIFT, Key::K)) {
+                    self.pose.error = self
+                        .editor
+                        .delete_joint_key(j.object, j.joint)
+                        .err()
+                        .map(|e| e.to_string());
+                } else if consume(shortcut(Modifiers::NONE, Key::K)) {
+                    self.pose.error = self
+                        .editor
+                        .set_joint_key(j.object, j.joint)
+                        .err()
+                        .map(|e| e.to_string());
+                }
             }
         }
         if pose::timeline_target(&self.editor).is_some()

@@ -30,6 +30,9 @@ pub enum GizmoMode {
     Rotate,
     /// Arrows along the axes of the joint's parent frame (where its translation lives).
     Translate,
+    /// Square-ended handles along the joint's own axes: dragging one stretches the joint
+    /// (and everything below it) along that axis.
+    Scale,
 }
 
 /// A joint of a rigged object.
@@ -150,6 +153,17 @@ impl PoseTool {
                         out.push(Handle { axis, points });
                     }
                 }
+                GizmoMode::Scale => {
+                    let Some(d) = w.col(axis).truncate().try_normalize() else {
+                        continue;
+                    };
+                    if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + d * size)) {
+                        out.push(Handle {
+                            axis,
+                            points: vec![a, b],
+                        });
+                    }
+                }
                 GizmoMode::Translate => {
                     let Some(d) = parent.col(axis).truncate().try_normalize() else {
                         continue;
@@ -207,15 +221,18 @@ impl PoseTool {
                 let size = GIZMO_PX * proj.world_per_point(p);
                 // The arrow is `size` world units long; a unit of local translation moves the
                 // joint by the parent axis's length.
-                let (arrow_px, arrow_local) =
-                    if self.mode == GizmoMode::Translate && parent_axis.length_squared() > 1e-24 {
-                        (
-                            h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
-                            size / parent_axis.length(),
-                        )
-                    } else {
-                        (egui::Vec2::ZERO, 0.0)
-                    };
+                let (arrow_px, arrow_local) = match self.mode {
+                    GizmoMode::Translate if parent_axis.length_squared() > 1e-24 => (
+                        h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
+                        size / parent_axis.length(),
+                    ),
+                    // Scale: dragging the handle's length once more doubles the axis.
+                    GizmoMode::Scale => (
+                        h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
+                        1.0,
+                    ),
+                    _ => (egui::Vec2::ZERO, 0.0),
+                };
                 // A new drag is a new undo step.
                 editor.end_interaction();
                 self.drag = Some(GizmoDrag {
@@ -265,6 +282,18 @@ impl PoseTool {
                 } else {
                     let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
                     editor.translate_joint(object, joint, drag.base, e_k * along * drag.arrow_local)
+                }
+            }
+            GizmoMode::Scale => {
+                let len2 = drag.arrow_px.length_sq();
+                if len2 < 1.0 {
+                    Ok(())
+                } else {
+                    let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
+                    let f = (1.0 + along * drag.arrow_local).max(crate::editor::MIN_JOINT_SCALE);
+                    let mut factor = Vec3::ONE;
+                    factor[drag.axis] = f;
+                    editor.scale_joint(object, joint, drag.base, factor)
                 }
             }
         };
@@ -366,6 +395,15 @@ impl PoseTool {
                     egui::Stroke::NONE,
                 ));
             }
+            if self.mode == GizmoMode::Scale
+                && let Some(b) = h.points.last()
+            {
+                painter.rect_filled(
+                    egui::Rect::from_center_size(*b, egui::vec2(9.0, 9.0)),
+                    1.0,
+                    AXIS_COLORS[h.axis],
+                );
+            }
         }
         if let (Some(p), Some(rig)) = (frames.position(sel.joint), editor.rig(sel.object))
             && let Some(s) = proj.to_screen(p)
@@ -408,6 +446,10 @@ pub fn rig_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseT
                     .on_hover_text("Gizmo rings turn the joint about its own axes (R)");
                 ui.selectable_value(&mut tool.mode, GizmoMode::Translate, "Move")
                     .on_hover_text("Gizmo arrows move the joint in its parent's frame (G)");
+                ui.selectable_value(&mut tool.mode, GizmoMode::Scale, "Scale joint")
+                    .on_hover_text(
+                        "Gizmo handles stretch the joint along its own axes (E); its children follow",
+                    );
             });
             ui.weak(format!(
                 "{} joints, {} override(s). Click a joint here or its dot in the view, then drag a gizmo handle.",
@@ -641,7 +683,18 @@ fn stretch_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u
     });
     ui.weak(format!(
         "{overrides} voxel(s) with a painted stretch override"
-    ));
+    ))
+    .on_hover_text("Paint them with the tool bar's Stretch paint brush (Sculpt tool)");
+    if ui
+        .add_enabled(overrides > 0, egui::Button::new("Clear overrides"))
+        .on_hover_text("Remove every painted stretch override of this model (undoable)")
+        .clicked()
+    {
+        tool.error = editor
+            .clear_stretch_overrides(id)
+            .err()
+            .map(|e| e.to_string());
+    }
     if changed {
         tool.error = editor.set_stretch(id, s).err().map(|e| e.to_string());
     }
@@ -756,24 +809,142 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         let mut t = playback.time_secs.clamp(0.0, duration);
         let width = (ui.available_width() - 110.0).max(80.0);
         ui.spacing_mut().slider_width = width;
-        if ui
+        let slider = ui
             .add_enabled(
                 has_clip,
                 egui::Slider::new(&mut t, 0.0..=duration.max(1e-3)).show_value(false),
             )
-            .on_hover_text("Scrub: drag to any time of the clip")
-            .changed()
-        {
+            .on_hover_text("Scrub: drag to any time of the clip");
+        if slider.changed() {
             playback.time_secs = t;
             tool.playing = false;
         }
+        paint_keys(ui, editor, tool, id, slider.rect, duration);
         ui.monospace(format!("{:.2} / {:.2} s", t, duration))
             .on_hover_text("Playhead / clip length");
     });
+    keys_ui(ui, editor, tool, id, &mut playback);
     if playback != editor.rig(id).map_or(playback, |r| r.playback) {
         tool.error = editor
             .set_playback(id, playback)
             .err()
             .map(|e| e.to_string());
     }
+}
+
+/// Draws the selected joint's keys as diamonds on the scrub slider (other joints' keys of the
+/// clip as small ticks).
+fn paint_keys(
+    ui: &egui::Ui,
+    editor: &Editor,
+    tool: &PoseTool,
+    id: u64,
+    rail: egui::Rect,
+    duration: f32,
+) {
+    if duration <= 0.0 {
+        return;
+    }
+    let Some(rig) = editor.rig(id) else {
+        return;
+    };
+    let Some(clip) = rig.playback.clip.and_then(|c| rig.clips.get(c)) else {
+        return;
+    };
+    // The slider's handle keeps its centre this far inside the rail's ends.
+    let inset = rail.height() / 2.5;
+    let x_of = |t: f32| {
+        rail.left() + inset + (t / duration).clamp(0.0, 1.0) * (rail.width() - 2.0 * inset)
+    };
+    let painter = ui.painter();
+    let y = rail.center().y;
+    let selected = tool
+        .valid_joint(editor)
+        .filter(|j| j.object == id)
+        .map(|j| j.joint);
+    for c in clip.channels.iter().filter(|c| Some(c.joint) != selected) {
+        for &t in &c.times {
+            let x = x_of(t);
+            painter.line_segment(
+                [egui::pos2(x, y + 4.0), egui::pos2(x, y + 8.0)],
+                egui::Stroke::new(1.0, egui::Color32::from_gray(120)),
+            );
+        }
+    }
+    if let Some(j) = selected {
+        for t in editor.joint_key_times(id, j) {
+            let c = egui::pos2(x_of(t), y);
+            let r = 5.0;
+            painter.add(egui::Shape::convex_polygon(
+                vec![
+                    c + egui::vec2(0.0, -r),
+                    c + egui::vec2(r, 0.0),
+                    c + egui::vec2(0.0, r),
+                    c + egui::vec2(-r, 0.0),
+                ],
+                egui::Color32::from_rgb(255, 210, 60),
+                egui::Stroke::new(1.0, egui::Color32::BLACK),
+            ));
+        }
+    }
+}
+
+/// The key row under the timeline: the playhead's time (any time, also past the clip's end),
+/// Set key / Delete key for the selected joint, and how many keys it has.
+fn keys_ui(
+    ui: &mut egui::Ui,
+    editor: &mut Editor,
+    tool: &mut PoseTool,
+    id: u64,
+    playback: &mut thicket_core::skin::Playback,
+) {
+    ui.horizontal(|ui| {
+        ui.label("Time").on_hover_text("The playhead in seconds");
+        let mut t = playback.time_secs;
+        if ui
+            .add(
+                egui::DragValue::new(&mut t)
+                    .range(0.0..=3600.0)
+                    .speed(0.01)
+                    .suffix(" s"),
+            )
+            .on_hover_text("Type or drag the playhead's time (with Loop off, past the clip's end to add keys there)")
+            .changed()
+        {
+            playback.time_secs = t;
+            tool.playing = false;
+        }
+        let joint = tool
+            .valid_joint(editor)
+            .filter(|j| j.object == id)
+            .map(|j| j.joint);
+        let name = joint
+            .and_then(|j| editor.rig(id).map(|r| joint_label(&r.skeleton.joints[j].name, j)))
+            .unwrap_or_else(|| "no joint selected".to_owned());
+        let keys = joint.map(|j| editor.joint_key_times(id, j)).unwrap_or_default();
+        let on_key = editor.key_time(id).is_ok_and(|(_, at)| {
+            keys.iter()
+                .any(|k| (k - at).abs() < crate::editor::KEY_EPSILON_SECS)
+        });
+        if ui
+            .add_enabled(joint.is_some(), egui::Button::new("Set key"))
+            .on_hover_text(format!(
+                "Store the pose of {name} at the playhead as a key of the clip (on the rest pose a clip \"Pose\" is added) (K)"
+            ))
+            .clicked()
+            && let Some(j) = joint
+        {
+            tool.error = editor.set_joint_key(id, j).err().map(|e| e.to_string());
+        }
+        if ui
+            .add_enabled(on_key, egui::Button::new("Delete key"))
+            .on_hover_text(format!("Remove the keys of {name} at the playhead (Shift+K)"))
+            .clicked()
+            && let Some(j) = joint
+        {
+            tool.error = editor.delete_joint_key(id, j).err().map(|e| e.to_string());
+        }
+        ui.weak(format!("{name}: {} key(s) in this clip", keys.len()))
+            .on_hover_text("Keys of the selected joint, drawn as diamonds on the timeline");
+    });
 }

@@ -48,6 +48,14 @@ pub struct SculptTool {
     stroke: Option<Stroke>,
     /// The last refused dab, shown in the tool bar.
     pub error: Option<String>,
+    /// Paint per-voxel stretch overrides of rigged models instead of sculpting.
+    pub stretch_paint: bool,
+    /// The override factor the stretch brush paints.
+    pub stretch_factor: f32,
+    /// The stretch brush erases overrides instead.
+    pub stretch_erase: bool,
+    /// The stretch stroke in progress: object and the last node painted.
+    stretch_stroke: Option<(u64, u64)>,
 }
 
 impl Default for SculptTool {
@@ -60,6 +68,10 @@ impl Default for SculptTool {
             },
             stroke: None,
             error: None,
+            stretch_paint: false,
+            stretch_factor: 2.0,
+            stretch_erase: false,
+            stretch_stroke: None,
         }
     }
 }
@@ -118,6 +130,42 @@ impl SculptTool {
         }
     }
 
+    /// Starts, continues or ends a stretch-paint stroke from the view's pointer response and
+    /// what the preview shows under the pointer: a rigged object and the node id of its pixel
+    /// (so the brush lands where the posed model is drawn). One undo step per stroke.
+    pub fn handle_stretch(
+        &mut self,
+        response: &egui::Response,
+        editor: &mut Editor,
+        hit: Option<(u64, u64)>,
+    ) {
+        let down = response.is_pointer_button_down_on()
+            && response.ctx.input(|i| i.pointer.primary_down());
+        if !down {
+            self.stretch_stroke = None;
+            return;
+        }
+        let Some((object, node)) = hit else { return };
+        match self.stretch_stroke {
+            None => {
+                editor.begin_stroke();
+                editor.selection = Some(Selection::Object(object));
+            }
+            Some((o, last)) if o == object && last != node => {}
+            // Same node again, or another object: the stroke stays where it is.
+            Some(_) => return,
+        }
+        self.stretch_stroke = Some((object, node));
+        let Some(center) = editor.node_center(object, node) else {
+            return;
+        };
+        let factor = (!self.stretch_erase).then_some(self.stretch_factor);
+        match editor.paint_stretch(object, center, self.brush.radius, factor) {
+            Ok(_) => self.error = None,
+            Err(e) => self.error = Some(e.to_string()),
+        }
+    }
+
     fn dab(&mut self, editor: &mut Editor, object: u64, center: Vec3, symmetry_center: Vec3) {
         match editor.sculpt_dab(object, &self.brush, center, symmetry_center) {
             Ok(_) => self.error = None,
@@ -142,10 +190,51 @@ impl SculptTool {
                 (BrushOp::Paint, "Paint", "Blend the colour of solid voxels toward the brush colour"),
                 (BrushOp::Smooth, "Smooth", "Remove lone voxels and fill small gaps"),
             ] {
-                ui.selectable_value(&mut self.brush.op, op, label)
-                    .on_hover_text(tip);
+                if ui
+                    .selectable_label(!self.stretch_paint && self.brush.op == op, label)
+                    .on_hover_text(tip)
+                    .clicked()
+                {
+                    self.brush.op = op;
+                    self.stretch_paint = false;
+                }
+            }
+            if ui
+                .selectable_label(self.stretch_paint, "Stretch paint")
+                .on_hover_text(
+                    "Paint per-voxel stretch overrides on a rigged model where the view shows it (CPU preview); one undo step per stroke, saved with the project",
+                )
+                .clicked()
+            {
+                self.stretch_paint = true;
             }
             ui.separator();
+            if self.stretch_paint {
+                ui.label("Size");
+                ui.add(
+                    egui::DragValue::new(&mut self.brush.radius)
+                        .range(0.5..=MAX_RADIUS.min(64.0))
+                        .speed(0.1)
+                        .suffix(" vox"),
+                )
+                .on_hover_text("Stretch brush radius in voxels ([ and ] change it)");
+                ui.label("Factor");
+                ui.add_enabled(
+                    !self.stretch_erase,
+                    egui::DragValue::new(&mut self.stretch_factor)
+                        .range(1.0 / 64.0..=crate::editor::MAX_STRETCH_OVERRIDE)
+                        .speed(0.01),
+                )
+                .on_hover_text(
+                    "Stretch factor painted into each voxel (replaces the strategy's factor there; steps of 1/64, up to 3.98)",
+                );
+                ui.toggle_value(&mut self.stretch_erase, "Erase")
+                    .on_hover_text("Remove painted overrides: the strategy's factor applies again");
+                if let Some(e) = &self.error {
+                    ui.colored_label(ui.visuals().error_fg_color, e);
+                }
+                return;
+            }
             ui.selectable_value(&mut self.brush.shape, BrushShape::Sphere, "Sphere")
                 .on_hover_text("Round brush");
             ui.selectable_value(&mut self.brush.shape, BrushShape::Cube, "Cube")

@@ -102,6 +102,7 @@ struct PreviewKey {
     camera: OrbitCamera,
     size_px: [u32; 2],
     holes: bool,
+    stretch: bool,
 }
 
 /// Silhouette counts of the rigged models in the view against their skinned source meshes.
@@ -120,11 +121,33 @@ struct PreviewFrame {
     image: egui::ColorImage,
     /// Object label per pixel (1-based document index, 0 for the background).
     labels: Vec<u32>,
+    /// Node id per pixel (`(level << 32) | index`, see `PixelId::node`).
+    nodes: Vec<u64>,
     ms: f64,
     /// The hole / bloat overlay and its counts, when asked for and there is a rigged model
     /// with its source mesh.
     holes: Option<(egui::ColorImage, HoleCounts)>,
+    /// The stretch heat map and its statistics, when asked for and a rigged model shows.
+    stretch: Option<(egui::ColorImage, StretchStats)>,
 }
+
+/// Stretch factors of the rigged-model pixels of the shown CPU preview (the heat map's).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StretchStats {
+    /// Pixels of rigged models.
+    pub pixels: u64,
+    /// Smallest factor seen.
+    pub min: f32,
+    /// Mean factor over the pixels.
+    pub mean: f32,
+    /// Largest factor seen.
+    pub max: f32,
+}
+
+/// Factor at the blue end of the heat map's scale.
+pub const STRETCH_SCALE_MIN: f32 = 0.5;
+/// Factor at the red end of the heat map's scale.
+pub const STRETCH_SCALE_MAX: f32 = 2.5;
 
 type PreviewResult = Result<PreviewFrame, String>;
 
@@ -140,10 +163,14 @@ struct CpuPreview {
     renders: u64,
     /// Object labels of the shown image, row by row.
     labels: Vec<u32>,
+    /// Node ids of the shown image, row by row.
+    nodes: Vec<u64>,
     /// The selection outline drawn from `labels`: for which render and label.
     outline: Option<((u64, u32), egui::TextureHandle)>,
     /// The hole / bloat overlay of the shown image and its counts.
     holes: Option<(egui::TextureHandle, HoleCounts)>,
+    /// The stretch heat map of the shown image and its statistics.
+    stretch: Option<(egui::TextureHandle, StretchStats)>,
 }
 
 /// Outline colour of the selection.
@@ -240,6 +267,11 @@ pub struct View {
     /// Overlay the CPU preview with the hole (red) and bloat (blue) pixels of rigged models
     /// against their skinned source meshes.
     pub show_holes: bool,
+    /// Overlay the CPU preview with a heat map of each rigged-model pixel's stretch factor
+    /// (its splat's size against the unstretched voxel's), with a colour legend.
+    pub show_stretch: bool,
+    /// The sculpt tool paints stretch overrides this frame (it aims with the CPU preview).
+    stretch_painting: bool,
     gpu: Option<ViewportLink>,
     /// The document as the renderer sees it, for one content and animation key (cloned when
     /// either changes).
@@ -261,6 +293,8 @@ impl Default for View {
             render_scale: 1.0,
             renderer: ViewRenderer::Auto,
             show_holes: false,
+            stretch_painting: false,
+            show_stretch: false,
             gpu: None,
             snapshot: None,
             cpu: CpuPreview::default(),
@@ -293,6 +327,10 @@ impl View {
             .on_hover_text(
                 "CPU preview of rigged models: red where the skinned source mesh shows but no voxel does (holes), blue where voxels cover more (bloat)",
             );
+        ui.checkbox(&mut self.show_stretch, "Stretch heat map")
+            .on_hover_text(
+                "CPU preview of rigged models: colour each pixel by its voxel's stretch factor this frame (blue 0.5, green 1, red 2.5 and more), with a legend",
+            );
         ui.separator();
         ui.label("Axis views");
         for (view, label, key) in AxisView::ALL {
@@ -314,8 +352,8 @@ impl View {
         ui.label("Viewport renderer");
         ui.horizontal(|ui| {
             for (mode, label, tip) in [
-                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview only for the hole / bloat overlay, which compares its image with the skinned mesh"),
-                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no hole / bloat overlay)"),
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview only while a rigged model shows the hole / bloat overlay, the stretch heat map or is stretch-painted (they read its image)"),
+                (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no hole / bloat overlay, heat map or stretch painting)"),
                 (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
             ] {
                 ui.selectable_value(&mut self.renderer, mode, label)
@@ -344,6 +382,8 @@ impl View {
     ) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
+        // Stretch painting aims with the CPU preview's pixel ids (the posed model as drawn).
+        self.stretch_painting = sculpt.active && sculpt.stretch_paint;
         // No tooltip over the view (it would cover the scene); the hint is in the corner text.
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let aspect = rect.aspect_ratio().max(1e-3);
@@ -363,7 +403,12 @@ impl View {
             && (pose.interact(ui, &response, editor, &proj)
                 || krs.interact(ui, &response, editor, &proj));
         let navigating = self.navigate(ui, &response, editor, sculpt.active, gizmo, rect);
-        if sculpt.active && !navigating {
+        if sculpt.active && !navigating && sculpt.stretch_paint {
+            let hit = response
+                .hover_pos()
+                .and_then(|p| self.preview_hit(editor, rect, p));
+            sculpt.handle_stretch(&response, editor, hit);
+        } else if sculpt.active && !navigating {
             sculpt.handle(&response, editor, hover_pick);
         } else if response.clicked() && !gizmo {
             // Click to select a joint (its dot) or what is under the pointer (or nothing).
@@ -410,9 +455,16 @@ impl View {
         paint_route(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
         if sculpt.active
+            && !sculpt.stretch_paint
             && let Some(pick) = hover_pick
         {
             brush_preview(&painter, &to_screen, &camera, &pick, sculpt);
+        }
+        if sculpt.active
+            && sculpt.stretch_paint
+            && let Some(pos) = response.hover_pos()
+        {
+            self.stretch_brush_preview(&painter, editor, &proj, rect, pos, sculpt);
         }
         self.status_text(ui, rect, editor, sculpt.active, cpu);
     }
@@ -425,8 +477,11 @@ impl View {
             ViewRenderer::Gpu => self.gpu.is_none(),
             ViewRenderer::Auto => {
                 // The GPU draws voxels (rigid and skinned), meshes and KRS; the hole / bloat
-                // overlay is computed with the CPU preview's image.
-                self.gpu.is_none() || (self.show_holes && has_rig(editor.doc()))
+                // overlay, the stretch heat map and stretch painting read the CPU preview's
+                // image and pixel ids, so a rigged model falls back to it for them.
+                self.gpu.is_none()
+                    || ((self.show_holes || self.show_stretch || self.stretch_painting)
+                        && has_rig(editor.doc()))
             }
         }
     }
@@ -435,6 +490,79 @@ impl View {
     #[must_use]
     pub fn cpu_renders(&self) -> u64 {
         self.cpu.renders
+    }
+
+    /// The rigged voxel model and the node id the shown CPU preview draws at `pos` (a point in
+    /// `rect`, the view), when the preview shows the current document's objects.
+    #[must_use]
+    pub fn preview_hit(
+        &self,
+        editor: &Editor,
+        rect: egui::Rect,
+        pos: egui::Pos2,
+    ) -> Option<(u64, u64)> {
+        let shown = self.cpu.shown.as_ref()?;
+        // Labels are document indices: only valid while the object list is the same one.
+        if shown.content.0 != editor.content_key().0 || !rect.contains(pos) {
+            return None;
+        }
+        let [w, h] = shown.size_px;
+        let x = (((pos.x - rect.left()) / rect.width()) * w as f32) as usize;
+        let y = (((pos.y - rect.top()) / rect.height()) * h as f32) as usize;
+        let i = y.min(h as usize - 1) * w as usize + x.min(w as usize - 1);
+        let label = *self.cpu.labels.get(i)?;
+        let node = *self.cpu.nodes.get(i)?;
+        let o = editor.doc().objects.get((label as usize).checked_sub(1)?)?;
+        match &o.kind {
+            ObjectKind::Voxels(v) if v.rig.is_some() => Some((o.id, node)),
+            _ => None,
+        }
+    }
+
+    /// The stretch brush over the rigged model under the pointer: a circle of the brush's
+    /// radius (sized at the node's bind-pose place, which the pose moves but hardly scales),
+    /// in the heat map's colour of the factor it paints (grey when erasing).
+    fn stretch_brush_preview(
+        &self,
+        painter: &egui::Painter,
+        editor: &Editor,
+        proj: &Projector,
+        rect: egui::Rect,
+        pos: egui::Pos2,
+        sculpt: &SculptTool,
+    ) {
+        let Some((id, node)) = self.preview_hit(editor, rect, pos) else {
+            return;
+        };
+        let (Some(o), Some(c)) = (editor.object(id), editor.node_center(id, node)) else {
+            return;
+        };
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return;
+        };
+        let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
+        let p = world_from_voxel.transform_point3(c);
+        let voxel_world = world_from_voxel
+            .transform_vector3(Vec3::X)
+            .length()
+            .max(1e-9);
+        let radius_px = sculpt.brush.radius * voxel_world / proj.world_per_point(p).max(1e-9);
+        let color = if sculpt.stretch_erase {
+            egui::Color32::from_gray(200)
+        } else {
+            stretch_color(sculpt.stretch_factor)
+        };
+        painter.circle_stroke(
+            pos,
+            radius_px.clamp(2.0, 400.0),
+            egui::Stroke::new(2.0, color),
+        );
+    }
+
+    /// Stretch-factor statistics of the shown CPU preview (with [`View::show_stretch`]).
+    #[must_use]
+    pub fn stretch_stats(&self) -> Option<StretchStats> {
+        self.cpu.stretch.as_ref().map(|(_, s)| *s)
     }
 
     /// Hole and bloat counts of the shown CPU preview (with [`View::show_holes`]).
@@ -491,6 +619,7 @@ impl View {
             camera: editor.doc().camera,
             size_px,
             holes: self.show_holes,
+            stretch: self.show_stretch,
         };
         if let Some((k, rx)) = &self.cpu.job {
             match rx.try_recv() {
@@ -512,10 +641,21 @@ impl View {
                 Ok(PreviewFrame {
                     image,
                     labels,
+                    nodes,
                     ms,
                     holes,
+                    stretch,
                 }) => {
                     self.cpu.labels = labels;
+                    self.cpu.nodes = nodes;
+                    self.cpu.stretch = stretch.map(|(overlay, stats)| {
+                        let t = ui.ctx().load_texture(
+                            "stretch_overlay",
+                            overlay,
+                            egui::TextureOptions::NEAREST,
+                        );
+                        (t, stats)
+                    });
                     self.cpu.holes = holes.map(|(overlay, counts)| {
                         let t = ui.ctx().load_texture(
                             "hole_overlay",
@@ -556,6 +696,7 @@ impl View {
                 quality: doc.quality.clone(),
             };
             let holes = key.holes;
+            let stretch = key.stretch;
             std::thread::spawn(move || {
                 let t0 = Instant::now();
                 let result = thicket_core::render::render_document(&doc, &request)
@@ -563,16 +704,24 @@ impl View {
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
                         let labels = buffers.ids.iter().map(|id| id.object).collect();
+                        let nodes = buffers.ids.iter().map(|id| id.node).collect();
+                        let stretch = if stretch {
+                            stretch_overlay(&doc, &request, &buffers.ids, size)
+                        } else {
+                            None
+                        };
                         let ms = t0.elapsed().as_secs_f64() * 1e3;
                         PreviewFrame {
                             image: color,
                             labels,
+                            nodes,
                             ms,
                             holes: if holes {
                                 hole_overlay(&doc, &request)
                             } else {
                                 None
                             },
+                            stretch,
                         }
                     })
                     .map_err(|e| e.to_string());
@@ -592,6 +741,13 @@ impl View {
         {
             ui.painter_at(rect)
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
+        }
+        if self.show_stretch
+            && let Some((t, stats)) = &self.cpu.stretch
+        {
+            ui.painter_at(rect)
+                .image(t.id(), rect, uv, egui::Color32::WHITE);
+            stretch_legend_ui(ui, rect, *stats);
         }
         match self.selection_outline(ui, editor) {
             Some(t) => {
@@ -1169,6 +1325,221 @@ fn brush_preview(
     }
 }
 
+/// Heat-map colour of a stretch factor: blue at [`STRETCH_SCALE_MIN`], green at 1, yellow,
+/// red at [`STRETCH_SCALE_MAX`] and above.
+#[must_use]
+pub fn stretch_color(factor: f32) -> egui::Color32 {
+    let stops: [(f32, [u8; 3]); 4] = [
+        (STRETCH_SCALE_MIN, [40, 90, 255]),
+        (1.0, [40, 200, 80]),
+        (1.75, [250, 220, 40]),
+        (STRETCH_SCALE_MAX, [240, 40, 30]),
+    ];
+    let f = if factor.is_finite() {
+        factor
+    } else {
+        STRETCH_SCALE_MAX
+    };
+    let f = f.clamp(STRETCH_SCALE_MIN, STRETCH_SCALE_MAX);
+    let k = stops
+        .windows(2)
+        .position(|w| f <= w[1].0)
+        .unwrap_or(stops.len() - 2);
+    let ((a, ca), (b, cb)) = (stops[k], stops[k + 1]);
+    let t = ((f - a) / (b - a)).clamp(0.0, 1.0);
+    let mix =
+        |i: usize| (f32::from(ca[i]) + t * (f32::from(cb[i]) - f32::from(ca[i]))).round() as u8;
+    egui::Color32::from_rgb(mix(0), mix(1), mix(2))
+}
+
+/// The stretch factor of every node of rigged model `v` that the preview shows, by its pixel
+/// id: the size of the node's splat this frame (strategy, multiplier, overrides) over the size
+/// of the same node placed with no stretch. Both are the renderer's own `NodeDeform`.
+fn node_stretch_factors(
+    o: &thicket_core::scene::Object,
+    v: &thicket_core::scene::VoxelModel,
+    quality: &thicket_core::render::Quality,
+    wanted: &std::collections::HashSet<u64>,
+) -> HashMap<u64, f32> {
+    use thicket_core::render::{NodeDeform as _, NodeInfo};
+    use thicket_core::skin::{SkinDeform, StretchStrategy};
+    let mut out = HashMap::new();
+    let Some(rig) = &v.rig else {
+        return out;
+    };
+    let mut settings = rig.stretch;
+    settings.multiplier *= quality.stretch_multiplier;
+    let deform = |s| {
+        SkinDeform::for_rig(
+            rig,
+            &v.svo,
+            o.transform.matrix(),
+            v.object_from_voxel(),
+            rig.playback.clip,
+            rig.playback.time_secs,
+        )
+        .with_settings(s)
+    };
+    let actual = deform(settings);
+    let no_overrides = thicket_core::skin::StretchOverrides::default();
+    let plain = {
+        let mut s = settings;
+        s.strategy = StretchStrategy::Off;
+        s.multiplier = 1.0;
+        // Overrides are part of the stretch: the reference ignores them.
+        SkinDeform::new(
+            o.transform.matrix(),
+            v.object_from_voxel(),
+            &rig.skinning_at(rig.playback.clip, rig.playback.time_secs),
+            s,
+            &no_overrides,
+            rig.tables(&v.svo),
+        )
+    };
+    // Half extent of a splat's world box along its largest axis.
+    let extent = |d: thicket_core::render::DeformedNode| {
+        let m = d.half_axes_world;
+        let rows = m.x_axis.abs() + m.y_axis.abs() + m.z_axis.abs();
+        rows.max_element()
+    };
+    if v.svo.is_empty() {
+        return out;
+    }
+    let mut stack = vec![v.svo.root()];
+    while let Some(node) = stack.pop() {
+        let id = (u64::from(node.level) << 32) | u64::from(node.index);
+        if wanted.contains(&id) {
+            let info = NodeInfo { svo: &v.svo, node };
+            let base = extent(plain.deform(&info));
+            let f = if base > 0.0 {
+                extent(actual.deform(&info)) / base
+            } else {
+                1.0
+            };
+            out.insert(id, f);
+        }
+        if !v.svo.is_leaf(&node) {
+            stack.extend((0..8).filter_map(|k| v.svo.child(&node, k)));
+        }
+    }
+    out
+}
+
+/// The stretch heat map of a preview frame: each pixel of a visible rigged model coloured by
+/// its node's stretch factor (see [`node_stretch_factors`]); other pixels transparent.
+fn stretch_overlay(
+    doc: &Document,
+    req: &thicket_core::render::RenderRequest,
+    ids: &[thicket_core::render::PixelId],
+    size: [usize; 2],
+) -> Option<(egui::ColorImage, StretchStats)> {
+    let mut wanted: HashMap<u32, std::collections::HashSet<u64>> = HashMap::new();
+    for id in ids {
+        let Some(o) = (id.object as usize)
+            .checked_sub(1)
+            .and_then(|i| doc.objects.get(i))
+        else {
+            continue;
+        };
+        if let ObjectKind::Voxels(v) = &o.kind
+            && v.rig.is_some()
+        {
+            wanted.entry(id.object).or_default().insert(id.node);
+        }
+    }
+    if wanted.is_empty() {
+        return None;
+    }
+    let factors: HashMap<u32, HashMap<u64, f32>> = wanted
+        .iter()
+        .filter_map(|(&label, nodes)| {
+            let o = &doc.objects[label as usize - 1];
+            let ObjectKind::Voxels(v) = &o.kind else {
+                return None;
+            };
+            Some((label, node_stretch_factors(o, v, &req.quality, nodes)))
+        })
+        .collect();
+    let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
+    let mut stats = StretchStats {
+        min: f32::INFINITY,
+        max: f32::NEG_INFINITY,
+        ..StretchStats::default()
+    };
+    let mut sum = 0.0f64;
+    for (px, id) in image.pixels.iter_mut().zip(ids) {
+        let Some(f) = factors.get(&id.object).and_then(|m| m.get(&id.node)) else {
+            continue;
+        };
+        let c = stretch_color(*f);
+        *px = egui::Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), 200);
+        stats.pixels += 1;
+        stats.min = stats.min.min(*f);
+        stats.max = stats.max.max(*f);
+        sum += f64::from(*f);
+    }
+    if stats.pixels == 0 {
+        return None;
+    }
+    stats.mean = (sum / stats.pixels as f64) as f32;
+    Some((image, stats))
+}
+
+/// The heat map's colour legend in the view's lower left corner, with the frame's range.
+fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
+    let painter = ui.painter_at(rect);
+    let bar = egui::Rect::from_min_size(
+        rect.left_bottom() + egui::vec2(12.0, -58.0),
+        egui::vec2(180.0, 12.0),
+    );
+    let backdrop = egui::Rect::from_min_max(
+        bar.min - egui::vec2(6.0, 22.0),
+        bar.max + egui::vec2(84.0, 26.0),
+    );
+    painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(160));
+    let steps = 36;
+    for i in 0..steps {
+        let t0 = i as f32 / steps as f32;
+        let t1 = (i + 1) as f32 / steps as f32;
+        let f = STRETCH_SCALE_MIN + (t0 + t1) * 0.5 * (STRETCH_SCALE_MAX - STRETCH_SCALE_MIN);
+        let r = egui::Rect::from_min_max(
+            egui::pos2(bar.min.x + t0 * bar.width(), bar.min.y),
+            egui::pos2(bar.min.x + t1 * bar.width(), bar.max.y),
+        );
+        painter.rect_filled(r, 0.0, stretch_color(f));
+    }
+    let font = egui::FontId::proportional(11.0);
+    let text = egui::Color32::from_gray(220);
+    painter.text(
+        bar.left_top() - egui::vec2(0.0, 4.0),
+        egui::Align2::LEFT_BOTTOM,
+        "Stretch factor",
+        font.clone(),
+        text,
+    );
+    for f in [STRETCH_SCALE_MIN, 1.0, 2.0, STRETCH_SCALE_MAX] {
+        let x = bar.min.x
+            + (f - STRETCH_SCALE_MIN) / (STRETCH_SCALE_MAX - STRETCH_SCALE_MIN) * bar.width();
+        painter.text(
+            egui::pos2(x, bar.max.y + 2.0),
+            egui::Align2::CENTER_TOP,
+            format!("{f:.1}"),
+            font.clone(),
+            text,
+        );
+    }
+    painter.text(
+        egui::pos2(bar.max.x + 18.0, bar.center().y),
+        egui::Align2::LEFT_CENTER,
+        format!(
+            "min {:.2}\nmean {:.2}\nmax {:.2}",
+            stats.min, stats.mean, stats.max
+        ),
+        font,
+        text,
+    );
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1194,5 +1565,21 @@ mod tests {
         );
         assert!(!lit.contains(&(2, 2)));
         assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
+    }
+
+    #[test]
+    fn stretch_colours_run_blue_green_red_and_clamp() {
+        use super::{STRETCH_SCALE_MAX, STRETCH_SCALE_MIN, stretch_color};
+        let blue = stretch_color(STRETCH_SCALE_MIN);
+        let green = stretch_color(1.0);
+        let red = stretch_color(STRETCH_SCALE_MAX);
+        assert!(blue.b() > blue.r() && blue.b() > blue.g());
+        assert!(green.g() > green.r() && green.g() > green.b());
+        assert!(red.r() > red.g() && red.r() > red.b());
+        assert_eq!(stretch_color(0.01), blue);
+        assert_eq!(stretch_color(99.0), red);
+        assert_eq!(stretch_color(f32::NAN), red);
+        // Between stops the colour moves monotonically toward the next one.
+        assert!(stretch_color(1.4).r() > green.r());
     }
 }

@@ -842,6 +842,21 @@ impl Enhancer {
     /// [`EnhanceError::DepthMismatch`] when `coarse` is not the map this enhancer was built
     /// from; [`EnhanceError::Svo`] when the box lies outside it.
     pub fn update_box(&mut self, coarse: &Svo, lo: UVec3, hi: UVec3) -> Result<(), EnhanceError> {
+        self.update_box_changes(coarse, lo, hi).map(|_| ())
+    }
+
+    /// [`Enhancer::update_box`], returning the fine voxels it wrote (`None`: removed), so a
+    /// copy of the fine octree kept elsewhere (the editor's document) can be patched with the
+    /// same few changes instead of being copied whole.
+    ///
+    /// # Errors
+    /// As [`Enhancer::update_box`].
+    pub fn update_box_changes(
+        &mut self,
+        coarse: &Svo,
+        lo: UVec3,
+        hi: UVec3,
+    ) -> Result<Vec<(UVec3, Option<Voxel>)>, EnhanceError> {
         let start = Instant::now();
         if coarse.depth() != self.coarse_depth {
             return Err(EnhanceError::DepthMismatch {
@@ -921,7 +936,7 @@ impl Enhancer {
                 .into_iter()
                 .map(|(key, v)| (unpack(key).as_uvec3(), Some(v))),
         );
-        self.fine.apply_changes(changes)?;
+        self.fine.apply_changes(changes.iter().copied())?;
         self.stats = EnhanceStats {
             coarse_surface_voxels: self.stats.coarse_surface_voxels,
             candidate_cells: cells.len() as u64,
@@ -930,7 +945,7 @@ impl Enhancer {
             ..EnhanceStats::default()
         };
         self.finish_stats(start);
-        Ok(())
+        Ok(changes)
     }
 }
 

@@ -458,6 +458,39 @@ pub struct Document {
     pub camera: OrbitCamera,
     /// Render quality.
     pub quality: Quality,
+    /// Detail enhancement kept up to date by the editor: which voxel model is enhanced into
+    /// which object, with what settings. (Omitted from the JSON when empty, so documents
+    /// without it save as before and older files load.)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub enhancements: Vec<EnhancementLink>,
+    /// Tree-builder parameters of KRS objects built by the editor's tree builder, so reopening
+    /// a tree keeps editing it from its parameters. (Omitted from the JSON when empty.)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tree_builders: Vec<TreeBuilderLink>,
+}
+
+/// A voxel model (`source`, the coarse one the artist edits) and the object that holds its
+/// detail enhancement (`target`), with the settings that made it. A link naming an object that
+/// no longer exists is ignored.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct EnhancementLink {
+    /// Id of the coarse voxel model.
+    pub source: u64,
+    /// Id of the voxel model holding the enhancement.
+    pub target: u64,
+    /// The settings of the enhancement.
+    pub settings: crate::enhance::EnhanceSettings,
+}
+
+/// The tree-builder parameters a KRS object was last built from.
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct TreeBuilderLink {
+    /// Id of the KRS object.
+    pub object: u64,
+    /// The parameters.
+    pub params: crate::krs::TreeParams,
 }
 
 impl Default for Document {
@@ -470,6 +503,8 @@ impl Default for Document {
             background: Vec3::new(0.2, 0.22, 0.25),
             camera: OrbitCamera::default(),
             quality: Quality::default(),
+            enhancements: Vec::new(),
+            tree_builders: Vec::new(),
         }
     }
 }
@@ -485,6 +520,27 @@ impl Document {
             ..Object::default()
         });
         id
+    }
+
+    /// The enhancement link whose source is voxel model `id`.
+    #[must_use]
+    pub fn enhancement_of(&self, id: u64) -> Option<&EnhancementLink> {
+        self.enhancements.iter().find(|l| l.source == id)
+    }
+
+    /// The enhancement link whose target is object `id`.
+    #[must_use]
+    pub fn enhancement_into(&self, id: u64) -> Option<&EnhancementLink> {
+        self.enhancements.iter().find(|l| l.target == id)
+    }
+
+    /// The tree-builder parameters KRS object `id` was built from.
+    #[must_use]
+    pub fn tree_params_of(&self, id: u64) -> Option<&crate::krs::TreeParams> {
+        self.tree_builders
+            .iter()
+            .find(|l| l.object == id)
+            .map(|l| &l.params)
     }
 
     /// Looks an object up by name.
@@ -563,6 +619,28 @@ impl Document {
         self.quality
             .validate()
             .map_err(|e| invalid("quality", "document", e.to_string()))?;
+        for l in &self.enhancements {
+            let ctx = format!("enhancement of object id {}", l.source);
+            if l.source == l.target {
+                return Err(invalid(
+                    "target",
+                    &ctx,
+                    "a model cannot hold its own enhancement",
+                ));
+            }
+            l.settings
+                .validate()
+                .map_err(|e| invalid("settings", &ctx, e.to_string()))?;
+        }
+        for t in &self.tree_builders {
+            t.params.build().map_err(|e| {
+                invalid(
+                    "tree_builders",
+                    &format!("KRS object id {}", t.object),
+                    e.to_string(),
+                )
+            })?;
+        }
         let mut ids: Vec<u64> = self.objects.iter().map(|o| o.id).collect();
         ids.sort_unstable();
         if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {

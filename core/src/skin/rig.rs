@@ -236,7 +236,8 @@ impl Rig {
                 )));
             }
             let finite = o.rotation.is_none_or(glam::Quat::is_finite)
-                && o.translation.is_none_or(glam::Vec3::is_finite);
+                && o.translation.is_none_or(glam::Vec3::is_finite)
+                && o.scale.is_none_or(glam::Vec3::is_finite);
             if !finite {
                 return Err(rig(format!("pose override {i} has a non-finite value")));
             }

@@ -336,8 +336,9 @@ impl Pose {
     pub fn apply_overrides(&mut self, overrides: &[JointOverride]) -> usize {
         let mut skipped = 0;
         for o in overrides {
-            let finite =
-                o.rotation.is_none_or(Quat::is_finite) && o.translation.is_none_or(Vec3::is_finite);
+            let finite = o.rotation.is_none_or(Quat::is_finite)
+                && o.translation.is_none_or(Vec3::is_finite)
+                && o.scale.is_none_or(Vec3::is_finite);
             let Some(local) = self.locals.get_mut(o.joint).filter(|_| finite) else {
                 skipped += 1;
                 continue;
@@ -350,6 +351,9 @@ impl Pose {
                     if let Some(t) = o.translation {
                         local.translation = t;
                     }
+                    if let Some(s) = o.scale {
+                        local.scale = s;
+                    }
                 }
                 OverrideMode::Relative => {
                     if let Some(r) = o.rotation {
@@ -359,6 +363,9 @@ impl Pose {
                     }
                     if let Some(t) = o.translation {
                         local.translation += t;
+                    }
+                    if let Some(s) = o.scale {
+                        local.scale *= s;
                     }
                 }
             }
@@ -390,6 +397,10 @@ pub struct JointOverride {
     pub translation: Option<Vec3>,
     /// How it combines with the pose below.
     pub mode: OverrideMode,
+    /// Local per-axis scale, if overridden (relative: multiplies the clip's). Omitted from the
+    /// JSON when `None`, so files without it read and write as before.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale: Option<Vec3>,
 }
 
 impl Default for JointOverride {
@@ -399,6 +410,7 @@ impl Default for JointOverride {
             rotation: None,
             translation: None,
             mode: OverrideMode::Replace,
+            scale: None,
         }
     }
 }

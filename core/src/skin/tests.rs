@@ -618,6 +618,41 @@ fn overrides_layer_on_the_rest_pose() {
     }]);
     let tip = sk.skinning_matrices(&rel)[1].transform_point3(Vec3::Y);
     assert!(tip.abs_diff_eq(Vec3::new(0.0, -2.0, 0.0), 1e-5), "{tip}");
+    // Scale: replace sets it, relative multiplies the pose's; the child moves with it; a
+    // non-finite scale is skipped like the other values.
+    let mut scaled = pose.clone();
+    let skipped = scaled.apply_overrides(&[
+        JointOverride {
+            joint: 0,
+            scale: Some(Vec3::new(1.0, 3.0, 1.0)),
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 0,
+            scale: Some(Vec3::new(2.0, 0.5, 1.0)),
+            mode: OverrideMode::Relative,
+            ..JointOverride::default()
+        },
+        JointOverride {
+            joint: 1,
+            scale: Some(Vec3::NAN),
+            ..JointOverride::default()
+        },
+    ]);
+    assert_eq!(skipped, 1);
+    assert_eq!(scaled.locals[0].scale, Vec3::new(2.0, 1.5, 1.0));
+    let mut m = JointMatrices::default();
+    sk.compute_matrices(&scaled, &mut m);
+    let child = m.world_from_joint[1].transform_point3(Vec3::ZERO);
+    let unscaled = {
+        let mut m0 = JointMatrices::default();
+        sk.compute_matrices(&pose, &mut m0);
+        m0.world_from_joint[1].transform_point3(Vec3::ZERO)
+    };
+    assert!(
+        (child.length() - 1.5 * unscaled.length()).abs() < 1e-4,
+        "{child} vs {unscaled}"
+    );
 }
 
 #[test]

@@ -512,6 +512,7 @@ fn skinned_doc() -> Document {
         rotation: Some(Quat::from_rotation_x(0.5)),
         translation: None,
         mode: OverrideMode::Relative,
+        scale: Some(Vec3::new(1.0, 1.5, 1.0)),
     }];
     rig.stretch = StretchSettings {
         strategy: StretchStrategy::Adaptive,
@@ -678,4 +679,72 @@ fn stretch_overrides_set_get_and_refuse_disorder() {
     assert!(StretchOverrides::from_sorted(vec![(5, 1), (5, 2)]).is_err());
     assert!(StretchOverrides::from_sorted(vec![(5, 1), (4, 2)]).is_err());
     assert!(StretchOverrides::from_sorted(vec![(5, 0)]).is_err());
+}
+
+#[test]
+fn enhancement_links_and_tree_parameters_round_trip_and_old_files_load() {
+    use crate::enhance::{EnhanceSettings, Method};
+    use crate::scene::{EnhancementLink, TreeBuilderLink};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("links.thicket.json");
+    let mut doc = krs_doc();
+    // Validation does not look at the objects' kinds (a link to a deleted object is ignored).
+    let voxels = [doc.objects[0].id, doc.objects[1].id];
+    let tree = doc.object_by_name("Tree").unwrap().id;
+    let mut params = crate::krs::TreeParams::default();
+    params.widths[0] *= 1.25;
+    doc.enhancements.push(EnhancementLink {
+        source: voxels[0],
+        target: voxels[1],
+        settings: EnhanceSettings {
+            method: Method::Resample,
+            factor: 3,
+            ..EnhanceSettings::default()
+        },
+    });
+    doc.tree_builders.push(TreeBuilderLink {
+        object: tree,
+        params: params.clone(),
+    });
+    save(&doc, &path).unwrap();
+    let back = load(&path).unwrap();
+    assert_eq!(back, doc);
+    assert_eq!(back.enhancement_of(voxels[0]).unwrap().settings.factor, 3);
+    assert_eq!(back.enhancement_into(voxels[1]).unwrap().source, voxels[0]);
+    assert_eq!(back.tree_params_of(tree), Some(&params));
+
+    // A file written before the fields existed loads with none; one without links writes none.
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let obj = json.as_object_mut().unwrap();
+    obj.remove("enhancements");
+    obj.remove("tree_builders");
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let old = load(&path).unwrap();
+    assert!(old.enhancements.is_empty() && old.tree_builders.is_empty());
+    save(&old, &path).unwrap();
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(!text.contains("enhancements") && !text.contains("tree_builders"));
+
+    // Bad settings are refused naming the link and the field.
+    let mut bad = doc.clone();
+    bad.enhancements[0].settings.method = Method::Subdivide;
+    save(&doc, &path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    json["enhancements"][0]["settings"]["method"] = "subdivide".into();
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("enhancement of object id") && e.contains("factor"),
+        "{e}"
+    );
+    assert!(bad.validate().is_err());
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    json["enhancements"][0]["settings"]["method"] = "resample".into();
+    json["tree_builders"][0]["params"]["route"] = serde_json::json!([[0.0, 0.0, 0.0]]);
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("tree_builders") && e.contains("KRS object id"),
+        "{e}"
+    );
 }

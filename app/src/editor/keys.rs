@@ -1,0 +1,257 @@
+//! Pose keyframes: the selected joint's pose at the playhead is stored as keys in the playing
+//! clip (rotation, translation and scale channels), or deleted from it; each is one undo
+//! step. Scaling a joint with the gizmo is an override like rotating or moving it.
+
+use glam::{Quat, Vec3, Vec4};
+use thicket_core::skin::{
+    AnimationClip, Channel, Interpolation, JointOverride, OverrideMode, Property,
+};
+
+use super::{CommandError, Edit, Editor};
+
+/// Keys closer than this (seconds) are the same key.
+pub const KEY_EPSILON_SECS: f32 = 1e-3;
+
+/// Smallest per-axis joint scale a drag may set (a zero scale collapses the joint's voxels).
+pub const MIN_JOINT_SCALE: f32 = 0.01;
+
+impl Editor {
+    /// The clip the playhead is on and the time a key set now gets (wrapped when looping).
+    ///
+    /// # Errors
+    /// Unknown object or no rig.
+    pub fn key_time(&self, id: u64) -> Result<(Option<usize>, f32), CommandError> {
+        let rig = self.rig_or_err(id)?;
+        let p = rig.playback;
+        Ok(
+            match p.clip.and_then(|c| rig.clips.get(c).map(|clip| (c, clip))) {
+                // Held past the end, the playhead still names a time: keying there extends the
+                // clip. Looping, it names the time inside the clip it shows.
+                Some((c, clip)) => (
+                    Some(c),
+                    match p.wrap {
+                        thicket_core::skin::Wrap::Clamp => p.time_secs.max(0.0),
+                        thicket_core::skin::Wrap::Loop => clip.wrap_time(p.time_secs, p.wrap),
+                    },
+                ),
+                None => (None, p.time_secs.max(0.0)),
+            },
+        )
+    }
+
+    /// Key times of `joint` in the clip the playhead is on (sorted, without repeats).
+    #[must_use]
+    pub fn joint_key_times(&self, id: u64, joint: usize) -> Vec<f32> {
+        let Some(rig) = self.rig(id) else {
+            return Vec::new();
+        };
+        let Some(clip) = rig.playback.clip.and_then(|c| rig.clips.get(c)) else {
+            return Vec::new();
+        };
+        let mut times: Vec<f32> = clip
+            .channels
+            .iter()
+            .filter(|c| c.joint == joint)
+            .flat_map(|c| c.times.iter().copied())
+            .collect();
+        times.sort_by(f32::total_cmp);
+        times.dedup_by(|a, b| (*a - *b).abs() < KEY_EPSILON_SECS);
+        times
+    }
+
+    /// Stores `joint`'s current pose (clip, playhead and overrides) as keys of its rotation,
+    /// translation and scale at the playhead, in the playing clip; on the rest pose a new clip
+    /// "Pose" is added and starts playing. The joint's override is folded into the keys (so it
+    /// is removed). One undo step.
+    ///
+    /// # Errors
+    /// Unknown object, no rig or a joint out of range.
+    pub fn set_joint_key(&mut self, id: u64, joint: usize) -> Result<(), CommandError> {
+        let rig = self.rig_or_err(id)?;
+        let n = rig.skeleton.len();
+        if joint >= n {
+            return Err(CommandError::Invalid(format!(
+                "joint {joint} does not exist (the skeleton has {n})"
+            )));
+        }
+        let local = rig.current_pose().locals[joint];
+        let (clip, t) = self.key_time(id)?;
+        let rig = self.rig_or_err(id)?;
+        let mut clips = rig.clips.clone();
+        let index = clip.unwrap_or_else(|| {
+            clips.push(AnimationClip {
+                name: "Pose".into(),
+                ..AnimationClip::default()
+            });
+            clips.len() - 1
+        });
+        let target = &mut clips[index];
+        for (property, value) in [
+            (Property::Rotation, Vec4::from(local.rotation.normalize())),
+            (Property::Translation, local.translation.extend(0.0)),
+            (Property::Scale, local.scale.extend(0.0)),
+        ] {
+            // The last channel of a property wins when sampling: key that one.
+            let c = match target
+                .channels
+                .iter()
+                .rposition(|c| c.joint == joint && c.property == property)
+            {
+                Some(c) => c,
+                None => {
+                    target.channels.push(Channel {
+                        joint,
+                        property,
+                        interpolation: Interpolation::Linear,
+                        times: Vec::new(),
+                        values: Vec::new(),
+                    });
+                    target.channels.len() - 1
+                }
+            };
+            insert_key(&mut target.channels[c], t, value);
+        }
+        target.duration_secs = target.duration_secs.max(t);
+        let overrides: Vec<JointOverride> = rig
+            .pose_overrides
+            .iter()
+            .filter(|o| o.joint != joint)
+            .copied()
+            .collect();
+        let mut edits = vec![Edit::SetClips { id, clips }];
+        if overrides != rig.pose_overrides {
+            edits.push(Edit::SetPose { id, overrides });
+        }
+        self.history.seal();
+        self.apply(Edit::Group(edits), None);
+        self.history.seal();
+        if clip.is_none() {
+            let mut playback = self.rig_or_err(id)?.playback;
+            playback.clip = Some(index);
+            playback.time_secs = t;
+            self.set_playback(id, playback)?;
+        }
+        Ok(())
+    }
+
+    /// Deletes `joint`'s keys at the playhead from the playing clip (channels left without
+    /// keys are removed; the clip's length follows its last key). One undo step. Returns
+    /// whether there was a key to delete.
+    ///
+    /// # Errors
+    /// Unknown object or no rig.
+    pub fn delete_joint_key(&mut self, id: u64, joint: usize) -> Result<bool, CommandError> {
+        let (clip, t) = self.key_time(id)?;
+        let Some(index) = clip else {
+            return Ok(false);
+        };
+        let rig = self.rig_or_err(id)?;
+        let mut clips = rig.clips.clone();
+        let target = &mut clips[index];
+        let mut deleted = false;
+        for c in target.channels.iter_mut().filter(|c| c.joint == joint) {
+            while let Some(k) = c
+                .times
+                .iter()
+                .position(|&x| (x - t).abs() < KEY_EPSILON_SECS)
+            {
+                c.times.remove(k);
+                if c.interpolation == Interpolation::CubicSpline {
+                    c.values.drain(3 * k..3 * k + 3);
+                } else {
+                    c.values.remove(k);
+                }
+                deleted = true;
+            }
+        }
+        if !deleted {
+            return Ok(false);
+        }
+        target.channels.retain(|c| !c.times.is_empty());
+        target.duration_secs = target
+            .channels
+            .iter()
+            .filter_map(|c| c.times.last().copied())
+            .fold(0.0, f32::max);
+        self.history.seal();
+        self.apply(Edit::SetClips { id, clips }, None);
+        self.history.seal();
+        Ok(true)
+    }
+
+    /// Scales `joint` per axis by `factor` on top of `base` (the override the drag started
+    /// from; see [`Editor::rotate_joint`]). Each axis stays at least [`MIN_JOINT_SCALE`].
+    ///
+    /// # Errors
+    /// As [`Editor::set_joint_override`], and a non-finite or non-positive factor.
+    pub fn scale_joint(
+        &mut self,
+        id: u64,
+        joint: usize,
+        base: Option<JointOverride>,
+        factor: Vec3,
+    ) -> Result<(), CommandError> {
+        if !factor.is_finite() || factor.min_element() <= 0.0 {
+            return Err(CommandError::Invalid(format!(
+                "a joint scale factor must be finite and positive, not {factor}"
+            )));
+        }
+        let current = self
+            .rig(id)
+            .and_then(|r| r.current_pose().locals.get(joint).copied());
+        let mut o = base.unwrap_or(JointOverride {
+            joint,
+            mode: OverrideMode::Relative,
+            ..JointOverride::default()
+        });
+        let start = o.scale.unwrap_or(match o.mode {
+            OverrideMode::Relative => Vec3::ONE,
+            OverrideMode::Replace => current.map_or(Vec3::ONE, |l| l.scale),
+        });
+        o.scale = Some((start * factor).max(Vec3::splat(MIN_JOINT_SCALE)));
+        self.set_joint_override(id, o)
+    }
+}
+
+/// Writes `value` at time `t` into a channel: replaces the key there or inserts one in order
+/// (a cubic-spline key gets flat tangents).
+fn insert_key(c: &mut Channel, t: f32, value: Vec4) {
+    let cubic = c.interpolation == Interpolation::CubicSpline;
+    let value = if c.property == Property::Rotation {
+        // Keep the quaternion on the same hemisphere as its neighbour so slerp takes the short
+        // way even across sign flips of stored keys.
+        let q = Quat::from_vec4(value);
+        let near = c
+            .times
+            .iter()
+            .position(|&x| x >= t)
+            .or(c.times.len().checked_sub(1))
+            .and_then(|k| c.values.get(if cubic { 3 * k + 1 } else { k }).copied());
+        match near {
+            Some(v) if Quat::from_vec4(v).dot(q) < 0.0 => -value,
+            _ => value,
+        }
+    } else {
+        value
+    };
+    match c
+        .times
+        .iter()
+        .position(|&x| (x - t).abs() < KEY_EPSILON_SECS)
+    {
+        Some(k) => {
+            let i = if cubic { 3 * k + 1 } else { k };
+            c.values[i] = value;
+        }
+        None => {
+            let k = c.times.partition_point(|&x| x < t);
+            c.times.insert(k, t);
+            if cubic {
+                c.values
+                    .splice(3 * k..3 * k, [Vec4::ZERO, value, Vec4::ZERO]);
+            } else {
+                c.values.insert(k, value);
+            }
+        }
+    }
+}
