@@ -244,7 +244,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
     if let Some(o) = doc.objects.iter_mut().find(|o| o.id == coarse_id) {
         o.visible = false;
     }
-    doc.add(
+    let fine_id = doc.add(
         "terrain (enhanced)",
         ObjectKind::Voxels(VoxelModel {
             svo: fine,
@@ -254,6 +254,12 @@ fn terrain(doc: &mut Document) -> Result<()> {
             rig: None,
         }),
     );
+    // Linked, so the editor keeps the fine terrain in step with strokes on the coarse one.
+    doc.enhancements.push(thicket_core::scene::EnhancementLink {
+        source: coarse_id,
+        target: fine_id,
+        settings: terrain_settings(),
+    });
     // A low sun from the side the camera looks across: the terraces and the ridge cast shadows
     // the view can see (from high above, almost none showed and the shadow knobs measured
     // nothing on this sample).
