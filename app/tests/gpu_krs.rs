@@ -4,38 +4,18 @@
 //! 3/255, the same coverage, the same depth); never loosened. On failure the CPU, GPU and
 //! difference images are written to the system temp directory and named in the message.
 
-use std::path::{Path, PathBuf};
-
 use glam::{Quat, Vec3};
 use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
 use thicket_core::krs::{
     BoxKernel, CapsuleKernel, Distortion, EmptyZone, Kernel, KrsObject, Material, MirrorPlane,
     Pattern, PlaneKernel, Similarity, SphereKernel, TextureMode, Texturing, TorusKernel,
 };
-use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
+use thicket_core::measure::image::Parity;
 use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
-use thicket_core::scene::{Document, Light, ObjectKind, OrbitCamera};
+use thicket_core::scene::{Document, Light, ObjectKind};
 
-/// Relative view-depth agreement (as `gpu_parity.rs`).
-const DEPTH_TOLERANCE: f32 = 2e-3;
-
-fn context() -> GpuContext {
-    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
-        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
-    eprintln!("adapter: {}", ctx.describe());
-    ctx
-}
-
-fn project(name: &str) -> Document {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../projects")
-        .join(format!("{name}.thicket.json"));
-    thicket::files::load_document(&path).expect("sample project loads")
-}
-
-fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
-    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
-}
+mod common;
+use common::gpu::{context, cpu_gpu_parity, project};
 
 fn gpu_frame(
     ctx: &GpuContext,
@@ -86,28 +66,8 @@ fn compare(
         (t2 - t1).as_secs_f64() * 1e3,
         t2.elapsed().as_secs_f64() * 1e3
     );
-    let depth_cpu: Vec<Option<f32>> = fb
-        .ids
-        .iter()
-        .zip(&fb.depth)
-        .map(|(id, &d)| (id.object != 0).then(|| view_depth(&cam, d)))
-        .collect();
-    let depth_gpu: Vec<Option<f32>> = g
-        .depth
-        .iter()
-        .map(|&d| d.is_finite().then(|| view_depth(&cam, d)))
-        .collect();
-    let p = parity(
-        &cpu,
-        &gpu,
-        &depth_cpu,
-        &depth_gpu,
-        Tolerance::GPU_PARITY,
-        DEPTH_TOLERANCE,
-    )
-    .expect("same size");
     eprintln!(
-        "{name}: {p:?}\n  CPU KRS: rays {} hits {} steps {} ({:.1}/ray) exhausted {}\n  GPU KRS: {:?} ({:.1}/ray)",
+        "{name}:\n  CPU KRS: rays {} hits {} steps {} ({:.1}/ray) exhausted {}\n  GPU KRS: {:?} ({:.1}/ray)",
         cpu_stats.krs.rays,
         cpu_stats.krs.hits,
         cpu_stats.krs.steps,
@@ -116,19 +76,8 @@ fn compare(
         stats.krs,
         stats.krs.steps_per_ray(),
     );
-    if !p.within(Tolerance::GPU_PARITY) {
-        let dir: PathBuf = std::env::temp_dir().join("thicket-gpu-krs");
-        let _ = std::fs::create_dir_all(&dir);
-        let _ = cpu.save_png(dir.join(format!("{name}-cpu.png")));
-        let _ = gpu.save_png(dir.join(format!("{name}-gpu.png")));
-        if let Ok(d) = difference_image(&cpu, &gpu, Tolerance::GPU_PARITY.channel) {
-            let _ = d.save_png(dir.join(format!("{name}-difference.png")));
-        }
-        panic!(
-            "{name}: GPU differs from the CPU reference: {p:?}; images in {}",
-            dir.display()
-        );
-    }
+    let p = cpu_gpu_parity("thicket-gpu-krs", name, &cam, (&cpu, &fb), (&gpu, &g));
+    eprintln!("{name}: {p:?}");
     // The KRS pass did the drawing: it traced rays and hit, as the CPU's did.
     assert!(
         stats.krs.rays > 0 && stats.krs.hits > 0,

@@ -6,37 +6,15 @@
 //! On failure the three images (CPU, GPU, difference) are written to the system temp directory
 //! and named in the message. Runs on whatever adapter is present (lavapipe in CI); never skipped.
 
-use std::path::{Path, PathBuf};
-
 use glam::{Quat, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
-use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
+use thicket_core::measure::image::Parity;
 use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
-use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
+use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 
-/// Relative view-depth agreement: the splat depth is the same formula on both sides; a mesh's
-/// depth is interpolated by the rasteriser in its own precision.
-const DEPTH_TOLERANCE: f32 = 2e-3;
-
-fn context() -> GpuContext {
-    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
-        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
-    eprintln!("adapter: {}", ctx.describe());
-    ctx
-}
-
-fn project(name: &str) -> Document {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../projects")
-        .join(format!("{name}.thicket.json"));
-    thicket::files::load_document(&path).expect("sample project loads")
-}
-
-/// NDC depth to view depth for a perspective camera (what both renderers store is NDC).
-fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
-    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
-}
+mod common;
+use common::gpu::{context, cpu_gpu_parity, project};
 
 struct Comparison {
     parity: Parity,
@@ -75,50 +53,18 @@ fn compare(
     };
     let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
     assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
-    let depth_cpu: Vec<Option<f32>> = fb
-        .ids
-        .iter()
-        .zip(&fb.depth)
-        .map(|(id, &d)| (id.object != 0).then(|| view_depth(&cam, d)))
-        .collect();
-    let depth_gpu: Vec<Option<f32>> = g
-        .depth
-        .iter()
-        .map(|&d| d.is_finite().then(|| view_depth(&cam, d)))
-        .collect();
-    let p = parity(
-        &cpu,
-        &gpu,
-        &depth_cpu,
-        &depth_gpu,
-        Tolerance::GPU_PARITY,
-        DEPTH_TOLERANCE,
-    )
-    .expect("same size");
     let path = if two_pass {
         "two-pass 32-bit"
     } else {
         "64-bit"
     };
+    let stem = format!("{name}-{}", if two_pass { "32" } else { "64" });
+    let p = cpu_gpu_parity("thicket-gpu-parity", &stem, &cam, (&cpu, &fb), (&gpu, &g));
     eprintln!(
         "{name} ({path}): {p:?}; splats CPU {} GPU {}",
         cpu_stats.splats(),
         stats.splats
     );
-    if !p.within(Tolerance::GPU_PARITY) {
-        let dir: PathBuf = std::env::temp_dir().join("thicket-gpu-parity");
-        let _ = std::fs::create_dir_all(&dir);
-        let stem = format!("{name}-{}", if two_pass { "32" } else { "64" });
-        let _ = cpu.save_png(dir.join(format!("{stem}-cpu.png")));
-        let _ = gpu.save_png(dir.join(format!("{stem}-gpu.png")));
-        if let Ok(d) = difference_image(&cpu, &gpu, Tolerance::GPU_PARITY.channel) {
-            let _ = d.save_png(dir.join(format!("{stem}-difference.png")));
-        }
-        panic!(
-            "{name} ({path}): GPU differs from the CPU reference: {p:?}; images in {}",
-            dir.display()
-        );
-    }
     Comparison {
         parity: p,
         splats_cpu: cpu_stats.splats(),

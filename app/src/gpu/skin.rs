@@ -100,7 +100,7 @@ fn rig_of(doc: &Document, id: u64) -> Option<(&Rig, &Svo, Mat4, Mat4)> {
 /// The strategy a rig is drawn with: the quality's override (`Quality::stretch_strategy`) or
 /// the rig's own, as `thicket_core::render::document_deforms` chooses.
 fn strategy_of(rig: &Rig, quality: &Quality) -> StretchStrategy {
-    quality.stretch_strategy.unwrap_or(rig.stretch.strategy)
+    thicket_core::render::effective_stretch(rig, quality).strategy
 }
 
 /// Whether the strategy reads corner weights (only `Corners` and `Adaptive` do: the others
@@ -293,9 +293,7 @@ impl SkinCache {
             // As `thicket_core::render::document_deforms`: the rig's settings, the multiplier
             // scaled by the quality's, the quality's strategy override, sanitised as
             // `SkinDeform` does.
-            let mut stretch = rig.stretch;
-            stretch.multiplier *= quality.stretch_multiplier;
-            stretch.strategy = strategy_of(rig, quality);
+            let stretch = thicket_core::render::effective_stretch(rig, quality);
             let s = stretch.sanitized();
             let skinning = rig.skinning_at(rig.playback.clip, rig.playback.time_secs);
             let base = joints.len() as u32;

@@ -1367,8 +1367,7 @@ fn node_stretch_factors(
     let Some(rig) = &v.rig else {
         return out;
     };
-    let mut settings = rig.stretch;
-    settings.multiplier *= quality.stretch_multiplier;
+    let settings = thicket_core::render::effective_stretch(rig, quality);
     let deform = |s| {
         SkinDeform::for_rig(
             rig,

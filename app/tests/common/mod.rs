@@ -1,9 +1,12 @@
-//! What the CLI test files share: running the real `thicket` binary and reading its output.
+//! What the integration test files share: running the real `thicket` binary and reading its
+//! output; the GPU parity helpers are in [`gpu`].
 
 // Each test file compiles this module on its own and uses only part of it.
 #![allow(dead_code)]
 
 use std::process::{Command, Output};
+
+pub mod gpu;
 
 /// Runs `thicket ARGS` (logging off) and returns what it printed and its exit status.
 pub fn thicket(args: &[&str]) -> Output {

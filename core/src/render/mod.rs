@@ -257,11 +257,7 @@ pub fn document_deforms<'a>(
         .map(|o| match &o.kind {
             ObjectKind::Voxels(v) => Some(match &v.rig {
                 Some(rig) => {
-                    let mut stretch = rig.stretch;
-                    stretch.multiplier *= quality.stretch_multiplier;
-                    if let Some(strategy) = quality.stretch_strategy {
-                        stretch.strategy = strategy;
-                    }
+                    let stretch = effective_stretch(rig, quality);
                     Box::new(
                         crate::skin::SkinDeform::for_rig(
                             rig,
@@ -281,6 +277,22 @@ pub fn document_deforms<'a>(
             ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
         .collect()
+}
+
+/// The stretch settings a rig is drawn with under `quality`: the rig's own, its multiplier
+/// scaled by the quality's, its strategy replaced by the quality's override when there is one.
+/// Every renderer and overlay uses this, so they agree.
+#[must_use]
+pub fn effective_stretch(
+    rig: &crate::skin::Rig,
+    quality: &Quality,
+) -> crate::skin::StretchSettings {
+    let mut stretch = rig.stretch;
+    stretch.multiplier *= quality.stretch_multiplier;
+    if let Some(strategy) = quality.stretch_strategy {
+        stretch.strategy = strategy;
+    }
+    stretch
 }
 
 /// Renders a scene from a camera.

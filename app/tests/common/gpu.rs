@@ -1,0 +1,79 @@
+//! What the GPU parity test files share: the device, the sample projects, and the CPU/GPU
+//! comparison with its images written on failure.
+
+use std::path::{Path, PathBuf};
+
+use thicket::gpu::{GBuffer, GpuContext};
+use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
+use thicket_core::render::{FrameBuffers, RgbaImage};
+use thicket_core::scene::{Document, OrbitCamera};
+
+/// Relative view-depth agreement.
+pub const DEPTH_TOLERANCE: f32 = 2e-3;
+
+/// A headless device on whatever adapter is present (lavapipe in CI).
+pub fn context() -> GpuContext {
+    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
+        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)");
+    eprintln!("adapter: {}", ctx.describe());
+    ctx
+}
+
+/// A sample project from `projects/`.
+pub fn project(name: &str) -> Document {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../projects")
+        .join(format!("{name}.thicket.json"));
+    thicket::files::load_document(&path).expect("sample project loads")
+}
+
+/// NDC depth to view depth for a perspective camera (what both renderers store is NDC).
+pub fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
+    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
+}
+
+/// Compares a CPU frame (image and buffers) with a GPU frame (image and G-buffer) under
+/// [`Tolerance::GPU_PARITY`] and [`DEPTH_TOLERANCE`]; on a mismatch writes the two images and
+/// their difference to `$TMP/<dir>/<name>-{cpu,gpu,difference}.png` and panics saying where.
+pub fn cpu_gpu_parity(
+    dir: &str,
+    name: &str,
+    cam: &OrbitCamera,
+    (cpu, fb): (&RgbaImage, &FrameBuffers),
+    (gpu, g): (&RgbaImage, &GBuffer),
+) -> Parity {
+    let depth_cpu: Vec<Option<f32>> = fb
+        .ids
+        .iter()
+        .zip(&fb.depth)
+        .map(|(id, &d)| (id.object != 0).then(|| view_depth(cam, d)))
+        .collect();
+    let depth_gpu: Vec<Option<f32>> = g
+        .depth
+        .iter()
+        .map(|&d| d.is_finite().then(|| view_depth(cam, d)))
+        .collect();
+    let p = parity(
+        cpu,
+        gpu,
+        &depth_cpu,
+        &depth_gpu,
+        Tolerance::GPU_PARITY,
+        DEPTH_TOLERANCE,
+    )
+    .expect("same size");
+    if !p.within(Tolerance::GPU_PARITY) {
+        let dir: PathBuf = std::env::temp_dir().join(dir);
+        let _ = std::fs::create_dir_all(&dir);
+        let _ = cpu.save_png(dir.join(format!("{name}-cpu.png")));
+        let _ = gpu.save_png(dir.join(format!("{name}-gpu.png")));
+        if let Ok(d) = difference_image(cpu, gpu, Tolerance::GPU_PARITY.channel) {
+            let _ = d.save_png(dir.join(format!("{name}-difference.png")));
+        }
+        panic!(
+            "{name}: GPU differs from the CPU reference: {p:?}; images in {}",
+            dir.display()
+        );
+    }
+    p
+}
