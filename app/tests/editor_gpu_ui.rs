@@ -184,6 +184,10 @@ fn forest_draws_its_krs_on_the_gpu() {
         "the viewport shows the forest, not a flat background"
     );
     snapshot(&mut h, "sample_forest");
+    // The perf overlay reports the KRS pass's rays and steps per ray.
+    h.key_press(egui::Key::F3);
+    h.run_steps(3);
+    h.get_by_label_contains("steps per ray");
 }
 
 #[test]

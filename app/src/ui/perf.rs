@@ -1,5 +1,5 @@
 //! The performance overlay (F3): frame-time graph, the renderer's per-pass GPU times, nodes
-//! per octree level, splats, and memory per object.
+//! per octree level, splats, KRS steps per ray, and memory per object.
 
 use std::collections::VecDeque;
 
@@ -63,7 +63,7 @@ impl PerfOverlay {
             .show(ctx, |ui| {
                 if let Some((ms, [w, h])) = cpu_preview {
                     ui.label(format!(
-                        "CPU preview (KRS, hole overlay): last render {ms:.1} ms at {w} x {h} px"
+                        "CPU preview (hole overlay, heat map, stretch paint): last render {ms:.1} ms at {w} x {h} px"
                     ));
                 }
                 self.contents_ui(ui, editor, link);
@@ -134,6 +134,20 @@ impl PerfOverlay {
                         stats.atomic_path,
                         stats.queue_overflow
                     ));
+                    let k = &stats.krs;
+                    if k.rays > 0 {
+                        ui.label(format!(
+                            "KRS: {} rays, {} hits, {:.1} steps per ray (most {}), {} ran out of \
+                             steps; {} shadow rays, {} AO evaluations",
+                            thousands(k.rays),
+                            thousands(k.hits),
+                            k.steps_per_ray(),
+                            k.max_steps,
+                            thousands(k.exhausted),
+                            thousands(k.shadow_rays),
+                            thousands(k.ao_evals)
+                        ));
+                    }
                     if stats.pass_ms.is_empty() {
                         ui.weak("GPU time per pass: this adapter has no timestamp queries.");
                     } else {
