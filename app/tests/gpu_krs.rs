@@ -5,38 +5,17 @@
 //! difference images are written to the system temp directory and named in the message.
 
 use glam::{Quat, Vec3};
-use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
+use thicket::gpu::{GpuContext, GpuFrameStats, Renderer};
 use thicket_core::krs::{
     BoxKernel, CapsuleKernel, Distortion, EmptyZone, Kernel, KrsObject, Material, MirrorPlane,
     Pattern, PlaneKernel, Similarity, SphereKernel, TextureMode, Texturing, TorusKernel,
 };
 use thicket_core::measure::image::Parity;
-use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::render::{Quality, RenderRequest, render_document, scenes};
 use thicket_core::scene::{Document, Light, ObjectKind};
 
 mod common;
-use common::gpu::{context, cpu_gpu_parity, project};
-
-fn gpu_frame(
-    ctx: &GpuContext,
-    r: &mut Renderer,
-    doc: &Document,
-    size: (u32, u32),
-    quality: &Quality,
-) -> (RgbaImage, GBuffer, GpuFrameStats) {
-    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
-    let stats = r
-        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
-        .expect("GPU frame");
-    let img = RgbaImage {
-        width: size.0,
-        height: size.1,
-        pixels: read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"),
-    };
-    let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
-    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
-    (img, g, stats)
-}
+use common::gpu::{context, cpu_gpu_parity, gpu_frame, project};
 
 /// Renders `doc` on both renderers and asserts parity; returns the comparison and the GPU
 /// frame's statistics.

@@ -9,12 +9,12 @@
 use glam::{Quat, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
 use thicket_core::measure::image::Parity;
-use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::render::{Quality, RenderRequest, render_document, scenes};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 
 mod common;
-use common::gpu::{context, cpu_gpu_parity, project};
+use common::gpu::{context, cpu_gpu_parity, gpu_frame, project};
 
 struct Comparison {
     parity: Parity,
@@ -42,17 +42,7 @@ fn compare(
     let (cpu, fb, cpu_stats) = render_document(doc, &req).expect("CPU frame");
     let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     r.set_force_two_pass(two_pass);
-    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
-    let stats = r
-        .render(&ctx.device, &ctx.queue, doc, &cam, quality, &target)
-        .expect("GPU frame");
-    let gpu = RgbaImage {
-        width: size.0,
-        height: size.1,
-        pixels: read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"),
-    };
-    let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
-    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    let (gpu, g, stats) = gpu_frame(ctx, &mut r, doc, size, quality);
     let path = if two_pass {
         "two-pass 32-bit"
     } else {
@@ -306,17 +296,7 @@ fn every_stretch_strategy_and_overrides_match_the_cpu_reference() {
             true,
         );
         let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-        let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
-        r.render(
-            &ctx.device,
-            &ctx.queue,
-            &doc,
-            &doc.camera,
-            &doc.quality,
-            &target,
-        )
-        .expect("GPU frame");
-        images.push(read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"));
+        images.push(gpu_frame(&ctx, &mut r, &doc, size, &doc.quality).0.pixels);
     }
     assert_ne!(images[0], images[1], "Off and Thesis drew the same image");
     assert_ne!(
@@ -342,10 +322,7 @@ fn the_quality_strategy_override_matches_the_cpu_reference() {
     }
     let gpu_image = |doc: &Document, q: &Quality| {
         let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-        let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
-        r.render(&ctx.device, &ctx.queue, doc, &doc.camera, q, &target)
-            .expect("GPU frame");
-        read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback")
+        gpu_frame(&ctx, &mut r, doc, size, q).0.pixels
     };
     let mut own = doc.clone();
     rig_mut(&mut own).stretch.strategy = StretchStrategy::Thesis;

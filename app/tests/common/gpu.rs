@@ -3,9 +3,9 @@
 
 use std::path::{Path, PathBuf};
 
-use thicket::gpu::{GBuffer, GpuContext};
+use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
 use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
-use thicket_core::render::{FrameBuffers, RgbaImage};
+use thicket_core::render::{FrameBuffers, Quality, RgbaImage};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// Relative view-depth agreement.
@@ -25,6 +25,29 @@ pub fn project(name: &str) -> Document {
         .join("../projects")
         .join(format!("{name}.thicket.json"));
     thicket::files::load_document(&path).expect("sample project loads")
+}
+
+/// One GPU frame of `doc` from its camera with `r`: the image, the G-buffer and the counters
+/// (no uncaptured GPU error allowed).
+pub fn gpu_frame(
+    ctx: &GpuContext,
+    r: &mut Renderer,
+    doc: &Document,
+    size: (u32, u32),
+    quality: &Quality,
+) -> (RgbaImage, GBuffer, GpuFrameStats) {
+    let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
+    let stats = r
+        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
+        .expect("GPU frame");
+    let img = RgbaImage {
+        width: size.0,
+        height: size.1,
+        pixels: read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback"),
+    };
+    let g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    (img, g, stats)
 }
 
 /// NDC depth to view depth for a perspective camera (what both renderers store is NDC).
