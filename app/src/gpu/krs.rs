@@ -504,19 +504,7 @@ impl KrsPipelines {
             &light_buf,
             bindings.counters,
         ];
-        let entries: Vec<wgpu::BindGroupEntry<'_>> = buffers
-            .iter()
-            .enumerate()
-            .map(|(i, b)| wgpu::BindGroupEntry {
-                binding: i as u32,
-                resource: b.as_entire_binding(),
-            })
-            .collect();
-        let bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("krs"),
-            layout: &pipelines.bgl,
-            entries: &entries,
-        });
+        let bind_group = super::renderer::bind_group(device, &pipelines.bgl, "krs", &buffers);
         Ok(Some(KrsFrame {
             bind_group,
             light_buf,

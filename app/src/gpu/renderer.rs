@@ -326,7 +326,8 @@ fn uniform(
     }
 }
 
-fn bind_group(
+/// A bind group of whole buffers at bindings 0, 1, 2, … in order.
+pub(super) fn bind_group(
     device: &wgpu::Device,
     layout: &wgpu::BindGroupLayout,
     label: &str,

@@ -203,7 +203,7 @@ fn check_binding(what: &'static str, bytes: u64, limit: u64) -> Result<(), GpuEr
 }
 
 /// A storage buffer holding `data` (at least 256 bytes, so empty scenes bind).
-fn storage_init(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
+pub(super) fn storage_init(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
     let mut contents = data.to_vec();
     contents.resize(contents.len().max(256).next_multiple_of(16), 0);
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {

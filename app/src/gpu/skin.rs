@@ -23,7 +23,6 @@ use thicket_core::render::{NodeDeform, NodeInfo, Quality};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::skin::{Rig, Skin4, SkinDeform, SkinTables, StretchStrategy};
 use thicket_core::svo::{NodeRef, Svo};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::gpu_data::{
@@ -204,17 +203,6 @@ fn append_object(
     p
 }
 
-/// A storage buffer of at least 256 bytes (so an empty one binds).
-fn storage(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
-    let mut contents = data.to_vec();
-    contents.resize(contents.len().max(256).next_multiple_of(16), 0);
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: &contents,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
-    })
-}
-
 impl SkinCache {
     /// Forgets the skin data (the scene was uploaded again).
     pub(super) fn invalidate(&mut self) {
@@ -266,7 +254,11 @@ impl SkinCache {
                     limit,
                 });
             }
-            self.data_buf = Some(storage(device, "skin data", bytemuck::cast_slice(&data)));
+            self.data_buf = Some(super::scene::storage_init(
+                device,
+                "skin data",
+                bytemuck::cast_slice(&data),
+            ));
             self.layouts = layouts;
             self.uploaded_joints.clear();
             self.bounds_key.clear();
@@ -335,7 +327,11 @@ impl SkinCache {
                     queue.write_buffer(b, 0, bytemuck::cast_slice(&joints));
                 }
             } else {
-                self.joint_buf = Some(storage(device, "joints", bytemuck::cast_slice(&joints)));
+                self.joint_buf = Some(super::scene::storage_init(
+                    device,
+                    "joints",
+                    bytemuck::cast_slice(&joints),
+                ));
             }
             if !joints.is_empty() {
                 upload.bytes += bytes;
