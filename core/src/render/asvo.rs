@@ -205,6 +205,9 @@ impl LocalDepth {
         if self.used.len() + Self::MAX_PIXELS as usize > (1 << (Self::BITS - 1)) {
             return true;
         }
+        // Look every pixel up once; keep where it was found for the update below.
+        let mut found = [(0u32, usize::MAX); Self::MAX_PIXELS as usize];
+        let mut n = 0;
         let mut hidden = true;
         for y in s.y0..=s.y1 {
             for x in s.x0..=s.x1 {
@@ -214,22 +217,21 @@ impl LocalDepth {
                 if k == 0 || d > s.ndc_depth {
                     hidden = false;
                 }
+                found[n] = (p, if k == 0 { usize::MAX } else { i });
+                n += 1;
             }
         }
         if hidden {
             return false;
         }
-        for y in s.y0..=s.y1 {
-            for x in s.x0..=s.x1 {
-                let p = y * width + x;
-                let i = self.slot(p);
-                let (k, d) = self.slots[i];
-                if k == 0 {
-                    self.slots[i] = (p + 1, s.ndc_depth);
-                    self.used.push(i as u32);
-                } else if s.ndc_depth < d {
-                    self.slots[i].1 = s.ndc_depth;
-                }
+        for &(p, i) in &found[..n] {
+            if i == usize::MAX {
+                // Probed again: an earlier pixel of this splat may have taken the empty slot.
+                let j = self.slot(p);
+                self.slots[j] = (p + 1, s.ndc_depth);
+                self.used.push(j as u32);
+            } else if s.ndc_depth < self.slots[i].1 {
+                self.slots[i].1 = s.ndc_depth;
             }
         }
         true
