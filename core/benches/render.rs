@@ -51,6 +51,15 @@ fn report(name: &str, doc: &Document, req: &RenderRequest) {
             st.totals().occlusion_culled,
             st.times
         );
+        for (name, levels) in [("view", &st.levels), ("shadow", &st.shadow_levels)] {
+            for (l, s) in levels.iter().enumerate().filter(|(_, s)| s.visited > 0) {
+                eprintln!(
+                    "  {name} level {l:2}: {:8} visited {:8} split {:8} splatted {:8} occluded \
+                     {:8} frustum",
+                    s.visited, s.split, s.splatted, s.occlusion_culled, s.frustum_culled
+                );
+            }
+        }
     }
 }
 
