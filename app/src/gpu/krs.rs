@@ -10,7 +10,8 @@
 
 use glam::Vec3;
 use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, TextureMode};
-use thicket_core::render::Quality;
+// The KRS shading constants are the CPU reference's own, so the two cannot drift apart.
+use thicket_core::render::{AO_REACH_OBJECT_UNITS, Quality, SMOOTHING_PX, SOFT_SHADOW_K};
 use thicket_core::scene::{Document, Light, SceneError};
 use wgpu::util::DeviceExt;
 
@@ -19,15 +20,6 @@ use super::gpu_data::{
     KRS_COUNTERS, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT, KRS_FRAME_TILES, KRS_OBJ_BOUNDED,
     KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsObjectGpu,
 };
-
-/// Algorithm 2 blend width in pixels (core `render::krs::SMOOTHING_PX`; the parity tests fail
-/// if the two drift apart).
-const SMOOTHING_PX: f32 = 2.0;
-/// Soft-shadow penumbra factor (core `render::krs::SOFT_SHADOW_K`).
-const SOFT_SHADOW_K: f32 = 16.0;
-/// Reach of the KRS ambient occlusion in object units of the smallest-scale object (core
-/// `render::krs::AO_REACH_OBJECT_UNITS`).
-const AO_REACH_OBJECT_UNITS: f32 = 0.4;
 
 /// Counters of the KRS pass, read back with the frame's other counters.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

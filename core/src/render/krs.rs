@@ -35,16 +35,16 @@ pub const KRS_TILE: u32 = 8;
 
 /// Penumbra factor k of soft KRS shadows (visibility = min k·d/t along the ray): 16 gives a
 /// penumbra about 1/16 radian wide, a sun-like light.
-const SOFT_SHADOW_K: f32 = 16.0;
+pub const SOFT_SHADOW_K: f32 = 16.0;
 
 /// Width of the Algorithm 2 blend zone around each mirror plane, in pixels at the hit's depth
 /// (§6.1: the threshold is proportional to depth so the blend stays a fixed screen width).
-const SMOOTHING_PX: f32 = 2.0;
+pub const SMOOTHING_PX: f32 = 2.0;
 
 /// Reach of the ambient-occlusion distance samples, in object units of the smallest-scale KRS
 /// object (a tree of the presets is about 6 units tall: the samples see crevices, forks and
 /// the ground around a trunk, not the whole forest).
-const AO_REACH_OBJECT_UNITS: f32 = 0.4;
+pub const AO_REACH_OBJECT_UNITS: f32 = 0.4;
 
 /// The KRS objects of a frame: a prepared scene (validated, transforms composed) and the label
 /// each object reports in [`super::PixelId::object`].

@@ -35,7 +35,7 @@ pub use asvo::VoxelInstance;
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
 pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
-pub use krs::{KRS_TILE, KrsLayer, KrsStats};
+pub use krs::{AO_REACH_OBJECT_UNITS, KRS_TILE, KrsLayer, KrsStats, SMOOTHING_PX, SOFT_SHADOW_K};
 pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
 pub use stats::{FrameStats, LevelStats, ShadingStats, StageTimes};
