@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
-use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::render::{Quality, QualityPreset, RenderRequest, render_document};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// A sphere shell of world radius 1 whose voxel radius is `fraction` of half the octree.
@@ -82,8 +82,11 @@ fn benches(c: &mut Criterion) {
     };
     let mut g = c.benchmark_group("frame_800");
     g.sample_size(10);
+    // The draft preset (LOD 2 px, 1024 shadow map, no PCF): the editor's fast setting.
+    let draft_preset = Quality::preset(QualityPreset::Draft);
     for (name, q) in [
         ("shadows", &shaded),
+        ("draft", &draft_preset),
         ("shadows_ao16", &ao16),
         ("no_shadows", &no_shadows),
     ] {
