@@ -180,8 +180,8 @@ fn rayon_threads() -> usize {
 }
 
 /// Times `frames` GPU frames on a headless device (after one warm-up that uploads the scene);
-/// then, when `splat_repeats > 0` and the 64-bit splat path is in use, measures the splat
-/// pass's bandwidth against a buffer copy with that many repeats
+/// then, when `splat_repeats > 0`, the frames splat voxels and the 64-bit splat path is in
+/// use, measures the splat pass's bandwidth against a buffer copy with that many repeats
 /// ([`Renderer::measure_splat_bandwidth`]).
 ///
 /// # Errors
@@ -220,7 +220,9 @@ pub fn bench_gpu(
         }
         last = Some(stats);
     }
-    let splat_bandwidth = if splat_repeats > 0 && r.atomic_path() == AtomicPath::Key64 {
+    // Only a frame that splats voxels has a splat pass to measure (a KRS-only scene has none).
+    let splats = last.as_ref().is_some_and(|s| s.splats > 0);
+    let splat_bandwidth = if splat_repeats > 0 && splats && r.atomic_path() == AtomicPath::Key64 {
         let (_, bw) = r.measure_splat_bandwidth(
             &ctx.device,
             &ctx.queue,
