@@ -15,6 +15,7 @@ fn traverse(
 ) {
     let v = visit(invocation_index(wid, nwg, lid));
     if v.kind == VISIT_SPLAT {
+        count_splat_pixels(v.rect);
         for (var y = v.rect.y; y <= v.rect.w; y++) {
             for (var x = v.rect.x; x <= v.rect.z; x++) {
                 let p = y * view.size.x + x;

@@ -13,6 +13,7 @@ fn traverse(
 ) {
     let v = visit(invocation_index(wid, nwg, lid));
     if v.kind == VISIT_SPLAT {
+        count_splat_pixels(v.rect);
         let key = (u64(v.depth_bits) << 32u) | u64(v.id);
         for (var y = v.rect.y; y <= v.rect.w; y++) {
             for (var x = v.rect.x; x <= v.rect.z; x++) {

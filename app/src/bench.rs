@@ -13,7 +13,8 @@ use serde::Serialize;
 use thicket_core::render::{Quality, RenderRequest, render_document};
 use thicket_core::scene::{Document, OrbitCamera};
 
-use crate::gpu::{GpuContext, GpuError, RenderTarget, Renderer};
+use crate::gpu::splat_bw::SplatBandwidth;
+use crate::gpu::{AtomicPath, GpuContext, GpuError, RenderTarget, Renderer};
 
 /// Counters for one octree level (view traversal), as both renderers count them.
 pub type BenchLevel = thicket_core::render::LevelStats;
@@ -53,6 +54,9 @@ pub struct BenchReport {
     pub atomic_path: String,
     /// KRS sphere-tracing counters of the last frame (zero without KRS objects).
     pub krs: BenchKrs,
+    /// The view's voxel pass against a same-size buffer copy (GPU, 64-bit splat path, when
+    /// asked for).
+    pub splat_bandwidth: Option<SplatBandwidth>,
 }
 
 /// KRS counters of one frame, the same on both renderers.
@@ -157,6 +161,7 @@ pub fn bench_cpu(
         splats: stats.splats(),
         triangles: stats.triangles,
         atomic_path: String::new(),
+        splat_bandwidth: None,
         krs: BenchKrs {
             rays: stats.krs.rays,
             hits: stats.krs.hits,
@@ -174,7 +179,10 @@ fn rayon_threads() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
 }
 
-/// Times `frames` GPU frames on a headless device (after one warm-up that uploads the scene).
+/// Times `frames` GPU frames on a headless device (after one warm-up that uploads the scene);
+/// then, when `splat_repeats > 0`, the frames splat voxels and the 64-bit splat path is in
+/// use, measures the splat pass's bandwidth against a buffer copy with that many repeats
+/// ([`Renderer::measure_splat_bandwidth`]).
 ///
 /// # Errors
 /// [`GpuError`] when there is no adapter or the frame fails.
@@ -190,6 +198,7 @@ pub fn bench_gpu(
     quality: &Quality,
     frames: u32,
     force_two_pass: bool,
+    splat_repeats: u32,
 ) -> Result<BenchReport, GpuError> {
     let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
     let mut r = Renderer::new(&ctx.device, &ctx.queue)?;
@@ -211,6 +220,22 @@ pub fn bench_gpu(
         }
         last = Some(stats);
     }
+    // Only a frame that splats voxels has a splat pass to measure (a KRS-only scene has none).
+    let splats = last.as_ref().is_some_and(|s| s.splats > 0);
+    let splat_bandwidth = if splat_repeats > 0 && splats && r.atomic_path() == AtomicPath::Key64 {
+        let (_, bw) = r.measure_splat_bandwidth(
+            &ctx.device,
+            &ctx.queue,
+            doc,
+            &camera,
+            quality,
+            &target,
+            splat_repeats,
+        )?;
+        Some(bw)
+    } else {
+        None
+    };
     if let Some(e) = ctx.errors.take() {
         return Err(e);
     }
@@ -236,6 +261,7 @@ pub fn bench_gpu(
         splats: stats.splats,
         triangles: stats.triangles,
         atomic_path: format!("{:?}", stats.atomic_path),
+        splat_bandwidth,
         krs: BenchKrs {
             rays: stats.krs.rays,
             hits: stats.krs.hits,
@@ -288,6 +314,9 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
             l.visited, l.split, l.splatted, l.frustum_culled, l.occlusion_culled
         );
     }
+    if let Some(b) = &r.splat_bandwidth {
+        format_splat_bandwidth(&mut s, b);
+    }
     let k = &r.krs;
     if k.rays > 0 {
         let per_ray = k.steps as f64 / k.rays as f64;
@@ -299,6 +328,44 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
         );
     }
     s
+}
+
+fn format_splat_bandwidth(s: &mut String, b: &SplatBandwidth) {
+    use std::fmt::Write as _;
+    let x = &b.bytes;
+    let _ = writeln!(
+        s,
+        "  splat bandwidth (view voxel pass vs copy_buffer_to_buffer of the same bytes; median of {}, {}):",
+        b.repeats, b.timing
+    );
+    let _ = writeln!(
+        s,
+        "    bytes {} = queue reads {} + queue writes {} + inner records {} + key atomics {} ({} px) + occlusion tiles {} ({} builds)",
+        b.total_bytes,
+        x.queue_reads,
+        x.queue_writes,
+        x.inner_reads,
+        x.key_atomics,
+        b.splat_pixels,
+        x.occlusion,
+        b.occlusion.builds
+    );
+    let _ = writeln!(
+        s,
+        "    splat pass {:.3} GB/s, copy {:.3} GB/s, ratio {:.3} (wall: splat {:.3} ms, copy {:.3} ms)",
+        b.splat_gb_per_s, b.copy_gb_per_s, b.ratio, b.splat_wall_ms, b.copy_wall_ms
+    );
+    if let (Some(sp), Some(cp)) = (b.splat_timestamp_ms, b.copy_timestamp_ms) {
+        let used = if b.timing == "timestamps" {
+            "used"
+        } else {
+            "not used: a CPU device's timestamps do not time compute work"
+        };
+        let _ = writeln!(
+            s,
+            "    timestamps: splat {sp:.3} ms, copy {cp:.3} ms ({used})"
+        );
+    }
 }
 
 #[cfg(test)]

@@ -130,6 +130,10 @@ pub struct BenchArgs {
     /// Animation clip of skinned models, by name (default: the project's).
     #[arg(long)]
     pub clip: Option<String>,
+    /// GPU: repeats of the splat-bandwidth measurement (the view's voxel pass against a
+    /// buffer copy of the same bytes); 0 skips it.
+    #[arg(long, default_value_t = 5)]
+    pub splat_repeats: u32,
 }
 
 /// Enhancement operator for `thicket enhance`.
@@ -990,6 +994,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
             &quality,
             args.frames,
             args.two_pass,
+            args.splat_repeats,
         )
         .with_context(|| format!("{name}: GPU bench"))
     };

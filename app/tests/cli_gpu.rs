@@ -109,6 +109,18 @@ fn bench_gpu_and_cpu_report_times_and_counters() {
         assert!(!run["pass_ms"].as_array().unwrap().is_empty(), "{run}");
     }
     assert!(j["cpu_over_gpu_frame_time"].as_f64().unwrap() > 0.0);
+    // The splat-bandwidth measurement (64-bit path): bytes and figures, none on the CPU run.
+    assert!(runs[0]["splat_bandwidth"].is_null());
+    let bw = &runs[1]["splat_bandwidth"];
+    if runs[1]["atomic_path"] == "Key64" {
+        assert!(bw["total_bytes"].as_u64().unwrap() > 0, "{bw}");
+        for key in ["splat_gb_per_s", "copy_gb_per_s", "ratio"] {
+            let v = bw[key].as_f64().unwrap();
+            assert!(v.is_finite() && v > 0.0, "{key}: {bw}");
+        }
+    } else {
+        assert!(bw.is_null(), "{bw}");
+    }
     // Same LOD decisions: the level-by-level splat counts of both renderers are close (the CPU
     // occlusion-culls hidden nodes; the GPU does not).
     let (c, g) = (
@@ -126,6 +138,10 @@ fn bench_gpu_and_cpu_report_times_and_counters() {
     );
     assert!(
         text.contains("voxels") || text.contains("not available"),
+        "{text}"
+    );
+    assert!(
+        text.contains("splat bandwidth") || text.contains("TwoPass32"),
         "{text}"
     );
 }

@@ -730,3 +730,88 @@ fn render_document_to_image_works_headless() {
     assert!(stats.splats > 0);
     assert!(stats.total_ms > 0.0);
 }
+
+/// `thicket bench`'s splat-bandwidth measurement on this adapter: it runs, gives positive
+/// finite figures (no timing bounds: the machine is shared), and its byte count is the one the
+/// frame's own counters give, for a scene with a mesh in the key buffer (which the measurement
+/// must redraw before each timed voxel pass) and occlusion culling on.
+#[test]
+fn splat_bandwidth_is_measured_with_the_frames_byte_count() {
+    use thicket::gpu::splat_bw::{OcclusionWork, splat_pass_bytes};
+    let ctx = context();
+    let doc = mixed_doc(true, true);
+    let quality = Quality::default();
+    assert!(
+        quality.occlusion_culling,
+        "the default culls occluded nodes"
+    );
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let target = RenderTarget::new(&ctx.device, 96, 80).expect("target");
+    let measured = r.measure_splat_bandwidth(
+        &ctx.device,
+        &ctx.queue,
+        &doc,
+        &doc.camera,
+        &quality,
+        &target,
+        2,
+    );
+    if r.atomic_path() != AtomicPath::Key64 {
+        let e = measured.expect_err("only the 64-bit path is measured");
+        assert!(e.to_string().contains("64-bit"), "{e}");
+        return;
+    }
+    let (frame, bw) = measured.expect("measurement runs");
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+    eprintln!("{bw:#?}");
+    // The timed pass did the frame's work: same counters, every splat at least one pixel.
+    assert_eq!(bw.levels, frame.levels);
+    assert_eq!(bw.splat_pixels, frame.splat_pixels);
+    assert!(frame.splats > 0 && frame.splat_pixels >= frame.splats);
+    // One occlusion-tile build before each level of the one voxel object (the sphere, depth 7).
+    let occlusion = OcclusionWork {
+        builds: 8,
+        width: 96,
+        height: 80,
+    };
+    assert_eq!(bw.occlusion, occlusion);
+    let expected = splat_pass_bytes(&frame.levels, frame.splat_pixels, occlusion);
+    assert_eq!(bw.bytes, expected);
+    assert_eq!(bw.total_bytes, expected.total());
+    assert!(expected.key_atomics > 0 && expected.queue_reads > 0 && expected.inner_reads > 0);
+    assert_eq!(bw.repeats, 2);
+    for (name, v) in [
+        ("splat wall ms", bw.splat_wall_ms),
+        ("copy wall ms", bw.copy_wall_ms),
+        ("splat GB/s", bw.splat_gb_per_s),
+        ("copy GB/s", bw.copy_gb_per_s),
+        ("ratio", bw.ratio),
+    ] {
+        assert!(v.is_finite() && v > 0.0, "{name} = {v}");
+    }
+    for v in [bw.splat_timestamp_ms, bw.copy_timestamp_ms]
+        .into_iter()
+        .flatten()
+    {
+        assert!(v.is_finite() && v >= 0.0, "{v}");
+    }
+    if ctx.adapter.get_info().device_type == wgpu::DeviceType::Cpu {
+        assert_eq!(
+            bw.timing, "wall clock",
+            "a CPU device's timestamps are not used"
+        );
+    }
+    // The measurement leaves nothing behind: the next plain frame counts the same.
+    let again = r
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &doc.camera,
+            &quality,
+            &target,
+        )
+        .expect("frame");
+    assert_eq!(again.levels, frame.levels);
+    assert_eq!(again.splat_pixels, frame.splat_pixels);
+}

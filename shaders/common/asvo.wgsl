@@ -26,6 +26,9 @@ const WORKGROUP: u32 = 64u;
 // once per group.
 const STATS_PER_LEVEL: u32 = 5u;
 var<workgroup> wg_stats: array<atomic<u32>, STATS_PER_LEVEL>;
+// Pixels the workgroup's splats cover, i.e. key atomics issued, flushed with the counters: the
+// byte count of the splat bandwidth measurement (app/src/gpu/splat_bw.rs).
+var<workgroup> wg_splat_pixels: atomic<u32>;
 
 struct Visit {
     kind: u32,
@@ -51,6 +54,14 @@ fn pixel_span(s0: f32, s1: f32, n: u32) -> vec2<u32> {
 fn count_stat(k: u32) {
     if view.write_mode != MODE_ID {
         atomicAdd(&wg_stats[k], 1u);
+    }
+}
+
+// Counts the pixels of a splat's rectangle (one key atomic each; not in the id pass, which
+// repeats the depth pass's splats).
+fn count_splat_pixels(rect: vec4<u32>) {
+    if view.write_mode != MODE_ID {
+        atomicAdd(&wg_splat_pixels, (rect.z - rect.x + 1u) * (rect.w - rect.y + 1u));
     }
 }
 
@@ -182,6 +193,13 @@ fn flush_stats(lid: u32) {
         let s = atomicLoad(&wg_stats[lid]);
         if s > 0u {
             atomicAdd(&counters[params.stats_base + STATS_PER_LEVEL * params.level + lid], s);
+        }
+    }
+    if lid == 0u {
+        let p = atomicLoad(&wg_splat_pixels);
+        if p > 0u {
+            let view_index = select(1u, 0u, params.stats_base == STATS_START);
+            atomicAdd(&counters[SPLAT_PIXEL_COUNTERS + view_index], p);
         }
     }
 }

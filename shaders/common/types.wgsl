@@ -19,6 +19,8 @@ const MODE_ID: u32 = 2u;
 // Counter buffer layout (array<atomic<u32>>).
 const QUEUE_COUNTS: u32 = 0u;   // 32 entries: nodes queued for each level
 const OVERFLOW_COUNTER: u32 = 32u; // children dropped because a queue was full
+const SPLAT_PIXEL_COUNTERS: u32 = 34u; // key atomics of voxel splats: [0] the view, [1] shadow maps
+const STATS_START: u32 = 64u; // first per-view statistics counter (the view's)
 const MAX_LEVELS: u32 = 32u;
 
 // A camera with its image size (the view, or a light's shadow camera).

@@ -6,15 +6,18 @@
 //!
 //! The fine model is derived data: its changes are not undo steps of their own (undoing a
 //! stroke re-enhances the restored region). The `Enhancer` with its caches lives here, not in
-//! the document; it is rebuilt from the coarse model when missing (after Open, or after an
-//! edit that changed a link or a model wholesale).
+//! the document; it is rebuilt from the coarse model when missing (after an edit that
+//! changed a link or a model wholesale). A document being opened gets its enhancers on the
+//! open job's worker thread ([`PreparedDocument`]), so the first dab after Open does not pay a
+//! full enhancement on the UI thread.
 
 use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use glam::{IVec3, UVec3};
-use thicket_core::enhance::{EnhanceSettings, Enhancer};
-use thicket_core::scene::{EnhancementLink, ObjectKind, VoxelModel};
+use thicket_core::enhance::{Control, EnhanceSettings, Enhancer};
+use thicket_core::scene::{Document, EnhancementLink, ObjectKind, VoxelModel};
 
 use super::{CommandError, Edit, Editor, Selection};
 
@@ -24,6 +27,75 @@ pub struct Enhancers {
     by_source: HashMap<u64, Enhancer>,
     /// What the last incremental update did, for the inspector.
     pub last: Option<EnhanceUpdate>,
+    /// Enhancers built in full by edits (on the editor's thread) since the document was
+    /// installed.
+    rebuilds: u64,
+}
+
+/// A document with the live enhancers of its enhancement links, built where it was loaded (the
+/// open job's worker thread), to install with [`Editor::replace_document_prepared`].
+pub struct PreparedDocument {
+    doc: Document,
+    enhancers: Vec<(u64, Enhancer)>,
+}
+
+impl std::fmt::Debug for PreparedDocument {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PreparedDocument")
+            .field("objects", &self.doc.objects.len())
+            .field(
+                "enhancers",
+                &self.enhancers.iter().map(|(s, _)| s).collect::<Vec<_>>(),
+            )
+            .finish()
+    }
+}
+
+impl PreparedDocument {
+    /// Builds the enhancer of every enhancement link of `doc` (what the first dab on a linked
+    /// model would otherwise build), and, as [`Editor::ensure_enhancer`] does, replaces a
+    /// stored fine model that differs from what its link's settings make of the coarse model.
+    /// A link whose enhancement fails is left to the first dab, which reports the error;
+    /// `cancel` stops early (the remaining links are then built by their first dab).
+    #[must_use]
+    pub fn new(mut doc: Document, cancel: Option<&AtomicBool>) -> Self {
+        let mut enhancers = Vec::new();
+        for link in doc.enhancements.clone() {
+            let index = |id: u64| doc.objects.iter().position(|o| o.id == id);
+            let (Some(si), Some(ti)) = (index(link.source), index(link.target)) else {
+                continue;
+            };
+            let ObjectKind::Voxels(coarse) = &doc.objects[si].kind else {
+                continue;
+            };
+            let control = Control {
+                progress: None,
+                cancel,
+            };
+            let Ok(e) = Enhancer::with_control(&coarse.svo, &link.settings, control) else {
+                continue;
+            };
+            if let ObjectKind::Voxels(fine) = &mut doc.objects[ti].kind
+                && fine.svo != *e.fine()
+            {
+                fine.svo = e.fine().clone();
+            }
+            enhancers.push((link.source, e));
+        }
+        Self { doc, enhancers }
+    }
+
+    /// The document.
+    #[must_use]
+    pub fn doc(&self) -> &Document {
+        &self.doc
+    }
+
+    /// How many enhancers were built.
+    #[must_use]
+    pub fn enhancer_count(&self) -> usize {
+        self.enhancers.len()
+    }
 }
 
 impl std::fmt::Debug for Enhancers {
@@ -194,6 +266,34 @@ impl Editor {
         self.enhancers.last
     }
 
+    /// How many times an edit had to build a linked model's enhancer in full (on the thread
+    /// that called the edit: the UI thread in the editor) since the document was installed.
+    #[must_use]
+    pub fn enhancer_rebuilds(&self) -> u64 {
+        self.enhancers.rebuilds
+    }
+
+    /// Replaces the document as [`Editor::replace_document`] does, keeping the enhancers
+    /// `prepared` built for it, so strokes on its linked models update incrementally from the
+    /// first dab.
+    pub fn replace_document_prepared(
+        &mut self,
+        prepared: PreparedDocument,
+        path: Option<std::path::PathBuf>,
+    ) {
+        let PreparedDocument { doc, enhancers } = prepared;
+        self.replace_document(doc, path);
+        for (source, e) in enhancers {
+            if self
+                .doc
+                .enhancement_of(source)
+                .is_some_and(|l| &l.settings == e.settings())
+            {
+                self.enhancers.by_source.insert(source, e);
+            }
+        }
+    }
+
     /// Forgets every live enhancer (they are rebuilt from the document when next needed).
     pub(super) fn drop_enhancers(&mut self) {
         self.enhancers.by_source.clear();
@@ -221,6 +321,7 @@ impl Editor {
         let ObjectKind::Voxels(coarse) = &self.doc.objects[si].kind else {
             return;
         };
+        self.enhancers.rebuilds += 1;
         match Enhancer::new(&coarse.svo, &link.settings) {
             Ok(e) => {
                 if let ObjectKind::Voxels(fine) = &mut self.doc.objects[ti].kind
@@ -268,6 +369,7 @@ impl Editor {
             Some(e) if e.settings() == &link.settings => e,
             _ => {
                 rebuilt = true;
+                self.enhancers.rebuilds += 1;
                 Enhancer::new(&coarse.svo, &link.settings).map_err(err)?
             }
         };

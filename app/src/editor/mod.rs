@@ -16,7 +16,7 @@ use std::path::{Path, PathBuf};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
-pub use enhance::EnhanceUpdate;
+pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
 pub use pose::JointFrames;
 pub use sculpt::{VoxelPick, ray_through};

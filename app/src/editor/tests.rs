@@ -824,6 +824,64 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
 }
 
 #[test]
+fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
+    use thicket_core::enhance::{EnhanceSettings, enhance};
+    let settings = EnhanceSettings {
+        factor: 4,
+        ..EnhanceSettings::default()
+    };
+    let (mut ed, id) = bumpy_editor();
+    let fine_id = enhance_linked(&mut ed, id, settings.clone());
+    let mut doc = ed.doc().clone();
+    // A stored fine model that is not what the link makes of the coarse one (made elsewhere):
+    // both ways of opening must replace it.
+    let stale = svo_of(&ed, id);
+    for o in &mut doc.objects {
+        if o.id == fine_id {
+            o.kind = ObjectKind::Voxels(VoxelModel {
+                svo: stale.clone(),
+                ..VoxelModel::default()
+            });
+        }
+    }
+    // What the open job does on its worker thread, then installs.
+    let prepared = PreparedDocument::new(doc.clone(), None);
+    assert_eq!(prepared.enhancer_count(), 1);
+    let mut opened = Editor::default();
+    opened.replace_document_prepared(prepared, None);
+    assert_ne!(svo_of(&opened, fine_id), stale, "replaced when prepared");
+    // The old way: the first dab builds the enhancer on the editor's thread.
+    let mut plain = Editor::default();
+    plain.replace_document(doc, None);
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 2.0,
+        ..Default::default()
+    };
+    for e in [&mut opened, &mut plain] {
+        e.begin_stroke();
+        e.sculpt_dab(id, &brush, Vec3::new(6.5, 5.5, 6.5), Vec3::ZERO)
+            .unwrap();
+        e.end_interaction();
+    }
+    assert_eq!(opened.enhancer_rebuilds(), 0, "no full build on the dab");
+    assert!(!opened.last_enhance_update().unwrap().rebuilt);
+    assert_eq!(
+        plain.enhancer_rebuilds(),
+        1,
+        "unprepared: the dab builds it"
+    );
+    // Identical results either way, and equal to a fresh enhancement.
+    assert_eq!(svo_of(&opened, id), svo_of(&plain, id));
+    assert_eq!(svo_of(&opened, fine_id), svo_of(&plain, fine_id));
+    let fresh = enhance(&svo_of(&opened, id), &settings).unwrap();
+    assert_eq!(svo_of(&opened, fine_id), fresh);
+    // Undo keeps the prepared enhancer too (no rebuild).
+    assert!(opened.undo());
+    assert_eq!(opened.enhancer_rebuilds(), 0);
+}
+
+#[test]
 fn enhancement_links_go_with_deleted_objects_and_come_back_on_undo() {
     let (mut ed, id) = bumpy_editor();
     let fine_id = enhance_linked(&mut ed, id, Default::default());

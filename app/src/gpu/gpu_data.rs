@@ -58,6 +58,12 @@ pub const STATS_PER_LEVEL: u32 = 5;
 pub const OCCLUSION_TILE: u32 = 8;
 /// Index of the queue-overflow counter.
 pub const OVERFLOW_COUNTER: u32 = 32;
+/// First of two counters of the pixels covered by voxel splats, i.e. the key atomics the
+/// traversal issued: `[0]` the view, `[1]` shadow maps (`SPLAT_PIXEL_COUNTERS` in
+/// `common/types.wgsl`). The splat-bandwidth measurement counts its bytes from them.
+pub const SPLAT_PIXEL_COUNTERS: u32 = 34;
+const _: () =
+    assert!(SPLAT_PIXEL_COUNTERS > OVERFLOW_COUNTER && SPLAT_PIXEL_COUNTERS + 2 <= KRS_COUNTERS);
 /// Length of the counter buffer in u32: queue counts, overflow, two views' statistics.
 pub const COUNTER_WORDS: u32 = STATS_START + 2 * MAX_LEVELS * STATS_PER_LEVEL;
 

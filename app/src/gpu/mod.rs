@@ -19,6 +19,7 @@ mod renderer;
 mod scene;
 pub mod shaders;
 mod skin;
+pub mod splat_bw;
 
 pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
@@ -143,6 +144,9 @@ pub struct GpuFrameStats {
     pub splats: u64,
     /// Children dropped because a traversal queue was full (0 unless the scene is huge).
     pub queue_overflow: u64,
+    /// Pixels covered by the view's voxel splats: the key atomics its traversal issued (the
+    /// depth pass's on the two-pass path).
+    pub splat_pixels: u64,
     /// Triangles submitted for the view.
     pub triangles: u64,
     /// Milliseconds per pass: GPU timestamps when `gpu_timestamps`, else empty.
@@ -171,6 +175,7 @@ impl GpuFrameStats {
         self.shadow_levels.clone_from(&from.shadow_levels);
         self.splats = from.splats;
         self.queue_overflow = from.queue_overflow;
+        self.splat_pixels = from.splat_pixels;
         self.krs = from.krs;
         self.pass_ms.clone_from(&from.pass_ms);
         self.gpu_timestamps = from.gpu_timestamps;

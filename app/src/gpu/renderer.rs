@@ -17,7 +17,8 @@ use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
     MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE, OVERFLOW_COUNTER,
-    QUEUE_ENTRY_BYTES, STATS_PER_LEVEL, STATS_START, ShadingUniform, ViewUniform, ao_kernel,
+    QUEUE_ENTRY_BYTES, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL, STATS_START, ShadingUniform,
+    ViewUniform, ao_kernel,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -132,7 +133,7 @@ pub fn read_rgba8(
 }
 
 /// Maps a `MAP_READ` buffer, waits, copies its bytes out and unmaps it.
-fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
+pub(super) fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = buffer.slice(..);
     let (tx, rx) = std::sync::mpsc::channel();
     slice.map_async(wgpu::MapMode::Read, move |r| {
@@ -290,6 +291,10 @@ pub struct Renderer {
     frame_index: u64,
     /// Rigged objects' skin data and joint matrices.
     skin: SkinCache,
+    /// Repeats of the splat-bandwidth measurement the next frame runs (see
+    /// [`Renderer::measure_splat_bandwidth`]), and its result.
+    splat_probe: Option<u32>,
+    splat_probe_result: Option<Result<super::splat_bw::SplatBandwidth, GpuError>>,
 }
 
 fn storage(
@@ -637,6 +642,8 @@ impl Renderer {
             async_readback: false,
             frame_index: 0,
             skin: SkinCache::default(),
+            splat_probe: None,
+            splat_probe_result: None,
         })
     }
 
@@ -890,6 +897,47 @@ impl Renderer {
         Ok(stats)
     }
 
+    /// Renders one frame as [`Renderer::render_uploaded`] does and, before it, measures the
+    /// bandwidth of its view's voxel pass against a same-size buffer copy, `repeats` times
+    /// each (see [`super::splat_bw`] for the byte accounting and the timing). Returns the
+    /// frame's statistics and the measurement, whose counters equal the frame's.
+    ///
+    /// # Errors
+    /// As [`Renderer::render`]; [`GpuError::Device`] on the two-pass 32-bit path or with
+    /// asynchronous readback (the measurement needs the 64-bit splat and waited counters).
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's inputs plus the repeat count"
+    )]
+    pub fn measure_splat_bandwidth(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+        camera: &OrbitCamera,
+        quality: &Quality,
+        target: &RenderTarget,
+        repeats: u32,
+    ) -> Result<(GpuFrameStats, super::splat_bw::SplatBandwidth), GpuError> {
+        if self.atomic_path() != AtomicPath::Key64 || self.async_readback {
+            return Err(GpuError::Device(
+                "the splat bandwidth is measured on the 64-bit splat path with waited counters \
+                 only"
+                    .into(),
+            ));
+        }
+        self.splat_probe = Some(repeats);
+        self.splat_probe_result = None;
+        let stats = self.frame(device, queue, doc, camera, quality, target, false);
+        self.splat_probe = None;
+        let measured = self.splat_probe_result.take();
+        let stats = stats?;
+        let measured = measured.ok_or_else(|| {
+            GpuError::Device("the frame ended before its voxel pass was measured".into())
+        })??;
+        Ok((stats, measured))
+    }
+
     /// Reads the last frame's G-buffer back.
     ///
     /// # Errors
@@ -971,6 +1019,7 @@ impl Renderer {
         skin: &SkinFrame,
     ) -> Result<GpuFrameStats, GpuError> {
         use wgpu::BufferUsages as U;
+        let probe = self.splat_probe.take();
         let limits = device.limits();
         let scene = self
             .scene
@@ -1636,6 +1685,92 @@ impl Renderer {
             pass.set_bind_group(0, &bg_shade, &[]);
             pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
         }
+        // The splat-bandwidth measurement: the view's voxel pass alone, in submissions of its
+        // own before the frame's (which then redoes every state the measurement changed).
+        if let Some(repeats) = probe {
+            let result = match (path, &self.mesh64, &self.traverse64) {
+                (AtomicPath::Key64, Some(mesh64), Some(trav64)) => {
+                    let restore = |enc: &mut wgpu::CommandEncoder| {
+                        enc.clear_buffer(&counters, 0, None);
+                        {
+                            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
+                                label: Some("clear keys"),
+                                timestamp_writes: None,
+                            });
+                            pass.set_pipeline(&self.clear);
+                            let groups = (pixels * 2).div_ceil(256);
+                            let gx = groups.min(65535) as u32;
+                            let gy = groups.div_ceil(u64::from(gx.max(1))) as u32;
+                            pass.set_bind_group(0, &bg_clear_main, &[]);
+                            pass.dispatch_workgroups(gx, gy, 1);
+                        }
+                        mesh_pass(
+                            enc,
+                            &mut None,
+                            "meshes",
+                            mesh64,
+                            &bg_mesh_main,
+                            &main_attachment,
+                            tri_count,
+                        );
+                    };
+                    let splat = |enc: &mut wgpu::CommandEncoder, set: Option<&wgpu::QuerySet>| {
+                        let mut ts = set.map(|s| Timestamps {
+                            set: s.clone(),
+                            used: Vec::new(),
+                        });
+                        traverse_pass(
+                            enc, &mut ts, "voxels", trav64, &bg_main, &main_trav, occlusion,
+                        );
+                    };
+                    let read_counters = || {
+                        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+                            label: Some("splat bandwidth counters"),
+                            size: COUNTER_BYTES,
+                            usage: U::MAP_READ | U::COPY_DST,
+                            mapped_at_creation: false,
+                        });
+                        let mut e = device.create_command_encoder(&Default::default());
+                        e.copy_buffer_to_buffer(&counters, 0, &staging, 0, COUNTER_BYTES);
+                        queue.submit([e.finish()]);
+                        let meta = FrameMeta {
+                            frame: 0,
+                            timed: Vec::new(),
+                            triangles: 0,
+                            atomic_path: path,
+                            period_ns: 0.0,
+                        };
+                        let d = decode_counters(&map_read(device, &staging)?, &meta);
+                        Ok((d.levels, d.splat_pixels))
+                    };
+                    let builds = if occlusion {
+                        main_trav.iter().map(|t| u64::from(t.depth) + 1).sum()
+                    } else {
+                        0
+                    };
+                    super::splat_bw::measure(
+                        device,
+                        queue,
+                        &super::splat_bw::ProbePasses {
+                            restore: &restore,
+                            splat: &splat,
+                            read_counters: &read_counters,
+                        },
+                        repeats,
+                        super::splat_bw::OcclusionWork {
+                            builds,
+                            width: w,
+                            height: h,
+                        },
+                        self.caps.timestamps,
+                    )
+                }
+                _ => Err(GpuError::Device(
+                    "the splat bandwidth is measured on the 64-bit splat path only".into(),
+                )),
+            };
+            self.splat_probe_result = Some(result);
+        }
         // Counters and timestamps go to a free staging slot of the ring; with no free slot
         // (async readback running behind), this frame's counters are skipped rather than
         // waited for.
@@ -1839,6 +1974,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
         levels,
         shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
         queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
+        splat_pixels: u64::from(words[SPLAT_PIXEL_COUNTERS as usize]),
         krs: super::krs::GpuKrsStats::from_counters(words),
         triangles: meta.triangles,
         atomic_path: meta.atomic_path,

@@ -121,7 +121,8 @@ enum Pending {
 
 /// What a background job hands back.
 enum JobResult {
-    Opened(PathBuf, anyhow::Result<Document>),
+    /// A project read on the worker thread, with its linked models' enhancers built there.
+    Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
     Imported(PathBuf, anyhow::Result<Document>),
     /// An enhancement of a voxel object: source id, source name, the settings, the coarse
     /// model it was made from, and the fine model with the enhancer that made it.
@@ -289,18 +290,19 @@ impl EditorApp {
             return app;
         };
         match files::load_document(&path) {
-            Ok(doc) => app.install_document(doc, &path),
+            // Before the first frame: the enhancers are built here rather than by a dab.
+            Ok(doc) => app.install_document(crate::editor::PreparedDocument::new(doc, None), &path),
             Err(e) => app.error_dialog = Some(format!("{e:#}")),
         }
         app
     }
 
-    fn install_document(&mut self, doc: Document, path: &Path) {
+    fn install_document(&mut self, doc: crate::editor::PreparedDocument, path: &Path) {
         // Only projects are saved back to where they came from; a model opened directly becomes
         // an untitled project so Save cannot overwrite the .glb / .vox.
         let project_path =
             (FileKind::from_path(path) == Some(FileKind::Project)).then(|| path.to_path_buf());
-        self.editor.replace_document(doc, project_path);
+        self.editor.replace_document_prepared(doc, project_path);
         self.editor.push_recent(path.to_path_buf());
         self.status = format!("Opened {}", path.display());
     }
@@ -346,8 +348,11 @@ impl EditorApp {
 
     fn start_open(&mut self, path: PathBuf) {
         let label = format!("Opening {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, _| {
-            let result = files::load_document(&path);
+        self.job = Some(Job::spawn(label, move |_, cancel| {
+            // Linked models' enhancers are built here too, so the first dab after Open updates
+            // incrementally instead of stalling the UI thread on a full enhancement.
+            let result = files::load_document(&path)
+                .map(|doc| crate::editor::PreparedDocument::new(doc, Some(cancel)));
             JobResult::Opened(path, result)
         }));
     }
@@ -1763,6 +1768,63 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Open (the job, as File -> Open runs it) builds a linked model's enhancer on the worker
+    /// thread: the first dab after it updates incrementally, with no full enhancement on the
+    /// UI thread.
+    #[test]
+    fn the_first_dab_after_open_does_not_rebuild_the_enhancer() {
+        use glam::{UVec3, Vec3};
+        use thicket_core::scene::{ObjectKind, VoxelModel};
+        let mut svo = thicket_core::svo::Svo::new(4, false).unwrap();
+        for x in 1..14 {
+            for z in 1..14 {
+                for y in 0..3 + (x + z) % 3 {
+                    let v = thicket_core::svo::Voxel::new([90, 140, 60, 255], Vec3::Y);
+                    svo.set(UVec3::new(x, y, z), v).unwrap();
+                }
+            }
+        }
+        let model = VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        };
+        let settings = thicket_core::enhance::EnhanceSettings {
+            factor: 4,
+            ..Default::default()
+        };
+        let (fine, _) = thicket_core::enhance::enhance_model(
+            &model,
+            &settings,
+            thicket_core::enhance::Control::default(),
+        )
+        .unwrap();
+        let mut ed = Editor::default();
+        let id = ed.add_object("Slab", ObjectKind::Voxels(model));
+        ed.add_enhancement(id, settings, fine, None).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("linked.thicket.json");
+        files::save_project(ed.doc(), &path).unwrap();
+
+        let ctx = egui::Context::default();
+        let mut app = EditorApp::default();
+        app.request_open(path);
+        app.wait_for_job(&ctx);
+        assert!(app.error_dialog.is_none(), "{:?}", app.error_dialog);
+        let brush = thicket_core::sculpt::Brush::default();
+        app.editor.begin_stroke();
+        let changed = app
+            .editor
+            .sculpt_dab(id, &brush, Vec3::new(6.5, 4.5, 6.5), Vec3::ZERO)
+            .unwrap();
+        assert!(changed.is_some(), "the dab changed voxels");
+        let update = app
+            .editor
+            .last_enhance_update()
+            .expect("the dab re-enhanced");
+        assert!(update.fine_changes > 0 && !update.rebuilt);
+        assert_eq!(app.editor.enhancer_rebuilds(), 0);
+    }
 
     #[test]
     fn project_extension_is_added_once() {
