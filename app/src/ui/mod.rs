@@ -1091,6 +1091,11 @@ impl EditorApp {
                 view::set_axis_view(&mut self.editor, near);
             }
         }
+        if let Some(Selection::Light(i)) = self.editor.selection
+            && consume(shortcut(Modifiers::NONE, Key::Delete))
+        {
+            let _ = self.editor.delete_light(i);
+        }
         if let Some(id) = selected {
             if consume(shortcut(Modifiers::NONE, Key::Delete)) {
                 let _ = self.editor.delete(id);
