@@ -107,7 +107,16 @@ fn lights_are_added_and_deleted_from_the_outliner_and_undone_through_the_menu() 
     h.get_by_label_contains("Undo").click();
     h.run_steps(2);
     assert_eq!(h.state().editor.doc().lights.len(), 2);
-    h.get_by_label("Light: Light 2");
+    // Edit > Delete removes a selected light as it removes a selected object.
+    h.get_by_label("Light: Light 2").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.selection, Some(Selection::Light(1)));
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Delete").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.doc().lights.len(), 1);
+    assert_eq!(h.state().editor.doc().objects.len(), 2, "no object deleted");
 }
 
 #[test]
