@@ -1,16 +1,18 @@
 // Deferred Phong over the G-buffer (directional lights + ambient, Blinn half-vector specular
-// 0.25·(n·h)^32), the first shadow-casting light looked up in its shadow map with a normal
-// offset, a slope-free bias of two texels plus the receiver's splat size, and PCF. Writes
-// sRGB RGBA8 (rounded like the CPU reference); screen-space ambient occlusion scales the
-// ambient term. Mirrors core::render's `shade`.
+// 0.25·(n·h)^32), every shadow-casting light looked up in its own shadow map (one per light,
+// as the CPU reference) with a normal offset, a slope-free bias of two texels plus the
+// receiver's splat size, and PCF. Writes sRGB RGBA8 (rounded like the CPU reference);
+// screen-space ambient occlusion scales the ambient term. Mirrors core::render's `shade`.
 // #import common/types.wgsl
 
 @group(0) @binding(0) var<uniform> view: View;
-@group(0) @binding(1) var<uniform> shadow_view: View;
+// One entry per shadow map drawn this frame (LightGpu::shadow_map indexes it).
+@group(0) @binding(1) var<storage, read> shadow_maps: array<ShadowMap>;
 @group(0) @binding(2) var<uniform> shading: Shading;
 @group(0) @binding(3) var<storage, read> lights: array<LightGpu>;
 @group(0) @binding(4) var<storage, read> gbuffer: array<vec4<u32>>;
-// Shadow keys, 32-bit layout: [2p + 1] = depth bits.
+// Every shadow map's keys, 32-bit layout, map m from shadow_maps[m].key_word_offset:
+// [offset + 2p + 1] = depth bits of texel p.
 @group(0) @binding(5) var<storage, read> shadow_keys: array<u32>;
 @group(0) @binding(6) var output: texture_storage_2d<rgba8unorm, write>;
 // KRS lighting inputs (krs_trace.wgsl `light`), `shading.krs_stride` entries per pixel:
@@ -18,7 +20,10 @@
 // replaces n·l, visibility of light l through the KRS, 0).
 @group(0) @binding(7) var<storage, read> krs_light: array<vec4<f32>>;
 
-fn visibility(p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f32 {
+// Fraction of the light of shadow map `map` reaching p (the CPU's `ShadowMap::visibility`).
+fn visibility(map: u32, p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f32 {
+    let shadow_view = shadow_maps[map].view;
+    let key_base = shadow_maps[map].key_word_offset;
     let texel_world = 2.0 / shadow_view.fy;
     let offset = n_world * (1.5 * texel_world);
     let q = (shadow_view.view_from_world * vec4<f32>(p_world + offset, 1.0)).xyz;
@@ -41,7 +46,7 @@ fn visibility(p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: f32) -> f3
                 lit++;
                 continue;
             }
-            let bits = shadow_keys[2u * u32(y * w + x) + 1u];
+            let bits = shadow_keys[key_base + 2u * u32(y * w + x) + 1u];
             if bits == EMPTY || recv <= bitcast<f32>(bits) {
                 lit++;
             }
@@ -133,7 +138,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         var light = shading.ambient.xyz * (open * krs_open);
         var spec = vec3<f32>(0.0);
         for (var i = 0u; i < shading.light_count; i++) {
-            let l = lights[i].to_light.xyz;
+            let l = lights[i].to_light;
             let color = lights[i].color.xyz;
             var ndotl = dot(n, l);
             var krs_vis = 1.0;
@@ -149,8 +154,9 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
                 continue;
             }
             var vis = 1.0;
-            if lights[i].to_light.w > 0.0 {
-                vis = visibility(p, n, receiver);
+            let map = lights[i].shadow_map;
+            if map != NO_SHADOW_MAP {
+                vis = visibility(map, p, n, receiver);
             }
             vis *= krs_vis;
             if vis <= 0.0 {

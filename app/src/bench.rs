@@ -48,6 +48,9 @@ pub struct BenchReport {
     pub levels: Vec<BenchLevel>,
     /// Splats drawn for the view.
     pub splats: u64,
+    /// Shadow-map traversal totals of the last frame, summed over every light's map (both
+    /// renderers count them alike): what each added shadow-casting light costs.
+    pub shadow: BenchLevel,
     /// Triangles submitted.
     pub triangles: u64,
     /// The GPU splat path ("Key64" or "TwoPass32"); empty for the CPU.
@@ -159,6 +162,7 @@ pub fn bench_cpu(
         gpu_timestamps: false,
         levels: stats.levels.clone(),
         splats: stats.splats(),
+        shadow: level_totals(&stats.shadow_levels),
         triangles: stats.triangles,
         atomic_path: String::new(),
         splat_bandwidth: None,
@@ -173,6 +177,19 @@ pub fn bench_cpu(
             ao_evals: stats.krs.ao_evals,
         },
     })
+}
+
+/// Counters summed over levels.
+fn level_totals(levels: &[BenchLevel]) -> BenchLevel {
+    levels
+        .iter()
+        .fold(BenchLevel::default(), |t, l| BenchLevel {
+            visited: t.visited + l.visited,
+            split: t.split + l.split,
+            splatted: t.splatted + l.splatted,
+            frustum_culled: t.frustum_culled + l.frustum_culled,
+            occlusion_culled: t.occlusion_culled + l.occlusion_culled,
+        })
 }
 
 fn rayon_threads() -> usize {
@@ -259,6 +276,7 @@ pub fn bench_gpu(
         gpu_timestamps: stats.gpu_timestamps,
         levels: stats.levels.clone(),
         splats: stats.splats,
+        shadow: level_totals(&stats.shadow_levels),
         triangles: stats.triangles,
         atomic_path: format!("{:?}", stats.atomic_path),
         splat_bandwidth,
@@ -312,6 +330,14 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
             s,
             "    {i:>2}: {:>9} {:>9} {:>9} {:>9} {:>9}",
             l.visited, l.split, l.splatted, l.frustum_culled, l.occlusion_culled
+        );
+    }
+    if r.shadow.visited > 0 {
+        let t = &r.shadow;
+        let _ = writeln!(
+            s,
+            "  shadow maps (all lights): {} nodes visited, {} split, {} splatted, {} frustum culled, {} occluded",
+            t.visited, t.split, t.splatted, t.frustum_culled, t.occlusion_culled
         );
     }
     if let Some(b) = &r.splat_bandwidth {

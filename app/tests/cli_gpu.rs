@@ -107,6 +107,8 @@ fn bench_gpu_and_cpu_report_times_and_counters() {
         // Level 0 is the root of each voxel object: one node visited, split.
         assert_eq!(levels[0]["visited"], 1, "{run}");
         assert!(!run["pass_ms"].as_array().unwrap().is_empty(), "{run}");
+        // The sample's sun casts: its map's traversal is reported (summed over lights).
+        assert!(run["shadow"]["splatted"].as_u64().unwrap() > 0, "{run}");
     }
     assert!(j["cpu_over_gpu_frame_time"].as_f64().unwrap() > 0.0);
     // The splat-bandwidth measurement (64-bit path): bytes and figures, none on the CPU run.
@@ -144,6 +146,7 @@ fn bench_gpu_and_cpu_report_times_and_counters() {
         text.contains("splat bandwidth") || text.contains("TwoPass32"),
         "{text}"
     );
+    assert!(text.contains("shadow maps (all lights)"), "{text}");
 }
 
 #[test]

@@ -84,6 +84,42 @@ fn delete_then_undo_through_the_menus() {
 }
 
 #[test]
+fn lights_are_added_and_deleted_from_the_outliner_and_undone_through_the_menu() {
+    let mut h = harness(app_with_two_objects());
+    assert_eq!(h.state().editor.doc().lights.len(), 1);
+    h.get_by_label("Add light").click();
+    h.run_steps(2);
+    // The new light is listed, selected and shown in the inspector.
+    assert_eq!(h.state().editor.doc().lights.len(), 2);
+    assert_eq!(h.state().editor.selection, Some(Selection::Light(1)));
+    assert!(
+        h.query_all_by_label("Light: Light 2").count() >= 2,
+        "outliner row + inspector heading"
+    );
+    // Delete (the key) removes the selected light.
+    h.key_press(egui::Key::Delete);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.doc().lights.len(), 1);
+    assert_eq!(h.query_all_by_label("Light: Light 2").count(), 0);
+    assert_eq!(h.state().editor.doc().objects.len(), 2, "no object deleted");
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Undo").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.doc().lights.len(), 2);
+    // Edit > Delete removes a selected light as it removes a selected object.
+    h.get_by_label("Light: Light 2").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.selection, Some(Selection::Light(1)));
+    h.get_by_label("Edit").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Delete").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.doc().lights.len(), 1);
+    assert_eq!(h.state().editor.doc().objects.len(), 2, "no object deleted");
+}
+
+#[test]
 fn opening_a_broken_file_keeps_the_document_and_shows_the_error() {
     let dir = tempfile::tempdir().unwrap();
     let bad = dir.path().join("broken.thicket.json");

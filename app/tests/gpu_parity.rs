@@ -8,9 +8,9 @@
 
 use glam::{Quat, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
-use thicket_core::measure::image::Parity;
-use thicket_core::render::{Quality, RenderRequest, render_document, scenes};
-use thicket_core::scene::{Document, ObjectKind};
+use thicket_core::measure::image::{Parity, Tolerance};
+use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::scene::{Document, Light, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 
 mod common;
@@ -184,6 +184,128 @@ fn ambient_occlusion_darkens_on_the_gpu_as_on_the_cpu() {
     both_paths(&ctx, "synthetic-mixed-ao8", &doc, size, &with);
 }
 
+/// The mixed sample (voxel model, rock mesh, ground) with a second shadow-casting light, low
+/// and from the side (its shadows fall to the left of the model, the sun's behind it), casting
+/// when `casts`; the camera zoomed in (16 degrees) so the shadows cover several percent of a
+/// small test image.
+fn mixed_with_second_light(casts: bool) -> Document {
+    let mut doc = project("mixed");
+    assert_eq!(doc.lights.len(), 1, "the mixed sample has one light");
+    doc.camera.fov_y_deg = 16.0;
+    doc.lights.push(Light {
+        name: "Side".into(),
+        direction: Vec3::new(-1.0, -0.5, 0.0),
+        color: Vec3::new(1.0, 0.85, 0.7),
+        intensity: 0.8,
+        casts_shadows: casts,
+    });
+    doc
+}
+
+#[test]
+fn two_shadow_casting_lights_match_the_cpu_reference() {
+    // Every shadow-casting light gets its own map on the GPU, fit, sized, drawn and filtered
+    // as the CPU's: the frame agrees on both splat paths.
+    let ctx = context();
+    let doc = mixed_with_second_light(true);
+    both_paths(
+        &ctx,
+        "mixed-two-lights",
+        &doc,
+        (96, 80),
+        &doc.quality.clone(),
+    );
+}
+
+/// Pixels of `a` darker than in `b` (some channel by more than the parity tolerance), and
+/// whether any pixel of `a` is brighter than in `b` at all.
+fn darker_pixels(a: &RgbaImage, b: &RgbaImage) -> (Vec<bool>, bool) {
+    let mut brighter = false;
+    let darker = a
+        .pixels
+        .chunks_exact(4)
+        .zip(b.pixels.chunks_exact(4))
+        .map(|(pa, pb)| {
+            brighter |= pa.iter().zip(pb).any(|(x, y)| x > y);
+            pa.iter().zip(pb).any(|(x, y)| {
+                i32::from(*y) - i32::from(*x) > i32::from(Tolerance::GPU_PARITY.channel)
+            })
+        })
+        .collect();
+    (darker, brighter)
+}
+
+#[test]
+fn the_second_light_shadows_through_its_own_map() {
+    // Turning the second light's shadows on must darken, on the GPU, the pixels its own map
+    // shadows, where the CPU darkens them: a renderer that mapped only the first light would
+    // leave the frame unchanged. Its map is also drawn: the shadow traversal (summed over
+    // maps, as the CPU counts it) visits more nodes.
+    let ctx = context();
+    let size = (96, 80);
+    let (on, off) = (
+        mixed_with_second_light(true),
+        mixed_with_second_light(false),
+    );
+    let q = on.quality.clone();
+    let cpu = |doc: &Document| {
+        let req = RenderRequest {
+            width: size.0,
+            height: size.1,
+            camera: Some(doc.camera),
+            quality: q.clone(),
+        };
+        render_document(doc, &req).expect("CPU frame")
+    };
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let (gpu_on, _, stats_on) = gpu_frame(&ctx, &mut r, &on, size, &q);
+    let (gpu_off, _, stats_off) = gpu_frame(&ctx, &mut r, &off, size, &q);
+    let ((cpu_on, _, cpu_stats_on), (cpu_off, _, cpu_stats_off)) = (cpu(&on), cpu(&off));
+    let (gpu_dark, gpu_brighter) = darker_pixels(&gpu_on, &gpu_off);
+    let (cpu_dark, cpu_brighter) = darker_pixels(&cpu_on, &cpu_off);
+    assert!(!gpu_brighter, "a shadow map brightened a GPU pixel");
+    assert!(!cpu_brighter, "a shadow map brightened a CPU pixel");
+    let count = |m: &[bool]| m.iter().filter(|&&d| d).count();
+    let pixels = (size.0 * size.1) as usize;
+    let disagree = gpu_dark
+        .iter()
+        .zip(&cpu_dark)
+        .filter(|(a, b)| a != b)
+        .count();
+    eprintln!(
+        "light 2's shadow darkens {} GPU and {} CPU pixels of {pixels}; {disagree} disagree",
+        count(&gpu_dark),
+        count(&cpu_dark)
+    );
+    assert!(
+        count(&cpu_dark) * 50 >= pixels,
+        "the CPU darkens only {} pixels: the test scene does not exercise light 2's shadow",
+        count(&cpu_dark)
+    );
+    assert!(
+        count(&gpu_dark) * 50 >= pixels,
+        "the GPU darkens only {} pixels with light 2's shadow on",
+        count(&gpu_dark)
+    );
+    // Shadow edges may fall a pixel apart (the parity tolerance allows 1 % of pixels to
+    // differ); the shadowed regions are the same.
+    assert!(
+        disagree * 100 <= pixels,
+        "{disagree} pixels are shadowed by light 2 on one renderer only"
+    );
+    let visited = |l: &[thicket_core::render::LevelStats]| l.iter().map(|l| l.visited).sum::<u64>();
+    let (g_on, g_off) = (
+        visited(&stats_on.shadow_levels),
+        visited(&stats_off.shadow_levels),
+    );
+    let (c_on, c_off) = (
+        visited(&cpu_stats_on.shadow_levels),
+        visited(&cpu_stats_off.shadow_levels),
+    );
+    eprintln!("shadow nodes visited: GPU {g_off} -> {g_on}, CPU {c_off} -> {c_on}");
+    assert!(g_on > g_off && c_on > c_off);
+}
+
 /// The cesiumman sample (19 joints, walk clip, `Adaptive` stretch) at `time_secs` of its clip.
 fn cesiumman_at(time_secs: f32) -> Document {
     let mut doc = project("cesiumman");
@@ -221,6 +343,27 @@ fn skinned_cesiumman_matches_at(t: f32) {
         &format!("cesiumman-t{t}"),
         &doc,
         (128, 128),
+        &doc.quality.clone(),
+    );
+}
+
+#[test]
+fn a_skinned_model_shadows_through_every_lights_map() {
+    // The posed model is traversed into each light's map with its skinning (the second light
+    // low from the side, so its shadow falls apart from the sun's), on both splat paths.
+    let ctx = context();
+    let mut doc = cesiumman_at(0.5);
+    doc.lights.push(Light {
+        name: "Side".into(),
+        direction: Vec3::new(1.0, -0.5, 0.3),
+        intensity: 0.7,
+        ..Light::default()
+    });
+    both_paths(
+        &ctx,
+        "cesiumman-two-lights",
+        &doc,
+        (96, 96),
         &doc.quality.clone(),
     );
 }

@@ -77,3 +77,62 @@ fn int64_modules_fail_without_the_capability() {
 fn unknown_imports_are_errors() {
     assert!(shaders::compose("no_such_file.wgsl").is_err());
 }
+
+/// Size and field offsets (by name) of struct `name` as naga lays it out in `path`.
+fn wgsl_struct(path: &str, name: &str) -> (u32, Vec<(String, u32)>) {
+    let src = shaders::compose(path).expect("composes");
+    let module = naga::front::wgsl::parse_str(&src).expect("parses");
+    module
+        .types
+        .iter()
+        .find_map(|(_, t)| match (&t.name, &t.inner) {
+            (Some(n), naga::TypeInner::Struct { members, span }) if n == name => Some((
+                *span,
+                members
+                    .iter()
+                    .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                    .collect(),
+            )),
+            _ => None,
+        })
+        .unwrap_or_else(|| panic!("{path}: no struct {name}"))
+}
+
+fn offset_of(fields: &[(String, u32)], name: &str) -> u32 {
+    fields
+        .iter()
+        .find(|(n, _)| n == name)
+        .unwrap_or_else(|| panic!("no field {name}"))
+        .1
+}
+
+#[test]
+fn shade_pass_structs_match_their_rust_twins() {
+    // The shade pass reads lights and shadow maps from storage buffers the renderer fills with
+    // `gpu_data` structs: the WGSL layout must be the Rust one, field for field.
+    use thicket::gpu::gpu_data::{LightGpu, ShadingUniform, ShadowMapGpu, ViewUniform};
+    let (size, fields) = wgsl_struct("shade.wgsl", "LightGpu");
+    assert_eq!(size as usize, size_of::<LightGpu>());
+    assert_eq!(
+        offset_of(&fields, "shadow_map") as usize,
+        std::mem::offset_of!(LightGpu, shadow_map)
+    );
+    assert_eq!(
+        offset_of(&fields, "color") as usize,
+        std::mem::offset_of!(LightGpu, color)
+    );
+    let (size, fields) = wgsl_struct("shade.wgsl", "ShadowMap");
+    assert_eq!(size as usize, size_of::<ShadowMapGpu>());
+    assert_eq!(
+        offset_of(&fields, "key_word_offset") as usize,
+        std::mem::offset_of!(ShadowMapGpu, key_word_offset)
+    );
+    let (size, _) = wgsl_struct("shade.wgsl", "View");
+    assert_eq!(size as usize, size_of::<ViewUniform>());
+    let (size, fields) = wgsl_struct("shade.wgsl", "Shading");
+    assert_eq!(size as usize, size_of::<ShadingUniform>());
+    assert_eq!(
+        offset_of(&fields, "ao_kernel") as usize,
+        std::mem::offset_of!(ShadingUniform, ao_kernel)
+    );
+}

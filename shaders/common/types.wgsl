@@ -123,10 +123,25 @@ struct ObjectInfo {
 
 // One directional light.
 struct LightGpu {
-    // xyz: unit vector toward the light; w: 1 when it uses the shadow map.
-    to_light: vec4<f32>,
+    // Unit vector toward the light.
+    to_light: vec3<f32>,
+    // Index of its shadow map in the shade pass's ShadowMap array, or NO_SHADOW_MAP.
+    shadow_map: u32,
     // Linear colour × intensity.
     color: vec4<f32>,
+}
+
+// LightGpu::shadow_map of a light without a shadow map this frame.
+const NO_SHADOW_MAP: u32 = 0xffffffffu;
+
+// One light's shadow map: its camera and its first word in the shared shadow key buffer
+// (texel p's depth bits at key_word_offset + 2p + 1).
+struct ShadowMap {
+    view: View,
+    key_word_offset: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Deferred-shading constants.

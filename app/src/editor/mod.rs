@@ -503,24 +503,70 @@ impl Editor {
             .lights
             .get(index)
             .ok_or(CommandError::NoLight(index))?;
-        if !light.direction.is_finite() || light.direction.length_squared() < 1e-12 {
-            return Err(CommandError::Invalid(format!(
-                "light {:?}: the direction must be finite and non-zero",
-                light.name
-            )));
-        }
-        if !light.color.is_finite() || !light.intensity.is_finite() || light.intensity < 0.0 {
-            return Err(CommandError::Invalid(format!(
-                "light {:?}: colour and intensity must be finite and non-negative",
-                light.name
-            )));
-        }
+        validate_light(&light)?;
         if *current != light {
             self.apply(
                 Edit::SetLight { index, light },
                 Some(MergeKey::Light(index)),
             );
         }
+        Ok(())
+    }
+
+    /// A light to add next: named "Light N" (a name not in use), a white fill light at half
+    /// the default sun's intensity that casts shadows, coming from the default sun's direction
+    /// turned 120 degrees about the vertical axis per light already in the scene, so each new
+    /// light shows on a side the others do not light (a copy of the sun would only brighten
+    /// the frame).
+    #[must_use]
+    pub fn new_light(&self) -> Light {
+        let n = self.doc.lights.len();
+        let name = (n + 1..)
+            .map(|k| format!("Light {k}"))
+            .find(|name| self.doc.lights.iter().all(|l| &l.name != name))
+            .unwrap_or_else(|| "Light".to_owned());
+        let sun = Light::default();
+        let turn = glam::Quat::from_rotation_y(n as f32 * std::f32::consts::TAU / 3.0);
+        Light {
+            name,
+            direction: turn * sun.direction,
+            intensity: 0.5 * sun.intensity,
+            ..sun
+        }
+    }
+
+    /// Adds a light at the end of the light list (one undo step) after validating it, and
+    /// selects it; returns its index.
+    ///
+    /// # Errors
+    /// Non-finite or zero direction, negative intensity (the document is left unchanged).
+    pub fn add_light(&mut self, light: Light) -> Result<usize, CommandError> {
+        validate_light(&light)?;
+        let index = self.doc.lights.len();
+        self.apply(Edit::InsertLight { index, light }, None);
+        self.selection = Some(Selection::Light(index));
+        Ok(index)
+    }
+
+    /// Deletes a light (one undo step; undo puts it back at its place). Deleting the last
+    /// light is allowed: the scene keeps its ambient light, both renderers draw a scene without
+    /// lights, and an artist lighting a scene from scratch (or by ambient and baked lighting
+    /// alone) expects Delete to work on every light; undo brings it back.
+    ///
+    /// # Errors
+    /// Unknown light.
+    pub fn delete_light(&mut self, index: usize) -> Result<(), CommandError> {
+        if index >= self.doc.lights.len() {
+            return Err(CommandError::NoLight(index));
+        }
+        // Light selections are indices: the lights after it move up by one.
+        let selection = match self.selection {
+            Some(Selection::Light(i)) if i == index => None,
+            Some(Selection::Light(i)) if i > index => Some(Selection::Light(i - 1)),
+            other => other,
+        };
+        self.apply(Edit::RemoveLight { index }, None);
+        self.selection = selection;
         Ok(())
     }
 
@@ -568,6 +614,24 @@ impl Editor {
             self.set_camera(camera);
         }
     }
+}
+
+/// What [`Editor::set_light`] and [`Editor::add_light`] refuse (the checks of
+/// `Document::validate`, so a light the editor accepts renders).
+fn validate_light(light: &Light) -> Result<(), CommandError> {
+    if !light.direction.is_finite() || light.direction.length_squared() < 1e-12 {
+        return Err(CommandError::Invalid(format!(
+            "light {:?}: the direction must be finite and non-zero",
+            light.name
+        )));
+    }
+    if !light.color.is_finite() || !light.intensity.is_finite() || light.intensity < 0.0 {
+        return Err(CommandError::Invalid(format!(
+            "light {:?}: colour and intensity must be finite and non-negative",
+            light.name
+        )));
+    }
+    Ok(())
 }
 
 /// A fresh object id: one past the largest in use.

@@ -1,6 +1,6 @@
 use glam::{UVec3, Vec3};
 use thicket_core::render::{Quality, QualityPreset};
-use thicket_core::scene::{Document, ObjectKind, Transform, VoxelModel};
+use thicket_core::scene::{Document, Light, ObjectKind, Transform, VoxelModel};
 use thicket_core::svo::{Svo, Voxel};
 
 use super::*;
@@ -169,6 +169,80 @@ fn lights_and_quality_validate_and_undo() {
     assert_eq!(ed.doc().quality, Quality::default());
     ed.undo();
     assert!((ed.doc().lights[0].intensity - 1.0).abs() < 1e-6);
+}
+
+#[test]
+fn lights_are_added_and_deleted_validated_undone_and_redone() {
+    let mut ed = Editor::default();
+    let sun = ed.doc().lights[0].clone();
+    // A bad light is refused and changes nothing.
+    let bad = Light {
+        direction: Vec3::new(f32::NAN, -1.0, 0.0),
+        ..ed.new_light()
+    };
+    assert!(ed.add_light(bad).is_err());
+    let negative = Light {
+        intensity: -1.0,
+        ..ed.new_light()
+    };
+    assert!(ed.add_light(negative).is_err());
+    assert_eq!(ed.doc().lights.len(), 1);
+    assert!(!ed.is_dirty());
+
+    // A new light comes from another side than the sun, with a fresh name, and is selected.
+    let fill = ed.new_light();
+    assert_eq!(fill.name, "Light 2");
+    assert!(
+        fill.direction
+            .normalize_or_zero()
+            .dot(sun.direction.normalize_or_zero())
+            < 0.9
+    );
+    let i = ed.add_light(fill.clone()).unwrap();
+    assert_eq!(i, 1);
+    assert_eq!(ed.doc().lights, vec![sun.clone(), fill.clone()]);
+    assert_eq!(ed.selection, Some(Selection::Light(1)));
+    assert!(ed.doc().validate().is_ok());
+    // Its edits merge as a drag, separately from the add.
+    let mut brighter = fill.clone();
+    brighter.intensity = 2.0;
+    ed.set_light(1, brighter.clone()).unwrap();
+    ed.end_interaction();
+
+    // Deleting the first light moves the selection with the light it named.
+    ed.delete_light(0).unwrap();
+    assert_eq!(ed.doc().lights, vec![brighter.clone()]);
+    assert_eq!(ed.selection, Some(Selection::Light(0)));
+    // The last light may go too: the scene keeps its ambient light and still renders.
+    ed.delete_light(0).unwrap();
+    assert!(ed.doc().lights.is_empty());
+    assert_eq!(ed.selection, None);
+    assert!(ed.doc().validate().is_ok());
+    assert_eq!(ed.delete_light(0), Err(CommandError::NoLight(0)));
+
+    // Undo puts each light back at its place, in order; redo removes them again.
+    assert!(ed.undo());
+    assert_eq!(ed.doc().lights, vec![brighter.clone()]);
+    assert!(ed.undo());
+    assert_eq!(ed.doc().lights, vec![sun.clone(), brighter.clone()]);
+    assert!(ed.undo());
+    assert_eq!(ed.doc().lights, vec![sun.clone(), fill.clone()]);
+    assert!(ed.undo());
+    assert_eq!(ed.doc().lights, vec![sun.clone()]);
+    assert!(!ed.is_dirty());
+    assert!(ed.redo());
+    assert!(ed.redo());
+    assert!(ed.redo());
+    assert_eq!(ed.doc().lights, vec![brighter.clone()]);
+    assert!(ed.redo());
+    assert!(ed.doc().lights.is_empty());
+    // A selection left pointing past the list by an undo is dropped.
+    ed.undo();
+    ed.selection = Some(Selection::Light(0));
+    ed.undo();
+    ed.selection = Some(Selection::Light(1));
+    ed.redo();
+    assert_eq!(ed.selection, None);
 }
 
 #[test]

@@ -55,6 +55,18 @@ pub enum Edit {
         /// New value.
         light: Light,
     },
+    /// Insert a light at a position in the light list.
+    InsertLight {
+        /// Position in `Document::lights`.
+        index: usize,
+        /// The light.
+        light: Light,
+    },
+    /// Remove the light at a position in the light list.
+    RemoveLight {
+        /// Position in `Document::lights`.
+        index: usize,
+    },
     /// Change the quality knobs.
     SetQuality(Box<Quality>),
     /// Set voxels of a voxel object to stored values (a sculpt stroke's undo: only the
@@ -174,6 +186,19 @@ impl Edit {
                 },
                 None => Edit::Group(Vec::new()),
             },
+            Edit::InsertLight { index, light } => {
+                let index = index.min(doc.lights.len());
+                doc.lights.insert(index, light);
+                Edit::RemoveLight { index }
+            }
+            Edit::RemoveLight { index } => {
+                if index < doc.lights.len() {
+                    let light = doc.lights.remove(index);
+                    Edit::InsertLight { index, light }
+                } else {
+                    Edit::Group(Vec::new())
+                }
+            }
             Edit::SetQuality(q) => {
                 Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q)))
             }

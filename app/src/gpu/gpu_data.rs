@@ -222,12 +222,39 @@ const _: () = assert!(std::mem::offset_of!(ObjectInfo, skin) == 64);
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct LightGpu {
-    /// xyz: unit vector toward the light; w: 1 when this light samples the shadow map.
-    pub to_light: [f32; 4],
+    /// Unit vector toward the light.
+    pub to_light: [f32; 3],
+    /// Index of this light's shadow map in the shade pass's [`ShadowMapGpu`] array, or
+    /// [`NO_SHADOW_MAP`] when it has none this frame.
+    pub shadow_map: u32,
     /// Linear colour × intensity (w unused).
     pub color: [f32; 4],
 }
 const _: () = assert!(std::mem::size_of::<LightGpu>() == 32);
+const _: () = assert!(std::mem::offset_of!(LightGpu, shadow_map) == 12);
+
+/// [`LightGpu::shadow_map`] of a light without a shadow map (`NO_SHADOW_MAP` in
+/// `common/types.wgsl`).
+pub const NO_SHADOW_MAP: u32 = u32::MAX;
+
+/// One light's shadow map as the shade pass reads it: the light camera and where its texels
+/// start in the shared shadow key buffer (every map lies in one buffer, each at an offset the
+/// traversal and mesh passes can bind its range at).
+///
+/// Keep in sync with `shaders/common/types.wgsl` (`ShadowMap`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ShadowMapGpu {
+    /// The light camera (as the map was drawn with).
+    pub view: ViewUniform,
+    /// First `u32` of this map in the shadow key buffer (texel `p`'s depth bits are at
+    /// `key_word_offset + 2p + 1`).
+    pub key_word_offset: u32,
+    /// Padding to a 16-byte multiple.
+    pub pad: [u32; 3],
+}
+const _: () = assert!(std::mem::size_of::<ShadowMapGpu>() == 256);
+const _: () = assert!(std::mem::offset_of!(ShadowMapGpu, key_word_offset) == 240);
 
 /// Deferred-shading constants.
 ///

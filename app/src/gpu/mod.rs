@@ -1,8 +1,8 @@
 //! The wgpu renderer (ASVO paper §4, Fig. 8; §8.1): the same algorithms as the CPU reference
 //! renderer in `thicket_core::render`, on the GPU, headless-capable.
 //!
-//! A frame (see `docs/gpu.md`): clear the packed depth+id key buffers → shadow map from the
-//! first shadow-casting light (meshes rasterised, voxels traversed, depth only) → the view:
+//! A frame (see `docs/gpu.md`): clear the packed depth+id key buffers → one shadow map per
+//! shadow-casting light (meshes rasterised, voxels traversed, depth only) → the view:
 //! meshes rasterised and voxels splatted into one key buffer (64-bit `atomicMin` of
 //! `depth << 32 | id` when the adapter has `SHADER_INT64_ATOMIC_MIN_MAX`, else two 32-bit
 //! passes) → resolve ids to a G-buffer → KRS objects sphere-traced into the same G-buffer

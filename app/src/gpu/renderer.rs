@@ -16,9 +16,9 @@ use super::skin::{SkinCache, SkinFrame};
 use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
-    MODE_ID, MODE_KEY64, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE, OVERFLOW_COUNTER,
-    QUEUE_ENTRY_BYTES, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL, STATS_START, ShadingUniform,
-    ViewUniform, ao_kernel,
+    MODE_ID, MODE_KEY64, NO_SHADOW_MAP, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE,
+    OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL, STATS_START,
+    ShadingUniform, ShadowMapGpu, ViewUniform, ao_kernel,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -410,6 +410,19 @@ struct Traversal {
     depth: u8,
 }
 
+/// One light's shadow map this frame.
+struct ShadowPlan {
+    /// Index of the light in the document.
+    light: usize,
+    /// Its camera (the CPU's `fit_light_camera`).
+    view: ViewSpec,
+    /// Where its keys start in the shadow key buffer (a multiple of the device's storage
+    /// offset alignment, so its passes can bind just this range).
+    offset: u64,
+    /// Bytes of its keys.
+    bytes: u64,
+}
+
 impl Renderer {
     /// Creates every layout and pipeline. The 64-bit splat pipelines exist only when the
     /// device has `SHADER_INT64_ATOMIC_MIN_MAX`.
@@ -486,7 +499,8 @@ impl Renderer {
             "shade",
             &[
                 uniform(0, false, cs),
-                uniform(1, false, cs),
+                // The shadow maps (`ShadowMapGpu`, one per shadow-casting light).
+                storage(1, true, cs),
                 uniform(2, false, cs),
                 storage(3, true, cs),
                 storage(4, true, cs),
@@ -1053,30 +1067,44 @@ impl Renderer {
         let lod = quality.lod_pixel_threshold;
         let path = self.atomic_path();
 
-        // Shadow camera: the first shadow-casting light, fit to everything drawn.
-        let shadow_light = doc
-            .lights
-            .iter()
-            .position(|l| l.casts_shadows)
-            .filter(|_| quality.shadows);
-        let shadow = match (shadow_light, frame_objects.bounds) {
-            (Some(i), Some((lo, hi))) if lo.is_finite() && hi.is_finite() => {
-                // One texel per view pixel where the scene comes nearest the eye (as the CPU's
-                // `render_scene`: `cam.pixel_world_size(nearest)`).
-                let eye = camera.eye();
-                let nearest = (eye.clamp(lo, hi) - eye).length().max(main.near);
-                let finest = nearest / main.fy;
-                ViewSpec::fit_light_bound(
-                    doc.lights[i].direction,
-                    lo,
-                    hi,
-                    quality.shadow_map_size,
-                    finest,
-                )
-                .map(|v| (i, v))
+        // Shadow cameras: one per shadow-casting light, as the CPU's `render_scene` (none with
+        // shadows off, nothing that casts, or nothing drawn), each fit to everything drawn.
+        let has_casters = !scene.voxels.is_empty() || caster_tris > 0;
+        let mut shadows: Vec<ShadowPlan> = Vec::new();
+        if let Some((lo, hi)) = frame_objects.bounds
+            && quality.shadows
+            && has_casters
+            && lo.is_finite()
+            && hi.is_finite()
+        {
+            // One texel per view pixel where the scene comes nearest the eye (as the CPU's
+            // `render_scene`: `cam.pixel_world_size(nearest)`).
+            let eye = camera.eye();
+            let nearest = (eye.clamp(lo, hi) - eye).length().max(main.near);
+            let finest = nearest / main.fy;
+            // Every map in one key buffer, each at an offset its passes can bind its range at.
+            let align = u64::from(limits.min_storage_buffer_offset_alignment.max(4));
+            let mut next = 0u64;
+            for (light, l) in doc.lights.iter().enumerate() {
+                if !l.casts_shadows {
+                    continue;
+                }
+                let Some(view) =
+                    ViewSpec::fit_light_bound(l.direction, lo, hi, quality.shadow_map_size, finest)
+                else {
+                    continue;
+                };
+                let offset = next.next_multiple_of(align);
+                let bytes = u64::from(view.width) * u64::from(view.height) * KEY_BYTES;
+                next = offset + bytes;
+                shadows.push(ShadowPlan {
+                    light,
+                    view,
+                    offset,
+                    bytes,
+                });
             }
-            _ => None,
-        };
+        }
 
         let pixels = u64::from(w) * u64::from(h);
         let key_bytes = pixels * KEY_BYTES;
@@ -1088,11 +1116,15 @@ impl Renderer {
                 limit: binding_limit,
             });
         }
-        let (sw, sh) = shadow.map_or((1, 1), |(_, v)| (v.width, v.height));
-        let shadow_key_bytes = u64::from(sw) * u64::from(sh) * KEY_BYTES;
+        // The shade pass binds every map at once, so they must fit one binding together.
+        let shadow_key_bytes = shadows.last().map_or(0, |m| m.offset + m.bytes);
         if shadow_key_bytes > binding_limit {
             return Err(GpuError::TooLarge {
-                what: "shadow map",
+                what: if shadows.len() == 1 {
+                    "shadow map"
+                } else {
+                    "shadow maps (one per shadow-casting light, bound together)"
+                },
                 bytes: shadow_key_bytes,
                 limit: binding_limit,
             });
@@ -1123,13 +1155,11 @@ impl Renderer {
             .map(|(i, l)| {
                 let c = l.color * l.intensity;
                 LightGpu {
-                    to_light: (-l.direction.normalize_or_zero())
-                        .extend(if shadow.is_some_and(|(s, _)| s == i) {
-                            1.0
-                        } else {
-                            0.0
-                        })
-                        .to_array(),
+                    to_light: (-l.direction.normalize_or_zero()).to_array(),
+                    shadow_map: shadows
+                        .iter()
+                        .position(|m| m.light == i)
+                        .map_or(NO_SHADOW_MAP, |m| m as u32),
                     color: c.extend(0.0).to_array(),
                 }
             })
@@ -1139,6 +1169,9 @@ impl Renderer {
         // Frame buffers.
         let keys_main = self.buffer(device, "keys", key_bytes, U::STORAGE);
         let keys_shadow = self.buffer(device, "shadow keys", shadow_key_bytes, U::STORAGE);
+        // The whole buffer may be larger (reused from a larger frame): clear and bind only
+        // what the maps use.
+        let shadow_words = shadow_key_bytes.max(16) / 4;
         let tiles = self.buffer(
             device,
             "occlusion tiles",
@@ -1183,11 +1216,28 @@ impl Renderer {
             bytemuck::bytes_of(&main.uniform(MODE_ID, lod, false)),
             U::UNIFORM,
         );
-        let shadow_spec = shadow.map_or(main, |(_, v)| v);
-        let view_shadow = upload(
-            "shadow view",
-            bytemuck::bytes_of(&shadow_spec.uniform(MODE_DEPTH, lod, false)),
-            U::UNIFORM,
+        let shadow_uniforms: Vec<ViewUniform> = shadows
+            .iter()
+            .map(|m| m.view.uniform(MODE_DEPTH, lod, false))
+            .collect();
+        let shadow_views: Vec<wgpu::Buffer> = shadow_uniforms
+            .iter()
+            .map(|u| upload("shadow view", bytemuck::bytes_of(u), U::UNIFORM))
+            .collect();
+        let shadow_maps: Vec<ShadowMapGpu> = shadows
+            .iter()
+            .zip(&shadow_uniforms)
+            .map(|(m, &view)| ShadowMapGpu {
+                view,
+                // Below the binding limit (checked above), so the word index fits.
+                key_word_offset: (m.offset / 4) as u32,
+                pad: [0; 3],
+            })
+            .collect();
+        let shadow_map_buf = upload(
+            "shadow maps",
+            bytemuck::cast_slice(&shadow_maps),
+            U::STORAGE,
         );
         let mut slots: Vec<u8> = Vec::new();
         let mut make_traversals = |spec: &ViewSpec, stats_base: u32| -> Vec<Traversal> {
@@ -1231,11 +1281,12 @@ impl Renderer {
                 .collect()
         };
         let main_trav = make_traversals(&main, STATS_START);
-        let shadow_trav = if shadow.is_some() {
-            make_traversals(&shadow_spec, STATS_START + MAX_LEVELS * STATS_PER_LEVEL)
-        } else {
-            Vec::new()
-        };
+        // Every map counts into the one shadow range: `shadow_levels` is summed over lights,
+        // as the CPU's `FrameStats::shadow_levels`.
+        let shadow_travs: Vec<Vec<Traversal>> = shadows
+            .iter()
+            .map(|m| make_traversals(&m.view, STATS_START + MAX_LEVELS * STATS_PER_LEVEL))
+            .collect();
         if slots.is_empty() {
             slots.resize(NODE_PARAMS_STRIDE as usize, 0);
         }
@@ -1251,7 +1302,7 @@ impl Renderer {
         let clear_shadow = upload(
             "clear shadow keys",
             bytemuck::bytes_of(&ClearParams {
-                count: u32::try_from(shadow_key_bytes / 4).unwrap_or(u32::MAX),
+                count: u32::try_from(shadow_words).unwrap_or(u32::MAX),
                 pad: [0; 3],
             }),
             U::UNIFORM,
@@ -1311,7 +1362,7 @@ impl Renderer {
         let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
 
         // Bind groups.
-        let trav0 = |view: &wgpu::Buffer, keys: &wgpu::Buffer| {
+        let trav0 = |view: &wgpu::Buffer, keys: wgpu::BufferBinding<'_>| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("traverse 0"),
                 layout: &self.trav_bgl[0],
@@ -1330,7 +1381,7 @@ impl Renderer {
                     },
                     wgpu::BindGroupEntry {
                         binding: 4,
-                        resource: keys.as_entire_binding(),
+                        resource: wgpu::BindingResource::Buffer(keys),
                     },
                     wgpu::BindGroupEntry {
                         binding: 5,
@@ -1359,9 +1410,20 @@ impl Renderer {
         );
         let occlusion = quality.occlusion_culling;
         let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
-        let bg_main = trav0(&view_main, &keys_main);
-        let bg_main_id = trav0(&view_main_id, &keys_main);
-        let bg_shadow = trav0(&view_shadow, &keys_shadow);
+        let bg_main = trav0(&view_main, keys_main.as_entire_buffer_binding());
+        let bg_main_id = trav0(&view_main_id, keys_main.as_entire_buffer_binding());
+        // Each map's passes see only its own range of the shadow key buffer, so the splat and
+        // mesh shaders index it from 0 as they index the view's.
+        let shadow_keys_of = |m: &ShadowPlan| wgpu::BufferBinding {
+            buffer: &keys_shadow,
+            offset: m.offset,
+            size: wgpu::BufferSize::new(m.bytes),
+        };
+        let bg_shadows: Vec<wgpu::BindGroup> = shadows
+            .iter()
+            .zip(&shadow_views)
+            .map(|(m, v)| trav0(v, shadow_keys_of(m)))
+            .collect();
         let bg_params = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("node params"),
             layout: &self.trav_bgl[1],
@@ -1410,12 +1472,30 @@ impl Renderer {
             "mesh id",
             &[&view_main_id, &tri_buf, &keys_main],
         );
-        let bg_mesh_shadow = bind_group(
-            device,
-            &self.mesh_bgl,
-            "mesh shadow",
-            &[&view_shadow, &tri_buf, &keys_shadow],
-        );
+        let bg_mesh_shadows: Vec<wgpu::BindGroup> = shadows
+            .iter()
+            .zip(&shadow_views)
+            .map(|(m, v)| {
+                device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some("mesh shadow"),
+                    layout: &self.mesh_bgl,
+                    entries: &[
+                        wgpu::BindGroupEntry {
+                            binding: 0,
+                            resource: v.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 1,
+                            resource: tri_buf.as_entire_binding(),
+                        },
+                        wgpu::BindGroupEntry {
+                            binding: 2,
+                            resource: wgpu::BindingResource::Buffer(shadow_keys_of(m)),
+                        },
+                    ],
+                })
+            })
+            .collect();
         let bg_resolve = bind_group(
             device,
             &self.resolve_bgl,
@@ -1441,7 +1521,7 @@ impl Renderer {
                 },
                 wgpu::BindGroupEntry {
                     binding: 1,
-                    resource: view_shadow.as_entire_binding(),
+                    resource: shadow_map_buf.as_entire_binding(),
                 },
                 wgpu::BindGroupEntry {
                     binding: 2,
@@ -1457,7 +1537,11 @@ impl Renderer {
                 },
                 wgpu::BindGroupEntry {
                     binding: 5,
-                    resource: keys_shadow.as_entire_binding(),
+                    resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding {
+                        buffer: &keys_shadow,
+                        offset: 0,
+                        size: wgpu::BufferSize::new(shadow_words * 4),
+                    }),
                 },
                 wgpu::BindGroupEntry {
                     binding: 6,
@@ -1470,7 +1554,12 @@ impl Renderer {
             ],
         });
         let main_attachment = self.attachment(device, w, h);
-        let shadow_attachment = self.attachment(device, sw, sh);
+        // One attachment for every map's mesh draw (each draws into its own viewport of it).
+        let (sw, sh) = shadows.iter().fold((0, 0), |(a, b), m| {
+            (a.max(m.view.width), b.max(m.view.height))
+        });
+        let shadow_attachment =
+            (!shadows.is_empty() && caster_tris > 0).then(|| self.attachment(device, sw, sh));
 
         let mut ts = if self.caps.timestamps {
             Some(Timestamps {
@@ -1498,8 +1587,14 @@ impl Renderer {
             pass.set_pipeline(&self.clear);
             for (bg, words) in [
                 (&bg_clear_main, pixels * 2),
-                (&bg_clear_shadow, shadow_key_bytes / 4),
+                (
+                    &bg_clear_shadow,
+                    if shadows.is_empty() { 0 } else { shadow_words },
+                ),
             ] {
+                if words == 0 {
+                    continue;
+                }
                 let groups = words.div_ceil(256);
                 let gx = groups.min(65535) as u32;
                 let gy = groups.div_ceil(u64::from(gx.max(1))) as u32;
@@ -1540,17 +1635,21 @@ impl Renderer {
                              ts: &mut Option<Timestamps>,
                              name: &'static str,
                              pipeline: &wgpu::ComputePipeline,
-                             bg0: &wgpu::BindGroup,
-                             travs: &[Traversal],
+                             views: &[(&wgpu::BindGroup, &[Traversal])],
                              hiz: bool| {
-            if travs.is_empty() {
+            if views.iter().all(|(_, travs)| travs.is_empty()) {
                 return;
             }
+            // One pass for every view given (all shadow maps: one timed pass, however many
+            // lights cast).
             let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor {
                 label: Some(name),
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
             });
-            for t in travs {
+            for (bg0, t) in views
+                .iter()
+                .flat_map(|&(bg0, travs)| travs.iter().map(move |t| (bg0, t)))
+            {
                 let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
                 pass.set_bind_group(0, bg0, &[]);
                 pass.set_bind_group(3, &bg_indirect, &[]);
@@ -1580,26 +1679,47 @@ impl Renderer {
             }
         };
 
-        if shadow.is_some() {
-            mesh_pass(
-                &mut enc,
-                &mut ts,
-                "shadow meshes",
-                &self.mesh32,
-                &bg_mesh_shadow,
-                &shadow_attachment,
-                caster_tris,
-            );
-            traverse_pass(
-                &mut enc,
-                &mut ts,
-                "shadow voxels",
-                &self.traverse32,
-                &bg_shadow,
-                &shadow_trav,
-                false,
-            );
+        if let Some(attachment) = &shadow_attachment {
+            // Every map's casters in one render pass, each map in its own viewport of the
+            // shared attachment (the fragment's pixel indexes that map's key range).
+            let name = "shadow meshes";
+            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some(name),
+                color_attachments: &[],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: attachment,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: ts.as_mut().and_then(|t| t.render(name)),
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.mesh32);
+            for (m, bg) in shadows.iter().zip(&bg_mesh_shadows) {
+                let (mw, mh) = (m.view.width, m.view.height);
+                pass.set_viewport(0.0, 0.0, mw as f32, mh as f32, 0.0, 1.0);
+                pass.set_scissor_rect(0, 0, mw, mh);
+                pass.set_bind_group(0, bg, &[]);
+                pass.draw(0..caster_tris * 3, 0..1);
+            }
         }
+        let shadow_views_trav: Vec<(&wgpu::BindGroup, &[Traversal])> = bg_shadows
+            .iter()
+            .zip(&shadow_travs)
+            .map(|(bg, t)| (bg, t.as_slice()))
+            .collect();
+        traverse_pass(
+            &mut enc,
+            &mut ts,
+            "shadow voxels",
+            &self.traverse32,
+            &shadow_views_trav,
+            false,
+        );
         match (path, &self.mesh64, &self.traverse64) {
             (AtomicPath::Key64, Some(mesh64), Some(trav64)) => {
                 mesh_pass(
@@ -1612,7 +1732,12 @@ impl Renderer {
                     tri_count,
                 );
                 traverse_pass(
-                    &mut enc, &mut ts, "voxels", trav64, &bg_main, &main_trav, occlusion,
+                    &mut enc,
+                    &mut ts,
+                    "voxels",
+                    trav64,
+                    &[(&bg_main, &main_trav)],
+                    occlusion,
                 );
             }
             _ => {
@@ -1630,8 +1755,7 @@ impl Renderer {
                     &mut ts,
                     "voxels",
                     &self.traverse32,
-                    &bg_main,
-                    &main_trav,
+                    &[(&bg_main, &main_trav)],
                     occlusion,
                 );
                 mesh_pass(
@@ -1648,8 +1772,7 @@ impl Renderer {
                     &mut ts,
                     "voxels",
                     &self.traverse32,
-                    &bg_main_id,
-                    &main_trav,
+                    &[(&bg_main_id, &main_trav)],
                     false,
                 );
             }
@@ -1720,7 +1843,12 @@ impl Renderer {
                             used: Vec::new(),
                         });
                         traverse_pass(
-                            enc, &mut ts, "voxels", trav64, &bg_main, &main_trav, occlusion,
+                            enc,
+                            &mut ts,
+                            "voxels",
+                            trav64,
+                            &[(&bg_main, &main_trav)],
+                            occlusion,
                         );
                     };
                     let read_counters = || {

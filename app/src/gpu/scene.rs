@@ -118,7 +118,7 @@ pub(super) struct FrameObjects {
     /// `world_from_voxel` per entry of [`SceneCache::voxels`].
     pub(super) world_from_voxel: Vec<Mat4>,
     pub(super) objects: Vec<ObjectInfo>,
-    /// World bounds of everything drawn (for fitting the shadow map).
+    /// World bounds of everything drawn (for fitting the shadow maps).
     pub(super) bounds: Option<(Vec3, Vec3)>,
 }
 

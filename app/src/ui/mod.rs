@@ -1096,6 +1096,11 @@ impl EditorApp {
                 view::set_axis_view(&mut self.editor, near);
             }
         }
+        if let Some(Selection::Light(i)) = self.editor.selection
+            && consume(shortcut(Modifiers::NONE, Key::Delete))
+        {
+            let _ = self.editor.delete_light(i);
+        }
         if let Some(id) = selected {
             if consume(shortcut(Modifiers::NONE, Key::Delete)) {
                 let _ = self.editor.delete(id);
@@ -1263,13 +1268,31 @@ impl EditorApp {
                         }
                     }
                 });
+                let selected_light = match self.editor.selection {
+                    Some(Selection::Light(i)) => Some(i),
+                    _ => None,
+                };
                 if ui
-                    .add_enabled(selected.is_some(), egui::Button::new("Delete").shortcut_text("Del"))
-                    .on_hover_text("Delete the selected object (undoable)")
+                    .add_enabled(
+                        selected.is_some() || selected_light.is_some(),
+                        egui::Button::new("Delete").shortcut_text("Del"),
+                    )
+                    .on_hover_text("Delete the selected object or light (undoable)")
                     .clicked()
-                    && let Some(id) = selected
                 {
-                    let _ = self.editor.delete(id);
+                    if let Some(id) = selected {
+                        let _ = self.editor.delete(id);
+                    } else if let Some(i) = selected_light {
+                        let _ = self.editor.delete_light(i);
+                    }
+                }
+                if ui
+                    .button("Add light")
+                    .on_hover_text("Add a directional light that casts shadows (undoable)")
+                    .clicked()
+                {
+                    let light = self.editor.new_light();
+                    let _ = self.editor.add_light(light);
                 }
             });
             ui.menu_button("View", |ui| {

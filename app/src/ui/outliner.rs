@@ -1,5 +1,5 @@
 //! The outliner: objects (with kind, counts and visibility) and lights; selection, rename,
-//! duplicate, delete.
+//! duplicate, delete; adding and deleting lights.
 
 use thicket_core::scene::{Object, ObjectKind};
 
@@ -65,6 +65,13 @@ enum RowAction {
     Frame,
 }
 
+/// What the lights section asked for (applied after drawing, as the object rows' actions).
+enum LightAction {
+    Add,
+    Select(usize),
+    Delete(usize),
+}
+
 /// Draws the outliner.
 pub fn outliner_ui(
     ui: &mut egui::Ui,
@@ -75,6 +82,7 @@ pub fn outliner_ui(
     ui.heading("Outliner");
     ui.separator();
     let mut actions: Vec<(u64, RowAction)> = Vec::new();
+    let mut light_actions: Vec<LightAction> = Vec::new();
     egui::ScrollArea::vertical().show(ui, |ui| {
         if editor.doc().objects.is_empty() {
             ui.weak("No objects. Use File > Import… to add a model.");
@@ -164,19 +172,66 @@ pub fn outliner_ui(
             });
         }
         ui.add_space(8.0);
-        ui.label(egui::RichText::new("Lights").strong());
+        ui.horizontal(|ui| {
+            ui.label(egui::RichText::new("Lights").strong());
+            ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                if ui
+                    .small_button("Add light")
+                    .on_hover_text(
+                        "Add a directional light that casts shadows, from a side the others \
+                         do not light (undoable)",
+                    )
+                    .clicked()
+                {
+                    light_actions.push(LightAction::Add);
+                }
+            });
+        });
         let lights: Vec<String> = editor.doc().lights.iter().map(|l| l.name.clone()).collect();
+        if lights.is_empty() {
+            ui.weak("No lights: only the ambient light shows. Add light adds one.");
+        }
         for (i, name) in lights.iter().enumerate() {
             let selected = editor.selection == Some(Selection::Light(i));
-            if ui
-                .selectable_label(selected, format!("Light: {name}"))
-                .on_hover_text("Directional light: select to edit")
-                .clicked()
-            {
-                editor.selection = Some(Selection::Light(i));
-            }
+            ui.horizontal(|ui| {
+                let row = ui
+                    .selectable_label(selected, format!("Light: {name}"))
+                    .on_hover_text("Directional light: select to edit, right-click for more");
+                if row.clicked() {
+                    light_actions.push(LightAction::Select(i));
+                }
+                row.context_menu(|ui| {
+                    if ui.button("Delete light").on_hover_text("Delete").clicked() {
+                        light_actions.push(LightAction::Delete(i));
+                        ui.close();
+                    }
+                });
+                ui.with_layout(egui::Layout::right_to_left(egui::Align::Center), |ui| {
+                    if ui
+                        .small_button("Del")
+                        .on_hover_text(format!("Delete light {name:?} (undoable)"))
+                        .clicked()
+                    {
+                        light_actions.push(LightAction::Delete(i));
+                    }
+                });
+            });
         }
     });
+
+    for action in light_actions {
+        let result = match action {
+            LightAction::Add => editor.add_light(editor.new_light()).map(|_| ()),
+            LightAction::Select(i) => {
+                editor.selection = Some(Selection::Light(i));
+                Ok(())
+            }
+            LightAction::Delete(i) => editor.delete_light(i),
+        };
+        if let Err(e) = result {
+            *status = e.to_string();
+        }
+    }
 
     for (id, action) in actions {
         let result = match action {

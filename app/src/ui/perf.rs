@@ -163,24 +163,13 @@ impl PerfOverlay {
                         });
                     }
                     ui.collapsing("Nodes per level (view)", |ui| {
-                        egui::Grid::new("levels").striped(true).show(ui, |ui| {
-                            for h in ["Level", "Visited", "Split", "Splatted", "Culled"] {
-                                ui.strong(h);
-                            }
-                            ui.end_row();
-                            for (i, l) in stats.levels.iter().enumerate() {
-                                if l.visited == 0 {
-                                    continue;
-                                }
-                                ui.label(i.to_string());
-                                ui.label(thousands(l.visited));
-                                ui.label(thousands(l.split));
-                                ui.label(thousands(l.splatted));
-                                ui.label(thousands(l.frustum_culled));
-                                ui.end_row();
-                            }
-                        });
+                        level_grid_ui(ui, "levels", &stats.levels);
                     });
+                    if !stats.shadow_levels.is_empty() {
+                        ui.collapsing("Nodes per level (shadow maps, all lights)", |ui| {
+                            level_grid_ui(ui, "shadow_levels", &stats.shadow_levels);
+                        });
+                    }
                 }
             }
         }
@@ -221,4 +210,25 @@ fn push_bounded<T>(q: &mut VecDeque<T>, v: T) {
         q.pop_front();
     }
     q.push_back(v);
+}
+
+/// Per-level traversal counters (levels nothing visited are left out).
+fn level_grid_ui(ui: &mut egui::Ui, id: &str, levels: &[thicket_core::render::LevelStats]) {
+    egui::Grid::new(id).striped(true).show(ui, |ui| {
+        for h in ["Level", "Visited", "Split", "Splatted", "Culled"] {
+            ui.strong(h);
+        }
+        ui.end_row();
+        for (i, l) in levels.iter().enumerate() {
+            if l.visited == 0 {
+                continue;
+            }
+            ui.label(i.to_string());
+            ui.label(thousands(l.visited));
+            ui.label(thousands(l.split));
+            ui.label(thousands(l.splatted));
+            ui.label(thousands(l.frustum_culled));
+            ui.end_row();
+        }
+    });
 }
