@@ -13,6 +13,7 @@ const TRI_STRIDE: u32 = 11u;
 // Mesh textures (app/src/gpu/scene.rs): 256 words sRGB byte → linear (f32 bits), then 4 words
 // per texture (first texel word, width, height, 0), then RGBA8 texels, rows top to bottom.
 const TEXTURE_LUT_WORDS: u32 = 256u;
+const TEXTURE_ENTRY_WORDS: u32 = 4u;
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;
@@ -69,7 +70,7 @@ fn sample_texture(index: u32, uv: vec2<f32>) -> vec4<f32> {
     if !finite(uv.x) || !finite(uv.y) {
         return vec4<f32>(1.0);
     }
-    let e = TEXTURE_LUT_WORDS + 4u * index;
+    let e = TEXTURE_LUT_WORDS + TEXTURE_ENTRY_WORDS * index;
     let base = textures[e];
     let w = textures[e + 1u];
     let h = textures[e + 2u];
