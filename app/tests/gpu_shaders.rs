@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use thicket::gpu::shaders;
+use thicket::gpu::{gpu_data, shaders};
 
 fn wgsl_files(dir: &Path, out: &mut Vec<PathBuf>) {
     let entries = std::fs::read_dir(dir).expect("shaders/ is readable");
@@ -134,5 +134,40 @@ fn shade_pass_structs_match_their_rust_twins() {
     assert_eq!(
         offset_of(&fields, "ao_kernel") as usize,
         std::mem::offset_of!(ShadingUniform, ao_kernel)
+    );
+}
+
+/// The value of `const NAME: u32` in a composed module.
+fn u32_constant(path: &str, name: &str) -> u32 {
+    let src = shaders::compose(path).expect("composes");
+    let module = naga::front::wgsl::parse_str(&src).expect("parses");
+    let (_, c) = module
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("{path}: no constant {name}"));
+    match module.global_expressions[c.init] {
+        naga::Expression::Literal(naga::Literal::U32(v)) => v,
+        ref e => panic!("{path}: {name} is {e:?}, not a u32 literal"),
+    }
+}
+
+#[test]
+fn triangle_and_texture_layouts_match_gpu_data() {
+    // The size assertions in gpu_data pin the Rust side; these pin the WGSL side to it.
+    for path in ["mesh32.wgsl", "mesh64.wgsl", "resolve.wgsl"] {
+        assert_eq!(
+            u32_constant(path, "TRI_STRIDE") as usize,
+            gpu_data::TRI_VEC4S,
+            "{path}"
+        );
+    }
+    assert_eq!(
+        u32_constant("resolve.wgsl", "TEXTURE_LUT_WORDS") as usize,
+        gpu_data::TEXTURE_LUT_WORDS
+    );
+    assert_eq!(
+        u32_constant("resolve.wgsl", "TEXTURE_ENTRY_WORDS") as usize,
+        gpu_data::TEXTURE_ENTRY_WORDS
     );
 }

@@ -311,8 +311,43 @@ pub const QUEUE_ENTRY_BYTES: u64 = 16;
 pub const KEY_BYTES: u64 = 8;
 /// Bytes of one G-buffer texel (`vec4<u32>`).
 pub const GBUFFER_TEXEL_BYTES: u64 = 16;
+/// One world-space triangle of the mesh buffer (read as `array<vec4<f32>>`, `TRI_STRIDE`
+/// vec4 per triangle).
+///
+/// Keep in sync with `shaders/common/mesh.wgsl` and `shaders/resolve.wgsl` (`TRI_STRIDE`, the
+/// slots they read).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct GpuTriangle {
+    /// World positions (w = 1).
+    pub positions: [[f32; 4]; 3],
+    /// World normals; w = 1 when the part has vertex normals, else 0 (use the face normal).
+    pub normals: [[f32; 4]; 3],
+    /// Linear RGBA: material base colour × vertex colour.
+    pub colors: [[f32; 4]; 3],
+    /// Texture coordinates of the first two vertices (u, v, u, v).
+    pub uv_ab: [f32; 4],
+    /// Texture coordinates of the third vertex, then the base-colour texture's index in the
+    /// texture table as an exactly representable float ([`NO_TEXTURE`]: none), then padding.
+    /// A float rather than bits reinterpreted from an integer: small integers as float bits
+    /// are denormals, which a GPU may flush to zero.
+    pub uv_c_texture: [f32; 4],
+}
 /// `vec4<f32>` per world triangle in the mesh buffer.
-pub const TRI_VEC4S: usize = 9;
+pub const TRI_VEC4S: usize = 11;
+const _: () = assert!(std::mem::size_of::<GpuTriangle>() == TRI_VEC4S * 16);
+const _: () = assert!(std::mem::offset_of!(GpuTriangle, colors) == 6 * 16);
+const _: () = assert!(std::mem::offset_of!(GpuTriangle, uv_c_texture) == 10 * 16);
+/// [`GpuTriangle::uv_c_texture`]`[2]` of a triangle without a texture.
+pub const NO_TEXTURE: f32 = -1.0;
+/// Most textures a scene may hold: texture indices travel as floats, exact up to 2^24.
+pub const MAX_TEXTURES: usize = 1 << 24;
+/// Words at the start of the texture buffer: the linear value (f32 bits) of each sRGB byte,
+/// from the CPU's own table, so both renderers decode texels to the same floats.
+pub const TEXTURE_LUT_WORDS: usize = 256;
+/// Words per entry of the texture table that follows the look-up table: first texel word,
+/// width, height, padding.
+pub const TEXTURE_ENTRY_WORDS: usize = 4;
 /// Bit marking triangle ids.
 pub const MESH_ID_FLAG: u32 = 1 << 31;
 

@@ -493,6 +493,7 @@ impl Renderer {
                 storage(5, false, cs),
                 storage(6, true, cs),
                 storage(7, true, cs),
+                storage(8, true, cs),
             ],
         );
         let shade_bgl = bgl(
@@ -793,7 +794,7 @@ impl Renderer {
         let stats = UploadStats {
             full: true,
             bytes: scene.bytes(),
-            writes: 3,
+            writes: 4,
             ..UploadStats::default()
         };
         self.scene = Some(scene);
@@ -1041,10 +1042,11 @@ impl Renderer {
             .ok_or_else(|| GpuError::Device("no scene uploaded".into()))?;
         let mut frame_objects = scene.frame_objects(doc);
         skin.apply(scene, &mut frame_objects);
-        let (inner_buf, attr_buf, tri_buf) = (
+        let (inner_buf, attr_buf, tri_buf, texture_buf) = (
             scene.inner_buf.clone(),
             scene.attr_buf.clone(),
             scene.tri_buf.clone(),
+            scene.texture_buf.clone(),
         );
         let (caster_tris, tri_count, cap) =
             (scene.caster_tris, scene.tri_count, scene.queue_capacity);
@@ -1509,6 +1511,7 @@ impl Renderer {
                 &gbuffer,
                 &skin.data_buf,
                 &skin.joint_buf,
+                &texture_buf,
             ],
         );
         let bg_shade = device.create_bind_group(&wgpu::BindGroupDescriptor {

@@ -2,18 +2,27 @@
 //! pool and one attribute pool (each object with spare room so edits that grow its pools stay
 //! in place), and world-space triangles. Uploaded once; afterwards an edit uploads only the
 //! node ranges it changed ([`SceneCache::update_voxel_region`]), a transform change only the
-//! small per-object data.
+//! small per-object data (and a mesh's triangles, never its textures).
+//!
+//! Mesh base-colour textures live in one storage buffer of `u32` words, uploaded with the scene:
+//! [`TEXTURE_LUT_WORDS`] words of sRGB-byte → linear (the CPU's table, as f32 bits), then
+//! [`TEXTURE_ENTRY_WORDS`] words per texture (first texel word, width, height, 0), then the
+//! texels, one RGBA8 `u32` each, rows top to bottom. Equal textures are stored once.
 
 use std::ops::Range;
 
 use bytemuck::Zeroable;
-use glam::{Mat3, Mat4, UVec3, Vec3, Vec4};
+use glam::{Mat3, Mat4, UVec3, Vec2, Vec3, Vec4};
+use thicket_core::mesh::{MeshModel, Texture, srgb_byte_to_linear};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::Svo;
 use wgpu::util::DeviceExt;
 
 use super::GpuError;
-use super::gpu_data::{MESH_ID_FLAG, ObjectInfo, QUEUE_ENTRY_BYTES, TRI_VEC4S};
+use super::gpu_data::{
+    GpuTriangle, MAX_TEXTURES, MESH_ID_FLAG, NO_TEXTURE, ObjectInfo, QUEUE_ENTRY_BYTES,
+    TEXTURE_ENTRY_WORDS, TEXTURE_LUT_WORDS,
+};
 
 /// What an upload wrote.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -69,6 +78,111 @@ pub(super) struct VoxelEntry {
 struct MeshEntry {
     object_id: u64,
     world_from_object: Mat4,
+    /// Per material of its model: the texture index its triangles carry ([`NO_TEXTURE`]:
+    /// none), and the texture's shape when uploaded (so a changed texture forces an upload).
+    textures: Vec<(f32, Option<TextureShape>)>,
+}
+
+/// What identifies an uploaded texture cheaply, without comparing its pixels every frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct TextureShape {
+    width: u32,
+    height: u32,
+    bytes: usize,
+}
+
+/// A texture [`Texture::sample_linear`] samples (it returns white for any other, as does an
+/// absent texture).
+fn usable(t: &Texture) -> bool {
+    t.width > 0
+        && t.height > 0
+        && t.rgba8.len() as u64 >= u64::from(t.width) * u64::from(t.height) * 4
+}
+
+fn texture_shapes(model: &MeshModel) -> Vec<Option<TextureShape>> {
+    model
+        .materials
+        .iter()
+        .map(|m| {
+            m.base_color_texture
+                .as_ref()
+                .filter(|t| usable(t))
+                .map(|t| TextureShape {
+                    width: t.width,
+                    height: t.height,
+                    bytes: t.rgba8.len(),
+                })
+        })
+        .collect()
+}
+
+/// The texture buffer's words (layout in the module docs) and, per visible mesh object in
+/// document order, the texture index of each of its materials. Checks the buffer against
+/// `limit` (bytes per binding) before allocating it.
+fn pack_textures(doc: &Document, limit: u64) -> Result<(Vec<u32>, Vec<Vec<f32>>), GpuError> {
+    let mut unique: Vec<&Texture> = Vec::new();
+    let mut per_mesh = Vec::new();
+    for o in doc.objects.iter().filter(|o| o.visible) {
+        let ObjectKind::Mesh(m) = &o.kind else {
+            continue;
+        };
+        let mut indices = Vec::with_capacity(m.model.materials.len());
+        for mat in &m.model.materials {
+            let Some(t) = mat.base_color_texture.as_ref().filter(|t| usable(t)) else {
+                indices.push(NO_TEXTURE);
+                continue;
+            };
+            // A duplicated object shares its texture: compare pixels only between textures of
+            // the same shape.
+            let i = match unique
+                .iter()
+                .position(|u| u.width == t.width && u.height == t.height && u.rgba8 == t.rgba8)
+            {
+                Some(i) => i,
+                None => {
+                    unique.push(t);
+                    unique.len() - 1
+                }
+            };
+            if i >= MAX_TEXTURES {
+                return Err(GpuError::TooLarge {
+                    what: "mesh texture count",
+                    bytes: i as u64 + 1,
+                    limit: MAX_TEXTURES as u64,
+                });
+            }
+            indices.push(i as f32);
+        }
+        per_mesh.push(indices);
+    }
+    let header = TEXTURE_LUT_WORDS + TEXTURE_ENTRY_WORDS * unique.len();
+    let texels: u64 = unique
+        .iter()
+        .map(|t| u64::from(t.width) * u64::from(t.height))
+        .sum();
+    let total = header as u64 + texels;
+    // Word offsets are u32: a limit above 16 GiB still stops at what they can address.
+    check_binding(
+        "mesh texture buffer",
+        total * 4,
+        limit.min(u64::from(u32::MAX) * 4),
+    )?;
+    let mut words = Vec::with_capacity(total as usize);
+    words.extend((0..=255u8).map(|b| srgb_byte_to_linear(b).to_bits()));
+    let mut offset = header as u32;
+    for t in &unique {
+        words.extend_from_slice(&[offset, t.width, t.height, 0]);
+        offset += t.width * t.height;
+    }
+    for t in &unique {
+        let n = t.width as usize * t.height as usize * 4;
+        words.extend(
+            t.rgba8[..n]
+                .chunks_exact(4)
+                .map(|p| u32::from_le_bytes([p[0], p[1], p[2], p[3]])),
+        );
+    }
+    Ok((words, per_mesh))
 }
 
 /// The visible objects, in document order, as (id, is voxel).
@@ -105,6 +219,8 @@ pub(super) struct SceneCache {
     pub(super) inner_buf: wgpu::Buffer,
     pub(super) attr_buf: wgpu::Buffer,
     pub(super) tri_buf: wgpu::Buffer,
+    /// Mesh base-colour textures (layout in the module docs).
+    pub(super) texture_buf: wgpu::Buffer,
     pub(super) caster_tris: u32,
     pub(super) tri_count: u32,
     /// Entries each traversal queue needs.
@@ -146,19 +262,29 @@ fn voxel_world_bounds(svo: &Svo, world_from_voxel: Mat4, out: &mut Option<(Vec3,
 }
 
 /// Triangles of the visible meshes in world space, casters first: (records, caster count,
-/// entries).
-fn pack_triangles(doc: &Document) -> (Vec<[f32; 4]>, u32, Vec<MeshEntry>) {
-    let mut casters: Vec<[f32; 4]> = Vec::new();
-    let mut others: Vec<[f32; 4]> = Vec::new();
+/// entries). `textures` holds, per visible mesh object in document order, the texture index of
+/// each material ([`pack_textures`]).
+fn pack_triangles(
+    doc: &Document,
+    textures: &[Vec<f32>],
+) -> (Vec<GpuTriangle>, u32, Vec<MeshEntry>) {
+    let mut casters: Vec<GpuTriangle> = Vec::new();
+    let mut others: Vec<GpuTriangle> = Vec::new();
     let mut entries = Vec::new();
-    for o in doc.objects.iter().filter(|o| o.visible) {
-        let ObjectKind::Mesh(m) = &o.kind else {
-            continue;
-        };
+    let meshes = doc
+        .objects
+        .iter()
+        .filter(|o| o.visible)
+        .filter_map(|o| match &o.kind {
+            ObjectKind::Mesh(m) => Some((o, m)),
+            _ => None,
+        });
+    for ((o, m), tex) in meshes.zip(textures) {
         let world_from_object = o.transform.matrix();
         entries.push(MeshEntry {
             object_id: o.id,
             world_from_object,
+            textures: tex.iter().copied().zip(texture_shapes(&m.model)).collect(),
         });
         let normal_m = Mat3::from_mat4(world_from_object).inverse().transpose();
         let out = if m.casts_shadows {
@@ -172,25 +298,35 @@ fn pack_triangles(doc: &Document) -> (Vec<[f32; 4]>, u32, Vec<MeshEntry>) {
                 .materials
                 .get(part.material)
                 .map_or(Vec4::ONE, |mat| mat.base_color);
+            // As `MeshModel::surface_color`: a texture needs texture coordinates.
+            let texture = if part.uvs.is_empty() {
+                NO_TEXTURE
+            } else {
+                tex.get(part.material).copied().unwrap_or(NO_TEXTURE)
+            };
             for t in 0..part.triangle_count() {
                 let idx = part.triangle(t);
-                let mut rec = [[0.0f32; 4]; TRI_VEC4S];
+                let mut rec = GpuTriangle::zeroed();
+                let mut uv = [Vec2::ZERO; 3];
                 for (k, &i) in idx.iter().enumerate() {
                     let pw = world_from_object
                         .transform_point3(part.positions.get(i).copied().unwrap_or_default());
-                    rec[k] = pw.extend(1.0).to_array();
-                    rec[3 + k] = match part.normals.get(i) {
+                    rec.positions[k] = pw.extend(1.0).to_array();
+                    rec.normals[k] = match part.normals.get(i) {
                         Some(n) => (normal_m * *n).extend(1.0).to_array(),
                         None => [0.0; 4],
                     };
                     let vc = part.colors.get(i).copied().unwrap_or(Vec4::ONE);
-                    rec[6 + k] = (base * vc).to_array();
+                    rec.colors[k] = (base * vc).to_array();
+                    uv[k] = part.uvs.get(i).copied().unwrap_or_default();
                 }
-                out.extend_from_slice(&rec);
+                rec.uv_ab = [uv[0].x, uv[0].y, uv[1].x, uv[1].y];
+                rec.uv_c_texture = [uv[2].x, uv[2].y, texture, 0.0];
+                out.push(rec);
             }
         }
     }
-    let caster_tris = (casters.len() / TRI_VEC4S) as u32;
+    let caster_tris = casters.len() as u32;
     casters.extend(others);
     (casters, caster_tris, entries)
 }
@@ -345,11 +481,16 @@ impl SceneCache {
                 live_nodes,
             });
         }
-        let (tris, caster_tris, meshes) = pack_triangles(doc);
         let limit = limits.max_storage_buffer_binding_size;
+        let (texture_words, textures) = pack_textures(doc, limit)?;
+        let (tris, caster_tris, meshes) = pack_triangles(doc, &textures);
         check_binding("inner node pool", inner.len() as u64 * 8, limit)?;
         check_binding("attribute pool", attrs.len() as u64 * 8, limit)?;
-        check_binding("triangle buffer", tris.len() as u64 * 16, limit)?;
+        check_binding(
+            "triangle buffer",
+            std::mem::size_of_val(tris.as_slice()) as u64,
+            limit,
+        )?;
         Ok(Self {
             layout: layout_of(doc),
             voxels,
@@ -357,8 +498,13 @@ impl SceneCache {
             inner_buf: storage_init(device, "inner nodes", bytemuck::cast_slice(&inner)),
             attr_buf: storage_init(device, "attributes", bytemuck::cast_slice(&attrs)),
             tri_buf: storage_init(device, "triangles", bytemuck::cast_slice(&tris)),
+            texture_buf: storage_init(
+                device,
+                "mesh textures",
+                bytemuck::cast_slice(&texture_words),
+            ),
             caster_tris,
-            tri_count: (tris.len() / TRI_VEC4S) as u32,
+            tri_count: tris.len() as u32,
             queue_capacity: queue_capacity
                 .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX))),
             skin_stale: true,
@@ -367,13 +513,29 @@ impl SceneCache {
 
     /// Bytes the scene's buffers hold.
     pub(super) fn bytes(&self) -> u64 {
-        self.inner_buf.size() + self.attr_buf.size() + self.tri_buf.size()
+        self.inner_buf.size() + self.attr_buf.size() + self.tri_buf.size() + self.texture_buf.size()
     }
 
     /// Whether the document still has the uploaded layout: the same visible objects in the
-    /// same order, each voxel pool within its reserved room and at its uploaded depth.
+    /// same order, each voxel pool within its reserved room and at its uploaded depth, each
+    /// mesh with textures of the uploaded shapes.
     fn fits(&self, doc: &Document) -> bool {
         if layout_of(doc) != self.layout {
+            return false;
+        }
+        let textures_kept = self
+            .meshes
+            .iter()
+            .all(|m| match object_of(doc, m.object_id) {
+                Some(thicket_core::scene::Object {
+                    kind: ObjectKind::Mesh(mesh),
+                    ..
+                }) => texture_shapes(&mesh.model)
+                    .into_iter()
+                    .eq(m.textures.iter().map(|&(_, shape)| shape)),
+                _ => false,
+            });
+        if !textures_kept {
             return false;
         }
         self.voxels.iter().all(|e| {
@@ -397,12 +559,20 @@ impl SceneCache {
             object_of(doc, m.object_id).is_none_or(|o| o.transform.matrix() != m.world_from_object)
         });
         if meshes_moved {
-            let (tris, caster_tris, entries) = pack_triangles(doc);
-            if tris.len() as u64 * 16 > self.tri_buf.size() {
+            // The textures stay as uploaded (`fits` checked their shapes): re-pack the
+            // triangles with the indices they were given.
+            let textures: Vec<Vec<f32>> = self
+                .meshes
+                .iter()
+                .map(|m| m.textures.iter().map(|&(i, _)| i).collect())
+                .collect();
+            let (tris, caster_tris, entries) = pack_triangles(doc, &textures);
+            let bytes = std::mem::size_of_val(tris.as_slice()) as u64;
+            if bytes > self.tri_buf.size() {
                 return None;
             }
             queue.write_buffer(&self.tri_buf, 0, bytemuck::cast_slice(&tris));
-            stats.bytes += tris.len() as u64 * 16;
+            stats.bytes += bytes;
             stats.writes += 1;
             self.caster_tris = caster_tris;
             self.meshes = entries;
@@ -586,6 +756,87 @@ fn voxels_of(doc: &Document, id: u64) -> Option<&Svo> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn textured_doc(textures: &[Texture]) -> Document {
+        use thicket_core::mesh::{Material, unit_cube};
+        let mut doc = Document::default();
+        for t in textures {
+            let mut part = unit_cube();
+            part.uvs = vec![Vec2::ZERO; part.positions.len()];
+            doc.add(
+                "Cube",
+                ObjectKind::Mesh(thicket_core::scene::MeshObject {
+                    model: MeshModel {
+                        parts: vec![part],
+                        materials: vec![Material {
+                            base_color_texture: Some(t.clone()),
+                            ..Material::default()
+                        }],
+                    },
+                    casts_shadows: true,
+                }),
+            );
+        }
+        doc
+    }
+
+    fn solid(w: u32, h: u32, byte: u8) -> Texture {
+        Texture {
+            width: w,
+            height: h,
+            rgba8: vec![byte; (w * h * 4) as usize],
+        }
+    }
+
+    #[test]
+    fn textures_pack_once_each_after_the_srgb_table() {
+        let (a, b) = (solid(3, 2, 7), solid(1, 1, 200));
+        let mut short = solid(2, 2, 9);
+        short.rgba8.pop();
+        let doc = textured_doc(&[a.clone(), b, a, short, Texture::default()]);
+        let (words, per_mesh) = pack_textures(&doc, u64::MAX).expect("fits");
+        // The duplicate shares index 0; the short and the empty texture are none (white).
+        assert_eq!(
+            per_mesh,
+            vec![
+                vec![0.0],
+                vec![1.0],
+                vec![0.0],
+                vec![NO_TEXTURE],
+                vec![NO_TEXTURE]
+            ]
+        );
+        assert_eq!(words[128], srgb_byte_to_linear(128).to_bits());
+        let table = &words[TEXTURE_LUT_WORDS..TEXTURE_LUT_WORDS + 8];
+        let first = (TEXTURE_LUT_WORDS + 8) as u32;
+        assert_eq!(table, &[first, 3, 2, 0, first + 6, 1, 1, 0]);
+        assert_eq!(words.len(), first as usize + 7);
+        assert_eq!(words[first as usize], u32::from_le_bytes([7; 4]));
+        assert_eq!(words[first as usize + 6], u32::from_le_bytes([200; 4]));
+        // Triangles of a part without UVs carry no texture even when its material has one.
+        let mut no_uvs = doc.clone();
+        if let ObjectKind::Mesh(m) = &mut no_uvs.objects[1].kind {
+            m.model.parts[0].uvs.clear();
+        }
+        let (tris, _, _) = pack_triangles(&no_uvs, &per_mesh);
+        let texture_of = |t: &GpuTriangle| t.uv_c_texture[2];
+        assert_eq!(texture_of(&tris[0]), 0.0);
+        assert_eq!(texture_of(&tris[12]), NO_TEXTURE);
+        assert_eq!(texture_of(&tris[24]), 0.0);
+    }
+
+    #[test]
+    fn textures_over_the_binding_limit_are_a_clear_error() {
+        let doc = textured_doc(&[solid(64, 64, 1)]);
+        let bytes = ((TEXTURE_LUT_WORDS + TEXTURE_ENTRY_WORDS + 64 * 64) * 4) as u64;
+        assert!(pack_textures(&doc, bytes).is_ok());
+        let err = pack_textures(&doc, bytes - 1).expect_err("one byte over");
+        assert!(
+            matches!(err, GpuError::TooLarge { what: "mesh texture buffer", bytes: b, .. } if b == bytes),
+            "{err}"
+        );
+        assert!(err.to_string().contains("mesh texture buffer"), "{err}");
+    }
 
     #[test]
     fn ranges_merge_when_close() {

@@ -112,12 +112,15 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 
 impl Texture {
     /// Bilinear sample with repeat wrapping, returned as linear RGBA. UV (0,0) is the top-left
-    /// corner of the image, as in glTF.
+    /// corner of the image, as in glTF; texel centres lie at half-integer texel coordinates.
+    /// White for an empty texture, one with fewer bytes than its size says, or a non-finite
+    /// UV. The GPU renderer's resolve pass (`shaders/resolve.wgsl`) repeats this arithmetic.
     #[must_use]
     pub fn sample_linear(&self, uv: Vec2) -> Vec4 {
+        // In u64: width × height × 4 overflows u32 for sizes a hand-built texture can claim.
         if self.width == 0
             || self.height == 0
-            || self.rgba8.len() < (self.width * self.height * 4) as usize
+            || (self.rgba8.len() as u64) < u64::from(self.width) * u64::from(self.height) * 4
         {
             return Vec4::ONE;
         }
@@ -500,6 +503,61 @@ mod tests {
                 vertices: 8
             })
         );
+    }
+
+    #[test]
+    fn texture_sampling_at_the_extremes() {
+        let one = Texture {
+            width: 1,
+            height: 1,
+            rgba8: vec![255, 128, 0, 51],
+        };
+        let expected = Vec4::new(1.0, srgb_byte_to_linear(128), 0.0, 0.2);
+        // A 1×1 texture is its texel everywhere: wrapping, far outside [0, 1], at 2^24 where
+        // no fraction is left, and at the largest finite coordinate.
+        for uv in [
+            Vec2::ZERO,
+            Vec2::new(0.5, 0.5),
+            Vec2::new(-3.7, 12.25),
+            Vec2::splat(16_777_216.0),
+            Vec2::new(f32::MAX, -f32::MAX),
+        ] {
+            assert!(one.sample_linear(uv).abs_diff_eq(expected, 1e-6), "{uv}");
+        }
+        // Non-finite coordinates, an empty texture, or fewer bytes than the size says: white.
+        for uv in [Vec2::new(f32::INFINITY, 0.0), Vec2::new(0.0, f32::NAN)] {
+            assert_eq!(one.sample_linear(uv), Vec4::ONE);
+        }
+        assert_eq!(Texture::default().sample_linear(Vec2::ZERO), Vec4::ONE);
+        let overflowing = Texture {
+            width: 1 << 16,
+            height: 1 << 16,
+            rgba8: vec![0; 16],
+        };
+        assert_eq!(overflowing.sample_linear(Vec2::ZERO), Vec4::ONE);
+        // Two texels, black and white: a texel centre is exact, the edge between them (and
+        // the wrap-around at u = 0, which meets the last texel) is the mean.
+        let two = Texture {
+            width: 2,
+            height: 1,
+            rgba8: vec![0, 0, 0, 255, 255, 255, 255, 255],
+        };
+        assert_eq!(
+            two.sample_linear(Vec2::new(0.25, 0.5)),
+            Vec4::new(0.0, 0.0, 0.0, 1.0)
+        );
+        assert_eq!(two.sample_linear(Vec2::new(0.75, 0.5)), Vec4::ONE);
+        for u in [0.5, 0.0, 1.0, -1.0, 7.0] {
+            let mid = two.sample_linear(Vec2::new(u, 0.5));
+            assert!(
+                mid.abs_diff_eq(Vec4::new(0.5, 0.5, 0.5, 1.0), 1e-6),
+                "{u}: {mid}"
+            );
+        }
+        // Repeat: a whole period away samples the same value.
+        let uv = Vec2::new(0.3, 0.8);
+        let shifted = two.sample_linear(uv + Vec2::new(-5.0, 3.0));
+        assert!(two.sample_linear(uv).abs_diff_eq(shifted, 1e-5));
     }
 
     #[test]
