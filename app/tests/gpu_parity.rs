@@ -14,7 +14,7 @@ use thicket_core::scene::{Document, Light, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 
 mod common;
-use common::gpu::{context, cpu_gpu_parity, gpu_frame, project};
+use common::gpu::{assert_same_as_full_upload, context, cpu_gpu_parity, gpu_frame, project};
 
 struct Comparison {
     parity: Parity,
@@ -604,16 +604,7 @@ fn sculpting_a_rigged_model_rebuilds_its_skin_data_and_matches_a_full_upload() {
         .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
         .expect("edited frame");
     assert!(s.upload.skin_data && !s.upload.full, "{:?}", s.upload);
-    let incremental = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-    fresh
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
-        .expect("full frame");
-    let full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    assert!(
-        incremental == full,
-        "incremental upload differs from a full upload"
-    );
+    let full = assert_same_as_full_upload(&ctx, &doc, &q, &target);
     assert!(before != full, "the cut does not show");
     assert!(ctx.errors.take().is_none());
 }

@@ -9,13 +9,13 @@
 use std::path::{Path, PathBuf};
 
 use glam::{Quat, Vec2, Vec3, Vec4};
-use thicket::gpu::{GBuffer, GpuContext, RenderTarget, Renderer, read_rgba8};
+use thicket::gpu::{GBuffer, GpuContext, RenderTarget, Renderer};
 use thicket_core::mesh::{Material, MeshModel, Texture, TriangleMesh};
 use thicket_core::render::{FrameBuffers, RenderRequest, render_document};
 use thicket_core::scene::{Document, Light, MeshObject, ObjectKind};
 
 mod common;
-use common::gpu::{context, cpu_gpu_parity, gpu_frame};
+use common::gpu::{assert_same_as_full_upload, context, cpu_gpu_parity, gpu_frame};
 
 const ASSETS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets");
 
@@ -349,16 +349,7 @@ fn moving_a_textured_mesh_uploads_only_its_triangles() {
         "{:?}",
         moved.upload
     );
-    let incremental = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-    fresh
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
-        .expect("full frame");
-    let full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    assert!(
-        incremental == full,
-        "incremental upload differs from a full one"
-    );
+    assert_same_as_full_upload(&ctx, &doc, &q, &target);
 
     if let Some(m) = meshes_mut(&mut doc).next() {
         m.materials[0].base_color_texture = Some(texture(6, 5, 11));

@@ -359,6 +359,31 @@ struct Timed {
     first_query: u32,
 }
 
+/// A render pass with only a depth attachment, cleared and discarded: the mesh passes write
+/// their depth into the key buffer with atomics, the attachment only gives them a target.
+fn depth_only_pass<'e>(
+    enc: &'e mut wgpu::CommandEncoder,
+    ts: &mut Option<Timestamps>,
+    name: &'static str,
+    attachment: &wgpu::TextureView,
+) -> wgpu::RenderPass<'e> {
+    enc.begin_render_pass(&wgpu::RenderPassDescriptor {
+        label: Some(name),
+        color_attachments: &[],
+        depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+            view: attachment,
+            depth_ops: Some(wgpu::Operations {
+                load: wgpu::LoadOp::Clear(1.0),
+                store: wgpu::StoreOp::Discard,
+            }),
+            stencil_ops: None,
+        }),
+        timestamp_writes: ts.as_mut().and_then(|t| t.render(name)),
+        occlusion_query_set: None,
+        multiview_mask: None,
+    })
+}
+
 /// Timestamp bookkeeping for one frame.
 struct Timestamps {
     set: wgpu::QuerySet,
@@ -1615,21 +1640,7 @@ impl Renderer {
             if tris == 0 {
                 return;
             }
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some(name),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: attachment,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: ts.as_mut().and_then(|t| t.render(name)),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = depth_only_pass(enc, ts, name, attachment);
             pass.set_pipeline(pipeline);
             pass.set_bind_group(0, bg, &[]);
             pass.draw(0..tris * 3, 0..1);
@@ -1686,21 +1697,7 @@ impl Renderer {
             // Every map's casters in one render pass, each map in its own viewport of the
             // shared attachment (the fragment's pixel indexes that map's key range).
             let name = "shadow meshes";
-            let mut pass = enc.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some(name),
-                color_attachments: &[],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: attachment,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: ts.as_mut().and_then(|t| t.render(name)),
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
+            let mut pass = depth_only_pass(&mut enc, &mut ts, name, attachment);
             pass.set_pipeline(&self.mesh32);
             for (m, bg) in shadows.iter().zip(&bg_mesh_shadows) {
                 let (mw, mh) = (m.view.width, m.view.height);

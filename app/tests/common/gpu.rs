@@ -100,3 +100,25 @@ pub fn cpu_gpu_parity(
     }
     p
 }
+
+/// Reads `target` (a frame drawn after an incremental upload), renders `doc` into it again
+/// with a fresh renderer (a full upload) and asserts that both images are identical; returns
+/// the full-upload image (RGBA8 bytes).
+pub fn assert_same_as_full_upload(
+    ctx: &GpuContext,
+    doc: &Document,
+    quality: &Quality,
+    target: &RenderTarget,
+) -> Vec<u8> {
+    let incremental = read_rgba8(&ctx.device, &ctx.queue, target).expect("readback");
+    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    fresh
+        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, target)
+        .expect("full frame");
+    let full = read_rgba8(&ctx.device, &ctx.queue, target).expect("readback");
+    assert!(
+        incremental == full,
+        "the frame after an incremental upload differs from a full upload"
+    );
+    full
+}
