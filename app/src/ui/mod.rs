@@ -822,7 +822,11 @@ impl EditorApp {
         };
         match files::load_document(&r.path) {
             Ok(doc) => {
-                self.editor.replace_document(doc, r.meta.original.clone());
+                // Linked models' enhancers are built with the load (as Open does), so the first
+                // dab on the recovered work updates incrementally.
+                let prepared = crate::editor::PreparedDocument::new(doc, None);
+                self.editor
+                    .replace_document_prepared(prepared, r.meta.original.clone());
                 self.editor.mark_modified();
                 self.status = "Recovered the autosaved work: save it to keep it".into();
             }
@@ -1792,11 +1796,8 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
 mod tests {
     use super::*;
 
-    /// Open (the job, as File -> Open runs it) builds a linked model's enhancer on the worker
-    /// thread: the first dab after it updates incrementally, with no full enhancement on the
-    /// UI thread.
-    #[test]
-    fn the_first_dab_after_open_does_not_rebuild_the_enhancer() {
+    /// An editor holding a small voxel slab linked to its 4x enhancement, and the slab's id.
+    fn linked_slab() -> (Editor, u64) {
         use glam::{UVec3, Vec3};
         use thicket_core::scene::{ObjectKind, VoxelModel};
         let mut svo = thicket_core::svo::Svo::new(4, false).unwrap();
@@ -1825,6 +1826,32 @@ mod tests {
         let mut ed = Editor::default();
         let id = ed.add_object("Slab", ObjectKind::Voxels(model));
         ed.add_enhancement(id, settings, fine, None).unwrap();
+        (ed, id)
+    }
+
+    /// A dab on the slab: it must re-enhance incrementally, with no full enhancement.
+    fn assert_first_dab_is_incremental(app: &mut EditorApp, id: u64) {
+        let brush = thicket_core::sculpt::Brush::default();
+        app.editor.begin_stroke();
+        let changed = app
+            .editor
+            .sculpt_dab(id, &brush, glam::Vec3::new(6.5, 4.5, 6.5), glam::Vec3::ZERO)
+            .unwrap();
+        assert!(changed.is_some(), "the dab changed voxels");
+        let update = app
+            .editor
+            .last_enhance_update()
+            .expect("the dab re-enhanced");
+        assert!(update.fine_changes > 0 && !update.rebuilt);
+        assert_eq!(app.editor.enhancer_rebuilds(), 0);
+    }
+
+    /// Open (the job, as File -> Open runs it) builds a linked model's enhancer on the worker
+    /// thread: the first dab after it updates incrementally, with no full enhancement on the
+    /// UI thread.
+    #[test]
+    fn the_first_dab_after_open_does_not_rebuild_the_enhancer() {
+        let (ed, id) = linked_slab();
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("linked.thicket.json");
         files::save_project(ed.doc(), &path).unwrap();
@@ -1834,19 +1861,25 @@ mod tests {
         app.request_open(path);
         app.wait_for_job(&ctx);
         assert!(app.error_dialog.is_none(), "{:?}", app.error_dialog);
-        let brush = thicket_core::sculpt::Brush::default();
-        app.editor.begin_stroke();
-        let changed = app
-            .editor
-            .sculpt_dab(id, &brush, Vec3::new(6.5, 4.5, 6.5), Vec3::ZERO)
-            .unwrap();
-        assert!(changed.is_some(), "the dab changed voxels");
-        let update = app
-            .editor
-            .last_enhance_update()
-            .expect("the dab re-enhanced");
-        assert!(update.fine_changes > 0 && !update.rebuilt);
-        assert_eq!(app.editor.enhancer_rebuilds(), 0);
+        assert_first_dab_is_incremental(&mut app, id);
+    }
+
+    /// Recovering autosaved work prepares the enhancers as Open does.
+    #[test]
+    fn the_first_dab_after_recovery_does_not_rebuild_the_enhancer() {
+        let (ed, id) = linked_slab();
+        let dir = tempfile::tempdir().unwrap();
+        autosave::write_recovery(dir.path(), ed.doc(), None).unwrap();
+        let mut app = EditorApp {
+            recovery_dir: dir.path().to_path_buf(),
+            ..EditorApp::default()
+        };
+        app.check_recovery();
+        assert!(app.recovery.is_some(), "the recovery file is found");
+        app.recover();
+        assert!(app.error_dialog.is_none(), "{:?}", app.error_dialog);
+        assert!(app.editor.is_dirty(), "recovered work is unsaved");
+        assert_first_dab_is_incremental(&mut app, id);
     }
 
     #[test]
