@@ -291,6 +291,12 @@ impl SculptTool {
                 }
             }
             ui.separator();
+            // Wrap the whole group to the next row when it does not fit, instead of leaving
+            // an axis behind (about the label and three toggles).
+            let row_left = ui.max_rect().right() - ui.cursor().min.x;
+            if row_left < 4.0 * ui.spacing().interact_size.x {
+                ui.end_row();
+            }
             ui.label("Mirror");
             for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
                 ui.toggle_value(&mut self.brush.symmetry[axis], label)
