@@ -6,7 +6,7 @@
 
 use glam::{UVec3, Vec3};
 use thicket::gpu::{GpuContext, GpuError, Renderer, voxel_pool_bytes};
-use thicket_core::render::{Quality, RenderRequest, render_document, scenes};
+use thicket_core::render::{RenderRequest, render_document, scenes};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::{Svo, Voxel};
 
@@ -42,7 +42,7 @@ fn four_spheres() -> Document {
     doc
 }
 
-fn svo_of(doc: &mut Document, name: &str) -> (u64, &mut Svo) {
+fn svo_of<'a>(doc: &'a mut Document, name: &str) -> (u64, &'a mut Svo) {
     let o = doc
         .objects
         .iter_mut()
