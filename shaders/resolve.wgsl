@@ -23,6 +23,19 @@ const TEXTURE_ENTRY_WORDS: u32 = 4u;
 @group(0) @binding(4) var<storage, read> tris: array<vec4<f32>>;
 @group(0) @binding(5) var<storage, read_write> gbuffer: array<vec4<u32>>;
 @group(0) @binding(8) var<storage, read> textures: array<u32>;
+// The voxel pools are split into chunks of whole objects (app/src/gpu/scene.rs): one dispatch
+// per chunk, with that chunk's attributes (and skin data) bound; ids stay global.
+// `ResolveChunk` in app/src/gpu/gpu_data.rs.
+struct ResolveChunk {
+    // Global id of attrs[0].
+    attr_start: u32,
+    // One past the last voxel id this dispatch resolves.
+    attr_end: u32,
+    // Nonzero: this dispatch also writes the background and mesh pixels.
+    others: u32,
+    pad: u32,
+}
+@group(0) @binding(9) var<uniform> resolve_range: ResolveChunk;
 
 fn barycentric(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
     let n = cross(b - a, c - a);
@@ -100,6 +113,13 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     let pixel = gid.y * view.size.x + gid.x;
     let key = keys[pixel];
+    let voxel = key.y != EMPTY && (key.x & MESH_ID_FLAG) == 0u;
+    if voxel && (key.x < resolve_range.attr_start || key.x >= resolve_range.attr_end) {
+        return;
+    }
+    if !voxel && resolve_range.others == 0u {
+        return;
+    }
     if key.y == EMPTY {
         gbuffer[pixel] = vec4<u32>(0u, 0u, 0u, EMPTY);
         return;
@@ -135,7 +155,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         normal = n;
     } else {
-        let attr = attrs[id];
+        let attr = attrs[id - resolve_range.attr_start];
         let rgba = unpack4x8unorm(attr.x);
         albedo = vec3<f32>(srgb_to_linear(rgba.x), srgb_to_linear(rgba.y), srgb_to_linear(rgba.z));
         let o = objects[attr.y >> 16u];

@@ -60,6 +60,9 @@ pub struct BenchReport {
     /// The view's voxel pass against a same-size buffer copy (GPU, 64-bit splat path, when
     /// asked for).
     pub splat_bandwidth: Option<SplatBandwidth>,
+    /// GPU: chunks the voxel pools were split into to fit the storage binding limit (1 for a
+    /// scene under the limit); 0 for the CPU.
+    pub pool_chunks: usize,
 }
 
 /// KRS counters of one frame, the same on both renderers.
@@ -145,6 +148,7 @@ pub fn bench_cpu(
         "shade",
     ];
     Ok(BenchReport {
+        pool_chunks: 0,
         renderer: "cpu",
         device: format!("CPU, {} threads (rayon)", rayon_threads()),
         width,
@@ -216,8 +220,12 @@ pub fn bench_gpu(
     frames: u32,
     force_two_pass: bool,
     splat_repeats: u32,
+    binding_limit: Option<u64>,
 ) -> Result<BenchReport, GpuError> {
-    let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
+    let ctx = GpuContext::new_headless_with_binding_limit(
+        wgpu::PowerPreference::HighPerformance,
+        binding_limit,
+    )?;
     let mut r = Renderer::new(&ctx.device, &ctx.queue)?;
     r.set_force_two_pass(force_two_pass);
     let target = RenderTarget::new(&ctx.device, width, height)?;
@@ -263,6 +271,7 @@ pub fn bench_gpu(
     let (mean, median, min) = summarise(&mut times);
     let stats = last.unwrap_or_default();
     Ok(BenchReport {
+        pool_chunks: r.pool_chunks(),
         renderer: "gpu",
         device: ctx.describe(),
         width,
@@ -309,7 +318,11 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
         r.mean_ms, r.median_ms, r.min_ms, r.fps
     );
     if !r.atomic_path.is_empty() {
-        let _ = writeln!(s, "  splat path: {}", r.atomic_path);
+        let _ = writeln!(
+            s,
+            "  splat path: {}; voxel pools in {} chunk(s)",
+            r.atomic_path, r.pool_chunks
+        );
     }
     let source = match (r.renderer, r.gpu_timestamps) {
         ("gpu", true) => "GPU timestamp queries",

@@ -134,6 +134,10 @@ pub struct BenchArgs {
     /// buffer copy of the same bytes); 0 skips it.
     #[arg(long, default_value_t = 5)]
     pub splat_repeats: u32,
+    /// GPU: request this `max_storage_buffer_binding_size` (bytes) when below the adapter's,
+    /// so the voxel pools are split into more chunks (to measure what chunking costs).
+    #[arg(long, value_name = "BYTES")]
+    pub binding_limit: Option<u64>,
 }
 
 /// Enhancement operator for `thicket enhance`.
@@ -995,6 +999,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
             args.frames,
             args.two_pass,
             args.splat_repeats,
+            args.binding_limit,
         )
         .with_context(|| format!("{name}: GPU bench"))
     };

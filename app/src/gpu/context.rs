@@ -113,6 +113,20 @@ impl GpuContext {
     /// [`GpuError::NoAdapter`] when no adapter is found, [`GpuError::RequestDevice`] when the
     /// device cannot be created.
     pub fn new_headless(power: wgpu::PowerPreference) -> Result<Self, GpuError> {
+        Self::new_headless_with_binding_limit(power, None)
+    }
+
+    /// As [`GpuContext::new_headless`], with `max_storage_buffer_binding_size` requested at
+    /// `binding_limit` bytes when that is below the adapter's (a lower limit is legal and makes
+    /// wgpu validate every binding against it): how tests exercise scenes split across
+    /// bindings without gigabytes of data.
+    ///
+    /// # Errors
+    /// As [`GpuContext::new_headless`].
+    pub fn new_headless_with_binding_limit(
+        power: wgpu::PowerPreference,
+        binding_limit: Option<u64>,
+    ) -> Result<Self, GpuError> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if std::env::var_os("WGPU_BACKEND").is_none() {
             desc.backends = wgpu::Backends::VULKAN | wgpu::Backends::GL;
@@ -125,7 +139,11 @@ impl GpuContext {
             apply_limit_buckets: false,
         }))
         .map_err(|e| GpuError::NoAdapter(e.to_string()))?;
-        let (device, queue) = request_device(&adapter)?;
+        let mut limits = wanted_limits(&adapter);
+        if let Some(l) = binding_limit {
+            limits.max_storage_buffer_binding_size = limits.max_storage_buffer_binding_size.min(l);
+        }
+        let (device, queue) = request_device_with_limits(&adapter, limits)?;
         let errors = install_error_handlers(&device);
         Ok(Self {
             adapter,
@@ -152,6 +170,13 @@ impl GpuContext {
 /// # Errors
 /// [`GpuError::RequestDevice`].
 pub fn request_device(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Queue), GpuError> {
+    request_device_with_limits(adapter, wanted_limits(adapter))
+}
+
+fn request_device_with_limits(
+    adapter: &wgpu::Adapter,
+    limits: wgpu::Limits,
+) -> Result<(wgpu::Device, wgpu::Queue), GpuError> {
     let features = adapter.features() & wanted_features();
     // 64-bit atomics are only usable with 64-bit integers in the shader.
     let features = if features
@@ -164,7 +189,7 @@ pub fn request_device(adapter: &wgpu::Adapter) -> Result<(wgpu::Device, wgpu::Qu
     pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
         label: Some("thicket"),
         required_features: features,
-        required_limits: wanted_limits(adapter),
+        required_limits: limits,
         ..Default::default()
     }))
     .map_err(|e| GpuError::RequestDevice(e.to_string()))

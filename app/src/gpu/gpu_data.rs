@@ -305,6 +305,26 @@ pub struct ClearParams {
 }
 const _: () = assert!(std::mem::size_of::<ClearParams>() == 16);
 
+/// Which pixels one resolve dispatch writes: the voxel pools are split into chunks of whole
+/// objects (`scene::PoolChunk`), and the resolve runs once per chunk with that chunk's
+/// attribute buffer bound.
+///
+/// Keep in sync with `shaders/resolve.wgsl` (`ResolveChunk`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct ResolveChunk {
+    /// Global attribute index (voxel id) of the bound attribute buffer's first element.
+    pub attr_start: u32,
+    /// One past the last voxel id this dispatch resolves.
+    pub attr_end: u32,
+    /// 1 when this dispatch also writes the pixels that are not voxels (meshes, background):
+    /// exactly one dispatch per frame does.
+    pub others: u32,
+    /// Padding.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<ResolveChunk>() == 16);
+
 /// Bytes of one queue entry (`vec4<u32>`: node index, origin xyz).
 pub const QUEUE_ENTRY_BYTES: u64 = 16;
 /// Bytes of one packed key (depth bits << 32 | id).

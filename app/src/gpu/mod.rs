@@ -23,7 +23,7 @@ pub mod splat_bw;
 
 pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
-pub use scene::UploadStats;
+pub use scene::{UploadStats, voxel_pool_bytes};
 
 use thicket_core::render::{Quality, QualityError};
 use thicket_core::scene::{Document, OrbitCamera, SceneError};
@@ -63,6 +63,18 @@ pub enum GpuError {
         /// The limit.
         limit: u64,
     },
+    /// One voxel object's pool does not fit a buffer binding by itself (pools are split into
+    /// chunks of whole objects, so every object must fit one binding alone).
+    ObjectTooLarge {
+        /// The object's name.
+        object: String,
+        /// Which of its pools.
+        what: &'static str,
+        /// Bytes the pool needs (spare room for edits included).
+        bytes: u64,
+        /// The limit.
+        limit: u64,
+    },
     /// The document holds a value a renderer must not see.
     InvalidDocument(SceneError),
     /// A quality knob is out of range.
@@ -90,6 +102,17 @@ impl std::fmt::Display for GpuError {
             Self::TooLarge { what, bytes, limit } => write!(
                 f,
                 "{what} needs {bytes} bytes, above this device's limit of {limit} bytes per binding"
+            ),
+            Self::ObjectTooLarge {
+                object,
+                what,
+                bytes,
+                limit,
+            } => write!(
+                f,
+                "voxel object \"{object}\": its {what} needs {bytes} bytes, above this device's \
+                 limit of {limit} bytes per binding (objects are split across bindings, but one \
+                 object must fit a binding alone)"
             ),
             Self::InvalidDocument(e) => write!(f, "cannot render the document: {e}"),
             Self::InvalidQuality(e) => write!(f, "cannot render with these quality settings: {e}"),

@@ -17,8 +17,8 @@ use super::context::Capabilities;
 use super::gpu_data::{
     COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
     MODE_ID, MODE_KEY64, NO_SHADOW_MAP, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE,
-    OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL, STATS_START,
-    ShadingUniform, ShadowMapGpu, ViewUniform, ao_kernel,
+    OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES, ResolveChunk, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL,
+    STATS_START, ShadingUniform, ShadowMapGpu, ViewUniform, ao_kernel,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -433,6 +433,8 @@ impl Timestamps {
 struct Traversal {
     first_slot: u32,
     depth: u8,
+    /// The pool chunk holding the object (selects the group-0 bind group).
+    chunk: usize,
 }
 
 /// One light's shadow map this frame.
@@ -519,6 +521,7 @@ impl Renderer {
                 storage(6, true, cs),
                 storage(7, true, cs),
                 storage(8, true, cs),
+                uniform(9, false, cs),
             ],
         );
         let shade_bgl = bgl(
@@ -819,12 +822,19 @@ impl Renderer {
         let stats = UploadStats {
             full: true,
             bytes: scene.bytes(),
-            writes: 4,
+            writes: scene.buffer_count(),
             ..UploadStats::default()
         };
         self.scene = Some(scene);
         self.skin.invalidate();
         Ok(stats)
+    }
+
+    /// How many chunks the uploaded scene's voxel pools are split into (each chunk's buffers
+    /// fit one storage binding; 0 before the first upload).
+    #[must_use]
+    pub fn pool_chunks(&self) -> usize {
+        self.scene.as_ref().map_or(0, |s| s.chunks.len())
     }
 
     /// After an edit of voxel object `object_id` inside the inclusive box `lo..=hi` (voxel
@@ -1067,15 +1077,35 @@ impl Renderer {
             .ok_or_else(|| GpuError::Device("no scene uploaded".into()))?;
         let mut frame_objects = scene.frame_objects(doc);
         skin.apply(scene, &mut frame_objects);
-        let (inner_buf, attr_buf, tri_buf, texture_buf) = (
-            scene.inner_buf.clone(),
-            scene.attr_buf.clone(),
-            scene.tri_buf.clone(),
-            scene.texture_buf.clone(),
-        );
+        let (tri_buf, texture_buf) = (scene.tri_buf.clone(), scene.texture_buf.clone());
+        // Per pool chunk: (inner nodes, attributes, skin data, resolve range).
+        let chunks: Vec<(wgpu::Buffer, wgpu::Buffer, wgpu::Buffer, ResolveChunk)> = scene
+            .chunks
+            .iter()
+            .zip(&skin.data_bufs)
+            .enumerate()
+            .map(|(i, (c, skin_data))| {
+                (
+                    c.inner_buf.clone(),
+                    c.attr_buf.clone(),
+                    skin_data.clone(),
+                    ResolveChunk {
+                        attr_start: c.attr_start,
+                        attr_end: c.attr_end,
+                        others: u32::from(i == 0),
+                        pad: 0,
+                    },
+                )
+            })
+            .collect();
+        if chunks.len() != scene.chunks.len() {
+            return Err(GpuError::Device(
+                "skin data does not follow the pool chunks".into(),
+            ));
+        }
         let (caster_tris, tri_count, cap) =
             (scene.caster_tris, scene.tri_count, scene.queue_capacity);
-        let voxel_entries: Vec<(Mat4, u8, u32, u32, u32)> = scene
+        let voxel_entries: Vec<(Mat4, u8, u32, u32, u32, usize)> = scene
             .voxels
             .iter()
             .zip(&frame_objects.world_from_voxel)
@@ -1086,6 +1116,7 @@ impl Renderer {
                     e.inner_base,
                     e.attr_inner_base,
                     e.attr_leaf_base,
+                    e.chunk,
                 )
             })
             .collect();
@@ -1273,7 +1304,14 @@ impl Renderer {
                 .zip(&skin.params)
                 .map(
                     |(
-                        &(world_from_voxel, depth, inner_base, attr_inner_base, attr_leaf_base),
+                        &(
+                            world_from_voxel,
+                            depth,
+                            inner_base,
+                            attr_inner_base,
+                            attr_leaf_base,
+                            chunk,
+                        ),
                         &skin_params,
                     )| {
                         let first_slot = (slots.len() as u64 / NODE_PARAMS_STRIDE) as u32;
@@ -1302,7 +1340,11 @@ impl Renderer {
                                 0,
                             );
                         }
-                        Traversal { first_slot, depth }
+                        Traversal {
+                            first_slot,
+                            depth,
+                            chunk,
+                        }
                     },
                 )
                 .collect()
@@ -1389,7 +1431,10 @@ impl Renderer {
         let shading_buf = upload("shading", bytemuck::bytes_of(&shading), U::UNIFORM);
 
         // Bind groups.
-        let trav0 = |view: &wgpu::Buffer, keys: wgpu::BufferBinding<'_>| {
+        // One per pool chunk: its inner nodes and skin data.
+        let trav0 = |view: &wgpu::Buffer,
+                     keys: wgpu::BufferBinding<'_>,
+                     (inner_buf, skin_data): (&wgpu::Buffer, &wgpu::Buffer)| {
             device.create_bind_group(&wgpu::BindGroupDescriptor {
                 label: Some("traverse 0"),
                 layout: &self.trav_bgl[0],
@@ -1416,7 +1461,7 @@ impl Renderer {
                     },
                     wgpu::BindGroupEntry {
                         binding: 6,
-                        resource: skin.data_buf.as_entire_binding(),
+                        resource: skin_data.as_entire_binding(),
                     },
                     wgpu::BindGroupEntry {
                         binding: 7,
@@ -1437,8 +1482,14 @@ impl Renderer {
         );
         let occlusion = quality.occlusion_culling;
         let bg_indirect = bind_group(device, &self.indirect_bgl, "indirect", &[&indirect]);
-        let bg_main = trav0(&view_main, keys_main.as_entire_buffer_binding());
-        let bg_main_id = trav0(&view_main_id, keys_main.as_entire_buffer_binding());
+        let per_chunk = |view: &wgpu::Buffer, keys: &wgpu::BufferBinding<'_>| {
+            chunks
+                .iter()
+                .map(|(inner, _, skin_data, _)| trav0(view, keys.clone(), (inner, skin_data)))
+                .collect::<Vec<wgpu::BindGroup>>()
+        };
+        let bg_main = per_chunk(&view_main, &keys_main.as_entire_buffer_binding());
+        let bg_main_id = per_chunk(&view_main_id, &keys_main.as_entire_buffer_binding());
         // Each map's passes see only its own range of the shadow key buffer, so the splat and
         // mesh shaders index it from 0 as they index the view's.
         let shadow_keys_of = |m: &ShadowPlan| wgpu::BufferBinding {
@@ -1446,10 +1497,10 @@ impl Renderer {
             offset: m.offset,
             size: wgpu::BufferSize::new(m.bytes),
         };
-        let bg_shadows: Vec<wgpu::BindGroup> = shadows
+        let bg_shadows: Vec<Vec<wgpu::BindGroup>> = shadows
             .iter()
             .zip(&shadow_views)
-            .map(|(m, v)| trav0(v, shadow_keys_of(m)))
+            .map(|(m, v)| per_chunk(v, &shadow_keys_of(m)))
             .collect();
         let bg_params = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("node params"),
@@ -1523,22 +1574,30 @@ impl Renderer {
                 })
             })
             .collect();
-        let bg_resolve = bind_group(
-            device,
-            &self.resolve_bgl,
-            "resolve",
-            &[
-                &view_main,
-                &keys_main,
-                &attr_buf,
-                &object_buf,
-                &tri_buf,
-                &gbuffer,
-                &skin.data_buf,
-                &skin.joint_buf,
-                &texture_buf,
-            ],
-        );
+        // One resolve dispatch per pool chunk, each over the voxel ids its attributes hold.
+        let bg_resolve: Vec<wgpu::BindGroup> = chunks
+            .iter()
+            .map(|(_, attr_buf, skin_data, range)| {
+                let range_buf = upload("resolve chunk", bytemuck::bytes_of(range), U::UNIFORM);
+                bind_group(
+                    device,
+                    &self.resolve_bgl,
+                    "resolve",
+                    &[
+                        &view_main,
+                        &keys_main,
+                        attr_buf,
+                        &object_buf,
+                        &tri_buf,
+                        &gbuffer,
+                        skin_data,
+                        &skin.joint_buf,
+                        &texture_buf,
+                        &range_buf,
+                    ],
+                )
+            })
+            .collect();
         let bg_shade = device.create_bind_group(&wgpu::BindGroupDescriptor {
             label: Some("shade"),
             layout: &self.shade_bgl,
@@ -1649,7 +1708,7 @@ impl Renderer {
                              ts: &mut Option<Timestamps>,
                              name: &'static str,
                              pipeline: &wgpu::ComputePipeline,
-                             views: &[(&wgpu::BindGroup, &[Traversal])],
+                             views: &[(&[wgpu::BindGroup], &[Traversal])],
                              hiz: bool| {
             if views.iter().all(|(_, travs)| travs.is_empty()) {
                 return;
@@ -1660,10 +1719,11 @@ impl Renderer {
                 label: Some(name),
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute(name)),
             });
-            for (bg0, t) in views
-                .iter()
-                .flat_map(|&(bg0, travs)| travs.iter().map(move |t| (bg0, t)))
-            {
+            for (bg0, t) in views.iter().flat_map(|&(bgs, travs)| {
+                travs
+                    .iter()
+                    .filter_map(move |t| Some((bgs.get(t.chunk)?, t)))
+            }) {
                 let slot = |level: u32| ((t.first_slot + level) as u64 * NODE_PARAMS_STRIDE) as u32;
                 pass.set_bind_group(0, bg0, &[]);
                 pass.set_bind_group(3, &bg_indirect, &[]);
@@ -1707,10 +1767,10 @@ impl Renderer {
                 pass.draw(0..caster_tris * 3, 0..1);
             }
         }
-        let shadow_views_trav: Vec<(&wgpu::BindGroup, &[Traversal])> = bg_shadows
+        let shadow_views_trav: Vec<(&[wgpu::BindGroup], &[Traversal])> = bg_shadows
             .iter()
             .zip(&shadow_travs)
-            .map(|(bg, t)| (bg, t.as_slice()))
+            .map(|(bg, t)| (bg.as_slice(), t.as_slice()))
             .collect();
         traverse_pass(
             &mut enc,
@@ -1736,7 +1796,7 @@ impl Renderer {
                     &mut ts,
                     "voxels",
                     trav64,
-                    &[(&bg_main, &main_trav)],
+                    &[(bg_main.as_slice(), &main_trav)],
                     occlusion,
                 );
             }
@@ -1755,7 +1815,7 @@ impl Renderer {
                     &mut ts,
                     "voxels",
                     &self.traverse32,
-                    &[(&bg_main, &main_trav)],
+                    &[(bg_main.as_slice(), &main_trav)],
                     occlusion,
                 );
                 mesh_pass(
@@ -1772,7 +1832,7 @@ impl Renderer {
                     &mut ts,
                     "voxels",
                     &self.traverse32,
-                    &[(&bg_main_id, &main_trav)],
+                    &[(bg_main_id.as_slice(), &main_trav)],
                     false,
                 );
             }
@@ -1783,8 +1843,10 @@ impl Renderer {
                 timestamp_writes: ts.as_mut().and_then(|t| t.compute("resolve")),
             });
             pass.set_pipeline(&self.resolve);
-            pass.set_bind_group(0, &bg_resolve, &[]);
-            pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            for bg in &bg_resolve {
+                pass.set_bind_group(0, bg, &[]);
+                pass.dispatch_workgroups(w.div_ceil(8), h.div_ceil(8), 1);
+            }
         }
         if let (Some(k), Some(krs)) = (&krs_frame, &self.krs) {
             for (name, trace) in [("krs trace", true), ("krs light", false)] {
@@ -1847,7 +1909,7 @@ impl Renderer {
                             &mut ts,
                             "voxels",
                             trav64,
-                            &[(&bg_main, &main_trav)],
+                            &[(bg_main.as_slice(), &main_trav)],
                             occlusion,
                         );
                     };

@@ -1,6 +1,7 @@
-//! The scene as the GPU holds it: every visible voxel object's node pools packed into one inner
-//! pool and one attribute pool (each object with spare room so edits that grow its pools stay
-//! in place), and world-space triangles. Uploaded once; afterwards an edit uploads only the
+//! The scene as the GPU holds it: every visible voxel object's node pools packed into inner
+//! and attribute pools (each object with spare room so edits that grow its pools stay in
+//! place), split into [`PoolChunk`]s of whole objects so each chunk's buffers fit one storage
+//! binding, and world-space triangles. Uploaded once; afterwards an edit uploads only the
 //! node ranges it changed ([`SceneCache::update_voxel_region`]), a transform change only the
 //! small per-object data (and a mesh's triangles, never its textures).
 //!
@@ -59,13 +60,16 @@ impl UploadStats {
 pub(super) struct VoxelEntry {
     pub(super) object_id: u64,
     pub(super) depth: u8,
-    /// First slot of its inner pool in the scene's inner pool.
+    /// The [`PoolChunk`] holding its pools.
+    pub(super) chunk: usize,
+    /// First slot of its inner pool in its chunk's inner buffer.
     pub(super) inner_base: u32,
     /// Slots reserved for its inner pool.
     inner_cap: u32,
     /// Slots of its inner pool at the last upload.
     pub(super) inner_len: u32,
-    /// Attribute index of its inner node 0 (`attr_inner_base + inner_cap` is leaf 0).
+    /// Attribute index of its inner node 0 (`attr_inner_base + inner_cap` is leaf 0), global
+    /// over all chunks: the id its splats write.
     pub(super) attr_inner_base: u32,
     pub(super) attr_leaf_base: u32,
     leaf_cap: u32,
@@ -211,13 +215,62 @@ fn pack_attr(color: [u8; 4], normal: u16, obj: u32) -> [u32; 2] {
     [u32::from_le_bytes(color), u32::from(normal) | (obj << 16)]
 }
 
+/// Consecutive voxel objects whose pools share one inner and one attribute buffer, each under
+/// the device's storage binding limit. Attribute indices (splat ids) stay global: the chunk
+/// holds ids `attr_start..attr_end`.
+pub(super) struct PoolChunk {
+    pub(super) inner_buf: wgpu::Buffer,
+    pub(super) attr_buf: wgpu::Buffer,
+    /// Global attribute index of the buffer's first element.
+    pub(super) attr_start: u32,
+    /// One past the global attribute index of its last element.
+    pub(super) attr_end: u32,
+}
+
+/// Bytes [`storage_init`] allocates for `bytes` of data.
+fn padded(bytes: u64) -> u64 {
+    bytes.max(256).next_multiple_of(16)
+}
+
+/// The chunk each object goes into: consecutive objects share a chunk while both its buffers
+/// (as [`storage_init`] pads them) stay within `limit`. `sizes` are per object (inner pool
+/// bytes, attribute pool bytes). Returns the chunk index per object, or the index of the first
+/// object that does not fit a binding alone.
+fn assign_chunks(sizes: &[(u64, u64)], limit: u64) -> Result<Vec<usize>, usize> {
+    let mut out = Vec::with_capacity(sizes.len());
+    let (mut chunk, mut inner, mut attr) = (0usize, 0u64, 0u64);
+    for (i, &(oi, oa)) in sizes.iter().enumerate() {
+        if padded(oi) > limit || padded(oa) > limit {
+            return Err(i);
+        }
+        if i > 0 && (padded(inner + oi) > limit || padded(attr + oa) > limit) {
+            chunk += 1;
+            (inner, attr) = (0, 0);
+        }
+        inner += oi;
+        attr += oa;
+        out.push(chunk);
+    }
+    Ok(out)
+}
+
+/// Bytes a voxel octree's pools take on the GPU, spare room included: (inner node pool,
+/// attribute pool). An object is drawable only when both fit one storage binding
+/// (`max_storage_buffer_binding_size`); objects are grouped into chunks within that limit.
+#[must_use]
+pub fn voxel_pool_bytes(svo: &Svo) -> (u64, u64) {
+    let inner = u64::from(with_room(svo.inner_masks().len()));
+    let leaf = u64::from(with_room(svo.leaf_colors().len()));
+    (inner * 8, (inner + leaf) * 8)
+}
+
 /// The uploaded scene: layout, CPU copies of what the incremental paths need, GPU buffers.
 pub(super) struct SceneCache {
     layout: Vec<(u64, bool)>,
     pub(super) voxels: Vec<VoxelEntry>,
     meshes: Vec<MeshEntry>,
-    pub(super) inner_buf: wgpu::Buffer,
-    pub(super) attr_buf: wgpu::Buffer,
+    /// The voxel pools, in chunks of whole objects (at least one, possibly empty).
+    pub(super) chunks: Vec<PoolChunk>,
     pub(super) tri_buf: wgpu::Buffer,
     /// Mesh base-colour textures (layout in the module docs).
     pub(super) texture_buf: wgpu::Buffer,
@@ -414,7 +467,8 @@ impl SceneCache {
     ) -> Result<Self, GpuError> {
         let mut inner: Vec<[u32; 2]> = Vec::new();
         let mut attrs: Vec<[u32; 2]> = Vec::new();
-        let mut voxels = Vec::new();
+        let mut voxels: Vec<VoxelEntry> = Vec::new();
+        let mut names: Vec<String> = Vec::new();
         let mut queue_capacity = 1u64;
         for o in doc.objects.iter().filter(|o| o.visible) {
             let ObjectKind::Voxels(v) = &o.kind else {
@@ -468,9 +522,11 @@ impl SceneCache {
             }
             let live_nodes = svo.inner_count() + svo.leaf_count();
             queue_capacity = queue_capacity.max(live_nodes);
+            names.push(o.name.clone());
             voxels.push(VoxelEntry {
                 object_id: o.id,
                 depth: svo.depth(),
+                chunk: 0,
                 inner_base: inner_base as u32,
                 inner_cap,
                 inner_len: inner_len as u32,
@@ -482,10 +538,9 @@ impl SceneCache {
             });
         }
         let limit = limits.max_storage_buffer_binding_size;
+        let chunks = chunk_pools(device, &mut voxels, &names, &inner, &attrs, limit)?;
         let (texture_words, textures) = pack_textures(doc, limit)?;
         let (tris, caster_tris, meshes) = pack_triangles(doc, &textures);
-        check_binding("inner node pool", inner.len() as u64 * 8, limit)?;
-        check_binding("attribute pool", attrs.len() as u64 * 8, limit)?;
         check_binding(
             "triangle buffer",
             std::mem::size_of_val(tris.as_slice()) as u64,
@@ -495,8 +550,7 @@ impl SceneCache {
             layout: layout_of(doc),
             voxels,
             meshes,
-            inner_buf: storage_init(device, "inner nodes", bytemuck::cast_slice(&inner)),
-            attr_buf: storage_init(device, "attributes", bytemuck::cast_slice(&attrs)),
+            chunks,
             tri_buf: storage_init(device, "triangles", bytemuck::cast_slice(&tris)),
             texture_buf: storage_init(
                 device,
@@ -513,7 +567,17 @@ impl SceneCache {
 
     /// Bytes the scene's buffers hold.
     pub(super) fn bytes(&self) -> u64 {
-        self.inner_buf.size() + self.attr_buf.size() + self.tri_buf.size() + self.texture_buf.size()
+        let pools: u64 = self
+            .chunks
+            .iter()
+            .map(|c| c.inner_buf.size() + c.attr_buf.size())
+            .sum();
+        pools + self.tri_buf.size() + self.texture_buf.size()
+    }
+
+    /// Buffers a full upload writes.
+    pub(super) fn buffer_count(&self) -> u32 {
+        2 * self.chunks.len() as u32 + 2
     }
 
     /// Whether the document still has the uploaded layout: the same visible objects in the
@@ -635,6 +699,12 @@ impl SceneCache {
         let obj = i as u32;
         self.skin_stale = true;
         let e = &mut self.voxels[i];
+        let Some(chunk) = self.chunks.get(e.chunk) else {
+            return UploadStats::default();
+        };
+        // Attribute indices are global; the chunk's buffer starts at `attr_start`.
+        let attr_inner = u64::from(e.attr_inner_base - chunk.attr_start);
+        let attr_leaf = u64::from(e.attr_leaf_base - chunk.attr_start);
         let mut stats = UploadStats::default();
         let firsts = svo.inner_first_children();
         let masks = svo.inner_masks();
@@ -651,13 +721,13 @@ impl SceneCache {
                 .collect();
             let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(ic[k], inn[k], obj)).collect();
             queue.write_buffer(
-                &self.inner_buf,
+                &chunk.inner_buf,
                 (u64::from(e.inner_base) + r.start as u64) * 8,
                 bytemuck::cast_slice(&nodes),
             );
             queue.write_buffer(
-                &self.attr_buf,
-                (u64::from(e.attr_inner_base) + r.start as u64) * 8,
+                &chunk.attr_buf,
+                (attr_inner + r.start as u64) * 8,
                 bytemuck::cast_slice(&a),
             );
             stats.bytes += 16 * r.len() as u64;
@@ -670,8 +740,8 @@ impl SceneCache {
             }
             let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(lc[k], ln[k], obj)).collect();
             queue.write_buffer(
-                &self.attr_buf,
-                (u64::from(e.attr_leaf_base) + r.start as u64) * 8,
+                &chunk.attr_buf,
+                (attr_leaf + r.start as u64) * 8,
                 bytemuck::cast_slice(&a),
             );
             stats.bytes += 8 * r.len() as u64;
@@ -736,6 +806,80 @@ impl SceneCache {
         }
         f
     }
+}
+
+/// Splits the packed pools into [`PoolChunk`]s of whole objects (see [`assign_chunks`]), sets
+/// each entry's chunk and makes its `inner_base` local to that chunk's buffer.
+fn chunk_pools(
+    device: &wgpu::Device,
+    voxels: &mut [VoxelEntry],
+    names: &[String],
+    inner: &[[u32; 2]],
+    attrs: &[[u32; 2]],
+    limit: u64,
+) -> Result<Vec<PoolChunk>, GpuError> {
+    // Each object's slots run from its bases to the next object's (or the pools' end).
+    let spans: Vec<(Range<usize>, Range<usize>)> = (0..voxels.len())
+        .map(|i| {
+            let next = voxels.get(i + 1);
+            let e = &voxels[i];
+            (
+                e.inner_base as usize..next.map_or(inner.len(), |n| n.inner_base as usize),
+                e.attr_inner_base as usize
+                    ..next.map_or(attrs.len(), |n| n.attr_inner_base as usize),
+            )
+        })
+        .collect();
+    let sizes: Vec<(u64, u64)> = spans
+        .iter()
+        .map(|(a, b)| (a.len() as u64 * 8, b.len() as u64 * 8))
+        .collect();
+    let of = assign_chunks(&sizes, limit).map_err(|i| {
+        let (inner_bytes, attr_bytes) = sizes[i];
+        let (what, bytes) = if padded(attr_bytes) > limit {
+            ("attribute pool", attr_bytes)
+        } else {
+            ("inner node pool", inner_bytes)
+        };
+        GpuError::ObjectTooLarge {
+            object: names.get(i).cloned().unwrap_or_default(),
+            what,
+            bytes,
+            limit,
+        }
+    })?;
+    let count = of.last().map_or(1, |&c| c + 1);
+    let mut chunks = Vec::with_capacity(count);
+    for c in 0..count {
+        let members: Vec<usize> = (0..voxels.len()).filter(|&i| of[i] == c).collect();
+        let (inner_range, attr_range) = match (members.first(), members.last()) {
+            (Some(&a), Some(&b)) => (
+                spans[a].0.start..spans[b].0.end,
+                spans[a].1.start..spans[b].1.end,
+            ),
+            _ => (0..0, 0..0),
+        };
+        for &i in &members {
+            voxels[i].chunk = c;
+            voxels[i].inner_base -= inner_range.start as u32;
+        }
+        let label = |what: &str| format!("{what} (chunk {c})");
+        chunks.push(PoolChunk {
+            inner_buf: storage_init(
+                device,
+                &label("inner nodes"),
+                bytemuck::cast_slice(&inner[inner_range]),
+            ),
+            attr_buf: storage_init(
+                device,
+                &label("attributes"),
+                bytemuck::cast_slice(&attrs[attr_range.clone()]),
+            ),
+            attr_start: attr_range.start as u32,
+            attr_end: attr_range.end as u32,
+        });
+    }
+    Ok(chunks)
 }
 
 pub(super) fn object_of(doc: &Document, id: u64) -> Option<&thicket_core::scene::Object> {
@@ -836,6 +980,21 @@ mod tests {
             "{err}"
         );
         assert!(err.to_string().contains("mesh texture buffer"), "{err}");
+    }
+
+    #[test]
+    fn chunks_hold_whole_objects_under_the_limit() {
+        // Padded sizes: 256 bytes at least, so objects of 100 bytes take 256 alone.
+        let sizes = [(96, 400), (96, 400), (96, 400), (96, 1000), (8, 16)];
+        // 1024: two 400-byte attribute pools share a chunk, a third does not fit beside them.
+        assert_eq!(assign_chunks(&sizes, 1024), Ok(vec![0, 0, 1, 2, 2]));
+        // A limit above the total: one chunk, as an unsplit scene.
+        assert_eq!(assign_chunks(&sizes, 1 << 20), Ok(vec![0; 5]));
+        // The 1000-byte pool does not fit 999 bytes alone: object 3 is named.
+        assert_eq!(assign_chunks(&sizes, 999), Err(3));
+        // The inner pool counts too.
+        assert_eq!(assign_chunks(&[(600, 16), (600, 16)], 1024), Ok(vec![0, 1]));
+        assert_eq!(assign_chunks(&[], 1024), Ok(vec![]));
     }
 
     #[test]

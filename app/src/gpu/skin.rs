@@ -49,7 +49,9 @@ struct Layout {
 pub(super) struct SkinCache {
     /// Per entry of `SceneCache::voxels`: `None` for rigid objects.
     layouts: Vec<Option<Layout>>,
-    data_buf: Option<wgpu::Buffer>,
+    /// Per pool chunk of the scene (`SceneCache::chunks`): the skin data of its rigged
+    /// objects, whose offsets in `Layout::params` are local to their chunk's buffer.
+    data_bufs: Vec<wgpu::Buffer>,
     joint_buf: Option<wgpu::Buffer>,
     /// The joint matrices last uploaded (to upload only on change).
     uploaded_joints: Vec<[f32; 16]>,
@@ -62,8 +64,8 @@ pub(super) struct SkinCache {
 pub(super) struct SkinFrame {
     /// Per entry of `SceneCache::voxels` (zeroed, strategy [`SKIN_RIGID`], for rigid objects).
     pub(super) params: Vec<SkinParams>,
-    /// The skin data (a small dummy when no object is rigged).
-    pub(super) data_buf: wgpu::Buffer,
+    /// The skin data per pool chunk (a small dummy for a chunk without rigged objects).
+    pub(super) data_bufs: Vec<wgpu::Buffer>,
     /// The joint matrices (a small dummy when no object is rigged).
     pub(super) joint_buf: wgpu::Buffer,
     /// World bounds of the rigged objects as posed this frame.
@@ -222,7 +224,7 @@ impl SkinCache {
     ) -> Result<SkinFrame, GpuError> {
         let mut upload = UploadStats::default();
         let stale = scene.skin_stale
-            || self.data_buf.is_none()
+            || self.data_bufs.len() != scene.chunks.len()
             || self.layouts.len() != scene.voxels.len()
             || scene.voxels.iter().zip(&self.layouts).any(|(e, l)| {
                 match (rig_of(doc, e.object_id), l) {
@@ -232,12 +234,18 @@ impl SkinCache {
                 }
             });
         if stale {
-            let mut data: Vec<u32> = Vec::new();
+            // The skin data follows the pools' split: one buffer per chunk.
+            let mut data: Vec<Vec<u32>> = vec![Vec::new(); scene.chunks.len()];
             let mut layouts = Vec::with_capacity(scene.voxels.len());
             for e in &scene.voxels {
+                let Some(chunk_data) = data.get_mut(e.chunk) else {
+                    return Err(GpuError::Device(
+                        "voxel object outside the pool chunks".into(),
+                    ));
+                };
                 layouts.push(rig_of(doc, e.object_id).map(|(rig, svo, ..)| {
                     let tables = rig.tables(svo);
-                    let params = append_object(&mut data, svo, rig, &tables, quality);
+                    let params = append_object(chunk_data, svo, rig, &tables, quality);
                     Layout {
                         params,
                         tables,
@@ -245,20 +253,23 @@ impl SkinCache {
                     }
                 }));
             }
-            let bytes = data.len() as u64 * 4;
             let limit = device.limits().max_storage_buffer_binding_size;
-            if bytes > limit {
-                return Err(GpuError::TooLarge {
-                    what: "skin data",
-                    bytes,
-                    limit,
-                });
+            let mut bytes = 0;
+            for d in &data {
+                let b = d.len() as u64 * 4;
+                if b > limit {
+                    return Err(GpuError::TooLarge {
+                        what: "skin data (of one pool chunk)",
+                        bytes: b,
+                        limit,
+                    });
+                }
+                bytes += b;
             }
-            self.data_buf = Some(super::scene::storage_init(
-                device,
-                "skin data",
-                bytemuck::cast_slice(&data),
-            ));
+            self.data_bufs = data
+                .iter()
+                .map(|d| super::scene::storage_init(device, "skin data", bytemuck::cast_slice(d)))
+                .collect();
             self.layouts = layouts;
             self.uploaded_joints.clear();
             self.bounds_key.clear();
@@ -366,17 +377,14 @@ impl SkinCache {
             self.bounds_key.clone_from(&params);
         }
 
-        let data_buf = self
-            .data_buf
-            .clone()
-            .ok_or_else(|| GpuError::Device("skin data missing".into()))?;
+        let data_bufs = self.data_bufs.clone();
         let joint_buf = self
             .joint_buf
             .clone()
             .ok_or_else(|| GpuError::Device("joint buffer missing".into()))?;
         Ok(SkinFrame {
             params,
-            data_buf,
+            data_bufs,
             joint_buf,
             bounds: self.bounds,
             upload,
