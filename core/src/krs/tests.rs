@@ -778,20 +778,25 @@ fn pixel_cone_epsilon_thickens_thin_kernels_with_distance() {
     assert!(far.epsilon > 0.01 && near.epsilon < 0.01);
 }
 
-#[test]
-fn shadows_and_ambient_occlusion() {
+/// A unit ball centred `height` above an infinite ground plane, mirrored by the plane x = 5:
+/// the ball (K0) is reflected by the mirror; the ground (K1, top level) is not.
+fn ball_over_ground(height: f32) -> PreparedScene {
     let ground = Kernel::InfinitePlane(PlaneKernel::default());
     let ball = Kernel::Sphere(SphereKernel {
-        centre: Vec3::new(0.0, 2.0, 0.0),
+        centre: Vec3::new(0.0, height, 0.0),
         radius: 1.0,
         ..Default::default()
     });
-    // The ball (K0) is reflected by the mirror; the ground (K1, top level) is not.
-    let scene = prepared(KrsObject {
+    prepared(KrsObject {
         kernels: vec![ball, ground],
         mirrors: vec![MirrorPlane::new(Vec3::X, 5.0)],
         ..Default::default()
-    });
+    })
+}
+
+#[test]
+fn shadows_and_ambient_occlusion() {
+    let scene = ball_over_ground(2.0);
     let hard = ShadowSettings::default();
     let up = Vec3::Y;
     assert_eq!(
@@ -837,17 +842,7 @@ fn ambient_occlusion_refines_one_integral_as_samples_grow() {
     // it within the reach. Over a fixed reach, more samples must converge (each count is a
     // Riemann sum of the same weighted integral), and 4 samples must keep the classic weights
     // 1, 1/2, 1/4, 1/8.
-    let ground = Kernel::InfinitePlane(PlaneKernel::default());
-    let ball = Kernel::Sphere(SphereKernel {
-        centre: Vec3::new(0.0, 1.2, 0.0),
-        radius: 1.0,
-        ..Default::default()
-    });
-    let scene = prepared(KrsObject {
-        kernels: vec![ball, ground],
-        mirrors: vec![MirrorPlane::new(Vec3::X, 5.0)],
-        ..Default::default()
-    });
+    let scene = ball_over_ground(1.2);
     let reach = 1.5;
     let at = |p: Vec3, samples: u32| {
         ambient_occlusion(
