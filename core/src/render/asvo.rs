@@ -169,7 +169,8 @@ struct LocalDepth {
 }
 
 impl LocalDepth {
-    const BITS: u32 = 12;
+    /// 8,192 slots: a block of 1,024 parents classifies up to 8,192 leaves (see `split_node`).
+    const BITS: u32 = 13;
     const MAX_PIXELS: u32 = 4;
 
     fn clear(&mut self) {
@@ -459,7 +460,7 @@ fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut Blo
         Action::Occluded => st.occlusion_culled += 1,
         Action::Split(c, axes) => {
             st.split += 1;
-            push_children(obj, q, ctx.cam, c, axes, &mut b.children);
+            split_node(ctx, obj, q, c, axes, target, b);
         }
         Action::Splat(s) => {
             if b.push_splat(s, *q, ctx.cam.width, ctx.settings.occlusion_culling) {
@@ -495,11 +496,48 @@ fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut Block
             ctx.cam,
             ctx.view_rot,
         );
-        push_children(obj, &d.q, ctx.cam, c, axes, &mut b.children);
+        split_node(ctx, obj, &d.q, c, axes, target, b);
     } else if b.push_splat(d.rect, d.q, ctx.cam.width, ctx.settings.occlusion_culling) {
         b.stats[usize::from(d.q.node.level)].splatted += 1;
     } else {
         b.stats[usize::from(d.q.node.level)].occlusion_culled += 1;
+    }
+}
+
+/// Splits a node: its children are queued for the next pass, except leaves, which are
+/// classified at once.
+///
+/// Why: a leaf cannot split, so the next pass would only read it back to classify it. At the
+/// cut of a near 3M-voxel frame three in four visited nodes are leaves (docs/rendering.md
+/// "Traversal"); skipping their round trip through the queue saves its writes, reads and growth.
+/// Their ids keep the queue's relative order (children in parent order, front to back), and
+/// culling stays conservative, so only which hidden leaves get culled can change.
+#[inline]
+fn split_node(
+    ctx: &Ctx<'_, '_>,
+    obj: &VoxelInstance<'_>,
+    q: &QNode,
+    c: Vec3,
+    axes: Mat3,
+    target: &DepthTarget,
+    b: &mut BlockOut,
+) {
+    if q.node.level + 1 < obj.svo.depth() {
+        push_children(obj, q, ctx.cam, c, axes, &mut b.children);
+        return;
+    }
+    let mut leaves = [q.node; 8];
+    let n = children_front_to_back(obj, q, ctx.cam, c, axes, &mut leaves);
+    for node in &leaves[..n] {
+        classify_node(
+            ctx,
+            &QNode {
+                obj: q.obj,
+                node: *node,
+            },
+            target,
+            b,
+        );
     }
 }
 
@@ -774,8 +812,7 @@ fn fast_ceil(x: f32) -> f32 {
     if t < x { t + 1.0 } else { t }
 }
 
-/// Queues a node's children, nearest octant first (Fig. 10): the octant order follows the
-/// direction from the eye to the node expressed along the node's own voxel axes.
+/// Queues a node's children, nearest octant first (Fig. 10).
 #[inline]
 fn push_children(
     obj: &VoxelInstance<'_>,
@@ -785,28 +822,45 @@ fn push_children(
     axes_view: Mat3,
     out: &mut Vec<QNode>,
 ) {
+    let mut children = [q.node; 8];
+    let n = children_front_to_back(obj, q, cam, c, axes_view, &mut children);
+    out.extend(children[..n].iter().map(|&node| QNode { obj: q.obj, node }));
+}
+
+/// Writes a node's children to `out`, nearest octant first (Fig. 10): the octant order follows
+/// the direction from the eye to the node expressed along the node's own voxel axes. Returns
+/// how many there are.
+#[inline]
+fn children_front_to_back(
+    obj: &VoxelInstance<'_>,
+    q: &QNode,
+    cam: &Camera,
+    c: Vec3,
+    axes_view: Mat3,
+    out: &mut [NodeRef; 8],
+) -> usize {
     let dir_view = if cam.perspective { c } else { Vec3::NEG_Z };
     let dir_voxel = axes_view.transpose() * dir_view;
     let svo = obj.svo;
     let mask = svo.child_mask(&q.node);
     if mask == 0 {
-        return;
+        return 0;
     }
     // `Svo::child` for each octant, with the node's mask and first child read once.
     let first = svo.inner_first_children()[q.node.index as usize];
     let half = svo.node_size(q.node.level) / 2;
+    let mut n = 0;
     for k in front_to_back_order(dir_voxel) {
         if mask & (1 << k) != 0 {
-            out.push(QNode {
-                obj: q.obj,
-                node: NodeRef {
-                    level: q.node.level + 1,
-                    index: first + child_rank(mask, k),
-                    origin: q.node.origin + octant_offset(k, half),
-                },
-            });
+            out[n] = NodeRef {
+                level: q.node.level + 1,
+                index: first + child_rank(mask, k),
+                origin: q.node.origin + octant_offset(k, half),
+            };
+            n += 1;
         }
     }
+    n
 }
 
 /// World-space AABB of the objects, from their nodes a few levels down (tight enough to fit a
