@@ -8,7 +8,9 @@ use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
-use thicket_core::render::{Quality, QualityPreset, RenderRequest, render_document};
+use thicket_core::render::{
+    Quality, QualityPreset, RenderRequest, ShadowCache, render_document, render_document_cached,
+};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// A sphere shell of world radius 1 whose voxel radius is `fraction` of half the octree.
@@ -103,6 +105,41 @@ fn benches(c: &mut Criterion) {
     g.bench_function("shadows_1024", |b| {
         b.iter(|| black_box(render_document(&big, &req)));
     });
+    // Orbiting as the editor's CPU preview does: the camera turns 2° a frame around the model,
+    // without and with a shadow cache (its maps serve while only the camera moves).
+    for (name, q) in [("balanced", &shaded), ("draft", &draft_preset)] {
+        let orbit = |yaw: f32| RenderRequest {
+            camera: Some(OrbitCamera {
+                distance: near,
+                yaw_deg: yaw,
+                ..OrbitCamera::default()
+            }),
+            ..request(near, q.clone())
+        };
+        let mut yaw = 0.0;
+        g.bench_function(format!("orbit_{name}"), |b| {
+            b.iter(|| {
+                yaw += 2.0;
+                black_box(render_document(&big, &orbit(yaw)))
+            });
+        });
+        let mut cache = ShadowCache::new();
+        let (mut frames, mut reused) = (0u32, 0u32);
+        g.bench_function(format!("orbit_{name}_shadow_cache"), |b| {
+            b.iter(|| {
+                yaw += 2.0;
+                let r = render_document_cached(&big, &orbit(yaw), &mut cache, 0);
+                if let Ok((_, _, st)) = &r {
+                    frames += 1;
+                    reused += st.shadow_maps_reused;
+                }
+                black_box(r)
+            });
+        });
+        eprintln!(
+            "frame_800/orbit_{name}_shadow_cache: {reused} of {frames} frames reused the map"
+        );
+    }
     g.finish();
 
     // Resolution bound: the same shape (radius 0.18 of the octree) at depth 9 (≈46k voxels) and

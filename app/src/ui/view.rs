@@ -10,7 +10,8 @@
 //! chooses.
 
 use std::collections::HashMap;
-use std::sync::{Arc, mpsc};
+use std::hash::{Hash, Hasher};
+use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
 use glam::{Mat4, Vec2, Vec3};
@@ -171,6 +172,8 @@ struct CpuPreview {
     holes: Option<(egui::TextureHandle, HoleCounts)>,
     /// The stretch heat map of the shown image and its statistics.
     stretch: Option<(egui::TextureHandle, StretchStats)>,
+    /// Shadow maps kept while only the camera moves (one render at a time uses it).
+    shadows: Arc<Mutex<thicket_core::render::ShadowCache>>,
 }
 
 /// Outline colour of the selection.
@@ -688,6 +691,13 @@ impl View {
         // One render at a time; when it lands, the newest key starts the next.
         if self.cpu.job.is_none() && self.cpu.shown.as_ref() != Some(&key) {
             let doc = self.snapshot(editor);
+            // The snapshot's key: it changes whenever the content or the playhead does.
+            let content_key = {
+                let mut h = std::hash::DefaultHasher::new();
+                (editor.content_key(), editor.animation_key()).hash(&mut h);
+                h.finish()
+            };
+            let shadows = Arc::clone(&self.cpu.shadows);
             let (tx, rx) = mpsc::channel();
             let request = thicket_core::render::RenderRequest {
                 width: size_px[0],
@@ -699,32 +709,42 @@ impl View {
             let stretch = key.stretch;
             std::thread::spawn(move || {
                 let t0 = Instant::now();
-                let result = thicket_core::render::render_document(&doc, &request)
-                    .map(|(image, buffers, _)| {
-                        let size = [image.width as usize, image.height as usize];
-                        let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
-                        let labels = buffers.ids.iter().map(|id| id.object).collect();
-                        let nodes = buffers.ids.iter().map(|id| id.node).collect();
-                        let stretch = if stretch {
-                            stretch_overlay(&doc, &request, &buffers.ids, size)
+                // A panicked render left nothing half-written that matters: a map is stored
+                // whole or not at all.
+                let mut cache = shadows
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                let result = thicket_core::render::render_document_cached(
+                    &doc,
+                    &request,
+                    &mut cache,
+                    content_key,
+                )
+                .map(|(image, buffers, _)| {
+                    let size = [image.width as usize, image.height as usize];
+                    let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
+                    let labels = buffers.ids.iter().map(|id| id.object).collect();
+                    let nodes = buffers.ids.iter().map(|id| id.node).collect();
+                    let stretch = if stretch {
+                        stretch_overlay(&doc, &request, &buffers.ids, size)
+                    } else {
+                        None
+                    };
+                    let ms = t0.elapsed().as_secs_f64() * 1e3;
+                    PreviewFrame {
+                        image: color,
+                        labels,
+                        nodes,
+                        ms,
+                        holes: if holes {
+                            hole_overlay(&doc, &request)
                         } else {
                             None
-                        };
-                        let ms = t0.elapsed().as_secs_f64() * 1e3;
-                        PreviewFrame {
-                            image: color,
-                            labels,
-                            nodes,
-                            ms,
-                            holes: if holes {
-                                hole_overlay(&doc, &request)
-                            } else {
-                                None
-                            },
-                            stretch,
-                        }
-                    })
-                    .map_err(|e| e.to_string());
+                        },
+                        stretch,
+                    }
+                })
+                .map_err(|e| e.to_string());
                 // The view may be gone (window closed): nothing to hand back then.
                 let _ = tx.send(result);
             });

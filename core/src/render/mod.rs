@@ -27,6 +27,7 @@ mod krs_tests;
 #[cfg(test)]
 mod tests;
 
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::Vec3;
@@ -180,6 +181,31 @@ pub fn render_document(
     doc: &Document,
     req: &RenderRequest,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_document_inner(doc, req, None)
+}
+
+/// [`render_document`] for a viewer that renders one document again and again while its camera
+/// moves (the editor's CPU preview): shadow maps are taken from `cache` when nothing they depend
+/// on changed (see [`ShadowCache`]). `content_key` must change whenever the document's content
+/// does (its objects, their voxels, transforms, rigs or playback time); the caller vouches for
+/// that, since comparing millions of voxels would cost more than the shadow map.
+///
+/// # Errors
+/// As [`render_document`].
+pub fn render_document_cached(
+    doc: &Document,
+    req: &RenderRequest,
+    cache: &mut ShadowCache,
+    content_key: u64,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_document_inner(doc, req, Some((cache, content_key)))
+}
+
+fn render_document_inner(
+    doc: &Document,
+    req: &RenderRequest,
+    cache: Option<(&mut ShadowCache, u64)>,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     check_size(req.width, req.height)?;
     doc.validate()?;
     req.quality.validate()?;
@@ -240,7 +266,56 @@ pub fn render_document(
         labels: krs_labels,
         casts_shadows: true,
     };
-    render_scene_with_krs(&scene, &krs, &cam, &req.quality)
+    render_frame(&scene, &krs, &cam, &req.quality, cache)
+}
+
+/// How much finer than wanted a cached shadow map may be and still be used, per axis: a map
+/// made while the camera was nearer keeps serving as it backs off (its texels are then finer
+/// than the view needs, so shadows are at least as sharp as an uncached frame's).
+pub const SHADOW_CACHE_MAX_FINER: f32 = 1.6;
+
+/// How much finer than the frame wants a shadow cache renders a map, per axis, so that the
+/// next frames can use it while the camera moves: orbiting changes the distance to the
+/// scene's nearest point (the bench's near orbit by 16 % from a face of the bounds to an edge),
+/// and each step nearer would otherwise render the map again. It costs up to 1.56× the shadow
+/// traversal in the frames that render a map.
+pub const SHADOW_CACHE_HEADROOM: f32 = 1.25;
+
+/// Shadow maps kept from one frame to the next while only the camera moves.
+///
+/// Why: a shadow map depends on the light, the casters and the quality, not on the camera,
+/// except through its texel size (one texel per view pixel where the scene comes nearest the
+/// eye). In the render bench's near 3M-voxel frame the shadow pass is about half the frame.
+///
+/// A map is reused when the document content key, the lights and the quality are equal to the
+/// ones it was made with, its light view is the same, and its texel is no coarser than the
+/// frame wants and at most [`SHADOW_CACHE_MAX_FINER`] times finer. Otherwise it is rendered
+/// again, [`SHADOW_CACHE_HEADROOM`] times finer than wanted (or at the quality's size limit).
+/// So a cached frame can differ from an uncached one only by sharper shadows (a finer map),
+/// never by coarser or stale ones.
+#[derive(Default)]
+pub struct ShadowCache {
+    key: Option<(u64, Vec<Light>, Quality)>,
+    /// One entry per light, as `Lighting::shadows`.
+    maps: Vec<Option<Arc<shade::ShadowMap>>>,
+}
+
+impl ShadowCache {
+    /// An empty cache.
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// The cached map of light `index` if it can stand in for `wanted` (see the type's docs).
+    fn reusable(&self, index: usize, wanted: &Camera) -> Option<Arc<shade::ShadowMap>> {
+        let m = self.maps.get(index)?.as_ref()?;
+        let same_view = m.cam.view_from_world == wanted.view_from_world
+            && m.cam.projection == wanted.projection;
+        let fine_enough = m.cam.width >= wanted.width && m.cam.height >= wanted.height;
+        let not_too_fine = m.cam.width as f32 <= wanted.width as f32 * SHADOW_CACHE_MAX_FINER;
+        (same_view && fine_enough && not_too_fine).then(|| Arc::clone(m))
+    }
 }
 
 /// The per-node transform of every voxel object of a document (`None` for meshes): rigid
@@ -320,6 +395,17 @@ pub fn render_scene_with_krs(
     cam: &Camera,
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_frame(scene, krs_layer, cam, quality, None)
+}
+
+/// [`render_scene_with_krs`], with shadow maps from and into `cache` when there is one.
+fn render_frame(
+    scene: &RenderScene<'_>,
+    krs_layer: &KrsLayer,
+    cam: &Camera,
+    quality: &Quality,
+    cache: Option<(&mut ShadowCache, u64)>,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     check_size(cam.width, cam.height)?;
     quality.validate()?;
     let t_start = Instant::now();
@@ -340,7 +426,17 @@ pub fn render_scene_with_krs(
         || tris
             .iter()
             .any(|t| scene.meshes[t.mesh as usize].casts_shadows);
-    for light in scene.lights {
+    // A cache made for other content, lights or quality holds nothing usable: start it afresh.
+    let mut cache = cache.map(|(c, content)| {
+        let key = (content, scene.lights.to_vec(), quality.clone());
+        if c.key.as_ref() != Some(&key) {
+            c.key = Some(key);
+            c.maps.clear();
+        }
+        c.maps.resize(scene.lights.len(), None);
+        c
+    });
+    for (li, light) in scene.lights.iter().enumerate() {
         let map = match bounds {
             Some((lo, hi)) if quality.shadows && light.casts_shadows && has_casters => {
                 // One texel per view pixel where the scene comes nearest the eye: each halving of
@@ -349,17 +445,32 @@ pub fn render_scene_with_krs(
                 let eye = cam.eye();
                 let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
                 let finest = cam.pixel_world_size(nearest);
-                shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, finest)
-                    .map(|lc| {
-                        shade::ShadowMap::render(
-                            lc,
-                            &scene.voxels,
-                            &scene.meshes,
-                            &tris,
-                            quality,
-                            &mut stats.shadow_levels,
-                        )
-                    })
+                let fit = |texel: f32| {
+                    shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, texel)
+                };
+                fit(finest).map(|lc| {
+                    if let Some(m) = cache.as_ref().and_then(|c| c.reusable(li, &lc)) {
+                        stats.shadow_maps_reused += 1;
+                        return m;
+                    }
+                    let lc = if cache.is_some() {
+                        fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc)
+                    } else {
+                        lc
+                    };
+                    let m = Arc::new(shade::ShadowMap::render(
+                        lc,
+                        &scene.voxels,
+                        &scene.meshes,
+                        &tris,
+                        quality,
+                        &mut stats.shadow_levels,
+                    ));
+                    if let Some(c) = cache.as_mut() {
+                        c.maps[li] = Some(Arc::clone(&m));
+                    }
+                    m
+                })
             }
             _ => None,
         };

@@ -470,7 +470,7 @@ fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
 pub(crate) struct Lighting<'a> {
     pub(crate) lights: &'a [Light],
     /// One entry per light: its shadow map when it casts shadows this frame.
-    pub(crate) shadows: Vec<Option<ShadowMap>>,
+    pub(crate) shadows: Vec<Option<std::sync::Arc<ShadowMap>>>,
     pub(crate) ambient: Vec3,
     pub(crate) background: Vec3,
     /// World radius of the ambient-occlusion samples (see [`AoKernel`]).

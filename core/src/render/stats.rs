@@ -78,6 +78,10 @@ pub struct FrameStats {
     /// Shading-pass lookups (`None` from a renderer that does not count them).
     #[serde(default)]
     pub shading: Option<ShadingStats>,
+    /// Shadow maps taken from a [`super::ShadowCache`] instead of rendered (their traversal is
+    /// then not in `shadow_levels`).
+    #[serde(default)]
+    pub shadow_maps_reused: u32,
 }
 
 impl FrameStats {

@@ -685,3 +685,63 @@ fn ambient_occlusion_darkens_a_concave_corner_and_nothing_at_zero_samples() {
         "corner {c}, open {o}"
     );
 }
+
+/// [`ShadowCache`]: a map is reused only while it is for the same content, lights and quality
+/// and at least as fine as the frame wants (at most [`SHADOW_CACHE_MAX_FINER`] finer); a reused
+/// map skips the shadow traversal; a cached frame differs from an uncached one only where a
+/// finer map sharpens a shadow edge. (64×64 keeps the maps below the quality's 512² limit,
+/// where the distance decides their size.)
+#[test]
+fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
+    let doc = mixed_document(7).unwrap();
+    let q = test_quality();
+    let at = |distance: f32, quality: &Quality| RenderRequest {
+        camera: Some(OrbitCamera {
+            distance,
+            ..doc.camera
+        }),
+        ..req(64, 64, quality.clone())
+    };
+    let mut cache = ShadowCache::new();
+    // Renders with the cache; checks the image against the uncached frame; returns the image,
+    // how many maps were reused and the shadow traversal's visits.
+    let mut frame = |d: &Document, r: &RenderRequest, key: u64| {
+        let (img, _, st) = render_document_cached(d, r, &mut cache, key).unwrap();
+        let plain = render_document(d, r).unwrap().0;
+        let differing = count_differing(&img, &plain, 8).unwrap();
+        assert!(
+            differing < 64 * 64 / 50,
+            "{differing} pixels differ from the uncached frame"
+        );
+        let shadow_visits: u64 = st.shadow_levels.iter().map(|l| l.visited).sum();
+        (img, st.shadow_maps_reused, shadow_visits)
+    };
+
+    // First frame: a map is rendered (finer than an uncached frame's, by the headroom).
+    let (first, reused, visits) = frame(&doc, &at(4.2, &q), 1);
+    assert_eq!(reused, 0);
+    assert!(visits > 0);
+    // The same view again: reused, no shadow traversal, the same image.
+    let (img, reused, visits) = frame(&doc, &at(4.2, &q), 1);
+    assert_eq!((reused, visits, img.pixels == first.pixels), (1, 0, true));
+    // Backing off a little, then coming a little nearer (within the headroom): reused.
+    assert_eq!(frame(&doc, &at(4.6, &q), 1).1, 1);
+    assert_eq!(frame(&doc, &at(4.0, &q), 1).1, 1);
+    // Coming much nearer than the map was made for: rendered again.
+    assert_eq!(frame(&doc, &at(2.5, &q), 1).1, 0);
+    // Backing off far beyond the limit: rendered again (coarser, cheaper), then reused.
+    assert_eq!(frame(&doc, &at(9.0, &q), 1).1, 0);
+    assert_eq!(frame(&doc, &at(9.0, &q), 1).1, 1);
+
+    // Another content key, another light or other quality: rendered again.
+    assert_eq!(frame(&doc, &at(9.0, &q), 2).1, 0);
+    let mut lit = doc.clone();
+    lit.lights[0].direction = Vec3::new(0.5, -1.0, -0.35);
+    assert_eq!(frame(&lit, &at(9.0, &q), 2).1, 0);
+    let finer_lod = Quality {
+        lod_pixel_threshold: 0.5,
+        ..q.clone()
+    };
+    assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 0);
+    assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 1);
+}
