@@ -10,7 +10,9 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::render::{
+    Quality, RenderRequest, ShadowCache, render_document, render_document_cached,
+};
 use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::splat_bw::SplatBandwidth;
@@ -63,6 +65,19 @@ pub struct BenchReport {
     /// GPU: chunks the voxel pools were split into to fit the storage binding limit (1 for a
     /// scene under the limit); 0 for the CPU.
     pub pool_chunks: usize,
+    /// Degrees the camera's yaw turned before each timed frame (0: one fixed view).
+    pub orbit_deg: f32,
+    /// CPU: shadow maps taken from the shadow cache instead of rendered, over the timed frames
+    /// (the cache is used only while orbiting, as by the editor's CPU preview); 0 for the GPU.
+    pub shadow_maps_reused: u32,
+}
+
+/// The camera of timed frame `i` (0 = warm-up) when the yaw turns `orbit_deg` a frame.
+fn orbit_camera(camera: OrbitCamera, orbit_deg: f32, i: u32) -> OrbitCamera {
+    OrbitCamera {
+        yaw_deg: camera.yaw_deg + orbit_deg * i as f32,
+        ..camera
+    }
 }
 
 /// KRS counters of one frame, the same on both renderers.
@@ -95,7 +110,9 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
     (mean, median, min)
 }
 
-/// Times `frames` CPU frames (after one warm-up).
+/// Times `frames` CPU frames (after one warm-up). With a non-zero `orbit_deg` the camera's yaw
+/// turns that much before each frame and shadow maps come from a [`ShadowCache`], as in the
+/// editor's CPU preview while orbiting.
 ///
 /// # Errors
 /// When the document cannot be rendered.
@@ -106,21 +123,33 @@ pub fn bench_cpu(
     height: u32,
     quality: &Quality,
     frames: u32,
+    orbit_deg: f32,
 ) -> anyhow::Result<BenchReport> {
-    let req = RenderRequest {
+    let req = |i: u32| RenderRequest {
         width,
         height,
-        camera: Some(camera),
+        camera: Some(orbit_camera(camera, orbit_deg, i)),
         quality: quality.clone(),
     };
-    render_document(doc, &req)?;
+    let mut cache = ShadowCache::new();
+    // The document does not change during the bench: one content key for every frame.
+    let mut frame = |i: u32| {
+        if orbit_deg == 0.0 {
+            render_document(doc, &req(i))
+        } else {
+            render_document_cached(doc, &req(i), &mut cache, 0)
+        }
+    };
+    frame(0)?;
     let mut times = Vec::with_capacity(frames as usize);
     let mut stage = [0.0f64; 7];
     let mut last = None;
-    for _ in 0..frames.max(1) {
+    let mut shadow_maps_reused = 0;
+    for i in 1..=frames.max(1) {
         let t0 = Instant::now();
-        let (_, _, stats) = render_document(doc, &req)?;
+        let (_, _, stats) = frame(i)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
+        shadow_maps_reused += stats.shadow_maps_reused;
         let t = &stats.times;
         for (acc, v) in stage.iter_mut().zip([
             t.shadow_ms,
@@ -148,6 +177,8 @@ pub fn bench_cpu(
         "shade",
     ];
     Ok(BenchReport {
+        orbit_deg,
+        shadow_maps_reused,
         pool_chunks: 0,
         renderer: "cpu",
         device: format!("CPU, {} threads (rayon)", rayon_threads()),
@@ -218,6 +249,7 @@ pub fn bench_gpu(
     height: u32,
     quality: &Quality,
     frames: u32,
+    orbit_deg: f32,
     force_two_pass: bool,
     splat_repeats: u32,
     binding_limit: Option<u64>,
@@ -233,9 +265,10 @@ pub fn bench_gpu(
     let mut times = Vec::with_capacity(frames as usize);
     let mut pass: Vec<(String, f64)> = Vec::new();
     let mut last = None;
-    for _ in 0..frames.max(1) {
+    for i in 1..=frames.max(1) {
+        let cam = orbit_camera(camera, orbit_deg, i);
         let t0 = Instant::now();
-        let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &camera, quality, &target)?;
+        let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &cam, quality, &target)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
         for (name, ms) in &stats.pass_ms {
             match pass.iter_mut().find(|(n, _)| n == name) {
@@ -271,6 +304,8 @@ pub fn bench_gpu(
     let (mean, median, min) = summarise(&mut times);
     let stats = last.unwrap_or_default();
     Ok(BenchReport {
+        orbit_deg,
+        shadow_maps_reused: 0,
         pool_chunks: r.pool_chunks(),
         renderer: "gpu",
         device: ctx.describe(),
@@ -317,6 +352,17 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
         "  frame: mean {:.2} ms, median {:.2} ms, min {:.2} ms, {:.1} fps",
         r.mean_ms, r.median_ms, r.min_ms, r.fps
     );
+    if r.orbit_deg != 0.0 {
+        let cache = if r.renderer == "cpu" {
+            format!(
+                "; shadow maps reused from the shadow cache: {}",
+                r.shadow_maps_reused
+            )
+        } else {
+            String::new()
+        };
+        let _ = writeln!(s, "  orbit: yaw {:+}° a frame{cache}", r.orbit_deg);
+    }
     if !r.atomic_path.is_empty() {
         let _ = writeln!(
             s,

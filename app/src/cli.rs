@@ -138,6 +138,16 @@ pub struct BenchArgs {
     /// so the voxel pools are split into more chunks (to measure what chunking costs).
     #[arg(long, value_name = "BYTES")]
     pub binding_limit: Option<u64>,
+    /// Turn the camera's yaw by this many degrees before each timed frame, as when orbiting in
+    /// the editor; the CPU renderer then keeps its shadow maps in a shadow cache, as its
+    /// preview does.
+    #[arg(
+        long,
+        value_name = "DEGREES",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub orbit: f32,
 }
 
 /// Enhancement operator for `thicket enhance`.
@@ -987,6 +997,9 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     if args.frames == 0 {
         anyhow::bail!("--frames 0: time at least one frame");
     }
+    if !args.orbit.is_finite() {
+        anyhow::bail!("--orbit {}: give a finite number of degrees", args.orbit);
+    }
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
     let name = args.project.display().to_string();
     let run_gpu = || {
@@ -997,6 +1010,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
             height,
             &quality,
             args.frames,
+            args.orbit,
             args.two_pass,
             args.splat_repeats,
             args.binding_limit,
@@ -1004,8 +1018,16 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         .with_context(|| format!("{name}: GPU bench"))
     };
     let run_cpu = || {
-        bench_cpu(&doc, camera, width, height, &quality, args.frames)
-            .with_context(|| format!("{name}: CPU bench"))
+        bench_cpu(
+            &doc,
+            camera,
+            width,
+            height,
+            &quality,
+            args.frames,
+            args.orbit,
+        )
+        .with_context(|| format!("{name}: CPU bench"))
     };
     let reports = if args.compare {
         vec![run_cpu()?, run_gpu()?]

@@ -150,6 +150,46 @@ fn bench_gpu_and_cpu_report_times_and_counters() {
 }
 
 #[test]
+fn bench_orbit_turns_the_camera_and_the_cpu_reuses_its_shadow_maps() {
+    let project = sample("mixed");
+    let p = project.to_str().unwrap();
+    let j = bench_json(&[
+        "bench",
+        "--compare",
+        p,
+        "--frames",
+        "4",
+        "--size",
+        "48x40",
+        "--orbit",
+        "2",
+        "--json",
+    ]);
+    let runs = j["runs"].as_array().expect("runs");
+    for run in runs {
+        assert_eq!(run["orbit_deg"], 2.0, "{run}");
+    }
+    // The CPU keeps the sun's map while only the camera turns (the GPU renders its own).
+    assert_eq!(runs[0]["renderer"], "cpu");
+    let reused = runs[0]["shadow_maps_reused"].as_u64().unwrap();
+    assert!((1..=4).contains(&reused), "{}", runs[0]);
+    assert_eq!(runs[1]["shadow_maps_reused"], 0);
+    // Without --orbit nothing is cached: every frame renders its map.
+    let j = bench_json(&["bench", p, "--frames", "2", "--size", "48x40", "--json"]);
+    assert_eq!(j["runs"][0]["shadow_maps_reused"], 0);
+    assert!(j["runs"][0]["shadow"]["splatted"].as_u64().unwrap() > 0);
+    let o = thicket(&[
+        "bench", p, "--frames", "2", "--size", "48x40", "--orbit", "-3",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("orbit: yaw -3° a frame; shadow maps reused"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+#[test]
 fn bench_bad_arguments_fail_cleanly() {
     let p = sample("mixed");
     let o = thicket(&["bench", p.to_str().unwrap(), "--frames", "0"]);
@@ -161,6 +201,9 @@ fn bench_bad_arguments_fail_cleanly() {
     let o = thicket(&["bench", p.to_str().unwrap(), "--size", "12"]);
     assert_eq!(o.status.code(), Some(1));
     assert!(stderr(&o).contains("--size"), "{}", stderr(&o));
+    let o = thicket(&["bench", p.to_str().unwrap(), "--orbit", "inf"]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("--orbit"), "{}", stderr(&o));
 }
 
 #[test]
