@@ -46,6 +46,9 @@ fn measure(path: &Path, frames: usize, size: egui::Vec2) -> anyhow::Result<()> {
     app.autosave_secs = 0;
     app.native_dialogs = false;
     app.attach_gpu(link.clone());
+    // This measures the GPU viewport: in Auto a software adapter would hand the view to the
+    // CPU preview.
+    app.view.renderer = thicket::ui::view::ViewRenderer::Gpu;
     let mut h = Harness::builder()
         .with_size(size)
         .renderer(WgpuTestRenderer::from_render_state(render_state))

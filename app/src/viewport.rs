@@ -28,6 +28,10 @@ use crate::gpu::{
 pub struct ViewportStatus {
     /// The adapter in one line (name, backend, driver).
     pub adapter: String,
+    /// The adapter is a software rasteriser (`wgpu::DeviceType::Cpu`, such as lavapipe): it
+    /// runs the GPU renderer's shaders on the CPU, 5 to 25× slower than the CPU preview on the
+    /// sample projects (BENCHMARKS.md), so the view's Auto mode draws with the CPU preview.
+    pub software: bool,
     /// Statistics of the last rendered frame.
     pub stats: Option<GpuFrameStats>,
     /// Frames the renderer actually ran (not counting frames that reused the image).
@@ -90,7 +94,11 @@ pub fn wgpu_setup() -> egui_wgpu::WgpuSetup {
 pub fn install(render_state: &egui_wgpu::RenderState) -> ViewportLink {
     let link = ViewportLink::default();
     let info = render_state.adapter.get_info();
-    link.lock().adapter = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+    {
+        let mut status = link.lock();
+        status.adapter = format!("{} ({:?}, {})", info.name, info.backend, info.driver);
+        status.software = info.device_type == wgpu::DeviceType::Cpu;
+    }
     let device = &render_state.device;
     let errors = install_error_handlers(device);
     let renderer = match Renderer::new(device, &render_state.queue) {

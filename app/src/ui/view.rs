@@ -4,9 +4,10 @@
 //! gizmo, KRS mirror planes) and sculpt strokes.
 //!
 //! The GPU renderer draws rigid and skinned voxels, meshes and KRS objects. Core's CPU
-//! reference renderer draws the view on a worker thread (the CPU preview) only for a rigged
-//! model while the hole / bloat overlay is on (the overlay is computed from that image) and for
-//! every document when no GPU is attached (the plain UI tests). Render -> Viewport renderer
+//! reference renderer draws the view on a worker thread (the CPU preview) for a rigged model
+//! while the hole / bloat overlay, the stretch heat map or stretch painting is on (they read
+//! that image), when the only GPU adapter is a software rasteriser (lavapipe: slower than the
+//! CPU preview), and when no GPU is attached (the plain UI tests). Render -> Viewport renderer
 //! chooses.
 
 use std::collections::HashMap;
@@ -33,10 +34,12 @@ const MAX_REGION_CHAIN: usize = 64;
 /// Which renderer draws the view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum ViewRenderer {
-    /// The GPU when attached and the document has nothing it cannot draw (rigged models, KRS);
+    /// The GPU when one is attached and is not a software rasteriser, except while a rigged
+    /// model shows the hole / bloat overlay, the stretch heat map or is stretch-painted;
     /// otherwise the CPU preview.
     Auto,
-    /// Always the GPU renderer (rigged models in their bind pose, no KRS).
+    /// Always the GPU renderer when one is attached (no hole / bloat overlay, heat map or
+    /// stretch painting).
     Gpu,
     /// Always core's CPU reference renderer on a worker thread.
     Cpu,
@@ -355,7 +358,7 @@ impl View {
         ui.label("Viewport renderer");
         ui.horizontal(|ui| {
             for (mode, label, tip) in [
-                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview only while a rigged model shows the hole / bloat overlay, the stretch heat map or is stretch-painted (they read its image)"),
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview while a rigged model shows the hole / bloat overlay, the stretch heat map or is stretch-painted (they read its image), and when the only GPU is a software rasteriser such as lavapipe (the CPU preview is faster)"),
                 (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no hole / bloat overlay, heat map or stretch painting)"),
                 (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
             ] {
@@ -475,17 +478,30 @@ impl View {
     /// Whether the CPU preview draws the view (see [`ViewRenderer`]).
     #[must_use]
     pub fn uses_cpu(&self, editor: &Editor) -> bool {
+        self.cpu_reason(editor).is_some()
+    }
+
+    /// Why the CPU preview draws the view, or `None` when the GPU does.
+    fn cpu_reason(&self, editor: &Editor) -> Option<&'static str> {
+        let Some(gpu) = &self.gpu else {
+            return Some("no GPU renderer in this window");
+        };
         match self.renderer {
-            ViewRenderer::Cpu => true,
-            ViewRenderer::Gpu => self.gpu.is_none(),
-            ViewRenderer::Auto => {
-                // The GPU draws voxels (rigid and skinned), meshes and KRS; the hole / bloat
-                // overlay, the stretch heat map and stretch painting read the CPU preview's
-                // image and pixel ids, so a rigged model falls back to it for them.
-                self.gpu.is_none()
-                    || ((self.show_holes || self.show_stretch || self.stretch_painting)
-                        && has_rig(editor.doc()))
+            ViewRenderer::Cpu => Some("chosen in Render > Viewport renderer"),
+            ViewRenderer::Gpu => None,
+            // The GPU draws voxels (rigid and skinned), meshes and KRS; the hole / bloat
+            // overlay, the stretch heat map and stretch painting read the CPU preview's image
+            // and pixel ids, so a rigged model falls back to it for them.
+            ViewRenderer::Auto
+                if (self.show_holes || self.show_stretch || self.stretch_painting)
+                    && has_rig(editor.doc()) =>
+            {
+                Some("the hole / bloat overlay, heat map and stretch painting read its image")
             }
+            ViewRenderer::Auto if gpu.lock().software => {
+                Some("Auto: the GPU adapter is a software rasteriser, slower than this")
+            }
+            ViewRenderer::Auto => None,
         }
     }
 
@@ -1016,11 +1032,7 @@ impl View {
                         "CPU preview {} x {} px ({}){}\nDrag: orbit   Click a joint dot: pose   F: frame   F3: stats",
                         k.size_px[0],
                         k.size_px[1],
-                        if self.gpu.is_some() {
-                            "skinning and KRS: the GPU renderer has no pass for them yet"
-                        } else {
-                            "no GPU renderer in this window"
-                        },
+                        self.cpu_reason(editor).unwrap_or("chosen"),
                         match (self.show_holes, self.hole_counts()) {
                             (true, Some(c)) => format!(
                                 "\nHoles {} px ({:.2} % of the mesh), bloat {} px (red / blue)",
