@@ -29,8 +29,8 @@ pub struct ViewportStatus {
     /// The adapter in one line (name, backend, driver).
     pub adapter: String,
     /// The adapter is a software rasteriser (`wgpu::DeviceType::Cpu`, such as lavapipe): it
-    /// runs the GPU renderer's shaders on the CPU, 5 to 25× slower than the CPU preview on the
-    /// sample projects (BENCHMARKS.md), so the view's Auto mode draws with the CPU preview.
+    /// runs the GPU renderer's shaders on the CPU: its viewport frames on the sample projects took
+    /// 11 to 113× as long as the CPU preview's (BENCHMARKS.md), so the view's Auto mode draws with the CPU preview.
     pub software: bool,
     /// Statistics of the last rendered frame.
     pub stats: Option<GpuFrameStats>,

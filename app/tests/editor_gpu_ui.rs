@@ -404,7 +404,7 @@ fn rigged_sample_draws_on_the_gpu_and_scrubbing_uploads_only_joints() {
 
 #[test]
 fn auto_draws_with_the_cpu_preview_when_the_gpu_is_a_software_rasteriser() {
-    // Lavapipe runs the GPU renderer's shaders on the CPU, 5 to 25× slower than the CPU
+    // Lavapipe runs the GPU renderer's shaders on the CPU, 11 to 113× slower than the CPU
     // preview on the samples (BENCHMARKS.md), so Auto hands it the view; a hardware adapter
     // keeps it. CI has lavapipe, so there the first branch runs.
     let (mut h, link) = gpu_harness_with("house", 1.0, ViewRenderer::Auto);
