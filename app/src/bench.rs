@@ -72,11 +72,33 @@ pub struct BenchReport {
     pub shadow_maps_reused: u32,
 }
 
-/// The camera of timed frame `i` (0 = warm-up) when the yaw turns `orbit_deg` a frame.
-fn orbit_camera(camera: OrbitCamera, orbit_deg: f32, i: u32) -> OrbitCamera {
-    OrbitCamera {
-        yaw_deg: camera.yaw_deg + orbit_deg * i as f32,
-        ..camera
+/// What a bench run renders, at what size, how many times and how the camera moves: the same
+/// for both renderers.
+#[derive(Clone, Copy)]
+pub struct BenchSetup<'a> {
+    /// The document.
+    pub doc: &'a Document,
+    /// The view of the warm-up frame.
+    pub camera: OrbitCamera,
+    /// Image width.
+    pub width: u32,
+    /// Image height.
+    pub height: u32,
+    /// Quality knobs.
+    pub quality: &'a Quality,
+    /// Timed frames (after one warm-up; at least one).
+    pub frames: u32,
+    /// Degrees the camera's yaw turns before each timed frame (0: one fixed view).
+    pub orbit_deg: f32,
+}
+
+impl BenchSetup<'_> {
+    /// The camera of timed frame `i` (0 = warm-up).
+    fn camera_at(&self, i: u32) -> OrbitCamera {
+        OrbitCamera {
+            yaw_deg: self.camera.yaw_deg + self.orbit_deg * i as f32,
+            ..self.camera
+        }
     }
 }
 
@@ -110,25 +132,25 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
     (mean, median, min)
 }
 
-/// Times `frames` CPU frames (after one warm-up). With a non-zero `orbit_deg` the camera's yaw
-/// turns that much before each frame and shadow maps come from a [`ShadowCache`], as in the
-/// editor's CPU preview while orbiting.
+/// Times `setup.frames` CPU frames (after one warm-up). While orbiting (a non-zero
+/// `orbit_deg`) shadow maps come from a [`ShadowCache`], as in the editor's CPU preview.
 ///
 /// # Errors
 /// When the document cannot be rendered.
-pub fn bench_cpu(
-    doc: &Document,
-    camera: OrbitCamera,
-    width: u32,
-    height: u32,
-    quality: &Quality,
-    frames: u32,
-    orbit_deg: f32,
-) -> anyhow::Result<BenchReport> {
+pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
+    let BenchSetup {
+        doc,
+        width,
+        height,
+        quality,
+        frames,
+        orbit_deg,
+        ..
+    } = *setup;
     let req = |i: u32| RenderRequest {
         width,
         height,
-        camera: Some(orbit_camera(camera, orbit_deg, i)),
+        camera: Some(setup.camera_at(i)),
         quality: quality.clone(),
     };
     let mut cache = ShadowCache::new();
@@ -231,29 +253,29 @@ fn rayon_threads() -> usize {
     std::thread::available_parallelism().map_or(1, std::num::NonZero::get)
 }
 
-/// Times `frames` GPU frames on a headless device (after one warm-up that uploads the scene);
+/// Times `setup.frames` GPU frames on a headless device (after one warm-up that uploads the
+/// scene; the camera turns as for [`bench_cpu`], and the shadow maps are drawn every frame);
 /// then, when `splat_repeats > 0`, the frames splat voxels and the 64-bit splat path is in
 /// use, measures the splat pass's bandwidth against a buffer copy with that many repeats
 /// ([`Renderer::measure_splat_bandwidth`]).
 ///
 /// # Errors
 /// [`GpuError`] when there is no adapter or the frame fails.
-#[allow(
-    clippy::too_many_arguments,
-    reason = "the bench's inputs, as for bench_cpu plus the splat path"
-)]
 pub fn bench_gpu(
-    doc: &Document,
-    camera: OrbitCamera,
-    width: u32,
-    height: u32,
-    quality: &Quality,
-    frames: u32,
-    orbit_deg: f32,
+    setup: &BenchSetup<'_>,
     force_two_pass: bool,
     splat_repeats: u32,
     binding_limit: Option<u64>,
 ) -> Result<BenchReport, GpuError> {
+    let BenchSetup {
+        doc,
+        camera,
+        width,
+        height,
+        quality,
+        frames,
+        orbit_deg,
+    } = *setup;
     let ctx = GpuContext::new_headless_with_binding_limit(
         wgpu::PowerPreference::HighPerformance,
         binding_limit,
@@ -266,7 +288,7 @@ pub fn bench_gpu(
     let mut pass: Vec<(String, f64)> = Vec::new();
     let mut last = None;
     for i in 1..=frames.max(1) {
-        let cam = orbit_camera(camera, orbit_deg, i);
+        let cam = setup.camera_at(i);
         let t0 = Instant::now();
         let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &cam, quality, &target)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);

@@ -984,7 +984,7 @@ fn render_one(
 }
 
 fn bench(args: &BenchArgs) -> anyhow::Result<()> {
-    use crate::bench::{bench_cpu, bench_gpu, format_report};
+    use crate::bench::{BenchSetup, bench_cpu, bench_gpu, format_report};
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
@@ -1002,33 +1002,25 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     }
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
     let name = args.project.display().to_string();
+    let setup = BenchSetup {
+        doc: &doc,
+        camera,
+        width,
+        height,
+        quality: &quality,
+        frames: args.frames,
+        orbit_deg: args.orbit,
+    };
     let run_gpu = || {
         bench_gpu(
-            &doc,
-            camera,
-            width,
-            height,
-            &quality,
-            args.frames,
-            args.orbit,
+            &setup,
             args.two_pass,
             args.splat_repeats,
             args.binding_limit,
         )
         .with_context(|| format!("{name}: GPU bench"))
     };
-    let run_cpu = || {
-        bench_cpu(
-            &doc,
-            camera,
-            width,
-            height,
-            &quality,
-            args.frames,
-            args.orbit,
-        )
-        .with_context(|| format!("{name}: CPU bench"))
-    };
+    let run_cpu = || bench_cpu(&setup).with_context(|| format!("{name}: CPU bench"));
     let reports = if args.compare {
         vec![run_cpu()?, run_gpu()?]
     } else if args.gpu {
