@@ -138,31 +138,23 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
 /// # Errors
 /// When the document cannot be rendered.
 pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
-    let BenchSetup {
-        doc,
-        width,
-        height,
-        quality,
-        frames,
-        orbit_deg,
-        ..
-    } = *setup;
     let req = |i: u32| RenderRequest {
-        width,
-        height,
+        width: setup.width,
+        height: setup.height,
         camera: Some(setup.camera_at(i)),
-        quality: quality.clone(),
+        quality: setup.quality.clone(),
     };
     let mut cache = ShadowCache::new();
     // The document does not change during the bench: one content key for every frame.
     let mut frame = |i: u32| {
-        if orbit_deg == 0.0 {
-            render_document(doc, &req(i))
+        if setup.orbit_deg == 0.0 {
+            render_document(setup.doc, &req(i))
         } else {
-            render_document_cached(doc, &req(i), &mut cache, 0)
+            render_document_cached(setup.doc, &req(i), &mut cache, 0)
         }
     };
     frame(0)?;
+    let frames = setup.frames;
     let mut times = Vec::with_capacity(frames as usize);
     let mut stage = [0.0f64; 7];
     let mut last = None;
@@ -199,13 +191,13 @@ pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
         "shade",
     ];
     Ok(BenchReport {
-        orbit_deg,
+        orbit_deg: setup.orbit_deg,
         shadow_maps_reused,
         pool_chunks: 0,
         renderer: "cpu",
         device: format!("CPU, {} threads (rayon)", rayon_threads()),
-        width,
-        height,
+        width: setup.width,
+        height: setup.height,
         frames: times.len() as u32,
         mean_ms: mean,
         median_ms: median,
