@@ -173,6 +173,12 @@ fn bench_orbit_turns_the_camera_and_the_cpu_reuses_its_shadow_maps() {
     assert_eq!(runs[0]["renderer"], "cpu");
     let reused = runs[0]["shadow_maps_reused"].as_u64().unwrap();
     assert!((1..=4).contains(&reused), "{}", runs[0]);
+    // Its shadow traversal is reported from the frame that drew the map.
+    assert!(
+        runs[0]["shadow"]["splatted"].as_u64().unwrap() > 0,
+        "{}",
+        runs[0]
+    );
     assert_eq!(runs[1]["shadow_maps_reused"], 0);
     // Without --orbit nothing is cached: every frame renders its map.
     let j = bench_json(&["bench", p, "--frames", "2", "--size", "48x40", "--json"]);

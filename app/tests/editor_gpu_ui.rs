@@ -408,12 +408,14 @@ fn auto_draws_with_the_cpu_preview_when_the_gpu_is_a_software_rasteriser() {
     // preview on the samples (BENCHMARKS.md), so Auto hands it the view; a hardware adapter
     // keeps it. CI has lavapipe, so there the first branch runs.
     let (mut h, link) = gpu_harness_with("house", 1.0, ViewRenderer::Auto);
-    let software = link.lock().software;
+    let (software, adapter) = {
+        let status = link.lock();
+        (status.software, status.adapter.clone())
+    };
     assert_eq!(
-        link.lock().adapter.to_lowercase().contains("llvmpipe"),
+        adapter.to_lowercase().contains("llvmpipe"),
         software,
-        "lavapipe is the software adapter: {}",
-        link.lock().adapter
+        "lavapipe is the software adapter: {adapter}"
     );
     assert_eq!(h.state().view.uses_cpu(&h.state().editor), software);
     for _ in 0..4 {

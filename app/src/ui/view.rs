@@ -6,8 +6,8 @@
 //! The GPU renderer draws rigid and skinned voxels, meshes and KRS objects. Core's CPU
 //! reference renderer draws the view on a worker thread (the CPU preview) for a rigged model
 //! while the hole / bloat overlay, the stretch heat map or stretch painting is on (they read
-//! that image), when the only GPU adapter is a software rasteriser (lavapipe: slower than the
-//! CPU preview), and when no GPU is attached (the plain UI tests). Render -> Viewport renderer
+//! that image), when the viewport's GPU adapter is a software rasteriser (lavapipe: slower than
+//! the CPU preview), and when no GPU is attached (the plain UI tests). Render -> Viewport renderer
 //! chooses.
 
 use std::collections::HashMap;
@@ -358,7 +358,7 @@ impl View {
         ui.label("Viewport renderer");
         ui.horizontal(|ui| {
             for (mode, label, tip) in [
-                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview while a rigged model shows the hole / bloat overlay, the stretch heat map or is stretch-painted (they read its image), and when the only GPU is a software rasteriser such as lavapipe (the CPU preview is faster)"),
+                (ViewRenderer::Auto, "Auto", "The GPU; the CPU preview while a rigged model shows the hole / bloat overlay, the stretch heat map or is stretch-painted (they read its image), and when the GPU adapter is a software rasteriser such as lavapipe (the CPU preview is faster)"),
                 (ViewRenderer::Gpu, "GPU", "Always the GPU renderer (no hole / bloat overlay, heat map or stretch painting)"),
                 (ViewRenderer::Cpu, "CPU preview", "Always core's CPU reference renderer, on a worker thread"),
             ] {
@@ -442,6 +442,12 @@ impl View {
             self.cpu_image(ui, rect, editor)
         } else {
             self.gpu_image(ui, rect, editor);
+            // The preview's shadow maps (up to 64 MiB each at the final preset's 4096²) are
+            // of no use while the GPU draws; a render still running holds the lock and its
+            // maps go on the next frame.
+            if let Ok(mut maps) = self.cpu.shadows.try_lock() {
+                maps.clear();
+            }
             false
         };
 

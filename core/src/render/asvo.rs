@@ -1,12 +1,13 @@
 //! ASVO drawing (paper §4, Fig. 8): a queue-based breadth-first traversal, one octree level per
 //! pass. Each node is placed in the world by its object's [`NodeDeform`] when its screen position
 //! is computed, frustum- and occlusion-culled, then split (children go to the next pass in
-//! front-to-back order, Fig. 10) while its projected edge exceeds the LOD threshold, otherwise
-//! splatted as the screen rectangle of its projected box at the depth of its nearest point.
+//! front-to-back order, Fig. 10; leaves are classified at once by their parent) while its
+//! projected edge exceeds the LOD threshold, otherwise splatted as the screen rectangle of its
+//! projected box at the depth of its nearest point.
 //!
 //! Determinism: the queue is processed in fixed-size chunks whose results are concatenated in
-//! queue order, splat ids are queue positions, and depth+id is an atomic minimum — so the
-//! image does not depend on the thread count.
+//! queue order, splat ids follow that order, and depth+id is an atomic minimum — so the image
+//! does not depend on the thread count.
 
 use std::time::Instant;
 
@@ -510,8 +511,10 @@ fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut Block
 /// Why: a leaf cannot split, so the next pass would only read it back to classify it. At the
 /// cut of a near 3M-voxel frame three in four visited nodes are leaves (docs/rendering.md
 /// "Traversal"); skipping their round trip through the queue saves its writes, reads and growth.
-/// Their ids keep the queue's relative order (children in parent order, front to back), and
-/// culling stays conservative, so only which hidden leaves get culled can change.
+/// Culling stays conservative, so the visible surface is the same; what can change is which
+/// hidden leaves get culled, and which splat wins an exact depth tie (ids are handed out in
+/// chunk order, and a leaf's id now falls among its pass's coarser splats instead of after
+/// them). The image still does not depend on the thread count.
 #[inline]
 fn split_node(
     ctx: &Ctx<'_, '_>,

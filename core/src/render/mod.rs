@@ -307,6 +307,18 @@ impl ShadowCache {
         Self::default()
     }
 
+    /// Drops every map (a viewer that stops rendering gives their memory back).
+    pub fn clear(&mut self) {
+        self.key = None;
+        self.maps.clear();
+    }
+
+    /// Whether it holds no map.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.maps.iter().all(Option::is_none)
+    }
+
     /// The cached map of light `index` if it can stand in for `wanted` (see the type's docs).
     fn reusable(&self, index: usize, wanted: &Camera) -> Option<Arc<shade::ShadowMap>> {
         let m = self.maps.get(index)?.as_ref()?;

@@ -744,4 +744,11 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
     };
     assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 0);
     assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 1);
+    // Cleared, it holds nothing and renders again.
+    assert!(!cache.is_empty());
+    cache.clear();
+    assert!(cache.is_empty());
+    let (_, _, st) = render_document_cached(&lit, &at(9.0, &finer_lod), &mut cache, 2).unwrap();
+    assert_eq!(st.shadow_maps_reused, 0);
+    assert!(!cache.is_empty());
 }
