@@ -616,22 +616,12 @@ impl Editor {
     }
 }
 
-/// What [`Editor::set_light`] and [`Editor::add_light`] refuse (the checks of
-/// `Document::validate`, so a light the editor accepts renders).
+/// What [`Editor::set_light`] and [`Editor::add_light`] refuse: what `Document::validate`
+/// refuses of a light, so a light the editor accepts renders.
 fn validate_light(light: &Light) -> Result<(), CommandError> {
-    if !light.direction.is_finite() || light.direction.length_squared() < 1e-12 {
-        return Err(CommandError::Invalid(format!(
-            "light {:?}: the direction must be finite and non-zero",
-            light.name
-        )));
-    }
-    if !light.color.is_finite() || !light.intensity.is_finite() || light.intensity < 0.0 {
-        return Err(CommandError::Invalid(format!(
-            "light {:?}: colour and intensity must be finite and non-negative",
-            light.name
-        )));
-    }
-    Ok(())
+    light
+        .validate()
+        .map_err(|e| CommandError::Invalid(e.to_string()))
 }
 
 /// A fresh object id: one past the largest in use.

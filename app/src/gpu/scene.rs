@@ -95,14 +95,6 @@ struct TextureShape {
     bytes: usize,
 }
 
-/// A texture [`Texture::sample_linear`] samples (it returns white for any other, as does an
-/// absent texture).
-fn usable(t: &Texture) -> bool {
-    t.width > 0
-        && t.height > 0
-        && t.rgba8.len() as u64 >= u64::from(t.width) * u64::from(t.height) * 4
-}
-
 fn texture_shapes(model: &MeshModel) -> Vec<Option<TextureShape>> {
     model
         .materials
@@ -110,7 +102,7 @@ fn texture_shapes(model: &MeshModel) -> Vec<Option<TextureShape>> {
         .map(|m| {
             m.base_color_texture
                 .as_ref()
-                .filter(|t| usable(t))
+                .filter(|t| t.is_sampleable())
                 .map(|t| TextureShape {
                     width: t.width,
                     height: t.height,
@@ -132,7 +124,11 @@ fn pack_textures(doc: &Document, limit: u64) -> Result<(Vec<u32>, Vec<Vec<f32>>)
         };
         let mut indices = Vec::with_capacity(m.model.materials.len());
         for mat in &m.model.materials {
-            let Some(t) = mat.base_color_texture.as_ref().filter(|t| usable(t)) else {
+            let Some(t) = mat
+                .base_color_texture
+                .as_ref()
+                .filter(|t| t.is_sampleable())
+            else {
                 indices.push(NO_TEXTURE);
                 continue;
             };

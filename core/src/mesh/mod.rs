@@ -111,17 +111,23 @@ pub fn linear_to_srgb(c: f32) -> f32 {
 }
 
 impl Texture {
+    /// Whether it has texels to sample: a non-empty size with at least the bytes it says
+    /// ([`Texture::sample_linear`] returns white for any other).
+    #[must_use]
+    pub fn is_sampleable(&self) -> bool {
+        // In u64: width × height × 4 overflows u32 for sizes a hand-built texture can claim.
+        self.width > 0
+            && self.height > 0
+            && self.rgba8.len() as u64 >= u64::from(self.width) * u64::from(self.height) * 4
+    }
+
     /// Bilinear sample with repeat wrapping, returned as linear RGBA. UV (0,0) is the top-left
     /// corner of the image, as in glTF; texel centres lie at half-integer texel coordinates.
     /// White for an empty texture, one with fewer bytes than its size says, or a non-finite
     /// UV. The GPU renderer's resolve pass (`shaders/resolve.wgsl`) repeats this arithmetic.
     #[must_use]
     pub fn sample_linear(&self, uv: Vec2) -> Vec4 {
-        // In u64: width × height × 4 overflows u32 for sizes a hand-built texture can claim.
-        if self.width == 0
-            || self.height == 0
-            || (self.rgba8.len() as u64) < u64::from(self.width) * u64::from(self.height) * 4
-        {
+        if !self.is_sampleable() {
             return Vec4::ONE;
         }
         let u = uv.x - uv.x.floor();

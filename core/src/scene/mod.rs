@@ -322,6 +322,28 @@ pub struct Light {
     pub casts_shadows: bool,
 }
 
+impl Light {
+    /// Checks what a renderer needs of a light: a finite, non-zero direction and a finite,
+    /// non-negative colour and intensity.
+    ///
+    /// # Errors
+    /// [`SceneError::Invalid`] naming the light.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        let ctx = format!("light {:?}", self.name);
+        if !self.direction.is_finite() || self.direction.length_squared() < 1e-12 {
+            return Err(invalid("direction", &ctx, "must be finite and non-zero"));
+        }
+        if !self.color.is_finite() || !self.intensity.is_finite() || self.intensity < 0.0 {
+            return Err(invalid(
+                "colour/intensity",
+                &ctx,
+                "must be finite and non-negative",
+            ));
+        }
+        Ok(())
+    }
+}
+
 impl Default for Light {
     fn default() -> Self {
         Self {
@@ -600,17 +622,7 @@ impl Document {
             }
         }
         for l in &self.lights {
-            let ctx = format!("light {:?}", l.name);
-            if !l.direction.is_finite() || l.direction.length_squared() < 1e-12 {
-                return Err(invalid("direction", &ctx, "must be finite and non-zero"));
-            }
-            if !l.color.is_finite() || !l.intensity.is_finite() || l.intensity < 0.0 {
-                return Err(invalid(
-                    "colour/intensity",
-                    &ctx,
-                    "must be finite and non-negative",
-                ));
-            }
+            l.validate()?;
         }
         if !self.ambient.is_finite() || !self.background.is_finite() {
             return Err(invalid("ambient/background", "document", "not finite"));
