@@ -215,6 +215,12 @@ type Aabb = (Vec3, Vec3);
 /// What a renderer draws: the document's content key and its animation key.
 type RenderKey = ((u64, u64), u64);
 
+/// What the renderers draw of the editor's document: its content and its playheads (the camera
+/// is not in it: orbiting draws the same document).
+fn render_key(editor: &Editor) -> RenderKey {
+    (editor.content_key(), editor.animation_key())
+}
+
 /// Degrees of orbit per dragged point.
 const ORBIT_DEG_PER_POINT: f32 = 0.4;
 
@@ -615,7 +621,7 @@ impl View {
     }
 
     fn snapshot(&mut self, editor: &Editor) -> Arc<Document> {
-        let key = (editor.content_key(), editor.animation_key());
+        let key = render_key(editor);
         match &self.snapshot {
             Some((k, doc)) if *k == key => Arc::clone(doc),
             _ => {
@@ -716,7 +722,7 @@ impl View {
             // The snapshot's key: it changes whenever the content or the playhead does.
             let content_key = {
                 let mut h = std::hash::DefaultHasher::new();
-                (editor.content_key(), editor.animation_key()).hash(&mut h);
+                render_key(editor).hash(&mut h);
                 h.finish()
             };
             let shadows = Arc::clone(&self.cpu.shadows);
@@ -978,7 +984,7 @@ impl View {
         silhouette: bool,
     ) {
         // Posed bounds follow the playhead as well as the content.
-        let key = (editor.content_key(), editor.animation_key());
+        let key = render_key(editor);
         if self.bounds_cache.0 != key {
             self.bounds_cache = (key, HashMap::new());
         }
