@@ -2,7 +2,7 @@
 //! printing each frame's counts and stage times: a fixed workload for profilers (`perf record`,
 //! `valgrind --tool=callgrind`) without criterion's own work in the profile. With `orbit`, the
 //! camera turns 2° a frame and shadow maps come from a [`ShadowCache`], as in the editor's CPU
-//! preview.
+//! preview. With `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too.
 //!
 //! `cargo run --release -p thicket-core --example frame_profile -- [draft|balanced|final] [N]
 //! [orbit]`
@@ -70,17 +70,26 @@ fn main() {
             render_document(&doc, &req)
         };
         match result {
-            Ok((_, fb, st)) => eprintln!(
-                "frame {i}: {} covered px, {} visited, {} splats (view); {} visited, {} splats \
+            Ok((_, fb, st)) => {
+                if std::env::var_os("FRAME_PROFILE_LEVELS").is_some() && i == 0 {
+                    for (name, levels) in [("view", &st.levels), ("shadow", &st.shadow_levels)] {
+                        for (l, s) in levels.iter().enumerate() {
+                            eprintln!("{name} level {l}: {s:?}");
+                        }
+                    }
+                }
+                eprintln!(
+                    "frame {i}: {} covered px, {} visited, {} splats (view); {} visited, {} splats \
                  (shadow, {} maps reused); {:?}",
-                fb.covered_pixels(),
-                st.nodes_visited(),
-                st.splats(),
-                st.shadow_levels.iter().map(|l| l.visited).sum::<u64>(),
-                st.shadow_levels.iter().map(|l| l.splatted).sum::<u64>(),
-                st.shadow_maps_reused,
-                st.times
-            ),
+                    fb.covered_pixels(),
+                    st.nodes_visited(),
+                    st.splats(),
+                    st.shadow_levels.iter().map(|l| l.visited).sum::<u64>(),
+                    st.shadow_levels.iter().map(|l| l.splatted).sum::<u64>(),
+                    st.shadow_maps_reused,
+                    st.times
+                );
+            }
             Err(e) => {
                 eprintln!("{e}");
                 std::process::exit(1);

@@ -330,6 +330,10 @@ impl Editor {
                     fine.svo = e.fine().clone();
                     self.voxel_region = None;
                     self.revision += 1;
+                    // Not an edit (no history step), but what is drawn changed: a renderer or
+                    // cache keyed on the content key must not keep the old fine model, even
+                    // when the edit that follows writes nothing or is undone.
+                    self.generation += 1;
                 }
                 self.enhancers.by_source.insert(source, e);
             }

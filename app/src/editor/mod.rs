@@ -61,7 +61,9 @@ pub struct Editor {
     pub recent: Vec<PathBuf>,
     /// Increases whenever the document changes in a way a renderer sees (edits, undo, camera).
     revision: u64,
-    /// Increases whenever the whole document is replaced (New, Open): ids may repeat across.
+    /// Increases whenever the whole document is replaced (New, Open), and whenever content
+    /// changes outside the history (a linked enhancement's stale fine model rebuilt): history
+    /// state ids may repeat across generations.
     generation: u64,
     /// Increases whenever a rig's playback (clip, time) changes: not an edit, but drawn.
     anim_revision: u64,
@@ -154,7 +156,8 @@ impl Editor {
         self.revision
     }
 
-    /// Changes whenever the whole document is replaced (New / Open).
+    /// Changes whenever the whole document is replaced (New / Open) or its content changes
+    /// outside the undo history.
     #[must_use]
     pub fn generation(&self) -> u64 {
         self.generation

@@ -955,6 +955,53 @@ fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
     assert_eq!(opened.enhancer_rebuilds(), 0);
 }
 
+/// Replacing a stale fine model is not an edit, but it changes what is drawn: the content key
+/// must change with it, even when the dab that triggered it wrote nothing (a renderer or the
+/// CPU preview's shadow cache keyed on the content would otherwise keep the old voxels).
+#[test]
+fn replacing_a_stale_enhancement_changes_the_content_key() {
+    use thicket_core::enhance::{EnhanceSettings, enhance};
+    let settings = EnhanceSettings {
+        factor: 4,
+        ..EnhanceSettings::default()
+    };
+    let (mut ed, id) = bumpy_editor();
+    let fine_id = enhance_linked(&mut ed, id, settings.clone());
+    let mut doc = ed.doc().clone();
+    let stale = svo_of(&ed, id);
+    for o in &mut doc.objects {
+        if o.id == fine_id {
+            o.kind = ObjectKind::Voxels(VoxelModel {
+                svo: stale.clone(),
+                ..VoxelModel::default()
+            });
+        }
+    }
+    let mut plain = Editor::default();
+    plain.replace_document(doc, None);
+    assert_eq!(svo_of(&plain, fine_id), stale);
+    let key = plain.content_key();
+    // Removing air: the dab writes nothing, so no history step.
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.0,
+        ..Default::default()
+    };
+    plain.begin_stroke();
+    let written = plain
+        .sculpt_dab(id, &brush, Vec3::new(7.5, 14.5, 7.5), Vec3::ZERO)
+        .unwrap();
+    plain.end_interaction();
+    assert_eq!(written, None, "the dab removed nothing");
+    assert_eq!(plain.enhancer_rebuilds(), 1, "the dab built the enhancer");
+    assert_eq!(svo_of(&plain, fine_id), enhance(&stale, &settings).unwrap());
+    assert_ne!(plain.content_key(), key, "the fine model changed");
+    assert!(
+        plain.take_voxel_region().is_none(),
+        "no region to patch: upload it all"
+    );
+}
+
 #[test]
 fn enhancement_links_go_with_deleted_objects_and_come_back_on_undo() {
     let (mut ed, id) = bumpy_editor();
