@@ -1,5 +1,5 @@
 //! Renders the render bench's near 3M-voxel 800×800 frame `N` times (default 10) at a preset,
-//! printing each frame's counts and stage times: a fixed workload for profilers (`perf record`,
+//! printing each frame's image hash, counts and stage times: a fixed workload for profilers (`perf record`,
 //! `valgrind --tool=callgrind`) without criterion's own work in the profile. With `orbit`, the
 //! camera turns 2° a frame and shadow maps come from a [`ShadowCache`], as in the editor's CPU
 //! preview. With `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too.
@@ -70,7 +70,7 @@ fn main() {
             render_document(&doc, &req)
         };
         match result {
-            Ok((_, fb, st)) => {
+            Ok((img, fb, st)) => {
                 if std::env::var_os("FRAME_PROFILE_LEVELS").is_some() && i == 0 {
                     for (name, levels) in [("view", &st.levels), ("shadow", &st.shadow_levels)] {
                         for (l, s) in levels.iter().enumerate() {
@@ -79,8 +79,9 @@ fn main() {
                     }
                 }
                 eprintln!(
-                    "frame {i}: {} covered px, {} visited, {} splats (view); {} visited, {} splats \
+                    "frame {i}: image hash {:016x}, {} covered px, {} visited, {} splats (view); {} visited, {} splats \
                  (shadow, {} maps reused); {:?}",
+                    image_hash(&img.pixels),
                     fb.covered_pixels(),
                     st.nodes_visited(),
                     st.splats(),
@@ -96,4 +97,11 @@ fn main() {
             }
         }
     }
+}
+
+/// FNV-1a of the image bytes: equal hashes before and after a change show it kept the image.
+fn image_hash(bytes: &[u8]) -> u64 {
+    bytes.iter().fold(0xcbf2_9ce4_8422_2325, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
 }

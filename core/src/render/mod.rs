@@ -494,7 +494,8 @@ fn render_frame(
     let t0 = Instant::now();
     let mut target = buffers::DepthTarget::new(cam.width, cam.height);
     stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
-    if quality.occlusion_culling {
+    // With no triangle drawn the tiles are already right (all empty).
+    if stats.triangles_rasterised > 0 && quality.occlusion_culling {
         target.update_all_tiles();
     }
     stats.times.triangles_ms = ms_since(t0);

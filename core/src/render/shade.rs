@@ -131,8 +131,8 @@ impl ShadowMap {
         levels: &mut Vec<LevelStats>,
     ) -> Self {
         let mut target = DepthTarget::new(cam.width, cam.height);
-        draw_triangles(tris, meshes, &cam, &target, true);
-        if quality.occlusion_culling {
+        // With no triangle drawn the tiles are already right (all empty).
+        if draw_triangles(tris, meshes, &cam, &target, true) > 0 && quality.occlusion_culling {
             target.update_all_tiles();
         }
         let pass = draw_voxels(
