@@ -602,22 +602,17 @@ fn classify_leaves(
             continue;
         };
         let cull = settings.occlusion_culling && !fp.crosses_near;
-        if cull && target.occluded(fp.ox0, fp.oy0, fp.ox1, fp.oy1, fp.ndc_depth) {
+        let occ = fp.touched(ctx.cam);
+        if cull && target.occluded(occ[0], occ[1], occ[2], occ[3], fp.ndc_depth) {
             b.stats[level].occlusion_culled += 1;
             continue;
         }
-        let rect = Splat {
-            x0: fp.x0,
-            y0: fp.y0,
-            x1: fp.x1,
-            y1: fp.y1,
-            ndc_depth: fp.ndc_depth,
-        };
+        let rect = fp.splat(ctx.cam);
         if cull && faces_away(obj, f, &q, c, ctx.cam.perspective) {
             b.deferred.push(Deferred {
                 q,
                 rect,
-                occ: [fp.ox0, fp.oy0, fp.ox1, fp.oy1],
+                occ,
                 split: false,
             });
             continue;
@@ -663,23 +658,43 @@ fn node_in_view(
     }
 }
 
-/// Screen-space footprint of a view-space box: the pixel rectangle (inclusive) and the NDC depth
-/// of its nearest point, or `None` when it lies outside the frustum. `crosses_near` tells
-/// whether the box reaches in front of the near plane.
+/// Screen-space footprint of a view-space box: its screen rectangle and the NDC depth of its
+/// nearest point. `crosses_near` tells whether the box reaches in front of the near plane.
+/// The pixel rectangles are computed only when asked for: most nodes are culled or split and
+/// need one of them at most.
 struct Footprint {
-    x0: u32,
-    y0: u32,
-    x1: u32,
-    y1: u32,
-    /// Every pixel the rectangle touches (for conservative occlusion tests).
-    ox0: u32,
-    oy0: u32,
-    ox1: u32,
-    oy1: u32,
+    sx0: f32,
+    sy0: f32,
+    sx1: f32,
+    sy1: f32,
     ndc_depth: f32,
     /// Nearest view depth, clamped to the near plane.
     d_near: f32,
     crosses_near: bool,
+}
+
+impl Footprint {
+    /// Every pixel the rectangle touches (for conservative occlusion tests), inclusive.
+    #[inline]
+    fn touched(&self, cam: &Camera) -> [u32; 4] {
+        let (x0, x1) = overlapped_span(self.sx0, self.sx1, cam.width);
+        let (y0, y1) = overlapped_span(self.sy0, self.sy1, cam.height);
+        [x0, y0, x1, y1]
+    }
+
+    /// The splat: pixels whose centres the rectangle covers (see [`pixel_span`]).
+    #[inline]
+    fn splat(&self, cam: &Camera) -> Splat {
+        let (x0, x1) = pixel_span(self.sx0, self.sx1, cam.width);
+        let (y0, y1) = pixel_span(self.sy0, self.sy1, cam.height);
+        Splat {
+            x0,
+            y0,
+            x1,
+            y1,
+            ndc_depth: self.ndc_depth,
+        }
+    }
 }
 
 #[inline]
@@ -700,14 +715,13 @@ fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
         // Extremes of x/d over the box's view-space AABB lie at its nearest (clamped to the
         // near plane) or farthest depth.
         let (xl, xh, yl, yh) = (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y);
-        // Two divisions instead of eight per node.
+        // Two divisions instead of eight per node. `dn <= d_far`, so `inv_n >= inv_f > 0`
+        // and the sign of each edge picks its extreme: the same value as the min / max of both
+        // products (multiplication is monotonic), with half the products.
         let (inv_n, inv_f) = (dn.recip(), d_far.recip());
-        (
-            (xl * inv_n).min(xl * inv_f),
-            (xh * inv_n).max(xh * inv_f),
-            (yl * inv_n).min(yl * inv_f),
-            (yh * inv_n).max(yh * inv_f),
-        )
+        let lo = |v: f32| v * if v < 0.0 { inv_n } else { inv_f };
+        let hi = |v: f32| v * if v < 0.0 { inv_f } else { inv_n };
+        (lo(xl), hi(xh), lo(yl), hi(yh))
     } else {
         (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y)
     };
@@ -718,19 +732,11 @@ fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
     if sx1 < 0.0 || sy1 < 0.0 || sx0 > w || sy0 > h {
         return None;
     }
-    let (x0, x1) = pixel_span(sx0, sx1, cam.width);
-    let (y0, y1) = pixel_span(sy0, sy1, cam.height);
-    let (ox0, ox1) = overlapped_span(sx0, sx1, cam.width);
-    let (oy0, oy1) = overlapped_span(sy0, sy1, cam.height);
     Some(Footprint {
-        x0,
-        y0,
-        x1,
-        y1,
-        ox0,
-        oy0,
-        ox1,
-        oy1,
+        sx0,
+        sy0,
+        sx1,
+        sy1,
         ndc_depth: cam.ndc_depth(dn),
         d_near: dn,
         crosses_near,
@@ -778,17 +784,11 @@ fn classify(
     };
     // The occlusion test covers every pixel the culling rectangle touches: a child's splat
     // may fall back to the pixel under its own centre, outside the parent's pixel span.
-    if settings.occlusion_culling
-        && !cull_fp.crosses_near
-        && target.occluded(
-            cull_fp.ox0,
-            cull_fp.oy0,
-            cull_fp.ox1,
-            cull_fp.oy1,
-            cull_fp.ndc_depth,
-        )
-    {
-        return Action::Occluded;
+    if settings.occlusion_culling && !cull_fp.crosses_near {
+        let [x0, y0, x1, y1] = cull_fp.touched(cam);
+        if target.occluded(x0, y0, x1, y1, cull_fp.ndc_depth) {
+            return Action::Occluded;
+        }
     }
     let Some(fp) = splat else {
         // The node's own box is off screen but its subtree may not be.
@@ -800,13 +800,6 @@ fn classify(
         edge_world * cam.fy.max(cam.fx)
     };
     let split = has_children && (fp.crosses_near || edge_px > settings.lod_pixel_threshold);
-    let rect = Splat {
-        x0: fp.x0,
-        y0: fp.y0,
-        x1: fp.x1,
-        y1: fp.y1,
-        ndc_depth: fp.ndc_depth,
-    };
     // Rigid objects only (`fast`): a deformed node's normal would need its blended transform.
     if settings.occlusion_culling
         && !fp.crosses_near
@@ -814,15 +807,15 @@ fn classify(
         && faces_away(obj, f, q, c, cam.perspective)
     {
         return Action::Defer {
-            rect,
-            occ: [fp.ox0, fp.oy0, fp.ox1, fp.oy1],
+            rect: fp.splat(cam),
+            occ: fp.touched(cam),
             split,
         };
     }
     if split {
         return Action::Split(c, axes_view);
     }
-    Action::Splat(rect)
+    Action::Splat(fp.splat(cam))
 }
 
 /// Whether a node's LOD normal points away from the eye (rigid objects only: a deformed
