@@ -35,6 +35,13 @@ impl NodeInfo<'_> {
         self.node.origin.as_vec3() + Vec3::splat(0.5 * self.size_voxels() as f32)
     }
 
+    /// The node's colour and octahedral normal (see [`Svo::node_color_and_normal`]).
+    #[inline]
+    #[must_use]
+    pub fn color_and_normal(&self) -> ([u8; 4], u16) {
+        self.svo.node_color_and_normal(&self.node)
+    }
+
     /// The node's attributes (a leaf's own or an internal node's LOD average, incl. skin).
     #[inline]
     #[must_use]

@@ -270,47 +270,31 @@ pub(crate) fn resolve(
         .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose())
         .collect();
     let eye = cam.eye();
-    let n = keys.len();
-    let mut fb = FrameBuffers {
-        width: w,
-        height: h,
-        depth: vec![1.0; n],
-        ids: vec![PixelId::default(); n],
-        normal: vec![Vec3::ZERO; n],
-        albedo: vec![Vec3::ZERO; n],
-    };
-    let FrameBuffers {
-        depth,
-        ids,
-        normal,
-        albedo,
-        ..
-    } = &mut fb;
-    depth
-        .par_iter_mut()
-        .zip(ids.par_iter_mut())
-        .zip(normal.par_iter_mut())
-        .zip(albedo.par_iter_mut())
+    // One parallel pass writes every buffer once: filling them first and then the pixels
+    // wrote 28 MB twice at 800×800, the first time on one thread.
+    type Buffers = (Vec<f32>, (Vec<PixelId>, (Vec<Vec3>, Vec<Vec3>)));
+    let (depth, (ids, (normal, albedo))): Buffers = keys
+        .par_iter()
         .enumerate()
-        .for_each(|(i, (((d, id), nrm), alb))| {
-            let key = keys[i];
+        .map(|(i, &key)| {
+            let empty = (PixelId::default(), (Vec3::ZERO, Vec3::ZERO));
             if key == EMPTY_KEY {
-                return;
+                return (1.0, empty);
             }
-            *d = key_depth(key);
+            let d = key_depth(key);
             let raw = (key & 0xffff_ffff) as u32;
             if raw & KRS_ID_FLAG == KRS_ID_FLAG {
                 // Filled by `resolve_krs` from the pass's own records.
-                return;
+                return (d, empty);
             }
             if raw & MESH_ID_FLAG != 0 {
                 let Some(t) = tris.get((raw & !MESH_ID_FLAG) as usize) else {
-                    return;
+                    return (d, empty);
                 };
                 let m = &meshes[t.mesh as usize];
                 let part = &m.model.parts[t.part as usize];
                 let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
-                let p = cam.unproject(x, y, *d);
+                let p = cam.unproject(x, y, d);
                 let bary = barycentric(p, t.world);
                 let color = m.model.surface_color(part, t.tri as usize, bary);
                 let [a, b, c] = t.world;
@@ -329,35 +313,52 @@ pub(crate) fn resolve(
                 if face.dot(eye - p) < 0.0 {
                     nw = -nw;
                 }
-                *nrm = nw;
-                *alb = color.xyz();
-                *id = PixelId {
+                let id = PixelId {
                     object: m.label,
                     node: (u64::from(t.part) << 32) | u64::from(t.tri),
                 };
-            } else {
-                let Some(q) = refs.get(raw as usize) else {
-                    return;
-                };
-                let o = &voxels[q.obj as usize];
-                let info = NodeInfo {
-                    svo: o.svo,
-                    node: q.node,
-                };
-                let v = info.voxel();
-                *nrm = o.deform.normal_to_world(&info, decode_normal(v.normal));
-                *alb = Vec3::new(
-                    srgb_byte_to_linear(v.color[0]),
-                    srgb_byte_to_linear(v.color[1]),
-                    srgb_byte_to_linear(v.color[2]),
-                );
-                *id = PixelId {
-                    object: o.label,
-                    node: (u64::from(q.node.level) << 32) | u64::from(q.node.index),
-                };
+                return (d, (id, (nw, color.xyz())));
             }
-        });
-    fb
+            let Some(q) = refs.get(raw as usize) else {
+                return (d, empty);
+            };
+            let o = &voxels[q.obj as usize];
+            let info = NodeInfo {
+                svo: o.svo,
+                node: q.node,
+            };
+            // Colour and normal only (the material and skin are not shaded): two reads of
+            // the node's pools instead of four.
+            let (color, normal) = info.color_and_normal();
+            let id = PixelId {
+                object: o.label,
+                node: (u64::from(q.node.level) << 32) | u64::from(q.node.index),
+            };
+            let albedo = Vec3::new(
+                srgb_byte_to_linear(color[0]),
+                srgb_byte_to_linear(color[1]),
+                srgb_byte_to_linear(color[2]),
+            );
+            (
+                d,
+                (
+                    id,
+                    (
+                        o.deform.normal_to_world(&info, decode_normal(normal)),
+                        albedo,
+                    ),
+                ),
+            )
+        })
+        .unzip();
+    FrameBuffers {
+        width: w,
+        height: h,
+        depth,
+        ids,
+        normal,
+        albedo,
+    }
 }
 
 /// `(linear_to_srgb(c) * 255).round() as u8`, exactly, without `powf`: the byte is a monotonic
@@ -426,6 +427,10 @@ fn srgb_byte_to_linear(v: u8) -> f32 {
 /// Fills the G-buffer of pixels the KRS won: object label, kernel as node, the §6.1 normal and
 /// the textured albedo recorded when the ray hit.
 pub(crate) fn resolve_krs(fb: &mut FrameBuffers, keys: &[u64], pass: &KrsPass, labels: &[u32]) {
+    if pass.pixels.is_empty() {
+        // No KRS object was traced: no pixel can be the KRS's.
+        return;
+    }
     fb.ids
         .par_iter_mut()
         .zip(fb.normal.par_iter_mut())

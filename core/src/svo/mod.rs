@@ -329,6 +329,19 @@ impl Svo {
         }
     }
 
+    /// A node's colour (sRGB RGBA8) and octahedral normal, as [`Self::node_voxel`] gives them,
+    /// without reading its other attributes (what a renderer's resolve needs).
+    #[inline]
+    #[must_use]
+    pub fn node_color_and_normal(&self, node: &NodeRef) -> ([u8; 4], u16) {
+        let (a, i) = if self.is_leaf(node) {
+            (&self.leaf_attr, node.index as usize)
+        } else {
+            (&self.inner_attr, node.index as usize)
+        };
+        (a.color[i], a.normal[i])
+    }
+
     fn check(&self, c: UVec3) -> Result<(), SvoError> {
         if c.max_element() >= self.extent() {
             return Err(SvoError::OutOfBounds {
