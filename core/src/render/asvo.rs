@@ -17,6 +17,7 @@ use rayon::prelude::*;
 use super::buffers::{DepthTarget, pack_key};
 use super::camera::Camera;
 use super::deform::{NodeDeform, NodeInfo};
+use super::sampled::SampledTexels;
 use super::stats::LevelStats;
 use crate::svo::{NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
 
@@ -74,7 +75,7 @@ pub(crate) struct VoxelPass {
 }
 
 /// Traversal settings.
-pub(crate) struct PassSettings {
+pub(crate) struct PassSettings<'a> {
     pub(crate) lod_pixel_threshold: f32,
     pub(crate) occlusion_culling: bool,
     /// First id to hand out (ids are `id_base + splat index`).
@@ -83,6 +84,9 @@ pub(crate) struct PassSettings {
     pub(crate) keep_refs: bool,
     /// Only objects with `casts_shadows`.
     pub(crate) shadow_casters_only: bool,
+    /// A shadow map drawn for one frame: only nodes touching texels its shading reads (see
+    /// [`SampledTexels`]); the others are culled with the frustum.
+    pub(crate) sampled: Option<&'a SampledTexels>,
 }
 
 /// What classifying one node decided.
@@ -269,7 +273,7 @@ struct Ctx<'a, 'b> {
     fast: &'a [Option<Fast>],
     cam: &'a Camera,
     view_rot: Mat3,
-    settings: &'a PassSettings,
+    settings: &'a PassSettings<'a>,
 }
 
 /// Draws voxel objects into `target`.
@@ -277,7 +281,7 @@ pub(crate) fn draw_voxels(
     objects: &[VoxelInstance<'_>],
     cam: &Camera,
     target: &mut DepthTarget,
-    settings: &PassSettings,
+    settings: &PassSettings<'_>,
 ) -> VoxelPass {
     let view_rot = cam.view_rotation();
     let fast: Vec<Option<Fast>> = objects
@@ -603,6 +607,13 @@ fn classify_leaves(
         };
         let cull = settings.occlusion_culling && !fp.crosses_near;
         let occ = fp.touched(ctx.cam);
+        if settings
+            .sampled
+            .is_some_and(|m| !m.any(occ[0], occ[1], occ[2], occ[3]))
+        {
+            b.stats[level].frustum_culled += 1;
+            continue;
+        }
         if cull && target.occluded(occ[0], occ[1], occ[2], occ[3], fp.ndc_depth) {
             b.stats[level].occlusion_culled += 1;
             continue;
@@ -751,7 +762,7 @@ fn classify(
     cam: &Camera,
     view_rot: Mat3,
     target: &DepthTarget,
-    settings: &PassSettings,
+    settings: &PassSettings<'_>,
 ) -> Action {
     let (c, he, edge_world, axes_view) = node_in_view(obj, fast, q, cam, view_rot);
     let has_children = !obj.svo.is_leaf(&q.node);
@@ -784,6 +795,12 @@ fn classify(
     };
     // The occlusion test covers every pixel the culling rectangle touches: a child's splat
     // may fall back to the pixel under its own centre, outside the parent's pixel span.
+    if let Some(m) = settings.sampled {
+        let [x0, y0, x1, y1] = cull_fp.touched(cam);
+        if !m.any(x0, y0, x1, y1) {
+            return Action::Frustum;
+        }
+    }
     if settings.occlusion_culling && !cull_fp.crosses_near {
         let [x0, y0, x1, y1] = cull_fp.touched(cam);
         if target.occluded(x0, y0, x1, y1, cull_fp.ndc_depth) {

@@ -8,7 +8,7 @@ use super::*;
 use crate::krs::{Kernel, KrsObject, Material, MirrorPlane, PlaneKernel, SphereKernel, presets};
 use crate::scene::{MeshObject, Transform};
 
-fn ball(centre: Vec3, radius: f32, colour: Vec3) -> ObjectKind {
+pub(super) fn ball(centre: Vec3, radius: f32, colour: Vec3) -> ObjectKind {
     ObjectKind::Krs(KrsObject {
         kernels: vec![Kernel::Sphere(SphereKernel {
             centre,

@@ -18,6 +18,7 @@ mod deform;
 mod krs;
 pub mod quality;
 mod raster;
+mod sampled;
 pub mod scenes;
 pub mod shade;
 mod stats;
@@ -181,7 +182,7 @@ pub fn render_document(
     doc: &Document,
     req: &RenderRequest,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_document_inner(doc, req, None)
+    render_document_inner(doc, req, None, true)
 }
 
 /// [`render_document`] for a viewer that renders one document again and again while its camera
@@ -198,13 +199,15 @@ pub fn render_document_cached(
     cache: &mut ShadowCache,
     content_key: u64,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_document_inner(doc, req, Some((cache, content_key)))
+    render_document_inner(doc, req, Some((cache, content_key)), true)
 }
 
+/// `sampled_only`: see [`render_frame`].
 fn render_document_inner(
     doc: &Document,
     req: &RenderRequest,
     cache: Option<(&mut ShadowCache, u64)>,
+    sampled_only: bool,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     check_size(req.width, req.height)?;
     doc.validate()?;
@@ -266,7 +269,17 @@ fn render_document_inner(
         labels: krs_labels,
         casts_shadows: true,
     };
-    render_frame(&scene, &krs, &cam, &req.quality, cache)
+    render_frame(&scene, &krs, &cam, &req.quality, cache, sampled_only)
+}
+
+/// [`render_document`] with every caster drawn into its shadow maps, wherever the shading
+/// reads them or not: the reference the sampled-texel maps are tested against.
+#[cfg(test)]
+pub(crate) fn render_document_full_shadow_maps(
+    doc: &Document,
+    req: &RenderRequest,
+) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
+    render_document_inner(doc, req, None, false)
 }
 
 /// How much finer than wanted a cached shadow map may be and still be used, per axis: a map
@@ -407,16 +420,19 @@ pub fn render_scene_with_krs(
     cam: &Camera,
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_frame(scene, krs_layer, cam, quality, None)
+    render_frame(scene, krs_layer, cam, quality, None, true)
 }
 
 /// [`render_scene_with_krs`], with shadow maps from and into `cache` when there is one.
+/// Without a cache, `sampled_only` draws casters into a map only where the frame's shading
+/// reads it (the image is the same either way; tests compare the two).
 fn render_frame(
     scene: &RenderScene<'_>,
     krs_layer: &KrsLayer,
     cam: &Camera,
     quality: &Quality,
     cache: Option<(&mut ShadowCache, u64)>,
+    sampled_only: bool,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     check_size(cam.width, cam.height)?;
     quality.validate()?;
@@ -426,7 +442,46 @@ fn render_frame(
     let tris = raster::world_triangles(&scene.meshes);
     stats.triangles = tris.len() as u64;
 
-    // Shadow maps.
+    // View: triangles, then voxels into the same depth.
+    let t0 = Instant::now();
+    let mut target = buffers::DepthTarget::new(cam.width, cam.height);
+    stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
+    // With no triangle drawn the tiles are already right (all empty).
+    if stats.triangles_rasterised > 0 && quality.occlusion_culling {
+        target.update_all_tiles();
+    }
+    stats.times.triangles_ms = ms_since(t0);
+    let pass = asvo::draw_voxels(
+        &scene.voxels,
+        cam,
+        &mut target,
+        &asvo::PassSettings {
+            lod_pixel_threshold: quality.lod_pixel_threshold,
+            occlusion_culling: quality.occlusion_culling,
+            id_base: 0,
+            keep_refs: true,
+            shadow_casters_only: false,
+            sampled: None,
+        },
+    );
+    stats.levels = pass.levels;
+    stats.times.traversal_ms = pass.traversal_ms;
+    stats.times.splat_ms = pass.splat_ms;
+
+    let t0 = Instant::now();
+    let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, &target, quality);
+    stats.krs = krs_pass.stats;
+    stats.times.krs_ms = ms_since(t0);
+
+    let t0 = Instant::now();
+    let keys = target.into_keys();
+    let mut fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
+    shade::resolve_krs(&mut fb, &keys, &krs_pass, &krs_layer.labels);
+    stats.times.resolve_ms = ms_since(t0);
+    stats.covered_pixels = fb.covered_pixels() as u64;
+
+    // Shadow maps, after the view: a map drawn for this frame alone needs the G-buffer to
+    // know which texels its shading reads (see `SampledTexels`).
     let t0 = Instant::now();
     let mut shadows = Vec::with_capacity(scene.lights.len());
     let bounds = scene_bounds(scene, &tris);
@@ -465,10 +520,16 @@ fn render_frame(
                         stats.shadow_maps_reused += 1;
                         return m;
                     }
-                    let lc = if cache.is_some() {
-                        fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc)
+                    // A map for this frame alone holds casters only where its shading reads;
+                    // a cached map serves other views too, so it holds them all.
+                    let (lc, sampled) = if cache.is_some() {
+                        (fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc), None)
+                    } else if !sampled_only {
+                        (lc, None)
                     } else {
-                        lc
+                        let krs_pixels = &krs_pass.pixels;
+                        let s = shade::sampled_texels(&lc, light, &fb, cam, krs_pixels, quality);
+                        (lc, Some(s))
                     };
                     let m = Arc::new(shade::ShadowMap::render(
                         lc,
@@ -476,6 +537,7 @@ fn render_frame(
                         &scene.meshes,
                         &tris,
                         quality,
+                        sampled.as_ref(),
                         &mut stats.shadow_levels,
                     ));
                     if let Some(c) = cache.as_mut() {
@@ -489,43 +551,6 @@ fn render_frame(
         shadows.push(map);
     }
     stats.times.shadow_ms = ms_since(t0);
-
-    // View: triangles, then voxels into the same depth.
-    let t0 = Instant::now();
-    let mut target = buffers::DepthTarget::new(cam.width, cam.height);
-    stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
-    // With no triangle drawn the tiles are already right (all empty).
-    if stats.triangles_rasterised > 0 && quality.occlusion_culling {
-        target.update_all_tiles();
-    }
-    stats.times.triangles_ms = ms_since(t0);
-    let pass = asvo::draw_voxels(
-        &scene.voxels,
-        cam,
-        &mut target,
-        &asvo::PassSettings {
-            lod_pixel_threshold: quality.lod_pixel_threshold,
-            occlusion_culling: quality.occlusion_culling,
-            id_base: 0,
-            keep_refs: true,
-            shadow_casters_only: false,
-        },
-    );
-    stats.levels = pass.levels;
-    stats.times.traversal_ms = pass.traversal_ms;
-    stats.times.splat_ms = pass.splat_ms;
-
-    let t0 = Instant::now();
-    let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, &target, quality);
-    stats.krs = krs_pass.stats;
-    stats.times.krs_ms = ms_since(t0);
-
-    let t0 = Instant::now();
-    let keys = target.into_keys();
-    let mut fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
-    shade::resolve_krs(&mut fb, &keys, &krs_pass, &krs_layer.labels);
-    stats.times.resolve_ms = ms_since(t0);
-    stats.covered_pixels = fb.covered_pixels() as u64;
 
     let t0 = Instant::now();
     let lighting = shade::Lighting {

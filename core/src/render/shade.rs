@@ -10,6 +10,7 @@ use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
 use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
 use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
+use super::sampled::SampledTexels;
 use super::stats::LevelStats;
 use crate::mesh::{linear_to_srgb, srgb_to_linear};
 use crate::render::Quality;
@@ -128,6 +129,7 @@ impl ShadowMap {
         meshes: &[MeshInstance<'_>],
         tris: &[WorldTriangle],
         quality: &Quality,
+        sampled: Option<&SampledTexels>,
         levels: &mut Vec<LevelStats>,
     ) -> Self {
         let mut target = DepthTarget::new(cam.width, cam.height);
@@ -145,10 +147,11 @@ impl ShadowMap {
                 id_base: 0,
                 keep_refs: false,
                 shadow_casters_only: true,
+                sampled,
             },
         );
         super::stats::FrameStats::merge_levels(levels, &pass.levels);
-        let texel_world = 2.0 / cam.fy;
+        let texel_world = Self::texel_world(&cam);
         let depth: Vec<f32> = target.into_keys().into_par_iter().map(key_depth).collect();
         let (bounds, tiles_x) = tile_bounds(&depth, cam.width as i32, cam.height as i32);
         Self {
@@ -158,6 +161,11 @@ impl ShadowMap {
             bounds,
             tiles_x,
         }
+    }
+
+    /// World size of one texel of a map seen through `cam`.
+    fn texel_world(cam: &Camera) -> f32 {
+        2.0 / cam.fy
     }
 
     /// Fraction of light reaching a world point (1 = lit), with a normal offset, a depth bias
@@ -170,16 +178,14 @@ impl ShadowMap {
         receiver_size_world: f32,
         pcf: i32,
     ) -> (f32, u32) {
-        // Splat depth is the nearest corner of a node, so a flat voxel surface is a staircase
-        // up to one node deep in both maps: bias by both node sizes, and offset along the normal
-        // so grazing receivers do not sample their own texel.
-        let offset = n_world * (1.5 * self.texel_world);
-        let q = self.cam.view_from_world.transform_point3(p_world + offset);
-        let s = self.cam.project_view(q);
-        let bias = 2.0 * self.texel_world + 1.5 * receiver_size_world;
-        let recv = self.cam.ndc_depth(s.z - bias);
+        let (recv, ix, iy) = lookup(
+            &self.cam,
+            self.texel_world,
+            p_world,
+            n_world,
+            receiver_size_world,
+        );
         let (w, h) = (self.cam.width as i32, self.cam.height as i32);
-        let (ix, iy) = (s.x.floor() as i32, s.y.floor() as i32);
         let mut reads = 0u32;
         if pcf > 0 {
             // The window's texels inside the map (taps outside count as lit).
@@ -224,6 +230,87 @@ impl ShadowMap {
         }
         (lit as f32 / taps as f32, reads + taps)
     }
+}
+
+/// Where a lookup of a shadow map seen through `cam` (texels of `texel_world`) lands: the
+/// receiver's biased NDC depth and the texel at the centre of its PCF window.
+#[inline]
+fn lookup(
+    cam: &Camera,
+    texel_world: f32,
+    p_world: Vec3,
+    n_world: Vec3,
+    receiver_size_world: f32,
+) -> (f32, i32, i32) {
+    // Splat depth is the nearest corner of a node, so a flat voxel surface is a staircase up
+    // to one node deep in both maps: bias by both node sizes, and offset along the normal so
+    // grazing receivers do not sample their own texel.
+    let offset = n_world * (1.5 * texel_world);
+    let q = cam.view_from_world.transform_point3(p_world + offset);
+    let s = cam.project_view(q);
+    let bias = 2.0 * texel_world + 1.5 * receiver_size_world;
+    (
+        cam.ndc_depth(s.z - bias),
+        s.x.floor() as i32,
+        s.y.floor() as i32,
+    )
+}
+
+/// The texels the shading of `fb` will read from the map of light `light` seen through `cam`
+/// (see [`SampledTexels`]): the PCF window of every covered pixel that may face the light
+/// (`n·l > 0`; every KRS pixel, whose diffuse term is its own), clamped to the map.
+pub(crate) fn sampled_texels(
+    cam: &Camera,
+    light: &Light,
+    fb: &FrameBuffers,
+    view: &Camera,
+    krs_pixels: &[Option<super::krs::KrsPixel>],
+    quality: &Quality,
+) -> SampledTexels {
+    let texel_world = ShadowMap::texel_world(cam);
+    let l = -light.direction.normalize_or_zero();
+    let pcf = quality.shadow_pcf_radius.min(8) as i32;
+    let (w, h) = (cam.width as i32, cam.height as i32);
+    let windows = (0..fb.ids.len()).into_par_iter().filter_map(|i| {
+        if fb.ids[i].object == 0 {
+            return None;
+        }
+        let krs = krs_pixels.get(i).and_then(Option::as_ref);
+        if krs.is_none() && fb.normal[i].dot(l) <= 0.0 {
+            return None;
+        }
+        let (p, receiver) = shading_point(fb, view, krs, quality, i);
+        let (_, ix, iy) = lookup(cam, texel_world, p, fb.normal[i], receiver);
+        let (x0, x1) = (
+            (ix.saturating_sub(pcf)).max(0),
+            ix.saturating_add(pcf).min(w - 1),
+        );
+        let (y0, y1) = (
+            (iy.saturating_sub(pcf)).max(0),
+            iy.saturating_add(pcf).min(h - 1),
+        );
+        (x0 <= x1 && y0 <= y1).then_some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+    });
+    SampledTexels::new(cam.width, cam.height, windows)
+}
+
+/// The world point and receiver size pixel `i` of `fb` is shaded with: a KRS pixel keeps its
+/// exact hit point, others come back from 32-bit NDC depth; the receiver is the pixel's world
+/// size (times the LOD threshold when that is coarser), the staircase a splat may add.
+#[inline]
+fn shading_point(
+    fb: &FrameBuffers,
+    cam: &Camera,
+    krs: Option<&super::krs::KrsPixel>,
+    quality: &Quality,
+    i: usize,
+) -> (Vec3, f32) {
+    let w = fb.width;
+    let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
+    let p = krs.map_or_else(|| cam.unproject(x, y, fb.depth[i]), |px| px.position);
+    let receiver =
+        cam.pixel_world_size(cam.view_depth(fb.depth[i])) * quality.lod_pixel_threshold.max(1.0);
+    (p, receiver)
 }
 
 /// Nearest and farthest depth per `SHADOW_TILE`² block of a `w`×`h` depth map, and the number
@@ -640,14 +727,10 @@ pub(crate) fn shade(
                 out.copy_from_slice(&bg);
                 return count;
             }
-            let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
             let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
-            // A KRS pixel keeps its exact hit point; others come back from 32-bit NDC depth.
-            let p = krs_px.map_or_else(|| cam.unproject(x, y, fb.depth[i]), |px| px.position);
+            let (p, receiver) = shading_point(fb, cam, krs_px, quality, i);
             let n = fb.normal[i];
             let v = (eye - p).normalize_or_zero();
-            let receiver = cam.pixel_world_size(cam.view_depth(fb.depth[i]))
-                * quality.lod_pixel_threshold.max(1.0);
             // The AO staircase tolerance: the receiver term of the shadow bias.
             let krs_pixels = &lighting.krs.pass.pixels;
             let open = ao.openness(fb, cam, p, n, 1.5 * receiver, |j| {

@@ -1,0 +1,130 @@
+//! The shadow-map texels a frame's shading reads.
+//!
+//! Why: a shadow map is looked up only where a visible pixel faces its light, and only within
+//! the PCF window around that pixel's position in the map. A caster whose footprint touches
+//! none of those texels cannot change any lookup, so the shadow pass of a single frame culls
+//! it like a node outside the frustum (docs/rendering.md "Shadow maps"). Every texel a lookup
+//! reads still gets every caster, so the image is exactly the one a full map gives.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+
+use rayon::prelude::*;
+
+/// Edge of a mask tile in texels, as a shift (8×8 texels).
+const TILE_SHIFT: u32 = 3;
+
+/// Tiles of a shadow map that hold at least one texel some lookup reads, with a summed-area
+/// table so that a rectangle query costs four reads.
+pub(crate) struct SampledTexels {
+    tiles_x: u32,
+    tiles_y: u32,
+    /// `(tiles_x + 1) × (tiles_y + 1)` prefix sums of read tiles (row 0 and column 0 zero).
+    sums: Vec<u32>,
+}
+
+impl SampledTexels {
+    /// The mask of a `width`×`height` map from the inclusive texel windows of every lookup
+    /// (`[x0, y0, x1, y1]`, inside the map). The result does not depend on the windows' order.
+    pub(crate) fn new(
+        width: u32,
+        height: u32,
+        windows: impl ParallelIterator<Item = [u32; 4]>,
+    ) -> Self {
+        let tiles_x = width.div_ceil(1 << TILE_SHIFT);
+        let tiles_y = height.div_ceil(1 << TILE_SHIFT);
+        let read: Vec<AtomicBool> = (0..tiles_x as usize * tiles_y as usize)
+            .map(|_| AtomicBool::new(false))
+            .collect();
+        windows.for_each(|[x0, y0, x1, y1]| {
+            for ty in y0 >> TILE_SHIFT..=y1 >> TILE_SHIFT {
+                for tx in x0 >> TILE_SHIFT..=x1 >> TILE_SHIFT {
+                    if let Some(t) = read.get((ty * tiles_x + tx) as usize) {
+                        t.store(true, Ordering::Relaxed);
+                    }
+                }
+            }
+        });
+        let stride = tiles_x as usize + 1;
+        let mut sums = vec![0u32; stride * (tiles_y as usize + 1)];
+        for ty in 0..tiles_y as usize {
+            let mut row = 0u32;
+            for tx in 0..tiles_x as usize {
+                row += u32::from(read[ty * tiles_x as usize + tx].load(Ordering::Relaxed));
+                sums[(ty + 1) * stride + tx + 1] = sums[ty * stride + tx + 1] + row;
+            }
+        }
+        Self {
+            tiles_x,
+            tiles_y,
+            sums,
+        }
+    }
+
+    /// Whether any texel of the inclusive rectangle lies in a tile some lookup reads (a
+    /// conservative answer: the tile, not the texel).
+    #[inline]
+    pub(crate) fn any(&self, x0: u32, y0: u32, x1: u32, y1: u32) -> bool {
+        let (tx0, ty0) = ((x0 >> TILE_SHIFT) as usize, (y0 >> TILE_SHIFT) as usize);
+        let tx1 = ((x1 >> TILE_SHIFT) + 1).min(self.tiles_x) as usize;
+        let ty1 = ((y1 >> TILE_SHIFT) + 1).min(self.tiles_y) as usize;
+        if tx0 >= tx1 || ty0 >= ty1 {
+            return false;
+        }
+        let stride = self.tiles_x as usize + 1;
+        let s = &self.sums;
+        s[ty1 * stride + tx1] + s[ty0 * stride + tx0]
+            > s[ty0 * stride + tx1] + s[ty1 * stride + tx0]
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every query answers as a scan of the marked tiles would, at the map's edges, for
+    /// rectangles of one texel to the whole map, and with nothing read at all.
+    #[test]
+    fn any_agrees_with_a_scan_of_the_marked_tiles() {
+        let (w, h) = (61u32, 37u32);
+        let windows = vec![
+            [0u32, 0, 0, 0],
+            [60, 36, 60, 36],
+            [17, 9, 19, 11],
+            [30, 20, 45, 21],
+        ];
+        let mask = SampledTexels::new(w, h, windows.clone().into_par_iter());
+        let marked = |x: u32, y: u32| {
+            windows.iter().any(|&[x0, y0, x1, y1]| {
+                (x0 >> 3..=x1 >> 3).contains(&(x >> 3)) && (y0 >> 3..=y1 >> 3).contains(&(y >> 3))
+            })
+        };
+        let mut hits = 0;
+        for (x0, x1) in [
+            (0, 0),
+            (0, 60),
+            (7, 8),
+            (8, 15),
+            (16, 23),
+            (24, 29),
+            (56, 60),
+            (40, 60),
+        ] {
+            for (y0, y1) in [
+                (0, 0),
+                (0, 36),
+                (7, 8),
+                (8, 15),
+                (16, 23),
+                (24, 31),
+                (32, 36),
+            ] {
+                let scan = (y0..=y1).any(|y| (x0..=x1).any(|x| marked(x, y)));
+                assert_eq!(mask.any(x0, y0, x1, y1), scan, "{x0}..{x1} × {y0}..{y1}");
+                hits += usize::from(scan);
+            }
+        }
+        assert!(hits > 5 && hits < 56, "{hits} of 56 queries hit");
+        let none = SampledTexels::new(w, h, Vec::<[u32; 4]>::new().into_par_iter());
+        assert!(!none.any(0, 0, w - 1, h - 1));
+    }
+}
