@@ -1,11 +1,13 @@
 //! Renders the render bench's near 3M-voxel 800×800 frame `N` times (default 10) at a preset,
-//! printing each frame's image hash, counts and stage times: a fixed workload for profilers (`perf record`,
-//! `valgrind --tool=callgrind`) without criterion's own work in the profile. With `orbit`, the
+//! printing each frame's image hash, counts and stage times: a fixed workload for profilers
+//! (`perf record`, `valgrind --tool=callgrind`) without criterion's own work in the profile,
+//! and a check that a speed change kept the image (the hash). With `orbit`, the
 //! camera turns 2° a frame and shadow maps come from a [`ShadowCache`], as in the editor's CPU
-//! preview. With `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too.
+//! preview; with `edit`, the content key changes every frame, as while sculpting there. With
+//! `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too.
 //!
 //! `cargo run --release -p thicket-core --example frame_profile -- [draft|balanced|final] [N]
-//! [orbit]`
+//! [orbit|edit]`
 
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
@@ -42,11 +44,13 @@ fn main() {
     };
     let mut doc = Document::default();
     doc.add("Sphere", voxel_object(svo, 1.0 / 0.36));
-    let orbit = match args.next().as_deref() {
-        None => false,
-        Some("orbit") => true,
+    // `edit`: the content key changes every frame, as while sculpting in the CPU preview.
+    let (orbit, edit) = match args.next().as_deref() {
+        None => (false, false),
+        Some("orbit") => (true, false),
+        Some("edit") => (false, true),
         Some(other) => {
-            eprintln!("unknown mode {other:?}: the third argument can only be orbit");
+            eprintln!("unknown mode {other:?}: the third argument can be orbit or edit");
             std::process::exit(2);
         }
     };
@@ -66,6 +70,8 @@ fn main() {
                 c.yaw_deg += 2.0;
             }
             render_document_cached(&doc, &req, &mut cache, 0)
+        } else if edit {
+            render_document_cached(&doc, &req, &mut cache, i as u64)
         } else {
             render_document(&doc, &req)
         };

@@ -305,7 +305,10 @@ pub const SHADOW_CACHE_HEADROOM: f32 = 1.25;
 /// frame wants and at most [`SHADOW_CACHE_MAX_FINER`] times finer. Otherwise it is rendered
 /// again, [`SHADOW_CACHE_HEADROOM`] times finer than wanted (or at the quality's size limit).
 /// So a cached frame can differ from an uncached one only by sharper shadows (a finer map),
-/// never by coarser or stale ones.
+/// never by coarser or stale ones. The first frame of a new key (content, lights or quality)
+/// keeps nothing: it is drawn exactly as an uncached frame, whose maps hold casters only
+/// where its shading reads them, since an edit is often followed by another; the next frame
+/// with that key draws the full maps it keeps.
 #[derive(Default)]
 pub struct ShadowCache {
     key: Option<(u64, Vec<Light>, Quality)>,
@@ -494,11 +497,16 @@ fn render_frame(
             .iter()
             .any(|t| scene.meshes[t.mesh as usize].casts_shadows);
     // A cache made for other content, lights or quality holds nothing usable: start it afresh.
+    // That frame draws its maps as an uncached frame would (only the texels it reads) and
+    // keeps none: a change is often followed by another (a stroke, playback), and a full map
+    // costs more. The next frame with the same key draws full maps and keeps them.
+    let mut fresh_key = false;
     let mut cache = cache.map(|(c, content)| {
         let key = (content, scene.lights.to_vec(), quality.clone());
         if c.key.as_ref() != Some(&key) {
             c.key = Some(key);
             c.maps.clear();
+            fresh_key = true;
         }
         c.maps.resize(scene.lights.len(), None);
         c
@@ -522,7 +530,8 @@ fn render_frame(
                     }
                     // A map for this frame alone holds casters only where its shading reads;
                     // a cached map serves other views too, so it holds them all.
-                    let (lc, sampled) = if cache.is_some() {
+                    let keep = cache.is_some() && !fresh_key;
+                    let (lc, sampled) = if keep {
                         (fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc), None)
                     } else if !sampled_only {
                         (lc, None)
@@ -540,7 +549,7 @@ fn render_frame(
                         sampled.as_ref(),
                         &mut stats.shadow_levels,
                     ));
-                    if let Some(c) = cache.as_mut() {
+                    if keep && let Some(c) = cache.as_mut() {
                         c.maps[li] = Some(Arc::clone(&m));
                     }
                     m

@@ -704,7 +704,8 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
     };
     let mut cache = ShadowCache::new();
     // Renders with the cache; checks the image against the uncached frame; returns the image,
-    // how many maps were reused and the shadow traversal's visits.
+    // how many maps were reused, the shadow traversal's visits and whether the cache holds a
+    // map.
     let mut frame = |d: &Document, r: &RenderRequest, key: u64| {
         let (img, _, st) = render_document_cached(d, r, &mut cache, key).unwrap();
         let plain = render_document(d, r).unwrap().0;
@@ -714,15 +715,21 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
             "{differing} pixels differ from the uncached frame"
         );
         let shadow_visits: u64 = st.shadow_levels.iter().map(|l| l.visited).sum();
-        (img, st.shadow_maps_reused, shadow_visits)
+        (img, st.shadow_maps_reused, shadow_visits, !cache.is_empty())
     };
 
-    // First frame: a map is rendered (finer than an uncached frame's, by the headroom).
-    let (first, reused, visits) = frame(&doc, &at(4.2, &q), 1);
-    assert_eq!(reused, 0);
+    // The first frame of a key is drawn exactly as an uncached frame and keeps nothing.
+    let (img, reused, visits, kept) = frame(&doc, &at(4.2, &q), 1);
+    assert_eq!((reused, kept), (0, false));
+    assert!(visits > 0);
+    assert!(img.pixels == render_document(&doc, &at(4.2, &q)).unwrap().0.pixels);
+    // The next frame with that key renders a map to keep (finer than an uncached frame's, by
+    // the headroom).
+    let (first, reused, visits, kept) = frame(&doc, &at(4.2, &q), 1);
+    assert_eq!((reused, kept), (0, true));
     assert!(visits > 0);
     // The same view again: reused, no shadow traversal, the same image.
-    let (img, reused, visits) = frame(&doc, &at(4.2, &q), 1);
+    let (img, reused, visits, _) = frame(&doc, &at(4.2, &q), 1);
     assert_eq!((reused, visits, img.pixels == first.pixels), (1, 0, true));
     // Backing off a little, then coming a little nearer (within the headroom): reused.
     assert_eq!(frame(&doc, &at(4.6, &q), 1).1, 1);
@@ -733,7 +740,8 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
     assert_eq!(frame(&doc, &at(9.0, &q), 1).1, 0);
     assert_eq!(frame(&doc, &at(9.0, &q), 1).1, 1);
 
-    // Another content key, another light or other quality: rendered again.
+    // Another content key, another light or other quality: rendered again, kept from the
+    // second frame on, reused from the third.
     assert_eq!(frame(&doc, &at(9.0, &q), 2).1, 0);
     let mut lit = doc.clone();
     lit.lights[0].direction = Vec3::new(0.5, -1.0, -0.35);
@@ -742,15 +750,18 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
         lod_pixel_threshold: 0.5,
         ..q.clone()
     };
-    assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 0);
-    assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, 1);
+    for reused in [0, 0, 1] {
+        assert_eq!(frame(&lit, &at(9.0, &finer_lod), 2).1, reused);
+    }
     // Cleared, it holds nothing and renders again.
     assert!(!cache.is_empty());
     cache.clear();
     assert!(cache.is_empty());
-    let (_, _, st) = render_document_cached(&lit, &at(9.0, &finer_lod), &mut cache, 2).unwrap();
-    assert_eq!(st.shadow_maps_reused, 0);
-    assert!(!cache.is_empty());
+    for kept in [false, true] {
+        let (_, _, st) = render_document_cached(&lit, &at(9.0, &finer_lod), &mut cache, 2).unwrap();
+        assert_eq!(st.shadow_maps_reused, 0);
+        assert_eq!(cache.is_empty(), !kept);
+    }
 }
 
 /// A shadow map drawn for one frame holds casters only where the frame's shading reads it: the
