@@ -16,6 +16,8 @@ const TILE_SHIFT: u32 = 3;
 /// Tiles of a shadow map that hold at least one texel some lookup reads, with a summed-area
 /// table so that a rectangle query costs four reads.
 pub(crate) struct SampledTexels {
+    width: u32,
+    height: u32,
     tiles_x: u32,
     tiles_y: u32,
     /// `(tiles_x + 1) × (tiles_y + 1)` prefix sums of read tiles (row 0 and column 0 zero).
@@ -54,10 +56,24 @@ impl SampledTexels {
             }
         }
         Self {
+            width,
+            height,
             tiles_x,
             tiles_y,
             sums,
         }
+    }
+
+    /// The texel rectangles (inclusive, inside the map) of the tiles no lookup reads.
+    pub(crate) fn unread(&self) -> impl Iterator<Item = [u32; 4]> + '_ {
+        (0..self.tiles_y).flat_map(move |ty| {
+            (0..self.tiles_x).filter_map(move |tx| {
+                let (x0, y0) = (tx << TILE_SHIFT, ty << TILE_SHIFT);
+                let x1 = (x0 + (1 << TILE_SHIFT) - 1).min(self.width - 1);
+                let y1 = (y0 + (1 << TILE_SHIFT) - 1).min(self.height - 1);
+                (!self.any(x0, y0, x1, y1)).then_some([x0, y0, x1, y1])
+            })
+        })
     }
 
     /// Whether any texel of the inclusive rectangle lies in a tile some lookup reads (a

@@ -5,7 +5,9 @@ use rayon::prelude::*;
 
 use super::MESH_ID_FLAG;
 use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
-use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
+use super::buffers::{
+    DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth, pack_key,
+};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
 use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
@@ -133,9 +135,24 @@ impl ShadowMap {
         levels: &mut Vec<LevelStats>,
     ) -> Self {
         let mut target = DepthTarget::new(cam.width, cam.height);
+        let drawn = draw_triangles(tris, meshes, &cam, &target, true);
         // With no triangle drawn the tiles are already right (all empty).
-        if draw_triangles(tris, meshes, &cam, &target, true) > 0 && quality.occlusion_culling {
+        if drawn > 0 && quality.occlusion_culling {
             target.update_all_tiles();
+        }
+        if let Some(m) = sampled {
+            // Texels no lookup reads hold the nearest depth there is: the occlusion test then
+            // takes them as covered, so a node that also touches read texels is culled when
+            // those are (it was kept because of texels nobody reads).
+            let mut dirty = Vec::new();
+            for [x0, y0, x1, y1] in m.unread() {
+                target.write_rect(x0, y0, x1, y1, pack_key(0.0, 0), &mut dirty);
+            }
+            if quality.occlusion_culling {
+                target.update_dirty(&dirty);
+            } else {
+                target.clear_dirty(&dirty);
+            }
         }
         let pass = draw_voxels(
             voxels,
