@@ -2,7 +2,8 @@
 //! renderer and reports frame times, frames per second, per-pass milliseconds (CPU stage
 //! timers; GPU timestamp queries when the adapter has them) and the traversal counters.
 //!
-//! Both renderers are timed the same way: one warm-up frame, then `frames` frames, each timed
+//! Both renderers are timed the same way: one warm-up frame (two for the CPU while orbiting,
+//! so that its shadow cache holds the map), then `frames` frames, each timed
 //! on the CPU clock from the call to its return (the GPU frame waits for its counters, so the
 //! time includes the GPU work). The GPU renders with the scene uploaded once, as the editor
 //! does between edits.
@@ -51,9 +52,10 @@ pub struct BenchReport {
     /// Splats drawn for the view.
     pub splats: u64,
     /// Shadow-map traversal totals of the last frame that rendered its maps, summed over every
-    /// light's map (both renderers count them alike): what each added shadow-casting light
-    /// costs. While orbiting, the CPU reuses its maps, so this is the warm-up's or the last
-    /// frame that missed the cache.
+    /// light's map: what each added shadow-casting light costs. The GPU draws full maps; the
+    /// CPU's uncached frames draw casters only where the frame's shading reads the map, its
+    /// cached ones full maps. While orbiting, the CPU reuses its maps, so this is the warm-up's
+    /// or the last frame that missed the cache.
     pub shadow: BenchLevel,
     /// Triangles submitted.
     pub triangles: u64,
@@ -88,7 +90,7 @@ pub struct BenchSetup<'a> {
     pub height: u32,
     /// Quality knobs.
     pub quality: &'a Quality,
-    /// Timed frames (after one warm-up; at least one).
+    /// Timed frames (after the warm-up; at least one).
     pub frames: u32,
     /// Degrees the camera's yaw turns before each timed frame (0: one fixed view).
     pub orbit_deg: f32,
@@ -134,7 +136,7 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
     (mean, median, min)
 }
 
-/// Times `setup.frames` CPU frames (after one warm-up). While orbiting (a non-zero
+/// Times `setup.frames` CPU frames (after one warm-up frame, two while orbiting). While orbiting (a non-zero
 /// `orbit_deg`) shadow maps come from a [`ShadowCache`], as in the editor's CPU preview.
 ///
 /// # Errors

@@ -726,7 +726,8 @@ fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
         // Extremes of x/d over the box's view-space AABB lie at its nearest (clamped to the
         // near plane) or farthest depth.
         let (xl, xh, yl, yh) = (c.x - he.x, c.x + he.x, c.y - he.y, c.y + he.y);
-        // Two divisions instead of eight per node. `dn <= d_far`, so `inv_n >= inv_f > 0`
+        // Two divisions instead of eight per node. `0 < near <= dn <= d_far` (a perspective
+        // camera's near plane is positive: `OrbitCamera::validate`), so `inv_n >= inv_f > 0`
         // and the sign of each edge picks its extreme: the same value as the min / max of both
         // products (multiplication is monotonic), with half the products.
         let (inv_n, inv_f) = (dn.recip(), d_far.recip());

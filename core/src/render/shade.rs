@@ -170,7 +170,7 @@ impl ShadowMap {
         super::stats::FrameStats::merge_levels(levels, &pass.levels);
         let texel_world = Self::texel_world(&cam);
         let depth: Vec<f32> = target.into_keys().into_par_iter().map(key_depth).collect();
-        let (bounds, tiles_x) = tile_bounds(&depth, cam.width as i32, cam.height as i32);
+        let (bounds, tiles_x) = tile_bounds(&depth, cam.width as i32, cam.height as i32, sampled);
         Self {
             cam,
             depth,
@@ -331,8 +331,15 @@ fn shading_point(
 }
 
 /// Nearest and farthest depth per `SHADOW_TILE`² block of a `w`×`h` depth map, and the number
-/// of blocks per row.
-fn tile_bounds(depth: &[f32], w: i32, h: i32) -> (Vec<(f32, f32)>, i32) {
+/// of blocks per row. With `read`, only over the texels of tiles some lookup reads: still a
+/// superset of every PCF window, so the early-outs stay exact, and the nearest-depth fill of
+/// unread tiles does not hide the "wholly lit" answer of the blocks they share with read ones.
+fn tile_bounds(
+    depth: &[f32],
+    w: i32,
+    h: i32,
+    read: Option<&SampledTexels>,
+) -> (Vec<(f32, f32)>, i32) {
     let (tiles_x, tiles_y) = (
         (w + SHADOW_TILE - 1) / SHADOW_TILE,
         (h + SHADOW_TILE - 1) / SHADOW_TILE,
@@ -345,6 +352,9 @@ fn tile_bounds(depth: &[f32], w: i32, h: i32) -> (Vec<(f32, f32)>, i32) {
             for y in ty * SHADOW_TILE..((ty + 1) * SHADOW_TILE).min(h) {
                 let row = (y * w) as usize;
                 for x in tx * SHADOW_TILE..((tx + 1) * SHADOW_TILE).min(w) {
+                    if read.is_some_and(|m| !m.any(x as u32, y as u32, x as u32, y as u32)) {
+                        continue;
+                    }
                     let d = depth[row + x as usize];
                     b = (b.0.min(d), b.1.max(d));
                 }
@@ -845,7 +855,7 @@ mod tests {
                 }
             })
             .collect();
-        let (bounds, tiles_x) = tile_bounds(&depth, w as i32, h as i32);
+        let (bounds, tiles_x) = tile_bounds(&depth, w as i32, h as i32, None);
         let map = ShadowMap {
             cam,
             depth,

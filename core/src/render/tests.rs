@@ -766,8 +766,9 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
 
 /// A shadow map drawn for one frame holds casters only where the frame's shading reads it: the
 /// image is bit for bit the one full maps give, with fewer shadow nodes visited. Voxels and
-/// meshes cast on each other, under a steep and a grazing light, with PCF radii 0 to 2, and a
-/// KRS ball receives voxel shadows (its pixels read the maps too).
+/// meshes cast on each other, under a steep and a grazing light, with PCF radii 0 to 2, with
+/// and without occlusion culling, with three lights (two casting), and a KRS ball receives
+/// voxel shadows (its pixels read the maps too).
 #[test]
 fn shadow_maps_drawn_only_where_shading_reads_give_the_same_image() {
     let mixed = mixed_document(7).unwrap();
@@ -791,17 +792,33 @@ fn shadow_maps_drawn_only_where_shading_reads_give_the_same_image() {
     corner.camera.target = Vec3::new(-1.6, 0.0, 1.6);
     corner.camera.distance = 0.8;
     corner.camera.pitch_deg = 60.0;
+    // Three lights: two with maps of their own (each masked by its own lookups), one without.
+    let mut lights = near.clone();
+    lights.lights.push(Light {
+        name: "Rim".into(),
+        direction: Vec3::new(0.8, -0.5, 0.6),
+        ..lights.lights[0].clone()
+    });
+    lights.lights.push(Light {
+        name: "Fill".into(),
+        direction: Vec3::new(-0.2, -0.3, -1.0),
+        casts_shadows: false,
+        ..lights.lights[0].clone()
+    });
     let visits = |s: &FrameStats| s.shadow_levels.iter().map(|l| l.visited).sum::<u64>();
-    for (name, doc) in [
-        ("mixed", &mixed),
-        ("grazing", &grazing),
-        ("krs", &with_krs),
-        ("near", &near),
-        ("corner", &corner),
+    for (name, doc, occlusion_culling) in [
+        ("mixed", &mixed, true),
+        ("mixed, no occlusion culling", &mixed, false),
+        ("grazing", &grazing, true),
+        ("krs", &with_krs, true),
+        ("near", &near, true),
+        ("three lights", &lights, true),
+        ("corner", &corner, true),
     ] {
         for pcf in 0..=2 {
             let quality = Quality {
                 shadow_pcf_radius: pcf,
+                occlusion_culling,
                 ..test_quality()
             };
             let r = req(96, 96, quality);
@@ -818,7 +835,7 @@ fn shadow_maps_drawn_only_where_shading_reads_give_the_same_image() {
             // to 0.84 of the full map's visits; corner 1 of 56,083 (the root).
             let most = match name {
                 "corner" => 0.01,
-                "grazing" | "near" => 0.9,
+                "grazing" | "near" | "three lights" => 0.9,
                 _ => 1.0,
             };
             assert!(
