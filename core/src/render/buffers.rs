@@ -184,19 +184,51 @@ impl DepthTarget {
         }
         supers.sort_unstable();
         supers.dedup();
-        let (tx_n, tiles_y, sx_n) = (self.tiles_x, self.tiles_y, self.supers_x);
         for s in supers {
-            let (sx, sy) = (s % sx_n, s / sx_n);
-            let mut max = 0.0f32;
-            'tiles: for ty in sy * SUPER..((sy + 1) * SUPER).min(tiles_y) {
-                for tx in sx * SUPER..((sx + 1) * SUPER).min(tx_n) {
-                    max = max.max(self.tile_max[(ty * tx_n + tx) as usize]);
-                    if max == f32::INFINITY {
-                        break 'tiles;
-                    }
+            self.refresh_super(s);
+        }
+    }
+
+    /// Recomputes coarse tile `s` from its fine tiles.
+    fn refresh_super(&mut self, s: u32) {
+        let (tx_n, tiles_y, sx_n) = (self.tiles_x, self.tiles_y, self.supers_x);
+        let (sx, sy) = (s % sx_n, s / sx_n);
+        let mut max = 0.0f32;
+        'tiles: for ty in sy * SUPER..((sy + 1) * SUPER).min(tiles_y) {
+            for tx in sx * SUPER..((sx + 1) * SUPER).min(tx_n) {
+                max = max.max(self.tile_max[(ty * tx_n + tx) as usize]);
+                if max == f32::INFINITY {
+                    break 'tiles;
                 }
             }
-            self.super_max[s as usize] = max;
+        }
+        self.super_max[s as usize] = max;
+    }
+
+    /// Fills the inclusive rectangles with the nearest depth there is (texels nobody reads:
+    /// `render::sampled`), keys and occlusion data alike, so the occlusion test takes them as
+    /// covered. Each rectangle must start on a fine tile and end on one's last texel or the
+    /// image's edge.
+    pub(crate) fn fill_nearest(&mut self, rects: impl Iterator<Item = [u32; 4]>) {
+        let key = pack_key(0.0, 0);
+        let w = self.width as usize;
+        for [x0, y0, x1, y1] in rects {
+            debug_assert!(x0.is_multiple_of(TILE) && y0.is_multiple_of(TILE));
+            for y in y0..=y1 {
+                let row = y as usize * w;
+                for i in row + x0 as usize..=row + x1 as usize {
+                    *self.keys[i].get_mut() = key;
+                    self.pixel_depth[i] = 0.0;
+                }
+            }
+            for ty in y0 / TILE..=y1 / TILE {
+                for tx in x0 / TILE..=x1 / TILE {
+                    self.tile_max[(ty * self.tiles_x + tx) as usize] = 0.0;
+                }
+            }
+        }
+        for s in 0..self.super_max.len() as u32 {
+            self.refresh_super(s);
         }
     }
 

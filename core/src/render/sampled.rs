@@ -10,8 +10,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use rayon::prelude::*;
 
-/// Edge of a mask tile in texels, as a shift (8×8 texels).
+/// Edge of a mask tile in texels, as a shift (8×8 texels: whole occlusion tiles, see
+/// `DepthTarget::fill_nearest`).
 const TILE_SHIFT: u32 = 3;
+const _: () = assert!((1u32 << TILE_SHIFT).is_multiple_of(super::buffers::TILE));
 
 /// Tiles of a shadow map that hold at least one texel some lookup reads, with a summed-area
 /// table so that a rectangle query costs four reads.

@@ -5,9 +5,7 @@ use rayon::prelude::*;
 
 use super::MESH_ID_FLAG;
 use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
-use super::buffers::{
-    DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth, pack_key,
-};
+use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
 use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
@@ -144,15 +142,7 @@ impl ShadowMap {
             // Texels no lookup reads hold the nearest depth there is: the occlusion test then
             // takes them as covered, so a node that also touches read texels is culled when
             // those are (it was kept because of texels nobody reads).
-            let mut dirty = Vec::new();
-            for [x0, y0, x1, y1] in m.unread() {
-                target.write_rect(x0, y0, x1, y1, pack_key(0.0, 0), &mut dirty);
-            }
-            if quality.occlusion_culling {
-                target.update_dirty(&dirty);
-            } else {
-                target.clear_dirty(&dirty);
-            }
+            target.fill_nearest(m.unread());
         }
         let pass = draw_voxels(
             voxels,
