@@ -897,18 +897,24 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
     }
 }
 
-#[test]
-fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
-    use thicket_core::enhance::{EnhanceSettings, enhance};
-    let settings = EnhanceSettings {
+/// A document whose linked fine model (`fine_id`, enhanced from `id` with `settings`) is
+/// stored as `stale`, not what the link makes of the coarse model (made elsewhere).
+struct Stale {
+    doc: Document,
+    id: u64,
+    fine_id: u64,
+    stale: Svo,
+    settings: thicket_core::enhance::EnhanceSettings,
+}
+
+fn stale_enhancement() -> Stale {
+    let settings = thicket_core::enhance::EnhanceSettings {
         factor: 4,
-        ..EnhanceSettings::default()
+        ..Default::default()
     };
     let (mut ed, id) = bumpy_editor();
     let fine_id = enhance_linked(&mut ed, id, settings.clone());
     let mut doc = ed.doc().clone();
-    // A stored fine model that is not what the link makes of the coarse one (made elsewhere):
-    // both ways of opening must replace it.
     let stale = svo_of(&ed, id);
     for o in &mut doc.objects {
         if o.id == fine_id {
@@ -918,6 +924,26 @@ fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
             });
         }
     }
+    Stale {
+        doc,
+        id,
+        fine_id,
+        stale,
+        settings,
+    }
+}
+
+#[test]
+fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
+    use thicket_core::enhance::enhance;
+    // Both ways of opening must replace the stale fine model.
+    let Stale {
+        doc,
+        id,
+        fine_id,
+        stale,
+        settings,
+    } = stale_enhancement();
     // What the open job does on its worker thread, then installs.
     let prepared = PreparedDocument::new(doc.clone(), None);
     assert_eq!(prepared.enhancer_count(), 1);
@@ -960,23 +986,14 @@ fn an_opened_document_brings_its_enhancers_so_the_first_dab_builds_none() {
 /// CPU preview's shadow cache keyed on the content would otherwise keep the old voxels).
 #[test]
 fn replacing_a_stale_enhancement_changes_the_content_key() {
-    use thicket_core::enhance::{EnhanceSettings, enhance};
-    let settings = EnhanceSettings {
-        factor: 4,
-        ..EnhanceSettings::default()
-    };
-    let (mut ed, id) = bumpy_editor();
-    let fine_id = enhance_linked(&mut ed, id, settings.clone());
-    let mut doc = ed.doc().clone();
-    let stale = svo_of(&ed, id);
-    for o in &mut doc.objects {
-        if o.id == fine_id {
-            o.kind = ObjectKind::Voxels(VoxelModel {
-                svo: stale.clone(),
-                ..VoxelModel::default()
-            });
-        }
-    }
+    use thicket_core::enhance::enhance;
+    let Stale {
+        doc,
+        id,
+        fine_id,
+        stale,
+        settings,
+    } = stale_enhancement();
     let mut plain = Editor::default();
     plain.replace_document(doc, None);
     assert_eq!(svo_of(&plain, fine_id), stale);
