@@ -796,17 +796,15 @@ fn classify(
     };
     // The occlusion test covers every pixel the culling rectangle touches: a child's splat
     // may fall back to the pixel under its own centre, outside the parent's pixel span.
-    if let Some(m) = settings.sampled {
-        let [x0, y0, x1, y1] = cull_fp.touched(cam);
-        if !m.any(x0, y0, x1, y1) {
-            return Action::Frustum;
-        }
+    let [x0, y0, x1, y1] = cull_fp.touched(cam);
+    if settings.sampled.is_some_and(|m| !m.any(x0, y0, x1, y1)) {
+        return Action::Frustum;
     }
-    if settings.occlusion_culling && !cull_fp.crosses_near {
-        let [x0, y0, x1, y1] = cull_fp.touched(cam);
-        if target.occluded(x0, y0, x1, y1, cull_fp.ndc_depth) {
-            return Action::Occluded;
-        }
+    if settings.occlusion_culling
+        && !cull_fp.crosses_near
+        && target.occluded(x0, y0, x1, y1, cull_fp.ndc_depth)
+    {
+        return Action::Occluded;
     }
     let Some(fp) = splat else {
         // The node's own box is off screen but its subtree may not be.

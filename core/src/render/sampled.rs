@@ -22,7 +22,9 @@ pub(crate) struct SampledTexels {
     height: u32,
     tiles_x: u32,
     tiles_y: u32,
-    /// `(tiles_x + 1) × (tiles_y + 1)` prefix sums of read tiles (row 0 and column 0 zero).
+    /// Per tile, row by row: whether some lookup reads it.
+    read: Vec<bool>,
+    /// `(tiles_x + 1) × (tiles_y + 1)` prefix sums of `read` (row 0 and column 0 zero).
     sums: Vec<u32>,
 }
 
@@ -48,12 +50,13 @@ impl SampledTexels {
                 }
             }
         });
+        let read: Vec<bool> = read.into_iter().map(AtomicBool::into_inner).collect();
         let stride = tiles_x as usize + 1;
         let mut sums = vec![0u32; stride * (tiles_y as usize + 1)];
         for ty in 0..tiles_y as usize {
             let mut row = 0u32;
             for tx in 0..tiles_x as usize {
-                row += u32::from(read[ty * tiles_x as usize + tx].load(Ordering::Relaxed));
+                row += u32::from(read[ty * tiles_x as usize + tx]);
                 sums[(ty + 1) * stride + tx + 1] = sums[ty * stride + tx + 1] + row;
             }
         }
@@ -62,6 +65,7 @@ impl SampledTexels {
             height,
             tiles_x,
             tiles_y,
+            read,
             sums,
         }
     }
@@ -73,9 +77,15 @@ impl SampledTexels {
                 let (x0, y0) = (tx << TILE_SHIFT, ty << TILE_SHIFT);
                 let x1 = (x0 + (1 << TILE_SHIFT) - 1).min(self.width - 1);
                 let y1 = (y0 + (1 << TILE_SHIFT) - 1).min(self.height - 1);
-                (!self.any(x0, y0, x1, y1)).then_some([x0, y0, x1, y1])
+                (!self.read[(ty * self.tiles_x + tx) as usize]).then_some([x0, y0, x1, y1])
             })
         })
+    }
+
+    /// Whether texel `(x, y)` (inside the map) lies in a tile some lookup reads.
+    #[inline]
+    pub(crate) fn is_read(&self, x: u32, y: u32) -> bool {
+        self.read[((y >> TILE_SHIFT) * self.tiles_x + (x >> TILE_SHIFT)) as usize]
     }
 
     /// Whether any texel of the inclusive rectangle lies in a tile some lookup reads (a

@@ -196,11 +196,9 @@ impl ShadowMap {
         let mut reads = 0u32;
         if pcf > 0 {
             // The window's texels inside the map (taps outside count as lit).
-            let (x0, x1) = ((ix - pcf).max(0), (ix + pcf).min(w - 1));
-            let (y0, y1) = ((iy - pcf).max(0), (iy + pcf).min(h - 1));
-            if x0 > x1 || y0 > y1 {
+            let Some([x0, y0, x1, y1]) = pcf_window(ix, iy, pcf, w, h) else {
                 return (1.0, 0);
-            }
+            };
             let (mut near, mut far) = (f32::INFINITY, f32::NEG_INFINITY);
             for ty in y0 / SHADOW_TILE..=y1 / SHADOW_TILE {
                 for tx in x0 / SHADOW_TILE..=x1 / SHADOW_TILE {
@@ -263,6 +261,21 @@ fn lookup(
     )
 }
 
+/// The PCF window of radius `pcf` around texel `(ix, iy)` clamped to a `w`×`h` map, as
+/// inclusive `[x0, y0, x1, y1]`; `None` when it lies wholly outside (its taps all count as lit).
+#[inline]
+fn pcf_window(ix: i32, iy: i32, pcf: i32, w: i32, h: i32) -> Option<[i32; 4]> {
+    let (x0, x1) = (
+        ix.saturating_sub(pcf).max(0),
+        ix.saturating_add(pcf).min(w - 1),
+    );
+    let (y0, y1) = (
+        iy.saturating_sub(pcf).max(0),
+        iy.saturating_add(pcf).min(h - 1),
+    );
+    (x0 <= x1 && y0 <= y1).then_some([x0, y0, x1, y1])
+}
+
 /// The texels the shading of `fb` will read from the map of light `light` seen through `cam`
 /// (see [`SampledTexels`]): the PCF window of every covered pixel that may face the light
 /// (`n·l > 0`; every KRS pixel, whose diffuse term is its own), clamped to the map.
@@ -288,15 +301,7 @@ pub(crate) fn sampled_texels(
         }
         let (p, receiver) = shading_point(fb, view, krs, quality, i);
         let (_, ix, iy) = lookup(cam, texel_world, p, fb.normal[i], receiver);
-        let (x0, x1) = (
-            (ix.saturating_sub(pcf)).max(0),
-            ix.saturating_add(pcf).min(w - 1),
-        );
-        let (y0, y1) = (
-            (iy.saturating_sub(pcf)).max(0),
-            iy.saturating_add(pcf).min(h - 1),
-        );
-        (x0 <= x1 && y0 <= y1).then_some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
+        pcf_window(ix, iy, pcf, w, h).map(|r| r.map(|v| v as u32))
     });
     SampledTexels::new(cam.width, cam.height, windows)
 }
@@ -342,7 +347,7 @@ fn tile_bounds(
             for y in ty * SHADOW_TILE..((ty + 1) * SHADOW_TILE).min(h) {
                 let row = (y * w) as usize;
                 for x in tx * SHADOW_TILE..((tx + 1) * SHADOW_TILE).min(w) {
-                    if read.is_some_and(|m| !m.any(x as u32, y as u32, x as u32, y as u32)) {
+                    if read.is_some_and(|m| !m.is_read(x as u32, y as u32)) {
                         continue;
                     }
                     let d = depth[row + x as usize];
