@@ -185,7 +185,9 @@ impl LocalDepth {
         self.used.clear();
     }
 
-    fn slot(&mut self, pixel: u32) -> usize {
+    /// The slot holding `pixel`, or the empty slot where it would go.
+    #[inline]
+    fn find(&self, pixel: u32) -> usize {
         let mask = (1usize << Self::BITS) - 1;
         let mut i = (pixel.wrapping_mul(0x9E37_79B9) >> (32 - Self::BITS)) as usize;
         loop {
@@ -195,6 +197,27 @@ impl LocalDepth {
             }
             i = (i + 1) & mask;
         }
+    }
+
+    /// Whether [`LocalDepth::record`] would refuse the splat (every pixel already holds a nearer
+    /// or equal depth), without recording anything.
+    fn hidden(&self, s: &Splat, width: u32) -> bool {
+        let pixels = (s.x1 - s.x0 + 1) * (s.y1 - s.y0 + 1);
+        if pixels > Self::MAX_PIXELS
+            || self.slots.is_empty()
+            || self.used.len() + Self::MAX_PIXELS as usize > (1 << (Self::BITS - 1))
+        {
+            return false;
+        }
+        for y in s.y0..=s.y1 {
+            for x in s.x0..=s.x1 {
+                let (k, d) = self.slots[self.find(y * width + x)];
+                if k == 0 || d > s.ndc_depth {
+                    return false;
+                }
+            }
+        }
+        true
     }
 
     /// Records the splat's pixels; false when every one of them already held a nearer or
@@ -214,7 +237,7 @@ impl LocalDepth {
         if pixels == 1 {
             // Most splats at the cut: one lookup, then the same decision and update as below.
             let p = s.y0 * width + s.x0;
-            let i = self.slot(p);
+            let i = self.find(p);
             let (k, d) = self.slots[i];
             if k == 0 {
                 self.slots[i] = (p + 1, s.ndc_depth);
@@ -233,7 +256,7 @@ impl LocalDepth {
         for y in s.y0..=s.y1 {
             for x in s.x0..=s.x1 {
                 let p = y * width + x;
-                let i = self.slot(p);
+                let i = self.find(p);
                 let (k, d) = self.slots[i];
                 if k == 0 || d > s.ndc_depth {
                     hidden = false;
@@ -248,7 +271,7 @@ impl LocalDepth {
         for &(p, i) in &found[..n] {
             if i == usize::MAX {
                 // Probed again: an earlier pixel of this splat may have taken the empty slot.
-                let j = self.slot(p);
+                let j = self.find(p);
                 self.slots[j] = (p + 1, s.ndc_depth);
                 self.used.push(j as u32);
             } else if s.ndc_depth < self.slots[i].1 {
@@ -605,6 +628,15 @@ fn classify_leaves(
             b.stats[level].frustum_culled += 1;
             continue;
         };
+        // The block's own depth table first: it culls three in four leaves of a near frame
+        // (the sub-pixel layers of a shell behind the nearest one), and a leaf whose every
+        // pixel an earlier splat of the block holds at a nearer or equal depth cannot win any
+        // of them whatever the tests below would decide (see [`LocalDepth`]).
+        let rect = fp.splat(ctx.cam);
+        if settings.occlusion_culling && b.local.hidden(&rect, ctx.cam.width) {
+            b.stats[level].occlusion_culled += 1;
+            continue;
+        }
         let cull = settings.occlusion_culling && !fp.crosses_near;
         let occ = fp.touched(ctx.cam);
         if settings
@@ -618,7 +650,6 @@ fn classify_leaves(
             b.stats[level].occlusion_culled += 1;
             continue;
         }
-        let rect = fp.splat(ctx.cam);
         if cull && faces_away(obj, f, &q, c, ctx.cam.perspective) {
             b.deferred.push(Deferred {
                 q,

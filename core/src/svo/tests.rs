@@ -366,3 +366,13 @@ proptest! {
         prop_assert_eq!(svo, original);
     }
 }
+
+#[test]
+fn child_rank_counts_the_children_before_each_octant() {
+    for mask in 0..=255u8 {
+        for k in 0..8u8 {
+            let below = (0..k).filter(|&j| mask & (1 << j) != 0).count() as u32;
+            assert_eq!(child_rank(mask, k), below, "mask {mask:#010b}, octant {k}");
+        }
+    }
+}
