@@ -136,8 +136,9 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
     (mean, median, min)
 }
 
-/// Times `setup.frames` CPU frames (after one warm-up frame, two while orbiting). While orbiting (a non-zero
-/// `orbit_deg`) shadow maps come from a [`ShadowCache`], as in the editor's CPU preview.
+/// Times `setup.frames` CPU frames (after one warm-up frame, two while orbiting). While orbiting
+/// (a non-zero `orbit_deg`) shadow maps come from a [`ShadowCache`], as in the editor's CPU
+/// preview.
 ///
 /// # Errors
 /// When the document cannot be rendered.

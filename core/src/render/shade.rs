@@ -739,66 +739,72 @@ pub(crate) fn shade(
         .iter()
         .map(|l| (-l.direction.normalize_or_zero(), l.color * l.intensity))
         .collect();
+    let shade_pixel = |i: usize, out: &mut [u8], count: &mut ShadeCounts| {
+        if fb.ids[i].object == 0 {
+            out.copy_from_slice(&bg);
+            return;
+        }
+        let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
+        let (p, receiver) = shading_point(fb, cam, krs_px, quality, i);
+        let n = fb.normal[i];
+        let v = (eye - p).normalize_or_zero();
+        // The AO staircase tolerance: the receiver term of the shadow bias.
+        let krs_pixels = &lighting.krs.pass.pixels;
+        let open = ao.openness(fb, cam, p, n, 1.5 * receiver, |j| {
+            krs_pixels.get(j).is_some_and(Option::is_some)
+        });
+        if n != Vec3::ZERO {
+            count.shading.ao_taps += ao.samples.len() as u64;
+        }
+        let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
+        // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
+        // (occlusion by KRS geometry, also outside the screen).
+        let (krs_open, krs_evals) = lighting.krs.ambient(p, n);
+        count.krs_ao_evals += u64::from(krs_evals);
+        let mut light = lighting.ambient * (open * krs_open);
+        let mut spec = Vec3::ZERO;
+        for (li, &(l, color)) in lights.iter().enumerate() {
+            // Algorithm 2 replaces n·l on KRS pixels (smooth across mirror planes).
+            let ndotl = lighting
+                .krs
+                .diffuse(i, li, lights.len())
+                .unwrap_or_else(|| n.dot(l));
+            if ndotl <= 0.0 {
+                continue;
+            }
+            let mut vis = match lighting.shadows.get(li) {
+                Some(Some(sm)) => {
+                    let (vis, reads) = sm.visibility(p, n, receiver, pcf);
+                    count.shading.shadow_taps += u64::from(reads);
+                    vis
+                }
+                _ => 1.0,
+            };
+            if vis > 0.0 && lighting.lights[li].casts_shadows {
+                let (krs_vis, steps) = lighting.krs.shadow(p, n, l, footprint);
+                count.krs_shadow_steps += u64::from(steps);
+                vis *= krs_vis;
+            }
+            if vis <= 0.0 {
+                continue;
+            }
+            light += color * (ndotl * vis);
+            let half = (l + v).normalize_or_zero();
+            spec += color * (0.25 * n.dot(half).max(0.0).powi(32) * vis);
+        }
+        let c = fb.albedo[i] * light + spec;
+        out.copy_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
+    };
+    // A row per task: the counts are summed per row, not per pixel.
     let counts = img
         .pixels
-        .par_chunks_mut(4)
+        .par_chunks_mut((4 * w as usize).max(4))
         .enumerate()
-        .map(|(i, out)| {
+        .map(|(y, row)| {
             let mut count = ShadeCounts::default();
-            if fb.ids[i].object == 0 {
-                out.copy_from_slice(&bg);
-                return count;
+            for (x, out) in row.chunks_exact_mut(4).enumerate() {
+                shade_pixel(y * w as usize + x, out, &mut count);
             }
-            let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
-            let (p, receiver) = shading_point(fb, cam, krs_px, quality, i);
-            let n = fb.normal[i];
-            let v = (eye - p).normalize_or_zero();
-            // The AO staircase tolerance: the receiver term of the shadow bias.
-            let krs_pixels = &lighting.krs.pass.pixels;
-            let open = ao.openness(fb, cam, p, n, 1.5 * receiver, |j| {
-                krs_pixels.get(j).is_some_and(Option::is_some)
-            });
-            if n != Vec3::ZERO {
-                count.shading.ao_taps += ao.samples.len() as u64;
-            }
-            let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
-            // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
-            // (occlusion by KRS geometry, also outside the screen).
-            let (krs_open, krs_evals) = lighting.krs.ambient(p, n);
-            count.krs_ao_evals += u64::from(krs_evals);
-            let mut light = lighting.ambient * (open * krs_open);
-            let mut spec = Vec3::ZERO;
-            for (li, &(l, color)) in lights.iter().enumerate() {
-                // Algorithm 2 replaces n·l on KRS pixels (smooth across mirror planes).
-                let ndotl = lighting
-                    .krs
-                    .diffuse(i, li, lights.len())
-                    .unwrap_or_else(|| n.dot(l));
-                if ndotl <= 0.0 {
-                    continue;
-                }
-                let mut vis = match lighting.shadows.get(li) {
-                    Some(Some(sm)) => {
-                        let (vis, reads) = sm.visibility(p, n, receiver, pcf);
-                        count.shading.shadow_taps += u64::from(reads);
-                        vis
-                    }
-                    _ => 1.0,
-                };
-                if vis > 0.0 && lighting.lights[li].casts_shadows {
-                    let (krs_vis, steps) = lighting.krs.shadow(p, n, l, footprint);
-                    count.krs_shadow_steps += u64::from(steps);
-                    vis *= krs_vis;
-                }
-                if vis <= 0.0 {
-                    continue;
-                }
-                light += color * (ndotl * vis);
-                let half = (l + v).normalize_or_zero();
-                spec += color * (0.25 * n.dot(half).max(0.0).powi(32) * vis);
-            }
-            let c = fb.albedo[i] * light + spec;
-            out.copy_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
             count
         })
         .reduce(ShadeCounts::default, ShadeCounts::add);
