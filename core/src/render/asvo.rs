@@ -628,7 +628,7 @@ fn classify_leaves(
             b.stats[level].frustum_culled += 1;
             continue;
         };
-        // The block's own depth table first: it culls three in four leaves of a near frame
+        // The block's own depth table first: it culls two in three leaves of a near frame
         // (the sub-pixel layers of a shell behind the nearest one), and a leaf whose every
         // pixel an earlier splat of the block holds at a nearer or equal depth cannot win any
         // of them whatever the tests below would decide (see [`LocalDepth`]).

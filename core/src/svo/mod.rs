@@ -188,13 +188,15 @@ pub struct Svo {
     inner_count: u64,
 }
 
-/// Number of children before octant `k` in `mask`: the offset of child `k` in its block.
+/// Number of children before octant `k` (`0..8`) in `mask`: the offset of child `k` in its
+/// block.
 ///
 /// A table lookup: the baseline x86-64 target has no `popcnt` instruction, so `count_ones`
 /// compiles to a dozen bit operations, and the traversal ranks every child it queues.
 #[inline]
 #[must_use]
 pub fn child_rank(mask: u8, k: u8) -> u32 {
+    debug_assert!(k < 8, "octant {k} out of 0..8");
     u32::from(BITS_SET[usize::from(mask & ((1u16 << k) - 1) as u8)])
 }
 
