@@ -199,14 +199,18 @@ impl LocalDepth {
         }
     }
 
+    /// Whether the table takes the splat into account: small enough, and room left (the table
+    /// stays at most half full so probing stays short). Others always pass.
+    #[inline]
+    fn tracks(&self, s: &Splat) -> bool {
+        (s.x1 - s.x0 + 1) * (s.y1 - s.y0 + 1) <= Self::MAX_PIXELS
+            && self.used.len() + Self::MAX_PIXELS as usize <= (1 << (Self::BITS - 1))
+    }
+
     /// Whether [`LocalDepth::record`] would refuse the splat (every pixel already holds a nearer
     /// or equal depth), without recording anything.
     fn hidden(&self, s: &Splat, width: u32) -> bool {
-        let pixels = (s.x1 - s.x0 + 1) * (s.y1 - s.y0 + 1);
-        if pixels > Self::MAX_PIXELS
-            || self.slots.is_empty()
-            || self.used.len() + Self::MAX_PIXELS as usize > (1 << (Self::BITS - 1))
-        {
+        if self.slots.is_empty() || !self.tracks(s) {
             return false;
         }
         for y in s.y0..=s.y1 {
@@ -223,18 +227,13 @@ impl LocalDepth {
     /// Records the splat's pixels; false when every one of them already held a nearer or
     /// equal depth (then nothing is recorded). Large splats, and a full table, always pass.
     fn record(&mut self, s: &Splat, width: u32) -> bool {
-        let pixels = (s.x1 - s.x0 + 1) * (s.y1 - s.y0 + 1);
-        if pixels > Self::MAX_PIXELS {
+        if !self.tracks(s) {
             return true;
         }
         if self.slots.is_empty() {
             self.slots = vec![(0, 0.0); 1 << Self::BITS];
         }
-        // Keep the table at most half full so probing stays short.
-        if self.used.len() + Self::MAX_PIXELS as usize > (1 << (Self::BITS - 1)) {
-            return true;
-        }
-        if pixels == 1 {
+        if s.x0 == s.x1 && s.y0 == s.y1 {
             // Most splats at the cut: one lookup, then the same decision and update as below.
             let p = s.y0 * width + s.x0;
             let i = self.find(p);

@@ -379,12 +379,9 @@ pub(crate) fn resolve(
         .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose())
         .collect();
     let eye = cam.eye();
-    // What pixel `i` with key `key` resolves to: depth, and the id, normal and albedo unless
-    // they stay empty (background, and KRS pixels, which `resolve_krs` fills).
+    // What pixel `i` with a drawn key resolves to: depth, and the id, normal and albedo unless
+    // they stay empty (KRS pixels, which `resolve_krs` fills).
     let pixel = |i: usize, key: u64| -> (f32, Option<(PixelId, Vec3, Vec3)>) {
-        if key == EMPTY_KEY {
-            return (1.0, None);
-        }
         let d = key_depth(key);
         let raw = (key & 0xffff_ffff) as u32;
         if raw & KRS_ID_FLAG == KRS_ID_FLAG {
@@ -748,8 +745,8 @@ pub(crate) fn shade(
     lighting: &Lighting<'_>,
     quality: &Quality,
 ) -> (RgbaImage, ShadeCounts) {
-    let (w, h) = (fb.width, fb.height);
-    let mut img = RgbaImage::new(w, h);
+    let w = fb.width;
+    let mut img = RgbaImage::new(w, fb.height);
     let eye = cam.eye();
     let pcf = quality.shadow_pcf_radius.min(8) as i32;
     let to8 = linear_to_srgb8;
@@ -834,7 +831,6 @@ pub(crate) fn shade(
             count
         })
         .reduce(ShadeCounts::default, ShadeCounts::add);
-    let _ = h;
     (img, counts)
 }
 
