@@ -3,8 +3,39 @@
 //!
 //! Brush positions and radii are in voxel coordinates of the model (voxel `c` spans
 //! `[c, c + 1)`), so a brush is independent of the model's placement in the scene.
+//!
+//! The everyday voxel tools live in the submodules (see docs/sculpt.md): [`shapes`] (lines,
+//! boxes, flood and face regions, push-pull), [`select`] (selections, copy/paste, transforms),
+//! [`model_ops`] (resize, shift, mirror, hollow, fill interior, new models) and [`palette`].
+
+pub mod model_ops;
+pub mod palette;
+pub mod select;
+pub mod shapes;
+
+#[cfg(test)]
+mod tool_tests;
+
+pub use model_ops::{
+    Anchor, InitialFill, Resized, depth_for, fill_interior, hollow, mirror_model, new_model,
+    resize_canvas, shift_content,
+};
+pub use palette::{
+    PaletteError, load_palette, model_colors, palette_from_png, palette_from_vox, palette_to_png,
+    parse_gpl, replace_color, save_palette, write_gpl,
+};
+pub use select::{
+    Clipboard, SelTransform, SurfaceView, VoxelSelection, copy, crop_to, delete, fill, grow,
+    invert, paste, paste_cells, rotation_pivot, select_box, select_color, select_connected,
+    select_in_rect, shrink, transform_selection,
+};
+pub use shapes::{
+    Ink, MAX_EDIT_CELLS, Mask, Mirror, ShapeOp, ToolEdit, ToolError, apply_box, apply_cells,
+    extrude, extrude_cells, face_region, flood_region, line_cells,
+};
 
 use std::collections::HashMap;
+use std::sync::OnceLock;
 
 use glam::{IVec3, UVec3, Vec3};
 use serde::{Deserialize, Serialize};
@@ -151,24 +182,43 @@ impl Dab {
 /// solid neighbours. Returns +Y for an isolated or fully surrounded voxel.
 #[must_use]
 pub fn estimate_normal(svo: &Svo, c: UVec3) -> Vec3 {
-    let mut acc = Vec3::ZERO;
-    for dz in -1..=1 {
-        for dy in -1..=1 {
-            for dx in -1..=1 {
-                let o = IVec3::new(dx, dy, dz);
-                if o == IVec3::ZERO {
-                    continue;
-                }
-                if offset(c, o).is_some_and(|n| svo.get(n).is_some()) {
-                    acc -= o.as_vec3().normalize_or_zero();
+    normal_from(|o| offset(c, o).is_some_and(|n| svo.get(n).is_some()))
+}
+
+/// The 26 neighbour offsets (z, then y, then x from -1 to 1) with their unit directions.
+pub(crate) fn neighbour_dirs() -> &'static [(IVec3, Vec3); 26] {
+    static DIRS: OnceLock<[(IVec3, Vec3); 26]> = OnceLock::new();
+    DIRS.get_or_init(|| {
+        let mut out = [(IVec3::ZERO, Vec3::ZERO); 26];
+        let mut i = 0;
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    let o = IVec3::new(dx, dy, dz);
+                    if o != IVec3::ZERO {
+                        out[i] = (o, o.as_vec3().normalize_or_zero());
+                        i += 1;
+                    }
                 }
             }
+        }
+        out
+    })
+}
+
+/// [`estimate_normal`] over any occupancy: `solid(offset)` says whether the neighbour at
+/// `offset` is solid. One definition so every tool's normals match the brushes' exactly.
+pub(crate) fn normal_from(mut solid: impl FnMut(IVec3) -> bool) -> Vec3 {
+    let mut acc = Vec3::ZERO;
+    for &(o, dir) in neighbour_dirs() {
+        if solid(o) {
+            acc -= dir;
         }
     }
     acc.try_normalize().unwrap_or(Vec3::Y)
 }
 
-fn offset(c: UVec3, o: IVec3) -> Option<UVec3> {
+pub(crate) fn offset(c: UVec3, o: IVec3) -> Option<UVec3> {
     let p = c.as_ivec3() + o;
     (p.min_element() >= 0).then(|| p.as_uvec3())
 }
@@ -188,7 +238,7 @@ fn solid_neighbours(svo: &Svo, c: UVec3) -> u32 {
     n
 }
 
-fn nearest_skin(svo: &Svo, c: UVec3) -> Skin4 {
+pub(crate) fn nearest_skin(svo: &Svo, c: UVec3) -> Skin4 {
     if !svo.has_skin() {
         return Skin4::default();
     }
