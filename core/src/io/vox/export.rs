@@ -9,7 +9,7 @@ use glam::{DMat4, DVec3};
 
 use super::chunks::{write_chunk, write_dict};
 use super::{MAX_MODEL_EDGE, VoxError, mv_cell_from_yup};
-use crate::scene::{Object, ObjectKind};
+use crate::scene::{Object, ObjectKind, VoxelModel};
 
 /// MagicaVoxel-space cell → (sRGB colour, index into the export's material table).
 type CellMap = HashMap<[i64; 3], ([u8; 4], u16)>;
@@ -229,9 +229,19 @@ pub fn export_vox_bytes(
     }
     let mut keys: Vec<(([u8; 4], u16), u64)> = counts.into_iter().collect();
     keys.sort_unstable();
-    let palette = build_palette(&keys);
+    let kept = model_palette(&chosen).and_then(|order| palette_in_order(order, &keys));
+    let retained = kept.is_some();
+    let palette = kept.unwrap_or_else(|| build_palette(&keys));
     report.distinct_colors = keys.len();
-    report.palette_colors = palette.entries.len();
+    report.palette_colors = if retained {
+        palette
+            .index
+            .values()
+            .collect::<std::collections::HashSet<_>>()
+            .len()
+    } else {
+        palette.entries.len()
+    };
     report.exact_colors = palette.exact;
     report.max_channel_error = palette.max_channel_error;
 
@@ -380,6 +390,54 @@ pub(crate) struct Palette {
     pub(crate) index: HashMap<([u8; 4], u16), u8>,
     pub(crate) exact: bool,
     pub(crate) max_channel_error: u8,
+}
+
+/// The palette shared by every exported model that has one (an imported `.vox`'s, or the
+/// artist's); None when there is none or two models disagree.
+fn model_palette<'a>(chosen: &[(&Object, &'a VoxelModel)]) -> Option<&'a [[u8; 4]]> {
+    let mut found: Option<&'a [[u8; 4]]> = None;
+    for (_, v) in chosen {
+        if v.palette.is_empty() {
+            continue;
+        }
+        match found {
+            None => found = Some(&v.palette),
+            Some(p) if p == v.palette.as_slice() => {}
+            Some(_) => return None,
+        }
+    }
+    found
+}
+
+/// The model's palette in its own order (its first 255 entries) when every exported colour is
+/// in it and no colour is used with two materials, so import → export keeps every voxel's
+/// index. A colour listed twice maps to its first entry. Unused entries keep their colour with
+/// the default material.
+pub(crate) fn palette_in_order(
+    order: &[[u8; 4]],
+    keys: &[(([u8; 4], u16), u64)],
+) -> Option<Palette> {
+    let order = &order[..order.len().min(255)];
+    let mut material: Vec<Option<u16>> = vec![None; order.len()];
+    let mut index = HashMap::with_capacity(keys.len());
+    for ((c, m), _) in keys {
+        let i = order.iter().position(|e| e == c)?;
+        match material[i] {
+            Some(x) if x != *m => return None,
+            _ => material[i] = Some(*m),
+        }
+        index.insert((*c, *m), i as u8);
+    }
+    Some(Palette {
+        entries: order
+            .iter()
+            .zip(&material)
+            .map(|(c, m)| (*c, m.unwrap_or(0)))
+            .collect(),
+        index,
+        exact: true,
+        max_channel_error: 0,
+    })
 }
 
 /// Exact when there are at most 255 keys; otherwise a weighted median cut on RGBA to 255 boxes
@@ -535,4 +593,127 @@ fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), VoxError> {
         let _ = d.sync_all();
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod palette_tests {
+    use std::path::Path;
+
+    use glam::{UVec3, Vec3};
+
+    use super::super::{VoxImportOptions, import_vox_bytes};
+    use super::*;
+    use crate::svo::{Svo, Voxel};
+
+    fn raw_indices(bytes: &[u8]) -> (Vec<u32>, Vec<u8>) {
+        let d = dot_vox::load_bytes(bytes).unwrap();
+        let palette = d
+            .palette
+            .iter()
+            .flat_map(|c| [c.r, c.g, c.b, c.a])
+            .collect();
+        let mut idx: Vec<u32> = d
+            .models
+            .iter()
+            .flat_map(|m| m.voxels.iter().map(|v| u32::from(v.i)))
+            .collect();
+        idx.sort_unstable();
+        (idx, palette)
+    }
+
+    fn export(objects: &[Object]) -> Vec<u8> {
+        export_vox_bytes(objects, Path::new("mem.vox"), &VoxExportOptions::default())
+            .unwrap()
+            .0
+    }
+
+    fn import(bytes: &[u8]) -> Vec<Object> {
+        import_vox_bytes(bytes, Path::new("mem.vox"), &VoxImportOptions::default())
+            .unwrap()
+            .objects
+    }
+
+    #[test]
+    fn a_models_palette_order_survives_export_and_import() {
+        // 255 distinct colours in a scrambled order; the voxels use three of them.
+        let palette: Vec<[u8; 4]> = (0..255u32)
+            .map(|i| {
+                let k = (i * 97) % 255;
+                [k as u8, (k * 3) as u8, (255 - k) as u8, 255]
+            })
+            .collect();
+        let used = [palette[200], palette[3], palette[77]];
+        let voxels = used
+            .iter()
+            .enumerate()
+            .map(|(i, &c)| (UVec3::new(i as u32, 0, 0), Voxel::new(c, Vec3::Y)));
+        let obj = Object {
+            name: "m".into(),
+            kind: ObjectKind::Voxels(VoxelModel {
+                svo: Svo::from_voxels(3, false, voxels).unwrap(),
+                palette: palette.clone(),
+                ..VoxelModel::default()
+            }),
+            ..Object::default()
+        };
+        let (bytes, report) = export_vox_bytes(
+            std::slice::from_ref(&obj),
+            Path::new("mem.vox"),
+            &VoxExportOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(report.palette_colors, 3);
+        assert!(report.exact_colors);
+        let (idx, _) = raw_indices(&bytes);
+        // Every voxel's file index is its colour's position in the model palette (1-based in
+        // the file; dot_vox reports it 0-based).
+        let mut expect = vec![200u32, 3, 77];
+        expect.sort_unstable();
+        let zero_based = expect.clone();
+        let one_based: Vec<u32> = expect.iter().map(|i| i + 1).collect();
+        assert!(idx == zero_based || idx == one_based, "{idx:?}");
+        let back = import(&bytes);
+        let ObjectKind::Voxels(m) = &back[0].kind else {
+            panic!("a voxel object")
+        };
+        assert_eq!(m.palette, palette);
+        // Without a palette the colours are packed from index 1 as before.
+        let mut plain = obj;
+        if let ObjectKind::Voxels(m) = &mut plain.kind {
+            m.palette.clear();
+        }
+        let (idx, _) = raw_indices(&export(&[plain.clone()]));
+        assert!(idx.iter().all(|&i| i <= 3), "{idx:?}");
+        // A colour missing from the palette: the packed palette is used instead.
+        if let ObjectKind::Voxels(m) = &mut plain.kind {
+            m.palette = palette[..100].to_vec();
+        }
+        let (idx, _) = raw_indices(&export(&[plain]));
+        assert!(idx.iter().all(|&i| i <= 3), "{idx:?}");
+    }
+
+    #[test]
+    fn import_then_export_keeps_the_file_palette_and_indices() {
+        for rel in [
+            "mmmm/chr_army1.vox",
+            "mmmm/obj_house4.vox",
+            "dot_vox/placeholder.vox",
+        ] {
+            let path = format!(
+                "{}/../../shared/assets/vox/{rel}",
+                env!("CARGO_MANIFEST_DIR")
+            );
+            let original = std::fs::read(&path).unwrap();
+            let objects = import(&original);
+            let ObjectKind::Voxels(m) = &objects[0].kind else {
+                panic!("a voxel object")
+            };
+            assert_eq!(m.palette.len(), 255, "{rel}");
+            let again = export(&objects);
+            let (a_idx, a_pal) = raw_indices(&original);
+            let (b_idx, b_pal) = raw_indices(&again);
+            assert_eq!(a_pal[..255 * 4], b_pal[..255 * 4], "{rel}: palette order");
+            assert_eq!(a_idx, b_idx, "{rel}: voxel indices");
+        }
+    }
 }

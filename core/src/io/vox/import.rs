@@ -191,6 +191,9 @@ pub fn import_vox_bytes(
                 ),
                 material_names: material_names.clone(),
                 rig: None,
+                volume: None,
+                // The file's colours in file order, so an export can keep every index.
+                palette: palette.clone(),
             }),
         });
     }
