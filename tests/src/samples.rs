@@ -239,6 +239,8 @@ fn terrain(doc: &mut Document) -> Result<()> {
             origin: Vec3::ZERO,
             material_names: names.clone(),
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }),
     );
     if let Some(o) = doc.objects.iter_mut().find(|o| o.id == coarse_id) {
@@ -252,6 +254,8 @@ fn terrain(doc: &mut Document) -> Result<()> {
             origin: Vec3::ZERO,
             material_names: names,
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }),
     );
     // Linked, so the editor keeps the fine terrain in step with strokes on the coarse one.

@@ -92,6 +92,8 @@ fn depth_21_model_renders_without_nan() {
             origin: Vec3::splat(-1048.576),
             material_names: Vec::new(),
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }),
     );
     let (lo, hi) = doc.bounds().unwrap();

@@ -29,6 +29,8 @@ fn gltf_to_svo_to_project_and_back_is_identical() {
                 origin: v.origin,
                 material_names: vec![],
                 rig: None,
+                volume: None,
+                palette: Vec::new(),
             }),
         );
         let dir = tempfile::tempdir().unwrap();

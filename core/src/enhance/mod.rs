@@ -167,6 +167,8 @@ pub fn enhance_model(
             material_names: model.material_names.clone(),
             // The fine octree carries no joint weights: the enhanced model is static.
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         },
         stats,
     ))

@@ -130,6 +130,8 @@ pub fn voxel_object(svo: Svo, half: f32) -> ObjectKind {
         origin: Vec3::splat(-half),
         material_names: Vec::new(),
         rig: None,
+        volume: None,
+        palette: Vec::new(),
     })
 }
 

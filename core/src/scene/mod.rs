@@ -118,6 +118,15 @@ pub struct VoxelModel {
     /// rigid model. (Omitted from the JSON when `None`, so rigid models save as before.)
     #[serde(skip_serializing_if = "Option::is_none")]
     pub rig: Option<Rig>,
+    /// The editable volume in voxels per axis, from voxel (0,0,0): edits are clipped to it and
+    /// the editor draws it. `None` (imported models): the whole octree cube. At most the
+    /// octree's extent on each axis (see [`VoxelModel::volume_size`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub volume: Option<glam::UVec3>,
+    /// The model's palette (sRGB RGBA, in order): MagicaVoxel's 255 colours for an imported
+    /// `.vox`, or the artist's own. Empty: the palette panel shows the model's colours only.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub palette: Vec<[u8; 4]>,
 }
 
 impl Default for VoxelModel {
@@ -128,11 +137,22 @@ impl Default for VoxelModel {
             origin: Vec3::ZERO,
             material_names: Vec::new(),
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }
     }
 }
 
 impl VoxelModel {
+    /// The editable volume in voxels per axis: [`VoxelModel::volume`] clamped to the octree,
+    /// or the whole octree cube.
+    #[must_use]
+    pub fn volume_size(&self) -> glam::UVec3 {
+        let extent = glam::UVec3::splat(self.svo.extent());
+        self.volume
+            .map_or(extent, |v| v.clamp(glam::UVec3::ONE, extent))
+    }
+
     /// `object_from_voxel`: maps voxel coordinates (voxel `c` spans `[c, c+1)`) to object space.
     #[must_use]
     pub fn object_from_voxel(&self) -> Mat4 {
@@ -435,6 +455,34 @@ impl OrbitCamera {
         self.far = self.distance + radius * 4.0;
     }
 
+    /// Sets the near and far planes around the box `lo..hi` as seen from the eye: far just past
+    /// its farthest corner, near just before its nearest point (or, with the eye inside it, a
+    /// small fraction of the far distance, so a camera close to a wall still draws the wall).
+    /// The near / far ratio stays at most 10^5, within what a 24-bit or f32 depth resolves.
+    pub fn fit_clip(&mut self, lo: Vec3, hi: Vec3) {
+        if !(lo.is_finite() && hi.is_finite()) || lo.cmpgt(hi).any() {
+            return;
+        }
+        let eye = self.eye();
+        let nearest = (eye.clamp(lo, hi) - eye).length();
+        let farthest = (0..8)
+            .map(|i: u8| {
+                let c = Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                (c - eye).length()
+            })
+            .fold(0.0_f32, f32::max);
+        let far = (farthest * 1.05).max(self.distance * 1.05).max(1e-3);
+        let near = (nearest * 0.9).max(far * 1e-5);
+        if near.is_finite() && far.is_finite() && far > near {
+            self.near = near;
+            self.far = far;
+        }
+    }
+
     /// Finite values, positive distances, a usable field of view.
     ///
     /// # Errors
@@ -715,6 +763,45 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_clip_range_follows_a_close_camera() {
+        // The house-sized box seen from far, then from one unit in front of its wall.
+        let (lo, hi) = (Vec3::splat(-32.0), Vec3::splat(32.0));
+        let mut camera = OrbitCamera {
+            distance: 200.0,
+            near: 150.0,
+            ..OrbitCamera::default()
+        };
+        camera.fit_clip(lo, hi);
+        let eye = camera.eye();
+        let nearest = (eye.clamp(lo, hi) - eye).length();
+        assert!(
+            camera.near <= nearest && camera.near > 0.5 * nearest,
+            "{camera:?}"
+        );
+        assert!(camera.far >= (eye - lo).length().max((eye - hi).length()));
+        // Target at the wall's centre, eye one unit outside it: the wall is in front of near.
+        camera.target = Vec3::new(0.0, 0.0, 32.0);
+        camera.yaw_deg = 0.0;
+        camera.pitch_deg = 0.0;
+        camera.distance = 1.0;
+        camera.fit_clip(lo, hi);
+        assert!(camera.near < 1.0 && camera.near > 0.0, "{camera:?}");
+        assert!(camera.far > 64.0 && camera.far / camera.near <= 1.0e5 * 1.001);
+        camera.validate().unwrap();
+        // Inside the box: near is a small fraction of far, never zero.
+        camera.target = Vec3::ZERO;
+        camera.distance = 3.0;
+        camera.fit_clip(lo, hi);
+        assert!(camera.near > 0.0 && camera.near < 0.01, "{camera:?}");
+        camera.validate().unwrap();
+        // Bad boxes change nothing.
+        let before = camera;
+        camera.fit_clip(Vec3::NAN, hi);
+        camera.fit_clip(hi, lo);
+        assert_eq!(camera, before);
+    }
 
     #[test]
     fn validation_names_the_bad_object() {

@@ -65,6 +65,8 @@ pub fn voxelize_skinned(
                 .map(|m| m.name.clone())
                 .collect(),
             rig: Some(rig),
+            volume: None,
+            palette: Vec::new(),
         },
         stats: v.stats,
     })

@@ -32,6 +32,8 @@ fn doc_with(name: &str, svo: Svo, voxel_size: f32, origin: Vec3) -> Document {
             origin,
             material_names: vec!["stone".into(), "moss".into()],
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }),
     );
     doc

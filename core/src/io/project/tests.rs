@@ -39,6 +39,8 @@ fn sample_doc(seed: u64, skin: bool) -> Document {
             origin: Vec3::new(rng.random(), -1.0, 2.5),
             material_names: vec!["stone".into()],
             rig: None,
+            volume: None,
+            palette: Vec::new(),
         }),
     );
     let mut cube = unit_cube();
