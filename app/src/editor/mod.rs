@@ -10,6 +10,7 @@ mod pose;
 mod sculpt;
 mod stretch;
 mod undo;
+mod voxel_tools;
 
 use std::path::{Path, PathBuf};
 
@@ -22,6 +23,10 @@ pub use pose::JointFrames;
 pub use sculpt::{VoxelPick, ray_through};
 pub use stretch::MAX_STRETCH_OVERRIDE;
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};
+pub use voxel_tools::{
+    ClipboardEntry, Floating, MAX_EXTENT, MAX_INITIAL_VOXELS, ModelOp, NewModelSpec, SelectMode,
+    ToolOutcome, VoxelSelectionState,
+};
 
 /// What the inspector shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -73,6 +78,12 @@ pub struct Editor {
     enhancers: enhance::Enhancers,
     /// Why the last incremental re-enhancement failed, if it did.
     pub enhance_error: Option<String>,
+    /// Selected voxels of one model (editor state, not undone).
+    voxel_selection: Option<VoxelSelectionState>,
+    /// Copied voxels (kept across New and Open, like a desktop clipboard).
+    clipboard: Option<ClipboardEntry>,
+    /// A paste being placed.
+    floating: Option<Floating>,
 }
 
 /// A box of voxels an edit wrote: object id and inclusive voxel bounds.
@@ -118,6 +129,9 @@ impl Editor {
             voxel_region: None,
             enhancers: enhance::Enhancers::default(),
             enhance_error: None,
+            voxel_selection: None,
+            clipboard: None,
+            floating: None,
         }
     }
 
@@ -213,6 +227,7 @@ impl Editor {
     pub fn replace_document(&mut self, doc: Document, path: Option<PathBuf>) {
         *self = Self {
             recent: std::mem::take(&mut self.recent),
+            clipboard: self.clipboard.take(),
             revision: self.revision + 1,
             generation: self.generation + 1,
             anim_revision: self.anim_revision + 1,
@@ -280,6 +295,21 @@ impl Editor {
         };
         if !valid {
             self.selection = None;
+        }
+        // Voxel selections and pastes of deleted models go with them.
+        if self
+            .voxel_selection
+            .as_ref()
+            .is_some_and(|s| self.object(s.object).is_none())
+        {
+            self.voxel_selection = None;
+        }
+        if self
+            .floating
+            .as_ref()
+            .is_some_and(|f| self.object(f.object).is_none())
+        {
+            self.floating = None;
         }
     }
 
@@ -605,11 +635,12 @@ impl Editor {
         }
     }
 
-    /// Frames the selected object, or everything when nothing (or a light) is selected.
+    /// Frames the selected object (a voxel model with an editable volume: the volume), or
+    /// everything when nothing (or a light) is selected.
     pub fn frame_selection(&mut self) {
         let bounds = self
             .selected_object()
-            .and_then(Object::world_bounds)
+            .and_then(|o| o.world_bounds().or_else(|| volume_bounds(o)))
             .or_else(|| self.doc.bounds());
         if let Some((lo, hi)) = bounds {
             let mut camera = self.doc.camera;
@@ -625,6 +656,31 @@ fn validate_light(light: &Light) -> Result<(), CommandError> {
     light
         .validate()
         .map_err(|e| CommandError::Invalid(e.to_string()))
+}
+
+/// World bounds of a voxel model's editable volume (what an empty new model is framed by).
+fn volume_bounds(o: &Object) -> Option<(glam::Vec3, glam::Vec3)> {
+    let ObjectKind::Voxels(v) = &o.kind else {
+        return None;
+    };
+    v.volume?;
+    let m = o.transform.matrix() * v.object_from_voxel();
+    let size = v.volume_size().as_vec3();
+    let corners = (0..8).map(|i: u8| {
+        m.transform_point3(glam::Vec3::new(
+            if i & 1 == 0 { 0.0 } else { size.x },
+            if i & 2 == 0 { 0.0 } else { size.y },
+            if i & 4 == 0 { 0.0 } else { size.z },
+        ))
+    });
+    let (lo, hi) = corners.fold(
+        (
+            glam::Vec3::splat(f32::INFINITY),
+            glam::Vec3::splat(f32::NEG_INFINITY),
+        ),
+        |(lo, hi), p| (lo.min(p), hi.max(p)),
+    );
+    lo.is_finite().then_some((lo, hi))
 }
 
 /// A fresh object id: one past the largest in use.

@@ -1,4 +1,4 @@
-use glam::{UVec3, Vec3};
+use glam::{IVec3, UVec3, Vec3};
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, ObjectKind, Transform, VoxelModel};
 use thicket_core::svo::{Svo, Voxel};
@@ -1239,4 +1239,321 @@ fn keys_store_the_posed_joint_in_the_clip_and_undo() {
             .is_err()
     );
     assert!(ed.scale_joint(id, 1, None, Vec3::NAN).is_err());
+}
+
+// ---------------------------------------------------------------- voxel tools
+
+use thicket_core::sculpt::model_ops::{Anchor, InitialFill};
+use thicket_core::sculpt::select::SelTransform;
+use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
+use thicket_core::svo::decode_normal;
+
+const RED: Ink = Ink {
+    color: [220, 30, 30, 255],
+    material: 0,
+};
+
+fn new_model_editor(size: u32, fill: InitialFill) -> (Editor, u64) {
+    let mut ed = Editor::default();
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            size: UVec3::splat(size),
+            fill,
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    (ed, id)
+}
+
+#[test]
+fn a_new_model_is_refused_beyond_the_octree_limit_and_for_huge_fills() {
+    let mut ed = Editor::default();
+    let too_wide = NewModelSpec {
+        size: UVec3::new(MAX_EXTENT + 1, 4, 4),
+        ..NewModelSpec::default()
+    };
+    let e = ed.add_voxel_model(&too_wide).unwrap_err().to_string();
+    assert!(e.contains("2097152") && e.contains("2^21"), "{e}");
+    let zero = NewModelSpec {
+        size: UVec3::new(0, 4, 4),
+        ..NewModelSpec::default()
+    };
+    assert!(ed.add_voxel_model(&zero).is_err());
+    let huge_fill = NewModelSpec {
+        size: UVec3::splat(1024),
+        fill: InitialFill::SolidBox,
+        ..NewModelSpec::default()
+    };
+    let e = ed.add_voxel_model(&huge_fill).unwrap_err().to_string();
+    assert!(e.contains("1073741824 voxels"), "{e}");
+    for bad in [0.0, -1.0, f32::NAN, f32::INFINITY] {
+        let spec = NewModelSpec {
+            voxel_size: bad,
+            ..NewModelSpec::default()
+        };
+        assert!(ed.add_voxel_model(&spec).is_err(), "voxel size {bad}");
+    }
+    assert!(ed.doc().objects.is_empty(), "nothing was added");
+    // The widest model the octree holds is accepted when it starts empty.
+    let widest = NewModelSpec {
+        size: UVec3::new(MAX_EXTENT, 1, 1),
+        voxel_size: 0.001,
+        ..NewModelSpec::default()
+    };
+    let id = ed.add_voxel_model(&widest).unwrap();
+    assert_eq!(ed.volume_of(id), Some(UVec3::new(MAX_EXTENT, 1, 1)));
+    // A box at the far end of that volume, hanging out of it, is clipped and says so.
+    let o = ed
+        .shape_box(
+            id,
+            IVec3::new(MAX_EXTENT as i32 - 2, 0, 0),
+            IVec3::new(MAX_EXTENT as i32 + 5, 3, 0),
+            ShapeOp::Add,
+            RED,
+            Mirror::default(),
+        )
+        .unwrap();
+    assert_eq!(svo_of(&ed, id).leaf_count(), 2);
+    assert!(
+        o.clipped > 0 && o.message("Box").contains("clipped"),
+        "{o:?}"
+    );
+}
+
+#[test]
+fn a_slab_model_stands_on_the_ground_and_every_tool_edit_is_one_undo_step() {
+    let (mut ed, id) = new_model_editor(16, InitialFill::GroundSlab { height: 2 });
+    let start = svo_of(&ed, id);
+    assert_eq!(start.leaf_count(), 16 * 16 * 2);
+    let o = ed.object(id).unwrap();
+    let (lo, hi) = o.world_bounds().unwrap();
+    assert!(lo.y.abs() < 1e-6 && (hi.y - 0.2).abs() < 1e-5, "{lo} {hi}");
+    let steps = ed.history().undo_len();
+    let box_edit = ed
+        .shape_box(
+            id,
+            IVec3::new(2, 2, 2),
+            IVec3::new(4, 5, 6),
+            ShapeOp::Add,
+            RED,
+            Mirror::default(),
+        )
+        .unwrap();
+    assert_eq!(svo_of(&ed, id).leaf_count(), 512 + 3 * 4 * 5);
+    assert_eq!(ed.history().undo_len(), steps + 1);
+    // The renderer is told the region, not the whole model.
+    let region = ed.take_voxel_region().expect("a region");
+    assert_eq!(region.object, id);
+    assert!(region.lo.cmple(UVec3::new(2, 2, 2)).all());
+    let (lo, hi) = box_edit.changed.expect("a changed box");
+    assert!(lo.cmple(UVec3::new(2, 2, 2)).all() && hi.cmpge(UVec3::new(4, 5, 6)).all());
+    // Mirrored X line: both halves.
+    ed.shape_cells(
+        id,
+        &[IVec3::new(0, 2, 8), IVec3::new(1, 2, 8)],
+        ShapeOp::Add,
+        RED,
+        Mirror {
+            axes: [true, false, false],
+        },
+        false,
+    )
+    .unwrap();
+    for x in [0, 1, 14, 15] {
+        assert!(
+            svo_of(&ed, id).get(UVec3::new(x, 2, 8)).is_some(),
+            "x = {x}"
+        );
+    }
+    // Flood fill paint of the slab (one colour, connected) recolours all of it.
+    ed.flood_fill(
+        id,
+        UVec3::new(10, 1, 10),
+        IVec3::Y,
+        None,
+        ShapeOp::Paint,
+        RED,
+    )
+    .unwrap();
+    let reds = svo_of(&ed, id)
+        .leaves()
+        .iter()
+        .filter(|(_, v)| v.color == RED.color)
+        .count();
+    assert_eq!(reds as u64, svo_of(&ed, id).leaf_count());
+    // Extrude the slab's top face (now one colour with the box's) in by one.
+    let before = svo_of(&ed, id).leaf_count();
+    ed.extrude_face(id, UVec3::new(10, 1, 10), IVec3::Y, -1)
+        .unwrap();
+    assert!(svo_of(&ed, id).leaf_count() < before);
+    for _ in 0..4 {
+        assert!(ed.undo());
+    }
+    assert_eq!(
+        svo_of(&ed, id),
+        start,
+        "four undos restore the slab exactly"
+    );
+}
+
+#[test]
+fn copy_paste_move_rotate_and_refused_pastes() {
+    let (mut ed, id) = new_model_editor(32, InitialFill::Empty);
+    ed.shape_box(
+        id,
+        IVec3::new(1, 0, 1),
+        IVec3::new(3, 1, 4),
+        ShapeOp::Add,
+        RED,
+        Mirror::default(),
+    )
+    .unwrap();
+    let n = ed.select_all_voxels(id).unwrap();
+    assert_eq!(n, 3 * 2 * 4);
+    assert_eq!(ed.copy_voxels().unwrap(), 24);
+    ed.start_paste(id).unwrap();
+    ed.move_floating(IVec3::new(10, 0, 0));
+    ed.commit_floating().unwrap();
+    let svo = svo_of(&ed, id);
+    assert_eq!(svo.leaf_count(), 48);
+    assert!(svo.get(UVec3::new(11, 0, 1)).is_some() && svo.get(UVec3::new(13, 1, 4)).is_some());
+    // The pasted copy is selected; move it up, rotate it, all undoable.
+    assert_eq!(ed.voxel_selection().unwrap().cells.len(), 24);
+    ed.transform_selected_voxels(SelTransform::Move(IVec3::Y))
+        .unwrap();
+    assert!(svo_of(&ed, id).get(UVec3::new(11, 2, 1)).is_some());
+    let before_turns = svo_of(&ed, id);
+    for _ in 0..4 {
+        ed.transform_selected_voxels(SelTransform::Rotate {
+            axis: 1,
+            quarter_turns: 1,
+        })
+        .unwrap();
+    }
+    // Four turns give back every cell and colour; normals (re-quantised each turn and
+    // re-estimated beside the moving cells) come back to within a few degrees.
+    let (after, before) = (svo_of(&ed, id).leaves(), before_turns.leaves());
+    let cells_and_colours =
+        |l: &[(UVec3, Voxel)]| l.iter().map(|(c, v)| (*c, v.color)).collect::<Vec<_>>();
+    assert_eq!(
+        cells_and_colours(&after),
+        cells_and_colours(&before),
+        "four quarter turns"
+    );
+    for ((c, a), (_, b)) in after.iter().zip(&before) {
+        let (na, nb) = (decode_normal(a.normal), decode_normal(b.normal));
+        assert!(na.dot(nb) > 0.99, "normal at {c} turned from {nb} to {na}");
+    }
+    // A paste hanging out of the volume is clipped and counted.
+    ed.start_paste(id).unwrap();
+    ed.move_floating(IVec3::new(30, 0, 0));
+    let o = ed.commit_floating().unwrap();
+    assert!(o.clipped > 0, "{o:?}");
+    // A model of another voxel size refuses the paste, and nothing changes.
+    let other = ed
+        .add_voxel_model(&NewModelSpec {
+            voxel_size: 0.5,
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let e = ed.start_paste(other).unwrap_err().to_string();
+    assert!(e.contains("voxel size"), "{e}");
+    assert!(ed.floating().is_none());
+    assert!(svo_of(&ed, other).is_empty());
+    // Selection to a new object keeps the voxels' place in the world.
+    ed.select_all_voxels(id).unwrap();
+    let part = ed.selection_to_new_object().unwrap();
+    let (a, b) = (
+        ed.object(id).unwrap().world_bounds().unwrap(),
+        ed.object(part).unwrap().world_bounds().unwrap(),
+    );
+    assert!(
+        (a.0 - b.0).length() < 1e-5 && (a.1 - b.1).length() < 1e-5,
+        "{a:?} {b:?}"
+    );
+}
+
+#[test]
+fn resize_canvas_keeps_voxels_in_the_world_and_undoes() {
+    let (mut ed, id) = new_model_editor(8, InitialFill::SolidBox);
+    let before = ed.object(id).unwrap().world_bounds().unwrap();
+    let dropped = ed
+        .resize_canvas(
+            id,
+            UVec3::new(16, 8, 16),
+            [Anchor::Center, Anchor::Min, Anchor::Center],
+        )
+        .unwrap();
+    assert_eq!(dropped, 0);
+    assert_eq!(ed.volume_of(id), Some(UVec3::new(16, 8, 16)));
+    let after = ed.object(id).unwrap().world_bounds().unwrap();
+    assert!((before.0 - after.0).length() < 1e-5, "{before:?} {after:?}");
+    assert_eq!(svo_of(&ed, id).leaf_count(), 512);
+    // Shrinking drops what falls outside.
+    let dropped = ed
+        .resize_canvas(
+            id,
+            UVec3::new(16, 4, 16),
+            [Anchor::Min, Anchor::Min, Anchor::Min],
+        )
+        .unwrap();
+    assert_eq!(dropped, 256);
+    assert!(ed.undo() && ed.undo());
+    assert_eq!(ed.volume_of(id), Some(UVec3::splat(8)));
+    assert_eq!(svo_of(&ed, id).leaf_count(), 512);
+    // Hollow keeps a one-voxel shell of the 8³ cube: 8³ − 6³.
+    ed.model_op(id, ModelOp::Hollow(1)).unwrap();
+    assert_eq!(svo_of(&ed, id).leaf_count(), 512 - 216);
+    ed.model_op(id, ModelOp::FillInterior(None)).unwrap();
+    assert_eq!(svo_of(&ed, id).leaf_count(), 512);
+    assert!(ed.model_op(id, ModelOp::Hollow(0)).is_err());
+}
+
+#[test]
+fn a_box_on_an_enhanced_model_keeps_its_enhancement_equal_to_a_fresh_one() {
+    use thicket_core::enhance::{EnhanceSettings, enhance};
+    let (mut ed, id) = bumpy_editor();
+    let settings = EnhanceSettings {
+        factor: 4,
+        ..EnhanceSettings::default()
+    };
+    let fine_id = enhance_linked(&mut ed, id, settings.clone());
+    ed.shape_box(
+        id,
+        IVec3::new(3, 7, 3),
+        IVec3::new(6, 8, 5),
+        ShapeOp::Add,
+        RED,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.flood_fill(
+        id,
+        UVec3::new(5, 7, 4),
+        IVec3::Y,
+        Some(1),
+        ShapeOp::Paint,
+        Ink {
+            color: [10, 200, 10, 255],
+            material: 0,
+        },
+    )
+    .unwrap();
+    let fresh = enhance(&svo_of(&ed, id), &settings).unwrap();
+    assert_eq!(svo_of(&ed, fine_id), fresh);
+    let u = ed.last_enhance_update().expect("an incremental update");
+    assert!(u.source == id && !u.rebuilt);
+    // The fine model cannot be edited directly.
+    let e = ed
+        .shape_box(
+            fine_id,
+            IVec3::ZERO,
+            IVec3::ONE,
+            ShapeOp::Add,
+            RED,
+            Mirror::default(),
+        )
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("detail enhancement"), "{e}");
 }

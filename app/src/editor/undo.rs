@@ -112,6 +112,13 @@ pub enum Edit {
         /// The new model.
         model: Box<VoxelModel>,
     },
+    /// Replace a voxel model's palette.
+    SetPalette {
+        /// Object id.
+        id: u64,
+        /// The new palette.
+        palette: Vec<[u8; 4]>,
+    },
     /// Set or remove (`None`) the tree-builder parameters stored for KRS object `id`.
     SetTreeParams {
         /// Object id.
@@ -252,6 +259,16 @@ impl Edit {
                     ObjectKind::Voxels(v) => Edit::SetVoxelModel {
                         id,
                         model: Box::new(std::mem::replace(v, *model)),
+                    },
+                    ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
+                },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetPalette { id, palette } => match find(doc, id) {
+                Some(i) => match &mut doc.objects[i].kind {
+                    ObjectKind::Voxels(v) => Edit::SetPalette {
+                        id,
+                        palette: std::mem::replace(&mut v.palette, palette),
                     },
                     ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
                 },
