@@ -253,7 +253,7 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
     h.run_steps(2);
 
     // Sculpt tool from the tool bar, Remove, bigger brush.
-    h.get_by_label("Sculpt").click();
+    h.get_by_label("Brush").click();
     h.run_steps(1);
     h.get_by_label("Remove").click();
     h.run_steps(1);

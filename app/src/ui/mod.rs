@@ -7,12 +7,16 @@ mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
 pub mod krs_panel;
+mod new_model;
 mod outliner;
+mod palette;
 mod perf;
 pub mod pose;
 pub mod sculpt;
 pub mod tradeoff;
 pub mod view;
+mod voxel_menus;
+pub mod voxel_tools;
 
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
@@ -57,7 +61,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
         "Front / right / top view (Ctrl: back / left / bottom)",
     ),
     ("Click in the view", "Select the object under the pointer"),
-    ("S", "Sculpt tool"),
+    ("S", "Brush tool (see the voxel tool keys below)"),
     ("Click a joint dot", "Select the joint (rigged models)"),
     (
         "R / G / E",
@@ -91,6 +95,8 @@ enum PathPurpose {
     SaveAs,
     ExportVox,
     ExportGltf,
+    LoadPalette,
+    SavePalette,
 }
 
 impl PathPurpose {
@@ -101,6 +107,8 @@ impl PathPurpose {
             Self::SaveAs => "Save as",
             Self::ExportVox => "Export MagicaVoxel (.vox)",
             Self::ExportGltf => "Export glTF (.glb or .gltf)",
+            Self::LoadPalette => "Load palette (.gpl, .png, .vox)",
+            Self::SavePalette => "Save palette (.gpl or .png)",
         }
     }
 }
@@ -235,6 +243,11 @@ pub struct EditorApp {
     pub tradeoff: tradeoff::TradeoffPanel,
     /// Last status-bar message.
     status: String,
+    /// The New voxel model dialog.
+    pub new_model: new_model::NewModelDialog,
+    /// The Palette panel.
+    pub palette: palette::PalettePanel,
+    canvas: voxel_menus::CanvasForm,
 }
 
 impl Default for EditorApp {
@@ -277,6 +290,9 @@ impl EditorApp {
             gltf_export: export_gltf::GltfExportPanel::default(),
             tradeoff: tradeoff::TradeoffPanel::default(),
             status: String::from("Ready"),
+            new_model: new_model::NewModelDialog::default(),
+            palette: palette::PalettePanel::default(),
+            canvas: voxel_menus::CanvasForm::default(),
         }
     }
 
@@ -335,6 +351,8 @@ impl EditorApp {
     fn do_new(&mut self) {
         self.editor.replace_document(Document::default(), None);
         self.status = "New project".into();
+        // A new project starts with its first voxel model (Cancel leaves it empty).
+        self.new_model.show(&self.editor);
     }
 
     /// File → Open a path (asks about unsaved changes first). Loads on a worker thread.
@@ -425,6 +443,8 @@ impl EditorApp {
                             material_names: model.material_names.clone(),
                             // The fine octree carries no joint weights: the result is static.
                             rig: None,
+                            volume: None,
+                            palette: Vec::new(),
                         };
                         (fine, e)
                     })
@@ -701,6 +721,7 @@ impl EditorApp {
             ),
             PathPurpose::ExportVox => "export.vox".into(),
             PathPurpose::ExportGltf => "export.glb".into(),
+            PathPurpose::SavePalette => "palette.gpl".into(),
             _ => String::new(),
         };
         self.prompt = Some(PathPrompt { purpose, text });
@@ -737,6 +758,13 @@ impl EditorApp {
                 PathPurpose::ExportGltf => d
                     .add_filter("glTF", &["glb", "gltf"])
                     .set_file_name("export.glb")
+                    .save_file(),
+                PathPurpose::LoadPalette => {
+                    d.add_filter("Palette", &["gpl", "png", "vox"]).pick_file()
+                }
+                PathPurpose::SavePalette => d
+                    .add_filter("Palette", &["gpl", "png"])
+                    .set_file_name("palette.gpl")
                     .save_file(),
             };
             let _ = tx.send(path);
@@ -851,6 +879,44 @@ impl EditorApp {
             }
             PathPurpose::ExportVox => self.start_export_vox(path),
             PathPurpose::ExportGltf => self.start_export_gltf(path),
+            PathPurpose::LoadPalette => self.load_palette(ctx, &path),
+            PathPurpose::SavePalette => self.save_palette(ctx, &path),
+        }
+    }
+
+    fn load_palette(&mut self, ctx: &egui::Context, path: &Path) {
+        let Some(id) = self.editor.selected_voxel_model() else {
+            self.toast(ctx, "select a voxel model to load a palette into", true);
+            return;
+        };
+        match thicket_core::sculpt::palette::load_palette(path) {
+            Ok(colors) => {
+                let n = colors.len();
+                match self.editor.set_palette(id, colors) {
+                    Ok(()) => self.toast(
+                        ctx,
+                        format!("Loaded {n} colours from {}", path.display()),
+                        false,
+                    ),
+                    Err(e) => self.toast(ctx, e.to_string(), true),
+                }
+            }
+            Err(e) => self.toast(ctx, e.to_string(), true),
+        }
+    }
+
+    fn save_palette(&mut self, ctx: &egui::Context, path: &Path) {
+        let colors = match self.editor.selected_object().map(|o| &o.kind) {
+            Some(thicket_core::scene::ObjectKind::Voxels(v)) => v.palette.clone(),
+            _ => Vec::new(),
+        };
+        match thicket_core::sculpt::palette::save_palette(path, &colors) {
+            Ok(()) => self.toast(
+                ctx,
+                format!("Saved {} colours to {}", colors.len(), path.display()),
+                false,
+            ),
+            Err(e) => self.toast(ctx, e.to_string(), true),
         }
     }
 
@@ -864,6 +930,7 @@ impl EditorApp {
         self.poll_dialog(&ctx);
         self.autosave_tick(&ctx);
         self.handle_dropped_files(&ctx);
+        self.voxel_shortcuts(&ctx);
         self.handle_shortcuts(&ctx);
         self.handle_close_request(&ctx);
 
@@ -920,6 +987,19 @@ impl EditorApp {
             });
 
         self.dialogs(&ctx);
+        if self.new_model.ui(&ctx, &mut self.editor).is_some() {
+            self.sculpt.choose(voxel_tools::ToolKind::Voxel);
+            self.status =
+                "New voxel model: the Voxel and Box tools place voxels on its floor".into();
+        }
+        match self
+            .palette
+            .ui(&ctx, &mut self.editor, &mut self.sculpt.brush.color)
+        {
+            Some(palette::PaletteRequest::Load) => self.ask_path(PathPurpose::LoadPalette),
+            Some(palette::PaletteRequest::Save) => self.ask_path(PathPurpose::SavePalette),
+            None => {}
+        }
         self.toasts_ui(&ctx);
         self.perf.ui(
             &ctx,
@@ -1127,8 +1207,8 @@ impl EditorApp {
         egui::MenuBar::new().ui(ui, |ui| {
             ui.menu_button("File", |ui| {
                 if ui
-                    .add_enabled(!busy, egui::Button::new("New").shortcut_text("Ctrl+N"))
-                    .on_hover_text("Start an empty project")
+                    .add_enabled(!busy, egui::Button::new("New project…").shortcut_text("Ctrl+N"))
+                    .on_hover_text("Start a new project with a new voxel model (Cancel: an empty project)")
                     .clicked()
                 {
                     self.request_new();
@@ -1291,6 +1371,14 @@ impl EditorApp {
                     }
                 }
                 if ui
+                    .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
+                    .on_hover_text("A new voxel model standing where the view looks: extent, voxel size, initial fill")
+                    .clicked()
+                {
+                    self.new_model.show(&self.editor);
+                    ui.close();
+                }
+                if ui
                     .button("Add light")
                     .on_hover_text("Add a directional light that casts shadows (undoable)")
                     .clicked()
@@ -1299,6 +1387,8 @@ impl EditorApp {
                     let _ = self.editor.add_light(light);
                 }
             });
+            ui.menu_button("Select", |ui| self.select_menu_ui(ui));
+            ui.menu_button("Model", |ui| self.model_menu_ui(ui));
             ui.menu_button("View", |ui| {
                 ui.checkbox(&mut self.show_outliner, "Outliner")
                     .on_hover_text("Show the list of objects and lights");
@@ -1425,6 +1515,16 @@ impl EditorApp {
                 self.editor.history().redo_len()
             ))
             .on_hover_text("Steps in the undo and redo history");
+            ui.separator();
+            ui.label(self.sculpt.state_line())
+                .on_hover_text("The active tool, its mode and mirror axes");
+            if let Some(s) = self.editor.voxel_selection() {
+                ui.separator();
+                ui.colored_label(
+                    egui::Color32::from_rgb(255, 200, 40),
+                    format!("{} voxels selected", thousands(s.cells.len() as u64)),
+                );
+            }
             ui.separator();
             ui.weak(&self.status);
         });
@@ -1586,7 +1686,7 @@ impl EditorApp {
                 .resizable(false)
                 .show(ctx, |ui| {
                     egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                        for (keys, what) in SHORTCUTS {
+                        for (keys, what) in SHORTCUTS.iter().chain(voxel_menus::TOOL_SHORTCUTS) {
                             ui.strong(*keys);
                             ui.label(*what);
                             ui.end_row();

@@ -5,8 +5,10 @@
 //! the brush radius, so a fast drag leaves a continuous trail.
 
 use glam::Vec3;
+use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
 use thicket_core::sculpt::{Brush, BrushOp, BrushShape, MAX_RADIUS};
 
+use super::voxel_tools::{ClickSelect, ToolKind, VoxelTools};
 use crate::editor::{Editor, Selection, VoxelPick};
 
 /// Distance between dabs along a stroke, as a fraction of the brush radius.
@@ -43,11 +45,17 @@ struct Stroke {
 pub struct SculptTool {
     /// Whether the tool is active (otherwise the primary button orbits).
     pub active: bool,
-    /// The brush.
+    /// Which voxel tool the primary button uses while active.
+    pub tool: ToolKind,
+    /// The shape and select tools' settings and gesture.
+    pub voxel: VoxelTools,
+    /// The brush (its colour, material and mirror axes are shared by every tool).
     pub brush: Brush,
     stroke: Option<Stroke>,
     /// The last refused dab, shown in the tool bar.
     pub error: Option<String>,
+    /// What the last tool edit did (the status bar shows it).
+    pub status: Option<String>,
     /// Paint per-voxel stretch overrides of rigged models instead of sculpting.
     pub stretch_paint: bool,
     /// The override factor the stretch brush paints.
@@ -62,12 +70,15 @@ impl Default for SculptTool {
     fn default() -> Self {
         Self {
             active: false,
+            tool: ToolKind::Brush,
+            voxel: VoxelTools::default(),
             brush: Brush {
                 radius: 2.0,
                 ..Brush::default()
             },
             stroke: None,
             error: None,
+            status: None,
             stretch_paint: false,
             stretch_factor: 2.0,
             stretch_erase: false,
@@ -81,6 +92,127 @@ impl SculptTool {
     #[must_use]
     pub fn stroking(&self) -> bool {
         self.stroke.is_some()
+    }
+
+    /// The ink of the shape tools: the brush colour and material.
+    #[must_use]
+    pub fn ink(&self) -> Ink {
+        Ink {
+            color: self.brush.color,
+            material: self.brush.material,
+        }
+    }
+
+    /// The mirror axes, for the shape tools (across the model's volume centre).
+    #[must_use]
+    pub fn mirror(&self) -> Mirror {
+        Mirror {
+            axes: self.brush.symmetry,
+        }
+    }
+
+    /// Chooses a tool and activates it (the tool bar and the tool keys).
+    pub fn choose(&mut self, tool: ToolKind) {
+        self.active = true;
+        self.stretch_paint = false;
+        self.voxel.cancel();
+        self.tool = tool;
+    }
+
+    /// Sets the operation of the current tool: for the brush its op, for the shape tools Add,
+    /// Remove or Paint.
+    pub fn set_op(&mut self, op: ShapeOp) {
+        self.stretch_paint = false;
+        if self.tool == ToolKind::Brush {
+            self.brush.op = match op {
+                ShapeOp::Add => BrushOp::Add,
+                ShapeOp::Remove => BrushOp::Remove,
+                ShapeOp::Paint => BrushOp::Paint,
+            };
+        } else {
+            self.voxel.op = op;
+        }
+    }
+
+    /// One line for the status bar: tool, mode and mirror axes.
+    #[must_use]
+    pub fn state_line(&self) -> String {
+        if !self.active {
+            return "Navigate".into();
+        }
+        if self.stretch_paint {
+            return "Stretch paint".into();
+        }
+        let op = if self.tool == ToolKind::Brush {
+            format!("{:?}", self.brush.op)
+        } else {
+            format!("{:?}", self.voxel.op)
+        };
+        let mirror: String = ["X", "Y", "Z"]
+            .iter()
+            .zip(self.brush.symmetry)
+            .filter(|(_, on)| *on)
+            .map(|(a, _)| *a)
+            .collect();
+        let mirror = if mirror.is_empty() {
+            String::new()
+        } else {
+            format!(" · mirror {mirror}")
+        };
+        match self.tool {
+            ToolKind::Select => "Select".into(),
+            ToolKind::Brush => format!(
+                "Brush {:?} · {op} · {:.1} vox{mirror}",
+                self.brush.shape, self.brush.radius
+            ),
+            t => format!("{} · {op}{mirror}", t.label()),
+        }
+    }
+
+    /// Runs the active tool for this frame: Alt+click picks the colour under the pointer (the
+    /// eyedropper), the brush strokes, the other tools run their gestures.
+    pub fn handle_tools(
+        &mut self,
+        response: &egui::Response,
+        editor: &mut Editor,
+        ray: Option<(Vec3, Vec3)>,
+        proj: &super::view::Projector,
+    ) {
+        let alt_click = response.clicked() && response.ctx.input(|i| i.modifiers.alt);
+        if alt_click {
+            if let Some(color) = ray
+                .and_then(|(o, d)| editor.pick_voxel(o, d))
+                .and_then(|p| editor.voxel_at(p.object, p.voxel))
+                .map(|v| v.color)
+            {
+                self.brush.color = color;
+                self.status = Some(format!(
+                    "Picked colour #{:02x}{:02x}{:02x}",
+                    color[0], color[1], color[2]
+                ));
+            }
+            return;
+        }
+        if self.tool == ToolKind::Brush {
+            let pick = ray.and_then(|(o, d)| editor.pick_voxel(o, d));
+            self.handle(response, editor, pick);
+            return;
+        }
+        let input = super::voxel_tools::ToolInput {
+            response,
+            ray,
+            proj,
+            ink: self.ink(),
+            mirror: self.mirror(),
+        };
+        match self.voxel.handle(self.tool, &input, editor) {
+            Some(Ok(m)) => {
+                self.error = None;
+                self.status = Some(m);
+            }
+            Some(Err(e)) => self.error = Some(e),
+            None => {}
+        }
     }
 
     /// Starts, continues or ends a stroke from the view's pointer response and the voxel under
@@ -176,18 +308,72 @@ impl SculptTool {
     /// The tool bar: tool choice and, with the sculpt tool, the brush settings.
     pub fn toolbar_ui(&mut self, ui: &mut egui::Ui) {
         ui.horizontal_wrapped(|ui| {
-            ui.selectable_value(&mut self.active, false, "Navigate")
-                .on_hover_text("Drag orbits, Shift+drag pans, scroll zooms (Esc)");
-            ui.selectable_value(&mut self.active, true, "Sculpt")
-                .on_hover_text("Drag on a voxel model to sculpt it (S); Alt+drag orbits");
+            if ui
+                .selectable_label(!self.active, "Navigate")
+                .on_hover_text("Drag orbits, Shift+drag pans, scroll zooms (Esc)")
+                .clicked()
+            {
+                self.active = false;
+                self.voxel.cancel();
+            }
+            for (tool, label, key, tip) in ToolKind::ALL {
+                if ui
+                    .selectable_label(self.active && self.tool == tool, label)
+                    .on_hover_text(format!("{tip} ({key}); Alt+drag orbits"))
+                    .clicked()
+                {
+                    self.choose(tool);
+                }
+            }
             if !self.active {
                 return;
             }
             ui.separator();
+            if self.tool == ToolKind::Select {
+                ui.toggle_value(&mut self.voxel.select_through, "Through")
+                    .on_hover_text("The rectangle selects every voxel inside it, not only the visible surface");
+                ui.label("Click:");
+                ui.selectable_value(&mut self.voxel.click_select, ClickSelect::Color, "Colour")
+                    .on_hover_text("A click selects every voxel of the clicked colour");
+                ui.selectable_value(&mut self.voxel.click_select, ClickSelect::Connected, "Connected")
+                    .on_hover_text("A click selects the clicked voxel's connected part of its colour");
+                ui.weak("Shift adds, Ctrl removes · Select menu: copy, paste, flip, rotate");
+                if let Some(e) = &self.error {
+                    ui.colored_label(ui.visuals().error_fg_color, e);
+                }
+                return;
+            }
+            if self.tool != ToolKind::Brush {
+                for (op, label, tip) in [
+                    (ShapeOp::Add, "Add", "Add voxels in front of the face under the pointer, or on the volume's floor and walls (A)"),
+                    (ShapeOp::Remove, "Remove", "Remove the voxels the tool covers (D)"),
+                    (ShapeOp::Paint, "Paint", "Recolour the voxels the tool covers (C)"),
+                ] {
+                    if ui
+                        .selectable_label(self.voxel.op == op, label)
+                        .on_hover_text(tip)
+                        .clicked()
+                    {
+                        self.voxel.op = op;
+                    }
+                }
+                if self.tool == ToolKind::Fill {
+                    ui.toggle_value(&mut self.voxel.fill_plane_only, "Plane only")
+                        .on_hover_text("Fill only the clicked voxel's layer (the plane of the face clicked)");
+                }
+                ui.separator();
+                self.color_ui(ui);
+                ui.separator();
+                self.mirror_ui(ui);
+                if let Some(e) = &self.error {
+                    ui.colored_label(ui.visuals().error_fg_color, e);
+                }
+                return;
+            }
             for (op, label, tip) in [
-                (BrushOp::Add, "Add", "Fill voxels in front of the surface"),
-                (BrushOp::Remove, "Remove", "Carve voxels away"),
-                (BrushOp::Paint, "Paint", "Blend the colour of solid voxels toward the brush colour"),
+                (BrushOp::Add, "Add", "Fill voxels in front of the surface (A)"),
+                (BrushOp::Remove, "Remove", "Carve voxels away (D)"),
+                (BrushOp::Paint, "Paint", "Blend the colour of solid voxels toward the brush colour (C)"),
                 (BrushOp::Smooth, "Smooth", "Remove lone voxels and fill small gaps"),
             ] {
                 if ui
@@ -256,57 +442,69 @@ impl SculptTool {
             )
             .on_hover_text("Paint: how far the colour moves toward the brush colour per dab; Smooth: how aggressively");
             ui.separator();
-            let mut c = egui::Color32::from_rgba_unmultiplied(
-                self.brush.color[0],
-                self.brush.color[1],
-                self.brush.color[2],
-                255,
-            );
-            if ui
-                .color_edit_button_srgba(&mut c)
-                .on_hover_text("Brush colour (Add and Paint)")
-                .changed()
-            {
-                self.brush.color = [c.r(), c.g(), c.b(), 255];
-            }
-            for (i, p) in PALETTE.iter().enumerate() {
-                let color = egui::Color32::from_rgb(p[0], p[1], p[2]);
-                let selected = self.brush.color == *p;
-                let (rect, resp) =
-                    ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::click());
-                ui.painter().rect_filled(rect, 2.0, color);
-                if selected {
-                    ui.painter().rect_stroke(
-                        rect,
-                        2.0,
-                        egui::Stroke::new(2.0, egui::Color32::WHITE),
-                        egui::StrokeKind::Outside,
-                    );
-                }
-                if resp
-                    .on_hover_text(format!("Palette colour {}", i + 1))
-                    .clicked()
-                {
-                    self.brush.color = *p;
-                }
-            }
+            self.color_ui(ui);
             ui.separator();
-            // Wrap the whole group to the next row when it does not fit, instead of leaving
-            // an axis behind (about the label and three toggles).
-            let row_left = ui.max_rect().right() - ui.cursor().min.x;
-            if row_left < 4.0 * ui.spacing().interact_size.x {
-                ui.end_row();
-            }
-            ui.label("Mirror");
-            for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
-                ui.toggle_value(&mut self.brush.symmetry[axis], label)
-                    .on_hover_text(format!(
-                        "Mirror each dab across the model's centre along {label}"
-                    ));
-            }
+            self.mirror_ui(ui);
             if let Some(e) = &self.error {
                 ui.colored_label(ui.visuals().error_fg_color, e);
             }
         });
+    }
+
+    /// The colour button and the quick swatches.
+    fn color_ui(&mut self, ui: &mut egui::Ui) {
+        let mut c = egui::Color32::from_rgba_unmultiplied(
+            self.brush.color[0],
+            self.brush.color[1],
+            self.brush.color[2],
+            255,
+        );
+        if ui
+            .color_edit_button_srgba(&mut c)
+            .on_hover_text("Colour of Add and Paint (Alt+click in the view picks one)")
+            .changed()
+        {
+            self.brush.color = [c.r(), c.g(), c.b(), 255];
+        }
+        for (i, p) in PALETTE.iter().enumerate() {
+            let color = egui::Color32::from_rgb(p[0], p[1], p[2]);
+            let selected = self.brush.color == *p;
+            let (rect, resp) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::click());
+            ui.painter().rect_filled(rect, 2.0, color);
+            if selected {
+                ui.painter().rect_stroke(
+                    rect,
+                    2.0,
+                    egui::Stroke::new(2.0, egui::Color32::WHITE),
+                    egui::StrokeKind::Outside,
+                );
+            }
+            if resp
+                .on_hover_text(format!("Quick colour {}", i + 1))
+                .clicked()
+            {
+                self.brush.color = *p;
+            }
+        }
+    }
+
+    /// The mirror toggles (wrapped to the next row as a group when they do not fit).
+    fn mirror_ui(&mut self, ui: &mut egui::Ui) {
+        let row_left = ui.max_rect().right() - ui.cursor().min.x;
+        if row_left < 4.0 * ui.spacing().interact_size.x {
+            ui.end_row();
+        }
+        ui.label("Mirror");
+        let across = if self.tool == ToolKind::Brush {
+            "the model's centre"
+        } else {
+            "the centre of the model's volume"
+        };
+        for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
+            ui.toggle_value(&mut self.brush.symmetry[axis], label)
+                .on_hover_text(format!(
+                    "Mirror each edit across {across} along {label} (Shift+{label})"
+                ));
+        }
     }
 }

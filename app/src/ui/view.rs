@@ -21,6 +21,7 @@ use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera};
 use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
 use super::pose::PoseTool;
 use super::sculpt::SculptTool;
+use super::voxel_tools::{ToolKind, paint_volume};
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
 use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
 
@@ -421,7 +422,7 @@ impl View {
                 .and_then(|p| self.preview_hit(editor, rect, p));
             sculpt.handle_stretch(&response, editor, hit);
         } else if sculpt.active && !navigating {
-            sculpt.handle(&response, editor, hover_pick);
+            sculpt.handle_tools(&response, editor, pointer_ray, &proj);
         } else if response.clicked() && !gizmo {
             // Click to select a joint (its dot) or what is under the pointer (or nothing).
             let joint = response
@@ -468,12 +469,24 @@ impl View {
         if self.show_grid {
             grid(&camera, &line);
         }
+        if sculpt.active && sculpt.tool != ToolKind::Brush {
+            paint_volume(&painter, &proj, editor);
+        }
         self.outlines(editor, &line, &to_screen, &painter, silhouette);
+        sculpt.voxel.paint(
+            sculpt.tool,
+            &painter,
+            &proj,
+            editor,
+            pointer_ray,
+            sculpt.active && !sculpt.stretch_paint,
+        );
         paint_mirrors(&painter, editor, krs, &proj);
         paint_route(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
         if sculpt.active
             && !sculpt.stretch_paint
+            && sculpt.tool == ToolKind::Brush
             && let Some(pick) = hover_pick
         {
             brush_preview(&painter, &to_screen, &camera, &pick, sculpt);

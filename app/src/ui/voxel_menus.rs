@@ -1,0 +1,524 @@
+//! The Select and Model menus and the voxel tools' keys: selection commands (all, none,
+//! invert, grow, shrink, copy, cut, paste, delete, fill, flip, rotate, crop, to new object) and
+//! whole-model operations (resize canvas, shift, mirror, hollow, fill interior).
+
+use egui::{Key, KeyboardShortcut, Modifiers};
+use glam::{IVec3, UVec3};
+use thicket_core::sculpt::model_ops::Anchor;
+use thicket_core::sculpt::select::SelTransform;
+use thicket_core::sculpt::shapes::ShapeOp;
+
+use super::EditorApp;
+use super::voxel_tools::ToolKind;
+use crate::editor::{CommandError, ModelOp, ToolOutcome};
+
+/// Model → Resize canvas's fields.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CanvasForm {
+    /// The new extent.
+    pub size: UVec3,
+    /// Which side stays put, per axis.
+    pub anchor: [Anchor; 3],
+    /// Model → Hollow's shell thickness.
+    pub shell: u32,
+    /// The model the size was taken from (refreshed when another is selected).
+    pub object: Option<u64>,
+}
+
+impl Default for CanvasForm {
+    fn default() -> Self {
+        Self {
+            size: UVec3::splat(32),
+            anchor: [Anchor::Center, Anchor::Min, Anchor::Center],
+            shell: 1,
+            object: None,
+        }
+    }
+}
+
+/// Tool keys (listed in Help → Keyboard shortcuts).
+pub const TOOL_SHORTCUTS: &[(&str, &str)] = &[
+    (
+        "S / V / B / L / U / P / M",
+        "Brush / Voxel / Box / Line / Extrude / Fill / Select tool",
+    ),
+    ("A / D / C", "Add / Remove / Paint mode of the tool"),
+    (
+        "Shift+X / Shift+Y / Shift+Z",
+        "Mirror the tool across X / Y / Z",
+    ),
+    (
+        "Alt+click",
+        "Pick the colour under the pointer (eyedropper)",
+    ),
+    (
+        "Ctrl+A / Ctrl+Shift+A",
+        "Select all voxels of the model / select none",
+    ),
+    ("Ctrl+Shift+I", "Invert the voxel selection"),
+    (
+        "Ctrl+C / Ctrl+X / Ctrl+V",
+        "Copy / cut / paste voxels (the paste floats)",
+    ),
+    (
+        "Arrows, PageUp / PageDown",
+        "Move the floating paste or the selection (X, Z / Y)",
+    ),
+    (
+        "Enter / Esc",
+        "Place the floating paste / cancel it (Esc also cancels a box)",
+    ),
+    (
+        "Delete (with a voxel selection)",
+        "Delete the selected voxels",
+    ),
+    ("Ctrl+Shift+N", "Add a voxel model"),
+];
+
+impl EditorApp {
+    /// Shows a command's outcome in the status bar (errors as a toast).
+    fn report_voxels(
+        &mut self,
+        ctx: &egui::Context,
+        what: &str,
+        r: Result<ToolOutcome, CommandError>,
+    ) {
+        match r {
+            Ok(o) => {
+                let m = o.message(what);
+                self.sculpt.status = Some(m.clone());
+                self.status = m;
+            }
+            Err(e) => self.toast(ctx, e.to_string(), true),
+        }
+    }
+
+    fn report_count(&mut self, ctx: &egui::Context, what: &str, r: Result<usize, CommandError>) {
+        match r {
+            Ok(n) => self.status = format!("{what}: {n} voxels"),
+            Err(e) => self.toast(ctx, e.to_string(), true),
+        }
+    }
+
+    /// Paste into the selected voxel model (or the one the clipboard came from).
+    pub fn paste_voxels(&mut self, ctx: &egui::Context) {
+        let Some(id) = self
+            .editor
+            .selected_voxel_model()
+            .or_else(|| self.editor.voxel_selection().map(|s| s.object))
+        else {
+            self.toast(ctx, "select a voxel model to paste into", true);
+            return;
+        };
+        match self.editor.start_paste(id) {
+            Ok(()) => {
+                self.status =
+                    "Pasting: arrow keys and PageUp / PageDown move it, Enter places it, Esc cancels"
+                        .into();
+            }
+            Err(e) => self.toast(ctx, e.to_string(), true),
+        }
+    }
+
+    /// The Select menu.
+    pub(super) fn select_menu_ui(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        let model = self.editor.selected_voxel_model();
+        let has_sel = self.editor.voxel_selection().is_some();
+        let has_clip = self.editor.clipboard().is_some();
+        let item = |ui: &mut egui::Ui, enabled: bool, label: &str, key: &str, tip: &str| {
+            ui.add_enabled(enabled, egui::Button::new(label).shortcut_text(key))
+                .on_hover_text(tip)
+                .clicked()
+        };
+        if item(
+            ui,
+            true,
+            "Select tool",
+            "M",
+            "Drag a rectangle in the view; click a colour",
+        ) {
+            self.sculpt.choose(ToolKind::Select);
+        }
+        ui.separator();
+        if item(
+            ui,
+            model.is_some(),
+            "All",
+            "Ctrl+A",
+            "Every voxel of the selected model",
+        ) && let Some(id) = model
+        {
+            let r = self.editor.select_all_voxels(id);
+            self.report_count(&ctx, "Selected", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "None",
+            "Ctrl+Shift+A",
+            "Clear the voxel selection",
+        ) {
+            self.editor.clear_voxel_selection();
+        }
+        if item(
+            ui,
+            model.is_some(),
+            "Invert",
+            "Ctrl+Shift+I",
+            "Select the other voxels",
+        ) {
+            let r = self.editor.invert_voxel_selection();
+            self.report_count(&ctx, "Selected", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "Grow",
+            "",
+            "Add the solid voxels next to the selection",
+        ) {
+            let r = self.editor.grow_voxel_selection(true);
+            self.report_count(&ctx, "Selected", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "Shrink",
+            "",
+            "Drop the selection's outer layer",
+        ) {
+            let r = self.editor.grow_voxel_selection(false);
+            self.report_count(&ctx, "Selected", r);
+        }
+        ui.separator();
+        if item(ui, has_sel, "Copy", "Ctrl+C", "Copy the selected voxels") {
+            let r = self.editor.copy_voxels();
+            self.report_count(&ctx, "Copied", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "Cut",
+            "Ctrl+X",
+            "Copy, then delete the selected voxels",
+        ) {
+            let r = self.editor.cut_voxels();
+            self.report_voxels(&ctx, "Cut", r);
+        }
+        if item(
+            ui,
+            has_clip && model.is_some(),
+            "Paste",
+            "Ctrl+V",
+            "Paste the copied voxels as a floating selection: arrow keys move it, Enter places it",
+        ) {
+            self.paste_voxels(&ctx);
+        }
+        if item(ui, has_sel, "Delete", "Del", "Delete the selected voxels") {
+            let r = self.editor.delete_selected_voxels();
+            self.report_voxels(&ctx, "Delete", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "Fill with colour",
+            "",
+            "Paint the selected voxels with the tool colour",
+        ) {
+            let ink = self.sculpt.ink();
+            let r = self.editor.fill_selected_voxels(ink);
+            self.report_voxels(&ctx, "Fill", r);
+        }
+        ui.separator();
+        ui.horizontal(|ui| {
+            ui.label("Flip");
+            for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
+                if ui
+                    .add_enabled(has_sel, egui::Button::new(label))
+                    .on_hover_text(format!("Mirror the selected voxels along {label} in place"))
+                    .clicked()
+                {
+                    let r = self
+                        .editor
+                        .transform_selected_voxels(SelTransform::Flip(axis));
+                    self.report_voxels(&ctx, "Flip", r);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("Rotate");
+            for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
+                if ui
+                    .add_enabled(has_sel, egui::Button::new(format!("{label} 90°")))
+                    .on_hover_text(format!(
+                        "Turn the selected voxels a quarter turn about {label} (counter-clockwise looking down +{label})"
+                    ))
+                    .clicked()
+                {
+                    let r = self.editor.transform_selected_voxels(SelTransform::Rotate {
+                        axis,
+                        quarter_turns: 1,
+                    });
+                    self.report_voxels(&ctx, "Rotate", r);
+                }
+            }
+        });
+        ui.separator();
+        if item(
+            ui,
+            has_sel,
+            "Crop model to selection",
+            "",
+            "Delete every voxel outside the selection",
+        ) {
+            let r = self.editor.crop_to_selection();
+            self.report_voxels(&ctx, "Crop", r);
+        }
+        if item(
+            ui,
+            has_sel,
+            "Selection to new object",
+            "",
+            "Copy the selected voxels into a new voxel model at the same place",
+        ) {
+            match self.editor.selection_to_new_object() {
+                Ok(_) => self.status = "Selection copied to a new object".into(),
+                Err(e) => self.toast(&ctx, e.to_string(), true),
+            }
+        }
+    }
+
+    /// The Model menu (whole-model operations on the selected voxel model).
+    pub(super) fn model_menu_ui(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        if ui
+            .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
+            .on_hover_text("A new, empty (or filled) voxel model standing where the view looks")
+            .clicked()
+        {
+            self.new_model.show(&self.editor);
+            ui.close();
+        }
+        ui.checkbox(&mut self.palette.open, "Palette panel")
+            .on_hover_text("The model's palette and colours: pick, edit, replace, load, save");
+        ui.separator();
+        let Some(id) = self.editor.selected_voxel_model() else {
+            ui.weak("Select a voxel model for the operations below");
+            return;
+        };
+        let size = self.editor.volume_of(id).unwrap_or(UVec3::ONE);
+        if self.canvas.object != Some(id) {
+            self.canvas.size = size;
+            self.canvas.object = Some(id);
+        }
+        ui.label(format!("Volume {}×{}×{} voxels", size.x, size.y, size.z));
+        ui.menu_button("Resize canvas", |ui| {
+            let mut s = self.canvas.size.to_array();
+            for (i, (v, axis)) in s.iter_mut().zip(["X", "Y", "Z"]).enumerate() {
+                ui.horizontal(|ui| {
+                    ui.add(
+                        egui::DragValue::new(v)
+                            .range(1..=crate::editor::MAX_EXTENT)
+                            .prefix(format!("{axis} ")),
+                    );
+                    for (a, label) in [(Anchor::Min, "min"), (Anchor::Center, "centre"), (Anchor::Max, "max")] {
+                        ui.selectable_value(&mut self.canvas.anchor[i], a, label)
+                            .on_hover_text(format!("Keep the {label} side of {axis} where it is"));
+                    }
+                });
+            }
+            self.canvas.size = UVec3::from_array(s);
+            if ui
+                .button("Resize")
+                .on_hover_text("Grow or shrink the volume; voxels outside the new volume are removed (undoable)")
+                .clicked()
+            {
+                match self.editor.resize_canvas(id, self.canvas.size, self.canvas.anchor) {
+                    Ok(dropped) => {
+                        self.status = format!("Canvas resized; {dropped} voxels fell outside");
+                    }
+                    Err(e) => self.toast(&ctx, e.to_string(), true),
+                }
+                ui.close();
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("Shift content");
+            for (label, by) in [
+                ("−X", IVec3::NEG_X),
+                ("+X", IVec3::X),
+                ("−Y", IVec3::NEG_Y),
+                ("+Y", IVec3::Y),
+                ("−Z", IVec3::NEG_Z),
+                ("+Z", IVec3::Z),
+            ] {
+                if ui
+                    .button(label)
+                    .on_hover_text("Move every voxel one step, wrapping round the volume")
+                    .clicked()
+                {
+                    let r = self.editor.model_op(
+                        id,
+                        ModelOp::Shift {
+                            offset: by,
+                            wrap: true,
+                        },
+                    );
+                    self.report_voxels(&ctx, "Shift", r);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            ui.label("Mirror model");
+            for (axis, label) in ["X", "Y", "Z"].into_iter().enumerate() {
+                if ui
+                    .button(label)
+                    .on_hover_text(format!(
+                        "Mirror the whole model across the volume's centre along {label}"
+                    ))
+                    .clicked()
+                {
+                    let r = self.editor.model_op(id, ModelOp::Mirror(axis));
+                    self.report_voxels(&ctx, "Mirror", r);
+                }
+            }
+        });
+        ui.horizontal(|ui| {
+            if ui
+                .button("Hollow")
+                .on_hover_text("Keep a shell this many voxels thick and remove the inside")
+                .clicked()
+            {
+                let r = self.editor.model_op(id, ModelOp::Hollow(self.canvas.shell));
+                self.report_voxels(&ctx, "Hollow", r);
+            }
+            ui.add(
+                egui::DragValue::new(&mut self.canvas.shell)
+                    .range(1..=64)
+                    .suffix(" vox"),
+            );
+        });
+        if ui
+            .button("Fill interior")
+            .on_hover_text("Fill the enclosed empty cells (with the neighbouring colours)")
+            .clicked()
+        {
+            let r = self.editor.model_op(id, ModelOp::FillInterior(None));
+            self.report_voxels(&ctx, "Fill interior", r);
+        }
+    }
+
+    /// The voxel tools' keys. Runs before the object keys so Delete, arrows and Esc act on the
+    /// voxel selection and the floating paste first.
+    pub(super) fn voxel_shortcuts(&mut self, ctx: &egui::Context) {
+        let consume = |m: Modifiers, k: Key| {
+            ctx.input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(m, k)))
+        };
+        let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
+        if consume(cmd_shift, Key::N) {
+            self.new_model.show(&self.editor);
+        }
+        if consume(cmd_shift, Key::A) {
+            self.editor.clear_voxel_selection();
+        }
+        if consume(cmd_shift, Key::I) {
+            let r = self.editor.invert_voxel_selection();
+            self.report_count(ctx, "Selected", r);
+        }
+        if self.sculpt.active
+            && let Some(id) = self.editor.selected_voxel_model()
+            && consume(Modifiers::COMMAND, Key::A)
+        {
+            let r = self.editor.select_all_voxels(id);
+            self.report_count(ctx, "Selected", r);
+        }
+        // Copy / cut / paste of voxels when the voxel tools are in use.
+        let voxel_mode = self.sculpt.active || self.editor.voxel_selection().is_some();
+        if voxel_mode && self.editor.voxel_selection().is_some() {
+            if consume(Modifiers::COMMAND, Key::C) {
+                let r = self.editor.copy_voxels();
+                self.report_count(ctx, "Copied", r);
+            }
+            if consume(Modifiers::COMMAND, Key::X) {
+                let r = self.editor.cut_voxels();
+                self.report_voxels(ctx, "Cut", r);
+            }
+        }
+        if voxel_mode && self.editor.clipboard().is_some() && consume(Modifiers::COMMAND, Key::V) {
+            self.paste_voxels(ctx);
+        }
+        if ctx.egui_wants_keyboard_input() {
+            return;
+        }
+        let moves = [
+            (Key::ArrowLeft, IVec3::NEG_X),
+            (Key::ArrowRight, IVec3::X),
+            (Key::ArrowUp, IVec3::NEG_Z),
+            (Key::ArrowDown, IVec3::Z),
+            (Key::PageUp, IVec3::Y),
+            (Key::PageDown, IVec3::NEG_Y),
+        ];
+        if self.editor.floating().is_some() {
+            for (key, by) in moves {
+                if consume(Modifiers::NONE, key) {
+                    self.editor.move_floating(by);
+                }
+            }
+            if consume(Modifiers::NONE, Key::Enter) {
+                let r = self.editor.commit_floating();
+                self.report_voxels(ctx, "Paste", r);
+            }
+            if consume(Modifiers::NONE, Key::Escape) {
+                self.editor.cancel_floating();
+                self.status = "Paste cancelled".into();
+            }
+        } else if self.editor.voxel_selection().is_some() {
+            for (key, by) in moves {
+                if consume(Modifiers::NONE, key) {
+                    let r = self
+                        .editor
+                        .transform_selected_voxels(SelTransform::Move(by));
+                    self.report_voxels(ctx, "Move", r);
+                }
+            }
+            if consume(Modifiers::NONE, Key::Delete) {
+                let r = self.editor.delete_selected_voxels();
+                self.report_voxels(ctx, "Delete", r);
+            }
+        }
+        if self.sculpt.voxel.busy() && consume(Modifiers::NONE, Key::Escape) {
+            self.sculpt.voxel.cancel();
+        }
+        for (tool, _, key, _) in ToolKind::ALL {
+            let k = match key {
+                "S" => Key::S,
+                "V" => Key::V,
+                "B" => Key::B,
+                "L" => Key::L,
+                "U" => Key::U,
+                "P" => Key::P,
+                _ => Key::M,
+            };
+            if consume(Modifiers::NONE, k) {
+                self.sculpt.choose(tool);
+            }
+        }
+        if self.sculpt.active {
+            for (key, op) in [
+                (Key::A, ShapeOp::Add),
+                (Key::D, ShapeOp::Remove),
+                (Key::C, ShapeOp::Paint),
+            ] {
+                if consume(Modifiers::NONE, key) {
+                    self.sculpt.set_op(op);
+                }
+            }
+            for (axis, key) in [Key::X, Key::Y, Key::Z].into_iter().enumerate() {
+                if consume(Modifiers::SHIFT, key) {
+                    self.sculpt.brush.symmetry[axis] = !self.sculpt.brush.symmetry[axis];
+                }
+            }
+        }
+    }
+}
