@@ -68,6 +68,11 @@ pub enum Command {
     /// `instances` one mesh per kernel drawn once per kernel instance; meshes are written as
     /// they are. The file is written atomically, only when the export succeeded.
     Export(ExportArgs),
+    /// Start a project with one new voxel model (for scripts; the editor's File → New project).
+    ///
+    /// The model stands on the ground grid, centred on the origin; its volume is the given
+    /// extent, which the editor draws and clips edits to.
+    New(NewArgs),
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
     /// The voxels are drawn with each strategy and compared with the source mesh skinned with
@@ -299,6 +304,51 @@ pub struct ExportArgs {
     pub lod: u8,
 }
 
+/// Initial content of `thicket new`'s model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum NewFillArg {
+    /// No voxels.
+    Empty,
+    /// One layer of voxels on the volume's floor.
+    Slab,
+    /// The whole volume solid.
+    Solid,
+}
+
+/// `thicket new`.
+#[derive(Debug, Args)]
+pub struct NewArgs {
+    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    pub output: PathBuf,
+    /// Voxels per axis as X,Y,Z (each 1 to 2097152, the octree's limit).
+    #[arg(long, default_value = "32,32,32", value_parser = parse_extent)]
+    pub extent: glam::UVec3,
+    /// Edge of one voxel in metres.
+    #[arg(long, default_value_t = 0.1)]
+    pub voxel_size: f32,
+    /// What the volume holds at first.
+    #[arg(long, value_enum, default_value_t = NewFillArg::Empty)]
+    pub fill: NewFillArg,
+    /// The model's name.
+    #[arg(long, default_value = "Model")]
+    pub name: String,
+}
+
+/// Parses `X,Y,Z` voxel counts.
+fn parse_extent(s: &str) -> Result<glam::UVec3, String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let [x, y, z] = parts.as_slice() else {
+        return Err(format!(
+            "{s:?} is not X,Y,Z (three voxel counts separated by commas)"
+        ));
+    };
+    let n = |v: &str| {
+        v.parse::<u32>()
+            .map_err(|_| format!("{v:?} in {s:?} is not a whole number of voxels"))
+    };
+    Ok(glam::UVec3::new(n(x)?, n(y)?, n(z)?))
+}
+
 /// `thicket import`.
 #[derive(Debug, Args)]
 pub struct ImportArgs {
@@ -396,6 +446,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Import(args)) => import(&args),
         Some(Command::Render(args)) => render(&args),
         Some(Command::SkinReport(args)) => skin_report(&args),
+        Some(Command::New(args)) => new_project(&args),
         Some(Command::Bench(args)) => bench(&args),
         Some(Command::Enhance(args)) => enhance(&args),
         Some(Command::Tradeoff(args)) => tradeoff(&args),
@@ -664,6 +715,44 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
     write_stdout(&text)
 }
 
+fn new_project(args: &NewArgs) -> anyhow::Result<()> {
+    use thicket_core::sculpt::model_ops::InitialFill;
+    let mut editor = crate::editor::Editor::default();
+    let spec = crate::editor::NewModelSpec {
+        name: args.name.clone(),
+        size: args.extent,
+        voxel_size: args.voxel_size,
+        fill: match args.fill {
+            NewFillArg::Empty => InitialFill::Empty,
+            NewFillArg::Slab => InitialFill::GroundSlab { height: 1 },
+            NewFillArg::Solid => InitialFill::SolidBox,
+        },
+        ..crate::editor::NewModelSpec::default()
+    };
+    editor.add_voxel_model(&spec)?;
+    let doc = editor.doc();
+    files::save_project(doc, &args.output)?;
+    let voxels: u64 = doc
+        .objects
+        .iter()
+        .filter_map(|o| match &o.kind {
+            thicket_core::scene::ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
+            _ => None,
+        })
+        .sum();
+    println!(
+        "wrote {}: {:?}, {}×{}×{} voxels of {} m, {} solid",
+        args.output.display(),
+        spec.name,
+        args.extent.x,
+        args.extent.y,
+        args.extent.z,
+        args.voxel_size,
+        files::thousands(voxels)
+    );
+    Ok(())
+}
+
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
     let is_vox = args
@@ -742,6 +831,8 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
                 origin: v.origin,
                 material_names: model.materials.iter().map(|m| m.name.clone()).collect(),
                 rig: None,
+                volume: None,
+                palette: Vec::new(),
             }),
         );
         if let Some((lo, hi)) = doc.bounds() {
@@ -826,8 +917,11 @@ pub fn set_playback(
 }
 
 /// The document's quality with `--quality KEY=VALUE` overrides, and its camera with a
-/// `--camera YAW,PITCH,DISTANCE` override.
-fn view_options(
+/// `--camera YAW,PITCH,DISTANCE` override (whose near and far planes then enclose the scene).
+///
+/// # Errors
+/// A malformed or out-of-range `--quality` or `--camera` value.
+pub fn view_options(
     doc: &thicket_core::scene::Document,
     quality_args: &[String],
     camera_arg: Option<&String>,
@@ -857,7 +951,12 @@ fn view_options(
         camera.yaw_deg = yaw;
         camera.pitch_deg = pitch;
         camera.distance = distance;
-        camera.far = camera.far.max(distance * 4.0);
+        // The clip range follows the new eye: the project's near plane may lie beyond a
+        // close camera's view of the scene and cut its front away.
+        match doc.bounds() {
+            Some((lo, hi)) => camera.fit_clip(lo, hi),
+            None => camera.far = camera.far.max(distance * 4.0),
+        }
     }
     Ok((quality, camera))
 }

@@ -862,3 +862,113 @@ fn krs_objects_export_as_a_mesh_and_as_instances() {
         .sum();
     assert_eq!(u128::from(drawn), instances);
 }
+
+#[test]
+fn new_writes_a_project_with_one_model_and_refuses_bad_extents() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fresh.thicket.json");
+    let o = thicket(&[
+        "new",
+        out.to_str().unwrap(),
+        "--extent",
+        "40,12,30",
+        "--voxel-size",
+        "0.05",
+        "--fill",
+        "slab",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("40×12×30"), "{}", stdout(&o));
+    let doc = thicket::files::load_document(&out).unwrap();
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        panic!("a voxel model")
+    };
+    assert_eq!(v.volume, Some(UVec3::new(40, 12, 30)));
+    assert_eq!(v.svo.leaf_count(), 40 * 30, "a one-voxel slab");
+    assert!((v.voxel_size - 0.05).abs() < 1e-7);
+    // The model stands on the ground.
+    let (lo, _) = doc.objects[0].world_bounds().unwrap();
+    assert!(lo.y.abs() < 1e-6, "{lo}");
+    // Beyond the octree limit, and malformed extents: refused, nothing written.
+    for (extent, expect) in [
+        ("3000000,4,4", "2^21"),
+        ("4,4", "X,Y,Z"),
+        ("4,x,4", "whole number"),
+    ] {
+        let bad = dir.path().join("bad.thicket.json");
+        let o = thicket(&["new", bad.to_str().unwrap(), "--extent", extent]);
+        assert!(!o.status.success());
+        assert!(stderr(&o).contains(expect), "{extent}: {}", stderr(&o));
+        assert!(!stderr(&o).contains("panicked"));
+        assert!(!bad.exists());
+    }
+}
+
+#[test]
+fn a_close_render_camera_does_not_clip_the_front_of_the_model() {
+    // The house seen from 35 units: the project's near plane (68.9) would cut its front away.
+    let dir = tempfile::tempdir().unwrap();
+    let project = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
+    let near = dir.path().join("near.png");
+    let o = thicket(&[
+        "render",
+        project,
+        "-o",
+        near.to_str().unwrap(),
+        "--size",
+        "96x96",
+        "--camera",
+        "35,15,75",
+        "--quality",
+        "shadows=false",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let img = image::open(&near).unwrap().to_rgba8();
+    // The centre of the image shows the house, not the background.
+    let doc = thicket::files::load_document(Path::new(project)).unwrap();
+    let bg = doc.background;
+    let bg = [
+        i32::from(thicket_core::mesh::linear_to_srgb_byte(bg.x)),
+        i32::from(thicket_core::mesh::linear_to_srgb_byte(bg.y)),
+        i32::from(thicket_core::mesh::linear_to_srgb_byte(bg.z)),
+    ];
+    let mut model_pixels = 0;
+    for y in 32..64 {
+        for x in 32..64 {
+            let p = img.get_pixel(x, y);
+            let d: i32 = (0..3).map(|i| (i32::from(p[i]) - bg[i]).abs()).sum();
+            if d > 12 {
+                model_pixels += 1;
+            }
+        }
+    }
+    assert!(
+        model_pixels > 900,
+        "the house fills the centre: {model_pixels} of 1024"
+    );
+    // And nothing of the scene lies in front of the near plane or beyond the far plane.
+    let (_, camera) = thicket::cli::view_options(&doc, &[], Some(&"35,15,75".to_string())).unwrap();
+    let (lo, hi) = doc.bounds().unwrap();
+    let eye = camera.eye();
+    let nearest = (eye.clamp(lo, hi) - eye).length();
+    let farthest = (0..8)
+        .map(|i| {
+            let c = Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            );
+            (c - eye).length()
+        })
+        .fold(0.0f32, f32::max);
+    assert!(nearest > 1.0, "the eye is outside the house: {nearest}");
+    assert!(
+        camera.near > 0.0 && camera.near <= nearest && camera.far >= farthest,
+        "clip {}..{} must enclose the scene at {nearest}..{farthest}",
+        camera.near,
+        camera.far
+    );
+}
