@@ -686,5 +686,5 @@ fn krs_instances_place_every_kernel_instance_without_mirroring_transforms() {
     assert!(e.to_string().contains("cubes mode"), "{e}");
     // The instance count is checked before any instance is enumerated.
     let e = krs_instances(o, 12, 10).unwrap_err();
-    assert!(matches!(e, FieldError::TooManyTriangles { .. }), "{e}");
+    assert!(matches!(e, FieldError::TooManyInstances { .. }), "{e}");
 }
