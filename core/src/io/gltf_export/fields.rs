@@ -217,7 +217,7 @@ pub fn krs_patch_region(
 
 /// Meshes an unbounded KRS object inside the box `lo..hi` ([`krs_patch_region`]) at
 /// `resolution` cells along its longest side, as an open surface: the mesher closes the cut
-/// along the box, and those walls and the floor (triangles whose centre is more than half a
+/// along the box, and those walls and the floor (triangles with a corner more than a quarter
 /// cell from the surface) are dropped. Normals and colours as in [`mesh_krs`].
 ///
 /// # Errors
@@ -239,10 +239,10 @@ pub fn mesh_krs_patch(
     let kept: Vec<u32> = indices
         .par_chunks_exact(3)
         .filter(|t| {
-            let c =
-                (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize])
-                    / 3.0;
-            object.distance_world(c).abs() <= 0.5 * cell
+            // A wall triangle has a corner on a lattice layer below the surface (about a cell
+            // deep); the surface's own corners lie on it up to interpolation error.
+            t.iter()
+                .all(|&i| object.distance_world(positions[i as usize]).abs() <= 0.25 * cell)
         })
         .flat_map_iter(|t| t.iter().copied())
         .collect();

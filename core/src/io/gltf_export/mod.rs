@@ -41,7 +41,9 @@ pub use fields::{
     ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
 };
 pub use instances::{InstanceTransform, KernelInstances, MIN_CELLS_ACROSS, krs_instances};
-pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin};
+pub use writer::{
+    ExportCamera, ExportLight, ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin,
+};
 
 /// How voxel models become triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -586,6 +588,34 @@ pub fn build_scene(
                 )
             },
         });
+    }
+    if options.lights_and_camera {
+        out.scene.lights = doc
+            .lights
+            .iter()
+            .filter(|l| l.validate().is_ok())
+            .map(|l| ExportLight {
+                name: l.name.clone(),
+                direction: l.direction,
+                color: l.color,
+                intensity: l.intensity,
+            })
+            .collect();
+        report.lights = out.scene.lights.len();
+        let c = &doc.camera;
+        if c.validate().is_ok() {
+            let world_from_view = c.view_from_world().inverse();
+            let (_, rotation, _) = world_from_view.to_scale_rotation_translation();
+            out.scene.camera = Some(ExportCamera {
+                name: "camera".to_owned(),
+                eye: c.eye(),
+                rotation,
+                yfov_radians: c.fov_y_deg.to_radians(),
+                znear: c.near,
+                zfar: c.far,
+            });
+            report.camera = true;
+        }
     }
     out.finish_palette();
     report.triangles = out.scene.triangle_count();
