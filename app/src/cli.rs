@@ -302,6 +302,42 @@ pub struct ExportArgs {
     /// half the resolution of the one before.
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub lod: u8,
+    /// KRS objects: the reflection level where the instanced prototype ends (mirrors above it
+    /// become EXT_mesh_gpu_instancing placements); default: the deepest level whose mirrors
+    /// above only place copies. A level past an object's mirrors writes it as one mesh.
+    #[arg(long, value_name = "K")]
+    pub instance_level: Option<usize>,
+    /// Write unbounded KRS objects (ground plane, terrain) as this patch instead of the area
+    /// the other objects cover plus a margin.
+    #[arg(long, value_name = "MINX,MINZ,MAXX,MAXZ", value_parser = parse_bounds)]
+    pub bounds: Option<[f32; 4]>,
+    /// Most instances one KRS object may have.
+    #[arg(long, default_value_t = 1 << 20, value_name = "N")]
+    pub max_instances: usize,
+    /// Most triangles the whole export may have (checked before meshing).
+    #[arg(long, default_value_t = 1 << 26, value_name = "N")]
+    pub max_triangles: u64,
+}
+
+/// `MINX,MINZ,MAXX,MAXZ` as four finite numbers with MIN < MAX.
+fn parse_bounds(text: &str) -> Result<[f32; 4], String> {
+    let values: Vec<f32> = text
+        .split(',')
+        .map(|v| v.trim().parse::<f32>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{text:?}: {e}; expected MINX,MINZ,MAXX,MAXZ"))?;
+    let [x0, z0, x1, z1] = values[..] else {
+        return Err(format!(
+            "{text:?}: expected four numbers MINX,MINZ,MAXX,MAXZ, got {}",
+            values.len()
+        ));
+    };
+    if !(values.iter().all(|v| v.is_finite()) && x0 < x1 && z0 < z1) {
+        return Err(format!(
+            "{text:?}: the numbers must be finite with MINX < MAXX and MINZ < MAXZ"
+        ));
+    }
+    Ok([x0, z0, x1, z1])
 }
 
 /// Initial content of `thicket new`'s model.
@@ -675,6 +711,10 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         object: args.object.clone(),
         resolution: args.resolution,
         lod_levels: args.lod,
+        instance_level: args.instance_level,
+        bounds: args.bounds,
+        max_instances: args.max_instances,
+        max_triangles: args.max_triangles,
         ..GltfExportOptions::default()
     };
     let bar = progress_bar(1000, "exporting");
@@ -704,6 +744,31 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             thousands(*quads),
             thousands(quads * 2),
             thousands(faces * 2)
+        ));
+    }
+    for k in &report.instanced {
+        text.push_str(&format!(
+            "  {:?}: prototype (reflection levels 0..={}) of {} triangles drawn {} times \
+             ({} mirrored, from a mirrored copy of the mesh), EXT_mesh_gpu_instancing\n",
+            k.object,
+            k.level,
+            thousands(k.prototype_triangles),
+            thousands(k.instances),
+            thousands(k.mirrored)
+        ));
+    }
+    for (name, lo, hi) in &report.patches {
+        text.push_str(&format!(
+            "  {name:?}: unbounded, written as the patch x {:.2}..{:.2}, z {:.2}..{:.2} \
+             (heights {:.2}..{:.2}; --bounds to choose)\n",
+            lo.x, hi.x, lo.z, hi.z, lo.y, hi.y
+        ));
+    }
+    if report.lights > 0 || report.camera {
+        text.push_str(&format!(
+            "  {} light(s) (KHR_lights_punctual){}\n",
+            report.lights,
+            if report.camera { " and the camera" } else { "" }
         ));
     }
     if !report.skipped.is_empty() {

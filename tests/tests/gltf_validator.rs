@@ -81,30 +81,34 @@ fn every_sample_export_passes_the_khronos_validator() {
             written += 1;
         }
     }
-    // KRS sample documents through the same export path: the tree sample (KRS tree on a mesh
-    // ground) as a distance-field mesh and with its kernels instanced, one rock of the rock
-    // sample (its terrain is a folded half-space: unbounded, no closed mesh). The forest's
-    // 33 million instances are over the instance limit and its distance field is kilometres
-    // wide, so it has no export in this test.
-    for (name, object, mode, resolution) in [
-        ("tree", None, ExportMode::Cubes, 96),
-        ("tree", None, ExportMode::Instances, 96),
-        ("rock", Some("Rock 1"), ExportMode::Cubes, 48),
-    ] {
+    // Every sample with the default options, as `thicket export SAMPLE -o SAMPLE.glb` writes
+    // it: KRS objects instanced as prototype × placements where they repeat (the forest's
+    // 2^17 trees), unbounded ones (ground planes, the rock sample's terrain) as a patch under
+    // the rest, distorted rocks meshed through their warp, the lights and the camera.
+    for name in SAMPLES {
         let path = thicket_tests::repo_root()
             .join("projects")
             .join(format!("{name}.thicket.json"));
         let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
-        let out = dir.path().join(format!("krs-{name}-{mode:?}.glb"));
-        let options = GltfExportOptions {
-            mode,
-            resolution,
-            object: object.map(str::to_owned),
-            ..GltfExportOptions::default()
-        };
-        let report = export_gltf(&doc, &out, &options, &|_| true)
-            .unwrap_or_else(|e| panic!("{name} {mode:?}: {e}"));
-        assert!(report.triangles > 100, "{name} {mode:?}: {report:?}");
+        let out = dir.path().join(format!("{name}-default.glb"));
+        let report = export_gltf(&doc, &out, &GltfExportOptions::default(), &|_| true)
+            .unwrap_or_else(|e| panic!("{name} with default options: {e}"));
+        let visible = doc.objects.iter().filter(|o| o.visible).count();
+        assert_eq!(report.objects, visible, "{name}: every visible object");
+        assert!(report.triangles > 100, "{name}: {report:?}");
+        assert!(report.camera && report.lights == doc.lights.len(), "{name}");
+        match name {
+            "forest" => {
+                let [trees] = &report.instanced[..] else {
+                    panic!("forest: one instanced object: {:?}", report.instanced);
+                };
+                assert_eq!(trees.instances, 1 << 17, "one copy per tree");
+                assert_eq!(trees.mirrored, 1 << 16);
+                assert_eq!(report.patches.len(), 1, "the ground plane");
+            }
+            "rock" => assert_eq!(report.patches.len(), 1, "the terrain under the rocks"),
+            _ => {}
+        }
         written += 1;
     }
     let report = validate(dir.path());

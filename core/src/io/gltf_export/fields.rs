@@ -1,7 +1,7 @@
 //! The fields [`super::iso::march`] meshes: the KRS distance field (cells found by pruning
 //! whole blocks with the distance bound) and a voxel model's occupancy at voxel centres.
 
-use glam::{DVec3, IVec3, UVec3, Vec3, Vec4};
+use glam::{DVec3, IVec3, UVec3, Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::iso::{IsoMesh, MAX_LATTICE, edge_ends, march, vertex_normals};
@@ -43,13 +43,32 @@ pub enum FieldError {
     #[error("the object has no geometry (every kernel is empty)")]
     Empty,
     /// The mesh would exceed the triangle limit.
-    #[error("the mesh would have more than {limit} triangles ({what}); lower the resolution")]
+    #[error(
+        "the mesh would have more than {limit} triangles ({what}); lower the resolution \
+         (--resolution) or raise the limit (--max-triangles)"
+    )]
     TooManyTriangles {
         /// The limit.
         limit: u64,
         /// What hit it.
         what: String,
     },
+    /// More instances than the limit (checked before any is enumerated).
+    #[error(
+        "{what}: {count} instances, over the limit of {limit}; raise it (--max-instances) or \
+         instance a larger prototype (a higher --instance-level)"
+    )]
+    TooManyInstances {
+        /// Instances asked for.
+        count: u128,
+        /// The limit.
+        limit: u64,
+        /// What would have been instanced.
+        what: String,
+    },
+    /// An instance level that does not split the object into prototype and placements.
+    #[error("{0}")]
+    BadInstanceLevel(String),
     /// The progress callback asked to stop.
     #[error("cancelled")]
     Cancelled,
@@ -113,6 +132,150 @@ pub fn krs_region(object: &PreparedObject) -> Result<(Vec3, Vec3), FieldError> {
         object.object.name,
         2.0 * half
     )))
+}
+
+/// A finite box of an unbounded KRS object (a ground plane, a terrain) to mesh as a patch:
+/// `xz_lo..xz_hi` across, and vertically the heights the surface takes there, found by tracing
+/// down a 65 × 65 grid of columns from above `y_top`, padded by 10 % of the height range and
+/// two cells (`resolution` cells along the longest side) so the box cuts no column.
+///
+/// # Errors
+/// [`FieldError::Empty`]; [`FieldError::Unbounded`] when the area is degenerate or some column
+/// meets no surface (the object is not a ground under this area).
+pub fn krs_patch_region(
+    object: &PreparedObject,
+    xz_lo: Vec2,
+    xz_hi: Vec2,
+    y_top: f32,
+    resolution: u32,
+) -> Result<(Vec3, Vec3), FieldError> {
+    if object.is_empty {
+        return Err(FieldError::Empty);
+    }
+    let size = xz_hi - xz_lo;
+    if !(size.is_finite() && size.min_element() > 0.0 && y_top.is_finite()) {
+        return Err(FieldError::Unbounded(format!(
+            "KRS object {:?}: the patch {xz_lo}..{xz_hi} is empty or not finite",
+            object.object.name
+        )));
+    }
+    const COLUMNS: usize = 65;
+    let span = size.max_element();
+    // Start above every surface: a positive distance at the top of each column.
+    let heights: Vec<Option<f32>> = (0..COLUMNS * COLUMNS)
+        .into_par_iter()
+        .map(|k| {
+            let u = (k % COLUMNS) as f32 / (COLUMNS - 1) as f32;
+            let v = (k / COLUMNS) as f32 / (COLUMNS - 1) as f32;
+            let xz = xz_lo + size * Vec2::new(u, v);
+            let mut top = y_top.max(0.0) + span;
+            let at = |y: f32| object.distance_world(Vec3::new(xz.x, y, xz.y));
+            for _ in 0..12 {
+                if at(top) > 0.0 {
+                    break;
+                }
+                top += 2.0 * span;
+            }
+            // Sphere trace down: the distance bound never steps through the surface.
+            let floor = top - 4096.0 * span;
+            let eps = span * 1e-6 + 1e-6;
+            let mut y = top;
+            for _ in 0..512 {
+                let d = at(y);
+                if d <= eps {
+                    return Some(y);
+                }
+                y -= d.max(eps);
+                if y < floor {
+                    return None;
+                }
+            }
+            // Slow convergence (a grazing surface): where it stopped is within reach of it.
+            Some(y)
+        })
+        .collect();
+    let mut lo_y = f32::INFINITY;
+    let mut hi_y = f32::NEG_INFINITY;
+    for h in &heights {
+        let Some(h) = *h else {
+            return Err(FieldError::Unbounded(format!(
+                "KRS object {:?} has no surface below some of the patch {xz_lo}..{xz_hi}; \
+                 it is not a ground there",
+                object.object.name
+            )));
+        };
+        lo_y = lo_y.min(h);
+        hi_y = hi_y.max(h);
+    }
+    let cell = span / resolution.max(2) as f32;
+    let pad = 0.1 * (hi_y - lo_y) + 2.0 * cell;
+    Ok((
+        Vec3::new(xz_lo.x, lo_y - pad, xz_lo.y),
+        Vec3::new(xz_hi.x, hi_y + pad, xz_hi.y),
+    ))
+}
+
+/// Meshes an unbounded KRS object inside the box `lo..hi` ([`krs_patch_region`]) at
+/// `resolution` cells along its longest side, as an open surface: the mesher closes the cut
+/// along the box, and those walls and the floor (triangles with a corner more than a quarter
+/// cell from the surface) are dropped. Normals and colours as in [`mesh_krs`].
+///
+/// # Errors
+/// As [`mesh_krs`]; [`FieldError::Empty`] when nothing of the surface is inside the box.
+pub fn mesh_krs_patch(
+    object: &PreparedObject,
+    lo: Vec3,
+    hi: Vec3,
+    resolution: u32,
+    max_triangles: u64,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<ColoredMesh, FieldError> {
+    let distance = |p: Vec3| object.distance_world(p);
+    let (positions, indices) =
+        mesh_distance_field(&distance, lo, hi, resolution, max_triangles, &|f| {
+            progress(f * 0.8)
+        })?;
+    let cell = (hi - lo).max_element() / resolution as f32;
+    let kept: Vec<u32> = indices
+        .par_chunks_exact(3)
+        .filter(|t| {
+            // A wall triangle has a corner on a lattice layer below the surface (about a cell
+            // deep); the surface's own corners lie on it up to interpolation error.
+            t.iter()
+                .all(|&i| object.distance_world(positions[i as usize]).abs() <= 0.25 * cell)
+        })
+        .flat_map_iter(|t| t.iter().copied())
+        .collect();
+    // Keep only the vertices the surface uses.
+    let mut remap = vec![u32::MAX; positions.len()];
+    let mut used = Vec::new();
+    let indices: Vec<u32> = kept
+        .iter()
+        .map(|&i| {
+            if remap[i as usize] == u32::MAX {
+                remap[i as usize] = used.len() as u32;
+                used.push(positions[i as usize]);
+            }
+            remap[i as usize]
+        })
+        .collect();
+    if indices.is_empty() {
+        return Err(FieldError::Empty);
+    }
+    let (normals, colors): (Vec<Vec3>, Vec<Vec4>) = used
+        .par_iter()
+        .map(|&p| {
+            let (sample, n) = object.sample_world(p);
+            (n, object.material(sample.kernel).colour.extend(1.0))
+        })
+        .unzip();
+    progress(1.0);
+    Ok(ColoredMesh {
+        positions: used,
+        normals,
+        colors,
+        indices,
+    })
 }
 
 /// Lattice ↔ world for a region meshed at a resolution: lattice point `p` is at

@@ -70,6 +70,24 @@ pub(crate) fn proper_trs(xf: &Affine3A) -> (InstanceTransform, bool) {
     )
 }
 
+/// `mesh` reflected by F = diag(−1, 1, 1): positions and normals mirrored, each triangle's
+/// winding reversed so its front face stays outside. A mirrored placement M draws it with the
+/// proper similarity M·F ([`proper_trs`]).
+#[must_use]
+pub fn mirrored_x(mesh: &ColoredMesh) -> ColoredMesh {
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    ColoredMesh {
+        positions: mesh.positions.iter().map(|&p| p * flip).collect(),
+        normals: mesh.normals.iter().map(|&n| n * flip).collect(),
+        colors: mesh.colors.clone(),
+        indices: mesh
+            .indices
+            .chunks_exact(3)
+            .flat_map(|t| [t[0], t[2], t[1]])
+            .collect(),
+    }
+}
+
 /// Cells across the thinnest section of a kernel (a twig's diameter, a leaf ball's) that the
 /// kernel mesh gets at least: with fewer, a tube thinner than a cell falls between the lattice
 /// points and meshes empty.
@@ -127,9 +145,14 @@ pub fn krs_instances(
     }
     let count = o.instance_count();
     if count > max_instances as u128 {
-        return Err(FieldError::TooManyTriangles {
+        return Err(FieldError::TooManyInstances {
+            count,
             limit: max_instances as u64,
-            what: format!("{count} kernel instances, over the instance limit {max_instances}"),
+            what: format!(
+                "KRS object {:?}, one mesh per kernel (instances mode; the default mode \
+                 instances whole prototypes instead)",
+                o.name
+            ),
         });
     }
     let mut out: Vec<KernelInstances> = Vec::new();
@@ -164,17 +187,7 @@ pub fn krs_instances(
             normals,
             indices,
         };
-        let flip = Vec3::new(-1.0, 1.0, 1.0);
-        let mirrored_mesh = ColoredMesh {
-            positions: mesh.positions.iter().map(|&p| p * flip).collect(),
-            normals: mesh.normals.iter().map(|&n| n * flip).collect(),
-            colors: mesh.colors.clone(),
-            indices: mesh
-                .indices
-                .chunks_exact(3)
-                .flat_map(|t| [t[0], t[2], t[1]])
-                .collect(),
-        };
+        let mirrored_mesh = mirrored_x(&mesh);
         out.push(KernelInstances {
             kernel: k,
             mesh,

@@ -41,7 +41,9 @@ pub use fields::{
     ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
 };
 pub use instances::{InstanceTransform, KernelInstances, MIN_CELLS_ACROSS, krs_instances};
-pub use writer::{ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin};
+pub use writer::{
+    ExportCamera, ExportLight, ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin,
+};
 
 /// How voxel models become triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -105,8 +107,20 @@ pub struct GltfExportOptions {
     /// Instances mode: cells across each kernel's bounding ball (at least; a thin kernel gets
     /// enough for [`MIN_CELLS_ACROSS`] cells across its section).
     pub kernel_resolution: u32,
-    /// Instances mode: most kernel instances one KRS object may have.
+    /// Most instances one KRS object may have: copies of its prototype (default modes) or of
+    /// its kernels (`Instances` mode).
     pub max_instances: usize,
+    /// KRS objects: the reflection level where the prototype ends and placement mirrors begin
+    /// (see [`KrsObject::prototype`](crate::krs::KrsObject::prototype)); `None`: chosen per
+    /// object ([`PreparedObject::auto_placement_level`](crate::krs::PreparedObject)), a level
+    /// past an object's mirrors: no instancing for it.
+    pub instance_level: Option<usize>,
+    /// Unbounded KRS objects (a ground plane, a terrain) are written as the patch
+    /// `[min_x, min_z, max_x, max_z]` of this; `None`: the area the other exported objects
+    /// cover plus a margin ([`PATCH_MARGIN`]).
+    pub bounds: Option<[f32; 4]>,
+    /// Write the document's lights (`KHR_lights_punctual`) and its camera.
+    pub lights_and_camera: bool,
     /// Refuse (before building it) an export with more triangles than this.
     pub max_triangles: u64,
     /// Cubes mode: coarser levels of detail added per static voxel model (`MSFT_lod`), each
@@ -125,6 +139,9 @@ impl Default for GltfExportOptions {
             smoothing: 4,
             kernel_resolution: 24,
             max_instances: 1 << 20,
+            instance_level: None,
+            bounds: None,
+            lights_and_camera: true,
             // 2^26 triangles: about 2.5 GiB of GLB, under the format's 4 GiB limit.
             max_triangles: 1 << 26,
             lod_levels: 0,
@@ -133,7 +150,7 @@ impl Default for GltfExportOptions {
 }
 
 /// What an export wrote.
-#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 pub struct GltfExportReport {
     /// Objects written.
     pub objects: usize,
@@ -149,7 +166,35 @@ pub struct GltfExportReport {
     pub voxel_faces: Vec<(String, u64, u64)>,
     /// Names of objects left out (hidden, empty).
     pub skipped: Vec<String>,
+    /// KRS objects written as a prototype mesh drawn once per placement.
+    pub instanced: Vec<KrsInstancing>,
+    /// Unbounded KRS objects written as a finite patch: (name, min corner, max corner).
+    pub patches: Vec<(String, Vec3, Vec3)>,
+    /// Lights written (`KHR_lights_punctual`).
+    pub lights: usize,
+    /// Whether the document's camera was written.
+    pub camera: bool,
 }
+
+/// How a KRS object was instanced: its prototype (reflection levels `0..=level`) meshed once,
+/// and drawn at each of its placements.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KrsInstancing {
+    /// The object.
+    pub object: String,
+    /// The reflection level where the prototype ends.
+    pub level: usize,
+    /// Placements in all (`2^(mirrors − level)`).
+    pub instances: u64,
+    /// Of them, mirrored ones (drawn with the mirrored prototype mesh).
+    pub mirrored: u64,
+    /// Triangles of the prototype mesh (the mirrored one has as many).
+    pub prototype_triangles: u64,
+}
+
+/// Margin around the other objects' area that an unbounded object's patch adds on each side,
+/// as a fraction of that area's larger side (at least one unit).
+pub const PATCH_MARGIN: f32 = 0.1;
 
 /// Why an export failed. Nothing is left on disk when it does.
 #[derive(Debug, thiserror::Error)]
@@ -408,6 +453,7 @@ pub fn build_scene(
     };
     let mut budget = options.max_triangles;
     let total = chosen.len().max(1) as f32;
+    let mut unbounded: Vec<(&Object, crate::krs::PreparedObject)> = Vec::new();
     for (i, o) in chosen.iter().enumerate() {
         let object_error = |detail: String| GltfExportError::Object {
             path: path.to_owned(),
@@ -469,19 +515,25 @@ pub fn build_scene(
                 let prepared = crate::krs::KrsScene { objects: vec![krs] }
                     .prepare()
                     .map_err(|e| object_error(e.to_string()))?;
+                let object = prepared.objects.into_iter().next().ok_or_else(|| {
+                    object_error("the KRS object could not be prepared".to_owned())
+                })?;
+                if object.bound_world.is_none()
+                    && matches!(fields::krs_region(&object), Err(FieldError::Unbounded(_)))
+                {
+                    // A ground: written once the other objects say how much of it to cut.
+                    unbounded.push((o, object));
+                    continue;
+                }
                 let krs_options = GltfExportOptions {
                     max_triangles: budget,
                     ..options.clone()
                 };
-                let tris = add_krs_object(
-                    &mut out.scene,
-                    &o.name,
-                    &prepared.objects[0],
-                    &krs_options,
-                    &|_| true,
-                )
-                .map_err(|e| field_error(path, &o.name, &e))?;
+                let (tris, instancing) =
+                    add_krs_object(&mut out.scene, &o.name, &object, &krs_options, &|_| true)
+                        .map_err(|e| field_error(path, &o.name, &e))?;
                 charge(&mut budget, tris, options, path, &o.name)?;
+                report.instanced.extend(instancing);
                 report.objects += 1;
                 if !progress((i + 1) as f32 / total) {
                     return Err(GltfExportError::Cancelled {
@@ -499,6 +551,31 @@ pub fn build_scene(
             });
         }
     }
+    if !unbounded.is_empty() {
+        let (xz_lo, xz_hi, y_top) = patch_area(&out.scene, options, path, &unbounded[0].0.name)?;
+        for (o, object) in unbounded {
+            let (lo, hi) =
+                fields::krs_patch_region(&object, xz_lo, xz_hi, y_top, options.resolution)
+                    .map_err(|e| field_error(path, &o.name, &e))?;
+            let krs_options = GltfExportOptions {
+                max_triangles: budget,
+                ..options.clone()
+            };
+            let tris = add_krs_patch(
+                &mut out.scene,
+                &o.name,
+                &object,
+                lo,
+                hi,
+                &krs_options,
+                &|_| true,
+            )
+            .map_err(|e| field_error(path, &o.name, &e))?;
+            charge(&mut budget, tris, options, path, &o.name)?;
+            report.patches.push((o.name.clone(), lo, hi));
+            report.objects += 1;
+        }
+    }
     if out.scene.nodes.is_empty() {
         return Err(GltfExportError::NothingToExport {
             path: path.to_owned(),
@@ -512,10 +589,80 @@ pub fn build_scene(
             },
         });
     }
+    if options.lights_and_camera {
+        out.scene.lights = doc
+            .lights
+            .iter()
+            .filter(|l| l.validate().is_ok())
+            .map(|l| ExportLight {
+                name: l.name.clone(),
+                direction: l.direction,
+                color: l.color,
+                intensity: l.intensity,
+            })
+            .collect();
+        report.lights = out.scene.lights.len();
+        let c = &doc.camera;
+        if c.validate().is_ok() {
+            let world_from_view = c.view_from_world().inverse();
+            let (_, rotation, _) = world_from_view.to_scale_rotation_translation();
+            out.scene.camera = Some(ExportCamera {
+                name: "camera".to_owned(),
+                eye: c.eye(),
+                rotation,
+                yfov_radians: c.fov_y_deg.to_radians(),
+                znear: c.near,
+                zfar: c.far,
+            });
+            report.camera = true;
+        }
+    }
     out.finish_palette();
     report.triangles = out.scene.triangle_count();
     report.vertices = out.scene.vertex_count();
     Ok((out.scene, report))
+}
+
+/// The (x, z) area an unbounded object's patch covers and a height above the scene:
+/// `options.bounds`, or the exported nodes' area plus [`PATCH_MARGIN`].
+fn patch_area(
+    scene: &ExportScene,
+    options: &GltfExportOptions,
+    path: &Path,
+    object: &str,
+) -> Result<(Vec2, Vec2, f32), GltfExportError> {
+    let mut lo = Vec3::INFINITY;
+    let mut hi = Vec3::NEG_INFINITY;
+    for b in scene.nodes.iter().filter_map(node_bounds) {
+        lo = lo.min(b.0);
+        hi = hi.max(b.1);
+    }
+    let y_top = if hi.y.is_finite() { hi.y } else { 0.0 };
+    if let Some([x0, z0, x1, z1]) = options.bounds {
+        if !([x0, z0, x1, z1].iter().all(|v| v.is_finite()) && x0 < x1 && z0 < z1) {
+            return Err(GltfExportError::Unsupported {
+                path: path.to_owned(),
+                detail: format!(
+                    "patch bounds {x0},{z0},{x1},{z1} (--bounds MINX,MINZ,MAXX,MAXZ) must be \
+                     finite with MINX < MAXX and MINZ < MAXZ"
+                ),
+            });
+        }
+        return Ok((Vec2::new(x0, z0), Vec2::new(x1, z1), y_top));
+    }
+    if !lo.cmple(hi).all() {
+        return Err(GltfExportError::Object {
+            path: path.to_owned(),
+            object: object.to_owned(),
+            detail: "it is unbounded (a ground plane or terrain) and no other exported object \
+                     says how much of it to write; give the patch with --bounds \
+                     MINX,MINZ,MAXX,MAXZ"
+                .to_owned(),
+        });
+    }
+    let (lo, hi) = (Vec2::new(lo.x, lo.z), Vec2::new(hi.x, hi.z));
+    let margin = Vec2::splat(((hi - lo).max_element() * PATCH_MARGIN).max(1.0));
+    Ok((lo - margin, hi + margin, y_top))
 }
 
 /// Takes `n` triangles from the budget or refuses with the limit in the message.
@@ -531,7 +678,7 @@ fn charge(
             path: path.to_owned(),
             detail: format!(
                 "object {object:?} needs {n} triangles; the export may have at most {} in all \
-                 (GltfExportOptions::max_triangles)",
+                 (raise it with --max-triangles, or lower --resolution)",
                 options.max_triangles
             ),
         });
@@ -876,7 +1023,13 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
         FieldError::Cancelled => GltfExportError::Cancelled {
             path: path.to_owned(),
         },
-        FieldError::BadResolution(_) | FieldError::Unbounded(_) => GltfExportError::Object {
+        FieldError::TooManyInstances { .. } => GltfExportError::TooLarge {
+            path: path.to_owned(),
+            detail: format!("object {object:?}: {e}"),
+        },
+        FieldError::BadResolution(_)
+        | FieldError::Unbounded(_)
+        | FieldError::BadInstanceLevel(_) => GltfExportError::Object {
             path: path.to_owned(),
             object: object.to_owned(),
             detail: e.to_string(),
@@ -884,21 +1037,32 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
     }
 }
 
-/// Adds a KRS object (in world space: its node gets the identity transform) to `scene`: the
-/// distance-field mesh ([`mesh_krs`] at `options.resolution`) in `Cubes` and `Smooth` modes,
-/// or in `Instances` mode one node per kernel (and one for its mirrored instances) drawing the
-/// kernel's mesh once per instance ([`krs_instances`]). Colours go out as `COLOR_0`. Returns
-/// the triangles added (drawn once per node; instancing multiplies them on screen only).
+/// Adds a KRS object (in world space: its nodes get the identity transform) to `scene`, and
+/// returns the triangles added (drawn once per node; instancing multiplies them on screen only)
+/// and, when it was instanced, how.
+///
+/// In `Cubes` and `Smooth` modes the object's reflection sequence is split at a level `K`
+/// (`options.instance_level`, or [`PreparedObject::auto_placement_level`]): the prototype
+/// (kernels `0..=K`, mirrors `0..K`) is meshed once in object space ([`mesh_krs`] at
+/// `options.resolution` cells along its longest side), and the 2^(n−K) compositions of the
+/// placement mirrors `K..n` become `EXT_mesh_gpu_instancing` transforms. That extension's TRS
+/// has a unit quaternion and no way to mirror, so mirrored placements draw a second mesh, the
+/// prototype reflected by x → −x with its winding reversed ([`instances::mirrored_x`]). With
+/// no placement mirrors (or a distortion or empty zones, which act on the whole object) the
+/// object is one distance-field mesh. In `Instances` mode each kernel is a mesh drawn once
+/// per kernel instance ([`krs_instances`]); distorted objects fall back to one mesh.
 ///
 /// # Errors
-/// [`FieldError`] from the meshers.
+/// [`FieldError`] from the meshers, [`FieldError::TooManyInstances`] past
+/// `options.max_instances`, [`FieldError::BadInstanceLevel`] for a level below
+/// [`KrsObject::lowest_placement_level`](crate::krs::KrsObject::lowest_placement_level).
 pub fn add_krs_object(
     scene: &mut ExportScene,
     name: &str,
     object: &crate::krs::PreparedObject,
     options: &GltfExportOptions,
     progress: &dyn Fn(f32) -> bool,
-) -> Result<u64, FieldError> {
+) -> Result<(u64, Option<KrsInstancing>), FieldError> {
     let material = scene.materials.len();
     scene.materials.push(ExportMaterial {
         name: name.to_owned(),
@@ -913,39 +1077,198 @@ pub fn add_krs_object(
         material,
         skin: Vec::new(),
     };
-    match options.mode {
-        ExportMode::Cubes | ExportMode::Smooth => {
-            let mesh = mesh_krs(object, options.resolution, options.max_triangles, progress)?;
-            let tris = mesh.triangle_count() as u64;
-            scene.nodes.push(ExportNode {
-                name: name.to_owned(),
-                primitives: vec![to_primitive(mesh)],
-                ..ExportNode::default()
-            });
-            Ok(tris)
-        }
-        ExportMode::Instances => {
-            let kernels = krs_instances(object, options.kernel_resolution, options.max_instances)?;
-            let mut tris = 0u64;
-            for k in kernels {
-                for (suffix, mesh, transforms) in [
-                    ("", k.mesh, k.transforms),
-                    (" mirrored", k.mirrored_mesh, k.mirrored_transforms),
-                ] {
-                    if transforms.is_empty() {
-                        continue;
-                    }
-                    tris += mesh.triangle_count() as u64;
-                    scene.nodes.push(ExportNode {
-                        name: format!("{name} kernel {}{suffix}", k.kernel),
-                        primitives: vec![to_primitive(mesh)],
-                        instances: transforms,
-                        ..ExportNode::default()
-                    });
+    let o = &object.object;
+    let n = o.mirrors.len();
+    let per_copy = o.distortion.is_none() && o.empty_zones.is_empty();
+    if options.mode == ExportMode::Instances && per_copy {
+        let kernels = krs_instances(object, options.kernel_resolution, options.max_instances)?;
+        let mut tris = 0u64;
+        for k in kernels {
+            for (suffix, mesh, transforms) in [
+                ("", k.mesh, k.transforms),
+                (" mirrored", k.mirrored_mesh, k.mirrored_transforms),
+            ] {
+                if transforms.is_empty() {
+                    continue;
                 }
+                tris += mesh.triangle_count() as u64;
+                scene.nodes.push(ExportNode {
+                    name: format!("{name} kernel {}{suffix}", k.kernel),
+                    primitives: vec![to_primitive(mesh)],
+                    instances: transforms,
+                    ..ExportNode::default()
+                });
             }
-            progress(1.0);
-            Ok(tris)
+        }
+        progress(1.0);
+        return Ok((tris, None));
+    }
+    let level = match options.instance_level {
+        Some(k) => {
+            let lowest = o.lowest_placement_level();
+            if k < lowest {
+                return Err(FieldError::BadInstanceLevel(format!(
+                    "KRS object {:?}: instance level {k} (--instance-level) is below its lowest \
+                     placement level {lowest}: kernel {lowest} is not empty, so mirror {k} \
+                     does more than place copies; use a level from {lowest} to {n}",
+                    o.name
+                )));
+            }
+            k.min(n)
+        }
+        None => object.auto_placement_level(),
+    };
+    if level >= n || !per_copy {
+        let mesh = mesh_krs(object, options.resolution, options.max_triangles, progress)?;
+        let tris = mesh.triangle_count() as u64;
+        scene.nodes.push(ExportNode {
+            name: name.to_owned(),
+            primitives: vec![to_primitive(mesh)],
+            ..ExportNode::default()
+        });
+        return Ok((tris, None));
+    }
+    let count = o.placement_count(level);
+    if count > options.max_instances as u128 {
+        return Err(FieldError::TooManyInstances {
+            count,
+            limit: options.max_instances as u64,
+            what: format!(
+                "KRS object {:?}: copies of its prototype (levels 0..={level})",
+                o.name
+            ),
+        });
+    }
+    let prototype = crate::krs::KrsScene {
+        objects: vec![o.prototype(level)],
+    }
+    .prepare()
+    .map_err(|e| FieldError::Unbounded(e.to_string()))?;
+    // Both prototype meshes count against the budget.
+    let mesh = mesh_krs(
+        &prototype.objects[0],
+        options.resolution,
+        options.max_triangles / 2,
+        progress,
+    )?;
+    let mut plain = Vec::new();
+    let mut flipped = Vec::new();
+    for xf in object.placements(level, options.max_instances) {
+        let (trs, mirrored) = instances::proper_trs(&xf);
+        if mirrored {
+            flipped.push(trs);
+        } else {
+            plain.push(trs);
         }
     }
+    let proto_tris = mesh.triangle_count() as u64;
+    let mirrored_mesh = instances::mirrored_x(&mesh);
+    let report = KrsInstancing {
+        object: name.to_owned(),
+        level,
+        instances: (plain.len() + flipped.len()) as u64,
+        mirrored: flipped.len() as u64,
+        prototype_triangles: proto_tris,
+    };
+    let mut tris = 0;
+    for (suffix, mesh, transforms) in [("", mesh, plain), (" mirrored", mirrored_mesh, flipped)] {
+        if transforms.is_empty() {
+            continue;
+        }
+        tris += proto_tris;
+        scene.nodes.push(ExportNode {
+            name: format!("{name}{suffix}"),
+            primitives: vec![to_primitive(mesh)],
+            instances: transforms,
+            ..ExportNode::default()
+        });
+    }
+    Ok((tris, Some(report)))
+}
+
+/// Adds an unbounded KRS object as the open patch of its surface inside `lo..hi`
+/// ([`fields::mesh_krs_patch`] at `options.resolution` cells along the longest side), with a
+/// double-sided material (the patch is seen from below at its edges). Returns the triangles.
+///
+/// # Errors
+/// [`FieldError`] from the mesher.
+pub fn add_krs_patch(
+    scene: &mut ExportScene,
+    name: &str,
+    object: &crate::krs::PreparedObject,
+    lo: Vec3,
+    hi: Vec3,
+    options: &GltfExportOptions,
+    progress: &dyn Fn(f32) -> bool,
+) -> Result<u64, FieldError> {
+    let mesh = fields::mesh_krs_patch(
+        object,
+        lo,
+        hi,
+        options.resolution,
+        options.max_triangles,
+        progress,
+    )?;
+    let material = scene.materials.len();
+    scene.materials.push(ExportMaterial {
+        name: name.to_owned(),
+        double_sided: true,
+        ..ExportMaterial::default()
+    });
+    let tris = mesh.triangle_count() as u64;
+    scene.nodes.push(ExportNode {
+        name: name.to_owned(),
+        primitives: vec![ExportPrimitive {
+            positions: mesh.positions,
+            normals: mesh.normals,
+            colors: mesh.colors,
+            uvs: Vec::new(),
+            indices: mesh.indices,
+            material,
+            skin: Vec::new(),
+        }],
+        ..ExportNode::default()
+    });
+    Ok(tris)
+}
+
+/// World-space box of what a node draws (every instance, through the node's transform).
+fn node_bounds(node: &ExportNode) -> Option<(Vec3, Vec3)> {
+    let mut lo = Vec3::INFINITY;
+    let mut hi = Vec3::NEG_INFINITY;
+    for p in node.primitives.iter().flat_map(|p| &p.positions) {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    if !(lo.cmple(hi).all()) {
+        return None;
+    }
+    let corners = |lo: Vec3, hi: Vec3| {
+        (0..8).map(move |k| {
+            Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            )
+        })
+    };
+    if !node.instances.is_empty() {
+        let (mut ilo, mut ihi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for t in &node.instances {
+            for c in corners(lo, hi) {
+                let p = t.transform_point(c);
+                ilo = ilo.min(p);
+                ihi = ihi.max(p);
+            }
+        }
+        (lo, hi) = (ilo, ihi);
+    }
+    let m = node.transform.matrix();
+    let (mut wlo, mut whi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+    for c in corners(lo, hi) {
+        let p = m.transform_point3(c);
+        wlo = wlo.min(p);
+        whi = whi.max(p);
+    }
+    Some((wlo, whi))
 }

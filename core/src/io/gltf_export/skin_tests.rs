@@ -149,7 +149,11 @@ fn lod_levels_are_coarser_msft_lod_alternatives() {
         .nodes()
         .map(|n| n.index())
         .collect();
-    for root in g.nodes().filter(|n| scene_roots.contains(&n.index())) {
+    // Lights and the camera are roots without a mesh.
+    for root in g
+        .nodes()
+        .filter(|n| scene_roots.contains(&n.index()) && n.mesh().is_some())
+    {
         let full = triangles(&root);
         let lod = root
             .extensions()

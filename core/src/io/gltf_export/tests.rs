@@ -289,7 +289,10 @@ fn bad_exports_fail_clearly_and_leave_no_file() {
     };
     let e = export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap_err();
     assert!(matches!(e, GltfExportError::TooLarge { .. }), "{e}");
-    assert!(e.to_string().contains("max_triangles"), "{e}");
+    assert!(
+        e.to_string().contains("--max-triangles") && e.to_string().contains("at most 10"),
+        "{e}"
+    );
     // Wrong extension.
     let e = export_gltf(
         &doc,
@@ -688,5 +691,326 @@ fn krs_instances_place_every_kernel_instance_without_mirroring_transforms() {
     assert!(e.to_string().contains("cubes mode"), "{e}");
     // The instance count is checked before any instance is enumerated.
     let e = krs_instances(o, 12, 10).unwrap_err();
-    assert!(matches!(e, FieldError::TooManyTriangles { .. }), "{e}");
+    assert!(matches!(e, FieldError::TooManyInstances { .. }), "{e}");
+}
+
+/// World positions of a node's mesh drawn by one of its instances.
+fn instance_world(node: &ExportNode, i: usize) -> Vec<Vec3> {
+    let t = node.instances[i];
+    node.primitives[0]
+        .positions
+        .iter()
+        .map(|&p| t.transform_point(p))
+        .collect()
+}
+
+fn aabb(points: impl IntoIterator<Item = Vec3>) -> (Vec3, Vec3) {
+    points
+        .into_iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(p), hi.max(p))
+        })
+}
+
+#[test]
+fn forest_is_one_tree_prototype_placed_where_the_krs_puts_its_trees() {
+    let mut forest = presets::forest_with_mirrors(3);
+    forest.world_from_object = crate::krs::Similarity {
+        translation: Vec3::new(3.0, -1.0, 2.0),
+        rotation: glam::Quat::from_rotation_y(0.7),
+        scale: 1.5,
+    };
+    let prepared = KrsScene {
+        objects: vec![forest],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    let n = o.object.mirrors.len();
+    let level = o.auto_placement_level();
+    assert_eq!(level, n - 3, "the three forest mirrors place trees");
+    assert_eq!(level, o.object.lowest_placement_level());
+    let mut scene = ExportScene::default();
+    let options = GltfExportOptions {
+        resolution: 48,
+        ..GltfExportOptions::default()
+    };
+    let (tris, instancing) =
+        add_krs_object(&mut scene, "forest", o, &options, NO_PROGRESS).unwrap();
+    let instancing = instancing.expect("instanced");
+    assert_eq!(instancing.instances, 8);
+    assert_eq!(instancing.mirrored, 4);
+    assert_eq!(scene.nodes.len(), 2, "one tree mesh and its mirrored copy");
+    assert_eq!(tris, 2 * instancing.prototype_triangles);
+    assert!(instancing.prototype_triangles > 1000);
+    // The trunk (the prototype's top kernel) of every tree the KRS enumerates is where some
+    // exported instance puts the prototype's trunk, one for one.
+    let crate::krs::KernelBound::Sphere(trunk, _) = o.object.kernels[level].bound() else {
+        panic!("the trunk is bounded");
+    };
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    let mut exported: Vec<Vec3> = Vec::new();
+    for node in &scene.nodes {
+        let mirrored = node.name.ends_with("mirrored");
+        for t in &node.instances {
+            exported.push(t.transform_point(if mirrored { trunk * flip } else { trunk }));
+        }
+    }
+    let trunks: Vec<Vec3> = o
+        .instances(1 << 20)
+        .iter()
+        .filter(|i| i.kernel == level)
+        .map(|i| i.world_from_kernel.transform_point3(trunk))
+        .collect();
+    assert_eq!(trunks.len(), 8);
+    for t in &trunks {
+        let matches = exported.iter().filter(|e| e.distance(*t) < 1e-3).count();
+        assert_eq!(matches, 1, "trunk at {t}: {exported:?}");
+    }
+    // Bounds: the prototype mesh's box through every instance against the KRS object's own
+    // kernel-instance balls (which contain the surface) and its own distance-field mesh.
+    let (lo, hi) = aabb(
+        scene
+            .nodes
+            .iter()
+            .flat_map(|node| (0..node.instances.len()).flat_map(move |i| instance_world(node, i))),
+    );
+    let (klo, khi) = aabb(o.instances(1 << 20).iter().flat_map(|i| {
+        let crate::krs::KernelBound::Sphere(c, r) = o.object.kernels[i.kernel].bound() else {
+            return Vec::new();
+        };
+        let c = i.world_from_kernel.transform_point3(c);
+        let r = r * 1.5;
+        vec![c - Vec3::splat(r), c + Vec3::splat(r)]
+    }));
+    let proto_box = aabb(scene.nodes[0].primitives[0].positions.iter().copied());
+    let cell = 1.5 * (proto_box.1 - proto_box.0).max_element() / 48.0;
+    assert!(
+        lo.cmpge(klo - cell).all() && hi.cmple(khi + cell).all(),
+        "instances {lo}..{hi} outside the kernel instances' balls {klo}..{khi}"
+    );
+    let (rlo, rhi) = fields::krs_region(o).unwrap();
+    let resolution = ((rhi - rlo).max_element() / cell).ceil() as u32;
+    let whole = mesh_krs(o, resolution, u64::MAX, NO_PROGRESS).unwrap();
+    let (wlo, whi) = aabb(whole.positions.iter().copied());
+    assert!(
+        (lo - wlo).abs().max_element() < 2.0 * cell && (hi - whi).abs().max_element() < 2.0 * cell,
+        "instanced {lo}..{hi} vs the whole object's mesh {wlo}..{whi} (cell {cell})"
+    );
+}
+
+#[test]
+fn mirrored_placement_draws_outward_faces_on_the_krs_surface() {
+    let material = crate::krs::Material::new(Vec3::new(0.5, 0.3, 0.2), 1);
+    let object = crate::krs::KrsObject {
+        name: "pair".to_owned(),
+        kernels: vec![
+            crate::krs::Kernel::Capsule(crate::krs::CapsuleKernel {
+                start: Vec3::ZERO,
+                end: Vec3::new(1.0, 1.0, 0.5),
+                radius: 0.3,
+                material,
+            }),
+            crate::krs::Kernel::Empty,
+        ],
+        mirrors: vec![crate::krs::MirrorPlane::new(Vec3::new(1.0, 0.2, 0.1), 2.0)],
+        world_from_object: crate::krs::Similarity {
+            translation: Vec3::new(0.0, 1.0, 0.0),
+            rotation: glam::Quat::from_rotation_x(0.4),
+            scale: 2.0,
+        },
+        ..crate::krs::KrsObject::default()
+    };
+    let prepared = KrsScene {
+        objects: vec![object],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    let mut scene = ExportScene::default();
+    let options = GltfExportOptions {
+        resolution: 32,
+        ..GltfExportOptions::default()
+    };
+    let (_, instancing) = add_krs_object(&mut scene, "pair", o, &options, NO_PROGRESS).unwrap();
+    assert_eq!(instancing.unwrap().level, 0);
+    assert_eq!(scene.nodes.len(), 2);
+    let plain = &scene.nodes[0];
+    let mirrored = &scene.nodes[1];
+    assert_eq!((plain.instances.len(), mirrored.instances.len()), (1, 1));
+    let cell = 2.0 * 1.8 / 32.0;
+    for node in [plain, mirrored] {
+        let t = node.instances[0];
+        assert!(t.scale.min_element() > 0.0, "no instance transform mirrors");
+        let world = instance_world(node, 0);
+        let prim = &node.primitives[0];
+        let mut outward = 0;
+        let mut on_surface = 0;
+        for tri in prim.indices.chunks_exact(3) {
+            let [a, b, c] = [tri[0], tri[1], tri[2]].map(|i| world[i as usize]);
+            let centre = (a + b + c) / 3.0;
+            let (sample, krs_normal) = o.sample_world(centre);
+            if sample.distance.abs() < cell {
+                on_surface += 1;
+            }
+            let face = (b - a).cross(c - a);
+            let vertex_normal = t.rotation * prim.normals[tri[0] as usize];
+            if face.dot(krs_normal) > 0.0 && vertex_normal.dot(krs_normal) > 0.5 {
+                outward += 1;
+            }
+        }
+        let count = prim.indices.len() / 3;
+        assert!(count > 200, "{}: {count} triangles", node.name);
+        assert!(
+            on_surface as f64 > 0.99 * count as f64,
+            "{}: {on_surface} of {count} triangles on the KRS surface",
+            node.name
+        );
+        assert!(
+            outward as f64 > 0.97 * count as f64,
+            "{}: {outward} of {count} triangles wound and lit outward",
+            node.name
+        );
+    }
+    // The mirrored copy is the one past the mirror plane.
+    let m = o.object.mirrors[0];
+    let side = |node: &ExportNode| {
+        let (lo, hi) = aabb(instance_world(node, 0));
+        m.signed_distance(o.object_from_world((lo + hi) * 0.5))
+    };
+    assert!(side(plain) < 0.0 && side(mirrored) > 0.0);
+}
+
+#[test]
+fn placement_split_keeps_mirrors_that_clip_and_refuses_levels_below_kernels() {
+    let material = crate::krs::Material::new(Vec3::ONE, 1);
+    // The ball crosses the mirror: Algorithm 1 clips it there, so a copy would not match.
+    let object = crate::krs::KrsObject {
+        name: "clipped".to_owned(),
+        kernels: vec![
+            crate::krs::Kernel::Sphere(crate::krs::SphereKernel {
+                centre: Vec3::new(1.5, 0.0, 0.0),
+                radius: 1.0,
+                material,
+            }),
+            crate::krs::Kernel::Empty,
+        ],
+        mirrors: vec![crate::krs::MirrorPlane::new(Vec3::X, 2.0)],
+        ..crate::krs::KrsObject::default()
+    };
+    let clipped = KrsScene {
+        objects: vec![object.clone()],
+    }
+    .prepare()
+    .unwrap();
+    assert_eq!(clipped.objects[0].object.lowest_placement_level(), 0);
+    assert_eq!(clipped.objects[0].auto_placement_level(), 1);
+    let mut scene = ExportScene::default();
+    let options = GltfExportOptions {
+        resolution: 24,
+        ..GltfExportOptions::default()
+    };
+    let (_, inst) =
+        add_krs_object(&mut scene, "c", &clipped.objects[0], &options, NO_PROGRESS).unwrap();
+    assert!(inst.is_none(), "one mesh");
+    assert!(scene.nodes[0].instances.is_empty());
+    // A forest's tree levels carry kernels: they cannot be placements.
+    let forest = KrsScene {
+        objects: vec![presets::forest_with_mirrors(2)],
+    }
+    .prepare()
+    .unwrap();
+    let lowest = forest.objects[0].object.lowest_placement_level();
+    let e = add_krs_object(
+        &mut ExportScene::default(),
+        "f",
+        &forest.objects[0],
+        &GltfExportOptions {
+            instance_level: Some(lowest - 1),
+            ..options.clone()
+        },
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    assert!(matches!(e, FieldError::BadInstanceLevel(_)), "{e}");
+    assert!(e.to_string().contains("--instance-level"), "{e}");
+    // Too many placements: the figure and the flag in the message.
+    let e = add_krs_object(
+        &mut ExportScene::default(),
+        "f",
+        &forest.objects[0],
+        &GltfExportOptions {
+            max_instances: 3,
+            ..options
+        },
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("4 instances") && text.contains("--max-instances"),
+        "{text}"
+    );
+}
+
+#[test]
+fn unbounded_ground_is_written_as_a_patch_under_the_other_objects() {
+    let mut doc = Document::default();
+    let mut tree = presets::tree();
+    tree.world_from_object.translation = Vec3::new(10.0, 0.0, -4.0);
+    doc.add("tree", ObjectKind::Krs(tree));
+    let ground = crate::krs::KrsObject {
+        name: "ground".to_owned(),
+        kernels: vec![crate::krs::Kernel::InfinitePlane(crate::krs::PlaneKernel {
+            normal: Vec3::Y,
+            offset: 0.5,
+            material: crate::krs::Material::new(Vec3::new(0.3, 0.4, 0.2), 2),
+        })],
+        ..crate::krs::KrsObject::default()
+    };
+    doc.add("ground", ObjectKind::Krs(ground.clone()));
+    let options = GltfExportOptions {
+        resolution: 32,
+        ..GltfExportOptions::default()
+    };
+    let (scene, report) = build_scene(&doc, Path::new("g.glb"), &options, NO_PROGRESS).unwrap();
+    assert_eq!(report.patches.len(), 1);
+    let (name, lo, hi) = &report.patches[0];
+    assert_eq!(name, "ground");
+    let tree_box = node_bounds(&scene.nodes[0]).unwrap();
+    let span = tree_box.1 - tree_box.0;
+    let margin = (span.x.max(span.z) * PATCH_MARGIN).max(1.0);
+    assert!(
+        (lo.x - (tree_box.0.x - margin)).abs() < 1e-3,
+        "{lo} {tree_box:?}"
+    );
+    assert!(
+        (hi.z - (tree_box.1.z + margin)).abs() < 1e-3,
+        "{hi} {tree_box:?}"
+    );
+    let patch = scene.nodes.iter().find(|n| n.name == "ground").unwrap();
+    let prim = &patch.primitives[0];
+    let cell = (*hi - *lo).max_element() / 32.0;
+    let (plo, phi) = aabb(prim.positions.iter().copied());
+    // Only the plane's surface: flat at y = 0.5, facing up, covering the patch to a cell.
+    assert!((plo.y - 0.5).abs() < 0.1 * cell && (phi.y - 0.5).abs() < 0.1 * cell);
+    assert!((plo.x - lo.x).abs() < 1.5 * cell && (phi.z - hi.z).abs() < 1.5 * cell);
+    for t in prim.indices.chunks_exact(3) {
+        let [a, b, c] = [t[0], t[1], t[2]].map(|i| prim.positions[i as usize]);
+        assert!((b - a).cross(c - a).y > 0.0, "a patch triangle faces down");
+    }
+    // Explicit bounds win; an unbounded object alone needs them.
+    let bounds = GltfExportOptions {
+        bounds: Some([-2.0, -3.0, 4.0, 5.0]),
+        ..options.clone()
+    };
+    let (_, report) = build_scene(&doc, Path::new("g.glb"), &bounds, NO_PROGRESS).unwrap();
+    let (_, lo, hi) = &report.patches[0];
+    assert_eq!((lo.x, lo.z, hi.x, hi.z), (-2.0, -3.0, 4.0, 5.0));
+    let mut alone = Document::default();
+    alone.add("ground", ObjectKind::Krs(ground));
+    let e = build_scene(&alone, Path::new("g.glb"), &options, NO_PROGRESS).unwrap_err();
+    assert!(e.to_string().contains("--bounds"), "{e}");
+    let (_, report) = build_scene(&alone, Path::new("g.glb"), &bounds, NO_PROGRESS).unwrap();
+    assert_eq!(report.patches.len(), 1);
 }

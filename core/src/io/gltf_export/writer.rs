@@ -91,6 +91,36 @@ pub struct ExportSkin {
     pub clips: Vec<AnimationClip>,
 }
 
+/// A directional light (`KHR_lights_punctual`), shining along `direction`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportLight {
+    /// Display name.
+    pub name: String,
+    /// Direction the light travels (from the light toward the scene); non-zero.
+    pub direction: Vec3,
+    /// Linear RGB colour.
+    pub color: Vec3,
+    /// Illuminance in lux (the document's intensity multiplier as it is).
+    pub intensity: f32,
+}
+
+/// A perspective camera at `eye`, looking along −Z of `rotation` with +Y of it up.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ExportCamera {
+    /// Display name.
+    pub name: String,
+    /// Position in the world.
+    pub eye: Vec3,
+    /// `world_from_camera` rotation.
+    pub rotation: glam::Quat,
+    /// Vertical field of view in radians.
+    pub yfov_radians: f32,
+    /// Near clip distance.
+    pub znear: f32,
+    /// Far clip distance.
+    pub zfar: f32,
+}
+
 /// Everything one glTF file holds.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct ExportScene {
@@ -98,6 +128,10 @@ pub struct ExportScene {
     pub nodes: Vec<ExportNode>,
     /// Materials the primitives index.
     pub materials: Vec<ExportMaterial>,
+    /// Directional lights, each written as a node.
+    pub lights: Vec<ExportLight>,
+    /// The view camera, written as a node.
+    pub camera: Option<ExportCamera>,
 }
 
 impl ExportScene {
@@ -222,6 +256,12 @@ pub(crate) fn encode(
             }),
         );
     }
+    if !scene.lights.is_empty() {
+        node_indices.extend(b.lights(&scene.lights)?);
+    }
+    if let Some(c) = &scene.camera {
+        node_indices.push(b.camera(c)?);
+    }
     let scene_index = b.root.push(json::Scene {
         extensions: None,
         extras: None,
@@ -270,10 +310,107 @@ pub(crate) fn unit_quat(q: glam::Quat) -> glam::Quat {
 /// The extension that draws a node's mesh once per instance.
 const INSTANCING: &str = "EXT_mesh_gpu_instancing";
 
+/// The extension for lights.
+const LIGHTS: &str = "KHR_lights_punctual";
+
 /// The extension that lists a node's coarser levels of detail.
 const LOD: &str = "MSFT_lod";
 
 impl Builder {
+    /// Writes directional lights (`KHR_lights_punctual`, a light shines along its node's −Z)
+    /// and returns their nodes.
+    fn lights(
+        &mut self,
+        lights: &[ExportLight],
+    ) -> Result<Vec<json::Index<json::Node>>, EncodeError> {
+        let mut defs = Vec::with_capacity(lights.len());
+        let mut nodes = Vec::with_capacity(lights.len());
+        for (i, l) in lights.iter().enumerate() {
+            let dir = l.direction.normalize_or_zero();
+            if dir == Vec3::ZERO
+                || !l.color.is_finite()
+                || !(l.intensity.is_finite() && l.intensity >= 0.0)
+            {
+                return Err(EncodeError::Invalid(format!(
+                    "light {:?}: direction must be non-zero and colour and intensity finite",
+                    l.name
+                )));
+            }
+            defs.push(serde_json::json!({
+                "name": l.name,
+                "type": "directional",
+                "color": l.color.max(Vec3::ZERO).to_array(),
+                "intensity": l.intensity,
+            }));
+            let rotation = unit_quat(glam::Quat::from_rotation_arc(Vec3::NEG_Z, dir));
+            let mut ext = json::extensions::scene::Node::default();
+            ext.others
+                .insert(LIGHTS.to_owned(), serde_json::json!({ "light": i }));
+            nodes.push(self.root.push(json::Node {
+                name: Some(if l.name.is_empty() {
+                    format!("light {i}")
+                } else {
+                    l.name.clone()
+                }),
+                rotation: Some(json::scene::UnitQuaternion(rotation.to_array())),
+                extensions: Some(ext),
+                ..json::Node::default()
+            }));
+        }
+        self.root
+            .extensions
+            .get_or_insert_with(Default::default)
+            .others
+            .insert(LIGHTS.to_owned(), serde_json::json!({ "lights": defs }));
+        if !self.root.extensions_used.iter().any(|e| e == LIGHTS) {
+            self.root.extensions_used.push(LIGHTS.to_owned());
+        }
+        Ok(nodes)
+    }
+
+    /// Writes the camera and its node.
+    fn camera(&mut self, c: &ExportCamera) -> Result<json::Index<json::Node>, EncodeError> {
+        let valid = c.eye.is_finite()
+            && c.rotation.is_finite()
+            && c.yfov_radians.is_finite()
+            && c.yfov_radians > 0.0
+            && c.znear.is_finite()
+            && c.znear > 0.0
+            && c.zfar.is_finite()
+            && c.zfar > c.znear;
+        if !valid {
+            return Err(EncodeError::Invalid(format!(
+                "camera {:?}: needs a finite position and rotation, a positive field of view \
+                 and 0 < near < far",
+                c.name
+            )));
+        }
+        let camera = self.root.push(json::Camera {
+            name: Some(c.name.clone()),
+            orthographic: None,
+            perspective: Some(json::camera::Perspective {
+                aspect_ratio: None,
+                yfov: c.yfov_radians,
+                zfar: Some(c.zfar),
+                znear: c.znear,
+                extensions: None,
+                extras: None,
+            }),
+            type_: Checked::Valid(json::camera::Type::Perspective),
+            extensions: None,
+            extras: None,
+        });
+        Ok(self.root.push(json::Node {
+            camera: Some(camera),
+            name: Some(c.name.clone()),
+            translation: Some(c.eye.to_array()),
+            rotation: Some(json::scene::UnitQuaternion(
+                unit_quat(c.rotation).to_array(),
+            )),
+            ..json::Node::default()
+        }))
+    }
+
     /// The node extension object for `EXT_mesh_gpu_instancing`: TRANSLATION, ROTATION and
     /// SCALE accessors (float), one element per instance.
     fn instancing(
