@@ -93,14 +93,18 @@ fn save_then_load_is_identical_and_names_bin() {
     let path = dir.path().join("scene.thicket.json");
     let doc = sample_doc(1, true);
     save(&doc, &path).unwrap();
-    assert!(dir.path().join("scene.thicket.bin").exists());
-    assert!(!dir.path().join("scene.thicket.bin.prev").exists());
+    // The payload file is named in the JSON and is the only file beside it.
+    let bin = bin_path_for(&path);
+    assert!(bin.exists(), "{}", bin.display());
+    assert_ne!(bin, legacy_bin_path(&path));
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
     assert_eq!(load(&path).unwrap(), doc);
     // A document with no payloads writes no .bin.
     let empty = Document::default();
     let p2 = dir.path().join("empty.thicket.json");
     save(&empty, &p2).unwrap();
-    assert!(!dir.path().join("empty.thicket.bin").exists());
+    assert!(!bin_path_for(&p2).exists());
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 3);
     assert_eq!(load(&p2).unwrap(), empty);
 }
 
@@ -121,13 +125,14 @@ fn wrong_checksum_is_reported_with_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.thicket.json");
     save(&sample_doc(3, false), &path).unwrap();
-    let bin = dir.path().join("a.thicket.bin");
+    let bin = bin_path_for(&path);
     let mut bytes = fs::read(&bin).unwrap();
     let n = bytes.len();
     bytes[n / 2] ^= 0x40;
     fs::write(&bin, &bytes).unwrap();
     let e = load(&path).unwrap_err().to_string();
-    assert!(e.contains("a.thicket.bin") && e.contains("CRC-32"), "{e}");
+    let name = bin.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(e.contains(&name) && e.contains("CRC-32"), "{e}");
 }
 
 #[test]
@@ -136,7 +141,7 @@ fn a_corrupt_payload_with_a_matching_file_checksum_is_still_caught() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.thicket.json");
     save(&sample_doc(4, false), &path).unwrap();
-    let bin_path = dir.path().join("a.thicket.bin");
+    let bin_path = bin_path_for(&path);
     let mut bin = fs::read(&bin_path).unwrap();
     bin[20] ^= 1;
     fs::write(&bin_path, &bin).unwrap();
@@ -219,23 +224,54 @@ fn invalid_documents_are_not_saved() {
     );
 }
 
+/// Rewrites a fresh save into the layout older versions wrote: the payload in
+/// `NAME.thicket.bin`, named so in the JSON.
+fn make_legacy(path: &Path) {
+    let bin = bin_path_for(path);
+    let legacy = legacy_bin_path(path);
+    fs::rename(&bin, &legacy).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(path).unwrap()).unwrap();
+    json["bin"]["file"] = legacy
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned()
+        .into();
+    fs::write(path, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+}
+
 #[test]
-fn a_crash_between_renames_leaves_the_previous_save_loadable() {
+fn old_style_projects_and_their_crash_states_still_load() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("c.thicket.json");
     let old = sample_doc(6, false);
     save(&old, &path).unwrap();
-    // Simulate dying after step 3a (new .bin in place, old .bin renamed to .prev, old JSON).
+    make_legacy(&path);
+    assert_eq!(load(&path).unwrap(), old);
+    // The older save's crash state after its first rename: the old payload in `.bin.prev`, the
+    // new one in `.bin`, the old JSON.
     let new = sample_doc(7, false);
     let other = dir.path().join("other.thicket.json");
     save(&new, &other).unwrap();
-    let bin = dir.path().join("c.thicket.bin");
+    let bin = legacy_bin_path(&path);
     fs::rename(&bin, with_suffix(&bin, ".prev")).unwrap();
-    fs::copy(dir.path().join("other.thicket.bin"), &bin).unwrap();
+    fs::copy(bin_path_for(&other), &bin).unwrap();
     assert_eq!(load(&path).unwrap(), old);
-    // And dying after step 2 (no .bin at all yet).
+    // And after that save's first rename only (no `.bin` at all).
     fs::remove_file(&bin).unwrap();
     assert_eq!(load(&path).unwrap(), old);
+    // Saving over an old-style project moves it to the new naming and removes the old files,
+    // but not the other project's.
+    save(&new, &path).unwrap();
+    assert_eq!(load(&path).unwrap(), new);
+    assert!(!bin.exists() && !with_suffix(&bin, ".prev").exists());
+    let mut names: Vec<String> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 4, "{names:?}");
+    assert_eq!(load(&other).unwrap(), new);
 }
 
 #[test]
@@ -245,7 +281,7 @@ fn mutated_project_files_never_panic() {
     let path = dir.path().join("f.thicket.json");
     save(&doc, &path).unwrap();
     let json = fs::read(&path).unwrap();
-    let bin = fs::read(dir.path().join("f.thicket.bin")).unwrap();
+    let bin = fs::read(bin_path_for(&path)).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
     // THICKET_FUZZ_CASES raises the count for long runs (in release, see io::fuzz).
     let cases = crate::io::fuzz::cases_from_env(10_000);
@@ -354,7 +390,7 @@ fn krs_objects_round_trip_as_parameters() {
     only.add("Rock", ObjectKind::Krs(crate::krs::presets::rock()));
     let p2 = dir.path().join("only.thicket.json");
     save(&only, &p2).unwrap();
-    assert!(!dir.path().join("only.thicket.bin").exists());
+    assert!(!bin_path_for(&p2).exists());
     assert_eq!(load(&p2).unwrap(), only);
 
     // Missing fields take their defaults (#[serde(default)] on every KRS struct).
@@ -657,7 +693,7 @@ fn a_corrupt_skin_payload_is_caught() {
         .find(|p| p["part"] == "skin")
         .unwrap()
         .clone();
-    let bin_path = dir.path().join("s.thicket.bin");
+    let bin_path = bin_path_for(&path);
     let mut bin = fs::read(&bin_path).unwrap();
     let at = skin["offset"].as_u64().unwrap() as usize + 6;
     bin[at] ^= 0x10;
@@ -747,4 +783,26 @@ fn enhancement_links_and_tree_parameters_round_trip_and_old_files_load() {
         e.contains("tree_builders") && e.contains("KRS object id"),
         "{e}"
     );
+}
+
+#[test]
+fn the_sample_projects_load_and_round_trip_through_the_new_save() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects");
+    let mut loaded = 0;
+    for entry in fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if !path.to_string_lossy().ends_with(".thicket.json") {
+            continue;
+        }
+        let doc = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        loaded += 1;
+        // Small ones also go through a save (new naming) and back.
+        if fs::metadata(bin_path_for(&path)).map_or(0, |m| m.len()) < 1 << 20 {
+            let tmp = tempfile::tempdir().unwrap();
+            let copy = tmp.path().join(path.file_name().unwrap());
+            save(&doc, &copy).unwrap();
+            assert_eq!(load(&copy).unwrap(), doc, "{}", path.display());
+        }
+    }
+    assert!(loaded >= 5, "only {loaded} sample projects found");
 }
