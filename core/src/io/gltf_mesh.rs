@@ -1258,7 +1258,7 @@ pub(crate) fn decode_texture(
 
 /// Standard base64 (with or without padding; whitespace ignored). The error is the position of
 /// the first bad character.
-fn decode_base64(text: &str) -> Result<Vec<u8>, usize> {
+pub(crate) fn decode_base64(text: &str) -> Result<Vec<u8>, usize> {
     let mut out = Vec::with_capacity(text.len() / 4 * 3 + 3);
     let mut acc: u32 = 0;
     let mut bits = 0u32;

@@ -273,16 +273,50 @@ fn encode_payloads(doc: &Document) -> (Vec<u8>, Vec<PayloadRef>) {
     (bin, payloads)
 }
 
-fn read_capped(path: &Path, limit: u64) -> Result<Vec<u8>, ProjectError> {
-    let meta = fs::metadata(path).map_err(io_err(path))?;
-    if meta.len() > limit {
-        return Err(ProjectError::TooLarge {
+/// Reads a payload file beside the project, confined like every file reference (a regular
+/// file inside the project's folder, not reached through a link that leads out), at most
+/// [`MAX_BIN_BYTES`].
+fn read_bin_file(path: &Path, json_path: &Path) -> Result<Vec<u8>, ProjectError> {
+    use crate::io::confine::{RefError, read_reference};
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    read_reference(save::dir_of(json_path), &name, MAX_BIN_BYTES).map_err(|e| match e {
+        RefError::Refused(detail) => ProjectError::Payload {
+            path: json_path.to_owned(),
+            detail: format!("bin file {detail}"),
+        },
+        RefError::Io(_, source) => ProjectError::Io {
             path: path.to_owned(),
-            bytes: meta.len(),
+            source,
+        },
+        RefError::TooLarge(_, limit) => ProjectError::TooLarge {
+            path: path.to_owned(),
+            bytes: limit + 1,
             limit,
-        });
-    }
-    fs::read(path).map_err(io_err(path))
+        },
+    })
+}
+
+/// Reads the project JSON: a regular file, at most `limit` bytes, decided by reading.
+fn read_capped(path: &Path, limit: u64) -> Result<Vec<u8>, ProjectError> {
+    use crate::io::confine::RefError;
+    crate::io::confine::read_capped(path, limit).map_err(|e| match e {
+        RefError::Refused(detail) => ProjectError::Payload {
+            path: path.to_owned(),
+            detail,
+        },
+        RefError::Io(_, source) => ProjectError::Io {
+            path: path.to_owned(),
+            source,
+        },
+        RefError::TooLarge(_, limit) => ProjectError::TooLarge {
+            path: path.to_owned(),
+            bytes: limit + 1,
+            limit,
+        },
+    })
 }
 
 /// Loads a project saved by [`save`].
@@ -304,7 +338,7 @@ pub fn load(json_path: &Path) -> Result<Document, ProjectError> {
         }
         let mut last_err = None;
         for candidate in [primary.clone(), with_suffix(&primary, ".prev")] {
-            match read_capped(&candidate, MAX_BIN_BYTES) {
+            match read_bin_file(&candidate, json_path) {
                 Ok(bytes)
                     if bytes.len() as u64 == bin_ref.length
                         && crc32fast::hash(&bytes) == bin_ref.crc32 =>
@@ -360,6 +394,7 @@ fn load_from_parts(
         path: json_path.to_owned(),
         detail,
     };
+    check_object_graph(&doc, &file.payloads).map_err(payload_err)?;
     let bin = match &file.bin {
         Some(r) => read_bin(r)?,
         None => Vec::new(),
@@ -435,6 +470,49 @@ fn load_from_parts(
         source,
     })?;
     Ok(doc)
+}
+
+/// The object graph checked before anything is read or decoded, so the work of a load is
+/// bounded by the size of its files: object ids are unique, each (object, part) has at most one
+/// payload, and the payloads the objects use do not overlap in the `.bin` (a save never shares
+/// one; a file whose objects all point at one payload would otherwise decode it once per
+/// object). Together with each decoder checking its counts against its own bytes, the decoded
+/// total is bounded by a fixed multiple of the `.bin`'s length.
+fn check_object_graph(doc: &Document, payloads: &[PayloadRef]) -> Result<(), String> {
+    let mut ids = std::collections::HashMap::with_capacity(doc.objects.len());
+    for (i, o) in doc.objects.iter().enumerate() {
+        if let Some(first) = ids.insert(o.id, i) {
+            return Err(format!(
+                "objects {first} and {i} both have id {}; ids must be unique",
+                o.id
+            ));
+        }
+    }
+    let mut seen = std::collections::HashSet::with_capacity(payloads.len());
+    let mut used: Vec<(u64, u64, usize)> = Vec::new();
+    for (k, p) in payloads.iter().enumerate() {
+        if !seen.insert((p.object_id, p.part.as_str())) {
+            return Err(format!(
+                "payload {k}: object id {} has two {} payloads",
+                p.object_id,
+                if p.part.is_empty() { "main" } else { &p.part }
+            ));
+        }
+        if ids.contains_key(&p.object_id) && p.length > 0 {
+            used.push((p.offset, p.offset.saturating_add(p.length), k));
+        }
+    }
+    used.sort_unstable();
+    for w in used.windows(2) {
+        let ((_, end_a, a), (start_b, _, b)) = (w[0], w[1]);
+        if start_b < end_a {
+            return Err(format!(
+                "payloads {a} (object {}) and {b} (object {}) overlap in the .bin; each object's payload must be its own",
+                payloads[a].object_id, payloads[b].object_id
+            ));
+        }
+    }
+    Ok(())
 }
 
 // ---- binary encoding -------------------------------------------------------------------------

@@ -483,3 +483,135 @@ fn read_clips(
     }
     Ok(clips)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
+
+    fn simple_skin() -> Value {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shared/assets/skinned/SimpleSkin.gltf"
+        );
+        serde_json::from_slice(&std::fs::read(path).expect("SimpleSkin")).expect("JSON")
+    }
+
+    fn import_value(v: &Value) -> Result<SkinnedImport, SkinError> {
+        import_skinned_slice(&serde_json::to_vec(v).unwrap(), "case.gltf")
+    }
+
+    #[test]
+    fn the_reported_panics_are_errors() {
+        assert!(import_value(&simple_skin()).is_ok());
+        // A huge bufferView offset and length (panicked inside gltf::import_images).
+        let mut v = simple_skin();
+        v["bufferViews"][0]["byteOffset"] = (u64::MAX / 2).into();
+        v["bufferViews"][0]["byteLength"] = (u64::MAX / 2).into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(
+            e.starts_with("case.gltf: ") && e.contains("buffer view 0"),
+            "{e}"
+        );
+        // An animation channel whose target node does not exist (an unwrap).
+        let mut v = simple_skin();
+        v["animations"][0]["channels"][0]["target"]["node"] = 99.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("node 99, which does not exist"), "{e}");
+        // A sampler that does not exist.
+        let mut v = simple_skin();
+        v["animations"][0]["channels"][0]["sampler"] = 7.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("sampler 7, which does not exist"), "{e}");
+        // Accessors removed from the JSON (panicked in gltf-json's validation).
+        let mut v = simple_skin();
+        v.as_object_mut().unwrap().remove("accessors");
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(
+            e.starts_with("case.gltf: ") && e.contains("does not exist"),
+            "{e}"
+        );
+        // A skin joint that is not a node.
+        let mut v = simple_skin();
+        v["skins"][0]["joints"][0] = 40.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("joint node 40, which does not exist"), "{e}");
+    }
+
+    /// SimpleSkin in `dir/inner/s.gltf` with buffer 0 read from `uri`; buffer 0's bytes are
+    /// also in `dir/outside.bin` (so a refusal is about the path, not the content) and
+    /// `dir/inner/b0.bin`.
+    fn with_uri(dir: &Path, uri: &str) -> std::path::PathBuf {
+        let mut v = simple_skin();
+        let data = v["buffers"][0]["uri"].as_str().unwrap().to_owned();
+        let b64 = data.split_once(',').unwrap().1;
+        let bytes = crate::io::gltf_mesh::decode_base64(b64).unwrap();
+        let inner = dir.join("inner");
+        let _ = std::fs::create_dir(&inner);
+        std::fs::write(dir.join("outside.bin"), &bytes).unwrap();
+        std::fs::write(inner.join("b0.bin"), &bytes).unwrap();
+        v["buffers"][0]["uri"] = uri.into();
+        let path = inner.join("s.gltf");
+        std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
+        path
+    }
+
+    fn refused(dir: &Path, uri: &str, rule: &str) {
+        let path = with_uri(dir, uri);
+        let e = import_skinned(&path).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}: ", path.display())) && e.contains(rule),
+            "{uri}: {e}"
+        );
+    }
+
+    #[test]
+    fn uris_inside_the_folder_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(import_skinned(with_uri(dir.path(), "b0.bin")).is_ok());
+        assert!(import_skinned(with_uri(dir.path(), "./b0.bin")).is_ok());
+    }
+
+    #[test]
+    fn absolute_uris_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let abs = dir.path().join("outside.bin");
+        refused(dir.path(), abs.to_str().unwrap(), "absolute");
+        refused(dir.path(), "", "empty");
+    }
+
+    #[test]
+    fn dot_dot_uris_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        refused(dir.path(), "../outside.bin", "'..'");
+        refused(dir.path(), "%2E%2E/outside.bin", "'..'");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn device_file_uris_fail_fast() {
+        let dir = tempfile::tempdir().unwrap();
+        refused(dir.path(), "/dev/zero", "absolute");
+        // The same device through a link in the folder.
+        let path = with_uri(dir.path(), "zero.bin");
+        std::os::unix::fs::symlink("/dev/zero", path.with_file_name("zero.bin")).unwrap();
+        assert!(import_skinned(&path).is_err());
+        // And the static importer refuses it the same way.
+        let e = crate::io::import_gltf(&path).unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlink_uris_out_of_the_folder_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = with_uri(dir.path(), "link.bin");
+        std::os::unix::fs::symlink(
+            dir.path().join("outside.bin"),
+            path.with_file_name("link.bin"),
+        )
+        .unwrap();
+        let e = import_skinned(&path).unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
+    }
+}

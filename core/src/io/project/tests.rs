@@ -806,3 +806,75 @@ fn the_sample_projects_load_and_round_trip_through_the_new_save() {
     }
     assert!(loaded >= 5, "only {loaded} sample projects found");
 }
+
+/// A saved one-object project's JSON with `n` copies of the object, all pointing at its one
+/// payload; `same_id` keeps the copies' id.
+fn amplified(n: usize, same_id: bool) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("amp.thicket.json");
+    let mut doc = Document::default();
+    doc.add("Model", sample_doc(5, false).objects[0].kind.clone());
+    save(&doc, &path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let object = json["objects"][0].clone();
+    let payload = json["payloads"][0].clone();
+    let (mut objects, mut payloads) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        let id = if same_id { 1 } else { 1000 + i as u64 };
+        let mut o = object.clone();
+        o["id"] = id.into();
+        objects.push(o);
+        let mut p = payload.clone();
+        p["object_id"] = id.into();
+        payloads.push(p);
+    }
+    json["objects"] = objects.into();
+    json["payloads"] = payloads.into();
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    (dir, path)
+}
+
+#[test]
+fn objects_sharing_one_payload_are_refused_before_decoding() {
+    let (dir, path) = amplified(1000, false);
+    let input: u64 = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap().len())
+        .sum();
+    let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&path));
+    let e = result.unwrap_err().to_string();
+    assert!(
+        e.contains("overlap") && e.contains("amp.thicket.json"),
+        "{e}"
+    );
+    // The project's own rule: peak memory ≤ 64 × input + 16 MiB.
+    assert!(peak < 64 * input + (16 << 20), "{peak} bytes for {input}");
+    // Repeated ids are refused before any payload is read.
+    let (_d, path) = amplified(1000, true);
+    let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&path));
+    let e = result.unwrap_err().to_string();
+    assert!(e.contains("both have id 1"), "{e}");
+    assert!(peak < 64 * input + (16 << 20), "{peak} bytes for {input}");
+    // One copy is fine.
+    let (_d, path) = amplified(1, false);
+    assert_eq!(load(&path).unwrap().objects.len(), 1);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_bin_reached_through_a_link_out_of_the_folder_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner = dir.path().join("inner");
+    fs::create_dir(&inner).unwrap();
+    let path = inner.join("l.thicket.json");
+    save(&sample_doc(9, false), &path).unwrap();
+    let bin = bin_path_for(&path);
+    let outside = dir.path().join("elsewhere.bin");
+    fs::rename(&bin, &outside).unwrap();
+    std::os::unix::fs::symlink(&outside, &bin).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("symbolic link") && e.contains("l.thicket.json"),
+        "{e}"
+    );
+}
