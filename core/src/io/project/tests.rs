@@ -878,3 +878,116 @@ fn a_bin_reached_through_a_link_out_of_the_folder_is_refused() {
         "{e}"
     );
 }
+
+/// The project loader fed structurally mutated object graphs: objects duplicated (same or new
+/// ids), payload entries duplicated, pointed at other objects' payloads or at overlapping
+/// ranges, on top of the byte mutations of `mutated_project_files_never_panic`. No case may
+/// panic or hold more than the project's memory rule (64 × input + 16 MiB).
+#[test]
+fn structurally_mutated_projects_never_panic_or_amplify() {
+    let doc = sample_doc(12, true);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.thicket.json");
+    save(&doc, &path).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let bin = fs::read(bin_path_for(&path)).unwrap();
+    let cases = crate::io::fuzz::cases_from_env(10_000);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(0x6A4F);
+    let (mut accepted, mut refused, mut max_peak, mut max_input) = (0u64, 0u64, 0u64, 0u64);
+    let mut panics = Vec::new();
+    let start = std::time::Instant::now();
+    for case in 0..cases {
+        let mut j = json.clone();
+        for _ in 0..rng.random_range(1..4) {
+            let objects = j["objects"].as_array().unwrap().clone();
+            let payloads = j["payloads"].as_array().unwrap().clone();
+            match rng.random_range(0..5) {
+                0 if !objects.is_empty() => {
+                    // Many copies of one object, with fresh or repeated ids.
+                    let o = objects[rng.random_range(0..objects.len())].clone();
+                    let same = rng.random_bool(0.5);
+                    let mut all = objects.clone();
+                    let mut ps = payloads.clone();
+                    for k in 0..rng.random_range(1..300u64) {
+                        let mut c = o.clone();
+                        if !same {
+                            c["id"] = (5000 + k).into();
+                            for p in payloads.iter().filter(|p| p["object_id"] == o["id"]) {
+                                let mut p = p.clone();
+                                p["object_id"] = (5000 + k).into();
+                                ps.push(p);
+                            }
+                        }
+                        all.push(c);
+                    }
+                    j["objects"] = all.into();
+                    j["payloads"] = ps.into();
+                }
+                1 if !payloads.is_empty() => {
+                    // One payload entry duplicated.
+                    let mut ps = payloads.clone();
+                    ps.push(payloads[rng.random_range(0..payloads.len())].clone());
+                    j["payloads"] = ps.into();
+                }
+                2 if payloads.len() > 1 => {
+                    // One object pointed at another's bytes.
+                    let (a, b) = (
+                        rng.random_range(0..payloads.len()),
+                        rng.random_range(0..payloads.len()),
+                    );
+                    j["payloads"][a]["offset"] = payloads[b]["offset"].clone();
+                    j["payloads"][a]["length"] = payloads[b]["length"].clone();
+                    j["payloads"][a]["crc32"] = payloads[b]["crc32"].clone();
+                }
+                3 if !payloads.is_empty() => {
+                    // A range shifted or stretched.
+                    let a = rng.random_range(0..payloads.len());
+                    let off = payloads[a]["offset"].as_u64().unwrap();
+                    j["payloads"][a]["offset"] =
+                        off.saturating_add_signed(rng.random_range(-64..64)).into();
+                }
+                _ => {
+                    // An object dropped.
+                    let mut all = objects.clone();
+                    if !all.is_empty() {
+                        all.remove(rng.random_range(0..all.len()));
+                    }
+                    j["objects"] = all.into();
+                }
+            }
+        }
+        let text = serde_json::to_vec(&j).unwrap();
+        let input = (text.len() + bin.len()) as u64;
+        max_input = max_input.max(input);
+        let (outcome, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                load_from_parts(&path, &text, |_| Ok(bin.clone())).is_ok()
+            }))
+        });
+        assert!(
+            peak < 64 * input + (16 << 20),
+            "case {case}: {peak} bytes for {input} bytes of input"
+        );
+        max_peak = max_peak.max(peak);
+        match outcome {
+            Ok(true) => accepted += 1,
+            Ok(false) => refused += 1,
+            Err(_) => panics.push(case),
+        }
+    }
+    eprintln!(
+        "project graph fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
+         max peak heap {max_peak} bytes (largest input {max_input}), {:.1} s",
+        panics.len(),
+        start.elapsed().as_secs_f64()
+    );
+    assert!(
+        panics.is_empty(),
+        "cases panicked: {:?}",
+        &panics[..panics.len().min(10)]
+    );
+    assert!(
+        accepted > 0 && refused > cases / 10,
+        "{accepted} accepted, {refused} refused"
+    );
+}
