@@ -154,25 +154,34 @@ impl Default for ImportLimits {
     }
 }
 
-/// Reads a whole file after checking its size against `limits`.
+/// Reads a whole file, at most `limits.max_file_bytes` of it (decided by reading, not by the
+/// size the file reports, so a device or a growing file cannot exhaust memory); only regular
+/// files are read.
 ///
 /// # Errors
 /// [`IoError::Io`] when the file cannot be opened or read, [`IoError::TooLarge`] when it is
-/// larger than `limits.max_file_bytes`.
+/// larger than `limits.max_file_bytes`, [`IoError::Invalid`] for a device, pipe or folder.
 pub fn read_file_limited(path: &Path, limits: &ImportLimits) -> Result<Vec<u8>, IoError> {
-    let len = std::fs::metadata(path)
-        .map_err(|e| IoError::io(path, e))?
-        .len();
-    if len > limits.max_file_bytes {
-        return Err(IoError::too_large(
-            path,
-            format!(
-                "file is {len} bytes; the limit is {} bytes",
-                limits.max_file_bytes
+    super::confine::read_capped(path, limits.max_file_bytes)
+        .map_err(|e| e.into_io_error(path, "file"))
+}
+
+impl super::confine::RefError {
+    /// The error to report for a reference `what` (e.g. "buffer 0") made by the file
+    /// `referrer`: a refusal is [`IoError::Invalid`] on the referrer, a missing file
+    /// [`IoError::Io`] on that file.
+    #[must_use]
+    pub fn into_io_error(self, referrer: &Path, what: &str) -> IoError {
+        use super::confine::RefError;
+        match self {
+            RefError::Refused(why) => IoError::invalid(referrer, format!("{what}: {why}")),
+            RefError::Io(path, e) => IoError::io(path, e),
+            RefError::TooLarge(path, limit) => IoError::too_large(
+                path,
+                format!("more than {limit} bytes; the limit is {limit} bytes"),
             ),
-        ));
+        }
     }
-    std::fs::read(path).map_err(|e| IoError::io(path, e))
 }
 
 #[cfg(test)]
@@ -213,7 +222,7 @@ mod tests {
         };
         let err = read_file_limited(&path, &limits).expect_err("over the limit");
         assert!(matches!(err, IoError::TooLarge { .. }), "{err}");
-        assert!(err.to_string().contains("100 bytes"), "{err}");
+        assert!(err.to_string().contains("99 bytes"), "{err}");
         let ok = read_file_limited(
             &path,
             &ImportLimits {

@@ -553,4 +553,73 @@ mod loaders {
         );
         assert!(report.over_budget.is_empty(), "{report}");
     }
+
+    #[test]
+    fn skinned_gltf_survives_mutated_files() {
+        let corpus = vec![
+            asset("skinned/SimpleSkin.gltf"),
+            asset("skinned/RiggedFigure.glb"),
+        ];
+        for file in &corpus {
+            crate::skin::import_skinned_slice(file, "seed.glb")
+                .expect("every seed file imports before mutation");
+        }
+        // RiggedFigure is 50 kB, so its cases cost more; the count is what CI can afford in a
+        // debug build (THICKET_FUZZ_CASES raises it).
+        let cases = cases_from_env(10_000);
+        let report = run(&corpus, cases, SEED ^ 0x5C1, budget, |bytes| {
+            crate::skin::import_skinned_slice(bytes, "fuzz.glb")
+        });
+        eprintln!("skinned glTF fuzz: {report}");
+        assert!(
+            report.panics.is_empty(),
+            "seed {:#x}: panics {:?}",
+            SEED ^ 0x5C1,
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(
+            report.over_budget.is_empty(),
+            "over budget {:?}",
+            &report.over_budget[..report.over_budget.len().min(10)]
+        );
+        assert_eq!(report.cases, cases);
+        assert!(report.accepted > cases / 50, "{report}");
+        assert!(report.refused > cases / 50, "{report}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn obj_references_outside_the_folder_are_never_read() {
+        let dir = tempfile::tempdir().unwrap();
+        let inner = dir.path().join("inner");
+        std::fs::create_dir(&inner).unwrap();
+        // A material library outside the folder with a colour the import would show.
+        std::fs::write(dir.path().join("out.mtl"), "newmtl red\nKd 0 0.123 0\n").unwrap();
+        let outside = dir.path().join("out.mtl");
+        for (i, mtllib) in [
+            "/dev/zero".to_owned(),
+            "../out.mtl".to_owned(),
+            outside.display().to_string(),
+            "link.mtl".to_owned(),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let _ = std::os::unix::fs::symlink(&outside, inner.join("link.mtl"));
+            let text = obj::tests::CUBE_OBJ.replace("mtllib cube.mtl", &format!("mtllib {mtllib}"));
+            let path = inner.join(format!("m{i}.obj"));
+            std::fs::write(&path, text).unwrap();
+            let (model, peak) = crate::io::fuzz::peak_heap_bytes(|| obj::import_obj(&path));
+            let model = model.unwrap_or_else(|e| panic!("{mtllib}: {e}"));
+            assert!(peak < budget(4096), "{mtllib}: {peak} bytes");
+            assert!(
+                model
+                    .materials
+                    .iter()
+                    .all(|m| (m.base_color.y - 0.123).abs() > 1e-4),
+                "{mtllib}: the outside library was read: {:?}",
+                model.materials
+            );
+        }
+    }
 }

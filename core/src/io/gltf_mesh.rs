@@ -21,7 +21,7 @@
 use std::borrow::Cow;
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
 use gltf::json;
@@ -91,6 +91,122 @@ pub fn import_gltf_slice_with(
         limits,
     }
     .run(bytes)
+}
+
+/// A glTF file opened by the hardened reader, for importers that need more than meshes (the
+/// skinned importer): the JSON (deserialized only, never through gltf-json's validation), the
+/// buffers checked against their declared lengths, and checked accessor, primitive, material
+/// and scene reads. External files are confined to `base_dir` and read within the limits.
+pub(crate) struct OpenedGltf<'a> {
+    importer: Importer<'a>,
+    /// The deserialized JSON; every index in it must be looked up with `get`.
+    pub(crate) root: json::Root,
+    buffers: Vec<Cow<'a, [u8]>>,
+    budget: Budget,
+}
+
+/// Opens `bytes` (a `.glb` or `.gltf`) named `path` in messages.
+///
+/// # Errors
+/// An [`IoError`] for a broken container, JSON, buffer or required extension.
+pub(crate) fn open_gltf<'a>(
+    bytes: &'a [u8],
+    path: &'a Path,
+    base_dir: Option<&'a Path>,
+    limits: &'a ImportLimits,
+) -> Result<OpenedGltf<'a>, IoError> {
+    let importer = Importer {
+        path,
+        base_dir,
+        limits,
+    };
+    let container = importer.split_container(bytes)?;
+    let root = importer.parse_root(container.json)?;
+    let buffers = importer.load_buffers(&root, container.bin)?;
+    Ok(OpenedGltf {
+        importer,
+        root,
+        buffers,
+        budget: Budget {
+            vertices: 0,
+            indices: 0,
+        },
+    })
+}
+
+impl OpenedGltf<'_> {
+    /// [`IoError::Invalid`] on this file.
+    pub(crate) fn invalid(&self, detail: impl Into<String>) -> IoError {
+        self.importer.invalid(detail)
+    }
+
+    /// Accessor `index` as flat floats (`count × components`, normalised integers as the
+    /// accessor says), and its component count. `types` and `components` list what is allowed.
+    pub(crate) fn floats(
+        &self,
+        index: usize,
+        what: &str,
+        types: &[Type],
+        components: &[ComponentType],
+    ) -> Result<(Vec<f32>, usize), IoError> {
+        let data =
+            self.importer
+                .accessor(&self.root, &self.buffers, index, what, types, components)?;
+        let out = (0..data.count)
+            .flat_map(|i| (0..data.dims).map(move |c| (i, c)))
+            .map(|(i, c)| data.component(i, c))
+            .collect();
+        Ok((out, data.dims))
+    }
+
+    /// One primitive of mesh `mesh_index` as a triangle list in mesh space (`None` for points
+    /// and lines), counted against the vertex and index limits.
+    pub(crate) fn primitive(
+        &mut self,
+        mesh_index: usize,
+        prim_index: usize,
+    ) -> Result<Option<TriangleMesh>, IoError> {
+        let mesh = self
+            .root
+            .meshes
+            .get(mesh_index)
+            .ok_or_else(|| self.invalid(format!("mesh {mesh_index} does not exist")))?;
+        let Some(primitive) = mesh.primitives.get(prim_index) else {
+            return Ok(None);
+        };
+        let mesh_name = mesh
+            .name
+            .as_deref()
+            .map_or_else(|| format!("{mesh_index}"), |n| format!("'{n}'"));
+        self.importer.read_primitive(
+            &self.root,
+            &self.buffers,
+            &mesh_name,
+            prim_index,
+            primitive,
+            &mut self.budget,
+        )
+    }
+
+    /// The materials in file order (textures decoded within the limits).
+    pub(crate) fn materials(&self) -> Result<Vec<Material>, IoError> {
+        self.importer.load_materials(&self.root, &self.buffers)
+    }
+
+    /// The default scene's nodes (or every root's) with their world transforms, each once.
+    pub(crate) fn scene_nodes(&self) -> Result<Vec<(usize, Mat4)>, IoError> {
+        self.importer.scene_nodes(&self.root)
+    }
+
+    /// Node `index`'s local transform (checked finite, rotation normalised).
+    pub(crate) fn local_transform(&self, index: usize) -> Result<Mat4, IoError> {
+        let node = self
+            .root
+            .nodes
+            .get(index)
+            .ok_or_else(|| self.invalid(format!("node {index} does not exist")))?;
+        self.importer.local_transform(node, index)
+    }
 }
 
 /// One import: where messages point, where external files live, and the limits.
@@ -227,18 +343,7 @@ impl<'a> Importer<'a> {
 
     fn run(&self, bytes: &[u8]) -> Result<MeshModel, IoError> {
         let container = self.split_container(bytes)?;
-        let root = json::Root::from_slice(container.json)
-            .map_err(|e| IoError::parse(self.path, format!("glTF JSON: {e}")))?;
-        for ext in &root.extensions_required {
-            if !SUPPORTED_REQUIRED_EXTENSIONS.contains(&ext.as_str()) {
-                return Err(IoError::unsupported(
-                    self.path,
-                    format!(
-                        "the file requires glTF extension {ext}, which Thicket does not implement"
-                    ),
-                ));
-            }
-        }
+        let root = self.parse_root(container.json)?;
         let buffers = self.load_buffers(&root, container.bin)?;
         let mut model = MeshModel {
             parts: Vec::new(),
@@ -347,6 +452,23 @@ impl<'a> Importer<'a> {
             return Err(self.invalid(format!("part {part}: {e}")));
         }
         Ok(model)
+    }
+
+    /// The JSON, deserialized only, with its required extensions checked.
+    fn parse_root(&self, json_bytes: &[u8]) -> Result<json::Root, IoError> {
+        let root = json::Root::from_slice(json_bytes)
+            .map_err(|e| IoError::parse(self.path, format!("glTF JSON: {e}")))?;
+        for ext in &root.extensions_required {
+            if !SUPPORTED_REQUIRED_EXTENSIONS.contains(&ext.as_str()) {
+                return Err(IoError::unsupported(
+                    self.path,
+                    format!(
+                        "the file requires glTF extension {ext}, which Thicket does not implement"
+                    ),
+                ));
+            }
+        }
+        Ok(root)
     }
 
     /// Splits a GLB container into its JSON and BIN chunks (checking every length against the
@@ -515,8 +637,8 @@ impl<'a> Importer<'a> {
         };
         let relative = percent_decode(uri)
             .ok_or_else(|| self.invalid(format!("{what}: bad percent-encoding in URI '{uri}'")))?;
-        let file: PathBuf = base_dir.join(relative);
-        read_file_limited(&file, self.limits)
+        super::confine::read_reference(base_dir, &relative, self.limits.max_file_bytes)
+            .map_err(|e| e.into_io_error(self.path, &format!("{what}: URI")))
     }
 
     /// glTF materials in file order.
@@ -687,14 +809,9 @@ impl<'a> Importer<'a> {
         };
         let offset = acc.byte_offset.map_or(0, |o| o.0);
         if count == 0 {
-            return Ok(AccessorData {
-                bytes: &[],
-                stride: stride as usize,
-                count: 0,
-                component,
-                dims,
-                normalized: acc.normalized,
-            });
+            return Err(self.invalid(format!(
+                "{what}: count is 0; glTF requires at least one element"
+            )));
         }
         // offset + stride * (count - 1) + element ≤ view length, without overflow.
         let needed = stride
@@ -1141,7 +1258,7 @@ pub(crate) fn decode_texture(
 
 /// Standard base64 (with or without padding; whitespace ignored). The error is the position of
 /// the first bad character.
-fn decode_base64(text: &str) -> Result<Vec<u8>, usize> {
+pub(crate) fn decode_base64(text: &str) -> Result<Vec<u8>, usize> {
     let mut out = Vec::with_capacity(text.len() / 4 * 3 + 3);
     let mut acc: u32 = 0;
     let mut bits = 0u32;
@@ -1196,6 +1313,7 @@ fn percent_decode(uri: &str) -> Option<String> {
 pub(crate) mod tests {
     use super::*;
     use serde_json::{Value, json};
+    use std::path::PathBuf;
 
     /// A small textured, vertex-coloured, indexed GLB with a strip, a node hierarchy and an
     /// unlit material: a fuzz seed that reaches every reader in this module.

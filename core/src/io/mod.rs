@@ -5,6 +5,9 @@
 
 pub mod project;
 
+/// Confined file references: what a file may name and how much of it is read.
+pub mod confine;
+
 // Mesh importers and the shared error type (glTF, OBJ).
 pub mod error;
 #[cfg(test)]

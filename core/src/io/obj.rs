@@ -57,13 +57,17 @@ pub fn import_obj_with(
         .unwrap_or_else(|| Path::new("."))
         .to_path_buf();
     let files = move |relative: &str| -> Result<Option<Vec<u8>>, IoError> {
-        let file = base_dir.join(relative);
-        match read_file_limited(&file, limits) {
+        use super::confine::{RefError, read_reference};
+        match read_reference(&base_dir, relative, limits.max_file_bytes) {
             Ok(b) => Ok(Some(b)),
-            Err(IoError::Io { source, .. }) if source.kind() == std::io::ErrorKind::NotFound => {
+            Err(RefError::Io(_, e)) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+            // OBJ files often name files on their author's machine (absolute paths): a
+            // reference outside the OBJ's folder is not followed, like a missing file.
+            Err(RefError::Refused(why)) => {
+                log::warn!("{}: not read: {why}", path.display());
                 Ok(None)
             }
-            Err(e) => Err(e),
+            Err(e) => Err(e.into_io_error(path, "referenced file")),
         }
     };
     import_obj_slice_with(&bytes, &files, path, options, limits)

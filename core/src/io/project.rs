@@ -6,18 +6,23 @@
 //! addressed by offset and length with a CRC-32; the JSON also records the length and CRC-32 of
 //! the whole `.bin`, so a `.bin` that does not belong to the JSON is detected.
 //!
-//! # Atomic saves
-//! 1. write `NAME.thicket.bin.tmp` and `NAME.thicket.json.tmp`, flush and sync both;
-//! 2. rename the current `.bin` to `.bin.prev`;
-//! 3. rename the new `.bin` into place, then the new `.json`; sync the directory;
-//! 4. remove `.bin.prev`.
+//! # Crash-safe saves
+//! The payloads go to a file named after their content, `NAME.thicket.<crc32>.bin` (with a
+//! `-N` suffix if another file already has that name), which the JSON names in `bin.file`:
+//! 1. write `<new>.bin.tmp`, sync it, rename it to `<new>.bin` (a name no file had, so the
+//!    payload the JSON on disk needs is never renamed over), sync the directory;
+//! 2. write `NAME.thicket.json.tmp`, sync it, rename it over the JSON: the commit point;
+//! 3. sync the directory, then remove the payload files the old JSON needed (and orphans of
+//!    earlier crashed saves).
 //!
-//! Whatever moment the process dies, the JSON on disk is complete (old or new), and the `.bin` it
-//! names is either `.bin` or `.bin.prev` — the loader tries both and takes the one whose length
-//! and checksum match. So the previous save stays readable until the new one is whole.
+//! Whatever moment the process dies, and however many saves in a row die, the JSON on disk is
+//! complete (old or new) and the `.bin` it names is whole. A save that fails (a full disk)
+//! removes what it created and leaves the previous save as it was. Re-saving unchanged
+//! payloads reuses their file. Older projects, whose payload is `NAME.thicket.bin` (or
+//! `NAME.thicket.bin.prev` after a crash of the older save), still load; the next save
+//! moves them to the new naming.
 
-use std::fs::{self, File};
-use std::io::Write;
+use std::fs;
 use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3, Vec4};
@@ -141,15 +146,28 @@ struct ProjectFile {
     payloads: Vec<PayloadRef>,
 }
 
-/// The `.bin` path that belongs to a project JSON path (`a.thicket.json` → `a.thicket.bin`).
+/// The payload file the project JSON at `json_path` refers to, as saved: its `bin.file` when
+/// the JSON can be read and names one, otherwise the old-style `NAME.thicket.bin` beside it.
 #[must_use]
 pub fn bin_path_for(json_path: &Path) -> PathBuf {
-    let name = json_path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    let stem = name.strip_suffix(".json").unwrap_or(&name);
-    json_path.with_file_name(format!("{stem}.bin"))
+    #[derive(Deserialize)]
+    struct BinOnly {
+        bin: Option<BinRef>,
+    }
+    fs::read(json_path)
+        .ok()
+        .and_then(|t| serde_json::from_slice::<BinOnly>(&t).ok())
+        .and_then(|f| f.bin)
+        .filter(|b| !b.file.is_empty() && !b.file.contains(['/', '\\']))
+        .map_or_else(
+            || legacy_bin_path(json_path),
+            |b| json_path.with_file_name(b.file),
+        )
+}
+
+/// The payload name older saves used: `a.thicket.json` → `a.thicket.bin`.
+fn legacy_bin_path(json_path: &Path) -> PathBuf {
+    json_path.with_file_name(format!("{}.bin", save::stem_of(json_path)))
 }
 
 fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
@@ -165,33 +183,60 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> ProjectError + '_ {
     }
 }
 
-/// Writes `bytes` to `path` through a synced temporary sibling (not yet renamed).
-fn write_synced(path: &Path, bytes: &[u8]) -> Result<(), ProjectError> {
-    let mut f = File::create(path).map_err(io_err(path))?;
-    f.write_all(bytes).map_err(io_err(path))?;
-    f.sync_all().map_err(io_err(path))
-}
-
-fn sync_dir(dir: &Path) {
-    // Directory fsync makes the renames durable; some file systems refuse it, which only
-    // weakens durability, never correctness, so a failure is ignored.
-    if let Ok(d) = File::open(dir) {
-        let _ = d.sync_all();
-    }
-}
-
-/// Saves a project atomically (see the module docs). Validates the document first, so what is
-/// written always loads.
+/// Saves a project crash-safely (see the module docs). Validates the document first, so what
+/// is written always loads.
 ///
 /// # Errors
 /// [`ProjectError::Invalid`] for a document that does not validate, [`ProjectError::Io`] when
 /// the file system refuses; the previous save is untouched in both cases.
 pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
+    save_with(doc, json_path, &mut save::RealFs)
+}
+
+/// [`save`] through the given file-system operations (the crash test injects faults).
+pub(crate) fn save_with(
+    doc: &Document,
+    json_path: &Path,
+    fs_ops: &mut dyn save::SaveFs,
+) -> Result<(), ProjectError> {
     doc.validate().map_err(|source| ProjectError::Invalid {
         path: json_path.to_owned(),
         source,
     })?;
-    let bin_path = bin_path_for(json_path);
+    let (bin, payloads) = encode_payloads(doc);
+    let bin_name = if payloads.is_empty() {
+        None
+    } else {
+        Some(save::bin_name_for(json_path, &bin)?)
+    };
+    let file = ProjectFile {
+        document: Document {
+            format_version: FORMAT_VERSION,
+            ..doc.clone()
+        },
+        bin: bin_name.as_ref().map(|(name, _)| BinRef {
+            file: name.clone(),
+            length: bin.len() as u64,
+            crc32: crc32fast::hash(&bin),
+        }),
+        payloads,
+    };
+    let json = serde_json::to_vec_pretty(&file).map_err(|e| ProjectError::Payload {
+        path: json_path.to_owned(),
+        detail: format!("cannot encode the document: {e}"),
+    })?;
+    save::write_project(
+        fs_ops,
+        json_path,
+        &json,
+        bin_name
+            .as_ref()
+            .map(|(name, exists)| (bin.as_slice(), name.as_str(), *exists)),
+    )
+}
+
+/// Every object's payloads, concatenated, with where each one lies.
+fn encode_payloads(doc: &Document) -> (Vec<u8>, Vec<PayloadRef>) {
     let mut bin = Vec::new();
     let mut payloads = Vec::new();
     for o in &doc.objects {
@@ -225,72 +270,53 @@ pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
             });
         }
     }
-    let bin_ref = (!payloads.is_empty()).then(|| BinRef {
-        file: bin_path
-            .file_name()
-            .map(|n| n.to_string_lossy().into_owned())
-            .unwrap_or_default(),
-        length: bin.len() as u64,
-        crc32: crc32fast::hash(&bin),
-    });
-    let file = ProjectFile {
-        document: Document {
-            format_version: FORMAT_VERSION,
-            ..doc.clone()
-        },
-        bin: bin_ref,
-        payloads,
-    };
-    let json = serde_json::to_vec_pretty(&file).map_err(|e| ProjectError::Payload {
-        path: json_path.to_owned(),
-        detail: format!("cannot encode the document: {e}"),
-    })?;
-
-    let json_tmp = with_suffix(json_path, ".tmp");
-    let bin_tmp = with_suffix(&bin_path, ".tmp");
-    let bin_prev = with_suffix(&bin_path, ".prev");
-    let cleanup = |e: ProjectError| {
-        let _ = fs::remove_file(&json_tmp);
-        let _ = fs::remove_file(&bin_tmp);
-        e
-    };
-    if file.bin.is_some() {
-        write_synced(&bin_tmp, &bin).map_err(cleanup)?;
-    }
-    write_synced(&json_tmp, &json).map_err(cleanup)?;
-    if file.bin.is_some() {
-        if bin_path.exists() {
-            fs::rename(&bin_path, &bin_prev)
-                .map_err(io_err(&bin_path))
-                .map_err(cleanup)?;
-        }
-        fs::rename(&bin_tmp, &bin_path)
-            .map_err(io_err(&bin_path))
-            .map_err(cleanup)?;
-    }
-    fs::rename(&json_tmp, json_path)
-        .map_err(io_err(json_path))
-        .map_err(cleanup)?;
-    sync_dir(
-        json_path
-            .parent()
-            .filter(|p| !p.as_os_str().is_empty())
-            .unwrap_or(Path::new(".")),
-    );
-    let _ = fs::remove_file(&bin_prev);
-    Ok(())
+    (bin, payloads)
 }
 
-fn read_capped(path: &Path, limit: u64) -> Result<Vec<u8>, ProjectError> {
-    let meta = fs::metadata(path).map_err(io_err(path))?;
-    if meta.len() > limit {
-        return Err(ProjectError::TooLarge {
+/// Reads a payload file beside the project, confined like every file reference (a regular
+/// file inside the project's folder, not reached through a link that leads out), at most
+/// [`MAX_BIN_BYTES`].
+fn read_bin_file(path: &Path, json_path: &Path) -> Result<Vec<u8>, ProjectError> {
+    use crate::io::confine::{RefError, read_reference};
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    read_reference(save::dir_of(json_path), &name, MAX_BIN_BYTES).map_err(|e| match e {
+        RefError::Refused(detail) => ProjectError::Payload {
+            path: json_path.to_owned(),
+            detail: format!("bin file {detail}"),
+        },
+        RefError::Io(_, source) => ProjectError::Io {
             path: path.to_owned(),
-            bytes: meta.len(),
+            source,
+        },
+        RefError::TooLarge(_, limit) => ProjectError::TooLarge {
+            path: path.to_owned(),
+            bytes: limit + 1,
             limit,
-        });
-    }
-    fs::read(path).map_err(io_err(path))
+        },
+    })
+}
+
+/// Reads the project JSON: a regular file, at most `limit` bytes, decided by reading.
+fn read_capped(path: &Path, limit: u64) -> Result<Vec<u8>, ProjectError> {
+    use crate::io::confine::RefError;
+    crate::io::confine::read_capped(path, limit).map_err(|e| match e {
+        RefError::Refused(detail) => ProjectError::Payload {
+            path: path.to_owned(),
+            detail,
+        },
+        RefError::Io(_, source) => ProjectError::Io {
+            path: path.to_owned(),
+            source,
+        },
+        RefError::TooLarge(_, limit) => ProjectError::TooLarge {
+            path: path.to_owned(),
+            bytes: limit + 1,
+            limit,
+        },
+    })
 }
 
 /// Loads a project saved by [`save`].
@@ -312,7 +338,7 @@ pub fn load(json_path: &Path) -> Result<Document, ProjectError> {
         }
         let mut last_err = None;
         for candidate in [primary.clone(), with_suffix(&primary, ".prev")] {
-            match read_capped(&candidate, MAX_BIN_BYTES) {
+            match read_bin_file(&candidate, json_path) {
                 Ok(bytes)
                     if bytes.len() as u64 == bin_ref.length
                         && crc32fast::hash(&bytes) == bin_ref.crc32 =>
@@ -368,6 +394,7 @@ fn load_from_parts(
         path: json_path.to_owned(),
         detail,
     };
+    check_object_graph(&doc, &file.payloads).map_err(payload_err)?;
     let bin = match &file.bin {
         Some(r) => read_bin(r)?,
         None => Vec::new(),
@@ -443,6 +470,49 @@ fn load_from_parts(
         source,
     })?;
     Ok(doc)
+}
+
+/// The object graph checked before anything is read or decoded, so the work of a load is
+/// bounded by the size of its files: object ids are unique, each (object, part) has at most one
+/// payload, and the payloads the objects use do not overlap in the `.bin` (a save never shares
+/// one; a file whose objects all point at one payload would otherwise decode it once per
+/// object). Together with each decoder checking its counts against its own bytes, the decoded
+/// total is bounded by a fixed multiple of the `.bin`'s length.
+fn check_object_graph(doc: &Document, payloads: &[PayloadRef]) -> Result<(), String> {
+    let mut ids = std::collections::HashMap::with_capacity(doc.objects.len());
+    for (i, o) in doc.objects.iter().enumerate() {
+        if let Some(first) = ids.insert(o.id, i) {
+            return Err(format!(
+                "objects {first} and {i} both have id {}; ids must be unique",
+                o.id
+            ));
+        }
+    }
+    let mut seen = std::collections::HashSet::with_capacity(payloads.len());
+    let mut used: Vec<(u64, u64, usize)> = Vec::new();
+    for (k, p) in payloads.iter().enumerate() {
+        if !seen.insert((p.object_id, p.part.as_str())) {
+            return Err(format!(
+                "payload {k}: object id {} has two {} payloads",
+                p.object_id,
+                if p.part.is_empty() { "main" } else { &p.part }
+            ));
+        }
+        if ids.contains_key(&p.object_id) && p.length > 0 {
+            used.push((p.offset, p.offset.saturating_add(p.length), k));
+        }
+    }
+    used.sort_unstable();
+    for w in used.windows(2) {
+        let ((_, end_a, a), (start_b, _, b)) = (w[0], w[1]);
+        if start_b < end_a {
+            return Err(format!(
+                "payloads {a} (object {}) and {b} (object {}) overlap in the .bin; each object's payload must be its own",
+                payloads[a].object_id, payloads[b].object_id
+            ));
+        }
+    }
+    Ok(())
 }
 
 // ---- binary encoding -------------------------------------------------------------------------
@@ -876,5 +946,8 @@ fn decode_mesh(bytes: &[u8]) -> Result<MeshModel, String> {
     Ok(model)
 }
 
+#[cfg(test)]
+mod crash_tests;
+mod save;
 #[cfg(test)]
 mod tests;

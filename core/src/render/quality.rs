@@ -158,7 +158,10 @@ impl Quality {
             hi: f64,
             range: &'static str,
         ) -> Result<(), QualityError> {
-            if v.is_finite() && v >= lo && v <= hi {
+            // The knobs are f32 and the bounds are written in decimal: compare in f32, so the
+            // documented bounds themselves (0.01, 1.95) are inside the range.
+            let (v32, lo32, hi32) = (v as f32, lo as f32, hi as f32);
+            if v.is_finite() && v32 >= lo32 && v32 <= hi32 {
                 Ok(())
             } else {
                 Err(QualityError::OutOfRange {

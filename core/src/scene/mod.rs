@@ -353,7 +353,11 @@ impl Light {
         if !self.direction.is_finite() || self.direction.length_squared() < 1e-12 {
             return Err(invalid("direction", &ctx, "must be finite and non-zero"));
         }
-        if !self.color.is_finite() || !self.intensity.is_finite() || self.intensity < 0.0 {
+        if !self.color.is_finite()
+            || self.color.min_element() < 0.0
+            || !self.intensity.is_finite()
+            || self.intensity < 0.0
+        {
             return Err(invalid(
                 "colour/intensity",
                 &ctx,
@@ -675,6 +679,13 @@ impl Document {
         if !self.ambient.is_finite() || !self.background.is_finite() {
             return Err(invalid("ambient/background", "document", "not finite"));
         }
+        if self.ambient.min_element() < 0.0 {
+            return Err(invalid(
+                "ambient",
+                "document",
+                format!("{} must be non-negative (a light colour)", self.ambient),
+            ));
+        }
         self.camera.validate()?;
         self.quality
             .validate()
@@ -744,9 +755,11 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
             ),
         ));
     }
+    check_texturing(&k.texturing, ctx)?;
     // Validate the KRS as the renderer will see it (transform composed), so a product of
     // scales that overflows is caught too.
     let placed = o.krs_in_world().unwrap_or_else(|| k.clone());
+    check_krs_magnitudes(&placed, ctx)?;
     placed.validated(0).map_err(|e| {
         // The KRS error counts objects within a KRS scene; here the context names the object.
         let msg = e.to_string();
@@ -760,9 +773,148 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
     Ok(())
 }
 
+/// Largest coordinate or length a placed KRS may hold. The tracer squares differences of
+/// positions and sums three of them (`length_squared`, dot products): with |x| ≤ 1e18 that is at
+/// most 3 × (2e18)² ≈ 1.2e37, below `f32::MAX` (3.4e38), so no distance overflows to infinity.
+pub const MAX_KRS_MAGNITUDE: f32 = 1e18;
+
+/// Every position and length of the placed KRS (kernels, mirror offsets) within
+/// ±[`MAX_KRS_MAGNITUDE`].
+fn check_krs_magnitudes(k: &KrsObject, ctx: &str) -> Result<(), SceneError> {
+    use crate::krs::Kernel;
+    let ok = |v: f32| v.abs() <= MAX_KRS_MAGNITUDE;
+    let ok3 = |v: Vec3| v.abs().max_element() <= MAX_KRS_MAGNITUDE;
+    for (i, kernel) in k.kernels.iter().enumerate() {
+        let fine = match kernel {
+            Kernel::Empty => true,
+            Kernel::Sphere(s) => ok3(s.centre) && ok(s.radius),
+            Kernel::InfinitePlane(p) => ok(p.offset),
+            Kernel::Capsule(c) => ok3(c.start) && ok3(c.end) && ok(c.radius),
+            Kernel::RoundedBox(b) => ok3(b.centre) && ok3(b.half_extents) && ok(b.rounding),
+            Kernel::TorusSegment(t) | Kernel::ToroidalCapsule(t) => {
+                ok3(t.centre) && ok(t.major_radius) && ok(t.minor_radius)
+            }
+        };
+        if !fine {
+            return Err(invalid(
+                &format!("krs.kernels[{i}]"),
+                ctx,
+                format!(
+                    "a position or radius (after the object's transform) exceeds                      {MAX_KRS_MAGNITUDE:e}; its square would overflow in the renderer"
+                ),
+            ));
+        }
+    }
+    for (i, m) in k.mirrors.iter().enumerate() {
+        if !ok(m.offset) {
+            return Err(invalid(
+                &format!("krs.mirrors[{i}].offset"),
+                ctx,
+                format!("{} exceeds {MAX_KRS_MAGNITUDE:e}", m.offset),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Texturing values the shader can use without producing NaN: a finite pattern scale within
+/// ±1e6 (positions times the scale stay finite), contrast in [0, 1], and a triplanar sharpness in
+/// [0, 64] (|n|^64 of the largest normal component, ≥ 1/√3, stays above f32's normal range, so
+/// the blend weights never all vanish).
+fn check_texturing(t: &crate::krs::Texturing, ctx: &str) -> Result<(), SceneError> {
+    let checks = [
+        ("krs.texturing.scale", t.scale, -1e6, 1e6, "-1e6..=1e6"),
+        ("krs.texturing.contrast", t.contrast, 0.0, 1.0, "0..=1"),
+        ("krs.texturing.sharpness", t.sharpness, 0.0, 64.0, "0..=64"),
+    ];
+    for (what, v, lo, hi, range) in checks {
+        if !(v.is_finite() && (lo..=hi).contains(&v)) {
+            return Err(invalid(what, ctx, format!("{v} is outside {range}")));
+        }
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A KRS rock beside the defaults, with `edit` applied to its KRS.
+    fn krs_doc_with(edit: impl FnOnce(&mut KrsObject)) -> Document {
+        let mut doc = Document::default();
+        let mut k = crate::krs::presets::rock();
+        edit(&mut k);
+        doc.add("Rock", ObjectKind::Krs(k));
+        doc
+    }
+
+    #[test]
+    fn infinite_texturing_is_refused() {
+        assert!(krs_doc_with(|_| {}).validate().is_ok());
+        for (field, edit) in [
+            ("scale", (|k: &mut KrsObject| k.texturing.scale = f32::INFINITY) as fn(&mut _)),
+            ("contrast", |k: &mut KrsObject| k.texturing.contrast = f32::INFINITY),
+            ("sharpness", |k: &mut KrsObject| k.texturing.sharpness = f32::INFINITY),
+        ] {
+            let e = krs_doc_with(edit).validate().unwrap_err().to_string();
+            assert!(e.contains(&format!("krs.texturing.{field}")) && e.contains("Rock"), "{e}");
+        }
+    }
+
+    #[test]
+    fn kernel_radii_whose_squares_overflow_are_refused() {
+        let e = krs_doc_with(|k| {
+            for kernel in &mut k.kernels {
+                if let crate::krs::Kernel::Sphere(s) = kernel {
+                    s.radius = 3e38;
+                }
+                if let crate::krs::Kernel::Capsule(c) = kernel {
+                    c.radius = 3e38;
+                }
+                if let crate::krs::Kernel::RoundedBox(b) = kernel {
+                    b.rounding = 3e38;
+                }
+                if let crate::krs::Kernel::TorusSegment(t) | crate::krs::Kernel::ToroidalCapsule(t) =
+                    kernel
+                {
+                    t.minor_radius = 3e38;
+                }
+                if let crate::krs::Kernel::InfinitePlane(p) = kernel {
+                    p.offset = 3e38;
+                }
+            }
+        })
+        .validate()
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("krs.kernels[") && e.contains("overflow"), "{e}");
+    }
+
+    #[test]
+    fn negative_light_colour_and_ambient_are_refused() {
+        let mut doc = Document::default();
+        doc.lights.push(Light {
+            color: Vec3::new(1.0, -0.5, 1.0),
+            ..Light::default()
+        });
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(e.contains("non-negative") && e.contains("light"), "{e}");
+        let mut doc = Document::default();
+        doc.ambient = Vec3::new(-0.1, 0.2, 0.2);
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(e.contains("ambient") && e.contains("non-negative"), "{e}");
+    }
+
+    #[test]
+    fn the_documented_minimum_epsilon_scale_is_accepted() {
+        let mut doc = Document::default();
+        doc.quality.krs_epsilon_scale = 0.01;
+        doc.validate().expect("0.01 is the documented minimum");
+        doc.quality.krs_over_relaxation = 1.95;
+        doc.validate().expect("1.95 is the documented maximum");
+        doc.quality.krs_epsilon_scale = 0.0099;
+        assert!(doc.validate().is_err());
+    }
 
     #[test]
     fn the_clip_range_follows_a_close_camera() {

@@ -1,20 +1,27 @@
 //! Import of skinned glTF: the skin's joint hierarchy (with non-joint ancestors), inverse bind
 //! matrices, skinned meshes with JOINTS_0 / WEIGHTS_0 and every animation clip.
 //!
-//! Accessors are decoded here from bounds-checked byte slices rather than through the `gltf`
-//! crate's readers, whose iterators assume a well-formed file (some of their checks are debug
-//! assertions): a broken file must give an error naming the file and the accessor.
+//! Built on the hardened reader of [`crate::io::gltf_mesh`]: the JSON is only deserialized
+//! (never run through gltf-json's validation, which can panic), the container, buffers,
+//! accessors, primitives and images are read there with every size checked against the bytes
+//! present and the [`ImportLimits`], external files are confined to the file's folder, and
+//! every index in the JSON is looked up with a check. A broken file gives an error naming the
+//! file and what is wrong; nothing panics.
 
 use std::path::Path;
 
-use glam::{Mat4, Quat, Vec2, Vec3, Vec4};
-use gltf::accessor::{DataType, Dimensions};
+use glam::{Mat4, Quat, Vec3, Vec4};
+use gltf::json;
+use gltf::json::accessor::{ComponentType, Type};
+use gltf::json::validation::Checked;
 
 use super::SkinError;
 use super::clip::{AnimationClip, Channel, Interpolation, Property};
 use super::lbs::{WeightRepair, repair_mesh_weights};
 use super::skeleton::{Joint, Skeleton, Transform};
-use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
+use crate::io::gltf_mesh::{OpenedGltf, open_gltf};
+use crate::io::{ImportLimits, IoError};
+use crate::mesh::{Material, MeshModel};
 
 /// What [`import_skinned`] returns.
 #[derive(Debug, Clone, Default)]
@@ -39,116 +46,145 @@ pub struct SkinnedImport {
 }
 
 /// Imports the first skin of a `.gltf` / `.glb` file (the first node in the scene that has a
-/// mesh and a skin decides which), its meshes and all animation clips.
+/// mesh and a skin decides which), its meshes and all animation clips, within the default
+/// [`ImportLimits`].
 ///
 /// # Errors
 /// [`SkinError`] naming the file and the problem; never panics on a broken file.
 pub fn import_skinned(path: impl AsRef<Path>) -> Result<SkinnedImport, SkinError> {
-    let path = path.as_ref();
-    let label = path.display().to_string();
-    let bytes = std::fs::read(path).map_err(|source| SkinError::Io {
-        path: label.clone(),
-        source,
-    })?;
-    import_impl(&bytes, path.parent(), &label)
+    import_skinned_with(path.as_ref(), &ImportLimits::default())
 }
 
-/// [`import_skinned`] from bytes; external (non-embedded) buffers cannot be resolved.
+/// [`import_skinned`] with explicit limits.
+///
+/// # Errors
+/// As [`import_skinned`]; declared sizes over `limits` are refused before allocating.
+pub fn import_skinned_with(path: &Path, limits: &ImportLimits) -> Result<SkinnedImport, SkinError> {
+    let label = path.display().to_string();
+    let bytes = crate::io::error::read_file_limited(path, limits).map_err(skin_error)?;
+    let base = path.parent().unwrap_or_else(|| Path::new("."));
+    let file = open_gltf(&bytes, path, Some(base), limits).map_err(skin_error)?;
+    import_impl(file, &label)
+}
+
+/// [`import_skinned`] from bytes; external (non-embedded) buffers and images are refused, so
+/// the bytes never make the importer touch the file system.
 ///
 /// # Errors
 /// As [`import_skinned`], with `label` standing for the file name in messages.
 pub fn import_skinned_slice(bytes: &[u8], label: &str) -> Result<SkinnedImport, SkinError> {
-    import_impl(bytes, None, label)
+    let limits = ImportLimits::default();
+    let file = open_gltf(bytes, Path::new(label), None, &limits).map_err(skin_error)?;
+    import_impl(file, label)
 }
 
-fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<SkinnedImport, SkinError> {
-    let gltf_err = |source| SkinError::Gltf {
+/// The reader's error as a [`SkinError`], its message unchanged.
+fn skin_error(e: IoError) -> SkinError {
+    let path = e.path().display().to_string();
+    match e {
+        IoError::Io { source, .. } => SkinError::Io { path, source },
+        other => {
+            let text = other.to_string();
+            let problem = text
+                .strip_prefix(&format!("{path}: "))
+                .unwrap_or(&text)
+                .to_owned();
+            SkinError::Invalid { path, problem }
+        }
+    }
+}
+
+/// `index` checked against a table of `len`, for "X refers to Y n, which does not exist".
+fn checked(index: usize, len: usize, what: impl FnOnce() -> String) -> Result<usize, String> {
+    if index < len {
+        Ok(index)
+    } else {
+        Err(format!("{}, which does not exist", what()))
+    }
+}
+
+#[allow(clippy::too_many_lines)]
+fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, SkinError> {
+    let invalid = |problem: String| SkinError::Invalid {
         path: label.to_owned(),
-        source,
-    };
-    let gltf::Gltf {
-        document: doc,
-        blob,
-    } = gltf::Gltf::from_slice(bytes).map_err(gltf_err)?;
-    let buffers = gltf::import_buffers(&doc, base, blob).map_err(gltf_err)?;
-    let cx = Ctx {
-        label,
-        buffers: &buffers,
+        problem,
     };
     let mut warnings = Vec::new();
 
-    // Node hierarchy: parent links, and which nodes the scene reaches.
-    let node_count = doc.nodes().count();
+    // Node hierarchy: parent links (every child index checked), and which nodes the scene
+    // reaches with their world transforms (a cycle or a node reached twice is an error).
+    let node_count = file.root.nodes.len();
     let mut parent_of = vec![None; node_count];
-    for node in doc.nodes() {
-        for child in node.children() {
-            if parent_of[child.index()].is_some() {
-                return Err(cx.invalid(format!("node {} has more than one parent", child.index())));
+    for (n, node) in file.root.nodes.iter().enumerate() {
+        for child in node.children.iter().flatten() {
+            let c = checked(child.value(), node_count, || {
+                format!("node {n} has child {}", child.value())
+            })
+            .map_err(invalid)?;
+            if parent_of[c].replace(n).is_some() {
+                return Err(invalid(format!("node {c} has more than one parent")));
             }
-            parent_of[child.index()] = Some(node.index());
         }
     }
-    let roots: Vec<usize> = match doc.default_scene().or_else(|| doc.scenes().next()) {
-        Some(scene) => scene.nodes().map(|n| n.index()).collect(),
-        None => (0..node_count)
-            .filter(|&i| parent_of[i].is_none())
-            .collect(),
-    };
-    let mut in_scene = vec![false; node_count];
-    let mut stack = roots.clone();
-    while let Some(n) = stack.pop() {
-        if std::mem::replace(&mut in_scene[n], true) {
-            return Err(cx.invalid(format!(
-                "node {n} is reached twice: the node hierarchy has a cycle"
-            )));
-        }
-        if let Some(node) = doc.nodes().nth(n) {
-            stack.extend(node.children().map(|c| c.index()));
+    let scene = file.scene_nodes().map_err(skin_error)?;
+    let mut world_of: Vec<Option<Mat4>> = vec![None; node_count];
+    for &(n, m) in &scene {
+        if let Some(w) = world_of.get_mut(n) {
+            *w = Some(m);
         }
     }
-    let nodes: Vec<gltf::Node<'_>> = doc.nodes().collect();
-    let local_matrix = |n: usize| Mat4::from_cols_array_2d(&nodes[n].transform().matrix());
+    let in_scene = |n: usize| world_of.get(n).is_some_and(Option::is_some);
 
-    // The skin: the first scene node with a mesh and a skin.
-    let Some((skin_node, skin)) = nodes
-        .iter()
-        .filter(|n| in_scene[n.index()] && n.mesh().is_some())
-        .find_map(|n| n.skin().map(|s| (n.index(), s)))
+    // The skin: the first scene node (in file order) with a mesh and a skin.
+    let Some((skin_node, skin_index)) = (0..node_count)
+        .filter(|&n| in_scene(n) && file.root.nodes[n].mesh.is_some())
+        .find_map(|n| file.root.nodes[n].skin.map(|s| (n, s.value())))
     else {
         return Err(SkinError::NoSkin {
             path: label.to_owned(),
         });
     };
-    let mut world_from_skinned_node = local_matrix(skin_node);
-    let mut cur = parent_of[skin_node];
-    while let Some(a) = cur {
-        world_from_skinned_node = local_matrix(a) * world_from_skinned_node;
-        cur = parent_of[a];
-    }
-    let skin_nodes: Vec<usize> = skin.joints().map(|n| n.index()).collect();
+    let world_from_skinned_node = world_of[skin_node].unwrap_or(Mat4::IDENTITY);
+    let skin = file.root.skins.get(skin_index).ok_or_else(|| {
+        invalid(format!(
+            "node {skin_node} refers to skin {skin_index}, which does not exist"
+        ))
+    })?;
+    let skin_nodes = skin
+        .joints
+        .iter()
+        .map(|j| {
+            checked(j.value(), node_count, || {
+                format!("skin {skin_index} lists joint node {}", j.value())
+            })
+        })
+        .collect::<Result<Vec<usize>, String>>()
+        .map_err(invalid)?;
+    let inverse_bind_accessor = skin.inverse_bind_matrices.map(|a| a.value());
     if skin_nodes.is_empty() {
-        return Err(cx.invalid(format!("skin {} has no joints", skin.index())));
+        return Err(invalid(format!("skin {skin_index} has no joints")));
     }
     if skin_nodes.len() > usize::from(u16::MAX) {
-        return Err(cx.invalid(format!(
-            "skin {} has {} joints; at most 65535 fit",
-            skin.index(),
+        return Err(invalid(format!(
+            "skin {skin_index} has {} joints; at most 65535 fit",
             skin_nodes.len()
         )));
     }
     let mut joint_of_node = vec![None; node_count];
     for (j, &n) in skin_nodes.iter().enumerate() {
         if joint_of_node[n].replace(j).is_some() {
-            return Err(cx.invalid(format!("skin {} lists node {n} twice", skin.index())));
+            return Err(invalid(format!("skin {skin_index} lists node {n} twice")));
         }
     }
-    let inverse_binds: Vec<Mat4> = match skin.inverse_bind_matrices() {
+    let inverse_binds: Vec<Mat4> = match inverse_bind_accessor {
         Some(acc) => {
-            let what = format!("inverse bind matrices of skin {}", skin.index());
-            let flat = cx.read(&acc, &what, Dimensions::Mat4, &[DataType::F32])?;
+            let what = format!("inverse bind matrices of skin {skin_index} (accessor {acc})");
+            let (flat, _) = file
+                .floats(acc, &what, &[Type::Mat4], &[ComponentType::F32])
+                .map_err(skin_error)?;
             let mats: Vec<Mat4> = flat.chunks_exact(16).map(Mat4::from_cols_slice).collect();
             if mats.len() < skin_nodes.len() {
-                return Err(cx.invalid(format!(
+                return Err(invalid(format!(
                     "{what}: {} matrices for {} joints",
                     mats.len(),
                     skin_nodes.len()
@@ -172,31 +208,27 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
                 parent = Some(pj);
                 break;
             }
-            attachment = local_matrix(a) * attachment;
+            attachment = file.local_transform(a).map_err(skin_error)? * attachment;
             cur = parent_of[a];
             steps += 1;
             if steps > node_count {
-                return Err(cx.invalid(format!("the ancestors of node {n} form a cycle")));
+                return Err(invalid(format!("the ancestors of node {n} form a cycle")));
             }
         }
-        let (scale, rotation, translation) = match nodes[n].transform() {
-            gltf::scene::Transform::Decomposed {
-                translation,
-                rotation,
-                scale,
-            } => (
-                Vec3::from(scale),
-                Quat::from_array(rotation),
-                Vec3::from(translation),
-            ),
-            m @ gltf::scene::Transform::Matrix { .. } => {
-                Mat4::from_cols_array_2d(&m.matrix()).to_scale_rotation_translation()
-            }
+        // Checks the node's transform (finite, a usable rotation) before taking it apart.
+        let local = file.local_transform(n).map_err(skin_error)?;
+        let node = &file.root.nodes[n];
+        let (scale, rotation, translation) = if node.matrix.is_some() {
+            local.to_scale_rotation_translation()
+        } else {
+            (
+                Vec3::from_array(node.scale.unwrap_or([1.0; 3])),
+                Quat::from_array(node.rotation.map_or([0.0, 0.0, 0.0, 1.0], |q| q.0)),
+                Vec3::from_array(node.translation.unwrap_or([0.0; 3])),
+            )
         };
         joints.push(Joint {
-            name: nodes[n]
-                .name()
-                .map_or_else(|| format!("node {n}"), str::to_owned),
+            name: node.name.clone().unwrap_or_else(|| format!("node {n}")),
             parent,
             rest: Transform {
                 translation,
@@ -208,59 +240,77 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         });
     }
     let (skeleton, new_from_old) =
-        Skeleton::new(joints).map_err(|e| cx.invalid(format!("skin {}: {e}", skin.index())))?;
+        Skeleton::new(joints).map_err(|e| invalid(format!("skin {skin_index}: {e}")))?;
 
-    // Meshes bound to this skin.
-    let images = match gltf::import_images(&doc, base, &buffers) {
-        Ok(images) => images,
-        Err(e) => {
-            warnings.push(format!("images not loaded ({e}); textures are left out"));
-            Vec::new()
-        }
-    };
+    // Meshes bound to this skin, read by the hardened primitive reader.
     let mut model = MeshModel {
         parts: Vec::new(),
-        materials: import_materials(&doc, &images, &mut warnings),
+        materials: file.materials().map_err(skin_error)?,
     };
     let default_material = model.materials.len();
     let mut needs_default_material = false;
-    for node in nodes.iter().filter(|n| in_scene[n.index()]) {
-        let Some(mesh) = node.mesh() else { continue };
-        match node.skin() {
-            Some(s) if s.index() == skin.index() => {}
+    for n in (0..node_count).filter(|&n| in_scene(n)) {
+        let node = &file.root.nodes[n];
+        let Some(mesh_index) = node.mesh.map(|m| m.value()) else {
+            continue;
+        };
+        match node.skin.map(|s| s.value()) {
+            Some(s) if s == skin_index => {}
             Some(s) => {
                 warnings.push(format!(
-                    "node {} uses skin {}, only skin {} is imported",
-                    node.index(),
-                    s.index(),
-                    skin.index()
+                    "node {n} uses skin {s}, only skin {skin_index} is imported"
                 ));
                 continue;
             }
             None => {
-                warnings.push(format!(
-                    "node {} has a mesh without a skin; left out",
-                    node.index()
-                ));
+                warnings.push(format!("node {n} has a mesh without a skin; left out"));
                 continue;
             }
         }
-        for prim in mesh.primitives() {
-            let where_ = format!("mesh {} primitive {}", mesh.index(), prim.index());
-            if prim.mode() != gltf::mesh::Mode::Triangles {
-                warnings.push(format!(
-                    "{where_}: mode {:?} is not triangles; left out",
-                    prim.mode()
-                ));
+        let mesh = file.root.meshes.get(mesh_index).ok_or_else(|| {
+            invalid(format!(
+                "node {n} refers to mesh {mesh_index}, which does not exist"
+            ))
+        })?;
+        let materials: Vec<Option<usize>> = mesh
+            .primitives
+            .iter()
+            .map(|p| p.material.map(|m| m.value()))
+            .collect();
+        for (prim_index, material) in materials.into_iter().enumerate() {
+            let where_ = format!("mesh {mesh_index} primitive {prim_index}");
+            let Some(mut part) = file.primitive(mesh_index, prim_index).map_err(skin_error)? else {
+                warnings.push(format!("{where_}: not triangles; left out"));
                 continue;
+            };
+            match (part.joints.is_empty(), part.weights.is_empty()) {
+                (false, false) | (true, true) => {}
+                _ => {
+                    return Err(invalid(format!(
+                        "{where_} has only one of JOINTS_0 and WEIGHTS_0"
+                    )));
+                }
             }
-            let mut part = read_primitive(&cx, &prim, &where_, &new_from_old)?;
-            part.material = prim.material().index().unwrap_or_else(|| {
-                needs_default_material = true;
-                default_material
-            });
+            // An index past the skin stays past it, so weight repair can zero its weight.
+            for j in part.joints.iter_mut().flatten() {
+                *j = new_from_old
+                    .get(usize::from(*j))
+                    .map_or(u16::MAX, |&x| u16::try_from(x).unwrap_or(u16::MAX));
+            }
+            part.material = match material {
+                Some(m) if m < default_material => m,
+                Some(m) => {
+                    return Err(invalid(format!(
+                        "{where_} refers to material {m}, which does not exist"
+                    )));
+                }
+                None => {
+                    needs_default_material = true;
+                    default_material
+                }
+            };
             part.validate()
-                .map_err(|e| cx.invalid(format!("{where_}: {e}")))?;
+                .map_err(|e| invalid(format!("{where_}: {e}")))?;
             model.parts.push(part);
         }
     }
@@ -268,9 +318,8 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         model.materials.push(Material::default());
     }
     if model.parts.is_empty() {
-        return Err(cx.invalid(format!(
-            "no triangle primitive is bound to skin {}",
-            skin.index()
+        return Err(invalid(format!(
+            "no triangle primitive is bound to skin {skin_index}"
         )));
     }
     let mut weight_repair = WeightRepair::default();
@@ -281,95 +330,14 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
         warnings.push(format!("vertex weights repaired: {weight_repair:?}"));
     }
 
-    // Animations.
-    let mut clips = Vec::new();
-    for anim in doc.animations() {
-        let name = anim
-            .name()
-            .map_or_else(|| format!("animation {}", anim.index()), str::to_owned);
-        let mut clip = AnimationClip {
-            name: name.clone(),
-            duration_secs: 0.0,
-            channels: Vec::new(),
-        };
-        let mut skipped = 0usize;
-        for ch in anim.channels() {
-            let node = ch.target().node().index();
-            let property = match ch.target().property() {
-                gltf::animation::Property::Translation => Property::Translation,
-                gltf::animation::Property::Rotation => Property::Rotation,
-                gltf::animation::Property::Scale => Property::Scale,
-                gltf::animation::Property::MorphTargetWeights => {
-                    skipped += 1;
-                    continue;
-                }
-            };
-            let Some(old_joint) = joint_of_node[node] else {
-                skipped += 1;
-                continue;
-            };
-            let sampler = ch.sampler();
-            let interpolation = match sampler.interpolation() {
-                gltf::animation::Interpolation::Step => Interpolation::Step,
-                gltf::animation::Interpolation::Linear => Interpolation::Linear,
-                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
-            };
-            let what = format!("{name:?} channel {}", ch.index());
-            let times = cx.read(
-                &sampler.input(),
-                &format!("{what} key times"),
-                Dimensions::Scalar,
-                &[DataType::F32],
-            )?;
-            let out = sampler.output();
-            let values: Vec<Vec4> = match property {
-                Property::Rotation => {
-                    let types = [
-                        DataType::F32,
-                        DataType::I8,
-                        DataType::U8,
-                        DataType::I16,
-                        DataType::U16,
-                    ];
-                    cx.read(&out, &format!("{what} rotations"), Dimensions::Vec4, &types)?
-                        .chunks_exact(4)
-                        .map(Vec4::from_slice)
-                        .collect()
-                }
-                Property::Translation | Property::Scale => cx
-                    .read(
-                        &out,
-                        &format!("{what} values"),
-                        Dimensions::Vec3,
-                        &[DataType::F32],
-                    )?
-                    .chunks_exact(3)
-                    .map(|c| Vec3::from_slice(c).extend(0.0))
-                    .collect(),
-            };
-            let channel = Channel {
-                joint: new_from_old[old_joint],
-                property,
-                interpolation,
-                times,
-                values,
-            };
-            channel.check(skeleton.len()).map_err(|problem| {
-                cx.invalid(format!("animation {what} (node {node}): {problem}"))
-            })?;
-            clip.channels.push(channel);
-        }
-        if skipped > 0 {
-            warnings.push(format!(
-                "animation {name:?}: {skipped} channel(s) target non-joint nodes or morph weights; ignored"
-            ));
-        }
-        if clip.channels.is_empty() {
-            continue;
-        }
-        clip.duration_secs = clip.last_key_time();
-        clips.push(clip);
-    }
+    let clips = read_clips(
+        &file,
+        &joint_of_node,
+        &new_from_old,
+        skeleton.len(),
+        label,
+        &mut warnings,
+    )?;
     for w in &warnings {
         log::warn!("{label}: {w}");
     }
@@ -383,315 +351,267 @@ fn import_impl(bytes: &[u8], base: Option<&Path>, label: &str) -> Result<Skinned
     })
 }
 
-fn import_materials(
-    doc: &gltf::Document,
-    images: &[gltf::image::Data],
-    warnings: &mut Vec<String>,
-) -> Vec<Material> {
-    doc.materials()
-        .enumerate()
-        .map(|(i, m)| {
-            let pbr = m.pbr_metallic_roughness();
-            let base_color_texture = pbr.base_color_texture().and_then(|info| {
-                let image = info.texture().source().index();
-                let tex = images.get(image).and_then(to_rgba8);
-                if tex.is_none() && !images.is_empty() {
-                    warnings.push(format!(
-                        "material {i}: base colour image {image} has an unsupported format"
-                    ));
-                }
-                tex
-            });
-            Material {
-                name: m.name().unwrap_or_default().to_owned(),
-                base_color: Vec4::from(pbr.base_color_factor()),
-                base_color_texture,
-                unlit: m.unlit(),
-            }
-        })
-        .collect()
-}
-
-fn to_rgba8(img: &gltf::image::Data) -> Option<Texture> {
-    use gltf::image::Format;
-    let px = (img.width as usize).checked_mul(img.height as usize)?;
-    let rgba8 = match img.format {
-        Format::R8G8B8A8 if img.pixels.len() >= px * 4 => img.pixels[..px * 4].to_vec(),
-        Format::R8G8B8 if img.pixels.len() >= px * 3 => img.pixels[..px * 3]
-            .chunks_exact(3)
-            .flat_map(|c| [c[0], c[1], c[2], 255])
-            .collect(),
-        Format::R8 if img.pixels.len() >= px => img.pixels[..px]
-            .iter()
-            .flat_map(|&g| [g, g, g, 255])
-            .collect(),
-        _ => return None,
-    };
-    Some(Texture {
-        width: img.width,
-        height: img.height,
-        rgba8,
-    })
-}
-
-fn read_primitive(
-    cx: &Ctx<'_>,
-    prim: &gltf::Primitive<'_>,
-    where_: &str,
+/// Every animation's channels that target the skin's joints, each checked (target node,
+/// sampler and accessors exist and agree).
+fn read_clips(
+    file: &OpenedGltf<'_>,
+    joint_of_node: &[Option<usize>],
     new_from_old: &[usize],
-) -> Result<TriangleMesh, SkinError> {
-    use gltf::Semantic;
-    let attr = |s: &Semantic| prim.get(s);
-    let Some(pos_acc) = attr(&Semantic::Positions) else {
-        return Err(cx.invalid(format!("{where_} has no POSITION")));
+    joint_count: usize,
+    label: &str,
+    warnings: &mut Vec<String>,
+) -> Result<Vec<AnimationClip>, SkinError> {
+    let invalid = |problem: String| SkinError::Invalid {
+        path: label.to_owned(),
+        problem,
     };
-    let positions: Vec<Vec3> = cx
-        .read(
-            &pos_acc,
-            &format!("{where_} POSITION"),
-            Dimensions::Vec3,
-            &[DataType::F32],
-        )?
-        .chunks_exact(3)
-        .map(Vec3::from_slice)
-        .collect();
-    let n = positions.len();
-    let same_count = |v: &[f32], per: usize, name: &str| -> Result<(), SkinError> {
-        if v.len() == n * per {
-            Ok(())
-        } else {
-            Err(cx.invalid(format!(
-                "{where_} {name} has {} entries but POSITION has {n}",
-                v.len() / per
-            )))
-        }
-    };
-    let mut mesh = TriangleMesh {
-        positions,
-        ..TriangleMesh::default()
-    };
-    if let Some(acc) = attr(&Semantic::Normals) {
-        let v = cx.read(
-            &acc,
-            &format!("{where_} NORMAL"),
-            Dimensions::Vec3,
-            &[DataType::F32],
-        )?;
-        same_count(&v, 3, "NORMAL")?;
-        mesh.normals = v
-            .chunks_exact(3)
-            .map(|c| Vec3::from_slice(c).normalize_or_zero())
-            .collect();
-    }
-    if let Some(acc) = attr(&Semantic::TexCoords(0)) {
-        let v = cx.read(
-            &acc,
-            &format!("{where_} TEXCOORD_0"),
-            Dimensions::Vec2,
-            &[DataType::F32, DataType::U8, DataType::U16],
-        )?;
-        same_count(&v, 2, "TEXCOORD_0")?;
-        mesh.uvs = v.chunks_exact(2).map(Vec2::from_slice).collect();
-    }
-    match (attr(&Semantic::Joints(0)), attr(&Semantic::Weights(0))) {
-        (Some(ja), Some(wa)) => {
-            let j = cx.read_u32(
-                &ja,
-                &format!("{where_} JOINTS_0"),
-                Dimensions::Vec4,
-                &[DataType::U8, DataType::U16],
-            )?;
-            if j.len() != n * 4 {
-                return Err(cx.invalid(format!(
-                    "{where_} JOINTS_0 has {} entries but POSITION has {n}",
-                    j.len() / 4
-                )));
-            }
-            let w = cx.read(
-                &wa,
-                &format!("{where_} WEIGHTS_0"),
-                Dimensions::Vec4,
-                &[DataType::F32, DataType::U8, DataType::U16],
-            )?;
-            same_count(&w, 4, "WEIGHTS_0")?;
-            mesh.joints = j
-                .chunks_exact(4)
-                // An index past the skin stays past it, so weight repair can zero its weight.
-                .map(|c| {
-                    std::array::from_fn(|k| {
-                        new_from_old
-                            .get(c[k] as usize)
-                            .map_or(u16::MAX, |&x| x as u16)
-                    })
-                })
-                .collect();
-            mesh.weights = w
-                .chunks_exact(4)
-                .map(|c| [c[0], c[1], c[2], c[3]])
-                .collect();
-        }
-        (None, None) => {}
-        _ => return Err(cx.invalid(format!("{where_} has only one of JOINTS_0 and WEIGHTS_0"))),
-    }
-    mesh.indices = match prim.indices() {
-        Some(acc) => cx.read_u32(
-            &acc,
-            &format!("{where_} indices"),
-            Dimensions::Scalar,
-            &[DataType::U8, DataType::U16, DataType::U32],
-        )?,
-        None => (0..n as u32).collect(),
-    };
-    Ok(mesh)
-}
-
-struct Ctx<'a> {
-    label: &'a str,
-    buffers: &'a [gltf::buffer::Data],
-}
-
-impl Ctx<'_> {
-    fn invalid(&self, problem: String) -> SkinError {
-        SkinError::Invalid {
-            path: self.label.to_owned(),
-            problem,
-        }
-    }
-
-    /// Decodes an accessor into flat `f32`s (`count × components`). Integer types decode as
-    /// their value, or as unorm / snorm when the accessor is `normalized`. Every size is checked
-    /// against the buffer before anything is read or allocated.
-    fn read(
-        &self,
-        acc: &gltf::Accessor<'_>,
-        what: &str,
-        dims: Dimensions,
-        types: &[DataType],
-    ) -> Result<Vec<f32>, SkinError> {
-        let normalized = acc.normalized();
-        self.read_with(acc, what, dims, types, |dt, b| {
-            decode_f32(dt, b, normalized)
-        })
-    }
-
-    /// Decodes an integer accessor (indices, joints) exactly.
-    fn read_u32(
-        &self,
-        acc: &gltf::Accessor<'_>,
-        what: &str,
-        dims: Dimensions,
-        types: &[DataType],
-    ) -> Result<Vec<u32>, SkinError> {
-        self.read_with(acc, what, dims, types, decode_u32)
-    }
-
-    fn read_with<T: Default + Clone>(
-        &self,
-        acc: &gltf::Accessor<'_>,
-        what: &str,
-        dims: Dimensions,
-        types: &[DataType],
-        decode: impl Fn(DataType, &[u8]) -> T,
-    ) -> Result<Vec<T>, SkinError> {
-        let bad = |p: String| self.invalid(format!("{what} (accessor {}): {p}", acc.index()));
-        if acc.dimensions() != dims {
-            return Err(bad(format!(
-                "type is {:?}, expected {dims:?}",
-                acc.dimensions()
-            )));
-        }
-        let dt = acc.data_type();
-        if !types.contains(&dt) {
-            return Err(bad(format!(
-                "component type {dt:?} is not one of {types:?}"
-            )));
-        }
-        if acc.sparse().is_some() {
-            return Err(bad("sparse accessors are not supported here".into()));
-        }
-        let comps = dims.multiplicity();
-        let comp_size = dt.size();
-        let elem_size = comps * comp_size;
-        let count = acc.count();
-        if count == 0 {
-            return Err(bad("count is 0; glTF requires at least one element".into()));
-        }
-        let Some(view) = acc.view() else {
-            // No buffer view: all zeros by the spec; the count is bounded only by the JSON, so
-            // cap it instead of trusting it.
-            if count > 1 << 24 {
-                return Err(bad(format!("{count} elements without a buffer view")));
-            }
-            return Ok(vec![T::default(); count * comps]);
+    let mut clips = Vec::new();
+    for (a, anim) in file.root.animations.iter().enumerate() {
+        let name = anim
+            .name
+            .clone()
+            .unwrap_or_else(|| format!("animation {a}"));
+        let mut clip = AnimationClip {
+            name: name.clone(),
+            duration_secs: 0.0,
+            channels: Vec::new(),
         };
-        let buffer = self
-            .buffers
-            .get(view.buffer().index())
-            .ok_or_else(|| bad(format!("buffer {} is missing", view.buffer().index())))?;
-        let view_end = view.offset().checked_add(view.length());
-        let view_bytes = view_end
-            .and_then(|end| buffer.0.get(view.offset()..end))
-            .ok_or_else(|| {
-                bad(format!(
-                    "buffer view {} (offset {}, length {}) runs past its buffer of {} bytes",
-                    view.index(),
-                    view.offset(),
-                    view.length(),
-                    buffer.0.len()
+        let mut skipped = 0usize;
+        for (c, ch) in anim.channels.iter().enumerate() {
+            let what = format!("{name:?} channel {c}");
+            let node = ch.target.node.value();
+            let Some(&joint) = joint_of_node.get(node) else {
+                return Err(invalid(format!(
+                    "animation {what} targets node {node}, which does not exist"
+                )));
+            };
+            let property = match ch.target.path {
+                Checked::Valid(json::animation::Property::Translation) => Property::Translation,
+                Checked::Valid(json::animation::Property::Rotation) => Property::Rotation,
+                Checked::Valid(json::animation::Property::Scale) => Property::Scale,
+                Checked::Valid(json::animation::Property::MorphTargetWeights) => {
+                    skipped += 1;
+                    continue;
+                }
+                Checked::Invalid => {
+                    return Err(invalid(format!("animation {what}: invalid target path")));
+                }
+            };
+            let Some(old_joint) = joint else {
+                skipped += 1;
+                continue;
+            };
+            let s = ch.sampler.value();
+            let sampler = anim.samplers.get(s).ok_or_else(|| {
+                invalid(format!(
+                    "animation {what} refers to sampler {s}, which does not exist"
                 ))
             })?;
-        let stride = view.stride().unwrap_or(elem_size);
-        if stride < elem_size {
-            return Err(bad(format!(
-                "byte stride {stride} is smaller than the element size {elem_size}"
-            )));
+            let interpolation = match sampler.interpolation {
+                Checked::Valid(json::animation::Interpolation::Step) => Interpolation::Step,
+                Checked::Valid(json::animation::Interpolation::Linear) => Interpolation::Linear,
+                Checked::Valid(json::animation::Interpolation::CubicSpline) => {
+                    Interpolation::CubicSpline
+                }
+                Checked::Invalid => {
+                    return Err(invalid(format!("animation {what}: invalid interpolation")));
+                }
+            };
+            let (times, _) = file
+                .floats(
+                    sampler.input.value(),
+                    &format!("{what} key times (accessor {})", sampler.input.value()),
+                    &[Type::Scalar],
+                    &[ComponentType::F32],
+                )
+                .map_err(skin_error)?;
+            let out = sampler.output.value();
+            let values: Vec<Vec4> = match property {
+                Property::Rotation => file
+                    .floats(
+                        out,
+                        &format!("{what} rotations (accessor {out})"),
+                        &[Type::Vec4],
+                        &[
+                            ComponentType::F32,
+                            ComponentType::I8,
+                            ComponentType::U8,
+                            ComponentType::I16,
+                            ComponentType::U16,
+                        ],
+                    )
+                    .map_err(skin_error)?
+                    .0
+                    .chunks_exact(4)
+                    .map(Vec4::from_slice)
+                    .collect(),
+                Property::Translation | Property::Scale => file
+                    .floats(
+                        out,
+                        &format!("{what} values (accessor {out})"),
+                        &[Type::Vec3],
+                        &[ComponentType::F32],
+                    )
+                    .map_err(skin_error)?
+                    .0
+                    .chunks_exact(3)
+                    .map(|c| Vec3::from_slice(c).extend(0.0))
+                    .collect(),
+            };
+            let channel = Channel {
+                joint: new_from_old.get(old_joint).copied().unwrap_or(usize::MAX),
+                property,
+                interpolation,
+                times,
+                values,
+            };
+            channel
+                .check(joint_count)
+                .map_err(|problem| invalid(format!("animation {what} (node {node}): {problem}")))?;
+            clip.channels.push(channel);
         }
-        let needed = (count - 1)
-            .checked_mul(stride)
-            .and_then(|x| x.checked_add(acc.offset()))
-            .and_then(|x| x.checked_add(elem_size));
-        let bytes = needed.and_then(|end| view_bytes.get(acc.offset()..end)).ok_or_else(|| {
-            bad(format!(
-                "{count} elements of {elem_size} bytes (stride {stride}, offset {}) do not fit in buffer view {} of {} bytes",
-                acc.offset(),
-                view.index(),
-                view_bytes.len()
-            ))
-        })?;
-        let mut out = Vec::with_capacity(count * comps);
-        for e in 0..count {
-            let elem = &bytes[e * stride..e * stride + elem_size];
-            out.extend(elem.chunks_exact(comp_size).map(|c| decode(dt, c)));
+        if skipped > 0 {
+            warnings.push(format!(
+                "animation {name:?}: {skipped} channel(s) target non-joint nodes or morph weights; ignored"
+            ));
         }
-        Ok(out)
+        if clip.channels.is_empty() {
+            continue;
+        }
+        clip.duration_secs = clip.last_key_time();
+        clips.push(clip);
     }
+    Ok(clips)
 }
 
-fn decode_u32(dt: DataType, b: &[u8]) -> u32 {
-    match dt {
-        DataType::U8 => u32::from(b[0]),
-        DataType::U16 => u32::from(u16::from_le_bytes([b[0], b[1]])),
-        DataType::U32 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        // Only unsigned types are requested for integer data.
-        DataType::I8 | DataType::I16 | DataType::F32 => 0,
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::Value;
 
-fn decode_f32(dt: DataType, b: &[u8], normalized: bool) -> f32 {
-    let (value, max) = match dt {
-        DataType::F32 => return f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
-        DataType::I8 => (f32::from(i8::from_le_bytes([b[0]])), 127.0),
-        DataType::U8 => (f32::from(b[0]), 255.0),
-        DataType::I16 => (f32::from(i16::from_le_bytes([b[0], b[1]])), 32767.0),
-        DataType::U16 => (f32::from(u16::from_le_bytes([b[0], b[1]])), 65535.0),
-        DataType::U32 => (
-            u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
-            4_294_967_295.0,
-        ),
-    };
-    if normalized {
-        (value / max).max(-1.0)
-    } else {
-        value
+    fn simple_skin() -> Value {
+        let path = concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shared/assets/skinned/SimpleSkin.gltf"
+        );
+        serde_json::from_slice(&std::fs::read(path).expect("SimpleSkin")).expect("JSON")
+    }
+
+    fn import_value(v: &Value) -> Result<SkinnedImport, SkinError> {
+        import_skinned_slice(&serde_json::to_vec(v).unwrap(), "case.gltf")
+    }
+
+    #[test]
+    fn the_reported_panics_are_errors() {
+        assert!(import_value(&simple_skin()).is_ok());
+        // A huge bufferView offset and length (panicked inside gltf::import_images).
+        let mut v = simple_skin();
+        v["bufferViews"][0]["byteOffset"] = (u64::MAX / 2).into();
+        v["bufferViews"][0]["byteLength"] = (u64::MAX / 2).into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(
+            e.starts_with("case.gltf: ") && e.contains("buffer view 0"),
+            "{e}"
+        );
+        // An animation channel whose target node does not exist (an unwrap).
+        let mut v = simple_skin();
+        v["animations"][0]["channels"][0]["target"]["node"] = 99.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("node 99, which does not exist"), "{e}");
+        // A sampler that does not exist.
+        let mut v = simple_skin();
+        v["animations"][0]["channels"][0]["sampler"] = 7.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("sampler 7, which does not exist"), "{e}");
+        // Accessors removed from the JSON (panicked in gltf-json's validation).
+        let mut v = simple_skin();
+        v.as_object_mut().unwrap().remove("accessors");
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(
+            e.starts_with("case.gltf: ") && e.contains("does not exist"),
+            "{e}"
+        );
+        // A skin joint that is not a node.
+        let mut v = simple_skin();
+        v["skins"][0]["joints"][0] = 40.into();
+        let e = import_value(&v).unwrap_err().to_string();
+        assert!(e.contains("joint node 40, which does not exist"), "{e}");
+    }
+
+    /// SimpleSkin in `dir/inner/s.gltf` with buffer 0 read from `uri`; buffer 0's bytes are
+    /// also in `dir/outside.bin` (so a refusal is about the path, not the content) and
+    /// `dir/inner/b0.bin`.
+    fn with_uri(dir: &Path, uri: &str) -> std::path::PathBuf {
+        let mut v = simple_skin();
+        let data = v["buffers"][0]["uri"].as_str().unwrap().to_owned();
+        let b64 = data.split_once(',').unwrap().1;
+        let bytes = crate::io::gltf_mesh::decode_base64(b64).unwrap();
+        let inner = dir.join("inner");
+        let _ = std::fs::create_dir(&inner);
+        std::fs::write(dir.join("outside.bin"), &bytes).unwrap();
+        std::fs::write(inner.join("b0.bin"), &bytes).unwrap();
+        v["buffers"][0]["uri"] = uri.into();
+        let path = inner.join("s.gltf");
+        std::fs::write(&path, serde_json::to_vec(&v).unwrap()).unwrap();
+        path
+    }
+
+    fn refused(dir: &Path, uri: &str, rule: &str) {
+        let path = with_uri(dir, uri);
+        let e = import_skinned(&path).unwrap_err().to_string();
+        assert!(
+            e.starts_with(&format!("{}: ", path.display())) && e.contains(rule),
+            "{uri}: {e}"
+        );
+    }
+
+    #[test]
+    fn uris_inside_the_folder_are_read() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(import_skinned(with_uri(dir.path(), "b0.bin")).is_ok());
+        assert!(import_skinned(with_uri(dir.path(), "./b0.bin")).is_ok());
+    }
+
+    #[test]
+    fn absolute_uris_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let abs = dir.path().join("outside.bin");
+        refused(dir.path(), abs.to_str().unwrap(), "absolute");
+        refused(dir.path(), "", "empty");
+    }
+
+    #[test]
+    fn dot_dot_uris_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        refused(dir.path(), "../outside.bin", "'..'");
+        refused(dir.path(), "%2E%2E/outside.bin", "'..'");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn device_file_uris_fail_fast() {
+        let dir = tempfile::tempdir().unwrap();
+        refused(dir.path(), "/dev/zero", "absolute");
+        // The same device through a link in the folder.
+        let path = with_uri(dir.path(), "zero.bin");
+        std::os::unix::fs::symlink("/dev/zero", path.with_file_name("zero.bin")).unwrap();
+        assert!(import_skinned(&path).is_err());
+        // And the static importer refuses it the same way.
+        let e = crate::io::import_gltf(&path).unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn symlink_uris_out_of_the_folder_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = with_uri(dir.path(), "link.bin");
+        std::os::unix::fs::symlink(
+            dir.path().join("outside.bin"),
+            path.with_file_name("link.bin"),
+        )
+        .unwrap();
+        let e = import_skinned(&path).unwrap_err().to_string();
+        assert!(e.contains("symbolic link"), "{e}");
     }
 }

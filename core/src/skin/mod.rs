@@ -38,7 +38,7 @@ pub mod voxelize;
 pub use crate::svo::{MAX_SKIN_JOINTS, Skin4};
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
 pub use deform::{SkinDeform, SkinTables};
-pub use gltf_import::{SkinnedImport, import_skinned, import_skinned_slice};
+pub use gltf_import::{SkinnedImport, import_skinned, import_skinned_slice, import_skinned_with};
 pub use lbs::{
     WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points,
 };

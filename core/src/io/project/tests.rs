@@ -95,14 +95,18 @@ fn save_then_load_is_identical_and_names_bin() {
     let path = dir.path().join("scene.thicket.json");
     let doc = sample_doc(1, true);
     save(&doc, &path).unwrap();
-    assert!(dir.path().join("scene.thicket.bin").exists());
-    assert!(!dir.path().join("scene.thicket.bin.prev").exists());
+    // The payload file is named in the JSON and is the only file beside it.
+    let bin = bin_path_for(&path);
+    assert!(bin.exists(), "{}", bin.display());
+    assert_ne!(bin, legacy_bin_path(&path));
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
     assert_eq!(load(&path).unwrap(), doc);
     // A document with no payloads writes no .bin.
     let empty = Document::default();
     let p2 = dir.path().join("empty.thicket.json");
     save(&empty, &p2).unwrap();
-    assert!(!dir.path().join("empty.thicket.bin").exists());
+    assert!(!bin_path_for(&p2).exists());
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 3);
     assert_eq!(load(&p2).unwrap(), empty);
 }
 
@@ -123,13 +127,14 @@ fn wrong_checksum_is_reported_with_the_file() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.thicket.json");
     save(&sample_doc(3, false), &path).unwrap();
-    let bin = dir.path().join("a.thicket.bin");
+    let bin = bin_path_for(&path);
     let mut bytes = fs::read(&bin).unwrap();
     let n = bytes.len();
     bytes[n / 2] ^= 0x40;
     fs::write(&bin, &bytes).unwrap();
     let e = load(&path).unwrap_err().to_string();
-    assert!(e.contains("a.thicket.bin") && e.contains("CRC-32"), "{e}");
+    let name = bin.file_name().unwrap().to_string_lossy().into_owned();
+    assert!(e.contains(&name) && e.contains("CRC-32"), "{e}");
 }
 
 #[test]
@@ -138,7 +143,7 @@ fn a_corrupt_payload_with_a_matching_file_checksum_is_still_caught() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("a.thicket.json");
     save(&sample_doc(4, false), &path).unwrap();
-    let bin_path = dir.path().join("a.thicket.bin");
+    let bin_path = bin_path_for(&path);
     let mut bin = fs::read(&bin_path).unwrap();
     bin[20] ^= 1;
     fs::write(&bin_path, &bin).unwrap();
@@ -221,23 +226,54 @@ fn invalid_documents_are_not_saved() {
     );
 }
 
+/// Rewrites a fresh save into the layout older versions wrote: the payload in
+/// `NAME.thicket.bin`, named so in the JSON.
+fn make_legacy(path: &Path) {
+    let bin = bin_path_for(path);
+    let legacy = legacy_bin_path(path);
+    fs::rename(&bin, &legacy).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(path).unwrap()).unwrap();
+    json["bin"]["file"] = legacy
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned()
+        .into();
+    fs::write(path, serde_json::to_vec_pretty(&json).unwrap()).unwrap();
+}
+
 #[test]
-fn a_crash_between_renames_leaves_the_previous_save_loadable() {
+fn old_style_projects_and_their_crash_states_still_load() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("c.thicket.json");
     let old = sample_doc(6, false);
     save(&old, &path).unwrap();
-    // Simulate dying after step 3a (new .bin in place, old .bin renamed to .prev, old JSON).
+    make_legacy(&path);
+    assert_eq!(load(&path).unwrap(), old);
+    // The older save's crash state after its first rename: the old payload in `.bin.prev`, the
+    // new one in `.bin`, the old JSON.
     let new = sample_doc(7, false);
     let other = dir.path().join("other.thicket.json");
     save(&new, &other).unwrap();
-    let bin = dir.path().join("c.thicket.bin");
+    let bin = legacy_bin_path(&path);
     fs::rename(&bin, with_suffix(&bin, ".prev")).unwrap();
-    fs::copy(dir.path().join("other.thicket.bin"), &bin).unwrap();
+    fs::copy(bin_path_for(&other), &bin).unwrap();
     assert_eq!(load(&path).unwrap(), old);
-    // And dying after step 2 (no .bin at all yet).
+    // And after that save's first rename only (no `.bin` at all).
     fs::remove_file(&bin).unwrap();
     assert_eq!(load(&path).unwrap(), old);
+    // Saving over an old-style project moves it to the new naming and removes the old files,
+    // but not the other project's.
+    save(&new, &path).unwrap();
+    assert_eq!(load(&path).unwrap(), new);
+    assert!(!bin.exists() && !with_suffix(&bin, ".prev").exists());
+    let mut names: Vec<String> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names.len(), 4, "{names:?}");
+    assert_eq!(load(&other).unwrap(), new);
 }
 
 #[test]
@@ -247,7 +283,7 @@ fn mutated_project_files_never_panic() {
     let path = dir.path().join("f.thicket.json");
     save(&doc, &path).unwrap();
     let json = fs::read(&path).unwrap();
-    let bin = fs::read(dir.path().join("f.thicket.bin")).unwrap();
+    let bin = fs::read(bin_path_for(&path)).unwrap();
     let mut rng = rand_pcg::Pcg64::seed_from_u64(42);
     // THICKET_FUZZ_CASES raises the count for long runs (in release, see io::fuzz).
     let cases = crate::io::fuzz::cases_from_env(10_000);
@@ -356,7 +392,7 @@ fn krs_objects_round_trip_as_parameters() {
     only.add("Rock", ObjectKind::Krs(crate::krs::presets::rock()));
     let p2 = dir.path().join("only.thicket.json");
     save(&only, &p2).unwrap();
-    assert!(!dir.path().join("only.thicket.bin").exists());
+    assert!(!bin_path_for(&p2).exists());
     assert_eq!(load(&p2).unwrap(), only);
 
     // Missing fields take their defaults (#[serde(default)] on every KRS struct).
@@ -659,7 +695,7 @@ fn a_corrupt_skin_payload_is_caught() {
         .find(|p| p["part"] == "skin")
         .unwrap()
         .clone();
-    let bin_path = dir.path().join("s.thicket.bin");
+    let bin_path = bin_path_for(&path);
     let mut bin = fs::read(&bin_path).unwrap();
     let at = skin["offset"].as_u64().unwrap() as usize + 6;
     bin[at] ^= 0x10;
@@ -748,5 +784,212 @@ fn enhancement_links_and_tree_parameters_round_trip_and_old_files_load() {
     assert!(
         e.contains("tree_builders") && e.contains("KRS object id"),
         "{e}"
+    );
+}
+
+#[test]
+fn the_sample_projects_load_and_round_trip_through_the_new_save() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects");
+    let mut loaded = 0;
+    for entry in fs::read_dir(&dir).unwrap() {
+        let path = entry.unwrap().path();
+        if !path.to_string_lossy().ends_with(".thicket.json") {
+            continue;
+        }
+        let doc = load(&path).unwrap_or_else(|e| panic!("{e}"));
+        loaded += 1;
+        // Small ones also go through a save (new naming) and back.
+        if fs::metadata(bin_path_for(&path)).map_or(0, |m| m.len()) < 1 << 20 {
+            let tmp = tempfile::tempdir().unwrap();
+            let copy = tmp.path().join(path.file_name().unwrap());
+            save(&doc, &copy).unwrap();
+            assert_eq!(load(&copy).unwrap(), doc, "{}", path.display());
+        }
+    }
+    assert!(loaded >= 5, "only {loaded} sample projects found");
+}
+
+/// A saved one-object project's JSON with `n` copies of the object, all pointing at its one
+/// payload; `same_id` keeps the copies' id.
+fn amplified(n: usize, same_id: bool) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("amp.thicket.json");
+    let mut doc = Document::default();
+    doc.add("Model", sample_doc(5, false).objects[0].kind.clone());
+    save(&doc, &path).unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let object = json["objects"][0].clone();
+    let payload = json["payloads"][0].clone();
+    let (mut objects, mut payloads) = (Vec::new(), Vec::new());
+    for i in 0..n {
+        let id = if same_id { 1 } else { 1000 + i as u64 };
+        let mut o = object.clone();
+        o["id"] = id.into();
+        objects.push(o);
+        let mut p = payload.clone();
+        p["object_id"] = id.into();
+        payloads.push(p);
+    }
+    json["objects"] = objects.into();
+    json["payloads"] = payloads.into();
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    (dir, path)
+}
+
+#[test]
+fn objects_sharing_one_payload_are_refused_before_decoding() {
+    let (dir, path) = amplified(1000, false);
+    let input: u64 = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().metadata().unwrap().len())
+        .sum();
+    let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&path));
+    let e = result.unwrap_err().to_string();
+    assert!(
+        e.contains("overlap") && e.contains("amp.thicket.json"),
+        "{e}"
+    );
+    // The project's own rule: peak memory ≤ 64 × input + 16 MiB.
+    assert!(peak < 64 * input + (16 << 20), "{peak} bytes for {input}");
+    // Repeated ids are refused before any payload is read.
+    let (_d, path) = amplified(1000, true);
+    let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&path));
+    let e = result.unwrap_err().to_string();
+    assert!(e.contains("both have id 1"), "{e}");
+    assert!(peak < 64 * input + (16 << 20), "{peak} bytes for {input}");
+    // One copy is fine.
+    let (_d, path) = amplified(1, false);
+    assert_eq!(load(&path).unwrap().objects.len(), 1);
+}
+
+#[cfg(unix)]
+#[test]
+fn a_bin_reached_through_a_link_out_of_the_folder_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let inner = dir.path().join("inner");
+    fs::create_dir(&inner).unwrap();
+    let path = inner.join("l.thicket.json");
+    save(&sample_doc(9, false), &path).unwrap();
+    let bin = bin_path_for(&path);
+    let outside = dir.path().join("elsewhere.bin");
+    fs::rename(&bin, &outside).unwrap();
+    std::os::unix::fs::symlink(&outside, &bin).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("symbolic link") && e.contains("l.thicket.json"),
+        "{e}"
+    );
+}
+
+/// The project loader fed structurally mutated object graphs: objects duplicated (same or new
+/// ids), payload entries duplicated, pointed at other objects' payloads or at overlapping
+/// ranges, on top of the byte mutations of `mutated_project_files_never_panic`. No case may
+/// panic or hold more than the project's memory rule (64 × input + 16 MiB).
+#[test]
+fn structurally_mutated_projects_never_panic_or_amplify() {
+    let doc = sample_doc(12, true);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("g.thicket.json");
+    save(&doc, &path).unwrap();
+    let json: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+    let bin = fs::read(bin_path_for(&path)).unwrap();
+    let cases = crate::io::fuzz::cases_from_env(10_000);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(0x6A4F);
+    let (mut accepted, mut refused, mut max_peak, mut max_input) = (0u64, 0u64, 0u64, 0u64);
+    let mut panics = Vec::new();
+    let start = std::time::Instant::now();
+    for case in 0..cases {
+        let mut j = json.clone();
+        for _ in 0..rng.random_range(1..4) {
+            let objects = j["objects"].as_array().unwrap().clone();
+            let payloads = j["payloads"].as_array().unwrap().clone();
+            match rng.random_range(0..5) {
+                0 if !objects.is_empty() => {
+                    // Many copies of one object, with fresh or repeated ids.
+                    let o = objects[rng.random_range(0..objects.len())].clone();
+                    let same = rng.random_bool(0.5);
+                    let mut all = objects.clone();
+                    let mut ps = payloads.clone();
+                    for k in 0..rng.random_range(1..300u64) {
+                        let mut c = o.clone();
+                        if !same {
+                            c["id"] = (5000 + k).into();
+                            for p in payloads.iter().filter(|p| p["object_id"] == o["id"]) {
+                                let mut p = p.clone();
+                                p["object_id"] = (5000 + k).into();
+                                ps.push(p);
+                            }
+                        }
+                        all.push(c);
+                    }
+                    j["objects"] = all.into();
+                    j["payloads"] = ps.into();
+                }
+                1 if !payloads.is_empty() => {
+                    // One payload entry duplicated.
+                    let mut ps = payloads.clone();
+                    ps.push(payloads[rng.random_range(0..payloads.len())].clone());
+                    j["payloads"] = ps.into();
+                }
+                2 if payloads.len() > 1 => {
+                    // One object pointed at another's bytes.
+                    let (a, b) = (
+                        rng.random_range(0..payloads.len()),
+                        rng.random_range(0..payloads.len()),
+                    );
+                    j["payloads"][a]["offset"] = payloads[b]["offset"].clone();
+                    j["payloads"][a]["length"] = payloads[b]["length"].clone();
+                    j["payloads"][a]["crc32"] = payloads[b]["crc32"].clone();
+                }
+                3 if !payloads.is_empty() => {
+                    // A range shifted or stretched.
+                    let a = rng.random_range(0..payloads.len());
+                    let off = payloads[a]["offset"].as_u64().unwrap();
+                    j["payloads"][a]["offset"] =
+                        off.saturating_add_signed(rng.random_range(-64..64)).into();
+                }
+                _ => {
+                    // An object dropped.
+                    let mut all = objects.clone();
+                    if !all.is_empty() {
+                        all.remove(rng.random_range(0..all.len()));
+                    }
+                    j["objects"] = all.into();
+                }
+            }
+        }
+        let text = serde_json::to_vec(&j).unwrap();
+        let input = (text.len() + bin.len()) as u64;
+        max_input = max_input.max(input);
+        let (outcome, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                load_from_parts(&path, &text, |_| Ok(bin.clone())).is_ok()
+            }))
+        });
+        assert!(
+            peak < 64 * input + (16 << 20),
+            "case {case}: {peak} bytes for {input} bytes of input"
+        );
+        max_peak = max_peak.max(peak);
+        match outcome {
+            Ok(true) => accepted += 1,
+            Ok(false) => refused += 1,
+            Err(_) => panics.push(case),
+        }
+    }
+    eprintln!(
+        "project graph fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
+         max peak heap {max_peak} bytes (largest input {max_input}), {:.1} s",
+        panics.len(),
+        start.elapsed().as_secs_f64()
+    );
+    assert!(
+        panics.is_empty(),
+        "cases panicked: {:?}",
+        &panics[..panics.len().min(10)]
+    );
+    assert!(
+        accepted > 0 && refused > cases / 10,
+        "{accepted} accepted, {refused} refused"
     );
 }
