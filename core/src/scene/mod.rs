@@ -852,12 +852,22 @@ mod tests {
     fn infinite_texturing_is_refused() {
         assert!(krs_doc_with(|_| {}).validate().is_ok());
         for (field, edit) in [
-            ("scale", (|k: &mut KrsObject| k.texturing.scale = f32::INFINITY) as fn(&mut _)),
-            ("contrast", |k: &mut KrsObject| k.texturing.contrast = f32::INFINITY),
-            ("sharpness", |k: &mut KrsObject| k.texturing.sharpness = f32::INFINITY),
+            (
+                "scale",
+                (|k: &mut KrsObject| k.texturing.scale = f32::INFINITY) as fn(&mut _),
+            ),
+            ("contrast", |k: &mut KrsObject| {
+                k.texturing.contrast = f32::INFINITY
+            }),
+            ("sharpness", |k: &mut KrsObject| {
+                k.texturing.sharpness = f32::INFINITY
+            }),
         ] {
             let e = krs_doc_with(edit).validate().unwrap_err().to_string();
-            assert!(e.contains(&format!("krs.texturing.{field}")) && e.contains("Rock"), "{e}");
+            assert!(
+                e.contains(&format!("krs.texturing.{field}")) && e.contains("Rock"),
+                "{e}"
+            );
         }
     }
 
@@ -874,8 +884,8 @@ mod tests {
                 if let crate::krs::Kernel::RoundedBox(b) = kernel {
                     b.rounding = 3e38;
                 }
-                if let crate::krs::Kernel::TorusSegment(t) | crate::krs::Kernel::ToroidalCapsule(t) =
-                    kernel
+                if let crate::krs::Kernel::TorusSegment(t)
+                | crate::krs::Kernel::ToroidalCapsule(t) = kernel
                 {
                     t.minor_radius = 3e38;
                 }
