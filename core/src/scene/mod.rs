@@ -857,10 +857,10 @@ mod tests {
                 (|k: &mut KrsObject| k.texturing.scale = f32::INFINITY) as fn(&mut _),
             ),
             ("contrast", |k: &mut KrsObject| {
-                k.texturing.contrast = f32::INFINITY
+                k.texturing.contrast = f32::INFINITY;
             }),
             ("sharpness", |k: &mut KrsObject| {
-                k.texturing.sharpness = f32::INFINITY
+                k.texturing.sharpness = f32::INFINITY;
             }),
         ] {
             let e = krs_doc_with(edit).validate().unwrap_err().to_string();
@@ -909,8 +909,10 @@ mod tests {
         });
         let e = doc.validate().unwrap_err().to_string();
         assert!(e.contains("non-negative") && e.contains("light"), "{e}");
-        let mut doc = Document::default();
-        doc.ambient = Vec3::new(-0.1, 0.2, 0.2);
+        let doc = Document {
+            ambient: Vec3::new(-0.1, 0.2, 0.2),
+            ..Document::default()
+        };
         let e = doc.validate().unwrap_err().to_string();
         assert!(e.contains("ambient") && e.contains("non-negative"), "{e}");
     }
