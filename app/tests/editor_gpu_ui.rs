@@ -443,3 +443,29 @@ fn auto_draws_with_the_cpu_preview_when_the_gpu_is_a_software_rasteriser() {
     assert!(link.lock().frames_rendered >= 1);
     assert!(link.lock().error.is_none(), "{:?}", link.lock().error);
 }
+
+#[test]
+fn forest_export_window_offers_the_krs_instancing_options() {
+    let (mut h, _link) = gpu_harness_scaled("forest", 0.25);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export glTF...").click();
+    h.run_steps(3);
+    // Every option of `thicket export` that a forest needs is in the window.
+    for label in [
+        "Automatic",
+        "Around the objects",
+        "Lights and camera",
+        "Triangle budget",
+        "Most instances",
+    ] {
+        h.get_by_label_contains(label);
+    }
+    // A chosen level and a patch show their fields.
+    h.get_by_label("Automatic").click();
+    h.get_by_label("Around the objects").click();
+    h.run_steps(3);
+    assert_eq!(h.state().gltf_export.options.instance_level, Some(0));
+    assert!(h.state().gltf_export.options.bounds.is_some());
+    snapshot(&mut h, "export_gltf_forest");
+}

@@ -243,6 +243,14 @@ fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
     h.get_by_label("Export glTF...").click();
     h.run_steps(2);
     assert!(h.state().gltf_export.open);
+    // The KRS split: automatic by default, a level when unticked.
+    assert_eq!(h.state().gltf_export.options.instance_level, None);
+    h.get_by_label("Automatic").click();
+    h.run_steps(2);
+    assert_eq!(h.state().gltf_export.options.instance_level, Some(0));
+    h.get_by_label("Automatic").click();
+    h.run_steps(2);
+    assert_eq!(h.state().gltf_export.options.instance_level, None);
     h.get_by_label("Smooth").click();
     h.get_by_label("Selected object only").click();
     h.run_steps(2);
@@ -274,7 +282,7 @@ fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
         .nodes()
         .filter_map(|n| n.name().map(str::to_owned))
         .collect();
-    assert_eq!(names, ["Tree"], "only the selection");
+    assert_eq!(names, ["Tree"], "only the selection: no lights or camera");
     // The toast and the status bar.
     assert!(
         h.query_all_by_label_contains("Exported 1 object(s)")

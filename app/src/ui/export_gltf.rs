@@ -7,6 +7,80 @@ use thicket_core::io::gltf_export::{ColorMode, ExportMode, GltfExportOptions};
 /// Smallest and largest KRS meshing resolution offered (cells along the longest side).
 const RESOLUTION_RANGE: std::ops::RangeInclusive<u32> = 16..=1024;
 
+/// Smallest and largest whole-export triangle budget offered (the largest: about 2.5 GiB of
+/// GLB, under the format's 4 GiB limit).
+const TRIANGLE_BUDGET_RANGE: std::ops::RangeInclusive<u64> = 1_000..=(1 << 26);
+
+/// Largest KRS reflection level offered for the prototype/placement split.
+const MAX_INSTANCE_LEVEL: usize = 32;
+
+/// The KRS rows of the options grid: where the prototype ends, and the ground patch.
+fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
+    ui.label("KRS instancing");
+    ui.horizontal(|ui| {
+        let mut auto = options.instance_level.is_none();
+        if ui
+            .checkbox(&mut auto, "Automatic")
+            .on_hover_text(
+                "Mesh one tree (the kernels and the mirrors that build it) and place it with the \
+                 mirrors above it that carry no kernels: the deepest such level is chosen per \
+                 object",
+            )
+            .changed()
+        {
+            options.instance_level = if auto { None } else { Some(0) };
+        }
+        if let Some(level) = &mut options.instance_level {
+            ui.add(
+                egui::DragValue::new(level)
+                    .range(0..=MAX_INSTANCE_LEVEL)
+                    .prefix("level "),
+            )
+            .on_hover_text(
+                "Reflection level where the prototype ends: mirrors above it become instance \
+                 placements. 0: every mirror places copies of the bare kernels; past the \
+                 object's mirrors: one mesh, no instancing.",
+            );
+        }
+    });
+    ui.end_row();
+    ui.label("Most instances");
+    ui.add(
+        egui::DragValue::new(&mut options.max_instances)
+            .range(1..=(1usize << 24))
+            .speed(1000.0),
+    )
+    .on_hover_text("Per KRS object: an export that would place more copies is refused");
+    ui.end_row();
+    ui.label("Ground patch");
+    ui.horizontal(|ui| {
+        let mut auto = options.bounds.is_none();
+        if ui
+            .checkbox(&mut auto, "Around the objects")
+            .on_hover_text(
+                "Unbounded KRS objects (ground plane, terrain) are written as a patch: by \
+                 default the area the other objects cover plus a margin",
+            )
+            .changed()
+        {
+            options.bounds = if auto {
+                None
+            } else {
+                Some([-50.0, -50.0, 50.0, 50.0])
+            };
+        }
+        if let Some(b) = &mut options.bounds {
+            for (i, label) in ["min x ", "min z ", "max x ", "max z "].iter().enumerate() {
+                ui.add(egui::DragValue::new(&mut b[i]).prefix(*label).suffix(" m"));
+            }
+            // Keep min < max (the exporter refuses an empty patch).
+            b[2] = b[2].max(b[0] + 0.01);
+            b[3] = b[3].max(b[1] + 0.01);
+        }
+    });
+    ui.end_row();
+}
+
 /// The export window's state; it keeps its settings between exports.
 #[derive(Debug, Clone, Default)]
 pub struct GltfExportPanel {
@@ -29,6 +103,8 @@ impl GltfExportPanel {
         } else {
             None
         };
+        // Like Blender's "Selected objects": a one-object export is that object alone.
+        o.lights_and_camera &= o.object.is_none();
         o
     }
 
@@ -53,7 +129,8 @@ impl GltfExportPanel {
                                 .on_hover_text(
                                     "Exact blocks: faces between solid and empty voxels, merged \
                                  into quads. Rigged models keep their skeleton, weights and \
-                                 clips.",
+                                 clips. KRS objects: one prototype mesh (a tree) drawn once per \
+                                 placement (EXT_mesh_gpu_instancing).",
                                 );
                             ui.radio_value(&mut self.options.mode, ExportMode::Smooth, "Smooth")
                                 .on_hover_text(
@@ -66,8 +143,9 @@ impl GltfExportPanel {
                                 "Instances",
                             )
                             .on_hover_text(
-                                "KRS objects as one mesh per kernel drawn once per kernel instance \
-                             (EXT_mesh_gpu_instancing); voxel models as cubes",
+                                "KRS objects as one small mesh per kernel drawn once per kernel \
+                             instance (EXT_mesh_gpu_instancing): exact kernels, but far more \
+                             instances than Cubes; voxel models as cubes",
                             );
                         });
                         ui.end_row();
@@ -82,6 +160,7 @@ impl GltfExportPanel {
                          object. Doubling it gives about 4x the triangles.",
                         );
                         ui.end_row();
+                        krs_rows(ui, &mut self.options);
                         ui.label("Levels of detail");
                         ui.add(egui::DragValue::new(&mut self.options.lod_levels).range(0..=6))
                             .on_hover_text(
@@ -113,6 +192,31 @@ impl GltfExportPanel {
                         .on_hover_text(
                             "Export only the selected object (hidden or not); otherwise every \
                          visible object",
+                        );
+                        ui.end_row();
+                        let one_object = self.selected_only && selected.is_some();
+                        ui.label("");
+                        ui.add_enabled(
+                            !one_object,
+                            egui::Checkbox::new(
+                                &mut self.options.lights_and_camera,
+                                "Lights and camera",
+                            ),
+                        )
+                        .on_hover_text(
+                            "Write the scene's sun lights (KHR_lights_punctual) and the view \
+                         camera as nodes; a selected-object export writes that object alone",
+                        );
+                        ui.end_row();
+                        ui.label("Triangle budget");
+                        ui.add(
+                            egui::DragValue::new(&mut self.options.max_triangles)
+                                .range(TRIANGLE_BUDGET_RANGE)
+                                .speed(10_000.0),
+                        )
+                        .on_hover_text(
+                            "An export with more triangles than this is refused before it is \
+                         built, with the count in the message",
                         );
                         ui.end_row();
                     });
@@ -149,5 +253,22 @@ mod tests {
         assert_eq!(p.options_for(None).object, None);
         p.selected_only = false;
         assert_eq!(p.options_for(Some("Tree")).object, None);
+    }
+
+    #[test]
+    fn a_one_object_export_leaves_the_lights_and_camera_out() {
+        let mut p = GltfExportPanel {
+            selected_only: true,
+            ..GltfExportPanel::default()
+        };
+        assert!(!p.options_for(Some("Tree")).lights_and_camera);
+        assert!(
+            p.options_for(None).lights_and_camera,
+            "no selection: the whole scene"
+        );
+        p.selected_only = false;
+        assert!(p.options_for(Some("Tree")).lights_and_camera);
+        p.options.lights_and_camera = false;
+        assert!(!p.options_for(None).lights_and_camera, "the user's choice");
     }
 }
