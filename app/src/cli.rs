@@ -230,7 +230,7 @@ pub struct EnhanceArgs {
     /// Replace the object with its enhancement (same name and id) instead of adding one.
     #[arg(long)]
     pub replace: bool,
-    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
 }
@@ -354,7 +354,7 @@ pub enum NewFillArg {
 /// `thicket new`.
 #[derive(Debug, Args)]
 pub struct NewArgs {
-    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     pub output: PathBuf,
     /// Voxels per axis as X,Y,Z (each 1 to 2097152, the octree's limit).
     #[arg(long, default_value = "32,32,32", value_parser = parse_extent)]
@@ -390,7 +390,7 @@ fn parse_extent(s: &str) -> Result<glam::UVec3, String> {
 pub struct ImportArgs {
     /// The file to import (.glb, .gltf, .obj or .vox).
     pub input: PathBuf,
-    /// The project to write (NAME.thicket.json; NAME.thicket.bin is written beside it).
+    /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
     /// Octree depth: the longest side of the mesh spans 2^N voxels (default 7).

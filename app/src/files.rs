@@ -14,7 +14,7 @@ use thicket_core::scene::{Document, Object, ObjectKind};
 /// The file formats Thicket reads, by extension.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 pub enum FileKind {
-    /// `NAME.thicket.json` (+ `NAME.thicket.bin`).
+    /// `NAME.thicket.json` (+ its payload `NAME.thicket.HASH.bin`).
     Project,
     /// MagicaVoxel `.vox`.
     Vox,

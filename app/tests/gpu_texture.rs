@@ -26,10 +26,12 @@ fn spot_document(dir: &Path) -> Document {
     let obj = std::fs::read_to_string(spot.join("spot_triangulated.obj")).expect("spot .obj");
     let obj_path = dir.join("spot.obj");
     std::fs::write(&obj_path, format!("mtllib spot.mtl\nusemtl spot\n{obj}")).expect("write");
-    let png = spot.join("spot_texture.png");
+    // Beside the .obj: references are confined to the file's folder (an absolute path to
+    // the asset would be refused).
+    std::fs::copy(spot.join("spot_texture.png"), dir.join("spot_texture.png")).expect("copy");
     std::fs::write(
         dir.join("spot.mtl"),
-        format!("newmtl spot\nKd 1 1 1\nmap_Kd {}\n", png.display()),
+        "newmtl spot\nKd 1 1 1\nmap_Kd spot_texture.png\n",
     )
     .expect("write");
     let mut doc = thicket::files::load_document(&obj_path).expect("spot imports");
