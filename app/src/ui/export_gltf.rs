@@ -14,22 +14,26 @@ const TRIANGLE_BUDGET_RANGE: std::ops::RangeInclusive<u64> = 1_000..=(1 << 26);
 /// Largest KRS reflection level offered for the prototype/placement split.
 const MAX_INSTANCE_LEVEL: usize = 32;
 
+/// A ticked checkbox for an option left to the exporter (`None`); unticking it sets `manual`.
+fn automatic<T>(ui: &mut egui::Ui, value: &mut Option<T>, label: &str, hint: &str, manual: T) {
+    let mut auto = value.is_none();
+    if ui.checkbox(&mut auto, label).on_hover_text(hint).changed() {
+        *value = if auto { None } else { Some(manual) };
+    }
+}
+
 /// The KRS rows of the options grid: where the prototype ends, and the ground patch.
 fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
     ui.label("KRS instancing");
     ui.horizontal(|ui| {
-        let mut auto = options.instance_level.is_none();
-        if ui
-            .checkbox(&mut auto, "Automatic")
-            .on_hover_text(
-                "Mesh one tree (the kernels and the mirrors that build it) and place it with the \
-                 mirrors above it that carry no kernels: the deepest such level is chosen per \
-                 object",
-            )
-            .changed()
-        {
-            options.instance_level = if auto { None } else { Some(0) };
-        }
+        automatic(
+            ui,
+            &mut options.instance_level,
+            "Automatic",
+            "Mesh one tree (the kernels and the mirrors that build it) and place it with the \
+             mirrors above it that carry no kernels: the deepest such level is chosen per object",
+            0,
+        );
         if let Some(level) = &mut options.instance_level {
             ui.add(
                 egui::DragValue::new(level)
@@ -54,21 +58,14 @@ fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
     ui.end_row();
     ui.label("Ground patch");
     ui.horizontal(|ui| {
-        let mut auto = options.bounds.is_none();
-        if ui
-            .checkbox(&mut auto, "Around the objects")
-            .on_hover_text(
-                "Unbounded KRS objects (ground plane, terrain) are written as a patch: by \
-                 default the area the other objects cover plus a margin",
-            )
-            .changed()
-        {
-            options.bounds = if auto {
-                None
-            } else {
-                Some([-50.0, -50.0, 50.0, 50.0])
-            };
-        }
+        automatic(
+            ui,
+            &mut options.bounds,
+            "Around the objects",
+            "Unbounded KRS objects (ground plane, terrain) are written as a patch: by default \
+             the area the other objects cover plus a margin",
+            [-50.0, -50.0, 50.0, 50.0],
+        );
         if let Some(b) = &mut options.bounds {
             for (i, label) in ["min x ", "min z ", "max x ", "max z "].iter().enumerate() {
                 ui.add(egui::DragValue::new(&mut b[i]).prefix(*label).suffix(" m"));
