@@ -149,8 +149,7 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         n = normalize_or_zero(n);
         // Two-sided: light the side facing the viewer.
-        let eye = view.world_from_view[3].xyz;
-        if dot(face, eye - p) < 0.0 {
+        if dot(face, toward_eye(view, p)) < 0.0 {
             n = -n;
         }
         normal = n;

@@ -130,8 +130,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
             // KRS pixels carry their accessibility plus 2 (krs_trace.wgsl `light`).
             krs_open = select(e.w, e.w - 2.0, e.w >= 2.0);
         }
-        let eye = view.world_from_view[3].xyz;
-        let v = normalize_or_zero(eye - p);
+        let v = toward_eye(view, p);
         let receiver = pixel_world_size(view, view_depth_of(view, depth)) * shading.receiver_px;
         // The AO staircase tolerance: the receiver term of the shadow bias.
         let open = ao_openness(p, n, 1.5 * receiver);

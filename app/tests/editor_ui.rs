@@ -398,3 +398,88 @@ fn an_enhanced_model_follows_a_sculpt_stroke_and_undo() {
         thicket_core::enhance::enhance(&coarse, &settings).unwrap()
     );
 }
+
+#[test]
+fn orthographic_views_by_key_and_menu_and_orbiting_returns_to_perspective() {
+    let mut h = harness(app_with_two_objects());
+    let cam = |h: &Harness<'static, EditorApp>| h.state().editor.doc().camera;
+    assert!(!cam(&h).orthographic);
+    assert_eq!(thicket::ui::view::view_name(&cam(&h)), "User perspective");
+
+    // 5 toggles the projection, with clip planes that hold the whole scene.
+    h.key_press(egui::Key::Num5);
+    h.run_steps(2);
+    assert!(cam(&h).orthographic);
+    let (lo, hi) = h.state().editor.doc().bounds().expect("bounds");
+    let c = cam(&h);
+    let forward = (c.target - c.eye()).normalize_or_zero();
+    for p in [lo, hi] {
+        let d = (p - c.eye()).dot(forward);
+        assert!(c.near < d && d < c.far, "{d} outside {}..{}", c.near, c.far);
+    }
+    h.key_press(egui::Key::Num5);
+    h.run_steps(2);
+    assert!(!cam(&h).orthographic);
+
+    // An axis view is orthographic and says so; orbiting away returns to perspective.
+    h.key_press(egui::Key::Num1);
+    h.run_steps(2);
+    assert!(cam(&h).orthographic);
+    assert_eq!((cam(&h).yaw_deg, cam(&h).pitch_deg), (0.0, 0.0));
+    assert_eq!(thicket::ui::view::view_name(&cam(&h)), "Front orthographic");
+    let c = h.state().view.last_rect.center();
+    h.hover_at(c);
+    h.step();
+    h.drag_at(c);
+    h.step();
+    h.hover_at(c + egui::vec2(40.0, 0.0));
+    h.step();
+    h.drop_at(c + egui::vec2(40.0, 0.0));
+    h.run_steps(2);
+    assert!(cam(&h).yaw_deg != 0.0, "the drag orbited");
+    assert!(
+        !cam(&h).orthographic,
+        "orbiting left the axis view's orthographic projection"
+    );
+    assert_eq!(thicket::ui::view::view_name(&cam(&h)), "User perspective");
+
+    // The View menu's checkbox sets it for good: orbiting keeps it.
+    h.get_by_label("View").click();
+    h.run_steps(2);
+    h.get_by_label("Orthographic (5)").click();
+    h.run_steps(2);
+    assert!(cam(&h).orthographic);
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    h.hover_at(c);
+    h.step();
+    h.drag_at(c);
+    h.step();
+    h.hover_at(c + egui::vec2(0.0, 30.0));
+    h.step();
+    h.drop_at(c + egui::vec2(0.0, 30.0));
+    h.run_steps(2);
+    assert!(
+        cam(&h).orthographic,
+        "a chosen orthographic view stays orthographic"
+    );
+    // Saved in the project's camera.
+    let json = serde_json::to_string(&h.state().editor.doc().camera).unwrap();
+    assert!(json.contains("\"orthographic\":true"), "{json}");
+}
+
+#[test]
+fn bracket_keys_step_the_brush_by_one_voxel() {
+    let mut h = harness(app_with_two_objects());
+    h.state_mut().sculpt.brush.radius = 2.0;
+    h.key_press(egui::Key::CloseBracket);
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.radius, 3.0);
+    h.key_press(egui::Key::OpenBracket);
+    h.key_press(egui::Key::OpenBracket);
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.radius, 1.0);
+    h.key_press_modifiers(egui::Modifiers::SHIFT, egui::Key::CloseBracket);
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.radius, 2.0);
+}

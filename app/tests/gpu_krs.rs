@@ -75,6 +75,17 @@ fn tree_sample_matches_the_cpu_reference() {
 }
 
 #[test]
+fn tree_sample_in_an_orthographic_view_matches_the_cpu_reference() {
+    // Parallel rays from the near plane (behind the eye when the planes are fitted).
+    let ctx = context();
+    let mut doc = project("tree");
+    doc.camera.orthographic = true;
+    let (lo, hi) = doc.bounds().expect("the tree has bounds");
+    doc.camera.fit_clip(lo, hi);
+    compare(&ctx, "tree-ortho", &doc, (96, 96));
+}
+
+#[test]
 fn rock_sample_matches_the_cpu_reference() {
     // Distorted (Lipschitz-bounded warp) and triplanar-textured objects.
     let ctx = context();

@@ -108,6 +108,36 @@ fn terrain_sample_matches_the_cpu_reference() {
     both_paths(&ctx, "terrain", &doc, (96, 80), &doc.quality.clone());
 }
 
+/// `doc` seen through an orthographic camera with its clip planes fitted to the scene (as the
+/// editor's 5 key and axis views do).
+fn orthographic(mut doc: Document) -> Document {
+    doc.camera.orthographic = true;
+    let (lo, hi) = doc.bounds().expect("a scene with bounds");
+    doc.camera.fit_clip(lo, hi);
+    doc
+}
+
+#[test]
+fn house_sample_in_an_orthographic_view_matches_the_cpu_reference() {
+    let ctx = context();
+    let doc = orthographic(project("house"));
+    both_paths(&ctx, "house-ortho", &doc, (96, 80), &doc.quality.clone());
+}
+
+#[test]
+fn synthetic_mixed_scene_in_an_orthographic_view_matches_the_cpu_reference() {
+    // Meshes (two-sided lighting towards the view axis) and voxels, shadows, specular.
+    let ctx = context();
+    let doc = orthographic(scenes::mixed_document(7).expect("scene"));
+    both_paths(
+        &ctx,
+        "synthetic-mixed-ortho",
+        &doc,
+        (112, 96),
+        &Quality::default(),
+    );
+}
+
 #[test]
 fn synthetic_mixed_scene_matches_the_cpu_reference() {
     // Voxel sphere, rotated and scaled mesh cube, ground: meshes and voxels occluding and

@@ -63,6 +63,7 @@ fn camera() -> OrbitCamera {
         fov_y_deg: 45.0,
         near: 0.1,
         far: 20.0,
+        orthographic: false,
     }
 }
 

@@ -170,6 +170,15 @@ fn ndc_depth(v: View, view_depth: f32) -> f32 {
     return (view_depth - v.near) / (v.far - v.near);
 }
 
+// Unit direction from a world point towards the eye: the view axis's back direction for an
+// orthographic view, whose rays are parallel (core::render::Camera::toward_eye).
+fn toward_eye(v: View, p: vec3<f32>) -> vec3<f32> {
+    if v.perspective != 0u {
+        return normalize_or_zero(v.world_from_view[3].xyz - p);
+    }
+    return normalize_or_zero(v.world_from_view[2].xyz);
+}
+
 // Inverse of ndc_depth.
 fn view_depth_of(v: View, ndc: f32) -> f32 {
     if v.perspective != 0u {

@@ -170,18 +170,47 @@ struct ViewSpec {
 
 impl ViewSpec {
     fn from_orbit(orbit: &OrbitCamera, width: u32, height: u32) -> Self {
-        let fov = orbit.fov_y_deg.to_radians();
-        let fy = 0.5 * height as f32 / (0.5 * fov).tan();
+        Self::from_camera(&thicket_core::render::Camera::from_orbit(
+            orbit, width, height,
+        ))
+    }
+
+    /// The passes' view of a CPU reference camera (perspective or orthographic), so both
+    /// renderers project with the same numbers.
+    fn from_camera(cam: &thicket_core::render::Camera) -> Self {
+        let (w, h) = (cam.width.max(1) as f32, cam.height.max(1) as f32);
+        let (perspective, fx, fy, near, far) = match cam.projection {
+            thicket_core::render::Projection::Perspective {
+                fov_y_rad,
+                near,
+                far,
+            } => {
+                let fy = 0.5 * h / (0.5 * fov_y_rad).tan();
+                (true, fy, fy, near, far)
+            }
+            thicket_core::render::Projection::Orthographic {
+                half_width,
+                half_height,
+                near,
+                far,
+            } => (
+                false,
+                0.5 * w / half_width,
+                0.5 * h / half_height,
+                near,
+                far,
+            ),
+        };
         Self {
-            view_from_world: orbit.view_from_world(),
-            clip_from_view: orbit.clip_from_view(width as f32 / height as f32),
-            width,
-            height,
-            perspective: true,
-            fx: fy,
+            view_from_world: cam.view_from_world,
+            clip_from_view: cam.clip_from_view(),
+            width: cam.width,
+            height: cam.height,
+            perspective,
+            fx,
             fy,
-            near: orbit.near,
-            far: orbit.far,
+            near,
+            far,
         }
     }
 
@@ -195,41 +224,14 @@ impl ViewSpec {
         max_size: u32,
         finest_texel_world: f32,
     ) -> Option<Self> {
-        let cam = thicket_core::render::shade::fit_light_camera(
+        thicket_core::render::shade::fit_light_camera(
             direction,
             lo,
             hi,
             max_size,
             finest_texel_world,
-        )?;
-        let thicket_core::render::Projection::Orthographic {
-            half_width,
-            half_height,
-            near,
-            far,
-        } = cam.projection
-        else {
-            return None;
-        };
-        let f = 0.5 * cam.width as f32 / half_width;
-        Some(Self {
-            view_from_world: cam.view_from_world,
-            clip_from_view: Mat4::orthographic_rh(
-                -half_width,
-                half_width,
-                -half_height,
-                half_height,
-                near,
-                far,
-            ),
-            width: cam.width,
-            height: cam.height,
-            perspective: false,
-            fx: f,
-            fy: 0.5 * cam.height as f32 / half_height,
-            near,
-            far,
-        })
+        )
+        .map(|cam| Self::from_camera(&cam))
     }
 
     fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32, occlusion: bool) -> ViewUniform {
@@ -1135,11 +1137,13 @@ impl Renderer {
             && lo.is_finite()
             && hi.is_finite()
         {
-            // One texel per view pixel where the scene comes nearest the eye (as the CPU's
-            // `render_scene`: `cam.pixel_world_size(nearest)`).
-            let eye = camera.eye();
-            let nearest = (eye.clamp(lo, hi) - eye).length().max(main.near);
-            let finest = nearest / main.fy;
+            // The CPU's choice, called rather than copied (one view pixel where the scene
+            // comes nearest the eye; an orthographic view's pixel).
+            let finest = thicket_core::render::finest_shadow_texel(
+                &thicket_core::render::Camera::from_orbit(camera, main.width, main.height),
+                lo,
+                hi,
+            );
             // Every map in one key buffer, each at an offset its passes can bind its range at.
             let align = u64::from(limits.min_storage_buffer_offset_alignment.max(4));
             let mut next = 0u64;

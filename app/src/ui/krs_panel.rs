@@ -712,7 +712,9 @@ impl KrsPanel {
                 && let Some(center_px) = proj.to_screen(p)
             {
                 let sign = match h.handle {
-                    MirrorHandle::Tilt(k) if f.dir_world(f.axes[k]).dot(proj.eye() - p) < 0.0 => {
+                    MirrorHandle::Tilt(k)
+                        if f.dir_world(f.axes[k]).dot(proj.toward_eye(p)) < 0.0 =>
+                    {
                         -1.0
                     }
                     _ => 1.0,

@@ -58,8 +58,9 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Two-finger trackpad scroll", "Orbit (Shift: pan)"),
     (
         "1 / 3 / 7",
-        "Front / right / top view (Ctrl: back / left / bottom)",
+        "Front / right / top orthographic view (Ctrl: back / left / bottom; orbiting returns to perspective)",
     ),
+    ("5", "Orthographic / perspective projection"),
     ("Click in the view", "Select the object under the pointer"),
     ("S", "Brush tool (see the voxel tool keys below)"),
     ("Click a joint dot", "Select the joint (rigged models)"),
@@ -73,7 +74,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ),
     ("Space", "Play / pause the timeline"),
     ("Esc", "Navigate tool"),
-    ("[ / ]", "Smaller / larger brush (also the stretch brush)"),
+    (
+        "[ / ]",
+        "Brush one voxel smaller / larger (Shift: halve / double; also the stretch brush)",
+    ),
     ("F3", "Performance overlay"),
     ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
     ("F1", "This list"),
@@ -1161,12 +1165,24 @@ impl EditorApp {
         {
             self.pose.playing = !self.pose.playing;
         }
-        if consume(shortcut(Modifiers::NONE, Key::OpenBracket)) {
-            self.sculpt.brush.radius = (self.sculpt.brush.radius / 1.25).max(0.5);
+        // Shift first (a plain shortcut also matches with Shift held); Shift+[ arrives as `{`
+        // on layouts where Shift changes the key.
+        for (mods, key, grow, double) in [
+            (Modifiers::SHIFT, Key::OpenBracket, false, true),
+            (Modifiers::SHIFT, Key::OpenCurlyBracket, false, true),
+            (Modifiers::SHIFT, Key::CloseBracket, true, true),
+            (Modifiers::SHIFT, Key::CloseCurlyBracket, true, true),
+            (Modifiers::NONE, Key::OpenBracket, false, false),
+            (Modifiers::NONE, Key::CloseBracket, true, false),
+        ] {
+            if consume(shortcut(mods, key)) {
+                self.sculpt.brush.radius =
+                    sculpt::step_brush_radius(self.sculpt.brush.radius, grow, double);
+            }
         }
-        if consume(shortcut(Modifiers::NONE, Key::CloseBracket)) {
-            self.sculpt.brush.radius =
-                (self.sculpt.brush.radius * 1.25).min(thicket_core::sculpt::MAX_RADIUS);
+        if consume(shortcut(Modifiers::NONE, Key::Num5)) {
+            let ortho = !self.editor.doc().camera.orthographic;
+            self.view.set_orthographic(&mut self.editor, ortho);
         }
         for (key, near, far) in [
             (Key::Num1, view::AxisView::Front, view::AxisView::Back),
@@ -1174,10 +1190,10 @@ impl EditorApp {
             (Key::Num7, view::AxisView::Top, view::AxisView::Bottom),
         ] {
             if consume(shortcut(Modifiers::COMMAND, key)) {
-                view::set_axis_view(&mut self.editor, far);
+                self.view.axis_view(&mut self.editor, far);
             }
             if consume(shortcut(Modifiers::NONE, key)) {
-                view::set_axis_view(&mut self.editor, near);
+                self.view.axis_view(&mut self.editor, near);
             }
         }
         if let Some(Selection::Light(i)) = self.editor.selection

@@ -212,7 +212,7 @@ impl PoseTool {
                 let w = frames.world_from_joint[sel.joint];
                 let parent = frames.world_from_parent[sel.joint];
                 let axis_world = w.col(h.axis).truncate();
-                let sign = if axis_world.dot(proj.eye() - p) >= 0.0 {
+                let sign = if axis_world.dot(proj.toward_eye(p)) >= 0.0 {
                     1.0
                 } else {
                     -1.0

@@ -11,6 +11,20 @@ use thicket_core::sculpt::{Brush, BrushOp, BrushShape, MAX_RADIUS};
 use super::voxel_tools::{ClickSelect, ToolKind, VoxelTools};
 use crate::editor::{Editor, Selection, VoxelPick};
 
+/// The brush radius after `[` (`grow` false) or `]` (`grow` true): whole voxels, one voxel per
+/// press (Shift: halve / double), from a single voxel (radius 0.5) up to [`MAX_RADIUS`].
+#[must_use]
+pub fn step_brush_radius(radius: f32, grow: bool, double: bool) -> f32 {
+    let r = if !radius.is_finite() { 0.5 } else { radius };
+    let next = match (grow, double) {
+        (true, false) => r.floor() + 1.0,
+        (false, false) => r.ceil() - 1.0,
+        (true, true) => (r.max(0.5) * 2.0).round(),
+        (false, true) => (r * 0.5).round(),
+    };
+    next.clamp(0.5, MAX_RADIUS)
+}
+
 /// Distance between dabs along a stroke, as a fraction of the brush radius.
 const DAB_SPACING: f32 = 0.5;
 
@@ -401,9 +415,10 @@ impl SculptTool {
                     egui::DragValue::new(&mut self.brush.radius)
                         .range(0.5..=MAX_RADIUS.min(64.0))
                         .speed(0.1)
+                        .fixed_decimals(1)
                         .suffix(" vox"),
                 )
-                .on_hover_text("Stretch brush radius in voxels ([ and ] change it)");
+                .on_hover_text("Stretch brush radius in voxels ([ and ] step one voxel)");
                 ui.label("Factor");
                 ui.add_enabled(
                     !self.stretch_erase,
@@ -431,9 +446,12 @@ impl SculptTool {
                 egui::DragValue::new(&mut self.brush.radius)
                     .range(0.5..=MAX_RADIUS)
                     .speed(0.1)
+                    .fixed_decimals(1)
                     .suffix(" vox"),
             )
-            .on_hover_text("Brush radius in voxels ([ and ] change it)");
+            .on_hover_text(
+                "Brush radius in voxels ([ and ] step one voxel, Shift+[ / Shift+] halve / double)",
+            );
             ui.label("Strength");
             ui.add(
                 egui::DragValue::new(&mut self.brush.strength)
@@ -506,5 +524,39 @@ impl SculptTool {
                     "Mirror each edit across {across} along {label} (Shift+{label})"
                 ));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn brush_keys_step_whole_voxels_and_stay_in_range() {
+        assert_eq!(step_brush_radius(2.0, true, false), 3.0);
+        assert_eq!(step_brush_radius(3.0, false, false), 2.0);
+        // A fractional radius (typed in) snaps to the next whole voxel either way.
+        assert_eq!(step_brush_radius(2.4, true, false), 3.0);
+        assert_eq!(step_brush_radius(2.4, false, false), 2.0);
+        // One voxel is the smallest brush; the core limit the largest.
+        assert_eq!(step_brush_radius(1.0, false, false), 0.5);
+        assert_eq!(step_brush_radius(0.5, false, false), 0.5);
+        assert_eq!(step_brush_radius(0.5, true, false), 1.0);
+        assert_eq!(step_brush_radius(MAX_RADIUS, true, false), MAX_RADIUS);
+        assert_eq!(step_brush_radius(MAX_RADIUS, true, true), MAX_RADIUS);
+        // Shift doubles and halves.
+        assert_eq!(step_brush_radius(3.0, true, true), 6.0);
+        assert_eq!(step_brush_radius(6.0, false, true), 3.0);
+        assert_eq!(step_brush_radius(f32::NAN, true, false), 1.0);
+        // Ten presses up then ten down come back to where they started.
+        let mut r = 2.0;
+        for _ in 0..10 {
+            r = step_brush_radius(r, true, false);
+        }
+        assert_eq!(r, 12.0);
+        for _ in 0..10 {
+            r = step_brush_radius(r, false, false);
+        }
+        assert_eq!(r, 2.0);
     }
 }

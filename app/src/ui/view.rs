@@ -72,7 +72,8 @@ impl Projector {
     #[must_use]
     pub fn to_screen(&self, p: Vec3) -> Option<egui::Pos2> {
         let clip = self.clip_from_world * p.extend(1.0);
-        if clip.w <= self.camera.near * 0.5 {
+        // A parallel view has no behind: every point projects (clip w is 1).
+        if !self.camera.orthographic && clip.w <= self.camera.near * 0.5 {
             return None;
         }
         let ndc = clip.truncate() / clip.w;
@@ -86,6 +87,9 @@ impl Projector {
     /// World units per view point at the depth of `p` (to keep handles a constant size).
     #[must_use]
     pub fn world_per_point(&self, p: Vec3) -> f32 {
+        if self.camera.orthographic {
+            return 2.0 * self.camera.ortho_half_height() / self.rect.height().max(1.0);
+        }
         let eye = self.camera.eye();
         let forward = (self.camera.target - eye).normalize_or_zero();
         let depth = (p - eye).dot(forward).max(self.camera.near);
@@ -96,6 +100,13 @@ impl Projector {
     #[must_use]
     pub fn eye(&self) -> Vec3 {
         self.camera.eye()
+    }
+
+    /// Unit direction from a world point towards the viewer (the view axis in an
+    /// orthographic view): which side of a face or handle the camera sees.
+    #[must_use]
+    pub fn toward_eye(&self, p: Vec3) -> Vec3 {
+        self.camera.toward_eye(p)
     }
 }
 
@@ -296,6 +307,9 @@ pub struct View {
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The last view rectangle (for tests that aim at it).
     pub last_rect: egui::Rect,
+    /// An axis view turned the camera orthographic (Blender's auto perspective): orbiting
+    /// away from it turns perspective back on.
+    auto_ortho: bool,
 }
 
 impl Default for View {
@@ -313,6 +327,7 @@ impl Default for View {
             cpu: CpuPreview::default(),
             regions: Vec::new(),
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
+            auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
         }
     }
@@ -345,17 +360,96 @@ impl View {
                 "CPU preview of rigged models: colour each pixel by its voxel's stretch factor this frame (blue 0.5, green 1, red 2.5 and more), with a legend",
             );
         ui.separator();
-        ui.label("Axis views");
+        let mut ortho = editor.doc().camera.orthographic;
+        if ui
+            .add(egui::Checkbox::new(&mut ortho, "Orthographic (5)"))
+            .on_hover_text(
+                "Parallel projection: voxels line up on screen, sizes do not shrink with distance (key 5 toggles)",
+            )
+            .changed()
+        {
+            self.set_orthographic(editor, ortho);
+        }
+        ui.label("Axis views (orthographic)");
         for (view, label, key) in AxisView::ALL {
             if ui
                 .add(egui::Button::new(label).shortcut_text(key))
                 .on_hover_text(format!(
-                    "Look at the scene from the {}",
+                    "Look at the scene from the {} in an orthographic view (orbiting returns to perspective)",
                     label.to_lowercase()
                 ))
                 .clicked()
             {
-                set_axis_view(editor, view);
+                self.axis_view(editor, view);
+            }
+        }
+    }
+
+    /// Switches between perspective and orthographic projection, keeping the framing (and
+    /// fitting the clip planes to the scene, which differ between the two).
+    pub fn set_orthographic(&mut self, editor: &mut Editor, orthographic: bool) {
+        let mut camera = editor.doc().camera;
+        camera.orthographic = orthographic;
+        self.auto_ortho = false;
+        self.fit_clip(editor, &mut camera);
+        editor.set_camera(camera);
+    }
+
+    /// Looks along an axis in an orthographic view (remembered, so that orbiting away from it
+    /// returns to perspective, as Blender's auto perspective does).
+    pub fn axis_view(&mut self, editor: &mut Editor, view: AxisView) {
+        let mut camera = editor.doc().camera;
+        (camera.yaw_deg, camera.pitch_deg) = view.angles();
+        if !camera.orthographic {
+            camera.orthographic = true;
+            self.auto_ortho = true;
+        }
+        self.fit_clip(editor, &mut camera);
+        editor.set_camera(camera);
+    }
+
+    /// World bounds of every visible object (from the per-object cache).
+    fn scene_bounds(&mut self, editor: &Editor) -> Option<Aabb> {
+        let key = render_key(editor);
+        if self.bounds_cache.0 != key {
+            self.bounds_cache = (key, HashMap::new());
+        }
+        let mut out: Option<Aabb> = None;
+        for o in editor.doc().objects.iter().filter(|o| o.visible) {
+            let local = *self
+                .bounds_cache
+                .1
+                .entry(o.id)
+                .or_insert_with(|| local_bounds(o));
+            let Some((lo, hi)) = local else { continue };
+            let m = o.transform.matrix();
+            for i in 0..8u8 {
+                let c = Vec3::new(
+                    if i & 1 == 0 { lo.x } else { hi.x },
+                    if i & 2 == 0 { lo.y } else { hi.y },
+                    if i & 4 == 0 { lo.z } else { hi.z },
+                );
+                let w = m.transform_point3(c);
+                out = Some(out.map_or((w, w), |(a, b)| (a.min(w), b.max(w))));
+            }
+        }
+        out.filter(|(lo, hi)| lo.is_finite() && hi.is_finite())
+    }
+
+    /// Near and far planes that follow the camera: around the scene's bounds as seen from the
+    /// eye (`OrbitCamera::fit_clip`), so a close camera draws the wall in front of it and an
+    /// orthographic view shows the whole scene along its axis. An empty scene keeps a range
+    /// around the target.
+    fn fit_clip(&mut self, editor: &Editor, camera: &mut OrbitCamera) {
+        match self.scene_bounds(editor) {
+            Some((lo, hi)) => camera.fit_clip(lo, hi),
+            None => {
+                camera.far = camera.far.max(camera.distance * 4.0);
+                camera.near = if camera.orthographic {
+                    -camera.distance * 4.0
+                } else {
+                    camera.near.min(camera.distance * 0.5).max(1e-4)
+                };
             }
         }
     }
@@ -857,7 +951,7 @@ impl View {
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
     fn navigate(
-        &self,
+        &mut self,
         ui: &egui::Ui,
         response: &egui::Response,
         editor: &mut Editor,
@@ -883,10 +977,11 @@ impl View {
             let d = response.drag_delta();
             if modifiers.shift || secondary {
                 pan(&mut camera, d, rect.height());
-            } else {
+            } else if d != egui::Vec2::ZERO {
                 camera.yaw_deg = (camera.yaw_deg - d.x * ORBIT_DEG_PER_POINT).rem_euclid(360.0);
                 camera.pitch_deg =
                     (camera.pitch_deg + d.y * ORBIT_DEG_PER_POINT).clamp(-90.0, 90.0);
+                self.leave_auto_ortho(&mut camera);
             }
         }
         if response.hovered() {
@@ -926,17 +1021,25 @@ impl View {
                         .rem_euclid(360.0);
                     camera.pitch_deg = (camera.pitch_deg - trackpad_points.y * ORBIT_DEG_PER_POINT)
                         .clamp(-90.0, 90.0);
+                    self.leave_auto_ortho(&mut camera);
                 }
             }
             if (zoom - 1.0).abs() > 1e-6 {
                 camera.distance = (camera.distance * zoom).clamp(1e-3, 1e6);
-                // Keep the clip range around what is being looked at.
-                camera.far = camera.far.max(camera.distance * 4.0);
-                camera.near = camera.near.min(camera.distance * 0.5).max(1e-4);
             }
         }
+        // The clip planes follow the eye and the scene (cached bounds: cheap per frame).
+        self.fit_clip(editor, &mut camera);
         editor.set_camera(camera);
         navigating
+    }
+
+    /// Orbiting out of an axis view that switched to orthographic returns to perspective.
+    fn leave_auto_ortho(&mut self, camera: &mut OrbitCamera) {
+        if self.auto_ortho {
+            camera.orthographic = false;
+            self.auto_ortho = false;
+        }
     }
 
     fn gpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &mut Editor) {
@@ -1046,6 +1149,8 @@ impl View {
         let origin = rect.left_top() + egui::vec2(8.0, 8.0);
         let weak = ui.visuals().weak_text_color();
         let font = egui::FontId::proportional(12.0);
+        let hint = nav_hint(sculpt_active, has_rig(editor.doc()));
+        let view_name = view_name(&editor.doc().camera);
         if cpu {
             let (text, color) = match (&self.cpu.error, &self.cpu.shown) {
                 (Some(e), _) => (
@@ -1054,7 +1159,7 @@ impl View {
                 ),
                 (None, Some(k)) => (
                     format!(
-                        "CPU preview {} x {} px ({}){}\nDrag: orbit   Click a joint dot: pose   F: frame   F3: stats",
+                        "{view_name}   CPU preview {} x {} px ({}){}\n{hint}",
                         k.size_px[0],
                         k.size_px[1],
                         self.cpu_reason(editor).unwrap_or("chosen"),
@@ -1105,15 +1210,10 @@ impl View {
             return;
         }
         let c = editor.doc().camera;
-        let hint = if sculpt_active {
-            "Drag: sculpt   Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate"
-        } else {
-            "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
-        };
         let text = match &status.stats {
             // Timings are in the performance overlay (F3): this line stays stable for snapshots.
             Some(s) => format!(
-                "{} x {} px, {} splats   yaw {:.0} pitch {:.0} dist {:.2}",
+                "{view_name}   {} x {} px, {} splats   yaw {:.0} pitch {:.0} dist {:.2}",
                 status.size_px[0],
                 status.size_px[1],
                 crate::files::thousands(s.splats),
@@ -1229,18 +1329,48 @@ fn hole_overlay(
 }
 
 /// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).
+/// The view corner's navigation hint for the active tool.
+fn nav_hint(sculpt_active: bool, rigged: bool) -> &'static str {
+    match (sculpt_active, rigged) {
+        (true, _) => {
+            "Drag: sculpt   Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate"
+        }
+        (false, true) => {
+            "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   F: frame   F3: stats"
+        }
+        (false, false) => {
+            "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
+        }
+    }
+}
+
+/// "Front orthographic", "User perspective", …: which axis view (if the camera looks along
+/// one) and which projection, as Blender names its views.
+#[must_use]
+pub fn view_name(camera: &OrbitCamera) -> String {
+    let axis = AxisView::ALL.iter().find(|(v, _, _)| {
+        let (yaw, pitch) = v.angles();
+        let dy = (camera.yaw_deg - yaw).rem_euclid(360.0);
+        // Top and bottom views look along Y whatever the yaw.
+        (camera.pitch_deg - pitch).abs() < 1e-3
+            && (pitch.abs() == 90.0 || dy.min(360.0 - dy) < 1e-3)
+    });
+    let projection = if camera.orthographic {
+        "orthographic"
+    } else {
+        "perspective"
+    };
+    format!(
+        "{} {projection}",
+        axis.map_or("User", |(_, label, _)| *label)
+    )
+}
+
 fn has_rig(doc: &Document) -> bool {
     doc.objects
         .iter()
         .filter(|o| o.visible)
         .any(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some()))
-}
-
-/// Points the camera along an axis, keeping target and distance.
-pub fn set_axis_view(editor: &mut Editor, view: AxisView) {
-    let mut camera = editor.doc().camera;
-    (camera.yaw_deg, camera.pitch_deg) = view.angles();
-    editor.set_camera(camera);
 }
 
 /// Moves the target in the view plane by a drag of `d` points in a view `height` points tall.

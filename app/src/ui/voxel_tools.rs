@@ -697,10 +697,17 @@ impl VoxelTools {
                 };
                 let (a, b) = (to_ndc(rect.left_bottom()), to_ndc(rect.right_top()));
                 let clip_from_voxel = input.proj.clip_from_world * frame.world_from_voxel;
-                let eye = frame
-                    .voxel_from_world
-                    .transform_point3(input.proj.camera.eye());
-                let surface = (!self.select_through).then_some(SurfaceView::Eye(eye));
+                let cam = input.proj.camera;
+                let view = if cam.orthographic {
+                    SurfaceView::Direction(
+                        frame
+                            .voxel_from_world
+                            .transform_vector3(cam.target - cam.eye()),
+                    )
+                } else {
+                    SurfaceView::Eye(frame.voxel_from_world.transform_point3(cam.eye()))
+                };
+                let surface = (!self.select_through).then_some(view);
                 let cells = {
                     let o = editor.object(frame.object)?;
                     let ObjectKind::Voxels(v) = &o.kind else {
@@ -964,7 +971,13 @@ fn paint_selection(painter: &egui::Painter, proj: &Projector, editor: &Editor) {
     let Some(frame) = ModelFrame::of(editor, sel.object) else {
         return;
     };
-    let eye = frame.voxel_from_world.transform_point3(proj.camera.eye());
+    let cam = proj.camera;
+    let eye = frame.voxel_from_world.transform_point3(cam.eye());
+    let view_back = frame
+        .voxel_from_world
+        .transform_vector3(cam.eye() - cam.target);
+    // Towards the viewer from a point (the view axis in an orthographic view).
+    let toward_eye = |p: Vec3| if cam.orthographic { view_back } else { eye - p };
     let cells = &sel.cells;
     let mut faces = 0usize;
     let fill = egui::Color32::from_rgba_unmultiplied(255, 200, 40, 70);
@@ -981,7 +994,7 @@ fn paint_selection(painter: &egui::Painter, proj: &Projector, editor: &Editor) {
                     }
                     // Only faces turned toward the eye.
                     let face_center = c.as_vec3() + 0.5 + n.as_vec3() * 0.5;
-                    if (eye - face_center).dot(n.as_vec3()) <= 0.0 {
+                    if toward_eye(face_center).dot(n.as_vec3()) <= 0.0 {
                         continue;
                     }
                     faces += 1;

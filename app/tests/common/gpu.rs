@@ -52,7 +52,8 @@ pub fn gpu_frame(
 
 /// NDC depth to view depth for a perspective camera (what both renderers store is NDC).
 pub fn view_depth(cam: &OrbitCamera, ndc: f32) -> f32 {
-    cam.near / (1.0 - ndc * (cam.far - cam.near) / cam.far)
+    // The image size does not enter the depth mapping.
+    thicket_core::render::Camera::from_orbit(cam, 1, 1).view_depth(ndc)
 }
 
 /// Compares a CPU frame (image and buffers) with a GPU frame (image and G-buffer) under

@@ -23,7 +23,7 @@ pub enum Projection {
         /// Far plane view depth.
         far: f32,
     },
-    /// Parallel projection (the directional light's shadow camera).
+    /// Parallel projection (the directional light's shadow camera, orthographic views).
     Orthographic {
         /// Half the view-space width that maps onto the image.
         half_width: f32,
@@ -61,13 +61,10 @@ impl Camera {
     /// The document's orbit camera at an image size (aspect = width / height).
     #[must_use]
     pub fn from_orbit(orbit: &OrbitCamera, width: u32, height: u32) -> Self {
+        let aspect = width.max(1) as f32 / height.max(1) as f32;
         Self::new(
             orbit.view_from_world(),
-            Projection::Perspective {
-                fov_y_rad: orbit.fov_y_deg.to_radians(),
-                near: orbit.near,
-                far: orbit.far,
-            },
+            orbit.projection(aspect),
             width,
             height,
         )
@@ -224,6 +221,18 @@ impl Camera {
             Vec3::new(sx, sy, -d)
         };
         self.world_from_view.transform_point3(p_view)
+    }
+
+    /// Unit direction from a world point towards the eye (the view axis's back direction
+    /// for an orthographic camera, whose rays are parallel).
+    #[inline]
+    #[must_use]
+    pub fn toward_eye(&self, p_world: Vec3) -> Vec3 {
+        if self.perspective {
+            (self.eye() - p_world).normalize_or_zero()
+        } else {
+            self.world_from_view.z_axis.truncate().normalize_or_zero()
+        }
     }
 
     /// World-space size of one pixel at a view depth (the footprint used for biases).

@@ -517,9 +517,7 @@ fn render_frame(
                 // One texel per view pixel where the scene comes nearest the eye: each halving of
                 // the texel quadruples the shadow traversal for detail the view cannot resolve
                 // (PCF blurs over three texels anyway).
-                let eye = cam.eye();
-                let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
-                let finest = cam.pixel_world_size(nearest);
+                let finest = finest_shadow_texel(cam, lo, hi);
                 let fit = |texel: f32| {
                     shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, texel)
                 };
@@ -596,4 +594,14 @@ fn scene_bounds(scene: &RenderScene<'_>, tris: &[raster::WorldTriangle]) -> Opti
         }
     }
     b.filter(|(lo, hi)| lo.is_finite() && hi.is_finite())
+}
+
+/// The finest shadow texel (world units) a view of the scene box `lo..hi` can resolve: one view
+/// pixel where the scene comes nearest the eye (perspective), or the pixel size of an
+/// orthographic view. Both renderers fit their shadow cameras with it.
+#[must_use]
+pub fn finest_shadow_texel(cam: &Camera, lo: Vec3, hi: Vec3) -> f32 {
+    let eye = cam.eye();
+    let nearest = (eye.clamp(lo, hi) - eye).length().max(cam.near());
+    cam.pixel_world_size(nearest)
 }

@@ -378,7 +378,6 @@ pub(crate) fn resolve(
         .iter()
         .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose())
         .collect();
-    let eye = cam.eye();
     // What pixel `i` with a drawn key resolves to: depth, and the id, normal and albedo unless
     // they stay empty (KRS pixels, which `resolve_krs` fills).
     let pixel = |i: usize, key: u64| -> (f32, Option<(PixelId, Vec3, Vec3)>) {
@@ -411,7 +410,7 @@ pub(crate) fn resolve(
             }
             .normalize_or_zero();
             // Two-sided: light the side facing the viewer.
-            if face.dot(eye - p) < 0.0 {
+            if face.dot(cam.toward_eye(p)) < 0.0 {
                 nw = -nw;
             }
             let id = PixelId {
@@ -747,7 +746,6 @@ pub(crate) fn shade(
 ) -> (RgbaImage, ShadeCounts) {
     let w = fb.width;
     let mut img = RgbaImage::new(w, fb.height);
-    let eye = cam.eye();
     let pcf = quality.shadow_pcf_radius.min(8) as i32;
     let to8 = linear_to_srgb8;
     let bg = [
@@ -770,7 +768,7 @@ pub(crate) fn shade(
         let krs_px = lighting.krs.pass.pixels.get(i).and_then(Option::as_ref);
         let (p, receiver) = shading_point(fb, cam, krs_px, quality, i);
         let n = fb.normal[i];
-        let v = (eye - p).normalize_or_zero();
+        let v = cam.toward_eye(p);
         // The AO staircase tolerance: the receiver term of the shadow bias.
         let krs_pixels = &lighting.krs.pass.pixels;
         let open = ao.openness(fb, cam, p, n, 1.5 * receiver, |j| {

@@ -845,3 +845,146 @@ fn shadow_maps_drawn_only_where_shading_reads_give_the_same_image() {
         }
     }
 }
+
+/// Two equal unit cubes, one 12 units behind the other (and to the side), seen from the front.
+fn two_cubes_document() -> Document {
+    let mut svo = crate::svo::Svo::new(2, false).unwrap();
+    svo.edit_region(glam::UVec3::ZERO, glam::UVec3::splat(3), |_, _| {
+        Some(crate::svo::Voxel {
+            color: [200, 160, 90, 255],
+            ..crate::svo::Voxel::default()
+        })
+    })
+    .unwrap();
+    let mut doc = Document::default();
+    for (name, at) in [
+        ("near", Vec3::new(-1.5, 0.0, 0.0)),
+        ("far", Vec3::new(1.5, 0.0, -12.0)),
+    ] {
+        doc.add(name, voxel_object(svo.clone(), 0.5));
+        doc.objects.last_mut().unwrap().transform.translation = at;
+    }
+    doc
+}
+
+fn pixels_of(fb: &FrameBuffers, label: u32) -> usize {
+    fb.ids.iter().filter(|p| p.object == label).count()
+}
+
+#[test]
+fn orthographic_view_draws_equal_cubes_equally_and_the_scene_behind_the_eye() {
+    let doc = two_cubes_document();
+    let (lo, hi) = doc.bounds().unwrap();
+    let mut cam = OrbitCamera {
+        target: Vec3::new(0.0, 0.0, -6.0),
+        yaw_deg: 0.0,
+        pitch_deg: 0.0,
+        distance: 7.0,
+        ..OrbitCamera::default()
+    };
+    let render = |cam: OrbitCamera| {
+        render_document(
+            &doc,
+            &RenderRequest {
+                camera: Some(cam),
+                ..req(160, 80, test_quality())
+            },
+        )
+        .unwrap()
+        .1
+    };
+    // Perspective: the far cube is much smaller (the test can tell the projections apart).
+    cam.fit_clip(lo, hi);
+    let fb = render(cam);
+    let (near_px, far_px) = (pixels_of(&fb, 1), pixels_of(&fb, 2));
+    assert!(far_px * 3 < near_px, "perspective {near_px} vs {far_px}");
+
+    // Orthographic: the same size, exactly the pixels of a unit square at the view's scale.
+    cam.orthographic = true;
+    cam.fit_clip(lo, hi);
+    assert!(cam.validate().is_ok(), "{cam:?}");
+    let fb = render(cam);
+    let (near_px, far_px) = (pixels_of(&fb, 1), pixels_of(&fb, 2));
+    let px_per_unit = 80.0 / (2.0 * cam.ortho_half_height());
+    let square = (px_per_unit * px_per_unit).round() as usize;
+    assert!(
+        near_px.abs_diff(far_px) <= near_px / 20,
+        "ortho {near_px} vs {far_px}"
+    );
+    assert!(
+        near_px.abs_diff(square) <= square / 5,
+        "{near_px} px, a unit square is {square}"
+    );
+
+    // With the eye between the cubes (the near one behind it), the parallel view still shows
+    // both: its near plane lies behind the eye.
+    // (A wide field of view keeps the parallel view 8 units tall at this short distance.)
+    cam.target = Vec3::new(0.0, 0.0, -5.0);
+    cam.distance = 0.5;
+    cam.fov_y_deg = 2.0 * (4.0_f32 / 0.5).atan().to_degrees();
+    cam.fit_clip(lo, hi);
+    assert!(cam.near < -4.0, "near {} behind the eye", cam.near);
+    let fb = render(cam);
+    assert!(
+        pixels_of(&fb, 1) > 0 && pixels_of(&fb, 2) > 0,
+        "{} / {}",
+        pixels_of(&fb, 1),
+        pixels_of(&fb, 2)
+    );
+    // Both cubes again the same size.
+    assert!(pixels_of(&fb, 1).abs_diff(pixels_of(&fb, 2)) <= pixels_of(&fb, 1) / 20);
+}
+
+#[test]
+fn orthographic_camera_projects_as_its_clip_matrix_and_round_trips_in_json() {
+    let orbit = OrbitCamera {
+        yaw_deg: 37.0,
+        pitch_deg: -12.0,
+        orthographic: true,
+        near: -3.0,
+        far: 12.0,
+        ..OrbitCamera::default()
+    };
+    assert!(orbit.validate().is_ok());
+    let cam = Camera::from_orbit(&orbit, 320, 200);
+    for p in [
+        Vec3::ZERO,
+        Vec3::new(0.3, -0.7, 1.1),
+        Vec3::new(-1.0, 0.5, 4.2),
+    ] {
+        let via_clip = cam.world_to_screen(p);
+        let v = cam.project_view(cam.view_from_world.transform_point3(p));
+        assert!((via_clip.truncate() - v.truncate()).length() < 1e-3, "{p}");
+        assert!((via_clip.z - cam.ndc_depth(v.z)).abs() < 1e-5, "{p}");
+    }
+    // The view is as tall as a perspective view at the target: the target plane's framing
+    // does not change when the projection does.
+    let persp = Camera::from_orbit(
+        &OrbitCamera {
+            orthographic: false,
+            near: 0.05,
+            ..orbit
+        },
+        320,
+        200,
+    );
+    let up = orbit.target + cam.world_from_view.y_axis.truncate();
+    let (a, b) = (cam.world_to_screen(up), persp.world_to_screen(up));
+    assert!((a.truncate() - b.truncate()).length() < 0.5, "{a} vs {b}");
+    // A perspective camera needs a positive near plane; an orthographic one does not.
+    assert!(
+        OrbitCamera {
+            orthographic: false,
+            ..orbit
+        }
+        .validate()
+        .is_err()
+    );
+    // Saved with the document; perspective documents do not mention it.
+    let json = serde_json::to_string(&orbit).unwrap();
+    assert!(json.contains("\"orthographic\":true"), "{json}");
+    let back: OrbitCamera = serde_json::from_str(&json).unwrap();
+    assert_eq!(back, orbit);
+    let persp_json = serde_json::to_string(&OrbitCamera::default()).unwrap();
+    assert!(!persp_json.contains("orthographic"), "{persp_json}");
+}

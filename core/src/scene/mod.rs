@@ -398,6 +398,13 @@ pub struct OrbitCamera {
     pub near: f32,
     /// Far clip distance.
     pub far: f32,
+    /// Parallel projection (axis views, aligning voxels): the view is
+    /// [`OrbitCamera::ortho_half_height`] × 2 units tall, the height a perspective view shows
+    /// at the target, so switching keeps the framing and zooming (the distance) works alike.
+    /// Near and far are then signed depths along the view axis and `near` may be negative.
+    /// (Omitted from the JSON when off, so perspective documents save as before.)
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
+    pub orthographic: bool,
 }
 
 impl Default for OrbitCamera {
@@ -410,11 +417,50 @@ impl Default for OrbitCamera {
             fov_y_deg: 45.0,
             near: 0.05,
             far: 1000.0,
+            orthographic: false,
         }
     }
 }
 
 impl OrbitCamera {
+    /// Half the view height in world units of the orthographic projection:
+    /// `distance · tan(fov_y / 2)`.
+    #[must_use]
+    pub fn ortho_half_height(&self) -> f32 {
+        self.distance * (self.fov_y_deg.to_radians() * 0.5).tan()
+    }
+
+    /// The projection for an aspect ratio (width / height).
+    #[must_use]
+    pub fn projection(&self, aspect: f32) -> crate::render::Projection {
+        if self.orthographic {
+            let half_height = self.ortho_half_height();
+            crate::render::Projection::Orthographic {
+                half_width: half_height * aspect,
+                half_height,
+                near: self.near,
+                far: self.far,
+            }
+        } else {
+            crate::render::Projection::Perspective {
+                fov_y_rad: self.fov_y_deg.to_radians(),
+                near: self.near,
+                far: self.far,
+            }
+        }
+    }
+
+    /// The unit direction from a world point towards the eye: towards the eye position in
+    /// perspective, the view axis's back direction in orthographic projection.
+    #[must_use]
+    pub fn toward_eye(&self, p: Vec3) -> Vec3 {
+        if self.orthographic {
+            (self.eye() - self.target).normalize_or_zero()
+        } else {
+            (self.eye() - p).normalize_or_zero()
+        }
+    }
+
     /// Eye position in world space.
     #[must_use]
     pub fn eye(&self) -> Vec3 {
@@ -441,7 +487,13 @@ impl OrbitCamera {
     /// `clip_from_view` for an aspect ratio (width / height), depth 0..1 (wgpu convention).
     #[must_use]
     pub fn clip_from_view(&self, aspect: f32) -> Mat4 {
-        Mat4::perspective_rh(self.fov_y_deg.to_radians(), aspect, self.near, self.far)
+        if self.orthographic {
+            let hh = self.ortho_half_height();
+            let hw = hh * aspect;
+            Mat4::orthographic_rh(-hw, hw, -hh, hh, self.near, self.far)
+        } else {
+            Mat4::perspective_rh(self.fov_y_deg.to_radians(), aspect, self.near, self.far)
+        }
     }
 
     /// `clip_from_world`.
@@ -463,22 +515,39 @@ impl OrbitCamera {
     /// its farthest corner, near just before its nearest point (or, with the eye inside it, a
     /// small fraction of the far distance, so a camera close to a wall still draws the wall).
     /// The near / far ratio stays at most 10^5, within what a 24-bit or f32 depth resolves.
+    /// An orthographic camera's planes enclose the whole box along the view axis (its depth
+    /// is linear, so precision does not depend on where the planes lie).
     pub fn fit_clip(&mut self, lo: Vec3, hi: Vec3) {
         if !(lo.is_finite() && hi.is_finite()) || lo.cmpgt(hi).any() {
             return;
         }
         let eye = self.eye();
+        let corners = (0..8).map(|i: u8| {
+            Vec3::new(
+                if i & 1 == 0 { lo.x } else { hi.x },
+                if i & 2 == 0 { lo.y } else { hi.y },
+                if i & 4 == 0 { lo.z } else { hi.z },
+            )
+        });
+        if self.orthographic {
+            // Signed depths along the view axis: the whole box between the planes, wherever
+            // the eye is (a parallel view has no point of view to stand in front of).
+            let forward = (self.target - eye).normalize_or_zero();
+            let (d_lo, d_hi) = corners
+                .map(|c| (c - eye).dot(forward))
+                .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), d| {
+                    (a.min(d), b.max(d))
+                });
+            let margin = 0.02 * (d_hi - d_lo) + 1e-3 * self.distance.max(1e-3);
+            let (near, far) = (d_lo - margin, d_hi.max(self.distance) + margin);
+            if near.is_finite() && far.is_finite() && far > near {
+                self.near = near;
+                self.far = far;
+            }
+            return;
+        }
         let nearest = (eye.clamp(lo, hi) - eye).length();
-        let farthest = (0..8)
-            .map(|i: u8| {
-                let c = Vec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                );
-                (c - eye).length()
-            })
-            .fold(0.0_f32, f32::max);
+        let farthest = corners.map(|c| (c - eye).length()).fold(0.0_f32, f32::max);
         let far = (farthest * 1.05).max(self.distance * 1.05).max(1e-3);
         let near = (nearest * 0.9).max(far * 1e-5);
         if near.is_finite() && far.is_finite() && far > near {
@@ -499,7 +568,8 @@ impl OrbitCamera {
             && self.distance > 0.0
             && self.fov_y_deg > 0.1
             && self.fov_y_deg < 179.0
-            && self.near > 0.0
+            && self.near.is_finite()
+            && (self.orthographic || self.near > 0.0)
             && self.far > self.near
             && self.far.is_finite();
         if ok {

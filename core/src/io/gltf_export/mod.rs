@@ -606,13 +606,23 @@ pub fn build_scene(
         if c.validate().is_ok() {
             let world_from_view = c.view_from_world().inverse();
             let (_, rotation, _) = world_from_view.to_scale_rotation_translation();
+            // glTF's near plane is a distance in front of the camera node: an orthographic
+            // view whose near plane lies behind its eye is written from a point pulled back
+            // along the view axis (the same parallel view).
+            let pull = if c.orthographic {
+                (1e-3 * c.distance - c.near).max(0.0)
+            } else {
+                0.0
+            };
+            let back = (c.eye() - c.target).normalize_or_zero();
             out.scene.camera = Some(ExportCamera {
                 name: "camera".to_owned(),
-                eye: c.eye(),
+                eye: c.eye() + back * pull,
                 rotation,
                 yfov_radians: c.fov_y_deg.to_radians(),
-                znear: c.near,
-                zfar: c.far,
+                znear: c.near + pull,
+                zfar: c.far + pull,
+                ortho_half_height: c.orthographic.then(|| c.ortho_half_height()),
             });
             report.camera = true;
         }

@@ -1014,3 +1014,35 @@ fn unbounded_ground_is_written_as_a_patch_under_the_other_objects() {
     let (_, report) = build_scene(&alone, Path::new("g.glb"), &bounds, NO_PROGRESS).unwrap();
     assert_eq!(report.patches.len(), 1);
 }
+
+#[test]
+fn an_orthographic_view_exports_an_orthographic_camera_with_a_near_plane_in_front() {
+    let mut svo = Svo::new(3, false).unwrap();
+    svo.set(UVec3::new(1, 2, 3), Voxel::new([90, 90, 90, 255], Vec3::Y))
+        .unwrap();
+    let mut doc = doc_with("cube", svo, 0.5, Vec3::ZERO);
+    doc.camera.orthographic = true;
+    doc.camera.near = -6.0;
+    doc.camera.far = 9.0;
+    doc.camera.distance = 3.0;
+    let (eye, hh) = (doc.camera.eye(), doc.camera.ortho_half_height());
+    let back = (eye - doc.camera.target).normalize_or_zero();
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ortho.glb");
+    let report = export_gltf(&doc, &out, &GltfExportOptions::default(), NO_PROGRESS).unwrap();
+    assert!(report.camera);
+    let (gltf, _, _) = gltf::import(&out).unwrap();
+    let node = gltf.nodes().find(|n| n.camera().is_some()).unwrap();
+    let camera = node.camera().unwrap();
+    let gltf::camera::Projection::Orthographic(o) = camera.projection() else {
+        panic!("a perspective camera for an orthographic view");
+    };
+    assert!((o.ymag() - hh).abs() < 1e-5 && (o.xmag() - hh).abs() < 1e-5);
+    // The planes keep their place in the world: the node is pulled back along the view axis
+    // until the near plane lies in front of it (glTF's znear is a distance, at least 0).
+    assert!(o.znear() >= 0.0, "{}", o.znear());
+    let (t, _, _) = node.transform().decomposed();
+    let pulled = (Vec3::from(t) - eye).dot(back);
+    assert!((pulled - (o.znear() + 6.0)).abs() < 1e-4, "{pulled}");
+    assert!(((o.zfar() - pulled) - 9.0).abs() < 1e-4);
+}

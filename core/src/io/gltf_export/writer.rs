@@ -104,7 +104,8 @@ pub struct ExportLight {
     pub intensity: f32,
 }
 
-/// A perspective camera at `eye`, looking along −Z of `rotation` with +Y of it up.
+/// A camera at `eye`, looking along −Z of `rotation` with +Y of it up: perspective, or
+/// orthographic when `ortho_half_height` is set.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ExportCamera {
     /// Display name.
@@ -119,6 +120,9 @@ pub struct ExportCamera {
     pub znear: f32,
     /// Far clip distance.
     pub zfar: f32,
+    /// Half the view height in world units of an orthographic camera (glTF `ymag`; `xmag` is
+    /// written equal, since the glTF specification leaves the aspect ratio to the viewport).
+    pub ortho_half_height: Option<f32>,
 }
 
 /// Everything one glTF file holds.
@@ -377,7 +381,8 @@ impl Builder {
             && c.znear.is_finite()
             && c.znear > 0.0
             && c.zfar.is_finite()
-            && c.zfar > c.znear;
+            && c.zfar > c.znear
+            && c.ortho_half_height.is_none_or(|m| m.is_finite() && m > 0.0);
         if !valid {
             return Err(EncodeError::Invalid(format!(
                 "camera {:?}: needs a finite position and rotation, a positive field of view \
@@ -385,18 +390,37 @@ impl Builder {
                 c.name
             )));
         }
+        let (orthographic, perspective, kind) = match c.ortho_half_height {
+            Some(mag) => (
+                Some(json::camera::Orthographic {
+                    xmag: mag,
+                    ymag: mag,
+                    zfar: c.zfar,
+                    znear: c.znear,
+                    extensions: None,
+                    extras: None,
+                }),
+                None,
+                json::camera::Type::Orthographic,
+            ),
+            None => (
+                None,
+                Some(json::camera::Perspective {
+                    aspect_ratio: None,
+                    yfov: c.yfov_radians,
+                    zfar: Some(c.zfar),
+                    znear: c.znear,
+                    extensions: None,
+                    extras: None,
+                }),
+                json::camera::Type::Perspective,
+            ),
+        };
         let camera = self.root.push(json::Camera {
             name: Some(c.name.clone()),
-            orthographic: None,
-            perspective: Some(json::camera::Perspective {
-                aspect_ratio: None,
-                yfov: c.yfov_radians,
-                zfar: Some(c.zfar),
-                znear: c.znear,
-                extensions: None,
-                extras: None,
-            }),
-            type_: Checked::Valid(json::camera::Type::Perspective),
+            orthographic,
+            perspective,
+            type_: Checked::Valid(kind),
             extensions: None,
             extras: None,
         });
