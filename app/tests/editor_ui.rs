@@ -483,3 +483,53 @@ fn bracket_keys_step_the_brush_by_one_voxel() {
     h.run_steps(2);
     assert_eq!(h.state().sculpt.brush.radius, 2.0);
 }
+
+#[test]
+fn the_path_entry_accepts_enter_and_cancels_on_escape() {
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    let mut h = harness(app);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("typed.thicket.json");
+    // File → Save As (Ctrl+Shift+S) asks for the path; Esc closes the entry, saving nothing.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    h.get_by_label("Save as");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(3);
+    assert!(
+        h.query_by_label("Save as").is_none(),
+        "Esc closed the entry"
+    );
+    assert!(h.state().editor.path().is_none());
+
+    // Typed path + Enter saves there (no click on OK).
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    // The text input (its first match; the inner text run carries the value too).
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .type_text(&path.display().to_string());
+    h.run_steps(2);
+    h.key_press(egui::Key::Enter);
+    h.run_steps(4);
+    assert!(
+        h.query_by_label("Save as").is_none(),
+        "Enter closed the entry"
+    );
+    assert_eq!(h.state().editor.path(), Some(path.as_path()));
+    assert!(path.is_file(), "Enter saved the project to the typed path");
+}

@@ -1115,8 +1115,9 @@ impl EditorApp {
         {
             let _ = self.editor.duplicate(id);
         }
-        // Single keys only when no text field has the keyboard.
-        if ctx.egui_wants_keyboard_input() {
+        // Single keys only when no text field has the keyboard and no path entry is open
+        // (egui drops a field's focus on Esc before this runs, and the entry needs the Esc).
+        if ctx.egui_wants_keyboard_input() || self.prompt.is_some() {
             return;
         }
         if consume(shortcut(Modifiers::NONE, Key::F1)) {
@@ -1296,8 +1297,13 @@ impl EditorApp {
                     ui.close();
                 }
                 ui.separator();
-                ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
-                    .on_hover_text("Use the desktop's file dialogs (xdg portal or zenity) when available; otherwise a path entry");
+                if native_dialogs_available() {
+                    ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
+                        .on_hover_text("Use the desktop's file dialogs (xdg portal or zenity) when available; otherwise a path entry");
+                } else {
+                    ui.add_enabled(false, egui::Checkbox::new(&mut false, "Native file dialogs"))
+                        .on_disabled_hover_text("No desktop file dialog can open here (no D-Bus session for the xdg portal, no zenity on PATH): files are named in a path entry");
+                }
                 ui.horizontal(|ui| {
                     ui.label("Autosave");
                     for (secs, label) in [(0, "Off"), (60, "1 min"), (120, "2 min"), (300, "5 min")] {
@@ -1664,9 +1670,13 @@ impl EditorApp {
                         .desired_width(480.0)
                         .hint_text("path/to/file"),
                 );
-                edit.request_focus();
+                // Enter ends a single-line edit by giving up its focus this frame: read it
+                // before focusing the field again (focusing first hid every Enter).
+                let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
+                if !enter && ui.memory(|m| m.focused().is_none()) {
+                    edit.request_focus();
+                }
                 ui.horizontal(|ui| {
-                    let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
                     if (ui.button("OK").clicked() || enter) && !prompt.text.trim().is_empty() {
                         accepted = Some(PathBuf::from(prompt.text.trim()));
                     }
