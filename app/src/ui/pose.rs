@@ -75,6 +75,11 @@ pub struct PoseTool {
     pub show_skeleton: bool,
     /// The timeline is playing.
     pub playing: bool,
+    /// Advance the clip by one [`FRAME_STEP_SECS`] per drawn frame instead of by the wall
+    /// clock (every pose is shown, in slow motion when frames are slow).
+    pub step_every_frame: bool,
+    /// The UI time of the last playing frame (None while paused).
+    last_tick: Option<f64>,
     drag: Option<GizmoDrag>,
     /// Why the last pose / stretch / playback change was refused.
     pub error: Option<String>,
@@ -87,9 +92,33 @@ impl Default for PoseTool {
             mode: GizmoMode::Rotate,
             show_skeleton: true,
             playing: false,
+            step_every_frame: false,
+            last_tick: None,
             drag: None,
             error: None,
         }
+    }
+}
+
+/// The clip time one frame advances with "Every frame" (30 frames per second: glTF clips carry
+/// no frame rate of their own).
+pub const FRAME_STEP_SECS: f32 = 1.0 / 30.0;
+
+/// The most clip time one frame advances by the wall clock: after a stall (a blocking dialog,
+/// a suspended window) the clip goes on from where it was instead of jumping.
+const MAX_PLAYBACK_STEP_SECS: f64 = 1.0;
+
+/// Clip seconds to advance this frame: the UI time since the last playing frame (frames are
+/// dropped when drawing is slow, so the clip keeps real time; 0 on the first frame), or one
+/// [`FRAME_STEP_SECS`] per frame with `every_frame`.
+#[must_use]
+pub fn playback_step(last_tick: &mut Option<f64>, now: f64, every_frame: bool) -> f32 {
+    let elapsed = last_tick.map_or(0.0, |t| (now - t).clamp(0.0, MAX_PLAYBACK_STEP_SECS));
+    *last_tick = Some(now);
+    if every_frame {
+        FRAME_STEP_SECS
+    } else {
+        elapsed as f32
     }
 }
 
@@ -790,11 +819,17 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         {
             playback.wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
         }
+        ui.checkbox(&mut tool.step_every_frame, "Every frame")
+            .on_hover_text(format!(
+                "Advance {:.3} s per drawn frame (every pose shown, slow motion when frames are slow) instead of by the clock",
+                FRAME_STEP_SECS
+            ));
         if !has_clip {
             tool.playing = false;
         }
         if tool.playing {
-            let dt = ui.input(|i| i.stable_dt).min(0.1);
+            let now = ui.input(|i| i.time);
+            let dt = playback_step(&mut tool.last_tick, now, tool.step_every_frame);
             playback.time_secs += dt;
             if playback.time_secs > duration {
                 playback.time_secs = if playback.wrap == Wrap::Loop {
@@ -805,6 +840,8 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
                 };
             }
             ui.ctx().request_repaint();
+        } else {
+            tool.last_tick = None;
         }
         let mut t = playback.time_secs.clamp(0.0, duration);
         let width = (ui.available_width() - 110.0).max(80.0);
@@ -947,4 +984,29 @@ fn keys_ui(
         ui.weak(format!("{name}: {} key(s) in this clip", keys.len()))
             .on_hover_text("Keys of the selected joint, drawn as diamonds on the timeline");
     });
+}
+
+#[cfg(test)]
+mod playback_tests {
+    use super::*;
+
+    #[test]
+    fn playback_follows_the_clock_and_drops_frames_when_slow() {
+        let mut tick = None;
+        // The first playing frame starts the clock.
+        assert_eq!(playback_step(&mut tick, 10.0, false), 0.0);
+        // Slow frames (0.3 s apart) advance the clip by 0.3 s each: real time, not a cap.
+        assert!((playback_step(&mut tick, 10.3, false) - 0.3).abs() < 1e-6);
+        assert!((playback_step(&mut tick, 10.6, false) - 0.3).abs() < 1e-6);
+        // A stall of a minute moves the clip by the cap, not a minute.
+        assert_eq!(
+            playback_step(&mut tick, 70.6, false) as f64,
+            MAX_PLAYBACK_STEP_SECS
+        );
+        // A clock that goes back (a new context) does not play backwards.
+        assert_eq!(playback_step(&mut tick, 5.0, false), 0.0);
+        // Every frame: one fixed step, whatever the clock.
+        assert_eq!(playback_step(&mut tick, 9.0, true), FRAME_STEP_SECS);
+        assert_eq!(playback_step(&mut tick, 9.001, true), FRAME_STEP_SECS);
+    }
 }

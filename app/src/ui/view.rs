@@ -84,6 +84,37 @@ impl Projector {
         (pos.x.is_finite() && pos.y.is_finite()).then_some(pos)
     }
 
+    /// The visible part of a world segment in view points: clipped at the near plane (a
+    /// perspective segment reaching behind the eye keeps the part in front instead of
+    /// vanishing), `None` when all of it is behind.
+    #[must_use]
+    pub fn segment(&self, a: Vec3, b: Vec3) -> Option<[egui::Pos2; 2]> {
+        if self.camera.orthographic {
+            return Some([self.to_screen(a)?, self.to_screen(b)?]);
+        }
+        let (ca, cb) = (
+            self.clip_from_world * a.extend(1.0),
+            self.clip_from_world * b.extend(1.0),
+        );
+        let w_min = self.camera.near * 0.5;
+        let (ta, tb) = (ca.w - w_min, cb.w - w_min);
+        if ta <= 0.0 && tb <= 0.0 {
+            return None;
+        }
+        // Move the end behind the plane onto it (w is linear along the segment).
+        let cut = |behind: Vec3, front: Vec3, t_behind: f32, t_front: f32| {
+            behind + (front - behind) * (t_behind / (t_behind - t_front)) * 1.0001
+        };
+        let (a, b) = if ta <= 0.0 {
+            (cut(a, b, ta, tb), b)
+        } else if tb <= 0.0 {
+            (a, cut(b, a, tb, ta))
+        } else {
+            (a, b)
+        };
+        Some([self.to_screen(a)?, self.to_screen(b)?])
+    }
+
     /// World units per view point at the depth of `p` (to keep handles a constant size).
     #[must_use]
     pub fn world_per_point(&self, p: Vec3) -> f32 {
@@ -555,8 +586,8 @@ impl View {
         let proj = Projector::new(editor.doc().camera, rect);
         let camera = proj.camera;
         let line = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
-            if let (Some(pa), Some(pb)) = (proj.to_screen(a), proj.to_screen(b)) {
-                painter.line_segment([pa, pb], stroke);
+            if let Some(seg) = proj.segment(a, b) {
+                painter.line_segment(seg, stroke);
             }
         };
         let to_screen = |p: Vec3| proj.to_screen(p);
@@ -1729,6 +1760,39 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_segment_reaching_behind_the_eye_keeps_its_part_in_front() {
+        let camera = OrbitCamera {
+            target: Vec3::ZERO,
+            yaw_deg: 0.0,
+            pitch_deg: 0.0,
+            distance: 5.0,
+            ..OrbitCamera::default()
+        };
+        let proj = Projector::new(
+            camera,
+            egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(400.0, 300.0)),
+        );
+        // From 1 unit in front of the target to 10 units behind the eye (eye at z = 5).
+        let (front, behind) = (Vec3::new(1.0, 0.5, 1.0), Vec3::new(1.0, 0.5, 15.0));
+        assert!(proj.to_screen(behind).is_none());
+        let [a, b] = proj
+            .segment(front, behind)
+            .expect("the part in front is drawn");
+        assert_eq!(a, proj.to_screen(front).unwrap());
+        assert!(
+            b.x.is_finite() && b.y.is_finite() && b.x > a.x,
+            "{a:?} {b:?}"
+        );
+        assert_eq!(proj.segment(behind, behind + Vec3::Z), None, "all behind");
+        // Wholly in front: the plain projection.
+        let p = Vec3::new(-1.0, 0.0, 0.0);
+        assert_eq!(
+            proj.segment(front, p),
+            Some([proj.to_screen(front).unwrap(), proj.to_screen(p).unwrap()])
+        );
+    }
 
     #[test]
     fn the_outline_is_the_border_of_the_selected_label_only() {
