@@ -399,6 +399,18 @@ fn an_enhanced_model_follows_a_sculpt_stroke_and_undo() {
     );
 }
 
+/// A primary-button drag from `from` by `by` (an orbit with the Navigate tool).
+fn drag_in_view(h: &mut Harness<'static, EditorApp>, from: egui::Pos2, by: egui::Vec2) {
+    h.hover_at(from);
+    h.step();
+    h.drag_at(from);
+    h.step();
+    h.hover_at(from + by);
+    h.step();
+    h.drop_at(from + by);
+    h.run_steps(2);
+}
+
 #[test]
 fn orthographic_views_by_key_and_menu_and_orbiting_returns_to_perspective() {
     let mut h = harness(app_with_two_objects());
@@ -428,14 +440,7 @@ fn orthographic_views_by_key_and_menu_and_orbiting_returns_to_perspective() {
     assert_eq!((cam(&h).yaw_deg, cam(&h).pitch_deg), (0.0, 0.0));
     assert_eq!(thicket::ui::view::view_name(&cam(&h)), "Front orthographic");
     let c = h.state().view.last_rect.center();
-    h.hover_at(c);
-    h.step();
-    h.drag_at(c);
-    h.step();
-    h.hover_at(c + egui::vec2(40.0, 0.0));
-    h.step();
-    h.drop_at(c + egui::vec2(40.0, 0.0));
-    h.run_steps(2);
+    drag_in_view(&mut h, c, egui::vec2(40.0, 0.0));
     assert!(cam(&h).yaw_deg != 0.0, "the drag orbited");
     assert!(
         !cam(&h).orthographic,
@@ -451,14 +456,7 @@ fn orthographic_views_by_key_and_menu_and_orbiting_returns_to_perspective() {
     assert!(cam(&h).orthographic);
     h.key_press(egui::Key::Escape);
     h.run_steps(2);
-    h.hover_at(c);
-    h.step();
-    h.drag_at(c);
-    h.step();
-    h.hover_at(c + egui::vec2(0.0, 30.0));
-    h.step();
-    h.drop_at(c + egui::vec2(0.0, 30.0));
-    h.run_steps(2);
+    drag_in_view(&mut h, c, egui::vec2(0.0, 30.0));
     assert!(
         cam(&h).orthographic,
         "a chosen orthographic view stays orthographic"

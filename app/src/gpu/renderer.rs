@@ -169,48 +169,20 @@ struct ViewSpec {
 }
 
 impl ViewSpec {
-    fn from_orbit(orbit: &OrbitCamera, width: u32, height: u32) -> Self {
-        Self::from_camera(&thicket_core::render::Camera::from_orbit(
-            orbit, width, height,
-        ))
-    }
-
     /// The passes' view of a CPU reference camera (perspective or orthographic), so both
     /// renderers project with the same numbers.
     fn from_camera(cam: &thicket_core::render::Camera) -> Self {
-        let (w, h) = (cam.width.max(1) as f32, cam.height.max(1) as f32);
-        let (perspective, fx, fy, near, far) = match cam.projection {
-            thicket_core::render::Projection::Perspective {
-                fov_y_rad,
-                near,
-                far,
-            } => {
-                let fy = 0.5 * h / (0.5 * fov_y_rad).tan();
-                (true, fy, fy, near, far)
-            }
-            thicket_core::render::Projection::Orthographic {
-                half_width,
-                half_height,
-                near,
-                far,
-            } => (
-                false,
-                0.5 * w / half_width,
-                0.5 * h / half_height,
-                near,
-                far,
-            ),
-        };
+        let (fx, fy) = cam.focal_px();
         Self {
             view_from_world: cam.view_from_world,
             clip_from_view: cam.clip_from_view(),
             width: cam.width,
             height: cam.height,
-            perspective,
+            perspective: cam.is_perspective(),
             fx,
             fy,
-            near,
-            far,
+            near: cam.near(),
+            far: cam.far(),
         }
     }
 
@@ -1123,7 +1095,8 @@ impl Renderer {
             })
             .collect();
         let (w, h) = (target.width, target.height);
-        let main = ViewSpec::from_orbit(camera, w, h);
+        let main_camera = thicket_core::render::Camera::from_orbit(camera, w, h);
+        let main = ViewSpec::from_camera(&main_camera);
         let lod = quality.lod_pixel_threshold;
         let path = self.atomic_path();
 
@@ -1139,11 +1112,7 @@ impl Renderer {
         {
             // The CPU's choice, called rather than copied (one view pixel where the scene
             // comes nearest the eye; an orthographic view's pixel).
-            let finest = thicket_core::render::finest_shadow_texel(
-                &thicket_core::render::Camera::from_orbit(camera, main.width, main.height),
-                lo,
-                hi,
-            );
+            let finest = thicket_core::render::finest_shadow_texel(&main_camera, lo, hi);
             // Every map in one key buffer, each at an offset its passes can bind its range at.
             let align = u64::from(limits.min_storage_buffer_offset_alignment.max(4));
             let mut next = 0u64;

@@ -16,7 +16,7 @@ use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
 use glam::{Mat4, Vec2, Vec3};
-use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera};
+use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera, transform_bounds};
 
 use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
 use super::pose::PoseTool;
@@ -439,32 +439,38 @@ impl View {
         editor.set_camera(camera);
     }
 
-    /// World bounds of every visible object (from the per-object cache).
-    fn scene_bounds(&mut self, editor: &Editor) -> Option<Aabb> {
+    /// Empties the per-object bounds cache when the content or a playhead changed (posed
+    /// bounds follow the playhead).
+    fn refresh_bounds_cache(&mut self, editor: &Editor) {
         let key = render_key(editor);
         if self.bounds_cache.0 != key {
             self.bounds_cache = (key, HashMap::new());
         }
-        let mut out: Option<Aabb> = None;
-        for o in editor.doc().objects.iter().filter(|o| o.visible) {
-            let local = *self
-                .bounds_cache
-                .1
-                .entry(o.id)
-                .or_insert_with(|| local_bounds(o));
-            let Some((lo, hi)) = local else { continue };
-            let m = o.transform.matrix();
-            for i in 0..8u8 {
-                let c = Vec3::new(
-                    if i & 1 == 0 { lo.x } else { hi.x },
-                    if i & 2 == 0 { lo.y } else { hi.y },
-                    if i & 4 == 0 { lo.z } else { hi.z },
-                );
-                let w = m.transform_point3(c);
-                out = Some(out.map_or((w, w), |(a, b)| (a.min(w), b.max(w))));
-            }
-        }
-        out.filter(|(lo, hi)| lo.is_finite() && hi.is_finite())
+    }
+
+    /// An object's local bounds, from the cache ([`View::refresh_bounds_cache`] first).
+    fn cached_bounds(&mut self, o: &Object) -> Option<Aabb> {
+        *self
+            .bounds_cache
+            .1
+            .entry(o.id)
+            .or_insert_with(|| local_bounds(o))
+    }
+
+    /// World bounds of every visible object (from the per-object cache).
+    fn scene_bounds(&mut self, editor: &Editor) -> Option<Aabb> {
+        self.refresh_bounds_cache(editor);
+        editor
+            .doc()
+            .objects
+            .iter()
+            .filter(|o| o.visible)
+            .filter_map(|o| {
+                let (lo, hi) = self.cached_bounds(o)?;
+                Some(transform_bounds(&o.transform.matrix(), lo, hi))
+            })
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)))
+            .filter(|(lo, hi)| lo.is_finite() && hi.is_finite())
     }
 
     /// Near and far planes that follow the camera: around the scene's bounds as seen from the
@@ -1130,22 +1136,15 @@ impl View {
         painter: &egui::Painter,
         silhouette: bool,
     ) {
-        // Posed bounds follow the playhead as well as the content.
-        let key = render_key(editor);
-        if self.bounds_cache.0 != key {
-            self.bounds_cache = (key, HashMap::new());
-        }
+        self.refresh_bounds_cache(editor);
         for o in &editor.doc().objects {
             let selected = editor.selection == Some(Selection::Object(o.id));
             if !o.visible || !(selected || self.show_bounds) {
                 continue;
             }
-            let local = *self
-                .bounds_cache
-                .1
-                .entry(o.id)
-                .or_insert_with(|| local_bounds(o));
-            let Some((lo, hi)) = local else { continue };
+            let Some((lo, hi)) = self.cached_bounds(o) else {
+                continue;
+            };
             let stroke = if selected {
                 egui::Stroke::new(2.0, SELECTION_COLOR)
             } else {

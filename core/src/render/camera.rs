@@ -164,6 +164,19 @@ impl Camera {
         self.far
     }
 
+    /// Pixels per view-space unit (x, y): at view depth 1 for perspective, everywhere for
+    /// orthographic.
+    #[must_use]
+    pub fn focal_px(&self) -> (f32, f32) {
+        (self.fx, self.fy)
+    }
+
+    /// Whether the projection is perspective (otherwise orthographic).
+    #[must_use]
+    pub fn is_perspective(&self) -> bool {
+        self.perspective
+    }
+
     /// The rotation part of `view_from_world`.
     pub(crate) fn view_rotation(&self) -> Mat3 {
         Mat3::from_mat4(self.view_from_world)

@@ -311,19 +311,31 @@ impl Object {
                 return Some((c - Vec3::splat(r), c + Vec3::splat(r)));
             }
         };
-        let m = self.transform.matrix();
-        let mut out: Option<(Vec3, Vec3)> = None;
-        for k in 0..8 {
-            let corner = Vec3::new(
-                if k & 1 == 0 { lo.x } else { hi.x },
-                if k & 2 == 0 { lo.y } else { hi.y },
-                if k & 4 == 0 { lo.z } else { hi.z },
-            );
-            let p = m.transform_point3(corner);
-            out = Some(out.map_or((p, p), |(a, b)| (a.min(p), b.max(p))));
-        }
-        out
+        Some(transform_bounds(&self.transform.matrix(), lo, hi))
     }
+}
+
+/// The eight corners of the box `lo..hi`.
+#[must_use]
+pub fn box_corners(lo: Vec3, hi: Vec3) -> [Vec3; 8] {
+    std::array::from_fn(|k| {
+        Vec3::new(
+            if k & 1 == 0 { lo.x } else { hi.x },
+            if k & 2 == 0 { lo.y } else { hi.y },
+            if k & 4 == 0 { lo.z } else { hi.z },
+        )
+    })
+}
+
+/// The axis-aligned bounds of the box `lo..hi` moved by `m`.
+#[must_use]
+pub fn transform_bounds(m: &Mat4, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
+    box_corners(lo, hi)
+        .map(|c| m.transform_point3(c))
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(a, b), &p| {
+            (a.min(p), b.max(p))
+        })
 }
 
 /// A directional light (the sun).
@@ -522,13 +534,7 @@ impl OrbitCamera {
             return;
         }
         let eye = self.eye();
-        let corners = (0..8).map(|i: u8| {
-            Vec3::new(
-                if i & 1 == 0 { lo.x } else { hi.x },
-                if i & 2 == 0 { lo.y } else { hi.y },
-                if i & 4 == 0 { lo.z } else { hi.z },
-            )
-        });
+        let corners = box_corners(lo, hi).into_iter();
         if self.orthographic {
             // Signed depths along the view axis: the whole box between the planes, wherever
             // the eye is (a parallel view has no point of view to stand in front of).
