@@ -2,7 +2,8 @@
 // maps, which need depth only). The key buffer has the 64-bit layout as two u32 per pixel:
 // [2p] = id, [2p + 1] = depth bits. MODE_DEPTH: atomicMin the depth. MODE_ID (a second full
 // traversal after every depth write of the frame): atomicMin the id where the stored depth
-// equals ours, which picks the same winner as the 64-bit minimum.
+// equals ours, which picks the same winner as the 64-bit minimum. An exact cube computes each
+// pixel's depth and face the same way in both passes.
 // #import common/asvo.wgsl
 
 @group(0) @binding(4) var<storage, read_write> keys: array<atomic<u32>>;
@@ -15,16 +16,26 @@ fn traverse(
 ) {
     let v = visit(invocation_index(wid, nwg, lid));
     if v.kind == VISIT_SPLAT {
-        count_splat_pixels(v.rect);
+        count_splat_pixels(v);
         for (var y = v.rect.y; y <= v.rect.w; y++) {
             for (var x = v.rect.x; x <= v.rect.z; x++) {
+                var depth_bits = v.depth_bits;
+                var id = v.id;
+                if v.cube != 0u {
+                    let hit = cube_pixel(v, x, y);
+                    if hit.x == CUBE_MISS {
+                        continue;
+                    }
+                    depth_bits = hit.x;
+                    id = v.id | hit.y;
+                }
                 let p = y * view.size.x + x;
                 if view.write_mode == MODE_ID {
-                    if atomicLoad(&keys[2u * p + 1u]) == v.depth_bits {
-                        atomicMin(&keys[2u * p], v.id);
+                    if atomicLoad(&keys[2u * p + 1u]) == depth_bits {
+                        atomicMin(&keys[2u * p], id);
                     }
                 } else {
-                    atomicMin(&keys[2u * p + 1u], v.depth_bits);
+                    atomicMin(&keys[2u * p + 1u], depth_bits);
                 }
             }
         }

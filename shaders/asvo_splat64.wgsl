@@ -1,6 +1,7 @@
 // ASVO traversal with the 64-bit splat: one atomicMin of (depth bits << 32 | id) per covered
 // pixel (needs SHADER_INT64_ATOMIC_MIN_MAX). Positive floats order like their bit patterns,
-// so the minimum key is the nearest splat, ties going to the smaller id.
+// so the minimum key is the nearest splat, ties going to the smaller id. An exact cube writes
+// only the pixels whose ray hits its box, each at its own depth with its face in the id.
 // #import common/asvo.wgsl
 
 @group(0) @binding(4) var<storage, read_write> keys: array<atomic<u64>>;
@@ -13,11 +14,18 @@ fn traverse(
 ) {
     let v = visit(invocation_index(wid, nwg, lid));
     if v.kind == VISIT_SPLAT {
-        count_splat_pixels(v.rect);
+        count_splat_pixels(v);
         let key = (u64(v.depth_bits) << 32u) | u64(v.id);
         for (var y = v.rect.y; y <= v.rect.w; y++) {
             for (var x = v.rect.x; x <= v.rect.z; x++) {
-                atomicMin(&keys[y * view.size.x + x], key);
+                if v.cube != 0u {
+                    let hit = cube_pixel(v, x, y);
+                    if hit.x != CUBE_MISS {
+                        atomicMin(&keys[y * view.size.x + x], (u64(hit.x) << 32u) | u64(v.id | hit.y));
+                    }
+                } else {
+                    atomicMin(&keys[y * view.size.x + x], key);
+                }
             }
         }
     }

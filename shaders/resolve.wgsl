@@ -114,7 +114,8 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
     let pixel = gid.y * view.size.x + gid.x;
     let key = keys[pixel];
     let voxel = key.y != EMPTY && (key.x & MESH_ID_FLAG) == 0u;
-    if voxel && (key.x < resolve_range.attr_start || key.x >= resolve_range.attr_end) {
+    let attr_id = key.x >> FACE_BITS;
+    if voxel && (attr_id < resolve_range.attr_start || attr_id >= resolve_range.attr_end) {
         return;
     }
     if !voxel && resolve_range.others == 0u {
@@ -154,15 +155,24 @@ fn resolve(@builtin(global_invocation_id) gid: vec3<u32>) {
         }
         normal = n;
     } else {
-        let attr = attrs[id - resolve_range.attr_start];
+        let attr = attrs[attr_id - resolve_range.attr_start];
         let rgba = unpack4x8unorm(attr.x);
         albedo = vec3<f32>(srgb_to_linear(rgba.x), srgb_to_linear(rgba.y), srgb_to_linear(rgba.z));
         let o = objects[attr.y >> 16u];
-        let nv = decode_normal(attr.y & 0xffffu);
+        // An exact cube's pixel is shaded with the face it shows (the CPU's `face_normal`), a
+        // splat with the node's own normal.
+        var nv = decode_normal(attr.y & 0xffffu);
+        let face = id & FACE_MASK;
+        if face >= 1u && face <= 6u {
+            let axis = (face - 1u) / 2u;
+            let sign = select(1.0, -1.0, face % 2u == 0u);
+            nv = vec3<f32>(0.0);
+            nv[axis] = sign;
+        }
         if o.skin_attr.x != 0u {
             // A rigged object's node: its own blended matrix turns the normal.
-            let leaf = id >= o.skin_attr.z;
-            normal = skinned_normal(o.skin, leaf, id - select(o.skin_attr.y, o.skin_attr.z, leaf), nv);
+            let leaf = attr_id >= o.skin_attr.z;
+            normal = skinned_normal(o.skin, leaf, attr_id - select(o.skin_attr.y, o.skin_attr.z, leaf), nv);
         } else {
             normal = normalize_or_zero(o.normal_x.xyz * nv.x + o.normal_y.xyz * nv.y + o.normal_z.xyz * nv.z);
         }

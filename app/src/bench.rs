@@ -260,6 +260,7 @@ fn level_totals(levels: &[BenchLevel]) -> BenchLevel {
             splatted: t.splatted + l.splatted,
             frustum_culled: t.frustum_culled + l.frustum_culled,
             occlusion_culled: t.occlusion_culled + l.occlusion_culled,
+            cubes: t.cubes + l.cubes,
         })
 }
 

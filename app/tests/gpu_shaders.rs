@@ -171,3 +171,36 @@ fn triangle_and_texture_layouts_match_gpu_data() {
         gpu_data::TEXTURE_ENTRY_WORDS
     );
 }
+
+#[test]
+fn id_bits_and_counter_layout_match_gpu_data_and_core() {
+    // Voxel ids carry an exact cube's face in their low bits on both renderers.
+    assert_eq!(gpu_data::FACE_BITS, thicket_core::render::FACE_BITS);
+    for path in ["asvo_splat32.wgsl", "asvo_splat64.wgsl", "resolve.wgsl"] {
+        assert_eq!(
+            u32_constant(path, "FACE_BITS"),
+            gpu_data::FACE_BITS,
+            "{path}"
+        );
+        assert_eq!(
+            u32_constant(path, "FACE_MASK"),
+            (1 << gpu_data::FACE_BITS) - 1
+        );
+        assert_eq!(
+            u32_constant(path, "MESH_ID_FLAG"),
+            gpu_data::MESH_ID_FLAG,
+            "{path}"
+        );
+    }
+    for path in ["asvo_splat32.wgsl", "asvo_splat64.wgsl"] {
+        for (name, value) in [
+            ("STATS_PER_LEVEL", gpu_data::STATS_PER_LEVEL),
+            ("STATS_START", gpu_data::STATS_START),
+            ("SPLAT_PIXEL_COUNTERS", gpu_data::SPLAT_PIXEL_COUNTERS),
+            ("CUBE_PIXEL_COUNTERS", gpu_data::CUBE_PIXEL_COUNTERS),
+            ("OVERFLOW_COUNTER", gpu_data::OVERFLOW_COUNTER),
+        ] {
+            assert_eq!(u32_constant(path, name), value, "{path}: {name}");
+        }
+    }
+}

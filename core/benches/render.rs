@@ -169,6 +169,52 @@ fn benches(c: &mut Criterion) {
         g.bench_function(name, |b| b.iter(|| black_box(render_document(&big, &req))));
     }
     g.finish();
+
+    // Exact cubes (Quality::cube_pixel_threshold) against the paper's rectangles: the house
+    // sample at 800×600 from a few voxels off its wall (leaves tens of pixels wide) and from
+    // the project's own camera (a few pixels each), balanced otherwise.
+    let house_path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/house.thicket.json");
+    if let Ok(house) = thicket_core::io::project::load(&house_path) {
+        let mut g = c.benchmark_group("exact_cubes");
+        g.sample_size(10);
+        let (lo, hi) = house.bounds().expect("the house has bounds");
+        let mut close = OrbitCamera {
+            yaw_deg: 60.0,
+            pitch_deg: 20.0,
+            distance: 45.0,
+            ..house.camera
+        };
+        close.fit_clip(lo, hi);
+        let rects = Quality {
+            cube_pixel_threshold: 1e6,
+            ..Quality::default()
+        };
+        for (view, cam) in [("close_up", close), ("project_view", house.camera)] {
+            for (name, q) in [("cubes", Quality::default()), ("rectangles", rects.clone())] {
+                let req = RenderRequest {
+                    width: 800,
+                    height: 600,
+                    camera: Some(cam),
+                    quality: q,
+                };
+                if let Ok((_, _, st)) = render_document(&house, &req) {
+                    eprintln!(
+                        "exact_cubes/{view}_{name}: {} splats ({} cubes), {} rectangle px, {}                          cube px, {} shadow cube px",
+                        st.splats(),
+                        st.totals().cubes,
+                        st.rect_pixels,
+                        st.cube_pixels,
+                        st.shadow_cube_pixels
+                    );
+                }
+                g.bench_function(format!("{view}_{name}"), |b| {
+                    b.iter(|| black_box(render_document(&house, &req)));
+                });
+            }
+        }
+        g.finish();
+    }
 }
 
 criterion_group!(render_benches, benches);

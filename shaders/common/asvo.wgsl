@@ -2,7 +2,9 @@
 // queued node, places it in view space with its object's transform, culls it against the
 // frustum, then either queues its children for the next level (projected edge above the LOD
 // threshold and it has children) or returns the splat: the pixel rectangle of its projected
-// box at the NDC depth of its nearest point. Mirrors core::render's CPU traversal.
+// box at the NDC depth of its nearest point, or, when that rectangle exceeds
+// view.cube_pixel_threshold, the node's exact box (`cube_pixel`). Mirrors core::render's CPU
+// traversal.
 // #import common/types.wgsl
 // #import common/skin.wgsl
 
@@ -22,20 +24,136 @@ const VISIT_NONE: u32 = 0u;
 const VISIT_SPLAT: u32 = 1u;
 const WORKGROUP: u32 = 64u;
 
-// Per-workgroup counters (visited, split, splatted, frustum culled, occlusion culled), flushed
-// once per group.
-const STATS_PER_LEVEL: u32 = 5u;
+// Per-workgroup counters (visited, split, splatted, frustum culled, occlusion culled, of the
+// splatted those drawn as exact cubes), flushed once per group.
+const STATS_PER_LEVEL: u32 = 6u;
 var<workgroup> wg_stats: array<atomic<u32>, STATS_PER_LEVEL>;
 // Pixels the workgroup's splats cover, i.e. key atomics issued, flushed with the counters: the
 // byte count of the splat bandwidth measurement (app/src/gpu/splat_bw.rs).
 var<workgroup> wg_splat_pixels: atomic<u32>;
+// Pixels the workgroup's exact cubes tested (one ray–box test each).
+var<workgroup> wg_cube_pixels: atomic<u32>;
 
 struct Visit {
     kind: u32,
     // Inclusive pixel rectangle x0, y0, x1, y1.
     rect: vec4<u32>,
     depth_bits: u32,
+    // attribute << FACE_BITS; an exact cube's pixels add their face code.
     id: u32,
+    // Nonzero: drawn as the node's exact box, view point p inside it when
+    // cube_to_local * (p - cube_center) lies in [-1, 1]^3. CUBE_FACES: its pixels carry the
+    // face they show (rigid objects); CUBE_DEPTH: the node's normal (a deformed object, whose
+    // neighbouring boxes do not tile: the CPU's `CubeBox::faces`).
+    cube: u32,
+    cube_center: vec3<f32>,
+    cube_to_local: mat3x3<f32>,
+}
+
+// How far past its faces a cube's slabs reach, in half edges (the CPU's `CUBE_SLAB`):
+// neighbouring cubes are intersected in their own frames, and rounding must not crack them.
+const CUBE_SLAB: f32 = 1.001;
+const CUBE_FACES: u32 = 1u;
+const CUBE_DEPTH: u32 = 2u;
+// `cube_pixel`'s depth for a pixel whose ray misses the box.
+const CUBE_MISS: u32 = 0xffffffffu;
+
+// Inverse of a 3×3 matrix by cofactors (rows of the inverse are the cross products of its
+// columns over the determinant).
+fn inverse3(m: mat3x3<f32>) -> mat3x3<f32> {
+    let r0 = cross(m[1], m[2]);
+    let r1 = cross(m[2], m[0]);
+    let r2 = cross(m[0], m[1]);
+    let det = dot(m[0], r0);
+    return transpose(mat3x3<f32>(r0, r1, r2)) * (1.0 / det);
+}
+
+fn finite_f32(x: f32) -> bool {
+    // By the bits: WGSL lets a compiler assume floats are finite, so `x == x` may fold away.
+    return (bitcast<u32>(x) & 0x7f800000u) != 0x7f800000u;
+}
+
+// Makes `out` an exact cube (`kind` CUBE_FACES or CUBE_DEPTH) of the box with view-space
+// centre `c` and view-space half axes `half_axes` when its rectangle (`extent_px` wide or
+// tall) exceeds the threshold and the box is not degenerate (the CPU's `Footprint::splat` and
+// `cube_in_view`).
+fn make_cube(
+    out: ptr<function, Visit>,
+    kind: u32,
+    extent_px: f32,
+    c: vec3<f32>,
+    half_axes: mat3x3<f32>,
+) {
+    if !(extent_px > view.cube_pixel_threshold) {
+        return;
+    }
+    let m = inverse3(half_axes);
+    let ok = finite_f32(m[0].x) && finite_f32(m[0].y) && finite_f32(m[0].z)
+        && finite_f32(m[1].x) && finite_f32(m[1].y) && finite_f32(m[1].z)
+        && finite_f32(m[2].x) && finite_f32(m[2].y) && finite_f32(m[2].z);
+    if ok {
+        (*out).cube = kind;
+        (*out).cube_center = c;
+        (*out).cube_to_local = m;
+    }
+}
+
+// Depth bits and face code where pixel (x, y)'s centre ray enters the visit's box (the CPU's
+// `write_cube` and `enter_box`): the near plane, with face 0, where the box crosses it;
+// x = CUBE_MISS where the ray misses. The ray is o + t·dir with dir.z = -1, so t is the view
+// depth in both projections.
+fn cube_pixel(v: Visit, x: u32, y: u32) -> vec2<u32> {
+    let miss = vec2<u32>(CUBE_MISS, 0u);
+    let w = f32(view.size.x);
+    let h = f32(view.size.y);
+    let vx = (f32(x) + 0.5 - 0.5 * w) / view.fx;
+    let vy = (0.5 * h - (f32(y) + 0.5)) / view.fy;
+    var o = vec3<f32>(0.0);
+    var dir = vec3<f32>(vx, vy, -1.0);
+    if view.perspective == 0u {
+        o = vec3<f32>(vx, vy, 0.0);
+        dir = vec3<f32>(0.0, 0.0, -1.0);
+    }
+    let ol = v.cube_to_local * (o - v.cube_center);
+    let dl = v.cube_to_local * dir;
+    // Slabs of the three axes at once; an axis the ray runs parallel to (a zero component)
+    // either holds the whole ray or none of it.
+    let slab = vec3<f32>(CUBE_SLAB);
+    let parallel = dl == vec3<f32>(0.0);
+    if any(parallel & (abs(ol) > slab)) {
+        return miss;
+    }
+    let safe = select(dl, vec3<f32>(1.0), parallel);
+    let ta = (-slab - ol) / safe;
+    let tb = (slab - ol) / safe;
+    let tn = select(min(ta, tb), vec3<f32>(-3.4028235e38), parallel);
+    let tf = select(max(ta, tb), vec3<f32>(3.4028235e38), parallel);
+    let t1 = min(tf.x, min(tf.y, tf.z));
+    // The entry is the latest slab entry; ties keep the lower axis, as the CPU's scan does.
+    var t0 = tn.x;
+    var face = 1u + select(0u, 1u, dl.x > 0.0);
+    if tn.y > t0 {
+        t0 = tn.y;
+        face = 3u + select(0u, 1u, dl.y > 0.0);
+    }
+    if tn.z > t0 {
+        t0 = tn.z;
+        face = 5u + select(0u, 1u, dl.z > 0.0);
+    }
+    if parallel.x && parallel.y && parallel.z {
+        return miss;
+    }
+    if !(t0 <= t1) || face == 0u || t1 < view.near || t0 > view.far {
+        return miss;
+    }
+    var depth = t0;
+    if t0 < view.near || v.cube != CUBE_FACES {
+        face = 0u;
+    }
+    if t0 < view.near {
+        depth = view.near;
+    }
+    return vec2<u32>(bitcast<u32>(clamp(ndc_depth(view, depth), 0.0, 1.0)), face);
 }
 
 // Pixels whose centres lie in [s0, s1], or the one under the centre when none do (sub-pixel
@@ -57,11 +175,16 @@ fn count_stat(k: u32) {
     }
 }
 
-// Counts the pixels of a splat's rectangle (one key atomic each; not in the id pass, which
-// repeats the depth pass's splats).
-fn count_splat_pixels(rect: vec4<u32>) {
+// Counts the pixels of a splat's rectangle (one key atomic each, at most, for an exact cube
+// also one ray–box test; not in the id pass, which repeats the depth pass's splats).
+fn count_splat_pixels(v: Visit) {
     if view.write_mode != MODE_ID {
-        atomicAdd(&wg_splat_pixels, (rect.z - rect.x + 1u) * (rect.w - rect.y + 1u));
+        let rect = v.rect;
+        let n = (rect.z - rect.x + 1u) * (rect.w - rect.y + 1u);
+        atomicAdd(&wg_splat_pixels, n);
+        if v.cube != 0u {
+            atomicAdd(&wg_cube_pixels, n);
+        }
     }
 }
 
@@ -110,6 +233,7 @@ fn occluded(xs: vec2<u32>, ys: vec2<u32>, depth_bits: u32) -> bool {
 fn visit(i: u32) -> Visit {
     var out: Visit;
     out.kind = VISIT_NONE;
+    out.cube = 0u;
     let queued = min(atomicLoad(&counters[QUEUE_COUNTS + params.level]), params.queue_capacity);
     if i >= queued {
         return out;
@@ -174,9 +298,14 @@ fn visit(i: u32) -> Visit {
     out.rect = vec4<u32>(xs.x, ys.x, xs.y, ys.y);
     out.depth_bits = depth_bits;
     if has_children {
-        out.id = params.attr_inner_base + entry.x;
+        out.id = (params.attr_inner_base + entry.x) << FACE_BITS;
     } else {
-        out.id = params.attr_leaf_base + entry.x;
+        out.id = (params.attr_leaf_base + entry.x) << FACE_BITS;
+    }
+    let linear = mat3x3<f32>(params.linear_x.xyz, params.linear_y.xyz, params.linear_z.xyz);
+    make_cube(&out, CUBE_FACES, max(sx1 - sx0, sy1 - sy0), c, linear * (0.5 * size));
+    if out.cube != 0u {
+        count_stat(5u);
     }
     return out;
 }
@@ -196,10 +325,14 @@ fn flush_stats(lid: u32) {
         }
     }
     if lid == 0u {
+        let view_index = select(1u, 0u, params.stats_base == STATS_START);
         let p = atomicLoad(&wg_splat_pixels);
         if p > 0u {
-            let view_index = select(1u, 0u, params.stats_base == STATS_START);
             atomicAdd(&counters[SPLAT_PIXEL_COUNTERS + view_index], p);
+        }
+        let cp = atomicLoad(&wg_cube_pixels);
+        if cp > 0u {
+            atomicAdd(&counters[CUBE_PIXEL_COUNTERS + view_index], cp);
         }
     }
 }
@@ -216,6 +349,8 @@ struct Footprint {
     depth_bits: u32,
     d_near: f32,
     crosses_near: bool,
+    // The rectangle's larger side in pixels (exact cubes above the threshold).
+    extent_px: f32,
 }
 
 // Every pixel that [s0, s1] touches, clamped to the image.
@@ -263,6 +398,7 @@ fn footprint(c: vec3<f32>, he: vec3<f32>) -> Footprint {
     fp.oys = overlapped_span(sy0, sy1, view.size.y);
     fp.depth_bits = bitcast<u32>(clamp(ndc_depth(view, dn), 0.0, 1.0));
     fp.d_near = dn;
+    fp.extent_px = max(sx1 - sx0, sy1 - sy0);
     return fp;
 }
 
@@ -272,6 +408,7 @@ fn footprint(c: vec3<f32>, he: vec3<f32>) -> Footprint {
 fn visit_skinned(entry: vec4<u32>) -> Visit {
     var out: Visit;
     out.kind = VISIT_NONE;
+    out.cube = 0u;
     let s = params.skin;
     let size = f32(params.node_size);
     let has_children = params.level < params.leaf_level;
@@ -327,9 +464,13 @@ fn visit_skinned(entry: vec4<u32>) -> Visit {
     out.rect = vec4<u32>(splat.xs.x, splat.ys.x, splat.xs.y, splat.ys.y);
     out.depth_bits = splat.depth_bits;
     if has_children {
-        out.id = params.attr_inner_base + entry.x;
+        out.id = (params.attr_inner_base + entry.x) << FACE_BITS;
     } else {
-        out.id = params.attr_leaf_base + entry.x;
+        out.id = (params.attr_leaf_base + entry.x) << FACE_BITS;
+    }
+    make_cube(&out, CUBE_DEPTH, splat.extent_px, c, view_rot * placed.half_axes);
+    if out.cube != 0u {
+        count_stat(5u);
     }
     return out;
 }

@@ -7,6 +7,11 @@ const EMPTY: u32 = 0xffffffffu;
 // Ids with this bit set are triangles (bits 0..30: triangle index); below it, voxel attribute
 // indices (paper's node id).
 const MESH_ID_FLAG: u32 = 0x80000000u;
+// Low bits of a voxel id: the face an exact cube's pixel shows (1..6: +x, -x, +y, -y, +z, -z
+// in the node's own axes; 0: a splat, shaded with the node's normal). Voxel ids are
+// attribute index << FACE_BITS | face (the CPU's `render::asvo::FACE_BITS`).
+const FACE_BITS: u32 = 3u;
+const FACE_MASK: u32 = 7u;
 
 // How splats and fragments write the key buffer (View::write_mode).
 // 64-bit path: one atomicMin of (depth << 32 | id).
@@ -20,6 +25,7 @@ const MODE_ID: u32 = 2u;
 const QUEUE_COUNTS: u32 = 0u;   // 32 entries: nodes queued for each level
 const OVERFLOW_COUNTER: u32 = 32u; // children dropped because a queue was full
 const SPLAT_PIXEL_COUNTERS: u32 = 34u; // key atomics of voxel splats: [0] the view, [1] shadow maps
+const CUBE_PIXEL_COUNTERS: u32 = 36u; // pixels tested by exact cubes: [0] the view, [1] shadow maps
 const STATS_START: u32 = 64u; // first per-view statistics counter (the view's)
 const MAX_LEVELS: u32 = 32u;
 
@@ -41,7 +47,8 @@ struct View {
     occlusion: u32,
     // Occlusion tiles per row (ceil(width / OCCLUSION_TILE)).
     tiles_x: u32,
-    _pad0: u32,
+    // Splats wider or taller than this many pixels are drawn as their exact cube.
+    cube_pixel_threshold: f32,
 }
 
 // Edge of an occlusion tile in pixels.

@@ -36,8 +36,8 @@ pub struct ViewUniform {
     pub occlusion: u32,
     /// Occlusion tiles per row.
     pub tiles_x: u32,
-    /// Padding to a 16-byte multiple.
-    pub pad: u32,
+    /// ASVO: splats wider or taller than this many pixels are drawn as their exact cube.
+    pub cube_pixel_threshold: f32,
 }
 const _: () = assert!(std::mem::size_of::<ViewUniform>() == 240);
 
@@ -52,8 +52,9 @@ pub const MODE_ID: u32 = 2;
 pub const STATS_START: u32 = 64;
 /// Most octree levels a traversal counts (depth ≤ 21, so 22 levels are used).
 pub const MAX_LEVELS: u32 = 32;
-/// Counters per level: visited, split, splatted, frustum culled, occlusion culled.
-pub const STATS_PER_LEVEL: u32 = 5;
+/// Counters per level: visited, split, splatted, frustum culled, occlusion culled, and of the
+/// splatted those drawn as exact cubes.
+pub const STATS_PER_LEVEL: u32 = 6;
 /// Edge of an occlusion tile in pixels (`OCCLUSION_TILE` in `common/types.wgsl`).
 pub const OCCLUSION_TILE: u32 = 8;
 /// Index of the queue-overflow counter.
@@ -62,8 +63,19 @@ pub const OVERFLOW_COUNTER: u32 = 32;
 /// traversal issued: `[0]` the view, `[1]` shadow maps (`SPLAT_PIXEL_COUNTERS` in
 /// `common/types.wgsl`). The splat-bandwidth measurement counts its bytes from them.
 pub const SPLAT_PIXEL_COUNTERS: u32 = 34;
-const _: () =
-    assert!(SPLAT_PIXEL_COUNTERS > OVERFLOW_COUNTER && SPLAT_PIXEL_COUNTERS + 2 <= KRS_COUNTERS);
+/// First of two counters of the pixels exact cubes tested (one ray–box test each, a key atomic
+/// where it hits): `[0]` the view, `[1]` shadow maps (`CUBE_PIXEL_COUNTERS` in
+/// `common/types.wgsl`).
+pub const CUBE_PIXEL_COUNTERS: u32 = 36;
+const _: () = assert!(
+    SPLAT_PIXEL_COUNTERS > OVERFLOW_COUNTER
+        && CUBE_PIXEL_COUNTERS == SPLAT_PIXEL_COUNTERS + 2
+        && CUBE_PIXEL_COUNTERS + 2 <= KRS_COUNTERS
+);
+/// Bits of a voxel key's id that carry the face of an exact cube (`FACE_BITS` in
+/// `common/types.wgsl`, the CPU's `render::asvo::FACE_BITS`): ids are `attribute << FACE_BITS |
+/// face`, so attributes must stay below `MESH_ID_FLAG >> FACE_BITS`.
+pub const FACE_BITS: u32 = thicket_core::render::FACE_BITS;
 /// Length of the counter buffer in u32: queue counts, overflow, two views' statistics.
 pub const COUNTER_WORDS: u32 = STATS_START + 2 * MAX_LEVELS * STATS_PER_LEVEL;
 

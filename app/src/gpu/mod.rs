@@ -170,6 +170,9 @@ pub struct GpuFrameStats {
     /// Pixels covered by the view's voxel splats: the key atomics its traversal issued (the
     /// depth pass's on the two-pass path).
     pub splat_pixels: u64,
+    /// Pixels the view's exact cubes tested (one ray–box test each, included in
+    /// `splat_pixels`).
+    pub cube_pixels: u64,
     /// Triangles submitted for the view.
     pub triangles: u64,
     /// Milliseconds per pass: GPU timestamps when `gpu_timestamps`, else empty.
@@ -199,6 +202,7 @@ impl GpuFrameStats {
         self.splats = from.splats;
         self.queue_overflow = from.queue_overflow;
         self.splat_pixels = from.splat_pixels;
+        self.cube_pixels = from.cube_pixels;
         self.krs = from.krs;
         self.pass_ms.clone_from(&from.pass_ms);
         self.gpu_timestamps = from.gpu_timestamps;

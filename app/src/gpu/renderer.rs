@@ -15,10 +15,10 @@ use super::skin::{SkinCache, SkinFrame};
 
 use super::context::Capabilities;
 use super::gpu_data::{
-    COUNTER_WORDS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu, MAX_LEVELS, MODE_DEPTH,
-    MODE_ID, MODE_KEY64, NO_SHADOW_MAP, NODE_PARAMS_STRIDE, NodeParams, OCCLUSION_TILE,
-    OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES, ResolveChunk, SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL,
-    STATS_START, ShadingUniform, ShadowMapGpu, ViewUniform, ao_kernel,
+    COUNTER_WORDS, CUBE_PIXEL_COUNTERS, ClearParams, GBUFFER_TEXEL_BYTES, KEY_BYTES, LightGpu,
+    MAX_LEVELS, MODE_DEPTH, MODE_ID, MODE_KEY64, NO_SHADOW_MAP, NODE_PARAMS_STRIDE, NodeParams,
+    OCCLUSION_TILE, OVERFLOW_COUNTER, QUEUE_ENTRY_BYTES, ResolveChunk, SPLAT_PIXEL_COUNTERS,
+    STATS_PER_LEVEL, STATS_START, ShadingUniform, ShadowMapGpu, ViewUniform, ao_kernel,
 };
 use super::{AtomicPath, GpuError, GpuFrameStats, GpuLevelStats, shaders};
 
@@ -206,7 +206,7 @@ impl ViewSpec {
         .map(|cam| Self::from_camera(&cam))
     }
 
-    fn uniform(&self, write_mode: u32, lod_pixel_threshold: f32, occlusion: bool) -> ViewUniform {
+    fn uniform(&self, write_mode: u32, quality: &Quality, occlusion: bool) -> ViewUniform {
         ViewUniform {
             view_from_world: self.view_from_world.to_cols_array_2d(),
             clip_from_world: (self.clip_from_view * self.view_from_world).to_cols_array_2d(),
@@ -218,10 +218,10 @@ impl ViewSpec {
             fy: self.fy,
             near: self.near,
             far: self.far,
-            lod_pixel_threshold,
+            lod_pixel_threshold: quality.lod_pixel_threshold,
             occlusion: u32::from(occlusion),
             tiles_x: self.width.div_ceil(OCCLUSION_TILE),
-            pad: 0,
+            cube_pixel_threshold: quality.cube_pixel_threshold,
         }
     }
 }
@@ -1097,7 +1097,6 @@ impl Renderer {
         let (w, h) = (target.width, target.height);
         let main_camera = thicket_core::render::Camera::from_orbit(camera, w, h);
         let main = ViewSpec::from_camera(&main_camera);
-        let lod = quality.lod_pixel_threshold;
         let path = self.atomic_path();
 
         // Shadow cameras: one per shadow-casting light, as the CPU's `render_scene` (none with
@@ -1238,18 +1237,18 @@ impl Renderer {
         };
         let view_main = upload(
             "view",
-            bytemuck::bytes_of(&main.uniform(first_mode, lod, quality.occlusion_culling)),
+            bytemuck::bytes_of(&main.uniform(first_mode, quality, quality.occlusion_culling)),
             U::UNIFORM,
         );
         let view_main_id = upload(
             "view id pass",
             // The id pass must visit every node the depth pass drew: no culling there.
-            bytemuck::bytes_of(&main.uniform(MODE_ID, lod, false)),
+            bytemuck::bytes_of(&main.uniform(MODE_ID, quality, false)),
             U::UNIFORM,
         );
         let shadow_uniforms: Vec<ViewUniform> = shadows
             .iter()
-            .map(|m| m.view.uniform(MODE_DEPTH, lod, false))
+            .map(|m| m.view.uniform(MODE_DEPTH, quality, false))
             .collect();
         let shadow_views: Vec<wgpu::Buffer> = shadow_uniforms
             .iter()
@@ -1394,7 +1393,7 @@ impl Renderer {
             background: doc.background.extend(0.0).to_array(),
             light_count: lights.len() as u32,
             pcf_radius: quality.shadow_pcf_radius.min(8),
-            receiver_px: lod.max(1.0),
+            receiver_px: quality.lod_pixel_threshold.max(1.0),
             ao_count,
             ao_radius,
             krs_stride: krs_frame.as_ref().map_or(0, |k| k.stride),
@@ -2123,6 +2122,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
                     splatted: u64::from(words[i + 2]),
                     frustum_culled: u64::from(words[i + 3]),
                     occlusion_culled: u64::from(words[i + 4]),
+                    cubes: u64::from(words[i + 5]),
                 }
             })
             .collect();
@@ -2138,6 +2138,7 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
         shadow_levels: levels_of(STATS_START + MAX_LEVELS * STATS_PER_LEVEL),
         queue_overflow: u64::from(words[OVERFLOW_COUNTER as usize]),
         splat_pixels: u64::from(words[SPLAT_PIXEL_COUNTERS as usize]),
+        cube_pixels: u64::from(words[CUBE_PIXEL_COUNTERS as usize]),
         krs: super::krs::GpuKrsStats::from_counters(words),
         triangles: meta.triangles,
         atomic_path: meta.atomic_path,

@@ -21,7 +21,7 @@ use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::gpu_data::{
-    GpuTriangle, MAX_TEXTURES, MESH_ID_FLAG, NO_TEXTURE, ObjectInfo, QUEUE_ENTRY_BYTES,
+    FACE_BITS, GpuTriangle, MAX_TEXTURES, MESH_ID_FLAG, NO_TEXTURE, ObjectInfo, QUEUE_ENTRY_BYTES,
     TEXTURE_ENTRY_WORDS, TEXTURE_LUT_WORDS,
 };
 
@@ -509,11 +509,13 @@ impl SceneCache {
                     .map(|(&c, &n)| pack_attr(c, n, obj)),
             );
             attrs.resize(attr_leaf_base + leaf_cap as usize, [0, 0]);
-            if attrs.len() as u64 >= u64::from(MESH_ID_FLAG) || inner.len() > u32::MAX as usize {
+            // Ids carry the face of an exact cube in their low bits, below the mesh flag.
+            let id_limit = u64::from(MESH_ID_FLAG >> FACE_BITS);
+            if attrs.len() as u64 >= id_limit || inner.len() > u32::MAX as usize {
                 return Err(GpuError::TooLarge {
                     what: "voxel node ids",
                     bytes: attrs.len() as u64,
-                    limit: u64::from(MESH_ID_FLAG),
+                    limit: id_limit,
                 });
             }
             let live_nodes = svo.inner_count() + svo.leaf_count();

@@ -407,6 +407,14 @@ fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState
             );
             f(
                 ui,
+                "Exact cubes above px",
+                &mut q.cube_pixel_threshold,
+                1.0..=1e6,
+                "ASVO: splats wider than this many pixels are drawn as exact cubes (true depth, \
+                 straight edges, face normals); a large value keeps the paper's rectangles",
+            );
+            f(
+                ui,
                 "KRS epsilon ×",
                 &mut q.krs_epsilon_scale,
                 0.01..=100.0,

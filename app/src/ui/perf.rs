@@ -128,11 +128,18 @@ impl PerfOverlay {
                 }
                 if let Some(stats) = &s.stats {
                     ui.label(format!(
-                        "Splats {}   triangles {}   splat path {:?}   queue overflow {}",
+                        "Splats {} ({} exact cubes)   triangles {}   splat path {:?}   queue \
+                         overflow {}",
                         thousands(stats.splats),
+                        thousands(stats.levels.iter().map(|l| l.cubes).sum()),
                         thousands(stats.triangles),
                         stats.atomic_path,
                         stats.queue_overflow
+                    ));
+                    ui.label(format!(
+                        "Splat pixels {} (of them {} in exact cubes, one ray–box test each)",
+                        thousands(stats.splat_pixels),
+                        thousands(stats.cube_pixels)
                     ));
                     let k = &stats.krs;
                     if k.rays > 0 {
@@ -215,7 +222,7 @@ fn push_bounded<T>(q: &mut VecDeque<T>, v: T) {
 /// Per-level traversal counters (levels nothing visited are left out).
 fn level_grid_ui(ui: &mut egui::Ui, id: &str, levels: &[thicket_core::render::LevelStats]) {
     egui::Grid::new(id).striped(true).show(ui, |ui| {
-        for h in ["Level", "Visited", "Split", "Splatted", "Culled"] {
+        for h in ["Level", "Visited", "Split", "Splatted", "Cubes", "Culled"] {
             ui.strong(h);
         }
         ui.end_row();
@@ -227,6 +234,7 @@ fn level_grid_ui(ui: &mut egui::Ui, id: &str, levels: &[thicket_core::render::Le
             ui.label(thousands(l.visited));
             ui.label(thousands(l.split));
             ui.label(thousands(l.splatted));
+            ui.label(thousands(l.cubes));
             ui.label(thousands(l.frustum_culled));
             ui.end_row();
         }

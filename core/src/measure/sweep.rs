@@ -131,6 +131,7 @@ pub fn default_knobs() -> Vec<KnobValues> {
     };
     vec![
         k("lod_pixel_threshold", &["0.5", "1", "2", "4", "8"]),
+        k("cube_pixel_threshold", &["1.5", "3", "6", "12", "1000000"]),
         k("shadow_map_size", &["256", "512", "1024", "2048", "4096"]),
         k("shadow_pcf_radius", &["0", "1", "2", "3"]),
         k("ao_samples", &["0", "4", "8", "16"]),
@@ -149,6 +150,7 @@ pub fn reference_quality() -> Quality {
     let mut q = Quality::preset(QualityPreset::Final);
     for (name, value) in [
         ("lod_pixel_threshold", "0.25"),
+        ("cube_pixel_threshold", "1"),
         ("shadow_map_size", "8192"),
         ("ao_samples", "32"),
         ("krs_epsilon_scale", "0.125"),
@@ -317,8 +319,9 @@ pub fn settings_of(s: &SweepSettings) -> Result<Vec<Setting>, SweepError> {
 /// Deterministic work of a frame, a cost that does not depend on machine load, from the
 /// renderer's own counters: octree nodes visited for the view and the shadow maps, triangles
 /// rasterised, KRS distance evaluations (primary rays, tile cones, shadow rays, KRS ambient
-/// occlusion), one shading tap per covered pixel, and the shading pass's shadow-map reads
-/// (PCF taps and the tile bounds that decide whole filter windows) and screen-space AO samples.
+/// occlusion), the pixels of exact cubes in the view and the shadow maps (a ray–box test each,
+/// at most), one shading tap per covered pixel, and the shading pass's shadow-map reads (PCF
+/// taps and the tile bounds that decide whole filter windows) and screen-space AO samples.
 ///
 /// Passes every frame makes over all its pixels or texels whatever the knobs (clears, depth
 /// conversion, resolve, the shadow-map tile bounds) are not counted. A renderer that does not
@@ -347,7 +350,8 @@ pub fn work_units(stats: &FrameStats, quality: &Quality, shadow_lights: usize) -
             stats.covered_pixels * (shadow_taps + u64::from(quality.ao_samples))
         }
     };
-    nodes + stats.triangles_rasterised + krs + stats.covered_pixels + shading
+    let cubes = stats.cube_pixels + stats.shadow_cube_pixels;
+    nodes + stats.triangles_rasterised + krs + cubes + stats.covered_pixels + shading
 }
 
 /// One measured setting.

@@ -9,6 +9,7 @@
 //! queue order, splat ids follow that order, and depth+id is an atomic minimum — so the image
 //! does not depend on the thread count.
 
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 use glam::{Mat3, Vec3};
@@ -49,6 +50,36 @@ struct Splat {
     x1: u32,
     y1: u32,
     ndc_depth: f32,
+    /// Drawn as the node's exact box (see [`write_cube`]): its footprint exceeds
+    /// [`PassSettings::cube_pixel_threshold`]. `ndc_depth` is then its nearest point's, a lower
+    /// bound of every depth it writes.
+    cube: bool,
+}
+
+/// Bits of a voxel id that carry the face a pixel of an exact cube shows (see
+/// [`face_code`]); the splat index sits above them. 0: a splat, shaded with the node's normal.
+pub const FACE_BITS: u32 = 3;
+/// The largest splat index an id can carry (the mesh flag stays above it).
+pub(crate) const MAX_SPLAT_INDEX: u32 = (super::MESH_ID_FLAG >> FACE_BITS) - 1;
+
+/// The voxel-space normal of face code `code` (1..=6: +x, -x, +y, -y, +z, -z), `None` for 0
+/// (a splat) and the unused 7.
+#[must_use]
+pub(crate) fn face_normal(code: u32) -> Option<Vec3> {
+    let axis = match code {
+        1 | 2 => Vec3::X,
+        3 | 4 => Vec3::Y,
+        5 | 6 => Vec3::Z,
+        _ => return None,
+    };
+    Some(if code.is_multiple_of(2) { -axis } else { axis })
+}
+
+/// The face code of a box entered across axis `k` (0..3) while moving along `d_local` in the
+/// box's own axes: the ray enters through the face it moves away from.
+#[inline]
+fn face_code(k: usize, d_local: f32) -> u32 {
+    1 + 2 * k as u32 + u32::from(d_local > 0.0)
 }
 
 /// Per-object, per-camera constants of the rigid fast path.
@@ -63,12 +94,19 @@ struct Fast {
     edge_unit: f32,
     /// `view_from_voxel` for normals (inverse transpose of `linear`).
     normal_view: Mat3,
+    /// `linear`'s inverse (exact cubes: view space to voxel axes).
+    inv_linear: Mat3,
 }
 
 /// What a traversal produced.
 pub(crate) struct VoxelPass {
-    /// `refs[i]` is the node drawn with id `id_base + i` (empty when refs were not requested).
+    /// `refs[i]` is the node drawn with id `(id_base + i) << FACE_BITS` (plus a face code in
+    /// the low bits for pixels of exact cubes; empty when refs were not requested).
     pub(crate) refs: Vec<QNode>,
+    /// Pixels written by rectangle splats, and pixels tested by exact cubes (one ray–box test
+    /// each), the two costs [`PassSettings::cube_pixel_threshold`] trades.
+    pub(crate) rect_pixels: u64,
+    pub(crate) cube_pixels: u64,
     pub(crate) levels: Vec<LevelStats>,
     pub(crate) traversal_ms: f64,
     pub(crate) splat_ms: f64,
@@ -77,6 +115,9 @@ pub(crate) struct VoxelPass {
 /// Traversal settings.
 pub(crate) struct PassSettings<'a> {
     pub(crate) lod_pixel_threshold: f32,
+    /// A splat whose screen rectangle is wider or taller than this many pixels is drawn as its
+    /// exact box ([`write_cube`]) instead of the rectangle.
+    pub(crate) cube_pixel_threshold: f32,
     pub(crate) occlusion_culling: bool,
     /// First id to hand out (ids are `id_base + splat index`).
     pub(crate) id_base: u32,
@@ -131,6 +172,8 @@ struct BlockOut {
     dirty: Vec<u32>,
     stats: Vec<LevelStats>,
     local: LocalDepth,
+    rect_pixels: u64,
+    cube_pixels: u64,
 }
 
 impl BlockOut {
@@ -142,6 +185,8 @@ impl BlockOut {
         self.stats.clear();
         self.stats.resize(levels, LevelStats::default());
         self.local.clear();
+        self.rect_pixels = 0;
+        self.cube_pixels = 0;
     }
 
     /// Queues a splat unless earlier splats of this block already cover every pixel of it at
@@ -150,6 +195,9 @@ impl BlockOut {
         if cull && !self.local.record(&s, width) {
             return false;
         }
+        let level = usize::from(q.node.level);
+        self.stats[level].splatted += 1;
+        self.stats[level].cubes += u64::from(s.cube);
         self.splats.push((s, q));
         true
     }
@@ -225,9 +273,10 @@ impl LocalDepth {
     }
 
     /// Records the splat's pixels; false when every one of them already held a nearer or
-    /// equal depth (then nothing is recorded). Large splats, and a full table, always pass.
+    /// equal depth (then nothing is recorded). Large splats, and a full table, always pass, as
+    /// do exact cubes (recorded nowhere: they need not cover their rectangle).
     fn record(&mut self, s: &Splat, width: u32) -> bool {
-        if !self.tracks(s) {
+        if s.cube || !self.tracks(s) {
             return true;
         }
         if self.slots.is_empty() {
@@ -328,6 +377,7 @@ pub(crate) fn draw_voxels(
                         .max(wl.y_axis.length())
                         .max(wl.z_axis.length()),
                     normal_view: linear.inverse().transpose(),
+                    inv_linear: linear.inverse(),
                 }
             })
         })
@@ -353,6 +403,8 @@ pub(crate) fn draw_voxels(
 
     let mut out = VoxelPass {
         refs: Vec::new(),
+        rect_pixels: 0,
+        cube_pixels: 0,
         levels: vec![LevelStats::default(); levels],
         traversal_ms: 0.0,
         splat_ms: 0.0,
@@ -455,10 +507,27 @@ fn run_chunk<T: Sync>(
         .par_iter_mut()
         .zip(bases.par_iter())
         .for_each(|(b, &base)| {
-            let BlockOut { splats, dirty, .. } = b;
-            for (i, (s, _)) in splats.iter().enumerate() {
-                let id = (base + i as u64).min(u64::from(super::MESH_ID_FLAG - 1)) as u32;
-                target_ref.write_rect(s.x0, s.y0, s.x1, s.y1, pack_key(s.ndc_depth, id), dirty);
+            let BlockOut {
+                splats,
+                dirty,
+                rect_pixels,
+                cube_pixels,
+                ..
+            } = b;
+            for (i, (s, q)) in splats.iter().enumerate() {
+                let index = (base + i as u64).min(u64::from(MAX_SPLAT_INDEX)) as u32;
+                let id = index << FACE_BITS;
+                let pixels = u64::from(s.x1 - s.x0 + 1) * u64::from(s.y1 - s.y0 + 1);
+                if s.cube
+                    && let Some(cube) = cube_in_view(ctx, q)
+                {
+                    write_cube(target_ref, ctx.cam, s, &cube, id, dirty);
+                    *cube_pixels += pixels;
+                } else {
+                    let key = pack_key(s.ndc_depth, id);
+                    target_ref.write_rect(s.x0, s.y0, s.x1, s.y1, key, dirty);
+                    *rect_pixels += pixels;
+                }
             }
         });
     let mut dirty: Vec<u32> = Vec::new();
@@ -469,6 +538,8 @@ fn run_chunk<T: Sync>(
             out.refs.extend(b.splats.iter().map(|(_, q)| *q));
         }
         dirty.extend_from_slice(&b.dirty);
+        out.rect_pixels += b.rect_pixels;
+        out.cube_pixels += b.cube_pixels;
         for (a, s) in out.levels.iter_mut().zip(&b.stats) {
             a.add(s);
         }
@@ -505,9 +576,7 @@ fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut Blo
             split_node(ctx, obj, q, c, axes, target, b);
         }
         Action::Splat(s) => {
-            if b.push_splat(s, *q, ctx.cam.width, ctx.settings.occlusion_culling) {
-                b.stats[usize::from(q.node.level)].splatted += 1;
-            } else {
+            if !b.push_splat(s, *q, ctx.cam.width, ctx.settings.occlusion_culling) {
                 b.stats[usize::from(q.node.level)].occlusion_culled += 1;
             }
         }
@@ -539,9 +608,7 @@ fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut Block
             ctx.view_rot,
         );
         split_node(ctx, obj, &d.q, c, axes, target, b);
-    } else if b.push_splat(d.rect, d.q, ctx.cam.width, ctx.settings.occlusion_culling) {
-        b.stats[usize::from(d.q.node.level)].splatted += 1;
-    } else {
+    } else if !b.push_splat(d.rect, d.q, ctx.cam.width, ctx.settings.occlusion_culling) {
         b.stats[usize::from(d.q.node.level)].occlusion_culled += 1;
     }
 }
@@ -631,7 +698,7 @@ fn classify_leaves(
         // (the sub-pixel layers of a shell behind the nearest one), and a leaf whose every
         // pixel an earlier splat of the block holds at a nearer or equal depth cannot win any
         // of them whatever the tests below would decide (see [`LocalDepth`]).
-        let rect = fp.splat(ctx.cam);
+        let rect = fp.splat(ctx.cam, settings.cube_pixel_threshold);
         if settings.occlusion_culling && b.local.hidden(&rect, ctx.cam.width) {
             b.stats[level].occlusion_culled += 1;
             continue;
@@ -658,9 +725,7 @@ fn classify_leaves(
             });
             continue;
         }
-        if b.push_splat(rect, q, ctx.cam.width, settings.occlusion_culling) {
-            b.stats[level].splatted += 1;
-        } else {
+        if !b.push_splat(rect, q, ctx.cam.width, settings.occlusion_culling) {
             b.stats[level].occlusion_culled += 1;
         }
     }
@@ -723,9 +788,10 @@ impl Footprint {
         [x0, y0, x1, y1]
     }
 
-    /// The splat: pixels whose centres the rectangle covers (see [`pixel_span`]).
+    /// The splat: pixels whose centres the rectangle covers (see [`pixel_span`]), drawn as the
+    /// exact box when wider or taller than `cube_px` pixels.
     #[inline]
-    fn splat(&self, cam: &Camera) -> Splat {
+    fn splat(&self, cam: &Camera, cube_px: f32) -> Splat {
         let (x0, x1) = pixel_span(self.sx0, self.sx1, cam.width);
         let (y0, y1) = pixel_span(self.sy0, self.sy1, cam.height);
         Splat {
@@ -734,6 +800,7 @@ impl Footprint {
             x1,
             y1,
             ndc_depth: self.ndc_depth,
+            cube: (self.sx1 - self.sx0).max(self.sy1 - self.sy0) > cube_px,
         }
     }
 }
@@ -783,6 +850,149 @@ fn footprint(c: Vec3, he: Vec3, cam: &Camera) -> Option<Footprint> {
         d_near: dn,
         crosses_near,
     })
+}
+
+/// A node's box in view space for [`write_cube`]: view point `p` lies in the box when
+/// `to_local * (p - center)` lies in `[-1, 1]³` (the node's own axes, scaled to its half edge).
+struct CubeBox {
+    center: Vec3,
+    to_local: Mat3,
+    /// Whether pixels carry the face they show (rigid objects). A deformed object's
+    /// neighbouring boxes do not tile (each has its own blended transform and stretch), so
+    /// their faces would shade the steps between them as dark dashes: its pixels keep the
+    /// node's smooth normal, with the exact depth and outline all the same.
+    faces: bool,
+}
+
+/// The box of a splat's node, placed as its footprint was (rigid: the object's transform;
+/// otherwise its deformer's box). `None` when the box is degenerate (a zero scale): the splat
+/// then keeps its rectangle.
+fn cube_in_view(ctx: &Ctx<'_, '_>, q: &QNode) -> Option<CubeBox> {
+    let obj = &ctx.objects[q.obj as usize];
+    let size = obj.svo.node_size(q.node.level) as f32;
+    let fast = ctx.fast[q.obj as usize].as_ref();
+    let (center, to_local) = if let Some(f) = fast {
+        let center_voxel = q.node.origin.as_vec3() + Vec3::splat(0.5 * size);
+        (
+            f.linear * center_voxel + f.translation,
+            f.inv_linear * (2.0 / size),
+        )
+    } else {
+        let d = obj.deform.deform(&NodeInfo {
+            svo: obj.svo,
+            node: q.node,
+        });
+        let half_axes = ctx.view_rot * d.half_axes_world;
+        (
+            ctx.cam.view_from_world.transform_point3(d.center_world),
+            half_axes.inverse(),
+        )
+    };
+    let finite = to_local.to_cols_array().iter().all(|v| v.is_finite());
+    (finite && center.is_finite()).then_some(CubeBox {
+        center,
+        to_local,
+        faces: fast.is_some(),
+    })
+}
+
+/// How far past its faces a cube's slabs reach, in half edges: neighbouring cubes are each
+/// intersected in their own frame, and rounding must not open a crack between them (a
+/// thousandth of a half edge is far below a pixel at any footprint drawn as a cube).
+const CUBE_SLAB: f32 = 1.0 + 1e-3;
+
+/// Draws a splat as its node's exact box: each pixel of the rectangle whose centre ray hits the
+/// box gets the depth where it enters (the near plane where the box crosses it) and the face it
+/// enters through in the id's low bits (see [`face_code`]), so edges are straight, depth is
+/// true across the face, and shading can use the face normal.
+///
+/// The ray of a pixel in view space is `o + t·dir` with `dir.z = -1`, so `t` is the view depth
+/// in both projections (perspective: `o = 0`, `dir = (x, y, -1)`; orthographic: `o = (x, y, 0)`).
+fn write_cube(
+    target: &DepthTarget,
+    cam: &Camera,
+    s: &Splat,
+    cube: &CubeBox,
+    id: u32,
+    dirty: &mut Vec<u32>,
+) {
+    let m = cube.to_local;
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    // No pixel of the cube is nearer than its nearest point, and its id bits only grow with the
+    // face code: a pixel already holding a key at or below this one cannot be won, so its
+    // ray–box test is skipped (most pixels of a front-to-back traversal; the final keys are
+    // the same, since they only ever decrease).
+    let floor_key = pack_key(s.ndc_depth, id);
+    // Box-local ray: perspective `o = 0`, so `ol` is the same for every pixel and `dl` steps by
+    // a constant along a row; orthographic `dir = -z`, so `dl` is constant and `ol` steps.
+    let step = m.x_axis / cam.fx;
+    let x0 = s.x0 as f32 + 0.5 - 0.5 * w;
+    for y in s.y0..=s.y1 {
+        let vy = (0.5 * h - (y as f32 + 0.5)) / cam.fy;
+        let row = y as usize * cam.width as usize;
+        let (ol_row, dl_row) = if cam.perspective {
+            (m * -cube.center, m * Vec3::new(x0 / cam.fx, vy, -1.0))
+        } else {
+            (m * (Vec3::new(x0 / cam.fx, vy, 0.0) - cube.center), -m.z_axis)
+        };
+        let keys = &target.keys[row + s.x0 as usize..=row + s.x1 as usize];
+        for (i, k) in keys.iter().enumerate() {
+            // The rejected pixels (most) cost what a rectangle's do: one load and a compare.
+            if k.load(Ordering::Relaxed) <= floor_key {
+                continue;
+            }
+            let along = step * i as f32;
+            let (ol, dl) = if cam.perspective {
+                (ol_row, dl_row + along)
+            } else {
+                (ol_row + along, dl_row)
+            };
+            let Some((t, face)) = enter_box(ol, dl) else {
+                continue;
+            };
+            if t.1 < cam.near || t.0 > cam.far {
+                continue;
+            }
+            let (depth, face) = if t.0 < cam.near {
+                (cam.near, 0)
+            } else {
+                (t.0, if cube.faces { face } else { 0 })
+            };
+            let key = pack_key(cam.ndc_depth(depth), id | face);
+            if key < k.load(Ordering::Relaxed) {
+                k.fetch_min(key, Ordering::Relaxed);
+            }
+        }
+    }
+    target.mark_dirty(s.x0, s.y0, s.x1, s.y1, dirty);
+}
+
+/// Where the ray `o + t·d` (box-local) is inside `[-CUBE_SLAB, CUBE_SLAB]³`: `(t_enter,
+/// t_exit)` and the face code it enters through, or `None` when it misses.
+#[inline]
+fn enter_box(o: Vec3, d: Vec3) -> Option<((f32, f32), u32)> {
+    // Slabs of the three axes at once: an axis the ray runs parallel to (a zero component, an
+    // infinite reciprocal) holds the whole ray or none of it.
+    let inv = d.recip();
+    let (a, b) = ((-CUBE_SLAB - o) * inv, (CUBE_SLAB - o) * inv);
+    let (near, far) = (a.min(b), a.max(b));
+    let mut t0 = f32::NEG_INFINITY;
+    let mut face = 0;
+    for k in 0..3 {
+        if d[k] == 0.0 {
+            if o[k].abs() > CUBE_SLAB {
+                return None;
+            }
+        } else if near[k] > t0 {
+            t0 = near[k];
+            face = face_code(k, d[k]);
+        }
+    }
+    let t1 = (0..3)
+        .filter(|&k| d[k] != 0.0)
+        .map(|k| far[k])
+        .fold(f32::INFINITY, f32::min);
+    (t0 <= t1 && face != 0).then_some(((t0, t1), face))
 }
 
 #[inline]
@@ -853,7 +1063,7 @@ fn classify(
         && faces_away(obj, f, q, c, cam.perspective)
     {
         return Action::Defer {
-            rect: fp.splat(cam),
+            rect: fp.splat(cam, settings.cube_pixel_threshold),
             occ: fp.touched(cam),
             split,
         };
@@ -861,7 +1071,7 @@ fn classify(
     if split {
         return Action::Split(c, axes_view);
     }
-    Action::Splat(fp.splat(cam))
+    Action::Splat(fp.splat(cam, settings.cube_pixel_threshold))
 }
 
 /// Whether a node's LOD normal points away from the eye (rigid objects only: a deformed

@@ -111,6 +111,13 @@ impl DepthTarget {
                 }
             }
         }
+        self.mark_dirty(x0, y0, x1, y1, dirty);
+    }
+
+    /// Flags the fine tiles under the inclusive pixel rectangle as dirty, appending each not
+    /// yet flagged since the last [`Self::update_dirty`] to `dirty`.
+    #[inline]
+    pub(crate) fn mark_dirty(&self, x0: u32, y0: u32, x1: u32, y1: u32, dirty: &mut Vec<u32>) {
         for ty in y0 / TILE..=y1 / TILE {
             for tx in x0 / TILE..=x1 / TILE {
                 let t = ty * self.tiles_x + tx;

@@ -33,7 +33,7 @@ use std::time::Instant;
 
 use glam::Vec3;
 
-pub use asvo::VoxelInstance;
+pub use asvo::{FACE_BITS, VoxelInstance};
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
 pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
@@ -460,6 +460,7 @@ fn render_frame(
         &mut target,
         &asvo::PassSettings {
             lod_pixel_threshold: quality.lod_pixel_threshold,
+            cube_pixel_threshold: quality.cube_pixel_threshold,
             occlusion_culling: quality.occlusion_culling,
             id_base: 0,
             keep_refs: true,
@@ -468,6 +469,8 @@ fn render_frame(
         },
     );
     stats.levels = pass.levels;
+    stats.rect_pixels = pass.rect_pixels;
+    stats.cube_pixels = pass.cube_pixels;
     stats.times.traversal_ms = pass.traversal_ms;
     stats.times.splat_ms = pass.splat_ms;
 
@@ -547,6 +550,7 @@ fn render_frame(
                         sampled.as_ref(),
                         &mut stats.shadow_levels,
                     ));
+                    stats.shadow_cube_pixels += m.cube_pixels;
                     if keep && let Some(c) = cache.as_mut() {
                         c.maps[li] = Some(Arc::clone(&m));
                     }

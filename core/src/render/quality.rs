@@ -48,6 +48,11 @@ pub enum QualityError {
 pub struct Quality {
     /// ASVO: a node is split while its projected size exceeds this many pixels.
     pub lod_pixel_threshold: f32,
+    /// ASVO: a splat whose screen rectangle is wider or taller than this many pixels is drawn
+    /// as its exact cube (per-pixel ray–box: true depth, straight edges, the face's normal)
+    /// instead of the paper's rectangle at its nearest depth. Up close, voxels are then cubes;
+    /// far away nothing changes. Large values keep the rectangles everywhere.
+    pub cube_pixel_threshold: f32,
     /// ASVO: hierarchical-depth occlusion culling (paper §8.1.2).
     pub occlusion_culling: bool,
     /// Shadow maps on/off.
@@ -86,8 +91,9 @@ impl Default for Quality {
 
 impl Quality {
     /// Knob names accepted by [`Quality::set`].
-    pub const KNOBS: [&'static str; 14] = [
+    pub const KNOBS: [&'static str; 15] = [
         "lod_pixel_threshold",
+        "cube_pixel_threshold",
         "occlusion_culling",
         "shadows",
         "shadow_map_size",
@@ -108,6 +114,7 @@ impl Quality {
     pub fn preset(p: QualityPreset) -> Self {
         let balanced = Self {
             lod_pixel_threshold: 1.0,
+            cube_pixel_threshold: 3.0,
             occlusion_culling: true,
             shadows: true,
             shadow_map_size: 2048,
@@ -126,6 +133,7 @@ impl Quality {
             QualityPreset::Balanced => balanced,
             QualityPreset::Draft => Self {
                 lod_pixel_threshold: 2.0,
+                cube_pixel_threshold: 6.0,
                 shadow_map_size: 1024,
                 shadow_pcf_radius: 0,
                 ao_samples: 0,
@@ -134,6 +142,7 @@ impl Quality {
             },
             QualityPreset::Final => Self {
                 lod_pixel_threshold: 0.5,
+                cube_pixel_threshold: 1.5,
                 shadow_map_size: 4096,
                 shadow_pcf_radius: 2,
                 ao_samples: 16,
@@ -177,6 +186,13 @@ impl Quality {
             0.05,
             64.0,
             "0.05..=64",
+        )?;
+        check(
+            "cube_pixel_threshold",
+            f64::from(self.cube_pixel_threshold),
+            1.0,
+            1e6,
+            "1..=1000000",
         )?;
         check(
             "shadow_map_size",
@@ -256,6 +272,7 @@ impl Quality {
         let mut q = self.clone();
         match name {
             "lod_pixel_threshold" => q.lod_pixel_threshold = f()?,
+            "cube_pixel_threshold" => q.cube_pixel_threshold = f()?,
             "occlusion_culling" => q.occlusion_culling = b()?,
             "shadows" => q.shadows = b()?,
             "shadow_map_size" => q.shadow_map_size = u()?,

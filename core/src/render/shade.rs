@@ -4,7 +4,7 @@ use glam::{Mat3, Mat4, Vec3, Vec4Swizzles};
 use rayon::prelude::*;
 
 use super::MESH_ID_FLAG;
-use super::asvo::{PassSettings, QNode, VoxelInstance, draw_voxels};
+use super::asvo::{FACE_BITS, PassSettings, QNode, VoxelInstance, draw_voxels, face_normal};
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
@@ -35,6 +35,8 @@ pub(crate) struct ShadowMap {
     /// filter's.
     bounds: Vec<(f32, f32)>,
     tiles_x: i32,
+    /// Texels of exact cubes' rectangles drawn into the map (see `asvo::write_cube`).
+    pub(crate) cube_pixels: u64,
 }
 
 /// An orthographic light view that tightly holds a box: what both the CPU reference and the
@@ -150,6 +152,7 @@ impl ShadowMap {
             &mut target,
             &PassSettings {
                 lod_pixel_threshold: quality.lod_pixel_threshold,
+                cube_pixel_threshold: quality.cube_pixel_threshold,
                 occlusion_culling: quality.occlusion_culling,
                 id_base: 0,
                 keep_refs: false,
@@ -167,6 +170,7 @@ impl ShadowMap {
             texel_world,
             bounds,
             tiles_x,
+            cube_pixels: pass.cube_pixels,
         }
     }
 
@@ -419,7 +423,7 @@ pub(crate) fn resolve(
             };
             return (d, Some((id, nw, color.xyz())));
         }
-        let Some(q) = refs.get(raw as usize) else {
+        let Some(q) = refs.get((raw >> FACE_BITS) as usize) else {
             return (d, None);
         };
         let o = &voxels[q.obj as usize];
@@ -439,13 +443,13 @@ pub(crate) fn resolve(
             srgb_byte_to_linear(color[1]),
             srgb_byte_to_linear(color[2]),
         );
+        // A pixel of an exact cube is shaded with the face it shows, a splat with the node's
+        // (smooth, LOD-filtered) normal.
+        let n_voxel =
+            face_normal(raw & ((1 << FACE_BITS) - 1)).unwrap_or_else(|| decode_normal(normal));
         (
             d,
-            Some((
-                id,
-                o.deform.normal_to_world(&info, decode_normal(normal)),
-                albedo,
-            )),
+            Some((id, o.deform.normal_to_world(&info, n_voxel), albedo)),
         )
     };
     // Every buffer is filled in parallel with its background value, then each row writes only
@@ -883,6 +887,7 @@ mod tests {
             texel_world: 2.0 / cam.fy,
             bounds,
             tiles_x,
+            cube_pixels: 0,
         };
         let mut skipped = 0;
         for _ in 0..4000 {

@@ -11,6 +11,9 @@ pub struct LevelStats {
     pub split: u64,
     /// Nodes drawn as one splat.
     pub splatted: u64,
+    /// Of the splatted, nodes drawn as their exact box (`Quality::cube_pixel_threshold`).
+    #[serde(default)]
+    pub cubes: u64,
     /// Nodes outside the view frustum.
     pub frustum_culled: u64,
     /// Nodes behind the hierarchical depth (paper §8.1.2).
@@ -22,6 +25,7 @@ impl LevelStats {
         self.visited += o.visited;
         self.split += o.split;
         self.splatted += o.splatted;
+        self.cubes += o.cubes;
         self.frustum_culled += o.frustum_culled;
         self.occlusion_culled += o.occlusion_culled;
     }
@@ -71,6 +75,16 @@ pub struct FrameStats {
     pub triangles_rasterised: u64,
     /// Pixels covered in the final image.
     pub covered_pixels: u64,
+    /// View pixels written by rectangle splats (one key each).
+    #[serde(default)]
+    pub rect_pixels: u64,
+    /// View pixels of exact cubes' rectangles: each a ray–box test unless already covered
+    /// nearer (a key where it hits).
+    #[serde(default)]
+    pub cube_pixels: u64,
+    /// The same for the shadow maps drawn this frame (not those reused from a cache).
+    #[serde(default)]
+    pub shadow_cube_pixels: u64,
     /// Stage timings.
     pub times: StageTimes,
     /// KRS sphere-tracing counters.
