@@ -775,3 +775,43 @@ fn a_saved_tree_reopens_in_the_builder_with_its_parameters() {
     h.run_steps(2);
     assert_eq!(h.state().krs.tree.as_ref().map(|t| &t.1), Some(&params));
 }
+
+#[test]
+fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when_still() {
+    let mut h = harness(rigged_figure(5));
+    settle_preview(&mut h);
+    let rect = h.state().view.last_rect;
+    let full = [rect.width().round() as u32, rect.height().round() as u32];
+    let (_, shown) = h
+        .state()
+        .view
+        .cpu_preview_stats()
+        .expect("a preview was shown");
+    assert_eq!(
+        shown, full,
+        "a still view renders at the view's full resolution"
+    );
+
+    // Orbit: while the pointer drags in the view the preview renders half the pixels per side.
+    let c = rect.center();
+    h.hover_at(c);
+    h.step();
+    h.drag_at(c);
+    h.step();
+    let mut draft = None;
+    for k in 1..=6 {
+        h.hover_at(c + egui::vec2(12.0 * k as f32, 0.0));
+        h.step();
+        draft = draft.or(h.state().view.cpu_preview_in_flight());
+    }
+    let draft = draft.expect("orbiting started a preview render");
+    assert!(
+        draft[0].abs_diff(full[0] / 2) <= 1 && draft[1].abs_diff(full[1] / 2) <= 1,
+        "{draft:?} is not half of {full:?}"
+    );
+    h.drop_at(c + egui::vec2(72.0, 0.0));
+    // Still again: the next renders refine to full resolution.
+    settle_preview(&mut h);
+    let (_, shown) = h.state().view.cpu_preview_stats().unwrap();
+    assert_eq!(shown, full);
+}

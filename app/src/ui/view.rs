@@ -25,9 +25,13 @@ use super::voxel_tools::{ToolKind, paint_volume};
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
 use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
 
-/// Linear fraction of the view's pixels the CPU preview renders (it is a preview: a quarter of
-/// the pixels keeps it interactive on a laptop CPU).
+/// Linear fraction of the view's pixels the CPU preview renders while the camera moves or the
+/// pointer drags in the view (a quarter of the pixels keeps it interactive on a laptop CPU);
+/// once still for [`PREVIEW_STILL`] it refines to the full resolution setting.
 const CPU_PREVIEW_SCALE: f32 = 0.5;
+
+/// How long the camera must stay still before the CPU preview refines to full resolution.
+const PREVIEW_STILL: Duration = Duration::from_millis(150);
 
 /// Most voxel edits kept for the GPU's incremental upload (older ones cost a full upload).
 const MAX_REGION_CHAIN: usize = 64;
@@ -252,6 +256,11 @@ fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorIma
     image
 }
 
+/// Pixels of an image size.
+fn pixels(size: [u32; 2]) -> u64 {
+    u64::from(size[0]) * u64::from(size[1])
+}
+
 /// Minimum and maximum corners.
 type Aabb = (Vec3, Vec3);
 
@@ -332,6 +341,8 @@ pub struct View {
     /// either changes).
     snapshot: Option<(RenderKey, Arc<Document>)>,
     cpu: CpuPreview,
+    /// The camera the CPU preview last saw and when it changed (`None`: still, e.g. at start).
+    preview_motion: Option<(OrbitCamera, Instant)>,
     /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
     regions: Vec<RegionHint>,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
@@ -356,6 +367,7 @@ impl Default for View {
             gpu: None,
             snapshot: None,
             cpu: CpuPreview::default(),
+            preview_motion: None,
             regions: Vec::new(),
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
@@ -753,9 +765,18 @@ impl View {
         (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
     }
 
+    /// The size of the CPU preview render in flight, if any (tests: low resolution while the
+    /// camera moves).
+    #[must_use]
+    pub fn cpu_preview_in_flight(&self) -> Option<[u32; 2]> {
+        self.cpu.job.as_ref().map(|(k, _)| k.size_px)
+    }
+
     /// Waits for the CPU preview render in flight, if any (tests; the UI polls instead). Its
-    /// image is shown from the next frame.
+    /// image is shown from the next frame, and the camera counts as still from now on, so the
+    /// next frames refine it to full resolution whatever the test's timing.
     pub fn wait_for_cpu_preview(&mut self) {
+        self.preview_motion = None;
         if let Some((key, rx)) = self.cpu.job.take() {
             let result = rx
                 .recv()
@@ -783,7 +804,26 @@ impl View {
     /// returns whether the selection's outline was drawn from its pixels.
     fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) -> bool {
         let ppp = ui.ctx().pixels_per_point();
-        let size = rect.size() * ppp * self.render_scale * CPU_PREVIEW_SCALE;
+        // Low resolution while the camera moves or the pointer drags in the view (a stroke, an
+        // orbit); the full resolution setting once still.
+        let camera = editor.doc().camera;
+        let now = Instant::now();
+        let moved_at = match self.preview_motion {
+            Some((c, t)) if c == camera => Some(t),
+            Some(_) => Some(now),
+            None if self.cpu.shown.as_ref().is_some_and(|k| k.camera != camera) => Some(now),
+            None => None,
+        };
+        self.preview_motion = moved_at.map(|t| (camera, t));
+        let dragging = ui.input(|i| {
+            i.pointer.any_down() && i.pointer.interact_pos().is_some_and(|p| rect.contains(p))
+        });
+        let moving = dragging || moved_at.is_some_and(|t| now - t < PREVIEW_STILL);
+        if moving {
+            ui.ctx().request_repaint_after(PREVIEW_STILL);
+        }
+        let scale = if moving { CPU_PREVIEW_SCALE } else { 1.0 };
+        let size = rect.size() * ppp * self.render_scale * scale;
         let size_px = [
             (size.x.round() as u32).clamp(1, 4096),
             (size.y.round() as u32).clamp(1, 4096),
@@ -1189,9 +1229,19 @@ impl View {
                 ),
                 (None, Some(k)) => (
                     format!(
-                        "{view_name}   CPU preview {} x {} px ({}){}\n{hint}",
+                        "{view_name}   CPU preview {} x {} px{} ({}){}\n{hint}",
                         k.size_px[0],
                         k.size_px[1],
+                        if self
+                            .cpu
+                            .job
+                            .as_ref()
+                            .is_some_and(|(j, _)| pixels(j.size_px) > pixels(k.size_px))
+                        {
+                            ", refining"
+                        } else {
+                            ""
+                        },
                         self.cpu_reason(editor).unwrap_or("chosen"),
                         match (self.show_holes, self.hole_counts()) {
                             (true, Some(c)) => format!(

@@ -933,7 +933,10 @@ fn write_cube(
         let (ol_row, dl_row) = if cam.perspective {
             (m * -cube.center, m * Vec3::new(x0 / cam.fx, vy, -1.0))
         } else {
-            (m * (Vec3::new(x0 / cam.fx, vy, 0.0) - cube.center), -m.z_axis)
+            (
+                m * (Vec3::new(x0 / cam.fx, vy, 0.0) - cube.center),
+                -m.z_axis,
+            )
         };
         let keys = &target.keys[row + s.x0 as usize..=row + s.x1 as usize];
         for (i, k) in keys.iter().enumerate() {
