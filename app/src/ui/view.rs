@@ -229,6 +229,12 @@ struct CpuPreview {
 /// Outline colour of the selection.
 const SELECTION_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 170, 60);
 
+/// Hole overlay colours, chosen against the selection outline's orange and against models'
+/// own colours (skin tones, blue textures): magenta where the skinned mesh shows and no voxel
+/// does, yellow where voxels cover more.
+const HOLE_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 0, 255);
+const BLOAT_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 230, 0);
+
 /// An image that is transparent except on the border pixels of the region labelled `label`
 /// (pixels of the region with a 4-neighbour outside it or on the image edge).
 fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorImage {
@@ -328,7 +334,7 @@ pub struct View {
     pub render_scale: f32,
     /// Which renderer draws the view.
     pub renderer: ViewRenderer,
-    /// Overlay the CPU preview with the hole (red) and bloat (blue) pixels of rigged models
+    /// Overlay the CPU preview with the hole (magenta) and bloat (yellow) pixels of rigged models
     /// against their skinned source meshes.
     pub show_holes: bool,
     /// Overlay the CPU preview with a heat map of each rigged-model pixel's stretch factor
@@ -396,7 +402,7 @@ impl View {
             .on_hover_text("Draw every object's bounding box (the selection's is always drawn)");
         ui.checkbox(&mut self.show_holes, "Hole / bloat overlay")
             .on_hover_text(
-                "CPU preview of rigged models: red where the skinned source mesh shows but no voxel does (holes), blue where voxels cover more (bloat)",
+                "CPU preview of rigged models: magenta where the skinned source mesh shows but no voxel does (holes), yellow where voxels cover more (bloat); drawn above the selection outline, with a legend",
             );
         ui.checkbox(&mut self.show_stretch, "Stretch heat map")
             .on_hover_text(
@@ -968,11 +974,21 @@ impl View {
             ui.painter_at(rect)
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
         }
+        // The outline first: the diagnostic overlays are drawn above it (holes at the
+        // silhouette would otherwise hide under the orange line).
+        let outlined = match self.selection_outline(ui, editor) {
+            Some(t) => {
+                ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
+                true
+            }
+            None => false,
+        };
         if self.show_holes
             && let Some((t, _)) = &self.cpu.holes
         {
             ui.painter_at(rect)
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
+            hole_legend_ui(ui, rect);
         }
         if self.show_stretch
             && let Some((t, stats)) = &self.cpu.stretch
@@ -981,13 +997,7 @@ impl View {
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
             stretch_legend_ui(ui, rect, *stats);
         }
-        match self.selection_outline(ui, editor) {
-            Some(t) => {
-                ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
-                true
-            }
-            None => false,
-        }
+        outlined
     }
 
     /// The selection's outline from the shown preview's object labels, when the preview shows
@@ -1245,7 +1255,7 @@ impl View {
                         self.cpu_reason(editor).unwrap_or("chosen"),
                         match (self.show_holes, self.hole_counts()) {
                             (true, Some(c)) => format!(
-                                "\nHoles {} px ({:.2} % of the mesh), bloat {} px (red / blue)",
+                                "\nHoles {} px ({:.2} % of the mesh), bloat {} px (magenta / yellow)",
                                 c.holes,
                                 100.0 * c.holes as f64 / c.mesh_pixels.max(1) as f64,
                                 c.bloat
@@ -1312,8 +1322,8 @@ impl View {
 }
 
 /// Renders every visible rigged voxel model alone and its skinned source mesh alone with the
-/// preview's camera and compares the silhouettes (as `thicket skin-report` does): red where
-/// the mesh shows and no voxel does (holes), blue where voxels cover more (bloat). Occluders
+/// preview's camera and compares the silhouettes (as `thicket skin-report` does): magenta where
+/// the mesh shows and no voxel does (holes), yellow where voxels cover more (bloat). Occluders
 /// are left out on purpose: they would hide holes.
 fn hole_overlay(
     doc: &Document,
@@ -1399,10 +1409,15 @@ fn hole_overlay(
         counts.mesh_pixels += u64::from(m);
         if m && !v {
             counts.holes += 1;
-            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(255, 40, 40, 220);
+            image.pixels[i] = HOLE_COLOR;
         } else if v && !m {
             counts.bloat += 1;
-            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(60, 120, 255, 150);
+            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(
+                BLOAT_COLOR.r(),
+                BLOAT_COLOR.g(),
+                BLOAT_COLOR.b(),
+                170,
+            );
         }
     }
     Some((image, counts))
@@ -1752,6 +1767,34 @@ fn stretch_overlay(
 }
 
 /// The heat map's colour legend in the view's lower left corner, with the frame's range.
+/// The hole overlay's legend, at the view's bottom right (the stretch legend sits at its
+/// bottom left).
+fn hole_legend_ui(ui: &egui::Ui, rect: egui::Rect) {
+    let painter = ui.painter_at(rect);
+    let font = egui::FontId::proportional(11.0);
+    let rows = [
+        (HOLE_COLOR, "Hole: mesh shows, no voxel"),
+        (BLOAT_COLOR, "Bloat: voxel beyond the mesh"),
+    ];
+    let width = 190.0;
+    let origin = rect.right_bottom() + egui::vec2(-width - 12.0, -52.0);
+    let backdrop = egui::Rect::from_min_size(origin, egui::vec2(width, 42.0));
+    painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(160));
+    for (i, (color, text)) in rows.into_iter().enumerate() {
+        let y = origin.y + 8.0 + 16.0 * i as f32;
+        let swatch =
+            egui::Rect::from_min_size(egui::pos2(origin.x + 8.0, y), egui::vec2(12.0, 12.0));
+        painter.rect_filled(swatch, 2.0, color);
+        painter.text(
+            egui::pos2(swatch.max.x + 6.0, y + 6.0),
+            egui::Align2::LEFT_CENTER,
+            text,
+            font.clone(),
+            egui::Color32::from_gray(220),
+        );
+    }
+}
+
 fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
     let painter = ui.painter_at(rect);
     let bar = egui::Rect::from_min_size(
