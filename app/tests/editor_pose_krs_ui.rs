@@ -815,3 +815,48 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
     let (_, shown) = h.state().view.cpu_preview_stats().unwrap();
     assert_eq!(shown, full);
 }
+
+#[test]
+fn applying_a_krs_preset_frames_the_result() {
+    // The coral framed, then the forest preset applied over it: a much larger object, which
+    // the view must show whole (the coral used to sit behind the gizmo, out of frame).
+    let mut doc = Document::default();
+    doc.add(
+        "Coral",
+        ObjectKind::Krs(thicket_core::krs::presets::coral()),
+    );
+    doc.quality.shadows = false;
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    let mut h = harness(doc);
+    let before = h.state().editor.doc().camera;
+    let forest = thicket_core::krs::presets::all()
+        .iter()
+        .position(|(n, _)| *n == "forest")
+        .expect("a forest preset");
+    h.state_mut().krs.preset = forest;
+    h.run_steps(1);
+    h.get_by_label("Apply preset").click();
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    let (lo, hi) = ed.doc().objects[0].world_bounds().expect("bounds");
+    assert_ne!(
+        view_of(ed.doc().camera),
+        view_of(before),
+        "the camera reframed"
+    );
+    let rect = h.state().view.last_rect;
+    let cam = thicket_core::render::Camera::from_orbit(
+        &ed.doc().camera,
+        rect.width() as u32,
+        rect.height() as u32,
+    );
+    for c in thicket_core::scene::box_corners(lo, hi) {
+        let s = cam.world_to_screen(c);
+        assert!(
+            (0.0..=rect.width()).contains(&s.x) && (0.0..=rect.height()).contains(&s.y),
+            "corner {c} of the forest lands at {s}, outside the view"
+        );
+    }
+}

@@ -531,3 +531,79 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
     assert_eq!(h.state().editor.path(), Some(path.as_path()));
     assert!(path.is_file(), "Enter saved the project to the typed path");
 }
+
+#[test]
+fn an_import_lands_on_the_ground_beside_the_scene_scaled_to_it_and_framed() {
+    // Kenney's rock (0.785 units) into the 64-unit house: it used to land at the origin inside
+    // the house at its own scale, out of sight.
+    let house = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
+    let doc = thicket_core::io::project::load(std::path::Path::new(house)).expect("house loads");
+    let (scene_lo, scene_hi) = doc.bounds().expect("the house has bounds");
+    let scene_size = (scene_hi - scene_lo).length();
+    let mut h = harness(EditorApp::new(Editor::new(doc, None)));
+    let rock = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/static/kenney_rock_largeA.glb"
+    );
+    let ctx = h.ctx.clone();
+    h.state_mut().start_import(rock.into());
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let bounds = |h: &Harness<'static, EditorApp>| {
+        let o = h.state().editor.doc().objects.last().expect("the import");
+        o.world_bounds().expect("the rock has bounds")
+    };
+    let (lo, hi) = bounds(&h);
+    let size = (hi - lo).length();
+    assert_eq!(h.state().editor.doc().objects.len(), 2);
+    // Scaled to a quarter of the scene, standing on its ground, outside the house's footprint.
+    assert!(
+        (size / scene_size - 0.25).abs() < 0.01,
+        "{size} against {scene_size}"
+    );
+    assert!((lo.y - scene_lo.y).abs() < 1e-3 * size, "{lo} {scene_lo}");
+    let apart = hi.x < scene_lo.x || lo.x > scene_hi.x || hi.z < scene_lo.z || lo.z > scene_hi.z;
+    assert!(
+        apart,
+        "the rock {lo}..{hi} overlaps the house {scene_lo}..{scene_hi}"
+    );
+    // Framed: every corner of its box is in front of the camera and inside the view.
+    let rect = h.state().view.last_rect;
+    let cam = thicket_core::render::Camera::from_orbit(
+        &h.state().editor.doc().camera,
+        rect.width() as u32,
+        rect.height() as u32,
+    );
+    for c in thicket_core::scene::box_corners(lo, hi) {
+        let s = cam.world_to_screen(c);
+        assert!(
+            (0.0..=rect.width()).contains(&s.x)
+                && (0.0..=rect.height()).contains(&s.y)
+                && (0.0..=1.0).contains(&s.z),
+            "corner {c} lands at {s} outside the {}×{} view",
+            rect.width(),
+            rect.height()
+        );
+    }
+    // The status bar offers the rock's own size back, as one undoable step.
+    h.get_by_label_contains("Reset scale (×").click();
+    h.run_steps(2);
+    let (rlo, rhi) = bounds(&h);
+    let own = thicket::files::load_document(std::path::Path::new(rock))
+        .expect("the rock loads")
+        .bounds()
+        .expect("bounds");
+    let own_size = (own.1 - own.0).length();
+    assert!(((rhi - rlo).length() / own_size - 1.0).abs() < 1e-3);
+    assert!(
+        (rlo.y - scene_lo.y).abs() < 1e-3,
+        "still on the ground: {rlo}"
+    );
+    assert!(h.query_by_label_contains("Reset scale (×").is_none());
+    h.state_mut().editor.undo();
+    let (ulo, uhi) = bounds(&h);
+    assert!(((uhi - ulo).length() - size).abs() < 1e-3 * size);
+}

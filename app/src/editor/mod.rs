@@ -14,6 +14,8 @@ mod voxel_tools;
 
 use std::path::{Path, PathBuf};
 
+use glam::{Vec2, Vec3};
+
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
@@ -59,6 +61,8 @@ pub enum CommandError {
 pub struct Editor {
     doc: Document,
     path: Option<PathBuf>,
+    /// Width / height of the view, which framing fits (the view sets it every frame).
+    pub view_aspect: f32,
     /// The selected object or light, if any.
     pub selection: Option<Selection>,
     history: History,
@@ -120,6 +124,7 @@ impl Editor {
         Self {
             doc,
             path,
+            view_aspect: 1.0,
             selection,
             history: History::default(),
             recent: Vec::new(),
@@ -421,6 +426,74 @@ impl Editor {
         ids
     }
 
+    /// Adds every object of another document as an import an artist can see: the objects keep
+    /// their layout among themselves, land on the scene's ground (its lowest point; y = 0 in an
+    /// empty scene) beside what is already there on the camera's side (at the camera's target
+    /// in an empty scene), are scaled uniformly to a quarter of the scene's size when the two
+    /// differ by more than [`IMPORT_SIZE_RATIO`]× (see [`ImportPlacement::reset_scale`]), and
+    /// the camera frames them. Returns the new ids and what was done.
+    pub fn import_objects(&mut self, mut other: Document) -> ImportPlacement {
+        let scene = self.doc.bounds();
+        let camera = self.doc.camera;
+        let mut placement = ImportPlacement {
+            ids: Vec::new(),
+            scale: 1.0,
+            pivot: Vec3::ZERO,
+        };
+        if let Some((lo, hi)) = other.bounds() {
+            let pivot = Vec3::new(0.5 * (lo.x + hi.x), lo.y, 0.5 * (lo.z + hi.z));
+            let size = (hi - lo).length();
+            let (scale, dest) = match scene {
+                None => (1.0, Vec3::new(camera.target.x, 0.0, camera.target.z)),
+                Some((slo, shi)) => {
+                    let scene_size = (shi - slo).length();
+                    let ratio = scene_size / size;
+                    let scale = if size > 0.0
+                        && ratio.is_finite()
+                        && !(1.0 / IMPORT_SIZE_RATIO..=IMPORT_SIZE_RATIO).contains(&ratio)
+                    {
+                        IMPORT_FIT_FRACTION * ratio
+                    } else {
+                        1.0
+                    };
+                    // Beside the scene on the camera's side, with a small gap.
+                    let centre = 0.5 * (slo + shi);
+                    let toward_eye =
+                        Vec3::new(camera.eye().x - centre.x, 0.0, camera.eye().z - centre.z)
+                            .try_normalize()
+                            .unwrap_or(Vec3::Z);
+                    let half_xz = |a: Vec3, b: Vec3| 0.5 * Vec2::new(b.x - a.x, b.z - a.z).length();
+                    let reach = half_xz(slo, shi) * 1.05 + scale * half_xz(lo, hi);
+                    (
+                        scale,
+                        Vec3::new(centre.x, slo.y, centre.z) + toward_eye * reach,
+                    )
+                }
+            };
+            for o in &mut other.objects {
+                let t = &mut o.transform;
+                t.translation = dest + scale * (t.translation - pivot);
+                t.scale *= scale;
+            }
+            placement.scale = scale;
+            placement.pivot = dest;
+        }
+        placement.ids = self.add_objects_from(other);
+        let bounds = self
+            .doc
+            .objects
+            .iter()
+            .filter(|o| placement.ids.contains(&o.id))
+            .filter_map(|o| o.world_bounds())
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)));
+        if let Some((lo, hi)) = bounds {
+            let mut camera = self.doc.camera;
+            camera.frame_in(lo, hi, self.view_aspect);
+            self.set_camera(camera);
+        }
+        placement
+    }
+
     /// Renames an object. Empty names are refused (the outliner needs something to click).
     ///
     /// # Errors
@@ -644,9 +717,52 @@ impl Editor {
             .or_else(|| self.doc.bounds());
         if let Some((lo, hi)) = bounds {
             let mut camera = self.doc.camera;
-            camera.frame(lo, hi);
+            camera.frame_in(lo, hi, self.view_aspect);
             self.set_camera(camera);
         }
+    }
+}
+
+/// An import whose size differs from the scene's by more than this factor is scaled to it.
+pub const IMPORT_SIZE_RATIO: f32 = 10.0;
+/// The fraction of the scene's size (bounds diagonal) an import out of scale is scaled to.
+pub const IMPORT_FIT_FRACTION: f32 = 0.25;
+
+/// How [`Editor::import_objects`] placed an import.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportPlacement {
+    /// The new objects.
+    pub ids: Vec<u64>,
+    /// The uniform scale applied to fit the scene (1 when the sizes were within
+    /// [`IMPORT_SIZE_RATIO`]× of each other).
+    pub scale: f32,
+    /// The point the objects were scaled about: their bottom centre where they landed.
+    pub pivot: Vec3,
+}
+
+impl ImportPlacement {
+    /// Undoes the fit-to-scene scale about the landing point (one undoable transform change
+    /// per object still in the document; objects deleted since are left out).
+    ///
+    /// # Errors
+    /// A transform the editor refuses (none for a placement it made).
+    pub fn reset_scale(&self, editor: &mut Editor) -> Result<(), CommandError> {
+        if self.scale == 1.0 {
+            return Ok(());
+        }
+        let inv = 1.0 / self.scale;
+        editor.end_interaction();
+        for &id in &self.ids {
+            let Some(o) = editor.doc().objects.iter().find(|o| o.id == id) else {
+                continue;
+            };
+            let mut t = o.transform;
+            t.translation = self.pivot + inv * (t.translation - self.pivot);
+            t.scale *= inv;
+            editor.set_transform(id, t)?;
+        }
+        editor.end_interaction();
+        Ok(())
     }
 }
 

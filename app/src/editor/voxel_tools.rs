@@ -262,7 +262,7 @@ impl Editor {
         let id = self.add_object(spec.name.trim(), ObjectKind::Voxels(model));
         if lone {
             let mut camera = self.doc.camera;
-            camera.frame(bounds.0, bounds.1);
+            camera.frame_in(bounds.0, bounds.1, self.view_aspect);
             // Room for the grid around the model and for zooming in.
             camera.near = camera.distance * 1e-3;
             camera.far = camera.distance * 20.0;

@@ -18,8 +18,8 @@ use crate::editor::{Editor, Selection};
 pub struct KrsPanel {
     /// The mirror plane highlighted in the view.
     pub mirror: Option<usize>,
-    /// The preset picked in the combo box.
-    preset: usize,
+    /// The preset picked in the combo box (an index into `krs::presets::all()`).
+    pub preset: usize,
     /// Preset names from core (read once).
     names: Vec<&'static str>,
     /// Why the last change was refused.
@@ -318,6 +318,10 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                         .apply_krs_preset(id, name)
                         .err()
                         .map(|e| e.to_string());
+                    // A preset can be any size (a coral, a forest): show all of it.
+                    if panel.error.is_none() {
+                        editor.frame_selection();
+                    }
                 }
             });
             if let Some(e) = &panel.error {
@@ -829,6 +833,9 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
             editor.end_interaction();
             panel.error = editor.build_tree(id, &params).err().map(|e| e.to_string());
             editor.end_interaction();
+            if panel.error.is_none() {
+                editor.frame_selection();
+            }
             panel.tree = Some((id, params));
         }
         if open

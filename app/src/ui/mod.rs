@@ -208,6 +208,8 @@ pub struct EditorApp {
     /// The document state and its commands.
     pub editor: Editor,
     toasts: Vec<Toast>,
+    /// The last import, while its fit-to-scene scale can still be reset from the status bar.
+    import_offer: Option<crate::editor::ImportPlacement>,
     /// An error shown in a dialog until dismissed (for example a file that would not open).
     pub error_dialog: Option<String>,
     prompt: Option<PathPrompt>,
@@ -267,6 +269,7 @@ impl EditorApp {
         Self {
             editor,
             toasts: Vec::new(),
+            import_offer: None,
             error_dialog: None,
             prompt: None,
             pending: None,
@@ -323,6 +326,7 @@ impl EditorApp {
         let project_path =
             (FileKind::from_path(path) == Some(FileKind::Project)).then(|| path.to_path_buf());
         self.editor.replace_document_prepared(doc, project_path);
+        self.import_offer = None;
         self.editor.push_recent(path.to_path_buf());
         self.status = format!("Opened {}", path.display());
     }
@@ -354,6 +358,7 @@ impl EditorApp {
 
     fn do_new(&mut self) {
         self.editor.replace_document(Document::default(), None);
+        self.import_offer = None;
         self.status = "New project".into();
         // A new project starts with its first voxel model (Cancel leaves it empty).
         self.new_model.show(&self.editor);
@@ -583,12 +588,25 @@ impl EditorApp {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
             JobResult::Imported(path, Ok(doc)) => {
-                let n = self.editor.add_objects_from(doc).len();
+                let placed = self.editor.import_objects(doc);
+                let n = placed.ids.len();
+                let scaled = if placed.scale == 1.0 {
+                    String::new()
+                } else {
+                    format!(
+                        "; scaled ×{} to the scene (Reset scale in the status bar)",
+                        short_number(placed.scale)
+                    )
+                };
                 self.toast(
                     ctx,
-                    format!("Imported {n} object(s) from {}", path.display()),
+                    format!(
+                        "Imported {n} object(s) from {}, placed beside the scene and framed{scaled}",
+                        path.display()
+                    ),
                     false,
                 );
+                self.import_offer = (placed.scale != 1.0).then_some(placed);
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -1547,6 +1565,23 @@ impl EditorApp {
                     format!("{} voxels selected", thousands(s.cells.len() as u64)),
                 );
             }
+            if let Some(offer) = self.import_offer.clone() {
+                ui.separator();
+                if ui
+                    .button(format!("Reset scale (×{})", short_number(offer.scale)))
+                    .on_hover_text(
+                        "The last import was scaled to fit the scene; give it back its own size \
+                         (undoable)",
+                    )
+                    .clicked()
+                {
+                    self.import_offer = None;
+                    if let Err(e) = offer.reset_scale(&mut self.editor) {
+                        let ctx = ui.ctx().clone();
+                        self.toast(&ctx, format!("Reset scale: {e}"), true);
+                    }
+                }
+            }
             ui.separator();
             ui.weak(&self.status);
         });
@@ -1916,6 +1951,12 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
         }),
     )
     .map_err(|e| anyhow::anyhow!("cannot open the editor window: {e}"))
+}
+
+/// A scale factor with about four significant digits (`81.53`, `0.01227`).
+fn short_number(v: f32) -> String {
+    let digits = (3 - v.abs().log10().floor() as i32).clamp(0, 8) as usize;
+    format!("{v:.digits$}")
 }
 
 #[cfg(test)]

@@ -544,6 +544,9 @@ impl View {
     ) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
+        if rect.height() > 0.0 {
+            editor.view_aspect = rect.width() / rect.height();
+        }
         // Stretch painting aims with the CPU preview's pixel ids (the posed model as drawn).
         self.stretch_painting = sculpt.active && sculpt.stretch_paint;
         // No tooltip over the view (it would cover the scene); the hint is in the corner text.

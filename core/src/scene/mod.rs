@@ -514,11 +514,24 @@ impl OrbitCamera {
         self.clip_from_view(aspect) * self.view_from_world()
     }
 
-    /// Places the camera so a bounding box fills the view, keeping yaw and pitch.
+    /// Places the camera so a bounding box fills a square view, keeping yaw and pitch.
     pub fn frame(&mut self, lo: Vec3, hi: Vec3) {
+        self.frame_in(lo, hi, 1.0);
+    }
+
+    /// Places the camera so a bounding box fills a view of `aspect` (width / height), keeping
+    /// yaw and pitch: the box's bounding sphere fits the narrower of the two fields of view.
+    pub fn frame_in(&mut self, lo: Vec3, hi: Vec3, aspect: f32) {
         let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        let half_y = self.fov_y_deg.to_radians() * 0.5;
+        let aspect = if aspect.is_finite() && aspect > 0.0 {
+            aspect
+        } else {
+            1.0
+        };
+        let half = half_y.min((half_y.tan() * aspect).atan());
         self.target = (lo + hi) * 0.5;
-        self.distance = radius / (self.fov_y_deg.to_radians() * 0.5).sin() * 1.05;
+        self.distance = radius / half.sin() * 1.05;
         self.near = (self.distance - radius * 1.5).max(self.distance * 1e-3);
         self.far = self.distance + radius * 4.0;
     }
