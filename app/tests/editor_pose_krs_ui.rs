@@ -852,11 +852,19 @@ fn applying_a_krs_preset_frames_the_result() {
         rect.width() as u32,
         rect.height() as u32,
     );
-    for c in thicket_core::scene::box_corners(lo, hi) {
-        let s = cam.world_to_screen(c);
+    // A KRS object's box is its bounding ball's: the ball's outline must be in view (the
+    // points of the ball farthest to the sides of and above and below its centre on screen).
+    let (centre, radius) = ((lo + hi) * 0.5, (hi.x - lo.x) * 0.5);
+    let camera = ed.doc().camera;
+    let forward = (camera.target - camera.eye()).normalize();
+    let right = forward.cross(Vec3::Y).normalize();
+    let up = right.cross(forward);
+    for d in [right, -right, up, -up] {
+        let p = centre + d * radius;
+        let s = cam.world_to_screen(p);
         assert!(
             (0.0..=rect.width()).contains(&s.x) && (0.0..=rect.height()).contains(&s.y),
-            "corner {c} of the forest lands at {s}, outside the view"
+            "the forest's ball reaches {p}, at {s}, outside the view"
         );
     }
 }

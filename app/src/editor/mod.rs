@@ -711,13 +711,19 @@ impl Editor {
     /// Frames the selected object (a voxel model with an editable volume: the volume), or
     /// everything when nothing (or a light) is selected.
     pub fn frame_selection(&mut self) {
-        let bounds = self
-            .selected_object()
+        let selected = self.selected_object();
+        let bounds = selected
             .and_then(|o| o.world_bounds().or_else(|| volume_bounds(o)))
             .or_else(|| self.doc.bounds());
         if let Some((lo, hi)) = bounds {
             let mut camera = self.doc.camera;
-            camera.frame_in(lo, hi, self.view_aspect);
+            // A KRS object's box is its bounding ball's: frame the ball itself (√3 closer).
+            let krs = selected.is_some_and(|o| matches!(o.kind, ObjectKind::Krs(_)));
+            if krs {
+                camera.frame_sphere((lo + hi) * 0.5, (hi.x - lo.x) * 0.5, self.view_aspect);
+            } else {
+                camera.frame_in(lo, hi, self.view_aspect);
+            }
             self.set_camera(camera);
         }
     }

@@ -522,7 +522,13 @@ impl OrbitCamera {
     /// Places the camera so a bounding box fills a view of `aspect` (width / height), keeping
     /// yaw and pitch: the box's bounding sphere fits the narrower of the two fields of view.
     pub fn frame_in(&mut self, lo: Vec3, hi: Vec3, aspect: f32) {
-        let radius = ((hi - lo).length() * 0.5).max(1e-3);
+        self.frame_sphere((lo + hi) * 0.5, (hi - lo).length() * 0.5, aspect);
+    }
+
+    /// Places the camera so a sphere fills a view of `aspect` (width / height), keeping yaw
+    /// and pitch: it fits the narrower of the two fields of view.
+    pub fn frame_sphere(&mut self, center: Vec3, radius: f32, aspect: f32) {
+        let radius = radius.max(1e-3);
         let half_y = self.fov_y_deg.to_radians() * 0.5;
         let aspect = if aspect.is_finite() && aspect > 0.0 {
             aspect
@@ -530,7 +536,7 @@ impl OrbitCamera {
             1.0
         };
         let half = half_y.min((half_y.tan() * aspect).atan());
-        self.target = (lo + hi) * 0.5;
+        self.target = center;
         self.distance = radius / half.sin() * 1.05;
         self.near = (self.distance - radius * 1.5).max(self.distance * 1e-3);
         self.far = self.distance + radius * 4.0;
