@@ -482,7 +482,7 @@ impl Svo {
             create,
             f,
             result: &mut result,
-            pending: Vec::new(),
+            uniform: [None; MAX_DEPTH as usize + 1],
         };
         self.edit_inner(0, 0, UVec3::ZERO, &mut ctx);
         Ok(result)
@@ -532,9 +532,9 @@ impl Svo {
     /// Edits the subtree of inner node `i`; returns whether anything in it changed.
     ///
     /// The callback runs once per voxel of the box, in Morton order. Children that do not exist
-    /// yet are not allocated up front: a missing subtree is first *planned* (the callback runs
-    /// over its part of the box and the voxels it returns are collected), and only built when
-    /// that plan holds a voxel. So a brush's empty corners cost callback calls, not nodes.
+    /// yet are built bottom-up as the callback creates voxels in them
+    /// ([`Self::build_missing`]), and only where it does: a brush's empty corners cost callback
+    /// calls, not nodes.
     fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) -> bool {
         let iu = i as usize;
         let half = self.node_size(level) / 2;
@@ -588,9 +588,9 @@ impl Svo {
                 }
             }
         } else {
-            // Plans for missing children: (octant, range in ctx.pending).
-            let base = ctx.pending.len();
-            let mut planned: [(usize, usize); 8] = [(0, 0); 8];
+            // Missing children are built bottom-up where the callback creates a voxel, and
+            // moved into this node's block once its new child set is known.
+            let mut built: [Option<Built>; 8] = [None; 8];
             for k in 0..8u8 {
                 if touched & (1 << k) == 0 {
                     continue;
@@ -604,33 +604,26 @@ impl Svo {
                     } else {
                         self.inner_count -= 1;
                     }
-                } else {
-                    let start = ctx.pending.len();
-                    self.plan_missing(level + 1, c_origin, ctx);
-                    planned[k as usize] = (start, ctx.pending.len());
-                    if ctx.pending.len() > start {
-                        present |= 1 << k;
-                    }
+                } else if let Some(b) = self.build_missing(level + 1, c_origin, ctx) {
+                    built[k as usize] = Some(b);
+                    present |= 1 << k;
                 }
             }
-            if !changed && ctx.pending.len() == base {
+            let any_built = built.iter().any(Option::is_some);
+            if !changed && !any_built {
                 return false;
             }
             self.set_child_mask(iu, false, present);
             let first = self.inner_first[iu];
             for k in 0..8u8 {
-                let (s, e) = planned[k as usize];
-                if s == e {
-                    continue;
+                if let Some(b) = built[k as usize] {
+                    let slot = (first + child_rank(present, k)) as usize;
+                    self.inner_mask[slot] = b.mask;
+                    self.inner_first[slot] = b.first;
+                    self.inner_attr.set(slot, &b.attrs);
+                    self.inner_count += 1;
                 }
-                let slot = first + child_rank(present, k);
-                self.inner_mask[slot as usize] = 0;
-                self.inner_first[slot as usize] = 0;
-                self.inner_count += 1;
-                let c_origin = origin + octant_offset(k, half);
-                self.apply_sorted(level + 1, slot, c_origin, &ctx.pending[s..e], None);
             }
-            ctx.pending.truncate(base);
             changed = true;
         }
         if self.inner_mask[iu] != 0 {
@@ -639,24 +632,101 @@ impl Svo {
         changed
     }
 
-    /// Runs the callback over the box's part of a subtree that does not exist (every old value
-    /// is empty) and collects, in Morton order, the voxels it creates.
-    fn plan_missing(&mut self, level: u8, origin: UVec3, ctx: &mut EditCtx<'_, '_>) {
+    /// Builds the box's part of a subtree that does not exist yet (every old value is empty),
+    /// bottom-up: the callback runs over it in Morton order, each node's children are written
+    /// into one block once they are known, and the node itself (mask, first child, averaged
+    /// attributes) is returned for the caller to place; `None` when the callback created
+    /// nothing there. Nodes whose eight children are equal take their average from
+    /// `ctx.uniform` (the average is a function of the children alone), so the inside of a
+    /// solid costs one merge per level.
+    fn build_missing(
+        &mut self,
+        level: u8,
+        origin: UVec3,
+        ctx: &mut EditCtx<'_, '_>,
+    ) -> Option<Built> {
         let half = self.node_size(level) / 2;
         let touched = Self::overlapping(origin, half, ctx.lo, ctx.hi);
+        let mut mask = 0u8;
+        if level + 1 == self.depth {
+            let mut leaves = [Voxel::default(); 8];
+            let mut n = 0;
+            for k in 0..8u8 {
+                if touched & (1 << k) == 0 {
+                    continue;
+                }
+                let c_origin = origin + octant_offset(k, half);
+                if let Some(v) = (ctx.f)(c_origin, None) {
+                    ctx.record(c_origin, None);
+                    leaves[n] = self.stored(v);
+                    n += 1;
+                    mask |= 1 << k;
+                }
+            }
+            if n == 0 {
+                return None;
+            }
+            let first = self.alloc_block(true, n as u32);
+            for (j, v) in leaves[..n].iter().enumerate() {
+                self.leaf_attr.set(first as usize + j, v);
+            }
+            self.leaf_count += n as u64;
+            let attrs = self.merge_built(level, &leaves[..n], ctx);
+            return Some(Built { mask, first, attrs });
+        }
+        let mut children = [Built::default(); 8];
+        let mut n = 0;
         for k in 0..8u8 {
             if touched & (1 << k) == 0 {
                 continue;
             }
             let c_origin = origin + octant_offset(k, half);
-            if level + 1 == self.depth {
-                if let Some(v) = (ctx.f)(c_origin, None) {
-                    ctx.record(c_origin, None);
-                    let v = self.stored(v);
-                    ctx.pending.push((c_origin, Some(v)));
-                }
-            } else {
-                self.plan_missing(level + 1, c_origin, ctx);
+            if let Some(b) = self.build_missing(level + 1, c_origin, ctx) {
+                children[n] = b;
+                n += 1;
+                mask |= 1 << k;
+            }
+        }
+        if n == 0 {
+            return None;
+        }
+        let first = self.alloc_block(false, n as u32);
+        let mut attrs = [Voxel::default(); 8];
+        for (j, b) in children[..n].iter().enumerate() {
+            let slot = first as usize + j;
+            self.inner_mask[slot] = b.mask;
+            self.inner_first[slot] = b.first;
+            self.inner_attr.set(slot, &b.attrs);
+            attrs[j] = b.attrs;
+        }
+        self.inner_count += n as u64;
+        let attrs = self.merge_built(level, &attrs[..n], ctx);
+        Some(Built { mask, first, attrs })
+    }
+
+    /// The averaged attributes of a node at `level` with `children` (as stored), what
+    /// [`Self::update_inner_attrs`] would compute from its block.
+    fn merge_built(&self, level: u8, children: &[Voxel], ctx: &mut EditCtx<'_, '_>) -> Voxel {
+        let merge = || {
+            let mut skins = [Skin4::default(); 8];
+            for (s, v) in skins.iter_mut().zip(children) {
+                *s = v.skin;
+            }
+            voxel::merge(
+                children.iter().map(|v| (v.color, v.normal, v.material)),
+                self.has_skin.then_some(&skins[..children.len()]),
+            )
+        };
+        if children.len() < 8 || children.iter().any(|v| *v != children[0]) {
+            return merge();
+        }
+        let memo = &mut ctx.uniform[level as usize];
+        match memo {
+            Some((child, merged)) if *child == children[0] => *merged,
+            _ => {
+                let merged = merge();
+                *memo = Some((children[0], merged));
+                merged
             }
         }
     }
@@ -1085,8 +1155,17 @@ struct EditCtx<'a, 'f> {
     create: bool,
     f: &'a mut (dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel> + 'f),
     result: &'a mut EditResult,
-    /// Voxels planned for subtrees that do not exist yet (see `Svo::edit_inner`).
-    pending: Vec<(UVec3, Option<Voxel>)>,
+    /// Per level, the last uniform node built (`Svo::build_missing`): its children's value and
+    /// their average.
+    uniform: [Option<(Voxel, Voxel)>; MAX_DEPTH as usize + 1],
+}
+
+/// A node built by `Svo::build_missing`, not yet placed in its parent's block.
+#[derive(Debug, Clone, Copy, Default)]
+struct Built {
+    mask: u8,
+    first: u32,
+    attrs: Voxel,
 }
 
 impl EditCtx<'_, '_> {

@@ -376,3 +376,103 @@ fn child_rank_counts_the_children_before_each_octant() {
         }
     }
 }
+
+/// `edit_region` with the callback's values, written instead through the generic sorted path
+/// (`apply_changes`): the reference for the bottom-up build of missing subtrees.
+fn edit_via_apply_changes(
+    svo: &mut Svo,
+    lo: UVec3,
+    hi: UVec3,
+    f: impl Fn(UVec3, Option<Voxel>) -> Option<Voxel>,
+) -> EditResult {
+    let hi = hi.min(UVec3::splat(svo.extent() - 1));
+    let mut changes = Vec::new();
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let c = UVec3::new(x, y, z);
+                changes.push((c, f(c, svo.get(c))));
+            }
+        }
+    }
+    svo.apply_changes(changes).unwrap()
+}
+
+/// Both paths from the same start: same tree (structure, leaf and internal attributes), same
+/// counts, same undo entries in the same (Morton) order, same changed box; undo restores.
+fn assert_edit_matches_generic(
+    start: &Svo,
+    lo: UVec3,
+    hi: UVec3,
+    f: impl Fn(UVec3, Option<Voxel>) -> Option<Voxel>,
+) {
+    let mut fast = start.clone();
+    let r = fast.edit_region(lo, hi, &f).unwrap();
+    let mut generic = start.clone();
+    let g = edit_via_apply_changes(&mut generic, lo, hi, &f);
+    assert_eq!(fast, generic);
+    assert_eq!(fast.leaf_count(), generic.leaf_count());
+    assert_eq!(fast.inner_count(), generic.inner_count());
+    assert_eq!(fast.leaves(), generic.leaves());
+    assert_eq!(r.changed, g.changed);
+    assert_eq!(r.delta, g.delta);
+    assert_eq!(
+        fast,
+        Svo::from_voxels(fast.depth(), fast.has_skin(), fast.leaves()).unwrap()
+    );
+    let mut undone = fast.clone();
+    undone.apply_delta(&r.delta);
+    assert_eq!(&undone, start);
+    assert_eq!(undone.leaves(), start.leaves());
+}
+
+#[test]
+fn building_missing_subtrees_matches_the_generic_path() {
+    let uniform = Voxel::new([200, 120, 40, 255], Vec3::Y);
+    let skinned = |c: UVec3| Voxel {
+        skin: Skin4::from_influences(&[(c.x as u16 % 3, 0.6), (4, 0.4)]),
+        ..uniform
+    };
+    for has_skin in [false, true] {
+        let empty = Svo::new(5, has_skin).unwrap();
+        let shell = Svo::from_voxels(5, has_skin, shell(5, 9.0)).unwrap();
+        for start in [&empty, &shell] {
+            // A uniform solid (whole uniform subtrees), one clipped at the far faces, a
+            // patterned one, and one that fills only empty cells.
+            assert_edit_matches_generic(start, UVec3::splat(3), UVec3::splat(28), |_, _| {
+                Some(uniform)
+            });
+            assert_edit_matches_generic(start, UVec3::new(17, 0, 9), UVec3::splat(40), |c, _| {
+                Some(skinned(c))
+            });
+            assert_edit_matches_generic(start, UVec3::ZERO, UVec3::splat(31), |c, old| {
+                if (c.x ^ c.y ^ c.z) % 3 == 0 {
+                    Some(vox(c.x as u8, c.z as u8))
+                } else {
+                    old
+                }
+            });
+            assert_edit_matches_generic(
+                start,
+                UVec3::new(2, 5, 1),
+                UVec3::new(30, 26, 19),
+                |c, old| old.or(Some(skinned(c))),
+            );
+        }
+    }
+    // Depth 21: a box against the far corner, and a single voxel at it.
+    let max = (1u32 << MAX_DEPTH) - 1;
+    let deep = Svo::from_voxels(MAX_DEPTH, false, [(UVec3::splat(max - 3), vox(1, 2))]).unwrap();
+    assert_edit_matches_generic(&deep, UVec3::splat(max - 9), UVec3::splat(max), |_, _| {
+        Some(uniform)
+    });
+    assert_edit_matches_generic(&deep, UVec3::splat(max), UVec3::splat(max), |_, _| {
+        Some(vox(3, 4))
+    });
+    assert_edit_matches_generic(
+        &Svo::new(MAX_DEPTH, true).unwrap(),
+        UVec3::new(0, max - 5, 0),
+        UVec3::new(12, max, 7),
+        |c, _| Some(skinned(c)),
+    );
+}
