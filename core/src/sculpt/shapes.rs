@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::select::VoxelSelection;
-use super::{nearest_skin, normal_from, offset};
+use super::{ALL_NEIGHBOURS, nearest_skin, normal_from, normal_from_mask, offset};
 use crate::svo::{EditResult, MAX_DEPTH, Svo, UndoDelta, Voxel, encode_normal};
 
 /// What a tool edit did.
@@ -170,9 +170,9 @@ pub(crate) enum Normals {
     Others,
 }
 
-const OLD: u8 = 1;
-const NEW: u8 = 2;
-const WRITE: u8 = 4;
+pub(super) const OLD: u8 = 1;
+pub(super) const NEW: u8 = 2;
+pub(super) const WRITE: u8 = 4;
 
 /// A flat grid over an inclusive box, x fastest.
 #[derive(Debug, Clone, Copy)]
@@ -240,24 +240,98 @@ pub(crate) fn in_volume(c: IVec3, size: UVec3) -> Option<UVec3> {
     (c.min_element() >= 0 && c.as_uvec3().cmplt(size).all()).then(|| c.as_uvec3())
 }
 
-/// Chebyshev dilation by one cell of a 0/1 grid.
-fn dilate(src: Vec<u8>, g: &Grid) -> Vec<u8> {
+/// Re-estimated normals of a dense commit, per cell of `g` (`None`: leave the normal alone).
+///
+/// A cell gets one when it is solid after the edit, lies within one cell (Chebyshev) of a cell
+/// whose occupancy flips, and is not excluded by `normals`. The estimate is
+/// [`normal_from_mask`] of its 26-neighbourhood after the edit; neighbours outside the grid are
+/// outside the octree (the grid reaches two cells past every change), so they count as empty.
+///
+/// The flags are copied into a grid with a one-cell empty border, so no lookup needs a bounds
+/// check. Three separable passes (x, y, z) over that copy find, for every cell, whether its
+/// 3×3×3 block is all solid (erosion) and whether it holds a flip (dilation). Cells deep inside
+/// a solid, most of a large box, then take the one all-solid estimate without reading their
+/// neighbours; the others read their 26-neighbour mask.
+pub(super) fn dense_normals(g: &Grid, flags: &[u8], normals: Normals) -> Vec<Option<u16>> {
+    const SOLID: u8 = 1;
+    const FLIPS: u8 = 2;
     let (nx, ny, nz) = (g.dim.x as usize, g.dim.y as usize, g.dim.z as usize);
-    let mut cur = src;
-    for (stride, len) in [(1, nx), (nx, ny), (nx * ny, nz)] {
-        let mut out = cur.clone();
-        for i in 0..cur.len() {
-            let along = (i / stride) % len;
-            if cur[i] != 0 {
-                continue;
-            }
-            if (along > 0 && cur[i - stride] != 0) || (along + 1 < len && cur[i + stride] != 0) {
-                out[i] = 1;
+    let (px, py) = (nx + 2, ny + 2);
+    let pxy = px * py;
+    let mut padded = vec![0u8; pxy * (nz + 2)];
+    for z in 0..nz {
+        for y in 0..ny {
+            let src = &flags[(z * ny + y) * nx..][..nx];
+            let dst = &mut padded[(z + 1) * pxy + (y + 1) * px + 1..][..nx];
+            for (d, &f) in dst.iter_mut().zip(src) {
+                let (old, new) = (f & OLD != 0, f & NEW != 0);
+                *d = (u8::from(new) * SOLID) | (u8::from(old != new) * FLIPS);
             }
         }
-        cur = out;
     }
-    cur
+    // Bit SOLID: the block along the axes done so far is all solid; bit FLIPS: it holds a flip.
+    // Border cells stay empty and flip-free where the next pass reads them (see below), and
+    // the first and last `stride` cells are border cells no later pass reads.
+    let mut block = padded.clone();
+    let mut next = vec![0u8; padded.len()];
+    for stride in [1, px, pxy] {
+        let len = block.len();
+        for i in stride..len - stride {
+            let (a, b, c) = (block[i - stride], block[i], block[i + stride]);
+            next[i] = (a & b & c & SOLID) | ((a | b | c) & FLIPS);
+        }
+        std::mem::swap(&mut block, &mut next);
+    }
+    // Why the border is safe: a pass along one axis reads, for an interior cell, cells that are
+    // interior along the axes already passed, whose values are exact; the border cells it
+    // reads along its own axis are empty in `padded` and, having only empty, flip-free
+    // neighbours along the earlier axes, still are.
+
+    // Offsets of the 26 neighbours in `padded`, in `neighbour_dirs` order (the mask's bits).
+    let mut offsets = [0isize; 26];
+    for (o, &(d, _)) in offsets.iter_mut().zip(super::neighbour_dirs()) {
+        *o = d.z as isize * pxy as isize + d.y as isize * px as isize + d.x as isize;
+    }
+    let full = encode_normal(normal_from_mask(ALL_NEIGHBOURS));
+    let mut out = vec![None; nx * ny * nz];
+    let (padded, block) = (&padded, &block);
+    out.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, slice)| {
+            let mut cached: Option<(u32, u16)> = None;
+            for y in 0..ny {
+                let row = (z * ny + y) * nx;
+                let prow = (z + 1) * pxy + (y + 1) * px + 1;
+                for x in 0..nx {
+                    let f = flags[row + x];
+                    if f & NEW == 0 || (normals == Normals::Others && f & WRITE != 0) {
+                        continue;
+                    }
+                    let p = prow + x;
+                    let b = block[p];
+                    if b & FLIPS == 0 {
+                        continue;
+                    }
+                    if b & SOLID != 0 {
+                        slice[y * nx + x] = Some(full);
+                        continue;
+                    }
+                    let mut mask = 0u32;
+                    for (i, &o) in offsets.iter().enumerate() {
+                        mask |= u32::from(padded[p.wrapping_add_signed(o)] & SOLID) << i;
+                    }
+                    slice[y * nx + x] = Some(match cached {
+                        Some((m, code)) if m == mask => code,
+                        _ => {
+                            let code = encode_normal(normal_from_mask(mask));
+                            cached = Some((mask, code));
+                            code
+                        }
+                    });
+                }
+            }
+        });
+    out
 }
 
 /// Applies `changes` (all inside the octree; later duplicates win) in one pass with
@@ -280,26 +354,95 @@ pub(crate) fn commit(
             .filter(|c| c.0.max_element() < extent)
             .collect()
     };
-    let Some((lo, hi)) = cell_bounds(changes.iter().map(|c| c.0)) else {
+    let Some(bounds) = cell_bounds(changes.iter().map(|c| c.0)) else {
         return ToolEdit {
             clipped,
             ..ToolEdit::default()
         };
     };
-    let max = UVec3::splat(extent - 1);
-    let g = Grid::new(lo.saturating_sub(UVec3::splat(2)), (hi + 2).min(max));
-    let n = changes.len() as u64;
-    let r = if g.cells() <= DENSE_LIMIT && g.cells() <= 64 * n + (1 << 16) {
-        commit_dense(svo, &changes, only_into_empty, normals, g, (lo, hi))
-    } else {
-        commit_sparse(svo, changes, only_into_empty, normals)
+    let r = match dense_grid(svo, bounds, changes.len() as u64) {
+        Some(g) => commit_dense(
+            svo,
+            Writes::List(&changes),
+            only_into_empty,
+            normals,
+            g,
+            bounds,
+        ),
+        None => commit_sparse(svo, changes, only_into_empty, normals),
     };
     ToolEdit::from_result(r, clipped)
 }
 
+/// [`commit`] of `voxel` written into every cell of `boxes` (inside the octree; they may
+/// overlap), in that order: the same result as listing the cells, without the list when the
+/// dense path takes it.
+pub(crate) fn commit_boxes(
+    svo: &mut Svo,
+    boxes: &[(UVec3, UVec3)],
+    voxel: Voxel,
+    only_into_empty: bool,
+    normals: Normals,
+    clipped: u64,
+) -> ToolEdit {
+    let Some(bounds) = cell_bounds(boxes.iter().flat_map(|b| [b.0, b.1])) else {
+        return ToolEdit {
+            clipped,
+            ..ToolEdit::default()
+        };
+    };
+    let n = boxes
+        .iter()
+        .map(|(l, h)| box_cells(*h - *l + 1))
+        .fold(0u64, u64::saturating_add);
+    match dense_grid(svo, bounds, n) {
+        Some(g) => {
+            let r = commit_dense(
+                svo,
+                Writes::Boxes(boxes, voxel),
+                only_into_empty,
+                normals,
+                g,
+                bounds,
+            );
+            ToolEdit::from_result(r, clipped)
+        }
+        None => {
+            let mut changes = Vec::with_capacity(n as usize);
+            for (l, h) in boxes {
+                for z in l.z..=h.z {
+                    for y in l.y..=h.y {
+                        for x in l.x..=h.x {
+                            changes.push((UVec3::new(x, y, z), Some(voxel)));
+                        }
+                    }
+                }
+            }
+            commit(svo, changes, only_into_empty, normals, clipped)
+        }
+    }
+}
+
+/// The grid a dense commit of `n` changes within `bounds` uses, or `None` when it would be
+/// too large or too sparse (the hash path is cheaper then).
+fn dense_grid(svo: &Svo, (lo, hi): (UVec3, UVec3), n: u64) -> Option<Grid> {
+    let max = UVec3::splat(svo.extent() - 1);
+    let g = Grid::new(lo.saturating_sub(UVec3::splat(2)), (hi + 2).min(max));
+    (g.cells() <= DENSE_LIMIT && g.cells() <= 64 * n + (1 << 16)).then_some(g)
+}
+
+/// What a dense commit writes.
+#[derive(Clone, Copy)]
+enum Writes<'a> {
+    /// `(cell, new value)`; later duplicates win.
+    List(&'a [(UVec3, Option<Voxel>)]),
+    /// One voxel into every cell of each box.
+    Boxes(&'a [(UVec3, UVec3)], Voxel),
+}
+
 fn commit_dense(
     svo: &mut Svo,
-    changes: &[(UVec3, Option<Voxel>)],
+    writes: Writes<'_>,
     only_into_empty: bool,
     normals: Normals,
     g: Grid,
@@ -308,38 +451,38 @@ fn commit_dense(
     let cells = g.cells() as usize;
     let mut flags = vec![0u8; cells];
     svo.for_each_leaf_in(g.lo, g.hi(), |c, _| flags[g.idx(c)] = OLD | NEW);
-    let mut slot = vec![u32::MAX; cells];
-    for (i, (c, v)) in changes.iter().enumerate() {
-        let k = g.idx(*c);
-        if only_into_empty && v.is_some() && flags[k] & OLD != 0 {
-            continue;
+    let mut slot = Vec::new();
+    match writes {
+        Writes::List(changes) => {
+            slot = vec![u32::MAX; cells];
+            for (i, (c, v)) in changes.iter().enumerate() {
+                let k = g.idx(*c);
+                if only_into_empty && v.is_some() && flags[k] & OLD != 0 {
+                    continue;
+                }
+                slot[k] = i as u32;
+                flags[k] = (flags[k] & OLD) | WRITE | if v.is_some() { NEW } else { 0 };
+            }
         }
-        slot[k] = i as u32;
-        flags[k] = (flags[k] & OLD) | WRITE | if v.is_some() { NEW } else { 0 };
+        Writes::Boxes(boxes, _) => {
+            for (l, h) in boxes {
+                for z in l.z..=h.z {
+                    for y in l.y..=h.y {
+                        let row = g.idx(UVec3::new(l.x, y, z));
+                        for f in &mut flags[row..=row + (h.x - l.x) as usize] {
+                            if !(only_into_empty && *f & OLD != 0) {
+                                *f = (*f & OLD) | WRITE | NEW;
+                            }
+                        }
+                    }
+                }
+            }
+        }
     }
     let norms: Vec<Option<u16>> = if normals == Normals::Keep {
         Vec::new()
     } else {
-        let flipped: Vec<u8> = flags
-            .iter()
-            .map(|f| u8::from((f & OLD != 0) != (f & NEW != 0)))
-            .collect();
-        let dirty = dilate(flipped, &g);
-        let flags = &flags;
-        (0..cells)
-            .into_par_iter()
-            .map(|k| {
-                let f = flags[k];
-                if dirty[k] == 0 || f & NEW == 0 || (normals == Normals::Others && f & WRITE != 0) {
-                    return None;
-                }
-                let c = g.coord(k);
-                // Neighbours outside the grid are outside the octree: the grid reaches two
-                // cells past every change, dirty cells one.
-                let n = normal_from(|o| g.neighbour(c, o).is_some_and(|j| flags[j] & NEW != 0));
-                Some(encode_normal(n))
-            })
-            .collect()
+        dense_normals(&g, &flags, normals)
     };
     let (w_lo, w_hi) = if normals == Normals::Keep {
         (lo, hi)
@@ -349,10 +492,14 @@ fn commit_dense(
             (hi + 1).min(UVec3::splat(svo.extent() - 1)),
         )
     };
+    let written = |k: usize| match writes {
+        Writes::List(changes) => changes[slot[k] as usize].1,
+        Writes::Boxes(_, v) => Some(v),
+    };
     let r = svo.edit_region(w_lo, w_hi, |c, old| {
         let k = g.idx(c);
         let mut v = if flags[k] & WRITE != 0 {
-            changes[slot[k] as usize].1
+            written(k)
         } else {
             old
         };
@@ -364,7 +511,7 @@ fn commit_dense(
     r.unwrap_or_default()
 }
 
-fn commit_sparse(
+pub(super) fn commit_sparse(
     svo: &mut Svo,
     changes: Vec<(UVec3, Option<Voxel>)>,
     only_into_empty: bool,
@@ -722,15 +869,16 @@ pub fn apply_box(
                 material: ink.material,
                 skin: Default::default(),
             };
-            let skin = svo.has_skin();
+            if !svo.has_skin() {
+                return commit_boxes(svo, &boxes, base, true, Normals::All, clipped);
+            }
             let mut changes = Vec::with_capacity(asked as usize);
             for (l, h) in &boxes {
                 for z in l.z..=h.z {
                     for y in l.y..=h.y {
                         for x in l.x..=h.x {
                             let c = UVec3::new(x, y, z);
-                            let v = if skin { ink_voxel(svo, ink, c) } else { base };
-                            changes.push((c, Some(v)));
+                            changes.push((c, Some(ink_voxel(svo, ink, c))));
                         }
                     }
                 }
