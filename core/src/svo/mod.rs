@@ -428,7 +428,29 @@ impl Svo {
         hi: UVec3,
         mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
-        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old))
+        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old), EditResult::default())
+    }
+
+    /// [`Svo::edit_region`] for a caller that knows about how many voxels the edit changes and
+    /// creates: room for `changes` undo entries and `new_leaves` leaves is reserved up front,
+    /// so a large edit does not grow (and copy) them step by step. Same result.
+    pub(crate) fn edit_region_reserving(
+        &mut self,
+        lo: UVec3,
+        hi: UVec3,
+        (changes, new_leaves): (usize, usize),
+        mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+    ) -> Result<EditResult, SvoError> {
+        let a = &mut self.leaf_attr;
+        a.color.reserve(new_leaves);
+        a.normal.reserve(new_leaves);
+        a.material.reserve(new_leaves);
+        if self.has_skin {
+            a.skin.reserve(new_leaves);
+        }
+        let mut result = EditResult::default();
+        result.delta.entries.reserve(changes);
+        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old), result)
     }
 
     /// Like [`Svo::edit_region`] but visits only voxels that are already solid (paint, remove,
@@ -442,7 +464,13 @@ impl Svo {
         hi: UVec3,
         mut f: impl FnMut(UVec3, Voxel) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
-        self.edit_impl(lo, hi, false, &mut |c, old| old.and_then(|v| f(c, v)))
+        self.edit_impl(
+            lo,
+            hi,
+            false,
+            &mut |c, old| old.and_then(|v| f(c, v)),
+            EditResult::default(),
+        )
     }
 
     /// Applies an undo delta (entries outside the octree are skipped; for a coordinate listed
@@ -450,6 +478,14 @@ impl Svo {
     /// the touched paths ([`Svo::apply_changes`]), so undo costs what the edit did.
     pub fn apply_delta(&mut self, delta: &UndoDelta) -> UndoDelta {
         let extent = self.extent();
+        // An edit's own delta is already what `apply_changes` would sort it into (inside,
+        // Morton order, one entry per voxel, skin stored): apply it in place, without the
+        // sorted copies.
+        if !delta.entries.is_empty() && self.is_sorted_unique_stored(&delta.entries) {
+            let mut result = EditResult::default();
+            self.apply_sorted(0, 0, UVec3::ZERO, &delta.entries, Some(&mut result));
+            return result.delta;
+        }
         let entries = delta
             .entries
             .iter()
@@ -460,12 +496,31 @@ impl Svo {
             .unwrap_or_default()
     }
 
+    /// Whether `entries` are inside the octree, in strictly increasing Morton order, and hold
+    /// only skin the octree stores: exactly what `apply_changes` hands `apply_sorted`.
+    fn is_sorted_unique_stored(&self, entries: &[(UVec3, Option<Voxel>)]) -> bool {
+        let extent = self.extent();
+        let mut last = None;
+        entries.iter().all(|(c, v)| {
+            if c.max_element() >= extent
+                || v.is_some_and(|v| !self.has_skin && v.skin != Skin4::default())
+            {
+                return false;
+            }
+            let code = morton_encode(*c);
+            let ok = last.is_none_or(|l| l < code);
+            last = Some(code);
+            ok
+        })
+    }
+
     fn edit_impl(
         &mut self,
         lo: UVec3,
         hi: UVec3,
         create: bool,
         f: &mut dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+        mut result: EditResult,
     ) -> Result<EditResult, SvoError> {
         let max = UVec3::splat(self.extent() - 1);
         if lo.cmpgt(max).any() || lo.cmpgt(hi).any() {
@@ -475,7 +530,6 @@ impl Svo {
             });
         }
         let hi = hi.min(max);
-        let mut result = EditResult::default();
         let mut ctx = EditCtx {
             lo,
             hi,
@@ -501,15 +555,23 @@ impl Svo {
         }
     }
 
-    /// Octants of the node at `origin` (children of edge `half`) that overlap `lo..=hi`.
+    /// Octants of the node at `origin` (children of edge `half`) that overlap `lo..=hi`: per
+    /// axis, which of the two halves overlap, then the octants whose halves all do.
+    #[inline]
     fn overlapping(origin: UVec3, half: u32, lo: UVec3, hi: UVec3) -> u8 {
-        let mut touched = 0u8;
-        for k in 0..8u8 {
-            let c_lo = origin + octant_offset(k, half);
-            let c_hi = c_lo + UVec3::splat(half - 1);
-            if c_lo.cmple(hi).all() && c_hi.cmpge(lo).all() {
-                touched |= 1 << k;
+        // Octants in the low / high half along x, y, z (octant bit 0 = x, 1 = y, 2 = z).
+        const HALVES: [[u8; 2]; 3] = [[0x55, 0xaa], [0x33, 0xcc], [0x0f, 0xf0]];
+        let mut touched = 0xff;
+        for a in 0..3 {
+            let o = origin[a];
+            let mut axis = 0;
+            if o <= hi[a] && o + half > lo[a] {
+                axis |= HALVES[a][0];
             }
+            if o + half <= hi[a] && o + 2 * half > lo[a] {
+                axis |= HALVES[a][1];
+            }
+            touched &= axis;
         }
         touched
     }

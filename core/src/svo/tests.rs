@@ -476,3 +476,80 @@ fn building_missing_subtrees_matches_the_generic_path() {
         |c, _| Some(skinned(c)),
     );
 }
+
+#[test]
+fn applying_a_sorted_delta_in_place_matches_the_sorting_path() {
+    let start = Svo::from_voxels(5, true, shell(5, 9.0)).unwrap();
+    let mut edited = start.clone();
+    let r = edited
+        .edit_region(UVec3::new(3, 0, 5), UVec3::splat(31), |c, old| {
+            if (c.x + 2 * c.y + c.z) % 4 == 0 {
+                None
+            } else {
+                old.or(Some(vox(c.z as u8, 1)))
+            }
+        })
+        .unwrap();
+    assert!(edited.is_sorted_unique_stored(&r.delta.entries));
+    // Reversed, the same entries go through the sorting path.
+    let reversed = UndoDelta {
+        entries: r.delta.entries.iter().rev().copied().collect(),
+    };
+    assert!(!edited.is_sorted_unique_stored(&reversed.entries));
+    let (mut fast, mut sorted) = (edited.clone(), edited.clone());
+    let redo_fast = fast.apply_delta(&r.delta);
+    let redo_sorted = sorted.apply_delta(&reversed);
+    assert_eq!(fast, start);
+    assert_eq!(sorted, start);
+    assert_eq!(fast.leaves(), start.leaves());
+    assert_eq!(redo_fast, redo_sorted);
+    // Redo (also sorted) restores the edit.
+    fast.apply_delta(&redo_fast);
+    assert_eq!(fast, edited);
+    // Unstored skin in a skinless octree, or a coordinate outside, takes the checked path.
+    let plain = Svo::new(4, false).unwrap();
+    let skinned = Voxel {
+        skin: Skin4::ROOT,
+        ..vox(1, 1)
+    };
+    assert!(!plain.is_sorted_unique_stored(&[(UVec3::ONE, Some(skinned))]));
+    assert!(!plain.is_sorted_unique_stored(&[(UVec3::splat(16), None)]));
+    let mut p = plain.clone();
+    p.apply_delta(&UndoDelta {
+        entries: vec![
+            (UVec3::ONE, Some(skinned)),
+            (UVec3::splat(16), Some(skinned)),
+        ],
+    });
+    assert_eq!(p.get(UVec3::ONE), Some(vox(1, 1)));
+    assert_eq!(p.leaf_count(), 1);
+}
+
+#[test]
+fn overlapping_octants_match_a_per_octant_box_test() {
+    let mut rng = 0x9e37_79b9_u32;
+    let mut next = |m: u32| {
+        rng ^= rng << 13;
+        rng ^= rng >> 17;
+        rng ^= rng << 5;
+        rng % m
+    };
+    for half in [1u32, 2, 4, 8, 1 << 20] {
+        for _ in 0..2000 {
+            let origin = UVec3::new(next(4), next(4), next(4)) * 2 * half;
+            let span = 8 * half + 2;
+            let a = UVec3::new(next(span), next(span), next(span));
+            let b = UVec3::new(next(span), next(span), next(span));
+            let (lo, hi) = (a.min(b), a.max(b));
+            let mut expected = 0u8;
+            for k in 0..8u8 {
+                let c_lo = origin + octant_offset(k, half);
+                let c_hi = c_lo + UVec3::splat(half - 1);
+                if c_lo.cmple(hi).all() && c_hi.cmpge(lo).all() {
+                    expected |= 1 << k;
+                }
+            }
+            assert_eq!(Svo::overlapping(origin, half, lo, hi), expected);
+        }
+    }
+}
