@@ -2,13 +2,14 @@
 //! bit-mask normal estimate with its all-solid shortcut against the per-neighbour estimator,
 //! and box writes against the hash path (per-voxel `get`, `normal_from`, `apply_changes`).
 
-use glam::{UVec3, Vec3};
+use glam::{I64Vec3, UVec3, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
 
 use super::normal_from;
 use super::shapes::{
-    Grid, NEW, Normals, OLD, WRITE, commit, commit_boxes, commit_sparse, dense_normals,
+    Grid, NEW, Normals, OLD, WRITE, commit, commit_boxes, commit_shifted, commit_sparse,
+    dense_normals, shifted_in_volume,
 };
 use super::tool_tests::{assert_normals_estimated, leaf_hash, undo_restores};
 use crate::svo::{MAX_DEPTH, Svo, Voxel, encode_normal};
@@ -170,4 +171,66 @@ fn box_writes_match_the_generic_path() {
         &[(UVec3::new(0, max - 4, 0), UVec3::new(5, max, 3))],
         false,
     );
+}
+
+/// `commit_shifted` (dense path, no cell list) against the hash path over the listed cells.
+fn assert_shifted_matches_generic(start: &Svo, voxels: &[(UVec3, Voxel)], at: I64Vec3) {
+    let size = UVec3::splat(start.extent());
+    for only_into_empty in [true, false] {
+        let mut fast = start.clone();
+        let e = commit_shifted(&mut fast, voxels, at, size, only_into_empty, Normals::All);
+        let cells: Vec<_> = voxels
+            .iter()
+            .filter_map(|(r, v)| shifted_in_volume(at, *r, size).map(|c| (c, Some(*v))))
+            .collect();
+        let clipped = (voxels.len() - cells.len()) as u64;
+        assert_eq!(e.clipped, clipped);
+        let mut generic = start.clone();
+        let r = commit_sparse(&mut generic, cells.clone(), only_into_empty, Normals::All);
+        assert!(fast == generic, "at {at}: same octree as the hash path");
+        assert_eq!(leaf_hash(&fast), leaf_hash(&generic), "at {at}");
+        assert_eq!(e.changed, r.changed);
+        let (mut a, mut b) = (e.delta.entries.clone(), r.delta.entries.clone());
+        a.sort_by_key(|x| crate::svo::morton_encode(x.0));
+        b.sort_by_key(|x| crate::svo::morton_encode(x.0));
+        assert_eq!(a, b, "at {at}: same undo entries");
+        let mut listed = start.clone();
+        let l = commit(&mut listed, cells, only_into_empty, Normals::All, clipped);
+        assert!(listed == fast);
+        assert_eq!(l.delta, e.delta);
+        undo_restores(fast, start, &e.delta);
+    }
+}
+
+#[test]
+fn shifted_writes_match_the_generic_path() {
+    // A clipboard of varied voxels with holes, listed in Morton order of its own cells.
+    let mut rng = Pcg64::seed_from_u64(7);
+    let mut clip: Vec<(UVec3, Voxel)> = Vec::new();
+    for m in 0..(10u64 * 10 * 10 * 8) {
+        let r = crate::svo::morton_decode(m);
+        if r.max_element() < 10 && rng.random_bool(0.8) {
+            clip.push((r, ink(rng.random_range(0..200))));
+        }
+    }
+    for start in [Svo::new(5, false).unwrap(), scattered(5, 600, 5)] {
+        for at in [
+            I64Vec3::new(4, 9, 13),
+            // Hanging out of the volume on the low and the high side.
+            I64Vec3::new(-3, 0, -7),
+            I64Vec3::new(25, 28, 22),
+            I64Vec3::new(-40, 0, 0),
+        ] {
+            assert_shifted_matches_generic(&start, &clip, at);
+        }
+    }
+    // Depth 21: against the far corner.
+    let max = i64::from((1u32 << MAX_DEPTH) - 1);
+    let deep = Svo::from_voxels(
+        MAX_DEPTH,
+        false,
+        [(UVec3::splat((1 << MAX_DEPTH) - 4), ink(1))],
+    )
+    .unwrap();
+    assert_shifted_matches_generic(&deep, &clip, I64Vec3::splat(max - 6));
 }

@@ -438,6 +438,57 @@ enum Writes<'a> {
     List(&'a [(UVec3, Option<Voxel>)]),
     /// One voxel into every cell of each box.
     Boxes(&'a [(UVec3, UVec3)], Voxel),
+    /// Clipboard voxels at `at + offset`, those outside the volume `size` dropped.
+    Shifted {
+        voxels: &'a [(UVec3, Voxel)],
+        at: I64Vec3,
+        size: UVec3,
+    },
+}
+
+/// [`commit`] of clipboard `voxels` written at `at + offset` (the ones outside the volume
+/// `size`, already clamped to the octree, dropped and counted): the same result as listing the
+/// cells inside in clipboard order, without the list when the dense path takes it.
+pub(crate) fn commit_shifted(
+    svo: &mut Svo,
+    voxels: &[(UVec3, Voxel)],
+    at: I64Vec3,
+    size: UVec3,
+    only_into_empty: bool,
+    normals: Normals,
+) -> ToolEdit {
+    let mut clipped = 0u64;
+    let mut n = 0u64;
+    let mut bounds: Option<(UVec3, UVec3)> = None;
+    for (r, _) in voxels {
+        match shifted_in_volume(at, *r, size) {
+            Some(c) => {
+                n += 1;
+                bounds = Some(bounds.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+            }
+            None => clipped += 1,
+        }
+    }
+    let Some(bounds) = bounds else {
+        return ToolEdit {
+            clipped,
+            ..ToolEdit::default()
+        };
+    };
+    match dense_grid(svo, bounds, n) {
+        Some(g) => {
+            let writes = Writes::Shifted { voxels, at, size };
+            let r = commit_dense(svo, writes, only_into_empty, normals, g, bounds);
+            ToolEdit::from_result(r, clipped)
+        }
+        None => {
+            let changes = voxels
+                .iter()
+                .filter_map(|(r, v)| shifted_in_volume(at, *r, size).map(|c| (c, Some(*v))))
+                .collect();
+            commit(svo, changes, only_into_empty, normals, clipped)
+        }
+    }
 }
 
 fn commit_dense(
@@ -448,20 +499,40 @@ fn commit_dense(
     g: Grid,
     (lo, hi): (UVec3, UVec3),
 ) -> EditResult {
+    let (w_lo, w_hi) = if normals == Normals::Keep {
+        (lo, hi)
+    } else {
+        (
+            lo.saturating_sub(UVec3::ONE),
+            (hi + 1).min(UVec3::splat(svo.extent() - 1)),
+        )
+    };
+    let mut plan = BrickPlan::new(w_lo, w_hi);
     let cells = g.cells() as usize;
     let mut flags = vec![0u8; cells];
     svo.for_each_leaf_in(g.lo, g.hi(), |c, _| flags[g.idx(c)] = OLD | NEW);
-    let mut slot = Vec::new();
+    let mut mark = |i: usize, c: UVec3, solid: bool, slots: &mut Vec<u32>| {
+        let k = g.idx(c);
+        if only_into_empty && solid && flags[k] & OLD != 0 {
+            return;
+        }
+        slots[plan.index(c)] = i as u32;
+        flags[k] = (flags[k] & OLD) | WRITE | if solid { NEW } else { 0 };
+    };
+    let mut slots = Vec::new();
     match writes {
         Writes::List(changes) => {
-            slot = vec![u32::MAX; cells];
+            slots = vec![0; plan.cells.len()];
             for (i, (c, v)) in changes.iter().enumerate() {
-                let k = g.idx(*c);
-                if only_into_empty && v.is_some() && flags[k] & OLD != 0 {
-                    continue;
+                mark(i, *c, v.is_some(), &mut slots);
+            }
+        }
+        Writes::Shifted { voxels, at, size } => {
+            slots = vec![0; plan.cells.len()];
+            for (i, (r, _)) in voxels.iter().enumerate() {
+                if let Some(c) = shifted_in_volume(at, *r, size) {
+                    mark(i, c, true, &mut slots);
                 }
-                slot[k] = i as u32;
-                flags[k] = (flags[k] & OLD) | WRITE | if v.is_some() { NEW } else { 0 };
             }
         }
         Writes::Boxes(boxes, _) => {
@@ -479,36 +550,141 @@ fn commit_dense(
             }
         }
     }
+    plan.slots = slots;
     let norms: Vec<Option<u16>> = if normals == Normals::Keep {
         Vec::new()
     } else {
         dense_normals(&g, &flags, normals)
     };
-    let (w_lo, w_hi) = if normals == Normals::Keep {
-        (lo, hi)
-    } else {
-        (
-            lo.saturating_sub(UVec3::ONE),
-            (hi + 1).min(UVec3::splat(svo.extent() - 1)),
-        )
-    };
-    let written = |k: usize| match writes {
-        Writes::List(changes) => changes[slot[k] as usize].1,
-        Writes::Boxes(_, v) => Some(v),
-    };
-    let r = svo.edit_region(w_lo, w_hi, |c, old| {
-        let k = g.idx(c);
-        let mut v = if flags[k] & WRITE != 0 {
-            written(k)
+    let (touched, written) = plan.fill(&g, &flags, &norms);
+    drop((flags, norms));
+    let r = svo.edit_region_reserving(w_lo, w_hi, (touched, written), |c, old| {
+        let (cell, slot) = plan.get(c);
+        let mut v = if cell & BrickPlan::WRITE != 0 {
+            match writes {
+                Writes::List(changes) => changes[slot as usize].1,
+                Writes::Shifted { voxels, .. } => Some(voxels[slot as usize].1),
+                Writes::Boxes(_, v) => Some(v),
+            }
         } else {
             old
         };
-        if let (Some(Some(nrm)), Some(v)) = (norms.get(k), v.as_mut()) {
-            v.normal = *nrm;
+        if cell & BrickPlan::NORMAL != 0
+            && let Some(v) = v.as_mut()
+        {
+            v.normal = cell as u16;
         }
         v
     });
     r.unwrap_or_default()
+}
+
+/// `at + r` when it lies inside the volume `size`.
+#[inline]
+pub(crate) fn shifted_in_volume(at: I64Vec3, r: UVec3, size: UVec3) -> Option<UVec3> {
+    let p = at + r.as_i64vec3();
+    (p.min_element() >= 0 && p.cmplt(size.as_i64vec3()).all()).then(|| p.as_uvec3())
+}
+
+/// What a dense commit writes into each cell of its write box, laid out for the octree pass.
+///
+/// The octree visits cells in Morton order; the flag grid is in scan order, so reading it there
+/// misses the cache on nearly every cell. Here the box is cut into 8³ bricks aligned to the
+/// octree's own 8³ nodes, each brick's cells stored in Morton order, so the pass reads each
+/// brick front to back.
+struct BrickPlan {
+    /// The write box.
+    w_lo: UVec3,
+    w_hi: UVec3,
+    /// First brick (brick coordinates) and bricks per axis.
+    lo: UVec3,
+    dim: UVec3,
+    /// Per cell: [`Self::WRITE`], [`Self::NORMAL`] and the normal in the low 16 bits.
+    cells: Vec<u32>,
+    /// Per written cell, the index of its value in a listed or shifted commit (else empty).
+    slots: Vec<u32>,
+}
+
+impl BrickPlan {
+    const WRITE: u32 = 1 << 16;
+    const NORMAL: u32 = 1 << 17;
+
+    /// Bit `i` of a local coordinate spread to Morton bit `3 i`.
+    const SPREAD: [u32; 8] = [0o0, 0o1, 0o10, 0o11, 0o100, 0o101, 0o110, 0o111];
+
+    fn new(w_lo: UVec3, w_hi: UVec3) -> Self {
+        let lo = w_lo >> 3u32;
+        let dim = (w_hi >> 3u32) - lo + 1;
+        Self {
+            w_lo,
+            w_hi,
+            lo,
+            dim,
+            cells: vec![0u32; box_cells(dim) as usize * 512],
+            slots: Vec::new(),
+        }
+    }
+
+    /// Fills the packed cells from the commit's scan-order flags and normals; returns how many
+    /// cells are written or get a normal, and how many are written.
+    fn fill(&mut self, g: &Grid, flags: &[u8], norms: &[Option<u16>]) -> (usize, usize) {
+        let mut local = [UVec3::ZERO; 512];
+        for (m, l) in local.iter_mut().enumerate() {
+            *l = crate::svo::morton_decode(m as u64);
+        }
+        let (lo, dim, w_lo, w_hi) = (self.lo, self.dim, self.w_lo, self.w_hi);
+        self.cells
+            .par_chunks_mut((dim.x * dim.y) as usize * 512)
+            .enumerate()
+            .map(|(bz, cells)| {
+                let (mut touched, mut written) = (0, 0);
+                for by in 0..dim.y {
+                    for bx in 0..dim.x {
+                        let b = (by * dim.x + bx) as usize * 512;
+                        let origin = (lo + UVec3::new(bx, by, bz as u32)) << 3u32;
+                        for (m, l) in local.iter().enumerate() {
+                            let c = origin + *l;
+                            if c.cmplt(w_lo).any() || c.cmpgt(w_hi).any() {
+                                continue;
+                            }
+                            let k = g.idx(c);
+                            let mut cell = if flags[k] & WRITE != 0 {
+                                Self::WRITE
+                            } else {
+                                0
+                            };
+                            if let Some(Some(nrm)) = norms.get(k) {
+                                cell |= Self::NORMAL | u32::from(*nrm);
+                            }
+                            cells[b + m] = cell;
+                            touched += usize::from(cell != 0);
+                            written += usize::from(cell & Self::WRITE != 0);
+                        }
+                    }
+                }
+                (touched, written)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+
+    /// Index of cell `c` (inside the write box).
+    #[inline]
+    fn index(&self, c: UVec3) -> usize {
+        let b = (c >> 3u32) - self.lo;
+        let l = c & UVec3::splat(7);
+        (((b.z * self.dim.y + b.y) * self.dim.x + b.x) as usize) << 9
+            | (Self::SPREAD[l.x as usize]
+                | Self::SPREAD[l.y as usize] << 1
+                | Self::SPREAD[l.z as usize] << 2) as usize
+    }
+
+    /// The packed cell and its value slot (0 unless listed or shifted) at `c`, inside the
+    /// write box.
+    #[inline]
+    fn get(&self, c: UVec3) -> (u32, u32) {
+        let k = self.index(c);
+        (self.cells[k], self.slots.get(k).copied().unwrap_or(0))
+    }
 }
 
 pub(super) fn commit_sparse(
