@@ -14,6 +14,8 @@ pub mod select;
 pub mod shapes;
 
 #[cfg(test)]
+mod fast_path_tests;
+#[cfg(test)]
 mod tool_tests;
 
 pub use model_ops::{
@@ -209,9 +211,25 @@ pub(crate) fn neighbour_dirs() -> &'static [(IVec3, Vec3); 26] {
 /// [`estimate_normal`] over any occupancy: `solid(offset)` says whether the neighbour at
 /// `offset` is solid. One definition so every tool's normals match the brushes' exactly.
 pub(crate) fn normal_from(mut solid: impl FnMut(IVec3) -> bool) -> Vec3 {
-    let mut acc = Vec3::ZERO;
-    for &(o, dir) in neighbour_dirs() {
+    let mut mask = 0u32;
+    for (i, &(o, _)) in neighbour_dirs().iter().enumerate() {
         if solid(o) {
+            mask |= 1 << i;
+        }
+    }
+    normal_from_mask(mask)
+}
+
+/// Every neighbour solid: the mask of a voxel deep inside a solid.
+pub(crate) const ALL_NEIGHBOURS: u32 = (1 << 26) - 1;
+
+/// [`normal_from`] of a neighbourhood given as a mask: bit `i` set when the neighbour at
+/// `neighbour_dirs()[i]` is solid. The estimate depends on the occupancy only through this mask
+/// (the same float operations in the same order), so callers may cache it by mask.
+pub(crate) fn normal_from_mask(mask: u32) -> Vec3 {
+    let mut acc = Vec3::ZERO;
+    for (i, &(_, dir)) in neighbour_dirs().iter().enumerate() {
+        if mask & (1 << i) != 0 {
             acc -= dir;
         }
     }

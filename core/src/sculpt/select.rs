@@ -9,7 +9,8 @@ use rayon::prelude::*;
 
 use super::nearest_skin;
 use super::shapes::{
-    Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, clamp_size, commit, flood_solid,
+    Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, clamp_size, commit, commit_shifted,
+    flood_solid,
 };
 use crate::svo::{
     MAX_DEPTH, Svo, Voxel, decode_normal, encode_normal, morton_decode, morton_encode,
@@ -426,6 +427,16 @@ pub fn paste(
     let size = clamp_size(svo, size);
     let mut clipped = 0u64;
     let borrow_skin = svo.has_skin() && !clip.has_skin;
+    if !borrow_skin {
+        return commit_shifted(
+            svo,
+            &clip.voxels,
+            at.as_i64vec3(),
+            size,
+            over_empty_only,
+            Normals::All,
+        );
+    }
     let mut changes = Vec::with_capacity(clip.voxels.len());
     for &(r, v) in &clip.voxels {
         match i64_in_volume(shifted(at, r), size) {

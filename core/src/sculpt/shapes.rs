@@ -16,7 +16,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::select::VoxelSelection;
-use super::{nearest_skin, normal_from, offset};
+use super::{ALL_NEIGHBOURS, nearest_skin, normal_from, normal_from_mask, offset};
 use crate::svo::{EditResult, MAX_DEPTH, Svo, UndoDelta, Voxel, encode_normal};
 
 /// What a tool edit did.
@@ -170,9 +170,9 @@ pub(crate) enum Normals {
     Others,
 }
 
-const OLD: u8 = 1;
-const NEW: u8 = 2;
-const WRITE: u8 = 4;
+pub(super) const OLD: u8 = 1;
+pub(super) const NEW: u8 = 2;
+pub(super) const WRITE: u8 = 4;
 
 /// A flat grid over an inclusive box, x fastest.
 #[derive(Debug, Clone, Copy)]
@@ -240,24 +240,98 @@ pub(crate) fn in_volume(c: IVec3, size: UVec3) -> Option<UVec3> {
     (c.min_element() >= 0 && c.as_uvec3().cmplt(size).all()).then(|| c.as_uvec3())
 }
 
-/// Chebyshev dilation by one cell of a 0/1 grid.
-fn dilate(src: Vec<u8>, g: &Grid) -> Vec<u8> {
+/// Re-estimated normals of a dense commit, per cell of `g` (`None`: leave the normal alone).
+///
+/// A cell gets one when it is solid after the edit, lies within one cell (Chebyshev) of a cell
+/// whose occupancy flips, and is not excluded by `normals`. The estimate is
+/// [`normal_from_mask`] of its 26-neighbourhood after the edit; neighbours outside the grid are
+/// outside the octree (the grid reaches two cells past every change), so they count as empty.
+///
+/// The flags are copied into a grid with a one-cell empty border, so no lookup needs a bounds
+/// check. Three separable passes (x, y, z) over that copy find, for every cell, whether its
+/// 3×3×3 block is all solid (erosion) and whether it holds a flip (dilation). Cells deep inside
+/// a solid, most of a large box, then take the one all-solid estimate without reading their
+/// neighbours; the others read their 26-neighbour mask.
+pub(super) fn dense_normals(g: &Grid, flags: &[u8], normals: Normals) -> Vec<Option<u16>> {
+    const SOLID: u8 = 1;
+    const FLIPS: u8 = 2;
     let (nx, ny, nz) = (g.dim.x as usize, g.dim.y as usize, g.dim.z as usize);
-    let mut cur = src;
-    for (stride, len) in [(1, nx), (nx, ny), (nx * ny, nz)] {
-        let mut out = cur.clone();
-        for i in 0..cur.len() {
-            let along = (i / stride) % len;
-            if cur[i] != 0 {
-                continue;
-            }
-            if (along > 0 && cur[i - stride] != 0) || (along + 1 < len && cur[i + stride] != 0) {
-                out[i] = 1;
+    let (px, py) = (nx + 2, ny + 2);
+    let pxy = px * py;
+    let mut padded = vec![0u8; pxy * (nz + 2)];
+    for z in 0..nz {
+        for y in 0..ny {
+            let src = &flags[(z * ny + y) * nx..][..nx];
+            let dst = &mut padded[(z + 1) * pxy + (y + 1) * px + 1..][..nx];
+            for (d, &f) in dst.iter_mut().zip(src) {
+                let (old, new) = (f & OLD != 0, f & NEW != 0);
+                *d = (u8::from(new) * SOLID) | (u8::from(old != new) * FLIPS);
             }
         }
-        cur = out;
     }
-    cur
+    // Bit SOLID: the block along the axes done so far is all solid; bit FLIPS: it holds a flip.
+    // Border cells stay empty and flip-free where the next pass reads them (see below), and
+    // the first and last `stride` cells are border cells no later pass reads.
+    let mut block = padded.clone();
+    let mut next = vec![0u8; padded.len()];
+    for stride in [1, px, pxy] {
+        let len = block.len();
+        for i in stride..len - stride {
+            let (a, b, c) = (block[i - stride], block[i], block[i + stride]);
+            next[i] = (a & b & c & SOLID) | ((a | b | c) & FLIPS);
+        }
+        std::mem::swap(&mut block, &mut next);
+    }
+    // Why the border is safe: a pass along one axis reads, for an interior cell, cells that are
+    // interior along the axes already passed, whose values are exact; the border cells it
+    // reads along its own axis are empty in `padded` and, having only empty, flip-free
+    // neighbours along the earlier axes, still are.
+
+    // Offsets of the 26 neighbours in `padded`, in `neighbour_dirs` order (the mask's bits).
+    let mut offsets = [0isize; 26];
+    for (o, &(d, _)) in offsets.iter_mut().zip(super::neighbour_dirs()) {
+        *o = d.z as isize * pxy as isize + d.y as isize * px as isize + d.x as isize;
+    }
+    let full = encode_normal(normal_from_mask(ALL_NEIGHBOURS));
+    let mut out = vec![None; nx * ny * nz];
+    let (padded, block) = (&padded, &block);
+    out.par_chunks_mut(nx * ny)
+        .enumerate()
+        .for_each(|(z, slice)| {
+            let mut cached: Option<(u32, u16)> = None;
+            for y in 0..ny {
+                let row = (z * ny + y) * nx;
+                let prow = (z + 1) * pxy + (y + 1) * px + 1;
+                for x in 0..nx {
+                    let f = flags[row + x];
+                    if f & NEW == 0 || (normals == Normals::Others && f & WRITE != 0) {
+                        continue;
+                    }
+                    let p = prow + x;
+                    let b = block[p];
+                    if b & FLIPS == 0 {
+                        continue;
+                    }
+                    if b & SOLID != 0 {
+                        slice[y * nx + x] = Some(full);
+                        continue;
+                    }
+                    let mut mask = 0u32;
+                    for (i, &o) in offsets.iter().enumerate() {
+                        mask |= u32::from(padded[p.wrapping_add_signed(o)] & SOLID) << i;
+                    }
+                    slice[y * nx + x] = Some(match cached {
+                        Some((m, code)) if m == mask => code,
+                        _ => {
+                            let code = encode_normal(normal_from_mask(mask));
+                            cached = Some((mask, code));
+                            code
+                        }
+                    });
+                }
+            }
+        });
+    out
 }
 
 /// Applies `changes` (all inside the octree; later duplicates win) in one pass with
@@ -280,67 +354,151 @@ pub(crate) fn commit(
             .filter(|c| c.0.max_element() < extent)
             .collect()
     };
-    let Some((lo, hi)) = cell_bounds(changes.iter().map(|c| c.0)) else {
+    let Some(bounds) = cell_bounds(changes.iter().map(|c| c.0)) else {
         return ToolEdit {
             clipped,
             ..ToolEdit::default()
         };
     };
-    let max = UVec3::splat(extent - 1);
-    let g = Grid::new(lo.saturating_sub(UVec3::splat(2)), (hi + 2).min(max));
-    let n = changes.len() as u64;
-    let r = if g.cells() <= DENSE_LIMIT && g.cells() <= 64 * n + (1 << 16) {
-        commit_dense(svo, &changes, only_into_empty, normals, g, (lo, hi))
-    } else {
-        commit_sparse(svo, changes, only_into_empty, normals)
+    let r = match dense_grid(svo, bounds, changes.len() as u64) {
+        Some(g) => commit_dense(
+            svo,
+            Writes::List(&changes),
+            only_into_empty,
+            normals,
+            g,
+            bounds,
+        ),
+        None => commit_sparse(svo, changes, only_into_empty, normals),
     };
     ToolEdit::from_result(r, clipped)
 }
 
+/// [`commit`] of `voxel` written into every cell of `boxes` (inside the octree; they may
+/// overlap), in that order: the same result as listing the cells, without the list when the
+/// dense path takes it.
+pub(crate) fn commit_boxes(
+    svo: &mut Svo,
+    boxes: &[(UVec3, UVec3)],
+    voxel: Voxel,
+    only_into_empty: bool,
+    normals: Normals,
+    clipped: u64,
+) -> ToolEdit {
+    let Some(bounds) = cell_bounds(boxes.iter().flat_map(|b| [b.0, b.1])) else {
+        return ToolEdit {
+            clipped,
+            ..ToolEdit::default()
+        };
+    };
+    let n = boxes
+        .iter()
+        .map(|(l, h)| box_cells(*h - *l + 1))
+        .fold(0u64, u64::saturating_add);
+    match dense_grid(svo, bounds, n) {
+        Some(g) => {
+            let r = commit_dense(
+                svo,
+                Writes::Boxes(boxes, voxel),
+                only_into_empty,
+                normals,
+                g,
+                bounds,
+            );
+            ToolEdit::from_result(r, clipped)
+        }
+        None => {
+            let mut changes = Vec::with_capacity(n as usize);
+            for (l, h) in boxes {
+                for z in l.z..=h.z {
+                    for y in l.y..=h.y {
+                        for x in l.x..=h.x {
+                            changes.push((UVec3::new(x, y, z), Some(voxel)));
+                        }
+                    }
+                }
+            }
+            commit(svo, changes, only_into_empty, normals, clipped)
+        }
+    }
+}
+
+/// The grid a dense commit of `n` changes within `bounds` uses, or `None` when it would be
+/// too large or too sparse (the hash path is cheaper then).
+fn dense_grid(svo: &Svo, (lo, hi): (UVec3, UVec3), n: u64) -> Option<Grid> {
+    let max = UVec3::splat(svo.extent() - 1);
+    let g = Grid::new(lo.saturating_sub(UVec3::splat(2)), (hi + 2).min(max));
+    (g.cells() <= DENSE_LIMIT && g.cells() <= 64 * n + (1 << 16)).then_some(g)
+}
+
+/// What a dense commit writes.
+#[derive(Clone, Copy)]
+enum Writes<'a> {
+    /// `(cell, new value)`; later duplicates win.
+    List(&'a [(UVec3, Option<Voxel>)]),
+    /// One voxel into every cell of each box.
+    Boxes(&'a [(UVec3, UVec3)], Voxel),
+    /// Clipboard voxels at `at + offset`, those outside the volume `size` dropped.
+    Shifted {
+        voxels: &'a [(UVec3, Voxel)],
+        at: I64Vec3,
+        size: UVec3,
+    },
+}
+
+/// [`commit`] of clipboard `voxels` written at `at + offset` (the ones outside the volume
+/// `size`, already clamped to the octree, dropped and counted): the same result as listing the
+/// cells inside in clipboard order, without the list when the dense path takes it.
+pub(crate) fn commit_shifted(
+    svo: &mut Svo,
+    voxels: &[(UVec3, Voxel)],
+    at: I64Vec3,
+    size: UVec3,
+    only_into_empty: bool,
+    normals: Normals,
+) -> ToolEdit {
+    let mut clipped = 0u64;
+    let mut n = 0u64;
+    let mut bounds: Option<(UVec3, UVec3)> = None;
+    for (r, _) in voxels {
+        match shifted_in_volume(at, *r, size) {
+            Some(c) => {
+                n += 1;
+                bounds = Some(bounds.map_or((c, c), |(lo, hi)| (lo.min(c), hi.max(c))));
+            }
+            None => clipped += 1,
+        }
+    }
+    let Some(bounds) = bounds else {
+        return ToolEdit {
+            clipped,
+            ..ToolEdit::default()
+        };
+    };
+    match dense_grid(svo, bounds, n) {
+        Some(g) => {
+            let writes = Writes::Shifted { voxels, at, size };
+            let r = commit_dense(svo, writes, only_into_empty, normals, g, bounds);
+            ToolEdit::from_result(r, clipped)
+        }
+        None => {
+            let changes = voxels
+                .iter()
+                .filter_map(|(r, v)| shifted_in_volume(at, *r, size).map(|c| (c, Some(*v))))
+                .collect();
+            commit(svo, changes, only_into_empty, normals, clipped)
+        }
+    }
+}
+
 fn commit_dense(
     svo: &mut Svo,
-    changes: &[(UVec3, Option<Voxel>)],
+    writes: Writes<'_>,
     only_into_empty: bool,
     normals: Normals,
     g: Grid,
     (lo, hi): (UVec3, UVec3),
 ) -> EditResult {
-    let cells = g.cells() as usize;
-    let mut flags = vec![0u8; cells];
-    svo.for_each_leaf_in(g.lo, g.hi(), |c, _| flags[g.idx(c)] = OLD | NEW);
-    let mut slot = vec![u32::MAX; cells];
-    for (i, (c, v)) in changes.iter().enumerate() {
-        let k = g.idx(*c);
-        if only_into_empty && v.is_some() && flags[k] & OLD != 0 {
-            continue;
-        }
-        slot[k] = i as u32;
-        flags[k] = (flags[k] & OLD) | WRITE | if v.is_some() { NEW } else { 0 };
-    }
-    let norms: Vec<Option<u16>> = if normals == Normals::Keep {
-        Vec::new()
-    } else {
-        let flipped: Vec<u8> = flags
-            .iter()
-            .map(|f| u8::from((f & OLD != 0) != (f & NEW != 0)))
-            .collect();
-        let dirty = dilate(flipped, &g);
-        let flags = &flags;
-        (0..cells)
-            .into_par_iter()
-            .map(|k| {
-                let f = flags[k];
-                if dirty[k] == 0 || f & NEW == 0 || (normals == Normals::Others && f & WRITE != 0) {
-                    return None;
-                }
-                let c = g.coord(k);
-                // Neighbours outside the grid are outside the octree: the grid reaches two
-                // cells past every change, dirty cells one.
-                let n = normal_from(|o| g.neighbour(c, o).is_some_and(|j| flags[j] & NEW != 0));
-                Some(encode_normal(n))
-            })
-            .collect()
-    };
     let (w_lo, w_hi) = if normals == Normals::Keep {
         (lo, hi)
     } else {
@@ -349,22 +507,187 @@ fn commit_dense(
             (hi + 1).min(UVec3::splat(svo.extent() - 1)),
         )
     };
-    let r = svo.edit_region(w_lo, w_hi, |c, old| {
+    let mut plan = BrickPlan::new(w_lo, w_hi);
+    let cells = g.cells() as usize;
+    let mut flags = vec![0u8; cells];
+    svo.for_each_leaf_in(g.lo, g.hi(), |c, _| flags[g.idx(c)] = OLD | NEW);
+    let mut mark = |i: usize, c: UVec3, solid: bool, slots: &mut Vec<u32>| {
         let k = g.idx(c);
-        let mut v = if flags[k] & WRITE != 0 {
-            changes[slot[k] as usize].1
+        if only_into_empty && solid && flags[k] & OLD != 0 {
+            return;
+        }
+        slots[plan.index(c)] = i as u32;
+        flags[k] = (flags[k] & OLD) | WRITE | if solid { NEW } else { 0 };
+    };
+    let mut slots = Vec::new();
+    match writes {
+        Writes::List(changes) => {
+            slots = vec![0; plan.cells.len()];
+            for (i, (c, v)) in changes.iter().enumerate() {
+                mark(i, *c, v.is_some(), &mut slots);
+            }
+        }
+        Writes::Shifted { voxels, at, size } => {
+            slots = vec![0; plan.cells.len()];
+            for (i, (r, _)) in voxels.iter().enumerate() {
+                if let Some(c) = shifted_in_volume(at, *r, size) {
+                    mark(i, c, true, &mut slots);
+                }
+            }
+        }
+        Writes::Boxes(boxes, _) => {
+            for (l, h) in boxes {
+                for z in l.z..=h.z {
+                    for y in l.y..=h.y {
+                        let row = g.idx(UVec3::new(l.x, y, z));
+                        for f in &mut flags[row..=row + (h.x - l.x) as usize] {
+                            if !(only_into_empty && *f & OLD != 0) {
+                                *f = (*f & OLD) | WRITE | NEW;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+    }
+    plan.slots = slots;
+    let norms: Vec<Option<u16>> = if normals == Normals::Keep {
+        Vec::new()
+    } else {
+        dense_normals(&g, &flags, normals)
+    };
+    let (touched, written) = plan.fill(&g, &flags, &norms);
+    drop((flags, norms));
+    let r = svo.edit_region_reserving(w_lo, w_hi, (touched, written), |c, old| {
+        let (cell, slot) = plan.get(c);
+        let mut v = if cell & BrickPlan::WRITE != 0 {
+            match writes {
+                Writes::List(changes) => changes[slot as usize].1,
+                Writes::Shifted { voxels, .. } => Some(voxels[slot as usize].1),
+                Writes::Boxes(_, v) => Some(v),
+            }
         } else {
             old
         };
-        if let (Some(Some(nrm)), Some(v)) = (norms.get(k), v.as_mut()) {
-            v.normal = *nrm;
+        if cell & BrickPlan::NORMAL != 0
+            && let Some(v) = v.as_mut()
+        {
+            v.normal = cell as u16;
         }
         v
     });
     r.unwrap_or_default()
 }
 
-fn commit_sparse(
+/// `at + r` when it lies inside the volume `size`.
+#[inline]
+pub(crate) fn shifted_in_volume(at: I64Vec3, r: UVec3, size: UVec3) -> Option<UVec3> {
+    let p = at + r.as_i64vec3();
+    (p.min_element() >= 0 && p.cmplt(size.as_i64vec3()).all()).then(|| p.as_uvec3())
+}
+
+/// What a dense commit writes into each cell of its write box, laid out for the octree pass.
+///
+/// The octree visits cells in Morton order; the flag grid is in scan order, so reading it there
+/// misses the cache on nearly every cell. Here the box is cut into 8³ bricks aligned to the
+/// octree's own 8³ nodes, each brick's cells stored in Morton order, so the pass reads each
+/// brick front to back.
+struct BrickPlan {
+    /// The write box.
+    w_lo: UVec3,
+    w_hi: UVec3,
+    /// First brick (brick coordinates) and bricks per axis.
+    lo: UVec3,
+    dim: UVec3,
+    /// Per cell: [`Self::WRITE`], [`Self::NORMAL`] and the normal in the low 16 bits.
+    cells: Vec<u32>,
+    /// Per written cell, the index of its value in a listed or shifted commit (else empty).
+    slots: Vec<u32>,
+}
+
+impl BrickPlan {
+    const WRITE: u32 = 1 << 16;
+    const NORMAL: u32 = 1 << 17;
+
+    /// Bit `i` of a local coordinate spread to Morton bit `3 i`.
+    const SPREAD: [u32; 8] = [0o0, 0o1, 0o10, 0o11, 0o100, 0o101, 0o110, 0o111];
+
+    fn new(w_lo: UVec3, w_hi: UVec3) -> Self {
+        let lo = w_lo >> 3u32;
+        let dim = (w_hi >> 3u32) - lo + 1;
+        Self {
+            w_lo,
+            w_hi,
+            lo,
+            dim,
+            cells: vec![0u32; box_cells(dim) as usize * 512],
+            slots: Vec::new(),
+        }
+    }
+
+    /// Fills the packed cells from the commit's scan-order flags and normals; returns how many
+    /// cells are written or get a normal, and how many are written.
+    fn fill(&mut self, g: &Grid, flags: &[u8], norms: &[Option<u16>]) -> (usize, usize) {
+        let mut local = [UVec3::ZERO; 512];
+        for (m, l) in local.iter_mut().enumerate() {
+            *l = crate::svo::morton_decode(m as u64);
+        }
+        let (lo, dim, w_lo, w_hi) = (self.lo, self.dim, self.w_lo, self.w_hi);
+        self.cells
+            .par_chunks_mut((dim.x * dim.y) as usize * 512)
+            .enumerate()
+            .map(|(bz, cells)| {
+                let (mut touched, mut written) = (0, 0);
+                for by in 0..dim.y {
+                    for bx in 0..dim.x {
+                        let b = (by * dim.x + bx) as usize * 512;
+                        let origin = (lo + UVec3::new(bx, by, bz as u32)) << 3u32;
+                        for (m, l) in local.iter().enumerate() {
+                            let c = origin + *l;
+                            if c.cmplt(w_lo).any() || c.cmpgt(w_hi).any() {
+                                continue;
+                            }
+                            let k = g.idx(c);
+                            let mut cell = if flags[k] & WRITE != 0 {
+                                Self::WRITE
+                            } else {
+                                0
+                            };
+                            if let Some(Some(nrm)) = norms.get(k) {
+                                cell |= Self::NORMAL | u32::from(*nrm);
+                            }
+                            cells[b + m] = cell;
+                            touched += usize::from(cell != 0);
+                            written += usize::from(cell & Self::WRITE != 0);
+                        }
+                    }
+                }
+                (touched, written)
+            })
+            .reduce(|| (0, 0), |a, b| (a.0 + b.0, a.1 + b.1))
+    }
+
+    /// Index of cell `c` (inside the write box).
+    #[inline]
+    fn index(&self, c: UVec3) -> usize {
+        let b = (c >> 3u32) - self.lo;
+        let l = c & UVec3::splat(7);
+        (((b.z * self.dim.y + b.y) * self.dim.x + b.x) as usize) << 9
+            | (Self::SPREAD[l.x as usize]
+                | Self::SPREAD[l.y as usize] << 1
+                | Self::SPREAD[l.z as usize] << 2) as usize
+    }
+
+    /// The packed cell and its value slot (0 unless listed or shifted) at `c`, inside the
+    /// write box.
+    #[inline]
+    fn get(&self, c: UVec3) -> (u32, u32) {
+        let k = self.index(c);
+        (self.cells[k], self.slots.get(k).copied().unwrap_or(0))
+    }
+}
+
+pub(super) fn commit_sparse(
     svo: &mut Svo,
     changes: Vec<(UVec3, Option<Voxel>)>,
     only_into_empty: bool,
@@ -722,15 +1045,16 @@ pub fn apply_box(
                 material: ink.material,
                 skin: Default::default(),
             };
-            let skin = svo.has_skin();
+            if !svo.has_skin() {
+                return commit_boxes(svo, &boxes, base, true, Normals::All, clipped);
+            }
             let mut changes = Vec::with_capacity(asked as usize);
             for (l, h) in &boxes {
                 for z in l.z..=h.z {
                     for y in l.y..=h.y {
                         for x in l.x..=h.x {
                             let c = UVec3::new(x, y, z);
-                            let v = if skin { ink_voxel(svo, ink, c) } else { base };
-                            changes.push((c, Some(v)));
+                            changes.push((c, Some(ink_voxel(svo, ink, c))));
                         }
                     }
                 }

@@ -428,7 +428,29 @@ impl Svo {
         hi: UVec3,
         mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
-        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old))
+        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old), EditResult::default())
+    }
+
+    /// [`Svo::edit_region`] for a caller that knows about how many voxels the edit changes and
+    /// creates: room for `changes` undo entries and `new_leaves` leaves is reserved up front,
+    /// so a large edit does not grow (and copy) them step by step. Same result.
+    pub(crate) fn edit_region_reserving(
+        &mut self,
+        lo: UVec3,
+        hi: UVec3,
+        (changes, new_leaves): (usize, usize),
+        mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+    ) -> Result<EditResult, SvoError> {
+        let a = &mut self.leaf_attr;
+        a.color.reserve(new_leaves);
+        a.normal.reserve(new_leaves);
+        a.material.reserve(new_leaves);
+        if self.has_skin {
+            a.skin.reserve(new_leaves);
+        }
+        let mut result = EditResult::default();
+        result.delta.entries.reserve(changes);
+        self.edit_impl(lo, hi, true, &mut |c, old| f(c, old), result)
     }
 
     /// Like [`Svo::edit_region`] but visits only voxels that are already solid (paint, remove,
@@ -442,7 +464,13 @@ impl Svo {
         hi: UVec3,
         mut f: impl FnMut(UVec3, Voxel) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
-        self.edit_impl(lo, hi, false, &mut |c, old| old.and_then(|v| f(c, v)))
+        self.edit_impl(
+            lo,
+            hi,
+            false,
+            &mut |c, old| old.and_then(|v| f(c, v)),
+            EditResult::default(),
+        )
     }
 
     /// Applies an undo delta (entries outside the octree are skipped; for a coordinate listed
@@ -450,6 +478,14 @@ impl Svo {
     /// the touched paths ([`Svo::apply_changes`]), so undo costs what the edit did.
     pub fn apply_delta(&mut self, delta: &UndoDelta) -> UndoDelta {
         let extent = self.extent();
+        // An edit's own delta is already what `apply_changes` would sort it into (inside,
+        // Morton order, one entry per voxel, skin stored): apply it in place, without the
+        // sorted copies.
+        if !delta.entries.is_empty() && self.is_sorted_unique_stored(&delta.entries) {
+            let mut result = EditResult::default();
+            self.apply_sorted(0, 0, UVec3::ZERO, &delta.entries, Some(&mut result));
+            return result.delta;
+        }
         let entries = delta
             .entries
             .iter()
@@ -460,12 +496,31 @@ impl Svo {
             .unwrap_or_default()
     }
 
+    /// Whether `entries` are inside the octree, in strictly increasing Morton order, and hold
+    /// only skin the octree stores: exactly what `apply_changes` hands `apply_sorted`.
+    fn is_sorted_unique_stored(&self, entries: &[(UVec3, Option<Voxel>)]) -> bool {
+        let extent = self.extent();
+        let mut last = None;
+        entries.iter().all(|(c, v)| {
+            if c.max_element() >= extent
+                || v.is_some_and(|v| !self.has_skin && v.skin != Skin4::default())
+            {
+                return false;
+            }
+            let code = morton_encode(*c);
+            let ok = last.is_none_or(|l| l < code);
+            last = Some(code);
+            ok
+        })
+    }
+
     fn edit_impl(
         &mut self,
         lo: UVec3,
         hi: UVec3,
         create: bool,
         f: &mut dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
+        mut result: EditResult,
     ) -> Result<EditResult, SvoError> {
         let max = UVec3::splat(self.extent() - 1);
         if lo.cmpgt(max).any() || lo.cmpgt(hi).any() {
@@ -475,14 +530,13 @@ impl Svo {
             });
         }
         let hi = hi.min(max);
-        let mut result = EditResult::default();
         let mut ctx = EditCtx {
             lo,
             hi,
             create,
             f,
             result: &mut result,
-            pending: Vec::new(),
+            uniform: [None; MAX_DEPTH as usize + 1],
         };
         self.edit_inner(0, 0, UVec3::ZERO, &mut ctx);
         Ok(result)
@@ -501,15 +555,23 @@ impl Svo {
         }
     }
 
-    /// Octants of the node at `origin` (children of edge `half`) that overlap `lo..=hi`.
+    /// Octants of the node at `origin` (children of edge `half`) that overlap `lo..=hi`: per
+    /// axis, which of the two halves overlap, then the octants whose halves all do.
+    #[inline]
     fn overlapping(origin: UVec3, half: u32, lo: UVec3, hi: UVec3) -> u8 {
-        let mut touched = 0u8;
-        for k in 0..8u8 {
-            let c_lo = origin + octant_offset(k, half);
-            let c_hi = c_lo + UVec3::splat(half - 1);
-            if c_lo.cmple(hi).all() && c_hi.cmpge(lo).all() {
-                touched |= 1 << k;
+        // Octants in the low / high half along x, y, z (octant bit 0 = x, 1 = y, 2 = z).
+        const HALVES: [[u8; 2]; 3] = [[0x55, 0xaa], [0x33, 0xcc], [0x0f, 0xf0]];
+        let mut touched = 0xff;
+        for a in 0..3 {
+            let o = origin[a];
+            let mut axis = 0;
+            if o <= hi[a] && o + half > lo[a] {
+                axis |= HALVES[a][0];
             }
+            if o + half <= hi[a] && o + 2 * half > lo[a] {
+                axis |= HALVES[a][1];
+            }
+            touched &= axis;
         }
         touched
     }
@@ -532,9 +594,9 @@ impl Svo {
     /// Edits the subtree of inner node `i`; returns whether anything in it changed.
     ///
     /// The callback runs once per voxel of the box, in Morton order. Children that do not exist
-    /// yet are not allocated up front: a missing subtree is first *planned* (the callback runs
-    /// over its part of the box and the voxels it returns are collected), and only built when
-    /// that plan holds a voxel. So a brush's empty corners cost callback calls, not nodes.
+    /// yet are built bottom-up as the callback creates voxels in them
+    /// ([`Self::build_missing`]), and only where it does: a brush's empty corners cost callback
+    /// calls, not nodes.
     fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) -> bool {
         let iu = i as usize;
         let half = self.node_size(level) / 2;
@@ -588,9 +650,9 @@ impl Svo {
                 }
             }
         } else {
-            // Plans for missing children: (octant, range in ctx.pending).
-            let base = ctx.pending.len();
-            let mut planned: [(usize, usize); 8] = [(0, 0); 8];
+            // Missing children are built bottom-up where the callback creates a voxel, and
+            // moved into this node's block once its new child set is known.
+            let mut built: [Option<Built>; 8] = [None; 8];
             for k in 0..8u8 {
                 if touched & (1 << k) == 0 {
                     continue;
@@ -604,33 +666,26 @@ impl Svo {
                     } else {
                         self.inner_count -= 1;
                     }
-                } else {
-                    let start = ctx.pending.len();
-                    self.plan_missing(level + 1, c_origin, ctx);
-                    planned[k as usize] = (start, ctx.pending.len());
-                    if ctx.pending.len() > start {
-                        present |= 1 << k;
-                    }
+                } else if let Some(b) = self.build_missing(level + 1, c_origin, ctx) {
+                    built[k as usize] = Some(b);
+                    present |= 1 << k;
                 }
             }
-            if !changed && ctx.pending.len() == base {
+            let any_built = built.iter().any(Option::is_some);
+            if !changed && !any_built {
                 return false;
             }
             self.set_child_mask(iu, false, present);
             let first = self.inner_first[iu];
             for k in 0..8u8 {
-                let (s, e) = planned[k as usize];
-                if s == e {
-                    continue;
+                if let Some(b) = built[k as usize] {
+                    let slot = (first + child_rank(present, k)) as usize;
+                    self.inner_mask[slot] = b.mask;
+                    self.inner_first[slot] = b.first;
+                    self.inner_attr.set(slot, &b.attrs);
+                    self.inner_count += 1;
                 }
-                let slot = first + child_rank(present, k);
-                self.inner_mask[slot as usize] = 0;
-                self.inner_first[slot as usize] = 0;
-                self.inner_count += 1;
-                let c_origin = origin + octant_offset(k, half);
-                self.apply_sorted(level + 1, slot, c_origin, &ctx.pending[s..e], None);
             }
-            ctx.pending.truncate(base);
             changed = true;
         }
         if self.inner_mask[iu] != 0 {
@@ -639,24 +694,101 @@ impl Svo {
         changed
     }
 
-    /// Runs the callback over the box's part of a subtree that does not exist (every old value
-    /// is empty) and collects, in Morton order, the voxels it creates.
-    fn plan_missing(&mut self, level: u8, origin: UVec3, ctx: &mut EditCtx<'_, '_>) {
+    /// Builds the box's part of a subtree that does not exist yet (every old value is empty),
+    /// bottom-up: the callback runs over it in Morton order, each node's children are written
+    /// into one block once they are known, and the node itself (mask, first child, averaged
+    /// attributes) is returned for the caller to place; `None` when the callback created
+    /// nothing there. Nodes whose eight children are equal take their average from
+    /// `ctx.uniform` (the average is a function of the children alone), so the inside of a
+    /// solid costs one merge per level.
+    fn build_missing(
+        &mut self,
+        level: u8,
+        origin: UVec3,
+        ctx: &mut EditCtx<'_, '_>,
+    ) -> Option<Built> {
         let half = self.node_size(level) / 2;
         let touched = Self::overlapping(origin, half, ctx.lo, ctx.hi);
+        let mut mask = 0u8;
+        if level + 1 == self.depth {
+            let mut leaves = [Voxel::default(); 8];
+            let mut n = 0;
+            for k in 0..8u8 {
+                if touched & (1 << k) == 0 {
+                    continue;
+                }
+                let c_origin = origin + octant_offset(k, half);
+                if let Some(v) = (ctx.f)(c_origin, None) {
+                    ctx.record(c_origin, None);
+                    leaves[n] = self.stored(v);
+                    n += 1;
+                    mask |= 1 << k;
+                }
+            }
+            if n == 0 {
+                return None;
+            }
+            let first = self.alloc_block(true, n as u32);
+            for (j, v) in leaves[..n].iter().enumerate() {
+                self.leaf_attr.set(first as usize + j, v);
+            }
+            self.leaf_count += n as u64;
+            let attrs = self.merge_built(level, &leaves[..n], ctx);
+            return Some(Built { mask, first, attrs });
+        }
+        let mut children = [Built::default(); 8];
+        let mut n = 0;
         for k in 0..8u8 {
             if touched & (1 << k) == 0 {
                 continue;
             }
             let c_origin = origin + octant_offset(k, half);
-            if level + 1 == self.depth {
-                if let Some(v) = (ctx.f)(c_origin, None) {
-                    ctx.record(c_origin, None);
-                    let v = self.stored(v);
-                    ctx.pending.push((c_origin, Some(v)));
-                }
-            } else {
-                self.plan_missing(level + 1, c_origin, ctx);
+            if let Some(b) = self.build_missing(level + 1, c_origin, ctx) {
+                children[n] = b;
+                n += 1;
+                mask |= 1 << k;
+            }
+        }
+        if n == 0 {
+            return None;
+        }
+        let first = self.alloc_block(false, n as u32);
+        let mut attrs = [Voxel::default(); 8];
+        for (j, b) in children[..n].iter().enumerate() {
+            let slot = first as usize + j;
+            self.inner_mask[slot] = b.mask;
+            self.inner_first[slot] = b.first;
+            self.inner_attr.set(slot, &b.attrs);
+            attrs[j] = b.attrs;
+        }
+        self.inner_count += n as u64;
+        let attrs = self.merge_built(level, &attrs[..n], ctx);
+        Some(Built { mask, first, attrs })
+    }
+
+    /// The averaged attributes of a node at `level` with `children` (as stored), what
+    /// [`Self::update_inner_attrs`] would compute from its block.
+    fn merge_built(&self, level: u8, children: &[Voxel], ctx: &mut EditCtx<'_, '_>) -> Voxel {
+        let merge = || {
+            let mut skins = [Skin4::default(); 8];
+            for (s, v) in skins.iter_mut().zip(children) {
+                *s = v.skin;
+            }
+            voxel::merge(
+                children.iter().map(|v| (v.color, v.normal, v.material)),
+                self.has_skin.then_some(&skins[..children.len()]),
+            )
+        };
+        if children.len() < 8 || children.iter().any(|v| *v != children[0]) {
+            return merge();
+        }
+        let memo = &mut ctx.uniform[level as usize];
+        match memo {
+            Some((child, merged)) if *child == children[0] => *merged,
+            _ => {
+                let merged = merge();
+                *memo = Some((children[0], merged));
+                merged
             }
         }
     }
@@ -1085,8 +1217,17 @@ struct EditCtx<'a, 'f> {
     create: bool,
     f: &'a mut (dyn FnMut(UVec3, Option<Voxel>) -> Option<Voxel> + 'f),
     result: &'a mut EditResult,
-    /// Voxels planned for subtrees that do not exist yet (see `Svo::edit_inner`).
-    pending: Vec<(UVec3, Option<Voxel>)>,
+    /// Per level, the last uniform node built (`Svo::build_missing`): its children's value and
+    /// their average.
+    uniform: [Option<(Voxel, Voxel)>; MAX_DEPTH as usize + 1],
+}
+
+/// A node built by `Svo::build_missing`, not yet placed in its parent's block.
+#[derive(Debug, Clone, Copy, Default)]
+struct Built {
+    mask: u8,
+    first: u32,
+    attrs: Voxel,
 }
 
 impl EditCtx<'_, '_> {

@@ -376,3 +376,180 @@ fn child_rank_counts_the_children_before_each_octant() {
         }
     }
 }
+
+/// `edit_region` with the callback's values, written instead through the generic sorted path
+/// (`apply_changes`): the reference for the bottom-up build of missing subtrees.
+fn edit_via_apply_changes(
+    svo: &mut Svo,
+    lo: UVec3,
+    hi: UVec3,
+    f: impl Fn(UVec3, Option<Voxel>) -> Option<Voxel>,
+) -> EditResult {
+    let hi = hi.min(UVec3::splat(svo.extent() - 1));
+    let mut changes = Vec::new();
+    for z in lo.z..=hi.z {
+        for y in lo.y..=hi.y {
+            for x in lo.x..=hi.x {
+                let c = UVec3::new(x, y, z);
+                changes.push((c, f(c, svo.get(c))));
+            }
+        }
+    }
+    svo.apply_changes(changes).unwrap()
+}
+
+/// Both paths from the same start: same tree (structure, leaf and internal attributes), same
+/// counts, same undo entries in the same (Morton) order, same changed box; undo restores.
+fn assert_edit_matches_generic(
+    start: &Svo,
+    lo: UVec3,
+    hi: UVec3,
+    f: impl Fn(UVec3, Option<Voxel>) -> Option<Voxel>,
+) {
+    let mut fast = start.clone();
+    let r = fast.edit_region(lo, hi, &f).unwrap();
+    let mut generic = start.clone();
+    let g = edit_via_apply_changes(&mut generic, lo, hi, &f);
+    assert_eq!(fast, generic);
+    assert_eq!(fast.leaf_count(), generic.leaf_count());
+    assert_eq!(fast.inner_count(), generic.inner_count());
+    assert_eq!(fast.leaves(), generic.leaves());
+    assert_eq!(r.changed, g.changed);
+    assert_eq!(r.delta, g.delta);
+    assert_eq!(
+        fast,
+        Svo::from_voxels(fast.depth(), fast.has_skin(), fast.leaves()).unwrap()
+    );
+    let mut undone = fast.clone();
+    undone.apply_delta(&r.delta);
+    assert_eq!(&undone, start);
+    assert_eq!(undone.leaves(), start.leaves());
+}
+
+#[test]
+fn building_missing_subtrees_matches_the_generic_path() {
+    let uniform = Voxel::new([200, 120, 40, 255], Vec3::Y);
+    let skinned = |c: UVec3| Voxel {
+        skin: Skin4::from_influences(&[(c.x as u16 % 3, 0.6), (4, 0.4)]),
+        ..uniform
+    };
+    for has_skin in [false, true] {
+        let empty = Svo::new(5, has_skin).unwrap();
+        let shell = Svo::from_voxels(5, has_skin, shell(5, 9.0)).unwrap();
+        for start in [&empty, &shell] {
+            // A uniform solid (whole uniform subtrees), one clipped at the far faces, a
+            // patterned one, and one that fills only empty cells.
+            assert_edit_matches_generic(start, UVec3::splat(3), UVec3::splat(28), |_, _| {
+                Some(uniform)
+            });
+            assert_edit_matches_generic(start, UVec3::new(17, 0, 9), UVec3::splat(40), |c, _| {
+                Some(skinned(c))
+            });
+            assert_edit_matches_generic(start, UVec3::ZERO, UVec3::splat(31), |c, old| {
+                if (c.x ^ c.y ^ c.z) % 3 == 0 {
+                    Some(vox(c.x as u8, c.z as u8))
+                } else {
+                    old
+                }
+            });
+            assert_edit_matches_generic(
+                start,
+                UVec3::new(2, 5, 1),
+                UVec3::new(30, 26, 19),
+                |c, old| old.or(Some(skinned(c))),
+            );
+        }
+    }
+    // Depth 21: a box against the far corner, and a single voxel at it.
+    let max = (1u32 << MAX_DEPTH) - 1;
+    let deep = Svo::from_voxels(MAX_DEPTH, false, [(UVec3::splat(max - 3), vox(1, 2))]).unwrap();
+    assert_edit_matches_generic(&deep, UVec3::splat(max - 9), UVec3::splat(max), |_, _| {
+        Some(uniform)
+    });
+    assert_edit_matches_generic(&deep, UVec3::splat(max), UVec3::splat(max), |_, _| {
+        Some(vox(3, 4))
+    });
+    assert_edit_matches_generic(
+        &Svo::new(MAX_DEPTH, true).unwrap(),
+        UVec3::new(0, max - 5, 0),
+        UVec3::new(12, max, 7),
+        |c, _| Some(skinned(c)),
+    );
+}
+
+#[test]
+fn applying_a_sorted_delta_in_place_matches_the_sorting_path() {
+    let start = Svo::from_voxels(5, true, shell(5, 9.0)).unwrap();
+    let mut edited = start.clone();
+    let r = edited
+        .edit_region(UVec3::new(3, 0, 5), UVec3::splat(31), |c, old| {
+            if (c.x + 2 * c.y + c.z) % 4 == 0 {
+                None
+            } else {
+                old.or(Some(vox(c.z as u8, 1)))
+            }
+        })
+        .unwrap();
+    assert!(edited.is_sorted_unique_stored(&r.delta.entries));
+    // Reversed, the same entries go through the sorting path.
+    let reversed = UndoDelta {
+        entries: r.delta.entries.iter().rev().copied().collect(),
+    };
+    assert!(!edited.is_sorted_unique_stored(&reversed.entries));
+    let (mut fast, mut sorted) = (edited.clone(), edited.clone());
+    let redo_fast = fast.apply_delta(&r.delta);
+    let redo_sorted = sorted.apply_delta(&reversed);
+    assert_eq!(fast, start);
+    assert_eq!(sorted, start);
+    assert_eq!(fast.leaves(), start.leaves());
+    assert_eq!(redo_fast, redo_sorted);
+    // Redo (also sorted) restores the edit.
+    fast.apply_delta(&redo_fast);
+    assert_eq!(fast, edited);
+    // Unstored skin in a skinless octree, or a coordinate outside, takes the checked path.
+    let plain = Svo::new(4, false).unwrap();
+    let skinned = Voxel {
+        skin: Skin4::ROOT,
+        ..vox(1, 1)
+    };
+    assert!(!plain.is_sorted_unique_stored(&[(UVec3::ONE, Some(skinned))]));
+    assert!(!plain.is_sorted_unique_stored(&[(UVec3::splat(16), None)]));
+    let mut p = plain.clone();
+    p.apply_delta(&UndoDelta {
+        entries: vec![
+            (UVec3::ONE, Some(skinned)),
+            (UVec3::splat(16), Some(skinned)),
+        ],
+    });
+    assert_eq!(p.get(UVec3::ONE), Some(vox(1, 1)));
+    assert_eq!(p.leaf_count(), 1);
+}
+
+#[test]
+fn overlapping_octants_match_a_per_octant_box_test() {
+    let mut rng = 0x9e37_79b9_u32;
+    let mut next = |m: u32| {
+        rng ^= rng << 13;
+        rng ^= rng >> 17;
+        rng ^= rng << 5;
+        rng % m
+    };
+    for half in [1u32, 2, 4, 8, 1 << 20] {
+        for _ in 0..2000 {
+            let origin = UVec3::new(next(4), next(4), next(4)) * 2 * half;
+            let span = 8 * half + 2;
+            let a = UVec3::new(next(span), next(span), next(span));
+            let b = UVec3::new(next(span), next(span), next(span));
+            let (lo, hi) = (a.min(b), a.max(b));
+            let mut expected = 0u8;
+            for k in 0..8u8 {
+                let c_lo = origin + octant_offset(k, half);
+                let c_hi = c_lo + UVec3::splat(half - 1);
+                if c_lo.cmple(hi).all() && c_hi.cmpge(lo).all() {
+                    expected |= 1 << k;
+                }
+            }
+            assert_eq!(Svo::overlapping(origin, half, lo, hi), expected);
+        }
+    }
+}
