@@ -856,8 +856,8 @@ fn applying_a_krs_preset_frames_the_result() {
     // points of the ball farthest to the sides of and above and below its centre on screen).
     let (centre, radius) = ((lo + hi) * 0.5, (hi.x - lo.x) * 0.5);
     let camera = ed.doc().camera;
-    let forward = (camera.target - camera.eye()).normalize();
-    let right = forward.cross(Vec3::Y).normalize();
+    let forward = (camera.target - camera.eye()).normalize_or_zero();
+    let right = forward.cross(Vec3::Y).normalize_or_zero();
     let up = right.cross(forward);
     for d in [right, -right, up, -up] {
         let p = centre + d * radius;
