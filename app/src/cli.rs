@@ -317,6 +317,22 @@ pub struct ExportArgs {
     /// Most triangles the whole export may have (checked before meshing).
     #[arg(long, default_value_t = 1 << 26, value_name = "N")]
     pub max_triangles: u64,
+    /// Write the document's lights (KHR_lights_punctual) and camera: `auto` writes them for a
+    /// whole-scene export and leaves them out with --object (that object alone, like Blender's
+    /// "Selected objects" and the editor's Export dialog); `on` / `off` decide either way.
+    #[arg(long, value_enum, default_value = "auto")]
+    pub lights_camera: LightsCameraArg,
+}
+
+/// `thicket export --lights-camera`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum LightsCameraArg {
+    /// With a whole-scene export, not with --object.
+    Auto,
+    /// Always.
+    On,
+    /// Never.
+    Off,
 }
 
 /// `MINX,MINZ,MAXX,MAXZ` as four finite numbers with MIN < MAX.
@@ -715,6 +731,11 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         bounds: args.bounds,
         max_instances: args.max_instances,
         max_triangles: args.max_triangles,
+        lights_and_camera: match args.lights_camera {
+            LightsCameraArg::Auto => args.object.is_none(),
+            LightsCameraArg::On => true,
+            LightsCameraArg::Off => false,
+        },
         ..GltfExportOptions::default()
     };
     let bar = progress_bar(1000, "exporting");

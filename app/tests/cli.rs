@@ -690,6 +690,30 @@ fn export_writes_glb_and_gltf_that_read_back() {
     let info = info_json(gltf.to_str().unwrap());
     assert_eq!(info["objects"].as_array().unwrap().len(), 1, "{info}");
     assert!(info["total_triangles"].as_u64().unwrap() > 24, "{info}");
+    // One object is that object alone (no camera, no lights), unless asked for.
+    let json = |path: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+    };
+    let alone = json(&gltf);
+    assert!(alone.get("cameras").is_none(), "{alone}");
+    assert!(
+        !alone.to_string().contains("KHR_lights_punctual"),
+        "{alone}"
+    );
+    let with = dir.path().join("long_lit.gltf");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        with.to_str().unwrap(),
+        "--object",
+        "long",
+        "--lights-camera",
+        "on",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let lit = json(&with);
+    assert_eq!(lit["cameras"].as_array().map(Vec::len), Some(1), "{lit}");
 }
 
 #[test]
