@@ -792,7 +792,7 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
         "a still view renders at the view's full resolution"
     );
 
-    // Orbit: while the pointer drags in the view the preview renders half the pixels per side.
+    // Orbit: while the camera keeps moving the preview renders half the pixels per side.
     let c = rect.center();
     h.hover_at(c);
     h.step();

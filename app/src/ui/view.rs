@@ -25,12 +25,13 @@ use super::voxel_tools::{ToolKind, paint_volume};
 use crate::editor::{Editor, Selection, VoxelPick, ray_through};
 use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
 
-/// Linear fraction of the view's pixels the CPU preview renders while the camera moves or the
-/// pointer drags in the view (a quarter of the pixels keeps it interactive on a laptop CPU);
-/// once still for [`PREVIEW_STILL`] it refines to the full resolution setting.
+/// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
+/// changing (an orbit, a stroke, playback: a quarter of the pixels keeps it interactive on a
+/// laptop CPU); once still for [`PREVIEW_STILL`] it refines to the full resolution setting.
 const CPU_PREVIEW_SCALE: f32 = 0.5;
 
-/// How long the camera must stay still before the CPU preview refines to full resolution.
+/// How long what the CPU preview draws must stay the same before it refines to full
+/// resolution.
 const PREVIEW_STILL: Duration = Duration::from_millis(150);
 
 /// Most voxel edits kept for the GPU's incremental upload (older ones cost a full upload).
@@ -347,8 +348,9 @@ pub struct View {
     /// either changes).
     snapshot: Option<(RenderKey, Arc<Document>)>,
     cpu: CpuPreview,
-    /// The camera the CPU preview last saw and when it changed (`None`: still, e.g. at start).
-    preview_motion: Option<(OrbitCamera, Instant)>,
+    /// What the CPU preview last saw drawn (camera, content and animation keys) and when it
+    /// changed (`None`: still, e.g. at start).
+    preview_motion: Option<((OrbitCamera, RenderKey), Instant)>,
     /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
     regions: Vec<RegionHint>,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
@@ -813,21 +815,25 @@ impl View {
     /// returns whether the selection's outline was drawn from its pixels.
     fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) -> bool {
         let ppp = ui.ctx().pixels_per_point();
-        // Low resolution while the camera moves or the pointer drags in the view (a stroke, an
-        // orbit); the full resolution setting once still.
-        let camera = editor.doc().camera;
+        // Low resolution while what is drawn keeps changing (an orbit, a stroke, playback); the
+        // full resolution setting once it has been still for a moment. A drag that changes
+        // nothing drawn (placing a box, a selection) keeps the full image.
+        let drawn = (editor.doc().camera, render_key(editor));
         let now = Instant::now();
-        let moved_at = match self.preview_motion {
-            Some((c, t)) if c == camera => Some(t),
-            Some(_) => Some(now),
-            None if self.cpu.shown.as_ref().is_some_and(|k| k.camera != camera) => Some(now),
-            None => None,
-        };
-        self.preview_motion = moved_at.map(|t| (camera, t));
-        let dragging = ui.input(|i| {
-            i.pointer.any_down() && i.pointer.interact_pos().is_some_and(|p| rect.contains(p))
-        });
-        let moving = dragging || moved_at.is_some_and(|t| now - t < PREVIEW_STILL);
+        let moved_at =
+            match self.preview_motion {
+                Some((d, t)) if d == drawn => Some(t),
+                Some(_) => Some(now),
+                None if self.cpu.shown.as_ref().is_some_and(|k| {
+                    k.camera != drawn.0 || (k.content, k.animation) != drawn.1
+                }) =>
+                {
+                    Some(now)
+                }
+                None => None,
+            };
+        self.preview_motion = moved_at.map(|t| (drawn, t));
+        let moving = moved_at.is_some_and(|t| now - t < PREVIEW_STILL);
         if moving {
             ui.ctx().request_repaint_after(PREVIEW_STILL);
         }
