@@ -124,24 +124,14 @@ fn house_sample_in_an_orthographic_view_matches_the_cpu_reference() {
     both_paths(&ctx, "house-ortho", &doc, (96, 80), &doc.quality.clone());
 }
 
-/// The house seen from `yaw`, `pitch` at `distance`, clip planes fitted to the scene.
-fn house_from(yaw: f32, pitch: f32, distance: f32) -> Document {
-    let mut doc = project("house");
-    doc.camera.yaw_deg = yaw;
-    doc.camera.pitch_deg = pitch;
-    doc.camera.distance = distance;
-    let (lo, hi) = doc.bounds().expect("a scene with bounds");
-    doc.camera.fit_clip(lo, hi);
-    doc
-}
-
 #[test]
 fn exact_cubes_up_close_match_the_cpu_reference() {
     // A wall of the house seen obliquely from a few voxels away: its leaves are tens of pixels
     // wide, so both renderers draw them as exact cubes (per-pixel depth, face normals) and
     // shadow them through maps drawn the same way.
     let ctx = context();
-    let doc = house_from(60.0, 20.0, 45.0);
+    let mut doc = project("house");
+    doc.camera = scenes::house_close_up(&doc).expect("the house has bounds");
     both_paths(
         &ctx,
         "house-close-up",

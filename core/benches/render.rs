@@ -178,14 +178,7 @@ fn benches(c: &mut Criterion) {
     if let Ok(house) = thicket_core::io::project::load(&house_path) {
         let mut g = c.benchmark_group("exact_cubes");
         g.sample_size(10);
-        let (lo, hi) = house.bounds().expect("the house has bounds");
-        let mut close = OrbitCamera {
-            yaw_deg: 60.0,
-            pitch_deg: 20.0,
-            distance: 45.0,
-            ..house.camera
-        };
-        close.fit_clip(lo, hi);
+        let close = thicket_core::render::scenes::house_close_up(&house).expect("bounds");
         let rects = Quality {
             cube_pixel_threshold: 1e6,
             ..Quality::default()

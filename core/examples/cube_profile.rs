@@ -7,7 +7,6 @@
 //! [cubes|rectangles]`
 
 use thicket_core::render::{Quality, RenderRequest, render_document};
-use thicket_core::scene::OrbitCamera;
 
 fn main() {
     let mut args = std::env::args().skip(1);
@@ -22,21 +21,12 @@ fn main() {
             std::process::exit(1);
         }
     };
-    let Some((lo, hi)) = house.bounds() else {
+    let Some(close) = thicket_core::render::scenes::house_close_up(&house) else {
         eprintln!("the house has no bounds");
         std::process::exit(1);
     };
     let camera = match view.as_str() {
-        "close" => {
-            let mut c = OrbitCamera {
-                yaw_deg: 60.0,
-                pitch_deg: 20.0,
-                distance: 45.0,
-                ..house.camera
-            };
-            c.fit_clip(lo, hi);
-            c
-        }
+        "close" => close,
         "project" => house.camera,
         other => {
             eprintln!("unknown view {other:?}: use close or project");

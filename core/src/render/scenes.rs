@@ -229,3 +229,20 @@ pub fn mixed_document(sphere_depth: u8) -> Result<Document, SvoError> {
     doc.camera.far = 50.0;
     Ok(doc)
 }
+
+/// The house sample's wall seen obliquely from a few voxels away (yaw 60°, pitch 20°, distance
+/// 45 from the project's target, clip planes fitted): its leaves are tens of pixels wide, the
+/// view where exact cubes matter (the render bench, `cube_profile` and the GPU parity test use
+/// it). `None` for a document without bounds.
+#[must_use]
+pub fn house_close_up(house: &Document) -> Option<crate::scene::OrbitCamera> {
+    let (lo, hi) = house.bounds()?;
+    let mut c = crate::scene::OrbitCamera {
+        yaw_deg: 60.0,
+        pitch_deg: 20.0,
+        distance: 45.0,
+        ..house.camera
+    };
+    c.fit_clip(lo, hi);
+    Some(c)
+}
