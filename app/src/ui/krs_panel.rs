@@ -13,6 +13,9 @@ use super::pose::distance_to_polyline;
 use super::view::Projector;
 use crate::editor::{Editor, Selection};
 
+/// What the preset picker was matched against: the object id and the document's content key.
+type PickerKey = (u64, (u64, u64));
+
 /// UI state of the KRS editor.
 #[derive(Debug, Default)]
 pub struct KrsPanel {
@@ -22,6 +25,9 @@ pub struct KrsPanel {
     pub preset: usize,
     /// Preset names from core (read once).
     names: Vec<&'static str>,
+    /// The object and content the picker was last matched against (see
+    /// [`krs_inspector_ui`]), and whether the object then equalled no preset.
+    synced: Option<(PickerKey, bool)>,
     /// Why the last change was refused.
     pub error: Option<String>,
     /// A mirror-gizmo drag in progress.
@@ -287,6 +293,17 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
     if panel.names.is_empty() {
         panel.names = presets::all().into_iter().map(|(n, _)| n).collect();
     }
+    // The picker shows what the object is: the preset it equals, or "custom" once edited. Matched
+    // when the selection or the content changes, not every frame.
+    let key = (id, editor.content_key());
+    if panel.synced.is_none_or(|(k, _)| k != key) {
+        let matched = presets::all().iter().position(|(_, p)| *p == current);
+        if let Some(i) = matched {
+            panel.preset = i;
+        }
+        panel.synced = Some((key, matched.is_none()));
+    }
+    let custom = panel.synced.is_some_and(|(_, c)| c);
     let mut k = current.clone();
     let mut changed = false;
     egui::CollapsingHeader::new("KRS editor")
@@ -295,22 +312,35 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
             ui.horizontal(|ui| {
                 ui.label("Preset")
                     .on_hover_text("Core's ready-made KRS objects");
-                let selected = panel.names.get(panel.preset).copied().unwrap_or("");
+                let selected = if custom {
+                    "custom"
+                } else {
+                    panel.names.get(panel.preset).copied().unwrap_or("")
+                };
                 egui::ComboBox::from_id_salt("krs_preset")
                     .selected_text(selected)
                     .show_ui(ui, |ui| {
                         for (i, name) in panel.names.iter().enumerate() {
-                            ui.selectable_value(&mut panel.preset, i, *name)
-                                .on_hover_text("Pick this preset, then Apply");
+                            if ui
+                                .selectable_label(!custom && panel.preset == i, *name)
+                                .on_hover_text("Pick this preset, then Apply")
+                                .clicked()
+                            {
+                                panel.preset = i;
+                                if let Some((_, c)) = &mut panel.synced {
+                                    *c = false;
+                                }
+                            }
                         }
                     })
                     .response
                     .on_hover_text("Core's ready-made KRS objects");
                 if ui
-                    .button("Apply preset")
+                    .add_enabled(!custom, egui::Button::new("Apply preset"))
                     .on_hover_text(
                         "Replace this object's kernels and mirrors with the preset (undoable)",
                     )
+                    .on_disabled_hover_text("Pick a preset first: this object is custom")
                     .clicked()
                     && let Some(name) = panel.names.get(panel.preset).copied()
                 {
