@@ -868,3 +868,36 @@ fn applying_a_krs_preset_frames_the_result() {
         );
     }
 }
+
+#[test]
+fn a_joint_picked_in_the_view_scrolls_into_the_joint_list() {
+    let mut h = harness(rigged_figure(5));
+    let id = h.state().editor.doc().objects[0].id;
+    let rig = h.state().editor.rig(id).expect("rigged").clone();
+    let last = rig.skeleton.len() - 1;
+    let name = rig.skeleton.joints[last].name.clone();
+    assert!(!name.is_empty(), "RiggedFigure names its joints");
+    let row_top = |h: &Harness<'static, EditorApp>| {
+        h.query_all_by_label(&name)
+            .map(|n| n.rect().min.y)
+            .fold(f32::INFINITY, f32::min)
+    };
+    let before = row_top(&h);
+    // The list holds about ten rows: the last joint starts below its visible part.
+    let first_row = h
+        .query_all_by_label(&rig.skeleton.joints[0].name)
+        .map(|n| n.rect().min.y)
+        .fold(f32::INFINITY, f32::min);
+    assert!(before - first_row > 220.0, "{before} vs {first_row}");
+    // Picking a joint as the view's joint dots do: the list scrolls to its row.
+    h.state_mut().pose.joint = Some(thicket::ui::pose::JointRef {
+        object: id,
+        joint: last,
+    });
+    h.run_steps(3);
+    let after = row_top(&h);
+    assert!(
+        after - first_row < 220.0 && after < before,
+        "the row went from {before} to {after} (list top {first_row})"
+    );
+}

@@ -83,6 +83,9 @@ pub struct PoseTool {
     drag: Option<GizmoDrag>,
     /// Why the last pose / stretch / playback change was refused.
     pub error: Option<String>,
+    /// The joint the inspector's joint list last scrolled to: a joint picked in the view is
+    /// scrolled into the list once, and the list is then free to scroll.
+    listed: Option<JointRef>,
 }
 
 impl Default for PoseTool {
@@ -96,6 +99,7 @@ impl Default for PoseTool {
             last_tick: None,
             drag: None,
             error: None,
+            listed: None,
         }
     }
 }
@@ -510,14 +514,19 @@ pub fn rig_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseT
                         );
                         ui.horizontal(|ui| {
                             ui.add_space(12.0 * depth(j) as f32);
-                            if ui
-                                .selectable_label(tool.joint == Some(this), label)
+                            let selected = tool.joint == Some(this);
+                            let row = ui
+                                .selectable_label(selected, label)
                                 .on_hover_text(format!(
                                     "Select joint {j}; drag its gizmo in the view"
-                                ))
-                                .clicked()
-                            {
+                                ));
+                            if row.clicked() {
                                 tool.joint = Some(this);
+                                tool.listed = Some(this);
+                            } else if selected && tool.listed != Some(this) {
+                                // Picked in the view: bring its row into the list's view.
+                                row.scroll_to_me(Some(egui::Align::Center));
+                                tool.listed = Some(this);
                             }
                         });
                     }
