@@ -1027,7 +1027,10 @@ impl EditorApp {
             &ctx,
             &self.editor,
             self.view.gpu(),
-            self.view.cpu_preview_stats(),
+            self.view
+                .cpu_preview_stats()
+                .filter(|_| self.view.uses_cpu(&self.editor))
+                .map(|(ms, size)| (ms, size, self.view.cpu_reason_text(&self.editor))),
         );
         self.tradeoff_ui(&ctx);
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));

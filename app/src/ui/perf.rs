@@ -50,7 +50,7 @@ impl PerfOverlay {
         ctx: &egui::Context,
         editor: &Editor,
         link: Option<&ViewportLink>,
-        cpu_preview: Option<(f64, [u32; 2])>,
+        cpu_preview: Option<(f64, [u32; 2], &str)>,
     ) {
         if !self.open {
             return;
@@ -61,9 +61,9 @@ impl PerfOverlay {
             .default_width(420.0)
             .default_pos(egui::pos2(300.0, 80.0))
             .show(ctx, |ui| {
-                if let Some((ms, [w, h])) = cpu_preview {
+                if let Some((ms, [w, h], why)) = cpu_preview {
                     ui.label(format!(
-                        "CPU preview (hole overlay, heat map, stretch paint): last render {ms:.1} ms at {w} x {h} px"
+                        "The CPU preview draws the view ({why}): last render {ms:.1} ms at {w} x {h} px"
                     ));
                 }
                 self.contents_ui(ui, editor, link);
@@ -109,6 +109,14 @@ impl PerfOverlay {
             Some(link) => {
                 let s = link.lock().clone();
                 ui.label(format!("Adapter: {}", s.adapter));
+                if s.frames_rendered == 0 {
+                    // Nothing below would be measured: say so instead of showing zeros.
+                    ui.weak(
+                        "The GPU renderer has drawn no frame in this window yet (the CPU preview \
+                         draws the view), so there are no GPU figures.",
+                    );
+                    return self.memory_ui(ui, editor);
+                }
                 ui.label(format!(
                     "Frames rendered {} / composited {}; last render {:.1} ms at {} x {} px",
                     s.frames_rendered,
@@ -180,7 +188,11 @@ impl PerfOverlay {
                 }
             }
         }
+        self.memory_ui(ui, editor);
+    }
 
+    /// Memory per object and of the undo history.
+    fn memory_ui(&mut self, ui: &mut egui::Ui, editor: &Editor) {
         ui.separator();
         let key = editor.content_key();
         if self.memory.as_ref().is_none_or(|(k, _)| *k != key) {

@@ -661,6 +661,13 @@ impl View {
     }
 
     /// Why the CPU preview draws the view, or `None` when the GPU does.
+    /// Why the CPU preview draws the view, for the performance window ("chosen" when it is
+    /// not the reason of [`View::cpu_reason`]'s cases, e.g. a test that forces it).
+    #[must_use]
+    pub fn cpu_reason_text(&self, editor: &Editor) -> &'static str {
+        self.cpu_reason(editor).unwrap_or("chosen")
+    }
+
     fn cpu_reason(&self, editor: &Editor) -> Option<&'static str> {
         let Some(gpu) = &self.gpu else {
             return Some("no GPU renderer in this window");
