@@ -471,9 +471,7 @@ impl Editor {
                 }
             };
             for o in &mut other.objects {
-                let t = &mut o.transform;
-                t.translation = dest + scale * (t.translation - pivot);
-                t.scale *= scale;
+                o.transform = scaled_about(o.transform, pivot, dest, scale);
             }
             placement.scale = scale;
             placement.pivot = dest;
@@ -762,14 +760,20 @@ impl ImportPlacement {
             let Some(o) = editor.doc().objects.iter().find(|o| o.id == id) else {
                 continue;
             };
-            let mut t = o.transform;
-            t.translation = self.pivot + inv * (t.translation - self.pivot);
-            t.scale *= inv;
+            let t = scaled_about(o.transform, self.pivot, self.pivot, inv);
             editor.set_transform(id, t)?;
         }
         editor.end_interaction();
         Ok(())
     }
+}
+
+/// `t` scaled uniformly by `scale` about `from`, which moves to `to`: world points `p` become
+/// `to + scale · (p − from)`.
+fn scaled_about(mut t: Transform, from: Vec3, to: Vec3, scale: f32) -> Transform {
+    t.translation = to + scale * (t.translation - from);
+    t.scale *= scale;
+    t
 }
 
 /// What [`Editor::set_light`] and [`Editor::add_light`] refuse: what `Document::validate`

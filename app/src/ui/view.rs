@@ -1268,7 +1268,7 @@ impl View {
                         } else {
                             ""
                         },
-                        self.cpu_reason(editor).unwrap_or("chosen"),
+                        self.cpu_reason_text(editor),
                         match (self.show_holes, self.hole_counts()) {
                             (true, Some(c)) => format!(
                                 "\nHoles {} px ({:.2} % of the mesh), bloat {} px (magenta / yellow)",

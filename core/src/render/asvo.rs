@@ -871,22 +871,11 @@ fn cube_in_view(ctx: &Ctx<'_, '_>, q: &QNode) -> Option<CubeBox> {
     let obj = &ctx.objects[q.obj as usize];
     let size = obj.svo.node_size(q.node.level) as f32;
     let fast = ctx.fast[q.obj as usize].as_ref();
-    let (center, to_local) = if let Some(f) = fast {
-        let center_voxel = q.node.origin.as_vec3() + Vec3::splat(0.5 * size);
-        (
-            f.linear * center_voxel + f.translation,
-            f.inv_linear * (2.0 / size),
-        )
-    } else {
-        let d = obj.deform.deform(&NodeInfo {
-            svo: obj.svo,
-            node: q.node,
-        });
-        let half_axes = ctx.view_rot * d.half_axes_world;
-        (
-            ctx.cam.view_from_world.transform_point3(d.center_world),
-            half_axes.inverse(),
-        )
+    // Placed as its footprint was; a deformed node's `axes` are its view-space half axes.
+    let (center, _, _, axes) = node_in_view(obj, fast, q, ctx.cam, ctx.view_rot);
+    let to_local = match fast {
+        Some(f) => f.inv_linear * (2.0 / size),
+        None => axes.inverse(),
     };
     let finite = to_local.to_cols_array().iter().all(|v| v.is_finite());
     (finite && center.is_finite()).then_some(CubeBox {
@@ -979,22 +968,20 @@ fn enter_box(o: Vec3, d: Vec3) -> Option<((f32, f32), u32)> {
     let inv = d.recip();
     let (a, b) = ((-CUBE_SLAB - o) * inv, (CUBE_SLAB - o) * inv);
     let (near, far) = (a.min(b), a.max(b));
-    let mut t0 = f32::NEG_INFINITY;
-    let mut face = 0;
+    let (mut t0, mut t1, mut face) = (f32::NEG_INFINITY, f32::INFINITY, 0);
     for k in 0..3 {
         if d[k] == 0.0 {
             if o[k].abs() > CUBE_SLAB {
                 return None;
             }
-        } else if near[k] > t0 {
+            continue;
+        }
+        if near[k] > t0 {
             t0 = near[k];
             face = face_code(k, d[k]);
         }
+        t1 = t1.min(far[k]);
     }
-    let t1 = (0..3)
-        .filter(|&k| d[k] != 0.0)
-        .map(|k| far[k])
-        .fold(f32::INFINITY, f32::min);
     (t0 <= t1 && face != 0).then_some(((t0, t1), face))
 }
 
