@@ -203,3 +203,52 @@ fn an_edit_in_the_second_chunk_uploads_only_its_ranges() {
     );
     assert!(inc_g == full_g, "G-buffers differ");
 }
+
+#[test]
+fn a_pool_that_outgrows_its_room_moves_chunks_without_a_full_upload() {
+    let mut doc = four_spheres();
+    let limit = two_sphere_limit(&doc);
+    let ctx = low_limit_context(limit);
+    let q = doc.quality.clone();
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let (before, _, first) = gpu_frame(&ctx, &mut r, &doc, SIZE, &q);
+    assert!(first.upload.full);
+    assert_eq!(r.pool_chunks(), 2);
+    // Fill a slab through the second sphere (chunk 0, after the first): far more nodes than
+    // its pools' spare room, so they need larger buffers, and chunk 0 can no longer hold both.
+    let (id, svo) = svo_of(&mut doc, "Sphere 2");
+    let edit = svo
+        .edit_region(UVec3::new(8, 28, 8), UVec3::new(55, 35, 55), |_, _| {
+            Some(Voxel::new([200, 40, 40, 255], Vec3::Y))
+        })
+        .expect("edit");
+    let (lo, hi) = edit.changed.expect("voxels changed");
+    let up = r
+        .update_voxel_region(&ctx.device, &ctx.queue, &doc, id, lo, hi)
+        .expect("update");
+    assert!(!up.full && up.grown, "{up:?}");
+    assert_eq!(
+        r.pool_chunks(),
+        3,
+        "the grown sphere moved to a chunk of its own"
+    );
+    // Every other sphere's nodes were already on the GPU: they are copied there, not sent.
+    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let (full, full_g, full_stats) = gpu_frame(&ctx, &mut fresh, &doc, SIZE, &q);
+    assert!(
+        up.copied_bytes > 0 && up.bytes + up.copied_bytes <= full_stats.upload.bytes,
+        "{up:?} vs a full upload of {:?}",
+        full_stats.upload
+    );
+    let target = thicket::gpu::RenderTarget::new(&ctx.device, SIZE.0, SIZE.1).expect("target");
+    let stats = r
+        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .expect("frame");
+    assert!(!stats.upload.full && stats.upload.bytes == 0, "{stats:?}");
+    let inc = thicket::gpu::read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    let inc_g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
+    assert!(before.pixels != full.pixels, "the slab is visible");
+    assert!(inc == full.pixels, "grown pools draw unlike a full upload");
+    assert!(inc_g == full_g, "G-buffers differ");
+    assert!(ctx.errors.take().is_none());
+}

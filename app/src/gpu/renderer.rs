@@ -813,8 +813,10 @@ impl Renderer {
 
     /// After an edit of voxel object `object_id` inside the inclusive box `lo..=hi` (voxel
     /// coordinates, e.g. a sculpt's changed region): uploads only the node ranges the edit can
-    /// have changed. Falls back to a full upload when nothing is uploaded yet, the scene's
-    /// objects changed, or the object's pools outgrew the room reserved for them. An empty box
+    /// have changed. When the object's pools outgrew the room reserved for them, the pools get
+    /// larger buffers filled from the old ones on the GPU first ([`UploadStats::grown`]), so
+    /// the upload is still only the region. Falls back to a full upload when nothing is
+    /// uploaded yet, the scene's objects changed, or grown pools exceed a binding. An empty box
     /// (`lo > hi` on some axis: an edit that changed no voxel, such as a rig's pose) uploads
     /// nothing; frames read rigs themselves.
     ///
@@ -832,7 +834,7 @@ impl Renderer {
         if let Some(s) = self
             .scene
             .as_mut()
-            .and_then(|s| s.update_voxel_region(queue, doc, object_id, lo, hi))
+            .and_then(|s| s.update_voxel_region(device, queue, doc, object_id, lo, hi))
         {
             return Ok(s);
         }
@@ -887,7 +889,9 @@ impl Renderer {
             let refreshed = if full_upload {
                 None
             } else {
-                self.scene.as_mut().and_then(|s| s.refresh(queue, doc))
+                self.scene
+                    .as_mut()
+                    .and_then(|s| s.refresh(device, queue, doc))
             };
             let mut upload = match refreshed {
                 Some(u) => u,

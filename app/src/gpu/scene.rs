@@ -28,8 +28,8 @@ use super::gpu_data::{
 /// What an upload wrote.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct UploadStats {
-    /// The whole scene was packed and uploaded (first frame, objects added or removed, a pool
-    /// outgrew its spare room).
+    /// The whole scene was packed and uploaded (first frame, objects added, removed or hidden,
+    /// a depth or texture change, or grown pools over the device's binding limit).
     pub full: bool,
     /// Of [`Self::bytes`], joint matrices of rigged objects (a pose or time change uploads
     /// only these).
@@ -40,6 +40,11 @@ pub struct UploadStats {
     pub bytes: u64,
     /// Separate buffer writes.
     pub writes: u32,
+    /// A pool outgrew its reserved room and the pools were given new, larger buffers, filled
+    /// from the old ones on the GPU (no full upload).
+    pub grown: bool,
+    /// Bytes those GPU-side copies moved (not sent from the CPU, so not in [`Self::bytes`]).
+    pub copied_bytes: u64,
 }
 
 impl UploadStats {
@@ -52,6 +57,8 @@ impl UploadStats {
             skin_data: self.skin_data || o.skin_data,
             bytes: self.bytes + o.bytes,
             writes: self.writes + o.writes,
+            grown: self.grown || o.grown,
+            copied_bytes: self.copied_bytes + o.copied_bytes,
         }
     }
 }
@@ -202,7 +209,8 @@ fn layout_of(doc: &Document) -> Vec<(u64, bool)> {
 
 /// Slots reserved for an object's pool: its length plus a quarter, so the edits of a sculpting
 /// session (which add nodes and, moving child blocks, leave freed blocks behind) fill them in
-/// place; an edit beyond that re-uploads the scene.
+/// place; an edit beyond that gives the pools larger buffers, copied from the old ones on the
+/// GPU ([`SceneCache::grow_pools`]).
 fn with_room(len: usize) -> u32 {
     (len + len / 4 + 256).min(u32::MAX as usize) as u32
 }
@@ -274,6 +282,8 @@ pub(super) struct SceneCache {
     pub(super) tri_count: u32,
     /// Entries each traversal queue needs.
     pub(super) queue_capacity: u64,
+    /// The most entries a queue may have: one storage binding's worth.
+    queue_limit: u64,
     /// Node pools were rewritten since the skin data was last built (`skin::SkinCache`).
     pub(super) skin_stale: bool,
 }
@@ -380,12 +390,33 @@ fn pack_triangles(
     (casters, caster_tris, entries)
 }
 
+/// The most entries a traversal queue of a device with binding limit `limit` may have.
+fn queue_limit(limit: u64) -> u64 {
+    (limit / QUEUE_ENTRY_BYTES).clamp(1, u64::from(u32::MAX))
+}
+
 fn check_binding(what: &'static str, bytes: u64, limit: u64) -> Result<(), GpuError> {
     if bytes > limit {
         return Err(GpuError::TooLarge { what, bytes, limit });
     }
     Ok(())
 }
+
+/// A zeroed storage buffer of `bytes` (padded as [`storage_init`] pads), for pools filled by a
+/// GPU-side copy.
+fn storage_empty(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+    device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some(label),
+        size: padded(bytes),
+        usage: STORAGE_USAGE,
+        mapped_at_creation: false,
+    })
+}
+
+/// Storage buffers are written by the queue and, when a pool grows, copied into a larger one.
+const STORAGE_USAGE: wgpu::BufferUsages = wgpu::BufferUsages::STORAGE
+    .union(wgpu::BufferUsages::COPY_DST)
+    .union(wgpu::BufferUsages::COPY_SRC);
 
 /// A storage buffer holding `data` (at least 256 bytes, so empty scenes bind).
 pub(super) fn storage_init(device: &wgpu::Device, label: &str, data: &[u8]) -> wgpu::Buffer {
@@ -394,7 +425,7 @@ pub(super) fn storage_init(device: &wgpu::Device, label: &str, data: &[u8]) -> w
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
         label: Some(label),
         contents: &contents,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST,
+        usage: STORAGE_USAGE,
     })
 }
 
@@ -557,8 +588,8 @@ impl SceneCache {
             ),
             caster_tris,
             tri_count: tris.len() as u32,
-            queue_capacity: queue_capacity
-                .clamp(1, (limit / QUEUE_ENTRY_BYTES).min(u64::from(u32::MAX))),
+            queue_capacity: queue_capacity.clamp(1, queue_limit(limit)),
+            queue_limit: queue_limit(limit),
             skin_stale: true,
         })
     }
@@ -579,9 +610,9 @@ impl SceneCache {
     }
 
     /// Whether the document still has the uploaded layout: the same visible objects in the
-    /// same order, each voxel pool within its reserved room and at its uploaded depth, each
-    /// mesh with textures of the uploaded shapes.
-    fn fits(&self, doc: &Document) -> bool {
+    /// same order, each voxel pool at its uploaded depth, each mesh with textures of the
+    /// uploaded shapes. Pools may have outgrown their room ([`Self::grow_pools`] makes room).
+    fn same_layout(&self, doc: &Document) -> bool {
         if layout_of(doc) != self.layout {
             return false;
         }
@@ -597,26 +628,175 @@ impl SceneCache {
                     .eq(m.textures.iter().map(|&(_, shape)| shape)),
                 _ => false,
             });
-        if !textures_kept {
-            return false;
+        textures_kept
+            && self
+                .voxels
+                .iter()
+                .all(|e| voxels_of(doc, e.object_id).is_some_and(|svo| svo.depth() == e.depth))
+    }
+
+    /// Makes the scene fit `doc`'s pools when it has the uploaded layout
+    /// ([`Self::same_layout`]): a pool that outgrew its reserved room gets new, larger buffers
+    /// ([`Self::grow_pools`]). `None` when the layout changed or the grown pools no longer fit
+    /// the device's bindings (a full upload then packs, or refuses, the scene).
+    fn fit(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+    ) -> Option<UploadStats> {
+        if !self.same_layout(doc) {
+            return None;
         }
-        self.voxels.iter().all(|e| {
+        let within_room = self.voxels.iter().all(|e| {
             voxels_of(doc, e.object_id).is_some_and(|svo| {
-                svo.depth() == e.depth
-                    && svo.inner_masks().len() <= e.inner_cap as usize
+                svo.inner_masks().len() <= e.inner_cap as usize
                     && svo.leaf_colors().len() <= e.leaf_cap as usize
             })
+        });
+        if within_room {
+            return Some(UploadStats::default());
+        }
+        self.grow_pools(device, queue, doc)
+    }
+
+    /// Gives every pool that outgrew its room [`with_room`] slots for its new length, and lays
+    /// out and chunks the pools again as [`Self::build`] would. The new buffers get the old
+    /// ones' uploaded slots by a GPU-side copy, so nothing already on the GPU is sent again:
+    /// the caller then writes only what changed (an edit's region or the grown pool), as it
+    /// would have within the room. Returns the copy (in [`UploadStats::copied_bytes`]), or
+    /// `None` when a grown object no longer fits one binding.
+    fn grow_pools(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+    ) -> Option<UploadStats> {
+        let limit = device.limits().max_storage_buffer_binding_size;
+        let mut grown: Vec<VoxelEntry> = Vec::with_capacity(self.voxels.len());
+        let (mut inner_at, mut attr_at) = (0u64, 0u64);
+        for e in &self.voxels {
+            let svo = voxels_of(doc, e.object_id)?;
+            let need = |len: usize, cap: u32| {
+                if len > cap as usize {
+                    with_room(len)
+                } else {
+                    cap
+                }
+            };
+            let inner_cap = need(svo.inner_masks().len(), e.inner_cap);
+            let leaf_cap = need(svo.leaf_colors().len(), e.leaf_cap);
+            let attr_inner_base = u32::try_from(attr_at).ok()?;
+            grown.push(VoxelEntry {
+                chunk: 0,
+                inner_base: u32::try_from(inner_at).ok()?,
+                inner_cap,
+                attr_inner_base,
+                attr_leaf_base: attr_inner_base.checked_add(inner_cap)?,
+                leaf_cap,
+                ..*e
+            });
+            inner_at += u64::from(inner_cap);
+            attr_at += u64::from(inner_cap) + u64::from(leaf_cap);
+        }
+        if attr_at >= u64::from(MESH_ID_FLAG >> FACE_BITS) {
+            return None;
+        }
+        let sizes: Vec<(u64, u64)> = grown
+            .iter()
+            .map(|e| {
+                let inner = u64::from(e.inner_cap);
+                (inner * 8, (inner + u64::from(e.leaf_cap)) * 8)
+            })
+            .collect();
+        let of = assign_chunks(&sizes, limit).ok()?;
+        let count = of.last().map_or(1, |&c| c + 1);
+        let mut chunks = Vec::with_capacity(count);
+        for c in 0..count {
+            let members: Vec<usize> = (0..grown.len()).filter(|&i| of[i] == c).collect();
+            let (inner_start, attr_start) = members
+                .first()
+                .map_or((0, 0), |&a| (grown[a].inner_base, grown[a].attr_inner_base));
+            let (mut inner_slots, mut attr_slots) = (0u64, 0u64);
+            for &i in &members {
+                grown[i].chunk = c;
+                grown[i].inner_base -= inner_start;
+                inner_slots += u64::from(grown[i].inner_cap);
+                attr_slots += u64::from(grown[i].inner_cap) + u64::from(grown[i].leaf_cap);
+            }
+            let label = |what: &str| format!("{what} (chunk {c})");
+            chunks.push(PoolChunk {
+                inner_buf: storage_empty(device, &label("inner nodes"), inner_slots * 8),
+                attr_buf: storage_empty(device, &label("attributes"), attr_slots * 8),
+                attr_start,
+                attr_end: attr_start + attr_slots as u32,
+            });
+        }
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
+            label: Some("grow voxel pools"),
+        });
+        let mut copied = 0u64;
+        for (old, new) in self.voxels.iter().zip(&grown) {
+            let (Some(from), Some(to)) = (self.chunks.get(old.chunk), chunks.get(new.chunk)) else {
+                return None;
+            };
+            let attr_from = |base: u32| u64::from(base - from.attr_start) * 8;
+            let attr_to = |base: u32| u64::from(base - to.attr_start) * 8;
+            let inner_bytes = u64::from(old.inner_len) * 8;
+            let leaf_bytes = u64::from(old.leaf_len) * 8;
+            let copies = [
+                (
+                    &from.inner_buf,
+                    u64::from(old.inner_base) * 8,
+                    &to.inner_buf,
+                    u64::from(new.inner_base) * 8,
+                    inner_bytes,
+                ),
+                (
+                    &from.attr_buf,
+                    attr_from(old.attr_inner_base),
+                    &to.attr_buf,
+                    attr_to(new.attr_inner_base),
+                    inner_bytes,
+                ),
+                (
+                    &from.attr_buf,
+                    attr_from(old.attr_leaf_base),
+                    &to.attr_buf,
+                    attr_to(new.attr_leaf_base),
+                    leaf_bytes,
+                ),
+            ];
+            for (src, src_at, dst, dst_at, bytes) in copies {
+                if bytes > 0 {
+                    enc.copy_buffer_to_buffer(src, src_at, dst, dst_at, bytes);
+                    copied += bytes;
+                }
+            }
+        }
+        // Submitted now: writes queued before it (into the old buffers) land first, writes
+        // queued after it (into the new ones) land after the copy.
+        queue.submit(Some(enc.finish()));
+        self.voxels = grown;
+        self.chunks = chunks;
+        self.skin_stale = true;
+        Some(UploadStats {
+            grown: true,
+            copied_bytes: copied,
+            ..UploadStats::default()
         })
     }
 
     /// Makes the GPU copy follow `doc` where that can be seen without an edit region: mesh
     /// transforms (re-packs the triangles) and voxel pools whose length changed (re-uploads
     /// that object). Returns `None` when the layout changed and a full upload is needed.
-    pub(super) fn refresh(&mut self, queue: &wgpu::Queue, doc: &Document) -> Option<UploadStats> {
-        if !self.fits(doc) {
-            return None;
-        }
-        let mut stats = UploadStats::default();
+    pub(super) fn refresh(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        doc: &Document,
+    ) -> Option<UploadStats> {
+        let mut stats = self.fit(device, queue, doc)?;
         let meshes_moved = self.meshes.iter().any(|m| {
             object_of(doc, m.object_id).is_none_or(|o| o.transform.matrix() != m.world_from_object)
         });
@@ -666,23 +846,22 @@ impl SceneCache {
     /// scene or its pools outgrew their room (then a full upload is needed).
     pub(super) fn update_voxel_region(
         &mut self,
+        device: &wgpu::Device,
         queue: &wgpu::Queue,
         doc: &Document,
         object_id: u64,
         lo: UVec3,
         hi: UVec3,
     ) -> Option<UploadStats> {
-        if !self.fits(doc) {
-            return None;
-        }
         let i = self.voxels.iter().position(|e| e.object_id == object_id)?;
+        let grown = self.fit(device, queue, doc)?;
         let svo = voxels_of(doc, object_id)?;
         if lo.cmpgt(hi).any() {
             // An empty box: no voxel changed (e.g. a rig edit, which frames read anyway).
-            return Some(UploadStats::default());
+            return Some(grown);
         }
         let (inner, leaf) = region_ranges(svo, lo, hi);
-        Some(self.write_ranges(queue, i, svo, &inner, &leaf))
+        Some(grown.combined(self.write_ranges(queue, i, svo, &inner, &leaf)))
     }
 
     /// Writes the given inner and leaf slot ranges of entry `i` from `svo`.
@@ -754,7 +933,7 @@ impl SceneCache {
             .map(|v| v.live_nodes)
             .max()
             .unwrap_or(1)
-            .max(1);
+            .clamp(1, self.queue_limit);
         stats
     }
 

@@ -126,8 +126,16 @@ impl PerfOverlay {
                     s.size_px[1]
                 ));
                 if let Some(up) = s.last_upload {
+                    let grown = if up.grown {
+                        format!(
+                            " (pools grown: {} copied on the GPU)",
+                            human_bytes(up.copied_bytes)
+                        )
+                    } else {
+                        String::new()
+                    };
                     ui.label(format!(
-                        "Last upload: {} in {} write(s){}; {} region-only uploads",
+                        "Last upload: {} in {} write(s){}{grown}; {} region-only uploads",
                         human_bytes(up.bytes),
                         up.writes,
                         if up.full { " (whole scene)" } else { "" },
