@@ -900,7 +900,10 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         }
         doc
     } else {
-        let model = files::load_mesh(&args.input)?;
+        let (model, dropped) = files::load_mesh_reported(&args.input)?;
+        for line in &dropped {
+            notes.push_str(&format!("warning: {line}\n"));
+        }
         let bar = progress_bar(1000, "voxelizing");
         let result = voxelize(&model, &settings, &|f| {
             bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);

@@ -94,12 +94,25 @@ fn kind_of(path: &Path) -> anyhow::Result<FileKind> {
 /// # Errors
 /// The loader's message, which names the file and the problem.
 pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
-    let model = match kind_of(path)? {
-        FileKind::Gltf => thicket_core::io::import_gltf(path)?,
-        FileKind::Obj => thicket_core::io::import_obj(path)?,
+    Ok(load_mesh_reported(path)?.0)
+}
+
+/// [`load_mesh`], plus one line per kind of feature the file holds that the model leaves out
+/// (glTF morph targets, animation, extra UV sets, other texture maps, cameras, lights,
+/// unsupported extensions; see `thicket_core::io::import_gltf_reported`), for the caller to
+/// show. Empty when nothing is left out.
+///
+/// # Errors
+/// As [`load_mesh`].
+pub fn load_mesh_reported(path: &Path) -> anyhow::Result<(MeshModel, Vec<String>)> {
+    Ok(match kind_of(path)? {
+        FileKind::Gltf => thicket_core::io::import_gltf_reported(
+            path,
+            &thicket_core::io::ImportLimits::default(),
+        )?,
+        FileKind::Obj => (thicket_core::io::import_obj(path)?, Vec::new()),
         other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
-    };
-    Ok(model)
+    })
 }
 
 /// Reads the skin of a glTF file: `Ok(None)` when the file is not glTF or has no skinned mesh,
@@ -127,7 +140,11 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::Sk
 /// # Errors
 /// A message naming the file and what is wrong with it.
 pub fn load_document(path: &Path) -> anyhow::Result<Document> {
-    Ok(load_document_with_source(path)?.0)
+    let (doc, _, notes) = load_document_noted(path)?;
+    for line in &notes {
+        log::warn!("{}: {line}", path.display());
+    }
+    Ok(doc)
 }
 
 /// What a source file held beyond the document (for `info`).
@@ -144,11 +161,26 @@ pub struct SourceCounts {
 /// # Errors
 /// See [`load_document`].
 pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, SourceCounts)> {
+    load_document_noted(path).map(|(doc, counts, _)| (doc, counts))
+}
+
+/// [`load_document`], plus the lines of [`load_mesh_reported`] for a mesh file (what the
+/// document leaves out of it; empty for projects and `.vox` files).
+///
+/// # Errors
+/// See [`load_document`].
+pub fn load_document_reported(path: &Path) -> anyhow::Result<(Document, Vec<String>)> {
+    load_document_noted(path).map(|(doc, _, notes)| (doc, notes))
+}
+
+fn load_document_noted(path: &Path) -> anyhow::Result<(Document, SourceCounts, Vec<String>)> {
     let mut counts = SourceCounts::default();
+    let mut notes = Vec::new();
     let doc = match kind_of(path)? {
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {
-            let model = load_mesh(path)?;
+            let (model, dropped) = load_mesh_reported(path)?;
+            notes = dropped;
             document_from_mesh(&object_name_for(path), model)
         }
         FileKind::Vox => {
@@ -165,7 +197,7 @@ pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, Sourc
     };
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, counts))
+    Ok((doc, counts, notes))
 }
 
 fn load_project(path: &Path) -> anyhow::Result<Document> {

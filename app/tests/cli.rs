@@ -310,6 +310,34 @@ fn failing_export_writes_nothing() {
 }
 
 #[test]
+fn import_says_once_what_it_leaves_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = dir.path().join("man.thicket.json");
+    let input = format!("{ASSETS}/skinned/CesiumMan.glb");
+    let run = |extra: &[&str]| {
+        let mut args = vec![
+            "import",
+            &input,
+            "-o",
+            project.to_str().unwrap(),
+            "--depth",
+            "5",
+        ];
+        args.extend_from_slice(extra);
+        let o = thicket(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        format!("{}{}", stdout(&o), stderr(&o))
+    };
+    // As a static mesh its walk cycle is left out: said once, with the clip's channel count.
+    let out = run(&["--no-skin"]);
+    let line = "1 animation(s) with 57 channel(s) (\"animation 0\"): not imported";
+    assert_eq!(out.matches(line).count(), 1, "{out}");
+    // With its skin the animation is imported: nothing is left out.
+    let out = run(&[]);
+    assert!(!out.contains("not imported"), "{out}");
+}
+
+#[test]
 fn import_a_solid_box_then_render_it() {
     let dir = tempfile::tempdir().unwrap();
     let project = dir.path().join("box.thicket.json");

@@ -533,6 +533,54 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
 }
 
 #[test]
+fn an_import_lists_what_it_left_out_in_the_import_report() {
+    // One triangle with a morph target and a camera, written as .gltf + .bin.
+    let dir = tempfile::tempdir().expect("temp dir");
+    let floats: [f32; 18] = [
+        0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0, 0.0, // positions
+        0.0, 0.0, 0.5, 0.0, 0.0, 0.5, 0.0, 0.0, 0.5, // the morph target's offsets
+    ];
+    let bin: Vec<u8> = floats.iter().flat_map(|f| f.to_le_bytes()).collect();
+    std::fs::write(dir.path().join("tri.bin"), &bin).expect("write bin");
+    let gltf = serde_json::json!({
+        "asset": {"version": "2.0"},
+        "buffers": [{"uri": "tri.bin", "byteLength": bin.len()}],
+        "bufferViews": [{"buffer": 0, "byteLength": 36}, {"buffer": 0, "byteOffset": 36, "byteLength": 36}],
+        "accessors": [
+            {"bufferView": 0, "type": "VEC3", "componentType": 5126, "count": 3,
+             "min": [0, 0, 0], "max": [1, 1, 0]},
+            {"bufferView": 1, "type": "VEC3", "componentType": 5126, "count": 3}],
+        "meshes": [{"name": "Face", "primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 1}]}]}],
+        "cameras": [{"name": "Shot", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+        "nodes": [{"mesh": 0}, {"camera": 0}],
+        "scenes": [{"nodes": [0, 1]}]
+    });
+    let path = dir.path().join("face.gltf");
+    std::fs::write(&path, serde_json::to_vec(&gltf).expect("json")).expect("write gltf");
+
+    let mut h = harness(EditorApp::new(Editor::new(Document::default(), None)));
+    let ctx = h.ctx.clone();
+    h.state_mut().start_import(path);
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.doc().objects.len(),
+        1,
+        "the triangle imported"
+    );
+    let (_, lines) = h.state().import_report.clone().expect("an import report");
+    assert_eq!(lines.len(), 2, "{lines:#?}");
+    h.get_by_label("Import report");
+    h.get_by_label_contains("face.gltf was imported");
+    h.get_by_label_contains("1 morph target(s) on 1 mesh(es) (\"Face\" ×1)");
+    h.get_by_label_contains("1 camera(s) (\"Shot\")");
+    h.get_by_label("OK").click();
+    h.run_steps(2);
+    assert!(h.state().import_report.is_none(), "OK closes the report");
+    assert!(h.query_by_label("Import report").is_none());
+}
+
+#[test]
 fn an_import_lands_on_the_ground_beside_the_scene_scaled_to_it_and_framed() {
     // Kenney's rock (0.785 units) into the 64-unit house: it used to land at the origin inside
     // the house at its own scale, out of sight.
@@ -559,6 +607,11 @@ fn an_import_lands_on_the_ground_beside_the_scene_scaled_to_it_and_framed() {
     let (lo, hi) = bounds(&h);
     let size = (hi - lo).length();
     assert_eq!(h.state().editor.doc().objects.len(), 2);
+    assert!(
+        h.state().import_report.is_none(),
+        "the rock leaves nothing out: {:?}",
+        h.state().import_report
+    );
     // Scaled to a quarter of the scene, standing on its ground, outside the house's footprint.
     assert!(
         (size / scene_size - 0.25).abs() < 0.01,

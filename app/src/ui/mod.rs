@@ -135,7 +135,8 @@ enum Pending {
 enum JobResult {
     /// A project read on the worker thread, with its linked models' enhancers built there.
     Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
-    Imported(PathBuf, anyhow::Result<Document>),
+    /// An imported file's document and what the import left out of it (one line per kind).
+    Imported(PathBuf, anyhow::Result<(Document, Vec<String>)>),
     /// An enhancement of a voxel object: source id, source name, the settings, the coarse
     /// model it was made from, and the fine model with the enhancer that made it.
     Enhanced(Box<Enhanced>),
@@ -212,6 +213,9 @@ pub struct EditorApp {
     import_offer: Option<crate::editor::ImportPlacement>,
     /// An error shown in a dialog until dismissed (for example a file that would not open).
     pub error_dialog: Option<String>,
+    /// The last import's file and what it left out of it, shown in the Import report window
+    /// until closed (`None`: nothing was left out).
+    pub import_report: Option<(PathBuf, Vec<String>)>,
     prompt: Option<PathPrompt>,
     pending: Option<Pending>,
     allow_close: bool,
@@ -271,6 +275,7 @@ impl EditorApp {
             toasts: Vec::new(),
             import_offer: None,
             error_dialog: None,
+            import_report: None,
             prompt: None,
             pending: None,
             allow_close: false,
@@ -587,7 +592,7 @@ impl EditorApp {
     fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
-            JobResult::Imported(path, Ok(doc)) => {
+            JobResult::Imported(path, Ok((doc, left_out))) => {
                 let placed = self.editor.import_objects(doc);
                 let n = placed.ids.len();
                 let scaled = if placed.scale == 1.0 {
@@ -607,6 +612,7 @@ impl EditorApp {
                     false,
                 );
                 self.import_offer = (placed.scale != 1.0).then_some(placed);
+                self.import_report = (!left_out.is_empty()).then_some((path, left_out));
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -1631,6 +1637,37 @@ impl EditorApp {
                 None => {}
             }
         }
+        if let Some((path, lines)) = &self.import_report {
+            let mut open = true;
+            let mut ok = false;
+            egui::Window::new("Import report")
+                .open(&mut open)
+                .collapsible(false)
+                .resizable(true)
+                .default_width(460.0)
+                .show(ctx, |ui| {
+                    ui.label(format!(
+                        "{} was imported. It holds things Thicket did not carry over:",
+                        path.file_name().map_or_else(
+                            || path.display().to_string(),
+                            |n| n.to_string_lossy().into_owned()
+                        )
+                    ));
+                    ui.add_space(4.0);
+                    egui::ScrollArea::vertical()
+                        .max_height(240.0)
+                        .show(ui, |ui| {
+                            for line in lines {
+                                ui.label(format!("• {line}"));
+                            }
+                        });
+                    ui.add_space(6.0);
+                    ok = ui.button("OK").clicked();
+                });
+            if !open || ok {
+                self.import_report = None;
+            }
+        }
         if let Some(message) = self.error_dialog.clone() {
             egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
                 ui.heading("Could not complete the operation");
@@ -1814,7 +1851,7 @@ fn import_document(
     path: &Path,
     progress: &AtomicU32,
     cancel: &AtomicBool,
-) -> anyhow::Result<Document> {
+) -> anyhow::Result<(Document, Vec<String>)> {
     use anyhow::Context as _;
     let skinned = if FileKind::from_path(path) == Some(FileKind::Gltf) {
         files::load_skinned(path)?
@@ -1822,7 +1859,7 @@ fn import_document(
         None
     };
     let Some(skinned) = skinned else {
-        return files::load_document(path);
+        return files::load_document_reported(path);
     };
     let settings = thicket_core::voxelize::VoxelizeSettings {
         resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
@@ -1840,7 +1877,7 @@ fn import_document(
     );
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok(doc)
+    Ok((doc, skinned.warnings))
 }
 
 fn readable_list() -> String {

@@ -60,6 +60,26 @@ pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel,
     .run(&bytes)
 }
 
+/// [`import_gltf_with`], plus one line for each kind of feature the file holds that the import
+/// leaves out (morph targets, animation, extra UV sets, texture maps other than base colour,
+/// cameras, lights, unsupported extensions, points and lines), for the caller to show.
+///
+/// # Errors
+/// See [`import_gltf`].
+pub fn import_gltf_reported(
+    path: &Path,
+    limits: &ImportLimits,
+) -> Result<(MeshModel, Vec<String>), IoError> {
+    let bytes = read_file_limited(path, limits)?;
+    let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
+    Importer {
+        path,
+        base_dir: Some(base_dir),
+        limits,
+    }
+    .run_reported(&bytes)
+}
+
 /// Imports glTF or GLB bytes. External (non-data) URIs are resolved against `base_dir`; with
 /// `None` they are refused, so untrusted bytes never make the importer touch the file system.
 /// Errors name the file `<memory>`.
@@ -341,9 +361,21 @@ impl<'a> Importer<'a> {
         IoError::invalid(self.path, detail)
     }
 
+    /// The model; what the file holds that it leaves out is logged as warnings.
     fn run(&self, bytes: &[u8]) -> Result<MeshModel, IoError> {
+        let (model, dropped) = self.run_reported(bytes)?;
+        for line in &dropped {
+            log::warn!("{}: {line}", self.path.display());
+        }
+        Ok(model)
+    }
+
+    /// The model and what the file holds that it leaves out ([`super::gltf_report`]).
+    fn run_reported(&self, bytes: &[u8]) -> Result<(MeshModel, Vec<String>), IoError> {
         let container = self.split_container(bytes)?;
         let root = self.parse_root(container.json)?;
+        let dropped =
+            super::gltf_report::dropped_features(&root, super::gltf_report::Reader::Static);
         let buffers = self.load_buffers(&root, container.bin)?;
         let mut model = MeshModel {
             parts: Vec::new(),
@@ -451,7 +483,7 @@ impl<'a> Importer<'a> {
         if let Err((part, e)) = model.validate() {
             return Err(self.invalid(format!("part {part}: {e}")));
         }
-        Ok(model)
+        Ok((model, dropped))
     }
 
     /// The JSON, deserialized only, with its required extensions checked.
@@ -1828,6 +1860,64 @@ pub(crate) mod tests {
             err.to_string().contains("KHR_draco_mesh_compression"),
             "{err}"
         );
+    }
+
+    /// The import report of `bytes` read by the static reader.
+    fn report_of(bytes: &[u8]) -> Vec<String> {
+        Importer {
+            path: Path::new("case.gltf"),
+            base_dir: None,
+            limits: &ImportLimits::default(),
+        }
+        .run_reported(bytes)
+        .expect("imports")
+        .1
+    }
+
+    #[test]
+    fn features_left_out_are_reported_not_dropped_silently() {
+        let mut doc = Doc::default();
+        let pos = doc.floats(&QUAD[..9], "VEC3", 3);
+        let uv = doc.floats(&[0.0, 0.0, 1.0, 0.0, 1.0, 1.0], "VEC2", 2);
+        let morph = doc.floats(&[0.0, 0.0, 0.5, 0.0, 0.0, 0.5, 0.0, 0.0, 0.5], "VEC3", 3);
+        let times = doc.floats(&[0.0, 1.0], "SCALAR", 1);
+        let weights = doc.floats(&[0.0, 1.0], "SCALAR", 1);
+        let png = format!("data:image/png;base64,{}", base64(&png_2x1()));
+        let plain = json!({"nodes": [{"mesh": 0}],
+            "meshes": [{"primitives": [{"attributes": {"POSITION": pos, "TEXCOORD_0": uv}}]}]});
+        assert_eq!(report_of(&doc.gltf(plain)), Vec::<String>::new());
+
+        let full = json!({
+            "extensionsUsed": ["KHR_texture_transform", "KHR_lights_punctual"],
+            "extensions": {"KHR_lights_punctual": {"lights": [{"type": "point"}, {"type": "directional"}]}},
+            "nodes": [{"mesh": 0}, {"camera": 0, "translation": [0, 0, 3]}],
+            "cameras": [{"name": "Shot", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
+            "images": [{"uri": png}], "textures": [{"source": 0}],
+            "materials": [{"normalTexture": {"index": 0},
+                "pbrMetallicRoughness": {"metallicRoughnessTexture": {"index": 0}}}],
+            "meshes": [{"name": "Face", "weights": [0.0], "primitives": [{
+                "attributes": {"POSITION": pos, "TEXCOORD_0": uv, "TEXCOORD_1": uv},
+                "targets": [{"POSITION": morph}], "material": 0}]}],
+            "animations": [{"name": "Smile", "samplers": [{"input": times, "output": weights}],
+                "channels": [{"sampler": 0, "target": {"node": 0, "path": "weights"}}]}]
+        });
+        let report = report_of(&doc.gltf(full));
+        let has = |words: &[&str]| {
+            report
+                .iter()
+                .any(|line| words.iter().all(|w| line.contains(w)))
+        };
+        assert!(has(&["1 morph target(s)", "\"Face\""]), "{report:#?}");
+        assert!(has(&["1 animation(s)", "\"Smile\""]), "{report:#?}");
+        assert!(has(&["TEXCOORD_1 on 1 primitive(s)"]), "{report:#?}");
+        assert!(has(&["normal ×1", "metallic-roughness ×1"]), "{report:#?}");
+        assert!(has(&["1 camera(s)", "\"Shot\""]), "{report:#?}");
+        assert!(has(&["2 punctual light(s)"]), "{report:#?}");
+        assert!(
+            has(&["not supported", "KHR_texture_transform"]),
+            "{report:#?}"
+        );
+        assert_eq!(report.len(), 7, "one line per kind: {report:#?}");
     }
 
     #[test]

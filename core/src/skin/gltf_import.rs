@@ -36,7 +36,8 @@ pub struct SkinnedImport {
     pub mesh: MeshModel,
     /// What was repaired in the vertex weights.
     pub weight_repair: WeightRepair,
-    /// Things skipped or repaired, one human-readable line each (also logged as warnings).
+    /// Things skipped, repaired or left out of the import (see `io::import_gltf_reported`),
+    /// one human-readable line each, for the caller to show (they are not logged).
     pub warnings: Vec<String>,
     /// World transform of the first node carrying the skinned mesh, for reference only: glTF
     /// skinning ignores it. In files like RiggedFigure and CesiumMan, whose inverse bind
@@ -338,9 +339,12 @@ fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, S
         label,
         &mut warnings,
     )?;
-    for w in &warnings {
-        log::warn!("{label}: {w}");
-    }
+    warnings.extend(crate::io::gltf_report::dropped_features(
+        &file.root,
+        crate::io::gltf_report::Reader::Skinned,
+    ));
+    // Not logged here: the caller shows them (the CLI prints them, the editor's import
+    // report lists them), so each is printed once.
     Ok(SkinnedImport {
         skeleton,
         clips,
