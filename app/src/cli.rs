@@ -422,6 +422,10 @@ pub struct ImportArgs {
     /// and the voxels carry joint weights).
     #[arg(long)]
     pub no_skin: bool,
+    /// A base-colour texture (PNG or JPEG) for an OBJ whose materials name none, e.g. one
+    /// shipped without its .mtl (OBJ only).
+    #[arg(long, value_name = "PATH")]
+    pub texture: Option<PathBuf>,
 }
 
 /// `thicket render`.
@@ -841,6 +845,15 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
 
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
+    if let Some(t) = &args.texture
+        && files::FileKind::from_path(&args.input) != Some(files::FileKind::Obj)
+    {
+        anyhow::bail!(
+            "--texture {}: only an OBJ file takes a texture; {} names its own",
+            t.display(),
+            args.input.display()
+        );
+    }
     let is_vox = args
         .input
         .extension()
@@ -900,7 +913,10 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         }
         doc
     } else {
-        let (model, dropped) = files::load_mesh_reported(&args.input)?;
+        let options = files::MeshOptions {
+            texture: args.texture.clone(),
+        };
+        let (model, dropped) = files::load_mesh_reported_with(&args.input, &options)?;
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
         }

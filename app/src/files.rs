@@ -105,13 +105,70 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
 /// # Errors
 /// As [`load_mesh`].
 pub fn load_mesh_reported(path: &Path) -> anyhow::Result<(MeshModel, Vec<String>)> {
-    Ok(match kind_of(path)? {
-        FileKind::Gltf => thicket_core::io::import_gltf_reported(
-            path,
-            &thicket_core::io::ImportLimits::default(),
-        )?,
-        FileKind::Obj => (thicket_core::io::import_obj(path)?, Vec::new()),
+    load_mesh_reported_with(path, &MeshOptions::default())
+}
+
+/// How to read a mesh file.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct MeshOptions {
+    /// A base-colour texture (PNG or JPEG) for the parts of an OBJ whose material names none:
+    /// for files shipped without their `.mtl`. Refused for other formats, whose materials
+    /// carry their textures.
+    pub texture: Option<PathBuf>,
+}
+
+/// [`load_mesh_reported`] with options. An OBJ that has texture coordinates but names no
+/// texture (and was given none) is reported too: it imports in flat material colours.
+///
+/// # Errors
+/// As [`load_mesh`]; a texture for a file that is not an OBJ, or one that cannot be read.
+pub fn load_mesh_reported_with(
+    path: &Path,
+    options: &MeshOptions,
+) -> anyhow::Result<(MeshModel, Vec<String>)> {
+    let kind = kind_of(path)?;
+    if let Some(t) = &options.texture
+        && kind != FileKind::Obj
+    {
+        bail!(
+            "{}: a texture ({}) can be given only to an OBJ file; a {} names its own",
+            path.display(),
+            t.display(),
+            kind.label()
+        );
+    }
+    let limits = thicket_core::io::ImportLimits::default();
+    Ok(match kind {
+        FileKind::Gltf => thicket_core::io::import_gltf_reported(path, &limits)?,
+        FileKind::Obj => {
+            let obj = thicket_core::io::ObjOptions {
+                default_texture: options.texture.clone(),
+            };
+            let model = thicket_core::io::obj::import_obj_with(path, &obj, &limits)?;
+            let notes = if obj_lacks_texture(&model) {
+                vec![OBJ_NO_TEXTURE.to_owned()]
+            } else {
+                Vec::new()
+            };
+            (model, notes)
+        }
         other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
+    })
+}
+
+/// The import report's line for an OBJ with texture coordinates that names no texture.
+pub const OBJ_NO_TEXTURE: &str = "the OBJ has texture coordinates but names no texture (no \
+     material library, or no map_Kd in it): imported in flat material colours; give one with \
+     --texture PATH, or with Texture in the editor's Import report";
+
+/// Whether an imported OBJ has texture coordinates on a part whose material has no texture.
+fn obj_lacks_texture(model: &MeshModel) -> bool {
+    model.parts.iter().any(|p| {
+        !p.uvs.is_empty()
+            && model
+                .materials
+                .get(p.material)
+                .is_none_or(|m| m.base_color_texture.is_none())
     })
 }
 
@@ -140,7 +197,7 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::Sk
 /// # Errors
 /// A message naming the file and what is wrong with it.
 pub fn load_document(path: &Path) -> anyhow::Result<Document> {
-    let (doc, _, notes) = load_document_noted(path)?;
+    let (doc, _, notes) = load_document_noted(path, &MeshOptions::default())?;
     for line in &notes {
         log::warn!("{}: {line}", path.display());
     }
@@ -161,25 +218,36 @@ pub struct SourceCounts {
 /// # Errors
 /// See [`load_document`].
 pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, SourceCounts)> {
-    load_document_noted(path).map(|(doc, counts, _)| (doc, counts))
+    load_document_noted(path, &MeshOptions::default()).map(|(doc, counts, _)| (doc, counts))
 }
 
-/// [`load_document`], plus the lines of [`load_mesh_reported`] for a mesh file (what the
-/// document leaves out of it; empty for projects and `.vox` files).
+/// [`load_document`] with mesh options, plus the lines of [`load_mesh_reported_with`] for a
+/// mesh file (what the document leaves out of it; empty for projects and `.vox` files).
 ///
 /// # Errors
 /// See [`load_document`].
-pub fn load_document_reported(path: &Path) -> anyhow::Result<(Document, Vec<String>)> {
-    load_document_noted(path).map(|(doc, _, notes)| (doc, notes))
+pub fn load_document_reported(
+    path: &Path,
+    options: &MeshOptions,
+) -> anyhow::Result<(Document, Vec<String>)> {
+    load_document_noted(path, options).map(|(doc, _, notes)| (doc, notes))
 }
 
-fn load_document_noted(path: &Path) -> anyhow::Result<(Document, SourceCounts, Vec<String>)> {
+fn load_document_noted(
+    path: &Path,
+    options: &MeshOptions,
+) -> anyhow::Result<(Document, SourceCounts, Vec<String>)> {
     let mut counts = SourceCounts::default();
     let mut notes = Vec::new();
-    let doc = match kind_of(path)? {
+    let kind = kind_of(path)?;
+    if options.texture.is_some() && kind != FileKind::Obj {
+        // The mesh reader says why; a project or .vox never reaches it.
+        load_mesh_reported_with(path, options)?;
+    }
+    let doc = match kind {
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {
-            let (model, dropped) = load_mesh_reported(path)?;
+            let (model, dropped) = load_mesh_reported_with(path, options)?;
             notes = dropped;
             document_from_mesh(&object_name_for(path), model)
         }

@@ -338,6 +338,56 @@ fn import_says_once_what_it_leaves_out() {
 }
 
 #[test]
+fn import_names_a_texture_for_an_obj_shipped_without_its_mtl() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = dir.path().join("spot.thicket.json");
+    let obj = format!("{ASSETS}/static/spot/spot_triangulated.obj");
+    let png = format!("{ASSETS}/static/spot/spot_texture.png");
+    let colours = |extra: &[&str]| {
+        let mut args = vec![
+            "import",
+            &obj,
+            "-o",
+            project.to_str().unwrap(),
+            "--depth",
+            "5",
+        ];
+        args.extend_from_slice(extra);
+        let o = thicket(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let doc = thicket_core::io::project::load(&project).unwrap();
+        let thicket_core::scene::ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+            panic!("voxels")
+        };
+        let mut seen: Vec<[u8; 4]> = v.svo.leaf_colors().to_vec();
+        seen.sort_unstable();
+        seen.dedup();
+        (seen.len(), stdout(&o))
+    };
+    let (flat, out) = colours(&[]);
+    assert_eq!(flat, 1, "without a texture Spot is one flat colour");
+    assert_eq!(out.matches("names no texture").count(), 1, "{out}");
+    let (textured, out) = colours(&["--texture", &png]);
+    assert!(textured > 20, "{textured} colours from the texture");
+    assert!(!out.contains("names no texture"), "{out}");
+    // A glTF names its own textures: refused, saying why.
+    let o = thicket(&[
+        "import",
+        &format!("{ASSETS}/static/Box.glb"),
+        "-o",
+        project.to_str().unwrap(),
+        "--texture",
+        &png,
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("only an OBJ file takes a texture"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn import_a_solid_box_then_render_it() {
     let dir = tempfile::tempdir().unwrap();
     let project = dir.path().join("box.thicket.json");

@@ -568,7 +568,12 @@ fn an_import_lists_what_it_left_out_in_the_import_report() {
         1,
         "the triangle imported"
     );
-    let (_, lines) = h.state().import_report.clone().expect("an import report");
+    let lines = h
+        .state()
+        .import_report
+        .clone()
+        .expect("an import report")
+        .lines;
     assert_eq!(lines.len(), 2, "{lines:#?}");
     h.get_by_label("Import report");
     h.get_by_label_contains("face.gltf was imported");
@@ -578,6 +583,59 @@ fn an_import_lists_what_it_left_out_in_the_import_report() {
     h.run_steps(2);
     assert!(h.state().import_report.is_none(), "OK closes the report");
     assert!(h.query_by_label("Import report").is_none());
+}
+
+#[test]
+fn an_obj_without_its_texture_is_imported_again_with_one_from_the_import_report() {
+    // Spot ships as an OBJ with UVs and a PNG, but no .mtl naming it.
+    let dir = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/static/spot"
+    );
+    let obj = std::path::Path::new(dir).join("spot_triangulated.obj");
+    let mut h = harness(EditorApp::new(Editor::new(Document::default(), None)));
+    let ctx = h.ctx.clone();
+    h.state_mut().start_import(obj.clone());
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let colours = |h: &Harness<'static, EditorApp>| {
+        let o = h.state().editor.doc().objects.last().expect("the import");
+        let ObjectKind::Mesh(m) = &o.kind else {
+            panic!("an OBJ imports as a mesh object")
+        };
+        m.model
+            .materials
+            .iter()
+            .filter(|m| m.base_color_texture.is_some())
+            .count()
+    };
+    assert_eq!(colours(&h), 0, "imported untextured");
+    h.get_by_label_contains("names no texture");
+    // A texture typed into the report (relative to the OBJ's folder) imports it again with it.
+    h.query_by_label("Import again with it")
+        .expect("the button")
+        .click();
+    h.run_steps(1);
+    assert!(
+        h.state().import_report.is_some(),
+        "the button is disabled until a texture is named"
+    );
+    h.get_by_role(egui::accesskit::Role::TextInput).focus();
+    h.run_steps(1);
+    h.get_by_role(egui::accesskit::Role::TextInput)
+        .type_text("spot_texture.png");
+    h.run_steps(1);
+    h.get_by_label("Import again with it").click();
+    h.run_steps(1);
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.doc().objects.len(),
+        1,
+        "the untextured import was replaced"
+    );
+    assert_eq!(colours(&h), 1, "the texture is on the imported material");
+    assert!(h.state().import_report.is_none(), "nothing left out now");
 }
 
 #[test]

@@ -131,6 +131,19 @@ enum Pending {
     Quit,
 }
 
+/// What an import left out of its file ([`EditorApp::import_report`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportReport {
+    /// The imported file.
+    pub path: PathBuf,
+    /// One line per kind of feature left out.
+    pub lines: Vec<String>,
+    /// The objects the import added (an import again with a texture replaces them).
+    pub placed: Vec<u64>,
+    /// The Texture field's text.
+    pub texture: String,
+}
+
 /// What a background job hands back.
 enum JobResult {
     /// A project read on the worker thread, with its linked models' enhancers built there.
@@ -213,9 +226,9 @@ pub struct EditorApp {
     import_offer: Option<crate::editor::ImportPlacement>,
     /// An error shown in a dialog until dismissed (for example a file that would not open).
     pub error_dialog: Option<String>,
-    /// The last import's file and what it left out of it, shown in the Import report window
-    /// until closed (`None`: nothing was left out).
-    pub import_report: Option<(PathBuf, Vec<String>)>,
+    /// What the last import left out, shown in the Import report window until closed
+    /// (`None`: nothing was left out).
+    pub import_report: Option<ImportReport>,
     prompt: Option<PathPrompt>,
     pending: Option<Pending>,
     allow_close: bool,
@@ -393,9 +406,14 @@ impl EditorApp {
     /// with a skin becomes a rigged voxel model (voxelized in its bind pose, with its skeleton
     /// and clips, ready to pose); other files load as `thicket open` reads them.
     pub fn start_import(&mut self, path: PathBuf) {
+        self.start_import_with(path, files::MeshOptions::default());
+    }
+
+    /// [`Self::start_import`] with mesh options (an OBJ's texture).
+    pub fn start_import_with(&mut self, path: PathBuf, options: files::MeshOptions) {
         let label = format!("Importing {}", path.display());
         self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let result = import_document(&path, progress, cancel);
+            let result = import_document(&path, &options, progress, cancel);
             JobResult::Imported(path, result)
         }));
     }
@@ -594,6 +612,7 @@ impl EditorApp {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
             JobResult::Imported(path, Ok((doc, left_out))) => {
                 let placed = self.editor.import_objects(doc);
+                let placed_ids = placed.ids.clone();
                 let n = placed.ids.len();
                 let scaled = if placed.scale == 1.0 {
                     String::new()
@@ -612,7 +631,12 @@ impl EditorApp {
                     false,
                 );
                 self.import_offer = (placed.scale != 1.0).then_some(placed);
-                self.import_report = (!left_out.is_empty()).then_some((path, left_out));
+                self.import_report = (!left_out.is_empty()).then(|| ImportReport {
+                    path,
+                    lines: left_out,
+                    placed: placed_ids,
+                    texture: String::new(),
+                });
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -1637,37 +1661,7 @@ impl EditorApp {
                 None => {}
             }
         }
-        if let Some((path, lines)) = &self.import_report {
-            let mut open = true;
-            let mut ok = false;
-            egui::Window::new("Import report")
-                .open(&mut open)
-                .collapsible(false)
-                .resizable(true)
-                .default_width(460.0)
-                .show(ctx, |ui| {
-                    ui.label(format!(
-                        "{} was imported. It holds things Thicket did not carry over:",
-                        path.file_name().map_or_else(
-                            || path.display().to_string(),
-                            |n| n.to_string_lossy().into_owned()
-                        )
-                    ));
-                    ui.add_space(4.0);
-                    egui::ScrollArea::vertical()
-                        .max_height(240.0)
-                        .show(ui, |ui| {
-                            for line in lines {
-                                ui.label(format!("• {line}"));
-                            }
-                        });
-                    ui.add_space(6.0);
-                    ok = ui.button("OK").clicked();
-                });
-            if !open || ok {
-                self.import_report = None;
-            }
-        }
+        self.import_report_ui(ctx);
         if let Some(message) = self.error_dialog.clone() {
             egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
                 ui.heading("Could not complete the operation");
@@ -1805,6 +1799,89 @@ impl EditorApp {
         }
     }
 
+    /// The Import report window: what the last import left out, one bullet per kind, and for
+    /// an OBJ that names no texture a Texture field that imports it again with one.
+    fn import_report_ui(&mut self, ctx: &egui::Context) {
+        let Some(report) = self.import_report.as_mut() else {
+            return;
+        };
+        let mut open = true;
+        let mut ok = false;
+        let mut again = false;
+        let needs_texture = report.lines.iter().any(|l| l == files::OBJ_NO_TEXTURE);
+        egui::Window::new("Import report")
+            .open(&mut open)
+            .collapsible(false)
+            .resizable(true)
+            .default_width(460.0)
+            .show(ctx, |ui| {
+                ui.label(format!(
+                    "{} was imported. It holds things Thicket did not carry over:",
+                    report.path.file_name().map_or_else(
+                        || report.path.display().to_string(),
+                        |n| n.to_string_lossy().into_owned()
+                    )
+                ));
+                ui.add_space(4.0);
+                egui::ScrollArea::vertical()
+                    .max_height(240.0)
+                    .show(ui, |ui| {
+                        for line in &report.lines {
+                            ui.label(format!("• {line}"));
+                        }
+                    });
+                if needs_texture {
+                    ui.add_space(6.0);
+                    ui.horizontal(|ui| {
+                        ui.label("Texture");
+                        ui.add(
+                            egui::TextEdit::singleline(&mut report.texture)
+                                .hint_text("path to a PNG or JPEG")
+                                .desired_width(240.0),
+                        )
+                        .on_hover_text(
+                            "A base-colour texture for the OBJ's untextured parts; a relative \
+                             path is relative to the OBJ's folder",
+                        );
+                        again = ui
+                            .add_enabled(
+                                !report.texture.trim().is_empty(),
+                                egui::Button::new("Import again with it"),
+                            )
+                            .on_hover_text("Replaces the objects just imported")
+                            .clicked();
+                    });
+                }
+                ui.add_space(6.0);
+                ok = ui.button("OK").clicked();
+            });
+        if again {
+            let texture = PathBuf::from(report.texture.trim());
+            let texture = if texture.is_relative() {
+                report
+                    .path
+                    .parent()
+                    .map_or(texture.clone(), |d| d.join(&texture))
+            } else {
+                texture
+            };
+            let (path, placed) = (report.path.clone(), report.placed.clone());
+            self.import_report = None;
+            for id in placed {
+                // An object deleted since is simply gone already.
+                let _ = self.editor.delete(id);
+            }
+            self.start_import_with(
+                path,
+                files::MeshOptions {
+                    texture: Some(texture),
+                },
+            );
+        } else if !open || ok {
+            self.import_report = None;
+        }
+    }
+
     fn toasts_ui(&mut self, ctx: &egui::Context) {
         let now = ctx.input(|i| i.time);
         self.toasts.retain(|t| t.until_secs > now);
@@ -1849,6 +1926,7 @@ const SKINNED_IMPORT_DEPTH: u8 = 7;
 /// cancel from the job), anything else goes through [`files::load_document`].
 fn import_document(
     path: &Path,
+    options: &files::MeshOptions,
     progress: &AtomicU32,
     cancel: &AtomicBool,
 ) -> anyhow::Result<(Document, Vec<String>)> {
@@ -1859,7 +1937,7 @@ fn import_document(
         None
     };
     let Some(skinned) = skinned else {
-        return files::load_document_reported(path);
+        return files::load_document_reported(path, options);
     };
     let settings = thicket_core::voxelize::VoxelizeSettings {
         resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
