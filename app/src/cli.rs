@@ -885,6 +885,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         });
         bar.finish_and_clear();
         let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
+        notes.push_str(&solid_fallback_note(&v.stats));
         let rig = v.model.rig.as_ref();
         notes.push_str(&format!(
             "skinned: {} joints, {} clip(s){}\n",
@@ -927,6 +928,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         });
         bar.finish_and_clear();
         let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
+        notes.push_str(&solid_fallback_note(&v.stats));
         let mut doc = thicket_core::scene::Document::default();
         doc.add(
             files::object_name_for(&args.input),
@@ -960,6 +962,19 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         doc.objects.len(),
         thousands(voxels)
     ))
+}
+
+/// The warning for a `--solid` import of an open mesh (empty when it was filled).
+fn solid_fallback_note(stats: &thicket_core::voxelize::VoxelizeStats) -> String {
+    if !stats.solid_fell_back {
+        return String::new();
+    }
+    format!(
+        "warning: the mesh is open ({} voxel column(s) enter it without leaving; {} boundary \
+         edge(s)): --solid needs a closed mesh, so only its surface was voxelized\n",
+        thousands(stats.open_columns),
+        thousands(stats.boundary_edges)
+    )
 }
 
 fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {

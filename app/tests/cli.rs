@@ -335,6 +335,19 @@ fn import_says_once_what_it_leaves_out() {
     // With its skin the animation is imported: nothing is left out.
     let out = run(&[]);
     assert!(!out.contains("not imported"), "{out}");
+    // A closed mesh fills; an open one (SimpleSkin is a flat strip) keeps its surface, saying
+    // so once.
+    assert!(!run(&["--solid"]).contains("the mesh is open"));
+    let o = thicket(&[
+        "import",
+        &format!("{ASSETS}/skinned/SimpleSkin.gltf"),
+        "-o",
+        project.to_str().unwrap(),
+        "--solid",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = format!("{}{}", stdout(&o), stderr(&o));
+    assert_eq!(out.matches("warning: the mesh is open").count(), 1, "{out}");
 }
 
 #[test]

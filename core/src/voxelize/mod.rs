@@ -178,6 +178,18 @@ pub struct VoxelizeStats {
     pub interior_voxels: u64,
     /// Solid voxels in the result.
     pub voxels: u64,
+    /// [`Mode::Solid`] only: voxel columns (along x, y or z, through voxel centres) that enter
+    /// the mesh and do not leave it: the mesh is open at this resolution. Counting stops at the
+    /// first axis that has any.
+    pub open_columns: u64,
+    /// When [`Self::open_columns`] > 0: edges of the mesh (vertices welded by exact position
+    /// over all parts) used by an odd number of triangles, to say where it is open. (Not the
+    /// test itself: T-junctions, as in greedy-meshed exports, leave closed surfaces with such
+    /// edges.)
+    pub boundary_edges: u64,
+    /// Solid mode was asked for but the mesh is open ([`Self::open_columns`] > 0): the result
+    /// is its surface, exactly as [`Mode::Surface`] gives it.
+    pub solid_fell_back: bool,
 }
 
 /// The result of [`voxelize`].
@@ -488,6 +500,29 @@ pub fn voxelize(
             });
         }
         let intervals = solid::intervals(&mut crossings, dims.z, settings.fill_rule);
+        // An open mesh has no inside: filling it gives slabs, or the whole grid. It is open
+        // at this resolution when a column along any axis enters it and does not leave (three
+        // axes: a hole facing x is missed by every z column). Then only its surface is kept.
+        let mut open = solid::unbalanced_columns(&crossings, settings.fill_rule);
+        for axis in [Axis::X, Axis::Y] {
+            if open > 0 {
+                break;
+            }
+            open += open_columns_along(&tris, dims, axis, settings.fill_rule, overlap_limit);
+        }
+        if open > 0 {
+            stats.open_columns = open;
+            stats.boundary_edges = boundary_edges(model);
+            stats.solid_fell_back = true;
+            (Vec::new(), Vec::new())
+        } else {
+            (crossings, intervals)
+        }
+    } else {
+        (Vec::new(), Vec::new())
+    };
+    let solid = settings.mode == Mode::Solid && !stats.solid_fell_back;
+    if solid {
         stats.interior_voxels = intervals
             .iter()
             .map(|iv| u64::from(iv.k_hi - iv.k_lo) + 1)
@@ -498,17 +533,13 @@ pub fn voxelize(
                 what: "interior voxels",
             });
         }
-        (crossings, intervals)
-    } else {
-        (Vec::new(), Vec::new())
-    };
+    }
     if !progress(0.75) {
         return Err(VoxelizeError::Cancelled);
     }
 
     // Attributes of each surface voxel from its nearest triangle; in solid mode drop the ones
     // outside the mesh that an interior voxel already represents.
-    let solid = settings.mode == Mode::Solid;
     let keep_outer = settings.keep_outer_surface;
     let surface_voxels: Vec<(UVec3, Voxel)> = records
         .par_iter()
@@ -567,6 +598,87 @@ pub fn voxelize(
         origin: plan.origin,
         stats,
     })
+}
+
+/// A ray axis for [`open_columns_along`].
+#[derive(Debug, Clone, Copy)]
+enum Axis {
+    X,
+    Y,
+}
+
+/// Columns along `axis` (through voxel centres) whose crossings of the mesh do not close
+/// under `rule`. The grid is rotated cyclically so that `axis` becomes z (a rotation keeps
+/// orientation, so entering and leaving keep their signs) and the z column walk is reused.
+/// Stops counting (returns what it has) when the crossings exceed `limit`.
+fn open_columns_along(
+    tris: &Triangles<'_>,
+    dims: UVec3,
+    axis: Axis,
+    rule: FillRule,
+    limit: u64,
+) -> u64 {
+    let turn = |v: DVec3| match axis {
+        Axis::X => DVec3::new(v.y, v.z, v.x),
+        Axis::Y => DVec3::new(v.z, v.x, v.y),
+    };
+    let turned_dims = match axis {
+        Axis::X => UVec3::new(dims.y, dims.z, dims.x),
+        Axis::Y => UVec3::new(dims.z, dims.x, dims.y),
+    };
+    let budget = Budget::new(limit);
+    let crossings: Result<Vec<Crossing>, _> =
+        for_triangles(tris, &|_| true, (0.0, 0.0), |g, tri, out| {
+            let turned = GridTriangle::new(tri.v.map(turn));
+            solid::emit_crossings(&turned, g, turned_dims, &budget, out);
+        });
+    let Ok(mut crossings) = crossings else {
+        return 0;
+    };
+    crossings.par_sort_unstable_by(|a, b| a.column.cmp(&b.column).then(a.z.total_cmp(&b.z)));
+    solid::unbalanced_columns(&crossings, rule)
+}
+
+/// Edges used by an odd number of non-degenerate triangles, with vertices welded by exact
+/// position over all parts (so UV seams and part boundaries that meet are closed). Zero for a
+/// closed surface, including non-manifold ones whose edges join four faces.
+#[must_use]
+pub fn boundary_edges(model: &MeshModel) -> u64 {
+    let key = |p: Vec3| (p + Vec3::ZERO).to_array().map(f32::to_bits);
+    let mut ids: std::collections::HashMap<[u32; 3], u32> = std::collections::HashMap::new();
+    let mut edges: Vec<(u32, u32)> = Vec::new();
+    for part in &model.parts {
+        let welded: Vec<u32> = part
+            .positions
+            .iter()
+            .map(|&p| {
+                let next = ids.len() as u32;
+                *ids.entry(key(p)).or_insert(next)
+            })
+            .collect();
+        for t in 0..part.triangle_count() {
+            let [a, b, c] = part
+                .triangle(t)
+                .map(|i| welded.get(i).copied().unwrap_or(u32::MAX));
+            if a == b || b == c || a == c {
+                continue;
+            }
+            for (u, v) in [(a, b), (b, c), (c, a)] {
+                edges.push((u.min(v), u.max(v)));
+            }
+        }
+    }
+    edges.par_sort_unstable();
+    let mut open = 0u64;
+    let mut i = 0;
+    while i < edges.len() {
+        let j = edges[i..].partition_point(|e| *e == edges[i]) + i;
+        if (j - i) % 2 == 1 {
+            open += 1;
+        }
+        i = j;
+    }
+    open
 }
 
 /// Solid mode: a surface voxel whose centre is outside the mesh is dropped when the solid

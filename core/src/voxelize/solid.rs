@@ -163,3 +163,27 @@ pub(crate) fn is_interior(intervals: &[Interval], c: UVec3) -> bool {
         .take_while(|iv| iv.column == column)
         .any(|iv| (iv.k_lo..=iv.k_hi).contains(&c.z))
 }
+
+/// Columns of `crossings` (sorted by column) that do not close under `rule`: a non-zero
+/// winding number, or an odd number of crossings, after the last one.
+pub(crate) fn unbalanced_columns(crossings: &[Crossing], rule: FillRule) -> u64 {
+    let mut open = 0u64;
+    let mut i = 0;
+    while i < crossings.len() {
+        let column = crossings[i].column;
+        let (mut winding, mut count) = (0i64, 0u64);
+        while i < crossings.len() && crossings[i].column == column {
+            winding += i64::from(crossings[i].sign);
+            count += 1;
+            i += 1;
+        }
+        let closed = match rule {
+            FillRule::NonZero => winding == 0,
+            FillRule::EvenOdd => count.is_multiple_of(2),
+        };
+        if !closed {
+            open += 1;
+        }
+    }
+    open
+}

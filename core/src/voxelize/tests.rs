@@ -591,6 +591,50 @@ fn open_mesh_in_solid_mode_gives_its_surface() {
     )
     .expect("voxelize");
     assert_eq!(solid.svo, surface.svo);
+    assert_eq!(solid.stats.boundary_edges, 3);
+    assert!(solid.stats.open_columns > 0);
+    assert!(solid.stats.solid_fell_back);
+    assert!(!surface.stats.solid_fell_back);
+}
+
+#[test]
+fn a_cube_missing_a_face_is_refused_for_solid_with_its_boundary_edge_count() {
+    let closed = unit_cube();
+    assert_eq!(boundary_edges(&model(vec![closed.clone()])), 0);
+    let s = settings(Resolution::Depth(5), Mode::Solid);
+    let whole = voxelize(&model(vec![closed.clone()]), &s, &all_progress).expect("voxelize");
+    assert!(!whole.stats.solid_fell_back);
+    assert!(whole.stats.interior_voxels > 0);
+    // Drop the two triangles of one face: four edges lose their second face. Each of the six
+    // faces in turn, so a hole facing x or y (which no z column sees) is found too.
+    for face in 0..6 {
+        let mut open = closed.clone();
+        open.indices.drain(face * 6..face * 6 + 6);
+        let open = model(vec![open]);
+        let solid = voxelize(&open, &s, &all_progress).expect("voxelize");
+        let surface = voxelize(
+            &open,
+            &settings(Resolution::Depth(5), Mode::Surface),
+            &all_progress,
+        )
+        .expect("voxelize");
+        assert_eq!(solid.stats.boundary_edges, 4, "face {face}");
+        assert!(solid.stats.open_columns > 0, "face {face}");
+        assert!(solid.stats.solid_fell_back, "face {face}");
+        assert_eq!(solid.stats.interior_voxels, 0, "face {face}");
+        assert_eq!(
+            solid.svo, surface.svo,
+            "face {face}: its surface, not a slab or a block"
+        );
+    }
+    // The same closed cube split into two parts that meet along edges is still closed.
+    let cube = unit_cube();
+    let (first, second) = cube.indices.split_at(18);
+    let half = |idx: &[u32]| TriangleMesh {
+        indices: idx.to_vec(),
+        ..cube.clone()
+    };
+    assert_eq!(boundary_edges(&model(vec![half(first), half(second)])), 0);
 }
 
 #[test]
