@@ -309,23 +309,29 @@ fn failing_export_writes_nothing() {
     assert!(!out.exists());
 }
 
+/// `thicket import INPUT -o PROJECT --depth 5 EXTRA…`, which must succeed.
+fn import_at_depth_5(input: &str, project: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "import",
+        input,
+        "-o",
+        project.to_str().unwrap(),
+        "--depth",
+        "5",
+    ];
+    args.extend_from_slice(extra);
+    let o = thicket(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    o
+}
+
 #[test]
 fn import_says_once_what_it_leaves_out() {
     let dir = tempfile::tempdir().unwrap();
     let project = dir.path().join("man.thicket.json");
     let input = format!("{ASSETS}/skinned/CesiumMan.glb");
     let run = |extra: &[&str]| {
-        let mut args = vec![
-            "import",
-            &input,
-            "-o",
-            project.to_str().unwrap(),
-            "--depth",
-            "5",
-        ];
-        args.extend_from_slice(extra);
-        let o = thicket(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
+        let o = import_at_depth_5(&input, &project, extra);
         format!("{}{}", stdout(&o), stderr(&o))
     };
     // As a static mesh its walk cycle is left out: said once, with the clip's channel count.
@@ -357,17 +363,7 @@ fn import_names_a_texture_for_an_obj_shipped_without_its_mtl() {
     let obj = format!("{ASSETS}/static/spot/spot_triangulated.obj");
     let png = format!("{ASSETS}/static/spot/spot_texture.png");
     let colours = |extra: &[&str]| {
-        let mut args = vec![
-            "import",
-            &obj,
-            "-o",
-            project.to_str().unwrap(),
-            "--depth",
-            "5",
-        ];
-        args.extend_from_slice(extra);
-        let o = thicket(&args);
-        assert!(o.status.success(), "{}", stderr(&o));
+        let o = import_at_depth_5(&obj, &project, extra);
         let doc = thicket_core::io::project::load(&project).unwrap();
         let thicket_core::scene::ObjectKind::Voxels(v) = &doc.objects[0].kind else {
             panic!("voxels")

@@ -187,21 +187,40 @@ fn an_edit_in_the_second_chunk_uploads_only_its_ranges() {
         "{up:?} vs a full upload of {} bytes",
         first.upload.bytes
     );
+    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let (full, full_g, _) = gpu_frame(&ctx, &mut fresh, &doc, SIZE, &q);
+    assert!(before.pixels != full.pixels, "the paint is visible");
+    assert_uploaded_frame_is(&ctx, &mut r, &doc, (&full, &full_g));
+}
+
+/// Draws `doc` with what `r` has uploaded (which must need no upload) and checks the image and
+/// G-buffer equal `fresh`, a full upload's.
+fn assert_uploaded_frame_is(
+    ctx: &GpuContext,
+    r: &mut Renderer,
+    doc: &Document,
+    fresh: (&thicket_core::render::RgbaImage, &thicket::gpu::GBuffer),
+) {
     let target = thicket::gpu::RenderTarget::new(&ctx.device, SIZE.0, SIZE.1).expect("target");
     let stats = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            doc,
+            &doc.camera,
+            &doc.quality,
+            &target,
+        )
         .expect("frame");
     assert!(!stats.upload.full && stats.upload.bytes == 0, "{stats:?}");
     let inc = thicket::gpu::read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     let inc_g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
-    let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-    let (full, full_g, _) = gpu_frame(&ctx, &mut fresh, &doc, SIZE, &q);
-    assert!(before.pixels != full.pixels, "the paint is visible");
     assert!(
-        inc == full.pixels,
-        "incremental upload differs from a full one"
+        inc == fresh.0.pixels,
+        "the uploaded scene draws unlike a full upload"
     );
-    assert!(inc_g == full_g, "G-buffers differ");
+    assert!(&inc_g == fresh.1, "G-buffers differ");
+    assert!(ctx.errors.take().is_none());
 }
 
 #[test]
@@ -240,15 +259,6 @@ fn a_pool_that_outgrows_its_room_moves_chunks_without_a_full_upload() {
         "{up:?} vs a full upload of {:?}",
         full_stats.upload
     );
-    let target = thicket::gpu::RenderTarget::new(&ctx.device, SIZE.0, SIZE.1).expect("target");
-    let stats = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
-        .expect("frame");
-    assert!(!stats.upload.full && stats.upload.bytes == 0, "{stats:?}");
-    let inc = thicket::gpu::read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    let inc_g = r.read_gbuffer(&ctx.device, &ctx.queue).expect("G-buffer");
     assert!(before.pixels != full.pixels, "the slab is visible");
-    assert!(inc == full.pixels, "grown pools draw unlike a full upload");
-    assert!(inc_g == full_g, "G-buffers differ");
-    assert!(ctx.errors.take().is_none());
+    assert_uploaded_frame_is(&ctx, &mut r, &doc, (&full, &full_g));
 }

@@ -50,14 +50,11 @@ pub fn import_gltf(path: &Path) -> Result<MeshModel, IoError> {
 /// # Errors
 /// See [`import_gltf`]; declared sizes over `limits` give [`IoError::TooLarge`].
 pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel, IoError> {
-    let bytes = read_file_limited(path, limits)?;
-    let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
-    Importer {
-        path,
-        base_dir: Some(base_dir),
-        limits,
+    let (model, dropped) = import_gltf_reported(path, limits)?;
+    for line in &dropped {
+        log::warn!("{}: {line}", path.display());
     }
-    .run(&bytes)
+    Ok(model)
 }
 
 /// [`import_gltf_with`], plus one line for each kind of feature the file holds that the import
