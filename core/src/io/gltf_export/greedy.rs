@@ -6,8 +6,19 @@
 //!   the space around the model. A surface-voxelized import (the default for skinned glTF) is
 //!   a closed shell around an empty inside; the inner walls of that shell can never be seen,
 //!   would double the triangles, and when skinned could poke through the outer surface.
-//! * **Weights.** A skinned model's faces carry their voxel's own weights at all four corners,
-//!   and faces merge only with equal (colour, material, weights).
+//! * **One weight set per corner.** On a skinned model every lattice corner of the surface gets
+//!   the merged weights of all the solid voxels touching it ([`Skin4::merge`]: summed, the four
+//!   strongest kept, renormalised; deterministic), the rule the renderer's `Corners` stretch
+//!   strategy uses ([`SkinTables`](crate::skin::SkinTables)). Every vertex at one position then
+//!   carries the same joints and weights, so the exported surface stays closed in any pose. A
+//!   face carrying its voxel's own weights (as before issue 21) tore apart wherever neighbouring
+//!   voxels differed.
+//! * **Merges that keep the shape.** Faces merge only when they have the same colour and
+//!   material and all four of their corners carry one and the same weight set. A merged quad then
+//!   covers only lattice points with those weights, so skinning moves it as one rigid blend: its
+//!   interior and edges land exactly where the unit faces would have, and a neighbour's vertex on
+//!   its edge (a T-junction) lands on the skinned edge. Static models have no weights, so every
+//!   face of one colour and material merges, as always.
 //!
 //! Work and memory follow the solid voxels and their surface, never the model's bounding box:
 //! voxels are kept as sorted z-lists per (x, y) column, neighbours are binary searches, air is
@@ -37,8 +48,8 @@ struct Face {
 }
 
 impl Face {
-    /// Whether all four corners carry the same weights (always, for now: a face carries its
-    /// voxel's weights).
+    /// Whether all four corners carry the same weights (always, for a static model): only such
+    /// faces can grow into a larger quad without changing the skinned shape.
     fn uniform(&self) -> bool {
         self.skins[1..].iter().all(|s| *s == self.skins[0])
     }
@@ -67,7 +78,8 @@ pub struct Quad {
     /// Colour and material shared by every face in the quad.
     pub key: FaceKey,
     /// Joint weights at the lattice corners (u, v), (u + w, v), (u + w, v + h), (u, v + h):
-    /// its voxels' weights (the empty skin for static models).
+    /// the merged weights of the voxels touching each corner (the empty skin for static
+    /// models). All four are equal whenever the quad is larger than one face.
     pub skins: [Skin4; 4],
 }
 
@@ -334,6 +346,35 @@ impl Solids {
             }
         }
     }
+
+    /// The merged weights of the solid voxels touching lattice point `p` (up to eight), where
+    /// `p` is a corner of a voxel in the column (x, y) whose neighbourhood `around` is.
+    fn lattice_skin(&self, p: UVec3, (x, y): (u32, u32), around: &Around) -> Skin4 {
+        let mut touching = [Skin4::default(); 8];
+        let mut n = 0;
+        for k in 0..4u32 {
+            let (ex, ey) = (k & 1, k >> 1);
+            // Column (p.x − ex, p.y − ey) is (x + dx − 1, y + dy − 1) with dx, dy in 0..=2.
+            let (Some(dx), Some(dy)) =
+                ((p.x + 1).checked_sub(x + ex), (p.y + 1).checked_sub(y + ey))
+            else {
+                continue;
+            };
+            let Some(r) = around.get((dy * 3 + dx) as usize).and_then(Clone::clone) else {
+                continue;
+            };
+            let zs = &self.zs[r.clone()];
+            for z in [p.z.checked_sub(1), Some(p.z)].into_iter().flatten() {
+                if let Ok(k) = zs.binary_search(&z)
+                    && let Some(&s) = self.skins.get(r.start + k)
+                {
+                    touching[n] = s;
+                    n += 1;
+                }
+            }
+        }
+        Skin4::merge(&touching[..n])
+    }
 }
 
 /// Voxel ranges of the 3 × 3 columns around one ([`Solids::neighbourhood`]).
@@ -342,8 +383,8 @@ type Around = [Option<Range<usize>>; 9];
 /// The four side columns: (axis, positive, index in [`Around`]).
 const SIDES: [(usize, bool, usize); 4] = [(0, false, 3), (0, true, 5), (1, false, 1), (1, true, 7)];
 
-/// A multiplicative hash for grid coordinates: std's SipHash costs more than the rest of a
-/// face lookup, and these keys are not chosen by an attacker.
+/// A multiplicative hash for grid coordinates: std's SipHash cost more than the rest of a
+/// lattice-corner lookup, and these keys are not chosen by an attacker.
 #[derive(Default, Clone, Copy)]
 struct GridHash;
 
@@ -396,7 +437,8 @@ pub fn count_exposed_faces(svo: &Svo) -> u64 {
 
 /// Greedy meshing: the outward faces of `svo` merged into the fewest rectangles this simple
 /// scan finds (per slice, faces in (v, u) order; each unused face grows first along u, then
-/// along v while the whole row matches). Only faces of equal (colour, material, weights) merge.
+/// along v while the whole row matches). Only faces of equal (colour, material) whose corners
+/// all carry one weight set merge (see the module docs).
 ///
 /// The caller should check [`count_faces`] against its limits first: this allocates about
 /// 60 bytes per outward face.
@@ -404,15 +446,25 @@ pub fn count_exposed_faces(svo: &Svo) -> u64 {
 pub fn greedy_quads(svo: &Svo) -> Vec<Quad> {
     let solids = Solids::new(svo);
     let with_skin = svo.has_skin();
+    // Each lattice corner is shared by up to 12 faces: merge its voxels' weights once.
+    let mut lattice: HashMap<UVec3, Skin4, GridHash> = HashMap::default();
     let mut faces: Vec<Face> = Vec::new();
-    solids.for_each_face(|c, i, axis, positive, across, _| {
+    solids.for_each_face(|c, i, axis, positive, across, around| {
         if across != Across::Outside {
             return;
         }
         let layer = if positive { c[axis] + 1 } else { c[axis] };
         let (ua, va) = ((axis + 1) % 3, (axis + 2) % 3);
         let skins = if with_skin {
-            [solids.skins[i]; 4]
+            [(0, 0), (1, 0), (1, 1), (0, 1)].map(|(du, dv)| {
+                let mut p = c;
+                p[axis] = layer;
+                p[ua] += du;
+                p[va] += dv;
+                *lattice
+                    .entry(p)
+                    .or_insert_with(|| solids.lattice_skin(p, (c.x, c.y), around))
+            })
         } else {
             [Skin4::default(); 4]
         };
@@ -424,6 +476,7 @@ pub fn greedy_quads(svo: &Svo) -> Vec<Quad> {
             skins,
         });
     });
+    drop(lattice);
     drop(solids);
     faces.sort_unstable_by_key(|f| (f.slice, f.v, f.u));
 
@@ -451,6 +504,7 @@ fn merge_slice(faces: &[Face], out: &mut Vec<Quad>) {
             continue;
         }
         let f = faces[i];
+        // A face whose corners disagree is skinned as its own two triangles: it stays 1 × 1.
         let grows = f.uniform();
         let free = |u: u32, v: u32, used: &[bool]| {
             grows
@@ -483,6 +537,7 @@ fn merge_slice(faces: &[Face], out: &mut Vec<Quad>) {
             width,
             height,
             key: f.key,
+            // Merged faces all carry `f`'s uniform weights, and so do the corners they cover.
             skins: f.skins,
         });
     }

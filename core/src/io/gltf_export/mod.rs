@@ -2,7 +2,7 @@
 //!
 //! | object | `Cubes` mode | `Smooth` mode |
 //! |---|---|---|
-//! | voxel model | faces between solid voxels and outside air (never toward a sealed cavity), greedy-merged per (colour, material) into quads ([`greedy`]) | a closed surface through the voxel centres, relaxed ([`fields::mesh_voxels_smooth`]) |
+//! | voxel model | faces between solid voxels and outside air (never toward a sealed cavity), greedy-merged per (colour, material, corner weights) into quads ([`greedy`]); a rigged model's corners carry one weight set each, so the skinned surface stays closed | a closed surface through the voxel centres, relaxed ([`fields::mesh_voxels_smooth`]) |
 //! | triangle mesh | written as it is (positions, normals, UVs, colours, material colour and texture) | same |
 //! | KRS | a closed mesh of the distance field at [`GltfExportOptions::resolution`] ([`fields::mesh_krs`]) | same |
 //!
@@ -864,6 +864,7 @@ impl SceneBuilder<'_> {
                         prim.normals.push(q.normal());
                     }
                     if v.rig.is_some() {
+                        // One weight set per lattice corner: every vertex at a position agrees.
                         prim.skin.extend(q.corner_skins());
                     }
                     match self.options.colors {
@@ -922,8 +923,9 @@ impl SceneBuilder<'_> {
             }
             primitives.push(prim);
         }
-        // Cubes carry their voxels' weights; a smooth surface blends across voxels, so it is
-        // exported as the bind pose without a skeleton.
+        // Cube corners carry the merged weights of the voxels meeting there (see `greedy`); a
+        // smooth surface has no voxel corners to weight, so it is exported as the bind pose
+        // without a skeleton.
         let skin = match (&v.rig, self.options.mode) {
             (Some(rig), ExportMode::Cubes | ExportMode::Instances) => Some(ExportSkin {
                 skeleton: rig.skeleton.clone(),
