@@ -762,14 +762,22 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         thousands(report.vertices),
         human_bytes(report.bytes)
     );
-    for (name, faces, quads) in &report.voxel_faces {
+    for f in &report.voxel_faces {
         text.push_str(&format!(
-            "  {name:?}: {} exposed faces merged into {} quads ({} triangles instead of {})\n",
-            thousands(*faces),
-            thousands(*quads),
-            thousands(quads * 2),
-            thousands(faces * 2)
+            "  {:?}: {} exposed faces merged into {} quads ({} triangles instead of {})",
+            f.object,
+            thousands(f.exposed),
+            thousands(f.quads),
+            thousands(f.quads * 2),
+            thousands(f.exposed * 2)
         ));
+        if f.sealed > 0 {
+            text.push_str(&format!(
+                "; {} faces toward sealed cavities left out",
+                thousands(f.sealed)
+            ));
+        }
+        text.push('\n');
     }
     for k in &report.instanced {
         text.push_str(&format!(

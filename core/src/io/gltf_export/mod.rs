@@ -2,7 +2,7 @@
 //!
 //! | object | `Cubes` mode | `Smooth` mode |
 //! |---|---|---|
-//! | voxel model | faces between solid and empty voxels, greedy-merged per (colour, material) into quads ([`greedy`]) | a closed surface through the voxel centres, relaxed ([`fields::mesh_voxels_smooth`]) |
+//! | voxel model | faces between solid voxels and outside air (never toward a sealed cavity), greedy-merged per (colour, material, corner weights) into quads ([`greedy`]); a rigged model's corners carry one weight set each, so the skinned surface stays closed | a closed surface through the voxel centres, relaxed ([`fields::mesh_voxels_smooth`]) |
 //! | triangle mesh | written as it is (positions, normals, UVs, colours, material colour and texture) | same |
 //! | KRS | a closed mesh of the distance field at [`GltfExportOptions::resolution`] ([`fields::mesh_krs`]) | same |
 //!
@@ -27,6 +27,8 @@ mod writer;
 mod skin_tests;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod watertight_tests;
 
 use std::collections::HashMap;
 use std::io::Write as _;
@@ -48,7 +50,7 @@ pub use writer::{
 /// How voxel models become triangles.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum ExportMode {
-    /// Faces between solid and empty voxels, greedy-merged into quads: exact blocks.
+    /// Faces between solid voxels and outside air, greedy-merged into quads: exact blocks.
     #[default]
     Cubes,
     /// A smooth closed surface through the voxel centres.
@@ -162,8 +164,8 @@ pub struct GltfExportReport {
     pub bytes: u64,
     /// Files written (the `.gltf` and `.bin`, or the `.glb`).
     pub files: Vec<PathBuf>,
-    /// Per voxel object: (name, exposed faces, quads after greedy merging), `Cubes` mode.
-    pub voxel_faces: Vec<(String, u64, u64)>,
+    /// Per voxel object in `Cubes` (and `Instances`) mode: its faces and quads.
+    pub voxel_faces: Vec<VoxelFaces>,
     /// Names of objects left out (hidden, empty).
     pub skipped: Vec<String>,
     /// KRS objects written as a prototype mesh drawn once per placement.
@@ -174,6 +176,20 @@ pub struct GltfExportReport {
     pub lights: usize,
     /// Whether the document's camera was written.
     pub camera: bool,
+}
+
+/// The cube surface of one voxel object: unit faces and the quads they merged into.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct VoxelFaces {
+    /// The object.
+    pub object: String,
+    /// Unit faces that look outside: what is written (two triangles each, before merging).
+    pub exposed: u64,
+    /// Unit faces that look into a sealed cavity (empty voxels enclosed by solid ones, such as
+    /// the inside of a surface-voxelized import): never written.
+    pub sealed: u64,
+    /// Quads after greedy merging (two triangles each).
+    pub quads: u64,
 }
 
 /// How a KRS object was instanced: its prototype (reflection levels `0..=level`) meshed once,
@@ -822,10 +838,10 @@ impl SceneBuilder<'_> {
         match self.options.mode {
             ExportMode::Cubes | ExportMode::Instances => {
                 // Count first: refuses a huge model before any face list is built.
-                let faces = greedy::count_exposed_faces(&v.svo);
+                let faces = greedy::count_faces(&v.svo);
                 charge(
                     &mut { *budget },
-                    faces.saturating_mul(2),
+                    faces.exposed.saturating_mul(2),
                     self.options,
                     path,
                     &o.name,
@@ -833,9 +849,12 @@ impl SceneBuilder<'_> {
                 let quads = greedy::greedy_quads(&v.svo);
                 let tris = quads.len() as u64 * 2;
                 charge(budget, tris, self.options, path, &o.name)?;
-                report
-                    .voxel_faces
-                    .push((o.name.clone(), faces, quads.len() as u64));
+                report.voxel_faces.push(VoxelFaces {
+                    object: o.name.clone(),
+                    exposed: faces.exposed,
+                    sealed: faces.sealed,
+                    quads: quads.len() as u64,
+                });
                 for q in &quads {
                     let i = prim_for(q.key.1, &mut by_material);
                     let (_, prim, pal) = &mut by_material[i];
@@ -845,7 +864,8 @@ impl SceneBuilder<'_> {
                         prim.normals.push(q.normal());
                     }
                     if v.rig.is_some() {
-                        prim.skin.extend([q.skin; 4]);
+                        // One weight set per lattice corner: every vertex at a position agrees.
+                        prim.skin.extend(q.corner_skins());
                     }
                     match self.options.colors {
                         ColorMode::VertexColors => prim.colors.extend([linear(q.key.0); 4]),
@@ -903,8 +923,9 @@ impl SceneBuilder<'_> {
             }
             primitives.push(prim);
         }
-        // Cubes carry their voxels' weights; a smooth surface blends across voxels, so it is
-        // exported as the bind pose without a skeleton.
+        // Cube corners carry the merged weights of the voxels meeting there (see `greedy`); a
+        // smooth surface has no voxel corners to weight, so it is exported as the bind pose
+        // without a skeleton.
         let skin = match (&v.rig, self.options.mode) {
             (Some(rig), ExportMode::Cubes | ExportMode::Instances) => Some(ExportSkin {
                 skeleton: rig.skeleton.clone(),
