@@ -533,6 +533,39 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
 }
 
 #[test]
+fn the_render_menu_marks_the_active_preset_or_custom() {
+    use egui_kittest::kittest::NodeT as _;
+    use thicket_core::render::{Quality, QualityPreset};
+    let mut h = harness(EditorApp::new(Editor::new(Document::default(), None)));
+    let open_menu = |h: &mut Harness<'static, EditorApp>| {
+        h.get_by_label("Render").click();
+        h.run_steps(2);
+    };
+    let checked = |h: &Harness<'static, EditorApp>, label: &str| {
+        h.get_by_label(label).accesskit_node().toggled() == Some(egui::accesskit::Toggled::True)
+    };
+    open_menu(&mut h);
+    assert!(checked(&h, "Balanced"), "a new document is balanced");
+    assert!(!checked(&h, "Draft") && !checked(&h, "Final"));
+    assert!(h.query_by_label("Custom").is_none());
+    h.get_by_label("Draft").click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().editor.doc().quality,
+        Quality::preset(QualityPreset::Draft)
+    );
+    h.key_press(egui::Key::Escape);
+    h.run_steps(1);
+    // A knob edited away from every preset: the menu says Custom, no preset is marked.
+    let mut q = Quality::preset(QualityPreset::Draft);
+    q.lod_pixel_threshold = 1.7;
+    h.state_mut().editor.set_quality(q).expect("valid quality");
+    open_menu(&mut h);
+    assert!(checked(&h, "Custom"));
+    assert!(!checked(&h, "Draft") && !checked(&h, "Balanced") && !checked(&h, "Final"));
+}
+
+#[test]
 fn an_import_lists_what_it_left_out_in_the_import_report() {
     // One triangle with a morph target and a camera, written as .gltf + .bin.
     let dir = tempfile::tempdir().expect("temp dir");

@@ -24,7 +24,7 @@ use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 
 use egui::{Key, KeyboardShortcut, Modifiers};
-use thicket_core::render::QualityPreset;
+use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::Document;
 
 use crate::editor::autosave::{self, Recovery};
@@ -1497,10 +1497,25 @@ impl EditorApp {
             });
             ui.menu_button("Render", |ui| {
                 ui.label("Quality preset");
-                for (label, preset, tip) in PRESETS {
-                    if ui.button(*label).on_hover_text(*tip).clicked() {
+                let current = &self.editor.doc().quality;
+                let active = PRESETS
+                    .iter()
+                    .position(|(_, p, _)| *current == Quality::preset(*p));
+                for (i, (label, preset, tip)) in PRESETS.iter().enumerate() {
+                    if ui
+                        .radio(active == Some(i), *label)
+                        .on_hover_text(*tip)
+                        .clicked()
+                    {
                         self.editor.apply_quality_preset(*preset);
                     }
+                }
+                if active.is_none() {
+                    ui.add_enabled(false, egui::RadioButton::new(true, "Custom"))
+                        .on_disabled_hover_text(
+                        "The knobs differ from every preset (edited in the inspector's Render \
+                         quality section); choosing a preset replaces them",
+                    );
                 }
                 ui.separator();
                 self.view.render_menu_ui(ui);
