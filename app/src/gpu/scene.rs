@@ -85,6 +85,14 @@ pub(super) struct VoxelEntry {
     live_nodes: u64,
 }
 
+impl VoxelEntry {
+    /// Bytes its reserved room takes: (inner node pool, attribute pool).
+    fn pool_bytes(&self) -> (u64, u64) {
+        let inner = u64::from(self.inner_cap);
+        (inner * 8, (inner + u64::from(self.leaf_cap)) * 8)
+    }
+}
+
 /// A mesh object's triangles in the triangle buffer.
 struct MeshEntry {
     object_id: u64,
@@ -402,12 +410,12 @@ fn check_binding(what: &'static str, bytes: u64, limit: u64) -> Result<(), GpuEr
     Ok(())
 }
 
-/// A zeroed storage buffer of `bytes` (padded as [`storage_init`] pads), for pools filled by a
-/// GPU-side copy.
-fn storage_empty(device: &wgpu::Device, label: &str, bytes: u64) -> wgpu::Buffer {
+/// A zeroed storage buffer of `slots` 8-byte pool entries (padded as [`storage_init`] pads),
+/// for pools filled by a GPU-side copy.
+fn storage_empty(device: &wgpu::Device, label: &str, slots: usize) -> wgpu::Buffer {
     device.create_buffer(&wgpu::BufferDescriptor {
         label: Some(label),
-        size: padded(bytes),
+        size: padded(slots as u64 * 8),
         usage: STORAGE_USAGE,
         mapped_at_creation: false,
     })
@@ -702,36 +710,20 @@ impl SceneCache {
         if attr_at >= u64::from(MESH_ID_FLAG >> FACE_BITS) {
             return None;
         }
-        let sizes: Vec<(u64, u64)> = grown
-            .iter()
-            .map(|e| {
-                let inner = u64::from(e.inner_cap);
-                (inner * 8, (inner + u64::from(e.leaf_cap)) * 8)
+        let chunks: Vec<PoolChunk> = chunk_spans(&mut grown, limit)
+            .ok()?
+            .into_iter()
+            .enumerate()
+            .map(|(c, span)| {
+                let label = |what: &str| format!("{what} (chunk {c})");
+                PoolChunk {
+                    inner_buf: storage_empty(device, &label("inner nodes"), span.inner.len()),
+                    attr_buf: storage_empty(device, &label("attributes"), span.attr.len()),
+                    attr_start: span.attr.start as u32,
+                    attr_end: span.attr.end as u32,
+                }
             })
             .collect();
-        let of = assign_chunks(&sizes, limit).ok()?;
-        let count = of.last().map_or(1, |&c| c + 1);
-        let mut chunks = Vec::with_capacity(count);
-        for c in 0..count {
-            let members: Vec<usize> = (0..grown.len()).filter(|&i| of[i] == c).collect();
-            let (inner_start, attr_start) = members
-                .first()
-                .map_or((0, 0), |&a| (grown[a].inner_base, grown[a].attr_inner_base));
-            let (mut inner_slots, mut attr_slots) = (0u64, 0u64);
-            for &i in &members {
-                grown[i].chunk = c;
-                grown[i].inner_base -= inner_start;
-                inner_slots += u64::from(grown[i].inner_cap);
-                attr_slots += u64::from(grown[i].inner_cap) + u64::from(grown[i].leaf_cap);
-            }
-            let label = |what: &str| format!("{what} (chunk {c})");
-            chunks.push(PoolChunk {
-                inner_buf: storage_empty(device, &label("inner nodes"), inner_slots * 8),
-                attr_buf: storage_empty(device, &label("attributes"), attr_slots * 8),
-                attr_start,
-                attr_end: attr_start + attr_slots as u32,
-            });
-        }
         let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor {
             label: Some("grow voxel pools"),
         });
@@ -995,24 +987,8 @@ fn chunk_pools(
     attrs: &[[u32; 2]],
     limit: u64,
 ) -> Result<Vec<PoolChunk>, GpuError> {
-    // Each object's slots run from its bases to the next object's (or the pools' end).
-    let spans: Vec<(Range<usize>, Range<usize>)> = (0..voxels.len())
-        .map(|i| {
-            let next = voxels.get(i + 1);
-            let e = &voxels[i];
-            (
-                e.inner_base as usize..next.map_or(inner.len(), |n| n.inner_base as usize),
-                e.attr_inner_base as usize
-                    ..next.map_or(attrs.len(), |n| n.attr_inner_base as usize),
-            )
-        })
-        .collect();
-    let sizes: Vec<(u64, u64)> = spans
-        .iter()
-        .map(|(a, b)| (a.len() as u64 * 8, b.len() as u64 * 8))
-        .collect();
-    let of = assign_chunks(&sizes, limit).map_err(|i| {
-        let (inner_bytes, attr_bytes) = sizes[i];
+    let spans = chunk_spans(voxels, limit).map_err(|i| {
+        let (inner_bytes, attr_bytes) = voxels[i].pool_bytes();
         let (what, bytes) = if padded(attr_bytes) > limit {
             ("attribute pool", attr_bytes)
         } else {
@@ -1025,38 +1001,67 @@ fn chunk_pools(
             limit,
         }
     })?;
+    Ok(spans
+        .into_iter()
+        .enumerate()
+        .map(|(c, span)| {
+            let label = |what: &str| format!("{what} (chunk {c})");
+            PoolChunk {
+                inner_buf: storage_init(
+                    device,
+                    &label("inner nodes"),
+                    bytemuck::cast_slice(&inner[span.inner]),
+                ),
+                attr_buf: storage_init(
+                    device,
+                    &label("attributes"),
+                    bytemuck::cast_slice(&attrs[span.attr.clone()]),
+                ),
+                attr_start: span.attr.start as u32,
+                attr_end: span.attr.end as u32,
+            }
+        })
+        .collect())
+}
+
+/// The global slot ranges one [`PoolChunk`] holds: inner slots and attribute indices.
+struct ChunkSpan {
+    inner: Range<usize>,
+    attr: Range<usize>,
+}
+
+/// Groups consecutive objects into chunks within `limit` ([`assign_chunks`], sized by their
+/// reserved room), sets each entry's `chunk` and makes its `inner_base` relative to its chunk.
+/// The entries' bases must be global and consecutive, as [`SceneCache::build`] and
+/// [`SceneCache::grow_pools`] lay them out. `Err(i)`: object `i` alone exceeds a binding.
+fn chunk_spans(voxels: &mut [VoxelEntry], limit: u64) -> Result<Vec<ChunkSpan>, usize> {
+    let sizes: Vec<(u64, u64)> = voxels.iter().map(VoxelEntry::pool_bytes).collect();
+    let of = assign_chunks(&sizes, limit)?;
     let count = of.last().map_or(1, |&c| c + 1);
-    let mut chunks = Vec::with_capacity(count);
+    let mut spans = Vec::with_capacity(count);
     for c in 0..count {
         let members: Vec<usize> = (0..voxels.len()).filter(|&i| of[i] == c).collect();
-        let (inner_range, attr_range) = match (members.first(), members.last()) {
-            (Some(&a), Some(&b)) => (
-                spans[a].0.start..spans[b].0.end,
-                spans[a].1.start..spans[b].1.end,
-            ),
-            _ => (0..0, 0..0),
+        let span = match (members.first(), members.last()) {
+            (Some(&a), Some(&b)) => {
+                let (first, last) = (&voxels[a], &voxels[b]);
+                ChunkSpan {
+                    inner: first.inner_base as usize..(last.inner_base + last.inner_cap) as usize,
+                    attr: first.attr_inner_base as usize
+                        ..(last.attr_leaf_base + last.leaf_cap) as usize,
+                }
+            }
+            _ => ChunkSpan {
+                inner: 0..0,
+                attr: 0..0,
+            },
         };
         for &i in &members {
             voxels[i].chunk = c;
-            voxels[i].inner_base -= inner_range.start as u32;
+            voxels[i].inner_base -= span.inner.start as u32;
         }
-        let label = |what: &str| format!("{what} (chunk {c})");
-        chunks.push(PoolChunk {
-            inner_buf: storage_init(
-                device,
-                &label("inner nodes"),
-                bytemuck::cast_slice(&inner[inner_range]),
-            ),
-            attr_buf: storage_init(
-                device,
-                &label("attributes"),
-                bytemuck::cast_slice(&attrs[attr_range.clone()]),
-            ),
-            attr_start: attr_range.start as u32,
-            attr_end: attr_range.end as u32,
-        });
+        spans.push(span);
     }
-    Ok(chunks)
+    Ok(spans)
 }
 
 pub(super) fn object_of(doc: &Document, id: u64) -> Option<&thicket_core::scene::Object> {
