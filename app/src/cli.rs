@@ -853,15 +853,11 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
 
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
-    if let Some(t) = &args.texture
-        && files::FileKind::from_path(&args.input) != Some(files::FileKind::Obj)
-    {
-        anyhow::bail!(
-            "--texture {}: only an OBJ file takes a texture; {} names its own",
-            t.display(),
-            args.input.display()
-        );
-    }
+    let options = files::MeshOptions {
+        texture: args.texture.clone(),
+    };
+    // Before any branch: the .vox and skinned paths would otherwise ignore the texture.
+    files::check_options(&args.input, &options)?;
     let is_vox = args
         .input
         .extension()
@@ -922,9 +918,6 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         }
         doc
     } else {
-        let options = files::MeshOptions {
-            texture: args.texture.clone(),
-        };
         let (model, dropped) = files::load_mesh_reported_with(&args.input, &options)?;
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));

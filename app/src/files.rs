@@ -127,16 +127,7 @@ pub fn load_mesh_reported_with(
     options: &MeshOptions,
 ) -> anyhow::Result<(MeshModel, Vec<String>)> {
     let kind = kind_of(path)?;
-    if let Some(t) = &options.texture
-        && kind != FileKind::Obj
-    {
-        bail!(
-            "{}: a texture ({}) can be given only to an OBJ file; a {} names its own",
-            path.display(),
-            t.display(),
-            kind.label()
-        );
-    }
+    check_options(path, options)?;
     let limits = thicket_core::io::ImportLimits::default();
     Ok(match kind {
         FileKind::Gltf => thicket_core::io::import_gltf_reported(path, &limits)?,
@@ -154,6 +145,24 @@ pub fn load_mesh_reported_with(
         }
         other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
     })
+}
+
+/// Refuses options the file at `path` cannot take: a texture for anything but an OBJ (other
+/// formats name their own textures).
+///
+/// # Errors
+/// A message naming the texture and the file.
+pub fn check_options(path: &Path, options: &MeshOptions) -> anyhow::Result<()> {
+    if let Some(t) = &options.texture
+        && FileKind::from_path(path) != Some(FileKind::Obj)
+    {
+        bail!(
+            "--texture {}: only an OBJ file takes a texture; {} names its own",
+            t.display(),
+            path.display()
+        );
+    }
+    Ok(())
 }
 
 /// The import report's line for an OBJ with texture coordinates that names no texture.
@@ -240,10 +249,7 @@ fn load_document_noted(
     let mut counts = SourceCounts::default();
     let mut notes = Vec::new();
     let kind = kind_of(path)?;
-    if options.texture.is_some() && kind != FileKind::Obj {
-        // The mesh reader says why; a project or .vox never reaches it.
-        load_mesh_reported_with(path, options)?;
-    }
+    check_options(path, options)?;
     let doc = match kind {
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {

@@ -1946,6 +1946,7 @@ fn import_document(
     cancel: &AtomicBool,
 ) -> anyhow::Result<(Document, Vec<String>)> {
     use anyhow::Context as _;
+    files::check_options(path, options)?;
     let skinned = if FileKind::from_path(path) == Some(FileKind::Gltf) {
         files::load_skinned(path)?
     } else {
