@@ -635,7 +635,8 @@ fn open_columns_along(
     let Ok(mut crossings) = crossings else {
         return 0;
     };
-    crossings.par_sort_unstable_by(|a, b| a.column.cmp(&b.column).then(a.z.total_cmp(&b.z)));
+    // Only the grouping by column matters for whether a column closes.
+    crossings.par_sort_unstable_by_key(|c| c.column);
     solid::unbalanced_columns(&crossings, rule)
 }
 
