@@ -267,8 +267,8 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
     );
 }
 
-#[test]
-fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
+/// The coral preset alone, framed, without shadows or AO (a quick CPU preview).
+fn coral_doc() -> Document {
     let mut doc = Document::default();
     doc.add(
         "Coral",
@@ -279,7 +279,49 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     if let Some((lo, hi)) = doc.bounds() {
         doc.camera.frame(lo, hi);
     }
-    let mut h = harness(doc);
+    doc
+}
+
+#[test]
+fn mirror_planes_show_only_while_the_krs_editor_is_open() {
+    use thicket::ui::krs_panel::{mirror_quads, pick_mirror};
+    let mut h = harness(coral_doc());
+    h.get_by_label("R0").click_accesskit();
+    h.run_steps(1);
+    // (quads, gizmo handles, whether a click on a quad's edge picks a plane)
+    let shown = |h: &Harness<'static, EditorApp>| {
+        let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+        let (editor, krs) = (&h.state().editor, &h.state().krs);
+        let quads = mirror_quads(editor, krs, &proj);
+        let picked = quads
+            .first()
+            .is_some_and(|(_, q)| pick_mirror(editor, krs, &proj, q[0].lerp(q[1], 0.5)).is_some());
+        (quads.len(), krs.mirror_handles(editor, &proj).len(), picked)
+    };
+    let planes = h.state().editor.doc().objects[0]
+        .krs_in_world()
+        .unwrap()
+        .mirrors
+        .len();
+    let (quads, handles, picked) = shown(&h);
+    assert_eq!(quads, planes, "every plane drawn while the editor is open");
+    assert!(
+        handles > 0 && picked,
+        "the highlighted plane has its gizmo and is pickable"
+    );
+    // Folding the KRS editor away hides the planes, their gizmo and their picking.
+    h.get_by_label("KRS editor").click_accesskit();
+    h.run_steps(3);
+    assert!(!h.state().krs.editor_open);
+    assert_eq!(shown(&h), (0, 0, false));
+    h.get_by_label("KRS editor").click_accesskit();
+    h.run_steps(3);
+    assert_eq!(shown(&h), (planes, handles, true));
+}
+
+#[test]
+fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
+    let mut h = harness(coral_doc());
     let id = h.state().editor.doc().objects[0].id;
     let original = h.state().editor.krs(id).unwrap().clone();
     assert!(!original.mirrors.is_empty());

@@ -533,6 +533,141 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
 }
 
 #[test]
+fn the_path_entry_browses_folders_and_keeps_the_typed_file_name() {
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    let mut h = harness(app);
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("sub")).unwrap();
+    std::fs::write(dir.path().join("old.thicket.json"), b"{}").unwrap();
+    std::fs::write(dir.path().join("notes.txt"), b"not a project").unwrap();
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    // Type the folder's path: the list shows its sub-folder and its projects, not other files.
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    let typed = dir.path().join("mine.thicket.json").display().to_string();
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .type_text(&typed);
+    h.run_steps(2);
+    h.get_by_label("sub/");
+    assert!(
+        h.query_all_by_label_contains("old.thicket.json")
+            .next()
+            .is_some(),
+        "the folder's project is listed"
+    );
+    assert!(
+        h.query_all_by_label_contains("notes.txt").next().is_none(),
+        "files a project cannot be saved as are left out"
+    );
+    // A click on the sub-folder descends into it and keeps the typed name; OK saves there.
+    h.get_by_label("sub/").click();
+    h.run_steps(2);
+    let expected = dir.path().join("sub").join("mine.thicket.json");
+    h.query_all_by_value(&expected.display().to_string())
+        .next()
+        .expect("the field holds the folder and the typed name");
+    assert!(
+        h.query_all_by_label_contains("old.thicket.json")
+            .next()
+            .is_none(),
+        "the list follows the field into the sub-folder"
+    );
+    h.get_by_label("OK").click();
+    h.run_steps(3);
+    assert!(h.query_by_label("Save as").is_none());
+    assert_eq!(h.state().editor.path(), Some(expected.as_path()));
+    assert!(expected.is_file(), "saved into the chosen folder");
+}
+
+#[test]
+fn the_open_entry_lists_recent_files_and_a_double_click_opens_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let saved = dir.path().join("recent.thicket.json");
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    thicket::files::save_project(app.editor.doc(), &saved).expect("the project saves");
+    app.editor
+        .push_recent(dir.path().join("deleted.thicket.json"));
+    app.editor.push_recent(saved.clone());
+    // kittest runs one frame per queued event, each `step_dt` long: at 1/60 s a click's
+    // three events stay well inside egui's 0.3 s double-click time (the default 1/4 s does not).
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 800.0))
+        .with_step_dt(1.0 / 60.0)
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.run_steps(3);
+    h.get_by_label("Recent");
+    let shown = saved.display().to_string();
+    assert!(
+        h.query_all_by_label(&shown).next().is_some(),
+        "the saved project is a recent file"
+    );
+    assert!(
+        h.query_all_by_label_contains("deleted.thicket.json")
+            .next()
+            .is_none(),
+        "a recent file that no longer exists is not offered"
+    );
+    // A double-click.
+    let row = h.query_all_by_label(&shown).next().unwrap();
+    row.click();
+    row.click();
+    h.step();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label("Recent").is_none(),
+        "the double-click accepted the entry"
+    );
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.path(), Some(saved.as_path()));
+    assert_eq!(h.state().editor.doc().objects.len(), 2);
+}
+
+#[test]
+fn the_tool_bar_does_not_move_when_the_brush_size_gains_digits() {
+    let mut h = harness(app_with_two_objects());
+    h.state_mut()
+        .sculpt
+        .choose(thicket::ui::voxel_tools::ToolKind::Brush);
+    h.state_mut().sculpt.brush.radius = 0.5;
+    h.run_steps(2);
+    let strength_at = |h: &Harness<'static, EditorApp>| h.get_by_label("Strength").rect();
+    let before = strength_at(&h);
+    // 0.5 → 12 → 256 voxels: one, two and three integer digits.
+    for (radius, presses) in [(12.0_f32, 12), (256.0, 0)] {
+        for _ in 0..presses {
+            h.key_press(egui::Key::CloseBracket);
+            h.run_steps(1);
+        }
+        if presses == 0 {
+            h.state_mut().sculpt.brush.radius = radius;
+        }
+        h.run_steps(2);
+        assert_eq!(h.state().sculpt.brush.radius, radius);
+        assert_eq!(
+            strength_at(&h),
+            before,
+            "the fields after the size stay where they were at radius {radius}"
+        );
+    }
+}
+
+#[test]
 fn the_render_menu_marks_the_active_preset_or_custom() {
     use egui_kittest::kittest::NodeT as _;
     use thicket_core::render::{Quality, QualityPreset};

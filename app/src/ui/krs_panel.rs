@@ -21,6 +21,10 @@ type PickerKey = (u64, (u64, u64));
 pub struct KrsPanel {
     /// The mirror plane highlighted in the view.
     pub mirror: Option<usize>,
+    /// Whether the inspector shows the KRS editor this frame (reset before the inspector is
+    /// drawn): mirror planes, their gizmo and the tree route are drawn and picked only then,
+    /// so they do not clutter the view of a KRS object that is not being edited.
+    pub editor_open: bool,
     /// The preset picked in the combo box (an index into `krs::presets::all()`).
     pub preset: usize,
     /// Preset names from core (read once).
@@ -306,7 +310,7 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
     let custom = panel.synced.is_some_and(|(_, c)| c);
     let mut k = current.clone();
     let mut changed = false;
-    egui::CollapsingHeader::new("KRS editor")
+    let header = egui::CollapsingHeader::new("KRS editor")
         .default_open(true)
         .show(ui, |ui| {
             ui.horizontal(|ui| {
@@ -479,6 +483,7 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
             ui.separator();
             tree_builder_ui(ui, editor, panel, id);
         });
+    panel.editor_open = header.body_returned.is_some();
     if changed && k != current {
         // A structural change (kind, level) is its own step; value drags merge while they last.
         panel.error = editor.set_krs(id, &k).err().map(|e| e.to_string());
@@ -492,8 +497,16 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
 }
 
 /// The selected KRS object's mirror planes on the screen: a quad per plane through the centre
-/// of the object's bounding ball, as large as the ball.
-fn mirror_quads(editor: &Editor, proj: &Projector) -> Vec<(usize, Vec<egui::Pos2>)> {
+/// of the object's bounding ball, as large as the ball; none while the KRS editor is closed.
+#[must_use]
+pub fn mirror_quads(
+    editor: &Editor,
+    panel: &KrsPanel,
+    proj: &Projector,
+) -> Vec<(usize, Vec<egui::Pos2>)> {
+    if !panel.editor_open {
+        return Vec::new();
+    }
     let Some(Selection::Object(id)) = editor.selection else {
         return Vec::new();
     };
@@ -531,8 +544,13 @@ fn mirror_quads(editor: &Editor, proj: &Projector) -> Vec<(usize, Vec<egui::Pos2
 
 /// The mirror plane of the selected KRS object whose outline passes under `pointer`.
 #[must_use]
-pub fn pick_mirror(editor: &Editor, proj: &Projector, pointer: egui::Pos2) -> Option<usize> {
-    mirror_quads(editor, proj)
+pub fn pick_mirror(
+    editor: &Editor,
+    panel: &KrsPanel,
+    proj: &Projector,
+    pointer: egui::Pos2,
+) -> Option<usize> {
+    mirror_quads(editor, panel, proj)
         .into_iter()
         .map(|(i, mut q)| {
             q.push(q[0]);
@@ -546,7 +564,7 @@ pub fn pick_mirror(editor: &Editor, proj: &Projector, pointer: egui::Pos2) -> Op
 /// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
 /// brighter and filled, with its gizmo), sized by the object's bounding ball.
 pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
-    for (i, mut corners) in mirror_quads(editor, proj) {
+    for (i, mut corners) in mirror_quads(editor, panel, proj) {
         let highlighted = panel.mirror == Some(i);
         let color = if highlighted {
             egui::Color32::from_rgb(120, 220, 255)
@@ -633,6 +651,9 @@ struct MirrorFrame {
 
 impl MirrorFrame {
     fn of(editor: &Editor, panel: &KrsPanel) -> Option<Self> {
+        if !panel.editor_open {
+            return None;
+        }
         let Some(Selection::Object(id)) = editor.selection else {
             return None;
         };
@@ -979,6 +1000,9 @@ impl KrsPanel {
     /// selected object.
     #[must_use]
     pub fn route_points(&self, editor: &Editor, proj: &Projector) -> Vec<Option<egui::Pos2>> {
+        if !self.editor_open {
+            return Vec::new();
+        }
         let Some(Selection::Object(id)) = editor.selection else {
             return Vec::new();
         };

@@ -10,6 +10,7 @@ pub mod krs_panel;
 mod new_model;
 mod outliner;
 mod palette;
+mod path_prompt;
 mod perf;
 pub mod pose;
 pub mod sculpt;
@@ -30,6 +31,7 @@ use thicket_core::scene::Document;
 use crate::editor::autosave::{self, Recovery};
 use crate::editor::{Editor, Selection};
 use crate::files::{self, FileKind, thousands};
+use path_prompt::{PathPrompt, PathPurpose, PromptOutcome, readable_list};
 
 /// Keyboard shortcuts, listed in Help → Keyboard shortcuts.
 pub const SHORTCUTS: &[(&str, &str)] = &[
@@ -89,38 +91,6 @@ struct Toast {
     text: String,
     is_error: bool,
     until_secs: f64,
-}
-
-/// What a path prompt is for.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum PathPurpose {
-    Open,
-    Import,
-    SaveAs,
-    ExportVox,
-    ExportGltf,
-    LoadPalette,
-    SavePalette,
-}
-
-impl PathPurpose {
-    fn title(self) -> &'static str {
-        match self {
-            Self::Open => "Open",
-            Self::Import => "Import",
-            Self::SaveAs => "Save as",
-            Self::ExportVox => "Export MagicaVoxel (.vox)",
-            Self::ExportGltf => "Export glTF (.glb or .gltf)",
-            Self::LoadPalette => "Load palette (.gpl, .png, .vox)",
-            Self::SavePalette => "Save palette (.gpl or .png)",
-        }
-    }
-}
-
-#[derive(Debug, Clone)]
-struct PathPrompt {
-    purpose: PathPurpose,
-    text: String,
 }
 
 /// An action waiting for the unsaved-changes prompt.
@@ -721,10 +691,10 @@ impl EditorApp {
         match self.editor.path().map(Path::to_path_buf) {
             Some(path) => self.save_to(ctx, path),
             None => {
-                self.prompt = Some(PathPrompt {
-                    purpose: PathPurpose::SaveAs,
-                    text: "untitled.thicket.json".into(),
-                });
+                self.prompt = Some(PathPrompt::new(
+                    PathPurpose::SaveAs,
+                    "untitled.thicket.json".into(),
+                ));
                 false
             }
         }
@@ -774,9 +744,15 @@ impl EditorApp {
             PathPurpose::ExportVox => "export.vox".into(),
             PathPurpose::ExportGltf => "export.glb".into(),
             PathPurpose::SavePalette => "palette.gpl".into(),
-            _ => String::new(),
+            // Open, import, load: the browse list starts in the project's folder.
+            _ => self
+                .editor
+                .path()
+                .and_then(Path::parent)
+                .filter(|d| !d.as_os_str().is_empty())
+                .map_or_else(String::new, |d| format!("{}/", d.display())),
         };
-        self.prompt = Some(PathPrompt { purpose, text });
+        self.prompt = Some(PathPrompt::new(purpose, text));
     }
 
     /// A desktop file dialog on its own thread (it blocks until the user answers).
@@ -1009,6 +985,8 @@ impl EditorApp {
                     );
                 });
         }
+        // Set again by the inspector's KRS editor when it is shown this frame.
+        self.krs.editor_open = false;
         if self.show_inspector {
             egui::Panel::right("inspector")
                 .resizable(true)
@@ -1739,36 +1717,11 @@ impl EditorApp {
             }
         }
         if let Some(mut prompt) = self.prompt.take() {
-            let mut accepted = None;
-            let mut keep = true;
-            egui::Modal::new(egui::Id::unique("path_prompt")).show(ctx, |ui| {
-                ui.heading(prompt.purpose.title());
-                ui.label(match prompt.purpose {
-                    PathPurpose::SaveAs => "Project file (.thicket.json):".to_owned(),
-                    PathPurpose::ExportVox => "MagicaVoxel file (.vox):".to_owned(),
-                    PathPurpose::ExportGltf => "glTF file (.glb or .gltf):".to_owned(),
-                    _ => format!("File ({}):", readable_list()),
-                });
-                let edit = ui.add(
-                    egui::TextEdit::singleline(&mut prompt.text)
-                        .desired_width(480.0)
-                        .hint_text("path/to/file"),
-                );
-                // Enter ends a single-line edit by giving up its focus this frame: read it
-                // before focusing the field again (focusing first hid every Enter).
-                let enter = edit.lost_focus() && ui.input(|i| i.key_pressed(Key::Enter));
-                if !enter && ui.memory(|m| m.focused().is_none()) {
-                    edit.request_focus();
-                }
-                ui.horizontal(|ui| {
-                    if (ui.button("OK").clicked() || enter) && !prompt.text.trim().is_empty() {
-                        accepted = Some(PathBuf::from(prompt.text.trim()));
-                    }
-                    if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(Key::Escape)) {
-                        keep = false;
-                    }
-                });
-            });
+            let (accepted, keep) = match prompt.ui(ctx, &self.editor.recent) {
+                PromptOutcome::Open => (None, true),
+                PromptOutcome::Accept(path) => (Some(path), false),
+                PromptOutcome::Cancel => (None, false),
+            };
             if let Some(path) = accepted {
                 let purpose = prompt.purpose;
                 self.accept_path(ctx, purpose, path);
@@ -1972,14 +1925,6 @@ fn import_document(
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
     Ok((doc, skinned.warnings))
-}
-
-fn readable_list() -> String {
-    files::readable_extensions()
-        .iter()
-        .map(|(label, exts)| format!("{label}: .{}", exts.join(", .")))
-        .collect::<Vec<_>>()
-        .join("; ")
 }
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.

@@ -411,7 +411,9 @@ impl SculptTool {
             ui.separator();
             if self.stretch_paint {
                 ui.label("Size");
-                ui.add(
+                fixed_width(
+                    ui,
+                    "64.0 vox",
                     egui::DragValue::new(&mut self.brush.radius)
                         .range(0.5..=MAX_RADIUS.min(64.0))
                         .speed(0.1)
@@ -420,12 +422,17 @@ impl SculptTool {
                 )
                 .on_hover_text("Stretch brush radius in voxels ([ and ] step one voxel)");
                 ui.label("Factor");
-                ui.add_enabled(
-                    !self.stretch_erase,
-                    egui::DragValue::new(&mut self.stretch_factor)
-                        .range(1.0 / 64.0..=crate::editor::MAX_STRETCH_OVERRIDE)
-                        .speed(0.01),
-                )
+                ui.add_enabled_ui(!self.stretch_erase, |ui| {
+                    fixed_width(
+                        ui,
+                        "3.984",
+                        egui::DragValue::new(&mut self.stretch_factor)
+                            .range(1.0 / 64.0..=crate::editor::MAX_STRETCH_OVERRIDE)
+                            .speed(0.01)
+                            .fixed_decimals(3),
+                    )
+                })
+                .inner
                 .on_hover_text(
                     "Stretch factor painted into each voxel (replaces the strategy's factor there; steps of 1/64, up to 3.98)",
                 );
@@ -442,7 +449,9 @@ impl SculptTool {
                 .on_hover_text("Square brush");
             ui.separator();
             ui.label("Size");
-            ui.add(
+            fixed_width(
+                ui,
+                "256.0 vox",
                 egui::DragValue::new(&mut self.brush.radius)
                     .range(0.5..=MAX_RADIUS)
                     .speed(0.1)
@@ -453,10 +462,13 @@ impl SculptTool {
                 "Brush radius in voxels ([ and ] step one voxel, Shift+[ / Shift+] halve / double)",
             );
             ui.label("Strength");
-            ui.add(
+            fixed_width(
+                ui,
+                "1.00",
                 egui::DragValue::new(&mut self.brush.strength)
                     .range(0.0..=1.0)
-                    .speed(0.01),
+                    .speed(0.01)
+                    .fixed_decimals(2),
             )
             .on_hover_text("Paint: how far the colour moves toward the brush colour per dab; Smooth: how aggressively");
             ui.separator();
@@ -525,6 +537,20 @@ impl SculptTool {
                 ));
         }
     }
+}
+
+/// A tool-bar number field as wide as its widest value `widest` (its range's end, formatted as
+/// the field shows it), so the colours and toggles after it do not move while the value changes
+/// its number of digits.
+fn fixed_width(ui: &mut egui::Ui, widest: &str, field: egui::DragValue<'_>) -> egui::Response {
+    let font = egui::TextStyle::Button.resolve(ui.style());
+    let text = ui
+        .painter()
+        .layout_no_wrap(widest.to_owned(), font, egui::Color32::WHITE)
+        .size()
+        .x;
+    let width = text + 2.0 * ui.spacing().button_padding.x;
+    ui.add_sized([width, ui.spacing().interact_size.y], field)
 }
 
 #[cfg(test)]

@@ -217,8 +217,9 @@ struct CpuPreview {
     labels: Vec<u32>,
     /// Node ids of the shown image, row by row.
     nodes: Vec<u64>,
-    /// The selection outline drawn from `labels`: for which render and label.
-    outline: Option<((u64, u32), egui::TextureHandle)>,
+    /// The selection outline drawn from `labels`: for which render and label, and whether it
+    /// is drawn (not when it would be clutter, see [`outline_is_clutter`]).
+    outline: Option<((u64, u32), egui::TextureHandle, bool)>,
     /// The hole / bloat overlay of the shown image and its counts.
     holes: Option<(egui::TextureHandle, HoleCounts)>,
     /// The stretch heat map of the shown image and its statistics.
@@ -237,10 +238,12 @@ const HOLE_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 0, 255);
 const BLOAT_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 230, 0);
 
 /// An image that is transparent except on the border pixels of the region labelled `label`
-/// (pixels of the region with a 4-neighbour outside it or on the image edge).
-fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorImage {
+/// (pixels of the region with a 4-neighbour outside it or on the image edge), and how many
+/// border pixels it has.
+fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> (egui::ColorImage, usize) {
     let [w, h] = size;
     let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
+    let mut count = 0;
     let at = |x: usize, y: usize| labels.get(y * w + x).copied().unwrap_or(0);
     for y in 0..h {
         for x in 0..w {
@@ -257,10 +260,22 @@ fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> egui::ColorIma
                 || at(x, y + 1) != label;
             if edge {
                 image.pixels[y * w + x] = SELECTION_COLOR;
+                count += 1;
             }
         }
     }
-    image
+    (image, count)
+}
+
+/// Above this share of the view's pixels, a selection's border is no longer an outline but a
+/// texture over the object (a forest's thousands of trees, grass): the selection box is drawn
+/// instead. One compact model's border is well under 1 % (a 350-px-wide blob in a 700 × 700
+/// view: about 0.3 %).
+const OUTLINE_CLUTTER_SHARE: f64 = 0.02;
+
+/// Whether an outline of `border_px` pixels in an image of `size` would clutter the view.
+fn outline_is_clutter(border_px: usize, size: [usize; 2]) -> bool {
+    border_px as f64 > OUTLINE_CLUTTER_SHARE * (size[0] * size[1]) as f64
 }
 
 /// Pixels of an image size.
@@ -584,7 +599,7 @@ impl View {
                 .and_then(|p| pose.pick_joint(editor, &proj, p));
             let mirror = response
                 .interact_pointer_pos()
-                .and_then(|p| pick_mirror(editor, &proj, p));
+                .and_then(|p| pick_mirror(editor, krs, &proj, p));
             if let Some(j) = joint {
                 editor.selection = Some(Selection::Object(j.object));
                 pose.joint = Some(j);
@@ -1032,12 +1047,14 @@ impl View {
             return None;
         }
         let key = (self.cpu.renders, label);
-        if self.cpu.outline.as_ref().is_none_or(|(k, _)| *k != key) {
-            let image = outline_image(&self.cpu.labels, size, label);
+        if self.cpu.outline.as_ref().is_none_or(|(k, _, _)| *k != key) {
+            let (image, border_px) = outline_image(&self.cpu.labels, size, label);
+            let shown = !outline_is_clutter(border_px, size);
             match &mut self.cpu.outline {
-                Some((k, t)) => {
+                Some((k, t, s)) => {
                     t.set(image, egui::TextureOptions::NEAREST);
                     *k = key;
+                    *s = shown;
                 }
                 None => {
                     let t = ui.ctx().load_texture(
@@ -1045,11 +1062,15 @@ impl View {
                         image,
                         egui::TextureOptions::NEAREST,
                     );
-                    self.cpu.outline = Some((key, t));
+                    self.cpu.outline = Some((key, t, shown));
                 }
             }
         }
-        self.cpu.outline.as_ref().map(|(_, t)| t.id())
+        self.cpu
+            .outline
+            .as_ref()
+            .filter(|(_, _, shown)| *shown)
+            .map(|(_, t, _)| t.id())
     }
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
@@ -1911,7 +1932,8 @@ mod tests {
                 labels[y * 5 + x] = 2;
             }
         }
-        let image = outline_image(&labels, [5, 5], 2);
+        let (image, border_px) = outline_image(&labels, [5, 5], 2);
+        assert_eq!(border_px, 8);
         let lit: Vec<(usize, usize)> = (0..25)
             .filter(|&i| image.pixels[i] == SELECTION_COLOR)
             .map(|i| (i % 5, i / 5))
@@ -1923,6 +1945,36 @@ mod tests {
         );
         assert!(!lit.contains(&(2, 2)));
         assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
+    }
+
+    #[test]
+    fn a_forest_of_small_parts_is_boxed_not_outlined() {
+        use super::outline_is_clutter;
+        let size = [200, 200];
+        // One 100 x 100 block: a compact model (396 border pixels, 1 % of the view).
+        let mut one = vec![0u32; 200 * 200];
+        for y in 50..150 {
+            for x in 50..150 {
+                one[y * 200 + x] = 1;
+            }
+        }
+        let (_, border) = outline_image(&one, size, 1);
+        assert_eq!(border, 396);
+        assert!(!outline_is_clutter(border, size));
+        // The same area as 400 separate 5 x 5 "trees" on a 10-px grid: 16 border pixels each.
+        let mut forest = vec![0u32; 200 * 200];
+        for ty in 0..20 {
+            for tx in 0..20 {
+                for y in 0..5 {
+                    for x in 0..5 {
+                        forest[(ty * 10 + y) * 200 + tx * 10 + x] = 1;
+                    }
+                }
+            }
+        }
+        let (_, border) = outline_image(&forest, size, 1);
+        assert_eq!(border, 400 * 16);
+        assert!(outline_is_clutter(border, size));
     }
 
     #[test]
