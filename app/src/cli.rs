@@ -461,6 +461,10 @@ pub struct RenderArgs {
     /// about the target in N equal steps, written as OUTPUT's stem + `_000.png`, `_001.png`, ...
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
+    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// Most frames a turntable may have.
@@ -1087,6 +1091,23 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    if !args.gpu {
+        let budget = args.memory_limit.map_or_else(
+            thicket_core::budget::MemoryBudget::for_this_machine,
+            thicket_core::budget::MemoryBudget::given,
+        );
+        let request = thicket_core::render::RenderRequest {
+            width,
+            height,
+            camera: Some(camera),
+            quality: quality.clone(),
+        };
+        budget.check(
+            &format!("rendering {width}x{height}"),
+            thicket_core::render::estimate_peak_bytes(&doc, &request),
+            "lower --size or --quality shadow_map_size",
+        )?;
+    }
     // One GPU context for every frame of a turntable.
     let gpu = if args.gpu {
         Some(crate::gpu::GpuContext::new_headless(

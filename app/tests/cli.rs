@@ -1083,3 +1083,47 @@ fn a_close_render_camera_does_not_clip_the_front_of_the_model() {
         camera.far
     );
 }
+
+#[test]
+fn a_render_over_the_memory_limit_is_refused_at_once_with_its_estimate() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let out = dir.path().join("big.png");
+    let run = |size: &str, limit: &str| {
+        thicket(&[
+            "render",
+            project.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            size,
+            "--memory-limit",
+            limit,
+        ])
+    };
+    // 16384² would need tens of GiB: refused before the frame is allocated, in one line.
+    let o = run("16384x16384", "1G");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("error: rendering 16384x16384 would need about ")
+            && err.contains(
+                "GiB of memory, over the limit of 1.0 GiB (--memory-limit): lower --size"
+            ),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "said once: {err}");
+    assert!(!out.exists(), "nothing written");
+    // A small frame fits the same limit and renders.
+    let o = run("64x64", "1G");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.is_file());
+    // A limit that is no size is refused by the parser, naming what was expected.
+    let o = run("64x64", "lots");
+    assert!(!o.status.success());
+    assert!(
+        stderr(&o).contains("expected a size such as 512M"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -207,6 +207,29 @@ fn benches(c: &mut Criterion) {
             }
         }
         g.finish();
+
+        // The editor's refined CPU preview frame (issue 27: within 300 ms of the camera
+        // stopping, 150 ms of which is the stillness wait): the house from its project camera
+        // with the document's own quality, at the view size a 1280×800 window leaves between
+        // the default outliner and inspector (605×725 px, read from the view corner under
+        // Xvfb), and at the whole window's size.
+        let mut g = c.benchmark_group("preview_refine");
+        g.sample_size(10);
+        for (name, [width, height]) in [
+            ("view_605x725", [605, 725]),
+            ("window_1280x800", [1280, 800]),
+        ] {
+            let req = RenderRequest {
+                width,
+                height,
+                camera: Some(house.camera),
+                quality: house.quality.clone(),
+            };
+            g.bench_function(name, |b| {
+                b.iter(|| black_box(render_document(&house, &req)));
+            });
+        }
+        g.finish();
     }
 }
 

@@ -14,6 +14,7 @@
 //! | [`io`] | project files, glTF, OBJ, .vox, PNG |
 //! | [`measure`] | image error metrics and quality sweeps |
 
+pub mod budget;
 pub mod enhance;
 pub mod io;
 pub mod krs;

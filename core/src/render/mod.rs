@@ -163,6 +163,61 @@ pub struct RenderScene<'a> {
     pub background: Vec3,
 }
 
+/// Heap bytes a CPU frame holds per image pixel at its peak, besides the shadow maps: the depth
+/// target's keys and depths, the G-buffer (depth, ids, normal, albedo), the shading buffers and
+/// the image, with the per-splat references of an ordinary view. Measured with a counting
+/// allocator on the samples (`the_render_estimate_holds_the_measured_peak_without_overstating_it`).
+const FRAME_BYTES_PER_PIXEL: u64 = 120;
+/// Heap bytes per shadow-map texel: the light's depth target while it is drawn and the map kept.
+const SHADOW_BYTES_PER_TEXEL: u64 = 24;
+/// Scene-side allocations that do not grow with the image (instance lists, triangle lists).
+const FRAME_BYTES_FIXED: u64 = 4 << 20;
+/// The estimate fits its shadow maps to a texel this much finer than the render does, so a
+/// scene box a little larger than the document's bounds (a skinned pose) stays inside it.
+const SHADOW_TEXEL_MARGIN: f32 = 1.25;
+
+/// An upper estimate of the heap a CPU render of `req` holds at its peak, so a request can be
+/// refused before it allocates (see [`crate::budget`]): the image's buffers, and each
+/// shadow-casting light's map fitted as the render fits it (to the voxel and mesh objects'
+/// bounds, at most `shadow_map_size`² texels). It does not count the document itself, which
+/// is already in memory. An invalid camera or size gives the image buffers alone (the render
+/// refuses those anyway).
+#[must_use]
+pub fn estimate_peak_bytes(doc: &Document, req: &RenderRequest) -> u64 {
+    let pixels = u64::from(req.width) * u64::from(req.height);
+    let quality = &req.quality;
+    let orbit = req.camera.unwrap_or(doc.camera);
+    let mut texels = 0u64;
+    if quality.shadows && orbit.validate().is_ok() && req.width > 0 && req.height > 0 {
+        let cam = Camera::from_orbit(&orbit, req.width, req.height);
+        let bounds = doc
+            .objects
+            .iter()
+            .filter(|o| o.visible && !matches!(o.kind, ObjectKind::Krs(_)))
+            .filter_map(crate::scene::Object::world_bounds)
+            .reduce(|(a, b), (c, d)| (a.min(c), b.max(d)));
+        if let Some((lo, hi)) = bounds.filter(|(lo, hi)| lo.is_finite() && hi.is_finite()) {
+            let finest = finest_shadow_texel(&cam, lo, hi) / SHADOW_TEXEL_MARGIN;
+            for light in doc.lights.iter().filter(|l| l.casts_shadows) {
+                let size = shade::fit_light_camera(
+                    light.direction,
+                    lo,
+                    hi,
+                    quality.shadow_map_size,
+                    finest,
+                )
+                .map_or(u64::from(quality.shadow_map_size).pow(2), |c| {
+                    u64::from(c.width) * u64::from(c.height)
+                });
+                texels += size;
+            }
+        }
+    }
+    FRAME_BYTES_FIXED
+        .saturating_add(pixels.saturating_mul(FRAME_BYTES_PER_PIXEL))
+        .saturating_add(texels.saturating_mul(SHADOW_BYTES_PER_TEXEL))
+}
+
 fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
     if width == 0 || height == 0 {
         return Err(RenderError::ZeroSize { width, height });

@@ -1109,3 +1109,87 @@ fn exact_cubes_draw_straight_edges_true_depth_and_face_normals_up_close() {
     );
     assert!(depth > 1e-3, "rectangles' depth strayed only {depth}");
 }
+
+/// The peak heap bytes of one render, measured on a one-thread pool so the per-thread counting
+/// allocator of the test binary sees every allocation (rayon runs the work on the pool's thread).
+fn measured_peak(doc: &Document, r: &RenderRequest) -> u64 {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread pool");
+    pool.install(|| crate::io::fuzz::peak_heap_bytes(|| render_document(doc, r).map(|_| ())))
+        .1
+}
+
+#[test]
+fn the_render_estimate_holds_the_measured_peak_without_overstating_it() {
+    let house_path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/house.thicket.json");
+    let house = crate::io::project::load(&house_path).expect("the house sample");
+    let mixed = mixed_document(7).unwrap();
+    let close = scenes::house_close_up(&house).unwrap();
+    let request = |w, h, camera, quality| RenderRequest {
+        width: w,
+        height: h,
+        camera,
+        quality,
+    };
+    let no_shadows = Quality {
+        shadows: false,
+        ..house.quality.clone()
+    };
+    let cases = [
+        (
+            "house 320x240",
+            &house,
+            request(320, 240, None, house.quality.clone()),
+        ),
+        (
+            "house 640x480",
+            &house,
+            request(640, 480, None, house.quality.clone()),
+        ),
+        (
+            "house close 640x480",
+            &house,
+            request(640, 480, Some(close), house.quality.clone()),
+        ),
+        (
+            "house 640x480 no shadows",
+            &house,
+            request(640, 480, None, no_shadows),
+        ),
+        (
+            "mixed 512x512",
+            &mixed,
+            request(512, 512, None, test_quality()),
+        ),
+        (
+            "mixed 256x256 final",
+            &mixed,
+            request(256, 256, None, Quality::preset(QualityPreset::Final)),
+        ),
+    ];
+    for (name, doc, r) in cases {
+        let (w, h) = (r.width, r.height);
+        let estimate = estimate_peak_bytes(doc, &r);
+        let peak = measured_peak(doc, &r);
+        eprintln!(
+            "{name}: peak {peak} B ({:.1} B/px), estimate {estimate} B ({:.2}x)",
+            peak as f64 / f64::from(w * h),
+            estimate as f64 / peak as f64
+        );
+        assert!(
+            peak > u64::from(w * h) * 16,
+            "{name}: a frame holds more than 16 B a pixel ({peak})"
+        );
+        assert!(
+            estimate >= peak,
+            "{name}: estimate {estimate} below the measured peak {peak}"
+        );
+        assert!(
+            estimate <= 3 * peak,
+            "{name}: estimate {estimate} over 3x the measured peak {peak}"
+        );
+    }
+}
