@@ -666,7 +666,8 @@ impl View {
         {
             self.stretch_brush_preview(&painter, editor, &proj, rect, pos, sculpt);
         }
-        self.status_text(ui, rect, editor, sculpt.active, cpu);
+        let tool = sculpt.active.then_some((sculpt.tool, sculpt.stretch_paint));
+        self.status_text(ui, rect, editor, tool, cpu);
     }
 
     /// Whether the CPU preview draws the view (see [`ViewRenderer`]).
@@ -1259,14 +1260,14 @@ impl View {
         ui: &egui::Ui,
         rect: egui::Rect,
         editor: &Editor,
-        sculpt_active: bool,
+        tool: Option<(ToolKind, bool)>,
         cpu: bool,
     ) {
         let painter = ui.painter_at(rect);
         let origin = rect.left_top() + egui::vec2(8.0, 8.0);
         let weak = ui.visuals().weak_text_color();
         let font = egui::FontId::proportional(12.0);
-        let hint = nav_hint(sculpt_active, has_rig(editor.doc()));
+        let hint = nav_hint(tool, has_rig(editor.doc()));
         let view_name = view_name(&editor.doc().camera);
         if cpu {
             let (text, color) = match (&self.cpu.error, &self.cpu.shown) {
@@ -1462,18 +1463,27 @@ fn hole_overlay(
 
 /// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).
 /// The view corner's navigation hint for the active tool.
-fn nav_hint(sculpt_active: bool, rigged: bool) -> &'static str {
-    match (sculpt_active, rigged) {
-        (true, _) => {
-            "Drag: sculpt   Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate"
+fn nav_hint(tool: Option<(ToolKind, bool)>, rigged: bool) -> String {
+    const ACTIVE: &str = "Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate";
+    let what = match tool {
+        Some((_, true)) => "Drag: paint stretch",
+        Some((ToolKind::Brush, false)) => "Drag: brush",
+        Some((ToolKind::Voxel, false)) => "Click / drag: voxels",
+        Some((ToolKind::Box, false)) => "Drag: box, move: height, click: commit",
+        Some((ToolKind::Line, false)) => "Drag: line",
+        Some((ToolKind::Extrude, false)) => "Drag a face: extrude",
+        Some((ToolKind::Fill, false)) => "Click: fill",
+        Some((ToolKind::Select, false)) => "Drag: select   Click: colour",
+        None if rigged => {
+            return "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   F: frame   F3: stats"
+                .to_owned();
         }
-        (false, true) => {
-            "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   F: frame   F3: stats"
+        None => {
+            return "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
+                .to_owned();
         }
-        (false, false) => {
-            "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
-        }
-    }
+    };
+    format!("{what}   {ACTIVE}")
 }
 
 /// "Front orthographic", "User perspective", …: which axis view (if the camera looks along
@@ -1945,6 +1955,25 @@ mod tests {
         );
         assert!(!lit.contains(&(2, 2)));
         assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
+    }
+
+    #[test]
+    fn the_view_corner_names_what_a_drag_does_with_each_tool() {
+        use super::{ToolKind, nav_hint};
+        let hints: Vec<String> = ToolKind::ALL
+            .iter()
+            .map(|(t, _, _, _)| nav_hint(Some((*t, false)), false))
+            .collect();
+        // Each tool says something of its own, and none says the generic "sculpt".
+        for (i, h) in hints.iter().enumerate() {
+            assert!(!h.contains("sculpt"), "{h}");
+            assert!(h.ends_with("Esc: navigate"), "{h}");
+            assert!(hints[..i].iter().all(|o| o != h), "{h} repeated");
+        }
+        assert!(nav_hint(Some((ToolKind::Box, false)), false).starts_with("Drag: box"));
+        assert!(nav_hint(Some((ToolKind::Brush, true)), true).starts_with("Drag: paint stretch"));
+        assert!(nav_hint(None, true).contains("Click a joint dot: pose"));
+        assert!(!nav_hint(None, false).contains("joint"));
     }
 
     #[test]
