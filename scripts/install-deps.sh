@@ -27,9 +27,15 @@ if ! command -v node >/dev/null 2>&1 || ! command -v npm >/dev/null 2>&1; then
   $SUDO apt-get update -qq
   $SUDO apt-get install -y -qq --no-install-recommends nodejs npm
 fi
-validator_dir="$(cd "$(dirname "$0")/.." && pwd)/tools/gltf-validator"
-wanted="$(node -e 'console.log(require(process.argv[1]).packages["node_modules/gltf-validator"].version)' "$validator_dir/package-lock.json")"
-have="$(node -e 'try{console.log(require(process.argv[1]).version)}catch(e){console.log("none")}' "$validator_dir/node_modules/gltf-validator/package.json")"
-if [ "$have" != "$wanted" ]; then
-  (cd "$validator_dir" && npm ci --no-audit --no-fund --loglevel=error)
-fi
+# three.js (npm `three`, pinned likewise) for the test that loads exported files with its
+# GLTFLoader in node. Each tool is installed with `npm ci` only when its pinned version is not.
+tools_dir="$(cd "$(dirname "$0")/.." && pwd)/tools"
+for tool in gltf-validator:gltf-validator threejs-check:three; do
+  dir="$tools_dir/${tool%%:*}"
+  package="${tool##*:}"
+  wanted="$(node -e 'console.log(require(process.argv[1]).packages["node_modules/" + process.argv[2]].version)' "$dir/package-lock.json" "$package")"
+  have="$(node -e 'try{console.log(require(process.argv[1]).version)}catch(e){console.log("none")}' "$dir/node_modules/$package/package.json")"
+  if [ "$have" != "$wanted" ]; then
+    (cd "$dir" && npm ci --no-audit --no-fund --loglevel=error)
+  fi
+done

@@ -298,8 +298,9 @@ pub struct ExportArgs {
     /// Store colours in a palette texture instead of COLOR_0 vertex colours.
     #[arg(long)]
     pub palette_texture: bool,
-    /// Cubes mode: add N coarser levels of detail per static voxel model (MSFT_lod), each at
-    /// half the resolution of the one before.
+    /// Add N coarser levels of detail (MSFT_lod), each at half the resolution of the one
+    /// before: per static voxel model (cubes mode) and per KRS mesh or instanced prototype
+    /// (cubes and smooth modes; the distance field meshed at --resolution / 2^k).
     #[arg(long, default_value_t = 0, value_name = "N")]
     pub lod: u8,
     /// KRS objects: the reflection level where the instanced prototype ends (mirrors above it
@@ -792,6 +793,17 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             thousands(k.prototype_triangles),
             thousands(k.instances),
             thousands(k.mirrored)
+        ));
+    }
+    for l in &report.levels_of_detail {
+        text.push_str(&format!(
+            "  {:?}: levels of detail (MSFT_lod): {} triangles\n",
+            l.object,
+            l.triangles
+                .iter()
+                .map(|&t| thousands(t))
+                .collect::<Vec<_>>()
+                .join(" → ")
         ));
     }
     for (name, lo, hi) in &report.patches {

@@ -111,6 +111,35 @@ fn every_sample_export_passes_the_khronos_validator() {
         }
         written += 1;
     }
+    // Levels of detail (MSFT_lod) of KRS meshes, at a test-sized resolution: the forest's
+    // instanced tree (each level a node with the same placements, the mirrored copy too) and
+    // the tree sample's mesh.
+    for name in ["forest", "tree"] {
+        let path = thicket_tests::repo_root()
+            .join("projects")
+            .join(format!("{name}.thicket.json"));
+        let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let out = dir.path().join(format!("{name}-lod.glb"));
+        let options = GltfExportOptions {
+            resolution: 128,
+            lod_levels: 3,
+            ..GltfExportOptions::default()
+        };
+        let report = export_gltf(&doc, &out, &options, &|_| true)
+            .unwrap_or_else(|e| panic!("{name} with levels of detail: {e}"));
+        let [levels] = &report.levels_of_detail[..] else {
+            panic!("{name}: one KRS object with levels: {report:?}");
+        };
+        // 64 and 32 cells; at 16 the crown's outer twigs vanish (its box shrinks by more than
+        // a cell), which ends the levels (docs/export.md).
+        println!("{name}: levels of detail {:?}", levels.triangles);
+        assert!(levels.triangles.len() >= 3, "{name}: {levels:?}");
+        assert!(
+            levels.triangles.windows(2).all(|w| w[1] < w[0]),
+            "{name}: each level coarser: {levels:?}"
+        );
+        written += 1;
+    }
     let report = validate(dir.path());
     assert!(
         report.contains(&format!("{written} of {written} files pass")),

@@ -125,9 +125,12 @@ pub struct GltfExportOptions {
     pub lights_and_camera: bool,
     /// Refuse (before building it) an export with more triangles than this.
     pub max_triangles: u64,
-    /// Cubes mode: coarser levels of detail added per static voxel model (`MSFT_lod`), each
-    /// from the octree one level up (half the resolution, averaged attributes). 0: none.
-    /// Needs vertex colours; rigged models get none (their weights would need a skin per level).
+    /// Coarser levels of detail (`MSFT_lod`), each at half the resolution of the one before,
+    /// added per static voxel model in `Cubes` mode (the octree one level up, averaged
+    /// attributes) and per bounded KRS mesh or instanced prototype in `Cubes` and `Smooth`
+    /// modes (the distance field meshed at `resolution / 2^k`, down to
+    /// [`MIN_LOD_RESOLUTION`]). 0: none. Needs vertex colours; rigged models get none (their
+    /// weights would need a skin per level), and neither do patches of unbounded objects.
     pub lod_levels: u8,
 }
 
@@ -172,6 +175,8 @@ pub struct GltfExportReport {
     pub instanced: Vec<KrsInstancing>,
     /// Unbounded KRS objects written as a finite patch: (name, min corner, max corner).
     pub patches: Vec<(String, Vec3, Vec3)>,
+    /// Objects written with coarser levels of detail (`MSFT_lod`).
+    pub levels_of_detail: Vec<LevelsOfDetail>,
     /// Lights written (`KHR_lights_punctual`).
     pub lights: usize,
     /// Whether the document's camera was written.
@@ -206,6 +211,31 @@ pub struct KrsInstancing {
     pub mirrored: u64,
     /// Triangles of the prototype mesh (the mirrored one has as many).
     pub prototype_triangles: u64,
+}
+
+/// The levels of detail one object was written with.
+#[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub struct LevelsOfDetail {
+    /// The object.
+    pub object: String,
+    /// Triangles of the full mesh, then of each coarser level, finest first (of one copy: an
+    /// instanced prototype's mirrored mesh has as many).
+    pub triangles: Vec<u64>,
+}
+
+impl LevelsOfDetail {
+    /// The levels of `node` (none when it has no coarser ones).
+    fn of(object: &str, node: &ExportNode) -> Option<Self> {
+        let count = |prims: &[ExportPrimitive]| -> u64 {
+            prims.iter().map(|p| p.indices.len() as u64 / 3).sum()
+        };
+        (!node.lods.is_empty()).then(|| Self {
+            object: object.to_owned(),
+            triangles: std::iter::once(count(&node.primitives))
+                .chain(node.lods.iter().map(|l| count(l)))
+                .collect(),
+        })
+    }
 }
 
 /// Margin around the other objects' area that an unbounded object's patch adds on each side,
@@ -545,9 +575,16 @@ pub fn build_scene(
                     max_triangles: budget,
                     ..options.clone()
                 };
+                let first = out.scene.nodes.len();
                 let (tris, instancing) =
                     add_krs_object(&mut out.scene, &o.name, &object, &krs_options, &|_| true)
                         .map_err(|e| field_error(path, &o.name, &e))?;
+                report.levels_of_detail.extend(
+                    out.scene
+                        .nodes
+                        .get(first)
+                        .and_then(|n| LevelsOfDetail::of(&o.name, n)),
+                );
                 charge(&mut budget, tris, options, path, &o.name)?;
                 report.instanced.extend(instancing);
                 report.objects += 1;
@@ -559,6 +596,9 @@ pub fn build_scene(
                 continue;
             }
         };
+        report
+            .levels_of_detail
+            .extend(LevelsOfDetail::of(&o.name, &node));
         out.scene.nodes.push(node);
         report.objects += 1;
         if !progress((i + 1) as f32 / total) {
@@ -1069,8 +1109,8 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
 }
 
 /// Adds a KRS object (in world space: its nodes get the identity transform) to `scene`, and
-/// returns the triangles added (drawn once per node; instancing multiplies them on screen only)
-/// and, when it was instanced, how.
+/// returns the triangles added (each mesh once per node that draws it, levels of detail
+/// included; instancing multiplies them on screen only) and, when it was instanced, how.
 ///
 /// In `Cubes` and `Smooth` modes the object's reflection sequence is split at a level `K`
 /// (`options.instance_level`, or [`PreparedObject::auto_placement_level`]): the prototype
@@ -1080,7 +1120,10 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
 /// has a unit quaternion and no way to mirror, so mirrored placements draw a second mesh, the
 /// prototype reflected by x → −x with its winding reversed ([`instances::mirrored_x`]). With
 /// no placement mirrors (or a distortion or empty zones, which act on the whole object) the
-/// object is one distance-field mesh. In `Instances` mode each kernel is a mesh drawn once
+/// object is one distance-field mesh. With `options.lod_levels` the mesh (every copy of an
+/// instanced prototype, with the same placements) gets coarser `MSFT_lod` levels: the field
+/// meshed again at half the resolution per level ([`MIN_LOD_RESOLUTION`] and the triangle
+/// budget bound them). In `Instances` mode each kernel is a mesh drawn once
 /// per kernel instance ([`krs_instances`]); distorted objects fall back to one mesh.
 ///
 /// # Errors
@@ -1151,10 +1194,13 @@ pub fn add_krs_object(
     };
     if level >= n || !per_copy {
         let mesh = mesh_krs(object, options.resolution, options.max_triangles, progress)?;
-        let tris = mesh.triangle_count() as u64;
+        let mut tris = mesh.triangle_count() as u64;
+        let lods = krs_lods(object, options, &mesh, options.max_triangles - tris, 1)?;
+        tris += lods.iter().map(|m| m.triangle_count() as u64).sum::<u64>();
         scene.nodes.push(ExportNode {
             name: name.to_owned(),
             primitives: vec![to_primitive(mesh)],
+            lods: lods.into_iter().map(|m| vec![to_primitive(m)]).collect(),
             ..ExportNode::default()
         });
         return Ok((tris, None));
@@ -1175,13 +1221,6 @@ pub fn add_krs_object(
     }
     .prepare()
     .map_err(|e| FieldError::Unbounded(e.to_string()))?;
-    // Both prototype meshes count against the budget.
-    let mesh = mesh_krs(
-        &prototype.objects[0],
-        options.resolution,
-        options.max_triangles / 2,
-        progress,
-    )?;
     let mut plain = Vec::new();
     let mut flipped = Vec::new();
     for xf in object.placements(level, options.max_instances) {
@@ -1192,8 +1231,25 @@ pub fn add_krs_object(
             plain.push(trs);
         }
     }
+    // Every mesh is written once per node that draws it: the plain and the mirrored one.
+    let copies = (u64::from(!plain.is_empty()) + u64::from(!flipped.is_empty())).max(1);
+    let prototype = &prototype.objects[0];
+    let mesh = mesh_krs(
+        prototype,
+        options.resolution,
+        options.max_triangles / copies,
+        progress,
+    )?;
     let proto_tris = mesh.triangle_count() as u64;
+    let lods = krs_lods(
+        prototype,
+        options,
+        &mesh,
+        options.max_triangles - copies * proto_tris,
+        copies,
+    )?;
     let mirrored_mesh = instances::mirrored_x(&mesh);
+    let mirrored_lods: Vec<ColoredMesh> = lods.iter().map(instances::mirrored_x).collect();
     let report = KrsInstancing {
         object: name.to_owned(),
         level,
@@ -1201,20 +1257,96 @@ pub fn add_krs_object(
         mirrored: flipped.len() as u64,
         prototype_triangles: proto_tris,
     };
+    let lod_tris: u64 = lods.iter().map(|m| m.triangle_count() as u64).sum();
     let mut tris = 0;
-    for (suffix, mesh, transforms) in [("", mesh, plain), (" mirrored", mirrored_mesh, flipped)] {
+    for (suffix, mesh, lods, transforms) in [
+        ("", mesh, lods, plain),
+        (" mirrored", mirrored_mesh, mirrored_lods, flipped),
+    ] {
         if transforms.is_empty() {
             continue;
         }
-        tris += proto_tris;
+        tris += proto_tris + lod_tris;
         scene.nodes.push(ExportNode {
             name: format!("{name}{suffix}"),
             primitives: vec![to_primitive(mesh)],
             instances: transforms,
+            lods: lods.into_iter().map(|m| vec![to_primitive(m)]).collect(),
             ..ExportNode::default()
         });
     }
     Ok((tris, Some(report)))
+}
+
+/// Coarsest resolution a KRS level of detail is meshed at (cells along its region's longest
+/// side); coarser levels would be blobs.
+pub const MIN_LOD_RESOLUTION: u32 = 8;
+
+/// The coarser levels of detail of a KRS mesh (`full`, meshed at `options.resolution`): level
+/// k is the distance field meshed again at `resolution / 2^k` cells, for k = 1 ..=
+/// `options.lod_levels`. Each level is written `copies` times and must fit what is left of the
+/// triangle budget (`budget`), or the export is refused. The levels stop early, before a level
+/// under [`MIN_LOD_RESOLUTION`] cells, an empty one (the object thinner than a cell), one with
+/// no fewer triangles than the level before it, or one whose box strays from the full mesh's
+/// by more than its own cell (it lost a branch tip thinner than a cell, so the silhouette
+/// would jump when a viewer switches to it).
+///
+/// # Errors
+/// [`FieldError`] from the mesher; [`FieldError::TooManyTriangles`] names the level.
+fn krs_lods(
+    object: &crate::krs::PreparedObject,
+    options: &GltfExportOptions,
+    full: &ColoredMesh,
+    mut budget: u64,
+    copies: u64,
+) -> Result<Vec<ColoredMesh>, FieldError> {
+    let mut lods: Vec<ColoredMesh> = Vec::new();
+    if options.lod_levels == 0 {
+        return Ok(lods);
+    }
+    let (region_lo, region_hi) = krs_region(object)?;
+    let full_box = mesh_bounds(full);
+    for k in 1..=u32::from(options.lod_levels) {
+        let resolution = options.resolution >> k.min(31);
+        if resolution < MIN_LOD_RESOLUTION {
+            break;
+        }
+        let mesh = mesh_krs(object, resolution, budget / copies.max(1), &|_| true).map_err(
+            |e| match e {
+                FieldError::TooManyTriangles { limit, what } => FieldError::TooManyTriangles {
+                    limit,
+                    what: format!("level of detail {k} at resolution {resolution}: {what}"),
+                },
+                e => e,
+            },
+        )?;
+        let finer = lods.last().unwrap_or(full).triangle_count();
+        if mesh.indices.is_empty() || mesh.triangle_count() >= finer {
+            break;
+        }
+        let cell = (region_hi - region_lo).max_element() / resolution as f32;
+        let (lo, hi) = mesh_bounds(&mesh);
+        if (lo - full_box.0)
+            .abs()
+            .max((hi - full_box.1).abs())
+            .max_element()
+            > cell
+        {
+            break;
+        }
+        budget -= copies * mesh.triangle_count() as u64;
+        lods.push(mesh);
+    }
+    Ok(lods)
+}
+
+/// The box of a mesh's vertices (inverted when it has none).
+fn mesh_bounds(mesh: &ColoredMesh) -> (Vec3, Vec3) {
+    mesh.positions
+        .iter()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), &p| {
+            (lo.min(p), hi.max(p))
+        })
 }
 
 /// Adds an unbounded KRS object as the open patch of its surface inside `lo..hi`

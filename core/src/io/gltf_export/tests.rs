@@ -1046,3 +1046,217 @@ fn an_orthographic_view_exports_an_orthographic_camera_with_a_near_plane_in_fron
     assert!((pulled - (o.znear() + 6.0)).abs() < 1e-4, "{pulled}");
     assert!(((o.zfar() - pulled) - 9.0).abs() < 1e-4);
 }
+
+/// Triangles of a level's primitives.
+fn level_triangles(prims: &[ExportPrimitive]) -> usize {
+    prims.iter().map(|p| p.indices.len() / 3).sum()
+}
+
+/// Every level of detail of a KRS mesh is closed, wound outward, strictly coarser than the
+/// one before, on the surface (`distance`, in the node's space) to within its own cell, and
+/// spans the same box as the full mesh to within that cell.
+fn assert_krs_levels(
+    node: &ExportNode,
+    distance: &dyn Fn(Vec3) -> f32,
+    region: (Vec3, Vec3),
+    resolution: u32,
+    levels: usize,
+) {
+    assert_eq!(node.lods.len(), levels, "{}: levels", node.name);
+    let (flo, fhi) = aabb(node.primitives[0].positions.iter().copied());
+    let mut finer = level_triangles(&node.primitives);
+    for (k, level) in node.lods.iter().enumerate() {
+        let what = format!("{} level {}", node.name, k + 1);
+        let [prim] = &level[..] else {
+            panic!("{what}: one primitive");
+        };
+        assert_watertight(&prim.indices, &what);
+        // Closed and consistently wound (above), so a positive enclosed volume means every
+        // component faces outward as a whole (a reflected copy that kept its winding would
+        // enclose a negative one).
+        let volume: f64 = prim
+            .indices
+            .chunks_exact(3)
+            .map(|t| {
+                let [a, b, c] = [t[0], t[1], t[2]].map(|i| prim.positions[i as usize].as_dvec3());
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        assert!(volume > 0.0, "{what}: wound inward (volume {volume})");
+        let tris = prim.indices.len() / 3;
+        assert!(
+            tris > 0 && tris < finer,
+            "{what}: {tris} triangles after {finer}"
+        );
+        finer = tris;
+        let cell = (region.1 - region.0).max_element() / (resolution >> (k + 1)) as f32;
+        let worst = prim
+            .positions
+            .iter()
+            .map(|&p| distance(p).abs())
+            .fold(0.0f32, f32::max);
+        assert!(
+            worst < cell,
+            "{what}: a vertex {worst} from the surface, cell {cell}"
+        );
+        let (lo, hi) = aabb(prim.positions.iter().copied());
+        let off = (lo - flo).abs().max((hi - fhi).abs()).max_element();
+        assert!(
+            off <= cell,
+            "{what}: box {lo}..{hi} vs the full mesh's {flo}..{fhi}: {off} apart, cell {cell}"
+        );
+    }
+}
+
+#[test]
+fn krs_levels_of_detail_are_coarser_closed_and_carry_the_placements() {
+    // Four trees: the prototype tree and its mirrored copy, each with coarser levels.
+    let prepared = KrsScene {
+        objects: vec![presets::forest_with_mirrors(2)],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    let level = o.auto_placement_level();
+    let resolution = 96;
+    let options = GltfExportOptions {
+        resolution,
+        lod_levels: 3,
+        ..GltfExportOptions::default()
+    };
+    let mut scene = ExportScene::default();
+    let (tris, instancing) =
+        add_krs_object(&mut scene, "forest", o, &options, NO_PROGRESS).unwrap();
+    let instancing = instancing.expect("instanced");
+    assert_eq!((instancing.instances, instancing.mirrored), (4, 2));
+    let [plain, mirrored] = &scene.nodes[..] else {
+        panic!("a plain and a mirrored prototype node");
+    };
+    let prototype = KrsScene {
+        objects: vec![o.object.prototype(level)],
+    }
+    .prepare()
+    .unwrap();
+    let tree = &prototype.objects[0];
+    let region = krs_region(tree).unwrap();
+    // 96 → 48 → 24 cells; at 12 the outer twigs (thinner than a cell) vanish and the crown's
+    // box shrinks by two cells, so that level and any after it are left out.
+    assert_krs_levels(plain, &|p| tree.distance_world(p), region, resolution, 2);
+    // The mirrored node's levels are the plain node's reflected (x → −x).
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    let mirrored_region = aabb([region.0 * flip, region.1 * flip]);
+    assert_krs_levels(
+        mirrored,
+        &|p| tree.distance_world(p * flip),
+        mirrored_region,
+        resolution,
+        2,
+    );
+    let twelve = mesh_krs(tree, 12, u64::MAX, NO_PROGRESS).unwrap();
+    let (lo, hi) = aabb(twelve.positions.iter().copied());
+    let (flo, fhi) = aabb(plain.primitives[0].positions.iter().copied());
+    let cell = (region.1 - region.0).max_element() / 12.0;
+    assert!(
+        (lo - flo).abs().max((hi - fhi).abs()).max_element() > cell,
+        "the level at 12 cells keeps the box: it should have been written"
+    );
+    let all: usize = scene
+        .nodes
+        .iter()
+        .map(|n| {
+            level_triangles(&n.primitives)
+                + n.lods.iter().map(|l| level_triangles(l)).sum::<usize>()
+        })
+        .sum();
+    assert_eq!(tris, all as u64, "every level counts against the budget");
+
+    // In the file each level is a node outside the scene that carries the very placements of
+    // the full node (a level replaces the whole node), with one screen coverage per level.
+    let glb = encode_glb(&scene, Path::new("forest.glb")).unwrap();
+    // The GLB's JSON chunk: its length at byte 12, its bytes from byte 20.
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let nodes = root["nodes"].as_array().unwrap();
+    let in_scene: Vec<u64> = root["scenes"][0]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap())
+        .collect();
+    assert_eq!(in_scene.len(), 2);
+    for &i in &in_scene {
+        let node = &nodes[i as usize];
+        let placements = &node["extensions"]["EXT_mesh_gpu_instancing"];
+        assert!(placements["attributes"]["TRANSLATION"].is_u64(), "{node}");
+        let ids = node["extensions"]["MSFT_lod"]["ids"].as_array().unwrap();
+        assert_eq!(ids.len(), 2);
+        assert_eq!(
+            node["extras"]["MSFT_screencoverage"],
+            serde_json::json!([0.5, 0.25, 0.0])
+        );
+        for id in ids {
+            let id = id.as_u64().unwrap();
+            assert!(!in_scene.contains(&id), "a level is not drawn by itself");
+            let lod = &nodes[id as usize];
+            assert_eq!(&lod["extensions"]["EXT_mesh_gpu_instancing"], placements);
+            assert!(lod["mesh"].is_u64());
+        }
+    }
+    assert!(
+        root["extensionsUsed"]
+            .as_array()
+            .unwrap()
+            .contains(&serde_json::json!("MSFT_lod"))
+    );
+
+    // The budget covers every level: enough for the full meshes alone is refused, naming the
+    // level and the flag.
+    let e = add_krs_object(
+        &mut ExportScene::default(),
+        "forest",
+        o,
+        &GltfExportOptions {
+            max_triangles: 2 * instancing.prototype_triangles + 10,
+            ..options.clone()
+        },
+        NO_PROGRESS,
+    )
+    .unwrap_err();
+    let text = e.to_string();
+    assert!(
+        text.contains("level of detail 1") && text.contains("--max-triangles"),
+        "{text}"
+    );
+
+    // A non-instanced KRS object (the rock) gets levels the same way; levels stop at
+    // MIN_LOD_RESOLUTION cells (48 → 24 → 12, not 6).
+    let rock = KrsScene {
+        objects: vec![presets::rock()],
+    }
+    .prepare()
+    .unwrap();
+    let mut scene = ExportScene::default();
+    let (_, instancing) = add_krs_object(
+        &mut scene,
+        "rock",
+        &rock.objects[0],
+        &GltfExportOptions {
+            resolution: 48,
+            lod_levels: 4,
+            ..GltfExportOptions::default()
+        },
+        NO_PROGRESS,
+    )
+    .unwrap();
+    assert!(instancing.is_none());
+    assert_eq!(scene.nodes.len(), 1);
+    assert!(scene.nodes[0].instances.is_empty());
+    let rock = &rock.objects[0];
+    assert_krs_levels(
+        &scene.nodes[0],
+        &|p| rock.distance_world(p),
+        krs_region(rock).unwrap(),
+        48,
+        2,
+    );
+}

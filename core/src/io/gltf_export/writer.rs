@@ -231,15 +231,21 @@ pub(crate) fn encode(
         }
         let t = &node.transform;
         let trs_is_identity = *t == Transform::default();
-        let mut extensions = if node.instances.is_empty() || mesh.is_none() {
+        let instancing = if node.instances.is_empty() || mesh.is_none() {
             None
         } else {
             Some(b.instancing(&node.instances)?)
         };
+        let mut extensions = instancing.clone();
         let mut extras = None;
-        if !node.lods.is_empty() && mesh.is_some() && node.instances.is_empty() {
-            let (ext, coverage) = b.lods(node, &materials)?;
-            extensions = Some(ext);
+        if !node.lods.is_empty() && mesh.is_some() {
+            // A level replaces the whole node, so an instanced node's levels carry its
+            // placements too (the same accessors).
+            let (lod, coverage) = b.lods(node, &materials, instancing.as_ref())?;
+            extensions
+                .get_or_insert_with(Default::default)
+                .others
+                .extend(lod.others);
             extras = coverage;
         }
         node_indices.push(
@@ -489,13 +495,15 @@ impl Builder {
         Ok(node)
     }
 
-    /// Writes `node`'s coarser levels as nodes outside the scene (same transform) and returns
-    /// the `MSFT_lod` extension that lists them, and the node extras with
-    /// `MSFT_screencoverage` (1/2, 1/4, ... of the screen, then 0 for the coarsest).
+    /// Writes `node`'s coarser levels as nodes outside the scene (same transform, and the
+    /// node's `instancing` extension when it has one) and returns the `MSFT_lod` extension
+    /// that lists them, and the node extras with `MSFT_screencoverage` (1/2, 1/4, ... of the
+    /// screen, then 0 for the coarsest).
     fn lods(
         &mut self,
         node: &ExportNode,
         materials: &[json::Index<json::Material>],
+        instancing: Option<&json::extensions::scene::Node>,
     ) -> Result<(json::extensions::scene::Node, json::Extras), EncodeError> {
         let mut ids = Vec::new();
         for (k, prims) in node.lods.iter().enumerate() {
@@ -527,6 +535,7 @@ impl Builder {
                     unit_quat(t.rotation).to_array(),
                 )),
                 scale: Some(t.scale.to_array()),
+                extensions: instancing.cloned(),
                 ..json::Node::default()
             });
             ids.push(json::Value::from(id.value() as u64));

@@ -1,0 +1,202 @@
+//! Exported files loaded by three.js's own GLTFLoader (npm `three`, pinned in
+//! `tools/threejs-check`, installed by `scripts/install-deps.sh`) in node: what three.js draws is
+//! what the export says it wrote, and mirrored placements show their outside.
+
+use std::path::Path;
+use std::process::Command;
+
+use glam::{Quat, Vec3};
+use serde_json::Value;
+use thicket_core::io::gltf_export::{
+    ExportNode, ExportScene, GltfExportOptions, add_krs_object, encode_glb, export_gltf,
+};
+use thicket_core::io::project;
+use thicket_core::krs::{Kernel, KrsObject, KrsScene, Material, MirrorPlane, SphereKernel};
+use thicket_core::scene::{Document, ObjectKind, Transform};
+
+/// Runs `tools/threejs-check/inspect.mjs` on `file` and returns its JSON report.
+fn inspect(file: &Path, faces: bool) -> Value {
+    let tool = thicket_tests::repo_root().join("tools/threejs-check");
+    assert!(
+        tool.join("node_modules/three/package.json").exists(),
+        "three.js is not installed: run scripts/install-deps.sh (it runs `npm ci` in \
+         tools/threejs-check)"
+    );
+    let mut command = Command::new("node");
+    command.arg(tool.join("inspect.mjs")).arg(file);
+    if faces {
+        command.arg("--faces");
+    }
+    let out = command
+        .output()
+        .expect("node runs (scripts/install-deps.sh installs it)");
+    assert!(
+        out.status.success(),
+        "three.js could not load {}:\n{}{}",
+        file.display(),
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "inspect.mjs printed no JSON ({e}):\n{}",
+            String::from_utf8_lossy(&out.stdout)
+        )
+    })
+}
+
+fn u(v: &Value) -> u64 {
+    v.as_u64()
+        .unwrap_or_else(|| panic!("{v} is not a whole number"))
+}
+
+/// The forest with default flags, as `thicket export projects/forest.thicket.json -o f.glb`
+/// writes it: three.js makes an InstancedMesh of the tree and one of its mirrored copy, and
+/// draws exactly the placements the export reports, none of them through a mirroring matrix.
+#[test]
+fn threejs_draws_the_forest_instances_the_export_wrote() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = project::load(&thicket_tests::repo_root().join("projects/forest.thicket.json"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let out = dir.path().join("forest.glb");
+    let report = export_gltf(&doc, &out, &GltfExportOptions::default(), &|_| true)
+        .unwrap_or_else(|e| panic!("{e}"));
+    let [trees] = &report.instanced[..] else {
+        panic!("one instanced object: {:?}", report.instanced);
+    };
+    let three = inspect(&out, false);
+    println!("{three}");
+    assert_eq!(u(&three["instancedMeshes"]), 2, "the tree and its mirror");
+    assert_eq!(u(&three["instances"]), trees.instances);
+    assert_eq!(trees.instances, 1 << 17);
+    assert_eq!(
+        u(&three["meshes"]),
+        report.patches.len() as u64,
+        "the ground"
+    );
+    let meshes = three["instanced"].as_array().unwrap();
+    let counts: Vec<u64> = meshes.iter().map(|m| u(&m["count"])).collect();
+    assert!(
+        counts.contains(&trees.mirrored) && counts.iter().sum::<u64>() == trees.instances,
+        "{counts:?} vs {trees:?}"
+    );
+    for m in meshes {
+        assert_eq!(u(&m["trianglesPerInstance"]), trees.prototype_triangles);
+        assert_eq!(u(&m["negativeDeterminant"]), 0, "{m}");
+    }
+    // The report counts each written mesh once: both prototype copies and the ground.
+    let ground = report.triangles - 2 * trees.prototype_triangles;
+    assert_eq!(
+        u(&three["trianglesPerFrame"]),
+        trees.prototype_triangles * trees.instances + ground
+    );
+}
+
+/// One sphere and its mirror image: a KRS object whose one mirror has an empty kernel, so it
+/// exports as a prototype drawn twice, once reflected.
+fn mirrored_pair() -> Document {
+    let material = Material::new(Vec3::new(0.6, 0.4, 0.2), 1);
+    let object = KrsObject {
+        name: "pair".to_owned(),
+        kernels: vec![
+            Kernel::Sphere(SphereKernel {
+                centre: Vec3::new(0.4, 0.5, -0.2),
+                radius: 0.8,
+                material,
+            }),
+            Kernel::Empty,
+        ],
+        mirrors: vec![MirrorPlane::new(Vec3::new(1.0, 0.2, 0.1), 2.0)],
+        ..KrsObject::default()
+    };
+    let mut doc = Document::default();
+    let id = doc.add("Pair", ObjectKind::Krs(object));
+    let o = doc.objects.iter_mut().find(|o| o.id == id).unwrap();
+    o.transform = Transform {
+        translation: Vec3::new(1.0, 2.0, -3.0),
+        rotation: Quat::from_rotation_y(0.6) * Quat::from_rotation_x(0.3),
+        scale: Vec3::splat(1.5),
+    };
+    doc
+}
+
+/// three.js's InstancedMesh keeps the winding of the object for every instance: a mirroring
+/// instance matrix would turn its faces inside out (back faces outward, culled, lit from the
+/// inside). The export draws mirrored placements with a reflected, re-wound prototype and a
+/// proper transform, so both spheres show their outside; a naive file with the mirror in the
+/// instance matrix shows, in the same check, every face of the mirrored sphere inside out.
+#[test]
+fn threejs_draws_mirrored_instances_with_outward_faces() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = mirrored_pair();
+    let out = dir.path().join("pair.glb");
+    // 48 cells across the sphere: thousands of triangles, checked in a second.
+    let options = GltfExportOptions {
+        resolution: 48,
+        ..GltfExportOptions::default()
+    };
+    let report = export_gltf(&doc, &out, &options, &|_| true).unwrap_or_else(|e| panic!("{e}"));
+    let [pair] = &report.instanced[..] else {
+        panic!("instanced: {report:?}");
+    };
+    assert_eq!((pair.instances, pair.mirrored), (2, 1));
+    let three = inspect(&out, true);
+    println!("{three}");
+    assert_eq!(u(&three["instances"]), 2);
+    let meshes = three["instanced"].as_array().unwrap();
+    assert_eq!(meshes.len(), 2, "the sphere and its mirrored copy");
+    for m in meshes {
+        assert_eq!(u(&m["negativeDeterminant"]), 0, "{m}");
+        let proper = &m["faces"]["positive"];
+        assert_eq!(u(&proper["instances"]), 1, "{m}");
+        assert!(u(&proper["triangles"]) > 1000, "{m}");
+        assert_eq!(u(&proper["inwardFaces"]), 0, "{m}");
+        assert_eq!(u(&proper["shadingDisagrees"]), 0, "{m}");
+    }
+
+    // The same placements with the mirror left in the second instance's matrix (its scale's x
+    // negated, drawing the unreflected mesh: the same points in the world).
+    let world = doc.objects[0].krs_in_world().unwrap();
+    let prepared = KrsScene {
+        objects: vec![world],
+    }
+    .prepare()
+    .unwrap();
+    let mut scene = ExportScene::default();
+    add_krs_object(&mut scene, "pair", &prepared.objects[0], &options, &|_| {
+        true
+    })
+    .unwrap();
+    let [plain, mirrored] = &scene.nodes[..] else {
+        panic!("two nodes");
+    };
+    let mut mirroring = mirrored.instances[0];
+    mirroring.scale.x = -mirroring.scale.x;
+    let naive = ExportScene {
+        nodes: vec![ExportNode {
+            name: "naive".to_owned(),
+            primitives: plain.primitives.clone(),
+            instances: vec![plain.instances[0], mirroring],
+            ..ExportNode::default()
+        }],
+        materials: scene.materials.clone(),
+        ..ExportScene::default()
+    };
+    let naive_path = dir.path().join("naive.glb");
+    std::fs::write(&naive_path, encode_glb(&naive, &naive_path).unwrap()).unwrap();
+    let three = inspect(&naive_path, true);
+    let [m] = &three["instanced"].as_array().unwrap()[..] else {
+        panic!("one instanced mesh: {three}");
+    };
+    assert_eq!(u(&m["negativeDeterminant"]), 1, "{m}");
+    let flipped = &m["faces"]["negative"];
+    let tris = u(&flipped["triangles"]);
+    assert!(tris > 1000, "{m}");
+    assert_eq!(u(&flipped["inwardFaces"]), tris, "inside out: {m}");
+    assert_eq!(
+        u(&flipped["shadingDisagrees"]),
+        tris,
+        "lit from inside: {m}"
+    );
+    assert_eq!(u(&m["faces"]["positive"]["inwardFaces"]), 0, "{m}");
+}
