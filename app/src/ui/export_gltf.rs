@@ -161,8 +161,11 @@ impl GltfExportPanel {
                         ui.label("Levels of detail");
                         ui.add(egui::DragValue::new(&mut self.options.lod_levels).range(0..=6))
                             .on_hover_text(
-                                "Cubes mode: coarser copies of each static voxel model (MSFT_lod), \
-                             each at half the resolution of the one before; needs vertex colours",
+                                "Coarser copies written as MSFT_lod levels, each at half the \
+                             resolution of the one before: static voxel models (cubes mode, needs \
+                             vertex colours) and KRS meshes and instanced KRS prototypes (the \
+                             distance field meshed again; a level that would lose the shape's \
+                             outline is left out)",
                             );
                         ui.end_row();
                         ui.label("Colours");
