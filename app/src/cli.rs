@@ -25,6 +25,26 @@ pub struct Cli {
     pub command: Option<Command>,
 }
 
+/// An error and its causes on one line, each said once: a cause whose text an outer message
+/// already contains (a `{source}` in a `thiserror` message, or a context that quotes it) is
+/// not repeated. `error: a.vox: truncated: …`.
+#[must_use]
+pub fn error_line(error: &anyhow::Error) -> String {
+    let mut line = String::new();
+    for cause in error.chain() {
+        let text = cause.to_string();
+        let text = text.trim();
+        if text.is_empty() || line.contains(text) {
+            continue;
+        }
+        if !line.is_empty() {
+            line.push_str(": ");
+        }
+        line.push_str(text);
+    }
+    line
+}
+
 /// The subcommands.
 #[derive(Debug, Subcommand)]
 pub enum Command {
@@ -1624,6 +1644,35 @@ pub fn progress_bar(len: u64, message: &str) -> indicatif::ProgressBar {
 
 #[cfg(test)]
 mod tests {
+
+    #[derive(Debug, thiserror::Error)]
+    #[error("{path}: reading failed: {source}")]
+    struct Wrapped {
+        path: String,
+        source: std::io::Error,
+    }
+
+    #[test]
+    fn an_error_chain_says_each_cause_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory");
+        let e = anyhow::Error::new(Wrapped {
+            path: "a.vox".into(),
+            source: io,
+        });
+        assert_eq!(
+            error_line(&e),
+            "a.vox: reading failed: No such file or directory"
+        );
+        // A context that adds something keeps both; one that repeats the cause drops it.
+        let e = e.context("opening the project");
+        assert_eq!(
+            error_line(&e),
+            "opening the project: a.vox: reading failed: No such file or directory"
+        );
+        let plain = anyhow::anyhow!("inner problem").context("outer");
+        assert_eq!(error_line(&plain), "outer: inner problem");
+    }
+
     use super::*;
     use clap::CommandFactory as _;
 

@@ -193,10 +193,18 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::Sk
     match thicket_core::skin::import_skinned(path) {
         Ok(s) => Ok(Some(s)),
         Err(thicket_core::skin::SkinError::NoSkin { .. }) => Ok(None),
-        Err(e) => Err(anyhow::Error::new(e).context(format!(
-            "{}: the file has a skin that cannot be imported (use --no-skin to import it as a static model)",
-            path.display()
-        ))),
+        Err(e) => {
+            // A file the static reader refuses too is broken as a file, skin or not: say
+            // that, as the static import would, not that its skin failed.
+            let limits = thicket_core::io::ImportLimits::default();
+            if let Err(file_error) = thicket_core::io::import_gltf_reported(path, &limits) {
+                return Err(file_error.into());
+            }
+            Err(anyhow::Error::new(e).context(format!(
+                "{}: the file has a skin that cannot be imported (use --no-skin to import it as a static model)",
+                path.display()
+            )))
+        }
     }
 }
 

@@ -10,8 +10,8 @@ fn main() -> ExitCode {
     match thicket::cli::run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // `{:#}` prints the whole context chain on one line: `error: a.vox: truncated: …`.
-            eprintln!("error: {e:#}");
+            // The whole context chain on one line, each cause once.
+            eprintln!("error: {}", thicket::cli::error_line(&e));
             ExitCode::FAILURE
         }
     }

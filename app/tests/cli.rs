@@ -1127,3 +1127,92 @@ fn a_render_over_the_memory_limit_is_refused_at_once_with_its_estimate() {
         stderr(&o)
     );
 }
+
+/// Every bad input is said once, on one line, naming the input and what is wrong: no cause
+/// repeated by its wrapper, no blame on the output, no parser position said twice.
+#[test]
+fn bad_input_is_said_once_naming_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(
+        d.join("empty-uri.gltf"),
+        r#"{"asset":{"version":"2.0"},"buffers":[{"uri":"","byteLength":4}]}"#,
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("far.obj"),
+        "v 0 0 0\nv 1e30 0 0\nv 0 1e30 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(d.join("nan.thicket.json"), "{\"format_version\": NaN}").unwrap();
+    let out = d.join("out.thicket.json");
+    let out_s = out.to_str().unwrap();
+    let p = |name: &str| d.join(name).to_str().unwrap().to_owned();
+    /// Arguments, the file the message names, what it says, what it must not say.
+    type Case<'a> = (Vec<String>, &'a str, &'a [&'a str], &'a [&'a str]);
+    let cases: [Case<'_>; 4] = [
+        (
+            vec!["info".into(), p("missing.vox")],
+            "missing.vox",
+            &["No such file"],
+            &[],
+        ),
+        (
+            vec![
+                "import".into(),
+                p("empty-uri.gltf"),
+                "-o".into(),
+                out_s.into(),
+            ],
+            "empty-uri.gltf",
+            &["the file reference is empty"],
+            &["skin"],
+        ),
+        (
+            vec!["import".into(), p("far.obj"), "-o".into(), out_s.into()],
+            "far.obj",
+            &["beyond ±1e18 units"],
+            &["camera", "out.thicket.json"],
+        ),
+        (
+            vec!["info".into(), p("nan.thicket.json")],
+            "nan.thicket.json",
+            &["line 1, column 20", "NaN is not a JSON number"],
+            &["at line 1 column 20"],
+        ),
+    ];
+    for (args, names, says, not) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = thicket(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(
+            err.trim_end().lines().count(),
+            1,
+            "{args:?}: one line: {err}"
+        );
+        assert!(
+            err.starts_with("error: ") && err.contains(names),
+            "{args:?}: {err}"
+        );
+        for s in says {
+            assert!(err.contains(s), "{args:?} says {s:?}: {err}");
+        }
+        for s in not {
+            assert!(!err.contains(s), "{args:?} does not say {s:?}: {err}");
+        }
+        // No part of the message twice (a wrapper repeating its cause).
+        let parts: Vec<&str> = err
+            .trim_end()
+            .split(": ")
+            .filter(|s| s.len() >= 12)
+            .collect();
+        for (i, part) in parts.iter().enumerate() {
+            assert!(
+                !parts[..i].contains(part),
+                "{args:?}: {part:?} said twice: {err}"
+            );
+        }
+        assert!(!out.exists(), "{args:?}: nothing written");
+    }
+}

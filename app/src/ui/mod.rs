@@ -303,7 +303,7 @@ impl EditorApp {
         match files::load_document(&path) {
             // Before the first frame: the enhancers are built here rather than by a dab.
             Ok(doc) => app.install_document(crate::editor::PreparedDocument::new(doc, None), &path),
-            Err(e) => app.error_dialog = Some(format!("{e:#}")),
+            Err(e) => app.error_dialog = Some(crate::cli::error_line(&e)),
         }
         app
     }
@@ -619,13 +619,13 @@ impl EditorApp {
                     false,
                 );
             }
-            JobResult::Swept(_, Err(e)) => self.error_dialog = Some(format!("{e:#}")),
+            JobResult::Swept(_, Err(e)) => self.error_dialog = Some(crate::cli::error_line(&e)),
             JobResult::Exported(Err(e)) => {
-                self.error_dialog = Some(format!("{e:#}"));
+                self.error_dialog = Some(crate::cli::error_line(&e));
             }
             JobResult::Opened(_, Err(e)) | JobResult::Imported(_, Err(e)) => {
                 // The current document is untouched.
-                self.error_dialog = Some(format!("{e:#}"));
+                self.error_dialog = Some(crate::cli::error_line(&e));
                 self.status = "Could not open the file; the current document is unchanged".into();
             }
         }
@@ -642,7 +642,7 @@ impl EditorApp {
         let (fine, enhancer) = match result {
             Ok(r) => r,
             Err(e) => {
-                self.error_dialog = Some(format!("{e:#}"));
+                self.error_dialog = Some(crate::cli::error_line(&e));
                 return;
             }
         };
@@ -714,7 +714,7 @@ impl EditorApp {
                 true
             }
             Err(e) => {
-                self.error_dialog = Some(format!("{e:#}"));
+                self.error_dialog = Some(crate::cli::error_line(&e));
                 false
             }
         }
@@ -824,7 +824,11 @@ impl EditorApp {
                 }
                 Ok(Err(e)) => {
                     self.autosave_job = None;
-                    self.toast(ctx, format!("Autosave failed: {e:#}"), true);
+                    self.toast(
+                        ctx,
+                        format!("Autosave failed: {}", crate::cli::error_line(&e)),
+                        true,
+                    );
                 }
                 Err(mpsc::TryRecvError::Disconnected) => self.autosave_job = None,
                 Err(mpsc::TryRecvError::Empty) => return,
@@ -887,7 +891,10 @@ impl EditorApp {
                 self.status = "Recovered the autosaved work: save it to keep it".into();
             }
             Err(e) => {
-                self.error_dialog = Some(format!("The recovery file could not be read: {e:#}"));
+                self.error_dialog = Some(format!(
+                    "The recovery file could not be read: {}",
+                    crate::cli::error_line(&e)
+                ));
             }
         }
     }

@@ -1959,8 +1959,16 @@ pub(crate) mod tests {
                 json!({"nodes": [{"mesh": 0, "rotation": [0.0, 0.0, 0.0, 0.0]}], "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]}),
                 "not a unit quaternion",
             ),
+            // Positions beyond ±1e18 would overflow squared distances (cameras, bounds): the
+            // file is refused, naming the vertex, instead of a broken camera later.
             (
                 json!({"nodes": [{"mesh": 0, "scale": [1e30, 1e30, 1e30], "matrix": [1e30,0,0,0, 0,1e30,0,0, 0,0,1e30,0, 0,0,0,1]}],
+                    "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
+                    "accessors_extra": 0}),
+                "vertex 1 lies at [1e30, 0.0, 0.0], beyond ±1e18 units",
+            ),
+            (
+                json!({"nodes": [{"mesh": 0, "matrix": [1e15,0,0,0, 0,1e15,0,0, 0,0,1e15,0, 0,0,0,1]}],
                     "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}],
                     "accessors_extra": 0}),
                 "",
@@ -1969,7 +1977,7 @@ pub(crate) mod tests {
         for (root, expected) in cases {
             let result = import_gltf_slice(&doc.gltf(root.clone()), None);
             if expected.is_empty() {
-                // Large but finite transforms are fine.
+                // Large transforms within the range are fine.
                 assert!(result.is_ok(), "{root}: {result:?}");
                 continue;
             }

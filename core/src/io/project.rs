@@ -369,6 +369,28 @@ pub fn load(json_path: &Path) -> Result<Document, ProjectError> {
     })
 }
 
+/// serde_json's message without the position it appends (the error names line and column
+/// already), and what to write instead of the non-numbers JSON has no syntax for.
+fn json_message(e: &serde_json::Error, text: &[u8]) -> String {
+    let full = e.to_string();
+    let suffix = format!(" at line {} column {}", e.line(), e.column());
+    let message = full.strip_suffix(&suffix).unwrap_or(&full).to_owned();
+    // The column counts characters from 1 and points at (or just past) the offending token.
+    let line = text
+        .split(|&b| b == b'\n')
+        .nth(e.line().saturating_sub(1))
+        .unwrap_or_default();
+    let from = line.get(e.column().saturating_sub(1)..).unwrap_or_default();
+    let token = from.trim_ascii_start();
+    let non_number = ["NaN", "Infinity", "-Infinity", "inf", "-inf", "nan"]
+        .into_iter()
+        .find(|t| token.starts_with(t.as_bytes()));
+    match non_number {
+        Some(t) => format!("{message}: {t} is not a JSON number (a value must be finite)"),
+        None => message,
+    }
+}
+
 /// Parses a project from its JSON bytes; `read_bin` supplies the `.bin` (checked against the
 /// [`BinRef`]). Separate from [`load`] so fuzzing needs no files.
 fn load_from_parts(
@@ -380,7 +402,7 @@ fn load_from_parts(
         path: json_path.to_owned(),
         line: e.line(),
         column: e.column(),
-        message: e.to_string(),
+        message: json_message(&e, text),
     })?;
     let mut doc = file.document;
     if doc.format_version > FORMAT_VERSION {

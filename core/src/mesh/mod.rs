@@ -8,6 +8,11 @@
 use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 use serde::{Deserialize, Serialize};
 
+/// Largest coordinate a mesh position may have: cameras, bounds and voxelization square and sum
+/// distances in f32, which stays finite up to about 1.8e19 (the same bound as
+/// [`crate::scene::MAX_KRS_MAGNITUDE`]).
+pub const MAX_POSITION: f32 = 1e18;
+
 /// Why a mesh cannot be used as it is.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum MeshError {
@@ -37,6 +42,16 @@ pub enum MeshError {
     /// A position is NaN or infinite.
     #[error("vertex {0} has a non-finite position")]
     NonFinite(usize),
+    /// A position is so far from the origin that squared distances would overflow f32.
+    #[error(
+        "vertex {vertex} lies at {position:?}, beyond ±{MAX_POSITION:e} units where squared distances overflow; scale the model down before importing"
+    )]
+    TooFar {
+        /// The vertex.
+        vertex: usize,
+        /// Its position.
+        position: [f32; 3],
+    },
     /// The material index is past the material table.
     #[error("material index {index} is out of range for {count} materials")]
     MaterialOutOfRange {
@@ -257,6 +272,16 @@ impl TriangleMesh {
         }
         if let Some(i) = self.positions.iter().position(|p| !p.is_finite()) {
             return Err(MeshError::NonFinite(i));
+        }
+        if let Some(i) = self
+            .positions
+            .iter()
+            .position(|p| p.abs().max_element() > MAX_POSITION)
+        {
+            return Err(MeshError::TooFar {
+                vertex: i,
+                position: self.positions[i].to_array(),
+            });
         }
         Ok(())
     }
