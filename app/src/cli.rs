@@ -447,6 +447,11 @@ pub struct ImportArgs {
     /// shipped without its .mtl (OBJ only).
     #[arg(long, value_name = "PATH")]
     pub texture: Option<PathBuf>,
+    /// Most memory the voxelization may need, e.g. 4G or 512M (default: half of this
+    /// machine's physical memory). A larger request is refused before it voxelizes, with its
+    /// estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket render`.
@@ -887,6 +892,36 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// The memory budget of a CLI request: `--memory-limit`, else half of physical memory.
+fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
+    limit.map_or_else(
+        thicket_core::budget::MemoryBudget::for_this_machine,
+        thicket_core::budget::MemoryBudget::given,
+    )
+}
+
+/// Refuses an import whose voxelization is estimated to need more memory than the budget,
+/// before it starts. A mesh the estimate cannot plan is left to the voxelizer, which says why.
+fn check_voxelize_budget(
+    args: &ImportArgs,
+    model: &thicket_core::mesh::MeshModel,
+    settings: &thicket_core::voxelize::VoxelizeSettings,
+) -> anyhow::Result<()> {
+    let Ok(e) = thicket_core::voxelize::estimate(model, settings) else {
+        return Ok(());
+    };
+    memory_budget(args.memory_limit).check(
+        &format!(
+            "{}: voxelizing about {} voxels",
+            args.input.display(),
+            thousands((e.surface_voxels + e.interior_voxels).round() as u64)
+        ),
+        e.peak_bytes,
+        "use a smaller --depth or a larger --voxel-size",
+    )?;
+    Ok(())
+}
+
 fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
     let options = files::MeshOptions {
@@ -918,6 +953,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .transpose()?
         .flatten()
     {
+        check_voxelize_budget(args, &skinned.mesh, &settings)?;
         let bar = progress_bar(1000, "voxelizing the bind pose");
         let result = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
             bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
@@ -958,6 +994,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
         }
+        check_voxelize_budget(args, &model, &settings)?;
         let bar = progress_bar(1000, "voxelizing");
         let result = voxelize(&model, &settings, &|f| {
             bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
@@ -1124,10 +1161,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
     if !args.gpu {
-        let budget = args.memory_limit.map_or_else(
-            thicket_core::budget::MemoryBudget::for_this_machine,
-            thicket_core::budget::MemoryBudget::given,
-        );
+        let budget = memory_budget(args.memory_limit);
         let request = thicket_core::render::RenderRequest {
             width,
             height,

@@ -1216,3 +1216,29 @@ fn bad_input_is_said_once_naming_the_input() {
         assert!(!out.exists(), "{args:?}: nothing written");
     }
 }
+
+#[test]
+fn an_import_over_the_memory_limit_is_refused_before_it_voxelizes() {
+    let dir = tempfile::tempdir().unwrap();
+    let spot = format!("{ASSETS}/static/spot/spot_triangulated.obj");
+    let out = dir.path().join("spot.thicket.json");
+    let import = |extra: &[&str]| {
+        let mut args = vec!["import", spot.as_str(), "-o", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        thicket(&args)
+    };
+    // Depth 12 solid: billions of interior voxels, refused from the mesh alone.
+    let o = import(&["--depth", "12", "--solid", "--memory-limit", "8G"]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("spot_triangulated.obj: voxelizing about ")
+            && err.contains("TiB of memory, over the limit of 8.0 GiB (--memory-limit): use a smaller --depth"),
+        "{err}"
+    );
+    assert!(!out.exists(), "nothing written");
+    // The same mesh at depth 6 fits a 64 MiB limit and imports.
+    let o = import(&["--depth", "6", "--memory-limit", "64M"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.is_file());
+}

@@ -934,3 +934,48 @@ fn column_walk_finds_exactly_what_brute_force_finds() {
         assert_eq!(walked, brute, "case {case}: {v:?}");
     }
 }
+
+#[test]
+fn the_voxelize_estimate_holds_the_measured_peak() {
+    // One thread, so the test binary's per-thread counting allocator sees every allocation.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let spot = crate::io::import_obj(&asset("static/spot/spot_triangulated.obj")).unwrap();
+    let torus = crate::io::import_gltf(&asset("static/bevy_torus.gltf")).unwrap();
+    let rock = crate::io::import_gltf(&asset("static/kenney_rock_largeA.glb")).unwrap();
+    for (name, m) in [("spot", &spot), ("torus", &torus), ("rock", &rock)] {
+        for depth in [6u8, 8] {
+            for mode in [Mode::Surface, Mode::Solid] {
+                let s = settings(Resolution::Depth(depth), mode);
+                let e = estimate(m, &s).unwrap();
+                let (r, peak) = pool.install(|| {
+                    crate::io::fuzz::peak_heap_bytes(|| voxelize(m, &s, &all_progress))
+                });
+                let v = r.unwrap();
+                let voxels = v.stats.voxels as f64;
+                let predicted = e.surface_voxels + e.interior_voxels;
+                eprintln!(
+                    "{name} d{depth} {mode:?}: {} voxels, predicted {predicted:.0} ({:.2}x); peak {peak} B, estimate {} B ({:.2}x)",
+                    v.stats.voxels,
+                    predicted / voxels,
+                    e.peak_bytes,
+                    e.peak_bytes as f64 / peak as f64
+                );
+                assert!(
+                    (0.5..=2.0).contains(&(predicted / voxels)),
+                    "{name} d{depth} {mode:?}: predicted {predicted:.0} voxels for {voxels}"
+                );
+                assert!(
+                    e.peak_bytes >= peak,
+                    "{name} d{depth} {mode:?}: {e:?} < {peak}"
+                );
+                assert!(
+                    e.peak_bytes <= 4 * peak,
+                    "{name} d{depth} {mode:?}: {e:?} > 4 x {peak}"
+                );
+            }
+        }
+    }
+}
