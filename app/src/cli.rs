@@ -253,6 +253,10 @@ pub struct EnhanceArgs {
     /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// Most memory the enhancement may need, e.g. 4G or 512M (default: half of this machine's
+    /// physical memory). A larger request is refused before it starts, with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket tradeoff`.
@@ -677,6 +681,19 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     };
     let settings = enhance_settings(args, &doc)
         .with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
+    // Settings the estimate refuses are left to the enhancer, which says why.
+    if let Ok(e) = thicket_core::enhance::estimate(&model.svo, &settings) {
+        memory_budget(args.memory_limit).check(
+            &format!(
+                "{project}: enhancing object {:?} x{} into about {} voxels",
+                args.object,
+                args.factor,
+                thousands(e.fine_voxels)
+            ),
+            e.peak_bytes,
+            "use a smaller --factor",
+        )?;
+    }
     let bar = progress_bar(1000, "enhancing");
     let report = |f: f32| bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
     let result = enhance_model(

@@ -1233,12 +1233,50 @@ fn an_import_over_the_memory_limit_is_refused_before_it_voxelizes() {
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
         err.contains("spot_triangulated.obj: voxelizing about ")
-            && err.contains("TiB of memory, over the limit of 8.0 GiB (--memory-limit): use a smaller --depth"),
+            && err.contains(
+                "TiB of memory, over the limit of 8.0 GiB (--memory-limit): use a smaller --depth"
+            ),
         "{err}"
     );
     assert!(!out.exists(), "nothing written");
     // The same mesh at depth 6 fits a 64 MiB limit and imports.
     let o = import(&["--depth", "6", "--memory-limit", "64M"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.is_file());
+}
+
+#[test]
+fn an_enhancement_over_the_memory_limit_is_refused_before_it_starts() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects/house.thicket.json");
+    let out = dir.path().join("fine.thicket.json");
+    let enhance = |factor: &str| {
+        thicket(&[
+            "enhance",
+            project,
+            "--object",
+            "model 0",
+            "--method",
+            "subdivide",
+            "--factor",
+            factor,
+            "--memory-limit",
+            "100M",
+            "-o",
+            out.to_str().unwrap(),
+        ])
+    };
+    let o = enhance("8");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("enhancing object \"model 0\" x8 into about ")
+            && err.contains("over the limit of 100.0 MiB (--memory-limit): use a smaller --factor"),
+        "{err}"
+    );
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(!out.exists());
+    let o = enhance("2");
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file());
 }

@@ -906,3 +906,54 @@ fn sample_terrain_has_three_materials() {
     assert_eq!(t, sample_terrain(64, 1).unwrap());
     assert!(sample_terrain(2, 1).is_err());
 }
+
+#[test]
+fn the_enhance_estimate_holds_the_measured_peak() {
+    // One thread, so the test binary's per-thread counting allocator sees every allocation.
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
+    let sample = |name: &str| {
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join(format!("../projects/{name}.thicket.json"));
+        crate::io::project::load(&path).unwrap()
+    };
+    for name in ["house", "terrain"] {
+        let doc = sample(name);
+        let crate::scene::ObjectKind::Voxels(m) = &doc.objects[0].kind else {
+            panic!("{name}: the first object is a voxel model");
+        };
+        for method in [Method::Subdivide, Method::Resample] {
+            for factor in [2u32, 8] {
+                let s = EnhanceSettings {
+                    factor,
+                    method,
+                    ..EnhanceSettings::default()
+                };
+                let e = estimate(&m.svo, &s).unwrap();
+                let (r, peak) = pool.install(|| {
+                    crate::io::fuzz::peak_heap_bytes(|| enhance_model(m, &s, Control::default()))
+                });
+                let (fine, st) = r.unwrap();
+                let n = fine.svo.leaf_count();
+                let case = format!("{name} {method:?} x{factor}");
+                eprintln!(
+                    "{case}: {n} fine voxels, predicted {} ({:.2}x); peak {peak} B, estimate {} B ({:.2}x)",
+                    e.fine_voxels,
+                    e.fine_voxels as f64 / n as f64,
+                    e.peak_bytes,
+                    e.peak_bytes as f64 / peak as f64
+                );
+                assert_eq!(e.coarse_surface_voxels, st.coarse_surface_voxels, "{case}");
+                assert!(
+                    (1.0..=2.0).contains(&(e.fine_voxels as f64 / n as f64)),
+                    "{case}: predicted {} fine voxels for {n}",
+                    e.fine_voxels
+                );
+                assert!(e.peak_bytes >= peak, "{case}: {e:?} < {peak}");
+                assert!(e.peak_bytes <= 4 * peak, "{case}: {e:?} > 4 x {peak}");
+            }
+        }
+    }
+}
