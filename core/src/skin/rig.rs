@@ -344,6 +344,17 @@ pub fn check_weights(svo: &crate::svo::Svo, joint_count: usize) -> Result<(), Sk
     let bad = |s: &crate::svo::Skin4| {
         (0..4).find(|&k| s.weights[k] > 0 && usize::from(s.joints[k]) >= joint_count)
     };
+    // The raw pools hold every live node's weights (and those of freed slots): when no entry
+    // is bad, no node is, and the octree walk below (which names the voxel) is not needed.
+    // That keeps the check at about 1 % of a rigged project's load instead of 13 %.
+    if !svo
+        .leaf_skin()
+        .iter()
+        .chain(svo.inner_skin())
+        .any(|s| bad(s).is_some())
+    {
+        return Ok(());
+    }
     let mut first: Option<(UVec3, u8)> = None;
     svo.for_each_leaf(|c, v| {
         if first.is_none()

@@ -1439,3 +1439,34 @@ fn skeletons_wider_than_a_byte_are_refused_for_voxels() {
     .to_string();
     assert!(e.contains("300 joints") && e.contains("256"), "{e}");
 }
+
+#[test]
+fn weights_on_missing_joints_are_found_and_named_live_or_not() {
+    use crate::skin::rig::check_weights;
+    use crate::svo::{Skin4, Svo, Voxel};
+    let skin = |joint: u8| Skin4 {
+        joints: [joint, 0, 0, 0],
+        weights: [255, 0, 0, 0],
+    };
+    let voxel = |joint: u8| Voxel {
+        skin: skin(joint),
+        ..Voxel::new([200, 100, 50, 255], glam::Vec3::Y)
+    };
+    let mut svo = Svo::new(3, true).unwrap();
+    for x in 0..4 {
+        svo.set(glam::UVec3::new(x, 1, 2), voxel(1)).unwrap();
+    }
+    assert!(check_weights(&svo, 2).is_ok());
+    // One leaf weighted to joint 5 of a 3-joint skeleton: named by its coordinate.
+    svo.set(glam::UVec3::new(6, 1, 2), voxel(5)).unwrap();
+    let e = check_weights(&svo, 3).unwrap_err().to_string();
+    assert!(
+        e.contains("is weighted to joint 5 but the skeleton has 3 joints"),
+        "{e}"
+    );
+    assert!(e.contains("6"), "{e}");
+    assert!(
+        check_weights(&svo, 6).is_ok(),
+        "joint 5 exists in a 6-joint skeleton"
+    );
+}
