@@ -1248,7 +1248,10 @@ fn an_import_over_the_memory_limit_is_refused_before_it_voxelizes() {
 #[test]
 fn an_enhancement_over_the_memory_limit_is_refused_before_it_starts() {
     let dir = tempfile::tempdir().unwrap();
-    let project = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects/house.thicket.json");
+    let project = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
     let out = dir.path().join("fine.thicket.json");
     let enhance = |factor: &str| {
         thicket(&[

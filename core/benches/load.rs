@@ -40,7 +40,7 @@ fn benches(c: &mut Criterion) {
             b.iter(|| black_box(project::load(&path).map(|d| d.objects.len())));
         });
         g.bench_function(format!("validate/{name}"), |b| {
-            b.iter(|| checks(black_box(&doc)))
+            b.iter(|| checks(black_box(&doc)));
         });
     }
     g.finish();
