@@ -320,7 +320,7 @@ impl EditorApp {
         self.status = format!("Opened {}", path.display());
     }
 
-    /// Object → Drop to surface: moves the selected object down onto what is below it and says
+    /// Edit → Drop to surface: moves the selected object down onto what is below it and says
     /// how far, or why not.
     fn drop_selected(&mut self, ctx: &egui::Context) {
         let Some(Selection::Object(id)) = self.editor.selection else {
