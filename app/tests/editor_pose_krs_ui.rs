@@ -943,3 +943,97 @@ fn a_joint_picked_in_the_view_scrolls_into_the_joint_list() {
         "the row went from {before} to {after} (list top {first_row})"
     );
 }
+
+#[test]
+fn edit_distortion_and_texturing_refuse_bad_values_undo_redo() {
+    use egui::accesskit::Role;
+    let mut h = harness(coral_doc());
+    let id = h.state().editor.doc().objects[0].id;
+    let original = h.state().editor.krs(id).unwrap().clone();
+    let steps = h.state().editor.history().undo_len();
+    let set = |h: &mut Harness<'static, EditorApp>, label: &str, v: f64| {
+        h.get_by_role_and_label(Role::SpinButton, label)
+            .set_value_accesskit(v);
+        h.run_steps(2);
+    };
+
+    // Warp off, then on again from the defaults, then amplitude and frequency typed in: the
+    // Lipschitz bound and the step cost follow.
+    h.get_by_label("No warp").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.krs(id).unwrap().distortion, None);
+    assert!(
+        h.query_by_role_and_label(Role::SpinButton, "Amplitude")
+            .is_none()
+    );
+    h.get_by_label("Noise warp").click_accesskit();
+    h.run_steps(2);
+    set(&mut h, "Amplitude", 0.3);
+    set(&mut h, "Frequency", 2.0);
+    set(&mut h, "Seed", 9.0);
+    let d = h
+        .state()
+        .editor
+        .krs(id)
+        .unwrap()
+        .distortion
+        .expect("warped");
+    assert_eq!((d.amplitude, d.frequency, d.seed), (0.3, 2.0, 9));
+    h.get_by_label("L = 6.400");
+    h.get_by_label_contains("steps 16% as long, up to 6.40×");
+    // A negative amplitude is refused by core: the document keeps 0.3 and the panel says why.
+    set(&mut h, "Amplitude", -1.0);
+    assert_eq!(h.state().editor.krs(id).unwrap().distortion, Some(d));
+    h.get_by_label_contains("amplitude -1 must be finite and ≥ 0");
+
+    // Texturing: a triplanar checker, scale, contrast and sharpness; a contrast over 1 is
+    // refused.
+    h.get_by_label("Triplanar").click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Checker").click_accesskit();
+    h.run_steps(2);
+    set(&mut h, "Scale", 2.5);
+    set(&mut h, "Contrast", 0.8);
+    set(&mut h, "Sharpness", 12.0);
+    let t = h.state().editor.krs(id).unwrap().texturing;
+    assert_eq!(
+        (t.mode, t.pattern, t.scale, t.contrast, t.sharpness),
+        (
+            thicket_core::krs::TextureMode::Triplanar,
+            thicket_core::krs::Pattern::Checker,
+            2.5,
+            0.8,
+            12.0
+        )
+    );
+    set(&mut h, "Contrast", 1.5);
+    assert_eq!(h.state().editor.krs(id).unwrap().texturing, t);
+    h.get_by_label_contains("1.5 is outside 0..=1");
+    // Scroll the inspector to the new sections for the snapshot (the refusal stays above).
+    h.get_by_role_and_label(Role::SpinButton, "Sharpness")
+        .scroll_to_me();
+    h.run_steps(2);
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_distortion_texturing_edited");
+
+    // Every step undone gives the preset back; redone, the edit.
+    let after = h.state().editor.krs(id).unwrap().clone();
+    let n = h.state().editor.history().undo_len() - steps;
+    assert!(
+        n >= 2,
+        "the warp and the texturing are undoable ({n} steps)"
+    );
+    for _ in 0..n {
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap(), &original);
+    for _ in 0..n {
+        h.key_press_modifiers(
+            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+            egui::Key::Z,
+        );
+        h.run_steps(1);
+    }
+    assert_eq!(h.state().editor.krs(id).unwrap(), &after);
+}

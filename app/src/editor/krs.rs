@@ -45,6 +45,17 @@ impl Editor {
                 1,
             ))
         })?;
+        // Texturing and magnitudes are checked where the document is (the renderer refuses a
+        // document that fails them): the object as it would be, on its own.
+        let mut candidate = o.clone();
+        candidate.kind = ObjectKind::Krs(validated.clone());
+        let alone = thicket_core::scene::Document {
+            objects: vec![candidate],
+            ..thicket_core::scene::Document::default()
+        };
+        alone
+            .validate()
+            .map_err(|e| CommandError::Invalid(e.to_string()))?;
         if *current != validated {
             self.apply(
                 Edit::SetKrs {

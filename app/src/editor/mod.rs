@@ -6,6 +6,7 @@ pub mod autosave;
 mod enhance;
 mod keys;
 mod krs;
+mod pick;
 mod pose;
 mod sculpt;
 mod stretch;
@@ -21,6 +22,7 @@ use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
 pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
+pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;
 pub use sculpt::{VoxelPick, ray_through};
 pub use stretch::MAX_STRETCH_OVERRIDE;

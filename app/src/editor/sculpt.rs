@@ -45,22 +45,34 @@ impl Editor {
     /// the nearest solid voxel.
     #[must_use]
     pub fn pick_voxel(&self, origin_in_world: Vec3, dir_in_world: Vec3) -> Option<VoxelPick> {
+        self.pick_voxel_where(origin_in_world, dir_in_world, |o| self.voxel_pickable(o))
+    }
+
+    /// Whether clicks and strokes reach voxel object `o`: visible, or the coarse model of a
+    /// visible enhancement (an enhancement is derived from its coarse model: strokes go to the
+    /// coarse model, hidden so the fine one shows, and the fine one follows).
+    pub(crate) fn voxel_pickable(&self, o: &thicket_core::scene::Object) -> bool {
+        if self.doc.enhancement_into(o.id).is_some() {
+            return false;
+        }
+        o.visible
+            || self
+                .doc
+                .enhancement_of(o.id)
+                .and_then(|l| self.object(l.target))
+                .is_some_and(|t| t.visible)
+    }
+
+    /// [`Editor::pick_voxel`] among the voxel objects `include` admits.
+    pub(crate) fn pick_voxel_where(
+        &self,
+        origin_in_world: Vec3,
+        dir_in_world: Vec3,
+        include: impl Fn(&thicket_core::scene::Object) -> bool,
+    ) -> Option<VoxelPick> {
         let dir = dir_in_world.try_normalize()?;
         let mut best: Option<VoxelPick> = None;
-        // An enhancement is derived from its coarse model: strokes go to the coarse model
-        // (hidden, so the fine one shows) and the fine one follows.
-        let pickable = |o: &&thicket_core::scene::Object| {
-            if self.doc.enhancement_into(o.id).is_some() {
-                return false;
-            }
-            o.visible
-                || self
-                    .doc
-                    .enhancement_of(o.id)
-                    .and_then(|l| self.object(l.target))
-                    .is_some_and(|t| t.visible)
-        };
-        for o in self.doc.objects.iter().filter(pickable) {
+        for o in self.doc.objects.iter().filter(|o| include(o)) {
             let ObjectKind::Voxels(v) = &o.kind else {
                 continue;
             };

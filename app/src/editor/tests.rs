@@ -682,6 +682,34 @@ fn krs_edits_are_validated_normalised_and_undoable() {
     let err = ed.set_krs(id, &k).unwrap_err().to_string();
     assert!(err.contains("rounding"), "{err}");
 
+    // Texturing out of the document's ranges (which core's object validation does not check)
+    // and a negative warp amplitude are refused too; in range they are stored.
+    let before = ed.krs(id).unwrap().clone();
+    for edit in [
+        (|k: &mut thicket_core::krs::KrsObject| k.texturing.contrast = 1.5) as fn(&mut _),
+        |k| k.texturing.sharpness = 65.0,
+        |k| k.texturing.scale = f32::NAN,
+        |k| {
+            k.distortion = Some(thicket_core::krs::Distortion {
+                amplitude: -0.1,
+                ..Default::default()
+            });
+        },
+    ] {
+        let mut k = before.clone();
+        edit(&mut k);
+        assert!(ed.set_krs(id, &k).is_err(), "{:?}", k.texturing);
+        assert_eq!(ed.krs(id).unwrap(), &before);
+    }
+    let mut k = before.clone();
+    k.texturing.contrast = 1.0;
+    k.texturing.sharpness = 64.0;
+    ed.set_krs(id, &k).unwrap();
+    assert_eq!(ed.krs(id).unwrap().texturing, k.texturing);
+    ed.end_interaction();
+    assert!(ed.undo());
+    assert_eq!(ed.krs(id).unwrap(), &before);
+
     // A preset is one step; undo twice gets the original back.
     ed.apply_krs_preset(id, "coral").unwrap();
     let coral = thicket_core::krs::presets::coral().validated(0).unwrap();

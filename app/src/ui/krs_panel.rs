@@ -133,6 +133,166 @@ fn f32_row(
     changed
 }
 
+/// A grid row of a label and a DragValue named by it (for screen readers and tests), with no
+/// range: core's validation says what is out of range. Returns whether the value changed.
+fn labelled_row<N: egui::emath::Numeric>(
+    ui: &mut egui::Ui,
+    label: &str,
+    v: &mut N,
+    speed: f64,
+    tip: &str,
+) -> bool {
+    let name = ui.label(label).on_hover_text(tip);
+    let changed = ui
+        .add(egui::DragValue::new(v).speed(speed).max_decimals(4))
+        .labelled_by(name.id)
+        .on_hover_text(tip)
+        .changed();
+    ui.end_row();
+    changed
+}
+
+/// The distortion editor: kind (none or the noise warp), amplitude, frequency, seed, and what
+/// the warp costs: its Lipschitz bound L divides every distance estimate, so sphere-tracing steps
+/// shrink to 1/L and a ray takes up to L times the evaluations.
+fn distortion_ui(ui: &mut egui::Ui, k: &mut thicket_core::krs::KrsObject, id: u64) -> bool {
+    let mut changed = false;
+    ui.strong("Distortion").on_hover_text(
+        "A smooth noise warp of object space that hides the mirror symmetry (paper §5.2)",
+    );
+    egui::Grid::new(("krs_distortion", id))
+        .num_columns(2)
+        .show(ui, |ui| {
+            ui.label("Kind").on_hover_text("Whether space is warped");
+            ui.horizontal(|ui| {
+                let on = k.distortion.is_some();
+                if ui
+                    .selectable_label(!on, "No warp")
+                    .on_hover_text("Exact distances: the fastest to trace")
+                    .clicked()
+                    && on
+                {
+                    k.distortion = None;
+                    changed = true;
+                }
+                if ui
+                    .selectable_label(on, "Noise warp")
+                    .on_hover_text("p + A·noise(f·p): each component of the noise in [−1, 1]")
+                    .clicked()
+                    && !on
+                {
+                    k.distortion = Some(thicket_core::krs::Distortion::default());
+                    changed = true;
+                }
+            });
+            ui.end_row();
+            if let Some(d) = &mut k.distortion {
+                changed |= labelled_row(
+                    ui,
+                    "Amplitude",
+                    &mut d.amplitude,
+                    0.001,
+                    "Largest displacement A per axis, in object units (≥ 0)",
+                );
+                changed |= labelled_row(
+                    ui,
+                    "Frequency",
+                    &mut d.frequency,
+                    0.01,
+                    "Noise lattice cells per object unit f (≥ 0)",
+                );
+                changed |= labelled_row(ui, "Seed", &mut d.seed, 1.0, "Which noise field");
+                let lipschitz = d.lipschitz_bound();
+                let tip = "Distance estimates are divided by L = 1 + 9·A·f (the warp's                            Lipschitz bound) to stay safe for sphere tracing";
+                ui.label("Lipschitz bound").on_hover_text(tip);
+                ui.label(format!("L = {lipschitz:.3}")).on_hover_text(tip);
+                ui.end_row();
+                let tip = "Each sphere-tracing step is 1/L of the undistorted one, so a ray                            takes up to L times the distance evaluations";
+                ui.label("Step cost").on_hover_text(tip);
+                ui.label(format!(
+                    "steps {:.0}% as long, up to {lipschitz:.2}× the evaluations",
+                    100.0 / lipschitz
+                ))
+                .on_hover_text(tip);
+                ui.end_row();
+            }
+        });
+    changed
+}
+
+/// The texturing editor: mode, pattern, scale, contrast and triplanar sharpness (the colours
+/// are the kernels' materials, edited with each kernel).
+fn texturing_ui(ui: &mut egui::Ui, t: &mut thicket_core::krs::Texturing, id: u64) -> bool {
+    use thicket_core::krs::{Pattern, TextureMode};
+    let mut changed = false;
+    ui.strong("Texturing")
+        .on_hover_text("A procedural pattern over each kernel's colour (paper §6.2)");
+    egui::Grid::new(("krs_texturing", id))
+        .num_columns(2)
+        .show(ui, |ui| {
+            ui.label("Mode").on_hover_text("Which coordinates the pattern follows");
+            ui.horizontal(|ui| {
+                for (mode, name, tip) in [
+                    (TextureMode::None, "Plain", "The kernels' colours only"),
+                    (
+                        TextureMode::Triplanar,
+                        "Triplanar",
+                        "Projected along X, Y and Z in object space: no repetition between                          instances (rock, terrain)",
+                    ),
+                    (
+                        TextureMode::KernelParam,
+                        "Along kernels",
+                        "Along and around each kernel (branches): the same on every instance",
+                    ),
+                ] {
+                    changed |= ui
+                        .selectable_value(&mut t.mode, mode, name)
+                        .on_hover_text(tip)
+                        .changed();
+                }
+            });
+            ui.end_row();
+            ui.label("Pattern").on_hover_text("The procedural pattern");
+            ui.horizontal(|ui| {
+                for (pattern, name, tip) in [
+                    (Pattern::Checker, "Checker", "Lighter and darker squares"),
+                    (Pattern::Bark, "Bark", "Streaks of value noise"),
+                ] {
+                    changed |= ui
+                        .selectable_value(&mut t.pattern, pattern, name)
+                        .on_hover_text(tip)
+                        .changed();
+                }
+            });
+            ui.end_row();
+            changed |= labelled_row(
+                ui,
+                "Scale",
+                &mut t.scale,
+                0.01,
+                "Pattern cells per object unit (within ±1e6)",
+            );
+            changed |= labelled_row(
+                ui,
+                "Contrast",
+                &mut t.contrast,
+                0.01,
+                "How far the pattern moves the colour, 0..1",
+            );
+            changed |= labelled_row(
+                ui,
+                "Sharpness",
+                &mut t.sharpness,
+                0.1,
+                "Triplanar blend exponent, 0..64: higher gives sharper seams between projections",
+            );
+            ui.label("Colours").on_hover_text("Each kernel's material");
+            ui.weak("each kernel's material, under Kernels");
+            ui.end_row();
+        });
+    changed
+}
+
 fn material_rows(ui: &mut egui::Ui, m: &mut Material) -> bool {
     ui.label("Colour").on_hover_text("Linear RGB albedo");
     let mut rgb = m.colour.to_array();
@@ -480,6 +640,10 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                     changed = true;
                 }
             });
+            ui.separator();
+            changed |= distortion_ui(ui, &mut k, id);
+            ui.separator();
+            changed |= texturing_ui(ui, &mut k.texturing, id);
             ui.separator();
             tree_builder_ui(ui, editor, panel, id);
         });

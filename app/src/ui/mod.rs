@@ -46,6 +46,7 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("Delete", "Delete the selected object"),
     ("F2", "Rename the selected object"),
     ("H", "Hide / show the selected object"),
+    ("End", "Drop the selected object onto whatever is below it"),
     (
         "F",
         "Frame the selection (everything when nothing is selected)",
@@ -317,6 +318,32 @@ impl EditorApp {
         self.import_offer = None;
         self.editor.push_recent(path.to_path_buf());
         self.status = format!("Opened {}", path.display());
+    }
+
+    /// Edit → Drop to surface: moves the selected object down onto what is below it and says
+    /// how far, or why not.
+    fn drop_selected(&mut self, ctx: &egui::Context) {
+        let Some(Selection::Object(id)) = self.editor.selection else {
+            self.toast(
+                ctx,
+                "Select an object to drop onto the surface below it",
+                true,
+            );
+            return;
+        };
+        let name = |ed: &Editor, id| ed.object(id).map(|o| o.name.clone()).unwrap_or_default();
+        match self.editor.drop_to_surface(id) {
+            Ok(landing) => {
+                let text = format!(
+                    "Dropped {} by {:.3} onto {}",
+                    name(&self.editor, id),
+                    landing.distance,
+                    name(&self.editor, landing.onto)
+                );
+                self.toast(ctx, text, false);
+            }
+            Err(e) => self.toast(ctx, format!("Not dropped: {e}"), true),
+        }
     }
 
     fn toast(&mut self, ctx: &egui::Context, text: impl Into<String>, is_error: bool) {
@@ -1162,6 +1189,9 @@ impl EditorApp {
         if consume(shortcut(Modifiers::NONE, Key::F)) {
             self.editor.frame_selection();
         }
+        if consume(shortcut(Modifiers::NONE, Key::End)) {
+            self.drop_selected(ctx);
+        }
         if consume(shortcut(Modifiers::NONE, Key::F3)) {
             self.perf.open = !self.perf.open;
         }
@@ -1427,6 +1457,13 @@ impl EditorApp {
                     } else if let Some(i) = selected_light {
                         let _ = self.editor.delete_light(i);
                     }
+                }
+                if ui
+                    .add_enabled(selected.is_some(), egui::Button::new("Drop to surface").shortcut_text("End"))
+                    .on_hover_text("Move the selected object straight down until it rests on the voxels, mesh or KRS surface below it (undoable)")
+                    .clicked()
+                {
+                    self.drop_selected(ui.ctx());
                 }
                 if ui
                     .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))

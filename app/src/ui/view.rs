@@ -22,7 +22,7 @@ use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
 use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
-use crate::editor::{Editor, Selection, VoxelPick, ray_through};
+use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
 use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
 
 /// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
@@ -372,6 +372,9 @@ pub struct View {
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The last view rectangle (for tests that aim at it).
     pub last_rect: egui::Rect,
+    /// What the last click in the view hit (drawn as a dot and its normal until the next
+    /// click), with the document generation it was made in.
+    pub last_click: Option<(u64, SurfacePick)>,
     /// An axis view turned the camera orthographic (Blender's auto perspective): orbiting
     /// away from it turns perspective back on.
     auto_ortho: bool,
@@ -395,6 +398,7 @@ impl Default for View {
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
+            last_click: None,
         }
     }
 }
@@ -607,7 +611,10 @@ impl View {
                 // The selected KRS object stays selected; its plane is highlighted.
                 krs.mirror = Some(m);
             } else {
-                editor.selection = hover_pick.map(|p| Selection::Object(p.object));
+                // Voxels, meshes and KRS objects: the nearest surface under the pointer.
+                let pick = pointer_ray.and_then(|(o, d)| editor.pick(o, d));
+                editor.selection = pick.map(|p| Selection::Object(p.object));
+                self.last_click = pick.map(|p| (editor.generation(), p));
             }
         }
 
@@ -653,6 +660,11 @@ impl View {
         paint_mirrors(&painter, editor, krs, &proj);
         paint_route(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
+        if let Some((generation, pick)) = self.last_click
+            && generation == editor.generation()
+        {
+            paint_click(&painter, &proj, &pick);
+        }
         if sculpt.active
             && !sculpt.stretch_paint
             && sculpt.tool == ToolKind::Brush
@@ -1608,6 +1620,23 @@ fn grid(camera: &OrbitCamera, line: &impl Fn(Vec3, Vec3, egui::Stroke)) {
     ] {
         line(Vec3::ZERO, dir * axis_len, egui::Stroke::new(2.0, color));
     }
+}
+
+/// The last click's surface point and normal: a dot and a line a tenth of the eye distance
+/// long (so it reads at any zoom and foreshortens with the surface).
+fn paint_click(painter: &egui::Painter, proj: &Projector, pick: &SurfacePick) {
+    let p = pick.point_in_world;
+    let Some(c) = proj.to_screen(p) else {
+        return;
+    };
+    let length = 0.1 * proj.camera.eye().distance(p).max(proj.camera.near);
+    let color = egui::Color32::from_rgb(255, 200, 40);
+    if let Some(seg) = proj.segment(p, p + pick.normal_in_world * length) {
+        painter.line_segment(seg, egui::Stroke::new(3.0, egui::Color32::BLACK));
+        painter.line_segment(seg, egui::Stroke::new(1.5, color));
+    }
+    painter.circle_filled(c, 4.0, color);
+    painter.circle_stroke(c, 4.0, egui::Stroke::new(1.0, egui::Color32::BLACK));
 }
 
 /// The brush footprint at the picked point: a circle of the brush radius facing the camera,

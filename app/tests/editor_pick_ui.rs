@@ -1,0 +1,239 @@
+//! Picking through distance queries on the real app, driven by egui_kittest: a click on a KRS
+//! tree and on a mesh selects each (with the clicked point and its normal drawn), a click on
+//! nothing clears both; Object → Drop to surface (End) lands a voxel model on KRS terrain
+//! within one voxel of the surface the query sees, in one undo step.
+//!
+//! No GPU viewport is attached: the view draws with core's CPU preview renderer.
+
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::{Harness, SnapshotOptions};
+use glam::{UVec3, Vec3};
+use thicket::editor::{Editor, PickKind, Selection};
+use thicket::ui::EditorApp;
+use thicket::ui::view::Projector;
+use thicket_core::krs::{KrsScene, PreparedScene, presets};
+use thicket_core::mesh::{MeshModel, TriangleMesh};
+use thicket_core::scene::{Document, MeshObject, ObjectKind, Transform, VoxelModel};
+use thicket_core::svo::{Svo, Voxel};
+
+const SIZE: egui::Vec2 = egui::vec2(1100.0, 720.0);
+
+fn harness(doc: Document) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(Editor::new(doc, None));
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h
+}
+
+fn settle_preview(h: &mut Harness<'static, EditorApp>) {
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+}
+
+fn click(h: &mut Harness<'static, EditorApp>, at: egui::Pos2) {
+    h.hover_at(at);
+    h.run_steps(1);
+    h.drag_at(at);
+    h.run_steps(1);
+    h.drop_at(at);
+    h.run_steps(2);
+}
+
+/// The closed cube −1..1 as 12 triangles.
+fn cube_mesh() -> ObjectKind {
+    let positions: Vec<Vec3> = (0..8)
+        .map(|k| {
+            Vec3::new(
+                if k & 1 == 0 { -1.0 } else { 1.0 },
+                if k & 2 == 0 { -1.0 } else { 1.0 },
+                if k & 4 == 0 { -1.0 } else { 1.0 },
+            )
+        })
+        .collect();
+    let quads = [
+        [0, 2, 3, 1],
+        [4, 5, 7, 6],
+        [0, 1, 5, 4],
+        [2, 6, 7, 3],
+        [0, 4, 6, 2],
+        [1, 3, 7, 5],
+    ];
+    ObjectKind::Mesh(MeshObject {
+        model: MeshModel {
+            parts: vec![TriangleMesh {
+                positions,
+                indices: quads
+                    .iter()
+                    .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
+                    .collect(),
+                ..TriangleMesh::default()
+            }],
+            materials: vec![Default::default()],
+        },
+        casts_shadows: true,
+    })
+}
+
+fn prepared(doc: &Document, id: u64) -> PreparedScene {
+    let o = doc.objects.iter().find(|o| o.id == id).unwrap();
+    KrsScene {
+        objects: vec![o.krs_in_world().unwrap()],
+    }
+    .prepare()
+    .unwrap()
+}
+
+/// A point of the KRS surface straight below `from`, by plain sphere tracing on the query's
+/// distance (independent of the editor's picking).
+fn surface_below(scene: &PreparedScene, from: Vec3) -> Vec3 {
+    let mut p = from;
+    for _ in 0..4096 {
+        let d = scene.query(p).unwrap().distance;
+        if d < 1e-4 {
+            return p;
+        }
+        p.y -= d;
+    }
+    panic!("no surface below {from}");
+}
+
+#[test]
+fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
+    let mut doc = Document::default();
+    doc.quality.shadows = false;
+    let tree = doc.add("Tree", ObjectKind::Krs(presets::tree()));
+    let cube = doc.add("Cube", cube_mesh());
+    let (tlo, thi) = doc.objects[0].world_bounds().expect("a bounded tree");
+    let r = (thi.x - tlo.x) * 0.5;
+    doc.objects[1].transform = Transform {
+        translation: Vec3::new((tlo.x + thi.x) * 0.5 + r + 2.0, tlo.y + 1.0, 0.0),
+        ..Transform::default()
+    };
+    doc.camera.yaw_deg = 0.0;
+    doc.camera.pitch_deg = 10.0;
+    let (lo, hi) = doc.bounds().unwrap();
+    doc.camera.frame(lo, hi);
+    let mut h = harness(doc);
+    settle_preview(&mut h);
+    // Opening selects the first object: start from nothing selected.
+    h.state_mut().editor.selection = None;
+    h.run_steps(1);
+
+    let rect = h.state().view.last_rect;
+    let proj = Projector::new(h.state().editor.doc().camera, rect);
+    // A point on the trunk, found by the query alone: the first surface below the middle of
+    // the tree's ball, seen from the camera in front of it.
+    let scene = prepared(h.state().editor.doc(), tree);
+    let centre = (tlo + thi) * 0.5;
+    let on_tree = surface_below(&scene, Vec3::new(centre.x, thi.y, centre.z));
+    click(&mut h, proj.to_screen(on_tree).unwrap());
+    let ed = &h.state().editor;
+    assert_eq!(ed.selection, Some(Selection::Object(tree)));
+    let (_, pick) = h.state().view.last_click.expect("the click is kept");
+    assert_eq!((pick.object, pick.kind), (tree, PickKind::Krs));
+    let q = scene.query(pick.point_in_world).unwrap();
+    assert!(
+        q.distance.abs() <= 1e-4 * pick.t,
+        "the marked point is {} from the tree's surface",
+        q.distance
+    );
+    assert!(pick.normal_in_world.dot(q.normal) > 0.99);
+    settle_preview(&mut h);
+    h.snapshot_options(
+        "pick_krs_tree_marked",
+        &SnapshotOptions::new().max_failed_pixels(200),
+    );
+
+    // The cube's centre: the ray through it meets the face toward the camera (+Z).
+    let centre = h.state().editor.object(cube).unwrap().transform.translation;
+    click(&mut h, proj.to_screen(centre).unwrap());
+    assert_eq!(h.state().editor.selection, Some(Selection::Object(cube)));
+    let (_, pick) = h.state().view.last_click.unwrap();
+    assert_eq!((pick.object, pick.kind), (cube, PickKind::Mesh));
+    assert!(
+        (pick.point_in_world.z - 1.0).abs() < 1e-4,
+        "{}",
+        pick.point_in_world
+    );
+    assert!(pick.normal_in_world.distance(Vec3::Z) < 1e-5);
+
+    // The sky: nothing selected, no mark.
+    click(&mut h, rect.left_top() + egui::vec2(5.0, 5.0));
+    assert_eq!(h.state().editor.selection, None);
+    assert_eq!(h.state().view.last_click, None);
+}
+
+#[test]
+fn drop_to_surface_lands_a_voxel_model_on_krs_terrain_within_a_voxel() {
+    let voxel = 0.25;
+    let mut svo = Svo::new(4, false).unwrap();
+    for x in 0..6 {
+        for y in 0..3 {
+            for z in 0..6 {
+                svo.set(UVec3::new(x, y, z), Voxel::new([200, 60, 60, 255], Vec3::Y))
+                    .unwrap();
+            }
+        }
+    }
+    let mut doc = Document::default();
+    doc.quality.shadows = false;
+    let terrain = doc.add("Terrain", ObjectKind::Krs(presets::terrain()));
+    let block = doc.add(
+        "Block",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: voxel,
+            ..VoxelModel::default()
+        }),
+    );
+    doc.objects[1].transform.translation = Vec3::new(3.0, 25.0, -2.0);
+    doc.camera.target = Vec3::new(3.0, 10.0, -2.0);
+    doc.camera.distance = 60.0;
+    let mut h = harness(doc);
+    h.state_mut().editor.selection = Some(Selection::Object(block));
+    h.run_steps(1);
+    let steps = h.state().editor.history().undo_len();
+    h.key_press(egui::Key::End);
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    assert_eq!(ed.history().undo_len(), steps + 1, "one undo step");
+    assert!(
+        h.query_all_by_label_contains("Dropped Block by")
+            .next()
+            .is_some(),
+        "the status says what moved"
+    );
+    // The bottom face, corner to corner: its closest point rests on the terrain within a
+    // voxel.
+    let scene = prepared(ed.doc(), terrain);
+    let t = ed.object(block).unwrap().transform.translation;
+    assert!(t.y < 25.0 - 1.0, "it moved down (now at {})", t.y);
+    let gaps: Vec<f32> = (0..=24)
+        .flat_map(|i| (0..=24).map(move |k| (i, k)))
+        .map(|(i, k)| {
+            let p = t + Vec3::new(i as f32, 0.0, k as f32) * (6.0 * voxel / 24.0);
+            scene.query(p).unwrap().distance
+        })
+        .collect();
+    let lowest = gaps.iter().copied().fold(f32::INFINITY, f32::min);
+    assert!(
+        lowest.abs() <= voxel,
+        "the block's bottom is {lowest} from the terrain at its closest"
+    );
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    let back = h
+        .state()
+        .editor
+        .object(block)
+        .unwrap()
+        .transform
+        .translation;
+    assert_eq!(back, Vec3::new(3.0, 25.0, -2.0), "undo puts it back");
+}
