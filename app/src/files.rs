@@ -576,18 +576,7 @@ pub fn thousands_u128(n: u128) -> String {
 /// Bytes in a human unit: `1.5 MiB`.
 #[must_use]
 pub fn human_bytes(bytes: u64) -> String {
-    const UNITS: [&str; 5] = ["B", "KiB", "MiB", "GiB", "TiB"];
-    let mut v = bytes as f64;
-    let mut unit = 0;
-    while v >= 1024.0 && unit + 1 < UNITS.len() {
-        v /= 1024.0;
-        unit += 1;
-    }
-    if unit == 0 {
-        format!("{bytes} B")
-    } else {
-        format!("{v:.1} {}", UNITS[unit])
-    }
+    thicket_core::budget::human(bytes)
 }
 
 /// The default project the editor opens: the first `*.thicket.json` (by name) in a `projects/`

@@ -482,6 +482,28 @@ fn bracket_keys_step_the_brush_by_one_voxel() {
     assert_eq!(h.state().sculpt.brush.radius, 2.0);
 }
 
+/// File → Save As (Ctrl+Shift+S) on an untitled project, then `text` typed over the proposed
+/// name in the path field.
+fn save_as_typing(h: &mut Harness<'static, EditorApp>, text: &str) {
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    // The text input (its first match; the inner text run carries the value too).
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .focus();
+    h.run_steps(1);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.query_all_by_value("untitled.thicket.json")
+        .next()
+        .expect("the path field")
+        .type_text(text);
+    h.run_steps(2);
+}
+
 #[test]
 fn the_path_entry_accepts_enter_and_cancels_on_escape() {
     let mut app = app_with_two_objects();
@@ -505,23 +527,7 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
     assert!(h.state().editor.path().is_none());
 
     // Typed path + Enter saves there (no click on OK).
-    h.key_press_modifiers(
-        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
-        egui::Key::S,
-    );
-    h.run_steps(3);
-    // The text input (its first match; the inner text run carries the value too).
-    h.query_all_by_value("untitled.thicket.json")
-        .next()
-        .expect("the path field")
-        .focus();
-    h.run_steps(1);
-    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
-    h.query_all_by_value("untitled.thicket.json")
-        .next()
-        .expect("the path field")
-        .type_text(&path.display().to_string());
-    h.run_steps(2);
+    save_as_typing(&mut h, &path.display().to_string());
     h.key_press(egui::Key::Enter);
     h.run_steps(4);
     assert!(
@@ -541,24 +547,9 @@ fn the_path_entry_browses_folders_and_keeps_the_typed_file_name() {
     std::fs::create_dir(dir.path().join("sub")).unwrap();
     std::fs::write(dir.path().join("old.thicket.json"), b"{}").unwrap();
     std::fs::write(dir.path().join("notes.txt"), b"not a project").unwrap();
-    h.key_press_modifiers(
-        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
-        egui::Key::S,
-    );
-    h.run_steps(3);
-    // Type the folder's path: the list shows its sub-folder and its projects, not other files.
-    h.query_all_by_value("untitled.thicket.json")
-        .next()
-        .expect("the path field")
-        .focus();
-    h.run_steps(1);
-    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    // Type a path in the folder: the list shows its sub-folder and its projects, not other files.
     let typed = dir.path().join("mine.thicket.json").display().to_string();
-    h.query_all_by_value("untitled.thicket.json")
-        .next()
-        .expect("the path field")
-        .type_text(&typed);
-    h.run_steps(2);
+    save_as_typing(&mut h, &typed);
     h.get_by_label("sub/");
     assert!(
         h.query_all_by_label_contains("old.thicket.json")

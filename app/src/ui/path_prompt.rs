@@ -317,7 +317,7 @@ impl PathPrompt {
                                     let label = if e.is_dir {
                                         format!("{}/", e.name)
                                     } else {
-                                        format!("{}   {}", e.name, human_size(e.size_bytes))
+                                        format!("{}   {}", e.name, files::human_bytes(e.size_bytes))
                                     };
                                     let r = ui.selectable_label(false, label);
                                     if r.double_clicked() {
@@ -367,16 +367,6 @@ impl PathPrompt {
             }
         });
         outcome
-    }
-}
-
-/// `1234567` → "1.2 MB".
-fn human_size(bytes: u64) -> String {
-    match bytes {
-        b if b < 1_000 => format!("{b} B"),
-        b if b < 1_000_000 => format!("{:.1} kB", b as f64 / 1e3),
-        b if b < 1_000_000_000 => format!("{:.1} MB", b as f64 / 1e6),
-        b => format!("{:.1} GB", b as f64 / 1e9),
     }
 }
 

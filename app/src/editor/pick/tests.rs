@@ -55,30 +55,10 @@ fn square() -> ObjectKind {
     )
 }
 
-/// The closed cube −1..1 (12 triangles).
+/// The closed cube −1..1 (12 triangles, outward faces): core's unit cube scaled by 2.
 fn cube() -> ObjectKind {
-    let positions: Vec<Vec3> = (0..8)
-        .map(|k| {
-            Vec3::new(
-                if k & 1 == 0 { -1.0 } else { 1.0 },
-                if k & 2 == 0 { -1.0 } else { 1.0 },
-                if k & 4 == 0 { -1.0 } else { 1.0 },
-            )
-        })
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    let indices = quads
-        .iter()
-        .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
-        .collect();
-    mesh(positions, indices)
+    let m = thicket_core::mesh::unit_cube();
+    mesh(m.positions.iter().map(|p| *p * 2.0).collect(), m.indices)
 }
 
 fn ball(radius: f32) -> ObjectKind {
