@@ -267,6 +267,19 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
     );
 }
 
+/// Ctrl+Z (`redo`: Ctrl+Shift+Z) `n` times, a frame after each.
+fn press_undo(h: &mut Harness<'static, EditorApp>, n: usize, redo: bool) {
+    let mods = if redo {
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT
+    } else {
+        egui::Modifiers::COMMAND
+    };
+    for _ in 0..n {
+        h.key_press_modifiers(mods, egui::Key::Z);
+        h.run_steps(1);
+    }
+}
+
 /// The coral preset alone, framed, without shadows or AO (a quick CPU preview).
 fn coral_doc() -> Document {
     let mut doc = Document::default();
@@ -420,18 +433,9 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     // Undo every step of the edit: the preset's plane is back; redo brings the change back.
     let after = h.state().editor.krs(id).unwrap().clone();
     let n = h.state().editor.history().undo_len() - steps;
-    for _ in 0..n {
-        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
-        h.run_steps(1);
-    }
+    press_undo(&mut h, n, false);
     assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
-    for _ in 0..n {
-        h.key_press_modifiers(
-            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
-            egui::Key::Z,
-        );
-        h.run_steps(1);
-    }
+    press_undo(&mut h, n, true);
     assert_eq!(h.state().editor.krs(id).unwrap(), &after);
 }
 
@@ -1023,17 +1027,8 @@ fn edit_distortion_and_texturing_refuse_bad_values_undo_redo() {
         n >= 2,
         "the warp and the texturing are undoable ({n} steps)"
     );
-    for _ in 0..n {
-        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
-        h.run_steps(1);
-    }
+    press_undo(&mut h, n, false);
     assert_eq!(h.state().editor.krs(id).unwrap(), &original);
-    for _ in 0..n {
-        h.key_press_modifiers(
-            egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
-            egui::Key::Z,
-        );
-        h.run_steps(1);
-    }
+    press_undo(&mut h, n, true);
     assert_eq!(h.state().editor.krs(id).unwrap(), &after);
 }
