@@ -691,7 +691,7 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
                 thousands(e.fine_voxels)
             ),
             e.peak_bytes,
-            "use a smaller --factor",
+            "use a smaller --factor, or raise the limit with --memory-limit",
         )?;
     }
     let bar = progress_bar(1000, "enhancing");
@@ -934,7 +934,7 @@ fn check_voxelize_budget(
             thousands((e.surface_voxels + e.interior_voxels).round() as u64)
         ),
         e.peak_bytes,
-        "use a smaller --depth or a larger --voxel-size",
+        "use a smaller --depth or a larger --voxel-size, or raise the limit with --memory-limit",
     )?;
     Ok(())
 }
@@ -1188,7 +1188,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         budget.check(
             &format!("rendering {width}x{height}"),
             thicket_core::render::estimate_peak_bytes(&doc, &request),
-            "lower --size or --quality shadow_map_size",
+            "lower --size or --quality shadow_map_size, or raise the limit with --memory-limit",
         )?;
     }
     // One GPU context for every frame of a turntable.

@@ -212,6 +212,24 @@ fn enhance_runs_as_a_job_and_cancel_keeps_the_document() {
         "cancelled: nothing added"
     );
 
+    // Over the memory budget: refused before a job starts, with the estimate in the dialog.
+    h.state_mut().memory_budget = thicket_core::budget::MemoryBudget::given(64 << 10);
+    h.state_mut().start_enhance(2);
+    assert!(!h.state().job_running(), "no job over the budget");
+    let said = h
+        .state()
+        .error_dialog
+        .clone()
+        .expect("the refusal is shown");
+    assert!(
+        said.contains("x2 into about ")
+            && said.contains("over the limit of 64.0 KiB")
+            && said.ends_with("use a smaller factor"),
+        "{said}"
+    );
+    h.state_mut().error_dialog = None;
+    h.state_mut().memory_budget = thicket_core::budget::MemoryBudget::given(1 << 30);
+
     // Run to completion: a new enhanced object with more, smaller voxels.
     h.state_mut().start_enhance(2);
     h.state_mut().wait_for_job(&ctx);

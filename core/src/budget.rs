@@ -43,7 +43,7 @@ impl fmt::Display for BudgetSource {
 /// A request over its budget.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error(
-    "{what} would need about {} of memory, over the limit of {} ({limit_from}): {advice}, or raise the limit with --memory-limit",
+    "{what} would need about {} of memory, over the limit of {} ({limit_from}): {advice}",
     human(*estimate_bytes),
     human(*limit_bytes)
 )]
@@ -56,7 +56,7 @@ pub struct OverBudget {
     pub limit_bytes: u64,
     /// Where the limit comes from.
     pub limit_from: BudgetSource,
-    /// What to lower, e.g. "lower --size".
+    /// What to change, e.g. "lower --size, or raise the limit with --memory-limit".
     pub advice: String,
 }
 
@@ -188,7 +188,7 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "rendering 16384x16384 would need about 15.0 GiB of memory, over the limit of 1.0 GiB \
-             (--memory-limit): lower --size, or raise the limit with --memory-limit"
+             (--memory-limit): lower --size"
         );
     }
 

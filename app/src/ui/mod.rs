@@ -197,6 +197,9 @@ pub struct EditorApp {
     import_offer: Option<crate::editor::ImportPlacement>,
     /// An error shown in a dialog until dismissed (for example a file that would not open).
     pub error_dialog: Option<String>,
+    /// The most memory one background job may need (half of physical memory; an
+    /// enhancement estimated over it is refused before it starts).
+    pub memory_budget: thicket_core::budget::MemoryBudget,
     /// What the last import left out, shown in the Import report window until closed
     /// (`None`: nothing was left out).
     pub import_report: Option<ImportReport>,
@@ -259,6 +262,7 @@ impl EditorApp {
             toasts: Vec::new(),
             import_offer: None,
             error_dialog: None,
+            memory_budget: thicket_core::budget::MemoryBudget::for_this_machine(),
             import_report: None,
             prompt: None,
             pending: None,
@@ -454,6 +458,22 @@ impl EditorApp {
             self.status = format!("{:?} is not a voxel model", o.name);
             return;
         };
+        // Refused before the job starts when the estimate is over the memory budget.
+        if let Ok(e) = thicket_core::enhance::estimate(&v.svo, &settings)
+            && let Err(over) = self.memory_budget.check(
+                &format!(
+                    "Enhancing {:?} x{} into about {} voxels",
+                    o.name,
+                    settings.factor,
+                    thousands(e.fine_voxels)
+                ),
+                e.peak_bytes,
+                "use a smaller factor",
+            )
+        {
+            self.error_dialog = Some(over.to_string());
+            return;
+        }
         let (name, model) = (o.name.clone(), v.clone());
         let label = format!("Enhancing {name} x{}", settings.factor);
         self.job = Some(Job::spawn(label, move |progress, cancel| {
