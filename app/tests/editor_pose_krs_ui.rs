@@ -1032,3 +1032,34 @@ fn edit_distortion_and_texturing_refuse_bad_values_undo_redo() {
     press_undo(&mut h, n, true);
     assert_eq!(h.state().editor.krs(id).unwrap(), &after);
 }
+
+#[test]
+fn empty_zones_are_added_removed_and_undone_in_the_krs_editor() {
+    let mut h = harness(coral_doc());
+    let id = h.state().editor.doc().objects[0].id;
+    let zones =
+        |h: &Harness<'static, EditorApp>| h.state().editor.krs(id).unwrap().empty_zones.clone();
+    assert!(zones(&h).is_empty());
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Add zone").click_accesskit();
+    h.run_steps(2);
+    let added = zones(&h);
+    assert_eq!(added.len(), 1, "one zone");
+    // At the coral's bounding-ball centre, a quarter of its radius.
+    let k = h.state().editor.doc().objects[0].krs_in_world().unwrap();
+    let (c, r) = k.bounding_sphere_object().unwrap();
+    let t = k.world_from_object;
+    assert!((added[0].centre - t.transform_point(c)).length() < 1e-4);
+    assert!((added[0].radius - 0.25 * r * t.scale).abs() < 1e-4);
+    h.get_by_label("Z0");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.get_by_label("Remove").click_accesskit();
+    h.run_steps(2);
+    assert!(zones(&h).is_empty(), "removed");
+    press_undo(&mut h, 1, false);
+    assert_eq!(zones(&h), added, "undo brings the zone back");
+    press_undo(&mut h, 1, false);
+    assert!(zones(&h).is_empty(), "and before it, none");
+    press_undo(&mut h, 2, true);
+    assert!(zones(&h).is_empty(), "redo: added, then removed");
+}

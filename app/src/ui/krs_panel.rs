@@ -203,11 +203,11 @@ fn distortion_ui(ui: &mut egui::Ui, k: &mut thicket_core::krs::KrsObject, id: u6
                 );
                 changed |= labelled_row(ui, "Seed", &mut d.seed, 1.0, "Which noise field");
                 let lipschitz = d.lipschitz_bound();
-                let tip = "Distance estimates are divided by L = 1 + 9·A·f (the warp's                            Lipschitz bound) to stay safe for sphere tracing";
+                let tip = "Distance estimates are divided by L = 1 + 9·A·f (the warp's Lipschitz bound) to stay safe for sphere tracing";
                 ui.label("Lipschitz bound").on_hover_text(tip);
                 ui.label(format!("L = {lipschitz:.3}")).on_hover_text(tip);
                 ui.end_row();
-                let tip = "Each sphere-tracing step is 1/L of the undistorted one, so a ray                            takes up to L times the distance evaluations";
+                let tip = "Each sphere-tracing step is 1/L of the undistorted one, so a ray takes up to L times the distance evaluations";
                 ui.label("Step cost").on_hover_text(tip);
                 ui.label(format!(
                     "steps {:.0}% as long, up to {lipschitz:.2}× the evaluations",
@@ -237,7 +237,7 @@ fn texturing_ui(ui: &mut egui::Ui, t: &mut thicket_core::krs::Texturing, id: u64
                     (
                         TextureMode::Triplanar,
                         "Triplanar",
-                        "Projected along X, Y and Z in object space: no repetition between                          instances (rock, terrain)",
+                        "Projected along X, Y and Z in object space: no repetition between instances (rock, terrain)",
                     ),
                     (
                         TextureMode::KernelParam,
@@ -291,6 +291,138 @@ fn texturing_ui(ui: &mut egui::Ui, t: &mut thicket_core::krs::Texturing, id: u64
             ui.end_row();
         });
     changed
+}
+
+/// Where "Add zone" puts a new empty zone: the centre of the object's world bounding ball, a
+/// quarter of its radius (the origin and radius 1 for an unbounded object).
+fn zone_hint(editor: &Editor, id: u64) -> (Vec3, f32) {
+    editor
+        .object(id)
+        .and_then(thicket_core::scene::Object::krs_in_world)
+        .and_then(|k| {
+            let (c, r) = k.bounding_sphere_object()?;
+            let t = k.world_from_object;
+            Some((t.transform_point(c), 0.25 * r * t.scale))
+        })
+        .filter(|(c, r)| c.is_finite() && r.is_finite() && *r > 0.0)
+        .unwrap_or((Vec3::ZERO, 1.0))
+}
+
+/// The empty zones: world-space balls inside which this object's geometry is removed (paper
+/// §6.4), each with its centre and radius, removable; "Add zone" adds one at `hint`.
+fn empty_zones_ui(
+    ui: &mut egui::Ui,
+    k: &mut thicket_core::krs::KrsObject,
+    id: u64,
+    hint: (Vec3, f32),
+) -> bool {
+    let mut changed = false;
+    ui.strong("Empty zones").on_hover_text(
+        "World-space balls inside which this object's geometry is removed (paper §6.4): a \
+         clearing in a forest, room for rigid-body instances. Drawn in the view as circles.",
+    );
+    if k.empty_zones.is_empty() {
+        ui.weak("None: the whole object is drawn");
+    }
+    let mut remove = None;
+    egui::Grid::new(("krs_zones", id))
+        .num_columns(3)
+        .striped(true)
+        .show(ui, |ui| {
+            for (i, z) in k.empty_zones.iter_mut().enumerate() {
+                ui.label(format!("Z{i}"));
+                ui.horizontal(|ui| {
+                    for (axis, c) in ["x", "y", "z"].iter().zip([
+                        &mut z.centre.x,
+                        &mut z.centre.y,
+                        &mut z.centre.z,
+                    ]) {
+                        changed |= ui
+                            .add(
+                                egui::DragValue::new(c)
+                                    .speed(0.01 * f64::from(hint.1.max(0.01)))
+                                    .max_decimals(4)
+                                    .prefix(format!("{axis} ")),
+                            )
+                            .on_hover_text("Centre in world space")
+                            .changed();
+                    }
+                    changed |= ui
+                        .add(
+                            egui::DragValue::new(&mut z.radius)
+                                .speed(0.01 * f64::from(hint.1.max(0.01)))
+                                .max_decimals(4)
+                                .prefix("r "),
+                        )
+                        .on_hover_text("Radius in world units (≥ 0)")
+                        .changed();
+                });
+                if ui
+                    .small_button("Remove")
+                    .on_hover_text("Remove this zone")
+                    .clicked()
+                {
+                    remove = Some(i);
+                }
+                ui.end_row();
+            }
+        });
+    if let Some(i) = remove {
+        k.empty_zones.remove(i);
+        changed = true;
+    }
+    if ui
+        .button("Add zone")
+        .on_hover_text(
+            "A zone at the centre of the object's bounding ball, a quarter of its radius",
+        )
+        .clicked()
+    {
+        k.empty_zones.push(thicket_core::krs::EmptyZone {
+            centre: hint.0,
+            radius: hint.1,
+        });
+        changed = true;
+    }
+    changed
+}
+
+/// Draws the selected KRS object's empty zones as circles (the ball's outline as seen from the
+/// eye), while the KRS editor is open.
+pub fn paint_zones(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
+    if !panel.editor_open {
+        return;
+    }
+    let Some(Selection::Object(id)) = editor.selection else {
+        return;
+    };
+    let Some(k) = editor.krs(id) else {
+        return;
+    };
+    let eye = proj.camera.eye();
+    let color = egui::Color32::from_rgb(255, 140, 90);
+    for (i, z) in k.empty_zones.iter().enumerate() {
+        let toward = z.centre - eye;
+        let right = toward.cross(Vec3::Y).normalize_or(Vec3::X);
+        let (Some(c), Some(edge)) = (
+            proj.to_screen(z.centre),
+            proj.to_screen(z.centre + right * z.radius),
+        ) else {
+            continue;
+        };
+        let r = c.distance(edge);
+        if !(r.is_finite() && r > 0.5) {
+            continue;
+        }
+        painter.circle_stroke(c, r, egui::Stroke::new(1.5, color));
+        painter.text(
+            c + egui::vec2(r * 0.7, -r * 0.7),
+            egui::Align2::LEFT_BOTTOM,
+            format!("Z{i}"),
+            egui::FontId::proportional(11.0),
+            color,
+        );
+    }
 }
 
 fn material_rows(ui: &mut egui::Ui, m: &mut Material) -> bool {
@@ -644,6 +776,8 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
             changed |= distortion_ui(ui, &mut k, id);
             ui.separator();
             changed |= texturing_ui(ui, &mut k.texturing, id);
+            ui.separator();
+            changed |= empty_zones_ui(ui, &mut k, id, zone_hint(editor, id));
             ui.separator();
             tree_builder_ui(ui, editor, panel, id);
         });

@@ -18,7 +18,7 @@ use std::time::{Duration, Instant};
 use glam::{Mat4, Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera, transform_bounds};
 
-use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, pick_mirror};
+use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, paint_zones, pick_mirror};
 use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
@@ -658,6 +658,7 @@ impl View {
             sculpt.active && !sculpt.stretch_paint,
         );
         paint_mirrors(&painter, editor, krs, &proj);
+        paint_zones(&painter, editor, krs, &proj);
         paint_route(&painter, editor, krs, &proj);
         pose.paint(&painter, editor, &proj);
         if let Some((generation, pick)) = self.last_click
