@@ -163,6 +163,10 @@ pub struct BenchArgs {
     /// so the voxel pools are split into more chunks (to measure what chunking costs).
     #[arg(long, value_name = "BYTES")]
     pub binding_limit: Option<u64>,
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
+    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
     /// Turn the camera's yaw by this many degrees before each timed frame, as when orbiting in
     /// the editor; the CPU renderer then keeps its shadow maps in a shadow cache, as its
     /// preview does.
@@ -917,6 +921,28 @@ fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
     )
 }
 
+/// Refuses a CPU frame whose estimated peak memory is over the budget, before it allocates.
+fn check_render_budget(
+    doc: &thicket_core::scene::Document,
+    (width, height): (u32, u32),
+    camera: thicket_core::scene::OrbitCamera,
+    quality: &thicket_core::render::Quality,
+    limit: Option<u64>,
+) -> anyhow::Result<()> {
+    let request = thicket_core::render::RenderRequest {
+        width,
+        height,
+        camera: Some(camera),
+        quality: quality.clone(),
+    };
+    memory_budget(limit).check(
+        &format!("rendering {width}x{height}"),
+        thicket_core::render::estimate_peak_bytes(doc, &request),
+        "lower --size or --quality shadow_map_size, or raise the limit with --memory-limit",
+    )?;
+    Ok(())
+}
+
 /// Refuses an import whose voxelization is estimated to need more memory than the budget,
 /// before it starts. A mesh the estimate cannot plan is left to the voxelizer, which says why.
 fn check_voxelize_budget(
@@ -1178,18 +1204,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     let (width, height) = parse_size(&args.size)?;
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
     if !args.gpu {
-        let budget = memory_budget(args.memory_limit);
-        let request = thicket_core::render::RenderRequest {
-            width,
-            height,
-            camera: Some(camera),
-            quality: quality.clone(),
-        };
-        budget.check(
-            &format!("rendering {width}x{height}"),
-            thicket_core::render::estimate_peak_bytes(&doc, &request),
-            "lower --size or --quality shadow_map_size, or raise the limit with --memory-limit",
-        )?;
+        check_render_budget(&doc, (width, height), camera, &quality, args.memory_limit)?;
     }
     // One GPU context for every frame of a turntable.
     let gpu = if args.gpu {
@@ -1325,6 +1340,9 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         anyhow::bail!("--orbit {}: give a finite number of degrees", args.orbit);
     }
     let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    if !args.gpu {
+        check_render_budget(&doc, (width, height), camera, &quality, args.memory_limit)?;
+    }
     let name = args.project.display().to_string();
     let setup = BenchSetup {
         doc: &doc,

@@ -1118,6 +1118,23 @@ fn a_render_over_the_memory_limit_is_refused_at_once_with_its_estimate() {
     let o = run("64x64", "1G");
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file());
+    // The CPU bench renders the same frames: refused the same way.
+    let o = thicket(&[
+        "bench",
+        project.to_str().unwrap(),
+        "--size",
+        "16384x16384",
+        "--frames",
+        "1",
+        "--memory-limit",
+        "1G",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("error: rendering 16384x16384 would need about "),
+        "{err}"
+    );
     // A limit that is no size is refused by the parser, naming what was expected.
     let o = run("64x64", "lots");
     assert!(!o.status.success());
