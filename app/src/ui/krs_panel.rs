@@ -92,21 +92,26 @@ fn default_kernel(kind: &str, material: Material) -> Kernel {
 /// A grid row of three DragValues; returns whether one changed.
 fn vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, speed: f64, tip: &str) -> bool {
     ui.label(label).on_hover_text(tip);
-    let mut changed = false;
-    ui.horizontal(|ui| {
-        for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
-            changed |= ui
-                .add(
-                    egui::DragValue::new(c)
-                        .speed(speed)
-                        .max_decimals(4)
-                        .prefix(format!("{axis} ")),
-                )
-                .on_hover_text(tip)
-                .changed();
-        }
-    });
+    let changed = ui.horizontal(|ui| vec3_fields(ui, v, speed, "", tip)).inner;
     ui.end_row();
+    changed
+}
+
+/// Three DragValues for `v` in the current row, prefixed `{prefix}x`, `{prefix}y`, `{prefix}z`;
+/// returns whether one changed.
+fn vec3_fields(ui: &mut egui::Ui, v: &mut Vec3, speed: f64, prefix: &str, tip: &str) -> bool {
+    let mut changed = false;
+    for (axis, c) in ["x", "y", "z"].iter().zip([&mut v.x, &mut v.y, &mut v.z]) {
+        changed |= ui
+            .add(
+                egui::DragValue::new(c)
+                    .speed(speed)
+                    .max_decimals(4)
+                    .prefix(format!("{prefix}{axis} ")),
+            )
+            .on_hover_text(tip)
+            .changed();
+    }
     changed
 }
 
@@ -324,6 +329,8 @@ fn empty_zones_ui(
     if k.empty_zones.is_empty() {
         ui.weak("None: the whole object is drawn");
     }
+    // Drags move by about 1 % of the object's size per point.
+    let speed = 0.01 * f64::from(hint.1.max(0.01));
     let mut remove = None;
     egui::Grid::new(("krs_zones", id))
         .num_columns(3)
@@ -332,25 +339,11 @@ fn empty_zones_ui(
             for (i, z) in k.empty_zones.iter_mut().enumerate() {
                 ui.label(format!("Z{i}"));
                 ui.horizontal(|ui| {
-                    for (axis, c) in ["x", "y", "z"].iter().zip([
-                        &mut z.centre.x,
-                        &mut z.centre.y,
-                        &mut z.centre.z,
-                    ]) {
-                        changed |= ui
-                            .add(
-                                egui::DragValue::new(c)
-                                    .speed(0.01 * f64::from(hint.1.max(0.01)))
-                                    .max_decimals(4)
-                                    .prefix(format!("{axis} ")),
-                            )
-                            .on_hover_text("Centre in world space")
-                            .changed();
-                    }
+                    changed |= vec3_fields(ui, &mut z.centre, speed, "", "Centre in world space");
                     changed |= ui
                         .add(
                             egui::DragValue::new(&mut z.radius)
-                                .speed(0.01 * f64::from(hint.1.max(0.01)))
+                                .speed(speed)
                                 .max_decimals(4)
                                 .prefix("r "),
                         )
@@ -717,23 +710,13 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                             panel.mirror = (panel.mirror != Some(i)).then_some(i);
                         }
                         ui.horizontal(|ui| {
-                            for (axis, c) in ["x", "y", "z"].iter().zip([
-                                &mut m.normal.x,
-                                &mut m.normal.y,
-                                &mut m.normal.z,
-                            ]) {
-                                changed |= ui
-                                    .add(
-                                        egui::DragValue::new(c)
-                                            .speed(0.01)
-                                            .max_decimals(4)
-                                            .prefix(format!("n{axis} ")),
-                                    )
-                                    .on_hover_text(
-                                        "Plane normal: non-zero, normalised when accepted",
-                                    )
-                                    .changed();
-                            }
+                            changed |= vec3_fields(
+                                ui,
+                                &mut m.normal,
+                                0.01,
+                                "n",
+                                "Plane normal: non-zero, normalised when accepted",
+                            );
                         });
                         changed |= ui
                             .add(
