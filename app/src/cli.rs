@@ -291,6 +291,10 @@ pub struct TradeoffArgs {
     /// renderer's image, so GPU-only differences count as error).
     #[arg(long)]
     pub gpu: bool,
+    /// The most memory the sweep's CPU frames may need, e.g. 2G or 512MiB (default: half of
+    /// physical memory). A sweep estimated over it is refused before it starts.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// How `thicket export` meshes voxel models and KRS objects.
@@ -1413,6 +1417,16 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         repeats: args.frames,
         ..SweepSettings::default()
     };
+    if let Ok(bytes) =
+        thicket_core::measure::estimate_sweep_peak_bytes(&doc, width, height, &settings)
+    {
+        memory_budget(args.memory_limit).check(
+            &format!("{}: sweeping at {width}x{height}", args.project.display()),
+            bytes,
+            "lower --size or leave out the largest --knob values, or raise the limit with \
+             --memory-limit",
+        )?;
+    }
     let bar = progress_bar(1, "reference");
     let progress = |done: usize, total: usize, label: &str| {
         bar.set_length(total as u64);

@@ -1145,6 +1145,45 @@ fn a_render_over_the_memory_limit_is_refused_at_once_with_its_estimate() {
     );
 }
 
+#[test]
+fn a_tradeoff_sweep_over_the_memory_limit_is_refused_before_it_renders() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let out = dir.path().join("sweep");
+    let run = |size: &str, limit: &str| {
+        thicket(&[
+            "tradeoff",
+            project.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--size",
+            size,
+            "--knob",
+            "lod_pixel_threshold=1,4",
+            "--no-presets",
+            "--frames",
+            "1",
+            "--memory-limit",
+            limit,
+        ])
+    };
+    let o = run("4096x4096", "256M");
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("error: ")
+            && err.contains(": sweeping at 4096x4096 would need about ")
+            && err.contains("over the limit of 256.0 MiB (--memory-limit): lower --size"),
+        "{err}"
+    );
+    assert_eq!(err.lines().count(), 1, "said once: {err}");
+    assert!(!out.exists(), "nothing written");
+    // A small sweep fits the same limit and writes its report.
+    let o = run("32x32", "256M");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(out.join("report.json").is_file());
+}
+
 /// Every bad input is said once, on one line, naming the input and what is wrong: no cause
 /// repeated by its wrapper, no blame on the output, no parser position said twice.
 #[test]

@@ -112,3 +112,25 @@ fn a_cancelled_sweep_keeps_the_last_report_and_the_document() {
     assert!(app.tradeoff.report().is_none());
     assert!(!app.editor.is_dirty());
 }
+
+#[test]
+fn a_sweep_over_the_memory_budget_is_refused_before_its_job_starts() {
+    let mut app = mixed_sample();
+    app.tradeoff.size_px = 256;
+    app.memory_budget = thicket_core::budget::MemoryBudget::given(256 << 10);
+    app.start_tradeoff_sweep();
+    assert!(!app.job_running(), "no job over the budget");
+    let said = app.error_dialog.clone().expect("the refusal is shown");
+    assert!(
+        said.starts_with("Trade-off sweep at 256 x ")
+            && said.contains("over the limit of 256.0 KiB")
+            && said.ends_with("use a smaller sweep size"),
+        "{said}"
+    );
+    // Within the budget the same sweep starts.
+    app.error_dialog = None;
+    app.memory_budget = thicket_core::budget::MemoryBudget::given(1 << 30);
+    app.start_tradeoff_sweep();
+    assert!(app.job_running());
+    app.cancel_job(&egui::Context::default());
+}

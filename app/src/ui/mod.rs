@@ -564,6 +564,20 @@ impl EditorApp {
 
     fn spawn_sweep(&mut self, job: tradeoff::SweepJob) {
         let label = format!("Trade-off sweep at {} x {} px", job.width, job.height);
+        // Refused before the job starts when the estimate is over the memory budget; a sweep
+        // the core would refuse for its settings starts and reports that error as before.
+        if let Ok(bytes) = thicket_core::measure::estimate_sweep_peak_bytes(
+            &job.doc,
+            job.width,
+            job.height,
+            &job.settings,
+        ) && let Err(over) = self
+            .memory_budget
+            .check(&label, bytes, "use a smaller sweep size")
+        {
+            self.error_dialog = Some(over.to_string());
+            return;
+        }
         let mut spawned = Job::spawn(label, move |progress, cancel| {
             let report = thicket_core::measure::sweep_document_with_cancel(
                 &job.doc,

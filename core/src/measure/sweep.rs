@@ -644,6 +644,46 @@ where
     Ok(report)
 }
 
+/// Bytes a CPU sweep keeps per pixel besides the frame it is drawing: the reference's image
+/// and G-buffer (kept for every comparison) and the current setting's first frame (kept while
+/// its repeats run).
+const SWEEP_KEPT_BYTES_PER_PIXEL: u64 = 2
+    * (std::mem::size_of::<[u8; 4]>()
+        + std::mem::size_of::<f32>()
+        + std::mem::size_of::<crate::render::PixelId>()
+        + 2 * std::mem::size_of::<glam::Vec3>()) as u64;
+
+/// Estimated peak heap bytes of [`sweep_document`] at `width`×`height`: the largest frame it
+/// draws (the reference's or any setting's, each from [`crate::render::estimate_peak_bytes`])
+/// plus the frames it keeps between renders. The document itself is not counted. Callers check
+/// it against a [`crate::budget::MemoryBudget`] before starting a sweep.
+///
+/// # Errors
+/// [`SweepError`] for settings that [`sweep_document`] would refuse.
+pub fn estimate_sweep_peak_bytes(
+    doc: &Document,
+    width: u32,
+    height: u32,
+    settings: &SweepSettings,
+) -> Result<u64, SweepError> {
+    for k in &settings.knobs {
+        k.check()?;
+    }
+    let frame = |q: &Quality| {
+        let mut req = RenderRequest::new(width, height);
+        req.quality = q.clone();
+        crate::render::estimate_peak_bytes(doc, &req)
+    };
+    let largest = settings_of(settings)?
+        .iter()
+        .map(|s| frame(&s.quality))
+        .chain([frame(&reference_quality())])
+        .max()
+        .unwrap_or(0);
+    let kept = (u64::from(width) * u64::from(height)).saturating_mul(SWEEP_KEPT_BYTES_PER_PIXEL);
+    Ok(largest.saturating_add(kept))
+}
+
 /// [`sweep`] with the CPU reference renderer on a document, from its camera, against
 /// [`reference_quality`].
 ///
@@ -862,6 +902,68 @@ mod tests {
         assert!(matches!(r, Err(SweepError::Cancelled)), "{r:?}");
         // base (= lod 1, merged), lod 2, 4, 8.
         assert_eq!(seen, [(0, 4), (1, 4), (2, 4)]);
+    }
+
+    #[test]
+    fn the_sweep_estimate_holds_the_measured_peak_without_overstating_it() {
+        let house_path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/house.thicket.json");
+        let house = crate::io::project::load(&house_path).expect("the house sample");
+        let sphere = crate::render::scenes::sphere_document(6, 0.4).unwrap();
+        let shadows = SweepSettings {
+            knobs: vec![KnobValues::parse("shadow_map_size=256,2048").unwrap()],
+            presets: false,
+            repeats: 1,
+            ..SweepSettings::default()
+        };
+        let presets = SweepSettings {
+            knobs: vec![KnobValues::parse("lod_pixel_threshold=1,4").unwrap()],
+            repeats: 2,
+            ..SweepSettings::default()
+        };
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .expect("a one-thread pool");
+        for (name, doc, (w, h), settings) in [
+            ("house 160x120 shadow sizes", &house, (160, 120), &shadows),
+            ("house 96x96 presets", &house, (96, 96), &presets),
+            ("sphere 128x128 presets", &sphere, (128, 128), &presets),
+        ] {
+            let estimate = estimate_sweep_peak_bytes(doc, w, h, settings).unwrap();
+            let (report, peak) = pool.install(|| {
+                crate::io::fuzz::peak_heap_bytes(|| {
+                    sweep_document(doc, w, h, settings, |_, _, _| {})
+                })
+            });
+            let report = report.unwrap();
+            eprintln!(
+                "{name}: {} settings, peak {peak} B, estimate {estimate} B ({:.2}x)",
+                report.points.len(),
+                estimate as f64 / peak as f64
+            );
+            assert!(
+                peak > u64::from(w * h) * 32,
+                "{name}: a sweep holds more than two frames' images ({peak})"
+            );
+            assert!(
+                estimate >= peak,
+                "{name}: estimate {estimate} below the measured peak {peak}"
+            );
+            assert!(
+                estimate <= 3 * peak,
+                "{name}: estimate {estimate} over 3x the measured peak {peak}"
+            );
+        }
+        // A knob the sweep would refuse is refused by the estimate too.
+        let bad = SweepSettings {
+            knobs: vec![KnobValues {
+                name: "no_such_knob".to_owned(),
+                values: vec!["1".to_owned()],
+            }],
+            ..SweepSettings::default()
+        };
+        assert!(estimate_sweep_peak_bytes(&sphere, 64, 64, &bad).is_err());
     }
 
     #[test]
