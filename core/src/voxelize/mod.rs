@@ -421,8 +421,9 @@ pub struct VoxelEstimate {
 
 /// Heap bytes [`voxelize`] holds at its peak per voxel of its result (overlap records, surface
 /// and interior voxel lists, column crossings and the octree being built). Measured with a
-/// counting allocator at 71–166 bytes on Spot, the Bevy torus and the Kenney rock at depths
-/// 6–8 in both modes (`the_voxelize_estimate_holds_the_measured_peak`).
+/// counting allocator at 71–166 bytes on Spot, the Bevy torus and the Kenney rock, and at
+/// 75–114 bytes on the skinned CesiumMan and RiggedFigure (joints and weights per voxel), at
+/// depths 6–8 in both modes (`the_voxelize_estimate_holds_the_measured_peak`).
 pub const PEAK_BYTES_PER_VOXEL: u64 = 180;
 /// Allocations that do not grow with the voxel count (triangle offsets, octree roots).
 pub const PEAK_BYTES_FIXED: u64 = 256 << 10;

@@ -945,7 +945,20 @@ fn the_voxelize_estimate_holds_the_measured_peak() {
     let spot = crate::io::import_obj(&asset("static/spot/spot_triangulated.obj")).unwrap();
     let torus = crate::io::import_gltf(&asset("static/bevy_torus.gltf")).unwrap();
     let rock = crate::io::import_gltf(&asset("static/kenney_rock_largeA.glb")).unwrap();
-    for (name, m) in [("spot", &spot), ("torus", &torus), ("rock", &rock)] {
+    // Skinned meshes: every voxel also carries its joints and weights.
+    let man = crate::skin::import_skinned(asset("skinned/CesiumMan.glb"))
+        .unwrap()
+        .mesh;
+    let figure = crate::skin::import_skinned(asset("skinned/RiggedFigure.glb"))
+        .unwrap()
+        .mesh;
+    for (name, m) in [
+        ("spot", &spot),
+        ("torus", &torus),
+        ("rock", &rock),
+        ("cesiumman", &man),
+        ("figure", &figure),
+    ] {
         for depth in [6u8, 8] {
             for mode in [Mode::Surface, Mode::Solid] {
                 let s = settings(Resolution::Depth(depth), mode);
