@@ -209,6 +209,12 @@ impl KrsObject {
     /// Checks the object and returns a copy with every normal and direction normalised.
     /// `index` only labels the error.
     pub fn validated(&self, index: usize) -> Result<KrsObject, KrsError> {
+        self.clone().into_validated(index)
+    }
+
+    /// [`KrsObject::validated`] without the copy: checks the object and normalises its normals
+    /// and directions in place.
+    pub fn into_validated(self, index: usize) -> Result<KrsObject, KrsError> {
         let object = index;
         if self.kernels.len() != self.mirrors.len() + 1 {
             return Err(KrsError::KernelCount {
@@ -217,7 +223,7 @@ impl KrsObject {
                 mirrors: self.mirrors.len(),
             });
         }
-        let mut out = self.clone();
+        let mut out = self;
         for (mirror, m) in out.mirrors.iter_mut().enumerate() {
             if !m.normal.is_finite() || !m.offset.is_finite() {
                 return Err(KrsError::NonFiniteMirror { object, mirror });
@@ -233,11 +239,16 @@ impl KrsObject {
             // Normalise in two stages so huge and tiny normals both work, keeping the plane.
             let scaled = m.normal / scale;
             let len = scaled.length();
-            let normal = scaled.try_normalize().ok_or(KrsError::ZeroMirrorNormal {
-                object,
-                mirror,
-                normal: m.normal,
-            })?;
+            // `Vec3::try_normalize`, reusing the length it would compute again.
+            let rcp = len.recip();
+            if !(rcp.is_finite() && rcp > 0.0) {
+                return Err(KrsError::ZeroMirrorNormal {
+                    object,
+                    mirror,
+                    normal: m.normal,
+                });
+            }
+            let normal = scaled * rcp;
             let offset = m.offset / scale / len;
             if !offset.is_finite() {
                 return Err(KrsError::NonFiniteMirror { object, mirror });

@@ -734,39 +734,14 @@ impl Document {
     /// The first invalid value, naming the object or light.
     pub fn validate(&self) -> Result<(), SceneError> {
         for o in &self.objects {
-            let ctx = format!("object {:?} (id {})", o.name, o.id);
-            o.transform.validate(&ctx)?;
-            match &o.kind {
-                ObjectKind::Voxels(v) => {
-                    if !(v.voxel_size.is_finite() && v.voxel_size > 0.0) {
-                        return Err(invalid(
-                            "voxel_size",
-                            &ctx,
-                            format!("{} must be positive", v.voxel_size),
-                        ));
-                    }
-                    if !v.origin.is_finite() {
-                        return Err(invalid("origin", &ctx, "not finite"));
-                    }
-                    if let Some(rig) = &v.rig {
-                        rig.validate()
-                            .map_err(|e| invalid("rig", &ctx, e.to_string()))?;
-                        if !v.svo.has_skin() {
-                            return Err(invalid(
-                                "rig",
-                                &ctx,
-                                "the model has a rig but its voxels carry no skin weights",
-                            ));
-                        }
-                    }
-                }
-                ObjectKind::Mesh(m) => {
-                    m.model
-                        .validate()
-                        .map_err(|(part, e)| invalid("mesh", &ctx, format!("part {part}: {e}")))?;
-                }
-                ObjectKind::Krs(k) => validate_krs(o, k, &ctx)?,
-            }
+            // The object's name is formatted only for an error: this runs on every load.
+            validate_object(o).map_err(|e| match e {
+                SceneError::Invalid { what, detail, .. } => SceneError::Invalid {
+                    what,
+                    context: format!("object {:?} (id {})", o.name, o.id),
+                    detail,
+                },
+            })?;
         }
         for l in &self.lights {
             l.validate()?;
@@ -828,6 +803,44 @@ fn uniform_scale(scale: Vec3) -> Option<f32> {
         .then_some(s)
 }
 
+/// Checks one object's numbers; the error's context is filled in by [`Document::validate`].
+fn validate_object(o: &Object) -> Result<(), SceneError> {
+    let ctx = "the object";
+    o.transform.validate(ctx)?;
+    match &o.kind {
+        ObjectKind::Voxels(v) => {
+            if !(v.voxel_size.is_finite() && v.voxel_size > 0.0) {
+                return Err(invalid(
+                    "voxel_size",
+                    ctx,
+                    format!("{} must be positive", v.voxel_size),
+                ));
+            }
+            if !v.origin.is_finite() {
+                return Err(invalid("origin", ctx, "not finite"));
+            }
+            if let Some(rig) = &v.rig {
+                rig.validate()
+                    .map_err(|e| invalid("rig", ctx, e.to_string()))?;
+                if !v.svo.has_skin() {
+                    return Err(invalid(
+                        "rig",
+                        ctx,
+                        "the model has a rig but its voxels carry no skin weights",
+                    ));
+                }
+            }
+        }
+        ObjectKind::Mesh(m) => {
+            m.model
+                .validate()
+                .map_err(|(part, e)| invalid("mesh", ctx, format!("part {part}: {e}")))?;
+        }
+        ObjectKind::Krs(k) => validate_krs(o, k, ctx)?,
+    }
+    Ok(())
+}
+
 fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> {
     if uniform_scale(o.transform.scale).is_none() {
         return Err(invalid(
@@ -855,7 +868,7 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
     // scales that overflows is caught too.
     let placed = o.krs_in_world().unwrap_or_else(|| k.clone());
     check_krs_magnitudes(&placed, ctx)?;
-    placed.validated(0).map_err(|e| {
+    placed.into_validated(0).map_err(|e| {
         // The KRS error counts objects within a KRS scene; here the context names the object.
         let msg = e.to_string();
         let detail = msg
@@ -895,7 +908,8 @@ fn check_krs_magnitudes(k: &KrsObject, ctx: &str) -> Result<(), SceneError> {
                 &format!("krs.kernels[{i}]"),
                 ctx,
                 format!(
-                    "a position or radius (after the object's transform) exceeds                      {MAX_KRS_MAGNITUDE:e}; its square would overflow in the renderer"
+                    "a position or radius (after the object's transform) exceeds \
+                     {MAX_KRS_MAGNITUDE:e}; its square would overflow in the renderer"
                 ),
             ));
         }
