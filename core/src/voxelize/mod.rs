@@ -12,6 +12,7 @@
 //! code, then distance to the voxel centre, then triangle index) and sorted before use, so the
 //! octree is identical whatever the thread count.
 
+mod fill;
 mod geometry;
 mod solid;
 mod surface;
@@ -26,7 +27,6 @@ use serde::{Deserialize, Serialize};
 use crate::mesh::{MeshError, MeshModel, TriangleMesh, linear_to_srgb};
 use crate::svo::{MAX_DEPTH, Skin4, Svo, SvoError, Voxel, encode_normal, morton_decode};
 use geometry::GridTriangle;
-use solid::{Crossing, Interval};
 use surface::{Budget, SurfaceRecord};
 
 /// How fine the grid is.
@@ -556,47 +556,58 @@ pub fn voxelize(
         });
     }
 
-    // Solid: column crossings → inside intervals.
-    let (mut crossings, intervals) = if settings.mode == Mode::Solid {
-        let budget = Budget::new(overlap_limit);
-        let mut crossings: Vec<Crossing> =
-            for_triangles(&tris, progress, (0.55, 0.7), |g, tri, out| {
-                solid::emit_crossings(tri, g, dims, &budget, out);
-            })?;
-        if budget.is_exceeded() {
-            return Err(VoxelizeError::TooManyVoxels {
-                limit: settings.max_voxels,
-                what: "column crossings",
-            });
-        }
-        let intervals = solid::intervals(&mut crossings, dims.z, settings.fill_rule);
+    // Solid: column crossings along three axes → inside runs, voted into the interior.
+    let fills = if settings.mode == Mode::Solid {
+        let mut fills = Vec::with_capacity(3);
         // An open mesh has no inside: filling it gives slabs, or the whole grid. It is open
         // at this resolution when a column along any axis enters it and does not leave (three
         // axes: a hole facing x is missed by every z column). Then only its surface is kept.
-        let mut open = solid::unbalanced_columns(&crossings, settings.fill_rule);
-        for axis in [Axis::X, Axis::Y] {
+        let mut open = 0;
+        for (i, axis) in fill::Axis::ALL.into_iter().enumerate() {
+            let from = 0.55 + 0.05 * i as f32;
+            let f = fill::cast(
+                &tris,
+                dims,
+                axis,
+                settings.fill_rule,
+                overlap_limit,
+                progress,
+                (from, from + 0.05),
+            )?;
+            open += f.open_columns;
             if open > 0 {
                 break;
             }
-            open += open_columns_along(&tris, dims, axis, settings.fill_rule, overlap_limit);
+            // Refused before the runs are expanded into voxels.
+            if f.inside_count().saturating_add(stats.surface_voxels) > settings.max_voxels {
+                return Err(VoxelizeError::TooManyVoxels {
+                    limit: settings.max_voxels,
+                    what: "interior voxels",
+                });
+            }
+            fills.push(f);
         }
         if open > 0 {
             stats.open_columns = open;
             stats.boundary_edges = boundary_edges(model);
             stats.solid_fell_back = true;
-            (Vec::new(), Vec::new())
+            None
         } else {
-            (crossings, intervals)
+            <[fill::AxisFill; 3]>::try_from(fills).ok()
         }
     } else {
-        (Vec::new(), Vec::new())
+        None
     };
-    let solid = settings.mode == Mode::Solid && !stats.solid_fell_back;
-    if solid {
-        stats.interior_voxels = intervals
-            .iter()
-            .map(|iv| u64::from(iv.k_hi - iv.k_lo) + 1)
-            .sum();
+    let interior = match &fills {
+        Some(fills) => Some(fill::vote(fills, |c| {
+            let (part, t) = tris.locate(c.gtri);
+            transfer(model, &model.parts[part], t, c.bary, has_skin)
+        })?),
+        None => None,
+    };
+    drop(fills);
+    if let Some(inside) = &interior {
+        stats.interior_voxels = inside.keys.len() as u64;
         if stats.interior_voxels.saturating_add(stats.surface_voxels) > settings.max_voxels {
             return Err(VoxelizeError::TooManyVoxels {
                 limit: settings.max_voxels,
@@ -619,9 +630,12 @@ pub fn voxelize(
             let tri = tris.grid(g);
             let centre = coord.as_dvec3() + DVec3::splat(0.5);
             let bary = tri.closest_barycentric(centre);
-            if solid && !keep_outer && !solid::is_interior(&intervals, coord) {
+            if let Some(inside) = &interior
+                && !keep_outer
+                && !inside.contains(coord)
+            {
                 let q = tri.point(bary);
-                if represented_inside(&intervals, dims, centre, q, &tri) {
+                if represented_inside(inside, dims, centre, q, &tri) {
                     return None;
                 }
             }
@@ -636,19 +650,9 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    let interior_voxels = if solid {
-        let crossing_voxels: Vec<Voxel> = crossings
-            .par_iter()
-            .map(|c| {
-                let (part, t) = tris.locate(c.gtri);
-                transfer(model, &model.parts[part], t, c.bary, has_skin)
-            })
-            .collect();
-        crossings.clear();
-        fill_intervals(&intervals, &crossing_voxels)
-    } else {
-        Vec::new()
-    };
+    let interior_voxels = interior
+        .map(fill::Interior::into_voxels)
+        .unwrap_or_default();
     if !progress(0.9) {
         return Err(VoxelizeError::Cancelled);
     }
@@ -668,46 +672,6 @@ pub fn voxelize(
         origin: plan.origin,
         stats,
     })
-}
-
-/// A ray axis for [`open_columns_along`].
-#[derive(Debug, Clone, Copy)]
-enum Axis {
-    X,
-    Y,
-}
-
-/// Columns along `axis` (through voxel centres) whose crossings of the mesh do not close
-/// under `rule`. The grid is rotated cyclically so that `axis` becomes z (a rotation keeps
-/// orientation, so entering and leaving keep their signs) and the z column walk is reused.
-/// Stops counting (returns what it has) when the crossings exceed `limit`.
-fn open_columns_along(
-    tris: &Triangles<'_>,
-    dims: UVec3,
-    axis: Axis,
-    rule: FillRule,
-    limit: u64,
-) -> u64 {
-    let turn = |v: DVec3| match axis {
-        Axis::X => DVec3::new(v.y, v.z, v.x),
-        Axis::Y => DVec3::new(v.z, v.x, v.y),
-    };
-    let turned_dims = match axis {
-        Axis::X => UVec3::new(dims.y, dims.z, dims.x),
-        Axis::Y => UVec3::new(dims.z, dims.x, dims.y),
-    };
-    let budget = Budget::new(limit);
-    let crossings: Result<Vec<Crossing>, _> =
-        for_triangles(tris, &|_| true, (0.0, 0.0), |g, tri, out| {
-            let turned = GridTriangle::new(tri.v.map(turn));
-            solid::emit_crossings(&turned, g, turned_dims, &budget, out);
-        });
-    let Ok(mut crossings) = crossings else {
-        return 0;
-    };
-    // Only the grouping by column matters for whether a column closes.
-    crossings.par_sort_unstable_by_key(|c| c.column);
-    solid::unbalanced_columns(&crossings, rule)
 }
 
 /// Edges used by an odd number of non-degenerate triangles, with vertices welded by exact
@@ -758,7 +722,7 @@ pub fn boundary_edges(model: &MeshModel) -> u64 {
 /// lands in a voxel whose centre is inside; for a part thinner than a voxel it passes through
 /// and lands outside, and the voxel is kept so thin parts do not vanish or detach.
 fn represented_inside(
-    intervals: &[Interval],
+    interior: &fill::Interior,
     dims: UVec3,
     centre: DVec3,
     q: DVec3,
@@ -774,27 +738,7 @@ fn represented_inside(
     if probe.min_element() < 0.0 || probe.cmpge(dims.as_dvec3()).any() {
         return false;
     }
-    solid::is_interior(intervals, probe.as_uvec3())
-}
-
-/// Interior voxels with the attributes of the nearer of their interval's two crossings.
-fn fill_intervals(intervals: &[Interval], crossing_voxels: &[Voxel]) -> Vec<(UVec3, Voxel)> {
-    intervals
-        .par_iter()
-        .flat_map_iter(|iv| {
-            let x = (iv.column & 0x1f_ffff) as u32;
-            let y = (iv.column >> 21) as u32;
-            (iv.k_lo..=iv.k_hi).map(move |k| {
-                let zc = f64::from(k) + 0.5;
-                let from = if zc - iv.z_in <= iv.z_out - zc {
-                    iv.entry
-                } else {
-                    iv.exit
-                };
-                (UVec3::new(x, y, k), crossing_voxels[from])
-            })
-        })
-        .collect()
+    interior.contains(probe.as_uvec3())
 }
 
 /// Attributes of the surface point with barycentric weights `bary` on triangle `t` of `part`:

@@ -154,16 +154,6 @@ pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule)
     out
 }
 
-/// Whether voxel `(x, y, z)` is interior; `intervals` sorted by column then z.
-pub(crate) fn is_interior(intervals: &[Interval], c: UVec3) -> bool {
-    let column = column_key(c.x, c.y);
-    let start = intervals.partition_point(|iv| iv.column < column);
-    intervals[start..]
-        .iter()
-        .take_while(|iv| iv.column == column)
-        .any(|iv| (iv.k_lo..=iv.k_hi).contains(&c.z))
-}
-
 /// Columns of `crossings` (sorted by column) that do not close under `rule`: a non-zero
 /// winding number, or an odd number of crossings, after the last one.
 pub(crate) fn unbalanced_columns(crossings: &[Crossing], rule: FillRule) -> u64 {

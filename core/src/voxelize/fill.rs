@@ -1,0 +1,237 @@
+//! Interior fill along three axes. Each axis casts one ray per voxel column (the grid rotated
+//! cyclically so the axis becomes z, which keeps orientation and so the signs of entering and
+//! leaving; see [`super::solid`]). A voxel is interior when at least two of the three axes say
+//! its centre is inside, so a column that grazes a face or an edge cannot add or remove a run
+//! on its own. An interior voxel takes the attributes of the nearest of the (up to six)
+//! crossings that bound it along the three axes, not the end of one fixed column: in a long
+//! body the nearest crossing is the flank beside it, not the nose or the tail.
+
+use glam::{DVec3, UVec3};
+use rayon::prelude::*;
+
+use super::geometry::GridTriangle;
+use super::solid::{self, Crossing, Interval};
+use super::surface::Budget;
+use super::{FillRule, Triangles, VoxelizeError, for_triangles};
+use crate::svo::{Voxel, morton_decode, morton_encode};
+
+/// A ray axis of the interior fill.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Axis {
+    Z,
+    X,
+    Y,
+}
+
+impl Axis {
+    /// The three axes, z first (ties between equally near crossings go to the earlier axis).
+    pub(crate) const ALL: [Axis; 3] = [Axis::Z, Axis::X, Axis::Y];
+
+    /// Grid coordinates rotated cyclically so that this axis becomes z.
+    fn turn(self, v: DVec3) -> DVec3 {
+        match self {
+            Axis::Z => v,
+            Axis::X => DVec3::new(v.y, v.z, v.x),
+            Axis::Y => DVec3::new(v.z, v.x, v.y),
+        }
+    }
+
+    /// The grid's dimensions as [`Axis::turn`] sees them.
+    fn turn_dims(self, d: UVec3) -> UVec3 {
+        match self {
+            Axis::Z => d,
+            Axis::X => UVec3::new(d.y, d.z, d.x),
+            Axis::Y => UVec3::new(d.z, d.x, d.y),
+        }
+    }
+
+    /// The grid voxel of turned voxel `t` (the inverse of [`Axis::turn`]).
+    fn unturn(self, t: UVec3) -> UVec3 {
+        match self {
+            Axis::Z => t,
+            Axis::X => UVec3::new(t.z, t.x, t.y),
+            Axis::Y => UVec3::new(t.y, t.z, t.x),
+        }
+    }
+}
+
+/// One axis's crossings (sorted by column, then position) and the inside runs they bound.
+pub(crate) struct AxisFill {
+    pub(crate) axis: Axis,
+    pub(crate) crossings: Vec<Crossing>,
+    pub(crate) intervals: Vec<Interval>,
+    /// Columns that do not close under the fill rule (the mesh is open along this axis).
+    pub(crate) open_columns: u64,
+}
+
+/// Casts `axis`'s column rays through every triangle and turns the crossings into inside runs.
+///
+/// # Errors
+/// [`VoxelizeError::TooManyVoxels`] when the crossings exceed `limit`, or a cancel.
+pub(crate) fn cast(
+    tris: &Triangles<'_>,
+    dims: UVec3,
+    axis: Axis,
+    rule: FillRule,
+    limit: u64,
+    progress: &dyn Fn(f32) -> bool,
+    range: (f32, f32),
+) -> Result<AxisFill, VoxelizeError> {
+    let turned_dims = axis.turn_dims(dims);
+    let budget = Budget::new(limit);
+    let mut crossings: Vec<Crossing> = for_triangles(tris, progress, range, |g, tri, out| {
+        if axis == Axis::Z {
+            solid::emit_crossings(tri, g, turned_dims, &budget, out);
+        } else {
+            let turned = GridTriangle::new(tri.v.map(|v| axis.turn(v)));
+            solid::emit_crossings(&turned, g, turned_dims, &budget, out);
+        }
+    })?;
+    if budget.is_exceeded() {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit,
+            what: "column crossings",
+        });
+    }
+    let intervals = solid::intervals(&mut crossings, turned_dims.z, rule);
+    let open_columns = solid::unbalanced_columns(&crossings, rule);
+    Ok(AxisFill {
+        axis,
+        crossings,
+        intervals,
+        open_columns,
+    })
+}
+
+impl AxisFill {
+    /// Voxels inside along this axis.
+    pub(crate) fn inside_count(&self) -> u64 {
+        self.intervals
+            .iter()
+            .map(|iv| u64::from(iv.k_hi - iv.k_lo) + 1)
+            .sum()
+    }
+
+    /// Every voxel inside along this axis, sorted by Morton code, with its distance to the
+    /// nearer of the two crossings bounding its run and that crossing.
+    fn inside(&self, slot: u32) -> Vec<Inside> {
+        let mut out: Vec<Inside> = self
+            .intervals
+            .par_iter()
+            .flat_map_iter(|iv| {
+                let x = (iv.column & 0x1f_ffff) as u32;
+                let y = (iv.column >> 21) as u32;
+                (iv.k_lo..=iv.k_hi).map(move |k| {
+                    let zc = f64::from(k) + 0.5;
+                    let (before, after) = (zc - iv.z_in, iv.z_out - zc);
+                    let (dist, crossing) = if before <= after {
+                        (before, iv.entry)
+                    } else {
+                        (after, iv.exit)
+                    };
+                    Inside {
+                        key: morton_encode(self.axis.unturn(UVec3::new(x, y, k))),
+                        dist: dist as f32,
+                        source: (slot << SLOT_SHIFT) | crossing as u32,
+                    }
+                })
+            })
+            .collect();
+        out.par_sort_unstable_by_key(|r| r.key);
+        out
+    }
+}
+
+/// Bits of [`Inside::source`] that hold the crossing index; the axis's slot is above them.
+const SLOT_SHIFT: u32 = 30;
+
+/// A voxel inside along one axis.
+#[derive(Debug, Clone, Copy)]
+struct Inside {
+    key: u64,
+    dist: f32,
+    /// Axis slot (0..3) above [`SLOT_SHIFT`], crossing index below.
+    source: u32,
+}
+
+/// The interior: voxels inside along at least two of the three axes, sorted by Morton code,
+/// each with the attributes of its nearest bounding crossing.
+pub(crate) struct Interior {
+    /// Morton codes, sorted.
+    pub(crate) keys: Vec<u64>,
+    /// Attributes, in the order of `keys`.
+    pub(crate) voxels: Vec<Voxel>,
+}
+
+impl Interior {
+    /// Whether voxel `c` is interior.
+    pub(crate) fn contains(&self, c: UVec3) -> bool {
+        self.keys.binary_search(&morton_encode(c)).is_ok()
+    }
+
+    /// The interior voxels with their coordinates.
+    pub(crate) fn into_voxels(self) -> Vec<(UVec3, Voxel)> {
+        self.keys
+            .into_par_iter()
+            .map(morton_decode)
+            .zip(self.voxels)
+            .collect()
+    }
+}
+
+/// Votes the three axes' runs into the interior. `attributes(crossing)` gives a crossing's
+/// attributes (called once per crossing of every axis).
+///
+/// # Errors
+/// [`VoxelizeError::TooManyVoxels`] when the crossings are too many to index (2^30 per axis).
+pub(crate) fn vote(
+    fills: &[AxisFill; 3],
+    attributes: impl Fn(&Crossing) -> Voxel + Sync,
+) -> Result<Interior, VoxelizeError> {
+    if fills.iter().any(|f| f.crossings.len() >= 1 << SLOT_SHIFT) {
+        return Err(VoxelizeError::TooManyVoxels {
+            limit: 1 << SLOT_SHIFT,
+            what: "column crossings on one axis",
+        });
+    }
+    let lists: Vec<Vec<Inside>> = (0u32..3).map(|s| fills[s as usize].inside(s)).collect();
+    let mut cursor = [0usize; 3];
+    let mut chosen: Vec<(u64, u32)> = Vec::with_capacity(lists[0].len());
+    while let Some(key) = (0..3)
+        .filter_map(|s| lists[s].get(cursor[s]).map(|r| r.key))
+        .min()
+    {
+        let mut votes = 0;
+        let mut best: Option<Inside> = None;
+        for s in 0..3 {
+            if let Some(&r) = lists[s].get(cursor[s])
+                && r.key == key
+            {
+                votes += 1;
+                cursor[s] += 1;
+                if best.is_none_or(|b| r.dist < b.dist) {
+                    best = Some(r);
+                }
+            }
+        }
+        if votes >= 2
+            && let Some(b) = best
+        {
+            chosen.push((key, b.source));
+        }
+    }
+    drop(lists);
+    let attrs: Vec<Vec<Voxel>> = fills
+        .iter()
+        .map(|f| f.crossings.par_iter().map(&attributes).collect())
+        .collect();
+    let mask = (1u32 << SLOT_SHIFT) - 1;
+    let voxels = chosen
+        .par_iter()
+        .map(|&(_, source)| attrs[(source >> SLOT_SHIFT) as usize][(source & mask) as usize])
+        .collect();
+    Ok(Interior {
+        keys: chosen.into_iter().map(|(k, _)| k).collect(),
+        voxels,
+    })
+}
