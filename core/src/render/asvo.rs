@@ -1183,7 +1183,7 @@ fn pixel_span(s0: f32, s1: f32, n: u32) -> (u32, u32) {
 /// |x| < 2^31; beyond that it saturates, and NaN gives 0: the result is only used clamped to
 /// the image, where it lands on the same edge as the true floor would.
 #[inline]
-fn floor_i32(x: f32) -> i32 {
+pub(crate) fn floor_i32(x: f32) -> i32 {
     // `x as i32` is the truncation, exactly representable as f32 when |x| < 2^31.
     let t = x as i32;
     if t as f32 > x { t.saturating_sub(1) } else { t }
@@ -1191,7 +1191,7 @@ fn floor_i32(x: f32) -> i32 {
 
 /// `x.ceil()` as [`floor_i32`].
 #[inline]
-fn ceil_i32(x: f32) -> i32 {
+pub(crate) fn ceil_i32(x: f32) -> i32 {
     let t = x as i32;
     if (t as f32) < x {
         t.saturating_add(1)
@@ -1298,6 +1298,55 @@ pub(crate) fn voxel_bounds(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The inline roundings equal the library's `floor`/`ceil` converted with `as i32`
+    /// (saturating, NaN to 0) for every class of float: one bit pattern in 251 of all 2^32
+    /// (every exponent, both signs, NaNs and infinities), and every float within a few ulps
+    /// of each integer from -70,000 to 70,000 and of the i32 limits.
+    #[test]
+    fn inline_floor_and_ceil_equal_the_library_for_every_float_class() {
+        let check = |x: f32| {
+            assert_eq!(
+                floor_i32(x),
+                x.floor() as i32,
+                "floor {x:e} ({:#x})",
+                x.to_bits()
+            );
+            assert_eq!(
+                ceil_i32(x),
+                x.ceil() as i32,
+                "ceil {x:e} ({:#x})",
+                x.to_bits()
+            );
+        };
+        let mut bits = 0u64;
+        while bits <= u64::from(u32::MAX) {
+            check(f32::from_bits(bits as u32));
+            bits += 251;
+        }
+        let near = |x: f32| {
+            let b = x.to_bits();
+            for d in 0..8 {
+                check(f32::from_bits(b.wrapping_add(d)));
+                check(f32::from_bits(b.wrapping_sub(d)));
+            }
+        };
+        for i in -70_000..=70_000 {
+            near(i as f32);
+            near(i as f32 + 0.5);
+        }
+        for x in [
+            2_147_483_648.0f32,
+            -2_147_483_648.0,
+            8_388_608.0,
+            -8_388_608.0,
+        ] {
+            near(x);
+        }
+        check(f32::NAN);
+        check(-f32::NAN);
+        check(-0.0);
+    }
 
     /// The integer spans equal their float definitions (floor and ceil, then clamped to the
     /// image) at the extremes: NaN, infinities, beyond `i32`, pixel edges and centres, ±0, and

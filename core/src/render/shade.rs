@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use super::MESH_ID_FLAG;
 use super::asvo::{
     FACE_BITS, PassSettings, QNode, VoxelInstance, VoxelScratch, draw_voxels, face_normal,
+    floor_i32,
 };
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
@@ -314,11 +315,9 @@ fn lookup(
     let q = cam.view_from_world.transform_point3(p_world + offset);
     let s = cam.project_view(q);
     let bias = 2.0 * texel_world + 1.5 * receiver_size_world;
-    (
-        cam.ndc_depth(s.z - bias),
-        s.x.floor() as i32,
-        s.y.floor() as i32,
-    )
+    // `floor_i32` is `floor() as i32` exactly, inline: the baseline x86-64 target has no
+    // rounding instruction, and the library `floorf` was called twice per lookup.
+    (cam.ndc_depth(s.z - bias), floor_i32(s.x), floor_i32(s.y))
 }
 
 /// The PCF window of radius `pcf` around texel `(ix, iy)` clamped to a `w`×`h` map, as
