@@ -382,7 +382,8 @@ impl Renderer {
         Ok(self.frame())
     }
 
-    /// The last frame drawn (empty buffers before the first).
+    /// The last frame drawn (empty buffers before the first; unspecified after a frame that
+    /// returned an error, until the next one succeeds).
     #[must_use]
     pub fn frame(&self) -> Frame<'_> {
         Frame {
