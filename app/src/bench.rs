@@ -11,9 +11,7 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use thicket_core::render::{
-    Quality, RenderRequest, ShadowCache, render_document, render_document_cached,
-};
+use thicket_core::render::{Quality, RenderRequest, Renderer as CpuRenderer, ShadowCache};
 use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::splat_bw::SplatBandwidth;
@@ -149,14 +147,19 @@ pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
         camera: Some(setup.camera_at(i)),
         quality: setup.quality.clone(),
     };
+    // One renderer for every frame, as the editor's preview keeps one: its buffers are made
+    // by the warm-up frame and reused by the timed ones.
+    let mut renderer = CpuRenderer::new();
     let mut cache = ShadowCache::new();
-    // The document does not change during the bench: one content key for every frame.
+    // The document does not change during the bench: one content key for every frame. The
+    // counters are copied out (a few levels) so the renderer is free for the next frame.
     let mut frame = |i: u32| {
-        if setup.orbit_deg == 0.0 {
-            render_document(setup.doc, &req(i))
+        let frame = if setup.orbit_deg == 0.0 {
+            renderer.render_document(setup.doc, &req(i))
         } else {
-            render_document_cached(setup.doc, &req(i), &mut cache, 0)
-        }
+            renderer.render_document_cached(setup.doc, &req(i), &mut cache, 0)
+        };
+        frame.map(|f| f.stats.clone())
     };
     // The traversal of the last frame that drew shadow maps (a reused map has none).
     let drawn = |st: &thicket_core::render::FrameStats| {
@@ -165,11 +168,11 @@ pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
             .any(|l| l.visited > 0)
             .then(|| level_totals(&st.shadow_levels))
     };
-    let mut shadow = drawn(&frame(0)?.2).unwrap_or_default();
+    let mut shadow = drawn(&frame(0)?).unwrap_or_default();
     if setup.orbit_deg != 0.0 {
         // The first frame of a content key keeps no map (see `ShadowCache`); the second draws
         // the one the orbit then reuses. Both are warm-up, so the timed frames are the orbit.
-        if let Some(s) = drawn(&frame(0)?.2) {
+        if let Some(s) = drawn(&frame(0)?) {
             shadow = s;
         }
     }
@@ -180,7 +183,7 @@ pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
     let mut shadow_maps_reused = 0;
     for i in 1..=frames.max(1) {
         let t0 = Instant::now();
-        let (_, _, stats) = frame(i)?;
+        let stats = frame(i)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
         shadow_maps_reused += stats.shadow_maps_reused;
         if let Some(s) = drawn(&stats) {

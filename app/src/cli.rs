@@ -1210,7 +1210,8 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     if !args.gpu {
         check_render_budget(&doc, (width, height), camera, &quality, args.memory_limit)?;
     }
-    // One GPU context for every frame of a turntable.
+    // One GPU context, or one CPU renderer (its frame buffers kept), for every frame of a
+    // turntable.
     let gpu = if args.gpu {
         Some(crate::gpu::GpuContext::new_headless(
             wgpu::PowerPreference::HighPerformance,
@@ -1218,11 +1219,14 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     } else {
         None
     };
-    let gpu = gpu.as_ref();
+    let mut backend = match gpu.as_ref() {
+        Some(ctx) => RenderBackend::Gpu(ctx),
+        None => RenderBackend::Cpu(Box::default()),
+    };
     let Some(frames) = args.turntable else {
         return render_one(
             args,
-            gpu,
+            &mut backend,
             &doc,
             camera,
             &quality,
@@ -1246,68 +1250,87 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         let path = args
             .output
             .with_file_name(format!("{stem}_{i:0digits$}.png"));
-        render_one(args, gpu, &doc, cam, &quality, (width, height), &path)?;
+        render_one(
+            args,
+            &mut backend,
+            &doc,
+            cam,
+            &quality,
+            (width, height),
+            &path,
+        )?;
     }
     Ok(())
 }
 
-/// Renders one frame of `doc` from `camera`, on `gpu` when given, and writes it to `output`
+/// What `thicket render` draws with, kept over a turntable's frames.
+enum RenderBackend<'a> {
+    Gpu(&'a crate::gpu::GpuContext),
+    Cpu(Box<thicket_core::render::Renderer>),
+}
+
+/// Renders one frame of `doc` from `camera` with `backend` and writes it to `output`
 /// (atomically).
 fn render_one(
     args: &RenderArgs,
-    gpu: Option<&crate::gpu::GpuContext>,
+    backend: &mut RenderBackend<'_>,
     doc: &thicket_core::scene::Document,
     camera: thicket_core::scene::OrbitCamera,
     quality: &thicket_core::render::Quality,
     (width, height): (u32, u32),
     output: &std::path::Path,
 ) -> anyhow::Result<()> {
-    use thicket_core::render::{RenderRequest, RgbaImage, render_document};
-    let (image, stats_json) = if let Some(ctx) = gpu {
-        let (pixels, stats) =
-            crate::gpu::render_with_context(ctx, doc, &camera, width, height, quality)
-                .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
-        let json = serde_json::json!({
-            "device": ctx.describe(),
-            "atomic_path": format!("{:?}", stats.atomic_path),
-            "splats": stats.splats,
-            "triangles": stats.triangles,
-            "queue_overflow": stats.queue_overflow,
-            "levels": stats.levels.iter().map(|l| serde_json::json!({
-                "visited": l.visited, "split": l.split, "splatted": l.splatted,
-                "frustum_culled": l.frustum_culled,
-            })).collect::<Vec<_>>(),
-            "pass_ms": stats.pass_ms.iter().map(|(n, ms)| serde_json::json!([n, ms])).collect::<Vec<_>>(),
-            "gpu_timestamps": stats.gpu_timestamps,
-            "total_ms": stats.total_ms,
-            "krs": {
-                "rays": stats.krs.rays, "hits": stats.krs.hits, "steps": stats.krs.steps,
-                "max_steps": stats.krs.max_steps, "exhausted": stats.krs.exhausted,
-                "shadow_rays": stats.krs.shadow_rays, "shadow_steps": stats.krs.shadow_steps,
-                "ao_evals": stats.krs.ao_evals,
-            },
-        });
-        (
-            RgbaImage {
+    use std::borrow::Cow;
+    use thicket_core::render::{RenderRequest, RgbaImage};
+    let (image, stats_json) = match backend {
+        RenderBackend::Gpu(ctx) => {
+            let (pixels, stats) =
+                crate::gpu::render_with_context(ctx, doc, &camera, width, height, quality)
+                    .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
+            let json = serde_json::json!({
+                "device": ctx.describe(),
+                "atomic_path": format!("{:?}", stats.atomic_path),
+                "splats": stats.splats,
+                "triangles": stats.triangles,
+                "queue_overflow": stats.queue_overflow,
+                "levels": stats.levels.iter().map(|l| serde_json::json!({
+                    "visited": l.visited, "split": l.split, "splatted": l.splatted,
+                    "frustum_culled": l.frustum_culled,
+                })).collect::<Vec<_>>(),
+                "pass_ms": stats.pass_ms.iter().map(|(n, ms)| serde_json::json!([n, ms])).collect::<Vec<_>>(),
+                "gpu_timestamps": stats.gpu_timestamps,
+                "total_ms": stats.total_ms,
+                "krs": {
+                    "rays": stats.krs.rays, "hits": stats.krs.hits, "steps": stats.krs.steps,
+                    "max_steps": stats.krs.max_steps, "exhausted": stats.krs.exhausted,
+                    "shadow_rays": stats.krs.shadow_rays, "shadow_steps": stats.krs.shadow_steps,
+                    "ao_evals": stats.krs.ao_evals,
+                },
+            });
+            (
+                Cow::Owned(RgbaImage {
+                    width,
+                    height,
+                    pixels,
+                }),
+                json,
+            )
+        }
+        RenderBackend::Cpu(renderer) => {
+            let request = RenderRequest {
                 width,
                 height,
-                pixels,
-            },
-            json,
-        )
-    } else {
-        let request = RenderRequest {
-            width,
-            height,
-            camera: Some(camera),
-            quality: quality.clone(),
-        };
-        let (image, _buffers, stats) = render_document(doc, &request)
-            .with_context(|| format!("{}: rendering", args.project.display()))?;
-        (
-            image,
-            serde_json::to_value(&stats).context("encoding the statistics")?,
-        )
+                camera: Some(camera),
+                quality: quality.clone(),
+            };
+            let frame = renderer
+                .render_document(doc, &request)
+                .with_context(|| format!("{}: rendering", args.project.display()))?;
+            (
+                Cow::Borrowed(frame.image),
+                serde_json::to_value(frame.stats).context("encoding the statistics")?,
+            )
+        }
     };
     // Write through a temporary sibling so a failed write leaves no partial PNG.
     let tmp = output.with_extension("png.tmp");

@@ -12,8 +12,7 @@ use anyhow::{Context as _, anyhow};
 use plotters::prelude::*;
 use thicket_core::measure::{SweepPoint, SweepReport, SweepSettings, reference_quality, sweep};
 use thicket_core::render::{
-    Camera, FrameBuffers, FrameStats, PixelId, QualityPreset, RenderError, RenderRequest,
-    RgbaImage, render_document,
+    Camera, FrameBuffers, FrameStats, PixelId, QualityPreset, RenderError, RenderRequest, RgbaImage,
 };
 use thicket_core::scene::Document;
 
@@ -361,6 +360,8 @@ pub fn gpu_sweep(
     let shadow_lights = doc.lights.iter().filter(|l| l.casts_shadows).count();
     let reference = reference_quality();
     let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
+    // The reference is drawn `repeats` times on the CPU: one renderer keeps its buffers.
+    let mut cpu = thicket_core::render::Renderer::new();
     let target = RenderTarget::new(&ctx.device, width, height)?;
     let backend = |e: GpuError| RenderError::Backend {
         renderer: "GPU",
@@ -375,7 +376,8 @@ pub fn gpu_sweep(
             if *q == reference {
                 let mut req = RenderRequest::new(width, height);
                 req.quality = q.clone();
-                return render_document(doc, &req);
+                cpu.render_document(doc, &req)?;
+                return Ok(cpu.take_frame());
             }
             let stats = renderer
                 .render(&ctx.device, &ctx.queue, doc, &doc.camera, q, &target)

@@ -9,7 +9,8 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
-    Quality, QualityPreset, RenderRequest, ShadowCache, render_document, render_document_cached,
+    Quality, QualityPreset, RenderRequest, Renderer, ShadowCache, render_document,
+    render_document_cached,
 };
 use thicket_core::scene::{Document, OrbitCamera};
 
@@ -205,6 +206,34 @@ fn benches(c: &mut Criterion) {
                     b.iter(|| black_box(render_document(&house, &req)));
                 });
             }
+        }
+        g.finish();
+
+        // Issue 25: a frame that keeps its buffers. The house (octree depth 6, a small model
+        // whose frame was dominated by making its buffers) from its project camera at 800×800
+        // with its own quality, and the near 3M-voxel sphere balanced: each drawn by the free
+        // function (a fresh renderer per frame: every buffer made and page-faulted again) and
+        // by one `Renderer` reused frame after frame.
+        let mut g = c.benchmark_group("reuse");
+        g.sample_size(10);
+        let house_req = RenderRequest {
+            width: 800,
+            height: 800,
+            camera: Some(house.camera),
+            quality: house.quality.clone(),
+        };
+        let sphere_req = request(near, shaded.clone());
+        for (name, doc, req) in [
+            ("house_800", &house, &house_req),
+            ("sphere_near_800", &big, &sphere_req),
+        ] {
+            g.bench_function(format!("{name}_fresh"), |b| {
+                b.iter(|| black_box(render_document(doc, req).is_ok()));
+            });
+            let mut renderer = Renderer::new();
+            g.bench_function(format!("{name}_reused"), |b| {
+                b.iter(|| black_box(renderer.render_document(doc, req).is_ok()));
+            });
         }
         g.finish();
 

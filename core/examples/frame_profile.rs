@@ -4,14 +4,18 @@
 //! and a check that a speed change kept the image (the hash). With `orbit`, the
 //! camera turns 2° a frame and shadow maps come from a [`ShadowCache`], as in the editor's CPU
 //! preview; with `edit`, the content key changes every frame, as while sculpting there. With
-//! `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too.
+//! `FRAME_PROFILE_LEVELS` set, the first frame's per-level counts are printed too. With
+//! `FRAME_PROFILE_REUSE` set, every frame is drawn by one [`Renderer`] (its buffers kept, as
+//! `thicket bench` and the editor's preview do) instead of the free functions' fresh buffers:
+//! run it under `/usr/bin/time` to compare page faults and kernel time.
 //!
 //! `cargo run --release -p thicket-core --example frame_profile -- [draft|balanced|final] [N]
 //! [orbit|edit]`
 
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
-    Quality, QualityPreset, RenderRequest, ShadowCache, render_document, render_document_cached,
+    FrameBuffers, FrameStats, Quality, QualityPreset, RenderError, RenderRequest, Renderer,
+    RgbaImage, ShadowCache, render_document, render_document_cached,
 };
 use thicket_core::scene::{Document, OrbitCamera};
 
@@ -64,17 +68,17 @@ fn main() {
         quality: Quality::preset(preset),
     };
     let mut cache = ShadowCache::new();
+    let mut renderer = std::env::var_os("FRAME_PROFILE_REUSE").map(|_| Renderer::new());
     for i in 0..frames {
-        let result = if orbit {
-            if let Some(c) = req.camera.as_mut() {
-                c.yaw_deg += 2.0;
-            }
-            render_document_cached(&doc, &req, &mut cache, 0)
-        } else if edit {
-            render_document_cached(&doc, &req, &mut cache, i as u64)
+        if orbit && let Some(c) = req.camera.as_mut() {
+            c.yaw_deg += 2.0;
+        }
+        let key = if edit {
+            Some(i as u64)
         } else {
-            render_document(&doc, &req)
+            orbit.then_some(0)
         };
+        let result = draw(&doc, &req, key, &mut cache, renderer.as_mut());
         match result {
             Ok((img, fb, st)) => {
                 if std::env::var_os("FRAME_PROFILE_LEVELS").is_some() && i == 0 {
@@ -103,6 +107,43 @@ fn main() {
             }
         }
     }
+}
+
+/// One frame, with a shadow cache when there is a content key, by `renderer` when there is one
+/// (its frame borrowed) or the free functions.
+fn draw<'a>(
+    doc: &Document,
+    req: &RenderRequest,
+    key: Option<u64>,
+    cache: &mut ShadowCache,
+    renderer: Option<&'a mut Renderer>,
+) -> Result<Drawn<'a>, RenderError> {
+    match (renderer, key) {
+        (Some(r), Some(k)) => r.render_document_cached(doc, req, cache, k).map(borrowed),
+        (Some(r), None) => r.render_document(doc, req).map(borrowed),
+        (None, Some(k)) => render_document_cached(doc, req, cache, k).map(owned),
+        (None, None) => render_document(doc, req).map(owned),
+    }
+}
+
+type Out<'a, T> = std::borrow::Cow<'a, T>;
+/// A frame's image, G-buffer and counters, owned or borrowed from a renderer.
+type Drawn<'a> = (
+    Out<'a, RgbaImage>,
+    Out<'a, FrameBuffers>,
+    Out<'a, FrameStats>,
+);
+
+fn borrowed(f: thicket_core::render::Frame<'_>) -> Drawn<'_> {
+    (
+        Out::Borrowed(f.image),
+        Out::Borrowed(f.buffers),
+        Out::Borrowed(f.stats),
+    )
+}
+
+fn owned<'a>((img, fb, st): (RgbaImage, FrameBuffers, FrameStats)) -> Drawn<'a> {
+    (Out::Owned(img), Out::Owned(fb), Out::Owned(st))
 }
 
 /// FNV-1a of the image bytes: equal hashes before and after a change show it kept the image.

@@ -224,8 +224,18 @@ struct CpuPreview {
     holes: Option<(egui::TextureHandle, HoleCounts)>,
     /// The stretch heat map of the shown image and its statistics.
     stretch: Option<(egui::TextureHandle, StretchStats)>,
-    /// Shadow maps kept while only the camera moves (one render at a time uses it).
-    shadows: Arc<Mutex<thicket_core::render::ShadowCache>>,
+    /// The renderer (its frame buffers) and the shadow maps kept while only the camera moves
+    /// (one render at a time uses them).
+    renderer: Arc<Mutex<PreviewRenderer>>,
+}
+
+/// What the CPU preview keeps from one render to the next.
+#[derive(Default)]
+struct PreviewRenderer {
+    /// Frame buffers, queues and shadow-map targets, reused while the view size holds.
+    renderer: thicket_core::render::Renderer,
+    /// Shadow maps kept while only the camera moves.
+    shadows: thicket_core::render::ShadowCache,
 }
 
 /// Outline colour of the selection.
@@ -625,11 +635,11 @@ impl View {
             self.cpu_image(ui, rect, editor)
         } else {
             self.gpu_image(ui, rect, editor);
-            // The preview's shadow maps (up to 64 MiB each at the final preset's 4096²) are
-            // of no use while the GPU draws; a render still running holds the lock and its
-            // maps go on the next frame.
-            if let Ok(mut maps) = self.cpu.shadows.try_lock() {
-                maps.clear();
+            // The preview's shadow maps (up to 64 MiB each at the final preset's 4096²) and
+            // frame buffers are of no use while the GPU draws; a render still running holds
+            // the lock and they go on the next frame.
+            if let Ok(mut kept) = self.cpu.renderer.try_lock() {
+                *kept = PreviewRenderer::default();
             }
             false
         };
@@ -960,7 +970,7 @@ impl View {
                 render_key(editor).hash(&mut h);
                 h.finish()
             };
-            let shadows = Arc::clone(&self.cpu.shadows);
+            let kept = Arc::clone(&self.cpu.renderer);
             let (tx, rx) = mpsc::channel();
             let request = thicket_core::render::RenderRequest {
                 width: size_px[0],
@@ -974,40 +984,38 @@ impl View {
                 let t0 = Instant::now();
                 // A panicked render left nothing half-written that matters: a map is stored
                 // whole or not at all.
-                let mut cache = shadows
+                let mut kept = kept
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner);
-                let result = thicket_core::render::render_document_cached(
-                    &doc,
-                    &request,
-                    &mut cache,
-                    content_key,
-                )
-                .map(|(image, buffers, _)| {
-                    let size = [image.width as usize, image.height as usize];
-                    let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
-                    let labels = buffers.ids.iter().map(|id| id.object).collect();
-                    let nodes = buffers.ids.iter().map(|id| id.node).collect();
-                    let stretch = if stretch {
-                        stretch_overlay(&doc, &request, &buffers.ids, size)
-                    } else {
-                        None
-                    };
-                    let ms = t0.elapsed().as_secs_f64() * 1e3;
-                    PreviewFrame {
-                        image: color,
-                        labels,
-                        nodes,
-                        ms,
-                        holes: if holes {
-                            hole_overlay(&doc, &request)
+                let PreviewRenderer { renderer, shadows } = &mut *kept;
+                let result = renderer
+                    .render_document_cached(&doc, &request, shadows, content_key)
+                    .map(|frame| {
+                        let (image, buffers) = (frame.image, frame.buffers);
+                        let size = [image.width as usize, image.height as usize];
+                        let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
+                        let labels = buffers.ids.iter().map(|id| id.object).collect();
+                        let nodes = buffers.ids.iter().map(|id| id.node).collect();
+                        let stretch = if stretch {
+                            stretch_overlay(&doc, &request, &buffers.ids, size)
                         } else {
                             None
-                        },
-                        stretch,
-                    }
-                })
-                .map_err(|e| e.to_string());
+                        };
+                        let ms = t0.elapsed().as_secs_f64() * 1e3;
+                        PreviewFrame {
+                            image: color,
+                            labels,
+                            nodes,
+                            ms,
+                            holes: if holes {
+                                hole_overlay(&doc, &request)
+                            } else {
+                                None
+                            },
+                            stretch,
+                        }
+                    })
+                    .map_err(|e| e.to_string());
                 // The view may be gone (window closed): nothing to hand back then.
                 let _ = tx.send(result);
             });

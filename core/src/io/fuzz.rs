@@ -21,12 +21,19 @@ use std::time::{Duration, Instant};
 use rand::{Rng, RngCore, SeedableRng};
 use rand_pcg::Pcg64;
 
-/// Counts live heap bytes per thread so a fuzz case's peak allocation can be bounded.
+/// Counts live heap bytes per thread so a fuzz case's peak allocation can be bounded, and
+/// allocation calls so a renderer's steady-state frame can be shown to make none.
 struct CountingAllocator;
 
 thread_local! {
     static LIVE_BYTES: Cell<i64> = const { Cell::new(0) };
     static PEAK_BYTES: Cell<i64> = const { Cell::new(0) };
+    static ALLOCATIONS: Cell<u64> = const { Cell::new(0) };
+}
+
+/// Counts one call that obtains memory (`alloc`, `alloc_zeroed`, `realloc`).
+fn count_allocation() {
+    let _ = ALLOCATIONS.try_with(|n| n.set(n.get() + 1));
 }
 
 fn track(delta: i64) {
@@ -51,6 +58,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
         let p = unsafe { System.alloc(layout) };
         if !p.is_null() {
             track(layout.size() as i64);
+            count_allocation();
         }
         p
     }
@@ -60,6 +68,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
         let p = unsafe { System.alloc_zeroed(layout) };
         if !p.is_null() {
             track(layout.size() as i64);
+            count_allocation();
         }
         p
     }
@@ -75,6 +84,7 @@ unsafe impl GlobalAlloc for CountingAllocator {
         let p = unsafe { System.realloc(ptr, layout, new_size) };
         if !p.is_null() {
             track(new_size as i64 - layout.size() as i64);
+            count_allocation();
         }
         p
     }
@@ -90,6 +100,14 @@ pub fn peak_heap_bytes<T>(f: impl FnOnce() -> T) -> (T, u64) {
     let out = f();
     let peak = PEAK_BYTES.with(Cell::get);
     (out, u64::try_from(peak - start).unwrap_or(0))
+}
+
+/// Runs `f` and returns its result with the number of allocation calls (`alloc`,
+/// `alloc_zeroed`, `realloc`) it made on this thread.
+pub fn heap_allocations<T>(f: impl FnOnce() -> T) -> (T, u64) {
+    let start = ALLOCATIONS.with(Cell::get);
+    let out = f();
+    (out, ALLOCATIONS.with(Cell::get) - start)
 }
 
 /// Number of cases per loader: `THICKET_FUZZ_CASES`, or `default`.

@@ -12,7 +12,7 @@ use super::image::MeasureError;
 use super::pareto::{Dominance, pareto_front};
 use crate::render::{
     Camera, FrameBuffers, FrameStats, Quality, QualityError, QualityPreset, RenderError,
-    RenderRequest, RgbaImage, render_document,
+    RenderRequest, Renderer, RgbaImage,
 };
 use crate::scene::Document;
 
@@ -721,6 +721,10 @@ pub fn sweep_document_with_cancel(
 ) -> Result<SweepReport, SweepError> {
     let camera = Camera::from_orbit(&doc.camera, width, height);
     let shadow_lights = doc.lights.iter().filter(|l| l.casts_shadows).count();
+    // One renderer for the whole sweep: its depth targets, queues and shadow maps are made
+    // once, so a setting's time is its drawing, not page faults. Each frame's image, G-buffer
+    // and counters are moved out, since the sweep keeps them.
+    let mut renderer = Renderer::new();
     sweep_with_cancel(
         settings,
         &reference_quality(),
@@ -729,7 +733,8 @@ pub fn sweep_document_with_cancel(
         |q| {
             let mut req = RenderRequest::new(width, height);
             req.quality = q.clone();
-            render_document(doc, &req)
+            renderer.render_document(doc, &req)?;
+            Ok(renderer.take_frame())
         },
         progress,
         cancel,
@@ -739,6 +744,7 @@ pub fn sweep_document_with_cancel(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::render::render_document;
 
     #[test]
     fn knob_specs_parse_and_refuse() {

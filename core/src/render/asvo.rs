@@ -98,16 +98,33 @@ struct Fast {
     inv_linear: Mat3,
 }
 
-/// What a traversal produced.
-pub(crate) struct VoxelPass {
-    /// `refs[i]` is the node drawn with id `(id_base + i) << FACE_BITS` (plus a face code in
-    /// the low bits for pixels of exact cubes; empty when refs were not requested).
+/// A traversal's queues, per-block tables and outputs, kept from one pass to the next (and
+/// from frame to frame by [`super::Renderer`]) so that a pass allocates only while they grow.
+#[derive(Default)]
+pub(crate) struct VoxelScratch {
+    fast: Vec<Option<Fast>>,
+    queue: Vec<QNode>,
+    next: Vec<QNode>,
+    deferred: Vec<Deferred>,
+    next_deferred: Vec<Deferred>,
+    blocks: Vec<BlockOut>,
+    bases: Vec<u64>,
+    dirty: Vec<u32>,
+    /// Output of the last pass: `refs[i]` is the node drawn with id `(id_base + i) <<
+    /// FACE_BITS` (plus a face code in the low bits for pixels of exact cubes; empty when refs
+    /// were not requested).
     pub(crate) refs: Vec<QNode>,
+    /// Output of the last pass: counters per octree level (trailing empty levels dropped).
+    pub(crate) levels: Vec<LevelStats>,
+}
+
+/// What a traversal produced besides the node references and level counters it leaves in its
+/// [`VoxelScratch`].
+pub(crate) struct VoxelPass {
     /// Pixels written by rectangle splats, and pixels tested by exact cubes (one ray–box test
     /// each), the two costs [`PassSettings::cube_pixel_threshold`] trades.
     pub(crate) rect_pixels: u64,
     pub(crate) cube_pixels: u64,
-    pub(crate) levels: Vec<LevelStats>,
     pub(crate) traversal_ms: f64,
     pub(crate) splat_ms: f64,
 }
@@ -347,74 +364,95 @@ struct Ctx<'a, 'b> {
     settings: &'a PassSettings<'a>,
 }
 
-/// Draws voxel objects into `target`.
+/// Draws voxel objects into `target`, with `scratch`'s buffers (its refs and levels are this
+/// pass's on return).
 pub(crate) fn draw_voxels(
     objects: &[VoxelInstance<'_>],
     cam: &Camera,
     target: &mut DepthTarget,
     settings: &PassSettings<'_>,
+    scratch: &mut VoxelScratch,
 ) -> VoxelPass {
+    let VoxelScratch {
+        fast,
+        queue,
+        next,
+        deferred,
+        next_deferred,
+        blocks,
+        bases,
+        dirty,
+        refs,
+        levels: level_stats,
+    } = scratch;
     let view_rot = cam.view_rotation();
-    let fast: Vec<Option<Fast>> = objects
-        .iter()
-        .map(|o| {
-            o.deform.uniform_affine().map(|a| {
-                let view_from_voxel = cam.view_from_world * glam::Mat4::from(a);
-                let linear = Mat3::from_mat4(view_from_voxel);
-                let abs = Mat3::from_cols(
-                    linear.x_axis.abs(),
-                    linear.y_axis.abs(),
-                    linear.z_axis.abs(),
-                );
-                let wl = Mat3::from(a.matrix3);
-                Fast {
-                    linear,
-                    translation: view_from_voxel.w_axis.truncate(),
-                    half_extent_unit: abs * Vec3::splat(0.5),
-                    edge_unit: wl
-                        .x_axis
-                        .length()
-                        .max(wl.y_axis.length())
-                        .max(wl.z_axis.length()),
-                    normal_view: linear.inverse().transpose(),
-                    inv_linear: linear.inverse(),
-                }
-            })
+    fast.clear();
+    fast.extend(objects.iter().map(|o| {
+        o.deform.uniform_affine().map(|a| {
+            let view_from_voxel = cam.view_from_world * glam::Mat4::from(a);
+            let linear = Mat3::from_mat4(view_from_voxel);
+            let abs = Mat3::from_cols(
+                linear.x_axis.abs(),
+                linear.y_axis.abs(),
+                linear.z_axis.abs(),
+            );
+            let wl = Mat3::from(a.matrix3);
+            Fast {
+                linear,
+                translation: view_from_voxel.w_axis.truncate(),
+                half_extent_unit: abs * Vec3::splat(0.5),
+                edge_unit: wl
+                    .x_axis
+                    .length()
+                    .max(wl.y_axis.length())
+                    .max(wl.z_axis.length()),
+                normal_view: linear.inverse().transpose(),
+                inv_linear: linear.inverse(),
+            }
         })
-        .collect();
+    }));
     let ctx = Ctx {
         objects,
-        fast: &fast,
+        fast: &fast[..],
         cam,
         view_rot,
         settings,
     };
     let levels = usize::from(crate::svo::MAX_DEPTH) + 1;
 
-    let mut queue: Vec<QNode> = objects
-        .iter()
-        .enumerate()
-        .filter(|(_, o)| !o.svo.is_empty() && (!settings.shadow_casters_only || o.casts_shadows))
-        .map(|(i, o)| QNode {
-            obj: i as u32,
-            node: o.svo.root(),
-        })
-        .collect();
+    queue.clear();
+    queue.extend(
+        objects
+            .iter()
+            .enumerate()
+            .filter(|(_, o)| {
+                !o.svo.is_empty() && (!settings.shadow_casters_only || o.casts_shadows)
+            })
+            .map(|(i, o)| QNode {
+                obj: i as u32,
+                node: o.svo.root(),
+            }),
+    );
+    refs.clear();
+    level_stats.clear();
+    level_stats.resize(levels, LevelStats::default());
+    deferred.clear();
 
     let mut out = VoxelPass {
-        refs: Vec::new(),
         rect_pixels: 0,
         cube_pixels: 0,
-        levels: vec![LevelStats::default(); levels],
         traversal_ms: 0.0,
         splat_ms: 0.0,
     };
+    let mut acc = Accum {
+        out: &mut out,
+        refs,
+        levels: level_stats,
+        bases,
+        dirty,
+    };
     let chunk_len = ((cam.width as usize * cam.height as usize) / 64).clamp(MIN_CHUNK, MAX_CHUNK);
-    let mut blocks: Vec<BlockOut> = Vec::new();
     let mut splat_count: u64 = 0;
-    let mut deferred: Vec<Deferred> = Vec::new();
-    let mut next: Vec<QNode> = Vec::new();
-    let mut next_deferred: Vec<Deferred> = Vec::new();
     while !queue.is_empty() || !deferred.is_empty() {
         next.clear();
         next_deferred.clear();
@@ -428,12 +466,12 @@ pub(crate) fn draw_voxels(
                 chunk,
                 &ctx,
                 target,
-                &mut blocks,
+                blocks,
                 levels,
                 &mut splat_count,
-                &mut out,
-                &mut next,
-                &mut next_deferred,
+                &mut acc,
+                next,
+                next_deferred,
                 |q, t, b| classify_node(&ctx, q, t, b),
             );
         }
@@ -443,22 +481,31 @@ pub(crate) fn draw_voxels(
                 chunk,
                 &ctx,
                 target,
-                &mut blocks,
+                blocks,
                 levels,
                 &mut splat_count,
-                &mut out,
-                &mut next,
-                &mut next_deferred,
+                &mut acc,
+                next,
+                next_deferred,
                 |d, t, b| redecide(&ctx, d, t, b),
             );
         }
-        std::mem::swap(&mut queue, &mut next);
-        std::mem::swap(&mut deferred, &mut next_deferred);
+        std::mem::swap(queue, next);
+        std::mem::swap(deferred, next_deferred);
     }
-    while out.levels.last().is_some_and(|l| l.visited == 0) {
-        out.levels.pop();
+    while acc.levels.last().is_some_and(|l| l.visited == 0) {
+        acc.levels.pop();
     }
     out
+}
+
+/// Where [`run_chunk`] adds what a chunk produced, and its scratch.
+struct Accum<'a> {
+    out: &'a mut VoxelPass,
+    refs: &'a mut Vec<QNode>,
+    levels: &'a mut Vec<LevelStats>,
+    bases: &'a mut Vec<u64>,
+    dirty: &'a mut Vec<u32>,
 }
 
 /// Classifies a chunk in parallel blocks, writes its splats (ids in chunk order), queues its
@@ -474,7 +521,7 @@ fn run_chunk<T: Sync>(
     blocks: &mut Vec<BlockOut>,
     levels: usize,
     splat_count: &mut u64,
-    out: &mut VoxelPass,
+    acc: &mut Accum<'_>,
     next: &mut Vec<QNode>,
     next_deferred: &mut Vec<Deferred>,
     per_item: impl Fn(&T, &DepthTarget, &mut BlockOut) + Sync,
@@ -496,7 +543,8 @@ fn run_chunk<T: Sync>(
         });
     let t1 = Instant::now();
     // Ids are positions in chunk order, so the image does not depend on the thread count.
-    let mut bases = Vec::with_capacity(n_blocks);
+    let bases = &mut *acc.bases;
+    bases.clear();
     let mut base = u64::from(ctx.settings.id_base) + *splat_count;
     for b in &blocks[..n_blocks] {
         bases.push(base);
@@ -530,24 +578,26 @@ fn run_chunk<T: Sync>(
                 }
             }
         });
-    let mut dirty: Vec<u32> = Vec::new();
+    let dirty = &mut *acc.dirty;
+    dirty.clear();
+    let out = &mut *acc.out;
     for b in &blocks[..n_blocks] {
         next.extend_from_slice(&b.children);
         next_deferred.extend_from_slice(&b.deferred);
         if ctx.settings.keep_refs {
-            out.refs.extend(b.splats.iter().map(|(_, q)| *q));
+            acc.refs.extend(b.splats.iter().map(|(_, q)| *q));
         }
         dirty.extend_from_slice(&b.dirty);
         out.rect_pixels += b.rect_pixels;
         out.cube_pixels += b.cube_pixels;
-        for (a, s) in out.levels.iter_mut().zip(&b.stats) {
+        for (a, s) in acc.levels.iter_mut().zip(&b.stats) {
             a.add(s);
         }
     }
     if ctx.settings.occlusion_culling {
-        target.update_dirty(&dirty);
+        target.update_dirty(dirty);
     } else {
-        target.clear_dirty(&dirty);
+        target.clear_dirty(dirty);
     }
     let t2 = Instant::now();
     out.traversal_ms += (t1 - t0).as_secs_f64() * 1e3;
@@ -1133,7 +1183,7 @@ fn pixel_span(s0: f32, s1: f32, n: u32) -> (u32, u32) {
 /// |x| < 2^31; beyond that it saturates, and NaN gives 0: the result is only used clamped to
 /// the image, where it lands on the same edge as the true floor would.
 #[inline]
-fn floor_i32(x: f32) -> i32 {
+pub(crate) fn floor_i32(x: f32) -> i32 {
     // `x as i32` is the truncation, exactly representable as f32 when |x| < 2^31.
     let t = x as i32;
     if t as f32 > x { t.saturating_sub(1) } else { t }
@@ -1141,7 +1191,7 @@ fn floor_i32(x: f32) -> i32 {
 
 /// `x.ceil()` as [`floor_i32`].
 #[inline]
-fn ceil_i32(x: f32) -> i32 {
+pub(crate) fn ceil_i32(x: f32) -> i32 {
     let t = x as i32;
     if (t as f32) < x {
         t.saturating_add(1)
@@ -1201,6 +1251,33 @@ fn children_front_to_back(
     n
 }
 
+/// Grows `out` by the world boxes of `n`'s descendants at level `stop` (or `n`'s own at or
+/// below it), visited depth first in octant order: recursion at most five deep, where a heap
+/// stack cost a frame allocations.
+fn grow_bounds(o: &VoxelInstance<'_>, n: NodeRef, stop: u8, out: &mut Option<(Vec3, Vec3)>) {
+    if n.level < stop {
+        for k in 0..8 {
+            if let Some(c) = o.svo.child(&n, k) {
+                grow_bounds(o, c, stop, out);
+            }
+        }
+        return;
+    }
+    let info = NodeInfo {
+        svo: o.svo,
+        node: n,
+    };
+    // The subtree box where the deformer has one (skinning), so nothing sticks out.
+    let d = o
+        .deform
+        .subtree_bounds(&info)
+        .unwrap_or_else(|| o.deform.deform(&info));
+    let a = d.half_axes_world;
+    let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+    let (lo, hi) = (d.center_world - he, d.center_world + he);
+    *out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+}
+
 /// World-space AABB of the objects, from their nodes a few levels down (tight enough to fit a
 /// shadow map, cheap whatever the model size).
 pub(crate) fn voxel_bounds(
@@ -1213,26 +1290,7 @@ pub(crate) fn voxel_bounds(
             continue;
         }
         let stop = o.svo.depth().min(5);
-        let mut stack = vec![o.svo.root()];
-        while let Some(n) = stack.pop() {
-            if n.level < stop {
-                stack.extend((0..8).filter_map(|k| o.svo.child(&n, k)));
-                continue;
-            }
-            let info = NodeInfo {
-                svo: o.svo,
-                node: n,
-            };
-            // The subtree box where the deformer has one (skinning), so nothing sticks out.
-            let d = o
-                .deform
-                .subtree_bounds(&info)
-                .unwrap_or_else(|| o.deform.deform(&info));
-            let a = d.half_axes_world;
-            let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
-            let (lo, hi) = (d.center_world - he, d.center_world + he);
-            out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
-        }
+        grow_bounds(o, o.svo.root(), stop, &mut out);
     }
     out
 }
@@ -1240,6 +1298,55 @@ pub(crate) fn voxel_bounds(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The inline roundings equal the library's `floor`/`ceil` converted with `as i32`
+    /// (saturating, NaN to 0) for every class of float: one bit pattern in 251 of all 2^32
+    /// (every exponent, both signs, NaNs and infinities), and every float within a few ulps
+    /// of each integer from -70,000 to 70,000 and of the i32 limits.
+    #[test]
+    fn inline_floor_and_ceil_equal_the_library_for_every_float_class() {
+        let check = |x: f32| {
+            assert_eq!(
+                floor_i32(x),
+                x.floor() as i32,
+                "floor {x:e} ({:#x})",
+                x.to_bits()
+            );
+            assert_eq!(
+                ceil_i32(x),
+                x.ceil() as i32,
+                "ceil {x:e} ({:#x})",
+                x.to_bits()
+            );
+        };
+        let mut bits = 0u64;
+        while bits <= u64::from(u32::MAX) {
+            check(f32::from_bits(bits as u32));
+            bits += 251;
+        }
+        let near = |x: f32| {
+            let b = x.to_bits();
+            for d in 0..8 {
+                check(f32::from_bits(b.wrapping_add(d)));
+                check(f32::from_bits(b.wrapping_sub(d)));
+            }
+        };
+        for i in -70_000..=70_000 {
+            near(i as f32);
+            near(i as f32 + 0.5);
+        }
+        for x in [
+            2_147_483_648.0f32,
+            -2_147_483_648.0,
+            8_388_608.0,
+            -8_388_608.0,
+        ] {
+            near(x);
+        }
+        check(f32::NAN);
+        check(-f32::NAN);
+        check(-0.0);
+    }
 
     /// The integer spans equal their float definitions (floor and ceil, then clamped to the
     /// image) at the extremes: NaN, infinities, beyond `i32`, pixel edges and centres, ±0, and

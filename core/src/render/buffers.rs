@@ -35,6 +35,7 @@ pub(crate) const TILE: u32 = 4;
 pub(crate) const SUPER: u32 = 8;
 
 /// The depth+id target with max-depth tiles for hierarchical occlusion culling.
+#[derive(Default)]
 pub(crate) struct DepthTarget {
     pub(crate) width: u32,
     pub(crate) height: u32,
@@ -50,31 +51,55 @@ pub(crate) struct DepthTarget {
     /// tested pixel by pixel, which culls at silhouettes where a tile is partly background.
     /// Updated only with the tiles, so culling decisions do not depend on thread timing.
     pixel_depth: Vec<f32>,
+    /// Scratch of [`Self::update_dirty`] and [`Self::update_all_tiles`], kept between frames.
+    tile_depths: Vec<[f32; (TILE * TILE) as usize]>,
+    supers: Vec<u32>,
+    all_tiles: Vec<u32>,
 }
 
 impl DepthTarget {
+    /// A cleared target of `width`×`height`: [`Self::reset`] of an empty one.
+    #[cfg(test)]
     pub(crate) fn new(width: u32, height: u32) -> Self {
+        let mut t = Self::default();
+        t.reset(width, height);
+        t
+    }
+
+    /// Clears the target for a frame of `width`×`height`, keeping its allocations: buffers
+    /// grow only when the size needs more than they ever held, so a renderer that draws frame
+    /// after frame into one target allocates nothing once it has seen its largest size (a
+    /// fresh target per frame cost a small model more in page faults than in drawing).
+    pub(crate) fn reset(&mut self, width: u32, height: u32) {
         let n = width as usize * height as usize;
         let tiles_x = width.div_ceil(TILE);
         let tiles_y = height.div_ceil(TILE);
         let supers_x = tiles_x.div_ceil(SUPER);
         let supers_y = tiles_y.div_ceil(SUPER);
         let nt = tiles_x as usize * tiles_y as usize;
-        Self {
-            width,
-            height,
-            keys: (0..n)
-                .into_par_iter()
-                .map(|_| AtomicU64::new(EMPTY_KEY))
-                .collect(),
-            tiles_x,
-            tiles_y,
-            tile_max: vec![f32::INFINITY; nt],
-            tile_dirty: (0..nt).map(|_| AtomicBool::new(false)).collect(),
-            supers_x,
-            super_max: vec![f32::INFINITY; supers_x as usize * supers_y as usize],
-            pixel_depth: vec![f32::INFINITY; n],
+        self.width = width;
+        self.height = height;
+        self.tiles_x = tiles_x;
+        self.tiles_y = tiles_y;
+        self.supers_x = supers_x;
+        self.keys.truncate(n);
+        self.keys
+            .par_iter_mut()
+            .for_each(|k| *k.get_mut() = EMPTY_KEY);
+        self.keys.resize_with(n, || AtomicU64::new(EMPTY_KEY));
+        self.pixel_depth.clear();
+        self.pixel_depth
+            .par_extend(rayon::iter::repeat_n(f32::INFINITY, n));
+        self.tile_max.clear();
+        self.tile_max.resize(nt, f32::INFINITY);
+        self.tile_dirty.truncate(nt);
+        for d in &mut self.tile_dirty {
+            *d.get_mut() = false;
         }
+        self.tile_dirty.resize_with(nt, || AtomicBool::new(false));
+        self.super_max.clear();
+        self.super_max
+            .resize(supers_x as usize * supers_y as usize, f32::INFINITY);
     }
 
     /// Writes one fragment (keeps the minimum key).
@@ -131,11 +156,14 @@ impl DepthTarget {
 
     /// Recomputes every tile (after triangles were rasterised straight into the keys).
     pub(crate) fn update_all_tiles(&mut self) {
-        let all: Vec<u32> = (0..self.tile_max.len() as u32).collect();
+        let mut all = std::mem::take(&mut self.all_tiles);
+        all.clear();
+        all.extend(0..self.tile_max.len() as u32);
         for d in &self.tile_dirty {
             d.store(true, Ordering::Relaxed);
         }
         self.update_dirty(&all);
+        self.all_tiles = all;
     }
 
     /// Clears the dirty flags of the listed tiles without recomputing them (no culling).
@@ -167,13 +195,16 @@ impl DepthTarget {
         if dirty.is_empty() {
             return;
         }
+        let mut depths = std::mem::take(&mut self.tile_depths);
+        let mut supers = std::mem::take(&mut self.supers);
+        depths.clear();
+        supers.clear();
         let this = &*self;
-        let depths: Vec<[f32; (TILE * TILE) as usize]> = if dirty.len() > 1024 {
-            dirty.par_iter().map(|&t| this.tile_depths(t)).collect()
+        if dirty.len() > 1024 {
+            depths.par_extend(dirty.par_iter().map(|&t| this.tile_depths(t)));
         } else {
-            dirty.iter().map(|&t| this.tile_depths(t)).collect()
-        };
-        let mut supers: Vec<u32> = Vec::with_capacity(dirty.len());
+            depths.extend(dirty.iter().map(|&t| this.tile_depths(t)));
+        }
         let (w, h) = (self.width, self.height);
         for (&t, d) in dirty.iter().zip(&depths) {
             let (tx, ty) = (t % self.tiles_x, t / self.tiles_x);
@@ -191,9 +222,11 @@ impl DepthTarget {
         }
         supers.sort_unstable();
         supers.dedup();
-        for s in supers {
+        for &s in &supers {
             self.refresh_super(s);
         }
+        self.tile_depths = depths;
+        self.supers = supers;
     }
 
     /// Recomputes coarse tile `s` from its fine tiles.
@@ -281,8 +314,15 @@ impl DepthTarget {
     }
 
     /// The packed keys as plain values.
+    #[cfg(test)]
     pub(crate) fn into_keys(self) -> Vec<u64> {
         self.keys.into_iter().map(AtomicU64::into_inner).collect()
+    }
+
+    /// The packed key of pixel `i` (row by row), once drawing is done.
+    #[inline]
+    pub(crate) fn key(&self, i: usize) -> u64 {
+        self.keys[i].load(Ordering::Relaxed)
     }
 }
 
@@ -308,7 +348,7 @@ pub enum ImageError {
 }
 
 /// An 8-bit sRGB RGBA image, rows top to bottom.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct RgbaImage {
     /// Width in pixels.
     pub width: u32,
@@ -396,7 +436,7 @@ pub struct PixelId {
 }
 
 /// The resolved buffers of a frame.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub struct FrameBuffers {
     /// Width in pixels.
     pub width: u32,

@@ -9,7 +9,8 @@
 //!
 //! Entry points: [`render_document`] for a [`Document`], [`render_scene`] for callers that bring
 //! their own per-node transform ([`NodeDeform`], e.g. skinning), [`render_scene_with_krs`] to
-//! add KRS objects to such a scene.
+//! add KRS objects to such a scene. A caller that draws frame after frame keeps a [`Renderer`]
+//! instead: it owns every frame buffer, so a steady-state frame allocates nothing.
 
 mod asvo;
 mod buffers;
@@ -25,6 +26,8 @@ mod stats;
 
 #[cfg(test)]
 mod krs_tests;
+#[cfg(test)]
+mod renderer_tests;
 #[cfg(test)]
 mod tests;
 
@@ -229,7 +232,8 @@ fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
 }
 
 /// Renders a document: validates it, places every visible object with its rigid transform and
-/// renders with [`render_scene`].
+/// renders with [`render_scene`]. A temporary [`Renderer`]: callers that draw frame after frame
+/// keep one instead.
 ///
 /// # Errors
 /// [`RenderError`] for an empty or oversized image, an invalid document, camera or quality.
@@ -237,7 +241,9 @@ pub fn render_document(
     doc: &Document,
     req: &RenderRequest,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_document_inner(doc, req, None, true)
+    let mut r = Renderer::new();
+    r.render_document_inner(doc, req, None, true)?;
+    Ok(r.take_frame())
 }
 
 /// [`render_document`] for a viewer that renders one document again and again while its camera
@@ -254,77 +260,279 @@ pub fn render_document_cached(
     cache: &mut ShadowCache,
     content_key: u64,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_document_inner(doc, req, Some((cache, content_key)), true)
+    let mut r = Renderer::new();
+    r.render_document_inner(doc, req, Some((cache, content_key)), true)?;
+    Ok(r.take_frame())
 }
 
-/// `sampled_only`: see [`render_frame`].
-fn render_document_inner(
-    doc: &Document,
-    req: &RenderRequest,
-    cache: Option<(&mut ShadowCache, u64)>,
-    sampled_only: bool,
-) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    check_size(req.width, req.height)?;
-    doc.validate()?;
-    req.quality.validate()?;
-    let orbit = req.camera.unwrap_or(doc.camera);
-    orbit.validate()?;
-    let cam = Camera::from_orbit(&orbit, req.width, req.height);
+/// A frame a [`Renderer`] drew, borrowed from it until its next frame.
+#[derive(Debug, Clone, Copy)]
+pub struct Frame<'a> {
+    /// The shaded sRGB image.
+    pub image: &'a RgbaImage,
+    /// The resolved G-buffer.
+    pub buffers: &'a FrameBuffers,
+    /// What the frame cost.
+    pub stats: &'a FrameStats,
+}
 
-    let deforms = document_deforms(doc, &req.quality);
-    let mut scene = RenderScene {
-        voxels: Vec::new(),
-        meshes: Vec::new(),
-        lights: &doc.lights,
-        ambient: doc.ambient,
-        background: doc.background,
-    };
-    let mut krs_objects = Vec::new();
-    let mut krs_labels = Vec::new();
-    for (i, (o, d)) in doc.objects.iter().zip(&deforms).enumerate() {
-        if !o.visible {
-            continue;
+/// The CPU renderer with the state it keeps from one frame to the next: the view's depth
+/// target and occlusion tiles, the traversal's queues and per-block tables, the G-buffer, the
+/// image, each light's shadow map and the light pass's target, the shading pass's kernels.
+///
+/// Why: every buffer is sized by the image or the shadow map, so a frame that allocated them
+/// afresh paid for the allocation and, on a small model, more for the page faults of memory
+/// the allocator had returned to the system than for the drawing itself. A renderer grows its
+/// buffers when a frame needs more than any before it and never shrinks them, so a frame of a
+/// size it has seen allocates nothing (rigid voxel and mesh objects; KRS objects and skinned
+/// poses still allocate their own per-frame data). The images are the same as the free
+/// functions' ([`render_document`] and friends use a temporary renderer).
+#[derive(Default)]
+pub struct Renderer {
+    /// Where a document is turned into a [`RenderScene`].
+    doc: DocumentScratch,
+    frame: FrameState,
+}
+
+/// A document's per-frame scene lists, kept empty between frames (only their capacity).
+#[derive(Default)]
+struct DocumentScratch {
+    /// Per visible rigid voxel object: its transform.
+    rigid: Vec<RigidDeform>,
+    voxels: Vec<VoxelInstance<'static>>,
+    meshes: Vec<MeshInstance<'static>>,
+}
+
+/// An empty list of `U` in the allocation of `v` (same size and alignment: the types differ
+/// only in lifetimes), so a per-frame list of borrowed instances keeps its capacity from one
+/// frame to the next without holding the borrows. The standard library collects a consuming
+/// iterator into the source's allocation when the layouts match; where it would not, this
+/// allocates a fresh list and the results are the same.
+fn recycle<T, U>(mut v: Vec<T>) -> Vec<U> {
+    v.clear();
+    v.into_iter().filter_map(|_| None).collect()
+}
+
+/// The buffers a frame draws into.
+#[derive(Default)]
+struct FrameState {
+    target: buffers::DepthTarget,
+    voxels: asvo::VoxelScratch,
+    tris: Vec<raster::WorldTriangle>,
+    normal_mats: Vec<glam::Mat3>,
+    sampled: sampled::SampledTexels,
+    light_pass: shade::ShadowBuffers,
+    /// One per light: the map drawn for this frame alone (kept for its allocations).
+    own_maps: Vec<Option<shade::ShadowMap>>,
+    shadow_use: Vec<shade::ShadowUse>,
+    shade: shade::ShadeScratch,
+    image: RgbaImage,
+    fb: FrameBuffers,
+    stats: FrameStats,
+}
+
+impl Renderer {
+    /// A renderer with no buffers yet (the first frame allocates them).
+    #[must_use]
+    pub fn new() -> Self {
+        Self::default()
+    }
+
+    /// [`render_document`] into this renderer's buffers.
+    ///
+    /// # Errors
+    /// As [`render_document`].
+    pub fn render_document(
+        &mut self,
+        doc: &Document,
+        req: &RenderRequest,
+    ) -> Result<Frame<'_>, RenderError> {
+        self.render_document_inner(doc, req, None, true)?;
+        Ok(self.frame())
+    }
+
+    /// [`render_document_cached`] into this renderer's buffers.
+    ///
+    /// # Errors
+    /// As [`render_document`].
+    pub fn render_document_cached(
+        &mut self,
+        doc: &Document,
+        req: &RenderRequest,
+        cache: &mut ShadowCache,
+        content_key: u64,
+    ) -> Result<Frame<'_>, RenderError> {
+        self.render_document_inner(doc, req, Some((cache, content_key)), true)?;
+        Ok(self.frame())
+    }
+
+    /// [`render_scene_with_krs`] into this renderer's buffers.
+    ///
+    /// # Errors
+    /// As [`render_scene_with_krs`].
+    pub fn render_scene(
+        &mut self,
+        scene: &RenderScene<'_>,
+        krs_layer: &KrsLayer,
+        cam: &Camera,
+        quality: &Quality,
+    ) -> Result<Frame<'_>, RenderError> {
+        self.frame
+            .render(scene, krs_layer, cam, quality, None, true)?;
+        Ok(self.frame())
+    }
+
+    /// The last frame drawn (empty buffers before the first; unspecified after a frame that
+    /// returned an error, until the next one succeeds).
+    #[must_use]
+    pub fn frame(&self) -> Frame<'_> {
+        Frame {
+            image: &self.frame.image,
+            buffers: &self.frame.fb,
+            stats: &self.frame.stats,
         }
-        let label = i as u32 + 1;
-        if let Some(k) = o.krs_in_world() {
-            krs_objects.push(k);
-            krs_labels.push(label);
+    }
+
+    /// Moves the last frame's image, G-buffer and counters out (the next frame allocates them
+    /// again): for a caller that keeps them beyond the next frame.
+    pub fn take_frame(&mut self) -> (RgbaImage, FrameBuffers, FrameStats) {
+        (
+            std::mem::take(&mut self.frame.image),
+            std::mem::take(&mut self.frame.fb),
+            std::mem::take(&mut self.frame.stats),
+        )
+    }
+
+    /// `sampled_only`: see [`FrameState::render`].
+    fn render_document_inner(
+        &mut self,
+        doc: &Document,
+        req: &RenderRequest,
+        cache: Option<(&mut ShadowCache, u64)>,
+        sampled_only: bool,
+    ) -> Result<(), RenderError> {
+        check_size(req.width, req.height)?;
+        doc.validate()?;
+        req.quality.validate()?;
+        let orbit = req.camera.unwrap_or(doc.camera);
+        orbit.validate()?;
+        let cam = Camera::from_orbit(&orbit, req.width, req.height);
+
+        let DocumentScratch {
+            rigid,
+            voxels,
+            meshes,
+        } = &mut self.doc;
+        // Rigid objects' transforms in the renderer's list; skinned ones boxed (a pose is
+        // computed per frame anyway).
+        rigid.clear();
+        let mut skinned: Vec<Box<dyn NodeDeform + '_>> = Vec::new();
+        for o in doc.objects.iter().filter(|o| o.visible) {
+            if let ObjectKind::Voxels(v) = &o.kind {
+                match &v.rig {
+                    Some(rig) => skinned.push(skin_deform(o, v, rig, &req.quality)),
+                    None => rigid.push(rigid_deform(o, v)),
+                }
+            }
         }
-        match (&o.kind, d) {
-            (ObjectKind::Voxels(v), Some(d)) => scene.voxels.push(VoxelInstance {
-                svo: &v.svo,
-                deform: d.as_ref(),
+        let (mut rigid_iter, mut skinned_iter) = (rigid.iter(), skinned.iter());
+        let mut scene = RenderScene {
+            voxels: recycle(std::mem::take(voxels)),
+            meshes: recycle(std::mem::take(meshes)),
+            lights: &doc.lights,
+            ambient: doc.ambient,
+            background: doc.background,
+        };
+        let mut krs_objects = Vec::new();
+        let mut krs_labels = Vec::new();
+        for (i, o) in doc.objects.iter().enumerate() {
+            if !o.visible {
+                continue;
+            }
+            let label = i as u32 + 1;
+            if let Some(k) = o.krs_in_world() {
+                krs_objects.push(k);
+                krs_labels.push(label);
+            }
+            match &o.kind {
+                ObjectKind::Voxels(v) => {
+                    let deform: Option<&dyn NodeDeform> = if v.rig.is_some() {
+                        skinned_iter.next().map(|d| &**d as &dyn NodeDeform)
+                    } else {
+                        rigid_iter.next().map(|d| d as &dyn NodeDeform)
+                    };
+                    if let Some(deform) = deform {
+                        scene.voxels.push(VoxelInstance {
+                            svo: &v.svo,
+                            deform,
+                            casts_shadows: true,
+                            label,
+                        });
+                    }
+                }
+                ObjectKind::Mesh(m) => scene.meshes.push(MeshInstance {
+                    model: &m.model,
+                    world_from_object: o.transform.matrix(),
+                    casts_shadows: m.casts_shadows,
+                    label,
+                }),
+                // KRS objects were collected above for the sphere-tracing pass.
+                ObjectKind::Krs(_) => {}
+            }
+        }
+        // Validated above, so preparing cannot fail; the error is still reported, never
+        // unwrapped.
+        let krs_scene = crate::krs::KrsScene {
+            objects: krs_objects,
+        }
+        .prepare()
+        .map_err(|e| {
+            RenderError::InvalidDocument(SceneError::Invalid {
+                what: "krs".into(),
+                context: "document".into(),
+                detail: e.to_string(),
+            })
+        });
+        let result = krs_scene.and_then(|krs_scene| {
+            let krs = KrsLayer {
+                scene: krs_scene,
+                labels: krs_labels,
                 casts_shadows: true,
-                label,
-            }),
-            (ObjectKind::Mesh(m), _) => scene.meshes.push(MeshInstance {
-                model: &m.model,
-                world_from_object: o.transform.matrix(),
-                casts_shadows: m.casts_shadows,
-                label,
-            }),
-            // KRS objects were collected above for the sphere-tracing pass.
-            (ObjectKind::Voxels(_), None) | (ObjectKind::Krs(_), _) => {}
-        }
+            };
+            self.frame
+                .render(&scene, &krs, &cam, &req.quality, cache, sampled_only)
+        });
+        // Hand the lists' allocations back for the next frame.
+        *voxels = recycle(scene.voxels);
+        *meshes = recycle(scene.meshes);
+        result
     }
-    // Validated above, so preparing cannot fail; the error is still reported, never unwrapped.
-    let krs_scene = crate::krs::KrsScene {
-        objects: krs_objects,
-    }
-    .prepare()
-    .map_err(|e| {
-        RenderError::InvalidDocument(SceneError::Invalid {
-            what: "krs".into(),
-            context: "document".into(),
-            detail: e.to_string(),
-        })
-    })?;
-    let krs = KrsLayer {
-        scene: krs_scene,
-        labels: krs_labels,
-        casts_shadows: true,
-    };
-    render_frame(&scene, &krs, &cam, &req.quality, cache, sampled_only)
+}
+
+/// The transform of a rigid voxel object.
+fn rigid_deform(o: &crate::scene::Object, v: &crate::scene::VoxelModel) -> RigidDeform {
+    RigidDeform::new(o.transform.matrix() * v.object_from_voxel())
+}
+
+/// The per-node transform of a skinned voxel object at its rig's playback clip and time.
+fn skin_deform<'a>(
+    o: &'a crate::scene::Object,
+    v: &'a crate::scene::VoxelModel,
+    rig: &'a crate::skin::Rig,
+    quality: &Quality,
+) -> Box<dyn NodeDeform + 'a> {
+    let stretch = effective_stretch(rig, quality);
+    Box::new(
+        crate::skin::SkinDeform::for_rig(
+            rig,
+            &v.svo,
+            o.transform.matrix(),
+            v.object_from_voxel(),
+            rig.playback.clip,
+            rig.playback.time_secs,
+        )
+        .with_settings(stretch),
+    )
 }
 
 /// [`render_document`] with every caster drawn into its shadow maps, wherever the shading
@@ -334,7 +542,9 @@ pub(crate) fn render_document_full_shadow_maps(
     doc: &Document,
     req: &RenderRequest,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_document_inner(doc, req, None, false)
+    let mut r = Renderer::new();
+    r.render_document_inner(doc, req, None, false)?;
+    Ok(r.take_frame())
 }
 
 /// How much finer than wanted a cached shadow map may be and still be used, per axis: a map
@@ -414,23 +624,8 @@ pub fn document_deforms<'a>(
         .iter()
         .map(|o| match &o.kind {
             ObjectKind::Voxels(v) => Some(match &v.rig {
-                Some(rig) => {
-                    let stretch = effective_stretch(rig, quality);
-                    Box::new(
-                        crate::skin::SkinDeform::for_rig(
-                            rig,
-                            &v.svo,
-                            o.transform.matrix(),
-                            v.object_from_voxel(),
-                            rig.playback.clip,
-                            rig.playback.time_secs,
-                        )
-                        .with_settings(stretch),
-                    ) as Box<dyn NodeDeform>
-                }
-                None => Box::new(RigidDeform::new(
-                    o.transform.matrix() * v.object_from_voxel(),
-                )),
+                Some(rig) => skin_deform(o, v, rig, quality),
+                None => Box::new(rigid_deform(o, v)) as Box<dyn NodeDeform>,
             }),
             ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
@@ -478,166 +673,234 @@ pub fn render_scene_with_krs(
     cam: &Camera,
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    render_frame(scene, krs_layer, cam, quality, None, true)
+    let mut r = Renderer::new();
+    r.frame.render(scene, krs_layer, cam, quality, None, true)?;
+    Ok(r.take_frame())
 }
 
-/// [`render_scene_with_krs`], with shadow maps from and into `cache` when there is one.
-/// Without a cache, `sampled_only` draws casters into a map only where the frame's shading
-/// reads it (the image is the same either way; tests compare the two).
-fn render_frame(
-    scene: &RenderScene<'_>,
-    krs_layer: &KrsLayer,
-    cam: &Camera,
-    quality: &Quality,
-    cache: Option<(&mut ShadowCache, u64)>,
-    sampled_only: bool,
-) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
-    check_size(cam.width, cam.height)?;
-    quality.validate()?;
-    let t_start = Instant::now();
-    let mut stats = FrameStats::default();
+impl FrameState {
+    /// [`render_scene_with_krs`] into these buffers, with shadow maps from and into `cache`
+    /// when there is one. Without a cache, `sampled_only` draws casters into a map only where
+    /// the frame's shading reads it (the image is the same either way; tests compare the two).
+    fn render(
+        &mut self,
+        scene: &RenderScene<'_>,
+        krs_layer: &KrsLayer,
+        cam: &Camera,
+        quality: &Quality,
+        cache: Option<(&mut ShadowCache, u64)>,
+        sampled_only: bool,
+    ) -> Result<(), RenderError> {
+        check_size(cam.width, cam.height)?;
+        quality.validate()?;
+        let t_start = Instant::now();
+        let stats = &mut self.stats;
+        stats.reset();
 
-    let tris = raster::world_triangles(&scene.meshes);
-    stats.triangles = tris.len() as u64;
+        raster::world_triangles_into(&scene.meshes, &mut self.tris);
+        let tris = &self.tris[..];
+        stats.triangles = tris.len() as u64;
 
-    // View: triangles, then voxels into the same depth.
-    let t0 = Instant::now();
-    let mut target = buffers::DepthTarget::new(cam.width, cam.height);
-    stats.triangles_rasterised = raster::draw_triangles(&tris, &scene.meshes, cam, &target, false);
-    // With no triangle drawn the tiles are already right (all empty).
-    if stats.triangles_rasterised > 0 && quality.occlusion_culling {
-        target.update_all_tiles();
-    }
-    stats.times.triangles_ms = ms_since(t0);
-    let pass = asvo::draw_voxels(
-        &scene.voxels,
-        cam,
-        &mut target,
-        &asvo::PassSettings {
-            lod_pixel_threshold: quality.lod_pixel_threshold,
-            cube_pixel_threshold: quality.cube_pixel_threshold,
-            occlusion_culling: quality.occlusion_culling,
-            id_base: 0,
-            keep_refs: true,
-            shadow_casters_only: false,
-            sampled: None,
-        },
-    );
-    stats.levels = pass.levels;
-    stats.rect_pixels = pass.rect_pixels;
-    stats.cube_pixels = pass.cube_pixels;
-    stats.times.traversal_ms = pass.traversal_ms;
-    stats.times.splat_ms = pass.splat_ms;
-
-    let t0 = Instant::now();
-    let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, &target, quality);
-    stats.krs = krs_pass.stats;
-    stats.times.krs_ms = ms_since(t0);
-
-    let t0 = Instant::now();
-    let keys = target.into_keys();
-    let mut fb = shade::resolve(&keys, cam, &scene.voxels, &pass.refs, &scene.meshes, &tris);
-    shade::resolve_krs(&mut fb, &keys, &krs_pass, &krs_layer.labels);
-    stats.times.resolve_ms = ms_since(t0);
-    stats.covered_pixels = fb.covered_pixels() as u64;
-
-    // Shadow maps, after the view: a map drawn for this frame alone needs the G-buffer to
-    // know which texels its shading reads (see `SampledTexels`).
-    let t0 = Instant::now();
-    let mut shadows = Vec::with_capacity(scene.lights.len());
-    let bounds = scene_bounds(scene, &tris);
-    // A shadow map with nothing drawn into it would only cost every pixel its filter taps.
-    let has_casters = scene
-        .voxels
-        .iter()
-        .any(|v| v.casts_shadows && !v.svo.is_empty())
-        || tris
-            .iter()
-            .any(|t| scene.meshes[t.mesh as usize].casts_shadows);
-    // A cache made for other content, lights or quality holds nothing usable: start it afresh.
-    // That frame draws its maps as an uncached frame would (only the texels it reads) and
-    // keeps none: a change is often followed by another (a stroke, playback), and a full map
-    // costs more. The next frame with the same key draws full maps and keeps them.
-    let mut fresh_key = false;
-    let mut cache = cache.map(|(c, content)| {
-        let key = (content, scene.lights.to_vec(), quality.clone());
-        if c.key.as_ref() != Some(&key) {
-            c.key = Some(key);
-            c.maps.clear();
-            fresh_key = true;
+        // View: triangles, then voxels into the same depth.
+        let t0 = Instant::now();
+        let target = &mut self.target;
+        target.reset(cam.width, cam.height);
+        stats.triangles_rasterised =
+            raster::draw_triangles(tris, &scene.meshes, cam, target, false);
+        // With no triangle drawn the tiles are already right (all empty).
+        if stats.triangles_rasterised > 0 && quality.occlusion_culling {
+            target.update_all_tiles();
         }
-        c.maps.resize(scene.lights.len(), None);
-        c
-    });
-    for (li, light) in scene.lights.iter().enumerate() {
-        let map = match bounds {
-            Some((lo, hi)) if quality.shadows && light.casts_shadows && has_casters => {
-                // One texel per view pixel where the scene comes nearest the eye: each halving of
-                // the texel quadruples the shadow traversal for detail the view cannot resolve
-                // (PCF blurs over three texels anyway).
-                let finest = finest_shadow_texel(cam, lo, hi);
-                let fit = |texel: f32| {
-                    shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, texel)
-                };
-                fit(finest).map(|lc| {
-                    if let Some(m) = cache.as_ref().and_then(|c| c.reusable(li, &lc)) {
-                        stats.shadow_maps_reused += 1;
-                        return m;
-                    }
-                    // A map for this frame alone holds casters only where its shading reads;
-                    // a cached map serves other views too, so it holds them all.
-                    let keep = cache.is_some() && !fresh_key;
-                    let (lc, sampled) = if keep {
-                        (fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc), None)
-                    } else if !sampled_only {
-                        (lc, None)
-                    } else {
-                        let krs_pixels = &krs_pass.pixels;
-                        let s = shade::sampled_texels(&lc, light, &fb, cam, krs_pixels, quality);
-                        (lc, Some(s))
-                    };
-                    let m = Arc::new(shade::ShadowMap::render(
-                        lc,
-                        &scene.voxels,
-                        &scene.meshes,
-                        &tris,
-                        quality,
-                        sampled.as_ref(),
-                        &mut stats.shadow_levels,
-                    ));
-                    stats.shadow_cube_pixels += m.cube_pixels;
-                    if keep && let Some(c) = cache.as_mut() {
-                        c.maps[li] = Some(Arc::clone(&m));
-                    }
-                    m
-                })
-            }
-            _ => None,
-        };
-        shadows.push(map);
-    }
-    stats.times.shadow_ms = ms_since(t0);
+        stats.times.triangles_ms = ms_since(t0);
+        let pass = asvo::draw_voxels(
+            &scene.voxels,
+            cam,
+            target,
+            &asvo::PassSettings {
+                lod_pixel_threshold: quality.lod_pixel_threshold,
+                cube_pixel_threshold: quality.cube_pixel_threshold,
+                occlusion_culling: quality.occlusion_culling,
+                id_base: 0,
+                keep_refs: true,
+                shadow_casters_only: false,
+                sampled: None,
+            },
+            &mut self.voxels,
+        );
+        stats.levels.extend_from_slice(&self.voxels.levels);
+        stats.rect_pixels = pass.rect_pixels;
+        stats.cube_pixels = pass.cube_pixels;
+        stats.times.traversal_ms = pass.traversal_ms;
+        stats.times.splat_ms = pass.splat_ms;
 
-    let t0 = Instant::now();
-    let lighting = shade::Lighting {
-        lights: scene.lights,
-        shadows,
-        ambient: scene.ambient,
-        background: scene.background,
-        ao_radius_world: ao_radius_world(with_krs_bounds(bounds, &krs_layer.scene)),
-        krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
-    };
-    let (img, counts) = shade::shade(&fb, cam, &lighting, quality);
-    stats.shading = Some(counts.shading);
-    stats.krs.shadow_steps = counts.krs_shadow_steps;
-    stats.krs.ao_evals = counts.krs_ao_evals;
-    stats.krs.shadow_rays = lighting
-        .krs
-        .shadow_rays
-        .load(std::sync::atomic::Ordering::Relaxed);
-    stats.times.shade_ms = ms_since(t0);
-    stats.times.total_ms = ms_since(t_start);
-    Ok((img, fb, stats))
+        let t0 = Instant::now();
+        let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, target, quality);
+        stats.krs = krs_pass.stats;
+        stats.times.krs_ms = ms_since(t0);
+
+        let t0 = Instant::now();
+        let fb = &mut self.fb;
+        shade::resolve(
+            target,
+            cam,
+            &scene.voxels,
+            &self.voxels.refs,
+            &scene.meshes,
+            tris,
+            &mut self.normal_mats,
+            fb,
+        );
+        shade::resolve_krs(fb, target, &krs_pass, &krs_layer.labels);
+        stats.times.resolve_ms = ms_since(t0);
+        stats.covered_pixels = fb.covered_pixels() as u64;
+
+        // Shadow maps, after the view: a map drawn for this frame alone needs the G-buffer to
+        // know which texels its shading reads (see `SampledTexels`).
+        let t0 = Instant::now();
+        let shadow_use = &mut self.shadow_use;
+        // Dropped first: a cached map held here too could not be redrawn in place.
+        shadow_use.clear();
+        shadow_use.resize_with(scene.lights.len(), Default::default);
+        self.own_maps.truncate(scene.lights.len());
+        self.own_maps.resize_with(scene.lights.len(), || None);
+        let bounds = scene_bounds(scene, tris);
+        // A shadow map with nothing drawn into it would only cost every pixel its filter taps.
+        let has_casters = scene
+            .voxels
+            .iter()
+            .any(|v| v.casts_shadows && !v.svo.is_empty())
+            || tris
+                .iter()
+                .any(|t| scene.meshes[t.mesh as usize].casts_shadows);
+        // A cache made for other content, lights or quality holds nothing usable: start it
+        // afresh. That frame draws its maps as an uncached frame would (only the texels it
+        // reads) and keeps none: a change is often followed by another (a stroke, playback),
+        // and a full map costs more. The next frame with the same key draws full maps and
+        // keeps them.
+        let mut fresh_key = false;
+        let mut cache = cache.map(|(c, content)| {
+            let same = c.key.as_ref().is_some_and(|(k, lights, q)| {
+                *k == content && lights[..] == scene.lights[..] && q == quality
+            });
+            if !same {
+                c.key = Some((content, scene.lights.to_vec(), quality.clone()));
+                c.maps.clear();
+                fresh_key = true;
+            }
+            c.maps.resize(scene.lights.len(), None);
+            c
+        });
+        for (li, light) in scene.lights.iter().enumerate() {
+            let Some((lo, hi)) = bounds else { break };
+            if !(quality.shadows && light.casts_shadows && has_casters) {
+                continue;
+            }
+            // One texel per view pixel where the scene comes nearest the eye: each halving of
+            // the texel quadruples the shadow traversal for detail the view cannot resolve
+            // (PCF blurs over three texels anyway).
+            let finest = finest_shadow_texel(cam, lo, hi);
+            let fit = |texel: f32| {
+                shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, texel)
+            };
+            let Some(lc) = fit(finest) else { continue };
+            if let Some(m) = cache.as_ref().and_then(|c| c.reusable(li, &lc)) {
+                stats.shadow_maps_reused += 1;
+                shadow_use[li] = shade::ShadowUse::Cached(m);
+                continue;
+            }
+            // A map for this frame alone holds casters only where its shading reads; a cached
+            // map serves other views too, so it holds them all.
+            if let Some(c) = cache.as_mut().filter(|_| !fresh_key) {
+                let lc = fit(finest / SHADOW_CACHE_HEADROOM).unwrap_or(lc);
+                // The cache's old map is redrawn in place when nothing else holds it. It is out
+                // of the cache while drawn: a render that panics leaves no half-drawn map there.
+                let slot = &mut c.maps[li];
+                let mut kept = slot.take();
+                match kept.as_mut().and_then(Arc::get_mut) {
+                    Some(m) => {
+                        m.cam = lc;
+                        m.redraw(
+                            &scene.voxels,
+                            &scene.meshes,
+                            tris,
+                            quality,
+                            None,
+                            &mut stats.shadow_levels,
+                            &mut self.light_pass,
+                        );
+                    }
+                    None => {
+                        kept = Some(Arc::new(shade::ShadowMap::render(
+                            lc,
+                            &scene.voxels,
+                            &scene.meshes,
+                            tris,
+                            quality,
+                            None,
+                            &mut stats.shadow_levels,
+                            &mut self.light_pass,
+                        )));
+                    }
+                }
+                if let Some(m) = &kept {
+                    stats.shadow_cube_pixels += m.cube_pixels;
+                    shadow_use[li] = shade::ShadowUse::Cached(Arc::clone(m));
+                }
+                *slot = kept;
+                continue;
+            }
+            let sampled = if sampled_only {
+                let krs_pixels = &krs_pass.pixels;
+                shade::sampled_texels(&lc, light, fb, cam, krs_pixels, quality, &mut self.sampled);
+                Some(&self.sampled)
+            } else {
+                None
+            };
+            let map = self.own_maps[li].get_or_insert_with(|| shade::ShadowMap::empty(lc));
+            map.cam = lc;
+            map.redraw(
+                &scene.voxels,
+                &scene.meshes,
+                tris,
+                quality,
+                sampled,
+                &mut stats.shadow_levels,
+                &mut self.light_pass,
+            );
+            stats.shadow_cube_pixels += map.cube_pixels;
+            shadow_use[li] = shade::ShadowUse::Own;
+        }
+        stats.times.shadow_ms = ms_since(t0);
+
+        let t0 = Instant::now();
+        let lighting = shade::Lighting {
+            lights: scene.lights,
+            shadows: shadow_use,
+            own_maps: &self.own_maps,
+            ambient: scene.ambient,
+            background: scene.background,
+            ao_radius_world: ao_radius_world(with_krs_bounds(bounds, &krs_layer.scene)),
+            krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
+        };
+        let counts = shade::shade(
+            fb,
+            cam,
+            &lighting,
+            quality,
+            &mut self.image,
+            &mut self.shade,
+        );
+        stats.shading = Some(counts.shading);
+        stats.krs.shadow_steps = counts.krs_shadow_steps;
+        stats.krs.ao_evals = counts.krs_ao_evals;
+        stats.krs.shadow_rays = lighting
+            .krs
+            .shadow_rays
+            .load(std::sync::atomic::Ordering::Relaxed);
+        stats.times.shade_ms = ms_since(t0);
+        stats.times.total_ms = ms_since(t_start);
+        Ok(())
+    }
 }
 
 fn ms_since(t: Instant) -> f64 {

@@ -36,9 +36,18 @@ pub(crate) struct WorldTriangle {
     pub(crate) world: [Vec3; 3],
 }
 
-/// Every triangle of every mesh in world space, in a fixed order (index = id).
+/// [`world_triangles_into`] a new list.
+#[cfg(test)]
 pub(crate) fn world_triangles(meshes: &[MeshInstance<'_>]) -> Vec<WorldTriangle> {
     let mut out = Vec::new();
+    world_triangles_into(meshes, &mut out);
+    out
+}
+
+/// Every triangle of every mesh in world space, in a fixed order (index = id), into `out`
+/// (its allocation kept).
+pub(crate) fn world_triangles_into(meshes: &[MeshInstance<'_>], out: &mut Vec<WorldTriangle>) {
+    out.clear();
     for (mi, m) in meshes.iter().enumerate() {
         for (pi, part) in m.model.parts.iter().enumerate() {
             let n = part.triangle_count();
@@ -54,7 +63,6 @@ pub(crate) fn world_triangles(meshes: &[MeshInstance<'_>]) -> Vec<WorldTriangle>
             }));
         }
     }
-    out
 }
 
 /// Rasterises the selected triangles; returns how many reached the pixel loop.
@@ -105,13 +113,13 @@ fn draw_triangle(t: &WorldTriangle, cam: &Camera, target: &DepthTarget, id: u32)
     if n < 3 {
         return false;
     }
-    let s: Vec<Vec3> = poly[..n]
-        .iter()
-        .map(|&p| {
-            let q = cam.project_view(p);
-            Vec3::new(q.x, q.y, cam.ndc_depth(q.z))
-        })
-        .collect();
+    // Screen positions with NDC depth, on the stack (a heap list per triangle cost an
+    // allocation per triangle per frame).
+    let mut s = [Vec3::ZERO; 4];
+    for (si, &p) in s.iter_mut().zip(&poly[..n]) {
+        let q = cam.project_view(p);
+        *si = Vec3::new(q.x, q.y, cam.ndc_depth(q.z));
+    }
     let mut any = false;
     for k in 1..n - 1 {
         any |= fill(s[0], s[k], s[k + 1], cam, target, id);

@@ -17,6 +17,7 @@ const _: () = assert!((1u32 << TILE_SHIFT).is_multiple_of(super::buffers::TILE))
 
 /// Tiles of a shadow map that hold at least one texel some lookup reads, with a summed-area
 /// table so that a rectangle query costs four reads.
+#[derive(Default)]
 pub(crate) struct SampledTexels {
     width: u32,
     height: u32,
@@ -26,33 +27,59 @@ pub(crate) struct SampledTexels {
     read: Vec<bool>,
     /// `(tiles_x + 1) × (tiles_y + 1)` prefix sums of `read` (row 0 and column 0 zero).
     sums: Vec<u32>,
+    /// Scratch of [`Self::reset`]: the flags as the windows set them, from any thread.
+    marks: Vec<AtomicBool>,
 }
 
 impl SampledTexels {
     /// The mask of a `width`×`height` map from the inclusive texel windows of every lookup
     /// (`[x0, y0, x1, y1]`, inside the map). The result does not depend on the windows' order.
+    #[cfg(test)]
     pub(crate) fn new(
         width: u32,
         height: u32,
         windows: impl ParallelIterator<Item = [u32; 4]>,
     ) -> Self {
+        let mut m = Self::default();
+        m.reset(width, height, windows);
+        m
+    }
+
+    /// Makes this the mask of a `width`×`height` map from the inclusive texel windows of
+    /// every lookup (`[x0, y0, x1, y1]`, inside the map), keeping its allocations. The result
+    /// does not depend on the windows' order.
+    pub(crate) fn reset(
+        &mut self,
+        width: u32,
+        height: u32,
+        windows: impl ParallelIterator<Item = [u32; 4]>,
+    ) {
         let tiles_x = width.div_ceil(1 << TILE_SHIFT);
         let tiles_y = height.div_ceil(1 << TILE_SHIFT);
-        let read: Vec<AtomicBool> = (0..tiles_x as usize * tiles_y as usize)
-            .map(|_| AtomicBool::new(false))
-            .collect();
+        let n = tiles_x as usize * tiles_y as usize;
+        let marks = &mut self.marks;
+        marks.truncate(n);
+        for m in marks.iter_mut() {
+            *m.get_mut() = false;
+        }
+        marks.resize_with(n, || AtomicBool::new(false));
+        let flags = &marks[..];
         windows.for_each(|[x0, y0, x1, y1]| {
             for ty in y0 >> TILE_SHIFT..=y1 >> TILE_SHIFT {
                 for tx in x0 >> TILE_SHIFT..=x1 >> TILE_SHIFT {
-                    if let Some(t) = read.get((ty * tiles_x + tx) as usize) {
+                    if let Some(t) = flags.get((ty * tiles_x + tx) as usize) {
                         t.store(true, Ordering::Relaxed);
                     }
                 }
             }
         });
-        let read: Vec<bool> = read.into_iter().map(AtomicBool::into_inner).collect();
+        let read = &mut self.read;
+        read.clear();
+        read.extend(marks.iter_mut().map(|m| *m.get_mut()));
         let stride = tiles_x as usize + 1;
-        let mut sums = vec![0u32; stride * (tiles_y as usize + 1)];
+        let sums = &mut self.sums;
+        sums.clear();
+        sums.resize(stride * (tiles_y as usize + 1), 0);
         for ty in 0..tiles_y as usize {
             let mut row = 0u32;
             for tx in 0..tiles_x as usize {
@@ -60,14 +87,10 @@ impl SampledTexels {
                 sums[(ty + 1) * stride + tx + 1] = sums[ty * stride + tx + 1] + row;
             }
         }
-        Self {
-            width,
-            height,
-            tiles_x,
-            tiles_y,
-            read,
-            sums,
-        }
+        self.width = width;
+        self.height = height;
+        self.tiles_x = tiles_x;
+        self.tiles_y = tiles_y;
     }
 
     /// The texel rectangles (inclusive, inside the map) of the tiles no lookup reads.

@@ -4,7 +4,10 @@ use glam::{Mat3, Mat4, Vec3, Vec4Swizzles};
 use rayon::prelude::*;
 
 use super::MESH_ID_FLAG;
-use super::asvo::{FACE_BITS, PassSettings, QNode, VoxelInstance, draw_voxels, face_normal};
+use super::asvo::{
+    FACE_BITS, PassSettings, QNode, VoxelInstance, VoxelScratch, draw_voxels, face_normal,
+    floor_i32,
+};
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
 use super::deform::NodeInfo;
@@ -20,6 +23,14 @@ use crate::svo::decode_normal;
 /// Edge in texels of the shadow map's bound tiles (see [`ShadowMap::bounds`]). Large against
 /// the usual PCF windows (3×3, 5×5), so most windows lie in one tile and cost one read.
 const SHADOW_TILE: i32 = 16;
+
+/// What drawing a shadow map needs besides the map itself, kept between frames by
+/// [`super::Renderer`]: the light's depth target and the traversal's queues.
+#[derive(Default)]
+pub(crate) struct ShadowBuffers {
+    pub(crate) target: DepthTarget,
+    pub(crate) voxels: VoxelScratch,
+}
 
 /// A directional light's depth map.
 pub(crate) struct ShadowMap {
@@ -125,6 +136,10 @@ pub fn fit_light_camera(
 
 impl ShadowMap {
     /// Renders casters from the light with the same traversal and rasteriser as the view.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's parts and the renderer's kept buffers"
+    )]
     pub(crate) fn render(
         cam: Camera,
         voxels: &[VoxelInstance<'_>],
@@ -133,9 +148,45 @@ impl ShadowMap {
         quality: &Quality,
         sampled: Option<&SampledTexels>,
         levels: &mut Vec<LevelStats>,
+        buffers: &mut ShadowBuffers,
     ) -> Self {
-        let mut target = DepthTarget::new(cam.width, cam.height);
-        let drawn = draw_triangles(tris, meshes, &cam, &target, true);
+        let mut map = Self::empty(cam);
+        map.redraw(voxels, meshes, tris, quality, sampled, levels, buffers);
+        map
+    }
+
+    /// A map of `cam` with nothing drawn (no texels: call [`Self::redraw`]).
+    pub(crate) fn empty(cam: Camera) -> Self {
+        Self {
+            cam,
+            depth: Vec::new(),
+            texel_world: Self::texel_world(&cam),
+            bounds: Vec::new(),
+            tiles_x: 0,
+            cube_pixels: 0,
+        }
+    }
+
+    /// Draws the map again for its camera `cam` (set by the caller), keeping its own
+    /// allocations and drawing into `buffers`' (a renderer keeps both between frames).
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's parts and the renderer's kept buffers"
+    )]
+    pub(crate) fn redraw(
+        &mut self,
+        voxels: &[VoxelInstance<'_>],
+        meshes: &[MeshInstance<'_>],
+        tris: &[WorldTriangle],
+        quality: &Quality,
+        sampled: Option<&SampledTexels>,
+        levels: &mut Vec<LevelStats>,
+        buffers: &mut ShadowBuffers,
+    ) {
+        let cam = self.cam;
+        let target = &mut buffers.target;
+        target.reset(cam.width, cam.height);
+        let drawn = draw_triangles(tris, meshes, &cam, target, true);
         // With no triangle drawn the tiles are already right (all empty).
         if drawn > 0 && quality.occlusion_culling {
             target.update_all_tiles();
@@ -149,7 +200,7 @@ impl ShadowMap {
         let pass = draw_voxels(
             voxels,
             &cam,
-            &mut target,
+            target,
             &PassSettings {
                 lod_pixel_threshold: quality.lod_pixel_threshold,
                 cube_pixel_threshold: quality.cube_pixel_threshold,
@@ -159,19 +210,25 @@ impl ShadowMap {
                 shadow_casters_only: true,
                 sampled,
             },
+            &mut buffers.voxels,
         );
-        super::stats::FrameStats::merge_levels(levels, &pass.levels);
-        let texel_world = Self::texel_world(&cam);
-        let depth: Vec<f32> = target.into_keys().into_par_iter().map(key_depth).collect();
-        let (bounds, tiles_x) = tile_bounds(&depth, cam.width as i32, cam.height as i32, sampled);
-        Self {
-            cam,
-            depth,
-            texel_world,
-            bounds,
-            tiles_x,
-            cube_pixels: pass.cube_pixels,
-        }
+        super::stats::FrameStats::merge_levels(levels, &buffers.voxels.levels);
+        self.texel_world = Self::texel_world(&cam);
+        self.depth.clear();
+        let target = &buffers.target;
+        self.depth.par_extend(
+            (0..target.keys.len())
+                .into_par_iter()
+                .map(|i| key_depth(target.key(i))),
+        );
+        self.tiles_x = tile_bounds(
+            &self.depth,
+            cam.width as i32,
+            cam.height as i32,
+            sampled,
+            &mut self.bounds,
+        );
+        self.cube_pixels = pass.cube_pixels;
     }
 
     /// World size of one texel of a map seen through `cam`.
@@ -258,11 +315,9 @@ fn lookup(
     let q = cam.view_from_world.transform_point3(p_world + offset);
     let s = cam.project_view(q);
     let bias = 2.0 * texel_world + 1.5 * receiver_size_world;
-    (
-        cam.ndc_depth(s.z - bias),
-        s.x.floor() as i32,
-        s.y.floor() as i32,
-    )
+    // `floor_i32` is `floor() as i32` exactly, inline: the baseline x86-64 target has no
+    // rounding instruction, and the library `floorf` was called twice per lookup.
+    (cam.ndc_depth(s.z - bias), floor_i32(s.x), floor_i32(s.y))
 }
 
 /// The PCF window of radius `pcf` around texel `(ix, iy)` clamped to a `w`×`h` map, as
@@ -290,7 +345,8 @@ pub(crate) fn sampled_texels(
     view: &Camera,
     krs_pixels: &[Option<super::krs::KrsPixel>],
     quality: &Quality,
-) -> SampledTexels {
+    out: &mut SampledTexels,
+) {
     let texel_world = ShadowMap::texel_world(cam);
     let l = -light.direction.normalize_or_zero();
     let pcf = quality.shadow_pcf_radius.min(8) as i32;
@@ -307,7 +363,7 @@ pub(crate) fn sampled_texels(
         let (_, ix, iy) = lookup(cam, texel_world, p, fb.normal[i], receiver);
         pcf_window(ix, iy, pcf, w, h).map(|r| r.map(|v| v as u32))
     });
-    SampledTexels::new(cam.width, cam.height, windows)
+    out.reset(cam.width, cam.height, windows);
 }
 
 /// The world point and receiver size pixel `i` of `fb` is shaded with: a KRS pixel keeps its
@@ -338,50 +394,55 @@ fn tile_bounds(
     w: i32,
     h: i32,
     read: Option<&SampledTexels>,
-) -> (Vec<(f32, f32)>, i32) {
+    bounds: &mut Vec<(f32, f32)>,
+) -> i32 {
     let (tiles_x, tiles_y) = (
         (w + SHADOW_TILE - 1) / SHADOW_TILE,
         (h + SHADOW_TILE - 1) / SHADOW_TILE,
     );
-    let bounds = (0..tiles_x * tiles_y)
-        .into_par_iter()
-        .map(|t| {
-            let (tx, ty) = (t % tiles_x, t / tiles_x);
-            let mut b = (f32::INFINITY, f32::NEG_INFINITY);
-            for y in ty * SHADOW_TILE..((ty + 1) * SHADOW_TILE).min(h) {
-                let row = (y * w) as usize;
-                for x in tx * SHADOW_TILE..((tx + 1) * SHADOW_TILE).min(w) {
-                    if read.is_some_and(|m| !m.is_read(x as u32, y as u32)) {
-                        continue;
-                    }
-                    let d = depth[row + x as usize];
-                    b = (b.0.min(d), b.1.max(d));
+    bounds.clear();
+    bounds.par_extend((0..tiles_x * tiles_y).into_par_iter().map(|t| {
+        let (tx, ty) = (t % tiles_x, t / tiles_x);
+        let mut b = (f32::INFINITY, f32::NEG_INFINITY);
+        for y in ty * SHADOW_TILE..((ty + 1) * SHADOW_TILE).min(h) {
+            let row = (y * w) as usize;
+            for x in tx * SHADOW_TILE..((tx + 1) * SHADOW_TILE).min(w) {
+                if read.is_some_and(|m| !m.is_read(x as u32, y as u32)) {
+                    continue;
                 }
+                let d = depth[row + x as usize];
+                b = (b.0.min(d), b.1.max(d));
             }
-            b
-        })
-        .collect();
-    (bounds, tiles_x)
+        }
+        b
+    }));
+    tiles_x
 }
 
-/// Turns packed keys into the G-buffer.
+/// Turns the target's packed keys into the G-buffer `fb` (its allocations kept; `normal_mats`
+/// is scratch).
 #[allow(
     clippy::too_many_arguments,
     reason = "one call site; the arguments are the frame's parts"
 )]
 pub(crate) fn resolve(
-    keys: &[u64],
+    target: &DepthTarget,
     cam: &Camera,
     voxels: &[VoxelInstance<'_>],
     refs: &[QNode],
     meshes: &[MeshInstance<'_>],
     tris: &[WorldTriangle],
-) -> FrameBuffers {
+    normal_mats: &mut Vec<Mat3>,
+    fb: &mut FrameBuffers,
+) {
     let (w, h) = (cam.width, cam.height);
-    let normal_mats: Vec<Mat3> = meshes
-        .iter()
-        .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose())
-        .collect();
+    normal_mats.clear();
+    normal_mats.extend(
+        meshes
+            .iter()
+            .map(|m| Mat3::from_mat4(m.world_from_object).inverse().transpose()),
+    );
+    let normal_mats = &normal_mats[..];
     // What pixel `i` with a drawn key resolves to: depth, and the id, normal and albedo unless
     // they stay empty (KRS pixels, which `resolve_krs` fills).
     let pixel = |i: usize, key: u64| -> (f32, Option<(PixelId, Vec3, Vec3)>) {
@@ -456,17 +517,28 @@ pub(crate) fn resolve(
     // its drawn pixels (a third of a near frame's), one rayon task per row. Collecting the four
     // buffers from one per-pixel iterator (`unzip`) took half the resolve's time with no pixel
     // drawn at all.
-    let n = keys.len();
-    let mut depth = Vec::with_capacity(n);
+    let n = target.keys.len();
+    fb.width = w;
+    fb.height = h;
+    let FrameBuffers {
+        depth,
+        ids,
+        normal,
+        albedo,
+        ..
+    } = fb;
+    depth.clear();
     depth.par_extend(rayon::iter::repeat_n(1.0f32, n));
-    let mut ids = Vec::with_capacity(n);
+    ids.clear();
     ids.par_extend(rayon::iter::repeat_n(PixelId::default(), n));
-    let mut normal = Vec::with_capacity(n);
+    normal.clear();
     normal.par_extend(rayon::iter::repeat_n(Vec3::ZERO, n));
-    let mut albedo = Vec::with_capacity(n);
+    albedo.clear();
     albedo.par_extend(rayon::iter::repeat_n(Vec3::ZERO, n));
     let row = (w as usize).max(1);
-    keys.par_chunks(row)
+    target
+        .keys
+        .par_chunks(row)
         .zip(depth.par_chunks_mut(row))
         .zip(ids.par_chunks_mut(row))
         .zip(normal.par_chunks_mut(row))
@@ -474,10 +546,11 @@ pub(crate) fn resolve(
         .enumerate()
         .for_each(|(y, ((((k, d), id), nrm), alb))| {
             for x in 0..k.len() {
-                if k[x] == EMPTY_KEY {
+                let key = k[x].load(std::sync::atomic::Ordering::Relaxed);
+                if key == EMPTY_KEY {
                     continue;
                 }
-                let (depth, rest) = pixel(y * row + x, k[x]);
+                let (depth, rest) = pixel(y * row + x, key);
                 d[x] = depth;
                 if let Some((pid, nw, a)) = rest {
                     id[x] = pid;
@@ -486,14 +559,6 @@ pub(crate) fn resolve(
                 }
             }
         });
-    FrameBuffers {
-        width: w,
-        height: h,
-        depth,
-        ids,
-        normal,
-        albedo,
-    }
 }
 
 /// `(linear_to_srgb(c) * 255).round() as u8`, exactly, without `powf`: the byte is a monotonic
@@ -561,7 +626,12 @@ fn srgb_byte_to_linear(v: u8) -> f32 {
 
 /// Fills the G-buffer of pixels the KRS won: object label, kernel as node, the §6.1 normal and
 /// the textured albedo recorded when the ray hit.
-pub(crate) fn resolve_krs(fb: &mut FrameBuffers, keys: &[u64], pass: &KrsPass, labels: &[u32]) {
+pub(crate) fn resolve_krs(
+    fb: &mut FrameBuffers,
+    target: &DepthTarget,
+    pass: &KrsPass,
+    labels: &[u32],
+) {
     if pass.pixels.is_empty() {
         // No KRS object was traced: no pixel can be the KRS's.
         return;
@@ -572,8 +642,9 @@ pub(crate) fn resolve_krs(fb: &mut FrameBuffers, keys: &[u64], pass: &KrsPass, l
         .zip(fb.albedo.par_iter_mut())
         .enumerate()
         .for_each(|(i, ((id, nrm), alb))| {
-            let raw = (keys[i] & 0xffff_ffff) as u32;
-            if keys[i] == EMPTY_KEY || raw & KRS_ID_FLAG != KRS_ID_FLAG {
+            let key = target.key(i);
+            let raw = (key & 0xffff_ffff) as u32;
+            if key == EMPTY_KEY || raw & KRS_ID_FLAG != KRS_ID_FLAG {
                 return;
             }
             let Some(Some(px)) = pass.pixels.get(i) else {
@@ -609,14 +680,48 @@ fn barycentric(p: Vec3, [a, b, c]: [Vec3; 3]) -> Vec3 {
 /// Scene lighting for the shading pass.
 pub(crate) struct Lighting<'a> {
     pub(crate) lights: &'a [Light],
-    /// One entry per light: its shadow map when it casts shadows this frame.
-    pub(crate) shadows: Vec<Option<std::sync::Arc<ShadowMap>>>,
+    /// One entry per light: which shadow map it is shaded with this frame.
+    pub(crate) shadows: &'a [ShadowUse],
+    /// One entry per light: the map a [`ShadowUse::Own`] light is shaded with.
+    pub(crate) own_maps: &'a [Option<ShadowMap>],
     pub(crate) ambient: Vec3,
     pub(crate) background: Vec3,
     /// World radius of the ambient-occlusion samples (see [`AoKernel`]).
     pub(crate) ao_radius_world: f32,
     /// KRS shadow rays, AO and Algorithm 2 diffuse factors.
     pub(crate) krs: KrsLighting<'a>,
+}
+
+/// Which shadow map a light is shaded with in a frame.
+#[derive(Default)]
+pub(crate) enum ShadowUse {
+    /// None (the light casts no shadow this frame).
+    #[default]
+    None,
+    /// The map the renderer drew into its own slot for this light.
+    Own,
+    /// A map shared with a [`super::ShadowCache`].
+    Cached(std::sync::Arc<ShadowMap>),
+}
+
+impl Lighting<'_> {
+    /// The shadow map light `li` is shaded with, if any.
+    fn shadow_map(&self, li: usize) -> Option<&ShadowMap> {
+        match self.shadows.get(li)? {
+            ShadowUse::None => None,
+            ShadowUse::Own => self.own_maps.get(li)?.as_ref(),
+            ShadowUse::Cached(m) => Some(m),
+        }
+    }
+}
+
+/// The shading pass's buffers, kept between frames by [`super::Renderer`].
+#[derive(Default)]
+pub(crate) struct ShadeScratch {
+    /// Per light: the direction towards it and its colour times intensity.
+    lights: Vec<(Vec3, Vec3)>,
+    /// The AO kernel and the sample count and radius (bits) it was made for.
+    ao: Option<(u32, u32, AoKernel)>,
 }
 
 /// The golden angle in radians: successive AO sample azimuths are this far apart.
@@ -741,15 +846,21 @@ impl ShadeCounts {
     }
 }
 
-/// Deferred Phong over the G-buffer; writes an sRGB image and counts the lookups.
+/// Deferred Phong over the G-buffer; writes an sRGB image into `img` (its allocation kept)
+/// and counts the lookups.
 pub(crate) fn shade(
     fb: &FrameBuffers,
     cam: &Camera,
     lighting: &Lighting<'_>,
     quality: &Quality,
-) -> (RgbaImage, ShadeCounts) {
+    img: &mut RgbaImage,
+    scratch: &mut ShadeScratch,
+) -> ShadeCounts {
     let w = fb.width;
-    let mut img = RgbaImage::new(w, fb.height);
+    img.width = w;
+    img.height = fb.height;
+    img.pixels.clear();
+    img.pixels.resize(w as usize * fb.height as usize * 4, 0);
     let pcf = quality.shadow_pcf_radius.min(8) as i32;
     let to8 = linear_to_srgb8;
     let bg = [
@@ -758,12 +869,29 @@ pub(crate) fn shade(
         to8(lighting.background.z),
         255,
     ];
-    let ao = AoKernel::new(quality.ao_samples, lighting.ao_radius_world);
-    let lights: Vec<(Vec3, Vec3)> = lighting
-        .lights
-        .iter()
-        .map(|l| (-l.direction.normalize_or_zero(), l.color * l.intensity))
-        .collect();
+    let ao_key = (quality.ao_samples, lighting.ao_radius_world.to_bits());
+    if scratch
+        .ao
+        .as_ref()
+        .is_some_and(|(n, r, _)| (*n, *r) != ao_key)
+    {
+        scratch.ao = None;
+    }
+    let ShadeScratch { lights, ao } = scratch;
+    let ao = &ao
+        .get_or_insert_with(|| {
+            let kernel = AoKernel::new(quality.ao_samples, lighting.ao_radius_world);
+            (ao_key.0, ao_key.1, kernel)
+        })
+        .2;
+    lights.clear();
+    lights.extend(
+        lighting
+            .lights
+            .iter()
+            .map(|l| (-l.direction.normalize_or_zero(), l.color * l.intensity)),
+    );
+    let lights = &lights[..];
     let shade_pixel = |i: usize, out: &mut [u8], count: &mut ShadeCounts| {
         if fb.ids[i].object == 0 {
             out.copy_from_slice(&bg);
@@ -797,13 +925,13 @@ pub(crate) fn shade(
             if ndotl <= 0.0 {
                 continue;
             }
-            let mut vis = match lighting.shadows.get(li) {
-                Some(Some(sm)) => {
+            let mut vis = match lighting.shadow_map(li) {
+                Some(sm) => {
                     let (vis, reads) = sm.visibility(p, n, receiver, pcf);
                     count.shading.shadow_taps += u64::from(reads);
                     vis
                 }
-                _ => 1.0,
+                None => 1.0,
             };
             if vis > 0.0 && lighting.lights[li].casts_shadows {
                 let (krs_vis, steps) = lighting.krs.shadow(p, n, l, footprint);
@@ -821,8 +949,7 @@ pub(crate) fn shade(
         out.copy_from_slice(&[to8(c.x), to8(c.y), to8(c.z), 255]);
     };
     // A row per task: the counts are summed per row, not per pixel.
-    let counts = img
-        .pixels
+    img.pixels
         .par_chunks_mut((4 * w as usize).max(4))
         .enumerate()
         .map(|(y, row)| {
@@ -832,8 +959,7 @@ pub(crate) fn shade(
             }
             count
         })
-        .reduce(ShadeCounts::default, ShadeCounts::add);
-    (img, counts)
+        .reduce(ShadeCounts::default, ShadeCounts::add)
 }
 
 #[cfg(test)]
@@ -880,7 +1006,8 @@ mod tests {
                 }
             })
             .collect();
-        let (bounds, tiles_x) = tile_bounds(&depth, w as i32, h as i32, None);
+        let mut bounds = Vec::new();
+        let tiles_x = tile_bounds(&depth, w as i32, h as i32, None, &mut bounds);
         let map = ShadowMap {
             cam,
             depth,

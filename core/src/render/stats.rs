@@ -121,6 +121,19 @@ impl FrameStats {
         self.totals().visited
     }
 
+    /// Zeroes every counter, keeping the level lists' allocations.
+    pub(crate) fn reset(&mut self) {
+        let mut levels = std::mem::take(&mut self.levels);
+        let mut shadow_levels = std::mem::take(&mut self.shadow_levels);
+        levels.clear();
+        shadow_levels.clear();
+        *self = Self {
+            levels,
+            shadow_levels,
+            ..Self::default()
+        };
+    }
+
     pub(crate) fn merge_levels(into: &mut Vec<LevelStats>, from: &[LevelStats]) {
         if into.len() < from.len() {
             into.resize(from.len(), LevelStats::default());

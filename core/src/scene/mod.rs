@@ -32,12 +32,28 @@ pub enum SceneError {
     },
 }
 
-fn invalid(what: &str, context: &str, detail: impl Into<String>) -> SceneError {
+fn invalid(what: &str, context: impl std::fmt::Display, detail: impl Into<String>) -> SceneError {
     SceneError::Invalid {
         what: what.to_owned(),
-        context: context.to_owned(),
+        context: context.to_string(),
         detail: detail.into(),
     }
+}
+
+/// A validation context written only when an error shows it: a renderer validates its document
+/// every frame, and formatting each object's name cost allocations while nothing was wrong.
+struct LazyContext<F>(F);
+
+impl<F: Fn(&mut std::fmt::Formatter<'_>) -> std::fmt::Result> std::fmt::Display for LazyContext<F> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        (self.0)(f)
+    }
+}
+
+fn lazy_context<F: Fn(&mut std::fmt::Formatter<'_>) -> std::fmt::Result>(
+    write: F,
+) -> LazyContext<F> {
+    LazyContext(write)
 }
 
 /// Translation, rotation, non-uniform scale.
@@ -73,7 +89,7 @@ impl Transform {
     ///
     /// # Errors
     /// What is wrong, naming `context`.
-    pub fn validate(&self, context: &str) -> Result<(), SceneError> {
+    pub fn validate(&self, context: impl std::fmt::Display) -> Result<(), SceneError> {
         if !self.translation.is_finite() {
             return Err(invalid(
                 "transform.translation",
@@ -361,7 +377,7 @@ impl Light {
     /// # Errors
     /// [`SceneError::Invalid`] naming the light.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let ctx = format!("light {:?}", self.name);
+        let ctx = lazy_context(|f| write!(f, "light {:?}", self.name));
         if !self.direction.is_finite() || self.direction.length_squared() < 1e-12 {
             return Err(invalid("direction", &ctx, "must be finite and non-zero"));
         }
@@ -761,7 +777,7 @@ impl Document {
             .validate()
             .map_err(|e| invalid("quality", "document", e.to_string()))?;
         for l in &self.enhancements {
-            let ctx = format!("enhancement of object id {}", l.source);
+            let ctx = lazy_context(|f| write!(f, "enhancement of object id {}", l.source));
             if l.source == l.target {
                 return Err(invalid(
                     "target",
@@ -777,22 +793,37 @@ impl Document {
             t.params.build().map_err(|e| {
                 invalid(
                     "tree_builders",
-                    &format!("KRS object id {}", t.object),
+                    format!("KRS object id {}", t.object),
                     e.to_string(),
                 )
             })?;
         }
-        let mut ids: Vec<u64> = self.objects.iter().map(|o| o.id).collect();
-        ids.sort_unstable();
-        if let Some(w) = ids.windows(2).find(|w| w[0] == w[1]) {
+        if let Some(id) = repeated_id(&self.objects) {
             return Err(invalid(
                 "id",
                 "document",
-                format!("object id {} is used twice", w[0]),
+                format!("object id {id} is used twice"),
             ));
         }
         Ok(())
     }
+}
+
+/// The smallest object id used twice, if any: pairwise for a few objects (no allocation: a
+/// renderer validates its document every frame), sorted for many.
+fn repeated_id(objects: &[Object]) -> Option<u64> {
+    if objects.len() <= 64 {
+        let mut repeated: Option<u64> = None;
+        for (i, a) in objects.iter().enumerate() {
+            if objects[i + 1..].iter().any(|b| b.id == a.id) {
+                repeated = Some(repeated.map_or(a.id, |r| r.min(a.id)));
+            }
+        }
+        return repeated;
+    }
+    let mut ids: Vec<u64> = objects.iter().map(|o| o.id).collect();
+    ids.sort_unstable();
+    ids.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
 }
 
 /// The common scale of a uniform, positive per-axis scale (relative tolerance 1e-6).
