@@ -31,6 +31,8 @@ mod chunks;
 mod export;
 mod import;
 #[cfg(test)]
+mod instance_tests;
+#[cfg(test)]
 mod tests;
 
 use std::path::{Path, PathBuf};
