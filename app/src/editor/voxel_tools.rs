@@ -848,6 +848,7 @@ impl Editor {
             rig: v.rig.clone(),
             volume: Some(clip.size.max(UVec3::ONE)),
             palette: v.palette.clone(),
+            frames: None,
         };
         let name = format!("{} (part)", o.name);
         let transform: Transform = o.transform;
@@ -981,6 +982,8 @@ impl Editor {
             rig: v.rig.clone(),
             volume: Some(new_size),
             palette: v.palette.clone(),
+            // Other frames of a frame sequence keep their own voxels and origins.
+            frames: v.frames.clone(),
         };
         self.apply(
             Edit::SetVoxelModel {

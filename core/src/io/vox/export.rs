@@ -96,7 +96,12 @@ pub fn export_vox_bytes(
     let mut chosen = Vec::new();
     for o in objects {
         match &o.kind {
-            ObjectKind::Voxels(v) if o.visible && !v.svo.is_empty() => {
+            ObjectKind::Voxels(v)
+                if o.visible
+                    && (0..v.frame_count())
+                        .filter_map(|i| v.frame(i))
+                        .any(|(svo, _)| !svo.is_empty()) =>
+            {
                 o.transform
                     .validate(&o.name)
                     .map_err(|e| object_error(o, e.to_string()))?;
@@ -140,7 +145,8 @@ pub fn export_vox_bytes(
 
     // Global material table: name → index, "diffuse" = 0.
     let mut material_names: Vec<String> = vec!["diffuse".into()];
-    let mut per_object_cells: Vec<(String, CellMap)> = Vec::new();
+    // Per object, the cells of each frame (one for a still model).
+    let mut per_object_cells: Vec<(String, Vec<CellMap>)> = Vec::new();
     let mut total_cells = 0u64;
     for (o, v) in &chosen {
         let local_materials: Vec<u16> = v
@@ -155,63 +161,75 @@ pub fn export_vox_bytes(
                 }
             })
             .collect();
-        let grid_from_voxel = DMat4::from_scale(DVec3::splat(1.0 / unit))
-            * o.transform.matrix().as_dmat4()
-            * v.object_from_voxel().as_dmat4();
-        let mut cells = CellMap::new();
-        let mut failure = None;
-        v.svo.for_each_leaf(|c, vox| {
-            if failure.is_some() {
-                return;
-            }
-            let base = c.as_dvec3();
-            let mut lo = DVec3::INFINITY;
-            let mut hi = DVec3::NEG_INFINITY;
-            for k in 0..8u32 {
-                let corner =
-                    base + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
-                let p = grid_from_voxel.transform_point3(corner);
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-            // A voxel fills the grid cells whose centres its (transformed) box covers; at
-            // least the nearest one, so no voxel disappears.
-            let a = lo.round();
-            let b = hi.round().max(a + 1.0);
-            if a.abs().max_element() > f64::from(1 << 30)
-                || b.abs().max_element() > f64::from(1 << 30)
-            {
-                failure = Some(format!(
-                    "a voxel lands at {a} grid cells from the origin, beyond the .vox range"
+        let mut frames = Vec::with_capacity(v.frame_count());
+        for (svo, origin) in (0..v.frame_count()).filter_map(|i| v.frame(i)) {
+            if !origin.is_finite() {
+                return Err(object_error(
+                    o,
+                    format!("a frame's origin {origin} is not finite"),
                 ));
-                return;
             }
-            let n = (b - a).element_product();
-            total_cells += n as u64;
-            if total_cells > options.max_voxels {
-                failure = Some(format!(
-                    "the export would write more than {} voxels (grid unit {unit}); \
+            let object_from_voxel = glam::Mat4::from_translation(origin)
+                * glam::Mat4::from_scale(glam::Vec3::splat(v.voxel_size));
+            let grid_from_voxel = DMat4::from_scale(DVec3::splat(1.0 / unit))
+                * o.transform.matrix().as_dmat4()
+                * object_from_voxel.as_dmat4();
+            let mut cells = CellMap::new();
+            let mut failure = None;
+            svo.for_each_leaf(|c, vox| {
+                if failure.is_some() {
+                    return;
+                }
+                let base = c.as_dvec3();
+                let mut lo = DVec3::INFINITY;
+                let mut hi = DVec3::NEG_INFINITY;
+                for k in 0..8u32 {
+                    let corner = base
+                        + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
+                    let p = grid_from_voxel.transform_point3(corner);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+                // A voxel fills the grid cells whose centres its (transformed) box covers; at
+                // least the nearest one, so no voxel disappears.
+                let a = lo.round();
+                let b = hi.round().max(a + 1.0);
+                if a.abs().max_element() > f64::from(1 << 30)
+                    || b.abs().max_element() > f64::from(1 << 30)
+                {
+                    failure = Some(format!(
+                        "a voxel lands at {a} grid cells from the origin, beyond the .vox range"
+                    ));
+                    return;
+                }
+                let n = (b - a).element_product();
+                total_cells += n as u64;
+                if total_cells > options.max_voxels {
+                    failure = Some(format!(
+                        "the export would write more than {} voxels (grid unit {unit}); \
                      choose a larger grid unit",
-                    options.max_voxels
-                ));
-                return;
-            }
-            let material = local_materials
-                .get(usize::from(vox.material))
-                .copied()
-                .unwrap_or(0);
-            for z in a.z as i64..b.z as i64 {
-                for y in a.y as i64..b.y as i64 {
-                    for x in a.x as i64..b.x as i64 {
-                        cells.insert(mv_cell_from_yup([x, y, z]), (vox.color, material));
+                        options.max_voxels
+                    ));
+                    return;
+                }
+                let material = local_materials
+                    .get(usize::from(vox.material))
+                    .copied()
+                    .unwrap_or(0);
+                for z in a.z as i64..b.z as i64 {
+                    for y in a.y as i64..b.y as i64 {
+                        for x in a.x as i64..b.x as i64 {
+                            cells.insert(mv_cell_from_yup([x, y, z]), (vox.color, material));
+                        }
                     }
                 }
+            });
+            if let Some(detail) = failure {
+                return Err(object_error(o, detail));
             }
-        });
-        if let Some(detail) = failure {
-            return Err(object_error(o, detail));
+            frames.push(cells);
         }
-        per_object_cells.push((o.name.clone(), cells));
+        per_object_cells.push((o.name.clone(), frames));
     }
     if material_names.len() > 256 {
         return Err(VoxError::Object {
@@ -225,7 +243,7 @@ pub fn export_vox_bytes(
     }
 
     let mut counts: HashMap<([u8; 4], u16), u64> = HashMap::new();
-    for (_, cells) in &per_object_cells {
+    for cells in per_object_cells.iter().flat_map(|(_, frames)| frames) {
         for key in cells.values() {
             *counts.entry(*key).or_insert(0) += 1;
         }
@@ -254,7 +272,21 @@ pub fn export_vox_bytes(
     let edge = i64::from(MAX_MODEL_EDGE);
     let mut table = ModelTable::default();
     let mut placements: Vec<Placement> = Vec::new();
-    for (name, cells) in &per_object_cells {
+    for (name, frames) in &per_object_cells {
+        if frames.len() > 1 {
+            placements.push(animated_placement(
+                name,
+                frames,
+                &palette,
+                &mut table,
+                &mut report,
+                path,
+            )?);
+            continue;
+        }
+        let Some(cells) = frames.first() else {
+            continue;
+        };
         let lo = cells
             .keys()
             .fold([i64::MAX; 3], |m, c| [0, 1, 2].map(|a| m[a].min(c[a])));
@@ -279,16 +311,7 @@ pub fn export_vox_bytes(
             };
             report.voxels += voxels.len() as u64;
             let key = table.place(voxels, block_min);
-            if key.translation.iter().any(|t| i32::try_from(*t).is_err()) {
-                return Err(VoxError::Object {
-                    path: path.to_owned(),
-                    object: name.clone(),
-                    detail: format!(
-                        "translation {:?} does not fit .vox's 32-bit range",
-                        key.translation
-                    ),
-                });
-            }
+            check_translation(&key, name, path)?;
             placements.push(Placement {
                 name: label,
                 keys: vec![key],
@@ -357,6 +380,81 @@ pub fn export_vox_bytes(
     out.extend_from_slice(&(main.len() as u32).to_le_bytes());
     out.extend_from_slice(&main);
     Ok((out, report))
+}
+
+/// `_t` must fit the file's 32-bit integers.
+fn check_translation(key: &Keyframe, name: &str, path: &Path) -> Result<(), VoxError> {
+    if key.translation.iter().any(|t| i32::try_from(*t).is_err()) {
+        return Err(VoxError::Object {
+            path: path.to_owned(),
+            object: name.to_owned(),
+            detail: format!(
+                "translation {:?} does not fit .vox's 32-bit range",
+                key.translation
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// An animated object as one placement with a keyframe per frame (MagicaVoxel 0.99.7's
+/// layout). Each frame must fit one model (256³); an empty frame is refused, since a shape's
+/// frame must name a model.
+fn animated_placement(
+    name: &str,
+    frames: &[CellMap],
+    palette: &Palette,
+    table: &mut ModelTable,
+    report: &mut VoxExportReport,
+    path: &Path,
+) -> Result<Placement, VoxError> {
+    let object_error = |detail: String| VoxError::Object {
+        path: path.to_owned(),
+        object: name.to_owned(),
+        detail,
+    };
+    let edge = i64::from(MAX_MODEL_EDGE);
+    let mut keys = Vec::with_capacity(frames.len());
+    for (f, cells) in frames.iter().enumerate() {
+        if cells.is_empty() {
+            return Err(object_error(format!(
+                "frame {f} of {} is empty; a .vox animation frame needs at least one voxel",
+                frames.len()
+            )));
+        }
+        let lo = cells
+            .keys()
+            .fold([i64::MAX; 3], |m, c| [0, 1, 2].map(|a| m[a].min(c[a])));
+        let hi = cells
+            .keys()
+            .fold([i64::MIN; 3], |m, c| [0, 1, 2].map(|a| m[a].max(c[a])));
+        if (0..3).any(|a| hi[a] - lo[a] >= edge) {
+            return Err(object_error(format!(
+                "frame {f} spans {}×{}×{} voxels; an animation frame must fit one \
+                 {MAX_MODEL_EDGE}³ model",
+                hi[0] - lo[0] + 1,
+                hi[1] - lo[1] + 1,
+                hi[2] - lo[2] + 1
+            )));
+        }
+        let voxels: Vec<[u8; 4]> = cells
+            .iter()
+            .map(|(c, key)| {
+                let index = palette.index.get(key).copied().unwrap_or(0);
+                let l = [0, 1, 2].map(|a| (c[a] - lo[a]) as u8);
+                [l[0], l[1], l[2], index + 1]
+            })
+            .collect();
+        report.voxels += voxels.len() as u64;
+        let mut key = table.place(voxels, lo);
+        key.frame = f as u32;
+        check_translation(&key, name, path)?;
+        keys.push(key);
+    }
+    Ok(Placement {
+        name: name.to_owned(),
+        keys,
+    })
 }
 
 /// Writes a transform node whose frames are `frames` (each a frame dictionary; none: one
