@@ -300,6 +300,7 @@ impl Editor {
             )));
         };
         let volume = v.volume_size();
+        let frame = v.frames.as_ref().map_or(0, |f| f.shown);
         let edit = f(&mut v.svo, volume)?;
         let outcome = ToolOutcome {
             changed: edit.changed,
@@ -314,6 +315,7 @@ impl Editor {
             Edit::Voxels {
                 id,
                 delta: edit.delta,
+                frame,
             },
             merge,
         );
