@@ -243,3 +243,43 @@ fn distinct_and_mirror_image_models_stay_apart_where_they_differ() {
         world_set(&first.objects)
     );
 }
+
+#[test]
+fn corpus_files_keep_their_model_counts() {
+    // (file, models, stored voxels, placements): unchanged by import → export → import.
+    for (rel, models, stored, placed) in [
+        ("dot_vox/axes.vox", 4, 4_372, 10),
+        ("mmmm/obj_house4.vox", 1, 180_202, 1),
+        ("mmmm/chr_army1.vox", 1, 341, 1),
+        ("dot_vox/placeholder.vox", 1, 4, 1),
+        ("dot_vox/metal-material.vox", 1, 20, 1),
+    ] {
+        let first = import_vox(&asset(rel)).unwrap();
+        assert_eq!(
+            (first.model_count, first.stored_voxels, first.objects.len()),
+            (models, stored, placed),
+            "{rel}"
+        );
+        let (bytes, report) = export(&first.objects);
+        assert_eq!(
+            (report.models, report.placements),
+            (models, placed),
+            "{rel}"
+        );
+        let second = import(&bytes);
+        assert_eq!(
+            (
+                second.model_count,
+                second.stored_voxels,
+                second.objects.len()
+            ),
+            (models, stored, placed),
+            "{rel}"
+        );
+        assert_eq!(
+            world_set(&second.objects),
+            world_set(&first.objects),
+            "{rel}"
+        );
+    }
+}
