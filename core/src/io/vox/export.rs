@@ -576,15 +576,29 @@ impl FileModel {
     }
 
     /// What equal models (under any rotation) share: voxel count, sorted edges, and an
-    /// order-free sum over the colour indices.
+    /// order-free hash of each voxel's colour with the sorted distances of its centre from the
+    /// box centre (a turn permutes and negates those coordinates), so distinct shapes almost
+    /// never meet in one bucket and the 48-way comparison runs only for true copies.
     fn invariant(&self) -> (usize, [u32; 3], u64) {
         let mut edges = self.size;
         edges.sort_unstable();
-        let colours = self.voxels.iter().fold(0u64, |acc, v| {
-            acc.wrapping_add(u64::from(v[3]).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ u64::from(v[3]))
+        let size = self.size.map(i64::from);
+        let shape = self.voxels.iter().fold(0u64, |acc, v| {
+            let mut d = [0, 1, 2].map(|a| (2 * i64::from(v[a]) + 1 - size[a]).unsigned_abs());
+            d.sort_unstable();
+            let key = d[0] | (d[1] << 9) | (d[2] << 18) | (u64::from(v[3]) << 27);
+            acc.wrapping_add(mix64(key))
         });
-        (self.voxels.len(), edges, colours)
+        (self.voxels.len(), edges, shape)
     }
+}
+
+/// splitmix64's finaliser: spreads the bits of `x` (for an order-free sum of hashes).
+fn mix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
 }
 
 /// One frame of a placement: which model, turned and moved how.

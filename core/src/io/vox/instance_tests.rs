@@ -283,3 +283,58 @@ fn corpus_files_keep_their_model_counts() {
         );
     }
 }
+
+#[test]
+fn many_similar_shapes_are_told_apart_and_copies_found() {
+    use glam::{UVec3, Vec3};
+    use rand::{Rng, SeedableRng};
+
+    use crate::scene::{ObjectKind, Transform, VoxelModel};
+    use crate::svo::{Svo, Voxel};
+    // 120 random 12-voxel shapes in one colour (same count, often the same edges), each placed
+    // once as drawn and once mirrored in x: 120 distinct shapes (barring symmetric draws,
+    // counted by brute force), 240 placements.
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+    let mut objects = Vec::new();
+    let mut shapes: Vec<Vec<[u8; 4]>> = Vec::new();
+    for k in 0..120u32 {
+        let mut cells: Vec<[u8; 3]> = Vec::new();
+        while cells.len() < 12 {
+            let c = [0, 1, 2].map(|_| rng.random_range(0..4u8));
+            if !cells.contains(&c) {
+                cells.push(c);
+            }
+        }
+        shapes.push(cells.iter().map(|c| [c[0], c[1], c[2], 1]).collect());
+        for mirrored in [false, true] {
+            let voxels = cells.iter().map(|c| {
+                let x = if mirrored { 3 - c[0] } else { c[0] };
+                (
+                    UVec3::new(u32::from(x), u32::from(c[1]), u32::from(c[2])),
+                    Voxel::new([90, 160, 220, 255], Vec3::Y),
+                )
+            });
+            objects.push(Object {
+                id: u64::from(2 * k) + u64::from(mirrored) + 1,
+                name: format!("shape {k}{}", if mirrored { " mirrored" } else { "" }),
+                transform: Transform {
+                    translation: Vec3::new(10.0 * k as f32, 0.0, if mirrored { 10.0 } else { 0.0 }),
+                    ..Transform::default()
+                },
+                kind: ObjectKind::Voxels(VoxelModel {
+                    svo: Svo::from_voxels(2, false, voxels).unwrap(),
+                    ..VoxelModel::default()
+                }),
+                ..Object::default()
+            });
+        }
+    }
+    // Through the axis change the shapes stay the same up to a turn, so the file holds as
+    // many models as there are distinct shapes.
+    let distinct = distinct_under_rotation(&shapes);
+    let (bytes, report) = export(&objects);
+    assert_eq!((report.models, report.placements), (distinct, 240));
+    let back = import(&bytes);
+    assert_eq!(back.model_count, distinct);
+    assert_eq!(world_set(&back.objects), world_set(&objects));
+}
