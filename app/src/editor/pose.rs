@@ -297,6 +297,9 @@ impl Editor {
         if swapped {
             self.generation += 1;
             self.voxel_region = None;
+            // A live enhancer follows the octree it was built from: the next edit rebuilds it
+            // from the frame now shown.
+            self.drop_enhancers();
         }
         Ok(())
     }
