@@ -149,7 +149,8 @@ pub struct BenchArgs {
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
     pub json: bool,
-    /// Animation time in seconds for skinned models (default: the project's playhead).
+    /// Animation time in seconds for skinned models and frame sequences (animated .vox)
+    /// (default: the project's playhead).
     #[arg(long)]
     pub time: Option<f32>,
     /// Animation clip of skinned models, by name (default: the project's).
@@ -486,7 +487,8 @@ pub struct RenderArgs {
     /// Print frame statistics (per level, splats, culling, stage times).
     #[arg(long)]
     pub stats: bool,
-    /// Animation time in seconds for skinned models (default: the project's playhead).
+    /// Animation time in seconds for skinned models and frame sequences (animated .vox)
+    /// (default: the project's playhead).
     #[arg(long)]
     pub time: Option<f32>,
     /// Animation clip of skinned models, by name (default: the project's).
@@ -1061,6 +1063,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
                 rig: None,
                 volume: None,
                 palette: Vec::new(),
+                frames: None,
             }),
         );
         if let Some((lo, hi)) = doc.bounds() {
@@ -1110,11 +1113,13 @@ fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {
     Ok((parse(w)?, parse(h)?))
 }
 
-/// Sets the playhead (and clip, by name) of every skinned model of `doc`.
+/// Sets the playhead (and clip, by name) of every skinned model of `doc`, and the playhead of
+/// every frame sequence (which then shows the frame at that time).
 ///
 /// # Errors
-/// A non-finite time, a clip name no skinned model has (listing the names it has), or a clip
-/// or time given for a document without skinned models.
+/// A non-finite time, a clip name no skinned model has (listing the names it has), a clip
+/// given for a document without skinned models, or a time given for a document with neither
+/// skinned models nor frame sequences.
 pub fn set_playback(
     doc: &mut thicket_core::scene::Document,
     time: Option<f32>,
@@ -1128,11 +1133,17 @@ pub fn set_playback(
     {
         anyhow::bail!("--time {t}: must be a finite number of seconds");
     }
-    let mut rigged = 0;
+    let (mut rigged, mut sequences) = (0, 0);
     for o in &mut doc.objects {
         let thicket_core::scene::ObjectKind::Voxels(v) = &mut o.kind else {
             continue;
         };
+        if let Some(t) = time
+            && v.frames.is_some()
+        {
+            sequences += 1;
+            v.set_frame_time(t);
+        }
         let Some(rig) = v.rig.as_mut() else {
             continue;
         };
@@ -1151,8 +1162,11 @@ pub fn set_playback(
             rig.playback.time_secs = t;
         }
     }
-    if rigged == 0 {
-        anyhow::bail!("--time/--clip: the document has no skinned model");
+    if clip.is_some() && rigged == 0 {
+        anyhow::bail!("--clip: the document has no skinned model");
+    }
+    if rigged == 0 && sequences == 0 {
+        anyhow::bail!("--time: the document has no skinned model and no frame sequence");
     }
     Ok(())
 }
@@ -1574,10 +1588,11 @@ fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
     let doc = files::load_document(&args.project)?;
     let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
     let mut text = format!(
-        "wrote {}: {} voxels in {} model(s), {} palette colours",
+        "wrote {}: {} voxels in {} model(s) placed {} time(s), {} palette colours",
         args.output.display(),
         thousands(report.voxels),
         report.models,
+        report.placements,
         report.palette_colors
     );
     if !report.exact_colors {
@@ -1667,6 +1682,15 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
                 let _ = write!(s, ", {bpv:.2} bytes/voxel");
             }
             s.push('\n');
+            if let Some(frames) = &o.frame_voxels {
+                let counts: Vec<String> = frames.iter().map(|&n| thousands(n)).collect();
+                let _ = writeln!(
+                    s,
+                    "      {} frames (voxels per frame: {})",
+                    frames.len(),
+                    counts.join(", ")
+                );
+            }
         }
         if let (Some(t), Some(v)) = (o.triangles, o.vertices) {
             let _ = writeln!(

@@ -356,8 +356,12 @@ pub struct ObjectInfo {
     pub kind: &'static str,
     /// Hidden objects are not rendered.
     pub visible: bool,
-    /// Solid voxels.
+    /// Solid voxels (of the shown frame, for a frame sequence).
     pub voxels: Option<u64>,
+    /// A frame sequence's solid voxels per frame (an animated `.vox`); `None` for still
+    /// models. Omitted from the JSON when `None`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frame_voxels: Option<Vec<u64>>,
     /// Octree depth (levels below the root).
     pub depth: Option<u8>,
     /// Octree extent in voxels per axis (`2^depth`).
@@ -458,6 +462,7 @@ pub fn object_info(o: &Object) -> ObjectInfo {
         kind: o.kind_name(),
         visible: o.visible,
         voxels: None,
+        frame_voxels: None,
         depth: None,
         extent: None,
         dimensions_voxels: None,
@@ -474,6 +479,12 @@ pub fn object_info(o: &Object) -> ObjectInfo {
         ObjectKind::Voxels(v) => {
             let stats = v.svo.memory_stats();
             info.voxels = Some(v.svo.leaf_count());
+            info.frame_voxels = v.frames.as_ref().map(|_| {
+                (0..v.frame_count())
+                    .filter_map(|i| v.frame(i))
+                    .map(|(svo, _)| svo.leaf_count())
+                    .collect()
+            });
             info.depth = Some(v.svo.depth());
             info.extent = Some(v.svo.extent());
             info.dimensions_voxels = v.svo.bounds().map(|(lo, hi)| (hi - lo + 1).to_array());

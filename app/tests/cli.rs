@@ -1339,3 +1339,108 @@ fn an_enhancement_over_the_memory_limit_is_refused_before_it_starts() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(out.is_file());
 }
+
+/// A MagicaVoxel animation in the pre-0.99 layout: three models (frames of 2, 3 and 4 voxels)
+/// and no scene graph.
+fn animated_vox(path: &Path) {
+    fn chunk(out: &mut Vec<u8>, id: &[u8; 4], content: &[u8]) {
+        out.extend_from_slice(id);
+        out.extend_from_slice(&(content.len() as u32).to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(content);
+    }
+    let frames: [&[[u8; 4]]; 3] = [
+        &[[0, 0, 0, 1], [1, 0, 0, 1]],
+        &[[0, 0, 0, 2], [1, 0, 0, 2], [2, 0, 1, 3]],
+        &[[0, 0, 0, 4], [1, 0, 0, 4], [0, 1, 0, 5], [1, 1, 1, 5]],
+    ];
+    let mut main = Vec::new();
+    for voxels in frames {
+        let mut size = Vec::new();
+        for s in [3u32, 2, 2] {
+            size.extend_from_slice(&s.to_le_bytes());
+        }
+        chunk(&mut main, b"SIZE", &size);
+        let mut xyzi = (voxels.len() as u32).to_le_bytes().to_vec();
+        for v in voxels {
+            xyzi.extend_from_slice(v);
+        }
+        chunk(&mut main, b"XYZI", &xyzi);
+    }
+    let mut out = b"VOX ".to_vec();
+    out.extend_from_slice(&150u32.to_le_bytes());
+    out.extend_from_slice(b"MAIN");
+    out.extend_from_slice(&0u32.to_le_bytes());
+    out.extend_from_slice(&(main.len() as u32).to_le_bytes());
+    out.extend_from_slice(&main);
+    std::fs::write(path, out).unwrap();
+}
+
+#[test]
+fn animated_vox_is_one_object_that_exports_as_frames_and_renders_one_frame_per_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let anim = dir.path().join("walk.vox");
+    animated_vox(&anim);
+    let info = info_json(anim.to_str().unwrap());
+    assert_eq!(info["objects"].as_array().unwrap().len(), 1);
+    assert_eq!(
+        info["objects"][0]["frame_voxels"],
+        serde_json::json!([2, 3, 4])
+    );
+    let o = thicket(&["info", anim.to_str().unwrap()]);
+    assert!(
+        stdout(&o).contains("3 frames (voxels per frame: 2, 3, 4)"),
+        "{}",
+        stdout(&o)
+    );
+
+    let out = dir.path().join("again.vox");
+    let o = thicket(&[
+        "export-vox",
+        anim.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("9 voxels in 3 model(s) placed 1 time(s)"),
+        "{}",
+        stdout(&o)
+    );
+    let again = info_json(out.to_str().unwrap());
+    assert_eq!(
+        again["objects"][0]["frame_voxels"],
+        serde_json::json!([2, 3, 4])
+    );
+
+    // --time picks the frame: 0.1 s per frame, looping after 0.3 s.
+    let render = |t: &str| {
+        let png = dir.path().join(format!("t{t}.png"));
+        let o = thicket(&[
+            "render",
+            anim.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "48x48",
+            "--time",
+            t,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&png).unwrap().to_rgba8().into_raw()
+    };
+    let (f0, f1, f2, wrapped) = (render("0"), render("0.15"), render("0.25"), render("0.35"));
+    assert!(f0 != f1 && f1 != f2 && f0 != f2);
+    assert_eq!(wrapped, f0);
+    // A still file has nothing to play.
+    let o = thicket(&[
+        "render",
+        &format!("{ASSETS}/vox/mmmm/chr_army1.vox"),
+        "-o",
+        dir.path().join("army.png").to_str().unwrap(),
+        "--time",
+        "1",
+    ]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("no frame sequence"), "{}", stderr(&o));
+}

@@ -1063,3 +1063,83 @@ fn empty_zones_are_added_removed_and_undone_in_the_krs_editor() {
     press_undo(&mut h, 2, true);
     assert!(zones(&h).is_empty(), "redo: added, then removed");
 }
+
+/// An animated MagicaVoxel file (three models, no scene graph: frames of 2, 3 and 4 voxels),
+/// imported as the editor imports it.
+fn animated_vox_doc() -> Document {
+    fn chunk(out: &mut Vec<u8>, id: &[u8; 4], content: &[u8]) {
+        out.extend_from_slice(id);
+        out.extend_from_slice(&(content.len() as u32).to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(content);
+    }
+    let frames: [&[[u8; 4]]; 3] = [
+        &[[0, 0, 0, 1], [1, 0, 0, 1]],
+        &[[0, 0, 0, 2], [1, 0, 0, 2], [2, 0, 1, 3]],
+        &[[0, 0, 0, 4], [1, 0, 0, 4], [0, 1, 0, 5], [1, 1, 1, 5]],
+    ];
+    let mut main = Vec::new();
+    for voxels in frames {
+        let size: Vec<u8> = [3u32, 2, 2].iter().flat_map(|s| s.to_le_bytes()).collect();
+        chunk(&mut main, b"SIZE", &size);
+        let mut xyzi = (voxels.len() as u32).to_le_bytes().to_vec();
+        xyzi.extend(voxels.iter().flatten());
+        chunk(&mut main, b"XYZI", &xyzi);
+    }
+    let mut bytes = b"VOX ".to_vec();
+    bytes.extend_from_slice(&150u32.to_le_bytes());
+    bytes.extend_from_slice(b"MAIN");
+    bytes.extend_from_slice(&0u32.to_le_bytes());
+    bytes.extend_from_slice(&(main.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(&main);
+    let scene = thicket_core::io::vox::import_vox_bytes(
+        &bytes,
+        std::path::Path::new("walk.vox"),
+        &thicket_core::io::vox::VoxImportOptions::default(),
+    )
+    .unwrap();
+    let mut doc = Document::default();
+    scene.add_to(&mut doc);
+    let (lo, hi) = doc.bounds().unwrap();
+    doc.camera.frame(lo, hi);
+    doc
+}
+
+#[test]
+fn the_timeline_plays_an_animated_vox_one_frame_at_a_time() {
+    let mut h = harness(animated_vox_doc());
+    let id = h.state().editor.doc().objects[0].id;
+    let shown = |h: &Harness<'static, EditorApp>| h.state().editor.frames(id).unwrap().shown;
+    let leaves = |h: &Harness<'static, EditorApp>| match &h.state().editor.object(id).unwrap().kind
+    {
+        ObjectKind::Voxels(v) => v.svo.leaf_count(),
+        _ => 0,
+    };
+    h.get_by_label("frame 1 / 3 at 10 fps");
+    assert_eq!((shown(&h), leaves(&h)), (0, 2));
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Play").click();
+    // kittest's clock advances 0.25 s per frame: the first playing frame starts the clock,
+    // the next is at 0.25 s, frame 2 of 0.1 s frames.
+    h.run_steps(2);
+    assert_eq!((shown(&h), leaves(&h)), (2, 4));
+    h.get_by_label("frame 3 / 3 at 10 fps");
+    h.run_steps(1);
+    // Past the end the sequence loops; whatever the frame, it is the one at the playhead and
+    // the only one drawn.
+    let seq = h.state().editor.frames(id).unwrap().clone();
+    assert!(seq.time_secs < seq.duration_secs());
+    assert_eq!(shown(&h), seq.frame_at(seq.time_secs));
+    assert_eq!(leaves(&h), [2, 3, 4][shown(&h)]);
+    h.get_by_label("Pause").click();
+    h.run_steps(1);
+    assert!(!h.state().pose.playing);
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps,
+        "playing is not an edit"
+    );
+    h.get_by_label("Start").click();
+    h.run_steps(1);
+    assert_eq!((shown(&h), leaves(&h)), (0, 2));
+}

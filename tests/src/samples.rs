@@ -241,6 +241,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     if let Some(o) = doc.objects.iter_mut().find(|o| o.id == coarse_id) {
@@ -256,6 +257,7 @@ fn terrain(doc: &mut Document) -> Result<()> {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     // Linked, so the editor keeps the fine terrain in step with strokes on the coarse one.

@@ -94,6 +94,7 @@ fn depth_21_model_renders_without_nan() {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     let (lo, hi) = doc.bounds().unwrap();

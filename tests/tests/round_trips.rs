@@ -31,6 +31,7 @@ fn gltf_to_svo_to_project_and_back_is_identical() {
                 rig: None,
                 volume: None,
                 palette: Vec::new(),
+                frames: None,
             }),
         );
         let dir = tempfile::tempdir().unwrap();

@@ -255,6 +255,55 @@ impl Editor {
         Ok(())
     }
 
+    /// The frame sequence of voxel object `id` (an animated `.vox`), if it has one.
+    #[must_use]
+    pub fn frames(&self, id: u64) -> Option<&thicket_core::scene::FrameSequence> {
+        match &self.object(id)?.kind {
+            ObjectKind::Voxels(v) => v.frames.as_ref(),
+            ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
+        }
+    }
+
+    /// Moves the playhead of frame sequence `id` and shows the frame there. Like
+    /// [`Editor::set_playback`] it is saved with the document but is neither an undoable edit
+    /// nor a change that marks the document (scrubbing is not editing); voxel edits remember
+    /// their frame, so undo still writes the frame they were made on. A new shown frame swaps
+    /// the object's octree, which renderers only see as a new content key: the generation
+    /// changes and the next frame uploads the scene.
+    ///
+    /// # Errors
+    /// Unknown object, an object without frames, or a non-finite time.
+    pub fn set_frame_time(&mut self, id: u64, time_secs: f32) -> Result<(), CommandError> {
+        if !time_secs.is_finite() {
+            return Err(CommandError::Invalid(format!(
+                "the time {time_secs} is not a number of seconds"
+            )));
+        }
+        let index = self.index_of(id)?;
+        let name = self.doc.objects[index].name.clone();
+        let ObjectKind::Voxels(v) = &mut self.doc.objects[index].kind else {
+            return Err(CommandError::Invalid(format!("{name:?} has no frames")));
+        };
+        if v.frames.as_ref().is_none_or(|f| f.time_secs == time_secs) {
+            return if v.frames.is_some() {
+                Ok(())
+            } else {
+                Err(CommandError::Invalid(format!("{name:?} has no frames")))
+            };
+        }
+        let swapped = v.set_frame_time(time_secs);
+        self.anim_revision += 1;
+        self.revision += 1;
+        if swapped {
+            self.generation += 1;
+            self.voxel_region = None;
+            // A live enhancer follows the octree it was built from: the next edit rebuilds it
+            // from the frame now shown.
+            self.drop_enhancers();
+        }
+        Ok(())
+    }
+
     /// Sets the stretch settings of a rigged model after validating them; drags merge into one
     /// undo step.
     ///

@@ -148,6 +148,7 @@ impl Editor {
                 self.doc.objects[index].name
             )));
         };
+        let frame = v.frames.as_ref().map_or(0, |f| f.shown);
         let dab = apply_dab(&mut v.svo, brush, center, symmetry_center)
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
         if dab.delta.is_empty() {
@@ -158,6 +159,7 @@ impl Editor {
             Edit::Voxels {
                 id,
                 delta: dab.delta,
+                frame,
             },
             Some(MergeKey::Stroke(id)),
         );

@@ -1585,3 +1585,81 @@ fn a_box_on_an_enhanced_model_keeps_its_enhancement_equal_to_a_fresh_one() {
         .to_string();
     assert!(e.contains("detail enhancement"), "{e}");
 }
+
+/// A frame sequence of three frames (1, 2 and 3 voxels in a row), showing frame 0.
+fn frame_sequence() -> ObjectKind {
+    use thicket_core::scene::{FrameSequence, VoxelFrame};
+    let row = |n: u32| {
+        let ObjectKind::Voxels(v) = voxels(n) else {
+            unreachable!("voxels() makes a voxel model")
+        };
+        v.svo
+    };
+    ObjectKind::Voxels(VoxelModel {
+        svo: row(1),
+        frames: Some(FrameSequence {
+            frames: vec![
+                VoxelFrame::default(),
+                VoxelFrame {
+                    svo: row(2),
+                    origin: Vec3::ZERO,
+                },
+                VoxelFrame {
+                    svo: row(3),
+                    origin: Vec3::ZERO,
+                },
+            ],
+            ..FrameSequence::default()
+        }),
+        ..VoxelModel::default()
+    })
+}
+
+fn frame_counts(ed: &Editor, id: u64) -> Vec<u64> {
+    let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+        panic!("voxels")
+    };
+    (0..v.frame_count())
+        .map(|i| v.frame(i).unwrap().0.leaf_count())
+        .collect()
+}
+
+#[test]
+fn the_timeline_plays_frame_sequences_and_undo_writes_the_frame_it_was_made_on() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("walk", frame_sequence());
+    ed.end_interaction();
+    let saved_dirty = ed.is_dirty();
+    // Scrubbing shows the frame at the playhead (0.1 s each) and gives renderers a new key.
+    let key = ed.content_key();
+    ed.set_frame_time(id, 0.15).unwrap();
+    assert_eq!(ed.frames(id).unwrap().shown, 1);
+    assert_eq!(svo_of(&ed, id).leaf_count(), 2);
+    assert_ne!(ed.content_key(), key);
+    assert_eq!(ed.is_dirty(), saved_dirty, "scrubbing is not editing");
+    assert!(ed.set_frame_time(id, f32::NAN).is_err());
+    let still = ed.add_object("still", voxels(2));
+    assert!(ed.set_frame_time(still, 0.1).is_err());
+
+    // An edit of frame 1, then the playhead moves to frame 2: undo puts frame 1 back in view
+    // and removes the voxels there, leaving frame 2 alone.
+    ed.shape_box(
+        id,
+        IVec3::new(0, 1, 0),
+        IVec3::new(1, 1, 0),
+        ShapeOp::Add,
+        RED,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.end_interaction();
+    assert_eq!(frame_counts(&ed, id), [1, 4, 3]);
+    ed.set_frame_time(id, 0.25).unwrap();
+    assert_eq!(ed.frames(id).unwrap().shown, 2);
+    assert!(ed.undo());
+    assert_eq!(ed.frames(id).unwrap().shown, 1);
+    assert_eq!(frame_counts(&ed, id), [1, 2, 3]);
+    assert!(ed.redo());
+    assert_eq!(frame_counts(&ed, id), [1, 4, 3]);
+    ed.doc().validate().unwrap();
+}

@@ -76,6 +76,10 @@ pub enum Edit {
         id: u64,
         /// `(coordinate, value)` pairs to write, in order.
         delta: UndoDelta,
+        /// The frame of a frame sequence the voxels belong to (0 for a still model): applying
+        /// the edit shows that frame first, so an undo after the playhead moved writes the
+        /// frame it was made on.
+        frame: usize,
     },
     /// Replace the manual pose overrides of a rigged voxel model.
     SetPose {
@@ -209,12 +213,20 @@ impl Edit {
             Edit::SetQuality(q) => {
                 Edit::SetQuality(Box::new(std::mem::replace(&mut doc.quality, *q)))
             }
-            Edit::Voxels { id, delta } => match find(doc, id) {
+            Edit::Voxels { id, delta, frame } => match find(doc, id) {
                 Some(i) => match &mut doc.objects[i].kind {
-                    ObjectKind::Voxels(v) => Edit::Voxels {
-                        id,
-                        delta: v.svo.apply_delta(&delta),
-                    },
+                    ObjectKind::Voxels(v) => {
+                        if v.show_frame(frame)
+                            && let Some(seq) = v.frames.as_mut()
+                        {
+                            seq.time_secs = frame as f32 * seq.frame_secs;
+                        }
+                        Edit::Voxels {
+                            id,
+                            delta: v.svo.apply_delta(&delta),
+                            frame,
+                        }
+                    }
                     ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
                 },
                 None => Edit::Group(Vec::new()),
@@ -378,7 +390,7 @@ impl Edit {
 
     fn collect_voxel_boxes(&self, out: &mut Vec<(u64, UVec3, UVec3)>) {
         match self {
-            Edit::Voxels { id, delta } => {
+            Edit::Voxels { id, delta, .. } => {
                 let mut it = delta.entries.iter().map(|e| e.0);
                 if let Some(first) = it.next() {
                     let (lo, hi) = it.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p)));
@@ -484,12 +496,17 @@ impl History {
                 // from before the whole stroke.
                 match (revert, &mut top.revert) {
                     (
-                        Edit::Voxels { id, delta: newer },
+                        Edit::Voxels {
+                            id,
+                            delta: newer,
+                            frame,
+                        },
                         Edit::Voxels {
                             id: top_id,
                             delta: older,
+                            frame: top_frame,
                         },
-                    ) if id == *top_id => {
+                    ) if id == *top_id && frame == *top_frame => {
                         let mut entries = newer.entries;
                         entries.append(&mut older.entries);
                         older.entries = entries;

@@ -300,6 +300,7 @@ impl Editor {
             )));
         };
         let volume = v.volume_size();
+        let frame = v.frames.as_ref().map_or(0, |f| f.shown);
         let edit = f(&mut v.svo, volume)?;
         let outcome = ToolOutcome {
             changed: edit.changed,
@@ -314,6 +315,7 @@ impl Editor {
             Edit::Voxels {
                 id,
                 delta: edit.delta,
+                frame,
             },
             merge,
         );
@@ -848,6 +850,7 @@ impl Editor {
             rig: v.rig.clone(),
             volume: Some(clip.size.max(UVec3::ONE)),
             palette: v.palette.clone(),
+            frames: None,
         };
         let name = format!("{} (part)", o.name);
         let transform: Transform = o.transform;
@@ -981,6 +984,8 @@ impl Editor {
             rig: v.rig.clone(),
             volume: Some(new_size),
             palette: v.palette.clone(),
+            // Other frames of a frame sequence keep their own voxels and origins.
+            frames: v.frames.clone(),
         };
         self.apply(
             Edit::SetVoxelModel {

@@ -494,6 +494,7 @@ impl EditorApp {
                             rig: None,
                             volume: None,
                             palette: Vec::new(),
+                            frames: None,
                         };
                         (fine, e)
                     })

@@ -738,12 +738,13 @@ fn stretch_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u
     }
 }
 
-/// The rigged object the timeline drives: the selection when it is rigged, else the first
-/// rigged object.
+/// The animated object the timeline drives: the selection when it is rigged or a frame
+/// sequence, else the first such object.
 #[must_use]
 pub fn timeline_target(editor: &Editor) -> Option<u64> {
+    let animated = |id: u64| editor.rig(id).is_some() || editor.frames(id).is_some();
     if let Some(Selection::Object(id)) = editor.selection
-        && editor.rig(id).is_some()
+        && animated(id)
     {
         return Some(id);
     }
@@ -751,13 +752,84 @@ pub fn timeline_target(editor: &Editor) -> Option<u64> {
         .doc()
         .objects
         .iter()
-        .find(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some()))
+        .find(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some() || v.frames.is_some()))
         .map(|o| o.id)
 }
 
+/// The timeline of a frame sequence (an animated `.vox`): play / pause, start, scrub slider,
+/// the frame shown and the frame rate. Advances the playhead while playing; the sequence loops.
+fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    let Some(seq) = editor.frames(id) else { return };
+    let (count, frame_secs) = (seq.len(), seq.frame_secs);
+    let mut t = seq.time_secs;
+    let duration = seq.duration_secs();
+    let name = editor
+        .object(id)
+        .map(|o| o.name.clone())
+        .unwrap_or_default();
+    ui.horizontal(|ui| {
+        ui.strong("Timeline")
+            .on_hover_text(format!("Frames of {name}"));
+        ui.label(&name);
+        if ui
+            .button(if tool.playing { "Pause" } else { "Play" })
+            .on_hover_text("Play or pause the frames (Space)")
+            .clicked()
+        {
+            tool.playing = !tool.playing;
+        }
+        if ui
+            .button("Start")
+            .on_hover_text("Go to the first frame")
+            .clicked()
+        {
+            t = 0.0;
+            tool.playing = false;
+        }
+        if tool.playing {
+            let now = ui.input(|i| i.time);
+            let step = playback_step(&mut tool.last_tick, now, tool.step_every_frame);
+            // "Every frame" shows each frame of the sequence in turn.
+            let step = if tool.step_every_frame { frame_secs } else { step };
+            t = (t + step).rem_euclid(duration.max(1e-6));
+            ui.ctx().request_repaint();
+        } else {
+            tool.last_tick = None;
+        }
+        ui.checkbox(&mut tool.step_every_frame, "Every frame")
+            .on_hover_text("Show each frame for one drawn frame instead of by the clock");
+        let mut scrub = t.rem_euclid(duration.max(1e-6));
+        let width = (ui.available_width() - 170.0).max(80.0);
+        ui.spacing_mut().slider_width = width;
+        if ui
+            .add(egui::Slider::new(&mut scrub, 0.0..=duration.max(1e-3)).show_value(false))
+            .on_hover_text("Scrub: drag to any frame")
+            .changed()
+        {
+            t = scrub;
+            tool.playing = false;
+        }
+        // The playhead moves before the label is drawn, so the label names the frame shown.
+        if editor.frames(id).is_some_and(|f| f.time_secs != t) {
+            tool.error = editor.set_frame_time(id, t).err().map(|e| e.to_string());
+        }
+        let shown = editor.frames(id).map_or(0, |f| f.shown);
+        ui.monospace(format!(
+            "frame {} / {count} at {:.0} fps",
+            shown + 1,
+            1.0 / frame_secs
+        ))
+        .on_hover_text("The frame shown / frames in the sequence; the file's frame rate, or MagicaVoxel's 10 fps");
+    });
+}
+
 /// The timeline: clip picker, play / pause, scrub slider and time. Advances the playhead while
-/// playing.
+/// playing. A frame sequence gets its own, simpler timeline.
 pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    if editor.rig(id).is_none() && editor.frames(id).is_some() {
+        frames_timeline_ui(ui, editor, tool, id);
+        return;
+    }
     let Some(rig) = editor.rig(id) else { return };
     let mut playback = rig.playback;
     let clips: Vec<(String, f32)> = rig

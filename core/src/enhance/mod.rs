@@ -208,6 +208,7 @@ pub fn enhance_model(
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         },
         stats,
     ))

@@ -125,6 +125,9 @@ struct PayloadRef {
 /// [`PayloadRef::part`] of a skinned voxel model's clip and override payload.
 const SKIN_PART: &str = "skin";
 
+/// [`PayloadRef::part`] of a frame sequence's frames (format version 2).
+const FRAMES_PART: &str = "frames";
+
 /// Identity of the whole `.bin` the JSON was saved with.
 #[derive(Debug, Clone, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(default)]
@@ -255,6 +258,20 @@ fn encode_payloads(doc: &Document) -> (Vec<u8>, Vec<PayloadRef>) {
             crc32: crc32fast::hash(bytes),
             part: String::new(),
         });
+        if let ObjectKind::Voxels(v) = &o.kind
+            && let Some(frames) = &v.frames
+        {
+            let start = bin.len();
+            encode_frames(frames, &mut bin);
+            let bytes = &bin[start..];
+            payloads.push(PayloadRef {
+                object_id: o.id,
+                offset: start as u64,
+                length: bytes.len() as u64,
+                crc32: crc32fast::hash(bytes),
+                part: FRAMES_PART.into(),
+            });
+        }
         if let ObjectKind::Voxels(v) = &o.kind
             && let Some(rig) = &v.rig
         {
@@ -412,6 +429,9 @@ fn load_from_parts(
             supported: FORMAT_VERSION,
         });
     }
+    // Migration: a version-1 document is a version-2 document without frame sequences, so
+    // nothing changes but the number; the document in memory is always the current format.
+    doc.format_version = FORMAT_VERSION;
     let payload_err = |detail: String| ProjectError::Payload {
         path: json_path.to_owned(),
         detail,
@@ -468,6 +488,11 @@ fn load_from_parts(
             ObjectKind::Voxels(v) => {
                 v.svo = decode_svo(bytes)
                     .map_err(|d| payload_err(format!("{what}: voxel payload: {d}")))?;
+                if let Some(frames) = &mut v.frames {
+                    let bytes = payload(&what, o.id, FRAMES_PART)?;
+                    frames.frames = decode_frames(bytes)
+                        .map_err(|d| payload_err(format!("{what}: frames payload: {d}")))?;
+                }
                 if let Some(rig) = &mut v.rig {
                     let bytes = payload(&what, o.id, SKIN_PART)?;
                     decode_skin(bytes, rig)
@@ -644,6 +669,54 @@ fn encode_svo(svo: &Svo, out: &mut Vec<u8>) {
             out.extend_from_slice(&v.skin.weights);
         }
     });
+}
+
+const FRAMES_MAGIC: &[u8; 4] = b"FRM1";
+
+/// Frame payload: magic, frame count, then per frame its origin (3 × f32), the length of its
+/// octree payload (u64) and that payload. The shown frame's slot is an empty octree.
+fn encode_frames(frames: &crate::scene::FrameSequence, out: &mut Vec<u8>) {
+    out.extend_from_slice(FRAMES_MAGIC);
+    put_len(out, frames.frames.len());
+    for f in &frames.frames {
+        put_f32s(out, &f.origin.to_array());
+        let mut svo = Vec::new();
+        encode_svo(&f.svo, &mut svo);
+        out.extend_from_slice(&(svo.len() as u64).to_le_bytes());
+        out.extend_from_slice(&svo);
+    }
+}
+
+fn decode_frames(bytes: &[u8]) -> Result<Vec<crate::scene::VoxelFrame>, String> {
+    let mut r = Reader { bytes, at: 0 };
+    if r.take(4)? != FRAMES_MAGIC {
+        return Err("bad magic (expected FRM1)".into());
+    }
+    // Each frame takes at least its origin, its length and an octree header (12 + 8 + 16).
+    let n = r.count(36, "frame count")?;
+    let mut out = Vec::with_capacity(n);
+    for i in 0..n {
+        let [x, y, z] = [r.f32()?, r.f32()?, r.f32()?];
+        let len = r.u64()?;
+        let len = usize::try_from(len)
+            .ok()
+            .filter(|&l| l <= r.remaining())
+            .ok_or_else(|| {
+                format!(
+                    "frame {i}: declares {len} bytes but {} remain",
+                    r.remaining()
+                )
+            })?;
+        let svo = decode_svo(r.take(len)?).map_err(|e| format!("frame {i}: {e}"))?;
+        out.push(crate::scene::VoxelFrame {
+            svo,
+            origin: Vec3::new(x, y, z),
+        });
+    }
+    if r.remaining() != 0 {
+        return Err(format!("{} bytes after the last frame", r.remaining()));
+    }
+    Ok(out)
 }
 
 fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {

@@ -3,7 +3,9 @@
 //! # Import
 //! [`import_vox`] reads every model of a file (versions 150 and 200, and legacy files without a
 //! scene graph) with the `dot_vox` crate, applies the scene graph (`nTRN` translation and
-//! rotation, `nGRP`, `nSHP`) and returns one [`Object`] per shape instance. Before `dot_vox` sees
+//! rotation, `nGRP`, `nSHP`) and returns one [`Object`] per shape instance; an animation
+//! (several models without a scene graph, or `_f` keyframes) is one object with a
+//! [`FrameSequence`](crate::scene::FrameSequence). Before `dot_vox` sees
 //! the bytes, [`chunks::validate`] walks the RIFF-like chunk structure itself: `dot_vox` answers
 //! a malformed file with a vague string (or, for a bad rotation byte, a panic), and silently
 //! drops chunks it cannot parse, which would shift model and node indices. After validation
@@ -29,7 +31,11 @@
 
 mod chunks;
 mod export;
+#[cfg(test)]
+mod frame_tests;
 mod import;
+#[cfg(test)]
+mod instance_tests;
 #[cfg(test)]
 mod tests;
 
@@ -55,6 +61,9 @@ pub const DEFAULT_MAX_VOXELS: u64 = 1 << 25;
 
 /// Most shape instances one import creates.
 pub const MAX_INSTANCES: usize = 1 << 16;
+
+/// Most frames one animated shape may have (a frame index `_f` is below it).
+pub const MAX_FRAMES: u32 = 4096;
 
 /// Deepest scene graph followed (MagicaVoxel nests a few levels; cycles hit this limit).
 pub const MAX_SCENE_DEPTH: usize = 64;

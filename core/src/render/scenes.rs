@@ -132,6 +132,7 @@ pub fn voxel_object(svo: Svo, half: f32) -> ObjectKind {
         rig: None,
         volume: None,
         palette: Vec::new(),
+        frames: None,
     })
 }
 

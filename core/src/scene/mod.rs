@@ -15,7 +15,11 @@ use crate::skin::Rig;
 use crate::svo::Svo;
 
 /// Current project file format version.
-pub const FORMAT_VERSION: u32 = 1;
+///
+/// * 1: the first format.
+/// * 2: voxel models may hold a frame sequence ([`VoxelModel::frames`], with a `"frames"`
+///   payload in the `.bin`). Version 1 files load unchanged (they have no frames).
+pub const FORMAT_VERSION: u32 = 2;
 
 /// A value in the document that a renderer must not see.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -143,6 +147,86 @@ pub struct VoxelModel {
     /// `.vox`, or the artist's own. Empty: the palette panel shows the model's colours only.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub palette: Vec<[u8; 4]>,
+    /// A flip-book animation (an animated MagicaVoxel file): several octrees of which one is
+    /// shown at a time. The shown frame is this model's own [`VoxelModel::svo`] and
+    /// [`VoxelModel::origin`], so renderers and editing tools see it with no change; the other
+    /// frames wait in the sequence. `None`: a still model. (Omitted from the JSON when `None`.)
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub frames: Option<FrameSequence>,
+}
+
+/// One frame of a [`FrameSequence`] while it is not shown.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct VoxelFrame {
+    /// The frame's voxels.
+    pub svo: Svo,
+    /// Object-space position of the frame's voxel (0,0,0) (frames may differ in size and place).
+    pub origin: Vec3,
+}
+
+/// The frames of a flip-book voxel animation and its playhead (see [`VoxelModel::frames`]).
+///
+/// Frame `shown`'s slot in [`FrameSequence::frames`] is an empty placeholder: its voxels are the
+/// model's `svo` and `origin`, swapped in and out by [`VoxelModel::show_frame`] (no copy).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct FrameSequence {
+    /// How long each frame is shown, in seconds.
+    pub frame_secs: f32,
+    /// The playhead in seconds; the sequence loops.
+    pub time_secs: f32,
+    /// Index of the frame held in the model's `svo` and `origin`.
+    pub shown: usize,
+    /// Every frame in order, the shown one as an empty placeholder (stored in the `.bin`).
+    #[serde(skip)]
+    pub frames: Vec<VoxelFrame>,
+}
+
+/// MagicaVoxel plays animations at about 10 frames per second and its files store no rate: the
+/// frame length given to imported animations.
+pub const DEFAULT_FRAME_SECS: f32 = 0.1;
+
+impl Default for FrameSequence {
+    fn default() -> Self {
+        Self {
+            frame_secs: DEFAULT_FRAME_SECS,
+            time_secs: 0.0,
+            shown: 0,
+            frames: Vec::new(),
+        }
+    }
+}
+
+impl FrameSequence {
+    /// Number of frames.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.frames.len()
+    }
+
+    /// Whether there are no frames (never true in a valid document).
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.frames.is_empty()
+    }
+
+    /// Length of one loop in seconds.
+    #[must_use]
+    pub fn duration_secs(&self) -> f32 {
+        self.frame_secs * self.frames.len() as f32
+    }
+
+    /// The frame shown at `time_secs` (looping; negative times count back from the end).
+    #[must_use]
+    pub fn frame_at(&self, time_secs: f32) -> usize {
+        let n = self.frames.len();
+        if n == 0 || self.frame_secs.is_nan() || self.frame_secs <= 0.0 || !time_secs.is_finite() {
+            return 0;
+        }
+        let k = (f64::from(time_secs) / f64::from(self.frame_secs)).floor();
+        // Exact for any count a document can hold; rem_euclid keeps it in 0..n.
+        (k.rem_euclid(n as f64) as usize).min(n - 1)
+    }
 }
 
 impl Default for VoxelModel {
@@ -155,6 +239,7 @@ impl Default for VoxelModel {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }
     }
 }
@@ -167,6 +252,58 @@ impl VoxelModel {
         let extent = glam::UVec3::splat(self.svo.extent());
         self.volume
             .map_or(extent, |v| v.clamp(glam::UVec3::ONE, extent))
+    }
+
+    /// Number of frames: 1 for a still model.
+    #[must_use]
+    pub fn frame_count(&self) -> usize {
+        self.frames.as_ref().map_or(1, |f| f.len().max(1))
+    }
+
+    /// Frame `index`'s voxels and origin (the shown frame is the model's own); `None` past the
+    /// end. A still model has one frame.
+    #[must_use]
+    pub fn frame(&self, index: usize) -> Option<(&Svo, Vec3)> {
+        match &self.frames {
+            Some(f) if index != f.shown => f.frames.get(index).map(|fr| (&fr.svo, fr.origin)),
+            Some(f) if index >= f.len() => None,
+            None if index > 0 => None,
+            _ => Some((&self.svo, self.origin)),
+        }
+    }
+
+    /// Shows frame `index` (swaps it into [`VoxelModel::svo`] and [`VoxelModel::origin`]);
+    /// returns whether the shown frame changed. Out-of-range indices and still models are left
+    /// as they are.
+    pub fn show_frame(&mut self, index: usize) -> bool {
+        let Some(seq) = self.frames.as_mut() else {
+            return false;
+        };
+        if index == seq.shown || index >= seq.frames.len() || seq.shown >= seq.frames.len() {
+            return false;
+        }
+        let old = seq.shown;
+        // The shown frame goes back to its slot, the new one comes out of its slot.
+        std::mem::swap(&mut self.svo, &mut seq.frames[old].svo);
+        std::mem::swap(&mut self.origin, &mut seq.frames[old].origin);
+        std::mem::swap(&mut self.svo, &mut seq.frames[index].svo);
+        std::mem::swap(&mut self.origin, &mut seq.frames[index].origin);
+        seq.shown = index;
+        true
+    }
+
+    /// Moves a frame sequence's playhead to `time_secs` and shows the frame there; returns
+    /// whether the shown frame changed. No effect on a still model or a non-finite time.
+    pub fn set_frame_time(&mut self, time_secs: f32) -> bool {
+        let Some(seq) = self.frames.as_mut() else {
+            return false;
+        };
+        if !time_secs.is_finite() {
+            return false;
+        }
+        seq.time_secs = time_secs;
+        let index = seq.frame_at(time_secs);
+        self.show_frame(index)
     }
 
     /// `object_from_voxel`: maps voxel coordinates (voxel `c` spans `[c, c+1)`) to object space.
@@ -826,6 +963,54 @@ fn repeated_id(objects: &[Object]) -> Option<u64> {
     ids.windows(2).find(|w| w[0] == w[1]).map(|w| w[0])
 }
 
+/// A frame sequence the renderers and exporters can trust: at least one frame, a positive
+/// finite frame length, a finite playhead, the shown frame in range with an empty placeholder
+/// in its slot, finite origins, and no rig (a skinned model animates by its clips).
+fn validate_frames(v: &VoxelModel, f: &FrameSequence, ctx: &str) -> Result<(), SceneError> {
+    if f.frames.is_empty() {
+        return Err(invalid(
+            "frames",
+            ctx,
+            "a frame sequence needs at least one frame",
+        ));
+    }
+    if !(f.frame_secs.is_finite() && f.frame_secs > 0.0) {
+        return Err(invalid(
+            "frames.frame_secs",
+            ctx,
+            format!("{} must be a positive number of seconds", f.frame_secs),
+        ));
+    }
+    if !f.time_secs.is_finite() {
+        return Err(invalid("frames.time_secs", ctx, "not finite"));
+    }
+    if f.shown >= f.frames.len() {
+        return Err(invalid(
+            "frames.shown",
+            ctx,
+            format!("frame {} of {} does not exist", f.shown, f.frames.len()),
+        ));
+    }
+    if !f.frames[f.shown].svo.is_empty() {
+        return Err(invalid(
+            "frames",
+            ctx,
+            "the shown frame's slot must be empty (its voxels are the model's own)",
+        ));
+    }
+    if f.frames.iter().any(|fr| !fr.origin.is_finite()) {
+        return Err(invalid("frames.origin", ctx, "not finite"));
+    }
+    if v.rig.is_some() {
+        return Err(invalid(
+            "frames",
+            ctx,
+            "a skinned model cannot also be a frame sequence",
+        ));
+    }
+    Ok(())
+}
+
 /// The common scale of a uniform, positive per-axis scale (relative tolerance 1e-6).
 fn uniform_scale(scale: Vec3) -> Option<f32> {
     let s = scale.x;
@@ -849,6 +1034,9 @@ fn validate_object(o: &Object) -> Result<(), SceneError> {
             }
             if !v.origin.is_finite() {
                 return Err(invalid("origin", ctx, "not finite"));
+            }
+            if let Some(f) = &v.frames {
+                validate_frames(v, f, ctx)?;
             }
             if let Some(rig) = &v.rig {
                 rig.validate()

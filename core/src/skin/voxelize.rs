@@ -67,6 +67,7 @@ pub fn voxelize_skinned(
             rig: Some(rig),
             volume: None,
             palette: Vec::new(),
+            frames: None,
         },
         stats: v.stats,
     })

@@ -34,6 +34,7 @@ fn doc_with(name: &str, svo: Svo, voxel_size: f32, origin: Vec3) -> Document {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     doc

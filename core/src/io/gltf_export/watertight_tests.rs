@@ -539,6 +539,7 @@ fn hinged_bar() -> Document {
             rig: Some(rig),
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     doc

@@ -41,6 +41,7 @@ fn sample_doc(seed: u64, skin: bool) -> Document {
             rig: None,
             volume: None,
             palette: Vec::new(),
+            frames: None,
         }),
     );
     let mut cube = unit_cube();
@@ -992,4 +993,174 @@ fn structurally_mutated_projects_never_panic_or_amplify() {
         accepted > 0 && refused > cases / 10,
         "{accepted} accepted, {refused} refused"
     );
+}
+
+/// A document with one frame sequence of three frames (1, 2 and 3 voxels, different origins),
+/// showing frame 1.
+fn frames_doc() -> Document {
+    use crate::scene::{FrameSequence, VoxelFrame};
+    let frame = |n: u32, origin: Vec3| VoxelFrame {
+        svo: Svo::from_voxels(
+            2,
+            false,
+            (0..n).map(|x| {
+                (
+                    UVec3::new(x, 0, 0),
+                    Voxel::new([10 * x as u8, 200, 30, 255], Vec3::Y),
+                )
+            }),
+        )
+        .unwrap(),
+        origin,
+    };
+    let mut model = VoxelModel {
+        svo: frame(1, Vec3::ZERO).svo,
+        frames: Some(FrameSequence {
+            frame_secs: 0.125,
+            frames: vec![
+                VoxelFrame::default(),
+                frame(2, Vec3::new(1.0, 0.0, 0.0)),
+                frame(3, Vec3::new(0.0, -2.0, 0.0)),
+            ],
+            ..FrameSequence::default()
+        }),
+        ..VoxelModel::default()
+    };
+    assert!(model.set_frame_time(0.2));
+    let mut doc = Document::default();
+    doc.add("walk", ObjectKind::Voxels(model));
+    doc
+}
+
+#[test]
+fn frame_sequences_save_and_load_with_every_frame() {
+    let doc = frames_doc();
+    doc.validate().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("anim.thicket.json");
+    save(&doc, &path).unwrap();
+    let text = fs::read_to_string(&path).unwrap();
+    assert!(text.contains("\"format_version\": 2"), "{text}");
+    assert!(text.contains("\"part\": \"frames\""), "{text}");
+    let back = load(&path).unwrap();
+    assert_eq!(back, doc);
+    let ObjectKind::Voxels(v) = &back.objects[0].kind else {
+        panic!("voxels")
+    };
+    let seq = v.frames.as_ref().unwrap();
+    assert_eq!((seq.shown, seq.frame_secs, v.frame_count()), (1, 0.125, 3));
+    let counts: Vec<u64> = (0..3).map(|i| v.frame(i).unwrap().0.leaf_count()).collect();
+    assert_eq!(counts, [1, 2, 3]);
+    assert_eq!(v.frame(2).unwrap().1, Vec3::new(0.0, -2.0, 0.0));
+
+    // A JSON that names frames but has no frames payload is refused by name.
+    let mut json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    json["payloads"]
+        .as_array_mut()
+        .unwrap()
+        .retain(|p| p["part"] != "frames");
+    fs::write(&path, serde_json::to_vec(&json).unwrap()).unwrap();
+    let e = load(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("\"walk\"") && e.contains("no frames payload"),
+        "{e}"
+    );
+}
+
+#[test]
+fn version_1_projects_load_and_save_as_version_2() {
+    // A version-1 file is a version-2 file without frames: set the version back and load it.
+    let doc = sample_doc(3, false);
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("old.thicket.json");
+    save(&doc, &path).unwrap();
+    let text = fs::read_to_string(&path).unwrap();
+    let old = text.replace("\"format_version\": 2", "\"format_version\": 1");
+    assert_ne!(old, text);
+    fs::write(&path, &old).unwrap();
+    let loaded = load(&path).unwrap();
+    // Migrated on load: the document in memory is the current version.
+    assert_eq!(loaded.format_version, 2);
+    assert!(loaded.objects.iter().all(|o| match &o.kind {
+        ObjectKind::Voxels(v) => v.frames.is_none(),
+        _ => true,
+    }));
+    assert_eq!(loaded, doc);
+    save(&loaded, &path).unwrap();
+    assert!(
+        fs::read_to_string(&path)
+            .unwrap()
+            .contains("\"format_version\": 2")
+    );
+}
+
+#[test]
+fn broken_frame_sequences_do_not_validate() {
+    let base = frames_doc();
+    let edit = |f: &dyn Fn(&mut VoxelModel)| {
+        let mut d = base.clone();
+        if let ObjectKind::Voxels(v) = &mut d.objects[0].kind {
+            f(v);
+        }
+        d.validate().unwrap_err().to_string()
+    };
+    let e = edit(&|v| v.frames.as_mut().unwrap().frame_secs = 0.0);
+    assert!(e.contains("frame_secs"), "{e}");
+    let e = edit(&|v| v.frames.as_mut().unwrap().shown = 7);
+    assert!(e.contains("frame 7 of 3"), "{e}");
+    let e = edit(&|v| {
+        let seq = v.frames.as_mut().unwrap();
+        seq.frames[seq.shown].svo = v.svo.clone();
+    });
+    assert!(e.contains("slot must be empty"), "{e}");
+    let e = edit(&|v| v.frames.as_mut().unwrap().frames.clear());
+    assert!(e.contains("at least one frame"), "{e}");
+    let e = edit(&|v| v.rig = Some(crate::skin::Rig::default()));
+    assert!(
+        e.contains("skinned model cannot also be a frame sequence"),
+        "{e}"
+    );
+}
+
+#[test]
+fn mutated_frame_payloads_never_panic() {
+    let doc = frames_doc();
+    let mut bin = Vec::new();
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        panic!("voxels")
+    };
+    encode_frames(v.frames.as_ref().unwrap(), &mut bin);
+    assert_eq!(
+        decode_frames(&bin).unwrap(),
+        v.frames.as_ref().unwrap().frames
+    );
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(23);
+    let cases = crate::io::fuzz::cases_from_env(10_000);
+    let (mut ok, mut refused) = (0u64, 0u64);
+    for _ in 0..cases {
+        let mut b = bin.clone();
+        match rng.random_range(0..3) {
+            0 => {
+                for _ in 0..rng.random_range(1..4) {
+                    let i = rng.random_range(0..b.len());
+                    b[i] ^= 1 << rng.random_range(0..8);
+                }
+            }
+            1 => b.truncate(rng.random_range(0..b.len())),
+            _ => {
+                let i = rng.random_range(0..b.len() - 4);
+                b[i..i + 4].fill(0xff);
+            }
+        }
+        let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode_frames(&b).is_ok()))
+        });
+        assert!(peak < 1 << 20, "a case held {peak} bytes");
+        match result {
+            Ok(true) => ok += 1,
+            Ok(false) => refused += 1,
+            Err(_) => panic!("decode_frames panicked"),
+        }
+    }
+    assert!(refused > cases / 2 && ok > 0, "ok {ok}, refused {refused}");
 }

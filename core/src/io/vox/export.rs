@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DVec3};
 
 use super::chunks::{write_chunk, write_dict};
-use super::{MAX_MODEL_EDGE, VoxError, mv_cell_from_yup};
+use super::{IMat3, MAX_MODEL_EDGE, VoxError, decode_rotation, imat_apply, mv_cell_from_yup};
 use crate::scene::{Object, ObjectKind, VoxelModel};
 
 /// MagicaVoxel-space cell → (sRGB colour, index into the export's material table).
@@ -36,8 +36,11 @@ impl Default for VoxExportOptions {
 /// What an export wrote.
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct VoxExportReport {
-    /// Models written (objects larger than 256 in a dimension become several).
+    /// Models written: each distinct block of voxels once (objects larger than 256 in a
+    /// dimension become several blocks; equal blocks, also turned, are one model placed again).
     pub models: usize,
+    /// Shape nodes written: one per object, or per 256³ block of a larger object.
+    pub placements: usize,
     /// Voxels written.
     pub voxels: u64,
     /// Palette entries used (at most 255).
@@ -93,7 +96,12 @@ pub fn export_vox_bytes(
     let mut chosen = Vec::new();
     for o in objects {
         match &o.kind {
-            ObjectKind::Voxels(v) if o.visible && !v.svo.is_empty() => {
+            ObjectKind::Voxels(v)
+                if o.visible
+                    && (0..v.frame_count())
+                        .filter_map(|i| v.frame(i))
+                        .any(|(svo, _)| !svo.is_empty()) =>
+            {
                 o.transform
                     .validate(&o.name)
                     .map_err(|e| object_error(o, e.to_string()))?;
@@ -137,7 +145,8 @@ pub fn export_vox_bytes(
 
     // Global material table: name → index, "diffuse" = 0.
     let mut material_names: Vec<String> = vec!["diffuse".into()];
-    let mut per_object_cells: Vec<(String, CellMap)> = Vec::new();
+    // Per object, the cells of each frame (one for a still model).
+    let mut per_object_cells: Vec<(String, Vec<CellMap>)> = Vec::new();
     let mut total_cells = 0u64;
     for (o, v) in &chosen {
         let local_materials: Vec<u16> = v
@@ -152,63 +161,75 @@ pub fn export_vox_bytes(
                 }
             })
             .collect();
-        let grid_from_voxel = DMat4::from_scale(DVec3::splat(1.0 / unit))
-            * o.transform.matrix().as_dmat4()
-            * v.object_from_voxel().as_dmat4();
-        let mut cells = CellMap::new();
-        let mut failure = None;
-        v.svo.for_each_leaf(|c, vox| {
-            if failure.is_some() {
-                return;
-            }
-            let base = c.as_dvec3();
-            let mut lo = DVec3::INFINITY;
-            let mut hi = DVec3::NEG_INFINITY;
-            for k in 0..8u32 {
-                let corner =
-                    base + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
-                let p = grid_from_voxel.transform_point3(corner);
-                lo = lo.min(p);
-                hi = hi.max(p);
-            }
-            // A voxel fills the grid cells whose centres its (transformed) box covers; at
-            // least the nearest one, so no voxel disappears.
-            let a = lo.round();
-            let b = hi.round().max(a + 1.0);
-            if a.abs().max_element() > f64::from(1 << 30)
-                || b.abs().max_element() > f64::from(1 << 30)
-            {
-                failure = Some(format!(
-                    "a voxel lands at {a} grid cells from the origin, beyond the .vox range"
+        let mut frames = Vec::with_capacity(v.frame_count());
+        for (svo, origin) in (0..v.frame_count()).filter_map(|i| v.frame(i)) {
+            if !origin.is_finite() {
+                return Err(object_error(
+                    o,
+                    format!("a frame's origin {origin} is not finite"),
                 ));
-                return;
             }
-            let n = (b - a).element_product();
-            total_cells += n as u64;
-            if total_cells > options.max_voxels {
-                failure = Some(format!(
-                    "the export would write more than {} voxels (grid unit {unit}); \
+            let object_from_voxel = glam::Mat4::from_translation(origin)
+                * glam::Mat4::from_scale(glam::Vec3::splat(v.voxel_size));
+            let grid_from_voxel = DMat4::from_scale(DVec3::splat(1.0 / unit))
+                * o.transform.matrix().as_dmat4()
+                * object_from_voxel.as_dmat4();
+            let mut cells = CellMap::new();
+            let mut failure = None;
+            svo.for_each_leaf(|c, vox| {
+                if failure.is_some() {
+                    return;
+                }
+                let base = c.as_dvec3();
+                let mut lo = DVec3::INFINITY;
+                let mut hi = DVec3::NEG_INFINITY;
+                for k in 0..8u32 {
+                    let corner = base
+                        + DVec3::new(f64::from(k & 1), f64::from((k >> 1) & 1), f64::from(k >> 2));
+                    let p = grid_from_voxel.transform_point3(corner);
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                }
+                // A voxel fills the grid cells whose centres its (transformed) box covers; at
+                // least the nearest one, so no voxel disappears.
+                let a = lo.round();
+                let b = hi.round().max(a + 1.0);
+                if a.abs().max_element() > f64::from(1 << 30)
+                    || b.abs().max_element() > f64::from(1 << 30)
+                {
+                    failure = Some(format!(
+                        "a voxel lands at {a} grid cells from the origin, beyond the .vox range"
+                    ));
+                    return;
+                }
+                let n = (b - a).element_product();
+                total_cells += n as u64;
+                if total_cells > options.max_voxels {
+                    failure = Some(format!(
+                        "the export would write more than {} voxels (grid unit {unit}); \
                      choose a larger grid unit",
-                    options.max_voxels
-                ));
-                return;
-            }
-            let material = local_materials
-                .get(usize::from(vox.material))
-                .copied()
-                .unwrap_or(0);
-            for z in a.z as i64..b.z as i64 {
-                for y in a.y as i64..b.y as i64 {
-                    for x in a.x as i64..b.x as i64 {
-                        cells.insert(mv_cell_from_yup([x, y, z]), (vox.color, material));
+                        options.max_voxels
+                    ));
+                    return;
+                }
+                let material = local_materials
+                    .get(usize::from(vox.material))
+                    .copied()
+                    .unwrap_or(0);
+                for z in a.z as i64..b.z as i64 {
+                    for y in a.y as i64..b.y as i64 {
+                        for x in a.x as i64..b.x as i64 {
+                            cells.insert(mv_cell_from_yup([x, y, z]), (vox.color, material));
+                        }
                     }
                 }
+            });
+            if let Some(detail) = failure {
+                return Err(object_error(o, detail));
             }
-        });
-        if let Some(detail) = failure {
-            return Err(object_error(o, detail));
+            frames.push(cells);
         }
-        per_object_cells.push((o.name.clone(), cells));
+        per_object_cells.push((o.name.clone(), frames));
     }
     if material_names.len() > 256 {
         return Err(VoxError::Object {
@@ -222,7 +243,7 @@ pub fn export_vox_bytes(
     }
 
     let mut counts: HashMap<([u8; 4], u16), u64> = HashMap::new();
-    for (_, cells) in &per_object_cells {
+    for cells in per_object_cells.iter().flat_map(|(_, frames)| frames) {
         for key in cells.values() {
             *counts.entry(*key).or_insert(0) += 1;
         }
@@ -245,11 +266,27 @@ pub fn export_vox_bytes(
     report.exact_colors = palette.exact;
     report.max_channel_error = palette.max_channel_error;
 
-    // Split each object into ≤ 256³ blocks of its MagicaVoxel-space bounding box.
+    // Split each object into ≤ 256³ blocks of its MagicaVoxel-space bounding box; a block
+    // whose voxels equal a model already written (under one of the 48 grid rotations) places
+    // that model again instead of writing a copy, as MagicaVoxel does for instances.
     let edge = i64::from(MAX_MODEL_EDGE);
-    let mut models: Vec<([u32; 3], Vec<[u8; 4]>)> = Vec::new();
-    let mut placements: Vec<(String, [i64; 3], usize)> = Vec::new();
-    for (name, cells) in &per_object_cells {
+    let mut table = ModelTable::default();
+    let mut placements: Vec<Placement> = Vec::new();
+    for (name, frames) in &per_object_cells {
+        if frames.len() > 1 {
+            placements.push(animated_placement(
+                name,
+                frames,
+                &palette,
+                &mut table,
+                &mut report,
+                path,
+            )?);
+            continue;
+        }
+        let Some(cells) = frames.first() else {
+            continue;
+        };
         let lo = cells
             .keys()
             .fold([i64::MAX; 3], |m, c| [0, 1, 2].map(|a| m[a].min(c[a])));
@@ -265,49 +302,41 @@ pub fn export_vox_bytes(
                 .push([local[0], local[1], local[2], index + 1]);
         }
         let parts = blocks.len();
-        for (part, (block, mut voxels)) in blocks.into_iter().enumerate() {
-            voxels.sort_unstable();
-            let size =
-                [0, 1, 2].map(|a| u32::from(voxels.iter().map(|v| v[a]).max().unwrap_or(0)) + 1);
+        for (part, (block, voxels)) in blocks.into_iter().enumerate() {
             let block_min = [0, 1, 2].map(|a| lo[a] + block[a] * edge);
-            // Import places voxel v at pivot + (v - floor(size / 2)); choose the pivot so that
-            // voxel (0,0,0) lands on block_min.
-            let translation = [0, 1, 2].map(|a| block_min[a] + i64::from(size[a] / 2));
-            if translation.iter().any(|t| i32::try_from(*t).is_err()) {
-                return Err(VoxError::Object {
-                    path: path.to_owned(),
-                    object: name.clone(),
-                    detail: format!("translation {translation:?} does not fit .vox's 32-bit range"),
-                });
-            }
             let label = if parts == 1 {
                 name.clone()
             } else {
                 format!("{name} (part {} of {parts})", part + 1)
             };
             report.voxels += voxels.len() as u64;
-            placements.push((label, translation, models.len()));
-            models.push((size, voxels));
+            let key = table.place(voxels, block_min);
+            check_translation(&key, name, path)?;
+            placements.push(Placement {
+                name: label,
+                keys: vec![key],
+            });
         }
     }
-    report.models = models.len();
+    report.models = table.models.len();
+    report.placements = placements.len();
 
     let mut main = Vec::new();
-    for (size, voxels) in &models {
+    for m in &table.models {
         let mut c = Vec::with_capacity(12);
-        for s in size {
+        for s in m.size {
             c.extend_from_slice(&s.to_le_bytes());
         }
         write_chunk(&mut main, b"SIZE", &c);
-        let mut c = Vec::with_capacity(4 + voxels.len() * 4);
-        c.extend_from_slice(&(voxels.len() as u32).to_le_bytes());
-        for v in voxels {
+        let mut c = Vec::with_capacity(4 + m.voxels.len() * 4);
+        c.extend_from_slice(&(m.voxels.len() as u32).to_le_bytes());
+        for v in &m.voxels {
             c.extend_from_slice(v);
         }
         write_chunk(&mut main, b"XYZI", &c);
     }
-    // Scene graph: root nTRN (0) → nGRP (1) → per model nTRN (2 + 2k) → nSHP (3 + 2k).
-    write_transform(&mut main, 0, &[], 1, u32::MAX, None);
+    // Scene graph: root nTRN (0) → nGRP (1) → per placement nTRN (2 + 2k) → nSHP (3 + 2k).
+    write_transform(&mut main, 0, &[], 1, u32::MAX, &[]);
     let mut group = Vec::new();
     group.extend_from_slice(&1u32.to_le_bytes());
     write_dict(&mut group, &[]);
@@ -316,17 +345,9 @@ pub fn export_vox_bytes(
         group.extend_from_slice(&(2 + 2 * k as u32).to_le_bytes());
     }
     write_chunk(&mut main, b"nGRP", &group);
-    for (k, (name, t, model)) in placements.iter().enumerate() {
+    for (k, placement) in placements.iter().enumerate() {
         let id = 2 + 2 * k as u32;
-        let t = format!("{} {} {}", t[0], t[1], t[2]);
-        write_transform(&mut main, id, &[("_name", name)], id + 1, 0, Some(&t));
-        let mut shape = Vec::new();
-        shape.extend_from_slice(&(id + 1).to_le_bytes());
-        write_dict(&mut shape, &[]);
-        shape.extend_from_slice(&1u32.to_le_bytes());
-        shape.extend_from_slice(&(*model as u32).to_le_bytes());
-        write_dict(&mut shape, &[]);
-        write_chunk(&mut main, b"nSHP", &shape);
+        write_placement(&mut main, id, placement);
     }
     let mut layer = Vec::new();
     layer.extend_from_slice(&0u32.to_le_bytes());
@@ -361,13 +382,90 @@ pub fn export_vox_bytes(
     Ok((out, report))
 }
 
+/// `_t` must fit the file's 32-bit integers.
+fn check_translation(key: &Keyframe, name: &str, path: &Path) -> Result<(), VoxError> {
+    if key.translation.iter().any(|t| i32::try_from(*t).is_err()) {
+        return Err(VoxError::Object {
+            path: path.to_owned(),
+            object: name.to_owned(),
+            detail: format!(
+                "translation {:?} does not fit .vox's 32-bit range",
+                key.translation
+            ),
+        });
+    }
+    Ok(())
+}
+
+/// An animated object as one placement with a keyframe per frame (MagicaVoxel 0.99.7's
+/// layout). Each frame must fit one model (256³); an empty frame is refused, since a shape's
+/// frame must name a model.
+fn animated_placement(
+    name: &str,
+    frames: &[CellMap],
+    palette: &Palette,
+    table: &mut ModelTable,
+    report: &mut VoxExportReport,
+    path: &Path,
+) -> Result<Placement, VoxError> {
+    let object_error = |detail: String| VoxError::Object {
+        path: path.to_owned(),
+        object: name.to_owned(),
+        detail,
+    };
+    let edge = i64::from(MAX_MODEL_EDGE);
+    let mut keys = Vec::with_capacity(frames.len());
+    for (f, cells) in frames.iter().enumerate() {
+        if cells.is_empty() {
+            return Err(object_error(format!(
+                "frame {f} of {} is empty; a .vox animation frame needs at least one voxel",
+                frames.len()
+            )));
+        }
+        let lo = cells
+            .keys()
+            .fold([i64::MAX; 3], |m, c| [0, 1, 2].map(|a| m[a].min(c[a])));
+        let hi = cells
+            .keys()
+            .fold([i64::MIN; 3], |m, c| [0, 1, 2].map(|a| m[a].max(c[a])));
+        if (0..3).any(|a| hi[a] - lo[a] >= edge) {
+            return Err(object_error(format!(
+                "frame {f} spans {}×{}×{} voxels; an animation frame must fit one \
+                 {MAX_MODEL_EDGE}³ model",
+                hi[0] - lo[0] + 1,
+                hi[1] - lo[1] + 1,
+                hi[2] - lo[2] + 1
+            )));
+        }
+        let voxels: Vec<[u8; 4]> = cells
+            .iter()
+            .map(|(c, key)| {
+                let index = palette.index.get(key).copied().unwrap_or(0);
+                let l = [0, 1, 2].map(|a| (c[a] - lo[a]) as u8);
+                [l[0], l[1], l[2], index + 1]
+            })
+            .collect();
+        report.voxels += voxels.len() as u64;
+        let mut key = table.place(voxels, lo);
+        key.frame = f as u32;
+        check_translation(&key, name, path)?;
+        keys.push(key);
+    }
+    Ok(Placement {
+        name: name.to_owned(),
+        keys,
+    })
+}
+
+/// Writes a transform node whose frames are `frames` (each a frame dictionary; none: one
+/// empty frame).
 fn write_transform(
     out: &mut Vec<u8>,
     id: u32,
     attributes: &[(&str, &str)],
     child: u32,
     layer: u32,
-    translation: Option<&str>,
+    frames: &[Vec<(&str, String)>],
 ) {
     let mut c = Vec::new();
     c.extend_from_slice(&id.to_le_bytes());
@@ -375,12 +473,205 @@ fn write_transform(
     c.extend_from_slice(&child.to_le_bytes());
     c.extend_from_slice(&u32::MAX.to_le_bytes());
     c.extend_from_slice(&layer.to_le_bytes());
-    c.extend_from_slice(&1u32.to_le_bytes());
-    match translation {
-        Some(t) => write_dict(&mut c, &[("_t", t)]),
-        None => write_dict(&mut c, &[]),
+    c.extend_from_slice(&(frames.len().max(1) as u32).to_le_bytes());
+    if frames.is_empty() {
+        write_dict(&mut c, &[]);
+    }
+    for f in frames {
+        let entries: Vec<(&str, &str)> = f.iter().map(|(k, v)| (*k, v.as_str())).collect();
+        write_dict(&mut c, &entries);
     }
     write_chunk(out, b"nTRN", &c);
+}
+
+/// Writes a placement as a transform node `id` and its shape node `id + 1`. A placement with
+/// one key is static (no `_f`); with several, the transform's frames and the shape's models
+/// carry `_f`, as MagicaVoxel 0.99.7 writes an animation.
+fn write_placement(out: &mut Vec<u8>, id: u32, placement: &Placement) {
+    let animated = placement.keys.len() > 1;
+    let frames: Vec<Vec<(&str, String)>> = placement
+        .keys
+        .iter()
+        .map(|k| {
+            let mut f = Vec::new();
+            if animated {
+                f.push(("_f", k.frame.to_string()));
+            }
+            if k.rotation != IDENTITY_ROTATION {
+                f.push(("_r", k.rotation.to_string()));
+            }
+            let t = k.translation;
+            f.push(("_t", format!("{} {} {}", t[0], t[1], t[2])));
+            f
+        })
+        .collect();
+    write_transform(out, id, &[("_name", &placement.name)], id + 1, 0, &frames);
+    let mut shape = Vec::new();
+    shape.extend_from_slice(&(id + 1).to_le_bytes());
+    write_dict(&mut shape, &[]);
+    shape.extend_from_slice(&(placement.keys.len() as u32).to_le_bytes());
+    for k in &placement.keys {
+        shape.extend_from_slice(&(k.model as u32).to_le_bytes());
+        if animated {
+            write_dict(&mut shape, &[("_f", &k.frame.to_string())]);
+        } else {
+            write_dict(&mut shape, &[]);
+        }
+    }
+    write_chunk(out, b"nSHP", &shape);
+}
+
+/// The rotation byte of the identity (`_r` is then omitted).
+const IDENTITY_ROTATION: u8 = 4;
+
+/// A model as written: its size and voxels `[x, y, z, file colour index]`, sorted, with at
+/// least one voxel at 0 on each axis.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct FileModel {
+    size: [u32; 3],
+    voxels: Vec<[u8; 4]>,
+}
+
+impl FileModel {
+    /// A model from voxels in any order and position within a 256³ block; also returns the
+    /// shift that moved the voxels' minimum to 0.
+    fn normalised(mut voxels: Vec<[u8; 4]>) -> (Self, [u8; 3]) {
+        let min = [0, 1, 2].map(|a| voxels.iter().map(|v| v[a]).min().unwrap_or(0));
+        for v in &mut voxels {
+            for a in 0..3 {
+                v[a] -= min[a];
+            }
+        }
+        voxels.sort_unstable();
+        let size = [0, 1, 2].map(|a| u32::from(voxels.iter().map(|v| v[a]).max().unwrap_or(0)) + 1);
+        (Self { size, voxels }, min)
+    }
+
+    /// The model turned by rotation `r` as import places it (voxel `v` centred at
+    /// `R · (v + ½ − floor(size / 2))`), normalised; also the smallest doubled centre
+    /// coordinate per axis, which locates the turned voxels.
+    fn rotated(&self, r: &IMat3) -> (Vec<[u8; 4]>, [i64; 3]) {
+        let pivot = self.size.map(|s| i64::from(s / 2));
+        let centres: Vec<([i64; 3], u8)> = self
+            .voxels
+            .iter()
+            .map(|v| {
+                let c2 = [0, 1, 2].map(|a| 2 * (i64::from(v[a]) - pivot[a]) + 1);
+                (imat_apply(r, c2), v[3])
+            })
+            .collect();
+        let min = centres
+            .iter()
+            .fold([i64::MAX; 3], |m, (c, _)| [0, 1, 2].map(|a| m[a].min(c[a])));
+        // Centres are odd, so differences are even; within a 256³ model they fit a byte.
+        let mut out: Vec<[u8; 4]> = centres
+            .iter()
+            .map(|(c, i)| {
+                let n = [0, 1, 2].map(|a| ((c[a] - min[a]) / 2) as u8);
+                [n[0], n[1], n[2], *i]
+            })
+            .collect();
+        out.sort_unstable();
+        (out, min)
+    }
+
+    /// What equal models (under any rotation) share: voxel count, sorted edges, and an
+    /// order-free hash of each voxel's colour with the sorted distances of its centre from the
+    /// box centre (a turn permutes and negates those coordinates), so distinct shapes almost
+    /// never meet in one bucket and the 48-way comparison runs only for true copies.
+    fn invariant(&self) -> (usize, [u32; 3], u64) {
+        let mut edges = self.size;
+        edges.sort_unstable();
+        let size = self.size.map(i64::from);
+        let shape = self.voxels.iter().fold(0u64, |acc, v| {
+            let mut d = [0, 1, 2].map(|a| (2 * i64::from(v[a]) + 1 - size[a]).unsigned_abs());
+            d.sort_unstable();
+            let key = d[0] | (d[1] << 9) | (d[2] << 18) | (u64::from(v[3]) << 27);
+            acc.wrapping_add(mix64(key))
+        });
+        (self.voxels.len(), edges, shape)
+    }
+}
+
+/// splitmix64's finaliser: spreads the bits of `x` (for an order-free sum of hashes).
+fn mix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// One frame of a placement: which model, turned and moved how.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Keyframe {
+    /// Frame index (`_f`).
+    frame: u32,
+    /// Index of the model in the file.
+    model: usize,
+    /// `_t`: where the model's pivot lands.
+    translation: [i64; 3],
+    /// `_r`, [`IDENTITY_ROTATION`] for none.
+    rotation: u8,
+}
+
+/// One `nTRN` → `nSHP` pair.
+struct Placement {
+    name: String,
+    keys: Vec<Keyframe>,
+}
+
+/// The models an export writes, each once, and an index to find a block's equal among them.
+#[derive(Default)]
+struct ModelTable {
+    models: Vec<FileModel>,
+    by_invariant: HashMap<(usize, [u32; 3], u64), Vec<usize>>,
+}
+
+impl ModelTable {
+    /// Places a block's voxels (`[x, y, z, index]` relative to `block_min`, a MagicaVoxel cell):
+    /// reuses a written model that some rotation turns into them, or adds them as a new model.
+    /// Returns the keyframe (frame 0) that puts them back where they were.
+    fn place(&mut self, voxels: Vec<[u8; 4]>, block_min: [i64; 3]) -> Keyframe {
+        let (model, shift) = FileModel::normalised(voxels);
+        let at = [0, 1, 2].map(|a| block_min[a] + i64::from(shift[a]));
+        let invariant = model.invariant();
+        let candidates = self.by_invariant.entry(invariant).or_default();
+        for &k in candidates.iter() {
+            let existing = &self.models[k];
+            for byte in rotation_bytes() {
+                let Some(r) = decode_rotation(byte) else {
+                    continue;
+                };
+                let (turned, min2) = existing.rotated(&r);
+                if turned == model.voxels {
+                    // Import puts the turned voxel with the smallest doubled centre `min2` at
+                    // cell `(min2 + 2T - 1) / 2`, which must be `at`.
+                    return Keyframe {
+                        frame: 0,
+                        model: k,
+                        translation: [0, 1, 2].map(|a| (2 * at[a] + 1 - min2[a]) / 2),
+                        rotation: byte,
+                    };
+                }
+            }
+        }
+        let k = self.models.len();
+        candidates.push(k);
+        let translation = [0, 1, 2].map(|a| at[a] + i64::from(model.size[a] / 2));
+        self.models.push(model);
+        Keyframe {
+            frame: 0,
+            model: k,
+            translation,
+            rotation: IDENTITY_ROTATION,
+        }
+    }
+}
+
+/// The 48 valid rotation bytes, identity first.
+fn rotation_bytes() -> impl Iterator<Item = u8> {
+    std::iter::once(IDENTITY_ROTATION)
+        .chain((0u8..128).filter(|&b| b != IDENTITY_ROTATION && decode_rotation(b).is_some()))
 }
 
 /// A palette of at most 255 (colour, material) entries and where each input key went.

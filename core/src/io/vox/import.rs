@@ -7,10 +7,13 @@ use glam::{UVec3, Vec3};
 
 use super::chunks::{Layout, validate};
 use super::{
-    DEFAULT_MAX_VOXELS, IDENTITY, IMat3, MAX_FILE_BYTES, MAX_INSTANCES, MAX_SCENE_DEPTH, VoxError,
-    decode_rotation, imat_apply, imat_mul, malformed, scene_error, yup_cell_from_mv, yup_from_mv,
+    DEFAULT_MAX_VOXELS, IDENTITY, IMat3, MAX_FILE_BYTES, MAX_FRAMES, MAX_INSTANCES,
+    MAX_SCENE_DEPTH, VoxError, decode_rotation, imat_apply, imat_mul, malformed, scene_error,
+    yup_cell_from_mv, yup_from_mv,
 };
-use crate::scene::{Document, Object, ObjectKind, Transform, VoxelModel};
+use crate::scene::{
+    Document, FrameSequence, Object, ObjectKind, Transform, VoxelFrame, VoxelModel,
+};
 use crate::svo::{Svo, Voxel, encode_normal};
 
 /// Limits for [`import_vox_with`].
@@ -31,8 +34,8 @@ impl Default for VoxImportOptions {
 /// What a `.vox` file holds, ready to go into a [`Document`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct VoxScene {
-    /// One voxel object per shape instance (or per model when the file has no scene graph),
-    /// in scene-graph order. Ids are 1, 2, …; [`VoxScene::add_to`] renumbers them.
+    /// One voxel object per shape instance in scene-graph order (an animated shape, or a file
+    /// without a scene graph holding several models, is one object with a frame sequence). Ids are 1, 2, …; [`VoxScene::add_to`] renumbers them.
     pub objects: Vec<Object>,
     /// The 255 usable palette colours, sRGB RGBA: entry `i` is the file's colour index `i + 1`.
     pub palette: Vec<[u8; 4]>,
@@ -48,13 +51,16 @@ pub struct VoxScene {
 }
 
 impl VoxScene {
-    /// Voxels over all objects (every instance counted).
+    /// Voxels over all objects (every instance and every frame of an animation counted).
     #[must_use]
     pub fn voxel_count(&self) -> u64 {
         self.objects
             .iter()
             .map(|o| match &o.kind {
-                ObjectKind::Voxels(v) => v.svo.leaf_count(),
+                ObjectKind::Voxels(v) => (0..v.frame_count())
+                    .filter_map(|i| v.frame(i))
+                    .map(|(svo, _)| svo.leaf_count())
+                    .sum(),
                 ObjectKind::Mesh(_) | ObjectKind::Krs(_) => 0,
             })
             .sum()
@@ -153,7 +159,8 @@ pub fn import_vox_bytes(
 
     let planned: u64 = instances
         .iter()
-        .map(|i| models[i.model].voxels.len() as u64)
+        .flat_map(|i| &i.frames)
+        .map(|f| models[f.model].voxels.len() as u64)
         .sum();
     if planned > options.max_voxels {
         return Err(VoxError::TooLarge {
@@ -168,11 +175,35 @@ pub fn import_vox_bytes(
 
     let mut objects = Vec::with_capacity(instances.len());
     for (k, inst) in instances.iter().enumerate() {
-        let model = &models[inst.model];
-        let svo_and_lo = build_instance(model, inst, &palette, &material_of_index);
-        let (svo, lo) = svo_and_lo.map_err(|detail| scene_error(path, inst.node, detail))?;
-        let pivot = yup_from_mv(inst.pivot_world);
+        let mut built = Vec::with_capacity(inst.frames.len());
+        for frame in &inst.frames {
+            let model = &models[frame.model];
+            let svo_and_lo = build_instance(model, frame, &palette, &material_of_index);
+            built.push(svo_and_lo.map_err(|detail| scene_error(path, inst.node, detail))?);
+        }
+        // The object sits at frame 0's pivot; every frame's voxels are placed from there.
+        let pivot = yup_from_mv(inst.frames[0].pivot_world);
         let pivot_f = Vec3::new(pivot[0] as f32, pivot[1] as f32, pivot[2] as f32);
+        let origin_of = |lo: [i64; 3]| {
+            Vec3::new(
+                (lo[0] - pivot[0]) as f32,
+                (lo[1] - pivot[1]) as f32,
+                (lo[2] - pivot[2]) as f32,
+            )
+        };
+        let mut built = built.into_iter();
+        let Some((svo, lo)) = built.next() else {
+            return Err(scene_error(path, inst.node, "an instance without frames"));
+        };
+        let frames = (inst.frames.len() > 1).then(|| FrameSequence {
+            frames: std::iter::once(VoxelFrame::default())
+                .chain(built.map(|(svo, lo)| VoxelFrame {
+                    svo,
+                    origin: origin_of(lo),
+                }))
+                .collect(),
+            ..FrameSequence::default()
+        });
         objects.push(Object {
             id: k as u64 + 1,
             name: inst.name.clone(),
@@ -184,16 +215,13 @@ pub fn import_vox_bytes(
             kind: ObjectKind::Voxels(VoxelModel {
                 svo,
                 voxel_size: 1.0,
-                origin: Vec3::new(
-                    (lo[0] - pivot[0]) as f32,
-                    (lo[1] - pivot[1]) as f32,
-                    (lo[2] - pivot[2]) as f32,
-                ),
+                origin: origin_of(lo),
                 material_names: material_names.clone(),
                 rig: None,
                 volume: None,
                 // The file's colours in file order, so an export can keep every index.
                 palette: palette.clone(),
+                frames,
             }),
         });
     }
@@ -352,8 +380,18 @@ impl ModelVoxels {
     }
 }
 
-/// One shape instance: which model, and where.
+/// One shape instance: which model, and where, per animation frame.
 struct Instance {
+    /// One entry per frame (one for a still shape).
+    frames: Vec<InstanceFrame>,
+    name: String,
+    hidden: bool,
+    /// The shape node (for errors).
+    node: u32,
+}
+
+/// An instance in one frame.
+struct InstanceFrame {
     model: usize,
     /// Accumulated rotation (MagicaVoxel space).
     rotation: IMat3,
@@ -361,10 +399,53 @@ struct Instance {
     translation: [i64; 3],
     /// The object's origin in MagicaVoxel space (the pivot, or 0 for files without a graph).
     pivot_world: [i64; 3],
-    name: String,
-    hidden: bool,
-    /// The shape node (for errors).
-    node: u32,
+}
+
+/// The frame index `_f` of a keyframe dictionary (0 when absent).
+fn frame_index(attributes: &dot_vox::Dict) -> Result<u32, String> {
+    match attributes.get("_f") {
+        None => Ok(0),
+        Some(s) => s
+            .trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&f| f < MAX_FRAMES)
+            .ok_or_else(|| {
+                format!("frame index _f {s:?} is not a whole number below {MAX_FRAMES}")
+            }),
+    }
+}
+
+/// The keyframe in force at frame `f`: the last one at or before `f`, else the first (keys
+/// hold until the next one; voxels cannot be interpolated).
+fn key_at<T>(keys: &[(u32, T)], f: u32) -> Option<&T> {
+    keys.iter()
+        .filter(|(k, _)| *k <= f)
+        .max_by_key(|(k, _)| *k)
+        .or_else(|| keys.iter().min_by_key(|(k, _)| *k))
+        .map(|(_, t)| t)
+}
+
+/// A transform keyframe: translation `_t` and rotation `_r`.
+type TransformKey = ([i64; 3], IMat3);
+
+/// A transform frame's `_t` and `_r`.
+fn frame_transform(frame: &dot_vox::Dict) -> Result<TransformKey, String> {
+    let t = match frame.get("_t") {
+        None => [0; 3],
+        Some(s) => parse_translation(s)
+            .ok_or_else(|| format!("translation _t {s:?} is not three integers"))?,
+    };
+    let r = match frame.get("_r") {
+        None => IDENTITY,
+        Some(s) => s
+            .trim()
+            .parse::<u8>()
+            .ok()
+            .and_then(decode_rotation)
+            .ok_or_else(|| format!("rotation _r {s:?} is invalid"))?,
+    };
+    Ok((t, r))
 }
 
 fn parse_translation(s: &str) -> Option<[i64; 3]> {
@@ -385,21 +466,45 @@ fn instances(
 ) -> Result<Vec<Instance>, VoxError> {
     use dot_vox::SceneNode;
     if data.scenes.is_empty() {
-        return Ok((0..models.len())
+        // Without a scene graph, several models are the frames of an animation (how
+        // MagicaVoxel wrote animations before 0.99); each frame's voxel (0,0,0) is at the origin.
+        let frames: Vec<InstanceFrame> = (0..models.len())
             .map(|m| {
                 let s = models[m].size.map(i64::from);
-                Instance {
+                InstanceFrame {
                     model: m,
                     rotation: IDENTITY,
                     // Pivot at floor(size / 2) puts voxel (0,0,0) at the origin.
                     translation: [s[0] / 2, s[1] / 2, s[2] / 2],
                     pivot_world: [0; 3],
-                    name: format!("model {m}"),
-                    hidden: false,
-                    node: 0,
                 }
             })
-            .collect());
+            .collect();
+        if frames.len() > MAX_FRAMES as usize {
+            return Err(VoxError::TooLarge {
+                path: path.to_owned(),
+                detail: format!(
+                    "{} models would be {} animation frames; the limit is {MAX_FRAMES}",
+                    frames.len(),
+                    frames.len()
+                ),
+            });
+        }
+        let name = if frames.len() > 1 {
+            "animation".to_owned()
+        } else {
+            "model 0".to_owned()
+        };
+        return Ok(if frames.is_empty() {
+            Vec::new()
+        } else {
+            vec![Instance {
+                frames,
+                name,
+                hidden: false,
+                node: 0,
+            }]
+        });
     }
     let root = layout.node_index.get(&0).copied().unwrap_or(0);
     let layer_hidden = |id: u32| {
@@ -410,21 +515,22 @@ fn instances(
     };
     struct Visit {
         index: usize,
-        rotation: IMat3,
-        translation: [i64; 3],
+        /// The transform nodes from the root down to here (indices into `data.scenes`).
+        chain: Vec<usize>,
         depth: usize,
         hidden: bool,
         name: Option<String>,
     }
     let mut stack = vec![Visit {
         index: root,
-        rotation: IDENTITY,
-        translation: [0; 3],
+        chain: Vec::new(),
         depth: 0,
         hidden: false,
         name: None,
     }];
     let mut out = Vec::new();
+    // Instance frames created so far, against the instance budget.
+    let mut placed = 0usize;
     let mut visits = 0usize;
     while let Some(v) = stack.pop() {
         let node_id = layout.node_ids.get(v.index).copied().unwrap_or(0);
@@ -464,36 +570,20 @@ fn instances(
                 child,
                 layer_id,
             } => {
-                let frame = frames.first().map(|f| &f.attributes);
-                let local_t = match frame.and_then(|f| f.get("_t")) {
-                    None => [0; 3],
-                    Some(s) => parse_translation(s).ok_or_else(|| {
-                        scene_error(
-                            path,
-                            node_id,
-                            format!("translation _t {s:?} is not three integers"),
-                        )
-                    })?,
-                };
-                let local_r = match frame.and_then(|f| f.get("_r")) {
-                    None => IDENTITY,
-                    Some(s) => s
-                        .trim()
-                        .parse::<u8>()
-                        .ok()
-                        .and_then(decode_rotation)
-                        .ok_or_else(|| {
-                            scene_error(path, node_id, format!("rotation _r {s:?} is invalid"))
-                        })?,
-                };
-                let moved = imat_apply(&v.rotation, local_t);
+                // Every frame's keys are checked here, where the error can name this node.
+                for (k, f) in frames.iter().enumerate() {
+                    frame_index(&f.attributes)
+                        .and_then(|_| frame_transform(&f.attributes))
+                        .map_err(|e| scene_error(path, node_id, format!("frame {k}: {e}")))?;
+                }
                 let hidden = v.hidden
                     || attributes.get("_hidden").is_some_and(|h| h == "1")
                     || layer_hidden(*layer_id);
+                let mut chain = v.chain;
+                chain.push(v.index);
                 stack.push(Visit {
                     index: lookup(*child)?,
-                    rotation: imat_mul(&v.rotation, &local_r),
-                    translation: [0, 1, 2].map(|a| v.translation[a] + moved[a]),
+                    chain,
                     depth: v.depth + 1,
                     hidden,
                     name: attributes.get("_name").cloned().or(v.name),
@@ -504,8 +594,7 @@ fn instances(
                 for &c in children.iter().rev() {
                     stack.push(Visit {
                         index: lookup(c)?,
-                        rotation: v.rotation,
-                        translation: v.translation,
+                        chain: v.chain.clone(),
                         depth: v.depth + 1,
                         hidden: v.hidden,
                         name: None,
@@ -513,36 +602,44 @@ fn instances(
                 }
             }
             SceneNode::Shape { models: refs, .. } => {
-                // Animated shapes list one model per keyframe; the first is frame 0.
-                let Some(first) = refs.first() else {
+                if refs.is_empty() {
                     return Err(scene_error(path, node_id, "a shape without models"));
-                };
-                let model = usize::try_from(first.model_id)
-                    .ok()
-                    .filter(|&m| m < models.len())
-                    .ok_or_else(|| {
-                        scene_error(
-                            path,
-                            node_id,
-                            format!(
-                                "uses model {} but the file has {} models",
-                                first.model_id,
-                                models.len()
-                            ),
-                        )
-                    })?;
-                if out.len() >= MAX_INSTANCES {
+                }
+                let mut shape_keys = Vec::with_capacity(refs.len());
+                for (k, r) in refs.iter().enumerate() {
+                    let f = frame_index(&r.attributes)
+                        .map_err(|e| scene_error(path, node_id, format!("model {k}: {e}")))?;
+                    let model = usize::try_from(r.model_id)
+                        .ok()
+                        .filter(|&m| m < models.len())
+                        .ok_or_else(|| {
+                            scene_error(
+                                path,
+                                node_id,
+                                format!(
+                                    "uses model {} but the file has {} models",
+                                    r.model_id,
+                                    models.len()
+                                ),
+                            )
+                        })?;
+                    shape_keys.push((f, model));
+                }
+                let frames = shape_frames(data, &v.chain, &shape_keys)
+                    .map_err(|e| scene_error(path, node_id, e))?;
+                placed += frames.len();
+                if out.len() >= MAX_INSTANCES || placed > MAX_INSTANCES {
                     return Err(VoxError::TooLarge {
                         path: path.to_owned(),
-                        detail: format!("more than {MAX_INSTANCES} shape instances"),
+                        detail: format!(
+                            "more than {MAX_INSTANCES} shape instances (animation frames counted)"
+                        ),
                     });
                 }
+                let first = frames.first().map_or(0, |f| f.model);
                 out.push(Instance {
-                    model,
-                    rotation: v.rotation,
-                    translation: v.translation,
-                    pivot_world: v.translation,
-                    name: v.name.unwrap_or_else(|| format!("model {model}")),
+                    frames,
+                    name: v.name.unwrap_or_else(|| format!("model {first}")),
                     hidden: v.hidden,
                     node: node_id,
                 });
@@ -559,6 +656,71 @@ fn instances(
     Ok(out)
 }
 
+/// A shape's frames under the transforms of `chain`: one frame when neither the shape's
+/// models nor the transforms' frames carry more than one frame index `_f`; otherwise frames
+/// `0..=max _f`, each node holding its last keyframe at or before the frame (as MagicaVoxel
+/// 0.99.7 writes animations: `_f` in the nTRN frame dictionaries and the nSHP model lists).
+fn shape_frames(
+    data: &dot_vox::DotVoxData,
+    chain: &[usize],
+    shape_keys: &[(u32, usize)],
+) -> Result<Vec<InstanceFrame>, String> {
+    use dot_vox::SceneNode;
+    let mut transform_keys: Vec<Vec<(u32, TransformKey)>> = Vec::with_capacity(chain.len());
+    for &i in chain {
+        let Some(SceneNode::Transform { frames, .. }) = data.scenes.get(i) else {
+            return Err("a transform above the shape is missing".into());
+        };
+        let mut keys = Vec::with_capacity(frames.len());
+        for f in frames {
+            keys.push((frame_index(&f.attributes)?, frame_transform(&f.attributes)?));
+        }
+        transform_keys.push(keys);
+    }
+    let mut indices: Vec<u32> = shape_keys
+        .iter()
+        .map(|(f, _)| *f)
+        .chain(transform_keys.iter().flatten().map(|(f, _)| *f))
+        .collect();
+    indices.sort_unstable();
+    indices.dedup();
+    let animated = indices.len() > 1;
+    let count = if animated {
+        indices.last().map_or(1, |&m| m + 1)
+    } else {
+        1
+    };
+    (0..count)
+        .map(|f| {
+            let mut rotation = IDENTITY;
+            let mut translation = [0i64; 3];
+            for keys in &transform_keys {
+                // A still node uses its first frame, as before animation support.
+                let key = if animated {
+                    key_at(keys, f)
+                } else {
+                    keys.first().map(|(_, k)| k)
+                };
+                let (t, r) = key.copied().unwrap_or(([0; 3], IDENTITY));
+                let moved = imat_apply(&rotation, t);
+                translation = [0, 1, 2].map(|a| translation[a] + moved[a]);
+                rotation = imat_mul(&rotation, &r);
+            }
+            let model = if animated {
+                key_at(shape_keys, f).copied()
+            } else {
+                shape_keys.first().map(|(_, m)| *m)
+            };
+            Ok(InstanceFrame {
+                model: model.ok_or("a shape without models")?,
+                rotation,
+                translation,
+                pivot_world: translation,
+            })
+        })
+        .collect()
+}
+
 /// Largest coordinate magnitude accepted: world positions stay exact in `f32`.
 const MAX_COORD: i64 = 1 << 24;
 
@@ -566,7 +728,7 @@ const MAX_COORD: i64 = 1 << 24;
 /// to the minimum cell) and that minimum cell.
 fn build_instance(
     model: &ModelVoxels,
-    inst: &Instance,
+    inst: &InstanceFrame,
     palette: &[[u8; 4]],
     material_of_index: &[u8; 256],
 ) -> Result<(Svo, [i64; 3]), String> {

@@ -933,10 +933,19 @@ fn mutate(rng: &mut Pcg64, original: &[u8], headers: &[usize]) -> Vec<u8> {
 /// Runs `cases` mutated files (spread over the small real files) through the importer; returns
 /// (ok, errors, panics).
 fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
-    let files: Vec<(String, Vec<u8>)> = [ARMY, PLACEHOLDER, METAL, AXES, SCENE]
+    let mut files: Vec<(String, Vec<u8>)> = [ARMY, PLACEHOLDER, METAL, AXES, SCENE]
         .iter()
         .map(|r| ((*r).to_owned(), read(r)))
         .collect();
+    // Animations (frames without a scene graph; `_f` keys in nTRN frames and nSHP models).
+    files.push((
+        "legacy-anim.vox".into(),
+        super::frame_tests::legacy_animation(),
+    ));
+    files.push((
+        "keyed-anim.vox".into(),
+        super::frame_tests::keyframed_animation(),
+    ));
     let headers: Vec<Vec<usize>> = files.iter().map(|f| header_offsets(&f.1)).collect();
     let mut rng = Pcg64::seed_from_u64(seed);
     let options = VoxImportOptions {
