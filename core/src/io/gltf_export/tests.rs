@@ -1553,3 +1553,67 @@ fn impostor_shows_the_prototype_from_the_side() {
             .all(|(a, b)| a.x == -b.x && (a.y, a.z) == (b.y, b.z))
     );
 }
+
+#[test]
+fn impostor_texels_show_what_lies_behind_them_on_the_quads() {
+    // A leaning capsule whose top end is toward +x and +z: on the square facing +z (the first
+    // view) the top end is right of the middle, on the square facing +x (the second, whose
+    // texture runs toward −z) left of it. Each covered texel of a view, put on its square,
+    // must lie within the capsule's radius of its axis seen along that view.
+    let (start, end, radius) = (Vec3::ZERO, Vec3::new(1.0, 1.0, 0.5), 0.1);
+    let object = crate::krs::KrsObject {
+        name: "lean".to_owned(),
+        kernels: vec![crate::krs::Kernel::Capsule(crate::krs::CapsuleKernel {
+            start,
+            end,
+            radius,
+            material: crate::krs::Material::new(Vec3::new(0.5, 0.3, 0.2), 1),
+        })],
+        ..crate::krs::KrsObject::default()
+    };
+    let lo = start.min(end) - Vec3::splat(radius);
+    let hi = start.max(end) + Vec3::splat(radius);
+    let texels = 64;
+    let imp = krs_impostor(&object, lo, hi, texels).unwrap();
+    for view in 0..2u32 {
+        // The square of this view: vertices 4·view .. 4·view + 4, texture coordinates with it.
+        let q = &imp.positions[4 * view as usize..4 * view as usize + 4];
+        let uv = &imp.uvs[4 * view as usize..4 * view as usize + 4];
+        // Bilinear map from the texture to the square (its corners are (u0, v1), (u1, v1),
+        // (u1, v0), (u0, v0) for corners 0..4).
+        let at = |u: f32, v: f32| {
+            let s = (u - uv[0].x) / (uv[1].x - uv[0].x);
+            let t = (v - uv[0].y) / (uv[3].y - uv[0].y);
+            q[0] + (q[1] - q[0]) * s + (q[3] - q[0]) * t
+        };
+        // Distance from a point to the capsule's axis, ignoring depth along the view.
+        let drop = if view == 0 {
+            Vec3::new(1.0, 1.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 1.0)
+        };
+        let axis_distance = |p: Vec3| {
+            let (a, b, p) = (start * drop, end * drop, p * drop);
+            let h = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            (p - (a + (b - a) * h)).length()
+        };
+        let texel = (hi - lo).max_element() / texels as f32;
+        let mut covered = 0;
+        for y in 0..texels {
+            for x in 0..texels {
+                let i = (y * 2 * texels + view * texels + x) as usize;
+                if imp.texture.rgba8[4 * i + 3] != 255 {
+                    continue;
+                }
+                covered += 1;
+                let u = (view * texels + x) as f32 + 0.5;
+                let p = at(u / (2 * texels) as f32, (y as f32 + 0.5) / texels as f32);
+                assert!(
+                    axis_distance(p) < radius + 2.0 * texel,
+                    "view {view}: texel ({x}, {y}) lands at {p}, off the capsule"
+                );
+            }
+        }
+        assert!(covered > 50, "view {view}: {covered} texels");
+    }
+}
