@@ -333,9 +333,19 @@ pub struct ExportArgs {
     pub palette_texture: bool,
     /// Add N coarser levels of detail (MSFT_lod), each at half the resolution of the one
     /// before: per static voxel model (cubes mode) and per KRS mesh or instanced prototype
-    /// (cubes and smooth modes; the distance field meshed at --resolution / 2^k).
-    #[arg(long, default_value_t = 0, value_name = "N")]
-    pub lod: u8,
+    /// (cubes and smooth modes; the distance field meshed at --resolution / 2^k). Default:
+    /// none, except instanced KRS prototypes (a forest's tree), which get 3 and an impostor.
+    #[arg(long, value_name = "N")]
+    pub lod: Option<u8>,
+    /// Leave out the impostor (crossed quads textured with pictures of the prototype) that is
+    /// the coarsest level of detail of an instanced KRS prototype.
+    #[arg(long)]
+    pub no_impostor: bool,
+    /// Split each instanced prototype's placements into about N grid cells (one node per cell
+    /// and copy, so a viewer culls and picks a level of detail per cell); default: one cell per
+    /// 512 placements, at most 256.
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=65536))]
+    pub cells: Option<u32>,
     /// KRS objects: the reflection level where the instanced prototype ends (mirrors above it
     /// become EXT_mesh_gpu_instancing placements); default: the deepest level whose mirrors
     /// above only place copies. A level past an object's mirrors writes it as one mesh.
@@ -787,7 +797,12 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         },
         object: args.object.clone(),
         resolution: args.resolution,
-        lod_levels: args.lod,
+        lod_levels: args.lod.unwrap_or(0),
+        instanced_lod_levels: args
+            .lod
+            .unwrap_or(GltfExportOptions::default().instanced_lod_levels),
+        impostor: !args.no_impostor,
+        cells: args.cells,
         instance_level: args.instance_level,
         bounds: args.bounds,
         max_instances: args.max_instances,
@@ -839,12 +854,22 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
     for k in &report.instanced {
         text.push_str(&format!(
             "  {:?}: prototype (reflection levels 0..={}) of {} triangles drawn {} times \
-             ({} mirrored, from a mirrored copy of the mesh), EXT_mesh_gpu_instancing\n",
+             ({} mirrored, from a mirrored copy of the mesh), EXT_mesh_gpu_instancing in {} \
+             cells ({}×{} grid, {} nodes){}\n",
             k.object,
             k.level,
             thousands(k.prototype_triangles),
             thousands(k.instances),
-            thousands(k.mirrored)
+            thousands(k.mirrored),
+            k.cells[0] * k.cells[1],
+            k.cells[0],
+            k.cells[1],
+            k.cell_nodes,
+            if k.impostor {
+                "; coarsest level: an impostor"
+            } else {
+                ""
+            }
         ));
     }
     for l in &report.levels_of_detail {

@@ -51,8 +51,12 @@ fn u(v: &Value) -> u64 {
 }
 
 /// The forest with default flags, as `thicket export projects/forest.thicket.json -o f.glb`
-/// writes it: three.js makes an InstancedMesh of the tree and one of its mirrored copy, and
-/// draws exactly the placements the export reports, none of them through a mirroring matrix.
+/// writes it: three.js makes an InstancedMesh per cell of the tree and of its mirrored copy,
+/// and draws exactly the placements the export reports, none of them through a mirroring
+/// matrix. Without MSFT_lod (three.js's GLTFLoader alone) every tree is the full mesh; with
+/// the plugin of `tools/threejs-check/msft-lod.mjs`, from the file's camera, each tree is drawn
+/// at the level its screen coverage asks for: the same instances, a small fraction of the
+/// triangles.
 #[test]
 fn threejs_draws_the_forest_instances_the_export_wrote() {
     let dir = tempfile::tempdir().unwrap();
@@ -64,9 +68,20 @@ fn threejs_draws_the_forest_instances_the_export_wrote() {
     let [trees] = &report.instanced[..] else {
         panic!("one instanced object: {:?}", report.instanced);
     };
+    let [levels] = &report.levels_of_detail[..] else {
+        panic!("the tree's levels of detail: {report:?}");
+    };
+    assert!(trees.impostor, "{trees:?}");
     let three = inspect(&out, false);
-    println!("{three}");
-    assert_eq!(u(&three["instancedMeshes"]), 2, "the tree and its mirror");
+    let mut summary = three.clone();
+    summary["instanced"] = Value::from(three["instanced"].as_array().unwrap().len());
+    println!("{summary}");
+    assert_eq!(
+        u(&three["instancedMeshes"]),
+        u64::from(trees.cell_nodes),
+        "a tree and a mirrored tree mesh per cell"
+    );
+    assert!(trees.cell_nodes > 100, "{trees:?}");
     assert_eq!(u(&three["instances"]), trees.instances);
     assert_eq!(trees.instances, 1 << 17);
     assert_eq!(
@@ -75,21 +90,61 @@ fn threejs_draws_the_forest_instances_the_export_wrote() {
         "the ground"
     );
     let meshes = three["instanced"].as_array().unwrap();
-    let counts: Vec<u64> = meshes.iter().map(|m| u(&m["count"])).collect();
-    assert!(
-        counts.contains(&trees.mirrored) && counts.iter().sum::<u64>() == trees.instances,
-        "{counts:?} vs {trees:?}"
-    );
+    let mirrored: u64 = meshes
+        .iter()
+        .filter(|m| m["name"].as_str().unwrap().ends_with("mirrored"))
+        .map(|m| u(&m["count"]))
+        .sum();
+    assert_eq!(mirrored, trees.mirrored);
     for m in meshes {
         assert_eq!(u(&m["trianglesPerInstance"]), trees.prototype_triangles);
         assert_eq!(u(&m["negativeDeterminant"]), 0, "{m}");
     }
     // The report counts each written mesh once: both prototype copies and the ground.
     let ground = report.triangles - 2 * trees.prototype_triangles;
-    assert_eq!(
-        u(&three["trianglesPerFrame"]),
-        trees.prototype_triangles * trees.instances + ground
+    let full = trees.prototype_triangles * trees.instances + ground;
+    assert_eq!(u(&three["trianglesPerFrame"]), full);
+
+    // With the MSFT_lod plugin: one CellLOD per cell node, the export's levels (the impostor
+    // last), every instance drawn at exactly one level, and far fewer triangles.
+    let lod = &three["lod"];
+    assert_eq!(lod["camera"], "file");
+    assert_eq!(u(&lod["lods"]), u64::from(trees.cell_nodes));
+    let per_level: Vec<u64> = lod["trianglesPerLevel"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(u)
+        .collect();
+    assert_eq!(per_level, levels.triangles);
+    let drawn: Vec<u64> = lod["instancesPerLevel"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(u)
+        .collect();
+    assert_eq!(drawn.iter().sum::<u64>(), trees.instances, "{drawn:?}");
+    assert!(
+        drawn.last().unwrap() * 2 > trees.instances,
+        "most trees are far: the impostor: {drawn:?}"
     );
+    assert!(
+        drawn[..drawn.len() - 1].iter().sum::<u64>() > 0,
+        "near trees are meshes: {drawn:?}"
+    );
+    let with_lod = u(&lod["trianglesPerFrame"]);
+    let expected: u64 = drawn
+        .iter()
+        .zip(&per_level)
+        .map(|(n, t)| n * t)
+        .sum::<u64>()
+        + ground;
+    assert_eq!(with_lod, expected);
+    assert!(
+        with_lod * 1000 < full,
+        "{with_lod} triangles with levels of detail against {full} without"
+    );
+    assert!(u(&lod["visibleTrianglesPerFrame"]) <= with_lod);
 }
 
 /// One sphere and its mirror image: a KRS object whose one mirror has an empty kernel, so it

@@ -1,14 +1,20 @@
 // Loads a .glb with three.js's own GLTFLoader (npm `three`, pinned by package-lock.json) in
 // node and prints, as JSON, what three.js would draw:
 //
-//   node inspect.mjs FILE.glb [--faces]
+//   node inspect.mjs FILE.glb [--faces] [--size 800x600]
 //
-// * meshes / instancedMeshes: the Mesh and InstancedMesh objects in the loaded scene (three.js
-//   turns every EXT_mesh_gpu_instancing node into InstancedMeshes; it ignores MSFT_lod, so
-//   only the full levels are drawn);
-// * instances: the instances of all InstancedMeshes together;
-// * trianglesPerFrame: what one frame draws with nothing culled (every instance of every
-//   instanced mesh, every plain mesh once);
+// * meshes / instancedMeshes: the Mesh and InstancedMesh objects of the full levels in the
+//   loaded scene (three.js turns every EXT_mesh_gpu_instancing node into InstancedMeshes; its
+//   GLTFLoader ignores MSFT_lod, so without msft-lod.mjs only the full levels are drawn);
+// * instances: the instances of all those InstancedMeshes together;
+// * trianglesPerFrame: what one frame draws with full levels only and nothing culled (every
+//   instance of every instanced mesh, every plain mesh once): three.js without msft-lod.mjs;
+// * lod: with msft-lod.mjs (each MSFT_lod node a CellLOD choosing its levels from the file's
+//   camera, at the aspect of --size; per instance for instanced nodes): `lods` (LOD objects),
+//   `instancesPerLevel` (instances drawn at each level, finest first), `trianglesPerLevel` (of one instance, per level, from
+//   the first instanced LOD), `trianglesPerFrame` (the chosen levels, nothing culled) and
+//   `visibleTrianglesPerFrame` (also leaving out objects whose bounding sphere is outside the
+//   camera's frustum, as three.js's renderer does);
 // * per InstancedMesh: its instance count, triangles per instance, and how many of its instance
 //   matrices have a negative determinant (mirror).
 //
@@ -25,24 +31,31 @@
 //     object's normal matrix): `shadingDisagrees` counts triangles lit from the other side.
 // Both are reported separately for instances with positive and negative determinants.
 //
-// No DOM is needed: a .glb without images never reaches the image loaders.
+// No DOM is needed: images (an impostor's texture) are not decoded; every texture is an empty
+// THREE.Texture (a plugin answers GLTFLoader's loadTexture first).
 
 import { readFileSync } from 'node:fs';
 import { GLTFLoader } from 'three/examples/jsm/loaders/GLTFLoader.js';
-import { Matrix3, Matrix4, Vector3, Box3 } from 'three';
+import { Frustum, Matrix3, Matrix4, PerspectiveCamera, Sphere, Texture, Vector3, Box3 } from 'three';
+import { GLTFMsftLodPlugin } from './msft-lod.mjs';
 
 const args = process.argv.slice(2);
 const faces = args.includes('--faces');
-const files = args.filter((a) => !a.startsWith('--'));
+const sizeAt = args.indexOf('--size');
+const [width, height] = (sizeAt >= 0 ? args[sizeAt + 1] : '800x600').split('x').map(Number);
+const files = args.filter((a, i) => !a.startsWith('--') && !(sizeAt >= 0 && i === sizeAt + 1));
 if (files.length !== 1) {
-  console.error('usage: node inspect.mjs FILE.glb [--faces]');
+  console.error('usage: node inspect.mjs FILE.glb [--faces] [--size 800x600]');
   process.exit(2);
 }
 
 const bytes = readFileSync(files[0]);
 const data = bytes.buffer.slice(bytes.byteOffset, bytes.byteOffset + bytes.byteLength);
+const loader = new GLTFLoader();
+loader.register(() => ({ name: 'no-images', loadTexture: () => Promise.resolve(new Texture()) }));
+loader.register((parser) => new GLTFMsftLodPlugin(parser));
 const gltf = await new Promise((resolve, reject) => {
-  new GLTFLoader().parse(data, '', resolve, reject);
+  loader.parse(data, '', resolve, reject);
 });
 gltf.scene.updateMatrixWorld(true);
 
@@ -120,7 +133,16 @@ const report = {
   instanced: [],
 };
 const m = new Matrix4();
+// The full levels: what three.js draws without msft-lod.mjs (a CellLOD's other levels are
+// skipped).
+const coarser = new Set();
+for (const lod of gltf.lods) {
+  lod.levels.slice(1).forEach((l) => l.object.traverse((o) => coarser.add(o)));
+}
 gltf.scene.traverse((o) => {
+  if (coarser.has(o)) {
+    return;
+  }
   if (o.isInstancedMesh) {
     const tris = triangleCount(o.geometry);
     const entry = {
@@ -157,4 +179,73 @@ gltf.scene.traverse((o) => {
     report.trianglesPerFrame += triangleCount(o.geometry);
   }
 });
+// Levels chosen from the file's camera (or, without one, a camera that frames the scene).
+let camera = gltf.cameras[0];
+if (!camera) {
+  camera = new PerspectiveCamera(45, width / height, 0.1, 1e4);
+  const box = new Box3().setFromObject(gltf.scene);
+  const c = box.getCenter(new Vector3());
+  camera.position.copy(c).add(new Vector3(0, 0.5, 1).multiplyScalar(box.getSize(new Vector3()).length()));
+  camera.lookAt(c);
+}
+camera.aspect = width / height;
+camera.updateProjectionMatrix();
+camera.updateMatrixWorld(true);
+const frustum = new Frustum().setFromProjectionMatrix(
+  new Matrix4().multiplyMatrices(camera.projectionMatrix, camera.matrixWorldInverse),
+);
+const lod = {
+  camera: gltf.cameras[0] ? 'file' : 'framing',
+  lods: gltf.lods.length,
+  instancesPerLevel: [],
+  trianglesPerLevel: [],
+  trianglesPerFrame: 0,
+  visibleTrianglesPerFrame: 0,
+};
+const sphere = new Sphere();
+const drawn = (o, perLevel, level) => {
+  if (!o.isMesh) {
+    return;
+  }
+  const n = o.isInstancedMesh ? o.count : 1;
+  const tris = triangleCount(o.geometry) * n;
+  lod.trianglesPerFrame += tris;
+  if (level !== undefined) {
+    perLevel[level] = (perLevel[level] ?? 0) + n;
+  }
+  if (!o.frustumCulled) {
+    lod.visibleTrianglesPerFrame += tris;
+    return;
+  }
+  if (o.isInstancedMesh) {
+    if (o.boundingSphere === null) o.computeBoundingSphere();
+    sphere.copy(o.boundingSphere);
+  } else {
+    if (o.geometry.boundingSphere === null) o.geometry.computeBoundingSphere();
+    sphere.copy(o.geometry.boundingSphere);
+  }
+  if (frustum.intersectsSphere(sphere.applyMatrix4(o.matrixWorld))) {
+    lod.visibleTrianglesPerFrame += tris;
+  }
+};
+const inLod = new Set();
+for (const l of gltf.lods) {
+  l.update(camera);
+  l.traverse((o) => inLod.add(o));
+  l.levels.forEach((v, level) => {
+    if (v.object.visible) {
+      v.object.traverse((o) => drawn(o, lod.instancesPerLevel, level));
+    }
+  });
+  if (lod.trianglesPerLevel.length === 0 && l.levels[0].object.isInstancedMesh) {
+    lod.trianglesPerLevel = l.levels.map((v) => (v.object.isMesh ? triangleCount(v.object.geometry) : 0));
+  }
+}
+gltf.scene.traverse((o) => {
+  if (!inLod.has(o)) {
+    drawn(o, [], undefined);
+  }
+});
+lod.instancesPerLevel = Array.from(lod.instancesPerLevel, (v) => v ?? 0);
+report.lod = lod;
 console.log(JSON.stringify(report, null, 2));

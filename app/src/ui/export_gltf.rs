@@ -163,9 +163,10 @@ impl GltfExportPanel {
                             .on_hover_text(
                                 "Coarser copies written as MSFT_lod levels, each at half the \
                              resolution of the one before: static voxel models (cubes mode, needs \
-                             vertex colours) and KRS meshes and instanced KRS prototypes (the \
-                             distance field meshed again; a level that would lose the shape's \
-                             outline is left out)",
+                             vertex colours) and KRS meshes (the distance field meshed again; a \
+                             level that would lose the shape's outline is left out). Instanced \
+                             KRS prototypes (a forest's tree) get 3 levels and an impostor \
+                             whatever this says, in cells of placements",
                             );
                         ui.end_row();
                         ui.label("Colours");

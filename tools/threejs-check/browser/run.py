@@ -2,8 +2,11 @@
 """Draws an exported .glb with three.js in headless Chromium (software GL) and saves a PNG.
 
     python3 tools/threejs-check/browser/run.py MODEL.glb OUT.png [--size 800x600] [--seconds 5]
+        [--no-lod]
 
-Serves index.html, three.js (tools/threejs-check/node_modules/three) and the model from
+Serves index.html, the MSFT_lod plugin (tools/threejs-check/msft-lod.mjs; --no-lod leaves it
+out, so three.js draws the full levels only, as its GLTFLoader alone does), three.js
+(tools/threejs-check/node_modules/three) and the model from
 127.0.0.1 on a free port, opens the page in `chromium --headless` and waits for the page to
 post its picture and figures (frames of requestAnimationFrame over at least --seconds and 3
 frames, at most 20 x --seconds; triangles per frame from three.js's renderer.info); prints the
@@ -30,6 +33,7 @@ def main():
     ap.add_argument("--size", default="800x600")
     ap.add_argument("--seconds", type=float, default=5.0)
     ap.add_argument("--timeout", type=float, default=600.0)
+    ap.add_argument("--no-lod", action="store_true", help="draw without the MSFT_lod plugin")
     ap.add_argument("--log", help="write Chromium's log (the page's console too) here")
     args = ap.parse_args()
     width, height = (int(v) for v in args.size.split("x"))
@@ -41,6 +45,7 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         root = pathlib.Path(tmp)
         shutil.copy(HERE / "index.html", root / "index.html")
+        shutil.copy(HERE.parent / "msft-lod.mjs", root / "msft-lod.mjs")
         (root / "three").symlink_to(three)
         (root / "model.glb").symlink_to(pathlib.Path(args.model).resolve())
 
@@ -63,7 +68,7 @@ def main():
         server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), Handler)
         threading.Thread(target=server.serve_forever, daemon=True).start()
         port = server.server_address[1]
-        url = f"http://127.0.0.1:{port}/index.html?width={width}&height={height}&seconds={args.seconds}"
+        url = f"http://127.0.0.1:{port}/index.html?width={width}&height={height}&seconds={args.seconds}&lod={0 if args.no_lod else 1}"
         profile = root / "profile"
         browser = subprocess.Popen(
             [

@@ -69,6 +69,9 @@ pub enum FieldError {
     /// An instance level that does not split the object into prototype and placements.
     #[error("{0}")]
     BadInstanceLevel(String),
+    /// The impostor of an instanced prototype could not be rendered.
+    #[error("its impostor could not be rendered ({0}); export without one (--no-impostor)")]
+    Impostor(String),
     /// The progress callback asked to stop.
     #[error("cancelled")]
     Cancelled,

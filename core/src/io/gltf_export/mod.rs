@@ -19,6 +19,7 @@
 
 pub mod fields;
 pub mod greedy;
+pub mod impostor;
 pub mod instances;
 pub mod iso;
 mod writer;
@@ -42,6 +43,7 @@ use crate::scene::{Document, Object, ObjectKind, VoxelModel};
 pub use fields::{
     ColoredMesh, FieldError, MAX_RESOLUTION, krs_region, mesh_distance_field, mesh_krs,
 };
+pub use impostor::{IMPOSTOR_TEXELS, Impostor, krs_impostor};
 pub use instances::{InstanceTransform, KernelInstances, MIN_CELLS_ACROSS, krs_instances};
 pub use writer::{
     ExportCamera, ExportLight, ExportMaterial, ExportNode, ExportPrimitive, ExportScene, ExportSkin,
@@ -131,7 +133,19 @@ pub struct GltfExportOptions {
     /// modes (the distance field meshed at `resolution / 2^k`, down to
     /// [`MIN_LOD_RESOLUTION`]). 0: none. Needs vertex colours; rigged models get none (their
     /// weights would need a skin per level), and neither do patches of unbounded objects.
+    /// Instanced KRS prototypes take [`GltfExportOptions::instanced_lod_levels`] instead.
     pub lod_levels: u8,
+    /// Coarser levels of detail of instanced KRS prototypes (a forest's tree), as
+    /// `lod_levels` does them, plus the impostor with [`GltfExportOptions::impostor`]. On by
+    /// default: a forest drawn with full trees only is not interactive in any viewer.
+    pub instanced_lod_levels: u8,
+    /// Add an impostor ([`impostor::krs_impostor`]: crossed textured quads) as the coarsest
+    /// level of an instanced prototype that has levels of detail.
+    pub impostor: bool,
+    /// Cells an instanced prototype's placements are split into (a grid over their x-z
+    /// extent; each cell a node with its own placements, so a viewer can cull and choose a
+    /// level per cell); `None`: [`auto_cell_count`] of the placements.
+    pub cells: Option<u32>,
 }
 
 impl Default for GltfExportOptions {
@@ -150,8 +164,24 @@ impl Default for GltfExportOptions {
             // 2^26 triangles: about 2.5 GiB of GLB, under the format's 4 GiB limit.
             max_triangles: 1 << 26,
             lod_levels: 0,
+            instanced_lod_levels: 3,
+            impostor: true,
+            cells: None,
         }
     }
+}
+
+/// Placements per cell [`auto_cell_count`] aims at.
+pub const PLACEMENTS_PER_CELL: u64 = 512;
+
+/// Most cells [`auto_cell_count`] chooses (a node, or a plain and a mirrored one, per cell).
+pub const MAX_AUTO_CELLS: u32 = 256;
+
+/// Cells for `placements` instances: one per [`PLACEMENTS_PER_CELL`], 1 to
+/// [`MAX_AUTO_CELLS`]. The forest's 131,072 trees make 256 cells of about 512.
+#[must_use]
+pub fn auto_cell_count(placements: u64) -> u32 {
+    (placements / PLACEMENTS_PER_CELL).clamp(1, u64::from(MAX_AUTO_CELLS)) as u32
 }
 
 /// What an export wrote.
@@ -211,6 +241,13 @@ pub struct KrsInstancing {
     pub mirrored: u64,
     /// Triangles of the prototype mesh (the mirrored one has as many).
     pub prototype_triangles: u64,
+    /// Grid cells the placements were split into (columns along x, rows along z); each cell
+    /// is a node with its placements (two: plain and mirrored).
+    pub cells: [u32; 2],
+    /// Instance nodes written (cells with plain placements plus cells with mirrored ones).
+    pub cell_nodes: u32,
+    /// Whether the coarsest level of detail is an impostor (crossed textured quads).
+    pub impostor: bool,
 }
 
 /// The levels of detail one object was written with.
@@ -699,7 +736,7 @@ fn patch_area(
 ) -> Result<(Vec2, Vec2, f32), GltfExportError> {
     let mut lo = Vec3::INFINITY;
     let mut hi = Vec3::NEG_INFINITY;
-    for b in scene.nodes.iter().filter_map(node_bounds) {
+    for b in scene.nodes.iter().filter_map(|n| node_bounds(scene, n)) {
         lo = lo.min(b.0);
         hi = hi.max(b.1);
     }
@@ -1019,6 +1056,7 @@ impl SceneBuilder<'_> {
             instances: Vec::new(),
             skin,
             lods,
+            mesh_from: None,
         })
     }
 
@@ -1100,7 +1138,8 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
         },
         FieldError::BadResolution(_)
         | FieldError::Unbounded(_)
-        | FieldError::BadInstanceLevel(_) => GltfExportError::Object {
+        | FieldError::BadInstanceLevel(_)
+        | FieldError::Impostor(_) => GltfExportError::Object {
             path: path.to_owned(),
             object: object.to_owned(),
             detail: e.to_string(),
@@ -1231,7 +1270,7 @@ pub fn add_krs_object(
             plain.push(trs);
         }
     }
-    // Every mesh is written once per node that draws it: the plain and the mirrored one.
+    // Every mesh is written once per copy: the plain and the mirrored one.
     let copies = (u64::from(!plain.is_empty()) + u64::from(!flipped.is_empty())).max(1);
     let prototype = &prototype.objects[0];
     let mesh = mesh_krs(
@@ -1241,41 +1280,189 @@ pub fn add_krs_object(
         progress,
     )?;
     let proto_tris = mesh.triangle_count() as u64;
+    let lod_options = GltfExportOptions {
+        lod_levels: options.instanced_lod_levels,
+        ..options.clone()
+    };
     let lods = krs_lods(
         prototype,
-        options,
+        &lod_options,
         &mesh,
         options.max_triangles - copies * proto_tris,
         copies,
     )?;
+    let (mesh_lo, mesh_hi) = mesh_bounds(&mesh);
+    let impostor = if options.impostor && options.instanced_lod_levels > 0 {
+        let impostor = impostor::krs_impostor(
+            &prototype.object,
+            mesh_lo,
+            mesh_hi,
+            impostor::IMPOSTOR_TEXELS,
+        )
+        .map_err(FieldError::Impostor)?;
+        let material = scene.materials.len();
+        scene.materials.push(ExportMaterial {
+            name: format!("{name} impostor"),
+            texture: Some(impostor.texture.clone()),
+            alpha_cutoff: Some(0.5),
+            no_mipmaps: true,
+            ..ExportMaterial::default()
+        });
+        Some((impostor, material))
+    } else {
+        None
+    };
+    let impostor_primitive = |i: &impostor::Impostor, material: usize| ExportPrimitive {
+        positions: i.positions.clone(),
+        normals: i.normals.clone(),
+        colors: Vec::new(),
+        uvs: i.uvs.clone(),
+        indices: i.indices.clone(),
+        material,
+        skin: Vec::new(),
+    };
     let mirrored_mesh = instances::mirrored_x(&mesh);
-    let mirrored_lods: Vec<ColoredMesh> = lods.iter().map(instances::mirrored_x).collect();
-    let report = KrsInstancing {
+    let mut plain_lods: Vec<Vec<ExportPrimitive>> =
+        lods.iter().map(|m| vec![to_primitive(m.clone())]).collect();
+    let mut mirrored_lods: Vec<Vec<ExportPrimitive>> = lods
+        .iter()
+        .map(|m| vec![to_primitive(instances::mirrored_x(m))])
+        .collect();
+    let mut lod_tris: u64 = lods.iter().map(|m| m.triangle_count() as u64).sum();
+    if let Some((i, material)) = &impostor {
+        plain_lods.push(vec![impostor_primitive(i, *material)]);
+        mirrored_lods.push(vec![impostor_primitive(&i.mirrored_x(), *material)]);
+        lod_tris += i.triangle_count() as u64;
+    }
+    // Cells: a grid over where the prototype's centre lands, each placement in exactly one.
+    let centre = (mesh_lo + mesh_hi) * 0.5;
+    let spot = |t: &InstanceTransform, mirrored: bool| {
+        t.transform_point(if mirrored {
+            centre * Vec3::new(-1.0, 1.0, 1.0)
+        } else {
+            centre
+        })
+    };
+    let spots: Vec<Vec3> = plain
+        .iter()
+        .map(|t| spot(t, false))
+        .chain(flipped.iter().map(|t| spot(t, true)))
+        .collect();
+    let grid = CellGrid::over(
+        &spots,
+        options
+            .cells
+            .unwrap_or_else(|| auto_cell_count(spots.len() as u64)),
+    );
+    let cell_count = (grid.columns * grid.rows) as usize;
+    let mut plain_cells: Vec<Vec<InstanceTransform>> = vec![Vec::new(); cell_count];
+    let mut mirrored_cells: Vec<Vec<InstanceTransform>> = vec![Vec::new(); cell_count];
+    for (t, s) in plain.iter().zip(&spots) {
+        plain_cells[grid.cell_of(*s)].push(*t);
+    }
+    for (t, s) in flipped.iter().zip(&spots[plain.len()..]) {
+        mirrored_cells[grid.cell_of(*s)].push(*t);
+    }
+    let mut report = KrsInstancing {
         object: name.to_owned(),
         level,
         instances: (plain.len() + flipped.len()) as u64,
         mirrored: flipped.len() as u64,
         prototype_triangles: proto_tris,
+        cells: [grid.columns, grid.rows],
+        cell_nodes: 0,
+        impostor: impostor.is_some(),
     };
-    let lod_tris: u64 = lods.iter().map(|m| m.triangle_count() as u64).sum();
     let mut tris = 0;
-    for (suffix, mesh, lods, transforms) in [
-        ("", mesh, lods, plain),
-        (" mirrored", mirrored_mesh, mirrored_lods, flipped),
+    for (suffix, mesh, lods, cells) in [
+        ("", mesh, plain_lods, plain_cells),
+        (" mirrored", mirrored_mesh, mirrored_lods, mirrored_cells),
     ] {
-        if transforms.is_empty() {
-            continue;
+        // The first cell with placements writes the mesh and its levels; the others draw it.
+        let mut source: Option<usize> = None;
+        let mut mesh = Some(mesh);
+        let mut lods = Some(lods);
+        for (c, transforms) in cells.into_iter().enumerate() {
+            if transforms.is_empty() {
+                continue;
+            }
+            let node_name = if cell_count == 1 {
+                format!("{name}{suffix}")
+            } else {
+                let (column, row) = (c as u32 % grid.columns, c as u32 / grid.columns);
+                format!("{name} cell {column},{row}{suffix}")
+            };
+            report.cell_nodes += 1;
+            match source {
+                Some(first) => scene.nodes.push(ExportNode {
+                    name: node_name,
+                    instances: transforms,
+                    mesh_from: Some(first),
+                    ..ExportNode::default()
+                }),
+                None => {
+                    tris += proto_tris + lod_tris;
+                    source = Some(scene.nodes.len());
+                    scene.nodes.push(ExportNode {
+                        name: node_name,
+                        primitives: mesh.take().map(to_primitive).into_iter().collect(),
+                        instances: transforms,
+                        lods: lods.take().unwrap_or_default(),
+                        ..ExportNode::default()
+                    });
+                }
+            }
         }
-        tris += proto_tris + lod_tris;
-        scene.nodes.push(ExportNode {
-            name: format!("{name}{suffix}"),
-            primitives: vec![to_primitive(mesh)],
-            instances: transforms,
-            lods: lods.into_iter().map(|m| vec![to_primitive(m)]).collect(),
-            ..ExportNode::default()
-        });
     }
     Ok((tris, Some(report)))
+}
+
+/// A grid of cells over the x-z extent of points, about as square as the extent allows.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CellGrid {
+    /// The extent's corner (x, z).
+    pub lo: Vec2,
+    /// The extent's size (x, z), each at least a tiny positive length.
+    pub size: Vec2,
+    /// Cells along x.
+    pub columns: u32,
+    /// Cells along z.
+    pub rows: u32,
+}
+
+impl CellGrid {
+    /// About `cells` cells (at least 1) over the x-z extent of `points`: columns and rows in
+    /// the ratio of the extent's sides.
+    #[must_use]
+    pub fn over(points: &[Vec3], cells: u32) -> Self {
+        let (mut lo, mut hi) = (Vec2::INFINITY, Vec2::NEG_INFINITY);
+        for p in points {
+            lo = lo.min(Vec2::new(p.x, p.z));
+            hi = hi.max(Vec2::new(p.x, p.z));
+        }
+        if !lo.cmple(hi).all() {
+            (lo, hi) = (Vec2::ZERO, Vec2::ZERO);
+        }
+        let size = (hi - lo).max(Vec2::splat(1e-6));
+        let cells = cells.max(1) as f32;
+        let columns = (cells * size.x / size.y).sqrt().round().clamp(1.0, cells);
+        let rows = (cells / columns).round().max(1.0);
+        Self {
+            lo,
+            size,
+            columns: columns as u32,
+            rows: rows as u32,
+        }
+    }
+
+    /// The cell (row-major: `row * columns + column`) that holds `p` (clamped to the grid).
+    #[must_use]
+    pub fn cell_of(&self, p: Vec3) -> usize {
+        let f = (Vec2::new(p.x, p.z) - self.lo) / self.size;
+        let column = ((f.x * self.columns as f32) as u32).min(self.columns - 1);
+        let row = ((f.y * self.rows as f32) as u32).min(self.rows - 1);
+        (row * self.columns + column) as usize
+    }
 }
 
 /// Coarsest resolution a KRS level of detail is meshed at (cells along its region's longest
@@ -1395,11 +1582,16 @@ pub fn add_krs_patch(
     Ok(tris)
 }
 
-/// World-space box of what a node draws (every instance, through the node's transform).
-fn node_bounds(node: &ExportNode) -> Option<(Vec3, Vec3)> {
+/// World-space box of what a node draws (every instance, through the node's transform; the
+/// mesh of the node it draws with `mesh_from`).
+fn node_bounds(scene: &ExportScene, node: &ExportNode) -> Option<(Vec3, Vec3)> {
     let mut lo = Vec3::INFINITY;
     let mut hi = Vec3::NEG_INFINITY;
-    for p in node.primitives.iter().flat_map(|p| &p.positions) {
+    let primitives = match node.mesh_from {
+        Some(j) => &scene.nodes.get(j)?.primitives,
+        None => &node.primitives,
+    };
+    for p in primitives.iter().flat_map(|p| &p.positions) {
         lo = lo.min(*p);
         hi = hi.max(*p);
     }

@@ -1,4 +1,4 @@
-use std::collections::{BTreeSet, HashSet};
+use std::collections::{BTreeSet, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 use glam::{UVec3, Vec3};
@@ -732,8 +732,10 @@ fn forest_is_one_tree_prototype_placed_where_the_krs_puts_its_trees() {
     assert_eq!(level, n - 3, "the three forest mirrors place trees");
     assert_eq!(level, o.object.lowest_placement_level());
     let mut scene = ExportScene::default();
+    // The placements alone: no levels of detail (they are checked below).
     let options = GltfExportOptions {
         resolution: 48,
+        instanced_lod_levels: 0,
         ..GltfExportOptions::default()
     };
     let (tris, instancing) =
@@ -978,7 +980,7 @@ fn unbounded_ground_is_written_as_a_patch_under_the_other_objects() {
     assert_eq!(report.patches.len(), 1);
     let (name, lo, hi) = &report.patches[0];
     assert_eq!(name, "ground");
-    let tree_box = node_bounds(&scene.nodes[0]).unwrap();
+    let tree_box = node_bounds(&scene, &scene.nodes[0]).unwrap();
     let span = tree_box.1 - tree_box.0;
     let margin = (span.x.max(span.z) * PATCH_MARGIN).max(1.0);
     assert!(
@@ -1120,9 +1122,11 @@ fn krs_levels_of_detail_are_coarser_closed_and_carry_the_placements() {
     let o = &prepared.objects[0];
     let level = o.auto_placement_level();
     let resolution = 96;
+    // The mesh levels (the impostor is checked in `forest_cells_...`).
     let options = GltfExportOptions {
         resolution,
-        lod_levels: 3,
+        instanced_lod_levels: 3,
+        impostor: false,
         ..GltfExportOptions::default()
     };
     let mut scene = ExportScene::default();
@@ -1260,4 +1264,357 @@ fn krs_levels_of_detail_are_coarser_closed_and_carry_the_placements() {
         48,
         2,
     );
+}
+
+/// The instance transforms of `nodes` whose names end (or not) in "mirrored", as exact bit
+/// patterns in a canonical order, to compare as multisets.
+fn placements_of<'a>(
+    nodes: impl IntoIterator<Item = &'a ExportNode>,
+    mirrored: bool,
+) -> Vec<[u32; 10]> {
+    let mut out: Vec<[u32; 10]> = nodes
+        .into_iter()
+        .filter(|n| n.name.ends_with("mirrored") == mirrored)
+        .flat_map(|n| &n.instances)
+        .map(|t| {
+            let v = [
+                t.translation.x,
+                t.translation.y,
+                t.translation.z,
+                t.rotation.x,
+                t.rotation.y,
+                t.rotation.z,
+                t.rotation.w,
+                t.scale.x,
+                t.scale.y,
+                t.scale.z,
+            ];
+            v.map(f32::to_bits)
+        })
+        .collect();
+    out.sort_unstable();
+    out
+}
+
+#[test]
+fn forest_cells_partition_the_placements_and_share_the_levels() {
+    // 64 trees, half of them mirrored.
+    let prepared = KrsScene {
+        objects: vec![presets::forest_with_mirrors(6)],
+    }
+    .prepare()
+    .unwrap();
+    let o = &prepared.objects[0];
+    // 48 cells, and a level at 24 (which keeps the crown's box).
+    let base = GltfExportOptions {
+        resolution: 48,
+        instanced_lod_levels: 1,
+        ..GltfExportOptions::default()
+    };
+    // One cell: a plain and a mirrored node, as before cells.
+    let mut single = ExportScene::default();
+    let one = GltfExportOptions {
+        cells: Some(1),
+        ..base.clone()
+    };
+    let (single_tris, single_report) =
+        add_krs_object(&mut single, "forest", o, &one, NO_PROGRESS).unwrap();
+    let single_report = single_report.expect("instanced");
+    assert_eq!((single_report.instances, single_report.mirrored), (64, 32));
+    assert_eq!(single.nodes.len(), 2);
+    assert_eq!((single_report.cells, single_report.cell_nodes), ([1, 1], 2));
+
+    let mut scene = ExportScene::default();
+    let options = GltfExportOptions {
+        cells: Some(16),
+        ..base.clone()
+    };
+    let (tris, report) = add_krs_object(&mut scene, "forest", o, &options, NO_PROGRESS).unwrap();
+    let report = report.expect("instanced");
+    assert!(report.impostor);
+    assert_eq!(report.cells[0] * report.cells[1], 16, "{report:?}");
+    assert_eq!(report.cell_nodes as usize, scene.nodes.len());
+    assert!(scene.nodes.len() > 2, "the trees spread over several cells");
+    // The meshes are written once, whatever the cells: the same triangles.
+    assert_eq!(tris, single_tris);
+    // Every placement in exactly one cell, with the very transform it had in one node.
+    for mirrored in [false, true] {
+        assert_eq!(
+            placements_of(&scene.nodes, mirrored),
+            placements_of(&single.nodes, mirrored),
+            "mirrored: {mirrored}"
+        );
+    }
+    assert_eq!(
+        scene
+            .nodes
+            .iter()
+            .map(|n| n.instances.len() as u64)
+            .sum::<u64>(),
+        report.instances
+    );
+    // No instance transform mirrors; each cell's trees stand in that cell of the grid (their
+    // centres, as the grid was laid over them).
+    let proto_box = aabb(scene.nodes[0].primitives[0].positions.iter().copied());
+    let centre = (proto_box.0 + proto_box.1) * 0.5;
+    let flip = Vec3::new(-1.0, 1.0, 1.0);
+    let spot = |n: &ExportNode, t: &InstanceTransform| {
+        t.transform_point(if n.name.ends_with("mirrored") {
+            centre * flip
+        } else {
+            centre
+        })
+    };
+    let spots: Vec<Vec3> = scene
+        .nodes
+        .iter()
+        .flat_map(|n| n.instances.iter().map(move |t| spot(n, t)))
+        .collect();
+    let grid = CellGrid::over(&spots, 16);
+    assert_eq!([grid.columns, grid.rows], report.cells);
+    let mut cells_seen = HashSet::new();
+    for n in &scene.nodes {
+        assert!(!n.instances.is_empty(), "no empty cell is written");
+        let cells: HashSet<usize> = n
+            .instances
+            .iter()
+            .map(|t| grid.cell_of(spot(n, t)))
+            .collect();
+        assert_eq!(cells.len(), 1, "{}: one cell", n.name);
+        assert!(
+            cells_seen.insert((cells.into_iter().next(), n.name.ends_with("mirrored"))),
+            "{}: one node per cell and copy",
+            n.name
+        );
+        assert!(n.instances.iter().all(|t| t.scale.min_element() > 0.0));
+    }
+    // The first node of each copy writes the mesh and its levels (a mesh level and the
+    // impostor); every other node draws that node's.
+    let first_plain = scene
+        .nodes
+        .iter()
+        .position(|n| !n.name.ends_with("mirrored"))
+        .unwrap();
+    let first_mirrored = scene
+        .nodes
+        .iter()
+        .position(|n| n.name.ends_with("mirrored"))
+        .unwrap();
+    for (i, n) in scene.nodes.iter().enumerate() {
+        let first = if n.name.ends_with("mirrored") {
+            first_mirrored
+        } else {
+            first_plain
+        };
+        if i == first {
+            assert_eq!(n.mesh_from, None);
+            assert_eq!(n.primitives.len(), 1);
+            assert_eq!(n.lods.len(), 2, "one mesh level and the impostor");
+        } else {
+            assert_eq!(n.mesh_from, Some(first), "{}", n.name);
+            assert!(n.primitives.is_empty() && n.lods.is_empty(), "{}", n.name);
+        }
+    }
+
+    // In the file: every cell node draws the shared full mesh and lists, through MSFT_lod,
+    // level nodes outside the scene that draw the shared level meshes with the cell's own
+    // placements; the coarsest is the impostor, an alpha-tested textured material.
+    let glb = encode_glb(&scene, Path::new("forest.glb")).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let nodes = root["nodes"].as_array().unwrap();
+    let in_scene: Vec<usize> = root["scenes"][0]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as usize)
+        .collect();
+    assert_eq!(in_scene.len(), scene.nodes.len());
+    assert_eq!(
+        root["meshes"].as_array().unwrap().len(),
+        6,
+        "two copies of three levels, written once"
+    );
+    let mut meshes_of: HashMap<bool, HashSet<Vec<u64>>> = HashMap::new();
+    let mut instances = 0;
+    for (&i, n) in in_scene.iter().zip(&scene.nodes) {
+        let node = &nodes[i];
+        let placements = &node["extensions"]["EXT_mesh_gpu_instancing"]["attributes"];
+        let count =
+            root["accessors"][placements["TRANSLATION"].as_u64().unwrap() as usize]["count"]
+                .as_u64()
+                .unwrap();
+        assert_eq!(count as usize, n.instances.len());
+        instances += count;
+        let ids = node["extensions"]["MSFT_lod"]["ids"].as_array().unwrap();
+        assert_eq!(
+            node["extras"]["MSFT_screencoverage"],
+            serde_json::json!([0.5, 0.25, 0.0])
+        );
+        let mut meshes = vec![node["mesh"].as_u64().unwrap()];
+        for id in ids {
+            let id = id.as_u64().unwrap() as usize;
+            assert!(!in_scene.contains(&id));
+            let lod = &nodes[id];
+            assert_eq!(
+                &lod["extensions"]["EXT_mesh_gpu_instancing"]["attributes"],
+                placements
+            );
+            meshes.push(lod["mesh"].as_u64().unwrap());
+        }
+        meshes_of
+            .entry(n.name.ends_with("mirrored"))
+            .or_default()
+            .insert(meshes);
+    }
+    assert_eq!(instances, 64);
+    for (mirrored, sets) in &meshes_of {
+        assert_eq!(
+            sets.len(),
+            1,
+            "mirrored {mirrored}: one set of meshes: {sets:?}"
+        );
+    }
+    let impostor_mesh = meshes_of[&false].iter().next().unwrap()[2] as usize;
+    let material = &root["materials"][root["meshes"][impostor_mesh]["primitives"][0]["material"]
+        .as_u64()
+        .unwrap() as usize];
+    assert_eq!(material["alphaMode"], "MASK", "{material}");
+    assert!(material["pbrMetallicRoughness"]["baseColorTexture"].is_object());
+    assert_eq!(
+        root["images"].as_array().unwrap().len(),
+        1,
+        "one impostor texture"
+    );
+}
+
+#[test]
+fn impostor_shows_the_prototype_from_the_side() {
+    let tree = KrsScene {
+        objects: vec![presets::tree()],
+    }
+    .prepare()
+    .unwrap();
+    let mesh = mesh_krs(&tree.objects[0], 32, u64::MAX, NO_PROGRESS).unwrap();
+    let (lo, hi) = aabb(mesh.positions.iter().copied());
+    let texels = 64;
+    let imp = krs_impostor(&tree.objects[0].object, lo, hi, texels).unwrap();
+    assert_eq!(
+        (imp.texture.width, imp.texture.height),
+        (2 * texels, texels)
+    );
+    assert_eq!(imp.triangle_count(), 8, "two squares, back to back");
+    // The quads stand in the prototype's box (widened to a square) and their texture is
+    // covered where the tree is: some texels, not all, in each view.
+    let (qlo, qhi) = aabb(imp.positions.iter().copied());
+    let half = 0.5 * (hi - lo).max_element() * 1.05;
+    let centre = (lo + hi) * 0.5;
+    assert!(
+        qlo.cmpge(centre - Vec3::splat(half)).all() && qhi.cmple(centre + Vec3::splat(half)).all()
+    );
+    for view in 0..2 {
+        let covered = (0..texels)
+            .flat_map(|y| (0..texels).map(move |x| (y * 2 * texels + view * texels + x) as usize))
+            .filter(|&i| imp.texture.rgba8[4 * i + 3] == 255)
+            .count();
+        let all = (texels * texels) as usize;
+        assert!(
+            covered > all / 20 && covered < all * 9 / 10,
+            "view {view}: {covered} of {all}"
+        );
+    }
+    // Right way up: the lowest covered row of each view is the trunk's foot, in the middle
+    // half (a picture upside down would have the crown's wide edge there).
+    for view in 0..2 {
+        let covered_in_row = |y: u32| -> Vec<u32> {
+            (0..texels)
+                .filter(|&x| {
+                    imp.texture.rgba8[4 * (y * 2 * texels + view * texels + x) as usize + 3] == 255
+                })
+                .collect()
+        };
+        let foot = (0..texels)
+            .rev()
+            .map(covered_in_row)
+            .find(|row| !row.is_empty())
+            .unwrap();
+        assert!(
+            foot.iter().all(|&x| x > texels / 4 && x < 3 * texels / 4)
+                && foot.len() < texels as usize / 4,
+            "view {view}: the lowest covered texels {foot:?}"
+        );
+    }
+    // The mirrored impostor is the same quads reflected, showing the same texels.
+    let m = imp.mirrored_x();
+    assert_eq!(m.uvs, imp.uvs);
+    assert!(
+        m.positions
+            .iter()
+            .zip(&imp.positions)
+            .all(|(a, b)| a.x == -b.x && (a.y, a.z) == (b.y, b.z))
+    );
+}
+
+#[test]
+fn impostor_texels_show_what_lies_behind_them_on_the_quads() {
+    // A leaning capsule whose top end is toward +x and +z: on the square facing +z (the first
+    // view) the top end is right of the middle, on the square facing +x (the second, whose
+    // texture runs toward −z) left of it. Each covered texel of a view, put on its square,
+    // must lie within the capsule's radius of its axis seen along that view.
+    let (start, end, radius) = (Vec3::ZERO, Vec3::new(1.0, 1.0, 0.5), 0.1);
+    let object = crate::krs::KrsObject {
+        name: "lean".to_owned(),
+        kernels: vec![crate::krs::Kernel::Capsule(crate::krs::CapsuleKernel {
+            start,
+            end,
+            radius,
+            material: crate::krs::Material::new(Vec3::new(0.5, 0.3, 0.2), 1),
+        })],
+        ..crate::krs::KrsObject::default()
+    };
+    let lo = start.min(end) - Vec3::splat(radius);
+    let hi = start.max(end) + Vec3::splat(radius);
+    let texels = 64;
+    let imp = krs_impostor(&object, lo, hi, texels).unwrap();
+    for view in 0..2u32 {
+        // The square of this view: vertices 4·view .. 4·view + 4, texture coordinates with it.
+        let q = &imp.positions[4 * view as usize..4 * view as usize + 4];
+        let uv = &imp.uvs[4 * view as usize..4 * view as usize + 4];
+        // Bilinear map from the texture to the square (its corners are (u0, v1), (u1, v1),
+        // (u1, v0), (u0, v0) for corners 0..4).
+        let at = |u: f32, v: f32| {
+            let s = (u - uv[0].x) / (uv[1].x - uv[0].x);
+            let t = (v - uv[0].y) / (uv[3].y - uv[0].y);
+            q[0] + (q[1] - q[0]) * s + (q[3] - q[0]) * t
+        };
+        // Distance from a point to the capsule's axis, ignoring depth along the view.
+        let drop = if view == 0 {
+            Vec3::new(1.0, 1.0, 0.0)
+        } else {
+            Vec3::new(0.0, 1.0, 1.0)
+        };
+        let axis_distance = |p: Vec3| {
+            let (a, b, p) = (start * drop, end * drop, p * drop);
+            let h = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+            (p - (a + (b - a) * h)).length()
+        };
+        let texel = (hi - lo).max_element() / texels as f32;
+        let mut covered = 0;
+        for y in 0..texels {
+            for x in 0..texels {
+                let i = (y * 2 * texels + view * texels + x) as usize;
+                if imp.texture.rgba8[4 * i + 3] != 255 {
+                    continue;
+                }
+                covered += 1;
+                let u = (view * texels + x) as f32 + 0.5;
+                let p = at(u / (2 * texels) as f32, (y as f32 + 0.5) / texels as f32);
+                assert!(
+                    axis_distance(p) < radius + 2.0 * texel,
+                    "view {view}: texel ({x}, {y}) lands at {p}, off the capsule"
+                );
+            }
+        }
+        assert!(covered > 50, "view {view}: {covered} texels");
+    }
 }

@@ -47,6 +47,13 @@ pub struct ExportMaterial {
     pub nearest: bool,
     /// Render both sides (open meshes such as a ground plane).
     pub double_sided: bool,
+    /// Sample the texture without mipmaps (linear filtering of the full image): an
+    /// alpha-tested impostor's averaged mipmaps lose the thin leaves under the cut-off, so a
+    /// distant crown would thin to its branches.
+    pub no_mipmaps: bool,
+    /// Alpha-tested (`alphaMode` `MASK`): texels whose alpha is under this are not drawn (an
+    /// impostor's cut-out). `None`: opaque.
+    pub alpha_cutoff: Option<f32>,
 }
 
 impl Default for ExportMaterial {
@@ -57,6 +64,8 @@ impl Default for ExportMaterial {
             texture: None,
             nearest: false,
             double_sided: false,
+            no_mipmaps: false,
+            alpha_cutoff: None,
         }
     }
 }
@@ -80,6 +89,10 @@ pub struct ExportNode {
     /// (each level for half the screen coverage of the one before). A viewer without the
     /// extension shows the full mesh.
     pub lods: Vec<Vec<ExportPrimitive>>,
+    /// Draw the mesh and the levels of detail of the scene node with this index (an earlier
+    /// node) instead of primitives of its own: the cells of an instanced forest share one tree
+    /// mesh and its levels, each with its own placements. `primitives` and `lods` stay empty.
+    pub mesh_from: Option<usize>,
 }
 
 /// A skeleton and its animation clips, for a skinned node (see [`ExportNode::skin`]).
@@ -193,8 +206,32 @@ pub(crate) fn encode(
         .map(|m| b.material(m))
         .collect::<Result<_, _>>()?;
     let mut node_indices = Vec::with_capacity(scene.nodes.len());
+    // Per node: its mesh and its levels' meshes, for the nodes that share them (`mesh_from`).
+    let mut written: Vec<Option<Meshes>> = Vec::with_capacity(scene.nodes.len());
     for (ni, node) in scene.nodes.iter().enumerate() {
-        let mesh = if node.primitives.iter().any(|p| !p.indices.is_empty()) {
+        let shared = match node.mesh_from {
+            Some(j) => {
+                let source = written.get(j).and_then(Option::as_ref).ok_or_else(|| {
+                    EncodeError::Invalid(format!(
+                        "node {:?} draws the mesh of node {j}, which is not an earlier node \
+                         with a mesh",
+                        node.name
+                    ))
+                })?;
+                if !node.primitives.is_empty() || !node.lods.is_empty() || node.skin.is_some() {
+                    return Err(EncodeError::Invalid(format!(
+                        "node {:?} draws node {j}'s mesh and has primitives, levels or a skin \
+                         of its own",
+                        node.name
+                    )));
+                }
+                Some(source.clone())
+            }
+            None => None,
+        };
+        let mesh = if let Some(s) = &shared {
+            Some(s.mesh)
+        } else if node.primitives.iter().any(|p| !p.indices.is_empty()) {
             let mut prims = Vec::new();
             for (pi, p) in node.primitives.iter().enumerate() {
                 if p.indices.is_empty() {
@@ -227,6 +264,7 @@ pub(crate) fn encode(
                 name: Some(node.name.clone()),
                 ..json::Node::default()
             }));
+            written.push(None);
             continue;
         }
         let t = &node.transform;
@@ -238,16 +276,22 @@ pub(crate) fn encode(
         };
         let mut extensions = instancing.clone();
         let mut extras = None;
-        if !node.lods.is_empty() && mesh.is_some() {
+        let levels = match (shared, mesh) {
+            (Some(s), _) => s.levels,
+            (None, Some(_)) if !node.lods.is_empty() => b.level_meshes(node, &materials)?,
+            _ => Vec::new(),
+        };
+        if !levels.is_empty() {
             // A level replaces the whole node, so an instanced node's levels carry its
             // placements too (the same accessors).
-            let (lod, coverage) = b.lods(node, &materials, instancing.as_ref())?;
+            let (lod, coverage) = b.lod_nodes(node, &levels, instancing.as_ref())?;
             extensions
                 .get_or_insert_with(Default::default)
                 .others
                 .extend(lod.others);
             extras = coverage;
         }
+        written.push(mesh.map(|mesh| Meshes { mesh, levels }));
         node_indices.push(
             b.root.push(json::Node {
                 extensions,
@@ -282,12 +326,20 @@ pub(crate) fn encode(
     b.finish(bin_uri)
 }
 
+/// A written mesh and its coarser levels' meshes, for nodes that share them.
+#[derive(Clone)]
+struct Meshes {
+    mesh: json::Index<json::Mesh>,
+    levels: Vec<json::Index<json::Mesh>>,
+}
+
 #[derive(Default)]
 struct Builder {
     root: json::Root,
     bin: Vec<u8>,
     sampler_linear: Option<json::Index<json::texture::Sampler>>,
     sampler_nearest: Option<json::Index<json::texture::Sampler>>,
+    sampler_no_mipmaps: Option<json::Index<json::texture::Sampler>>,
 }
 
 fn too_large(what: &str) -> EncodeError {
@@ -495,17 +547,13 @@ impl Builder {
         Ok(node)
     }
 
-    /// Writes `node`'s coarser levels as nodes outside the scene (same transform, and the
-    /// node's `instancing` extension when it has one) and returns the `MSFT_lod` extension
-    /// that lists them, and the node extras with `MSFT_screencoverage` (1/2, 1/4, ... of the
-    /// screen, then 0 for the coarsest).
-    fn lods(
+    /// Writes the meshes of `node`'s coarser levels of detail, finest first.
+    fn level_meshes(
         &mut self,
         node: &ExportNode,
         materials: &[json::Index<json::Material>],
-        instancing: Option<&json::extensions::scene::Node>,
-    ) -> Result<(json::extensions::scene::Node, json::Extras), EncodeError> {
-        let mut ids = Vec::new();
+    ) -> Result<Vec<json::Index<json::Mesh>>, EncodeError> {
+        let mut meshes = Vec::with_capacity(node.lods.len());
         for (k, prims) in node.lods.iter().enumerate() {
             let mut out = Vec::new();
             for (pi, p) in prims.iter().enumerate() {
@@ -518,18 +566,33 @@ impl Builder {
                 })?;
                 out.push(self.primitive(p, material, &what)?);
             }
-            let name = format!("{} LOD{}", node.name, k + 1);
-            let mesh = self.root.push(json::Mesh {
+            meshes.push(self.root.push(json::Mesh {
                 extensions: None,
                 extras: None,
-                name: Some(name.clone()),
+                name: Some(format!("{} LOD{}", node.name, k + 1)),
                 primitives: out,
                 weights: None,
-            });
+            }));
+        }
+        Ok(meshes)
+    }
+
+    /// Writes one node per level mesh, outside the scene (with `node`'s transform, and its
+    /// `instancing` extension when it has one), and returns the `MSFT_lod` extension that lists
+    /// them and the node extras with `MSFT_screencoverage` (1/2, 1/4, ... of the screen, then 0
+    /// for the coarsest).
+    fn lod_nodes(
+        &mut self,
+        node: &ExportNode,
+        levels: &[json::Index<json::Mesh>],
+        instancing: Option<&json::extensions::scene::Node>,
+    ) -> Result<(json::extensions::scene::Node, json::Extras), EncodeError> {
+        let mut ids = Vec::new();
+        for (k, &mesh) in levels.iter().enumerate() {
             let t = &node.transform;
             let id = self.root.push(json::Node {
                 mesh: Some(mesh),
-                name: Some(name),
+                name: Some(format!("{} LOD{}", node.name, k + 1)),
                 translation: Some(t.translation.to_array()),
                 rotation: Some(json::scene::UnitQuaternion(
                     unit_quat(t.rotation).to_array(),
@@ -547,8 +610,7 @@ impl Builder {
         ext.insert("ids".to_owned(), json::Value::Array(ids));
         let mut n = json::extensions::scene::Node::default();
         n.others.insert(LOD.to_owned(), json::Value::Object(ext));
-        let levels = node.lods.len() + 1;
-        let coverage: Vec<f64> = (1..levels)
+        let coverage: Vec<f64> = (1..=levels.len())
             .map(|k| 0.5f64.powi(k as i32))
             .chain(std::iter::once(0.0))
             .collect();
@@ -1010,7 +1072,7 @@ impl Builder {
     fn material(&mut self, m: &ExportMaterial) -> Result<json::Index<json::Material>, EncodeError> {
         let base_color_texture = match &m.texture {
             Some(tex) => Some(json::texture::Info {
-                index: self.texture(tex, m.nearest, &m.name)?,
+                index: self.texture(tex, m.nearest, m.no_mipmaps, &m.name)?,
                 tex_coord: 0,
                 extensions: None,
                 extras: None,
@@ -1024,9 +1086,18 @@ impl Builder {
                 1.0
             }
         });
+        let (alpha_mode, alpha_cutoff) = match m.alpha_cutoff {
+            Some(c) if c.is_finite() => (
+                json::material::AlphaMode::Mask,
+                Some(json::material::AlphaCutoff(c.clamp(0.0, 1.0))),
+            ),
+            _ => (json::material::AlphaMode::Opaque, None),
+        };
         Ok(self.root.push(json::Material {
             name: Some(m.name.clone()),
             double_sided: m.double_sided,
+            alpha_mode: Checked::Valid(alpha_mode),
+            alpha_cutoff,
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
                 base_color_factor: json::material::PbrBaseColorFactor(c),
                 base_color_texture,
@@ -1043,6 +1114,7 @@ impl Builder {
         &mut self,
         tex: &Texture,
         nearest: bool,
+        no_mipmaps: bool,
         name: &str,
     ) -> Result<json::Index<json::Texture>, EncodeError> {
         let expected = u64::from(tex.width) * u64::from(tex.height) * 4;
@@ -1072,7 +1144,7 @@ impl Builder {
             extensions: None,
             extras: None,
         });
-        let sampler = self.sampler(nearest);
+        let sampler = self.sampler(nearest, no_mipmaps);
         Ok(self.root.push(json::Texture {
             name: Some(name.to_owned()),
             sampler: Some(sampler),
@@ -1082,14 +1154,16 @@ impl Builder {
         }))
     }
 
-    fn sampler(&mut self, nearest: bool) -> json::Index<json::texture::Sampler> {
+    fn sampler(&mut self, nearest: bool, no_mipmaps: bool) -> json::Index<json::texture::Sampler> {
         use json::texture::{MagFilter, MinFilter, Sampler, WrappingMode};
-        let slot = if nearest {
-            &mut self.sampler_nearest
+        let cached = if nearest {
+            self.sampler_nearest
+        } else if no_mipmaps {
+            self.sampler_no_mipmaps
         } else {
-            &mut self.sampler_linear
+            self.sampler_linear
         };
-        if let Some(s) = *slot {
+        if let Some(s) = cached {
             return s;
         }
         let sampler = if nearest {
@@ -1100,16 +1174,26 @@ impl Builder {
                 wrap_t: Checked::Valid(WrappingMode::ClampToEdge),
                 ..Sampler::default()
             }
+        } else if no_mipmaps {
+            Sampler {
+                mag_filter: Some(Checked::Valid(MagFilter::Linear)),
+                min_filter: Some(Checked::Valid(MinFilter::Linear)),
+                wrap_s: Checked::Valid(WrappingMode::ClampToEdge),
+                wrap_t: Checked::Valid(WrappingMode::ClampToEdge),
+                ..Sampler::default()
+            }
         } else {
             Sampler::default()
         };
-        let index = self.root.push(sampler);
+        let index = Some(self.root.push(sampler));
         if nearest {
-            self.sampler_nearest = Some(index);
+            self.sampler_nearest = index;
+        } else if no_mipmaps {
+            self.sampler_no_mipmaps = index;
         } else {
-            self.sampler_linear = Some(index);
+            self.sampler_linear = index;
         }
-        index
+        self.sampler(nearest, no_mipmaps)
     }
 
     fn finish(mut self, bin_uri: Option<&str>) -> Result<Encoded, EncodeError> {
