@@ -242,49 +242,33 @@ pub(crate) fn save_with(
 fn encode_payloads(doc: &Document) -> (Vec<u8>, Vec<PayloadRef>) {
     let mut bin = Vec::new();
     let mut payloads = Vec::new();
-    for o in &doc.objects {
+    // Appends what `encode` writes as one payload of object `id`.
+    let mut push = |id: u64, part: &str, encode: &dyn Fn(&mut Vec<u8>)| {
         let start = bin.len();
-        match &o.kind {
-            ObjectKind::Voxels(v) => encode_svo(&v.svo, &mut bin),
-            ObjectKind::Mesh(m) => encode_mesh(&m.model, &mut bin),
-            // Parametric: everything is in the JSON.
-            ObjectKind::Krs(_) => continue,
-        }
+        encode(&mut bin);
         let bytes = &bin[start..];
         payloads.push(PayloadRef {
-            object_id: o.id,
+            object_id: id,
             offset: start as u64,
             length: bytes.len() as u64,
             crc32: crc32fast::hash(bytes),
-            part: String::new(),
+            part: part.to_owned(),
         });
-        if let ObjectKind::Voxels(v) = &o.kind
-            && let Some(frames) = &v.frames
-        {
-            let start = bin.len();
-            encode_frames(frames, &mut bin);
-            let bytes = &bin[start..];
-            payloads.push(PayloadRef {
-                object_id: o.id,
-                offset: start as u64,
-                length: bytes.len() as u64,
-                crc32: crc32fast::hash(bytes),
-                part: FRAMES_PART.into(),
-            });
-        }
-        if let ObjectKind::Voxels(v) = &o.kind
-            && let Some(rig) = &v.rig
-        {
-            let start = bin.len();
-            encode_skin(rig, &mut bin);
-            let bytes = &bin[start..];
-            payloads.push(PayloadRef {
-                object_id: o.id,
-                offset: start as u64,
-                length: bytes.len() as u64,
-                crc32: crc32fast::hash(bytes),
-                part: SKIN_PART.into(),
-            });
+    };
+    for o in &doc.objects {
+        match &o.kind {
+            ObjectKind::Voxels(v) => {
+                push(o.id, "", &|bin| encode_svo(&v.svo, bin));
+                if let Some(frames) = &v.frames {
+                    push(o.id, FRAMES_PART, &|bin| encode_frames(frames, bin));
+                }
+                if let Some(rig) = &v.rig {
+                    push(o.id, SKIN_PART, &|bin| encode_skin(rig, bin));
+                }
+            }
+            ObjectKind::Mesh(m) => push(o.id, "", &|bin| encode_mesh(&m.model, bin)),
+            // Parametric: everything is in the JSON.
+            ObjectKind::Krs(_) => {}
         }
     }
     (bin, payloads)
