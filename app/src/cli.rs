@@ -276,10 +276,12 @@ pub struct TradeoffArgs {
     /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
     #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
     pub knobs: Vec<String>,
-    /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "256x256")]
+    /// Image size as WIDTHxHEIGHT; the default is the editor's 800x800 view, where the presets
+    /// are used. A knob that draws the same image at every value at this size is reported as
+    /// having no effect and left out of the plot.
+    #[arg(long, default_value = "800x800")]
     pub size: String,
-    /// Renders per setting; the reported time is their median.
+    /// Renders per setting; the reported time is their median, with their min-max spread.
     #[arg(long, default_value_t = 3)]
     pub frames: usize,
     /// Render every combination of the knob values instead of one knob at a time.
@@ -1518,11 +1520,19 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         if args.gpu { "GPU" } else { "CPU" },
         report.reference_time_ms
     );
+    if !report.knobs.is_empty() {
+        text.push_str("knobs at this size:\n");
+        for k in &report.knobs {
+            text.push_str(&format!("  {}\n", k.summary()));
+        }
+    }
     for p in &report.points {
         text.push_str(&format!(
-            "  {:<40} {:>9.1} ms {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
+            "  {:<40} {:>9.1} ms ({:.1}-{:.1}) {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
             p.setting.label,
             p.time_ms,
+            p.time_min_ms,
+            p.time_max_ms,
             p.work,
             p.error.rmse,
             p.error.holes,
