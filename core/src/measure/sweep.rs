@@ -394,6 +394,15 @@ pub struct KnobEffect {
     pub distinct_images: usize,
     /// Left out of the points and the plot because it had no effect.
     pub dropped: bool,
+    /// Values that drew the same image as another setting of the knob, as `(value, same as)`
+    /// (`same as` is an earlier value, or `base`): the range over which the knob changes the
+    /// image is the other values. They stay in the points (a value asked for is measured).
+    #[serde(default)]
+    pub same_image: Vec<(String, String)>,
+    /// Two of the knob's settings have render-time spreads (min-max) that do not overlap:
+    /// the knob moves the time beyond the noise of repeated renders.
+    #[serde(default)]
+    pub time_beyond_noise: bool,
 }
 
 impl KnobEffect {
@@ -407,12 +416,27 @@ impl KnobEffect {
                 self.values.join(", ")
             )
         } else {
+            let same: Vec<String> = self
+                .same_image
+                .iter()
+                .map(|(v, as_)| format!("{v} = {as_}"))
+                .collect();
             format!(
-                "{}: {} different images from {} value(s) ({}): kept",
+                "{}: {} different images from {} value(s) ({}){}; time {} the render spread: kept",
                 self.name,
                 self.distinct_images,
                 self.values.len(),
-                self.values.join(", ")
+                self.values.join(", "),
+                if same.is_empty() {
+                    String::new()
+                } else {
+                    format!("; same image: {}", same.join(", "))
+                },
+                if self.time_beyond_noise {
+                    "moves beyond"
+                } else {
+                    "stays within"
+                }
             )
         }
     }
@@ -454,6 +478,34 @@ fn screen_knobs(settings: &SweepSettings, points: &mut Vec<SweepPoint>) -> Vec<K
                     images.push(key);
                 }
             }
+            // Each value's image against the base's and the earlier values' (in the order
+            // given): the first to draw an image owns it.
+            let value_point = |v: &str| {
+                let mut q = base.clone();
+                q.set(&k.name, v).ok()?;
+                points.iter().position(|p| p.setting.quality == q)
+            };
+            let base_point = points.iter().position(|p| p.setting.quality == *base);
+            let mut owners: Vec<(String, (u64, FrameError))> = base_point
+                .map(|i| ("base".to_owned(), (points[i].work, points[i].error)))
+                .into_iter()
+                .collect();
+            let mut same_image = Vec::new();
+            for v in &k.values {
+                let Some(i) = value_point(v) else { continue };
+                let key = (points[i].work, points[i].error);
+                let is_base = Some(i) == base_point;
+                match owners.iter().find(|(_, o)| *o == key) {
+                    Some((owner, _)) if !is_base => same_image.push((v.clone(), owner.clone())),
+                    Some(_) => {}
+                    None => owners.push((v.clone(), key)),
+                }
+            }
+            let time_beyond_noise = members.iter().any(|&a| {
+                members
+                    .iter()
+                    .any(|&b| points[a].time_min_ms > points[b].time_max_ms)
+            });
             let dropped = images.len() <= 1;
             if dropped {
                 for &i in &members {
@@ -468,6 +520,8 @@ fn screen_knobs(settings: &SweepSettings, points: &mut Vec<SweepPoint>) -> Vec<K
                 values: k.values.clone(),
                 distinct_images: images.len(),
                 dropped,
+                same_image,
+                time_beyond_noise,
             }
         })
         .collect();
@@ -1156,6 +1210,9 @@ mod tests {
         );
         let lod = effect("lod_pixel_threshold");
         assert!(!lod.dropped && lod.distinct_images >= 2, "{lod:?}");
+        // The whole knob is one image, so each value names the base as its twin.
+        assert_eq!(shadow.same_image.len(), 3, "{shadow:?}");
+        assert!(shadow.same_image.iter().all(|(_, as_)| as_ == "base"));
         assert!(lod.summary().ends_with("kept"), "{}", lod.summary());
         let labels: Vec<&str> = r.points.iter().map(|p| p.setting.label.as_str()).collect();
         // The dropped knob's points are gone; the base, the presets and the LOD stay.
