@@ -1526,6 +1526,7 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
             text.push_str(&format!("  {}\n", k.summary()));
         }
     }
+    text.push_str(&presets_summary(&report));
     for p in &report.points {
         text.push_str(&format!(
             "  {:<40} {:>9.1} ms ({:.1}-{:.1}) {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
@@ -1546,6 +1547,37 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         ));
     }
     write_stdout(&text)
+}
+
+/// Where the presets sit in a sweep: their order in work, error and time, and for each preset
+/// off the work front the setting that beats it.
+fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
+    use thicket_core::render::QualityPreset::{Balanced, Draft, Final};
+    let points = [Draft, Balanced, Final].map(|q| report.preset_point(q));
+    let [Some(d), Some(b), Some(f)] = points else {
+        return String::new();
+    };
+    let yes = |ordered: bool| if ordered { "yes" } else { "no" };
+    let mut s = format!(
+        "presets: work draft < balanced < final: {}; error draft > balanced > final: {}; \
+         median time draft < balanced < final: {}\n",
+        yes(d.work < b.work && b.work < f.work),
+        yes(d.error.rmse > b.error.rmse && b.error.rmse > f.error.rmse),
+        yes(d.time_ms < b.time_ms && b.time_ms < f.time_ms),
+    );
+    for (name, p) in [("draft", d), ("balanced", b), ("final", f)] {
+        let Some(i) = report.points.iter().position(|q| std::ptr::eq(q, p)) else {
+            continue;
+        };
+        match report.work_dominator(i) {
+            None => s.push_str(&format!("  {name}: on the work front\n")),
+            Some(by) => s.push_str(&format!(
+                "  {name}: off the work front, beaten by {} ({} work, rmse {:.5})\n",
+                by.setting.label, by.work, by.error.rmse
+            )),
+        }
+    }
+    s
 }
 
 fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {

@@ -269,6 +269,13 @@ fn tradeoff_drops_a_knob_with_no_effect_and_reports_time_spreads() {
             .unwrap()
             .ends_with("time_min_ms,time_max_ms")
     );
+    // Where the presets sit: their order is stated and each is placed on or off the front.
+    assert!(
+        stdout.contains("presets: work draft < balanced < final: ")
+            && stdout.contains("  final: ")
+            && stdout.contains("work front"),
+        "{stdout}"
+    );
     // The default size is the editor's 800x800 view.
     let help = thicket(&["tradeoff", "--help"]);
     assert!(String::from_utf8_lossy(&help.stdout).contains("[default: 800x800]"));

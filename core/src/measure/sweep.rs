@@ -567,6 +567,20 @@ impl SweepReport {
         self.points.iter().find(|pt| pt.setting.preset == Some(p))
     }
 
+    /// A point that dominates point `index` on (work, RMSE) with [`SweepReport::work_dominance`]
+    /// (the cheapest such), or `None` when it is on the work front: why a preset is off it.
+    #[must_use]
+    pub fn work_dominator(&self, index: usize) -> Option<&SweepPoint> {
+        let key = |p: &SweepPoint| (p.work as f64, p.error.rmse);
+        let target = key(self.points.get(index)?);
+        self.points
+            .iter()
+            .enumerate()
+            .filter(|&(j, p)| j != index && self.work_dominance.dominates(key(p), target))
+            .map(|(_, p)| p)
+            .min_by_key(|p| p.work)
+    }
+
     /// Marks the two fronts.
     fn mark_fronts(&mut self) {
         let by_time: Vec<(f64, f64)> = self
@@ -1296,5 +1310,9 @@ mod tests {
         );
         assert!(d.work < b.work && b.work < f.work);
         assert!(d.error.rmse > b.error.rmse && b.error.rmse > f.error.rmse);
+        // With the presets alone, each is on the work front: none is dominated.
+        for i in 0..r.points.len() {
+            assert!(r.points[i].on_work_front && r.work_dominator(i).is_none());
+        }
     }
 }
