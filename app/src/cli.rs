@@ -1530,7 +1530,7 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
     for p in &report.points {
         text.push_str(&format!(
             "  {:<40} {:>9.1} ms ({:.1}-{:.1}) {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
-            p.setting.label,
+            short_label(&p.setting.label),
             p.time_ms,
             p.time_min_ms,
             p.time_max_ms,
@@ -1547,6 +1547,17 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         ));
     }
     write_stdout(&text)
+}
+
+/// A merged setting's label for the table: its first two names and how many more drew the
+/// same quality (report.json and report.csv keep the whole label).
+fn short_label(label: &str) -> String {
+    let names: Vec<&str> = label.split(" / ").collect();
+    if names.len() <= 2 {
+        label.to_owned()
+    } else {
+        format!("{} / {} (+{} same)", names[0], names[1], names.len() - 2)
+    }
 }
 
 /// Where the presets sit in a sweep: their order in work, error and time, and for each preset
