@@ -556,7 +556,12 @@ impl TradeoffPanel {
                                 ui.end_row();
                                 for (i, p) in report.points.iter().enumerate() {
                                     ui.label(&p.setting.label);
-                                    ui.label(format!("{:.2}", p.time_ms));
+                                    ui.label(format!("{:.2}", p.time_ms)).on_hover_text(format!(
+                                        "Median of {} render(s); {:.2} to {:.2} ms",
+                                        p.times_ms.len(),
+                                        p.time_min_ms,
+                                        p.time_max_ms
+                                    ));
                                     ui.label(thousands(p.work));
                                     ui.label(format!("{:.5}", p.error.rmse));
                                     ui.label(match (p.on_time_front, p.on_work_front) {
