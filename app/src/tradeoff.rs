@@ -244,6 +244,8 @@ where
     }
     chart
         .configure_series_labels()
+        // The front falls from upper left to lower right: the upper right is where no point is.
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
@@ -264,9 +266,23 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
-        let root = root
+        let mut root = root
             .titled(title, ("sans-serif", 22))
             .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        let dropped: Vec<&str> = report
+            .knobs
+            .iter()
+            .filter(|k| k.dropped)
+            .map(|k| k.name.as_str())
+            .collect();
+        if !dropped.is_empty() {
+            root = root
+                .titled(
+                    &format!("no effect at this size, left out: {}", dropped.join(", ")),
+                    ("sans-serif", 15),
+                )
+                .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        }
         let (left, right) = root.split_horizontally(w / 2);
         panel(
             &left,
@@ -353,7 +369,7 @@ pub fn write_outputs(
     text.push('\n');
     write_atomic(&dir.join("report.json"), text.as_bytes())?;
     write_atomic(&dir.join("report.csv"), report.to_csv().as_bytes())?;
-    let mut title = format!(
+    let title = format!(
         "{project_name}: {}x{}, {}, median of {} render(s), reference {:.0} ms",
         report.width,
         report.height,
@@ -361,15 +377,6 @@ pub fn write_outputs(
         report.repeats,
         report.reference_time_ms
     );
-    let dropped: Vec<&str> = report
-        .knobs
-        .iter()
-        .filter(|k| k.dropped)
-        .map(|k| k.name.as_str())
-        .collect();
-    if !dropped.is_empty() {
-        title.push_str(&format!("; no effect here: {}", dropped.join(", ")));
-    }
     let img = plot(report, &title)?;
     let png = dir.join("tradeoff.png");
     let tmp = dir.join("tradeoff.png.tmp");
