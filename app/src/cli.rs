@@ -276,10 +276,12 @@ pub struct TradeoffArgs {
     /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
     #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
     pub knobs: Vec<String>,
-    /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "256x256")]
+    /// Image size as WIDTHxHEIGHT; the default is the editor's 800x800 view, where the presets
+    /// are used. A knob that draws the same image at every value at this size is reported as
+    /// having no effect and left out of the plot.
+    #[arg(long, default_value = "800x800")]
     pub size: String,
-    /// Renders per setting; the reported time is their median.
+    /// Renders per setting; the reported time is their median, with their min-max spread.
     #[arg(long, default_value_t = 3)]
     pub frames: usize,
     /// Render every combination of the knob values instead of one knob at a time.
@@ -1518,11 +1520,20 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         if args.gpu { "GPU" } else { "CPU" },
         report.reference_time_ms
     );
+    if !report.knobs.is_empty() {
+        text.push_str("knobs at this size:\n");
+        for k in &report.knobs {
+            text.push_str(&format!("  {}\n", k.summary()));
+        }
+    }
+    text.push_str(&presets_summary(&report));
     for p in &report.points {
         text.push_str(&format!(
-            "  {:<40} {:>9.1} ms {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
-            p.setting.label,
+            "  {:<40} {:>9.1} ms ({:.1}-{:.1}) {:>12} work  rmse {:.5}  holes {:>6} bloat {:>6}{}\n",
+            short_label(&p.setting.label),
             p.time_ms,
+            p.time_min_ms,
+            p.time_max_ms,
             p.work,
             p.error.rmse,
             p.error.holes,
@@ -1536,6 +1547,48 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         ));
     }
     write_stdout(&text)
+}
+
+/// A merged setting's label for the table: its first two names and how many more drew the
+/// same quality (report.json and report.csv keep the whole label).
+fn short_label(label: &str) -> String {
+    let names: Vec<&str> = label.split(" / ").collect();
+    if names.len() <= 2 {
+        label.to_owned()
+    } else {
+        format!("{} / {} (+{} same)", names[0], names[1], names.len() - 2)
+    }
+}
+
+/// Where the presets sit in a sweep: their order in work, error and time, and for each preset
+/// off the work front the setting that beats it.
+fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
+    use thicket_core::render::QualityPreset::{Balanced, Draft, Final};
+    let points = [Draft, Balanced, Final].map(|q| report.preset_point(q));
+    let [Some(d), Some(b), Some(f)] = points else {
+        return String::new();
+    };
+    let yes = |ordered: bool| if ordered { "yes" } else { "no" };
+    let mut s = format!(
+        "presets: work draft < balanced < final: {}; error draft > balanced > final: {}; \
+         median time draft < balanced < final: {}\n",
+        yes(d.work < b.work && b.work < f.work),
+        yes(d.error.rmse > b.error.rmse && b.error.rmse > f.error.rmse),
+        yes(d.time_ms < b.time_ms && b.time_ms < f.time_ms),
+    );
+    for (name, p) in [("draft", d), ("balanced", b), ("final", f)] {
+        let Some(i) = report.points.iter().position(|q| std::ptr::eq(q, p)) else {
+            continue;
+        };
+        match report.work_dominator(i) {
+            None => s.push_str(&format!("  {name}: on the work front\n")),
+            Some(by) => s.push_str(&format!(
+                "  {name}: off the work front, beaten by {} ({} work, rmse {:.5})\n",
+                by.setting.label, by.work, by.error.rmse
+            )),
+        }
+    }
+    s
 }
 
 fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {

@@ -128,21 +128,35 @@ fn preset_name(p: &SweepPoint) -> Option<&'static str> {
     })
 }
 
+/// The spread of a point's render times (fastest, slowest), when it has more than one render.
+fn time_spread(p: &SweepPoint) -> Option<(f64, f64)> {
+    (p.times_ms.len() > 1 && p.time_min_ms > 0.0 && p.time_max_ms >= p.time_min_ms)
+        .then_some((p.time_min_ms, p.time_max_ms))
+}
+
 /// Draws one panel: `x(p)` against RMSE, every point, the front joined by a line, presets
-/// named.
+/// named; `spread(p)`, where given, is drawn as a horizontal error bar (a noisy cost).
 fn panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
     x_desc: &str,
     points: &[SweepPoint],
     x: impl Fn(&SweepPoint) -> f64,
+    spread: impl Fn(&SweepPoint) -> Option<(f64, f64)>,
     on_front: impl Fn(&SweepPoint) -> bool,
 ) -> anyhow::Result<()>
 where
     DB::ErrorType: 'static,
 {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| anyhow!("drawing the plot: {e:?}");
-    let xs: Vec<f64> = points.iter().map(&x).filter(|v| *v > 0.0).collect();
+    let xs: Vec<f64> = points
+        .iter()
+        .flat_map(|p| {
+            let (lo, hi) = spread(p).unwrap_or((x(p), x(p)));
+            [x(p), lo, hi]
+        })
+        .filter(|v| *v > 0.0)
+        .collect();
     let (x_lo, x_hi) = xs.iter().fold((f64::INFINITY, 0.0f64), |(lo, hi), &v| {
         (lo.min(v), hi.max(v))
     });
@@ -181,6 +195,22 @@ where
         .label_style(("sans-serif", 14))
         .draw()
         .map_err(err)?;
+    let bars: Vec<(f64, f64, f64, f64)> = points
+        .iter()
+        .filter(|p| x(p) > 0.0)
+        .filter_map(|p| spread(p).map(|(lo, hi)| (p.error.rmse, lo, x(p), hi)))
+        .collect();
+    if !bars.is_empty() {
+        chart
+            .draw_series(bars.iter().map(|&(y, lo, mid, hi)| {
+                ErrorBar::new_horizontal(y, lo, mid, hi, BLACK.mix(0.45).stroke_width(1), 6)
+            }))
+            .map_err(err)?
+            .label("min-max of the renders")
+            .legend(|(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], BLACK.mix(0.45).stroke_width(1))
+            });
+    }
     let others = points.iter().filter(|p| !on_front(p) && x(p) > 0.0);
     chart
         .draw_series(others.map(|p| Circle::new((x(p), p.error.rmse), 4, BLUE.mix(0.6).filled())))
@@ -214,6 +244,8 @@ where
     }
     chart
         .configure_series_labels()
+        // The front falls from upper left to lower right: the upper right is where no point is.
+        .position(SeriesLabelPosition::UpperRight)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .label_font(("sans-serif", 14))
@@ -234,16 +266,31 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
         let root = BitMapBackend::with_buffer(&mut rgb, (w, h)).into_drawing_area();
         root.fill(&WHITE)
             .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
-        let root = root
+        let mut root = root
             .titled(title, ("sans-serif", 22))
             .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        let dropped: Vec<&str> = report
+            .knobs
+            .iter()
+            .filter(|k| k.dropped)
+            .map(|k| k.name.as_str())
+            .collect();
+        if !dropped.is_empty() {
+            root = root
+                .titled(
+                    &format!("no effect at this size, left out: {}", dropped.join(", ")),
+                    ("sans-serif", 15),
+                )
+                .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
+        }
         let (left, right) = root.split_horizontally(w / 2);
         panel(
             &left,
             "time vs error",
-            "median frame time (ms, log)",
+            "median frame time, bars min-max (ms, log)",
             &report.points,
             |p| p.time_ms,
+            time_spread,
             |p| p.on_time_front,
         )?;
         panel(
@@ -252,6 +299,7 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
             "work units: nodes, triangles, KRS steps, shading reads (log)",
             &report.points,
             |p| p.work as f64,
+            |_| None,
             |p| p.on_work_front,
         )?;
         root.present()

@@ -204,3 +204,79 @@ fn tradeoff_sweeps_the_stretch_strategy_of_a_skinned_sample() {
         String::from_utf8_lossy(&o.stderr)
     );
 }
+
+#[test]
+fn tradeoff_drops_a_knob_with_no_effect_and_reports_time_spreads() {
+    // A sphere and no shadow-casting light: the shadow map's size cannot change the image.
+    let dir = tempfile::tempdir().unwrap();
+    let mut doc = thicket_core::render::scenes::sphere_document(5, 0.4).unwrap();
+    for l in &mut doc.lights {
+        l.casts_shadows = false;
+    }
+    let project = dir.path().join("shadowless.thicket.json");
+    thicket_core::io::project::save(&doc, &project).unwrap();
+    let out = dir.path().join("out");
+    let o = thicket(&[
+        "tradeoff",
+        project.to_str().unwrap(),
+        "--knob",
+        "shadow_map_size=256,4096",
+        "--knob",
+        "lod_pixel_threshold=1,8",
+        "--size",
+        "40x40",
+        "--frames",
+        "3",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("shadow_map_size: no effect at this size")
+            && stdout.contains("lod_pixel_threshold: 2 different images"),
+        "{stdout}"
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let report = &json["report"];
+    let knobs = report["knobs"].as_array().unwrap();
+    let knob = |name: &str| knobs.iter().find(|k| k["name"] == name).unwrap();
+    assert_eq!(knob("shadow_map_size")["dropped"], true);
+    assert_eq!(knob("lod_pixel_threshold")["dropped"], false);
+    let points = report["points"].as_array().unwrap();
+    let labels: Vec<&str> = points
+        .iter()
+        .map(|p| p["setting"]["label"].as_str().unwrap())
+        .collect();
+    assert!(
+        !labels.iter().any(|l| l.contains("shadow_map_size=")),
+        "{labels:?}"
+    );
+    assert!(labels.iter().any(|l| l.contains("lod_pixel_threshold=8")));
+    for p in points {
+        let (lo, mid, hi) = (
+            p["time_min_ms"].as_f64().unwrap(),
+            p["time_ms"].as_f64().unwrap(),
+            p["time_max_ms"].as_f64().unwrap(),
+        );
+        assert!(lo <= mid && mid <= hi, "{lo} {mid} {hi}");
+    }
+    let csv = std::fs::read_to_string(out.join("report.csv")).unwrap();
+    assert!(
+        csv.lines()
+            .next()
+            .unwrap()
+            .ends_with("time_min_ms,time_max_ms")
+    );
+    // Where the presets sit: their order is stated and each is placed on or off the front.
+    assert!(
+        stdout.contains("presets: work draft < balanced < final: ")
+            && stdout.contains("  final: ")
+            && stdout.contains("work front"),
+        "{stdout}"
+    );
+    // The default size is the editor's 800x800 view.
+    let help = thicket(&["tradeoff", "--help"]);
+    assert!(String::from_utf8_lossy(&help.stdout).contains("[default: 800x800]"));
+}

@@ -134,3 +134,28 @@ fn a_sweep_over_the_memory_budget_is_refused_before_its_job_starts() {
     assert!(app.job_running());
     app.cancel_job(&egui::Context::default());
 }
+
+#[test]
+fn by_default_the_sweep_measures_at_the_views_own_size() {
+    let mut app = mixed_sample();
+    // Before the view is drawn its size is not known: the editor's usual 800 x 800.
+    assert_eq!(app.tradeoff.size_px, thicket::ui::tradeoff::VIEW_SIZE);
+    assert_eq!(
+        app.tradeoff.image_size(app.view.render_size_px()),
+        (800, 800)
+    );
+    app.tradeoff.size_px = thicket::ui::tradeoff::VIEW_SIZE;
+    let h = harness(app);
+    let view = h.state().view.render_size_px();
+    assert!(view.x > 100.0 && view.y > 100.0, "{view:?}");
+    let job = h.state().tradeoff.job(&h.state().editor, view);
+    assert_eq!(
+        (job.width, job.height),
+        (view.x.round() as u32, view.y.round() as u32)
+    );
+    // A chosen edge keeps the view's aspect ratio.
+    let mut panel = thicket::ui::tradeoff::TradeoffPanel::default();
+    panel.size_px = 64;
+    let (w, hgt) = panel.image_size(view);
+    assert_eq!(w.max(hgt), 64);
+}

@@ -557,9 +557,7 @@ impl EditorApp {
     /// View → Trade-off → Run sweep: the panel's sweep of the current view on a worker thread,
     /// with progress and Cancel.
     pub fn start_tradeoff_sweep(&mut self) {
-        let job = self
-            .tradeoff
-            .job(&self.editor, self.view.last_rect.aspect_ratio());
+        let job = self.tradeoff.job(&self.editor, self.view.render_size_px());
         self.spawn_sweep(job);
     }
 
@@ -1125,7 +1123,7 @@ impl EditorApp {
         let action = self.tradeoff.ui(
             ctx,
             &self.editor,
-            self.view.last_rect.aspect_ratio(),
+            self.view.render_size_px(),
             running,
             self.job.is_some(),
         );

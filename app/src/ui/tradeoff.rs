@@ -18,6 +18,13 @@ use crate::editor::Editor;
 use crate::files::thousands;
 use crate::tradeoff::{compact_number, log_ticks};
 
+/// [`TradeoffPanel::size_px`] that means "the view's own render size in pixels".
+pub const VIEW_SIZE: u32 = 0;
+
+/// The image size when the view's size is not known yet (no frame drawn): the editor's
+/// typical 800 x 800 view.
+const FALLBACK_SIZE_PX: u32 = 800;
+
 /// A click selects the nearest point within this many points of the screen.
 const PICK_RADIUS: f32 = 14.0;
 
@@ -61,7 +68,8 @@ pub struct SweepJob {
 pub struct TradeoffPanel {
     /// Whether the window is open.
     pub open: bool,
-    /// Longest image edge of the sweep in pixels (the view's aspect ratio is kept).
+    /// Longest image edge of the sweep in pixels (the view's aspect ratio is kept), or
+    /// [`VIEW_SIZE`]: the view's own render size, where the presets are actually used.
     pub size_px: u32,
     /// Renders per setting (the time is their median).
     pub repeats: usize,
@@ -82,8 +90,8 @@ impl Default for TradeoffPanel {
     fn default() -> Self {
         Self {
             open: false,
-            size_px: 128,
-            repeats: 1,
+            size_px: VIEW_SIZE,
+            repeats: 3,
             knobs: default_knobs().into_iter().map(|k| (k, true)).collect(),
             presets: true,
             axis: CostAxis::Time,
@@ -123,11 +131,26 @@ impl TradeoffPanel {
         Some(t.position_from_point(&plot_point(p, self.axis)?))
     }
 
-    /// The sweep the Run button starts: the current view at the panel's size.
+    /// The sweep's image size for a view that renders `view_size_px` pixels: the view's own
+    /// size with [`VIEW_SIZE`], else the panel's longest edge at the view's aspect ratio.
     #[must_use]
-    pub fn job(&self, editor: &Editor, view_aspect: f32) -> SweepJob {
-        let aspect = if view_aspect.is_finite() && view_aspect > 0.0 {
-            view_aspect.clamp(0.25, 4.0)
+    pub fn image_size(&self, view_size_px: egui::Vec2) -> (u32, u32) {
+        let known = view_size_px.x.is_finite()
+            && view_size_px.y.is_finite()
+            && view_size_px.x >= 1.0
+            && view_size_px.y >= 1.0;
+        if self.size_px == VIEW_SIZE {
+            return if known {
+                (
+                    (view_size_px.x.round() as u32).clamp(8, 4096),
+                    (view_size_px.y.round() as u32).clamp(8, 4096),
+                )
+            } else {
+                (FALLBACK_SIZE_PX, FALLBACK_SIZE_PX)
+            };
+        }
+        let aspect = if known {
+            (view_size_px.x / view_size_px.y).clamp(0.25, 4.0)
         } else {
             1.0
         };
@@ -137,11 +160,19 @@ impl TradeoffPanel {
         } else {
             ((edge * aspect).round().max(1.0), edge)
         };
+        (width as u32, height as u32)
+    }
+
+    /// The sweep the Run button starts: the current view at the panel's size
+    /// ([`TradeoffPanel::image_size`]).
+    #[must_use]
+    pub fn job(&self, editor: &Editor, view_size_px: egui::Vec2) -> SweepJob {
+        let (width, height) = self.image_size(view_size_px);
         let doc = editor.doc();
         SweepJob {
             doc: doc.clone(),
-            width: width as u32,
-            height: height as u32,
+            width,
+            height,
             settings: SweepSettings {
                 base: doc.quality.clone(),
                 knobs: self
@@ -164,7 +195,7 @@ impl TradeoffPanel {
         &mut self,
         ctx: &egui::Context,
         editor: &Editor,
-        view_aspect: f32,
+        view_size_px: egui::Vec2,
         running: Option<Option<f32>>,
         busy: bool,
     ) -> Option<PanelAction> {
@@ -178,7 +209,7 @@ impl TradeoffPanel {
             .default_width(560.0)
             .default_pos(egui::pos2(320.0, 90.0))
             .show(ctx, |ui| {
-                action = self.contents_ui(ui, editor, view_aspect, running, busy);
+                action = self.contents_ui(ui, editor, view_size_px, running, busy);
             });
         self.open = open;
         action
@@ -188,7 +219,7 @@ impl TradeoffPanel {
         &mut self,
         ui: &mut egui::Ui,
         editor: &Editor,
-        view_aspect: f32,
+        view_size_px: egui::Vec2,
         running: Option<Option<f32>>,
         busy: bool,
     ) -> Option<PanelAction> {
@@ -199,12 +230,31 @@ impl TradeoffPanel {
         );
         ui.horizontal(|ui| {
             ui.label("Size");
-            ui.add(
-                egui::DragValue::new(&mut self.size_px)
-                    .range(16..=512)
-                    .suffix(" px"),
-            )
-            .on_hover_text("Longest edge of the sweep's images; the view's aspect ratio is kept");
+            let mut follow = self.size_px == VIEW_SIZE;
+            if ui
+                .checkbox(&mut follow, "View's")
+                .on_hover_text(
+                    "Render at the view's own size, where the presets are used (slower than a \
+                     small sweep, but a knob that changes nothing at a small size may matter \
+                     here)",
+                )
+                .changed()
+            {
+                self.size_px = if follow { VIEW_SIZE } else { 256 };
+            }
+            if self.size_px == VIEW_SIZE {
+                let (w, h) = self.image_size(view_size_px);
+                ui.weak(format!("{w} x {h} px"));
+            } else {
+                ui.add(
+                    egui::DragValue::new(&mut self.size_px)
+                        .range(16..=2048)
+                        .suffix(" px"),
+                )
+                .on_hover_text(
+                    "Longest edge of the sweep's images; the view's aspect ratio is kept",
+                );
+            }
             ui.label("Renders");
             ui.add(egui::DragValue::new(&mut self.repeats).range(1..=9))
                 .on_hover_text("Renders per setting; the time is their median");
@@ -249,7 +299,7 @@ impl TradeoffPanel {
                         )
                         .clicked()
                     {
-                        action = Some(PanelAction::Run(Box::new(self.job(editor, view_aspect))));
+                        action = Some(PanelAction::Run(Box::new(self.job(editor, view_size_px))));
                     }
                 }
             }
@@ -279,6 +329,26 @@ impl TradeoffPanel {
             report.height,
             report.reference_time_ms
         ));
+        let dropped: Vec<&str> = report
+            .knobs
+            .iter()
+            .filter(|k| k.dropped)
+            .map(|k| k.name.as_str())
+            .collect();
+        if !dropped.is_empty() {
+            ui.label(format!(
+                "No effect at this size, left out: {}",
+                dropped.join(", ")
+            ))
+            .on_hover_text(
+                report
+                    .knobs
+                    .iter()
+                    .map(|k| k.summary())
+                    .collect::<Vec<_>>()
+                    .join("\n"),
+            );
+        }
         let picked = self.plot_ui(ui);
         if let Some(i) = picked.or_else(|| self.table_ui(ui)) {
             let p = &self.report.as_ref()?.0.points[i];
@@ -330,6 +400,20 @@ impl TradeoffPanel {
             })
             .collect();
         let applied = self.applied.and_then(|i| xy.get(i).copied().flatten());
+        // The time's spread over the renders, on the log axis the points use.
+        let spreads: Vec<[[f64; 2]; 2]> = match axis {
+            CostAxis::Time => report
+                .points
+                .iter()
+                .zip(&xy)
+                .filter(|(p, _)| p.times_ms.len() > 1 && p.time_min_ms > 0.0)
+                .filter_map(|(p, xy)| {
+                    let y = (*xy)?[1];
+                    Some([[p.time_min_ms.log10(), y], [p.time_max_ms.log10(), y]])
+                })
+                .collect(),
+            CostAxis::Work => Vec::new(),
+        };
         // Preset names sit up and to the right of their ring, not on it: an offset of a few
         // percent of the data's extent (the plot's bounds follow the data).
         let extent = |k: usize| {
@@ -390,6 +474,13 @@ impl TradeoffPanel {
                 Some(format!("{label}\n{cost} {unit}, RMSE {:.5}", position.y))
             })
             .show(ui, |plot| {
+                for bar in spreads {
+                    plot.line(
+                        Line::new("min-max of the renders", bar.to_vec())
+                            .color(egui::Color32::from_gray(150))
+                            .width(1.0),
+                    );
+                }
                 plot.points(
                     Points::new("other settings", others)
                         .radius(4.0)
@@ -465,7 +556,12 @@ impl TradeoffPanel {
                                 ui.end_row();
                                 for (i, p) in report.points.iter().enumerate() {
                                     ui.label(&p.setting.label);
-                                    ui.label(format!("{:.2}", p.time_ms));
+                                    ui.label(format!("{:.2}", p.time_ms)).on_hover_text(format!(
+                                        "Median of {} render(s); {:.2} to {:.2} ms",
+                                        p.times_ms.len(),
+                                        p.time_min_ms,
+                                        p.time_max_ms
+                                    ));
                                     ui.label(thousands(p.work));
                                     ui.label(format!("{:.5}", p.error.rmse));
                                     ui.label(match (p.on_time_front, p.on_work_front) {

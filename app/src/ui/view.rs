@@ -382,6 +382,8 @@ pub struct View {
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The last view rectangle (for tests that aim at it).
     pub last_rect: egui::Rect,
+    /// Physical pixels per point when the view was last drawn.
+    last_pixels_per_point: f32,
     /// What the last click in the view hit (drawn as a dot and its normal until the next
     /// click), with the document generation it was made in.
     pub last_click: Option<(u64, SurfacePick)>,
@@ -408,6 +410,7 @@ impl Default for View {
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
+            last_pixels_per_point: 1.0,
             last_click: None,
         }
     }
@@ -575,6 +578,7 @@ impl View {
     ) {
         let rect = ui.available_rect_before_wrap();
         self.last_rect = rect;
+        self.last_pixels_per_point = ui.ctx().pixels_per_point();
         if rect.height() > 0.0 {
             editor.view_aspect = rect.width() / rect.height();
         }
@@ -813,6 +817,14 @@ impl View {
     #[must_use]
     pub fn hole_counts(&self) -> Option<HoleCounts> {
         self.cpu.holes.as_ref().map(|(_, c)| *c)
+    }
+
+    /// The size in pixels the view renders at (its last rectangle, the display's scale and the
+    /// render scale): what the Trade-off sweep measures by default. Not finite before the view
+    /// was first drawn.
+    #[must_use]
+    pub fn render_size_px(&self) -> egui::Vec2 {
+        self.last_rect.size() * self.last_pixels_per_point * self.render_scale
     }
 
     /// Wall-clock milliseconds of the last CPU preview render, and its size in pixels.

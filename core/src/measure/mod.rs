@@ -9,7 +9,7 @@ pub mod sweep;
 pub use compare::{Frame, FrameError, compare_frames};
 pub use pareto::{Dominance, pareto_front};
 pub use sweep::{
-    KnobValues, SweepError, SweepPoint, SweepReport, SweepSettings, default_knobs,
+    KnobEffect, KnobValues, SweepError, SweepPoint, SweepReport, SweepSettings, default_knobs,
     estimate_sweep_peak_bytes, reference_quality, sweep, sweep_document,
     sweep_document_with_cancel, sweep_with_cancel, work_units,
 };

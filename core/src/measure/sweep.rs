@@ -363,6 +363,13 @@ pub struct SweepPoint {
     pub times_ms: Vec<f64>,
     /// Median of `times_ms`.
     pub time_ms: f64,
+    /// Fastest of `times_ms`: with [`SweepPoint::time_max_ms`], the spread drawn as an error
+    /// bar (a median of a few renders on a shared machine is only as good as this band).
+    #[serde(default)]
+    pub time_min_ms: f64,
+    /// Slowest of `times_ms`.
+    #[serde(default)]
+    pub time_max_ms: f64,
     /// [`work_units`] of the frame.
     pub work: u64,
     /// Error against the reference.
@@ -373,6 +380,157 @@ pub struct SweepPoint {
     pub on_time_front: bool,
     /// On the (work, RMSE) Pareto front.
     pub on_work_front: bool,
+}
+
+/// What one knob of a one-at-a-time sweep did at the sweep's image size.
+#[derive(Debug, Clone, PartialEq, Eq, Serialize, Deserialize)]
+pub struct KnobEffect {
+    /// Knob name.
+    pub name: String,
+    /// The values tried (the base's own value is measured too, as the base point).
+    pub values: Vec<String>,
+    /// How many different images (told apart by error and work) the knob's settings and the
+    /// base drew: 1 means the knob has no effect at this size.
+    pub distinct_images: usize,
+    /// Left out of the points and the plot because it had no effect.
+    pub dropped: bool,
+    /// Values that drew the same image as another setting of the knob, as `(value, same as)`
+    /// (`same as` is an earlier value, or `base`): the range over which the knob changes the
+    /// image is the other values. They stay in the points (a value asked for is measured).
+    #[serde(default)]
+    pub same_image: Vec<(String, String)>,
+    /// Two of the knob's settings have render-time spreads (min-max) that do not overlap:
+    /// the knob moves the time beyond the noise of repeated renders.
+    #[serde(default)]
+    pub time_beyond_noise: bool,
+}
+
+impl KnobEffect {
+    /// A one-line account for the CLI and the editor: kept with how many images, or dropped.
+    #[must_use]
+    pub fn summary(&self) -> String {
+        if self.dropped {
+            format!(
+                "{}: no effect at this size ({} gave the same image): dropped",
+                self.name,
+                self.values.join(", ")
+            )
+        } else {
+            let same: Vec<String> = self
+                .same_image
+                .iter()
+                .map(|(v, as_)| format!("{v} = {as_}"))
+                .collect();
+            format!(
+                "{}: {} different images from {} value(s) ({}){}; time {} the render spread: kept",
+                self.name,
+                self.distinct_images,
+                self.values.len(),
+                self.values.join(", "),
+                if same.is_empty() {
+                    String::new()
+                } else {
+                    format!("; same image: {}", same.join(", "))
+                },
+                if self.time_beyond_noise {
+                    "moves beyond"
+                } else {
+                    "stays within"
+                }
+            )
+        }
+    }
+}
+
+/// Indices of the points that are `knob`'s settings: the base (which holds the knob at its
+/// base value) and the base with the knob set to each value. Points are matched by quality,
+/// so merged duplicates (a value equal to the base's) are found whatever their label.
+fn knob_members(base: &Quality, knob: &KnobValues, points: &[SweepPoint]) -> Vec<usize> {
+    let qualities: Vec<Quality> = std::iter::once(base.clone())
+        .chain(knob.values.iter().filter_map(|v| {
+            let mut q = base.clone();
+            q.set(&knob.name, v).ok().map(|()| q)
+        }))
+        .collect();
+    points
+        .iter()
+        .enumerate()
+        .filter(|(_, p)| qualities.contains(&p.setting.quality))
+        .map(|(i, _)| i)
+        .collect()
+}
+
+/// Screens the knobs of a one-at-a-time sweep: a knob whose settings all drew the same image
+/// (identical error against the reference and identical work) cannot be traded at this size,
+/// so its points are removed (the base and the presets stay). Returns each knob's effect.
+fn screen_knobs(settings: &SweepSettings, points: &mut Vec<SweepPoint>) -> Vec<KnobEffect> {
+    let base = &settings.base;
+    let mut drop = vec![false; points.len()];
+    let effects = settings
+        .knobs
+        .iter()
+        .map(|k| {
+            let members = knob_members(base, k, points);
+            let mut images: Vec<(u64, FrameError)> = Vec::new();
+            for &i in &members {
+                let key = (points[i].work, points[i].error);
+                if !images.contains(&key) {
+                    images.push(key);
+                }
+            }
+            // Each value's image against the base's and the earlier values' (in the order
+            // given): the first to draw an image owns it.
+            let value_point = |v: &str| {
+                let mut q = base.clone();
+                q.set(&k.name, v).ok()?;
+                points.iter().position(|p| p.setting.quality == q)
+            };
+            let base_point = points.iter().position(|p| p.setting.quality == *base);
+            let mut owners: Vec<(String, (u64, FrameError))> = base_point
+                .map(|i| ("base".to_owned(), (points[i].work, points[i].error)))
+                .into_iter()
+                .collect();
+            let mut same_image = Vec::new();
+            for v in &k.values {
+                let Some(i) = value_point(v) else { continue };
+                let key = (points[i].work, points[i].error);
+                let is_base = Some(i) == base_point;
+                match owners.iter().find(|(_, o)| *o == key) {
+                    Some((owner, _)) if !is_base => same_image.push((v.clone(), owner.clone())),
+                    Some(_) => {}
+                    None => owners.push((v.clone(), key)),
+                }
+            }
+            let time_beyond_noise = members.iter().any(|&a| {
+                members
+                    .iter()
+                    .any(|&b| points[a].time_min_ms > points[b].time_max_ms)
+            });
+            let dropped = images.len() <= 1;
+            if dropped {
+                for &i in &members {
+                    let p = &points[i].setting;
+                    if p.preset.is_none() && p.quality != *base {
+                        drop[i] = true;
+                    }
+                }
+            }
+            KnobEffect {
+                name: k.name.clone(),
+                values: k.values.clone(),
+                distinct_images: images.len(),
+                dropped,
+                same_image,
+                time_beyond_noise,
+            }
+        })
+        .collect();
+    let mut i = 0;
+    points.retain(|_| {
+        i += 1;
+        !drop[i - 1]
+    });
+    effects
 }
 
 /// A whole sweep.
@@ -390,8 +548,12 @@ pub struct SweepReport {
     pub reference_time_ms: f64,
     /// Work of the reference frame.
     pub reference_work: u64,
-    /// The measured settings, in render order.
+    /// The measured settings, in render order, without those of knobs that had no effect.
     pub points: Vec<SweepPoint>,
+    /// What each knob did to the image at this size (empty for a grid sweep, which is not
+    /// screened): a knob whose settings all drew the same image is dropped from `points`.
+    #[serde(default)]
+    pub knobs: Vec<KnobEffect>,
     /// Margins used for the fronts.
     pub time_dominance: Dominance,
     /// Margins used for the work front.
@@ -403,6 +565,20 @@ impl SweepReport {
     #[must_use]
     pub fn preset_point(&self, p: QualityPreset) -> Option<&SweepPoint> {
         self.points.iter().find(|pt| pt.setting.preset == Some(p))
+    }
+
+    /// A point that dominates point `index` on (work, RMSE) with [`SweepReport::work_dominance`]
+    /// (the cheapest such), or `None` when it is on the work front: why a preset is off it.
+    #[must_use]
+    pub fn work_dominator(&self, index: usize) -> Option<&SweepPoint> {
+        let key = |p: &SweepPoint| (p.work as f64, p.error.rmse);
+        let target = key(self.points.get(index)?);
+        self.points
+            .iter()
+            .enumerate()
+            .filter(|&(j, p)| j != index && self.work_dominance.dominates(key(p), target))
+            .map(|(_, p)| p)
+            .min_by_key(|p| p.work)
     }
 
     /// Marks the two fronts.
@@ -430,7 +606,8 @@ impl SweepReport {
     pub fn to_csv(&self) -> String {
         let mut s = String::from(
             "label,changes,preset,time_ms,work,rmse,psnr_db,coverage_mismatch,holes,bloat,\
-             depth_mean_rel,depth_max_rel,splats,nodes_visited,on_time_front,on_work_front\n",
+             depth_mean_rel,depth_max_rel,splats,nodes_visited,on_time_front,on_work_front,\
+             time_min_ms,time_max_ms\n",
         );
         for p in &self.points {
             let e = &p.error;
@@ -441,7 +618,7 @@ impl SweepReport {
                 .map(|(n, v)| format!("{n}={v}"))
                 .collect();
             s.push_str(&format!(
-                "{},{},{},{:.3},{},{:.6},{:.3},{},{},{},{:.6},{:.6},{},{},{},{}\n",
+                "{},{},{},{:.3},{},{:.6},{:.3},{},{},{},{:.6},{:.6},{},{},{},{},{:.3},{:.3}\n",
                 csv_field(&p.setting.label),
                 csv_field(&changes.join(" ")),
                 p.setting
@@ -460,6 +637,8 @@ impl SweepReport {
                 p.stats.nodes_visited(),
                 p.on_time_front,
                 p.on_work_front,
+                p.time_min_ms,
+                p.time_max_ms,
             ));
         }
         s
@@ -618,9 +797,12 @@ where
             source,
         })?;
         progress(i + 1, total, &setting.label);
+        let time_ms = median(&mut times);
         points.push(SweepPoint {
             work: work_units(&stats, &setting.quality, shadow_lights),
-            time_ms: median(&mut times),
+            time_ms,
+            time_min_ms: times.iter().copied().fold(f64::INFINITY, f64::min),
+            time_max_ms: times.iter().copied().fold(f64::NEG_INFINITY, f64::max),
             times_ms: times,
             error,
             stats,
@@ -629,6 +811,13 @@ where
             on_work_front: false,
         });
     }
+    // A grid crosses every knob with every other: a knob's own settings are not a line to
+    // screen, so a grid is reported whole.
+    let knobs = if settings.grid {
+        Vec::new()
+    } else {
+        screen_knobs(settings, &mut points)
+    };
     let mut report = SweepReport {
         width: ref_img.width,
         height: ref_img.height,
@@ -637,6 +826,7 @@ where
         reference_time_ms: median(&mut ref_times),
         reference_work: work_units(&ref_stats, reference, shadow_lights),
         points,
+        knobs,
         time_dominance: TIME_DOMINANCE,
         work_dominance: WORK_DOMINANCE,
     };
@@ -1005,5 +1195,124 @@ mod tests {
         assert_eq!(csv.lines().count(), r.points.len() + 1);
         let json = serde_json::to_string(&r).unwrap();
         assert!(json.contains("reference_quality"));
+    }
+
+    #[test]
+    fn a_knob_that_cannot_change_the_image_is_dropped_and_one_that_does_is_kept() {
+        // No light casts shadows: the shadow map's size cannot change a pixel, the LOD can.
+        let mut doc = crate::render::scenes::sphere_document(5, 0.4).unwrap();
+        for l in &mut doc.lights {
+            l.casts_shadows = false;
+        }
+        let settings = SweepSettings {
+            knobs: vec![
+                KnobValues::parse("shadow_map_size=256,1024,4096").unwrap(),
+                KnobValues::parse("lod_pixel_threshold=0.5,4,16").unwrap(),
+            ],
+            repeats: 3,
+            ..SweepSettings::default()
+        };
+        let r = sweep_document(&doc, 40, 40, &settings, |_, _, _| {}).unwrap();
+        let effect = |name: &str| r.knobs.iter().find(|k| k.name == name).unwrap();
+        let shadow = effect("shadow_map_size");
+        assert!(shadow.dropped, "{shadow:?}");
+        assert_eq!(shadow.distinct_images, 1);
+        assert!(
+            shadow.summary().contains("no effect"),
+            "{}",
+            shadow.summary()
+        );
+        let lod = effect("lod_pixel_threshold");
+        assert!(!lod.dropped && lod.distinct_images >= 2, "{lod:?}");
+        // The whole knob is one image, so each value names the base as its twin.
+        assert_eq!(shadow.same_image.len(), 3, "{shadow:?}");
+        assert!(shadow.same_image.iter().all(|(_, as_)| as_ == "base"));
+        assert!(lod.summary().ends_with("kept"), "{}", lod.summary());
+        let labels: Vec<&str> = r.points.iter().map(|p| p.setting.label.as_str()).collect();
+        // The dropped knob's points are gone; the base, the presets and the LOD stay.
+        assert!(
+            !labels
+                .iter()
+                .any(|l| l.contains("shadow_map_size=256") || l.contains("shadow_map_size=4096")),
+            "{labels:?}"
+        );
+        for kept in [
+            "base",
+            "preset draft",
+            "preset final",
+            "lod_pixel_threshold=16",
+        ] {
+            assert!(
+                labels.iter().any(|l| l.contains(kept)),
+                "{kept}: {labels:?}"
+            );
+        }
+        // Every point carries its spread around the median.
+        for p in &r.points {
+            assert_eq!(p.times_ms.len(), 3);
+            assert!(
+                p.time_min_ms <= p.time_ms && p.time_ms <= p.time_max_ms,
+                "{}: {} {} {}",
+                p.setting.label,
+                p.time_min_ms,
+                p.time_ms,
+                p.time_max_ms
+            );
+            assert!(p.times_ms.contains(&p.time_min_ms) && p.times_ms.contains(&p.time_max_ms));
+        }
+        let csv = r.to_csv();
+        assert!(
+            csv.lines()
+                .next()
+                .unwrap()
+                .ends_with(",time_min_ms,time_max_ms")
+        );
+        // A grid is not screened: every setting stays.
+        let grid = sweep_document(
+            &doc,
+            24,
+            24,
+            &SweepSettings {
+                grid: true,
+                presets: false,
+                repeats: 1,
+                ..settings
+            },
+            |_, _, _| {},
+        )
+        .unwrap();
+        assert!(grid.knobs.is_empty());
+        assert_eq!(grid.points.len(), 9 + 1, "the 3x3 grid and the base");
+    }
+
+    #[test]
+    fn the_house_presets_trade_work_for_error_in_order() {
+        // Work is the deterministic cost (time is not asserted): at a modest size the presets
+        // are ordered draft < balanced < final in work and the reverse in error.
+        let house_path =
+            std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/house.thicket.json");
+        let house = crate::io::project::load(&house_path).expect("the house sample");
+        let settings = SweepSettings {
+            knobs: Vec::new(),
+            repeats: 1,
+            ..SweepSettings::default()
+        };
+        let r = sweep_document(&house, 160, 160, &settings, |_, _, _| {}).unwrap();
+        let p = |q| r.preset_point(q).unwrap();
+        let (d, b, f) = (
+            p(QualityPreset::Draft),
+            p(QualityPreset::Balanced),
+            p(QualityPreset::Final),
+        );
+        eprintln!(
+            "work {} {} {}, rmse {} {} {}",
+            d.work, b.work, f.work, d.error.rmse, b.error.rmse, f.error.rmse
+        );
+        assert!(d.work < b.work && b.work < f.work);
+        assert!(d.error.rmse > b.error.rmse && b.error.rmse > f.error.rmse);
+        // With the presets alone, each is on the work front: none is dominated.
+        for i in 0..r.points.len() {
+            assert!(r.points[i].on_work_front && r.work_dominator(i).is_none());
+        }
     }
 }
