@@ -122,11 +122,23 @@ impl GltfView {
     /// Adds the file's lights to an existing document's, keeping the document's view. None of
     /// them casts shadows when the document already has a light that does.
     pub fn add_lights_to(&self, doc: &mut Document) {
-        let has_shadows = doc.lights.iter().any(|l| l.casts_shadows);
-        doc.lights.extend(self.lights.iter().cloned().map(|mut l| {
-            l.casts_shadows &= !has_shadows;
-            l
-        }));
+        let added = self.lights_beside(&doc.lights);
+        doc.lights.extend(added);
+    }
+
+    /// The file's lights as they join `existing`: none casts shadows when one of `existing`
+    /// does (the renderer's shadow map serves one sun well).
+    #[must_use]
+    pub fn lights_beside(&self, existing: &[Light]) -> Vec<Light> {
+        let has_shadows = existing.iter().any(|l| l.casts_shadows);
+        self.lights
+            .iter()
+            .cloned()
+            .map(|mut l| {
+                l.casts_shadows &= !has_shadows;
+                l
+            })
+            .collect()
     }
 }
 
