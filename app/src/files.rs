@@ -99,9 +99,9 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
 }
 
 /// [`load_mesh`], plus one line per kind of feature the file holds that the model leaves out
-/// (glTF morph targets, animation, extra UV sets, other texture maps, cameras, lights,
-/// unsupported extensions; see `thicket_core::io::import_gltf_reported`), for the caller to
-/// show. Empty when nothing is left out.
+/// (glTF morph targets, animation, extra UV sets, other texture maps, point and spot lights,
+/// unsupported extensions; see `thicket_core::io::import_gltf_reported`) and what became of its
+/// cameras and directional lights, for the caller to show. Empty when there is nothing to say.
 ///
 /// # Errors
 /// As [`load_mesh`].

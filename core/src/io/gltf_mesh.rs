@@ -59,7 +59,8 @@ pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel,
 
 /// [`import_gltf_with`], plus one line for each kind of feature the file holds that the import
 /// leaves out (morph targets, animation, extra UV sets, texture maps other than base colour,
-/// cameras, lights, unsupported extensions, points and lines), for the caller to show.
+/// point and spot lights, unsupported extensions, points and lines) and what became of its
+/// cameras and directional lights (see [`import_gltf_imported`]), for the caller to show.
 ///
 /// # Errors
 /// See [`import_gltf`].

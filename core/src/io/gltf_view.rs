@@ -47,8 +47,8 @@ impl GltfCamera {
     /// of `bounds` (the imported model's) projected on the view axis, where the exporter puts
     /// it when the view was framed on the model; with the model behind the camera or no model,
     /// the geometric mean of near and far (or 10 × near for an infinite far plane). An
-    /// orthographic camera's distance is what keeps its height:
-    /// `ymag / tan(`[`ORTHO_FOV_Y_DEG`]` / 2)`.
+    /// orthographic camera's distance is what keeps its height at a 45° field of view:
+    /// `ymag / tan(22.5°)`.
     #[must_use]
     pub fn orbit_camera(&self, bounds: Option<(Vec3, Vec3)>) -> OrbitCamera {
         let back = -self.forward;
