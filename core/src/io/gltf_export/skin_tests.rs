@@ -68,7 +68,14 @@ fn exported_skinned_voxels_walk_exactly_like_the_editors_voxel_corners() {
         view[1].starts_with("lights: 1 directional imported, 0 point/spot not imported"),
         "{view:?}"
     );
-    assert!(back.view.camera.is_some() && back.view.lights.len() == 1);
+    // In the file's world space, where the skinned voxels are posed.
+    let camera = back.view.camera.expect("the export's camera");
+    assert!(camera.eye.abs_diff_eq(doc.camera.eye(), 1e-4), "{camera:?}");
+    let [sun] = &back.view.lights[..] else {
+        panic!("the export's sun: {:?}", back.view.lights);
+    };
+    let direction = doc.lights[0].direction.normalize_or_zero();
+    assert!(sun.direction.dot(direction) > 1.0 - 1e-5, "{sun:?}");
     let back_rig = Rig::new(back.skeleton.clone(), back.clips.clone());
 
     // The editor's corner weights (what its `Corners` stretch strategy skins), by lattice point.
