@@ -1064,9 +1064,14 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         if let Some((lo, hi)) = doc.bounds() {
             doc.camera.frame(lo, hi);
         }
+        skinned.view.apply_to_new_document(&mut doc);
         doc
     } else {
-        let (model, dropped) = files::load_mesh_reported_with(&args.input, &options)?;
+        let files::MeshImport {
+            model,
+            notes: dropped,
+            view,
+        } = files::load_mesh_imported(&args.input, &options)?;
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
         }
@@ -1096,6 +1101,8 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         if let Some((lo, hi)) = doc.bounds() {
             doc.camera.frame(lo, hi);
         }
+        // The voxels keep the mesh's world coordinates, so the file's camera and lights fit.
+        view.apply_to_new_document(&mut doc);
         doc
     };
     files::save_project(&doc, &args.output)?;

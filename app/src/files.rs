@@ -8,6 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context as _, bail};
 use serde::Serialize;
+use thicket_core::io::GltfView;
 use thicket_core::mesh::MeshModel;
 use thicket_core::scene::{Document, Object, ObjectKind};
 
@@ -98,9 +99,9 @@ pub fn load_mesh(path: &Path) -> anyhow::Result<MeshModel> {
 }
 
 /// [`load_mesh`], plus one line per kind of feature the file holds that the model leaves out
-/// (glTF morph targets, animation, extra UV sets, other texture maps, cameras, lights,
-/// unsupported extensions; see `thicket_core::io::import_gltf_reported`), for the caller to
-/// show. Empty when nothing is left out.
+/// (glTF morph targets, animation, extra UV sets, other texture maps, point and spot lights,
+/// unsupported extensions; see `thicket_core::io::import_gltf_reported`) and what became of its
+/// cameras and directional lights, for the caller to show. Empty when there is nothing to say.
 ///
 /// # Errors
 /// As [`load_mesh`].
@@ -126,11 +127,38 @@ pub fn load_mesh_reported_with(
     path: &Path,
     options: &MeshOptions,
 ) -> anyhow::Result<(MeshModel, Vec<String>)> {
+    load_mesh_imported(path, options).map(|i| (i.model, i.notes))
+}
+
+/// A mesh file as read: the model, the report's lines and the file's view.
+#[derive(Debug, Clone)]
+pub struct MeshImport {
+    /// The meshes, in the file's world space.
+    pub model: MeshModel,
+    /// As [`load_mesh_reported_with`]'s lines, with what became of the file's cameras and
+    /// lights.
+    pub notes: Vec<String>,
+    /// A glTF file's first camera and directional lights (empty for an OBJ).
+    pub view: GltfView,
+}
+
+/// [`load_mesh_reported_with`], plus a glTF file's camera and directional lights.
+///
+/// # Errors
+/// As [`load_mesh_reported_with`].
+pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<MeshImport> {
     let kind = kind_of(path)?;
     check_options(path, options)?;
     let limits = thicket_core::io::ImportLimits::default();
-    Ok(match kind {
-        FileKind::Gltf => thicket_core::io::import_gltf_reported(path, &limits)?,
+    let (model, notes) = match kind {
+        FileKind::Gltf => {
+            let i = thicket_core::io::import_gltf_imported(path, &limits)?;
+            return Ok(MeshImport {
+                model: i.model,
+                notes: i.report,
+                view: i.view,
+            });
+        }
         FileKind::Obj => {
             let obj = thicket_core::io::ObjOptions {
                 default_texture: options.texture.clone(),
@@ -144,6 +172,11 @@ pub fn load_mesh_reported_with(
             (model, notes)
         }
         other => bail!("{}: a {} is not a mesh file", path.display(), other.label()),
+    };
+    Ok(MeshImport {
+        model,
+        notes,
+        view: GltfView::default(),
     })
 }
 
@@ -214,7 +247,7 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::Sk
 /// # Errors
 /// A message naming the file and what is wrong with it.
 pub fn load_document(path: &Path) -> anyhow::Result<Document> {
-    let (doc, _, notes) = load_document_noted(path, &MeshOptions::default())?;
+    let (doc, _, notes, _) = load_document_noted(path, &MeshOptions::default())?;
     for line in &notes {
         log::warn!("{}: {line}", path.display());
     }
@@ -235,7 +268,7 @@ pub struct SourceCounts {
 /// # Errors
 /// See [`load_document`].
 pub fn load_document_with_source(path: &Path) -> anyhow::Result<(Document, SourceCounts)> {
-    load_document_noted(path, &MeshOptions::default()).map(|(doc, counts, _)| (doc, counts))
+    load_document_noted(path, &MeshOptions::default()).map(|(doc, counts, _, _)| (doc, counts))
 }
 
 /// [`load_document`] with mesh options, plus the lines of [`load_mesh_reported_with`] for a
@@ -247,23 +280,40 @@ pub fn load_document_reported(
     path: &Path,
     options: &MeshOptions,
 ) -> anyhow::Result<(Document, Vec<String>)> {
-    load_document_noted(path, options).map(|(doc, _, notes)| (doc, notes))
+    load_document_imported(path, options).map(|(doc, notes, _)| (doc, notes))
+}
+
+/// [`load_document_reported`], plus a glTF file's view (already applied to the document: its
+/// camera and, when it has any, its directional lights replace the defaults), for File →
+/// Import, which takes the file's lights but keeps the editor's view.
+///
+/// # Errors
+/// See [`load_document`].
+pub fn load_document_imported(
+    path: &Path,
+    options: &MeshOptions,
+) -> anyhow::Result<(Document, Vec<String>, GltfView)> {
+    load_document_noted(path, options).map(|(doc, _, notes, view)| (doc, notes, view))
 }
 
 fn load_document_noted(
     path: &Path,
     options: &MeshOptions,
-) -> anyhow::Result<(Document, SourceCounts, Vec<String>)> {
+) -> anyhow::Result<(Document, SourceCounts, Vec<String>, GltfView)> {
     let mut counts = SourceCounts::default();
     let mut notes = Vec::new();
+    let mut view = GltfView::default();
     let kind = kind_of(path)?;
     check_options(path, options)?;
     let doc = match kind {
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {
-            let (model, dropped) = load_mesh_reported_with(path, options)?;
-            notes = dropped;
-            document_from_mesh(&object_name_for(path), model)
+            let import = load_mesh_imported(path, options)?;
+            notes = import.notes;
+            view = import.view;
+            let mut doc = document_from_mesh(&object_name_for(path), import.model);
+            view.apply_to_new_document(&mut doc);
+            doc
         }
         FileKind::Vox => {
             let scene = thicket_core::io::vox::import_vox(path)?;
@@ -279,7 +329,7 @@ fn load_document_noted(
     };
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, counts, notes))
+    Ok((doc, counts, notes, view))
 }
 
 fn load_project(path: &Path) -> anyhow::Result<Document> {

@@ -357,6 +357,117 @@ fn import_says_once_what_it_leaves_out() {
 }
 
 #[test]
+fn import_of_an_exported_glb_keeps_its_camera_and_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    // A 4×3×2 block of half-unit voxels, seen from a known camera framed on it, and two
+    // lights.
+    let mut doc = Document::default();
+    let mut svo = Svo::new(3, false).unwrap();
+    for (x, y, z) in (0..4).flat_map(|x| (0..3).flat_map(move |y| (0..2).map(move |z| (x, y, z)))) {
+        svo.set(UVec3::new(x, y, z), Voxel::new([200, 90, 40, 255], Vec3::Y))
+            .unwrap();
+    }
+    doc.add(
+        "block",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: 0.5,
+            origin: Vec3::new(2.0, 0.0, -1.0),
+            ..VoxelModel::default()
+        }),
+    );
+    doc.camera.yaw_deg = 120.0;
+    doc.camera.pitch_deg = 35.0;
+    doc.camera.fov_y_deg = 40.0;
+    let (lo, hi) = doc.bounds().unwrap();
+    doc.camera.frame(lo, hi);
+    doc.lights = vec![
+        thicket_core::scene::Light {
+            name: "Sun".into(),
+            direction: Vec3::new(0.3, -1.0, 0.2),
+            color: Vec3::new(1.0, 0.9, 0.8),
+            intensity: 3.0,
+            casts_shadows: true,
+        },
+        thicket_core::scene::Light {
+            name: "Rim".into(),
+            direction: Vec3::new(-0.5, 0.1, 1.0),
+            color: Vec3::new(0.2, 0.4, 1.0),
+            intensity: 0.5,
+            casts_shadows: false,
+        },
+    ];
+    let project = dir.path().join("lit.thicket.json");
+    thicket_core::io::project::save(&doc, &project).unwrap();
+    let glb = dir.path().join("lit.glb");
+    let o = thicket(&[
+        "export",
+        project.to_str().unwrap(),
+        "-o",
+        glb.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+
+    let back_path = dir.path().join("back.thicket.json");
+    let o = thicket(&[
+        "import",
+        glb.to_str().unwrap(),
+        "-o",
+        back_path.to_str().unwrap(),
+        "--voxel-size",
+        "0.5",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = format!("{}{}", stdout(&o), stderr(&o));
+    let said = |s: &str| out.matches(s).count();
+    assert_eq!(
+        said("1 camera(s): the first imported as the document camera"),
+        1,
+        "{out}"
+    );
+    assert_eq!(
+        said("lights: 2 directional imported, 0 point/spot not imported"),
+        1,
+        "{out}"
+    );
+    assert!(
+        !out.contains("not applied") && !out.contains("roll"),
+        "{out}"
+    );
+
+    let back = thicket_core::io::project::load(&back_path).unwrap();
+    let (a, b) = (doc.camera, back.camera);
+    let near = |x: f32, y: f32, tolerance: f32| (x - y).abs() <= tolerance;
+    assert!(!b.orthographic);
+    assert!(near(a.yaw_deg, b.yaw_deg, 1e-3), "{a:?} {b:?}");
+    assert!(near(a.pitch_deg, b.pitch_deg, 1e-3), "{a:?} {b:?}");
+    assert!(near(a.fov_y_deg, b.fov_y_deg, 1e-4), "{a:?} {b:?}");
+    assert!(a.eye().abs_diff_eq(b.eye(), 1e-4), "{a:?} {b:?}");
+    // The target is the re-voxelized block's centre on the view axis: within half a voxel.
+    assert!(a.target.abs_diff_eq(b.target, 0.25), "{a:?} {b:?}");
+    assert!(
+        near(a.near, b.near, 1e-4) && near(a.far, b.far, 1e-3),
+        "{a:?} {b:?}"
+    );
+    assert_eq!(back.lights.len(), 2, "{:?}", back.lights);
+    for (x, y) in doc.lights.iter().zip(&back.lights) {
+        assert_eq!((&x.name, x.casts_shadows), (&y.name, y.casts_shadows));
+        assert!(
+            x.direction.normalize_or_zero().dot(y.direction) > 1.0 - 1e-5,
+            "{x:?} {y:?}"
+        );
+        assert!(x.color.abs_diff_eq(y.color, 1e-6), "{x:?} {y:?}");
+        assert!(near(x.intensity, y.intensity, 1e-6), "{x:?} {y:?}");
+    }
+
+    // Opening the .glb as a document applies the same view to its mesh.
+    let opened = thicket::files::load_document(&glb).unwrap();
+    assert!(opened.camera.eye().abs_diff_eq(a.eye(), 1e-4));
+    assert!(opened.camera.target.abs_diff_eq(a.target, 1e-3));
+    assert_eq!(opened.lights, back.lights);
+}
+
+#[test]
 fn import_names_a_texture_for_an_obj_shipped_without_its_mtl() {
     let dir = tempfile::tempdir().unwrap();
     let project = dir.path().join("spot.thicket.json");

@@ -729,8 +729,14 @@ fn an_import_lists_what_it_left_out_in_the_import_report() {
             {"bufferView": 1, "type": "VEC3", "componentType": 5126, "count": 3}],
         "meshes": [{"name": "Face", "primitives": [{"attributes": {"POSITION": 0}, "targets": [{"POSITION": 1}]}]}],
         "cameras": [{"name": "Shot", "type": "perspective", "perspective": {"yfov": 0.8, "znear": 0.1}}],
-        "nodes": [{"mesh": 0}, {"camera": 0}],
-        "scenes": [{"nodes": [0, 1]}]
+        "extensions": {"KHR_lights_punctual": {"lights": [
+            {"name": "Key", "type": "directional", "color": [1.0, 0.5, 0.5]},
+            {"type": "point"}]}},
+        "extensionsUsed": ["KHR_lights_punctual"],
+        "nodes": [{"mesh": 0}, {"camera": 0},
+            {"extensions": {"KHR_lights_punctual": {"light": 0}}},
+            {"extensions": {"KHR_lights_punctual": {"light": 1}}}],
+        "scenes": [{"nodes": [0, 1, 2, 3]}]
     });
     let path = dir.path().join("face.gltf");
     std::fs::write(&path, serde_json::to_vec(&gltf).expect("json")).expect("write gltf");
@@ -751,11 +757,19 @@ fn an_import_lists_what_it_left_out_in_the_import_report() {
         .clone()
         .expect("an import report")
         .lines;
-    assert_eq!(lines.len(), 2, "{lines:#?}");
+    // The morph target, the camera, the lights, and that File → Import keeps the view.
+    assert_eq!(lines.len(), 4, "{lines:#?}");
     h.get_by_label("Import report");
     h.get_by_label_contains("face.gltf was imported");
     h.get_by_label_contains("1 morph target(s) on 1 mesh(es) (\"Face\" ×1)");
-    h.get_by_label_contains("1 camera(s) (\"Shot\")");
+    h.get_by_label_contains("1 camera(s): the first imported as the document camera (\"Shot\")");
+    h.get_by_label_contains("lights: 1 directional imported, 1 point/spot not imported");
+    h.get_by_label_contains("camera not applied: File > Import keeps your view");
+    // The directional light joins the scene's sun without a second shadow.
+    let lights = &h.state().editor.doc().lights;
+    assert_eq!(lights.len(), 2, "{lights:?}");
+    assert!(lights[0].casts_shadows && !lights[1].casts_shadows);
+    assert_eq!(lights[1].name, "Key");
     h.get_by_label("OK").click();
     h.run_steps(2);
     assert!(h.state().import_report.is_none(), "OK closes the report");

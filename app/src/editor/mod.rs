@@ -654,6 +654,21 @@ impl Editor {
         Ok(index)
     }
 
+    /// Adds an imported file's lights at the end of the light list (one undo step each),
+    /// leaving the selection alone; lights that do not validate are skipped. Returns how many
+    /// were added.
+    pub fn import_lights(&mut self, lights: Vec<Light>) -> usize {
+        let mut added = 0;
+        for light in lights {
+            if validate_light(&light).is_ok() {
+                let index = self.doc.lights.len();
+                self.apply(Edit::InsertLight { index, light }, None);
+                added += 1;
+            }
+        }
+        added
+    }
+
     /// Deletes a light (one undo step; undo puts it back at its place). Deleting the last
     /// light is allowed: the scene keeps its ambient light, both renderers draw a scene without
     /// lights, and an artist lighting a scene from scratch (or by ambient and baked lighting

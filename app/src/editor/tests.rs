@@ -1663,3 +1663,24 @@ fn the_timeline_plays_frame_sequences_and_undo_writes_the_frame_it_was_made_on()
     assert_eq!(frame_counts(&ed, id), [1, 4, 3]);
     ed.doc().validate().unwrap();
 }
+
+#[test]
+fn imported_lights_are_added_one_undo_step_each_and_bad_ones_skipped() {
+    let mut ed = Editor::default();
+    let sun = ed.doc().lights[0].clone();
+    let key = Light {
+        name: "Key".into(),
+        casts_shadows: false,
+        ..ed.new_light()
+    };
+    let bad = Light {
+        intensity: f32::NAN,
+        ..key.clone()
+    };
+    let selection = ed.selection;
+    assert_eq!(ed.import_lights(vec![key.clone(), bad]), 1);
+    assert_eq!(ed.doc().lights, vec![sun.clone(), key]);
+    assert_eq!(ed.selection, selection, "the selection stays on the import");
+    ed.undo();
+    assert_eq!(ed.doc().lights, vec![sun]);
+}

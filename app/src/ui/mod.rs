@@ -25,6 +25,7 @@ use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 
 use egui::{Key, KeyboardShortcut, Modifiers};
+use thicket_core::io::GltfView;
 use thicket_core::render::{Quality, QualityPreset};
 use thicket_core::scene::Document;
 
@@ -120,7 +121,8 @@ enum JobResult {
     /// A project read on the worker thread, with its linked models' enhancers built there.
     Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
     /// An imported file's document and what the import left out of it (one line per kind).
-    Imported(PathBuf, anyhow::Result<(Document, Vec<String>)>),
+    /// The file's view comes along: its lights are added, its camera is not applied.
+    Imported(PathBuf, anyhow::Result<(Document, Vec<String>, GltfView)>),
     /// An enhancement of a voxel object: source id, source name, the settings, the coarse
     /// model it was made from, and the fine model with the enhancer that made it.
     Enhanced(Box<Enhanced>),
@@ -640,8 +642,14 @@ impl EditorApp {
     fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
-            JobResult::Imported(path, Ok((doc, left_out))) => {
+            JobResult::Imported(path, Ok((doc, mut left_out, view))) => {
                 let placed = self.editor.import_objects(doc);
+                // Directions only: the placement's move and uniform scale leave them as is.
+                let lights = view.lights_beside(&self.editor.doc().lights);
+                self.editor.import_lights(lights);
+                if view.camera.is_some() {
+                    left_out.push(IMPORT_KEEPS_VIEW.to_owned());
+                }
                 let placed_ids = placed.ids.clone();
                 let n = placed.ids.len();
                 let scaled = if placed.scale == 1.0 {
@@ -1861,7 +1869,7 @@ impl EditorApp {
             .default_width(460.0)
             .show(ctx, |ui| {
                 ui.label(format!(
-                    "{} was imported. It holds things Thicket did not carry over:",
+                    "{} was imported. What became of what it holds beyond its meshes:",
                     report.path.file_name().map_or_else(
                         || report.path.display().to_string(),
                         |n| n.to_string_lossy().into_owned()
@@ -1964,6 +1972,10 @@ const PRESETS: &[(&str, QualityPreset, &str)] = &[
     ),
 ];
 
+/// The import report's line for a file with a camera imported into an existing scene.
+pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
+     used when the file is opened or imported from the command line";
+
 /// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
 const SKINNED_IMPORT_DEPTH: u8 = 7;
 
@@ -1974,7 +1986,7 @@ fn import_document(
     options: &files::MeshOptions,
     progress: &AtomicU32,
     cancel: &AtomicBool,
-) -> anyhow::Result<(Document, Vec<String>)> {
+) -> anyhow::Result<(Document, Vec<String>, GltfView)> {
     use anyhow::Context as _;
     files::check_options(path, options)?;
     let skinned = if FileKind::from_path(path) == Some(FileKind::Gltf) {
@@ -1983,7 +1995,7 @@ fn import_document(
         None
     };
     let Some(skinned) = skinned else {
-        return files::load_document_reported(path, options);
+        return files::load_document_imported(path, options);
     };
     let settings = thicket_core::voxelize::VoxelizeSettings {
         resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
@@ -2001,7 +2013,7 @@ fn import_document(
     );
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, skinned.warnings))
+    Ok((doc, skinned.warnings, skinned.view))
 }
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.

@@ -59,7 +59,8 @@ pub fn import_gltf_with(path: &Path, limits: &ImportLimits) -> Result<MeshModel,
 
 /// [`import_gltf_with`], plus one line for each kind of feature the file holds that the import
 /// leaves out (morph targets, animation, extra UV sets, texture maps other than base colour,
-/// cameras, lights, unsupported extensions, points and lines), for the caller to show.
+/// point and spot lights, unsupported extensions, points and lines) and what became of its
+/// cameras and directional lights (see [`import_gltf_imported`]), for the caller to show.
 ///
 /// # Errors
 /// See [`import_gltf`].
@@ -67,6 +68,26 @@ pub fn import_gltf_reported(
     path: &Path,
     limits: &ImportLimits,
 ) -> Result<(MeshModel, Vec<String>), IoError> {
+    import_gltf_imported(path, limits).map(|i| (i.model, i.report))
+}
+
+/// What [`import_gltf_imported`] reads from a file.
+#[derive(Debug, Clone)]
+pub struct GltfImport {
+    /// The meshes, in world space.
+    pub model: MeshModel,
+    /// One line per kind of feature the import leaves out or changes (see
+    /// [`import_gltf_reported`]), and what it did with the file's cameras and lights.
+    pub report: Vec<String>,
+    /// The file's first camera and its directional lights, for a document made from it.
+    pub view: super::gltf_view::GltfView,
+}
+
+/// [`import_gltf_reported`], plus the file's camera and directional lights.
+///
+/// # Errors
+/// See [`import_gltf`].
+pub fn import_gltf_imported(path: &Path, limits: &ImportLimits) -> Result<GltfImport, IoError> {
     let bytes = read_file_limited(path, limits)?;
     let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
     Importer {
@@ -74,7 +95,7 @@ pub fn import_gltf_reported(
         base_dir: Some(base_dir),
         limits,
     }
-    .run_reported(&bytes)
+    .run_imported(&bytes)
 }
 
 /// Imports glTF or GLB bytes. External (non-data) URIs are resolved against `base_dir`; with
@@ -360,19 +381,23 @@ impl<'a> Importer<'a> {
 
     /// The model; what the file holds that it leaves out is logged as warnings.
     fn run(&self, bytes: &[u8]) -> Result<MeshModel, IoError> {
-        let (model, dropped) = self.run_reported(bytes)?;
-        for line in &dropped {
+        let import = self.run_imported(bytes)?;
+        for line in &import.report {
             log::warn!("{}: {line}", self.path.display());
         }
-        Ok(model)
+        Ok(import.model)
     }
 
-    /// The model and what the file holds that it leaves out ([`super::gltf_report`]).
-    fn run_reported(&self, bytes: &[u8]) -> Result<(MeshModel, Vec<String>), IoError> {
+    /// The model, what the file holds that it leaves out ([`super::gltf_report`]) and its
+    /// view ([`super::gltf_view`]).
+    fn run_imported(&self, bytes: &[u8]) -> Result<GltfImport, IoError> {
         let container = self.split_container(bytes)?;
         let root = self.parse_root(container.json)?;
-        let dropped =
+        let mut dropped =
             super::gltf_report::dropped_features(&root, super::gltf_report::Reader::Static);
+        let scene_nodes = self.scene_nodes(&root)?;
+        let (view, view_lines) = super::gltf_view::read_view(&root, &scene_nodes);
+        dropped.extend(view_lines);
         let buffers = self.load_buffers(&root, container.bin)?;
         let mut model = MeshModel {
             parts: Vec::new(),
@@ -387,7 +412,7 @@ impl<'a> Importer<'a> {
         };
         let mut cache: HashMap<(usize, usize), Option<TriangleMesh>> = HashMap::new();
 
-        for (node_index, world_from_node) in self.scene_nodes(&root)? {
+        for (node_index, world_from_node) in scene_nodes {
             let Some(node) = root.nodes.get(node_index) else {
                 continue;
             };
@@ -480,7 +505,11 @@ impl<'a> Importer<'a> {
         if let Err((part, e)) = model.validate() {
             return Err(self.invalid(format!("part {part}: {e}")));
         }
-        Ok((model, dropped))
+        Ok(GltfImport {
+            model,
+            report: dropped,
+            view,
+        })
     }
 
     /// The JSON, deserialized only, with its required extensions checked.
@@ -1866,9 +1895,9 @@ pub(crate) mod tests {
             base_dir: None,
             limits: &ImportLimits::default(),
         }
-        .run_reported(bytes)
+        .run_imported(bytes)
         .expect("imports")
-        .1
+        .report
     }
 
     #[test]
@@ -1909,7 +1938,14 @@ pub(crate) mod tests {
         assert!(has(&["TEXCOORD_1 on 1 primitive(s)"]), "{report:#?}");
         assert!(has(&["normal ×1", "metallic-roughness ×1"]), "{report:#?}");
         assert!(has(&["1 camera(s)", "\"Shot\""]), "{report:#?}");
-        assert!(has(&["2 punctual light(s)"]), "{report:#?}");
+        // The point light is reported; the directional one is placed by no node.
+        assert!(
+            has(&[
+                "lights: 0 directional imported, 1 point/spot not imported",
+                "1 directional not placed"
+            ]),
+            "{report:#?}"
+        );
         assert!(
             has(&["not supported", "KHR_texture_transform"]),
             "{report:#?}"

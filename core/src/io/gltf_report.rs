@@ -177,32 +177,7 @@ pub(crate) fn dropped_features(root: &json::Root, reader: Reader) -> Vec<String>
         }
     }
 
-    if !root.cameras.is_empty() {
-        out.push(format!(
-            "{} camera(s) ({}): not imported, the view is framed on the model",
-            root.cameras.len(),
-            list(
-                root.cameras
-                    .iter()
-                    .enumerate()
-                    .map(|(i, c)| c.name.clone().unwrap_or_else(|| format!("camera {i}")))
-                    .map(|n| format!("{n:?}"))
-            )
-        ));
-    }
-    let lights = root
-        .extensions
-        .as_ref()
-        .and_then(|e| e.others.get("KHR_lights_punctual"))
-        .and_then(|l| l.get("lights"))
-        .and_then(|l| l.as_array())
-        .map_or(0, Vec::len);
-    if lights > 0 {
-        out.push(format!(
-            "{lights} punctual light(s) (KHR_lights_punctual): not imported, the document keeps \
-             its own lights"
-        ));
-    }
+    // Cameras and lights are imported where they can be: `super::gltf_view` says what.
     let ignored: Vec<&String> = root
         .extensions_used
         .iter()

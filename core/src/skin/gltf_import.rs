@@ -39,6 +39,9 @@ pub struct SkinnedImport {
     /// Things skipped, repaired or left out of the import (see `io::import_gltf_reported`),
     /// one human-readable line each, for the caller to show (they are not logged).
     pub warnings: Vec<String>,
+    /// The file's first camera and its directional lights (see `io::GltfView`), in the
+    /// file's world space.
+    pub view: crate::io::GltfView,
     /// World transform of the first node carrying the skinned mesh, for reference only: glTF
     /// skinning ignores it. In files like RiggedFigure and CesiumMan, whose inverse bind
     /// matrices were made without the Z-up node above the skeleton, the rest pose skins the
@@ -343,6 +346,8 @@ fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, S
         &file.root,
         crate::io::gltf_report::Reader::Skinned,
     ));
+    let (view, view_lines) = crate::io::gltf_view::read_view(&file.root, &scene);
+    warnings.extend(view_lines);
     // Not logged here: the caller shows them (the CLI prints them, the editor's import
     // report lists them), so each is printed once.
     Ok(SkinnedImport {
@@ -351,6 +356,7 @@ fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, S
         mesh: model,
         weight_repair,
         warnings,
+        view,
         world_from_skinned_node,
     })
 }

@@ -53,14 +53,29 @@ fn exported_skinned_voxels_walk_exactly_like_the_editors_voxel_corners() {
     let back = import_skinned(&path).expect("the export imports as a skinned file");
     assert_eq!(back.skeleton.len(), rig.skeleton.len());
     assert_eq!(back.clips.len(), rig.clips.len());
-    // Nothing repaired or skipped; the export's camera and sun are reported as not imported
-    // (an import keeps the document's own view and lights).
+    // Nothing repaired or skipped; the export's camera and sun are imported, said once each.
     let (view, other): (Vec<&String>, Vec<&String>) = back
         .warnings
         .iter()
-        .partition(|w| w.contains("camera(s)") || w.contains("punctual light(s)"));
+        .partition(|w| w.contains("camera(s)") || w.starts_with("lights:"));
     assert!(other.is_empty(), "{other:?}");
     assert_eq!(view.len(), 2, "{:?}", back.warnings);
+    assert!(
+        view[0].starts_with("1 camera(s): the first imported as the document camera"),
+        "{view:?}"
+    );
+    assert!(
+        view[1].starts_with("lights: 1 directional imported, 0 point/spot not imported"),
+        "{view:?}"
+    );
+    // In the file's world space, where the skinned voxels are posed.
+    let camera = back.view.camera.expect("the export's camera");
+    assert!(camera.eye.abs_diff_eq(doc.camera.eye(), 1e-4), "{camera:?}");
+    let [sun] = &back.view.lights[..] else {
+        panic!("the export's sun: {:?}", back.view.lights);
+    };
+    let direction = doc.lights[0].direction.normalize_or_zero();
+    assert!(sun.direction.dot(direction) > 1.0 - 1e-5, "{sun:?}");
     let back_rig = Rig::new(back.skeleton.clone(), back.clips.clone());
 
     // The editor's corner weights (what its `Corners` stretch strategy skins), by lattice point.
