@@ -269,12 +269,7 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
         let mut root = root
             .titled(title, ("sans-serif", 22))
             .map_err(|e| anyhow!("drawing the plot: {e:?}"))?;
-        let dropped: Vec<&str> = report
-            .knobs
-            .iter()
-            .filter(|k| k.dropped)
-            .map(|k| k.name.as_str())
-            .collect();
+        let dropped = report.dropped_knobs();
         if !dropped.is_empty() {
             root = root
                 .titled(

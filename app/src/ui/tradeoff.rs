@@ -329,12 +329,7 @@ impl TradeoffPanel {
             report.height,
             report.reference_time_ms
         ));
-        let dropped: Vec<&str> = report
-            .knobs
-            .iter()
-            .filter(|k| k.dropped)
-            .map(|k| k.name.as_str())
-            .collect();
+        let dropped = report.dropped_knobs();
         if !dropped.is_empty() {
             ui.label(format!(
                 "No effect at this size, left out: {}",

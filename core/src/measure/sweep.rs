@@ -561,6 +561,16 @@ pub struct SweepReport {
 }
 
 impl SweepReport {
+    /// Names of the knobs left out as having no effect at this size.
+    #[must_use]
+    pub fn dropped_knobs(&self) -> Vec<&str> {
+        self.knobs
+            .iter()
+            .filter(|k| k.dropped)
+            .map(|k| k.name.as_str())
+            .collect()
+    }
+
     /// The point of a preset, if the sweep rendered presets.
     #[must_use]
     pub fn preset_point(&self, p: QualityPreset) -> Option<&SweepPoint> {
