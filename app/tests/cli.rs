@@ -1451,40 +1451,9 @@ fn an_enhancement_over_the_memory_limit_is_refused_before_it_starts() {
     assert!(out.is_file());
 }
 
-/// A MagicaVoxel animation in the pre-0.99 layout: three models (frames of 2, 3 and 4 voxels)
-/// and no scene graph.
+/// [`common::animated_vox_bytes`] written to `path`.
 fn animated_vox(path: &Path) {
-    fn chunk(out: &mut Vec<u8>, id: &[u8; 4], content: &[u8]) {
-        out.extend_from_slice(id);
-        out.extend_from_slice(&(content.len() as u32).to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(content);
-    }
-    let frames: [&[[u8; 4]]; 3] = [
-        &[[0, 0, 0, 1], [1, 0, 0, 1]],
-        &[[0, 0, 0, 2], [1, 0, 0, 2], [2, 0, 1, 3]],
-        &[[0, 0, 0, 4], [1, 0, 0, 4], [0, 1, 0, 5], [1, 1, 1, 5]],
-    ];
-    let mut main = Vec::new();
-    for voxels in frames {
-        let mut size = Vec::new();
-        for s in [3u32, 2, 2] {
-            size.extend_from_slice(&s.to_le_bytes());
-        }
-        chunk(&mut main, b"SIZE", &size);
-        let mut xyzi = (voxels.len() as u32).to_le_bytes().to_vec();
-        for v in voxels {
-            xyzi.extend_from_slice(v);
-        }
-        chunk(&mut main, b"XYZI", &xyzi);
-    }
-    let mut out = b"VOX ".to_vec();
-    out.extend_from_slice(&150u32.to_le_bytes());
-    out.extend_from_slice(b"MAIN");
-    out.extend_from_slice(&0u32.to_le_bytes());
-    out.extend_from_slice(&(main.len() as u32).to_le_bytes());
-    out.extend_from_slice(&main);
-    std::fs::write(path, out).unwrap();
+    std::fs::write(path, common::animated_vox_bytes()).unwrap();
 }
 
 #[test]

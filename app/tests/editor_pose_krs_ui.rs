@@ -7,6 +7,8 @@
 //! editor uses without a GPU, for KRS objects, and for the hole / bloat overlay of rigged
 //! models).
 
+mod common;
+
 use egui_kittest::kittest::Queryable as _;
 use egui_kittest::{Harness, SnapshotOptions};
 use glam::Vec3;
@@ -1067,31 +1069,7 @@ fn empty_zones_are_added_removed_and_undone_in_the_krs_editor() {
 /// An animated MagicaVoxel file (three models, no scene graph: frames of 2, 3 and 4 voxels),
 /// imported as the editor imports it.
 fn animated_vox_doc() -> Document {
-    fn chunk(out: &mut Vec<u8>, id: &[u8; 4], content: &[u8]) {
-        out.extend_from_slice(id);
-        out.extend_from_slice(&(content.len() as u32).to_le_bytes());
-        out.extend_from_slice(&0u32.to_le_bytes());
-        out.extend_from_slice(content);
-    }
-    let frames: [&[[u8; 4]]; 3] = [
-        &[[0, 0, 0, 1], [1, 0, 0, 1]],
-        &[[0, 0, 0, 2], [1, 0, 0, 2], [2, 0, 1, 3]],
-        &[[0, 0, 0, 4], [1, 0, 0, 4], [0, 1, 0, 5], [1, 1, 1, 5]],
-    ];
-    let mut main = Vec::new();
-    for voxels in frames {
-        let size: Vec<u8> = [3u32, 2, 2].iter().flat_map(|s| s.to_le_bytes()).collect();
-        chunk(&mut main, b"SIZE", &size);
-        let mut xyzi = (voxels.len() as u32).to_le_bytes().to_vec();
-        xyzi.extend(voxels.iter().flatten());
-        chunk(&mut main, b"XYZI", &xyzi);
-    }
-    let mut bytes = b"VOX ".to_vec();
-    bytes.extend_from_slice(&150u32.to_le_bytes());
-    bytes.extend_from_slice(b"MAIN");
-    bytes.extend_from_slice(&0u32.to_le_bytes());
-    bytes.extend_from_slice(&(main.len() as u32).to_le_bytes());
-    bytes.extend_from_slice(&main);
+    let bytes = common::animated_vox_bytes();
     let scene = thicket_core::io::vox::import_vox_bytes(
         &bytes,
         std::path::Path::new("walk.vox"),

@@ -26,3 +26,34 @@ pub fn stderr(o: &Output) -> String {
 pub fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
+
+/// A MagicaVoxel animation in the pre-0.99 layout: three models (frames of 2, 3 and 4 voxels)
+/// and no scene graph.
+pub fn animated_vox_bytes() -> Vec<u8> {
+    fn chunk(out: &mut Vec<u8>, id: &[u8; 4], content: &[u8]) {
+        out.extend_from_slice(id);
+        out.extend_from_slice(&(content.len() as u32).to_le_bytes());
+        out.extend_from_slice(&0u32.to_le_bytes());
+        out.extend_from_slice(content);
+    }
+    let frames: [&[[u8; 4]]; 3] = [
+        &[[0, 0, 0, 1], [1, 0, 0, 1]],
+        &[[0, 0, 0, 2], [1, 0, 0, 2], [2, 0, 1, 3]],
+        &[[0, 0, 0, 4], [1, 0, 0, 4], [0, 1, 0, 5], [1, 1, 1, 5]],
+    ];
+    let mut main = Vec::new();
+    for voxels in frames {
+        let size: Vec<u8> = [3u32, 2, 2].iter().flat_map(|s| s.to_le_bytes()).collect();
+        chunk(&mut main, b"SIZE", &size);
+        let mut xyzi = (voxels.len() as u32).to_le_bytes().to_vec();
+        xyzi.extend(voxels.iter().flatten());
+        chunk(&mut main, b"XYZI", &xyzi);
+    }
+    let mut bytes = b"VOX ".to_vec();
+    bytes.extend_from_slice(&150u32.to_le_bytes());
+    bytes.extend_from_slice(b"MAIN");
+    bytes.extend_from_slice(&0u32.to_le_bytes());
+    bytes.extend_from_slice(&(main.len() as u32).to_le_bytes());
+    bytes.extend_from_slice(&main);
+    bytes
+}
