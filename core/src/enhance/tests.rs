@@ -909,11 +909,6 @@ fn sample_terrain_has_three_materials() {
 
 #[test]
 fn the_enhance_estimate_holds_the_measured_peak() {
-    // One thread, so the test binary's per-thread counting allocator sees every allocation.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
     let sample = |name: &str| {
         let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
             .join(format!("../projects/{name}.thicket.json"));
@@ -932,8 +927,8 @@ fn the_enhance_estimate_holds_the_measured_peak() {
                     ..EnhanceSettings::default()
                 };
                 let e = estimate(&m.svo, &s).unwrap();
-                let (r, peak) = pool.install(|| {
-                    crate::io::fuzz::peak_heap_bytes(|| enhance_model(m, &s, Control::default()))
+                let (r, peak) = crate::io::fuzz::peak_heap_bytes_on_one_thread(|| {
+                    enhance_model(m, &s, Control::default())
                 });
                 let (fine, st) = r.unwrap();
                 let n = fine.svo.leaf_count();

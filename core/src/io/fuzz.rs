@@ -102,6 +102,16 @@ pub fn peak_heap_bytes<T>(f: impl FnOnce() -> T) -> (T, u64) {
     (out, u64::try_from(peak - start).unwrap_or(0))
 }
 
+/// [`peak_heap_bytes`] of `f` run on a one-thread rayon pool, so the per-thread counting
+/// allocator sees every allocation of code that uses rayon (its work runs on the pool's thread).
+pub fn peak_heap_bytes_on_one_thread<T: Send>(f: impl FnOnce() -> T + Send) -> (T, u64) {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .expect("a one-thread pool")
+        .install(|| peak_heap_bytes(f))
+}
+
 /// Runs `f` and returns its result with the number of allocation calls (`alloc`,
 /// `alloc_zeroed`, `realloc`) it made on this thread.
 pub fn heap_allocations<T>(f: impl FnOnce() -> T) -> (T, u64) {

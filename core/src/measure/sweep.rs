@@ -1127,20 +1127,14 @@ mod tests {
             repeats: 2,
             ..SweepSettings::default()
         };
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .expect("a one-thread pool");
         for (name, doc, (w, h), settings) in [
             ("house 160x120 shadow sizes", &house, (160, 120), &shadows),
             ("house 96x96 presets", &house, (96, 96), &presets),
             ("sphere 128x128 presets", &sphere, (128, 128), &presets),
         ] {
             let estimate = estimate_sweep_peak_bytes(doc, w, h, settings).unwrap();
-            let (report, peak) = pool.install(|| {
-                crate::io::fuzz::peak_heap_bytes(|| {
-                    sweep_document(doc, w, h, settings, |_, _, _| {})
-                })
+            let (report, peak) = crate::io::fuzz::peak_heap_bytes_on_one_thread(|| {
+                sweep_document(doc, w, h, settings, |_, _, _| {})
             });
             let report = report.unwrap();
             eprintln!(

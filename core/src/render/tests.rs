@@ -1113,12 +1113,7 @@ fn exact_cubes_draw_straight_edges_true_depth_and_face_normals_up_close() {
 /// The peak heap bytes of one render, measured on a one-thread pool so the per-thread counting
 /// allocator of the test binary sees every allocation (rayon runs the work on the pool's thread).
 fn measured_peak(doc: &Document, r: &RenderRequest) -> u64 {
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .expect("a one-thread pool");
-    pool.install(|| crate::io::fuzz::peak_heap_bytes(|| render_document(doc, r).map(|_| ())))
-        .1
+    crate::io::fuzz::peak_heap_bytes_on_one_thread(|| render_document(doc, r).map(|_| ())).1
 }
 
 #[test]

@@ -937,11 +937,6 @@ fn column_walk_finds_exactly_what_brute_force_finds() {
 
 #[test]
 fn the_voxelize_estimate_holds_the_measured_peak() {
-    // One thread, so the test binary's per-thread counting allocator sees every allocation.
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
     let spot = crate::io::import_obj(&asset("static/spot/spot_triangulated.obj")).unwrap();
     let torus = crate::io::import_gltf(&asset("static/bevy_torus.gltf")).unwrap();
     let rock = crate::io::import_gltf(&asset("static/kenney_rock_largeA.glb")).unwrap();
@@ -963,8 +958,8 @@ fn the_voxelize_estimate_holds_the_measured_peak() {
             for mode in [Mode::Surface, Mode::Solid] {
                 let s = settings(Resolution::Depth(depth), mode);
                 let e = estimate(m, &s).unwrap();
-                let (r, peak) = pool.install(|| {
-                    crate::io::fuzz::peak_heap_bytes(|| voxelize(m, &s, &all_progress))
+                let (r, peak) = crate::io::fuzz::peak_heap_bytes_on_one_thread(|| {
+                    voxelize(m, &s, &all_progress)
                 });
                 let v = r.unwrap();
                 let voxels = v.stats.voxels as f64;
