@@ -4,6 +4,8 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo fmt --all -- --check
 cargo clippy --workspace --all-targets -- -D warnings
+# Doc links must resolve (a renamed item otherwise leaves a dead link in the API docs).
+RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --quiet
 # The core crate must stay free of GPU and UI crates (ARCHITECTURE.md: app -> core only).
 forbidden='^(wgpu|wgpu-core|wgpu-hal|naga|egui|egui-wgpu|eframe|winit|rfd) v'
 if cargo tree -p thicket-core -e normal,build,dev --prefix none | grep -E "$forbidden"; then

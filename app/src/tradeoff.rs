@@ -381,7 +381,7 @@ pub fn write_outputs(
     Ok(())
 }
 
-/// [`thicket_core::measure::sweep`] with the GPU renderer drawing every setting, measured against
+/// [`thicket_core::measure::sweep()`] with the GPU renderer drawing every setting, measured against
 /// the CPU reference renderer's image at [`reference_quality`]: the reference stays the one
 /// every GPU image is tested against, so a GPU-only difference shows up as error instead of
 /// cancelling out. Times are wall time of the GPU frame plus its two read-backs (image and

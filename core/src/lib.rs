@@ -14,6 +14,11 @@
 //! | [`io`] | project files, glTF, OBJ, .vox, PNG |
 //! | [`measure`] | image error metrics and quality sweeps |
 
+// Habits made checks (clippy runs with -D warnings): every public item documented, and no
+// unwrap/expect outside tests (bad input is an error, never a panic).
+#![warn(missing_docs)]
+#![cfg_attr(not(test), warn(clippy::unwrap_used, clippy::expect_used))]
+
 pub mod budget;
 pub mod enhance;
 pub mod io;

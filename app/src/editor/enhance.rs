@@ -53,7 +53,7 @@ impl std::fmt::Debug for PreparedDocument {
 
 impl PreparedDocument {
     /// Builds the enhancer of every enhancement link of `doc` (what the first dab on a linked
-    /// model would otherwise build), and, as [`Editor::ensure_enhancer`] does, replaces a
+    /// model would otherwise build), and, as `Editor::ensure_enhancer` does, replaces a
     /// stored fine model that differs from what its link's settings make of the coarse model.
     /// A link whose enhancement fails is left to the first dab, which reports the error;
     /// `cancel` stops early (the remaining links are then built by their first dab).

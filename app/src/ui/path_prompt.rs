@@ -224,12 +224,12 @@ impl PathPrompt {
     /// The folder the list shows, read again when the field's folder changed.
     fn refresh(&mut self) -> &Listing {
         let dir = folder_of(&self.text);
-        if self.listing.as_ref().is_none_or(|l| l.dir != dir) {
-            let entries = list_folder(&dir, &self.purpose.extensions())
-                .map_err(|e| format!("{}: {e}", dir.display()));
-            self.listing = Some(Listing { dir, entries });
+        if let Some(current) = self.listing.take_if(|l| l.dir == dir) {
+            return self.listing.insert(current);
         }
-        self.listing.as_ref().expect("just set")
+        let entries = list_folder(&dir, &self.purpose.extensions())
+            .map_err(|e| format!("{}: {e}", dir.display()));
+        self.listing.insert(Listing { dir, entries })
     }
 
     /// Draws the prompt as a modal; `recent` are the recent files (shown for Open and Import).

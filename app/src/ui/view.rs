@@ -705,7 +705,7 @@ impl View {
 
     /// Why the CPU preview draws the view, or `None` when the GPU does.
     /// Why the CPU preview draws the view, for the performance window ("chosen" when it is
-    /// not the reason of [`View::cpu_reason`]'s cases, e.g. a test that forces it).
+    /// not the reason of `View::cpu_reason`'s cases, e.g. a test that forces it).
     #[must_use]
     pub fn cpu_reason_text(&self, editor: &Editor) -> &'static str {
         self.cpu_reason(editor).unwrap_or("chosen")

@@ -5,7 +5,6 @@
 
 pub mod project;
 
-/// Confined file references: what a file may name and how much of it is read.
 pub mod confine;
 
 // Mesh importers and the shared error type (glTF, OBJ).
@@ -25,5 +24,4 @@ pub use gltf_mesh::{
 pub use gltf_view::{GltfCamera, GltfView};
 pub use obj::{ObjOptions, import_obj};
 
-/// MagicaVoxel `.vox` import (models, scene graph, palette, materials) and export.
 pub mod vox;

@@ -6,7 +6,7 @@
 //! rotation, `nGRP`, `nSHP`) and returns one [`Object`] per shape instance; an animation
 //! (several models without a scene graph, or `_f` keyframes) is one object with a
 //! [`FrameSequence`](crate::scene::FrameSequence). Before `dot_vox` sees
-//! the bytes, [`chunks::validate`] walks the RIFF-like chunk structure itself: `dot_vox` answers
+//! the bytes, `chunks::validate` walks the RIFF-like chunk structure itself: `dot_vox` answers
 //! a malformed file with a vague string (or, for a bad rotation byte, a panic), and silently
 //! drops chunks it cannot parse, which would shift model and node indices. After validation
 //! every declared size is known to lie inside the file, so nothing is allocated from an

@@ -57,7 +57,7 @@ struct Splat {
 }
 
 /// Bits of a voxel id that carry the face a pixel of an exact cube shows (see
-/// [`face_code`]); the splat index sits above them. 0: a splat, shaded with the node's normal.
+/// `face_code`); the splat index sits above them. 0: a splat, shaded with the node's normal.
 pub const FACE_BITS: u32 = 3;
 /// The largest splat index an id can carry (the mesh flag stays above it).
 pub(crate) const MAX_SPLAT_INDEX: u32 = (super::MESH_ID_FLAG >> FACE_BITS) - 1;

@@ -442,7 +442,7 @@ pub struct FrameBuffers {
     pub width: u32,
     /// Height in pixels.
     pub height: u32,
-    /// NDC depth, 0 at near, 1 at far (1 for background). See [`super::camera`].
+    /// NDC depth, 0 at near, 1 at far (1 for background). See `render::camera`.
     pub depth: Vec<f32>,
     /// Object and node per pixel.
     pub ids: Vec<PixelId>,

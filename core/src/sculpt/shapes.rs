@@ -3,7 +3,7 @@
 //! origin), mirrors across the volume's centre, honours a selection mask and returns one
 //! [`ToolEdit`] whose delta undoes it, normals included.
 //!
-//! All occupancy-changing tools go through one commit step ([`commit`]): it works out the final
+//! All occupancy-changing tools go through one commit step (`commit`): it works out the final
 //! occupancy, re-estimates the normals of changed voxels and their 26 neighbours with the
 //! brushes' estimator, and writes everything in a single octree pass. Large, dense edits use a
 //! flat grid over the changed box (cost follows the box); small or scattered ones a hash map
@@ -146,7 +146,7 @@ impl Default for Ink {
     }
 }
 
-/// Mirror copies across the volume's centre: cell c on a mirrored axis a maps to size[a]-1-c[a].
+/// Mirror copies across the volume's centre: cell c on a mirrored axis a maps to `size[a]-1-c[a]`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(default)]
 pub struct Mirror {

@@ -72,7 +72,7 @@ pub(crate) fn proper_trs(xf: &Affine3A) -> (InstanceTransform, bool) {
 
 /// `mesh` reflected by F = diag(−1, 1, 1): positions and normals mirrored, each triangle's
 /// winding reversed so its front face stays outside. A mirrored placement M draws it with the
-/// proper similarity M·F ([`proper_trs`]).
+/// proper similarity M·F (`proper_trs`).
 #[must_use]
 pub fn mirrored_x(mesh: &ColoredMesh) -> ColoredMesh {
     let flip = Vec3::new(-1.0, 1.0, 1.0);

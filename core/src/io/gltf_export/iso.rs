@@ -86,7 +86,7 @@ fn crossing(a: IVec3, fa: f32, b: IVec3, fb: f32) -> DVec3 {
 }
 
 /// Marches the cells whose minimum corners are in `cells`; `values[c]` holds the 8 corner
-/// values of cell `c` (negative = inside) in [`corner_offset`] order. Values of a lattice
+/// values of cell `c` (negative = inside) in `corner_offset` order. Values of a lattice
 /// point must be the same in every cell that has it.
 ///
 /// # Panics

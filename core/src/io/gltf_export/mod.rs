@@ -1152,7 +1152,7 @@ fn field_error(path: &Path, object: &str, e: &FieldError) -> GltfExportError {
 /// included; instancing multiplies them on screen only) and, when it was instanced, how.
 ///
 /// In `Cubes` and `Smooth` modes the object's reflection sequence is split at a level `K`
-/// (`options.instance_level`, or [`PreparedObject::auto_placement_level`]): the prototype
+/// (`options.instance_level`, or [`PreparedObject::auto_placement_level`](crate::krs::PreparedObject::auto_placement_level)): the prototype
 /// (kernels `0..=K`, mirrors `0..K`) is meshed once in object space ([`mesh_krs`] at
 /// `options.resolution` cells along its longest side), and the 2^(n−K) compositions of the
 /// placement mirrors `K..n` become `EXT_mesh_gpu_instancing` transforms. That extension's TRS
