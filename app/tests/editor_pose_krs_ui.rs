@@ -1121,3 +1121,68 @@ fn the_timeline_plays_an_animated_vox_one_frame_at_a_time() {
     h.run_steps(1);
     assert_eq!((shown(&h), leaves(&h)), (0, 2));
 }
+
+/// The CPU preview keeps its shadow maps across a sculpt stroke and redraws only the texels
+/// the stroke changed (the patched map equals a fresh one: core's `patch_tests`); the
+/// Performance window says so. An edit it cannot describe by a box (a move) draws them whole.
+#[test]
+fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
+    let doc = thicket_core::io::project::load(std::path::Path::new(path)).expect("house");
+    let mut h = harness(doc);
+    settle_preview(&mut h);
+    // The first render of new content keeps no map; after an orbit step the maps are kept.
+    let mut cam = h.state().editor.doc().camera;
+    cam.yaw_deg += 2.0;
+    h.state_mut().editor.set_camera(cam);
+    settle_preview(&mut h);
+    cam.yaw_deg += 2.0;
+    h.state_mut().editor.set_camera(cam);
+    settle_preview(&mut h);
+    let kept = h.state().view.cpu_preview_shadows().expect("a render");
+    assert_eq!((kept.reused, kept.patched), (1, 0), "{kept:?}");
+
+    let id = h.state().editor.doc().objects[0].id;
+    let center = h.state().editor.voxel_center(id).expect("voxels");
+    // The first dab along the box's diagonal that changes voxels.
+    h.state_mut().editor.begin_stroke();
+    let changed = [1.0f32, 1.2, 0.8, 1.4, 0.6, 1.6, 0.4]
+        .into_iter()
+        .find_map(|t| {
+            let brush = thicket_core::sculpt::Brush {
+                radius: 3.0,
+                ..Default::default()
+            };
+            h.state_mut()
+                .editor
+                .sculpt_dab(id, &brush, center * t, center)
+                .expect("a dab")
+        });
+    assert!(changed.is_some(), "a dab changed voxels");
+    h.state_mut().editor.end_interaction();
+    // The first render after the dab (low resolution: the content moved) patches the map.
+    h.run_steps(1);
+    h.state_mut().view.wait_for_cpu_preview();
+    h.run_steps(1);
+    let patched = h.state().view.cpu_preview_shadows().expect("a render");
+    eprintln!("after a dab: {patched:?} (kept before: {kept:?})");
+    assert_eq!((patched.patched, patched.reused), (1, 0), "{patched:?}");
+    assert!(patched.texels_patched > 0, "{patched:?}");
+    // The full-resolution frame after it uses the patched map as it is.
+    settle_preview(&mut h);
+    let refined = h.state().view.cpu_preview_shadows().expect("a render");
+    assert_eq!((refined.patched, refined.reused), (0, 1), "{refined:?}");
+
+    // A move is no voxel region: the maps are drawn whole.
+    let mut t = h.state().editor.doc().objects[0].transform;
+    t.translation.x += 0.5;
+    h.state_mut().editor.set_transform(id, t).expect("a move");
+    h.state_mut().editor.end_interaction();
+    settle_preview(&mut h);
+    let moved = h.state().view.cpu_preview_shadows().expect("a render");
+    eprintln!("after a move: {moved:?}");
+    assert_eq!((moved.patched, moved.reused), (0, 0), "{moved:?}");
+}

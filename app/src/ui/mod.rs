@@ -1113,7 +1113,10 @@ impl EditorApp {
             self.view
                 .cpu_preview_stats()
                 .filter(|_| self.view.uses_cpu(&self.editor))
-                .map(|(ms, size)| (ms, size, self.view.cpu_reason_text(&self.editor))),
+                .map(|(ms, size)| {
+                    let shadows = self.view.cpu_preview_shadows().unwrap_or_default();
+                    (ms, size, shadows, self.view.cpu_reason_text(&self.editor))
+                }),
         );
         self.tradeoff_ui(&ctx);
         ctx.send_viewport_cmd(egui::ViewportCommand::Title(self.editor.title()));

@@ -50,7 +50,7 @@ impl PerfOverlay {
         ctx: &egui::Context,
         editor: &Editor,
         link: Option<&ViewportLink>,
-        cpu_preview: Option<(f64, [u32; 2], &str)>,
+        cpu_preview: Option<(f64, [u32; 2], super::view::ShadowWork, &str)>,
     ) {
         if !self.open {
             return;
@@ -61,10 +61,11 @@ impl PerfOverlay {
             .default_width(420.0)
             .default_pos(egui::pos2(300.0, 80.0))
             .show(ctx, |ui| {
-                if let Some((ms, [w, h], why)) = cpu_preview {
+                if let Some((ms, [w, h], shadows, why)) = cpu_preview {
                     ui.label(format!(
                         "The CPU preview draws the view ({why}): last render {ms:.1} ms at {w} x {h} px"
                     ));
+                    ui.label(shadow_work_text(&shadows));
                 }
                 self.contents_ui(ui, editor, link);
             });
@@ -259,4 +260,22 @@ fn level_grid_ui(ui: &mut egui::Ui, id: &str, levels: &[thicket_core::render::Le
             ui.end_row();
         }
     });
+}
+
+/// One line on what the CPU preview's shadow pass did with its kept maps.
+fn shadow_work_text(s: &super::view::ShadowWork) -> String {
+    let mut parts = Vec::new();
+    if s.reused > 0 {
+        parts.push(format!("{} kept (the camera moved)", s.reused));
+    }
+    if s.patched > 0 {
+        parts.push(format!(
+            "{} redrawn only where the edit changed them ({} texels)",
+            s.patched, s.texels_patched
+        ));
+    }
+    if parts.is_empty() {
+        parts.push("drawn whole".into());
+    }
+    format!("Shadow maps {:.1} ms: {}", s.ms, parts.join(", "))
 }

@@ -181,6 +181,31 @@ struct PreviewFrame {
     holes: Option<(egui::ColorImage, HoleCounts)>,
     /// The stretch heat map and its statistics, when asked for and a rigged model shows.
     stretch: Option<(egui::ColorImage, StretchStats)>,
+    shadows: ShadowWork,
+}
+
+/// What a CPU preview render's shadow pass did with the kept maps.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ShadowWork {
+    /// Shadow pass milliseconds.
+    pub ms: f64,
+    /// Maps kept from an earlier render unchanged (the camera moved).
+    pub reused: u32,
+    /// Maps kept and drawn again only where voxel edits changed them.
+    pub patched: u32,
+    /// Texels those patches drew.
+    pub texels_patched: u64,
+}
+
+impl ShadowWork {
+    fn of(stats: &thicket_core::render::FrameStats) -> Self {
+        Self {
+            ms: stats.times.shadow_ms,
+            reused: stats.shadow_maps_reused,
+            patched: stats.shadow_maps_patched,
+            texels_patched: stats.shadow_texels_patched,
+        }
+    }
 }
 
 /// Stretch factors of the rigged-model pixels of the shown CPU preview (the heat map's).
@@ -212,6 +237,7 @@ struct CpuPreview {
     ready: Option<(PreviewKey, PreviewResult)>,
     error: Option<String>,
     last_ms: f64,
+    last_shadows: ShadowWork,
     renders: u64,
     /// Object labels of the shown image, row by row.
     labels: Vec<u32>,
@@ -227,15 +253,29 @@ struct CpuPreview {
     /// The renderer (its frame buffers) and the shadow maps kept while only the camera moves
     /// (one render at a time uses them).
     renderer: Arc<Mutex<PreviewRenderer>>,
+    /// Voxel edits since the last render started, for its shadow maps to redraw only where
+    /// they changed (see [`shadow_change`]).
+    changes: Vec<thicket_core::render::ContentChange>,
 }
 
 /// What the CPU preview keeps from one render to the next.
-#[derive(Default)]
 struct PreviewRenderer {
     /// Frame buffers, queues and shadow-map targets, reused while the view size holds.
     renderer: thicket_core::render::Renderer,
-    /// Shadow maps kept while only the camera moves.
+    /// Shadow maps kept while only the camera moves, and patched after voxel edits.
     shadows: thicket_core::render::ShadowCache,
+}
+
+impl Default for PreviewRenderer {
+    fn default() -> Self {
+        Self {
+            renderer: thicket_core::render::Renderer::default(),
+            // The low-resolution frames of a motion use the full-resolution frames' maps (and
+            // patch them after an edit) instead of drawing coarser ones in turn with them.
+            shadows: thicket_core::render::ShadowCache::new()
+                .with_max_finer(thicket_core::render::SHADOW_CACHE_MAX_FINER / CPU_PREVIEW_SCALE),
+        }
+    }
 }
 
 /// Outline colour of the selection.
@@ -303,6 +343,53 @@ type RenderKey = ((u64, u64), u64);
 /// is not in it: orbiting draws the same document).
 fn render_key(editor: &Editor) -> RenderKey {
     (editor.content_key(), editor.animation_key())
+}
+
+/// The content key the CPU preview gives its shadow cache for a render key.
+fn preview_content_hash(key: RenderKey) -> u64 {
+    let mut h = std::hash::DefaultHasher::new();
+    key.hash(&mut h);
+    h.finish()
+}
+
+/// A voxel edit as a change of the preview's content inside a world box, when its box is
+/// known: a rigid model's changed voxels, through its transform (the editor gives a region
+/// only when nothing else drawn changed, see [`Editor::take_voxel_region`]). `None` for a
+/// skinned model, whose voxels are drawn elsewhere than their box and whose rig edits come as
+/// empty regions; the shadow maps are then drawn whole.
+fn shadow_change(
+    doc: &Document,
+    animation: u64,
+    r: &crate::editor::VoxelRegion,
+) -> Option<thicket_core::render::ContentChange> {
+    let o = doc.objects.iter().find(|o| o.id == r.object)?;
+    let ObjectKind::Voxels(v) = &o.kind else {
+        return None;
+    };
+    if v.rig.is_some() {
+        return None;
+    }
+    let (lo, hi) = if r.lo.cmple(r.hi).all() {
+        let m = o.transform.matrix() * v.object_from_voxel();
+        let (a, b) = (r.lo.as_vec3(), (r.hi + 1).as_vec3());
+        (0..8).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), k| {
+            let p = m.transform_point3(Vec3::select(
+                glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0),
+                b,
+                a,
+            ));
+            (lo.min(p), hi.max(p))
+        })
+    } else {
+        // Nothing drawn changed: an empty box.
+        (Vec3::ONE, Vec3::ZERO)
+    };
+    Some(thicket_core::render::ContentChange {
+        from: preview_content_hash((r.from, animation)),
+        to: preview_content_hash((r.to, animation)),
+        lo,
+        hi,
+    })
 }
 
 /// Degrees of orbit per dragged point.
@@ -834,6 +921,12 @@ impl View {
         (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
     }
 
+    /// What the last CPU preview render's shadow pass did with the kept maps.
+    #[must_use]
+    pub fn cpu_preview_shadows(&self) -> Option<ShadowWork> {
+        (self.cpu.renders > 0).then_some(self.cpu.last_shadows)
+    }
+
     /// The size of the CPU preview render in flight, if any (tests: low resolution while the
     /// camera moves).
     #[must_use]
@@ -871,8 +964,16 @@ impl View {
 
     /// Shows the CPU preview (starting a render when the document, camera or size changed);
     /// returns whether the selection's outline was drawn from its pixels.
-    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &Editor) -> bool {
+    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &mut Editor) -> bool {
         let ppp = ui.ctx().pixels_per_point();
+        // Voxel edits since the last frame, for the shadow maps to patch; one that cannot be
+        // described breaks the chain (the maps are drawn whole).
+        if let Some(r) = editor.take_voxel_region() {
+            match shadow_change(editor.doc(), editor.animation_key(), &r) {
+                Some(c) => self.cpu.changes.push(c),
+                None => self.cpu.changes.clear(),
+            }
+        }
         // Low resolution while what is drawn keeps changing (an orbit, a stroke, playback); the
         // full resolution setting once it has been still for a moment. A drag that changes
         // nothing drawn (placing a box, a selection) keeps the full image.
@@ -933,7 +1034,9 @@ impl View {
                     ms,
                     holes,
                     stretch,
+                    shadows,
                 }) => {
+                    self.cpu.last_shadows = shadows;
                     self.cpu.labels = labels;
                     self.cpu.nodes = nodes;
                     self.cpu.stretch = stretch.map(|(overlay, stats)| {
@@ -977,11 +1080,8 @@ impl View {
         if self.cpu.job.is_none() && self.cpu.shown.as_ref() != Some(&key) {
             let doc = self.snapshot(editor);
             // The snapshot's key: it changes whenever the content or the playhead does.
-            let content_key = {
-                let mut h = std::hash::DefaultHasher::new();
-                render_key(editor).hash(&mut h);
-                h.finish()
-            };
+            let content_key = preview_content_hash(render_key(editor));
+            let changes = std::mem::take(&mut self.cpu.changes);
             let kept = Arc::clone(&self.cpu.renderer);
             let (tx, rx) = mpsc::channel();
             let request = thicket_core::render::RenderRequest {
@@ -1000,10 +1100,14 @@ impl View {
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner);
                 let PreviewRenderer { renderer, shadows } = &mut *kept;
+                for c in changes {
+                    shadows.note_change(c);
+                }
                 let result = renderer
                     .render_document_cached(&doc, &request, shadows, content_key)
                     .map(|frame| {
                         let (image, buffers) = (frame.image, frame.buffers);
+                        let shadows = ShadowWork::of(frame.stats);
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
                         let labels = buffers.ids.iter().map(|id| id.object).collect();
@@ -1025,6 +1129,7 @@ impl View {
                                 None
                             },
                             stretch,
+                            shadows,
                         }
                     })
                     .map_err(|e| e.to_string());

@@ -27,6 +27,8 @@ mod stats;
 #[cfg(test)]
 mod krs_tests;
 #[cfg(test)]
+mod patch_tests;
+#[cfg(test)]
 mod renderer_tests;
 #[cfg(test)]
 mod tests;
@@ -321,6 +323,9 @@ struct FrameState {
     tris: Vec<raster::WorldTriangle>,
     normal_mats: Vec<glam::Mat3>,
     sampled: sampled::SampledTexels,
+    /// World boxes of the changes a cached shadow map is patched for (see
+    /// [`ShadowCache::note_change`]).
+    patch_boxes: Vec<(Vec3, Vec3)>,
     light_pass: shade::ShadowBuffers,
     /// One per light: the map drawn for this frame alone (kept for its allocations).
     own_maps: Vec<Option<shade::ShadowMap>>,
@@ -574,12 +579,41 @@ pub const SHADOW_CACHE_HEADROOM: f32 = 1.25;
 /// keeps nothing: it is drawn exactly as an uncached frame, whose maps hold casters only
 /// where its shading reads them, since an edit is often followed by another; the next frame
 /// with that key draws the full maps it keeps.
+///
+/// Except after edits the caller describes ([`Self::note_change`]): when the content went from
+/// the maps' key to the frame's through changes inside known world boxes, each map is drawn
+/// again only in the texels those boxes can reach from the light (widened by the largest
+/// footprint the traversal splats whole), and keeps the rest. Those texels get exactly what a
+/// full redraw gives them, so the maps equal freshly drawn ones.
 #[derive(Default)]
 pub struct ShadowCache {
     key: Option<(u64, Vec<Light>, Quality)>,
     /// One entry per light, as `Lighting::shadows`.
     maps: Vec<Option<Arc<shade::ShadowMap>>>,
+    /// Changes since the maps' content key, in order, each starting where the last ended.
+    changes: Vec<ContentChange>,
+    /// How much finer than wanted a map may be and still be used (`None`:
+    /// [`SHADOW_CACHE_MAX_FINER`]).
+    max_finer: Option<f32>,
 }
+
+/// A change of a document's content from one key to another, all of it inside a world box:
+/// what moved, appeared or vanished lies within `lo..=hi` before and after.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ContentChange {
+    /// Content key before the change.
+    pub from: u64,
+    /// Content key after it.
+    pub to: u64,
+    /// World box of everything the change touched (minimum corner).
+    pub lo: Vec3,
+    /// World box of everything the change touched (maximum corner).
+    pub hi: Vec3,
+}
+
+/// At most this many changes are remembered between frames; a longer chain redraws whole maps
+/// (the boxes would cover most of them anyway).
+const MAX_CHANGES: usize = 64;
 
 impl ShadowCache {
     /// An empty cache.
@@ -588,10 +622,41 @@ impl ShadowCache {
         Self::default()
     }
 
+    /// The cache, using maps up to `factor` times finer per axis than a frame wants (at least
+    /// [`SHADOW_CACHE_MAX_FINER`]). A viewer that draws low-resolution frames while the
+    /// camera moves sets it to that ratio divided by its resolution scale, so that those
+    /// frames use the full-resolution frames' maps instead of drawing coarser ones in turn
+    /// with them (their shadows are then sharper than an uncached low-resolution frame's).
+    #[must_use]
+    pub fn with_max_finer(mut self, factor: f32) -> Self {
+        self.max_finer = Some(factor.max(SHADOW_CACHE_MAX_FINER));
+        self
+    }
+
     /// Drops every map (a viewer that stops rendering gives their memory back).
     pub fn clear(&mut self) {
         self.key = None;
         self.maps.clear();
+        self.changes.clear();
+    }
+
+    /// Tells the cache that the content changed by `change` only. A change that does not start
+    /// where the maps' content (or the last noted change) ends, or whose box is not finite,
+    /// breaks the chain: the next frame of new content then redraws whole maps, as without
+    /// notes. A frame whose content is the chain's end redraws only the changed texels.
+    pub fn note_change(&mut self, change: ContentChange) {
+        let Some((content, ..)) = &self.key else {
+            return;
+        };
+        let head = self.changes.last().map_or(*content, |c| c.to);
+        // An empty box (`lo > hi` on an axis) is a change nothing drawn saw.
+        let finite = change.lo.is_finite() && change.hi.is_finite();
+        if change.from == head && finite && self.changes.len() < MAX_CHANGES {
+            self.changes.push(change);
+        } else if change.from != change.to || !finite {
+            // Unknown ground: nothing can be patched until the maps are drawn again.
+            self.clear();
+        }
     }
 
     /// Whether it holds no map.
@@ -603,12 +668,52 @@ impl ShadowCache {
     /// The cached map of light `index` if it can stand in for `wanted` (see the type's docs).
     fn reusable(&self, index: usize, wanted: &Camera) -> Option<Arc<shade::ShadowMap>> {
         let m = self.maps.get(index)?.as_ref()?;
-        let same_view = m.cam.view_from_world == wanted.view_from_world
-            && m.cam.projection == wanted.projection;
-        let fine_enough = m.cam.width >= wanted.width && m.cam.height >= wanted.height;
-        let not_too_fine = m.cam.width as f32 <= wanted.width as f32 * SHADOW_CACHE_MAX_FINER;
-        (same_view && fine_enough && not_too_fine).then(|| Arc::clone(m))
+        map_serves(&m.cam, wanted, self.finer_limit()).then(|| Arc::clone(m))
     }
+
+    fn finer_limit(&self) -> f32 {
+        self.max_finer.unwrap_or(SHADOW_CACHE_MAX_FINER)
+    }
+}
+
+/// Whether a map drawn through `cam` can stand in for one `wanted` by a frame (see
+/// [`ShadowCache`]).
+fn map_serves(cam: &Camera, wanted: &Camera, max_finer: f32) -> bool {
+    let same_view =
+        cam.view_from_world == wanted.view_from_world && cam.projection == wanted.projection;
+    let fine_enough = cam.width >= wanted.width && cam.height >= wanted.height;
+    let not_too_fine = cam.width as f32 <= wanted.width as f32 * max_finer;
+    same_view && fine_enough && not_too_fine
+}
+
+/// The texels of a map seen through `cam` that the world box `lo..=hi` covers, widened by
+/// `margin` texels (inclusive `[x0, y0, x1, y1]`), or `None` when it misses the map or is
+/// empty.
+fn box_texels(cam: &Camera, lo: Vec3, hi: Vec3, margin: f32) -> Option<[u32; 4]> {
+    if lo.cmpgt(hi).any() {
+        return None;
+    }
+    let (mut min, mut max) = (glam::Vec2::INFINITY, glam::Vec2::NEG_INFINITY);
+    for k in 0..8 {
+        let corner = Vec3::select(glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0), hi, lo);
+        let p = cam.project_view(cam.view_from_world.transform_point3(corner));
+        min = min.min(p.truncate());
+        max = max.max(p.truncate());
+    }
+    let (w, h) = (cam.width as f32, cam.height as f32);
+    let (x0, y0) = (
+        (min.x - margin).floor().max(0.0),
+        (min.y - margin).floor().max(0.0),
+    );
+    let (x1, y1) = (
+        (max.x + margin).ceil().min(w - 1.0),
+        (max.y + margin).ceil().min(h - 1.0),
+    );
+    // Not finite (a perspective corner behind the eye) would give NaN: take the whole map.
+    if !(min.is_finite() && max.is_finite()) {
+        return Some([0, 0, cam.width - 1, cam.height - 1]);
+    }
+    (x0 <= x1 && y0 <= y1).then_some([x0 as u32, y0 as u32, x1 as u32, y1 as u32])
 }
 
 /// The per-node transform of every voxel object of a document (`None` for meshes): rigid
@@ -777,14 +882,30 @@ impl FrameState {
         // reads) and keeps none: a change is often followed by another (a stroke, playback),
         // and a full map costs more. The next frame with the same key draws full maps and
         // keeps them.
+        // Content reached through noted changes keeps its maps and redraws only the changed
+        // texels (`patch` holds the changes' world boxes).
         let mut fresh_key = false;
+        let patch = &mut self.patch_boxes;
+        patch.clear();
+        let mut patching = false;
         let mut cache = cache.map(|(c, content)| {
-            let same = c.key.as_ref().is_some_and(|(k, lights, q)| {
-                *k == content && lights[..] == scene.lights[..] && q == quality
-            });
-            if !same {
+            let same_setup = c
+                .key
+                .as_ref()
+                .is_some_and(|(_, lights, q)| lights[..] == scene.lights[..] && q == quality);
+            let same = same_setup && c.key.as_ref().is_some_and(|(k, ..)| *k == content);
+            // The content may be any point of the chain (a frame of an earlier snapshot).
+            let reached = c.changes.iter().position(|ch| ch.to == content);
+            if let Some(n) = reached.filter(|_| same_setup && !same) {
+                patch.extend(c.changes.drain(..=n).map(|ch| (ch.lo, ch.hi)));
+                patching = true;
+                if let Some((k, ..)) = c.key.as_mut() {
+                    *k = content;
+                }
+            } else if !same {
                 c.key = Some((content, scene.lights.to_vec(), quality.clone()));
                 c.maps.clear();
+                c.changes.clear();
                 fresh_key = true;
             }
             c.maps.resize(scene.lights.len(), None);
@@ -803,6 +924,45 @@ impl FrameState {
                 shade::fit_light_camera(light.direction, lo, hi, quality.shadow_map_size, texel)
             };
             let Some(lc) = fit(finest) else { continue };
+            if patching && let Some(c) = cache.as_mut() {
+                // A map that cannot be patched (another view, shared, never drawn whole) must
+                // not be reused for the new content: it is drawn again below.
+                let limit = c.finer_limit();
+                let mut slot = c.maps[li].take();
+                let patched = slot
+                    .as_mut()
+                    .filter(|m| map_serves(&m.cam, &lc, limit))
+                    .and_then(Arc::get_mut)
+                    .and_then(|m| {
+                        let cam = m.cam;
+                        let margin = quality.lod_pixel_threshold.ceil() + 2.0;
+                        let windows = rayon::iter::ParallelIterator::filter_map(
+                            rayon::iter::IntoParallelRefIterator::par_iter(&patch[..]),
+                            |&(lo, hi)| box_texels(&cam, lo, hi, margin),
+                        );
+                        self.sampled.reset(cam.width, cam.height, windows);
+                        m.redraw_region(
+                            &scene.voxels,
+                            &scene.meshes,
+                            tris,
+                            quality,
+                            &self.sampled,
+                            &mut stats.shadow_levels,
+                            &mut self.light_pass,
+                        )
+                        .map(|texels| (texels, m.cube_pixels))
+                    });
+                if let Some((texels, cube_pixels)) = patched {
+                    stats.shadow_maps_patched += 1;
+                    stats.shadow_texels_patched += texels;
+                    stats.shadow_cube_pixels += cube_pixels;
+                    if let Some(m) = &slot {
+                        shadow_use[li] = shade::ShadowUse::Cached(Arc::clone(m));
+                    }
+                    c.maps[li] = slot;
+                    continue;
+                }
+            }
             if let Some(m) = cache.as_ref().and_then(|c| c.reusable(li, &lc)) {
                 stats.shadow_maps_reused += 1;
                 shadow_use[li] = shade::ShadowUse::Cached(m);

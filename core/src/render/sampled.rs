@@ -105,6 +105,11 @@ impl SampledTexels {
         })
     }
 
+    /// Whether this is the mask of a `width`×`height` map.
+    pub(crate) fn is_for(&self, width: u32, height: u32) -> bool {
+        (self.width, self.height) == (width, height)
+    }
+
     /// Whether texel `(x, y)` (inside the map) lies in a tile some lookup reads.
     #[inline]
     pub(crate) fn is_read(&self, x: u32, y: u32) -> bool {

@@ -44,7 +44,7 @@ pub(crate) struct ShadowMap {
     /// wholly lit (farther than every texel: wholly shadowed), so it needs no taps: the filter
     /// costs only where a shadow edge is within its reach, and the result is exactly the full
     /// filter's.
-    bounds: Vec<(f32, f32)>,
+    pub(super) bounds: Vec<(f32, f32)>,
     tiles_x: i32,
     /// Texels of exact cubes' rectangles drawn into the map (see `asvo::write_cube`).
     pub(crate) cube_pixels: u64,
@@ -184,35 +184,9 @@ impl ShadowMap {
         buffers: &mut ShadowBuffers,
     ) {
         let cam = self.cam;
-        let target = &mut buffers.target;
-        target.reset(cam.width, cam.height);
-        let drawn = draw_triangles(tris, meshes, &cam, target, true);
-        // With no triangle drawn the tiles are already right (all empty).
-        if drawn > 0 && quality.occlusion_culling {
-            target.update_all_tiles();
-        }
-        if let Some(m) = sampled {
-            // Texels no lookup reads hold the nearest depth there is: the occlusion test then
-            // takes them as covered, so a node that also touches read texels is culled when
-            // those are (it was kept because of texels nobody reads).
-            target.fill_nearest(m.unread());
-        }
-        let pass = draw_voxels(
-            voxels,
-            &cam,
-            target,
-            &PassSettings {
-                lod_pixel_threshold: quality.lod_pixel_threshold,
-                cube_pixel_threshold: quality.cube_pixel_threshold,
-                occlusion_culling: quality.occlusion_culling,
-                id_base: 0,
-                keep_refs: false,
-                shadow_casters_only: true,
-                sampled,
-            },
-            &mut buffers.voxels,
+        let pass = draw_casters(
+            &cam, voxels, meshes, tris, quality, sampled, levels, buffers,
         );
-        super::stats::FrameStats::merge_levels(levels, &buffers.voxels.levels);
         self.texel_world = Self::texel_world(&cam);
         self.depth.clear();
         let target = &buffers.target;
@@ -229,6 +203,67 @@ impl ShadowMap {
             &mut self.bounds,
         );
         self.cube_pixels = pass.cube_pixels;
+    }
+
+    /// Draws again only the texels of `region`'s tiles, keeping every other texel as it is:
+    /// after an edit inside them, the rest of the map is still right. The casters are
+    /// traversed as for a map read only there (see [`SampledTexels`]), so those texels get
+    /// exactly what a full redraw gives them. Returns the texels drawn, or `None` (nothing
+    /// changed) when the map holds no full drawing of its camera to patch.
+    #[allow(
+        clippy::too_many_arguments,
+        reason = "the frame's parts and the renderer's kept buffers"
+    )]
+    pub(crate) fn redraw_region(
+        &mut self,
+        voxels: &[VoxelInstance<'_>],
+        meshes: &[MeshInstance<'_>],
+        tris: &[WorldTriangle],
+        quality: &Quality,
+        region: &SampledTexels,
+        levels: &mut Vec<LevelStats>,
+        buffers: &mut ShadowBuffers,
+    ) -> Option<u64> {
+        let cam = self.cam;
+        let w = cam.width as usize;
+        if self.depth.len() != w * cam.height as usize || !region.is_for(cam.width, cam.height) {
+            return None;
+        }
+        let pass = draw_casters(
+            &cam,
+            voxels,
+            meshes,
+            tris,
+            quality,
+            Some(region),
+            levels,
+            buffers,
+        );
+        let target = &buffers.target;
+        let drawn: u64 = self
+            .depth
+            .par_chunks_mut(w)
+            .enumerate()
+            .map(|(y, row)| {
+                let mut n = 0;
+                for (x, d) in row.iter_mut().enumerate() {
+                    if region.is_read(x as u32, y as u32) {
+                        *d = key_depth(target.key(y * w + x));
+                        n += 1;
+                    }
+                }
+                n
+            })
+            .sum();
+        self.tiles_x = tile_bounds(
+            &self.depth,
+            cam.width as i32,
+            cam.height as i32,
+            None,
+            &mut self.bounds,
+        );
+        self.cube_pixels = pass.cube_pixels;
+        Some(drawn)
     }
 
     /// World size of one texel of a map seen through `cam`.
@@ -383,6 +418,54 @@ fn shading_point(
     let receiver =
         cam.pixel_world_size(cam.view_depth(fb.depth[i])) * quality.lod_pixel_threshold.max(1.0);
     (p, receiver)
+}
+
+/// Draws the casters into `buffers`' target from the light's camera `cam`: triangles, then
+/// voxels, only where `sampled` says when given (other tiles hold the nearest depth).
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the frame's parts and the renderer's kept buffers"
+)]
+fn draw_casters(
+    cam: &Camera,
+    voxels: &[VoxelInstance<'_>],
+    meshes: &[MeshInstance<'_>],
+    tris: &[WorldTriangle],
+    quality: &Quality,
+    sampled: Option<&SampledTexels>,
+    levels: &mut Vec<LevelStats>,
+    buffers: &mut ShadowBuffers,
+) -> super::asvo::VoxelPass {
+    let target = &mut buffers.target;
+    target.reset(cam.width, cam.height);
+    let drawn = draw_triangles(tris, meshes, cam, target, true);
+    // With no triangle drawn the tiles are already right (all empty).
+    if drawn > 0 && quality.occlusion_culling {
+        target.update_all_tiles();
+    }
+    if let Some(m) = sampled {
+        // Texels no lookup reads hold the nearest depth there is: the occlusion test then
+        // takes them as covered, so a node that also touches read texels is culled when
+        // those are (it was kept because of texels nobody reads).
+        target.fill_nearest(m.unread());
+    }
+    let pass = draw_voxels(
+        voxels,
+        cam,
+        target,
+        &PassSettings {
+            lod_pixel_threshold: quality.lod_pixel_threshold,
+            cube_pixel_threshold: quality.cube_pixel_threshold,
+            occlusion_culling: quality.occlusion_culling,
+            id_base: 0,
+            keep_refs: false,
+            shadow_casters_only: true,
+            sampled,
+        },
+        &mut buffers.voxels,
+    );
+    super::stats::FrameStats::merge_levels(levels, &buffers.voxels.levels);
+    pass
 }
 
 /// Nearest and farthest depth per `SHADOW_TILE`² block of a `w`×`h` depth map, and the number

@@ -96,6 +96,13 @@ pub struct FrameStats {
     /// then not in `shadow_levels`).
     #[serde(default)]
     pub shadow_maps_reused: u32,
+    /// Cached shadow maps drawn again only where an edit changed them
+    /// ([`super::ShadowCache::note_change`]); their traversal is in `shadow_levels`.
+    #[serde(default)]
+    pub shadow_maps_patched: u32,
+    /// Texels those patches drew (the rest of each map was kept).
+    #[serde(default)]
+    pub shadow_texels_patched: u64,
 }
 
 impl FrameStats {
