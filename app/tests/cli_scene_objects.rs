@@ -125,7 +125,7 @@ fn bevy_torus_is_one_object_placed_by_its_node_rotation() {
     let torus = &doc.objects[0];
     assert_eq!(torus.name, "Torus.001");
     // The file's node turns the torus 90 degrees about x; the object keeps that turn.
-    let turn = Quat::from_xyzw(0.707_106_8, 0.0, 0.0, 0.707_106_8);
+    let turn = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
     assert!(
         torus.transform.rotation.abs_diff_eq(turn, 1e-5),
         "{:?}",

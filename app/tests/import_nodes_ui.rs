@@ -47,7 +47,11 @@ fn a_scene_imports_one_object_per_node_and_the_report_picks_nodes() {
     // is on the cube's transform; the editor's fit-to-scene adds nothing to an empty scene).
     let cube = h.state().editor.doc().object_by_name("Cube").expect("cube");
     assert!(matches!(cube.kind, ObjectKind::Mesh(_)));
-    assert!((cube.transform.scale.x - 2.0).abs() < 1e-4, "{:?}", cube.transform);
+    assert!(
+        (cube.transform.scale.x - 2.0).abs() < 1e-4,
+        "{:?}",
+        cube.transform
+    );
     let report = h.state().import_report.clone().expect("an import report");
     assert_eq!(
         report.nodes,
@@ -81,7 +85,11 @@ fn a_scene_imports_one_object_per_node_and_the_report_picks_nodes() {
     h.state_mut().wait_for_job(&ctx);
     h.run_steps(2);
     assert_eq!(names(&h), ["Cube"]);
-    let report = h.state().import_report.clone().expect("the checklist again");
+    let report = h
+        .state()
+        .import_report
+        .clone()
+        .expect("the checklist again");
     assert_eq!(
         report.nodes,
         [
