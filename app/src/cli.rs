@@ -1201,6 +1201,9 @@ fn import_nodes(
     let objects = node_objects(model, nodes, pick)
         .with_context(|| format!("--node: {}", args.input.display()))?;
     let file = args.input.display().to_string();
+    if objects.is_empty() {
+        anyhow::bail!("{file}: the scene has no node with triangles to import");
+    }
     // Settings and estimates first: nothing voxelizes unless everything fits.
     let mut plans: Vec<Option<VoxelizeSettings>> = Vec::with_capacity(objects.len());
     let mut total: Option<thicket_core::voxelize::VoxelEstimate> = None;

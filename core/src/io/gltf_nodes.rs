@@ -28,7 +28,7 @@ use crate::scene::Transform;
 pub const FLAT_RATIO: f32 = 0.01;
 
 /// A flat node is a huge plane when its longest world extent is at least this many times the
-/// longest world extent of everything else in the scene (its other, non-flat nodes together).
+/// longest world extent of the rest of the scene together (see `mark_huge_flat_planes`).
 pub const HUGE_RATIO: f32 = 4.0;
 
 /// How a node's world transform became its object's (see the module docs).
@@ -219,25 +219,33 @@ pub fn is_flat(extent: Vec3) -> bool {
     e[1] > 0.0 && e[0] <= FLAT_RATIO * e[1]
 }
 
-/// Sets [`NodeObject::huge_flat_plane`] on the flat nodes much larger than the rest.
+/// Sets [`NodeObject::huge_flat_plane`] on the flat nodes much larger than the rest: the
+/// other nodes except flat ones at least half as large (so a ground and a water plane of the
+/// same size do not hide each other, while small flat parts — leaves, cards — count as the
+/// rest). A flat node with no such rest is not flagged.
 fn mark_huge_flat_planes(objects: &mut [NodeObject]) {
     let flat: Vec<bool> = objects
         .iter()
         .map(|o| o.model.bounds().is_some_and(|(lo, hi)| is_flat(hi - lo)))
         .collect();
-    let rest = objects
+    let size: Vec<f32> = objects
         .iter()
-        .zip(&flat)
-        .filter(|(_, f)| !**f)
-        .map(|(o, _)| o.world_bounds)
-        .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)));
-    let Some((rest_lo, rest_hi)) = rest else {
-        return;
-    };
-    let rest_size = (rest_hi - rest_lo).max_element();
-    for (o, is_flat) in objects.iter_mut().zip(flat) {
-        let size = (o.world_bounds.1 - o.world_bounds.0).max_element();
-        o.huge_flat_plane = is_flat && size >= HUGE_RATIO * rest_size;
+        .map(|o| (o.world_bounds.1 - o.world_bounds.0).max_element())
+        .collect();
+    let huge: Vec<bool> = (0..objects.len())
+        .map(|i| {
+            if !flat[i] {
+                return false;
+            }
+            let rest = (0..objects.len())
+                .filter(|&j| j != i && !(flat[j] && size[j] >= 0.5 * size[i]))
+                .map(|j| objects[j].world_bounds)
+                .reduce(|(alo, ahi), (blo, bhi)| (alo.min(blo), ahi.max(bhi)));
+            rest.is_some_and(|(lo, hi)| size[i] >= HUGE_RATIO * (hi - lo).max_element())
+        })
+        .collect();
+    for (o, h) in objects.iter_mut().zip(huge) {
+        o.huge_flat_plane = h;
     }
 }
 
@@ -267,6 +275,73 @@ mod tests {
         // A rotated child of a non-uniformly scaled parent shears.
         let shear = Mat4::from_scale(Vec3::new(1.0, 4.0, 1.0)) * Mat4::from_rotation_z(0.6);
         assert_eq!(placement(shear).1, Placement::WorldBaked);
+    }
+
+    fn part(positions: Vec<Vec3>, material: usize) -> TriangleMesh {
+        TriangleMesh {
+            indices: (0..positions.len() as u32).collect(),
+            positions,
+            material,
+            ..TriangleMesh::default()
+        }
+    }
+
+    fn node(index: usize, name: &str, world_from_node: Mat4) -> GltfNode {
+        GltfNode {
+            index,
+            name: name.to_owned(),
+            world_from_node,
+            parts: index..index + 1,
+            skinned: false,
+        }
+    }
+
+    #[test]
+    fn nodes_get_their_own_space_materials_and_plane_flags() {
+        let materials = (0..3)
+            .map(|i| crate::mesh::Material {
+                name: format!("m{i}"),
+                ..crate::mesh::Material::default()
+            })
+            .collect();
+        // World-space parts, as the reader leaves them: a small triangle moved by its node, and
+        // a 100 x 100 ground two orders of magnitude larger.
+        let at = Mat4::from_translation(Vec3::new(3.0, 0.0, 0.0));
+        let local = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let model = MeshModel {
+            parts: vec![
+                part(local.iter().map(|&p| at.transform_point3(p)).collect(), 2),
+                part(
+                    vec![
+                        Vec3::new(-50.0, 0.0, -50.0),
+                        Vec3::new(50.0, 0.0, -50.0),
+                        Vec3::new(0.0, 0.0, 50.0),
+                    ],
+                    0,
+                ),
+            ],
+            materials,
+        };
+        let nodes = [node(0, "Leaf", at), node(1, "Ground", Mat4::IDENTITY)];
+        let objects = node_objects(&model, &nodes, None).unwrap();
+        let leaf = &objects[0];
+        assert_eq!(leaf.transform.translation, Vec3::new(3.0, 0.0, 0.0));
+        assert!(leaf.model.parts[0].positions[1].abs_diff_eq(Vec3::X, 1e-6));
+        assert_eq!(leaf.model.materials.len(), 1);
+        assert_eq!(leaf.model.materials[0].name, "m2");
+        assert_eq!(leaf.model.parts[0].material, 0);
+        // The leaf is flat too (a triangle), but not larger than the rest.
+        assert!(!leaf.huge_flat_plane);
+        assert!(objects[1].huge_flat_plane);
+        // Picked alone, the ground is still judged against the whole scene.
+        let picked = node_objects(&model, &nodes, Some(&["Ground".to_owned()])).unwrap();
+        assert_eq!(picked.len(), 1);
+        assert!(picked[0].huge_flat_plane);
+        let err = node_objects(&model, &nodes, Some(&["Tree".to_owned()])).unwrap_err();
+        assert_eq!(
+            err.to_string(),
+            r#"no node named "Tree" (the nodes with meshes are "Leaf", "Ground")"#
+        );
     }
 
     #[test]
