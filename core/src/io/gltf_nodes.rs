@@ -307,7 +307,7 @@ mod tests {
         // World-space parts, as the reader leaves them: a small triangle moved by its node, and
         // a 100 x 100 ground two orders of magnitude larger.
         let at = Mat4::from_translation(Vec3::new(3.0, 0.0, 0.0));
-        let local = vec![Vec3::ZERO, Vec3::X, Vec3::Y];
+        let local = [Vec3::ZERO, Vec3::X, Vec3::Y];
         let model = MeshModel {
             parts: vec![
                 part(local.iter().map(|&p| at.transform_point3(p)).collect(), 2),
