@@ -366,6 +366,21 @@ fn node_picks_nodes_and_merge_gives_one_grid() {
         stderr(&o)
     );
     assert!(!dir.path().join("x.thicket.json").exists());
+    // Only glTF scenes have nodes.
+    let o = thicket(&[
+        "import",
+        &format!("{ASSETS}/static/spot/spot_triangulated.obj"),
+        "-o",
+        dir.path().join("x.thicket.json").to_str().unwrap(),
+        "--node",
+        "spot",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("is not a glTF file; only glTF scenes have nodes to pick"),
+        "{}",
+        stderr(&o)
+    );
 
     // --merge: the old single grid over the whole scene, at the world's identity.
     let (out, doc) = import(dir.path(), &input, &["--depth", "6", "--merge"]);
