@@ -455,12 +455,25 @@ pub struct ImportArgs {
     /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Octree depth: the longest side of the mesh spans 2^N voxels (default 7).
+    /// Octree depth: the longest side of each object (each glTF node with a mesh, or the whole
+    /// file with --merge) spans 2^N voxels (default 7).
     #[arg(long, conflicts_with = "voxel_size")]
     pub depth: Option<u8>,
-    /// Voxel edge length in the mesh's units.
+    /// Voxel edge length in the file's world units, one size for every object.
     #[arg(long)]
     pub voxel_size: Option<f32>,
+    /// Import only the glTF node(s) of this name (repeatable); by default every node with a
+    /// mesh becomes its own object.
+    #[arg(long = "node", value_name = "NAME", conflicts_with = "merge")]
+    pub nodes: Vec<String>,
+    /// One voxel grid for the whole glTF scene (its nodes merged in world space) instead of one
+    /// object per node.
+    #[arg(long)]
+    pub merge: bool,
+    /// Voxelize huge flat planes (ground, water) too; by default they are imported as mesh
+    /// objects, with a warning.
+    #[arg(long)]
+    pub voxelize_planes: bool,
     /// Fill the inside of closed meshes instead of voxelizing only the surface.
     #[arg(long)]
     pub solid: bool,
@@ -986,10 +999,18 @@ fn check_voxelize_budget(
     let Ok(e) = thicket_core::voxelize::estimate(model, settings) else {
         return Ok(());
     };
+    check_estimate(args, &args.input.display().to_string(), &e)
+}
+
+/// Refuses an estimate over the budget, naming `what` is voxelized.
+fn check_estimate(
+    args: &ImportArgs,
+    what: &str,
+    e: &thicket_core::voxelize::VoxelEstimate,
+) -> anyhow::Result<()> {
     memory_budget(args.memory_limit).check(
         &format!(
-            "{}: voxelizing about {} voxels",
-            args.input.display(),
+            "{what}: voxelizing about {} voxels",
             thousands((e.surface_voxels + e.interior_voxels).round() as u64)
         ),
         e.peak_bytes,
@@ -1002,6 +1023,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
     let options = files::MeshOptions {
         texture: args.texture.clone(),
+        ..files::MeshOptions::default()
     };
     // Before any branch: the .vox and skinned paths would otherwise ignore the texture.
     files::check_options(&args.input, &options)?;
@@ -1009,6 +1031,13 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .input
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("vox"));
+    let is_gltf = files::FileKind::from_path(&args.input) == Some(files::FileKind::Gltf);
+    if !args.nodes.is_empty() && !is_gltf {
+        anyhow::bail!(
+            "--node: {} is not a glTF file; only glTF scenes have nodes to pick",
+            args.input.display()
+        );
+    }
     let settings = VoxelizeSettings {
         resolution: match (args.depth, args.voxel_size) {
             (_, Some(s)) => Resolution::VoxelSize(s),
@@ -1029,6 +1058,13 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         .transpose()?
         .flatten()
     {
+        if !args.nodes.is_empty() {
+            anyhow::bail!(
+                "--node: {} is skinned and imports as one skinned object; add --no-skin to \
+                 pick nodes of a static import",
+                args.input.display()
+            );
+        }
         check_voxelize_budget(args, &skinned.mesh, &settings)?;
         let bar = progress_bar(1000, "voxelizing the bind pose");
         let result = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
@@ -1039,6 +1075,10 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
         notes.push_str(&solid_fallback_note(&v.stats));
         let rig = v.model.rig.as_ref();
+        notes.push_str(
+            "skinned: imported as one skinned object (its joints place its meshes, so the \
+             scene's nodes are not split into objects; --no-skin imports them one object each)\n",
+        );
         notes.push_str(&format!(
             "skinned: {} joints, {} clip(s){}\n",
             skinned.skeleton.len(),
@@ -1071,9 +1111,20 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
             model,
             notes: dropped,
             view,
+            nodes,
         } = files::load_mesh_imported(&args.input, &options)?;
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
+        }
+        if is_gltf && !args.merge {
+            let doc = import_nodes(args, &settings, &model, &nodes, &mut notes)?;
+            let mut doc = doc;
+            if let Some((lo, hi)) = doc.bounds() {
+                doc.camera.frame(lo, hi);
+            }
+            view.apply_to_new_document(&mut doc);
+            files::save_project(&doc, &args.output)?;
+            return finish_import(args, &doc, &notes);
         }
         check_voxelize_budget(args, &model, &settings)?;
         let bar = progress_bar(1000, "voxelizing");
@@ -1106,6 +1157,15 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         doc
     };
     files::save_project(&doc, &args.output)?;
+    finish_import(args, &doc, &notes)
+}
+
+/// Prints an import's notes and what it wrote.
+fn finish_import(
+    args: &ImportArgs,
+    doc: &thicket_core::scene::Document,
+    notes: &str,
+) -> anyhow::Result<()> {
     let voxels: u64 = doc
         .objects
         .iter()
@@ -1120,6 +1180,145 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         doc.objects.len(),
         thousands(voxels)
     ))
+}
+
+/// A static glTF scene as one object per node with a mesh (see `thicket_core::io::gltf_nodes`):
+/// each voxelized at its own `--depth` (or the shared world `--voxel-size`), except huge flat
+/// planes, which stay meshes unless `--voxelize-planes`. Every object's estimate, and all of
+/// them together (each result stays in memory while the next is voxelized), is checked against
+/// the memory budget before any voxelizes.
+fn import_nodes(
+    args: &ImportArgs,
+    settings: &thicket_core::voxelize::VoxelizeSettings,
+    model: &thicket_core::mesh::MeshModel,
+    nodes: &[thicket_core::io::GltfNode],
+    notes: &mut String,
+) -> anyhow::Result<thicket_core::scene::Document> {
+    use thicket_core::io::gltf_nodes::{Placement, node_objects};
+    use thicket_core::scene::{Document, MeshObject, ObjectKind, VoxelModel};
+    use thicket_core::voxelize::{Resolution, VoxelizeSettings, estimate, voxelize};
+    let pick = (!args.nodes.is_empty()).then_some(args.nodes.as_slice());
+    let objects = node_objects(model, nodes, pick)
+        .with_context(|| format!("--node: {}", args.input.display()))?;
+    let file = args.input.display().to_string();
+    if objects.is_empty() {
+        anyhow::bail!("{file}: the scene has no node with triangles to import");
+    }
+    // Settings and estimates first: nothing voxelizes unless everything fits.
+    let mut plans: Vec<Option<VoxelizeSettings>> = Vec::with_capacity(objects.len());
+    let mut total: Option<thicket_core::voxelize::VoxelEstimate> = None;
+    for o in &objects {
+        if o.huge_flat_plane && !args.voxelize_planes {
+            let (lo, hi) = o.world_bounds;
+            let size = hi - lo;
+            notes.push_str(&format!(
+                "warning: node {:?} is a huge flat plane ({} x {} x {}, much larger than the \
+                 rest of the scene): imported as a mesh object, not voxelized \
+                 (--voxelize-planes voxelizes it)\n",
+                o.name,
+                short(size.x),
+                short(size.y),
+                short(size.z)
+            ));
+            plans.push(None);
+            continue;
+        }
+        let object_settings = VoxelizeSettings {
+            resolution: match settings.resolution {
+                Resolution::VoxelSize(s) => Resolution::VoxelSize(s / o.world_per_object_unit),
+                depth @ Resolution::Depth(_) => depth,
+            },
+            ..settings.clone()
+        };
+        if let Ok(e) = estimate(&o.model, &object_settings) {
+            check_estimate(args, &format!("{file}: node {:?}", o.name), &e)?;
+            let t = total.get_or_insert(thicket_core::voxelize::VoxelEstimate {
+                surface_voxels: 0.0,
+                interior_voxels: 0.0,
+                peak_bytes: 0,
+            });
+            t.surface_voxels += e.surface_voxels;
+            t.interior_voxels += e.interior_voxels;
+            t.peak_bytes = t.peak_bytes.saturating_add(e.peak_bytes);
+        }
+        plans.push(Some(object_settings));
+    }
+    if let Some(t) = &total
+        && objects.len() > 1
+    {
+        check_estimate(
+            args,
+            &format!("{file}: {} objects together", objects.len()),
+            t,
+        )?;
+    }
+    let mut doc = Document::default();
+    let bar = progress_bar(1000, "voxelizing");
+    let count = objects.len().max(1) as f32;
+    for (i, (o, plan)) in objects.into_iter().zip(plans).enumerate() {
+        let kind = match plan {
+            None => ObjectKind::Mesh(MeshObject {
+                model: o.model,
+                casts_shadows: true,
+            }),
+            Some(object_settings) => {
+                let v = voxelize(&o.model, &object_settings, &|f| {
+                    let done = (i as f32 + f.clamp(0.0, 1.0)) / count;
+                    bar.set_position((done * 1000.0) as u64);
+                    true
+                })
+                .with_context(|| format!("{file}: node {:?}: voxelizing", o.name))?;
+                let fallback = solid_fallback_note(&v.stats);
+                if !fallback.is_empty() {
+                    notes.push_str(&format!("node {:?}: {fallback}", o.name));
+                }
+                ObjectKind::Voxels(VoxelModel {
+                    svo: v.svo,
+                    voxel_size: v.voxel_size,
+                    origin: v.origin,
+                    material_names: o.model.materials.iter().map(|m| m.name.clone()).collect(),
+                    rig: None,
+                    volume: None,
+                    palette: Vec::new(),
+                    frames: None,
+                })
+            }
+        };
+        let placed = match o.placement {
+            Placement::Node => "the node's transform",
+            Placement::ScaleBaked => "the node's translation and rotation, its scale baked in",
+            Placement::WorldBaked | Placement::Skinned => "baked in world space",
+        };
+        let voxels = match &kind {
+            ObjectKind::Voxels(v) => format!(
+                "{} voxels of {}",
+                thousands(v.svo.leaf_count()),
+                short(v.voxel_size * o.world_per_object_unit)
+            ),
+            _ => "a mesh".to_owned(),
+        };
+        notes.push_str(&format!(
+            "object {:?}: {voxels}; placed by {placed}\n",
+            o.name
+        ));
+        doc.add(o.name, kind);
+        if let Some(added) = doc.objects.last_mut() {
+            added.transform = o.transform;
+        }
+    }
+    bar.finish_and_clear();
+    Ok(doc)
+}
+
+/// A length for messages: four significant digits, no trailing zeros.
+fn short(x: f32) -> String {
+    let text = format!("{x:.4}");
+    let text = text.trim_end_matches('0').trim_end_matches('.');
+    if text.is_empty() || text == "-" {
+        "0".to_owned()
+    } else {
+        text.to_owned()
+    }
 }
 
 /// The warning for a `--solid` import of an open mesh (empty when it was filled).

@@ -116,6 +116,9 @@ pub struct MeshOptions {
     /// for files shipped without their `.mtl`. Refused for other formats, whose materials
     /// carry their textures.
     pub texture: Option<PathBuf>,
+    /// glTF only: the names of the nodes to import, each as its own object (`None`: every
+    /// node with a mesh). Honoured by [`load_gltf_objects`].
+    pub nodes: Option<Vec<String>>,
 }
 
 /// [`load_mesh_reported`] with options. An OBJ that has texture coordinates but names no
@@ -140,6 +143,8 @@ pub struct MeshImport {
     pub notes: Vec<String>,
     /// A glTF file's first camera and directional lights (empty for an OBJ).
     pub view: GltfView,
+    /// A glTF file's nodes with triangles, over `model`'s parts (empty for an OBJ).
+    pub nodes: Vec<thicket_core::io::GltfNode>,
 }
 
 /// [`load_mesh_reported_with`], plus a glTF file's camera and directional lights.
@@ -157,6 +162,7 @@ pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<
                 model: i.model,
                 notes: i.report,
                 view: i.view,
+                nodes: i.nodes,
             });
         }
         FileKind::Obj => {
@@ -177,6 +183,7 @@ pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<
         model,
         notes,
         view: GltfView::default(),
+        nodes: Vec::new(),
     })
 }
 
@@ -195,7 +202,55 @@ pub fn check_options(path: &Path, options: &MeshOptions) -> anyhow::Result<()> {
             path.display()
         );
     }
+    if options.nodes.is_some() && FileKind::from_path(path) != Some(FileKind::Gltf) {
+        bail!(
+            "--node: {} is not a glTF file; only glTF scenes have nodes to pick",
+            path.display()
+        );
+    }
     Ok(())
+}
+
+/// A static glTF scene for File → Import: one mesh object per node with a mesh (only the
+/// nodes `options.nodes` names, when it names any), each placed by its node's world transform
+/// as far as an object transform can hold it (see `thicket_core::io::gltf_nodes`), plus the
+/// report's lines, the file's view (applied to the document) and the names of all its nodes
+/// with meshes, in scene order, for a checklist.
+///
+/// # Errors
+/// As [`load_mesh_imported`]; a picked name that is no node's, listing the names there are.
+pub fn load_gltf_objects(
+    path: &Path,
+    options: &MeshOptions,
+) -> anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)> {
+    let import = load_mesh_imported(path, options)?;
+    let objects = thicket_core::io::gltf_nodes::node_objects(
+        &import.model,
+        &import.nodes,
+        options.nodes.as_deref(),
+    )
+    .with_context(|| format!("{}", path.display()))?;
+    let mut doc = Document::default();
+    for o in objects {
+        doc.add(
+            o.name,
+            ObjectKind::Mesh(thicket_core::scene::MeshObject {
+                model: o.model,
+                casts_shadows: true,
+            }),
+        );
+        if let Some(added) = doc.objects.last_mut() {
+            added.transform = o.transform;
+        }
+    }
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    import.view.apply_to_new_document(&mut doc);
+    doc.validate()
+        .with_context(|| format!("{}: invalid document", path.display()))?;
+    let names = import.nodes.iter().map(|n| n.name.clone()).collect();
+    Ok((doc, import.notes, import.view, names))
 }
 
 /// The import report's line for an OBJ with texture coordinates that names no texture.

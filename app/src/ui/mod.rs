@@ -114,6 +114,10 @@ pub struct ImportReport {
     pub placed: Vec<u64>,
     /// The Texture field's text.
     pub texture: String,
+    /// A glTF scene's nodes with meshes, in scene order, each with whether it is (to be)
+    /// imported: the checklist that imports the file again with other nodes. Empty for other
+    /// files and for skinned glTF (one skinned object).
+    pub nodes: Vec<(String, bool)>,
 }
 
 /// What a background job hands back.
@@ -122,7 +126,12 @@ enum JobResult {
     Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
     /// An imported file's document and what the import left out of it (one line per kind).
     /// The file's view comes along: its lights are added, its camera is not applied.
-    Imported(PathBuf, anyhow::Result<(Document, Vec<String>, GltfView)>),
+    /// For a static glTF scene, the names of its nodes with meshes come too (the report's
+    /// checklist).
+    Imported(
+        PathBuf,
+        anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)>,
+    ),
     /// An enhancement of a voxel object: source id, source name, the settings, the coarse
     /// model it was made from, and the fine model with the enhancer that made it.
     Enhanced(Box<Enhanced>),
@@ -642,7 +651,15 @@ impl EditorApp {
     fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
-            JobResult::Imported(path, Ok((doc, mut left_out, view))) => {
+            JobResult::Imported(path, Ok((doc, mut left_out, view, node_names))) => {
+                // Each node's object is named after it: a node is checked when it was imported.
+                let nodes: Vec<(String, bool)> = node_names
+                    .into_iter()
+                    .map(|n| {
+                        let picked = doc.objects.iter().any(|o| o.name == n);
+                        (n, picked)
+                    })
+                    .collect();
                 let placed = self.editor.import_objects(doc);
                 // Directions only: the placement's move and uniform scale leave them as is.
                 let lights = view.lights_beside(&self.editor.doc().lights);
@@ -669,12 +686,14 @@ impl EditorApp {
                     false,
                 );
                 self.import_offer = (placed.scale != 1.0).then_some(placed);
-                self.import_report = (!left_out.is_empty()).then(|| ImportReport {
-                    path,
-                    lines: left_out,
-                    placed: placed_ids,
-                    texture: String::new(),
-                });
+                self.import_report =
+                    (!left_out.is_empty() || nodes.len() > 1).then(|| ImportReport {
+                        path,
+                        lines: left_out,
+                        placed: placed_ids,
+                        texture: String::new(),
+                        nodes,
+                    });
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -1855,8 +1874,9 @@ impl EditorApp {
         }
     }
 
-    /// The Import report window: what the last import left out, one bullet per kind, and for
-    /// an OBJ that names no texture a Texture field that imports it again with one.
+    /// The Import report window: what the last import left out, one bullet per kind; for an
+    /// OBJ that names no texture a Texture field that imports it again with one; for a glTF
+    /// scene of several nodes a checklist of its nodes that imports it again with those.
     fn import_report_ui(&mut self, ctx: &egui::Context) {
         let Some(report) = self.import_report.as_mut() else {
             return;
@@ -1864,6 +1884,7 @@ impl EditorApp {
         let mut open = true;
         let mut ok = false;
         let mut again = false;
+        let mut again_with_nodes = false;
         let needs_texture = report.lines.iter().any(|l| l == files::OBJ_NO_TEXTURE);
         egui::Window::new("Import report")
             .open(&mut open)
@@ -1871,21 +1892,29 @@ impl EditorApp {
             .resizable(true)
             .default_width(460.0)
             .show(ctx, |ui| {
-                ui.label(format!(
-                    "{} was imported. What became of what it holds beyond its meshes:",
-                    report.path.file_name().map_or_else(
-                        || report.path.display().to_string(),
-                        |n| n.to_string_lossy().into_owned()
-                    )
-                ));
-                ui.add_space(4.0);
-                egui::ScrollArea::vertical()
-                    .max_height(240.0)
-                    .show(ui, |ui| {
-                        for line in &report.lines {
-                            ui.label(format!("• {line}"));
-                        }
-                    });
+                let name = report.path.file_name().map_or_else(
+                    || report.path.display().to_string(),
+                    |n| n.to_string_lossy().into_owned(),
+                );
+                if report.lines.is_empty() {
+                    ui.label(format!("{name} was imported."));
+                } else {
+                    ui.label(format!(
+                        "{name} was imported. What became of what it holds beyond its meshes:"
+                    ));
+                    ui.add_space(4.0);
+                    egui::ScrollArea::vertical()
+                        .id_salt("import_report_lines")
+                        .max_height(240.0)
+                        .show(ui, |ui| {
+                            for line in &report.lines {
+                                ui.label(format!("• {line}"));
+                            }
+                        });
+                }
+                if report.nodes.len() > 1 {
+                    again_with_nodes = import_nodes_ui(ui, &mut report.nodes);
+                }
                 if needs_texture {
                     ui.add_space(6.0);
                     ui.horizontal(|ui| {
@@ -1931,6 +1960,27 @@ impl EditorApp {
                 path,
                 files::MeshOptions {
                     texture: Some(texture),
+                    ..files::MeshOptions::default()
+                },
+            );
+        } else if again_with_nodes {
+            let (path, placed) = (report.path.clone(), report.placed.clone());
+            let picked = report
+                .nodes
+                .iter()
+                .filter(|(_, on)| *on)
+                .map(|(n, _)| n.clone())
+                .collect();
+            self.import_report = None;
+            for id in placed {
+                // An object deleted since is simply gone already.
+                let _ = self.editor.delete(id);
+            }
+            self.start_import_with(
+                path,
+                files::MeshOptions {
+                    nodes: Some(picked),
+                    ..files::MeshOptions::default()
                 },
             );
         } else if !open || ok {
@@ -1975,6 +2025,36 @@ const PRESETS: &[(&str, QualityPreset, &str)] = &[
     ),
 ];
 
+/// The Import report's checklist of a glTF scene's nodes (one object each); true when
+/// "Import again with these" was clicked (enabled while at least one node is checked).
+fn import_nodes_ui(ui: &mut egui::Ui, nodes: &mut [(String, bool)]) -> bool {
+    ui.add_space(6.0);
+    ui.label("Nodes (one object each):");
+    egui::ScrollArea::vertical()
+        .id_salt("import_report_nodes")
+        .max_height(200.0)
+        .show(ui, |ui| {
+            for (name, on) in nodes.iter_mut() {
+                ui.checkbox(on, name.as_str());
+            }
+        });
+    ui.horizontal(|ui| {
+        if ui.small_button("All").clicked() {
+            nodes.iter_mut().for_each(|(_, on)| *on = true);
+        }
+        if ui.small_button("None").clicked() {
+            nodes.iter_mut().for_each(|(_, on)| *on = false);
+        }
+        ui.add_enabled(
+            nodes.iter().any(|(_, on)| *on),
+            egui::Button::new("Import again with these"),
+        )
+        .on_hover_text("Replaces the objects just imported with the checked nodes")
+        .clicked()
+    })
+    .inner
+}
+
 /// The import report's line for a file with a camera imported into an existing scene.
 pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
      used when the file is opened or imported from the command line";
@@ -1983,22 +2063,29 @@ pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps you
 const SKINNED_IMPORT_DEPTH: u8 = 7;
 
 /// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
-/// cancel from the job), anything else goes through [`files::load_document`].
+/// cancel from the job), a static glTF becomes one mesh object per node
+/// ([`files::load_gltf_objects`], with its node names for the report's checklist), anything
+/// else goes through [`files::load_document`].
 fn import_document(
     path: &Path,
     options: &files::MeshOptions,
     progress: &AtomicU32,
     cancel: &AtomicBool,
-) -> anyhow::Result<(Document, Vec<String>, GltfView)> {
+) -> anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)> {
     use anyhow::Context as _;
     files::check_options(path, options)?;
-    let skinned = if FileKind::from_path(path) == Some(FileKind::Gltf) {
+    let is_gltf = FileKind::from_path(path) == Some(FileKind::Gltf);
+    let skinned = if is_gltf {
         files::load_skinned(path)?
     } else {
         None
     };
     let Some(skinned) = skinned else {
-        return files::load_document_imported(path, options);
+        if is_gltf {
+            return files::load_gltf_objects(path, options);
+        }
+        return files::load_document_imported(path, options)
+            .map(|(doc, notes, view)| (doc, notes, view, Vec::new()));
     };
     let settings = thicket_core::voxelize::VoxelizeSettings {
         resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
@@ -2016,7 +2103,7 @@ fn import_document(
     );
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, skinned.warnings, skinned.view))
+    Ok((doc, skinned.warnings, skinned.view, Vec::new()))
 }
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.

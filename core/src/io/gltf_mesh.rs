@@ -81,6 +81,25 @@ pub struct GltfImport {
     pub report: Vec<String>,
     /// The file's first camera and its directional lights, for a document made from it.
     pub view: super::gltf_view::GltfView,
+    /// The scene's nodes that have triangles, in scene order, each with the parts of
+    /// [`Self::model`] it holds (see [`super::gltf_nodes`] for turning them into objects).
+    pub nodes: Vec<GltfNode>,
+}
+
+/// One node of the scene that has triangles.
+#[derive(Debug, Clone, PartialEq)]
+pub struct GltfNode {
+    /// Its index in the file's `nodes`.
+    pub index: usize,
+    /// The node's name, else its mesh's, else `node N`.
+    pub name: String,
+    /// The node's world transform (its ancestors' composed with its own).
+    pub world_from_node: Mat4,
+    /// Its parts in [`GltfImport::model`] (already in world space, or in bind-pose mesh space
+    /// when `skinned`).
+    pub parts: std::ops::Range<usize>,
+    /// Whether the node has a skin (its parts ignore `world_from_node`, as glTF says).
+    pub skinned: bool,
 }
 
 /// [`import_gltf_reported`], plus the file's camera and directional lights.
@@ -411,6 +430,7 @@ impl<'a> Importer<'a> {
             indices: 0,
         };
         let mut cache: HashMap<(usize, usize), Option<TriangleMesh>> = HashMap::new();
+        let mut nodes = Vec::new();
 
         for (node_index, world_from_node) in scene_nodes {
             let Some(node) = root.nodes.get(node_index) else {
@@ -443,6 +463,7 @@ impl<'a> Importer<'a> {
                 .name
                 .as_deref()
                 .map_or_else(|| format!("{mesh_index}"), |n| format!("'{n}'"));
+            let first_part = model.parts.len();
             for (prim_index, primitive) in mesh.primitives.iter().enumerate() {
                 let key = (mesh_index, prim_index);
                 let template = match cache.entry(key) {
@@ -495,6 +516,19 @@ impl<'a> Importer<'a> {
                 };
                 model.parts.push(part);
             }
+            if model.parts.len() > first_part {
+                nodes.push(GltfNode {
+                    index: node_index,
+                    name: node
+                        .name
+                        .clone()
+                        .or_else(|| mesh.name.clone())
+                        .unwrap_or_else(|| format!("node {node_index}")),
+                    world_from_node,
+                    parts: first_part..model.parts.len(),
+                    skinned: skin_joints.is_some(),
+                });
+            }
         }
         if used_default {
             model.materials.push(Material {
@@ -509,6 +543,7 @@ impl<'a> Importer<'a> {
             model,
             report: dropped,
             view,
+            nodes,
         })
     }
 

@@ -13,13 +13,15 @@ pub mod error;
 pub(crate) mod fuzz;
 pub mod gltf_export;
 pub mod gltf_mesh;
+pub mod gltf_nodes;
 pub(crate) mod gltf_report;
 pub mod gltf_view;
 pub mod obj;
 
 pub use error::{ImportLimits, IoError};
 pub use gltf_mesh::{
-    GltfImport, import_gltf, import_gltf_imported, import_gltf_reported, import_gltf_slice,
+    GltfImport, GltfNode, import_gltf, import_gltf_imported, import_gltf_reported,
+    import_gltf_slice,
 };
 pub use gltf_view::{GltfCamera, GltfView};
 pub use obj::{ObjOptions, import_obj};

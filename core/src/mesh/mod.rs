@@ -444,7 +444,7 @@ impl MeshModel {
     }
 }
 
-fn bounds_of(points: impl Iterator<Item = Vec3>) -> Option<(Vec3, Vec3)> {
+pub(crate) fn bounds_of(points: impl Iterator<Item = Vec3>) -> Option<(Vec3, Vec3)> {
     points.fold(None, |acc, p| match acc {
         None => Some((p, p)),
         Some((lo, hi)) => Some((lo.min(p), hi.max(p))),
