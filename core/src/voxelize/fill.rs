@@ -37,7 +37,7 @@ impl Axis {
     }
 
     /// The grid's dimensions as [`Axis::turn`] sees them.
-    fn turn_dims(self, d: UVec3) -> UVec3 {
+    pub(crate) fn turn_dims(self, d: UVec3) -> UVec3 {
         match self {
             Axis::Z => d,
             Axis::X => UVec3::new(d.y, d.z, d.x),
@@ -46,7 +46,7 @@ impl Axis {
     }
 
     /// The grid voxel of turned voxel `t` (the inverse of [`Axis::turn`]).
-    fn unturn(self, t: UVec3) -> UVec3 {
+    pub(crate) fn unturn(self, t: UVec3) -> UVec3 {
         match self {
             Axis::Z => t,
             Axis::X => UVec3::new(t.z, t.x, t.y),
@@ -104,6 +104,17 @@ pub(crate) fn cast(
 }
 
 impl AxisFill {
+    /// An axis with no crossings (tests).
+    #[cfg(test)]
+    pub(crate) fn empty(axis: Axis) -> Self {
+        Self {
+            axis,
+            crossings: Vec::new(),
+            intervals: Vec::new(),
+            open_columns: 0,
+        }
+    }
+
     /// Voxels inside along this axis.
     pub(crate) fn inside_count(&self) -> u64 {
         self.intervals

@@ -12,6 +12,7 @@
 //! code, then distance to the voxel centre, then triangle index) and sorted before use, so the
 //! octree is identical whatever the thread count.
 
+mod dense;
 mod fill;
 mod geometry;
 mod solid;
@@ -190,6 +191,11 @@ pub struct VoxelizeStats {
     /// Solid mode was asked for but the mesh is open ([`Self::open_columns`] > 0): the result
     /// is its surface, exactly as [`Mode::Surface`] gives it.
     pub solid_fell_back: bool,
+    /// Solid mode: interior voxels took the attributes of their nearest surface voxel (the
+    /// dense fill, for grids up to 2^28 cells); `false`, those of the nearest crossing that
+    /// bounds them along the three axes (the sparse fill of larger grids).
+    #[serde(default)]
+    pub interior_from_nearest_surface: bool,
 }
 
 /// The result of [`voxelize`].
@@ -460,10 +466,17 @@ pub fn estimate(
         0.0
     };
     let voxels = surface.min(grid) + interior;
+    // The dense fill's grid (see `dense`), on top of the voxels.
+    let dense_bytes = if settings.mode == Mode::Solid && dense::fits(UVec3::from_array(plan.dims)) {
+        grid * dense::DENSE_BYTES_PER_CELL as f64
+    } else {
+        0.0
+    };
     Ok(VoxelEstimate {
         surface_voxels: surface,
         interior_voxels: interior,
-        peak_bytes: PEAK_BYTES_FIXED.saturating_add((voxels * PEAK_BYTES_PER_VOXEL as f64) as u64),
+        peak_bytes: PEAK_BYTES_FIXED
+            .saturating_add((voxels * PEAK_BYTES_PER_VOXEL as f64 + dense_bytes) as u64),
     })
 }
 
@@ -598,16 +611,22 @@ pub fn voxelize(
     } else {
         None
     };
-    let interior = match &fills {
-        Some(fills) => Some(fill::vote(fills, |c| {
+    // The dense fill when the grid is small enough: interior voxels take the attributes of
+    // their nearest surface voxel. Otherwise the sparse fill: the nearest bounding crossing's.
+    let interior = match fills {
+        Some(fills) if dense::fits(dims) => {
+            let seeds: Vec<UVec3> = records.par_iter().map(|r| morton_decode(r.0)).collect();
+            Some(Interior::Dense(dense::DenseFill::new(dims, &fills, &seeds)))
+        }
+        Some(fills) => Some(Interior::Sparse(fill::vote(&fills, |c| {
             let (part, t) = tris.locate(c.gtri);
             transfer(model, &model.parts[part], t, c.bary, has_skin)
-        })?),
+        })?)),
         None => None,
     };
-    drop(fills);
     if let Some(inside) = &interior {
-        stats.interior_voxels = inside.keys.len() as u64;
+        stats.interior_voxels = inside.len();
+        stats.interior_from_nearest_surface = matches!(inside, Interior::Dense(_));
         if stats.interior_voxels.saturating_add(stats.surface_voxels) > settings.max_voxels {
             return Err(VoxelizeError::TooManyVoxels {
                 limit: settings.max_voxels,
@@ -619,40 +638,54 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    // Attributes of each surface voxel from its nearest triangle; in solid mode drop the ones
-    // outside the mesh that an interior voxel already represents.
+    // Attributes of each surface voxel from its nearest triangle.
+    let record_voxels: Vec<Voxel> = records
+        .par_iter()
+        .map(|&(code, key)| {
+            let g = surface::key_triangle(key);
+            let centre = morton_decode(code).as_dvec3() + DVec3::splat(0.5);
+            let bary = tris.grid(g).closest_barycentric(centre);
+            let (part, t) = tris.locate(g);
+            transfer(model, &model.parts[part], t, bary, has_skin)
+        })
+        .collect();
+    // In solid mode drop the surface voxels outside the mesh that an interior voxel already
+    // represents.
     let keep_outer = settings.keep_outer_surface;
     let surface_voxels: Vec<(UVec3, Voxel)> = records
         .par_iter()
-        .filter_map(|&(code, key)| {
+        .zip(&record_voxels)
+        .filter_map(|(&(code, key), &voxel)| {
             let coord = morton_decode(code);
-            let g = surface::key_triangle(key);
-            let tri = tris.grid(g);
-            let centre = coord.as_dvec3() + DVec3::splat(0.5);
-            let bary = tri.closest_barycentric(centre);
             if let Some(inside) = &interior
                 && !keep_outer
                 && !inside.contains(coord)
             {
-                let q = tri.point(bary);
+                let tri = tris.grid(surface::key_triangle(key));
+                let centre = coord.as_dvec3() + DVec3::splat(0.5);
+                let q = tri.point(tri.closest_barycentric(centre));
                 if represented_inside(inside, dims, centre, q, &tri) {
                     return None;
                 }
             }
-            let (part, t) = tris.locate(g);
-            Some((
-                coord,
-                transfer(model, &model.parts[part], t, bary, has_skin),
-            ))
+            Some((coord, voxel))
         })
         .collect();
     if !progress(0.85) {
         return Err(VoxelizeError::Cancelled);
     }
 
-    let interior_voxels = interior
-        .map(fill::Interior::into_voxels)
-        .unwrap_or_default();
+    let interior_voxels = match interior {
+        Some(Interior::Sparse(inside)) => inside.into_voxels(),
+        Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
+            let code = crate::svo::morton_encode(seed);
+            let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
+            Some((c, record_voxels[i]))
+        }),
+        None => Vec::new(),
+    };
+    drop(record_voxels);
+    drop(records);
     if !progress(0.9) {
         return Err(VoxelizeError::Cancelled);
     }
@@ -722,7 +755,7 @@ pub fn boundary_edges(model: &MeshModel) -> u64 {
 /// lands in a voxel whose centre is inside; for a part thinner than a voxel it passes through
 /// and lands outside, and the voxel is kept so thin parts do not vanish or detach.
 fn represented_inside(
-    interior: &fill::Interior,
+    interior: &Interior,
     dims: UVec3,
     centre: DVec3,
     q: DVec3,
@@ -739,6 +772,28 @@ fn represented_inside(
         return false;
     }
     interior.contains(probe.as_uvec3())
+}
+
+/// The interior of a solid: dense (every cell's nearest surface voxel known) or sparse.
+enum Interior {
+    Dense(dense::DenseFill),
+    Sparse(fill::Interior),
+}
+
+impl Interior {
+    fn contains(&self, c: UVec3) -> bool {
+        match self {
+            Self::Dense(d) => d.contains(c),
+            Self::Sparse(s) => s.contains(c),
+        }
+    }
+
+    fn len(&self) -> u64 {
+        match self {
+            Self::Dense(d) => d.len(),
+            Self::Sparse(s) => s.keys.len() as u64,
+        }
+    }
 }
 
 /// Attributes of the surface point with barycentric weights `bary` on triangle `t` of `part`:

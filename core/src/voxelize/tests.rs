@@ -1044,12 +1044,15 @@ fn interior_voxels_take_the_weights_of_the_nearest_wall_not_the_column_end() {
             } else {
                 63.5 - k
             };
-            // Near an end the cap is the nearest surface, and its weight is the end's.
+            // Near an end the cap is the nearest surface, and its weight is the end's. Within
+            // a voxel of a tie either may be (the rotated bar's faces fall a hair off the voxel
+            // boundaries, so its surface layers can sit one voxel further out on one side; `h`
+            // carries f32 noise of the rotation).
             let wall = across
                 .iter()
                 .map(|&a| (a + 0.5).min(7.5 - a))
                 .fold(f32::MAX, f32::min);
-            if h.min(64.0 - h) <= wall + 0.5 {
+            if h.min(64.0 - h) <= wall + 1.0 + 1e-3 {
                 continue;
             }
             interior += 1;
@@ -1065,8 +1068,8 @@ fn interior_voxels_take_the_weights_of_the_nearest_wall_not_the_column_end() {
             interior >= 6 * 6 * 54,
             "axis {axis}: {interior} interior voxels checked"
         );
-        // Half a voxel of height (the crossing is on the wall beside the centre) plus 8-bit
-        // rounding.
+        // Half a voxel of height plus 8-bit rounding (the nearest wall voxel is at the same
+        // height; its weights are its nearest triangle's at its centre's closest point).
         assert!(
             worst <= 0.5 / 64.0 + 1.0 / 255.0,
             "axis {axis}: interior joint-1 weight off by {worst}"
@@ -1105,8 +1108,9 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
         if shell.contains_key(&c) {
             continue;
         }
-        // The nearest surface voxel, by centre distance (searched in growing cubes).
-        let mut nearest: Option<(u32, UVec3)> = None;
+        // The nearest surface voxels, by centre distance (searched in growing cubes; every
+        // one at the least distance, since any of them is the nearest).
+        let mut nearest: Option<(u32, Vec<UVec3>)> = None;
         for r in 1..=16i32 {
             for dz in -r..=r {
                 for dy in -r..=r {
@@ -1117,18 +1121,30 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
                         }
                         let q = q.as_uvec3();
                         let d2 = (dx * dx + dy * dy + dz * dz) as u32;
-                        if shell.contains_key(&q) && nearest.is_none_or(|(b, _)| d2 < b) {
-                            nearest = Some((d2, q));
+                        if !shell.contains_key(&q) {
+                            continue;
+                        }
+                        match &mut nearest {
+                            Some((b, all)) if d2 == *b => all.push(q),
+                            Some((b, _)) if d2 > *b => {}
+                            _ => nearest = Some((d2, vec![q])),
                         }
                     }
                 }
             }
-            if nearest.is_some_and(|(b, _)| f64::from(b).sqrt() <= f64::from(r)) {
+            if nearest
+                .as_ref()
+                .is_some_and(|(b, _)| f64::from(*b).sqrt() <= f64::from(r))
+            {
                 break;
             }
         }
-        let (_, q) = nearest.expect("an interior voxel has a surface within 16 voxels");
-        let apart = place(c, &v.skin).distance(place(c, &shell[&q])) / solid.voxel_size;
+        let (_, all) = nearest.expect("an interior voxel has a surface within 16 voxels");
+        let here = place(c, &v.skin);
+        let apart = all
+            .iter()
+            .map(|q| here.distance(place(c, &shell[q])) / solid.voxel_size)
+            .fold(f32::INFINITY, f32::min);
         moved.push(apart);
     }
     moved.sort_by(f32::total_cmp);
@@ -1142,13 +1158,14 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
         moved[n - 1]
     );
     assert!(n > 1000, "{n} interior voxels");
-    // Measured: median 0.007, 99 % 1.46, max 3.20 voxels, 652 of 25,938 over one voxel (the
-    // nearest crossing along an axis is not always the nearest surface point). The fill along
-    // z alone: median 0.42, 99 % 14.4, max 24.6 voxels, 10,282 over one voxel.
-    assert!(moved[n * 99 / 100] <= 2.0, "99 % within 2 voxels");
-    assert!(moved[n - 1] <= 4.0, "all within 4 voxels");
-    assert!(
-        over * 20 < n,
-        "fewer than 5 % over one voxel: {over} of {n}"
+    // The dense fill takes one of the nearest surface voxels exactly, so the weights are
+    // equal: measured max 0 (8-bit weights, identical voxels). The nearest bounding crossing
+    // along the axes (the sparse fill) gave median 0.007, 99 % 1.46, max 3.20 voxels, 652 of
+    // 25,938 over one voxel; the fill along z alone, median 0.42, max 24.6, 10,282 over one.
+    assert!(solid.stats.interior_from_nearest_surface);
+    assert_eq!(
+        over, 0,
+        "no interior voxel over one voxel from its nearest surface's place"
     );
+    assert!(moved[n - 1] <= 1e-3, "max {} voxels", moved[n - 1]);
 }
