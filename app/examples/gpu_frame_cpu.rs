@@ -51,7 +51,7 @@ fn main() -> anyhow::Result<()> {
         for i in 0..frames {
             let cam = OrbitCamera {
                 yaw_deg: doc.camera.yaw_deg + i as f32 * 3.0,
-                ..doc.camera.clone()
+                ..doc.camera
             };
             let t0 = Instant::now();
             r.render_uploaded(&ctx.device, &ctx.queue, &doc, &cam, &q, &target)?;

@@ -38,7 +38,7 @@ fn moved(cam: &OrbitCamera) -> OrbitCamera {
         yaw_deg: cam.yaw_deg + 35.0,
         pitch_deg: (cam.pitch_deg * 0.5).clamp(-60.0, 60.0),
         distance: cam.distance * 1.2,
-        ..cam.clone()
+        ..*cam
     }
 }
 
@@ -51,7 +51,7 @@ fn hashes(doc: &Document, size: (u32, u32), two_pass: bool) -> [u64; 2] {
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let q = Quality::default();
     let mut out = [0; 2];
-    for (i, cam) in [doc.camera.clone(), moved(&doc.camera)].iter().enumerate() {
+    for (i, cam) in [doc.camera, moved(&doc.camera)].iter().enumerate() {
         if i == 0 {
             r.render(&ctx.device, &ctx.queue, doc, cam, &q, &target)
         } else {
@@ -91,7 +91,10 @@ fn gpu_frames_on_the_samples_are_unchanged() {
         }
     }
     for (name, two_pass, h) in &got {
-        println!("(\"{name}\", {two_pass}, [{:#018x}, {:#018x}]),", h[0], h[1]);
+        println!(
+            "(\"{name}\", {two_pass}, [{:#018x}, {:#018x}]),",
+            h[0], h[1]
+        );
     }
     assert_eq!(
         got.iter().map(|(n, t, h)| (*n, *t, *h)).collect::<Vec<_>>(),

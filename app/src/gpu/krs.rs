@@ -11,9 +11,9 @@
 use glam::Vec3;
 use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, TextureMode};
 // The KRS shading constants are the CPU reference's own, so the two cannot drift apart.
+use super::passes::{BindGroups, BufferPool, Gpu};
 use thicket_core::render::{AO_REACH_OBJECT_UNITS, Quality, SMOOTHING_PX, SOFT_SHADOW_K};
 use thicket_core::scene::{Document, Light, SceneError};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::gpu_data::{
@@ -324,16 +324,18 @@ fn frame_uniform(
     }
 }
 
-/// Layout and pipelines of the KRS pass, created once per device.
+/// Layout, pipelines and bind group of the KRS pass: the pipelines are created once per
+/// device, the buffers and the bind group persist across frames (rewritten each frame,
+/// recreated only when a size grows; see `passes`).
 pub(super) struct KrsPipelines {
     bgl: wgpu::BindGroupLayout,
     trace: wgpu::ComputePipeline,
     light: wgpu::ComputePipeline,
+    groups: BindGroups,
 }
 
-/// One frame's KRS work: its bind group and the per-pixel lighting buffer shade.wgsl reads.
+/// One frame's KRS work: the per-pixel lighting buffer shade.wgsl reads.
 pub(super) struct KrsFrame {
-    bind_group: wgpu::BindGroup,
     /// `stride` vec4 per pixel (see `krs_trace.wgsl`).
     pub(super) light_buf: wgpu::Buffer,
     /// Entries per pixel.
@@ -346,6 +348,18 @@ pub(super) struct KrsBindings<'a> {
     pub(super) view: &'a wgpu::Buffer,
     pub(super) gbuffer: &'a wgpu::Buffer,
     pub(super) counters: &'a wgpu::Buffer,
+}
+
+/// What the KRS pass reads of a frame.
+pub(super) struct KrsInputs<'a> {
+    /// The document's prepared KRS objects ([`prepared_krs`]).
+    pub(super) scene: &'a PreparedScene,
+    pub(super) doc: &'a Document,
+    pub(super) quality: &'a Quality,
+    pub(super) cam: KrsCamera,
+    /// The view's size in pixels.
+    pub(super) size: (u32, u32),
+    pub(super) bindings: KrsBindings<'a>,
 }
 
 impl KrsPipelines {
@@ -401,29 +415,23 @@ impl KrsPipelines {
             trace: pipeline("trace"),
             light: pipeline("light"),
             bgl,
+            groups: BindGroups::default(),
         })
     }
 
-    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and creates this
-    /// frame's buffers; `None` without KRS objects or pipelines.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the frame's inputs the pass needs, each a different kind"
-    )]
+    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and writes this
+    /// frame's buffers.
+    ///
+    /// # Errors
+    /// [`GpuError::TooLarge`] when the per-pixel lighting buffer exceeds a storage binding.
     pub(super) fn prepare(
-        pipelines: Option<&Self>,
-        device: &wgpu::Device,
-        scene: Option<&PreparedScene>,
-        doc: &Document,
-        quality: &Quality,
-        cam: KrsCamera,
-        size: (u32, u32),
-        bindings: &KrsBindings<'_>,
-    ) -> Result<Option<KrsFrame>, GpuError> {
-        let (Some(pipelines), Some(scene)) = (pipelines, scene) else {
-            return Ok(None);
-        };
-        let mut packed = PackedKrs::pack(scene);
+        &mut self,
+        gpu: Gpu<'_>,
+        pool: &mut BufferPool,
+        inputs: &KrsInputs<'_>,
+    ) -> Result<KrsFrame, GpuError> {
+        let (doc, size) = (inputs.doc, inputs.size);
+        let mut packed = PackedKrs::pack(inputs.scene);
         let light_base = packed.vectors.len() as u32;
         packed.vectors.extend(doc.lights.iter().map(|l| {
             v4(
@@ -432,8 +440,8 @@ impl KrsPipelines {
             )
         }));
         let uniform = frame_uniform(
-            cam,
-            quality,
+            inputs.cam,
+            inputs.quality,
             packed.objects.len() as u32,
             &doc.lights,
             light_base,
@@ -441,7 +449,7 @@ impl KrsPipelines {
         );
         let pixels = u64::from(size.0) * u64::from(size.1);
         let light_bytes = pixels * u64::from(uniform.stride) * 16;
-        let limit = device.limits().max_storage_buffer_binding_size;
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
         if light_bytes > limit {
             return Err(GpuError::TooLarge {
                 what: "KRS lighting buffer",
@@ -449,17 +457,11 @@ impl KrsPipelines {
                 limit,
             });
         }
-        let upload = |label: &str, data: &[u8], usage: wgpu::BufferUsages| {
-            let mut contents = data.to_vec();
-            // Empty bindings are not allowed; a zeroed pad is never read (counts are 0).
-            contents.resize(contents.len().max(256), 0);
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: &contents,
-                usage,
-            })
-        };
         let storage = wgpu::BufferUsages::STORAGE;
+        let mut upload = |label: &'static str, data: &[u8], usage: wgpu::BufferUsages| {
+            // Empty bindings are not allowed; a zeroed pad is never read (counts are 0).
+            pool.upload(gpu, label, 0, data, usage)
+        };
         let frame_buf = upload(
             "krs frame",
             bytemuck::bytes_of(&uniform),
@@ -480,42 +482,35 @@ impl KrsPipelines {
             bytemuck::cast_slice(&packed.vectors),
             storage,
         );
-        let light_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("krs lighting"),
-            size: light_bytes.max(256),
-            usage: storage,
-            mapped_at_creation: false,
-        });
+        // Every pixel's entries are written by the trace before anything reads them.
+        let light_buf = pool.get(gpu, "krs lighting", 0, light_bytes.max(256), storage);
+        let b = &inputs.bindings;
         let buffers = [
-            bindings.view,
-            &frame_buf,
-            &objects,
-            &kernels,
-            &vectors,
-            bindings.gbuffer,
-            &light_buf,
-            bindings.counters,
+            b.view, &frame_buf, &objects, &kernels, &vectors, b.gbuffer, &light_buf, b.counters,
         ];
-        let bind_group = super::renderer::bind_group(device, &pipelines.bgl, "krs", &buffers);
-        Ok(Some(KrsFrame {
-            bind_group,
+        self.groups.set_buffers(gpu, &self.bgl, "krs", 0, &buffers);
+        Ok(KrsFrame {
             light_buf,
             stride: uniform.stride,
             groups: (size.0.div_ceil(8), size.1.div_ceil(8)),
-        }))
+        })
     }
 
     /// Records the trace pass (after resolve).
     pub(super) fn trace(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
         pass.set_pipeline(&self.trace);
-        pass.set_bind_group(0, &frame.bind_group, &[]);
+        if let Some(bg) = self.groups.get(0) {
+            pass.set_bind_group(0, bg, &[]);
+        }
         pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
     }
 
     /// Records the lighting pass (after trace, before shade).
     pub(super) fn light(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
         pass.set_pipeline(&self.light);
-        pass.set_bind_group(0, &frame.bind_group, &[]);
+        if let Some(bg) = self.groups.get(0) {
+            pass.set_bind_group(0, bg, &[]);
+        }
         pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
     }
 }
