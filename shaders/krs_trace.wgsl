@@ -29,8 +29,7 @@
 
 // First KRS word of the counter buffer (`KRS_COUNTERS` in gpu_data.rs): rays, hits, steps
 // (lo, hi), max steps of one ray, exhausted rays, relaxation fallbacks, tile steps, shadow
-// rays, shadow steps (lo, hi), AO evaluations (lo, hi).
-const KRS_COUNTERS: u32 = 40u;
+// rays, shadow steps (lo, hi), AO evaluations (lo, hi). Generated.
 
 // Kernel kinds (`KrsKernelGpu::kind`).
 const KRS_EMPTY: u32 = 0u;
@@ -41,15 +40,8 @@ const KRS_BOX: u32 = 4u;
 const KRS_TORUS_SEGMENT: u32 = 5u;
 const KRS_TOROIDAL_CAPSULE: u32 = 6u;
 
-// Object flags.
-const KRS_OBJ_EMPTY: u32 = 1u;
-const KRS_OBJ_DISTORTED: u32 = 2u;
-const KRS_OBJ_BOUNDED: u32 = 4u;
-
-// Frame flags.
-const KRS_FRAME_TILES: u32 = 1u;
-const KRS_FRAME_SHADOWS: u32 = 2u;
-const KRS_FRAME_SOFT: u32 = 4u;
+// Object flags (KRS_OBJ_EMPTY, KRS_OBJ_DISTORTED, KRS_OBJ_BOUNDED) and frame flags
+// (KRS_FRAME_TILES, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT): generated.
 
 // "No distance" (the CPU's f32::INFINITY): WGSL has no infinity literal.
 const KRS_FAR: f32 = 3.0e38;

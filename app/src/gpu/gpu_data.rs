@@ -541,6 +541,48 @@ pub const KRS_FRAME_SOFT: u32 = 4;
 pub const KRS_COUNTERS: u32 = 40;
 const _: () = assert!(KRS_COUNTERS > OVERFLOW_COUNTER && KRS_COUNTERS + 13 <= STATS_START);
 
+/// The constants the shaders share with this file, by their WGSL name: the one definition of
+/// each. [`super::shaders::compose`] puts them (as [`constants_wgsl`], the generated
+/// `constants.wgsl`) before every shader, so a WGSL file that kept its own copy would not
+/// compile (WGSL forbids redeclaring a constant).
+pub const WGSL_CONSTANTS: &[(&str, u32)] = &[
+    ("MESH_ID_FLAG", MESH_ID_FLAG),
+    ("FACE_BITS", FACE_BITS),
+    ("FACE_MASK", (1 << FACE_BITS) - 1),
+    ("MODE_KEY64", MODE_KEY64),
+    ("MODE_DEPTH", MODE_DEPTH),
+    ("MODE_ID", MODE_ID),
+    ("OVERFLOW_COUNTER", OVERFLOW_COUNTER),
+    ("SPLAT_PIXEL_COUNTERS", SPLAT_PIXEL_COUNTERS),
+    ("CUBE_PIXEL_COUNTERS", CUBE_PIXEL_COUNTERS),
+    ("STATS_START", STATS_START),
+    ("MAX_LEVELS", MAX_LEVELS),
+    ("STATS_PER_LEVEL", STATS_PER_LEVEL),
+    ("OCCLUSION_TILE", OCCLUSION_TILE),
+    ("NO_SHADOW_MAP", NO_SHADOW_MAP),
+    ("TRI_STRIDE", TRI_VEC4S as u32),
+    ("TEXTURE_LUT_WORDS", TEXTURE_LUT_WORDS as u32),
+    ("TEXTURE_ENTRY_WORDS", TEXTURE_ENTRY_WORDS as u32),
+    ("KRS_COUNTERS", KRS_COUNTERS),
+    ("KRS_OBJ_EMPTY", KRS_OBJ_EMPTY),
+    ("KRS_OBJ_DISTORTED", KRS_OBJ_DISTORTED),
+    ("KRS_OBJ_BOUNDED", KRS_OBJ_BOUNDED),
+    ("KRS_FRAME_TILES", KRS_FRAME_TILES),
+    ("KRS_FRAME_SHADOWS", KRS_FRAME_SHADOWS),
+    ("KRS_FRAME_SOFT", KRS_FRAME_SOFT),
+];
+
+/// The generated `constants.wgsl`: one `const NAME: u32 = VALUEu;` per [`WGSL_CONSTANTS`]
+/// entry.
+#[must_use]
+pub fn constants_wgsl() -> String {
+    let mut out = String::from("// Generated from app/src/gpu/gpu_data.rs (WGSL_CONSTANTS).\n");
+    for (name, value) in WGSL_CONSTANTS {
+        out.push_str(&format!("const {name}: u32 = {value}u;\n"));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
