@@ -31,14 +31,10 @@
 // (lo, hi), max steps of one ray, exhausted rays, relaxation fallbacks, tile steps, shadow
 // rays, shadow steps (lo, hi), AO evaluations (lo, hi). Generated.
 
-// Kernel kinds (`KrsKernelGpu::kind`).
-const KRS_EMPTY: u32 = 0u;
-const KRS_SPHERE: u32 = 1u;
-const KRS_PLANE: u32 = 2u;
-const KRS_CAPSULE: u32 = 3u;
-const KRS_BOX: u32 = 4u;
-const KRS_TORUS_SEGMENT: u32 = 5u;
-const KRS_TOROIDAL_CAPSULE: u32 = 6u;
+// Kernel kinds (`KrsKernelGpu::kind`: KRS_EMPTY, KRS_SPHERE, KRS_PLANE, KRS_CAPSULE, KRS_BOX,
+// KRS_TORUS_SEGMENT, KRS_TOROIDAL_CAPSULE), texture modes (KRS_TEXTURE_NONE,
+// KRS_TEXTURE_TRIPLANAR, KRS_TEXTURE_KERNEL_PARAM) and patterns (KRS_PATTERN_CHECKER,
+// KRS_PATTERN_BARK): generated from gpu_data's KrsKernelKind, KrsTextureMode, KrsPattern.
 
 // Object flags (KRS_OBJ_EMPTY, KRS_OBJ_DISTORTED, KRS_OBJ_BOUNDED) and frame flags
 // (KRS_FRAME_TILES, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT): generated.
@@ -190,26 +186,26 @@ fn torus_wedge(k: KrsKernel, p: vec3<f32>) -> vec4<f32> {
 
 fn kernel_distance(k: KrsKernel, p: vec3<f32>) -> f32 {
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             return distance(p, k.a.xyz) - k.a.w;
         }
-        case 2u: {
+        case KRS_PLANE: {
             return dot(k.a.xyz, p) - k.a.w;
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             return distance(p, closest_on_segment(p, k.a.xyz, k.b.xyz)) - k.a.w;
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let e = abs(q) - k.c.xyz + vec3<f32>(k.a.w);
             return length(max(e, vec3<f32>(0.0))) + min(max(e.x, max(e.y, e.z)), 0.0) - k.a.w;
         }
-        case 5u: {
+        case KRS_TORUS_SEGMENT: {
             let c = torus_closest(k, p);
             let tube = distance(p, c.xyz) - k.b.w;
             return max(tube, torus_wedge(k, p).x);
         }
-        case 6u: {
+        case KRS_TOROIDAL_CAPSULE: {
             let c = torus_closest(k, p);
             return distance(p, c.xyz) - k.b.w;
         }
@@ -231,19 +227,19 @@ fn torus_tube_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
 fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
     var n = vec3<f32>(0.0, 1.0, 0.0);
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             n = p - k.a.xyz;
         }
-        case 2u: {
+        case KRS_PLANE: {
             n = k.a.xyz;
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             n = p - closest_on_segment(p, k.a.xyz, k.b.xyz);
             if !(dot(n, n) > 0.0) {
                 n = any_perpendicular(normalize_or(k.b.xyz - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0)));
             }
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let e = abs(q) - k.c.xyz + vec3<f32>(k.a.w);
             var local = vec3<f32>(0.0);
@@ -258,7 +254,7 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
             }
             n = quat_rotate(k.d, local);
         }
-        case 5u: {
+        case KRS_TORUS_SEGMENT: {
             let c = torus_closest(k, p);
             let tube = distance(p, c.xyz) - k.b.w;
             let wedge = torus_wedge(k, p);
@@ -268,7 +264,7 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
                 n = torus_tube_normal(k, p);
             }
         }
-        case 6u: {
+        case KRS_TOROIDAL_CAPSULE: {
             n = torus_tube_normal(k, p);
         }
         default: {}
@@ -279,23 +275,23 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
 // Kernel-parametrised coordinates (§6.2), as core's `Kernel::param_coords`.
 fn kernel_param_coords(k: KrsKernel, p: vec3<f32>) -> vec2<f32> {
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             let q = normalize_or(p - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0));
             return vec2<f32>(atan2(q.z, q.x) * k.a.w, asin(clamp(q.y, -1.0, 1.0)) * k.a.w);
         }
-        case 2u: {
+        case KRS_PLANE: {
             let u = any_perpendicular(k.a.xyz);
             let v = cross(k.a.xyz, u);
             return vec2<f32>(dot(p, u), dot(p, v));
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             let axis = normalize_or(k.b.xyz - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0));
             let u = any_perpendicular(axis);
             let v = cross(axis, u);
             let q = p - k.a.xyz;
             return vec2<f32>(dot(q, axis), atan2(dot(q, v), dot(q, u)) * k.a.w);
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let a = abs(q) / max(k.c.xyz, vec3<f32>(1e-30));
             if a.x >= a.y && a.x >= a.z {
@@ -305,7 +301,7 @@ fn kernel_param_coords(k: KrsKernel, p: vec3<f32>) -> vec2<f32> {
             }
             return q.xy;
         }
-        case 5u, 6u: {
+        case KRS_TORUS_SEGMENT, KRS_TOROIDAL_CAPSULE: {
             let c = torus_closest(k, p);
             let radial = normalize_or(c.xyz - k.a.xyz, k.c.xyz);
             let q = p - c.xyz;
@@ -611,7 +607,7 @@ fn value_noise2(p: vec2<f32>) -> f32 {
 }
 
 fn pattern_value(pattern: u32, uv: vec2<f32>) -> f32 {
-    if pattern == 0u {
+    if pattern == KRS_PATTERN_CHECKER {
         let cell = floor(uv);
         if ((i32(cell.x) + i32(cell.y)) & 1) == 0 {
             return 1.0;
@@ -635,7 +631,7 @@ fn krs_albedo(o: KrsObject, s: KrsSurface, p_world: vec3<f32>) -> vec3<f32> {
     let k = krs_kernels[o.first_kernel + s.kernel];
     let base = k.colour.xyz;
     var c = base;
-    if o.texture_mode == 1u {
+    if o.texture_mode == KRS_TEXTURE_TRIPLANAR {
         let p = object_from_world(o, p_world);
         let n = quat_rotate(o.inv_rotation, s.normal);
         var w = pow(abs(n), vec3<f32>(max(o.tex_sharpness, 1.0)));
@@ -649,7 +645,7 @@ fn krs_albedo(o: KrsObject, s: KrsSurface, p_world: vec3<f32>) -> vec3<f32> {
         let v = w.x * pattern_value(o.pattern, q.yz) + w.y * pattern_value(o.pattern, q.xz)
             + w.z * pattern_value(o.pattern, q.xy);
         c = modulate(base, v, o.tex_contrast);
-    } else if o.texture_mode == 2u {
+    } else if o.texture_mode == KRS_TEXTURE_KERNEL_PARAM {
         let uv = kernel_param_coords(k, s.kernel_point);
         c = modulate(base, pattern_value(o.pattern, uv * o.tex_scale), o.tex_contrast);
     }

@@ -2,14 +2,16 @@
 //! - every `Pod` struct the renderer uploads is laid out by naga, from the composed WGSL, the
 //!   way `gpu_data` lays it out in Rust (size, field boundaries, and the offset of every field
 //!   both sides name alike);
-//! - the shared constants are generated from `gpu_data::WGSL_CONSTANTS` into every composed
-//!   shader, and a shader that keeps its own copy does not compile.
+//! - the shared constants (and the code enums' values) are generated from
+//!   `gpu_data::wgsl_constants` into every composed shader, and a shader that keeps its own
+//!   copy does not compile.
 //!
 //! Each check is shown to fail on a WGSL source edited in memory on one side only.
 
 use thicket::gpu::gpu_data::{
-    self, ClearParams, KrsFrameUniform, KrsKernelGpu, KrsObjectGpu, LightGpu, NodeParams,
-    ObjectInfo, ResolveChunk, ShadingUniform, ShadowMapGpu, SkinParams, ViewUniform,
+    self, ClearParams, KrsFrameUniform, KrsKernelGpu, KrsKernelKind, KrsObjectGpu, KrsPattern,
+    KrsTextureMode, LightGpu, NodeParams, ObjectInfo, ResolveChunk, ShadingUniform, ShadowMapGpu,
+    SkinParams, SkinStrategy, ViewUniform,
 };
 use thicket::gpu::shaders;
 
@@ -380,13 +382,13 @@ fn shared_constants_are_generated_into_every_shader() {
         let src = shaders::compose(path).expect("composes");
         assert!(src.contains(&generated), "{path}: no generated constants");
         let consts = u32_constants(&src);
-        for (name, value) in gpu_data::WGSL_CONSTANTS {
+        for (name, value) in gpu_data::wgsl_constants() {
             let found: Vec<u32> = consts
                 .iter()
                 .filter(|(n, _)| n == name)
                 .map(|(_, v)| *v)
                 .collect();
-            assert_eq!(found, [*value], "{path}: {name}");
+            assert_eq!(found, [value], "{path}: {name}");
         }
     }
     // Spot checks against the Rust constants themselves.
@@ -396,6 +398,19 @@ fn shared_constants_are_generated_into_every_shader() {
         ("KRS_COUNTERS", gpu_data::KRS_COUNTERS),
         ("TRI_STRIDE", gpu_data::TRI_VEC4S as u32),
         ("NO_SHADOW_MAP", u32::MAX),
+        ("SKIN_RIGID", SkinStrategy::Rigid.code()),
+        ("SKIN_ADAPTIVE", SkinStrategy::Adaptive.code()),
+        ("SKIN_HAS_OVERRIDES", gpu_data::SKIN_HAS_OVERRIDES),
+        ("KRS_EMPTY", KrsKernelKind::Empty.code()),
+        (
+            "KRS_TOROIDAL_CAPSULE",
+            KrsKernelKind::ToroidalCapsule.code(),
+        ),
+        (
+            "KRS_TEXTURE_KERNEL_PARAM",
+            KrsTextureMode::KernelParam.code(),
+        ),
+        ("KRS_PATTERN_BARK", KrsPattern::Bark.code()),
     ] {
         assert!(consts.contains(&(name.to_owned(), value)), "{name}");
     }
@@ -411,4 +426,16 @@ fn a_shader_keeping_its_own_copy_of_a_shared_constant_fails() {
     );
     let with_copy = format!("{src}\nconst MAX_LEVELS: u32 = 33u;\n");
     assert!(naga::front::wgsl::parse_str(&with_copy).is_err());
+}
+
+#[test]
+fn generated_constant_names_are_unique() {
+    // A name in both `WGSL_CONSTANTS` and a code enum's table would be declared twice.
+    let mut names: Vec<&str> = gpu_data::wgsl_constants().iter().map(|c| c.0).collect();
+    let all = names.len();
+    names.sort_unstable();
+    names.dedup();
+    assert_eq!(names.len(), all);
+    // Every code enum is in: its variants' count (the macro lists each variant once).
+    assert_eq!(all, gpu_data::WGSL_CONSTANTS.len() + 5 + 7 + 3 + 2);
 }

@@ -77,15 +77,9 @@ struct NodeParams {
     skin: SkinParams,
 }
 
-// SkinParams::strategy: a rigid object, or a rigged one's stretch strategy.
-const SKIN_RIGID: u32 = 0u;
-const SKIN_OFF: u32 = 1u;
-const SKIN_THESIS: u32 = 2u;
-const SKIN_CORNERS: u32 = 3u;
-const SKIN_ADAPTIVE: u32 = 4u;
-// SkinParams::flags.
-const SKIN_HAS_CORNERS: u32 = 1u;
-const SKIN_HAS_OVERRIDES: u32 = 2u;
+// SkinParams::strategy: a rigid object, or a rigged one's stretch strategy (SKIN_RIGID,
+// SKIN_OFF, SKIN_THESIS, SKIN_CORNERS, SKIN_ADAPTIVE: generated from gpu_data::SkinStrategy).
+// SkinParams::flags: SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES (generated).
 
 // Per-object skinning constants (app/src/gpu/skin.rs): joint matrices in `joints`, word
 // offsets of the object's sections of `skin_data` (common/skin.wgsl), stretch settings.

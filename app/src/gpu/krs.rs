@@ -18,7 +18,8 @@ use thicket_core::scene::{Document, Light, SceneError};
 use super::GpuError;
 use super::gpu_data::{
     KRS_COUNTERS, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT, KRS_FRAME_TILES, KRS_OBJ_BOUNDED,
-    KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsObjectGpu,
+    KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsKernelKind, KrsObjectGpu,
+    KrsPattern, KrsTextureMode,
 };
 
 /// Counters of the KRS pass, read back with the frame's other counters.
@@ -120,9 +121,22 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
     v.extend(w).to_array()
 }
 
+/// The GPU code of a kernel's variant.
+fn kernel_kind(k: &Kernel) -> KrsKernelKind {
+    match k {
+        Kernel::Empty => KrsKernelKind::Empty,
+        Kernel::Sphere(_) => KrsKernelKind::Sphere,
+        Kernel::InfinitePlane(_) => KrsKernelKind::Plane,
+        Kernel::Capsule(_) => KrsKernelKind::Capsule,
+        Kernel::RoundedBox(_) => KrsKernelKind::Box,
+        Kernel::TorusSegment(_) => KrsKernelKind::TorusSegment,
+        Kernel::ToroidalCapsule(_) => KrsKernelKind::ToroidalCapsule,
+    }
+}
+
 fn pack_kernel(k: &Kernel) -> KrsKernelGpu {
     let mut out = KrsKernelGpu {
-        kind: [0; 4],
+        kind: [kernel_kind(k).code(), 0, 0, 0],
         colour: [0.0; 4],
         params: [[0.0; 4]; 6],
     };
@@ -132,31 +146,22 @@ fn pack_kernel(k: &Kernel) -> KrsKernelGpu {
     match k {
         Kernel::Empty => {}
         Kernel::Sphere(s) => {
-            out.kind[0] = 1;
             out.params[0] = v4(s.centre, s.radius);
         }
         Kernel::InfinitePlane(p) => {
-            out.kind[0] = 2;
             out.params[0] = v4(p.normal, p.offset);
         }
         Kernel::Capsule(c) => {
-            out.kind[0] = 3;
             out.params[0] = v4(c.start, c.radius);
             out.params[1] = v4(c.end, 0.0);
         }
         Kernel::RoundedBox(b) => {
-            out.kind[0] = 4;
             out.params[0] = v4(b.centre, b.rounding);
             out.params[1] = b.rotation.inverse().to_array();
             out.params[2] = v4(b.half_extents, 0.0);
             out.params[3] = b.rotation.to_array();
         }
         Kernel::TorusSegment(t) | Kernel::ToroidalCapsule(t) => {
-            out.kind[0] = if matches!(k, Kernel::TorusSegment(_)) {
-                5
-            } else {
-                6
-            };
             // The same f32 values the CPU derives (basis, sin/cos of the sweep, end points),
             // so both sides compare the same numbers.
             let (s, c) = t.sweep_radians.sin_cos();
@@ -213,14 +218,16 @@ impl PackedKrs {
                 zone_count: obj.empty_zones.len() as u32,
                 flags,
                 texture_mode: match tex.mode {
-                    TextureMode::None => 0,
-                    TextureMode::Triplanar => 1,
-                    TextureMode::KernelParam => 2,
-                },
+                    TextureMode::None => KrsTextureMode::None,
+                    TextureMode::Triplanar => KrsTextureMode::Triplanar,
+                    TextureMode::KernelParam => KrsTextureMode::KernelParam,
+                }
+                .code(),
                 pattern: match tex.pattern {
-                    Pattern::Checker => 0,
-                    Pattern::Bark => 1,
-                },
+                    Pattern::Checker => KrsPattern::Checker,
+                    Pattern::Bark => KrsPattern::Bark,
+                }
+                .code(),
                 inv_scale: 1.0 / t.scale,
                 lipschitz: o.lipschitz,
                 amplitude: d.amplitude,

@@ -25,10 +25,7 @@ use thicket_core::skin::{Rig, Skin4, SkinDeform, SkinTables, StretchSettings, St
 use thicket_core::svo::{NodeRef, Svo};
 
 use super::GpuError;
-use super::gpu_data::{
-    SKIN_ADAPTIVE, SKIN_CORNERS, SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES, SKIN_OFF, SKIN_RIGID,
-    SKIN_THESIS, SkinParams,
-};
+use super::gpu_data::{SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES, SkinParams, SkinStrategy};
 use super::scene::{FrameObjects, SceneCache, UploadStats, object_of};
 
 /// Bytes of one joint matrix.
@@ -66,7 +63,8 @@ pub(super) struct SkinCache {
 
 /// What one frame needs from [`SkinCache::prepare`].
 pub(super) struct SkinFrame {
-    /// Per entry of `SceneCache::voxels` (zeroed, strategy [`SKIN_RIGID`], for rigid objects).
+    /// Per entry of `SceneCache::voxels` (zeroed, strategy [`SkinStrategy::Rigid`], for rigid
+    /// objects).
     pub(super) params: Vec<SkinParams>,
     /// The skin data per pool chunk (a small dummy for a chunk without rigged objects).
     pub(super) data_bufs: Vec<wgpu::Buffer>,
@@ -80,11 +78,12 @@ pub(super) struct SkinFrame {
 
 fn strategy_code(s: StretchStrategy) -> u32 {
     match s {
-        StretchStrategy::Off => SKIN_OFF,
-        StretchStrategy::Thesis => SKIN_THESIS,
-        StretchStrategy::Corners => SKIN_CORNERS,
-        StretchStrategy::Adaptive => SKIN_ADAPTIVE,
+        StretchStrategy::Off => SkinStrategy::Off,
+        StretchStrategy::Thesis => SkinStrategy::Thesis,
+        StretchStrategy::Corners => SkinStrategy::Corners,
+        StretchStrategy::Adaptive => SkinStrategy::Adaptive,
     }
+    .code()
 }
 
 fn skin_words(s: &Skin4) -> [u32; 2] {
@@ -142,7 +141,7 @@ fn append_object(
     let leaf_len = svo.leaf_colors().len();
     let words = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
     let mut p = SkinParams {
-        strategy: SKIN_THESIS,
+        strategy: SkinStrategy::Thesis.code(),
         ..SkinParams::default()
     };
     let node_skins = |data: &mut Vec<u32>, skins: &[Skin4], len: usize| {
@@ -466,7 +465,7 @@ impl SkinFrame {
             .zip(&self.params)
             .zip(&scene.voxels)
         {
-            if p.strategy != SKIN_RIGID {
+            if p.strategy != SkinStrategy::Rigid.code() {
                 o.skin_attr = [1, e.attr_inner_base, e.attr_leaf_base, 0];
                 o.skin = *p;
             }
