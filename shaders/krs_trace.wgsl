@@ -364,25 +364,70 @@ fn object_from_world(o: KrsObject, p_world: vec3<f32>) -> vec3<f32> {
     return quat_rotate(o.inv_rotation, p_world - o.translation_scale.xyz) * o.inv_scale;
 }
 
-// Distance from an object-space (warped) point: fold through the mirrors coarsest level first,
-// min with each level's kernel.
-fn distance_object(o: KrsObject, p_in: vec3<f32>) -> f32 {
-    var p = p_in;
-    let n = o.mirror_count;
-    var d = kernel_distance(krs_kernels[o.first_kernel + n], p);
-    for (var j = 0u; j < n; j++) {
-        let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p -= (2.0 * e) * m.xyz;
-        }
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            d = min(d, kernel_distance(k, p));
+// Algorithm 1's fold of one object, written once for every caller (distance, surface, smooth
+// diffuse): the object-space point folded through the mirrors so far, coarsest level first;
+// `e`, the signed distance of the point to the last mirror before its reflection; and the
+// nearest non-empty kernel met so far (index, distance, the folded point it was measured at).
+struct KrsFold {
+    p: vec3<f32>,
+    e: f32,
+    best_p: vec3<f32>,
+    best_d: f32,
+    best_k: u32,
+}
+
+fn krs_mirror(o: KrsObject, i: u32) -> vec4<f32> {
+    return krs_vectors[o.first_mirror + i];
+}
+
+// Kernel i at the folded point, kept when it is the nearest so far (empty kernels skipped).
+fn fold_kernel(o: KrsObject, f_in: KrsFold, i: u32) -> KrsFold {
+    var f = f_in;
+    let k = krs_kernels[o.first_kernel + i];
+    if k.kind.x != KRS_EMPTY {
+        let d = kernel_distance(k, f.p);
+        if d < f.best_d {
+            f.best_d = d;
+            f.best_k = i;
+            f.best_p = f.p;
         }
     }
-    return d;
+    return f;
+}
+
+// The fold at an object-space (warped) point before any mirror: the top level's kernel
+// (index mirror_count).
+fn fold_start(o: KrsObject, p: vec3<f32>) -> KrsFold {
+    var f: KrsFold;
+    f.p = p;
+    f.e = 0.0;
+    f.best_p = p;
+    f.best_d = KRS_FAR;
+    f.best_k = 0xffffffffu;
+    return fold_kernel(o, f, o.mirror_count);
+}
+
+// One level down: reflect through mirror i when the point is on its positive side, then
+// kernel i. Callers step i = mirror_count - 1 down to 0.
+fn fold_next(o: KrsObject, f_in: KrsFold, i: u32) -> KrsFold {
+    var f = f_in;
+    let m = krs_mirror(o, i);
+    f.e = dot(m.xyz, f.p) - m.w;
+    if f.e > 0.0 {
+        f.p -= (2.0 * f.e) * m.xyz;
+    }
+    return fold_kernel(o, f, i);
+}
+
+// Distance from an object-space (warped) point: the fold's nearest kernel (KRS_FAR when every
+// kernel is empty).
+fn distance_object(o: KrsObject, p: vec3<f32>) -> f32 {
+    let n = o.mirror_count;
+    var f = fold_start(o, p);
+    for (var j = 0u; j < n; j++) {
+        f = fold_next(o, f, n - 1u - j);
+    }
+    return f.best_d;
 }
 
 fn distance_world(o: KrsObject, p_world: vec3<f32>) -> f32 {
@@ -465,39 +510,21 @@ fn surface_world(o: KrsObject, p_world: vec3<f32>) -> KrsSurface {
     }
     let n = o.mirror_count;
     var frame = mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
-    var best_d = KRS_FAR;
-    var best_k = 0xffffffffu;
-    var best_p = q;
     var best_frame = frame;
-    var p = q;
-    let top = krs_kernels[o.first_kernel + n];
-    if top.kind.x != KRS_EMPTY {
-        let d = kernel_distance(top, p);
-        if d < best_d {
-            best_d = d;
-            best_k = n;
-            best_p = p;
-        }
-    }
+    var f = fold_start(o, q);
     for (var j = 0u; j < n; j++) {
         let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p -= (2.0 * e) * m.xyz;
-            frame = frame * householder(m.xyz);
+        f = fold_next(o, f, i);
+        if f.e > 0.0 {
+            frame = frame * householder(krs_mirror(o, i).xyz);
         }
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            let d = kernel_distance(k, p);
-            if d < best_d {
-                best_d = d;
-                best_k = i;
-                best_p = p;
-                best_frame = frame;
-            }
+        if f.best_k == i {
+            best_frame = frame;
         }
     }
+    let best_d = f.best_d;
+    let best_k = f.best_k;
+    let best_p = f.best_p;
     var s: KrsSurface;
     s.kernel = best_k;
     s.kernel_point = best_p;
@@ -537,27 +564,13 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
     var omega = normalize_or(quat_rotate(o.inv_rotation, light_world), vec3<f32>(0.0, 1.0, 0.0));
     let e_threshold = max(e_threshold_world / o.translation_scale.w, 0.0);
     let n = o.mirror_count;
-    var best_d = KRS_FAR;
-    var best_k = 0xffffffffu;
-    var best_p = p;
     var best_omega = omega;
-    let top = krs_kernels[o.first_kernel + n];
-    if top.kind.x != KRS_EMPTY {
-        let d = kernel_distance(top, p);
-        if d < best_d {
-            best_d = d;
-            best_k = n;
-            best_p = p;
-            best_omega = omega;
-        }
-    }
+    var f = fold_start(o, p);
     for (var j = 0u; j < n; j++) {
         let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p = p - 2.0 * e * m.xyz;
-        }
+        f = fold_next(o, f, i);
+        let e = f.e;
+        let m = krs_mirror(o, i);
         let rho = omega - 2.0 * dot(m.xyz, omega) * m.xyz;
         var w = 0.0;
         if e_threshold > 0.0 {
@@ -566,17 +579,12 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
             w = 1.0;
         }
         omega = normalize_or(mix(omega, rho, w), select(omega, rho, e > 0.0));
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            let d = kernel_distance(k, p);
-            if d < best_d {
-                best_d = d;
-                best_k = i;
-                best_p = p;
-                best_omega = omega;
-            }
+        if f.best_k == i {
+            best_omega = omega;
         }
     }
+    let best_k = f.best_k;
+    let best_p = f.best_p;
     if best_k == 0xffffffffu {
         return 0.0;
     }
