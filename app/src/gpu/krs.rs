@@ -9,10 +9,12 @@
 //! `docs/gpu.md` "KRS pass" for the precision argument.
 
 use glam::Vec3;
-use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, TextureMode};
+use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, SampleGrid, TextureMode};
 // The KRS shading constants are the CPU reference's own, so the two cannot drift apart.
 use super::passes::{BindGroups, BufferPool, Gpu};
-use thicket_core::render::{AO_REACH_OBJECT_UNITS, Quality, SMOOTHING_PX, SOFT_SHADOW_K};
+use thicket_core::render::{
+    AO_REACH_OBJECT_UNITS, Camera, Quality, SMOOTHING_PX, SOFT_SHADOW_K, trace_settings,
+};
 use thicket_core::scene::{Document, Light, SceneError};
 
 use super::GpuError;
@@ -254,46 +256,26 @@ impl PackedKrs {
     }
 }
 
-/// What the KRS pass needs to know about the main camera.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct KrsCamera {
-    pub(super) fx: f32,
-    pub(super) fy: f32,
-    pub(super) near: f32,
-    pub(super) perspective: bool,
-}
-
-/// The per-frame constants: the CPU's `trace_settings` and `SampleGrid` for this camera.
+/// The per-frame constants: the CPU's `trace_settings` and `SampleGrid` for this camera,
+/// called rather than re-derived (a grid without a cone keeps f32::MAX for ∞: WGSL has no
+/// infinity).
 fn frame_uniform(
-    cam: KrsCamera,
+    cam: &Camera,
     quality: &Quality,
     objects: u32,
     lights: &[Light],
     light_base: u32,
     min_scale: f32,
 ) -> KrsFrameUniform {
-    let pixel = 1.0 / cam.fy.min(cam.fx).max(1e-30);
-    let (cone, floor) = if cam.perspective {
-        (pixel, quality.krs_epsilon_scale * pixel * cam.near)
-    } else {
-        (0.0, quality.krs_epsilon_scale * pixel)
-    };
-    let min_epsilon = floor.max(1e-9);
-    let grid_cone = (f64::from(quality.krs_epsilon_scale) * f64::from(cone)).max(0.0);
-    let grid_floor = f64::from(min_epsilon).max(1e-12);
-    let q0 = 0.5 * grid_floor;
-    let (t0, log_step, u0) = if grid_cone > 0.0 && grid_cone.is_finite() {
-        let t0 = grid_floor / grid_cone;
-        (
-            t0 as f32,
-            (0.5 * grid_cone).ln_1p() as f32,
-            (t0 / q0) as f32,
-        )
+    let settings = trace_settings(cam, quality);
+    let grid = SampleGrid::new(&settings);
+    let (t0, log_step, u0) = if grid.t0.is_finite() {
+        (grid.t0 as f32, grid.log_step as f32, grid.u0 as f32)
     } else {
         (f32::MAX, 1.0, f32::MAX)
     };
     let mut flags = 0;
-    if quality.krs_tile_acceleration && cam.perspective {
+    if quality.krs_tile_acceleration && cam.is_perspective() {
         flags |= KRS_FRAME_TILES;
     }
     if quality.shadows {
@@ -304,16 +286,16 @@ fn frame_uniform(
     }
     let ao_samples = quality.ao_samples;
     KrsFrameUniform {
-        eps_scale: quality.krs_epsilon_scale,
-        pixel_cone: cone,
-        min_epsilon,
-        max_steps: quality.krs_max_steps,
-        over_relaxation: if quality.krs_over_relaxation.is_finite() {
-            quality.krs_over_relaxation
+        eps_scale: settings.eps_scale,
+        pixel_cone: settings.pixel_cone_ratio,
+        min_epsilon: settings.min_epsilon,
+        max_steps: settings.max_steps,
+        over_relaxation: if settings.over_relaxation.is_finite() {
+            settings.over_relaxation
         } else {
             1.0
         },
-        grid_q0: q0 as f32,
+        grid_q0: grid.q0 as f32,
         grid_t0: t0,
         grid_log_step: log_step,
         grid_u0: u0,
@@ -363,7 +345,7 @@ pub(super) struct KrsInputs<'a> {
     pub(super) scene: &'a PreparedScene,
     pub(super) doc: &'a Document,
     pub(super) quality: &'a Quality,
-    pub(super) cam: KrsCamera,
+    pub(super) cam: &'a Camera,
     /// The view's size in pixels.
     pub(super) size: (u32, u32),
     pub(super) bindings: KrsBindings<'a>,

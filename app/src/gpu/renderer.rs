@@ -706,12 +706,7 @@ impl Renderer {
                     scene: s,
                     doc,
                     quality,
-                    cam: super::krs::KrsCamera {
-                        fx: plan.main.fx,
-                        fy: plan.main.fy,
-                        near: plan.main.near,
-                        perspective: plan.main.perspective,
-                    },
+                    cam: &plan.camera,
                     size: plan.size(),
                     bindings: super::krs::KrsBindings {
                         view: &bufs.view,

@@ -163,6 +163,9 @@ pub(in crate::gpu) struct PassSet {
 /// One frame's decisions (see the module documentation).
 #[derive(Clone, Debug, PartialEq)]
 pub(in crate::gpu) struct FramePlan {
+    /// The CPU reference's camera for the view (what `main` and the KRS pass's constants are
+    /// taken from).
+    pub(in crate::gpu) camera: thicket_core::render::Camera,
     /// The view.
     pub(in crate::gpu) main: ViewSpec,
     /// One map per shadow-casting light that has a shadow camera, packed in one key buffer.
@@ -249,6 +252,7 @@ impl FramePlan {
             krs: scene.krs,
         };
         Ok(Self {
+            camera: main_camera,
             main,
             path,
             pixels,
