@@ -351,34 +351,27 @@ pub(super) struct KrsInputs<'a> {
     pub(super) bindings: KrsBindings<'a>,
 }
 
+/// The pass's bind group layouts (one group), checked against `krs_trace.wgsl` by a test.
+pub(super) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    use super::passes::{storage, uniform};
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        uniform(0, false, cs),
+        uniform(1, false, cs),
+        storage(2, true, cs),
+        storage(3, true, cs),
+        storage(4, true, cs),
+        storage(5, false, cs),
+        storage(6, false, cs),
+        storage(7, false, cs),
+    ]]
+}
+
 impl KrsPipelines {
     pub(super) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: cs,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let uni = wgpu::BufferBindingType::Uniform;
         let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("krs"),
-            entries: &[
-                entry(0, uni),
-                entry(1, uni),
-                entry(2, ro),
-                entry(3, ro),
-                entry(4, ro),
-                entry(5, rw),
-                entry(6, rw),
-                entry(7, rw),
-            ],
+            entries: &bind_group_entries()[0],
         });
         let src = super::shaders::compose("krs_trace.wgsl")?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {

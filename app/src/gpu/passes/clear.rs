@@ -15,14 +15,18 @@ pub(in crate::gpu) struct ClearPass {
     words: Vec<u64>,
 }
 
+/// The pass's bind group layouts (one group), checked against `clear.wgsl` by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        super::uniform(0, false, cs),
+        super::storage(1, false, cs),
+    ]]
+}
+
 impl ClearPass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let bgl = super::layout(
-            device,
-            "clear",
-            &[super::uniform(0, false, cs), super::storage(1, false, cs)],
-        );
+        let bgl = super::layout(device, "clear", &bind_group_entries()[0]);
         let pipeline = super::compute(
             device,
             "clear",

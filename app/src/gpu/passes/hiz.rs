@@ -13,18 +13,19 @@ pub(in crate::gpu) struct HizPass {
     workgroups: (u32, u32),
 }
 
+/// The pass's bind group layouts (one group), checked against `hiz.wgsl` by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        super::uniform(0, false, cs),
+        super::storage(1, true, cs),
+        super::storage(2, false, cs),
+    ]]
+}
+
 impl HizPass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let bgl = super::layout(
-            device,
-            "hiz",
-            &[
-                super::uniform(0, false, cs),
-                super::storage(1, true, cs),
-                super::storage(2, false, cs),
-            ],
-        );
+        let bgl = super::layout(device, "hiz", &bind_group_entries()[0]);
         let pipeline = super::compute(
             device,
             "hiz",

@@ -29,19 +29,21 @@ pub(in crate::gpu) struct MeshPass {
     caster_triangles: u32,
 }
 
+/// The pass's bind group layouts (one group), checked against `mesh32.wgsl` and `mesh64.wgsl`
+/// by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
+    vec![vec![
+        super::uniform(0, false, vf),
+        super::storage(1, true, wgpu::ShaderStages::VERTEX),
+        super::storage(2, false, wgpu::ShaderStages::FRAGMENT),
+    ]]
+}
+
 impl MeshPass {
     /// The 64-bit pipeline exists only with `int64`.
     pub(in crate::gpu) fn new(device: &wgpu::Device, int64: bool) -> Result<Self, GpuError> {
-        let vf = wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT;
-        let bgl = super::layout(
-            device,
-            "mesh",
-            &[
-                super::uniform(0, false, vf),
-                super::storage(1, true, wgpu::ShaderStages::VERTEX),
-                super::storage(2, false, wgpu::ShaderStages::FRAGMENT),
-            ],
-        );
+        let bgl = super::layout(device, "mesh", &bind_group_entries()[0]);
         let layout = super::pipeline_layout(device, "mesh", &[&bgl]);
         let pipeline = |label: &str, path: &str| -> Result<wgpu::RenderPipeline, GpuError> {
             let m = super::module(device, path)?;

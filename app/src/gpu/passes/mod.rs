@@ -504,3 +504,154 @@ impl FrameBuffers {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use naga::{AddressSpace, StorageAccess};
+
+    /// (shader, the bind group layouts its pipeline is created with, whether the shader
+    /// declares every entry): every pipeline. The queue shader shares the splat shaders'
+    /// groups and uses only some of their bindings.
+    fn pipelines() -> Vec<(&'static str, Vec<Vec<wgpu::BindGroupLayoutEntry>>, bool)> {
+        let traverse = super::traverse::bind_group_entries();
+        let splat = traverse[..3].to_vec();
+        vec![
+            ("clear.wgsl", super::clear::bind_group_entries(), true),
+            ("hiz.wgsl", super::hiz::bind_group_entries(), true),
+            ("mesh32.wgsl", super::mesh::bind_group_entries(), true),
+            ("mesh64.wgsl", super::mesh::bind_group_entries(), true),
+            ("resolve.wgsl", super::resolve::bind_group_entries(), true),
+            ("shade.wgsl", super::shade::bind_group_entries(), true),
+            ("asvo_splat32.wgsl", splat.clone(), true),
+            ("asvo_splat64.wgsl", splat, true),
+            ("asvo_queue.wgsl", traverse, false),
+            (
+                "krs_trace.wgsl",
+                super::super::krs::bind_group_entries(),
+                true,
+            ),
+        ]
+    }
+
+    /// What a WGSL global needs of its layout entry, as text (`uniform`, `storage read`,
+    /// `storage read_write`, `storage texture write`).
+    fn wgsl_kind(space: AddressSpace, ty: &naga::TypeInner) -> String {
+        match space {
+            AddressSpace::Uniform => "uniform".into(),
+            AddressSpace::Storage { access } if access.contains(StorageAccess::STORE) => {
+                "storage read_write".into()
+            }
+            AddressSpace::Storage { .. } => "storage read".into(),
+            AddressSpace::Handle => match ty {
+                naga::TypeInner::Image {
+                    class: naga::ImageClass::Storage { access, .. },
+                    ..
+                } if !access.contains(StorageAccess::LOAD) => "storage texture write".into(),
+                other => format!("{other:?}"),
+            },
+            other => format!("{other:?}"),
+        }
+    }
+
+    fn entry_kind(e: &wgpu::BindGroupLayoutEntry) -> String {
+        match e.ty {
+            wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                ..
+            } => "uniform".into(),
+            wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Storage { read_only },
+                ..
+            } => if read_only {
+                "storage read"
+            } else {
+                "storage read_write"
+            }
+            .into(),
+            wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                ..
+            } => "storage texture write".into(),
+            ref other => format!("{other:?}"),
+        }
+    }
+
+    /// Whether every binding `src` declares is one of `groups`' entries, of the kind that entry
+    /// gives (what pipeline creation requires), and with `exact`, every entry is declared.
+    fn check(
+        src: &str,
+        groups: &[Vec<wgpu::BindGroupLayoutEntry>],
+        exact: bool,
+    ) -> Result<(), String> {
+        let module = naga::front::wgsl::parse_str(src).map_err(|e| e.emit_to_string(src))?;
+        let mut wgsl: Vec<(u32, u32, String)> = module
+            .global_variables
+            .iter()
+            .filter_map(|(_, g)| {
+                let b = g.binding.as_ref()?;
+                let kind = wgsl_kind(g.space, &module.types[g.ty].inner);
+                Some((b.group, b.binding, kind))
+            })
+            .collect();
+        let mut rust: Vec<(u32, u32, String)> = groups
+            .iter()
+            .enumerate()
+            .flat_map(|(g, entries)| {
+                entries
+                    .iter()
+                    .map(move |e| (g as u32, e.binding, entry_kind(e)))
+            })
+            .collect();
+        wgsl.sort();
+        rust.sort();
+        let covered = wgsl.iter().all(|b| rust.contains(b));
+        if covered && (!exact || wgsl == rust) {
+            Ok(())
+        } else {
+            Err(format!("WGSL {wgsl:?}\nRust {rust:?}"))
+        }
+    }
+
+    #[test]
+    fn every_pipeline_binding_matches_its_shader() {
+        let mut failures = Vec::new();
+        for (path, groups, exact) in pipelines() {
+            let src = crate::gpu::shaders::compose(path).expect("composes");
+            if let Err(e) = check(&src, &groups, exact) {
+                failures.push(format!("{path}: {e}"));
+            }
+        }
+        assert!(failures.is_empty(), "{}", failures.join("\n"));
+    }
+
+    #[test]
+    fn a_binding_changed_on_one_side_fails_the_check() {
+        let src = crate::gpu::shaders::compose("resolve.wgsl").expect("composes");
+        let groups = super::resolve::bind_group_entries();
+        assert_eq!(check(&src, &groups, true), Ok(()), "the control passes");
+        // WGSL side: a binding renumbered, a read-only buffer made writable.
+        let edits = [
+            ("@group(0) @binding(9)", "@group(0) @binding(10)"),
+            ("var<storage, read> keys", "var<storage, read_write> keys"),
+        ];
+        for (from, to) in edits {
+            assert!(src.contains(from), "resolve.wgsl has {from:?}");
+            assert!(
+                check(&src.replacen(from, to, 1), &groups, true).is_err(),
+                "{from:?}"
+            );
+        }
+        // Rust side: an entry dropped, one made read-only.
+        let mut fewer = groups.clone();
+        fewer[0].pop();
+        assert!(check(&src, &fewer, false).is_err());
+        let mut read_only = groups;
+        read_only[0][5] = super::storage(5, true, wgpu::ShaderStages::COMPUTE);
+        assert!(check(&src, &read_only, false).is_err());
+        // A layout entry the shader does not declare fails only the exact check.
+        let mut more = super::resolve::bind_group_entries();
+        more[0].push(super::storage(11, true, wgpu::ShaderStages::COMPUTE));
+        assert_eq!(check(&src, &more, false), Ok(()));
+        assert!(check(&src, &more, true).is_err());
+    }
+}

@@ -17,26 +17,27 @@ pub(in crate::gpu) struct ResolvePass {
     workgroups: (u32, u32),
 }
 
+/// The pass's bind group layouts (one group), checked against `resolve.wgsl` by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    use super::{storage, uniform};
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        uniform(0, false, cs),
+        storage(1, true, cs),
+        storage(2, true, cs),
+        storage(3, true, cs),
+        storage(4, true, cs),
+        storage(5, false, cs),
+        storage(6, true, cs),
+        storage(7, true, cs),
+        storage(8, true, cs),
+        uniform(9, false, cs),
+    ]]
+}
+
 impl ResolvePass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        use super::{storage, uniform};
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let bgl = super::layout(
-            device,
-            "resolve",
-            &[
-                uniform(0, false, cs),
-                storage(1, true, cs),
-                storage(2, true, cs),
-                storage(3, true, cs),
-                storage(4, true, cs),
-                storage(5, false, cs),
-                storage(6, true, cs),
-                storage(7, true, cs),
-                storage(8, true, cs),
-                uniform(9, false, cs),
-            ],
-        );
+        let bgl = super::layout(device, "resolve", &bind_group_entries()[0]);
         let pipeline = super::compute(
             device,
             "resolve",

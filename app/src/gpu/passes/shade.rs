@@ -30,34 +30,35 @@ pub(in crate::gpu) struct ShadePass {
     workgroups: (u32, u32),
 }
 
+/// The pass's bind group layouts (one group), checked against `shade.wgsl` by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    use super::{storage, uniform};
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        uniform(0, false, cs),
+        // The shadow maps (`ShadowMapGpu`, one per shadow-casting light).
+        storage(1, true, cs),
+        uniform(2, false, cs),
+        storage(3, true, cs),
+        storage(4, true, cs),
+        storage(5, true, cs),
+        wgpu::BindGroupLayoutEntry {
+            binding: 6,
+            visibility: cs,
+            ty: wgpu::BindingType::StorageTexture {
+                access: wgpu::StorageTextureAccess::WriteOnly,
+                format: wgpu::TextureFormat::Rgba8Unorm,
+                view_dimension: wgpu::TextureViewDimension::D2,
+            },
+            count: None,
+        },
+        storage(7, true, cs),
+    ]]
+}
+
 impl ShadePass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        use super::{storage, uniform};
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let bgl = super::layout(
-            device,
-            "shade",
-            &[
-                uniform(0, false, cs),
-                // The shadow maps (`ShadowMapGpu`, one per shadow-casting light).
-                storage(1, true, cs),
-                uniform(2, false, cs),
-                storage(3, true, cs),
-                storage(4, true, cs),
-                storage(5, true, cs),
-                wgpu::BindGroupLayoutEntry {
-                    binding: 6,
-                    visibility: cs,
-                    ty: wgpu::BindingType::StorageTexture {
-                        access: wgpu::StorageTextureAccess::WriteOnly,
-                        format: wgpu::TextureFormat::Rgba8Unorm,
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                    },
-                    count: None,
-                },
-                storage(7, true, cs),
-            ],
-        );
+        let bgl = super::layout(device, "shade", &bind_group_entries()[0]);
         let pipeline = super::compute(
             device,
             "shade",

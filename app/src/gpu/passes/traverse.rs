@@ -59,34 +59,40 @@ const QUEUES_AB: usize = 1;
 const QUEUES_BA: usize = 2;
 const INDIRECT: usize = 3;
 
+/// The pass's bind group layouts: groups 0 to 2 of the splat pipelines, and the queue
+/// pipelines' group 3 (the indirect arguments). Checked against `asvo_splat32.wgsl`,
+/// `asvo_splat64.wgsl` and `asvo_queue.wgsl` by a test.
+pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    use super::{storage, uniform};
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![
+        vec![
+            uniform(0, false, cs),
+            storage(1, false, cs),
+            storage(2, true, cs),
+            storage(4, false, cs),
+            storage(5, true, cs),
+            // Skin data and joint matrices (gpu/skin.rs).
+            storage(6, true, cs),
+            storage(7, true, cs),
+        ],
+        vec![uniform(0, true, cs)],
+        vec![storage(0, true, cs), storage(1, false, cs)],
+        vec![storage(0, false, cs)],
+    ]
+}
+
 impl TraversePass {
     /// The 64-bit splat pipeline exists only with `int64`.
     pub(in crate::gpu) fn new(device: &wgpu::Device, int64: bool) -> Result<Self, GpuError> {
-        use super::{compute, storage, uniform};
-        let cs = wgpu::ShaderStages::COMPUTE;
+        use super::compute;
+        let entries = bind_group_entries();
         let bgl = [
-            super::layout(
-                device,
-                "traverse 0",
-                &[
-                    uniform(0, false, cs),
-                    storage(1, false, cs),
-                    storage(2, true, cs),
-                    storage(4, false, cs),
-                    storage(5, true, cs),
-                    // Skin data and joint matrices (gpu/skin.rs).
-                    storage(6, true, cs),
-                    storage(7, true, cs),
-                ],
-            ),
-            super::layout(device, "traverse 1", &[uniform(0, true, cs)]),
-            super::layout(
-                device,
-                "traverse 2",
-                &[storage(0, true, cs), storage(1, false, cs)],
-            ),
+            super::layout(device, "traverse 0", &entries[0]),
+            super::layout(device, "traverse 1", &entries[1]),
+            super::layout(device, "traverse 2", &entries[2]),
         ];
-        let indirect_bgl = super::layout(device, "indirect", &[storage(0, false, cs)]);
+        let indirect_bgl = super::layout(device, "indirect", &entries[3]);
         let trav_layout = super::pipeline_layout(device, "traverse", &[&bgl[0], &bgl[1], &bgl[2]]);
         let queue_layout = super::pipeline_layout(
             device,
