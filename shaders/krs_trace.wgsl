@@ -29,27 +29,15 @@
 
 // First KRS word of the counter buffer (`KRS_COUNTERS` in gpu_data.rs): rays, hits, steps
 // (lo, hi), max steps of one ray, exhausted rays, relaxation fallbacks, tile steps, shadow
-// rays, shadow steps (lo, hi), AO evaluations (lo, hi).
-const KRS_COUNTERS: u32 = 40u;
+// rays, shadow steps (lo, hi), AO evaluations (lo, hi). Generated.
 
-// Kernel kinds (`KrsKernelGpu::kind`).
-const KRS_EMPTY: u32 = 0u;
-const KRS_SPHERE: u32 = 1u;
-const KRS_PLANE: u32 = 2u;
-const KRS_CAPSULE: u32 = 3u;
-const KRS_BOX: u32 = 4u;
-const KRS_TORUS_SEGMENT: u32 = 5u;
-const KRS_TOROIDAL_CAPSULE: u32 = 6u;
+// Kernel kinds (`KrsKernelGpu::kind`: KRS_EMPTY, KRS_SPHERE, KRS_PLANE, KRS_CAPSULE, KRS_BOX,
+// KRS_TORUS_SEGMENT, KRS_TOROIDAL_CAPSULE), texture modes (KRS_TEXTURE_NONE,
+// KRS_TEXTURE_TRIPLANAR, KRS_TEXTURE_KERNEL_PARAM) and patterns (KRS_PATTERN_CHECKER,
+// KRS_PATTERN_BARK): generated from gpu_data's KrsKernelKind, KrsTextureMode, KrsPattern.
 
-// Object flags.
-const KRS_OBJ_EMPTY: u32 = 1u;
-const KRS_OBJ_DISTORTED: u32 = 2u;
-const KRS_OBJ_BOUNDED: u32 = 4u;
-
-// Frame flags.
-const KRS_FRAME_TILES: u32 = 1u;
-const KRS_FRAME_SHADOWS: u32 = 2u;
-const KRS_FRAME_SOFT: u32 = 4u;
+// Object flags (KRS_OBJ_EMPTY, KRS_OBJ_DISTORTED, KRS_OBJ_BOUNDED) and frame flags
+// (KRS_FRAME_TILES, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT): generated.
 
 // "No distance" (the CPU's f32::INFINITY): WGSL has no infinity literal.
 const KRS_FAR: f32 = 3.0e38;
@@ -198,26 +186,26 @@ fn torus_wedge(k: KrsKernel, p: vec3<f32>) -> vec4<f32> {
 
 fn kernel_distance(k: KrsKernel, p: vec3<f32>) -> f32 {
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             return distance(p, k.a.xyz) - k.a.w;
         }
-        case 2u: {
+        case KRS_PLANE: {
             return dot(k.a.xyz, p) - k.a.w;
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             return distance(p, closest_on_segment(p, k.a.xyz, k.b.xyz)) - k.a.w;
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let e = abs(q) - k.c.xyz + vec3<f32>(k.a.w);
             return length(max(e, vec3<f32>(0.0))) + min(max(e.x, max(e.y, e.z)), 0.0) - k.a.w;
         }
-        case 5u: {
+        case KRS_TORUS_SEGMENT: {
             let c = torus_closest(k, p);
             let tube = distance(p, c.xyz) - k.b.w;
             return max(tube, torus_wedge(k, p).x);
         }
-        case 6u: {
+        case KRS_TOROIDAL_CAPSULE: {
             let c = torus_closest(k, p);
             return distance(p, c.xyz) - k.b.w;
         }
@@ -239,19 +227,19 @@ fn torus_tube_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
 fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
     var n = vec3<f32>(0.0, 1.0, 0.0);
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             n = p - k.a.xyz;
         }
-        case 2u: {
+        case KRS_PLANE: {
             n = k.a.xyz;
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             n = p - closest_on_segment(p, k.a.xyz, k.b.xyz);
             if !(dot(n, n) > 0.0) {
                 n = any_perpendicular(normalize_or(k.b.xyz - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0)));
             }
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let e = abs(q) - k.c.xyz + vec3<f32>(k.a.w);
             var local = vec3<f32>(0.0);
@@ -266,7 +254,7 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
             }
             n = quat_rotate(k.d, local);
         }
-        case 5u: {
+        case KRS_TORUS_SEGMENT: {
             let c = torus_closest(k, p);
             let tube = distance(p, c.xyz) - k.b.w;
             let wedge = torus_wedge(k, p);
@@ -276,7 +264,7 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
                 n = torus_tube_normal(k, p);
             }
         }
-        case 6u: {
+        case KRS_TOROIDAL_CAPSULE: {
             n = torus_tube_normal(k, p);
         }
         default: {}
@@ -287,23 +275,23 @@ fn kernel_normal(k: KrsKernel, p: vec3<f32>) -> vec3<f32> {
 // Kernel-parametrised coordinates (§6.2), as core's `Kernel::param_coords`.
 fn kernel_param_coords(k: KrsKernel, p: vec3<f32>) -> vec2<f32> {
     switch k.kind.x {
-        case 1u: {
+        case KRS_SPHERE: {
             let q = normalize_or(p - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0));
             return vec2<f32>(atan2(q.z, q.x) * k.a.w, asin(clamp(q.y, -1.0, 1.0)) * k.a.w);
         }
-        case 2u: {
+        case KRS_PLANE: {
             let u = any_perpendicular(k.a.xyz);
             let v = cross(k.a.xyz, u);
             return vec2<f32>(dot(p, u), dot(p, v));
         }
-        case 3u: {
+        case KRS_CAPSULE: {
             let axis = normalize_or(k.b.xyz - k.a.xyz, vec3<f32>(0.0, 1.0, 0.0));
             let u = any_perpendicular(axis);
             let v = cross(axis, u);
             let q = p - k.a.xyz;
             return vec2<f32>(dot(q, axis), atan2(dot(q, v), dot(q, u)) * k.a.w);
         }
-        case 4u: {
+        case KRS_BOX: {
             let q = quat_rotate(k.b, p - k.a.xyz);
             let a = abs(q) / max(k.c.xyz, vec3<f32>(1e-30));
             if a.x >= a.y && a.x >= a.z {
@@ -313,7 +301,7 @@ fn kernel_param_coords(k: KrsKernel, p: vec3<f32>) -> vec2<f32> {
             }
             return q.xy;
         }
-        case 5u, 6u: {
+        case KRS_TORUS_SEGMENT, KRS_TOROIDAL_CAPSULE: {
             let c = torus_closest(k, p);
             let radial = normalize_or(c.xyz - k.a.xyz, k.c.xyz);
             let q = p - c.xyz;
@@ -376,25 +364,70 @@ fn object_from_world(o: KrsObject, p_world: vec3<f32>) -> vec3<f32> {
     return quat_rotate(o.inv_rotation, p_world - o.translation_scale.xyz) * o.inv_scale;
 }
 
-// Distance from an object-space (warped) point: fold through the mirrors coarsest level first,
-// min with each level's kernel.
-fn distance_object(o: KrsObject, p_in: vec3<f32>) -> f32 {
-    var p = p_in;
-    let n = o.mirror_count;
-    var d = kernel_distance(krs_kernels[o.first_kernel + n], p);
-    for (var j = 0u; j < n; j++) {
-        let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p -= (2.0 * e) * m.xyz;
-        }
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            d = min(d, kernel_distance(k, p));
+// Algorithm 1's fold of one object, written once for every caller (distance, surface, smooth
+// diffuse): the object-space point folded through the mirrors so far, coarsest level first;
+// `e`, the signed distance of the point to the last mirror before its reflection; and the
+// nearest non-empty kernel met so far (index, distance, the folded point it was measured at).
+struct KrsFold {
+    p: vec3<f32>,
+    e: f32,
+    best_p: vec3<f32>,
+    best_d: f32,
+    best_k: u32,
+}
+
+fn krs_mirror(o: KrsObject, i: u32) -> vec4<f32> {
+    return krs_vectors[o.first_mirror + i];
+}
+
+// Kernel i at the folded point, kept when it is the nearest so far (empty kernels skipped).
+fn fold_kernel(o: KrsObject, f_in: KrsFold, i: u32) -> KrsFold {
+    var f = f_in;
+    let k = krs_kernels[o.first_kernel + i];
+    if k.kind.x != KRS_EMPTY {
+        let d = kernel_distance(k, f.p);
+        if d < f.best_d {
+            f.best_d = d;
+            f.best_k = i;
+            f.best_p = f.p;
         }
     }
-    return d;
+    return f;
+}
+
+// The fold at an object-space (warped) point before any mirror: the top level's kernel
+// (index mirror_count).
+fn fold_start(o: KrsObject, p: vec3<f32>) -> KrsFold {
+    var f: KrsFold;
+    f.p = p;
+    f.e = 0.0;
+    f.best_p = p;
+    f.best_d = KRS_FAR;
+    f.best_k = 0xffffffffu;
+    return fold_kernel(o, f, o.mirror_count);
+}
+
+// One level down: reflect through mirror i when the point is on its positive side, then
+// kernel i. Callers step i = mirror_count - 1 down to 0.
+fn fold_next(o: KrsObject, f_in: KrsFold, i: u32) -> KrsFold {
+    var f = f_in;
+    let m = krs_mirror(o, i);
+    f.e = dot(m.xyz, f.p) - m.w;
+    if f.e > 0.0 {
+        f.p -= (2.0 * f.e) * m.xyz;
+    }
+    return fold_kernel(o, f, i);
+}
+
+// Distance from an object-space (warped) point: the fold's nearest kernel (KRS_FAR when every
+// kernel is empty).
+fn distance_object(o: KrsObject, p: vec3<f32>) -> f32 {
+    let n = o.mirror_count;
+    var f = fold_start(o, p);
+    for (var j = 0u; j < n; j++) {
+        f = fold_next(o, f, n - 1u - j);
+    }
+    return f.best_d;
 }
 
 fn distance_world(o: KrsObject, p_world: vec3<f32>) -> f32 {
@@ -477,39 +510,21 @@ fn surface_world(o: KrsObject, p_world: vec3<f32>) -> KrsSurface {
     }
     let n = o.mirror_count;
     var frame = mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
-    var best_d = KRS_FAR;
-    var best_k = 0xffffffffu;
-    var best_p = q;
     var best_frame = frame;
-    var p = q;
-    let top = krs_kernels[o.first_kernel + n];
-    if top.kind.x != KRS_EMPTY {
-        let d = kernel_distance(top, p);
-        if d < best_d {
-            best_d = d;
-            best_k = n;
-            best_p = p;
-        }
-    }
+    var f = fold_start(o, q);
     for (var j = 0u; j < n; j++) {
         let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p -= (2.0 * e) * m.xyz;
-            frame = frame * householder(m.xyz);
+        f = fold_next(o, f, i);
+        if f.e > 0.0 {
+            frame = frame * householder(krs_mirror(o, i).xyz);
         }
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            let d = kernel_distance(k, p);
-            if d < best_d {
-                best_d = d;
-                best_k = i;
-                best_p = p;
-                best_frame = frame;
-            }
+        if f.best_k == i {
+            best_frame = frame;
         }
     }
+    let best_d = f.best_d;
+    let best_k = f.best_k;
+    let best_p = f.best_p;
     var s: KrsSurface;
     s.kernel = best_k;
     s.kernel_point = best_p;
@@ -549,27 +564,13 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
     var omega = normalize_or(quat_rotate(o.inv_rotation, light_world), vec3<f32>(0.0, 1.0, 0.0));
     let e_threshold = max(e_threshold_world / o.translation_scale.w, 0.0);
     let n = o.mirror_count;
-    var best_d = KRS_FAR;
-    var best_k = 0xffffffffu;
-    var best_p = p;
     var best_omega = omega;
-    let top = krs_kernels[o.first_kernel + n];
-    if top.kind.x != KRS_EMPTY {
-        let d = kernel_distance(top, p);
-        if d < best_d {
-            best_d = d;
-            best_k = n;
-            best_p = p;
-            best_omega = omega;
-        }
-    }
+    var f = fold_start(o, p);
     for (var j = 0u; j < n; j++) {
         let i = n - 1u - j;
-        let m = krs_vectors[o.first_mirror + i];
-        let e = dot(m.xyz, p) - m.w;
-        if e > 0.0 {
-            p = p - 2.0 * e * m.xyz;
-        }
+        f = fold_next(o, f, i);
+        let e = f.e;
+        let m = krs_mirror(o, i);
         let rho = omega - 2.0 * dot(m.xyz, omega) * m.xyz;
         var w = 0.0;
         if e_threshold > 0.0 {
@@ -578,17 +579,12 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
             w = 1.0;
         }
         omega = normalize_or(mix(omega, rho, w), select(omega, rho, e > 0.0));
-        let k = krs_kernels[o.first_kernel + i];
-        if k.kind.x != KRS_EMPTY {
-            let d = kernel_distance(k, p);
-            if d < best_d {
-                best_d = d;
-                best_k = i;
-                best_p = p;
-                best_omega = omega;
-            }
+        if f.best_k == i {
+            best_omega = omega;
         }
     }
+    let best_k = f.best_k;
+    let best_p = f.best_p;
     if best_k == 0xffffffffu {
         return 0.0;
     }
@@ -619,7 +615,7 @@ fn value_noise2(p: vec2<f32>) -> f32 {
 }
 
 fn pattern_value(pattern: u32, uv: vec2<f32>) -> f32 {
-    if pattern == 0u {
+    if pattern == KRS_PATTERN_CHECKER {
         let cell = floor(uv);
         if ((i32(cell.x) + i32(cell.y)) & 1) == 0 {
             return 1.0;
@@ -643,7 +639,7 @@ fn krs_albedo(o: KrsObject, s: KrsSurface, p_world: vec3<f32>) -> vec3<f32> {
     let k = krs_kernels[o.first_kernel + s.kernel];
     let base = k.colour.xyz;
     var c = base;
-    if o.texture_mode == 1u {
+    if o.texture_mode == KRS_TEXTURE_TRIPLANAR {
         let p = object_from_world(o, p_world);
         let n = quat_rotate(o.inv_rotation, s.normal);
         var w = pow(abs(n), vec3<f32>(max(o.tex_sharpness, 1.0)));
@@ -657,7 +653,7 @@ fn krs_albedo(o: KrsObject, s: KrsSurface, p_world: vec3<f32>) -> vec3<f32> {
         let v = w.x * pattern_value(o.pattern, q.yz) + w.y * pattern_value(o.pattern, q.xz)
             + w.z * pattern_value(o.pattern, q.xy);
         c = modulate(base, v, o.tex_contrast);
-    } else if o.texture_mode == 2u {
+    } else if o.texture_mode == KRS_TEXTURE_KERNEL_PARAM {
         let uv = kernel_param_coords(k, s.kernel_point);
         c = modulate(base, pattern_value(o.pattern, uv * o.tex_scale), o.tex_contrast);
     }

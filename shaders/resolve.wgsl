@@ -8,12 +8,11 @@
 // #import common/types.wgsl
 // #import common/skin.wgsl
 
-// `GpuTriangle` (app/src/gpu/gpu_data.rs); the layout is described in common/mesh.wgsl.
-const TRI_STRIDE: u32 = 11u;
-// Mesh textures (app/src/gpu/scene.rs): 256 words sRGB byte → linear (f32 bits), then 4 words
-// per texture (first texel word, width, height, 0), then RGBA8 texels, rows top to bottom.
-const TEXTURE_LUT_WORDS: u32 = 256u;
-const TEXTURE_ENTRY_WORDS: u32 = 4u;
+// `GpuTriangle` (app/src/gpu/gpu_data.rs, TRI_STRIDE vec4 each, generated); the layout is
+// described in common/mesh.wgsl.
+// Mesh textures (app/src/gpu/scene.rs): TEXTURE_LUT_WORDS (generated) words sRGB byte →
+// linear (f32 bits), then TEXTURE_ENTRY_WORDS words per texture (first texel word, width,
+// height, 0), then RGBA8 texels, rows top to bottom.
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> keys: array<vec2<u32>>;

@@ -25,8 +25,7 @@ const VISIT_SPLAT: u32 = 1u;
 const WORKGROUP: u32 = 64u;
 
 // Per-workgroup counters (visited, split, splatted, frustum culled, occlusion culled, of the
-// splatted those drawn as exact cubes), flushed once per group.
-const STATS_PER_LEVEL: u32 = 6u;
+// splatted those drawn as exact cubes), flushed once per group (STATS_PER_LEVEL: generated).
 var<workgroup> wg_stats: array<atomic<u32>, STATS_PER_LEVEL>;
 // Pixels the workgroup's splats cover, i.e. key atomics issued, flushed with the counters: the
 // byte count of the splat bandwidth measurement (app/src/gpu/splat_bw.rs).

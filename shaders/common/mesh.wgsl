@@ -6,8 +6,7 @@
 // 11 vec4 per world-space triangle (`GpuTriangle` in app/src/gpu/gpu_data.rs): 3 positions,
 // 3 normals (w = 1 when the part has vertex normals, else 0: use the face normal), 3 linear
 // RGBA colours (material × vertex colour), texture coordinates (a.uv, b.uv), (c.uv, texture
-// index or -1, 0). This pass reads only the positions.
-const TRI_STRIDE: u32 = 11u;
+// index or -1, 0). This pass reads only the positions. TRI_STRIDE: generated.
 
 @group(0) @binding(0) var<uniform> view: View;
 @group(0) @binding(1) var<storage, read> tris: array<vec4<f32>>;

@@ -1,33 +1,29 @@
 // Shared constants, structs and helpers for every pass.
-// Keep in sync with app/src/gpu/gpu_data.rs (sizes are asserted there).
+// Keep in sync with app/src/gpu/gpu_data.rs (the struct layouts are checked by the gpu_layout
+// test; the constants both sides use are generated from gpu_data.rs: gpu_data::WGSL_CONSTANTS,
+// prepended to every shader as constants.wgsl by gpu::shaders::compose).
 
 // An empty pixel: both halves of the packed key are all ones (depth bits above any finite
 // depth in 0..1, id above any id), so an atomic minimum replaces it with the first splat.
 const EMPTY: u32 = 0xffffffffu;
 // Ids with this bit set are triangles (bits 0..30: triangle index); below it, voxel attribute
-// indices (paper's node id).
-const MESH_ID_FLAG: u32 = 0x80000000u;
+// indices (paper's node id): MESH_ID_FLAG, generated.
 // Low bits of a voxel id: the face an exact cube's pixel shows (1..6: +x, -x, +y, -y, +z, -z
 // in the node's own axes; 0: a splat, shaded with the node's normal). Voxel ids are
-// attribute index << FACE_BITS | face (the CPU's `render::asvo::FACE_BITS`).
-const FACE_BITS: u32 = 3u;
-const FACE_MASK: u32 = 7u;
+// attribute index << FACE_BITS | face (the CPU's `render::asvo::FACE_BITS`; FACE_BITS and
+// FACE_MASK generated).
 
-// How splats and fragments write the key buffer (View::write_mode).
-// 64-bit path: one atomicMin of (depth << 32 | id).
-const MODE_KEY64: u32 = 0u;
-// 32-bit path, pass 1 (and shadow maps): atomicMin of the depth bits.
-const MODE_DEPTH: u32 = 1u;
-// 32-bit path, pass 2: atomicMin of the id where the stored depth equals ours.
-const MODE_ID: u32 = 2u;
+// How splats and fragments write the key buffer (View::write_mode, generated):
+// MODE_KEY64, 64-bit path: one atomicMin of (depth << 32 | id);
+// MODE_DEPTH, 32-bit path, pass 1 (and shadow maps): atomicMin of the depth bits;
+// MODE_ID, 32-bit path, pass 2: atomicMin of the id where the stored depth equals ours.
 
 // Counter buffer layout (array<atomic<u32>>).
 const QUEUE_COUNTS: u32 = 0u;   // 32 entries: nodes queued for each level
-const OVERFLOW_COUNTER: u32 = 32u; // children dropped because a queue was full
-const SPLAT_PIXEL_COUNTERS: u32 = 34u; // key atomics of voxel splats: [0] the view, [1] shadow maps
-const CUBE_PIXEL_COUNTERS: u32 = 36u; // pixels tested by exact cubes: [0] the view, [1] shadow maps
-const STATS_START: u32 = 64u; // first per-view statistics counter (the view's)
-const MAX_LEVELS: u32 = 32u;
+// Generated: OVERFLOW_COUNTER (children dropped because a queue was full),
+// SPLAT_PIXEL_COUNTERS (key atomics of voxel splats: [0] the view, [1] shadow maps),
+// CUBE_PIXEL_COUNTERS (pixels tested by exact cubes: [0] the view, [1] shadow maps),
+// STATS_START (first per-view statistics counter, the view's), MAX_LEVELS.
 
 // A camera with its image size (the view, or a light's shadow camera).
 struct View {
@@ -51,8 +47,7 @@ struct View {
     cube_pixel_threshold: f32,
 }
 
-// Edge of an occlusion tile in pixels.
-const OCCLUSION_TILE: u32 = 8u;
+// OCCLUSION_TILE (generated): edge of an occlusion tile in pixels.
 // Most tiles a node's rectangle may span for the occlusion test (larger nodes are not tested).
 const OCCLUSION_MAX_TILES: u32 = 16u;
 
@@ -82,15 +77,9 @@ struct NodeParams {
     skin: SkinParams,
 }
 
-// SkinParams::strategy: a rigid object, or a rigged one's stretch strategy.
-const SKIN_RIGID: u32 = 0u;
-const SKIN_OFF: u32 = 1u;
-const SKIN_THESIS: u32 = 2u;
-const SKIN_CORNERS: u32 = 3u;
-const SKIN_ADAPTIVE: u32 = 4u;
-// SkinParams::flags.
-const SKIN_HAS_CORNERS: u32 = 1u;
-const SKIN_HAS_OVERRIDES: u32 = 2u;
+// SkinParams::strategy: a rigid object, or a rigged one's stretch strategy (SKIN_RIGID,
+// SKIN_OFF, SKIN_THESIS, SKIN_CORNERS, SKIN_ADAPTIVE: generated from gpu_data::SkinStrategy).
+// SkinParams::flags: SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES (generated).
 
 // Per-object skinning constants (app/src/gpu/skin.rs): joint matrices in `joints`, word
 // offsets of the object's sections of `skin_data` (common/skin.wgsl), stretch settings.
@@ -138,8 +127,7 @@ struct LightGpu {
     color: vec4<f32>,
 }
 
-// LightGpu::shadow_map of a light without a shadow map this frame.
-const NO_SHADOW_MAP: u32 = 0xffffffffu;
+// NO_SHADOW_MAP (generated): LightGpu::shadow_map of a light without a shadow map this frame.
 
 // One light's shadow map: its camera and its first word in the shared shadow key buffer
 // (texel p's depth bits at key_word_offset + 2p + 1).

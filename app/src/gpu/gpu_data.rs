@@ -112,24 +112,56 @@ pub struct NodeParams {
     pub stats_base: u32,
     /// Padding to a 16-byte multiple.
     pub pad: [u32; 3],
-    /// How a rigged object's nodes are skinned ([`SkinParams::strategy`] is [`SKIN_RIGID`] for
-    /// rigid objects).
+    /// How a rigged object's nodes are skinned ([`SkinParams::strategy`] is [`SkinStrategy::Rigid`]
+    /// for rigid objects).
     pub skin: SkinParams,
 }
 const _: () = assert!(std::mem::size_of::<NodeParams>() == 192);
 const _: () = assert!(std::mem::offset_of!(NodeParams, skin) == 128);
 const _: () = assert!(std::mem::size_of::<NodeParams>() as u64 <= NODE_PARAMS_STRIDE);
 
-/// [`SkinParams::strategy`] of a rigid object.
-pub const SKIN_RIGID: u32 = 0;
-/// [`SkinParams::strategy`]: `StretchStrategy::Off`.
-pub const SKIN_OFF: u32 = 1;
-/// [`SkinParams::strategy`]: `StretchStrategy::Thesis`.
-pub const SKIN_THESIS: u32 = 2;
-/// [`SkinParams::strategy`]: `StretchStrategy::Corners`.
-pub const SKIN_CORNERS: u32 = 3;
-/// [`SkinParams::strategy`]: `StretchStrategy::Adaptive`.
-pub const SKIN_ADAPTIVE: u32 = 4;
+/// Declares a `u32` code enum the shaders compare against, with the WGSL constant name of each
+/// variant: [`constants_wgsl`] writes them, so the values have one definition.
+macro_rules! wgsl_codes {
+    ($(#[$m:meta])* pub enum $name:ident {
+        $($(#[$vm:meta])* $v:ident = $val:literal => $wgsl:literal,)*
+    }) => {
+        $(#[$m])*
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+        #[repr(u32)]
+        pub enum $name {
+            $($(#[$vm])* $v = $val,)*
+        }
+        impl $name {
+            /// Every variant with the name of its WGSL constant.
+            pub const WGSL: &'static [(&'static str, Self)] = &[$(($wgsl, Self::$v)),*];
+
+            /// The code written into the GPU struct.
+            #[must_use]
+            pub const fn code(self) -> u32 {
+                self as u32
+            }
+        }
+    };
+}
+
+wgsl_codes! {
+    /// [`SkinParams::strategy`]: a rigid object, or a rigged one's stretch strategy
+    /// (`StretchStrategy`).
+    pub enum SkinStrategy {
+        /// A rigid object (no skinning).
+        Rigid = 0 => "SKIN_RIGID",
+        /// `StretchStrategy::Off`.
+        Off = 1 => "SKIN_OFF",
+        /// `StretchStrategy::Thesis`.
+        Thesis = 2 => "SKIN_THESIS",
+        /// `StretchStrategy::Corners`.
+        Corners = 3 => "SKIN_CORNERS",
+        /// `StretchStrategy::Adaptive`.
+        Adaptive = 4 => "SKIN_ADAPTIVE",
+    }
+}
+
 /// [`SkinParams::flags`]: the object's corner weights are uploaded.
 pub const SKIN_HAS_CORNERS: u32 = 1;
 /// [`SkinParams::flags`]: the object's per-leaf stretch overrides are uploaded.
@@ -146,7 +178,7 @@ pub struct SkinParams {
     pub joint_base: u32,
     /// Joints of its skeleton.
     pub joint_count: u32,
-    /// [`SKIN_RIGID`] or the stretch strategy ([`SKIN_OFF`] .. [`SKIN_ADAPTIVE`]).
+    /// A [`SkinStrategy`] code.
     pub strategy: u32,
     /// [`SKIN_HAS_CORNERS`] | [`SKIN_HAS_OVERRIDES`].
     pub flags: u32,
@@ -434,9 +466,9 @@ pub struct KrsObjectGpu {
     pub zone_count: u32,
     /// [`KRS_OBJ_EMPTY`] | [`KRS_OBJ_DISTORTED`] | [`KRS_OBJ_BOUNDED`].
     pub flags: u32,
-    /// 0 plain, 1 triplanar, 2 kernel-parametrised (`TextureMode`).
+    /// A [`KrsTextureMode`] code.
     pub texture_mode: u32,
-    /// 0 checker, 1 bark (`Pattern`).
+    /// A [`KrsPattern`] code.
     pub pattern: u32,
     /// 1 / scale.
     pub inv_scale: f32,
@@ -464,15 +496,56 @@ pub const KRS_OBJ_DISTORTED: u32 = 2;
 /// [`KrsObjectGpu::flags`]: `bound` holds a bounding ball.
 pub const KRS_OBJ_BOUNDED: u32 = 4;
 
+wgsl_codes! {
+    /// [`KrsObjectGpu::texture_mode`] (`core::krs::TextureMode`).
+    pub enum KrsTextureMode {
+        /// The kernel's plain colour.
+        None = 0 => "KRS_TEXTURE_NONE",
+        /// Triplanar projection in object space.
+        Triplanar = 1 => "KRS_TEXTURE_TRIPLANAR",
+        /// Kernel-parametrised coordinates (§6.2).
+        KernelParam = 2 => "KRS_TEXTURE_KERNEL_PARAM",
+    }
+}
+
+wgsl_codes! {
+    /// [`KrsObjectGpu::pattern`] (`core::krs::Pattern`).
+    pub enum KrsPattern {
+        /// Alternating cells.
+        Checker = 0 => "KRS_PATTERN_CHECKER",
+        /// Streaked value noise.
+        Bark = 1 => "KRS_PATTERN_BARK",
+    }
+}
+
+wgsl_codes! {
+    /// [`KrsKernelGpu::kind`] (`core::krs::Kernel`'s variants).
+    pub enum KrsKernelKind {
+        /// `Kernel::Empty`.
+        Empty = 0 => "KRS_EMPTY",
+        /// `Kernel::Sphere`.
+        Sphere = 1 => "KRS_SPHERE",
+        /// `Kernel::InfinitePlane`.
+        Plane = 2 => "KRS_PLANE",
+        /// `Kernel::Capsule`.
+        Capsule = 3 => "KRS_CAPSULE",
+        /// `Kernel::RoundedBox`.
+        Box = 4 => "KRS_BOX",
+        /// `Kernel::TorusSegment`.
+        TorusSegment = 5 => "KRS_TORUS_SEGMENT",
+        /// `Kernel::ToroidalCapsule`.
+        ToroidalCapsule = 6 => "KRS_TOROIDAL_CAPSULE",
+    }
+}
+
 /// One kernel of the KRS pass. Field use by kind is documented in `shaders/krs_trace.wgsl`
-/// (`torus_closest` for tori); kinds are the `KRS_*` constants there.
+/// (`torus_closest` for tori).
 ///
 /// Keep in sync with `shaders/krs_trace.wgsl` (`KrsKernel`).
 #[repr(C)]
 #[derive(Debug, Clone, Copy, Pod, Zeroable)]
 pub struct KrsKernelGpu {
-    /// x: kind (0 empty, 1 sphere, 2 plane, 3 capsule, 4 box, 5 torus segment, 6 toroidal
-    /// capsule).
+    /// x: a [`KrsKernelKind`] code.
     pub kind: [u32; 4],
     /// Linear material colour (w unused).
     pub colour: [f32; 4],
@@ -540,6 +613,65 @@ pub const KRS_FRAME_SOFT: u32 = 4;
 /// range between the overflow counter and the per-view statistics.
 pub const KRS_COUNTERS: u32 = 40;
 const _: () = assert!(KRS_COUNTERS > OVERFLOW_COUNTER && KRS_COUNTERS + 13 <= STATS_START);
+
+/// The constants the shaders share with this file, by their WGSL name: the one definition of
+/// each. [`super::shaders::compose`] puts them (with the code enums' values: [`wgsl_constants`],
+/// written as [`constants_wgsl`], the generated `constants.wgsl`) before every shader, so a
+/// WGSL file that kept its own copy would not compile (WGSL forbids redeclaring a constant).
+pub const WGSL_CONSTANTS: &[(&str, u32)] = &[
+    ("MESH_ID_FLAG", MESH_ID_FLAG),
+    ("FACE_BITS", FACE_BITS),
+    ("FACE_MASK", (1 << FACE_BITS) - 1),
+    ("MODE_KEY64", MODE_KEY64),
+    ("MODE_DEPTH", MODE_DEPTH),
+    ("MODE_ID", MODE_ID),
+    ("OVERFLOW_COUNTER", OVERFLOW_COUNTER),
+    ("SPLAT_PIXEL_COUNTERS", SPLAT_PIXEL_COUNTERS),
+    ("CUBE_PIXEL_COUNTERS", CUBE_PIXEL_COUNTERS),
+    ("STATS_START", STATS_START),
+    ("MAX_LEVELS", MAX_LEVELS),
+    ("STATS_PER_LEVEL", STATS_PER_LEVEL),
+    ("OCCLUSION_TILE", OCCLUSION_TILE),
+    ("NO_SHADOW_MAP", NO_SHADOW_MAP),
+    ("TRI_STRIDE", TRI_VEC4S as u32),
+    ("TEXTURE_LUT_WORDS", TEXTURE_LUT_WORDS as u32),
+    ("TEXTURE_ENTRY_WORDS", TEXTURE_ENTRY_WORDS as u32),
+    ("KRS_COUNTERS", KRS_COUNTERS),
+    ("KRS_OBJ_EMPTY", KRS_OBJ_EMPTY),
+    ("KRS_OBJ_DISTORTED", KRS_OBJ_DISTORTED),
+    ("KRS_OBJ_BOUNDED", KRS_OBJ_BOUNDED),
+    ("KRS_FRAME_TILES", KRS_FRAME_TILES),
+    ("KRS_FRAME_SHADOWS", KRS_FRAME_SHADOWS),
+    ("KRS_FRAME_SOFT", KRS_FRAME_SOFT),
+    ("SKIN_HAS_CORNERS", SKIN_HAS_CORNERS),
+    ("SKIN_HAS_OVERRIDES", SKIN_HAS_OVERRIDES),
+];
+
+/// Every constant of the generated `constants.wgsl`: [`WGSL_CONSTANTS`], then each code enum's
+/// variants ([`SkinStrategy`], [`KrsKernelKind`], [`KrsTextureMode`], [`KrsPattern`]).
+#[must_use]
+pub fn wgsl_constants() -> Vec<(&'static str, u32)> {
+    fn codes<T: Copy>(table: &[(&'static str, T)], code: fn(T) -> u32) -> Vec<(&'static str, u32)> {
+        table.iter().map(|&(n, v)| (n, code(v))).collect()
+    }
+    let mut out = WGSL_CONSTANTS.to_vec();
+    out.extend(codes(SkinStrategy::WGSL, SkinStrategy::code));
+    out.extend(codes(KrsKernelKind::WGSL, KrsKernelKind::code));
+    out.extend(codes(KrsTextureMode::WGSL, KrsTextureMode::code));
+    out.extend(codes(KrsPattern::WGSL, KrsPattern::code));
+    out
+}
+
+/// The generated `constants.wgsl`: one `const NAME: u32 = VALUEu;` per [`wgsl_constants`]
+/// entry.
+#[must_use]
+pub fn constants_wgsl() -> String {
+    let mut out = String::from("// Generated from app/src/gpu/gpu_data.rs (wgsl_constants).\n");
+    for (name, value) in wgsl_constants() {
+        out.push_str(&format!("const {name}: u32 = {value}u;\n"));
+    }
+    out
+}
 
 #[cfg(test)]
 mod tests {

@@ -9,16 +9,19 @@
 //! `docs/gpu.md` "KRS pass" for the precision argument.
 
 use glam::Vec3;
-use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, TextureMode};
+use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, SampleGrid, TextureMode};
 // The KRS shading constants are the CPU reference's own, so the two cannot drift apart.
-use thicket_core::render::{AO_REACH_OBJECT_UNITS, Quality, SMOOTHING_PX, SOFT_SHADOW_K};
+use super::passes::{BindGroups, BufferPool, Gpu};
+use thicket_core::render::{
+    AO_REACH_OBJECT_UNITS, Camera, Quality, SMOOTHING_PX, SOFT_SHADOW_K, trace_settings,
+};
 use thicket_core::scene::{Document, Light, SceneError};
-use wgpu::util::DeviceExt;
 
 use super::GpuError;
 use super::gpu_data::{
     KRS_COUNTERS, KRS_FRAME_SHADOWS, KRS_FRAME_SOFT, KRS_FRAME_TILES, KRS_OBJ_BOUNDED,
-    KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsObjectGpu,
+    KRS_OBJ_DISTORTED, KRS_OBJ_EMPTY, KrsFrameUniform, KrsKernelGpu, KrsKernelKind, KrsObjectGpu,
+    KrsPattern, KrsTextureMode,
 };
 
 /// Counters of the KRS pass, read back with the frame's other counters.
@@ -120,9 +123,22 @@ fn v4(v: Vec3, w: f32) -> [f32; 4] {
     v.extend(w).to_array()
 }
 
+/// The GPU code of a kernel's variant.
+fn kernel_kind(k: &Kernel) -> KrsKernelKind {
+    match k {
+        Kernel::Empty => KrsKernelKind::Empty,
+        Kernel::Sphere(_) => KrsKernelKind::Sphere,
+        Kernel::InfinitePlane(_) => KrsKernelKind::Plane,
+        Kernel::Capsule(_) => KrsKernelKind::Capsule,
+        Kernel::RoundedBox(_) => KrsKernelKind::Box,
+        Kernel::TorusSegment(_) => KrsKernelKind::TorusSegment,
+        Kernel::ToroidalCapsule(_) => KrsKernelKind::ToroidalCapsule,
+    }
+}
+
 fn pack_kernel(k: &Kernel) -> KrsKernelGpu {
     let mut out = KrsKernelGpu {
-        kind: [0; 4],
+        kind: [kernel_kind(k).code(), 0, 0, 0],
         colour: [0.0; 4],
         params: [[0.0; 4]; 6],
     };
@@ -132,31 +148,22 @@ fn pack_kernel(k: &Kernel) -> KrsKernelGpu {
     match k {
         Kernel::Empty => {}
         Kernel::Sphere(s) => {
-            out.kind[0] = 1;
             out.params[0] = v4(s.centre, s.radius);
         }
         Kernel::InfinitePlane(p) => {
-            out.kind[0] = 2;
             out.params[0] = v4(p.normal, p.offset);
         }
         Kernel::Capsule(c) => {
-            out.kind[0] = 3;
             out.params[0] = v4(c.start, c.radius);
             out.params[1] = v4(c.end, 0.0);
         }
         Kernel::RoundedBox(b) => {
-            out.kind[0] = 4;
             out.params[0] = v4(b.centre, b.rounding);
             out.params[1] = b.rotation.inverse().to_array();
             out.params[2] = v4(b.half_extents, 0.0);
             out.params[3] = b.rotation.to_array();
         }
         Kernel::TorusSegment(t) | Kernel::ToroidalCapsule(t) => {
-            out.kind[0] = if matches!(k, Kernel::TorusSegment(_)) {
-                5
-            } else {
-                6
-            };
             // The same f32 values the CPU derives (basis, sin/cos of the sweep, end points),
             // so both sides compare the same numbers.
             let (s, c) = t.sweep_radians.sin_cos();
@@ -213,14 +220,16 @@ impl PackedKrs {
                 zone_count: obj.empty_zones.len() as u32,
                 flags,
                 texture_mode: match tex.mode {
-                    TextureMode::None => 0,
-                    TextureMode::Triplanar => 1,
-                    TextureMode::KernelParam => 2,
-                },
+                    TextureMode::None => KrsTextureMode::None,
+                    TextureMode::Triplanar => KrsTextureMode::Triplanar,
+                    TextureMode::KernelParam => KrsTextureMode::KernelParam,
+                }
+                .code(),
                 pattern: match tex.pattern {
-                    Pattern::Checker => 0,
-                    Pattern::Bark => 1,
-                },
+                    Pattern::Checker => KrsPattern::Checker,
+                    Pattern::Bark => KrsPattern::Bark,
+                }
+                .code(),
                 inv_scale: 1.0 / t.scale,
                 lipschitz: o.lipschitz,
                 amplitude: d.amplitude,
@@ -247,46 +256,26 @@ impl PackedKrs {
     }
 }
 
-/// What the KRS pass needs to know about the main camera.
-#[derive(Debug, Clone, Copy)]
-pub(super) struct KrsCamera {
-    pub(super) fx: f32,
-    pub(super) fy: f32,
-    pub(super) near: f32,
-    pub(super) perspective: bool,
-}
-
-/// The per-frame constants: the CPU's `trace_settings` and `SampleGrid` for this camera.
+/// The per-frame constants: the CPU's `trace_settings` and `SampleGrid` for this camera,
+/// called rather than re-derived (a grid without a cone keeps f32::MAX for ∞: WGSL has no
+/// infinity).
 fn frame_uniform(
-    cam: KrsCamera,
+    cam: &Camera,
     quality: &Quality,
     objects: u32,
     lights: &[Light],
     light_base: u32,
     min_scale: f32,
 ) -> KrsFrameUniform {
-    let pixel = 1.0 / cam.fy.min(cam.fx).max(1e-30);
-    let (cone, floor) = if cam.perspective {
-        (pixel, quality.krs_epsilon_scale * pixel * cam.near)
-    } else {
-        (0.0, quality.krs_epsilon_scale * pixel)
-    };
-    let min_epsilon = floor.max(1e-9);
-    let grid_cone = (f64::from(quality.krs_epsilon_scale) * f64::from(cone)).max(0.0);
-    let grid_floor = f64::from(min_epsilon).max(1e-12);
-    let q0 = 0.5 * grid_floor;
-    let (t0, log_step, u0) = if grid_cone > 0.0 && grid_cone.is_finite() {
-        let t0 = grid_floor / grid_cone;
-        (
-            t0 as f32,
-            (0.5 * grid_cone).ln_1p() as f32,
-            (t0 / q0) as f32,
-        )
+    let settings = trace_settings(cam, quality);
+    let grid = SampleGrid::new(&settings);
+    let (t0, log_step, u0) = if grid.t0.is_finite() {
+        (grid.t0 as f32, grid.log_step as f32, grid.u0 as f32)
     } else {
         (f32::MAX, 1.0, f32::MAX)
     };
     let mut flags = 0;
-    if quality.krs_tile_acceleration && cam.perspective {
+    if quality.krs_tile_acceleration && cam.is_perspective() {
         flags |= KRS_FRAME_TILES;
     }
     if quality.shadows {
@@ -297,16 +286,16 @@ fn frame_uniform(
     }
     let ao_samples = quality.ao_samples;
     KrsFrameUniform {
-        eps_scale: quality.krs_epsilon_scale,
-        pixel_cone: cone,
-        min_epsilon,
-        max_steps: quality.krs_max_steps,
-        over_relaxation: if quality.krs_over_relaxation.is_finite() {
-            quality.krs_over_relaxation
+        eps_scale: settings.eps_scale,
+        pixel_cone: settings.pixel_cone_ratio,
+        min_epsilon: settings.min_epsilon,
+        max_steps: settings.max_steps,
+        over_relaxation: if settings.over_relaxation.is_finite() {
+            settings.over_relaxation
         } else {
             1.0
         },
-        grid_q0: q0 as f32,
+        grid_q0: grid.q0 as f32,
         grid_t0: t0,
         grid_log_step: log_step,
         grid_u0: u0,
@@ -324,16 +313,18 @@ fn frame_uniform(
     }
 }
 
-/// Layout and pipelines of the KRS pass, created once per device.
+/// Layout, pipelines and bind group of the KRS pass: the pipelines are created once per
+/// device, the buffers and the bind group persist across frames (rewritten each frame,
+/// recreated only when a size grows; see `passes`).
 pub(super) struct KrsPipelines {
     bgl: wgpu::BindGroupLayout,
     trace: wgpu::ComputePipeline,
     light: wgpu::ComputePipeline,
+    groups: BindGroups,
 }
 
-/// One frame's KRS work: its bind group and the per-pixel lighting buffer shade.wgsl reads.
+/// One frame's KRS work: the per-pixel lighting buffer shade.wgsl reads.
 pub(super) struct KrsFrame {
-    bind_group: wgpu::BindGroup,
     /// `stride` vec4 per pixel (see `krs_trace.wgsl`).
     pub(super) light_buf: wgpu::Buffer,
     /// Entries per pixel.
@@ -348,34 +339,39 @@ pub(super) struct KrsBindings<'a> {
     pub(super) counters: &'a wgpu::Buffer,
 }
 
+/// What the KRS pass reads of a frame.
+pub(super) struct KrsInputs<'a> {
+    /// The document's prepared KRS objects ([`prepared_krs`]).
+    pub(super) scene: &'a PreparedScene,
+    pub(super) doc: &'a Document,
+    pub(super) quality: &'a Quality,
+    pub(super) cam: &'a Camera,
+    /// The view's size in pixels.
+    pub(super) size: (u32, u32),
+    pub(super) bindings: KrsBindings<'a>,
+}
+
+/// The pass's bind group layouts (one group), checked against `krs_trace.wgsl` by a test.
+pub(super) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry>> {
+    use super::passes::{storage, uniform};
+    let cs = wgpu::ShaderStages::COMPUTE;
+    vec![vec![
+        uniform(0, false, cs),
+        uniform(1, false, cs),
+        storage(2, true, cs),
+        storage(3, true, cs),
+        storage(4, true, cs),
+        storage(5, false, cs),
+        storage(6, false, cs),
+        storage(7, false, cs),
+    ]]
+}
+
 impl KrsPipelines {
     pub(super) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let cs = wgpu::ShaderStages::COMPUTE;
-        let entry = |binding: u32, ty: wgpu::BufferBindingType| wgpu::BindGroupLayoutEntry {
-            binding,
-            visibility: cs,
-            ty: wgpu::BindingType::Buffer {
-                ty,
-                has_dynamic_offset: false,
-                min_binding_size: None,
-            },
-            count: None,
-        };
-        let ro = wgpu::BufferBindingType::Storage { read_only: true };
-        let rw = wgpu::BufferBindingType::Storage { read_only: false };
-        let uni = wgpu::BufferBindingType::Uniform;
         let bgl = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("krs"),
-            entries: &[
-                entry(0, uni),
-                entry(1, uni),
-                entry(2, ro),
-                entry(3, ro),
-                entry(4, ro),
-                entry(5, rw),
-                entry(6, rw),
-                entry(7, rw),
-            ],
+            entries: &bind_group_entries()[0],
         });
         let src = super::shaders::compose("krs_trace.wgsl")?;
         let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
@@ -401,29 +397,23 @@ impl KrsPipelines {
             trace: pipeline("trace"),
             light: pipeline("light"),
             bgl,
+            groups: BindGroups::default(),
         })
     }
 
-    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and creates this
-    /// frame's buffers; `None` without KRS objects or pipelines.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the frame's inputs the pass needs, each a different kind"
-    )]
+    /// Packs the document's prepared KRS objects (see [`prepared_krs`]) and writes this
+    /// frame's buffers.
+    ///
+    /// # Errors
+    /// [`GpuError::TooLarge`] when the per-pixel lighting buffer exceeds a storage binding.
     pub(super) fn prepare(
-        pipelines: Option<&Self>,
-        device: &wgpu::Device,
-        scene: Option<&PreparedScene>,
-        doc: &Document,
-        quality: &Quality,
-        cam: KrsCamera,
-        size: (u32, u32),
-        bindings: &KrsBindings<'_>,
-    ) -> Result<Option<KrsFrame>, GpuError> {
-        let (Some(pipelines), Some(scene)) = (pipelines, scene) else {
-            return Ok(None);
-        };
-        let mut packed = PackedKrs::pack(scene);
+        &mut self,
+        gpu: Gpu<'_>,
+        pool: &mut BufferPool,
+        inputs: &KrsInputs<'_>,
+    ) -> Result<KrsFrame, GpuError> {
+        let (doc, size) = (inputs.doc, inputs.size);
+        let mut packed = PackedKrs::pack(inputs.scene);
         let light_base = packed.vectors.len() as u32;
         packed.vectors.extend(doc.lights.iter().map(|l| {
             v4(
@@ -432,8 +422,8 @@ impl KrsPipelines {
             )
         }));
         let uniform = frame_uniform(
-            cam,
-            quality,
+            inputs.cam,
+            inputs.quality,
             packed.objects.len() as u32,
             &doc.lights,
             light_base,
@@ -441,7 +431,7 @@ impl KrsPipelines {
         );
         let pixels = u64::from(size.0) * u64::from(size.1);
         let light_bytes = pixels * u64::from(uniform.stride) * 16;
-        let limit = device.limits().max_storage_buffer_binding_size;
+        let limit = gpu.device.limits().max_storage_buffer_binding_size;
         if light_bytes > limit {
             return Err(GpuError::TooLarge {
                 what: "KRS lighting buffer",
@@ -449,17 +439,11 @@ impl KrsPipelines {
                 limit,
             });
         }
-        let upload = |label: &str, data: &[u8], usage: wgpu::BufferUsages| {
-            let mut contents = data.to_vec();
-            // Empty bindings are not allowed; a zeroed pad is never read (counts are 0).
-            contents.resize(contents.len().max(256), 0);
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents: &contents,
-                usage,
-            })
-        };
         let storage = wgpu::BufferUsages::STORAGE;
+        let mut upload = |label: &'static str, data: &[u8], usage: wgpu::BufferUsages| {
+            // Empty bindings are not allowed; a zeroed pad is never read (counts are 0).
+            pool.upload(gpu, label, 0, data, usage)
+        };
         let frame_buf = upload(
             "krs frame",
             bytemuck::bytes_of(&uniform),
@@ -480,42 +464,35 @@ impl KrsPipelines {
             bytemuck::cast_slice(&packed.vectors),
             storage,
         );
-        let light_buf = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("krs lighting"),
-            size: light_bytes.max(256),
-            usage: storage,
-            mapped_at_creation: false,
-        });
+        // Every pixel's entries are written by the trace before anything reads them.
+        let light_buf = pool.get(gpu, "krs lighting", 0, light_bytes.max(256), storage);
+        let b = &inputs.bindings;
         let buffers = [
-            bindings.view,
-            &frame_buf,
-            &objects,
-            &kernels,
-            &vectors,
-            bindings.gbuffer,
-            &light_buf,
-            bindings.counters,
+            b.view, &frame_buf, &objects, &kernels, &vectors, b.gbuffer, &light_buf, b.counters,
         ];
-        let bind_group = super::renderer::bind_group(device, &pipelines.bgl, "krs", &buffers);
-        Ok(Some(KrsFrame {
-            bind_group,
+        self.groups.set_buffers(gpu, &self.bgl, "krs", 0, &buffers);
+        Ok(KrsFrame {
             light_buf,
             stride: uniform.stride,
             groups: (size.0.div_ceil(8), size.1.div_ceil(8)),
-        }))
+        })
     }
 
     /// Records the trace pass (after resolve).
     pub(super) fn trace(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
         pass.set_pipeline(&self.trace);
-        pass.set_bind_group(0, &frame.bind_group, &[]);
+        if let Some(bg) = self.groups.get(0) {
+            pass.set_bind_group(0, bg, &[]);
+        }
         pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
     }
 
     /// Records the lighting pass (after trace, before shade).
     pub(super) fn light(&self, pass: &mut wgpu::ComputePass<'_>, frame: &KrsFrame) {
         pass.set_pipeline(&self.light);
-        pass.set_bind_group(0, &frame.bind_group, &[]);
+        if let Some(bg) = self.groups.get(0) {
+            pass.set_bind_group(0, bg, &[]);
+        }
         pass.dispatch_workgroups(frame.groups.0, frame.groups.1, 1);
     }
 }

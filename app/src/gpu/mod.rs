@@ -15,6 +15,7 @@
 pub mod context;
 pub mod gpu_data;
 pub mod krs;
+mod passes;
 mod renderer;
 mod scene;
 pub mod shaders;

@@ -3,7 +3,10 @@
 //! WGSL has no include mechanism, so a file names what it needs with `// #import path` lines
 //! (paths relative to `shaders/`); [`compose`] prepends every import once, depth first. Entry
 //! modules are the files at the top of `shaders/`; `shaders/common/` holds shared structs and
-//! functions. The `gpu_shaders` test validates every file with naga after composition.
+//! functions. Before everything, [`compose`] puts the generated [`GENERATED`] file: the
+//! constants Rust and WGSL share, written from `gpu_data::WGSL_CONSTANTS`. The `gpu_shaders`
+//! test validates every file with naga after composition; `gpu_layout` checks the shared
+//! structs' layouts against `gpu_data`.
 
 use super::GpuError;
 
@@ -54,13 +57,18 @@ pub fn source(path: &str) -> Result<&'static str, GpuError> {
         .ok_or_else(|| GpuError::Shader(format!("no embedded shader {path:?}")))
 }
 
-/// A file with its imports prepended (each once, dependencies first).
+/// The name of the generated constants file [`compose`] puts before every shader.
+pub const GENERATED: &str = "constants.wgsl";
+
+/// A file with the generated constants and its imports prepended (each once, dependencies
+/// first).
 ///
 /// # Errors
 /// [`GpuError::Shader`] for an unknown file or an import cycle.
 pub fn compose(path: &str) -> Result<String, GpuError> {
     let mut done: Vec<&str> = Vec::new();
-    let mut out = String::new();
+    let mut out = format!("// ---- {GENERATED} ----\n");
+    out.push_str(&super::gpu_data::constants_wgsl());
     visit(path, &mut Vec::new(), &mut done, &mut out)?;
     Ok(out)
 }

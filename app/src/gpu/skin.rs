@@ -21,14 +21,11 @@ use std::sync::Arc;
 use glam::{Mat3, Mat4, Vec3};
 use thicket_core::render::{NodeDeform, NodeInfo, Quality};
 use thicket_core::scene::{Document, ObjectKind};
-use thicket_core::skin::{Rig, Skin4, SkinDeform, SkinTables, StretchStrategy};
+use thicket_core::skin::{Rig, Skin4, SkinDeform, SkinTables, StretchSettings, StretchStrategy};
 use thicket_core::svo::{NodeRef, Svo};
 
 use super::GpuError;
-use super::gpu_data::{
-    SKIN_ADAPTIVE, SKIN_CORNERS, SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES, SKIN_OFF, SKIN_RIGID,
-    SKIN_THESIS, SkinParams,
-};
+use super::gpu_data::{SKIN_HAS_CORNERS, SKIN_HAS_OVERRIDES, SkinParams, SkinStrategy};
 use super::scene::{FrameObjects, SceneCache, UploadStats, object_of};
 
 /// Bytes of one joint matrix.
@@ -43,6 +40,10 @@ struct Layout {
     /// What the data depends on besides the pools (see [`signature`]).
     signature: (u32, u64, bool),
 }
+
+/// A rigged object as posed this frame: its skinning matrices, `world_from_object`,
+/// `object_from_voxel` and effective stretch settings.
+type Posed = (Vec<Mat4>, Mat4, Mat4, StretchSettings);
 
 /// Skin data and joint matrices of the uploaded scene.
 #[derive(Default)]
@@ -62,7 +63,8 @@ pub(super) struct SkinCache {
 
 /// What one frame needs from [`SkinCache::prepare`].
 pub(super) struct SkinFrame {
-    /// Per entry of `SceneCache::voxels` (zeroed, strategy [`SKIN_RIGID`], for rigid objects).
+    /// Per entry of `SceneCache::voxels` (zeroed, strategy [`SkinStrategy::Rigid`], for rigid
+    /// objects).
     pub(super) params: Vec<SkinParams>,
     /// The skin data per pool chunk (a small dummy for a chunk without rigged objects).
     pub(super) data_bufs: Vec<wgpu::Buffer>,
@@ -76,11 +78,12 @@ pub(super) struct SkinFrame {
 
 fn strategy_code(s: StretchStrategy) -> u32 {
     match s {
-        StretchStrategy::Off => SKIN_OFF,
-        StretchStrategy::Thesis => SKIN_THESIS,
-        StretchStrategy::Corners => SKIN_CORNERS,
-        StretchStrategy::Adaptive => SKIN_ADAPTIVE,
+        StretchStrategy::Off => SkinStrategy::Off,
+        StretchStrategy::Thesis => SkinStrategy::Thesis,
+        StretchStrategy::Corners => SkinStrategy::Corners,
+        StretchStrategy::Adaptive => SkinStrategy::Adaptive,
     }
+    .code()
 }
 
 fn skin_words(s: &Skin4) -> [u32; 2] {
@@ -138,7 +141,7 @@ fn append_object(
     let leaf_len = svo.leaf_colors().len();
     let words = |n: usize| u32::try_from(n).unwrap_or(u32::MAX);
     let mut p = SkinParams {
-        strategy: SKIN_THESIS,
+        strategy: SkinStrategy::Thesis.code(),
         ..SkinParams::default()
     };
     let node_skins = |data: &mut Vec<u32>, skins: &[Skin4], len: usize| {
@@ -234,51 +237,7 @@ impl SkinCache {
                 }
             });
         if stale {
-            // The skin data follows the pools' split: one buffer per chunk.
-            let mut data: Vec<Vec<u32>> = vec![Vec::new(); scene.chunks.len()];
-            let mut layouts = Vec::with_capacity(scene.voxels.len());
-            for e in &scene.voxels {
-                let Some(chunk_data) = data.get_mut(e.chunk) else {
-                    return Err(GpuError::Device(
-                        "voxel object outside the pool chunks".into(),
-                    ));
-                };
-                layouts.push(rig_of(doc, e.object_id).map(|(rig, svo, ..)| {
-                    let tables = rig.tables(svo);
-                    let params = append_object(chunk_data, svo, rig, &tables, quality);
-                    Layout {
-                        params,
-                        tables,
-                        signature: signature(rig, quality),
-                    }
-                }));
-            }
-            let limit = device.limits().max_storage_buffer_binding_size;
-            let mut bytes = 0;
-            for d in &data {
-                let b = d.len() as u64 * 4;
-                if b > limit {
-                    return Err(GpuError::TooLarge {
-                        what: "skin data (of one pool chunk)",
-                        bytes: b,
-                        limit,
-                    });
-                }
-                bytes += b;
-            }
-            self.data_bufs = data
-                .iter()
-                .map(|d| super::scene::storage_init(device, "skin data", bytemuck::cast_slice(d)))
-                .collect();
-            self.layouts = layouts;
-            self.uploaded_joints.clear();
-            self.bounds_key.clear();
-            scene.skin_stale = false;
-            if self.layouts.iter().any(Option::is_some) {
-                upload.bytes += bytes;
-                upload.writes += 1;
-                upload.skin_data = true;
-            }
+            self.rebuild_data(device, doc, scene, quality, &mut upload)?;
         }
 
         // Joint matrices and per-object constants for this frame's poses and settings.
@@ -329,52 +288,10 @@ impl SkinCache {
         }
         let joints_changed = joints != self.uploaded_joints || self.joint_buf.is_none();
         if joints_changed {
-            let bytes = joints.len() as u64 * MATRIX_BYTES;
-            let fits = self.joint_buf.as_ref().is_some_and(|b| b.size() >= bytes);
-            if fits {
-                if let Some(b) = &self.joint_buf
-                    && !joints.is_empty()
-                {
-                    queue.write_buffer(b, 0, bytemuck::cast_slice(&joints));
-                }
-            } else {
-                self.joint_buf = Some(super::scene::storage_init(
-                    device,
-                    "joints",
-                    bytemuck::cast_slice(&joints),
-                ));
-            }
-            if !joints.is_empty() {
-                upload.bytes += bytes;
-                upload.joint_bytes += bytes;
-                upload.writes += 1;
-            }
-            self.uploaded_joints = joints;
+            self.upload_joints(device, queue, joints, &mut upload);
         }
-
-        // Bounds of the posed models (shadow map fit, ambient-occlusion radius), as the CPU's
-        // `voxel_bounds`, recomputed only when a pose or the settings change.
         if joints_changed || self.bounds_key != params {
-            let mut bounds: Option<(Vec3, Vec3)> = None;
-            for ((e, l), sk) in scene.voxels.iter().zip(&self.layouts).zip(&skinning_of) {
-                let (Some(l), Some((skinning, w, o, stretch))) = (l, sk) else {
-                    continue;
-                };
-                let Some((rig, svo, ..)) = rig_of(doc, e.object_id) else {
-                    continue;
-                };
-                let deform = SkinDeform::new(
-                    *w,
-                    *o,
-                    skinning,
-                    *stretch,
-                    &rig.stretch_overrides,
-                    Arc::clone(&l.tables),
-                );
-                posed_bounds(svo, &deform, &mut bounds);
-            }
-            self.bounds = bounds;
-            self.bounds_key.clone_from(&params);
+            self.update_bounds(doc, scene, &skinning_of, &params);
         }
 
         let data_bufs = self.data_bufs.clone();
@@ -389,6 +306,128 @@ impl SkinCache {
             bounds: self.bounds,
             upload,
         })
+    }
+
+    /// Rebuilds the skin data of every rigged object, one buffer per pool chunk (the skin
+    /// data follows the pools' split).
+    fn rebuild_data(
+        &mut self,
+        device: &wgpu::Device,
+        doc: &Document,
+        scene: &mut SceneCache,
+        quality: &Quality,
+        upload: &mut UploadStats,
+    ) -> Result<(), GpuError> {
+        let mut data: Vec<Vec<u32>> = vec![Vec::new(); scene.chunks.len()];
+        let mut layouts = Vec::with_capacity(scene.voxels.len());
+        for e in &scene.voxels {
+            let Some(chunk_data) = data.get_mut(e.chunk) else {
+                return Err(GpuError::Device(
+                    "voxel object outside the pool chunks".into(),
+                ));
+            };
+            layouts.push(rig_of(doc, e.object_id).map(|(rig, svo, ..)| {
+                let tables = rig.tables(svo);
+                let params = append_object(chunk_data, svo, rig, &tables, quality);
+                Layout {
+                    params,
+                    tables,
+                    signature: signature(rig, quality),
+                }
+            }));
+        }
+        let limit = device.limits().max_storage_buffer_binding_size;
+        let mut bytes = 0;
+        for d in &data {
+            let b = d.len() as u64 * 4;
+            if b > limit {
+                return Err(GpuError::TooLarge {
+                    what: "skin data (of one pool chunk)",
+                    bytes: b,
+                    limit,
+                });
+            }
+            bytes += b;
+        }
+        self.data_bufs = data
+            .iter()
+            .map(|d| super::scene::storage_init(device, "skin data", bytemuck::cast_slice(d)))
+            .collect();
+        self.layouts = layouts;
+        self.uploaded_joints.clear();
+        self.bounds_key.clear();
+        scene.skin_stale = false;
+        if self.layouts.iter().any(Option::is_some) {
+            upload.bytes += bytes;
+            upload.writes += 1;
+            upload.skin_data = true;
+        }
+        Ok(())
+    }
+
+    /// Uploads this frame's joint matrices (into the joint buffer when they fit, else a new
+    /// one).
+    fn upload_joints(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        joints: Vec<[f32; 16]>,
+        upload: &mut UploadStats,
+    ) {
+        let bytes = joints.len() as u64 * MATRIX_BYTES;
+        let fits = self.joint_buf.as_ref().is_some_and(|b| b.size() >= bytes);
+        if fits {
+            if let Some(b) = &self.joint_buf
+                && !joints.is_empty()
+            {
+                queue.write_buffer(b, 0, bytemuck::cast_slice(&joints));
+            }
+        } else {
+            self.joint_buf = Some(super::scene::storage_init(
+                device,
+                "joints",
+                bytemuck::cast_slice(&joints),
+            ));
+        }
+        if !joints.is_empty() {
+            upload.bytes += bytes;
+            upload.joint_bytes += bytes;
+            upload.writes += 1;
+        }
+        self.uploaded_joints = joints;
+    }
+
+    /// Bounds of the posed models (shadow map fit, ambient-occlusion radius), as the CPU's
+    /// `voxel_bounds`, for this frame's poses (`skinning_of`, per entry of
+    /// `SceneCache::voxels`) and settings (`params`).
+    fn update_bounds(
+        &mut self,
+        doc: &Document,
+        scene: &SceneCache,
+        skinning_of: &[Option<Posed>],
+        params: &[SkinParams],
+    ) {
+        let mut bounds: Option<(Vec3, Vec3)> = None;
+        for ((e, l), sk) in scene.voxels.iter().zip(&self.layouts).zip(skinning_of) {
+            let (Some(l), Some((skinning, w, o, stretch))) = (l, sk) else {
+                continue;
+            };
+            let Some((rig, svo, ..)) = rig_of(doc, e.object_id) else {
+                continue;
+            };
+            let deform = SkinDeform::new(
+                *w,
+                *o,
+                skinning,
+                *stretch,
+                &rig.stretch_overrides,
+                Arc::clone(&l.tables),
+            );
+            posed_bounds(svo, &deform, &mut bounds);
+        }
+        self.bounds = bounds;
+        self.bounds_key.clear();
+        self.bounds_key.extend_from_slice(params);
     }
 }
 
@@ -426,7 +465,7 @@ impl SkinFrame {
             .zip(&self.params)
             .zip(&scene.voxels)
         {
-            if p.strategy != SKIN_RIGID {
+            if p.strategy != SkinStrategy::Rigid.code() {
                 o.skin_attr = [1, e.attr_inner_base, e.attr_leaf_base, 0];
                 o.skin = *p;
             }

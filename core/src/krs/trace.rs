@@ -150,21 +150,24 @@ const CERTIFY_MARGIN: f64 = 1.001;
 
 /// The canonical sample positions along a ray: spaced ε(t)/2 (uniform where the `min_epsilon`
 /// floor rules, geometric where the pixel cone does). Hits are only reported on these
-/// positions, so any tracer that skips only certified stretches reports the same hit.
-#[derive(Debug, Clone, Copy)]
-struct SampleGrid {
+/// positions, so any tracer that skips only certified stretches reports the same hit (the GPU
+/// KRS pass takes its constants from here).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SampleGrid {
     /// Spacing in the uniform part.
-    q0: f64,
+    pub q0: f64,
     /// Ray parameter where the cone epsilon overtakes the floor (∞ without a cone).
-    t0: f64,
+    pub t0: f64,
     /// ln(1 + cone/2): index step of the geometric part.
-    log_step: f64,
+    pub log_step: f64,
     /// Index at t0.
-    u0: f64,
+    pub u0: f64,
 }
 
 impl SampleGrid {
-    fn new(settings: &TraceSettings) -> Self {
+    /// The grid of a ray traced with `settings`.
+    #[must_use]
+    pub fn new(settings: &TraceSettings) -> Self {
         let cone = (settings.eps_scale as f64 * settings.pixel_cone_ratio as f64).max(0.0);
         let floor = (settings.min_epsilon as f64).max(1e-12);
         let q0 = 0.5 * floor;

@@ -172,8 +172,10 @@ impl PixelRay {
     }
 }
 
-/// Tracing settings for a camera: a pixel-cone epsilon of `krs_epsilon_scale` pixels.
-pub(crate) fn trace_settings(cam: &Camera, quality: &Quality) -> TraceSettings {
+/// Tracing settings for a camera: a pixel-cone epsilon of `krs_epsilon_scale` pixels. The GPU
+/// KRS pass takes its epsilon and sample grid from these too.
+#[must_use]
+pub fn trace_settings(cam: &Camera, quality: &Quality) -> TraceSettings {
     let pixel = 1.0 / cam.fy.min(cam.fx).max(1e-30);
     let (cone, floor) = if cam.perspective {
         // The floor is the footprint at the near plane: rays start there, and nothing nearer

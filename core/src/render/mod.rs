@@ -42,7 +42,10 @@ pub use asvo::{FACE_BITS, VoxelInstance};
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
 pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
-pub use krs::{AO_REACH_OBJECT_UNITS, KRS_TILE, KrsLayer, KrsStats, SMOOTHING_PX, SOFT_SHADOW_K};
+pub use krs::{
+    AO_REACH_OBJECT_UNITS, KRS_TILE, KrsLayer, KrsStats, SMOOTHING_PX, SOFT_SHADOW_K,
+    trace_settings,
+};
 pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
 pub use stats::{FrameStats, LevelStats, ShadingStats, StageTimes};
