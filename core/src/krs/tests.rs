@@ -920,6 +920,83 @@ fn algorithm2_smooths_the_light_across_mirror_planes() {
 }
 
 #[test]
+fn algorithm2_on_a_distorted_object_is_flat_shading_at_zero_threshold_and_smooths_the_ridge() {
+    // The roof ridge of the test above, warped: with threshold 0 Algorithm 2 must give exactly
+    // n·l with the warped normal of `sample_world` (the light is carried as J·l and the factor
+    // rescaled); with a threshold it stays continuous across the (warped) ridge.
+    let roof = Kernel::InfinitePlane(PlaneKernel {
+        normal: Vec3::new(-0.5, 1.0, 0.0),
+        offset: 0.0,
+        ..Default::default()
+    });
+    let obj = KrsObject {
+        kernels: vec![roof, Kernel::Empty],
+        mirrors: vec![MirrorPlane::new(Vec3::X, 0.0)],
+        distortion: Some(Distortion {
+            amplitude: 0.1,
+            frequency: 1.5,
+            seed: 3,
+        }),
+        world_from_object: Similarity {
+            rotation: Quat::from_rotation_y(0.4),
+            ..Similarity::default()
+        },
+        ..Default::default()
+    };
+    let scene = prepared(obj);
+    let o = &scene.objects[0];
+    let light = Vec3::new(1.0, 1.0, 0.3).normalize_or(Vec3::Y);
+    let mut rng = Pcg32::seed_from_u64(9);
+    let mut differs_from_undistorted = 0;
+    for _ in 0..64 {
+        let p = Vec3::new(
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-1.5..0.5),
+            rng.random_range(-2.0..2.0),
+        );
+        let (_, n) = o.sample_world(p);
+        let flat = o.smooth_shading(p, light, 0.0).diffuse;
+        let exact = n.dot(light).max(0.0);
+        assert!((flat - exact).abs() < 2e-4, "{p}: {flat} vs {exact}");
+        // The warp matters: the undistorted roof's factor is one of two constants.
+        let plain = [Vec3::new(-0.5, 1.0, 0.0), Vec3::new(0.5, 1.0, 0.0)].map(|n| {
+            Quat::from_rotation_y(0.4)
+                .mul_vec3(n.normalize())
+                .dot(light)
+                .max(0.0)
+        });
+        if plain.iter().all(|d| (d - exact).abs() > 1e-2) {
+            differs_from_undistorted += 1;
+        }
+    }
+    assert!(differs_from_undistorted > 32, "{differs_from_undistorted}");
+    // Across the ridge: walk along a line crossing it and look for the largest jump between
+    // neighbouring samples 1e-3 apart.
+    let jump = |th: f32| {
+        (0..400)
+            .map(|i| {
+                let x = -0.2 + i as f32 * 1e-3;
+                let a = Quat::from_rotation_y(0.4) * Vec3::new(x, -0.4, 0.3);
+                let b = Quat::from_rotation_y(0.4) * Vec3::new(x + 1e-3, -0.4, 0.3);
+                // Project both onto the surface along y with the distance estimate.
+                let onto = |p: Vec3| {
+                    let mut q = p;
+                    for _ in 0..64 {
+                        q.y -= o.distance_world(q) * 0.5;
+                    }
+                    q
+                };
+                let (pa, pb) = (onto(a), onto(b));
+                (o.smooth_shading(pa, light, th).diffuse - o.smooth_shading(pb, light, th).diffuse)
+                    .abs()
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let (flat, smooth) = (jump(0.0), jump(0.2));
+    assert!(flat > 0.1 && smooth < 0.05, "flat {flat} smooth {smooth}");
+}
+
+#[test]
 fn texturing_triplanar_and_kernel_coordinates() {
     let base = Vec3::new(0.5, 0.4, 0.3);
     let tex = Texturing {
