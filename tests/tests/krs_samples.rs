@@ -206,3 +206,148 @@ fn woodland_sample_matches_its_golden() {
     assert_eq!(stands_on_terrain("woodland", 1 << 22, 2e-3), 1 << 14);
     assert_images_match(&img, golden("woodland"), Tolerance::CPU_GOLDEN);
 }
+
+/// The new samples export (`thicket export` builds the same scene): a battered rock as a closed
+/// mesh (its half-space kernels close into a bounded solid, so the exporter finds its box), the
+/// woodland's trees as one prototype placed once per copy; the distorted reef as one mesh (a
+/// warp is no isometry, so its copies differ and cannot be instances) and the meadow too (its
+/// tufts overlap, so the shared mirrors clip them and a copied prototype would not be what
+/// Algorithm 1 draws); each terrain as a patch under them.
+#[test]
+fn the_new_samples_export_where_bounded() {
+    use std::path::Path;
+    use thicket_core::io::gltf_export::{GltfExportOptions, build_scene};
+    let options = GltfExportOptions {
+        resolution: 40,
+        kernel_resolution: 12,
+        instanced_lod_levels: 0,
+        impostor: false,
+        ..GltfExportOptions::default()
+    };
+    // Instanced placements do not size a terrain's patch (the exporter asks for --bounds when
+    // nothing else is exported), so the scattered samples give one.
+    let go_in = |doc: &Document, object: Option<&str>, bounds: Option<[f32; 4]>| {
+        build_scene(
+            doc,
+            Path::new("sample.glb"),
+            &GltfExportOptions {
+                object: object.map(str::to_owned),
+                bounds,
+                ..options.clone()
+            },
+            &|_| true,
+        )
+        .unwrap_or_else(|e| panic!("{object:?}: {e}"))
+    };
+    let go = |doc: &Document, object: Option<&str>| go_in(doc, object, None);
+    // The rock: a mesh within the rock's reach of where it stands.
+    let rock_doc = load("rock");
+    let (scene, report) = go(&rock_doc, Some("Rock 1"));
+    assert!(report.triangles > 500, "{report:?}");
+    let at = rock_doc
+        .object_by_name("Rock 1")
+        .expect("rock 1")
+        .transform
+        .translation;
+    for p in scene.nodes[0].primitives.iter().flat_map(|p| &p.positions) {
+        assert!(p.distance(at) < 3.0, "{p} far from the rock at {at}");
+    }
+    // The woodland: the tree instanced, the terrain a patch.
+    let bounds = Some([-20.0, -20.0, 20.0, 20.0]);
+    for name in ["coral", "grassland"] {
+        let (_, report) = go_in(&load(name), None, bounds);
+        assert!(report.instanced.is_empty(), "{report:?}");
+        assert!(report.objects == 2 && report.triangles > 5000, "{report:?}");
+        assert!(report.patches.iter().any(|(n, _, _)| n == "Terrain"));
+    }
+    let (_, report) = go_in(&load("woodland"), None, bounds);
+    let inst = report
+        .instanced
+        .iter()
+        .find(|i| i.object == "Forest")
+        .unwrap_or_else(|| panic!("the forest is instanced: {report:?}"));
+    // One placement per tree: the 14 shared reflections place them (level 7: the tree's own
+    // seven levels are the prototype).
+    assert_eq!(inst.instances, 1 << 14, "{inst:?}");
+    assert!(inst.prototype_triangles > 100, "{inst:?}");
+    assert!(
+        report
+            .patches
+            .iter()
+            .any(|(n, lo, hi)| n == "Terrain" && hi.x > lo.x),
+        "{:?}",
+        report.patches
+    );
+}
+
+/// Symmetry hiding measured (§5, issue 26 item 4): the woodland's view rendered with its
+/// placement aligned (mirrors exactly along x and z, regular gaps) and as shipped (jittered
+/// azimuths and tilts, random gaps), with and without a distortion, the forest and the terrain
+/// alone; `thicket render --stats` reports the same measure for any project. The aligned forest
+/// is a lattice of identical trees and must measure clearly higher than the jittered one.
+#[test]
+fn jittered_mirrors_measure_less_visible_repetition_than_aligned_ones() {
+    use thicket_core::krs::repetition::{Repetition, visible_repetition};
+    use thicket_core::krs::{Distortion, Material, presets};
+    use thicket_tests::samples::woodland_scatter;
+    let base = load("woodland");
+    let measure = |aligned: bool, distorted: bool, terrain_only: bool| -> Repetition {
+        let mut tree = presets::tree();
+        if distorted {
+            tree.distortion = Some(Distortion {
+                amplitude: 0.2,
+                frequency: 0.5,
+                seed: 4,
+            });
+        }
+        let scatter = if aligned {
+            woodland_scatter().aligned()
+        } else {
+            woodland_scatter()
+        };
+        let ground = Material::new(glam::Vec3::new(0.33, 0.38, 0.2), 5);
+        let scene = presets::on_terrain(tree, ground, &scatter, 5).expect("valid");
+        let mut doc = base.clone();
+        for (o, k) in doc.objects.iter_mut().zip(scene.objects) {
+            o.kind = ObjectKind::Krs(k);
+        }
+        doc.objects[1].visible = !terrain_only;
+        let mut quality = doc.quality.clone();
+        quality.shadow_map_size = 512;
+        let (img, _, _) = render_document(
+            &doc,
+            &RenderRequest {
+                quality,
+                ..RenderRequest::new(128, 128)
+            },
+        )
+        .expect("frame");
+        visible_repetition(&img.pixels, img.width, img.height)
+    };
+    let mut forest = Vec::new();
+    for (what, terrain_only) in [("forest", false), ("terrain", true)] {
+        for (aligned, distorted) in [(true, false), (false, false), (true, true), (false, true)] {
+            let r = measure(aligned, distorted, terrain_only);
+            eprintln!(
+                "{what:8} {:9} {:13}: translation {:.3} mirror {:.3} score {:.3}",
+                if aligned { "aligned" } else { "jittered" },
+                if distorted {
+                    "distorted"
+                } else {
+                    "not distorted"
+                },
+                r.translation,
+                r.mirror,
+                r.score()
+            );
+            if !terrain_only {
+                forest.push(r.score());
+            }
+        }
+    }
+    let (aligned, jittered) = (forest[0], forest[1]);
+    assert!(
+        aligned > 0.4 && aligned > 1.5 * jittered,
+        "aligned {aligned} jittered {jittered}"
+    );
+}
