@@ -1119,6 +1119,83 @@ fn tree_builder_maps_parameters_to_kernels_and_mirrors() {
 }
 
 #[test]
+fn battered_rocks_are_bounded_many_levelled_and_differ_by_seed() {
+    let rocks: Vec<PreparedScene> = [5, 12].map(|s| prepared(presets::battered_rock(s))).into();
+    for scene in &rocks {
+        let o = &scene.objects[0];
+        assert!(o.object.mirrors.len() >= 12);
+        let centre = o.object.world_from_object.translation;
+        // Solid at the centre, and outside from 4 units on in each of 26 directions, the
+        // estimate growing as it does away from a bounded solid (half-space kernels, yet a
+        // bounded rock; the estimate is divided by the warp's Lipschitz bound, 2.0).
+        assert!(o.distance_world(centre) < 0.0);
+        for x in -1..=1 {
+            for y in -1..=1 {
+                for z in -1..=1 {
+                    let dir = Vec3::new(x as f32, y as f32, z as f32).normalize_or_zero();
+                    if dir != Vec3::ZERO {
+                        let near = o.distance_world(centre + 4.0 * dir);
+                        let far = o.distance_world(centre + 8.0 * dir);
+                        assert!(near > 0.0 && far - near > 1.0, "{dir}: {near} {far}");
+                    }
+                }
+            }
+        }
+    }
+    // Different seeds, different rocks: their surfaces differ somewhere on a ring of points.
+    let differs = (0..64)
+        .map(|i| {
+            let a = i as f32 * TAU / 64.0;
+            let p = Vec3::new(a.cos(), 0.55 + 0.3 * (3.0 * a).sin(), a.sin());
+            (rocks[0].distance(p) - rocks[1].distance(p)).abs()
+        })
+        .fold(0.0f32, f32::max);
+    assert!(differs > 0.1, "{differs}");
+}
+
+#[test]
+fn scattered_copies_keep_their_gap_and_the_aligned_placement_is_a_lattice() {
+    let ball = (Vec3::new(0.0, 1.0, 0.0), 1.0);
+    let scatter = presets::Scatter {
+        count: 6,
+        gap: (0.1, 0.4),
+        ..presets::Scatter::default()
+    };
+    for s in [scatter, scatter.aligned()] {
+        let mirrors = presets::scatter_mirrors(ball, &s);
+        assert_eq!(mirrors.len(), 6);
+        let mut centres = vec![ball.0];
+        for m in &mirrors {
+            let images: Vec<Vec3> = centres.iter().map(|c| m.reflect_point(*c)).collect();
+            centres.extend(images);
+        }
+        // Kernel separation between copies: no two balls overlap, gaps of at least 0.1 r.
+        for (i, a) in centres.iter().enumerate() {
+            for b in &centres[i + 1..] {
+                assert!(a.distance(*b) >= 2.0 * 1.1 * ball.1 - 1e-3, "{a} {b}");
+            }
+        }
+        if s.regular {
+            // Normals along x or z up to the tilt, and the tilt the same size every time.
+            for (i, m) in mirrors.iter().enumerate() {
+                let along = if i % 2 == 0 { m.normal.z } else { m.normal.x };
+                assert!(along.abs() < 1e-6, "{i}: {}", m.normal);
+                assert!((m.normal.y.abs() - s.tilt.sin()).abs() < 1e-6);
+            }
+        }
+    }
+    // Only bounded pieces can be scattered.
+    let err = presets::on_terrain(
+        presets::terrain(),
+        Material::default(),
+        &presets::Scatter::default(),
+        0,
+    )
+    .unwrap_err();
+    assert!(matches!(err, KrsError::Unbounded { .. }), "{err}");
+}
+
+#[test]
 fn presets_validate_and_are_visible() {
     for (name, obj) in presets::all() {
         let scene = prepared(obj.clone());
