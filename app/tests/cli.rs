@@ -569,13 +569,19 @@ fn render_stats_report_the_visible_repetition_of_the_image() {
         serde_json::from_str(&out[out.find('{').expect("statistics")..]).unwrap();
     let r = &json["repetition"];
     let score = r["score"].as_f64().expect("a score");
-    let (t, m) = (r["translation"].as_f64().unwrap(), r["mirror"].as_f64().unwrap());
+    let (t, m) = (
+        r["translation"].as_f64().unwrap(),
+        r["mirror"].as_f64().unwrap(),
+    );
     assert!((score - t.max(m)).abs() < 1e-6, "{r}");
     // The written image measures the same.
     let img = thicket_core::render::RgbaImage::load_png(&png).unwrap();
     let again =
         thicket_core::krs::repetition::visible_repetition(&img.pixels, img.width, img.height);
-    assert!((f64::from(again.score()) - score).abs() < 1e-6, "{again:?} vs {r}");
+    assert!(
+        (f64::from(again.score()) - score).abs() < 1e-6,
+        "{again:?} vs {r}"
+    );
     assert!(score > 0.05 && score < 1.0, "{r}");
 }
 

@@ -961,7 +961,7 @@ fn algorithm2_on_a_distorted_object_is_flat_shading_at_zero_threshold_and_smooth
         // The warp matters: the undistorted roof's factor is one of two constants.
         let plain = [Vec3::new(-0.5, 1.0, 0.0), Vec3::new(0.5, 1.0, 0.0)].map(|n| {
             Quat::from_rotation_y(0.4)
-                .mul_vec3(n.normalize())
+                .mul_vec3(n.normalize_or_zero())
                 .dot(light)
                 .max(0.0)
         });
