@@ -557,11 +557,28 @@ fn surface_world(o: KrsObject, p_world: vec3<f32>) -> KrsSurface {
 // Algorithm 2 (§6.1): the Lambert factor with the light direction carried into kernel space,
 // blended within `e_threshold_world` of each mirror plane.
 fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_threshold_world: f32) -> f32 {
-    var p = object_from_world(o, p_world);
-    if (o.flags & KRS_OBJ_DISTORTED) != 0u {
-        p = warp(o, p);
+    let p0 = object_from_world(o, p_world);
+    var p = p0;
+    let light_object = normalize_or(quat_rotate(o.inv_rotation, light_world), vec3<f32>(0.0, 1.0, 0.0));
+    var omega = light_object;
+    // Distorted: carry J·l (core::krs::shade::smooth_shading) and rescale at the end.
+    let distorted = (o.flags & KRS_OBJ_DISTORTED) != 0u;
+    var jx = vec3<f32>(1.0, 0.0, 0.0);
+    var jy = vec3<f32>(0.0, 1.0, 0.0);
+    var jz = vec3<f32>(0.0, 0.0, 1.0);
+    var light_len = 1.0;
+    if distorted {
+        let h = 1e-3 / max(o.frequency, 1e-3);
+        jx = (warp(o, p0 + vec3<f32>(h, 0.0, 0.0)) - warp(o, p0 - vec3<f32>(h, 0.0, 0.0))) / (2.0 * h);
+        jy = (warp(o, p0 + vec3<f32>(0.0, h, 0.0)) - warp(o, p0 - vec3<f32>(0.0, h, 0.0))) / (2.0 * h);
+        jz = (warp(o, p0 + vec3<f32>(0.0, 0.0, h)) - warp(o, p0 - vec3<f32>(0.0, 0.0, h))) / (2.0 * h);
+        let jl = jx * light_object.x + jy * light_object.y + jz * light_object.z;
+        omega = normalize_or(jl, light_object);
+        light_len = length(jl);
+        p = warp(o, p0);
     }
-    var omega = normalize_or(quat_rotate(o.inv_rotation, light_world), vec3<f32>(0.0, 1.0, 0.0));
+    var frame = mat3x3<f32>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+    var best_frame = frame;
     let e_threshold = max(e_threshold_world / o.translation_scale.w, 0.0);
     let n = o.mirror_count;
     var best_omega = omega;
@@ -571,6 +588,9 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
         f = fold_next(o, f, i);
         let e = f.e;
         let m = krs_mirror(o, i);
+        if distorted && e > 0.0 {
+            frame = frame * householder(m.xyz);
+        }
         let rho = omega - 2.0 * dot(m.xyz, omega) * m.xyz;
         var w = 0.0;
         if e_threshold > 0.0 {
@@ -581,6 +601,7 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
         omega = normalize_or(mix(omega, rho, w), select(omega, rho, e > 0.0));
         if f.best_k == i {
             best_omega = omega;
+            best_frame = frame;
         }
     }
     let best_k = f.best_k;
@@ -588,7 +609,18 @@ fn smooth_diffuse(o: KrsObject, p_world: vec3<f32>, light_world: vec3<f32>, e_th
     if best_k == 0xffffffffu {
         return 0.0;
     }
-    return max(dot(kernel_normal(krs_kernels[o.first_kernel + best_k], best_p), best_omega), 0.0);
+    let normal_kernel = kernel_normal(krs_kernels[o.first_kernel + best_k], best_p);
+    var diffuse = max(dot(normal_kernel, best_omega), 0.0);
+    if distorted {
+        let nf = best_frame * normal_kernel;
+        let jt_n = length(vec3<f32>(dot(jx, nf), dot(jy, nf), dot(jz, nf)));
+        if jt_n > 0.0 {
+            diffuse = min(diffuse * light_len / jt_n, 1.0);
+        } else {
+            diffuse = 0.0;
+        }
+    }
+    return diffuse;
 }
 
 // ---- texturing (§6.2, core::krs::shade) ----
@@ -1017,13 +1049,11 @@ fn trace_pixel(px: vec2<u32>, tile_t: f32) {
         let s = surface_world(o, pos);
         normal = normalize_or(s.normal, -ray.dir);
         albedo = krs_albedo(o, s, pos);
-        if (o.flags & KRS_OBJ_DISTORTED) == 0u {
-            // §6.1: the blend zone is a fixed screen width.
-            let threshold = max(krs.smoothing_px * krs.pixel_cone * r.t, 0.0);
-            for (var l = 0u; l < krs.light_count; l++) {
-                let to_light = krs_vectors[krs.light_base + l].xyz;
-                krs_light[base + 1u + l] = vec4<f32>(smooth_diffuse(o, pos, to_light, threshold), 1.0, 1.0, 0.0);
-            }
+        // §6.1: the blend zone is a fixed screen width.
+        let threshold = max(krs.smoothing_px * krs.pixel_cone * r.t, 0.0);
+        for (var l = 0u; l < krs.light_count; l++) {
+            let to_light = krs_vectors[krs.light_base + l].xyz;
+            krs_light[base + 1u + l] = vec4<f32>(smooth_diffuse(o, pos, to_light, threshold), 1.0, 1.0, 0.0);
         }
     }
     gbuffer[pixel] = vec4<u32>(

@@ -1579,6 +1579,24 @@ fn render_one(
             )
         }
     };
+    let mut stats_json = stats_json;
+    if args.stats
+        && let Some(map) = stats_json.as_object_mut()
+    {
+        // Symmetry hiding (KRS §5) measured on the image written: see
+        // `thicket_core::krs::repetition` (1 = an exact repeat in view, about 0 = none).
+        let r = thicket_core::krs::repetition::visible_repetition(
+            &image.pixels,
+            image.width,
+            image.height,
+        );
+        map.insert(
+            "repetition".to_owned(),
+            serde_json::json!({
+                "translation": r.translation, "mirror": r.mirror, "score": r.score(),
+            }),
+        );
+    }
     // Write through a temporary sibling so a failed write leaves no partial PNG.
     let tmp = output.with_extension("png.tmp");
     if let Err(e) = image.save_png(&tmp) {

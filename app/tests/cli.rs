@@ -542,6 +542,49 @@ fn import_a_solid_box_then_render_it() {
     assert!(stdout(&o).contains("\"levels\""));
 }
 
+/// `render --stats` reports the visible repetition of the image it wrote (KRS symmetry
+/// hiding, issue 26): the measure of `thicket_core::krs::repetition` on that PNG.
+#[test]
+fn render_stats_report_the_visible_repetition_of_the_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/woodland.thicket.json"
+    );
+    let png = dir.path().join("woodland.png");
+    let o = thicket(&[
+        "render",
+        project,
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "96x96",
+        "--stats",
+        "--quality",
+        "shadow_map_size=256",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let json: serde_json::Value =
+        serde_json::from_str(&out[out.find('{').expect("statistics")..]).unwrap();
+    let r = &json["repetition"];
+    let score = r["score"].as_f64().expect("a score");
+    let (t, m) = (
+        r["translation"].as_f64().unwrap(),
+        r["mirror"].as_f64().unwrap(),
+    );
+    assert!((score - t.max(m)).abs() < 1e-6, "{r}");
+    // The written image measures the same.
+    let img = thicket_core::render::RgbaImage::load_png(&png).unwrap();
+    let again =
+        thicket_core::krs::repetition::visible_repetition(&img.pixels, img.width, img.height);
+    assert!(
+        (f64::from(again.score()) - score).abs() < 1e-6,
+        "{again:?} vs {r}"
+    );
+    assert!(score > 0.05 && score < 1.0, "{r}");
+}
+
 #[test]
 fn render_refuses_bad_arguments_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();

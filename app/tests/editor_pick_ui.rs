@@ -1,7 +1,8 @@
 //! Picking through distance queries on the real app, driven by egui_kittest: a click on a KRS
 //! tree and on a mesh selects each (with the clicked point and its normal drawn), a click on
 //! nothing clears both; Object → Drop to surface (End) lands a voxel model on KRS terrain
-//! within one voxel of the surface the query sees, in one undo step.
+//! within one voxel of the surface the query sees, in one undo step; the sculpt brush over KRS
+//! terrain places voxels of the selected voxel model on the surface (one undo step).
 //!
 //! No GPU viewport is attached: the view draws with core's CPU preview renderer.
 
@@ -236,4 +237,124 @@ fn drop_to_surface_lands_a_voxel_model_on_krs_terrain_within_a_voxel() {
         .transform
         .translation;
     assert_eq!(back, Vec3::new(3.0, 25.0, -2.0), "undo puts it back");
+}
+
+#[test]
+fn the_brush_places_voxels_of_the_selected_model_on_krs_terrain_in_one_undo_step() {
+    let voxel = 0.25;
+    // A 32³ grid (8 units) with one voxel in its bottom corner, under the ground.
+    let mut svo = Svo::new(5, false).unwrap();
+    svo.set(UVec3::ZERO, Voxel::new([200, 60, 60, 255], Vec3::Y))
+        .unwrap();
+    let mut doc = Document::default();
+    doc.quality.shadows = false;
+    let terrain = doc.add("Terrain", ObjectKind::Krs(presets::terrain()));
+    let block = doc.add(
+        "Block",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: voxel,
+            ..VoxelModel::default()
+        }),
+    );
+    // The grid is centred on a point of the terrain's surface, seen from above at an angle.
+    let scene = prepared(&doc, terrain);
+    let ground = surface_below(&scene, Vec3::new(0.3, 60.0, 0.2));
+    doc.objects[1].transform.translation = ground - Vec3::splat(4.0);
+    doc.camera.target = ground;
+    doc.camera.yaw_deg = 20.0;
+    doc.camera.pitch_deg = 45.0;
+    doc.camera.distance = 10.0;
+    let mut h = harness(doc);
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let at = proj.to_screen(ground).expect("the ground point is in view");
+    // What the brush aims at there: the terrain, nearer than any voxel.
+    let eye = proj.eye();
+    let hit = h
+        .state()
+        .editor
+        .pick(eye, ground - eye)
+        .expect("the ray meets the terrain");
+    assert_eq!((hit.object, hit.kind), (terrain, PickKind::Krs));
+    let leaves =
+        |h: &Harness<'static, EditorApp>| match &h.state().editor.object(block).unwrap().kind {
+            ObjectKind::Voxels(v) => v.svo.leaves(),
+            _ => unreachable!(),
+        };
+    let before = leaves(&h);
+
+    // With the terrain selected (no voxel model to place), the brush over it does nothing.
+    h.state_mut().editor.selection = Some(Selection::Object(terrain));
+    h.state_mut()
+        .sculpt
+        .choose(thicket::ui::voxel_tools::ToolKind::Brush);
+    h.state_mut().sculpt.brush.radius = 1.0;
+    h.run_steps(1);
+    let steps = h.state().editor.history().undo_len();
+    click(&mut h, at);
+    assert_eq!(
+        leaves(&h),
+        before,
+        "no voxel model selected: nothing placed"
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps);
+
+    // With the block selected, a click on the terrain places the block's voxels there.
+    h.state_mut().editor.selection = Some(Selection::Object(block));
+    h.run_steps(1);
+    click(&mut h, at);
+    let after = leaves(&h);
+    let added: Vec<Vec3> = after
+        .iter()
+        .filter(|(c, _)| !before.iter().any(|(b, _)| b == c))
+        .map(|(c, _)| ground - Vec3::splat(4.0) + (c.as_vec3() + 0.5) * voxel)
+        .collect();
+    assert!(!added.is_empty(), "the brush placed voxels");
+    assert_eq!(
+        after.len(),
+        before.len() + added.len(),
+        "nothing was removed"
+    );
+    assert_eq!(
+        h.state().editor.history().undo_len(),
+        steps + 1,
+        "one undo step"
+    );
+    assert_eq!(
+        h.state().editor.selection,
+        Some(Selection::Object(block)),
+        "the block stays selected"
+    );
+    // On the surface: every new voxel's centre within the brush (radius 1 voxel) of a dab one
+    // voxel out from the point hit, and at least one within a voxel of the terrain's surface.
+    for c in &added {
+        assert!(
+            c.distance(hit.point_in_world) <= 2.5 * voxel * 3f32.sqrt(),
+            "voxel at {c} is far from the point hit {}",
+            hit.point_in_world
+        );
+    }
+    let nearest = added
+        .iter()
+        .map(|c| scene.query(*c).unwrap().distance.abs())
+        .fold(f32::INFINITY, f32::min);
+    assert!(
+        nearest <= voxel,
+        "the nearest new voxel is {nearest} from the terrain"
+    );
+    assert!(
+        added
+            .iter()
+            .any(|c| scene.query(*c).unwrap().distance > 0.0),
+        "voxels stand on the ground, not only in it"
+    );
+    settle_preview(&mut h);
+    h.snapshot_options(
+        "brush_on_krs_terrain",
+        &SnapshotOptions::new().max_failed_pixels(200),
+    );
+
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(1);
+    assert_eq!(leaves(&h), before, "undo removes them");
 }

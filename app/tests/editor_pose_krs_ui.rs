@@ -527,6 +527,84 @@ fn the_tree_builder_rebuilds_from_a_dragged_fork_and_undoes() {
 }
 
 #[test]
+fn the_tree_builder_turns_a_fork_plane_with_its_normal_handle_and_undoes() {
+    let mut doc = Document::default();
+    doc.add("Tree", ObjectKind::Krs(thicket_core::krs::presets::tree()));
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    doc.camera.target = glam::Vec3::new(0.0, 3.0, 0.0);
+    doc.camera.distance = 11.0;
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    // Every fork has a normal row in the builder, showing the normal in use.
+    h.get_by_label("Fork 1 normal");
+    let before = h.state().krs.tree.as_ref().expect("open").1.clone();
+    let built = h.state().editor.krs(id).unwrap().clone();
+    let steps = h.state().editor.history().undo_len();
+
+    // Drag the first fork's normal handle 40 points to the right.
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let handles = h.state().krs.fork_normal_points(&h.state().editor, &proj);
+    assert_eq!(handles.len(), before.route.len() - 2, "one handle per fork");
+    let tip = handles[0].1.expect("the handle is on screen");
+    h.hover_at(tip);
+    h.step();
+    h.drag_at(tip);
+    h.step();
+    for k in 1..=4 {
+        h.hover_at(tip + egui::vec2(10.0 * k as f32, 0.0));
+        h.step();
+    }
+    h.drop_at(tip + egui::vec2(40.0, 0.0));
+    h.run_steps(2);
+    let after = h.state().krs.tree.as_ref().unwrap().1.clone();
+    assert_eq!(after.route, before.route, "the forks stay where they are");
+    let (n0, n1) = (before.fork_mirror(1).normal, after.fork_mirror(1).normal);
+    assert!(
+        n0.angle_between(n1) > 0.05,
+        "the plane turned: {n0} -> {n1}"
+    );
+    for k in 2..before.route.len() - 1 {
+        assert_eq!(
+            before.fork_mirror(k),
+            after.fork_mirror(k),
+            "fork {k} is untouched"
+        );
+    }
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    let rebuilt = h.state().editor.krs(id).unwrap().clone();
+    assert_ne!(rebuilt.mirrors, built.mirrors, "the object was rebuilt");
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_tree_fork_normal");
+
+    press_undo(&mut h, 1, false);
+    assert_eq!(h.state().editor.krs(id).unwrap(), &built);
+    press_undo(&mut h, 1, true);
+    assert_eq!(h.state().editor.krs(id).unwrap(), &rebuilt);
+
+    // "Default fork planes" forgets the edited normal: the default tree again, one more step.
+    h.get_by_label("Default fork planes").click_accesskit();
+    h.run_steps(2);
+    assert!(
+        h.state()
+            .krs
+            .tree
+            .as_ref()
+            .unwrap()
+            .1
+            .fork_normals
+            .is_empty()
+    );
+    assert_eq!(h.state().editor.krs(id).unwrap(), &built);
+    assert_eq!(h.state().editor.history().undo_len(), steps + 2);
+    press_undo(&mut h, 1, false);
+    assert_eq!(h.state().editor.krs(id).unwrap(), &rebuilt);
+}
+
+#[test]
 fn the_hole_overlay_counts_fewer_holes_with_corner_stretch_than_without() {
     // Fine enough voxels that stretching matters (coarse ones bloat over every hole).
     let mut h = harness(rigged_figure(7));

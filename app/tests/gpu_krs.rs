@@ -87,9 +87,21 @@ fn tree_sample_in_an_orthographic_view_matches_the_cpu_reference() {
 
 #[test]
 fn rock_sample_matches_the_cpu_reference() {
-    // Distorted (Lipschitz-bounded warp) and triplanar-textured objects.
+    // Battered rocks: 14 reflection levels of planar kernels, distorted (Lipschitz-bounded
+    // warp, Algorithm 2 through it) and triplanar-textured.
     let ctx = context();
     compare(&ctx, "rock", &project("rock"), (96, 96));
+}
+
+#[test]
+fn grassland_coral_and_woodland_samples_match_the_cpu_reference() {
+    // KRS terrain sharing its reflections with grass (about a million blades), a distorted
+    // coral reef (terrain and corals warped alike) and a forest of 2^14 trees; Algorithm 2
+    // through the warp on the coral and its floor.
+    let ctx = context();
+    for name in ["grassland", "coral", "woodland"] {
+        compare(&ctx, name, &project(name), (96, 96));
+    }
 }
 
 #[test]

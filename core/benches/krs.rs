@@ -3,8 +3,10 @@
 //! over-relaxation and tile starts; frame time of a fixed view of the forest as n grows
 //! (8 → 32), a whole frame sphere-traced with Algorithm 1 vs brute force at the largest n brute
 //! force finishes, and 800×800 frames of the tree and forest samples on 2 threads (primary rays
-//! per second). Step counts (over-relaxation and tile gains, identical hit masks) are printed
-//! to stderr before the timings.
+//! per second); the simple rock against the battered rock at 800×800 with shadows (steps per
+//! ray printed), and an edit of the tree's builder parameters up to a prepared scene. Step
+//! counts (over-relaxation and tile gains, identical hit masks) are printed to stderr before
+//! the timings.
 //!
 //! `cargo bench --workspace --bench krs -- --warm-up-time 1 --measurement-time 3`
 
@@ -451,6 +453,72 @@ fn frames_800(c: &mut Criterion) {
     group.finish();
 }
 
+/// The simple rock against the battered rock (issue 26), one rock alone seen from 3.2 units at
+/// 800×800 with the default quality (shadows on): steps per primary and per shadow ray (exact)
+/// printed, the frame timed.
+fn rocks_800(c: &mut Criterion) {
+    let mut group = c.benchmark_group("krs_rock_800x800");
+    group.sample_size(10);
+    group.throughput(Throughput::Elements(800 * 800));
+    for (name, rock) in [
+        ("simple", presets::rock()),
+        ("battered", presets::battered_rock(5)),
+    ] {
+        let mut doc = Document::default();
+        doc.add("Rock", ObjectKind::Krs(rock));
+        doc.camera = OrbitCamera {
+            target: Vec3::new(0.0, 0.55, 0.0),
+            yaw_deg: 20.0,
+            pitch_deg: 20.0,
+            distance: 3.2,
+            near: 0.05,
+            far: 100.0,
+            ..OrbitCamera::default()
+        };
+        let req = RenderRequest::new(800, 800);
+        if let Ok((_, _, st)) = render_document(&doc, &req) {
+            eprintln!(
+                "{name} rock 800x800: {} rays, {} hits, {:.2} steps per ray, {} exhausted, {:.2} shadow steps per shadow ray, KRS pass {:.0} ms",
+                st.krs.rays,
+                st.krs.hits,
+                st.krs.steps as f64 / st.krs.rays.max(1) as f64,
+                st.krs.exhausted,
+                st.krs.shadow_steps as f64 / st.krs.shadow_rays.max(1) as f64,
+                st.times.krs_ms,
+            );
+        }
+        group.bench_function(name, |b| {
+            b.iter(|| black_box(render_document(&doc, &req).is_ok()));
+        });
+    }
+    group.finish();
+}
+
+/// An edit of the tree sample's parameters up to what the preview draws: rebuild the KRS from
+/// `TreeParams` and prepare it (validation, inverse transform, bounds). The next preview frame
+/// (`thicket bench projects/tree.thicket.json`) comes on top.
+fn tree_edit(c: &mut Criterion) {
+    let mut group = c.benchmark_group("krs_tree_edit");
+    let mut params = thicket_core::krs::TreeParams::default();
+    let mut k = 0u32;
+    group.bench_function("rebuild_and_prepare", |b| {
+        b.iter(|| {
+            // A different width each time, as a drag in the builder makes it.
+            k = k.wrapping_add(1);
+            params.widths[0] = 0.2 + 1e-5 * (k % 1000) as f32;
+            let object = params.build().expect("valid parameters");
+            black_box(
+                KrsScene {
+                    objects: vec![object],
+                }
+                .prepare()
+                .is_ok(),
+            )
+        });
+    });
+    group.finish();
+}
+
 criterion_group!(
     benches,
     distance_per_level,
@@ -458,6 +526,8 @@ criterion_group!(
     report_then_trace,
     frame_levels,
     frame_brute_force,
-    frames_800
+    frames_800,
+    rocks_800,
+    tree_edit
 );
 criterion_main!(benches);

@@ -14,7 +14,7 @@ use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, OrbitCamera, 
 use crate::asset;
 
 /// Names of the samples, as in `projects/NAME.thicket.json`.
-pub const SAMPLES: [&str; 7] = [
+pub const SAMPLES: [&str; 10] = [
     "house",
     "mixed",
     "terrain",
@@ -22,6 +22,9 @@ pub const SAMPLES: [&str; 7] = [
     "tree",
     "forest",
     "rock",
+    "grassland",
+    "coral",
+    "woodland",
 ];
 
 /// Octree depth of the CesiumMan sample: 256 voxels over its longest side (about 7 mm voxels).
@@ -150,6 +153,9 @@ pub fn build(name: &str) -> Result<Document> {
         "tree" => krs_tree(&mut doc),
         "forest" => krs_forest(&mut doc),
         "rock" => krs_rock(&mut doc)?,
+        "grassland" => krs_grassland(&mut doc)?,
+        "coral" => krs_coral(&mut doc)?,
+        "woodland" => krs_woodland(&mut doc)?,
         other => anyhow::bail!("unknown sample {other:?}; known: {}", SAMPLES.join(", ")),
     }
     doc.validate()?;
@@ -356,8 +362,9 @@ fn krs_forest(doc: &mut Document) {
     doc.background = Vec3::new(0.55, 0.65, 0.8);
 }
 
-/// KRS terrain (a ground half-space folded by 14 tilted mirrors) with three planar-kernel rocks
-/// (§7.1) resting on it, each placed at the terrain height traced under it.
+/// KRS terrain (a ground half-space folded by 14 tilted mirrors) with three battered rocks
+/// (§7.1, Fig. 7: planar kernels, 14 reflection levels, distortion, smooth shading, triplanar
+/// texture), each from its own seed, each placed at the terrain height traced under it.
 fn krs_rock(doc: &mut Document) -> Result<()> {
     let terrain = krs::presets::terrain();
     let ground = krs::KrsScene {
@@ -365,10 +372,10 @@ fn krs_rock(doc: &mut Document) -> Result<()> {
     }
     .prepare()?;
     doc.add("Terrain", ObjectKind::Krs(terrain));
-    for (i, (x, z, scale, yaw)) in [
-        (0.0f32, 0.0f32, 1.0f32, 0.0f32),
-        (2.6, -1.4, 0.6, 1.3),
-        (-2.2, 1.2, 0.45, 2.4),
+    for (i, (x, z, scale, seed)) in [
+        (0.0f32, 0.0f32, 1.3f32, 5u64),
+        (2.4, -1.3, 0.75, 12),
+        (-2.0, 1.3, 0.55, 23),
     ]
     .into_iter()
     .enumerate()
@@ -377,13 +384,13 @@ fn krs_rock(doc: &mut Document) -> Result<()> {
             .with_context(|| format!("terrain height under rock {i}"))?;
         let id = doc.add(
             format!("Rock {}", i + 1),
-            ObjectKind::Krs(krs::presets::rock()),
+            ObjectKind::Krs(krs::presets::battered_rock(seed)),
         );
         if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
-            // The rock preset sits 0.6 above its origin; sink it a little into the soil.
+            // The preset sits 0.55 above its origin; sink it a little into the soil.
             o.transform = Transform {
-                translation: Vec3::new(x, y - 0.25 * scale, z),
-                rotation: glam::Quat::from_rotation_y(yaw),
+                translation: Vec3::new(x, y - 0.2 * scale, z),
+                rotation: glam::Quat::IDENTITY,
                 scale: Vec3::splat(scale),
             };
         }
@@ -397,11 +404,132 @@ fn krs_rock(doc: &mut Document) -> Result<()> {
         target: Vec3::new(0.0, y0 + 0.6, 0.0),
         yaw_deg: 20.0,
         pitch_deg: 22.0,
-        distance: 9.0,
+        distance: 7.0,
         near: 0.1,
         far: 500.0,
         ..OrbitCamera::default()
     };
     doc.background = Vec3::new(0.6, 0.68, 0.78);
     Ok(())
+}
+
+/// Adds the terrain and the scattered piece of [`krs::presets::on_terrain`] as two objects.
+fn add_on_terrain(doc: &mut Document, scene: krs::KrsScene, piece: &str) {
+    for (o, name) in scene.objects.into_iter().zip(["Terrain", piece]) {
+        doc.add(name, ObjectKind::Krs(o));
+    }
+}
+
+/// Grass tufts (a curved blade fanned by 8 mirrors: 256 blades) scattered by 12 more
+/// reflections that the KRS terrain under them shares (§7.2), so every one of the 4,096 tufts
+/// stands on the ground: about a million blades.
+fn krs_grassland(doc: &mut Document) -> Result<()> {
+    let scene = krs::presets::on_terrain(
+        krs::presets::grass_tuft(),
+        krs::Material::new(Vec3::new(0.42, 0.36, 0.22), 5),
+        &krs::presets::Scatter {
+            count: 12,
+            jitter: 0.08,
+            tilt: 0.12,
+            fine_levels: 8,
+            gap: (-0.75, -0.5),
+            seed: 8,
+            regular: false,
+        },
+        0,
+    )?;
+    add_on_terrain(doc, scene, "Grass");
+    doc.lights = vec![Light {
+        direction: Vec3::new(-0.5, -0.6, -0.4),
+        ..Light::default()
+    }];
+    doc.camera = OrbitCamera {
+        target: Vec3::new(3.0, 0.3, 3.0),
+        yaw_deg: 215.0,
+        pitch_deg: 26.0,
+        distance: 5.0,
+        near: 0.05,
+        far: 400.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.6, 0.7, 0.82);
+    Ok(())
+}
+
+/// A reef: the coral preset (capsule branches, round tips, slightly distorted) scattered by 5
+/// reflections over a sandy KRS floor that shares them; the floor takes the coral's warp, so the
+/// 32 corals stand on it exactly.
+fn krs_coral(doc: &mut Document) -> Result<()> {
+    let scene = krs::presets::on_terrain(
+        krs::presets::coral(),
+        krs::Material::new(Vec3::new(0.78, 0.72, 0.55), 8),
+        &krs::presets::Scatter {
+            count: 5,
+            jitter: 0.3,
+            tilt: 0.1,
+            fine_levels: 5,
+            gap: (0.0, 0.5),
+            seed: 21,
+            regular: false,
+        },
+        4,
+    )?;
+    add_on_terrain(doc, scene, "Coral");
+    doc.lights = vec![Light {
+        direction: Vec3::new(-0.3, -1.0, -0.45),
+        ..Light::default()
+    }];
+    doc.camera = OrbitCamera {
+        target: Vec3::new(0.8, 0.5, 0.8),
+        yaw_deg: 35.0,
+        pitch_deg: 20.0,
+        distance: 4.2,
+        near: 0.05,
+        far: 200.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.35, 0.55, 0.7);
+    Ok(())
+}
+
+/// A forest on KRS terrain (§7.2): the tree preset scattered by 14 reflections that the terrain
+/// shares (2^14 trees, about 4 million kernel instances); the terrain adds 5 small folds of its
+/// own between the trees. Every tree stands on the ground, leaning with the slope it grows on.
+fn krs_woodland(doc: &mut Document) -> Result<()> {
+    let scene = krs::presets::on_terrain(
+        krs::presets::tree(),
+        krs::Material::new(Vec3::new(0.33, 0.38, 0.2), 5),
+        &woodland_scatter(),
+        5,
+    )?;
+    add_on_terrain(doc, scene, "Forest");
+    doc.lights = vec![Light {
+        direction: Vec3::new(0.4, -0.8, 0.5),
+        ..Light::default()
+    }];
+    doc.camera = OrbitCamera {
+        target: Vec3::new(30.0, 2.0, 30.0),
+        yaw_deg: 225.0,
+        pitch_deg: 16.0,
+        distance: 55.0,
+        near: 0.5,
+        far: 3000.0,
+        ..OrbitCamera::default()
+    };
+    doc.background = Vec3::new(0.55, 0.65, 0.8);
+    Ok(())
+}
+
+/// The woodland sample's placement (also measured aligned, for symmetry hiding).
+#[must_use]
+pub fn woodland_scatter() -> krs::presets::Scatter {
+    krs::presets::Scatter {
+        count: 14,
+        jitter: 0.06,
+        tilt: 0.03,
+        fine_levels: 6,
+        gap: (0.02, 0.3),
+        seed: 42,
+        regular: false,
+    }
 }

@@ -1,12 +1,14 @@
-//! The KRS sample projects (tree, forest, rock on KRS terrain) render like their golden images,
+//! The KRS sample projects (tree, forest, battered rocks on KRS terrain, grassland, coral reef,
+//! woodland on KRS terrain) render like their golden images,
 //! the KRS drawn by sphere tracing into the depth buffer it shares with meshes. On a mismatch
 //! the helper writes `-actual.png` and `-difference.png` beside the golden; `THICKET_BLESS=1`
 //! rewrites the goldens after an intended change.
 
 use thicket_core::io::project;
+use thicket_core::krs::{Kernel, KrsObject, KrsScene, TextureMode};
 use thicket_core::measure::image::{Tolerance, assert_images_match};
 use thicket_core::render::{RenderRequest, RgbaImage, render_document};
-use thicket_core::scene::ObjectKind;
+use thicket_core::scene::{Document, ObjectKind};
 use thicket_tests::samples::SAMPLES;
 
 /// Small enough for a debug build on 2 cores (the 800×800 renders are in docs/images).
@@ -86,5 +88,266 @@ fn forest_sample_matches_its_golden() {
 fn rock_sample_matches_its_golden() {
     let (img, _, covered) = render_sample("rock");
     assert!(covered > (SIZE * SIZE / 2) as usize, "{covered}");
+    // Three battered rocks (§7.1): planar kernels only, at least 12 reflection levels, a
+    // distortion and triplanar texture, each from its own seed (no two alike).
+    let doc = load("rock");
+    let rocks: Vec<&KrsObject> = krs_objects(&doc)
+        .into_iter()
+        .filter(|k| k.name == "battered rock")
+        .collect();
+    assert_eq!(rocks.len(), 3);
+    for r in &rocks {
+        assert!(r.mirrors.len() >= 12, "{} levels", r.mirrors.len());
+        assert!(
+            r.kernels
+                .iter()
+                .all(|k| matches!(k, Kernel::InfinitePlane(_) | Kernel::Empty))
+        );
+        assert!(r.distortion.is_some_and(|d| d.amplitude > 0.0));
+        assert_eq!(r.texturing.mode, TextureMode::Triplanar);
+    }
+    assert!(rocks[0].mirrors != rocks[1].mirrors && rocks[1].mirrors != rocks[2].mirrors);
     assert_images_match(&img, golden("rock"), Tolerance::CPU_GOLDEN);
+}
+
+fn load(name: &str) -> Document {
+    let path = thicket_tests::repo_root()
+        .join("projects")
+        .join(format!("{name}.thicket.json"));
+    project::load(&path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn krs_objects(doc: &Document) -> Vec<&KrsObject> {
+    doc.objects
+        .iter()
+        .filter_map(|o| match &o.kind {
+            ObjectKind::Krs(k) => Some(k),
+            _ => None,
+        })
+        .collect()
+}
+
+/// The scattered piece of an `on_terrain` sample stands on the terrain: the foot (object-space
+/// origin, where the presets root their trunk or stem) of every copy made by the reflections the
+/// terrain shares is within `tolerance` of the terrain's surface (Algorithm 1 of the terrain
+/// there, before the warp, which moves both alike), on every slope. Returns how many copies
+/// were checked.
+fn stands_on_terrain(name: &str, limit: usize, tolerance: f32) -> usize {
+    let doc = load(name);
+    let objects: Vec<KrsObject> = krs_objects(&doc).into_iter().cloned().collect();
+    assert_eq!(objects.len(), 2, "{name}: terrain and piece");
+    let scene = KrsScene { objects }.prepare().expect("valid");
+    let (terrain, piece) = (&scene.objects[0], &scene.objects[1]);
+    let shared = terrain
+        .object
+        .mirrors
+        .iter()
+        .rev()
+        .zip(piece.object.mirrors.iter().rev())
+        .take_while(|(a, b)| a == b)
+        .count();
+    assert!(shared > 0, "{name}: the terrain shares the piece's mirrors");
+    let first_shared = piece.object.mirrors.len() - shared;
+    // The copies of the foot: the origin reflected by every shared mirror.
+    let mut feet = vec![glam::DVec3::ZERO];
+    for m in &piece.object.mirrors[first_shared..] {
+        let n = m.normal.as_dvec3();
+        let images: Vec<_> = feet
+            .iter()
+            .map(|p| *p - 2.0 * (n.dot(*p) - f64::from(m.offset)) * n)
+            .collect();
+        feet.extend(images);
+    }
+    let (mut checked, mut worst, mut heights) = (0, 0.0f32, (f32::INFINITY, f32::NEG_INFINITY));
+    for foot in feet.iter().take(limit) {
+        let foot = foot.as_vec3();
+        let d = terrain
+            .object
+            .distance_object(terrain.object_from_world(foot));
+        worst = worst.max(d.abs());
+        heights = (heights.0.min(foot.y), heights.1.max(foot.y));
+        checked += 1;
+    }
+    eprintln!("{name}: {checked} feet, worst {worst}, heights {heights:?}");
+    assert!(
+        worst <= tolerance,
+        "{name}: a foot is {worst} from the terrain"
+    );
+    // Not a flat floor: the feet stand at different heights.
+    assert!(heights.1 - heights.0 > 0.1, "{name}: heights {heights:?}");
+    checked
+}
+
+#[test]
+fn grassland_sample_matches_its_golden_and_every_tuft_stands_on_the_terrain() {
+    let (img, instances, covered) = render_sample("grassland");
+    // 4,096 tufts of 256 blades (plus the short ones): about a million kernel instances.
+    assert!(instances >= 1 << 20, "{instances}");
+    assert!(covered > (SIZE * SIZE * 9 / 10) as usize, "{covered}");
+    assert_eq!(stands_on_terrain("grassland", 1 << 16, 1e-3), 4096);
+    assert_images_match(&img, golden("grassland"), Tolerance::CPU_GOLDEN);
+}
+
+#[test]
+fn coral_sample_matches_its_golden_and_every_coral_stands_on_the_floor() {
+    let (img, instances, covered) = render_sample("coral");
+    assert!(instances > 1000, "{instances}");
+    assert!(covered > (SIZE * SIZE / 2) as usize, "{covered}");
+    assert_eq!(stands_on_terrain("coral", 1 << 12, 1e-3), 32);
+    assert_images_match(&img, golden("coral"), Tolerance::CPU_GOLDEN);
+}
+
+#[test]
+fn woodland_sample_matches_its_golden() {
+    let (img, instances, covered) = render_sample("woodland");
+    assert!(instances >= 1 << 22, "{instances}");
+    assert!(covered > (SIZE * SIZE * 3 / 4) as usize, "{covered}");
+    // Every one of the 16,384 trees (their trunks are the coarsest kernel).
+    assert_eq!(stands_on_terrain("woodland", 1 << 22, 2e-3), 1 << 14);
+    assert_images_match(&img, golden("woodland"), Tolerance::CPU_GOLDEN);
+}
+
+/// The new samples export (`thicket export` builds the same scene): a battered rock as a closed
+/// mesh (its half-space kernels close into a bounded solid, so the exporter finds its box), the
+/// woodland's trees as one prototype placed once per copy; the distorted reef as one mesh (a
+/// warp is no isometry, so its copies differ and cannot be instances) and the meadow too (its
+/// tufts overlap, so the shared mirrors clip them and a copied prototype would not be what
+/// Algorithm 1 draws); each terrain as a patch under them.
+#[test]
+fn the_new_samples_export_where_bounded() {
+    use std::path::Path;
+    use thicket_core::io::gltf_export::{GltfExportOptions, build_scene};
+    let options = GltfExportOptions {
+        resolution: 40,
+        kernel_resolution: 12,
+        instanced_lod_levels: 0,
+        impostor: false,
+        ..GltfExportOptions::default()
+    };
+    // Instanced placements do not size a terrain's patch (the exporter asks for --bounds when
+    // nothing else is exported), so the scattered samples give one.
+    let go_in = |doc: &Document, object: Option<&str>, bounds: Option<[f32; 4]>| {
+        build_scene(
+            doc,
+            Path::new("sample.glb"),
+            &GltfExportOptions {
+                object: object.map(str::to_owned),
+                bounds,
+                ..options.clone()
+            },
+            &|_| true,
+        )
+        .unwrap_or_else(|e| panic!("{object:?}: {e}"))
+    };
+    let go = |doc: &Document, object: Option<&str>| go_in(doc, object, None);
+    // The rock: a mesh within the rock's reach of where it stands.
+    let rock_doc = load("rock");
+    let (scene, report) = go(&rock_doc, Some("Rock 1"));
+    assert!(report.triangles > 500, "{report:?}");
+    let at = rock_doc
+        .object_by_name("Rock 1")
+        .expect("rock 1")
+        .transform
+        .translation;
+    for p in scene.nodes[0].primitives.iter().flat_map(|p| &p.positions) {
+        assert!(p.distance(at) < 3.0, "{p} far from the rock at {at}");
+    }
+    // The woodland: the tree instanced, the terrain a patch.
+    let bounds = Some([-20.0, -20.0, 20.0, 20.0]);
+    for name in ["coral", "grassland"] {
+        let (_, report) = go_in(&load(name), None, bounds);
+        assert!(report.instanced.is_empty(), "{report:?}");
+        assert!(report.objects == 2 && report.triangles > 5000, "{report:?}");
+        assert!(report.patches.iter().any(|(n, _, _)| n == "Terrain"));
+    }
+    let (_, report) = go_in(&load("woodland"), None, bounds);
+    let inst = report
+        .instanced
+        .iter()
+        .find(|i| i.object == "Forest")
+        .unwrap_or_else(|| panic!("the forest is instanced: {report:?}"));
+    // One placement per tree: the 14 shared reflections place them (level 7: the tree's own
+    // seven levels are the prototype).
+    assert_eq!(inst.instances, 1 << 14, "{inst:?}");
+    assert!(inst.prototype_triangles > 100, "{inst:?}");
+    assert!(
+        report
+            .patches
+            .iter()
+            .any(|(n, lo, hi)| n == "Terrain" && hi.x > lo.x),
+        "{:?}",
+        report.patches
+    );
+}
+
+/// Symmetry hiding measured (§5, issue 26 item 4): the woodland's view rendered with its
+/// placement aligned (mirrors exactly along x and z, regular gaps) and as shipped (jittered
+/// azimuths and tilts, random gaps), with and without a distortion, the forest and the terrain
+/// alone; `thicket render --stats` reports the same measure for any project. The aligned forest
+/// is a lattice of identical trees and must measure clearly higher than the jittered one.
+#[test]
+fn jittered_mirrors_measure_less_visible_repetition_than_aligned_ones() {
+    use thicket_core::krs::repetition::{Repetition, visible_repetition};
+    use thicket_core::krs::{Distortion, Material, presets};
+    use thicket_tests::samples::woodland_scatter;
+    let base = load("woodland");
+    let measure = |aligned: bool, distorted: bool, terrain_only: bool| -> Repetition {
+        let mut tree = presets::tree();
+        if distorted {
+            tree.distortion = Some(Distortion {
+                amplitude: 0.2,
+                frequency: 0.5,
+                seed: 4,
+            });
+        }
+        let scatter = if aligned {
+            woodland_scatter().aligned()
+        } else {
+            woodland_scatter()
+        };
+        let ground = Material::new(glam::Vec3::new(0.33, 0.38, 0.2), 5);
+        let scene = presets::on_terrain(tree, ground, &scatter, 5).expect("valid");
+        let mut doc = base.clone();
+        for (o, k) in doc.objects.iter_mut().zip(scene.objects) {
+            o.kind = ObjectKind::Krs(k);
+        }
+        doc.objects[1].visible = !terrain_only;
+        let mut quality = doc.quality.clone();
+        quality.shadow_map_size = 512;
+        let (img, _, _) = render_document(
+            &doc,
+            &RenderRequest {
+                quality,
+                ..RenderRequest::new(128, 128)
+            },
+        )
+        .expect("frame");
+        visible_repetition(&img.pixels, img.width, img.height)
+    };
+    let mut forest = Vec::new();
+    for (what, terrain_only) in [("forest", false), ("terrain", true)] {
+        for (aligned, distorted) in [(true, false), (false, false), (true, true), (false, true)] {
+            let r = measure(aligned, distorted, terrain_only);
+            eprintln!(
+                "{what:8} {:9} {:13}: translation {:.3} mirror {:.3} score {:.3}",
+                if aligned { "aligned" } else { "jittered" },
+                if distorted {
+                    "distorted"
+                } else {
+                    "not distorted"
+                },
+                r.translation,
+                r.mirror,
+                r.score()
+            );
+            if !terrain_only {
+                forest.push(r.score());
+            }
+        }
+    }
+    let (aligned, jittered) = (forest[0], forest[1]);
+    assert!(
+        aligned > 0.4 && aligned > 1.5 * jittered,
+        "aligned {aligned} jittered {jittered}"
+    );
 }

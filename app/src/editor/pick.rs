@@ -3,12 +3,12 @@
 //! Lipschitz bound) — and dropping an object straight down onto whatever is below it with the
 //! same queries.
 
-use glam::{DVec3, Mat4, Vec3};
+use glam::{DVec3, IVec3, Mat4, Vec3};
 use thicket_core::krs::{PreparedScene, TraceSettings, trace};
 use thicket_core::mesh::MeshModel;
 use thicket_core::scene::{Object, ObjectKind};
 
-use super::{CommandError, Editor};
+use super::{CommandError, Editor, VoxelPick};
 
 /// What kind of object a pick hit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -278,6 +278,78 @@ fn ray_krs(scene: &PreparedScene, origin: Vec3, dir: Vec3) -> Option<thicket_cor
     }
     let hit = trace(scene, origin, dir, &PICK_TRACE);
     hit.hit.then_some(hit)
+}
+
+impl Editor {
+    /// Where a sculpt brush aims along a world-space ray: the nearest voxel
+    /// ([`Editor::pick_voxel`]), unless a visible KRS object is nearer (it hides the voxels
+    /// behind it). Then the brush targets voxel model `onto` at the KRS surface point: the pick
+    /// is `onto`'s voxel just inside the surface there, facing along the surface's normal (its
+    /// dominant axis in the model's voxel grid), so an Add dab places a voxel of `onto` on the
+    /// KRS surface. `None` when a KRS object is nearer and there is no `onto`, or the surface
+    /// point lies outside `onto`'s voxel grid (nothing can be placed there).
+    #[must_use]
+    pub fn pick_brush(
+        &self,
+        origin_in_world: Vec3,
+        dir_in_world: Vec3,
+        onto: Option<u64>,
+    ) -> Option<VoxelPick> {
+        let voxel = self.pick_voxel(origin_in_world, dir_in_world);
+        let dir = dir_in_world.try_normalize()?;
+        if !origin_in_world.is_finite() {
+            return voxel;
+        }
+        let mut targets = self.pick_targets(Among::Visible);
+        // Only the KRS objects matter here: meshes are not brush targets.
+        targets.meshes.clear();
+        let Some(k) = ray_krs(&targets.krs, origin_in_world, dir) else {
+            return voxel;
+        };
+        if voxel.is_some_and(|v| v.t <= k.t) {
+            return voxel;
+        }
+        self.voxel_pick_at(onto?, k.position, k.normal, k.t)
+    }
+
+    /// A [`VoxelPick`] on voxel model `id` for a surface point and outward normal given in
+    /// world space (see [`Editor::pick_brush`]).
+    fn voxel_pick_at(&self, id: u64, point: Vec3, normal: Vec3, t: f32) -> Option<VoxelPick> {
+        let o = self.object(id).filter(|o| self.voxel_pickable(o))?;
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return None;
+        };
+        let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
+        let voxel_from_world = world_from_voxel.inverse();
+        if !voxel_from_world.is_finite() {
+            return None;
+        }
+        let p = voxel_from_world.transform_point3(point);
+        // Normals map by the inverse transpose of voxel_from_world.
+        let n = world_from_voxel.transpose().transform_vector3(normal);
+        let axis = n.abs().max_position();
+        let mut face = IVec3::ZERO;
+        face[axis] = if n[axis] < 0.0 { -1 } else { 1 };
+        let inside = (p - 0.5 * face.as_vec3()).floor();
+        let extent = v.svo.extent() as f32;
+        if !(inside.cmpge(Vec3::ZERO).all() && inside.cmplt(Vec3::splat(extent)).all()) {
+            return None;
+        }
+        let size = world_from_voxel
+            .transform_vector3(Vec3::ONE)
+            .abs()
+            .max_element()
+            .max(1e-9);
+        Some(VoxelPick {
+            object: id,
+            voxel: inside.as_uvec3(),
+            normal: face,
+            point_in_world: point,
+            t,
+            voxel_from_world,
+            voxel_size_world: size,
+        })
+    }
 }
 
 /// How far [`Editor::drop_to_surface`] moved an object.

@@ -38,8 +38,9 @@ pub struct KrsPanel {
     drag: Option<MirrorDrag>,
     /// Tree-builder parameters and the KRS object they build (None: the builder is closed).
     pub tree: Option<(u64, TreeParams)>,
-    /// A route-point drag in progress: (point index, its KRS-space position at the start,
-    /// where the pointer started).
+    /// A tree-builder handle drag in progress: (handle index, its KRS-space position at the
+    /// start, where the pointer started). Indices below the route's length are route points;
+    /// `route.len() + k − 1` is the normal handle of the fork at `route[k]`.
     tree_drag: Option<(usize, Vec3, egui::Pos2)>,
 }
 
@@ -1205,6 +1206,22 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
                     "Position along the route from trunk base to twig tip (also draggable in the view)",
                 );
             }
+            for k in 1..branches {
+                // The normal in use (the default one until edited), as `fork_mirror` orients it.
+                let mut n = p.fork_mirror(k).normal;
+                if vec3_row(
+                    ui,
+                    &format!("Fork {k} normal"),
+                    &mut n,
+                    0.01,
+                    "Normal of the reflection plane at this fork (also draggable in the view: \
+                     the handle at the end of the line from the fork); the sign is chosen so \
+                     the branch leaving the fork is kept",
+                ) {
+                    set_fork_normal(&mut p, k, n);
+                    changed = true;
+                }
+            }
             for b in 0..branches {
                 if p.bends.len() <= b {
                     p.bends.resize(b + 1, Vec3::ZERO);
@@ -1264,6 +1281,19 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
             p.route.pop();
             changed = true;
         }
+        if ui
+            .add_enabled(
+                !p.fork_normals.is_empty(),
+                egui::Button::new("Default fork planes"),
+            )
+            .on_hover_text(
+                "Forget the edited fork normals: every fork plane goes back to the symmetric Y fork",
+            )
+            .clicked()
+        {
+            p.fork_normals.clear();
+            changed = true;
+        }
     });
     if changed {
         match editor.build_tree(id, &p) {
@@ -1276,7 +1306,55 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
     }
 }
 
+/// Stores `normal` for the fork at `route[k]`; the other forks keep theirs (zero: the default).
+fn set_fork_normal(p: &mut TreeParams, k: usize, normal: Vec3) {
+    if p.fork_normals.len() < k {
+        p.fork_normals.resize(k, Vec3::ZERO);
+    }
+    p.fork_normals[k - 1] = normal;
+}
+
+/// The KRS-space end of the fork normal handle at `route[k]` (1 ≤ k < route.len() − 1): half
+/// the incoming branch's length along the plane's normal.
+fn fork_normal_tip(p: &TreeParams, k: usize) -> Vec3 {
+    let len = 0.5 * (p.route[k] - p.route[k - 1]).length().max(0.1);
+    p.route[k] + p.fork_mirror(k).normal * len
+}
+
 impl KrsPanel {
+    /// The tree builder's fork normal handles on the screen: (fork point, handle end) per fork
+    /// `route[1..len − 1]`, when the builder is open for the selected object.
+    #[must_use]
+    pub fn fork_normal_points(
+        &self,
+        editor: &Editor,
+        proj: &Projector,
+    ) -> Vec<(Option<egui::Pos2>, Option<egui::Pos2>)> {
+        let route = self.route_points(editor, proj);
+        let (Some(Selection::Object(id)), Some((_, params))) = (editor.selection, &self.tree)
+        else {
+            return Vec::new();
+        };
+        let Some(world) = editor
+            .object(id)
+            .and_then(thicket_core::scene::Object::krs_in_world)
+        else {
+            return Vec::new();
+        };
+        if route.len() < 3 {
+            return Vec::new();
+        }
+        (1..params.route.len() - 1)
+            .map(|k| {
+                let tip = fork_normal_tip(params, k);
+                (
+                    route[k],
+                    proj.to_screen(world.world_from_object.transform_point(tip)),
+                )
+            })
+            .collect()
+    }
+
     /// The tree builder's route points on the screen, when the builder is open for the
     /// selected object.
     #[must_use]
@@ -1320,18 +1398,28 @@ impl KrsPanel {
             && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
             && let Some(start) = ui.input(|i| i.pointer.press_origin())
         {
-            let grabbed = self
-                .route_points(editor, proj)
+            let route = self.route_points(editor, proj);
+            let tips = self.fork_normal_points(editor, proj);
+            let grabbed = route
                 .iter()
+                .copied()
+                .chain(tips.iter().map(|(_, tip)| *tip))
                 .enumerate()
                 .filter_map(|(i, s)| s.map(|s| (s.distance(start), i)))
                 .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
-                .min_by(|a, b| a.0.total_cmp(&b.0));
+                // Route points win a tie with a normal handle drawn over them.
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
             if let Some((_, i)) = grabbed
                 && let Some((_, params)) = self.tree.as_ref()
             {
+                let n = params.route.len();
+                let base = if i < n {
+                    params.route[i]
+                } else {
+                    fork_normal_tip(params, i - n + 1)
+                };
                 editor.end_interaction();
-                self.tree_drag = Some((i, params.route[i], start));
+                self.tree_drag = Some((i, base, start));
             }
         }
         let Some((index, base, start)) = self.tree_drag else {
@@ -1364,8 +1452,15 @@ impl KrsPanel {
         let delta_world = (right * d.x - up * d.y) * proj.world_per_point(p_world);
         let delta = t.rotation.inverse() * delta_world / t.scale.max(1e-12);
         let mut p = params.clone();
-        if let Some(slot) = p.route.get_mut(index) {
-            *slot = base + delta;
+        let n = p.route.len();
+        if index < n {
+            p.route[index] = base + delta;
+        } else if (1..n.saturating_sub(1)).contains(&(index - n + 1)) {
+            // A fork normal handle: the plane turns to face the handle's new end.
+            let k = index - n + 1;
+            if let Some(normal) = (base + delta - p.route[k]).try_normalize() {
+                set_fork_normal(&mut p, k, normal);
+            }
         }
         match editor.build_tree(id, &p) {
             Ok(()) => {
@@ -1388,6 +1483,24 @@ pub fn paint_route(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, p
         }
     }
     let dragged = panel.tree_drag.map(|(i, _, _)| i);
+    // Fork plane normals: a line from each fork to its handle.
+    let normal_color = egui::Color32::from_rgb(120, 220, 255);
+    for (k, (fork, tip)) in panel.fork_normal_points(editor, proj).iter().enumerate() {
+        if let (Some(a), Some(b)) = (fork, tip) {
+            painter.line_segment([*a, *b], egui::Stroke::new(1.5, normal_color));
+            let r = if dragged == Some(points.len() + k) {
+                5.0
+            } else {
+                3.5
+            };
+            painter.circle(
+                *b,
+                r,
+                egui::Color32::from_rgb(20, 60, 90),
+                egui::Stroke::new(1.5, normal_color),
+            );
+        }
+    }
     for (i, p) in points.iter().enumerate() {
         if let Some(p) = p {
             let r = if dragged == Some(i) { 6.0 } else { 4.5 };

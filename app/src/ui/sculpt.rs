@@ -2,7 +2,9 @@
 //!
 //! A stroke starts when the primary button goes down on a voxel model and ends when it goes
 //! up; its dabs are one undo step. Dabs are spaced along the pointer's path at a fraction of
-//! the brush radius, so a fast drag leaves a continuous trail.
+//! the brush radius, so a fast drag leaves a continuous trail. Where a KRS object is nearer
+//! than any voxel, the brush aims at its surface and places voxels of the selected voxel model
+//! there ([`Editor::pick_brush`]).
 
 use glam::Vec3;
 use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
@@ -208,7 +210,8 @@ impl SculptTool {
             return;
         }
         if self.tool == ToolKind::Brush {
-            let pick = ray.and_then(|(o, d)| editor.pick_voxel(o, d));
+            let onto = self.brush_onto(editor);
+            let pick = ray.and_then(|(o, d)| editor.pick_brush(o, d, onto));
             self.handle(response, editor, pick);
             return;
         }
@@ -226,6 +229,26 @@ impl SculptTool {
             }
             Some(Err(e)) => self.error = Some(e),
             None => {}
+        }
+    }
+
+    /// The voxel model whose voxels the brush places where the pointer is over a KRS surface
+    /// (nearer than any voxel): the model of the stroke in progress, else the selected voxel
+    /// model. `None` (no voxel model selected): the brush reaches voxels only.
+    #[must_use]
+    pub fn brush_onto(&self, editor: &Editor) -> Option<u64> {
+        if let Some(s) = &self.stroke {
+            return Some(s.object);
+        }
+        match editor.selection {
+            Some(Selection::Object(id))
+                if editor.object(id).is_some_and(|o| {
+                    matches!(o.kind, thicket_core::scene::ObjectKind::Voxels(_))
+                }) =>
+            {
+                Some(id)
+            }
+            _ => None,
         }
     }
 

@@ -675,15 +675,34 @@ impl View {
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let aspect = rect.aspect_ratio().max(1e-3);
 
-        // Where the pointer points in the scene (for the brush and for picking).
+        // Where the pointer points in the scene (for the brush and for picking). A perspective
+        // ray starts at the eye, not on the near plane: the planes are fitted to the bounded
+        // objects, and an unbounded KRS object (terrain) may lie nearer than the near plane, which
+        // would put the ray's start inside it.
         let pointer_ray = response.hover_pos().and_then(|p| {
             let ndc = Vec2::new(
                 (p.x - rect.left()) / rect.width() * 2.0 - 1.0,
                 1.0 - (p.y - rect.top()) / rect.height() * 2.0,
             );
-            ray_through(editor.doc().camera.clip_from_world(aspect), ndc)
+            let camera = editor.doc().camera;
+            ray_through(camera.clip_from_world(aspect), ndc).map(|(o, d)| {
+                if camera.orthographic {
+                    (o, d)
+                } else {
+                    (camera.eye(), d)
+                }
+            })
         });
-        let hover_pick = pointer_ray.and_then(|(o, d)| editor.pick_voxel(o, d));
+        // The brush's target (a KRS surface too, for the selected voxel model's brush); other
+        // tools only need the voxel.
+        let brush = sculpt.active && sculpt.tool == ToolKind::Brush;
+        let hover_pick = pointer_ray.and_then(|(o, d)| {
+            if brush {
+                editor.pick_brush(o, d, sculpt.brush_onto(editor))
+            } else {
+                editor.pick_voxel(o, d)
+            }
+        });
 
         let proj = Projector::new(editor.doc().camera, rect);
         let gizmo = !sculpt.active

@@ -40,6 +40,14 @@ impl Distortion {
         1.0 + NOISE_JACOBIAN_BOUND * self.amplitude * self.frequency
     }
 
+    /// The columns `∂w/∂x, ∂w/∂y, ∂w/∂z` of the warp's Jacobian at `p`, by central differences
+    /// of the smooth warp (the step the normals use, `1e-3 / f`).
+    pub fn jacobian_columns(&self, p: Vec3) -> [Vec3; 3] {
+        let h = 1e-3 / self.frequency.max(1e-3);
+        let column = |axis: Vec3| (self.warp(p + axis * h) - self.warp(p - axis * h)) / (2.0 * h);
+        [column(Vec3::X), column(Vec3::Y), column(Vec3::Z)]
+    }
+
     /// The largest displacement `|w(p) − p|` (each of the three components ≤ A).
     pub fn max_displacement(&self) -> f32 {
         self.amplitude * 3f32.sqrt()

@@ -29,6 +29,7 @@ mod mirror;
 mod object;
 pub mod presets;
 mod query;
+pub mod repetition;
 mod shade;
 mod trace;
 mod tree;

@@ -162,6 +162,15 @@ pub enum KrsError {
         /// What is wrong.
         reason: String,
     },
+    /// An operation that needs a bounded object (scattering it) got an unbounded one.
+    #[error(
+        "KRS object {object} is unbounded (a half-space kernel reaches infinity); only bounded \
+         pieces can be scattered: use sphere, capsule, torus or box kernels"
+    )]
+    Unbounded {
+        /// Object index.
+        object: usize,
+    },
     /// The distortion parameters are invalid.
     #[error("KRS object {object}: distortion {reason}")]
     Distortion {

@@ -394,3 +394,265 @@ pub fn all() -> Vec<(&'static str, KrsObject)> {
         ("forest", forest()),
     ]
 }
+
+/// A battered rock (§7.1, Fig. 7) from planar kernels and 14 reflection levels: four half-space
+/// kernels cut a polyhedron in the octant that three axis folds and three axis swaps (R0–R5,
+/// applied last) make of space, as in [`rock`]; then eight mirrors through points near the
+/// centre, at orientations drawn from `seed` (R6–R13, applied first), each keep one side of the
+/// rock and mirror it onto the other. Every such fold leaves a crease where the kept side meets
+/// its image, so the surface is many facets meeting at ridges and valleys — the paper's
+/// "battered rock" — and no two seeds give the same rock. Smooth shading (Algorithm 2) rounds
+/// the creases, the distortion bends the facets and hides the octant symmetry, and triplanar
+/// texture (unfolded coordinates) keeps the mirrored facets from repeating their pattern.
+///
+/// The kernels are evaluated only after the octant folds (K4 and above are empty), so every
+/// kernel instance is a bounded piece and the rock is about one unit across its centre.
+pub fn battered_rock(seed: u64) -> KrsObject {
+    let stone = Material::new(Vec3::new(0.5, 0.47, 0.43), 4);
+    let mut rng = Pcg32::seed_from_u64(seed);
+    let s = 1.0 / 2f32.sqrt();
+    let mut mirrors = vec![
+        MirrorPlane::new(Vec3::new(s, -s, 0.0), 0.0),
+        MirrorPlane::new(Vec3::new(0.0, s, -s), 0.0),
+        MirrorPlane::new(Vec3::new(s, -s, 0.0), 0.0),
+        MirrorPlane::new(Vec3::Z, 0.0),
+        MirrorPlane::new(Vec3::Y, 0.0),
+        MirrorPlane::new(Vec3::X, 0.0),
+    ];
+    for _ in 0..BATTERING_MIRRORS {
+        let normal = Vec3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
+        .normalize_or(Vec3::X);
+        // Through a point up to a quarter of the radius from the centre: the kept half and its
+        // image stretch or squash the rock along the normal by twice that.
+        mirrors.push(MirrorPlane::new(normal, rng.random_range(-0.22..0.22)));
+    }
+    let mut plane = |offset: f32| {
+        let n = Vec3::new(
+            -rng.random_range(0.6..1.0),
+            -rng.random_range(0.6..1.0),
+            -rng.random_range(0.6..1.0),
+        );
+        Kernel::InfinitePlane(PlaneKernel {
+            normal: n.normalize_or(-Vec3::ONE),
+            offset,
+            material: stone,
+        })
+    };
+    let mut kernels = vec![plane(0.95), plane(0.9), plane(1.0), plane(0.85)];
+    kernels.resize(mirrors.len() + 1, Kernel::Empty);
+    let yaw = rng.random_range(0.0..TAU);
+    KrsObject {
+        name: "battered rock".to_owned(),
+        kernels,
+        mirrors,
+        world_from_object: Similarity {
+            translation: Vec3::new(0.0, 0.55, 0.0),
+            rotation: Quat::from_euler(glam::EulerRot::YXZ, yaw, 0.35, 0.2),
+            scale: 1.0,
+        },
+        distortion: Some(Distortion {
+            amplitude: 0.07,
+            frequency: 1.6,
+            seed: seed as u32,
+        }),
+        texturing: Texturing {
+            mode: TextureMode::Triplanar,
+            pattern: Pattern::Bark,
+            scale: 2.5,
+            contrast: 0.45,
+            sharpness: 4.0,
+        },
+        empty_zones: Vec::new(),
+    }
+}
+
+/// The near-centre mirrors of [`battered_rock`] (its other six are the octant folds).
+pub const BATTERING_MIRRORS: usize = 8;
+
+/// How [`scatter_mirrors`] places copies of a piece side by side.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Scatter {
+    /// Number of mirrors (2^count copies).
+    pub count: usize,
+    /// Largest azimuth jitter (radians) of a mirror normal from the x or z axis (they
+    /// alternate), for the first [`Scatter::fine_levels`] mirrors; a tenth of it after.
+    pub jitter: f32,
+    /// Largest tilt (radians) of a mirror normal out of the horizontal, for the first
+    /// `fine_levels` mirrors; a quarter of it after. A ground folded by tilted mirrors rises and
+    /// falls; a piece standing on it leans by up to twice the tilt per fold.
+    pub tilt: f32,
+    /// Mirrors whose jitter and tilt are not reduced.
+    pub fine_levels: usize,
+    /// The gap between neighbouring copies, as a fraction of the piece's radius: a uniform draw
+    /// from `gap.0..gap.1` (equal values: no draw, a regular spacing).
+    pub gap: (f32, f32),
+    /// Seed of the draws.
+    pub seed: u64,
+    /// No draws at all: normals exactly along x and z, tilts of `+tilt` and `−tilt` in turn,
+    /// the mean gap. The copies stand on a regular lattice (every symmetry in plain view).
+    pub regular: bool,
+}
+
+impl Default for Scatter {
+    fn default() -> Self {
+        Self {
+            count: 10,
+            jitter: 0.05,
+            tilt: 0.04,
+            fine_levels: 6,
+            gap: (0.05, 0.4),
+            seed: 42,
+            regular: false,
+        }
+    }
+}
+
+impl Scatter {
+    /// The same placement without its draws ([`Scatter::regular`]): symmetry hiding by
+    /// unaligned mirrors off, the ground still folded as steeply.
+    #[must_use]
+    pub fn aligned(self) -> Self {
+        Self {
+            regular: true,
+            ..self
+        }
+    }
+}
+
+/// Mirrors that multiply a piece bounded by the ball `(centre, radius)` into 2^count copies
+/// side by side (the forest's placement, §7.2): each mirror lies just beyond every copy made so
+/// far along its normal, so kernel separation holds between copies (none is clipped).
+pub fn scatter_mirrors(ball: (Vec3, f32), scatter: &Scatter) -> Vec<MirrorPlane> {
+    let (centre, radius) = ball;
+    let mut rng = Pcg32::seed_from_u64(scatter.seed);
+    let mut centres = vec![centre];
+    let mut mirrors = Vec::with_capacity(scatter.count);
+    for i in 0..scatter.count {
+        let (jitter, tilt) = if i < scatter.fine_levels {
+            (scatter.jitter, scatter.tilt)
+        } else {
+            (0.1 * scatter.jitter, 0.25 * scatter.tilt)
+        };
+        let base = if i % 2 == 0 { 0.0 } else { FRAC_PI_2 };
+        let (azimuth, tilt) = if scatter.regular {
+            // Alternate the sign per pair, so x and z both get a rise and a fall.
+            let sign = if (i / 2) % 2 == 0 { 1.0 } else { -1.0 };
+            (base, sign * tilt)
+        } else {
+            let azimuth = base
+                + if jitter > 0.0 {
+                    rng.random_range(-jitter..jitter)
+                } else {
+                    0.0
+                };
+            let tilt = if tilt > 0.0 {
+                rng.random_range(-tilt..tilt)
+            } else {
+                0.0
+            };
+            (azimuth, tilt)
+        };
+        let normal = Vec3::new(
+            azimuth.cos() * tilt.cos(),
+            tilt.sin(),
+            azimuth.sin() * tilt.cos(),
+        );
+        let reach = centres
+            .iter()
+            .map(|c| c.dot(normal))
+            .fold(f32::NEG_INFINITY, f32::max);
+        let gap = if scatter.regular {
+            0.5 * (scatter.gap.0 + scatter.gap.1)
+        } else if scatter.gap.1 > scatter.gap.0 {
+            rng.random_range(scatter.gap.0..scatter.gap.1)
+        } else {
+            scatter.gap.0
+        };
+        let mirror = MirrorPlane::new(normal, reach + radius * (1.0 + gap));
+        let reflected: Vec<Vec3> = centres.iter().map(|c| mirror.reflect_point(*c)).collect();
+        centres.extend(reflected);
+        mirrors.push(mirror);
+    }
+    mirrors
+}
+
+/// `object` with `mirrors` appended as its coarsest levels (empty kernels): 2^len copies.
+#[must_use]
+pub fn with_extra_mirrors(mut object: KrsObject, mirrors: &[MirrorPlane]) -> KrsObject {
+    object.mirrors.extend_from_slice(mirrors);
+    object
+        .kernels
+        .resize(object.mirrors.len() + 1, Kernel::Empty);
+    object
+}
+
+/// A piece (a tree, a grass tuft, a coral; object space = world space, standing on y = 0 at
+/// the origin) scattered over a KRS terrain by **shared reflections** (§7.2: a forest's extra
+/// reflections "identical to those of the terrain"): the terrain is the ground plane y = 0,
+/// folded first by `fine` small mirrors of its own around the origin (bumps between the
+/// copies; the origin stays on their kept side, so the ground under the piece is untouched) and
+/// then by the same mirrors as the piece. Each copy of the piece and the ground under it are
+/// images of the originals under the same isometry, so every copy stands on the terrain exactly,
+/// on slopes as well (leaning with them). The terrain takes the piece's distortion too, so the
+/// warp moves both alike.
+///
+/// # Errors
+/// The piece fails validation or is unbounded.
+pub fn on_terrain(
+    piece: KrsObject,
+    ground: Material,
+    scatter: &Scatter,
+    fine: usize,
+) -> Result<KrsScene, super::object::KrsError> {
+    let prepared = KrsScene {
+        objects: vec![piece.clone()],
+    }
+    .prepare()?;
+    let ball = prepared.objects[0]
+        .bound_world
+        .ok_or(super::object::KrsError::Unbounded { object: 0 })?;
+    let shared = scatter_mirrors(ball, scatter);
+    let mut rng = Pcg32::seed_from_u64(scatter.seed ^ 0x9e37_79b9);
+    let mut terrain_mirrors = Vec::with_capacity(fine + shared.len());
+    for i in 0..fine {
+        let azimuth: f32 = rng.random_range(0.0..TAU);
+        let tilt: f32 =
+            rng.random_range(0.06..0.16) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let normal = Vec3::new(
+            azimuth.cos() * tilt.cos(),
+            tilt.sin(),
+            azimuth.sin() * tilt.cos(),
+        );
+        // Beyond the trunk or stem (a fifth of the radius), growing per level.
+        let offset = ball.1 * rng.random_range(0.2..0.5) * 1.5f32.powi(i as i32);
+        terrain_mirrors.push(MirrorPlane::new(normal, offset));
+    }
+    terrain_mirrors.extend_from_slice(&shared);
+    let mut kernels = vec![Kernel::InfinitePlane(PlaneKernel {
+        normal: Vec3::Y,
+        offset: 0.0,
+        material: ground,
+    })];
+    kernels.resize(terrain_mirrors.len() + 1, Kernel::Empty);
+    let terrain = KrsObject {
+        name: "terrain".to_owned(),
+        kernels,
+        mirrors: terrain_mirrors,
+        distortion: piece.distortion,
+        texturing: Texturing {
+            mode: TextureMode::Triplanar,
+            pattern: Pattern::Bark,
+            scale: 0.8,
+            contrast: 0.35,
+            sharpness: 4.0,
+        },
+        ..KrsObject::default()
+    };
+    Ok(KrsScene {
+        objects: vec![terrain, with_extra_mirrors(piece, &shared)],
+    })
+}

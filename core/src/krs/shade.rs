@@ -2,7 +2,7 @@
 //! procedural texturing (§6.2): triplanar in unfolded object space, or kernel-parametrised in
 //! each instance's own frame.
 
-use glam::{Vec2, Vec3};
+use glam::{Mat3, Vec2, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::object::{PreparedObject, PreparedScene};
@@ -41,34 +41,48 @@ impl PreparedObject {
         light_world: Vec3,
         e_threshold_world: f32,
     ) -> SmoothShading {
-        let mut p = self.object_from_world(p_world);
-        if let Some(d) = &self.object.distortion {
-            p = d.warp(p);
-        }
-        let light0 = self
+        let p_object = self.object_from_world(p_world);
+        let light_object = self
             .object_dir_from_world(light_world)
             .normalize_or(Vec3::Y);
+        // A warp w maps normals by Jᵀ: n_object ∝ Jᵀ·F·n_kernel (F the reflections taken).
+        // Carrying J·l into warped space instead of l gives n_kernel·(Fᵀ·J·l) = (Jᵀ·F·n)·l, so
+        // the light is folded and blended exactly as without a warp and the Lambert factor is
+        // rescaled by |J·l| / |Jᵀ·F·n| at the end: with no blending this is the flat distorted
+        // shading (`sample_world`'s normal) exactly.
+        let jacobian = self.object.distortion.map(|d| d.jacobian_columns(p_object));
+        let (mut p, light0, light_len) = match (&self.object.distortion, jacobian) {
+            (Some(d), Some([jx, jy, jz])) => {
+                let jl = jx * light_object.x + jy * light_object.y + jz * light_object.z;
+                (d.warp(p_object), jl.normalize_or(light_object), jl.length())
+            }
+            _ => (p_object, light_object, 1.0),
+        };
         let e_threshold = (e_threshold_world / self.object.world_from_object.scale).max(0.0);
         let obj = &self.object;
         let n = obj.mirrors.len();
         let mut omega = light0;
         let mut best_d = f32::INFINITY;
-        let mut best: Option<(usize, Vec3, Vec3)> = None;
-        let mut consider = |i: usize, p: Vec3, omega: Vec3| {
+        let mut best: Option<(usize, Vec3, Vec3, Mat3)> = None;
+        let mut frame = Mat3::IDENTITY;
+        let mut consider = |i: usize, p: Vec3, omega: Vec3, frame: Mat3| {
             if let Some(k) = obj.kernels.get(i).filter(|k| !k.is_empty()) {
                 let d = k.distance(p);
                 if d < best_d {
                     best_d = d;
-                    best = Some((i, p, omega));
+                    best = Some((i, p, omega, frame));
                 }
             }
         };
-        consider(n, p, omega);
+        consider(n, p, omega, frame);
         for i in (0..n).rev() {
             let m = &obj.mirrors[i];
             let e = m.signed_distance(p);
             if e > 0.0 {
                 p = m.reflect_point(p);
+                if jacobian.is_some() {
+                    frame *= m.matrix();
+                }
             }
             let rho = m.reflect_dir(omega);
             let w = if e_threshold > 0.0 {
@@ -82,7 +96,7 @@ impl PreparedObject {
             omega = omega
                 .lerp(rho, w)
                 .normalize_or(if e > 0.0 { rho } else { omega });
-            consider(i, p, omega);
+            consider(i, p, omega, frame);
         }
         match best {
             None => SmoothShading {
@@ -92,14 +106,24 @@ impl PreparedObject {
                 light_kernel: omega,
                 diffuse: 0.0,
             },
-            Some((i, kp, light_kernel)) => {
+            Some((i, kp, light_kernel, frame)) => {
                 let normal_kernel = obj.kernels[i].normal(kp);
+                let mut diffuse = normal_kernel.dot(light_kernel).max(0.0);
+                if let Some([jx, jy, jz]) = jacobian {
+                    let n = frame * normal_kernel;
+                    let jt_n = Vec3::new(jx.dot(n), jy.dot(n), jz.dot(n)).length();
+                    diffuse = if jt_n > 0.0 {
+                        (diffuse * light_len / jt_n).min(1.0)
+                    } else {
+                        0.0
+                    };
+                }
                 SmoothShading {
                     kernel: Some(i),
                     kernel_point: kp,
                     normal_kernel,
                     light_kernel,
-                    diffuse: normal_kernel.dot(light_kernel).max(0.0),
+                    diffuse,
                 }
             }
         }

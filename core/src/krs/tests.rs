@@ -920,6 +920,83 @@ fn algorithm2_smooths_the_light_across_mirror_planes() {
 }
 
 #[test]
+fn algorithm2_on_a_distorted_object_is_flat_shading_at_zero_threshold_and_smooths_the_ridge() {
+    // The roof ridge of the test above, warped: with threshold 0 Algorithm 2 must give exactly
+    // n·l with the warped normal of `sample_world` (the light is carried as J·l and the factor
+    // rescaled); with a threshold it stays continuous across the (warped) ridge.
+    let roof = Kernel::InfinitePlane(PlaneKernel {
+        normal: Vec3::new(-0.5, 1.0, 0.0),
+        offset: 0.0,
+        ..Default::default()
+    });
+    let obj = KrsObject {
+        kernels: vec![roof, Kernel::Empty],
+        mirrors: vec![MirrorPlane::new(Vec3::X, 0.0)],
+        distortion: Some(Distortion {
+            amplitude: 0.1,
+            frequency: 1.5,
+            seed: 3,
+        }),
+        world_from_object: Similarity {
+            rotation: Quat::from_rotation_y(0.4),
+            ..Similarity::default()
+        },
+        ..Default::default()
+    };
+    let scene = prepared(obj);
+    let o = &scene.objects[0];
+    let light = Vec3::new(1.0, 1.0, 0.3).normalize_or(Vec3::Y);
+    let mut rng = Pcg32::seed_from_u64(9);
+    let mut differs_from_undistorted = 0;
+    for _ in 0..64 {
+        let p = Vec3::new(
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-1.5..0.5),
+            rng.random_range(-2.0..2.0),
+        );
+        let (_, n) = o.sample_world(p);
+        let flat = o.smooth_shading(p, light, 0.0).diffuse;
+        let exact = n.dot(light).max(0.0);
+        assert!((flat - exact).abs() < 2e-4, "{p}: {flat} vs {exact}");
+        // The warp matters: the undistorted roof's factor is one of two constants.
+        let plain = [Vec3::new(-0.5, 1.0, 0.0), Vec3::new(0.5, 1.0, 0.0)].map(|n| {
+            Quat::from_rotation_y(0.4)
+                .mul_vec3(n.normalize_or_zero())
+                .dot(light)
+                .max(0.0)
+        });
+        if plain.iter().all(|d| (d - exact).abs() > 1e-2) {
+            differs_from_undistorted += 1;
+        }
+    }
+    assert!(differs_from_undistorted > 32, "{differs_from_undistorted}");
+    // Across the ridge: walk along a line crossing it and look for the largest jump between
+    // neighbouring samples 1e-3 apart.
+    let jump = |th: f32| {
+        (0..400)
+            .map(|i| {
+                let x = -0.2 + i as f32 * 1e-3;
+                let a = Quat::from_rotation_y(0.4) * Vec3::new(x, -0.4, 0.3);
+                let b = Quat::from_rotation_y(0.4) * Vec3::new(x + 1e-3, -0.4, 0.3);
+                // Project both onto the surface along y with the distance estimate.
+                let onto = |p: Vec3| {
+                    let mut q = p;
+                    for _ in 0..64 {
+                        q.y -= o.distance_world(q) * 0.5;
+                    }
+                    q
+                };
+                let (pa, pb) = (onto(a), onto(b));
+                (o.smooth_shading(pa, light, th).diffuse - o.smooth_shading(pb, light, th).diffuse)
+                    .abs()
+            })
+            .fold(0.0f32, f32::max)
+    };
+    let (flat, smooth) = (jump(0.0), jump(0.2));
+    assert!(flat > 0.1 && smooth < 0.05, "flat {flat} smooth {smooth}");
+}
+
+#[test]
 fn texturing_triplanar_and_kernel_coordinates() {
     let base = Vec3::new(0.5, 0.4, 0.3);
     let tex = Texturing {
@@ -1039,6 +1116,83 @@ fn tree_builder_maps_parameters_to_kernels_and_mirrors() {
             index: 3
         })
     ));
+}
+
+#[test]
+fn battered_rocks_are_bounded_many_levelled_and_differ_by_seed() {
+    let rocks: Vec<PreparedScene> = [5, 12].map(|s| prepared(presets::battered_rock(s))).into();
+    for scene in &rocks {
+        let o = &scene.objects[0];
+        assert!(o.object.mirrors.len() >= 12);
+        let centre = o.object.world_from_object.translation;
+        // Solid at the centre, and outside from 4 units on in each of 26 directions, the
+        // estimate growing as it does away from a bounded solid (half-space kernels, yet a
+        // bounded rock; the estimate is divided by the warp's Lipschitz bound, 2.0).
+        assert!(o.distance_world(centre) < 0.0);
+        for x in -1..=1 {
+            for y in -1..=1 {
+                for z in -1..=1 {
+                    let dir = Vec3::new(x as f32, y as f32, z as f32).normalize_or_zero();
+                    if dir != Vec3::ZERO {
+                        let near = o.distance_world(centre + 4.0 * dir);
+                        let far = o.distance_world(centre + 8.0 * dir);
+                        assert!(near > 0.0 && far - near > 1.0, "{dir}: {near} {far}");
+                    }
+                }
+            }
+        }
+    }
+    // Different seeds, different rocks: their surfaces differ somewhere on a ring of points.
+    let differs = (0..64)
+        .map(|i| {
+            let a = i as f32 * TAU / 64.0;
+            let p = Vec3::new(a.cos(), 0.55 + 0.3 * (3.0 * a).sin(), a.sin());
+            (rocks[0].distance(p) - rocks[1].distance(p)).abs()
+        })
+        .fold(0.0f32, f32::max);
+    assert!(differs > 0.1, "{differs}");
+}
+
+#[test]
+fn scattered_copies_keep_their_gap_and_the_aligned_placement_is_a_lattice() {
+    let ball = (Vec3::new(0.0, 1.0, 0.0), 1.0);
+    let scatter = presets::Scatter {
+        count: 6,
+        gap: (0.1, 0.4),
+        ..presets::Scatter::default()
+    };
+    for s in [scatter, scatter.aligned()] {
+        let mirrors = presets::scatter_mirrors(ball, &s);
+        assert_eq!(mirrors.len(), 6);
+        let mut centres = vec![ball.0];
+        for m in &mirrors {
+            let images: Vec<Vec3> = centres.iter().map(|c| m.reflect_point(*c)).collect();
+            centres.extend(images);
+        }
+        // Kernel separation between copies: no two balls overlap, gaps of at least 0.1 r.
+        for (i, a) in centres.iter().enumerate() {
+            for b in &centres[i + 1..] {
+                assert!(a.distance(*b) >= 2.0 * 1.1 * ball.1 - 1e-3, "{a} {b}");
+            }
+        }
+        if s.regular {
+            // Normals along x or z up to the tilt, and the tilt the same size every time.
+            for (i, m) in mirrors.iter().enumerate() {
+                let along = if i % 2 == 0 { m.normal.z } else { m.normal.x };
+                assert!(along.abs() < 1e-6, "{i}: {}", m.normal);
+                assert!((m.normal.y.abs() - s.tilt.sin()).abs() < 1e-6);
+            }
+        }
+    }
+    // Only bounded pieces can be scattered.
+    let err = presets::on_terrain(
+        presets::terrain(),
+        Material::default(),
+        &presets::Scatter::default(),
+        0,
+    )
+    .unwrap_err();
+    assert!(matches!(err, KrsError::Unbounded { .. }), "{err}");
 }
 
 #[test]

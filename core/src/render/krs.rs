@@ -124,7 +124,7 @@ pub(crate) struct KrsPass {
     /// Per pixel, the KRS fragment written there (the key decides whether it won).
     pub(crate) pixels: Vec<Option<KrsPixel>>,
     /// Per pixel and light (`pixel * lights + light`): the Algorithm 2 diffuse factor; NaN where
-    /// the plain `n·l` applies (no KRS fragment, or a distorted object, see `docs/krs.md`).
+    /// the plain `n·l` applies (no KRS fragment).
     pub(crate) diffuse: Vec<f32>,
     pub(crate) stats: KrsStats,
 }
@@ -310,13 +310,7 @@ pub(crate) fn draw_krs(
                     let threshold = shading_threshold(hit.t, base.pixel_cone_ratio, SMOOTHING_PX);
                     let diffuse = light_dirs
                         .iter()
-                        .map(|&l| {
-                            if obj.object.distortion.is_some() {
-                                f32::NAN
-                            } else {
-                                obj.smooth_shading(hit.position, l, threshold).diffuse
-                            }
-                        })
+                        .map(|&l| obj.smooth_shading(hit.position, l, threshold).diffuse)
                         .collect();
                     let normal = hit.normal.normalize_or(-ray.dir);
                     out.push((
