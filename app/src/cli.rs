@@ -96,8 +96,10 @@ pub enum Command {
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
     /// The voxels are drawn with each strategy and compared with the source mesh skinned with
-    /// the same pose from the same camera: holes are mesh pixels no voxel covers, bloat is
-    /// voxel pixels outside the mesh.
+    /// the same pose from the same cameras (views around the model), pixel by pixel by depth:
+    /// holes are pixels where the skin is nearer than the voxels by more than two voxels (or no
+    /// voxel covers), bloat the converse. Rest-pose error and stretch error are reported
+    /// apart.
     SkinReport(SkinReportArgs),
 }
 
@@ -106,15 +108,25 @@ pub enum Command {
 pub struct SkinReportArgs {
     /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF).
     pub project: PathBuf,
-    /// Frames, evenly spaced over the clip.
-    #[arg(long, default_value_t = 20)]
+    /// Frames, evenly spaced over the clip (the rest pose is measured on top).
+    #[arg(long, default_value_t = 10)]
     pub frames: u32,
+    /// Views, evenly spaced around the model (level, orthographic).
+    #[arg(long, default_value_t = 6)]
+    pub views: u32,
     /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x800")]
+    #[arg(long, default_value = "400x400")]
     pub size: String,
     /// Clip by name (default: the project's).
     #[arg(long)]
     pub clip: Option<String>,
+    /// Print the per-view lines too (JSON always has them).
+    #[arg(long)]
+    pub per_view: bool,
+    /// Cap on every strategy's stretch factor (`Corners`: box half-width in half-voxels),
+    /// 1..=16; default the settings' 4.
+    #[arg(long)]
+    pub max_factor: Option<f32>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -1611,13 +1623,21 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
     ]
     .map(|strategy| StretchSettings {
         strategy,
+        max_factor: args
+            .max_factor
+            .unwrap_or(StretchSettings::default().max_factor),
         ..StretchSettings::default()
     })
     .to_vec();
+    for s in &strategies {
+        s.validate()
+            .map_err(|e| anyhow::anyhow!("--max-factor: {e}"))?;
+    }
     let report = skin_report(
         &doc,
         &ReportSettings {
             frames: args.frames,
+            views: args.views,
             width,
             height,
             clip: args.clip.clone(),
@@ -1631,40 +1651,80 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
         s.push('\n');
         s
     } else {
-        format_skin_report(&report, width, height)
+        format_skin_report(&report, width, height, args.per_view)
     };
     write_stdout(&text)
 }
 
-/// The `skin-report` table.
+/// The `skin-report` table: per strategy the rest-pose counts (voxelization error of the
+/// shape), the posed counts over every frame and view with their holes split into misplaced
+/// (voxelization: wrong weights) and stretch (beyond the rest pose), and the old coverage-only
+/// holes for comparison; with `per_view`, one line per strategy and view.
 #[must_use]
 pub fn format_skin_report(
     report: &thicket_core::skin::metrics::SkinReport,
     width: u32,
     height: u32,
+    per_view: bool,
 ) -> String {
+    let views = report.rows.first().map_or(0, |r| r.views.len());
     let mut s = format!(
-        "{} / clip {:?}: {} frames at {width}x{height}, {} silhouette pixels in all\n",
+        "{} / clip {:?}: {} frames + rest, {views} views at {width}x{height}; voxel {:.4}, \
+         pixel {:.4}, depth tolerance {:.4} (world units)\n",
         report.object,
         report.clip,
         report.times.len(),
-        thousands(report.rows.first().map_or(0, |r| r.total.mesh_pixels))
+        report.voxel_world,
+        report.pixel_world,
+        report.tolerance,
     );
+    s.push_str(&format!(
+        "{} mesh pixels at rest, {} posed\n",
+        thousands(report.rows.first().map_or(0, |r| r.rest.mesh_pixels)),
+        thousands(report.rows.first().map_or(0, |r| r.posed.mesh_pixels))
+    ));
     s.push_str(
-        "strategy    holes      holes %   bloat      bloat %   worst IoU  draw ms  frame ms\n",
+        "strategy    rest holes  rest bloat | holes     through   misplaced  stretch   bloat      bloat %  stretch bloat | coverage holes  frame ms\n",
     );
     for r in &report.rows {
         s.push_str(&format!(
-            "{:<10}  {:>9}  {:>7.4}%  {:>9}  {:>7.3}%  {:>9.4}  {:>7.2}  {:>8.2}\n",
+            "{:<10}  {:>10}  {:>10} | {:>8}  {:>8}  {:>9}  {:>7}  {:>9}  {:>6.2}%  {:>13} | {:>14}  {:>8.2}\n",
             format!("{:?}", r.settings.strategy),
-            thousands(r.total.holes),
-            100.0 * r.total.hole_fraction(),
-            thousands(r.total.bloat),
-            100.0 * r.total.bloat_fraction(),
-            r.worst_iou,
-            r.draw_ms,
+            thousands(r.rest.holes),
+            thousands(r.rest.bloat),
+            thousands(r.posed.holes),
+            thousands(r.posed.holes_through),
+            thousands(r.posed.holes_misplaced),
+            thousands(r.stretch_holes),
+            thousands(r.posed.bloat),
+            100.0 * r.posed.bloat_fraction(),
+            thousands(r.stretch_bloat),
+            thousands(r.coverage.holes),
             r.frame_ms
         ));
+    }
+    if per_view {
+        s.push_str("strategy    view  rest holes  rest bloat | holes     misplaced  stretch   bloat      stretch bloat\n");
+        for r in &report.rows {
+            for v in &r.views {
+                let mut posed = thicket_core::skin::metrics::ShellCounts::default();
+                for f in &v.frames {
+                    posed.add(f);
+                }
+                s.push_str(&format!(
+                    "{:<10}  {:>4.0}  {:>10}  {:>10} | {:>8}  {:>9}  {:>7}  {:>9}  {:>13}\n",
+                    format!("{:?}", r.settings.strategy),
+                    v.yaw_deg,
+                    thousands(v.rest.holes),
+                    thousands(v.rest.bloat),
+                    thousands(posed.holes),
+                    thousands(posed.holes_misplaced),
+                    thousands(v.stretch_holes),
+                    thousands(posed.bloat),
+                    thousands(v.stretch_bloat),
+                ));
+            }
+        }
     }
     s
 }

@@ -8,7 +8,7 @@
 //! |---|---|---|---|
 //! | [`StretchStrategy::Off`] | `S = 1` | one skinned point | §3.2 (rigid) |
 //! | [`StretchStrategy::Thesis`] | `S = min(2, W)`, W = non-zero weights | one skinned point | §3.3 |
-//! | [`StretchStrategy::Corners`] | AABB of the 8 skinned corners | 8 skinned points | §8.1.3 |
+//! | [`StretchStrategy::Corners`] | AABB of the 8 skinned corners (capped at `max_factor`) | 8 skinned points | §8.1.3 |
 //! | [`StretchStrategy::Adaptive`] | smallest `S` whose box holds the 8 skinned corners | 8 skinned points + a 3×3 inverse | §6, §8.1.3 |
 //!
 //! On top of every strategy: a per-voxel artist override (§8.1.3: "stretch factors could be
@@ -31,8 +31,15 @@ pub enum StretchStrategy {
     #[default]
     Thesis,
     /// Weights per voxel corner; the splat is the axis-aligned bounding box of the eight
-    /// skinned corners (paper §8.1.3). Hole-free for a closed bind-pose surface because
-    /// neighbours share corners, at the cost of oversized voxels and eight skinned points.
+    /// skinned corners (paper §8.1.3), at the cost of oversized voxels and eight skinned
+    /// points. Neighbours share corners, so their boxes leave no gap between them: no
+    /// *stretch* holes, as long as no box is cut by the cap of [`StretchSettings::max_factor`]
+    /// half-voxels per axis. Measured with `skin::metrics` (6 views, rest pose subtracted): 0
+    /// stretch holes on CesiumMan's walk and on the 90° bending cylinder with `max_factor` 16;
+    /// with the default cap of 4 the cylinder's outer elbow (boxes ~6.4 half-voxels wide)
+    /// keeps 59 % of the unstretched holes. Not closed by any strategy: holes where a voxel
+    /// carries another part's weights (RiggedFigure's coincident faces, reported as
+    /// voxelization error), and the rest pose's own voxelization error.
     Corners,
     /// `S` from this frame's actual deformation around the voxel: the smallest factor for
     /// which the voxel, carried by its blended matrix, contains its eight corners skinned with
