@@ -107,7 +107,12 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct SkinReportArgs {
     /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF).
-    pub project: PathBuf,
+    #[arg(required_unless_present = "cylinder", conflicts_with = "cylinder")]
+    pub project: Option<PathBuf>,
+    /// Measure the synthetic bending cylinder instead of a project (radius 0.4, length 2, two
+    /// joints, bent 90° at t = 1 s of its 2 s clip), voxelized at this octree depth.
+    #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(3..=10))]
+    pub cylinder: Option<u8>,
     /// Frames, evenly spaced over the clip (the rest pose is measured on top).
     #[arg(long, default_value_t = 10)]
     pub frames: u32,
@@ -123,8 +128,8 @@ pub struct SkinReportArgs {
     /// Print the per-view lines too (JSON always has them).
     #[arg(long)]
     pub per_view: bool,
-    /// Cap on every strategy's stretch factor (`Corners`: box half-width in half-voxels),
-    /// 1..=16; default the settings' 4.
+    /// Cap on the scalar stretch factors (`Thesis`, `Adaptive`; `Corners` boxes are not
+    /// capped), 1..=16; default the settings' 4.
     #[arg(long)]
     pub max_factor: Option<f32>,
     /// Print the report as JSON.
@@ -1613,7 +1618,18 @@ fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
 fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
     use thicket_core::skin::metrics::{ReportSettings, skin_report};
     use thicket_core::skin::{StretchSettings, StretchStrategy};
-    let doc = files::load_document(&args.project)?;
+    let (doc, source) = match (&args.cylinder, &args.project) {
+        (Some(depth), _) => (
+            thicket_core::skin::synthetic::bending_cylinder_document(*depth)
+                .context("voxelizing the bending cylinder")?,
+            format!("bending cylinder at depth {depth}"),
+        ),
+        (None, Some(project)) => (
+            files::load_document(project)?,
+            project.display().to_string(),
+        ),
+        (None, None) => anyhow::bail!("give a project or --cylinder DEPTH"),
+    };
     let (width, height) = parse_size(&args.size)?;
     let strategies = [
         StretchStrategy::Off,
@@ -1645,7 +1661,7 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
             quality: doc.quality.clone(),
         },
     )
-    .with_context(|| format!("{}: skin report", args.project.display()))?;
+    .with_context(|| format!("{source}: skin report"))?;
     let text = if args.json {
         let mut s = serde_json::to_string_pretty(&report).context("encoding the report")?;
         s.push('\n');

@@ -415,7 +415,10 @@ fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
     let (d20, d21) = (ep.dot(e0), ep.dot(e1));
     let den = d00 * d11 - d01 * d01;
-    if !(den.abs() > f32::EPSILON * d00 * d11) {
+    // Degenerate (or NaN) triangles have no barycentric coordinates.
+    let well_formed =
+        den.abs().partial_cmp(&(f32::EPSILON * d00 * d11)) == Some(std::cmp::Ordering::Greater);
+    if !well_formed {
         return Vec3::new(1.0, 0.0, 0.0);
     }
     let v = (d11 * d20 - d01 * d21) / den;

@@ -18,10 +18,21 @@ use std::f32::consts::{FRAC_PI_2, TAU};
 
 use glam::{Quat, Vec3, Vec4};
 
+use super::SkinError;
 use super::clip::{AnimationClip, Channel, Interpolation, Property};
 use super::gltf_import::SkinnedImport;
 use super::skeleton::{Joint, Skeleton};
+use super::voxelize::voxelize_skinned;
 use crate::mesh::{Material, MeshModel, TriangleMesh};
+use crate::scene::{Document, ObjectKind};
+use crate::voxelize::{Resolution, VoxelizeSettings};
+
+/// Radius of the measured cylinder ([`bending_cylinder_document`]).
+pub const CYLINDER_RADIUS: f32 = 0.4;
+/// Half length of the measured cylinder.
+pub const CYLINDER_HALF_LENGTH: f32 = 1.0;
+/// Segments around the measured cylinder.
+pub const CYLINDER_SEGMENTS: u32 = 48;
 
 /// Half the height of the strip between the two rigid halves, as a fraction of the radius.
 const STRIP: f32 = 1e-3;
@@ -131,4 +142,25 @@ pub fn bend_hole_area(radius: f32) -> f32 {
 pub fn bend_hole_area_min(radius: f32, voxel: f32) -> f32 {
     let r = (radius - 2.0 * voxel).max(0.0);
     (0.5 * r * r - 2.0 * radius * voxel).max(0.0)
+}
+
+/// A document holding the measured cylinder ([`CYLINDER_RADIUS`], [`CYLINDER_HALF_LENGTH`],
+/// [`CYLINDER_SEGMENTS`]) voxelized at octree `depth` with its rig: what the tests and `thicket
+/// skin-report --cylinder DEPTH` measure.
+///
+/// # Errors
+/// [`SkinError::Voxelize`] when the voxelizer refuses the depth.
+pub fn bending_cylinder_document(depth: u8) -> Result<Document, SkinError> {
+    let import = bending_cylinder(CYLINDER_RADIUS, CYLINDER_HALF_LENGTH, CYLINDER_SEGMENTS);
+    let v = voxelize_skinned(
+        &import,
+        &VoxelizeSettings {
+            resolution: Resolution::Depth(depth),
+            ..VoxelizeSettings::default()
+        },
+        &|_| true,
+    )?;
+    let mut doc = Document::default();
+    doc.add("Bending cylinder", ObjectKind::Voxels(v.model));
+    Ok(doc)
 }
