@@ -266,7 +266,7 @@ fn adaptive_closes_the_bend_within_its_cap() {
     assert!(capped.stretch_bloat > off.stretch_bloat, "{capped:?}");
     // At the largest cap settings allow (16) it closes most of the rest (1,152 of 4,224 px
     // remain at 256²) but not all: the layer of voxels across the joint needs a cube wider than
-    // 16 half-voxels to reach over the outer elbow (R = 25.6 half-voxels at depth 7), where
+    // 16 half-voxels to reach over the outer elbow (up to R/2 = 25.6 half-voxels at depth 7), where
     // Corners' uncapped box reaches. Its bloat is three times Corners' (a cube in the voxel's
     // frame, not a box fitted to the corners per axis).
     assert!(wide.stretch_holes > 0, "{wide:?}");

@@ -36,7 +36,7 @@ pub enum StretchStrategy {
     /// each other. The box is not capped by [`StretchSettings::max_factor`]: it lies in the hull
     /// of the voxel's bind box carried by its corners' joints, so the pose bounds it, and a cap
     /// in voxels would reopen the holes where one layer of voxels spans a sharp joint (the
-    /// bending cylinder's needs 25 half-voxels at depth 7).
+    /// bending cylinder's reach up to R/2, 25.6 half-voxels at depth 7).
     ///
     /// What it closes: every hole whose surface point lies in the box of the voxel there or of
     /// a neighbour — the lattice's deformation. Measured with `skin::metrics` (6 views, 256²):
