@@ -96,8 +96,10 @@ pub enum Command {
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
     /// The voxels are drawn with each strategy and compared with the source mesh skinned with
-    /// the same pose from the same camera: holes are mesh pixels no voxel covers, bloat is
-    /// voxel pixels outside the mesh.
+    /// the same pose from the same cameras (views around the model), pixel by pixel by depth:
+    /// holes are pixels where the skin is nearer than the voxels by more than two voxels (or no
+    /// voxel covers), bloat the converse. Rest-pose error and stretch error are reported
+    /// apart.
     SkinReport(SkinReportArgs),
 }
 
@@ -105,16 +107,31 @@ pub enum Command {
 #[derive(Debug, Args)]
 pub struct SkinReportArgs {
     /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF).
-    pub project: PathBuf,
-    /// Frames, evenly spaced over the clip.
-    #[arg(long, default_value_t = 20)]
+    #[arg(required_unless_present = "cylinder", conflicts_with = "cylinder")]
+    pub project: Option<PathBuf>,
+    /// Measure the synthetic bending cylinder instead of a project (radius 0.4, length 2, two
+    /// joints, bent 90° at t = 1 s of its 2 s clip), voxelized at this octree depth.
+    #[arg(long, value_name = "DEPTH", value_parser = clap::value_parser!(u8).range(3..=10))]
+    pub cylinder: Option<u8>,
+    /// Frames, evenly spaced over the clip (the rest pose is measured on top).
+    #[arg(long, default_value_t = 10)]
     pub frames: u32,
+    /// Views, evenly spaced around the model (level, orthographic).
+    #[arg(long, default_value_t = 6)]
+    pub views: u32,
     /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x800")]
+    #[arg(long, default_value = "400x400")]
     pub size: String,
     /// Clip by name (default: the project's).
     #[arg(long)]
     pub clip: Option<String>,
+    /// Print the per-view lines too (JSON always has them).
+    #[arg(long)]
+    pub per_view: bool,
+    /// Cap on the scalar stretch factors (`Thesis`, `Adaptive`; `Corners` boxes are not
+    /// capped), 1..=16; default the settings' 4.
+    #[arg(long)]
+    pub max_factor: Option<f32>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -1818,7 +1835,18 @@ fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
 fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
     use thicket_core::skin::metrics::{ReportSettings, skin_report};
     use thicket_core::skin::{StretchSettings, StretchStrategy};
-    let doc = files::load_document(&args.project)?;
+    let (doc, source) = match (&args.cylinder, &args.project) {
+        (Some(depth), _) => (
+            thicket_core::skin::synthetic::bending_cylinder_document(*depth)
+                .context("voxelizing the bending cylinder")?,
+            format!("bending cylinder at depth {depth}"),
+        ),
+        (None, Some(project)) => (
+            files::load_document(project)?,
+            project.display().to_string(),
+        ),
+        (None, None) => anyhow::bail!("give a project or --cylinder DEPTH"),
+    };
     let (width, height) = parse_size(&args.size)?;
     let strategies = [
         StretchStrategy::Off,
@@ -1828,13 +1856,21 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
     ]
     .map(|strategy| StretchSettings {
         strategy,
+        max_factor: args
+            .max_factor
+            .unwrap_or(StretchSettings::default().max_factor),
         ..StretchSettings::default()
     })
     .to_vec();
+    for s in &strategies {
+        s.validate()
+            .map_err(|e| anyhow::anyhow!("--max-factor: {e}"))?;
+    }
     let report = skin_report(
         &doc,
         &ReportSettings {
             frames: args.frames,
+            views: args.views,
             width,
             height,
             clip: args.clip.clone(),
@@ -1842,46 +1878,86 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
             quality: doc.quality.clone(),
         },
     )
-    .with_context(|| format!("{}: skin report", args.project.display()))?;
+    .with_context(|| format!("{source}: skin report"))?;
     let text = if args.json {
         let mut s = serde_json::to_string_pretty(&report).context("encoding the report")?;
         s.push('\n');
         s
     } else {
-        format_skin_report(&report, width, height)
+        format_skin_report(&report, width, height, args.per_view)
     };
     write_stdout(&text)
 }
 
-/// The `skin-report` table.
+/// The `skin-report` table: per strategy the rest-pose counts (voxelization error of the
+/// shape), the posed counts over every frame and view with their holes split into misplaced
+/// (voxelization: wrong weights) and stretch (beyond the rest pose), and the old coverage-only
+/// holes for comparison; with `per_view`, one line per strategy and view.
 #[must_use]
 pub fn format_skin_report(
     report: &thicket_core::skin::metrics::SkinReport,
     width: u32,
     height: u32,
+    per_view: bool,
 ) -> String {
+    let views = report.rows.first().map_or(0, |r| r.views.len());
     let mut s = format!(
-        "{} / clip {:?}: {} frames at {width}x{height}, {} silhouette pixels in all\n",
+        "{} / clip {:?}: {} frames + rest, {views} views at {width}x{height}; voxel {:.4}, \
+         pixel {:.4}, depth tolerance {:.4} (world units)\n",
         report.object,
         report.clip,
         report.times.len(),
-        thousands(report.rows.first().map_or(0, |r| r.total.mesh_pixels))
+        report.voxel_world,
+        report.pixel_world,
+        report.tolerance,
     );
+    s.push_str(&format!(
+        "{} mesh pixels at rest, {} posed\n",
+        thousands(report.rows.first().map_or(0, |r| r.rest.mesh_pixels)),
+        thousands(report.rows.first().map_or(0, |r| r.posed.mesh_pixels))
+    ));
     s.push_str(
-        "strategy    holes      holes %   bloat      bloat %   worst IoU  draw ms  frame ms\n",
+        "strategy    rest holes  rest bloat | holes     through   misplaced  stretch   bloat      bloat %  stretch bloat | coverage holes  frame ms\n",
     );
     for r in &report.rows {
         s.push_str(&format!(
-            "{:<10}  {:>9}  {:>7.4}%  {:>9}  {:>7.3}%  {:>9.4}  {:>7.2}  {:>8.2}\n",
+            "{:<10}  {:>10}  {:>10} | {:>8}  {:>8}  {:>9}  {:>7}  {:>9}  {:>6.2}%  {:>13} | {:>14}  {:>8.2}\n",
             format!("{:?}", r.settings.strategy),
-            thousands(r.total.holes),
-            100.0 * r.total.hole_fraction(),
-            thousands(r.total.bloat),
-            100.0 * r.total.bloat_fraction(),
-            r.worst_iou,
-            r.draw_ms,
+            thousands(r.rest.holes),
+            thousands(r.rest.bloat),
+            thousands(r.posed.holes),
+            thousands(r.posed.holes_through),
+            thousands(r.posed.holes_misplaced),
+            thousands(r.stretch_holes),
+            thousands(r.posed.bloat),
+            100.0 * r.posed.bloat_fraction(),
+            thousands(r.stretch_bloat),
+            thousands(r.coverage.holes),
             r.frame_ms
         ));
+    }
+    if per_view {
+        s.push_str("strategy    view  rest holes  rest bloat | holes     misplaced  stretch   bloat      stretch bloat\n");
+        for r in &report.rows {
+            for v in &r.views {
+                let mut posed = thicket_core::skin::metrics::ShellCounts::default();
+                for f in &v.frames {
+                    posed.add(f);
+                }
+                s.push_str(&format!(
+                    "{:<10}  {:>4.0}  {:>10}  {:>10} | {:>8}  {:>9}  {:>7}  {:>9}  {:>13}\n",
+                    format!("{:?}", r.settings.strategy),
+                    v.yaw_deg,
+                    thousands(v.rest.holes),
+                    thousands(v.rest.bloat),
+                    thousands(posed.holes),
+                    thousands(posed.holes_misplaced),
+                    thousands(v.stretch_holes),
+                    thousands(posed.bloat),
+                    thousands(v.stretch_bloat),
+                ));
+            }
+        }
     }
     s
 }

@@ -1567,3 +1567,38 @@ fn animated_vox_is_one_object_that_exports_as_frames_and_renders_one_frame_per_t
     assert!(!o.status.success());
     assert!(stderr(&o).contains("no frame sequence"), "{}", stderr(&o));
 }
+
+#[test]
+fn skin_report_measures_the_bending_cylinder() {
+    let o = thicket(&[
+        "skin-report",
+        "--cylinder",
+        "7",
+        "--frames",
+        "2",
+        "--size",
+        "256x256",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let holes = |strategy: &str| {
+        r["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|row| row["settings"]["strategy"] == strategy)
+            .unwrap_or_else(|| panic!("{strategy} measured"))["posed"]["holes"]
+            .as_u64()
+            .unwrap()
+    };
+    // The figures of docs/skinning.md: the bent elbow opens 5,336 hole px without stretch,
+    // Corners closes every one.
+    assert_eq!(holes("Off"), 5_336);
+    assert_eq!(holes("Corners"), 0);
+    assert_eq!(r["rows"][0]["views"].as_array().unwrap().len(), 6);
+    // Neither a project nor the cylinder: a usage error, no panic.
+    let o = thicket(&["skin-report"]);
+    assert!(!o.status.success());
+    assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
+}

@@ -164,12 +164,18 @@ fn place_skinned(s: SkinParams, leaf: bool, index: u32, origin: vec3<u32>, size:
             lo = min(lo, p);
             hi = max(hi, p);
         }
-        if s.strategy == SKIN_CORNERS {
-            // Capped like the scalar strategies so a degenerate pose stays bounded.
-            let cap = s.max_factor * half * column_scale(linear);
-            let he = min((hi - lo) * 0.5, vec3<f32>(cap)) * s.multiplier;
-            out.center = (lo + hi) * 0.5;
+        let he = (hi - lo) * (0.5 * s.multiplier);
+        let mid = (lo + hi) * 0.5;
+        let finite = all(abs(he) <= vec3<f32>(3.4028235e38)) && all(abs(mid) <= vec3<f32>(3.4028235e38));
+        if s.strategy == SKIN_CORNERS && finite {
+            // Not capped by max_factor: the pose bounds the box (`SkinDeform::place`).
+            out.center = mid;
             out.half_axes = mat3x3<f32>(vec3<f32>(he.x, 0.0, 0.0), vec3<f32>(0.0, he.y, 0.0), vec3<f32>(0.0, 0.0, he.z));
+            return out;
+        }
+        if s.strategy == SKIN_CORNERS {
+            f = clamp(thesis_factor(sw), s.min_factor, s.max_factor);
+            out.half_axes = linear * (f * half * s.multiplier);
             return out;
         }
         var a = containing_factor(skinned, half, center, linear);

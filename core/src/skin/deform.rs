@@ -174,7 +174,13 @@ fn walk(
             joints.extend(walk(svo, child, lattice, t));
         }
     }
-    joints.extend(own.influences().map(|(j, _)| j as u8));
+    // The node's own corners too: a corner on the subtree's boundary merges leaves outside it,
+    // and an uncapped `Corners` box of a descendant inner node follows those joints.
+    joints.extend(
+        std::iter::once(&own)
+            .chain(corners.iter())
+            .flat_map(|s| s.influences().map(|(j, _)| j as u8)),
+    );
     joints.sort_unstable();
     joints.dedup();
     let start = t.joints.len() as u32;
@@ -333,11 +339,17 @@ impl<'a> SkinDeform<'a> {
             (StretchStrategy::Thesis, _) | (_, None) => scaled(bound(thesis_factor(&skin))),
             (StretchStrategy::Corners, Some(cs)) => {
                 let (lo, hi) = self.skinned_corner_bounds(c, half, cs);
-                // Capped like the scalar strategies so a degenerate pose stays bounded.
-                let cap = s.max_factor * half * column_scale(linear);
-                let he = ((hi - lo) * 0.5).min(Vec3::splat(cap)) * s.multiplier;
+                // Not capped by `max_factor`: the box is bounded by the pose itself (it lies in
+                // the hull of the node's bind box carried by each of its corners' joints, as
+                // `subtree_bounds` uses), and a cap in voxels reopens exactly the holes it is
+                // there to close where one layer of voxels spans a sharp joint.
+                let he = (hi - lo) * (0.5 * s.multiplier);
+                let mid = (lo + hi) * 0.5;
+                if !(he.is_finite() && mid.is_finite()) {
+                    return scaled(bound(thesis_factor(&skin)));
+                }
                 DeformedNode {
-                    center_world: (lo + hi) * 0.5,
+                    center_world: mid,
                     half_axes_world: Mat3::from_diagonal(he),
                 }
             }
@@ -382,15 +394,6 @@ impl<'a> SkinDeform<'a> {
 fn corner_offset(k: usize) -> Vec3 {
     let s = |bit: usize| if k & bit != 0 { 1.0 } else { -1.0 };
     Vec3::new(s(1), s(2), s(4))
-}
-
-/// Longest column of a 3×3 matrix (the largest scale it applies to a voxel axis).
-#[inline]
-fn column_scale(m: Mat3) -> f32 {
-    m.x_axis
-        .length()
-        .max(m.y_axis.length())
-        .max(m.z_axis.length())
 }
 
 impl NodeDeform for SkinDeform<'_> {

@@ -108,7 +108,12 @@ fn identity_skinning_with_s_one_draws_exactly_the_rigid_model() {
 fn subtree_bounds_contain_every_descendant_splat() {
     let doc = rigged_figure();
     let (model, rig) = model_of(doc);
-    for t in [0.3f32, 0.9] {
+    for (t, strategy) in [0.3f32, 0.9].into_iter().flat_map(|t| {
+        [
+            (t, StretchStrategy::Adaptive),
+            (t, StretchStrategy::Corners),
+        ]
+    }) {
         let deform = SkinDeform::for_rig(
             rig,
             &model.svo,
@@ -118,7 +123,7 @@ fn subtree_bounds_contain_every_descendant_splat() {
             t,
         )
         .with_settings(StretchSettings {
-            strategy: StretchStrategy::Adaptive,
+            strategy,
             ..StretchSettings::default()
         });
         let aabb = |d: crate::render::DeformedNode| {
@@ -147,7 +152,7 @@ fn subtree_bounds_contain_every_descendant_splat() {
                 let (dl, dh) = aabb(deform.deform(&NodeInfo { svo, node: d }));
                 assert!(
                     dl.cmpge(lo - 1e-3).all() && dh.cmple(hi + 1e-3).all(),
-                    "t = {t}: node at level {} escapes its ancestor at level {}",
+                    "t = {t}, {strategy:?}: node at level {} escapes its ancestor at level {}",
                     d.level,
                     n.level
                 );
@@ -305,6 +310,7 @@ fn a_document_without_skin_has_nothing_to_report() {
         &doc,
         &ReportSettings {
             frames: 2,
+            views: 6,
             width: 8,
             height: 8,
             clip: None,

@@ -1,23 +1,40 @@
 //! Hole and bloat metrics for skinned voxel models: the voxel model drawn with a stretch
 //! strategy against its source triangle mesh skinned with the same pose, seen by the same
-//! camera (ASVO paper §3.3, §6, Fig. 11). *Holes* are pixels inside the mesh's silhouette that
-//! no voxel covers; *bloat* is pixels voxels cover outside it.
+//! cameras (ASVO paper §3.3, §6, Fig. 11), compared per pixel *through the shell*: by depth,
+//! not only by coverage.
+//!
+//! A **hole** is a pixel where the skinned mesh's front surface is nearer than the voxels' by
+//! more than a voxel-scaled tolerance, or where the mesh covers and no voxel does: the voxels
+//! show something behind where the skin should be (often the model's own back shell, which the
+//! old "object id ≠ 0" coverage count took for covered). **Bloat** is the converse: voxels
+//! nearer than the mesh by more than the tolerance, or voxels where the mesh is not.
+//!
+//! The error is split so the stretch strategies can be judged on what they can fix:
+//! - *rest*: the counts at the rest pose (voxelization error of the shape);
+//! - *misplaced* holes: the surface point the mesh shows there maps back (through its triangle)
+//!   to a bind-pose position where no voxel (of the one there and its 26 neighbours) reaches it
+//!   even stretched to the box of its skinned corners, or to no voxel at all. The voxels carry
+//!   weights that put them elsewhere (the four strongest of the mesh's, quantised; one part's
+//!   where faces of two parts meet), so no stretch factor can close these: voxelization error;
+//! - *stretch* holes: the rest, beyond the same view's rest-pose holes, per frame.
 
 use std::time::Instant;
 
-use glam::{Mat4, Vec3};
+use glam::{Mat4, UVec3, Vec3};
 use serde::Serialize;
 
 use super::deform::SkinDeform;
-use super::lbs::skin_mesh;
+use super::lbs::{skin_mesh, skin_point};
 use super::stretch::StretchSettings;
 use crate::mesh::MeshModel;
 use crate::render::{
-    Camera, MeshInstance, Quality, RenderError, RenderScene, VoxelInstance, render_scene,
+    Camera, FrameBuffers, MeshInstance, Projection, Quality, RenderError, RenderScene,
+    VoxelInstance, render_scene,
 };
-use crate::scene::{Document, ObjectKind, OrbitCamera};
+use crate::scene::{Document, ObjectKind, VoxelModel};
 
-/// Silhouette comparison counts (summed over any number of frames).
+/// Silhouette comparison counts (summed over any number of frames): coverage only, the metric
+/// before [`ShellCounts`]; kept so reports can show what it misses.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct Silhouette {
     /// Pixels inside the skinned mesh's silhouette.
@@ -75,6 +92,97 @@ impl Silhouette {
     }
 }
 
+/// Per-pixel comparison through the shell (summed over any number of frames and views); see
+/// the module doc.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct ShellCounts {
+    /// Pixels the skinned mesh covers.
+    pub mesh_pixels: u64,
+    /// Pixels the voxels cover.
+    pub voxel_pixels: u64,
+    /// Mesh nearer than the voxels by more than the tolerance, or mesh without voxels.
+    pub holes: u64,
+    /// Of `holes`, those where voxels do cover the pixel but lie behind the skin (seen through
+    /// a gap in the front shell): the holes a coverage count misses.
+    pub holes_through: u64,
+    /// Of `holes`, those whose surface point no voxel around its bind-pose position can reach:
+    /// outside every neighbour's box of skinned corners (grown by the depth tolerance), or no
+    /// voxel there at all. The voxels carry weights that put them elsewhere (the four strongest
+    /// of the mesh's, quantised; one part's where two parts' faces meet), so no stretch factor
+    /// closes these: voxelization error.
+    pub holes_misplaced: u64,
+    /// Voxels nearer than the mesh by more than the tolerance, or voxels without mesh.
+    pub bloat: u64,
+}
+
+impl ShellCounts {
+    /// Adds another frame's counts.
+    pub fn add(&mut self, o: &Self) {
+        self.mesh_pixels += o.mesh_pixels;
+        self.voxel_pixels += o.voxel_pixels;
+        self.holes += o.holes;
+        self.holes_through += o.holes_through;
+        self.holes_misplaced += o.holes_misplaced;
+        self.bloat += o.bloat;
+    }
+
+    /// Holes as a fraction of the mesh's pixels.
+    #[must_use]
+    pub fn hole_fraction(&self) -> f64 {
+        self.holes as f64 / self.mesh_pixels.max(1) as f64
+    }
+
+    /// Bloat as a fraction of the mesh's pixels.
+    #[must_use]
+    pub fn bloat_fraction(&self) -> f64 {
+        self.bloat as f64 / self.mesh_pixels.max(1) as f64
+    }
+}
+
+/// Depth tolerance of [`compare_depths`] in voxel edges (or pixels, whichever is larger): a
+/// conservative surface voxel reaches up to a voxel diagonal (√3) past the surface it holds,
+/// and a splat or LOD node may be drawn at its centre's depth.
+pub const DEPTH_TOLERANCE_VOXELS: f32 = 2.0;
+
+/// Counts holes and bloat between a mesh frame and a voxel frame of the same orthographic or
+/// perspective camera, with a depth tolerance in world units. `misplaced` decides, for a hole
+/// pixel the mesh covers, whether the voxel that should show it went elsewhere.
+pub fn compare_depths(
+    cam: &Camera,
+    mesh: &FrameBuffers,
+    voxels: &FrameBuffers,
+    tolerance: f32,
+    mut misplaced: impl FnMut(usize) -> bool,
+) -> ShellCounts {
+    let mut s = ShellCounts::default();
+    for i in 0..mesh.ids.len().min(voxels.ids.len()) {
+        let m = mesh.ids[i].object != 0;
+        let v = voxels.ids[i].object != 0;
+        s.mesh_pixels += u64::from(m);
+        s.voxel_pixels += u64::from(v);
+        match (m, v) {
+            (true, false) => {
+                s.holes += 1;
+                s.holes_misplaced += u64::from(misplaced(i));
+            }
+            (false, true) => s.bloat += 1,
+            (true, true) => {
+                let dm = cam.view_depth(mesh.depth[i]);
+                let dv = cam.view_depth(voxels.depth[i]);
+                if dv > dm + tolerance {
+                    s.holes += 1;
+                    s.holes_through += 1;
+                    s.holes_misplaced += u64::from(misplaced(i));
+                } else if dv < dm - tolerance {
+                    s.bloat += 1;
+                }
+            }
+            (false, false) => {}
+        }
+    }
+    s
+}
+
 /// Why a skinned model cannot be measured.
 #[derive(Debug, thiserror::Error)]
 pub enum MetricsError {
@@ -89,6 +197,9 @@ pub enum MetricsError {
     /// A frame count of 0.
     #[error("the number of frames must be at least 1")]
     NoFrames,
+    /// A view count of 0.
+    #[error("the number of views must be at least 1")]
+    NoViews,
     /// Rendering failed.
     #[error(transparent)]
     Render(#[from] RenderError),
@@ -99,6 +210,8 @@ pub enum MetricsError {
 pub struct ReportSettings {
     /// Frames, evenly spaced over the clip (`t = i · duration / frames`).
     pub frames: u32,
+    /// Views, evenly spaced around the model's vertical (world Y) axis, level, orthographic.
+    pub views: u32,
     /// Image width in pixels.
     pub width: u32,
     /// Image height in pixels.
@@ -107,8 +220,24 @@ pub struct ReportSettings {
     pub clip: Option<String>,
     /// The strategies (with their settings) to compare.
     pub strategies: Vec<StretchSettings>,
-    /// Render quality (shadows are switched off: only coverage is compared).
+    /// Render quality (shadows are switched off: only depth and coverage are compared).
     pub quality: Quality,
+}
+
+/// One view of one strategy.
+#[derive(Debug, Clone, Serialize)]
+pub struct ViewRow {
+    /// Angle of the view around the vertical axis, degrees (0: looking down −Z).
+    pub yaw_deg: f32,
+    /// Counts at the rest pose.
+    pub rest: ShellCounts,
+    /// Counts per sampled frame, in the order of [`SkinReport::times`].
+    pub frames: Vec<ShellCounts>,
+    /// Holes beyond the rest pose's that are not misplaced, summed over frames: per frame
+    /// `max(0, holes − misplaced − rest holes)`.
+    pub stretch_holes: u64,
+    /// Bloat beyond the rest pose's, summed over frames: per frame `max(0, bloat − rest bloat)`.
+    pub stretch_bloat: u64,
 }
 
 /// One strategy's line of the report.
@@ -116,9 +245,20 @@ pub struct ReportSettings {
 pub struct StrategyRow {
     /// The settings measured.
     pub settings: StretchSettings,
-    /// Counts summed over every frame.
-    pub total: Silhouette,
-    /// The lowest per-frame IoU.
+    /// Rest-pose counts summed over views.
+    pub rest: ShellCounts,
+    /// Posed counts summed over views and frames.
+    pub posed: ShellCounts,
+    /// [`ViewRow::stretch_holes`] summed over views.
+    pub stretch_holes: u64,
+    /// [`ViewRow::stretch_bloat`] summed over views.
+    pub stretch_bloat: u64,
+    /// Per view.
+    pub views: Vec<ViewRow>,
+    /// The old coverage-only counts over every view and frame (holes there are only pixels no
+    /// voxel covers at all).
+    pub coverage: Silhouette,
+    /// The lowest per-frame coverage IoU.
     pub worst_iou: f64,
     /// Mean voxel traversal + splat time per frame, milliseconds.
     pub draw_ms: f64,
@@ -135,20 +275,184 @@ pub struct SkinReport {
     pub clip: String,
     /// Times measured, seconds.
     pub times: Vec<f32>,
+    /// Depth tolerance used, world units.
+    pub tolerance: f32,
+    /// Voxel edge in world units.
+    pub voxel_world: f32,
+    /// Pixel edge in world units (orthographic views).
+    pub pixel_world: f32,
     /// One row per strategy, in the order asked.
     pub rows: Vec<StrategyRow>,
 }
 
+/// The orthographic cameras of [`skin_report`]: `views` level views around the world Y axis,
+/// all framing the sphere `center`, `radius`.
+#[must_use]
+pub fn ring_cameras(center: Vec3, radius: f32, views: u32, width: u32, height: u32) -> Vec<Camera> {
+    let r = radius.max(1e-6);
+    let (w, h) = (width.max(1) as f32, height.max(1) as f32);
+    let (half_width, half_height) = if w >= h {
+        (1.05 * r * w / h, 1.05 * r)
+    } else {
+        (1.05 * r, 1.05 * r * h / w)
+    };
+    (0..views)
+        .map(|i| {
+            let yaw = std::f32::consts::TAU * i as f32 / views as f32;
+            let eye = center + Vec3::new(yaw.sin(), 0.0, yaw.cos()) * (3.0 * r);
+            Camera::new(
+                Mat4::look_at_rh(eye, center, Vec3::Y),
+                Projection::Orthographic {
+                    half_width,
+                    half_height,
+                    near: 1.5 * r,
+                    far: 4.5 * r,
+                },
+                width,
+                height,
+            )
+        })
+        .collect()
+}
+
+/// Everything [`misplaced_hole`] needs about one posed frame.
+struct HoleProbe<'a> {
+    cam: &'a Camera,
+    mesh_fb: &'a FrameBuffers,
+    posed: &'a MeshModel,
+    reference: &'a MeshModel,
+    skinning: &'a [Mat4],
+    model: &'a VoxelModel,
+    world_from_object: Mat4,
+    object_from_world: Mat4,
+    tables: &'a super::deform::SkinTables,
+    limit: f32,
+}
+
+/// Whether the mesh surface seen at pixel `i` lies out of reach of every voxel around it: maps
+/// the pixel's point back to bind space through its triangle and takes the leaf there and its
+/// 26 neighbours. Each one's eight corners, skinned with their corner weights (the lattice
+/// deformation `Corners` draws, uncapped), span a box; the hole is within stretch's reach when
+/// one of those boxes, grown by the depth tolerance, holds the point, and misplaced otherwise
+/// (or when there is no leaf at all).
+fn misplaced_hole(p: &HoleProbe<'_>, i: usize) -> bool {
+    let id = p.mesh_fb.ids[i];
+    let (part, tri) = ((id.node >> 32) as usize, (id.node & 0xffff_ffff) as usize);
+    let (Some(posed), Some(bind)) = (p.posed.parts.get(part), p.reference.parts.get(part)) else {
+        return true;
+    };
+    let Some(ix) = posed.indices.get(3 * tri..3 * tri + 3) else {
+        return true;
+    };
+    let w = p.cam.width as usize;
+    let (x, y) = ((i % w) as f32 + 0.5, (i / w) as f32 + 0.5);
+    let world = p.cam.unproject(x, y, p.mesh_fb.depth[i]);
+    let q = p.object_from_world.transform_point3(world);
+    let v = |m: &crate::mesh::TriangleMesh, k: usize| m.positions[ix[k] as usize];
+    let bary = barycentric(q, v(posed, 0), v(posed, 1), v(posed, 2));
+    let bind_point = v(bind, 0) * bary.x + v(bind, 1) * bary.y + v(bind, 2) * bary.z;
+    let model = p.model;
+    let cell = ((bind_point - model.origin) / model.voxel_size).floor();
+    let corner_skins = p.tables.leaf_corner_skins();
+    for dz in -1..=1 {
+        for dy in -1..=1 {
+            for dx in -1..=1 {
+                let c = cell + Vec3::new(dx as f32, dy as f32, dz as f32);
+                if c.min_element() < 0.0 || !c.is_finite() {
+                    continue;
+                }
+                let Some(leaf) = leaf_at(&model.svo, c.as_uvec3()) else {
+                    continue;
+                };
+                let Some(skins) = corner_skins.get(leaf.index as usize) else {
+                    continue;
+                };
+                let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+                for (k, skin) in skins.iter().enumerate() {
+                    let bit = |b: usize| if k & b != 0 { 1.0 } else { 0.0 };
+                    let corner =
+                        model.origin + (c + Vec3::new(bit(1), bit(2), bit(4))) * model.voxel_size;
+                    let q = p.world_from_object.transform_point3(skin_point(
+                        p.skinning,
+                        skin.joints_u16(),
+                        skin.blend_weights(),
+                        corner,
+                    ));
+                    lo = lo.min(q);
+                    hi = hi.max(q);
+                }
+                if (world - lo).min_element() >= -p.limit && (hi - world).min_element() >= -p.limit
+                {
+                    return false;
+                }
+            }
+        }
+    }
+    true
+}
+
+/// The leaf at voxel coordinate `coord`, if there is one.
+fn leaf_at(svo: &crate::svo::Svo, coord: UVec3) -> Option<crate::svo::NodeRef> {
+    if coord.max_element() >= svo.extent() {
+        return None;
+    }
+    let mut node = svo.root();
+    while !svo.is_leaf(&node) {
+        let half = svo.node_size(node.level) / 2;
+        let local = coord - node.origin;
+        let k = u8::from(local.x >= half)
+            | u8::from(local.y >= half) << 1
+            | u8::from(local.z >= half) << 2;
+        node = svo.child(&node, k)?;
+    }
+    Some(node)
+}
+
+/// Barycentric coordinates of `p` projected onto the triangle `a b c`, clamped to the triangle
+/// (a point read back from a depth buffer lies on it up to rounding).
+fn barycentric(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let (e0, e1, ep) = (b - a, c - a, p - a);
+    let (d00, d01, d11) = (e0.dot(e0), e0.dot(e1), e1.dot(e1));
+    let (d20, d21) = (ep.dot(e0), ep.dot(e1));
+    let den = d00 * d11 - d01 * d01;
+    // Degenerate (or NaN) triangles have no barycentric coordinates.
+    let well_formed =
+        den.abs().partial_cmp(&(f32::EPSILON * d00 * d11)) == Some(std::cmp::Ordering::Greater);
+    if !well_formed {
+        return Vec3::new(1.0, 0.0, 0.0);
+    }
+    let v = (d11 * d20 - d01 * d21) / den;
+    let w = (d00 * d21 - d01 * d20) / den;
+    let b = Vec3::new(1.0 - v - w, v, w).max(Vec3::ZERO);
+    let sum = b.x + b.y + b.z;
+    if sum > 0.0 { b / sum } else { Vec3::X }
+}
+
+/// Largest column length of the linear part: how much the object transform scales.
+fn max_scale(m: Mat4) -> f32 {
+    m.x_axis
+        .truncate()
+        .length()
+        .max(m.y_axis.truncate().length())
+        .max(m.z_axis.truncate().length())
+}
+
 /// Measures the first visible skinned voxel model of `doc` that has a reference mesh: for each
-/// frame, the reference mesh skinned with the frame's pose and the voxels drawn with each
-/// strategy, from the document camera's direction, framed on the union of the posed mesh over
-/// all frames (so a walking character stays in view).
+/// of `views` orthographic views around it, at the rest pose and at every sampled frame, the
+/// reference mesh skinned with the frame's pose against the voxels drawn with each strategy,
+/// compared by depth ([`compare_depths`]; tolerance [`DEPTH_TOLERANCE_VOXELS`] × the larger of
+/// a voxel and a pixel). Every view frames the union of the posed mesh over all frames and the
+/// rest pose, so a walking character stays in view.
 ///
 /// # Errors
-/// [`MetricsError`] when there is nothing to measure, the clip is unknown or a render fails.
+/// [`MetricsError`] when there is nothing to measure, the clip is unknown, a count is 0 or a
+/// render fails.
 pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinReport, MetricsError> {
     if settings.frames == 0 {
         return Err(MetricsError::NoFrames);
+    }
+    if settings.views == 0 {
+        return Err(MetricsError::NoViews);
     }
     let (object, model, rig, reference) = doc
         .objects
@@ -176,22 +480,23 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
         .map(|i| duration * i as f32 / settings.frames as f32)
         .collect();
     let world_from_object = object.transform.matrix();
-    let posed: Vec<(Vec<Mat4>, MeshModel)> = times
-        .iter()
-        .map(|&t| {
-            let skinning = rig.skinning_at(clip, t);
-            let mesh = MeshModel {
-                parts: reference
-                    .parts
-                    .iter()
-                    .map(|p| skin_mesh(&skinning, p))
-                    .collect(),
-                materials: reference.materials.clone(),
-            };
+    let object_from_world = world_from_object.inverse();
+    let pose_mesh = |skinning: &[Mat4]| MeshModel {
+        parts: reference
+            .parts
+            .iter()
+            .map(|p| skin_mesh(skinning, p))
+            .collect(),
+        materials: reference.materials.clone(),
+    };
+    // Frame 0 of this list is the rest pose; the sampled frames follow.
+    let posed: Vec<(Vec<Mat4>, MeshModel)> = std::iter::once(rig.skinning_at(None, 0.0))
+        .chain(times.iter().map(|&t| rig.skinning_at(clip, t)))
+        .map(|skinning| {
+            let mesh = pose_mesh(&skinning);
             (skinning, mesh)
         })
         .collect();
-    // Frame the union of every posed mesh.
     let mut bounds: Option<(Vec3, Vec3)> = None;
     for (_, m) in &posed {
         for part in &m.parts {
@@ -201,11 +506,18 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
             }
         }
     }
-    let mut orbit: OrbitCamera = doc.camera;
-    if let Some((lo, hi)) = bounds {
-        orbit.frame(lo, hi);
-    }
-    let cam = Camera::from_orbit(&orbit, settings.width, settings.height);
+    let (lo, hi) = bounds.unwrap_or((Vec3::ZERO, Vec3::ONE));
+    let radius = ((hi - lo).length() * 0.5).max(1e-6);
+    let cams = ring_cameras(
+        (lo + hi) * 0.5,
+        radius,
+        settings.views,
+        settings.width,
+        settings.height,
+    );
+    let voxel_world = model.voxel_size * max_scale(world_from_object);
+    let pixel_world = cams[0].pixel_world_size(1.0);
+    let tolerance = DEPTH_TOLERANCE_VOXELS * voxel_world.max(pixel_world);
     let quality = Quality {
         shadows: false,
         ..settings.quality.clone()
@@ -216,58 +528,103 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
         .iter()
         .map(|&s| StrategyRow {
             settings: s,
-            total: Silhouette::default(),
+            rest: ShellCounts::default(),
+            posed: ShellCounts::default(),
+            stretch_holes: 0,
+            stretch_bloat: 0,
+            views: cams
+                .iter()
+                .enumerate()
+                .map(|(i, _)| ViewRow {
+                    yaw_deg: 360.0 * i as f32 / settings.views as f32,
+                    rest: ShellCounts::default(),
+                    frames: Vec::new(),
+                    stretch_holes: 0,
+                    stretch_bloat: 0,
+                })
+                .collect(),
+            coverage: Silhouette::default(),
             worst_iou: 1.0,
             draw_ms: 0.0,
             frame_ms: 0.0,
         })
         .collect();
-    for (skinning, mesh) in &posed {
-        let mesh_scene = RenderScene {
-            voxels: Vec::new(),
-            meshes: vec![MeshInstance {
-                model: mesh,
-                world_from_object,
-                casts_shadows: false,
-                label: 1,
-            }],
-            lights: &doc.lights,
-            ambient: doc.ambient,
-            background: doc.background,
-        };
-        let (_, mesh_fb, _) = render_scene(&mesh_scene, &cam, &quality)?;
-        let mesh_cov = mesh_fb.coverage();
-        for row in &mut rows {
-            let deform = SkinDeform::new(
-                world_from_object,
-                model.object_from_voxel(),
-                skinning,
-                row.settings,
-                &rig.stretch_overrides,
-                std::sync::Arc::clone(&tables),
-            );
-            let scene = RenderScene {
-                voxels: vec![VoxelInstance {
-                    svo: &model.svo,
-                    deform: &deform,
+    for (view, cam) in cams.iter().enumerate() {
+        for (frame, (skinning, mesh)) in posed.iter().enumerate() {
+            let mesh_scene = RenderScene {
+                voxels: Vec::new(),
+                meshes: vec![MeshInstance {
+                    model: mesh,
+                    world_from_object,
                     casts_shadows: false,
                     label: 1,
                 }],
-                meshes: Vec::new(),
                 lights: &doc.lights,
                 ambient: doc.ambient,
                 background: doc.background,
             };
-            let t0 = Instant::now();
-            let (_, fb, stats) = render_scene(&scene, &cam, &quality)?;
-            row.frame_ms += t0.elapsed().as_secs_f64() * 1e3;
-            row.draw_ms += stats.times.traversal_ms + stats.times.splat_ms;
-            let s = Silhouette::from_coverage(&mesh_cov, &fb.coverage());
-            row.worst_iou = row.worst_iou.min(s.iou());
-            row.total.add(&s);
+            let (_, mesh_fb, _) = render_scene(&mesh_scene, cam, &quality)?;
+            let mesh_cov = mesh_fb.coverage();
+            let probe = HoleProbe {
+                cam,
+                mesh_fb: &mesh_fb,
+                posed: mesh,
+                reference,
+                skinning,
+                model,
+                world_from_object,
+                object_from_world,
+                tables: &tables,
+                limit: tolerance,
+            };
+            for row in &mut rows {
+                let deform = SkinDeform::new(
+                    world_from_object,
+                    model.object_from_voxel(),
+                    skinning,
+                    row.settings,
+                    &rig.stretch_overrides,
+                    std::sync::Arc::clone(&tables),
+                );
+                let scene = RenderScene {
+                    voxels: vec![VoxelInstance {
+                        svo: &model.svo,
+                        deform: &deform,
+                        casts_shadows: false,
+                        label: 1,
+                    }],
+                    meshes: Vec::new(),
+                    lights: &doc.lights,
+                    ambient: doc.ambient,
+                    background: doc.background,
+                };
+                let t0 = Instant::now();
+                let (_, fb, stats) = render_scene(&scene, cam, &quality)?;
+                let counts =
+                    compare_depths(cam, &mesh_fb, &fb, tolerance, |i| misplaced_hole(&probe, i));
+                let v = &mut row.views[view];
+                if frame == 0 {
+                    v.rest = counts;
+                    row.rest.add(&counts);
+                    continue;
+                }
+                row.frame_ms += t0.elapsed().as_secs_f64() * 1e3;
+                row.draw_ms += stats.times.traversal_ms + stats.times.splat_ms;
+                let beyond = (counts.holes - counts.holes_misplaced).saturating_sub(v.rest.holes);
+                let bloat = counts.bloat.saturating_sub(v.rest.bloat);
+                v.stretch_holes += beyond;
+                v.stretch_bloat += bloat;
+                v.frames.push(counts);
+                row.stretch_holes += beyond;
+                row.stretch_bloat += bloat;
+                row.posed.add(&counts);
+                let s = Silhouette::from_coverage(&mesh_cov, &fb.coverage());
+                row.worst_iou = row.worst_iou.min(s.iou());
+                row.coverage.add(&s);
+            }
         }
     }
-    let n = f64::from(settings.frames);
+    let n = f64::from(settings.frames) * f64::from(settings.views);
     for row in &mut rows {
         row.draw_ms /= n;
         row.frame_ms /= n;
@@ -279,6 +636,13 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
             .map(|c| c.name.clone())
             .unwrap_or_default(),
         times,
+        tolerance,
+        voxel_world,
+        pixel_world,
         rows,
     })
 }
+
+#[cfg(test)]
+#[path = "metrics_tests.rs"]
+mod tests;

@@ -12,7 +12,8 @@
 //! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
-//! | [`metrics`] | hole and bloat pixels against the skinned source mesh, per strategy |
+//! | [`metrics`] | hole and bloat pixels against the skinned source mesh, by depth, per strategy and view |
+//! | [`synthetic`] | a bending cylinder with a known hole area, for measuring strategies |
 //! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
 //! | [`voxelize`] | skinned glTF → skinned voxel model (bind-pose voxelization, four strongest weights) |
 //! | [`gltf_import`] | skins, joint hierarchies and animations from glTF |
@@ -31,6 +32,7 @@ pub mod metrics;
 pub mod rig;
 pub mod skeleton;
 pub mod stretch;
+pub mod synthetic;
 pub mod voxelize;
 
 /// The per-node skin (four byte joints, unorm8 weights summing to 255) lives with the octree;
