@@ -195,6 +195,11 @@ pub struct BenchArgs {
         allow_negative_numbers = true
     )]
     pub orbit: f32,
+    /// Bake every skinned model's shown pose (after `--time` and `--clip`) into a rigid voxel
+    /// model without its rig before timing: the static reference that skinning's cost is
+    /// measured against (same pose, same voxel size; see `docs/skinning.md`).
+    #[arg(long)]
+    pub no_rig: bool,
 }
 
 /// Enhancement operator for `thicket enhance`.
@@ -1635,6 +1640,9 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     use crate::bench::{BenchSetup, bench_cpu, bench_gpu, format_report};
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
+    if args.no_rig {
+        remove_rigs(&mut doc)?;
+    }
     let (width, height) = parse_size(&args.size)?;
     if width == 0 || height == 0 {
         anyhow::bail!(
@@ -1701,6 +1709,31 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
         s
     };
     write_stdout(&text)
+}
+
+/// `--no-rig`: every skinned model becomes the rigid model of its shown pose
+/// ([`thicket_core::skin::bake::bake_shown_pose`]).
+fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
+    let mut rigged = 0;
+    for o in &mut doc.objects {
+        let thicket_core::scene::ObjectKind::Voxels(v) = &mut o.kind else {
+            continue;
+        };
+        if v.rig.is_none() {
+            continue;
+        }
+        rigged += 1;
+        *v = thicket_core::skin::bake::bake_shown_pose(v).with_context(|| {
+            format!(
+                "--no-rig: object {:?} cannot be baked (it is empty, or its pose throws voxels to a non-finite place or beyond the deepest octree)",
+                o.name
+            )
+        })?;
+    }
+    if rigged == 0 {
+        anyhow::bail!("--no-rig: the project has no skinned model");
+    }
+    Ok(())
 }
 
 fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {

@@ -280,3 +280,53 @@ fn tradeoff_drops_a_knob_with_no_effect_and_reports_time_spreads() {
     let help = thicket(&["tradeoff", "--help"]);
     assert!(String::from_utf8_lossy(&help.stdout).contains("[default: 800x800]"));
 }
+
+#[test]
+fn bench_no_rig_times_the_shown_pose_as_a_rigid_model() {
+    // `--no-rig` bakes CesiumMan mid-stride into a rigid model: the static reference for the
+    // cost of skinning. Both frames see the figure from the same camera; the baked one has no
+    // skinned nodes, so its traversal visits no node twice for skinning and draws splats.
+    let project = Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/cesiumman.thicket.json");
+    let bench = |extra: &[&str]| {
+        let mut args = vec![
+            "bench",
+            project.to_str().unwrap(),
+            "--time",
+            "0.5",
+            "--frames",
+            "1",
+            "--size",
+            "96x96",
+            "--json",
+        ];
+        args.extend_from_slice(extra);
+        let o = thicket(&args);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let json: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        json["runs"][0].clone()
+    };
+    let (skinned, rigid) = (bench(&[]), bench(&["--no-rig"]));
+    let splats = |r: &serde_json::Value| r["splats"].as_u64().unwrap();
+    assert!(splats(&skinned) > 100, "{skinned}");
+    assert!(splats(&rigid) > 100, "{rigid}");
+    // Same pose, same view: the two figures cover about the same pixels.
+    let ratio = splats(&rigid) as f64 / splats(&skinned) as f64;
+    assert!((0.5..2.0).contains(&ratio), "splats {ratio}");
+    // A project without a skinned model is refused, not silently timed as it is.
+    let dir = tempfile::tempdir().unwrap();
+    let o = thicket(&[
+        "bench",
+        small_project(dir.path()).to_str().unwrap(),
+        "--no-rig",
+        "--frames",
+        "1",
+        "--size",
+        "16x16",
+    ]);
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--no-rig: the project has no skinned model"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -445,13 +445,13 @@ fn posed_bounds(svo: &Svo, deform: &SkinDeform<'_>, out: &mut Option<(Vec3, Vec3
             continue;
         }
         let info = NodeInfo { svo, node: n };
-        let d = deform
-            .subtree_bounds(&info)
-            .unwrap_or_else(|| deform.deform(&info));
-        let a = d.half_axes_world;
-        let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
-        let (lo, hi) = (d.center_world - he, d.center_world + he);
-        *out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        // The node's own box joined with its subtree box (which bounds the leaves only).
+        for d in std::iter::once(deform.deform(&info)).chain(deform.subtree_bounds(&info)) {
+            let a = d.half_axes_world;
+            let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+            let (lo, hi) = (d.center_world - he, d.center_world + he);
+            *out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+        }
     }
 }
 

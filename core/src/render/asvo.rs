@@ -159,6 +159,7 @@ enum Action {
     Defer {
         rect: Splat,
         occ: [u32; 4],
+        occ_depth: f32,
         split: bool,
     },
 }
@@ -177,6 +178,9 @@ struct Deferred {
     rect: Splat,
     /// The occlusion-test rectangle (see [`overlapped_span`]).
     occ: [u32; 4],
+    /// The occlusion test's depth: the splat's, or the nearest depth of a deformed node's
+    /// subtree box (which may reach nearer than its splat).
+    occ_depth: f32,
     split: bool,
 }
 
@@ -630,10 +634,16 @@ fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut Blo
                 b.stats[usize::from(q.node.level)].occlusion_culled += 1;
             }
         }
-        Action::Defer { rect, occ, split } => b.deferred.push(Deferred {
+        Action::Defer {
+            rect,
+            occ,
+            occ_depth,
+            split,
+        } => b.deferred.push(Deferred {
             q: *q,
             rect,
             occ,
+            occ_depth,
             split,
         }),
     }
@@ -645,7 +655,7 @@ fn classify_node(ctx: &Ctx<'_, '_>, q: &QNode, target: &DepthTarget, b: &mut Blo
 fn redecide(ctx: &Ctx<'_, '_>, d: &Deferred, target: &DepthTarget, b: &mut BlockOut) {
     let st = &mut b.stats[usize::from(d.q.node.level)];
     let [x0, y0, x1, y1] = d.occ;
-    if ctx.settings.occlusion_culling && target.occluded(x0, y0, x1, y1, d.rect.ndc_depth) {
+    if ctx.settings.occlusion_culling && target.occluded(x0, y0, x1, y1, d.occ_depth) {
         st.occlusion_culled += 1;
     } else if d.split {
         st.split += 1;
@@ -771,6 +781,7 @@ fn classify_leaves(
                 q,
                 rect,
                 occ,
+                occ_depth: fp.ndc_depth,
                 split: false,
             });
             continue;
@@ -818,6 +829,7 @@ fn node_in_view(
 /// nearest point. `crosses_near` tells whether the box reaches in front of the near plane.
 /// The pixel rectangles are computed only when asked for: most nodes are culled or split and
 /// need one of them at most.
+#[derive(Clone, Copy)]
 struct Footprint {
     sx0: f32,
     sy0: f32,
@@ -1047,22 +1059,25 @@ fn classify(
 ) -> Action {
     let (c, he, edge_world, axes_view) = node_in_view(obj, fast, q, cam, view_rot);
     let has_children = !obj.svo.is_leaf(&q.node);
+    let info = NodeInfo {
+        svo: obj.svo,
+        node: q.node,
+    };
     // Deformers whose internal-node boxes may not contain their subtree (skinning) give a
-    // separate, conservative box for culling.
+    // separate, conservative box for culling: the node's own box joined with its subtree's.
     let cull_box = if has_children && fast.is_none() {
-        obj.deform
-            .subtree_bounds(&NodeInfo {
-                svo: obj.svo,
-                node: q.node,
-            })
-            .map(|d| {
-                let axes = view_rot * d.half_axes_world;
-                (
-                    cam.view_from_world.transform_point3(d.center_world),
-                    Mat3::from_cols(axes.x_axis.abs(), axes.y_axis.abs(), axes.z_axis.abs())
-                        * Vec3::ONE,
-                )
-            })
+        obj.deform.subtree_bounds(&info).map(|d| {
+            let axes = view_rot * d.half_axes_world;
+            let cc = cam.view_from_world.transform_point3(d.center_world);
+            let mut che = Mat3::from_cols(axes.x_axis.abs(), axes.y_axis.abs(), axes.z_axis.abs())
+                * Vec3::ONE;
+            if q.node.level + 1 < obj.svo.depth() {
+                che += Vec3::splat(lod_margin(cc, che, cam, settings.lod_pixel_threshold));
+            }
+            let lo = (cc - che).min(c - he);
+            let hi = (cc + che).max(c + he);
+            ((lo + hi) * 0.5, (hi - lo) * 0.5)
+        })
     } else {
         None
     };
@@ -1071,7 +1086,7 @@ fn classify(
         Some((cc, che)) => footprint(cc, che, cam),
         None => None,
     };
-    let Some(cull_fp) = cull.as_ref().or(splat.as_ref()) else {
+    let Some(cull_fp) = cull.or(splat) else {
         return Action::Frustum;
     };
     // The occlusion test covers every pixel the culling rectangle touches: a child's splat
@@ -1096,22 +1111,61 @@ fn classify(
         edge_world * cam.fy.max(cam.fx)
     };
     let split = has_children && (fp.crosses_near || edge_px > settings.lod_pixel_threshold);
-    // Rigid objects only (`fast`): a deformed node's normal would need its blended transform.
-    if settings.occlusion_culling
-        && !fp.crosses_near
-        && let Some(f) = fast
-        && faces_away(obj, f, q, c, cam.perspective)
-    {
-        return Action::Defer {
-            rect: fp.splat(cam, settings.cube_pixel_threshold),
-            occ: fp.touched(cam),
-            split,
+    if settings.occlusion_culling && !fp.crosses_near && !cull_fp.crosses_near {
+        let away = match fast {
+            Some(f) => faces_away(obj, f, q, c, cam.perspective),
+            // A deformed node's LOD normal turned by its own (blended) transform.
+            None => deformed_faces_away(obj, &info, view_rot, c, cam.perspective),
         };
+        if away {
+            return Action::Defer {
+                rect: fp.splat(cam, settings.cube_pixel_threshold),
+                occ: [x0, y0, x1, y1],
+                occ_depth: cull_fp.ndc_depth,
+                split,
+            };
+        }
     }
     if split {
         return Action::Split(c, axes_view);
     }
     Action::Splat(fp.splat(cam, settings.cube_pixel_threshold))
+}
+
+/// How far (world units, every axis) a descendant drawn at LOD may reach past the subtree box
+/// of [`NodeDeform::subtree_bounds`] (which bounds the leaves and every descendant's centre): a
+/// node drawn without splitting has a projected edge of at most `lod_px` pixels, and its box's
+/// view-space half extent is at most 1.5 edges (three half axes). `cc`, `che`: the subtree box
+/// in view space; a perspective node's edge in world units is at most `lod_px` times its
+/// nearest depth (at most the box's farthest) over `fy`.
+#[inline]
+fn lod_margin(cc: Vec3, che: Vec3, cam: &Camera, lod_px: f32) -> f32 {
+    // A huge threshold only makes the box huge (culling nothing), never infinite.
+    let lod_px = lod_px.clamp(0.0, 1e6);
+    let edge_world = if cam.perspective {
+        lod_px * (-cc.z + che.z).max(cam.near) / cam.fy
+    } else {
+        lod_px / cam.fy.max(cam.fx)
+    };
+    1.5 * edge_world
+}
+
+/// [`faces_away`] for a deformed node: its LOD normal turned by the deformer (skinning: the
+/// node's blended matrix). Only decides when a node is drawn (deferral), never whether.
+#[inline]
+fn deformed_faces_away(
+    obj: &VoxelInstance<'_>,
+    info: &NodeInfo<'_>,
+    view_rot: Mat3,
+    c_view: Vec3,
+    perspective: bool,
+) -> bool {
+    let (_, e) = info.color_and_normal();
+    let n_world = obj
+        .deform
+        .normal_to_world(info, crate::svo::decode_normal(e));
+    let to_eye = if perspective { -c_view } else { Vec3::Z };
+    (view_rot * n_world).dot(to_eye) < 0.0
 }
 
 /// Whether a node's LOD normal points away from the eye (rigid objects only: a deformed
@@ -1267,15 +1321,14 @@ fn grow_bounds(o: &VoxelInstance<'_>, n: NodeRef, stop: u8, out: &mut Option<(Ve
         svo: o.svo,
         node: n,
     };
-    // The subtree box where the deformer has one (skinning), so nothing sticks out.
-    let d = o
-        .deform
-        .subtree_bounds(&info)
-        .unwrap_or_else(|| o.deform.deform(&info));
-    let a = d.half_axes_world;
-    let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
-    let (lo, hi) = (d.center_world - he, d.center_world + he);
-    *out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+    // The node's own box joined with its subtree box where the deformer has one (skinning),
+    // so no leaf sticks out.
+    for d in std::iter::once(o.deform.deform(&info)).chain(o.deform.subtree_bounds(&info)) {
+        let a = d.half_axes_world;
+        let he = Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+        let (lo, hi) = (d.center_world - he, d.center_world + he);
+        *out = Some(out.map_or((lo, hi), |(a, b)| (a.min(lo), b.max(hi))));
+    }
 }
 
 /// World-space AABB of the objects, from their nodes a few levels down (tight enough to fit a

@@ -69,10 +69,12 @@ pub trait NodeDeform: Sync {
     /// A node's normal (voxel space, unit) in world space (unit or zero).
     fn normal_to_world(&self, node: &NodeInfo<'_>, normal_voxel: Vec3) -> Vec3;
 
-    /// A world box containing the node *and everything below it*, when that differs from
-    /// [`Self::deform`] (skinning: an internal node's splat does not contain its descendants
-    /// once bones bend). Frustum and occlusion culling of nodes with children use it, so
-    /// culling stays conservative; LOD and splatting use [`Self::deform`]. `None`: the same.
+    /// A world box containing every *leaf* below the node as drawn, and the centre of every
+    /// descendant, when [`Self::deform`]'s box does not (skinning: an internal node's splat
+    /// does not contain its descendants once bones bend). It need not contain the node's own
+    /// box: callers join the two (and the traversal adds the pixel-sized margin by which a
+    /// descendant drawn at LOD may reach past it), so culling stays conservative; LOD and
+    /// splatting use [`Self::deform`]. `None`: the node's own box bounds its subtree.
     fn subtree_bounds(&self, _node: &NodeInfo<'_>) -> Option<DeformedNode> {
         None
     }

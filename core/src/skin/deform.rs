@@ -16,10 +16,12 @@
 //! agree on where their shared corners go — which is what closes the holes.
 //!
 //! Culling (paper §6): an internal node's splat box need not contain its descendants once bones
-//! bend. [`NodeDeform::subtree_bounds`] gives a box that provably does: every descendant point
-//! skins to a convex combination of `Mⱼ p` over the joints `j` used in the subtree, so the union
-//! of the node's bind box carried by each of those joints bounds the subtree. Frustum and
-//! occlusion culling use it; LOD and splatting use the splat box.
+//! bend. [`NodeDeform::subtree_bounds`] gives a box that provably contains every leaf and every
+//! descendant's centre: every descendant point skins to a convex combination of `Mⱼ p` over the
+//! joints `j` used in the subtree, so the union of the node's bind box carried by each of those
+//! joints bounds the subtree, padded only by what a stretch factor adds to a leaf. Frustum and
+//! occlusion culling join it with the node's own box and the LOD margin of descendants drawn
+//! coarser than a leaf (`render::asvo`); LOD and splatting use the splat box.
 
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
@@ -46,6 +48,9 @@ pub struct SkinTables {
     inner_joint_range: Vec<(u32, u16)>,
     /// Sorted joint lists, concatenated.
     joints: Vec<u8>,
+    /// Per entry of `joints`: the largest weight (unorm8) that joint has in any skin placing
+    /// something in the subtree (own and corner weights of every node in it).
+    joint_max_weights: Vec<u8>,
     /// What the tables were built from (see [`fingerprint`]).
     fingerprint: u64,
 }
@@ -130,15 +135,53 @@ impl SkinTables {
             })
             .unwrap_or(&[])
     }
+
+    /// [`Self::subtree_joints`] with each joint's largest weight (unorm8) in the subtree:
+    /// `(joints, weights)`, equally long.
+    #[must_use]
+    pub fn subtree_joint_weights(&self, index: u32) -> (&[u8], &[u8]) {
+        self.inner_joint_range
+            .get(index as usize)
+            .and_then(|&(start, len)| {
+                let r = start as usize..start as usize + usize::from(len);
+                Some((self.joints.get(r.clone())?, self.joint_max_weights.get(r)?))
+            })
+            .unwrap_or((&[], &[]))
+    }
 }
 
-/// Fills corner weights for `node`'s subtree and returns the joints it uses (sorted, unique).
+/// `(joint, weight)` of every influence a skin blends with: the empty skin follows joint 0
+/// with full weight (see [`Skin4::blend_weights`]).
+fn used_influences(skin: &Skin4) -> impl Iterator<Item = (u8, u8)> + '_ {
+    let empty = skin.is_empty();
+    (0..4)
+        .filter(move |&i| !empty && skin.weights[i] > 0)
+        .map(|i| (skin.joints[i], skin.weights[i]))
+        .chain(empty.then_some((0, 255)))
+}
+
+/// Sorts `(joint, weight)` pairs by joint and keeps each joint once, with its largest weight.
+fn merge_max(v: &mut Vec<(u8, u8)>) {
+    v.sort_unstable();
+    // After sorting, the last pair of each joint holds its largest weight.
+    let mut out: Vec<(u8, u8)> = Vec::with_capacity(v.len());
+    for &(j, w) in v.iter() {
+        match out.last_mut() {
+            Some(last) if last.0 == j => last.1 = last.1.max(w),
+            _ => out.push((j, w)),
+        }
+    }
+    *v = out;
+}
+
+/// Fills corner weights for `node`'s subtree and returns the joints it uses with their largest
+/// weights (sorted by joint, unique).
 fn walk(
     svo: &Svo,
     node: crate::svo::NodeRef,
     lattice: &HashMap<UVec3, Skin4>,
     t: &mut SkinTables,
-) -> Vec<u8> {
+) -> Vec<(u8, u8)> {
     let size = svo.node_size(node.level);
     let own = svo.node_voxel(&node).skin;
     let corners: [Skin4; 8] = std::array::from_fn(|k| {
@@ -148,43 +191,30 @@ fn walk(
         // moves with the node's own weights.
         lattice.get(&p).copied().unwrap_or(own)
     });
+    // Own and corner weights: a node drawn at LOD by `Corners` is placed by its corners, and a
+    // corner may touch leaves outside the subtree.
+    let mut joints: Vec<(u8, u8)> = used_influences(&own)
+        .chain(corners.iter().flat_map(used_influences))
+        .collect();
     if svo.is_leaf(&node) {
         if let Some(slot) = t.leaf_corners.get_mut(node.index as usize) {
             *slot = corners;
         }
-        let mut j: Vec<u8> = own
-            .influences()
-            .map(|(j, _)| j as u8)
-            .chain(
-                corners
-                    .iter()
-                    .flat_map(|c| c.influences().map(|(j, _)| j as u8)),
-            )
-            .collect();
-        j.sort_unstable();
-        j.dedup();
-        return j;
+        merge_max(&mut joints);
+        return joints;
     }
     if let Some(slot) = t.inner_corners.get_mut(node.index as usize) {
         *slot = corners;
     }
-    let mut joints: Vec<u8> = Vec::new();
     for k in 0..8 {
         if let Some(child) = svo.child(&node, k) {
             joints.extend(walk(svo, child, lattice, t));
         }
     }
-    // The node's own corners too: a corner on the subtree's boundary merges leaves outside it,
-    // and an uncapped `Corners` box of a descendant inner node follows those joints.
-    joints.extend(
-        std::iter::once(&own)
-            .chain(corners.iter())
-            .flat_map(|s| s.influences().map(|(j, _)| j as u8)),
-    );
-    joints.sort_unstable();
-    joints.dedup();
+    merge_max(&mut joints);
     let start = t.joints.len() as u32;
-    t.joints.extend_from_slice(&joints);
+    t.joints.extend(joints.iter().map(|&(j, _)| j));
+    t.joint_max_weights.extend(joints.iter().map(|&(_, w)| w));
     if let Some(slot) = t.inner_joint_range.get_mut(node.index as usize) {
         *slot = (start, joints.len() as u16);
     }
@@ -415,43 +445,136 @@ impl NodeDeform for SkinDeform<'_> {
         if node.svo.is_leaf(&node.node) {
             return None;
         }
-        let joints = self.tables.subtree_joints(node.node.index);
+        let (joints, max_weights) = self.tables.subtree_joint_weights(node.node.index);
         if joints.is_empty() {
             return None;
         }
         let half = 0.5 * node.size_voxels() as f32;
         let c = Vec4::from((node.center_voxel(), 1.0));
-        let splat = self.place(node);
-        let splat_he = abs_rows(splat.half_axes_world);
-        let mut lo = splat.center_world - splat_he;
-        let mut hi = splat.center_world + splat_he;
-        // A descendant's splat centre is a convex combination of `Mⱼ p` (p in the node's bind
-        // box), so it lies in the hull of the boxes `Mⱼ(box)`. Its scalar-stretched extent is
-        // at most `grow · h · |Σ w Mⱼ|` with `h <= half / 2` (a child or smaller) and
-        // `grow` the largest factor any strategy or override may use; `Corners` boxes are
-        // already inside the hull. Hence each joint's box is padded to `half · (1 + grow / 2)`.
-        let largest_override = if self.overrides.is_empty() {
-            0.0
-        } else {
-            255.0 / 64.0
-        };
-        let grow =
-            self.settings.max_factor.max(1.0).max(largest_override) * self.settings.multiplier;
-        let reach = half * (1.0 + 0.5 * grow);
-        for &j in joints {
-            let Some(m) = self.world_from_voxel.get(usize::from(j)) else {
-                continue;
-            };
-            let centre = (*m * c).truncate();
-            let he = abs_rows(Mat3::from_mat4(*m)) * reach;
-            lo = lo.min(centre - he);
-            hi = hi.max(centre + he);
+        // Every point `p` of the subtree's bind box skins to a convex combination of `Mⱼ p`
+        // over the subtree's joints (which include every corner weight's joint, see `walk`),
+        // so the boxes `Mⱼ(node box)` bound every descendant's centre, every descendant's
+        // skinned corner and every box drawn with factor 1 (the bind box under the blended
+        // affine map). That hull is loose where a light weight ties the subtree to a joint
+        // that moves far from the others, so a second bound uses the weights: with `r` the
+        // heaviest joint, `Σ wⱼ Mⱼ p = M_r p + Σ_{j≠r} wⱼ (Mⱼ − M_r) p` with
+        // `0 ≤ wⱼ ≤ w̄ⱼ` (the largest weight of `j` in the subtree). Both hold, so their
+        // intersection does. Then a leaf drawn with factor `S > 1` reaches past its factor-1
+        // box by `(S − 1) · ½ · |L|` per axis (`L = Σ w Mⱼ`, absolute rows); see
+        // [`Self::leaf_stretch_bound`]. Larger descendants drawn at LOD are the traversal's
+        // business (it knows their pixel size: `asvo::lod_margin`).
+        let r = max_weights
+            .iter()
+            .enumerate()
+            .max_by_key(|&(_, &w)| w)
+            .map_or(0, |(i, _)| i);
+        let m_r = *self.world_from_voxel.get(usize::from(joints[r]))?;
+        let l_r = Mat3::from_mat4(m_r);
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        let r_centre = (m_r * c).truncate();
+        let (mut wlo, mut whi) = (
+            r_centre - abs_rows(l_r) * half,
+            r_centre + abs_rows(l_r) * half,
+        );
+        // Largest absolute rows and column over the joints (bounds `|L|` of any blend).
+        let mut rows_max = Vec3::ZERO;
+        let mut column_max = 0.0f32;
+        // How far a skinned corner may sit from the blended box's corner (see
+        // `leaf_stretch_bound`), and how far any blend's linear part may be from `L_r`.
+        let mut corner_drift = Vec3::ZERO;
+        let mut linear_drift = 0.0f32;
+        for (i, (&j, &w)) in joints.iter().zip(max_weights).enumerate() {
+            let m = *self.world_from_voxel.get(usize::from(j))?;
+            let linear = Mat3::from_mat4(m);
+            let rows = abs_rows(linear);
+            let centre = (m * c).truncate();
+            lo = lo.min(centre - rows * half);
+            hi = hi.max(centre + rows * half);
+            rows_max = rows_max.max(rows);
+            column_max = column_max.max(column_scale(linear));
+            if i != r {
+                let d = m - m_r;
+                let dc = (d * c).truncate();
+                let dh = abs_rows(Mat3::from_mat4(d)) * half;
+                let w = f32::from(w) * (1.0 / 255.0);
+                wlo += ((dc - dh) * w).min(Vec3::ZERO);
+                whi += ((dc + dh) * w).max(Vec3::ZERO);
+                corner_drift += (dc.abs() + dh) * w;
+                linear_drift += w * frobenius(Mat3::from_mat4(d));
+            }
         }
-        (lo.is_finite() && hi.is_finite()).then(|| DeformedNode {
+        lo = lo.max(wlo);
+        hi = hi.min(whi);
+        let stretch = self.leaf_stretch_bound(l_r, corner_drift.length(), linear_drift);
+        let pad = if self.settings.strategy == StretchStrategy::Corners {
+            // A `Corners` box is its corners' bounds (inside the hull), capped at
+            // `max_factor · ½ · longest column` and then scaled by the multiplier.
+            let s = &self.settings;
+            let grown = (s.multiplier - 1.0).max(0.0) * s.max_factor;
+            rows_max.max(Vec3::splat(column_max)) * (0.5 * grown.max(stretch - 1.0))
+        } else {
+            rows_max * (0.5 * (stretch - 1.0).max(0.0))
+        };
+        lo -= pad;
+        hi += pad;
+        (lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()).then(|| DeformedNode {
             center_world: (lo + hi) * 0.5,
             half_axes_world: Mat3::from_diagonal((hi - lo) * 0.5),
         })
     }
+}
+
+impl SkinDeform<'_> {
+    /// The largest factor a leaf of a subtree may be drawn with (multiplier included), or for
+    /// `Corners` the largest override factor (1 without overrides).
+    ///
+    /// `Adaptive` draws a leaf with the smallest factor whose box holds its eight corners
+    /// skinned with their own weights, `f = maxₖ ‖L⁻¹ (pₖ − c)‖∞ / h` (`h = ½`). Corner `k`
+    /// sits `δₖ = Σ_{j≠r} (wᵏⱼ − wⱼ)(Mⱼ − M_r) yₖ` from the blended box's corner (both weight
+    /// sets sum to 1), so `|δₖ| ≤ corner_drift` (each `|wᵏⱼ − wⱼ| ≤ w̄ⱼ`), and
+    /// `σ_min(L) ≥ σ_min(L_r) − Σ_{j≠r} w̄ⱼ ‖Mⱼ − M_r‖ =: σ`. Hence
+    /// `f ≤ 1 + |δ| / (σ h)`. Where the blend may collapse (small `σ`) the bound is the
+    /// strategy's clamp.
+    fn leaf_stretch_bound(&self, l_r: Mat3, corner_drift: f32, linear_drift: f32) -> f32 {
+        let s = &self.settings;
+        let bound = |f: f32| f.clamp(s.min_factor, s.max_factor);
+        let factor = match s.strategy {
+            StretchStrategy::Off | StretchStrategy::Corners => 1.0,
+            StretchStrategy::Thesis => bound(2.0),
+            StretchStrategy::Adaptive => {
+                // `σ_min(A) ≥ 1 / ‖A⁻¹‖_F`; `containing_factor` gives up (and the thesis
+                // factor, at most 2, is used) only when `|det L| ≤ 1e-6 · scale³`, which
+                // `σ > 0.02 · scale` rules out.
+                let inv = l_r.inverse();
+                let sigma = frobenius(inv).recip() - linear_drift;
+                let scale = frobenius(l_r) + linear_drift;
+                if sigma.is_finite() && sigma > 0.02 * scale {
+                    // A relative margin for the rounding of `containing_factor`.
+                    bound((1.0 + 2.0 * corner_drift / sigma) * (1.0 + 1e-4) + 1e-4)
+                } else {
+                    s.max_factor.max(bound(2.0))
+                }
+            }
+        };
+        let factor = if self.overrides.is_empty() {
+            factor
+        } else {
+            factor.max(255.0 / 64.0)
+        };
+        if s.strategy == StretchStrategy::Corners {
+            // The multiplier is applied by the caller, on the capped corner box.
+            factor
+        } else {
+            factor * s.multiplier
+        }
+    }
+}
+
+/// Frobenius norm of a 3×3 matrix (an upper bound of its largest singular value).
+#[inline]
+fn frobenius(m: Mat3) -> f32 {
+    (m.x_axis.length_squared() + m.y_axis.length_squared() + m.z_axis.length_squared()).sqrt()
 }
 
 /// Half extents of the AABB of a parallelepiped with half-axes as columns.

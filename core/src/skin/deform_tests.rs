@@ -104,63 +104,138 @@ fn identity_skinning_with_s_one_draws_exactly_the_rigid_model() {
     assert!(differing <= 10, "{differing} pixels differ");
 }
 
+/// World AABB of a drawn box.
+fn world_aabb(d: crate::render::DeformedNode) -> (Vec3, Vec3) {
+    let a = d.half_axes_world;
+    let he = glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+    (d.center_world - he, d.center_world + he)
+}
+
 #[test]
-fn subtree_bounds_contain_every_descendant_splat() {
+fn subtree_bounds_contain_every_leaf_splat_and_every_descendant_centre() {
     let doc = rigged_figure();
     let (model, rig) = model_of(doc);
-    for (t, strategy) in [0.3f32, 0.9].into_iter().flat_map(|t| {
-        [
-            (t, StretchStrategy::Adaptive),
-            (t, StretchStrategy::Corners),
-        ]
-    }) {
-        let deform = SkinDeform::for_rig(
-            rig,
-            &model.svo,
-            Mat4::IDENTITY,
-            model.object_from_voxel(),
-            Some(0),
-            t,
-        )
-        .with_settings(StretchSettings {
-            strategy,
-            ..StretchSettings::default()
-        });
-        let aabb = |d: crate::render::DeformedNode| {
-            let a = d.half_axes_world;
-            let he =
-                glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
-            (d.center_world - he, d.center_world + he)
-        };
-        // Every internal node at levels 2..=4 against all splats of its subtree.
-        let svo = &model.svo;
-        let mut stack = vec![svo.root()];
-        let mut checked = 0;
-        while let Some(n) = stack.pop() {
-            if svo.is_leaf(&n) {
-                continue;
+    let svo = &model.svo;
+    let settings = |strategy, multiplier| StretchSettings {
+        strategy,
+        multiplier,
+        ..StretchSettings::default()
+    };
+    let cases = [
+        settings(StretchStrategy::Off, 1.0),
+        settings(StretchStrategy::Thesis, 1.0),
+        settings(StretchStrategy::Corners, 1.0),
+        settings(StretchStrategy::Corners, 1.5),
+        settings(StretchStrategy::Adaptive, 1.0),
+        settings(StretchStrategy::Adaptive, 1.5),
+    ];
+    for t in [0.3f32, 0.9] {
+        for case in cases {
+            let deform = SkinDeform::for_rig(
+                rig,
+                svo,
+                Mat4::IDENTITY,
+                model.object_from_voxel(),
+                Some(0),
+                t,
+            )
+            .with_settings(case);
+            let mut stack = vec![svo.root()];
+            let (mut checked, mut leaves) = (0, 0);
+            while let Some(n) = stack.pop() {
+                if svo.is_leaf(&n) {
+                    continue;
+                }
+                stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+                if n.level < 2 || n.level % 2 == 1 && n.level + 1 < svo.depth() {
+                    continue;
+                }
+                let info = NodeInfo { svo, node: n };
+                let (lo, hi) = world_aabb(deform.subtree_bounds(&info).expect("internal node"));
+                let tol = 1e-4 * (hi - lo).max_element();
+                let mut sub = vec![n];
+                while let Some(d) = sub.pop() {
+                    sub.extend((0..8).filter_map(|k| svo.child(&d, k)));
+                    let drawn = deform.deform(&NodeInfo { svo, node: d });
+                    let (dl, dh) = if svo.is_leaf(&d) {
+                        leaves += 1;
+                        world_aabb(drawn)
+                    } else {
+                        (drawn.center_world, drawn.center_world)
+                    };
+                    assert!(
+                        dl.cmpge(lo - tol).all() && dh.cmple(hi + tol).all(),
+                        "{case:?}, t = {t}: node at level {} escapes its ancestor at level {}: \
+                         {dl}..{dh} outside {lo}..{hi}",
+                        d.level,
+                        n.level
+                    );
+                }
+                checked += 1;
             }
-            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
-            if !(2..=4).contains(&n.level) {
-                continue;
-            }
-            let info = NodeInfo { svo, node: n };
-            let (lo, hi) = aabb(deform.subtree_bounds(&info).expect("internal node"));
-            let mut sub = vec![n];
-            while let Some(d) = sub.pop() {
-                sub.extend((0..8).filter_map(|k| svo.child(&d, k)));
-                let (dl, dh) = aabb(deform.deform(&NodeInfo { svo, node: d }));
-                assert!(
-                    dl.cmpge(lo - 1e-3).all() && dh.cmple(hi + 1e-3).all(),
-                    "t = {t}, {strategy:?}: node at level {} escapes its ancestor at level {}",
-                    d.level,
-                    n.level
-                );
-            }
-            checked += 1;
+            assert!(
+                checked > 20 && leaves > 1000,
+                "{checked} nodes, {leaves} leaves"
+            );
         }
-        assert!(checked > 20, "{checked}");
     }
+}
+
+/// The bounds are the joints' boxes of the node, not padded by the node's size: at the level
+/// above the leaves their mean volume is under a third of the old box of `½ · size · (1 + grow / 2)`
+/// per joint (grow = `max_factor`, 3× the node's edge at the default 4).
+#[test]
+fn subtree_bounds_are_far_tighter_than_the_padded_joint_boxes() {
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let svo = &model.svo;
+    let settings = StretchSettings {
+        strategy: StretchStrategy::Adaptive,
+        ..StretchSettings::default()
+    };
+    let skinning = rig.skinning_at(Some(0), 0.9);
+    let deform = SkinDeform::for_rig(
+        rig,
+        svo,
+        Mat4::IDENTITY,
+        model.object_from_voxel(),
+        Some(0),
+        0.9,
+    )
+    .with_settings(settings);
+    let tables = rig.tables(svo);
+    let grow = settings.max_factor.max(1.0) * settings.multiplier;
+    let (mut new_volume, mut old_volume, mut n) = (0.0f64, 0.0f64, 0);
+    let mut stack = vec![svo.root()];
+    while let Some(node) = stack.pop() {
+        if svo.is_leaf(&node) {
+            continue;
+        }
+        stack.extend((0..8).filter_map(|k| svo.child(&node, k)));
+        if node.level + 1 != svo.depth() {
+            continue;
+        }
+        let info = NodeInfo { svo, node };
+        let (lo, hi) = world_aabb(deform.subtree_bounds(&info).expect("internal node"));
+        new_volume += f64::from((hi - lo).x * (hi - lo).y * (hi - lo).z);
+        let half = 0.5 * info.size_voxels() as f32;
+        let (mut olo, mut ohi) = world_aabb(deform.deform(&info));
+        for &j in tables.subtree_joints(node.index) {
+            let m = skinning[usize::from(j)] * model.object_from_voxel();
+            let c = m.transform_point3(info.center_voxel());
+            let a = glam::Mat3::from_mat4(m);
+            let rows =
+                glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+            let he = rows * half * (1.0 + 0.5 * grow);
+            olo = olo.min(c - he);
+            ohi = ohi.max(c + he);
+        }
+        old_volume += f64::from((ohi - olo).x * (ohi - olo).y * (ohi - olo).z);
+        n += 1;
+    }
+    assert!(n > 100, "{n}");
+    let ratio = new_volume / old_volume;
+    assert!(ratio < 0.3, "mean volume ratio {ratio:.3} over {n} nodes");
 }
 
 #[test]
@@ -310,7 +385,6 @@ fn a_document_without_skin_has_nothing_to_report() {
         &doc,
         &ReportSettings {
             frames: 2,
-            views: 6,
             width: 8,
             height: 8,
             clip: None,

@@ -8,6 +8,7 @@
 //! | module | what |
 //! |---|---|
 //! | [`skeleton`] | [`Skeleton`], [`Joint`], [`Transform`], [`Pose`], manual overrides, forward kinematics |
+//! | [`bake`] | a skinned model's shown pose baked into a rigid model (the static reference) |
 //! | [`clip`] | [`AnimationClip`] and its channels; STEP / LINEAR (slerp) / CUBICSPLINE sampling |
 //! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
@@ -24,6 +25,7 @@
 //! ancestor node above the joints). As in glTF, the transform of the node that carries the
 //! skinned mesh is ignored. See `docs/skinning.md`.
 
+pub mod bake;
 pub mod clip;
 pub mod deform;
 pub mod gltf_import;
