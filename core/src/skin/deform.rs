@@ -426,6 +426,15 @@ fn corner_offset(k: usize) -> Vec3 {
     Vec3::new(s(1), s(2), s(4))
 }
 
+/// Longest column of a 3×3 matrix (the largest scale it applies to a voxel axis).
+#[inline]
+fn column_scale(m: Mat3) -> f32 {
+    m.x_axis
+        .length()
+        .max(m.y_axis.length())
+        .max(m.z_axis.length())
+}
+
 impl NodeDeform for SkinDeform<'_> {
     fn deform(&self, node: &NodeInfo<'_>) -> DeformedNode {
         self.place(node)
@@ -508,11 +517,13 @@ impl NodeDeform for SkinDeform<'_> {
         hi = hi.min(whi);
         let stretch = self.leaf_stretch_bound(l_r, corner_drift.length(), linear_drift);
         let pad = if self.settings.strategy == StretchStrategy::Corners {
-            // A `Corners` box is its corners' bounds (inside the hull), capped at
-            // `max_factor · ½ · longest column` and then scaled by the multiplier.
-            let s = &self.settings;
-            let grown = (s.multiplier - 1.0).max(0.0) * s.max_factor;
-            rows_max.max(Vec3::splat(column_max)) * (0.5 * grown.max(stretch - 1.0))
+            // A `Corners` box is its corners' bounds, uncapped: they lie in `lo..hi` (each
+            // corner is a blend of the joints above with at most their largest weights), and
+            // the multiplier grows the box about its centre by at most `multiplier − 1` of
+            // half that. Debug overrides draw `stretch` times the node instead.
+            let grown =
+                (hi - lo).max(Vec3::ZERO) * (0.5 * (self.settings.multiplier - 1.0).max(0.0));
+            grown.max(rows_max.max(Vec3::splat(column_max)) * (0.5 * (stretch - 1.0).max(0.0)))
         } else {
             rows_max * (0.5 * (stretch - 1.0).max(0.0))
         };
