@@ -385,6 +385,7 @@ fn a_document_without_skin_has_nothing_to_report() {
         &doc,
         &ReportSettings {
             frames: 2,
+            views: 6,
             width: 8,
             height: 8,
             clip: None,
