@@ -176,7 +176,7 @@ enum SceneUpload {
 }
 
 /// Layouts and pipelines, created once per device, and the frame's persistent buffers and
-/// bind groups (one module per pass, see [`super::passes`]).
+/// bind groups (one module per pass, see `gpu::passes`).
 pub struct Renderer {
     caps: Capabilities,
     force_two_pass: bool,
