@@ -75,7 +75,10 @@ const EXPECTED: &[(&str, bool, [u64; 2])] = &[
     ("house", false, [0xc2e1c6828f86a136, 0xf97b6a9090e3afea]),
     ("house", true, [0xc2e1c6828f86a136, 0xf97b6a9090e3afea]),
     ("mixed", false, [0x9c246dbaf7e41628, 0x2ea531b7ea68f264]),
-    ("cesiumman", false, [0x130f35cc90b574a9, 0x2f1cb9c7779feeef]),
+    // Re-recorded on purpose after the tighter skinned subtree bounds (issue 21): the shadow
+    // map's light camera is fitted to them, so self-shadow edges move (the CPU golden
+    // `cesiumman_t0.5` moved the same way); `gpu_parity` judges the new frame against the CPU.
+    ("cesiumman", false, [0x27a81654cea6699f, 0xacd379c07c425e5c]),
     ("tree", false, [0x96cced4f151e4347, 0x4efd50906b16001b]),
     ("forest", false, [0xf6436799b97051f0, 0x8ad0ced5d90d5352]),
 ];
