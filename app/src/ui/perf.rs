@@ -266,7 +266,10 @@ fn level_grid_ui(ui: &mut egui::Ui, id: &str, levels: &[thicket_core::render::Le
 fn shadow_work_text(s: &super::view::ShadowWork) -> String {
     let mut parts = Vec::new();
     if s.reused > 0 {
-        parts.push(format!("{} kept (the camera moved)", s.reused));
+        parts.push(format!(
+            "{} kept as they were (no light, caster or quality change)",
+            s.reused
+        ));
     }
     if s.patched > 0 {
         parts.push(format!(

@@ -189,7 +189,7 @@ struct PreviewFrame {
 pub struct ShadowWork {
     /// Shadow pass milliseconds.
     pub ms: f64,
-    /// Maps kept from an earlier render unchanged (the camera moved).
+    /// Maps kept from an earlier render unchanged (only the camera or the render size changed since).
     pub reused: u32,
     /// Maps kept and drawn again only where voxel edits changed them.
     pub patched: u32,
