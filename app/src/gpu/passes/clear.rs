@@ -26,14 +26,8 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
 
 impl ClearPass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let bgl = super::layout(device, "clear", &bind_group_entries()[0]);
-        let pipeline = super::compute(
-            device,
-            "clear",
-            &super::pipeline_layout(device, "clear", &[&bgl]),
-            &super::module(device, "clear.wgsl")?,
-            "clear",
-        );
+        let (bgl, pipeline) =
+            super::one_group_pipeline(device, "clear", &bind_group_entries()[0], "clear")?;
         Ok(Self {
             bgl,
             pipeline,

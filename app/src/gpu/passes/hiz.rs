@@ -25,14 +25,8 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
 
 impl HizPass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let bgl = super::layout(device, "hiz", &bind_group_entries()[0]);
-        let pipeline = super::compute(
-            device,
-            "hiz",
-            &super::pipeline_layout(device, "hiz", &[&bgl]),
-            &super::module(device, "hiz.wgsl")?,
-            "build_tiles",
-        );
+        let (bgl, pipeline) =
+            super::one_group_pipeline(device, "hiz", &bind_group_entries()[0], "build_tiles")?;
         Ok(Self {
             bgl,
             pipeline,

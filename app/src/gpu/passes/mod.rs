@@ -324,6 +324,25 @@ pub(super) fn pipeline_layout(
     })
 }
 
+/// The bind group layout and compute pipeline of a pass with one bind group, whose shader is
+/// `NAME.wgsl` (label `name`, entry point `entry`).
+pub(super) fn one_group_pipeline(
+    device: &wgpu::Device,
+    name: &str,
+    entries: &[wgpu::BindGroupLayoutEntry],
+    entry: &str,
+) -> Result<(wgpu::BindGroupLayout, wgpu::ComputePipeline), super::GpuError> {
+    let bgl = layout(device, name, entries);
+    let pipeline = compute(
+        device,
+        name,
+        &pipeline_layout(device, name, &[&bgl]),
+        &module(device, &format!("{name}.wgsl"))?,
+        entry,
+    );
+    Ok((bgl, pipeline))
+}
+
 /// A compute pipeline of `module`'s `entry`.
 pub(super) fn compute(
     device: &wgpu::Device,

@@ -37,14 +37,8 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
 
 impl ResolvePass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let bgl = super::layout(device, "resolve", &bind_group_entries()[0]);
-        let pipeline = super::compute(
-            device,
-            "resolve",
-            &super::pipeline_layout(device, "resolve", &[&bgl]),
-            &super::module(device, "resolve.wgsl")?,
-            "resolve",
-        );
+        let (bgl, pipeline) =
+            super::one_group_pipeline(device, "resolve", &bind_group_entries()[0], "resolve")?;
         Ok(Self {
             bgl,
             pipeline,

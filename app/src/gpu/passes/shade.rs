@@ -58,14 +58,8 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
 
 impl ShadePass {
     pub(in crate::gpu) fn new(device: &wgpu::Device) -> Result<Self, GpuError> {
-        let bgl = super::layout(device, "shade", &bind_group_entries()[0]);
-        let pipeline = super::compute(
-            device,
-            "shade",
-            &super::pipeline_layout(device, "shade", &[&bgl]),
-            &super::module(device, "shade.wgsl")?,
-            "shade",
-        );
+        let (bgl, pipeline) =
+            super::one_group_pipeline(device, "shade", &bind_group_entries()[0], "shade")?;
         Ok(Self {
             bgl,
             pipeline,
