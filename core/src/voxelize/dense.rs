@@ -68,14 +68,13 @@ impl DenseFill {
                     continue;
                 }
                 for k in iv.k_lo..=iv.k_hi.min(turned.z.saturating_sub(1)) {
-                    let c = f.axis.unturn(UVec3::new(x, y, k));
-                    votes[c.x as usize + nx * (c.y as usize + ny * c.z as usize)] += 1;
+                    votes[cell(dims, f.axis.unturn(UVec3::new(x, y, k)))] += 1;
                 }
             }
         }
         for s in seeds {
             if s.cmplt(dims).all() {
-                votes[s.x as usize + nx * (s.y as usize + ny * s.z as usize)] |= SEED;
+                votes[cell(dims, *s)] |= SEED;
             }
         }
 
@@ -151,14 +150,9 @@ impl DenseFill {
         }
     }
 
-    fn index(&self, c: UVec3) -> usize {
-        let (nx, ny) = (self.dims.x as usize, self.dims.y as usize);
-        c.x as usize + nx * (c.y as usize + ny * c.z as usize)
-    }
-
     /// Whether cell `c` is interior (inside along at least two axes).
     pub(crate) fn contains(&self, c: UVec3) -> bool {
-        c.cmplt(self.dims).all() && (self.votes[self.index(c)] & !SEED) >= 2
+        c.cmplt(self.dims).all() && (self.votes[cell(self.dims, c)] & !SEED) >= 2
     }
 
     /// The surface voxel nearest cell `c` (`None` when there is no surface at all).
@@ -226,6 +220,11 @@ impl DenseFill {
             })
             .collect()
     }
+}
+
+/// Index of cell `c` in `votes` and `fx` (x fastest, then y, then z).
+fn cell(dims: UVec3, c: UVec3) -> usize {
+    c.x as usize + dims.x as usize * (c.y as usize + dims.y as usize * c.z as usize)
 }
 
 fn sq(a: usize, b: usize) -> u64 {

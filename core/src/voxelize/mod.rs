@@ -638,38 +638,33 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    // Attributes of each surface voxel from its nearest triangle.
-    let record_voxels: Vec<Voxel> = records
+    // Attributes of each surface voxel from its nearest triangle, and whether it stays: in
+    // solid mode one outside the mesh that an interior voxel already represents is dropped
+    // (it still gives the interior its attributes).
+    let keep_outer = settings.keep_outer_surface;
+    let record_voxels: Vec<(Voxel, bool)> = records
         .par_iter()
         .map(|&(code, key)| {
+            let coord = morton_decode(code);
             let g = surface::key_triangle(key);
-            let centre = morton_decode(code).as_dvec3() + DVec3::splat(0.5);
-            let bary = tris.grid(g).closest_barycentric(centre);
+            let tri = tris.grid(g);
+            let centre = coord.as_dvec3() + DVec3::splat(0.5);
+            let bary = tri.closest_barycentric(centre);
+            let dropped = interior.as_ref().is_some_and(|inside| {
+                !keep_outer
+                    && !inside.contains(coord)
+                    && represented_inside(inside, dims, centre, tri.point(bary), &tri)
+            });
             let (part, t) = tris.locate(g);
-            transfer(model, &model.parts[part], t, bary, has_skin)
+            let voxel = transfer(model, &model.parts[part], t, bary, has_skin);
+            (voxel, !dropped)
         })
         .collect();
-    // In solid mode drop the surface voxels outside the mesh that an interior voxel already
-    // represents.
-    let keep_outer = settings.keep_outer_surface;
     let surface_voxels: Vec<(UVec3, Voxel)> = records
         .par_iter()
         .zip(&record_voxels)
-        .filter_map(|(&(code, key), &voxel)| {
-            let coord = morton_decode(code);
-            if let Some(inside) = &interior
-                && !keep_outer
-                && !inside.contains(coord)
-            {
-                let tri = tris.grid(surface::key_triangle(key));
-                let centre = coord.as_dvec3() + DVec3::splat(0.5);
-                let q = tri.point(tri.closest_barycentric(centre));
-                if represented_inside(inside, dims, centre, q, &tri) {
-                    return None;
-                }
-            }
-            Some((coord, voxel))
-        })
+        .filter(|(_, (_, keep))| *keep)
+        .map(|(&(code, _), &(voxel, _))| (morton_decode(code), voxel))
         .collect();
     if !progress(0.85) {
         return Err(VoxelizeError::Cancelled);
@@ -680,7 +675,7 @@ pub fn voxelize(
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
-            Some((c, record_voxels[i]))
+            Some((c, record_voxels[i].0))
         }),
         None => Vec::new(),
     };
