@@ -162,16 +162,9 @@ fn used_influences(skin: &Skin4) -> impl Iterator<Item = (u8, u8)> + '_ {
 
 /// Sorts `(joint, weight)` pairs by joint and keeps each joint once, with its largest weight.
 fn merge_max(v: &mut Vec<(u8, u8)>) {
-    v.sort_unstable();
-    // After sorting, the last pair of each joint holds its largest weight.
-    let mut out: Vec<(u8, u8)> = Vec::with_capacity(v.len());
-    for &(j, w) in v.iter() {
-        match out.last_mut() {
-            Some(last) if last.0 == j => last.1 = last.1.max(w),
-            _ => out.push((j, w)),
-        }
-    }
-    *v = out;
+    // By joint, the largest weight first: the first pair of each joint is the one kept.
+    v.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)));
+    v.dedup_by_key(|p| p.0);
 }
 
 /// Fills corner weights for `node`'s subtree and returns the joints it uses with their largest

@@ -577,6 +577,9 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
                 tables: &tables,
                 limit: tolerance,
             };
+            // Whether a hole pixel is misplaced depends on the view and the pose only: found
+            // once for all strategies.
+            let mut misplaced: Vec<Option<bool>> = vec![None; mesh_fb.ids.len()];
             for row in &mut rows {
                 let deform = SkinDeform::new(
                     world_from_object,
@@ -600,8 +603,9 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
                 };
                 let t0 = Instant::now();
                 let (_, fb, stats) = render_scene(&scene, cam, &quality)?;
-                let counts =
-                    compare_depths(cam, &mesh_fb, &fb, tolerance, |i| misplaced_hole(&probe, i));
+                let counts = compare_depths(cam, &mesh_fb, &fb, tolerance, |i| {
+                    *misplaced[i].get_or_insert_with(|| misplaced_hole(&probe, i))
+                });
                 let v = &mut row.views[view];
                 if frame == 0 {
                     v.rest = counts;

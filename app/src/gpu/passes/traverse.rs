@@ -277,7 +277,6 @@ impl TraversePass {
                     // Occlusion tiles from everything drawn so far (meshes, earlier levels
                     // and objects); its layout differs, so rebind after it.
                     hiz.dispatch(&mut pass);
-                    pass.set_pipeline(&self.prepare);
                     pass.set_bind_group(0, bg0, &[]);
                     pass.set_bind_group(2, ba, &[]);
                     pass.set_bind_group(3, indirect_bg, &[]);
