@@ -230,7 +230,7 @@ impl FramePlan {
             });
         }
         let (shadows, shadow_slot) = layout_shadows(&fits, limits, scene.kept_shadow_slot)?;
-        let shadow_key_bytes = shadows.last().map_or(0, |m| m.offset + m.slot_bytes);
+        let shadow_key_bytes = shadow_keys_end(&shadows);
         let tiles = (
             width.div_ceil(OCCLUSION_TILE),
             height.div_ceil(OCCLUSION_TILE),
@@ -309,6 +309,11 @@ fn fit_shadows(
         .collect()
 }
 
+/// Bytes of the shadow key buffer that holds `maps` (the end of the last one).
+fn shadow_keys_end(maps: &[ShadowPlan]) -> u64 {
+    maps.last().map_or(0, |m| m.offset + m.slot_bytes)
+}
+
 /// Places every map in the one shadow key buffer, each at an offset its passes can bind its
 /// range at (a multiple of the storage offset alignment).
 ///
@@ -345,7 +350,6 @@ fn layout_shadows(
             })
             .collect::<Vec<_>>()
     };
-    let end = |maps: &[ShadowPlan]| maps.last().map_or(0, |m| m.offset + m.slot_bytes);
     if fits.is_empty() {
         return Ok((Vec::new(), None));
     }
@@ -353,12 +357,12 @@ fn layout_shadows(
     let bucket = largest.next_power_of_two();
     for slot in [bucket.max(kept_slot), bucket] {
         let slotted = layout(Some(slot));
-        if end(&slotted) <= limits.binding {
+        if shadow_keys_end(&slotted) <= limits.binding {
             return Ok((slotted, Some(slot)));
         }
     }
     let packed = layout(None);
-    let bytes = end(&packed);
+    let bytes = shadow_keys_end(&packed);
     if bytes > limits.binding {
         return Err(GpuError::TooLarge {
             what: if packed.len() == 1 {
