@@ -78,6 +78,8 @@ const _: () = assert!(
 pub const FACE_BITS: u32 = thicket_core::render::FACE_BITS;
 /// Length of the counter buffer in u32: queue counts, overflow, two views' statistics.
 pub const COUNTER_WORDS: u32 = STATS_START + 2 * MAX_LEVELS * STATS_PER_LEVEL;
+/// Bytes of the counter buffer.
+pub const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
 
 /// One traversal dispatch: an object seen from a view at one level.
 ///

@@ -10,7 +10,7 @@ use thicket_core::scene::{Document, OrbitCamera};
 
 use super::context::Capabilities;
 use super::gpu_data::{
-    COUNTER_WORDS, CUBE_PIXEL_COUNTERS, GBUFFER_TEXEL_BYTES, MAX_LEVELS, OVERFLOW_COUNTER,
+    COUNTER_BYTES, CUBE_PIXEL_COUNTERS, GBUFFER_TEXEL_BYTES, MAX_LEVELS, OVERFLOW_COUNTER,
     SPLAT_PIXEL_COUNTERS, STATS_PER_LEVEL, STATS_START,
 };
 use super::passes::clear::ClearPass;
@@ -936,8 +936,6 @@ impl Renderer {
     }
 }
 
-/// Bytes of the counter buffer.
-const COUNTER_BYTES: u64 = COUNTER_WORDS as u64 * 4;
 /// Staging slots in the readback ring: a frame's counters arrive a few frames later without
 /// the GPU ever waiting for the CPU.
 const READBACK_SLOTS: usize = 4;

@@ -460,7 +460,7 @@ impl FrameBuffers {
         queue_capacity: u64,
     ) -> Self {
         use super::gpu_data::{
-            COUNTER_WORDS, MAX_LEVELS, MODE_DEPTH, MODE_ID, MODE_KEY64, QUEUE_ENTRY_BYTES,
+            COUNTER_BYTES, MAX_LEVELS, MODE_DEPTH, MODE_ID, MODE_KEY64, QUEUE_ENTRY_BYTES,
         };
         use wgpu::BufferUsages as U;
         let first_mode = if plan.path == super::AtomicPath::Key64 {
@@ -488,7 +488,7 @@ impl FrameBuffers {
                 gpu,
                 "counters",
                 0,
-                u64::from(COUNTER_WORDS) * 4,
+                COUNTER_BYTES,
                 U::STORAGE | U::COPY_SRC | U::COPY_DST,
             ),
             indirect: pool.get(
