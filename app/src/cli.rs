@@ -1138,39 +1138,25 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
         }
-        if is_gltf && !args.merge {
-            let doc = import_nodes(args, &settings, &model, &nodes, &mut notes)?;
-            let mut doc = doc;
-            if let Some((lo, hi)) = doc.bounds() {
-                doc.camera.frame(lo, hi);
-            }
-            view.apply_to_new_document(&mut doc);
-            files::save_project(&doc, &args.output)?;
-            return finish_import(args, &doc, &notes);
-        }
-        check_voxelize_budget(args, &model, &settings)?;
-        let bar = progress_bar(1000, "voxelizing");
-        let result = voxelize(&model, &settings, &|f| {
-            bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
-            true
-        });
-        bar.finish_and_clear();
-        let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
-        notes.push_str(&solid_fallback_note(&v.stats));
-        let mut doc = thicket_core::scene::Document::default();
-        doc.add(
-            files::object_name_for(&args.input),
-            thicket_core::scene::ObjectKind::Voxels(thicket_core::scene::VoxelModel {
-                svo: v.svo,
-                voxel_size: v.voxel_size,
-                origin: v.origin,
-                material_names: model.materials.iter().map(|m| m.name.clone()).collect(),
-                rig: None,
-                volume: None,
-                palette: Vec::new(),
-                frames: None,
-            }),
-        );
+        let mut doc = if is_gltf && !args.merge {
+            import_nodes(args, &settings, &model, &nodes, &mut notes)?
+        } else {
+            check_voxelize_budget(args, &model, &settings)?;
+            let bar = progress_bar(1000, "voxelizing");
+            let result = voxelize(&model, &settings, &|f| {
+                bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
+                true
+            });
+            bar.finish_and_clear();
+            let v = result.with_context(|| format!("{}: voxelizing", args.input.display()))?;
+            notes.push_str(&solid_fallback_note(&v.stats));
+            let mut doc = thicket_core::scene::Document::default();
+            doc.add(
+                files::object_name_for(&args.input),
+                thicket_core::scene::ObjectKind::Voxels(voxel_model(v, &model)),
+            );
+            doc
+        };
         if let Some((lo, hi)) = doc.bounds() {
             doc.camera.frame(lo, hi);
         }
@@ -1180,6 +1166,23 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
     };
     files::save_project(&doc, &args.output)?;
     finish_import(args, &doc, &notes)
+}
+
+/// A static voxel model of a voxelized mesh, with the mesh's material names.
+fn voxel_model(
+    v: thicket_core::voxelize::Voxelized,
+    mesh: &thicket_core::mesh::MeshModel,
+) -> thicket_core::scene::VoxelModel {
+    thicket_core::scene::VoxelModel {
+        svo: v.svo,
+        voxel_size: v.voxel_size,
+        origin: v.origin,
+        material_names: mesh.materials.iter().map(|m| m.name.clone()).collect(),
+        rig: None,
+        volume: None,
+        palette: Vec::new(),
+        frames: None,
+    }
 }
 
 /// Prints an import's notes and what it wrote.
@@ -1217,7 +1220,7 @@ fn import_nodes(
     notes: &mut String,
 ) -> anyhow::Result<thicket_core::scene::Document> {
     use thicket_core::io::gltf_nodes::{Placement, node_objects};
-    use thicket_core::scene::{Document, MeshObject, ObjectKind, VoxelModel};
+    use thicket_core::scene::{Document, MeshObject, ObjectKind};
     use thicket_core::voxelize::{Resolution, VoxelizeSettings, estimate, voxelize};
     let pick = (!args.nodes.is_empty()).then_some(args.nodes.as_slice());
     let objects = node_objects(model, nodes, pick)
@@ -1294,16 +1297,7 @@ fn import_nodes(
                 if !fallback.is_empty() {
                     notes.push_str(&format!("node {:?}: {fallback}", o.name));
                 }
-                ObjectKind::Voxels(VoxelModel {
-                    svo: v.svo,
-                    voxel_size: v.voxel_size,
-                    origin: v.origin,
-                    material_names: o.model.materials.iter().map(|m| m.name.clone()).collect(),
-                    rig: None,
-                    volume: None,
-                    palette: Vec::new(),
-                    frames: None,
-                })
+                ObjectKind::Voxels(voxel_model(v, &o.model))
             }
         };
         let placed = match o.placement {
