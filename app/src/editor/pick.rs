@@ -319,11 +319,7 @@ impl Editor {
         let ObjectKind::Voxels(v) = &o.kind else {
             return None;
         };
-        let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
-        let voxel_from_world = world_from_voxel.inverse();
-        if !voxel_from_world.is_finite() {
-            return None;
-        }
+        let (world_from_voxel, voxel_from_world, size) = super::sculpt::voxel_frame(o, v)?;
         let p = voxel_from_world.transform_point3(point);
         // Normals map by the inverse transpose of voxel_from_world.
         let n = world_from_voxel.transpose().transform_vector3(normal);
@@ -335,11 +331,6 @@ impl Editor {
         if !(inside.cmpge(Vec3::ZERO).all() && inside.cmplt(Vec3::splat(extent)).all()) {
             return None;
         }
-        let size = world_from_voxel
-            .transform_vector3(Vec3::ONE)
-            .abs()
-            .max_element()
-            .max(1e-9);
         Some(VoxelPick {
             object: id,
             voxel: inside.as_uvec3(),

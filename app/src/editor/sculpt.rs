@@ -40,6 +40,25 @@ impl VoxelPick {
     }
 }
 
+/// Voxel model `v` of object `o` in the world: `world_from_voxel`, its inverse (`None` when
+/// it has none) and the world size of a voxel (its largest side).
+pub(super) fn voxel_frame(
+    o: &thicket_core::scene::Object,
+    v: &thicket_core::scene::VoxelModel,
+) -> Option<(Mat4, Mat4, f32)> {
+    let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
+    let voxel_from_world = world_from_voxel.inverse();
+    if !voxel_from_world.is_finite() {
+        return None;
+    }
+    let size = world_from_voxel
+        .transform_vector3(Vec3::ONE)
+        .abs()
+        .max_element()
+        .max(1e-9);
+    Some((world_from_voxel, voxel_from_world, size))
+}
+
 impl Editor {
     /// Casts a world-space ray (unit direction) against every visible voxel object and returns
     /// the nearest solid voxel.
@@ -76,11 +95,9 @@ impl Editor {
             let ObjectKind::Voxels(v) = &o.kind else {
                 continue;
             };
-            let world_from_voxel = o.transform.matrix() * v.object_from_voxel();
-            let voxel_from_world = world_from_voxel.inverse();
-            if !voxel_from_world.is_finite() {
+            let Some((_, voxel_from_world, size)) = voxel_frame(o, v) else {
                 continue;
-            }
+            };
             // Same parameter t in both spaces: the direction is transformed, not normalised.
             let origin_v = voxel_from_world.transform_point3(origin_in_world);
             let dir_v = voxel_from_world.transform_vector3(dir);
@@ -90,11 +107,6 @@ impl Editor {
             };
             let t = hit.t as f32;
             if best.is_none_or(|b| t < b.t) {
-                let size = world_from_voxel
-                    .transform_vector3(Vec3::ONE)
-                    .abs()
-                    .max_element()
-                    .max(1e-9);
                 best = Some(VoxelPick {
                     object: o.id,
                     voxel: hit.coord,
