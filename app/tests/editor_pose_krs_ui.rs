@@ -905,6 +905,8 @@ fn a_saved_tree_reopens_in_the_builder_with_its_parameters() {
 #[test]
 fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when_still() {
     let mut h = harness(rigged_figure(5));
+    // Half resolution whatever the frames cost (the adaptive budget is tested below).
+    h.state_mut().view.motion_budget_ms = None;
     settle_preview(&mut h);
     let rect = h.state().view.last_rect;
     let full = [rect.width().round() as u32, rect.height().round() as u32];
@@ -940,6 +942,71 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
     settle_preview(&mut h);
     let (_, shown) = h.state().view.cpu_preview_stats().unwrap();
     assert_eq!(shown, full);
+}
+
+#[test]
+fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
+    use egui::accesskit::Role;
+    use thicket::ui::view::moving_scale;
+    // The view's full size now (the side panel's width follows its text, so measure each time).
+    let full = |h: &Harness<'static, EditorApp>| {
+        let rect = h.state().view.last_rect;
+        [rect.width().round() as u32, rect.height().round() as u32]
+    };
+    // Edits a KRS parameter from a still view and returns the view's full size and the size of
+    // the render the edit started.
+    let edit = |h: &mut Harness<'static, EditorApp>, amplitude: f64| {
+        // Still first: the last frame is a full one, which the scale is estimated from.
+        settle_preview(h);
+        let (_, shown) = h
+            .state()
+            .view
+            .cpu_preview_stats()
+            .expect("a preview was shown");
+        assert_eq!(shown, full(h), "a still view renders at full resolution");
+        h.get_by_role_and_label(Role::SpinButton, "Amplitude")
+            .set_value_accesskit(amplitude);
+        let mut started = None;
+        for _ in 0..3 {
+            h.step();
+            started = started.or(h.state().view.cpu_preview_in_flight().map(|s| (full(h), s)));
+        }
+        started.expect("the edit started a preview render")
+    };
+    let mut h = harness(coral_doc());
+    h.state_mut().view.renderer = thicket::ui::view::ViewRenderer::Cpu;
+    h.get_by_label("Noise warp").click_accesskit();
+    h.run_steps(2);
+
+    // A budget the last frame's time per pixel cannot meet at half: a quarter of the view.
+    h.state_mut().view.motion_budget_ms = Some(1e-6);
+    let (f, quarter) = edit(&mut h, 0.2);
+    assert!(
+        quarter[0].abs_diff(f[0] / 4) <= 1 && quarter[1].abs_diff(f[1] / 4) <= 1,
+        "{quarter:?} is not a quarter of {f:?}"
+    );
+    // A budget met at half: half, as without a budget.
+    h.state_mut().view.motion_budget_ms = Some(1e9);
+    let (f, half) = edit(&mut h, 0.25);
+    assert!(
+        half[0].abs_diff(f[0] / 2) <= 1 && half[1].abs_diff(f[1] / 2) <= 1,
+        "{half:?} is not half of {f:?}"
+    );
+    // The default budget: the scale the last (full, still) frame's cost gives.
+    let budget = thicket::ui::view::PREVIEW_MOTION_BUDGET_MS;
+    h.state_mut().view.motion_budget_ms = Some(budget);
+    settle_preview(&mut h);
+    let (ms, [w, hh]) = h.state().view.cpu_preview_stats().unwrap();
+    let (f, drawn) = edit(&mut h, 0.3);
+    let full_px = f64::from(f[0]) * f64::from(f[1]);
+    let expected = moving_scale(Some((ms, u64::from(w) * u64::from(hh))), full_px, budget);
+    assert!(
+        drawn[0].abs_diff((f[0] as f32 * expected).round() as u32) <= 1,
+        "{drawn:?} at scale {expected} of {f:?} (the last frame took {ms:.1} ms)"
+    );
+    // Still again: full resolution.
+    settle_preview(&mut h);
+    assert_eq!(h.state().view.cpu_preview_stats().unwrap().1, full(&h));
 }
 
 #[test]

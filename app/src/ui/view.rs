@@ -26,9 +26,43 @@ use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
 use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
 
 /// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
-/// changing (an orbit, a stroke, playback: a quarter of the pixels keeps it interactive on a
-/// laptop CPU); once still for [`PREVIEW_STILL`] it refines to the full resolution setting.
+/// changing (an orbit, a stroke, playback, a KRS parameter dragged: a quarter of the pixels
+/// keeps it interactive on a laptop CPU), unless that would miss the motion budget (see
+/// [`moving_scale`]); once still for [`PREVIEW_STILL`] it refines to the full resolution
+/// setting.
 const CPU_PREVIEW_SCALE: f32 = 0.5;
+
+/// The least linear fraction a moving CPU preview frame drops to when half resolution would miss
+/// its budget (a sixteenth of the pixels: a KRS forest still reads as one).
+const CPU_PREVIEW_MIN_SCALE: f32 = 0.25;
+
+/// The default time budget of one CPU preview frame while what it draws keeps changing: an edit
+/// shows within it (issue 26: a KRS parameter edit in the next preview frame within 100 ms).
+pub const PREVIEW_MOTION_BUDGET_MS: f64 = 100.0;
+
+/// The linear scale of a CPU preview frame drawn while the view keeps changing: half the view's
+/// resolution, or less when the last frame's time per pixel (`last`: its milliseconds and its
+/// pixels) says half would take longer than `budget_ms` at `full_px` pixels; never under
+/// [`CPU_PREVIEW_MIN_SCALE`]. Time is taken as proportional to pixels (the KRS trace, shading
+/// and splatting of a pixel-size cut all are); the scale is rounded down to sixteenths so that
+/// noise in the measured time does not change the frame size every frame.
+#[must_use]
+pub fn moving_scale(last: Option<(f64, u64)>, full_px: f64, budget_ms: f64) -> f32 {
+    let Some((ms, px)) = last.filter(|&(ms, px)| ms.is_finite() && ms > 0.0 && px > 0) else {
+        return CPU_PREVIEW_SCALE;
+    };
+    if !(full_px.is_finite() && full_px > 0.0) {
+        return CPU_PREVIEW_SCALE;
+    }
+    if !(budget_ms.is_finite() && budget_ms > 0.0) {
+        return CPU_PREVIEW_MIN_SCALE;
+    }
+    let per_px = ms / px as f64;
+    // Scale s draws s² of the pixels: s = √(budget / full-size time).
+    let fit = (budget_ms / (per_px * full_px)).sqrt();
+    let fit = ((fit * 16.0).floor() / 16.0) as f32;
+    fit.clamp(CPU_PREVIEW_MIN_SCALE, CPU_PREVIEW_SCALE)
+}
 
 /// How long what the CPU preview draws must stay the same before it refines to full
 /// resolution.
@@ -272,8 +306,9 @@ impl Default for PreviewRenderer {
             renderer: thicket_core::render::Renderer::default(),
             // The low-resolution frames of a motion use the full-resolution frames' maps (and
             // patch them after an edit) instead of drawing coarser ones in turn with them.
-            shadows: thicket_core::render::ShadowCache::new()
-                .with_max_finer(thicket_core::render::SHADOW_CACHE_MAX_FINER / CPU_PREVIEW_SCALE),
+            shadows: thicket_core::render::ShadowCache::new().with_max_finer(
+                thicket_core::render::SHADOW_CACHE_MAX_FINER / CPU_PREVIEW_MIN_SCALE,
+            ),
         }
     }
 }
@@ -445,6 +480,10 @@ pub struct View {
     pub show_bounds: bool,
     /// Fraction of the view's pixels the renderer draws (lower is faster on slow adapters).
     pub render_scale: f32,
+    /// The CPU preview's time budget per frame while what it draws keeps changing: it draws at
+    /// half resolution, or lower down to a quarter when its last frame says half would take
+    /// longer ([`moving_scale`]). `None`: always half.
+    pub motion_budget_ms: Option<f64>,
     /// Which renderer draws the view.
     pub renderer: ViewRenderer,
     /// Overlay the CPU preview with the hole (magenta) and bloat (yellow) pixels of rigged models
@@ -485,6 +524,7 @@ impl Default for View {
             show_grid: true,
             show_bounds: false,
             render_scale: 1.0,
+            motion_budget_ms: Some(PREVIEW_MOTION_BUDGET_MS),
             renderer: ViewRenderer::Auto,
             show_holes: false,
             stretch_painting: false,
@@ -652,6 +692,22 @@ impl View {
                     );
             }
         });
+        let mut adaptive = self.motion_budget_ms.is_some();
+        if ui
+            .checkbox(
+                &mut adaptive,
+                format!("CPU preview: keep moving frames under {PREVIEW_MOTION_BUDGET_MS:.0} ms"),
+            )
+            .on_hover_text(
+                "While the view keeps changing (an orbit, a stroke, a slider dragged) the CPU \
+                 preview draws half the view's resolution; with this on it goes down to a \
+                 quarter when its last frame says half would take longer than the budget. \
+                 Still views always refine to the full resolution.",
+            )
+            .changed()
+        {
+            self.motion_budget_ms = adaptive.then_some(PREVIEW_MOTION_BUDGET_MS);
+        }
     }
 
     /// Draws the view, handles navigation, sculpting and the pose gizmo.
@@ -1015,8 +1071,18 @@ impl View {
         if moving {
             ui.ctx().request_repaint_after(PREVIEW_STILL);
         }
-        let scale = if moving { CPU_PREVIEW_SCALE } else { 1.0 };
-        let size = rect.size() * ppp * self.render_scale * scale;
+        let full = rect.size() * ppp * self.render_scale;
+        let scale = match (moving, self.motion_budget_ms) {
+            (false, _) => 1.0,
+            (true, None) => CPU_PREVIEW_SCALE,
+            (true, Some(budget)) => {
+                let last = self
+                    .cpu_preview_stats()
+                    .map(|(ms, [w, h])| (ms, u64::from(w) * u64::from(h)));
+                moving_scale(last, f64::from(full.x) * f64::from(full.y), budget)
+            }
+        };
+        let size = full * scale;
         let size_px = [
             (size.x.round() as u32).clamp(1, 4096),
             (size.y.round() as u32).clamp(1, 4096),
@@ -2073,6 +2139,58 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_moving_preview_drops_below_half_only_when_half_would_miss_the_budget() {
+        let full = 600.0 * 708.0;
+        // The tree at 600×708 in a debug build: ~2 µs per pixel, 850 ms whole, 212 ms at half.
+        let slow = Some((850.0, 600 * 708));
+        let s = moving_scale(slow, full, 100.0);
+        assert!((CPU_PREVIEW_MIN_SCALE..0.5).contains(&s), "{s}");
+        // The scale found meets the budget by the same estimate, and a sixteenth more would not.
+        let at = |s: f64| 850.0 * s * s;
+        assert!(
+            at(f64::from(s)) <= 100.0 && at(f64::from(s) + 1.0 / 16.0) > 100.0,
+            "{s}"
+        );
+        // A cheap frame keeps half (not more: the still frame refines anyway).
+        assert_eq!(moving_scale(Some((20.0, 600 * 708)), full, 100.0), 0.5);
+        // Measured on a quarter-size frame, the same per-pixel cost gives the same answer.
+        assert_eq!(
+            moving_scale(Some((850.0 / 16.0, 150 * 177)), full, 100.0),
+            s
+        );
+        // Far over budget: never under the floor.
+        assert_eq!(
+            moving_scale(Some((1e6, 1)), full, 100.0),
+            CPU_PREVIEW_MIN_SCALE
+        );
+    }
+
+    #[test]
+    fn a_moving_preview_without_a_usable_measurement_draws_half() {
+        let full = 640.0 * 480.0;
+        for last in [
+            None,
+            Some((0.0, 1000)),
+            Some((f64::NAN, 1000)),
+            Some((f64::INFINITY, 1000)),
+            Some((-5.0, 1000)),
+            Some((50.0, 0)),
+        ] {
+            assert_eq!(moving_scale(last, full, 100.0), 0.5, "{last:?}");
+        }
+        for full in [0.0, -1.0, f64::NAN] {
+            assert_eq!(moving_scale(Some((50.0, 1000)), full, 100.0), 0.5, "{full}");
+        }
+        // A budget of nothing (or not a number) asks for the least.
+        for budget in [0.0, -1.0, f64::NAN] {
+            assert_eq!(
+                moving_scale(Some((50.0, 1000)), full, budget),
+                CPU_PREVIEW_MIN_SCALE
+            );
+        }
+    }
 
     #[test]
     fn a_segment_reaching_behind_the_eye_keeps_its_part_in_front() {
