@@ -481,6 +481,16 @@ fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState
                 1..=1024,
                 "Detail enhancement: probes per fragment",
             );
+            u(
+                ui,
+                "Supersampling",
+                &mut q.supersample,
+                1..=thicket_core::render::quality::MAX_SUPERSAMPLE,
+                "CPU renderer (preview, renders, exports of images): draw k × k samples per \
+                 pixel and average them, so grass, leaves and far edges thinner than a pixel \
+                 show as the part of it they cover; k² the work. 1 = off. The GPU view draws \
+                 one sample per pixel.",
+            );
             let mut b = |ui: &mut egui::Ui, label: &str, v: &mut bool, tip: &str| {
                 ui.label(label).on_hover_text(tip);
                 changed |= ui.checkbox(v, "").on_hover_text(tip).changed();

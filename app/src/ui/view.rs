@@ -41,8 +41,9 @@ const CPU_PREVIEW_MIN_SCALE: f32 = 0.25;
 pub const PREVIEW_MOTION_BUDGET_MS: f64 = 100.0;
 
 /// The linear scale of a CPU preview frame drawn while the view keeps changing: half the view's
-/// resolution, or less when the last frame's time per pixel (`last`: its milliseconds and its
-/// pixels) says half would take longer than `budget_ms` at `full_px` pixels; never under
+/// resolution, or less when the last frame's time per sample (`last`: its milliseconds and the
+/// samples it drew, pixels times supersampling) says half, at one sample per pixel, would take
+/// longer than `budget_ms` at `full_px` pixels; never under
 /// [`CPU_PREVIEW_MIN_SCALE`]. Time is taken as proportional to pixels (the KRS trace, shading
 /// and splatting of a pixel-size cut all are); the scale is rounded down to sixteenths so that
 /// noise in the measured time does not change the frame size every frame.
@@ -187,6 +188,9 @@ struct PreviewKey {
     animation: u64,
     camera: OrbitCamera,
     size_px: [u32; 2],
+    /// Samples per pixel side ([`thicket_core::render::Quality::supersample`]): the
+    /// document's for a still frame, 1 while the view keeps changing.
+    supersample: u32,
     holes: bool,
     stretch: bool,
 }
@@ -1076,9 +1080,17 @@ impl View {
             (false, _) => 1.0,
             (true, None) => CPU_PREVIEW_SCALE,
             (true, Some(budget)) => {
+                // Time per sample of the last frame: a still frame may have drawn several
+                // samples per pixel; a moving one draws one.
                 let last = self
-                    .cpu_preview_stats()
-                    .map(|(ms, [w, h])| (ms, u64::from(w) * u64::from(h)));
+                    .cpu
+                    .shown
+                    .as_ref()
+                    .filter(|_| self.cpu.renders > 0)
+                    .map(|k| {
+                        let samples = u64::from(k.supersample).pow(2);
+                        (self.cpu.last_ms, pixels(k.size_px) * samples)
+                    });
                 moving_scale(last, f64::from(full.x) * f64::from(full.y), budget)
             }
         };
@@ -1092,6 +1104,15 @@ impl View {
             animation: editor.animation_key(),
             camera: editor.doc().camera,
             size_px,
+            supersample: if moving {
+                1
+            } else {
+                thicket_core::render::supersample_factor(
+                    size_px[0],
+                    size_px[1],
+                    editor.doc().quality.supersample,
+                )
+            },
             holes: self.show_holes,
             stretch: self.show_stretch,
         };
@@ -1173,7 +1194,10 @@ impl View {
                 width: size_px[0],
                 height: size_px[1],
                 camera: Some(key.camera),
-                quality: doc.quality.clone(),
+                quality: thicket_core::render::Quality {
+                    supersample: key.supersample,
+                    ..doc.quality.clone()
+                },
             };
             let holes = key.holes;
             let stretch = key.stretch;

@@ -359,6 +359,46 @@ pub struct RgbaImage {
 }
 
 impl RgbaImage {
+    /// Box-filters `k`×`k` blocks of samples into one pixel each, in place: colour averaged in
+    /// linear light (sRGB decoded, averaged, encoded), alpha averaged. The allocation is kept.
+    /// The width and height must be multiples of `k`.
+    pub(crate) fn downsample(&mut self, k: u32) {
+        if k <= 1 {
+            return;
+        }
+        static LINEAR: std::sync::LazyLock<[f32; 256]> = std::sync::LazyLock::new(|| {
+            std::array::from_fn(|i| crate::mesh::srgb_to_linear(i as f32 / 255.0))
+        });
+        let lin = &*LINEAR;
+        let (w, h) = (self.width / k, self.height / k);
+        let big_w = self.width as usize;
+        let inv = 1.0 / (k * k) as f32;
+        let k = k as usize;
+        // As in `FrameBuffers::decimate`: output pixel o reads only input pixels ≥ o.
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                let mut sum = [0.0f32; 4];
+                for j in 0..k {
+                    let row = ((y * k + j) * big_w + x * k) * 4;
+                    for px in self.pixels[row..row + 4 * k].chunks_exact(4) {
+                        sum[0] += lin[px[0] as usize];
+                        sum[1] += lin[px[1] as usize];
+                        sum[2] += lin[px[2] as usize];
+                        sum[3] += f32::from(px[3]);
+                    }
+                }
+                let o = (y * w as usize + x) * 4;
+                for (c, v) in sum.iter().take(3).enumerate() {
+                    self.pixels[o + c] = super::shade::linear_to_srgb8(v * inv);
+                }
+                self.pixels[o + 3] = (sum[3] * inv).round() as u8;
+            }
+        }
+        self.pixels.truncate(w as usize * h as usize * 4);
+        self.width = w;
+        self.height = h;
+    }
+
     /// A blank (transparent black) image.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
@@ -453,6 +493,38 @@ pub struct FrameBuffers {
 }
 
 impl FrameBuffers {
+    /// Keeps one sample of each `k`×`k` block (the one at `(k/2, k/2)` in the block, nearest the
+    /// pixel's centre) in place: the G-buffer of a supersampled frame at its image's size, for
+    /// ids (picking, outlines) and coverage. The buffers keep their capacity. The width and
+    /// height must be multiples of `k`.
+    pub(crate) fn decimate(&mut self, k: u32) {
+        if k <= 1 {
+            return;
+        }
+        let (w, h) = (self.width / k, self.height / k);
+        let (big_w, c) = (self.width as usize, (k / 2) as usize);
+        let k = k as usize;
+        // In raster order, output pixel o reads input pixels at indices ≥ o (k ≥ 2), so
+        // nothing is overwritten before it is read.
+        for y in 0..h as usize {
+            for x in 0..w as usize {
+                let from = (y * k + c) * big_w + x * k + c;
+                let to = y * w as usize + x;
+                self.depth[to] = self.depth[from];
+                self.ids[to] = self.ids[from];
+                self.normal[to] = self.normal[from];
+                self.albedo[to] = self.albedo[from];
+            }
+        }
+        let n = w as usize * h as usize;
+        self.depth.truncate(n);
+        self.ids.truncate(n);
+        self.normal.truncate(n);
+        self.albedo.truncate(n);
+        self.width = w;
+        self.height = h;
+    }
+
     /// True where something was drawn.
     #[must_use]
     pub fn coverage(&self) -> Vec<bool> {

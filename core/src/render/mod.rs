@@ -31,6 +31,8 @@ mod patch_tests;
 #[cfg(test)]
 mod renderer_tests;
 #[cfg(test)]
+mod supersample_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;
@@ -192,12 +194,15 @@ const SHADOW_TEXEL_MARGIN: f32 = 1.25;
 /// refuses those anyway).
 #[must_use]
 pub fn estimate_peak_bytes(doc: &Document, req: &RenderRequest) -> u64 {
-    let pixels = u64::from(req.width) * u64::from(req.height);
     let quality = &req.quality;
+    // A supersampled frame draws its samples as an image k times the size.
+    let k = supersample_factor(req.width, req.height, quality.supersample);
+    let (width, height) = (req.width.saturating_mul(k), req.height.saturating_mul(k));
+    let pixels = u64::from(width) * u64::from(height);
     let orbit = req.camera.unwrap_or(doc.camera);
     let mut texels = 0u64;
-    if quality.shadows && orbit.validate().is_ok() && req.width > 0 && req.height > 0 {
-        let cam = Camera::from_orbit(&orbit, req.width, req.height);
+    if quality.shadows && orbit.validate().is_ok() && width > 0 && height > 0 {
+        let cam = Camera::from_orbit(&orbit, width, height);
         let bounds = doc
             .objects
             .iter()
@@ -224,6 +229,15 @@ pub fn estimate_peak_bytes(doc: &Document, req: &RenderRequest) -> u64 {
     FRAME_BYTES_FIXED
         .saturating_add(pixels.saturating_mul(FRAME_BYTES_PER_PIXEL))
         .saturating_add(texels.saturating_mul(SHADOW_BYTES_PER_TEXEL))
+}
+
+/// The samples per pixel side a frame of `width`×`height` draws for
+/// [`Quality::supersample`] `k`: `k`, or less where `k` times the image would exceed
+/// [`MAX_IMAGE_SIZE`] (at least 1).
+#[must_use]
+pub fn supersample_factor(width: u32, height: u32, k: u32) -> u32 {
+    let fits = MAX_IMAGE_SIZE / width.max(height).max(1);
+    k.min(fits).max(1)
 }
 
 fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
@@ -386,7 +400,7 @@ impl Renderer {
         quality: &Quality,
     ) -> Result<Frame<'_>, RenderError> {
         self.frame
-            .render(scene, krs_layer, cam, quality, None, true)?;
+            .render_supersampled(scene, krs_layer, cam, quality, None, true)?;
         Ok(self.frame())
     }
 
@@ -508,7 +522,7 @@ impl Renderer {
                 casts_shadows: true,
             };
             self.frame
-                .render(&scene, &krs, &cam, &req.quality, cache, sampled_only)
+                .render_supersampled(&scene, &krs, &cam, &req.quality, cache, sampled_only)
         });
         // Hand the lists' allocations back for the next frame.
         *voxels = recycle(scene.voxels);
@@ -782,7 +796,8 @@ pub fn render_scene_with_krs(
     quality: &Quality,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     let mut r = Renderer::new();
-    r.frame.render(scene, krs_layer, cam, quality, None, true)?;
+    r.frame
+        .render_supersampled(scene, krs_layer, cam, quality, None, true)?;
     Ok(r.take_frame())
 }
 
@@ -790,6 +805,38 @@ impl FrameState {
     /// [`render_scene_with_krs`] into these buffers, with shadow maps from and into `cache`
     /// when there is one. Without a cache, `sampled_only` draws casters into a map only where
     /// the frame's shading reads it (the image is the same either way; tests compare the two).
+    /// [`Self::render`] with [`Quality::supersample`]: the frame is drawn at `k` times the
+    /// camera's size (the same view), then its image is box-filtered and its G-buffer decimated
+    /// to the camera's size, in place. The counters count samples.
+    fn render_supersampled(
+        &mut self,
+        scene: &RenderScene<'_>,
+        krs_layer: &KrsLayer,
+        cam: &Camera,
+        quality: &Quality,
+        cache: Option<(&mut ShadowCache, u64)>,
+        sampled_only: bool,
+    ) -> Result<(), RenderError> {
+        let k = supersample_factor(cam.width, cam.height, quality.supersample);
+        if k == 1 {
+            return self.render(scene, krs_layer, cam, quality, cache, sampled_only);
+        }
+        let samples = Camera::new(
+            cam.view_from_world,
+            cam.projection,
+            cam.width * k,
+            cam.height * k,
+        );
+        self.render(scene, krs_layer, &samples, quality, cache, sampled_only)?;
+        let t0 = Instant::now();
+        self.image.downsample(k);
+        self.fb.decimate(k);
+        let ms = ms_since(t0);
+        self.stats.times.shade_ms += ms;
+        self.stats.times.total_ms += ms;
+        Ok(())
+    }
+
     fn render(
         &mut self,
         scene: &RenderScene<'_>,

@@ -4,6 +4,9 @@
 use crate::skin::StretchStrategy;
 use serde::{Deserialize, Serialize};
 
+/// The most samples per pixel side [`Quality::supersample`] allows (16 samples per pixel).
+pub const MAX_SUPERSAMPLE: u32 = 4;
+
 /// A named preset row: draft / balanced / final.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 pub enum QualityPreset {
@@ -81,6 +84,13 @@ pub struct Quality {
     pub stretch_strategy: Option<StretchStrategy>,
     /// Enhancement: probe count for direct resampling.
     pub enhancement_samples: u32,
+    /// Antialiasing: the CPU renderer draws `supersample`² samples per pixel (a grid of
+    /// `supersample` × `supersample`) and averages them in linear light, for `supersample`² the
+    /// work. Sub-pixel detail (KRS grass, leaves, far voxels' edges) then shows as the part of
+    /// the pixel it covers instead of all or nothing. Every knob counted in pixels (LOD, exact
+    /// cubes, KRS epsilon) is counted in samples. 1 = one sample per pixel. The GPU renderer
+    /// draws one sample per pixel whatever this is.
+    pub supersample: u32,
 }
 
 impl Default for Quality {
@@ -91,7 +101,7 @@ impl Default for Quality {
 
 impl Quality {
     /// Knob names accepted by [`Quality::set`].
-    pub const KNOBS: [&'static str; 15] = [
+    pub const KNOBS: [&'static str; 16] = [
         "lod_pixel_threshold",
         "cube_pixel_threshold",
         "occlusion_culling",
@@ -107,6 +117,7 @@ impl Quality {
         "stretch_multiplier",
         "stretch_strategy",
         "enhancement_samples",
+        "supersample",
     ];
 
     /// A preset row.
@@ -128,6 +139,7 @@ impl Quality {
             stretch_multiplier: 1.0,
             stretch_strategy: None,
             enhancement_samples: 16,
+            supersample: 1,
         };
         match p {
             QualityPreset::Balanced => balanced,
@@ -150,6 +162,7 @@ impl Quality {
                 krs_max_steps: 400,
                 krs_soft_shadows: true,
                 enhancement_samples: 32,
+                supersample: 3,
                 ..balanced
             },
         }
@@ -250,6 +263,13 @@ impl Quality {
             1024.0,
             "1..=1024",
         )?;
+        check(
+            "supersample",
+            f64::from(self.supersample),
+            1.0,
+            f64::from(MAX_SUPERSAMPLE),
+            "1..=4",
+        )?;
         Ok(())
     }
 
@@ -295,6 +315,7 @@ impl Quality {
                 }
             }
             "enhancement_samples" => q.enhancement_samples = u()?,
+            "supersample" => q.supersample = u()?,
             _ => return Err(QualityError::Unknown(name.to_owned())),
         }
         q.validate()?;
