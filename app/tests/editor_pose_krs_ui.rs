@@ -1010,6 +1010,62 @@ fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
 }
 
 #[test]
+fn a_supersampled_preview_refines_at_one_sample_first_then_at_all_of_them() {
+    use egui::accesskit::Role;
+    let mut doc = coral_doc();
+    doc.quality.supersample = 2;
+    let mut h = harness(doc);
+    h.state_mut().view.renderer = thicket::ui::view::ViewRenderer::Cpu;
+    settle_preview(&mut h);
+    let full = |h: &Harness<'static, EditorApp>| {
+        let rect = h.state().view.last_rect;
+        [rect.width().round() as u32, rect.height().round() as u32]
+    };
+    let shown = |h: &Harness<'static, EditorApp>| {
+        let (_, size) = h
+            .state()
+            .view
+            .cpu_preview_stats()
+            .expect("a preview was shown");
+        (size, h.state().view.cpu_preview_supersample().unwrap())
+    };
+    assert_eq!(
+        shown(&h),
+        (full(&h), 2),
+        "a still view ends at all its samples"
+    );
+    // An edit: moving frames at one sample, then the full size at one, then at two per side.
+    h.get_by_label("Noise warp").click_accesskit();
+    h.run_steps(2);
+    h.get_by_role_and_label(Role::SpinButton, "Amplitude")
+        .set_value_accesskit(0.2);
+    h.step();
+    let mut seen = Vec::new();
+    for _ in 0..8 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.step();
+        let s = shown(&h);
+        if seen.last() != Some(&s) {
+            seen.push(s);
+        }
+        if s == (full(&h), 2) {
+            break;
+        }
+    }
+    let f = full(&h);
+    let one = seen.iter().position(|s| *s == (f, 1));
+    let two = seen.iter().position(|s| *s == (f, 2));
+    assert!(
+        matches!((one, two), (Some(a), Some(b)) if a < b),
+        "shown after the edit: {seen:?} (full {f:?})"
+    );
+    assert!(
+        seen.iter().all(|(size, k)| *k == 1 || *size == f),
+        "smaller frames draw one sample: {seen:?}"
+    );
+}
+
+#[test]
 fn applying_a_krs_preset_frames_the_result() {
     // The coral framed, then the forest preset applied over it: a much larger object, which
     // the view must show whole (the coral used to sit behind the gizmo, out of frame).

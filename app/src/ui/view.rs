@@ -372,6 +372,11 @@ fn pixels(size: [u32; 2]) -> u64 {
     u64::from(size[0]) * u64::from(size[1])
 }
 
+/// Samples a preview render draws: its pixels times its samples per pixel.
+fn samples_drawn(key: &PreviewKey) -> u64 {
+    pixels(key.size_px) * u64::from(key.supersample).pow(2)
+}
+
 /// Minimum and maximum corners.
 type Aabb = (Vec3, Vec3);
 
@@ -1000,6 +1005,13 @@ impl View {
         (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
     }
 
+    /// Samples per pixel side of the shown CPU preview image (1 while moving, then the
+    /// document's supersampling once refined).
+    #[must_use]
+    pub fn cpu_preview_supersample(&self) -> Option<u32> {
+        self.cpu.shown.as_ref().map(|k| k.supersample)
+    }
+
     /// What the last CPU preview render's shadow pass did with the kept maps.
     #[must_use]
     pub fn cpu_preview_shadows(&self) -> Option<ShadowWork> {
@@ -1087,10 +1099,7 @@ impl View {
                     .shown
                     .as_ref()
                     .filter(|_| self.cpu.renders > 0)
-                    .map(|k| {
-                        let samples = u64::from(k.supersample).pow(2);
-                        (self.cpu.last_ms, pixels(k.size_px) * samples)
-                    });
+                    .map(|k| (self.cpu.last_ms, samples_drawn(k)));
                 moving_scale(last, f64::from(full.x) * f64::from(full.y), budget)
             }
         };
@@ -1099,23 +1108,34 @@ impl View {
             (size.x.round() as u32).clamp(1, 4096),
             (size.y.round() as u32).clamp(1, 4096),
         ];
-        let key = PreviewKey {
+        let mut key = PreviewKey {
             content: editor.content_key(),
             animation: editor.animation_key(),
             camera: editor.doc().camera,
             size_px,
-            supersample: if moving {
-                1
-            } else {
-                thicket_core::render::supersample_factor(
-                    size_px[0],
-                    size_px[1],
-                    editor.doc().quality.supersample,
-                )
-            },
+            supersample: 1,
             holes: self.show_holes,
             stretch: self.show_stretch,
         };
+        // A still view with supersampling refines in two steps: the full resolution at one
+        // sample per pixel first (quick and sharp), then all the samples (Render → Final draws
+        // 9 per pixel), so the full-size image never waits for them.
+        let samples = thicket_core::render::supersample_factor(
+            size_px[0],
+            size_px[1],
+            editor.doc().quality.supersample,
+        );
+        if !moving
+            && samples > 1
+            && self.cpu.shown.as_ref().is_some_and(|s| {
+                PreviewKey {
+                    supersample: 1,
+                    ..s.clone()
+                } == key
+            })
+        {
+            key.supersample = samples;
+        }
         if let Some((k, rx)) = &self.cpu.job {
             match rx.try_recv() {
                 Ok(result) => {
@@ -1524,14 +1544,19 @@ impl View {
                 ),
                 (None, Some(k)) => (
                     format!(
-                        "{view_name}   CPU preview {} x {} px{} ({}){}\n{hint}",
+                        "{view_name}   CPU preview {} x {} px{}{} ({}){}\n{hint}",
                         k.size_px[0],
                         k.size_px[1],
+                        if k.supersample > 1 {
+                            format!(", {0}×{0} samples", k.supersample)
+                        } else {
+                            String::new()
+                        },
                         if self
                             .cpu
                             .job
                             .as_ref()
-                            .is_some_and(|(j, _)| pixels(j.size_px) > pixels(k.size_px))
+                            .is_some_and(|(j, _)| samples_drawn(j) > samples_drawn(k))
                         {
                             ", refining"
                         } else {
