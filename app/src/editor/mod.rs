@@ -17,7 +17,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
 pub use enhance::{EnhanceUpdate, PreparedDocument};

@@ -3,7 +3,7 @@
 //! quality knobs have a draft / balanced / final preset row.
 
 use glam::{EulerRot, Quat, Vec3};
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Light, Object, ObjectKind, Transform};
 use thicket_core::skin::StretchStrategy;
 

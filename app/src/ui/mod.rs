@@ -26,7 +26,7 @@ use std::time::{Duration, Instant};
 
 use egui::{Key, KeyboardShortcut, Modifiers};
 use thicket_core::io::GltfView;
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::Document;
 
 use crate::editor::autosave::{self, Recovery};
@@ -2091,7 +2091,7 @@ fn import_document(
         resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
         ..Default::default()
     };
-    let v = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
+    let v = thicket_core::io::voxelize_skinned(&skinned, &settings, &|f| {
         progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
         !cancel.load(Ordering::Relaxed)
     })
@@ -2242,12 +2242,9 @@ mod tests {
             factor: 4,
             ..Default::default()
         };
-        let (fine, _) = thicket_core::enhance::enhance_model(
-            &model,
-            &settings,
-            thicket_core::enhance::Control::default(),
-        )
-        .unwrap();
+        let (fine, _) = model
+            .enhanced(&settings, thicket_core::enhance::Control::default())
+            .unwrap();
         let mut ed = Editor::default();
         let id = ed.add_object("Slab", ObjectKind::Voxels(model));
         ed.add_enhancement(id, settings, fine, None).unwrap();

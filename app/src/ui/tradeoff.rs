@@ -11,7 +11,7 @@ use egui_plot::{
     Text,
 };
 use thicket_core::measure::{KnobValues, SweepPoint, SweepReport, SweepSettings, default_knobs};
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::Document;
 
 use crate::editor::Editor;

@@ -10,9 +10,9 @@ use serde::{Deserialize, Serialize};
 use super::compare::{Frame, FrameError, compare_frames};
 use super::image::MeasureError;
 use super::pareto::{Dominance, pareto_front};
+use crate::quality::{Quality, QualityError, QualityPreset};
 use crate::render::{
-    Camera, FrameBuffers, FrameStats, Quality, QualityError, QualityPreset, RenderError,
-    RenderRequest, Renderer, RgbaImage,
+    Camera, FrameBuffers, FrameStats, RenderError, RenderRequest, Renderer, RgbaImage,
 };
 use crate::scene::Document;
 
