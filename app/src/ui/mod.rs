@@ -7,6 +7,7 @@ mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
 pub mod krs_panel;
+mod menus;
 mod new_model;
 mod outliner;
 mod palette;
@@ -20,19 +21,17 @@ mod voxel_menus;
 pub mod voxel_tools;
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 
 use egui::{Key, KeyboardShortcut, Modifiers};
-use thicket_core::io::GltfView;
-use thicket_core::quality::{Quality, QualityPreset};
+use thicket_core::quality::QualityPreset;
 use thicket_core::scene::Document;
 
-use crate::editor::autosave::{self, Recovery};
+use crate::editor::autosave::{self, AutosaveTimer, Recovery};
+use crate::editor::jobs::{EnhanceNotApplied, Enhanced, Job, JobResult, Poll, Worker};
 use crate::editor::{Editor, Selection};
 use crate::files::{self, FileKind, thousands};
-use path_prompt::{PathPrompt, PathPurpose, PromptOutcome, readable_list};
+use path_prompt::{PathPrompt, PathPurpose, PromptOutcome};
 
 /// Keyboard shortcuts, listed in Help → Keyboard shortcuts.
 pub const SHORTCUTS: &[(&str, &str)] = &[
@@ -103,100 +102,12 @@ enum Pending {
     Quit,
 }
 
-/// What an import left out of its file ([`EditorApp::import_report`]).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ImportReport {
-    /// The imported file.
-    pub path: PathBuf,
-    /// One line per kind of feature left out.
-    pub lines: Vec<String>,
-    /// The objects the import added (an import again with a texture replaces them).
-    pub placed: Vec<u64>,
-    /// The Texture field's text.
-    pub texture: String,
-    /// A glTF scene's nodes with meshes, in scene order, each with whether it is (to be)
-    /// imported: the checklist that imports the file again with other nodes. Empty for other
-    /// files and for skinned glTF (one skinned object).
-    pub nodes: Vec<(String, bool)>,
-}
-
-/// What a background job hands back.
-enum JobResult {
-    /// A project read on the worker thread, with its linked models' enhancers built there.
-    Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
-    /// An imported file's document and what the import left out of it (one line per kind).
-    /// The file's view comes along: its lights are added, its camera is not applied.
-    /// For a static glTF scene, the names of its nodes with meshes come too (the report's
-    /// checklist).
-    Imported(
-        PathBuf,
-        anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)>,
-    ),
-    /// An enhancement of a voxel object: source id, source name, the settings, the coarse
-    /// model it was made from, and the fine model with the enhancer that made it.
-    Enhanced(Box<Enhanced>),
-    Exported(anyhow::Result<String>),
-    /// A Trade-off sweep of the editor at a revision.
-    Swept(u64, anyhow::Result<thicket_core::measure::SweepReport>),
-}
-
-/// What an enhancement job hands back.
-struct Enhanced {
-    source: u64,
-    name: String,
-    settings: thicket_core::enhance::EnhanceSettings,
-    coarse: thicket_core::svo::Svo,
-    result: anyhow::Result<(
-        thicket_core::scene::VoxelModel,
-        thicket_core::enhance::Enhancer,
-    )>,
-}
-
-/// A background job: a worker thread, its progress and its cancel flag.
-struct Job {
-    label: String,
-    rx: mpsc::Receiver<JobResult>,
-    /// Fraction done as `f32` bits; NaN while the job cannot tell.
-    progress: Arc<AtomicU32>,
-    cancel: Arc<AtomicBool>,
-    /// A Trade-off sweep (its panel shows the progress and a Cancel button too).
-    sweep: bool,
-}
-
-impl Job {
-    /// Runs `work` on a worker thread; it gets the progress and cancel handles.
-    fn spawn(
-        label: String,
-        work: impl FnOnce(&AtomicU32, &AtomicBool) -> JobResult + Send + 'static,
-    ) -> Self {
-        let (tx, rx) = mpsc::channel();
-        let progress = Arc::new(AtomicU32::new(f32::NAN.to_bits()));
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (p, c) = (Arc::clone(&progress), Arc::clone(&cancel));
-        std::thread::spawn(move || {
-            let result = work(&p, &c);
-            // The receiver is gone when the job was cancelled: nothing to hand back.
-            let _ = tx.send(result);
-        });
-        Self {
-            label,
-            rx,
-            progress,
-            cancel,
-            sweep: false,
-        }
-    }
-
-    fn fraction(&self) -> Option<f32> {
-        let f = f32::from_bits(self.progress.load(Ordering::Relaxed));
-        f.is_finite().then_some(f.clamp(0.0, 1.0))
-    }
-}
+pub use crate::editor::jobs::{IMPORT_KEEPS_VIEW, ImportReport};
 
 /// A native dialog running on its own thread.
 struct NativeDialog {
     purpose: PathPurpose,
-    rx: mpsc::Receiver<Option<PathBuf>>,
+    result: Worker<Option<PathBuf>>,
 }
 
 /// The editor window's state: the [`Editor`] plus everything only the UI needs.
@@ -225,9 +136,7 @@ pub struct EditorApp {
     pub autosave_secs: u32,
     /// Where recovery files go.
     pub recovery_dir: PathBuf,
-    autosave_due: Option<Instant>,
-    autosaved_key: Option<(u64, u64)>,
-    autosave_job: Option<mpsc::Receiver<anyhow::Result<()>>>,
+    autosave: AutosaveTimer,
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
@@ -283,9 +192,7 @@ impl EditorApp {
             native_dialogs: true,
             autosave_secs: autosave::DEFAULT_AUTOSAVE_SECS,
             recovery_dir: autosave::recovery_dir(),
-            autosave_due: None,
-            autosaved_key: None,
-            autosave_job: None,
+            autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
             show_about: false,
@@ -404,14 +311,7 @@ impl EditorApp {
     }
 
     fn start_open(&mut self, path: PathBuf) {
-        let label = format!("Opening {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, cancel| {
-            // Linked models' enhancers are built here too, so the first dab after Open updates
-            // incrementally instead of stalling the UI thread on a full enhancement.
-            let result = files::load_document(&path)
-                .map(|doc| crate::editor::PreparedDocument::new(doc, Some(cancel)));
-            JobResult::Opened(path, result)
-        }));
+        self.job = Some(Job::open(path));
     }
 
     /// File → Import: adds the objects of any supported file to the document. A glTF file
@@ -423,11 +323,7 @@ impl EditorApp {
 
     /// [`Self::start_import`] with mesh options (an OBJ's texture).
     pub fn start_import_with(&mut self, path: PathBuf, options: files::MeshOptions) {
-        let label = format!("Importing {}", path.display());
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let result = import_document(&path, &options, progress, cancel);
-            JobResult::Imported(path, result)
-        }));
+        self.job = Some(Job::import(path, options));
     }
 
     /// Edit → Enhance detail: enhances the selected voxel model (paper 001) by `factor` with
@@ -486,57 +382,13 @@ impl EditorApp {
             return;
         }
         let (name, model) = (o.name.clone(), v.clone());
-        let label = format!("Enhancing {name} x{}", settings.factor);
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
-            let control = thicket_core::enhance::Control {
-                progress: Some(&report),
-                cancel: Some(cancel),
-            };
-            let result =
-                thicket_core::enhance::Enhancer::with_control(&model.svo, &settings, control)
-                    .map(|e| {
-                        let fine = thicket_core::scene::VoxelModel {
-                            svo: e.fine().clone(),
-                            voxel_size: model.voxel_size / settings.factor as f32,
-                            origin: model.origin,
-                            material_names: model.material_names.clone(),
-                            // The fine octree carries no joint weights: the result is static.
-                            rig: None,
-                            volume: None,
-                            palette: Vec::new(),
-                            frames: None,
-                        };
-                        (fine, e)
-                    })
-                    .map_err(anyhow::Error::from);
-            JobResult::Enhanced(Box::new(Enhanced {
-                source,
-                name,
-                settings,
-                coarse: model.svo,
-                result,
-            }))
-        }));
+        self.job = Some(Job::enhance(source, name, model, settings));
     }
 
     /// File → Export .vox: the visible voxel models, on a worker thread.
     pub fn start_export_vox(&mut self, path: PathBuf) {
         let objects = self.editor.doc().objects.clone();
-        let label = format!("Exporting {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, _| {
-            let result = thicket_core::io::vox::export_vox(&objects, &path)
-                .map(|r| {
-                    format!(
-                        "Exported {} voxels in {} model(s) to {}",
-                        thousands(r.voxels),
-                        r.models,
-                        path.display()
-                    )
-                })
-                .map_err(anyhow::Error::from);
-            JobResult::Exported(result)
-        }));
+        self.job = Some(Job::export_vox(objects, path));
     }
 
     /// File → Export glTF: the document with the export window's settings, on a worker thread
@@ -545,24 +397,7 @@ impl EditorApp {
         let doc = self.editor.doc().clone();
         let selected = self.editor.selected_object().map(|o| o.name.clone());
         let options = self.gltf_export.options_for(selected.as_deref());
-        let label = format!("Exporting {}", path.display());
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let report = |f: f32| {
-                progress.store(f.to_bits(), Ordering::Relaxed);
-                !cancel.load(Ordering::Relaxed)
-            };
-            let result = thicket_core::io::gltf_export::export_gltf(&doc, &path, &options, &report)
-                .map(|r| {
-                    format!(
-                        "Exported {} object(s), {} triangles, to {}",
-                        r.objects,
-                        thousands(r.triangles),
-                        path.display()
-                    )
-                })
-                .map_err(anyhow::Error::from);
-            JobResult::Exported(result)
-        }));
+        self.job = Some(Job::export_gltf(doc, path, options));
     }
 
     /// View → Trade-off → Run sweep: the panel's sweep of the current view on a worker thread,
@@ -588,30 +423,14 @@ impl EditorApp {
             self.error_dialog = Some(over.to_string());
             return;
         }
-        let mut spawned = Job::spawn(label, move |progress, cancel| {
-            let report = thicket_core::measure::sweep_document_with_cancel(
-                &job.doc,
-                job.width,
-                job.height,
-                &job.settings,
-                |done, total, _| {
-                    let f = done as f32 / total.max(1) as f32;
-                    progress.store(f.to_bits(), Ordering::Relaxed);
-                },
-                cancel,
-            )
-            .map_err(anyhow::Error::from);
-            JobResult::Swept(job.revision, report)
-        });
-        spawned.sweep = true;
-        self.job = Some(spawned);
+        self.job = Some(Job::sweep(label, job));
     }
 
     /// Cancels the running job: its result is dropped and the document stays as it is; jobs
     /// that check the flag (enhancement) stop early.
     pub fn cancel_job(&mut self, ctx: &egui::Context) {
         if let Some(job) = self.job.take() {
-            job.cancel.store(true, Ordering::Relaxed);
+            job.cancel();
             self.toast(ctx, format!("Cancelled: {}", job.label), false);
         }
     }
@@ -625,7 +444,7 @@ impl EditorApp {
     /// Waits for the running job (tests; the UI polls instead).
     pub fn wait_for_job(&mut self, ctx: &egui::Context) {
         if let Some(job) = self.job.take()
-            && let Ok(result) = job.rx.recv()
+            && let Some(result) = job.wait()
         {
             self.finish_job(ctx, result);
         }
@@ -633,15 +452,15 @@ impl EditorApp {
 
     fn poll_job(&mut self, ctx: &egui::Context) {
         let Some(job) = &self.job else { return };
-        match job.rx.try_recv() {
-            Ok(result) => {
+        match job.poll() {
+            Poll::Ready(result) => {
                 self.job = None;
                 self.finish_job(ctx, result);
             }
-            Err(mpsc::TryRecvError::Empty) => {
+            Poll::Running => {
                 ctx.request_repaint_after(Duration::from_millis(50));
             }
-            Err(mpsc::TryRecvError::Disconnected) => {
+            Poll::Lost => {
                 self.job = None;
                 self.toast(ctx, "The background job stopped unexpectedly", true);
             }
@@ -651,23 +470,10 @@ impl EditorApp {
     fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
-            JobResult::Imported(path, Ok((doc, mut left_out, view, node_names))) => {
-                // Each node's object is named after it: a node is checked when it was imported.
-                let nodes: Vec<(String, bool)> = node_names
-                    .into_iter()
-                    .map(|n| {
-                        let picked = doc.objects.iter().any(|o| o.name == n);
-                        (n, picked)
-                    })
-                    .collect();
-                let placed = self.editor.import_objects(doc);
-                // Directions only: the placement's move and uniform scale leave them as is.
-                let lights = view.lights_beside(&self.editor.doc().lights);
-                self.editor.import_lights(lights);
-                if view.camera.is_some() {
-                    left_out.push(IMPORT_KEEPS_VIEW.to_owned());
-                }
-                let placed_ids = placed.ids.clone();
+            JobResult::Imported(path, Ok(imported)) => {
+                let from = path.display().to_string();
+                let done = self.editor.finish_import(path, imported);
+                let placed = done.placement;
                 let n = placed.ids.len();
                 let scaled = if placed.scale == 1.0 {
                     String::new()
@@ -680,20 +486,12 @@ impl EditorApp {
                 self.toast(
                     ctx,
                     format!(
-                        "Imported {n} object(s) from {}, placed beside the scene and framed{scaled}",
-                        path.display()
+                        "Imported {n} object(s) from {from}, placed beside the scene and framed{scaled}"
                     ),
                     false,
                 );
                 self.import_offer = (placed.scale != 1.0).then_some(placed);
-                self.import_report =
-                    (!left_out.is_empty() || nodes.len() > 1).then(|| ImportReport {
-                        path,
-                        lines: left_out,
-                        placed: placed_ids,
-                        texture: String::new(),
-                        nodes,
-                    });
+                self.import_report = done.report;
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -719,57 +517,24 @@ impl EditorApp {
     }
 
     fn finish_enhance(&mut self, ctx: &egui::Context, job: Enhanced) {
-        let Enhanced {
-            source,
-            name,
-            settings,
-            coarse,
-            result,
-        } = job;
-        let (fine, enhancer) = match result {
-            Ok(r) => r,
-            Err(e) => {
-                self.error_dialog = Some(crate::cli::error_line(&e));
-                return;
-            }
-        };
-        // Strokes made while the job ran are not in its result.
-        let current = match self.editor.object(source).map(|o| &o.kind) {
-            Some(thicket_core::scene::ObjectKind::Voxels(v)) => &v.svo,
-            _ => {
-                self.toast(ctx, format!("{name} was removed while enhancing"), true);
-                return;
-            }
-        };
-        if *current != coarse {
-            self.toast(
-                ctx,
-                format!("{name} changed while enhancing: enhance it again"),
-                true,
-            );
-            return;
-        }
-        let voxels = fine.svo.leaf_count();
-        let result = if self
-            .editor
-            .doc()
-            .enhancement_of(source)
-            .is_some_and(|l| self.editor.object(l.target).is_some())
-        {
-            self.editor
-                .replace_enhancement(source, settings, fine, Some(enhancer))
-        } else {
-            self.editor
-                .add_enhancement(source, settings, fine, Some(enhancer))
-                .map(|_| ())
-        };
-        match result {
-            Ok(()) => self.toast(
+        match self.editor.finish_enhancement(job) {
+            Ok((name, voxels)) => self.toast(
                 ctx,
                 format!("Enhanced {name}: {} voxels", thousands(voxels)),
                 false,
             ),
-            Err(e) => self.error_dialog = Some(e.to_string()),
+            Err(EnhanceNotApplied::Failed(e)) => {
+                self.error_dialog = Some(crate::cli::error_line(&e));
+            }
+            Err(EnhanceNotApplied::Removed(name)) => {
+                self.toast(ctx, format!("{name} was removed while enhancing"), true);
+            }
+            Err(EnhanceNotApplied::Changed(name)) => self.toast(
+                ctx,
+                format!("{name} changed while enhancing: enhance it again"),
+                true,
+            ),
+            Err(EnhanceNotApplied::Refused(e)) => self.error_dialog = Some(e.to_string()),
         }
     }
 
@@ -794,7 +559,7 @@ impl EditorApp {
             Ok(()) => {
                 self.editor.mark_saved(path.clone());
                 // The user's file now holds the work: the recovery file is stale.
-                if self.autosave_job.is_none() {
+                if !self.autosave.is_writing() {
                     autosave::discard_recovery(&self.recovery_dir);
                 }
                 self.toast(ctx, format!("Saved {}", path.display()), false);
@@ -849,13 +614,12 @@ impl EditorApp {
             .path()
             .and_then(Path::parent)
             .map(Path::to_path_buf);
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
+        let result = Worker::spawn(move || {
             let mut d = rfd::FileDialog::new().set_title(purpose.title());
             if let Some(dir) = start_dir {
                 d = d.set_directory(dir);
             }
-            let path = match purpose {
+            match purpose {
                 PathPurpose::Open | PathPurpose::Import => {
                     for (label, exts) in files::readable_extensions() {
                         d = d.add_filter(label, exts);
@@ -881,80 +645,55 @@ impl EditorApp {
                     .add_filter("Palette", &["gpl", "png"])
                     .set_file_name("palette.gpl")
                     .save_file(),
-            };
-            let _ = tx.send(path);
+            }
         });
-        self.dialog = Some(NativeDialog { purpose, rx });
+        self.dialog = Some(NativeDialog { purpose, result });
     }
 
     fn poll_dialog(&mut self, ctx: &egui::Context) {
         let Some(d) = &self.dialog else { return };
-        match d.rx.try_recv() {
-            Ok(Some(path)) => {
+        match d.result.poll() {
+            Poll::Ready(Some(path)) => {
                 let purpose = d.purpose;
                 self.dialog = None;
                 self.accept_path(ctx, purpose, path);
             }
-            Ok(None) | Err(mpsc::TryRecvError::Disconnected) => self.dialog = None,
-            Err(mpsc::TryRecvError::Empty) => ctx.request_repaint_after(Duration::from_millis(100)),
+            Poll::Ready(None) | Poll::Lost => self.dialog = None,
+            Poll::Running => ctx.request_repaint_after(Duration::from_millis(100)),
         }
     }
 
     /// Autosaves to the recovery folder when the interval has passed and the document changed
     /// since the last autosave; the write runs on a worker thread.
     fn autosave_tick(&mut self, ctx: &egui::Context) {
-        if let Some(rx) = &self.autosave_job {
-            match rx.try_recv() {
-                Ok(Ok(())) => {
-                    self.autosave_job = None;
-                    self.status = "Autosaved to the recovery file".into();
-                }
-                Ok(Err(e)) => {
-                    self.autosave_job = None;
-                    self.toast(
-                        ctx,
-                        format!("Autosave failed: {}", crate::cli::error_line(&e)),
-                        true,
-                    );
-                }
-                Err(mpsc::TryRecvError::Disconnected) => self.autosave_job = None,
-                Err(mpsc::TryRecvError::Empty) => return,
-            }
+        let tick = self.autosave.tick(
+            &self.editor,
+            self.autosave_secs,
+            &self.recovery_dir,
+            Instant::now(),
+        );
+        match tick.finished {
+            Some(Ok(())) => self.status = "Autosaved to the recovery file".into(),
+            Some(Err(e)) => self.toast(
+                ctx,
+                format!("Autosave failed: {}", crate::cli::error_line(&e)),
+                true,
+            ),
+            None => {}
         }
-        if self.autosave_secs == 0 {
-            self.autosave_due = None;
-            return;
-        }
-        let now = Instant::now();
-        let interval = Duration::from_secs(u64::from(self.autosave_secs));
-        let due = *self.autosave_due.get_or_insert(now + interval);
-        if now < due {
-            ctx.request_repaint_after(due - now);
-            return;
-        }
-        self.autosave_due = Some(now + interval);
-        let key = self.editor.content_key();
-        if self.editor.is_dirty() && self.autosaved_key != Some(key) {
-            self.autosave_now();
+        if let Some(wait) = tick.wake_after {
+            ctx.request_repaint_after(wait);
         }
     }
 
     /// Starts an autosave now (also used by tests). The document is copied for the worker.
     pub fn autosave_now(&mut self) {
-        let doc = self.editor.doc().clone();
-        let original = self.editor.path().map(Path::to_path_buf);
-        let dir = self.recovery_dir.clone();
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let _ = tx.send(autosave::write_recovery(&dir, &doc, original.as_deref()));
-        });
-        self.autosaved_key = Some(self.editor.content_key());
-        self.autosave_job = Some(rx);
+        self.autosave.start(&self.editor, &self.recovery_dir);
     }
 
     /// Waits for a running autosave (tests).
     pub fn wait_for_autosave(&mut self) -> Option<anyhow::Result<()>> {
-        self.autosave_job.take().and_then(|rx| rx.recv().ok())
+        self.autosave.wait()
     }
 
     /// Looks for a recovery file from an earlier session (offered in a dialog).
@@ -1347,277 +1086,6 @@ impl EditorApp {
     }
 
     // ---------------------------------------------------------------- panels
-
-    fn menu_bar(&mut self, ui: &mut egui::Ui) {
-        let busy = self.job.is_some();
-        egui::MenuBar::new().ui(ui, |ui| {
-            ui.menu_button("File", |ui| {
-                if ui
-                    .add_enabled(!busy, egui::Button::new("New project…").shortcut_text("Ctrl+N"))
-                    .on_hover_text("Start a new project with a new voxel model (Cancel: an empty project)")
-                    .clicked()
-                {
-                    self.request_new();
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Open…").shortcut_text("Ctrl+O"))
-                    .on_hover_text("Open a project (.thicket.json) or a model to start a new project from")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::Open);
-                }
-                ui.menu_button("Recent", |ui| {
-                    if self.editor.recent.is_empty() {
-                        ui.weak("No recent files");
-                    }
-                    let mut chosen = None;
-                    for path in &self.editor.recent {
-                        if ui
-                            .add_enabled(!busy, egui::Button::new(path.display().to_string()))
-                            .clicked()
-                        {
-                            chosen = Some(path.clone());
-                        }
-                    }
-                    if let Some(path) = chosen {
-                        self.request_open(path);
-                    }
-                });
-                ui.separator();
-                if ui
-                    .add(egui::Button::new("Save").shortcut_text("Ctrl+S"))
-                    .on_hover_text("Save the project (atomically: the previous save stays readable until this one is complete)")
-                    .clicked()
-                {
-                    let ctx = ui.ctx().clone();
-                    self.save(&ctx);
-                }
-                if ui
-                    .add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S"))
-                    .on_hover_text("Save the project under a new name")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::SaveAs);
-                }
-                ui.separator();
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Import…").shortcut_text("Ctrl+I"))
-                    .on_hover_text(format!(
-                        "Add the objects of another file to this project ({})",
-                        readable_list()
-                    ))
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::Import);
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Export .vox..."))
-                    .on_hover_text("Write the visible voxel models as a MagicaVoxel file (on a worker thread)")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::ExportVox);
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Export glTF..."))
-                    .on_hover_text("Write the scene, or the selected object, as .glb or .gltf: cubes, smooth surfaces, KRS meshes or instances, skinned characters with their clips")
-                    .clicked()
-                {
-                    self.gltf_export.open = true;
-                    ui.close();
-                }
-                ui.separator();
-                if native_dialogs_available() {
-                    ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
-                        .on_hover_text("Use the desktop's file dialogs (xdg portal or zenity) when available; otherwise a path entry");
-                } else {
-                    ui.add_enabled(false, egui::Checkbox::new(&mut false, "Native file dialogs"))
-                        .on_disabled_hover_text("No desktop file dialog can open here (no D-Bus session for the xdg portal, no zenity on PATH): files are named in a path entry");
-                }
-                ui.horizontal(|ui| {
-                    ui.label("Autosave");
-                    for (secs, label) in [(0, "Off"), (60, "1 min"), (120, "2 min"), (300, "5 min")] {
-                        ui.selectable_value(&mut self.autosave_secs, secs, label)
-                            .on_hover_text(format!(
-                                "Write unsaved work to a recovery file in {} (never over your file)",
-                                self.recovery_dir.display()
-                            ));
-                    }
-                });
-                ui.separator();
-                if ui.button("Quit").on_hover_text("Close the editor").clicked() {
-                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
-                }
-            });
-            ui.menu_button("Edit", |ui| {
-                let h = self.editor.history();
-                let (can_undo, can_redo) = (h.undo_len() > 0, h.redo_len() > 0);
-                if ui
-                    .add_enabled(can_undo, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
-                    .on_hover_text("Undo the last edit")
-                    .clicked()
-                {
-                    self.editor.undo();
-                }
-                if ui
-                    .add_enabled(can_redo, egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z"))
-                    .on_hover_text("Redo the last undone edit")
-                    .clicked()
-                {
-                    self.editor.redo();
-                }
-                ui.separator();
-                let selected = match self.editor.selection {
-                    Some(Selection::Object(id)) => Some(id),
-                    _ => None,
-                };
-                if ui
-                    .add_enabled(selected.is_some(), egui::Button::new("Duplicate").shortcut_text("Ctrl+D"))
-                    .on_hover_text("Copy the selected object")
-                    .clicked()
-                    && let Some(id) = selected
-                {
-                    let _ = self.editor.duplicate(id);
-                }
-                ui.menu_button("Add KRS object", |ui| {
-                    for (name, krs) in thicket_core::krs::presets::all() {
-                        if ui
-                            .button(name)
-                            .on_hover_text("Add this procedural KRS preset as a new object (edit it in the inspector)")
-                            .clicked()
-                        {
-                            let label = format!("KRS {name}");
-                            self.editor
-                                .add_object(&label, thicket_core::scene::ObjectKind::Krs(krs));
-                            ui.close();
-                        }
-                    }
-                });
-                ui.menu_button("Enhance detail", |ui| {
-                    for factor in [2u32, 4, 8] {
-                        if ui
-                            .add_enabled(selected.is_some() && !busy, egui::Button::new(format!("x{factor}")))
-                            .on_hover_text("Add a detail-enhanced copy of the selected voxel model (worker thread, cancellable)")
-                            .clicked()
-                        {
-                            self.start_enhance(factor);
-                        }
-                    }
-                });
-                let selected_light = match self.editor.selection {
-                    Some(Selection::Light(i)) => Some(i),
-                    _ => None,
-                };
-                if ui
-                    .add_enabled(
-                        selected.is_some() || selected_light.is_some(),
-                        egui::Button::new("Delete").shortcut_text("Del"),
-                    )
-                    .on_hover_text("Delete the selected object or light (undoable)")
-                    .clicked()
-                {
-                    if let Some(id) = selected {
-                        let _ = self.editor.delete(id);
-                    } else if let Some(i) = selected_light {
-                        let _ = self.editor.delete_light(i);
-                    }
-                }
-                if ui
-                    .add_enabled(selected.is_some(), egui::Button::new("Drop to surface").shortcut_text("End"))
-                    .on_hover_text("Move the selected object straight down until it rests on the voxels, mesh or KRS surface below it (undoable)")
-                    .clicked()
-                {
-                    self.drop_selected(ui.ctx());
-                }
-                if ui
-                    .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
-                    .on_hover_text("A new voxel model standing where the view looks: extent, voxel size, initial fill")
-                    .clicked()
-                {
-                    self.new_model.show(&self.editor);
-                    ui.close();
-                }
-                if ui
-                    .button("Add light")
-                    .on_hover_text("Add a directional light that casts shadows (undoable)")
-                    .clicked()
-                {
-                    let light = self.editor.new_light();
-                    let _ = self.editor.add_light(light);
-                }
-            });
-            ui.menu_button("Select", |ui| self.select_menu_ui(ui));
-            ui.menu_button("Model", |ui| self.model_menu_ui(ui));
-            ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.show_outliner, "Outliner")
-                    .on_hover_text("Show the list of objects and lights");
-                ui.checkbox(&mut self.show_inspector, "Inspector")
-                    .on_hover_text("Show the properties of the selection");
-                ui.separator();
-                if ui
-                    .add(egui::Button::new("Frame selection").shortcut_text("F"))
-                    .on_hover_text("Point the camera at the selection, or at everything")
-                    .clicked()
-                {
-                    self.editor.frame_selection();
-                }
-                ui.checkbox(&mut self.perf.open, "Performance overlay (F3)")
-                    .on_hover_text("Frame times, GPU time per pass, nodes per level, memory");
-                ui.checkbox(&mut self.tradeoff.open, "Trade-off")
-                    .on_hover_text("Measure time against error for each quality setting on this view, and pick one");
-                ui.separator();
-                self.view.menu_ui(ui, &mut self.editor);
-                ui.separator();
-                ui.label("UI scale");
-                ui.horizontal(|ui| {
-                    for zoom in [1.0_f32, 1.25, 1.5, 2.0] {
-                        if ui
-                            .button(format!("{}%", (zoom * 100.0).round()))
-                            .on_hover_text("Scale the whole interface (for high-DPI screens)")
-                            .clicked()
-                        {
-                            ui.ctx().set_zoom_factor(zoom);
-                        }
-                    }
-                });
-            });
-            ui.menu_button("Render", |ui| {
-                ui.label("Quality preset");
-                let current = &self.editor.doc().quality;
-                let active = PRESETS
-                    .iter()
-                    .position(|(_, p, _)| *current == Quality::preset(*p));
-                for (i, (label, preset, tip)) in PRESETS.iter().enumerate() {
-                    if ui
-                        .radio(active == Some(i), *label)
-                        .on_hover_text(*tip)
-                        .clicked()
-                    {
-                        self.editor.apply_quality_preset(*preset);
-                    }
-                }
-                if active.is_none() {
-                    ui.add_enabled(false, egui::RadioButton::new(true, "Custom"))
-                        .on_disabled_hover_text(
-                        "The knobs differ from every preset (edited in the inspector's Render \
-                         quality section); choosing a preset replaces them",
-                    );
-                }
-                ui.separator();
-                self.view.render_menu_ui(ui);
-            });
-            ui.menu_button("Help", |ui| {
-                if ui
-                    .add(egui::Button::new("Keyboard shortcuts").shortcut_text("F1"))
-                    .clicked()
-                {
-                    self.show_shortcuts = true;
-                }
-                if ui.button("About Thicket").clicked() {
-                    self.show_about = true;
-                }
-            });
-        });
-    }
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
@@ -2053,57 +1521,6 @@ fn import_nodes_ui(ui: &mut egui::Ui, nodes: &mut [(String, bool)]) -> bool {
         .clicked()
     })
     .inner
-}
-
-/// The import report's line for a file with a camera imported into an existing scene.
-pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
-     used when the file is opened or imported from the command line";
-
-/// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
-const SKINNED_IMPORT_DEPTH: u8 = 7;
-
-/// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
-/// cancel from the job), a static glTF becomes one mesh object per node
-/// ([`files::load_gltf_objects`], with its node names for the report's checklist), anything
-/// else goes through [`files::load_document`].
-fn import_document(
-    path: &Path,
-    options: &files::MeshOptions,
-    progress: &AtomicU32,
-    cancel: &AtomicBool,
-) -> anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)> {
-    use anyhow::Context as _;
-    files::check_options(path, options)?;
-    let is_gltf = FileKind::from_path(path) == Some(FileKind::Gltf);
-    let skinned = if is_gltf {
-        files::load_skinned(path)?
-    } else {
-        None
-    };
-    let Some(skinned) = skinned else {
-        if is_gltf {
-            return files::load_gltf_objects(path, options);
-        }
-        return files::load_document_imported(path, options)
-            .map(|(doc, notes, view)| (doc, notes, view, Vec::new()));
-    };
-    let settings = thicket_core::voxelize::VoxelizeSettings {
-        resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
-        ..Default::default()
-    };
-    let v = thicket_core::io::voxelize_skinned(&skinned, &settings, &|f| {
-        progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
-        !cancel.load(Ordering::Relaxed)
-    })
-    .with_context(|| format!("{}: voxelizing the skinned mesh", path.display()))?;
-    let mut doc = Document::default();
-    doc.add(
-        files::object_name_for(path),
-        thicket_core::scene::ObjectKind::Voxels(v.model),
-    );
-    doc.validate()
-        .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, skinned.warnings, skinned.view, Vec::new()))
 }
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.
