@@ -26,8 +26,8 @@ pub enum QualityError {
         name: &'static str,
         /// The refused value.
         value: f64,
-        /// The allowed range, for the message.
-        range: &'static str,
+        /// The allowed range, for the message (from the knob's [`KnobSpec`]).
+        range: String,
     },
     /// An unknown knob name.
     #[error("unknown quality setting {0:?}; known: {known}", known = Quality::KNOBS.join(", "))]
@@ -90,24 +90,16 @@ impl Default for Quality {
 }
 
 impl Quality {
-    /// Knob names accepted by [`Quality::set`].
-    pub const KNOBS: [&'static str; 15] = [
-        "lod_pixel_threshold",
-        "cube_pixel_threshold",
-        "occlusion_culling",
-        "shadows",
-        "shadow_map_size",
-        "shadow_pcf_radius",
-        "ao_samples",
-        "krs_epsilon_scale",
-        "krs_max_steps",
-        "krs_over_relaxation",
-        "krs_tile_acceleration",
-        "krs_soft_shadows",
-        "stretch_multiplier",
-        "stretch_strategy",
-        "enhancement_samples",
-    ];
+    /// Knob names accepted by [`Quality::set`], in [`KNOB_SPECS`] order.
+    pub const KNOBS: [&'static str; KNOB_SPECS.len()] = {
+        let mut names = [""; KNOB_SPECS.len()];
+        let mut i = 0;
+        while i < KNOB_SPECS.len() {
+            names[i] = KNOB_SPECS[i].name;
+            i += 1;
+        }
+        names
+    };
 
     /// A preset row.
     #[must_use]
@@ -155,101 +147,30 @@ impl Quality {
         }
     }
 
-    /// Checks every knob is finite and in range.
+    /// Checks every knob is finite and in its [`KnobSpec`] range.
     ///
     /// # Errors
     /// The first knob out of range.
     pub fn validate(&self) -> Result<(), QualityError> {
-        fn check(
-            name: &'static str,
-            v: f64,
-            lo: f64,
-            hi: f64,
-            range: &'static str,
-        ) -> Result<(), QualityError> {
+        for spec in KNOB_SPECS {
             // The knobs are f32 and the bounds are written in decimal: compare in f32, so the
             // documented bounds themselves (0.01, 1.95) are inside the range.
-            let (v32, lo32, hi32) = (v as f32, lo as f32, hi as f32);
-            if v.is_finite() && v32 >= lo32 && v32 <= hi32 {
-                Ok(())
-            } else {
-                Err(QualityError::OutOfRange {
-                    name,
+            let (v, lo, hi) = match spec.kind {
+                KnobKind::F32 { get, min, max, .. } => (f64::from(get(self)), min, max),
+                KnobKind::U32 { get, min, max, .. } => {
+                    (f64::from(get(self)), min as f32, max as f32)
+                }
+                KnobKind::Bool { .. } | KnobKind::StretchStrategy { .. } => continue,
+            };
+            let v32 = v as f32;
+            if !(v.is_finite() && v32 >= lo && v32 <= hi) {
+                return Err(QualityError::OutOfRange {
+                    name: spec.name,
                     value: v,
-                    range,
-                })
+                    range: spec.range_text(),
+                });
             }
         }
-        check(
-            "lod_pixel_threshold",
-            f64::from(self.lod_pixel_threshold),
-            0.05,
-            64.0,
-            "0.05..=64",
-        )?;
-        check(
-            "cube_pixel_threshold",
-            f64::from(self.cube_pixel_threshold),
-            1.0,
-            1e6,
-            "1..=1000000",
-        )?;
-        check(
-            "shadow_map_size",
-            f64::from(self.shadow_map_size),
-            16.0,
-            16384.0,
-            "16..=16384",
-        )?;
-        check(
-            "shadow_pcf_radius",
-            f64::from(self.shadow_pcf_radius),
-            0.0,
-            8.0,
-            "0..=8",
-        )?;
-        check(
-            "ao_samples",
-            f64::from(self.ao_samples),
-            0.0,
-            64.0,
-            "0..=64",
-        )?;
-        check(
-            "krs_epsilon_scale",
-            f64::from(self.krs_epsilon_scale),
-            0.01,
-            100.0,
-            "0.01..=100",
-        )?;
-        check(
-            "krs_max_steps",
-            f64::from(self.krs_max_steps),
-            1.0,
-            10_000.0,
-            "1..=10000",
-        )?;
-        check(
-            "krs_over_relaxation",
-            f64::from(self.krs_over_relaxation),
-            1.0,
-            1.95,
-            "1..=1.95",
-        )?;
-        check(
-            "stretch_multiplier",
-            f64::from(self.stretch_multiplier),
-            0.0,
-            8.0,
-            "0..=8",
-        )?;
-        check(
-            "enhancement_samples",
-            f64::from(self.enhancement_samples),
-            1.0,
-            1024.0,
-            "1..=1024",
-        )?;
         Ok(())
     }
 
@@ -269,23 +190,17 @@ impl Quality {
             "0" | "false" | "off" | "no" => Ok(false),
             _ => Err(parse_err()),
         };
+        let spec = KNOB_SPECS
+            .iter()
+            .find(|k| k.name == name)
+            .ok_or_else(|| QualityError::Unknown(name.to_owned()))?;
         let mut q = self.clone();
-        match name {
-            "lod_pixel_threshold" => q.lod_pixel_threshold = f()?,
-            "cube_pixel_threshold" => q.cube_pixel_threshold = f()?,
-            "occlusion_culling" => q.occlusion_culling = b()?,
-            "shadows" => q.shadows = b()?,
-            "shadow_map_size" => q.shadow_map_size = u()?,
-            "shadow_pcf_radius" => q.shadow_pcf_radius = u()?,
-            "ao_samples" => q.ao_samples = u()?,
-            "krs_epsilon_scale" => q.krs_epsilon_scale = f()?,
-            "krs_max_steps" => q.krs_max_steps = u()?,
-            "krs_over_relaxation" => q.krs_over_relaxation = f()?,
-            "krs_tile_acceleration" => q.krs_tile_acceleration = b()?,
-            "krs_soft_shadows" => q.krs_soft_shadows = b()?,
-            "stretch_multiplier" => q.stretch_multiplier = f()?,
-            "stretch_strategy" => {
-                q.stretch_strategy = match value.trim().to_ascii_lowercase().as_str() {
+        match spec.kind {
+            KnobKind::F32 { get_mut, .. } => *get_mut(&mut q) = f()?,
+            KnobKind::U32 { get_mut, .. } => *get_mut(&mut q) = u()?,
+            KnobKind::Bool { get_mut, .. } => *get_mut(&mut q) = b()?,
+            KnobKind::StretchStrategy { get_mut, .. } => {
+                *get_mut(&mut q) = match value.trim().to_ascii_lowercase().as_str() {
                     "model" => None,
                     "off" => Some(StretchStrategy::Off),
                     "thesis" => Some(StretchStrategy::Thesis),
@@ -294,14 +209,175 @@ impl Quality {
                     _ => return Err(parse_err()),
                 }
             }
-            "enhancement_samples" => q.enhancement_samples = u()?,
-            _ => return Err(QualityError::Unknown(name.to_owned())),
         }
         q.validate()?;
         *self = q;
         Ok(())
     }
 }
+
+/// How a knob is stored, read and bounded. The accessors let every reader (validation,
+/// `--quality` parsing, the inspector's widgets) go through the one table.
+#[derive(Clone, Copy)]
+pub enum KnobKind {
+    /// A real number in `min..=max`.
+    F32 {
+        /// Reads the knob.
+        get: fn(&Quality) -> f32,
+        /// Writes the knob.
+        get_mut: fn(&mut Quality) -> &mut f32,
+        /// Smallest allowed value.
+        min: f32,
+        /// Largest allowed value.
+        max: f32,
+    },
+    /// A count in `min..=max`.
+    U32 {
+        /// Reads the knob.
+        get: fn(&Quality) -> u32,
+        /// Writes the knob.
+        get_mut: fn(&mut Quality) -> &mut u32,
+        /// Smallest allowed value.
+        min: u32,
+        /// Largest allowed value.
+        max: u32,
+    },
+    /// On or off (`1`/`true`/`on`/`yes`, `0`/`false`/`off`/`no`).
+    Bool {
+        /// Reads the knob.
+        get: fn(&Quality) -> bool,
+        /// Writes the knob.
+        get_mut: fn(&mut Quality) -> &mut bool,
+    },
+    /// A stretch strategy for every skinned model, or each model's own (`model`, `off`,
+    /// `thesis`, `corners`, `adaptive`).
+    StretchStrategy {
+        /// Reads the knob.
+        get: fn(&Quality) -> Option<StretchStrategy>,
+        /// Writes the knob.
+        get_mut: fn(&mut Quality) -> &mut Option<StretchStrategy>,
+    },
+}
+
+/// One quality knob: its name (as `--quality NAME=VALUE` and sweeps spell it), kind and range,
+/// unit, the inspector's label, what it does, and the values a default sweep tries.
+#[derive(Clone, Copy)]
+pub struct KnobSpec {
+    /// The knob's name, as in `--quality NAME=VALUE` and `thicket tradeoff --knob`.
+    pub name: &'static str,
+    /// How it is stored and bounded.
+    pub kind: KnobKind,
+    /// Its unit (empty for a bare number, a switch or a choice).
+    pub unit: &'static str,
+    /// The inspector's label.
+    pub label: &'static str,
+    /// What it does (the inspector's tooltip).
+    pub doc: &'static str,
+    /// The values a default quality sweep tries (empty: not swept by default).
+    pub sweep: &'static [&'static str],
+}
+
+impl KnobSpec {
+    /// The allowed range as text (`0.05..=64`), empty for switches and choices.
+    #[must_use]
+    pub fn range_text(&self) -> String {
+        match self.kind {
+            KnobKind::F32 { min, max, .. } => format!("{min}..={max}"),
+            KnobKind::U32 { min, max, .. } => format!("{min}..={max}"),
+            KnobKind::Bool { .. } | KnobKind::StretchStrategy { .. } => String::new(),
+        }
+    }
+}
+
+/// A [`KnobSpec`] row; `$field` names the [`Quality`] field of the same name.
+macro_rules! knob {
+    (f32 $field:ident, $min:expr, $max:expr, $unit:expr, $label:expr, $doc:expr, $sweep:expr) => {
+        KnobSpec {
+            name: stringify!($field),
+            kind: KnobKind::F32 {
+                get: |q| q.$field,
+                get_mut: |q| &mut q.$field,
+                min: $min,
+                max: $max,
+            },
+            unit: $unit,
+            label: $label,
+            doc: $doc,
+            sweep: $sweep,
+        }
+    };
+    (u32 $field:ident, $min:expr, $max:expr, $unit:expr, $label:expr, $doc:expr, $sweep:expr) => {
+        KnobSpec {
+            name: stringify!($field),
+            kind: KnobKind::U32 {
+                get: |q| q.$field,
+                get_mut: |q| &mut q.$field,
+                min: $min,
+                max: $max,
+            },
+            unit: $unit,
+            label: $label,
+            doc: $doc,
+            sweep: $sweep,
+        }
+    };
+    (bool $field:ident, $label:expr, $doc:expr) => {
+        KnobSpec {
+            name: stringify!($field),
+            kind: KnobKind::Bool {
+                get: |q| q.$field,
+                get_mut: |q| &mut q.$field,
+            },
+            unit: "",
+            label: $label,
+            doc: $doc,
+            sweep: &[],
+        }
+    };
+}
+
+/// Every quality knob, in the order validation checks them and `--quality` lists them.
+pub const KNOB_SPECS: &[KnobSpec] = &[
+    knob!(f32 lod_pixel_threshold, 0.05, 64.0, "px", "LOD threshold px",
+        "ASVO: a node is split while its projected size exceeds this many pixels",
+        &["0.5", "1", "2", "4", "8"]),
+    knob!(f32 cube_pixel_threshold, 1.0, 1e6, "px", "Exact cubes above px",
+        "ASVO: splats wider than this many pixels are drawn as exact cubes (true depth, \
+         straight edges, face normals); a large value keeps the paper's rectangles",
+        &["1.5", "3", "6", "12", "1000000"]),
+    knob!(bool occlusion_culling, "Occlusion culling", "ASVO: hierarchical occlusion culling"),
+    knob!(bool shadows, "Shadows", "Shadow maps on/off"),
+    knob!(u32 shadow_map_size, 16, 16384, "texels", "Shadow map", "Shadow map edge in texels",
+        &["256", "512", "1024", "2048", "4096"]),
+    knob!(u32 shadow_pcf_radius, 0, 8, "texels", "Shadow PCF radius",
+        "Shadow filter radius in texels (0 = hard)", &["0", "1", "2", "3"]),
+    knob!(u32 ao_samples, 0, 64, "samples", "AO samples", "Ambient-occlusion samples (0 = off)",
+        &["0", "4", "8", "16"]),
+    knob!(f32 krs_epsilon_scale, 0.01, 100.0, "px", "KRS epsilon ×",
+        "KRS: pixel-cone epsilon multiplier (1 = one pixel)", &[]),
+    knob!(u32 krs_max_steps, 1, 10_000, "steps", "KRS max steps",
+        "KRS: most sphere-tracing steps per ray", &[]),
+    knob!(f32 krs_over_relaxation, 1.0, 1.95, "", "KRS over-relaxation",
+        "KRS: sphere-tracing over-relaxation (1 = off)", &[]),
+    knob!(bool krs_tile_acceleration, "KRS tile acceleration", "KRS: screen-tile cone acceleration"),
+    knob!(bool krs_soft_shadows, "KRS soft shadows", "KRS: soft instead of hard shadows"),
+    knob!(f32 stretch_multiplier, 0.0, 8.0, "×", "Stretch ×",
+        "Skinning: multiplier on every stretch factor", &[]),
+    KnobSpec {
+        name: "stretch_strategy",
+        kind: KnobKind::StretchStrategy {
+            get: |q| q.stretch_strategy,
+            get_mut: |q| &mut q.stretch_strategy,
+        },
+        unit: "",
+        label: "Stretch strategy",
+        doc: "Skinning: one stretch strategy for every skinned model, or each model's own (set \
+              in its stretch panel)",
+        sweep: &[],
+    },
+    knob!(u32 enhancement_samples, 1, 1024, "probes", "Enhancement samples",
+        "Detail enhancement: probes per fragment", &[]),
+];
 
 #[cfg(test)]
 mod tests {
@@ -353,5 +429,43 @@ mod tests {
                 "{name}"
             );
         }
+    }
+
+    #[test]
+    fn the_knob_table_bounds_every_numeric_knob_at_its_edges() {
+        let mut checked = 0;
+        for spec in KNOB_SPECS {
+            let (lo, hi, below, above) = match spec.kind {
+                KnobKind::F32 { min, max, .. } => (
+                    min.to_string(),
+                    max.to_string(),
+                    (min - min.abs().max(1.0) * 0.01).to_string(),
+                    (max + max.abs().max(1.0) * 0.01).to_string(),
+                ),
+                KnobKind::U32 { min, max, .. } => (
+                    min.to_string(),
+                    max.to_string(),
+                    min.checked_sub(1)
+                        .map_or_else(|| "-1".into(), |m| m.to_string()),
+                    (max + 1).to_string(),
+                ),
+                KnobKind::Bool { .. } | KnobKind::StretchStrategy { .. } => continue,
+            };
+            let mut q = Quality::default();
+            q.set(spec.name, &lo).unwrap();
+            q.set(spec.name, &hi).unwrap();
+            assert!(q.set(spec.name, &below).is_err(), "{} = {below}", spec.name);
+            assert!(q.set(spec.name, &above).is_err(), "{} = {above}", spec.name);
+            checked += 1;
+        }
+        assert_eq!(checked, 10);
+        let e = Quality {
+            krs_over_relaxation: 2.0,
+            ..Quality::default()
+        };
+        assert_eq!(
+            e.validate().unwrap_err().to_string(),
+            "quality setting krs_over_relaxation = 2 is out of range (1..=1.95)"
+        );
     }
 }
