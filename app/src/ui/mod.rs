@@ -3,6 +3,7 @@
 //! [`EditorApp::ui_root`] draws the whole window into a [`egui::Ui`]; eframe calls it through
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
+mod dialogs;
 mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
@@ -15,6 +16,7 @@ mod path_prompt;
 mod perf;
 pub mod pose;
 pub mod sculpt;
+mod shortcuts;
 pub mod tradeoff;
 pub mod view;
 mod voxel_menus;
@@ -23,7 +25,6 @@ pub mod voxel_tools;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use egui::{Key, KeyboardShortcut, Modifiers};
 use thicket_core::quality::QualityPreset;
 use thicket_core::scene::Document;
 
@@ -31,60 +32,7 @@ use crate::editor::autosave::{self, AutosaveTimer, Recovery};
 use crate::editor::jobs::{EnhanceNotApplied, Enhanced, Job, JobResult, Poll, Worker};
 use crate::editor::{Editor, Selection};
 use crate::files::{self, FileKind, thousands};
-use path_prompt::{PathPrompt, PathPurpose, PromptOutcome};
-
-/// Keyboard shortcuts, listed in Help → Keyboard shortcuts.
-pub const SHORTCUTS: &[(&str, &str)] = &[
-    ("Ctrl+N", "New project"),
-    ("Ctrl+O", "Open a project or model"),
-    ("Ctrl+S", "Save"),
-    ("Ctrl+Shift+S", "Save as"),
-    ("Ctrl+I", "Import objects into this project"),
-    ("Ctrl+Z", "Undo"),
-    ("Ctrl+Shift+Z / Ctrl+Y", "Redo"),
-    ("Ctrl+D", "Duplicate the selected object"),
-    ("Delete", "Delete the selected object"),
-    ("F2", "Rename the selected object"),
-    ("H", "Hide / show the selected object"),
-    ("End", "Drop the selected object onto whatever is below it"),
-    (
-        "F",
-        "Frame the selection (everything when nothing is selected)",
-    ),
-    (
-        "Drag in the view",
-        "Orbit (with the sculpt tool: sculpt; Alt+drag orbits)",
-    ),
-    ("Middle-drag / Alt+drag", "Orbit"),
-    ("Shift+drag / right-drag", "Pan"),
-    ("Scroll / pinch", "Zoom"),
-    ("Two-finger trackpad scroll", "Orbit (Shift: pan)"),
-    (
-        "1 / 3 / 7",
-        "Front / right / top orthographic view (Ctrl: back / left / bottom; orbiting returns to perspective)",
-    ),
-    ("5", "Orthographic / perspective projection"),
-    ("Click in the view", "Select the object under the pointer"),
-    ("S", "Brush tool (see the voxel tool keys below)"),
-    ("Click a joint dot", "Select the joint (rigged models)"),
-    (
-        "R / G / E",
-        "Pose gizmo: rotate / move / scale the selected joint",
-    ),
-    (
-        "K / Shift+K",
-        "Set / delete the selected joint's key at the playhead",
-    ),
-    ("Space", "Play / pause the timeline"),
-    ("Esc", "Navigate tool"),
-    (
-        "[ / ]",
-        "Brush one voxel smaller / larger (Shift: halve / double; also the stretch brush)",
-    ),
-    ("F3", "Performance overlay"),
-    ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
-    ("F1", "This list"),
-];
+use path_prompt::{PathPrompt, PathPurpose};
 
 /// A short-lived notice in the corner.
 #[derive(Debug, Clone)]
@@ -103,6 +51,7 @@ enum Pending {
 }
 
 pub use crate::editor::jobs::{IMPORT_KEEPS_VIEW, ImportReport};
+pub use shortcuts::SHORTCUTS;
 
 /// A native dialog running on its own thread.
 struct NativeDialog {
@@ -945,146 +894,6 @@ impl EditorApp {
         }
     }
 
-    fn handle_shortcuts(&mut self, ctx: &egui::Context) {
-        let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
-        let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
-        let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
-        // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
-        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
-            self.editor.redo();
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
-            self.editor.undo();
-        }
-        if consume(shortcut(cmd_shift, Key::S)) {
-            self.ask_path(PathPurpose::SaveAs);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::S)) {
-            self.save(ctx);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::N)) {
-            self.request_new();
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::O)) {
-            self.ask_path(PathPurpose::Open);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::I)) {
-            self.ask_path(PathPurpose::Import);
-        }
-        let selected = match self.editor.selection {
-            Some(Selection::Object(id)) => Some(id),
-            _ => None,
-        };
-        if consume(shortcut(Modifiers::COMMAND, Key::D))
-            && let Some(id) = selected
-        {
-            let _ = self.editor.duplicate(id);
-        }
-        // Single keys only when no text field has the keyboard and no path entry is open
-        // (egui drops a field's focus on Esc before this runs, and the entry needs the Esc).
-        if ctx.egui_wants_keyboard_input() || self.prompt.is_some() {
-            return;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F1)) {
-            self.show_shortcuts = !self.show_shortcuts;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F)) {
-            self.editor.frame_selection();
-        }
-        if consume(shortcut(Modifiers::NONE, Key::End)) {
-            self.drop_selected(ctx);
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F3)) {
-            self.perf.open = !self.perf.open;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::S)) {
-            self.sculpt.active = true;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::Escape)) {
-            self.sculpt.active = false;
-        }
-        if self.pose.joint.is_some() {
-            if consume(shortcut(Modifiers::NONE, Key::R)) {
-                self.pose.mode = pose::GizmoMode::Rotate;
-            }
-            if consume(shortcut(Modifiers::NONE, Key::G)) {
-                self.pose.mode = pose::GizmoMode::Translate;
-            }
-            if consume(shortcut(Modifiers::NONE, Key::E)) {
-                self.pose.mode = pose::GizmoMode::Scale;
-            }
-            if let Some(j) = self.pose.valid_joint(&self.editor) {
-                if consume(shortcut(Modifiers::SHIFT, Key::K)) {
-                    self.pose.error = self
-                        .editor
-                        .delete_joint_key(j.object, j.joint)
-                        .err()
-                        .map(|e| e.to_string());
-                } else if consume(shortcut(Modifiers::NONE, Key::K)) {
-                    self.pose.error = self
-                        .editor
-                        .set_joint_key(j.object, j.joint)
-                        .err()
-                        .map(|e| e.to_string());
-                }
-            }
-        }
-        if pose::timeline_target(&self.editor).is_some()
-            && consume(shortcut(Modifiers::NONE, Key::Space))
-        {
-            self.pose.playing = !self.pose.playing;
-        }
-        // Shift first (a plain shortcut also matches with Shift held); Shift+[ arrives as `{`
-        // on layouts where Shift changes the key.
-        for (mods, key, grow, double) in [
-            (Modifiers::SHIFT, Key::OpenBracket, false, true),
-            (Modifiers::SHIFT, Key::OpenCurlyBracket, false, true),
-            (Modifiers::SHIFT, Key::CloseBracket, true, true),
-            (Modifiers::SHIFT, Key::CloseCurlyBracket, true, true),
-            (Modifiers::NONE, Key::OpenBracket, false, false),
-            (Modifiers::NONE, Key::CloseBracket, true, false),
-        ] {
-            if consume(shortcut(mods, key)) {
-                self.sculpt.brush.radius =
-                    sculpt::step_brush_radius(self.sculpt.brush.radius, grow, double);
-            }
-        }
-        if consume(shortcut(Modifiers::NONE, Key::Num5)) {
-            let ortho = !self.editor.doc().camera.orthographic;
-            self.view.set_orthographic(&mut self.editor, ortho);
-        }
-        for (key, near, far) in [
-            (Key::Num1, view::AxisView::Front, view::AxisView::Back),
-            (Key::Num3, view::AxisView::Right, view::AxisView::Left),
-            (Key::Num7, view::AxisView::Top, view::AxisView::Bottom),
-        ] {
-            if consume(shortcut(Modifiers::COMMAND, key)) {
-                self.view.axis_view(&mut self.editor, far);
-            }
-            if consume(shortcut(Modifiers::NONE, key)) {
-                self.view.axis_view(&mut self.editor, near);
-            }
-        }
-        if let Some(Selection::Light(i)) = self.editor.selection
-            && consume(shortcut(Modifiers::NONE, Key::Delete))
-        {
-            let _ = self.editor.delete_light(i);
-        }
-        if let Some(id) = selected {
-            if consume(shortcut(Modifiers::NONE, Key::Delete)) {
-                let _ = self.editor.delete(id);
-            }
-            if consume(shortcut(Modifiers::NONE, Key::H))
-                && let Some(visible) = self.editor.object(id).map(|o| o.visible)
-            {
-                let _ = self.editor.set_visible(id, !visible);
-            }
-            if consume(shortcut(Modifiers::NONE, Key::F2)) {
-                self.outliner.start_rename(&self.editor, id);
-            }
-        }
-    }
-
     // ---------------------------------------------------------------- panels
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
@@ -1187,296 +996,6 @@ impl EditorApp {
             ui.weak(&self.status);
         });
     }
-
-    fn dialogs(&mut self, ctx: &egui::Context) {
-        if let Some(r) = self.recovery.clone() {
-            let mut choice = None;
-            egui::Modal::new(egui::Id::unique("recovery_dialog")).show(ctx, |ui| {
-                ui.heading("Recover unsaved work?");
-                let what = r.meta.original.as_ref().map_or_else(
-                    || "an untitled project".to_owned(),
-                    |p| p.display().to_string(),
-                );
-                let age = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map_or(0, |d| d.as_secs())
-                    .saturating_sub(r.meta.saved_unix_secs);
-                ui.label(format!(
-                    "The editor stopped before saving {what}. An autosave from {} ago is in {}.",
-                    human_age(age),
-                    r.path.display()
-                ));
-                ui.horizontal(|ui| {
-                    if ui
-                        .button("Recover")
-                        .on_hover_text("Open the autosaved work (save it to keep it)")
-                        .clicked()
-                    {
-                        choice = Some(true);
-                    }
-                    if ui
-                        .button("Discard")
-                        .on_hover_text("Delete the autosave and continue")
-                        .clicked()
-                    {
-                        choice = Some(false);
-                    }
-                });
-            });
-            match choice {
-                Some(true) => self.recover(),
-                Some(false) => self.discard_recovery(),
-                None => {}
-            }
-        }
-        self.import_report_ui(ctx);
-        if let Some(message) = self.error_dialog.clone() {
-            egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
-                ui.heading("Could not complete the operation");
-                ui.label(message);
-                ui.add_space(8.0);
-                if ui.button("OK").clicked() {
-                    self.error_dialog = None;
-                }
-            });
-        }
-        if let Some(pending) = self.pending.clone()
-            && self.prompt.is_none()
-        {
-            let mut decision = None;
-            egui::Modal::new(egui::Id::unique("unsaved_dialog")).show(ctx, |ui| {
-                ui.heading("Unsaved changes");
-                ui.label(format!(
-                    "Save the changes to {} first?",
-                    self.editor.path().map_or_else(
-                        || "the untitled project".to_owned(),
-                        |p| p.display().to_string()
-                    )
-                ));
-                ui.horizontal(|ui| {
-                    if ui
-                        .button("Save")
-                        .on_hover_text("Save, then continue")
-                        .clicked()
-                    {
-                        decision = Some(1);
-                    }
-                    if ui
-                        .button("Don't save")
-                        .on_hover_text("Discard the changes and continue")
-                        .clicked()
-                    {
-                        decision = Some(2);
-                    }
-                    if ui
-                        .button("Cancel")
-                        .on_hover_text("Go back to editing")
-                        .clicked()
-                    {
-                        decision = Some(0);
-                    }
-                });
-            });
-            match decision {
-                Some(0) => self.pending = None,
-                // Untitled: Save asks for a path and the pending action waits for that save.
-                Some(1) if self.save(ctx) => {
-                    self.pending = None;
-                    self.resolve_pending(ctx, pending);
-                }
-                Some(2) => {
-                    self.pending = None;
-                    self.resolve_pending(ctx, pending);
-                }
-                _ => {}
-            }
-        }
-        if let Some(mut prompt) = self.prompt.take() {
-            let (accepted, keep) = match prompt.ui(ctx, &self.editor.recent) {
-                PromptOutcome::Open => (None, true),
-                PromptOutcome::Accept(path) => (Some(path), false),
-                PromptOutcome::Cancel => (None, false),
-            };
-            if let Some(path) = accepted {
-                let purpose = prompt.purpose;
-                self.accept_path(ctx, purpose, path);
-                // A Save As that finished lets a waiting Quit / New / Open go on.
-                if purpose == PathPurpose::SaveAs
-                    && !self.editor.is_dirty()
-                    && let Some(pending) = self.pending.take()
-                {
-                    self.resolve_pending(ctx, pending);
-                }
-            } else if keep {
-                self.prompt = Some(prompt);
-            }
-        }
-        let selected = self.editor.selected_object().map(|o| o.name.clone());
-        if self
-            .gltf_export
-            .ui(ctx, selected.as_deref(), self.job.is_some())
-        {
-            self.ask_path(PathPurpose::ExportGltf);
-        }
-        if self.show_shortcuts {
-            egui::Window::new("Keyboard shortcuts")
-                .open(&mut self.show_shortcuts)
-                .resizable(false)
-                .show(ctx, |ui| {
-                    egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                        for (keys, what) in SHORTCUTS.iter().chain(voxel_menus::TOOL_SHORTCUTS) {
-                            ui.strong(*keys);
-                            ui.label(*what);
-                            ui.end_row();
-                        }
-                    });
-                });
-        }
-        if self.show_about {
-            egui::Window::new("About Thicket")
-                .open(&mut self.show_about)
-                .show(ctx, |ui| {
-                    ui.label(format!("Thicket {}", env!("CARGO_PKG_VERSION")));
-                    ui.label("Voxel sculpting, skinning and procedural trees.");
-                });
-        }
-    }
-
-    /// The Import report window: what the last import left out, one bullet per kind; for an
-    /// OBJ that names no texture a Texture field that imports it again with one; for a glTF
-    /// scene of several nodes a checklist of its nodes that imports it again with those.
-    fn import_report_ui(&mut self, ctx: &egui::Context) {
-        let Some(report) = self.import_report.as_mut() else {
-            return;
-        };
-        let mut open = true;
-        let mut ok = false;
-        let mut again = false;
-        let mut again_with_nodes = false;
-        let needs_texture = report.lines.iter().any(|l| l == files::OBJ_NO_TEXTURE);
-        egui::Window::new("Import report")
-            .open(&mut open)
-            .collapsible(false)
-            .resizable(true)
-            .default_width(460.0)
-            .show(ctx, |ui| {
-                let name = report.path.file_name().map_or_else(
-                    || report.path.display().to_string(),
-                    |n| n.to_string_lossy().into_owned(),
-                );
-                if report.lines.is_empty() {
-                    ui.label(format!("{name} was imported."));
-                } else {
-                    ui.label(format!(
-                        "{name} was imported. What became of what it holds beyond its meshes:"
-                    ));
-                    ui.add_space(4.0);
-                    egui::ScrollArea::vertical()
-                        .id_salt("import_report_lines")
-                        .max_height(240.0)
-                        .show(ui, |ui| {
-                            for line in &report.lines {
-                                ui.label(format!("• {line}"));
-                            }
-                        });
-                }
-                if report.nodes.len() > 1 {
-                    again_with_nodes = import_nodes_ui(ui, &mut report.nodes);
-                }
-                if needs_texture {
-                    ui.add_space(6.0);
-                    ui.horizontal(|ui| {
-                        ui.label("Texture");
-                        ui.add(
-                            egui::TextEdit::singleline(&mut report.texture)
-                                .hint_text("path to a PNG or JPEG")
-                                .desired_width(240.0),
-                        )
-                        .on_hover_text(
-                            "A base-colour texture for the OBJ's untextured parts; a relative \
-                             path is relative to the OBJ's folder",
-                        );
-                        again = ui
-                            .add_enabled(
-                                !report.texture.trim().is_empty(),
-                                egui::Button::new("Import again with it"),
-                            )
-                            .on_hover_text("Replaces the objects just imported")
-                            .clicked();
-                    });
-                }
-                ui.add_space(6.0);
-                ok = ui.button("OK").clicked();
-            });
-        if again {
-            let texture = PathBuf::from(report.texture.trim());
-            let texture = if texture.is_relative() {
-                report
-                    .path
-                    .parent()
-                    .map_or(texture.clone(), |d| d.join(&texture))
-            } else {
-                texture
-            };
-            let (path, placed) = (report.path.clone(), report.placed.clone());
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    texture: Some(texture),
-                    ..files::MeshOptions::default()
-                },
-            );
-        } else if again_with_nodes {
-            let (path, placed) = (report.path.clone(), report.placed.clone());
-            let picked = report
-                .nodes
-                .iter()
-                .filter(|(_, on)| *on)
-                .map(|(n, _)| n.clone())
-                .collect();
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    nodes: Some(picked),
-                    ..files::MeshOptions::default()
-                },
-            );
-        } else if !open || ok {
-            self.import_report = None;
-        }
-    }
-
-    fn toasts_ui(&mut self, ctx: &egui::Context) {
-        let now = ctx.input(|i| i.time);
-        self.toasts.retain(|t| t.until_secs > now);
-        if self.toasts.is_empty() {
-            return;
-        }
-        egui::Area::new(egui::Id::unique("toasts"))
-            .anchor(egui::Align2::RIGHT_BOTTOM, egui::vec2(-12.0, -36.0))
-            .show(ctx, |ui| {
-                for t in &self.toasts {
-                    egui::Frame::popup(ui.style()).show(ui, |ui| {
-                        if t.is_error {
-                            ui.colored_label(ui.visuals().error_fg_color, &t.text);
-                        } else {
-                            ui.label(&t.text);
-                        }
-                    });
-                }
-            });
-        ctx.request_repaint_after(Duration::from_millis(250));
-    }
 }
 
 const PRESETS: &[(&str, QualityPreset, &str)] = &[
@@ -1492,36 +1011,6 @@ const PRESETS: &[(&str, QualityPreset, &str)] = &[
         "Offline quality: fine LOD, soft shadows, more AO samples",
     ),
 ];
-
-/// The Import report's checklist of a glTF scene's nodes (one object each); true when
-/// "Import again with these" was clicked (enabled while at least one node is checked).
-fn import_nodes_ui(ui: &mut egui::Ui, nodes: &mut [(String, bool)]) -> bool {
-    ui.add_space(6.0);
-    ui.label("Nodes (one object each):");
-    egui::ScrollArea::vertical()
-        .id_salt("import_report_nodes")
-        .max_height(200.0)
-        .show(ui, |ui| {
-            for (name, on) in nodes.iter_mut() {
-                ui.checkbox(on, name.as_str());
-            }
-        });
-    ui.horizontal(|ui| {
-        if ui.small_button("All").clicked() {
-            nodes.iter_mut().for_each(|(_, on)| *on = true);
-        }
-        if ui.small_button("None").clicked() {
-            nodes.iter_mut().for_each(|(_, on)| *on = false);
-        }
-        ui.add_enabled(
-            nodes.iter().any(|(_, on)| *on),
-            egui::Button::new("Import again with these"),
-        )
-        .on_hover_text("Replaces the objects just imported with the checked nodes")
-        .clicked()
-    })
-    .inner
-}
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.
 fn with_project_extension(path: PathBuf) -> PathBuf {
@@ -1564,15 +1053,6 @@ fn native_dialogs_available() -> bool {
     let zenity = std::env::var_os("PATH")
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join("zenity").is_file()));
     dbus || zenity
-}
-
-fn human_age(secs: u64) -> String {
-    match secs {
-        0..=59 => format!("{secs} s"),
-        60..=3599 => format!("{} min", secs / 60),
-        3600..=86_399 => format!("{} h", secs / 3600),
-        _ => format!("{} days", secs / 86_400),
-    }
 }
 
 const RECENT_KEY: &str = "thicket.recent_files";
