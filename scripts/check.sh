@@ -3,6 +3,9 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cargo fmt --all -- --check
+# Inside core, lower modules never use higher ones (docs/architecture.md): fails fast, and
+# prints which module uses which.
+cargo test -p thicket-core --test layers -- --nocapture
 cargo clippy --workspace --all-targets -- -D warnings
 # Doc links must resolve (a renamed item otherwise leaves a dead link in the API docs).
 RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --workspace --quiet

@@ -12,7 +12,7 @@ use std::path::Path;
 use std::time::Instant;
 
 use thicket::gpu::{GpuContext, RenderTarget, Renderer};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::OrbitCamera;
 
 fn main() -> anyhow::Result<()> {

@@ -11,7 +11,8 @@
 use std::time::Instant;
 
 use serde::Serialize;
-use thicket_core::render::{Quality, RenderRequest, Renderer as CpuRenderer, ShadowCache};
+use thicket_core::quality::Quality;
+use thicket_core::render::{RenderRequest, Renderer as CpuRenderer, ShadowCache};
 use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::splat_bw::SplatBandwidth;

@@ -709,7 +709,7 @@ fn enhance_settings(
 }
 
 fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
-    use thicket_core::enhance::{Control, enhance_model};
+    use thicket_core::enhance::Control;
     use thicket_core::scene::ObjectKind;
     let mut doc = files::load_document(&args.project)?;
     let project = args.project.display();
@@ -753,8 +753,7 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     }
     let bar = progress_bar(1000, "enhancing");
     let report = |f: f32| bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
-    let result = enhance_model(
-        model,
+    let result = model.enhanced(
         &settings,
         Control {
             progress: Some(&report),
@@ -994,7 +993,7 @@ fn check_render_budget(
     doc: &thicket_core::scene::Document,
     (width, height): (u32, u32),
     camera: thicket_core::scene::OrbitCamera,
-    quality: &thicket_core::render::Quality,
+    quality: &thicket_core::quality::Quality,
     limit: Option<u64>,
 ) -> anyhow::Result<()> {
     let request = thicket_core::render::RenderRequest {
@@ -1089,7 +1088,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         }
         check_voxelize_budget(args, &skinned.mesh, &settings)?;
         let bar = progress_bar(1000, "voxelizing the bind pose");
-        let result = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
+        let result = thicket_core::io::voxelize_skinned(&skinned, &settings, &|f| {
             bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
             true
         });
@@ -1430,7 +1429,7 @@ pub fn view_options(
     quality_args: &[String],
     camera_arg: Option<&String>,
 ) -> anyhow::Result<(
-    thicket_core::render::Quality,
+    thicket_core::quality::Quality,
     thicket_core::scene::OrbitCamera,
 )> {
     let mut quality = doc.quality.clone();
@@ -1539,7 +1538,7 @@ fn render_one(
     backend: &mut RenderBackend<'_>,
     doc: &thicket_core::scene::Document,
     camera: thicket_core::scene::OrbitCamera,
-    quality: &thicket_core::render::Quality,
+    quality: &thicket_core::quality::Quality,
     (width, height): (u32, u32),
     output: &std::path::Path,
 ) -> anyhow::Result<()> {
@@ -1706,7 +1705,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
 }
 
 /// `--no-rig`: every skinned model becomes the rigid model of its shown pose
-/// ([`thicket_core::skin::bake::bake_shown_pose`]).
+/// ([`thicket_core::scene::bake::bake_shown_pose`]).
 fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
     let mut rigged = 0;
     for o in &mut doc.objects {
@@ -1717,7 +1716,7 @@ fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
             continue;
         }
         rigged += 1;
-        *v = thicket_core::skin::bake::bake_shown_pose(v).with_context(|| {
+        *v = thicket_core::scene::bake::bake_shown_pose(v).with_context(|| {
             format!(
                 "--no-rig: object {:?} cannot be baked (it is empty, or its pose throws voxels to a non-finite place or beyond the deepest octree)",
                 o.name
@@ -1831,7 +1830,7 @@ fn short_label(label: &str) -> String {
 /// Where the presets sit in a sweep: their order in work, error and time, and for each preset
 /// off the work front the setting that beats it.
 fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
-    use thicket_core::render::QualityPreset::{Balanced, Draft, Final};
+    use thicket_core::quality::QualityPreset::{Balanced, Draft, Final};
     let points = [Draft, Balanced, Final].map(|q| report.preset_point(q));
     let [Some(d), Some(b), Some(f)] = points else {
         return String::new();
@@ -1860,11 +1859,11 @@ fn presets_summary(report: &thicket_core::measure::SweepReport) -> String {
 }
 
 fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
-    use thicket_core::skin::metrics::{ReportSettings, skin_report};
+    use thicket_core::measure::skin::{ReportSettings, skin_report};
     use thicket_core::skin::{StretchSettings, StretchStrategy};
     let (doc, source) = match (&args.cylinder, &args.project) {
         (Some(depth), _) => (
-            thicket_core::skin::synthetic::bending_cylinder_document(*depth)
+            thicket_core::measure::skin::synthetic::bending_cylinder_document(*depth)
                 .context("voxelizing the bending cylinder")?,
             format!("bending cylinder at depth {depth}"),
         ),
@@ -1922,7 +1921,7 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
 /// holes for comparison; with `per_view`, one line per strategy and view.
 #[must_use]
 pub fn format_skin_report(
-    report: &thicket_core::skin::metrics::SkinReport,
+    report: &thicket_core::measure::skin::SkinReport,
     width: u32,
     height: u32,
     per_view: bool,
@@ -1967,7 +1966,7 @@ pub fn format_skin_report(
         s.push_str("strategy    view  rest holes  rest bloat | holes     misplaced  stretch   bloat      stretch bloat\n");
         for r in &report.rows {
             for v in &r.views {
-                let mut posed = thicket_core::skin::metrics::ShellCounts::default();
+                let mut posed = thicket_core::measure::skin::ShellCounts::default();
                 for f in &v.frames {
                     posed.add(f);
                 }

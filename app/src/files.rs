@@ -274,11 +274,11 @@ fn obj_lacks_texture(model: &MeshModel) -> bool {
 ///
 /// # Errors
 /// The skinned importer's message, naming the file and the problem.
-pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::skin::SkinnedImport>> {
+pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::io::SkinnedImport>> {
     if kind_of(path)? != FileKind::Gltf {
         return Ok(None);
     }
-    match thicket_core::skin::import_skinned(path) {
+    match thicket_core::io::import_skinned(path) {
         Ok(s) => Ok(Some(s)),
         Err(thicket_core::skin::SkinError::NoSkin { .. }) => Ok(None),
         Err(e) => {

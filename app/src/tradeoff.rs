@@ -11,8 +11,9 @@ use std::sync::Once;
 use anyhow::{Context as _, anyhow};
 use plotters::prelude::*;
 use thicket_core::measure::{SweepPoint, SweepReport, SweepSettings, reference_quality, sweep};
+use thicket_core::quality::QualityPreset;
 use thicket_core::render::{
-    Camera, FrameBuffers, FrameStats, PixelId, QualityPreset, RenderError, RenderRequest, RgbaImage,
+    Camera, FrameBuffers, FrameStats, PixelId, RenderError, RenderRequest, RgbaImage,
 };
 use thicket_core::scene::Document;
 

@@ -60,12 +60,12 @@ fn rigged_figure(depth: u8) -> Document {
         env!("CARGO_MANIFEST_DIR"),
         "/../../shared/assets/skinned/RiggedFigure.glb"
     );
-    let import = thicket_core::skin::import_skinned(path).expect("RiggedFigure imports");
+    let import = thicket_core::io::import_skinned(path).expect("RiggedFigure imports");
     let settings = thicket_core::voxelize::VoxelizeSettings {
         resolution: thicket_core::voxelize::Resolution::Depth(depth),
         ..Default::default()
     };
-    let v = thicket_core::skin::voxelize_skinned(&import, &settings, &|_| true)
+    let v = thicket_core::io::voxelize_skinned(&import, &settings, &|_| true)
         .expect("RiggedFigure voxelizes");
     let mut doc = Document::default();
     doc.add("Figure", ObjectKind::Voxels(v.model));

@@ -679,7 +679,7 @@ fn the_tool_bar_does_not_move_when_the_brush_size_gains_digits() {
 #[test]
 fn the_render_menu_marks_the_active_preset_or_custom() {
     use egui_kittest::kittest::NodeT as _;
-    use thicket_core::render::{Quality, QualityPreset};
+    use thicket_core::quality::{Quality, QualityPreset};
     let mut h = harness(EditorApp::new(Editor::new(Document::default(), None)));
     let open_menu = |h: &mut Harness<'static, EditorApp>| {
         h.get_by_label("Render").click();

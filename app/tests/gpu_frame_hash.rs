@@ -4,7 +4,7 @@
 //! a deliberate change to the GPU output updates them (the parity tests judge its quality).
 
 use thicket::gpu::{GBuffer, RenderTarget, Renderer, read_rgba8};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, OrbitCamera};
 
 mod common;

@@ -2,7 +2,7 @@
 //! last only by its camera creates none; a new target size does.
 
 use thicket::gpu::{RenderTarget, Renderer};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, OrbitCamera};
 
 mod common;

@@ -11,7 +11,8 @@ use thicket_core::krs::{
     Pattern, PlaneKernel, Similarity, SphereKernel, TextureMode, Texturing, TorusKernel,
 };
 use thicket_core::measure::image::Parity;
-use thicket_core::render::{Quality, RenderRequest, render_document, scenes};
+use thicket_core::quality::Quality;
+use thicket_core::render::{RenderRequest, render_document, scenes};
 use thicket_core::scene::{Document, Light, ObjectKind};
 
 mod common;

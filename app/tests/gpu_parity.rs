@@ -9,7 +9,8 @@
 use glam::{Quat, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
 use thicket_core::measure::image::{Parity, Tolerance};
-use thicket_core::render::{Quality, RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::quality::Quality;
+use thicket_core::render::{RenderRequest, RgbaImage, render_document, scenes};
 use thicket_core::scene::{Document, Light, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 

@@ -6,7 +6,7 @@ use thicket::gpu::{
     AtomicPath, GpuContext, GpuError, GpuFrameStats, RenderTarget, Renderer, read_rgba8,
 };
 use thicket_core::mesh::{Material, MeshModel, TriangleMesh, unit_cube};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, MeshObject, ObjectKind, OrbitCamera, Transform, VoxelModel};
 use thicket_core::svo::{Svo, Voxel};
 

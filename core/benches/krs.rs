@@ -20,7 +20,8 @@ use thicket_core::krs::{
     Kernel, KrsObject, KrsScene, MirrorPlane, PreparedScene, SphereKernel, TorusKernel,
     TraceSettings, presets, tile_cone, tile_start_distance, trace,
 };
-use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::quality::Quality;
+use thicket_core::render::{RenderRequest, render_document};
 use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
 
 fn unit(rng: &mut Pcg32) -> Vec3 {

@@ -7,10 +7,10 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
-    Quality, QualityPreset, RenderRequest, Renderer, ShadowCache, render_document,
-    render_document_cached,
+    RenderRequest, Renderer, ShadowCache, render_document, render_document_cached,
 };
 use thicket_core::scene::{Document, OrbitCamera};
 

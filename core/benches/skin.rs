@@ -10,9 +10,10 @@ use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Mat4, Quat, Vec3};
 use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg64;
+use thicket_core::io::import_skinned;
 use thicket_core::skin::stretch::{VoxelSkinInput, skinned_splat};
 use thicket_core::skin::{
-    JointMatrices, Pose, Skin4, StretchSettings, StretchStrategy, Wrap, import_skinned, skin_points,
+    JointMatrices, Pose, Skin4, StretchSettings, StretchStrategy, Wrap, skin_points,
 };
 
 const CESIUM_MAN: &str = concat!(
@@ -163,7 +164,7 @@ fn bench_frames(c: &mut Criterion) {
     use thicket_core::scene::{Document, ObjectKind};
     use thicket_core::voxelize::{Resolution, VoxelizeSettings};
     let import = import_skinned(CESIUM_MAN).expect("CesiumMan imports");
-    let v = thicket_core::skin::voxelize_skinned(
+    let v = thicket_core::io::voxelize_skinned(
         &import,
         &VoxelizeSettings {
             resolution: Resolution::Depth(8),

@@ -6,7 +6,9 @@
 //! `cargo run --release -p thicket-core --example cube_profile -- [close|project]
 //! [cubes|rectangles]`
 
-use thicket_core::render::{Quality, RenderRequest, render_document};
+use thicket_core::render::{RenderRequest, render_document};
+
+use thicket_core::quality::Quality;
 
 fn main() {
     let mut args = std::env::args().skip(1);

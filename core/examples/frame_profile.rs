@@ -12,10 +12,11 @@
 //! `cargo run --release -p thicket-core --example frame_profile -- [draft|balanced|final] [N]
 //! [orbit|edit]`
 
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
-    FrameBuffers, FrameStats, Quality, QualityPreset, RenderError, RenderRequest, Renderer,
-    RgbaImage, ShadowCache, render_document, render_document_cached,
+    FrameBuffers, FrameStats, RenderError, RenderRequest, Renderer, RgbaImage, ShadowCache,
+    render_document, render_document_cached,
 };
 use thicket_core::scene::{Document, OrbitCamera};
 

@@ -128,7 +128,8 @@ pub fn build(name: &str) -> Result<Document> {
         // CesiumMan (© 2017 Cesium, CC BY 4.0) voxelized in its bind pose with joint weights,
         // carrying its skeleton and walk cycle; shown mid-stride.
         "cesiumman" => {
-            use thicket_core::skin::{StretchStrategy, import_skinned, voxelize_skinned};
+            use thicket_core::io::{import_skinned, voxelize_skinned};
+            use thicket_core::skin::StretchStrategy;
             use thicket_core::voxelize::{Resolution, VoxelizeSettings};
             let path = asset("skinned/CesiumMan.glb");
             let import =

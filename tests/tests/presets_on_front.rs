@@ -14,7 +14,7 @@
 use thicket_core::io::project;
 use thicket_core::measure::sweep::WORK_DOMINANCE;
 use thicket_core::measure::{KnobValues, SweepSettings, sweep_document};
-use thicket_core::render::QualityPreset;
+use thicket_core::quality::QualityPreset;
 use thicket_tests::samples::SAMPLES;
 
 #[test]

@@ -37,7 +37,7 @@ fn house_has_the_exact_voxel_count() {
 #[test]
 fn terrain_sample_renders_as_its_golden_image() {
     use thicket_core::measure::image::{Tolerance, assert_images_match};
-    use thicket_core::render::Quality;
+    use thicket_core::quality::Quality;
     use thicket_core::render::{RenderRequest, render_document};
 
     let path = thicket_tests::repo_root().join("projects/terrain.thicket.json");
@@ -80,7 +80,8 @@ fn terrain_sample_renders_as_its_golden_image() {
 #[test]
 fn cesium_man_sample_walks_and_matches_its_golden_mid_stride() {
     use thicket_core::measure::image::{Tolerance, assert_images_match};
-    use thicket_core::render::{Quality, RenderRequest, render_document};
+    use thicket_core::quality::Quality;
+    use thicket_core::render::{RenderRequest, render_document};
     use thicket_core::scene::ObjectKind;
     let path = thicket_tests::repo_root().join("projects/cesiumman.thicket.json");
     let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));

@@ -1,5 +1,5 @@
 //! Issue 4's and issue 21's must-show on the real skinned assets, with the metric through the
-//! shell (`skin::metrics`): per pixel by depth over six views around the character, rest pose
+//! shell (`measure::skin`): per pixel by depth over six views around the character, rest pose
 //! and walk apart.
 //!
 //! CI-sized: depth 8 for CesiumMan (the sample project's depth), depth 9 for RiggedFigure,
@@ -8,10 +8,11 @@
 
 use std::sync::OnceLock;
 
-use thicket_core::render::Quality;
+use thicket_core::io::{import_skinned, voxelize_skinned};
+use thicket_core::measure::skin::{ReportSettings, SkinReport, StrategyRow, skin_report};
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, ObjectKind};
-use thicket_core::skin::metrics::{ReportSettings, SkinReport, StrategyRow, skin_report};
-use thicket_core::skin::{StretchSettings, StretchStrategy, import_skinned, voxelize_skinned};
+use thicket_core::skin::{StretchSettings, StretchStrategy};
 use thicket_core::voxelize::{Resolution, VoxelizeSettings};
 
 fn skinned_doc(relative: &str, depth: u8) -> Document {

@@ -8,10 +8,13 @@
 //! project itself.
 
 use std::path::{Path, PathBuf};
-use std::time::{SystemTime, UNIX_EPOCH};
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use serde::{Deserialize, Serialize};
 use thicket_core::scene::Document;
+
+use super::Editor;
+use super::jobs::{Poll, Worker};
 
 /// Default autosave interval.
 pub const DEFAULT_AUTOSAVE_SECS: u32 = 120;
@@ -101,5 +104,86 @@ pub fn discard_recovery(dir: &Path) {
         META_FILE.to_owned(),
     ] {
         let _ = std::fs::remove_file(dir.join(name));
+    }
+}
+
+/// The autosave timer: when the next autosave is due, which content the last one wrote, and
+/// the write running on a worker thread.
+#[derive(Debug, Default)]
+pub struct AutosaveTimer {
+    due: Option<Instant>,
+    saved_key: Option<(u64, u64)>,
+    write: Option<Worker<anyhow::Result<()>>>,
+}
+
+/// What one [`AutosaveTimer::tick`] saw.
+#[derive(Debug, Default)]
+pub struct AutosaveTick {
+    /// A write finished since the last tick: how it went.
+    pub finished: Option<anyhow::Result<()>>,
+    /// Tick again after this long (the next autosave is due then).
+    pub wake_after: Option<Duration>,
+}
+
+impl AutosaveTimer {
+    /// Collects a finished write, then autosaves to `dir` when `interval_secs` (0: off) have
+    /// passed and the document changed since the last autosave. While a write runs nothing
+    /// else happens.
+    pub fn tick(
+        &mut self,
+        editor: &Editor,
+        interval_secs: u32,
+        dir: &Path,
+        now: Instant,
+    ) -> AutosaveTick {
+        let mut tick = AutosaveTick::default();
+        if let Some(write) = &self.write {
+            match write.poll() {
+                Poll::Ready(r) => {
+                    self.write = None;
+                    tick.finished = Some(r);
+                }
+                Poll::Lost => self.write = None,
+                Poll::Running => return tick,
+            }
+        }
+        if interval_secs == 0 {
+            self.due = None;
+            return tick;
+        }
+        let interval = Duration::from_secs(u64::from(interval_secs));
+        let due = *self.due.get_or_insert(now + interval);
+        if now < due {
+            tick.wake_after = Some(due - now);
+            return tick;
+        }
+        self.due = Some(now + interval);
+        if editor.is_dirty() && self.saved_key != Some(editor.content_key()) {
+            self.start(editor, dir);
+        }
+        tick
+    }
+
+    /// Starts an autosave of `editor`'s document to `dir` now; the document is copied for the
+    /// worker.
+    pub fn start(&mut self, editor: &Editor, dir: &Path) {
+        let doc = editor.doc().clone();
+        let original = editor.path().map(Path::to_path_buf);
+        let dir = dir.to_path_buf();
+        self.saved_key = Some(editor.content_key());
+        self.write = Some(Worker::spawn(move || {
+            write_recovery(&dir, &doc, original.as_deref())
+        }));
+    }
+
+    /// Whether a write is running.
+    #[must_use]
+    pub fn is_writing(&self) -> bool {
+        self.write.is_some()
+    }
+
+    /// Waits for a running write (tests and exit).
+    pub fn wait(&mut self) -> Option<anyhow::Result<()>> {
+        self.write.take().and_then(Worker::wait)
     }
 }

@@ -4,10 +4,11 @@
 
 pub mod autosave;
 mod enhance;
-mod keys;
+pub mod jobs;
 mod krs;
 mod pick;
 mod pose;
+mod pose_keys;
 mod sculpt;
 mod stretch;
 mod undo;
@@ -17,13 +18,13 @@ use std::path::{Path, PathBuf};
 
 use glam::{Vec2, Vec3};
 
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
 pub use enhance::{EnhanceUpdate, PreparedDocument};
-pub use keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
 pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;
+pub use pose_keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
 pub use sculpt::{VoxelPick, ray_through};
 pub use stretch::MAX_STRETCH_OVERRIDE;
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};

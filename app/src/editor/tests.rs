@@ -1,5 +1,5 @@
 use glam::{IVec3, UVec3, Vec3};
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, ObjectKind, Transform, VoxelModel};
 use thicket_core::svo::{Svo, Voxel};
 
@@ -809,12 +809,9 @@ fn enhance_linked(
     let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
         panic!("voxels")
     };
-    let (fine, _) = thicket_core::enhance::enhance_model(
-        v,
-        &settings,
-        thicket_core::enhance::Control::default(),
-    )
-    .unwrap();
+    let (fine, _) = v
+        .enhanced(&settings, thicket_core::enhance::Control::default())
+        .unwrap();
     // No live enhancer handed over: the first dab builds one (the file-open path).
     ed.add_enhancement(id, settings, fine, None).unwrap()
 }

@@ -5,7 +5,7 @@
 use glam::UVec3;
 use thicket_core::krs::KrsObject;
 use thicket_core::krs::TreeParams;
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{
     Document, EnhancementLink, Light, Object, ObjectKind, Transform, TreeBuilderLink, VoxelModel,
 };

@@ -12,8 +12,9 @@ use glam::Vec3;
 use thicket_core::krs::{Kernel, KrsScene, Pattern, PreparedScene, SampleGrid, TextureMode};
 // The KRS shading constants are the CPU reference's own, so the two cannot drift apart.
 use super::passes::{BindGroups, BufferPool, Gpu};
+use thicket_core::quality::Quality;
 use thicket_core::render::{
-    AO_REACH_OBJECT_UNITS, Camera, Quality, SMOOTHING_PX, SOFT_SHADOW_K, trace_settings,
+    AO_REACH_OBJECT_UNITS, Camera, SMOOTHING_PX, SOFT_SHADOW_K, trace_settings,
 };
 use thicket_core::scene::{Document, Light, SceneError};
 

@@ -26,7 +26,7 @@ pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
 pub use scene::{UploadStats, voxel_pool_bytes};
 
-use thicket_core::render::{Quality, QualityError};
+use thicket_core::quality::{Quality, QualityError};
 use thicket_core::scene::{Document, OrbitCamera, SceneError};
 
 /// Why the GPU could not render.

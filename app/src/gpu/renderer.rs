@@ -5,7 +5,7 @@ use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::time::Instant;
 
 use glam::{UVec3, Vec3};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, OrbitCamera};
 
 use super::context::Capabilities;

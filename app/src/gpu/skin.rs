@@ -19,7 +19,8 @@
 use std::sync::Arc;
 
 use glam::{Mat3, Mat4, Vec3};
-use thicket_core::render::{NodeDeform, NodeInfo, Quality};
+use thicket_core::deform::{NodeDeform, NodeInfo};
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::skin::{Rig, Skin4, SkinDeform, SkinTables, StretchSettings, StretchStrategy};
 use thicket_core::svo::{NodeRef, Svo};

@@ -3,7 +3,7 @@
 //! quality knobs have a draft / balanced / final preset row.
 
 use glam::{EulerRot, Quat, Vec3};
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::{KNOB_SPECS, KnobKind, KnobSpec, Quality, QualityPreset};
 use thicket_core::scene::{Light, Object, ObjectKind, Transform};
 use thicket_core::skin::StretchStrategy;
 
@@ -386,138 +386,47 @@ fn quality_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState
         .num_columns(2)
         .striped(true)
         .show(ui, |ui| {
-            let mut f = |ui: &mut egui::Ui,
-                         label: &str,
-                         v: &mut f32,
-                         range: std::ops::RangeInclusive<f32>,
-                         tip: &str| {
-                ui.label(label).on_hover_text(tip);
-                changed |= ui
-                    .add(egui::DragValue::new(v).speed(0.01).range(range))
-                    .on_hover_text(tip)
-                    .changed();
-                ui.end_row();
+            // One row per knob from the knob table: numbers first, then switches (the
+            // stretch strategy's choice last, below).
+            let mut row = |ui: &mut egui::Ui, spec: &KnobSpec, q: &mut Quality| {
+                let response = match spec.kind {
+                    KnobKind::F32 {
+                        get_mut, min, max, ..
+                    } => Some(
+                        ui.add(
+                            egui::DragValue::new(get_mut(q))
+                                .speed(0.01)
+                                .range(min..=max),
+                        ),
+                    ),
+                    KnobKind::U32 {
+                        get_mut, min, max, ..
+                    } => Some(ui.add(egui::DragValue::new(get_mut(q)).range(min..=max))),
+                    KnobKind::Bool { get_mut, .. } => Some(ui.checkbox(get_mut(q), "")),
+                    KnobKind::StretchStrategy { .. } => None,
+                };
+                if let Some(r) = response {
+                    changed |= r.on_hover_text(spec.doc).changed();
+                }
             };
-            f(
-                ui,
-                "LOD threshold px",
-                &mut q.lod_pixel_threshold,
-                0.05..=64.0,
-                "ASVO: a node is split while its projected size exceeds this many pixels",
-            );
-            f(
-                ui,
-                "Exact cubes above px",
-                &mut q.cube_pixel_threshold,
-                1.0..=1e6,
-                "ASVO: splats wider than this many pixels are drawn as exact cubes (true depth, \
-                 straight edges, face normals); a large value keeps the paper's rectangles",
-            );
-            f(
-                ui,
-                "KRS epsilon ×",
-                &mut q.krs_epsilon_scale,
-                0.01..=100.0,
-                "KRS: pixel-cone epsilon multiplier (1 = one pixel)",
-            );
-            f(
-                ui,
-                "KRS over-relaxation",
-                &mut q.krs_over_relaxation,
-                1.0..=1.95,
-                "KRS: sphere-tracing over-relaxation (1 = off)",
-            );
-            f(
-                ui,
-                "Stretch ×",
-                &mut q.stretch_multiplier,
-                0.0..=8.0,
-                "Skinning: multiplier on every stretch factor",
-            );
-            let mut u = |ui: &mut egui::Ui,
-                         label: &str,
-                         v: &mut u32,
-                         range: std::ops::RangeInclusive<u32>,
-                         tip: &str| {
-                ui.label(label).on_hover_text(tip);
-                changed |= ui
-                    .add(egui::DragValue::new(v).range(range))
-                    .on_hover_text(tip)
-                    .changed();
-                ui.end_row();
+            let order = |k: &KnobKind| match k {
+                KnobKind::F32 { .. } => 0,
+                KnobKind::U32 { .. } => 1,
+                KnobKind::Bool { .. } => 2,
+                KnobKind::StretchStrategy { .. } => 3,
             };
-            u(
-                ui,
-                "Shadow map",
-                &mut q.shadow_map_size,
-                16..=16384,
-                "Shadow map edge in texels",
-            );
-            u(
-                ui,
-                "Shadow PCF radius",
-                &mut q.shadow_pcf_radius,
-                0..=8,
-                "Shadow filter radius in texels (0 = hard)",
-            );
-            u(
-                ui,
-                "AO samples",
-                &mut q.ao_samples,
-                0..=64,
-                "Ambient-occlusion samples (0 = off)",
-            );
-            u(
-                ui,
-                "KRS max steps",
-                &mut q.krs_max_steps,
-                1..=10_000,
-                "KRS: most sphere-tracing steps per ray",
-            );
-            u(
-                ui,
-                "Enhancement samples",
-                &mut q.enhancement_samples,
-                1..=1024,
-                "Detail enhancement: probes per fragment",
-            );
-            u(
-                ui,
-                "Supersampling",
-                &mut q.supersample,
-                1..=thicket_core::render::quality::MAX_SUPERSAMPLE,
-                "CPU renderer (preview, renders, exports of images): draw k × k samples per \
-                 pixel and average them, so grass, leaves and far edges thinner than a pixel \
-                 show as the part of it they cover; k² the work. 1 = off. The GPU view draws \
-                 one sample per pixel.",
-            );
-            let mut b = |ui: &mut egui::Ui, label: &str, v: &mut bool, tip: &str| {
-                ui.label(label).on_hover_text(tip);
-                changed |= ui.checkbox(v, "").on_hover_text(tip).changed();
-                ui.end_row();
+            for group in 0..3 {
+                for spec in KNOB_SPECS.iter().filter(|k| order(&k.kind) == group) {
+                    ui.label(spec.label).on_hover_text(spec.doc);
+                    row(ui, spec, &mut q);
+                    ui.end_row();
+                }
+            }
+            let Some(strategy) = KNOB_SPECS.iter().find(|k| order(&k.kind) == 3) else {
+                return;
             };
-            b(
-                ui,
-                "Occlusion culling",
-                &mut q.occlusion_culling,
-                "ASVO: hierarchical occlusion culling",
-            );
-            b(ui, "Shadows", &mut q.shadows, "Shadow maps on/off");
-            b(
-                ui,
-                "KRS tile acceleration",
-                &mut q.krs_tile_acceleration,
-                "KRS: screen-tile cone acceleration",
-            );
-            b(
-                ui,
-                "KRS soft shadows",
-                &mut q.krs_soft_shadows,
-                "KRS: soft instead of hard shadows",
-            );
-            let tip = "Skinning: one stretch strategy for every skinned model, or each \
-                       model's own (set in its stretch panel)";
-            ui.label("Stretch strategy").on_hover_text(tip);
+            let tip = strategy.doc;
+            ui.label(strategy.label).on_hover_text(tip);
             let name = |s: Option<StretchStrategy>| match s {
                 None => "Per model",
                 Some(StretchStrategy::Off) => "Off",

@@ -3,10 +3,12 @@
 //! [`EditorApp::ui_root`] draws the whole window into a [`egui::Ui`]; eframe calls it through
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
+mod dialogs;
 mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
 pub mod krs_panel;
+mod menus;
 mod new_model;
 mod outliner;
 mod palette;
@@ -14,78 +16,23 @@ mod path_prompt;
 mod perf;
 pub mod pose;
 pub mod sculpt;
+mod shortcuts;
 pub mod tradeoff;
 pub mod view;
 mod voxel_menus;
 pub mod voxel_tools;
 
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
-use std::sync::{Arc, mpsc};
 use std::time::{Duration, Instant};
 
-use egui::{Key, KeyboardShortcut, Modifiers};
-use thicket_core::io::GltfView;
-use thicket_core::render::{Quality, QualityPreset};
+use thicket_core::quality::QualityPreset;
 use thicket_core::scene::Document;
 
-use crate::editor::autosave::{self, Recovery};
+use crate::editor::autosave::{self, AutosaveTimer, Recovery};
+use crate::editor::jobs::{EnhanceNotApplied, Enhanced, Job, JobResult, Poll, Worker};
 use crate::editor::{Editor, Selection};
 use crate::files::{self, FileKind, thousands};
-use path_prompt::{PathPrompt, PathPurpose, PromptOutcome, readable_list};
-
-/// Keyboard shortcuts, listed in Help → Keyboard shortcuts.
-pub const SHORTCUTS: &[(&str, &str)] = &[
-    ("Ctrl+N", "New project"),
-    ("Ctrl+O", "Open a project or model"),
-    ("Ctrl+S", "Save"),
-    ("Ctrl+Shift+S", "Save as"),
-    ("Ctrl+I", "Import objects into this project"),
-    ("Ctrl+Z", "Undo"),
-    ("Ctrl+Shift+Z / Ctrl+Y", "Redo"),
-    ("Ctrl+D", "Duplicate the selected object"),
-    ("Delete", "Delete the selected object"),
-    ("F2", "Rename the selected object"),
-    ("H", "Hide / show the selected object"),
-    ("End", "Drop the selected object onto whatever is below it"),
-    (
-        "F",
-        "Frame the selection (everything when nothing is selected)",
-    ),
-    (
-        "Drag in the view",
-        "Orbit (with the sculpt tool: sculpt; Alt+drag orbits)",
-    ),
-    ("Middle-drag / Alt+drag", "Orbit"),
-    ("Shift+drag / right-drag", "Pan"),
-    ("Scroll / pinch", "Zoom"),
-    ("Two-finger trackpad scroll", "Orbit (Shift: pan)"),
-    (
-        "1 / 3 / 7",
-        "Front / right / top orthographic view (Ctrl: back / left / bottom; orbiting returns to perspective)",
-    ),
-    ("5", "Orthographic / perspective projection"),
-    ("Click in the view", "Select the object under the pointer"),
-    ("S", "Brush tool (see the voxel tool keys below)"),
-    ("Click a joint dot", "Select the joint (rigged models)"),
-    (
-        "R / G / E",
-        "Pose gizmo: rotate / move / scale the selected joint",
-    ),
-    (
-        "K / Shift+K",
-        "Set / delete the selected joint's key at the playhead",
-    ),
-    ("Space", "Play / pause the timeline"),
-    ("Esc", "Navigate tool"),
-    (
-        "[ / ]",
-        "Brush one voxel smaller / larger (Shift: halve / double; also the stretch brush)",
-    ),
-    ("F3", "Performance overlay"),
-    ("Ctrl+Plus / Ctrl+Minus", "UI scale"),
-    ("F1", "This list"),
-];
+use path_prompt::{PathPrompt, PathPurpose};
 
 /// A short-lived notice in the corner.
 #[derive(Debug, Clone)]
@@ -103,100 +50,13 @@ enum Pending {
     Quit,
 }
 
-/// What an import left out of its file ([`EditorApp::import_report`]).
-#[derive(Debug, Clone, PartialEq)]
-pub struct ImportReport {
-    /// The imported file.
-    pub path: PathBuf,
-    /// One line per kind of feature left out.
-    pub lines: Vec<String>,
-    /// The objects the import added (an import again with a texture replaces them).
-    pub placed: Vec<u64>,
-    /// The Texture field's text.
-    pub texture: String,
-    /// A glTF scene's nodes with meshes, in scene order, each with whether it is (to be)
-    /// imported: the checklist that imports the file again with other nodes. Empty for other
-    /// files and for skinned glTF (one skinned object).
-    pub nodes: Vec<(String, bool)>,
-}
-
-/// What a background job hands back.
-enum JobResult {
-    /// A project read on the worker thread, with its linked models' enhancers built there.
-    Opened(PathBuf, anyhow::Result<crate::editor::PreparedDocument>),
-    /// An imported file's document and what the import left out of it (one line per kind).
-    /// The file's view comes along: its lights are added, its camera is not applied.
-    /// For a static glTF scene, the names of its nodes with meshes come too (the report's
-    /// checklist).
-    Imported(
-        PathBuf,
-        anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)>,
-    ),
-    /// An enhancement of a voxel object: source id, source name, the settings, the coarse
-    /// model it was made from, and the fine model with the enhancer that made it.
-    Enhanced(Box<Enhanced>),
-    Exported(anyhow::Result<String>),
-    /// A Trade-off sweep of the editor at a revision.
-    Swept(u64, anyhow::Result<thicket_core::measure::SweepReport>),
-}
-
-/// What an enhancement job hands back.
-struct Enhanced {
-    source: u64,
-    name: String,
-    settings: thicket_core::enhance::EnhanceSettings,
-    coarse: thicket_core::svo::Svo,
-    result: anyhow::Result<(
-        thicket_core::scene::VoxelModel,
-        thicket_core::enhance::Enhancer,
-    )>,
-}
-
-/// A background job: a worker thread, its progress and its cancel flag.
-struct Job {
-    label: String,
-    rx: mpsc::Receiver<JobResult>,
-    /// Fraction done as `f32` bits; NaN while the job cannot tell.
-    progress: Arc<AtomicU32>,
-    cancel: Arc<AtomicBool>,
-    /// A Trade-off sweep (its panel shows the progress and a Cancel button too).
-    sweep: bool,
-}
-
-impl Job {
-    /// Runs `work` on a worker thread; it gets the progress and cancel handles.
-    fn spawn(
-        label: String,
-        work: impl FnOnce(&AtomicU32, &AtomicBool) -> JobResult + Send + 'static,
-    ) -> Self {
-        let (tx, rx) = mpsc::channel();
-        let progress = Arc::new(AtomicU32::new(f32::NAN.to_bits()));
-        let cancel = Arc::new(AtomicBool::new(false));
-        let (p, c) = (Arc::clone(&progress), Arc::clone(&cancel));
-        std::thread::spawn(move || {
-            let result = work(&p, &c);
-            // The receiver is gone when the job was cancelled: nothing to hand back.
-            let _ = tx.send(result);
-        });
-        Self {
-            label,
-            rx,
-            progress,
-            cancel,
-            sweep: false,
-        }
-    }
-
-    fn fraction(&self) -> Option<f32> {
-        let f = f32::from_bits(self.progress.load(Ordering::Relaxed));
-        f.is_finite().then_some(f.clamp(0.0, 1.0))
-    }
-}
+pub use crate::editor::jobs::{IMPORT_KEEPS_VIEW, ImportReport};
+pub use shortcuts::SHORTCUTS;
 
 /// A native dialog running on its own thread.
 struct NativeDialog {
     purpose: PathPurpose,
-    rx: mpsc::Receiver<Option<PathBuf>>,
+    result: Worker<Option<PathBuf>>,
 }
 
 /// The editor window's state: the [`Editor`] plus everything only the UI needs.
@@ -225,9 +85,7 @@ pub struct EditorApp {
     pub autosave_secs: u32,
     /// Where recovery files go.
     pub recovery_dir: PathBuf,
-    autosave_due: Option<Instant>,
-    autosaved_key: Option<(u64, u64)>,
-    autosave_job: Option<mpsc::Receiver<anyhow::Result<()>>>,
+    autosave: AutosaveTimer,
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
@@ -283,9 +141,7 @@ impl EditorApp {
             native_dialogs: true,
             autosave_secs: autosave::DEFAULT_AUTOSAVE_SECS,
             recovery_dir: autosave::recovery_dir(),
-            autosave_due: None,
-            autosaved_key: None,
-            autosave_job: None,
+            autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
             show_about: false,
@@ -404,14 +260,7 @@ impl EditorApp {
     }
 
     fn start_open(&mut self, path: PathBuf) {
-        let label = format!("Opening {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, cancel| {
-            // Linked models' enhancers are built here too, so the first dab after Open updates
-            // incrementally instead of stalling the UI thread on a full enhancement.
-            let result = files::load_document(&path)
-                .map(|doc| crate::editor::PreparedDocument::new(doc, Some(cancel)));
-            JobResult::Opened(path, result)
-        }));
+        self.job = Some(Job::open(path));
     }
 
     /// File → Import: adds the objects of any supported file to the document. A glTF file
@@ -423,11 +272,7 @@ impl EditorApp {
 
     /// [`Self::start_import`] with mesh options (an OBJ's texture).
     pub fn start_import_with(&mut self, path: PathBuf, options: files::MeshOptions) {
-        let label = format!("Importing {}", path.display());
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let result = import_document(&path, &options, progress, cancel);
-            JobResult::Imported(path, result)
-        }));
+        self.job = Some(Job::import(path, options));
     }
 
     /// Edit → Enhance detail: enhances the selected voxel model (paper 001) by `factor` with
@@ -486,57 +331,13 @@ impl EditorApp {
             return;
         }
         let (name, model) = (o.name.clone(), v.clone());
-        let label = format!("Enhancing {name} x{}", settings.factor);
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
-            let control = thicket_core::enhance::Control {
-                progress: Some(&report),
-                cancel: Some(cancel),
-            };
-            let result =
-                thicket_core::enhance::Enhancer::with_control(&model.svo, &settings, control)
-                    .map(|e| {
-                        let fine = thicket_core::scene::VoxelModel {
-                            svo: e.fine().clone(),
-                            voxel_size: model.voxel_size / settings.factor as f32,
-                            origin: model.origin,
-                            material_names: model.material_names.clone(),
-                            // The fine octree carries no joint weights: the result is static.
-                            rig: None,
-                            volume: None,
-                            palette: Vec::new(),
-                            frames: None,
-                        };
-                        (fine, e)
-                    })
-                    .map_err(anyhow::Error::from);
-            JobResult::Enhanced(Box::new(Enhanced {
-                source,
-                name,
-                settings,
-                coarse: model.svo,
-                result,
-            }))
-        }));
+        self.job = Some(Job::enhance(source, name, model, settings));
     }
 
     /// File → Export .vox: the visible voxel models, on a worker thread.
     pub fn start_export_vox(&mut self, path: PathBuf) {
         let objects = self.editor.doc().objects.clone();
-        let label = format!("Exporting {}", path.display());
-        self.job = Some(Job::spawn(label, move |_, _| {
-            let result = thicket_core::io::vox::export_vox(&objects, &path)
-                .map(|r| {
-                    format!(
-                        "Exported {} voxels in {} model(s) to {}",
-                        thousands(r.voxels),
-                        r.models,
-                        path.display()
-                    )
-                })
-                .map_err(anyhow::Error::from);
-            JobResult::Exported(result)
-        }));
+        self.job = Some(Job::export_vox(objects, path));
     }
 
     /// File → Export glTF: the document with the export window's settings, on a worker thread
@@ -545,24 +346,7 @@ impl EditorApp {
         let doc = self.editor.doc().clone();
         let selected = self.editor.selected_object().map(|o| o.name.clone());
         let options = self.gltf_export.options_for(selected.as_deref());
-        let label = format!("Exporting {}", path.display());
-        self.job = Some(Job::spawn(label, move |progress, cancel| {
-            let report = |f: f32| {
-                progress.store(f.to_bits(), Ordering::Relaxed);
-                !cancel.load(Ordering::Relaxed)
-            };
-            let result = thicket_core::io::gltf_export::export_gltf(&doc, &path, &options, &report)
-                .map(|r| {
-                    format!(
-                        "Exported {} object(s), {} triangles, to {}",
-                        r.objects,
-                        thousands(r.triangles),
-                        path.display()
-                    )
-                })
-                .map_err(anyhow::Error::from);
-            JobResult::Exported(result)
-        }));
+        self.job = Some(Job::export_gltf(doc, path, options));
     }
 
     /// View → Trade-off → Run sweep: the panel's sweep of the current view on a worker thread,
@@ -588,30 +372,14 @@ impl EditorApp {
             self.error_dialog = Some(over.to_string());
             return;
         }
-        let mut spawned = Job::spawn(label, move |progress, cancel| {
-            let report = thicket_core::measure::sweep_document_with_cancel(
-                &job.doc,
-                job.width,
-                job.height,
-                &job.settings,
-                |done, total, _| {
-                    let f = done as f32 / total.max(1) as f32;
-                    progress.store(f.to_bits(), Ordering::Relaxed);
-                },
-                cancel,
-            )
-            .map_err(anyhow::Error::from);
-            JobResult::Swept(job.revision, report)
-        });
-        spawned.sweep = true;
-        self.job = Some(spawned);
+        self.job = Some(Job::sweep(label, job));
     }
 
     /// Cancels the running job: its result is dropped and the document stays as it is; jobs
     /// that check the flag (enhancement) stop early.
     pub fn cancel_job(&mut self, ctx: &egui::Context) {
         if let Some(job) = self.job.take() {
-            job.cancel.store(true, Ordering::Relaxed);
+            job.cancel();
             self.toast(ctx, format!("Cancelled: {}", job.label), false);
         }
     }
@@ -625,7 +393,7 @@ impl EditorApp {
     /// Waits for the running job (tests; the UI polls instead).
     pub fn wait_for_job(&mut self, ctx: &egui::Context) {
         if let Some(job) = self.job.take()
-            && let Ok(result) = job.rx.recv()
+            && let Some(result) = job.wait()
         {
             self.finish_job(ctx, result);
         }
@@ -633,15 +401,15 @@ impl EditorApp {
 
     fn poll_job(&mut self, ctx: &egui::Context) {
         let Some(job) = &self.job else { return };
-        match job.rx.try_recv() {
-            Ok(result) => {
+        match job.poll() {
+            Poll::Ready(result) => {
                 self.job = None;
                 self.finish_job(ctx, result);
             }
-            Err(mpsc::TryRecvError::Empty) => {
+            Poll::Running => {
                 ctx.request_repaint_after(Duration::from_millis(50));
             }
-            Err(mpsc::TryRecvError::Disconnected) => {
+            Poll::Lost => {
                 self.job = None;
                 self.toast(ctx, "The background job stopped unexpectedly", true);
             }
@@ -651,23 +419,10 @@ impl EditorApp {
     fn finish_job(&mut self, ctx: &egui::Context, result: JobResult) {
         match result {
             JobResult::Opened(path, Ok(doc)) => self.install_document(doc, &path),
-            JobResult::Imported(path, Ok((doc, mut left_out, view, node_names))) => {
-                // Each node's object is named after it: a node is checked when it was imported.
-                let nodes: Vec<(String, bool)> = node_names
-                    .into_iter()
-                    .map(|n| {
-                        let picked = doc.objects.iter().any(|o| o.name == n);
-                        (n, picked)
-                    })
-                    .collect();
-                let placed = self.editor.import_objects(doc);
-                // Directions only: the placement's move and uniform scale leave them as is.
-                let lights = view.lights_beside(&self.editor.doc().lights);
-                self.editor.import_lights(lights);
-                if view.camera.is_some() {
-                    left_out.push(IMPORT_KEEPS_VIEW.to_owned());
-                }
-                let placed_ids = placed.ids.clone();
+            JobResult::Imported(path, Ok(imported)) => {
+                let from = path.display().to_string();
+                let done = self.editor.finish_import(path, imported);
+                let placed = done.placement;
                 let n = placed.ids.len();
                 let scaled = if placed.scale == 1.0 {
                     String::new()
@@ -680,20 +435,12 @@ impl EditorApp {
                 self.toast(
                     ctx,
                     format!(
-                        "Imported {n} object(s) from {}, placed beside the scene and framed{scaled}",
-                        path.display()
+                        "Imported {n} object(s) from {from}, placed beside the scene and framed{scaled}"
                     ),
                     false,
                 );
                 self.import_offer = (placed.scale != 1.0).then_some(placed);
-                self.import_report =
-                    (!left_out.is_empty() || nodes.len() > 1).then(|| ImportReport {
-                        path,
-                        lines: left_out,
-                        placed: placed_ids,
-                        texture: String::new(),
-                        nodes,
-                    });
+                self.import_report = done.report;
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
@@ -719,57 +466,24 @@ impl EditorApp {
     }
 
     fn finish_enhance(&mut self, ctx: &egui::Context, job: Enhanced) {
-        let Enhanced {
-            source,
-            name,
-            settings,
-            coarse,
-            result,
-        } = job;
-        let (fine, enhancer) = match result {
-            Ok(r) => r,
-            Err(e) => {
-                self.error_dialog = Some(crate::cli::error_line(&e));
-                return;
-            }
-        };
-        // Strokes made while the job ran are not in its result.
-        let current = match self.editor.object(source).map(|o| &o.kind) {
-            Some(thicket_core::scene::ObjectKind::Voxels(v)) => &v.svo,
-            _ => {
-                self.toast(ctx, format!("{name} was removed while enhancing"), true);
-                return;
-            }
-        };
-        if *current != coarse {
-            self.toast(
-                ctx,
-                format!("{name} changed while enhancing: enhance it again"),
-                true,
-            );
-            return;
-        }
-        let voxels = fine.svo.leaf_count();
-        let result = if self
-            .editor
-            .doc()
-            .enhancement_of(source)
-            .is_some_and(|l| self.editor.object(l.target).is_some())
-        {
-            self.editor
-                .replace_enhancement(source, settings, fine, Some(enhancer))
-        } else {
-            self.editor
-                .add_enhancement(source, settings, fine, Some(enhancer))
-                .map(|_| ())
-        };
-        match result {
-            Ok(()) => self.toast(
+        match self.editor.finish_enhancement(job) {
+            Ok((name, voxels)) => self.toast(
                 ctx,
                 format!("Enhanced {name}: {} voxels", thousands(voxels)),
                 false,
             ),
-            Err(e) => self.error_dialog = Some(e.to_string()),
+            Err(EnhanceNotApplied::Failed(e)) => {
+                self.error_dialog = Some(crate::cli::error_line(&e));
+            }
+            Err(EnhanceNotApplied::Removed(name)) => {
+                self.toast(ctx, format!("{name} was removed while enhancing"), true);
+            }
+            Err(EnhanceNotApplied::Changed(name)) => self.toast(
+                ctx,
+                format!("{name} changed while enhancing: enhance it again"),
+                true,
+            ),
+            Err(EnhanceNotApplied::Refused(e)) => self.error_dialog = Some(e.to_string()),
         }
     }
 
@@ -794,7 +508,7 @@ impl EditorApp {
             Ok(()) => {
                 self.editor.mark_saved(path.clone());
                 // The user's file now holds the work: the recovery file is stale.
-                if self.autosave_job.is_none() {
+                if !self.autosave.is_writing() {
                     autosave::discard_recovery(&self.recovery_dir);
                 }
                 self.toast(ctx, format!("Saved {}", path.display()), false);
@@ -849,13 +563,12 @@ impl EditorApp {
             .path()
             .and_then(Path::parent)
             .map(Path::to_path_buf);
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
+        let result = Worker::spawn(move || {
             let mut d = rfd::FileDialog::new().set_title(purpose.title());
             if let Some(dir) = start_dir {
                 d = d.set_directory(dir);
             }
-            let path = match purpose {
+            match purpose {
                 PathPurpose::Open | PathPurpose::Import => {
                     for (label, exts) in files::readable_extensions() {
                         d = d.add_filter(label, exts);
@@ -881,80 +594,55 @@ impl EditorApp {
                     .add_filter("Palette", &["gpl", "png"])
                     .set_file_name("palette.gpl")
                     .save_file(),
-            };
-            let _ = tx.send(path);
+            }
         });
-        self.dialog = Some(NativeDialog { purpose, rx });
+        self.dialog = Some(NativeDialog { purpose, result });
     }
 
     fn poll_dialog(&mut self, ctx: &egui::Context) {
         let Some(d) = &self.dialog else { return };
-        match d.rx.try_recv() {
-            Ok(Some(path)) => {
+        match d.result.poll() {
+            Poll::Ready(Some(path)) => {
                 let purpose = d.purpose;
                 self.dialog = None;
                 self.accept_path(ctx, purpose, path);
             }
-            Ok(None) | Err(mpsc::TryRecvError::Disconnected) => self.dialog = None,
-            Err(mpsc::TryRecvError::Empty) => ctx.request_repaint_after(Duration::from_millis(100)),
+            Poll::Ready(None) | Poll::Lost => self.dialog = None,
+            Poll::Running => ctx.request_repaint_after(Duration::from_millis(100)),
         }
     }
 
     /// Autosaves to the recovery folder when the interval has passed and the document changed
     /// since the last autosave; the write runs on a worker thread.
     fn autosave_tick(&mut self, ctx: &egui::Context) {
-        if let Some(rx) = &self.autosave_job {
-            match rx.try_recv() {
-                Ok(Ok(())) => {
-                    self.autosave_job = None;
-                    self.status = "Autosaved to the recovery file".into();
-                }
-                Ok(Err(e)) => {
-                    self.autosave_job = None;
-                    self.toast(
-                        ctx,
-                        format!("Autosave failed: {}", crate::cli::error_line(&e)),
-                        true,
-                    );
-                }
-                Err(mpsc::TryRecvError::Disconnected) => self.autosave_job = None,
-                Err(mpsc::TryRecvError::Empty) => return,
-            }
+        let tick = self.autosave.tick(
+            &self.editor,
+            self.autosave_secs,
+            &self.recovery_dir,
+            Instant::now(),
+        );
+        match tick.finished {
+            Some(Ok(())) => self.status = "Autosaved to the recovery file".into(),
+            Some(Err(e)) => self.toast(
+                ctx,
+                format!("Autosave failed: {}", crate::cli::error_line(&e)),
+                true,
+            ),
+            None => {}
         }
-        if self.autosave_secs == 0 {
-            self.autosave_due = None;
-            return;
-        }
-        let now = Instant::now();
-        let interval = Duration::from_secs(u64::from(self.autosave_secs));
-        let due = *self.autosave_due.get_or_insert(now + interval);
-        if now < due {
-            ctx.request_repaint_after(due - now);
-            return;
-        }
-        self.autosave_due = Some(now + interval);
-        let key = self.editor.content_key();
-        if self.editor.is_dirty() && self.autosaved_key != Some(key) {
-            self.autosave_now();
+        if let Some(wait) = tick.wake_after {
+            ctx.request_repaint_after(wait);
         }
     }
 
     /// Starts an autosave now (also used by tests). The document is copied for the worker.
     pub fn autosave_now(&mut self) {
-        let doc = self.editor.doc().clone();
-        let original = self.editor.path().map(Path::to_path_buf);
-        let dir = self.recovery_dir.clone();
-        let (tx, rx) = mpsc::channel();
-        std::thread::spawn(move || {
-            let _ = tx.send(autosave::write_recovery(&dir, &doc, original.as_deref()));
-        });
-        self.autosaved_key = Some(self.editor.content_key());
-        self.autosave_job = Some(rx);
+        self.autosave.start(&self.editor, &self.recovery_dir);
     }
 
     /// Waits for a running autosave (tests).
     pub fn wait_for_autosave(&mut self) -> Option<anyhow::Result<()>> {
-        self.autosave_job.take().and_then(|rx| rx.recv().ok())
+        self.autosave.wait()
     }
 
     /// Looks for a recovery file from an earlier session (offered in a dialog).
@@ -1206,418 +894,7 @@ impl EditorApp {
         }
     }
 
-    fn handle_shortcuts(&mut self, ctx: &egui::Context) {
-        let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
-        let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
-        let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
-        // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
-        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
-            self.editor.redo();
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
-            self.editor.undo();
-        }
-        if consume(shortcut(cmd_shift, Key::S)) {
-            self.ask_path(PathPurpose::SaveAs);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::S)) {
-            self.save(ctx);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::N)) {
-            self.request_new();
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::O)) {
-            self.ask_path(PathPurpose::Open);
-        }
-        if consume(shortcut(Modifiers::COMMAND, Key::I)) {
-            self.ask_path(PathPurpose::Import);
-        }
-        let selected = match self.editor.selection {
-            Some(Selection::Object(id)) => Some(id),
-            _ => None,
-        };
-        if consume(shortcut(Modifiers::COMMAND, Key::D))
-            && let Some(id) = selected
-        {
-            let _ = self.editor.duplicate(id);
-        }
-        // Single keys only when no text field has the keyboard and no path entry is open
-        // (egui drops a field's focus on Esc before this runs, and the entry needs the Esc).
-        if ctx.egui_wants_keyboard_input() || self.prompt.is_some() {
-            return;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F1)) {
-            self.show_shortcuts = !self.show_shortcuts;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F)) {
-            self.editor.frame_selection();
-        }
-        if consume(shortcut(Modifiers::NONE, Key::End)) {
-            self.drop_selected(ctx);
-        }
-        if consume(shortcut(Modifiers::NONE, Key::F3)) {
-            self.perf.open = !self.perf.open;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::S)) {
-            self.sculpt.active = true;
-        }
-        if consume(shortcut(Modifiers::NONE, Key::Escape)) {
-            self.sculpt.active = false;
-        }
-        if self.pose.joint.is_some() {
-            if consume(shortcut(Modifiers::NONE, Key::R)) {
-                self.pose.mode = pose::GizmoMode::Rotate;
-            }
-            if consume(shortcut(Modifiers::NONE, Key::G)) {
-                self.pose.mode = pose::GizmoMode::Translate;
-            }
-            if consume(shortcut(Modifiers::NONE, Key::E)) {
-                self.pose.mode = pose::GizmoMode::Scale;
-            }
-            if let Some(j) = self.pose.valid_joint(&self.editor) {
-                if consume(shortcut(Modifiers::SHIFT, Key::K)) {
-                    self.pose.error = self
-                        .editor
-                        .delete_joint_key(j.object, j.joint)
-                        .err()
-                        .map(|e| e.to_string());
-                } else if consume(shortcut(Modifiers::NONE, Key::K)) {
-                    self.pose.error = self
-                        .editor
-                        .set_joint_key(j.object, j.joint)
-                        .err()
-                        .map(|e| e.to_string());
-                }
-            }
-        }
-        if pose::timeline_target(&self.editor).is_some()
-            && consume(shortcut(Modifiers::NONE, Key::Space))
-        {
-            self.pose.playing = !self.pose.playing;
-        }
-        // Shift first (a plain shortcut also matches with Shift held); Shift+[ arrives as `{`
-        // on layouts where Shift changes the key.
-        for (mods, key, grow, double) in [
-            (Modifiers::SHIFT, Key::OpenBracket, false, true),
-            (Modifiers::SHIFT, Key::OpenCurlyBracket, false, true),
-            (Modifiers::SHIFT, Key::CloseBracket, true, true),
-            (Modifiers::SHIFT, Key::CloseCurlyBracket, true, true),
-            (Modifiers::NONE, Key::OpenBracket, false, false),
-            (Modifiers::NONE, Key::CloseBracket, true, false),
-        ] {
-            if consume(shortcut(mods, key)) {
-                self.sculpt.brush.radius =
-                    sculpt::step_brush_radius(self.sculpt.brush.radius, grow, double);
-            }
-        }
-        if consume(shortcut(Modifiers::NONE, Key::Num5)) {
-            let ortho = !self.editor.doc().camera.orthographic;
-            self.view.set_orthographic(&mut self.editor, ortho);
-        }
-        for (key, near, far) in [
-            (Key::Num1, view::AxisView::Front, view::AxisView::Back),
-            (Key::Num3, view::AxisView::Right, view::AxisView::Left),
-            (Key::Num7, view::AxisView::Top, view::AxisView::Bottom),
-        ] {
-            if consume(shortcut(Modifiers::COMMAND, key)) {
-                self.view.axis_view(&mut self.editor, far);
-            }
-            if consume(shortcut(Modifiers::NONE, key)) {
-                self.view.axis_view(&mut self.editor, near);
-            }
-        }
-        if let Some(Selection::Light(i)) = self.editor.selection
-            && consume(shortcut(Modifiers::NONE, Key::Delete))
-        {
-            let _ = self.editor.delete_light(i);
-        }
-        if let Some(id) = selected {
-            if consume(shortcut(Modifiers::NONE, Key::Delete)) {
-                let _ = self.editor.delete(id);
-            }
-            if consume(shortcut(Modifiers::NONE, Key::H))
-                && let Some(visible) = self.editor.object(id).map(|o| o.visible)
-            {
-                let _ = self.editor.set_visible(id, !visible);
-            }
-            if consume(shortcut(Modifiers::NONE, Key::F2)) {
-                self.outliner.start_rename(&self.editor, id);
-            }
-        }
-    }
-
     // ---------------------------------------------------------------- panels
-
-    fn menu_bar(&mut self, ui: &mut egui::Ui) {
-        let busy = self.job.is_some();
-        egui::MenuBar::new().ui(ui, |ui| {
-            ui.menu_button("File", |ui| {
-                if ui
-                    .add_enabled(!busy, egui::Button::new("New project…").shortcut_text("Ctrl+N"))
-                    .on_hover_text("Start a new project with a new voxel model (Cancel: an empty project)")
-                    .clicked()
-                {
-                    self.request_new();
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Open…").shortcut_text("Ctrl+O"))
-                    .on_hover_text("Open a project (.thicket.json) or a model to start a new project from")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::Open);
-                }
-                ui.menu_button("Recent", |ui| {
-                    if self.editor.recent.is_empty() {
-                        ui.weak("No recent files");
-                    }
-                    let mut chosen = None;
-                    for path in &self.editor.recent {
-                        if ui
-                            .add_enabled(!busy, egui::Button::new(path.display().to_string()))
-                            .clicked()
-                        {
-                            chosen = Some(path.clone());
-                        }
-                    }
-                    if let Some(path) = chosen {
-                        self.request_open(path);
-                    }
-                });
-                ui.separator();
-                if ui
-                    .add(egui::Button::new("Save").shortcut_text("Ctrl+S"))
-                    .on_hover_text("Save the project (atomically: the previous save stays readable until this one is complete)")
-                    .clicked()
-                {
-                    let ctx = ui.ctx().clone();
-                    self.save(&ctx);
-                }
-                if ui
-                    .add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S"))
-                    .on_hover_text("Save the project under a new name")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::SaveAs);
-                }
-                ui.separator();
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Import…").shortcut_text("Ctrl+I"))
-                    .on_hover_text(format!(
-                        "Add the objects of another file to this project ({})",
-                        readable_list()
-                    ))
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::Import);
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Export .vox..."))
-                    .on_hover_text("Write the visible voxel models as a MagicaVoxel file (on a worker thread)")
-                    .clicked()
-                {
-                    self.ask_path(PathPurpose::ExportVox);
-                }
-                if ui
-                    .add_enabled(!busy, egui::Button::new("Export glTF..."))
-                    .on_hover_text("Write the scene, or the selected object, as .glb or .gltf: cubes, smooth surfaces, KRS meshes or instances, skinned characters with their clips")
-                    .clicked()
-                {
-                    self.gltf_export.open = true;
-                    ui.close();
-                }
-                ui.separator();
-                if native_dialogs_available() {
-                    ui.checkbox(&mut self.native_dialogs, "Native file dialogs")
-                        .on_hover_text("Use the desktop's file dialogs (xdg portal or zenity) when available; otherwise a path entry");
-                } else {
-                    ui.add_enabled(false, egui::Checkbox::new(&mut false, "Native file dialogs"))
-                        .on_disabled_hover_text("No desktop file dialog can open here (no D-Bus session for the xdg portal, no zenity on PATH): files are named in a path entry");
-                }
-                ui.horizontal(|ui| {
-                    ui.label("Autosave");
-                    for (secs, label) in [(0, "Off"), (60, "1 min"), (120, "2 min"), (300, "5 min")] {
-                        ui.selectable_value(&mut self.autosave_secs, secs, label)
-                            .on_hover_text(format!(
-                                "Write unsaved work to a recovery file in {} (never over your file)",
-                                self.recovery_dir.display()
-                            ));
-                    }
-                });
-                ui.separator();
-                if ui.button("Quit").on_hover_text("Close the editor").clicked() {
-                    ui.ctx().send_viewport_cmd(egui::ViewportCommand::Close);
-                }
-            });
-            ui.menu_button("Edit", |ui| {
-                let h = self.editor.history();
-                let (can_undo, can_redo) = (h.undo_len() > 0, h.redo_len() > 0);
-                if ui
-                    .add_enabled(can_undo, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
-                    .on_hover_text("Undo the last edit")
-                    .clicked()
-                {
-                    self.editor.undo();
-                }
-                if ui
-                    .add_enabled(can_redo, egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z"))
-                    .on_hover_text("Redo the last undone edit")
-                    .clicked()
-                {
-                    self.editor.redo();
-                }
-                ui.separator();
-                let selected = match self.editor.selection {
-                    Some(Selection::Object(id)) => Some(id),
-                    _ => None,
-                };
-                if ui
-                    .add_enabled(selected.is_some(), egui::Button::new("Duplicate").shortcut_text("Ctrl+D"))
-                    .on_hover_text("Copy the selected object")
-                    .clicked()
-                    && let Some(id) = selected
-                {
-                    let _ = self.editor.duplicate(id);
-                }
-                ui.menu_button("Add KRS object", |ui| {
-                    for (name, krs) in thicket_core::krs::presets::all() {
-                        if ui
-                            .button(name)
-                            .on_hover_text("Add this procedural KRS preset as a new object (edit it in the inspector)")
-                            .clicked()
-                        {
-                            let label = format!("KRS {name}");
-                            self.editor
-                                .add_object(&label, thicket_core::scene::ObjectKind::Krs(krs));
-                            ui.close();
-                        }
-                    }
-                });
-                ui.menu_button("Enhance detail", |ui| {
-                    for factor in [2u32, 4, 8] {
-                        if ui
-                            .add_enabled(selected.is_some() && !busy, egui::Button::new(format!("x{factor}")))
-                            .on_hover_text("Add a detail-enhanced copy of the selected voxel model (worker thread, cancellable)")
-                            .clicked()
-                        {
-                            self.start_enhance(factor);
-                        }
-                    }
-                });
-                let selected_light = match self.editor.selection {
-                    Some(Selection::Light(i)) => Some(i),
-                    _ => None,
-                };
-                if ui
-                    .add_enabled(
-                        selected.is_some() || selected_light.is_some(),
-                        egui::Button::new("Delete").shortcut_text("Del"),
-                    )
-                    .on_hover_text("Delete the selected object or light (undoable)")
-                    .clicked()
-                {
-                    if let Some(id) = selected {
-                        let _ = self.editor.delete(id);
-                    } else if let Some(i) = selected_light {
-                        let _ = self.editor.delete_light(i);
-                    }
-                }
-                if ui
-                    .add_enabled(selected.is_some(), egui::Button::new("Drop to surface").shortcut_text("End"))
-                    .on_hover_text("Move the selected object straight down until it rests on the voxels, mesh or KRS surface below it (undoable)")
-                    .clicked()
-                {
-                    self.drop_selected(ui.ctx());
-                }
-                if ui
-                    .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
-                    .on_hover_text("A new voxel model standing where the view looks: extent, voxel size, initial fill")
-                    .clicked()
-                {
-                    self.new_model.show(&self.editor);
-                    ui.close();
-                }
-                if ui
-                    .button("Add light")
-                    .on_hover_text("Add a directional light that casts shadows (undoable)")
-                    .clicked()
-                {
-                    let light = self.editor.new_light();
-                    let _ = self.editor.add_light(light);
-                }
-            });
-            ui.menu_button("Select", |ui| self.select_menu_ui(ui));
-            ui.menu_button("Model", |ui| self.model_menu_ui(ui));
-            ui.menu_button("View", |ui| {
-                ui.checkbox(&mut self.show_outliner, "Outliner")
-                    .on_hover_text("Show the list of objects and lights");
-                ui.checkbox(&mut self.show_inspector, "Inspector")
-                    .on_hover_text("Show the properties of the selection");
-                ui.separator();
-                if ui
-                    .add(egui::Button::new("Frame selection").shortcut_text("F"))
-                    .on_hover_text("Point the camera at the selection, or at everything")
-                    .clicked()
-                {
-                    self.editor.frame_selection();
-                }
-                ui.checkbox(&mut self.perf.open, "Performance overlay (F3)")
-                    .on_hover_text("Frame times, GPU time per pass, nodes per level, memory");
-                ui.checkbox(&mut self.tradeoff.open, "Trade-off")
-                    .on_hover_text("Measure time against error for each quality setting on this view, and pick one");
-                ui.separator();
-                self.view.menu_ui(ui, &mut self.editor);
-                ui.separator();
-                ui.label("UI scale");
-                ui.horizontal(|ui| {
-                    for zoom in [1.0_f32, 1.25, 1.5, 2.0] {
-                        if ui
-                            .button(format!("{}%", (zoom * 100.0).round()))
-                            .on_hover_text("Scale the whole interface (for high-DPI screens)")
-                            .clicked()
-                        {
-                            ui.ctx().set_zoom_factor(zoom);
-                        }
-                    }
-                });
-            });
-            ui.menu_button("Render", |ui| {
-                ui.label("Quality preset");
-                let current = &self.editor.doc().quality;
-                let active = PRESETS
-                    .iter()
-                    .position(|(_, p, _)| *current == Quality::preset(*p));
-                for (i, (label, preset, tip)) in PRESETS.iter().enumerate() {
-                    if ui
-                        .radio(active == Some(i), *label)
-                        .on_hover_text(*tip)
-                        .clicked()
-                    {
-                        self.editor.apply_quality_preset(*preset);
-                    }
-                }
-                if active.is_none() {
-                    ui.add_enabled(false, egui::RadioButton::new(true, "Custom"))
-                        .on_disabled_hover_text(
-                        "The knobs differ from every preset (edited in the inspector's Render \
-                         quality section); choosing a preset replaces them",
-                    );
-                }
-                ui.separator();
-                self.view.render_menu_ui(ui);
-            });
-            ui.menu_button("Help", |ui| {
-                if ui
-                    .add(egui::Button::new("Keyboard shortcuts").shortcut_text("F1"))
-                    .clicked()
-                {
-                    self.show_shortcuts = true;
-                }
-                if ui.button("About Thicket").clicked() {
-                    self.show_about = true;
-                }
-            });
-        });
-    }
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal(|ui| {
@@ -1719,296 +996,6 @@ impl EditorApp {
             ui.weak(&self.status);
         });
     }
-
-    fn dialogs(&mut self, ctx: &egui::Context) {
-        if let Some(r) = self.recovery.clone() {
-            let mut choice = None;
-            egui::Modal::new(egui::Id::unique("recovery_dialog")).show(ctx, |ui| {
-                ui.heading("Recover unsaved work?");
-                let what = r.meta.original.as_ref().map_or_else(
-                    || "an untitled project".to_owned(),
-                    |p| p.display().to_string(),
-                );
-                let age = std::time::SystemTime::now()
-                    .duration_since(std::time::UNIX_EPOCH)
-                    .map_or(0, |d| d.as_secs())
-                    .saturating_sub(r.meta.saved_unix_secs);
-                ui.label(format!(
-                    "The editor stopped before saving {what}. An autosave from {} ago is in {}.",
-                    human_age(age),
-                    r.path.display()
-                ));
-                ui.horizontal(|ui| {
-                    if ui
-                        .button("Recover")
-                        .on_hover_text("Open the autosaved work (save it to keep it)")
-                        .clicked()
-                    {
-                        choice = Some(true);
-                    }
-                    if ui
-                        .button("Discard")
-                        .on_hover_text("Delete the autosave and continue")
-                        .clicked()
-                    {
-                        choice = Some(false);
-                    }
-                });
-            });
-            match choice {
-                Some(true) => self.recover(),
-                Some(false) => self.discard_recovery(),
-                None => {}
-            }
-        }
-        self.import_report_ui(ctx);
-        if let Some(message) = self.error_dialog.clone() {
-            egui::Modal::new(egui::Id::unique("error_dialog")).show(ctx, |ui| {
-                ui.heading("Could not complete the operation");
-                ui.label(message);
-                ui.add_space(8.0);
-                if ui.button("OK").clicked() {
-                    self.error_dialog = None;
-                }
-            });
-        }
-        if let Some(pending) = self.pending.clone()
-            && self.prompt.is_none()
-        {
-            let mut decision = None;
-            egui::Modal::new(egui::Id::unique("unsaved_dialog")).show(ctx, |ui| {
-                ui.heading("Unsaved changes");
-                ui.label(format!(
-                    "Save the changes to {} first?",
-                    self.editor.path().map_or_else(
-                        || "the untitled project".to_owned(),
-                        |p| p.display().to_string()
-                    )
-                ));
-                ui.horizontal(|ui| {
-                    if ui
-                        .button("Save")
-                        .on_hover_text("Save, then continue")
-                        .clicked()
-                    {
-                        decision = Some(1);
-                    }
-                    if ui
-                        .button("Don't save")
-                        .on_hover_text("Discard the changes and continue")
-                        .clicked()
-                    {
-                        decision = Some(2);
-                    }
-                    if ui
-                        .button("Cancel")
-                        .on_hover_text("Go back to editing")
-                        .clicked()
-                    {
-                        decision = Some(0);
-                    }
-                });
-            });
-            match decision {
-                Some(0) => self.pending = None,
-                // Untitled: Save asks for a path and the pending action waits for that save.
-                Some(1) if self.save(ctx) => {
-                    self.pending = None;
-                    self.resolve_pending(ctx, pending);
-                }
-                Some(2) => {
-                    self.pending = None;
-                    self.resolve_pending(ctx, pending);
-                }
-                _ => {}
-            }
-        }
-        if let Some(mut prompt) = self.prompt.take() {
-            let (accepted, keep) = match prompt.ui(ctx, &self.editor.recent) {
-                PromptOutcome::Open => (None, true),
-                PromptOutcome::Accept(path) => (Some(path), false),
-                PromptOutcome::Cancel => (None, false),
-            };
-            if let Some(path) = accepted {
-                let purpose = prompt.purpose;
-                self.accept_path(ctx, purpose, path);
-                // A Save As that finished lets a waiting Quit / New / Open go on.
-                if purpose == PathPurpose::SaveAs
-                    && !self.editor.is_dirty()
-                    && let Some(pending) = self.pending.take()
-                {
-                    self.resolve_pending(ctx, pending);
-                }
-            } else if keep {
-                self.prompt = Some(prompt);
-            }
-        }
-        let selected = self.editor.selected_object().map(|o| o.name.clone());
-        if self
-            .gltf_export
-            .ui(ctx, selected.as_deref(), self.job.is_some())
-        {
-            self.ask_path(PathPurpose::ExportGltf);
-        }
-        if self.show_shortcuts {
-            egui::Window::new("Keyboard shortcuts")
-                .open(&mut self.show_shortcuts)
-                .resizable(false)
-                .show(ctx, |ui| {
-                    egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                        for (keys, what) in SHORTCUTS.iter().chain(voxel_menus::TOOL_SHORTCUTS) {
-                            ui.strong(*keys);
-                            ui.label(*what);
-                            ui.end_row();
-                        }
-                    });
-                });
-        }
-        if self.show_about {
-            egui::Window::new("About Thicket")
-                .open(&mut self.show_about)
-                .show(ctx, |ui| {
-                    ui.label(format!("Thicket {}", env!("CARGO_PKG_VERSION")));
-                    ui.label("Voxel sculpting, skinning and procedural trees.");
-                });
-        }
-    }
-
-    /// The Import report window: what the last import left out, one bullet per kind; for an
-    /// OBJ that names no texture a Texture field that imports it again with one; for a glTF
-    /// scene of several nodes a checklist of its nodes that imports it again with those.
-    fn import_report_ui(&mut self, ctx: &egui::Context) {
-        let Some(report) = self.import_report.as_mut() else {
-            return;
-        };
-        let mut open = true;
-        let mut ok = false;
-        let mut again = false;
-        let mut again_with_nodes = false;
-        let needs_texture = report.lines.iter().any(|l| l == files::OBJ_NO_TEXTURE);
-        egui::Window::new("Import report")
-            .open(&mut open)
-            .collapsible(false)
-            .resizable(true)
-            .default_width(460.0)
-            .show(ctx, |ui| {
-                let name = report.path.file_name().map_or_else(
-                    || report.path.display().to_string(),
-                    |n| n.to_string_lossy().into_owned(),
-                );
-                if report.lines.is_empty() {
-                    ui.label(format!("{name} was imported."));
-                } else {
-                    ui.label(format!(
-                        "{name} was imported. What became of what it holds beyond its meshes:"
-                    ));
-                    ui.add_space(4.0);
-                    egui::ScrollArea::vertical()
-                        .id_salt("import_report_lines")
-                        .max_height(240.0)
-                        .show(ui, |ui| {
-                            for line in &report.lines {
-                                ui.label(format!("• {line}"));
-                            }
-                        });
-                }
-                if report.nodes.len() > 1 {
-                    again_with_nodes = import_nodes_ui(ui, &mut report.nodes);
-                }
-                if needs_texture {
-                    ui.add_space(6.0);
-                    ui.horizontal(|ui| {
-                        ui.label("Texture");
-                        ui.add(
-                            egui::TextEdit::singleline(&mut report.texture)
-                                .hint_text("path to a PNG or JPEG")
-                                .desired_width(240.0),
-                        )
-                        .on_hover_text(
-                            "A base-colour texture for the OBJ's untextured parts; a relative \
-                             path is relative to the OBJ's folder",
-                        );
-                        again = ui
-                            .add_enabled(
-                                !report.texture.trim().is_empty(),
-                                egui::Button::new("Import again with it"),
-                            )
-                            .on_hover_text("Replaces the objects just imported")
-                            .clicked();
-                    });
-                }
-                ui.add_space(6.0);
-                ok = ui.button("OK").clicked();
-            });
-        if again {
-            let texture = PathBuf::from(report.texture.trim());
-            let texture = if texture.is_relative() {
-                report
-                    .path
-                    .parent()
-                    .map_or(texture.clone(), |d| d.join(&texture))
-            } else {
-                texture
-            };
-            let (path, placed) = (report.path.clone(), report.placed.clone());
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    texture: Some(texture),
-                    ..files::MeshOptions::default()
-                },
-            );
-        } else if again_with_nodes {
-            let (path, placed) = (report.path.clone(), report.placed.clone());
-            let picked = report
-                .nodes
-                .iter()
-                .filter(|(_, on)| *on)
-                .map(|(n, _)| n.clone())
-                .collect();
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    nodes: Some(picked),
-                    ..files::MeshOptions::default()
-                },
-            );
-        } else if !open || ok {
-            self.import_report = None;
-        }
-    }
-
-    fn toasts_ui(&mut self, ctx: &egui::Context) {
-        let now = ctx.input(|i| i.time);
-        self.toasts.retain(|t| t.until_secs > now);
-        if self.toasts.is_empty() {
-            return;
-        }
-        egui::Area::new(egui::Id::unique("toasts"))
-            .anchor(egui::Align2::RIGHT_BOTTOM, egui::vec2(-12.0, -36.0))
-            .show(ctx, |ui| {
-                for t in &self.toasts {
-                    egui::Frame::popup(ui.style()).show(ui, |ui| {
-                        if t.is_error {
-                            ui.colored_label(ui.visuals().error_fg_color, &t.text);
-                        } else {
-                            ui.label(&t.text);
-                        }
-                    });
-                }
-            });
-        ctx.request_repaint_after(Duration::from_millis(250));
-    }
 }
 
 const PRESETS: &[(&str, QualityPreset, &str)] = &[
@@ -2024,87 +1011,6 @@ const PRESETS: &[(&str, QualityPreset, &str)] = &[
         "Offline quality: fine LOD, soft shadows, more AO samples",
     ),
 ];
-
-/// The Import report's checklist of a glTF scene's nodes (one object each); true when
-/// "Import again with these" was clicked (enabled while at least one node is checked).
-fn import_nodes_ui(ui: &mut egui::Ui, nodes: &mut [(String, bool)]) -> bool {
-    ui.add_space(6.0);
-    ui.label("Nodes (one object each):");
-    egui::ScrollArea::vertical()
-        .id_salt("import_report_nodes")
-        .max_height(200.0)
-        .show(ui, |ui| {
-            for (name, on) in nodes.iter_mut() {
-                ui.checkbox(on, name.as_str());
-            }
-        });
-    ui.horizontal(|ui| {
-        if ui.small_button("All").clicked() {
-            nodes.iter_mut().for_each(|(_, on)| *on = true);
-        }
-        if ui.small_button("None").clicked() {
-            nodes.iter_mut().for_each(|(_, on)| *on = false);
-        }
-        ui.add_enabled(
-            nodes.iter().any(|(_, on)| *on),
-            egui::Button::new("Import again with these"),
-        )
-        .on_hover_text("Replaces the objects just imported with the checked nodes")
-        .clicked()
-    })
-    .inner
-}
-
-/// The import report's line for a file with a camera imported into an existing scene.
-pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
-     used when the file is opened or imported from the command line";
-
-/// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
-const SKINNED_IMPORT_DEPTH: u8 = 7;
-
-/// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
-/// cancel from the job), a static glTF becomes one mesh object per node
-/// ([`files::load_gltf_objects`], with its node names for the report's checklist), anything
-/// else goes through [`files::load_document`].
-fn import_document(
-    path: &Path,
-    options: &files::MeshOptions,
-    progress: &AtomicU32,
-    cancel: &AtomicBool,
-) -> anyhow::Result<(Document, Vec<String>, GltfView, Vec<String>)> {
-    use anyhow::Context as _;
-    files::check_options(path, options)?;
-    let is_gltf = FileKind::from_path(path) == Some(FileKind::Gltf);
-    let skinned = if is_gltf {
-        files::load_skinned(path)?
-    } else {
-        None
-    };
-    let Some(skinned) = skinned else {
-        if is_gltf {
-            return files::load_gltf_objects(path, options);
-        }
-        return files::load_document_imported(path, options)
-            .map(|(doc, notes, view)| (doc, notes, view, Vec::new()));
-    };
-    let settings = thicket_core::voxelize::VoxelizeSettings {
-        resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
-        ..Default::default()
-    };
-    let v = thicket_core::skin::voxelize_skinned(&skinned, &settings, &|f| {
-        progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
-        !cancel.load(Ordering::Relaxed)
-    })
-    .with_context(|| format!("{}: voxelizing the skinned mesh", path.display()))?;
-    let mut doc = Document::default();
-    doc.add(
-        files::object_name_for(path),
-        thicket_core::scene::ObjectKind::Voxels(v.model),
-    );
-    doc.validate()
-        .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok((doc, skinned.warnings, skinned.view, Vec::new()))
-}
 
 /// `foo` → `foo.thicket.json`; `foo.thicket.json` unchanged.
 fn with_project_extension(path: PathBuf) -> PathBuf {
@@ -2147,15 +1053,6 @@ fn native_dialogs_available() -> bool {
     let zenity = std::env::var_os("PATH")
         .is_some_and(|paths| std::env::split_paths(&paths).any(|d| d.join("zenity").is_file()));
     dbus || zenity
-}
-
-fn human_age(secs: u64) -> String {
-    match secs {
-        0..=59 => format!("{secs} s"),
-        60..=3599 => format!("{} min", secs / 60),
-        3600..=86_399 => format!("{} h", secs / 3600),
-        _ => format!("{} days", secs / 86_400),
-    }
 }
 
 const RECENT_KEY: &str = "thicket.recent_files";
@@ -2242,12 +1139,9 @@ mod tests {
             factor: 4,
             ..Default::default()
         };
-        let (fine, _) = thicket_core::enhance::enhance_model(
-            &model,
-            &settings,
-            thicket_core::enhance::Control::default(),
-        )
-        .unwrap();
+        let (fine, _) = model
+            .enhanced(&settings, thicket_core::enhance::Control::default())
+            .unwrap();
         let mut ed = Editor::default();
         let id = ed.add_object("Slab", ObjectKind::Voxels(model));
         ed.add_enhancement(id, settings, fine, None).unwrap();

@@ -11,8 +11,7 @@ use egui_plot::{
     Text,
 };
 use thicket_core::measure::{KnobValues, SweepPoint, SweepReport, SweepSettings, default_knobs};
-use thicket_core::render::{Quality, QualityPreset};
-use thicket_core::scene::Document;
+use thicket_core::quality::{Quality, QualityPreset};
 
 use crate::editor::Editor;
 use crate::files::thousands;
@@ -48,21 +47,7 @@ pub enum PanelAction {
     Cancel,
 }
 
-/// A sweep to run: a copy of the document (the user keeps editing meanwhile), the image size
-/// and the settings.
-#[derive(Debug, Clone)]
-pub struct SweepJob {
-    /// The document as it was when the sweep started, with its camera (the current view).
-    pub doc: Document,
-    /// Image width in pixels.
-    pub width: u32,
-    /// Image height in pixels.
-    pub height: u32,
-    /// What to render.
-    pub settings: SweepSettings,
-    /// The editor revision the sweep describes.
-    pub revision: u64,
-}
+pub use crate::editor::jobs::SweepJob;
 
 /// The panel's state.
 pub struct TradeoffPanel {

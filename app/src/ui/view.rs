@@ -188,7 +188,7 @@ struct PreviewKey {
     animation: u64,
     camera: OrbitCamera,
     size_px: [u32; 2],
-    /// Samples per pixel side ([`thicket_core::render::Quality::supersample`]): the
+    /// Samples per pixel side ([`thicket_core::quality::Quality::supersample`]): the
     /// document's for a still frame, 1 while the view keeps changing.
     supersample: u32,
     holes: bool,
@@ -1214,7 +1214,7 @@ impl View {
                 width: size_px[0],
                 height: size_px[1],
                 camera: Some(key.camera),
-                quality: thicket_core::render::Quality {
+                quality: thicket_core::quality::Quality {
                     supersample: key.supersample,
                     ..doc.quality.clone()
                 },
@@ -1644,7 +1644,7 @@ fn hole_overlay(
     };
     let (w, h) = (req.width as usize, req.height as usize);
     let cam = Camera::from_orbit(&req.camera.unwrap_or(doc.camera), req.width, req.height);
-    let quality = thicket_core::render::Quality {
+    let quality = thicket_core::quality::Quality {
         shadows: false,
         ao_samples: 0,
         ..req.quality.clone()
@@ -1976,10 +1976,10 @@ pub fn stretch_color(factor: f32) -> egui::Color32 {
 fn node_stretch_factors(
     o: &thicket_core::scene::Object,
     v: &thicket_core::scene::VoxelModel,
-    quality: &thicket_core::render::Quality,
+    quality: &thicket_core::quality::Quality,
     wanted: &std::collections::HashSet<u64>,
 ) -> HashMap<u64, f32> {
-    use thicket_core::render::{NodeDeform as _, NodeInfo};
+    use thicket_core::deform::{NodeDeform as _, NodeInfo};
     use thicket_core::skin::{SkinDeform, StretchStrategy};
     let mut out = HashMap::new();
     let Some(rig) = &v.rig else {
@@ -2014,7 +2014,7 @@ fn node_stretch_factors(
         )
     };
     // Half extent of a splat's world box along its largest axis.
-    let extent = |d: thicket_core::render::DeformedNode| {
+    let extent = |d: thicket_core::deform::DeformedNode| {
         let m = d.half_axes_world;
         let rows = m.x_axis.abs() + m.y_axis.abs() + m.z_axis.abs();
         rows.max_element()

@@ -5,7 +5,8 @@ use std::path::{Path, PathBuf};
 
 use thicket::gpu::{GBuffer, GpuContext, GpuFrameStats, RenderTarget, Renderer, read_rgba8};
 use thicket_core::measure::image::{Parity, Tolerance, difference_image, parity};
-use thicket_core::render::{FrameBuffers, Quality, RgbaImage};
+use thicket_core::quality::Quality;
+use thicket_core::render::{FrameBuffers, RgbaImage};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// Relative view-depth agreement.

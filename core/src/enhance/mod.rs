@@ -146,7 +146,7 @@ pub fn enhance(coarse: &Svo, settings: &EnhanceSettings) -> Result<Svo, EnhanceE
     Ok(Enhancer::new(coarse, settings)?.into_fine())
 }
 
-/// What [`enhance_model`] will produce and need, estimated from the coarse map's surface
+/// What [`crate::scene::VoxelModel::enhanced`] will produce and need, estimated from the coarse map's surface
 /// before any fine voxel is made.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct EnhanceEstimate {
@@ -183,35 +183,6 @@ pub fn estimate(coarse: &Svo, settings: &EnhanceSettings) -> Result<EnhanceEstim
         peak_bytes: (256u64 << 10)
             .saturating_add((fine * ENHANCE_BYTES_PER_FINE_VOXEL as f64) as u64),
     })
-}
-
-/// Enhances a document's voxel model. The result covers the same space: voxel size divided by
-/// the factor, same origin, same material names (fragment `i` of coarse voxel `c` is fine voxel
-/// `c·F + i`). Skin weights are not carried over (fragments have none).
-///
-/// # Errors
-/// See [`Enhancer::with_control`].
-pub fn enhance_model(
-    model: &crate::scene::VoxelModel,
-    settings: &EnhanceSettings,
-    control: Control<'_>,
-) -> Result<(crate::scene::VoxelModel, EnhanceStats), EnhanceError> {
-    let e = Enhancer::with_control(&model.svo, settings, control)?;
-    let stats = e.stats();
-    Ok((
-        crate::scene::VoxelModel {
-            svo: e.into_fine(),
-            voxel_size: model.voxel_size / settings.factor as f32,
-            origin: model.origin,
-            material_names: model.material_names.clone(),
-            // The fine octree carries no joint weights: the enhanced model is static.
-            rig: None,
-            volume: None,
-            palette: Vec::new(),
-            frames: None,
-        },
-        stats,
-    ))
 }
 
 /// Fine occupancy of one coarse cell, for lighting and [`Enhancer::is_solid_fine`].

@@ -928,7 +928,7 @@ fn the_enhance_estimate_holds_the_measured_peak() {
                 };
                 let e = estimate(&m.svo, &s).unwrap();
                 let (r, peak) = crate::io::fuzz::peak_heap_bytes_on_one_thread(|| {
-                    enhance_model(m, &s, Control::default())
+                    m.enhanced(&s, Control::default())
                 });
                 let (fine, st) = r.unwrap();
                 let n = fine.svo.leaf_count();

@@ -589,14 +589,14 @@ mod loaders {
             asset("skinned/RiggedFigure.glb"),
         ];
         for file in &corpus {
-            crate::skin::import_skinned_slice(file, "seed.glb")
+            crate::io::import_skinned_slice(file, "seed.glb")
                 .expect("every seed file imports before mutation");
         }
         // RiggedFigure is 50 kB, so its cases cost more; the count is what CI can afford in a
         // debug build (THICKET_FUZZ_CASES raises it).
         let cases = cases_from_env(10_000);
         let report = run(&corpus, cases, SEED ^ 0x5C1, budget, |bytes| {
-            crate::skin::import_skinned_slice(bytes, "fuzz.glb")
+            crate::io::import_skinned_slice(bytes, "fuzz.glb")
         });
         eprintln!("skinned glTF fuzz: {report}");
         assert!(

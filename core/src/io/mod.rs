@@ -15,15 +15,19 @@ pub mod gltf_export;
 pub mod gltf_mesh;
 pub mod gltf_nodes;
 pub(crate) mod gltf_report;
+pub mod gltf_skinned;
 pub mod gltf_view;
 pub mod obj;
+pub mod skinned_voxels;
 
 pub use error::{ImportLimits, IoError};
 pub use gltf_mesh::{
     GltfImport, GltfNode, import_gltf, import_gltf_imported, import_gltf_reported,
     import_gltf_slice,
 };
+pub use gltf_skinned::{SkinnedImport, import_skinned, import_skinned_slice, import_skinned_with};
 pub use gltf_view::{GltfCamera, GltfView};
 pub use obj::{ObjOptions, import_obj};
+pub use skinned_voxels::{SkinnedVoxels, voxelize_skinned};
 
 pub mod vox;

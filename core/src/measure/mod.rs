@@ -4,6 +4,7 @@
 pub mod compare;
 pub mod image;
 pub mod pareto;
+pub mod skin;
 pub mod sweep;
 
 pub use compare::{Frame, FrameError, compare_frames};

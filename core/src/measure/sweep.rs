@@ -10,9 +10,9 @@ use serde::{Deserialize, Serialize};
 use super::compare::{Frame, FrameError, compare_frames};
 use super::image::MeasureError;
 use super::pareto::{Dominance, pareto_front};
+use crate::quality::{KNOB_SPECS, Quality, QualityError, QualityPreset};
 use crate::render::{
-    Camera, FrameBuffers, FrameStats, Quality, QualityError, QualityPreset, RenderError,
-    RenderRequest, Renderer, RgbaImage,
+    Camera, FrameBuffers, FrameStats, RenderError, RenderRequest, Renderer, RgbaImage,
 };
 use crate::scene::Document;
 
@@ -125,18 +125,14 @@ impl KnobValues {
 /// sweep covers when none are given.
 #[must_use]
 pub fn default_knobs() -> Vec<KnobValues> {
-    let k = |name: &str, values: &[&str]| KnobValues {
-        name: name.to_owned(),
-        values: values.iter().map(|v| (*v).to_owned()).collect(),
-    };
-    vec![
-        k("lod_pixel_threshold", &["0.5", "1", "2", "4", "8"]),
-        k("cube_pixel_threshold", &["1.5", "3", "6", "12", "1000000"]),
-        k("shadow_map_size", &["256", "512", "1024", "2048", "4096"]),
-        k("shadow_pcf_radius", &["0", "1", "2", "3"]),
-        k("ao_samples", &["0", "4", "8", "16"]),
-        k("supersample", &["1", "2", "3"]),
-    ]
+    KNOB_SPECS
+        .iter()
+        .filter(|k| !k.sweep.is_empty())
+        .map(|k| KnobValues {
+            name: k.name.to_owned(),
+            values: k.sweep.iter().map(|v| (*v).to_owned()).collect(),
+        })
+        .collect()
 }
 
 /// The reference setting: the `final` preset raised further on every knob where more is

@@ -17,9 +17,9 @@ use rayon::prelude::*;
 
 use super::buffers::{DepthTarget, pack_key};
 use super::camera::Camera;
-use super::deform::{NodeDeform, NodeInfo};
 use super::sampled::SampledTexels;
 use super::stats::LevelStats;
+use crate::deform::{NodeDeform, NodeInfo};
 use crate::svo::{NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
 
 /// One voxel object to draw.

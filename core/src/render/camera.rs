@@ -36,6 +36,29 @@ pub enum Projection {
     },
 }
 
+impl Projection {
+    /// An orbit camera's projection for an aspect ratio (width / height). (Here, not on
+    /// [`OrbitCamera`], so the document does not depend on a renderer type.)
+    #[must_use]
+    pub fn of_orbit(orbit: &OrbitCamera, aspect: f32) -> Self {
+        if orbit.orthographic {
+            let half_height = orbit.ortho_half_height();
+            Self::Orthographic {
+                half_width: half_height * aspect,
+                half_height,
+                near: orbit.near,
+                far: orbit.far,
+            }
+        } else {
+            Self::Perspective {
+                fov_y_rad: orbit.fov_y_deg.to_radians(),
+                near: orbit.near,
+                far: orbit.far,
+            }
+        }
+    }
+}
+
 /// A camera with an image size: everything needed to project a point to a pixel and a depth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Camera {
@@ -64,7 +87,7 @@ impl Camera {
         let aspect = width.max(1) as f32 / height.max(1) as f32;
         Self::new(
             orbit.view_from_world(),
-            orbit.projection(aspect),
+            Projection::of_orbit(orbit, aspect),
             width,
             height,
         )

@@ -18,11 +18,11 @@ use serde::{Deserialize, Serialize};
 use super::MESH_ID_FLAG;
 use super::buffers::{DepthTarget, EMPTY_KEY, key_depth, pack_key};
 use super::camera::Camera;
-use super::quality::Quality;
 use crate::krs::{
     AoSettings, PreparedScene, ShadowSettings, TraceSettings, ambient_occlusion, shade_colour,
     shading_threshold, shadow_counted, tile_cone, tile_start_distance_counted, trace,
 };
+use crate::quality::Quality;
 use crate::scene::Light;
 
 /// Ids with these bits set are KRS fragments (the low bits are the prepared object's index).

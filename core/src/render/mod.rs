@@ -15,9 +15,7 @@
 mod asvo;
 mod buffers;
 mod camera;
-mod deform;
 mod krs;
-pub mod quality;
 mod raster;
 mod sampled;
 pub mod scenes;
@@ -43,15 +41,15 @@ use glam::Vec3;
 pub use asvo::{FACE_BITS, VoxelInstance};
 pub use buffers::{FrameBuffers, ImageError, PixelId, RgbaImage};
 pub use camera::{Camera, Projection};
-pub use deform::{DeformedNode, NodeDeform, NodeInfo, RigidDeform, node_info};
 pub use krs::{
     AO_REACH_OBJECT_UNITS, KRS_TILE, KrsLayer, KrsStats, SMOOTHING_PX, SOFT_SHADOW_K,
     trace_settings,
 };
-pub use quality::{Quality, QualityError, QualityPreset};
 pub use raster::MeshInstance;
 pub use stats::{FrameStats, LevelStats, ShadingStats, StageTimes};
 
+use crate::deform::{NodeDeform, RigidDeform};
+use crate::quality::{Quality, QualityError};
 use crate::scene::{Document, Light, ObjectKind, OrbitCamera, SceneError};
 
 /// Largest accepted image edge in pixels.

@@ -4,6 +4,7 @@
 use super::scenes::mixed_document;
 use super::*;
 use crate::io::fuzz::heap_allocations;
+use crate::quality::QualityPreset;
 use crate::scene::OrbitCamera;
 
 fn house() -> Document {

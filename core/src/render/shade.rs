@@ -10,13 +10,13 @@ use super::asvo::{
 };
 use super::buffers::{DepthTarget, EMPTY_KEY, FrameBuffers, PixelId, RgbaImage, key_depth};
 use super::camera::{Camera, Projection};
-use super::deform::NodeInfo;
 use super::krs::{KRS_ID_FLAG, KrsLighting, KrsPass};
 use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
 use super::sampled::SampledTexels;
 use super::stats::LevelStats;
+use crate::deform::NodeInfo;
 use crate::mesh::{linear_to_srgb, srgb_to_linear};
-use crate::render::Quality;
+use crate::quality::Quality;
 use crate::scene::Light;
 use crate::svo::decode_normal;
 

@@ -6,6 +6,7 @@ use super::scenes::sphere_document;
 use super::*;
 use crate::krs::presets;
 use crate::measure::image::rmse;
+use crate::quality::QualityPreset;
 
 fn request(w: u32, h: u32, quality: Quality) -> RenderRequest {
     RenderRequest {

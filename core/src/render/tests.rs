@@ -6,6 +6,7 @@ use super::scenes::{self, mixed_document, sphere_document, voxel_object};
 use super::*;
 use crate::measure::image::{Tolerance, assert_images_match, count_differing, coverage_mismatch};
 use crate::mesh::{Material, MeshModel, TriangleMesh};
+use crate::quality::QualityPreset;
 use crate::scene::MeshObject;
 
 fn golden(name: &str) -> String {

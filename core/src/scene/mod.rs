@@ -8,9 +8,14 @@
 use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+pub mod bake;
+
+pub use bake::bake_shown_pose;
+
+use crate::enhance::{Control, EnhanceError, EnhanceSettings, EnhanceStats, Enhancer};
 use crate::krs::{KrsObject, Similarity};
 use crate::mesh::MeshModel;
-use crate::render::Quality;
+use crate::quality::Quality;
 use crate::skin::Rig;
 use crate::svo::Svo;
 
@@ -245,6 +250,36 @@ impl Default for VoxelModel {
 }
 
 impl VoxelModel {
+    /// This model enhanced (see [`crate::enhance`]). The result covers the same space: voxel
+    /// size divided by the factor, same origin, same material names (fragment `i` of coarse
+    /// voxel `c` is fine voxel `c·F + i`). Skin weights are not carried over (fragments have
+    /// none). (Here rather than in `enhance`, which works on plain octrees below the document.)
+    ///
+    /// # Errors
+    /// See [`Enhancer::with_control`].
+    pub fn enhanced(
+        &self,
+        settings: &EnhanceSettings,
+        control: Control<'_>,
+    ) -> Result<(VoxelModel, EnhanceStats), EnhanceError> {
+        let e = Enhancer::with_control(&self.svo, settings, control)?;
+        let stats = e.stats();
+        Ok((
+            VoxelModel {
+                svo: e.into_fine(),
+                voxel_size: self.voxel_size / settings.factor as f32,
+                origin: self.origin,
+                material_names: self.material_names.clone(),
+                // The fine octree carries no joint weights: the enhanced model is static.
+                rig: None,
+                volume: None,
+                palette: Vec::new(),
+                frames: None,
+            },
+            stats,
+        ))
+    }
+
     /// The editable volume in voxels per axis: [`VoxelModel::volume`] clamped to the octree,
     /// or the whole octree cube.
     #[must_use]
@@ -595,26 +630,6 @@ impl OrbitCamera {
         self.distance * (self.fov_y_deg.to_radians() * 0.5).tan()
     }
 
-    /// The projection for an aspect ratio (width / height).
-    #[must_use]
-    pub fn projection(&self, aspect: f32) -> crate::render::Projection {
-        if self.orthographic {
-            let half_height = self.ortho_half_height();
-            crate::render::Projection::Orthographic {
-                half_width: half_height * aspect,
-                half_height,
-                near: self.near,
-                far: self.far,
-            }
-        } else {
-            crate::render::Projection::Perspective {
-                fov_y_rad: self.fov_y_deg.to_radians(),
-                near: self.near,
-                far: self.far,
-            }
-        }
-    }
-
     /// The unit direction from a world point towards the eye: towards the eye position in
     /// perspective, the view axis's back direction in orthographic projection.
     #[must_use]
@@ -802,7 +817,7 @@ pub struct EnhancementLink {
     /// Id of the voxel model holding the enhancement.
     pub target: u64,
     /// The settings of the enhancement.
-    pub settings: crate::enhance::EnhanceSettings,
+    pub settings: EnhanceSettings,
 }
 
 /// The tree-builder parameters a KRS object was last built from.

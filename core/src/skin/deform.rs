@@ -33,7 +33,7 @@ use super::rig::{Rig, StretchOverrides};
 use super::stretch::{
     StretchSettings, StretchStrategy, containing_factor, decode_override, thesis_factor,
 };
-use crate::render::{DeformedNode, NodeDeform, NodeInfo};
+use crate::deform::{DeformedNode, NodeDeform, NodeInfo};
 use crate::svo::{Skin4, Svo};
 
 /// Derived per-octree data for skinned drawing: weights at every node's eight corners and the

@@ -5,11 +5,13 @@ use std::sync::{Arc, OnceLock};
 
 use glam::{Mat4, Quat, Vec3};
 
-use super::metrics::{ReportSettings, Silhouette, skin_report};
 use super::*;
+use crate::deform::{NodeDeform, NodeInfo};
+use crate::io::{import_skinned, voxelize_skinned};
+use crate::measure::skin::{ReportSettings, Silhouette, skin_report};
+use crate::quality::Quality;
 use crate::render::{
-    Camera, NodeDeform, NodeInfo, Quality, RenderRequest, RenderScene, VoxelInstance,
-    render_document, render_scene,
+    Camera, RenderRequest, RenderScene, VoxelInstance, render_document, render_scene,
 };
 use crate::scene::{Document, ObjectKind, VoxelModel};
 use crate::voxelize::{Resolution, VoxelizeSettings};
@@ -105,7 +107,7 @@ fn identity_skinning_with_s_one_draws_exactly_the_rigid_model() {
 }
 
 /// World AABB of a drawn box.
-fn world_aabb(d: crate::render::DeformedNode) -> (Vec3, Vec3) {
+fn world_aabb(d: crate::deform::DeformedNode) -> (Vec3, Vec3) {
     let a = d.half_axes_world;
     let he = glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
     (d.center_world - he, d.center_world + he)

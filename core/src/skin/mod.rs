@@ -8,16 +8,17 @@
 //! | module | what |
 //! |---|---|
 //! | [`skeleton`] | [`Skeleton`], [`Joint`], [`Transform`], [`Pose`], manual overrides, forward kinematics |
-//! | [`bake`] | a skinned model's shown pose baked into a rigid model (the static reference) |
 //! | [`clip`] | [`AnimationClip`] and its channels; STEP / LINEAR (slerp) / CUBICSPLINE sampling |
 //! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
-//! | [`metrics`] | hole and bloat pixels against the skinned source mesh, by depth, per strategy and view |
-//! | [`synthetic`] | a bending cylinder with a known hole area, for measuring strategies |
 //! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
-//! | [`voxelize`] | skinned glTF → skinned voxel model (bind-pose voxelization, four strongest weights) |
-//! | [`gltf_import`] | skins, joint hierarchies and animations from glTF |
+//!
+//! Elsewhere, because they build documents or read files (layers above the document, see
+//! `docs/architecture.md`): reading skins and animations from glTF ([`crate::io::gltf_skinned`]),
+//! skinned glTF → skinned voxel model ([`crate::io::skinned_voxels`]), baking the shown pose
+//! into a rigid model ([`crate::scene::bake`]), and measuring holes and bloat against the
+//! source mesh with its synthetic bending cylinder ([`crate::measure::skin`]).
 //!
 //! Spaces: a skinned mesh's vertices are in *bind-pose mesh space*; the skinning matrix of a
 //! joint is `world_from_joint * joint_from_bind` (the inverse bind matrix), so a skinned
@@ -25,31 +26,24 @@
 //! ancestor node above the joints). As in glTF, the transform of the node that carries the
 //! skinned mesh is ignored. See `docs/skinning.md`.
 
-pub mod bake;
 pub mod clip;
 pub mod deform;
-pub mod gltf_import;
 pub mod lbs;
-pub mod metrics;
 pub mod rig;
 pub mod skeleton;
 pub mod stretch;
-pub mod synthetic;
-pub mod voxelize;
 
 /// The per-node skin (four byte joints, unorm8 weights summing to 255) lives with the octree;
 /// see [`Skin4`] for why there is only one representation.
 pub use crate::svo::{MAX_SKIN_JOINTS, Skin4};
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
 pub use deform::{SkinDeform, SkinTables};
-pub use gltf_import::{SkinnedImport, import_skinned, import_skinned_slice, import_skinned_with};
 pub use lbs::{
     WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points,
 };
 pub use rig::{Playback, Rig, StretchOverrides};
 pub use skeleton::{Joint, JointMatrices, JointOverride, OverrideMode, Pose, Skeleton, Transform};
 pub use stretch::{SplatBox, StretchSettings, StretchStrategy};
-pub use voxelize::{SkinnedVoxels, voxelize_skinned};
 
 /// Why a skeleton, clip or skinned file cannot be used.
 #[derive(Debug, thiserror::Error)]

@@ -39,7 +39,7 @@ pub enum StretchStrategy {
     /// bending cylinder's reach up to R/2, 25.6 half-voxels at depth 7).
     ///
     /// What it closes: every hole whose surface point lies in the box of the voxel there or of
-    /// a neighbour — the lattice's deformation. Measured with `skin::metrics` (6 views, 256²):
+    /// a neighbour — the lattice's deformation. Measured with `measure::skin` (6 views, 256²):
     /// 0 hole pixels on the 90° bending cylinder and none beyond the rest pose's on CesiumMan's
     /// walk. What it cannot close: surface the voxels' weights send elsewhere (a voxel keeps
     /// the four strongest weights, quantised, and one part's where two parts' faces meet:

@@ -12,6 +12,7 @@ use super::stretch::{
     skinned_splat, stretch_from_samples, thesis_factor, voxel_corners,
 };
 use super::*;
+use crate::io::{SkinnedImport, import_skinned, import_skinned_slice, voxelize_skinned};
 
 const SIMPLE_SKIN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

@@ -941,10 +941,10 @@ fn the_voxelize_estimate_holds_the_measured_peak() {
     let torus = crate::io::import_gltf(&asset("static/bevy_torus.gltf")).unwrap();
     let rock = crate::io::import_gltf(&asset("static/kenney_rock_largeA.glb")).unwrap();
     // Skinned meshes: every voxel also carries its joints and weights.
-    let man = crate::skin::import_skinned(asset("skinned/CesiumMan.glb"))
+    let man = crate::io::import_skinned(asset("skinned/CesiumMan.glb"))
         .unwrap()
         .mesh;
-    let figure = crate::skin::import_skinned(asset("skinned/RiggedFigure.glb"))
+    let figure = crate::io::import_skinned(asset("skinned/RiggedFigure.glb"))
         .unwrap()
         .mesh;
     for (name, m) in [
@@ -1082,7 +1082,7 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
     // CesiumMan filled solid: every interior voxel, skinned with its own weights at mid-stride,
     // lands near where the weights of its nearest surface voxel put it. The fill along one
     // axis gave the torso the weights of the head or the feet (the ends of its columns).
-    let import = crate::skin::import_skinned(asset("skinned/CesiumMan.glb")).unwrap();
+    let import = crate::io::import_skinned(asset("skinned/CesiumMan.glb")).unwrap();
     let s = |mode| settings(Resolution::Depth(7), mode);
     let solid = voxelize(&import.mesh, &s(Mode::Solid), &all_progress).unwrap();
     let surface = voxelize(&import.mesh, &s(Mode::Surface), &all_progress).unwrap();

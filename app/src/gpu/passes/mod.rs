@@ -455,7 +455,7 @@ impl FrameBuffers {
         pool: &mut BufferPool,
         gpu: Gpu<'_>,
         plan: &plan::FramePlan,
-        quality: &thicket_core::render::Quality,
+        quality: &thicket_core::quality::Quality,
         objects: &[u8],
         queue_capacity: u64,
     ) -> Self {

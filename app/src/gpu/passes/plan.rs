@@ -3,7 +3,7 @@
 //! must fit, and which passes run. Pure: unit-tested without a device.
 
 use glam::{Mat4, Vec3};
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::{Light, OrbitCamera};
 
 use super::super::gpu_data::{GBUFFER_TEXEL_BYTES, KEY_BYTES, OCCLUSION_TILE, ViewUniform};

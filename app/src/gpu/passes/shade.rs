@@ -1,7 +1,7 @@
 //! Deferred shading (`shade.wgsl`): Phong per light with PCF shadows from the shadow maps,
 //! ambient occlusion, the KRS objects' lighting, written to the RGBA8 target.
 
-use thicket_core::render::Quality;
+use thicket_core::quality::Quality;
 use thicket_core::scene::Document;
 
 use super::plan::FramePlan;

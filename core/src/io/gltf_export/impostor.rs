@@ -16,7 +16,8 @@ use glam::{Vec2, Vec3};
 
 use crate::krs::KrsObject;
 use crate::mesh::{Texture, linear_to_srgb_byte};
-use crate::render::{Quality, RenderRequest, render_document};
+use crate::quality::Quality;
+use crate::render::{RenderRequest, render_document};
 use crate::scene::{Document, ObjectKind, OrbitCamera};
 
 /// Texels along each side of one view of an impostor's texture (the texture holds two views,

@@ -8,8 +8,9 @@ use std::collections::HashMap;
 use glam::{Mat4, Quat, UVec3, Vec3};
 
 use super::{ExportMode, GltfExportOptions, export_gltf};
+use crate::io::import_skinned;
 use crate::scene::{Document, ObjectKind, Transform};
-use crate::skin::{Rig, Skin4, SkinTables, import_skinned};
+use crate::skin::{Rig, Skin4, SkinTables};
 
 const CESIUM_MAN: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),

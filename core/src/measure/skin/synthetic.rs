@@ -18,13 +18,12 @@ use std::f32::consts::{FRAC_PI_2, TAU};
 
 use glam::{Quat, Vec3, Vec4};
 
-use super::SkinError;
-use super::clip::{AnimationClip, Channel, Interpolation, Property};
-use super::gltf_import::SkinnedImport;
-use super::skeleton::{Joint, Skeleton};
-use super::voxelize::voxelize_skinned;
+use crate::io::{SkinnedImport, voxelize_skinned};
 use crate::mesh::{Material, MeshModel, TriangleMesh};
 use crate::scene::{Document, ObjectKind};
+use crate::skin::SkinError;
+use crate::skin::clip::{AnimationClip, Channel, Interpolation, Property};
+use crate::skin::skeleton::{Joint, Skeleton};
 use crate::voxelize::{Resolution, VoxelizeSettings};
 
 /// Radius of the measured cylinder ([`bending_cylinder_document`]).

@@ -15,13 +15,13 @@ use gltf::json;
 use gltf::json::accessor::{ComponentType, Type};
 use gltf::json::validation::Checked;
 
-use super::SkinError;
-use super::clip::{AnimationClip, Channel, Interpolation, Property};
-use super::lbs::{WeightRepair, repair_mesh_weights};
-use super::skeleton::{Joint, Skeleton, Transform};
 use crate::io::gltf_mesh::{OpenedGltf, open_gltf};
 use crate::io::{ImportLimits, IoError};
 use crate::mesh::{Material, MeshModel};
+use crate::skin::SkinError;
+use crate::skin::clip::{AnimationClip, Channel, Interpolation, Property};
+use crate::skin::lbs::{WeightRepair, repair_mesh_weights};
+use crate::skin::skeleton::{Joint, Skeleton, Transform};
 
 /// What [`import_skinned`] returns.
 #[derive(Debug, Clone, Default)]

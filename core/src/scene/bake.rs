@@ -3,7 +3,7 @@
 
 use glam::{UVec3, Vec3};
 
-use crate::scene::VoxelModel;
+use super::VoxelModel;
 use crate::svo::{MAX_DEPTH, Skin4, Svo, Voxel, decode_normal, encode_normal};
 
 /// The model as its rig currently shows it, without the rig: every leaf's centre and normal
@@ -22,8 +22,8 @@ pub fn bake_shown_pose(model: &VoxelModel) -> Option<VoxelModel> {
     model.svo.for_each_leaf(|c, v| {
         let (joints, weights) = (v.skin.joints_u16(), v.skin.blend_weights());
         let bind = object_from_voxel.transform_point3(c.as_vec3() + Vec3::splat(0.5));
-        let p = super::lbs::skin_point(&skinning, joints, weights, bind);
-        let n = super::lbs::skin_normal(&skinning, joints, weights, decode_normal(v.normal));
+        let p = crate::skin::lbs::skin_point(&skinning, joints, weights, bind);
+        let n = crate::skin::lbs::skin_normal(&skinning, joints, weights, decode_normal(v.normal));
         finite &= p.is_finite();
         let voxel = Voxel {
             normal: encode_normal(n),

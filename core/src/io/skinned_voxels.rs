@@ -3,10 +3,10 @@
 //! voxelizer's attribute transfer interpolates the triangle's vertex weights), let internal nodes
 //! merge their children's weights for LOD, and attach the skeleton and clips as a [`Rig`].
 
-use super::SkinError;
-use super::gltf_import::SkinnedImport;
-use super::rig::{Rig, check_weights};
+use super::gltf_skinned::SkinnedImport;
 use crate::scene::VoxelModel;
+use crate::skin::SkinError;
+use crate::skin::rig::{Rig, check_weights};
 use crate::svo::MAX_SKIN_JOINTS;
 use crate::voxelize::{VoxelizeSettings, VoxelizeStats, voxelize};
 

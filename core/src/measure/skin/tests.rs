@@ -6,15 +6,15 @@ use std::sync::OnceLock;
 
 use glam::{UVec3, Vec3};
 
-use crate::render::Quality;
-use crate::scene::{Document, ObjectKind, VoxelModel};
-use crate::skin::metrics::{ReportSettings, SkinReport, StrategyRow, skin_report};
-use crate::skin::stretch::{StretchSettings, StretchStrategy};
-use crate::skin::synthetic::{
+use crate::io::voxelize_skinned;
+use crate::measure::skin::synthetic::{
     CYLINDER_HALF_LENGTH, CYLINDER_RADIUS, CYLINDER_SEGMENTS, bend_hole_area, bend_hole_area_min,
     bending_cylinder,
 };
-use crate::skin::voxelize_skinned;
+use crate::measure::skin::{ReportSettings, SkinReport, StrategyRow, skin_report};
+use crate::quality::Quality;
+use crate::scene::{Document, ObjectKind, VoxelModel};
+use crate::skin::stretch::{StretchSettings, StretchStrategy};
 use crate::voxelize::{Resolution, VoxelizeSettings};
 
 const RADIUS: f32 = CYLINDER_RADIUS;

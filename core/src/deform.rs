@@ -4,7 +4,7 @@
 //!
 //! [`RigidDeform`] is `world_from_object * object_from_voxel`. Skinning implements
 //! [`NodeDeform`] with per-node linear-blend skinning and a stretch factor, and plugs into
-//! [`super::VoxelInstance`] in the same place.
+//! [`crate::render::VoxelInstance`] in the same place.
 
 use glam::{Affine3A, Mat3, Mat4, UVec3, Vec3};
 

@@ -23,15 +23,16 @@ use std::time::Instant;
 use glam::{Mat4, UVec3, Vec3};
 use serde::Serialize;
 
-use super::deform::SkinDeform;
-use super::lbs::{skin_mesh, skin_point};
-use super::stretch::StretchSettings;
 use crate::mesh::MeshModel;
+use crate::quality::Quality;
 use crate::render::{
-    Camera, FrameBuffers, MeshInstance, Projection, Quality, RenderError, RenderScene,
-    VoxelInstance, render_scene,
+    Camera, FrameBuffers, MeshInstance, Projection, RenderError, RenderScene, VoxelInstance,
+    render_scene,
 };
 use crate::scene::{Document, ObjectKind, VoxelModel};
+use crate::skin::deform::SkinDeform;
+use crate::skin::lbs::{skin_mesh, skin_point};
+use crate::skin::stretch::StretchSettings;
 
 /// Silhouette comparison counts (summed over any number of frames): coverage only, the metric
 /// before [`ShellCounts`]; kept so reports can show what it misses.
@@ -325,7 +326,7 @@ struct HoleProbe<'a> {
     model: &'a VoxelModel,
     world_from_object: Mat4,
     object_from_world: Mat4,
-    tables: &'a super::deform::SkinTables,
+    tables: &'a crate::skin::deform::SkinTables,
     limit: f32,
 }
 
@@ -647,6 +648,7 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
     })
 }
 
+pub mod synthetic;
+
 #[cfg(test)]
-#[path = "metrics_tests.rs"]
 mod tests;

@@ -1,0 +1,475 @@
+//! The editor's background work, without egui: a worker thread's pending result
+//! ([`Worker`]), the one long job at a time with progress and Cancel ([`Job`]: open, import,
+//! enhance, export, Trade-off sweep), what each job hands back ([`JobResult`]), and what the
+//! editor does with a finished import or enhancement ([`Editor::finish_import`],
+//! [`Editor::finish_enhancement`]). The UI starts jobs, polls them once a frame and turns the
+//! outcomes into toasts and dialogs.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::{Arc, mpsc};
+
+use anyhow::Context as _;
+use thicket_core::enhance::{Control, EnhanceSettings, Enhancer};
+use thicket_core::io::GltfView;
+use thicket_core::measure::{SweepReport, SweepSettings};
+use thicket_core::scene::{Document, Object, ObjectKind, VoxelModel};
+use thicket_core::svo::Svo;
+
+use super::{CommandError, Editor, ImportPlacement};
+use crate::files::{self, FileKind, thousands};
+
+/// Where a worker's result is.
+#[derive(Debug)]
+pub enum Poll<T> {
+    /// The worker finished with this.
+    Ready(T),
+    /// Still working.
+    Running,
+    /// The worker ended without a result (it panicked).
+    Lost,
+}
+
+/// A result computed on its own thread, collected by polling (the UI never blocks on it).
+#[derive(Debug)]
+pub struct Worker<T> {
+    rx: mpsc::Receiver<T>,
+}
+
+impl<T: Send + 'static> Worker<T> {
+    /// Runs `work` on a new thread.
+    pub fn spawn(work: impl FnOnce() -> T + Send + 'static) -> Self {
+        let (tx, rx) = mpsc::channel();
+        std::thread::spawn(move || {
+            // The receiver is gone when the result is no longer wanted (a cancelled job).
+            let _ = tx.send(work());
+        });
+        Self { rx }
+    }
+
+    /// The result when it is there, without waiting.
+    pub fn poll(&self) -> Poll<T> {
+        match self.rx.try_recv() {
+            Ok(r) => Poll::Ready(r),
+            Err(mpsc::TryRecvError::Empty) => Poll::Running,
+            Err(mpsc::TryRecvError::Disconnected) => Poll::Lost,
+        }
+    }
+
+    /// Waits for the result (tests and exit; `None` when the worker ended without one).
+    pub fn wait(self) -> Option<T> {
+        self.rx.recv().ok()
+    }
+}
+
+/// What a background job hands back.
+pub enum JobResult {
+    /// A project read on the worker thread, with its linked models' enhancers built there.
+    Opened(PathBuf, anyhow::Result<super::PreparedDocument>),
+    /// An imported file's document and what the import left out of it.
+    Imported(PathBuf, anyhow::Result<Imported>),
+    /// An enhancement of a voxel object.
+    Enhanced(Box<Enhanced>),
+    /// An export's one-line summary.
+    Exported(anyhow::Result<String>),
+    /// A Trade-off sweep of the editor at a revision.
+    Swept(u64, anyhow::Result<SweepReport>),
+}
+
+/// What File → Import read, before it is placed in the document.
+pub struct Imported {
+    /// The file's objects.
+    pub doc: Document,
+    /// What the import left out (one line per kind).
+    pub left_out: Vec<String>,
+    /// The file's view: its lights are added, its camera is not applied.
+    pub view: GltfView,
+    /// For a static glTF scene, the names of its nodes with meshes (the report's checklist).
+    pub node_names: Vec<String>,
+}
+
+/// What an enhancement job hands back: source id, source name, the settings, the coarse
+/// octree it was made from, and the fine model with the enhancer that made it.
+pub struct Enhanced {
+    source: u64,
+    name: String,
+    settings: EnhanceSettings,
+    coarse: Svo,
+    result: anyhow::Result<(VoxelModel, Enhancer)>,
+}
+
+/// A sweep to run: a copy of the document (the user keeps editing meanwhile), the image size
+/// and the settings.
+#[derive(Debug, Clone)]
+pub struct SweepJob {
+    /// The document as it was when the sweep started, with its camera (the current view).
+    pub doc: Document,
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// What to render.
+    pub settings: SweepSettings,
+    /// The editor revision the sweep describes.
+    pub revision: u64,
+}
+
+/// A background job: a worker thread, its progress and its cancel flag.
+pub struct Job {
+    /// What it is doing, for the status bar ("Importing foo.glb").
+    pub label: String,
+    worker: Worker<JobResult>,
+    /// Fraction done as `f32` bits; NaN while the job cannot tell.
+    progress: Arc<AtomicU32>,
+    cancel: Arc<AtomicBool>,
+    /// A Trade-off sweep (its panel shows the progress and a Cancel button too).
+    pub sweep: bool,
+}
+
+impl Job {
+    /// Runs `work` on a worker thread; it gets the progress and cancel handles.
+    fn spawn(
+        label: String,
+        work: impl FnOnce(&AtomicU32, &AtomicBool) -> JobResult + Send + 'static,
+    ) -> Self {
+        let progress = Arc::new(AtomicU32::new(f32::NAN.to_bits()));
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (p, c) = (Arc::clone(&progress), Arc::clone(&cancel));
+        Self {
+            label,
+            worker: Worker::spawn(move || work(&p, &c)),
+            progress,
+            cancel,
+            sweep: false,
+        }
+    }
+
+    /// The fraction done, when the job can tell.
+    #[must_use]
+    pub fn fraction(&self) -> Option<f32> {
+        let f = f32::from_bits(self.progress.load(Ordering::Relaxed));
+        f.is_finite().then_some(f.clamp(0.0, 1.0))
+    }
+
+    /// Asks the job to stop (jobs that check the flag stop early; the result is dropped
+    /// with the job).
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// The result when it is there.
+    #[must_use]
+    pub fn poll(&self) -> Poll<JobResult> {
+        self.worker.poll()
+    }
+
+    /// Waits for the result.
+    #[must_use]
+    pub fn wait(self) -> Option<JobResult> {
+        self.worker.wait()
+    }
+
+    /// Reads a project (or any supported file) as the new document.
+    #[must_use]
+    pub fn open(path: PathBuf) -> Self {
+        let label = format!("Opening {}", path.display());
+        Self::spawn(label, move |_, cancel| {
+            // Linked models' enhancers are built here too, so the first dab after Open updates
+            // incrementally instead of stalling the UI thread on a full enhancement.
+            let result = files::load_document(&path)
+                .map(|doc| super::PreparedDocument::new(doc, Some(cancel)));
+            JobResult::Opened(path, result)
+        })
+    }
+
+    /// Reads a file's objects to import (see [`import_document`]).
+    #[must_use]
+    pub fn import(path: PathBuf, options: files::MeshOptions) -> Self {
+        let label = format!("Importing {}", path.display());
+        Self::spawn(label, move |progress, cancel| {
+            let result = import_document(&path, &options, progress, cancel);
+            JobResult::Imported(path, result)
+        })
+    }
+
+    /// Enhances `model` (object `source`, named `name`) with `settings`, with progress and
+    /// Cancel.
+    #[must_use]
+    pub fn enhance(
+        source: u64,
+        name: String,
+        model: VoxelModel,
+        settings: EnhanceSettings,
+    ) -> Self {
+        let label = format!("Enhancing {name} x{}", settings.factor);
+        Self::spawn(label, move |progress, cancel| {
+            let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
+            let control = Control {
+                progress: Some(&report),
+                cancel: Some(cancel),
+            };
+            let result = Enhancer::with_control(&model.svo, &settings, control)
+                .map(|e| {
+                    let fine = VoxelModel {
+                        svo: e.fine().clone(),
+                        voxel_size: model.voxel_size / settings.factor as f32,
+                        origin: model.origin,
+                        material_names: model.material_names.clone(),
+                        // The fine octree carries no joint weights: the result is static.
+                        rig: None,
+                        volume: None,
+                        palette: Vec::new(),
+                        frames: None,
+                    };
+                    (fine, e)
+                })
+                .map_err(anyhow::Error::from);
+            JobResult::Enhanced(Box::new(Enhanced {
+                source,
+                name,
+                settings,
+                coarse: model.svo,
+                result,
+            }))
+        })
+    }
+
+    /// Writes the visible voxel models of `objects` to a `.vox` file.
+    #[must_use]
+    pub fn export_vox(objects: Vec<Object>, path: PathBuf) -> Self {
+        let label = format!("Exporting {}", path.display());
+        Self::spawn(label, move |_, _| {
+            let result = thicket_core::io::vox::export_vox(&objects, &path)
+                .map(|r| {
+                    format!(
+                        "Exported {} voxels in {} model(s) to {}",
+                        thousands(r.voxels),
+                        r.models,
+                        path.display()
+                    )
+                })
+                .map_err(anyhow::Error::from);
+            JobResult::Exported(result)
+        })
+    }
+
+    /// Writes `doc` as glTF with `options`, with progress and Cancel (the same code as
+    /// `thicket export`).
+    #[must_use]
+    pub fn export_gltf(
+        doc: Document,
+        path: PathBuf,
+        options: thicket_core::io::gltf_export::GltfExportOptions,
+    ) -> Self {
+        let label = format!("Exporting {}", path.display());
+        Self::spawn(label, move |progress, cancel| {
+            let report = |f: f32| {
+                progress.store(f.to_bits(), Ordering::Relaxed);
+                !cancel.load(Ordering::Relaxed)
+            };
+            let result = thicket_core::io::gltf_export::export_gltf(&doc, &path, &options, &report)
+                .map(|r| {
+                    format!(
+                        "Exported {} object(s), {} triangles, to {}",
+                        r.objects,
+                        thousands(r.triangles),
+                        path.display()
+                    )
+                })
+                .map_err(anyhow::Error::from);
+            JobResult::Exported(result)
+        })
+    }
+
+    /// Runs a Trade-off sweep, with progress and Cancel.
+    #[must_use]
+    pub fn sweep(label: String, job: SweepJob) -> Self {
+        let mut spawned = Self::spawn(label, move |progress, cancel| {
+            let report = thicket_core::measure::sweep_document_with_cancel(
+                &job.doc,
+                job.width,
+                job.height,
+                &job.settings,
+                |done, total, _| {
+                    let f = done as f32 / total.max(1) as f32;
+                    progress.store(f.to_bits(), Ordering::Relaxed);
+                },
+                cancel,
+            )
+            .map_err(anyhow::Error::from);
+            JobResult::Swept(job.revision, report)
+        });
+        spawned.sweep = true;
+        spawned
+    }
+}
+
+/// The import report's line for a file with a camera imported into an existing scene.
+pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
+     used when the file is opened or imported from the command line";
+
+/// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
+const SKINNED_IMPORT_DEPTH: u8 = 7;
+
+/// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
+/// cancel from the job), a static glTF becomes one mesh object per node
+/// ([`files::load_gltf_objects`], with its node names for the report's checklist), anything
+/// else goes through [`files::load_document`].
+///
+/// # Errors
+/// The file cannot be read or voxelized, or makes an invalid document.
+pub fn import_document(
+    path: &Path,
+    options: &files::MeshOptions,
+    progress: &AtomicU32,
+    cancel: &AtomicBool,
+) -> anyhow::Result<Imported> {
+    files::check_options(path, options)?;
+    let is_gltf = FileKind::from_path(path) == Some(FileKind::Gltf);
+    let skinned = if is_gltf {
+        files::load_skinned(path)?
+    } else {
+        None
+    };
+    let imported = |(doc, left_out, view, node_names)| Imported {
+        doc,
+        left_out,
+        view,
+        node_names,
+    };
+    let Some(skinned) = skinned else {
+        if is_gltf {
+            return files::load_gltf_objects(path, options).map(imported);
+        }
+        return files::load_document_imported(path, options)
+            .map(|(doc, notes, view)| imported((doc, notes, view, Vec::new())));
+    };
+    let settings = thicket_core::voxelize::VoxelizeSettings {
+        resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
+        ..Default::default()
+    };
+    let v = thicket_core::io::voxelize_skinned(&skinned, &settings, &|f| {
+        progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
+        !cancel.load(Ordering::Relaxed)
+    })
+    .with_context(|| format!("{}: voxelizing the skinned mesh", path.display()))?;
+    let mut doc = Document::default();
+    doc.add(files::object_name_for(path), ObjectKind::Voxels(v.model));
+    doc.validate()
+        .with_context(|| format!("{}: invalid document", path.display()))?;
+    Ok(imported((doc, skinned.warnings, skinned.view, Vec::new())))
+}
+
+/// What an import left out of its file (shown in the Import report window until closed).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ImportReport {
+    /// The imported file.
+    pub path: PathBuf,
+    /// One line per kind of feature left out.
+    pub lines: Vec<String>,
+    /// The objects the import added (an import again with a texture replaces them).
+    pub placed: Vec<u64>,
+    /// The Texture field's text.
+    pub texture: String,
+    /// A glTF scene's nodes with meshes, in scene order, each with whether it is (to be)
+    /// imported: the checklist that imports the file again with other nodes. Empty for other
+    /// files and for skinned glTF (one skinned object).
+    pub nodes: Vec<(String, bool)>,
+}
+
+/// A finished import, placed in the document.
+pub struct ImportDone {
+    /// Where the objects went and how they were scaled.
+    pub placement: ImportPlacement,
+    /// What was left out, when anything was or the file has nodes to choose from.
+    pub report: Option<ImportReport>,
+}
+
+/// Why a finished enhancement was not linked (the UI shows each differently).
+pub enum EnhanceNotApplied {
+    /// The job failed.
+    Failed(anyhow::Error),
+    /// The source model (named) was removed while the job ran.
+    Removed(String),
+    /// The source model (named) was edited while the job ran: its result is stale.
+    Changed(String),
+    /// The editor refused the result.
+    Refused(CommandError),
+}
+
+impl Editor {
+    /// Places an import's objects beside the scene (framed, scaled to fit), adds the file's
+    /// lights, and says what was left out. Each node's object is named after it: a node is
+    /// checked in the report when it was imported.
+    pub fn finish_import(&mut self, path: PathBuf, imported: Imported) -> ImportDone {
+        let Imported {
+            doc,
+            mut left_out,
+            view,
+            node_names,
+        } = imported;
+        let nodes: Vec<(String, bool)> = node_names
+            .into_iter()
+            .map(|n| {
+                let picked = doc.objects.iter().any(|o| o.name == n);
+                (n, picked)
+            })
+            .collect();
+        let placement = self.import_objects(doc);
+        // Directions only: the placement's move and uniform scale leave them as is.
+        let lights = view.lights_beside(&self.doc().lights);
+        self.import_lights(lights);
+        if view.camera.is_some() {
+            left_out.push(IMPORT_KEEPS_VIEW.to_owned());
+        }
+        let report = (!left_out.is_empty() || nodes.len() > 1).then(|| ImportReport {
+            path,
+            lines: left_out,
+            placed: placement.ids.clone(),
+            texture: String::new(),
+            nodes,
+        });
+        ImportDone { placement, report }
+    }
+
+    /// Links a finished enhancement to its source model (a new object, the model hidden), or
+    /// replaces the source's linked enhancement. Returns the source's name and the fine
+    /// model's voxel count.
+    ///
+    /// # Errors
+    /// The job failed, the source was removed or edited meanwhile (strokes made while the job
+    /// ran are not in its result), or the editor refused the result.
+    pub fn finish_enhancement(
+        &mut self,
+        job: Enhanced,
+    ) -> Result<(String, u64), EnhanceNotApplied> {
+        let Enhanced {
+            source,
+            name,
+            settings,
+            coarse,
+            result,
+        } = job;
+        let (fine, enhancer) = result.map_err(EnhanceNotApplied::Failed)?;
+        let current = match self.object(source).map(|o| &o.kind) {
+            Some(ObjectKind::Voxels(v)) => &v.svo,
+            _ => return Err(EnhanceNotApplied::Removed(name)),
+        };
+        if *current != coarse {
+            return Err(EnhanceNotApplied::Changed(name));
+        }
+        let voxels = fine.svo.leaf_count();
+        let linked = self
+            .doc()
+            .enhancement_of(source)
+            .is_some_and(|l| self.object(l.target).is_some());
+        let result = if linked {
+            self.replace_enhancement(source, settings, fine, Some(enhancer))
+        } else {
+            self.add_enhancement(source, settings, fine, Some(enhancer))
+                .map(|_| ())
+        };
+        result.map_err(EnhanceNotApplied::Refused)?;
+        Ok((name, voxels))
+    }
+}
