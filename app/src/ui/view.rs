@@ -30,11 +30,11 @@ use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, pain
 /// keeps it interactive on a laptop CPU), unless that would miss the motion budget (see
 /// [`moving_scale`]); once still for [`PREVIEW_STILL`] it refines to the full resolution
 /// setting.
-const CPU_PREVIEW_SCALE: f32 = 0.5;
+pub const CPU_PREVIEW_SCALE: f32 = 0.5;
 
 /// The least linear fraction a moving CPU preview frame drops to when half resolution would miss
 /// its budget (a sixteenth of the pixels: a KRS forest still reads as one).
-const CPU_PREVIEW_MIN_SCALE: f32 = 0.25;
+pub const CPU_PREVIEW_MIN_SCALE: f32 = 0.25;
 
 /// The default time budget of one CPU preview frame while what it draws keeps changing: an edit
 /// shows within it (issue 26: a KRS parameter edit in the next preview frame within 100 ms).
@@ -67,7 +67,7 @@ pub fn moving_scale(last: Option<(f64, u64)>, full_px: f64, budget_ms: f64) -> f
 
 /// How long what the CPU preview draws must stay the same before it refines to full
 /// resolution.
-const PREVIEW_STILL: Duration = Duration::from_millis(150);
+pub const PREVIEW_STILL: Duration = Duration::from_millis(150);
 
 /// Most voxel edits kept for the GPU's incremental upload (older ones cost a full upload).
 const MAX_REGION_CHAIN: usize = 64;
