@@ -294,8 +294,8 @@ pub struct TradeoffArgs {
     pub output: PathBuf,
     /// A knob and its values as NAME=V1,V2,... (repeatable); default: the knobs the CPU
     /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
-    #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
-    pub knobs: Vec<String>,
+    #[arg(long = "knob", value_name = "NAME=V1,V2,...", value_parser = view_args::parse_knob_values)]
+    pub knobs: Vec<thicket_core::measure::KnobValues>,
     /// Image size as WIDTHxHEIGHT; the default is the editor's 800x800 view, where the presets
     /// are used. A knob that draws the same image at every value at this size is reported as
     /// having no effect and left out of the plot.
@@ -1690,16 +1690,13 @@ fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
 }
 
 fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
-    use thicket_core::measure::{KnobValues, SweepSettings, sweep_document};
+    use thicket_core::measure::{SweepSettings, sweep_document};
     let doc = files::load_document(&args.project)?;
     let ImageSize { width, height } = args.size;
     let knobs = if args.knobs.is_empty() {
         thicket_core::measure::default_knobs()
     } else {
-        args.knobs
-            .iter()
-            .map(|k| KnobValues::parse(k).with_context(|| format!("--knob {k:?}")))
-            .collect::<anyhow::Result<_>>()?
+        args.knobs.clone()
     };
     let settings = SweepSettings {
         knobs,

@@ -1,6 +1,7 @@
 //! Typed command-line values shared by the commands that draw an image: `--size WIDTHxHEIGHT`,
-//! `--camera YAW,PITCH,DISTANCE` and `--quality KEY=VALUE`, each parsed (and, for quality
-//! knobs, checked against [`KNOB_SPECS`]) by clap when the command line is read, and
+//! `--camera YAW,PITCH,DISTANCE`, `--quality KEY=VALUE` and `tradeoff --knob NAME=V1,V2,...`,
+//! each parsed (and, for quality knobs, checked against [`KNOB_SPECS`]) by clap when the
+//! command line is read, and
 //! [`ViewArgs`], the options `render` and `bench` share through `#[command(flatten)]`.
 //!
 //! A parser's error is the part after clap's `invalid value '…' for '--flag <NAME>':`, so it
@@ -9,6 +10,7 @@
 use std::fmt;
 
 use clap::Args;
+use thicket_core::measure::KnobValues;
 use thicket_core::quality::{KNOB_SPECS, Quality};
 use thicket_core::scene::{Document, OrbitCamera};
 
@@ -128,6 +130,16 @@ impl QualityArg {
             value: value.trim().to_owned(),
         })
     }
+}
+
+/// Parses `thicket tradeoff --knob NAME=V1,V2,...` (clap's `value_parser`): every value
+/// is checked against the knob's [`KNOB_SPECS`] row, as [`KnobValues::parse`] does.
+///
+/// # Errors
+/// Malformed text, an unknown knob (the message lists the known ones) or a value the knob
+/// does not accept.
+pub fn parse_knob_values(text: &str) -> Result<KnobValues, String> {
+    KnobValues::parse(text).map_err(|e| e.to_string())
 }
 
 /// The view options `render` and `bench` share: image size, camera and quality overrides.
@@ -308,6 +320,30 @@ mod tests {
             QualityArg::parse("lod_pixel_threshold"),
             Err("expected KEY=VALUE".to_owned())
         );
+    }
+
+    #[test]
+    fn knob_values_are_checked_against_the_table() {
+        assert_eq!(
+            parse_knob_values("shadow_pcf_radius = 0, 2"),
+            Ok(KnobValues {
+                name: "shadow_pcf_radius".to_owned(),
+                values: vec!["0".to_owned(), "2".to_owned()]
+            })
+        );
+        let unknown = parse_knob_values("no_such_knob=1,2").unwrap_err();
+        assert!(
+            unknown.contains("no_such_knob") && unknown.contains("lod_pixel_threshold"),
+            "{unknown}"
+        );
+        let nan = parse_knob_values("lod_pixel_threshold=1,NaN").unwrap_err();
+        assert!(nan.contains("lod_pixel_threshold=NaN"), "{nan}");
+        let out_of_range = parse_knob_values("lod_pixel_threshold=1,65").unwrap_err();
+        assert!(out_of_range.contains("0.05..=64"), "{out_of_range}");
+        for bad in ["lod_pixel_threshold", "=1", "lod_pixel_threshold=1,,2"] {
+            let e = parse_knob_values(bad).unwrap_err();
+            assert!(e.contains("NAME=V1,V2"), "{bad}: {e}");
+        }
     }
 
     #[test]
