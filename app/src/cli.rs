@@ -10,6 +10,10 @@ use clap::{Args, Parser, Subcommand};
 
 use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
 
+pub mod view_args;
+
+pub use view_args::{CameraArg, ImageSize, QualityArg, ViewArgs, parse_error_exit_code};
+
 /// Thicket: sculpt voxel models, pose and skin them, grow procedural trees, export assets.
 ///
 /// Without a subcommand, opens the editor (on PROJECT if given, else on the first sample
@@ -120,8 +124,8 @@ pub struct SkinReportArgs {
     #[arg(long, default_value_t = 6)]
     pub views: u32,
     /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "400x400")]
-    pub size: String,
+    #[arg(long, default_value = "400x400", value_parser = ImageSize::parse)]
+    pub size: ImageSize,
     /// Clip by name (default: the project's).
     #[arg(long)]
     pub clip: Option<String>,
@@ -154,15 +158,9 @@ pub struct BenchArgs {
     /// Timed frames (after one warm-up frame).
     #[arg(long, default_value_t = 20)]
     pub frames: u32,
-    /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x800")]
-    pub size: String,
-    /// Orbit camera as YAW,PITCH,DISTANCE in degrees and scene units (default: the project's).
-    #[arg(long)]
-    pub camera: Option<String>,
-    /// Quality knob as KEY=VALUE (repeatable), e.g. lod_pixel_threshold=2.
-    #[arg(long = "quality", value_name = "KEY=VALUE")]
-    pub quality: Vec<String>,
+    /// Image size, camera and quality overrides.
+    #[command(flatten)]
+    pub view: ViewArgs,
     /// Print machine-readable JSON instead of text.
     #[arg(long)]
     pub json: bool,
@@ -296,13 +294,13 @@ pub struct TradeoffArgs {
     pub output: PathBuf,
     /// A knob and its values as NAME=V1,V2,... (repeatable); default: the knobs the CPU
     /// renderer reads (LOD threshold, shadow map size, PCF radius, AO samples).
-    #[arg(long = "knob", value_name = "NAME=V1,V2,...")]
-    pub knobs: Vec<String>,
+    #[arg(long = "knob", value_name = "NAME=V1,V2,...", value_parser = view_args::parse_knob_values)]
+    pub knobs: Vec<thicket_core::measure::KnobValues>,
     /// Image size as WIDTHxHEIGHT; the default is the editor's 800x800 view, where the presets
     /// are used. A knob that draws the same image at every value at this size is reported as
     /// having no effect and left out of the plot.
-    #[arg(long, default_value = "800x800")]
-    pub size: String,
+    #[arg(long, default_value = "800x800", value_parser = ImageSize::parse)]
+    pub size: ImageSize,
     /// Renders per setting; the reported time is their median, with their min-max spread.
     #[arg(long, default_value_t = 3)]
     pub frames: usize,
@@ -522,15 +520,9 @@ pub struct RenderArgs {
     /// The PNG to write.
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Image size as WIDTHxHEIGHT.
-    #[arg(long, default_value = "800x800")]
-    pub size: String,
-    /// Orbit camera as YAW,PITCH,DISTANCE in degrees and scene units (default: the project's).
-    #[arg(long)]
-    pub camera: Option<String>,
-    /// Quality knob as KEY=VALUE (repeatable), e.g. lod_pixel_threshold=2.
-    #[arg(long = "quality", value_name = "KEY=VALUE")]
-    pub quality: Vec<String>,
+    /// Image size, camera and quality overrides.
+    #[command(flatten)]
+    pub view: ViewArgs,
     /// Print frame statistics (per level, splats, culling, stage times).
     #[arg(long)]
     pub stats: bool,
@@ -1349,18 +1341,6 @@ fn solid_fallback_note(stats: &thicket_core::voxelize::VoxelizeStats) -> String 
     )
 }
 
-fn parse_size(text: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = text
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size {text:?}: expected WIDTHxHEIGHT, e.g. 800x600"))?;
-    let parse = |v: &str| {
-        v.trim()
-            .parse::<u32>()
-            .with_context(|| format!("--size {text:?}: {v:?} is not a whole number"))
-    };
-    Ok((parse(w)?, parse(h)?))
-}
-
 /// Sets the playhead (and clip, by name) of every skinned model of `doc`, and the playhead of
 /// every frame sequence (which then shows the frame at that time).
 ///
@@ -1420,7 +1400,9 @@ pub fn set_playback(
 }
 
 /// The document's quality with `--quality KEY=VALUE` overrides, and its camera with a
-/// `--camera YAW,PITCH,DISTANCE` override (whose near and far planes then enclose the scene).
+/// `--camera YAW,PITCH,DISTANCE` override (whose near and far planes then enclose the scene),
+/// from text as given on a command line: the typed [`ViewArgs`] path for callers that hold
+/// strings.
 ///
 /// # Errors
 /// A malformed or out-of-range `--quality` or `--camera` value.
@@ -1432,43 +1414,21 @@ pub fn view_options(
     thicket_core::quality::Quality,
     thicket_core::scene::OrbitCamera,
 )> {
-    let mut quality = doc.quality.clone();
-    for kv in quality_args {
-        let (k, v) = kv
-            .split_once('=')
-            .with_context(|| format!("--quality {kv:?}: expected KEY=VALUE"))?;
-        quality
-            .set(k.trim(), v)
-            .with_context(|| format!("--quality {kv:?}"))?;
-    }
-    let mut camera = doc.camera;
-    if let Some(c) = camera_arg {
-        let parts: Vec<f32> = c
-            .split(',')
-            .map(|p| p.trim().parse::<f32>())
-            .collect::<Result<_, _>>()
-            .with_context(|| format!("--camera {c:?}: expected YAW,PITCH,DISTANCE numbers"))?;
-        let [yaw, pitch, distance] = parts[..] else {
-            anyhow::bail!("--camera {c:?}: expected three numbers YAW,PITCH,DISTANCE");
-        };
-        camera.yaw_deg = yaw;
-        camera.pitch_deg = pitch;
-        camera.distance = distance;
-        // The clip range follows the new eye: the project's near plane may lie beyond a
-        // close camera's view of the scene and cut its front away.
-        match doc.bounds() {
-            Some((lo, hi)) => camera.fit_clip(lo, hi),
-            None => camera.far = camera.far.max(distance * 4.0),
-        }
-    }
-    Ok((quality, camera))
+    let quality = quality_args
+        .iter()
+        .map(|kv| QualityArg::parse(kv).map_err(|e| anyhow::anyhow!("--quality {kv:?}: {e}")))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let camera = camera_arg
+        .map(|c| CameraArg::parse(c).map_err(|e| anyhow::anyhow!("--camera {c:?}: {e}")))
+        .transpose()?;
+    view_args::view_from(doc, &quality, camera)
 }
 
 fn render(args: &RenderArgs) -> anyhow::Result<()> {
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
-    let (width, height) = parse_size(&args.size)?;
-    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let ImageSize { width, height } = args.view.size;
+    let (quality, camera) = args.view.apply(&doc)?;
     if !args.gpu {
         check_render_budget(&doc, (width, height), camera, &quality, args.memory_limit)?;
     }
@@ -1636,11 +1596,11 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     if args.no_rig {
         remove_rigs(&mut doc)?;
     }
-    let (width, height) = parse_size(&args.size)?;
+    let ImageSize { width, height } = args.view.size;
     if width == 0 || height == 0 {
         anyhow::bail!(
-            "--size {:?}: both edges must be at least 1 pixel",
-            args.size
+            "--size \"{}\": both edges must be at least 1 pixel",
+            args.view.size
         );
     }
     if args.frames == 0 {
@@ -1649,7 +1609,7 @@ fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     if !args.orbit.is_finite() {
         anyhow::bail!("--orbit {}: give a finite number of degrees", args.orbit);
     }
-    let (quality, camera) = view_options(&doc, &args.quality, args.camera.as_ref())?;
+    let (quality, camera) = args.view.apply(&doc)?;
     if !args.gpu {
         check_render_budget(&doc, (width, height), camera, &quality, args.memory_limit)?;
     }
@@ -1730,16 +1690,13 @@ fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
 }
 
 fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
-    use thicket_core::measure::{KnobValues, SweepSettings, sweep_document};
+    use thicket_core::measure::{SweepSettings, sweep_document};
     let doc = files::load_document(&args.project)?;
-    let (width, height) = parse_size(&args.size)?;
+    let ImageSize { width, height } = args.size;
     let knobs = if args.knobs.is_empty() {
         thicket_core::measure::default_knobs()
     } else {
-        args.knobs
-            .iter()
-            .map(|k| KnobValues::parse(k).with_context(|| format!("--knob {k:?}")))
-            .collect::<anyhow::Result<_>>()?
+        args.knobs.clone()
     };
     let settings = SweepSettings {
         knobs,
@@ -1873,7 +1830,7 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
         ),
         (None, None) => anyhow::bail!("give a project or --cylinder DEPTH"),
     };
-    let (width, height) = parse_size(&args.size)?;
+    let ImageSize { width, height } = args.size;
     let strategies = [
         StretchStrategy::Off,
         StretchStrategy::Thesis,

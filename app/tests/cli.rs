@@ -1602,3 +1602,41 @@ fn skin_report_measures_the_bending_cylinder() {
     assert!(!o.status.success());
     assert!(!stderr(&o).contains("panicked"), "{}", stderr(&o));
 }
+
+#[test]
+fn a_bad_option_value_is_reported_once_with_status_1() {
+    // --size, --camera and --quality are typed values: clap refuses a bad one while reading the
+    // command line, before any file is opened, with the flag and the reason on one line.
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let png = dir.path().join("out.png");
+    let p = project.to_str().unwrap();
+    let o_path = png.to_str().unwrap();
+    for (extra, says) in [
+        (["--size", "12"], "expected WIDTHxHEIGHT"),
+        (["--camera", "NaN,0,5"], "must be finite"),
+        (["--quality", "nope=1"], "lod_pixel_threshold"),
+        (["--quality", "lod_pixel_threshold=65"], "0.05..=64"),
+    ] {
+        let mut args = vec!["render", p, "-o", o_path];
+        args.extend_from_slice(&extra);
+        let o = thicket(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{extra:?}: {err}");
+        assert_eq!(err.matches(extra[0]).count(), 1, "said once: {err}");
+        assert_eq!(err.matches("error:").count(), 1, "said once: {err}");
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!png.exists(), "{extra:?} wrote a file");
+    }
+    // The same parser serves every command that takes a size.
+    let o = thicket(&["skin-report", p, "--size", "8x"]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--size"), "{}", stderr(&o));
+    // --help still succeeds; an unknown flag is still clap's usage error.
+    let o = thicket(&["render", "--help"]);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("[default: 800x800]"), "{}", stdout(&o));
+    let o = thicket(&["render", p, "-o", o_path, "--no-such-flag"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
