@@ -800,9 +800,6 @@ pub fn render_scene_with_krs(
 }
 
 impl FrameState {
-    /// [`render_scene_with_krs`] into these buffers, with shadow maps from and into `cache`
-    /// when there is one. Without a cache, `sampled_only` draws casters into a map only where
-    /// the frame's shading reads it (the image is the same either way; tests compare the two).
     /// [`Self::render`] with [`Quality::supersample`]: the frame is drawn at `k` times the
     /// camera's size (the same view), then its image is box-filtered and its G-buffer decimated
     /// to the camera's size, in place. The counters count samples.
@@ -835,6 +832,9 @@ impl FrameState {
         Ok(())
     }
 
+    /// [`render_scene_with_krs`] into these buffers, with shadow maps from and into `cache`
+    /// when there is one. Without a cache, `sampled_only` draws casters into a map only where
+    /// the frame's shading reads it (the image is the same either way; tests compare the two).
     fn render(
         &mut self,
         scene: &RenderScene<'_>,
