@@ -366,10 +366,7 @@ impl RgbaImage {
         if k <= 1 {
             return;
         }
-        static LINEAR: std::sync::LazyLock<[f32; 256]> = std::sync::LazyLock::new(|| {
-            std::array::from_fn(|i| crate::mesh::srgb_to_linear(i as f32 / 255.0))
-        });
-        let lin = &*LINEAR;
+        let lin = crate::mesh::srgb_byte_to_linear;
         let (w, h) = (self.width / k, self.height / k);
         let big_w = self.width as usize;
         let inv = 1.0 / (k * k) as f32;
@@ -381,9 +378,9 @@ impl RgbaImage {
                 for j in 0..k {
                     let row = ((y * k + j) * big_w + x * k) * 4;
                     for px in self.pixels[row..row + 4 * k].chunks_exact(4) {
-                        sum[0] += lin[px[0] as usize];
-                        sum[1] += lin[px[1] as usize];
-                        sum[2] += lin[px[2] as usize];
+                        sum[0] += lin(px[0]);
+                        sum[1] += lin(px[1]);
+                        sum[2] += lin(px[2]);
                         sum[3] += f32::from(px[3]);
                     }
                 }

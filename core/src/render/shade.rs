@@ -15,7 +15,7 @@ use super::raster::{MeshInstance, WorldTriangle, draw_triangles};
 use super::sampled::SampledTexels;
 use super::stats::LevelStats;
 use crate::deform::NodeInfo;
-use crate::mesh::{linear_to_srgb, srgb_to_linear};
+use crate::mesh::{linear_to_srgb, srgb_byte_to_linear};
 use crate::quality::Quality;
 use crate::scene::Light;
 use crate::svo::decode_normal;
@@ -697,14 +697,6 @@ pub(crate) fn linear_to_srgb8(c: f32) -> u8 {
         b += 1;
     }
     b
-}
-
-/// `srgb_to_linear(v / 255)` for every byte: three `powf` per pixel dominated the resolve.
-/// Same values as the function, so results are unchanged.
-fn srgb_byte_to_linear(v: u8) -> f32 {
-    static TABLE: std::sync::LazyLock<[f32; 256]> =
-        std::sync::LazyLock::new(|| std::array::from_fn(|i| srgb_to_linear(i as f32 / 255.0)));
-    TABLE[usize::from(v)]
 }
 
 /// Fills the G-buffer of pixels the KRS won: object label, kernel as node, the §6.1 normal and
