@@ -209,20 +209,7 @@ impl Job {
                 cancel: Some(cancel),
             };
             let result = Enhancer::with_control(&model.svo, &settings, control)
-                .map(|e| {
-                    let fine = VoxelModel {
-                        svo: e.fine().clone(),
-                        voxel_size: model.voxel_size / settings.factor as f32,
-                        origin: model.origin,
-                        material_names: model.material_names.clone(),
-                        // The fine octree carries no joint weights: the result is static.
-                        rig: None,
-                        volume: None,
-                        palette: Vec::new(),
-                        frames: None,
-                    };
-                    (fine, e)
-                })
+                .map(|e| (model.with_enhanced(e.fine().clone(), settings.factor), e))
                 .map_err(anyhow::Error::from);
             JobResult::Enhanced(Box::new(Enhanced {
                 source,

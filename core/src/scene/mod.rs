@@ -264,20 +264,25 @@ impl VoxelModel {
     ) -> Result<(VoxelModel, EnhanceStats), EnhanceError> {
         let e = Enhancer::with_control(&self.svo, settings, control)?;
         let stats = e.stats();
-        Ok((
-            VoxelModel {
-                svo: e.into_fine(),
-                voxel_size: self.voxel_size / settings.factor as f32,
-                origin: self.origin,
-                material_names: self.material_names.clone(),
-                // The fine octree carries no joint weights: the enhanced model is static.
-                rig: None,
-                volume: None,
-                palette: Vec::new(),
-                frames: None,
-            },
-            stats,
-        ))
+        Ok((self.with_enhanced(e.into_fine(), settings.factor), stats))
+    }
+
+    /// The model that an enhancement by `factor` of this one gives, with `fine` as its octree:
+    /// voxels `factor` times smaller at the same origin, the same material names. The fine
+    /// octree carries no joint weights, so the result is static (no rig, volume, palette or
+    /// frames).
+    #[must_use]
+    pub fn with_enhanced(&self, fine: Svo, factor: u32) -> VoxelModel {
+        VoxelModel {
+            svo: fine,
+            voxel_size: self.voxel_size / factor as f32,
+            origin: self.origin,
+            material_names: self.material_names.clone(),
+            rig: None,
+            volume: None,
+            palette: Vec::new(),
+            frames: None,
+        }
     }
 
     /// The editable volume in voxels per axis: [`VoxelModel::volume`] clamped to the octree,
