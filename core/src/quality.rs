@@ -202,10 +202,7 @@ impl Quality {
             "0" | "false" | "off" | "no" => Ok(false),
             _ => Err(parse_err()),
         };
-        let spec = KNOB_SPECS
-            .iter()
-            .find(|k| k.name == name)
-            .ok_or_else(|| QualityError::Unknown(name.to_owned()))?;
+        let spec = KnobSpec::named(name).ok_or_else(|| QualityError::Unknown(name.to_owned()))?;
         let mut q = self.clone();
         match spec.kind {
             KnobKind::F32 { get_mut, .. } => *get_mut(&mut q) = f()?,
@@ -290,6 +287,12 @@ pub struct KnobSpec {
 }
 
 impl KnobSpec {
+    /// The row of the knob called `name`, if there is one.
+    #[must_use]
+    pub fn named(name: &str) -> Option<&'static KnobSpec> {
+        KNOB_SPECS.iter().find(|k| k.name == name)
+    }
+
     /// The allowed range as text (`0.05..=64`), empty for switches and choices.
     #[must_use]
     pub fn range_text(&self) -> String {

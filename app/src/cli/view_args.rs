@@ -1,6 +1,6 @@
 //! Typed command-line values shared by the commands that draw an image: `--size WIDTHxHEIGHT`,
 //! `--camera YAW,PITCH,DISTANCE`, `--quality KEY=VALUE` and `tradeoff --knob NAME=V1,V2,...`,
-//! each parsed (and, for quality knobs, checked against [`KNOB_SPECS`]) by clap when the
+//! each parsed (and, for quality knobs, checked against [`KNOB_SPECS`](thicket_core::quality::KNOB_SPECS)) by clap when the
 //! command line is read, and
 //! [`ViewArgs`], the options `render` and `bench` share through `#[command(flatten)]`.
 //!
@@ -11,7 +11,7 @@ use std::fmt;
 
 use clap::Args;
 use thicket_core::measure::KnobValues;
-use thicket_core::quality::{KNOB_SPECS, Quality};
+use thicket_core::quality::{KnobSpec, Quality};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// An image size, `--size WIDTHxHEIGHT` (`x` or `X`, spaces around the numbers allowed).
@@ -94,11 +94,11 @@ impl CameraArg {
     }
 }
 
-/// One quality knob override, `--quality KEY=VALUE`, whose name is a [`KNOB_SPECS`] row and
+/// One quality knob override, `--quality KEY=VALUE`, whose name is a [`KNOB_SPECS`](thicket_core::quality::KNOB_SPECS) row and
 /// whose value that knob accepts (parses, in range).
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct QualityArg {
-    /// The knob's name, from [`KNOB_SPECS`].
+    /// The knob's name, from [`KNOB_SPECS`](thicket_core::quality::KNOB_SPECS).
     pub name: &'static str,
     /// The value as given (trimmed), applied with [`Quality::set`].
     pub value: String,
@@ -108,7 +108,7 @@ impl QualityArg {
     /// Parses `KEY=VALUE` (clap's `value_parser` for `--quality`).
     ///
     /// # Errors
-    /// No `=`, a name not in [`KNOB_SPECS`] (the message lists the known ones), or a value
+    /// No `=`, a name not in [`KNOB_SPECS`](thicket_core::quality::KNOB_SPECS) (the message lists the known ones), or a value
     /// the knob does not accept (the message says its range).
     pub fn parse(text: &str) -> Result<Self, String> {
         let (key, value) = text
@@ -120,11 +120,9 @@ impl QualityArg {
         Quality::default()
             .set(key, value)
             .map_err(|e| e.to_string())?;
-        let name = KNOB_SPECS
-            .iter()
-            .find(|k| k.name == key)
-            .map(|k| k.name)
-            .ok_or_else(|| format!("unknown quality setting {key:?}"))?;
+        // `set` refused every name without a row, so the row is there; its `'static` name is
+        // what the argument keeps.
+        let name = KnobSpec::named(key).map_or("", |k| k.name);
         Ok(Self {
             name,
             value: value.trim().to_owned(),
@@ -133,7 +131,7 @@ impl QualityArg {
 }
 
 /// Parses `thicket tradeoff --knob NAME=V1,V2,...` (clap's `value_parser`): every value
-/// is checked against the knob's [`KNOB_SPECS`] row, as [`KnobValues::parse`] does.
+/// is checked against the knob's [`KNOB_SPECS`](thicket_core::quality::KNOB_SPECS) row, as [`KnobValues::parse`] does.
 ///
 /// # Errors
 /// Malformed text, an unknown knob (the message lists the known ones) or a value the knob
@@ -213,6 +211,7 @@ pub fn parse_error_exit_code(error: &clap::Error) -> u8 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use thicket_core::quality::KNOB_SPECS;
 
     #[test]
     fn size_parses_whole_numbers_either_x() {
