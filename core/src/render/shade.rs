@@ -502,6 +502,9 @@ fn tile_bounds(
     tiles_x
 }
 
+/// What the resolve writes for a drawn pixel: its id, world normal and linear albedo.
+type Shaded = (PixelId, Vec3, Vec3);
+
 /// Turns the target's packed keys into the G-buffer `fb` (its allocations kept; `normal_mats`
 /// is scratch).
 #[allow(
@@ -528,7 +531,7 @@ pub(crate) fn resolve(
     let normal_mats = &normal_mats[..];
     // What pixel `i` with a drawn key resolves to: depth, and the id, normal and albedo unless
     // they stay empty (KRS pixels, which `resolve_krs` fills).
-    let pixel = |i: usize, key: u64| -> (f32, Option<(PixelId, Vec3, Vec3)>) {
+    let pixel = |i: usize, key: u64| -> (f32, Option<Shaded>) {
         let d = key_depth(key);
         let raw = (key & 0xffff_ffff) as u32;
         if raw & KRS_ID_FLAG == KRS_ID_FLAG {
@@ -628,12 +631,26 @@ pub(crate) fn resolve(
         .zip(albedo.par_chunks_mut(row))
         .enumerate()
         .for_each(|(y, ((((k, d), id), nrm), alb))| {
+            // A voxel pixel's id, normal and albedo depend only on the low half of its key (the
+            // node and the face shown), and a splat covers runs of pixels in a row: the last
+            // one is reused. Skinned normals blend four matrices per node, so this matters.
+            let mut last: Option<(u32, Option<Shaded>)> = None;
             for x in 0..k.len() {
                 let key = k[x].load(std::sync::atomic::Ordering::Relaxed);
                 if key == EMPTY_KEY {
                     continue;
                 }
-                let (depth, rest) = pixel(y * row + x, key);
+                let raw = (key & 0xffff_ffff) as u32;
+                let (depth, rest) = match last {
+                    Some((r, rest)) if r == raw => (key_depth(key), rest),
+                    _ => {
+                        let (depth, rest) = pixel(y * row + x, key);
+                        if raw & MESH_ID_FLAG == 0 {
+                            last = Some((raw, rest));
+                        }
+                        (depth, rest)
+                    }
+                };
                 d[x] = depth;
                 if let Some((pid, nw, a)) = rest {
                     id[x] = pid;

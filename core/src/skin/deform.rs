@@ -24,9 +24,11 @@
 //! coarser than a leaf (`render::asvo`); LOD and splatting use the splat box.
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 
 use glam::{Mat3, Mat4, UVec3, Vec3, Vec4};
+use rayon::prelude::*;
 
 use super::lbs::{blend_matrix, skin_point, transform_normal};
 use super::rig::{Rig, StretchOverrides};
@@ -44,6 +46,13 @@ pub struct SkinTables {
     leaf_corners: Vec<[Skin4; 8]>,
     /// Corner weights per inner-pool index.
     inner_corners: Vec<[Skin4; 8]>,
+    /// Every distinct `(lattice point, weights)` a node corner is skinned from: a corner shared
+    /// by neighbouring nodes is one entry, so a frame skins it once ([`SkinDeform`]).
+    corner_points: Vec<(UVec3, Skin4)>,
+    /// Per leaf-pool index: the entries of `corner_points` of its eight corners.
+    leaf_corner_points: Vec<[u32; 8]>,
+    /// Per inner-pool index: as `leaf_corner_points`.
+    inner_corner_points: Vec<[u32; 8]>,
     /// Per inner-pool index: range into `joints`.
     inner_joint_range: Vec<(u32, u16)>,
     /// Sorted joint lists, concatenated.
@@ -90,23 +99,38 @@ impl SkinTables {
                 lattice.entry(p).or_default().push(v.skin);
             }
         });
-        let merged: HashMap<UVec3, Skin4> = lattice
+        // Sorted, so the points (and a frame's skinned positions) come in one order every
+        // build.
+        let mut merged: Vec<(UVec3, Skin4)> = lattice
             .into_iter()
             .map(|(p, skins)| (p, Skin4::merge(&skins)))
             .collect();
+        merged.sort_unstable_by_key(|e| crate::svo::morton_encode(e.0));
+        let mut points = CornerPoints {
+            lattice: merged
+                .iter()
+                .enumerate()
+                .map(|(i, &(p, s))| (p, (s, i as u32)))
+                .collect(),
+            own: HashMap::new(),
+        };
+        t.corner_points = merged;
         t.leaf_corners = vec![[Skin4::ROOT; 8]; svo.leaf_skin().len()];
         t.inner_corners = vec![[Skin4::ROOT; 8]; svo.inner_skin().len()];
+        t.leaf_corner_points = vec![[0; 8]; svo.leaf_skin().len()];
+        t.inner_corner_points = vec![[0; 8]; svo.inner_skin().len()];
         t.inner_joint_range = vec![(0, 0); svo.inner_skin().len()];
         // Post-order walk: children's joint sets are known before their parent's.
-        walk(svo, svo.root(), &merged, &mut t);
+        walk(svo, svo.root(), &mut points, &mut t);
         t
     }
 
-    fn corners(&self, svo: &Svo, node: &crate::svo::NodeRef) -> Option<&[Skin4; 8]> {
+    /// The entries of [`Self::corner_points`] of a node's eight corners.
+    fn corner_point_ids(&self, svo: &Svo, node: &crate::svo::NodeRef) -> Option<&[u32; 8]> {
         if svo.is_leaf(node) {
-            self.leaf_corners.get(node.index as usize)
+            self.leaf_corner_points.get(node.index as usize)
         } else {
-            self.inner_corners.get(node.index as usize)
+            self.inner_corner_points.get(node.index as usize)
         }
     }
 
@@ -167,22 +191,48 @@ fn merge_max(v: &mut Vec<(u8, u8)>) {
     v.dedup_by_key(|p| p.0);
 }
 
+/// Where the corner points of [`SkinTables`] come from while it is built: the lattice points
+/// touching leaves (merged weights, entry index) and the corners of internal nodes touching no
+/// leaf, which move with the node's own weights.
+struct CornerPoints {
+    lattice: HashMap<UVec3, (Skin4, u32)>,
+    own: HashMap<(UVec3, Skin4), u32>,
+}
+
+impl CornerPoints {
+    /// The weights and the entry of `t.corner_points` of the corner at `p` of a node whose own
+    /// weights are `own` (a new entry when it is new).
+    fn at(&mut self, p: UVec3, own: Skin4, t: &mut SkinTables) -> (Skin4, u32) {
+        if let Some(&e) = self.lattice.get(&p) {
+            return e;
+        }
+        let id = *self.own.entry((p, own)).or_insert_with(|| {
+            t.corner_points.push((p, own));
+            (t.corner_points.len() - 1) as u32
+        });
+        (own, id)
+    }
+}
+
 /// Fills corner weights for `node`'s subtree and returns the joints it uses with their largest
 /// weights (sorted by joint, unique).
 fn walk(
     svo: &Svo,
     node: crate::svo::NodeRef,
-    lattice: &HashMap<UVec3, Skin4>,
+    points: &mut CornerPoints,
     t: &mut SkinTables,
 ) -> Vec<(u8, u8)> {
     let size = svo.node_size(node.level);
     let own = svo.node_voxel(&node).skin;
+    let mut ids = [0u32; 8];
     let corners: [Skin4; 8] = std::array::from_fn(|k| {
-        let k = k as u32;
-        let p = node.origin + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1) * size;
+        let b = k as u32;
+        let p = node.origin + UVec3::new(b & 1, (b >> 1) & 1, (b >> 2) & 1) * size;
         // An internal node's corner may touch no leaf (its subtree is sparse there): it then
         // moves with the node's own weights.
-        lattice.get(&p).copied().unwrap_or(own)
+        let (skin, id) = points.at(p, own, t);
+        ids[k] = id;
+        skin
     });
     // Own and corner weights: a node drawn at LOD by `Corners` is placed by its corners, and a
     // corner may touch leaves outside the subtree.
@@ -193,15 +243,21 @@ fn walk(
         if let Some(slot) = t.leaf_corners.get_mut(node.index as usize) {
             *slot = corners;
         }
+        if let Some(slot) = t.leaf_corner_points.get_mut(node.index as usize) {
+            *slot = ids;
+        }
         merge_max(&mut joints);
         return joints;
     }
     if let Some(slot) = t.inner_corners.get_mut(node.index as usize) {
         *slot = corners;
     }
+    if let Some(slot) = t.inner_corner_points.get_mut(node.index as usize) {
+        *slot = ids;
+    }
     for k in 0..8 {
         if let Some(child) = svo.child(&node, k) {
-            joints.extend(walk(svo, child, lattice, t));
+            joints.extend(walk(svo, child, points, t));
         }
     }
     merge_max(&mut joints);
@@ -215,17 +271,22 @@ fn walk(
 }
 
 /// Cache of [`SkinTables`] on a [`Rig`]: derived data, rebuilt when the octree's fingerprint
-/// changes. Cloning gives an empty cache and every cache compares equal, so a document's
-/// equality and undo snapshots ignore it.
+/// changes. It also keeps the per-frame scratch of the last [`SkinDeform`] (see
+/// [`DeformScratch`]), so frame after frame the deformer allocates nothing. Cloning gives an
+/// empty cache and every cache compares equal, so a document's equality and undo snapshots
+/// ignore it.
 #[derive(Default)]
-pub struct TablesCache(Mutex<Option<Arc<SkinTables>>>);
+pub struct TablesCache {
+    tables: Mutex<Option<Arc<SkinTables>>>,
+    scratch: Mutex<Option<DeformScratch>>,
+}
 
 impl TablesCache {
     /// The tables for `svo`, built on first use and after any change to it.
     pub fn get(&self, svo: &Svo) -> Arc<SkinTables> {
         let fp = fingerprint(svo);
         let mut slot = self
-            .0
+            .tables
             .lock()
             .unwrap_or_else(std::sync::PoisonError::into_inner);
         if let Some(t) = slot.as_ref()
@@ -236,6 +297,127 @@ impl TablesCache {
         let t = Arc::new(SkinTables::build(svo));
         *slot = Some(Arc::clone(&t));
         t
+    }
+
+    /// The kept scratch (empty the first time, or while another deformer holds it).
+    fn take_scratch(&self) -> DeformScratch {
+        self.scratch
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take()
+            .unwrap_or_default()
+    }
+
+    fn put_scratch(&self, scratch: DeformScratch) {
+        *self
+            .scratch
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(scratch);
+    }
+}
+
+/// What a [`SkinDeform`] computes once per frame and keeps for the traversals: the skinned
+/// corner points, and a memo of every node's box. The view and shadow traversals of a frame
+/// ask about most nodes (a node is placed again when it is drawn as an exact cube, and both
+/// passes visit it), and placing a skinned node costs a blended matrix, eight corners and a
+/// 3×3 inverse; the memo makes that once per node and frame.
+///
+/// The memo is lock-free and safe: a slot holds a node's box when its stamp equals this
+/// frame's `epoch`. A writer stores the twelve floats, then the stamp (release); a reader
+/// that sees the stamp (acquire) sees the floats. Two threads placing the same node
+/// write the same bits, so a race costs only the repeated work.
+#[derive(Default)]
+struct DeformScratch {
+    /// This frame's stamp (never 0, so fresh slots hold nothing).
+    epoch: u32,
+    /// Per node ([`SkinDeform::deform`] and the blended linear part): leaf-pool indices
+    /// first, then inner-pool indices.
+    memo: Vec<MemoSlot>,
+    /// Per inner-pool index: [`SkinDeform::subtree_bounds`] (word 12 is 1 for `Some`).
+    bounds_memo: Vec<MemoSlot>,
+    /// [`SkinTables`]' corner points skinned for this pose (world space).
+    corner_world: Vec<Vec3>,
+}
+
+/// One memo entry: a stamp and up to [`MEMO_WORDS`] floats.
+#[derive(Default)]
+struct MemoSlot {
+    stamp: AtomicU32,
+    bits: [AtomicU32; MEMO_WORDS],
+}
+
+/// A node's box (12 floats) and its blended linear part (9, for normals).
+const MEMO_WORDS: usize = 21;
+
+impl DeformScratch {
+    /// Starts a frame for octrees with `nodes` nodes, `inner` of them internal: a new stamp,
+    /// so every slot is stale.
+    fn start(&mut self, nodes: usize, inner: usize) {
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            // Wrapped after 4 billion frames: clear the stamps once.
+            for s in self.memo.iter().chain(&self.bounds_memo) {
+                s.stamp.store(0, Ordering::Relaxed);
+            }
+            self.epoch = 1;
+        }
+        if self.memo.len() < nodes {
+            self.memo.resize_with(nodes, MemoSlot::default);
+        }
+        if self.bounds_memo.len() < inner {
+            self.bounds_memo.resize_with(inner, MemoSlot::default);
+        }
+    }
+
+    /// This frame's values of a slot, if it has them.
+    #[inline]
+    fn get(&self, memo: &[MemoSlot], slot: usize) -> Option<[f32; MEMO_WORDS]> {
+        let s = memo.get(slot)?;
+        if s.stamp.load(Ordering::Acquire) != self.epoch {
+            return None;
+        }
+        Some(std::array::from_fn(|i| {
+            f32::from_bits(s.bits[i].load(Ordering::Relaxed))
+        }))
+    }
+
+    /// Stores this frame's values of a slot.
+    #[inline]
+    fn put(&self, memo: &[MemoSlot], slot: usize, values: &[f32; MEMO_WORDS]) {
+        let Some(s) = memo.get(slot) else {
+            return;
+        };
+        for (b, v) in s.bits.iter().zip(values) {
+            b.store(v.to_bits(), Ordering::Relaxed);
+        }
+        s.stamp.store(self.epoch, Ordering::Release);
+    }
+}
+
+/// A node's box and blended linear part as memo words.
+fn node_words(d: &DeformedNode, linear: &Mat3) -> [f32; MEMO_WORDS] {
+    let mut w = [0.0; MEMO_WORDS];
+    w[..3].copy_from_slice(&d.center_world.to_array());
+    w[3..12].copy_from_slice(&d.half_axes_world.to_cols_array());
+    w[12..].copy_from_slice(&linear.to_cols_array());
+    w
+}
+
+/// A subtree box (or none) as memo words: the box, then 1 or 0.
+fn bounds_words(d: Option<&DeformedNode>) -> [f32; MEMO_WORDS] {
+    let mut w = [0.0; MEMO_WORDS];
+    if let Some(d) = d {
+        w[..3].copy_from_slice(&d.center_world.to_array());
+        w[3..12].copy_from_slice(&d.half_axes_world.to_cols_array());
+        w[12] = 1.0;
+    }
+    w
+}
+
+fn box_of_words(w: &[f32; MEMO_WORDS]) -> DeformedNode {
+    DeformedNode {
+        center_world: Vec3::new(w[0], w[1], w[2]),
+        half_axes_world: Mat3::from_cols_slice(&w[3..12]),
     }
 }
 
@@ -265,6 +447,21 @@ pub struct SkinDeform<'a> {
     settings: StretchSettings,
     overrides: &'a StretchOverrides,
     tables: Arc<SkinTables>,
+    /// This frame's corner points and node memo; `corner_world` is filled only when the
+    /// strategy reads corners. Skinning the shared lattice points once per frame, rather than
+    /// the corners of every node asked about, skins each point once instead of up to eight
+    /// times per traversal.
+    scratch: DeformScratch,
+    /// Where the scratch came from and goes back to when the deformer is dropped.
+    pool: Option<&'a TablesCache>,
+}
+
+impl Drop for SkinDeform<'_> {
+    fn drop(&mut self) {
+        if let Some(pool) = self.pool {
+            pool.put_scratch(std::mem::take(&mut self.scratch));
+        }
+    }
 }
 
 impl<'a> SkinDeform<'a> {
@@ -284,12 +481,33 @@ impl<'a> SkinDeform<'a> {
             .iter()
             .map(|s| world_from_object * *s * object_from_voxel)
             .collect();
-        Self {
+        Self::with_scratch(
             world_from_voxel,
-            settings: settings.sanitized(),
+            settings,
             overrides,
             tables,
+            DeformScratch::default(),
+            None,
+        )
+    }
+
+    fn with_scratch(
+        world_from_voxel: Vec<Mat4>,
+        settings: StretchSettings,
+        overrides: &'a StretchOverrides,
+        tables: Arc<SkinTables>,
+        scratch: DeformScratch,
+        pool: Option<&'a TablesCache>,
+    ) -> Self {
+        Self {
+            world_from_voxel,
+            settings: StretchSettings::default(),
+            overrides,
+            tables,
+            scratch,
+            pool,
         }
+        .with_settings(settings)
     }
 
     /// A deformer for a rigged model at `time_secs` of `clip` (its playback state otherwise).
@@ -302,13 +520,18 @@ impl<'a> SkinDeform<'a> {
         clip: Option<usize>,
         time_secs: f32,
     ) -> Self {
-        Self::new(
-            world_from_object,
-            object_from_voxel,
-            &rig.skinning_at(clip, time_secs),
+        let world_from_voxel = rig
+            .skinning_at(clip, time_secs)
+            .iter()
+            .map(|s| world_from_object * *s * object_from_voxel)
+            .collect();
+        Self::with_scratch(
+            world_from_voxel,
             rig.stretch,
             &rig.stretch_overrides,
             rig.tables(svo),
+            rig.tables.take_scratch(),
+            Some(&rig.tables),
         )
     }
 
@@ -316,32 +539,64 @@ impl<'a> SkinDeform<'a> {
     #[must_use]
     pub fn with_settings(mut self, settings: StretchSettings) -> Self {
         self.settings = settings.sanitized();
+        // New settings place nodes differently: a new memo stamp.
+        let t = &self.tables;
+        self.scratch.start(
+            t.leaf_corner_points.len() + t.inner_corner_points.len(),
+            t.inner_corner_points.len(),
+        );
+        let reads_corners = matches!(
+            self.settings.strategy,
+            StretchStrategy::Corners | StretchStrategy::Adaptive
+        );
+        let corner_world = &mut self.scratch.corner_world;
+        if reads_corners {
+            let m = &self.world_from_voxel;
+            t.corner_points
+                .par_iter()
+                .map(|&(p, skin)| {
+                    skin_point(m, skin.joints_u16(), skin.blend_weights(), p.as_vec3())
+                })
+                .collect_into_vec(corner_world);
+        } else {
+            corner_world.clear();
+        }
         self
     }
 
+    /// The skinned corners of a node ([`super::stretch::voxel_corners`] order), when its
+    /// corner points are known.
     #[inline]
-    fn skin_at(&self, skin: &Skin4, p: Vec3) -> Vec3 {
-        skin_point(
-            &self.world_from_voxel,
-            skin.joints_u16(),
-            skin.blend_weights(),
-            p,
-        )
+    fn skinned_corners(&self, node: &NodeInfo<'_>) -> Option<[Vec3; 8]> {
+        let ids = self.tables.corner_point_ids(node.svo, &node.node)?;
+        let mut out = [Vec3::ZERO; 8];
+        for (o, &i) in out.iter_mut().zip(ids) {
+            *o = *self.scratch.corner_world.get(i as usize)?;
+        }
+        Some(out)
     }
 
     /// The splat box of a node and the blended linear part used for its normal.
     #[inline]
-    fn place(&self, node: &NodeInfo<'_>) -> DeformedNode {
+    fn place(&self, node: &NodeInfo<'_>) -> (DeformedNode, Mat3) {
         let skin = node.voxel().skin;
-        let half = 0.5 * node.size_voxels() as f32;
-        let c = node.center_voxel();
         let blended = blend_matrix(
             &self.world_from_voxel,
             skin.joints_u16(),
             skin.blend_weights(),
         );
-        let center = blended.transform_point3(c);
         let linear = Mat3::from_mat4(blended);
+        (self.stretched_box(node, &skin, &blended), linear)
+    }
+
+    /// The splat box of a node with weights `skin` and blended matrix `blended`.
+    #[inline]
+    fn stretched_box(&self, node: &NodeInfo<'_>, skin: &Skin4, blended: &Mat4) -> DeformedNode {
+        let skin = *skin;
+        let half = 0.5 * node.size_voxels() as f32;
+        let c = node.center_voxel();
+        let center = blended.transform_point3(c);
+        let linear = Mat3::from_mat4(*blended);
         let s = &self.settings;
         let bound = |f: f32| f.clamp(s.min_factor, s.max_factor);
         let override_code = if node.svo.is_leaf(&node.node) && !self.overrides.is_empty() {
@@ -356,12 +611,17 @@ impl<'a> SkinDeform<'a> {
         if let Some(f) = decode_override(override_code) {
             return scaled(f);
         }
-        let corners = self.tables.corners(node.svo, &node.node);
+        let corners =
+            if s.strategy == StretchStrategy::Corners || s.strategy == StretchStrategy::Adaptive {
+                self.skinned_corners(node)
+            } else {
+                None
+            };
         match (s.strategy, corners) {
             (StretchStrategy::Off, _) => scaled(1.0),
             (StretchStrategy::Thesis, _) | (_, None) => scaled(bound(thesis_factor(&skin))),
             (StretchStrategy::Corners, Some(cs)) => {
-                let (lo, hi) = self.skinned_corner_bounds(c, half, cs);
+                let (lo, hi) = super::stretch::aabb(&cs);
                 // Not capped by `max_factor`: the box is bounded by the pose itself (it lies in
                 // the hull of the node's bind box carried by each of its corners' joints, as
                 // `subtree_bounds` uses), and a cap in voxels reopens exactly the holes it is
@@ -376,47 +636,14 @@ impl<'a> SkinDeform<'a> {
                     half_axes_world: Mat3::from_diagonal(he),
                 }
             }
+            // The corners were skinned in world space; `linear` maps voxel to world, so `half`
+            // is in voxels on both sides.
             (StretchStrategy::Adaptive, Some(cs)) => scaled(bound(
-                self.adaptive_factor(c, half, cs, center, linear, &skin),
+                containing_factor(&cs, half, center, linear)
+                    .unwrap_or_else(|| thesis_factor(&skin)),
             )),
         }
     }
-
-    fn skinned_corner_bounds(&self, c: Vec3, half: f32, cs: &[Skin4; 8]) -> (Vec3, Vec3) {
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for (k, skin) in cs.iter().enumerate() {
-            let p = self.skin_at(skin, c + corner_offset(k) * half);
-            lo = lo.min(p);
-            hi = hi.max(p);
-        }
-        (lo, hi)
-    }
-
-    /// [`containing_factor`] of a node this frame; the paper's `min(2, W)` when the blended
-    /// frame has collapsed.
-    fn adaptive_factor(
-        &self,
-        c: Vec3,
-        half: f32,
-        cs: &[Skin4; 8],
-        center: Vec3,
-        linear: Mat3,
-        skin: &Skin4,
-    ) -> f32 {
-        let skinned: [Vec3; 8] =
-            std::array::from_fn(|k| self.skin_at(&cs[k], c + corner_offset(k) * half));
-        // The corners were skinned in world space; `linear` maps voxel to world, so `half` is
-        // in voxels on both sides.
-        containing_factor(&skinned, half, center, linear).unwrap_or_else(|| thesis_factor(skin))
-    }
-}
-
-/// Sign pattern of corner `k` (x fastest): `(±1, ±1, ±1)`.
-#[inline]
-fn corner_offset(k: usize) -> Vec3 {
-    let s = |bit: usize| if k & bit != 0 { 1.0 } else { -1.0 };
-    Vec3::new(s(1), s(2), s(4))
 }
 
 /// Longest column of a 3×3 matrix (the largest scale it applies to a voxel axis).
@@ -430,23 +657,62 @@ fn column_scale(m: Mat3) -> f32 {
 
 impl NodeDeform for SkinDeform<'_> {
     fn deform(&self, node: &NodeInfo<'_>) -> DeformedNode {
-        self.place(node)
+        let slot = self.memo_slot(node);
+        let memo = &self.scratch.memo;
+        if let Some(w) = self.scratch.get(memo, slot) {
+            return box_of_words(&w);
+        }
+        let (d, linear) = self.place(node);
+        self.scratch.put(memo, slot, &node_words(&d, &linear));
+        d
     }
 
     fn normal_to_world(&self, node: &NodeInfo<'_>, normal_voxel: Vec3) -> Vec3 {
-        let skin = node.voxel().skin;
-        let m = blend_matrix(
-            &self.world_from_voxel,
-            skin.joints_u16(),
-            skin.blend_weights(),
-        );
-        transform_normal(Mat3::from_mat4(m), normal_voxel)
+        // The node was placed this frame (it is on screen), so its blended linear part is in
+        // the memo.
+        let linear = match self.scratch.get(&self.scratch.memo, self.memo_slot(node)) {
+            Some(w) => Mat3::from_cols_slice(&w[12..]),
+            None => {
+                let skin = node.voxel().skin;
+                Mat3::from_mat4(blend_matrix(
+                    &self.world_from_voxel,
+                    skin.joints_u16(),
+                    skin.blend_weights(),
+                ))
+            }
+        };
+        transform_normal(linear, normal_voxel)
     }
 
     fn subtree_bounds(&self, node: &NodeInfo<'_>) -> Option<DeformedNode> {
         if node.svo.is_leaf(&node.node) {
             return None;
         }
+        // Both traversals of a frame ask about most internal nodes.
+        let memo = &self.scratch.bounds_memo;
+        let slot = node.node.index as usize;
+        if let Some(w) = self.scratch.get(memo, slot) {
+            return (w[12] != 0.0).then(|| box_of_words(&w));
+        }
+        let d = self.compute_subtree_bounds(node);
+        self.scratch.put(memo, slot, &bounds_words(d.as_ref()));
+        d
+    }
+}
+
+impl SkinDeform<'_> {
+    /// The memo slot of a node: leaf-pool indices first, then inner-pool indices.
+    #[inline]
+    fn memo_slot(&self, node: &NodeInfo<'_>) -> usize {
+        if node.svo.is_leaf(&node.node) {
+            node.node.index as usize
+        } else {
+            self.tables.leaf_corner_points.len() + node.node.index as usize
+        }
+    }
+
+    /// [`NodeDeform::subtree_bounds`] without the memo.
+    fn compute_subtree_bounds(&self, node: &NodeInfo<'_>) -> Option<DeformedNode> {
         let (joints, max_weights) = self.tables.subtree_joint_weights(node.node.index);
         if joints.is_empty() {
             return None;

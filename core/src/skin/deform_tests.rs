@@ -398,3 +398,145 @@ fn a_document_without_skin_has_nothing_to_report() {
     .unwrap_err();
     assert!(e.to_string().contains("no skinned voxel model"), "{e}");
 }
+
+/// Every node of an octree (root first).
+fn all_nodes(svo: &crate::svo::Svo) -> Vec<crate::svo::NodeRef> {
+    let mut out = Vec::new();
+    let mut stack = vec![svo.root()];
+    while let Some(nd) = stack.pop() {
+        stack.extend((0..8).filter_map(|k| svo.child(&nd, k)));
+        out.push(nd);
+    }
+    out
+}
+
+#[test]
+fn lattice_corners_skinned_once_per_frame_equal_each_corner_skinned_with_its_own_weights() {
+    // The deformer skins every lattice point once per frame and reads a node's corners from
+    // there; skinning each corner of each node with its own weights is the definition. Same
+    // points, same weights, same arithmetic: the boxes must be bit-identical.
+    use super::stretch::{aabb, containing_factor, skin_corners, voxel_corners};
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let svo = &model.svo;
+    let clip = rig.playback.clip.or(Some(0));
+    let skinning = rig.skinning_at(clip, 0.4);
+    let tables = rig.tables(svo);
+    let world_from_voxel: Vec<Mat4> = skinning
+        .iter()
+        .map(|s| *s * model.object_from_voxel())
+        .collect();
+    let mut bent = 0;
+    for strategy in [StretchStrategy::Adaptive, StretchStrategy::Corners] {
+        let settings = StretchSettings {
+            strategy,
+            min_factor: 0.0,
+            max_factor: 16.0,
+            ..StretchSettings::default()
+        };
+        let deform = SkinDeform::new(
+            Mat4::IDENTITY,
+            model.object_from_voxel(),
+            &skinning,
+            settings,
+            &rig.stretch_overrides,
+            Arc::clone(&tables),
+        );
+        for nd in all_nodes(svo) {
+            let info = NodeInfo { svo, node: nd };
+            let got = deform.deform(&info);
+            let corner_skins = if svo.is_leaf(&nd) {
+                tables.leaf_corner_skins()[nd.index as usize]
+            } else {
+                tables.inner_corner_skins()[nd.index as usize]
+            };
+            let half = 0.5 * info.size_voxels() as f32;
+            let c = info.center_voxel();
+            let skinned = skin_corners(&world_from_voxel, &voxel_corners(c, half), &corner_skins);
+            let skin = info.voxel().skin;
+            let blended =
+                lbs::blend_matrix(&world_from_voxel, skin.joints_u16(), skin.blend_weights());
+            let want = if strategy == StretchStrategy::Corners {
+                let (lo, hi) = aabb(&skinned);
+                ((lo + hi) * 0.5, glam::Mat3::from_diagonal((hi - lo) * 0.5))
+            } else {
+                let linear = glam::Mat3::from_mat4(blended);
+                let f = containing_factor(&skinned, half, blended.transform_point3(c), linear)
+                    .expect("the figure's frames do not collapse")
+                    .clamp(0.0, 16.0);
+                bent += usize::from(f > 1.01);
+                (blended.transform_point3(c), linear * (f * half))
+            };
+            assert_eq!(got.center_world, want.0, "{strategy:?} {nd:?}");
+            assert_eq!(got.half_axes_world, want.1, "{strategy:?} {nd:?}");
+        }
+    }
+    assert!(bent > 50, "the pose must stretch some voxels: {bent}");
+}
+
+#[test]
+fn a_deformer_reusing_the_rigs_scratch_places_nodes_as_a_fresh_one_frame_after_frame() {
+    // `for_rig` takes the memo and corner points of the previous deformer from the rig; a
+    // stale entry (last frame's pose, or other settings) must never be read back.
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let svo = &model.svo;
+    let clip = rig.playback.clip.or(Some(0));
+    let nodes = all_nodes(svo);
+    let mut compared = 0;
+    let mut moved = 0;
+    let mut last: Option<Vec<crate::deform::DeformedNode>> = None;
+    for (t, strategy) in [
+        (0.0, StretchStrategy::Adaptive),
+        (0.5, StretchStrategy::Adaptive),
+        (0.5, StretchStrategy::Corners),
+        (0.5, StretchStrategy::Thesis),
+        (0.9, StretchStrategy::Adaptive),
+    ] {
+        let settings = StretchSettings {
+            strategy,
+            ..rig.stretch
+        };
+        let reused =
+            SkinDeform::for_rig(rig, svo, Mat4::IDENTITY, model.object_from_voxel(), clip, t)
+                .with_settings(settings);
+        let fresh = SkinDeform::new(
+            Mat4::IDENTITY,
+            model.object_from_voxel(),
+            &rig.skinning_at(clip, t),
+            settings,
+            &rig.stretch_overrides,
+            rig.tables(svo),
+        );
+        let mut boxes = Vec::with_capacity(nodes.len());
+        // Twice: the second pass reads the memo.
+        for _ in 0..2 {
+            boxes.clear();
+            for &nd in &nodes {
+                let info = NodeInfo { svo, node: nd };
+                let (a, b) = (reused.deform(&info), fresh.deform(&info));
+                assert_eq!(a, b, "t {t} {strategy:?} {nd:?}");
+                assert_eq!(
+                    reused.subtree_bounds(&info),
+                    fresh.subtree_bounds(&info),
+                    "t {t} {strategy:?} {nd:?}"
+                );
+                let n = Vec3::new(0.6, 0.0, 0.8);
+                assert_eq!(
+                    reused.normal_to_world(&info, n),
+                    fresh.normal_to_world(&info, n)
+                );
+                boxes.push(a);
+                compared += 1;
+            }
+        }
+        if let Some(prev) = &last {
+            moved += prev.iter().zip(&boxes).filter(|(p, b)| p != b).count();
+        }
+        last = Some(boxes);
+        drop(reused);
+    }
+    assert!(compared > 10_000, "{compared}");
+    // The frames differ (so a stale memo would have been caught).
+    assert!(moved > nodes.len(), "{moved}");
+}
