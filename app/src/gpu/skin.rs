@@ -154,26 +154,25 @@ fn append_object(
     node_skins(data, svo.inner_skin(), inner_len);
     p.leaf_skin = words(data.len());
     node_skins(data, svo.leaf_skin(), leaf_len);
-    let (ic, lc) = (tables.inner_corner_skins(), tables.leaf_corner_skins());
     // The CPU uses corner weights only where the tables have them (an octree with skin), and
     // only the strategies that read them need them here.
     if needs_corners(strategy_of(rig, quality))
-        && ic.len() >= inner_len
-        && lc.len() >= leaf_len
+        && tables.inner_count() >= inner_len
+        && tables.leaf_count() >= leaf_len
         && (inner_len + leaf_len) > 0
     {
         p.flags |= SKIN_HAS_CORNERS;
-        let corners = |data: &mut Vec<u32>, c: &[[Skin4; 8]], len: usize| {
-            for cs in &c[..len] {
-                for s in cs {
+        let corners = |data: &mut Vec<u32>, of: &dyn Fn(u32) -> Option<[Skin4; 8]>, len: usize| {
+            for i in 0..len {
+                for s in &of(i as u32).unwrap_or_default() {
                     data.extend(skin_words(s));
                 }
             }
         };
         p.inner_corners = words(data.len());
-        corners(data, ic, inner_len);
+        corners(data, &|i| tables.inner_corner_skins(i), inner_len);
         p.leaf_corners = words(data.len());
-        corners(data, lc, leaf_len);
+        corners(data, &|i| tables.leaf_corner_skins(i), leaf_len);
     }
     let mut list: Vec<u32> = Vec::new();
     p.subtree_ranges = words(data.len());

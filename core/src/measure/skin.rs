@@ -354,7 +354,6 @@ fn misplaced_hole(p: &HoleProbe<'_>, i: usize) -> bool {
     let bind_point = v(bind, 0) * bary.x + v(bind, 1) * bary.y + v(bind, 2) * bary.z;
     let model = p.model;
     let cell = ((bind_point - model.origin) / model.voxel_size).floor();
-    let corner_skins = p.tables.leaf_corner_skins();
     for dz in -1..=1 {
         for dy in -1..=1 {
             for dx in -1..=1 {
@@ -365,7 +364,7 @@ fn misplaced_hole(p: &HoleProbe<'_>, i: usize) -> bool {
                 let Some(leaf) = leaf_at(&model.svo, c.as_uvec3()) else {
                     continue;
                 };
-                let Some(skins) = corner_skins.get(leaf.index as usize) else {
+                let Some(skins) = p.tables.leaf_corner_skins(leaf.index) else {
                     continue;
                 };
                 let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));

@@ -42,17 +42,13 @@ use crate::svo::{Skin4, Svo};
 /// joints used in every internal node's subtree. Built in one pass over the octree.
 #[derive(Debug, Clone, Default)]
 pub struct SkinTables {
-    /// Corner weights per leaf-pool index (corners in `voxel_corners` order).
-    leaf_corners: Vec<[Skin4; 8]>,
-    /// Corner weights per inner-pool index.
-    inner_corners: Vec<[Skin4; 8]>,
     /// Every distinct `(lattice point, weights)` a node corner is skinned from: a corner shared
     /// by neighbouring nodes is one entry, so a frame skins it once ([`SkinDeform`]).
-    corner_points: Vec<(UVec3, Skin4)>,
+    pub(crate) corner_points: Vec<(UVec3, Skin4)>,
     /// Per leaf-pool index: the entries of `corner_points` of its eight corners.
-    leaf_corner_points: Vec<[u32; 8]>,
+    pub(crate) leaf_corner_points: Vec<[u32; 8]>,
     /// Per inner-pool index: as `leaf_corner_points`.
-    inner_corner_points: Vec<[u32; 8]>,
+    pub(crate) inner_corner_points: Vec<[u32; 8]>,
     /// Per inner-pool index: range into `joints`.
     inner_joint_range: Vec<(u32, u16)>,
     /// Sorted joint lists, concatenated.
@@ -72,11 +68,11 @@ fn fingerprint(svo: &Svo) -> u64 {
     h.update(svo.inner_masks());
     h.update(bytemuck::cast_slice(svo.inner_first_children()));
     let structure = h.finalize();
+    // The pools as bytes: the same CRC as hashing each skin's joints then weights, without a
+    // call per 4 bytes (this runs every frame).
     let mut h = crc32fast::Hasher::new();
-    for s in svo.leaf_skin().iter().chain(svo.inner_skin()) {
-        h.update(&s.joints);
-        h.update(&s.weights);
-    }
+    h.update(bytemuck::cast_slice(svo.leaf_skin()));
+    h.update(bytemuck::cast_slice(svo.inner_skin()));
     (u64::from(structure) << 32) | u64::from(h.finalize())
 }
 
@@ -91,37 +87,58 @@ impl SkinTables {
         if !svo.has_skin() || svo.is_empty() {
             return t;
         }
-        // Lattice point → merged weights of the leaves touching it.
-        let mut lattice: HashMap<UVec3, Vec<Skin4>> = HashMap::new();
-        svo.for_each_leaf(|c, v| {
-            for k in 0..8u32 {
-                let p = c + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                lattice.entry(p).or_default().push(v.skin);
+        // Lattice point → merged weights of the leaves touching it: every (point, leaf skin)
+        // touch, sorted by point (stably, so each point merges its leaves' skins in leaf
+        // order), then merged per point. Sorting a flat list is several times cheaper than a
+        // hash map of lists, and the points come out in Morton order (neighbouring nodes read
+        // neighbouring entries).
+        let leaf_skin = svo.leaf_skin();
+        let mut touches: Vec<(u128, u32)> = Vec::with_capacity(leaf_skin.len() * 8);
+        let mut stack = vec![svo.root()];
+        while let Some(node) = stack.pop() {
+            if svo.is_leaf(&node) {
+                for k in 0..8u32 {
+                    let p = node.origin + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+                    touches.push((lattice_key(p), node.index * 8 + k));
+                }
+            } else {
+                stack.extend((0..8).filter_map(|k| svo.child(&node, k)));
             }
-        });
-        // Sorted, so the points (and a frame's skinned positions) come in one order every
-        // build.
-        let mut merged: Vec<(UVec3, Skin4)> = lattice
-            .into_iter()
-            .map(|(p, skins)| (p, Skin4::merge(&skins)))
-            .collect();
-        merged.sort_unstable_by_key(|e| crate::svo::morton_encode(e.0));
+        }
+        // Merging sums integer weights, so the order of a point's leaves does not matter.
+        touches.sort_unstable_by_key(|e| e.0);
+        t.leaf_corner_points = vec![[0; 8]; leaf_skin.len()];
+        let mut merged: Vec<(UVec3, Skin4)> = Vec::new();
+        let mut keys: Vec<u128> = Vec::new();
+        let mut skins: Vec<Skin4> = Vec::with_capacity(8);
+        for group in touches.chunk_by(|a, b| a.0 == b.0) {
+            skins.clear();
+            skins.extend(
+                group
+                    .iter()
+                    .filter_map(|e| leaf_skin.get((e.1 / 8) as usize).copied()),
+            );
+            let skin = Skin4::merge(&skins);
+            let id = merged.len() as u32;
+            for &(_, slot) in group {
+                let (leaf, k) = ((slot / 8) as usize, (slot % 8) as usize);
+                if let Some(i) = t.leaf_corner_points.get_mut(leaf) {
+                    i[k] = id;
+                }
+            }
+            keys.push(group[0].0);
+            merged.push((lattice_point(group[0].0), skin));
+        }
         let mut points = CornerPoints {
-            lattice: merged
-                .iter()
-                .enumerate()
-                .map(|(i, &(p, s))| (p, (s, i as u32)))
-                .collect(),
+            keys,
             own: HashMap::new(),
         };
         t.corner_points = merged;
-        t.leaf_corners = vec![[Skin4::ROOT; 8]; svo.leaf_skin().len()];
-        t.inner_corners = vec![[Skin4::ROOT; 8]; svo.inner_skin().len()];
-        t.leaf_corner_points = vec![[0; 8]; svo.leaf_skin().len()];
         t.inner_corner_points = vec![[0; 8]; svo.inner_skin().len()];
         t.inner_joint_range = vec![(0, 0); svo.inner_skin().len()];
         // Post-order walk: children's joint sets are known before their parent's.
-        walk(svo, svo.root(), &mut points, &mut t);
+        let mut joints = Vec::new();
+        walk(svo, svo.root(), &mut points, &mut t, &mut joints);
         t
     }
 
@@ -134,17 +151,38 @@ impl SkinTables {
         }
     }
 
-    /// Corner weights per leaf-pool index ([`super::stretch::voxel_corners`] order); empty for
-    /// an octree without skin. For renderers that upload the tables (the GPU renderer).
+    /// The corner weights of leaf-pool index `index` ([`super::stretch::voxel_corners`] order);
+    /// `None` past the table (an octree without skin has none). Stored once per lattice point
+    /// and named by index per node, not eight copies per node.
     #[must_use]
-    pub fn leaf_corner_skins(&self) -> &[[Skin4; 8]] {
-        &self.leaf_corners
+    pub fn leaf_corner_skins(&self, index: u32) -> Option<[Skin4; 8]> {
+        self.corner_skins(self.leaf_corner_points.get(index as usize)?)
     }
 
-    /// Corner weights per inner-pool index (as [`Self::leaf_corner_skins`]).
+    /// The corner weights of inner-pool index `index` (as [`Self::leaf_corner_skins`]).
     #[must_use]
-    pub fn inner_corner_skins(&self) -> &[[Skin4; 8]] {
-        &self.inner_corners
+    pub fn inner_corner_skins(&self, index: u32) -> Option<[Skin4; 8]> {
+        self.corner_skins(self.inner_corner_points.get(index as usize)?)
+    }
+
+    /// Leaf-pool entries of the corner tables (0 for an octree without skin).
+    #[must_use]
+    pub fn leaf_count(&self) -> usize {
+        self.leaf_corner_points.len()
+    }
+
+    /// Inner-pool entries of the corner tables (0 for an octree without skin).
+    #[must_use]
+    pub fn inner_count(&self) -> usize {
+        self.inner_corner_points.len()
+    }
+
+    fn corner_skins(&self, ids: &[u32; 8]) -> Option<[Skin4; 8]> {
+        let mut out = [Skin4::default(); 8];
+        for (o, &i) in out.iter_mut().zip(ids) {
+            *o = self.corner_points.get(i as usize)?.1;
+        }
+        Some(out)
     }
 
     /// The joints used anywhere in inner node `index`'s subtree (sorted, unique; empty when
@@ -184,27 +222,61 @@ fn used_influences(skin: &Skin4) -> impl Iterator<Item = (u8, u8)> + '_ {
         .chain(empty.then_some((0, 255)))
 }
 
-/// Sorts `(joint, weight)` pairs by joint and keeps each joint once, with its largest weight.
-fn merge_max(v: &mut Vec<(u8, u8)>) {
-    // By joint, the largest weight first: the first pair of each joint is the one kept.
-    v.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(b.1.cmp(&a.1)));
-    v.dedup_by_key(|p| p.0);
+/// Sorts the `(joint, weight)` pairs of `v[start..]` by joint and keeps each joint once, with
+/// its largest weight.
+fn merge_max(v: &mut Vec<(u8, u8)>, start: usize) {
+    // The largest weight + 1 per joint (0: absent) and which joints are present: linear in the
+    // pairs, where sorting them was most of building the tables.
+    let mut best = [0u16; 256];
+    let mut present = [0u64; 4];
+    for &(j, w) in &v[start..] {
+        let b = &mut best[usize::from(j)];
+        *b = (*b).max(u16::from(w) + 1);
+        present[usize::from(j >> 6)] |= 1 << (j & 63);
+    }
+    v.truncate(start);
+    for (word, &bits) in present.iter().enumerate() {
+        let mut bits = bits;
+        while bits != 0 {
+            let j = word * 64 + bits.trailing_zeros() as usize;
+            bits &= bits - 1;
+            v.push((j as u8, (best[j] - 1) as u8));
+        }
+    }
 }
 
 /// Where the corner points of [`SkinTables`] come from while it is built: the lattice points
 /// touching leaves (merged weights, entry index) and the corners of internal nodes touching no
 /// leaf, which move with the node's own weights.
 struct CornerPoints {
-    lattice: HashMap<UVec3, (Skin4, u32)>,
+    /// [`lattice_key`] of the lattice points touching leaves, sorted: entry `i` is
+    /// `corner_points[i]`.
+    keys: Vec<u128>,
     own: HashMap<(UVec3, Skin4), u32>,
+}
+
+/// A Morton-order key of a lattice point (coordinates up to 2²¹ inclusive, one bit more than a
+/// voxel coordinate, so `svo::morton_encode` of the point itself could overflow).
+fn lattice_key(p: UVec3) -> u128 {
+    (u128::from(crate::svo::morton_encode(p >> 1)) << 3)
+        | u128::from((p.x & 1) | ((p.y & 1) << 1) | ((p.z & 1) << 2))
+}
+
+/// The lattice point of a [`lattice_key`].
+fn lattice_point(key: u128) -> UVec3 {
+    let high = crate::svo::morton_decode((key >> 3) as u64);
+    let low = key as u32;
+    (high << 1) + UVec3::new(low & 1, (low >> 1) & 1, (low >> 2) & 1)
 }
 
 impl CornerPoints {
     /// The weights and the entry of `t.corner_points` of the corner at `p` of a node whose own
     /// weights are `own` (a new entry when it is new).
     fn at(&mut self, p: UVec3, own: Skin4, t: &mut SkinTables) -> (Skin4, u32) {
-        if let Some(&e) = self.lattice.get(&p) {
-            return e;
+        if let Ok(i) = self.keys.binary_search(&lattice_key(p))
+            && let Some(&(_, skin)) = t.corner_points.get(i)
+        {
+            return (skin, i as u32);
         }
         let id = *self.own.entry((p, own)).or_insert_with(|| {
             t.corner_points.push((p, own));
@@ -214,16 +286,30 @@ impl CornerPoints {
     }
 }
 
-/// Fills corner weights for `node`'s subtree and returns the joints it uses with their largest
-/// weights (sorted by joint, unique).
+/// Fills the corner tables of `node`'s internal nodes (the leaves' are filled from the
+/// lattice) and appends to `joints` the joints its subtree uses with their largest weights
+/// (sorted by joint, unique). One buffer serves the whole walk: each call works on its own
+/// tail of it.
 fn walk(
     svo: &Svo,
     node: crate::svo::NodeRef,
     points: &mut CornerPoints,
     t: &mut SkinTables,
-) -> Vec<(u8, u8)> {
-    let size = svo.node_size(node.level);
+    joints: &mut Vec<(u8, u8)>,
+) {
+    let start = joints.len();
     let own = svo.node_voxel(&node).skin;
+    joints.extend(used_influences(&own));
+    // Own and corner weights: a node drawn at LOD by `Corners` is placed by its corners, and a
+    // corner may touch leaves outside the subtree.
+    if svo.is_leaf(&node) {
+        if let Some(corners) = t.leaf_corner_skins(node.index) {
+            joints.extend(corners.iter().flat_map(used_influences));
+        }
+        merge_max(joints, start);
+        return;
+    }
+    let size = svo.node_size(node.level);
     let mut ids = [0u32; 8];
     let corners: [Skin4; 8] = std::array::from_fn(|k| {
         let b = k as u32;
@@ -234,45 +320,28 @@ fn walk(
         ids[k] = id;
         skin
     });
-    // Own and corner weights: a node drawn at LOD by `Corners` is placed by its corners, and a
-    // corner may touch leaves outside the subtree.
-    let mut joints: Vec<(u8, u8)> = used_influences(&own)
-        .chain(corners.iter().flat_map(used_influences))
-        .collect();
-    if svo.is_leaf(&node) {
-        if let Some(slot) = t.leaf_corners.get_mut(node.index as usize) {
-            *slot = corners;
-        }
-        if let Some(slot) = t.leaf_corner_points.get_mut(node.index as usize) {
-            *slot = ids;
-        }
-        merge_max(&mut joints);
-        return joints;
-    }
-    if let Some(slot) = t.inner_corners.get_mut(node.index as usize) {
-        *slot = corners;
-    }
+    joints.extend(corners.iter().flat_map(used_influences));
     if let Some(slot) = t.inner_corner_points.get_mut(node.index as usize) {
         *slot = ids;
     }
     for k in 0..8 {
         if let Some(child) = svo.child(&node, k) {
-            joints.extend(walk(svo, child, points, t));
+            walk(svo, child, points, t, joints);
         }
     }
-    merge_max(&mut joints);
-    let start = t.joints.len() as u32;
-    t.joints.extend(joints.iter().map(|&(j, _)| j));
-    t.joint_max_weights.extend(joints.iter().map(|&(_, w)| w));
+    merge_max(joints, start);
+    let first = t.joints.len() as u32;
+    t.joints.extend(joints[start..].iter().map(|&(j, _)| j));
+    t.joint_max_weights
+        .extend(joints[start..].iter().map(|&(_, w)| w));
     if let Some(slot) = t.inner_joint_range.get_mut(node.index as usize) {
-        *slot = (start, joints.len() as u16);
+        *slot = (first, (joints.len() - start) as u16);
     }
-    joints
 }
 
 /// Cache of [`SkinTables`] on a [`Rig`]: derived data, rebuilt when the octree's fingerprint
 /// changes. It also keeps the per-frame scratch of the last [`SkinDeform`] (see
-/// [`DeformScratch`]), so frame after frame the deformer allocates nothing. Cloning gives an
+/// `DeformScratch`), so frame after frame the deformer allocates nothing. Cloning gives an
 /// empty cache and every cache compares equal, so a document's equality and undo snapshots
 /// ignore it.
 #[derive(Default)]
@@ -713,6 +782,9 @@ impl SkinDeform<'_> {
 
     /// [`NodeDeform::subtree_bounds`] without the memo.
     fn compute_subtree_bounds(&self, node: &NodeInfo<'_>) -> Option<DeformedNode> {
+        if node.node.level + 1 == node.svo.depth() {
+            return self.leaf_children_bounds(node);
+        }
         let (joints, max_weights) = self.tables.subtree_joint_weights(node.node.index);
         if joints.is_empty() {
             return None;
@@ -796,6 +868,35 @@ impl SkinDeform<'_> {
 }
 
 impl SkinDeform<'_> {
+    /// The subtree bounds of a node whose children are leaves: the union of the leaves' drawn
+    /// boxes and the node's centre, exactly. The joint bound of [`Self::compute_subtree_bounds`] holds for any
+    /// subtree but is loose (the hull of the node's box under each of its joints, padded for
+    /// stretch); here the leaves themselves are cheap to place (the memo keeps them for when
+    /// they are drawn), and the tight box lets the traversals cull these nodes instead of
+    /// their leaves one by one.
+    fn leaf_children_bounds(&self, node: &NodeInfo<'_>) -> Option<DeformedNode> {
+        // The node's own centre too: the bounds hold every descendant's centre, the node's
+        // included (`Corners` centres a node's box on its corners, not its leaves).
+        let own = self.deform(node).center_world;
+        let mut lo = own;
+        let mut hi = own;
+        for k in 0..8 {
+            if let Some(child) = node.svo.child(&node.node, k) {
+                let d = self.deform(&NodeInfo {
+                    svo: node.svo,
+                    node: child,
+                });
+                let he = abs_rows(d.half_axes_world);
+                lo = lo.min(d.center_world - he);
+                hi = hi.max(d.center_world + he);
+            }
+        }
+        (lo.is_finite() && hi.is_finite() && lo.cmple(hi).all()).then(|| DeformedNode {
+            center_world: (lo + hi) * 0.5,
+            half_axes_world: Mat3::from_diagonal((hi - lo) * 0.5),
+        })
+    }
+
     /// The largest factor a leaf of a subtree may be drawn with (multiplier included), or for
     /// `Corners` the largest override factor (1 without overrides).
     ///
@@ -851,4 +952,38 @@ fn frobenius(m: Mat3) -> f32 {
 #[inline]
 fn abs_rows(axes: Mat3) -> Vec3 {
     Mat3::from_cols(axes.x_axis.abs(), axes.y_axis.abs(), axes.z_axis.abs()) * Vec3::ONE
+}
+
+#[cfg(test)]
+mod lattice_key_tests {
+    use super::*;
+
+    #[test]
+    fn lattice_keys_are_morton_codes_and_reach_the_far_corner_of_the_deepest_octree() {
+        let far = 1u32 << crate::svo::MAX_DEPTH;
+        for p in [
+            UVec3::ZERO,
+            UVec3::new(1, 0, 0),
+            UVec3::new(5, 9, 3),
+            UVec3::splat(far - 1),
+            UVec3::new(far - 1, 7, 123_456),
+        ] {
+            assert_eq!(lattice_key(p), u128::from(crate::svo::morton_encode(p)));
+            assert_eq!(lattice_point(lattice_key(p)), p);
+        }
+        // Lattice points of the deepest octree's last voxels lie one past its last coordinate:
+        // distinct keys that round-trip and sort after every voxel's.
+        for p in [
+            UVec3::splat(far),
+            UVec3::new(far, 0, 0),
+            UVec3::new(0, far, far - 1),
+        ] {
+            assert_eq!(lattice_point(lattice_key(p)), p);
+            assert!(lattice_key(p) > lattice_key(UVec3::splat(far - 1)) || p.x == 0);
+        }
+        assert_ne!(
+            lattice_key(UVec3::new(far, 0, 0)),
+            lattice_key(UVec3::new(0, 0, 0))
+        );
+    }
 }

@@ -446,9 +446,13 @@ fn lattice_corners_skinned_once_per_frame_equal_each_corner_skinned_with_its_own
             let info = NodeInfo { svo, node: nd };
             let got = deform.deform(&info);
             let corner_skins = if svo.is_leaf(&nd) {
-                tables.leaf_corner_skins()[nd.index as usize]
+                tables
+                    .leaf_corner_skins(nd.index)
+                    .expect("a node of the octree")
             } else {
-                tables.inner_corner_skins()[nd.index as usize]
+                tables
+                    .inner_corner_skins(nd.index)
+                    .expect("a node of the octree")
             };
             let half = 0.5 * info.size_voxels() as f32;
             let c = info.center_voxel();
@@ -539,4 +543,74 @@ fn a_deformer_reusing_the_rigs_scratch_places_nodes_as_a_fresh_one_frame_after_f
     assert!(compared > 10_000, "{compared}");
     // The frames differ (so a stale memo would have been caught).
     assert!(moved > nodes.len(), "{moved}");
+}
+
+#[test]
+fn corner_tables_hold_the_merged_weights_of_the_leaves_touching_each_corner() {
+    // An independent definition, cell by cell: a corner's weights merge the weights of the
+    // (up to eight) leaves around its lattice point; an internal node's corner that touches
+    // no leaf moves with the node's own weights. Every corner's entry names that point and
+    // those weights.
+    let doc = rigged_figure();
+    let (model, rig) = model_of(doc);
+    let svo = &model.svo;
+    let tables = rig.tables(svo);
+    let extent = 1u32 << svo.depth();
+    let around = |p: glam::UVec3| -> Vec<crate::svo::Skin4> {
+        let mut skins = Vec::new();
+        for k in 0..8u32 {
+            let d = glam::UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
+            // The cells whose corner `p` is: `p - d` for each offset, inside the octree.
+            if (p.cmpge(d)).all()
+                && (p - d).cmplt(glam::UVec3::splat(extent)).all()
+                && let Some(v) = svo.get(p - d)
+            {
+                skins.push(v.skin);
+            }
+        }
+        skins
+    };
+    let (mut leaves, mut inner, mut own_corners) = (0, 0, 0);
+    for nd in all_nodes(svo) {
+        let info = NodeInfo { svo, node: nd };
+        let (corners, ids) = if svo.is_leaf(&nd) {
+            leaves += 1;
+            (
+                tables
+                    .leaf_corner_skins(nd.index)
+                    .expect("a node of the octree"),
+                tables.leaf_corner_points[nd.index as usize],
+            )
+        } else {
+            inner += 1;
+            (
+                tables
+                    .inner_corner_skins(nd.index)
+                    .expect("a node of the octree"),
+                tables.inner_corner_points[nd.index as usize],
+            )
+        };
+        let size = info.size_voxels();
+        for k in 0..8u32 {
+            let p = nd.origin + glam::UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1) * size;
+            let skins = around(p);
+            let want = if skins.is_empty() {
+                own_corners += 1;
+                info.voxel().skin
+            } else {
+                crate::svo::Skin4::merge(&skins)
+            };
+            assert_eq!(corners[k as usize], want, "{nd:?} corner {k}");
+            assert_eq!(
+                tables.corner_points[ids[k as usize] as usize],
+                (p, want),
+                "{nd:?} corner {k}"
+            );
+        }
+    }
+    assert!(
+        leaves > 1000 && inner > 100,
+        "{leaves} leaves, {inner} inner"
+    );
+    assert!(own_corners > 0, "some internal corner touches no leaf");
 }

@@ -13,7 +13,20 @@ use crate::mesh::{linear_to_srgb, srgb_byte_to_linear};
 /// renderers skin with it. Joint indices are bytes, so a skinned voxel model addresses at most
 /// [`MAX_SKIN_JOINTS`] joints; the skinned-glTF import refuses larger skeletons with an error
 /// rather than dropping influences.
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    Default,
+    PartialEq,
+    Eq,
+    Hash,
+    Serialize,
+    Deserialize,
+    bytemuck::Pod,
+    bytemuck::Zeroable,
+)]
+#[repr(C)]
 pub struct Skin4 {
     /// Joint indices into the model's skeleton.
     pub joints: [u8; 4],

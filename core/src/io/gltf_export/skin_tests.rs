@@ -85,7 +85,9 @@ fn exported_skinned_voxels_walk_exactly_like_the_editors_voxel_corners() {
     let mut stack = vec![model.svo.root()];
     while let Some(n) = stack.pop() {
         if model.svo.is_leaf(&n) {
-            for (k, s) in tables.leaf_corner_skins()[n.index as usize]
+            for (k, s) in tables
+                .leaf_corner_skins(n.index)
+                .expect("a leaf of the octree")
                 .iter()
                 .enumerate()
             {

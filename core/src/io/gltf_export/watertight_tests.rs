@@ -605,7 +605,9 @@ fn quads_carry_lattice_weights_and_merge_only_where_they_are_equal() {
     let mut leaves = 0;
     while let Some(n) = stack.pop() {
         if model.svo.is_leaf(&n) {
-            let corners = tables.leaf_corner_skins()[n.index as usize];
+            let corners = tables
+                .leaf_corner_skins(n.index)
+                .expect("a leaf of the octree");
             for (k, c) in corners.iter().enumerate() {
                 let k = k as u32;
                 let p = n.origin + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
