@@ -30,7 +30,7 @@ use std::sync::{Arc, Mutex};
 use glam::{Mat3, Mat4, UVec3, Vec3, Vec4};
 use rayon::prelude::*;
 
-use super::lbs::{blend_matrix, skin_point, transform_normal};
+use super::lbs::{blend_matrix, normal_matrix, normal_through, skin_point, transform_normal};
 use super::rig::{Rig, StretchOverrides};
 use super::stretch::{
     StretchSettings, StretchStrategy, containing_factor, decode_override, thesis_factor,
@@ -399,7 +399,7 @@ impl TablesCache {
 struct DeformScratch {
     /// This frame's stamp (never 0, so fresh slots hold nothing).
     epoch: u32,
-    /// Per node ([`SkinDeform::deform`] and the blended linear part): leaf-pool indices
+    /// Per node ([`SkinDeform::deform`] and the normal matrix): leaf-pool indices
     /// first, then inner-pool indices.
     memo: Vec<MemoSlot>,
     /// Per inner-pool index: [`SkinDeform::subtree_bounds`] (word 12 is 1 for `Some`).
@@ -415,7 +415,8 @@ struct MemoSlot {
     bits: [AtomicU32; MEMO_WORDS],
 }
 
-/// A node's box (12 floats) and its blended linear part (9, for normals).
+/// A node's box (12 floats) and the normal matrix of its blended linear part (9,
+/// [`normal_matrix`]).
 const MEMO_WORDS: usize = 21;
 
 impl DeformScratch {
@@ -438,15 +439,16 @@ impl DeformScratch {
         }
     }
 
-    /// This frame's values of a slot, if it has them.
+    /// This frame's words `from..from + N` of a slot, if it has them.
     #[inline]
-    fn get(&self, memo: &[MemoSlot], slot: usize) -> Option<[f32; MEMO_WORDS]> {
+    fn get<const N: usize>(&self, memo: &[MemoSlot], slot: usize, from: usize) -> Option<[f32; N]> {
         let s = memo.get(slot)?;
         if s.stamp.load(Ordering::Acquire) != self.epoch {
             return None;
         }
+        let words = s.bits.get(from..from + N)?;
         Some(std::array::from_fn(|i| {
-            f32::from_bits(s.bits[i].load(Ordering::Relaxed))
+            f32::from_bits(words[i].load(Ordering::Relaxed))
         }))
     }
 
@@ -463,12 +465,12 @@ impl DeformScratch {
     }
 }
 
-/// A node's box and blended linear part as memo words.
-fn node_words(d: &DeformedNode, linear: &Mat3) -> [f32; MEMO_WORDS] {
+/// A node's box and the normal matrix of its blended linear part as memo words.
+fn node_words(d: &DeformedNode, normals: &Mat3) -> [f32; MEMO_WORDS] {
     let mut w = [0.0; MEMO_WORDS];
     w[..3].copy_from_slice(&d.center_world.to_array());
     w[3..12].copy_from_slice(&d.half_axes_world.to_cols_array());
-    w[12..].copy_from_slice(&linear.to_cols_array());
+    w[12..].copy_from_slice(&normals.to_cols_array());
     w
 }
 
@@ -483,7 +485,7 @@ fn bounds_words(d: Option<&DeformedNode>) -> [f32; MEMO_WORDS] {
     w
 }
 
-fn box_of_words(w: &[f32; MEMO_WORDS]) -> DeformedNode {
+fn box_of_words(w: &[f32]) -> DeformedNode {
     DeformedNode {
         center_world: Vec3::new(w[0], w[1], w[2]),
         half_axes_world: Mat3::from_cols_slice(&w[3..12]),
@@ -728,29 +730,33 @@ impl NodeDeform for SkinDeform<'_> {
     fn deform(&self, node: &NodeInfo<'_>) -> DeformedNode {
         let slot = self.memo_slot(node);
         let memo = &self.scratch.memo;
-        if let Some(w) = self.scratch.get(memo, slot) {
+        if let Some(w) = self.scratch.get::<12>(memo, slot, 0) {
             return box_of_words(&w);
         }
         let (d, linear) = self.place(node);
-        self.scratch.put(memo, slot, &node_words(&d, &linear));
+        self.scratch
+            .put(memo, slot, &node_words(&d, &normal_matrix(linear)));
         d
     }
 
     fn normal_to_world(&self, node: &NodeInfo<'_>, normal_voxel: Vec3) -> Vec3 {
-        // The node was placed this frame (it is on screen), so its blended linear part is in
-        // the memo.
-        let linear = match self.scratch.get(&self.scratch.memo, self.memo_slot(node)) {
-            Some(w) => Mat3::from_cols_slice(&w[12..]),
-            None => {
-                let skin = node.voxel().skin;
-                Mat3::from_mat4(blend_matrix(
-                    &self.world_from_voxel,
-                    skin.joints_u16(),
-                    skin.blend_weights(),
-                ))
-            }
+        let linear = || {
+            let skin = node.voxel().skin;
+            Mat3::from_mat4(blend_matrix(
+                &self.world_from_voxel,
+                skin.joints_u16(),
+                skin.blend_weights(),
+            ))
         };
-        transform_normal(linear, normal_voxel)
+        // The node was placed this frame (it is on screen), so its normal matrix is in the
+        // memo: one matrix–vector product per pixel instead of a blend and a cofactor.
+        match self
+            .scratch
+            .get::<9>(&self.scratch.memo, self.memo_slot(node), 12)
+        {
+            Some(w) => normal_through(Mat3::from_cols_array(&w), linear, normal_voxel),
+            None => transform_normal(linear(), normal_voxel),
+        }
     }
 
     fn subtree_bounds(&self, node: &NodeInfo<'_>) -> Option<DeformedNode> {
@@ -760,7 +766,7 @@ impl NodeDeform for SkinDeform<'_> {
         // Both traversals of a frame ask about most internal nodes.
         let memo = &self.scratch.bounds_memo;
         let slot = node.node.index as usize;
-        if let Some(w) = self.scratch.get(memo, slot) {
+        if let Some(w) = self.scratch.get::<13>(memo, slot, 0) {
             return (w[12] != 0.0).then(|| box_of_words(&w));
         }
         let d = self.compute_subtree_bounds(node);

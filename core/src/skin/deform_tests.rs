@@ -473,6 +473,14 @@ fn lattice_corners_skinned_once_per_frame_equal_each_corner_skinned_with_its_own
             };
             assert_eq!(got.center_world, want.0, "{strategy:?} {nd:?}");
             assert_eq!(got.half_axes_world, want.1, "{strategy:?} {nd:?}");
+            // The node is in the memo now: its normals go through the kept normal matrix.
+            for n in [Vec3::X, Vec3::new(0.0, -0.6, 0.8)] {
+                assert_eq!(
+                    deform.normal_to_world(&info, n),
+                    lbs::transform_normal(glam::Mat3::from_mat4(blended), n),
+                    "{strategy:?} {nd:?}"
+                );
+            }
         }
     }
     assert!(bent > 50, "the pose must stretch some voxels: {bent}");

@@ -47,16 +47,31 @@ pub fn skin_point(skinning: &[Mat4], joints: [u16; 4], weights: [f32; 4], p: Vec
 /// `n`. Never NaN for finite input; unit length unless the input was zero.
 #[must_use]
 pub fn transform_normal(a: Mat3, n: Vec3) -> Vec3 {
+    normal_through(normal_matrix(a), || a, n)
+}
+
+/// The matrix [`transform_normal`] applies before normalising: the cofactor matrix of `a`,
+/// negated when `det(a) < 0`. A renderer that transforms many normals by one `a` computes it
+/// once and calls [`normal_through`].
+#[must_use]
+pub fn normal_matrix(a: Mat3) -> Mat3 {
     let cofactor = Mat3::from_cols(
         a.y_axis.cross(a.z_axis),
         a.z_axis.cross(a.x_axis),
         a.x_axis.cross(a.y_axis),
     );
     let det = a.x_axis.dot(cofactor.x_axis);
-    let sign = if det < 0.0 { -1.0 } else { 1.0 };
-    (cofactor * n * sign)
+    // Multiplying by ±1 is exact, so this equals negating the transformed normal.
+    if det < 0.0 { cofactor * -1.0 } else { cofactor }
+}
+
+/// [`transform_normal`] of `n` given `c = normal_matrix(a)`; `a` is asked for only when the
+/// cofactor direction vanishes (a collapsed frame).
+#[must_use]
+pub fn normal_through(c: Mat3, a: impl FnOnce() -> Mat3, n: Vec3) -> Vec3 {
+    (c * n)
         .try_normalize()
-        .or_else(|| (a * n).try_normalize())
+        .or_else(|| (a() * n).try_normalize())
         .unwrap_or_else(|| n.normalize_or_zero())
 }
 
