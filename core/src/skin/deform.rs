@@ -527,6 +527,18 @@ pub struct SkinDeform<'a> {
     pool: Option<&'a TablesCache>,
 }
 
+/// `world_from_object · skinning[j] · object_from_voxel` per joint.
+fn joints_world_from_voxel(
+    world_from_object: Mat4,
+    skinning: &[Mat4],
+    object_from_voxel: Mat4,
+) -> Vec<Mat4> {
+    skinning
+        .iter()
+        .map(|s| world_from_object * *s * object_from_voxel)
+        .collect()
+}
+
 impl Drop for SkinDeform<'_> {
     fn drop(&mut self) {
         if let Some(pool) = self.pool {
@@ -548,12 +560,8 @@ impl<'a> SkinDeform<'a> {
         overrides: &'a StretchOverrides,
         tables: Arc<SkinTables>,
     ) -> Self {
-        let world_from_voxel = skinning
-            .iter()
-            .map(|s| world_from_object * *s * object_from_voxel)
-            .collect();
         Self::with_scratch(
-            world_from_voxel,
+            joints_world_from_voxel(world_from_object, skinning, object_from_voxel),
             settings,
             overrides,
             tables,
@@ -591,13 +599,12 @@ impl<'a> SkinDeform<'a> {
         clip: Option<usize>,
         time_secs: f32,
     ) -> Self {
-        let world_from_voxel = rig
-            .skinning_at(clip, time_secs)
-            .iter()
-            .map(|s| world_from_object * *s * object_from_voxel)
-            .collect();
         Self::with_scratch(
-            world_from_voxel,
+            joints_world_from_voxel(
+                world_from_object,
+                &rig.skinning_at(clip, time_secs),
+                object_from_voxel,
+            ),
             rig.stretch,
             &rig.stretch_overrides,
             rig.tables(svo),
