@@ -1387,3 +1387,94 @@ fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
     eprintln!("after a move: {moved:?}");
     assert_eq!((moved.patched, moved.reused), (0, 0), "{moved:?}");
 }
+
+/// The voxel coordinates of a voxel model's leaves.
+fn leaves_of(h: &Harness<'static, EditorApp>, id: u64) -> std::collections::HashSet<glam::UVec3> {
+    let mut out = std::collections::HashSet::new();
+    if let Some(ObjectKind::Voxels(v)) = h.state().editor.object(id).map(|o| &o.kind) {
+        v.svo.for_each_leaf(|c, _| {
+            out.insert(c);
+        });
+    }
+    out
+}
+
+#[test]
+fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
+    // A ray cast in a rigged model's voxel grid finds its bind pose, which the clip moves away
+    // from where the figure is drawn: the brush must act on the voxel drawn under the pointer.
+    let mut doc = rigged_figure(7);
+    let id = doc.objects[0].id;
+    if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+        let rig = v.rig.as_mut().expect("rigged");
+        rig.playback.clip = Some(0);
+        rig.playback.time_secs = 0.9;
+    }
+    let mut h = harness(doc);
+    settle_preview(&mut h);
+    h.key_press(egui::Key::S);
+    h.run_steps(1);
+    {
+        let sculpt = &mut h.state_mut().sculpt;
+        assert!(sculpt.active);
+        sculpt.tool = thicket::ui::voxel_tools::ToolKind::Brush;
+        sculpt.brush.op = thicket_core::sculpt::BrushOp::Add;
+        sculpt.brush.radius = 1.0;
+    }
+    h.run_steps(1);
+    let rect = h.state().view.last_rect;
+    let camera = h.state().editor.doc().camera;
+    let eye = camera.eye();
+    // A pixel of the drawn figure where the bind-pose ray cast finds none of it, or a voxel
+    // far from the drawn one.
+    let mut chosen = None;
+    'search: for j in 0..(rect.height() / 6.0) as i32 {
+        for i in 0..(rect.width() / 6.0) as i32 {
+            let p = rect.min + egui::vec2(6.0 * i as f32 + 3.0, 6.0 * j as f32 + 3.0);
+            let editor = &h.state().editor;
+            let Some((o, node)) = h.state().view.preview_hit(editor, rect, p) else {
+                continue;
+            };
+            let Some(posed) = editor.posed_voxel_pick(o, node, eye).filter(|_| o == id) else {
+                continue;
+            };
+            let ndc = glam::Vec2::new(
+                (p.x - rect.left()) / rect.width() * 2.0 - 1.0,
+                1.0 - (p.y - rect.top()) / rect.height() * 2.0,
+            );
+            let Some((_, dir)) =
+                thicket::editor::ray_through(camera.clip_from_world(rect.aspect_ratio()), ndc)
+            else {
+                continue;
+            };
+            let bind = editor.pick_voxel(eye, dir);
+            if bind.is_none_or(|b| b.voxel.as_vec3().distance(posed.voxel.as_vec3()) > 6.0) {
+                chosen = Some((p, posed));
+                break 'search;
+            }
+        }
+    }
+    let (p, posed) = chosen.expect("the pose moves part of the figure off its bind pose");
+    let before = leaves_of(&h, id);
+    let steps = h.state().editor.history().undo_len();
+    h.hover_at(p);
+    h.step();
+    h.drag_at(p);
+    h.step();
+    h.drop_at(p);
+    h.run_steps(2);
+    let after = leaves_of(&h, id);
+    let added: Vec<_> = after.difference(&before).copied().collect();
+    assert!(!added.is_empty(), "the dab added voxels");
+    assert!(before.is_subset(&after), "an Add dab removes nothing");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    // In front of the drawn voxel's face, within the brush's reach.
+    let target = posed.voxel.as_vec3() + 0.5 + posed.normal.as_vec3();
+    for c in &added {
+        let d = (c.as_vec3() + 0.5).distance(target);
+        assert!(
+            d <= 1.0 + 1.5,
+            "voxel {c} added {d} voxels from the dab at {target}"
+        );
+    }
+}

@@ -60,6 +60,77 @@ pub(super) fn voxel_frame(
 }
 
 impl Editor {
+    /// Where a brush aims on a rigged model drawn in a pose: the voxel of the node a preview
+    /// pixel shows (`node` as [`Editor::node_center`] takes it; a node drawn at LOD stands for
+    /// the leaf nearest its centre), facing along its normal's dominant axis. A ray cast finds
+    /// the bind-pose voxels, which a pose moves away from where they are drawn, so the preview's
+    /// node ids are what the pointer is over. `point_in_world` is the voxel's centre in the
+    /// shown pose and `t` its distance from `eye`. `None`: not a rigged voxel model, or no
+    /// such node.
+    #[must_use]
+    pub fn posed_voxel_pick(&self, id: u64, node: u64, eye: Vec3) -> Option<VoxelPick> {
+        let o = self.object(id).filter(|o| self.voxel_pickable(o))?;
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return None;
+        };
+        let rig = v.rig.as_ref()?;
+        let svo = &v.svo;
+        let (level, index) = ((node >> 32) as u8, node as u32);
+        if svo.is_empty() || level > svo.depth() {
+            return None;
+        }
+        let mut stack = vec![svo.root()];
+        let mut found = None;
+        while let Some(n) = stack.pop() {
+            if n.level == level {
+                if n.index == index {
+                    found = Some(n);
+                    break;
+                }
+                continue;
+            }
+            if !svo.is_leaf(&n) {
+                stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+            }
+        }
+        let mut n = found?;
+        let center = |n: &thicket_core::svo::NodeRef| {
+            n.origin.as_vec3() + 0.5 * svo.node_size(n.level) as f32
+        };
+        let target = center(&n);
+        while !svo.is_leaf(&n) {
+            n = (0..8).filter_map(|k| svo.child(&n, k)).min_by(|a, b| {
+                center(a)
+                    .distance_squared(target)
+                    .total_cmp(&center(b).distance_squared(target))
+            })?;
+        }
+        let voxel = svo.get(n.origin)?;
+        let normal = thicket_core::svo::decode_normal(voxel.normal);
+        let axis = normal.abs().max_position();
+        let mut face = IVec3::ZERO;
+        face[axis] = if normal[axis] < 0.0 { -1 } else { 1 };
+        let (_, voxel_from_world, size) = voxel_frame(o, v)?;
+        let skinning = rig.skinning_at(rig.playback.clip, rig.playback.time_secs);
+        let posed = thicket_core::skin::skin_point(
+            &skinning,
+            voxel.skin.joints_u16(),
+            voxel.skin.blend_weights(),
+            v.object_from_voxel()
+                .transform_point3(n.origin.as_vec3() + 0.5),
+        );
+        let point_in_world = o.transform.matrix().transform_point3(posed);
+        Some(VoxelPick {
+            object: id,
+            voxel: n.origin,
+            normal: face,
+            point_in_world,
+            t: point_in_world.distance(eye),
+            voxel_from_world,
+            voxel_size_world: size,
+        })
+    }
+
     /// Casts a world-space ray (unit direction) against every visible voxel object and returns
     /// the nearest solid voxel.
     #[must_use]

@@ -186,18 +186,21 @@ impl SculptTool {
     }
 
     /// Runs the active tool for this frame: Alt+click picks the colour under the pointer (the
-    /// eyedropper), the brush strokes, the other tools run their gestures.
+    /// eyedropper), the brush strokes at `brush_pick` (the view's
+    /// [`super::view::View`] brush target), the other tools run their gestures.
     pub fn handle_tools(
         &mut self,
         response: &egui::Response,
         editor: &mut Editor,
         ray: Option<(Vec3, Vec3)>,
+        brush_pick: Option<VoxelPick>,
         proj: &super::view::Projector,
     ) {
         let alt_click = response.clicked() && response.ctx.input(|i| i.modifiers.alt);
         if alt_click {
-            if let Some(color) = ray
-                .and_then(|(o, d)| editor.pick_voxel(o, d))
+            // The brush's target where the view has one (a posed rigged model's drawn voxel).
+            if let Some(color) = brush_pick
+                .or_else(|| ray.and_then(|(o, d)| editor.pick_voxel(o, d)))
                 .and_then(|p| editor.voxel_at(p.object, p.voxel))
                 .map(|v| v.color)
             {
@@ -210,9 +213,8 @@ impl SculptTool {
             return;
         }
         if self.tool == ToolKind::Brush {
-            let onto = self.brush_onto(editor);
-            let pick = ray.and_then(|(o, d)| editor.pick_brush(o, d, onto));
-            self.handle(response, editor, pick);
+            // The view's pick: on a posed rigged model, the voxel its preview shows.
+            self.handle(response, editor, brush_pick);
             return;
         }
         let input = super::voxel_tools::ToolInput {
