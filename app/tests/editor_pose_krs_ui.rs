@@ -1425,19 +1425,27 @@ fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
     let rect = h.state().view.last_rect;
     let camera = h.state().editor.doc().camera;
     let eye = camera.eye();
-    // A pixel of the drawn figure where the bind-pose ray cast finds none of it, or a voxel
-    // far from the drawn one.
+    // A pixel of the drawn figure where a ray cast in the model's voxel grid (its bind pose)
+    // finds none of it, or a voxel far from the one the posed pick finds.
+    let (voxel_from_world, svo) = match h.state().editor.object(id) {
+        Some(o) => match &o.kind {
+            ObjectKind::Voxels(v) => (
+                (o.transform.matrix() * v.object_from_voxel()).inverse(),
+                v.svo.clone(),
+            ),
+            _ => unreachable!("a voxel model"),
+        },
+        None => unreachable!("the figure"),
+    };
     let mut chosen = None;
     'search: for j in 0..(rect.height() / 6.0) as i32 {
         for i in 0..(rect.width() / 6.0) as i32 {
             let p = rect.min + egui::vec2(6.0 * i as f32 + 3.0, 6.0 * j as f32 + 3.0);
             let editor = &h.state().editor;
-            let Some((o, node)) = h.state().view.preview_hit(editor, rect, p) else {
+            // The preview draws the figure there.
+            if h.state().view.preview_hit(editor, rect, p).map(|hit| hit.0) != Some(id) {
                 continue;
-            };
-            let Some(posed) = editor.posed_voxel_pick(o, node, eye).filter(|_| o == id) else {
-                continue;
-            };
+            }
             let ndc = glam::Vec2::new(
                 (p.x - rect.left()) / rect.width() * 2.0 - 1.0,
                 1.0 - (p.y - rect.top()) / rect.height() * 2.0,
@@ -1447,14 +1455,45 @@ fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
             else {
                 continue;
             };
-            let bind = editor.pick_voxel(eye, dir);
-            if bind.is_none_or(|b| b.voxel.as_vec3().distance(posed.voxel.as_vec3()) > 6.0) {
+            let Some(posed) = editor.pick_voxel(eye, dir).filter(|pk| pk.object == id) else {
+                continue;
+            };
+            let bind = svo.raycast(
+                voxel_from_world.transform_point3(eye).as_dvec3(),
+                voxel_from_world.transform_vector3(dir).as_dvec3(),
+                f64::INFINITY,
+            );
+            // An Add dab fills the empty cell in front of the face hit: one inside the grid.
+            let front = posed.voxel.as_ivec3() + posed.normal;
+            let extent = 1i32 << svo.depth();
+            let room = front.cmpge(glam::IVec3::ZERO).all()
+                && front.cmplt(glam::IVec3::splat(extent)).all()
+                && svo.get(front.as_uvec3()).is_none();
+            if room && bind.is_none_or(|b| b.coord.as_vec3().distance(posed.voxel.as_vec3()) > 6.0)
+            {
                 chosen = Some((p, posed));
                 break 'search;
             }
         }
     }
     let (p, posed) = chosen.expect("the pose moves part of the figure off its bind pose");
+    // The posed ray cast finds what the renderer drew at that pixel (its node, give or take a
+    // voxel of stretch and LOD).
+    let (_, node) = h
+        .state()
+        .view
+        .preview_hit(&h.state().editor, rect, p)
+        .expect("the figure is drawn there");
+    let drawn = h
+        .state()
+        .editor
+        .node_center(id, node)
+        .expect("a node of the figure");
+    assert!(
+        drawn.distance(posed.voxel.as_vec3() + 0.5) <= 3.0,
+        "picked {} where the preview draws {drawn}",
+        posed.voxel
+    );
     let before = leaves_of(&h, id);
     let steps = h.state().editor.history().undo_len();
     h.hover_at(p);

@@ -295,21 +295,7 @@ impl Editor {
         dir_in_world: Vec3,
         onto: Option<u64>,
     ) -> Option<VoxelPick> {
-        self.pick_brush_where(origin_in_world, dir_in_world, onto, |_| true)
-    }
-
-    /// [`Editor::pick_brush`] among the pickable voxel objects `include` admits.
-    #[must_use]
-    pub fn pick_brush_where(
-        &self,
-        origin_in_world: Vec3,
-        dir_in_world: Vec3,
-        onto: Option<u64>,
-        include: impl Fn(&thicket_core::scene::Object) -> bool,
-    ) -> Option<VoxelPick> {
-        let voxel = self.pick_voxel_where(origin_in_world, dir_in_world, |o| {
-            self.voxel_pickable(o) && include(o)
-        });
+        let voxel = self.pick_voxel(origin_in_world, dir_in_world);
         let dir = dir_in_world.try_normalize()?;
         if !origin_in_world.is_finite() {
             return voxel;

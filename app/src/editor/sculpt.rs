@@ -40,6 +40,100 @@ impl VoxelPick {
     }
 }
 
+/// The nearest voxel of rigged model `v` (object `o`) hit by a world ray (unit `dir`) in the
+/// pose its rig shows, nearer than `max_t`: `(t, voxel, outward face normal in voxel axes)`.
+/// A pose moves the voxels away from their grid (the bind pose), where an octree ray cast would
+/// look. Each voxel is the box the renderers draw for it (its cube carried by its blended
+/// matrix, stretched as the document's quality says); the descent tests a node's subtree
+/// bounds and visits only nodes the ray enters before the best hit so far.
+fn posed_raycast(
+    o: &thicket_core::scene::Object,
+    v: &thicket_core::scene::VoxelModel,
+    rig: &thicket_core::skin::Rig,
+    quality: &thicket_core::quality::Quality,
+    origin: Vec3,
+    dir: Vec3,
+    max_t: f32,
+) -> Option<(f32, UVec3, IVec3)> {
+    use thicket_core::deform::{DeformedNode, NodeDeform, NodeInfo};
+    use thicket_core::skin::SkinDeform;
+    let svo = &v.svo;
+    if svo.is_empty() {
+        return None;
+    }
+    let deform = SkinDeform::for_rig(
+        rig,
+        svo,
+        o.transform.matrix(),
+        v.object_from_voxel(),
+        rig.playback.clip,
+        rig.playback.time_secs,
+    )
+    .with_settings(thicket_core::render::effective_stretch(rig, quality));
+    // Where the ray enters the box `d` (`None`: misses, or not before `max_t`), and the box
+    // axis it enters through with the sign facing the ray.
+    let enter = |d: &DeformedNode, max_t: f32| -> Option<(f32, IVec3)> {
+        let inv = d.half_axes_world.inverse();
+        let (o_l, d_l) = (inv * (origin - d.center_world), inv * dir);
+        if !(o_l.is_finite() && d_l.is_finite()) {
+            return None;
+        }
+        let (mut t0, mut t1, mut face) = (0.0f32, max_t, IVec3::ZERO);
+        for k in 0..3 {
+            if d_l[k] == 0.0 {
+                if o_l[k].abs() > 1.0 {
+                    return None;
+                }
+                continue;
+            }
+            let (a, b) = ((-1.0 - o_l[k]) / d_l[k], (1.0 - o_l[k]) / d_l[k]);
+            let (near, far) = (a.min(b), a.max(b));
+            if near > t0 {
+                t0 = near;
+                face = IVec3::ZERO;
+                face[k] = if d_l[k] > 0.0 { -1 } else { 1 };
+            }
+            t1 = t1.min(far);
+        }
+        (t0 <= t1).then_some((t0, face))
+    };
+    let aabb = |d: &DeformedNode| {
+        let a = d.half_axes_world;
+        let he = glam::Mat3::from_cols(a.x_axis.abs(), a.y_axis.abs(), a.z_axis.abs()) * Vec3::ONE;
+        (d.center_world - he, d.center_world + he)
+    };
+    let mut best: Option<(f32, UVec3, IVec3)> = None;
+    let mut stack = vec![svo.root()];
+    while let Some(n) = stack.pop() {
+        let info = NodeInfo { svo, node: n };
+        let limit = best.map_or(max_t, |b| b.0);
+        let own = deform.deform(&info);
+        if svo.is_leaf(&n) {
+            if let Some((t, face)) = enter(&own, limit)
+                && face != IVec3::ZERO
+            {
+                best = Some((t, n.origin, face));
+            }
+            continue;
+        }
+        // The node's own box joined with its subtree's, as an axis-aligned box.
+        let (mut lo, mut hi) = aabb(&own);
+        if let Some(sub) = deform.subtree_bounds(&info) {
+            let (a, b) = aabb(&sub);
+            lo = lo.min(a);
+            hi = hi.max(b);
+        }
+        let cull = DeformedNode {
+            center_world: (lo + hi) * 0.5,
+            half_axes_world: glam::Mat3::from_diagonal(((hi - lo) * 0.5).max(Vec3::splat(1e-6))),
+        };
+        if enter(&cull, limit).is_some() {
+            stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
+        }
+    }
+    best
+}
+
 /// Voxel model `v` of object `o` in the world: `world_from_voxel`, its inverse (`None` when
 /// it has none) and the world size of a voxel (its largest side).
 pub(super) fn voxel_frame(
@@ -60,77 +154,6 @@ pub(super) fn voxel_frame(
 }
 
 impl Editor {
-    /// Where a brush aims on a rigged model drawn in a pose: the voxel of the node a preview
-    /// pixel shows (`node` as [`Editor::node_center`] takes it; a node drawn at LOD stands for
-    /// the leaf nearest its centre), facing along its normal's dominant axis. A ray cast finds
-    /// the bind-pose voxels, which a pose moves away from where they are drawn, so the preview's
-    /// node ids are what the pointer is over. `point_in_world` is the voxel's centre in the
-    /// shown pose and `t` its distance from `eye`. `None`: not a rigged voxel model, or no
-    /// such node.
-    #[must_use]
-    pub fn posed_voxel_pick(&self, id: u64, node: u64, eye: Vec3) -> Option<VoxelPick> {
-        let o = self.object(id).filter(|o| self.voxel_pickable(o))?;
-        let ObjectKind::Voxels(v) = &o.kind else {
-            return None;
-        };
-        let rig = v.rig.as_ref()?;
-        let svo = &v.svo;
-        let (level, index) = ((node >> 32) as u8, node as u32);
-        if svo.is_empty() || level > svo.depth() {
-            return None;
-        }
-        let mut stack = vec![svo.root()];
-        let mut found = None;
-        while let Some(n) = stack.pop() {
-            if n.level == level {
-                if n.index == index {
-                    found = Some(n);
-                    break;
-                }
-                continue;
-            }
-            if !svo.is_leaf(&n) {
-                stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
-            }
-        }
-        let mut n = found?;
-        let center = |n: &thicket_core::svo::NodeRef| {
-            n.origin.as_vec3() + 0.5 * svo.node_size(n.level) as f32
-        };
-        let target = center(&n);
-        while !svo.is_leaf(&n) {
-            n = (0..8).filter_map(|k| svo.child(&n, k)).min_by(|a, b| {
-                center(a)
-                    .distance_squared(target)
-                    .total_cmp(&center(b).distance_squared(target))
-            })?;
-        }
-        let voxel = svo.get(n.origin)?;
-        let normal = thicket_core::svo::decode_normal(voxel.normal);
-        let axis = normal.abs().max_position();
-        let mut face = IVec3::ZERO;
-        face[axis] = if normal[axis] < 0.0 { -1 } else { 1 };
-        let (_, voxel_from_world, size) = voxel_frame(o, v)?;
-        let skinning = rig.skinning_at(rig.playback.clip, rig.playback.time_secs);
-        let posed = thicket_core::skin::skin_point(
-            &skinning,
-            voxel.skin.joints_u16(),
-            voxel.skin.blend_weights(),
-            v.object_from_voxel()
-                .transform_point3(n.origin.as_vec3() + 0.5),
-        );
-        let point_in_world = o.transform.matrix().transform_point3(posed);
-        Some(VoxelPick {
-            object: id,
-            voxel: n.origin,
-            normal: face,
-            point_in_world,
-            t: point_in_world.distance(eye),
-            voxel_from_world,
-            voxel_size_world: size,
-        })
-    }
-
     /// Casts a world-space ray (unit direction) against every visible voxel object and returns
     /// the nearest solid voxel.
     #[must_use]
@@ -169,19 +192,26 @@ impl Editor {
             let Some((_, voxel_from_world, size)) = voxel_frame(o, v) else {
                 continue;
             };
-            // Same parameter t in both spaces: the direction is transformed, not normalised.
-            let origin_v = voxel_from_world.transform_point3(origin_in_world);
-            let dir_v = voxel_from_world.transform_vector3(dir);
-            let max_t = best.map_or(f64::INFINITY, |b| f64::from(b.t));
-            let Some(hit) = v.svo.raycast(origin_v.as_dvec3(), dir_v.as_dvec3(), max_t) else {
+            let max_t = best.map_or(f32::INFINITY, |b| b.t);
+            let hit = if let Some(rig) = &v.rig {
+                // A rigged model is drawn in its pose: cast against the posed voxels.
+                posed_raycast(o, v, rig, &self.doc.quality, origin_in_world, dir, max_t)
+            } else {
+                // Same parameter t in both spaces: the direction is transformed, not normalised.
+                let origin_v = voxel_from_world.transform_point3(origin_in_world);
+                let dir_v = voxel_from_world.transform_vector3(dir);
+                v.svo
+                    .raycast(origin_v.as_dvec3(), dir_v.as_dvec3(), f64::from(max_t))
+                    .map(|h| (h.t as f32, h.coord, h.normal))
+            };
+            let Some((t, voxel, normal)) = hit else {
                 continue;
             };
-            let t = hit.t as f32;
             if best.is_none_or(|b| t < b.t) {
                 best = Some(VoxelPick {
                     object: o.id,
-                    voxel: hit.coord,
-                    normal: hit.normal,
+                    voxel,
+                    normal,
                     point_in_world: origin_in_world + dir * t,
                     t,
                     voxel_from_world,

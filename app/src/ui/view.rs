@@ -761,11 +761,13 @@ impl View {
         // The brush's target (a KRS surface too, for the selected voxel model's brush); other
         // tools only need the voxel.
         let brush = sculpt.active && sculpt.tool == ToolKind::Brush;
-        let hover_pick = if brush {
-            self.brush_pick(editor, rect, response.hover_pos(), pointer_ray, sculpt)
-        } else {
-            pointer_ray.and_then(|(o, d)| editor.pick_voxel(o, d))
-        };
+        let hover_pick = pointer_ray.and_then(|(o, d)| {
+            if brush {
+                editor.pick_brush(o, d, sculpt.brush_onto(editor))
+            } else {
+                editor.pick_voxel(o, d)
+            }
+        });
 
         let proj = Projector::new(editor.doc().camera, rect);
         let gizmo = !sculpt.active
@@ -934,50 +936,6 @@ impl View {
             ObjectKind::Voxels(v) if v.rig.is_some() => Some((o.id, node)),
             _ => None,
         }
-    }
-
-    /// Where the sculpt brush aims. A rigged model is drawn in its pose, where a ray cast in its
-    /// voxel grid (the bind pose) does not find it: over a rigged model the brush takes the
-    /// voxel the CPU preview shows under the pointer ([`Editor::posed_voxel_pick`]), and while
-    /// the preview can tell, the ray cast skips rigged models (their bind-pose voxels are not
-    /// what is drawn there). Without a current CPU preview (the GPU viewport) the ray cast
-    /// reaches every voxel model, rigged ones at their bind pose.
-    fn brush_pick(
-        &self,
-        editor: &Editor,
-        rect: egui::Rect,
-        pos: Option<egui::Pos2>,
-        ray: Option<(Vec3, Vec3)>,
-        sculpt: &SculptTool,
-    ) -> Option<VoxelPick> {
-        let eye = editor.doc().camera.eye();
-        if let Some(pick) = pos
-            .and_then(|p| self.preview_hit(editor, rect, p))
-            .and_then(|(id, node)| editor.posed_voxel_pick(id, node, eye))
-        {
-            return Some(pick);
-        }
-        let (o, d) = ray?;
-        let onto = sculpt.brush_onto(editor);
-        if self.preview_is_current(editor) {
-            editor.pick_brush_where(
-                o,
-                d,
-                onto,
-                |obj| !matches!(&obj.kind, ObjectKind::Voxels(v) if v.rig.is_some()),
-            )
-        } else {
-            editor.pick_brush(o, d, onto)
-        }
-    }
-
-    /// Whether the shown CPU preview was drawn from the document as it is (its pixel ids name
-    /// the current objects).
-    fn preview_is_current(&self, editor: &Editor) -> bool {
-        self.cpu
-            .shown
-            .as_ref()
-            .is_some_and(|s| s.content.0 == editor.content_key().0)
     }
 
     /// The stretch brush over the rigged model under the pointer: a circle of the brush's
