@@ -42,6 +42,21 @@ impl NodeInfo<'_> {
         self.svo.node_color_and_normal(&self.node)
     }
 
+    /// The node's skin weights alone (one read of the skin pool; the default skin for an
+    /// octree without skin), for deformers that need nothing else.
+    #[inline]
+    #[must_use]
+    pub fn skin(&self) -> crate::svo::Skin4 {
+        let pool = if self.svo.is_leaf(&self.node) {
+            self.svo.leaf_skin()
+        } else {
+            self.svo.inner_skin()
+        };
+        pool.get(self.node.index as usize)
+            .copied()
+            .unwrap_or_default()
+    }
+
     /// The node's attributes (a leaf's own or an internal node's LOD average, incl. skin).
     #[inline]
     #[must_use]

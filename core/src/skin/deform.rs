@@ -657,7 +657,7 @@ impl<'a> SkinDeform<'a> {
     /// The splat box of a node and the blended linear part used for its normal.
     #[inline]
     fn place(&self, node: &NodeInfo<'_>) -> (DeformedNode, Mat3) {
-        let skin = node.voxel().skin;
+        let skin = node.skin();
         let blended = blend_matrix(
             &self.world_from_voxel,
             skin.joints_u16(),
@@ -748,7 +748,7 @@ impl NodeDeform for SkinDeform<'_> {
 
     fn normal_to_world(&self, node: &NodeInfo<'_>, normal_voxel: Vec3) -> Vec3 {
         let linear = || {
-            let skin = node.voxel().skin;
+            let skin = node.skin();
             Mat3::from_mat4(blend_matrix(
                 &self.world_from_voxel,
                 skin.joints_u16(),
