@@ -525,6 +525,9 @@ pub struct SkinDeform<'a> {
     scratch: DeformScratch,
     /// Where the scratch came from and goes back to when the deformer is dropped.
     pool: Option<&'a TablesCache>,
+    /// Whether `scratch.corner_world` holds this pose's corner points (they depend on the
+    /// pose only, so new settings keep them).
+    corners_posed: bool,
 }
 
 /// `world_from_object · skinning[j] · object_from_voxel` per joint.
@@ -585,6 +588,7 @@ impl<'a> SkinDeform<'a> {
             tables,
             scratch,
             pool,
+            corners_posed: false,
         }
         .with_settings(settings)
     }
@@ -627,17 +631,17 @@ impl<'a> SkinDeform<'a> {
             self.settings.strategy,
             StretchStrategy::Corners | StretchStrategy::Adaptive
         );
-        let corner_world = &mut self.scratch.corner_world;
-        if reads_corners {
+        // The pose's corner points, once: a deformer made with one strategy and given another
+        // (`for_rig(..).with_settings(..)`, as the renderers do) skins them once.
+        if reads_corners && !self.corners_posed {
             let m = &self.world_from_voxel;
             t.corner_points
                 .par_iter()
                 .map(|&(p, skin)| {
                     skin_point(m, skin.joints_u16(), skin.blend_weights(), p.as_vec3())
                 })
-                .collect_into_vec(corner_world);
-        } else {
-            corner_world.clear();
+                .collect_into_vec(&mut self.scratch.corner_world);
+            self.corners_posed = true;
         }
         self
     }
@@ -664,17 +668,23 @@ impl<'a> SkinDeform<'a> {
             skin.blend_weights(),
         );
         let linear = Mat3::from_mat4(blended);
-        (self.stretched_box(node, &skin, &blended), linear)
+        (self.stretched_box(node, &skin, &blended, linear), linear)
     }
 
-    /// The splat box of a node with weights `skin` and blended matrix `blended`.
+    /// The splat box of a node with weights `skin`, blended matrix `blended` and its linear
+    /// part `linear`.
     #[inline]
-    fn stretched_box(&self, node: &NodeInfo<'_>, skin: &Skin4, blended: &Mat4) -> DeformedNode {
+    fn stretched_box(
+        &self,
+        node: &NodeInfo<'_>,
+        skin: &Skin4,
+        blended: &Mat4,
+        linear: Mat3,
+    ) -> DeformedNode {
         let skin = *skin;
         let half = 0.5 * node.size_voxels() as f32;
         let c = node.center_voxel();
         let center = blended.transform_point3(c);
-        let linear = Mat3::from_mat4(*blended);
         let s = &self.settings;
         let bound = |f: f32| f.clamp(s.min_factor, s.max_factor);
         let override_code = if node.svo.is_leaf(&node.node) && !self.overrides.is_empty() {
