@@ -164,6 +164,19 @@ impl EditorApp {
         }
     }
 
+    /// Replaces the objects the reported import placed with a new import of the same file
+    /// with `options`, and closes the report.
+    fn import_again(&mut self, options: files::MeshOptions) {
+        let Some(report) = self.import_report.take() else {
+            return;
+        };
+        for id in report.placed {
+            // An object deleted since is simply gone already.
+            let _ = self.editor.delete(id);
+        }
+        self.start_import_with(report.path, options);
+    }
+
     /// The Import report window: what the last import left out, one bullet per kind; for an
     /// OBJ that names no texture a Texture field that imports it again with one; for a glTF
     /// scene of several nodes a checklist of its nodes that imports it again with those.
@@ -240,39 +253,21 @@ impl EditorApp {
             } else {
                 texture
             };
-            let (path, placed) = (report.path.clone(), report.placed.clone());
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    texture: Some(texture),
-                    ..files::MeshOptions::default()
-                },
-            );
+            self.import_again(files::MeshOptions {
+                texture: Some(texture),
+                ..files::MeshOptions::default()
+            });
         } else if again_with_nodes {
-            let (path, placed) = (report.path.clone(), report.placed.clone());
             let picked = report
                 .nodes
                 .iter()
                 .filter(|(_, on)| *on)
                 .map(|(n, _)| n.clone())
                 .collect();
-            self.import_report = None;
-            for id in placed {
-                // An object deleted since is simply gone already.
-                let _ = self.editor.delete(id);
-            }
-            self.start_import_with(
-                path,
-                files::MeshOptions {
-                    nodes: Some(picked),
-                    ..files::MeshOptions::default()
-                },
-            );
+            self.import_again(files::MeshOptions {
+                nodes: Some(picked),
+                ..files::MeshOptions::default()
+            });
         } else if !open || ok {
             self.import_report = None;
         }
