@@ -186,8 +186,8 @@ impl SculptTool {
     }
 
     /// Runs the active tool for this frame: Alt+click picks the colour under the pointer (the
-    /// eyedropper), the brush strokes at `brush_pick` (the view's
-    /// [`super::view::View`] brush target), the other tools run their gestures.
+    /// eyedropper), the brush strokes at `brush_pick` (the target the view found for its brush
+    /// preview this frame, [`Editor::pick_brush`]), the other tools run their gestures.
     pub fn handle_tools(
         &mut self,
         response: &egui::Response,
@@ -198,9 +198,8 @@ impl SculptTool {
     ) {
         let alt_click = response.clicked() && response.ctx.input(|i| i.modifiers.alt);
         if alt_click {
-            // The brush's target where the view has one (a posed rigged model's drawn voxel).
-            if let Some(color) = brush_pick
-                .or_else(|| ray.and_then(|(o, d)| editor.pick_voxel(o, d)))
+            if let Some(color) = ray
+                .and_then(|(o, d)| editor.pick_voxel(o, d))
                 .and_then(|p| editor.voxel_at(p.object, p.voxel))
                 .map(|v| v.color)
             {
@@ -213,7 +212,6 @@ impl SculptTool {
             return;
         }
         if self.tool == ToolKind::Brush {
-            // The view's pick: on a posed rigged model, the voxel its preview shows.
             self.handle(response, editor, brush_pick);
             return;
         }

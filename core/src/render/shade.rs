@@ -633,7 +633,7 @@ pub(crate) fn resolve(
         .for_each(|(y, ((((k, d), id), nrm), alb))| {
             // A voxel pixel's id, normal and albedo depend only on the low half of its key (the
             // node and the face shown), and a splat covers runs of pixels in a row: the last
-            // one is reused. Skinned normals blend four matrices per node, so this matters.
+            // one is reused.
             let mut last: Option<(u32, Option<Shaded>)> = None;
             for x in 0..k.len() {
                 let key = k[x].load(std::sync::atomic::Ordering::Relaxed);

@@ -251,8 +251,7 @@ pub fn containing_factor(
         return None;
     }
     // `Mat3A` is glam's SIMD 3×3: the same products and sums in the same order as `Mat3`, so
-    // the same bits, in a third of the instructions (this runs once per skinned node and
-    // frame).
+    // the same bits in fewer instructions (this runs once per skinned node and frame).
     let inv = glam::Mat3A::from(linear.inverse());
     let center = glam::Vec3A::from(center);
     let mut worst = 0.0f32;
