@@ -289,7 +289,7 @@ impl DepthTarget {
             return true;
         }
         let (tx0, ty0, tx1, ty1) = (x0 / TILE, y0 / TILE, x1 / TILE, y1 / TILE);
-        if (tx1 - tx0 + 1) * (ty1 - ty0 + 1) <= 16 {
+        if (tx1 - tx0 + 1) * (ty1 - ty0 + 1) <= 64 {
             for ty in ty0..=ty1 {
                 for tx in tx0..=tx1 {
                     if self.tile_max[(ty * self.tiles_x + tx) as usize] >= ndc_depth {
