@@ -225,79 +225,72 @@ impl KrsObject {
     /// and directions in place.
     pub fn into_validated(self, index: usize) -> Result<KrsObject, KrsError> {
         let object = index;
-        if self.kernels.len() != self.mirrors.len() + 1 {
-            return Err(KrsError::KernelCount {
+        self.check_kernel_count(object)?;
+        let mut out = self;
+        for (mirror, m) in out.mirrors.iter_mut().enumerate() {
+            *m = normalised_mirror(object, mirror, m)?;
+        }
+        for (kernel, k) in out.kernels.iter_mut().enumerate() {
+            *k = validated_kernel(object, kernel, k)?;
+        }
+        out.world_from_object = validated_similarity(object, out.world_from_object)?;
+        out.check_distortion_and_zones(object, |z| z)?;
+        Ok(out)
+    }
+
+    /// Whether this object, placed with `world_from_object` and its empty zones moved by
+    /// `place_zone`, passes [`KrsObject::into_validated`]: the same checks in the same order
+    /// and the same error, without copying the object's lists (a frame validates its document
+    /// without allocating).
+    ///
+    /// # Errors
+    /// As [`KrsObject::into_validated`] of the placed copy.
+    pub fn check_placed(
+        &self,
+        index: usize,
+        world_from_object: Similarity,
+        place_zone: impl Fn(EmptyZone) -> EmptyZone,
+    ) -> Result<(), KrsError> {
+        let object = index;
+        self.check_kernel_count(object)?;
+        for (mirror, m) in self.mirrors.iter().enumerate() {
+            normalised_mirror(object, mirror, m)?;
+        }
+        for (kernel, k) in self.kernels.iter().enumerate() {
+            validated_kernel(object, kernel, k)?;
+        }
+        validated_similarity(object, world_from_object)?;
+        self.check_distortion_and_zones(object, place_zone)
+    }
+
+    fn check_kernel_count(&self, object: usize) -> Result<(), KrsError> {
+        if self.kernels.len() == self.mirrors.len() + 1 {
+            Ok(())
+        } else {
+            Err(KrsError::KernelCount {
                 object,
                 kernels: self.kernels.len(),
                 mirrors: self.mirrors.len(),
-            });
+            })
         }
-        let mut out = self;
-        for (mirror, m) in out.mirrors.iter_mut().enumerate() {
-            if !m.normal.is_finite() || !m.offset.is_finite() {
-                return Err(KrsError::NonFiniteMirror { object, mirror });
-            }
-            let scale = m.normal.abs().max_element();
-            if scale < MIN_DIRECTION_LENGTH {
-                return Err(KrsError::ZeroMirrorNormal {
-                    object,
-                    mirror,
-                    normal: m.normal,
-                });
-            }
-            // Normalise in two stages so huge and tiny normals both work, keeping the plane.
-            let scaled = m.normal / scale;
-            let len = scaled.length();
-            // `Vec3::try_normalize`, reusing the length it would compute again.
-            let rcp = len.recip();
-            if !(rcp.is_finite() && rcp > 0.0) {
-                return Err(KrsError::ZeroMirrorNormal {
-                    object,
-                    mirror,
-                    normal: m.normal,
-                });
-            }
-            let normal = scaled * rcp;
-            let offset = m.offset / scale / len;
-            if !offset.is_finite() {
-                return Err(KrsError::NonFiniteMirror { object, mirror });
-            }
-            *m = MirrorPlane { normal, offset };
-        }
-        for (kernel, k) in out.kernels.iter_mut().enumerate() {
-            *k = k.validated().map_err(|problem| KrsError::Kernel {
-                object,
-                kernel,
-                problem,
-            })?;
-        }
-        let t = &mut out.world_from_object;
-        if !t.translation.is_finite() || !t.rotation.is_finite() || !t.scale.is_finite() {
-            return Err(KrsError::Transform {
-                object,
-                reason: "is not finite".to_owned(),
-            });
-        }
-        if t.scale <= 0.0 {
-            return Err(KrsError::Transform {
-                object,
-                reason: format!("scale {} must be > 0", t.scale),
-            });
-        }
-        t.rotation = super::kernel::normalized_quat(t.rotation).ok_or(KrsError::Transform {
-            object,
-            reason: "rotation quaternion has zero length".to_owned(),
-        })?;
-        if let Some(d) = &out.distortion {
+    }
+
+    fn check_distortion_and_zones(
+        &self,
+        object: usize,
+        place_zone: impl Fn(EmptyZone) -> EmptyZone,
+    ) -> Result<(), KrsError> {
+        if let Some(d) = &self.distortion {
             d.validate()
                 .map_err(|reason| KrsError::Distortion { object, reason })?;
         }
-        for (zone, z) in out.empty_zones.iter().enumerate() {
+        for (zone, z) in self.empty_zones.iter().enumerate() {
+            let z = place_zone(*z);
             if !(z.centre.is_finite() && z.radius.is_finite() && z.radius >= 0.0) {
                 return Err(KrsError::EmptyZone { object, zone });
             }
         }
-        Ok(out)
+        Ok(())
     }
 
     /// Algorithm 1: distance estimate from `p` (object space, undistorted) to the KRS.
@@ -487,6 +480,76 @@ impl KrsScene {
             .collect::<Result<Vec<_>, _>>()?;
         Ok(PreparedScene { objects })
     }
+}
+
+/// Mirror `mirror` of object `object` with its normal of unit length and its offset scaled to
+/// keep the plane; an error for a non-finite or vanishing normal.
+fn normalised_mirror(
+    object: usize,
+    mirror: usize,
+    m: &MirrorPlane,
+) -> Result<MirrorPlane, KrsError> {
+    if !m.normal.is_finite() || !m.offset.is_finite() {
+        return Err(KrsError::NonFiniteMirror { object, mirror });
+    }
+    let scale = m.normal.abs().max_element();
+    if scale < MIN_DIRECTION_LENGTH {
+        return Err(KrsError::ZeroMirrorNormal {
+            object,
+            mirror,
+            normal: m.normal,
+        });
+    }
+    // Normalise in two stages so huge and tiny normals both work, keeping the plane.
+    let scaled = m.normal / scale;
+    let len = scaled.length();
+    // `Vec3::try_normalize`, reusing the length it would compute again.
+    let rcp = len.recip();
+    if !(rcp.is_finite() && rcp > 0.0) {
+        return Err(KrsError::ZeroMirrorNormal {
+            object,
+            mirror,
+            normal: m.normal,
+        });
+    }
+    let normal = scaled * rcp;
+    let offset = m.offset / scale / len;
+    if !offset.is_finite() {
+        return Err(KrsError::NonFiniteMirror { object, mirror });
+    }
+    Ok(MirrorPlane { normal, offset })
+}
+
+/// Kernel `kernel` of object `object`, validated.
+fn validated_kernel(object: usize, kernel: usize, k: &Kernel) -> Result<Kernel, KrsError> {
+    k.validated().map_err(|problem| KrsError::Kernel {
+        object,
+        kernel,
+        problem,
+    })
+}
+
+/// An object's transform with its rotation normalised; an error unless it is finite with a
+/// positive scale and a rotation of non-zero length.
+fn validated_similarity(object: usize, t: Similarity) -> Result<Similarity, KrsError> {
+    if !t.translation.is_finite() || !t.rotation.is_finite() || !t.scale.is_finite() {
+        return Err(KrsError::Transform {
+            object,
+            reason: "is not finite".to_owned(),
+        });
+    }
+    if t.scale <= 0.0 {
+        return Err(KrsError::Transform {
+            object,
+            reason: format!("scale {} must be > 0", t.scale),
+        });
+    }
+    let rotation =
+        super::kernel::normalized_quat(t.rotation).ok_or_else(|| KrsError::Transform {
+            object,
+            reason: "rotation quaternion has zero length".to_owned(),
+        })?;
+    Ok(Similarity { rotation, ..t })
 }
 
 impl PreparedObject {

@@ -1116,6 +1116,23 @@ fn tree_builder_maps_parameters_to_kernels_and_mirrors() {
             index: 3
         })
     ));
+    // `validate` (run on every frame, building nothing) gives what `build` gives, the leaf's
+    // own check included.
+    let mut bad_leaf = params.clone();
+    if let Some(leaf) = &mut bad_leaf.leaf {
+        leaf.radius = f32::INFINITY;
+    }
+    assert!(bad_leaf.leaf.is_some(), "the example tree has a leaf");
+    let mut zero = params.clone();
+    zero.route[2] = zero.route[1];
+    for p in [&params, &nan, &bad_leaf, &zero] {
+        assert_eq!(
+            format!("{:?}", p.validate()),
+            format!("{:?}", p.build().map(|_| ())),
+        );
+    }
+    assert!(bad_leaf.validate().is_err() && zero.validate().is_err());
+    assert!(params.validate().is_ok());
 }
 
 #[test]

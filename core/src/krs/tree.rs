@@ -147,6 +147,26 @@ impl TreeParams {
         self.route.len().saturating_sub(1)
     }
 
+    /// Whether [`TreeParams::build`] succeeds, with its error, without building the tree (a
+    /// document's tree builders are validated with it on every frame).
+    ///
+    /// # Errors
+    /// As [`TreeParams::build`].
+    pub fn validate(&self) -> Result<(), TreeError> {
+        self.check()?;
+        if let Some(leaf) = &self.leaf
+            && !(leaf.radius.is_finite()
+                && leaf.offset.is_finite()
+                && leaf.mirror_normal.is_finite())
+        {
+            return Err(TreeError::NonFinite {
+                field: "leaf",
+                index: 0,
+            });
+        }
+        Ok(())
+    }
+
     fn check(&self) -> Result<(), TreeError> {
         if self.route.len() < 2 {
             return Err(TreeError::TooFewPoints(self.route.len()));
@@ -248,20 +268,11 @@ impl TreeParams {
     /// Builds the KRS (not yet validated: [`KrsObject::validated`] or `KrsScene::prepare` does
     /// that).
     pub fn build(&self) -> Result<KrsObject, TreeError> {
-        self.check()?;
+        self.validate()?;
         let branches = self.branch_count();
         let mut kernels = Vec::new();
         let mut mirrors = Vec::new();
         if let Some(leaf) = &self.leaf {
-            if !(leaf.radius.is_finite()
-                && leaf.offset.is_finite()
-                && leaf.mirror_normal.is_finite())
-            {
-                return Err(TreeError::NonFinite {
-                    field: "leaf",
-                    index: 0,
-                });
-            }
             let tip = self.route[branches];
             let centre = tip + leaf.offset;
             kernels.push(Kernel::Sphere(SphereKernel {

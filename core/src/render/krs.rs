@@ -102,6 +102,23 @@ pub struct KrsStats {
     pub ao_evals: u64,
 }
 
+impl KrsStats {
+    /// Both counts added, field by field.
+    fn sum(a: Self, b: Self) -> Self {
+        Self {
+            rays: a.rays + b.rays,
+            hits: a.hits + b.hits,
+            steps: a.steps + b.steps,
+            tile_steps: a.tile_steps + b.tile_steps,
+            exhausted: a.exhausted + b.exhausted,
+            relaxation_fallbacks: a.relaxation_fallbacks + b.relaxation_fallbacks,
+            shadow_rays: a.shadow_rays + b.shadow_rays,
+            shadow_steps: a.shadow_steps + b.shadow_steps,
+            ao_evals: a.ao_evals + b.ao_evals,
+        }
+    }
+}
+
 /// One KRS fragment that won its pixel's depth test when it was written.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct KrsPixel {
@@ -120,12 +137,16 @@ pub(crate) struct KrsPixel {
 }
 
 /// What the pass leaves for resolve and shading.
+#[derive(Default)]
 pub(crate) struct KrsPass {
-    /// Per pixel, the KRS fragment written there (the key decides whether it won).
+    /// Per pixel, the KRS fragment written there (the key decides whether it won); empty when
+    /// the frame has no KRS.
     pub(crate) pixels: Vec<Option<KrsPixel>>,
-    /// Per pixel and light (`pixel * lights + light`): the Algorithm 2 diffuse factor; NaN where
-    /// the plain `n·l` applies (no KRS fragment).
+    /// Per pixel and light (`pixel * max(lights, 1) + light`): the Algorithm 2 diffuse
+    /// factor; NaN where the plain `n·l` applies (no KRS fragment).
     pub(crate) diffuse: Vec<f32>,
+    /// Directions towards each light, for the factors.
+    light_dirs: Vec<Vec3>,
     pub(crate) stats: KrsStats,
 }
 
@@ -195,157 +216,150 @@ pub fn trace_settings(cam: &Camera, quality: &Quality) -> TraceSettings {
     }
 }
 
-/// One tile's fragments (pixel index, record, Algorithm 2 factor per light) and counters.
-type TileOut = (Vec<(usize, KrsPixel, Vec<f32>)>, KrsStats);
-
-/// Traces every pixel not already covered nearer, writes KRS fragments into `target`.
+/// Traces every pixel not already covered nearer, writes KRS fragments into `target` and
+/// their records into `pass` (its buffers reused from frame to frame: a steady frame
+/// allocates nothing here).
+///
+/// The image is cut into bands of [`KRS_TILE`] rows, traced in parallel; each band writes its
+/// own rows of `pass`, tile by tile, so no fragment list is gathered and copied afterwards.
 pub(crate) fn draw_krs(
     layer: &KrsLayer,
     lights: &[Light],
     cam: &Camera,
     target: &DepthTarget,
     quality: &Quality,
-) -> KrsPass {
+    pass: &mut KrsPass,
+) {
+    pass.stats = KrsStats::default();
+    pass.pixels.clear();
+    pass.diffuse.clear();
+    // Without KRS objects the per-pixel records stay empty (readers use `get`): at 8192² they
+    // would be 3.7 GB for nothing.
+    if layer.is_empty() {
+        return;
+    }
     let (w, h) = (cam.width, cam.height);
     let n = w as usize * h as usize;
-    // Without KRS objects the per-pixel records stay unallocated (readers use `get`): at
-    // 8192² they would be 3.7 GB for nothing.
-    let mut pass = KrsPass {
-        pixels: Vec::new(),
-        diffuse: Vec::new(),
-        stats: KrsStats::default(),
-    };
-    if layer.is_empty() {
-        return pass;
-    }
-    pass.pixels = vec![None; n];
+    let lights_n = lights.len();
+    // One factor slot per pixel even without lights, so the bands below split both evenly.
+    let slots = lights_n.max(1);
+    pass.pixels.resize(n, None);
+    pass.diffuse.resize(n * slots, f32::NAN);
+    pass.light_dirs.clear();
+    pass.light_dirs
+        .extend(lights.iter().map(|l| -l.direction.normalize_or_zero()));
     let base = trace_settings(cam, quality);
-    let (tiles_x, tiles_y) = (w.div_ceil(KRS_TILE), h.div_ceil(KRS_TILE));
+    let tiles_x = w.div_ceil(KRS_TILE);
     let use_tiles = quality.krs_tile_acceleration && cam.perspective;
     let t_far_depth = cam.far;
-    let light_dirs: Vec<Vec3> = lights
-        .iter()
-        .map(|l| -l.direction.normalize_or_zero())
-        .collect();
+    let light_dirs = &pass.light_dirs[..];
+    let band = KRS_TILE as usize * w as usize;
 
-    let results: Vec<TileOut> = (0..tiles_x * tiles_y)
-        .into_par_iter()
-        .map(|tile| {
-            let (tx, ty) = (tile % tiles_x, tile / tiles_x);
-            let (x0, y0) = (tx * KRS_TILE, ty * KRS_TILE);
-            let (x1, y1) = ((x0 + KRS_TILE).min(w), (y0 + KRS_TILE).min(h));
+    pass.stats = pass
+        .pixels
+        .par_chunks_mut(band)
+        .zip(pass.diffuse.par_chunks_mut(band * slots))
+        .enumerate()
+        .map(|(ty, (pixels, diffuse))| {
+            let ty = ty as u32;
             let mut stats = KrsStats::default();
-            let mut out = Vec::new();
-            let tile_start = if use_tiles {
-                let corners = [
-                    (x0 as f32, y0 as f32),
-                    (x1 as f32, y0 as f32),
-                    (x0 as f32, y1 as f32),
-                    (x1 as f32, y1 as f32),
-                ]
-                .map(|(x, y)| PixelRay::new(cam, x, y).dir);
-                let (axis, half_angle) = tile_cone(&corners);
-                let settings = TraceSettings {
-                    max_distance: PixelRay::new(
-                        cam,
-                        0.5 * (x0 + x1) as f32,
-                        0.5 * (y0 + y1) as f32,
-                    )
-                    .t_of_depth(t_far_depth)
-                        * 2.0,
-                    ..base
-                };
-                let (t, steps) = tile_start_distance_counted(
-                    &layer.scene,
-                    cam.eye(),
-                    axis,
-                    half_angle,
-                    &settings,
-                );
-                stats.tile_steps += u64::from(steps);
-                t
-            } else {
-                0.0
-            };
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    let i = y as usize * w as usize + x as usize;
-                    let ray = PixelRay::new(cam, x as f32 + 0.5, y as f32 + 0.5);
-                    let existing = target.keys[i].load(Ordering::Relaxed);
-                    let limit_depth = if existing == EMPTY_KEY {
-                        cam.far
-                    } else {
-                        cam.view_depth(key_depth(existing)).min(cam.far)
-                    };
-                    let t_min = ray.t_of_depth(cam.near).max(0.0);
-                    let t_max = ray.t_of_depth(limit_depth);
-                    if t_max.is_nan() || t_max <= t_min {
-                        continue;
-                    }
+            for tx in 0..tiles_x {
+                let (x0, y0) = (tx * KRS_TILE, ty * KRS_TILE);
+                let (x1, y1) = ((x0 + KRS_TILE).min(w), (y0 + KRS_TILE).min(h));
+                let tile_start = if use_tiles {
+                    let corners = [
+                        (x0 as f32, y0 as f32),
+                        (x1 as f32, y0 as f32),
+                        (x0 as f32, y1 as f32),
+                        (x1 as f32, y1 as f32),
+                    ]
+                    .map(|(x, y)| PixelRay::new(cam, x, y).dir);
+                    let (axis, half_angle) = tile_cone(&corners);
                     let settings = TraceSettings {
-                        start_distance: t_min.max(tile_start),
-                        // A hair beyond the held depth: a tie goes to the key comparison.
-                        max_distance: t_max * (1.0 + 1e-6),
+                        max_distance: PixelRay::new(
+                            cam,
+                            0.5 * (x0 + x1) as f32,
+                            0.5 * (y0 + y1) as f32,
+                        )
+                        .t_of_depth(t_far_depth)
+                            * 2.0,
                         ..base
                     };
-                    let hit = trace(&layer.scene, ray.origin, ray.dir, &settings);
-                    stats.rays += 1;
-                    stats.steps += u64::from(hit.steps);
-                    stats.relaxation_fallbacks += u64::from(hit.relaxation_fallbacks);
-                    stats.exhausted += u64::from(hit.exhausted);
-                    if !hit.hit {
-                        continue;
-                    }
-                    let ndc = cam.ndc_depth(ray.depth_of_t(hit.t));
-                    if !(0.0..=1.0).contains(&ndc) || !hit.position.is_finite() {
-                        continue;
-                    }
-                    let key = pack_key(ndc, KRS_ID_FLAG | hit.object as u32);
-                    if key >= existing {
-                        continue;
-                    }
-                    target.write(x, y, key);
-                    stats.hits += 1;
-                    let obj = &layer.scene.objects[hit.object];
-                    let threshold = shading_threshold(hit.t, base.pixel_cone_ratio, SMOOTHING_PX);
-                    let diffuse = light_dirs
-                        .iter()
-                        .map(|&l| obj.smooth_shading(hit.position, l, threshold).diffuse)
-                        .collect();
-                    let normal = hit.normal.normalize_or(-ray.dir);
-                    out.push((
-                        i,
-                        KrsPixel {
+                    let (t, steps) = tile_start_distance_counted(
+                        &layer.scene,
+                        cam.eye(),
+                        axis,
+                        half_angle,
+                        &settings,
+                    );
+                    stats.tile_steps += u64::from(steps);
+                    t
+                } else {
+                    0.0
+                };
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let i = y as usize * w as usize + x as usize;
+                        // This pixel's place in the band's rows.
+                        let local = i - y0 as usize * w as usize;
+                        let ray = PixelRay::new(cam, x as f32 + 0.5, y as f32 + 0.5);
+                        let existing = target.keys[i].load(Ordering::Relaxed);
+                        let limit_depth = if existing == EMPTY_KEY {
+                            cam.far
+                        } else {
+                            cam.view_depth(key_depth(existing)).min(cam.far)
+                        };
+                        let t_min = ray.t_of_depth(cam.near).max(0.0);
+                        let t_max = ray.t_of_depth(limit_depth);
+                        if t_max.is_nan() || t_max <= t_min {
+                            continue;
+                        }
+                        let settings = TraceSettings {
+                            start_distance: t_min.max(tile_start),
+                            // A hair beyond the held depth: a tie goes to the key comparison.
+                            max_distance: t_max * (1.0 + 1e-6),
+                            ..base
+                        };
+                        let hit = trace(&layer.scene, ray.origin, ray.dir, &settings);
+                        stats.rays += 1;
+                        stats.steps += u64::from(hit.steps);
+                        stats.relaxation_fallbacks += u64::from(hit.relaxation_fallbacks);
+                        stats.exhausted += u64::from(hit.exhausted);
+                        if !hit.hit {
+                            continue;
+                        }
+                        let ndc = cam.ndc_depth(ray.depth_of_t(hit.t));
+                        if !(0.0..=1.0).contains(&ndc) || !hit.position.is_finite() {
+                            continue;
+                        }
+                        let key = pack_key(ndc, KRS_ID_FLAG | hit.object as u32);
+                        if key >= existing {
+                            continue;
+                        }
+                        target.write(x, y, key);
+                        stats.hits += 1;
+                        let obj = &layer.scene.objects[hit.object];
+                        let threshold =
+                            shading_threshold(hit.t, base.pixel_cone_ratio, SMOOTHING_PX);
+                        let factors = &mut diffuse[local * slots..local * slots + lights_n];
+                        for (d, &l) in factors.iter_mut().zip(light_dirs) {
+                            *d = obj.smooth_shading(hit.position, l, threshold).diffuse;
+                        }
+                        let normal = hit.normal.normalize_or(-ray.dir);
+                        pixels[local] = Some(KrsPixel {
                             object: hit.object as u32,
                             kernel: hit.kernel.map_or(u32::MAX, |k| k as u32),
                             position: hit.position,
                             normal,
                             albedo: shade_colour(&layer.scene, &hit).clamp(Vec3::ZERO, Vec3::ONE),
                             epsilon: hit.epsilon,
-                        },
-                        diffuse,
-                    ));
+                        });
+                    }
                 }
             }
-            (out, stats)
+            stats
         })
-        .collect();
-
-    let lights_n = lights.len();
-    pass.diffuse = vec![f32::NAN; n * lights_n];
-    for (out, s) in results {
-        pass.stats.rays += s.rays;
-        pass.stats.hits += s.hits;
-        pass.stats.steps += s.steps;
-        pass.stats.tile_steps += s.tile_steps;
-        pass.stats.exhausted += s.exhausted;
-        pass.stats.relaxation_fallbacks += s.relaxation_fallbacks;
-        for (i, px, diffuse) in out {
-            pass.pixels[i] = Some(px);
-            pass.diffuse[i * lights_n..(i + 1) * lights_n].copy_from_slice(&diffuse);
-        }
-    }
-    pass
+        .reduce(KrsStats::default, KrsStats::sum);
 }
 
 /// Lighting inputs from the KRS for the shading pass.
@@ -382,7 +396,7 @@ impl<'a> KrsLighting<'a> {
     pub(crate) fn diffuse(&self, i: usize, li: usize, lights: usize) -> Option<f32> {
         self.pass
             .diffuse
-            .get(i * lights + li)
+            .get(i * lights.max(1) + li)
             .copied()
             .filter(|d| d.is_finite())
     }

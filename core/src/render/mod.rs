@@ -308,7 +308,91 @@ pub struct Frame<'a> {
 pub struct Renderer {
     /// Where a document is turned into a [`RenderScene`].
     doc: DocumentScratch,
+    /// The document's KRS objects prepared for tracing, kept while they do not change.
+    krs: KrsCache,
     frame: FrameState,
+}
+
+/// A document's visible KRS objects prepared for tracing, and what they were prepared from.
+///
+/// Why: preparing copies and validates every kernel and mirror list, a few allocations per
+/// object each frame; an orbit or playback frame changes none of them.
+#[derive(Default)]
+struct KrsCache {
+    /// Per visible KRS object of the document last prepared: its label, its KRS and its
+    /// transform. Compared with the next document's before `layer` is reused.
+    source: Vec<(u32, crate::krs::KrsObject, crate::scene::Transform)>,
+    layer: KrsLayer,
+}
+
+impl KrsCache {
+    /// Whether `doc`'s visible KRS objects are the ones `layer` was prepared from.
+    fn holds(&self, doc: &Document) -> bool {
+        let mut source = self.source.iter();
+        for (i, o) in doc.objects.iter().enumerate() {
+            let ObjectKind::Krs(k) = &o.kind else {
+                continue;
+            };
+            if !o.visible {
+                continue;
+            }
+            match source.next() {
+                Some((label, kept, transform))
+                    if *label == i as u32 + 1 && kept == k && *transform == o.transform => {}
+                _ => return false,
+            }
+        }
+        source.next().is_none()
+    }
+
+    /// Prepares `doc`'s visible KRS objects unless they are the ones already prepared.
+    fn update(&mut self, doc: &Document) -> Result<(), RenderError> {
+        if self.holds(doc) {
+            return Ok(());
+        }
+        self.source.clear();
+        let mut objects = Vec::new();
+        let mut labels = Vec::new();
+        for (i, o) in doc.objects.iter().enumerate() {
+            if !o.visible {
+                continue;
+            }
+            let ObjectKind::Krs(k) = &o.kind else {
+                continue;
+            };
+            self.source.push((i as u32 + 1, k.clone(), o.transform));
+            // A transform the KRS cannot take (validation refuses it) draws nothing.
+            if let Some(world) = o.krs_in_world() {
+                objects.push(world);
+                labels.push(i as u32 + 1);
+            }
+        }
+        // Validated with the document, so preparing cannot fail; the error is still reported,
+        // never unwrapped.
+        let prepared = crate::krs::KrsScene { objects }.prepare().map_err(|e| {
+            RenderError::InvalidDocument(SceneError::Invalid {
+                what: "krs".into(),
+                context: "document".into(),
+                detail: e.to_string(),
+            })
+        });
+        match prepared {
+            Ok(scene) => {
+                self.layer = KrsLayer {
+                    scene,
+                    labels,
+                    casts_shadows: true,
+                };
+                Ok(())
+            }
+            Err(e) => {
+                // Nothing kept: the next frame prepares again.
+                self.source.clear();
+                self.layer = KrsLayer::default();
+                Err(e)
+            }
+        }
+    }
 }
 
 /// A document's per-frame scene lists, kept empty between frames (only their capacity).
@@ -316,6 +400,8 @@ pub struct Renderer {
 struct DocumentScratch {
     /// Per visible rigid voxel object: its transform.
     rigid: Vec<RigidDeform>,
+    /// Per visible skinned voxel object: its pose (kept empty between frames, as `voxels`).
+    skinned: Vec<crate::skin::SkinDeform<'static>>,
     voxels: Vec<VoxelInstance<'static>>,
     meshes: Vec<MeshInstance<'static>>,
 }
@@ -346,6 +432,7 @@ struct FrameState {
     own_maps: Vec<Option<shade::ShadowMap>>,
     shadow_use: Vec<shade::ShadowUse>,
     shade: shade::ShadeScratch,
+    krs_pass: krs::KrsPass,
     image: RgbaImage,
     fb: FrameBuffers,
     stats: FrameStats,
@@ -440,13 +527,13 @@ impl Renderer {
 
         let DocumentScratch {
             rigid,
+            skinned: skinned_kept,
             voxels,
             meshes,
         } = &mut self.doc;
-        // Rigid objects' transforms in the renderer's list; skinned ones boxed (a pose is
-        // computed per frame anyway).
+        // Rigid objects' transforms and skinned objects' poses in the renderer's lists.
         rigid.clear();
-        let mut skinned: Vec<Box<dyn NodeDeform + '_>> = Vec::new();
+        let mut skinned: Vec<crate::skin::SkinDeform<'_>> = recycle(std::mem::take(skinned_kept));
         for o in doc.objects.iter().filter(|o| o.visible) {
             if let ObjectKind::Voxels(v) = &o.kind {
                 match &v.rig {
@@ -463,21 +550,15 @@ impl Renderer {
             ambient: doc.ambient,
             background: doc.background,
         };
-        let mut krs_objects = Vec::new();
-        let mut krs_labels = Vec::new();
         for (i, o) in doc.objects.iter().enumerate() {
             if !o.visible {
                 continue;
             }
             let label = i as u32 + 1;
-            if let Some(k) = o.krs_in_world() {
-                krs_objects.push(k);
-                krs_labels.push(label);
-            }
             match &o.kind {
                 ObjectKind::Voxels(v) => {
                     let deform: Option<&dyn NodeDeform> = if v.rig.is_some() {
-                        skinned_iter.next().map(|d| &**d as &dyn NodeDeform)
+                        skinned_iter.next().map(|d| d as &dyn NodeDeform)
                     } else {
                         rigid_iter.next().map(|d| d as &dyn NodeDeform)
                     };
@@ -500,31 +581,21 @@ impl Renderer {
                 ObjectKind::Krs(_) => {}
             }
         }
-        // Validated above, so preparing cannot fail; the error is still reported, never
-        // unwrapped.
-        let krs_scene = crate::krs::KrsScene {
-            objects: krs_objects,
-        }
-        .prepare()
-        .map_err(|e| {
-            RenderError::InvalidDocument(SceneError::Invalid {
-                what: "krs".into(),
-                context: "document".into(),
-                detail: e.to_string(),
-            })
-        });
-        let result = krs_scene.and_then(|krs_scene| {
-            let krs = KrsLayer {
-                scene: krs_scene,
-                labels: krs_labels,
-                casts_shadows: true,
-            };
-            self.frame
-                .render_supersampled(&scene, &krs, &cam, &req.quality, cache, sampled_only)
+        let result = self.krs.update(doc).and_then(|()| {
+            self.frame.render_supersampled(
+                &scene,
+                &self.krs.layer,
+                &cam,
+                &req.quality,
+                cache,
+                sampled_only,
+            )
         });
         // Hand the lists' allocations back for the next frame.
         *voxels = recycle(scene.voxels);
         *meshes = recycle(scene.meshes);
+        // Dropping the poses hands their buffers back to their rigs.
+        *skinned_kept = recycle(skinned);
         result
     }
 }
@@ -540,19 +611,17 @@ fn skin_deform<'a>(
     v: &'a crate::scene::VoxelModel,
     rig: &'a crate::skin::Rig,
     quality: &Quality,
-) -> Box<dyn NodeDeform + 'a> {
+) -> crate::skin::SkinDeform<'a> {
     let stretch = effective_stretch(rig, quality);
-    Box::new(
-        crate::skin::SkinDeform::for_rig(
-            rig,
-            &v.svo,
-            o.transform.matrix(),
-            v.object_from_voxel(),
-            rig.playback.clip,
-            rig.playback.time_secs,
-        )
-        .with_settings(stretch),
+    crate::skin::SkinDeform::for_rig(
+        rig,
+        &v.svo,
+        o.transform.matrix(),
+        v.object_from_voxel(),
+        rig.playback.clip,
+        rig.playback.time_secs,
     )
+    .with_settings(stretch)
 }
 
 /// [`render_document`] with every caster drawn into its shadow maps, wherever the shading
@@ -744,8 +813,8 @@ pub fn document_deforms<'a>(
         .iter()
         .map(|o| match &o.kind {
             ObjectKind::Voxels(v) => Some(match &v.rig {
-                Some(rig) => skin_deform(o, v, rig, quality),
-                None => Box::new(rigid_deform(o, v)) as Box<dyn NodeDeform>,
+                Some(rig) => Box::new(skin_deform(o, v, rig, quality)) as Box<dyn NodeDeform>,
+                None => Box::new(rigid_deform(o, v)),
             }),
             ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
@@ -887,7 +956,9 @@ impl FrameState {
         stats.times.splat_ms = pass.splat_ms;
 
         let t0 = Instant::now();
-        let krs_pass = krs::draw_krs(krs_layer, scene.lights, cam, target, quality);
+        let krs_pass = &mut self.krs_pass;
+        krs::draw_krs(krs_layer, scene.lights, cam, target, quality, krs_pass);
+        let krs_pass = &*krs_pass;
         stats.krs = krs_pass.stats;
         stats.times.krs_ms = ms_since(t0);
 
@@ -903,7 +974,7 @@ impl FrameState {
             &mut self.normal_mats,
             fb,
         );
-        shade::resolve_krs(fb, target, &krs_pass, &krs_layer.labels);
+        shade::resolve_krs(fb, target, krs_pass, &krs_layer.labels);
         stats.times.resolve_ms = ms_since(t0);
         stats.covered_pixels = fb.covered_pixels() as u64;
 
@@ -1088,7 +1159,7 @@ impl FrameState {
             ambient: scene.ambient,
             background: scene.background,
             ao_radius_world: ao_radius_world(with_krs_bounds(bounds, &krs_layer.scene)),
-            krs: krs::KrsLighting::new(krs_layer, &krs_pass, quality),
+            krs: krs::KrsLighting::new(krs_layer, krs_pass, quality),
         };
         let counts = shade::shade(
             fb,

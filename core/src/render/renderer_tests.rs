@@ -7,10 +7,15 @@ use crate::io::fuzz::heap_allocations;
 use crate::quality::QualityPreset;
 use crate::scene::OrbitCamera;
 
+/// A sample project of the repository by name.
+fn sample(name: &str) -> Document {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join(format!("../projects/{name}.thicket.json"));
+    crate::io::project::load(&path).expect("a sample project")
+}
+
 fn house() -> Document {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../projects/house.thicket.json");
-    crate::io::project::load(&path).expect("the house sample")
+    sample("house")
 }
 
 /// `doc`'s camera turned by `yaw_deg`, at a size, with a quality.
@@ -53,11 +58,35 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
     let mut cached = Renderer::new();
     let mut cache = ShadowCache::new();
     let mut fresh_cache = ShadowCache::new();
+    // KRS: the prepared scene is kept while the document's KRS objects are unchanged, so the
+    // tree is followed by itself moved and by itself with a mirror moved.
+    let (tree, forest, cesium) = (sample("tree"), sample("forest"), sample("cesiumman"));
+    let edit_krs = |edit: &dyn Fn(&mut crate::scene::Object, &mut crate::krs::KrsObject)| {
+        let mut doc = tree.clone();
+        for o in &mut doc.objects {
+            let mut kind = std::mem::replace(
+                &mut o.kind,
+                crate::scene::ObjectKind::Mesh(Default::default()),
+            );
+            if let crate::scene::ObjectKind::Krs(k) = &mut kind {
+                edit(o, k);
+            }
+            o.kind = kind;
+        }
+        doc
+    };
+    let moved = edit_krs(&|o, _| o.transform.translation.x += 0.4);
+    let bent = edit_krs(&|_, k| k.mirrors[0].offset += 0.05);
     let mut frames = 0;
     for (content_key, (doc, quality)) in [
         (&house, house.quality.clone()),
         (&mixed, Quality::default()),
         (&mixed, final_q),
+        (&tree, tree.quality.clone()),
+        (&moved, tree.quality.clone()),
+        (&bent, tree.quality.clone()),
+        (&forest, forest.quality.clone()),
+        (&cesium, cesium.quality.clone()),
     ]
     .into_iter()
     .enumerate()
@@ -89,7 +118,7 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
             frames += 1;
         }
     }
-    assert_eq!(frames, 12);
+    assert_eq!(frames, 32);
 }
 
 /// Once a renderer has drawn an orbit, drawing it again allocates nothing: no buffer, queue,
@@ -100,11 +129,17 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
 fn a_steady_state_orbit_frame_makes_no_heap_allocation() {
     let house = house();
     let mixed = mixed_document(7).expect("mixed scene");
+    // A skinned character, a KRS tree with its tree builder, and a KRS forest on KRS ground:
+    // their poses, prepared KRS scenes and per-pixel KRS records are kept too.
+    let (cesium, tree, forest) = (sample("cesiumman"), sample("tree"), sample("forest"));
     let pool = one_thread_pool();
     for (name, doc, quality) in [
         ("house", &house, house.quality.clone()),
         ("mixed", &mixed, Quality::default()),
         ("mixed final", &mixed, Quality::preset(QualityPreset::Final)),
+        ("cesiumman", &cesium, cesium.quality.clone()),
+        ("tree", &tree, tree.quality.clone()),
+        ("forest", &forest, forest.quality.clone()),
     ] {
         let reqs: Vec<RenderRequest> = (0..4)
             .map(|step| orbit(doc, 2.0 * step as f32, 200, 150, &quality))
@@ -115,14 +150,15 @@ fn a_steady_state_orbit_frame_makes_no_heap_allocation() {
             let mut cache = ShadowCache::new();
             for lap in 0..2 {
                 for (step, req) in reqs.iter().enumerate() {
-                    let (splats, plain) =
-                        heap_allocations(|| r.render_document(doc, req).map(|f| f.stats.splats()));
+                    let (covered, plain) = heap_allocations(|| {
+                        r.render_document(doc, req).map(|f| f.stats.covered_pixels)
+                    });
                     let (reused, with_cache) = heap_allocations(|| {
                         cached
                             .render_document_cached(doc, req, &mut cache, 1)
                             .map(|f| f.stats.shadow_maps_reused)
                     });
-                    assert!(splats.expect("frame") > 0);
+                    assert!(covered.expect("frame") > 1000, "{name}: drew nothing");
                     reused.expect("cached frame");
                     if lap == 1 {
                         assert_eq!(plain, 0, "{name}: step {step} of the second lap allocated");
@@ -141,4 +177,45 @@ fn a_steady_state_orbit_frame_makes_no_heap_allocation() {
             );
         });
     }
+}
+
+#[test]
+fn a_playback_frame_of_a_skinned_character_makes_no_heap_allocation() {
+    // Each step is another instant of the clip: a new pose, sampled into kept buffers.
+    let docs: Vec<Document> = (0..4)
+        .map(|step| {
+            let mut doc = sample("cesiumman");
+            for o in &mut doc.objects {
+                if let crate::scene::ObjectKind::Voxels(v) = &mut o.kind
+                    && let Some(rig) = &mut v.rig
+                {
+                    rig.playback.time_secs = 0.2 * step as f32;
+                }
+            }
+            doc
+        })
+        .collect();
+    let pool = one_thread_pool();
+    pool.install(|| {
+        let mut r = Renderer::new();
+        let mut last = None;
+        for lap in 0..2 {
+            for (step, doc) in docs.iter().enumerate() {
+                let req = orbit(doc, 0.0, 200, 150, &doc.quality);
+                let (hash, n) = heap_allocations(|| {
+                    r.render_document(doc, &req)
+                        .map(|f| f.image.pixels.iter().map(|&b| u64::from(b)).sum::<u64>())
+                });
+                let hash = hash.expect("frame");
+                if lap == 1 {
+                    assert_eq!(n, 0, "step {step} of the second lap allocated");
+                }
+                // The poses differ: so do the images.
+                if step > 0 {
+                    assert_ne!(Some(hash), last, "step {step} drew the previous pose");
+                }
+                last = Some(hash);
+            }
+        }
+    });
 }

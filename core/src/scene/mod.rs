@@ -13,7 +13,7 @@ pub mod bake;
 pub use bake::bake_shown_pose;
 
 use crate::enhance::{Control, EnhanceError, EnhanceSettings, EnhanceStats, Enhancer};
-use crate::krs::{KrsObject, Similarity};
+use crate::krs::{EmptyZone, KrsObject, Similarity};
 use crate::mesh::MeshModel;
 use crate::quality::Quality;
 use crate::skin::Rig;
@@ -467,22 +467,36 @@ impl Object {
         let ObjectKind::Krs(k) = &self.kind else {
             return None;
         };
+        let (placed, zone) = self.krs_placement(k)?;
+        let mut out = k.clone();
+        out.world_from_object = placed;
+        // Empty zones are in the KRS's world; carry them along with the object.
+        for z in &mut out.empty_zones {
+            *z = zone(*z);
+        }
+        Some(out)
+    }
+
+    /// How this object's transform places the KRS `k`: the composed transform, and where an
+    /// empty zone of `k` lands in the world. `None` unless the transform is a similarity.
+    fn krs_placement(
+        &self,
+        k: &KrsObject,
+    ) -> Option<(Similarity, impl Fn(EmptyZone) -> EmptyZone)> {
         let s = uniform_scale(self.transform.scale)?;
-        let t = &self.transform;
+        let t = self.transform;
         let rotation = Quat::from_vec4(glam::Vec4::from(t.rotation).try_normalize()?);
         let inner = k.world_from_object;
-        let mut out = k.clone();
-        out.world_from_object = Similarity {
+        let placed = Similarity {
             translation: t.translation + rotation * (s * inner.translation),
             rotation: rotation * inner.rotation,
             scale: s * inner.scale,
         };
-        // Empty zones are in the KRS's world; carry them along with the object.
-        for z in &mut out.empty_zones {
-            z.centre = t.translation + rotation * (s * z.centre);
-            z.radius *= s;
-        }
-        Some(out)
+        let zone = move |z: EmptyZone| EmptyZone {
+            centre: t.translation + rotation * (s * z.centre),
+            radius: z.radius * s,
+        };
+        Some((placed, zone))
     }
 
     /// World-space bounds, if the object has any geometry.
@@ -947,7 +961,7 @@ impl Document {
                 .map_err(|e| invalid("settings", &ctx, e.to_string()))?;
         }
         for t in &self.tree_builders {
-            t.params.build().map_err(|e| {
+            t.params.validate().map_err(|e| {
                 invalid(
                     "tree_builders",
                     format!("KRS object id {}", t.object),
@@ -1104,10 +1118,15 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
     }
     check_texturing(&k.texturing, ctx)?;
     // Validate the KRS as the renderer will see it (transform composed), so a product of
-    // scales that overflows is caught too.
-    let placed = o.krs_in_world().unwrap_or_else(|| k.clone());
-    check_krs_magnitudes(&placed, ctx)?;
-    placed.into_validated(0).map_err(|e| {
+    // scales that overflows is caught too. Placing moves only the transform and the empty
+    // zones, so the kernels and mirrors are checked as they are, and nothing is copied: the
+    // renderer validates its document every frame.
+    check_krs_magnitudes(k, ctx)?;
+    let checked = match o.krs_placement(k) {
+        Some((placed, zone)) => k.check_placed(0, placed, zone),
+        None => k.check_placed(0, k.world_from_object, |z| z),
+    };
+    checked.map_err(|e| {
         // The KRS error counts objects within a KRS scene; here the context names the object.
         let msg = e.to_string();
         let detail = msg

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 
 use super::lbs::{blend_matrix, normal_matrix, normal_through, skin_point, transform_normal};
 use super::rig::{Rig, StretchOverrides};
+use super::skeleton::{JointMatrices, Pose};
 use super::stretch::{
     StretchSettings, StretchStrategy, containing_factor, decode_override, thesis_factor,
 };
@@ -406,6 +407,12 @@ struct DeformScratch {
     bounds_memo: Vec<MemoSlot>,
     /// [`SkinTables`]' corner points skinned for this pose (world space).
     corner_world: Vec<Vec3>,
+    /// The pose's buffers: the sampled pose, its joint matrices, and (while a deformer holds
+    /// this scratch, in its `world_from_voxel`) each joint's voxel-to-world matrix. Kept so a
+    /// steady frame allocates nothing for its pose.
+    pose: Pose,
+    matrices: JointMatrices,
+    joints: Vec<Mat4>,
 }
 
 /// One memo entry: a stamp and up to [`MEMO_WORDS`] floats.
@@ -536,15 +543,30 @@ fn joints_world_from_voxel(
     skinning: &[Mat4],
     object_from_voxel: Mat4,
 ) -> Vec<Mat4> {
-    skinning
-        .iter()
-        .map(|s| world_from_object * *s * object_from_voxel)
-        .collect()
+    let mut out = Vec::with_capacity(skinning.len());
+    joints_world_from_voxel_into(world_from_object, skinning, object_from_voxel, &mut out);
+    out
+}
+
+/// [`joints_world_from_voxel`] into `out` (cleared first).
+fn joints_world_from_voxel_into(
+    world_from_object: Mat4,
+    skinning: &[Mat4],
+    object_from_voxel: Mat4,
+    out: &mut Vec<Mat4>,
+) {
+    out.clear();
+    out.extend(
+        skinning
+            .iter()
+            .map(|s| world_from_object * *s * object_from_voxel),
+    );
 }
 
 impl Drop for SkinDeform<'_> {
     fn drop(&mut self) {
         if let Some(pool) = self.pool {
+            self.scratch.joints = std::mem::take(&mut self.world_from_voxel);
             pool.put_scratch(std::mem::take(&mut self.scratch));
         }
     }
@@ -603,16 +625,21 @@ impl<'a> SkinDeform<'a> {
         clip: Option<usize>,
         time_secs: f32,
     ) -> Self {
+        let mut scratch = rig.tables.take_scratch();
+        rig.skinning_into(clip, time_secs, &mut scratch.pose, &mut scratch.matrices);
+        let mut joints = std::mem::take(&mut scratch.joints);
+        joints_world_from_voxel_into(
+            world_from_object,
+            &scratch.matrices.skinning,
+            object_from_voxel,
+            &mut joints,
+        );
         Self::with_scratch(
-            joints_world_from_voxel(
-                world_from_object,
-                &rig.skinning_at(clip, time_secs),
-                object_from_voxel,
-            ),
+            joints,
             rig.stretch,
             &rig.stretch_overrides,
             rig.tables(svo),
-            rig.tables.take_scratch(),
+            scratch,
             Some(&rig.tables),
         )
     }

@@ -283,10 +283,22 @@ impl Rig {
     #[must_use]
     pub fn skinning_at(&self, clip: Option<usize>, time_secs: f32) -> Vec<Mat4> {
         let mut pose = Pose::default();
-        self.pose_into(clip, time_secs, &mut pose);
         let mut m = JointMatrices::default();
-        self.skeleton.compute_matrices(&pose, &mut m);
+        self.skinning_into(clip, time_secs, &mut pose, &mut m);
         m.skinning
+    }
+
+    /// [`Rig::skinning_at`] into kept buffers: the pose sampled into `pose`, the matrices into
+    /// `out` (`out.skinning` is the result). Allocates only while the buffers grow.
+    pub fn skinning_into(
+        &self,
+        clip: Option<usize>,
+        time_secs: f32,
+        pose: &mut Pose,
+        out: &mut JointMatrices,
+    ) {
+        self.pose_into(clip, time_secs, pose);
+        self.skeleton.compute_matrices(pose, out);
     }
 
     /// Skinning matrices for the document's current playback state.
