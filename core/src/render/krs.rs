@@ -231,15 +231,17 @@ pub(crate) fn draw_krs(
     pass: &mut KrsPass,
 ) {
     pass.stats = KrsStats::default();
-    pass.pixels.clear();
-    pass.diffuse.clear();
-    // Without KRS objects the per-pixel records stay empty (readers use `get`): at 8192² they
-    // would be 3.7 GB for nothing.
-    if layer.is_empty() {
-        return;
-    }
     let (w, h) = (cam.width, cam.height);
     let n = w as usize * h as usize;
+    // Without KRS objects the per-pixel records are empty (readers use `get`), and what an
+    // earlier frame held is freed: at 8192² they are 3.7 GB.
+    if layer.is_empty() || n == 0 {
+        pass.pixels = Vec::new();
+        pass.diffuse = Vec::new();
+        return;
+    }
+    pass.pixels.clear();
+    pass.diffuse.clear();
     let lights_n = lights.len();
     // One factor slot per pixel even without lights, so the bands below split both evenly.
     let slots = lights_n.max(1);

@@ -319,16 +319,19 @@ pub struct Renderer {
 /// object each frame; an orbit or playback frame changes none of them.
 #[derive(Default)]
 struct KrsCache {
-    /// Per visible KRS object of the document last prepared: its label, its KRS and its
-    /// transform. Compared with the next document's before `layer` is reused.
-    source: Vec<(u32, crate::krs::KrsObject, crate::scene::Transform)>,
+    /// What `layer` was prepared from: per visible KRS object of the document, its label, its
+    /// KRS and its transform, serialised. Bytes rather than `==`, which takes `-0.0` for `0.0`
+    /// where the tracer does not (a kernel's texture frame turns with the sign of a zero).
+    source: Vec<u8>,
+    /// The next document's, written to compare (kept for its allocation).
+    probe: Vec<u8>,
     layer: KrsLayer,
 }
 
 impl KrsCache {
-    /// Whether `doc`'s visible KRS objects are the ones `layer` was prepared from.
-    fn holds(&self, doc: &Document) -> bool {
-        let mut source = self.source.iter();
+    /// Writes what `doc`'s visible KRS objects would be prepared from into `out`.
+    fn describe(doc: &Document, out: &mut Vec<u8>) {
+        out.clear();
         for (i, o) in doc.objects.iter().enumerate() {
             let ObjectKind::Krs(k) = &o.kind else {
                 continue;
@@ -336,31 +339,34 @@ impl KrsCache {
             if !o.visible {
                 continue;
             }
-            match source.next() {
-                Some((label, kept, transform))
-                    if *label == i as u32 + 1 && kept == k && *transform == o.transform => {}
-                _ => return false,
+            out.extend_from_slice(&(i as u32 + 1).to_le_bytes());
+            // Writing into a `Vec` cannot fail, and these types serialise without error (their
+            // floats may be anything: JSON writes a NaN as null, and a NaN fails validation
+            // before a frame is drawn). An error would only make the next frame prepare again.
+            if serde_json::to_writer(&mut *out, k).is_err()
+                || serde_json::to_writer(&mut *out, &o.transform).is_err()
+            {
+                out.clear();
+                out.extend_from_slice(b"unknown");
+                return;
             }
+            out.push(b'\n');
         }
-        source.next().is_none()
     }
 
     /// Prepares `doc`'s visible KRS objects unless they are the ones already prepared.
     fn update(&mut self, doc: &Document) -> Result<(), RenderError> {
-        if self.holds(doc) {
+        Self::describe(doc, &mut self.probe);
+        if self.probe == self.source && self.probe != b"unknown" {
             return Ok(());
         }
-        self.source.clear();
+        std::mem::swap(&mut self.source, &mut self.probe);
         let mut objects = Vec::new();
         let mut labels = Vec::new();
         for (i, o) in doc.objects.iter().enumerate() {
             if !o.visible {
                 continue;
             }
-            let ObjectKind::Krs(k) = &o.kind else {
-                continue;
-            };
-            self.source.push((i as u32 + 1, k.clone(), o.transform));
             // A transform the KRS cannot take (validation refuses it) draws nothing.
             if let Some(world) = o.krs_in_world() {
                 objects.push(world);
@@ -388,6 +394,7 @@ impl KrsCache {
             Err(e) => {
                 // Nothing kept: the next frame prepares again.
                 self.source.clear();
+                self.source.extend_from_slice(b"unknown");
                 self.layer = KrsLayer::default();
                 Err(e)
             }

@@ -59,24 +59,44 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
     let mut cache = ShadowCache::new();
     let mut fresh_cache = ShadowCache::new();
     // KRS: the prepared scene is kept while the document's KRS objects are unchanged, so the
-    // tree is followed by itself moved and by itself with a mirror moved.
+    // tree is followed by itself moved and by itself with a mirror moved, and the forest with
+    // its capsules' ends at z = 0.0 by the same with z = -0.0 (equal under `==`, yet the
+    // bark's texture frame turns with the sign).
     let (tree, forest, cesium) = (sample("tree"), sample("forest"), sample("cesiumman"));
-    let edit_krs = |edit: &dyn Fn(&mut crate::scene::Object, &mut crate::krs::KrsObject)| {
-        let mut doc = tree.clone();
-        for o in &mut doc.objects {
-            let mut kind = std::mem::replace(
-                &mut o.kind,
-                crate::scene::ObjectKind::Mesh(Default::default()),
-            );
-            if let crate::scene::ObjectKind::Krs(k) = &mut kind {
-                edit(o, k);
+    let edit_krs =
+        |base: &Document, edit: &dyn Fn(&mut crate::scene::Object, &mut crate::krs::KrsObject)| {
+            let mut doc = base.clone();
+            for o in &mut doc.objects {
+                let mut kind = std::mem::replace(
+                    &mut o.kind,
+                    crate::scene::ObjectKind::Mesh(Default::default()),
+                );
+                if let crate::scene::ObjectKind::Krs(k) = &mut kind {
+                    edit(o, k);
+                }
+                o.kind = kind;
             }
-            o.kind = kind;
-        }
-        doc
+            doc
+        };
+    let moved = edit_krs(&tree, &|o, _| o.transform.translation.x += 0.4);
+    let bent = edit_krs(&tree, &|_, k| k.mirrors[0].offset += 0.05);
+    let capsules_at = |z: f32| {
+        edit_krs(&forest, &|_, k| {
+            for kernel in &mut k.kernels {
+                if let crate::krs::Kernel::Capsule(c) = kernel {
+                    c.start.z = 0.0;
+                    c.end.z = z;
+                }
+            }
+        })
     };
-    let moved = edit_krs(&|o, _| o.transform.translation.x += 0.4);
-    let bent = edit_krs(&|_, k| k.mirrors[0].offset += 0.05);
+    let (plus_zero, minus_zero) = (capsules_at(0.0), capsules_at(-0.0));
+    let probe = orbit(&forest, 0.0, 160, 120, &forest.quality);
+    assert_ne!(
+        render_document(&plus_zero, &probe).expect("+0").0,
+        render_document(&minus_zero, &probe).expect("-0").0,
+        "the sign of a zero no longer shows: this case tests nothing"
+    );
     let mut frames = 0;
     for (content_key, (doc, quality)) in [
         (&house, house.quality.clone()),
@@ -86,6 +106,8 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
         (&moved, tree.quality.clone()),
         (&bent, tree.quality.clone()),
         (&forest, forest.quality.clone()),
+        (&plus_zero, forest.quality.clone()),
+        (&minus_zero, forest.quality.clone()),
         (&cesium, cesium.quality.clone()),
     ]
     .into_iter()
@@ -118,7 +140,7 @@ fn a_reused_renderer_draws_every_frame_as_a_fresh_render() {
             frames += 1;
         }
     }
-    assert_eq!(frames, 32);
+    assert_eq!(frames, 40);
 }
 
 /// Once a renderer has drawn an orbit, drawing it again allocates nothing: no buffer, queue,

@@ -587,11 +587,12 @@ fn chunks_sized_by_the_pixels_they_write_cull_the_hidden_cubes_of_a_near_small_m
     assert_eq!(count_differing(&a, &b, 0).unwrap(), 0);
     let shadow_splats = |s: &FrameStats| s.shadow_levels.iter().map(|l| l.splatted).sum::<u64>();
     let (culled, all) = (shadow_splats(&sa), shadow_splats(&sb));
-    // Measured: 57,671 of 154,860 cubes drawn into the shadow map (0.37). With chunks of a
+    // Measured: 40,907 of 154,860 cubes drawn into the shadow map (0.26). With chunks of a
     // fixed 2,500 parents, the whole leaf level of the house went in one chunk and its tiles
-    // were refreshed only after it: 73,833 (0.48).
+    // were refreshed only after it: 73,833 (0.48); with sized chunks that jumped back to the
+    // full length after a chunk that wrote nothing: 57,671 (0.37).
     assert!(
-        (culled as f64) < 0.42 * all as f64,
+        (culled as f64) < 0.32 * all as f64,
         "{culled} of {all} shadow cubes drawn"
     );
 }
