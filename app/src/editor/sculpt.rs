@@ -56,20 +56,11 @@ fn posed_raycast(
     max_t: f32,
 ) -> Option<(f32, UVec3, IVec3)> {
     use thicket_core::deform::{DeformedNode, NodeDeform, NodeInfo};
-    use thicket_core::skin::SkinDeform;
     let svo = &v.svo;
     if svo.is_empty() {
         return None;
     }
-    let deform = SkinDeform::for_rig(
-        rig,
-        svo,
-        o.transform.matrix(),
-        v.object_from_voxel(),
-        rig.playback.clip,
-        rig.playback.time_secs,
-    )
-    .with_settings(thicket_core::render::effective_stretch(rig, quality));
+    let deform = thicket_core::render::skin_deform(o, v, rig, quality);
     // Where the ray enters the box `d` (`None`: misses, or not before `max_t`), and the box
     // axis it enters through with the sign facing the ray.
     let enter = |d: &DeformedNode, max_t: f32| -> Option<(f32, IVec3)> {

@@ -1986,17 +1986,7 @@ fn node_stretch_factors(
         return out;
     };
     let settings = thicket_core::render::effective_stretch(rig, quality);
-    let deform = |s| {
-        SkinDeform::for_rig(
-            rig,
-            &v.svo,
-            o.transform.matrix(),
-            v.object_from_voxel(),
-            rig.playback.clip,
-            rig.playback.time_secs,
-        )
-        .with_settings(s)
-    };
+    let deform = |s| thicket_core::render::skin_deform(o, v, rig, quality).with_settings(s);
     let actual = deform(settings);
     let no_overrides = thicket_core::skin::StretchOverrides::default();
     let plain = {

@@ -153,21 +153,6 @@ impl TreeParams {
     /// # Errors
     /// As [`TreeParams::build`].
     pub fn validate(&self) -> Result<(), TreeError> {
-        self.check()?;
-        if let Some(leaf) = &self.leaf
-            && !(leaf.radius.is_finite()
-                && leaf.offset.is_finite()
-                && leaf.mirror_normal.is_finite())
-        {
-            return Err(TreeError::NonFinite {
-                field: "leaf",
-                index: 0,
-            });
-        }
-        Ok(())
-    }
-
-    fn check(&self) -> Result<(), TreeError> {
         if self.route.len() < 2 {
             return Err(TreeError::TooFewPoints(self.route.len()));
         }
@@ -194,6 +179,16 @@ impl TreeParams {
             if self.route[b].distance(self.route[b + 1]) <= 1e-6 * (1.0 + self.route[b].length()) {
                 return Err(TreeError::ZeroLengthBranch(b));
             }
+        }
+        if let Some(leaf) = &self.leaf
+            && !(leaf.radius.is_finite()
+                && leaf.offset.is_finite()
+                && leaf.mirror_normal.is_finite())
+        {
+            return Err(TreeError::NonFinite {
+                field: "leaf",
+                index: 0,
+            });
         }
         Ok(())
     }

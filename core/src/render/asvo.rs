@@ -405,6 +405,18 @@ impl ChunkSizer {
         self.next
     }
 
+    /// Runs `chunk` over `items` cut into chunks of this sizer's lengths; `chunk` returns the
+    /// pixels the chunk wrote.
+    fn run<T>(mut self, items: &[T], mut chunk: impl FnMut(&[T]) -> u64) {
+        let mut rest = items;
+        while !rest.is_empty() {
+            let (head, tail) = rest.split_at(self.len().min(rest.len()));
+            let pixels = chunk(head);
+            self.update(head.len(), pixels);
+            rest = tail;
+        }
+    }
+
     /// After a chunk of `nodes` nodes wrote `pixels` pixels (rectangles and cubes).
     fn update(&mut self, nodes: usize, pixels: u64) {
         if self.base == usize::MAX || nodes == 0 {
@@ -533,11 +545,7 @@ pub(crate) fn draw_voxels(
     while !queue.is_empty() || !deferred.is_empty() {
         next.clear();
         next_deferred.clear();
-        let mut sizer = ChunkSizer::new(chunk_len, settings.occlusion_culling);
-        let mut rest = &queue[..];
-        while !rest.is_empty() {
-            let (chunk, tail) = rest.split_at(sizer.len().min(rest.len()));
-            let written = acc.out.rect_pixels + acc.out.cube_pixels;
+        ChunkSizer::new(chunk_len, settings.occlusion_culling).run(queue, |chunk| {
             run_chunk(
                 chunk,
                 &ctx,
@@ -549,19 +557,10 @@ pub(crate) fn draw_voxels(
                 next,
                 next_deferred,
                 |q, t, b| classify_node(&ctx, q, t, b),
-            );
-            sizer.update(
-                chunk.len(),
-                acc.out.rect_pixels + acc.out.cube_pixels - written,
-            );
-            rest = tail;
-        }
+            )
+        });
         // The previous pass's back-facing nodes, now that this pass's nodes are drawn.
-        let mut sizer = ChunkSizer::new(chunk_len, settings.occlusion_culling);
-        let mut rest = &deferred[..];
-        while !rest.is_empty() {
-            let (chunk, tail) = rest.split_at(sizer.len().min(rest.len()));
-            let written = acc.out.rect_pixels + acc.out.cube_pixels;
+        ChunkSizer::new(chunk_len, settings.occlusion_culling).run(deferred, |chunk| {
             run_chunk(
                 chunk,
                 &ctx,
@@ -573,13 +572,8 @@ pub(crate) fn draw_voxels(
                 next,
                 next_deferred,
                 |d, t, b| redecide(&ctx, d, t, b),
-            );
-            sizer.update(
-                chunk.len(),
-                acc.out.rect_pixels + acc.out.cube_pixels - written,
-            );
-            rest = tail;
-        }
+            )
+        });
         std::mem::swap(queue, next);
         std::mem::swap(deferred, next_deferred);
     }
@@ -599,7 +593,8 @@ struct Accum<'a> {
 }
 
 /// Classifies a chunk in parallel blocks, writes its splats (ids in chunk order), queues its
-/// children and deferred nodes, and refreshes the occlusion tiles it dirtied.
+/// children and deferred nodes, and refreshes the occlusion tiles it dirtied. Returns the
+/// pixels its splats covered (rectangles and cubes).
 #[allow(
     clippy::too_many_arguments,
     reason = "the traversal's state, split out of one loop so the deferred pass shares it"
@@ -615,7 +610,7 @@ fn run_chunk<T: Sync>(
     next: &mut Vec<QNode>,
     next_deferred: &mut Vec<Deferred>,
     per_item: impl Fn(&T, &DepthTarget, &mut BlockOut) + Sync,
-) {
+) -> u64 {
     let t0 = Instant::now();
     let block = block_len(chunk.len());
     let n_blocks = chunk.len().div_ceil(block);
@@ -672,6 +667,7 @@ fn run_chunk<T: Sync>(
     let dirty = &mut *acc.dirty;
     dirty.clear();
     let out = &mut *acc.out;
+    let mut written = 0;
     for b in &blocks[..n_blocks] {
         next.extend_from_slice(&b.children);
         next_deferred.extend_from_slice(&b.deferred);
@@ -681,6 +677,7 @@ fn run_chunk<T: Sync>(
         dirty.extend_from_slice(&b.dirty);
         out.rect_pixels += b.rect_pixels;
         out.cube_pixels += b.cube_pixels;
+        written += b.rect_pixels + b.cube_pixels;
         for (a, s) in acc.levels.iter_mut().zip(&b.stats) {
             a.add(s);
         }
@@ -693,6 +690,7 @@ fn run_chunk<T: Sync>(
     let t2 = Instant::now();
     out.traversal_ms += (t1 - t0).as_secs_f64() * 1e3;
     out.splat_ms += (t2 - t1).as_secs_f64() * 1e3;
+    written
 }
 
 /// First visit of a queued node.

@@ -323,14 +323,17 @@ struct KrsCache {
     /// KRS and its transform, serialised. Bytes rather than `==`, which takes `-0.0` for `0.0`
     /// where the tracer does not (a kernel's texture frame turns with the sign of a zero).
     source: Vec<u8>,
+    /// Whether `layer` was prepared from `source` (not after a failed or unknown one).
+    holds_source: bool,
     /// The next document's, written to compare (kept for its allocation).
     probe: Vec<u8>,
     layer: KrsLayer,
 }
 
 impl KrsCache {
-    /// Writes what `doc`'s visible KRS objects would be prepared from into `out`.
-    fn describe(doc: &Document, out: &mut Vec<u8>) {
+    /// Writes what `doc`'s visible KRS objects would be prepared from into `out`; false when
+    /// it could not be written (then `out` names nothing).
+    fn describe(doc: &Document, out: &mut Vec<u8>) -> bool {
         out.clear();
         for (i, o) in doc.objects.iter().enumerate() {
             let ObjectKind::Krs(k) = &o.kind else {
@@ -340,27 +343,27 @@ impl KrsCache {
                 continue;
             }
             out.extend_from_slice(&(i as u32 + 1).to_le_bytes());
-            // Writing into a `Vec` cannot fail, and these types serialise without error (their
-            // floats may be anything: JSON writes a NaN as null, and a NaN fails validation
-            // before a frame is drawn). An error would only make the next frame prepare again.
+            // Writing into a `Vec` cannot fail, and these types serialise without error (a
+            // NaN is written as null, and fails validation before a frame is drawn). An error
+            // would only make the next frame prepare again.
             if serde_json::to_writer(&mut *out, k).is_err()
                 || serde_json::to_writer(&mut *out, &o.transform).is_err()
             {
-                out.clear();
-                out.extend_from_slice(b"unknown");
-                return;
+                return false;
             }
             out.push(b'\n');
         }
+        true
     }
 
     /// Prepares `doc`'s visible KRS objects unless they are the ones already prepared.
     fn update(&mut self, doc: &Document) -> Result<(), RenderError> {
-        Self::describe(doc, &mut self.probe);
-        if self.probe == self.source && self.probe != b"unknown" {
+        let known = Self::describe(doc, &mut self.probe);
+        if known && self.holds_source && self.probe == self.source {
             return Ok(());
         }
         std::mem::swap(&mut self.source, &mut self.probe);
+        self.holds_source = false;
         let mut objects = Vec::new();
         let mut labels = Vec::new();
         for (i, o) in doc.objects.iter().enumerate() {
@@ -389,12 +392,11 @@ impl KrsCache {
                     labels,
                     casts_shadows: true,
                 };
+                self.holds_source = known;
                 Ok(())
             }
             Err(e) => {
                 // Nothing kept: the next frame prepares again.
-                self.source.clear();
-                self.source.extend_from_slice(b"unknown");
                 self.layer = KrsLayer::default();
                 Err(e)
             }
@@ -612,8 +614,11 @@ fn rigid_deform(o: &crate::scene::Object, v: &crate::scene::VoxelModel) -> Rigid
     RigidDeform::new(o.transform.matrix() * v.object_from_voxel())
 }
 
-/// The per-node transform of a skinned voxel object at its rig's playback clip and time.
-fn skin_deform<'a>(
+/// The per-node transform of a skinned voxel object as the renderers draw it: at its rig's
+/// playback clip and time, with the stretch [`effective_stretch`] gives under `quality`. The
+/// editor's posed pick and its stretch overlay place nodes with it too, so they agree.
+#[must_use]
+pub fn skin_deform<'a>(
     o: &'a crate::scene::Object,
     v: &'a crate::scene::VoxelModel,
     rig: &'a crate::skin::Rig,
