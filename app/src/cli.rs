@@ -10,6 +10,7 @@ use clap::{Args, Parser, Subcommand};
 
 use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
 
+pub mod rig;
 pub mod view_args;
 
 pub use view_args::{CameraArg, ImageSize, QualityArg, ViewArgs, parse_error_exit_code};
@@ -105,6 +106,15 @@ pub enum Command {
     /// voxel covers), bloat the converse. Rest-pose error and stretch error are reported
     /// apart.
     SkinReport(SkinReportArgs),
+    /// Give a voxel model a skeleton and bind its voxels to it (automatic weights).
+    ///
+    /// The skeleton file names joints at positions in the model's own space; weights are
+    /// computed on the voxels (geodesic through the model by default). An existing rig is
+    /// replaced; its clips are kept for the joints whose names the new skeleton has.
+    Rig(rig::RigArgs),
+    /// Add a keyframed clip to a rigged voxel model (rotations as Euler degrees relative to the
+    /// rest pose); the model then plays it.
+    Animate(rig::AnimateArgs),
 }
 
 /// `thicket skin-report`.
@@ -570,6 +580,9 @@ pub struct InfoArgs {
     /// Add a per-object memory report (octree structure, attributes, free slots, textures).
     #[arg(long)]
     pub memory: bool,
+    /// List each rigged model's joints with the voxels each is the strongest influence of.
+    #[arg(long)]
+    pub joints: bool,
 }
 
 /// Runs a parsed command line.
@@ -590,6 +603,8 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Enhance(args)) => enhance(&args),
         Some(Command::Tradeoff(args)) => tradeoff(&args),
         Some(Command::Export(args)) => export(&args),
+        Some(Command::Rig(args)) => rig::rig(&args),
+        Some(Command::Animate(args)) => rig::animate(&args),
     }
 }
 
@@ -705,28 +720,9 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     use thicket_core::scene::ObjectKind;
     let mut doc = files::load_document(&args.project)?;
     let project = args.project.display();
-    let Some(index) = doc.objects.iter().position(|o| o.name == args.object) else {
-        let names: Vec<String> = doc
-            .objects
-            .iter()
-            .map(|o| format!("{:?}", o.name))
-            .collect();
-        anyhow::bail!(
-            "{project}: no object named {:?}; the project has {}",
-            args.object,
-            if names.is_empty() {
-                "no objects".to_owned()
-            } else {
-                names.join(", ")
-            }
-        );
-    };
+    let index = rig::voxel_object_index(&doc, &args.project, &args.object, "enhanced")?;
     let ObjectKind::Voxels(model) = &doc.objects[index].kind else {
-        anyhow::bail!(
-            "{project}: object {:?} is a {}, not a voxel object; only voxel objects can be enhanced",
-            args.object,
-            doc.objects[index].kind_name()
-        );
+        unreachable!("voxel_object_index checked the kind");
     };
     let settings = enhance_settings(args, &doc)
         .with_context(|| format!("{project}: enhancing object {:?}", args.object))?;
@@ -1979,13 +1975,13 @@ fn info(args: &InfoArgs) -> anyhow::Result<()> {
         s.push('\n');
         s
     } else {
-        format_info(&info, args.memory)
+        format_info(&info, args.memory, args.joints)
     };
     write_stdout(&text)
 }
 
 /// Writes to stdout; a closed pipe (`thicket info x | head`) is not an error.
-fn write_stdout(text: &str) -> anyhow::Result<()> {
+pub(crate) fn write_stdout(text: &str) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
     match out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
         Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => {
@@ -2001,7 +1997,7 @@ fn fmt_size(v: [f32; 3]) -> String {
 
 /// The text report of `thicket info`.
 #[must_use]
-pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
+pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(s, "{} ({})", info.file, info.format);
@@ -2081,6 +2077,32 @@ pub fn format_info(info: &DocumentInfo, memory: bool) -> String {
         }
         if let Some(size) = o.world_size {
             let _ = writeln!(s, "      world size {}", fmt_size(size));
+        }
+        if let (Some(lo), Some(hi)) = (o.bounds_min, o.bounds_max) {
+            let _ = writeln!(
+                s,
+                "      own-space bounds [{:.4}, {:.4}, {:.4}] .. [{:.4}, {:.4}, {:.4}]",
+                lo[0], lo[1], lo[2], hi[0], hi[1], hi[2]
+            );
+        }
+        if let Some(list) = &o.joints {
+            let _ = writeln!(s, "      skeleton: {} joint(s)", list.len());
+            if joints {
+                for j in list {
+                    let _ = writeln!(
+                        s,
+                        "        {:?}{} at [{:.4}, {:.4}, {:.4}]: strongest influence of {} voxels",
+                        j.name,
+                        j.parent
+                            .as_ref()
+                            .map_or(String::new(), |p| format!(" (child of {p:?})")),
+                        j.position[0],
+                        j.position[1],
+                        j.position[2],
+                        thousands(j.dominant_voxels)
+                    );
+                }
+            }
         }
         if memory {
             let m = &o.memory;

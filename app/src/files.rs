@@ -489,6 +489,59 @@ pub struct ObjectInfo {
     pub memory: MemoryInfo,
     /// Kernel-reflection-sequence objects.
     pub krs: Option<KrsInfo>,
+    /// A voxel model's solid bounds in its own space (before the object's transform): where a
+    /// skeleton's joint positions are given.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bounds_min: Option<[f32; 3]>,
+    /// See [`ObjectInfo::bounds_min`].
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub bounds_max: Option<[f32; 3]>,
+    /// A rigged voxel model's joints, parents first.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joints: Option<Vec<JointInfo>>,
+}
+
+/// One joint of a rigged voxel model, as `thicket info` reports it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct JointInfo {
+    /// The joint's name.
+    pub name: String,
+    /// Its parent's name.
+    pub parent: Option<String>,
+    /// Where it stands in the bind pose, in the model's own space.
+    pub position: [f32; 3],
+    /// Voxels that have this joint as their strongest influence.
+    pub dominant_voxels: u64,
+}
+
+/// The joints of a rigged model with the voxels each dominates.
+fn joint_info(v: &thicket_core::scene::VoxelModel) -> Option<Vec<JointInfo>> {
+    let rig = v.rig.as_ref()?;
+    let mut dominant = vec![0u64; rig.skeleton.len()];
+    v.svo.for_each_leaf(|_, voxel| {
+        let s = voxel.skin;
+        let j = if s.is_empty() {
+            0
+        } else {
+            usize::from(s.joints[0])
+        };
+        if let Some(n) = dominant.get_mut(j) {
+            *n += 1;
+        }
+    });
+    let spec = thicket_core::skin::SkeletonSpec::of_skeleton(&rig.skeleton);
+    Some(
+        spec.joints
+            .into_iter()
+            .zip(dominant)
+            .map(|(j, dominant_voxels)| JointInfo {
+                name: j.name,
+                parent: j.parent,
+                position: j.position,
+                dominant_voxels,
+            })
+            .collect(),
+    )
 }
 
 /// What `thicket info` says about a KRS object.
@@ -579,6 +632,9 @@ pub fn object_info(o: &Object) -> ObjectInfo {
         world_size,
         memory: MemoryInfo::default(),
         krs: None,
+        bounds_min: None,
+        bounds_max: None,
+        joints: None,
     };
     match &o.kind {
         ObjectKind::Voxels(v) => {
@@ -596,6 +652,11 @@ pub fn object_info(o: &Object) -> ObjectInfo {
             info.voxel_size = Some(v.voxel_size);
             info.bytes_per_voxel = (stats.leaves > 0).then_some(stats.bytes_per_leaf);
             info.materials = v.material_names.len();
+            if let Some((lo, hi)) = v.bounds() {
+                info.bounds_min = Some(lo.to_array());
+                info.bounds_max = Some(hi.to_array());
+            }
+            info.joints = joint_info(v);
             let live = stats.inner_bytes + stats.leaf_bytes;
             info.memory = MemoryInfo {
                 structure_bytes: stats.inner_bytes,

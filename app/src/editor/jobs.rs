@@ -74,6 +74,26 @@ pub enum JobResult {
     Exported(anyhow::Result<String>),
     /// A Trade-off sweep of the editor at a revision.
     Swept(u64, anyhow::Result<SweepReport>),
+    /// A binding of a voxel model to its skeleton.
+    Bound(Box<Bound>),
+}
+
+/// What a binding job hands back: the object, the model it bound (to check nothing changed
+/// meanwhile) and the bound octree with its report.
+pub struct Bound {
+    /// The object id.
+    pub id: u64,
+    /// The model as it was when the job started.
+    pub source: VoxelModel,
+    /// The result.
+    pub result: Result<
+        (
+            Svo,
+            thicket_core::skin::BindReport,
+            thicket_core::skin::BindMethod,
+        ),
+        CommandError,
+    >,
 }
 
 /// What File → Import read, before it is placed in the document.
@@ -216,6 +236,31 @@ impl Job {
                 name,
                 settings,
                 coarse: model.svo,
+                result,
+            }))
+        })
+    }
+
+    /// Binds voxel model `model` (object `id`, named `name`) to its skeleton with `method`,
+    /// with progress and Cancel; [`Editor::finish_bind`] applies the result.
+    #[must_use]
+    pub fn bind(
+        id: u64,
+        name: &str,
+        model: VoxelModel,
+        method: thicket_core::skin::BindMethod,
+    ) -> Self {
+        let label = format!("Binding {name} ({})", method.name());
+        Self::spawn(label, move |progress, cancel| {
+            let report = |f: f32| progress.store(f.to_bits(), Ordering::Relaxed);
+            let control = thicket_core::skin::bind::BindControl {
+                progress: Some(&report),
+                cancel: Some(cancel),
+            };
+            let result = super::bind_job(&model, method, control);
+            JobResult::Bound(Box::new(Bound {
+                id,
+                source: model,
                 result,
             }))
         })

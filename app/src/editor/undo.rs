@@ -138,6 +138,13 @@ pub enum Edit {
         /// `(voxel, code)` pairs to write, in order.
         entries: Vec<(UVec3, u8)>,
     },
+    /// Set or remove (`None`) a voxel model's rig (a skeleton edit that keeps the weights).
+    SetRig {
+        /// Object id.
+        id: u64,
+        /// The new rig.
+        rig: Option<Box<thicket_core::skin::Rig>>,
+    },
     /// Replace the animation clips of a rigged model (a key set or deleted, a clip added).
     SetClips {
         /// Object id.
@@ -276,6 +283,16 @@ impl Edit {
                 },
                 None => Edit::Group(Vec::new()),
             },
+            Edit::SetRig { id, rig } => match find(doc, id) {
+                Some(i) => match &mut doc.objects[i].kind {
+                    ObjectKind::Voxels(v) => Edit::SetRig {
+                        id,
+                        rig: std::mem::replace(&mut v.rig, rig.map(|r| *r)).map(Box::new),
+                    },
+                    ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
+                },
+                None => Edit::Group(Vec::new()),
+            },
             Edit::SetPalette { id, palette } => match find(doc, id) {
                 Some(i) => match &mut doc.objects[i].kind {
                     ObjectKind::Voxels(v) => Edit::SetPalette {
@@ -366,6 +383,14 @@ impl Edit {
             Edit::Group(edits) => edits.iter().map(Edit::heap_bytes).sum(),
             Edit::SetQuality(_) => size_of::<Quality>(),
             Edit::SetVoxelModel { model, .. } => model.svo.memory_stats().total_bytes as usize,
+            Edit::SetRig { rig, .. } => rig.as_ref().map_or(0, |r| {
+                r.skeleton.len() * size_of::<thicket_core::skin::Joint>()
+                    + r.clips
+                        .iter()
+                        .flat_map(|c| &c.channels)
+                        .map(|c| c.times.len() * 4 + c.values.len() * 16 + 64)
+                        .sum::<usize>()
+            }),
             Edit::StretchOverrides { entries, .. } => entries.capacity() * size_of::<(UVec3, u8)>(),
             Edit::SetClips { clips, .. } => clips
                 .iter()
@@ -433,6 +458,8 @@ pub enum MergeKey {
     Krs(u64),
     /// A stretch-paint stroke on a rigged object: its dabs' old codes are concatenated.
     StretchPaint(u64),
+    /// A rest-pose joint drag on a voxel model's skeleton.
+    Rig(u64),
 }
 
 #[derive(Debug)]

@@ -275,7 +275,7 @@ impl Editor {
     /// Writes voxels of model `id` with `f(svo, volume)`: refuses enhancement targets, keeps a
     /// linked enhancement in step and records the region for the renderer's incremental
     /// upload. With `merge`, consecutive calls of one interaction are one undo step.
-    fn write_voxels(
+    pub(super) fn write_voxels(
         &mut self,
         id: u64,
         merge: Option<MergeKey>,

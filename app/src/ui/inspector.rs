@@ -47,6 +47,9 @@ pub fn inspector_ui(
                     if matches!(object.kind, ObjectKind::Voxels(_)) {
                         super::enhance_panel::enhance_ui(ui, editor, &mut state.enhance, id);
                     }
+                    if matches!(object.kind, ObjectKind::Voxels(_)) {
+                        super::rig_panel::rig_setup_ui(ui, editor, pose, id);
+                    }
                     match &object.kind {
                         ObjectKind::Voxels(v) if v.rig.is_some() => {
                             rig_inspector_ui(ui, editor, pose, id);

@@ -15,6 +15,7 @@ mod palette;
 mod path_prompt;
 mod perf;
 pub mod pose;
+pub mod rig_panel;
 pub mod sculpt;
 mod shortcuts;
 pub mod tradeoff;
@@ -334,6 +335,24 @@ impl EditorApp {
         self.job = Some(Job::enhance(source, name, model, settings));
     }
 
+    /// Binds voxel model `id` to its skeleton with `method` on a worker thread, with progress
+    /// and Cancel; the result is one undo step.
+    pub fn start_bind(&mut self, id: u64, method: thicket_core::skin::BindMethod) {
+        let Some(o) = self.editor.object(id) else {
+            return;
+        };
+        let thicket_core::scene::ObjectKind::Voxels(v) = &o.kind else {
+            self.status = format!("{:?} is not a voxel model", o.name);
+            return;
+        };
+        if v.rig.is_none() {
+            self.pose.rig.error = Some("add joints (or a template) before binding".into());
+            return;
+        }
+        let (name, model) = (o.name.clone(), v.clone());
+        self.job = Some(Job::bind(id, &name, model, method));
+    }
+
     /// File → Export .vox: the visible voxel models, on a worker thread.
     pub fn start_export_vox(&mut self, path: PathBuf) {
         let objects = self.editor.doc().objects.clone();
@@ -443,6 +462,22 @@ impl EditorApp {
                 self.import_report = done.report;
             }
             JobResult::Enhanced(job) => self.finish_enhance(ctx, *job),
+            JobResult::Bound(job) => {
+                let crate::editor::jobs::Bound { id, source, result } = *job;
+                match result.and_then(|bound| self.editor.finish_bind(id, &source, bound)) {
+                    Ok(report) => {
+                        let text = format!(
+                            "Bound {} voxels ({}){}",
+                            crate::files::thousands(report.voxels),
+                            report.method.name(),
+                            crate::cli::rig::bind_notes(&report)
+                        );
+                        self.pose.rig_report = Some(text.clone());
+                        self.toast(ctx, text, false);
+                    }
+                    Err(e) => self.error_dialog = Some(format!("Binding: {e}")),
+                }
+            }
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
             JobResult::Swept(revision, Ok(report)) => {
                 let n = report.points.len();
@@ -784,6 +819,9 @@ impl EditorApp {
                 });
             if let Some((id, settings)) = self.inspector.enhance.request.take() {
                 self.start_enhance_with(id, settings);
+            }
+            if let Some((id, method)) = self.pose.rig.bind_request.take() {
+                self.start_bind(id, method);
             }
         }
         egui::CentralPanel::default()

@@ -86,6 +86,10 @@ pub struct PoseTool {
     /// The joint the inspector's joint list last scrolled to: a joint picked in the view is
     /// scrolled into the list once, and the list is then free to scroll.
     listed: Option<JointRef>,
+    /// Rig setup (skeleton authoring, binding, weights, clips): see `ui::rig_panel`.
+    pub rig: super::rig_panel::RigSetup,
+    /// The last binding's summary, shown in the Rig section.
+    pub rig_report: Option<String>,
 }
 
 impl Default for PoseTool {
@@ -100,6 +104,8 @@ impl Default for PoseTool {
             drag: None,
             error: None,
             listed: None,
+            rig: super::rig_panel::RigSetup::default(),
+            rig_report: None,
         }
     }
 }
@@ -367,6 +373,13 @@ impl PoseTool {
             }
         }
         best.map(|(_, j)| j)
+    }
+
+    /// Selects joint `joint` of object `object` (the view, the joint list and new joints).
+    pub fn select_joint(&mut self, object: u64, joint: usize) {
+        let j = JointRef { object, joint };
+        self.joint = Some(j);
+        self.listed = None;
     }
 
     /// Draws every visible skeleton and the selected joint's gizmo.

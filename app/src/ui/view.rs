@@ -503,6 +503,11 @@ pub struct View {
     pub show_stretch: bool,
     /// The sculpt tool paints stretch overrides this frame (it aims with the CPU preview).
     stretch_painting: bool,
+    /// Show (object, joint)'s weights as a heat map over the CPU preview (the Rig section's
+    /// Show weights, and while weights are painted); set every frame.
+    pub show_weights: Option<(u64, usize)>,
+    /// The weight heat map of the shown preview: for which render, object and joint.
+    weights: Option<((u64, u64, usize), egui::TextureHandle)>,
     gpu: Option<ViewportLink>,
     /// The document as the renderer sees it, for one content and animation key (cloned when
     /// either changes).
@@ -537,6 +542,8 @@ impl Default for View {
             renderer: ViewRenderer::Auto,
             show_holes: false,
             stretch_painting: false,
+            show_weights: None,
+            weights: None,
             show_stretch: false,
             gpu: None,
             snapshot: None,
@@ -736,6 +743,15 @@ impl View {
         }
         // Stretch painting aims with the CPU preview's pixel ids (the posed model as drawn).
         self.stretch_painting = sculpt.active && sculpt.stretch_paint;
+        let weight_painting = !sculpt.active && super::rig_panel::paints_now(editor, pose);
+        self.show_weights = match (editor.selection, pose.joint) {
+            (Some(Selection::Object(id)), Some(j))
+                if j.object == id && (pose.rig.show_weights || weight_painting) =>
+            {
+                Some((id, j.joint))
+            }
+            _ => None,
+        };
         // No tooltip over the view (it would cover the scene); the hint is in the corner text.
         let response = ui.allocate_rect(rect, egui::Sense::click_and_drag());
         let aspect = rect.aspect_ratio().max(1e-3);
@@ -773,8 +789,28 @@ impl View {
         let gizmo = !sculpt.active
             && (pose.interact(ui, &response, editor, &proj)
                 || krs.interact(ui, &response, editor, &proj));
-        let navigating = self.navigate(ui, &response, editor, sculpt.active, gizmo, rect);
-        if sculpt.active && !navigating && sculpt.stretch_paint {
+        let navigating = self.navigate(
+            ui,
+            &response,
+            editor,
+            sculpt.active || weight_painting,
+            gizmo,
+            rect,
+        );
+        let rigged = !sculpt.active
+            && !navigating
+            && !gizmo
+            && super::rig_panel::view_input(
+                &response,
+                editor,
+                pose,
+                &proj,
+                pointer_ray,
+                hover_pick.as_ref(),
+            );
+        if rigged {
+            // Placed a joint or painted weights.
+        } else if sculpt.active && !navigating && sculpt.stretch_paint {
             let hit = response
                 .hover_pos()
                 .and_then(|p| self.preview_hit(editor, rect, p));
@@ -893,10 +929,13 @@ impl View {
             // overlay, the stretch heat map and stretch painting read the CPU preview's image
             // and pixel ids, so a rigged model falls back to it for them.
             ViewRenderer::Auto
-                if (self.show_holes || self.show_stretch || self.stretch_painting)
+                if (self.show_holes
+                    || self.show_stretch
+                    || self.stretch_painting
+                    || self.show_weights.is_some())
                     && has_rig(editor.doc()) =>
             {
-                Some("the hole / bloat overlay, heat map and stretch painting read its image")
+                Some("the hole / bloat overlay, heat maps and stretch painting read its image")
             }
             ViewRenderer::Auto if gpu.lock().software => {
                 Some("Auto: the GPU adapter is a software rasteriser, slower than this")
@@ -1296,7 +1335,37 @@ impl View {
                 .image(t.id(), rect, uv, egui::Color32::WHITE);
             stretch_legend_ui(ui, rect, *stats);
         }
+        if let Some(t) = self.weight_heat_map(ui, editor) {
+            ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
+        }
         outlined
+    }
+
+    /// The selected joint's weight heat map over the shown preview, when asked for and the
+    /// preview shows the current document (its labels are document indices).
+    fn weight_heat_map(&mut self, ui: &egui::Ui, editor: &Editor) -> Option<egui::TextureId> {
+        let (id, joint) = self.show_weights?;
+        let shown = self.cpu.shown.as_ref()?;
+        if shown.content != editor.content_key() || self.cpu.error.is_some() {
+            return None;
+        }
+        let key = (self.cpu.renders, id, joint);
+        if self.weights.as_ref().is_none_or(|(k, _)| *k != key) {
+            let size = [shown.size_px[0] as usize, shown.size_px[1] as usize];
+            let image = super::rig_panel::weight_overlay(
+                editor.doc(),
+                &self.cpu.labels,
+                &self.cpu.nodes,
+                size,
+                id,
+                joint,
+            )?;
+            let t = ui
+                .ctx()
+                .load_texture("weight_overlay", image, egui::TextureOptions::NEAREST);
+            self.weights = Some((key, t));
+        }
+        self.weights.as_ref().map(|(_, t)| t.id())
     }
 
     /// The selection's outline from the shown preview's object labels, when the preview shows

@@ -13,6 +13,8 @@
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
 //! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
+//! | [`author`] | skeletons from joint positions and clips from Euler keys (`thicket rig` / `animate` formats) |
+//! | [`bind`] | automatic weights on the voxels: geodesic, envelope, rigid |
 //!
 //! Elsewhere, because they build documents or read files (layers above the document, see
 //! `docs/architecture.md`): reading skins and animations from glTF ([`crate::io::gltf_skinned`]),
@@ -26,6 +28,8 @@
 //! ancestor node above the joints). As in glTF, the transform of the node that carries the
 //! skinned mesh is ignored. See `docs/skinning.md`.
 
+pub mod author;
+pub mod bind;
 pub mod clip;
 pub mod deform;
 pub mod lbs;
@@ -36,6 +40,8 @@ pub mod stretch;
 /// The per-node skin (four byte joints, unorm8 weights summing to 255) lives with the octree;
 /// see [`Skin4`] for why there is only one representation.
 pub use crate::svo::{MAX_SKIN_JOINTS, Skin4};
+pub use author::{ClipSpec, JointSpec, KeySpec, SkeletonSpec};
+pub use bind::{BindMethod, BindReport, bind};
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
 pub use deform::{SkinDeform, SkinTables};
 pub use lbs::{
@@ -133,6 +139,9 @@ pub enum SkinError {
         /// What is wrong and where.
         problem: String,
     },
+    /// The user cancelled a long operation (binding).
+    #[error("cancelled")]
+    Cancelled,
     /// A clip's channel is malformed.
     #[error("clip {clip:?}, channel {channel}: {problem}")]
     BadChannel {
@@ -145,6 +154,8 @@ pub enum SkinError {
     },
 }
 
+#[cfg(test)]
+mod bind_tests;
 #[cfg(test)]
 pub(crate) mod deform_tests;
 #[cfg(test)]

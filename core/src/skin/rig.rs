@@ -134,6 +134,28 @@ impl StretchOverrides {
     }
 }
 
+/// What a native rig's weights were computed from (see [`Rig::binding`]).
+#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Binding {
+    /// How the weights were computed.
+    pub method: crate::skin::bind::BindMethod,
+    /// The skeleton they were computed for.
+    pub skeleton: crate::skin::author::SkeletonSpec,
+}
+
+impl Rig {
+    /// Whether the weights were computed for another skeleton than this one (joints moved,
+    /// added, removed or renamed since [`Rig::binding`] was set). Imported weights are never
+    /// stale.
+    #[must_use]
+    pub fn weights_stale(&self) -> bool {
+        self.binding.as_ref().is_some_and(|b| {
+            b.skeleton != crate::skin::author::SkeletonSpec::of_skeleton(&self.skeleton)
+        })
+    }
+}
+
 /// A voxel model's skeleton, clips and animation state (see the module docs).
 #[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -158,6 +180,10 @@ pub struct Rig {
     /// editor can overlay it. Stored in the project's `.bin`; `None` when unknown.
     #[serde(skip)]
     pub reference_mesh: Option<crate::mesh::MeshModel>,
+    /// The skeleton (as joint positions) and method the voxels' weights were last computed
+    /// for by [`crate::skin::bind`]; `None` for imported weights or a skeleton never bound.
+    /// An editor compares it with [`Rig::skeleton`] to tell the artist the weights are stale.
+    pub binding: Option<Binding>,
     /// Derived drawing tables (corner weights, subtree joints), rebuilt when the octree
     /// changes; never saved, ignored by equality, empty in a clone.
     #[serde(skip)]
