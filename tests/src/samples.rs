@@ -14,11 +14,12 @@ use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, OrbitCamera, 
 use crate::asset;
 
 /// Names of the samples, as in `projects/NAME.thicket.json`.
-pub const SAMPLES: [&str; 10] = [
+pub const SAMPLES: [&str; 11] = [
     "house",
     "mixed",
     "terrain",
     "cesiumman",
+    "critter",
     "tree",
     "forest",
     "rock",
@@ -151,6 +152,7 @@ pub fn build(name: &str) -> Result<Document> {
             doc.lights[0].direction = Vec3::new(-0.4, -1.0, -0.5);
             frame(&mut doc, 60.0, 12.0);
         }
+        "critter" => critter(&mut doc)?,
         "tree" => krs_tree(&mut doc),
         "forest" => krs_forest(&mut doc),
         "rock" => krs_rock(&mut doc)?,
@@ -161,6 +163,158 @@ pub fn build(name: &str) -> Result<Document> {
     }
     doc.validate()?;
     Ok(doc)
+}
+
+/// Edge of one voxel of the critter sample (metres): 72 voxels tall, 1.8 m.
+pub const CRITTER_VOXEL_SIZE: f32 = 0.025;
+
+/// A character made in Thicket from boxes (as the Box tool makes them), rigged natively: a
+/// 16-joint skeleton placed at the middle of each limb's thickness, bound with geodesic
+/// weights, and a one-second walk cycle keyed as Euler angles. Nothing comes from a triangle
+/// rig: this is the path `thicket rig` and `thicket animate` (and the editor's Rig section)
+/// take.
+fn critter(doc: &mut Document) -> Result<()> {
+    use thicket_core::skin::bind::{BindControl, BindMethod, bind};
+    use thicket_core::skin::rig::Binding;
+    use thicket_core::skin::{ClipSpec, JointSpec, KeySpec, Rig, SkeletonSpec, Wrap};
+    use thicket_core::svo::{Svo, Voxel};
+    let skin = [232, 184, 150, 255];
+    let shirt = [196, 60, 52, 255];
+    let trousers = [52, 72, 140, 255];
+    let boots = [60, 44, 36, 255];
+    // (min, max exclusive, colour), later boxes win.
+    let boxes: [([u32; 3], [u32; 3], [u8; 4]); 12] = [
+        // The character faces +Z (glTF's front), so its left side is +X.
+        ([9, 0, 6], [17, 28, 14], trousers),             // leg R
+        ([21, 0, 6], [29, 28, 14], trousers),            // leg L
+        ([9, 0, 6], [17, 5, 18], boots),                 // boot R, toes to +Z
+        ([21, 0, 6], [29, 5, 18], boots),                // boot L
+        ([7, 28, 4], [31, 56, 16], shirt),               // torso
+        ([1, 50, 7], [7, 56, 13], shirt),                // shoulder R
+        ([31, 50, 7], [37, 56, 13], shirt),              // shoulder L
+        ([1, 24, 7], [6, 50, 13], shirt),                // arm R, a voxel clear of the torso
+        ([32, 24, 7], [37, 50, 13], shirt),              // arm L
+        ([11, 56, 3], [27, 72, 17], skin),               // head
+        ([14, 63, 16], [17, 66, 17], [20, 20, 24, 255]), // eye
+        ([21, 63, 16], [24, 66, 17], [20, 20, 24, 255]), // eye
+    ];
+    let mut voxels = Vec::new();
+    for (lo, hi, colour) in boxes {
+        for z in lo[2]..hi[2] {
+            for y in lo[1]..hi[1] {
+                for x in lo[0]..hi[0] {
+                    // Hands: the arms' lowest voxels are skin.
+                    let c = if !(7..31).contains(&x) && y < 28 {
+                        skin
+                    } else {
+                        colour
+                    };
+                    voxels.push((UVec3::new(x, y, z), Voxel::new(c, Vec3::Y)));
+                }
+            }
+        }
+    }
+    let svo = Svo::from_voxels(7, false, voxels)?;
+    let size = CRITTER_VOXEL_SIZE;
+    // Centred on x = 0, z = 0, feet on the ground.
+    let origin = Vec3::new(-19.0 * size, 0.0, -10.0 * size);
+    let at = |x: f32, y: f32, z: f32| (origin + Vec3::new(x, y, z) * size).to_array();
+    let j = |name: &str, parent: Option<&str>, p: [f32; 3]| JointSpec {
+        name: name.into(),
+        parent: parent.map(Into::into),
+        position: p,
+    };
+    let spec = SkeletonSpec {
+        joints: vec![
+            j("hip", None, at(19.0, 28.0, 10.0)),
+            j("spine", Some("hip"), at(19.0, 42.0, 10.0)),
+            j("neck", Some("spine"), at(19.0, 56.0, 10.0)),
+            j("head", Some("neck"), at(19.0, 62.0, 10.0)),
+            j("leg.R", Some("hip"), at(13.0, 26.0, 10.0)),
+            j("shin.R", Some("leg.R"), at(13.0, 14.0, 10.0)),
+            j("foot.R", Some("shin.R"), at(13.0, 3.0, 10.0)),
+            j("leg.L", Some("hip"), at(25.0, 26.0, 10.0)),
+            j("shin.L", Some("leg.L"), at(25.0, 14.0, 10.0)),
+            j("foot.L", Some("shin.L"), at(25.0, 3.0, 10.0)),
+            j("arm.R", Some("spine"), at(3.5, 52.0, 10.0)),
+            j("forearm.R", Some("arm.R"), at(3.5, 39.0, 10.0)),
+            j("hand.R", Some("forearm.R"), at(3.5, 27.0, 10.0)),
+            j("arm.L", Some("spine"), at(34.5, 52.0, 10.0)),
+            j("forearm.L", Some("arm.L"), at(34.5, 39.0, 10.0)),
+            j("hand.L", Some("forearm.L"), at(34.5, 27.0, 10.0)),
+        ],
+    };
+    let bounds = svo.bounds().map(|(lo, hi)| {
+        (
+            origin + lo.as_vec3() * size,
+            origin + (hi + 1).as_vec3() * size,
+        )
+    });
+    let skeleton = spec.to_skeleton(bounds)?;
+    let (svo, _) = bind(
+        &svo,
+        origin,
+        size,
+        &skeleton,
+        BindMethod::Geodesic,
+        BindControl::default(),
+    )?;
+    // A walk: legs swing ±25° (forward is +Z, a negative turn about X), knees bend on the
+    // way forward, arms swing against the legs, the hip bobs twice per step.
+    let key = |joint: &str, time: f32, x_deg: f32| KeySpec {
+        joint: joint.into(),
+        time,
+        rotation_deg: Some([x_deg, 0.0, 0.0]),
+        translation: None,
+    };
+    let mut keys = Vec::new();
+    for (k, t) in [0.0f32, 0.25, 0.5, 0.75, 1.0].into_iter().enumerate() {
+        let swing = [25.0, 0.0, -25.0, 0.0, 25.0][k];
+        let knee = [0.0, 35.0, 0.0, 5.0, 0.0][k];
+        keys.push(key("leg.L", t, -swing));
+        keys.push(key("leg.R", t, swing));
+        keys.push(key("shin.L", t, knee));
+        keys.push(key("shin.R", t, [0.0, 5.0, 0.0, 35.0, 0.0][k]));
+        keys.push(key("arm.L", t, 0.8 * swing));
+        keys.push(key("arm.R", t, -0.8 * swing));
+        keys.push(key("forearm.L", t, -15.0));
+        keys.push(key("forearm.R", t, -15.0));
+        keys.push(KeySpec {
+            joint: "hip".into(),
+            time: t,
+            rotation_deg: Some([0.0, 0.0, 0.0]),
+            translation: Some([0.0, [0.0, 0.03, 0.0, 0.03, 0.0][k], 0.0]),
+        });
+    }
+    let walk = ClipSpec {
+        name: "walk".into(),
+        length: 1.0,
+        interpolation: thicket_core::skin::author::KeyInterpolation::Cubic,
+        looping: true,
+        keys,
+    };
+    let clip = walk.to_clip(&skeleton)?;
+    let binding = Binding {
+        method: BindMethod::Geodesic,
+        skeleton: SkeletonSpec::of_skeleton(&skeleton),
+    };
+    let mut rig = Rig::new(skeleton, vec![clip]);
+    rig.binding = Some(binding);
+    rig.playback.wrap = Wrap::Loop;
+    rig.playback.time_secs = 0.25;
+    doc.add(
+        "Critter",
+        ObjectKind::Voxels(thicket_core::scene::VoxelModel {
+            svo,
+            voxel_size: size,
+            origin,
+            rig: Some(rig),
+            ..thicket_core::scene::VoxelModel::default()
+        }),
+    );
+    doc.lights[0].direction = Vec3::new(-0.5, -1.0, -0.6);
+    frame(doc, 30.0, 12.0);
+    Ok(())
 }
 
 /// Coarse voxels per axis of the sample terrain (the paper's Fig. 1 is a coarse noise terrain).

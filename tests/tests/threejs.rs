@@ -255,3 +255,88 @@ fn threejs_draws_mirrored_instances_with_outward_faces() {
     );
     assert_eq!(u(&m["faces"]["positive"]["inwardFaces"]), 0, "{m}");
 }
+
+/// The critter sample (a voxel character rigged in Thicket: its own skeleton, geodesic weights
+/// and a keyed walk) exported as a skinned glTF: three.js reads every joint by name, the same
+/// joint indices and weights per vertex as the file holds, and the clip's exact duration.
+#[test]
+fn threejs_reads_a_native_rigs_joints_weights_and_clip_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = project::load(&thicket_tests::repo_root().join("projects/critter.thicket.json"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let out = dir.path().join("critter.glb");
+    export_gltf(&doc, &out, &GltfExportOptions::default(), &|_| true)
+        .unwrap_or_else(|e| panic!("{e}"));
+    // What the file holds, read with the gltf crate.
+    let (gltf, buffers, _) = gltf::import(&out).unwrap();
+    let skin = gltf.skins().next().expect("a skin");
+    let names: Vec<String> = skin
+        .joints()
+        .map(|n| n.name().unwrap_or_default().to_owned())
+        .collect();
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        panic!("the critter is a voxel model");
+    };
+    let rig = v.rig.as_ref().unwrap();
+    let expected: Vec<String> = rig.skeleton.joints.iter().map(|j| j.name.clone()).collect();
+    assert_eq!(names, expected, "every joint, in order, by name");
+    let (mut vertices, mut joint_sum, mut weight_sum) = (0u64, 0u64, 0f64);
+    for mesh in gltf.meshes() {
+        for prim in mesh.primitives() {
+            let reader = prim.reader(|b| Some(&buffers[b.index()]));
+            let Some(joints) = reader.read_joints(0) else {
+                continue;
+            };
+            for j in joints.into_u16() {
+                vertices += 1;
+                joint_sum += j.iter().map(|&k| u64::from(k)).sum::<u64>();
+            }
+            for w in reader.read_weights(0).unwrap().into_f32() {
+                weight_sum += w.iter().map(|&x| f64::from(x)).sum::<f64>();
+            }
+        }
+    }
+    let durations: Vec<(String, f64)> = gltf
+        .animations()
+        .map(|a| {
+            let end = a
+                .channels()
+                .map(|c| {
+                    let r = c.reader(|b| Some(&buffers[b.index()]));
+                    r.read_inputs().unwrap().fold(0f32, f32::max)
+                })
+                .fold(0f32, f32::max);
+            (a.name().unwrap_or_default().to_owned(), f64::from(end))
+        })
+        .collect();
+    assert_eq!(durations, [("walk".to_owned(), 1.0)]);
+
+    let three = inspect(&out, false);
+    let [skinned] = three["skinned"].as_array().unwrap().as_slice() else {
+        panic!("one skinned mesh: {}", three["skinned"]);
+    };
+    let bones: Vec<String> = skinned["bones"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b.as_str().unwrap().to_owned())
+        .collect();
+    assert_eq!(bones, expected);
+    assert_eq!(u(&skinned["vertices"]), vertices);
+    assert_eq!(u(&skinned["jointIndexSum"]), joint_sum);
+    let w = skinned["weightSum"].as_f64().unwrap();
+    assert!(
+        (w - weight_sum).abs() <= 1e-6 * weight_sum,
+        "three.js weights {w} vs the file's {weight_sum}"
+    );
+    assert!(
+        (weight_sum - vertices as f64).abs() < 1e-2 * vertices as f64,
+        "weights sum to 1"
+    );
+    let [clip] = three["animations"].as_array().unwrap().as_slice() else {
+        panic!("one clip: {}", three["animations"]);
+    };
+    assert_eq!(clip["name"], "walk");
+    assert_eq!(clip["duration"].as_f64().unwrap(), 1.0);
+    assert!(u(&clip["tracks"]) >= 9, "{clip}");
+}

@@ -31,6 +31,10 @@
 //     object's normal matrix): `shadingDisagrees` counts triangles lit from the other side.
 // Both are reported separately for instances with positive and negative determinants.
 //
+// * skinned: per SkinnedMesh its bones' names, vertex count and the sums of its skinIndex and
+//   skinWeight attributes (what three.js skins with); animations: each clip's name, duration
+//   and track count.
+//
 // No DOM is needed: images (an impostor's texture) are not decoded; every texture is an empty
 // THREE.Texture (a plugin answers GLTFLoader's loadTexture first).
 
@@ -248,4 +252,32 @@ gltf.scene.traverse((o) => {
 });
 lod.instancesPerLevel = Array.from(lod.instancesPerLevel, (v) => v ?? 0);
 report.lod = lod;
+report.skinned = [];
+gltf.scene.traverse((o) => {
+  if (!o.isSkinnedMesh) {
+    return;
+  }
+  const index = o.geometry.attributes.skinIndex;
+  const weight = o.geometry.attributes.skinWeight;
+  let jointIndexSum = 0;
+  let weightSum = 0;
+  for (let i = 0; i < index.count; i++) {
+    for (let k = 0; k < 4; k++) {
+      jointIndexSum += index.getComponent(i, k);
+      weightSum += weight.getComponent(i, k);
+    }
+  }
+  report.skinned.push({
+    name: o.name,
+    bones: o.skeleton.bones.map((b) => b.name),
+    vertices: index.count,
+    jointIndexSum,
+    weightSum,
+  });
+});
+report.animations = gltf.animations.map((a) => ({
+  name: a.name,
+  duration: a.duration,
+  tracks: a.tracks.length,
+}));
 console.log(JSON.stringify(report, null, 2));

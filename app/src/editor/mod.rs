@@ -26,7 +26,7 @@ pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;
 pub use pose_keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
-pub use rig::{SkeletonTemplate, WeightsOnEdit, bind_job, mirrored_name, with_joint_weight};
+pub use rig::{SkeletonTemplate, WeightsOnEdit, bind_job, mirrored_name};
 pub use sculpt::{VoxelPick, ray_through};
 pub use stretch::MAX_STRETCH_OVERRIDE;
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};
@@ -834,5 +834,7 @@ pub(crate) fn next_id(doc: &Document) -> u64 {
     doc.objects.iter().map(|o| o.id).max().map_or(1, |m| m + 1)
 }
 
+#[cfg(test)]
+mod rig_tests;
 #[cfg(test)]
 mod tests;

@@ -3,7 +3,7 @@
 //! to the model), binding (automatic weights, see `thicket_core::skin::bind`), weight painting
 //! and clip management. Every change is one undo step.
 
-use glam::{UVec3, Vec3};
+use glam::Vec3;
 use thicket_core::scene::{ObjectKind, VoxelModel};
 use thicket_core::skin::bind::{BindControl, BindMethod, BindReport, bind};
 use thicket_core::skin::rig::Binding;
@@ -259,7 +259,21 @@ impl Editor {
                 let identity = remap
                     .as_ref()
                     .is_none_or(|m| m.iter().enumerate().all(|(i, &j)| i == usize::from(j)));
-                if identity && model.svo.has_skin() == model.rig.is_some() {
+                let skinned = model.svo.has_skin();
+                if !skinned {
+                    // A model's first skeleton: its voxels get (empty) weights, which draw as
+                    // bound to the root until the model is bound.
+                    let mut next = model.clone();
+                    next.svo = map_voxels(&model.svo, true, |_| Skin4::default())?;
+                    next.rig = Some(rig);
+                    self.apply(
+                        Edit::SetVoxelModel {
+                            id,
+                            model: Box::new(next),
+                        },
+                        None,
+                    );
+                } else if identity {
                     self.apply(
                         Edit::SetRig {
                             id,
@@ -606,7 +620,8 @@ impl Editor {
             ));
         }
         let outcome = self.write_voxels(id, Some(MergeKey::Stroke(id)), |svo, _| {
-            let changes = weight_dab(svo, joint, centre, radius, amount, smooth);
+            let changes =
+                thicket_core::skin::paint::weight_dab(svo, joint, centre, radius, amount, smooth);
             let r = svo
                 .apply_changes(changes)
                 .map_err(|e| CommandError::Invalid(e.to_string()))?;
@@ -864,91 +879,4 @@ fn solid_run(svo: &thicket_core::svo::Svo, ro: Vec3, rd: Vec3) -> Option<(f32, f
         t_max[axis] += t_delta[axis];
     }
     enter.map(|e| (e, t))
-}
-
-/// The weight changes of one paint dab (Morton order not required: `apply_changes` sorts).
-fn weight_dab(
-    svo: &thicket_core::svo::Svo,
-    joint: usize,
-    centre: Vec3,
-    radius: f32,
-    amount: f32,
-    smooth: bool,
-) -> Vec<(UVec3, Option<Voxel>)> {
-    let r = radius.max(0.5);
-    let lo = (centre - r).floor().max(Vec3::ZERO).as_uvec3();
-    let hi = (centre + r).ceil().max(Vec3::ZERO).as_uvec3();
-    let mut out = Vec::new();
-    let j = joint as u16;
-    svo.for_each_leaf_in(lo, hi, |c, v| {
-        let d = (c.as_vec3() + 0.5 - centre).length();
-        if d > r {
-            return;
-        }
-        // Smooth falloff: 1 at the centre, 0 at the rim.
-        let falloff = {
-            let x = 1.0 - d / r;
-            x * x * (3.0 - 2.0 * x)
-        };
-        let own = |s: &Skin4| {
-            s.influences()
-                .filter(|&(k, _)| k == j)
-                .map(|(_, w)| w)
-                .sum::<f32>()
-        };
-        let current = own(&v.skin);
-        let target = if smooth {
-            let mut sum = 0.0;
-            let mut n: f32 = 0.0;
-            for dz in -1i32..=1 {
-                for dy in -1i32..=1 {
-                    for dx in -1i32..=1 {
-                        let q = c.as_ivec3() + glam::IVec3::new(dx, dy, dz);
-                        if q.cmplt(glam::IVec3::ZERO).any() {
-                            continue;
-                        }
-                        if let Some(nv) = svo.get(q.as_uvec3()) {
-                            sum += own(&nv.skin);
-                            n += 1.0;
-                        }
-                    }
-                }
-            }
-            sum / n.max(1.0)
-        } else if amount >= 0.0 {
-            1.0
-        } else {
-            0.0
-        };
-        let strength = if smooth { 0.5 } else { amount.abs().min(1.0) } * falloff;
-        let new_w = current + (target - current) * strength;
-        if (new_w - current).abs() < 0.5 / 255.0 {
-            return;
-        }
-        let skin = with_joint_weight(&v.skin, j, new_w.clamp(0.0, 1.0));
-        if skin != v.skin {
-            out.push((c, Some(Voxel { skin, ..v })));
-        }
-    });
-    out
-}
-
-/// `skin` with `joint`'s weight set to `w`, the other joints scaled to fill `1 - w` (when the
-/// others are all zero and `w < 1`, the remainder stays on the voxel's previous strongest
-/// other joint, or joint 0).
-#[must_use]
-pub fn with_joint_weight(skin: &Skin4, joint: u16, w: f32) -> Skin4 {
-    let others: Vec<(u16, f32)> = skin.influences().filter(|&(k, _)| k != joint).collect();
-    let rest: f32 = others.iter().map(|o| o.1).sum();
-    let mut infl: Vec<(u16, f32)> = Vec::with_capacity(5);
-    if w > 0.0 {
-        infl.push((joint, w));
-    }
-    if rest > 0.0 {
-        infl.extend(others.iter().map(|&(k, x)| (k, x / rest * (1.0 - w))));
-    } else if w < 1.0 {
-        let fallback = if joint == 0 { 1 } else { 0 };
-        infl.push((fallback, 1.0 - w));
-    }
-    Skin4::from_influences(&infl)
 }

@@ -81,8 +81,9 @@ fn note(tool: &mut PoseTool, r: Result<(), crate::editor::CommandError>) {
 
 /// The Rig section of the inspector for voxel model `id`.
 pub fn rig_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    // Open for a model without a skeleton (where rigging starts); a rigged model opens on Pose.
     egui::CollapsingHeader::new("Rig")
-        .default_open(true)
+        .default_open(editor.rig(id).is_none())
         .show(ui, |ui| {
             if let Some(e) = &tool.rig.error {
                 ui.colored_label(ui.visuals().error_fg_color, format!("Refused: {e}"));
@@ -274,9 +275,12 @@ fn bind_ui(
         editor.object(id).map(|o| &o.kind),
         Some(thicket_core::scene::ObjectKind::Voxels(v)) if v.svo.has_skin()
     );
+    let imported = rig.reference_mesh.is_some();
     let state = match (&rig.binding, skinned) {
-        (_, false) => "Weights: none yet. Bind computes them from the skeleton.".to_owned(),
-        (None, true) => "Weights: imported with the model.".to_owned(),
+        (None, true) if imported => "Weights: imported with the model.".to_owned(),
+        (None, _) | (_, false) => {
+            "Weights: none yet (the model follows its root). Bind computes them.".to_owned()
+        }
         (Some(b), true) if rig.weights_stale() => format!(
             "Weights: {} binding of an earlier skeleton (joints changed since): bind again, or \
              keep them as they are.",
@@ -369,11 +373,11 @@ fn clips_ui(
     for (i, c) in rig.clips.iter().enumerate() {
         let playing = rig.playback.clip == Some(i);
         ui.weak(format!(
-            "{}{} — {:.2} s, {} channel(s)",
-            if playing { "▶ " } else { "" },
+            "{}: {:.2} s, {} channel(s){}",
             c.name,
             c.duration_secs,
-            c.channels.len()
+            c.channels.len(),
+            if playing { " (playing)" } else { "" }
         ));
     }
     ui.horizontal(|ui| {

@@ -146,7 +146,8 @@ impl SkeletonSpec {
                 .map(|j| JointSpec {
                     name: j.name.clone(),
                     parent: j.parent.map(|p| skeleton.joints[p].name.clone()),
-                    position: joint_bind_position(j).to_array(),
+                    // `+ 0.0` turns -0.0 into 0.0 (files and reports read better).
+                    position: joint_bind_position(j).to_array().map(|v| v + 0.0),
                 })
                 .collect(),
         }

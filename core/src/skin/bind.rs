@@ -21,8 +21,9 @@
 //! - **envelope**: straight-line distance, for comparison (and the islands above).
 //! - **rigid**: the geodesically nearest joint alone, for blocky characters.
 //!
-//! Weights are `((d_min + ε) / (d_j + ε))⁴` over the four nearest joints (ε half a voxel),
-//! those under 1/64 of the strongest dropped, normalised and quantised to [`Skin4`] (bytes summing to 255); inner nodes merge their
+//! Weights are `((d_min + ε) / (d_j + ε))^p` over the four nearest joints (ε half a voxel;
+//! `p` = 4, rising where a voxel is farther from every bone than a quarter of the median bone
+//! length, see `weigh`), those under 1/64 of the strongest dropped, normalised and quantised to [`Skin4`] (bytes summing to 255); inner nodes merge their
 //! children's weights for LOD as for imported rigs.
 
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -71,7 +72,7 @@ pub const MAX_GRID_CELLS: usize = 1 << 24;
 /// Influences kept per voxel (what [`Skin4`] stores).
 const K: usize = 4;
 /// Falloff exponent of the weights.
-const FALLOFF: i32 = 4;
+const FALLOFF: f32 = 4.0;
 /// Queue distances per cell.
 const STEPS_PER_CELL: f32 = 16.0;
 /// Cells within this many of a bone start at their exact distance to it (see `Grid::seeds`).
@@ -149,6 +150,23 @@ impl Bones {
         Self { segments }
     }
 
+    /// A quarter of the median length of the bones (voxels), at least one voxel: how far from
+    /// a bone a voxel still blends at the base falloff (see `weigh`).
+    fn reach(&self) -> f32 {
+        let mut lengths: Vec<f32> = self
+            .segments
+            .iter()
+            .flatten()
+            .map(|(a, b)| (*b - *a).length())
+            .filter(|l| *l > 0.0)
+            .collect();
+        if lengths.is_empty() {
+            return 1.0;
+        }
+        let mid = lengths.len() / 2;
+        (0.25 * *lengths.select_nth_unstable_by(mid, f32::total_cmp).1).max(1.0)
+    }
+
     fn distance(&self, joint: usize, p: Vec3) -> f32 {
         self.segments[joint]
             .iter()
@@ -216,35 +234,52 @@ pub fn bind(
     control.progress(0.0);
     let (skins, unreachable, cell_size) = match method {
         BindMethod::Envelope => {
-            let skins: Vec<Skin4> = leaves
+            let near: Vec<Nearest> = leaves
                 .par_iter()
-                .map(|&(c, _)| envelope_skin(&bones, c.as_vec3() + 0.5))
+                .map(|&(c, _)| envelope_nearest(&bones, c.as_vec3() + 0.5))
                 .collect();
-            (skins, 0, 1)
+            (weigh(&near, bones.reach()), 0, 1)
         }
-        BindMethod::Geodesic | BindMethod::Rigid => {
-            let keep = if method == BindMethod::Rigid { 1 } else { K };
+        BindMethod::Rigid => {
             let grid = Grid::new(&leaves, lo, hi);
             if control.cancelled() {
                 return Err(SkinError::Cancelled);
             }
-            let labels = grid.propagate(&bones, keep, control)?;
+            let labels = grid.propagate(&bones, 1, control)?;
             let unreachable = std::sync::atomic::AtomicU64::new(0);
             let skins: Vec<Skin4> = leaves
                 .par_iter()
                 .map(|&(c, _)| {
-                    let skin = grid.voxel_skin(&labels, &bones, c, keep);
-                    skin.unwrap_or_else(|| {
+                    let joint = grid.nearest_label(&labels, c).unwrap_or_else(|| {
                         unreachable.fetch_add(1, Ordering::Relaxed);
-                        if keep == 1 {
-                            nearest_joint_skin(&bones, c.as_vec3() + 0.5)
-                        } else {
-                            envelope_skin(&bones, c.as_vec3() + 0.5)
-                        }
-                    })
+                        envelope_nearest(&bones, c.as_vec3() + 0.5).joints[0].0
+                    });
+                    Skin4::from_influences(&[(joint, 1.0)])
                 })
                 .collect();
             (skins, unreachable.into_inner(), grid.scale)
+        }
+        BindMethod::Geodesic => {
+            let grid = Grid::new(&leaves, lo, hi);
+            if control.cancelled() {
+                return Err(SkinError::Cancelled);
+            }
+            let labels = grid.propagate(&bones, K, control)?;
+            let unreachable = std::sync::atomic::AtomicU64::new(0);
+            let near: Vec<Nearest> = leaves
+                .par_iter()
+                .map(|&(c, _)| {
+                    grid.voxel_nearest(&labels, &bones, c).unwrap_or_else(|| {
+                        unreachable.fetch_add(1, Ordering::Relaxed);
+                        envelope_nearest(&bones, c.as_vec3() + 0.5)
+                    })
+                })
+                .collect();
+            (
+                weigh(&near, bones.reach()),
+                unreachable.into_inner(),
+                grid.scale,
+            )
         }
     };
     if control.cancelled() {
@@ -279,40 +314,64 @@ pub fn bind(
     ))
 }
 
-/// Weights from `(joint, distance)` candidates: the four nearest, falling off as the fourth
-/// power of the distance ratio to the nearest.
-fn skin_from_distances(cands: &mut [(u16, f32)]) -> Skin4 {
-    cands.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-    let n = cands.len().min(K);
-    let Some(&(_, nearest)) = cands.first() else {
-        return Skin4::default();
-    };
-    let eps = 0.5;
-    let mut infl = [(0u16, 0f32); K];
-    let mut kept = 0;
-    for &(j, d) in cands.iter().take(n) {
-        let w = ((nearest + eps) / (d + eps)).powi(FALLOFF);
-        if w >= MIN_RELATIVE_WEIGHT {
-            infl[kept] = (j, w);
-            kept += 1;
-        }
-    }
-    Skin4::from_influences(&infl[..kept])
+/// A voxel's nearest joints (at most [`K`]) with their distances in voxels, nearest first.
+#[derive(Debug, Clone, Copy, Default)]
+struct Nearest {
+    joints: [(u16, f32); K],
+    count: u8,
 }
 
-fn envelope_skin(bones: &Bones, p: Vec3) -> Skin4 {
+impl Nearest {
+    fn from_unsorted(cands: &mut [(u16, f32)]) -> Self {
+        cands.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        let mut out = Self::default();
+        for (slot, &c) in out.joints.iter_mut().zip(cands.iter()) {
+            *slot = c;
+            out.count += 1;
+        }
+        out
+    }
+
+    fn nearest(&self) -> Option<f32> {
+        (self.count > 0).then_some(self.joints[0].1)
+    }
+}
+
+/// Weights of every voxel from its nearest joints: `((d_min + ε) / (d_j + ε))^p`, with `p` =
+/// [`FALLOFF`] for voxels within `reach` of a bone, rising in proportion to `d_min / reach`
+/// beyond it. Near a joint on a limb the blend is as wide as the limb is thick; a part with no
+/// bone of its own (a torso above a hip joint, with no spine) goes to its nearest bone instead
+/// of a mix of every joint around it. `reach` is a quarter of the skeleton's median bone length
+/// ([`Bones::reach`]).
+fn weigh(near: &[Nearest], reach: f32) -> Vec<Skin4> {
+    let eps = 0.5;
+    let scale = reach.max(1.0) + eps;
+    near.par_iter()
+        .map(|n| {
+            let Some(nearest) = n.nearest() else {
+                return Skin4::default();
+            };
+            let p = FALLOFF * ((nearest + eps) / scale).max(1.0);
+            let mut infl = [(0u16, 0f32); K];
+            let mut kept = 0;
+            for &(j, dj) in &n.joints[..usize::from(n.count)] {
+                let w = ((nearest + eps) / (dj + eps)).powf(p);
+                if w >= MIN_RELATIVE_WEIGHT {
+                    infl[kept] = (j, w);
+                    kept += 1;
+                }
+            }
+            Skin4::from_influences(&infl[..kept])
+        })
+        .collect()
+}
+
+/// The four nearest joints of a point by straight-line distance.
+fn envelope_nearest(bones: &Bones, p: Vec3) -> Nearest {
     let mut cands: Vec<(u16, f32)> = (0..bones.segments.len())
         .map(|j| (j as u16, bones.distance(j, p)))
         .collect();
-    skin_from_distances(&mut cands)
-}
-
-fn nearest_joint_skin(bones: &Bones, p: Vec3) -> Skin4 {
-    let best = (0..bones.segments.len())
-        .map(|j| (j, bones.distance(j, p)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(0, |b| b.0);
-    Skin4::from_influences(&[(best as u16, 1.0)])
+    Nearest::from_unsorted(&mut cands)
 }
 
 /// Cell states of the dense occupancy grid.
@@ -579,20 +638,16 @@ impl Grid {
         Ok(labels)
     }
 
-    /// A voxel's weights from its cell's labels (`None` when no bone reached the cell).
-    fn voxel_skin(&self, labels: &Labels, bones: &Bones, c: UVec3, keep: usize) -> Option<Skin4> {
+    /// A voxel's nearest joints from its cell's labels (`None` when no bone reached the
+    /// cell), in voxels: the cell's geodesic distance plus the straight-line difference between
+    /// the voxel's centre and the cell's, never below the straight-line distance.
+    fn voxel_nearest(&self, labels: &Labels, bones: &Bones, c: UVec3) -> Option<Nearest> {
         let p = c.as_vec3() + 0.5;
         let cell = self.cell_of(p)?;
         let d = self.index[cell] as usize;
         let count = usize::from(labels.count[d]);
         if count == 0 {
             return None;
-        }
-        if keep == 1 {
-            return Some(Skin4::from_influences(&[(
-                u16::from(labels.joint[d * K]),
-                1.0,
-            )]));
         }
         let centre = self.centre(cell);
         let to_voxels = self.scale as f32 / STEPS_PER_CELL;
@@ -608,6 +663,13 @@ impl Grid {
             };
             *slot = (j as u16, refined);
         }
-        Some(skin_from_distances(&mut cands[..count]))
+        Some(Nearest::from_unsorted(&mut cands[..count]))
+    }
+
+    /// The geodesically nearest joint of a voxel's cell (`None` when no bone reached it).
+    fn nearest_label(&self, labels: &Labels, c: UVec3) -> Option<u16> {
+        let cell = self.cell_of(c.as_vec3() + 0.5)?;
+        let d = self.index[cell] as usize;
+        (labels.count[d] > 0).then(|| u16::from(labels.joint[d * K]))
     }
 }

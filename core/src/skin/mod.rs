@@ -15,6 +15,7 @@
 //! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
 //! | [`author`] | skeletons from joint positions and clips from Euler keys (`thicket rig` / `animate` formats) |
 //! | [`bind`] | automatic weights on the voxels: geodesic, envelope, rigid |
+//! | [`paint`] | weight-paint dabs (add, subtract, smooth) |
 //!
 //! Elsewhere, because they build documents or read files (layers above the document, see
 //! `docs/architecture.md`): reading skins and animations from glTF ([`crate::io::gltf_skinned`]),
@@ -33,6 +34,7 @@ pub mod bind;
 pub mod clip;
 pub mod deform;
 pub mod lbs;
+pub mod paint;
 pub mod rig;
 pub mod skeleton;
 pub mod stretch;

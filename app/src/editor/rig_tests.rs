@@ -1,0 +1,307 @@
+//! Rigging a model made in the editor: joints placed at mid-thickness, chains, branches,
+//! mirrors, templates, binding, weight painting and clips, each one undo step.
+
+use glam::{UVec3, Vec3};
+use thicket_core::scene::{ObjectKind, VoxelModel};
+use thicket_core::skin::BindMethod;
+use thicket_core::svo::{Svo, Voxel};
+
+use super::*;
+
+/// A figure of three boxes (a body on two legs with a gap between them), 1-unit voxels at the
+/// origin, no transform.
+fn figure(ed: &mut Editor) -> u64 {
+    let mut voxels = Vec::new();
+    let mut put = |lo: [u32; 3], hi: [u32; 3]| {
+        for z in lo[2]..hi[2] {
+            for y in lo[1]..hi[1] {
+                for x in lo[0]..hi[0] {
+                    voxels.push((UVec3::new(x, y, z), Voxel::new([180, 90, 60, 255], Vec3::Y)));
+                }
+            }
+        }
+    };
+    put([0, 0, 0], [4, 12, 4]); // leg R
+    put([6, 0, 0], [10, 12, 4]); // leg L
+    put([0, 12, 0], [10, 24, 4]); // body
+    let svo = Svo::from_voxels(5, false, voxels).unwrap();
+    ed.add_object(
+        "figure",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            ..VoxelModel::default()
+        }),
+    )
+}
+
+fn model(ed: &Editor, id: u64) -> &VoxelModel {
+    match &ed.object(id).unwrap().kind {
+        ObjectKind::Voxels(v) => v,
+        _ => panic!("a voxel model"),
+    }
+}
+
+#[test]
+fn a_click_places_a_joint_at_the_middle_of_the_thickness() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    // A ray along -Z through the body at x = 5, y = 18: enters at z = 4, leaves at z = 0.
+    let p = ed
+        .mid_thickness(id, Vec3::new(5.0, 18.0, 50.0), Vec3::NEG_Z)
+        .unwrap();
+    assert!(p.abs_diff_eq(Vec3::new(5.0, 18.0, 2.0), 1e-3), "{p}");
+    // Through the gap between the legs nothing is hit; a slanted ray through the right leg
+    // takes the middle of the run it crosses.
+    assert!(
+        ed.mid_thickness(id, Vec3::new(5.0, 6.0, 50.0), Vec3::NEG_Z)
+            .is_none()
+    );
+    let p = ed
+        .mid_thickness(id, Vec3::new(-10.0, 6.0, 2.0), Vec3::X)
+        .unwrap();
+    assert!(p.abs_diff_eq(Vec3::new(2.0, 6.0, 2.0), 1e-3), "{p}");
+    // The object's transform is honoured: moved by +100 in x, the same voxels answer.
+    let mut t = ed.object(id).unwrap().transform;
+    t.translation.x = 100.0;
+    ed.set_transform(id, t).unwrap();
+    let p = ed
+        .mid_thickness(id, Vec3::new(105.0, 18.0, 50.0), Vec3::NEG_Z)
+        .unwrap();
+    assert!(p.abs_diff_eq(Vec3::new(5.0, 18.0, 2.0), 1e-3), "{p}");
+}
+
+#[test]
+fn chains_branches_renames_and_deletes_are_single_undo_steps() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let plain = ed.doc().clone();
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 12.0, 2.0), None)
+        .unwrap();
+    let knee = ed
+        .add_joint(id, Some(hip), Vec3::new(8.0, 6.0, 2.0), None)
+        .unwrap();
+    let foot = ed
+        .add_joint(id, Some(knee), Vec3::new(8.0, 1.0, 2.0), None)
+        .unwrap();
+    let spine = ed
+        .add_joint(id, Some(hip), Vec3::new(5.0, 20.0, 2.0), None)
+        .unwrap();
+    let spec = ed.skeleton_spec(id).unwrap();
+    let names: Vec<&str> = spec.joints.iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(names, ["root", "bone", "bone.001", "bone.002"]);
+    assert_eq!(spec.joints[spine].parent.as_deref(), Some("root"));
+    assert_eq!(spec.joints[foot].parent.as_deref(), Some("bone"));
+
+    ed.rename_joint(id, knee, "shin.L").unwrap();
+    assert_eq!(
+        ed.skeleton_spec(id).unwrap().joints[foot].parent.as_deref(),
+        Some("shin.L"),
+        "children follow a rename"
+    );
+    // A joint under its own descendant is refused, and changes nothing.
+    let before = ed.doc().clone();
+    let err = ed.reparent_joint(id, hip, Some(foot)).unwrap_err();
+    assert!(err.to_string().contains("cycle"), "{err}");
+    assert_eq!(ed.doc(), &before);
+    // A duplicate name is refused.
+    assert!(ed.rename_joint(id, spine, "shin.L").is_err());
+    // Delete the knee: the foot hangs from the hip.
+    ed.delete_joint(id, knee).unwrap();
+    let spec = ed.skeleton_spec(id).unwrap();
+    assert_eq!(spec.joints.len(), 3);
+    let foot = spec
+        .joints
+        .iter()
+        .position(|j| j.name == "bone.001")
+        .unwrap();
+    assert_eq!(spec.joints[foot].parent.as_deref(), Some("root"));
+    // Six steps (four joints, a rename, a delete) undo to the plain model.
+    for _ in 0..6 {
+        assert!(ed.undo());
+    }
+    assert_eq!(ed.doc(), &plain);
+    assert!(model(&ed, id).rig.is_none());
+}
+
+#[test]
+fn a_mirrored_chain_lands_across_the_model_with_sided_names() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 12.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(8.0, 11.0, 2.0), Some("leg"))
+        .unwrap();
+    ed.add_joint(id, Some(leg), Vec3::new(8.0, 1.0, 2.0), Some("foot"))
+        .unwrap();
+    let copy = ed.mirror_chain(id, leg).unwrap();
+    let spec = ed.skeleton_spec(id).unwrap();
+    let by = |n: &str| spec.joints.iter().find(|j| j.name == n).unwrap();
+    // The model spans x 0..10: its centre is x = 5.
+    assert_eq!(by("leg.L").position, [8.0, 11.0, 2.0]);
+    assert_eq!(by("leg.R").position, [2.0, 11.0, 2.0]);
+    assert_eq!(by("foot.R").position, [2.0, 1.0, 2.0]);
+    assert_eq!(by("foot.R").parent.as_deref(), Some("leg.R"));
+    assert_eq!(by("leg.R").parent.as_deref(), Some("hip"));
+    assert_eq!(spec.joints[copy].name, "leg.R");
+    // Mirroring again would duplicate names: refused.
+    assert!(ed.mirror_chain(id, leg).is_err());
+}
+
+#[test]
+fn templates_fit_the_model_and_binding_gives_every_limb_its_joint() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    ed.apply_skeleton_template(id, SkeletonTemplate::Biped)
+        .unwrap();
+    let spec = ed.skeleton_spec(id).unwrap();
+    let (lo, hi) = model(&ed, id).bounds().unwrap();
+    for j in &spec.joints {
+        let p = Vec3::from(j.position);
+        assert!(p.cmpge(lo).all() && p.cmple(hi).all(), "{} at {p}", j.name);
+    }
+    // A hand-made skeleton for the two legs and the body, bound geodesically.
+    let empty = thicket_core::skin::SkeletonSpec::default();
+    ed.set_skeleton(id, &empty, WeightsOnEdit::Keep, None)
+        .unwrap();
+    assert!(model(&ed, id).rig.is_none() && !model(&ed, id).svo.has_skin());
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    ed.add_joint(id, Some(hip), Vec3::new(5.0, 23.0, 2.0), Some("chest"))
+        .unwrap();
+    let leg_r = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    ed.add_joint(id, Some(leg_r), Vec3::new(2.0, 0.5, 2.0), Some("foot.R"))
+        .unwrap();
+    let leg_l = ed
+        .add_joint(id, Some(hip), Vec3::new(8.0, 11.0, 2.0), Some("leg.L"))
+        .unwrap();
+    ed.add_joint(id, Some(leg_l), Vec3::new(8.0, 0.5, 2.0), Some("foot.L"))
+        .unwrap();
+    let unbound = ed.doc().clone();
+    let report = ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    assert_eq!(report.voxels, model(&ed, id).svo.leaf_count());
+    let rig = model(&ed, id).rig.clone().unwrap();
+    assert!(!rig.weights_stale());
+    let strongest = |c: UVec3| {
+        let s = model(&ed, id).svo.get(c).unwrap().skin;
+        rig.skeleton.joints[usize::from(s.joints[0])].name.clone()
+    };
+    assert_eq!(strongest(UVec3::new(1, 6, 1)), "leg.R");
+    assert_eq!(strongest(UVec3::new(8, 6, 1)), "leg.L");
+    assert_eq!(strongest(UVec3::new(5, 20, 1)), "hip");
+    // Moving a joint marks the weights stale; binding is one undo step.
+    ed.move_joint(id, leg_l, Vec3::new(8.0, 10.0, 2.0)).unwrap();
+    assert!(model(&ed, id).rig.as_ref().unwrap().weights_stale());
+    assert!(ed.undo());
+    assert!(ed.undo());
+    assert_eq!(ed.doc(), &unbound);
+}
+
+#[test]
+fn weight_painting_renormalises_and_its_undo_restores_the_octree_exactly() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    ed.add_joint(id, Some(leg), Vec3::new(2.0, 0.5, 2.0), Some("foot.R"))
+        .unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    let bound = model(&ed, id).svo.clone();
+    // Two dabs of one stroke add the hip's weight around a leg voxel.
+    let c = UVec3::new(2, 6, 2);
+    let w = |ed: &Editor| {
+        let s = model(ed, id).svo.get(c).unwrap().skin;
+        s.influences()
+            .filter(|&(j, _)| usize::from(j) == hip)
+            .map(|(_, w)| w)
+            .sum::<f32>()
+    };
+    let before = w(&ed);
+    let n = ed
+        .paint_weights(id, hip, c.as_vec3() + 0.5, 3.0, 0.6, false)
+        .unwrap();
+    assert!(n > 10, "{n} voxels painted");
+    ed.paint_weights(id, hip, c.as_vec3() + 0.5, 3.0, 0.6, false)
+        .unwrap();
+    ed.end_interaction();
+    let after = w(&ed);
+    assert!(after > before + 0.5, "{before} -> {after}");
+    model(&ed, id).svo.for_each_leaf(|c, v| {
+        let sum: u32 = v.skin.weights.iter().map(|&b| u32::from(b)).sum();
+        assert_eq!(sum, 255, "{c}: {:?}", v.skin);
+    });
+    // Smoothing moves a voxel toward its neighbours.
+    ed.paint_weights(id, hip, c.as_vec3() + 0.5, 2.0, 0.0, true)
+        .unwrap();
+    ed.end_interaction();
+    assert!(ed.undo(), "the smoothing stroke");
+    assert!(ed.undo(), "the two dabs are one step");
+    assert!(model(&ed, id).svo == bound, "undo restores every weight");
+    // A model with joints but no binding can be painted by hand: its voxels follow the root
+    // until a joint's weight is painted onto them. A joint that does not exist is refused.
+    let mut plain = Editor::default();
+    let other = figure(&mut plain);
+    let root = plain
+        .add_joint(other, None, Vec3::new(5.0, 13.0, 2.0), None)
+        .unwrap();
+    let tip = plain
+        .add_joint(other, Some(root), Vec3::new(5.0, 22.0, 2.0), None)
+        .unwrap();
+    assert!(
+        plain
+            .paint_weights(other, 7, Vec3::splat(2.0), 2.0, 1.0, false)
+            .is_err()
+    );
+    let top = UVec3::new(5, 22, 2);
+    plain
+        .paint_weights(other, tip, top.as_vec3() + 0.5, 2.0, 1.0, false)
+        .unwrap();
+    let s = model(&plain, other).svo.get(top).unwrap().skin;
+    assert_eq!((s.joints[0], s.weights[0]), (tip as u8, 255), "{s:?}");
+}
+
+#[test]
+fn a_new_clip_plays_and_keys_a_posed_joint_at_two_times() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    let clip = ed.new_clip(id, "kick", 1.0).unwrap();
+    assert_eq!(ed.rig(id).unwrap().playback.clip, Some(clip));
+    assert_eq!(ed.clip_names(id), ["kick"]);
+    assert_eq!(ed.new_clip(id, "kick", 2.0).unwrap(), 1);
+    assert_eq!(ed.clip_names(id), ["kick", "kick.001"]);
+    let mut playback = ed.rig(id).unwrap().playback;
+    playback.clip = Some(clip);
+    // Held, not looping: a key at the clip's end stays there (looping, 1 s would be 0 s).
+    playback.wrap = thicket_core::skin::Wrap::Clamp;
+    for (t, deg) in [(0.0f32, 0.0f32), (1.0, 60.0)] {
+        playback.time_secs = t;
+        ed.set_playback(id, playback).unwrap();
+        ed.rotate_joint(id, leg, None, glam::Quat::from_rotation_x(deg.to_radians()))
+            .unwrap();
+        ed.set_joint_key(id, leg).unwrap();
+    }
+    let rig = ed.rig(id).unwrap();
+    assert!(
+        rig.clips[clip].channels.iter().all(|c| c.joint == leg),
+        "{:?}",
+        rig.clips[clip]
+    );
+    let at = |t: f32| rig.clips[clip].sample(t, &rig.skeleton).locals[leg].rotation;
+    assert!(at(0.0).angle_between(at(1.0)) > 0.9, "the keys differ");
+}

@@ -1,0 +1,331 @@
+//! `thicket rig`, `thicket animate` and `thicket info --joints` on a model made with `thicket
+//! new`: the skeleton binds, the clip plays (renders at two times differ, the leg moves and the
+//! body does not), and every bad input is one clear error naming the file and the joint, with
+//! nothing written.
+
+use std::path::{Path, PathBuf};
+
+use thicket_core::scene::ObjectKind;
+
+mod common;
+use common::{stderr, stdout, thicket};
+
+fn path_str(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// `thicket new` of a solid 8×32×8 bar of 0.1 m voxels: own-space bounds (-0.4, 0, -0.4) ..
+/// (0.4, 3.2, 0.4).
+fn new_bar(dir: &Path) -> PathBuf {
+    let p = dir.join("bar.thicket.json");
+    let o = thicket(&[
+        "new",
+        path_str(&p),
+        "--extent",
+        "8,32,8",
+        "--voxel-size",
+        "0.1",
+        "--fill",
+        "solid",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    p
+}
+
+const SKELETON: &str = r#"{"joints": [
+  {"name": "base", "parent": null, "position": [0.0, 0.2, 0.0]},
+  {"name": "mid", "parent": "base", "position": [0.0, 1.6, 0.0]},
+  {"name": "top", "parent": "mid", "position": [0.0, 3.0, 0.0]}
+]}"#;
+
+const CLIP: &str = r#"{"name": "bend", "length": 1.0, "loop": true, "keys": [
+  {"joint": "mid", "time": 0.0, "rotation_deg": [0, 0, 0]},
+  {"joint": "mid", "time": 0.5, "rotation_deg": [0, 0, 60]},
+  {"joint": "mid", "time": 1.0, "rotation_deg": [0, 0, 0]}
+]}"#;
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn files_in(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    v.sort();
+    v
+}
+
+#[test]
+fn rig_animate_and_info_make_a_bar_bend() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = new_bar(dir.path());
+    let skel = write(dir.path(), "skel.json", SKELETON);
+    let clip = write(dir.path(), "bend.json", CLIP);
+    let rigged = dir.path().join("rigged.thicket.json");
+    let o = thicket(&[
+        "rig",
+        path_str(&bar),
+        "--object",
+        "Model",
+        "--skeleton",
+        path_str(&skel),
+        "-o",
+        path_str(&rigged),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("rigged with 3 joints, geodesic binding of 2,048 voxels"),
+        "{}",
+        stdout(&o)
+    );
+    let animated = dir.path().join("animated.thicket.json");
+    let o = thicket(&[
+        "animate",
+        path_str(&rigged),
+        "--object",
+        "Model",
+        "--clip",
+        path_str(&clip),
+        "-o",
+        path_str(&animated),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("plays clip \"bend\""), "{}", stdout(&o));
+
+    // info --joints: each joint and the voxels it dominates, summing to every voxel.
+    let o = thicket(&["info", "--joints", path_str(&animated)]);
+    let text = stdout(&o);
+    assert!(text.contains("skeleton: 3 joint(s)"), "{text}");
+    assert!(
+        text.contains("\"mid\" (child of \"base\") at [0.0000, 1.6000, 0.0000]"),
+        "{text}"
+    );
+    let o = thicket(&["info", "--json", path_str(&animated)]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let model = &json["objects"][0];
+    assert_eq!(model["bounds_min"], serde_json::json!([-0.4, 0.0, -0.4]));
+    assert_eq!(model["bounds_max"], serde_json::json!([0.4, 3.2, 0.4]));
+    let joints = model["joints"].as_array().unwrap();
+    let dominated: u64 = joints
+        .iter()
+        .map(|j| j["dominant_voxels"].as_u64().unwrap())
+        .sum();
+    assert_eq!(dominated, 2048);
+    assert!(
+        joints
+            .iter()
+            .all(|j| j["dominant_voxels"].as_u64().unwrap() > 0)
+    );
+
+    // Rendered at 0 s and 0.5 s: different images.
+    let render = |t: &str, out: &str| {
+        let p = dir.path().join(out);
+        let o = thicket(&[
+            "render",
+            path_str(&animated),
+            "-o",
+            path_str(&p),
+            "--size",
+            "96x96",
+            "--time",
+            t,
+            "--clip",
+            "bend",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&p).unwrap().to_rgba8().into_raw()
+    };
+    let (a, b) = (render("0", "a.png"), render("0.5", "b.png"));
+    let changed = a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
+    assert!(
+        changed > 200,
+        "only {changed} pixels changed between 0 s and 0.5 s"
+    );
+
+    // The document: the top voxel moves, the base voxel stays.
+    let doc = thicket_core::io::project::load(&animated).unwrap();
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        panic!("a voxel model");
+    };
+    let rig = v.rig.as_ref().unwrap();
+    let m = rig.skinning_at(Some(0), 0.5);
+    let skinned = |c: glam::UVec3| {
+        let p = v.object_from_voxel().transform_point3(c.as_vec3() + 0.5);
+        let s = v.svo.get(c).unwrap().skin;
+        s.influences().fold(glam::Vec3::ZERO, |acc, (j, w)| {
+            acc + m[usize::from(j)].transform_point3(p) * w
+        }) - p
+    };
+    assert!(skinned(glam::UVec3::new(4, 0, 4)).length() < 1e-4);
+    assert!(skinned(glam::UVec3::new(4, 31, 4)).length() > 1.0);
+}
+
+#[test]
+fn bad_skeletons_and_clips_are_one_clear_error_and_nothing_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = new_bar(dir.path());
+    let before = files_in(dir.path());
+    let rig_with = |name: &str, text: &str, needle: &str| {
+        let skel = write(dir.path(), name, text);
+        let out = dir.path().join("out.thicket.json");
+        let o = thicket(&[
+            "rig",
+            path_str(&bar),
+            "--object",
+            "Model",
+            "--skeleton",
+            path_str(&skel),
+            "-o",
+            path_str(&out),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{name}: {err}");
+        assert!(
+            err.starts_with("error: ") && err.lines().count() == 1,
+            "{err}"
+        );
+        assert!(err.contains(name), "{err} names {name}");
+        assert!(err.contains(needle), "{err} should say {needle:?}");
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{name}: nothing is written");
+        std::fs::remove_file(&skel).unwrap();
+    };
+    let joint = |name: &str, parent: &str, p: &str| {
+        format!(r#"{{"name": "{name}", "parent": {parent}, "position": {p}}}"#)
+    };
+    let skel = |joints: &[String]| format!(r#"{{"joints": [{}]}}"#, joints.join(","));
+    rig_with(
+        "cycle.json",
+        &skel(&[
+            joint("a", r#""b""#, "[0, 1, 0]"),
+            joint("b", r#""a""#, "[0, 2, 0]"),
+        ]),
+        "cycle",
+    );
+    rig_with(
+        "unknown.json",
+        &skel(&[joint("a", r#""ghost""#, "[0, 1, 0]")]),
+        "\"ghost\"",
+    );
+    rig_with(
+        "twice.json",
+        &skel(&[
+            joint("a", "null", "[0, 1, 0]"),
+            joint("a", "null", "[0, 2, 0]"),
+        ]),
+        "named twice",
+    );
+    rig_with(
+        "far.json",
+        &skel(&[joint("far", "null", "[0, 90, 0]")]),
+        "\"far\"",
+    );
+    // JSON has no NaN: a number too large for f32 is read as infinity or refused.
+    rig_with(
+        "nan.json",
+        &skel(&[joint("nan", "null", "[1e60, 1, 0]")]),
+        "nan",
+    );
+    rig_with("empty.json", r#"{"joints": []}"#, "no joints");
+    let many: Vec<String> = (0..300)
+        .map(|i| joint(&format!("j{i}"), "null", "[0, 1, 0]"))
+        .collect();
+    rig_with("many.json", &skel(&many), "at most 256");
+    rig_with(
+        "broken.json",
+        r#"{"joints": [ {"name": "#,
+        "not a valid skeleton",
+    );
+
+    // A clip on a model without a skeleton, and bad clips on a rigged one.
+    let clip = write(dir.path(), "bend.json", CLIP);
+    let out = dir.path().join("out.thicket.json");
+    let o = thicket(&[
+        "animate",
+        path_str(&bar),
+        "--object",
+        "Model",
+        "--clip",
+        path_str(&clip),
+        "-o",
+        path_str(&out),
+    ]);
+    assert!(stderr(&o).contains("has no skeleton"), "{}", stderr(&o));
+    assert!(!out.exists());
+    let skel = write(dir.path(), "skel.json", SKELETON);
+    let rigged = dir.path().join("rigged.thicket.json");
+    let o = thicket(&[
+        "rig",
+        path_str(&bar),
+        "--object",
+        "Model",
+        "--skeleton",
+        path_str(&skel),
+        "-o",
+        path_str(&rigged),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for (name, text, needle) in [
+        (
+            "late.json",
+            r#"{"name": "x", "length": 1, "keys": [{"joint": "mid", "time": 2, "rotation_deg": [0, 0, 1]}]}"#,
+            "0..=1",
+        ),
+        (
+            "who.json",
+            r#"{"name": "x", "length": 1, "keys": [{"joint": "elbow", "time": 0, "rotation_deg": [0, 0, 1]}]}"#,
+            "\"elbow\"",
+        ),
+        (
+            "nokeys.json",
+            r#"{"name": "x", "length": 1, "keys": []}"#,
+            "no keys",
+        ),
+    ] {
+        let clip = write(dir.path(), name, text);
+        let o = thicket(&[
+            "animate",
+            path_str(&rigged),
+            "--object",
+            "Model",
+            "--clip",
+            path_str(&clip),
+            "-o",
+            path_str(&out),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(name) && err.contains(needle), "{err}");
+        assert!(!out.exists());
+    }
+    // The output may not be the input.
+    let o = thicket(&[
+        "animate",
+        path_str(&rigged),
+        "--object",
+        "Model",
+        "--clip",
+        path_str(&clip),
+        "-o",
+        path_str(&rigged),
+    ]);
+    assert!(
+        stderr(&o).contains("the output is the input"),
+        "{}",
+        stderr(&o)
+    );
+    let after: Vec<String> = files_in(dir.path())
+        .into_iter()
+        .filter(|f| !f.ends_with(".json") || f.contains("thicket"))
+        .collect();
+    assert!(
+        after
+            .iter()
+            .all(|f| before.contains(f) || f.starts_with("rigged.")),
+        "stray files: {after:?} (before {before:?})"
+    );
+}

@@ -1,0 +1,293 @@
+//! Rigging and animating a model made in the editor, on the real app through egui_kittest: a
+//! new model, a body and two legs boxed in, Place joints clicked on the legs (a hip and two leg
+//! chains, each joint at the middle of the limb's thickness), Bind, a new clip with a knee
+//! rotation keyed at two times through the timeline's Set key, playback: the two frames' images
+//! differ, the leg's voxels moved and the body's did not; save, reopen, equal; export. Snapshots
+//! of the Rig section with its skeleton and of the weight heat map.
+//!
+//! No GPU viewport is attached: the view is the CPU preview (which the weight heat map reads).
+
+mod common;
+
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::{Harness, SnapshotOptions};
+use glam::{IVec3, UVec3, Vec3};
+use thicket::editor::{Editor, NewModelSpec};
+use thicket::ui::EditorApp;
+use thicket::ui::view::Projector;
+use thicket_core::scene::ObjectKind;
+use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
+
+const SIZE: egui::Vec2 = egui::vec2(1280.0, 800.0);
+
+fn harness(editor: Editor) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(editor);
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    let mut h = Harness::builder()
+        .with_size(SIZE)
+        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h
+}
+
+fn settle_preview(h: &mut Harness<'static, EditorApp>) {
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+}
+
+fn click_in_view(h: &mut Harness<'static, EditorApp>, p: egui::Pos2) {
+    h.hover_at(p);
+    h.step();
+    h.drag_at(p);
+    h.step();
+    h.drop_at(p);
+    h.run_steps(2);
+}
+
+/// A 16×24×8 model of 0.1 m voxels: two legs (x 2..=5 and 10..=13, y 0..=10) under a body
+/// (x 1..=14, y 11..=21), all 4 voxels deep (z 2..=5: the front face at z = 6).
+fn figure() -> (Editor, u64) {
+    let mut ed = Editor::default();
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            name: "Figure".into(),
+            size: UVec3::new(16, 24, 8),
+            voxel_size: 0.1,
+            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = Ink {
+        color: [200, 80, 60, 255],
+        material: 0,
+    };
+    for (a, b) in [
+        (IVec3::new(2, 0, 2), IVec3::new(5, 10, 5)),
+        (IVec3::new(10, 0, 2), IVec3::new(13, 10, 5)),
+        (IVec3::new(1, 11, 2), IVec3::new(14, 21, 5)),
+    ] {
+        ed.shape_box(id, a, b, ShapeOp::Add, ink, Mirror::default())
+            .unwrap();
+    }
+    // Look at the figure from the front (+Z), orthographic (key 1's view), framed: every
+    // pointer ray runs along -Z.
+    let mut camera = ed.doc().camera;
+    camera.yaw_deg = 0.0;
+    camera.pitch_deg = 0.0;
+    camera.orthographic = true;
+    ed.set_camera(camera);
+    ed.selection = Some(thicket::editor::Selection::Object(id));
+    ed.frame_selection();
+    (ed, id)
+}
+
+fn model(h: &Harness<'static, EditorApp>, id: u64) -> thicket_core::scene::VoxelModel {
+    match &h.state().editor.object(id).unwrap().kind {
+        ObjectKind::Voxels(v) => v.clone(),
+        _ => panic!("a voxel model"),
+    }
+}
+
+/// The screen point over the front face of voxel column (x, y) of the model.
+fn front_of(h: &Harness<'static, EditorApp>, id: u64, x: f32, y: f32) -> egui::Pos2 {
+    let v = model(h, id);
+    let o = h.state().editor.object(id).unwrap();
+    let world = o
+        .transform
+        .matrix()
+        .transform_point3(v.object_from_voxel().transform_point3(Vec3::new(x, y, 6.0)));
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    proj.to_screen(world).expect("in front of the camera")
+}
+
+/// Where a voxel lands at `t` seconds of clip `clip` (object space).
+fn skinned_at(v: &thicket_core::scene::VoxelModel, clip: usize, t: f32, c: UVec3) -> Vec3 {
+    let rig = v.rig.as_ref().unwrap();
+    let m = rig.skinning_at(Some(clip), t);
+    let p = v.object_from_voxel().transform_point3(c.as_vec3() + 0.5);
+    let s = v.svo.get(c).unwrap().skin;
+    s.influences().fold(Vec3::ZERO, |acc, (j, w)| {
+        acc + m[usize::from(j)].transform_point3(p) * w
+    })
+}
+
+#[test]
+fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
+    let (ed, id) = figure();
+    let mut h = harness(ed);
+    // Fold the inspector's Transform and Voxels sections so the Rig section fits the window.
+    for section in ["Transform", "Voxels"] {
+        // The section header comes before the "Voxels" row of the section itself.
+        h.get_all_by_label(section).next().unwrap().click();
+        h.run_steps(2);
+    }
+    // Place joints: a hip in the body, then a chain down the right leg; the hip's dot again to
+    // branch, then a chain down the left leg.
+    h.get_by_label("Place joints").click();
+    h.run_steps(2);
+    assert!(h.state().pose.rig.placing);
+    for (x, y) in [(8.0, 11.5), (4.0, 5.5), (4.0, 1.0)] {
+        let p = front_of(&h, id, x, y);
+        click_in_view(&mut h, p);
+    }
+    // The hip's dot, where the skeleton overlay draws it.
+    let hip = {
+        let frames = h.state().editor.joint_frames(id).unwrap();
+        let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+        proj.to_screen(frames.position(0).unwrap()).unwrap()
+    };
+    click_in_view(&mut h, hip);
+    for (x, y) in [(12.0, 5.5), (12.0, 1.0)] {
+        let p = front_of(&h, id, x, y);
+        click_in_view(&mut h, p);
+    }
+    let spec = h.state().editor.skeleton_spec(id).unwrap();
+    let names: Vec<&str> = spec.joints.iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(
+        names,
+        ["root", "bone", "bone.001", "bone.002", "bone.003"],
+        "{spec:?}"
+    );
+    let parents: Vec<Option<&str>> = spec.joints.iter().map(|j| j.parent.as_deref()).collect();
+    assert_eq!(
+        parents,
+        [
+            None,
+            Some("root"),
+            Some("bone"),
+            Some("root"),
+            Some("bone.002")
+        ]
+    );
+    // Every joint at the middle of the thickness: the ray enters at z = 6 and leaves at z = 2
+    // (voxels), so z = 4 voxels past the model's origin.
+    let origin = model(&h, id).origin;
+    for j in &spec.joints {
+        let z = (j.position[2] - origin.z) / 0.1;
+        assert!((z - 4.0).abs() < 0.05, "{} at z = {z} voxels", j.name);
+    }
+    h.get_by_label("Place joints").click();
+    h.run_steps(1);
+    settle_preview(&mut h);
+    h.snapshot_options(
+        "rig_placed_joints",
+        &SnapshotOptions::new().max_failed_pixels(300),
+    );
+
+    // Bind (a job with progress), one undo step.
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Bind").click_accesskit();
+    h.run_steps(1);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    let v = model(&h, id);
+    assert!(v.svo.has_skin());
+    let rig = v.rig.clone().unwrap();
+    let strongest = |c: UVec3| {
+        let s = v.svo.get(c).unwrap().skin;
+        rig.skeleton.joints[usize::from(s.joints[0])].name.clone()
+    };
+    // "bone" is the right knee (it owns the shin below it), "bone.002" the left one.
+    assert_eq!(strongest(UVec3::new(3, 3, 3)), "bone", "right shin");
+    assert_eq!(strongest(UVec3::new(12, 3, 3)), "bone.002", "left shin");
+    assert_eq!(strongest(UVec3::new(7, 18, 3)), "root", "body");
+    h.get_by_label_contains("geodesic binding of this skeleton");
+
+    // The weight heat map of the right knee.
+    h.state_mut().pose.select_joint(id, 1);
+    h.get_by_label("Show weights").click_accesskit();
+    h.run_steps(2);
+    settle_preview(&mut h);
+    h.snapshot_options(
+        "rig_weights",
+        &SnapshotOptions::new().max_failed_pixels(300),
+    );
+    h.get_by_label("Show weights").click_accesskit();
+    h.run_steps(2);
+
+    // A new clip; the right knee keyed straight at 0 s and bent 50° at 1 s through the
+    // timeline's Set key.
+    h.get_by_label("New clip").click();
+    h.run_steps(2);
+    let clip = h.state().editor.rig(id).unwrap().playback.clip.unwrap();
+    for (t, deg) in [(0.0f32, 0.0f32), (1.0, -50.0)] {
+        let mut playback = h.state().editor.rig(id).unwrap().playback;
+        playback.time_secs = t;
+        playback.wrap = thicket_core::skin::Wrap::Clamp;
+        h.state_mut().editor.set_playback(id, playback).unwrap();
+        h.state_mut()
+            .editor
+            .rotate_joint(id, 1, None, glam::Quat::from_rotation_x(deg.to_radians()))
+            .unwrap();
+        h.run_steps(1);
+        h.get_by_label("Set key").click();
+        h.run_steps(2);
+    }
+    let times = h.state().editor.joint_key_times(id, 1);
+    assert_eq!(times, [0.0, 1.0]);
+
+    // Play: the playhead moves; two instants draw different images; the shin's voxels moved
+    // and the body's did not.
+    let mut playback = h.state().editor.rig(id).unwrap().playback;
+    playback.time_secs = 0.0;
+    h.state_mut().editor.set_playback(id, playback).unwrap();
+    h.run_steps(1);
+    let t0 = h.state().editor.rig(id).unwrap().playback.time_secs;
+    h.get_by_label("Play").click();
+    h.run_steps(1);
+    assert!(h.state().pose.playing, "Play starts playback");
+    for _ in 0..5 {
+        std::thread::sleep(std::time::Duration::from_millis(20));
+        h.run_steps(1);
+    }
+    let t1 = h.state().editor.rig(id).unwrap().playback.time_secs;
+    assert!(t1 != t0, "the playhead moves: {t0} -> {t1}");
+    h.state_mut().pose.playing = false;
+    h.run_steps(1);
+    let shot = |h: &mut Harness<'static, EditorApp>, t: f32| {
+        let mut playback = h.state().editor.rig(id).unwrap().playback;
+        playback.time_secs = t;
+        h.state_mut().editor.set_playback(id, playback).unwrap();
+        settle_preview(h);
+        h.render().expect("render")
+    };
+    let (a, b) = (shot(&mut h, 0.1), shot(&mut h, 0.9));
+    let changed = a.pixels().zip(b.pixels()).filter(|(p, q)| p != q).count();
+    assert!(
+        changed > 500,
+        "only {changed} pixels differ between 0.1 s and 0.9 s"
+    );
+    let v = model(&h, id);
+    let foot = UVec3::new(3, 1, 3);
+    let body = UVec3::new(7, 18, 3);
+    let moved = |c| (skinned_at(&v, clip, 0.9, c) - skinned_at(&v, clip, 0.1, c)).length();
+    assert!(moved(foot) > 0.2, "the foot swings: {}", moved(foot));
+    assert!(moved(body) < 1e-4, "the body stays: {}", moved(body));
+
+    // Save, reopen, equal; export a skinned glTF with the clip.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("figure.thicket.json");
+    thicket::files::save_project(h.state().editor.doc(), &path).unwrap();
+    let back = thicket::files::load_document(&path).unwrap();
+    assert!(
+        &back == h.state().editor.doc(),
+        "the reopened project equals the edited one"
+    );
+    let glb = dir.path().join("figure.glb");
+    let report = thicket_core::io::gltf_export::export_gltf(
+        &back,
+        &glb,
+        &thicket_core::io::gltf_export::GltfExportOptions::default(),
+        &|_| true,
+    )
+    .unwrap();
+    assert!(report.triangles > 100, "{report:?}");
+    let (gltf, _, _) = gltf::import(&glb).unwrap();
+    assert_eq!(gltf.skins().next().unwrap().joints().count(), 5);
+    assert_eq!(gltf.animations().count(), 1);
+}
