@@ -858,6 +858,24 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         thousands(report.vertices),
         human_bytes(report.bytes)
     );
+    // A pose set by hand (overrides) is not an animation: the file carries the clips only.
+    for o in doc
+        .objects
+        .iter()
+        .filter(|o| o.visible && args.object.as_ref().is_none_or(|name| *name == o.name))
+    {
+        if let thicket_core::scene::ObjectKind::Voxels(v) = &o.kind
+            && let Some(rig) = &v.rig
+            && !rig.pose_overrides.is_empty()
+        {
+            text.push_str(&format!(
+                "  {:?}: the pose overrides of {} joint(s) are not keyed and are not in the \
+                 file (key them in the editor: Set key, or Bake the pose into the clip)\n",
+                o.name,
+                rig.pose_overrides.len()
+            ));
+        }
+    }
     for f in &report.voxel_faces {
         text.push_str(&format!(
             "  {:?}: {} exposed faces merged into {} quads ({} triangles instead of {})",

@@ -162,6 +162,32 @@ fn rig_animate_and_info_make_a_bar_bend() {
     };
     assert!(skinned(glam::UVec3::new(4, 0, 4)).length() < 1e-4);
     assert!(skinned(glam::UVec3::new(4, 31, 4)).length() > 1.0);
+
+    // A pose set by hand and not keyed: the export says it is not in the file.
+    let mut posed = doc.clone();
+    if let ObjectKind::Voxels(v) = &mut posed.objects[0].kind {
+        v.rig
+            .as_mut()
+            .unwrap()
+            .pose_overrides
+            .push(thicket_core::skin::JointOverride {
+                joint: 1,
+                rotation: Some(glam::Quat::from_rotation_z(0.5)),
+                ..thicket_core::skin::JointOverride::default()
+            });
+    }
+    let posed_path = dir.path().join("posed.thicket.json");
+    thicket_core::io::project::save(&posed, &posed_path).unwrap();
+    let glb = dir.path().join("posed.glb");
+    let o = thicket(&["export", path_str(&posed_path), "-o", path_str(&glb)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("the pose overrides of 1 joint(s) are not keyed"),
+        "{}",
+        stdout(&o)
+    );
+    let o = thicket(&["export", path_str(&animated), "-o", path_str(&glb)]);
+    assert!(!stdout(&o).contains("not keyed"), "{}", stdout(&o));
 }
 
 #[test]

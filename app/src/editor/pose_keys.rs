@@ -67,14 +67,40 @@ impl Editor {
     /// # Errors
     /// Unknown object, no rig or a joint out of range.
     pub fn set_joint_key(&mut self, id: u64, joint: usize) -> Result<(), CommandError> {
+        self.set_joint_keys(id, &[joint])
+    }
+
+    /// Bakes the current pose of rigged model `id` into its playing clip (a new "Pose" clip on
+    /// the rest pose): every joint with an override is keyed at the playhead, as Set key does,
+    /// in one undo step. Returns how many joints were keyed (0: nothing was posed).
+    ///
+    /// # Errors
+    /// Unknown object or no rig.
+    pub fn bake_pose(&mut self, id: u64) -> Result<usize, CommandError> {
+        let mut joints: Vec<usize> = self
+            .rig_or_err(id)?
+            .pose_overrides
+            .iter()
+            .map(|o| o.joint)
+            .collect();
+        joints.sort_unstable();
+        joints.dedup();
+        if !joints.is_empty() {
+            self.set_joint_keys(id, &joints)?;
+        }
+        Ok(joints.len())
+    }
+
+    /// [`Editor::set_joint_key`] for several joints at once: one undo step.
+    fn set_joint_keys(&mut self, id: u64, joints: &[usize]) -> Result<(), CommandError> {
         let rig = self.rig_or_err(id)?;
         let n = rig.skeleton.len();
-        if joint >= n {
+        if let Some(&joint) = joints.iter().find(|&&j| j >= n) {
             return Err(CommandError::Invalid(format!(
                 "joint {joint} does not exist (the skeleton has {n})"
             )));
         }
-        let local = rig.current_pose().locals[joint];
+        let pose = rig.current_pose();
         let (clip, t) = self.key_time(id)?;
         let rig = self.rig_or_err(id)?;
         let mut clips = rig.clips.clone();
@@ -86,36 +112,39 @@ impl Editor {
             clips.len() - 1
         });
         let target = &mut clips[index];
-        for (property, value) in [
-            (Property::Rotation, Vec4::from(local.rotation.normalize())),
-            (Property::Translation, local.translation.extend(0.0)),
-            (Property::Scale, local.scale.extend(0.0)),
-        ] {
-            // The last channel of a property wins when sampling: key that one.
-            let c = match target
-                .channels
-                .iter()
-                .rposition(|c| c.joint == joint && c.property == property)
-            {
-                Some(c) => c,
-                None => {
-                    target.channels.push(Channel {
-                        joint,
-                        property,
-                        interpolation: Interpolation::Linear,
-                        times: Vec::new(),
-                        values: Vec::new(),
-                    });
-                    target.channels.len() - 1
-                }
-            };
-            insert_key(&mut target.channels[c], t, value);
+        for &joint in joints {
+            let local = pose.locals[joint];
+            for (property, value) in [
+                (Property::Rotation, Vec4::from(local.rotation.normalize())),
+                (Property::Translation, local.translation.extend(0.0)),
+                (Property::Scale, local.scale.extend(0.0)),
+            ] {
+                // The last channel of a property wins when sampling: key that one.
+                let c = match target
+                    .channels
+                    .iter()
+                    .rposition(|c| c.joint == joint && c.property == property)
+                {
+                    Some(c) => c,
+                    None => {
+                        target.channels.push(Channel {
+                            joint,
+                            property,
+                            interpolation: Interpolation::Linear,
+                            times: Vec::new(),
+                            values: Vec::new(),
+                        });
+                        target.channels.len() - 1
+                    }
+                };
+                insert_key(&mut target.channels[c], t, value);
+            }
         }
         target.duration_secs = target.duration_secs.max(t);
         let overrides: Vec<JointOverride> = rig
             .pose_overrides
             .iter()
-            .filter(|o| o.joint != joint)
+            .filter(|o| !joints.contains(&o.joint))
             .copied()
             .collect();
         let mut edits = vec![Edit::SetClips { id, clips }];

@@ -643,6 +643,112 @@ impl Editor {
             .unwrap_or_default()
     }
 
+    /// Renames clip `clip` of rigged model `id` (one undo step).
+    ///
+    /// # Errors
+    /// No rig or clip; an empty name or one another clip has.
+    pub fn rename_clip(&mut self, id: u64, clip: usize, name: &str) -> Result<(), CommandError> {
+        let mut clips = self.rig_or_err(id)?.clips.clone();
+        let name = name.trim();
+        if name.is_empty() {
+            return Err(CommandError::Invalid("a clip needs a name".into()));
+        }
+        if clips
+            .iter()
+            .enumerate()
+            .any(|(i, c)| i != clip && c.name == name)
+        {
+            return Err(CommandError::Invalid(format!(
+                "a clip is named {name:?} already"
+            )));
+        }
+        let c = clips
+            .get_mut(clip)
+            .ok_or_else(|| CommandError::Invalid(format!("no clip {clip}")))?;
+        if c.name == name {
+            return Ok(());
+        }
+        c.name = name.to_owned();
+        self.apply(Edit::SetClips { id, clips }, None);
+        Ok(())
+    }
+
+    /// Copies clip `clip` as "NAME.copy" (made unique) after the last clip; returns its index.
+    ///
+    /// # Errors
+    /// No rig or clip.
+    pub fn duplicate_clip(&mut self, id: u64, clip: usize) -> Result<usize, CommandError> {
+        let mut clips = self.rig_or_err(id)?.clips.clone();
+        let mut copy = clips
+            .get(clip)
+            .cloned()
+            .ok_or_else(|| CommandError::Invalid(format!("no clip {clip}")))?;
+        let base = format!("{}.copy", copy.name);
+        let taken = |n: &str| clips.iter().any(|c| c.name == n);
+        copy.name = if taken(&base) {
+            (1..)
+                .map(|k| format!("{base}.{k:03}"))
+                .find(|n| !taken(n))
+                .unwrap_or(base)
+        } else {
+            base
+        };
+        clips.push(copy);
+        let index = clips.len() - 1;
+        self.apply(Edit::SetClips { id, clips }, None);
+        Ok(index)
+    }
+
+    /// Deletes clip `clip` (one undo step); the playhead moves to the rest pose when it played.
+    ///
+    /// # Errors
+    /// No rig or clip.
+    pub fn delete_clip(&mut self, id: u64, clip: usize) -> Result<(), CommandError> {
+        let rig = self.rig_or_err(id)?;
+        if clip >= rig.clips.len() {
+            return Err(CommandError::Invalid(format!("no clip {clip}")));
+        }
+        let mut playback = rig.playback;
+        let mut clips = rig.clips.clone();
+        clips.remove(clip);
+        playback.clip = match playback.clip {
+            Some(c) if c == clip => None,
+            Some(c) if c > clip => Some(c - 1),
+            other => other,
+        };
+        // Applying the clips moves a playhead past the end to the rest pose; then it follows
+        // its clip to the clip's new index.
+        self.apply(Edit::SetClips { id, clips }, None);
+        self.set_playback(id, playback)?;
+        Ok(())
+    }
+
+    /// Sets clip `clip`'s length (at least its last key's time: keys are never cut).
+    ///
+    /// # Errors
+    /// No rig or clip; a length that is not finite and positive, or shorter than the last key.
+    pub fn set_clip_length(
+        &mut self,
+        id: u64,
+        clip: usize,
+        length_secs: f32,
+    ) -> Result<(), CommandError> {
+        let mut clips = self.rig_or_err(id)?.clips.clone();
+        let c = clips
+            .get_mut(clip)
+            .ok_or_else(|| CommandError::Invalid(format!("no clip {clip}")))?;
+        let last = c.last_key_time();
+        if !(length_secs.is_finite() && length_secs > 0.0) || length_secs < last {
+            return Err(CommandError::Invalid(format!(
+                "clip length {length_secs} s: must be positive and at least the last key's \
+                 time, {last} s"
+            )));
+        }
+        c.duration_secs = length_secs;
+        self.apply(Edit::SetClips { id, clips }, None);
+        Ok(())
+    }
+
     /// Adds an empty clip `name` (made unique) of `length_secs` and plays it; returns its index.
     ///
     /// # Errors

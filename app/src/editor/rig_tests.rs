@@ -305,3 +305,118 @@ fn a_new_clip_plays_and_keys_a_posed_joint_at_two_times() {
     let at = |t: f32| rig.clips[clip].sample(t, &rig.skeleton).locals[leg].rotation;
     assert!(at(0.0).angle_between(at(1.0)) > 0.9, "the keys differ");
 }
+
+#[test]
+fn baking_the_pose_keys_every_posed_joint_in_one_step() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    let foot = ed
+        .add_joint(id, Some(leg), Vec3::new(2.0, 1.0, 2.0), Some("foot.R"))
+        .unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    assert_eq!(ed.bake_pose(id).unwrap(), 0, "nothing posed, nothing keyed");
+    ed.rotate_joint(id, leg, None, glam::Quat::from_rotation_x(0.5))
+        .unwrap();
+    ed.end_interaction();
+    ed.rotate_joint(id, foot, None, glam::Quat::from_rotation_z(0.3))
+        .unwrap();
+    ed.end_interaction();
+    let posed = ed.rig(id).unwrap().current_pose();
+    let steps = ed.history().undo_len();
+    assert_eq!(ed.bake_pose(id).unwrap(), 2);
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    let rig = ed.rig(id).unwrap();
+    assert!(
+        rig.pose_overrides.is_empty(),
+        "the overrides are folded into keys"
+    );
+    let clip = rig.playback.clip.expect("a Pose clip plays");
+    assert_eq!(rig.clips[clip].name, "Pose");
+    let keyed = rig.current_pose();
+    for j in [leg, foot] {
+        assert!(
+            keyed.locals[j]
+                .rotation
+                .abs_diff_eq(posed.locals[j].rotation, 1e-5),
+            "joint {j}"
+        );
+    }
+    assert!(ed.undo());
+    assert_eq!(ed.rig(id).unwrap().pose_overrides.len(), 2);
+}
+
+#[test]
+fn clips_are_renamed_duplicated_resized_and_deleted_one_step_each() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    let walk = ed.new_clip(id, "walk", 1.0).unwrap();
+    let mut playback = ed.rig(id).unwrap().playback;
+    playback.wrap = thicket_core::skin::Wrap::Clamp;
+    playback.time_secs = 0.8;
+    ed.set_playback(id, playback).unwrap();
+    ed.rotate_joint(id, leg, None, glam::Quat::from_rotation_x(0.4))
+        .unwrap();
+    ed.set_joint_key(id, leg).unwrap();
+    let run = ed.new_clip(id, "run", 0.5).unwrap();
+    assert_eq!((walk, run), (0, 1));
+    let start = ed.doc().clone();
+
+    assert!(
+        ed.rename_clip(id, run, "walk").is_err(),
+        "names stay unique"
+    );
+    assert!(ed.rename_clip(id, run, "  ").is_err());
+    ed.rename_clip(id, run, "sprint").unwrap();
+    assert_eq!(ed.clip_names(id), ["walk", "sprint"]);
+    let copy = ed.duplicate_clip(id, walk).unwrap();
+    assert_eq!(ed.clip_names(id), ["walk", "sprint", "walk.copy"]);
+    assert_eq!(
+        ed.rig(id).unwrap().clips[copy].channels,
+        ed.rig(id).unwrap().clips[walk].channels
+    );
+    assert!(
+        ed.set_clip_length(id, walk, 0.5).is_err(),
+        "a key sits at 0.8 s"
+    );
+    ed.set_clip_length(id, walk, 2.0).unwrap();
+    assert_eq!(ed.rig(id).unwrap().clips[walk].duration_secs, 2.0);
+    // Deleting the first clip: the playing one ("sprint", index 1) becomes index 0.
+    assert_eq!(ed.rig(id).unwrap().playback.clip, Some(1));
+    ed.delete_clip(id, walk).unwrap();
+    assert_eq!(ed.clip_names(id), ["sprint", "walk.copy"]);
+    assert_eq!(ed.rig(id).unwrap().playback.clip, Some(0));
+    // Deleting the playing clip returns to the rest pose.
+    ed.delete_clip(id, 0).unwrap();
+    assert_eq!(ed.rig(id).unwrap().playback.clip, None);
+    for _ in 0..5 {
+        assert!(ed.undo());
+    }
+    assert_eq!(
+        ed.rig(id).unwrap().clips,
+        start_clips(&start, id),
+        "five steps undo to the clips before"
+    );
+}
+
+fn start_clips(
+    doc: &thicket_core::scene::Document,
+    id: u64,
+) -> Vec<thicket_core::skin::AnimationClip> {
+    match &doc.objects.iter().find(|o| o.id == id).unwrap().kind {
+        ObjectKind::Voxels(v) => v.rig.as_ref().unwrap().clips.clone(),
+        _ => Vec::new(),
+    }
+}

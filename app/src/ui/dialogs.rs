@@ -134,11 +134,35 @@ impl EditorApp {
             }
         }
         let selected = self.editor.selected_object().map(|o| o.name.clone());
+        // Rigged models posed by hand: the export writes clips, not overrides.
+        let posed: Vec<(u64, String, usize)> = if self.gltf_export.open {
+            self.editor
+                .doc()
+                .objects
+                .iter()
+                .filter_map(|o| {
+                    let n = self.editor.rig(o.id)?.pose_overrides.len();
+                    (n > 0 && o.visible).then(|| (o.id, o.name.clone(), n))
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
         if self
             .gltf_export
-            .ui(ctx, selected.as_deref(), self.job.is_some())
+            .ui(ctx, selected.as_deref(), self.job.is_some(), &posed)
         {
             self.ask_path(PathPurpose::ExportGltf);
+        }
+        if std::mem::take(&mut self.gltf_export.bake_request) {
+            let mut keyed = 0;
+            for (id, name, _) in &posed {
+                match self.editor.bake_pose(*id) {
+                    Ok(n) => keyed += n,
+                    Err(e) => self.error_dialog = Some(format!("{name}: {e}")),
+                }
+            }
+            self.status = format!("Baked the pose of {keyed} joint(s) into the playing clip");
         }
         if self.show_shortcuts {
             egui::Window::new("Keyboard shortcuts")

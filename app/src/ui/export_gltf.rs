@@ -87,6 +87,8 @@ pub struct GltfExportPanel {
     pub options: GltfExportOptions,
     /// Export only the selected object (else every visible one).
     pub selected_only: bool,
+    /// "Bake the pose into the clip" was pressed: the caller keys every posed joint.
+    pub bake_request: bool,
 }
 
 impl GltfExportPanel {
@@ -107,7 +109,14 @@ impl GltfExportPanel {
 
     /// Draws the window. Returns true when the user pressed "Export..." (the caller asks for
     /// the path, then starts the job).
-    pub fn ui(&mut self, ctx: &egui::Context, selected: Option<&str>, busy: bool) -> bool {
+    /// `posed`: the visible rigged models whose pose overrides are not keyed (id, name, count).
+    pub fn ui(
+        &mut self,
+        ctx: &egui::Context,
+        selected: Option<&str>,
+        busy: bool,
+        posed: &[(u64, String, usize)],
+    ) -> bool {
         if !self.open {
             return false;
         }
@@ -227,6 +236,30 @@ impl GltfExportPanel {
                     _ => "Exports every visible object".to_owned(),
                 };
                 ui.label(what);
+                if !posed.is_empty() {
+                    let names: Vec<String> = posed
+                        .iter()
+                        .map(|(_, name, n)| format!("{name:?} ({n} joint(s))"))
+                        .collect();
+                    ui.colored_label(
+                        ui.visuals().warn_fg_color,
+                        format!(
+                            "Posed but not keyed: {}. The file carries clips, not the pose: \
+                             bake it, or it is lost.",
+                            names.join(", ")
+                        ),
+                    );
+                    if ui
+                        .button("Bake the pose into the clip")
+                        .on_hover_text(
+                            "Key every posed joint at the playhead of the playing clip (a new \
+                             \"Pose\" clip on the rest pose), one undo step",
+                        )
+                        .clicked()
+                    {
+                        self.bake_request = true;
+                    }
+                }
                 if ui
                     .add_enabled(!busy, egui::Button::new("Export..."))
                     .on_hover_text("Choose a .glb or .gltf file and export on a worker thread")

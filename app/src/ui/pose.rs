@@ -90,6 +90,8 @@ pub struct PoseTool {
     pub rig: super::rig_panel::RigSetup,
     /// The last binding's summary, shown in the Rig section.
     pub rig_report: Option<String>,
+    /// Auto-key: every finished gizmo drag keys the joint at the playhead.
+    pub auto_key: bool,
 }
 
 impl Default for PoseTool {
@@ -106,6 +108,7 @@ impl Default for PoseTool {
             listed: None,
             rig: super::rig_panel::RigSetup::default(),
             rig_report: None,
+            auto_key: false,
         }
     }
 }
@@ -292,6 +295,15 @@ impl PoseTool {
         };
         if !ui.input(|i| i.pointer.primary_down()) {
             self.drag = None;
+            // Auto-key: a finished drag keys the joint at the playhead (its own undo step).
+            if self.auto_key {
+                let JointRef { object, joint } = drag.joint;
+                editor.end_interaction();
+                self.error = editor
+                    .set_joint_key(object, joint)
+                    .err()
+                    .map(|e| e.to_string());
+            }
             return true;
         }
         let Some(pointer) = ui.input(|i| i.pointer.interact_pos()) else {
@@ -1075,6 +1087,8 @@ fn keys_ui(
         {
             tool.error = editor.delete_joint_key(id, j).err().map(|e| e.to_string());
         }
+        ui.checkbox(&mut tool.auto_key, "Auto-key")
+            .on_hover_text("Key the joint at the playhead whenever a gizmo drag ends");
         ui.weak(format!("{name}: {} key(s) in this clip", keys.len()))
             .on_hover_text("Keys of the selected joint, drawn as diamonds on the timeline");
     });

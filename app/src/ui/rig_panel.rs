@@ -41,6 +41,8 @@ pub struct RigSetup {
     pub bind_request: Option<(u64, BindMethod)>,
     /// The name field of the selected joint, while it is edited.
     name_edit: Option<(usize, String)>,
+    /// The name field of a clip, while it is edited: (clip, text).
+    clip_edit: Option<(usize, String)>,
     /// New clip's name and length.
     clip_name: String,
     clip_length: f32,
@@ -60,6 +62,7 @@ impl Default for RigSetup {
             show_weights: false,
             bind_request: None,
             name_edit: None,
+            clip_edit: None,
             clip_name: "action".into(),
             clip_length: 1.0,
             error: None,
@@ -370,15 +373,67 @@ fn clips_ui(
     rig: &thicket_core::skin::Rig,
 ) {
     ui.label(format!("Clips: {}", rig.clips.len()));
+    let mut action: Option<Result<(), crate::editor::CommandError>> = None;
     for (i, c) in rig.clips.iter().enumerate() {
         let playing = rig.playback.clip == Some(i);
-        ui.weak(format!(
-            "{}: {:.2} s, {} channel(s){}",
-            c.name,
-            c.duration_secs,
-            c.channels.len(),
-            if playing { " (playing)" } else { "" }
-        ));
+        ui.horizontal(|ui| {
+            // The field being typed in keeps its text; the others show the clip's name.
+            let mut text = match &tool.rig.clip_edit {
+                Some((k, t)) if *k == i => t.clone(),
+                _ => c.name.clone(),
+            };
+            let r = ui.add(egui::TextEdit::singleline(&mut text).desired_width(90.0));
+            if r.lost_focus() {
+                if text != c.name {
+                    action = Some(editor.rename_clip(id, i, &text));
+                }
+                tool.rig.clip_edit = None;
+            } else if r.has_focus() {
+                tool.rig.clip_edit = Some((i, text));
+            }
+            let mut length = c.duration_secs;
+            if ui
+                .add(
+                    egui::DragValue::new(&mut length)
+                        .range(0.05..=3600.0)
+                        .speed(0.05)
+                        .suffix(" s"),
+                )
+                .on_hover_text("The clip's length (never shorter than its last key)")
+                .changed()
+            {
+                action = Some(editor.set_clip_length(id, i, length));
+            }
+            if ui
+                .selectable_label(playing, if playing { "Playing" } else { "Play it" })
+                .on_hover_text("Make this the clip the timeline plays")
+                .clicked()
+                && !playing
+            {
+                let mut p = rig.playback;
+                p.clip = Some(i);
+                p.time_secs = 0.0;
+                action = Some(editor.set_playback(id, p));
+            }
+            if ui
+                .small_button("Duplicate")
+                .on_hover_text("Copy the clip (to vary it)")
+                .clicked()
+            {
+                action = Some(editor.duplicate_clip(id, i).map(|_| ()));
+            }
+            if ui
+                .small_button("Delete")
+                .on_hover_text("Remove the clip (undoable)")
+                .clicked()
+            {
+                action = Some(editor.delete_clip(id, i));
+                tool.rig.clip_edit = None;
+            }
+        });
+    }
+    if let Some(r) = action {
+        note(tool, r);
     }
     ui.horizontal(|ui| {
         ui.add(egui::TextEdit::singleline(&mut tool.rig.clip_name).desired_width(90.0));
@@ -392,7 +447,7 @@ fn clips_ui(
             .button("New clip")
             .on_hover_text(
                 "Add an empty clip of this length and play it; pose joints and press Set key \
-                 on the timeline",
+                 on the timeline (or turn on Auto-key)",
             )
             .clicked()
         {
