@@ -44,6 +44,20 @@ const CLIP: &str = r#"{"name": "bend", "length": 1.0, "loop": true, "keys": [
   {"joint": "mid", "time": 1.0, "rotation_deg": [0, 0, 0]}
 ]}"#;
 
+/// `thicket rig BAR --object Model --skeleton SKEL -o OUT`.
+fn rig(bar: &Path, skel: &Path, out: &Path) -> std::process::Output {
+    thicket(&[
+        "rig",
+        path_str(bar),
+        "--object",
+        "Model",
+        "--skeleton",
+        path_str(skel),
+        "-o",
+        path_str(out),
+    ])
+}
+
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -66,16 +80,7 @@ fn rig_animate_and_info_make_a_bar_bend() {
     let skel = write(dir.path(), "skel.json", SKELETON);
     let clip = write(dir.path(), "bend.json", CLIP);
     let rigged = dir.path().join("rigged.thicket.json");
-    let o = thicket(&[
-        "rig",
-        path_str(&bar),
-        "--object",
-        "Model",
-        "--skeleton",
-        path_str(&skel),
-        "-o",
-        path_str(&rigged),
-    ]);
+    let o = rig(&bar, &skel, &rigged);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(
         stdout(&o).contains("rigged with 3 joints, geodesic binding of 2,048 voxels"),
@@ -284,16 +289,7 @@ fn bad_skeletons_and_clips_are_one_clear_error_and_nothing_is_written() {
     assert!(!out.exists());
     let skel = write(dir.path(), "skel.json", SKELETON);
     let rigged = dir.path().join("rigged.thicket.json");
-    let o = thicket(&[
-        "rig",
-        path_str(&bar),
-        "--object",
-        "Model",
-        "--skeleton",
-        path_str(&skel),
-        "-o",
-        path_str(&rigged),
-    ]);
+    let o = rig(&bar, &skel, &rigged);
     assert!(o.status.success(), "{}", stderr(&o));
     for (name, text, needle) in [
         (

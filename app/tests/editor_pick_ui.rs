@@ -6,6 +6,8 @@
 //!
 //! No GPU viewport is attached: the view draws with core's CPU preview renderer.
 
+mod common;
+
 use egui_kittest::kittest::Queryable as _;
 use egui_kittest::{Harness, SnapshotOptions};
 use glam::{UVec3, Vec3};
@@ -20,30 +22,7 @@ use thicket_core::svo::{Svo, Voxel};
 const SIZE: egui::Vec2 = egui::vec2(1100.0, 720.0);
 
 fn harness(doc: Document) -> Harness<'static, EditorApp> {
-    let mut app = EditorApp::new(Editor::new(doc, None));
-    app.autosave_secs = 0;
-    app.native_dialogs = false;
-    let mut h = Harness::builder()
-        .with_size(SIZE)
-        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
-    h.run_steps(2);
-    h
-}
-
-fn settle_preview(h: &mut Harness<'static, EditorApp>) {
-    for _ in 0..4 {
-        h.state_mut().view.wait_for_cpu_preview();
-        h.run_steps(1);
-    }
-}
-
-fn click(h: &mut Harness<'static, EditorApp>, at: egui::Pos2) {
-    h.hover_at(at);
-    h.run_steps(1);
-    h.drag_at(at);
-    h.run_steps(1);
-    h.drop_at(at);
-    h.run_steps(2);
+    common::ui_harness(Editor::new(doc, None), SIZE)
 }
 
 /// The closed cube −1..1 as 12 triangles.
@@ -121,7 +100,7 @@ fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
     let (lo, hi) = doc.bounds().unwrap();
     doc.camera.frame(lo, hi);
     let mut h = harness(doc);
-    settle_preview(&mut h);
+    common::settle_preview(&mut h);
     // Opening selects the first object: start from nothing selected.
     h.state_mut().editor.selection = None;
     h.run_steps(1);
@@ -133,7 +112,7 @@ fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
     let scene = prepared(h.state().editor.doc(), tree);
     let centre = (tlo + thi) * 0.5;
     let on_tree = surface_below(&scene, Vec3::new(centre.x, thi.y, centre.z));
-    click(&mut h, proj.to_screen(on_tree).unwrap());
+    common::click_at(&mut h, proj.to_screen(on_tree).unwrap());
     let ed = &h.state().editor;
     assert_eq!(ed.selection, Some(Selection::Object(tree)));
     let (_, pick) = h.state().view.last_click.expect("the click is kept");
@@ -145,7 +124,7 @@ fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
         q.distance
     );
     assert!(pick.normal_in_world.dot(q.normal) > 0.99);
-    settle_preview(&mut h);
+    common::settle_preview(&mut h);
     h.snapshot_options(
         "pick_krs_tree_marked",
         &SnapshotOptions::new().max_failed_pixels(200),
@@ -153,7 +132,7 @@ fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
 
     // The cube's centre: the ray through it meets the face toward the camera (+Z).
     let centre = h.state().editor.object(cube).unwrap().transform.translation;
-    click(&mut h, proj.to_screen(centre).unwrap());
+    common::click_at(&mut h, proj.to_screen(centre).unwrap());
     assert_eq!(h.state().editor.selection, Some(Selection::Object(cube)));
     let (_, pick) = h.state().view.last_click.unwrap();
     assert_eq!((pick.object, pick.kind), (cube, PickKind::Mesh));
@@ -165,7 +144,7 @@ fn a_click_selects_a_krs_tree_or_a_mesh_and_marks_the_point_and_normal() {
     assert!(pick.normal_in_world.distance(Vec3::Z) < 1e-5);
 
     // The sky: nothing selected, no mark.
-    click(&mut h, rect.left_top() + egui::vec2(5.0, 5.0));
+    common::click_at(&mut h, rect.left_top() + egui::vec2(5.0, 5.0));
     assert_eq!(h.state().editor.selection, None);
     assert_eq!(h.state().view.last_click, None);
 }
@@ -291,7 +270,7 @@ fn the_brush_places_voxels_of_the_selected_model_on_krs_terrain_in_one_undo_step
     h.state_mut().sculpt.brush.radius = 1.0;
     h.run_steps(1);
     let steps = h.state().editor.history().undo_len();
-    click(&mut h, at);
+    common::click_at(&mut h, at);
     assert_eq!(
         leaves(&h),
         before,
@@ -302,7 +281,7 @@ fn the_brush_places_voxels_of_the_selected_model_on_krs_terrain_in_one_undo_step
     // With the block selected, a click on the terrain places the block's voxels there.
     h.state_mut().editor.selection = Some(Selection::Object(block));
     h.run_steps(1);
-    click(&mut h, at);
+    common::click_at(&mut h, at);
     let after = leaves(&h);
     let added: Vec<Vec3> = after
         .iter()
@@ -348,7 +327,7 @@ fn the_brush_places_voxels_of_the_selected_model_on_krs_terrain_in_one_undo_step
             .any(|c| scene.query(*c).unwrap().distance > 0.0),
         "voxels stand on the ground, not only in it"
     );
-    settle_preview(&mut h);
+    common::settle_preview(&mut h);
     h.snapshot_options(
         "brush_on_krs_terrain",
         &SnapshotOptions::new().max_failed_pixels(200),

@@ -21,30 +21,7 @@ use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
 const SIZE: egui::Vec2 = egui::vec2(1280.0, 800.0);
 
 fn harness(editor: Editor) -> Harness<'static, EditorApp> {
-    let mut app = EditorApp::new(editor);
-    app.autosave_secs = 0;
-    app.native_dialogs = false;
-    let mut h = Harness::builder()
-        .with_size(SIZE)
-        .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
-    h.run_steps(2);
-    h
-}
-
-fn settle_preview(h: &mut Harness<'static, EditorApp>) {
-    for _ in 0..4 {
-        h.state_mut().view.wait_for_cpu_preview();
-        h.run_steps(1);
-    }
-}
-
-fn click_in_view(h: &mut Harness<'static, EditorApp>, p: egui::Pos2) {
-    h.hover_at(p);
-    h.step();
-    h.drag_at(p);
-    h.step();
-    h.drop_at(p);
-    h.run_steps(2);
+    common::ui_harness(editor, SIZE)
 }
 
 /// A 16×24×8 model of 0.1 m voxels: two legs (x 2..=5 and 10..=13, y 0..=10) under a body
@@ -131,7 +108,7 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
     assert!(h.state().pose.rig.placing);
     for (x, y) in [(8.0, 11.5), (4.0, 5.5), (4.0, 1.0)] {
         let p = front_of(&h, id, x, y);
-        click_in_view(&mut h, p);
+        common::click_at(&mut h, p);
     }
     // The hip's dot, where the skeleton overlay draws it.
     let hip = {
@@ -139,10 +116,10 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
         let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
         proj.to_screen(frames.position(0).unwrap()).unwrap()
     };
-    click_in_view(&mut h, hip);
+    common::click_at(&mut h, hip);
     for (x, y) in [(12.0, 5.5), (12.0, 1.0)] {
         let p = front_of(&h, id, x, y);
-        click_in_view(&mut h, p);
+        common::click_at(&mut h, p);
     }
     let spec = h.state().editor.skeleton_spec(id).unwrap();
     let names: Vec<&str> = spec.joints.iter().map(|j| j.name.as_str()).collect();
@@ -171,7 +148,7 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
     }
     h.get_by_label("Place joints").click();
     h.run_steps(1);
-    settle_preview(&mut h);
+    common::settle_preview(&mut h);
     h.snapshot_options(
         "rig_placed_joints",
         &SnapshotOptions::new().max_failed_pixels(300),
@@ -202,7 +179,7 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
     h.state_mut().pose.select_joint(id, 1);
     h.get_by_label("Show weights").click_accesskit();
     h.run_steps(2);
-    settle_preview(&mut h);
+    common::settle_preview(&mut h);
     h.snapshot_options(
         "rig_weights",
         &SnapshotOptions::new().max_failed_pixels(300),
@@ -253,7 +230,7 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
         let mut playback = h.state().editor.rig(id).unwrap().playback;
         playback.time_secs = t;
         h.state_mut().editor.set_playback(id, playback).unwrap();
-        settle_preview(h);
+        common::settle_preview(h);
         h.render().expect("render")
     };
     let (a, b) = (shot(&mut h, 0.1), shot(&mut h, 0.9));

@@ -335,10 +335,7 @@ impl Editor {
             parent: parent_name,
             position: position.to_array(),
         });
-        self.set_skeleton(id, &spec, WeightsOnEdit::Keep, None)?;
-        self.rig(id)
-            .and_then(|r| r.skeleton.find(&name))
-            .ok_or_else(|| CommandError::Invalid("the joint was not added".into()))
+        self.set_skeleton_finding(id, &spec, &name)
     }
 
     /// Moves joint `joint` to `position` in the rest pose (the model's own space); a drag
@@ -506,10 +503,20 @@ impl Editor {
         }
         let first = copies[0].name.clone();
         spec.joints.extend(copies);
-        self.set_skeleton(id, &spec, WeightsOnEdit::Keep, None)?;
+        self.set_skeleton_finding(id, &spec, &first)
+    }
+
+    /// Sets the skeleton (keeping the weights) and returns the index of joint `name` in it.
+    fn set_skeleton_finding(
+        &mut self,
+        id: u64,
+        spec: &SkeletonSpec,
+        name: &str,
+    ) -> Result<usize, CommandError> {
+        self.set_skeleton(id, spec, WeightsOnEdit::Keep, None)?;
         self.rig(id)
-            .and_then(|r| r.skeleton.find(&first))
-            .ok_or_else(|| CommandError::Invalid("the mirror was not added".into()))
+            .and_then(|r| r.skeleton.find(name))
+            .ok_or_else(|| CommandError::Invalid(format!("joint {name:?} was not added")))
     }
 
     /// Replaces the skeleton of model `id` with `template` fitted to its bounds.

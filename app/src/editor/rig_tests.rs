@@ -34,6 +34,21 @@ fn figure(ed: &mut Editor) -> u64 {
     )
 }
 
+/// The figure with a hip in the body and a joint at the top of the right leg, bound
+/// geodesically: (editor, model, hip, leg).
+fn bound_hip_and_leg() -> (Editor, u64, usize, usize) {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let leg = ed
+        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
+        .unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    (ed, id, hip, leg)
+}
+
 fn model(ed: &Editor, id: u64) -> &VoxelModel {
     match &ed.object(id).unwrap().kind {
         ObjectKind::Voxels(v) => v,
@@ -271,15 +286,7 @@ fn weight_painting_renormalises_and_its_undo_restores_the_octree_exactly() {
 
 #[test]
 fn a_new_clip_plays_and_keys_a_posed_joint_at_two_times() {
-    let mut ed = Editor::default();
-    let id = figure(&mut ed);
-    let hip = ed
-        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
-        .unwrap();
-    let leg = ed
-        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
-        .unwrap();
-    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    let (mut ed, id, _hip, leg) = bound_hip_and_leg();
     let clip = ed.new_clip(id, "kick", 1.0).unwrap();
     assert_eq!(ed.rig(id).unwrap().playback.clip, Some(clip));
     assert_eq!(ed.clip_names(id), ["kick"]);
@@ -353,15 +360,7 @@ fn baking_the_pose_keys_every_posed_joint_in_one_step() {
 
 #[test]
 fn clips_are_renamed_duplicated_resized_and_deleted_one_step_each() {
-    let mut ed = Editor::default();
-    let id = figure(&mut ed);
-    let hip = ed
-        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
-        .unwrap();
-    let leg = ed
-        .add_joint(id, Some(hip), Vec3::new(2.0, 11.0, 2.0), Some("leg.R"))
-        .unwrap();
-    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    let (mut ed, id, _hip, leg) = bound_hip_and_leg();
     let walk = ed.new_clip(id, "walk", 1.0).unwrap();
     let mut playback = ed.rig(id).unwrap().playback;
     playback.wrap = thicket_core::skin::Wrap::Clamp;

@@ -8,6 +8,41 @@ use std::process::{Command, Output};
 
 pub mod gpu;
 
+/// The real editor app in an egui_kittest harness of `size` points, without autosave or
+/// desktop dialogs, after two frames.
+pub fn ui_harness(
+    editor: thicket::editor::Editor,
+    size: egui::Vec2,
+) -> egui_kittest::Harness<'static, thicket::ui::EditorApp> {
+    let mut app = thicket::ui::EditorApp::new(editor);
+    // The UI tests must not touch the user's recovery folder or depend on it.
+    app.autosave_secs = 0;
+    app.native_dialogs = false;
+    let mut h = egui_kittest::Harness::builder()
+        .with_size(size)
+        .build_ui_state(|ui, app: &mut thicket::ui::EditorApp| app.ui_root(ui), app);
+    h.run_steps(2);
+    h
+}
+
+/// Lets the CPU preview catch up with the document and shows its image.
+pub fn settle_preview(h: &mut egui_kittest::Harness<'static, thicket::ui::EditorApp>) {
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+}
+
+/// A primary click at `at` (press and release without moving).
+pub fn click_at(h: &mut egui_kittest::Harness<'static, thicket::ui::EditorApp>, at: egui::Pos2) {
+    h.hover_at(at);
+    h.run_steps(1);
+    h.drag_at(at);
+    h.run_steps(1);
+    h.drop_at(at);
+    h.run_steps(2);
+}
+
 /// Runs `thicket ARGS` (logging off) and returns what it printed and its exit status.
 pub fn thicket(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_thicket"))

@@ -23,6 +23,23 @@ fn solid(boxes: &[(UVec3, UVec3)]) -> Svo {
     Svo::from_voxels(6, false, voxels).unwrap()
 }
 
+/// Binds `svo` (1-unit voxels at the origin) to `skeleton`.
+fn bind_at_origin(
+    svo: &Svo,
+    skeleton: &super::Skeleton,
+    method: BindMethod,
+) -> (Svo, super::bind::BindReport) {
+    bind(
+        svo,
+        Vec3::ZERO,
+        1.0,
+        skeleton,
+        method,
+        BindControl::default(),
+    )
+    .unwrap()
+}
+
 fn joint(name: &str, parent: Option<&str>, p: [f32; 3]) -> JointSpec {
     JointSpec {
         name: name.into(),
@@ -72,15 +89,7 @@ fn outer_path() -> Vec<UVec3> {
 fn a_bent_two_bone_bar_is_rigid_away_from_the_joint_and_blends_smoothly_across_it() {
     let (svo, spec) = bent_bar();
     let skeleton = spec.to_skeleton(None).unwrap();
-    let (bound, report) = bind(
-        &svo,
-        Vec3::ZERO,
-        1.0,
-        &skeleton,
-        BindMethod::Geodesic,
-        BindControl::default(),
-    )
-    .unwrap();
+    let (bound, report) = bind_at_origin(&svo, &skeleton, BindMethod::Geodesic);
     assert_eq!(report.unreachable_voxels, 0);
     assert_eq!(report.cell_size, 1);
     assert_eq!(report.voxels, svo.leaf_count());
@@ -207,15 +216,7 @@ fn limbs_beside_a_column_take_no_weight_from_it_geodesically_but_do_by_envelope(
 fn rigid_binding_gives_every_voxel_one_joint() {
     let (svo, spec) = u_with_column();
     let skeleton = spec.to_skeleton(None).unwrap();
-    let (bound, report) = bind(
-        &svo,
-        Vec3::ZERO,
-        1.0,
-        &skeleton,
-        BindMethod::Rigid,
-        BindControl::default(),
-    )
-    .unwrap();
+    let (bound, report) = bind_at_origin(&svo, &skeleton, BindMethod::Rigid);
     let arm = skeleton.find("arm.L").unwrap();
     bound.for_each_leaf(|c, v| {
         assert_eq!(v.skin.weights, [255, 0, 0, 0], "{c}: {:?}", v.skin);
@@ -253,15 +254,7 @@ fn a_shell_is_bound_through_the_space_it_encloses_and_islands_fall_back() {
     }
     .to_skeleton(None)
     .unwrap();
-    let (bound, report) = bind(
-        &svo,
-        Vec3::ZERO,
-        1.0,
-        &skeleton,
-        BindMethod::Geodesic,
-        BindControl::default(),
-    )
-    .unwrap();
+    let (bound, report) = bind_at_origin(&svo, &skeleton, BindMethod::Geodesic);
     assert_eq!(report.unreachable_voxels, 2, "{report:?}");
     // The shell's walls follow the bone inside: each wall voxel's strongest joint is the one
     // whose bone runs past it.
@@ -314,15 +307,7 @@ fn a_model_with_large_bounds_is_bound_on_coarser_cells_with_the_same_ownership()
     voxels.push((UVec3::splat(299), Voxel::new([9, 9, 9, 255], Vec3::Y)));
     let svo = Svo::from_voxels(9, false, voxels).unwrap();
     let skeleton = spec.to_skeleton(None).unwrap();
-    let (bound, report) = bind(
-        &svo,
-        Vec3::ZERO,
-        1.0,
-        &skeleton,
-        BindMethod::Geodesic,
-        BindControl::default(),
-    )
-    .unwrap();
+    let (bound, report) = bind_at_origin(&svo, &skeleton, BindMethod::Geodesic);
     assert_eq!(report.cell_size, 2, "{report:?}");
     assert_eq!(report.unreachable_voxels, 1, "{report:?}");
     for x in 2..26 {
