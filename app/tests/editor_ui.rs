@@ -500,6 +500,74 @@ fn bracket_keys_step_the_brush_by_one_voxel() {
     assert_eq!(h.state().sculpt.brush.radius, 2.0);
 }
 
+/// `n` presses of `key` delivered in one frame, as a fast burst (or a stalled frame) delivers them.
+fn presses_in_one_frame(
+    h: &mut Harness<'static, EditorApp>,
+    modifiers: egui::Modifiers,
+    key: egui::Key,
+    n: usize,
+) {
+    for _ in 0..n {
+        h.input_mut().events.push(egui::Event::Key {
+            key,
+            physical_key: None,
+            pressed: true,
+            repeat: false,
+            modifiers,
+        });
+    }
+    h.step();
+}
+
+#[test]
+fn every_key_press_in_one_frame_steps_once() {
+    let mut h = harness(app_with_two_objects());
+    // `[` three times in one frame: three voxels smaller, not one.
+    h.state_mut().sculpt.brush.radius = 5.0;
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::OpenBracket, 3);
+    assert_eq!(h.state().sculpt.brush.radius, 2.0);
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::CloseBracket, 3);
+    assert_eq!(h.state().sculpt.brush.radius, 5.0);
+
+    // Copy the Rock's four voxels (x 0..4 on the floor's first row) and paste: it floats at 0.
+    let rock = h.state().editor.doc().objects[0].id;
+    let ed = &mut h.state_mut().editor;
+    ed.selection = Some(Selection::Object(rock));
+    assert_eq!(ed.select_all_voxels(rock), Ok(4));
+    assert_eq!(ed.copy_voxels(), Ok(4));
+    h.state_mut().sculpt.active = true;
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::V);
+    h.run_steps(1);
+    let at = |h: &Harness<'static, EditorApp>| h.state().editor.floating().map(|f| f.at);
+    assert_eq!(at(&h), Some(glam::IVec3::ZERO), "the paste floats");
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::ArrowDown, 3);
+    assert_eq!(
+        at(&h),
+        Some(glam::IVec3::new(0, 0, 3)),
+        "three rows along +Z"
+    );
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert!(h.state().editor.floating().is_none(), "Enter placed it");
+
+    // The placed copy is the selection: three presses move it three rows, three Ctrl+Z in one
+    // frame undo the three moves.
+    let rows = |h: &Harness<'static, EditorApp>| -> Vec<u32> {
+        let ObjectKind::Voxels(v) = &h.state().editor.doc().objects[0].kind else {
+            unreachable!()
+        };
+        let mut z: Vec<u32> = v.svo.leaves().iter().map(|(c, _)| c.z).collect();
+        z.sort_unstable();
+        z.dedup();
+        z
+    };
+    assert_eq!(rows(&h), [0, 3]);
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::ArrowDown, 3);
+    assert_eq!(rows(&h), [0, 6], "the selection moved three rows");
+    presses_in_one_frame(&mut h, egui::Modifiers::COMMAND, egui::Key::Z, 3);
+    assert_eq!(rows(&h), [0, 3], "three undos, one per press");
+}
+
 /// File → Save As (Ctrl+Shift+S) on an untitled project, then `text` typed over the proposed
 /// name in the path field.
 fn save_as_typing(h: &mut Harness<'static, EditorApp>, text: &str) {

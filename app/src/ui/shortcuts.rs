@@ -59,16 +59,26 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("F1", "This list"),
 ];
 
+/// How many times `key` with `modifiers` was pressed this frame (key repeats included); the
+/// presses are consumed. Fast presses (or a stalled frame) put several in one frame, and a
+/// shortcut that steps something must step once per press: `consume_shortcut` answers only
+/// whether there was one and drops the rest.
+pub(super) fn count_presses(ctx: &egui::Context, modifiers: Modifiers, key: Key) -> usize {
+    ctx.input_mut(|i| i.count_and_consume_key(modifiers, key))
+}
+
 impl EditorApp {
     pub(super) fn handle_shortcuts(&mut self, ctx: &egui::Context) {
         let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
         let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
-        // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
-        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
+        // Shift variants first: a shortcut matches Ctrl+Z also when Shift is held.
+        let redos =
+            count_presses(ctx, cmd_shift, Key::Z) + count_presses(ctx, Modifiers::COMMAND, Key::Y);
+        for _ in 0..redos {
             self.editor.redo();
         }
-        if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
+        for _ in 0..count_presses(ctx, Modifiers::COMMAND, Key::Z) {
             self.editor.undo();
         }
         if consume(shortcut(cmd_shift, Key::S)) {
@@ -159,7 +169,7 @@ impl EditorApp {
             (Modifiers::NONE, Key::OpenBracket, false, false),
             (Modifiers::NONE, Key::CloseBracket, true, false),
         ] {
-            if consume(shortcut(mods, key)) {
+            for _ in 0..count_presses(ctx, mods, key) {
                 self.sculpt.brush.radius =
                     sculpt::step_brush_radius(self.sculpt.brush.radius, grow, double);
             }

@@ -9,6 +9,7 @@ use thicket_core::sculpt::select::SelTransform;
 use thicket_core::sculpt::shapes::ShapeOp;
 
 use super::EditorApp;
+use super::shortcuts::count_presses;
 use super::voxel_tools::ToolKind;
 use crate::editor::{CommandError, ModelOp, ToolOutcome};
 
@@ -459,9 +460,10 @@ impl EditorApp {
             (Key::PageUp, IVec3::Y),
             (Key::PageDown, IVec3::NEG_Y),
         ];
+        // Every press moves one voxel, also when a burst of presses lands in one frame.
         if self.editor.floating().is_some() {
             for (key, by) in moves {
-                if consume(Modifiers::NONE, key) {
+                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
                     self.editor.move_floating(by);
                 }
             }
@@ -475,7 +477,7 @@ impl EditorApp {
             }
         } else if self.editor.voxel_selection().is_some() {
             for (key, by) in moves {
-                if consume(Modifiers::NONE, key) {
+                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
                     let r = self
                         .editor
                         .transform_selected_voxels(SelTransform::Move(by));
