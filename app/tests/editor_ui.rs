@@ -280,8 +280,13 @@ fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
     h.get_by_label("Export...").click();
     // The click, then the prompt's first (invisible, sizing) frame, then the prompt.
     h.run_steps(3);
-    // No native dialog here: the path prompt asks for the file.
+    // No native dialog here: the path prompt asks for the file, named after the (untitled)
+    // project.
     h.get_by_label("Export glTF (.glb or .gltf)");
+    assert!(
+        h.query_all_by_value("untitled.glb").next().is_some(),
+        "an untitled project exports as untitled.glb"
+    );
     let options = h.state().gltf_export.options_for(Some("Tree"));
     assert_eq!(
         options.mode,
@@ -622,6 +627,132 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
     );
     assert_eq!(h.state().editor.path(), Some(path.as_path()));
     assert!(path.is_file(), "Enter saved the project to the typed path");
+}
+
+/// The editor on the Rock and Tree project saved as `dir/house.thicket.json`, path entry on.
+fn saved_house(dir: &std::path::Path) -> Harness<'static, EditorApp> {
+    let house = dir.join("house.thicket.json");
+    let app = app_with_two_objects();
+    thicket::files::save_project(app.editor.doc(), &house).expect("the project saves");
+    let mut app = EditorApp::new(Editor::new(app.editor.doc().clone(), Some(house)));
+    app.native_dialogs = false;
+    app.autosave_secs = 0;
+    harness(app)
+}
+
+#[test]
+fn ctrl_a_in_the_path_entry_selects_its_text_not_the_voxels() {
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    let mut h = harness(app);
+    // With the voxel tools and a voxel model selected, Ctrl+A selects every voxel...
+    let rock = h.state().editor.doc().objects[0].id;
+    h.state_mut().editor.selection = Some(Selection::Object(rock));
+    h.state_mut().sculpt.active = true;
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run_steps(1);
+    let selected = |h: &Harness<'static, EditorApp>| {
+        h.state()
+            .editor
+            .voxel_selection()
+            .map(|s| s.cells.iter().count())
+    };
+    assert_eq!(selected(&h), Some(4));
+    h.state_mut().editor.clear_voxel_selection();
+    // ...but in the path entry it selects the field's text: typing replaces all of it.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    assert!(
+        h.query_all_by_value("untitled.thicket.json")
+            .next()
+            .expect("the path field")
+            .is_focused(),
+        "the entry's field has the keyboard"
+    );
+    // End drops the selection the entry opens with, so only Ctrl+A can select the text again.
+    h.key_press(egui::Key::End);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.event(egui::Event::Text("mushroom.thicket.json".into()));
+    h.run_steps(2);
+    assert!(
+        h.query_all_by_value("mushroom.thicket.json")
+            .next()
+            .is_some(),
+        "the typed name replaced the field's text"
+    );
+    assert_eq!(selected(&h), None, "no voxel was selected");
+}
+
+#[test]
+fn an_absolute_path_typed_after_the_prefilled_folder_opens_that_file() {
+    let home = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    let mut h = saved_house(home.path());
+    let other = elsewhere.path().join("other.thicket.json");
+    thicket::files::save_project(&Document::default(), &other).unwrap();
+    let typed = other.display().to_string();
+    let prefill = format!("{}/", home.path().display());
+    // Open starts in the project's folder with the folder selected: typing replaces it.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.run_steps(3);
+    h.query_all_by_value(&prefill)
+        .next()
+        .expect("the field starts in the project's folder");
+    h.event(egui::Event::Text(typed.clone()));
+    h.run_steps(2);
+    h.query_all_by_value(&typed)
+        .next()
+        .expect("the typed path replaced the selected folder");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    // Typed (or pasted) after the folder, the absolute path wins over the folder.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.run_steps(3);
+    h.key_press(egui::Key::End);
+    h.event(egui::Event::Text(typed.clone()));
+    h.run_steps(2);
+    h.query_all_by_value(&format!("{prefill}{typed}"))
+        .next()
+        .expect("the path follows the folder in the field");
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.path(), Some(other.as_path()));
+    assert!(
+        h.state().editor.doc().objects.is_empty(),
+        "the other project"
+    );
+}
+
+#[test]
+fn exports_are_named_after_the_project() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = saved_house(dir.path());
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export .vox...").click();
+    h.run_steps(3);
+    let vox = dir.path().join("house.vox").display().to_string();
+    h.query_all_by_value(&vox)
+        .next()
+        .expect("Export .vox proposes house.vox beside the project");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export glTF...").click();
+    h.run_steps(2);
+    h.get_by_label("Export...").click();
+    h.run_steps(3);
+    let glb = dir.path().join("house.glb").display().to_string();
+    h.query_all_by_value(&glb)
+        .next()
+        .expect("Export glTF proposes house.glb beside the project");
 }
 
 #[test]

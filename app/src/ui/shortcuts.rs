@@ -68,7 +68,18 @@ pub(super) fn count_presses(ctx: &egui::Context, modifiers: Modifiers, key: Key)
 }
 
 impl EditorApp {
+    /// Whether the keyboard belongs to something other than the editor's shortcuts: a focused
+    /// text field keeps its own keys (Ctrl+A selects its text, Ctrl+Z undoes typing, Ctrl+V
+    /// pastes into it), and an open path entry is modal. Focus is last frame's: the shortcuts
+    /// run before the widgets of this frame.
+    pub(super) fn keyboard_taken(&self, ctx: &egui::Context) -> bool {
+        ctx.text_edit_focused() || self.prompt.is_some()
+    }
+
     pub(super) fn handle_shortcuts(&mut self, ctx: &egui::Context) {
+        if self.keyboard_taken(ctx) {
+            return;
+        }
         let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
         let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
@@ -105,9 +116,8 @@ impl EditorApp {
         {
             let _ = self.editor.duplicate(id);
         }
-        // Single keys only when no text field has the keyboard and no path entry is open
-        // (egui drops a field's focus on Esc before this runs, and the entry needs the Esc).
-        if ctx.egui_wants_keyboard_input() || self.prompt.is_some() {
+        // Single keys only when no widget has the keyboard (a focused slider takes arrows).
+        if ctx.egui_wants_keyboard_input() {
             return;
         }
         if consume(shortcut(Modifiers::NONE, Key::F1)) {

@@ -417,6 +417,9 @@ impl EditorApp {
             ctx.input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(m, k)))
         };
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
+        if self.keyboard_taken(ctx) {
+            return;
+        }
         if consume(cmd_shift, Key::N) {
             self.new_model.show(&self.editor);
         }
