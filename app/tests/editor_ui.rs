@@ -756,6 +756,33 @@ fn exports_are_named_after_the_project() {
 }
 
 #[test]
+fn esc_closes_an_open_menu_before_it_changes_the_tool() {
+    let mut h = harness(app_with_two_objects());
+    h.key_press(egui::Key::S);
+    h.run_steps(1);
+    assert!(h.state().sculpt.active, "S chose the brush");
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Save As").is_some(),
+        "the menu is open"
+    );
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Save As").is_none(),
+        "Esc closed the menu"
+    );
+    assert!(h.state().sculpt.active, "and left the tool as it was");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(
+        !h.state().sculpt.active,
+        "the next Esc goes back to navigating"
+    );
+}
+
+#[test]
 fn the_path_entry_browses_folders_and_keeps_the_typed_file_name() {
     let mut app = app_with_two_objects();
     app.native_dialogs = false;

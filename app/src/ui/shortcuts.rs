@@ -49,7 +49,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
         "Set / delete the selected joint's key at the playhead",
     ),
     ("Space", "Play / pause the timeline"),
-    ("Esc", "Navigate tool"),
+    (
+        "Esc",
+        "Close the open menu; with none open, the navigate tool",
+    ),
     (
         "[ / ]",
         "Brush one voxel smaller / larger (Shift: halve / double; also the stretch brush)",
@@ -65,6 +68,15 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
 /// whether there was one and drops the rest.
 pub(super) fn count_presses(ctx: &egui::Context, modifiers: Modifiers, key: Key) -> usize {
     ctx.input_mut(|i| i.count_and_consume_key(modifiers, key))
+}
+
+/// Esc pressed this frame for the editor, consumed: not while a menu, combo box or other popup
+/// is open, which the Esc closes instead (egui's popups close on Esc when they are drawn, after
+/// the shortcuts); the next Esc, with nothing open, does what Esc does in the editor.
+pub(super) fn consume_escape(ctx: &egui::Context) -> bool {
+    !egui::Popup::is_any_open(ctx)
+        && ctx
+            .input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::NONE, Key::Escape)))
 }
 
 impl EditorApp {
@@ -135,7 +147,7 @@ impl EditorApp {
         if consume(shortcut(Modifiers::NONE, Key::S)) {
             self.sculpt.active = true;
         }
-        if consume(shortcut(Modifiers::NONE, Key::Escape)) {
+        if consume_escape(ctx) {
             self.sculpt.active = false;
         }
         if self.pose.joint.is_some() {

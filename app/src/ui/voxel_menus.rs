@@ -9,7 +9,7 @@ use thicket_core::sculpt::select::SelTransform;
 use thicket_core::sculpt::shapes::ShapeOp;
 
 use super::EditorApp;
-use super::shortcuts::count_presses;
+use super::shortcuts::{consume_escape, count_presses};
 use super::voxel_tools::ToolKind;
 use crate::editor::{CommandError, ModelOp, ToolOutcome};
 
@@ -474,7 +474,7 @@ impl EditorApp {
                 let r = self.editor.commit_floating();
                 self.report_voxels(ctx, "Paste", r);
             }
-            if consume(Modifiers::NONE, Key::Escape) {
+            if consume_escape(ctx) {
                 self.editor.cancel_floating();
                 self.status = "Paste cancelled".into();
             }
@@ -492,7 +492,7 @@ impl EditorApp {
                 self.report_voxels(ctx, "Delete", r);
             }
         }
-        if self.sculpt.voxel.busy() && consume(Modifiers::NONE, Key::Escape) {
+        if self.sculpt.voxel.busy() && consume_escape(ctx) {
             self.sculpt.voxel.cancel();
         }
         for (tool, _, key, _) in ToolKind::ALL {
