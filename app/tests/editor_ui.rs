@@ -280,8 +280,13 @@ fn gltf_export_window_exports_the_selection_on_a_worker_thread() {
     h.get_by_label("Export...").click();
     // The click, then the prompt's first (invisible, sizing) frame, then the prompt.
     h.run_steps(3);
-    // No native dialog here: the path prompt asks for the file.
+    // No native dialog here: the path prompt asks for the file, named after the (untitled)
+    // project.
     h.get_by_label("Export glTF (.glb or .gltf)");
+    assert!(
+        h.query_all_by_value("untitled.glb").next().is_some(),
+        "an untitled project exports as untitled.glb"
+    );
     let options = h.state().gltf_export.options_for(Some("Tree"));
     assert_eq!(
         options.mode,
@@ -500,6 +505,74 @@ fn bracket_keys_step_the_brush_by_one_voxel() {
     assert_eq!(h.state().sculpt.brush.radius, 2.0);
 }
 
+/// `n` presses of `key` delivered in one frame, as a fast burst (or a stalled frame) delivers them.
+fn presses_in_one_frame(
+    h: &mut Harness<'static, EditorApp>,
+    modifiers: egui::Modifiers,
+    key: egui::Key,
+    n: usize,
+) {
+    for _ in 0..n {
+        h.input_mut().events.push(egui::Event::Key {
+            key,
+            physical_key: None,
+            pressed: true,
+            repeat: false,
+            modifiers,
+        });
+    }
+    h.step();
+}
+
+#[test]
+fn every_key_press_in_one_frame_steps_once() {
+    let mut h = harness(app_with_two_objects());
+    // `[` three times in one frame: three voxels smaller, not one.
+    h.state_mut().sculpt.brush.radius = 5.0;
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::OpenBracket, 3);
+    assert_eq!(h.state().sculpt.brush.radius, 2.0);
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::CloseBracket, 3);
+    assert_eq!(h.state().sculpt.brush.radius, 5.0);
+
+    // Copy the Rock's four voxels (x 0..4 on the floor's first row) and paste: it floats at 0.
+    let rock = h.state().editor.doc().objects[0].id;
+    let ed = &mut h.state_mut().editor;
+    ed.selection = Some(Selection::Object(rock));
+    assert_eq!(ed.select_all_voxels(rock), Ok(4));
+    assert_eq!(ed.copy_voxels(), Ok(4));
+    h.state_mut().sculpt.active = true;
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::V);
+    h.run_steps(1);
+    let at = |h: &Harness<'static, EditorApp>| h.state().editor.floating().map(|f| f.at);
+    assert_eq!(at(&h), Some(glam::IVec3::ZERO), "the paste floats");
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::ArrowDown, 3);
+    assert_eq!(
+        at(&h),
+        Some(glam::IVec3::new(0, 0, 3)),
+        "three rows along +Z"
+    );
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert!(h.state().editor.floating().is_none(), "Enter placed it");
+
+    // The placed copy is the selection: three presses move it three rows, three Ctrl+Z in one
+    // frame undo the three moves.
+    let rows = |h: &Harness<'static, EditorApp>| -> Vec<u32> {
+        let ObjectKind::Voxels(v) = &h.state().editor.doc().objects[0].kind else {
+            unreachable!()
+        };
+        let mut z: Vec<u32> = v.svo.leaves().iter().map(|(c, _)| c.z).collect();
+        z.sort_unstable();
+        z.dedup();
+        z
+    };
+    assert_eq!(rows(&h), [0, 3]);
+    presses_in_one_frame(&mut h, egui::Modifiers::NONE, egui::Key::ArrowDown, 3);
+    assert_eq!(rows(&h), [0, 6], "the selection moved three rows");
+    presses_in_one_frame(&mut h, egui::Modifiers::COMMAND, egui::Key::Z, 3);
+    assert_eq!(rows(&h), [0, 3], "three undos, one per press");
+}
+
 /// File → Save As (Ctrl+Shift+S) on an untitled project, then `text` typed over the proposed
 /// name in the path field.
 fn save_as_typing(h: &mut Harness<'static, EditorApp>, text: &str) {
@@ -554,6 +627,159 @@ fn the_path_entry_accepts_enter_and_cancels_on_escape() {
     );
     assert_eq!(h.state().editor.path(), Some(path.as_path()));
     assert!(path.is_file(), "Enter saved the project to the typed path");
+}
+
+/// The editor on the Rock and Tree project saved as `dir/house.thicket.json`, path entry on.
+fn saved_house(dir: &std::path::Path) -> Harness<'static, EditorApp> {
+    let house = dir.join("house.thicket.json");
+    let app = app_with_two_objects();
+    thicket::files::save_project(app.editor.doc(), &house).expect("the project saves");
+    let mut app = EditorApp::new(Editor::new(app.editor.doc().clone(), Some(house)));
+    app.native_dialogs = false;
+    app.autosave_secs = 0;
+    harness(app)
+}
+
+#[test]
+fn ctrl_a_in_the_path_entry_selects_its_text_not_the_voxels() {
+    let mut app = app_with_two_objects();
+    app.native_dialogs = false;
+    let mut h = harness(app);
+    // With the voxel tools and a voxel model selected, Ctrl+A selects every voxel...
+    let rock = h.state().editor.doc().objects[0].id;
+    h.state_mut().editor.selection = Some(Selection::Object(rock));
+    h.state_mut().sculpt.active = true;
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.run_steps(1);
+    let selected = |h: &Harness<'static, EditorApp>| {
+        h.state()
+            .editor
+            .voxel_selection()
+            .map(|s| s.cells.iter().count())
+    };
+    assert_eq!(selected(&h), Some(4));
+    h.state_mut().editor.clear_voxel_selection();
+    // ...but in the path entry it selects the field's text: typing replaces all of it.
+    h.key_press_modifiers(
+        egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
+        egui::Key::S,
+    );
+    h.run_steps(3);
+    assert!(
+        h.query_all_by_value("untitled.thicket.json")
+            .next()
+            .expect("the path field")
+            .is_focused(),
+        "the entry's field has the keyboard"
+    );
+    // End drops the selection the entry opens with, so only Ctrl+A can select the text again.
+    h.key_press(egui::Key::End);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+    h.event(egui::Event::Text("mushroom.thicket.json".into()));
+    h.run_steps(2);
+    assert!(
+        h.query_all_by_value("mushroom.thicket.json")
+            .next()
+            .is_some(),
+        "the typed name replaced the field's text"
+    );
+    assert_eq!(selected(&h), None, "no voxel was selected");
+}
+
+#[test]
+fn an_absolute_path_typed_after_the_prefilled_folder_opens_that_file() {
+    let home = tempfile::tempdir().unwrap();
+    let elsewhere = tempfile::tempdir().unwrap();
+    let mut h = saved_house(home.path());
+    let other = elsewhere.path().join("other.thicket.json");
+    thicket::files::save_project(&Document::default(), &other).unwrap();
+    let typed = other.display().to_string();
+    let prefill = format!("{}/", home.path().display());
+    // Open starts in the project's folder with the folder selected: typing replaces it.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.run_steps(3);
+    h.query_all_by_value(&prefill)
+        .next()
+        .expect("the field starts in the project's folder");
+    h.event(egui::Event::Text(typed.clone()));
+    h.run_steps(2);
+    h.query_all_by_value(&typed)
+        .next()
+        .expect("the typed path replaced the selected folder");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    // Typed (or pasted) after the folder, the absolute path wins over the folder.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::O);
+    h.run_steps(3);
+    h.key_press(egui::Key::End);
+    h.event(egui::Event::Text(typed.clone()));
+    h.run_steps(2);
+    h.query_all_by_value(&format!("{prefill}{typed}"))
+        .next()
+        .expect("the path follows the folder in the field");
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    assert_eq!(h.state().editor.path(), Some(other.as_path()));
+    assert!(
+        h.state().editor.doc().objects.is_empty(),
+        "the other project"
+    );
+}
+
+#[test]
+fn exports_are_named_after_the_project() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut h = saved_house(dir.path());
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export .vox...").click();
+    h.run_steps(3);
+    let vox = dir.path().join("house.vox").display().to_string();
+    h.query_all_by_value(&vox)
+        .next()
+        .expect("Export .vox proposes house.vox beside the project");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    h.get_by_label("Export glTF...").click();
+    h.run_steps(2);
+    h.get_by_label("Export...").click();
+    h.run_steps(3);
+    let glb = dir.path().join("house.glb").display().to_string();
+    h.query_all_by_value(&glb)
+        .next()
+        .expect("Export glTF proposes house.glb beside the project");
+}
+
+#[test]
+fn esc_closes_an_open_menu_before_it_changes_the_tool() {
+    let mut h = harness(app_with_two_objects());
+    h.key_press(egui::Key::S);
+    h.run_steps(1);
+    assert!(h.state().sculpt.active, "S chose the brush");
+    h.get_by_label("File").click();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Save As").is_some(),
+        "the menu is open"
+    );
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Save As").is_none(),
+        "Esc closed the menu"
+    );
+    assert!(h.state().sculpt.active, "and left the tool as it was");
+    h.key_press(egui::Key::Escape);
+    h.run_steps(2);
+    assert!(
+        !h.state().sculpt.active,
+        "the next Esc goes back to navigating"
+    );
 }
 
 #[test]

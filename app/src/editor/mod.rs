@@ -260,11 +260,18 @@ impl Editor {
         self.history.mark_unsaved();
     }
 
-    /// Puts `path` at the top of the recent-files list.
+    /// Puts `path` at the top of the recent-files list, made absolute: the list is kept between
+    /// runs, and a relative path would name another file (or none) from another working folder.
     pub fn push_recent(&mut self, path: PathBuf) {
+        let path = std::path::absolute(&path).unwrap_or(path);
         self.recent.retain(|p| p != &path);
         self.recent.insert(0, path);
         self.recent.truncate(MAX_RECENT);
+    }
+
+    /// Takes `path` off the recent-files list (File → Recent offers it for a missing file).
+    pub fn remove_recent(&mut self, path: &Path) {
+        self.recent.retain(|p| p != path);
     }
 
     /// The selected object, if any.

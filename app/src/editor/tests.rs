@@ -295,9 +295,11 @@ fn recent_files_are_unique_and_bounded() {
     for i in 0..15 {
         ed.push_recent(format!("p{i}.thicket.json").into());
     }
-    ed.push_recent("p3.thicket.json".into());
+    // The same file by its absolute path is the same entry.
+    let p3 = std::env::current_dir().unwrap().join("p3.thicket.json");
+    ed.push_recent(p3.clone());
     assert_eq!(ed.recent.len(), MAX_RECENT);
-    assert_eq!(ed.recent[0], std::path::PathBuf::from("p3.thicket.json"));
+    assert_eq!(ed.recent[0], p3, "stored absolute");
     assert_eq!(
         ed.recent
             .iter()

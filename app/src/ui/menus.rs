@@ -44,13 +44,33 @@ impl EditorApp {
                 ui.weak("No recent files");
             }
             let mut chosen = None;
+            let mut forget = None;
             for path in &self.editor.recent {
-                if ui
-                    .add_enabled(!busy, egui::Button::new(path.display().to_string()))
-                    .clicked()
-                {
-                    chosen = Some(path.clone());
+                let label = path.display().to_string();
+                // A file moved or deleted since (or a relative entry from an older version)
+                // stays listed, greyed, until it is removed here.
+                if path.is_file() {
+                    if ui.add_enabled(!busy, egui::Button::new(label)).clicked() {
+                        chosen = Some(path.clone());
+                    }
+                    continue;
                 }
+                ui.horizontal(|ui| {
+                    ui.add_enabled(false, egui::Button::new(label))
+                        .on_disabled_hover_text(
+                            "No such file any more (moved, renamed or deleted)",
+                        );
+                    if ui
+                        .small_button("Remove from list")
+                        .on_hover_text("Take this file off the list")
+                        .clicked()
+                    {
+                        forget = Some(path.clone());
+                    }
+                });
+            }
+            if let Some(path) = forget {
+                self.editor.remove_recent(&path);
             }
             if let Some(path) = chosen {
                 self.request_open(path);

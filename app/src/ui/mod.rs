@@ -577,8 +577,8 @@ impl EditorApp {
                 || "untitled.thicket.json".into(),
                 |p| p.display().to_string(),
             ),
-            PathPurpose::ExportVox => "export.vox".into(),
-            PathPurpose::ExportGltf => "export.glb".into(),
+            PathPurpose::ExportVox => self.export_path("vox").display().to_string(),
+            PathPurpose::ExportGltf => self.export_path("glb").display().to_string(),
             PathPurpose::SavePalette => "palette.gpl".into(),
             // Open, import, load: the browse list starts in the project's folder.
             _ => self
@@ -591,6 +591,19 @@ impl EditorApp {
         self.prompt = Some(PathPrompt::new(purpose, text));
     }
 
+    /// Where an export goes unless the user says otherwise: the project's name with the
+    /// export's extension, beside the project (`/p/house.thicket.json` → `/p/house.vox`);
+    /// `untitled.vox` before the project has a file.
+    fn export_path(&self, extension: &str) -> PathBuf {
+        let project = self.editor.path();
+        let stem = project.map_or_else(|| "untitled".to_owned(), files::object_name_for);
+        let name = format!("{stem}.{extension}");
+        match project.and_then(Path::parent) {
+            Some(dir) if !dir.as_os_str().is_empty() => dir.join(name),
+            _ => PathBuf::from(name),
+        }
+    }
+
     /// A desktop file dialog on its own thread (it blocks until the user answers).
     fn open_native_dialog(&mut self, purpose: PathPurpose) {
         let start_dir = self
@@ -598,6 +611,12 @@ impl EditorApp {
             .path()
             .and_then(Path::parent)
             .map(Path::to_path_buf);
+        let file_name = |extension: &str| {
+            let path = self.export_path(extension);
+            path.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned())
+        };
+        let (vox_name, glb_name) = (file_name("vox"), file_name("glb"));
         let result = Worker::spawn(move || {
             let mut d = rfd::FileDialog::new().set_title(purpose.title());
             if let Some(dir) = start_dir {
@@ -616,11 +635,11 @@ impl EditorApp {
                     .save_file(),
                 PathPurpose::ExportVox => d
                     .add_filter("MagicaVoxel", &["vox"])
-                    .set_file_name("export.vox")
+                    .set_file_name(vox_name)
                     .save_file(),
                 PathPurpose::ExportGltf => d
                     .add_filter("glTF", &["glb", "gltf"])
-                    .set_file_name("export.glb")
+                    .set_file_name(glb_name)
                     .save_file(),
                 PathPurpose::LoadPalette => {
                     d.add_filter("Palette", &["gpl", "png", "vox"]).pick_file()

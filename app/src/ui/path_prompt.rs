@@ -156,11 +156,41 @@ pub fn folder_of(text: &str) -> PathBuf {
     }
 }
 
+/// The path the typed text names. A path typed or pasted after the pre-filled folder starts
+/// again at its own root (`/home/me/projects/` + `/tmp/x.vox` is `/tmp/x.vox`): the last
+/// absolute path in the text wins. An empty folder name never means anything else (`a//b` is
+/// `a/b` to the system), so a doubled separator is read as the start of a new path.
+#[must_use]
+pub fn typed_path(text: &str) -> &str {
+    let text = text.trim();
+    text.rfind("//").map_or(text, |i| &text[i + 1..])
+}
+
+/// The characters selected when a prompt opens, so that typing replaces the pre-filled text: all
+/// of it for a file to read (a folder, where a typed or pasted path goes), the file name without
+/// its extension for a file to write (the folder and the kind of file are kept).
+#[must_use]
+pub fn initial_selection(purpose: PathPurpose, text: &str) -> std::ops::Range<usize> {
+    let chars = |s: &str| s.chars().count();
+    if !purpose.writes() {
+        return 0..chars(text);
+    }
+    let name_at = text.rfind('/').map_or(0, |i| i + 1);
+    let name = &text[name_at..];
+    let stem_len = name
+        .strip_suffix(".thicket.json")
+        .or_else(|| name.rfind('.').filter(|&i| i > 0).map(|i| &name[..i]))
+        .unwrap_or(name)
+        .len();
+    let start = chars(&text[..name_at]);
+    start..start + chars(&name[..stem_len])
+}
+
 /// The text after choosing folder `dir` in the list: the folder with a trailing separator, and
 /// for prompts that write a file the typed file name kept (`dir/name`).
 #[must_use]
 pub fn text_in_folder(purpose: PathPurpose, text: &str, dir: &Path) -> String {
-    let text = text.trim();
+    let text = typed_path(text);
     let typed_name = (!text.ends_with('/') && !Path::new(text).is_dir())
         .then(|| Path::new(text).file_name())
         .flatten();
@@ -191,6 +221,8 @@ pub struct PathPrompt {
     /// The typed path.
     pub text: String,
     listing: Option<Listing>,
+    /// The pre-filled text is still to be selected (once the field has the keyboard).
+    select_prefill: bool,
 }
 
 /// What the prompt's frame decided.
@@ -218,12 +250,13 @@ impl PathPrompt {
             purpose,
             text,
             listing: None,
+            select_prefill: true,
         }
     }
 
     /// The folder the list shows, read again when the field's folder changed.
     fn refresh(&mut self) -> &Listing {
-        let dir = folder_of(&self.text);
+        let dir = folder_of(typed_path(&self.text));
         if let Some(current) = self.listing.take_if(|l| l.dir == dir) {
             return self.listing.insert(current);
         }
@@ -250,6 +283,20 @@ impl PathPrompt {
             if !enter && ui.memory(|m| m.focused().is_none()) {
                 edit.request_focus();
             }
+            // An unfocused field keeps only a cursor, not a selection: select once it is focused.
+            if self.select_prefill && edit.has_focus() {
+                self.select_prefill = false;
+                let range = initial_selection(self.purpose, &self.text);
+                let mut state =
+                    egui::text_edit::TextEditState::load(ui.ctx(), edit.id).unwrap_or_default();
+                state
+                    .cursor
+                    .set_char_range(Some(egui::text::CCursorRange::two(
+                        egui::text::CCursor::new(range.start),
+                        egui::text::CCursor::new(range.end),
+                    )));
+                state.store(ui.ctx(), edit.id);
+            }
             if let Some(o) = self.browse_ui(ui) {
                 outcome = o;
             }
@@ -260,8 +307,9 @@ impl PathPrompt {
             }
             ui.separator();
             ui.horizontal(|ui| {
-                if (ui.button("OK").clicked() || enter) && !self.text.trim().is_empty() {
-                    outcome = PromptOutcome::Accept(PathBuf::from(self.text.trim()));
+                let path = typed_path(&self.text);
+                if (ui.button("OK").clicked() || enter) && !path.is_empty() {
+                    outcome = PromptOutcome::Accept(PathBuf::from(path));
                 }
                 if ui.button("Cancel").clicked() || ui.input(|i| i.key_pressed(Key::Escape)) {
                     outcome = PromptOutcome::Cancel;
@@ -418,6 +466,39 @@ mod tests {
         assert_eq!(folder_of(&d), dir.path());
         assert_eq!(folder_of(&format!("{d}/")), PathBuf::from(format!("{d}/")));
         assert_eq!(folder_of(&format!("{d}/new.vox")), dir.path());
+    }
+
+    #[test]
+    fn a_path_typed_after_the_prefilled_folder_replaces_it() {
+        assert_eq!(
+            typed_path(" /home/me/projects/x.vox "),
+            "/home/me/projects/x.vox"
+        );
+        assert_eq!(typed_path("/home/me/projects//tmp/x.vox"), "/tmp/x.vox");
+        assert_eq!(typed_path("/home/me/projects//a//tmp/x.vox"), "/tmp/x.vox");
+        assert_eq!(typed_path("projects/x.vox"), "projects/x.vox");
+        assert_eq!(
+            folder_of(typed_path("/home/me/projects//tmp/")),
+            Path::new("/tmp/")
+        );
+        assert_eq!(
+            text_in_folder(
+                PathPurpose::ExportVox,
+                "/home/me//tmp/a.vox",
+                Path::new("/b")
+            ),
+            "/b/a.vox"
+        );
+    }
+
+    #[test]
+    fn the_prefilled_selection_is_the_folder_to_read_or_the_name_to_write() {
+        assert_eq!(initial_selection(PathPurpose::Open, "/home/mé/"), 0..9);
+        assert_eq!(initial_selection(PathPurpose::Open, ""), 0..0);
+        let save = "/home/mé/house.thicket.json";
+        assert_eq!(initial_selection(PathPurpose::SaveAs, save), 9..14);
+        assert_eq!(initial_selection(PathPurpose::ExportVox, "house.vox"), 0..5);
+        assert_eq!(initial_selection(PathPurpose::ExportGltf, "/a/.glb"), 3..7);
     }
 
     #[test]

@@ -49,7 +49,10 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
         "Set / delete the selected joint's key at the playhead",
     ),
     ("Space", "Play / pause the timeline"),
-    ("Esc", "Navigate tool"),
+    (
+        "Esc",
+        "Close the open menu; with none open, the navigate tool",
+    ),
     (
         "[ / ]",
         "Brush one voxel smaller / larger (Shift: halve / double; also the stretch brush)",
@@ -59,16 +62,46 @@ pub const SHORTCUTS: &[(&str, &str)] = &[
     ("F1", "This list"),
 ];
 
+/// How many times `key` with `modifiers` was pressed this frame (key repeats included); the
+/// presses are consumed. Fast presses (or a stalled frame) put several in one frame, and a
+/// shortcut that steps something must step once per press: `consume_shortcut` answers only
+/// whether there was one and drops the rest.
+pub(super) fn count_presses(ctx: &egui::Context, modifiers: Modifiers, key: Key) -> usize {
+    ctx.input_mut(|i| i.count_and_consume_key(modifiers, key))
+}
+
+/// Esc pressed this frame for the editor, consumed: not while a menu, combo box or other popup
+/// is open, which the Esc closes instead (egui's popups close on Esc when they are drawn, after
+/// the shortcuts); the next Esc, with nothing open, does what Esc does in the editor.
+pub(super) fn consume_escape(ctx: &egui::Context) -> bool {
+    !egui::Popup::is_any_open(ctx)
+        && ctx
+            .input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(Modifiers::NONE, Key::Escape)))
+}
+
 impl EditorApp {
+    /// Whether the keyboard belongs to something other than the editor's shortcuts: a focused
+    /// text field keeps its own keys (Ctrl+A selects its text, Ctrl+Z undoes typing, Ctrl+V
+    /// pastes into it), and an open path entry is modal. Focus is last frame's: the shortcuts
+    /// run before the widgets of this frame.
+    pub(super) fn keyboard_taken(&self, ctx: &egui::Context) -> bool {
+        ctx.text_edit_focused() || self.prompt.is_some()
+    }
+
     pub(super) fn handle_shortcuts(&mut self, ctx: &egui::Context) {
+        if self.keyboard_taken(ctx) {
+            return;
+        }
         let shortcut = |m: Modifiers, k: Key| KeyboardShortcut::new(m, k);
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
         let consume = |s: KeyboardShortcut| ctx.input_mut(|i| i.consume_shortcut(&s));
-        // Shift variants first: consume_shortcut matches Ctrl+Z also when Shift is held.
-        if consume(shortcut(cmd_shift, Key::Z)) || consume(shortcut(Modifiers::COMMAND, Key::Y)) {
+        // Shift variants first: a shortcut matches Ctrl+Z also when Shift is held.
+        let redos =
+            count_presses(ctx, cmd_shift, Key::Z) + count_presses(ctx, Modifiers::COMMAND, Key::Y);
+        for _ in 0..redos {
             self.editor.redo();
         }
-        if consume(shortcut(Modifiers::COMMAND, Key::Z)) {
+        for _ in 0..count_presses(ctx, Modifiers::COMMAND, Key::Z) {
             self.editor.undo();
         }
         if consume(shortcut(cmd_shift, Key::S)) {
@@ -95,9 +128,8 @@ impl EditorApp {
         {
             let _ = self.editor.duplicate(id);
         }
-        // Single keys only when no text field has the keyboard and no path entry is open
-        // (egui drops a field's focus on Esc before this runs, and the entry needs the Esc).
-        if ctx.egui_wants_keyboard_input() || self.prompt.is_some() {
+        // Single keys only when no widget has the keyboard (a focused slider takes arrows).
+        if ctx.egui_wants_keyboard_input() {
             return;
         }
         if consume(shortcut(Modifiers::NONE, Key::F1)) {
@@ -115,7 +147,7 @@ impl EditorApp {
         if consume(shortcut(Modifiers::NONE, Key::S)) {
             self.sculpt.active = true;
         }
-        if consume(shortcut(Modifiers::NONE, Key::Escape)) {
+        if consume_escape(ctx) {
             self.sculpt.active = false;
         }
         if self.pose.joint.is_some() {
@@ -159,7 +191,7 @@ impl EditorApp {
             (Modifiers::NONE, Key::OpenBracket, false, false),
             (Modifiers::NONE, Key::CloseBracket, true, false),
         ] {
-            if consume(shortcut(mods, key)) {
+            for _ in 0..count_presses(ctx, mods, key) {
                 self.sculpt.brush.radius =
                     sculpt::step_brush_radius(self.sculpt.brush.radius, grow, double);
             }

@@ -9,6 +9,7 @@ use thicket_core::sculpt::select::SelTransform;
 use thicket_core::sculpt::shapes::ShapeOp;
 
 use super::EditorApp;
+use super::shortcuts::{consume_escape, count_presses};
 use super::voxel_tools::ToolKind;
 use crate::editor::{CommandError, ModelOp, ToolOutcome};
 
@@ -416,6 +417,9 @@ impl EditorApp {
             ctx.input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(m, k)))
         };
         let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
+        if self.keyboard_taken(ctx) {
+            return;
+        }
         if consume(cmd_shift, Key::N) {
             self.new_model.show(&self.editor);
         }
@@ -459,9 +463,10 @@ impl EditorApp {
             (Key::PageUp, IVec3::Y),
             (Key::PageDown, IVec3::NEG_Y),
         ];
+        // Every press moves one voxel, also when a burst of presses lands in one frame.
         if self.editor.floating().is_some() {
             for (key, by) in moves {
-                if consume(Modifiers::NONE, key) {
+                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
                     self.editor.move_floating(by);
                 }
             }
@@ -469,13 +474,13 @@ impl EditorApp {
                 let r = self.editor.commit_floating();
                 self.report_voxels(ctx, "Paste", r);
             }
-            if consume(Modifiers::NONE, Key::Escape) {
+            if consume_escape(ctx) {
                 self.editor.cancel_floating();
                 self.status = "Paste cancelled".into();
             }
         } else if self.editor.voxel_selection().is_some() {
             for (key, by) in moves {
-                if consume(Modifiers::NONE, key) {
+                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
                     let r = self
                         .editor
                         .transform_selected_voxels(SelTransform::Move(by));
@@ -487,7 +492,7 @@ impl EditorApp {
                 self.report_voxels(ctx, "Delete", r);
             }
         }
-        if self.sculpt.voxel.busy() && consume(Modifiers::NONE, Key::Escape) {
+        if self.sculpt.voxel.busy() && consume_escape(ctx) {
             self.sculpt.voxel.cancel();
         }
         for (tool, _, key, _) in ToolKind::ALL {
