@@ -393,6 +393,61 @@ struct Grid {
     cells: Vec<u32>,
 }
 
+/// The best distances found so far per cell (see `Grid::propagate`).
+struct Tentative {
+    count: Vec<u8>,
+    joint: Vec<u8>,
+    dist: Vec<u32>,
+}
+
+impl Tentative {
+    /// The tentative distance of joint `j` at cell `d`.
+    fn distance(&self, d: usize, j: u8) -> Option<u32> {
+        let c = usize::from(self.count[d]);
+        (0..c)
+            .find(|&k| self.joint[d * K + k] == j)
+            .map(|k| self.dist[d * K + k])
+    }
+
+    /// Offers joint `j` at distance `dist` to cell `d`; true when it improved the cell's
+    /// tentative list (the caller then queues it).
+    fn offer(&mut self, labels: &Labels, d: usize, j: u8, dist: u32, keep: usize) -> bool {
+        let settled = usize::from(labels.count[d]);
+        if settled >= keep || labels.joint[d * K..d * K + settled].contains(&j) {
+            return false;
+        }
+        let c = usize::from(self.count[d]);
+        let slots = d * K..d * K + c;
+        if let Some(k) = self.joint[slots.clone()].iter().position(|&x| x == j) {
+            let slot = d * K + k;
+            if dist >= self.dist[slot] {
+                return false;
+            }
+            self.dist[slot] = dist;
+            return true;
+        }
+        if c < keep {
+            self.joint[d * K + c] = j;
+            self.dist[d * K + c] = dist;
+            self.count[d] += 1;
+            return true;
+        }
+        // Full: replace the worst entry whose joint has not settled here, if `j` beats it.
+        let is_settled = |x: u8| labels.joint[d * K..d * K + settled].contains(&x);
+        let worst = slots
+            .filter(|&slot| !is_settled(self.joint[slot]))
+            .max_by_key(|&slot| self.dist[slot]);
+        match worst {
+            Some(slot) if dist < self.dist[slot] => {
+                self.joint[slot] = j;
+                self.dist[slot] = dist;
+                true
+            }
+            _ => false,
+        }
+    }
+}
+
 /// Labels of every domain cell: up to [`K`] `(joint, distance)` pairs, nearest first.
 struct Labels {
     count: Vec<u8>,
@@ -572,6 +627,14 @@ impl Grid {
         }
         const RING: usize = 64;
         let mut ring: Vec<Vec<u64>> = vec![Vec::new(); RING];
+        // Tentative distances: per cell up to `keep` joints with the best distance found so
+        // far. A joint enters only by beating the worst unsettled one (or a free slot): a joint
+        // worse than `keep` others can never be among the cell's nearest, so it is never pushed.
+        let mut tent = Tentative {
+            count: vec![0; n],
+            joint: vec![0; n * K],
+            dist: vec![0; n * K],
+        };
         let seeds = self.seeds(bones);
         let mut next_seed = 0;
         let mut pending = 0usize;
@@ -582,9 +645,11 @@ impl Grid {
         let mut since_check = 0usize;
         loop {
             while next_seed < seeds.len() && seeds[next_seed].0 == cur {
-                let (_, d, j) = seeds[next_seed];
-                ring[cur as usize % RING].push(u64::from(d) << 8 | u64::from(j));
-                pending += 1;
+                let (dist, d, j) = seeds[next_seed];
+                if tent.offer(&labels, d as usize, j, dist, keep) {
+                    ring[cur as usize % RING].push(u64::from(d) << 8 | u64::from(j));
+                    pending += 1;
+                }
                 next_seed += 1;
             }
             if pending == 0 {
@@ -602,7 +667,11 @@ impl Grid {
                 let d = (e >> 8) as usize;
                 let j = (e & 0xff) as u8;
                 let c = usize::from(labels.count[d]);
-                if c >= keep || labels.joint[d * K..d * K + c].contains(&j) {
+                // Stale entries: the joint settled already, was improved, or was evicted.
+                if c >= keep
+                    || labels.joint[d * K..d * K + c].contains(&j)
+                    || tent.distance(d, j) != Some(cur)
+                {
                     continue;
                 }
                 labels.joint[d * K + c] = j;
@@ -615,13 +684,10 @@ impl Grid {
                     if nd == NOT_DOMAIN {
                         continue;
                     }
-                    let nd = nd as usize;
-                    let nc = usize::from(labels.count[nd]);
-                    if nc >= keep || labels.joint[nd * K..nd * K + nc].contains(&j) {
-                        continue;
+                    if tent.offer(&labels, nd as usize, j, cur + w, keep) {
+                        ring[(cur + w) as usize % RING].push(u64::from(nd) << 8 | u64::from(j));
+                        pending += 1;
                     }
-                    ring[(cur + w) as usize % RING].push((nd as u64) << 8 | u64::from(j));
-                    pending += 1;
                 }
             }
             since_check += scratch.len();
