@@ -14,7 +14,7 @@
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
 //! | [`rig`] | [`Rig`]: a voxel model's skeleton, clips, playback, pose overrides, stretch settings |
 //! | [`author`] | skeletons from joint positions and clips from Euler keys (`thicket rig` / `animate` formats) |
-//! | [`bind`] | automatic weights on the voxels: geodesic, envelope, rigid |
+//! | [`mod@bind`] | automatic weights on the voxels: geodesic, envelope, rigid |
 //! | [`paint`] | weight-paint dabs (add, subtract, smooth) |
 //!
 //! Elsewhere, because they build documents or read files (layers above the document, see

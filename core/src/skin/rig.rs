@@ -181,7 +181,7 @@ pub struct Rig {
     #[serde(skip)]
     pub reference_mesh: Option<crate::mesh::MeshModel>,
     /// The skeleton (as joint positions) and method the voxels' weights were last computed
-    /// for by [`crate::skin::bind`]; `None` for imported weights or a skeleton never bound.
+    /// for by [`crate::skin::bind()`]; `None` for imported weights or a skeleton never bound.
     /// An editor compares it with [`Rig::skeleton`] to tell the artist the weights are stale.
     pub binding: Option<Binding>,
     /// Derived drawing tables (corner weights, subtree joints), rebuilt when the octree
