@@ -209,6 +209,19 @@ impl Editor {
         weights: WeightsOnEdit,
         merge: Option<MergeKey>,
     ) -> Result<Option<BindReport>, CommandError> {
+        self.set_skeleton_renaming(id, spec, weights, merge, &[])
+    }
+
+    /// [`Editor::set_skeleton`] where joints `old → new` of `renames` are renamed, not replaced:
+    /// their weights, keys and overrides go with them.
+    fn set_skeleton_renaming(
+        &mut self,
+        id: u64,
+        spec: &SkeletonSpec,
+        weights: WeightsOnEdit,
+        merge: Option<MergeKey>,
+        renames: &[(String, String)],
+    ) -> Result<Option<BindReport>, CommandError> {
         let model = self.voxel_model(id)?;
         if spec.joints.is_empty() {
             if model.rig.is_none() {
@@ -226,10 +239,27 @@ impl Editor {
             );
             return Ok(None);
         }
+        if let Some(old) = &model.rig
+            && !has_native_frames(&old.skeleton)
+        {
+            return Err(CommandError::Invalid(
+                "this skeleton came with the imported file and its joints have rotated or \
+                 scaled frames that its clips are written against: rename its joints here, or \
+                 edit the skeleton in the tool it came from (or delete every joint to start \
+                 a skeleton of Thicket's own)"
+                    .into(),
+            ));
+        }
         let skeleton = spec
             .to_skeleton(model.bounds())
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
-        let rig = rig_for(model.rig.as_ref(), skeleton);
+        let mut old_rig = model.rig.clone();
+        if let Some(r) = &mut old_rig {
+            for (from, to) in renames {
+                rename_in_rig(r, from, to);
+            }
+        }
+        let rig = rig_for(old_rig.as_ref(), skeleton);
         match weights {
             WeightsOnEdit::Rebind(method) => {
                 let (svo, report) = bind(
@@ -254,7 +284,7 @@ impl Editor {
                 Ok(Some(report))
             }
             WeightsOnEdit::Keep => {
-                let old = model.rig.as_ref().map(|r| &r.skeleton);
+                let old = old_rig.as_ref().map(|r| &r.skeleton);
                 let remap = old.map(|old| joint_remap(old, &rig.skeleton));
                 let identity = remap
                     .as_ref()
@@ -364,8 +394,10 @@ impl Editor {
     /// # Errors
     /// An empty or taken name; see [`Editor::set_skeleton`].
     pub fn rename_joint(&mut self, id: u64, joint: usize, name: &str) -> Result<(), CommandError> {
-        let mut spec = self.skeleton_spec(id)?;
-        let old = spec
+        let rig = self.rig_or_err(id)?;
+        let name = name.trim();
+        let old = rig
+            .skeleton
             .joints
             .get(joint)
             .ok_or_else(|| CommandError::Invalid(format!("no joint {joint}")))?
@@ -374,29 +406,18 @@ impl Editor {
         if old == name {
             return Ok(());
         }
-        for j in &mut spec.joints {
-            if j.parent.as_deref() == Some(old.as_str()) {
-                j.parent = Some(name.to_owned());
-            }
+        if name.is_empty() {
+            return Err(CommandError::Invalid("a joint needs a name".into()));
         }
-        spec.joints[joint].name = name.to_owned();
-        // Clips and weights follow by name: rename in the rig first, then set the skeleton.
-        let model = self.voxel_model(id)?;
-        let skeleton = spec
-            .to_skeleton(model.bounds())
-            .map_err(|e| CommandError::Invalid(e.to_string()))?;
-        let mut rig = model.rig.clone().unwrap_or_default();
-        if let Some(binding) = &mut rig.binding {
-            for j in &mut binding.skeleton.joints {
-                if j.name == old {
-                    j.name = name.to_owned();
-                }
-                if j.parent.as_deref() == Some(old.as_str()) {
-                    j.parent = Some(name.to_owned());
-                }
-            }
+        if rig.skeleton.find(name).is_some() {
+            return Err(CommandError::Invalid(format!(
+                "joint {name:?} is named twice: choose another name"
+            )));
         }
-        rig.skeleton = skeleton;
+        // Only the name changes: joint frames (an imported rig's rotated ones too), weights,
+        // keys and overrides stay as they are.
+        let mut rig = rig.clone();
+        rename_in_rig(&mut rig, &old, name);
         self.apply(
             Edit::SetRig {
                 id,
@@ -407,7 +428,7 @@ impl Editor {
         Ok(())
     }
 
-    /// Makes `parent` (or no joint) the parent of `joint`.
+    /// Makes `parent` (or no joint) the parent of `joint`; returns the joint's new index.
     ///
     /// # Errors
     /// A cycle (a joint under its own descendant); see [`Editor::set_skeleton`].
@@ -416,14 +437,15 @@ impl Editor {
         id: u64,
         joint: usize,
         parent: Option<usize>,
-    ) -> Result<(), CommandError> {
+    ) -> Result<usize, CommandError> {
         let mut spec = self.skeleton_spec(id)?;
         if joint >= spec.joints.len() || parent.is_some_and(|p| p >= spec.joints.len()) {
             return Err(CommandError::Invalid(format!("no joint {joint}")));
         }
         spec.joints[joint].parent = parent.map(|p| spec.joints[p].name.clone());
-        self.set_skeleton(id, &spec, WeightsOnEdit::Keep, None)
-            .map(|_| ())
+        let name = spec.joints[joint].name.clone();
+        // Parents come first: moving a joint under a later one changes its index.
+        self.set_skeleton_finding(id, &spec, &name)
     }
 
     /// Deletes joint `joint`; its children move up to its parent and its voxels' weight goes
@@ -464,7 +486,8 @@ impl Editor {
             return Err(CommandError::Invalid(format!("no joint {joint}")));
         }
         let chain = subtree(&spec, joint);
-        // Names without a side get one first.
+        // Names without a side get one first (renamed: their weights and keys go with them).
+        let mut renames = Vec::new();
         for &c in &chain {
             if mirrored_name(&spec.joints[c].name).is_none() {
                 let named = format!("{}.L", spec.joints[c].name);
@@ -474,6 +497,7 @@ impl Editor {
                         j.parent = Some(named.clone());
                     }
                 }
+                renames.push((old, named));
             }
         }
         let mut copies = Vec::new();
@@ -503,7 +527,10 @@ impl Editor {
         }
         let first = copies[0].name.clone();
         spec.joints.extend(copies);
-        self.set_skeleton_finding(id, &spec, &first)
+        self.set_skeleton_renaming(id, &spec, WeightsOnEdit::Keep, None, &renames)?;
+        self.rig(id)
+            .and_then(|r| r.skeleton.find(&first))
+            .ok_or_else(|| CommandError::Invalid(format!("joint {first:?} was not added")))
     }
 
     /// Sets the skeleton (keeping the weights) and returns the index of joint `name` in it.
@@ -740,6 +767,21 @@ impl Editor {
         clip: usize,
         length_secs: f32,
     ) -> Result<(), CommandError> {
+        self.set_clip_length_merged(id, clip, length_secs, None)
+    }
+
+    /// [`Editor::set_clip_length`] as part of a drag: calls with `Some(key)` until
+    /// [`Editor::end_interaction`] are one undo step.
+    ///
+    /// # Errors
+    /// As [`Editor::set_clip_length`].
+    pub fn set_clip_length_merged(
+        &mut self,
+        id: u64,
+        clip: usize,
+        length_secs: f32,
+        merge: Option<MergeKey>,
+    ) -> Result<(), CommandError> {
         let mut clips = self.rig_or_err(id)?.clips.clone();
         let c = clips
             .get_mut(clip)
@@ -752,7 +794,7 @@ impl Editor {
             )));
         }
         c.duration_secs = length_secs;
-        self.apply(Edit::SetClips { id, clips }, None);
+        self.apply(Edit::SetClips { id, clips }, merge);
         Ok(())
     }
 
@@ -771,6 +813,10 @@ impl Editor {
             return Err(CommandError::Invalid(format!(
                 "clip length {length_secs} s must be positive"
             )));
+        }
+        let name = name.trim();
+        if name.is_empty() {
+            return Err(CommandError::Invalid("a clip needs a name".into()));
         }
         let mut clips = rig.clips.clone();
         let taken = |n: &str| clips.iter().any(|c| c.name == n);
@@ -875,6 +921,41 @@ fn rig_for(old: Option<&Rig>, skeleton: Skeleton) -> Rig {
         binding: old.binding.clone(),
         ..Rig::default()
     }
+}
+
+/// Renames joint `from` to `to` in a rig: the skeleton and the binding record (clips, overrides
+/// and weights address joints by index and follow).
+fn rename_in_rig(rig: &mut Rig, from: &str, to: &str) {
+    for j in &mut rig.skeleton.joints {
+        if j.name == from {
+            to.clone_into(&mut j.name);
+        }
+    }
+    if let Some(binding) = &mut rig.binding {
+        for j in &mut binding.skeleton.joints {
+            if j.name == from {
+                to.clone_into(&mut j.name);
+            }
+            if j.parent.as_deref() == Some(from) {
+                j.parent = Some(to.to_owned());
+            }
+        }
+    }
+}
+
+/// Whether every joint's frame is what [`SkeletonSpec::to_skeleton`] makes: a pure translation
+/// with no attachment. Imported skeletons with rotated or scaled frames are not rebuilt from joint
+/// positions (their clips are written against those frames).
+fn has_native_frames(skeleton: &Skeleton) -> bool {
+    skeleton.joints.iter().all(|j| {
+        let bind_is_translation = j.inverse_bind.x_axis.abs_diff_eq(glam::Vec4::X, 1e-5)
+            && j.inverse_bind.y_axis.abs_diff_eq(glam::Vec4::Y, 1e-5)
+            && j.inverse_bind.z_axis.abs_diff_eq(glam::Vec4::Z, 1e-5);
+        j.rest.rotation.abs_diff_eq(glam::Quat::IDENTITY, 1e-5)
+            && j.rest.scale.abs_diff_eq(Vec3::ONE, 1e-5)
+            && j.parent_from_attachment == glam::Mat4::IDENTITY
+            && bind_is_translation
+    })
 }
 
 fn bound_rig(mut rig: Rig, method: BindMethod) -> Rig {

@@ -419,3 +419,130 @@ fn start_clips(
         _ => Vec::new(),
     }
 }
+
+#[test]
+fn mirroring_a_chain_without_sides_keeps_its_weights_and_keys_on_the_renamed_joints() {
+    let (mut ed, id, hip, leg) = bound_hip_and_leg();
+    let foot = ed
+        .add_joint(id, Some(leg), Vec3::new(2.0, 1.0, 2.0), Some("foot"))
+        .unwrap();
+    ed.rename_joint(id, leg, "leg").unwrap();
+    ed.bind_now(id, BindMethod::Geodesic).unwrap();
+    ed.new_clip(id, "kick", 1.0).unwrap();
+    ed.rotate_joint(id, foot, None, glam::Quat::from_rotation_x(0.3))
+        .unwrap();
+    ed.set_joint_key(id, foot).unwrap();
+    let before = model(&ed, id).svo.clone();
+    let weight_of = |ed: &Editor, name: &str| {
+        let rig = ed.rig(id).unwrap();
+        let j = rig.skeleton.find(name).unwrap();
+        let mut sum = 0.0;
+        model(ed, id).svo.for_each_leaf(|_, v| {
+            sum += v
+                .skin
+                .influences()
+                .filter(|&(k, _)| usize::from(k) == j)
+                .map(|(_, w)| w)
+                .sum::<f32>();
+        });
+        sum
+    };
+    let leg_weight = weight_of(&ed, "leg");
+    assert!(leg_weight > 10.0, "{leg_weight}");
+    ed.mirror_chain(id, leg).unwrap();
+    // The originals are renamed (.L), not replaced: same weights, same keys.
+    assert_eq!(weight_of(&ed, "leg.L"), leg_weight);
+    assert!(model(&ed, id).svo == before, "no voxel's weights changed");
+    let rig = ed.rig(id).unwrap();
+    let foot_l = rig.skeleton.find("foot.L").unwrap();
+    assert!(rig.clips[0].channels.iter().any(|c| c.joint == foot_l));
+    assert!(rig.skeleton.find("leg.R").is_some() && rig.skeleton.find("foot.R").is_some());
+    let _ = hip;
+}
+
+#[test]
+fn reparenting_returns_the_joints_new_index() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let hip = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    let arm = ed
+        .add_joint(id, Some(hip), Vec3::new(1.0, 20.0, 2.0), Some("arm"))
+        .unwrap();
+    ed.add_joint(id, Some(hip), Vec3::new(5.0, 20.0, 2.0), Some("spine"))
+        .unwrap();
+    let spine = ed.rig(id).unwrap().skeleton.find("spine").unwrap();
+    assert!(arm < spine);
+    let moved = ed.reparent_joint(id, arm, Some(spine)).unwrap();
+    let rig = ed.rig(id).unwrap();
+    assert_eq!(rig.skeleton.joints[moved].name, "arm");
+    assert_eq!(
+        rig.skeleton.joints[moved].parent,
+        rig.skeleton.find("spine")
+    );
+}
+
+#[test]
+fn an_imported_rig_is_renamed_in_place_and_not_rebuilt_from_positions() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    ed.add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), Some("hip"))
+        .unwrap();
+    // Give the joint a rotated frame, as imported rigs have.
+    let mut model_now = model(&ed, id).clone();
+    let rig = model_now.rig.as_mut().unwrap();
+    rig.skeleton.joints[0].rest.rotation = glam::Quat::from_rotation_z(0.5);
+    ed.apply(
+        Edit::SetVoxelModel {
+            id,
+            model: Box::new(model_now),
+        },
+        None,
+    );
+    ed.rename_joint(id, 0, "pelvis").unwrap();
+    let rig = ed.rig(id).unwrap();
+    assert_eq!(rig.skeleton.joints[0].name, "pelvis");
+    assert!(
+        rig.skeleton.joints[0]
+            .rest
+            .rotation
+            .abs_diff_eq(glam::Quat::from_rotation_z(0.5), 1e-6),
+        "the frame is kept"
+    );
+    let before = ed.doc().clone();
+    let err = ed
+        .add_joint(id, Some(0), Vec3::new(2.0, 5.0, 2.0), None)
+        .unwrap_err();
+    assert!(err.to_string().contains("imported"), "{err}");
+    assert_eq!(ed.doc(), &before);
+}
+
+#[test]
+fn smoothing_reads_an_empty_skin_as_the_root_at_full_weight() {
+    let mut ed = Editor::default();
+    let id = figure(&mut ed);
+    let root = ed
+        .add_joint(id, None, Vec3::new(5.0, 13.0, 2.0), None)
+        .unwrap();
+    let tip = ed
+        .add_joint(id, Some(root), Vec3::new(5.0, 22.0, 2.0), None)
+        .unwrap();
+    let c = UVec3::new(5, 18, 2);
+    // One voxel painted fully onto the tip, its neighbours still empty (on the root).
+    ed.paint_weights(id, tip, c.as_vec3() + 0.5, 0.5, 1.0, false)
+        .unwrap();
+    ed.end_interaction();
+    let tip_weight = |ed: &Editor| {
+        let s = model(ed, id).svo.get(c).unwrap().skin;
+        s.influences()
+            .filter(|&(j, _)| usize::from(j) == tip)
+            .map(|(_, w)| w)
+            .sum::<f32>()
+    };
+    assert_eq!(tip_weight(&ed), 1.0);
+    // Smoothing the root there pulls the voxel back toward its neighbours' root weight.
+    ed.paint_weights(id, root, c.as_vec3() + 0.5, 0.5, 0.0, true)
+        .unwrap();
+    assert!(tip_weight(&ed) < 0.75, "{}", tip_weight(&ed));
+}

@@ -39,8 +39,8 @@ pub struct RigSetup {
     pub show_weights: bool,
     /// A Bind the app should start as a job: (object, method).
     pub bind_request: Option<(u64, BindMethod)>,
-    /// The name field of the selected joint, while it is edited.
-    name_edit: Option<(usize, String)>,
+    /// The name field of the selected joint while it has the keyboard: ((object, joint), text).
+    name_edit: Option<((u64, usize), String)>,
     /// The name field of a clip, while it is edited: (clip, text).
     clip_edit: Option<(usize, String)>,
     /// New clip's name and length.
@@ -152,18 +152,21 @@ fn joint_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, i
     };
     ui.horizontal(|ui| {
         ui.label("Joint");
-        if tool.rig.name_edit.as_ref().is_none_or(|(k, _)| *k != j) {
-            tool.rig.name_edit = Some((j, joint.name.clone()));
-        }
-        let Some((_, text)) = tool.rig.name_edit.as_mut() else {
-            return;
+        // The text being typed is kept while the field has the keyboard; otherwise the field
+        // shows the joint's name as it is now (after an undo, another selection, a delete).
+        let mut text = match &tool.rig.name_edit {
+            Some((k, t)) if *k == (id, j) => t.clone(),
+            _ => joint.name.clone(),
         };
-        let r = ui.add(egui::TextEdit::singleline(text).desired_width(120.0));
-        if r.lost_focus() && *text != joint.name {
-            let name = text.trim().to_owned();
-            let res = editor.rename_joint(id, j, &name);
-            note(tool, res);
+        let r = ui.add(egui::TextEdit::singleline(&mut text).desired_width(120.0));
+        if r.lost_focus() {
+            if text != joint.name {
+                let res = editor.rename_joint(id, j, &text);
+                note(tool, res);
+            }
             tool.rig.name_edit = None;
+        } else if r.has_focus() {
+            tool.rig.name_edit = Some(((id, j), text));
         }
     });
     ui.horizontal(|ui| {
@@ -194,8 +197,13 @@ fn joint_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, i
                 }
             });
         if let Some(parent) = choice {
-            let r = editor.reparent_joint(id, j, parent);
-            note(tool, r);
+            match editor.reparent_joint(id, j, parent) {
+                Ok(k) => {
+                    tool.select_joint(id, k);
+                    tool.rig.error = None;
+                }
+                Err(e) => tool.rig.error = Some(e.to_string()),
+            }
         }
     });
     ui.horizontal(|ui| {
@@ -392,17 +400,21 @@ fn clips_ui(
                 tool.rig.clip_edit = Some((i, text));
             }
             let mut length = c.duration_secs;
-            if ui
+            let r = ui
                 .add(
                     egui::DragValue::new(&mut length)
                         .range(0.05..=3600.0)
                         .speed(0.05)
                         .suffix(" s"),
                 )
-                .on_hover_text("The clip's length (never shorter than its last key)")
-                .changed()
-            {
-                action = Some(editor.set_clip_length(id, i, length));
+                .on_hover_text("The clip's length (never shorter than its last key)");
+            if r.changed() {
+                // A drag is one undo step.
+                let merge = Some(crate::editor::MergeKey::Rig(id));
+                action = Some(editor.set_clip_length_merged(id, i, length, merge));
+            }
+            if r.drag_stopped() || r.lost_focus() {
+                editor.end_interaction();
             }
             if ui
                 .selectable_label(playing, if playing { "Playing" } else { "Play it" })

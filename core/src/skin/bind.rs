@@ -374,6 +374,24 @@ fn envelope_nearest(bones: &Bones, p: Vec3) -> Nearest {
     Nearest::from_unsorted(&mut cands)
 }
 
+/// The part of segment `a..b` inside the box `lo..hi` (`None` when it misses the box).
+fn clip_segment(a: Vec3, b: Vec3, lo: Vec3, hi: Vec3) -> Option<(Vec3, Vec3)> {
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for i in 0..3 {
+        if d[i].abs() < 1e-12 {
+            if a[i] < lo[i] || a[i] > hi[i] {
+                return None;
+            }
+        } else {
+            let (ta, tb) = ((lo[i] - a[i]) / d[i], (hi[i] - a[i]) / d[i]);
+            t0 = t0.max(ta.min(tb));
+            t1 = t1.min(ta.max(tb));
+        }
+    }
+    (t0 <= t1).then(|| (a + d * t0, a + d * t1))
+}
+
 /// Cell states of the dense occupancy grid.
 const EMPTY: u8 = 0;
 const SOLID: u8 = 1;
@@ -554,7 +572,14 @@ impl Grid {
         for (j, segs) in bones.segments.iter().enumerate() {
             let first = seeds.len();
             let mark = j as u16 + 1;
+            // Only the part of a bone inside the grid (and the seed reach around it) can seed:
+            // a bone reaching far outside the model is not walked step by step out there.
+            let box_lo = self.lo.as_vec3() - reach - scale;
+            let box_hi = self.lo.as_vec3() + self.dims.as_vec3() * scale + reach;
             for &(a, b) in segs {
+                let Some((a, b)) = clip_segment(a, b, box_lo, box_hi) else {
+                    continue;
+                };
                 let steps = ((b - a).length() / scale * 2.0).ceil().max(1.0) as usize;
                 for s in 0..=steps {
                     let p = a.lerp(b, s as f32 / steps as f32);

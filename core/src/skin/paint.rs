@@ -33,11 +33,17 @@ pub fn weight_dab(
             let x = 1.0 - d / r;
             x * x * (3.0 - 2.0 * x)
         };
+        // An empty skin follows joint 0 with its whole weight (as skinning and the heat map
+        // read it).
         let own = |s: &Skin4| {
-            s.influences()
-                .filter(|&(k, _)| k == j)
-                .map(|(_, w)| w)
-                .sum::<f32>()
+            if s.is_empty() {
+                f32::from(u8::from(j == 0))
+            } else {
+                s.influences()
+                    .filter(|&(k, _)| k == j)
+                    .map(|(_, w)| w)
+                    .sum::<f32>()
+            }
         };
         let current = own(&v.skin);
         let target = if smooth {
