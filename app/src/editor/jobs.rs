@@ -62,6 +62,31 @@ impl<T: Send + 'static> Worker<T> {
     }
 }
 
+/// What a .vox export left out, by name and why (" ; left out: …"), or nothing: a .vox holds
+/// voxel models only, and only the visible ones are written.
+#[must_use]
+pub fn vox_left_out(objects: &[Object], skipped: &[String]) -> String {
+    if skipped.is_empty() {
+        return String::new();
+    }
+    let why: Vec<String> = skipped
+        .iter()
+        .map(|name| {
+            let reason = match objects.iter().find(|o| &o.name == name) {
+                Some(o) if !o.visible => "hidden",
+                Some(o) => match &o.kind {
+                    ObjectKind::Mesh(_) => "a mesh: .vox holds voxels only",
+                    ObjectKind::Krs(_) => "a KRS object: .vox holds voxels only",
+                    ObjectKind::Voxels(_) => "empty",
+                },
+                None => "not exported",
+            };
+            format!("{name:?} ({reason})")
+        })
+        .collect();
+    format!("; left out: {}", why.join(", "))
+}
+
 /// What a background job hands back.
 pub enum JobResult {
     /// A project read on the worker thread, with its linked models' enhancers built there.
@@ -273,12 +298,14 @@ impl Job {
         Self::spawn(label, move |_, _| {
             let result = thicket_core::io::vox::export_vox(&objects, &path)
                 .map(|r| {
-                    format!(
+                    let mut text = format!(
                         "Exported {} voxels in {} model(s) to {}",
                         thousands(r.voxels),
                         r.models,
                         path.display()
-                    )
+                    );
+                    text.push_str(&vox_left_out(&objects, &r.skipped));
+                    text
                 })
                 .map_err(anyhow::Error::from);
             JobResult::Exported(result)

@@ -750,10 +750,16 @@ impl Editor {
             Some(c) if c > clip => Some(c - 1),
             other => other,
         };
-        // Applying the clips moves a playhead past the end to the rest pose; then it follows
-        // its clip to the clip's new index.
-        self.apply(Edit::SetClips { id, clips }, None);
-        self.set_playback(id, playback)?;
+        // The playhead follows its clip to its new index (or to the rest pose), in the same
+        // undo step: undoing the delete plays the clip that played before.
+        self.apply(
+            Edit::Group(vec![
+                Edit::SetClips { id, clips },
+                Edit::SetPlayback { id, playback },
+            ]),
+            None,
+        );
+        self.anim_revision += 1;
         Ok(())
     }
 

@@ -397,9 +397,19 @@ fn clips_are_renamed_duplicated_resized_and_deleted_one_step_each() {
     ed.delete_clip(id, walk).unwrap();
     assert_eq!(ed.clip_names(id), ["sprint", "walk.copy"]);
     assert_eq!(ed.rig(id).unwrap().playback.clip, Some(0));
-    // Deleting the playing clip returns to the rest pose.
+    // Deleting the playing clip returns to the rest pose; undo plays it again.
     ed.delete_clip(id, 0).unwrap();
     assert_eq!(ed.rig(id).unwrap().playback.clip, None);
+    assert!(ed.undo());
+    assert_eq!(ed.rig(id).unwrap().playback.clip, Some(0));
+    assert_eq!(ed.clip_names(id), ["sprint", "walk.copy"]);
+    assert!(
+        ed.undo(),
+        "undoing the first delete plays sprint at its old index"
+    );
+    assert_eq!(ed.rig(id).unwrap().playback.clip, Some(1));
+    assert!(ed.redo());
+    assert!(ed.redo());
     for _ in 0..5 {
         assert!(ed.undo());
     }

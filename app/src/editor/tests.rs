@@ -1683,3 +1683,27 @@ fn imported_lights_are_added_one_undo_step_each_and_bad_ones_skipped() {
     ed.undo();
     assert_eq!(ed.doc().lights, vec![sun]);
 }
+
+#[test]
+fn a_vox_export_names_what_it_leaves_out_and_why() {
+    use thicket_core::scene::{MeshObject, Object};
+    let mut rock = Object {
+        name: "Rock".into(),
+        kind: ObjectKind::Mesh(MeshObject::default()),
+        ..Object::default()
+    };
+    rock.visible = true;
+    let hidden = Object {
+        name: "Old".into(),
+        kind: voxels(2),
+        visible: false,
+        ..Object::default()
+    };
+    let objects = vec![rock, hidden];
+    let text = super::jobs::vox_left_out(&objects, &["Rock".into(), "Old".into()]);
+    assert_eq!(
+        text,
+        "; left out: \"Rock\" (a mesh: .vox holds voxels only), \"Old\" (hidden)"
+    );
+    assert_eq!(super::jobs::vox_left_out(&objects, &[]), "");
+}

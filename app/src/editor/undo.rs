@@ -138,6 +138,14 @@ pub enum Edit {
         /// `(voxel, code)` pairs to write, in order.
         entries: Vec<(UVec3, u8)>,
     },
+    /// Set a rigged model's playback (only as part of an edit that renumbers its clips: a
+    /// deleted clip; scrubbing is not an edit).
+    SetPlayback {
+        /// Object id.
+        id: u64,
+        /// The new playback.
+        playback: thicket_core::skin::Playback,
+    },
     /// Set or remove (`None`) a voxel model's rig (a skeleton edit that keeps the weights).
     SetRig {
         /// Object id.
@@ -281,6 +289,20 @@ impl Edit {
                     },
                     ObjectKind::Mesh(_) | ObjectKind::Krs(_) => Edit::Group(Vec::new()),
                 },
+                None => Edit::Group(Vec::new()),
+            },
+            Edit::SetPlayback { id, playback } => match rig_of(doc, id) {
+                Some(rig) => {
+                    let mut playback = playback;
+                    // Never a clip that is not there (the clips of this edit's group come first).
+                    if playback.clip.is_some_and(|c| c >= rig.clips.len()) {
+                        playback.clip = None;
+                    }
+                    Edit::SetPlayback {
+                        id,
+                        playback: std::mem::replace(&mut rig.playback, playback),
+                    }
+                }
                 None => Edit::Group(Vec::new()),
             },
             Edit::SetRig { id, rig } => match find(doc, id) {
