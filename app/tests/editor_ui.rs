@@ -1135,3 +1135,44 @@ fn an_import_lands_on_the_ground_beside_the_scene_scaled_to_it_and_framed() {
     let (ulo, uhi) = bounds(&h);
     assert!(((uhi - ulo).length() - size).abs() < 1e-3 * size);
 }
+
+/// F1's shortcut sheet at 1280×720: it lists every row of the binding tables (in a scroll area,
+/// so it never runs off the screen) and its search field filters them by key or action.
+#[test]
+fn the_shortcut_sheet_lists_every_key_and_searches() {
+    let mut h = Harness::builder()
+        .with_size(egui::vec2(1280.0, 720.0))
+        .build_ui_state(
+            |ui, app: &mut EditorApp| app.ui_root(ui),
+            app_with_two_objects(),
+        );
+    h.run_steps(2);
+    h.key_press(egui::Key::F1);
+    h.run_steps(3);
+    h.snapshot_options(
+        "shortcut_sheet_720",
+        &egui_kittest::SnapshotOptions::new().max_failed_pixels(200),
+    );
+    let all = thicket::ui::shortcut_rows("");
+    assert!(all.len() > 20, "{all:?}");
+    for (_, what) in &all {
+        assert!(
+            h.query_all_by_label(what).next().is_some(),
+            "{what:?} is listed"
+        );
+    }
+    // Search "undo": the undo row stays, F1's own row ("This list") goes.
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Search")
+        .click();
+    h.run_steps(1);
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Search")
+        .type_text("undo");
+    h.run_steps(3);
+    assert!(h.query_all_by_label("Undo").next().is_some());
+    assert!(h.query_by_label("This list").is_none());
+    assert!(
+        thicket::ui::shortcut_rows("UNDO").iter().all(|(k, w)| {
+            k.to_lowercase().contains("undo") || w.to_lowercase().contains("undo")
+        })
+    );
+}

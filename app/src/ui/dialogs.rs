@@ -165,17 +165,39 @@ impl EditorApp {
             self.status = format!("Baked the pose of {keyed} joint(s) into the playing clip");
         }
         if self.show_shortcuts {
+            // Never taller than the window (the list is longer than a 720-pixel screen): it
+            // scrolls, and the search field filters it by key or action.
+            let max_height = (ctx.content_rect().height() - 120.0).max(120.0);
+            let search = &mut self.shortcut_search;
             egui::Window::new("Keyboard shortcuts")
                 .open(&mut self.show_shortcuts)
                 .resizable(false)
+                .max_height(max_height)
                 .show(ctx, |ui| {
-                    egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
-                        for (keys, what) in SHORTCUTS.iter().chain(voxel_menus::TOOL_SHORTCUTS) {
-                            ui.strong(*keys);
-                            ui.label(*what);
-                            ui.end_row();
-                        }
+                    ui.horizontal(|ui| {
+                        let label = ui.label("Search");
+                        ui.add(
+                            egui::TextEdit::singleline(search)
+                                .hint_text("a key or an action")
+                                .desired_width(220.0),
+                        )
+                        .labelled_by(label.id);
                     });
+                    let rows = shortcut_rows(search);
+                    if rows.is_empty() {
+                        ui.weak("No shortcut matches.");
+                    }
+                    egui::ScrollArea::vertical()
+                        .max_height(max_height - 40.0)
+                        .show(ui, |ui| {
+                            egui::Grid::new("shortcuts").striped(true).show(ui, |ui| {
+                                for (keys, what) in rows {
+                                    ui.strong(keys);
+                                    ui.label(what);
+                                    ui.end_row();
+                                }
+                            });
+                        });
                 });
         }
         if self.show_about {
@@ -357,4 +379,21 @@ fn human_age(secs: u64) -> String {
         3600..=86_399 => format!("{} h", secs / 3600),
         _ => format!("{} days", secs / 86_400),
     }
+}
+
+/// The rows of the shortcut sheet whose keys or action contain `search` (any case; all rows for
+/// an empty search): the editor's shortcuts, then the voxel tools'.
+#[must_use]
+pub fn shortcut_rows(search: &str) -> Vec<(&'static str, &'static str)> {
+    let needle = search.trim().to_lowercase();
+    SHORTCUTS
+        .iter()
+        .chain(voxel_menus::TOOL_SHORTCUTS)
+        .filter(|(keys, what)| {
+            needle.is_empty()
+                || keys.to_lowercase().contains(&needle)
+                || what.to_lowercase().contains(&needle)
+        })
+        .copied()
+        .collect()
 }

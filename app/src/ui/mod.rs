@@ -4,6 +4,7 @@
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
 mod dialogs;
+pub use dialogs::shortcut_rows;
 mod enhance_panel;
 pub mod export_gltf;
 mod inspector;
@@ -90,6 +91,8 @@ pub struct EditorApp {
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
+    /// The shortcut sheet's search text.
+    shortcut_search: String,
     show_about: bool,
     show_outliner: bool,
     show_inspector: bool,
@@ -145,6 +148,7 @@ impl EditorApp {
             autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
+            shortcut_search: String::new(),
             show_about: false,
             show_outliner: true,
             show_inspector: true,
