@@ -517,18 +517,7 @@ pub struct JointInfo {
 /// The joints of a rigged model with the voxels each dominates.
 fn joint_info(v: &thicket_core::scene::VoxelModel) -> Option<Vec<JointInfo>> {
     let rig = v.rig.as_ref()?;
-    let mut dominant = vec![0u64; rig.skeleton.len()];
-    v.svo.for_each_leaf(|_, voxel| {
-        let s = voxel.skin;
-        let j = if s.is_empty() {
-            0
-        } else {
-            usize::from(s.joints[0])
-        };
-        if let Some(n) = dominant.get_mut(j) {
-            *n += 1;
-        }
-    });
+    let dominant = thicket_core::skin::bind::dominant_joints(&v.svo, rig.skeleton.len());
     let spec = thicket_core::skin::SkeletonSpec::of_skeleton(&rig.skeleton);
     Some(
         spec.joints

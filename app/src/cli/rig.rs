@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 use anyhow::Context as _;
 use clap::{Args, ValueEnum};
 use thicket_core::scene::{Document, ObjectKind, VoxelModel};
+use thicket_core::skin::author::clips_by_name;
 use thicket_core::skin::bind::{BindControl, BindMethod, BindReport, bind};
-use thicket_core::skin::{AnimationClip, ClipSpec, Rig, Skeleton, SkeletonSpec};
+use thicket_core::skin::{ClipSpec, Rig, SkeletonSpec};
 
 use crate::files::{self, thousands};
 
@@ -150,40 +151,6 @@ fn voxels_mut(doc: &mut Document, index: usize) -> &mut VoxelModel {
     }
 }
 
-/// Keeps the clips of an old skeleton whose channels name joints of the new one (by name);
-/// returns the kept clips and how many channels were dropped.
-fn remap_clips(
-    old: &Skeleton,
-    clips: &[AnimationClip],
-    new: &Skeleton,
-) -> (Vec<AnimationClip>, usize) {
-    let mut dropped = 0;
-    let kept = clips
-        .iter()
-        .filter_map(|clip| {
-            let channels: Vec<_> = clip
-                .channels
-                .iter()
-                .filter_map(|c| {
-                    let j = new.find(&old.joints.get(c.joint)?.name);
-                    if j.is_none() {
-                        dropped += 1;
-                    }
-                    Some(thicket_core::skin::Channel {
-                        joint: j?,
-                        ..c.clone()
-                    })
-                })
-                .collect();
-            (!channels.is_empty()).then(|| AnimationClip {
-                channels,
-                ..clip.clone()
-            })
-        })
-        .collect();
-    (kept, dropped)
-}
-
 /// `thicket rig`.
 ///
 /// # Errors
@@ -222,7 +189,12 @@ pub fn rig(args: &RigArgs) -> anyhow::Result<()> {
     })?;
     let seconds = start.elapsed().as_secs_f64();
     let (clips, dropped) = match &model.rig {
-        Some(old) => remap_clips(&old.skeleton, &old.clips, &skeleton),
+        Some(old) => {
+            // Clips left with no channel of the new skeleton's joints go.
+            let (mut clips, dropped) = clips_by_name(&old.skeleton, &old.clips, &skeleton);
+            clips.retain(|c| !c.channels.is_empty());
+            (clips, dropped)
+        }
         None => (Vec::new(), 0),
     };
     model.svo = svo;

@@ -26,7 +26,7 @@ pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;
 pub use pose_keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
-pub use rig::{SkeletonTemplate, WeightsOnEdit, bind_job, mirrored_name};
+pub use rig::{SkeletonTemplate, WeightsOnEdit, bind_job};
 pub use sculpt::{VoxelPick, ray_through};
 pub use stretch::MAX_STRETCH_OVERRIDE;
 pub use undo::{DEFAULT_UNDO_BYTES, Edit, History, MergeKey};

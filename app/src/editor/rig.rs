@@ -5,6 +5,7 @@
 
 use glam::Vec3;
 use thicket_core::scene::{ObjectKind, VoxelModel};
+use thicket_core::skin::author::clips_by_name;
 use thicket_core::skin::bind::{BindControl, BindMethod, BindReport, bind};
 use thicket_core::skin::rig::Binding;
 use thicket_core::skin::{AnimationClip, JointSpec, Rig, Skeleton, SkeletonSpec, Skin4};
@@ -118,7 +119,7 @@ impl SkeletonTemplate {
 /// Name for a mirrored joint: `.L` ↔ `.R` (also `_L`/`_R`, `Left`/`Right`); `None` when the
 /// name has no side.
 #[must_use]
-pub fn mirrored_name(name: &str) -> Option<String> {
+fn mirrored_name(name: &str) -> Option<String> {
     for (a, b) in [(".L", ".R"), ("_L", "_R"), ("Left", "Right")] {
         if let Some(stem) = name.strip_suffix(a) {
             return Some(format!("{stem}{b}"));
@@ -130,25 +131,9 @@ pub fn mirrored_name(name: &str) -> Option<String> {
     None
 }
 
-/// Joint `j` of `spec` and its descendants, parents first.
-fn subtree(spec: &SkeletonSpec, j: usize) -> Vec<usize> {
-    let mut out = vec![j];
-    let mut k = 0;
-    while k < out.len() {
-        let name = &spec.joints[out[k]].name;
-        for (c, joint) in spec.joints.iter().enumerate() {
-            if joint.parent.as_ref() == Some(name) && !out.contains(&c) {
-                out.push(c);
-            }
-        }
-        k += 1;
-    }
-    out
-}
-
-/// A name not yet in `spec`: `base`, else `base.001`, `base.002`, …
-fn unique_name(spec: &SkeletonSpec, base: &str) -> String {
-    let taken = |n: &str| spec.joints.iter().any(|j| j.name == n);
+/// `base` if `taken` says it is free, else the first free of `base.001`, `base.002`, … (as
+/// Blender names copies).
+fn unique_name(base: &str, taken: impl Fn(&str) -> bool) -> String {
     if !taken(base) {
         return base.to_owned();
     }
@@ -359,13 +344,13 @@ impl Editor {
         } else {
             "bone"
         });
-        let name = unique_name(&spec, base);
+        let name = unique_name(base, |n| spec.joints.iter().any(|j| j.name == n));
         spec.joints.push(JointSpec {
             name: name.clone(),
             parent: parent_name,
             position: position.to_array(),
         });
-        self.set_skeleton_finding(id, &spec, &name)
+        self.set_skeleton_finding(id, &spec, &name, &[])
     }
 
     /// Moves joint `joint` to `position` in the rest pose (the model's own space); a drag
@@ -445,7 +430,7 @@ impl Editor {
         spec.joints[joint].parent = parent.map(|p| spec.joints[p].name.clone());
         let name = spec.joints[joint].name.clone();
         // Parents come first: moving a joint under a later one changes its index.
-        self.set_skeleton_finding(id, &spec, &name)
+        self.set_skeleton_finding(id, &spec, &name, &[])
     }
 
     /// Deletes joint `joint`; its children move up to its parent and its voxels' weight goes
@@ -485,7 +470,7 @@ impl Editor {
         if joint >= spec.joints.len() {
             return Err(CommandError::Invalid(format!("no joint {joint}")));
         }
-        let chain = subtree(&spec, joint);
+        let chain = spec.subtree(joint);
         // Names without a side get one first (renamed: their weights and keys go with them).
         let mut renames = Vec::new();
         for &c in &chain {
@@ -527,20 +512,19 @@ impl Editor {
         }
         let first = copies[0].name.clone();
         spec.joints.extend(copies);
-        self.set_skeleton_renaming(id, &spec, WeightsOnEdit::Keep, None, &renames)?;
-        self.rig(id)
-            .and_then(|r| r.skeleton.find(&first))
-            .ok_or_else(|| CommandError::Invalid(format!("joint {first:?} was not added")))
+        self.set_skeleton_finding(id, &spec, &first, &renames)
     }
 
-    /// Sets the skeleton (keeping the weights) and returns the index of joint `name` in it.
+    /// Sets the skeleton (keeping the weights, joints `renames` renamed) and returns the index
+    /// of joint `name` in it.
     fn set_skeleton_finding(
         &mut self,
         id: u64,
         spec: &SkeletonSpec,
         name: &str,
+        renames: &[(String, String)],
     ) -> Result<usize, CommandError> {
-        self.set_skeleton(id, spec, WeightsOnEdit::Keep, None)?;
+        self.set_skeleton_renaming(id, spec, WeightsOnEdit::Keep, None, renames)?;
         self.rig(id)
             .and_then(|r| r.skeleton.find(name))
             .ok_or_else(|| CommandError::Invalid(format!("joint {name:?} was not added")))
@@ -717,16 +701,9 @@ impl Editor {
             .get(clip)
             .cloned()
             .ok_or_else(|| CommandError::Invalid(format!("no clip {clip}")))?;
-        let base = format!("{}.copy", copy.name);
-        let taken = |n: &str| clips.iter().any(|c| c.name == n);
-        copy.name = if taken(&base) {
-            (1..)
-                .map(|k| format!("{base}.{k:03}"))
-                .find(|n| !taken(n))
-                .unwrap_or(base)
-        } else {
-            base
-        };
+        copy.name = unique_name(&format!("{}.copy", copy.name), |n| {
+            clips.iter().any(|c| c.name == n)
+        });
         clips.push(copy);
         let index = clips.len() - 1;
         self.apply(Edit::SetClips { id, clips }, None);
@@ -825,15 +802,7 @@ impl Editor {
             return Err(CommandError::Invalid("a clip needs a name".into()));
         }
         let mut clips = rig.clips.clone();
-        let taken = |n: &str| clips.iter().any(|c| c.name == n);
-        let name = if taken(name) {
-            (1..)
-                .map(|k| format!("{name}.{k:03}"))
-                .find(|n| !taken(n))
-                .unwrap_or_default()
-        } else {
-            name.to_owned()
-        };
+        let name = unique_name(name, |n| clips.iter().any(|c| c.name == n));
         clips.push(AnimationClip {
             name,
             duration_secs: length_secs,
@@ -889,23 +858,7 @@ fn rig_for(old: Option<&Rig>, skeleton: Skeleton) -> Rig {
             .get(j)
             .and_then(|o| skeleton.find(&o.name))
     };
-    let clips = old
-        .clips
-        .iter()
-        .map(|c| AnimationClip {
-            channels: c
-                .channels
-                .iter()
-                .filter_map(|ch| {
-                    Some(thicket_core::skin::Channel {
-                        joint: by_name(ch.joint)?,
-                        ..ch.clone()
-                    })
-                })
-                .collect(),
-            ..c.clone()
-        })
-        .collect();
+    let (clips, _) = clips_by_name(&old.skeleton, &old.clips, &skeleton);
     let pose_overrides = old
         .pose_overrides
         .iter()

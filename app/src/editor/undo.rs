@@ -406,19 +406,10 @@ impl Edit {
             Edit::SetQuality(_) => size_of::<Quality>(),
             Edit::SetVoxelModel { model, .. } => model.svo.memory_stats().total_bytes as usize,
             Edit::SetRig { rig, .. } => rig.as_ref().map_or(0, |r| {
-                r.skeleton.len() * size_of::<thicket_core::skin::Joint>()
-                    + r.clips
-                        .iter()
-                        .flat_map(|c| &c.channels)
-                        .map(|c| c.times.len() * 4 + c.values.len() * 16 + 64)
-                        .sum::<usize>()
+                r.skeleton.len() * size_of::<thicket_core::skin::Joint>() + clips_bytes(&r.clips)
             }),
             Edit::StretchOverrides { entries, .. } => entries.capacity() * size_of::<(UVec3, u8)>(),
-            Edit::SetClips { clips, .. } => clips
-                .iter()
-                .flat_map(|c| &c.channels)
-                .map(|c| c.times.len() * 4 + c.values.len() * 16 + 64)
-                .sum(),
+            Edit::SetClips { clips, .. } => clips_bytes(clips),
             Edit::SetTreeParams { .. } => size_of::<TreeParams>() + 256,
             _ => 64,
         }
@@ -459,6 +450,15 @@ impl Edit {
             _ => false,
         }
     }
+}
+
+/// About the heap bytes of animation clips (key times, values, per-channel overhead).
+fn clips_bytes(clips: &[AnimationClip]) -> usize {
+    clips
+        .iter()
+        .flat_map(|c| &c.channels)
+        .map(|c| c.times.len() * 4 + c.values.len() * 16 + 64)
+        .sum()
 }
 
 /// Which continuous edits merge into one step while an interaction lasts.

@@ -171,7 +171,8 @@ fn joint_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, i
     });
     ui.horizontal(|ui| {
         ui.label("Parent");
-        let below = descendants(&spec, j);
+        // A joint's own subtree is not offered as its parent.
+        let below = spec.subtree(j);
         let current = joint
             .parent
             .clone()
@@ -257,22 +258,6 @@ fn joint_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, i
             tool.joint = None;
         }
     });
-}
-
-/// Joint `j` of `spec` and everything below it (not allowed as its parent).
-fn descendants(spec: &thicket_core::skin::SkeletonSpec, j: usize) -> Vec<usize> {
-    let mut out = vec![j];
-    let mut k = 0;
-    while k < out.len() {
-        let name = spec.joints[out[k]].name.clone();
-        for (c, joint) in spec.joints.iter().enumerate() {
-            if joint.parent.as_deref() == Some(name.as_str()) && !out.contains(&c) {
-                out.push(c);
-            }
-        }
-        k += 1;
-    }
-    out
 }
 
 fn bind_ui(
@@ -470,23 +455,11 @@ fn clips_ui(
     });
 }
 
-/// The voxel model the Rig section acts on in the view: the selected one.
-fn selected_voxel_model(editor: &Editor) -> Option<u64> {
-    match editor.selection {
-        Some(crate::editor::Selection::Object(id)) => matches!(
-            editor.object(id).map(|o| &o.kind),
-            Some(thicket_core::scene::ObjectKind::Voxels(_))
-        )
-        .then_some(id),
-        _ => None,
-    }
-}
-
 /// Whether left drags in the view paint weights now (the view does not orbit on them then).
 #[must_use]
 pub fn paints_now(editor: &Editor, tool: &PoseTool) -> bool {
     tool.rig.painting
-        && selected_voxel_model(editor).is_some_and(|id| {
+        && editor.selected_voxel_model().is_some_and(|id| {
             editor.rig(id).is_some() && tool.joint.is_some_and(|j| j.object == id)
         })
 }
@@ -501,7 +474,7 @@ pub fn view_input(
     pointer_ray: Option<(Vec3, Vec3)>,
     pick: Option<&crate::editor::VoxelPick>,
 ) -> bool {
-    let Some(id) = selected_voxel_model(editor) else {
+    let Some(id) = editor.selected_voxel_model() else {
         return false;
     };
     if paints_now(editor, tool) {

@@ -14,7 +14,7 @@ use serde::{Deserialize, Serialize};
 
 use super::SkinError;
 use super::clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
-use super::skeleton::{Joint, Pose, Skeleton, Transform};
+use super::skeleton::{Joint, Skeleton, Transform};
 use crate::svo::MAX_SKIN_JOINTS;
 
 /// One joint of a [`SkeletonSpec`].
@@ -135,6 +135,23 @@ impl SkeletonSpec {
         Ok(skeleton)
     }
 
+    /// Joint `j` and every joint below it, `j` first.
+    #[must_use]
+    pub fn subtree(&self, j: usize) -> Vec<usize> {
+        let mut out = vec![j];
+        let mut k = 0;
+        while k < out.len() {
+            let name = &self.joints[out[k]].name;
+            for (c, joint) in self.joints.iter().enumerate() {
+                if joint.parent.as_ref() == Some(name) && !out.contains(&c) {
+                    out.push(c);
+                }
+            }
+            k += 1;
+        }
+        out
+    }
+
     /// The spec of an existing skeleton: each joint at its bind-pose position (the inverse of
     /// its inverse bind matrix), for writing a model's rig back out or editing it.
     #[must_use]
@@ -152,6 +169,37 @@ impl SkeletonSpec {
                 .collect(),
         }
     }
+}
+
+/// The clips of `old` moved onto skeleton `new` by joint name: each channel keeps its keys and
+/// addresses the joint of the same name; channels of joints `new` lacks are dropped (counted in
+/// the second value). Clips left without channels are kept, empty.
+#[must_use]
+pub fn clips_by_name(
+    old: &Skeleton,
+    clips: &[AnimationClip],
+    new: &Skeleton,
+) -> (Vec<AnimationClip>, usize) {
+    let mut dropped = 0;
+    let moved = clips
+        .iter()
+        .map(|clip| AnimationClip {
+            channels: clip
+                .channels
+                .iter()
+                .filter_map(|c| {
+                    let joint = old.joints.get(c.joint).and_then(|j| new.find(&j.name));
+                    dropped += usize::from(joint.is_none());
+                    Some(Channel {
+                        joint: joint?,
+                        ..c.clone()
+                    })
+                })
+                .collect(),
+            ..clip.clone()
+        })
+        .collect();
+    (moved, dropped)
 }
 
 /// Where a joint stands in the bind pose, in the model's space: the origin of its frame,
@@ -406,30 +454,4 @@ fn channel(
         times,
         values,
     }
-}
-
-/// The current pose's joint rotations and translations relative to the rest pose, as clip keys
-/// at `time` for every joint that differs from its rest transform (for baking a pose into a
-/// clip). Rotations within `1e-5` and translations within `1e-6` of rest are left out.
-#[must_use]
-pub fn pose_keys(skeleton: &Skeleton, pose: &Pose, time: f32) -> Vec<KeySpec> {
-    let mut keys = Vec::new();
-    for (j, joint) in skeleton.joints.iter().enumerate() {
-        let Some(local) = pose.locals.get(j) else {
-            continue;
-        };
-        let relative = joint.rest.rotation.inverse() * local.rotation;
-        let dt = local.translation - joint.rest.translation;
-        let turned = relative.xyz().length() > 1e-5;
-        let moved = dt.length() > 1e-6;
-        if turned || moved {
-            keys.push(KeySpec {
-                joint: joint.name.clone(),
-                time,
-                rotation_deg: Some(quat_to_euler_deg(relative)),
-                translation: moved.then(|| dt.to_array()),
-            });
-        }
-    }
-    keys
 }

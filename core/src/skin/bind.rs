@@ -285,12 +285,6 @@ pub fn bind(
     if control.cancelled() {
         return Err(SkinError::Cancelled);
     }
-    let mut dominant = vec![0u64; skeleton.len()];
-    for s in &skins {
-        if !s.is_empty() {
-            dominant[usize::from(s.joints[0])] += 1;
-        }
-    }
     let voxels = leaves.len() as u64;
     let bound = Svo::from_voxels(
         svo.depth(),
@@ -301,6 +295,7 @@ pub fn bind(
             .map(|((c, v), skin)| (c, Voxel { skin, ..v })),
     )
     .map_err(|e| rig(format!("rebuilding the octree: {e}")))?;
+    let dominant = dominant_joints(&bound, skeleton.len());
     control.progress(1.0);
     Ok((
         bound,
@@ -312,6 +307,26 @@ pub fn bind(
             dominant,
         },
     ))
+}
+
+/// Per joint of a skeleton of `joints` joints, how many voxels of `svo` have it as their
+/// strongest influence (an empty skin follows joint 0; joints past the skeleton are not
+/// counted).
+#[must_use]
+pub fn dominant_joints(svo: &Svo, joints: usize) -> Vec<u64> {
+    let mut dominant = vec![0u64; joints];
+    svo.for_each_leaf(|_, v| {
+        let s = v.skin;
+        let j = if s.is_empty() {
+            0
+        } else {
+            usize::from(s.joints[0])
+        };
+        if let Some(n) = dominant.get_mut(j) {
+            *n += 1;
+        }
+    });
+    dominant
 }
 
 /// A voxel's nearest joints (at most [`K`]) with their distances in voxels, nearest first.
