@@ -100,8 +100,9 @@ pub enum Command {
     New(NewArgs),
     /// Measure a skinned model's holes and bloat per stretch strategy over its clip.
     ///
-    /// The voxels are drawn with each strategy and compared with the source mesh skinned with
-    /// the same pose from the same cameras (views around the model), pixel by pixel by depth:
+    /// The voxels are drawn with each strategy and compared with the source mesh (for a model
+    /// rigged in Thicket, its own skinned surface, as Export writes it) skinned with the same
+    /// pose from the same cameras (views around the model), pixel by pixel by depth:
     /// holes are pixels where the skin is nearer than the voxels by more than two voxels (or no
     /// voxel covers), bloat the converse. Rest-pose error and stretch error are reported
     /// apart.
@@ -120,7 +121,8 @@ pub enum Command {
 /// `thicket skin-report`.
 #[derive(Debug, Args)]
 pub struct SkinReportArgs {
-    /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF).
+    /// The project holding a skinned voxel model (made by `thicket import` of a skinned glTF,
+    /// or rigged with `thicket rig` or the editor).
     #[arg(required_unless_present = "cylinder", conflicts_with = "cylinder")]
     pub project: Option<PathBuf>,
     /// Measure the synthetic bending cylinder instead of a project (radius 0.4, length 2, two
@@ -1898,9 +1900,15 @@ pub fn format_skin_report(
     per_view: bool,
 ) -> String {
     let views = report.rows.first().map_or(0, |r| r.views.len());
+    let reference = match report.reference {
+        thicket_core::measure::skin::ReferenceSurface::SourceMesh => "its skinned source mesh",
+        thicket_core::measure::skin::ReferenceSurface::OwnSurface => {
+            "its own skinned surface (rigged in Thicket: no source mesh)"
+        }
+    };
     let mut s = format!(
-        "{} / clip {:?}: {} frames + rest, {views} views at {width}x{height}; voxel {:.4}, \
-         pixel {:.4}, depth tolerance {:.4} (world units)\n",
+        "{} / clip {:?} against {reference}: {} frames + rest, {views} views at \
+         {width}x{height}; voxel {:.4}, pixel {:.4}, depth tolerance {:.4} (world units)\n",
         report.object,
         report.clip,
         report.times.len(),

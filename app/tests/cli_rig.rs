@@ -168,6 +168,52 @@ fn rig_animate_and_info_make_a_bar_bend() {
     assert!(skinned(glam::UVec3::new(4, 0, 4)).length() < 1e-4);
     assert!(skinned(glam::UVec3::new(4, 31, 4)).length() > 1.0);
 
+    // skin-report measures the native rig against its own skinned surface: at rest the voxels
+    // cover exactly its pixels; bent, the smooth geodesic weights open no hole at this size
+    // (the core test bends a rigidly split cylinder to see holes open).
+    let o = thicket(&[
+        "skin-report",
+        path_str(&animated),
+        "--frames",
+        "2",
+        "--views",
+        "2",
+        "--size",
+        "64x64",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let r: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    assert_eq!(r["reference"], "own_surface");
+    let strategy = |name: &str| {
+        r["rows"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|row| row["settings"]["strategy"] == name)
+            .unwrap()
+            .clone()
+    };
+    let (off, corners) = (strategy("Off"), strategy("Corners"));
+    assert!(off["rest"]["mesh_pixels"].as_u64().unwrap() > 100, "{off}");
+    assert_eq!(off["rest"]["holes"], 0, "{off}");
+    assert_eq!(off["rest"]["bloat"], 0, "{off}");
+    assert_eq!(
+        off["rest"]["voxel_pixels"], off["rest"]["mesh_pixels"],
+        "{off}"
+    );
+    // The bent frame is measured: its silhouette is not the straight bar's.
+    let frames = off["views"][0]["frames"].as_array().unwrap();
+    assert_ne!(frames[0]["mesh_pixels"], frames[1]["mesh_pixels"], "{off}");
+    assert!(corners["posed"]["mesh_pixels"].as_u64().unwrap() > 100);
+    assert_eq!(corners["posed"]["holes"], 0, "{corners}");
+    let o = thicket(&["skin-report", path_str(&animated), "--size", "32x32"]);
+    assert!(
+        stdout(&o).contains("against its own skinned surface"),
+        "{}",
+        stdout(&o)
+    );
+
     // A pose set by hand and not keyed: the export says it is not in the file.
     let mut posed = doc.clone();
     if let ObjectKind::Voxels(v) = &mut posed.objects[0].kind {

@@ -195,7 +195,8 @@ struct PreviewKey {
     stretch: bool,
 }
 
-/// Silhouette counts of the rigged models in the view against their skinned source meshes.
+/// Silhouette counts of the rigged models in the view against their skinned reference
+/// surfaces ([`thicket_core::measure::skin::reference_surface`]).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct HoleCounts {
     /// Pixels inside the skinned meshes' silhouettes.
@@ -214,8 +215,7 @@ struct PreviewFrame {
     /// Node id per pixel (`(level << 32) | index`, see `PixelId::node`).
     nodes: Vec<u64>,
     ms: f64,
-    /// The hole / bloat overlay and its counts, when asked for and there is a rigged model
-    /// with its source mesh.
+    /// The hole / bloat overlay and its counts, when asked for and a rigged model shows.
     holes: Option<(egui::ColorImage, HoleCounts)>,
     /// The stretch heat map and its statistics, when asked for and a rigged model shows.
     stretch: Option<(egui::ColorImage, StretchStats)>,
@@ -579,7 +579,7 @@ impl View {
             .on_hover_text("Draw every object's bounding box (the selection's is always drawn)");
         ui.checkbox(&mut self.show_holes, "Hole / bloat overlay")
             .on_hover_text(
-                "CPU preview of rigged models: magenta where the skinned source mesh shows but no voxel does (holes), yellow where voxels cover more (bloat); drawn above the selection outline, with a legend",
+                "CPU preview of rigged models: magenta where the skinned reference surface shows but no voxel does (holes), yellow where voxels cover more (bloat); the reference is the imported source mesh, or for a model rigged here its own skinned surface (what Export glTF writes); drawn above the selection outline, with a legend",
             );
         ui.checkbox(&mut self.show_stretch, "Stretch heat map")
             .on_hover_text(
@@ -1640,7 +1640,7 @@ impl View {
                                 c.bloat
                             ),
                             (true, None) =>
-                                "\nHole overlay: no rigged model with its source mesh".to_owned(),
+                                "\nHole overlay: no rigged model in the view".to_owned(),
                             (false, _) => String::new(),
                         },
                     ),
@@ -1700,7 +1700,7 @@ impl View {
     }
 }
 
-/// Renders every visible rigged voxel model alone and its skinned source mesh alone with the
+/// Renders every visible rigged voxel model alone and its skinned reference surface alone with the
 /// preview's camera and compares the silhouettes (as `thicket skin-report` does): magenta where
 /// the mesh shows and no voxel does (holes), yellow where voxels cover more (bloat). Occluders
 /// are left out on purpose: they would hide holes.
@@ -1729,7 +1729,7 @@ fn hole_overlay(
         let Some(rig) = v.rig.as_ref().filter(|_| o.visible) else {
             continue;
         };
-        let Some(reference) = &rig.reference_mesh else {
+        let Some((reference, _)) = thicket_core::measure::skin::reference_surface(v) else {
             continue;
         };
         let skinning = rig.current_skinning();

@@ -18,12 +18,13 @@
 //!   where faces of two parts meet), so no stretch factor can close these: voxelization error;
 //! - *stretch* holes: the rest, beyond the same view's rest-pose holes, per frame.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
-use glam::{Mat4, UVec3, Vec3};
+use glam::{Mat4, UVec3, Vec3, Vec4};
 use serde::Serialize;
 
-use crate::mesh::MeshModel;
+use crate::mesh::{Material, MeshModel, TriangleMesh, srgb_byte_to_linear};
 use crate::quality::Quality;
 use crate::render::{
     Camera, FrameBuffers, MeshInstance, Projection, RenderError, RenderScene, VoxelInstance,
@@ -187,9 +188,9 @@ pub fn compare_depths(
 /// Why a skinned model cannot be measured.
 #[derive(Debug, thiserror::Error)]
 pub enum MetricsError {
-    /// No voxel object with a rig and a reference mesh.
+    /// No visible voxel object with a rig.
     #[error(
-        "no skinned voxel model with its source mesh in the document (import a skinned glTF to make one)"
+        "no skinned voxel model in the document (import a skinned glTF, or rig a voxel model with `thicket rig` or the editor's Rig section)"
     )]
     NoSkinnedModel,
     /// The requested clip does not exist.
@@ -223,6 +224,67 @@ pub struct ReportSettings {
     pub strategies: Vec<StretchSettings>,
     /// Render quality (shadows are switched off: only depth and coverage are compared).
     pub quality: Quality,
+}
+
+/// What a skinned model's voxels are measured against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ReferenceSurface {
+    /// The triangle mesh the model was voxelized from, skinned with its own weights: the
+    /// voxelization error shows as rest-pose holes and bloat.
+    SourceMesh,
+    /// A model rigged in Thicket has no source mesh: its own closed skinned surface, the one
+    /// the glTF export writes (outward voxel faces, one weight set per lattice corner). At the
+    /// rest pose it is the voxels' shell, so every hole or bloat is the drawing's, not the
+    /// shape's.
+    OwnSurface,
+}
+
+/// The surface [`skin_report`] and the editor's hole overlay compare a rigged model against,
+/// in the object's own (bind) space, and which one it is: the imported source mesh where the
+/// rig has one, else the model's own skinned surface ([`ReferenceSurface::OwnSurface`]), built
+/// from the voxels now. `None` without a rig.
+#[must_use]
+pub fn reference_surface(model: &VoxelModel) -> Option<(Cow<'_, MeshModel>, ReferenceSurface)> {
+    let rig = model.rig.as_ref()?;
+    if let Some(mesh) = &rig.reference_mesh {
+        return Some((Cow::Borrowed(mesh), ReferenceSurface::SourceMesh));
+    }
+    Some((Cow::Owned(own_surface(model)), ReferenceSurface::OwnSurface))
+}
+
+/// The closed skinned surface of `model` as the glTF export writes it in cube mode
+/// ([`crate::io::gltf_export::greedy::greedy_quads`]), in the object's own space, as one part.
+#[must_use]
+pub fn own_surface(model: &VoxelModel) -> MeshModel {
+    let quads = crate::io::gltf_export::greedy::greedy_quads(&model.svo);
+    let skinned = model.svo.has_skin();
+    let mut part = TriangleMesh::default();
+    for q in &quads {
+        let base = part.positions.len() as u32;
+        let [r, g, b, a] = q.key.0;
+        let color = Vec4::new(
+            srgb_byte_to_linear(r),
+            srgb_byte_to_linear(g),
+            srgb_byte_to_linear(b),
+            f32::from(a) / 255.0,
+        );
+        for (c, skin) in q.corners().into_iter().zip(q.corner_skins()) {
+            part.positions.push(model.origin + c * model.voxel_size);
+            part.normals.push(q.normal());
+            part.colors.push(color);
+            if skinned {
+                part.joints.push(skin.joints_u16());
+                part.weights.push(skin.blend_weights());
+            }
+        }
+        part.indices
+            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+    MeshModel {
+        parts: vec![part],
+        materials: vec![Material::default()],
+    }
 }
 
 /// One view of one strategy.
@@ -272,6 +334,8 @@ pub struct StrategyRow {
 pub struct SkinReport {
     /// The measured object's name.
     pub object: String,
+    /// What the voxels were compared against.
+    pub reference: ReferenceSurface,
     /// The clip's name (empty for the rest pose).
     pub clip: String,
     /// Times measured, seconds.
@@ -454,18 +518,18 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
     if settings.views == 0 {
         return Err(MetricsError::NoViews);
     }
-    let (object, model, rig, reference) = doc
+    let (object, model, rig) = doc
         .objects
         .iter()
         .filter(|o| o.visible)
         .find_map(|o| match &o.kind {
-            ObjectKind::Voxels(v) => {
-                let rig = v.rig.as_ref()?;
-                Some((o, v, rig, rig.reference_mesh.as_ref()?))
-            }
+            ObjectKind::Voxels(v) => Some((o, v, v.rig.as_ref()?)),
             ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
         })
         .ok_or(MetricsError::NoSkinnedModel)?;
+    let (reference, reference_kind) =
+        reference_surface(model).ok_or(MetricsError::NoSkinnedModel)?;
+    let reference: &MeshModel = &reference;
     let clip = match &settings.clip {
         Some(name) => Some(
             rig.clip_index(name)
@@ -635,6 +699,7 @@ pub fn skin_report(doc: &Document, settings: &ReportSettings) -> Result<SkinRepo
     }
     Ok(SkinReport {
         object: object.name.clone(),
+        reference: reference_kind,
         clip: clip
             .and_then(|c| rig.clips.get(c))
             .map(|c| c.name.clone())

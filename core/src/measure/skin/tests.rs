@@ -276,3 +276,46 @@ fn adaptive_closes_the_bend_within_its_cap() {
         "{wide:?} {corners:?}"
     );
 }
+
+/// A model rigged in Thicket has no source mesh: it is measured against its own skinned
+/// surface, the closed one the glTF export writes. At rest that surface is the voxels' shell
+/// (no hole, no bloat, whatever the strategy); bent, unstretched cubes open the elbow and
+/// `Corners`, which draws the same corner-weighted lattice the surface follows, closes it.
+#[test]
+fn a_rig_without_source_mesh_is_measured_against_its_own_skinned_surface() {
+    let mut model = cylinder(6);
+    model.rig.as_mut().expect("rigged").reference_mesh = None;
+    let (own, kind) = crate::measure::skin::reference_surface(&model).expect("rigged");
+    assert_eq!(kind, crate::measure::skin::ReferenceSurface::OwnSurface);
+    let part = &own.parts[0];
+    assert!(part.triangle_count() > 100, "{}", part.triangle_count());
+    assert_eq!(part.joints.len(), part.positions.len());
+    // Every vertex's weights sum to one.
+    for w in &part.weights {
+        assert!((w.iter().sum::<f32>() - 1.0).abs() < 1e-3, "{w:?}");
+    }
+    let r = report(
+        &doc_of(model),
+        2,
+        128,
+        &[
+            settings(StretchStrategy::Off),
+            settings(StretchStrategy::Corners),
+        ],
+    );
+    print(&r);
+    assert_eq!(
+        r.reference,
+        crate::measure::skin::ReferenceSurface::OwnSurface
+    );
+    let off = row(&r, settings(StretchStrategy::Off));
+    let corners = row(&r, settings(StretchStrategy::Corners));
+    for s in [off, corners] {
+        assert!(s.rest.mesh_pixels > 1_000, "{s:?}");
+        assert_eq!(s.rest.holes, 0, "{s:?}");
+        assert_eq!(s.rest.bloat, 0, "{s:?}");
+        assert_eq!(s.posed.holes_misplaced, 0, "{s:?}");
+    }
+    assert!(off.stretch_holes > 100, "{off:?}");
+    assert_eq!(corners.posed.holes, 0, "{corners:?}");
+}
