@@ -268,3 +268,112 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
     assert_eq!(gltf.skins().next().unwrap().joints().count(), 5);
     assert_eq!(gltf.animations().count(), 1);
 }
+
+/// The dope sheet on the critter sample's walk: opened from the timeline, a key clicked and
+/// dragged two frames later (one undo step, on the frame), every key selected, deleted and
+/// brought back by undo, then copied and pasted at the playhead. Snapshot looked at.
+#[test]
+fn the_dope_sheet_selects_drags_deletes_copies_and_pastes_keys() {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/critter.thicket.json"
+    );
+    let doc = thicket_core::io::project::load(std::path::Path::new(path)).expect("critter");
+    let mut h = harness(Editor::new(doc, None));
+    let id = thicket::ui::pose::timeline_target(&h.state().editor).expect("rigged");
+    let clip_of = |h: &Harness<'static, EditorApp>| {
+        h.state()
+            .editor
+            .playing_clip(id)
+            .expect("walk plays")
+            .1
+            .clone()
+    };
+    let start = clip_of(&h);
+    let all_keys = start.keys();
+    assert!(all_keys.len() > 10, "{}", all_keys.len());
+    h.get_by_label("Dope sheet").click();
+    h.run_steps(2);
+    h.get_by_label_contains("key(s) selected");
+
+    // The track's geometry, as the sheet lays it out: keys span the clip's length.
+    let rows = h.get_by_label("Dope sheet keys").rect();
+    let (left, width) = (rows.left() + 7.0, rows.width() - 14.0);
+    let span = start.duration_secs.max(start.last_key_time());
+    let joint = all_keys[0].joint;
+    let t = start.joint_key_times(joint)[1];
+    let at = |t: f32| egui::pos2(left + t / span * width, rows.top() + 9.0);
+    common::click_at(&mut h, at(t));
+    assert_eq!(h.state().pose.dope.selected.len(), 1);
+    assert_eq!(h.state().pose.dope.selected[0].joint, joint);
+
+    // Drag it two frames (and a bit) later: it lands on the frame, one undo step.
+    let steps = h.state().editor.history().undo_len();
+    let frame = 1.0 / start.frame_rate;
+    h.drag_at(at(t));
+    h.run_steps(1);
+    h.hover_at(at(t + frame));
+    h.run_steps(1);
+    h.hover_at(at(t + 2.2 * frame));
+    h.run_steps(1);
+    h.drop_at(at(t + 2.2 * frame));
+    h.run_steps(2);
+    let times = clip_of(&h).joint_key_times(joint);
+    assert!(
+        times.iter().any(|&x| (x - (t + 2.0 * frame)).abs() < 1e-4),
+        "{times:?}"
+    );
+    assert!(!times.iter().any(|&x| (x - t).abs() < 1e-4), "{times:?}");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    h.try_snapshot_options("dope_sheet", &SnapshotOptions::default())
+        .unwrap();
+    assert!(h.state_mut().editor.undo());
+    h.run_steps(1);
+    assert_eq!(clip_of(&h), start);
+
+    // Select all, delete, undo.
+    h.get_by_label("Select all").click();
+    h.run_steps(1);
+    assert_eq!(h.state().pose.dope.selected.len(), all_keys.len());
+    h.get_by_label("Delete keys").click();
+    h.run_steps(2);
+    assert!(clip_of(&h).channels.is_empty());
+    h.get_by_label_contains("No keys yet");
+    assert!(h.state_mut().editor.undo());
+    // The timeline panel grows back to hold the rows over a frame or two.
+    h.run_steps(3);
+    assert_eq!(clip_of(&h), start);
+
+    // Copy every key and paste it with the playhead held at 2 s: the clip grows to 3 s and
+    // the pasted keys repeat the first second.
+    h.get_by_label("Select all").click();
+    h.run_steps(1);
+    assert_eq!(h.state().pose.dope.selected.len(), all_keys.len());
+    h.get_by_label("Copy").click();
+    h.run_steps(1);
+    assert!(h.state().pose.dope.clipboard.is_some());
+    let mut playback = h.state().editor.rig(id).unwrap().playback;
+    playback.wrap = thicket_core::skin::Wrap::Clamp;
+    playback.time_secs = 2.0;
+    h.state_mut().editor.set_playback(id, playback).unwrap();
+    h.run_steps(1);
+    h.get_by_label("Paste at playhead").click();
+    h.run_steps(2);
+    let pasted = clip_of(&h);
+    assert!(
+        (pasted.duration_secs - (2.0 + start.last_key_time())).abs() < 1e-4,
+        "{} {:?}",
+        pasted.duration_secs,
+        h.state().pose.dope.error
+    );
+    let rig = h.state().editor.rig(id).unwrap();
+    // At every key time the pasted pose is the copied one (values are pasted; the tangents of
+    // the cubic walk are flat at pasted keys, so between keys the curves differ).
+    for s in start.joint_key_times(joint) {
+        let a = start.sample(s, &rig.skeleton);
+        let b = pasted.sample(2.0 + s, &rig.skeleton);
+        for (x, y) in a.locals.iter().zip(&b.locals) {
+            assert!(x.rotation.angle_between(y.rotation) < 1e-3, "at {s}");
+        }
+    }
+}

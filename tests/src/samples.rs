@@ -292,6 +292,7 @@ fn critter(doc: &mut Document) -> Result<()> {
         interpolation: thicket_core::skin::author::KeyInterpolation::Cubic,
         looping: true,
         keys,
+        frame_rate: 24.0,
     };
     let clip = walk.to_clip(&skeleton)?;
     let binding = Binding {

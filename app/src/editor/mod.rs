@@ -3,6 +3,7 @@
 //! the same commands as the buttons.
 
 pub mod autosave;
+mod dope;
 mod enhance;
 pub mod jobs;
 mod krs;
@@ -22,6 +23,7 @@ use glam::{Vec2, Vec3};
 use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
+pub use dope::KeyClipboard;
 pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;

@@ -2,15 +2,14 @@
 //! clip (rotation, translation and scale channels), or deleted from it; each is one undo
 //! step. Scaling a joint with the gizmo is an override like rotating or moving it.
 
-use glam::{Quat, Vec3, Vec4};
+use glam::{Vec3, Vec4};
 use thicket_core::skin::{
     AnimationClip, Channel, Interpolation, JointOverride, OverrideMode, Property,
 };
 
 use super::{CommandError, Edit, Editor};
 
-/// Keys closer than this (seconds) are the same key.
-pub const KEY_EPSILON_SECS: f32 = 1e-3;
+pub use thicket_core::skin::keys::KEY_EPSILON_SECS;
 
 /// Smallest per-axis joint scale a drag may set (a zero scale collapses the joint's voxels).
 pub const MIN_JOINT_SCALE: f32 = 0.01;
@@ -48,15 +47,7 @@ impl Editor {
         let Some(clip) = rig.playback.clip.and_then(|c| rig.clips.get(c)) else {
             return Vec::new();
         };
-        let mut times: Vec<f32> = clip
-            .channels
-            .iter()
-            .filter(|c| c.joint == joint)
-            .flat_map(|c| c.times.iter().copied())
-            .collect();
-        times.sort_by(f32::total_cmp);
-        times.dedup_by(|a, b| (*a - *b).abs() < KEY_EPSILON_SECS);
-        times
+        clip.joint_key_times(joint)
     }
 
     /// Stores `joint`'s current pose (clip, playhead and overrides) as keys of its rotation,
@@ -137,7 +128,7 @@ impl Editor {
                         target.channels.len() - 1
                     }
                 };
-                insert_key(&mut target.channels[c], t, value);
+                target.channels[c].set_key(t, value);
             }
         }
         target.duration_secs = target.duration_secs.max(t);
@@ -164,8 +155,8 @@ impl Editor {
     }
 
     /// Deletes `joint`'s keys at the playhead from the playing clip (channels left without
-    /// keys are removed; the clip's length follows its last key). One undo step. Returns
-    /// whether there was a key to delete.
+    /// keys are removed; the clip keeps its length). One undo step. Returns whether there was a
+    /// key to delete.
     ///
     /// # Errors
     /// Unknown object or no rig.
@@ -174,34 +165,14 @@ impl Editor {
         let Some(index) = clip else {
             return Ok(false);
         };
-        let rig = self.rig_or_err(id)?;
-        let mut clips = rig.clips.clone();
-        let target = &mut clips[index];
-        let mut deleted = false;
-        for c in target.channels.iter_mut().filter(|c| c.joint == joint) {
-            while let Some(k) = c
-                .times
-                .iter()
-                .position(|&x| (x - t).abs() < KEY_EPSILON_SECS)
-            {
-                c.times.remove(k);
-                if c.interpolation == Interpolation::CubicSpline {
-                    c.values.drain(3 * k..3 * k + 3);
-                } else {
-                    c.values.remove(k);
-                }
-                deleted = true;
-            }
-        }
-        if !deleted {
+        let mut clips = self.rig_or_err(id)?.clips.clone();
+        let deleted = clips[index].delete_keys(&[thicket_core::skin::KeyRef {
+            joint,
+            time_secs: t,
+        }]);
+        if deleted == 0 {
             return Ok(false);
         }
-        target.channels.retain(|c| !c.times.is_empty());
-        target.duration_secs = target
-            .channels
-            .iter()
-            .filter_map(|c| c.times.last().copied())
-            .fold(0.0, f32::max);
         self.history.seal();
         self.apply(Edit::SetClips { id, clips }, None);
         self.history.seal();
@@ -239,48 +210,5 @@ impl Editor {
         });
         o.scale = Some((start * factor).max(Vec3::splat(MIN_JOINT_SCALE)));
         self.set_joint_override(id, o)
-    }
-}
-
-/// Writes `value` at time `t` into a channel: replaces the key there or inserts one in order
-/// (a cubic-spline key gets flat tangents).
-fn insert_key(c: &mut Channel, t: f32, value: Vec4) {
-    let cubic = c.interpolation == Interpolation::CubicSpline;
-    let value = if c.property == Property::Rotation {
-        // Keep the quaternion on the same hemisphere as its neighbour so slerp takes the short
-        // way even across sign flips of stored keys.
-        let q = Quat::from_vec4(value);
-        let near = c
-            .times
-            .iter()
-            .position(|&x| x >= t)
-            .or(c.times.len().checked_sub(1))
-            .and_then(|k| c.values.get(if cubic { 3 * k + 1 } else { k }).copied());
-        match near {
-            Some(v) if Quat::from_vec4(v).dot(q) < 0.0 => -value,
-            _ => value,
-        }
-    } else {
-        value
-    };
-    match c
-        .times
-        .iter()
-        .position(|&x| (x - t).abs() < KEY_EPSILON_SECS)
-    {
-        Some(k) => {
-            let i = if cubic { 3 * k + 1 } else { k };
-            c.values[i] = value;
-        }
-        None => {
-            let k = c.times.partition_point(|&x| x < t);
-            c.times.insert(k, t);
-            if cubic {
-                c.values
-                    .splice(3 * k..3 * k, [Vec4::ZERO, value, Vec4::ZERO]);
-            } else {
-                c.values.insert(k, value);
-            }
-        }
     }
 }

@@ -806,7 +806,7 @@ impl Editor {
         clips.push(AnimationClip {
             name,
             duration_secs: length_secs,
-            channels: Vec::new(),
+            ..AnimationClip::default()
         });
         let index = clips.len() - 1;
         self.apply(Edit::SetClips { id, clips }, None);

@@ -556,3 +556,107 @@ fn smoothing_reads_an_empty_skin_as_the_root_at_full_weight() {
         .unwrap();
     assert!(tip_weight(&ed) < 0.75, "{}", tip_weight(&ed));
 }
+
+/// A clip "kick" on the bound figure with the leg keyed at 0, 0.5 and 1 s (0°, 60°, then 20°
+/// more) and the hip at 0.5 s.
+fn kicking() -> (Editor, u64, usize, usize) {
+    let (mut ed, id, hip, leg) = bound_hip_and_leg();
+    ed.new_clip(id, "kick", 1.0).unwrap();
+    let mut playback = ed.rig(id).unwrap().playback;
+    playback.wrap = thicket_core::skin::Wrap::Clamp;
+    for (joint, t, deg) in [
+        (leg, 0.0f32, 0.0f32),
+        (leg, 0.5, 60.0),
+        (leg, 1.0, 20.0),
+        (hip, 0.5, 10.0),
+    ] {
+        playback.time_secs = t;
+        ed.set_playback(id, playback).unwrap();
+        ed.rotate_joint(
+            id,
+            joint,
+            None,
+            glam::Quat::from_rotation_x(deg.to_radians()),
+        )
+        .unwrap();
+        ed.set_joint_key(id, joint).unwrap();
+    }
+    (ed, id, hip, leg)
+}
+
+fn leg_angle_deg(ed: &Editor, id: u64, leg: usize, t: f32) -> f32 {
+    let rig = ed.rig(id).unwrap();
+    let clip = &rig.clips[rig.playback.clip.unwrap()];
+    let q = clip.sample(t, &rig.skeleton).locals[leg].rotation;
+    q.angle_between(glam::Quat::IDENTITY).to_degrees()
+}
+
+#[test]
+fn dope_sheet_moves_deletes_copies_and_pastes_keys_one_step_each() {
+    use thicket_core::skin::KeyRef;
+    let (mut ed, id, hip, leg) = kicking();
+    let key = |joint, time_secs| KeyRef { joint, time_secs };
+    let start = ed.rig(id).unwrap().clips.clone();
+    let steps = ed.history().undo_len();
+    // The last key: 20° posed on top of the 60° the clip held there.
+    let end_deg = leg_angle_deg(&ed, id, leg, 1.0);
+    assert!((end_deg - 80.0).abs() < 0.01, "{end_deg}");
+
+    // Move the leg's middle key to 0.75 s: its 60° goes with it, the hip stays.
+    let moved = ed.move_keys(id, &[key(leg, 0.5)], 0.25).unwrap();
+    assert_eq!(moved, [key(leg, 0.75)]);
+    assert_eq!(ed.history().undo_len(), steps + 1);
+    assert_eq!(ed.joint_key_times(id, leg), [0.0, 0.75, 1.0]);
+    assert!((leg_angle_deg(&ed, id, leg, 0.75) - 60.0).abs() < 0.01);
+    assert_eq!(ed.joint_key_times(id, hip), [0.5]);
+
+    // Copy both leg keys at 0.75 and 1 s, paste them at 2 s: the clip grows to 2.25 s.
+    let clipboard = ed.copy_keys(id, &[key(leg, 0.75), key(leg, 1.0)]).unwrap();
+    let written = ed.paste_keys(id, &clipboard, 2.0).unwrap();
+    assert_eq!(written, [key(leg, 2.0), key(leg, 2.25)]);
+    assert_eq!(ed.history().undo_len(), steps + 2);
+    assert!((leg_angle_deg(&ed, id, leg, 2.0) - 60.0).abs() < 0.01);
+    assert!((leg_angle_deg(&ed, id, leg, 2.25) - end_deg).abs() < 0.01);
+    assert!((ed.playing_clip(id).unwrap().1.duration_secs - 2.25).abs() < 1e-6);
+
+    // Delete them again; the length stays.
+    assert_eq!(
+        ed.delete_keys(id, &written).unwrap(),
+        6,
+        "3 channels × 2 keys"
+    );
+    assert_eq!(ed.joint_key_times(id, leg), [0.0, 0.75, 1.0]);
+    assert!(ed.rig(id).unwrap().validate().is_ok());
+
+    // Cubic, then a frame rate: one step each, keyed values kept.
+    ed.set_keys_interpolation(id, &[leg], thicket_core::skin::Interpolation::CubicSpline)
+        .unwrap();
+    assert!((leg_angle_deg(&ed, id, leg, 0.75) - 60.0).abs() < 0.01);
+    let clip = ed.rig(id).unwrap().playback.clip.unwrap();
+    ed.set_clip_frame_rate(id, clip, 30.0).unwrap();
+    assert_eq!(ed.playing_clip(id).unwrap().1.frame_rate, 30.0);
+    assert!(ed.set_clip_frame_rate(id, clip, 0.0).is_err());
+    assert!(ed.set_clip_frame_rate(id, clip, f32::NAN).is_err());
+    assert_eq!(ed.history().undo_len(), steps + 5);
+
+    // Undoing every step gives the clip back exactly.
+    for _ in 0..5 {
+        assert!(ed.undo());
+    }
+    assert_eq!(ed.rig(id).unwrap().clips, start);
+
+    // Keys paste by joint name into another rig's clip, and not where no name matches.
+    let clipboard = ed.copy_keys(id, &[key(leg, 0.5)]).unwrap();
+    let (mut other, oid, _, oleg) = kicking();
+    other.rename_joint(oid, 0, "pelvis").unwrap();
+    let written = other.paste_keys(oid, &clipboard, 0.25).unwrap();
+    assert_eq!(written, [key(oleg, 0.25)]);
+    let mut none = clipboard.clone();
+    none.joint_names = vec!["nobody".into(); none.joint_names.len()];
+    assert!(other.paste_keys(oid, &none, 0.0).is_err());
+    // On the rest pose there is no clip to edit: a clear error, nothing changes.
+    let mut p = other.rig(oid).unwrap().playback;
+    p.clip = None;
+    other.set_playback(oid, p).unwrap();
+    assert!(other.move_keys(oid, &[key(oleg, 0.25)], 0.1).is_err());
+}

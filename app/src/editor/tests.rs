@@ -517,6 +517,7 @@ fn rigged_editor() -> (Editor, u64) {
             times: vec![0.0, 1.0],
             values: vec![glam::Vec4::ZERO, glam::Vec4::new(0.0, 1.0, 0.0, 0.0)],
         }],
+        ..AnimationClip::default()
     };
     let ObjectKind::Voxels(mut model) = voxels(3) else {
         unreachable!()
@@ -1233,10 +1234,11 @@ fn keys_store_the_posed_joint_in_the_clip_and_undo() {
     assert_eq!(ed.joint_key_times(id, 1), vec![0.5, 1.5]);
     assert!((ed.rig(id).unwrap().clips[0].duration_secs - 1.5).abs() < 1e-6);
     assert!(ed.rig(id).unwrap().validate().is_ok());
-    // Delete the key at 1.5: the clip is 1 s long again (its other channel ends there).
+    // Delete the key at 1.5: the clip keeps the length it grew to (as the dope sheet's
+    // deletes do; the artist sets a length in the Rig section).
     assert!(ed.delete_joint_key(id, 1).unwrap());
     assert_eq!(ed.joint_key_times(id, 1), vec![0.5]);
-    assert!((ed.rig(id).unwrap().clips[0].duration_secs - 1.0).abs() < 1e-6);
+    assert!((ed.rig(id).unwrap().clips[0].duration_secs - 1.5).abs() < 1e-6);
     assert!(
         !ed.delete_joint_key(id, 1).unwrap(),
         "no key at 1.5 any more"

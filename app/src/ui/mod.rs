@@ -4,6 +4,7 @@
 //! [`eframe::App::ui`] and tests call it through `egui_kittest` without a window.
 
 mod dialogs;
+pub mod dope_sheet;
 pub use dialogs::shortcut_rows;
 mod enhance_panel;
 pub mod export_gltf;

@@ -75,7 +75,7 @@ pub struct PoseTool {
     pub show_skeleton: bool,
     /// The timeline is playing.
     pub playing: bool,
-    /// Advance the clip by one [`FRAME_STEP_SECS`] per drawn frame instead of by the wall
+    /// Advance the clip by one of its frames per drawn frame instead of by the wall
     /// clock (every pose is shown, in slow motion when frames are slow).
     pub step_every_frame: bool,
     /// The UI time of the last playing frame (None while paused).
@@ -92,6 +92,8 @@ pub struct PoseTool {
     pub rig_report: Option<String>,
     /// Auto-key: every finished gizmo drag keys the joint at the playhead.
     pub auto_key: bool,
+    /// The dope sheet under the timeline.
+    pub dope: super::dope_sheet::DopeSheet,
 }
 
 impl Default for PoseTool {
@@ -109,12 +111,13 @@ impl Default for PoseTool {
             rig: super::rig_panel::RigSetup::default(),
             rig_report: None,
             auto_key: false,
+            dope: super::dope_sheet::DopeSheet::default(),
         }
     }
 }
 
-/// The clip time one frame advances with "Every frame" (30 frames per second: glTF clips carry
-/// no frame rate of their own).
+/// The time one frame of a frame sequence (an animated `.vox`) advances with "Every frame"
+/// (30 frames per second); a clip advances by one of its own frames.
 pub const FRAME_STEP_SECS: f32 = 1.0 / 30.0;
 
 /// The most clip time one frame advances by the wall clock: after a stall (a blocking dialog,
@@ -123,16 +126,12 @@ const MAX_PLAYBACK_STEP_SECS: f64 = 1.0;
 
 /// Clip seconds to advance this frame: the UI time since the last playing frame (frames are
 /// dropped when drawing is slow, so the clip keeps real time; 0 on the first frame), or one
-/// [`FRAME_STEP_SECS`] per frame with `every_frame`.
+/// `frame_secs` per frame when given (every frame shown, "Every frame").
 #[must_use]
-pub fn playback_step(last_tick: &mut Option<f64>, now: f64, every_frame: bool) -> f32 {
+pub fn playback_step(last_tick: &mut Option<f64>, now: f64, frame_secs: Option<f32>) -> f32 {
     let elapsed = last_tick.map_or(0.0, |t| (now - t).clamp(0.0, MAX_PLAYBACK_STEP_SECS));
     *last_tick = Some(now);
-    if every_frame {
-        FRAME_STEP_SECS
-    } else {
-        elapsed as f32
-    }
+    frame_secs.unwrap_or(elapsed as f32)
 }
 
 /// A drawn handle: its axis and its polyline on the screen.
@@ -813,7 +812,11 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
         }
         if tool.playing {
             let now = ui.input(|i| i.time);
-            let step = playback_step(&mut tool.last_tick, now, tool.step_every_frame);
+            let step = playback_step(
+                &mut tool.last_tick,
+                now,
+                tool.step_every_frame.then_some(FRAME_STEP_SECS),
+            );
             // "Every frame" shows each frame of the sequence in turn.
             let step = if tool.step_every_frame { frame_secs } else { step };
             t = (t + step).rem_euclid(duration.max(1e-6));
@@ -883,6 +886,13 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         .clip
         .and_then(|c| clips.get(c))
         .map_or(0.0, |(_, d)| *d);
+    let frame_rate = playback
+        .clip
+        .and_then(|c| rig.clips.get(c))
+        .map_or(thicket_core::skin::keys::DEFAULT_FRAME_RATE, |c| {
+            c.frame_rate
+        })
+        .max(1.0);
     ui.horizontal(|ui| {
         ui.strong("Timeline")
             .on_hover_text(format!("Animation of {name}"));
@@ -927,15 +937,20 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         }
         ui.checkbox(&mut tool.step_every_frame, "Every frame")
             .on_hover_text(format!(
-                "Advance {:.3} s per drawn frame (every pose shown, slow motion when frames are slow) instead of by the clock",
-                FRAME_STEP_SECS
+                "Advance one frame of the clip ({:.3} s at {} fps) per drawn frame (every pose shown, slow motion when frames are slow) instead of by the clock",
+                1.0 / frame_rate,
+                frame_rate
             ));
         if !has_clip {
             tool.playing = false;
         }
         if tool.playing {
             let now = ui.input(|i| i.time);
-            let dt = playback_step(&mut tool.last_tick, now, tool.step_every_frame);
+            let dt = playback_step(
+                &mut tool.last_tick,
+                now,
+                tool.step_every_frame.then_some(1.0 / frame_rate),
+            );
             playback.time_secs += dt;
             if playback.time_secs > duration {
                 playback.time_secs = if playback.wrap == Wrap::Loop {
@@ -950,7 +965,8 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
             tool.last_tick = None;
         }
         let mut t = playback.time_secs.clamp(0.0, duration);
-        let width = (ui.available_width() - 110.0).max(80.0);
+        // Room for the time and frame readout after the slider.
+        let width = (ui.available_width() - 200.0).max(80.0);
         ui.spacing_mut().slider_width = width;
         let slider = ui
             .add_enabled(
@@ -963,10 +979,21 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
             tool.playing = false;
         }
         paint_keys(ui, editor, tool, id, slider.rect, duration);
-        ui.monospace(format!("{:.2} / {:.2} s", t, duration))
-            .on_hover_text("Playhead / clip length");
+        ui.monospace(format!(
+            "{:.2} / {:.2} s  frame {}",
+            t,
+            duration,
+            (t * frame_rate).round()
+        ))
+        .on_hover_text(format!("Playhead / clip length; frame at {frame_rate} fps"));
     });
     keys_ui(ui, editor, tool, id, &mut playback);
+    if tool.dope.open && playback.clip.is_some() {
+        super::dope_sheet::dope_sheet_ui(ui, editor, &mut tool.dope, id, &mut playback);
+        if tool.dope.scrubbed {
+            tool.playing = false;
+        }
+    }
     if playback != editor.rig(id).map_or(playback, |r| r.playback) {
         tool.error = editor
             .set_playback(id, playback)
@@ -1089,6 +1116,8 @@ fn keys_ui(
         }
         ui.checkbox(&mut tool.auto_key, "Auto-key")
             .on_hover_text("Key the joint at the playhead whenever a gizmo drag ends");
+        ui.toggle_value(&mut tool.dope.open, "Dope sheet")
+            .on_hover_text("Every joint's keys over time: select, drag in time, copy / paste, delete, interpolation, frame rate");
         ui.weak(format!("{name}: {} key(s) in this clip", keys.len()))
             .on_hover_text("Keys of the selected joint, drawn as diamonds on the timeline");
     });
@@ -1102,19 +1131,25 @@ mod playback_tests {
     fn playback_follows_the_clock_and_drops_frames_when_slow() {
         let mut tick = None;
         // The first playing frame starts the clock.
-        assert_eq!(playback_step(&mut tick, 10.0, false), 0.0);
+        assert_eq!(playback_step(&mut tick, 10.0, None), 0.0);
         // Slow frames (0.3 s apart) advance the clip by 0.3 s each: real time, not a cap.
-        assert!((playback_step(&mut tick, 10.3, false) - 0.3).abs() < 1e-6);
-        assert!((playback_step(&mut tick, 10.6, false) - 0.3).abs() < 1e-6);
+        assert!((playback_step(&mut tick, 10.3, None) - 0.3).abs() < 1e-6);
+        assert!((playback_step(&mut tick, 10.6, None) - 0.3).abs() < 1e-6);
         // A stall of a minute moves the clip by the cap, not a minute.
         assert_eq!(
-            playback_step(&mut tick, 70.6, false) as f64,
+            playback_step(&mut tick, 70.6, None) as f64,
             MAX_PLAYBACK_STEP_SECS
         );
         // A clock that goes back (a new context) does not play backwards.
-        assert_eq!(playback_step(&mut tick, 5.0, false), 0.0);
+        assert_eq!(playback_step(&mut tick, 5.0, None), 0.0);
         // Every frame: one fixed step, whatever the clock.
-        assert_eq!(playback_step(&mut tick, 9.0, true), FRAME_STEP_SECS);
-        assert_eq!(playback_step(&mut tick, 9.001, true), FRAME_STEP_SECS);
+        assert_eq!(
+            playback_step(&mut tick, 9.0, Some(FRAME_STEP_SECS)),
+            FRAME_STEP_SECS
+        );
+        assert_eq!(
+            playback_step(&mut tick, 9.001, Some(FRAME_STEP_SECS)),
+            FRAME_STEP_SECS
+        );
     }
 }

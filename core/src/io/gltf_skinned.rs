@@ -385,6 +385,7 @@ fn read_clips(
             name: name.clone(),
             duration_secs: 0.0,
             channels: Vec::new(),
+            ..AnimationClip::default()
         };
         let mut skipped = 0usize;
         for (c, ch) in anim.channels.iter().enumerate() {

@@ -550,7 +550,10 @@ fn check_object_graph(doc: &Document, payloads: &[PayloadRef]) -> Result<(), Str
 
 const SVO_MAGIC: &[u8; 4] = b"SVO1";
 const MESH_MAGIC: &[u8; 4] = b"MSH1";
-const SKIN_MAGIC: &[u8; 4] = b"SKN1";
+/// The skin payload; `SKN2` adds each clip's frame rate after its duration. `SKN1` (no frame
+/// rate: clips get the default) is still read.
+const SKIN_MAGIC: &[u8; 4] = b"SKN2";
+const SKIN_MAGIC_V1: &[u8; 4] = b"SKN1";
 
 /// Little-endian reader that checks every length before reading or allocating.
 struct Reader<'a> {
@@ -767,7 +770,7 @@ fn encode_skin(rig: &Rig, out: &mut Vec<u8>) {
     for c in &rig.clips {
         put_len(out, c.name.len());
         out.extend_from_slice(c.name.as_bytes());
-        put_f32s(out, &[c.duration_secs]);
+        put_f32s(out, &[c.duration_secs, c.frame_rate]);
         put_len(out, c.channels.len());
         for ch in &c.channels {
             put_len(out, ch.joint);
@@ -807,9 +810,11 @@ fn encode_skin(rig: &Rig, out: &mut Vec<u8>) {
 /// the caller validates the clips against the skeleton.
 fn decode_skin(bytes: &[u8], rig: &mut Rig) -> Result<(), String> {
     let mut r = Reader { bytes, at: 0 };
-    if r.take(4)? != SKIN_MAGIC {
-        return Err("bad magic (expected SKN1)".into());
-    }
+    let with_frame_rate = match r.take(4)? {
+        m if m == SKIN_MAGIC => true,
+        m if m == SKIN_MAGIC_V1 => false,
+        _ => return Err("bad magic (expected SKN2 or SKN1)".into()),
+    };
     let n_clips = r.count(12, "clip table")?;
     let mut clips = Vec::with_capacity(n_clips);
     for i in 0..n_clips {
@@ -817,6 +822,11 @@ fn decode_skin(bytes: &[u8], rig: &mut Rig) -> Result<(), String> {
         let name = String::from_utf8(r.take(len)?.to_vec())
             .map_err(|_| format!("clip {i}: name is not UTF-8"))?;
         let duration_secs = r.f32()?;
+        let frame_rate = if with_frame_rate {
+            r.f32()?
+        } else {
+            crate::skin::keys::DEFAULT_FRAME_RATE
+        };
         let n_channels = r.count(16, "channel table")?;
         let mut channels = Vec::with_capacity(n_channels);
         for k in 0..n_channels {
@@ -862,6 +872,7 @@ fn decode_skin(bytes: &[u8], rig: &mut Rig) -> Result<(), String> {
             name,
             duration_secs,
             channels,
+            frame_rate,
         });
     }
     let n = r.count(9, "stretch overrides")?;

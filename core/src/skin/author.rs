@@ -260,6 +260,14 @@ pub struct ClipSpec {
     pub looping: bool,
     /// The keys, in any order.
     pub keys: Vec<KeySpec>,
+    /// Frames per second the clip is edited at (keys snap to its frames in the editor); glTF
+    /// stores seconds only. 24 when absent.
+    #[serde(default = "default_frame_rate")]
+    pub frame_rate: f32,
+}
+
+fn default_frame_rate() -> f32 {
+    super::keys::DEFAULT_FRAME_RATE
 }
 
 /// One joint's key: time, rotation and translation relative to rest.
@@ -370,6 +378,7 @@ impl ClipSpec {
             name: self.name.clone(),
             duration_secs: self.length,
             channels,
+            frame_rate: self.frame_rate,
         };
         clip.validate(skeleton.len())?;
         Ok(clip)

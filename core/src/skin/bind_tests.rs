@@ -390,6 +390,7 @@ fn wave_clip() -> ClipSpec {
                 translation: Some([0.0, 1.0, 0.0]),
             },
         ],
+        frame_rate: 24.0,
     }
 }
 

@@ -59,15 +59,29 @@ pub struct Channel {
 }
 
 /// A named animation: channels over a skeleton's joints.
-#[derive(Debug, Clone, Default, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
 pub struct AnimationClip {
     /// Display name.
     pub name: String,
-    /// Length in seconds (the last key time over all channels).
+    /// Length in seconds (at least the last key time over all channels).
     pub duration_secs: f32,
     /// Channels; where two animate the same property of the same joint, the later wins.
     pub channels: Vec<Channel>,
+    /// Frames per second the clip is authored at: keys snap to its frames and the timeline
+    /// counts them. glTF has no frame rate (its times are seconds), so it only guides editing.
+    pub frame_rate: f32,
+}
+
+impl Default for AnimationClip {
+    fn default() -> Self {
+        Self {
+            name: String::new(),
+            duration_secs: 0.0,
+            channels: Vec::new(),
+            frame_rate: super::keys::DEFAULT_FRAME_RATE,
+        }
+    }
 }
 
 impl Channel {
@@ -218,6 +232,17 @@ impl AnimationClip {
                     channel: i,
                     problem,
                 })?;
+        }
+        if !super::keys::FRAME_RATE_RANGE.contains(&self.frame_rate) {
+            return Err(SkinError::Rig {
+                problem: format!(
+                    "clip {:?}: frame rate {} is not within {}..={} frames per second",
+                    self.name,
+                    self.frame_rate,
+                    super::keys::FRAME_RATE_RANGE.start(),
+                    super::keys::FRAME_RATE_RANGE.end()
+                ),
+            });
         }
         if !self.duration_secs.is_finite() || self.duration_secs < 0.0 {
             return Err(SkinError::BadChannel {

@@ -9,6 +9,7 @@
 //! |---|---|
 //! | [`skeleton`] | [`Skeleton`], [`Joint`], [`Transform`], [`Pose`], manual overrides, forward kinematics |
 //! | [`clip`] | [`AnimationClip`] and its channels; STEP / LINEAR (slerp) / CUBICSPLINE sampling |
+//! | [`keys`] | dope-sheet key edits: move, delete, copy / paste, interpolation, frame snapping |
 //! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
 //! | [`stretch`] | stretch-factor strategies (`Thesis`, `Corners`, `Adaptive`) |
@@ -33,6 +34,7 @@ pub mod author;
 pub mod bind;
 pub mod clip;
 pub mod deform;
+pub mod keys;
 pub mod lbs;
 pub mod paint;
 pub mod rig;
@@ -46,6 +48,7 @@ pub use author::{ClipSpec, JointSpec, KeySpec, SkeletonSpec};
 pub use bind::{BindMethod, BindReport, bind};
 pub use clip::{AnimationClip, Channel, Interpolation, Property, Wrap};
 pub use deform::{SkinDeform, SkinTables};
+pub use keys::{CopiedKey, KeyRef};
 pub use lbs::{
     WeightRepair, repair_mesh_weights, repair_weights, skin_normal, skin_point, skin_points,
 };

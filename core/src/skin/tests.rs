@@ -443,7 +443,7 @@ fn wrap_modes_clamp_and_loop() {
     let clip = AnimationClip {
         name: "c".into(),
         duration_secs: 2.0,
-        channels: Vec::new(),
+        ..AnimationClip::default()
     };
     assert_eq!(clip.wrap_time(5.0, Wrap::Clamp), 2.0);
     assert_eq!(clip.wrap_time(-1.0, Wrap::Clamp), 0.0);
@@ -473,6 +473,7 @@ fn clip_validation_reports_bad_channels() {
             vec![0.0, 1.0],
             vec![Vec4::ZERO; 4],
         )],
+        ..AnimationClip::default()
     };
     let err = clip
         .validate(1)

@@ -526,6 +526,7 @@ fn hinged_bar() -> Document {
             times: vec![0.0, 1.0],
             values: vec![Vec4::from(Quat::IDENTITY), Vec4::from(bend)],
         }],
+        ..AnimationClip::default()
     };
     let rig = Rig::new(skeleton, vec![clip]);
     let mut doc = Document::default();
@@ -638,6 +639,7 @@ fn natively_rigged_figure() -> Document {
             key("shin.L", 0.75, [45.0, 0.0, 0.0]),
             key("arm", 0.5, [0.0, 20.0, -60.0]),
         ],
+        frame_rate: 24.0,
     }
     .to_clip(&skeleton)
     .expect("clip");

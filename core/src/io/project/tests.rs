@@ -518,6 +518,7 @@ fn skinned_doc() -> Document {
                 values: vec![Vec4::ZERO, Vec4::Y, Vec4::X, Vec4::ZERO, Vec4::Y, Vec4::Z],
             },
         ],
+        frame_rate: 30.0,
     };
     let wave = AnimationClip {
         name: "wave".into(),
@@ -529,6 +530,7 @@ fn skinned_doc() -> Document {
             times: vec![0.0, 0.5],
             values: vec![Vec4::ONE, Vec4::splat(2.0)],
         }],
+        frame_rate: 12.0,
     };
     let voxels: Vec<(UVec3, Voxel)> = (0..24u32)
         .map(|y| {
@@ -585,6 +587,58 @@ fn rig_of(doc: &Document) -> &crate::skin::Rig {
         ObjectKind::Voxels(v) => v.rig.as_ref().expect("rig"),
         ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("not voxels"),
     }
+}
+
+/// A skin payload written before clips had a frame rate (`SKN1`) loads, every clip at the
+/// default rate and otherwise equal.
+#[test]
+fn skin_payloads_without_frame_rates_still_load() {
+    let doc = skinned_doc();
+    let rig = rig_of(&doc);
+    let mut v2 = Vec::new();
+    encode_skin(rig, &mut v2);
+    assert_eq!(&v2[..4], b"SKN2");
+    // SKN1: the same bytes without the f32 after each clip's duration.
+    let mut v1 = b"SKN1".to_vec();
+    let mut at = 4;
+    v1.extend_from_slice(&v2[at..at + 4]);
+    at += 4;
+    for c in &rig.clips {
+        let head = 4 + c.name.len() + 4;
+        v1.extend_from_slice(&v2[at..at + head]);
+        at += head + 4;
+        // The channel table: a count, then per channel joint, property, interpolation, two
+        // pad bytes, and the counted times and values.
+        let body_end = 4 + c
+            .channels
+            .iter()
+            .map(|ch| 4 + 4 + 4 + 4 * ch.times.len() + 4 + 16 * ch.values.len())
+            .sum::<usize>();
+        v1.extend_from_slice(&v2[at..at + body_end]);
+        at += body_end;
+    }
+    v1.extend_from_slice(&v2[at..]);
+    let mut read = crate::skin::Rig::default();
+    decode_skin(&v1, &mut read).unwrap();
+    assert_eq!(read.clips.len(), rig.clips.len());
+    for (a, b) in read.clips.iter().zip(&rig.clips) {
+        assert_eq!(a.frame_rate, crate::skin::keys::DEFAULT_FRAME_RATE);
+        assert_eq!(
+            crate::skin::AnimationClip {
+                frame_rate: b.frame_rate,
+                ..a.clone()
+            },
+            *b
+        );
+    }
+    assert_eq!(read.reference_mesh, rig.reference_mesh);
+    // And the current format keeps each clip's own rate.
+    let mut read = crate::skin::Rig::default();
+    decode_skin(&v2, &mut read).unwrap();
+    assert_eq!(
+        read.clips.iter().map(|c| c.frame_rate).collect::<Vec<_>>(),
+        [30.0, 12.0]
+    );
 }
 
 #[test]

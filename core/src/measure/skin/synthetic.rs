@@ -115,6 +115,7 @@ pub fn bending_cylinder(radius: f32, half_length: f32, segments: u32) -> Skinned
                 quat(Quat::from_rotation_z(FRAC_PI_2)),
             ],
         }],
+        ..AnimationClip::default()
     };
     SkinnedImport {
         skeleton,
