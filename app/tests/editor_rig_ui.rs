@@ -146,6 +146,42 @@ fn a_model_made_here_is_rigged_bound_keyed_played_saved_and_exported() {
         let z = (j.position[2] - origin.z) / 0.1;
         assert!((z - 4.0).abs() < 0.05, "{} at z = {z} voxels", j.name);
     }
+    // While placing, the selected joint's gizmo moves its rest position along the model's
+    // axes: drag the Y arrow (up the screen in this front view) 30 points up, one undo step,
+    // no pose override; then undo it.
+    let last = spec.joints.len() - 1;
+    assert_eq!(h.state().pose.joint.map(|j| j.joint), Some(last));
+    let (dot, per_point) = {
+        let frames = h.state().editor.joint_frames(id).unwrap();
+        let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+        let p = frames.position(last).unwrap();
+        (proj.to_screen(p).unwrap(), proj.world_per_point(p))
+    };
+    let steps = h.state().editor.history().undo_len();
+    let grab = dot + egui::vec2(0.0, -40.0);
+    h.drag_at(grab);
+    h.run_steps(1);
+    h.hover_at(grab + egui::vec2(0.0, -15.0));
+    h.run_steps(1);
+    h.hover_at(grab + egui::vec2(0.0, -30.0));
+    h.run_steps(1);
+    h.drop_at(grab + egui::vec2(0.0, -30.0));
+    h.run_steps(2);
+    let moved = h.state().editor.skeleton_spec(id).unwrap();
+    let (a, b) = (spec.joints[last].position, moved.joints[last].position);
+    assert!(
+        (b[1] - a[1] - 30.0 * per_point).abs() < 0.1 * 30.0 * per_point,
+        "{a:?} -> {b:?} ({per_point} per point)"
+    );
+    assert!(
+        (b[0] - a[0]).abs() < 1e-4 && (b[2] - a[2]).abs() < 1e-4,
+        "{a:?} {b:?}"
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    assert!(h.state().editor.rig(id).unwrap().pose_overrides.is_empty());
+    assert!(h.state_mut().editor.undo());
+    h.run_steps(1);
+    assert_eq!(h.state().editor.skeleton_spec(id).unwrap(), spec);
     h.get_by_label("Place joints").click();
     h.run_steps(1);
     common::settle_preview(&mut h);

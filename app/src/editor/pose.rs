@@ -20,6 +20,8 @@ pub struct JointFrames {
     pub world_from_parent: Vec<Mat4>,
     /// Parent index per joint.
     pub parents: Vec<Option<usize>>,
+    /// The object's transform: rest positions are in its own space.
+    pub world_from_object: Mat4,
 }
 
 impl JointFrames {
@@ -85,6 +87,7 @@ impl Editor {
             world_from_joint,
             world_from_parent,
             parents: joints.iter().map(|j| j.parent).collect(),
+            world_from_object,
         })
     }
 

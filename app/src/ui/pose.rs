@@ -33,6 +33,9 @@ pub enum GizmoMode {
     /// Square-ended handles along the joint's own axes: dragging one stretches the joint
     /// (and everything below it) along that axis.
     Scale,
+    /// Arrows along the model's own axes that move the joint's rest position (the skeleton
+    /// itself, not a pose): the gizmo while the Rig section's Place joints is on.
+    Rest,
 }
 
 /// A joint of a rigged object.
@@ -62,6 +65,8 @@ struct GizmoDrag {
     /// Translate: the arrow on the screen (points) and the local translation it stands for.
     arrow_px: egui::Vec2,
     arrow_local: f32,
+    /// Rest: the joint's rest position (model space) when the drag started.
+    rest_start: Vec3,
 }
 
 /// The pose tool's state.
@@ -167,6 +172,17 @@ impl PoseTool {
         self.drag.is_some()
     }
 
+    /// What the gizmo does now: [`GizmoMode::Rest`] while joints are being placed (the
+    /// skeleton is being edited), else the chosen mode.
+    #[must_use]
+    pub fn active_mode(&self) -> GizmoMode {
+        if self.rig.placing {
+            GizmoMode::Rest
+        } else {
+            self.mode
+        }
+    }
+
     fn handles(&self, frames: &JointFrames, joint: usize, proj: &Projector) -> Vec<Handle> {
         let (Some(w), Some(parent)) = (
             frames.world_from_joint.get(joint),
@@ -178,7 +194,7 @@ impl PoseTool {
         let size = GIZMO_PX * proj.world_per_point(p);
         let mut out = Vec::new();
         for axis in 0..3 {
-            match self.mode {
+            match self.active_mode() {
                 GizmoMode::Rotate => {
                     let Some(a) = w.col(axis).truncate().try_normalize() else {
                         continue;
@@ -205,8 +221,13 @@ impl PoseTool {
                         });
                     }
                 }
-                GizmoMode::Translate => {
-                    let Some(d) = parent.col(axis).truncate().try_normalize() else {
+                GizmoMode::Translate | GizmoMode::Rest => {
+                    let frame = if self.active_mode() == GizmoMode::Rest {
+                        frames.world_from_object
+                    } else {
+                        *parent
+                    };
+                    let Some(d) = frame.col(axis).truncate().try_normalize() else {
                         continue;
                     };
                     if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + d * size)) {
@@ -251,7 +272,12 @@ impl PoseTool {
                 && let Some(center) = proj.to_screen(p)
             {
                 let w = frames.world_from_joint[sel.joint];
-                let parent = frames.world_from_parent[sel.joint];
+                let mode = self.active_mode();
+                let parent = if mode == GizmoMode::Rest {
+                    frames.world_from_object
+                } else {
+                    frames.world_from_parent[sel.joint]
+                };
                 let axis_world = w.col(h.axis).truncate();
                 let sign = if axis_world.dot(proj.toward_eye(p)) >= 0.0 {
                     1.0
@@ -262,11 +288,15 @@ impl PoseTool {
                 let size = GIZMO_PX * proj.world_per_point(p);
                 // The arrow is `size` world units long; a unit of local translation moves the
                 // joint by the parent axis's length.
-                let (arrow_px, arrow_local) = match self.mode {
-                    GizmoMode::Translate if parent_axis.length_squared() > 1e-24 => (
-                        h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
-                        size / parent_axis.length(),
-                    ),
+                let (arrow_px, arrow_local) = match mode {
+                    GizmoMode::Translate | GizmoMode::Rest
+                        if parent_axis.length_squared() > 1e-24 =>
+                    {
+                        (
+                            h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
+                            size / parent_axis.length(),
+                        )
+                    }
                     // Scale: dragging the handle's length once more doubles the axis.
                     GizmoMode::Scale => (
                         h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center),
@@ -276,16 +306,22 @@ impl PoseTool {
                 };
                 // A new drag is a new undo step.
                 editor.end_interaction();
+                let rest_start = editor
+                    .skeleton_spec(sel.object)
+                    .ok()
+                    .and_then(|s| s.joints.get(sel.joint).map(|j| Vec3::from(j.position)))
+                    .unwrap_or(Vec3::ZERO);
                 self.drag = Some(GizmoDrag {
                     joint: sel,
                     axis: h.axis,
-                    mode: self.mode,
+                    mode,
                     base: editor.joint_override(sel.object, sel.joint),
                     start,
                     center,
                     sign,
                     arrow_px,
                     arrow_local,
+                    rest_start,
                 });
             }
         }
@@ -294,8 +330,10 @@ impl PoseTool {
         };
         if !ui.input(|i| i.pointer.primary_down()) {
             self.drag = None;
-            // Auto-key: a finished drag keys the joint at the playhead (its own undo step).
-            if self.auto_key {
+            // Auto-key: a finished drag keys the joint at the playhead (its own undo step); a
+            // rest-pose drag edits the skeleton, not the pose.
+            editor.end_interaction();
+            if self.auto_key && drag.mode != GizmoMode::Rest {
                 let JointRef { object, joint } = drag.joint;
                 editor.end_interaction();
                 self.error = editor
@@ -332,6 +370,16 @@ impl PoseTool {
                 } else {
                     let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
                     editor.translate_joint(object, joint, drag.base, e_k * along * drag.arrow_local)
+                }
+            }
+            GizmoMode::Rest => {
+                let len2 = drag.arrow_px.length_sq();
+                if len2 < 1.0 {
+                    Ok(())
+                } else {
+                    let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
+                    let to = drag.rest_start + e_k * along * drag.arrow_local;
+                    editor.move_joint(object, joint, to)
                 }
             }
             GizmoMode::Scale => {
@@ -441,7 +489,7 @@ impl PoseTool {
             let width = if active == Some(h.axis) { 3.5 } else { 2.0 };
             let stroke = egui::Stroke::new(width, AXIS_COLORS[h.axis]);
             painter.add(egui::Shape::line(h.points.clone(), stroke));
-            if self.mode == GizmoMode::Translate
+            if matches!(self.active_mode(), GizmoMode::Translate | GizmoMode::Rest)
                 && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
             {
                 let dir = (*b - *a).normalized();
@@ -452,7 +500,7 @@ impl PoseTool {
                     egui::Stroke::NONE,
                 ));
             }
-            if self.mode == GizmoMode::Scale
+            if self.active_mode() == GizmoMode::Scale
                 && let Some(b) = h.points.last()
             {
                 painter.rect_filled(

@@ -98,7 +98,8 @@ pub fn rig_setup_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool,
                     .on_hover_text(
                         "Click on the model: a joint lands at the middle of its thickness under \
                          the pointer, as a child of the selected joint (successive clicks chain \
-                         bones). Click a joint's dot to branch from it.",
+                         bones). Click a joint's dot to branch from it. Drag the selected \
+                         joint's arrows (the model's X, Y, Z) to move it in the rest pose.",
                     );
                 ui.label("Template:");
                 for t in SkeletonTemplate::ALL {
