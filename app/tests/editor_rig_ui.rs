@@ -413,3 +413,81 @@ fn the_dope_sheet_selects_drags_deletes_copies_and_pastes_keys() {
         }
     }
 }
+
+/// Two-bone IK through the real UI: IK (2 bones) on, the foot's X arrow dragged 30 points
+/// right in the front view: the foot follows exactly (the target moved along the model's X),
+/// only the two joints above it are posed, in one undo step.
+#[test]
+fn ik_drags_a_foot_and_the_leg_follows() {
+    let (mut ed, id) = figure();
+    let v = match &ed.object(id).unwrap().kind {
+        ObjectKind::Voxels(v) => v.clone(),
+        _ => unreachable!(),
+    };
+    let at = |x: f32, y: f32, z: f32| v.object_from_voxel().transform_point3(Vec3::new(x, y, z));
+    let hip = ed
+        .add_joint(id, None, at(8.0, 11.5, 4.0), Some("hip"))
+        .unwrap();
+    let thigh = ed
+        .add_joint(id, Some(hip), at(4.0, 10.0, 4.0), Some("thigh.R"))
+        .unwrap();
+    // The knee a little forward: the leg bends, so the foot has room to move.
+    let shin = ed
+        .add_joint(id, Some(thigh), at(4.0, 5.5, 5.5), Some("shin.R"))
+        .unwrap();
+    let foot = ed
+        .add_joint(id, Some(shin), at(4.0, 1.0, 4.0), Some("foot.R"))
+        .unwrap();
+    ed.bind_now(id, thicket_core::skin::BindMethod::Geodesic)
+        .unwrap();
+    let mut h = harness(ed);
+    h.state_mut().pose.select_joint(id, foot);
+    h.run_steps(2);
+    h.get_by_label("IK (2 bones)").click();
+    h.run_steps(2);
+    assert!(h.state().pose.ik);
+    let (dot, per_point, before) = {
+        let frames = h.state().editor.joint_frames(id).unwrap();
+        let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+        let p = frames.position(foot).unwrap();
+        (proj.to_screen(p).unwrap(), proj.world_per_point(p), p)
+    };
+    let steps = h.state().editor.history().undo_len();
+    let grab = dot + egui::vec2(40.0, 0.0);
+    h.drag_at(grab);
+    h.run_steps(1);
+    h.hover_at(grab + egui::vec2(15.0, 0.0));
+    h.run_steps(1);
+    h.hover_at(grab + egui::vec2(30.0, 0.0));
+    h.run_steps(1);
+    h.drop_at(grab + egui::vec2(30.0, 0.0));
+    h.run_steps(2);
+    let after = h
+        .state()
+        .editor
+        .joint_frames(id)
+        .unwrap()
+        .position(foot)
+        .unwrap();
+    let moved = after - before;
+    assert!(
+        (moved.x - 30.0 * per_point).abs() < 0.05 * 30.0 * per_point,
+        "{moved} ({per_point} per point)"
+    );
+    assert!(moved.y.abs() < 1e-3 && moved.z.abs() < 1e-3, "{moved}");
+    let posed: Vec<usize> = h
+        .state()
+        .editor
+        .rig(id)
+        .unwrap()
+        .pose_overrides
+        .iter()
+        .map(|o| o.joint)
+        .collect();
+    assert_eq!(posed, [thigh, shin]);
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    assert_eq!(h.state().pose.ik_reached, Some(true));
+    common::settle_preview(&mut h);
+    h.try_snapshot_options("pose_ik", &SnapshotOptions::default())
+        .unwrap();
+}

@@ -140,6 +140,56 @@ impl Editor {
         Ok(())
     }
 
+    /// Poses the two bones above `end` (two-bone IK, [`thicket_core::skin::ik`]) so that `end`
+    /// reaches `target_world`, the limb bending toward `pole_world` (`None`: the way it bends
+    /// now). Its parent and grandparent get replacing overrides holding their solved rotation
+    /// and their current translation and scale. Part of the current drag's undo step (as the
+    /// gizmo's other drags). Returns whether the target was within reach.
+    ///
+    /// # Errors
+    /// No rig; a joint without a parent and grandparent; a zero-length bone; non-finite input.
+    pub fn pose_ik(
+        &mut self,
+        id: u64,
+        end: usize,
+        target_world: Vec3,
+        pole_world: Option<Vec3>,
+    ) -> Result<bool, CommandError> {
+        let object_from_world = self
+            .object(id)
+            .ok_or(CommandError::NoObject(id))?
+            .transform
+            .matrix()
+            .inverse();
+        let rig = self.rig_or_err(id)?;
+        let pose = rig.current_pose();
+        let solution = thicket_core::skin::ik::two_bone_ik(
+            &rig.skeleton,
+            &pose,
+            end,
+            object_from_world.transform_point3(target_world),
+            pole_world.map(|p| object_from_world.transform_point3(p)),
+        )
+        .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        for (joint, rotation) in [
+            (solution.upper, solution.upper_rotation),
+            (solution.mid, solution.mid_rotation),
+        ] {
+            let local = pose.locals[joint];
+            self.set_joint_override(
+                id,
+                JointOverride {
+                    joint,
+                    rotation: Some(rotation),
+                    translation: Some(local.translation),
+                    mode: OverrideMode::Replace,
+                    scale: Some(local.scale),
+                },
+            )?;
+        }
+        Ok(solution.reached)
+    }
+
     /// Removes the override of one joint (`None`: of every joint) as one undo step.
     ///
     /// # Errors

@@ -83,7 +83,10 @@ impl Editor {
     }
 
     /// [`Editor::set_joint_key`] for several joints at once: one undo step.
-    fn set_joint_keys(&mut self, id: u64, joints: &[usize]) -> Result<(), CommandError> {
+    ///
+    /// # Errors
+    /// Unknown object, no rig or a joint out of range.
+    pub fn set_joint_keys(&mut self, id: u64, joints: &[usize]) -> Result<(), CommandError> {
         let rig = self.rig_or_err(id)?;
         let n = rig.skeleton.len();
         if let Some(&joint) = joints.iter().find(|&&j| j >= n) {

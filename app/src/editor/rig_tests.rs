@@ -660,3 +660,52 @@ fn dope_sheet_moves_deletes_copies_and_pastes_keys_one_step_each() {
     other.set_playback(oid, p).unwrap();
     assert!(other.move_keys(oid, &[key(oleg, 0.25)], 0.1).is_err());
 }
+
+#[test]
+fn ik_puts_the_foot_on_the_target_turning_only_the_two_joints_above_it() {
+    let (mut ed, id, _hip, leg) = bound_hip_and_leg();
+    let knee = ed
+        .add_joint(id, Some(leg), Vec3::new(2.0, 6.0, 2.5), Some("knee.R"))
+        .unwrap();
+    let foot = ed
+        .add_joint(id, Some(knee), Vec3::new(2.0, 1.0, 2.0), Some("foot.R"))
+        .unwrap();
+    let at = |ed: &Editor, j: usize| ed.joint_frames(id).unwrap().position(j).unwrap();
+    let (hip_at, foot_at) = (at(&ed, 0), at(&ed, foot));
+    let steps = ed.history().undo_len();
+    // A drag: the target moves forward and up in two steps, one undo step in all.
+    for k in [0.5f32, 1.0] {
+        let target = foot_at + Vec3::new(0.0, 3.0, 4.0) * k;
+        assert!(ed.pose_ik(id, foot, target, None).unwrap());
+        assert!(
+            (at(&ed, foot) - target).length() < 1e-3,
+            "{}",
+            at(&ed, foot)
+        );
+    }
+    ed.end_interaction();
+    assert_eq!(ed.history().undo_len(), steps + 1);
+    assert!((at(&ed, 0) - hip_at).length() < 1e-5, "the hip stays");
+    let posed: Vec<usize> = ed
+        .rig(id)
+        .unwrap()
+        .pose_overrides
+        .iter()
+        .map(|o| o.joint)
+        .collect();
+    assert_eq!(posed, [leg, knee]);
+    // The knee bent forward (+z, where it was), and keying bakes both turned joints.
+    assert!(at(&ed, knee).z > 2.5, "{}", at(&ed, knee));
+    ed.new_clip(id, "reach", 1.0).unwrap();
+    ed.set_joint_keys(id, &[leg, knee]).unwrap();
+    let rig = ed.rig(id).unwrap();
+    let clip = &rig.clips[rig.playback.clip.unwrap()];
+    assert!(!clip.joint_key_times(leg).is_empty() && !clip.joint_key_times(knee).is_empty());
+    assert!(rig.pose_overrides.is_empty(), "folded into the keys");
+    assert!((at(&ed, foot) - (foot_at + Vec3::new(0.0, 3.0, 4.0))).length() < 1e-3);
+    // A joint without a grandparent cannot be solved: a clear error.
+    assert!(ed.pose_ik(id, leg, Vec3::ZERO, None).is_err());
+    // Undo everything: the rest pose again.
+    while ed.undo() {}
+    assert!(ed.rig(id).is_none_or(|r| r.pose_overrides.is_empty()));
+}

@@ -36,6 +36,45 @@ pub enum GizmoMode {
     /// Arrows along the model's own axes that move the joint's rest position (the skeleton
     /// itself, not a pose): the gizmo while the Rig section's Place joints is on.
     Rest,
+    /// Arrows along the model's own axes that move an IK target for the joint: its parent and
+    /// grandparent turn so the joint follows (Move with IK on).
+    Ik,
+}
+
+/// Where an IK limb's middle joint (knee, elbow) bends toward.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IkPole {
+    /// The way it bends now.
+    AsNow,
+    /// Toward the model's +X, −X, +Y, −Y, +Z or −Z.
+    Axis(usize, bool),
+}
+
+impl IkPole {
+    /// Every choice, in menu order.
+    pub const ALL: [Self; 7] = [
+        Self::AsNow,
+        Self::Axis(2, true),
+        Self::Axis(2, false),
+        Self::Axis(0, true),
+        Self::Axis(0, false),
+        Self::Axis(1, true),
+        Self::Axis(1, false),
+    ];
+
+    /// The menu label.
+    #[must_use]
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::AsNow => "as it bends now",
+            Self::Axis(0, true) => "+X",
+            Self::Axis(0, false) => "-X",
+            Self::Axis(1, true) => "+Y",
+            Self::Axis(1, false) => "-Y",
+            Self::Axis(2, true) => "+Z (front)",
+            Self::Axis(_, _) => "-Z (back)",
+        }
+    }
 }
 
 /// A joint of a rigged object.
@@ -65,7 +104,8 @@ struct GizmoDrag {
     /// Translate: the arrow on the screen (points) and the local translation it stands for.
     arrow_px: egui::Vec2,
     arrow_local: f32,
-    /// Rest: the joint's rest position (model space) when the drag started.
+    /// Rest: the joint's rest position (model space) when the drag started. IK: the joint's
+    /// world position when the drag started.
     rest_start: Vec3,
 }
 
@@ -99,6 +139,12 @@ pub struct PoseTool {
     pub auto_key: bool,
     /// The dope sheet under the timeline.
     pub dope: super::dope_sheet::DopeSheet,
+    /// Move drags the selected joint as an IK target (two bones above it turn).
+    pub ik: bool,
+    /// Where IK limbs bend.
+    pub ik_pole: IkPole,
+    /// Whether the last IK drag's target was within reach.
+    pub ik_reached: Option<bool>,
 }
 
 impl Default for PoseTool {
@@ -117,6 +163,9 @@ impl Default for PoseTool {
             rig_report: None,
             auto_key: false,
             dope: super::dope_sheet::DopeSheet::default(),
+            ik: false,
+            ik_pole: IkPole::AsNow,
+            ik_reached: None,
         }
     }
 }
@@ -178,6 +227,8 @@ impl PoseTool {
     pub fn active_mode(&self) -> GizmoMode {
         if self.rig.placing {
             GizmoMode::Rest
+        } else if self.ik && self.mode == GizmoMode::Translate {
+            GizmoMode::Ik
         } else {
             self.mode
         }
@@ -221,8 +272,8 @@ impl PoseTool {
                         });
                     }
                 }
-                GizmoMode::Translate | GizmoMode::Rest => {
-                    let frame = if self.active_mode() == GizmoMode::Rest {
+                GizmoMode::Translate | GizmoMode::Rest | GizmoMode::Ik => {
+                    let frame = if matches!(self.active_mode(), GizmoMode::Rest | GizmoMode::Ik) {
                         frames.world_from_object
                     } else {
                         *parent
@@ -273,7 +324,7 @@ impl PoseTool {
             {
                 let w = frames.world_from_joint[sel.joint];
                 let mode = self.active_mode();
-                let parent = if mode == GizmoMode::Rest {
+                let parent = if matches!(mode, GizmoMode::Rest | GizmoMode::Ik) {
                     frames.world_from_object
                 } else {
                     frames.world_from_parent[sel.joint]
@@ -289,7 +340,7 @@ impl PoseTool {
                 // The arrow is `size` world units long; a unit of local translation moves the
                 // joint by the parent axis's length.
                 let (arrow_px, arrow_local) = match mode {
-                    GizmoMode::Translate | GizmoMode::Rest
+                    GizmoMode::Translate | GizmoMode::Rest | GizmoMode::Ik
                         if parent_axis.length_squared() > 1e-24 =>
                     {
                         (
@@ -306,11 +357,15 @@ impl PoseTool {
                 };
                 // A new drag is a new undo step.
                 editor.end_interaction();
-                let rest_start = editor
-                    .skeleton_spec(sel.object)
-                    .ok()
-                    .and_then(|s| s.joints.get(sel.joint).map(|j| Vec3::from(j.position)))
-                    .unwrap_or(Vec3::ZERO);
+                let rest_start = if mode == GizmoMode::Ik {
+                    p
+                } else {
+                    editor
+                        .skeleton_spec(sel.object)
+                        .ok()
+                        .and_then(|s| s.joints.get(sel.joint).map(|j| Vec3::from(j.position)))
+                        .unwrap_or(Vec3::ZERO)
+                };
                 self.drag = Some(GizmoDrag {
                     joint: sel,
                     axis: h.axis,
@@ -336,8 +391,21 @@ impl PoseTool {
             if self.auto_key && drag.mode != GizmoMode::Rest {
                 let JointRef { object, joint } = drag.joint;
                 editor.end_interaction();
+                // IK posed the two joints above the dragged one: those are keyed.
+                let keyed: Vec<usize> = if drag.mode == GizmoMode::Ik {
+                    let parents = editor.joint_frames(object).map(|f| f.parents);
+                    let parent =
+                        |j: usize| parents.as_ref().and_then(|p| p.get(j).copied().flatten());
+                    parent(joint)
+                        .into_iter()
+                        .flat_map(|m| [parent(m), Some(m)])
+                        .flatten()
+                        .collect()
+                } else {
+                    vec![joint]
+                };
                 self.error = editor
-                    .set_joint_key(object, joint)
+                    .set_joint_keys(object, &keyed)
                     .err()
                     .map(|e| e.to_string());
             }
@@ -372,6 +440,30 @@ impl PoseTool {
                     editor.translate_joint(object, joint, drag.base, e_k * along * drag.arrow_local)
                 }
             }
+            GizmoMode::Ik => {
+                let len2 = drag.arrow_px.length_sq();
+                let frames = editor.joint_frames(object);
+                match frames {
+                    Some(f) if len2 >= 1.0 => {
+                        let along = (pointer - drag.start).dot(drag.arrow_px) / len2;
+                        let axis = f
+                            .world_from_object
+                            .col(drag.axis)
+                            .truncate()
+                            .normalize_or_zero();
+                        // `arrow_local` is the arrow's length over the axis column's: in world
+                        // units the arrow is `arrow_local * |axis column|` long.
+                        let length = drag.arrow_local
+                            * f.world_from_object.col(drag.axis).truncate().length();
+                        let target = drag.rest_start + axis * along * length;
+                        let pole = self.pole_world(&f, joint);
+                        editor
+                            .pose_ik(object, joint, target, pole)
+                            .map(|reached| self.ik_reached = Some(reached))
+                    }
+                    _ => Ok(()),
+                }
+            }
             GizmoMode::Rest => {
                 let len2 = drag.arrow_px.length_sq();
                 if len2 < 1.0 {
@@ -397,6 +489,28 @@ impl PoseTool {
         };
         self.error = result.err().map(|e| e.to_string());
         true
+    }
+
+    /// The IK pole for a limb ending at `end`: `None` (bend as now), or a point far along the
+    /// chosen model axis from the middle joint.
+    fn pole_world(&self, frames: &JointFrames, end: usize) -> Option<Vec3> {
+        let IkPole::Axis(axis, positive) = self.ik_pole else {
+            return None;
+        };
+        let mid = frames.parents.get(end).copied().flatten()?;
+        let upper = frames.parents.get(mid).copied().flatten()?;
+        let (a, b, c) = (
+            frames.position(upper)?,
+            frames.position(mid)?,
+            frames.position(end)?,
+        );
+        let reach = (b - a).length() + (c - b).length();
+        let dir = frames
+            .world_from_object
+            .col(axis)
+            .truncate()
+            .normalize_or_zero();
+        Some(b + dir * if positive { 4.0 } else { -4.0 } * reach)
     }
 
     /// The joint whose dot is under `pointer`, over every visible rigged object.
@@ -489,8 +603,10 @@ impl PoseTool {
             let width = if active == Some(h.axis) { 3.5 } else { 2.0 };
             let stroke = egui::Stroke::new(width, AXIS_COLORS[h.axis]);
             painter.add(egui::Shape::line(h.points.clone(), stroke));
-            if matches!(self.active_mode(), GizmoMode::Translate | GizmoMode::Rest)
-                && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
+            if matches!(
+                self.active_mode(),
+                GizmoMode::Translate | GizmoMode::Rest | GizmoMode::Ik
+            ) && let (Some(a), Some(b)) = (h.points.first(), h.points.last())
             {
                 let dir = (*b - *a).normalized();
                 let side = egui::vec2(-dir.y, dir.x) * 5.0;
@@ -555,6 +671,38 @@ pub fn rig_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseT
                     .on_hover_text(
                         "Gizmo handles stretch the joint along its own axes (E); its children follow",
                     );
+            });
+            ui.horizontal(|ui| {
+                if ui
+                    .checkbox(&mut tool.ik, "IK (2 bones)")
+                    .on_hover_text(
+                        "With Move, the arrows drag the selected joint (a foot, a hand) as a target: \
+                         its parent and grandparent turn so it follows (two-bone IK); the bones \
+                         keep their lengths. Auto-key keys the two turned joints.",
+                    )
+                    .changed()
+                    && tool.ik
+                {
+                    tool.mode = GizmoMode::Translate;
+                }
+                ui.add_enabled_ui(tool.ik, |ui| {
+                    ui.label("bend toward");
+                    egui::ComboBox::from_id_salt("ik_pole")
+                        .selected_text(tool.ik_pole.label())
+                        .show_ui(ui, |ui| {
+                            for p in IkPole::ALL {
+                                ui.selectable_value(&mut tool.ik_pole, p, p.label());
+                            }
+                        })
+                        .response
+                        .on_hover_text("Where the knee or elbow points (the pole): the model's own axes, or the way it bends now");
+                });
+                if tool.ik && tool.ik_reached == Some(false) {
+                    ui.colored_label(
+                        ui.visuals().warn_fg_color,
+                        "target out of reach: the limb points at it",
+                    );
+                }
             });
             ui.weak(format!(
                 "{} joints, {} override(s). Click a joint here or its dot in the view, then drag a gizmo handle.",

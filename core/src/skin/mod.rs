@@ -9,6 +9,7 @@
 //! |---|---|
 //! | [`skeleton`] | [`Skeleton`], [`Joint`], [`Transform`], [`Pose`], manual overrides, forward kinematics |
 //! | [`clip`] | [`AnimationClip`] and its channels; STEP / LINEAR (slerp) / CUBICSPLINE sampling |
+//! | [`ik`] | two-bone inverse kinematics (the posing aid for limbs) |
 //! | [`keys`] | dope-sheet key edits: move, delete, copy / paste, interpolation, frame snapping |
 //! | [`deform`] | [`SkinDeform`]: the renderers' per-node skinning hook, stretch boxes, culling bounds |
 //! | [`lbs`] | linear-blend skinning of points and normals, weight repair |
@@ -34,6 +35,7 @@ pub mod author;
 pub mod bind;
 pub mod clip;
 pub mod deform;
+pub mod ik;
 pub mod keys;
 pub mod lbs;
 pub mod paint;
