@@ -941,6 +941,17 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             if report.camera { " and the camera" } else { "" }
         ));
     }
+    if !report.animated.is_empty() {
+        text.push_str(&format!(
+            "  keyed transforms written as node animations: {}\n",
+            report.animated.join(", ")
+        ));
+    }
+    for (name, why) in &report.motion_left_out {
+        text.push_str(&format!(
+            "  warning: the keyed transform of {name:?} is not in the file: {why}\n"
+        ));
+    }
     if !report.skipped.is_empty() {
         text.push_str(&format!(
             "  skipped (hidden or empty): {}\n",
@@ -1357,13 +1368,14 @@ fn solid_fallback_note(stats: &thicket_core::voxelize::VoxelizeStats) -> String 
     )
 }
 
-/// Sets the playhead (and clip, by name) of every skinned model of `doc`, and the playhead of
-/// every frame sequence (which then shows the frame at that time).
+/// Sets the playhead (and clip, by name) of every skinned model of `doc`, the playhead of
+/// every frame sequence (which then shows the frame at that time) and of every keyed
+/// transform (the object moves there).
 ///
 /// # Errors
 /// A non-finite time, a clip name no skinned model has (listing the names it has), a clip
-/// given for a document without skinned models, or a time given for a document with neither
-/// skinned models nor frame sequences.
+/// given for a document without skinned models, or a time given for a document with no
+/// skinned model, frame sequence or keyed transform.
 pub fn set_playback(
     doc: &mut thicket_core::scene::Document,
     time: Option<f32>,
@@ -1378,7 +1390,11 @@ pub fn set_playback(
         anyhow::bail!("--time {t}: must be a finite number of seconds");
     }
     let (mut rigged, mut sequences) = (0, 0);
+    let moving = doc.objects.iter().filter(|o| o.motion.is_some()).count();
     for o in &mut doc.objects {
+        if let (Some(t), Some(m)) = (time, o.motion.as_mut()) {
+            m.time_secs = t;
+        }
         let thicket_core::scene::ObjectKind::Voxels(v) = &mut o.kind else {
             continue;
         };
@@ -1409,9 +1425,12 @@ pub fn set_playback(
     if clip.is_some() && rigged == 0 {
         anyhow::bail!("--clip: the document has no skinned model");
     }
-    if rigged == 0 && sequences == 0 {
-        anyhow::bail!("--time: the document has no skinned model and no frame sequence");
+    if rigged == 0 && sequences == 0 && moving == 0 {
+        anyhow::bail!(
+            "--time: the document has no skinned model, frame sequence or keyed transform"
+        );
     }
+    doc.apply_motion(None);
     Ok(())
 }
 

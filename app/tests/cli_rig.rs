@@ -397,3 +397,57 @@ fn bad_skeletons_and_clips_are_one_clear_error_and_nothing_is_written() {
         "stray files: {after:?} (before {before:?})"
     );
 }
+
+/// Keyed object transforms on the command line: `render --time` moves the object (two times,
+/// two images; with no rig or frame sequence the time is still accepted), and `export` writes
+/// them as a node animation and says so.
+#[test]
+fn keyed_object_transforms_render_at_a_time_and_export() {
+    let dir = tempfile::tempdir().unwrap();
+    let bar = new_bar(dir.path());
+    let mut doc = thicket_core::io::project::load(&bar).unwrap();
+    let mut motion = thicket_core::scene::ObjectMotion::default();
+    motion.set_key(0.0, &thicket_core::scene::Transform::default());
+    motion.set_key(
+        1.0,
+        &thicket_core::scene::Transform {
+            translation: glam::Vec3::new(1.5, 0.0, 0.0),
+            ..thicket_core::scene::Transform::default()
+        },
+    );
+    doc.objects[0].motion = Some(motion);
+    let moving = dir.path().join("moving.thicket.json");
+    thicket_core::io::project::save(&doc, &moving).unwrap();
+    let render = |t: &str, out: &str| {
+        let p = dir.path().join(out);
+        let o = thicket(&[
+            "render",
+            path_str(&moving),
+            "-o",
+            path_str(&p),
+            "--size",
+            "64x64",
+            "--time",
+            t,
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&p).unwrap().to_rgba8().into_raw()
+    };
+    let (a, b) = (render("0", "a.png"), render("1", "b.png"));
+    let changed = a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
+    assert!(
+        changed > 100,
+        "only {changed} pixels changed between 0 s and 1 s"
+    );
+    let glb = dir.path().join("moving.glb");
+    let o = thicket(&["export", path_str(&moving), "-o", path_str(&glb)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("keyed transforms written as node animations: Model"),
+        "{}",
+        stdout(&o)
+    );
+    let (gltf, _, _) = gltf::import(&glb).unwrap();
+    let names: Vec<&str> = gltf.animations().filter_map(|a| a.name()).collect();
+    assert_eq!(names, ["Model motion"]);
+}

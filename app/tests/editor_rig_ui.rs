@@ -491,3 +491,43 @@ fn ik_drags_a_foot_and_the_leg_follows() {
     h.try_snapshot_options("pose_ik", &SnapshotOptions::default())
         .unwrap();
 }
+
+/// Keying an object's transform through the inspector: Key transform at 0 s, the object moved
+/// and keyed again at 1 s (the motion timeline's playhead), then the timeline's scrub puts it
+/// half way. Snapshot of the motion timeline, looked at.
+#[test]
+fn an_object_keyed_in_the_inspector_moves_on_its_timeline() {
+    let (ed, id) = figure();
+    let mut h = harness(ed);
+    assert!(h.state().editor.motion(id).is_none());
+    h.get_by_label("Key transform").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.object_key_times(id), [0.0]);
+    // The timeline now drives the object.
+    h.get_by_label_contains("transform key(s)");
+    let t = h.state().editor.motion(id).unwrap().wrap;
+    h.state_mut().editor.set_motion_time(id, 1.0, t).unwrap();
+    let mut moved = h.state().editor.object(id).unwrap().transform;
+    moved.translation.x += 1.0;
+    h.state_mut().editor.set_transform(id, moved).unwrap();
+    h.run_steps(1);
+    h.get_by_label("Key transform").click();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.object_key_times(id), [0.0, 1.0]);
+    h.state_mut()
+        .editor
+        .set_motion_time(id, 0.5, thicket_core::skin::Wrap::Clamp)
+        .unwrap();
+    common::settle_preview(&mut h);
+    let x = h.state().editor.object(id).unwrap().transform.translation.x;
+    assert!((x - 0.5).abs() < 1e-5, "{x}");
+    h.get_by_label("Delete transform key").click_accesskit();
+    h.run_steps(1);
+    assert_eq!(
+        h.state().editor.object_key_times(id),
+        [0.0, 1.0],
+        "no key at 0.5 s: nothing deleted"
+    );
+    h.try_snapshot_options("object_motion", &SnapshotOptions::default())
+        .unwrap();
+}

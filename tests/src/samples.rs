@@ -303,7 +303,7 @@ fn critter(doc: &mut Document) -> Result<()> {
     rig.binding = Some(binding);
     rig.playback.wrap = Wrap::Loop;
     rig.playback.time_secs = 0.25;
-    doc.add(
+    let id = doc.add(
         "Critter",
         ObjectKind::Voxels(thicket_core::scene::VoxelModel {
             svo,
@@ -313,6 +313,22 @@ fn critter(doc: &mut Document) -> Result<()> {
             ..thicket_core::scene::VoxelModel::default()
         }),
     );
+    // The whole figure sways ±8° about Y over the walk (rigid per-object keys on the rig's
+    // clock): a keyed object transform next to the bones.
+    let mut motion = thicket_core::scene::ObjectMotion::default();
+    for (t, deg) in [(0.0f32, 0.0f32), (0.25, 8.0), (0.75, -8.0), (1.0, 0.0)] {
+        motion.set_key(
+            t,
+            &thicket_core::scene::Transform {
+                rotation: glam::Quat::from_rotation_y(deg.to_radians()),
+                ..thicket_core::scene::Transform::default()
+            },
+        );
+    }
+    if let Some(o) = doc.objects.iter_mut().find(|o| o.id == id) {
+        o.motion = Some(motion);
+    }
+    doc.apply_motion(None);
     doc.lights[0].direction = Vec3::new(-0.5, -1.0, -0.6);
     frame(doc, 30.0, 12.0);
     Ok(())

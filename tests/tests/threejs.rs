@@ -309,7 +309,10 @@ fn threejs_reads_a_native_rigs_joints_weights_and_clip_exactly() {
             (a.name().unwrap_or_default().to_owned(), f64::from(end))
         })
         .collect();
-    assert_eq!(durations, [("walk".to_owned(), 1.0)]);
+    assert_eq!(
+        durations,
+        [("walk".to_owned(), 1.0), ("Critter motion".to_owned(), 1.0)]
+    );
 
     let three = inspect(&out, false);
     let [skinned] = three["skinned"].as_array().unwrap().as_slice() else {
@@ -345,10 +348,40 @@ fn threejs_reads_a_native_rigs_joints_weights_and_clip_exactly() {
         (weight_sum - vertices as f64).abs() < 1e-2 * vertices as f64,
         "weights sum to 1"
     );
-    let [clip] = three["animations"].as_array().unwrap().as_slice() else {
-        panic!("one clip: {}", three["animations"]);
+    let [clip, motion] = three["animations"].as_array().unwrap().as_slice() else {
+        panic!("a clip and the object's motion: {}", three["animations"]);
     };
     assert_eq!(clip["name"], "walk");
     assert_eq!(clip["duration"].as_f64().unwrap(), 1.0);
     assert!(u(&clip["tracks"]) >= 9, "{clip}");
+    // The keyed object transform, played by three.js on the skeleton's root node: about Y
+    // only, facing front at 0, 0.5 and 1 s, turned +8° at 0.25 s and -8° at 0.75 s.
+    assert_eq!(motion["name"], "Critter motion");
+    assert_eq!(motion["duration"].as_f64().unwrap(), 1.0);
+    let rotation = motion["sampled"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["name"].as_str().unwrap().ends_with(".quaternion"))
+        .unwrap_or_else(|| panic!("a rotation track: {motion}"));
+    let q = |k: usize| -> Vec<f64> {
+        rotation["values"][k]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|v| v.as_f64().unwrap())
+            .collect()
+    };
+    for (k, deg) in [(0, 0.0f64), (1, 8.0), (2, 0.0), (3, -8.0), (4, 0.0)] {
+        let v = q(k);
+        let half = (deg / 2.0).to_radians();
+        assert!(
+            v[0].abs() < 1e-6 && v[2].abs() < 1e-6,
+            "about Y only: {v:?}"
+        );
+        assert!(
+            (v[1] - half.sin()).abs() < 1e-5 && (v[3] - half.cos()).abs() < 1e-5,
+            "{deg}° at {k}/4 s: {v:?}"
+        );
+    }
 }

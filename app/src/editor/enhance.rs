@@ -156,6 +156,8 @@ impl Editor {
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
         let name = format!("{} enhanced", o.name);
         let transform = o.transform;
+        // The enhancement moves as its source does.
+        let motion = o.motion.clone();
         let was_visible = o.visible;
         let target = super::next_id(&self.doc);
         let mut edits = Vec::new();
@@ -171,6 +173,7 @@ impl Editor {
             visible: true,
             transform,
             kind: ObjectKind::Voxels(fine),
+            motion,
         };
         let index = self.doc.objects.len() - edits.len();
         edits.push(Edit::Insert {

@@ -7,6 +7,7 @@ mod dope;
 mod enhance;
 pub mod jobs;
 mod krs;
+mod motion;
 mod pick;
 mod pose;
 mod pose_keys;

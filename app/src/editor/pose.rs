@@ -305,6 +305,7 @@ impl Editor {
             self.anim_revision += 1;
             self.revision += 1;
         }
+        self.follow_motion(id);
         Ok(())
     }
 

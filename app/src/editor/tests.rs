@@ -1709,3 +1709,71 @@ fn a_vox_export_names_what_it_leaves_out_and_why() {
     );
     assert_eq!(super::jobs::vox_left_out(&objects, &[]), "");
 }
+
+/// Rigid per-object animation: an unrigged object keyed at two times moves between them on
+/// its own playhead; a rigged one follows its rig's playhead; keys and deletes are one undo
+/// step each, and scrubbing is not an edit.
+#[test]
+fn object_transform_keys_move_the_object_on_its_clock() {
+    use thicket_core::skin::Wrap;
+    let mut ed = Editor::default();
+    let id = ed.add_object("Box", voxels(3));
+    assert!(ed.motion(id).is_none());
+    let steps = ed.history().undo_len();
+    ed.set_object_key(id).unwrap();
+    assert_eq!(ed.object_key_times(id), [0.0]);
+    assert_eq!(ed.history().undo_len(), steps + 1);
+    // To 2 s, moved and turned, keyed there.
+    ed.set_motion_time(id, 2.0, Wrap::Clamp).unwrap();
+    let moved = Transform {
+        translation: Vec3::new(4.0, 0.0, -2.0),
+        rotation: glam::Quat::from_rotation_y(1.0),
+        ..Transform::default()
+    };
+    ed.set_transform(id, moved).unwrap();
+    ed.set_object_key(id).unwrap();
+    assert_eq!(ed.object_key_times(id), [0.0, 2.0]);
+    // Scrubbing moves the object and is not an edit.
+    let steps = ed.history().undo_len();
+    ed.set_motion_time(id, 1.0, Wrap::Clamp).unwrap();
+    assert_eq!(ed.history().undo_len(), steps);
+    let mid = ed.object(id).unwrap().transform;
+    assert!((mid.translation - Vec3::new(2.0, 0.0, -1.0)).length() < 1e-5);
+    assert!(mid.rotation.angle_between(glam::Quat::from_rotation_y(0.5)) < 1e-4);
+    ed.set_motion_time(id, 0.0, Wrap::Clamp).unwrap();
+    assert!(ed.object(id).unwrap().transform.translation.length() < 1e-6);
+    // Delete the key at 0: one key left, which holds; deleting it too removes the motion.
+    assert!(ed.delete_object_key(id).unwrap());
+    assert_eq!(ed.object_key_times(id), [2.0]);
+    ed.set_motion_time(id, 2.0, Wrap::Clamp).unwrap();
+    assert!(ed.delete_object_key(id).unwrap());
+    assert!(ed.motion(id).is_none());
+    assert!(!ed.delete_object_key(id).unwrap(), "nothing left to delete");
+    assert!(ed.undo() && ed.undo());
+    assert_eq!(ed.object_key_times(id), [0.0, 2.0]);
+    assert!(ed.doc().validate().is_ok());
+
+    // A rigged model's keys follow its rig's playhead.
+    let (mut ed, id) = rigged_editor();
+    let mut p = ed.rig(id).unwrap().playback;
+    p.wrap = Wrap::Clamp;
+    p.time_secs = 0.0;
+    ed.set_playback(id, p).unwrap();
+    ed.set_object_key(id).unwrap();
+    p.time_secs = 1.0;
+    ed.set_playback(id, p).unwrap();
+    ed.set_transform(
+        id,
+        Transform {
+            translation: Vec3::X * 3.0,
+            ..Transform::default()
+        },
+    )
+    .unwrap();
+    ed.set_object_key(id).unwrap();
+    assert_eq!(ed.object_key_times(id), [0.0, 1.0]);
+    p.time_secs = 0.5;
+    ed.set_playback(id, p).unwrap();
+    let t = ed.object(id).unwrap().transform.translation;
+    assert!((t - Vec3::X * 1.5).length() < 1e-5, "{t}");
+}

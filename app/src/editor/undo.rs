@@ -160,6 +160,13 @@ pub enum Edit {
         /// The new clips.
         clips: Vec<AnimationClip>,
     },
+    /// Set or remove (`None`) an object's keyed transforms (a key set or deleted).
+    SetMotion {
+        /// Object id.
+        id: u64,
+        /// The new motion.
+        motion: Option<Box<thicket_core::scene::ObjectMotion>>,
+    },
     /// Several edits as one step (applied in order, reverted in reverse order).
     Group(Vec<Edit>),
 }
@@ -363,6 +370,14 @@ impl Edit {
                 }
                 None => Edit::Group(Vec::new()),
             },
+            Edit::SetMotion { id, motion } => match find(doc, id) {
+                Some(i) => Edit::SetMotion {
+                    id,
+                    motion: std::mem::replace(&mut doc.objects[i].motion, motion.map(|m| *m))
+                        .map(Box::new),
+                },
+                None => Edit::Group(Vec::new()),
+            },
             Edit::Group(edits) => {
                 let mut inverses: Vec<Edit> = edits.into_iter().map(|e| e.apply(doc)).collect();
                 inverses.reverse();
@@ -410,6 +425,9 @@ impl Edit {
             }),
             Edit::StretchOverrides { entries, .. } => entries.capacity() * size_of::<(UVec3, u8)>(),
             Edit::SetClips { clips, .. } => clips_bytes(clips),
+            Edit::SetMotion { motion, .. } => motion
+                .as_ref()
+                .map_or(0, |m| clips_bytes(std::slice::from_ref(&m.clip))),
             Edit::SetTreeParams { .. } => size_of::<TreeParams>() + 256,
             _ => 64,
         }

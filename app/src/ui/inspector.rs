@@ -308,6 +308,45 @@ fn transform_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorSta
     if changed {
         state.error = editor.set_transform(o.id, t).err().map(|e| e.to_string());
     }
+    motion_keys_ui(ui, editor, state, o.id);
+}
+
+/// Keys of the object's own transform (rigid per-object animation) at its playhead: the
+/// rig's for a rigged model, else the object's motion timeline.
+fn motion_keys_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState, id: u64) {
+    let keys = editor.object_key_times(id);
+    let (t, _) = editor.motion_clock(id);
+    let on_key = keys
+        .iter()
+        .any(|k| (k - t).abs() < crate::editor::KEY_EPSILON_SECS);
+    ui.horizontal(|ui| {
+        if ui
+            .button("Key transform")
+            .on_hover_text(format!(
+                "Store the position, rotation and scale at the playhead ({t:.2} s) as a key: the object then moves between its keys when the timeline plays (exported as a glTF node animation)"
+            ))
+            .clicked()
+        {
+            state.error = editor.set_object_key(id).err().map(|e| e.to_string());
+        }
+        if ui
+            .add_enabled(on_key, egui::Button::new("Delete transform key"))
+            .on_hover_text("Remove the transform key at the playhead")
+            .clicked()
+        {
+            state.error = editor.delete_object_key(id).err().map(|e| e.to_string());
+        }
+        ui.weak(match keys.len() {
+            0 => "not animated".to_owned(),
+            n => format!("{n} transform key(s)"),
+        })
+        .on_hover_text(
+            keys.iter()
+                .map(|k| format!("{k:.2} s"))
+                .collect::<Vec<_>>()
+                .join(", "),
+        );
+    });
 }
 
 fn light_ui(

@@ -962,7 +962,9 @@ fn stretch_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u
 /// sequence, else the first such object.
 #[must_use]
 pub fn timeline_target(editor: &Editor) -> Option<u64> {
-    let animated = |id: u64| editor.rig(id).is_some() || editor.frames(id).is_some();
+    let animated = |id: u64| {
+        editor.rig(id).is_some() || editor.frames(id).is_some() || editor.motion(id).is_some()
+    };
     if let Some(Selection::Object(id)) = editor.selection
         && animated(id)
     {
@@ -972,7 +974,10 @@ pub fn timeline_target(editor: &Editor) -> Option<u64> {
         .doc()
         .objects
         .iter()
-        .find(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some() || v.frames.is_some()))
+        .find(|o| {
+            o.motion.is_some()
+                || matches!(&o.kind, ObjectKind::Voxels(v) if v.rig.is_some() || v.frames.is_some())
+        })
         .map(|o| o.id)
 }
 
@@ -1047,11 +1052,142 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
     });
 }
 
+/// The timeline of an unrigged object's keyed transform: play / pause, start, loop, a scrub
+/// slider with the keys as diamonds, and the time. A rigged model's keys follow its clip's
+/// timeline instead.
+fn motion_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
+    let Some(m) = editor.motion(id) else { return };
+    let (mut t, mut wrap) = (m.time_secs, m.wrap);
+    let duration = m.clip.duration_secs.max(0.0);
+    let fps = m.clip.frame_rate.max(1.0);
+    let keys = editor.object_key_times(id);
+    let name = editor
+        .object(id)
+        .map(|o| o.name.clone())
+        .unwrap_or_default();
+    ui.horizontal(|ui| {
+        ui.strong("Timeline")
+            .on_hover_text(format!("The keyed transform of {name}"));
+        ui.label(&name);
+        let playable = duration > 0.0;
+        if ui
+            .add_enabled(
+                playable,
+                egui::Button::new(if tool.playing { "Pause" } else { "Play" }),
+            )
+            .on_hover_text("Play or pause the object's motion (Space)")
+            .clicked()
+        {
+            tool.playing = !tool.playing;
+        }
+        if ui
+            .button("Start")
+            .on_hover_text("Go to 0 s")
+            .clicked()
+        {
+            t = 0.0;
+            tool.playing = false;
+        }
+        let mut loop_on = wrap == Wrap::Loop;
+        if ui
+            .checkbox(&mut loop_on, "Loop")
+            .on_hover_text("Repeat the motion (otherwise hold its last key)")
+            .changed()
+        {
+            wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
+        }
+        if !playable {
+            tool.playing = false;
+        }
+        if tool.playing {
+            let now = ui.input(|i| i.time);
+            t += playback_step(
+                &mut tool.last_tick,
+                now,
+                tool.step_every_frame.then_some(1.0 / fps),
+            );
+            if t > duration {
+                if wrap == Wrap::Loop {
+                    t = t.rem_euclid(duration.max(1e-6));
+                } else {
+                    t = duration;
+                    tool.playing = false;
+                }
+            }
+            ui.ctx().request_repaint();
+        } else {
+            tool.last_tick = None;
+        }
+        ui.checkbox(&mut tool.step_every_frame, "Every frame")
+            .on_hover_text("Advance one frame per drawn frame instead of by the clock");
+        let mut typed = t;
+        if ui
+            .add(
+                egui::DragValue::new(&mut typed)
+                    .range(0.0..=3600.0)
+                    .speed(0.01)
+                    .suffix(" s"),
+            )
+            .on_hover_text("Type or drag the playhead's time (past the last key to key the object there: move it, then Key transform)")
+            .changed()
+        {
+            t = typed;
+            tool.playing = false;
+        }
+        let mut scrub = t.clamp(0.0, duration);
+        ui.spacing_mut().slider_width = (ui.available_width() - 200.0).max(80.0);
+        let slider = ui
+            .add_enabled(
+                playable,
+                egui::Slider::new(&mut scrub, 0.0..=duration.max(1e-3)).show_value(false),
+            )
+            .on_hover_text("Scrub: drag to any time");
+        if slider.changed() {
+            t = scrub;
+            tool.playing = false;
+        }
+        if duration > 0.0 {
+            let rail = slider.rect;
+            let inset = rail.height() / 2.5;
+            for k in &keys {
+                let x = rail.left() + inset + (k / duration).clamp(0.0, 1.0) * (rail.width() - 2.0 * inset);
+                let c = egui::pos2(x, rail.center().y);
+                let r = 4.5;
+                ui.painter().add(egui::Shape::convex_polygon(
+                    vec![
+                        c + egui::vec2(0.0, -r),
+                        c + egui::vec2(r, 0.0),
+                        c + egui::vec2(0.0, r),
+                        c + egui::vec2(-r, 0.0),
+                    ],
+                    egui::Color32::from_rgb(255, 210, 60),
+                    egui::Stroke::new(1.0, egui::Color32::BLACK),
+                ));
+            }
+        }
+        ui.monospace(format!("{:.2} / {:.2} s  frame {}", t, duration, (t * fps).round()))
+            .on_hover_text("Playhead / length of the motion (its last key)");
+    });
+    if editor
+        .motion(id)
+        .is_some_and(|m| m.time_secs != t || m.wrap != wrap)
+    {
+        tool.error = editor
+            .set_motion_time(id, t, wrap)
+            .err()
+            .map(|e| e.to_string());
+    }
+}
+
 /// The timeline: clip picker, play / pause, scrub slider and time. Advances the playhead while
 /// playing. A frame sequence gets its own, simpler timeline.
 pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, id: u64) {
     if editor.rig(id).is_none() && editor.frames(id).is_some() {
         frames_timeline_ui(ui, editor, tool, id);
+        return;
+    }
+    if editor.rig(id).is_none() && editor.motion(id).is_some() {
+        motion_timeline_ui(ui, editor, tool, id);
         return;
     }
     let Some(rig) = editor.rig(id) else { return };

@@ -9,8 +9,10 @@ use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 pub mod bake;
+pub mod motion;
 
 pub use bake::bake_shown_pose;
+pub use motion::ObjectMotion;
 
 use crate::enhance::{Control, EnhanceError, EnhanceSettings, EnhanceStats, Enhancer};
 use crate::krs::{EmptyZone, KrsObject, Similarity};
@@ -433,6 +435,10 @@ pub struct Object {
     pub transform: Transform,
     /// The payload.
     pub kind: ObjectKind,
+    /// Keyed transforms (rigid per-object animation); `transform` is then the transform at
+    /// the motion's clock ([`Document::apply_motion`]). Omitted from the JSON when `None`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub motion: Option<ObjectMotion>,
 }
 
 impl Default for Object {
@@ -443,6 +449,7 @@ impl Default for Object {
             visible: true,
             transform: Transform::default(),
             kind: ObjectKind::default(),
+            motion: None,
         }
     }
 }
@@ -866,6 +873,24 @@ impl Default for Document {
 }
 
 impl Document {
+    /// Sets every animated object's transform to its motion at its clock: a rigged voxel
+    /// model's rig playhead (and wrap), else the motion's own; `at_secs` overrides both (a
+    /// render at a given time).
+    pub fn apply_motion(&mut self, at_secs: Option<f32>) {
+        for o in &mut self.objects {
+            let Some(m) = &o.motion else { continue };
+            let rig_clock = match &o.kind {
+                ObjectKind::Voxels(v) => v
+                    .rig
+                    .as_ref()
+                    .map(|r| (r.playback.time_secs, r.playback.wrap)),
+                ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
+            };
+            let (t, wrap) = rig_clock.unwrap_or((m.time_secs, m.wrap));
+            o.transform = m.transform_at(at_secs.unwrap_or(t), wrap, &o.transform);
+        }
+    }
+
     /// Adds an object with a fresh id; returns the id.
     pub fn add(&mut self, name: impl Into<String>, kind: ObjectKind) -> u64 {
         let id = self.objects.iter().map(|o| o.id).max().map_or(1, |m| m + 1);
@@ -1057,6 +1082,9 @@ fn uniform_scale(scale: Vec3) -> Option<f32> {
 fn validate_object(o: &Object) -> Result<(), SceneError> {
     let ctx = "the object";
     o.transform.validate(ctx)?;
+    if let Some(m) = &o.motion {
+        m.validate().map_err(|e| invalid("motion", ctx, e))?;
+    }
     match &o.kind {
         ObjectKind::Voxels(v) => {
             if !(v.voxel_size.is_finite() && v.voxel_size > 0.0) {

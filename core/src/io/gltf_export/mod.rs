@@ -211,6 +211,10 @@ pub struct GltfExportReport {
     pub lights: usize,
     /// Whether the document's camera was written.
     pub camera: bool,
+    /// Objects written with their keyed transforms as a node animation.
+    pub animated: Vec<String>,
+    /// Objects whose keyed transforms were not written, with why.
+    pub motion_left_out: Vec<(String, String)>,
 }
 
 /// The cube surface of one voxel object: unit faces and the quads they merged into.
@@ -601,6 +605,12 @@ pub fn build_scene(
                 let object = prepared.objects.into_iter().next().ok_or_else(|| {
                     object_error("the KRS object could not be prepared".to_owned())
                 })?;
+                if o.motion.is_some() {
+                    report.motion_left_out.push((
+                        o.name.clone(),
+                        "a KRS object is meshed in world space at its current placement".to_owned(),
+                    ));
+                }
                 if object.bound_world.is_none()
                     && matches!(fields::krs_region(&object), Err(FieldError::Unbounded(_)))
                 {
@@ -636,6 +646,18 @@ pub fn build_scene(
         report
             .levels_of_detail
             .extend(LevelsOfDetail::of(&o.name, &node));
+        let mut node = node;
+        if let Some(m) = &o.motion {
+            if node.lods.is_empty() {
+                node.motion = Some(m.clip.clone());
+                report.animated.push(o.name.clone());
+            } else {
+                report.motion_left_out.push((
+                    o.name.clone(),
+                    "its levels of detail are separate nodes that would not follow".to_owned(),
+                ));
+            }
+        }
         out.scene.nodes.push(node);
         report.objects += 1;
         if !progress((i + 1) as f32 / total) {
@@ -1057,6 +1079,7 @@ impl SceneBuilder<'_> {
             skin,
             lods,
             mesh_from: None,
+            motion: None,
         })
     }
 

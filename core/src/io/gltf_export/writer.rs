@@ -93,6 +93,10 @@ pub struct ExportNode {
     /// node) instead of primitives of its own: the cells of an instanced forest share one tree
     /// mesh and its levels, each with its own placements. `primitives` and `lods` stay empty.
     pub mesh_from: Option<usize>,
+    /// Keyed placements (rigid per-object animation): channels on joint 0 animate the node
+    /// that carries [`ExportNode::transform`] (a skinned node's skeleton root), written as a
+    /// glTF animation named "`name` motion".
+    pub motion: Option<AnimationClip>,
 }
 
 /// A skeleton and its animation clips, for a skinned node (see [`ExportNode::skin`]).
@@ -255,6 +259,9 @@ pub(crate) fn encode(
         };
         if let Some(skin) = &node.skin {
             let (root, skin_index) = b.skin(skin, &node.name, &node.transform)?;
+            if let Some(motion) = &node.motion {
+                b.motion(motion, root.value() as u32, &node.name)?;
+            }
             node_indices.push(root);
             // A skinned mesh's node transform is ignored (glTF 2.0 §3.7.3.3): it sits at the
             // root, untransformed, and the skeleton's root node carries the placement.
@@ -309,6 +316,9 @@ pub(crate) fn encode(
                 ..json::Node::default()
             }),
         );
+        if let (Some(motion), Some(&index)) = (&node.motion, node_indices.last()) {
+            b.motion(motion, index.value() as u32, &node.name)?;
+        }
     }
     if !scene.lights.is_empty() {
         node_indices.extend(b.lights(&scene.lights)?);
@@ -732,6 +742,15 @@ impl Builder {
             self.animation(clip, first, joints.len(), name)?;
         }
         Ok((root, skin_index))
+    }
+
+    /// A node's keyed placements as the animation "`name` motion" targeting node `node`.
+    fn motion(&mut self, motion: &AnimationClip, node: u32, name: &str) -> Result<(), EncodeError> {
+        let clip = AnimationClip {
+            name: format!("{name} motion"),
+            ..motion.clone()
+        };
+        self.animation(&clip, node, 1, name)
     }
 
     /// One clip as a glTF animation: a sampler per channel (key times with bounds, values as

@@ -205,6 +205,7 @@ pub fn import_vox_bytes(
             ..FrameSequence::default()
         });
         objects.push(Object {
+            motion: None,
             id: k as u64 + 1,
             name: inst.name.clone(),
             visible: !inst.hidden,
