@@ -504,7 +504,7 @@ fn an_object_keyed_in_the_inspector_moves_on_its_timeline() {
     h.run_steps(2);
     assert_eq!(h.state().editor.object_key_times(id), [0.0]);
     // The timeline now drives the object.
-    h.get_by_label_contains("transform key(s)");
+    h.get_by_label("1 key(s)");
     let t = h.state().editor.motion(id).unwrap().wrap;
     h.state_mut().editor.set_motion_time(id, 1.0, t).unwrap();
     let mut moved = h.state().editor.object(id).unwrap().transform;
@@ -521,7 +521,7 @@ fn an_object_keyed_in_the_inspector_moves_on_its_timeline() {
     common::settle_preview(&mut h);
     let x = h.state().editor.object(id).unwrap().transform.translation.x;
     assert!((x - 0.5).abs() < 1e-5, "{x}");
-    h.get_by_label("Delete transform key").click_accesskit();
+    h.get_by_label("Clear key").click_accesskit();
     h.run_steps(1);
     assert_eq!(
         h.state().editor.object_key_times(id),

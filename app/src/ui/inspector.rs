@@ -321,7 +321,7 @@ fn motion_keys_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorS
         .any(|k| (k - t).abs() < crate::editor::KEY_EPSILON_SECS);
     ui.horizontal(|ui| {
         if ui
-            .button("Key transform")
+            .small_button("Key transform")
             .on_hover_text(format!(
                 "Store the position, rotation and scale at the playhead ({t:.2} s) as a key: the object then moves between its keys when the timeline plays (exported as a glTF node animation)"
             ))
@@ -330,15 +330,15 @@ fn motion_keys_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorS
             state.error = editor.set_object_key(id).err().map(|e| e.to_string());
         }
         if ui
-            .add_enabled(on_key, egui::Button::new("Delete transform key"))
+            .add_enabled(on_key, egui::Button::new("Clear key").small())
             .on_hover_text("Remove the transform key at the playhead")
             .clicked()
         {
             state.error = editor.delete_object_key(id).err().map(|e| e.to_string());
         }
         ui.weak(match keys.len() {
-            0 => "not animated".to_owned(),
-            n => format!("{n} transform key(s)"),
+            0 => "no keys".to_owned(),
+            n => format!("{n} key(s)"),
         })
         .on_hover_text(
             keys.iter()
