@@ -342,6 +342,24 @@ fn the_dope_sheet_selects_drags_deletes_copies_and_pastes_keys() {
     common::click_at(&mut h, at(t));
     assert_eq!(h.state().pose.dope.selected.len(), 1);
     assert_eq!(h.state().pose.dope.selected[0].joint, joint);
+    // Shift+click adds the next key of the row, and again removes it.
+    let t2 = start.joint_key_times(joint)[2];
+    for expected in [2, 1] {
+        for pressed in [true, false] {
+            h.event_modifiers(
+                egui::Event::PointerButton {
+                    pos: at(t2),
+                    button: egui::PointerButton::Primary,
+                    pressed,
+                    modifiers: egui::Modifiers::SHIFT,
+                },
+                egui::Modifiers::SHIFT,
+            );
+            h.run_steps(1);
+        }
+        h.run_steps(1);
+        assert_eq!(h.state().pose.dope.selected.len(), expected);
+    }
 
     // Drag it two frames (and a bit) later: it lands on the frame, one undo step.
     let steps = h.state().editor.history().undo_len();

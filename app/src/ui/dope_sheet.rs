@@ -202,7 +202,11 @@ pub fn dope_sheet_ui(
         let mut chosen = current;
         ui.add_enabled_ui(any, |ui| {
             egui::ComboBox::from_id_salt("dope_interpolation")
-                .selected_text(current.map_or("Mixed", interpolation_label))
+                .selected_text(match current {
+                    Some(i) => interpolation_label(i),
+                    None if any => "Mixed",
+                    None => "Interpolation",
+                })
                 .show_ui(ui, |ui| {
                     for i in [
                         Interpolation::Step,
