@@ -1304,6 +1304,7 @@ pub(crate) fn decode_texture(
     encoded: &[u8],
     limits: &ImportLimits,
 ) -> Result<Texture, TextureError> {
+    crate::mesh::check_png_chunks(encoded).map_err(TextureError::Decode)?;
     let reader = image::ImageReader::new(std::io::Cursor::new(encoded))
         .with_guessed_format()
         .map_err(|e| TextureError::Decode(e.to_string()))?;

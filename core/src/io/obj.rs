@@ -669,6 +669,31 @@ map_Kd tex.png
             err.to_string().starts_with("tex.png: invalid: texture:"),
             "{err}"
         );
+        // An indexed PNG whose palette ends in a partial entry (the `png` decoder panics on it):
+        // refused with where the palette is, no panic.
+        let partial = crate::mesh::tests::indexed_png(&[10, 20, 30, 40]);
+        let files = |name: &str| -> Result<Option<Vec<u8>>, IoError> {
+            Ok(match name {
+                "cube.mtl" => Some(CUBE_MTL.as_bytes().to_vec()),
+                "tex.png" => Some(partial.clone()),
+                _ => None,
+            })
+        };
+        let err = import_obj_slice_with(
+            CUBE_OBJ.as_bytes(),
+            &files,
+            Path::new("cube.obj"),
+            &ObjOptions::default(),
+            &ImportLimits::default(),
+        )
+        .expect_err("partial palette");
+        assert!(
+            err.to_string().contains("tex.png: invalid: texture:")
+                && err
+                    .to_string()
+                    .contains("palette (PLTE chunk at byte 33) is 4 bytes"),
+            "{err}"
+        );
         // A missing .mtl or texture is only a warning.
         let model = import_obj_slice_with(
             CUBE_OBJ.as_bytes(),

@@ -481,9 +481,121 @@ pub fn unit_cube() -> TriangleMesh {
     mesh
 }
 
+/// Checks what the `png` decoder trusts in a PNG's chunks: its palette (`PLTE`) must hold whole
+/// RGB entries (3 to 768 bytes, a multiple of 3). The decoder panics on a partial entry instead
+/// of refusing it, so every path that decodes a PNG (textures, palettes, reference images)
+/// checks first. Bytes that are not a PNG, or end early, pass: the decoder reports those.
+///
+/// # Errors
+/// Where the palette chunk is and what is wrong with it.
+pub fn check_png_chunks(bytes: &[u8]) -> Result<(), String> {
+    const SIGNATURE: [u8; 8] = [0x89, b'P', b'N', b'G', b'\r', b'\n', 0x1a, b'\n'];
+    if bytes.len() < 8 || bytes[..8] != SIGNATURE {
+        return Ok(());
+    }
+    let mut at = 8usize;
+    while let Some(head) = bytes.get(at..at + 8) {
+        let len = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as usize;
+        let kind = &head[4..8];
+        if kind == b"PLTE" && !(len.is_multiple_of(3) && (3..=768).contains(&len)) {
+            return Err(format!(
+                "the PNG's palette (PLTE chunk at byte {at}) is {len} bytes: a palette is 1 to \
+                 256 whole RGB entries (3 to 768 bytes, a multiple of 3)"
+            ));
+        }
+        if kind == b"IEND" {
+            break;
+        }
+        // Length, type, data and CRC.
+        at = match at.checked_add(12).and_then(|a| a.checked_add(len)) {
+            Some(next) => next,
+            None => break,
+        };
+    }
+    Ok(())
+}
+
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
+
+    /// A 2×2 8-bit indexed PNG with `palette` as its PLTE chunk (pixels use indices 0, 200, 255
+    /// and 7), CRCs and zlib checksum correct.
+    pub(crate) fn indexed_png(palette: &[u8]) -> Vec<u8> {
+        fn chunk(kind: &[u8; 4], data: &[u8]) -> Vec<u8> {
+            let mut out = (data.len() as u32).to_be_bytes().to_vec();
+            out.extend_from_slice(kind);
+            out.extend_from_slice(data);
+            let mut h = crc32fast::Hasher::new();
+            h.update(kind);
+            h.update(data);
+            out.extend_from_slice(&h.finalize().to_be_bytes());
+            out
+        }
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut ihdr = 2u32.to_be_bytes().to_vec();
+        ihdr.extend_from_slice(&2u32.to_be_bytes());
+        ihdr.extend_from_slice(&[8, 3, 0, 0, 0]);
+        png.extend(chunk(b"IHDR", &ihdr));
+        png.extend(chunk(b"PLTE", palette));
+        // Two rows: filter byte 0, then two indices; one stored zlib block.
+        let raw = [0u8, 0, 200, 0, 255, 7];
+        let mut z = vec![
+            0x78,
+            0x01,
+            0x01,
+            raw.len() as u8,
+            0,
+            !(raw.len() as u8),
+            0xff,
+        ];
+        z.extend_from_slice(&raw);
+        let (mut a, mut b) = (1u32, 0u32);
+        for &x in &raw {
+            a = (a + u32::from(x)) % 65521;
+            b = (b + a) % 65521;
+        }
+        z.extend_from_slice(&((b << 16) | a).to_be_bytes());
+        png.extend(chunk(b"IDAT", &z));
+        png.extend(chunk(b"IEND", &[]));
+        png
+    }
+
+    #[test]
+    fn png_palettes_of_partial_entries_are_refused_before_decoding() {
+        // 4 bytes (a partial second entry) panicked inside `png` 0.18; 1..=256 whole entries
+        // pass and decode; the other malformed lengths are the decoder's own errors.
+        for (palette, refused) in [
+            (vec![1u8, 2, 3, 4], true),
+            (vec![1, 2, 3, 4, 5], true),
+            (vec![9; 770], true),
+            (vec![1, 2, 3], false),
+            (vec![7; 768], false),
+        ] {
+            let png = indexed_png(&palette);
+            let checked = check_png_chunks(&png);
+            assert_eq!(
+                checked.is_err(),
+                refused,
+                "{} bytes: {checked:?}",
+                palette.len()
+            );
+            if !refused {
+                let img = image::load_from_memory(&png).expect("decodes");
+                assert_eq!((img.width(), img.height()), (2, 2));
+            }
+        }
+        // Not a PNG, or cut short: left to the decoder.
+        assert!(check_png_chunks(b"GIF89a").is_ok());
+        let png = indexed_png(&[1, 2, 3, 4]);
+        assert!(check_png_chunks(&png[..30]).is_ok());
+        // Signature, IHDR (25 bytes), then the PLTE chunk's 8-byte header at byte 33.
+        assert!(
+            check_png_chunks(&png[..41]).is_err(),
+            "the PLTE header is enough"
+        );
+        assert!(check_png_chunks(&png[..40]).is_ok());
+    }
 
     #[test]
     fn srgb_byte_tables_match_the_transfer_functions() {

@@ -455,10 +455,20 @@ impl RgbaImage {
     /// Decoder or file-system failure, with the path.
     pub fn load_png(path: impl AsRef<Path>) -> Result<Self, ImageError> {
         let path = path.as_ref();
-        let img = image::open(path).map_err(|source| ImageError::Read {
+        let read_error = |source| ImageError::Read {
             path: path.display().to_string(),
             source,
+        };
+        let bytes = std::fs::read(path).map_err(|e| read_error(image::ImageError::IoError(e)))?;
+        crate::mesh::check_png_chunks(&bytes).map_err(|e| {
+            read_error(image::ImageError::Decoding(
+                image::error::DecodingError::new(
+                    image::error::ImageFormatHint::Exact(image::ImageFormat::Png),
+                    e,
+                ),
+            ))
         })?;
+        let img = image::load_from_memory(&bytes).map_err(read_error)?;
         Ok(Self::from_rgba8(&img.to_rgba8()))
     }
 }

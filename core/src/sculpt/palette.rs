@@ -244,6 +244,7 @@ pub fn palette_from_png(bytes: &[u8]) -> Result<Vec<[u8; 4]>, PaletteError> {
             &bytes[..n]
         )));
     }
+    crate::mesh::check_png_chunks(bytes).map_err(binary)?;
     let mut reader = image::ImageReader::with_format(Cursor::new(bytes), image::ImageFormat::Png);
     let mut limits = image::Limits::default();
     limits.max_image_width = Some(256);
