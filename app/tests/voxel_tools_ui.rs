@@ -16,7 +16,11 @@ use thicket_core::scene::{Document, ObjectKind};
 const SIZE: egui::Vec2 = egui::vec2(1200.0, 800.0);
 
 fn harness() -> Harness<'static, EditorApp> {
-    let mut app = EditorApp::new(Editor::new(Document::default(), None));
+    harness_with(Editor::new(Document::default(), None))
+}
+
+fn harness_with(editor: Editor) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(editor);
     app.autosave_secs = 0;
     app.native_dialogs = false;
     let mut h = Harness::builder()
@@ -261,6 +265,91 @@ fn a_model_built_from_nothing_with_the_voxel_tools_saves_and_reopens_the_same() 
         leaves(&h).is_empty(),
         "undo of every tool edit restores the empty model"
     );
+}
+
+/// Three edits with the voxel tools, then Edit → History: the window lists them by name, a
+/// click on the first goes back to exactly the document two undos give (the later steps stay
+/// listed), and a click on the last goes forward to the document of all three.
+#[test]
+fn history_lists_the_steps_and_a_click_is_that_many_undos() {
+    use glam::IVec3;
+    use thicket::editor::NewModelSpec;
+    use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
+    let three_edits = || {
+        let mut ed = Editor::new(Document::default(), None);
+        let id = ed
+            .add_voxel_model(&NewModelSpec {
+                name: "Crate".into(),
+                size: UVec3::splat(8),
+                ..NewModelSpec::default()
+            })
+            .unwrap();
+        let ink = Ink {
+            color: [200, 40, 40, 255],
+            material: 0,
+        };
+        ed.shape_box(
+            id,
+            IVec3::ZERO,
+            IVec3::new(3, 1, 3),
+            ShapeOp::Add,
+            ink,
+            Mirror::default(),
+        )
+        .unwrap();
+        let cells = [IVec3::new(0, 1, 0), IVec3::new(1, 1, 0)];
+        let blue = Ink {
+            color: [40, 40, 200, 255],
+            material: 0,
+        };
+        ed.shape_cells(id, &cells, ShapeOp::Paint, blue, Mirror::default(), false)
+            .unwrap();
+        ed
+    };
+    // What the history covers (the view moves the camera's clip planes, which no step holds).
+    let content = |ed: &Editor| (ed.doc().objects.clone(), ed.doc().lights.clone());
+    let all_three = content(&three_edits());
+    let mut undone = three_edits();
+    assert!(undone.undo() && undone.undo());
+    let first_only = content(&undone);
+    assert_ne!(first_only, all_three);
+
+    let mut h = harness_with(three_edits());
+    assert_eq!(content(&h.state().editor), all_three);
+    h.query_all_by_label("Edit")
+        .next()
+        .expect("the Edit menu")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("History…").click();
+    h.run_steps(2);
+    assert!(h.state().show_history, "Edit → History opens the window");
+    for step in ["1. Add Crate", "2. Add box", "3. Paint voxels"] {
+        assert!(h.query_by_label(step).is_some(), "History lists {step:?}");
+    }
+    h.get_by_label("1. Add Crate").click();
+    h.run_steps(2);
+    assert_eq!(
+        content(&h.state().editor),
+        first_only,
+        "going back to the first step is two undos"
+    );
+    assert_eq!(h.state().editor.history().undo_len(), 1);
+    assert_eq!(h.state().editor.history().redo_len(), 2);
+    // The undone steps stay listed, to go forward to.
+    h.get_by_label("3. Paint voxels").click();
+    h.run_steps(2);
+    assert_eq!(
+        content(&h.state().editor),
+        all_three,
+        "forward again is two redos"
+    );
+    assert_eq!(h.state().editor.history().redo_len(), 0);
+    // Start is the document before every step: no objects.
+    h.get_by_label("Start").click();
+    h.run_steps(2);
+    assert!(h.state().editor.doc().objects.is_empty());
+    assert_eq!(h.state().editor.history().undo_len(), 0);
 }
 
 /// A model made with the tools, exported to .vox, opened and exported again by Goxel (under

@@ -7,6 +7,7 @@ mod dialogs;
 pub use dialogs::shortcut_rows;
 mod enhance_panel;
 pub mod export_gltf;
+mod history;
 mod inspector;
 pub mod krs_panel;
 mod menus;
@@ -91,6 +92,8 @@ pub struct EditorApp {
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
+    /// Whether the Edit → History window is open.
+    pub show_history: bool,
     /// The shortcut sheet's search text.
     shortcut_search: String,
     show_about: bool,
@@ -148,6 +151,7 @@ impl EditorApp {
             autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
+            show_history: false,
             shortcut_search: String::new(),
             show_about: false,
             show_outliner: true,
@@ -860,6 +864,7 @@ impl EditorApp {
             });
 
         self.dialogs(&ctx);
+        self.history_window(&ctx);
         if self.new_model.ui(&ctx, &mut self.editor).is_some() {
             self.sculpt.choose(voxel_tools::ToolKind::Voxel);
             self.status =
