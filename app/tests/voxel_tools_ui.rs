@@ -20,11 +20,15 @@ fn harness() -> Harness<'static, EditorApp> {
 }
 
 fn harness_with(editor: Editor) -> Harness<'static, EditorApp> {
+    harness_sized(editor, SIZE)
+}
+
+fn harness_sized(editor: Editor, size: egui::Vec2) -> Harness<'static, EditorApp> {
     let mut app = EditorApp::new(editor);
     app.autosave_secs = 0;
     app.native_dialogs = false;
     let mut h = Harness::builder()
-        .with_size(SIZE)
+        .with_size(size)
         // 20 frames a second, so two clicks a frame apart make a double-click (0.3 s).
         .with_step_dt(1.0 / 20.0)
         .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
@@ -350,6 +354,143 @@ fn history_lists_the_steps_and_a_click_is_that_many_undos() {
     h.run_steps(2);
     assert!(h.state().editor.doc().objects.is_empty());
     assert_eq!(h.state().editor.history().undo_len(), 0);
+}
+
+/// The tool bar at 1280×720 (a laptop screen): its swatches are the selected model's own
+/// colours, most used first, and they are at exactly the same places whichever tool is chosen,
+/// on one row with the tools (nothing wraps); the hex field sets the colour and refuses other
+/// text with a message; the 256-colour grid and a swatch pick colours.
+#[test]
+fn tool_bar_swatches_stay_put_and_hex_and_grid_set_the_colour() {
+    use egui::accesskit::Role;
+    use egui_kittest::kittest::NodeT as _;
+    use glam::IVec3;
+    use thicket::editor::NewModelSpec;
+    use thicket::ui::voxel_tools::ToolKind;
+    use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
+    let mut ed = Editor::new(Document::default(), None);
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            size: UVec3::splat(16),
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = |c: [u8; 3]| Ink {
+        color: [c[0], c[1], c[2], 255],
+        material: 0,
+    };
+    // 16 red voxels and 2 blue ones on top.
+    ed.shape_box(
+        id,
+        IVec3::ZERO,
+        IVec3::new(3, 0, 3),
+        ShapeOp::Add,
+        ink([200, 40, 40]),
+        Mirror::default(),
+    )
+    .unwrap();
+    let cells = [IVec3::new(0, 1, 0), IVec3::new(1, 1, 0)];
+    ed.shape_cells(
+        id,
+        &cells,
+        ShapeOp::Add,
+        ink([40, 40, 200]),
+        Mirror::default(),
+        false,
+    )
+    .unwrap();
+    let mut h = harness_sized(ed, egui::vec2(1280.0, 720.0));
+    h.run_steps(2);
+
+    let swatches = |h: &Harness<'static, EditorApp>| -> Vec<(String, egui::Rect)> {
+        h.query_all_by_label_contains("Swatch ")
+            .map(|n| (n.accesskit_node().label().unwrap_or_default(), n.rect()))
+            .collect()
+    };
+    let navigate = swatches(&h);
+    // The model's two colours, then the twelve starter colours.
+    assert_eq!(navigate.len(), 14, "{navigate:?}");
+    assert_eq!(
+        navigate[0].0, "Swatch 1: #c82828",
+        "the most used colour first"
+    );
+    assert_eq!(navigate[1].0, "Swatch 2: #2828c8");
+    // The tool bar's Navigate (the first: the View menu has one too).
+    let row = h.query_all_by_label("Navigate").next().unwrap().rect();
+    assert!(row.top() < 60.0, "{row:?}");
+    let mut modes: Vec<(String, Vec<(String, egui::Rect)>)> = Vec::new();
+    for (tool, label, _, _) in ToolKind::ALL {
+        h.state_mut().sculpt.choose(tool);
+        h.run_steps(2);
+        modes.push((label.to_owned(), swatches(&h)));
+    }
+    h.state_mut().sculpt.choose(ToolKind::Brush);
+    h.state_mut().sculpt.stretch_paint = true;
+    h.run_steps(2);
+    modes.push(("Stretch paint".into(), swatches(&h)));
+    h.state_mut().sculpt.stretch_paint = false;
+    h.run_steps(1);
+    for (mode, list) in &modes {
+        assert_eq!(list, &navigate, "the swatches do not move with {mode}");
+    }
+    for (name, r) in &navigate {
+        assert!(
+            r.center().y > row.top() && r.center().y < row.bottom(),
+            "{name} {r:?} is on the tools' row {row:?}"
+        );
+    }
+    let z = h.query_all_by_label("Z").next().unwrap().rect();
+    assert!(z.right() <= 1280.0 && (z.center().y - row.center().y).abs() < 1.0);
+    // The view settled, so the snapshot does not catch a preview half done.
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+    h.snapshot_options(
+        "tool_bar_1280",
+        &egui_kittest::SnapshotOptions::new().max_failed_pixels(200),
+    );
+
+    // Hex entry: a colour is set, anything else is refused with a message.
+    let type_hex = |h: &mut Harness<'static, EditorApp>, text: &str| {
+        h.get_by_role_and_label(Role::TextInput, "Hex").focus();
+        h.run_steps(1);
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+        h.get_by_role_and_label(Role::TextInput, "Hex")
+            .type_text(text);
+        h.run_steps(1);
+        h.key_press(egui::Key::Enter);
+        h.run_steps(2);
+    };
+    type_hex(&mut h, "#3366CC");
+    assert_eq!(h.state().sculpt.brush.color, [0x33, 0x66, 0xcc, 255]);
+    assert!(h.query_by_label_contains("is not a colour").is_none());
+    type_hex(&mut h, "#3366C");
+    assert_eq!(
+        h.state().sculpt.brush.color,
+        [0x33, 0x66, 0xcc, 255],
+        "five digits are refused"
+    );
+    assert!(
+        h.query_by_label_contains("\"#3366C\" is not a colour")
+            .is_some(),
+        "the refusal is shown"
+    );
+    // A swatch picks its colour (and the refusal goes).
+    h.get_by_label("Swatch 2: #2828c8").click();
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.color, [40, 40, 200, 255]);
+    assert!(h.query_by_label_contains("is not a colour").is_none());
+    // The grid (the default one: the model has no palette) picks its cell's colour.
+    h.get_by_label("256…").click();
+    h.run_steps(2);
+    h.get_by_label("Grid 43: #ccccff").click();
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.color, [204, 204, 255, 255]);
+    assert!(
+        h.query_by_label("Grid 43: #ccccff").is_none(),
+        "a pick closes the grid"
+    );
 }
 
 /// A model made with the tools, exported to .vox, opened and exported again by Goxel (under

@@ -807,7 +807,7 @@ impl EditorApp {
         self.handle_close_request(&ctx);
 
         egui::Panel::top("menu_bar").show(ui, |ui| self.menu_bar(ui));
-        egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui));
+        egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui, &self.editor));
         egui::Panel::bottom("status_bar").show(ui, |ui| self.status_bar(ui));
         if let Some(id) = pose::timeline_target(&self.editor) {
             egui::Panel::bottom("timeline").show(ui, |ui| {
