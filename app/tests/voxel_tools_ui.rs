@@ -439,8 +439,8 @@ fn tool_bar_swatches_stay_put_and_hex_and_grid_set_the_colour() {
             "{name} {r:?} is on the tools' row {row:?}"
         );
     }
-    let z = h.query_all_by_label("Z").next().unwrap().rect();
-    assert!(z.right() <= 1280.0 && (z.center().y - row.center().y).abs() < 1.0);
+    let last = navigate.last().unwrap().1;
+    assert!(last.right() <= 1280.0, "the row fits: {last:?}");
     // The view settled, so the snapshot does not catch a preview half done.
     for _ in 0..4 {
         h.state_mut().view.wait_for_cpu_preview();

@@ -330,11 +330,13 @@ impl SculptTool {
     }
 
     /// The tool bar in two rows. The first never changes with the tool, so nothing in it
-    /// moves: the tools, the colour (button, hex entry, 256-colour grid and the selected
-    /// model's own colours as swatches) and the mirror axes. The second holds the chosen
-    /// tool's options and the last refusal.
+    /// moves: the tools and the colour (button, hex entry, 256-colour grid and the selected
+    /// model's own colours as swatches). The second starts with the mirror axes, then the
+    /// chosen tool's options and the last refusal.
     pub fn toolbar_ui(&mut self, ui: &mut egui::Ui, editor: &Editor) {
-        ui.horizontal(|ui| {
+        // Wrapped only in a window too narrow for it (under about 950 points), the same for
+        // every tool.
+        ui.horizontal_wrapped(|ui| {
             if ui
                 .selectable_label(!self.active, "Navigate")
                 .on_hover_text("Drag orbits, Shift+drag pans, scroll zooms (Esc)")
@@ -354,10 +356,10 @@ impl SculptTool {
             }
             ui.separator();
             self.colors.bar_ui(ui, editor, &mut self.brush.color);
-            ui.separator();
-            self.mirror_ui(ui);
         });
         ui.horizontal_wrapped(|ui| {
+            self.mirror_ui(ui);
+            ui.separator();
             self.options_ui(ui);
             if let Some(e) = &self.colors.hex_error {
                 ui.colored_label(ui.visuals().error_fg_color, e);
