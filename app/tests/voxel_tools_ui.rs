@@ -493,6 +493,74 @@ fn tool_bar_swatches_stay_put_and_hex_and_grid_set_the_colour() {
     );
 }
 
+/// The ground grid, the world axes and the volume box are drawn only where no voxel is in front
+/// of them: a ground line running under a solid 2 m cube is shown in front of it, hidden under
+/// and behind it, and shown whole once the cube is hidden. The same split serves the CPU preview
+/// and the GPU viewport (the overlays are painted over either).
+#[test]
+fn overlay_lines_are_hidden_behind_voxels() {
+    use thicket::editor::NewModelSpec;
+    use thicket::ui::view::{behind_voxels, unhidden_parts};
+    use thicket_core::sculpt::model_ops::InitialFill;
+    let mut ed = Editor::new(Document::default(), None);
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            size: UVec3::splat(8),
+            voxel_size: 0.25,
+            fill: InitialFill::SolidBox,
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let mut camera = ed.doc().camera;
+    camera.yaw_deg = 0.0;
+    camera.pitch_deg = 45.0;
+    camera.orthographic = false;
+    ed.set_camera(camera);
+    let camera = ed.doc().camera;
+    let rect = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0));
+    let proj = Projector::new(camera, rect);
+    // The cube's footprint centre on the ground, and the way the camera looks along the ground.
+    let c = Vec3::new(camera.target.x, 0.0, camera.target.z);
+    let eye = camera.eye();
+    let f = Vec3::new(camera.target.x - eye.x, 0.0, camera.target.z - eye.z).normalize_or_zero();
+    let (a, b) = (c - f * 1.5, c + f * 8.0);
+    assert!(
+        proj.to_screen(a).is_some(),
+        "the line starts in front of the camera"
+    );
+    assert!(
+        !behind_voxels(&proj, &ed, a),
+        "the ground in front of the cube shows"
+    );
+    assert!(
+        behind_voxels(&proj, &ed, c),
+        "the ground under the cube is hidden"
+    );
+    assert!(
+        behind_voxels(&proj, &ed, c + f * 1.5),
+        "the ground just behind the cube is hidden"
+    );
+    assert!(!behind_voxels(&proj, &ed, b), "the ground far behind shows");
+    let on_line = |p: Vec3| (p - a).dot(f);
+    let parts = unhidden_parts(&proj, &ed, a, b);
+    assert_eq!(parts.len(), 2, "in front and far behind: {parts:?}");
+    assert_eq!(parts[0].0, a);
+    // The front part ends at the cube's front face (1 m before its centre), to a few cm.
+    assert!(
+        (on_line(parts[0].1) - 0.5).abs() < 0.05,
+        "{}",
+        on_line(parts[0].1)
+    );
+    assert!(on_line(parts[1].0) > 3.0 && parts[1].1 == b, "{parts:?}");
+    // A world axis through the cube, drawn from its centre upward: hidden inside, shown above.
+    let up = unhidden_parts(&proj, &ed, c, c + Vec3::Y * 4.0);
+    assert_eq!(up.len(), 1, "{up:?}");
+    assert!(up[0].0.y > 1.9, "{up:?}");
+    // Hidden models hide nothing.
+    ed.set_visible(id, false).unwrap();
+    assert_eq!(unhidden_parts(&proj, &ed, a, b), vec![(a, b)]);
+}
+
 /// A model made with the tools, exported to .vox, opened and exported again by Goxel (under
 /// Xvfb, as an artist's second tool would), comes back with the same voxel count.
 #[test]
