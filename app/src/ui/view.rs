@@ -1961,8 +1961,9 @@ fn oriented_box_lines(
 }
 
 /// Whether a voxel of a visible voxel model lies between the viewer and world point `p`: an
-/// overlay line there is hidden. Rigged models count in their pose; a point on a voxel's
-/// surface is not hidden by it.
+/// overlay line there is hidden. A point on a voxel's surface is not hidden by it. Rigged
+/// models hide nothing: a ray through a posed model costs milliseconds (the pose is worked out
+/// for every ray), too slow for the hundreds of rays a moving view casts each frame.
 #[must_use]
 pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
     let camera = &proj.camera;
@@ -1979,8 +1980,12 @@ pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
     if !ahead || !dist.is_finite() {
         return false;
     }
+    let unrigged = |o: &Object| match &o.kind {
+        ObjectKind::Voxels(v) => v.rig.is_none() && editor.voxel_pickable(o),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => false,
+    };
     editor
-        .pick_voxel(origin, (p - origin) / dist)
+        .pick_voxel_where(origin, (p - origin) / dist, unrigged)
         .is_some_and(|hit| hit.t < dist - (dist * 1e-4 + hit.voxel_size_world * 0.01))
 }
 
@@ -2000,7 +2005,11 @@ pub fn unhidden_parts(proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> Ve
     let n = (length / OVERLAY_SAMPLE_POINTS).ceil().clamp(1.0, 256.0) as u32;
     let bisections = (length / n as f32).max(1.0).log2().ceil() as u32;
     let point = |s: f32| a + (b - a) * s;
-    let shown = |s: f32| !behind_voxels(proj, editor, point(s));
+    // Points outside the view are not drawn: no ray for them.
+    let shown = |s: f32| {
+        let p = point(s);
+        proj.to_screen(p).is_none_or(|q| !proj.rect.contains(q)) || !behind_voxels(proj, editor, p)
+    };
     let mut parts = Vec::new();
     let (mut prev_s, mut prev_shown) = (0.0, shown(0.0));
     let mut start = prev_shown.then_some(0.0);
