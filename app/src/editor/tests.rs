@@ -1707,3 +1707,39 @@ fn a_vox_export_names_what_it_leaves_out_and_why() {
     );
     assert_eq!(super::jobs::vox_left_out(&objects, &[]), "");
 }
+
+#[test]
+fn replacing_a_palette_colour_is_one_named_undo_step() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("A", voxels(3));
+    let from = [200, 100, 50, 255];
+    let to = [10, 20, 30, 255];
+    ed.set_palette(id, vec![[1, 2, 3, 255], from]).unwrap();
+    let before = ed.doc().objects.clone();
+    let steps = ed.history().undo_len();
+    ed.replace_color(id, from, to).unwrap();
+    let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+        unreachable!()
+    };
+    assert_eq!(
+        v.palette,
+        vec![[1, 2, 3, 255], to],
+        "the palette entry follows"
+    );
+    assert_eq!(v.svo.leaves()[0].1.color, to);
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    assert_eq!(ed.history().labels().0.last(), Some(&"Replace colour"));
+    let after = ed.doc().objects.clone();
+    assert!(ed.undo());
+    assert_eq!(
+        ed.doc().objects,
+        before,
+        "one undo restores voxels and palette"
+    );
+    assert!(ed.redo());
+    assert_eq!(ed.doc().objects, after);
+    assert_eq!(
+        ed.history().labels().0,
+        vec!["Add A", "Set palette", "Replace colour"]
+    );
+}

@@ -667,6 +667,25 @@ impl History {
         self.undo.drain(..drop);
     }
 
+    /// Joins the last `n` undo steps into one named `label` (a command made of several edits,
+    /// one step for the user). Nothing happens with fewer than `n` steps.
+    pub fn join_top(&mut self, n: usize, label: String) {
+        if n < 2 || self.undo.len() < n {
+            return;
+        }
+        let steps: Vec<Step> = self.undo.drain(self.undo.len() - n..).collect();
+        let (from, to) = (steps[n - 1].from, steps[0].to);
+        // Undo reverts the newest edit first.
+        let revert = Edit::Group(steps.into_iter().rev().map(|s| s.revert).collect());
+        self.undo.push(Step {
+            label,
+            revert,
+            from,
+            to,
+        });
+        self.open = None;
+    }
+
     /// Bytes the undo steps hold.
     #[must_use]
     pub fn undo_bytes(&self) -> usize {

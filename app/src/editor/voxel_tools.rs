@@ -902,16 +902,21 @@ impl Editor {
         to: [u8; 4],
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
+        let steps = self.history.undo_len();
         let outcome = self.write_voxels_named(id, None, "Replace colour", |svo, _| {
             Ok(palette::replace_color(svo, from, to, mask.as_ref()))
         })?;
-        // The palette entry follows, so the panel shows the new colour in its place.
+        // The palette entry follows, so the panel shows the new colour in its place: the
+        // same undo step.
         if let Some(ObjectKind::Voxels(v)) = self.object(id).map(|o| &o.kind)
             && let Some(i) = v.palette.iter().position(|c| *c == from)
         {
             let mut p = v.palette.clone();
             p[i] = to;
             self.set_palette(id, p)?;
+            if self.history.undo_len() == steps + 2 {
+                self.history.join_top(2, "Replace colour".into());
+            }
         }
         Ok(outcome)
     }
