@@ -1743,3 +1743,49 @@ fn replacing_a_palette_colour_is_one_named_undo_step() {
         vec!["Add A", "Set palette", "Replace colour"]
     );
 }
+
+#[test]
+fn history_names_each_step_and_goes_to_any_of_them() {
+    let (mut ed, id) = slab_editor();
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.5,
+        ..Default::default()
+    };
+    let start = ed.history().undo_len();
+    let at_start = ed.doc().objects.clone();
+    // A stroke of three dabs is one step, named once.
+    ed.begin_stroke();
+    for x in 0..3 {
+        ed.sculpt_dab(id, &brush, Vec3::new(x as f32 + 0.5, 3.5, 3.5), Vec3::ZERO)
+            .unwrap();
+    }
+    ed.end_interaction();
+    let name = ed.object(id).unwrap().name.clone();
+    ed.rename(id, "Ground").unwrap();
+    ed.set_visible(id, false).unwrap();
+    let (labels, done) = ed.history().labels();
+    let labels: Vec<String> = labels.into_iter().map(str::to_owned).collect();
+    assert_eq!(
+        labels[start..].to_vec(),
+        vec![
+            "Brush stroke".to_owned(),
+            format!("Rename {name} to Ground"),
+            "Hide Ground".to_owned()
+        ]
+    );
+    assert_eq!(done, labels.len());
+    let all = ed.doc().objects.clone();
+    // Going to the step before the stroke is three undos; the undone steps stay listed.
+    assert_eq!(ed.go_to_step(start), 3);
+    assert_eq!(ed.doc().objects, at_start);
+    assert_eq!(ed.history().labels().0.len(), labels.len());
+    assert_eq!(ed.history().redo_len(), 3);
+    assert_eq!(ed.go_to_step(start + 3), 3);
+    assert_eq!(ed.doc().objects, all, "and forward again");
+    assert_eq!(
+        ed.go_to_step(usize::MAX),
+        0,
+        "past the end: nothing to redo"
+    );
+}
