@@ -1789,3 +1789,16 @@ fn history_names_each_step_and_goes_to_any_of_them() {
         "past the end: nothing to redo"
     );
 }
+
+#[test]
+fn binding_weights_is_named_in_the_history() {
+    let (mut ed, id) = slab_editor();
+    let hip = ed
+        .add_joint(id, None, Vec3::new(4.0, 3.0, 4.0), Some("hip"))
+        .unwrap();
+    ed.add_joint(id, Some(hip), Vec3::new(4.0, 1.0, 7.0), Some("leg"))
+        .unwrap();
+    ed.bind_now(id, thicket_core::skin::BindMethod::Geodesic)
+        .unwrap();
+    assert_eq!(ed.history().labels().0.last(), Some(&"Bind weights"));
+}
