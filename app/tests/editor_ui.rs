@@ -1037,9 +1037,11 @@ fn an_obj_without_its_texture_is_imported_again_with_one_from_the_import_report(
         h.state().import_report.is_some(),
         "the button is disabled until a texture is named"
     );
-    h.get_by_role(egui::accesskit::Role::TextInput).focus();
+    // The report's field (the tool bar has a hex colour field too).
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Texture")
+        .focus();
     h.run_steps(1);
-    h.get_by_role(egui::accesskit::Role::TextInput)
+    h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Texture")
         .type_text("spot_texture.png");
     h.run_steps(1);
     h.get_by_label("Import again with it").click();

@@ -16,11 +16,19 @@ use thicket_core::scene::{Document, ObjectKind};
 const SIZE: egui::Vec2 = egui::vec2(1200.0, 800.0);
 
 fn harness() -> Harness<'static, EditorApp> {
-    let mut app = EditorApp::new(Editor::new(Document::default(), None));
+    harness_with(Editor::new(Document::default(), None))
+}
+
+fn harness_with(editor: Editor) -> Harness<'static, EditorApp> {
+    harness_sized(editor, SIZE)
+}
+
+fn harness_sized(editor: Editor, size: egui::Vec2) -> Harness<'static, EditorApp> {
+    let mut app = EditorApp::new(editor);
     app.autosave_secs = 0;
     app.native_dialogs = false;
     let mut h = Harness::builder()
-        .with_size(SIZE)
+        .with_size(size)
         // 20 frames a second, so two clicks a frame apart make a double-click (0.3 s).
         .with_step_dt(1.0 / 20.0)
         .build_ui_state(|ui, app: &mut EditorApp| app.ui_root(ui), app);
@@ -261,6 +269,296 @@ fn a_model_built_from_nothing_with_the_voxel_tools_saves_and_reopens_the_same() 
         leaves(&h).is_empty(),
         "undo of every tool edit restores the empty model"
     );
+}
+
+/// Three edits with the voxel tools, then Edit → History: the window lists them by name, a
+/// click on the first goes back to exactly the document two undos give (the later steps stay
+/// listed), and a click on the last goes forward to the document of all three.
+#[test]
+fn history_lists_the_steps_and_a_click_is_that_many_undos() {
+    use glam::IVec3;
+    use thicket::editor::NewModelSpec;
+    use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
+    let three_edits = || {
+        let mut ed = Editor::new(Document::default(), None);
+        let id = ed
+            .add_voxel_model(&NewModelSpec {
+                name: "Crate".into(),
+                size: UVec3::splat(8),
+                ..NewModelSpec::default()
+            })
+            .unwrap();
+        let ink = Ink {
+            color: [200, 40, 40, 255],
+            material: 0,
+        };
+        ed.shape_box(
+            id,
+            IVec3::ZERO,
+            IVec3::new(3, 1, 3),
+            ShapeOp::Add,
+            ink,
+            Mirror::default(),
+        )
+        .unwrap();
+        let cells = [IVec3::new(0, 1, 0), IVec3::new(1, 1, 0)];
+        let blue = Ink {
+            color: [40, 40, 200, 255],
+            material: 0,
+        };
+        ed.shape_cells(id, &cells, ShapeOp::Paint, blue, Mirror::default(), false)
+            .unwrap();
+        ed
+    };
+    // What the history covers (the view moves the camera's clip planes, which no step holds).
+    let content = |ed: &Editor| (ed.doc().objects.clone(), ed.doc().lights.clone());
+    let all_three = content(&three_edits());
+    let mut undone = three_edits();
+    assert!(undone.undo() && undone.undo());
+    let first_only = content(&undone);
+    assert_ne!(first_only, all_three);
+
+    let mut h = harness_with(three_edits());
+    assert_eq!(content(&h.state().editor), all_three);
+    h.query_all_by_label("Edit")
+        .next()
+        .expect("the Edit menu")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("History…").click();
+    h.run_steps(2);
+    assert!(h.state().show_history, "Edit → History opens the window");
+    for step in ["1. Add Crate", "2. Add box", "3. Paint voxels"] {
+        assert!(h.query_by_label(step).is_some(), "History lists {step:?}");
+    }
+    h.get_by_label("1. Add Crate").click();
+    h.run_steps(2);
+    assert_eq!(
+        content(&h.state().editor),
+        first_only,
+        "going back to the first step is two undos"
+    );
+    assert_eq!(h.state().editor.history().undo_len(), 1);
+    assert_eq!(h.state().editor.history().redo_len(), 2);
+    // The undone steps stay listed, to go forward to.
+    h.get_by_label("3. Paint voxels").click();
+    h.run_steps(2);
+    assert_eq!(
+        content(&h.state().editor),
+        all_three,
+        "forward again is two redos"
+    );
+    assert_eq!(h.state().editor.history().redo_len(), 0);
+    // Start is the document before every step: no objects.
+    h.get_by_label("Start").click();
+    h.run_steps(2);
+    assert!(h.state().editor.doc().objects.is_empty());
+    assert_eq!(h.state().editor.history().undo_len(), 0);
+}
+
+/// The tool bar at 1280×720 (a laptop screen): its swatches are the selected model's own
+/// colours, most used first, and they are at exactly the same places whichever tool is chosen,
+/// on one row with the tools (nothing wraps); the hex field sets the colour and refuses other
+/// text with a message; the 256-colour grid and a swatch pick colours.
+#[test]
+fn tool_bar_swatches_stay_put_and_hex_and_grid_set_the_colour() {
+    use egui::accesskit::Role;
+    use egui_kittest::kittest::NodeT as _;
+    use glam::IVec3;
+    use thicket::editor::NewModelSpec;
+    use thicket::ui::voxel_tools::ToolKind;
+    use thicket_core::sculpt::shapes::{Ink, Mirror, ShapeOp};
+    let mut ed = Editor::new(Document::default(), None);
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            size: UVec3::splat(16),
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = |c: [u8; 3]| Ink {
+        color: [c[0], c[1], c[2], 255],
+        material: 0,
+    };
+    // 16 red voxels and 2 blue ones on top.
+    ed.shape_box(
+        id,
+        IVec3::ZERO,
+        IVec3::new(3, 0, 3),
+        ShapeOp::Add,
+        ink([200, 40, 40]),
+        Mirror::default(),
+    )
+    .unwrap();
+    let cells = [IVec3::new(0, 1, 0), IVec3::new(1, 1, 0)];
+    ed.shape_cells(
+        id,
+        &cells,
+        ShapeOp::Add,
+        ink([40, 40, 200]),
+        Mirror::default(),
+        false,
+    )
+    .unwrap();
+    let mut h = harness_sized(ed, egui::vec2(1280.0, 720.0));
+    h.run_steps(2);
+
+    let swatches = |h: &Harness<'static, EditorApp>| -> Vec<(String, egui::Rect)> {
+        h.query_all_by_label_contains("Swatch ")
+            .map(|n| (n.accesskit_node().label().unwrap_or_default(), n.rect()))
+            .collect()
+    };
+    let navigate = swatches(&h);
+    // The model's two colours, then the twelve starter colours.
+    assert_eq!(navigate.len(), 14, "{navigate:?}");
+    assert_eq!(
+        navigate[0].0, "Swatch 1: #c82828",
+        "the most used colour first"
+    );
+    assert_eq!(navigate[1].0, "Swatch 2: #2828c8");
+    // The tool bar's Navigate (the first: the View menu has one too).
+    let row = h.query_all_by_label("Navigate").next().unwrap().rect();
+    assert!(row.top() < 60.0, "{row:?}");
+    let mut modes: Vec<(String, Vec<(String, egui::Rect)>)> = Vec::new();
+    for (tool, label, _, _) in ToolKind::ALL {
+        h.state_mut().sculpt.choose(tool);
+        h.run_steps(2);
+        modes.push((label.to_owned(), swatches(&h)));
+    }
+    h.state_mut().sculpt.choose(ToolKind::Brush);
+    h.state_mut().sculpt.stretch_paint = true;
+    h.run_steps(2);
+    modes.push(("Stretch paint".into(), swatches(&h)));
+    h.state_mut().sculpt.stretch_paint = false;
+    h.run_steps(1);
+    for (mode, list) in &modes {
+        assert_eq!(list, &navigate, "the swatches do not move with {mode}");
+    }
+    for (name, r) in &navigate {
+        assert!(
+            r.center().y > row.top() && r.center().y < row.bottom(),
+            "{name} {r:?} is on the tools' row {row:?}"
+        );
+    }
+    let last = navigate.last().unwrap().1;
+    assert!(last.right() <= 1280.0, "the row fits: {last:?}");
+    // The view settled, so the snapshot does not catch a preview half done.
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+    h.snapshot_options(
+        "tool_bar_1280",
+        &egui_kittest::SnapshotOptions::new().max_failed_pixels(200),
+    );
+
+    // Hex entry: a colour is set, anything else is refused with a message.
+    let type_hex = |h: &mut Harness<'static, EditorApp>, text: &str| {
+        h.get_by_role_and_label(Role::TextInput, "Hex").focus();
+        h.run_steps(1);
+        h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::A);
+        h.get_by_role_and_label(Role::TextInput, "Hex")
+            .type_text(text);
+        h.run_steps(1);
+        h.key_press(egui::Key::Enter);
+        h.run_steps(2);
+    };
+    type_hex(&mut h, "#3366CC");
+    assert_eq!(h.state().sculpt.brush.color, [0x33, 0x66, 0xcc, 255]);
+    assert!(h.query_by_label_contains("is not a colour").is_none());
+    type_hex(&mut h, "#3366C");
+    assert_eq!(
+        h.state().sculpt.brush.color,
+        [0x33, 0x66, 0xcc, 255],
+        "five digits are refused"
+    );
+    assert!(
+        h.query_by_label_contains("\"#3366C\" is not a colour")
+            .is_some(),
+        "the refusal is shown"
+    );
+    // A swatch picks its colour (and the refusal goes).
+    h.get_by_label("Swatch 2: #2828c8").click();
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.color, [40, 40, 200, 255]);
+    assert!(h.query_by_label_contains("is not a colour").is_none());
+    // The grid (the default one: the model has no palette) picks its cell's colour.
+    h.get_by_label("256…").click();
+    h.run_steps(2);
+    h.get_by_label("Grid 43: #ccccff").click();
+    h.run_steps(2);
+    assert_eq!(h.state().sculpt.brush.color, [204, 204, 255, 255]);
+    assert!(
+        h.query_by_label("Grid 43: #ccccff").is_none(),
+        "a pick closes the grid"
+    );
+}
+
+/// The ground grid, the world axes and the volume box are drawn only where no voxel is in front
+/// of them: a ground line running under a solid 2 m cube is shown in front of it, hidden under
+/// and behind it, and shown whole once the cube is hidden. The same split serves the CPU preview
+/// and the GPU viewport (the overlays are painted over either).
+#[test]
+fn overlay_lines_are_hidden_behind_voxels() {
+    use thicket::editor::NewModelSpec;
+    use thicket::ui::view::{behind_voxels, unhidden_parts};
+    use thicket_core::sculpt::model_ops::InitialFill;
+    let mut ed = Editor::new(Document::default(), None);
+    let id = ed
+        .add_voxel_model(&NewModelSpec {
+            size: UVec3::splat(8),
+            voxel_size: 0.25,
+            fill: InitialFill::SolidBox,
+            ..NewModelSpec::default()
+        })
+        .unwrap();
+    let mut camera = ed.doc().camera;
+    camera.yaw_deg = 0.0;
+    camera.pitch_deg = 45.0;
+    camera.orthographic = false;
+    ed.set_camera(camera);
+    let camera = ed.doc().camera;
+    let rect = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0));
+    let proj = Projector::new(camera, rect);
+    // The cube's footprint centre on the ground, and the way the camera looks along the ground.
+    let c = Vec3::new(camera.target.x, 0.0, camera.target.z);
+    let eye = camera.eye();
+    let f = Vec3::new(camera.target.x - eye.x, 0.0, camera.target.z - eye.z).normalize_or_zero();
+    let (a, b) = (c - f * 1.5, c + f * 8.0);
+    assert!(
+        proj.to_screen(a).is_some(),
+        "the line starts in front of the camera"
+    );
+    assert!(
+        !behind_voxels(&proj, &ed, a),
+        "the ground in front of the cube shows"
+    );
+    assert!(
+        behind_voxels(&proj, &ed, c),
+        "the ground under the cube is hidden"
+    );
+    assert!(
+        behind_voxels(&proj, &ed, c + f * 1.5),
+        "the ground just behind the cube is hidden"
+    );
+    assert!(!behind_voxels(&proj, &ed, b), "the ground far behind shows");
+    let on_line = |p: Vec3| (p - a).dot(f);
+    let parts = unhidden_parts(&proj, &ed, a, b);
+    assert_eq!(parts.len(), 2, "in front and far behind: {parts:?}");
+    assert_eq!(parts[0].0, a);
+    // The front part ends at the cube's front face (1 m before its centre), to a few cm.
+    assert!(
+        (on_line(parts[0].1) - 0.5).abs() < 0.05,
+        "{}",
+        on_line(parts[0].1)
+    );
+    assert!(on_line(parts[1].0) > 3.0 && parts[1].1 == b, "{parts:?}");
+    // A world axis through the cube, drawn from its centre upward: hidden inside, shown above.
+    let up = unhidden_parts(&proj, &ed, c, c + Vec3::Y * 4.0);
+    assert_eq!(up.len(), 1, "{up:?}");
+    assert!(up[0].0.y > 1.9, "{up:?}");
+    // Hidden models hide nothing.
+    ed.set_visible(id, false).unwrap();
+    assert_eq!(unhidden_parts(&proj, &ed, a, b), vec![(a, b)]);
 }
 
 /// A model made with the tools, exported to .vox, opened and exported again by Goxel (under

@@ -32,10 +32,12 @@ impl Editor {
             })
     }
 
-    /// Runs `f` on a copy of the playing clip and stores it as one undo step when it changed.
+    /// Runs `f` on a copy of the playing clip and stores it as one undo step named `label`
+    /// when it changed.
     fn edit_playing_clip<R>(
         &mut self,
         id: u64,
+        label: &str,
         f: impl FnOnce(&mut AnimationClip) -> R,
     ) -> Result<R, CommandError> {
         let (index, _) = self.playing_clip(id)?;
@@ -43,7 +45,7 @@ impl Editor {
         let out = f(&mut clips[index]);
         if clips != self.rig_or_err(id)?.clips {
             self.history.seal();
-            self.apply(Edit::SetClips { id, clips }, None);
+            self.apply_named(Edit::SetClips { id, clips }, None, label.to_owned());
             self.history.seal();
         }
         Ok(out)
@@ -60,7 +62,7 @@ impl Editor {
         keys: &[KeyRef],
         dt: f32,
     ) -> Result<Vec<KeyRef>, CommandError> {
-        self.edit_playing_clip(id, |c| c.move_keys(keys, dt).0)
+        self.edit_playing_clip(id, "Move keys", |c| c.move_keys(keys, dt).0)
     }
 
     /// Deletes `keys` from the playing clip; returns how many channel keys went.
@@ -68,7 +70,7 @@ impl Editor {
     /// # Errors
     /// As [`Editor::playing_clip`].
     pub fn delete_keys(&mut self, id: u64, keys: &[KeyRef]) -> Result<usize, CommandError> {
-        self.edit_playing_clip(id, |c| c.delete_keys(keys))
+        self.edit_playing_clip(id, "Delete keys", |c| c.delete_keys(keys))
     }
 
     /// The values of `keys` in the playing clip, for [`Editor::paste_keys`].
@@ -112,7 +114,9 @@ impl Editor {
                 "none of the copied keys' joints is in this rig".into(),
             ));
         }
-        self.edit_playing_clip(id, |c| c.paste_keys(&clipboard.keys, at.max(0.0), joint_of))
+        self.edit_playing_clip(id, "Paste keys", |c| {
+            c.paste_keys(&clipboard.keys, at.max(0.0), joint_of)
+        })
     }
 
     /// Sets the interpolation of every channel of `joints` in the playing clip (glTF keeps one
@@ -126,7 +130,9 @@ impl Editor {
         joints: &[usize],
         interpolation: Interpolation,
     ) -> Result<(), CommandError> {
-        self.edit_playing_clip(id, |c| c.set_interpolation(joints, interpolation))
+        self.edit_playing_clip(id, "Key interpolation", |c| {
+            c.set_interpolation(joints, interpolation)
+        })
     }
 
     /// Sets clip `clip`'s frame rate (frames per second, within
@@ -156,7 +162,11 @@ impl Editor {
         }
         c.frame_rate = frame_rate;
         self.history.seal();
-        self.apply(Edit::SetClips { id, clips }, None);
+        self.apply_named(
+            Edit::SetClips { id, clips },
+            None,
+            "Clip frame rate".to_owned(),
+        );
         self.history.seal();
         Ok(())
     }

@@ -301,10 +301,49 @@ impl Editor {
     }
 
     fn apply(&mut self, edit: Edit, merge: Option<MergeKey>) {
+        let label = self.step_label(&edit);
+        self.apply_named(edit, merge, label);
+    }
+
+    /// [`Editor::apply`] under a name for Edit → History.
+    fn apply_named(&mut self, edit: Edit, merge: Option<MergeKey>, label: String) {
         let inverse = edit.apply(&mut self.doc);
-        self.history.push(inverse, merge);
+        self.history.push_named(inverse, merge, label);
         self.revision += 1;
         self.fix_selection();
+    }
+
+    /// A name for the step `edit` makes, read before it is applied (with the object's name).
+    fn step_label(&self, edit: &Edit) -> String {
+        let name = |id: u64| self.object(id).map_or("an object", |o| o.name.as_str());
+        match edit {
+            Edit::Insert { object, .. } => format!("Add {}", object.name),
+            Edit::Remove { index } => match self.doc.objects.get(*index) {
+                Some(o) => format!("Delete {}", o.name),
+                None => edit.kind_label().to_owned(),
+            },
+            Edit::Rename { id, name: to } => format!("Rename {} to {to}", name(*id)),
+            Edit::SetVisible { id, visible } => {
+                format!("{} {}", if *visible { "Show" } else { "Hide" }, name(*id))
+            }
+            Edit::SetTransform { id, .. } => format!("Move {}", name(*id)),
+            // New weights come with a new binding record.
+            Edit::SetVoxelModel { id, model } => {
+                let old = match self.object(*id).map(|o| &o.kind) {
+                    Some(ObjectKind::Voxels(v)) => v.rig.as_ref().and_then(|r| r.binding.as_ref()),
+                    _ => None,
+                };
+                let new = model.rig.as_ref().and_then(|r| r.binding.as_ref());
+                if new.is_some() && new != old {
+                    "Bind weights".to_owned()
+                } else {
+                    edit.kind_label().to_owned()
+                }
+            }
+            Edit::Group(edits) => undo::main_edit(edits.iter())
+                .map_or_else(|| "Edit".to_owned(), |e| self.step_label(e)),
+            _ => edit.kind_label().to_owned(),
+        }
     }
 
     fn fix_selection(&mut self) {
@@ -366,6 +405,19 @@ impl Editor {
             self.after_history_step(before, next);
         }
         done
+    }
+
+    /// Undoes or redoes until `done` steps of the history are done (a click in Edit →
+    /// History): the same as that many undos or redos one by one. Returns how many it took.
+    pub fn go_to_step(&mut self, done: usize) -> usize {
+        let mut steps = 0;
+        while self.history.undo_len() > done && self.undo() {
+            steps += 1;
+        }
+        while self.history.undo_len() < done && self.redo() {
+            steps += 1;
+        }
+        steps
     }
 
     /// Before undo / redo writes voxels: the linked enhancements of those models are live.

@@ -49,12 +49,13 @@ impl Editor {
         });
         motion.set_key(t, &o.transform);
         self.history.seal();
-        self.apply(
+        self.apply_named(
             Edit::SetMotion {
                 id,
                 motion: Some(Box::new(motion)),
             },
             None,
+            "Key transform".to_owned(),
         );
         self.history.seal();
         Ok(())
@@ -80,7 +81,11 @@ impl Editor {
         }
         let motion = (!motion.clip.channels.is_empty()).then(|| Box::new(motion));
         self.history.seal();
-        self.apply(Edit::SetMotion { id, motion }, None);
+        self.apply_named(
+            Edit::SetMotion { id, motion },
+            None,
+            "Clear transform key".to_owned(),
+        );
         self.history.seal();
         Ok(true)
     }

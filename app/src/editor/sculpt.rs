@@ -259,13 +259,14 @@ impl Editor {
             return Ok(None);
         }
         let before = self.content_key();
-        self.history.push(
+        self.history.push_named(
             Edit::Voxels {
                 id,
                 delta: dab.delta,
                 frame,
             },
             Some(MergeKey::Stroke(id)),
+            "Brush stroke".into(),
         );
         self.revision += 1;
         if let Some((lo, hi)) = dab.changed {

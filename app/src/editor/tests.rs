@@ -1777,3 +1777,98 @@ fn object_transform_keys_move_the_object_on_its_clock() {
     let t = ed.object(id).unwrap().transform.translation;
     assert!((t - Vec3::X * 1.5).length() < 1e-5, "{t}");
 }
+
+#[test]
+fn replacing_a_palette_colour_is_one_named_undo_step() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("A", voxels(3));
+    let from = [200, 100, 50, 255];
+    let to = [10, 20, 30, 255];
+    ed.set_palette(id, vec![[1, 2, 3, 255], from]).unwrap();
+    let before = ed.doc().objects.clone();
+    let steps = ed.history().undo_len();
+    ed.replace_color(id, from, to).unwrap();
+    let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+        unreachable!()
+    };
+    assert_eq!(
+        v.palette,
+        vec![[1, 2, 3, 255], to],
+        "the palette entry follows"
+    );
+    assert_eq!(v.svo.leaves()[0].1.color, to);
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    assert_eq!(ed.history().labels().0.last(), Some(&"Replace colour"));
+    let after = ed.doc().objects.clone();
+    assert!(ed.undo());
+    assert_eq!(
+        ed.doc().objects,
+        before,
+        "one undo restores voxels and palette"
+    );
+    assert!(ed.redo());
+    assert_eq!(ed.doc().objects, after);
+    assert_eq!(
+        ed.history().labels().0,
+        vec!["Add A", "Set palette", "Replace colour"]
+    );
+}
+
+#[test]
+fn history_names_each_step_and_goes_to_any_of_them() {
+    let (mut ed, id) = slab_editor();
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.5,
+        ..Default::default()
+    };
+    let start = ed.history().undo_len();
+    let at_start = ed.doc().objects.clone();
+    // A stroke of three dabs is one step, named once.
+    ed.begin_stroke();
+    for x in 0..3 {
+        ed.sculpt_dab(id, &brush, Vec3::new(x as f32 + 0.5, 3.5, 3.5), Vec3::ZERO)
+            .unwrap();
+    }
+    ed.end_interaction();
+    let name = ed.object(id).unwrap().name.clone();
+    ed.rename(id, "Ground").unwrap();
+    ed.set_visible(id, false).unwrap();
+    let (labels, done) = ed.history().labels();
+    let labels: Vec<String> = labels.into_iter().map(str::to_owned).collect();
+    assert_eq!(
+        labels[start..].to_vec(),
+        vec![
+            "Brush stroke".to_owned(),
+            format!("Rename {name} to Ground"),
+            "Hide Ground".to_owned()
+        ]
+    );
+    assert_eq!(done, labels.len());
+    let all = ed.doc().objects.clone();
+    // Going to the step before the stroke is three undos; the undone steps stay listed.
+    assert_eq!(ed.go_to_step(start), 3);
+    assert_eq!(ed.doc().objects, at_start);
+    assert_eq!(ed.history().labels().0.len(), labels.len());
+    assert_eq!(ed.history().redo_len(), 3);
+    assert_eq!(ed.go_to_step(start + 3), 3);
+    assert_eq!(ed.doc().objects, all, "and forward again");
+    assert_eq!(
+        ed.go_to_step(usize::MAX),
+        0,
+        "past the end: nothing to redo"
+    );
+}
+
+#[test]
+fn binding_weights_is_named_in_the_history() {
+    let (mut ed, id) = slab_editor();
+    let hip = ed
+        .add_joint(id, None, Vec3::new(4.0, 3.0, 4.0), Some("hip"))
+        .unwrap();
+    ed.add_joint(id, Some(hip), Vec3::new(4.0, 1.0, 7.0), Some("leg"))
+        .unwrap();
+    ed.bind_now(id, thicket_core::skin::BindMethod::Geodesic)
+        .unwrap();
+    assert_eq!(ed.history().labels().0.last(), Some(&"Bind weights"));
+}

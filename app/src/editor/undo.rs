@@ -470,6 +470,60 @@ impl Edit {
     }
 }
 
+impl Edit {
+    /// A name for the step this edit makes (Edit → History), from its kind alone; the editor
+    /// names most steps better (with the object's name or the tool).
+    #[must_use]
+    pub fn kind_label(&self) -> &'static str {
+        match self {
+            Edit::Insert { .. } => "Add object",
+            Edit::Remove { .. } => "Delete object",
+            Edit::Rename { .. } => "Rename",
+            Edit::SetVisible { .. } => "Show / hide",
+            Edit::SetTransform { .. } => "Move object",
+            Edit::SetLight { .. } => "Change light",
+            Edit::InsertLight { .. } => "Add light",
+            Edit::RemoveLight { .. } => "Delete light",
+            Edit::SetQuality(_) => "Change quality",
+            Edit::Voxels { .. } => "Voxel edit",
+            Edit::SetPose { .. } => "Pose",
+            Edit::SetStretch { .. } => "Stretch settings",
+            Edit::SetKrs { .. } => "KRS parameters",
+            Edit::SetEnhancement { .. } => "Detail enhancement",
+            Edit::SetVoxelModel { .. } => "Replace voxel model",
+            Edit::SetPalette { .. } => "Set palette",
+            Edit::SetTreeParams { .. } => "Tree builder",
+            Edit::StretchOverrides { .. } => "Stretch paint",
+            Edit::SetPlayback { .. } => "Playback",
+            Edit::SetRig { .. } => "Skeleton",
+            Edit::SetClips { .. } => "Animation clips",
+            Edit::SetMotion { .. } => "Transform keys",
+            Edit::Group(edits) => main_edit(edits.iter()).map_or("Edit", Edit::kind_label),
+        }
+    }
+
+    /// [`Edit::kind_label`] of the edit this one undoes (what [`History::push`] records when
+    /// the caller gives no name).
+    #[must_use]
+    pub fn undo_label(&self) -> &'static str {
+        match self {
+            Edit::Insert { .. } => "Delete object",
+            Edit::Remove { .. } => "Add object",
+            Edit::InsertLight { .. } => "Delete light",
+            Edit::RemoveLight { .. } => "Add light",
+            // An inverse group holds the inverses in reverse order.
+            Edit::Group(edits) => main_edit(edits.iter().rev()).map_or("Edit", Edit::undo_label),
+            other => other.kind_label(),
+        }
+    }
+}
+
+/// The edit a group is named after: its first one that is not a side effect (visibility,
+/// the playhead).
+pub(crate) fn main_edit<'a>(mut edits: impl Iterator<Item = &'a Edit>) -> Option<&'a Edit> {
+    edits.find(|e| !matches!(e, Edit::SetVisible { .. } | Edit::SetPlayback { .. }))
+}
+
 /// About the heap bytes of animation clips (key times, values, per-channel overhead).
 fn clips_bytes(clips: &[AnimationClip]) -> usize {
     clips
@@ -504,6 +558,8 @@ pub enum MergeKey {
 
 #[derive(Debug)]
 struct Step {
+    /// What the step did, for Edit → History ("Brush stroke", "Delete Tree").
+    label: String,
     /// The edit that leaves state `from` for state `to`.
     revert: Edit,
     /// The state the step applies to.
@@ -553,6 +609,13 @@ impl History {
     /// step joins the previous one (the first inverse is kept: it restores the state before the
     /// whole drag).
     pub fn push(&mut self, revert: Edit, merge: Option<MergeKey>) {
+        let label = revert.undo_label().to_owned();
+        self.push_named(revert, merge, label);
+    }
+
+    /// [`History::push`] with the step's name for Edit → History (a merged step keeps the
+    /// name of its first edit).
+    pub fn push_named(&mut self, revert: Edit, merge: Option<MergeKey>, label: String) {
         self.redo.clear();
         let new_state = self.next_state;
         self.next_state += 1;
@@ -596,6 +659,7 @@ impl History {
             }
             _ => {
                 self.undo.push(Step {
+                    label,
                     revert,
                     from: new_state,
                     to: self.state,
@@ -622,6 +686,25 @@ impl History {
         self.undo.drain(..drop);
     }
 
+    /// Joins the last `n` undo steps into one named `label` (a command made of several edits,
+    /// one step for the user). Nothing happens with fewer than `n` steps.
+    pub fn join_top(&mut self, n: usize, label: String) {
+        if n < 2 || self.undo.len() < n {
+            return;
+        }
+        let steps: Vec<Step> = self.undo.drain(self.undo.len() - n..).collect();
+        let (from, to) = (steps[n - 1].from, steps[0].to);
+        // Undo reverts the newest edit first.
+        let revert = Edit::Group(steps.into_iter().rev().map(|s| s.revert).collect());
+        self.undo.push(Step {
+            label,
+            revert,
+            from,
+            to,
+        });
+        self.open = None;
+    }
+
     /// Bytes the undo steps hold.
     #[must_use]
     pub fn undo_bytes(&self) -> usize {
@@ -642,6 +725,7 @@ impl History {
         let forward = step.revert.apply(doc);
         self.state = step.to;
         self.redo.push(Step {
+            label: step.label,
             revert: forward,
             from: step.to,
             to: step.from,
@@ -658,6 +742,7 @@ impl History {
         let backward = step.revert.apply(doc);
         self.state = step.to;
         self.undo.push(Step {
+            label: step.label,
             revert: backward,
             from: step.to,
             to: step.from,
@@ -687,6 +772,19 @@ impl History {
     #[must_use]
     pub fn redo_len(&self) -> usize {
         self.redo.len()
+    }
+
+    /// The names of the steps, oldest first, and how many of them are done (the rest can be
+    /// redone): the list of Edit → History.
+    #[must_use]
+    pub fn labels(&self) -> (Vec<&str>, usize) {
+        let names = self
+            .undo
+            .iter()
+            .chain(self.redo.iter().rev())
+            .map(|s| s.label.as_str())
+            .collect();
+        (names, self.undo.len())
     }
 
     /// Identifies the document's content: equal ids mean equal documents (edits get fresh ids;

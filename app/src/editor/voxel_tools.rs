@@ -281,6 +281,17 @@ impl Editor {
         merge: Option<MergeKey>,
         f: impl FnOnce(&mut Svo, UVec3) -> Result<ToolEdit, CommandError>,
     ) -> Result<ToolOutcome, CommandError> {
+        self.write_voxels_named(id, merge, "Voxel edit", f)
+    }
+
+    /// [`Editor::write_voxels`] under a name for Edit → History.
+    pub(super) fn write_voxels_named(
+        &mut self,
+        id: u64,
+        merge: Option<MergeKey>,
+        label: &str,
+        f: impl FnOnce(&mut Svo, UVec3) -> Result<ToolEdit, CommandError>,
+    ) -> Result<ToolOutcome, CommandError> {
         let index = self.index_of(id)?;
         if let Some(l) = self.doc.enhancement_into(id) {
             let source = self
@@ -311,13 +322,14 @@ impl Editor {
             return Ok(outcome);
         }
         let before = self.content_key();
-        self.history.push(
+        self.history.push_named(
             Edit::Voxels {
                 id,
                 delta: edit.delta,
                 frame,
             },
             merge,
+            label.to_owned(),
         );
         self.revision += 1;
         match edit.changed {
@@ -342,7 +354,9 @@ impl Editor {
         stroke: bool,
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
-        self.write_voxels(id, stroke.then_some(MergeKey::Stroke(id)), |svo, size| {
+        let label = format!("{} voxels", op_word(op));
+        let merge = stroke.then_some(MergeKey::Stroke(id));
+        self.write_voxels_named(id, merge, &label, |svo, size| {
             Ok(shapes::apply_cells(
                 svo,
                 size,
@@ -369,7 +383,8 @@ impl Editor {
         mirror: Mirror,
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
-        self.write_voxels(id, None, |svo, size| {
+        let label = format!("{} box", op_word(op));
+        self.write_voxels_named(id, None, &label, |svo, size| {
             Ok(shapes::apply_box(
                 svo,
                 size,
@@ -399,7 +414,8 @@ impl Editor {
         ink: Ink,
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
-        self.write_voxels(id, None, |svo, size| {
+        let label = format!("Fill ({})", op_word(op).to_lowercase());
+        self.write_voxels_named(id, None, &label, |svo, size| {
             Ok(match op {
                 ShapeOp::Add => {
                     let face = shapes::face_region(svo, size, seed, normal);
@@ -444,7 +460,7 @@ impl Editor {
         distance: i32,
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
-        self.write_voxels(id, None, |svo, size| {
+        self.write_voxels_named(id, None, "Extrude", |svo, size| {
             let face = shapes::face_region(svo, size, seed, normal);
             Ok(shapes::extrude(
                 svo,
@@ -643,7 +659,9 @@ impl Editor {
     /// No voxel selection.
     pub fn delete_selected_voxels(&mut self) -> Result<ToolOutcome, CommandError> {
         let (id, cells) = self.require_selection()?;
-        self.write_voxels(id, None, |svo, _| Ok(select::delete(svo, &cells)))
+        self.write_voxels_named(id, None, "Delete selected voxels", |svo, _| {
+            Ok(select::delete(svo, &cells))
+        })
     }
 
     /// Paints the selected voxels with `ink`.
@@ -652,7 +670,9 @@ impl Editor {
     /// No voxel selection.
     pub fn fill_selected_voxels(&mut self, ink: Ink) -> Result<ToolOutcome, CommandError> {
         let (id, cells) = self.require_selection()?;
-        self.write_voxels(id, None, |svo, _| Ok(select::fill(svo, &cells, ink)))
+        self.write_voxels_named(id, None, "Fill selection", |svo, _| {
+            Ok(select::fill(svo, &cells, ink))
+        })
     }
 
     /// Copies the selected voxels to the clipboard; returns how many.
@@ -754,7 +774,7 @@ impl Editor {
             .floating
             .take()
             .ok_or_else(|| CommandError::Invalid("nothing is being pasted".into()))?;
-        let outcome = self.write_voxels(f.object, None, |svo, size| {
+        let outcome = self.write_voxels_named(f.object, None, "Paste", |svo, size| {
             Ok(select::paste(svo, size, &f.clip, f.at, false))
         })?;
         let size = self.volume_of(f.object).unwrap_or(UVec3::ZERO).as_ivec3();
@@ -801,7 +821,12 @@ impl Editor {
             SelTransform::Flip(_) => None,
         };
         let mut moved = None;
-        let outcome = self.write_voxels(id, None, |svo, size| {
+        let label = match t {
+            SelTransform::Move(_) => "Move selected voxels",
+            SelTransform::Flip(_) => "Flip selected voxels",
+            SelTransform::Rotate { .. } => "Rotate selected voxels",
+        };
+        let outcome = self.write_voxels_named(id, None, label, |svo, size| {
             let (edit, sel) = select::transform_selection(svo, size, &cells, t, pivot2);
             moved = Some(sel);
             Ok(edit)
@@ -822,7 +847,9 @@ impl Editor {
     /// No voxel selection.
     pub fn crop_to_selection(&mut self) -> Result<ToolOutcome, CommandError> {
         let (id, cells) = self.require_selection()?;
-        self.write_voxels(id, None, |svo, _| Ok(select::crop_to(svo, &cells)))
+        self.write_voxels_named(id, None, "Crop to selection", |svo, _| {
+            Ok(select::crop_to(svo, &cells))
+        })
     }
 
     /// Copies the selected voxels into a new voxel model of their size, at the same place in
@@ -875,16 +902,21 @@ impl Editor {
         to: [u8; 4],
     ) -> Result<ToolOutcome, CommandError> {
         let mask = self.mask_for(id);
-        let outcome = self.write_voxels(id, None, |svo, _| {
+        let steps = self.history.undo_len();
+        let outcome = self.write_voxels_named(id, None, "Replace colour", |svo, _| {
             Ok(palette::replace_color(svo, from, to, mask.as_ref()))
         })?;
-        // The palette entry follows, so the panel shows the new colour in its place.
+        // The palette entry follows, so the panel shows the new colour in its place: the
+        // same undo step.
         if let Some(ObjectKind::Voxels(v)) = self.object(id).map(|o| &o.kind)
             && let Some(i) = v.palette.iter().position(|c| *c == from)
         {
             let mut p = v.palette.clone();
             p[i] = to;
             self.set_palette(id, p)?;
+            if self.history.undo_len() == steps + 2 {
+                self.history.join_top(2, "Replace colour".into());
+            }
         }
         Ok(outcome)
     }
@@ -931,7 +963,13 @@ impl Editor {
                 "a hollow shell must be at least one voxel thick".into(),
             ));
         }
-        self.write_voxels(id, None, |svo, size| {
+        let label = match op {
+            ModelOp::Shift { .. } => "Shift content",
+            ModelOp::Mirror(_) => "Mirror model",
+            ModelOp::Hollow(_) => "Hollow",
+            ModelOp::FillInterior(_) => "Fill interior",
+        };
+        self.write_voxels_named(id, None, label, |svo, size| {
             Ok(match op {
                 ModelOp::Shift { offset, wrap } => {
                     model_ops::shift_content(svo, size, offset, wrap)
@@ -987,15 +1025,25 @@ impl Editor {
             // Other frames of a frame sequence keep their own voxels and origins.
             frames: v.frames.clone(),
         };
-        self.apply(
+        self.apply_named(
             Edit::SetVoxelModel {
                 id,
                 model: Box::new(model),
             },
             None,
+            "Resize canvas".into(),
         );
         self.voxel_selection = None;
         self.voxel_region = None;
         Ok(resized.dropped)
+    }
+}
+
+/// The verb of a shape operation, for step names.
+fn op_word(op: ShapeOp) -> &'static str {
+    match op {
+        ShapeOp::Add => "Add",
+        ShapeOp::Remove => "Remove",
+        ShapeOp::Paint => "Paint",
     }
 }

@@ -267,12 +267,13 @@ impl EditorApp {
                 if needs_texture {
                     ui.add_space(6.0);
                     ui.horizontal(|ui| {
-                        ui.label("Texture");
+                        let label = ui.label("Texture");
                         ui.add(
                             egui::TextEdit::singleline(&mut report.texture)
                                 .hint_text("path to a PNG or JPEG")
                                 .desired_width(240.0),
                         )
+                        .labelled_by(label.id)
                         .on_hover_text(
                             "A base-colour texture for the OBJ's untextured parts; a relative \
                              path is relative to the OBJ's folder",

@@ -169,6 +169,14 @@ impl EditorApp {
         {
             self.editor.redo();
         }
+        if ui
+            .button("History…")
+            .on_hover_text("The undo steps by name: click one to go back or forward to it")
+            .clicked()
+        {
+            self.show_history = true;
+            ui.close();
+        }
         ui.separator();
         let selected = match self.editor.selection {
             Some(Selection::Object(id)) => Some(id),

@@ -8,6 +8,7 @@ pub mod dope_sheet;
 pub use dialogs::shortcut_rows;
 mod enhance_panel;
 pub mod export_gltf;
+mod history;
 mod inspector;
 pub mod krs_panel;
 mod menus;
@@ -92,6 +93,8 @@ pub struct EditorApp {
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
+    /// Whether the Edit → History window is open.
+    pub show_history: bool,
     /// The shortcut sheet's search text.
     shortcut_search: String,
     show_about: bool,
@@ -149,6 +152,7 @@ impl EditorApp {
             autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
+            show_history: false,
             shortcut_search: String::new(),
             show_about: false,
             show_outliner: true,
@@ -804,7 +808,7 @@ impl EditorApp {
         self.handle_close_request(&ctx);
 
         egui::Panel::top("menu_bar").show(ui, |ui| self.menu_bar(ui));
-        egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui));
+        egui::Panel::top("tool_bar").show(ui, |ui| self.sculpt.toolbar_ui(ui, &self.editor));
         egui::Panel::bottom("status_bar").show(ui, |ui| self.status_bar(ui));
         if let Some(id) = pose::timeline_target(&self.editor) {
             egui::Panel::bottom("timeline").show(ui, |ui| {
@@ -861,6 +865,7 @@ impl EditorApp {
             });
 
         self.dialogs(&ctx);
+        self.history_window(&ctx);
         if self.new_model.ui(&ctx, &mut self.editor).is_some() {
             self.sculpt.choose(voxel_tools::ToolKind::Voxel);
             self.status =

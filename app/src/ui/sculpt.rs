@@ -33,22 +33,6 @@ const DAB_SPACING: f32 = 0.5;
 /// Most dabs one frame may add (a huge jump of the pointer must not stall the UI).
 const MAX_DABS_PER_FRAME: usize = 64;
 
-/// The default palette (sRGB).
-pub const PALETTE: [[u8; 4]; 12] = [
-    [200, 200, 200, 255],
-    [90, 90, 90, 255],
-    [30, 30, 30, 255],
-    [176, 58, 46, 255],
-    [230, 126, 34, 255],
-    [241, 196, 15, 255],
-    [88, 141, 56, 255],
-    [39, 95, 60, 255],
-    [52, 152, 219, 255],
-    [41, 64, 140, 255],
-    [125, 80, 50, 255],
-    [222, 184, 135, 255],
-];
-
 #[derive(Debug, Clone, Copy)]
 struct Stroke {
     object: u64,
@@ -80,6 +64,8 @@ pub struct SculptTool {
     pub stretch_erase: bool,
     /// The stretch stroke in progress: object and the last node painted.
     stretch_stroke: Option<(u64, u64)>,
+    /// The colour controls of the tool bar.
+    colors: super::palette::ColorBar,
 }
 
 impl Default for SculptTool {
@@ -99,6 +85,7 @@ impl Default for SculptTool {
             stretch_factor: 2.0,
             stretch_erase: false,
             stretch_stroke: None,
+            colors: super::palette::ColorBar::default(),
         }
     }
 }
@@ -342,8 +329,13 @@ impl SculptTool {
         }
     }
 
-    /// The tool bar: tool choice and, with the sculpt tool, the brush settings.
-    pub fn toolbar_ui(&mut self, ui: &mut egui::Ui) {
+    /// The tool bar in two rows. The first never changes with the tool, so nothing in it
+    /// moves: the tools and the colour (button, hex entry, 256-colour grid and the selected
+    /// model's own colours as swatches). The second starts with the mirror axes, then the
+    /// chosen tool's options and the last refusal.
+    pub fn toolbar_ui(&mut self, ui: &mut egui::Ui, editor: &Editor) {
+        // Wrapped only in a window too narrow for it (under about 950 points), the same for
+        // every tool.
         ui.horizontal_wrapped(|ui| {
             if ui
                 .selectable_label(!self.active, "Navigate")
@@ -362,191 +354,183 @@ impl SculptTool {
                     self.choose(tool);
                 }
             }
-            if !self.active {
-                return;
-            }
             ui.separator();
-            if self.tool == ToolKind::Select {
-                ui.toggle_value(&mut self.voxel.select_through, "Through")
-                    .on_hover_text("The rectangle selects every voxel inside it, not only the visible surface");
-                ui.label("Click:");
-                ui.selectable_value(&mut self.voxel.click_select, ClickSelect::Color, "Colour")
-                    .on_hover_text("A click selects every voxel of the clicked colour");
-                ui.selectable_value(&mut self.voxel.click_select, ClickSelect::Connected, "Connected")
-                    .on_hover_text("A click selects the clicked voxel's connected part of its colour");
-                ui.weak("Shift adds, Ctrl removes · Select menu: copy, paste, flip, rotate");
-                if let Some(e) = &self.error {
-                    ui.colored_label(ui.visuals().error_fg_color, e);
-                }
-                return;
-            }
-            if self.tool != ToolKind::Brush {
-                for (op, label, tip) in [
-                    (ShapeOp::Add, "Add", "Add voxels in front of the face under the pointer, or on the volume's floor and walls (A)"),
-                    (ShapeOp::Remove, "Remove", "Remove the voxels the tool covers (D)"),
-                    (ShapeOp::Paint, "Paint", "Recolour the voxels the tool covers (C)"),
-                ] {
-                    if ui
-                        .selectable_label(self.voxel.op == op, label)
-                        .on_hover_text(tip)
-                        .clicked()
-                    {
-                        self.voxel.op = op;
-                    }
-                }
-                if self.tool == ToolKind::Fill {
-                    ui.toggle_value(&mut self.voxel.fill_plane_only, "Plane only")
-                        .on_hover_text("Fill only the clicked voxel's layer (the plane of the face clicked)");
-                }
-                ui.separator();
-                self.color_ui(ui);
-                ui.separator();
-                self.mirror_ui(ui);
-                if let Some(e) = &self.error {
-                    ui.colored_label(ui.visuals().error_fg_color, e);
-                }
-                return;
-            }
-            for (op, label, tip) in [
-                (BrushOp::Add, "Add", "Fill voxels in front of the surface (A)"),
-                (BrushOp::Remove, "Remove", "Carve voxels away (D)"),
-                (BrushOp::Paint, "Paint", "Blend the colour of solid voxels toward the brush colour (C)"),
-                (BrushOp::Smooth, "Smooth", "Remove lone voxels and fill small gaps"),
-            ] {
-                if ui
-                    .selectable_label(!self.stretch_paint && self.brush.op == op, label)
-                    .on_hover_text(tip)
-                    .clicked()
-                {
-                    self.brush.op = op;
-                    self.stretch_paint = false;
-                }
-            }
-            if ui
-                .selectable_label(self.stretch_paint, "Stretch paint")
-                .on_hover_text(
-                    "Paint per-voxel stretch overrides on a rigged model where the view shows it (CPU preview); one undo step per stroke, saved with the project",
-                )
-                .clicked()
-            {
-                self.stretch_paint = true;
-            }
-            ui.separator();
-            if self.stretch_paint {
-                ui.label("Size");
-                fixed_width(
-                    ui,
-                    "64.0 vox",
-                    egui::DragValue::new(&mut self.brush.radius)
-                        .range(0.5..=MAX_RADIUS.min(64.0))
-                        .speed(0.1)
-                        .fixed_decimals(1)
-                        .suffix(" vox"),
-                )
-                .on_hover_text("Stretch brush radius in voxels ([ and ] step one voxel)");
-                ui.label("Factor");
-                ui.add_enabled_ui(!self.stretch_erase, |ui| {
-                    fixed_width(
-                        ui,
-                        "3.984",
-                        egui::DragValue::new(&mut self.stretch_factor)
-                            .range(1.0 / 64.0..=crate::editor::MAX_STRETCH_OVERRIDE)
-                            .speed(0.01)
-                            .fixed_decimals(3),
-                    )
-                })
-                .inner
-                .on_hover_text(
-                    "Stretch factor painted into each voxel (replaces the strategy's factor there; steps of 1/64, up to 3.98)",
-                );
-                ui.toggle_value(&mut self.stretch_erase, "Erase")
-                    .on_hover_text("Remove painted overrides: the strategy's factor applies again");
-                if let Some(e) = &self.error {
-                    ui.colored_label(ui.visuals().error_fg_color, e);
-                }
-                return;
-            }
-            ui.selectable_value(&mut self.brush.shape, BrushShape::Sphere, "Sphere")
-                .on_hover_text("Round brush");
-            ui.selectable_value(&mut self.brush.shape, BrushShape::Cube, "Cube")
-                .on_hover_text("Square brush");
-            ui.separator();
-            ui.label("Size");
-            fixed_width(
-                ui,
-                "256.0 vox",
-                egui::DragValue::new(&mut self.brush.radius)
-                    .range(0.5..=MAX_RADIUS)
-                    .speed(0.1)
-                    .fixed_decimals(1)
-                    .suffix(" vox"),
-            )
-            .on_hover_text(
-                "Brush radius in voxels ([ and ] step one voxel, Shift+[ / Shift+] halve / double)",
-            );
-            ui.label("Strength");
-            fixed_width(
-                ui,
-                "1.00",
-                egui::DragValue::new(&mut self.brush.strength)
-                    .range(0.0..=1.0)
-                    .speed(0.01)
-                    .fixed_decimals(2),
-            )
-            .on_hover_text("Paint: how far the colour moves toward the brush colour per dab; Smooth: how aggressively");
-            ui.separator();
-            self.color_ui(ui);
-            ui.separator();
+            self.colors.bar_ui(ui, editor, &mut self.brush.color);
+        });
+        ui.horizontal_wrapped(|ui| {
             self.mirror_ui(ui);
-            if let Some(e) = &self.error {
+            ui.separator();
+            self.options_ui(ui);
+            if let Some(e) = &self.colors.hex_error {
                 ui.colored_label(ui.visuals().error_fg_color, e);
             }
         });
     }
 
-    /// The colour button and the quick swatches.
-    fn color_ui(&mut self, ui: &mut egui::Ui) {
-        let mut c = egui::Color32::from_rgba_unmultiplied(
-            self.brush.color[0],
-            self.brush.color[1],
-            self.brush.color[2],
-            255,
-        );
-        if ui
-            .color_edit_button_srgba(&mut c)
-            .on_hover_text("Colour of Add and Paint (Alt+click in the view picks one)")
-            .changed()
-        {
-            self.brush.color = [c.r(), c.g(), c.b(), 255];
+    /// The chosen tool's options (the tool bar's second row) and its last refusal.
+    fn options_ui(&mut self, ui: &mut egui::Ui) {
+        if !self.active {
+            ui.weak("Navigate: drag orbits, Shift+drag pans, scroll zooms; choose a tool to edit");
+            return;
         }
-        for (i, p) in PALETTE.iter().enumerate() {
-            let color = egui::Color32::from_rgb(p[0], p[1], p[2]);
-            let selected = self.brush.color == *p;
-            let (rect, resp) = ui.allocate_exact_size(egui::vec2(14.0, 14.0), egui::Sense::click());
-            ui.painter().rect_filled(rect, 2.0, color);
-            if selected {
-                ui.painter().rect_stroke(
-                    rect,
-                    2.0,
-                    egui::Stroke::new(2.0, egui::Color32::WHITE),
-                    egui::StrokeKind::Outside,
+        if self.tool == ToolKind::Select {
+            ui.toggle_value(&mut self.voxel.select_through, "Through")
+                .on_hover_text(
+                    "The rectangle selects every voxel inside it, not only the visible surface",
                 );
+            ui.label("Click:");
+            ui.selectable_value(&mut self.voxel.click_select, ClickSelect::Color, "Colour")
+                .on_hover_text("A click selects every voxel of the clicked colour");
+            ui.selectable_value(
+                &mut self.voxel.click_select,
+                ClickSelect::Connected,
+                "Connected",
+            )
+            .on_hover_text("A click selects the clicked voxel's connected part of its colour");
+            ui.weak("Shift adds, Ctrl removes · Select menu: copy, paste, flip, rotate");
+        } else if self.tool != ToolKind::Brush {
+            for (op, label, tip) in [
+                (
+                    ShapeOp::Add,
+                    "Add",
+                    "Add voxels in front of the face under the pointer, or on the volume's floor and walls (A)",
+                ),
+                (
+                    ShapeOp::Remove,
+                    "Remove",
+                    "Remove the voxels the tool covers (D)",
+                ),
+                (
+                    ShapeOp::Paint,
+                    "Paint",
+                    "Recolour the voxels the tool covers (C)",
+                ),
+            ] {
+                if ui
+                    .selectable_label(self.voxel.op == op, label)
+                    .on_hover_text(tip)
+                    .clicked()
+                {
+                    self.voxel.op = op;
+                }
             }
-            if resp
-                .on_hover_text(format!("Quick colour {}", i + 1))
-                .clicked()
-            {
-                self.brush.color = *p;
+            if self.tool == ToolKind::Fill {
+                ui.separator();
+                ui.toggle_value(&mut self.voxel.fill_plane_only, "Plane only")
+                    .on_hover_text(
+                        "Fill only the clicked voxel's layer (the plane of the face clicked)",
+                    );
             }
+        } else {
+            self.brush_options_ui(ui);
+        }
+        if let Some(e) = &self.error {
+            ui.colored_label(ui.visuals().error_fg_color, e);
         }
     }
 
-    /// The mirror toggles (wrapped to the next row as a group when they do not fit).
-    fn mirror_ui(&mut self, ui: &mut egui::Ui) {
-        let row_left = ui.max_rect().right() - ui.cursor().min.x;
-        if row_left < 4.0 * ui.spacing().interact_size.x {
-            ui.end_row();
+    /// The brush's operation, shape, size and strength, or the stretch brush's settings.
+    fn brush_options_ui(&mut self, ui: &mut egui::Ui) {
+        for (op, label, tip) in [
+            (
+                BrushOp::Add,
+                "Add",
+                "Fill voxels in front of the surface (A)",
+            ),
+            (BrushOp::Remove, "Remove", "Carve voxels away (D)"),
+            (
+                BrushOp::Paint,
+                "Paint",
+                "Blend the colour of solid voxels toward the brush colour (C)",
+            ),
+            (
+                BrushOp::Smooth,
+                "Smooth",
+                "Remove lone voxels and fill small gaps",
+            ),
+        ] {
+            if ui
+                .selectable_label(!self.stretch_paint && self.brush.op == op, label)
+                .on_hover_text(tip)
+                .clicked()
+            {
+                self.brush.op = op;
+                self.stretch_paint = false;
+            }
         }
+        if ui
+            .selectable_label(self.stretch_paint, "Stretch paint")
+            .on_hover_text(
+                "Paint per-voxel stretch overrides on a rigged model where the view shows it (CPU preview); one undo step per stroke, saved with the project",
+            )
+            .clicked()
+        {
+            self.stretch_paint = true;
+        }
+        ui.separator();
+        if self.stretch_paint {
+            ui.label("Size");
+            fixed_width(
+                ui,
+                "64.0 vox",
+                egui::DragValue::new(&mut self.brush.radius)
+                    .range(0.5..=MAX_RADIUS.min(64.0))
+                    .speed(0.1)
+                    .fixed_decimals(1)
+                    .suffix(" vox"),
+            )
+            .on_hover_text("Stretch brush radius in voxels ([ and ] step one voxel)");
+            ui.label("Factor");
+            ui.add_enabled_ui(!self.stretch_erase, |ui| {
+                fixed_width(
+                    ui,
+                    "3.984",
+                    egui::DragValue::new(&mut self.stretch_factor)
+                        .range(1.0 / 64.0..=crate::editor::MAX_STRETCH_OVERRIDE)
+                        .speed(0.01)
+                        .fixed_decimals(3),
+                )
+            })
+            .inner
+            .on_hover_text(
+                "Stretch factor painted into each voxel (replaces the strategy's factor there; steps of 1/64, up to 3.98)",
+            );
+            ui.toggle_value(&mut self.stretch_erase, "Erase")
+                .on_hover_text("Remove painted overrides: the strategy's factor applies again");
+            return;
+        }
+        ui.selectable_value(&mut self.brush.shape, BrushShape::Sphere, "Sphere")
+            .on_hover_text("Round brush");
+        ui.selectable_value(&mut self.brush.shape, BrushShape::Cube, "Cube")
+            .on_hover_text("Square brush");
+        ui.separator();
+        ui.label("Size");
+        fixed_width(
+            ui,
+            "256.0 vox",
+            egui::DragValue::new(&mut self.brush.radius)
+                .range(0.5..=MAX_RADIUS)
+                .speed(0.1)
+                .fixed_decimals(1)
+                .suffix(" vox"),
+        )
+        .on_hover_text(
+            "Brush radius in voxels ([ and ] step one voxel, Shift+[ / Shift+] halve / double)",
+        );
+        ui.label("Strength");
+        fixed_width(
+            ui,
+            "1.00",
+            egui::DragValue::new(&mut self.brush.strength)
+                .range(0.0..=1.0)
+                .speed(0.01)
+                .fixed_decimals(2),
+        )
+        .on_hover_text("Paint: how far the colour moves toward the brush colour per dab; Smooth: how aggressively");
+    }
+
+    /// The mirror toggles.
+    fn mirror_ui(&mut self, ui: &mut egui::Ui) {
         ui.label("Mirror");
         let across = if self.tool == ToolKind::Brush {
             "the model's centre"
@@ -563,7 +547,7 @@ impl SculptTool {
 }
 
 /// A tool-bar number field as wide as its widest value `widest` (its range's end, formatted as
-/// the field shows it), so the colours and toggles after it do not move while the value changes
+/// the field shows it), so the toggles after it do not move while the value changes
 /// its number of digits.
 fn fixed_width(ui: &mut egui::Ui, widest: &str, field: egui::DragValue<'_>) -> egui::Response {
     let font = egui::TextStyle::Button.resolve(ui.style());

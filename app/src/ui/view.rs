@@ -530,6 +530,36 @@ pub struct View {
     /// An axis view turned the camera orthographic (Blender's auto perspective): orbiting
     /// away from it turns perspective back on.
     auto_ortho: bool,
+    /// The ground grid's, world axes' and volume box's lines split where voxels hide them.
+    overlay_depth: OverlayDepth,
+}
+
+/// Overlay lines split into their parts in front of the voxels, for one camera, view
+/// rectangle and scene (content and pose): a still view casts no rays.
+#[derive(Debug, Default)]
+struct OverlayDepth {
+    key: Option<((u64, u64), u64, OrbitCamera, egui::Rect)>,
+    parts: HashMap<[u32; 6], Vec<(Vec3, Vec3)>>,
+}
+
+impl OverlayDepth {
+    /// The unhidden parts of segment `a`–`b` (see [`unhidden_parts`]), cached.
+    fn parts(&mut self, proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> &[(Vec3, Vec3)] {
+        let key = (
+            editor.content_key(),
+            editor.animation_key(),
+            proj.camera,
+            proj.rect,
+        );
+        if self.key != Some(key) {
+            self.key = Some(key);
+            self.parts.clear();
+        }
+        let bits = [a.x, a.y, a.z, b.x, b.y, b.z].map(f32::to_bits);
+        self.parts
+            .entry(bits)
+            .or_insert_with(|| unhidden_parts(proj, editor, a, b))
+    }
 }
 
 impl Default for View {
@@ -555,6 +585,7 @@ impl Default for View {
             last_rect: egui::Rect::NOTHING,
             last_pixels_per_point: 1.0,
             last_click: None,
+            overlay_depth: OverlayDepth::default(),
         }
     }
 }
@@ -574,7 +605,7 @@ impl View {
     /// Entries for the View menu.
     pub fn menu_ui(&mut self, ui: &mut egui::Ui, editor: &mut Editor) {
         ui.checkbox(&mut self.show_grid, "Ground grid")
-            .on_hover_text("Draw the ground grid and the world axes over the view");
+            .on_hover_text("Draw the ground grid and the world axes (hidden behind voxels)");
         ui.checkbox(&mut self.show_bounds, "All bounding boxes")
             .on_hover_text("Draw every object's bounding box (the selection's is always drawn)");
         ui.checkbox(&mut self.show_holes, "Hole / bloat overlay")
@@ -863,11 +894,21 @@ impl View {
             }
         };
         let to_screen = |p: Vec3| proj.to_screen(p);
-        if self.show_grid {
-            grid(&camera, &line);
-        }
-        if sculpt.active && sculpt.tool != ToolKind::Brush {
-            paint_volume(&painter, &proj, editor);
+        {
+            // The grid, the axes and the volume box go behind the voxels in front of them.
+            let depth = std::cell::RefCell::new(std::mem::take(&mut self.overlay_depth));
+            let behind_voxels = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
+                for &(p, q) in depth.borrow_mut().parts(&proj, editor, a, b) {
+                    line(p, q, stroke);
+                }
+            };
+            if self.show_grid {
+                grid(&camera, &behind_voxels);
+            }
+            if sculpt.active && sculpt.tool != ToolKind::Brush {
+                paint_volume(editor, &behind_voxels);
+            }
+            self.overlay_depth = depth.into_inner();
         }
         self.outlines(editor, &line, &to_screen, &painter, silhouette);
         sculpt.voxel.paint(
@@ -1917,6 +1958,86 @@ fn oriented_box_lines(
             }
         }
     }
+}
+
+/// Whether a voxel of a visible voxel model lies between the viewer and world point `p`: an
+/// overlay line there is hidden. A point on a voxel's surface is not hidden by it. Rigged
+/// models hide nothing: a ray through a posed model costs milliseconds (the pose is worked out
+/// for every ray), too slow for the hundreds of rays a moving view casts each frame.
+#[must_use]
+pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
+    let camera = &proj.camera;
+    let eye = camera.eye();
+    let (origin, dist) = if camera.orthographic {
+        // Parallel rays from the eye's plane.
+        let forward = (camera.target - eye).normalize_or_zero();
+        let depth = (p - eye).dot(forward);
+        (p - forward * depth, depth)
+    } else {
+        (eye, eye.distance(p))
+    };
+    let ahead = dist > 0.0; // false for NaN as well
+    if !ahead || !dist.is_finite() {
+        return false;
+    }
+    let unrigged = |o: &Object| match &o.kind {
+        ObjectKind::Voxels(v) => v.rig.is_none() && editor.voxel_pickable(o),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => false,
+    };
+    editor
+        .pick_voxel_where(origin, (p - origin) / dist, unrigged)
+        .is_some_and(|hit| hit.t < dist - (dist * 1e-4 + hit.voxel_size_world * 0.01))
+}
+
+/// View points between the samples of an overlay line (finer where visibility changes).
+const OVERLAY_SAMPLE_POINTS: f32 = 12.0;
+
+/// The parts of world segment `a`–`b` not hidden behind voxels ([`behind_voxels`]), in order:
+/// sampled every [`OVERLAY_SAMPLE_POINTS`] view points, and where two samples disagree the
+/// edge is found by bisection to about a view point. Empty when the segment is all behind
+/// the camera or all hidden.
+#[must_use]
+pub fn unhidden_parts(proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> Vec<(Vec3, Vec3)> {
+    let Some([sa, sb]) = proj.segment(a, b) else {
+        return Vec::new();
+    };
+    let length = sa.distance(sb);
+    let n = (length / OVERLAY_SAMPLE_POINTS).ceil().clamp(1.0, 256.0) as u32;
+    let bisections = (length / n as f32).max(1.0).log2().ceil() as u32;
+    let point = |s: f32| a + (b - a) * s;
+    // Points outside the view are not drawn: no ray for them.
+    let shown = |s: f32| {
+        let p = point(s);
+        proj.to_screen(p).is_none_or(|q| !proj.rect.contains(q)) || !behind_voxels(proj, editor, p)
+    };
+    let mut parts = Vec::new();
+    let (mut prev_s, mut prev_shown) = (0.0, shown(0.0));
+    let mut start = prev_shown.then_some(0.0);
+    for i in 1..=n {
+        let s = i as f32 / n as f32;
+        let now = shown(s);
+        if now != prev_shown {
+            let (mut lo, mut hi) = (prev_s, s);
+            for _ in 0..bisections {
+                let mid = 0.5 * (lo + hi);
+                if shown(mid) == prev_shown {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+            }
+            let edge = 0.5 * (lo + hi);
+            match start.take() {
+                Some(s0) => parts.push((point(s0), point(edge))),
+                None => start = Some(edge),
+            }
+        }
+        (prev_s, prev_shown) = (s, now);
+    }
+    if let Some(s0) = start {
+        parts.push((point(s0), b));
+    }
+    parts
 }
 
 /// A ground grid on y = 0 around the camera target, spaced by a power of ten that suits the

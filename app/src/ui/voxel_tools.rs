@@ -1041,8 +1041,9 @@ fn face_quad(c: Vec3, axis: usize, sign: i32) -> [Vec3; 4] {
 }
 
 /// The active voxel model's volume box and an editing grid on its floor (every voxel up to 64
-/// per axis, else every 8th or coarser).
-pub fn paint_volume(painter: &egui::Painter, proj: &Projector, editor: &Editor) {
+/// per axis, else every 8th or coarser), drawn with `line` (world-space ends; the view hides
+/// the parts behind voxels).
+pub fn paint_volume(editor: &Editor, line: &impl Fn(Vec3, Vec3, egui::Stroke)) {
     let Some(id) = editor.selected_voxel_model() else {
         return;
     };
@@ -1050,9 +1051,25 @@ pub fn paint_volume(painter: &egui::Painter, proj: &Projector, editor: &Editor) 
         return;
     };
     let size = frame.size;
-    let faint = egui::Color32::from_rgba_unmultiplied(180, 190, 210, 60);
-    let edge = egui::Color32::from_rgba_unmultiplied(200, 210, 230, 140);
-    cuboid(painter, proj, &frame, Vec3::ZERO, size.as_vec3(), edge, 1.0);
+    let faint = egui::Stroke::new(
+        1.0,
+        egui::Color32::from_rgba_unmultiplied(180, 190, 210, 60),
+    );
+    let edge = egui::Stroke::new(
+        1.0,
+        egui::Color32::from_rgba_unmultiplied(200, 210, 230, 140),
+    );
+    let hi = size.as_vec3();
+    let corner = |i: u8| {
+        frame.world(Vec3::new(
+            if i & 1 == 0 { 0.0 } else { hi.x },
+            if i & 2 == 0 { 0.0 } else { hi.y },
+            if i & 4 == 0 { 0.0 } else { hi.z },
+        ))
+    };
+    for (i, j) in CUBE_EDGES {
+        line(corner(i), corner(j), edge);
+    }
     let step = |n: u32| {
         let mut s = 1;
         while n / s > 64 {
@@ -1061,17 +1078,10 @@ pub fn paint_volume(painter: &egui::Painter, proj: &Projector, editor: &Editor) 
         s
     };
     let (sx, sz) = (step(size.x), step(size.z));
-    let line = |a: Vec3, b: Vec3| {
-        if let (Some(pa), Some(pb)) = (
-            proj.to_screen(frame.world(a)),
-            proj.to_screen(frame.world(b)),
-        ) {
-            painter.line_segment([pa, pb], egui::Stroke::new(1.0, faint));
-        }
-    };
+    let floor = |a: Vec3, b: Vec3| line(frame.world(a), frame.world(b), faint);
     let mut x = 0;
     while x <= size.x {
-        line(
+        floor(
             Vec3::new(x as f32, 0.0, 0.0),
             Vec3::new(x as f32, 0.0, size.z as f32),
         );
@@ -1079,7 +1089,7 @@ pub fn paint_volume(painter: &egui::Painter, proj: &Projector, editor: &Editor) 
     }
     let mut z = 0;
     while z <= size.z {
-        line(
+        floor(
             Vec3::new(0.0, 0.0, z as f32),
             Vec3::new(size.x as f32, 0.0, z as f32),
         );
