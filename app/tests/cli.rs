@@ -1565,7 +1565,11 @@ fn animated_vox_is_one_object_that_exports_as_frames_and_renders_one_frame_per_t
         "1",
     ]);
     assert!(!o.status.success());
-    assert!(stderr(&o).contains("no frame sequence"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no skinned model, frame sequence or keyed transform"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -131,7 +131,7 @@ impl Editor {
         interpolation: Interpolation,
     ) -> Result<(), CommandError> {
         self.edit_playing_clip(id, "Key interpolation", |c| {
-            c.set_interpolation(joints, interpolation)
+            c.set_interpolation(joints, interpolation);
         })
     }
 

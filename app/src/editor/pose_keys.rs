@@ -3,9 +3,7 @@
 //! step. Scaling a joint with the gizmo is an override like rotating or moving it.
 
 use glam::{Vec3, Vec4};
-use thicket_core::skin::{
-    AnimationClip, Channel, Interpolation, JointOverride, OverrideMode, Property,
-};
+use thicket_core::skin::{AnimationClip, JointOverride, OverrideMode, Property};
 
 use super::{CommandError, Edit, Editor};
 
@@ -114,24 +112,7 @@ impl Editor {
                 (Property::Scale, local.scale.extend(0.0)),
             ] {
                 // The last channel of a property wins when sampling: key that one.
-                let c = match target
-                    .channels
-                    .iter()
-                    .rposition(|c| c.joint == joint && c.property == property)
-                {
-                    Some(c) => c,
-                    None => {
-                        target.channels.push(Channel {
-                            joint,
-                            property,
-                            interpolation: Interpolation::Linear,
-                            times: Vec::new(),
-                            values: Vec::new(),
-                        });
-                        target.channels.len() - 1
-                    }
-                };
-                target.channels[c].set_key(t, value);
+                target.channel_mut(joint, property).set_key(t, value);
             }
         }
         target.duration_secs = target.duration_secs.max(t);

@@ -491,17 +491,12 @@ fn tracks_ui(
             k
         };
         let Some(c) = key_pos(k) else { continue };
-        let r = 5.0;
-        painter.add(egui::Shape::convex_polygon(
-            vec![
-                c + egui::vec2(0.0, -r),
-                c + egui::vec2(r, 0.0),
-                c + egui::vec2(0.0, r),
-                c + egui::vec2(-r, 0.0),
-            ],
+        super::pose::key_diamond(
+            &painter,
+            c,
+            5.0,
             if selected { SELECTED_COLOR } else { KEY_COLOR },
-            egui::Stroke::new(1.0, egui::Color32::BLACK),
-        ));
+        );
     }
     if let Some(b) = box_rect.filter(|_| sheet.box_start.is_some()) {
         painter.rect_stroke(

@@ -996,20 +996,8 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
         ui.strong("Timeline")
             .on_hover_text(format!("Frames of {name}"));
         ui.label(&name);
-        if ui
-            .button(if tool.playing { "Pause" } else { "Play" })
-            .on_hover_text("Play or pause the frames (Space)")
-            .clicked()
-        {
-            tool.playing = !tool.playing;
-        }
-        if ui
-            .button("Start")
-            .on_hover_text("Go to the first frame")
-            .clicked()
-        {
+        if transport_ui(ui, tool, true, "the frames") {
             t = 0.0;
-            tool.playing = false;
         }
         if tool.playing {
             let now = ui.input(|i| i.time);
@@ -1052,6 +1040,98 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
     });
 }
 
+/// Play / Pause (enabled when `playable`; Space toggles it too) and Start; returns whether
+/// Start was clicked. `what` names what plays, for the tooltips.
+fn transport_ui(ui: &mut egui::Ui, tool: &mut PoseTool, playable: bool, what: &str) -> bool {
+    if ui
+        .add_enabled(
+            playable,
+            egui::Button::new(if tool.playing { "Pause" } else { "Play" }),
+        )
+        .on_hover_text(format!("Play or pause {what} (Space)"))
+        .clicked()
+    {
+        tool.playing = !tool.playing;
+    }
+    let start = ui
+        .add_enabled(playable, egui::Button::new("Start"))
+        .on_hover_text("Go to 0 s")
+        .clicked();
+    if start {
+        tool.playing = false;
+    }
+    start
+}
+
+/// A typed or dragged playhead time (0 s to an hour); returns whether it changed.
+fn time_field_ui(ui: &mut egui::Ui, t: &mut f32, hover: &str) -> bool {
+    ui.add(
+        egui::DragValue::new(t)
+            .range(0.0..=3600.0)
+            .speed(0.01)
+            .suffix(" s"),
+    )
+    .on_hover_text(hover)
+    .changed()
+}
+
+/// The Loop checkbox over `wrap`.
+fn loop_ui(ui: &mut egui::Ui, wrap: &mut Wrap, hover: &str) {
+    let mut loop_on = *wrap == Wrap::Loop;
+    if ui
+        .checkbox(&mut loop_on, "Loop")
+        .on_hover_text(hover)
+        .changed()
+    {
+        *wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
+    }
+}
+
+/// Advances `t` while playing (by the clock, or one frame of `frame_secs` per drawn frame
+/// with Every frame); past `duration` it loops, or holds the end and stops.
+fn advance_playhead(
+    ui: &egui::Ui,
+    tool: &mut PoseTool,
+    t: &mut f32,
+    duration: f32,
+    wrap: Wrap,
+    frame_secs: f32,
+) {
+    if !tool.playing {
+        tool.last_tick = None;
+        return;
+    }
+    let now = ui.input(|i| i.time);
+    *t += playback_step(
+        &mut tool.last_tick,
+        now,
+        tool.step_every_frame.then_some(frame_secs),
+    );
+    if *t > duration {
+        if wrap == Wrap::Loop {
+            *t = t.rem_euclid(duration.max(1e-6));
+        } else {
+            *t = duration;
+            tool.playing = false;
+        }
+    }
+    ui.ctx().request_repaint();
+}
+
+/// A key drawn as a diamond of half-diagonal `r` at `c`.
+pub(super) fn key_diamond(painter: &egui::Painter, c: egui::Pos2, r: f32, fill: egui::Color32) {
+    painter.add(egui::Shape::convex_polygon(
+        vec![
+            c + egui::vec2(0.0, -r),
+            c + egui::vec2(r, 0.0),
+            c + egui::vec2(0.0, r),
+            c + egui::vec2(-r, 0.0),
+        ],
+        fill,
+        egui::Stroke::new(1.0, egui::Color32::BLACK),
+    ));
+}
+
 /// The timeline of an unrigged object's keyed transform: play / pause, start, loop, a scrub
 /// slider with the keys as diamonds, and the time. A rigged model's keys follow its clip's
 /// timeline instead.
@@ -1070,68 +1150,21 @@ fn motion_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
             .on_hover_text(format!("The keyed transform of {name}"));
         ui.label(&name);
         let playable = duration > 0.0;
-        if ui
-            .add_enabled(
-                playable,
-                egui::Button::new(if tool.playing { "Pause" } else { "Play" }),
-            )
-            .on_hover_text("Play or pause the object's motion (Space)")
-            .clicked()
-        {
-            tool.playing = !tool.playing;
-        }
-        if ui
-            .button("Start")
-            .on_hover_text("Go to 0 s")
-            .clicked()
-        {
+        if transport_ui(ui, tool, playable, "the object's motion") {
             t = 0.0;
-            tool.playing = false;
         }
-        let mut loop_on = wrap == Wrap::Loop;
-        if ui
-            .checkbox(&mut loop_on, "Loop")
-            .on_hover_text("Repeat the motion (otherwise hold its last key)")
-            .changed()
-        {
-            wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
-        }
+        loop_ui(ui, &mut wrap, "Repeat the motion (otherwise hold its last key)");
         if !playable {
             tool.playing = false;
         }
-        if tool.playing {
-            let now = ui.input(|i| i.time);
-            t += playback_step(
-                &mut tool.last_tick,
-                now,
-                tool.step_every_frame.then_some(1.0 / fps),
-            );
-            if t > duration {
-                if wrap == Wrap::Loop {
-                    t = t.rem_euclid(duration.max(1e-6));
-                } else {
-                    t = duration;
-                    tool.playing = false;
-                }
-            }
-            ui.ctx().request_repaint();
-        } else {
-            tool.last_tick = None;
-        }
+        advance_playhead(ui, tool, &mut t, duration, wrap, 1.0 / fps);
         ui.checkbox(&mut tool.step_every_frame, "Every frame")
             .on_hover_text("Advance one frame per drawn frame instead of by the clock");
-        let mut typed = t;
-        if ui
-            .add(
-                egui::DragValue::new(&mut typed)
-                    .range(0.0..=3600.0)
-                    .speed(0.01)
-                    .suffix(" s"),
-            )
-            .on_hover_text("Type or drag the playhead's time (past the last key to key the object there: move it, then Key transform)")
-            .changed()
-        {
-            t = typed;
+        if time_field_ui(
+            ui,
+            &mut t,
+            "Type or drag the playhead's time (past the last key to key the object there: move it, then Key transform)",
+        ) {
             tool.playing = false;
         }
         let mut scrub = t.clamp(0.0, duration);
@@ -1151,18 +1184,12 @@ fn motion_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
             let inset = rail.height() / 2.5;
             for k in &keys {
                 let x = rail.left() + inset + (k / duration).clamp(0.0, 1.0) * (rail.width() - 2.0 * inset);
-                let c = egui::pos2(x, rail.center().y);
-                let r = 4.5;
-                ui.painter().add(egui::Shape::convex_polygon(
-                    vec![
-                        c + egui::vec2(0.0, -r),
-                        c + egui::vec2(r, 0.0),
-                        c + egui::vec2(0.0, r),
-                        c + egui::vec2(-r, 0.0),
-                    ],
+                key_diamond(
+                    ui.painter(),
+                    egui::pos2(x, rail.center().y),
+                    4.5,
                     egui::Color32::from_rgb(255, 210, 60),
-                    egui::Stroke::new(1.0, egui::Color32::BLACK),
-                ));
+                );
             }
         }
         ui.monospace(format!("{:.2} / {:.2} s  frame {}", t, duration, (t * fps).round()))
@@ -1242,31 +1269,14 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
             .response
             .on_hover_text("Which clip plays");
         let has_clip = playback.clip.is_some() && duration > 0.0;
-        if ui
-            .add_enabled(
-                has_clip,
-                egui::Button::new(if tool.playing { "Pause" } else { "Play" }),
-            )
-            .on_hover_text("Play or pause the clip (Space)")
-            .clicked()
-        {
-            tool.playing = !tool.playing;
-        }
-        if ui
-            .add_enabled(has_clip, egui::Button::new("Start"))
-            .on_hover_text("Go to the clip's first frame")
-            .clicked()
-        {
+        if transport_ui(ui, tool, has_clip, "the clip") {
             playback.time_secs = 0.0;
         }
-        let mut loop_on = playback.wrap == Wrap::Loop;
-        if ui
-            .checkbox(&mut loop_on, "Loop")
-            .on_hover_text("Repeat the clip (otherwise hold its last frame)")
-            .changed()
-        {
-            playback.wrap = if loop_on { Wrap::Loop } else { Wrap::Clamp };
-        }
+        loop_ui(
+            ui,
+            &mut playback.wrap,
+            "Repeat the clip (otherwise hold its last frame)",
+        );
         ui.checkbox(&mut tool.step_every_frame, "Every frame")
             .on_hover_text(format!(
                 "Advance one frame of the clip ({:.3} s at {} fps) per drawn frame (every pose shown, slow motion when frames are slow) instead of by the clock",
@@ -1276,26 +1286,15 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         if !has_clip {
             tool.playing = false;
         }
-        if tool.playing {
-            let now = ui.input(|i| i.time);
-            let dt = playback_step(
-                &mut tool.last_tick,
-                now,
-                tool.step_every_frame.then_some(1.0 / frame_rate),
-            );
-            playback.time_secs += dt;
-            if playback.time_secs > duration {
-                playback.time_secs = if playback.wrap == Wrap::Loop {
-                    playback.time_secs.rem_euclid(duration.max(1e-6))
-                } else {
-                    tool.playing = false;
-                    duration
-                };
-            }
-            ui.ctx().request_repaint();
-        } else {
-            tool.last_tick = None;
-        }
+        let wrap = playback.wrap;
+        advance_playhead(
+            ui,
+            tool,
+            &mut playback.time_secs,
+            duration,
+            wrap,
+            1.0 / frame_rate,
+        );
         let mut t = playback.time_secs.clamp(0.0, duration);
         // Room for the time and frame readout after the slider.
         let width = (ui.available_width() - 200.0).max(80.0);
@@ -1375,18 +1374,12 @@ fn paint_keys(
     }
     if let Some(j) = selected {
         for t in editor.joint_key_times(id, j) {
-            let c = egui::pos2(x_of(t), y);
-            let r = 5.0;
-            painter.add(egui::Shape::convex_polygon(
-                vec![
-                    c + egui::vec2(0.0, -r),
-                    c + egui::vec2(r, 0.0),
-                    c + egui::vec2(0.0, r),
-                    c + egui::vec2(-r, 0.0),
-                ],
+            key_diamond(
+                painter,
+                egui::pos2(x_of(t), y),
+                5.0,
                 egui::Color32::from_rgb(255, 210, 60),
-                egui::Stroke::new(1.0, egui::Color32::BLACK),
-            ));
+            );
         }
     }
 }
@@ -1402,18 +1395,11 @@ fn keys_ui(
 ) {
     ui.horizontal(|ui| {
         ui.label("Time").on_hover_text("The playhead in seconds");
-        let mut t = playback.time_secs;
-        if ui
-            .add(
-                egui::DragValue::new(&mut t)
-                    .range(0.0..=3600.0)
-                    .speed(0.01)
-                    .suffix(" s"),
-            )
-            .on_hover_text("Type or drag the playhead's time (with Loop off, past the clip's end to add keys there)")
-            .changed()
-        {
-            playback.time_secs = t;
+        if time_field_ui(
+            ui,
+            &mut playback.time_secs,
+            "Type or drag the playhead's time (with Loop off, past the clip's end to add keys there)",
+        ) {
             tool.playing = false;
         }
         let joint = tool

@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 
 use super::Transform;
 use crate::skin::skeleton::normalize_quat;
-use crate::skin::{AnimationClip, Channel, Interpolation, Property, Wrap};
+use crate::skin::{AnimationClip, Property, Wrap};
 
 /// The joint index an object's own channels use.
 pub const OBJECT_CHANNEL: usize = 0;
@@ -63,25 +63,9 @@ impl ObjectMotion {
             ),
             (Property::Scale, transform.scale.extend(0.0)),
         ] {
-            let c = match self
-                .clip
-                .channels
-                .iter()
-                .rposition(|c| c.joint == OBJECT_CHANNEL && c.property == property)
-            {
-                Some(c) => c,
-                None => {
-                    self.clip.channels.push(Channel {
-                        joint: OBJECT_CHANNEL,
-                        property,
-                        interpolation: Interpolation::Linear,
-                        times: Vec::new(),
-                        values: Vec::new(),
-                    });
-                    self.clip.channels.len() - 1
-                }
-            };
-            self.clip.channels[c].set_key(t, value);
+            self.clip
+                .channel_mut(OBJECT_CHANNEL, property)
+                .set_key(t, value);
         }
         self.clip.duration_secs = self.clip.duration_secs.max(t);
     }
@@ -121,6 +105,7 @@ mod tests {
     use glam::{Quat, Vec3};
 
     use super::*;
+    use crate::skin::{Channel, Interpolation};
 
     #[test]
     fn keyed_transforms_are_sampled_between_keys_and_held_outside() {

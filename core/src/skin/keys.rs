@@ -159,6 +159,29 @@ impl Channel {
 }
 
 impl AnimationClip {
+    /// The channel that animates `property` of `joint` (the last one: it wins when sampled),
+    /// added (linear, no keys) where there is none.
+    pub fn channel_mut(&mut self, joint: usize, property: Property) -> &mut Channel {
+        let i = match self
+            .channels
+            .iter()
+            .rposition(|c| c.joint == joint && c.property == property)
+        {
+            Some(i) => i,
+            None => {
+                self.channels.push(Channel {
+                    joint,
+                    property,
+                    interpolation: Interpolation::Linear,
+                    times: Vec::new(),
+                    values: Vec::new(),
+                });
+                self.channels.len() - 1
+            }
+        };
+        &mut self.channels[i]
+    }
+
     /// Key times of `joint` over all its channels (sorted, without repeats).
     #[must_use]
     pub fn joint_key_times(&self, joint: usize) -> Vec<f32> {
@@ -309,24 +332,7 @@ impl AnimationClip {
             };
             let t = (at + key.offset_secs).max(0.0);
             for &(property, value) in &key.values {
-                let c = match self
-                    .channels
-                    .iter()
-                    .rposition(|c| c.joint == joint && c.property == property)
-                {
-                    Some(c) => c,
-                    None => {
-                        self.channels.push(Channel {
-                            joint,
-                            property,
-                            interpolation: Interpolation::Linear,
-                            times: Vec::new(),
-                            values: Vec::new(),
-                        });
-                        self.channels.len() - 1
-                    }
-                };
-                self.channels[c].set_key(t, value);
+                self.channel_mut(joint, property).set_key(t, value);
             }
             if !key.values.is_empty() {
                 written.push(KeyRef {
