@@ -1993,7 +1993,7 @@ pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
 const OVERLAY_SAMPLE_POINTS: f32 = 12.0;
 
 /// The parts of world segment `a`–`b` not hidden behind voxels ([`behind_voxels`]), in order:
-/// sampled every [`OVERLAY_SAMPLE_POINTS`] view points, and where two samples disagree the
+/// sampled every `OVERLAY_SAMPLE_POINTS` view points, and where two samples disagree the
 /// edge is found by bisection to about a view point. Empty when the segment is all behind
 /// the camera or all hidden.
 #[must_use]
