@@ -1171,7 +1171,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
             let mut doc = thicket_core::scene::Document::default();
             doc.add(
                 files::object_name_for(&args.input),
-                thicket_core::scene::ObjectKind::Voxels(voxel_model(v, &model)),
+                thicket_core::scene::ObjectKind::Voxels(files::voxel_model(v, &model)),
             );
             doc
         };
@@ -1184,23 +1184,6 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
     };
     files::save_project(&doc, &args.output)?;
     finish_import(args, &doc, &notes)
-}
-
-/// A static voxel model of a voxelized mesh, with the mesh's material names.
-fn voxel_model(
-    v: thicket_core::voxelize::Voxelized,
-    mesh: &thicket_core::mesh::MeshModel,
-) -> thicket_core::scene::VoxelModel {
-    thicket_core::scene::VoxelModel {
-        svo: v.svo,
-        voxel_size: v.voxel_size,
-        origin: v.origin,
-        material_names: mesh.materials.iter().map(|m| m.name.clone()).collect(),
-        rig: None,
-        volume: None,
-        palette: Vec::new(),
-        frames: None,
-    }
 }
 
 /// Prints an import's notes and what it wrote.
@@ -1315,7 +1298,7 @@ fn import_nodes(
                 if !fallback.is_empty() {
                     notes.push_str(&format!("node {:?}: {fallback}", o.name));
                 }
-                ObjectKind::Voxels(voxel_model(v, &o.model))
+                ObjectKind::Voxels(files::voxel_model(v, &o.model))
             }
         };
         let placed = match o.placement {

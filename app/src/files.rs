@@ -119,6 +119,8 @@ pub struct MeshOptions {
     /// glTF only: the names of the nodes to import, each as its own object (`None`: every
     /// node with a mesh). Honoured by [`load_gltf_objects`].
     pub nodes: Option<Vec<String>>,
+    /// A skinned glTF's octree depth in the editor's import (`None`: 7, as `thicket import`).
+    pub skinned_depth: Option<u8>,
 }
 
 /// [`load_mesh_reported`] with options. An OBJ that has texture coordinates but names no
@@ -414,6 +416,25 @@ pub fn document_from_mesh(name: &str, model: MeshModel) -> Document {
         doc.camera.frame(lo, hi);
     }
     doc
+}
+
+/// A static voxel model of a voxelized mesh, with the mesh's material names (`thicket import`
+/// and the editor's Voxelize mesh make the same one).
+#[must_use]
+pub fn voxel_model(
+    v: thicket_core::voxelize::Voxelized,
+    mesh: &thicket_core::mesh::MeshModel,
+) -> thicket_core::scene::VoxelModel {
+    thicket_core::scene::VoxelModel {
+        svo: v.svo,
+        voxel_size: v.voxel_size,
+        origin: v.origin,
+        material_names: mesh.materials.iter().map(|m| m.name.clone()).collect(),
+        rig: None,
+        volume: None,
+        palette: Vec::new(),
+        frames: None,
+    }
 }
 
 /// An object name from a file name: `models/Box.glb` → `Box`, `a/tree.thicket.json` → `tree`.

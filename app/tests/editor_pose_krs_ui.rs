@@ -464,6 +464,51 @@ fn importing_a_skinned_gltf_gives_a_rigged_model_with_a_timeline() {
     // The timeline appears for it and shows the clip's length.
     h.get_by_label("Play");
     h.get_by_label_contains("/ 1.25 s");
+    // The Import report says the depth it was voxelized at (the CLI's default) and imports it
+    // again at another: the object is replaced by one with a coarser octree.
+    let (voxels7, depth7) = match &o.kind {
+        ObjectKind::Voxels(v) => (v.svo.leaf_count(), v.svo.depth()),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!(),
+    };
+    assert_eq!(depth7, 7);
+    let report = h
+        .state()
+        .import_report
+        .clone()
+        .expect("a report for a skinned import");
+    assert_eq!(report.skinned_depth, Some(7));
+    assert!(
+        report.lines[0].starts_with("skinned: voxelized at depth 7"),
+        "{:?}",
+        report.lines
+    );
+    h.state_mut().import_report.as_mut().unwrap().skinned_depth = Some(6);
+    h.run_steps(1);
+    h.get_by_label("Import again at this depth").click();
+    h.run_steps(1);
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    assert_eq!(ed.doc().objects.len(), 1, "replaced, not added");
+    match &ed.doc().objects[0].kind {
+        ObjectKind::Voxels(v) => {
+            assert_eq!(v.svo.depth(), 6);
+            assert!(
+                v.svo.leaf_count() < voxels7 / 2,
+                "{} vs {voxels7}",
+                v.svo.leaf_count()
+            );
+            assert!(v.rig.is_some());
+        }
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => panic!("expected voxels"),
+    }
+    assert_eq!(
+        h.state()
+            .import_report
+            .as_ref()
+            .and_then(|r| r.skinned_depth),
+        Some(6)
+    );
 }
 
 #[test]

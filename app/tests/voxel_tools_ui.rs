@@ -629,3 +629,70 @@ fn a_model_made_with_the_tools_round_trips_through_goxel() {
     let ours_again = thicket_core::io::vox::import_vox(&ours).unwrap();
     assert_eq!(ours_again.voxel_count(), count);
 }
+
+/// Model → Voxelize mesh on an imported OBJ gives exactly the voxels `thicket import` makes at
+/// the same depth, in one undo step that hides the mesh and selects the voxel model.
+#[test]
+fn voxelize_mesh_in_the_editor_gives_the_voxels_thicket_import_gives() {
+    let spot = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/static/spot/spot_triangulated.obj"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("spot.thicket.json");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_thicket"))
+        .args(["import", spot, "--depth", "5", "-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cli = thicket_core::io::project::load(&out).unwrap();
+    let ObjectKind::Voxels(expected) = &cli.objects[0].kind else {
+        panic!("a voxel model");
+    };
+
+    let (doc, _, _) = thicket::files::load_document_imported(
+        std::path::Path::new(spot),
+        &thicket::files::MeshOptions::default(),
+    )
+    .unwrap();
+    let mut h = harness_sized(Editor::new(doc, None), egui::vec2(1280.0, 800.0));
+    let mesh = h.state().editor.doc().objects[0].id;
+    h.state_mut().editor.selection = Some(thicket::editor::Selection::Object(mesh));
+    h.state_mut().voxelize.depth = 5;
+    h.run_steps(1);
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Model").click();
+    h.run_steps(2);
+    h.get_by_label_contains("Voxelize mesh");
+    h.get_by_label("Voxelize").click();
+    h.run_steps(1);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let doc = h.state().editor.doc();
+    assert_eq!(doc.objects.len(), 2);
+    let made = &doc.objects[1];
+    assert_eq!(made.name, "spot_triangulated voxels");
+    let ObjectKind::Voxels(v) = &made.kind else {
+        panic!("a voxel model");
+    };
+    assert!(
+        expected.svo.leaf_count() > 1_000,
+        "{}",
+        expected.svo.leaf_count()
+    );
+    assert_eq!(v.svo.leaves(), expected.svo.leaves(), "the same voxels");
+    assert_eq!(
+        (v.voxel_size, v.origin),
+        (expected.voxel_size, expected.origin)
+    );
+    assert!(!doc.objects[0].visible, "the mesh is hidden");
+    assert_eq!(
+        h.state().editor.selection,
+        Some(thicket::editor::Selection::Object(made.id))
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    assert!(h.state_mut().editor.undo());
+    assert_eq!(h.state().editor.doc().objects.len(), 1);
+    assert!(h.state().editor.doc().objects[0].visible);
+}

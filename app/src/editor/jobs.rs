@@ -75,7 +75,9 @@ pub fn vox_left_out(objects: &[Object], skipped: &[String]) -> String {
             let reason = match objects.iter().find(|o| &o.name == name) {
                 Some(o) if !o.visible => "hidden",
                 Some(o) => match &o.kind {
-                    ObjectKind::Mesh(_) => "a mesh: .vox holds voxels only",
+                    ObjectKind::Mesh(_) => {
+                        "a mesh: .vox holds voxels only; Model → Voxelize mesh makes a voxel model of it"
+                    }
                     ObjectKind::Krs(_) => "a KRS object: .vox holds voxels only",
                     ObjectKind::Voxels(_) => "empty",
                 },
@@ -101,6 +103,20 @@ pub enum JobResult {
     Swept(u64, anyhow::Result<SweepReport>),
     /// A binding of a voxel model to its skeleton.
     Bound(Box<Bound>),
+    /// A mesh object voxelized (Model → Voxelize mesh).
+    MeshVoxelized(Box<MeshVoxelized>),
+}
+
+/// What a Voxelize mesh job hands back: the mesh object, the mesh it voxelized (to check
+/// nothing changed meanwhile) and the voxel model.
+pub struct MeshVoxelized {
+    /// The mesh object's id.
+    pub id: u64,
+    /// The mesh as it was when the job started.
+    pub source: thicket_core::mesh::MeshModel,
+    /// The voxel model, with the voxelizer's note on a solid fill that fell back to the
+    /// surface (empty otherwise).
+    pub result: anyhow::Result<(VoxelModel, String)>,
 }
 
 /// What a binding job hands back: the object, the model it bound (to check nothing changed
@@ -131,6 +147,8 @@ pub struct Imported {
     pub view: GltfView,
     /// For a static glTF scene, the names of its nodes with meshes (the report's checklist).
     pub node_names: Vec<String>,
+    /// For a skinned glTF, the octree depth it was voxelized at.
+    pub skinned_depth: Option<u8>,
 }
 
 /// What an enhancement job hands back: source id, source name, the settings, the coarse
@@ -291,6 +309,28 @@ impl Job {
         })
     }
 
+    /// Voxelizes mesh `model` (object `id`, named `name`) with `settings`, as `thicket import`
+    /// does, after checking the estimate against `budget`; progress and Cancel. [`Editor::finish_voxelize`] places the result.
+    #[must_use]
+    pub fn voxelize_mesh(
+        id: u64,
+        name: &str,
+        model: thicket_core::mesh::MeshModel,
+        settings: thicket_core::voxelize::VoxelizeSettings,
+        budget: thicket_core::budget::MemoryBudget,
+    ) -> Self {
+        let label = format!("Voxelizing {name}");
+        let name = name.to_owned();
+        Self::spawn(label, move |progress, cancel| {
+            let result = voxelize_mesh(&name, &model, &settings, budget, progress, cancel);
+            JobResult::MeshVoxelized(Box::new(MeshVoxelized {
+                id,
+                source: model,
+                result,
+            }))
+        })
+    }
+
     /// Writes the visible voxel models of `objects` to a `.vox` file.
     #[must_use]
     pub fn export_vox(objects: Vec<Object>, path: PathBuf) -> Self {
@@ -363,12 +403,51 @@ impl Job {
     }
 }
 
+/// The work of [`Job::voxelize_mesh`].
+fn voxelize_mesh(
+    name: &str,
+    model: &thicket_core::mesh::MeshModel,
+    settings: &thicket_core::voxelize::VoxelizeSettings,
+    budget: thicket_core::budget::MemoryBudget,
+    progress: &AtomicU32,
+    cancel: &AtomicBool,
+) -> anyhow::Result<(VoxelModel, String)> {
+    if let Ok(e) = thicket_core::voxelize::estimate(model, settings) {
+        budget.check(
+            &format!(
+                "{name}: voxelizing about {} voxels",
+                files::thousands((e.surface_voxels + e.interior_voxels).round() as u64)
+            ),
+            e.peak_bytes,
+            "choose a smaller depth",
+        )?;
+    }
+    let v = thicket_core::voxelize::voxelize(model, settings, &|f| {
+        progress.store(f.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
+        !cancel.load(Ordering::Relaxed)
+    })
+    .with_context(|| format!("{name}: voxelizing"))?;
+    let note = if v.stats.solid_fell_back {
+        format!(
+            "the mesh is open ({} voxel column(s) enter it without leaving): Solid needs a \
+             closed mesh, so only its surface was voxelized",
+            files::thousands(v.stats.open_columns)
+        )
+    } else {
+        String::new()
+    };
+    Ok((files::voxel_model(v, model), note))
+}
+
 /// The import report's line for a file with a camera imported into an existing scene.
 pub const IMPORT_KEEPS_VIEW: &str = "camera not applied: File > Import keeps your view; it is \
      used when the file is opened or imported from the command line";
 
 /// Octree depth of a skinned glTF imported into the editor (as `thicket import` by default).
-const SKINNED_IMPORT_DEPTH: u8 = 7;
+pub const SKINNED_IMPORT_DEPTH: u8 = 7;
+
+/// The depths the Import report offers for a skinned glTF.
+pub const SKINNED_DEPTHS: std::ops::RangeInclusive<u8> = 3..=10;
 
 /// Reads `path` for File → Import: a skinned glTF is voxelized with its rig (progress and
 /// cancel from the job), a static glTF becomes one mesh object per node
@@ -395,6 +474,7 @@ pub fn import_document(
         left_out,
         view,
         node_names,
+        skinned_depth: None,
     };
     let Some(skinned) = skinned else {
         if is_gltf {
@@ -403,8 +483,17 @@ pub fn import_document(
         return files::load_document_imported(path, options)
             .map(|(doc, notes, view)| imported((doc, notes, view, Vec::new())));
     };
+    let depth = options.skinned_depth.unwrap_or(SKINNED_IMPORT_DEPTH);
+    if !SKINNED_DEPTHS.contains(&depth) {
+        anyhow::bail!(
+            "{}: depth {depth} is not within {}..={}",
+            path.display(),
+            SKINNED_DEPTHS.start(),
+            SKINNED_DEPTHS.end()
+        );
+    }
     let settings = thicket_core::voxelize::VoxelizeSettings {
-        resolution: thicket_core::voxelize::Resolution::Depth(SKINNED_IMPORT_DEPTH),
+        resolution: thicket_core::voxelize::Resolution::Depth(depth),
         ..Default::default()
     };
     let v = thicket_core::io::voxelize_skinned(&skinned, &settings, &|f| {
@@ -416,7 +505,10 @@ pub fn import_document(
     doc.add(files::object_name_for(path), ObjectKind::Voxels(v.model));
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
-    Ok(imported((doc, skinned.warnings, skinned.view, Vec::new())))
+    Ok(Imported {
+        skinned_depth: Some(depth),
+        ..imported((doc, skinned.warnings, skinned.view, Vec::new()))
+    })
 }
 
 /// What an import left out of its file (shown in the Import report window until closed).
@@ -434,6 +526,8 @@ pub struct ImportReport {
     /// imported: the checklist that imports the file again with other nodes. Empty for other
     /// files and for skinned glTF (one skinned object).
     pub nodes: Vec<(String, bool)>,
+    /// For a skinned glTF: the depth field's value (it was imported at this depth).
+    pub skinned_depth: Option<u8>,
 }
 
 /// A finished import, placed in the document.
@@ -466,6 +560,7 @@ impl Editor {
             mut left_out,
             view,
             node_names,
+            skinned_depth,
         } = imported;
         let nodes: Vec<(String, bool)> = node_names
             .into_iter()
@@ -481,12 +576,23 @@ impl Editor {
         if view.camera.is_some() {
             left_out.push(IMPORT_KEEPS_VIEW.to_owned());
         }
+        if let Some(d) = skinned_depth {
+            left_out.insert(
+                0,
+                format!(
+                    "skinned: voxelized at depth {d} ({} voxels along its longest side); \
+                     choose another depth below to import it again",
+                    1u32 << d
+                ),
+            );
+        }
         let report = (!left_out.is_empty() || nodes.len() > 1).then(|| ImportReport {
             path,
             lines: left_out,
             placed: placement.ids.clone(),
             texture: String::new(),
             nodes,
+            skinned_depth,
         });
         ImportDone { placement, report }
     }
@@ -530,5 +636,54 @@ impl Editor {
         };
         result.map_err(EnhanceNotApplied::Refused)?;
         Ok((name, voxels))
+    }
+}
+
+impl Editor {
+    /// Places a finished Voxelize mesh job: a voxel object "NAME voxels" where the mesh object
+    /// is (its transform and keyed transforms), selected, with the mesh hidden; one undo step.
+    /// Refused when the mesh changed (or went) while the job ran. Returns the new object's id.
+    ///
+    /// # Errors
+    /// The mesh object is gone or its mesh changed.
+    pub fn finish_voxelize(
+        &mut self,
+        id: u64,
+        source: &thicket_core::mesh::MeshModel,
+        model: VoxelModel,
+    ) -> Result<u64, CommandError> {
+        let o = self.object(id).ok_or(CommandError::NoObject(id))?;
+        if !matches!(&o.kind, ObjectKind::Mesh(m) if &m.model == source) {
+            return Err(CommandError::Invalid(format!(
+                "{:?} changed while it was voxelized: voxelize it again",
+                o.name
+            )));
+        }
+        let new_id = super::next_id(&self.doc);
+        let object = Object {
+            id: new_id,
+            name: format!("{} voxels", o.name),
+            visible: true,
+            transform: o.transform,
+            kind: ObjectKind::Voxels(model),
+            motion: o.motion.clone(),
+        };
+        let label = format!("Voxelize {}", o.name);
+        let index = self.index_of(id)? + 1;
+        self.history.seal();
+        self.apply_named(
+            super::Edit::Group(vec![
+                super::Edit::Insert {
+                    index,
+                    object: Box::new(object),
+                },
+                super::Edit::SetVisible { id, visible: false },
+            ]),
+            None,
+            label,
+        );
+        self.history.seal();
+        self.selection = Some(super::Selection::Object(new_id));
+        Ok(new_id)
     }
 }

@@ -234,6 +234,7 @@ impl EditorApp {
         let mut ok = false;
         let mut again = false;
         let mut again_with_nodes = false;
+        let mut again_at_depth = false;
         let needs_texture = report.lines.iter().any(|l| l == files::OBJ_NO_TEXTURE);
         egui::Window::new("Import report")
             .open(&mut open)
@@ -263,6 +264,24 @@ impl EditorApp {
                 }
                 if report.nodes.len() > 1 {
                     again_with_nodes = import_nodes_ui(ui, &mut report.nodes);
+                }
+                if let Some(depth) = report.skinned_depth.as_mut() {
+                    ui.add_space(6.0);
+                    ui.horizontal(|ui| {
+                        let label = ui.label("Depth");
+                        ui.add(
+                            egui::DragValue::new(depth).range(crate::editor::jobs::SKINNED_DEPTHS),
+                        )
+                        .labelled_by(label.id)
+                        .on_hover_text(
+                            "Octree depth of the skinned model: 2^depth voxels along its longest \
+                             side (thicket import --depth); each step up is 8 times the voxels",
+                        );
+                        again_at_depth = ui
+                            .button("Import again at this depth")
+                            .on_hover_text("Replaces the object just imported")
+                            .clicked();
+                    });
                 }
                 if needs_texture {
                     ui.add_space(6.0);
@@ -302,6 +321,12 @@ impl EditorApp {
             };
             self.import_again(files::MeshOptions {
                 texture: Some(texture),
+                ..files::MeshOptions::default()
+            });
+        } else if again_at_depth {
+            let depth = report.skinned_depth;
+            self.import_again(files::MeshOptions {
+                skinned_depth: depth,
                 ..files::MeshOptions::default()
             });
         } else if again_with_nodes {

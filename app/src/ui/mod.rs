@@ -122,6 +122,8 @@ pub struct EditorApp {
     /// The Palette panel.
     pub palette: palette::PalettePanel,
     canvas: voxel_menus::CanvasForm,
+    /// Model → Voxelize mesh's fields.
+    pub voxelize: voxel_menus::VoxelizeForm,
 }
 
 impl Default for EditorApp {
@@ -170,6 +172,7 @@ impl EditorApp {
             new_model: new_model::NewModelDialog::default(),
             palette: palette::PalettePanel::default(),
             canvas: voxel_menus::CanvasForm::default(),
+            voxelize: voxel_menus::VoxelizeForm::default(),
         }
     }
 
@@ -485,6 +488,33 @@ impl EditorApp {
                         self.toast(ctx, text, false);
                     }
                     Err(e) => self.error_dialog = Some(format!("Binding: {e}")),
+                }
+            }
+            JobResult::MeshVoxelized(job) => {
+                let crate::editor::jobs::MeshVoxelized { id, source, result } = *job;
+                let placed = result
+                    .map_err(|e| format!("{e:#}"))
+                    .and_then(|(model, note)| {
+                        let voxels = model.svo.leaf_count();
+                        self.editor
+                            .finish_voxelize(id, &source, model)
+                            .map(|_| (voxels, note))
+                            .map_err(|e| e.to_string())
+                    });
+                match placed {
+                    Ok((voxels, note)) => {
+                        let text = format!(
+                            "Voxelized into {} voxels{}",
+                            files::thousands(voxels),
+                            if note.is_empty() {
+                                String::new()
+                            } else {
+                                format!(" ({note})")
+                            }
+                        );
+                        self.toast(ctx, text, !note.is_empty());
+                    }
+                    Err(e) => self.error_dialog = Some(format!("Voxelize mesh: {e}")),
                 }
             }
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),

@@ -11,7 +11,9 @@ use thicket_core::sculpt::shapes::ShapeOp;
 use super::EditorApp;
 use super::shortcuts::{consume_escape, count_presses};
 use super::voxel_tools::ToolKind;
+use crate::editor::jobs::Job;
 use crate::editor::{CommandError, ModelOp, ToolOutcome};
+use crate::files;
 
 /// Model → Resize canvas's fields.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -33,6 +35,25 @@ impl Default for CanvasForm {
             anchor: [Anchor::Center, Anchor::Min, Anchor::Center],
             shell: 1,
             object: None,
+        }
+    }
+}
+
+/// Model → Voxelize mesh's fields.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct VoxelizeForm {
+    /// Octree depth: 2^depth voxels along the mesh's longest side.
+    pub depth: u8,
+    /// Fill closed meshes (else the surface only).
+    pub solid: bool,
+}
+
+impl Default for VoxelizeForm {
+    fn default() -> Self {
+        // `thicket import`'s default depth.
+        Self {
+            depth: 7,
+            solid: false,
         }
     }
 }
@@ -291,6 +312,68 @@ impl EditorApp {
     }
 
     /// The Model menu (whole-model operations on the selected voxel model).
+    /// Model → Voxelize mesh, shown when a mesh object is selected: depth, surface or solid,
+    /// the estimate, and Voxelize (a job with progress and Cancel; the voxel object replaces
+    /// the shown mesh, one undo step). Returns whether a mesh is selected.
+    fn voxelize_mesh_ui(&mut self, ui: &mut egui::Ui) -> bool {
+        let Some(o) = self.editor.selected_object() else {
+            return false;
+        };
+        let thicket_core::scene::ObjectKind::Mesh(m) = &o.kind else {
+            return false;
+        };
+        let (id, name) = (o.id, o.name.clone());
+        ui.label(format!("Voxelize mesh {name:?}"));
+        ui.horizontal(|ui| {
+            ui.label("Depth");
+            ui.add(egui::DragValue::new(&mut self.voxelize.depth).range(2..=11))
+                .on_hover_text(
+                    "2^depth voxels along the mesh's longest side (thicket import --depth)",
+                );
+            ui.selectable_value(&mut self.voxelize.solid, false, "Surface")
+                .on_hover_text("Voxels where the surface is (the inside stays empty)");
+            ui.selectable_value(&mut self.voxelize.solid, true, "Solid")
+                .on_hover_text(
+                    "Fill closed meshes (an open one falls back to its surface, and says so)",
+                );
+        });
+        let settings = thicket_core::voxelize::VoxelizeSettings {
+            resolution: thicket_core::voxelize::Resolution::Depth(self.voxelize.depth),
+            mode: if self.voxelize.solid {
+                thicket_core::voxelize::Mode::Solid
+            } else {
+                thicket_core::voxelize::Mode::Surface
+            },
+            ..thicket_core::voxelize::VoxelizeSettings::default()
+        };
+        let estimate = thicket_core::voxelize::estimate(&m.model, &settings);
+        match &estimate {
+            Ok(e) => ui.weak(format!(
+                "about {} voxels, {} MiB at most",
+                files::thousands((e.surface_voxels + e.interior_voxels).round() as u64),
+                e.peak_bytes >> 20
+            )),
+            Err(e) => ui.colored_label(ui.visuals().error_fg_color, e.to_string()),
+        };
+        let busy = self.job.is_some();
+        if ui
+            .add_enabled(estimate.is_ok() && !busy, egui::Button::new("Voxelize"))
+            .on_hover_text("A voxel model of this mesh, as `thicket import` makes it at this depth; the mesh is hidden (one undo step)")
+            .clicked()
+        {
+            let model = m.model.clone();
+            self.job = Some(Job::voxelize_mesh(
+                id,
+                &name,
+                model,
+                settings,
+                self.memory_budget,
+            ));
+            ui.close();
+        }
+        true
+    }
+
     pub(super) fn model_menu_ui(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         if ui
@@ -304,8 +387,11 @@ impl EditorApp {
         ui.checkbox(&mut self.palette.open, "Palette panel")
             .on_hover_text("The model's palette and colours: pick, edit, replace, load, save");
         ui.separator();
+        if self.voxelize_mesh_ui(ui) {
+            return;
+        }
         let Some(id) = self.editor.selected_voxel_model() else {
-            ui.weak("Select a voxel model for the operations below");
+            ui.weak("Select a voxel model (or a mesh, to voxelize it) for the operations below");
             return;
         };
         let size = self.editor.volume_of(id).unwrap_or(UVec3::ONE);
