@@ -696,3 +696,111 @@ fn voxelize_mesh_in_the_editor_gives_the_voxels_thicket_import_gives() {
     assert_eq!(h.state().editor.doc().objects.len(), 1);
     assert!(h.state().editor.doc().objects[0].visible);
 }
+
+/// A paste moved past the volume's edge shows the voxels it would lose in red and a line that
+/// says so; Shift+Enter grows the canvas and keeps every voxel (the model stays where it is in
+/// the world), one undo step; past the low edge too. Snapshot looked at.
+#[test]
+fn a_paste_past_the_edge_marks_its_clipped_voxels_and_grow_keeps_them() {
+    use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
+    let mut ed = Editor::default();
+    let id = ed
+        .add_voxel_model(&thicket::editor::NewModelSpec {
+            name: "Crate".into(),
+            size: UVec3::splat(8),
+            voxel_size: 0.25,
+            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
+            ..thicket::editor::NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = Ink {
+        color: [200, 40, 40, 255],
+        material: 0,
+    };
+    ed.shape_box(
+        id,
+        glam::IVec3::ZERO,
+        glam::IVec3::splat(3),
+        ShapeOp::Add,
+        ink,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.selection = Some(thicket::editor::Selection::Object(id));
+    ed.frame_selection();
+    // Back off so the paste beside the block shows too.
+    let mut camera = ed.doc().camera;
+    camera.distance *= 2.5;
+    camera.target.x += 0.6;
+    ed.set_camera(camera);
+    let cells: Vec<UVec3> = leaves_of(&ed).iter().map(|l| l.0).collect();
+    assert_eq!(cells.len(), 64);
+    ed.select_voxels(
+        id,
+        thicket_core::sculpt::select::VoxelSelection::from_cells(cells.iter().copied()),
+        thicket::editor::SelectMode::Replace,
+    )
+    .unwrap();
+    let world = |ed: &Editor, c: UVec3| {
+        let o = &ed.doc().objects[0];
+        let ObjectKind::Voxels(v) = &o.kind else {
+            unreachable!()
+        };
+        (o.transform.matrix() * v.object_from_voxel()).transform_point3(c.as_vec3())
+    };
+    let corner = world(&ed, UVec3::ZERO);
+    let mut h = harness_with(ed);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::C);
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::V);
+    h.run_steps(1);
+    for _ in 0..6 {
+        h.key_press(egui::Key::ArrowRight);
+    }
+    h.run_steps(2);
+    // The pasted block spans x 6..=9 of an 8-wide volume: two columns of 16 are outside.
+    assert_eq!(h.state().editor.floating_outside(), 32);
+    for _ in 0..4 {
+        h.state_mut().view.wait_for_cpu_preview();
+        h.run_steps(1);
+    }
+    h.try_snapshot_options("paste_clipped", &egui_kittest::SnapshotOptions::default())
+        .unwrap();
+    let steps = h.state().editor.history().undo_len();
+    h.key_press_modifiers(egui::Modifiers::SHIFT, egui::Key::Enter);
+    h.run_steps(2);
+    assert!(h.state().editor.floating().is_none());
+    assert_eq!(leaves(&h).len(), 128, "every voxel kept");
+    assert_eq!(h.state().editor.volume_of(id), Some(UVec3::new(10, 8, 8)));
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+    assert!((world(&h.state().editor, UVec3::ZERO) - corner).length() < 1e-5);
+
+    // Past the low edge: the canvas grows below, the original block keeps its world place.
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::V);
+    h.run_steps(1);
+    for _ in 0..12 {
+        h.key_press(egui::Key::ArrowLeft);
+    }
+    h.run_steps(1);
+    let outside = h.state().editor.floating_outside();
+    assert!(outside > 0, "{outside}");
+    h.key_press_modifiers(egui::Modifiers::SHIFT, egui::Key::Enter);
+    h.run_steps(2);
+    assert_eq!(leaves(&h).len(), 192);
+    let size = h.state().editor.volume_of(id).unwrap();
+    assert!(size.x > 10, "{size}");
+    let shift = size.x - 10;
+    let moved = world(&h.state().editor, UVec3::new(shift, 0, 0));
+    assert!((moved - corner).length() < 1e-5, "{moved} vs {corner}");
+
+    // A plain Enter still drops what is outside (and says so in the status line).
+    assert!(h.state_mut().editor.undo() && h.state_mut().editor.undo());
+    assert_eq!(leaves(&h).len(), 64);
+    assert_eq!(h.state().editor.volume_of(id), Some(UVec3::splat(8)));
+}
+
+fn leaves_of(ed: &Editor) -> Vec<(UVec3, thicket_core::svo::Voxel)> {
+    match &ed.doc().objects[0].kind {
+        ObjectKind::Voxels(v) => v.svo.leaves(),
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!(),
+    }
+}

@@ -790,6 +790,65 @@ impl Editor {
         Ok(outcome)
     }
 
+    /// How many voxels of the floating paste lie outside its model's volume (a commit clips
+    /// them; [`Editor::commit_floating_growing`] keeps them).
+    #[must_use]
+    pub fn floating_outside(&self) -> usize {
+        let Some(f) = &self.floating else { return 0 };
+        let size = self.volume_of(f.object).unwrap_or(UVec3::ZERO).as_ivec3();
+        select::paste_cells(&f.clip, f.at)
+            .iter()
+            .filter(|c| c.min_element() < 0 || c.cmpge(size).any())
+            .count()
+    }
+
+    /// Writes the floating paste after growing its model's canvas just enough to hold all of
+    /// it (the model keeps its place in the world): the resize and the paste are one undo step.
+    /// Without voxels outside it is [`Editor::commit_floating`].
+    ///
+    /// # Errors
+    /// No paste in progress, its model is gone or linked to an enhancement, or the grown
+    /// canvas would be larger than [`MAX_EXTENT`] (nothing is changed then).
+    pub fn commit_floating_growing(&mut self) -> Result<ToolOutcome, CommandError> {
+        let f = self
+            .floating
+            .clone()
+            .ok_or_else(|| CommandError::Invalid("nothing is being pasted".into()))?;
+        let size = self
+            .volume_of(f.object)
+            .ok_or(CommandError::NoObject(f.object))?
+            .as_ivec3();
+        let cells = select::paste_cells(&f.clip, f.at);
+        let (lo, hi) = cells.iter().fold((IVec3::ZERO, size), |(lo, hi), c| {
+            (lo.min(*c), hi.max(*c + 1))
+        });
+        if lo == IVec3::ZERO && hi == size {
+            return self.commit_floating();
+        }
+        let grown = hi - lo;
+        if grown.max_element() > MAX_EXTENT as i32 {
+            return Err(CommandError::Invalid(format!(
+                "the canvas would grow to {}×{}×{}: each axis holds at most {MAX_EXTENT}",
+                grown.x, grown.y, grown.z
+            )));
+        }
+        let steps = self.history.undo_len();
+        // Grow past the top first (the minimum corner stays), then below the bottom (the
+        // maximum corner stays): together the volume spans lo..hi.
+        if hi != size {
+            self.resize_canvas(f.object, hi.as_uvec3(), [Anchor::Min; 3])?;
+        }
+        if lo != IVec3::ZERO {
+            let anchor = [0, 1, 2].map(|a| if lo[a] < 0 { Anchor::Max } else { Anchor::Min });
+            self.resize_canvas(f.object, grown.as_uvec3(), anchor)?;
+        }
+        self.floating = Some(Floating { at: f.at - lo, ..f });
+        let outcome = self.commit_floating()?;
+        let n = self.history.undo_len() - steps;
+        self.history.join_top(n, "Paste (canvas grown)".into());
+        Ok(outcome)
+    }
+
     /// Drops the floating paste.
     pub fn cancel_floating(&mut self) {
         self.floating = None;

@@ -91,6 +91,10 @@ pub const TOOL_SHORTCUTS: &[(&str, &str)] = &[
         "Place the floating paste / cancel it (Esc also cancels a box)",
     ),
     (
+        "Shift+Enter",
+        "Place the floating paste, growing the canvas to keep what reaches outside it",
+    ),
+    (
         "Delete (with a voxel selection)",
         "Delete the selected voxels",
     ),
@@ -386,6 +390,14 @@ impl EditorApp {
         }
         ui.checkbox(&mut self.palette.open, "Palette panel")
             .on_hover_text("The model's palette and colours: pick, edit, replace, load, save");
+        ui.checkbox(
+            &mut self.sculpt.voxel.grow_canvas_on_paste,
+            "Grow the canvas for pastes",
+        )
+        .on_hover_text(
+            "Enter grows the volume to hold a paste that reaches outside it (off: Enter drops \
+             what is outside, Shift+Enter grows)",
+        );
         ui.separator();
         if self.voxelize_mesh_ui(ui) {
             return;
@@ -556,7 +568,12 @@ impl EditorApp {
                     self.editor.move_floating(by);
                 }
             }
-            if consume(Modifiers::NONE, Key::Enter) {
+            let grow = consume(Modifiers::SHIFT, Key::Enter)
+                || (self.sculpt.voxel.grow_canvas_on_paste && consume(Modifiers::NONE, Key::Enter));
+            if grow {
+                let r = self.editor.commit_floating_growing();
+                self.report_voxels(ctx, "Paste", r);
+            } else if consume(Modifiers::NONE, Key::Enter) {
                 let r = self.editor.commit_floating();
                 self.report_voxels(ctx, "Paste", r);
             }

@@ -291,6 +291,9 @@ enum Gesture {
     Marquee { start: egui::Pos2, now: egui::Pos2 },
 }
 
+/// Paste cells that fall outside the model's volume.
+const CLIPPED_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 70, 70);
+
 /// The voxel tools' settings and the gesture in progress.
 #[derive(Debug, Clone)]
 pub struct VoxelTools {
@@ -302,6 +305,9 @@ pub struct VoxelTools {
     pub select_through: bool,
     /// What a click of the select tool selects.
     pub click_select: ClickSelect,
+    /// Enter grows the canvas to hold a paste that reaches outside it (else it clips, and
+    /// Shift+Enter grows).
+    pub grow_canvas_on_paste: bool,
     gesture: Option<Gesture>,
 }
 
@@ -312,6 +318,7 @@ impl Default for VoxelTools {
             fill_plane_only: false,
             select_through: false,
             click_select: ClickSelect::Color,
+            grow_canvas_on_paste: false,
             gesture: None,
         }
     }
@@ -777,9 +784,47 @@ impl VoxelTools {
         if let Some(f) = editor.floating()
             && let Some(frame) = ModelFrame::of(editor, f.object)
         {
-            let cells = thicket_core::sculpt::select::paste_cells(&f.clip, f.at);
-            let color = egui::Color32::from_rgb(80, 200, 255);
-            paint_cells(painter, proj, &frame, &cells, color);
+            // Cells outside the volume in red: a plain commit would drop them.
+            let size = frame.size.as_ivec3();
+            let (inside, outside): (Vec<IVec3>, Vec<IVec3>) =
+                thicket_core::sculpt::select::paste_cells(&f.clip, f.at)
+                    .into_iter()
+                    .partition(|c| c.min_element() >= 0 && c.cmplt(size).all());
+            paint_cells(
+                painter,
+                proj,
+                &frame,
+                &inside,
+                egui::Color32::from_rgb(80, 200, 255),
+            );
+            if !outside.is_empty() {
+                paint_any_cells(painter, proj, &frame, &outside, CLIPPED_COLOR);
+                let text = if self.grow_canvas_on_paste {
+                    format!(
+                        "{} voxel(s) outside the volume (red): Enter grows the canvas",
+                        outside.len()
+                    )
+                } else {
+                    format!(
+                        "{} voxel(s) outside the volume (red): Enter drops them, \
+                         Shift+Enter grows the canvas",
+                        outside.len()
+                    )
+                };
+                let galley = painter.layout(
+                    text,
+                    egui::FontId::proportional(14.0),
+                    CLIPPED_COLOR,
+                    proj.rect.width() - 24.0,
+                );
+                let at = proj.rect.left_bottom() + egui::vec2(8.0, -12.0 - galley.size().y);
+                painter.rect_filled(
+                    egui::Rect::from_min_size(at, galley.size()).expand(4.0),
+                    3.0,
+                    egui::Color32::from_black_alpha(200),
+                );
+                painter.galley(at, galley, CLIPPED_COLOR);
+            }
         }
         if !active {
             return;
@@ -936,6 +981,17 @@ fn paint_cells(
         .copied()
         .filter(|c| c.min_element() >= 0 && c.cmplt(size).all())
         .collect();
+    paint_any_cells(painter, proj, frame, &inside, color);
+}
+
+/// [`paint_cells`] without the volume's clip: cells outside it too (a paste's clipped part).
+fn paint_any_cells(
+    painter: &egui::Painter,
+    proj: &Projector,
+    frame: &ModelFrame,
+    inside: &[IVec3],
+    color: egui::Color32,
+) {
     if inside.len() > MAX_PREVIEW_CELLS {
         let lo = inside.iter().fold(IVec3::MAX, |a, c| a.min(*c));
         let hi = inside.iter().fold(IVec3::MIN, |a, c| a.max(*c));
@@ -950,7 +1006,7 @@ fn paint_cells(
         );
         return;
     }
-    for c in inside {
+    for &c in inside {
         cuboid(
             painter,
             proj,
