@@ -69,6 +69,9 @@ pub struct TradeoffPanel {
     transform: Option<PlotTransform>,
     /// Index of the point last applied.
     applied: Option<usize>,
+    /// UI time and fraction when the running sweep's progress was first seen (for the
+    /// remaining-time estimate).
+    started: Option<(f64, f32)>,
 }
 
 impl Default for TradeoffPanel {
@@ -83,6 +86,7 @@ impl Default for TradeoffPanel {
             report: None,
             transform: None,
             applied: None,
+            started: None,
         }
     }
 }
@@ -249,21 +253,34 @@ impl TradeoffPanel {
         ui.horizontal_wrapped(|ui| {
             ui.label("Knobs");
             for (k, on) in &mut self.knobs {
-                ui.checkbox(on, k.name.as_str())
-                    .on_hover_text(format!("Values: {}", k.values.join(", ")));
+                let spec = thicket_core::quality::KnobSpec::named(&k.name);
+                ui.checkbox(on, knob_label(&k.name)).on_hover_text(format!(
+                    "{}{}Values: {} ({})",
+                    spec.map_or("", |s| s.doc),
+                    if spec.is_some() { "\n" } else { "" },
+                    k.values.join(", "),
+                    k.name
+                ));
             }
         });
         ui.horizontal(|ui| {
             match running {
                 Some(fraction) => {
                     match fraction {
-                        Some(f) => ui.add(
-                            egui::ProgressBar::new(f)
-                                .desired_width(160.0)
-                                .show_percentage(),
-                        ),
-                        None => ui.spinner(),
-                    };
+                        Some(f) => {
+                            let now = ui.input(|i| i.time);
+                            let (t0, f0) = *self.started.get_or_insert((now, f));
+                            ui.add(
+                                egui::ProgressBar::new(f)
+                                    .desired_width(160.0)
+                                    .show_percentage(),
+                            );
+                            ui.weak(remaining_text(now - t0, f - f0, 1.0 - f));
+                        }
+                        None => {
+                            ui.spinner();
+                        }
+                    }
                     if ui
                         .button("Cancel")
                         .on_hover_text("Stop the sweep; the last report stays")
@@ -273,6 +290,7 @@ impl TradeoffPanel {
                     }
                 }
                 None => {
+                    self.started = None;
                     let any_knob = self.knobs.iter().any(|(_, on)| *on) || self.presets;
                     if ui
                         .add_enabled(!busy && any_knob, egui::Button::new("Run sweep"))
@@ -318,7 +336,11 @@ impl TradeoffPanel {
         if !dropped.is_empty() {
             ui.label(format!(
                 "No effect at this size, left out: {}",
-                dropped.join(", ")
+                dropped
+                    .iter()
+                    .map(|d| knob_label(d))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ))
             .on_hover_text(
                 report
@@ -368,7 +390,7 @@ impl TradeoffPanel {
         };
         let (front, front_labels) = series(true);
         let (others, other_labels) = series(false);
-        let presets: Vec<(PlotPoint, &'static str)> = report
+        let mut presets: Vec<(PlotPoint, &'static str)> = report
             .points
             .iter()
             .zip(&xy)
@@ -379,6 +401,9 @@ impl TradeoffPanel {
                 ))
             })
             .collect();
+        // By cost: neighbours' names go on opposite sides of their rings (above, below,
+        // above), so presets close in cost (draft and balanced) never write over each other.
+        presets.sort_by(|a, b| a.0.x.total_cmp(&b.0.x));
         let applied = self.applied.and_then(|i| xy.get(i).copied().flatten());
         // The time's spread over the renders, on the log axis the points use.
         let spreads: Vec<[[f64; 2]; 2]> = match axis {
@@ -476,7 +501,7 @@ impl TradeoffPanel {
                         .radius(5.0)
                         .color(egui::Color32::from_rgb(230, 80, 70)),
                 );
-                for (pos, name) in presets {
+                for (k, (pos, name)) in presets.into_iter().enumerate() {
                     plot.points(
                         Points::new("presets", vec![[pos.x, pos.y]])
                             .shape(MarkerShape::Circle)
@@ -484,10 +509,15 @@ impl TradeoffPanel {
                             .radius(9.0)
                             .color(egui::Color32::from_gray(230)),
                     );
-                    let at = PlotPoint::new(pos.x + label_offset.0, pos.y + label_offset.1);
+                    let (dy, anchor) = if k % 2 == 0 {
+                        (label_offset.1, egui::Align2::LEFT_BOTTOM)
+                    } else {
+                        (-label_offset.1, egui::Align2::LEFT_TOP)
+                    };
+                    let at = PlotPoint::new(pos.x + label_offset.0, pos.y + dy);
                     plot.text(
                         Text::new("presets", at, name)
-                            .anchor(egui::Align2::LEFT_BOTTOM)
+                            .anchor(anchor)
                             .color(egui::Color32::from_gray(230)),
                     );
                 }
@@ -579,10 +609,44 @@ fn plot_point(p: &SweepPoint, axis: CostAxis) -> Option<PlotPoint> {
         .then(|| PlotPoint::new(cost.log10(), p.error.rmse))
 }
 
+/// A knob's readable name (the inspector's label), or its identifier when it has none.
+fn knob_label(name: &str) -> &str {
+    thicket_core::quality::KnobSpec::named(name).map_or(name, |s| s.label)
+}
+
+/// "about 1 min 10 s left" from the time `elapsed` since progress was first seen, the
+/// fraction `done` since then and the fraction `left`; "estimating…" until there is some.
+#[must_use]
+pub fn remaining_text(elapsed: f64, done: f32, left: f32) -> String {
+    if done <= 0.0 || elapsed <= 0.5 {
+        return "estimating the time left…".to_owned();
+    }
+    let secs = (elapsed * f64::from(left) / f64::from(done)).round() as u64;
+    match secs {
+        0..=59 => format!("about {secs} s left"),
+        _ => format!("about {} min {} s left", secs / 60, secs % 60),
+    }
+}
+
 fn preset_name(p: &SweepPoint) -> Option<&'static str> {
     p.setting.preset.map(|p| match p {
         QualityPreset::Draft => "draft",
         QualityPreset::Balanced => "balanced",
         QualityPreset::Final => "final",
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::remaining_text;
+
+    #[test]
+    fn the_time_left_follows_the_rate_so_far() {
+        // A quarter done in 30 s: three quarters left take 90 s.
+        assert_eq!(remaining_text(30.0, 0.25, 0.75), "about 1 min 30 s left");
+        assert_eq!(remaining_text(10.0, 0.5, 0.5), "about 10 s left");
+        // No progress yet, or too early to tell.
+        assert_eq!(remaining_text(10.0, 0.0, 1.0), "estimating the time left…");
+        assert_eq!(remaining_text(0.2, 0.1, 0.9), "estimating the time left…");
+    }
 }
