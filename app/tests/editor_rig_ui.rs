@@ -379,7 +379,7 @@ fn the_dope_sheet_selects_drags_deletes_copies_and_pastes_keys() {
     );
     assert!(!times.iter().any(|&x| (x - t).abs() < 1e-4), "{times:?}");
     assert_eq!(h.state().editor.history().undo_len(), steps + 1);
-    h.try_snapshot_options("dope_sheet", &SnapshotOptions::default())
+    h.try_snapshot_options("dope_sheet", &SnapshotOptions::new().max_failed_pixels(200))
         .unwrap();
     assert!(h.state_mut().editor.undo());
     h.run_steps(1);
@@ -506,7 +506,7 @@ fn ik_drags_a_foot_and_the_leg_follows() {
     assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
     assert_eq!(h.state().pose.ik_reached, Some(true));
     common::settle_preview(&mut h);
-    h.try_snapshot_options("pose_ik", &SnapshotOptions::default())
+    h.try_snapshot_options("pose_ik", &SnapshotOptions::new().max_failed_pixels(200))
         .unwrap();
 }
 
@@ -546,6 +546,9 @@ fn an_object_keyed_in_the_inspector_moves_on_its_timeline() {
         [0.0, 1.0],
         "no key at 0.5 s: nothing deleted"
     );
-    h.try_snapshot_options("object_motion", &SnapshotOptions::default())
-        .unwrap();
+    h.try_snapshot_options(
+        "object_motion",
+        &SnapshotOptions::new().max_failed_pixels(200),
+    )
+    .unwrap();
 }
