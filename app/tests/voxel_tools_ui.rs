@@ -807,3 +807,100 @@ fn leaves_of(ed: &Editor) -> Vec<(UVec3, thicket_core::svo::Voxel)> {
         ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!(),
     }
 }
+
+/// Ctrl+V with the pointer over the model starts the paste on the face there; a drag that
+/// grabs the floating paste slides it by whole voxels (the view does not orbit), then Enter
+/// places it.
+#[test]
+fn a_paste_lands_at_the_pointer_and_drags_by_whole_voxels() {
+    use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
+    let mut ed = Editor::default();
+    let id = ed
+        .add_voxel_model(&thicket::editor::NewModelSpec {
+            name: "Slab".into(),
+            size: UVec3::splat(16),
+            voxel_size: 0.25,
+            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
+            ..thicket::editor::NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = Ink {
+        color: [60, 160, 60, 255],
+        material: 0,
+    };
+    // A 16×1×16 floor and a 2×2×2 block on it, selected and copied.
+    ed.shape_box(
+        id,
+        glam::IVec3::ZERO,
+        glam::IVec3::new(15, 0, 15),
+        ShapeOp::Add,
+        ink,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.shape_box(
+        id,
+        glam::IVec3::new(1, 1, 1),
+        glam::IVec3::new(2, 2, 2),
+        ShapeOp::Add,
+        ink,
+        Mirror::default(),
+    )
+    .unwrap();
+    let block: Vec<UVec3> = leaves_of(&ed)
+        .iter()
+        .map(|l| l.0)
+        .filter(|c| c.y >= 1)
+        .collect();
+    assert_eq!(block.len(), 8);
+    ed.select_voxels(
+        id,
+        thicket_core::sculpt::select::VoxelSelection::from_cells(block.iter().copied()),
+        thicket::editor::SelectMode::Replace,
+    )
+    .unwrap();
+    ed.copy_voxels().unwrap();
+    // Look straight down (top view, orthographic): voxel x goes right, z goes down the screen.
+    ed.selection = Some(thicket::editor::Selection::Object(id));
+    let mut camera = ed.doc().camera;
+    camera.orthographic = true;
+    camera.yaw_deg = 0.0;
+    camera.pitch_deg = 89.0;
+    ed.set_camera(camera);
+    ed.frame_selection();
+    ed.clear_voxel_selection();
+    let mut h = harness_with(ed);
+    h.run_steps(2);
+    // Over the floor cell (10, 0, 10): the paste's bottom lands on (10, 1, 10), centred across.
+    let over = screen(&h, Vec3::new(10.5, 1.0, 10.5));
+    h.hover_at(over);
+    h.run_steps(2);
+    assert_eq!(
+        h.state().view.paste_target,
+        Some((id, glam::IVec3::new(10, 1, 10)))
+    );
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::V);
+    h.run_steps(1);
+    let at = h.state().editor.floating().expect("floating").at;
+    assert_eq!(at, glam::IVec3::new(9, 1, 9));
+    // Grab it at its top and drag three voxels along +x (to the right).
+    let camera_before = h.state().editor.doc().camera;
+    let grab = screen(&h, Vec3::new(10.0, 3.0, 10.0));
+    let to = screen(&h, Vec3::new(13.0, 3.0, 10.0));
+    drag(&mut h, grab, to);
+    assert_eq!(
+        h.state().editor.floating().expect("still floating").at,
+        glam::IVec3::new(12, 1, 9)
+    );
+    assert_eq!(h.state().editor.doc().camera, camera_before, "the view did not orbit");
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert!(h.state().editor.floating().is_none());
+    assert_eq!(leaves(&h).len(), 256 + 8 + 8);
+    let placed: Vec<UVec3> = leaves(&h)
+        .iter()
+        .map(|l| l.0)
+        .filter(|c| c.y >= 1 && c.x >= 12)
+        .collect();
+    assert_eq!(placed.len(), 8, "{placed:?}");
+}

@@ -758,6 +758,28 @@ impl Editor {
         self.floating.as_ref()
     }
 
+    /// Starts a paste ([`Editor::start_paste`]) whose bottom sits on cell `at` (voxel
+    /// coordinates of model `id`): the paste centred on it across, its lowest layer in it (a
+    /// paste at the pointer: `at` is the empty cell in front of the face under it).
+    ///
+    /// # Errors
+    /// As [`Editor::start_paste`].
+    pub fn start_paste_at(&mut self, id: u64, at: IVec3) -> Result<(), CommandError> {
+        self.start_paste(id)?;
+        if let Some(f) = &mut self.floating {
+            let size = f.clip.size.as_ivec3();
+            f.at = at - IVec3::new(size.x / 2, 0, size.z / 2);
+        }
+        Ok(())
+    }
+
+    /// Puts the floating paste's minimum corner at `at` (a drag).
+    pub fn place_floating(&mut self, at: IVec3) {
+        if let Some(f) = &mut self.floating {
+            f.at = at;
+        }
+    }
+
     /// Moves the floating paste.
     pub fn move_floating(&mut self, by: IVec3) {
         if let Some(f) = &mut self.floating {

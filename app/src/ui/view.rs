@@ -521,6 +521,9 @@ pub struct View {
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The last view rectangle (for tests that aim at it).
+    /// The empty cell in front of the voxel face under the pointer (model, voxel
+    /// coordinates): where Ctrl+V starts a paste.
+    pub paste_target: Option<(u64, glam::IVec3)>,
     pub last_rect: egui::Rect,
     /// Physical pixels per point when the view was last drawn.
     last_pixels_per_point: f32,
@@ -583,6 +586,7 @@ impl Default for View {
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
+            paste_target: None,
             last_pixels_per_point: 1.0,
             last_click: None,
             overlay_depth: OverlayDepth::default(),
@@ -817,9 +821,15 @@ impl View {
         });
 
         let proj = Projector::new(editor.doc().camera, rect);
-        let gizmo = !sculpt.active
-            && (pose.interact(ui, &response, editor, &proj)
-                || krs.interact(ui, &response, editor, &proj));
+        // The cell a paste lands on when it starts at the pointer (Ctrl+V).
+        self.paste_target = hover_pick
+            .as_ref()
+            .map(|p| (p.object, p.voxel.as_ivec3() + p.normal));
+        let paste_drag = sculpt.voxel.drag_paste(&response, editor, pointer_ray);
+        let gizmo = paste_drag
+            || (!sculpt.active
+                && (pose.interact(ui, &response, editor, &proj)
+                    || krs.interact(ui, &response, editor, &proj)));
         let navigating = self.navigate(
             ui,
             &response,
@@ -846,7 +856,7 @@ impl View {
                 .hover_pos()
                 .and_then(|p| self.preview_hit(editor, rect, p));
             sculpt.handle_stretch(&response, editor, hit);
-        } else if sculpt.active && !navigating {
+        } else if sculpt.active && !navigating && !paste_drag {
             sculpt.handle_tools(&response, editor, pointer_ray, hover_pick, &proj);
         } else if response.clicked() && !gizmo {
             // Click to select a joint (its dot) or what is under the pointer (or nothing).

@@ -80,11 +80,15 @@ pub const TOOL_SHORTCUTS: &[(&str, &str)] = &[
     ("Ctrl+Shift+I", "Invert the voxel selection"),
     (
         "Ctrl+C / Ctrl+X / Ctrl+V",
-        "Copy / cut / paste voxels (the paste floats)",
+        "Copy / cut / paste voxels (the paste floats; with the pointer over the model it lands there)",
     ),
     (
         "Arrows, PageUp / PageDown",
         "Move the floating paste or the selection (X, Z / Y)",
+    ),
+    (
+        "Drag the floating paste",
+        "Slide it by whole voxels in the model plane facing you",
     ),
     (
         "Enter / Esc",
@@ -136,11 +140,17 @@ impl EditorApp {
             self.toast(ctx, "select a voxel model to paste into", true);
             return;
         };
-        match self.editor.start_paste(id) {
+        // At the pointer when it is over the model (the paste sits on the face there), else
+        // where the voxels were copied from.
+        let started = match self.view.paste_target {
+            Some((object, cell)) if object == id => self.editor.start_paste_at(id, cell),
+            _ => self.editor.start_paste(id),
+        };
+        match started {
             Ok(()) => {
-                self.status =
-                    "Pasting: arrow keys and PageUp / PageDown move it, Enter places it, Esc cancels"
-                        .into();
+                self.status = "Pasting: drag it or use the arrow keys and PageUp / PageDown, \
+                               Enter places it, Esc cancels"
+                    .into();
             }
             Err(e) => self.toast(ctx, e.to_string(), true),
         }
@@ -237,7 +247,7 @@ impl EditorApp {
             has_clip && model.is_some(),
             "Paste",
             "Ctrl+V",
-            "Paste the copied voxels as a floating selection: arrow keys move it, Enter places it",
+            "Paste the copied voxels as a floating selection (Ctrl+V: at the pointer when it is over the model): drag it or use the arrow keys, Enter places it",
         ) {
             self.paste_voxels(&ctx);
         }

@@ -309,6 +309,20 @@ pub struct VoxelTools {
     /// Shift+Enter grows).
     pub grow_canvas_on_paste: bool,
     gesture: Option<Gesture>,
+    /// A drag of the floating paste in progress.
+    paste_drag: Option<PasteDrag>,
+}
+
+/// A drag of the floating paste: it slides in the model plane that faces the camera most,
+/// through the point where the drag grabbed it, by whole voxels.
+#[derive(Debug, Clone, Copy)]
+struct PasteDrag {
+    /// The paste's corner when the drag started.
+    at: IVec3,
+    /// The axis the plane is normal to.
+    axis: usize,
+    /// The grabbed point (voxel space).
+    grab: Vec3,
 }
 
 impl Default for VoxelTools {
@@ -320,6 +334,7 @@ impl Default for VoxelTools {
             click_select: ClickSelect::Color,
             grow_canvas_on_paste: false,
             gesture: None,
+            paste_drag: None,
         }
     }
 }
@@ -382,6 +397,59 @@ impl VoxelTools {
             normal,
             front: cell,
         })
+    }
+
+    /// Drags the floating paste with the primary button (any tool, Navigate too): a drag
+    /// that starts on the paste slides it by whole voxels in the model plane facing the
+    /// camera. Returns whether the drag is the paste's (the view then does not orbit).
+    pub fn drag_paste(
+        &mut self,
+        response: &egui::Response,
+        editor: &mut Editor,
+        ray: Option<(Vec3, Vec3)>,
+    ) -> bool {
+        let Some(f) = editor.floating().cloned() else {
+            self.paste_drag = None;
+            return false;
+        };
+        let Some(frame) = ModelFrame::of(editor, f.object) else {
+            return false;
+        };
+        let plain = response.ctx.input(|i| i.modifiers.is_none());
+        if response.drag_started_by(egui::PointerButton::Primary)
+            && plain
+            && let Some((o, d)) = ray.map(|(o, d)| frame.ray(o, d))
+        {
+            let lo = f.at.as_vec3();
+            let hi = lo + f.clip.size.as_vec3();
+            if let Some(t) = ray_box(o, d, lo, hi) {
+                let grab = o + d * t;
+                let axis = (0..3)
+                    .max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs()))
+                    .unwrap_or(1);
+                self.paste_drag = Some(PasteDrag {
+                    at: f.at,
+                    axis,
+                    grab,
+                });
+            }
+        }
+        let Some(drag) = self.paste_drag else {
+            return false;
+        };
+        if !response.ctx.input(|i| i.pointer.primary_down()) {
+            self.paste_drag = None;
+            return true;
+        }
+        if let Some((o, d)) = ray.map(|(o, d)| frame.ray(o, d))
+            && d[drag.axis].abs() > 1e-6
+        {
+            let t = (drag.grab[drag.axis] - o[drag.axis]) / d[drag.axis];
+            let mut delta = (o + d * t - drag.grab).round().as_ivec3();
+            delta[drag.axis] = 0;
+            editor.place_floating(drag.at + delta);
+        }
+        true
     }
 
     /// Runs the tool for this frame: starts, continues, commits or cancels its gesture. Returns
@@ -1206,4 +1274,22 @@ mod tests {
         let (lo, hi) = box_corners(IVec3::ZERO, IVec3::ZERO, IVec3::NEG_X, 1);
         assert_eq!((lo, hi), (IVec3::ZERO, IVec3::ZERO));
     }
+}
+
+/// Where a ray (voxel space) enters the box `lo..hi`, as its parameter (0 when it starts
+/// inside); `None` when it misses.
+fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<f32> {
+    let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    (t0 <= t1).then_some(t0)
 }
