@@ -868,7 +868,6 @@ fn a_paste_lands_at_the_pointer_and_drags_by_whole_voxels() {
     camera.pitch_deg = 89.0;
     ed.set_camera(camera);
     ed.frame_selection();
-    ed.clear_voxel_selection();
     let mut h = harness_with(ed);
     h.run_steps(2);
     // Over the floor cell (10, 0, 10): the paste's bottom lands on (10, 1, 10), centred across.
@@ -892,7 +891,11 @@ fn a_paste_lands_at_the_pointer_and_drags_by_whole_voxels() {
         h.state().editor.floating().expect("still floating").at,
         glam::IVec3::new(12, 1, 9)
     );
-    assert_eq!(h.state().editor.doc().camera, camera_before, "the view did not orbit");
+    assert_eq!(
+        h.state().editor.doc().camera,
+        camera_before,
+        "the view did not orbit"
+    );
     h.key_press(egui::Key::Enter);
     h.run_steps(2);
     assert!(h.state().editor.floating().is_none());

@@ -520,10 +520,10 @@ pub struct View {
     regions: Vec<RegionHint>,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
-    /// The last view rectangle (for tests that aim at it).
     /// The empty cell in front of the voxel face under the pointer (model, voxel
     /// coordinates): where Ctrl+V starts a paste.
     pub paste_target: Option<(u64, glam::IVec3)>,
+    /// The last view rectangle (for tests that aim at it).
     pub last_rect: egui::Rect,
     /// Physical pixels per point when the view was last drawn.
     last_pixels_per_point: f32,

@@ -415,8 +415,13 @@ impl VoxelTools {
         let Some(frame) = ModelFrame::of(editor, f.object) else {
             return false;
         };
-        let plain = response.ctx.input(|i| i.modifiers.is_none());
-        if response.drag_started_by(egui::PointerButton::Primary)
+        // Grabbed where the button goes down (a drag is recognised only after the pointer
+        // has moved, which would shift the grab).
+        let (plain, pressed) = response
+            .ctx
+            .input(|i| (i.modifiers.is_none(), i.pointer.primary_pressed()));
+        if pressed
+            && response.hovered()
             && plain
             && let Some((o, d)) = ray.map(|(o, d)| frame.ray(o, d))
         {
@@ -1221,6 +1226,24 @@ pub fn paint_volume(editor: &Editor, line: &impl Fn(Vec3, Vec3, egui::Stroke)) {
     }
 }
 
+/// Where a ray (voxel space) enters the box `lo..hi`, as its parameter (0 when it starts
+/// inside); `None` when it misses.
+fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<f32> {
+    let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
+    for a in 0..3 {
+        if d[a].abs() < 1e-12 {
+            if o[a] < lo[a] || o[a] > hi[a] {
+                return None;
+            }
+            continue;
+        }
+        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
+        t0 = t0.max(ta.min(tb));
+        t1 = t1.min(ta.max(tb));
+    }
+    (t0 <= t1).then_some(t0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1274,22 +1297,4 @@ mod tests {
         let (lo, hi) = box_corners(IVec3::ZERO, IVec3::ZERO, IVec3::NEG_X, 1);
         assert_eq!((lo, hi), (IVec3::ZERO, IVec3::ZERO));
     }
-}
-
-/// Where a ray (voxel space) enters the box `lo..hi`, as its parameter (0 when it starts
-/// inside); `None` when it misses.
-fn ray_box(o: Vec3, d: Vec3, lo: Vec3, hi: Vec3) -> Option<f32> {
-    let (mut t0, mut t1) = (0.0f32, f32::INFINITY);
-    for a in 0..3 {
-        if d[a].abs() < 1e-12 {
-            if o[a] < lo[a] || o[a] > hi[a] {
-                return None;
-            }
-            continue;
-        }
-        let (ta, tb) = ((lo[a] - o[a]) / d[a], (hi[a] - o[a]) / d[a]);
-        t0 = t0.max(ta.min(tb));
-        t1 = t1.min(ta.max(tb));
-    }
-    (t0 <= t1).then_some(t0)
 }
