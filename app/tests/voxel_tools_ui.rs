@@ -702,30 +702,7 @@ fn voxelize_mesh_in_the_editor_gives_the_voxels_thicket_import_gives() {
 /// the world), one undo step; past the low edge too. Snapshot looked at.
 #[test]
 fn a_paste_past_the_edge_marks_its_clipped_voxels_and_grow_keeps_them() {
-    use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
-    let mut ed = Editor::default();
-    let id = ed
-        .add_voxel_model(&thicket::editor::NewModelSpec {
-            name: "Crate".into(),
-            size: UVec3::splat(8),
-            voxel_size: 0.25,
-            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
-            ..thicket::editor::NewModelSpec::default()
-        })
-        .unwrap();
-    let ink = Ink {
-        color: [200, 40, 40, 255],
-        material: 0,
-    };
-    ed.shape_box(
-        id,
-        glam::IVec3::ZERO,
-        glam::IVec3::splat(3),
-        ShapeOp::Add,
-        ink,
-        Mirror::default(),
-    )
-    .unwrap();
+    let (mut ed, id) = boxes_model("Crate", 8, &[(glam::IVec3::ZERO, glam::IVec3::splat(3))]);
     ed.selection = Some(thicket::editor::Selection::Object(id));
     ed.frame_selection();
     // Back off so the paste beside the block shows too.
@@ -801,6 +778,30 @@ fn a_paste_past_the_edge_marks_its_clipped_voxels_and_grow_keeps_them() {
     assert_eq!(h.state().editor.volume_of(id), Some(UVec3::splat(8)));
 }
 
+/// A new empty `size`³ model of 0.25 m voxels named `name`, with the inclusive boxes added.
+fn boxes_model(name: &str, size: u32, boxes: &[(glam::IVec3, glam::IVec3)]) -> (Editor, u64) {
+    use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
+    let mut ed = Editor::default();
+    let id = ed
+        .add_voxel_model(&thicket::editor::NewModelSpec {
+            name: name.into(),
+            size: UVec3::splat(size),
+            voxel_size: 0.25,
+            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
+            ..thicket::editor::NewModelSpec::default()
+        })
+        .unwrap();
+    let ink = Ink {
+        color: [200, 40, 40, 255],
+        material: 0,
+    };
+    for &(a, b) in boxes {
+        ed.shape_box(id, a, b, ShapeOp::Add, ink, Mirror::default())
+            .unwrap();
+    }
+    (ed, id)
+}
+
 fn leaves_of(ed: &Editor) -> Vec<(UVec3, thicket_core::svo::Voxel)> {
     match &ed.doc().objects[0].kind {
         ObjectKind::Voxels(v) => v.svo.leaves(),
@@ -813,40 +814,15 @@ fn leaves_of(ed: &Editor) -> Vec<(UVec3, thicket_core::svo::Voxel)> {
 /// places it.
 #[test]
 fn a_paste_lands_at_the_pointer_and_drags_by_whole_voxels() {
-    use thicket_core::sculpt::{Ink, Mirror, ShapeOp};
-    let mut ed = Editor::default();
-    let id = ed
-        .add_voxel_model(&thicket::editor::NewModelSpec {
-            name: "Slab".into(),
-            size: UVec3::splat(16),
-            voxel_size: 0.25,
-            fill: thicket_core::sculpt::model_ops::InitialFill::Empty,
-            ..thicket::editor::NewModelSpec::default()
-        })
-        .unwrap();
-    let ink = Ink {
-        color: [60, 160, 60, 255],
-        material: 0,
-    };
     // A 16×1×16 floor and a 2×2×2 block on it, selected and copied.
-    ed.shape_box(
-        id,
-        glam::IVec3::ZERO,
-        glam::IVec3::new(15, 0, 15),
-        ShapeOp::Add,
-        ink,
-        Mirror::default(),
-    )
-    .unwrap();
-    ed.shape_box(
-        id,
-        glam::IVec3::new(1, 1, 1),
-        glam::IVec3::new(2, 2, 2),
-        ShapeOp::Add,
-        ink,
-        Mirror::default(),
-    )
-    .unwrap();
+    let (mut ed, id) = boxes_model(
+        "Slab",
+        16,
+        &[
+            (glam::IVec3::ZERO, glam::IVec3::new(15, 0, 15)),
+            (glam::IVec3::new(1, 1, 1), glam::IVec3::new(2, 2, 2)),
+        ],
+    );
     let block: Vec<UVec3> = leaves_of(&ed)
         .iter()
         .map(|l| l.0)
