@@ -400,6 +400,23 @@ pub struct ExportArgs {
     /// "Selected objects" and the editor's Export dialog); `on` / `off` decide either way.
     #[arg(long, value_enum, default_value = "auto")]
     pub lights_camera: LightsCameraArg,
+    /// How an instanced KRS object's placements are written: `gpu`, EXT_mesh_gpu_instancing
+    /// (compact; readers without the extension refuse the file, Blender 3.4 among them);
+    /// `nodes`, a node per placement sharing the mesh (every reader; no levels of detail for
+    /// them); `auto`, nodes up to 4,096 placements, else gpu.
+    #[arg(long, value_enum, default_value = "gpu")]
+    pub instancing: InstancingArg,
+}
+
+/// `thicket export --instancing`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum InstancingArg {
+    /// EXT_mesh_gpu_instancing.
+    Gpu,
+    /// A node per placement.
+    Nodes,
+    /// Nodes for a few placements, else gpu.
+    Auto,
 }
 
 /// `thicket export --lights-camera`.
@@ -838,6 +855,11 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             LightsCameraArg::On => true,
             LightsCameraArg::Off => false,
         },
+        instancing: match args.instancing {
+            InstancingArg::Gpu => thicket_core::io::gltf_export::Instancing::Gpu,
+            InstancingArg::Nodes => thicket_core::io::gltf_export::Instancing::Nodes,
+            InstancingArg::Auto => thicket_core::io::gltf_export::Instancing::Auto,
+        },
         ..GltfExportOptions::default()
     };
     let bar = progress_bar(1000, "exporting");
@@ -895,26 +917,48 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         }
         text.push('\n');
     }
+    let as_nodes = matches!(
+        report.placements,
+        Some((thicket_core::io::gltf_export::Instancing::Nodes, _))
+    );
     for k in &report.instanced {
         text.push_str(&format!(
             "  {:?}: prototype (reflection levels 0..={}) of {} triangles drawn {} times \
-             ({} mirrored, from a mirrored copy of the mesh), EXT_mesh_gpu_instancing in {} \
+             ({} mirrored, from a mirrored copy of the mesh), {} in {} \
              cells ({}×{} grid, {} nodes){}\n",
             k.object,
             k.level,
             thousands(k.prototype_triangles),
             thousands(k.instances),
             thousands(k.mirrored),
+            if as_nodes {
+                "a node per placement"
+            } else {
+                "EXT_mesh_gpu_instancing"
+            },
             k.cells[0] * k.cells[1],
             k.cells[0],
             k.cells[1],
             k.cell_nodes,
-            if k.impostor {
+            if k.impostor && !as_nodes {
                 "; coarsest level: an impostor"
             } else {
                 ""
             }
         ));
+    }
+    match report.placements {
+        Some((thicket_core::io::gltf_export::Instancing::Nodes, n)) => text.push_str(&format!(
+            "  {} placements written as a node each (every glTF reader; no levels of detail \
+             for them)\n",
+            thousands(n as u64)
+        )),
+        Some((_, n)) => text.push_str(&format!(
+            "  {} placements written with EXT_mesh_gpu_instancing (a reader without it refuses \
+             the file, Blender 3.4 among them: --instancing nodes writes a node each)\n",
+            thousands(n as u64)
+        )),
+        None => {}
     }
     for l in &report.levels_of_detail {
         text.push_str(&format!(

@@ -1644,3 +1644,55 @@ fn a_bad_option_value_is_reported_once_with_status_1() {
     let o = thicket(&["render", p, "-o", o_path, "--no-such-flag"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
 }
+
+/// `--instancing nodes` writes the forest's placements as plain nodes and says so; the
+/// default says which readers refuse the extension.
+#[test]
+fn export_instancing_nodes_writes_a_node_per_placement_and_says_which_readers_need_what() {
+    let dir = tempfile::tempdir().unwrap();
+    let forest = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/forest.thicket.json"
+    );
+    let glb = dir.path().join("forest.glb");
+    let run = |instancing: &str| {
+        thicket(&[
+            "export",
+            forest,
+            "-o",
+            glb.to_str().unwrap(),
+            "--resolution",
+            "64",
+            "--instance-level",
+            "14",
+            "--instancing",
+            instancing,
+        ])
+    };
+    let o = run("nodes");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("1,024 placements written as a node each"),
+        "{}",
+        stdout(&o)
+    );
+    let (gltf, _, _) = gltf::import(&glb).unwrap();
+    assert!(
+        gltf.extensions_used()
+            .all(|e| e != "EXT_mesh_gpu_instancing")
+    );
+    let o = run("gpu");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("1,024 placements written with EXT_mesh_gpu_instancing"),
+        "{}",
+        stdout(&o)
+    );
+    // auto: 1,024 is few enough for nodes.
+    let o = run("auto");
+    assert!(
+        stdout(&o).contains("written as a node each"),
+        "{}",
+        stdout(&o)
+    );
+}

@@ -467,5 +467,16 @@ fn forest_export_window_offers_the_krs_instancing_options() {
     h.run_steps(3);
     assert_eq!(h.state().gltf_export.options.instance_level, Some(0));
     assert!(h.state().gltf_export.options.bounds.is_some());
+    // The placements' form, with its consequence said before the file is written.
+    h.get_by_label(
+        "Viewers without EXT_mesh_gpu_instancing refuse the file (Blender 3.4 among them)",
+    );
+    h.get_by_label("A node each").click();
+    h.run_steps(2);
+    assert_eq!(
+        h.state().gltf_export.options.instancing,
+        thicket_core::io::gltf_export::Instancing::Nodes
+    );
+    h.get_by_label("Every viewer opens it; no levels of detail for the placed copies");
     snapshot(&mut h, "export_gltf_forest");
 }

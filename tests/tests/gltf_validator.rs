@@ -140,6 +140,35 @@ fn every_sample_export_passes_the_khronos_validator() {
         );
         written += 1;
     }
+    // Portable instancing: the forest with a node per placement and no extension, as Blender
+    // 3.4 can import it; a prototype of 2^7 trees (instance level 14) keeps the file small.
+    {
+        let path = thicket_tests::repo_root().join("projects/forest.thicket.json");
+        let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let out = dir.path().join("forest-nodes.glb");
+        let options = GltfExportOptions {
+            resolution: 96,
+            instance_level: Some(14),
+            instancing: thicket_core::io::gltf_export::Instancing::Nodes,
+            ..GltfExportOptions::default()
+        };
+        let report = export_gltf(&doc, &out, &options, &|_| true)
+            .unwrap_or_else(|e| panic!("forest with a node per placement: {e}"));
+        println!("forest-nodes: {:?}", report.placements);
+        assert_eq!(
+            report.placements,
+            Some((thicket_core::io::gltf_export::Instancing::Nodes, 1 << 10))
+        );
+        let (gltf, _, _) = gltf::import(&out).unwrap();
+        assert!(gltf.extensions_required().next().is_none());
+        assert_eq!(
+            gltf.nodes()
+                .filter(|n| n.mesh().is_some() && n.name().is_some_and(|m| m.starts_with("Forest")))
+                .count(),
+            1 << 10
+        );
+        written += 1;
+    }
     let report = validate(dir.path());
     assert!(
         report.contains(&format!("{written} of {written} files pass")),

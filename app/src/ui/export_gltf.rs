@@ -22,6 +22,21 @@ fn automatic<T>(ui: &mut egui::Ui, value: &mut Option<T>, label: &str, hint: &st
     }
 }
 
+/// The one line the Export dialog says about a placement choice before the file is written.
+#[must_use]
+pub fn instancing_consequence(choice: thicket_core::io::gltf_export::Instancing) -> &'static str {
+    use thicket_core::io::gltf_export::Instancing;
+    match choice {
+        Instancing::Gpu => {
+            "Viewers without EXT_mesh_gpu_instancing refuse the file (Blender 3.4 among them)"
+        }
+        Instancing::Nodes => "Every viewer opens it; no levels of detail for the placed copies",
+        Instancing::Auto => {
+            "A node each for a small forest (every viewer); GPU instancing for a large one"
+        }
+    }
+}
+
 /// The KRS rows of the options grid: where the prototype ends, and the ground patch.
 fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
     ui.label("KRS instancing");
@@ -55,6 +70,20 @@ fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
             .speed(1000.0),
     )
     .on_hover_text("Per KRS object: an export that would place more copies is refused");
+    ui.end_row();
+    ui.label("Placements as");
+    ui.vertical(|ui| {
+        ui.horizontal(|ui| {
+            use thicket_core::io::gltf_export::Instancing;
+            ui.radio_value(&mut options.instancing, Instancing::Gpu, "GPU instancing")
+                .on_hover_text("EXT_mesh_gpu_instancing: compact and fast to draw");
+            ui.radio_value(&mut options.instancing, Instancing::Nodes, "A node each")
+                .on_hover_text("One node per placement sharing the mesh: every glTF reader");
+            ui.radio_value(&mut options.instancing, Instancing::Auto, "By count")
+                .on_hover_text("A node each up to 4,096 placements, else GPU instancing");
+        });
+        ui.weak(instancing_consequence(options.instancing));
+    });
     ui.end_row();
     ui.label("Ground patch");
     ui.horizontal(|ui| {

@@ -94,6 +94,26 @@ impl GltfFormat {
     }
 }
 
+/// How placements of an instanced KRS object are written.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Instancing {
+    /// `EXT_mesh_gpu_instancing`: one node, the placements as accessors. Compact and fast to
+    /// draw; a reader without the extension must refuse the file (Blender 3.4 does).
+    #[default]
+    Gpu,
+    /// One child node per placement sharing the mesh: every glTF reader draws it (Blender
+    /// makes linked duplicates); levels of detail are left out for those nodes.
+    Nodes,
+    /// `Nodes` up to [`AUTO_INSTANCE_NODES`] placements in the file, else `Gpu`.
+    Auto,
+}
+
+/// Most placements [`Instancing::Auto`] writes as nodes.
+pub const AUTO_INSTANCE_NODES: usize = 4096;
+
+/// Most placements [`Instancing::Nodes`] writes (a node each); more are refused.
+pub const MAX_INSTANCE_NODES: usize = 1 << 18;
+
 /// Settings of [`export_gltf`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -125,6 +145,8 @@ pub struct GltfExportOptions {
     pub bounds: Option<[f32; 4]>,
     /// Write the document's lights (`KHR_lights_punctual`) and its camera.
     pub lights_and_camera: bool,
+    /// How placements of instanced KRS objects are written.
+    pub instancing: Instancing,
     /// Refuse (before building it) an export with more triangles than this.
     pub max_triangles: u64,
     /// Coarser levels of detail (`MSFT_lod`), each at half the resolution of the one before,
@@ -161,6 +183,7 @@ impl Default for GltfExportOptions {
             instance_level: None,
             bounds: None,
             lights_and_camera: true,
+            instancing: Instancing::Gpu,
             // 2^26 triangles: about 2.5 GiB of GLB, under the format's 4 GiB limit.
             max_triangles: 1 << 26,
             lod_levels: 0,
@@ -211,6 +234,9 @@ pub struct GltfExportReport {
     pub lights: usize,
     /// Whether the document's camera was written.
     pub camera: bool,
+    /// How placements were written ([`Instancing::Gpu`] or [`Instancing::Nodes`]), with their
+    /// count; `None` when nothing was instanced.
+    pub placements: Option<(Instancing, usize)>,
     /// Objects written with their keyed transforms as a node animation.
     pub animated: Vec<String>,
     /// Objects whose keyed transforms were not written, with why.
@@ -703,6 +729,49 @@ pub fn build_scene(
                 )
             },
         });
+    }
+    let placements: usize = out.scene.nodes.iter().map(|n| n.instances.len()).sum();
+    if placements > 0 {
+        let nodes = match options.instancing {
+            Instancing::Gpu => false,
+            Instancing::Nodes => true,
+            Instancing::Auto => placements <= AUTO_INSTANCE_NODES,
+        };
+        if nodes && placements > MAX_INSTANCE_NODES {
+            return Err(GltfExportError::Unsupported {
+                path: path.to_owned(),
+                detail: format!(
+                    "{placements} placements would be {placements} nodes (at most \
+                     {MAX_INSTANCE_NODES}): write them with EXT_mesh_gpu_instancing \
+                     (--instancing gpu), or export fewer (a smaller forest, --object)"
+                ),
+            });
+        }
+        out.scene.instance_nodes = nodes;
+        if nodes {
+            // MSFT_lod would need level nodes per placement: instanced nodes keep their full
+            // mesh only.
+            for n in out
+                .scene
+                .nodes
+                .iter_mut()
+                .filter(|n| !n.instances.is_empty())
+            {
+                n.lods.clear();
+            }
+            let instanced = &report.instanced;
+            report
+                .levels_of_detail
+                .retain(|l| !instanced.iter().any(|k| k.object == l.object));
+        }
+        report.placements = Some((
+            if nodes {
+                Instancing::Nodes
+            } else {
+                Instancing::Gpu
+            },
+            placements,
+        ));
     }
     if options.lights_and_camera {
         out.scene.lights = doc

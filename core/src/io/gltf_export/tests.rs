@@ -1486,6 +1486,70 @@ fn forest_cells_partition_the_placements_and_share_the_levels() {
         1,
         "one impostor texture"
     );
+
+    // Portable instancing: the same scene with a node per placement. No extension is needed;
+    // every placement is a child node drawing its copy's one shared mesh with the placement's
+    // transform, exactly as the accessors above held it.
+    let mut portable = scene.clone();
+    portable.instance_nodes = true;
+    let glb = encode_glb(&portable, Path::new("forest.glb")).unwrap();
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let used = root["extensionsUsed"]
+        .as_array()
+        .cloned()
+        .unwrap_or_default();
+    assert!(
+        !used.iter().any(|e| e == "EXT_mesh_gpu_instancing"),
+        "{used:?}"
+    );
+    assert!(
+        root["extensionsRequired"].is_null(),
+        "{}",
+        root["extensionsRequired"]
+    );
+    let nodes = root["nodes"].as_array().unwrap();
+    let in_scene: Vec<usize> = root["scenes"][0]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as usize)
+        .collect();
+    assert_eq!(in_scene.len(), portable.nodes.len());
+    assert_eq!(
+        root["meshes"].as_array().unwrap().len(),
+        2,
+        "one mesh per copy"
+    );
+    let mut children = 0;
+    for (&i, n) in in_scene.iter().zip(&portable.nodes) {
+        let kids = nodes[i]["children"].as_array().unwrap();
+        assert_eq!(kids.len(), n.instances.len(), "{}", n.name);
+        for (k, t) in kids.iter().zip(&n.instances) {
+            let child = &nodes[k.as_u64().unwrap() as usize];
+            let v = |key: &str| -> Vec<f32> {
+                child[key]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|x| x.as_f64().unwrap() as f32)
+                    .collect()
+            };
+            assert_eq!(v("translation"), t.translation.to_array());
+            assert_eq!(v("scale"), t.scale.to_array());
+            let q = glam::Quat::from_slice(&v("rotation"));
+            assert!(q.angle_between(t.rotation) < 1e-5);
+            assert!(child["mesh"].is_u64());
+            children += 1;
+        }
+    }
+    assert_eq!(children, 64);
+    // The gltf crate reads it as a plain scene.
+    let path = std::env::temp_dir().join(format!("thicket-portable-{}.glb", std::process::id()));
+    std::fs::write(&path, &glb).unwrap();
+    let (doc, _, _) = gltf::import(&path).unwrap();
+    std::fs::remove_file(&path).ok();
+    assert_eq!(doc.nodes().filter(|n| n.mesh().is_some()).count(), 64);
 }
 
 #[test]

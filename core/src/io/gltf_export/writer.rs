@@ -153,6 +153,11 @@ pub struct ExportScene {
     pub lights: Vec<ExportLight>,
     /// The view camera, written as a node.
     pub camera: Option<ExportCamera>,
+    /// Write a node's placements ([`ExportNode::instances`]) as one child node each, sharing
+    /// the mesh, which every glTF reader understands, instead of `EXT_mesh_gpu_instancing`
+    /// (which readers without the extension must refuse). Levels of detail are not written
+    /// for such nodes: `MSFT_lod` would need level nodes per placement.
+    pub instance_nodes: bool,
 }
 
 impl ExportScene {
@@ -276,6 +281,35 @@ pub(crate) fn encode(
         }
         let t = &node.transform;
         let trs_is_identity = *t == Transform::default();
+        if scene.instance_nodes
+            && !node.instances.is_empty()
+            && let Some(mesh) = mesh
+        {
+            let children = b.instance_nodes(node, mesh)?;
+            written.push(Some(Meshes {
+                mesh,
+                levels: Vec::new(),
+            }));
+            node_indices.push(
+                b.root.push(json::Node {
+                    name: Some(if node.name.is_empty() {
+                        format!("node {ni}")
+                    } else {
+                        node.name.clone()
+                    }),
+                    translation: (!trs_is_identity).then(|| t.translation.to_array()),
+                    rotation: (!trs_is_identity)
+                        .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
+                    scale: (!trs_is_identity).then(|| t.scale.to_array()),
+                    children: Some(children),
+                    ..json::Node::default()
+                }),
+            );
+            if let (Some(motion), Some(&index)) = (&node.motion, node_indices.last()) {
+                b.motion(motion, index.value() as u32, &node.name)?;
+            }
+            continue;
+        }
         let instancing = if node.instances.is_empty() || mesh.is_none() {
             None
         } else {
@@ -501,6 +535,37 @@ impl Builder {
             )),
             ..json::Node::default()
         }))
+    }
+
+    /// One node per placement of `node`, each drawing `mesh` with the placement's transform
+    /// (for [`ExportScene::instance_nodes`]).
+    fn instance_nodes(
+        &mut self,
+        node: &ExportNode,
+        mesh: json::Index<json::Mesh>,
+    ) -> Result<Vec<json::Index<json::Node>>, EncodeError> {
+        node.instances
+            .iter()
+            .enumerate()
+            .map(|(i, t)| {
+                if !(t.translation.is_finite() && t.rotation.is_finite() && t.scale.is_finite()) {
+                    return Err(EncodeError::Invalid(format!(
+                        "node {:?}: placement {i} has a non-finite transform",
+                        node.name
+                    )));
+                }
+                Ok(self.root.push(json::Node {
+                    mesh: Some(mesh),
+                    name: Some(format!("{} {i}", node.name)),
+                    translation: Some(t.translation.to_array()),
+                    rotation: Some(json::scene::UnitQuaternion(
+                        unit_quat(t.rotation).to_array(),
+                    )),
+                    scale: Some(t.scale.to_array()),
+                    ..json::Node::default()
+                }))
+            })
+            .collect()
     }
 
     /// The node extension object for `EXT_mesh_gpu_instancing`: TRANSLATION, ROTATION and
