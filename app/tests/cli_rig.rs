@@ -58,6 +58,24 @@ fn rig(bar: &Path, skel: &Path, out: &Path) -> std::process::Output {
     ])
 }
 
+/// `thicket render PROJECT -o OUT --size SIZE --time T EXTRA...`: the image's RGBA bytes.
+fn render_at(project: &Path, out: &Path, size: &str, t: &str, extra: &[&str]) -> Vec<u8> {
+    let mut args = vec![
+        "render",
+        path_str(project),
+        "-o",
+        path_str(out),
+        "--size",
+        size,
+        "--time",
+        t,
+    ];
+    args.extend_from_slice(extra);
+    let o = thicket(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    image::open(out).unwrap().to_rgba8().into_raw()
+}
+
 fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -127,24 +145,22 @@ fn rig_animate_and_info_make_a_bar_bend() {
     );
 
     // Rendered at 0 s and 0.5 s: different images.
-    let render = |t: &str, out: &str| {
-        let p = dir.path().join(out);
-        let o = thicket(&[
-            "render",
-            path_str(&animated),
-            "-o",
-            path_str(&p),
-            "--size",
+    let (a, b) = (
+        render_at(
+            &animated,
+            &dir.path().join("a.png"),
             "96x96",
-            "--time",
-            t,
-            "--clip",
-            "bend",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        image::open(&p).unwrap().to_rgba8().into_raw()
-    };
-    let (a, b) = (render("0", "a.png"), render("0.5", "b.png"));
+            "0",
+            &["--clip", "bend"],
+        ),
+        render_at(
+            &animated,
+            &dir.path().join("b.png"),
+            "96x96",
+            "0.5",
+            &["--clip", "bend"],
+        ),
+    );
     let changed = a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
     assert!(
         changed > 200,
@@ -418,22 +434,10 @@ fn keyed_object_transforms_render_at_a_time_and_export() {
     doc.objects[0].motion = Some(motion);
     let moving = dir.path().join("moving.thicket.json");
     thicket_core::io::project::save(&doc, &moving).unwrap();
-    let render = |t: &str, out: &str| {
-        let p = dir.path().join(out);
-        let o = thicket(&[
-            "render",
-            path_str(&moving),
-            "-o",
-            path_str(&p),
-            "--size",
-            "64x64",
-            "--time",
-            t,
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        image::open(&p).unwrap().to_rgba8().into_raw()
-    };
-    let (a, b) = (render("0", "a.png"), render("1", "b.png"));
+    let (a, b) = (
+        render_at(&moving, &dir.path().join("a.png"), "64x64", "0", &[]),
+        render_at(&moving, &dir.path().join("b.png"), "64x64", "1", &[]),
+    );
     let changed = a.chunks(4).zip(b.chunks(4)).filter(|(x, y)| x != y).count();
     assert!(
         changed > 100,

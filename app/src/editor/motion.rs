@@ -19,11 +19,8 @@ impl Editor {
     /// voxel model, else the motion's own (0 s, looping, before it has one).
     #[must_use]
     pub fn motion_clock(&self, id: u64) -> (f32, Wrap) {
-        if let Some(rig) = self.rig(id) {
-            return (rig.playback.time_secs, rig.playback.wrap);
-        }
-        self.motion(id)
-            .map_or((0.0, Wrap::Loop), |m| (m.time_secs, m.wrap))
+        self.object(id)
+            .map_or((0.0, Wrap::Loop), thicket_core::scene::Object::motion_clock)
     }
 
     /// The time a key set now gets: the clock, wrapped into the motion when looping.

@@ -988,14 +988,9 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
     let (count, frame_secs) = (seq.len(), seq.frame_secs);
     let mut t = seq.time_secs;
     let duration = seq.duration_secs();
-    let name = editor
-        .object(id)
-        .map(|o| o.name.clone())
-        .unwrap_or_default();
+    let name = object_name(editor, id);
     ui.horizontal(|ui| {
-        ui.strong("Timeline")
-            .on_hover_text(format!("Frames of {name}"));
-        ui.label(&name);
+        timeline_title_ui(ui, &format!("Frames of {name}"), &name);
         if transport_ui(ui, tool, true, "the frames") {
             t = 0.0;
         }
@@ -1038,6 +1033,20 @@ fn frames_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
         ))
         .on_hover_text("The frame shown / frames in the sequence; the file's frame rate, or MagicaVoxel's 10 fps");
     });
+}
+
+/// Object `id`'s name (empty when it is gone).
+fn object_name(editor: &Editor, id: u64) -> String {
+    editor
+        .object(id)
+        .map(|o| o.name.clone())
+        .unwrap_or_default()
+}
+
+/// A timeline's title: "Timeline" (with `hover`) and the object's name.
+fn timeline_title_ui(ui: &mut egui::Ui, hover: &str, name: &str) {
+    ui.strong("Timeline").on_hover_text(hover);
+    ui.label(name);
 }
 
 /// Play / Pause (enabled when `playable`; Space toggles it too) and Start; returns whether
@@ -1141,14 +1150,9 @@ fn motion_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
     let duration = m.clip.duration_secs.max(0.0);
     let fps = m.clip.frame_rate.max(1.0);
     let keys = editor.object_key_times(id);
-    let name = editor
-        .object(id)
-        .map(|o| o.name.clone())
-        .unwrap_or_default();
+    let name = object_name(editor, id);
     ui.horizontal(|ui| {
-        ui.strong("Timeline")
-            .on_hover_text(format!("The keyed transform of {name}"));
-        ui.label(&name);
+        timeline_title_ui(ui, &format!("The keyed transform of {name}"), &name);
         let playable = duration > 0.0;
         if transport_ui(ui, tool, playable, "the object's motion") {
             t = 0.0;
@@ -1224,10 +1228,7 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         .iter()
         .map(|c| (c.name.clone(), c.duration_secs.max(0.0)))
         .collect();
-    let name = editor
-        .object(id)
-        .map(|o| o.name.clone())
-        .unwrap_or_default();
+    let name = object_name(editor, id);
     let clip_label = |c: Option<usize>| match c {
         None => "Rest pose".to_owned(),
         Some(i) => clips.get(i).map_or_else(
@@ -1253,9 +1254,7 @@ pub fn timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseTool, 
         })
         .max(1.0);
     ui.horizontal(|ui| {
-        ui.strong("Timeline")
-            .on_hover_text(format!("Animation of {name}"));
-        ui.label(&name);
+        timeline_title_ui(ui, &format!("Animation of {name}"), &name);
         egui::ComboBox::from_id_salt("timeline_clip")
             .selected_text(clip_label(playback.clip))
             .show_ui(ui, |ui| {

@@ -649,22 +649,25 @@ map_Kd tex.png
                 .contains("cube.mtl: cannot parse: line 2: Kd needs three numbers"),
             "{err}"
         );
-        // A texture that is present but corrupt is an error naming the texture.
-        let files = |name: &str| -> Result<Option<Vec<u8>>, IoError> {
-            Ok(match name {
-                "cube.mtl" => Some(CUBE_MTL.as_bytes().to_vec()),
-                "tex.png" => Some(b"\x89PNG\r\n\x1a\nnot really".to_vec()),
-                _ => None,
-            })
+        // The cube with `texture` as its tex.png.
+        let with_texture = |texture: &[u8]| {
+            let files = |name: &str| -> Result<Option<Vec<u8>>, IoError> {
+                Ok(match name {
+                    "cube.mtl" => Some(CUBE_MTL.as_bytes().to_vec()),
+                    "tex.png" => Some(texture.to_vec()),
+                    _ => None,
+                })
+            };
+            import_obj_slice_with(
+                CUBE_OBJ.as_bytes(),
+                &files,
+                Path::new("cube.obj"),
+                &ObjOptions::default(),
+                &ImportLimits::default(),
+            )
         };
-        let err = import_obj_slice_with(
-            CUBE_OBJ.as_bytes(),
-            &files,
-            Path::new("cube.obj"),
-            &ObjOptions::default(),
-            &ImportLimits::default(),
-        )
-        .expect_err("corrupt png");
+        // A texture that is present but corrupt is an error naming the texture.
+        let err = with_texture(b"\x89PNG\r\n\x1a\nnot really").expect_err("corrupt png");
         assert!(
             err.to_string().starts_with("tex.png: invalid: texture:"),
             "{err}"
@@ -672,21 +675,7 @@ map_Kd tex.png
         // An indexed PNG whose palette ends in a partial entry (the `png` decoder panics on it):
         // refused with where the palette is, no panic.
         let partial = crate::mesh::tests::indexed_png(&[10, 20, 30, 40]);
-        let files = |name: &str| -> Result<Option<Vec<u8>>, IoError> {
-            Ok(match name {
-                "cube.mtl" => Some(CUBE_MTL.as_bytes().to_vec()),
-                "tex.png" => Some(partial.clone()),
-                _ => None,
-            })
-        };
-        let err = import_obj_slice_with(
-            CUBE_OBJ.as_bytes(),
-            &files,
-            Path::new("cube.obj"),
-            &ObjOptions::default(),
-            &ImportLimits::default(),
-        )
-        .expect_err("partial palette");
+        let err = with_texture(&partial).expect_err("partial palette");
         assert!(
             err.to_string().contains("tex.png: invalid: texture:")
                 && err

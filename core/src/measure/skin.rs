@@ -21,10 +21,10 @@
 use std::borrow::Cow;
 use std::time::Instant;
 
-use glam::{Mat4, UVec3, Vec3, Vec4};
+use glam::{Mat4, UVec3, Vec3};
 use serde::Serialize;
 
-use crate::mesh::{Material, MeshModel, TriangleMesh, srgb_byte_to_linear};
+use crate::mesh::{Material, MeshModel, TriangleMesh};
 use crate::quality::Quality;
 use crate::render::{
     Camera, FrameBuffers, MeshInstance, Projection, RenderError, RenderScene, VoxelInstance,
@@ -262,13 +262,7 @@ pub fn own_surface(model: &VoxelModel) -> MeshModel {
     let mut part = TriangleMesh::default();
     for q in &quads {
         let base = part.positions.len() as u32;
-        let [r, g, b, a] = q.key.0;
-        let color = Vec4::new(
-            srgb_byte_to_linear(r),
-            srgb_byte_to_linear(g),
-            srgb_byte_to_linear(b),
-            f32::from(a) / 255.0,
-        );
+        let color = crate::io::gltf_export::linear(q.key.0);
         for (c, skin) in q.corners().into_iter().zip(q.corner_skins()) {
             part.positions.push(model.origin + c * model.voxel_size);
             part.normals.push(q.normal());

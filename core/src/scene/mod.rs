@@ -455,6 +455,19 @@ impl Default for Object {
 }
 
 impl Object {
+    /// The clock of the object's keyed transform: a rigged voxel model's rig playhead and
+    /// wrap (one timeline moves the figure and its bones), else the motion's own playhead,
+    /// else 0 s, looping.
+    #[must_use]
+    pub fn motion_clock(&self) -> (f32, crate::skin::Wrap) {
+        if let ObjectKind::Voxels(VoxelModel { rig: Some(r), .. }) = &self.kind {
+            return (r.playback.time_secs, r.playback.wrap);
+        }
+        self.motion
+            .as_ref()
+            .map_or((0.0, crate::skin::Wrap::Loop), |m| (m.time_secs, m.wrap))
+    }
+
     /// A short word for the kind, for listings.
     #[must_use]
     pub fn kind_name(&self) -> &'static str {
@@ -878,15 +891,8 @@ impl Document {
     /// render at a given time).
     pub fn apply_motion(&mut self, at_secs: Option<f32>) {
         for o in &mut self.objects {
+            let (t, wrap) = o.motion_clock();
             let Some(m) = &o.motion else { continue };
-            let rig_clock = match &o.kind {
-                ObjectKind::Voxels(v) => v
-                    .rig
-                    .as_ref()
-                    .map(|r| (r.playback.time_secs, r.playback.wrap)),
-                ObjectKind::Mesh(_) | ObjectKind::Krs(_) => None,
-            };
-            let (t, wrap) = rig_clock.unwrap_or((m.time_secs, m.wrap));
             o.transform = m.transform_at(at_secs.unwrap_or(t), wrap, &o.transform);
         }
     }

@@ -85,6 +85,15 @@ impl Default for AnimationClip {
 }
 
 impl Channel {
+    /// Values per key: `[in_tangent, value, out_tangent]` for a cubic spline, else one.
+    pub(crate) fn per_key(&self) -> usize {
+        if self.interpolation == Interpolation::CubicSpline {
+            3
+        } else {
+            1
+        }
+    }
+
     /// Checks key times (finite, non-decreasing), value count and finiteness.
     ///
     /// # Errors
@@ -99,11 +108,7 @@ impl Channel {
         if self.times.is_empty() {
             return Err("has no keys".into());
         }
-        let per_key = if self.interpolation == Interpolation::CubicSpline {
-            3
-        } else {
-            1
-        };
+        let per_key = self.per_key();
         if self.values.len() != self.times.len() * per_key {
             return Err(format!(
                 "has {} key times but {} values ({per_key} per key expected for {:?})",
@@ -131,7 +136,7 @@ impl Channel {
     pub fn sample(&self, t: f32) -> Option<Vec4> {
         let n = self.times.len();
         let cubic = self.interpolation == Interpolation::CubicSpline;
-        let per_key = if cubic { 3 } else { 1 };
+        let per_key = self.per_key();
         if n == 0 || self.values.len() < n * per_key {
             return None;
         }

@@ -43,14 +43,6 @@ pub struct CopiedKey {
 }
 
 impl Channel {
-    fn per_key(&self) -> usize {
-        if self.interpolation == Interpolation::CubicSpline {
-            3
-        } else {
-            1
-        }
-    }
-
     /// The key at `t` (within [`KEY_EPSILON_SECS`]), if any.
     #[must_use]
     pub fn key_at(&self, t: f32) -> Option<usize> {

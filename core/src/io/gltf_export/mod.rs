@@ -882,7 +882,7 @@ fn charge(
 }
 
 /// sRGB RGBA8 → linear RGBA.
-fn linear(c: [u8; 4]) -> Vec4 {
+pub(crate) fn linear(c: [u8; 4]) -> Vec4 {
     Vec4::new(
         srgb_to_linear(f32::from(c[0]) / 255.0),
         srgb_to_linear(f32::from(c[1]) / 255.0),

@@ -1179,8 +1179,7 @@ fn krs_levels_of_detail_are_coarser_closed_and_carry_the_placements() {
     // the full node (a level replaces the whole node), with one screen coverage per level.
     let glb = encode_glb(&scene, Path::new("forest.glb")).unwrap();
     // The GLB's JSON chunk: its length at byte 12, its bytes from byte 20.
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let root = glb_json(&glb);
     let nodes = root["nodes"].as_array().unwrap();
     let in_scene: Vec<u64> = root["scenes"][0]["nodes"]
         .as_array()
@@ -1420,15 +1419,9 @@ fn forest_cells_partition_the_placements_and_share_the_levels() {
     // level nodes outside the scene that draw the shared level meshes with the cell's own
     // placements; the coarsest is the impostor, an alpha-tested textured material.
     let glb = encode_glb(&scene, Path::new("forest.glb")).unwrap();
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let root = glb_json(&glb);
     let nodes = root["nodes"].as_array().unwrap();
-    let in_scene: Vec<usize> = root["scenes"][0]["nodes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap() as usize)
-        .collect();
+    let in_scene = scene_node_indices(&root);
     assert_eq!(in_scene.len(), scene.nodes.len());
     assert_eq!(
         root["meshes"].as_array().unwrap().len(),
@@ -1493,8 +1486,7 @@ fn forest_cells_partition_the_placements_and_share_the_levels() {
     let mut portable = scene.clone();
     portable.instance_nodes = true;
     let glb = encode_glb(&portable, Path::new("forest.glb")).unwrap();
-    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
-    let root: serde_json::Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let root = glb_json(&glb);
     let used = root["extensionsUsed"]
         .as_array()
         .cloned()
@@ -1509,12 +1501,7 @@ fn forest_cells_partition_the_placements_and_share_the_levels() {
         root["extensionsRequired"]
     );
     let nodes = root["nodes"].as_array().unwrap();
-    let in_scene: Vec<usize> = root["scenes"][0]["nodes"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_u64().unwrap() as usize)
-        .collect();
+    let in_scene = scene_node_indices(&root);
     assert_eq!(in_scene.len(), portable.nodes.len());
     assert_eq!(
         root["meshes"].as_array().unwrap().len(),
@@ -1550,6 +1537,22 @@ fn forest_cells_partition_the_placements_and_share_the_levels() {
     let (doc, _, _) = gltf::import(&path).unwrap();
     std::fs::remove_file(&path).ok();
     assert_eq!(doc.nodes().filter(|n| n.mesh().is_some()).count(), 64);
+}
+
+/// The JSON chunk of a GLB.
+fn glb_json(glb: &[u8]) -> serde_json::Value {
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&glb[20..20 + json_len]).unwrap()
+}
+
+/// The node indices of a glTF's first scene.
+fn scene_node_indices(root: &serde_json::Value) -> Vec<usize> {
+    root["scenes"][0]["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_u64().unwrap() as usize)
+        .collect()
 }
 
 #[test]

@@ -281,7 +281,9 @@ pub(crate) fn encode(
         }
         let t = &node.transform;
         let trs_is_identity = *t == Transform::default();
-        if scene.instance_nodes
+        // A node per placement (portable instancing): the node carries only the placement
+        // children, which draw the mesh; no levels.
+        let (node_mesh, children, extensions, extras) = if scene.instance_nodes
             && !node.instances.is_empty()
             && let Some(mesh) = mesh
         {
@@ -290,67 +292,51 @@ pub(crate) fn encode(
                 mesh,
                 levels: Vec::new(),
             }));
-            node_indices.push(
-                b.root.push(json::Node {
-                    name: Some(if node.name.is_empty() {
-                        format!("node {ni}")
-                    } else {
-                        node.name.clone()
-                    }),
-                    translation: (!trs_is_identity).then(|| t.translation.to_array()),
-                    rotation: (!trs_is_identity)
-                        .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
-                    scale: (!trs_is_identity).then(|| t.scale.to_array()),
-                    children: Some(children),
-                    ..json::Node::default()
-                }),
-            );
-            if let (Some(motion), Some(&index)) = (&node.motion, node_indices.last()) {
-                b.motion(motion, index.value() as u32, &node.name)?;
-            }
-            continue;
-        }
-        let instancing = if node.instances.is_empty() || mesh.is_none() {
-            None
+            (None, Some(children), None, None)
         } else {
-            Some(b.instancing(&node.instances)?)
+            let instancing = if node.instances.is_empty() || mesh.is_none() {
+                None
+            } else {
+                Some(b.instancing(&node.instances)?)
+            };
+            let mut extensions = instancing.clone();
+            let mut extras = None;
+            let levels = match (shared, mesh) {
+                (Some(s), _) => s.levels,
+                (None, Some(_)) if !node.lods.is_empty() => b.level_meshes(node, &materials)?,
+                _ => Vec::new(),
+            };
+            if !levels.is_empty() {
+                // A level replaces the whole node, so an instanced node's levels carry its
+                // placements too (the same accessors).
+                let (lod, coverage) = b.lod_nodes(node, &levels, instancing.as_ref())?;
+                extensions
+                    .get_or_insert_with(Default::default)
+                    .others
+                    .extend(lod.others);
+                extras = coverage;
+            }
+            written.push(mesh.map(|mesh| Meshes { mesh, levels }));
+            (mesh, None, extensions, extras)
         };
-        let mut extensions = instancing.clone();
-        let mut extras = None;
-        let levels = match (shared, mesh) {
-            (Some(s), _) => s.levels,
-            (None, Some(_)) if !node.lods.is_empty() => b.level_meshes(node, &materials)?,
-            _ => Vec::new(),
-        };
-        if !levels.is_empty() {
-            // A level replaces the whole node, so an instanced node's levels carry its
-            // placements too (the same accessors).
-            let (lod, coverage) = b.lod_nodes(node, &levels, instancing.as_ref())?;
-            extensions
-                .get_or_insert_with(Default::default)
-                .others
-                .extend(lod.others);
-            extras = coverage;
-        }
-        written.push(mesh.map(|mesh| Meshes { mesh, levels }));
-        node_indices.push(
-            b.root.push(json::Node {
-                extensions,
-                mesh,
-                name: Some(if node.name.is_empty() {
-                    format!("node {ni}")
-                } else {
-                    node.name.clone()
-                }),
-                translation: (!trs_is_identity).then(|| t.translation.to_array()),
-                rotation: (!trs_is_identity)
-                    .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
-                scale: (!trs_is_identity).then(|| t.scale.to_array()),
-                extras,
-                ..json::Node::default()
+        let index = b.root.push(json::Node {
+            extensions,
+            mesh: node_mesh,
+            children,
+            name: Some(if node.name.is_empty() {
+                format!("node {ni}")
+            } else {
+                node.name.clone()
             }),
-        );
-        if let (Some(motion), Some(&index)) = (&node.motion, node_indices.last()) {
+            translation: (!trs_is_identity).then(|| t.translation.to_array()),
+            rotation: (!trs_is_identity)
+                .then(|| json::scene::UnitQuaternion(unit_quat(t.rotation).to_array())),
+            scale: (!trs_is_identity).then(|| t.scale.to_array()),
+            extras,
+            ..json::Node::default()
+        });
+        node_indices.push(index);
+        if let Some(motion) = &node.motion {
             b.motion(motion, index.value() as u32, &node.name)?;
         }
     }
