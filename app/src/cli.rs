@@ -10,6 +10,7 @@ use clap::{Args, Parser, Subcommand};
 
 use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
 
+pub mod forest;
 pub mod rig;
 pub mod view_args;
 
@@ -116,6 +117,11 @@ pub enum Command {
     /// Add a keyframed clip to a rigged voxel model (rotations as Euler degrees relative to the
     /// rest pose); the model then plays it.
     Animate(rig::AnimateArgs),
+    /// Grow a forest from trees of a project (KRS objects made by the tree builder): more
+    /// reflections with empty kernel sets repeat the tree over an area, shared with a KRS
+    /// terrain when `--on` names one, several trees interleaved so none stands beside its
+    /// own mirror image. Prints the number of trees placed.
+    Forest(forest::ForestArgs),
 }
 
 /// `thicket skin-report`.
@@ -623,6 +629,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Some(Command::Tradeoff(args)) => tradeoff(&args),
         Some(Command::Export(args)) => export(&args),
         Some(Command::Rig(args)) => rig::rig(&args),
+        Some(Command::Forest(args)) => forest::forest(&args),
         Some(Command::Animate(args)) => rig::animate(&args),
     }
 }

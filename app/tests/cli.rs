@@ -1696,3 +1696,166 @@ fn export_instancing_nodes_writes_a_node_per_placement_and_says_which_readers_ne
         stdout(&o)
     );
 }
+
+/// A project with three trees from the builder (their parameters saved with them), a KRS
+/// terrain and a rock (a KRS object the builder did not make).
+fn forest_project(dir: &Path) -> PathBuf {
+    use thicket_core::krs::{Material, TreeParams, presets};
+    use thicket_core::scene::TreeBuilderLink;
+    let mut doc = Document::default();
+    for (k, name) in ["Oak", "Birch", "Pine"].into_iter().enumerate() {
+        let mut params = TreeParams::default();
+        params.widths[0] = 0.2 + 0.03 * k as f32;
+        params.route[1].y += 0.3 * k as f32;
+        let id = doc.add(name, ObjectKind::Krs(params.build().unwrap()));
+        doc.tree_builders
+            .push(TreeBuilderLink { object: id, params });
+    }
+    doc.add(
+        "Terrain",
+        ObjectKind::Krs(presets::folded_ground(Material::default(), 4, 5.0, 1)),
+    );
+    doc.add("Rock", ObjectKind::Krs(presets::battered_rock(3)));
+    let path = dir.join("trees.thicket.json");
+    thicket_core::io::project::save(&doc, &path).unwrap();
+    path
+}
+
+#[test]
+fn forest_grows_trees_on_terrain_and_as_a_union() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = forest_project(dir.path());
+    let out = dir.path().join("forest.thicket.json");
+    let o = thicket(&[
+        "forest",
+        project.to_str().unwrap(),
+        "--object",
+        "Oak",
+        "--trees",
+        "16x16",
+        "--area",
+        "160,160",
+        "--on",
+        "Terrain",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stdout(&o).contains("256 trees placed"), "{}", stdout(&o));
+    let doc = thicket_core::io::project::load(&out).unwrap();
+    let by_name = |n: &str| doc.objects.iter().find(|o| o.name == n).unwrap();
+    let krs = |n: &str| match &by_name(n).kind {
+        ObjectKind::Krs(k) => k.clone(),
+        _ => panic!("{n} is KRS"),
+    };
+    assert_eq!(doc.forests.len(), 1);
+    assert!(
+        !by_name("Oak").visible,
+        "the tree is hidden under its forest"
+    );
+    assert_eq!(
+        krs("Oak forest").instance_count(),
+        krs("Oak").instance_count() * 256
+    );
+    // The terrain keeps its 4 folds and shares the forest's 8 reflections.
+    let terrain = krs("Terrain");
+    assert_eq!(terrain.mirrors.len(), 4 + 8);
+    assert_eq!(doc.forests[0].terrain_mirrors, 4);
+    assert_eq!(
+        terrain.mirrors[4..],
+        krs("Oak forest").mirrors[krs("Oak").mirrors.len()..]
+    );
+
+    // A union of three trees: 2 objects per tree.
+    let union = dir.path().join("union.thicket.json");
+    let o = thicket(&[
+        "forest",
+        project.to_str().unwrap(),
+        "--object",
+        "Oak",
+        "--object",
+        "Birch",
+        "--object",
+        "Pine",
+        "--trees",
+        "12x8",
+        "--area",
+        "96,64",
+        "-o",
+        union.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("96 trees placed") && stdout(&o).contains("in 6 object(s)"),
+        "{}",
+        stdout(&o)
+    );
+    let doc = thicket_core::io::project::load(&union).unwrap();
+    assert_eq!(doc.forests[0].objects.len(), 6);
+}
+
+#[test]
+fn forest_refuses_bad_input_once_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = forest_project(dir.path());
+    let out = dir.path().join("forest.thicket.json");
+    let run = |extra: &[&str]| {
+        let mut args = vec!["forest", project.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        args.extend_from_slice(&["-o", out.to_str().unwrap()]);
+        thicket(&args)
+    };
+    for (extra, says) in [
+        (
+            &["--object", "Rock", "--trees", "4x4", "--area", "40,40"][..],
+            "\"Rock\" is not a tree the tree builder made",
+        ),
+        (
+            &["--object", "Oak", "--trees", "3x4", "--area", "40,40"],
+            "3 trees along x: one tree fills the grid by reflections",
+        ),
+        (
+            &["--object", "Oak", "--trees", "4x4", "--area", "0,40"],
+            "area x must be a positive length",
+        ),
+        (
+            &["--object", "Oak", "--trees", "4x4", "--area", "NaN,40"],
+            "area x must be a positive length",
+        ),
+        (
+            &[
+                "--object",
+                "Oak",
+                "--trees",
+                "1048576x2097152",
+                "--area",
+                "40,40",
+            ],
+            "41 reflection levels",
+        ),
+        (
+            &[
+                "--object", "Oak", "--object", "Birch", "--trees", "4x4", "--area", "40,40",
+                "--on", "Terrain",
+            ],
+            "cannot stand on a KRS terrain",
+        ),
+        (
+            &[
+                "--object", "Oak", "--object", "Rock", "--trees", "4x4", "--area", "40,40",
+            ],
+            "\"Rock\" is not a tree",
+        ),
+        (
+            &["--object", "Elm", "--trees", "4x4", "--area", "40,40"],
+            "no object named \"Elm\"",
+        ),
+    ] {
+        let o = run(extra);
+        assert_fails_naming(&o, &project);
+        let err = stderr(&o);
+        assert!(err.contains(says), "{extra:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "said once: {err}");
+        assert!(!out.exists(), "{extra:?} wrote nothing");
+    }
+}

@@ -475,7 +475,13 @@ fn surface_height(scene: &krs::PreparedScene, x: f32, z: f32) -> Option<f32> {
 /// ground, lowest in the scene, casts nothing, so the frame builds no shadow map for it (one
 /// would cost every ground pixel its filter taps for no visible shadow).
 fn krs_tree(doc: &mut Document) {
-    doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
+    // The builder's parameters go with the tree, so it opens in the builder and grows forests.
+    let id = doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
+    doc.tree_builders
+        .push(thicket_core::scene::TreeBuilderLink {
+            object: id,
+            params: krs::TreeParams::default(),
+        });
     let ground = MeshModel {
         parts: vec![ground_plane(7.0, 0.0)],
         materials: vec![Material {

@@ -5,6 +5,7 @@
 pub mod autosave;
 mod dope;
 mod enhance;
+mod forest;
 pub mod jobs;
 mod krs;
 mod motion;
@@ -26,6 +27,7 @@ use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
 pub use dope::KeyClipboard;
 pub use enhance::{EnhanceUpdate, PreparedDocument};
+pub use forest::ForestReport;
 pub use pick::{Landing, PickKind, SurfacePick};
 pub use pose::JointFrames;
 pub use pose_keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
@@ -633,6 +635,13 @@ impl Editor {
             .collect();
         if self.doc.tree_params_of(id).is_some() {
             edits.push(Edit::SetTreeParams { id, params: None });
+        }
+        // A forest that loses a tree, a grown object or its terrain cannot be regrown: its
+        // link goes (the grown objects stay as plain KRS objects).
+        if let Some((i, _)) = self.doc.forest_of(id) {
+            let mut forests = self.doc.forests.clone();
+            forests.remove(i);
+            edits.push(Edit::SetForests { forests });
         }
         if edits.is_empty() {
             self.apply(Edit::Remove { index }, None);

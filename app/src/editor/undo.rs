@@ -130,6 +130,11 @@ pub enum Edit {
         /// The new parameters.
         params: Option<Box<TreeParams>>,
     },
+    /// Replace the document's forest links (a grown, regrown or removed forest).
+    SetForests {
+        /// The new links.
+        forests: Vec<thicket_core::scene::ForestLink>,
+    },
     /// Write per-voxel stretch override codes of a rigged model (a stretch-paint stroke's
     /// undo: only the voxels it touched, with their codes before it; 0 removes an override).
     StretchOverrides {
@@ -346,6 +351,9 @@ impl Edit {
                 }
                 Edit::SetTreeParams { id, params: old }
             }
+            Edit::SetForests { forests } => Edit::SetForests {
+                forests: std::mem::replace(&mut doc.forests, forests),
+            },
             Edit::StretchOverrides { id, entries } => match rig_of(doc, id) {
                 Some(rig) => {
                     let mut old: Vec<(UVec3, u8)> = entries
@@ -429,6 +437,13 @@ impl Edit {
                 .as_ref()
                 .map_or(0, |m| clips_bytes(std::slice::from_ref(&m.clip))),
             Edit::SetTreeParams { .. } => size_of::<TreeParams>() + 256,
+            Edit::SetForests { forests } => {
+                forests
+                    .iter()
+                    .map(|f| size_of_val(f) + 8 * (f.sources.len() + f.objects.len()))
+                    .sum::<usize>()
+                    + 64
+            }
             _ => 64,
         }
     }
@@ -493,6 +508,7 @@ impl Edit {
             Edit::SetVoxelModel { .. } => "Replace voxel model",
             Edit::SetPalette { .. } => "Set palette",
             Edit::SetTreeParams { .. } => "Tree builder",
+            Edit::SetForests { .. } => "Forest",
             Edit::StretchOverrides { .. } => "Stretch paint",
             Edit::SetPlayback { .. } => "Playback",
             Edit::SetRig { .. } => "Skeleton",
@@ -554,6 +570,8 @@ pub enum MergeKey {
     StretchPaint(u64),
     /// A rest-pose joint drag on a voxel model's skeleton.
     Rig(u64),
+    /// A Grow forest slider drag (the forest's first tree).
+    Forest(u64),
 }
 
 #[derive(Debug)]

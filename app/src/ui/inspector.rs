@@ -21,6 +21,8 @@ pub struct InspectorState {
     cache: Option<(CacheKey, ObjectInfo)>,
     /// The Detail enhancement section.
     pub enhance: super::enhance_panel::EnhancePanel,
+    /// The Grow forest section.
+    pub forest: super::forest_panel::ForestPanel,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -54,7 +56,10 @@ pub fn inspector_ui(
                         ObjectKind::Voxels(v) if v.rig.is_some() => {
                             rig_inspector_ui(ui, editor, pose, id);
                         }
-                        ObjectKind::Krs(_) => krs_inspector_ui(ui, editor, krs, id),
+                        ObjectKind::Krs(_) => {
+                            super::forest_panel::forest_ui(ui, editor, &mut state.forest, id);
+                            krs_inspector_ui(ui, editor, krs, id);
+                        }
                         ObjectKind::Voxels(_) | ObjectKind::Mesh(_) => {}
                     }
                 }

@@ -8,6 +8,7 @@ pub mod dope_sheet;
 pub use dialogs::shortcut_rows;
 mod enhance_panel;
 pub mod export_gltf;
+mod forest_panel;
 mod history;
 mod inspector;
 pub mod krs_panel;

@@ -17,6 +17,7 @@
 //! | `trace.rs` | sphere tracing, over-relaxation, tile start distances (§4.1), shadows, AO |
 //! | `shade.rs` | Algorithm 2 (smooth shading), triplanar and kernel-parametrised texturing |
 //! | `tree.rs` | the tree builder (§7.2) |
+//! | `forest.rs` | growing a forest from trees, on a terrain or as a union (§7.2, §5) |
 //! | `presets.rs` | tree, bush, grass, rock, terrain, coral, sponge, forest |
 //! | `query.rs` | distance + normal, bounding spheres, instance enumeration, empty zones |
 //!
@@ -24,6 +25,7 @@
 //! `docs/krs.md`.
 
 mod distort;
+pub mod forest;
 mod kernel;
 mod mirror;
 mod object;

@@ -590,6 +590,48 @@ pub fn with_extra_mirrors(mut object: KrsObject, mirrors: &[MirrorPlane]) -> Krs
     object
 }
 
+/// A KRS ground: the plane y = 0 folded by `fine` small tilted mirrors of its own around the
+/// origin (bumps between the copies of a piece of radius `radius` standing there; the origin
+/// stays on their kept side, so the ground under the piece is untouched), textured as soil.
+/// [`on_terrain`] and the forest grower ([`super::forest`]) add shared mirrors after these.
+#[must_use]
+pub fn folded_ground(ground: Material, fine: usize, radius: f32, seed: u64) -> KrsObject {
+    let mut rng = Pcg32::seed_from_u64(seed ^ 0x9e37_79b9);
+    let mut mirrors = Vec::with_capacity(fine);
+    for i in 0..fine {
+        let azimuth: f32 = rng.random_range(0.0..TAU);
+        let tilt: f32 =
+            rng.random_range(0.06..0.16) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+        let normal = Vec3::new(
+            azimuth.cos() * tilt.cos(),
+            tilt.sin(),
+            azimuth.sin() * tilt.cos(),
+        );
+        // Beyond the trunk or stem (a fifth of the radius), growing per level.
+        let offset = radius * rng.random_range(0.2..0.5) * 1.5f32.powi(i as i32);
+        mirrors.push(MirrorPlane::new(normal, offset));
+    }
+    let mut kernels = vec![Kernel::InfinitePlane(PlaneKernel {
+        normal: Vec3::Y,
+        offset: 0.0,
+        material: ground,
+    })];
+    kernels.resize(mirrors.len() + 1, Kernel::Empty);
+    KrsObject {
+        name: "terrain".to_owned(),
+        kernels,
+        mirrors,
+        texturing: Texturing {
+            mode: TextureMode::Triplanar,
+            pattern: Pattern::Bark,
+            scale: 0.8,
+            contrast: 0.35,
+            sharpness: 4.0,
+        },
+        ..KrsObject::default()
+    }
+}
+
 /// A piece (a tree, a grass tuft, a coral; object space = world space, standing on y = 0 at
 /// the origin) scattered over a KRS terrain by **shared reflections** (§7.2: a forest's extra
 /// reflections "identical to those of the terrain"): the terrain is the ground plane y = 0,
@@ -616,42 +658,9 @@ pub fn on_terrain(
         .bound_world
         .ok_or(super::object::KrsError::Unbounded { object: 0 })?;
     let shared = scatter_mirrors(ball, scatter);
-    let mut rng = Pcg32::seed_from_u64(scatter.seed ^ 0x9e37_79b9);
-    let mut terrain_mirrors = Vec::with_capacity(fine + shared.len());
-    for i in 0..fine {
-        let azimuth: f32 = rng.random_range(0.0..TAU);
-        let tilt: f32 =
-            rng.random_range(0.06..0.16) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = Vec3::new(
-            azimuth.cos() * tilt.cos(),
-            tilt.sin(),
-            azimuth.sin() * tilt.cos(),
-        );
-        // Beyond the trunk or stem (a fifth of the radius), growing per level.
-        let offset = ball.1 * rng.random_range(0.2..0.5) * 1.5f32.powi(i as i32);
-        terrain_mirrors.push(MirrorPlane::new(normal, offset));
-    }
-    terrain_mirrors.extend_from_slice(&shared);
-    let mut kernels = vec![Kernel::InfinitePlane(PlaneKernel {
-        normal: Vec3::Y,
-        offset: 0.0,
-        material: ground,
-    })];
-    kernels.resize(terrain_mirrors.len() + 1, Kernel::Empty);
-    let terrain = KrsObject {
-        name: "terrain".to_owned(),
-        kernels,
-        mirrors: terrain_mirrors,
-        distortion: piece.distortion,
-        texturing: Texturing {
-            mode: TextureMode::Triplanar,
-            pattern: Pattern::Bark,
-            scale: 0.8,
-            contrast: 0.35,
-            sharpness: 4.0,
-        },
-        ..KrsObject::default()
-    };
+    let mut terrain = folded_ground(ground, fine, ball.1, scatter.seed);
+    terrain.distortion = piece.distortion;
+    let terrain = with_extra_mirrors(terrain, &shared);
     Ok(KrsScene {
         objects: vec![terrain, with_extra_mirrors(piece, &shared)],
     })

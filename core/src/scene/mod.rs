@@ -9,9 +9,11 @@ use glam::{Mat4, Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 pub mod bake;
+pub mod forest;
 pub mod motion;
 
 pub use bake::bake_shown_pose;
+pub use forest::{ForestLink, ForestPlan};
 pub use motion::ObjectMotion;
 
 use crate::enhance::{Control, EnhanceError, EnhanceSettings, EnhanceStats, Enhancer};
@@ -843,6 +845,10 @@ pub struct Document {
     /// a tree keeps editing it from its parameters. (Omitted from the JSON when empty.)
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub tree_builders: Vec<TreeBuilderLink>,
+    /// Forests grown from trees of the document ([`ForestLink`]), so they can be regrown.
+    /// (Omitted from the JSON when empty.)
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub forests: Vec<ForestLink>,
 }
 
 /// A voxel model (`source`, the coarse one the artist edits) and the object that holds its
@@ -881,6 +887,7 @@ impl Default for Document {
             quality: Quality::default(),
             enhancements: Vec::new(),
             tree_builders: Vec::new(),
+            forests: Vec::new(),
         }
     }
 }
@@ -996,6 +1003,15 @@ impl Document {
                 invalid(
                     "tree_builders",
                     format!("KRS object id {}", t.object),
+                    e.to_string(),
+                )
+            })?;
+        }
+        for f in &self.forests {
+            crate::krs::forest::check_params(&f.params, f.sources.len()).map_err(|e| {
+                invalid(
+                    "forests",
+                    format!("the forest grown from object ids {:?}", f.sources),
                     e.to_string(),
                 )
             })?;
