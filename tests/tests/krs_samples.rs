@@ -117,9 +117,11 @@ fn load(name: &str) -> Document {
     project::load(&path).unwrap_or_else(|e| panic!("{e}"))
 }
 
+/// The shown KRS objects (a forest's tree stays in the project, hidden).
 fn krs_objects(doc: &Document) -> Vec<&KrsObject> {
     doc.objects
         .iter()
+        .filter(|o| o.visible)
         .filter_map(|o| match &o.kind {
             ObjectKind::Krs(k) => Some(k),
             _ => None,
@@ -280,62 +282,62 @@ fn the_new_samples_export_where_bounded() {
     );
 }
 
-/// Symmetry hiding measured (§5, issue 26 item 4): the woodland's view rendered with its
-/// placement aligned (mirrors exactly along x and z, regular gaps) and as shipped (jittered
-/// azimuths and tilts, random gaps), with and without a distortion, the forest and the terrain
-/// alone; `thicket render --stats` reports the same measure for any project. The aligned forest
-/// is a lattice of identical trees and must measure clearly higher than the jittered one.
+/// Renders `doc` at 128² (a smaller shadow map) and measures its visible repetition.
+fn repetition_of(doc: &Document) -> thicket_core::krs::repetition::Repetition {
+    let mut quality = doc.quality.clone();
+    quality.shadow_map_size = 512;
+    let (img, _, _) = render_document(
+        doc,
+        &RenderRequest {
+            quality,
+            ..RenderRequest::new(128, 128)
+        },
+    )
+    .expect("frame");
+    thicket_core::krs::repetition::visible_repetition(&img.pixels, img.width, img.height)
+}
+
+/// Symmetry hiding measured (§5, issue 26 item 4): the woodland regrown from its tree with its
+/// reflections aligned (mirrors exactly along x and z, regular gaps, flat ground) and as
+/// shipped (jittered azimuths and tilts, varied gaps), with and without a warp, the forest and
+/// the terrain alone; `thicket render --stats` reports the same measure for any project. The
+/// aligned forest is a lattice of identical trees and must measure clearly higher than the
+/// jittered one.
 #[test]
 fn jittered_mirrors_measure_less_visible_repetition_than_aligned_ones() {
-    use thicket_core::krs::repetition::{Repetition, visible_repetition};
-    use thicket_core::krs::{Distortion, Material, presets};
-    use thicket_tests::samples::woodland_scatter;
+    use thicket_tests::samples::woodland_forest;
     let base = load("woodland");
-    let measure = |aligned: bool, distorted: bool, terrain_only: bool| -> Repetition {
-        let mut tree = presets::tree();
-        if distorted {
-            tree.distortion = Some(Distortion {
-                amplitude: 0.2,
-                frequency: 0.5,
-                seed: 4,
-            });
+    let tree = base.object_by_name("Tree").expect("the tree").id;
+    let terrain = base.object_by_name("Terrain").expect("the terrain").id;
+    let measure = |aligned: bool, warped: bool, terrain_only: bool| {
+        let mut params = woodland_forest();
+        if aligned {
+            params.jitter = 0.0;
+            params.spread = 0.0;
+            params.tilt = 0.0;
         }
-        let scatter = if aligned {
-            woodland_scatter().aligned()
-        } else {
-            woodland_scatter()
-        };
-        let ground = Material::new(glam::Vec3::new(0.33, 0.38, 0.2), 5);
-        let scene = presets::on_terrain(tree, ground, &scatter, 5).expect("valid");
+        if warped {
+            params.warp = 0.2;
+            params.warp_frequency = 0.5;
+        }
         let mut doc = base.clone();
-        for (o, k) in doc.objects.iter_mut().zip(scene.objects) {
-            o.kind = ObjectKind::Krs(k);
+        let plan = doc
+            .plan_forest(&[tree], Some(terrain), &params)
+            .expect("regrows");
+        doc.apply_forest(plan);
+        if let Some(o) = doc.objects.iter_mut().find(|o| o.name == "Forest") {
+            o.visible = !terrain_only;
         }
-        doc.objects[1].visible = !terrain_only;
-        let mut quality = doc.quality.clone();
-        quality.shadow_map_size = 512;
-        let (img, _, _) = render_document(
-            &doc,
-            &RenderRequest {
-                quality,
-                ..RenderRequest::new(128, 128)
-            },
-        )
-        .expect("frame");
-        visible_repetition(&img.pixels, img.width, img.height)
+        repetition_of(&doc)
     };
     let mut forest = Vec::new();
     for (what, terrain_only) in [("forest", false), ("terrain", true)] {
-        for (aligned, distorted) in [(true, false), (false, false), (true, true), (false, true)] {
-            let r = measure(aligned, distorted, terrain_only);
+        for (aligned, warped) in [(true, false), (false, false), (true, true), (false, true)] {
+            let r = measure(aligned, warped, terrain_only);
             eprintln!(
-                "{what:8} {:9} {:13}: translation {:.3} mirror {:.3} score {:.3}",
+                "{what:8} {:9} {:10}: translation {:.3} mirror {:.3} score {:.3}",
                 if aligned { "aligned" } else { "jittered" },
-                if distorted {
-                    "distorted"
-                } else {
-                    "not distorted"
-                },
+                if warped { "warped" } else { "not warped" },
                 r.translation,
                 r.mirror,
                 r.score()
@@ -349,5 +351,89 @@ fn jittered_mirrors_measure_less_visible_repetition_than_aligned_ones() {
     assert!(
         aligned > 0.4 && aligned > 1.5 * jittered,
         "aligned {aligned} jittered {jittered}"
+    );
+}
+
+/// The paper's other symmetry hiding (§5): "when, in a forest, there are three completely
+/// different trees between the two that are mirror images of each other, symmetry is
+/// undetected". A union of three different trees from the builder, grown over the same grid
+/// with the same mirror draws, measures less visible repetition than one of them alone.
+#[test]
+fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
+    use thicket_core::krs::{TreeParams, forest::ForestParams};
+    let base = load("woodland");
+    let mut doc = Document {
+        objects: Vec::new(),
+        forests: Vec::new(),
+        tree_builders: Vec::new(),
+        ..base.clone()
+    };
+    let mut trees = Vec::new();
+    for k in 0..3 {
+        let mut params = TreeParams::default();
+        // Taller or shorter trunks, wider or narrower crowns, forks turned differently.
+        params.route = thicket_core::krs::spiral_route(
+            &[
+                1.8 + 0.5 * k as f32,
+                1.3,
+                1.0 - 0.15 * k as f32,
+                0.8,
+                0.6,
+                0.45,
+                0.35,
+            ],
+            1.1 + 0.25 * k as f32,
+            0.5 + 0.2 * k as f32,
+        );
+        params.widths[0] = 0.16 + 0.05 * k as f32;
+        let id = doc.add(
+            format!("Tree {k}"),
+            ObjectKind::Krs(params.build().expect("a tree")),
+        );
+        doc.tree_builders
+            .push(thicket_core::scene::TreeBuilderLink { object: id, params });
+        trees.push(id);
+    }
+    doc.add(
+        "Ground",
+        ObjectKind::Krs(thicket_core::krs::presets::folded_ground(
+            thicket_core::krs::Material::new(glam::Vec3::new(0.33, 0.38, 0.2), 5),
+            0,
+            1.0,
+            0,
+        )),
+    );
+    let s = 8.8;
+    let grow = |sources: &[u64], trees: [u32; 2], aligned: bool| {
+        let mut d = doc.clone();
+        let mut params = ForestParams {
+            trees,
+            area: [s * trees[0] as f32, s * trees[1] as f32],
+            ..thicket_tests::samples::woodland_forest()
+        };
+        if aligned {
+            params.jitter = 0.0;
+            params.spread = 0.0;
+        }
+        let plan = d.plan_forest(sources, None, &params).expect("grows");
+        d.apply_forest(plan);
+        repetition_of(&d)
+    };
+    // Aligned: the lattice in plain view, what the union alone must hide.
+    let single = grow(&trees[..1], [32, 32], true);
+    let union = grow(&trees, [24, 32], true);
+    // Jittered as the woodland ships (printed for the record: the jitter already hides most).
+    let single_j = grow(&trees[..1], [32, 32], false);
+    let union_j = grow(&trees, [24, 32], false);
+    eprintln!(
+        "aligned: one tree {:.3}, three trees {:.3}; jittered: one tree {:.3}, three trees {:.3}",
+        single.score(),
+        union.score(),
+        single_j.score(),
+        union_j.score()
+    );
+    assert!(
+        union.score() < 0.8 * single.score(),
+        "one tree {single:?}, three trees {union:?}"
     );
 }

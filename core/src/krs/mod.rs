@@ -54,7 +54,7 @@ pub use trace::{
     AoSettings, SampleGrid, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, shadow,
     shadow_counted, tile_cone, tile_start_distance, tile_start_distance_counted, trace,
 };
-pub use tree::{LeafParams, TreeError, TreeParams};
+pub use tree::{LeafParams, TreeError, TreeParams, spiral_route};
 
 #[cfg(test)]
 mod tests;
