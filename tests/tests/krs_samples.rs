@@ -370,21 +370,23 @@ fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
     };
     let mut trees = Vec::new();
     for k in 0..3 {
-        let mut params = TreeParams::default();
         // Taller or shorter trunks, wider or narrower crowns, forks turned differently.
-        params.route = thicket_core::krs::spiral_route(
-            &[
-                1.8 + 0.5 * k as f32,
-                1.3,
-                1.0 - 0.15 * k as f32,
-                0.8,
-                0.6,
-                0.45,
-                0.35,
-            ],
-            1.1 + 0.25 * k as f32,
-            0.5 + 0.2 * k as f32,
-        );
+        let mut params = TreeParams {
+            route: thicket_core::krs::spiral_route(
+                &[
+                    1.8 + 0.5 * k as f32,
+                    1.3,
+                    1.0 - 0.15 * k as f32,
+                    0.8,
+                    0.6,
+                    0.45,
+                    0.35,
+                ],
+                1.1 + 0.25 * k as f32,
+                0.5 + 0.2 * k as f32,
+            ),
+            ..TreeParams::default()
+        };
         params.widths[0] = 0.16 + 0.05 * k as f32;
         let id = doc.add(
             format!("Tree {k}"),
