@@ -520,6 +520,51 @@ fn tree_edit(c: &mut Criterion) {
     group.finish();
 }
 
+/// Growing or regrowing the woodland's 2^14-tree forest on its terrain (what a Forest slider
+/// release does: plan the mirrors, write the objects), and that plus the first preview frame
+/// at the editor's reduced size (half of a 589×709 view).
+fn forest_regrow(c: &mut Criterion) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/woodland.thicket.json"
+    );
+    let Ok(base) = thicket_core::io::project::load(std::path::Path::new(path)) else {
+        eprintln!("forest_regrow: {path} not found");
+        return;
+    };
+    let link = base.forests[0].clone();
+    let mut group = c.benchmark_group("krs_forest_regrow");
+    group.sample_size(10);
+    let mut seed = 0u64;
+    let mut regrow = |doc: &mut thicket_core::scene::Document| {
+        seed += 1;
+        let params = thicket_core::krs::forest::ForestParams {
+            seed,
+            ..link.params
+        };
+        let plan = doc
+            .plan_forest(&link.sources, link.terrain, &params)
+            .expect("regrows");
+        doc.apply_forest(plan);
+    };
+    group.bench_function("plan_and_apply_2^14", |b| {
+        let mut doc = base.clone();
+        b.iter(|| {
+            regrow(&mut doc);
+            black_box(doc.forests.len())
+        });
+    });
+    let req = RenderRequest::new(294, 354);
+    group.bench_function("regrow_and_preview_294x354", |b| {
+        let mut doc = base.clone();
+        b.iter(|| {
+            regrow(&mut doc);
+            black_box(render_document(&doc, &req).is_ok())
+        });
+    });
+    group.finish();
+}
+
 criterion_group!(
     benches,
     distance_per_level,
@@ -529,6 +574,7 @@ criterion_group!(
     frame_brute_force,
     frames_800,
     rocks_800,
-    tree_edit
+    tree_edit,
+    forest_regrow
 );
 criterion_main!(benches);
