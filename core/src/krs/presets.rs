@@ -410,17 +410,26 @@ pub fn all() -> Vec<(&'static str, KrsObject)> {
     ]
 }
 
+/// The presets the tree builder makes (tree, bush, coral) with their builder parameters:
+/// building them gives the preset's kernels and mirrors, so the editor's builder can open the
+/// preset with them.
+#[must_use]
+pub fn builder_presets() -> [(&'static str, TreeParams); 3] {
+    [
+        ("tree", tree_params()),
+        ("bush", bush_params()),
+        ("coral", coral_params()),
+    ]
+}
+
 /// The tree-builder parameters of the preset named `name` ([`all`]) when the builder makes it
-/// (tree, bush, coral): building them gives the preset's kernels and mirrors, so the editor's
-/// builder can open the preset with them.
+/// ([`builder_presets`]).
 #[must_use]
 pub fn builder_params(name: &str) -> Option<TreeParams> {
-    match name {
-        "tree" => Some(tree_params()),
-        "bush" => Some(bush_params()),
-        "coral" => Some(coral_params()),
-        _ => None,
-    }
+    builder_presets()
+        .into_iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, p)| p)
 }
 
 /// A battered rock (§7.1, Fig. 7) from planar kernels and 14 reflection levels: four half-space
