@@ -1,7 +1,8 @@
 //! The KRS editor in the inspector: presets, the kernel list with typed parameter editors and
 //! the mirror-plane list. Every change goes through [`Editor::set_krs`] (core's validation: a
 //! refused value leaves the document unchanged and the message says which field and why); a
-//! drag is one undo step. The mirror planes are drawn over the view as outlined quads.
+//! drag is one undo step. The planes of the level being edited are drawn over the view, clipped
+//! to the object's bounding box and fading with distance; the highlighted one has a gizmo.
 
 use glam::{EulerRot, Quat, Vec3};
 use thicket_core::krs::{
