@@ -1,7 +1,8 @@
 //! The pose tool, the timeline and the KRS editor on the real app, driven by egui_kittest:
 //! pick a joint in the inspector's tree, drag its gizmo ring in the view, undo and redo the
-//! drag; play the timeline; change a KRS mirror plane through its DragValues (a zero normal is
-//! refused with a message), undo and redo; snapshot both, the view included.
+//! drag; play the timeline; change a KRS mirror plane through its gizmo and its DragValues (a
+//! typed normal component is kept until Enter, then the normal is made unit length), undo and
+//! redo; the tree builder on the tree sample; snapshot them, the view included.
 //!
 //! No GPU viewport is attached: the view draws with core's CPU preview renderer (what the
 //! editor uses without a GPU, for KRS objects, and for the hole / bloat overlay of rigged
@@ -298,44 +299,65 @@ fn coral_doc() -> Document {
 }
 
 #[test]
-fn mirror_planes_show_only_while_the_krs_editor_is_open() {
-    use thicket::ui::krs_panel::{mirror_quads, pick_mirror};
+fn mirror_planes_show_only_for_the_level_being_edited_while_the_krs_editor_is_open() {
+    use thicket::ui::krs_panel::{mirror_outlines, pick_mirror};
     let mut h = harness(coral_doc());
-    h.get_by_label("R0").click_accesskit();
-    h.run_steps(1);
-    // (quads, gizmo handles, whether a click on a quad's edge picks a plane)
+    // (planes drawn, gizmo handles, whether a click on each drawn outline picks that plane)
     let shown = |h: &Harness<'static, EditorApp>| {
         let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
         let (editor, krs) = (&h.state().editor, &h.state().krs);
-        let quads = mirror_quads(editor, krs, &proj);
-        let picked = quads
-            .first()
-            .is_some_and(|(_, q)| pick_mirror(editor, krs, &proj, q[0].lerp(q[1], 0.5)).is_some());
-        (quads.len(), krs.mirror_handles(editor, &proj).len(), picked)
+        let outlines = mirror_outlines(editor, krs, &proj);
+        let picked = outlines.iter().all(|o| {
+            let (seg, _) = o.segments[o.segments.len() / 2];
+            pick_mirror(editor, krs, &proj, seg[0].lerp(seg[1], 0.5)) == Some(o.index)
+        });
+        let mut drawn: Vec<usize> = outlines.iter().map(|o| o.index).collect();
+        drawn.sort_unstable();
+        (drawn, krs.mirror_handles(editor, &proj).len(), picked)
     };
-    let planes = h.state().editor.doc().objects[0]
-        .krs_in_world()
-        .unwrap()
-        .mirrors
-        .len();
-    let (quads, handles, picked) = shown(&h);
-    assert_eq!(quads, planes, "every plane drawn while the editor is open");
+    // Nothing is being edited yet: no plane clutters the view.
+    assert_eq!(shown(&h), (vec![], 0, true));
+    h.get_by_label("R0").click_accesskit();
+    h.run_steps(1);
+    let (drawn, handles, picked) = shown(&h);
+    assert_eq!(drawn, [0], "only the highlighted plane");
     assert!(
-        handles > 0 && picked,
+        handles == 3 && picked,
         "the highlighted plane has its gizmo and is pickable"
     );
+    // Opening kernel K2's entry edits that level: its plane R2 is drawn (and pickable) too.
+    h.get_by_label_contains("K2: ").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(shown(&h), (vec![0, 2], 3, true));
+    // Each outline is the plane clipped to the object's bounding box: the centre of the box
+    // projects inside the box's outline, and every outline point is a point of the box.
+    let ed = &h.state().editor;
+    let k = ed.doc().objects[0].krs_in_world().unwrap();
+    let (c, r) = k.bounding_sphere_object().unwrap();
+    for m in [0, 2] {
+        let polygon = thicket::ui::krs_panel::plane_in_box(
+            k.mirrors[m].normal,
+            k.mirrors[m].offset,
+            c - Vec3::splat(r),
+            c + Vec3::splat(r),
+        );
+        assert!(polygon.len() >= 3, "R{m} cuts the box");
+        for p in &polygon {
+            assert!((*p - c).abs().max_element() <= r * (1.0 + 1e-5), "{p}");
+        }
+    }
     // Folding the KRS editor away hides the planes, their gizmo and their picking.
     h.get_by_label("KRS editor").click_accesskit();
     h.run_steps(3);
     assert!(!h.state().krs.editor_open);
-    assert_eq!(shown(&h), (0, 0, false));
+    assert_eq!(shown(&h), (vec![], 0, true));
     h.get_by_label("KRS editor").click_accesskit();
     h.run_steps(3);
-    assert_eq!(shown(&h), (planes, handles, true));
+    assert_eq!(shown(&h), (vec![0, 2], 3, true));
 }
 
 #[test]
-fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
+fn change_a_krs_mirror_plane_through_its_arrow_and_normal_fields_undo_redo() {
     let mut h = harness(coral_doc());
     let id = h.state().editor.doc().objects[0].id;
     let original = h.state().editor.krs(id).unwrap().clone();
@@ -386,46 +408,43 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     h.run_steps(1);
     assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
 
-    // Type a new normal through the DragValues of R0 (the first "nx", "ny", "nz").
+    // Set normal components through the DragValues of R0 (the first "nx", "ny", "nz"): each
+    // is kept as given and the other two are scaled to make a unit normal.
     let steps = h.state().editor.history().undo_len();
     h.query_all_by_label("nx")
         .next()
         .unwrap()
-        .set_value_accesskit(1.0);
-    h.run_steps(1);
-    h.query_all_by_label("ny")
-        .next()
-        .unwrap()
-        .set_value_accesskit(1.0);
-    h.run_steps(1);
+        .set_value_accesskit(0.6);
+    h.run_steps(2);
+    let m = h.state().editor.krs(id).unwrap().mirrors[0];
+    assert!(
+        (m.normal.x - 0.6).abs() < 1e-6 && (m.normal.length() - 1.0).abs() < 1e-5,
+        "x kept, the normal stored normalised: {m:?}"
+    );
     h.query_all_by_label("nz")
         .next()
         .unwrap()
         .set_value_accesskit(0.0);
     h.run_steps(2);
     let m = h.state().editor.krs(id).unwrap().mirrors[0];
-    let expected = Vec3::new(1.0, 1.0, 0.0).normalize_or_zero();
     assert!(
-        (m.normal - expected).length() < 1e-3,
-        "the normal is stored normalised: {m:?}"
+        m.normal.z.abs() < 1e-6
+            && (m.normal.x - 0.6).abs() < 1e-5
+            && (m.normal.y.abs() - 0.8).abs() < 1e-5,
+        "z set to 0, x and y scaled together: {m:?}"
     );
     let changed = h.state().editor.history().undo_len() - steps;
-    assert!((1..=3).contains(&changed), "{changed} steps");
+    assert!((1..=2).contains(&changed), "{changed} steps");
 
-    // A zero normal is refused with a message; the document keeps the last good plane.
-    h.query_all_by_label("nx")
-        .next()
-        .unwrap()
-        .set_value_accesskit(0.0);
-    h.run_steps(1);
+    // A value beyond 1 is clamped: the normal becomes that axis, never zero.
     h.query_all_by_label("ny")
         .next()
         .unwrap()
-        .set_value_accesskit(0.0);
+        .set_value_accesskit(-3.0);
     h.run_steps(2);
     let now = h.state().editor.krs(id).unwrap().mirrors[0];
-    assert!(now.normal.length() > 0.99, "{now:?}");
-    h.get_by_label_contains("zero length");
+    assert!((now.normal - Vec3::NEG_Y).length() < 1e-6, "{now:?}");
+    assert!(h.state().krs.error.is_none());
     settle_preview(&mut h);
     if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
         eprintln!("CPU preview of the coral: {ms:.1} ms at {w} x {hh} px");
@@ -439,6 +458,197 @@ fn change_a_krs_mirror_plane_refuse_a_zero_normal_undo_redo() {
     assert_eq!(h.state().editor.krs(id).unwrap().mirrors, original.mirrors);
     press_undo(&mut h, n, true);
     assert_eq!(h.state().editor.krs(id).unwrap(), &after);
+}
+
+#[test]
+fn a_typed_normal_component_stays_as_typed_until_enter_then_the_normal_is_unit() {
+    let mut h = harness(coral_doc());
+    let id = h.state().editor.doc().objects[0].id;
+    // A fork plane with a normal off every axis (R0, the leaf's, is along x).
+    let i = h
+        .state()
+        .editor
+        .krs(id)
+        .unwrap()
+        .mirrors
+        .iter()
+        .position(|m| m.normal.abs().min_element() > 0.05 && (m.normal.x - 0.2).abs() > 0.05);
+    let i = i.expect("a tilted plane");
+    let before = h.state().editor.krs(id).unwrap().mirrors[i];
+    let steps = h.state().editor.history().undo_len();
+    // Click its "nx" field to type into it (its text is selected), and type 0.2.
+    h.query_all_by_label("nx").nth(i).unwrap().click_accesskit();
+    h.run_steps(2);
+    let field = h.get_by(|n| n.is_focused());
+    field.type_text("0.2");
+    h.run_steps(3);
+    // While typing, the field shows what was typed and the plane has not changed.
+    assert_eq!(h.get_by(|n| n.is_focused()).value().as_deref(), Some("0.2"));
+    assert_eq!(h.state().editor.krs(id).unwrap().mirrors[i], before);
+    assert_eq!(h.state().editor.history().undo_len(), steps);
+    // Enter commits: x is 0.2 and the other two are scaled to make a unit normal.
+    h.key_press(egui::Key::Enter);
+    h.run_steps(2);
+    assert!(h.query_by(|n| n.is_focused()).is_none(), "the field let go");
+    let m = h.state().editor.krs(id).unwrap().mirrors[i];
+    assert!(
+        (m.normal.x - 0.2).abs() < 1e-6 && (m.normal.length() - 1.0).abs() < 1e-5,
+        "{m:?}"
+    );
+    let rest = |n: Vec3| Vec3::new(0.0, n.y, n.z).normalize_or_zero();
+    assert!(
+        (rest(m.normal) - rest(before.normal)).length() < 1e-5,
+        "y and z keep their proportions: {before:?} -> {m:?}"
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
+}
+
+/// Clicks "Start from the default tree" and confirms it with Replace.
+fn start_from_the_default_tree(h: &mut Harness<'static, EditorApp>) {
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Replace").click_accesskit();
+    h.run_steps(2);
+}
+
+/// projects/tree.thicket.json without shadows or AO (a quick CPU preview).
+fn tree_sample() -> Document {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects/tree.thicket.json");
+    let mut doc = thicket_core::io::project::load(std::path::Path::new(path)).unwrap();
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    doc
+}
+
+#[test]
+fn the_tree_sample_opens_in_the_builder_and_the_default_tree_asks_first() {
+    let doc = tree_sample();
+    let id = doc.object_by_name("Tree").expect("a tree").id;
+    let stored = doc
+        .tree_params_of(id)
+        .cloned()
+        .expect("the sample has its parameters");
+    assert_eq!(stored, thicket_core::krs::presets::tree_params());
+    let mut h = harness(doc);
+    h.state_mut().editor.selection = Some(thicket::editor::Selection::Object(id));
+    h.run_steps(2);
+    assert!(
+        h.query_by_label_contains("Not built by the tree builder")
+            .is_none()
+    );
+    h.get_by_label("Edit tree").click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().krs.tree.as_ref().map(|t| &t.1), Some(&stored));
+    // The builder rebuilds the same tree from them: nothing changes until an edit.
+    let built = stored.build().unwrap();
+    let tree = h.state().editor.krs(id).unwrap().clone();
+    assert_eq!(
+        (&built.kernels, &built.mirrors),
+        (&tree.kernels, &tree.mirrors)
+    );
+    h.get_by_label("Close builder").click_accesskit();
+    h.run_steps(2);
+
+    // "Start from the default tree" asks before it replaces anything; Cancel keeps the tree.
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    h.get_by_label("Replace this object with the default tree?");
+    assert_eq!(h.state().editor.krs(id).unwrap(), &tree);
+    assert!(h.state().krs.tree.is_none(), "the builder stays closed");
+    h.get_by_label("Cancel").click_accesskit();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label("Replace this object with the default tree?")
+            .is_none()
+    );
+    assert_eq!(h.state().editor.krs(id).unwrap(), &tree);
+    assert_eq!(h.state().editor.history().undo_len(), steps);
+}
+
+#[test]
+fn a_krs_object_the_builder_did_not_make_says_so_and_is_replaced_only_when_confirmed() {
+    let mut doc = Document::default();
+    doc.add("Rock", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    doc.quality.shadows = false;
+    doc.quality.ao_samples = 0;
+    let mut h = harness(doc);
+    let id = h.state().editor.doc().objects[0].id;
+    let rock = h.state().editor.krs(id).unwrap().clone();
+    h.get_by_label("Not built by the tree builder: its kernels are not a branch route");
+    assert!(h.query_by_label("Edit tree").is_none());
+    let steps = h.state().editor.history().undo_len();
+    h.get_by_label("Start from the default tree")
+        .click_accesskit();
+    h.run_steps(2);
+    assert_eq!(h.state().editor.krs(id).unwrap(), &rock, "not replaced yet");
+    h.get_by_label("Replace").click_accesskit();
+    h.run_steps(2);
+    let params = thicket_core::krs::TreeParams::default();
+    assert_eq!(h.state().krs.tree.as_ref().map(|t| &t.1), Some(&params));
+    assert_eq!(h.state().editor.tree_params(id), Some(&params));
+    assert_eq!(
+        h.state().editor.krs(id).unwrap().kernels,
+        params.build().unwrap().validated(0).unwrap().kernels
+    );
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1);
+    assert!(
+        h.query_by_label_contains("Not built by the tree builder")
+            .is_none()
+    );
+    press_undo(&mut h, 1, false);
+    assert_eq!(h.state().editor.krs(id).unwrap(), &rock);
+}
+
+#[test]
+fn the_tree_sample_shows_the_plane_of_the_level_being_edited_clipped_and_faded() {
+    use thicket::ui::krs_panel::{FAR_ALPHA, mirror_outlines};
+    let doc = tree_sample();
+    let id = doc.object_by_name("Tree").expect("a tree").id;
+    let mut h = harness(doc);
+    h.state_mut().editor.selection = Some(thicket::editor::Selection::Object(id));
+    h.run_steps(2);
+    // The trunk's fork: the last mirror of the tree (the coarsest level).
+    let last = h.state().editor.krs(id).unwrap().mirrors.len() - 1;
+    h.get_by_label(&format!("R{last}")).click_accesskit();
+    h.run_steps(2);
+    let proj = Projector::new(h.state().editor.doc().camera, h.state().view.last_rect);
+    let outlines = mirror_outlines(&h.state().editor, &h.state().krs, &proj);
+    assert_eq!(outlines.len(), 1, "one plane: the level being edited");
+    let o = &outlines[0];
+    assert_eq!(o.index, last);
+    let alphas: Vec<f32> = o.segments.iter().map(|(_, a)| *a).collect();
+    let (lo, hi) = alphas
+        .iter()
+        .fold((f32::INFINITY, 0.0f32), |(a, b), &x| (a.min(x), b.max(x)));
+    assert!(
+        hi == 1.0 && (FAR_ALPHA..0.5).contains(&lo),
+        "the outline fades with distance: {lo}..{hi}"
+    );
+    // Clipped to the object's box: the outline stays within the box's projection.
+    let k = h
+        .state()
+        .editor
+        .doc()
+        .objects
+        .iter()
+        .find(|o| o.id == id)
+        .unwrap();
+    let (blo, bhi) = k.world_bounds().unwrap();
+    let corners: Vec<egui::Pos2> = thicket_core::scene::box_corners(blo, bhi)
+        .iter()
+        .filter_map(|c| proj.to_screen(*c))
+        .collect();
+    let screen_box = egui::Rect::from_points(&corners).expand(1.0);
+    assert!(
+        o.segments
+            .iter()
+            .all(|(s, _)| screen_box.contains(s[0]) && screen_box.contains(s[1]))
+    );
+    settle_preview(&mut h);
+    snapshot(&mut h, "krs_tree_plane_edited");
 }
 
 #[test]
@@ -524,9 +734,7 @@ fn the_tree_builder_rebuilds_from_a_dragged_fork_and_undoes() {
     let id = h.state().editor.doc().objects[0].id;
     let original = h.state().editor.krs(id).unwrap().clone();
 
-    h.get_by_label("Start from the default tree")
-        .click_accesskit();
-    h.run_steps(2);
+    start_from_the_default_tree(&mut h);
     let route = h
         .state()
         .krs
@@ -581,9 +789,7 @@ fn the_tree_builder_turns_a_fork_plane_with_its_normal_handle_and_undoes() {
     doc.camera.distance = 11.0;
     let mut h = harness(doc);
     let id = h.state().editor.doc().objects[0].id;
-    h.get_by_label("Start from the default tree")
-        .click_accesskit();
-    h.run_steps(2);
+    start_from_the_default_tree(&mut h);
     // Every fork has a normal row in the builder, showing the normal in use.
     h.get_by_label("Fork 1 normal");
     let before = h.state().krs.tree.as_ref().expect("open").1.clone();
@@ -910,9 +1116,7 @@ fn a_saved_tree_reopens_in_the_builder_with_its_parameters() {
     doc.quality.ao_samples = 0;
     let mut h = harness(doc);
     let id = h.state().editor.doc().objects[0].id;
-    h.get_by_label("Start from the default tree")
-        .click_accesskit();
-    h.run_steps(2);
+    start_from_the_default_tree(&mut h);
     // Thicken the trunk through the builder's state and a rebuild (what the width field does).
     let mut params = h.state().krs.tree.as_ref().unwrap().1.clone();
     params.widths[0] *= 1.4;

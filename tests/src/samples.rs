@@ -9,7 +9,9 @@ use glam::{UVec3, Vec2, Vec3, Vec4};
 use thicket_core::io::vox::import_vox;
 use thicket_core::krs;
 use thicket_core::mesh::{Material, MeshModel, TriangleMesh};
-use thicket_core::scene::{Document, Light, MeshObject, ObjectKind, OrbitCamera, Transform};
+use thicket_core::scene::{
+    Document, Light, MeshObject, ObjectKind, OrbitCamera, Transform, TreeBuilderLink,
+};
 
 use crate::asset;
 
@@ -473,15 +475,15 @@ fn surface_height(scene: &krs::PreparedScene, x: f32, z: f32) -> Option<f32> {
 /// The KRS tree preset (2^8 leaves, 7 branches on its route) on a triangle-mesh ground: KRS
 /// and mesh share the depth buffer, and the tree shadows the ground by shadow rays. The flat
 /// ground, lowest in the scene, casts nothing, so the frame builds no shadow map for it (one
-/// would cost every ground pixel its filter taps for no visible shadow).
+/// would cost every ground pixel its filter taps for no visible shadow). The tree records its
+/// tree-builder parameters, so the editor's builder opens it ("Edit tree").
 fn krs_tree(doc: &mut Document) {
-    // The builder's parameters go with the tree, so it opens in the builder and grows forests.
-    let id = doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
-    doc.tree_builders
-        .push(thicket_core::scene::TreeBuilderLink {
-            object: id,
-            params: krs::TreeParams::default(),
-        });
+    let tree = doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
+    // The parameters it was built from: the editor's tree builder opens it with them.
+    doc.tree_builders.push(TreeBuilderLink {
+        object: tree,
+        params: krs::presets::tree_params(),
+    });
     let ground = MeshModel {
         parts: vec![ground_plane(7.0, 0.0)],
         materials: vec![Material {
@@ -677,11 +679,10 @@ fn krs_coral(doc: &mut Document) -> Result<()> {
 /// slope it grows on. The tree stays in the project, hidden, so the forest can be regrown.
 fn krs_woodland(doc: &mut Document) -> Result<()> {
     let tree = doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
-    doc.tree_builders
-        .push(thicket_core::scene::TreeBuilderLink {
-            object: tree,
-            params: krs::TreeParams::default(),
-        });
+    doc.tree_builders.push(TreeBuilderLink {
+        object: tree,
+        params: krs::TreeParams::default(),
+    });
     let radius = krs::KrsScene {
         objects: vec![krs::presets::tree()],
     }

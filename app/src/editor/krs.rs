@@ -1,10 +1,11 @@
 //! Editing KRS objects: parameters go through core's validation before they reach the document
 //! (a refused value leaves it unchanged and says why), and presets replace the whole object.
 
+use glam::Vec3;
 use thicket_core::krs::{KrsObject, TreeParams, presets};
-use thicket_core::scene::{MAX_KRS_LEVELS, ObjectKind};
+use thicket_core::scene::{MAX_KRS_LEVELS, Object, ObjectKind};
 
-use super::{CommandError, Edit, Editor, MergeKey};
+use super::{CommandError, Edit, Editor, MergeKey, Selection, beside_scene, half_xz, next_id};
 
 impl Editor {
     /// The KRS parameters of object `id`, when it is a KRS object.
@@ -68,8 +69,65 @@ impl Editor {
         Ok(())
     }
 
+    /// Adds KRS object `krs` named `name` beside what the scene already holds (on the eye's
+    /// side of the scene's bounds, at the height it was made at; at its own origin in a scene
+    /// without bounds, or when it has none itself, like a terrain: the rock's half-spaces have
+    /// no bounding ball but a box found by probing), selects it and frames it.
+    /// `params`, the tree-builder parameters that build it (a tree, bush or coral preset), are
+    /// stored with it in the same undo step, so the builder opens it. Returns its id.
+    pub fn add_krs_object(
+        &mut self,
+        name: &str,
+        krs: KrsObject,
+        params: Option<TreeParams>,
+    ) -> u64 {
+        let id = next_id(&self.doc);
+        let mut object = Object {
+            id,
+            name: name.to_owned(),
+            kind: ObjectKind::Krs(krs),
+            ..Object::default()
+        };
+        // A KRS object with half-space kernels (the rock) has no bounding ball: probe its box.
+        let bounds = object.world_bounds().or_else(|| {
+            let k = object.krs_in_world()?;
+            let scene = thicket_core::krs::KrsScene { objects: vec![k] }
+                .prepare()
+                .ok()?;
+            thicket_core::io::gltf_export::krs_region(scene.objects.first()?).ok()
+        });
+        if let (Some(scene), Some((lo, hi))) = (self.doc.bounds(), bounds) {
+            let dest = beside_scene(scene, half_xz(lo, hi), self.doc.camera.eye());
+            let centre = 0.5 * (lo + hi);
+            object.transform.translation += Vec3::new(dest.x - centre.x, 0.0, dest.z - centre.z);
+        }
+        let insert = Edit::Insert {
+            index: self.doc.objects.len(),
+            object: Box::new(object),
+        };
+        self.history.seal();
+        match params {
+            Some(params) => self.apply(
+                Edit::Group(vec![
+                    insert,
+                    Edit::SetTreeParams {
+                        id,
+                        params: Some(Box::new(params)),
+                    },
+                ]),
+                None,
+            ),
+            None => self.apply(insert, None),
+        }
+        self.history.seal();
+        self.selection = Some(Selection::Object(id));
+        self.frame_selection();
+        id
+    }
+
     /// Replaces KRS object `id` with one of core's presets ([`presets::all`]) (the object's own
-    /// transform still places it); one undo step.
+    /// transform still places it); one undo step. A preset the tree builder makes (tree, bush,
+    /// coral) brings its builder parameters; any other drops the object's.
     ///
     /// # Errors
     /// Unknown object, not a KRS object, or an unknown preset name.
@@ -82,10 +140,11 @@ impl Editor {
         if let Some(current) = self.krs(id) {
             k.name.clone_from(&current.name);
         }
+        let params = presets::builder_params(preset);
         self.history.seal();
-        let result = if self.doc.tree_params_of(id).is_some() {
-            // A preset is not a built tree: the builder's parameters go with the old shape,
-            // in the same step.
+        let result = if self.doc.tree_params_of(id).is_some() || params.is_some() {
+            // The builder's parameters follow the shape, in the same step: the preset's own
+            // when the builder makes it, none otherwise (they would build the old shape).
             self.krs(id).ok_or(CommandError::NoObject(id))?;
             let validated = k
                 .validated(0)
@@ -96,7 +155,10 @@ impl Editor {
                         id,
                         krs: Box::new(validated),
                     },
-                    Edit::SetTreeParams { id, params: None },
+                    Edit::SetTreeParams {
+                        id,
+                        params: params.map(Box::new),
+                    },
                 ]),
                 None,
             );
@@ -108,8 +170,9 @@ impl Editor {
         result
     }
 
-    /// Rebuilds KRS object `id` from tree-builder parameters (paper section 7.2), keeping the
-    /// object's name, texturing and placement; calls during one drag merge into one undo step.
+    /// Rebuilds KRS object `id` from tree-builder parameters (paper section 7.2): the builder
+    /// makes the kernels and mirrors; the object keeps its name, texturing, distortion, empty
+    /// zones and placement. Calls during one drag merge into one undo step.
     ///
     /// # Errors
     /// Unknown object, not a KRS object, or parameters the builder or core's validation
@@ -124,6 +187,8 @@ impl Editor {
             .map_err(|e| CommandError::Invalid(format!("tree builder: {e}")))?;
         built.name.clone_from(&current.name);
         built.texturing = current.texturing;
+        built.distortion = current.distortion;
+        built.empty_zones.clone_from(&current.empty_zones);
         built.world_from_object = current.world_from_object;
         let name = self.object(id).map(|o| o.name.clone()).unwrap_or_default();
         let validated = built.validated(0).map_err(|e| {

@@ -525,17 +525,9 @@ impl Editor {
                     } else {
                         1.0
                     };
-                    // Beside the scene on the camera's side, with a small gap.
-                    let centre = 0.5 * (slo + shi);
-                    let toward_eye =
-                        Vec3::new(camera.eye().x - centre.x, 0.0, camera.eye().z - centre.z)
-                            .try_normalize()
-                            .unwrap_or(Vec3::Z);
-                    let half_xz = |a: Vec3, b: Vec3| 0.5 * Vec2::new(b.x - a.x, b.z - a.z).length();
-                    let reach = half_xz(slo, shi) * 1.05 + scale * half_xz(lo, hi);
                     (
                         scale,
-                        Vec3::new(centre.x, slo.y, centre.z) + toward_eye * reach,
+                        beside_scene((slo, shi), scale * half_xz(lo, hi), camera.eye()),
                     )
                 }
             };
@@ -857,6 +849,25 @@ impl ImportPlacement {
         editor.end_interaction();
         Ok(())
     }
+}
+
+/// Half the horizontal (x–z) diagonal of the box `lo..hi`: how far it reaches sideways from
+/// its centre.
+pub(crate) fn half_xz(lo: Vec3, hi: Vec3) -> f32 {
+    0.5 * Vec2::new(hi.x - lo.x, hi.z - lo.z).length()
+}
+
+/// Where a new thing reaching `half_xz` sideways from its centre stands beside the scene's
+/// bounds `scene`, on the eye's side with a small gap, so it is not on top of what is there:
+/// the point under its centre, at the height of the scene's lowest point.
+pub(crate) fn beside_scene(scene: (Vec3, Vec3), half_xz_new: f32, eye: Vec3) -> Vec3 {
+    let (slo, shi) = scene;
+    let centre = 0.5 * (slo + shi);
+    let toward_eye = Vec3::new(eye.x - centre.x, 0.0, eye.z - centre.z)
+        .try_normalize()
+        .unwrap_or(Vec3::Z);
+    let reach = half_xz(slo, shi) * 1.05 + half_xz_new;
+    Vec3::new(centre.x, slo.y, centre.z) + toward_eye * reach
 }
 
 /// `t` scaled uniformly by `scale` about `from`, which moves to `to`: world points `p` become

@@ -1103,6 +1103,71 @@ fn tree_builder_parameters_are_stored_undone_and_dropped_by_a_preset() {
 }
 
 #[test]
+fn a_builder_preset_brings_its_tree_parameters() {
+    use thicket_core::krs::presets;
+    let mut ed = Editor::default();
+    let id = ed.add_object("Rock", ObjectKind::Krs(presets::rock()));
+    ed.apply_krs_preset(id, "coral").unwrap();
+    let params = presets::coral_params();
+    assert_eq!(ed.tree_params(id), Some(&params));
+    // The builder continues from the coral: rebuilding from its parameters changes nothing,
+    // its distortion included (the builder makes kernels and mirrors only).
+    let before = ed.krs(id).unwrap().clone();
+    assert!(before.distortion.is_some());
+    let steps = ed.history().undo_len();
+    ed.build_tree(id, &params).unwrap();
+    assert_eq!(ed.krs(id).unwrap(), &before);
+    assert_eq!(ed.history().undo_len(), steps, "nothing to undo");
+    assert!(ed.undo());
+    assert!(ed.tree_params(id).is_none(), "the rock had none");
+}
+
+#[test]
+fn an_added_krs_object_stands_beside_the_scene_with_its_builder_parameters_and_is_framed() {
+    use thicket_core::krs::presets;
+    let mut ed = Editor::default();
+    // Into an empty scene: where the preset was made (nothing to avoid).
+    let first = ed.add_krs_object("KRS tree", presets::tree(), presets::builder_params("tree"));
+    let o = ed.object(first).unwrap();
+    assert_eq!(o.transform.translation, Vec3::ZERO);
+    assert_eq!(ed.tree_params(first), Some(&presets::tree_params()));
+    let (alo, ahi) = o.world_bounds().unwrap();
+    // A second one goes beside the first, not on top of it, at the same height.
+    let camera = ed.doc().camera;
+    let steps = ed.history().undo_len();
+    let second = ed.add_krs_object("KRS bush", presets::bush(), presets::builder_params("bush"));
+    assert_eq!(ed.history().undo_len(), steps + 1, "one undo step");
+    assert_eq!(ed.selection, Some(Selection::Object(second)));
+    let o = ed.object(second).unwrap();
+    assert_eq!(o.transform.translation.y, 0.0);
+    let (blo, bhi) = o.world_bounds().unwrap();
+    let apart = (0..3).any(|a| bhi[a] < alo[a] || blo[a] > ahi[a]);
+    assert!(apart, "the boxes overlap: {alo}..{ahi} and {blo}..{bhi}");
+    assert_eq!(ed.tree_params(second), Some(&presets::bush_params()));
+    // The camera frames the new object: it looks at its centre.
+    assert_ne!(ed.doc().camera, camera);
+    let target = ed.doc().camera.target;
+    assert!((target - 0.5 * (blo + bhi)).length() < 1e-3, "{target}");
+    // Undo takes the object and its parameters away together.
+    assert!(ed.undo());
+    assert!(ed.object(second).is_none());
+    assert!(ed.tree_params(second).is_none());
+    assert!(ed.tree_params(first).is_some());
+    // A preset the builder does not make has no parameters. The rock has no bounding ball
+    // (half-space kernels): its probed box goes beside the tree all the same.
+    let rock = ed.add_krs_object("KRS rock", presets::rock(), presets::builder_params("rock"));
+    assert!(ed.tree_params(rock).is_none());
+    let o = ed.object(rock).unwrap();
+    let k = o.krs_in_world().unwrap();
+    let scene = thicket_core::krs::KrsScene { objects: vec![k] }
+        .prepare()
+        .unwrap();
+    let (rlo, rhi) = thicket_core::io::gltf_export::krs_region(&scene.objects[0]).unwrap();
+    let apart = (0..3).any(|a| rhi[a] < alo[a] || rlo[a] > ahi[a]);
+    assert!(apart, "the rock {rlo}..{rhi} is on the tree {alo}..{ahi}");
+}
+
+#[test]
 fn a_stretch_paint_stroke_is_one_step_erases_and_saves() {
     let (mut ed, id) = rigged_editor();
     let steps = ed.history().undo_len();

@@ -1,7 +1,8 @@
 //! The KRS editor in the inspector: presets, the kernel list with typed parameter editors and
 //! the mirror-plane list. Every change goes through [`Editor::set_krs`] (core's validation: a
 //! refused value leaves the document unchanged and the message says which field and why); a
-//! drag is one undo step. The mirror planes are drawn over the view as outlined quads.
+//! drag is one undo step. The planes of the level being edited are drawn over the view, clipped
+//! to the object's bounding box and fading with distance; the highlighted one has a gizmo.
 
 use glam::{EulerRot, Quat, Vec3};
 use thicket_core::krs::{
@@ -25,6 +26,11 @@ pub struct KrsPanel {
     /// drawn): mirror planes, their gizmo and the tree route are drawn and picked only then,
     /// so they do not clutter the view of a KRS object that is not being edited.
     pub editor_open: bool,
+    /// The kernels K_i whose entries are open in the KRS editor this frame: their planes R_i
+    /// are drawn with the highlighted one (see [`KrsPanel::edited_mirrors`]).
+    pub open_kernels: Vec<usize>,
+    /// The object for which "Start from the default tree" waits for Replace or Cancel.
+    confirm_default_tree: Option<u64>,
     /// The preset picked in the combo box (an index into `krs::presets::all()`).
     pub preset: usize,
     /// Preset names from core (read once).
@@ -114,6 +120,71 @@ fn vec3_fields(ui: &mut egui::Ui, v: &mut Vec3, speed: f64, prefix: &str, tip: &
             .changed();
     }
     changed
+}
+
+/// A grid row of three DragValues for the unit vector `v` (see [`unit_vec3_fields`]); returns
+/// whether one changed.
+fn unit_vec3_row(ui: &mut egui::Ui, label: &str, v: &mut Vec3, tip: &str) -> bool {
+    ui.label(label).on_hover_text(tip);
+    let changed = ui.horizontal(|ui| unit_vec3_fields(ui, v, "", tip)).inner;
+    ui.end_row();
+    changed
+}
+
+/// Three DragValues for a unit vector `v` (a normal or an axis, which the document stores
+/// normalised), prefixed `{prefix}x`, `{prefix}y`, `{prefix}z`. Typed text stays as typed until
+/// Enter or until the field loses focus (normalising on every keystroke turned a typed 0.2
+/// into 0.2839 and moved another component); then, as after a drag, the edited component keeps
+/// its value and the other two are scaled to make the length 1 ([`with_component`]). Returns
+/// whether `v` changed.
+fn unit_vec3_fields(ui: &mut egui::Ui, v: &mut Vec3, prefix: &str, tip: &str) -> bool {
+    let before = *v;
+    let mut changed = false;
+    for (axis, name) in ["x", "y", "z"].iter().enumerate() {
+        let mut c = before[axis];
+        if ui
+            .add(
+                egui::DragValue::new(&mut c)
+                    .speed(0.01)
+                    .max_decimals(4)
+                    .range(-1.0..=1.0)
+                    .clamp_existing_to_range(false)
+                    .update_while_editing(false)
+                    .prefix(format!("{prefix}{name} ")),
+            )
+            .on_hover_text(tip)
+            .changed()
+        {
+            *v = with_component(before, axis, c);
+            changed = true;
+        }
+    }
+    changed
+}
+
+/// The unit vector with component `axis` equal to `value` (clamped to −1..1) and the other two
+/// scaled from `v`'s to make the length 1; when `v` has nothing off that axis, the rest goes to
+/// the next axis (x → y → z → x).
+#[must_use]
+pub fn with_component(v: Vec3, axis: usize, value: f32) -> Vec3 {
+    let value = if value.is_finite() {
+        value.clamp(-1.0, 1.0)
+    } else {
+        v[axis]
+    };
+    let mut rest = v;
+    rest[axis] = 0.0;
+    let left = (1.0 - value * value).max(0.0).sqrt();
+    let mut out = match rest.try_normalize() {
+        Some(r) => r * left,
+        None => {
+            let mut r = Vec3::ZERO;
+            r[(axis + 1) % 3] = left;
+            r
+        }
+    };
+    out[axis] = value;
+    out
 }
 
 /// A grid row of one DragValue limited to `range`; returns whether it changed.
@@ -442,12 +513,11 @@ fn material_rows(ui: &mut egui::Ui, m: &mut Material) -> bool {
 
 fn torus_rows(ui: &mut egui::Ui, k: &mut TorusKernel) -> bool {
     let mut c = vec3_row(ui, "Centre", &mut k.centre, 0.01, "Centre of the torus");
-    c |= vec3_row(
+    c |= unit_vec3_row(
         ui,
         "Axis",
         &mut k.axis,
-        0.01,
-        "Axis of the torus (non-zero; normalised when accepted)",
+        "Axis of the torus (unit length: a typed component is kept, the others follow)",
     );
     c |= vec3_row(
         ui,
@@ -509,12 +579,11 @@ fn kernel_rows(ui: &mut egui::Ui, kernel: &mut Kernel) -> bool {
             c | material_rows(ui, &mut k.material)
         }
         Kernel::InfinitePlane(k) => {
-            let mut c = vec3_row(
+            let mut c = unit_vec3_row(
                 ui,
                 "Normal",
                 &mut k.normal,
-                0.01,
-                "Outward normal (non-zero; normalised when accepted)",
+                "Outward normal (unit length: a typed component is kept, the others follow)",
             );
             c |= f32_row(
                 ui,
@@ -657,8 +726,9 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
             ui.separator();
             ui.strong("Kernels")
                 .on_hover_text("K0..Kn: kernel K_i is reached after folding by mirrors n-1..i");
+            panel.open_kernels.clear();
             for (i, kernel) in k.kernels.iter_mut().enumerate() {
-                egui::CollapsingHeader::new(format!("K{i}: {}", kernel.kind_name()))
+                let entry = egui::CollapsingHeader::new(format!("K{i}: {}", kernel.kind_name()))
                     .id_salt(("krs_kernel", id, i))
                     .default_open(false)
                     .show(ui, |ui| {
@@ -692,6 +762,9 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                                 changed |= kernel_rows(ui, kernel);
                             });
                     });
+                if entry.body_returned.is_some() {
+                    panel.open_kernels.push(i);
+                }
             }
 
             ui.separator();
@@ -711,12 +784,12 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
                             panel.mirror = (panel.mirror != Some(i)).then_some(i);
                         }
                         ui.horizontal(|ui| {
-                            changed |= vec3_fields(
+                            changed |= unit_vec3_fields(
                                 ui,
                                 &mut m.normal,
-                                0.01,
                                 "n",
-                                "Plane normal: non-zero, normalised when accepted",
+                                "Plane normal (unit length): a typed component is kept and the \
+                                 other two follow when you press Enter or leave the field",
                             );
                         });
                         changed |= ui
@@ -778,15 +851,113 @@ pub fn krs_inspector_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsP
     }
 }
 
-/// The selected KRS object's mirror planes on the screen: a quad per plane through the centre
-/// of the object's bounding ball, as large as the ball; none while the KRS editor is closed.
+/// A mirror plane as drawn over the view: the plane clipped to the object's bounding box, its
+/// outline cut into short segments whose opacity fades with distance from the camera.
+#[derive(Debug, Clone)]
+pub struct MirrorOutline {
+    /// Which mirror (R index).
+    pub index: usize,
+    /// The outline's visible segments in view points, each with its opacity factor (1 at the
+    /// part nearest the camera, [`FAR_ALPHA`] at the farthest).
+    pub segments: Vec<([egui::Pos2; 2], f32)>,
+    /// The clipped polygon's corners in view points, when all are in front of the camera (the
+    /// highlighted plane is filled).
+    pub polygon: Option<Vec<egui::Pos2>>,
+}
+
+/// Opacity factor of the part of a plane's outline farthest from the camera.
+pub const FAR_ALPHA: f32 = 0.25;
+/// Segments per polygon edge: the fade changes along an edge.
+const OUTLINE_PIECES: usize = 8;
+
+/// The opacity factor of an outline point `distance` from the eye when the outline's points lie
+/// `near..far` from it: 1 nearest, [`FAR_ALPHA`] farthest, so the near side of a plane reads
+/// in front of the far side and far planes do not cover what is near.
 #[must_use]
-pub fn mirror_quads(
-    editor: &Editor,
-    panel: &KrsPanel,
-    proj: &Projector,
-) -> Vec<(usize, Vec<egui::Pos2>)> {
-    if !panel.editor_open {
+pub fn fade_alpha(distance: f32, near: f32, far: f32) -> f32 {
+    let t = if far > near {
+        ((distance - near) / (far - near)).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    1.0 - (1.0 - FAR_ALPHA) * t
+}
+
+/// The polygon where the plane `normal · p = offset` cuts the box `lo..hi`, its corners in
+/// order around it; empty when the plane misses the box.
+#[must_use]
+pub fn plane_in_box(normal: Vec3, offset: f32, lo: Vec3, hi: Vec3) -> Vec<Vec3> {
+    let corners = thicket_core::scene::box_corners(lo, hi);
+    let side = corners.map(|c| normal.dot(c) - offset);
+    let mut points: Vec<Vec3> = Vec::new();
+    // The 12 edges join corners whose indices differ in one bit.
+    for a in 0..8 {
+        for bit in [1, 2, 4] {
+            let b = a | bit;
+            if b == a {
+                continue;
+            }
+            let (da, db) = (side[a], side[b]);
+            if (da <= 0.0) != (db <= 0.0) {
+                let t = da / (da - db);
+                let p = corners[a].lerp(corners[b], t);
+                if points.iter().all(|q| q.distance_squared(p) > 1e-12) {
+                    points.push(p);
+                }
+            }
+        }
+    }
+    if points.len() < 3 {
+        return Vec::new();
+    }
+    let centre = points.iter().copied().sum::<Vec3>() / points.len() as f32;
+    let (u, v) = normal.normalize_or(Vec3::Y).any_orthonormal_pair();
+    points.sort_by(|a, b| {
+        let (pa, pb) = (*a - centre, *b - centre);
+        pa.dot(v)
+            .atan2(pa.dot(u))
+            .total_cmp(&pb.dot(v).atan2(pb.dot(u)))
+    });
+    points
+}
+
+/// The KRS-space box the selected object's planes are clipped to: the box of its bounding
+/// ball (a ball at the origin, a part of the view across, for an object without one: half
+/// spaces).
+fn plane_box(k: &thicket_core::krs::KrsObject, proj: &Projector) -> (Vec3, Vec3) {
+    let (centre, radius) = k.bounding_sphere_object().unwrap_or_else(|| {
+        let t = k.world_from_object;
+        (Vec3::ZERO, proj.camera.distance * 0.4 / t.scale.max(1e-12))
+    });
+    let radius = radius.clamp(1e-3, 1e7);
+    (centre - Vec3::splat(radius), centre + Vec3::splat(radius))
+}
+
+impl KrsPanel {
+    /// The mirror planes being edited, which alone are drawn and picked: the highlighted one
+    /// and the plane R_i of every kernel K_i whose entry is open in the KRS editor (the level
+    /// that plane reflects). None while the KRS editor is closed.
+    #[must_use]
+    pub fn edited_mirrors(&self) -> Vec<usize> {
+        if !self.editor_open {
+            return Vec::new();
+        }
+        let mut out: Vec<usize> = self.mirror.into_iter().collect();
+        for &i in &self.open_kernels {
+            if !out.contains(&i) {
+                out.push(i);
+            }
+        }
+        out
+    }
+}
+
+/// The selected KRS object's planes being edited ([`KrsPanel::edited_mirrors`]) on the screen,
+/// each clipped to the object's bounding box; a plane that misses the box has none.
+#[must_use]
+pub fn mirror_outlines(editor: &Editor, panel: &KrsPanel, proj: &Projector) -> Vec<MirrorOutline> {
+    let edited = panel.edited_mirrors();
+    if edited.is_empty() {
         return Vec::new();
     }
     let Some(Selection::Object(id)) = editor.selection else {
@@ -799,32 +970,48 @@ pub fn mirror_quads(
     else {
         return Vec::new();
     };
-    let (centre, radius) = k.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+    let (lo, hi) = plane_box(&k, proj);
     let t = k.world_from_object;
-    // The bounding ball of a tree is loose (reflections can reach far): keep the quads within
-    // a part of the view so they do not hide what they cut.
-    let radius = radius
-        .min(proj.camera.distance * 0.4 / t.scale.max(1e-12))
-        .clamp(1e-3, 1e4);
+    let eye = proj.eye();
     let mut out = Vec::new();
-    for (i, m) in k.mirrors.iter().enumerate() {
-        let Some(n) = m.normal.try_normalize() else {
+    for i in edited {
+        let Some(m) = k.mirrors.get(i) else {
             continue;
         };
-        let on_plane = centre - n * (n.dot(centre) - m.offset);
-        let (u, v) = n.any_orthonormal_pair();
-        let corners: Option<Vec<egui::Pos2>> = [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)]
-            .iter()
-            .map(|(a, b)| proj.to_screen(t.transform_point(on_plane + (u * *a + v * *b) * radius)))
-            .collect();
-        if let Some(corners) = corners {
-            out.push((i, corners));
+        let polygon = plane_in_box(m.normal, m.offset, lo, hi);
+        if polygon.is_empty() {
+            continue;
         }
+        let world: Vec<Vec3> = polygon.iter().map(|p| t.transform_point(*p)).collect();
+        let (near, far) = world
+            .iter()
+            .map(|p| p.distance(eye))
+            .fold((f32::INFINITY, 0.0f32), |(a, b), d| (a.min(d), b.max(d)));
+        let mut segments = Vec::new();
+        for (j, a) in world.iter().enumerate() {
+            let b = world[(j + 1) % world.len()];
+            for s in 0..OUTLINE_PIECES {
+                let (pa, pb) = (
+                    a.lerp(b, s as f32 / OUTLINE_PIECES as f32),
+                    a.lerp(b, (s + 1) as f32 / OUTLINE_PIECES as f32),
+                );
+                if let Some(seg) = proj.segment(pa, pb) {
+                    let alpha = fade_alpha(pa.lerp(pb, 0.5).distance(eye), near, far);
+                    segments.push((seg, alpha));
+                }
+            }
+        }
+        let polygon: Option<Vec<egui::Pos2>> = world.iter().map(|p| proj.to_screen(*p)).collect();
+        out.push(MirrorOutline {
+            index: i,
+            segments,
+            polygon,
+        });
     }
     out
 }
 
-/// The mirror plane of the selected KRS object whose outline passes under `pointer`.
+/// The drawn mirror plane of the selected KRS object whose outline passes under `pointer`.
 #[must_use]
 pub fn pick_mirror(
     editor: &Editor,
@@ -832,47 +1019,59 @@ pub fn pick_mirror(
     proj: &Projector,
     pointer: egui::Pos2,
 ) -> Option<usize> {
-    mirror_quads(editor, panel, proj)
+    mirror_outlines(editor, panel, proj)
         .into_iter()
-        .map(|(i, mut q)| {
-            q.push(q[0]);
-            (distance_to_polyline(pointer, &q), i)
+        .filter_map(|o| {
+            let d = o
+                .segments
+                .iter()
+                .map(|(s, _)| distance_to_polyline(pointer, s))
+                .fold(f32::INFINITY, f32::min);
+            (d <= MIRROR_GRAB_PX).then_some((d, o.index))
         })
-        .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
         .min_by(|a, b| a.0.total_cmp(&b.0))
         .map(|(_, i)| i)
 }
 
-/// Draws the mirror planes of the selected KRS object as outlined quads (the highlighted one
-/// brighter and filled, with its gizmo), sized by the object's bounding ball.
+/// Draws the selected KRS object's planes being edited, clipped to its bounding box and
+/// fading with distance (the highlighted one brighter and filled, with its gizmo).
 pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, proj: &Projector) {
-    for (i, mut corners) in mirror_quads(editor, panel, proj) {
-        let highlighted = panel.mirror == Some(i);
-        let color = if highlighted {
-            egui::Color32::from_rgb(120, 220, 255)
+    for o in mirror_outlines(editor, panel, proj) {
+        let highlighted = panel.mirror == Some(o.index);
+        let (rgb, alpha, width) = if highlighted {
+            ([120, 220, 255], 255.0, 2.5)
         } else {
-            egui::Color32::from_rgba_unmultiplied(120, 200, 255, 110)
+            ([120, 200, 255], 170.0, 1.5)
         };
-        if highlighted {
+        let color = |f: f32| {
+            egui::Color32::from_rgba_unmultiplied(rgb[0], rgb[1], rgb[2], (alpha * f) as u8)
+        };
+        if highlighted && let Some(polygon) = &o.polygon {
             painter.add(egui::Shape::convex_polygon(
-                corners.clone(),
-                egui::Color32::from_rgba_unmultiplied(120, 220, 255, 30),
+                polygon.clone(),
+                egui::Color32::from_rgba_unmultiplied(120, 220, 255, 24),
                 egui::Stroke::NONE,
             ));
         }
-        let label_at = corners[2];
-        corners.push(corners[0]);
-        painter.add(egui::Shape::line(
-            corners,
-            egui::Stroke::new(if highlighted { 2.5 } else { 1.0 }, color),
-        ));
-        painter.text(
-            label_at,
-            egui::Align2::LEFT_BOTTOM,
-            format!("R{i}"),
-            egui::FontId::proportional(11.0),
-            color,
-        );
+        for (seg, f) in &o.segments {
+            painter.line_segment(*seg, egui::Stroke::new(width, color(*f)));
+        }
+        // The label at the outline's nearest (most opaque) point in the view.
+        let view = painter.clip_rect().shrink(12.0);
+        if let Some((seg, _)) = o
+            .segments
+            .iter()
+            .filter(|(s, _)| view.contains(s[0]))
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+        {
+            painter.text(
+                seg[0],
+                egui::Align2::LEFT_BOTTOM,
+                format!("R{}", o.index),
+                egui::FontId::proportional(11.0),
+                color(1.0),
+            );
+        }
     }
     let active = panel.drag.map(|d| d.handle);
     for h in panel.mirror_handles(editor, proj) {
@@ -897,10 +1096,15 @@ pub fn paint_mirrors(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel,
     }
 }
 
-/// Gizmo size in view points (arrow length, ring radius).
+/// Gizmo size in view points (ring radius).
 const MIRROR_GIZMO_PX: f32 = 60.0;
 /// How close (points) the pointer must be to a handle to grab it.
-const MIRROR_GRAB_PX: f32 = 8.0;
+pub const MIRROR_GRAB_PX: f32 = 8.0;
+/// Gap in view points between the farthest point of the rings and the arrow's start: more than
+/// twice the grab tolerance, so no point is within reach of both.
+const ARROW_GAP_PX: f32 = 2.5 * MIRROR_GRAB_PX;
+/// Length of the arrow in view points.
+const ARROW_PX: f32 = 40.0;
 
 /// A handle of the mirror-plane gizmo.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -916,12 +1120,34 @@ pub enum MirrorHandle {
 pub struct MirrorHandleShape {
     /// What the handle does.
     pub handle: MirrorHandle,
-    /// The polyline (arrow: from the plane's centre to the tip).
+    /// The polyline (arrow: from its start, beyond the rings, to its tip).
     pub points: Vec<egui::Pos2>,
+    /// Arrow: how far the view moves the plane's centre when the plane moves one gizmo size
+    /// (the ring radius in world units) along its normal (at least a quarter of the ring
+    /// radius, for a normal pointing at the camera); zero for a ring.
+    pub along_px: egui::Vec2,
 }
 
-/// The highlighted plane of the selected KRS object: its KRS-space centre and basis, and the
-/// KRS's placement in the world.
+/// The handle a press at `at` grabs: the arrow when it is within reach (it wins over a ring),
+/// else the nearest ring within reach.
+#[must_use]
+pub fn grab_handle(handles: &[MirrorHandleShape], at: egui::Pos2) -> Option<&MirrorHandleShape> {
+    let reach = |h: &&MirrorHandleShape| distance_to_polyline(at, &h.points);
+    let near = |h: &&MirrorHandleShape| reach(h) <= MIRROR_GRAB_PX;
+    handles
+        .iter()
+        .filter(near)
+        .find(|h| h.handle == MirrorHandle::Offset)
+        .or_else(|| {
+            handles
+                .iter()
+                .filter(near)
+                .min_by(|a, b| reach(a).total_cmp(&reach(b)))
+        })
+}
+
+/// The highlighted plane of the selected KRS object: its KRS-space centre (the middle of the
+/// plane as drawn, clipped to the object's box) and basis, and the KRS's placement in the world.
 struct MirrorFrame {
     id: u64,
     index: usize,
@@ -932,7 +1158,7 @@ struct MirrorFrame {
 }
 
 impl MirrorFrame {
-    fn of(editor: &Editor, panel: &KrsPanel) -> Option<Self> {
+    fn of(editor: &Editor, panel: &KrsPanel, proj: &Projector) -> Option<Self> {
         if !panel.editor_open {
             return None;
         }
@@ -943,13 +1169,24 @@ impl MirrorFrame {
         let world = editor.object(id).filter(|o| o.visible)?.krs_in_world()?;
         let plane = *world.mirrors.get(index)?;
         let n = plane.normal.try_normalize()?;
-        let (centre, _) = world.bounding_sphere_object().unwrap_or((Vec3::ZERO, 1.0));
+        let plane = MirrorPlane {
+            normal: n,
+            offset: plane.offset / plane.normal.length(),
+        };
+        let (lo, hi) = plane_box(&world, proj);
+        let polygon = plane_in_box(plane.normal, plane.offset, lo, hi);
+        let centre = if polygon.is_empty() {
+            let c = 0.5 * (lo + hi);
+            c - n * (n.dot(c) - plane.offset)
+        } else {
+            polygon.iter().copied().sum::<Vec3>() / polygon.len() as f32
+        };
         let (u, v) = n.any_orthonormal_pair();
         Some(Self {
             id,
             index,
-            plane: MirrorPlane { normal: n, ..plane },
-            centre: centre - n * (n.dot(centre) - plane.offset),
+            plane,
+            centre,
             axes: [u, v],
             world: world.world_from_object,
         })
@@ -972,29 +1209,28 @@ struct MirrorDrag {
     start: egui::Pos2,
     center_px: egui::Pos2,
     sign: f32,
+    /// The arrow's [`MirrorHandleShape::along_px`].
     arrow_px: egui::Vec2,
-    /// KRS-space length of the arrow.
+    /// KRS-space length of one gizmo size.
     arrow_krs: f32,
 }
 
 impl KrsPanel {
     /// The highlighted mirror plane's gizmo handles on the screen (empty when no plane of the
-    /// selected KRS object is highlighted).
+    /// selected KRS object is highlighted): two rings around the plane's centre and, beyond
+    /// them along the normal's direction on the screen, the arrow.
     #[must_use]
     pub fn mirror_handles(&self, editor: &Editor, proj: &Projector) -> Vec<MirrorHandleShape> {
-        let Some(f) = MirrorFrame::of(editor, self) else {
+        let Some(f) = MirrorFrame::of(editor, self, proj) else {
             return Vec::new();
         };
         let p = f.world.transform_point(f.centre);
+        let Some(centre_px) = proj.to_screen(p) else {
+            return Vec::new();
+        };
         let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
         let n = f.dir_world(f.plane.normal);
-        let mut out = Vec::new();
-        if let (Some(a), Some(b)) = (proj.to_screen(p), proj.to_screen(p + n * size)) {
-            out.push(MirrorHandleShape {
-                handle: MirrorHandle::Offset,
-                points: vec![a, b],
-            });
-        }
+        let mut rings = Vec::new();
         for k in 0..2 {
             // The ring about in-plane axis k lies in the plane of the other axis and the normal.
             let other = f.dir_world(f.axes[1 - k]);
@@ -1005,15 +1241,38 @@ impl KrsPanel {
                 })
                 .collect();
             if let Some(points) = points {
-                out.push(MirrorHandleShape {
+                rings.push(MirrorHandleShape {
                     handle: MirrorHandle::Tilt(k),
                     points,
+                    along_px: egui::Vec2::ZERO,
                 });
             }
         }
+        // The arrow starts beyond the rings' farthest point on the screen, so it never lies
+        // on a ring, whatever the view (a ring seen edge-on is a line through the centre, and
+        // a normal facing the camera would put an arrow from the centre inside the rings).
+        let ring_px = rings
+            .iter()
+            .flat_map(|r| &r.points)
+            .map(|q| q.distance(centre_px))
+            .fold(MIRROR_GIZMO_PX, f32::max);
+        let normal_px = proj
+            .to_screen(p + n * size)
+            .map_or(egui::Vec2::ZERO, |tip| tip - centre_px);
+        let dir = if normal_px.length() > 1e-3 {
+            normal_px.normalized()
+        } else {
+            -egui::Vec2::Y
+        };
+        let start = centre_px + dir * (ring_px + ARROW_GAP_PX);
+        let mut out = vec![MirrorHandleShape {
+            handle: MirrorHandle::Offset,
+            points: vec![start, start + dir * ARROW_PX],
+            along_px: dir * normal_px.length().max(0.25 * MIRROR_GIZMO_PX),
+        }];
+        out.extend(rings);
         out
     }
-
     /// Whether a mirror-gizmo drag is in progress.
     #[must_use]
     pub fn dragging(&self) -> bool {
@@ -1036,16 +1295,11 @@ impl KrsPanel {
         if response.drag_started_by(egui::PointerButton::Primary)
             && !ui.input(|i| i.modifiers.alt || i.modifiers.shift)
             && let Some(start) = ui.input(|i| i.pointer.press_origin())
-            && let Some(f) = MirrorFrame::of(editor, self)
+            && let Some(f) = MirrorFrame::of(editor, self, proj)
         {
-            let grabbed = self
-                .mirror_handles(editor, proj)
-                .into_iter()
-                .map(|h| (distance_to_polyline(start, &h.points), h))
-                .filter(|(d, _)| *d <= MIRROR_GRAB_PX)
-                .min_by(|a, b| a.0.total_cmp(&b.0));
+            let handles = self.mirror_handles(editor, proj);
             let p = f.world.transform_point(f.centre);
-            if let Some((_, h)) = grabbed
+            if let Some(h) = grab_handle(&handles, start)
                 && let Some(center_px) = proj.to_screen(p)
             {
                 let sign = match h.handle {
@@ -1057,7 +1311,7 @@ impl KrsPanel {
                     _ => 1.0,
                 };
                 let size = MIRROR_GIZMO_PX * proj.world_per_point(p);
-                let arrow_px = h.points.last().map_or(egui::Vec2::ZERO, |e| *e - center_px);
+                let arrow_px = h.along_px;
                 editor.end_interaction();
                 self.drag = Some(MirrorDrag {
                     id: f.id,
@@ -1139,11 +1393,25 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
         p.clone_from(stored);
     }
     let open = panel.tree.as_ref().is_some_and(|(t, _)| *t == id);
+    // What the builder would open: the parameters stored with the object, or those of the
+    // builder preset whose kernels and mirrors it has (a tree made before they were stored).
+    let adoptable = if open {
+        None
+    } else {
+        editor.tree_params(id).cloned().or_else(|| {
+            let k = editor.krs(id)?;
+            presets::builder_presets()
+                .into_iter()
+                .find_map(|(_, params)| {
+                    let built = params.build().ok()?;
+                    same_shape(&built, k).then_some(params)
+                })
+        })
+    };
     ui.horizontal(|ui| {
         ui.strong("Tree builder")
             .on_hover_text("Build this object as a tree from fork positions, bends and widths");
-        if !open
-            && let Some(stored) = editor.tree_params(id).cloned()
+        if let Some(params) = adoptable.clone()
             && ui
                 .button("Edit tree")
                 .on_hover_text(
@@ -1151,25 +1419,19 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
                 )
                 .clicked()
         {
-            panel.tree = Some((id, stored));
+            panel.tree = Some((id, params));
+            panel.confirm_default_tree = None;
             return;
         }
         if !open
             && ui
                 .button("Start from the default tree")
                 .on_hover_text(
-                    "Open the builder with the default parameters and rebuild this object from them (undoable)",
+                    "Replace this object with the default tree and open the builder (asks first; undoable)",
                 )
                 .clicked()
         {
-            let params = TreeParams::default();
-            editor.end_interaction();
-            panel.error = editor.build_tree(id, &params).err().map(|e| e.to_string());
-            editor.end_interaction();
-            if panel.error.is_none() {
-                editor.frame_selection();
-            }
-            panel.tree = Some((id, params));
+            panel.confirm_default_tree = Some(id);
         }
         if open
             && ui
@@ -1180,6 +1442,37 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
             panel.tree = None;
         }
     });
+    let open = panel.tree.as_ref().is_some_and(|(t, _)| *t == id);
+    if !open && adoptable.is_none() {
+        ui.weak("Not built by the tree builder: its kernels are not a branch route");
+    }
+    if !open && panel.confirm_default_tree == Some(id) {
+        ui.horizontal(|ui| {
+            ui.label("Replace this object with the default tree?");
+            if ui
+                .button("Replace")
+                .on_hover_text("Rebuild this object as the default tree (undoable)")
+                .clicked()
+            {
+                panel.confirm_default_tree = None;
+                let params = TreeParams::default();
+                editor.end_interaction();
+                panel.error = editor.build_tree(id, &params).err().map(|e| e.to_string());
+                editor.end_interaction();
+                if panel.error.is_none() {
+                    editor.frame_selection();
+                }
+                panel.tree = Some((id, params));
+            }
+            if ui
+                .button("Cancel")
+                .on_hover_text("Keep this object as it is")
+                .clicked()
+            {
+                panel.confirm_default_tree = None;
+            }
+        });
+    }
     let Some((_, params)) = panel.tree.as_ref().filter(|(t, _)| *t == id) else {
         return;
     };
@@ -1304,6 +1597,33 @@ fn tree_builder_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut KrsPanel,
             Err(e) => panel.error = Some(e.to_string()),
         }
     }
+}
+
+/// Whether `a` and `b` have the same kernels and mirrors up to rounding: every edit stores the
+/// validated copy, whose normalisation moves the last bits of normals and directions each time.
+fn same_shape(a: &thicket_core::krs::KrsObject, b: &thicket_core::krs::KrsObject) -> bool {
+    fn near(a: &serde_json::Value, b: &serde_json::Value) -> bool {
+        use serde_json::Value;
+        match (a, b) {
+            (Value::Number(x), Value::Number(y)) => match (x.as_f64(), y.as_f64()) {
+                (Some(x), Some(y)) => (x - y).abs() <= 1e-5 * x.abs().max(1.0),
+                _ => x == y,
+            },
+            (Value::Array(x), Value::Array(y)) => {
+                x.len() == y.len() && x.iter().zip(y).all(|(x, y)| near(x, y))
+            }
+            (Value::Object(x), Value::Object(y)) => {
+                x.len() == y.len() && x.iter().all(|(k, v)| y.get(k).is_some_and(|w| near(v, w)))
+            }
+            _ => a == b,
+        }
+    }
+    let parts = |o: &thicket_core::krs::KrsObject| {
+        serde_json::to_value((&o.kernels, &o.mirrors)).unwrap_or_default()
+    };
+    a.kernels.len() == b.kernels.len()
+        && a.mirrors.len() == b.mirrors.len()
+        && near(&parts(a), &parts(b))
 }
 
 /// Stores `normal` for the fork at `route[k]`; the other forks keep theirs (zero: the default).
@@ -1511,5 +1831,171 @@ pub fn paint_route(painter: &egui::Painter, editor: &Editor, panel: &KrsPanel, p
                 egui::Stroke::new(1.5, color),
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
+
+    /// The distance between segments `a` and `b` (0 when they cross).
+    fn segment_distance(a: [egui::Pos2; 2], b: [egui::Pos2; 2]) -> f32 {
+        let cross = |o: egui::Pos2, p: egui::Pos2, q: egui::Pos2| {
+            (p - o).x * (q - o).y - (p - o).y * (q - o).x
+        };
+        let (d1, d2) = (cross(a[0], a[1], b[0]), cross(a[0], a[1], b[1]));
+        let (d3, d4) = (cross(b[0], b[1], a[0]), cross(b[0], b[1], a[1]));
+        if d1 * d2 < 0.0 && d3 * d4 < 0.0 {
+            return 0.0;
+        }
+        [
+            distance_to_polyline(a[0], &b),
+            distance_to_polyline(a[1], &b),
+            distance_to_polyline(b[0], &a),
+            distance_to_polyline(b[1], &a),
+        ]
+        .into_iter()
+        .fold(f32::INFINITY, f32::min)
+    }
+
+    fn polyline_distance(a: &[egui::Pos2], b: &[egui::Pos2]) -> f32 {
+        a.windows(2)
+            .flat_map(|s| {
+                b.windows(2)
+                    .map(move |t| segment_distance([s[0], s[1]], [t[0], t[1]]))
+            })
+            .fold(f32::INFINITY, f32::min)
+    }
+
+    #[test]
+    fn the_plane_gizmo_arrow_stays_out_of_reach_of_its_rings_from_every_view() {
+        let mut doc = Document::default();
+        doc.add("Coral", ObjectKind::Krs(presets::coral()));
+        let mut editor = Editor::new(doc, None);
+        let id = editor.doc().objects[0].id;
+        editor.selection = Some(Selection::Object(id));
+        let k = editor.krs(id).unwrap().clone();
+        let (centre, radius) = k.bounding_sphere_object().unwrap();
+        let rect = egui::Rect::from_min_size(egui::Pos2::ZERO, egui::vec2(800.0, 600.0));
+        let mut panel = KrsPanel {
+            editor_open: true,
+            ..KrsPanel::default()
+        };
+        let (mut views, mut closest) = (0, f32::INFINITY);
+        for mirror in 0..k.mirrors.len() {
+            panel.mirror = Some(mirror);
+            for orthographic in [false, true] {
+                for yaw in (0..360).step_by(10) {
+                    for pitch in (-85..=85).step_by(5) {
+                        let camera = OrbitCamera {
+                            target: centre,
+                            yaw_deg: yaw as f32,
+                            pitch_deg: pitch as f32,
+                            distance: 4.0 * radius,
+                            orthographic,
+                            ..OrbitCamera::default()
+                        };
+                        let proj = Projector::new(camera, rect);
+                        let handles = panel.mirror_handles(&editor, &proj);
+                        let arrow = handles
+                            .iter()
+                            .find(|h| h.handle == MirrorHandle::Offset)
+                            .expect("an arrow");
+                        let rings: Vec<_> = handles
+                            .iter()
+                            .filter(|h| matches!(h.handle, MirrorHandle::Tilt(_)))
+                            .collect();
+                        assert_eq!(rings.len(), 2);
+                        for ring in rings {
+                            let d = polyline_distance(&arrow.points, &ring.points);
+                            closest = closest.min(d);
+                            assert!(
+                                d > MIRROR_GRAB_PX,
+                                "R{mirror} yaw {yaw} pitch {pitch} ortho {orthographic}: the \
+                                 arrow is {d} points from {:?}",
+                                ring.handle
+                            );
+                        }
+                        views += 1;
+                    }
+                }
+            }
+        }
+        assert!(views > 1000, "{views} views");
+        eprintln!("{views} views, closest {closest:.1} points");
+    }
+
+    #[test]
+    fn a_press_in_reach_of_the_arrow_and_a_ring_grabs_the_arrow() {
+        let line = |a: (f32, f32), b: (f32, f32)| vec![egui::pos2(a.0, a.1), egui::pos2(b.0, b.1)];
+        let handles = [
+            MirrorHandleShape {
+                handle: MirrorHandle::Tilt(0),
+                points: line((0.0, 0.0), (100.0, 0.0)),
+                along_px: egui::Vec2::ZERO,
+            },
+            MirrorHandleShape {
+                handle: MirrorHandle::Offset,
+                points: line((0.0, 6.0), (100.0, 6.0)),
+                along_px: egui::vec2(0.0, 60.0),
+            },
+        ];
+        // Nearer the ring, within reach of both: the arrow wins.
+        let at = egui::pos2(50.0, 1.0);
+        assert_eq!(
+            grab_handle(&handles, at).unwrap().handle,
+            MirrorHandle::Offset
+        );
+        // Out of the arrow's reach: the ring.
+        let at = egui::pos2(50.0, -5.0);
+        assert_eq!(
+            grab_handle(&handles, at).unwrap().handle,
+            MirrorHandle::Tilt(0)
+        );
+        assert!(grab_handle(&handles, egui::pos2(50.0, 40.0)).is_none());
+    }
+
+    #[test]
+    fn a_typed_component_is_kept_and_the_others_make_the_length_one() {
+        let v = Vec3::new(0.6, 0.8, 0.0);
+        let w = with_component(v, 0, 0.2);
+        assert_eq!(w.x, 0.2);
+        assert!((w.length() - 1.0).abs() < 1e-6, "{w}");
+        // The others keep their proportions.
+        assert!((w.y / w.length() - (1.0 - 0.04f32).sqrt()).abs() < 1e-6 && w.z == 0.0);
+        // Nothing off the axis: the rest goes to the next axis.
+        assert_eq!(with_component(Vec3::X, 0, 0.6), Vec3::new(0.6, 0.8, 0.0));
+        assert_eq!(with_component(Vec3::Z, 2, 0.0), Vec3::X);
+        // Beyond ±1: clamped; the others vanish.
+        assert_eq!(with_component(v, 1, -3.0), Vec3::new(0.0, -1.0, 0.0));
+    }
+
+    #[test]
+    fn a_plane_is_clipped_to_the_box_and_fades_away_from_the_eye() {
+        let (lo, hi) = (Vec3::splat(-1.0), Vec3::splat(1.0));
+        // Through the centre along an axis: the square cross-section.
+        let square = plane_in_box(Vec3::Y, 0.0, lo, hi);
+        assert_eq!(square.len(), 4);
+        assert!(
+            square
+                .iter()
+                .all(|p| p.y == 0.0 && p.x.abs() == 1.0 && p.z.abs() == 1.0)
+        );
+        // Perpendicular to a diagonal through the centre: a hexagon inside the box.
+        let hexagon = plane_in_box(Vec3::ONE.normalize_or_zero(), 0.0, lo, hi);
+        assert_eq!(hexagon.len(), 6);
+        assert!(hexagon.iter().all(|p| p.abs().max_element() <= 1.0 + 1e-6));
+        // In order around the polygon: consecutive corners share a face of the box.
+        for (i, a) in hexagon.iter().enumerate() {
+            let b = hexagon[(i + 1) % 6];
+            let shared = (0..3).any(|k| (a[k] - b[k]).abs() < 1e-6 && a[k].abs() > 1.0 - 1e-6);
+            assert!(shared, "{a} -> {b}");
+        }
+        // Outside the box: nothing.
+        assert!(plane_in_box(Vec3::X, 1.5, lo, hi).is_empty());
+        assert_eq!(fade_alpha(2.0, 2.0, 6.0), 1.0);
+        assert_eq!(fade_alpha(6.0, 2.0, 6.0), FAR_ALPHA);
+        assert!(fade_alpha(3.0, 2.0, 6.0) > fade_alpha(5.0, 2.0, 6.0));
     }
 }

@@ -198,13 +198,13 @@ impl EditorApp {
                 if ui
                     .button(name)
                     .on_hover_text(
-                        "Add this procedural KRS preset as a new object (edit it in the inspector)",
+                        "Add this procedural KRS preset as a new object beside the scene and frame it (edit it in the inspector)",
                     )
                     .clicked()
                 {
                     let label = format!("KRS {name}");
-                    self.editor
-                        .add_object(&label, thicket_core::scene::ObjectKind::Krs(krs));
+                    let params = thicket_core::krs::presets::builder_params(name);
+                    self.editor.add_krs_object(&label, krs, params);
                     ui.close();
                 }
             }

@@ -28,20 +28,26 @@ fn bark_texture() -> Texturing {
     }
 }
 
+/// The tree-builder parameters of [`tree`]: the builder's defaults.
+#[must_use]
+pub fn tree_params() -> TreeParams {
+    TreeParams::default()
+}
+
 /// The default tree: 7 branches on the route, a leaf pair, 2^8 leaves.
 pub fn tree() -> KrsObject {
-    let params = TreeParams::default();
     // The default parameters are valid by construction; fall back to an empty object rather
     // than panic if someone edits them badly.
-    let mut obj = params.build().unwrap_or_default();
+    let mut obj = tree_params().build().unwrap_or_default();
     obj.name = "tree".to_owned();
     obj.texturing = bark_texture();
     obj
 }
 
-/// A low, wide bush: short trunk, wide fork angles, many leaves.
-pub fn bush() -> KrsObject {
-    let params = TreeParams {
+/// The tree-builder parameters of [`bush`].
+#[must_use]
+pub fn bush_params() -> TreeParams {
+    TreeParams {
         route: vec![
             Vec3::new(0.0, 0.0, 0.0),
             Vec3::new(0.0, 0.3, 0.0),
@@ -71,8 +77,12 @@ pub fn bush() -> KrsObject {
             ..LeafParams::default()
         }),
         forest_mirrors: Vec::new(),
-    };
-    let mut obj = params.build().unwrap_or_default();
+    }
+}
+
+/// A low, wide bush: short trunk, wide fork angles, many leaves.
+pub fn bush() -> KrsObject {
+    let mut obj = bush_params().build().unwrap_or_default();
     obj.name = "bush".to_owned();
     obj
 }
@@ -228,10 +238,11 @@ pub fn terrain() -> KrsObject {
     }
 }
 
-/// Coral: straight, wide-forking capsule branches with round tips, slightly distorted.
-pub fn coral() -> KrsObject {
+/// The tree-builder parameters of [`coral`] (the distortion is the object's, not the builder's).
+#[must_use]
+pub fn coral_params() -> TreeParams {
     let pink = Material::new(Vec3::new(0.85, 0.35, 0.4), 6);
-    let params = TreeParams {
+    TreeParams {
         route: vec![
             Vec3::ZERO,
             Vec3::new(0.0, 0.25, 0.0),
@@ -256,8 +267,12 @@ pub fn coral() -> KrsObject {
             material: pink,
         }),
         forest_mirrors: Vec::new(),
-    };
-    let mut obj = params.build().unwrap_or_default();
+    }
+}
+
+/// Coral: straight, wide-forking capsule branches with round tips, slightly distorted.
+pub fn coral() -> KrsObject {
+    let mut obj = coral_params().build().unwrap_or_default();
     obj.name = "coral".to_owned();
     obj.distortion = Some(Distortion {
         amplitude: 0.01,
@@ -393,6 +408,28 @@ pub fn all() -> Vec<(&'static str, KrsObject)> {
         ("sponge", sponge()),
         ("forest", forest()),
     ]
+}
+
+/// The presets the tree builder makes (tree, bush, coral) with their builder parameters:
+/// building them gives the preset's kernels and mirrors, so the editor's builder can open the
+/// preset with them.
+#[must_use]
+pub fn builder_presets() -> [(&'static str, TreeParams); 3] {
+    [
+        ("tree", tree_params()),
+        ("bush", bush_params()),
+        ("coral", coral_params()),
+    ]
+}
+
+/// The tree-builder parameters of the preset named `name` ([`all`]) when the builder makes it
+/// ([`builder_presets`]).
+#[must_use]
+pub fn builder_params(name: &str) -> Option<TreeParams> {
+    builder_presets()
+        .into_iter()
+        .find(|(n, _)| *n == name)
+        .map(|(_, p)| p)
 }
 
 /// A battered rock (§7.1, Fig. 7) from planar kernels and 14 reflection levels: four half-space

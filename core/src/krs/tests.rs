@@ -422,6 +422,26 @@ fn sampled_lipschitz_is_at_most_one_undistorted() {
 }
 
 #[test]
+fn builder_presets_are_what_their_recorded_parameters_build() {
+    // The editor records these parameters with a tree, bush or coral so its tree builder opens
+    // them; they must rebuild exactly the preset's kernels and mirrors, or the first edit in the
+    // builder would jump to another shape.
+    let mut with_params = Vec::new();
+    for (name, preset) in presets::all() {
+        let Some(params) = presets::builder_params(name) else {
+            continue;
+        };
+        let built = params.build().unwrap();
+        assert_eq!(built.kernels, preset.kernels, "{name}: kernels");
+        assert_eq!(built.mirrors, preset.mirrors, "{name}: mirrors");
+        with_params.push(name);
+    }
+    assert_eq!(with_params, ["tree", "bush", "coral"]);
+    // The forest is a tree with extra reflections the builder does not edit: not adopted.
+    assert!(presets::builder_params("forest").is_none());
+}
+
+#[test]
 fn distortion_lipschitz_is_within_declared_bound() {
     for (seed, (amplitude, frequency)) in [(0.05f32, 1.0f32), (0.2, 2.0), (0.01, 8.0), (0.5, 0.5)]
         .into_iter()
