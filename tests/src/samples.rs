@@ -681,7 +681,7 @@ fn krs_woodland(doc: &mut Document) -> Result<()> {
     let tree = doc.add("Tree", ObjectKind::Krs(krs::presets::tree()));
     doc.tree_builders.push(TreeBuilderLink {
         object: tree,
-        params: krs::TreeParams::default(),
+        params: krs::presets::tree_params(),
     });
     let radius = krs::KrsScene {
         objects: vec![krs::presets::tree()],
