@@ -27,11 +27,11 @@ use rand::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 use serde::{Deserialize, Serialize};
 
+use super::MAX_KRS_LEVELS;
 use super::distort::Distortion;
 use super::kernel::{Kernel, KernelBound};
 use super::mirror::MirrorPlane;
 use super::object::{KrsError, KrsObject, KrsScene, PreparedObject, Similarity};
-use crate::scene::MAX_KRS_LEVELS;
 
 /// Most reflection levels a forest adds (2^40 trees: far beyond any view, and the f64 folds
 /// still place them to a millimetre).

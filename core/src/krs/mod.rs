@@ -56,5 +56,10 @@ pub use trace::{
 };
 pub use tree::{LeafParams, TreeError, TreeParams, spiral_route};
 
+/// Most reflection levels a KRS object in a document may have. Each level costs one fold per
+/// distance evaluation, so this bounds the work a (possibly hostile) file can ask for per ray;
+/// it is far above anything the paper needs (a forest of 2^17 trees of 2^8 leaves is 25 levels).
+pub const MAX_KRS_LEVELS: usize = 4096;
+
 #[cfg(test)]
 mod tests;

@@ -12,6 +12,8 @@ pub mod bake;
 pub mod forest;
 pub mod motion;
 
+/// Re-exported: documents check it (it belongs with the KRS).
+pub use crate::krs::MAX_KRS_LEVELS;
 pub use bake::bake_shown_pose;
 pub use forest::{ForestLink, ForestPlan};
 pub use motion::ObjectMotion;
@@ -411,11 +413,6 @@ pub enum ObjectKind {
     /// `world_from_object`; the transform's scale must be uniform and positive.
     Krs(KrsObject),
 }
-
-/// Most reflection levels a KRS object in a document may have. Each level costs one fold per
-/// distance evaluation, so this bounds the work a (possibly hostile) file can ask for per ray;
-/// it is far above anything the paper needs (a forest of 2^17 trees of 2^8 leaves is 25 levels).
-pub const MAX_KRS_LEVELS: usize = 4096;
 
 impl Default for ObjectKind {
     fn default() -> Self {
