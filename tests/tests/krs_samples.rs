@@ -354,20 +354,9 @@ fn jittered_mirrors_measure_less_visible_repetition_than_aligned_ones() {
     );
 }
 
-/// The paper's other symmetry hiding (§5): "when, in a forest, there are three completely
-/// different trees between the two that are mirror images of each other, symmetry is
-/// undetected". A union of three different trees from the builder, grown over the same grid
-/// with the same mirror draws, measures less visible repetition than one of them alone.
-#[test]
-fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
-    use thicket_core::krs::{TreeParams, forest::ForestParams};
-    let base = load("woodland");
-    let mut doc = Document {
-        objects: Vec::new(),
-        forests: Vec::new(),
-        tree_builders: Vec::new(),
-        ..base.clone()
-    };
+/// Three different trees from the builder (parameters saved with them) added to `doc`.
+fn three_builder_trees(doc: &mut Document) -> Vec<u64> {
+    use thicket_core::krs::TreeParams;
     let mut trees = Vec::new();
     for k in 0..3 {
         // Taller or shorter trunks, wider or narrower crowns, forks turned differently.
@@ -396,6 +385,24 @@ fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
             .push(thicket_core::scene::TreeBuilderLink { object: id, params });
         trees.push(id);
     }
+    trees
+}
+
+/// The paper's other symmetry hiding (§5): "when, in a forest, there are three completely
+/// different trees between the two that are mirror images of each other, symmetry is
+/// undetected". A union of three different trees from the builder, grown over the same grid
+/// with the same mirror draws, measures less visible repetition than one of them alone.
+#[test]
+fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
+    use thicket_core::krs::forest::ForestParams;
+    let base = load("woodland");
+    let mut doc = Document {
+        objects: Vec::new(),
+        forests: Vec::new(),
+        tree_builders: Vec::new(),
+        ..base.clone()
+    };
+    let trees = three_builder_trees(&mut doc);
     doc.add(
         "Ground",
         ObjectKind::Krs(thicket_core::krs::presets::folded_ground(
@@ -438,4 +445,52 @@ fn a_union_of_three_trees_measures_less_visible_repetition_than_one_tree() {
         union.score() < 0.8 * single.score(),
         "one tree {single:?}, three trees {union:?}"
     );
+}
+
+/// A grown union exports as the sample forest does: each of its objects (two per tree) as one
+/// prototype placed once per copy, so the file holds every tree of the grid.
+#[test]
+fn a_union_forest_exports_each_tree_instanced() {
+    use std::path::Path;
+    use thicket_core::io::gltf_export::{GltfExportOptions, build_scene};
+    use thicket_core::krs::forest::ForestParams;
+    let mut doc = Document::default();
+    let trees = three_builder_trees(&mut doc);
+    let plan = doc
+        .plan_forest(
+            &trees,
+            None,
+            &ForestParams {
+                trees: [12, 8],
+                area: [96.0, 64.0],
+                ..ForestParams::default()
+            },
+        )
+        .expect("grows");
+    let grown = doc.apply_forest(plan);
+    let (_, report) = build_scene(
+        &doc,
+        Path::new("union.glb"),
+        &GltfExportOptions {
+            resolution: 40,
+            kernel_resolution: 12,
+            instanced_lod_levels: 0,
+            impostor: false,
+            ..GltfExportOptions::default()
+        },
+        &|_| true,
+    )
+    .expect("exports");
+    assert_eq!(report.instanced.len(), 6, "{report:?}");
+    for id in grown {
+        let name = &doc.objects.iter().find(|o| o.id == id).expect("grown").name;
+        let inst = report
+            .instanced
+            .iter()
+            .find(|i| &i.object == name)
+            .unwrap_or_else(|| panic!("{name} is instanced: {report:?}"));
+        assert_eq!(inst.instances, 16, "{inst:?}");
+    }
+    // The hidden trees are not exported.
+    assert_eq!(report.objects, 6, "{report:?}");
 }

@@ -176,7 +176,8 @@ impl Document {
         let objects = forest
             .trees
             .iter()
-            .map(|g| {
+            .enumerate()
+            .map(|(i, g)| {
                 let (_, _, _, o) = &trees[g.source];
                 let label = if rows == 1 {
                     format!("{} forest", o.name)
@@ -189,7 +190,16 @@ impl Document {
                 };
                 let mut transform = o.transform;
                 transform.translation += g.translation;
-                (label, g.object.clone(), transform)
+                let mut grown = g.object.clone();
+                // Clearings and paths cut into the previous growth stay (§6.4).
+                if let Some(ObjectKind::Krs(k)) = previous
+                    .and_then(|l| l.objects.get(i))
+                    .and_then(|id| self.objects.iter().find(|o| o.id == *id))
+                    .map(|o| &o.kind)
+                {
+                    grown.empty_zones.clone_from(&k.empty_zones);
+                }
+                (label, grown, transform)
             })
             .collect();
         Ok(ForestPlan {
@@ -275,5 +285,95 @@ impl Document {
         link.objects.clone_from(&ids);
         self.forests.push(link);
         ids
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::Vec3;
+
+    use super::*;
+    use crate::krs::forest::ForestParams;
+    use crate::krs::{EmptyZone, Material, TreeParams, presets};
+    use crate::scene::TreeBuilderLink;
+
+    fn doc() -> (Document, u64, u64) {
+        let mut doc = Document::default();
+        let tree = doc.add("Tree", ObjectKind::Krs(presets::tree()));
+        doc.tree_builders.push(TreeBuilderLink {
+            object: tree,
+            params: TreeParams::default(),
+        });
+        let ground = doc.add(
+            "Terrain",
+            ObjectKind::Krs(presets::folded_ground(Material::default(), 3, 4.0, 1)),
+        );
+        (doc, tree, ground)
+    }
+
+    fn krs(doc: &Document, id: u64) -> &KrsObject {
+        match &doc
+            .objects
+            .iter()
+            .find(|o| o.id == id)
+            .expect("object")
+            .kind
+        {
+            ObjectKind::Krs(k) => k,
+            _ => panic!("KRS"),
+        }
+    }
+
+    #[test]
+    fn regrowing_keeps_ids_and_clearings_and_moving_off_the_terrain_restores_it() {
+        let (mut doc, tree, ground) = doc();
+        let own = krs(&doc, ground).clone();
+        let params = ForestParams {
+            trees: [8, 8],
+            area: [80.0, 80.0],
+            ..ForestParams::default()
+        };
+        let plan = doc
+            .plan_forest(&[tree], Some(ground), &params)
+            .expect("plan");
+        assert_eq!(plan.total, 64);
+        let ids = doc.apply_forest(plan);
+        assert_eq!(ids.len(), 1);
+        assert!(!doc.objects[0].visible, "the tree is hidden");
+        assert_eq!(krs(&doc, ground).mirrors.len(), 3 + 6);
+        // A clearing cut into the forest survives a regrowth with another seed.
+        let zone = EmptyZone {
+            centre: Vec3::new(20.0, 0.0, 20.0),
+            radius: 9.0,
+        };
+        if let Some(ObjectKind::Krs(k)) = doc
+            .objects
+            .iter_mut()
+            .find(|o| o.id == ids[0])
+            .map(|o| &mut o.kind)
+        {
+            k.empty_zones.push(zone);
+        }
+        let before = krs(&doc, ids[0]).mirrors.clone();
+        let plan = doc
+            .plan_forest(&[tree], Some(ground), &ForestParams { seed: 9, ..params })
+            .expect("plan");
+        assert_eq!(doc.apply_forest(plan), ids, "the grown object keeps its id");
+        assert_ne!(krs(&doc, ids[0]).mirrors, before, "regrown");
+        assert_eq!(krs(&doc, ids[0]).empty_zones, vec![zone]);
+        assert_eq!(doc.forests.len(), 1);
+        // Regrown on flat ground: the terrain gets its own mirrors back.
+        let plan = doc.plan_forest(&[tree], None, &params).expect("plan");
+        doc.apply_forest(plan);
+        assert_eq!(krs(&doc, ground), &own);
+        assert_eq!(doc.forests[0].terrain, None);
+        doc.validate().expect("a valid document");
+        // Grown objects and terrains are not trees.
+        let err = doc.plan_forest(&[ids[0]], None, &params).unwrap_err();
+        assert!(err.contains("part of a grown forest"), "{err}");
+        let err = doc.plan_forest(&[tree], Some(tree), &params).unwrap_err();
+        assert!(err.contains("both a tree and the terrain"), "{err}");
+        let err = doc.plan_forest(&[tree, tree], None, &params).unwrap_err();
+        assert!(err.contains("given twice"), "{err}");
     }
 }
