@@ -84,6 +84,12 @@ fn grow_a_forest_from_the_tree_sample_regrow_it_with_a_slider_and_undo() {
         "the forest is selected"
     );
     assert_ne!(ed.content_key(), content, "the preview redraws");
+    // Framed on the grid (about 73 × 73 from the tree at the origin), not the tree alone.
+    let camera = ed.doc().camera;
+    assert!(
+        camera.target.x > 20.0 && camera.target.z > 20.0 && camera.distance > 50.0,
+        "{camera:?}"
+    );
     settle_preview(&mut h);
     h.snapshot_options(
         "forest_panel_grown",

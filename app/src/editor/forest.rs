@@ -163,6 +163,32 @@ impl Editor {
         Ok(report)
     }
 
+    /// Frames the forest object `id` belongs to: the box of its first tree stretched over the
+    /// grid (the grown objects' bounding balls are far looser than the trees they hold).
+    pub fn frame_forest(&mut self, id: u64) {
+        let Some(link) = self.forest_of(id).cloned() else {
+            return;
+        };
+        let Some((lo, hi)) = self.object(link.sources[0]).and_then(|o| o.world_bounds()) else {
+            return;
+        };
+        let p = link.params;
+        let reach = glam::Vec3::new(
+            p.area[0] * (1.0 - 1.0 / p.trees[0].max(1) as f32),
+            0.0,
+            p.area[1] * (1.0 - 1.0 / p.trees[1].max(1) as f32),
+        );
+        // A cell of margin: jitter and spread move the outer trees by up to a third of one.
+        let margin = glam::Vec3::new(
+            p.area[0] / p.trees[0].max(1) as f32,
+            0.0,
+            p.area[1] / p.trees[1].max(1) as f32,
+        );
+        let mut camera = self.doc().camera;
+        camera.frame_in(lo - margin, hi + reach + margin, self.view_aspect);
+        self.set_camera(camera);
+    }
+
     /// Removes the forest object `id` belongs to: its grown objects go, its trees are shown
     /// again, its terrain goes back to its own mirrors; one undo step.
     ///

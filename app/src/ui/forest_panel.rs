@@ -141,7 +141,7 @@ pub fn forest_ui(ui: &mut egui::Ui, editor: &mut Editor, panel: &mut ForestPanel
                                 .and_then(|l| l.objects.first().copied())
                         {
                             editor.selection = Some(Selection::Object(grown));
-                            editor.frame_selection();
+                            editor.frame_forest(grown);
                         }
                     }
                 }
