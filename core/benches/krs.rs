@@ -562,6 +562,20 @@ fn forest_regrow(c: &mut Criterion) {
             black_box(render_document(&doc, &req).is_ok())
         });
     });
+    // The quarter-size frame a moving preview drops to, without shadows.
+    let mut quality = base.quality.clone();
+    quality.shadows = false;
+    let quarter = RenderRequest {
+        quality,
+        ..RenderRequest::new(147, 177)
+    };
+    group.bench_function("regrow_and_preview_147x177_unshadowed", |b| {
+        let mut doc = base.clone();
+        b.iter(|| {
+            regrow(&mut doc);
+            black_box(render_document(&doc, &quarter).is_ok())
+        });
+    });
     group.finish();
 }
 
