@@ -883,3 +883,77 @@ fn a_paste_lands_at_the_pointer_and_drags_by_whole_voxels() {
         .collect();
     assert_eq!(placed.len(), 8, "{placed:?}");
 }
+
+/// With the Select tool, a drag that starts on a selected voxel moves the selection by whole
+/// voxels (it floats while dragged, the view does not orbit) and the release writes it there:
+/// one undo step, "Move voxels", that puts it back. A click on it moves nothing.
+#[test]
+fn the_select_tool_drags_a_selection_to_move_it_in_one_undo_step() {
+    let (mut ed, id) = boxes_model(
+        "Slab",
+        16,
+        &[
+            (glam::IVec3::ZERO, glam::IVec3::new(15, 0, 15)),
+            (glam::IVec3::new(1, 1, 1), glam::IVec3::new(2, 2, 2)),
+        ],
+    );
+    let block: Vec<UVec3> = leaves_of(&ed)
+        .iter()
+        .map(|l| l.0)
+        .filter(|c| c.y >= 1)
+        .collect();
+    ed.select_voxels(
+        id,
+        thicket_core::sculpt::select::VoxelSelection::from_cells(block.iter().copied()),
+        thicket::editor::SelectMode::Replace,
+    )
+    .unwrap();
+    ed.selection = Some(thicket::editor::Selection::Object(id));
+    let mut camera = ed.doc().camera;
+    camera.orthographic = true;
+    camera.yaw_deg = 0.0;
+    camera.pitch_deg = 89.0;
+    ed.set_camera(camera);
+    ed.frame_selection();
+    let mut h = harness_with(ed);
+    h.state_mut()
+        .sculpt
+        .choose(thicket::ui::voxel_tools::ToolKind::Select);
+    h.run_steps(2);
+    let before = hash_of(&leaves(&h));
+    let steps = h.state().editor.history().undo_len();
+    // A click on the selection: nothing moves, no step.
+    let top = screen(&h, Vec3::new(2.0, 3.0, 2.0));
+    click(&mut h, top);
+    assert_eq!(hash_of(&leaves(&h)), before);
+    assert_eq!(h.state().editor.history().undo_len(), steps);
+    // Grab the block's top and drag it four voxels along +x.
+    let camera_before = h.state().editor.doc().camera;
+    let to = screen(&h, Vec3::new(6.0, 3.0, 2.0));
+    drag(&mut h, top, to);
+    let ed = &h.state().editor;
+    assert!(ed.floating().is_none(), "written on release");
+    assert_eq!(ed.doc().camera, camera_before, "the view did not orbit");
+    let moved: Vec<UVec3> = leaves(&h)
+        .iter()
+        .map(|l| l.0)
+        .filter(|c| c.y >= 1)
+        .collect();
+    let mut want: Vec<UVec3> = block.iter().map(|c| *c + UVec3::new(4, 0, 0)).collect();
+    want.sort_by_key(|c| (c.x, c.y, c.z));
+    let mut got = moved.clone();
+    got.sort_by_key(|c| (c.x, c.y, c.z));
+    assert_eq!(got, want, "the block moved four voxels along x");
+    assert_eq!(leaves(&h).len(), 256 + 8);
+    assert_eq!(
+        ed.voxel_selection().map(|s| s.cells.len()),
+        Some(8),
+        "the moved voxels stay selected"
+    );
+    let (labels, _) = ed.history().labels();
+    assert_eq!(labels.last(), Some(&"Move voxels"));
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(hash_of(&leaves(&h)), before, "undo puts it back");
+}

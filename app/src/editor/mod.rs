@@ -98,6 +98,9 @@ pub struct Editor {
     clipboard: Option<ClipboardEntry>,
     /// A paste being placed.
     floating: Option<Floating>,
+    /// The undo depth before [`Editor::lift_selection`] took the floating voxels out of their
+    /// model (a drag-to-move in progress).
+    lifted: Option<usize>,
 }
 
 /// A box of voxels an edit wrote: object id and inclusive voxel bounds.
@@ -147,6 +150,7 @@ impl Editor {
             voxel_selection: None,
             clipboard: None,
             floating: None,
+            lifted: None,
         }
     }
 
@@ -372,6 +376,9 @@ impl Editor {
         {
             self.floating = None;
         }
+        if self.floating.is_none() {
+            self.lifted = None;
+        }
     }
 
     /// Ends the current interaction (a slider drag): the next edit starts a new undo step.
@@ -379,8 +386,13 @@ impl Editor {
         self.history.seal();
     }
 
-    /// Undoes the last step; false when there is none.
+    /// Undoes the last step; false when there is none. During a move of lifted voxels, undo
+    /// cancels the move (the voxels go back where they were).
     pub fn undo(&mut self) -> bool {
+        if self.lifted.is_some() {
+            self.cancel_floating();
+            return true;
+        }
         let next = self
             .history
             .next_undo()

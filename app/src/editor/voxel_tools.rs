@@ -796,9 +796,15 @@ impl Editor {
             .floating
             .take()
             .ok_or_else(|| CommandError::Invalid("nothing is being pasted".into()))?;
+        let lifted = self.lifted.take();
         let outcome = self.write_voxels_named(f.object, None, "Paste", |svo, size| {
             Ok(select::paste(svo, size, &f.clip, f.at, false))
         })?;
+        // Voxels lifted for a move: taking them out and writing them back is one step.
+        if let Some(before) = lifted {
+            let n = self.history.undo_len().saturating_sub(before);
+            self.history.join_top(n, "Move voxels".into());
+        }
         let size = self.volume_of(f.object).unwrap_or(UVec3::ZERO).as_ivec3();
         let cells = select::paste_cells(&f.clip, f.at)
             .into_iter()
@@ -871,9 +877,65 @@ impl Editor {
         Ok(outcome)
     }
 
-    /// Drops the floating paste.
+    /// Drops the floating paste. Voxels lifted for a move ([`Editor::lift_selection`]) go back
+    /// where they were (the lift is undone).
     pub fn cancel_floating(&mut self) {
         self.floating = None;
+        if let Some(before) = self.lifted.take()
+            && self.history.undo_len() > before
+        {
+            self.undo();
+        }
+    }
+
+    /// Starts moving the selected voxels (a drag in the view): they leave the model and float
+    /// at their own place, as a paste does, without touching the clipboard. [`Editor::drop_lifted`]
+    /// writes them where the float is; the removal and the write are one undo step.
+    ///
+    /// # Errors
+    /// No voxel selection, or a paste already floating.
+    pub fn lift_selection(&mut self) -> Result<(), CommandError> {
+        if self.floating.is_some() {
+            return Err(CommandError::Invalid(
+                "a paste is floating: place it (Enter) or cancel it (Esc) first".into(),
+            ));
+        }
+        let (id, cells) = self.require_selection()?;
+        let o = self.object(id).ok_or(CommandError::NoObject(id))?;
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return Err(CommandError::Invalid("not a voxel model".into()));
+        };
+        let clip = select::copy(&v.svo, &cells);
+        let at = cells.bounds().map_or(UVec3::ZERO, |b| b.0).as_ivec3();
+        let before = self.history.undo_len();
+        self.history.seal();
+        self.delete_selected_voxels()?;
+        self.floating = Some(Floating {
+            object: id,
+            clip,
+            at,
+        });
+        self.lifted = Some(before);
+        Ok(())
+    }
+
+    /// Whether the floating voxels were lifted out of their model for a move.
+    #[must_use]
+    pub fn is_lifted(&self) -> bool {
+        self.lifted.is_some() && self.floating.is_some()
+    }
+
+    /// Writes voxels lifted by [`Editor::lift_selection`] where they float now and selects
+    /// them: the lift and the write become one undo step, "Move voxels" (voxels dragged
+    /// outside the volume are clipped, as a paste's are).
+    ///
+    /// # Errors
+    /// Nothing lifted, or its model is gone.
+    pub fn drop_lifted(&mut self) -> Result<ToolOutcome, CommandError> {
+        if self.lifted.is_none() {
+            return Err(CommandError::Invalid("no voxels are being moved".into()));
+        }
+        self.commit_floating()
     }
 
     /// Moves, flips or rotates the selected voxels (one undo step); the selection follows.

@@ -825,7 +825,10 @@ impl View {
         self.paste_target = hover_pick
             .as_ref()
             .map(|p| (p.object, p.voxel.as_ivec3() + p.normal));
-        let paste_drag = sculpt.voxel.drag_paste(&response, editor, pointer_ray);
+        let select_tool = sculpt.active && sculpt.tool == super::voxel_tools::ToolKind::Select;
+        let paste_drag = sculpt
+            .voxel
+            .drag_paste(&response, editor, pointer_ray, select_tool);
         let gizmo = paste_drag
             || (!sculpt.active
                 && (pose.interact(ui, &response, editor, &proj)
@@ -1865,7 +1868,9 @@ fn nav_hint(tool: Option<(ToolKind, bool)>, rigged: bool) -> String {
         Some((ToolKind::Line, false)) => "Drag: line",
         Some((ToolKind::Extrude, false)) => "Drag a face: extrude",
         Some((ToolKind::Fill, false)) => "Click: fill",
-        Some((ToolKind::Select, false)) => "Drag: select   Click: colour",
+        Some((ToolKind::Select, false)) => {
+            "Drag: select (on the selection: move it)   Click: colour"
+        }
         None if rigged => {
             return "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   F: frame   F3: stats"
                 .to_owned();

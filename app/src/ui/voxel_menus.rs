@@ -91,6 +91,10 @@ pub const TOOL_SHORTCUTS: &[(&str, &str)] = &[
         "Slide it by whole voxels in the model plane facing you",
     ),
     (
+        "Drag a selected voxel (Select tool)",
+        "Move the selection by whole voxels (one undo step; Esc puts it back)",
+    ),
+    (
         "Enter / Esc",
         "Place the floating paste / cancel it (Esc also cancels a box)",
     ),

@@ -311,6 +311,9 @@ pub struct VoxelTools {
     gesture: Option<Gesture>,
     /// A drag of the floating paste in progress.
     paste_drag: Option<PasteDrag>,
+    /// A press on a selected voxel with the Select tool: the grab, until the drag moves a
+    /// voxel's width and lifts the selection.
+    selection_grab: Option<PasteDrag>,
 }
 
 /// A drag of the floating paste: it slides in the model plane that faces the camera most,
@@ -335,6 +338,7 @@ impl Default for VoxelTools {
             grow_canvas_on_paste: false,
             gesture: None,
             paste_drag: None,
+            selection_grab: None,
         }
     }
 }
@@ -401,13 +405,21 @@ impl VoxelTools {
 
     /// Drags the floating paste with the primary button (any tool, Navigate too): a drag
     /// that starts on the paste slides it by whole voxels in the model plane facing the
-    /// camera. Returns whether the drag is the paste's (the view then does not orbit).
+    /// camera. With the Select tool (`select_tool`), a drag that starts on a selected voxel
+    /// moves the selection the same way: once it has moved a voxel the selected voxels lift
+    /// out of the model and float ([`Editor::lift_selection`]), and the release writes them
+    /// there (one undo step). Returns whether the drag is the paste's or the selection's (the
+    /// view then does not orbit and the tool does not act).
     pub fn drag_paste(
         &mut self,
         response: &egui::Response,
         editor: &mut Editor,
         ray: Option<(Vec3, Vec3)>,
+        select_tool: bool,
     ) -> bool {
+        if select_tool && self.drag_selection(response, editor, ray) {
+            return true;
+        }
         let Some(f) = editor.floating().cloned() else {
             self.paste_drag = None;
             return false;
@@ -444,6 +456,10 @@ impl VoxelTools {
         };
         if !response.ctx.input(|i| i.pointer.primary_down()) {
             self.paste_drag = None;
+            // A moved selection lands where it was let go.
+            if editor.is_lifted() {
+                let _ = editor.drop_lifted();
+            }
             return true;
         }
         if let Some((o, d)) = ray.map(|(o, d)| frame.ray(o, d))
@@ -453,6 +469,70 @@ impl VoxelTools {
             let mut delta = (o + d * t - drag.grab).round().as_ivec3();
             delta[drag.axis] = 0;
             editor.place_floating(drag.at + delta);
+        }
+        true
+    }
+
+    /// The Select tool's press on a selected voxel and the drag after it, up to the lift (then
+    /// the floating paste's drag carries on). See [`VoxelTools::drag_paste`].
+    fn drag_selection(
+        &mut self,
+        response: &egui::Response,
+        editor: &mut Editor,
+        ray: Option<(Vec3, Vec3)>,
+    ) -> bool {
+        let (plain, pressed, down) = response.ctx.input(|i| {
+            (
+                i.modifiers.is_none(),
+                i.pointer.primary_pressed(),
+                i.pointer.primary_down(),
+            )
+        });
+        if pressed && response.hovered() && plain && editor.floating().is_none() {
+            self.selection_grab = None;
+            let grab = editor.voxel_selection().and_then(|sel| {
+                let frame = ModelFrame::of(editor, sel.object)?;
+                let target = Self::target(editor, &frame, ray?)?;
+                let cell = target.solid.filter(|c| sel.cells.contains(*c))?;
+                let (o, d) = frame.ray(ray?.0, ray?.1);
+                let t = ray_box(o, d, cell.as_vec3(), cell.as_vec3() + Vec3::ONE)?;
+                let axis = (0..3)
+                    .max_by(|&a, &b| d[a].abs().total_cmp(&d[b].abs()))
+                    .unwrap_or(1);
+                let at = sel.cells.bounds().map_or(IVec3::ZERO, |b| b.0.as_ivec3());
+                Some(PasteDrag {
+                    at,
+                    axis,
+                    grab: o + d * t,
+                })
+            });
+            self.selection_grab = grab;
+        }
+        let Some(grab) = self.selection_grab else {
+            return false;
+        };
+        if !down {
+            // Released before it moved a voxel: nothing to move.
+            self.selection_grab = None;
+            return true;
+        }
+        let object = editor.voxel_selection().map(|s| s.object);
+        let Some(frame) = object.and_then(|id| ModelFrame::of(editor, id)) else {
+            self.selection_grab = None;
+            return false;
+        };
+        if let Some((o, d)) = ray.map(|(o, d)| frame.ray(o, d))
+            && d[grab.axis].abs() > 1e-6
+        {
+            let t = (grab.grab[grab.axis] - o[grab.axis]) / d[grab.axis];
+            let mut delta = (o + d * t - grab.grab).round().as_ivec3();
+            delta[grab.axis] = 0;
+            if delta != IVec3::ZERO && editor.lift_selection().is_ok() {
+                // The floating paste's drag takes over from the same grab.
+                self.selection_grab = None;
+                self.paste_drag = Some(grab);
+                editor.place_floating(grab.at + delta);
+            }
         }
         true
     }
