@@ -957,3 +957,78 @@ fn the_select_tool_drags_a_selection_to_move_it_in_one_undo_step() {
     h.run_steps(2);
     assert_eq!(hash_of(&leaves(&h)), before, "undo puts it back");
 }
+
+/// A turn that would push selected voxels off the canvas asks first: Cancel changes nothing,
+/// "Grow the canvas" keeps every voxel (resize and turn one undo step); an arrow at the edge
+/// moves nothing and says why.
+#[test]
+fn a_turn_past_the_canvas_edge_asks_and_grows_and_an_arrow_at_the_edge_keeps_every_voxel() {
+    // A bar 2 wide and 6 long along z against the x = 0 wall of an 8³ canvas.
+    let (mut ed, id) = boxes_model(
+        "Bar",
+        8,
+        &[(glam::IVec3::new(0, 0, 0), glam::IVec3::new(1, 0, 5))],
+    );
+    ed.select_all_voxels(id).unwrap();
+    ed.selection = Some(thicket::editor::Selection::Object(id));
+    let turn = thicket_core::sculpt::select::SelTransform::Rotate {
+        axis: 1,
+        quarter_turns: 1,
+    };
+    let (outside, lo, _) = ed.transform_outside(turn).expect("a selection");
+    assert!(outside > 0 && lo.x < 0, "{outside} {lo}");
+    let mut h = harness_with(ed);
+    let before = hash_of(&leaves(&h));
+    let steps = h.state().editor.history().undo_len();
+    h.query_all_by_label("Select")
+        .next()
+        .expect("the Select menu")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("Y 90°").click();
+    h.run_steps(2);
+    assert!(
+        h.query_by_label(&format!(
+            "{outside} voxel(s) would land outside the canvas and be lost."
+        ))
+        .is_some(),
+        "the turn asks first"
+    );
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+    assert_eq!(hash_of(&leaves(&h)), before, "cancel changes nothing");
+    assert_eq!(h.state().editor.history().undo_len(), steps);
+    h.query_all_by_label("Select")
+        .next()
+        .expect("the Select menu")
+        .click();
+    h.run_steps(2);
+    h.get_by_label("Y 90°").click();
+    h.run_steps(2);
+    h.get_by_label("Grow the canvas").click();
+    h.run_steps(2);
+    let ed = &h.state().editor;
+    assert_eq!(leaves(&h).len(), 12, "every voxel kept");
+    let size = ed.volume_of(id).expect("model");
+    assert!(size.x > 8, "the canvas grew: {size}");
+    assert_eq!(ed.history().undo_len(), steps + 1, "one step");
+    // The turned bar lies along x now.
+    let xs: std::collections::BTreeSet<u32> = leaves(&h).iter().map(|l| l.0.x).collect();
+    assert_eq!(xs.len(), 6, "{xs:?}");
+    // At the canvas's low x wall an arrow toward it moves nothing and says so.
+    let after = hash_of(&leaves(&h));
+    let low = leaves(&h).iter().map(|l| l.0.x).min().unwrap();
+    assert_eq!(low, 0, "the grown canvas starts at the bar");
+    h.key_press(egui::Key::ArrowLeft);
+    h.run_steps(2);
+    assert_eq!(hash_of(&leaves(&h)), after, "nothing dropped");
+    assert_eq!(h.state().editor.history().undo_len(), steps + 1, "no step");
+    h.key_press_modifiers(egui::Modifiers::COMMAND, egui::Key::Z);
+    h.run_steps(2);
+    assert_eq!(
+        hash_of(&leaves(&h)),
+        before,
+        "one undo puts the bar and canvas back"
+    );
+    assert_eq!(h.state().editor.volume_of(id), Some(UVec3::splat(8)));
+}

@@ -938,6 +938,103 @@ impl Editor {
         self.commit_floating()
     }
 
+    /// The doubled-coordinate pivot a quarter turn of `cells` uses: the last turn's about the
+    /// same axis (so four turns give the cells back), else the cells' centre.
+    fn turn_pivot_for(&self, t: SelTransform, cells: &VoxelSelection) -> IVec3 {
+        let (lo, hi) = cells.bounds().unwrap_or((UVec3::ZERO, UVec3::ZERO));
+        let axis = match t {
+            SelTransform::Rotate { axis, .. } => axis.min(2),
+            SelTransform::Move(_) | SelTransform::Flip(_) => 1,
+        };
+        match self.voxel_selection.as_ref().and_then(|s| s.turn_pivot) {
+            Some((a, p)) if a == axis => p,
+            _ => select::rotation_pivot(lo, hi, axis),
+        }
+    }
+
+    /// How many selected voxels a move, flip or turn would push outside the model's volume
+    /// (a plain [`Editor::transform_selected_voxels`] clips them), and the box from the volume's
+    /// origin that would hold them all. `None` without a selection.
+    #[must_use]
+    pub fn transform_outside(&self, t: SelTransform) -> Option<(usize, IVec3, IVec3)> {
+        let sel = self.voxel_selection.as_ref()?;
+        let size = self.volume_of(sel.object)?.as_ivec3();
+        let pivot2 = self.turn_pivot_for(t, &sel.cells);
+        let landed = select::transformed_cells(&sel.cells, t, pivot2);
+        let (mut lo, mut hi) = (glam::I64Vec3::ZERO, size.as_i64vec3());
+        let mut outside = 0;
+        for c in &landed {
+            if c.min_element() < 0 || c.cmpge(size.as_i64vec3()).any() {
+                outside += 1;
+            }
+            lo = lo.min(*c);
+            hi = hi.max(*c + 1);
+        }
+        let clamp = |v: glam::I64Vec3| {
+            v.clamp(
+                glam::I64Vec3::splat(-(1 << 30)),
+                glam::I64Vec3::splat(1 << 30),
+            )
+            .as_ivec3()
+        };
+        Some((outside, clamp(lo), clamp(hi)))
+    }
+
+    /// [`Editor::transform_selected_voxels`] after growing the canvas just enough to keep every
+    /// voxel it moves (the model keeps its place in the world): the resize and the transform
+    /// are one undo step. Without voxels pushed outside it is the plain transform.
+    ///
+    /// # Errors
+    /// No voxel selection, a model linked to an enhancement, or a grown canvas larger than
+    /// [`MAX_EXTENT`] per axis (nothing is changed then).
+    pub fn transform_selected_voxels_growing(
+        &mut self,
+        t: SelTransform,
+    ) -> Result<ToolOutcome, CommandError> {
+        let (id, cells) = self.require_selection()?;
+        let Some((outside, lo, hi)) = self.transform_outside(t) else {
+            return self.transform_selected_voxels(t);
+        };
+        if outside == 0 {
+            return self.transform_selected_voxels(t);
+        }
+        let size = self
+            .volume_of(id)
+            .ok_or(CommandError::NoObject(id))?
+            .as_ivec3();
+        let grown = hi - lo;
+        if grown.max_element() > MAX_EXTENT as i32 {
+            return Err(CommandError::Invalid(format!(
+                "the canvas would grow to {}×{}×{}: each axis holds at most {MAX_EXTENT}",
+                grown.x, grown.y, grown.z
+            )));
+        }
+        let pivot = self.voxel_selection.as_ref().and_then(|s| s.turn_pivot);
+        let steps = self.history.undo_len();
+        if hi != size {
+            self.resize_canvas(id, hi.max(size).as_uvec3(), [Anchor::Min; 3])?;
+        }
+        if lo != IVec3::ZERO {
+            let anchor = [0, 1, 2].map(|a| if lo[a] < 0 { Anchor::Max } else { Anchor::Min });
+            self.resize_canvas(id, grown.as_uvec3(), anchor)?;
+        }
+        // The resize dropped the selection; it comes back where the growth below moved it.
+        let shift = (-lo).max(IVec3::ZERO).as_uvec3();
+        self.select_voxels(
+            id,
+            VoxelSelection::from_cells(cells.iter().map(|c| c + shift)),
+            SelectMode::Replace,
+        )?;
+        if let Some(s) = &mut self.voxel_selection {
+            s.turn_pivot = pivot.map(|(a, p)| (a, p + 2 * shift.as_ivec3()));
+        }
+        let outcome = self.transform_selected_voxels(t)?;
+        let n = self.history.undo_len() - steps;
+        self.history
+            .join_top(n, "Transform selected voxels (canvas grown)".into());
+        Ok(outcome)
+    }
+
     /// Moves, flips or rotates the selected voxels (one undo step); the selection follows.
     /// Rotations turn about the selection's centre.
     ///
@@ -948,16 +1045,12 @@ impl Editor {
         t: SelTransform,
     ) -> Result<ToolOutcome, CommandError> {
         let (id, cells) = self.require_selection()?;
-        let (lo, hi) = cells.bounds().unwrap_or((UVec3::ZERO, UVec3::ZERO));
         let axis = match t {
             SelTransform::Rotate { axis, .. } => axis.min(2),
             SelTransform::Move(_) | SelTransform::Flip(_) => 1,
         };
         let last = self.voxel_selection.as_ref().and_then(|s| s.turn_pivot);
-        let pivot2 = match last {
-            Some((a, p)) if a == axis => p,
-            _ => select::rotation_pivot(lo, hi, axis),
-        };
+        let pivot2 = self.turn_pivot_for(t, &cells);
         let turn_pivot = match t {
             SelTransform::Rotate { .. } => Some((axis, pivot2)),
             SelTransform::Move(d) => last.map(|(a, p)| (a, p + 2 * d)),

@@ -94,6 +94,14 @@ pub struct EditorApp {
     /// A recovery file found at start-up, offered until recovered or discarded.
     pub recovery: Option<Recovery>,
     show_shortcuts: bool,
+    /// A flip or turn of the selected voxels that would push some outside the canvas, waiting
+    /// for the artist's choice (grow, clip or cancel): the transform, what it is called and
+    /// how many voxels.
+    pending_transform: Option<(
+        thicket_core::sculpt::select::SelTransform,
+        &'static str,
+        usize,
+    )>,
     /// Whether the Edit → History window is open.
     pub show_history: bool,
     /// The shortcut sheet's search text.
@@ -155,6 +163,7 @@ impl EditorApp {
             autosave: AutosaveTimer::default(),
             recovery: None,
             show_shortcuts: false,
+            pending_transform: None,
             show_history: false,
             shortcut_search: String::new(),
             show_about: false,

@@ -127,6 +127,70 @@ impl EditorApp {
         }
     }
 
+    /// A flip or turn of the selected voxels: done at once when every voxel stays on the
+    /// canvas (or the canvas grows for pastes), else the artist chooses first
+    /// ([`EditorApp::transform_prompt`]).
+    fn transform_checked(&mut self, ctx: &egui::Context, t: SelTransform, what: &'static str) {
+        let outside = self.editor.transform_outside(t).map_or(0, |o| o.0);
+        if outside == 0 {
+            let r = self.editor.transform_selected_voxels(t);
+            self.report_voxels(ctx, what, r);
+        } else if self.sculpt.voxel.grow_canvas_on_paste {
+            let r = self.editor.transform_selected_voxels_growing(t);
+            self.report_voxels(ctx, what, r);
+        } else {
+            self.pending_transform = Some((t, what, outside));
+        }
+    }
+
+    /// The choice a flip or turn that would push voxels off the canvas waits for: grow the
+    /// canvas to keep them, clip them, or cancel.
+    pub(super) fn transform_prompt(&mut self, ctx: &egui::Context) {
+        let Some((t, what, outside)) = self.pending_transform else {
+            return;
+        };
+        let mut choice = None;
+        egui::Window::new(format!("{what} selected voxels"))
+            .collapsible(false)
+            .resizable(false)
+            .anchor(egui::Align2::CENTER_CENTER, egui::Vec2::ZERO)
+            .show(ctx, |ui| {
+                ui.label(format!(
+                    "{outside} voxel(s) would land outside the canvas and be lost."
+                ));
+                ui.horizontal(|ui| {
+                    if ui
+                        .button("Grow the canvas")
+                        .on_hover_text(
+                            "Grow the volume just enough to keep every voxel (the model keeps its                              place); one undo step",
+                        )
+                        .clicked()
+                    {
+                        choice = Some(true);
+                    }
+                    if ui
+                        .button(format!("{what} and clip"))
+                        .on_hover_text("Drop the voxels that land outside")
+                        .clicked()
+                    {
+                        choice = Some(false);
+                    }
+                    if ui.button("Cancel").clicked() {
+                        self.pending_transform = None;
+                    }
+                });
+            });
+        if let Some(grow) = choice {
+            self.pending_transform = None;
+            let r = if grow {
+                self.editor.transform_selected_voxels_growing(t)
+            } else {
+                self.editor.transform_selected_voxels(t)
+            };
+            self.report_voxels(ctx, what, r);
+        }
+    }
+
     fn report_count(&mut self, ctx: &egui::Context, what: &str, r: Result<usize, CommandError>) {
         match r {
             Ok(n) => self.status = format!("{what}: {n} voxels"),
@@ -279,10 +343,7 @@ impl EditorApp {
                     .on_hover_text(format!("Mirror the selected voxels along {label} in place"))
                     .clicked()
                 {
-                    let r = self
-                        .editor
-                        .transform_selected_voxels(SelTransform::Flip(axis));
-                    self.report_voxels(&ctx, "Flip", r);
+                    self.transform_checked(&ctx, SelTransform::Flip(axis), "Flip");
                 }
             }
         });
@@ -296,11 +357,11 @@ impl EditorApp {
                     ))
                     .clicked()
                 {
-                    let r = self.editor.transform_selected_voxels(SelTransform::Rotate {
+                    let t = SelTransform::Rotate {
                         axis,
                         quarter_turns: 1,
-                    });
-                    self.report_voxels(&ctx, "Rotate", r);
+                    };
+                    self.transform_checked(&ctx, t, "Rotate");
                 }
             }
         });
@@ -598,10 +659,24 @@ impl EditorApp {
         } else if self.editor.voxel_selection().is_some() {
             for (key, by) in moves {
                 for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
-                    let r = self
-                        .editor
-                        .transform_selected_voxels(SelTransform::Move(by));
-                    self.report_voxels(ctx, "Move", r);
+                    let t = SelTransform::Move(by);
+                    let outside = self.editor.transform_outside(t).map_or(0, |o| o.0);
+                    if outside == 0 {
+                        let r = self.editor.transform_selected_voxels(t);
+                        self.report_voxels(ctx, "Move", r);
+                    } else if self.sculpt.voxel.grow_canvas_on_paste {
+                        let r = self.editor.transform_selected_voxels_growing(t);
+                        self.report_voxels(ctx, "Move (canvas grown)", r);
+                    } else {
+                        // An arrow at the canvas edge never drops voxels.
+                        self.toast(
+                            ctx,
+                            format!(
+                                "Not moved: {outside} voxel(s) would leave the canvas (turn on Model menu: Grow the canvas for pastes to grow it instead, or resize it)"
+                            ),
+                            false,
+                        );
+                    }
                 }
             }
             if consume(Modifiers::NONE, Key::Delete) {

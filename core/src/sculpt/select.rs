@@ -482,6 +482,52 @@ fn quarter<T: Copy + std::ops::Neg<Output = T>>(v: [T; 3], axis: usize) -> [T; 3
     out
 }
 
+/// Where [`transform_selection`] puts cell `c` of a selection spanning `lo..=hi`.
+fn placement(lo: UVec3, hi: UVec3, t: SelTransform, pivot2: IVec3) -> impl Fn(UVec3) -> I64Vec3 {
+    let (lo, hi) = (lo.as_i64vec3(), hi.as_i64vec3());
+    move |c: UVec3| -> I64Vec3 {
+        let c = c.as_i64vec3();
+        match t {
+            SelTransform::Move(d) => c + d.as_i64vec3(),
+            SelTransform::Flip(a) => {
+                let mut p = c;
+                p[a] = lo[a] + hi[a] - c[a];
+                p
+            }
+            SelTransform::Rotate {
+                axis,
+                quarter_turns,
+            } => {
+                let p2 = pivot2.as_i64vec3();
+                let mut d = (c * 2 + 1 - p2).to_array();
+                for _ in 0..quarter_turns.rem_euclid(4) {
+                    d = quarter(d, axis);
+                }
+                (I64Vec3::from_array(d) + p2 - 1).div_euclid(I64Vec3::splat(2))
+            }
+        }
+    }
+}
+
+/// Where [`transform_selection`] would put every cell of `sel` (before clipping to the
+/// volume): the cells of a flip, move or quarter turn about `pivot2`, outside the volume or
+/// not. Empty for an empty selection or a bad axis.
+#[must_use]
+pub fn transformed_cells(sel: &VoxelSelection, t: SelTransform, pivot2: IVec3) -> Vec<I64Vec3> {
+    let Some((lo, hi)) = sel.bounds() else {
+        return Vec::new();
+    };
+    let bad_axis = match t {
+        SelTransform::Move(_) => false,
+        SelTransform::Flip(a) | SelTransform::Rotate { axis: a, .. } => a >= 3,
+    };
+    if bad_axis {
+        return Vec::new();
+    }
+    let place = placement(lo, hi, t, pivot2);
+    sel.iter().map(place).collect()
+}
+
 /// Moves the selected voxels (cut + write transformed); returns the edit and the transformed
 /// selection. Flip is about the selection's bounds (lo+hi-c): flip twice = identity. Rotate is
 /// about `pivot2` (doubled coordinates, from [`rotation_pivot`]; keep it for successive turns of
@@ -507,29 +553,7 @@ pub fn transform_selection(
         return (ToolEdit::default(), sel.clone());
     }
     let size = clamp_size(svo, size);
-    let (lo, hi) = (lo.as_i64vec3(), hi.as_i64vec3());
-    let place = |c: UVec3| -> I64Vec3 {
-        let c = c.as_i64vec3();
-        match t {
-            SelTransform::Move(d) => c + d.as_i64vec3(),
-            SelTransform::Flip(a) => {
-                let mut p = c;
-                p[a] = lo[a] + hi[a] - c[a];
-                p
-            }
-            SelTransform::Rotate {
-                axis,
-                quarter_turns,
-            } => {
-                let p2 = pivot2.as_i64vec3();
-                let mut d = (c * 2 + 1 - p2).to_array();
-                for _ in 0..quarter_turns.rem_euclid(4) {
-                    d = quarter(d, axis);
-                }
-                (I64Vec3::from_array(d) + p2 - 1).div_euclid(I64Vec3::splat(2))
-            }
-        }
-    };
+    let place = placement(lo, hi, t, pivot2);
     let turn = |n: Vec3| -> Vec3 {
         match t {
             SelTransform::Move(_) => n,
@@ -551,7 +575,7 @@ pub fn transform_selection(
         }
     };
     let mut moved = Vec::new();
-    svo.for_each_leaf_in(lo.as_uvec3(), hi.as_uvec3(), |c, v| {
+    svo.for_each_leaf_in(lo, hi, |c, v| {
         if sel.contains(c) {
             moved.push((c, v));
         }
