@@ -1114,6 +1114,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
     use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
     let options = files::MeshOptions {
         texture: args.texture.clone(),
+        memory_limit: args.memory_limit,
         ..files::MeshOptions::default()
     };
     // Before any branch: the .vox and skinned paths would otherwise ignore the texture.
@@ -1203,6 +1204,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
             notes: dropped,
             view,
             nodes,
+            ..
         } = files::load_mesh_imported(&args.input, &options)?;
         for line in &dropped {
             notes.push_str(&format!("warning: {line}\n"));
@@ -2095,6 +2097,14 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
             "  the file stores {} voxels in {models} model(s); its scene graph places them as {} object(s)",
             thousands(voxels),
             info.objects.len()
+        );
+    }
+    if let (Some(nodes), Some(instances)) = (info.source.instanced_nodes, info.source.instances) {
+        let _ = writeln!(
+            s,
+            "  the file places {} instance(s) on {nodes} node(s) with EXT_mesh_gpu_instancing; \
+             each is a copy of its node's mesh in the triangles above",
+            thousands(instances)
         );
     }
     if let Some(size) = info.world_size {

@@ -121,6 +121,9 @@ pub struct MeshOptions {
     pub nodes: Option<Vec<String>>,
     /// A skinned glTF's octree depth in the editor's import (`None`: 7, as `thicket import`).
     pub skinned_depth: Option<u8>,
+    /// The memory the meshes read may fill, every instance of an instanced glTF mesh counted
+    /// (`--memory-limit`; `None`: half of this machine's physical memory).
+    pub memory_limit: Option<u64>,
 }
 
 /// [`load_mesh_reported`] with options. An OBJ that has texture coordinates but names no
@@ -145,8 +148,11 @@ pub struct MeshImport {
     pub notes: Vec<String>,
     /// A glTF file's first camera and directional lights (empty for an OBJ).
     pub view: GltfView,
-    /// A glTF file's nodes with triangles, over `model`'s parts (empty for an OBJ).
+    /// A glTF file's nodes with triangles, over `model`'s parts (empty for an OBJ); each
+    /// instance of an `EXT_mesh_gpu_instancing` node is one.
     pub nodes: Vec<thicket_core::io::GltfNode>,
+    /// The instances a glTF file's `EXT_mesh_gpu_instancing` nodes place (zero otherwise).
+    pub instancing: thicket_core::io::InstanceCounts,
 }
 
 /// [`load_mesh_reported_with`], plus a glTF file's camera and directional lights.
@@ -156,7 +162,10 @@ pub struct MeshImport {
 pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<MeshImport> {
     let kind = kind_of(path)?;
     check_options(path, options)?;
-    let limits = thicket_core::io::ImportLimits::default();
+    let mut limits = thicket_core::io::ImportLimits::default();
+    if let Some(bytes) = options.memory_limit {
+        limits.memory = thicket_core::budget::MemoryBudget::given(bytes);
+    }
     let (model, notes) = match kind {
         FileKind::Gltf => {
             let i = thicket_core::io::import_gltf_imported(path, &limits)?;
@@ -165,6 +174,7 @@ pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<
                 notes: i.report,
                 view: i.view,
                 nodes: i.nodes,
+                instancing: i.instancing,
             });
         }
         FileKind::Obj => {
@@ -186,6 +196,7 @@ pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<
         notes,
         view: GltfView::default(),
         nodes: Vec::new(),
+        instancing: thicket_core::io::InstanceCounts::default(),
     })
 }
 
@@ -318,6 +329,10 @@ pub struct SourceCounts {
     pub stored_models: Option<usize>,
     /// Voxels stored in a `.vox` file's models (each model once).
     pub stored_voxels: Option<u64>,
+    /// A glTF file's nodes with `EXT_mesh_gpu_instancing` (when it has any).
+    pub instanced_nodes: Option<u64>,
+    /// The instances they place, each expanded into the document's mesh.
+    pub instances: Option<u64>,
 }
 
 /// [`load_document`], plus counts only the source format knows.
@@ -366,6 +381,10 @@ fn load_document_noted(
         FileKind::Project => load_project(path)?,
         FileKind::Gltf | FileKind::Obj => {
             let import = load_mesh_imported(path, options)?;
+            if import.instancing.instances > 0 {
+                counts.instanced_nodes = Some(import.instancing.nodes);
+                counts.instances = Some(import.instancing.instances);
+            }
             notes = import.notes;
             view = import.view;
             let mut doc = document_from_mesh(&object_name_for(path), import.model);

@@ -7,6 +7,8 @@
 
 use std::path::{Path, PathBuf};
 
+use crate::budget::MemoryBudget;
+
 /// Why a file could not be loaded (or saved).
 #[derive(Debug, thiserror::Error)]
 pub enum IoError {
@@ -140,6 +142,11 @@ pub struct ImportLimits {
     pub max_indices: u64,
     /// Most bytes of decoded RGBA8 texture for one image.
     pub max_texture_bytes: u64,
+    /// The memory the meshes of one import may fill (vertex attributes and indices, every
+    /// instance of an instanced mesh counted), estimated from the declared counts before any
+    /// mesh is built: a small file that places a mesh a million times is refused, not
+    /// expanded. By default half of this machine's physical memory (`--memory-limit` sets it).
+    pub memory: MemoryBudget,
 }
 
 impl Default for ImportLimits {
@@ -150,6 +157,7 @@ impl Default for ImportLimits {
             max_indices: 3 << 28,
             // 8192 × 8192 RGBA8.
             max_texture_bytes: 256 << 20,
+            memory: MemoryBudget::for_this_machine(),
         }
     }
 }

@@ -494,6 +494,8 @@ mod loaders {
             asset("skinned/SimpleSkin.gltf"),
             asset("static/Box.glb"),
             gltf_mesh::tests::textured_glb(),
+            // Instances and levels of detail, as Thicket's exporter writes a forest.
+            crate::io::gltf_instancing::tests::instanced_lod_glb(),
         ];
         for file in &corpus {
             gltf_mesh::import_gltf_slice(file, None)

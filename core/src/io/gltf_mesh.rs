@@ -30,11 +30,16 @@ use gltf::json::mesh::{Mode, Semantic};
 use gltf::json::validation::Checked;
 
 use super::error::{ImportLimits, IoError, read_file_limited};
+use super::gltf_instancing::SceneSize;
 use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
 
 /// Required extensions this importer honours (any other required extension is an error;
 /// unknown *optional* extensions are ignored, as the glTF specification asks).
-const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &["KHR_materials_unlit", "KHR_mesh_quantization"];
+const SUPPORTED_REQUIRED_EXTENSIONS: &[&str] = &[
+    "KHR_materials_unlit",
+    "KHR_mesh_quantization",
+    super::gltf_instancing::INSTANCING,
+];
 
 /// Imports a `.gltf` or `.glb` file. External buffers and images are resolved relative to the
 /// file's directory.
@@ -83,7 +88,21 @@ pub struct GltfImport {
     pub view: super::gltf_view::GltfView,
     /// The scene's nodes that have triangles, in scene order, each with the parts of
     /// [`Self::model`] it holds (see [`super::gltf_nodes`] for turning them into objects).
+    /// Each instance a node places with `EXT_mesh_gpu_instancing` is a node of its own here,
+    /// named "NAME i" as `thicket export --instancing nodes` names it.
     pub nodes: Vec<GltfNode>,
+    /// The scene's nodes with `EXT_mesh_gpu_instancing` and the instances they place (each
+    /// expanded into [`Self::model`]); zero for a file without the extension.
+    pub instancing: InstanceCounts,
+}
+
+/// How many instances a file's `EXT_mesh_gpu_instancing` nodes place.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct InstanceCounts {
+    /// Nodes of the scene that have the extension (and a mesh).
+    pub nodes: u64,
+    /// The instances they place, over all of them.
+    pub instances: u64,
 }
 
 /// One node of the scene that has triangles.
@@ -115,6 +134,25 @@ pub fn import_gltf_imported(path: &Path, limits: &ImportLimits) -> Result<GltfIm
         limits,
     }
     .run_imported(&bytes)
+}
+
+/// [`import_gltf_imported`] on bytes named `name` in messages, with no base folder (external
+/// files are refused). For tests: the report and the nodes of bytes built in memory.
+///
+/// # Errors
+/// See [`import_gltf`].
+#[cfg(test)]
+pub(crate) fn import_gltf_slice_imported(
+    bytes: &[u8],
+    name: &Path,
+    limits: &ImportLimits,
+) -> Result<GltfImport, IoError> {
+    Importer {
+        path: name,
+        base_dir: None,
+        limits,
+    }
+    .run_imported(bytes)
 }
 
 /// Imports glTF or GLB bytes. External (non-data) URIs are resolved against `base_dir`; with
@@ -267,10 +305,10 @@ impl OpenedGltf<'_> {
 }
 
 /// One import: where messages point, where external files live, and the limits.
-struct Importer<'a> {
-    path: &'a Path,
+pub(super) struct Importer<'a> {
+    pub(super) path: &'a Path,
     base_dir: Option<&'a Path>,
-    limits: &'a ImportLimits,
+    pub(super) limits: &'a ImportLimits,
 }
 
 /// The two parts of a GLB container (or a plain JSON file, `bin` = `None`).
@@ -281,19 +319,19 @@ struct Container<'b> {
 
 /// A typed view of one accessor's bytes, already bounds-checked: element `i` starts at
 /// `i * stride` in `bytes`, and `bytes` holds all `count` elements.
-struct AccessorData<'b> {
+pub(super) struct AccessorData<'b> {
     bytes: &'b [u8],
     stride: usize,
-    count: usize,
-    component: ComponentType,
-    dims: usize,
-    normalized: bool,
+    pub(super) count: usize,
+    pub(super) component: ComponentType,
+    pub(super) dims: usize,
+    pub(super) normalized: bool,
 }
 
 impl AccessorData<'_> {
     /// Component `c` of element `i` as a float, normalised when the accessor says so.
     /// Bounds were checked when the view was made; `get` keeps this panic-free regardless.
-    fn component(&self, i: usize, c: usize) -> f32 {
+    pub(super) fn component(&self, i: usize, c: usize) -> f32 {
         let size = self.component.size();
         let at = i * self.stride + c * size;
         let Some(b) = self.bytes.get(at..at + size) else {
@@ -394,7 +432,7 @@ fn component_name(c: ComponentType) -> &'static str {
 }
 
 impl<'a> Importer<'a> {
-    fn invalid(&self, detail: impl Into<String>) -> IoError {
+    pub(super) fn invalid(&self, detail: impl Into<String>) -> IoError {
         IoError::invalid(self.path, detail)
     }
 
@@ -429,10 +467,33 @@ impl<'a> Importer<'a> {
             vertices: 0,
             indices: 0,
         };
+        // Count everything the import will build, every instance included, before building
+        // any of it: a small file that places a mesh a million times is refused here.
+        let mut size = SceneSize::default();
+        let mut planned: Vec<(usize, Mat4, Option<Vec<Mat4>>)> = Vec::new();
+        for (node_index, world_from_node) in scene_nodes {
+            let Some(node) = root.nodes.get(node_index) else {
+                continue;
+            };
+            let Some(mesh_index) = node.mesh.map(|m| m.value()) else {
+                continue;
+            };
+            let instances = self.node_instances(&root, &buffers, node_index, node)?;
+            let copies = instances.as_ref().map_or(1, |v| v.len() as u64);
+            if instances.is_some() {
+                size.instanced_nodes += 1;
+                size.instances = size.instances.saturating_add(copies);
+            }
+            self.count_mesh(&root, &buffers, mesh_index, copies, &mut size)?;
+            planned.push((node_index, world_from_node, instances));
+        }
+        self.check_scene_size(&size)?;
+        dropped.extend(super::gltf_instancing::instancing_note(&size));
+
         let mut cache: HashMap<(usize, usize), Option<TriangleMesh>> = HashMap::new();
         let mut nodes = Vec::new();
 
-        for (node_index, world_from_node) in scene_nodes {
+        for (node_index, world_from_node, instances) in planned {
             let Some(node) = root.nodes.get(node_index) else {
                 continue;
             };
@@ -463,71 +524,90 @@ impl<'a> Importer<'a> {
                 .name
                 .as_deref()
                 .map_or_else(|| format!("{mesh_index}"), |n| format!("'{n}'"));
-            let first_part = model.parts.len();
-            for (prim_index, primitive) in mesh.primitives.iter().enumerate() {
-                let key = (mesh_index, prim_index);
-                let template = match cache.entry(key) {
-                    Entry::Vacant(slot) => slot.insert(self.read_primitive(
-                        &root,
-                        &buffers,
-                        &mesh_name,
-                        prim_index,
-                        primitive,
-                        &mut budget,
-                    )?),
-                    Entry::Occupied(slot) => {
-                        if let Some(part) = slot.get() {
-                            // A second instance of the same primitive costs memory like the first.
-                            budget.charge(self, part.positions.len(), part.indices.len())?;
+            let node_name = node
+                .name
+                .clone()
+                .or_else(|| mesh.name.clone())
+                .unwrap_or_else(|| format!("node {node_index}"));
+            // Each instance is a copy of the node's mesh, named as the exporter names the node
+            // it writes for that placement with `--instancing nodes` ("NAME i").
+            let copies: Vec<(Mat4, String)> = match instances {
+                None => vec![(world_from_node, node_name)],
+                Some(instances) => instances
+                    .iter()
+                    .enumerate()
+                    .map(|(i, node_from_instance)| {
+                        (
+                            world_from_node * *node_from_instance,
+                            format!("{node_name} {i}"),
+                        )
+                    })
+                    .collect(),
+            };
+            for (world_from_copy, name) in copies {
+                let first_part = model.parts.len();
+                for (prim_index, primitive) in mesh.primitives.iter().enumerate() {
+                    let key = (mesh_index, prim_index);
+                    let template = match cache.entry(key) {
+                        Entry::Vacant(slot) => slot.insert(self.read_primitive(
+                            &root,
+                            &buffers,
+                            &mesh_name,
+                            prim_index,
+                            primitive,
+                            &mut budget,
+                        )?),
+                        Entry::Occupied(slot) => {
+                            if let Some(part) = slot.get() {
+                                // A second copy of the same primitive costs memory like the
+                                // first.
+                                budget.charge(self, part.positions.len(), part.indices.len())?;
+                            }
+                            slot.into_mut()
                         }
-                        slot.into_mut()
-                    }
-                };
-                let Some(template) = template else {
-                    continue;
-                };
-                let mut part = template.clone();
-                if let Some(joint_count) = skin_joints
-                    && let Some(j) = part
-                        .joints
-                        .iter()
-                        .flatten()
-                        .find(|&&j| usize::from(j) >= joint_count)
-                {
-                    return Err(self.invalid(format!(
-                        "mesh {mesh_name} primitive {prim_index}: JOINTS_0 value {j} is past the {joint_count} joints of the node's skin"
-                    )));
-                }
-                if skin_joints.is_none() {
-                    part.transform(world_from_node);
-                }
-                part.material = match primitive.material {
-                    Some(m) if m.value() < default_material => m.value(),
-                    Some(m) => {
+                    };
+                    let Some(template) = template else {
+                        continue;
+                    };
+                    let mut part = template.clone();
+                    if let Some(joint_count) = skin_joints
+                        && let Some(j) = part
+                            .joints
+                            .iter()
+                            .flatten()
+                            .find(|&&j| usize::from(j) >= joint_count)
+                    {
                         return Err(self.invalid(format!(
-                            "mesh {mesh_name} primitive {prim_index} refers to material {}, which does not exist",
-                            m.value()
+                            "mesh {mesh_name} primitive {prim_index}: JOINTS_0 value {j} is past the {joint_count} joints of the node's skin"
                         )));
                     }
-                    None => {
-                        used_default = true;
-                        default_material
+                    if skin_joints.is_none() {
+                        part.transform(world_from_copy);
                     }
-                };
-                model.parts.push(part);
-            }
-            if model.parts.len() > first_part {
-                nodes.push(GltfNode {
-                    index: node_index,
-                    name: node
-                        .name
-                        .clone()
-                        .or_else(|| mesh.name.clone())
-                        .unwrap_or_else(|| format!("node {node_index}")),
-                    world_from_node,
-                    parts: first_part..model.parts.len(),
-                    skinned: skin_joints.is_some(),
-                });
+                    part.material = match primitive.material {
+                        Some(m) if m.value() < default_material => m.value(),
+                        Some(m) => {
+                            return Err(self.invalid(format!(
+                                "mesh {mesh_name} primitive {prim_index} refers to material {}, which does not exist",
+                                m.value()
+                            )));
+                        }
+                        None => {
+                            used_default = true;
+                            default_material
+                        }
+                    };
+                    model.parts.push(part);
+                }
+                if model.parts.len() > first_part {
+                    nodes.push(GltfNode {
+                        index: node_index,
+                        name,
+                        world_from_node: world_from_copy,
+                        parts: first_part..model.parts.len(),
+                        skinned: skin_joints.is_some(),
+                    });
+                }
             }
         }
         if used_default {
@@ -544,6 +624,10 @@ impl<'a> Importer<'a> {
             report: dropped,
             view,
             nodes,
+            instancing: InstanceCounts {
+                nodes: size.instanced_nodes,
+                instances: size.instances,
+            },
         })
     }
 
@@ -835,7 +919,7 @@ impl<'a> Importer<'a> {
 
     /// Checks accessor `index` against its buffer view and returns its data. `allowed` lists the
     /// accepted (type, component) pairs.
-    fn accessor<'b>(
+    pub(super) fn accessor<'b>(
         &self,
         root: &json::Root,
         buffers: &'b [Cow<'_, [u8]>],
@@ -1715,14 +1799,20 @@ pub(crate) mod tests {
 
     /// A glTF document under construction: one binary buffer, views and accessors.
     #[derive(Default)]
-    struct Doc {
-        bin: Vec<u8>,
-        views: Vec<Value>,
-        accessors: Vec<Value>,
+    pub(crate) struct Doc {
+        pub(crate) bin: Vec<u8>,
+        pub(crate) views: Vec<Value>,
+        pub(crate) accessors: Vec<Value>,
     }
 
     impl Doc {
-        fn accessor(&mut self, bytes: &[u8], ty: &str, component: u32, count: usize) -> usize {
+        pub(crate) fn accessor(
+            &mut self,
+            bytes: &[u8],
+            ty: &str,
+            component: u32,
+            count: usize,
+        ) -> usize {
             while !self.bin.len().is_multiple_of(4) {
                 self.bin.push(0);
             }
@@ -1734,13 +1824,13 @@ pub(crate) mod tests {
             self.accessors.len() - 1
         }
 
-        fn floats(&mut self, values: &[f32], ty: &str, dims: usize) -> usize {
+        pub(crate) fn floats(&mut self, values: &[f32], ty: &str, dims: usize) -> usize {
             let bytes: Vec<u8> = values.iter().flat_map(|v| v.to_le_bytes()).collect();
             self.accessor(&bytes, ty, 5126, values.len() / dims)
         }
 
         /// The document as .gltf JSON with the buffer in a data URI.
-        fn gltf(&self, mut root: Value) -> Vec<u8> {
+        pub(crate) fn gltf(&self, mut root: Value) -> Vec<u8> {
             root["asset"] = json!({"version": "2.0"});
             root["buffers"] = json!([{"byteLength": self.bin.len(), "uri": format!("data:application/octet-stream;base64,{}", base64(&self.bin))}]);
             root["bufferViews"] = Value::Array(self.views.clone());
@@ -1749,7 +1839,7 @@ pub(crate) mod tests {
         }
 
         /// The document as .glb.
-        fn glb(&self, mut root: Value) -> Vec<u8> {
+        pub(crate) fn glb(&self, mut root: Value) -> Vec<u8> {
             root["asset"] = json!({"version": "2.0"});
             root["buffers"] = json!([{"byteLength": self.bin.len()}]);
             root["bufferViews"] = Value::Array(self.views.clone());
@@ -1777,7 +1867,7 @@ pub(crate) mod tests {
     }
 
     /// A unit quad (4 vertices) in the z = 0 plane.
-    const QUAD: [f32; 12] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
+    pub(crate) const QUAD: [f32; 12] = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 1.0, 0.0];
 
     fn png_2x1() -> Vec<u8> {
         let img =

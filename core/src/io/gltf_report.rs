@@ -29,6 +29,9 @@ const CARRIED_EXTENSIONS: &[&str] = &[
     "KHR_mesh_quantization",
     "KHR_xmp",
     "KHR_xmp_json_ld",
+    super::gltf_instancing::INSTANCING,
+    // Its own line says what is kept.
+    super::gltf_instancing::LOD,
 ];
 
 /// Lines naming what `root` holds that `reader` does not import, with counts and where it is.
@@ -176,6 +179,8 @@ pub(crate) fn dropped_features(root: &json::Root, reader: Reader) -> Vec<String>
             ));
         }
     }
+
+    out.extend(super::gltf_instancing::level_of_detail_note(root));
 
     // Cameras and lights are imported where they can be: `super::gltf_view` says what.
     let ignored: Vec<&String> = root

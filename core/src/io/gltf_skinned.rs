@@ -259,6 +259,13 @@ fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, S
             continue;
         };
         match node.skin.map(|s| s.value()) {
+            Some(_) if super::gltf_instancing::is_instanced(node) => {
+                return Err(invalid(format!(
+                    "node {n} is skinned and has {}: its joints place its mesh, so instances \
+                     of it cannot be placed",
+                    super::gltf_instancing::INSTANCING
+                )));
+            }
             Some(s) if s == skin_index => {}
             Some(s) => {
                 warnings.push(format!(

@@ -12,6 +12,7 @@ pub mod error;
 #[cfg(test)]
 pub(crate) mod fuzz;
 pub mod gltf_export;
+mod gltf_instancing;
 pub mod gltf_mesh;
 pub mod gltf_nodes;
 pub(crate) mod gltf_report;
@@ -22,7 +23,7 @@ pub mod skinned_voxels;
 
 pub use error::{ImportLimits, IoError};
 pub use gltf_mesh::{
-    GltfImport, GltfNode, import_gltf, import_gltf_imported, import_gltf_reported,
+    GltfImport, GltfNode, InstanceCounts, import_gltf, import_gltf_imported, import_gltf_reported,
     import_gltf_slice,
 };
 pub use gltf_skinned::{SkinnedImport, import_skinned, import_skinned_slice, import_skinned_with};
