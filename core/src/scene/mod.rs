@@ -790,28 +790,62 @@ impl OrbitCamera {
     /// Finite values, positive distances, a usable field of view.
     ///
     /// # Errors
-    /// What is wrong.
+    /// [`SceneError::Invalid`] naming the first bad field (`camera.far`, …) and its value.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let ok = self.target.is_finite()
-            && self.yaw_deg.is_finite()
-            && self.pitch_deg.is_finite()
-            && self.distance.is_finite()
-            && self.distance > 0.0
-            && self.fov_y_deg > 0.1
-            && self.fov_y_deg < 179.0
-            && self.near.is_finite()
-            && (self.orthographic || self.near > 0.0)
-            && self.far > self.near
-            && self.far.is_finite();
-        if ok {
-            Ok(())
-        } else {
-            Err(invalid(
-                "camera",
-                "document",
-                format!("{self:?} is not a usable camera"),
-            ))
+        self.check().map_err(|(field, detail)| SceneError::Invalid {
+            what: format!("camera.{field}"),
+            context: "document".to_owned(),
+            detail,
+        })
+    }
+
+    /// The first field a renderer cannot use, by name, and what is wrong with its value: the
+    /// words [`OrbitCamera::validate`] and a command-line option's refusal share.
+    ///
+    /// # Errors
+    /// `(field, detail)`, e.g. `("far", "inf must be finite and beyond near (0.001)")`.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        let finite = |field: &'static str, v: f32| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err((field, format!("{v} must be a finite number")))
+            }
+        };
+        if !self.target.is_finite() {
+            return Err(("target", format!("{} must be finite", self.target)));
         }
+        finite("yaw_deg", self.yaw_deg)?;
+        finite("pitch_deg", self.pitch_deg)?;
+        if !(self.distance.is_finite() && self.distance > 0.0) {
+            return Err((
+                "distance",
+                format!("{} must be finite and above 0", self.distance),
+            ));
+        }
+        if !(self.fov_y_deg > 0.1 && self.fov_y_deg < 179.0) {
+            return Err((
+                "fov_y_deg",
+                format!("{} must be between 0.1 and 179 degrees", self.fov_y_deg),
+            ));
+        }
+        finite("near", self.near)?;
+        if !self.orthographic && self.near <= 0.0 {
+            return Err((
+                "near",
+                format!("{} must be above 0 for a perspective camera", self.near),
+            ));
+        }
+        if !(self.far.is_finite() && self.far > self.near) {
+            return Err((
+                "far",
+                format!(
+                    "{} must be finite and beyond near ({})",
+                    self.far, self.near
+                ),
+            ));
+        }
+        Ok(())
     }
 }
 
