@@ -744,6 +744,7 @@ fn enhance_settings(
 fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     use thicket_core::enhance::Control;
     use thicket_core::scene::ObjectKind;
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let mut doc = files::load_document(&args.project)?;
     let project = args.project.display();
     let index = rig::voxel_object_index(&doc, &args.project, &args.object, "enhanced")?;
@@ -832,6 +833,15 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             "--resolution {}: must be between 2 and {MAX_RESOLUTION}",
             args.resolution
         );
+    }
+    files::refuse_overwriting_input(&args.project, &args.output)?;
+    // A .gltf brings its buffer, OUT.bin, beside it.
+    if args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
+    {
+        files::refuse_overwriting_input(&args.project, &args.output.with_extension("bin"))?;
     }
     let doc = files::load_document(&args.project)?;
     let options = GltfExportOptions {
@@ -1116,6 +1126,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         texture: args.texture.clone(),
         ..files::MeshOptions::default()
     };
+    files::refuse_overwriting_input(&args.input, &args.output)?;
     // Before any branch: the .vox and skinned paths would otherwise ignore the texture.
     files::check_options(&args.input, &options)?;
     let is_vox = args
@@ -1493,7 +1504,33 @@ pub fn view_options(
     view_args::view_from(doc, &quality, camera)
 }
 
+/// The files `thicket render` writes: OUTPUT, or a turntable's numbered frames beside it.
+fn render_outputs(args: &RenderArgs) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    let Some(frames) = args.turntable else {
+        return Ok(vec![args.output.clone()]);
+    };
+    if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
+        anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
+    }
+    let stem = args
+        .output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .with_context(|| format!("{}: not a file name", args.output.display()))?;
+    let digits = ((frames - 1).max(1).ilog10() as usize + 1).max(3);
+    Ok((0..frames)
+        .map(|i| {
+            args.output
+                .with_file_name(format!("{stem}_{i:0digits$}.png"))
+        })
+        .collect())
+}
+
 fn render(args: &RenderArgs) -> anyhow::Result<()> {
+    let outputs = render_outputs(args)?;
+    for output in &outputs {
+        files::refuse_overwriting_input(&args.project, output)?;
+    }
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let ImageSize { width, height } = args.view.size;
@@ -1514,33 +1551,10 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         Some(ctx) => RenderBackend::Gpu(ctx),
         None => RenderBackend::Cpu(Box::default()),
     };
-    let Some(frames) = args.turntable else {
-        return render_one(
-            args,
-            &mut backend,
-            &doc,
-            camera,
-            &quality,
-            (width, height),
-            &args.output,
-        );
-    };
-    if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
-        anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
-    }
-    let stem = args
-        .output
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .with_context(|| format!("{}: not a file name", args.output.display()))?;
-    let digits = (frames - 1).max(1).ilog10() as usize + 1;
-    let digits = digits.max(3);
-    for i in 0..frames {
+    let frames = outputs.len();
+    for (i, path) in outputs.iter().enumerate() {
         let mut cam = camera;
         cam.yaw_deg = camera.yaw_deg + 360.0 * i as f32 / frames as f32;
-        let path = args
-            .output
-            .with_file_name(format!("{stem}_{i:0digits$}.png"));
         render_one(
             args,
             &mut backend,
@@ -1548,7 +1562,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
             cam,
             &quality,
             (width, height),
-            &path,
+            path,
         )?;
     }
     Ok(())
@@ -1641,13 +1655,8 @@ fn render_one(
             }),
         );
     }
-    // Write through a temporary sibling so a failed write leaves no partial PNG.
-    let tmp = output.with_extension("png.tmp");
-    if let Err(e) = image.save_png(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("{}: writing PNG", output.display()));
-    }
-    std::fs::rename(&tmp, output).with_context(|| format!("{}: writing PNG", output.display()))?;
+    // Through a temporary sibling, so a failed write leaves no partial PNG and no `.tmp`.
+    files::write_png(&image, output)?;
     let mut text = format!("wrote {} ({width}x{height})\n", output.display());
     if args.stats {
         text.push_str(
@@ -1760,6 +1769,9 @@ fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
 
 fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
     use thicket_core::measure::{SweepSettings, sweep_document};
+    for name in crate::tradeoff::OUTPUT_FILES {
+        files::refuse_overwriting_input(&args.project, &args.output.join(name))?;
+    }
     let doc = files::load_document(&args.project)?;
     let ImageSize { width, height } = args.size;
     let knobs = if args.knobs.is_empty() {
@@ -2021,6 +2033,7 @@ pub fn format_skin_report(
 }
 
 fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let doc = files::load_document(&args.project)?;
     let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
     let mut text = format!(

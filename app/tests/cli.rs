@@ -1859,3 +1859,242 @@ fn forest_refuses_bad_input_once_and_writes_nothing() {
         assert!(!out.exists(), "{extra:?} wrote nothing");
     }
 }
+
+/// Every file in `dir` (not recursing) with its bytes, by name.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p.file_name().unwrap().to_string_lossy().into_owned(), bytes)
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// Asserts a refusal in one line that names `output` and says what it would overwrite.
+fn assert_refused_naming(o: &Output, output: &str, what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with(&format!("error: {output}: ")), "{err}");
+    assert!(err.contains(what), "{what:?} in {err}");
+}
+
+#[test]
+fn outputs_never_overwrite_the_input_project_or_its_payload() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let p = project.to_str().unwrap().to_owned();
+    let bin = thicket_core::io::project::bin_path_for(&project);
+    assert!(bin.is_file() && bin != project);
+    let b = bin.to_str().unwrap().to_owned();
+    // Another spelling of the same file, and a link to it.
+    let dotted = format!(
+        "{}/./{}",
+        dir.path().display(),
+        project.file_name().unwrap().to_string_lossy()
+    );
+    let link = dir.path().join("link.thicket.json");
+    std::os::unix::fs::symlink(&project, &link).unwrap();
+    let l = link.to_str().unwrap().to_owned();
+    let before = snapshot(dir.path());
+    let input = "the output is the input project";
+    let payload = "the output is the payload of the input project";
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (vec!["render", &p, "--size", "8x8", "-o", &p], &p, input),
+        (
+            vec!["render", &p, "--size", "8x8", "-o", &dotted],
+            &dotted,
+            input,
+        ),
+        (vec!["render", &p, "--size", "8x8", "-o", &l], &l, input),
+        (vec!["render", &p, "--size", "8x8", "-o", &b], &b, payload),
+        (vec!["export-vox", &p, "-o", &p], &p, input),
+        (vec!["export-vox", &p, "-o", &b], &b, payload),
+        (vec!["export", &p, "-o", &b], &b, payload),
+        (
+            vec!["enhance", &p, "--object", "row", "--factor", "2", "-o", &p],
+            &p,
+            input,
+        ),
+    ];
+    for (args, output, what) in &cases {
+        let o = thicket(args);
+        assert_refused_naming(&o, output, what);
+        assert!(
+            stderr(&o).contains(&*p) || *what == input,
+            "the payload refusal names the project: {}",
+            stderr(&o)
+        );
+        assert_eq!(snapshot(dir.path()), before, "{args:?} changed the folder");
+    }
+    // A .gltf brings OUT.bin beside it: refused when that is the project's payload (here a
+    // project whose JSON names its payload `scene.bin`).
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    json["bin"]["file"] = "scene.bin".into();
+    let renamed = dir.path().join("renamed.thicket.json");
+    std::fs::write(&renamed, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::copy(&bin, dir.path().join("scene.bin")).unwrap();
+    assert!(
+        thicket(&["info", renamed.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let gltf = dir.path().join("scene.gltf");
+    let before = snapshot(dir.path());
+    let o = thicket(&[
+        "export",
+        renamed.to_str().unwrap(),
+        "-o",
+        gltf.to_str().unwrap(),
+    ]);
+    assert_refused_naming(
+        &o,
+        &dir.path().join("scene.bin").display().to_string(),
+        payload,
+    );
+    assert_eq!(snapshot(dir.path()), before);
+    // A file imported onto itself.
+    let vox = dir.path().join("m.vox");
+    assert!(
+        thicket(&["export-vox", &p, "-o", vox.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let before = snapshot(dir.path());
+    let v = vox.to_str().unwrap();
+    let o = thicket(&["import", v, "-o", v]);
+    assert_refused_naming(&o, v, "the output is the input file");
+    assert_eq!(snapshot(dir.path()), before);
+}
+
+/// The names in `dir` a failed write may have left: temporaries and half-written payloads.
+fn leftovers(dir: &Path, expected: &[&str]) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !expected.contains(&n.as_str()))
+        .collect()
+}
+
+#[test]
+fn failed_writes_remove_their_temporary_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let p = project.to_str().unwrap().to_owned();
+    let out = tempfile::tempdir().unwrap();
+    // A folder where the output should be (the temporary is written, the rename fails) and a
+    // plain file where its folder should be (nothing can be created).
+    let taken = |name: &str| {
+        let path = out.path().join(name);
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("keep"), b"x").unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    std::fs::write(out.path().join("afile"), b"x").unwrap();
+    let under_file = |name: &str| format!("{}/afile/{name}", out.path().display());
+    let vox = dir.path().join("m.vox");
+    assert!(
+        thicket(&["export-vox", &p, "-o", vox.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let v = vox.to_str().unwrap().to_owned();
+    let bin_name = thicket_core::io::project::bin_path_for(&project)
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned();
+    let cases: Vec<(Vec<String>, String)> = vec![
+        (
+            vec!["render".into(), p.clone(), "--size".into(), "8x8".into()],
+            taken("r.png"),
+        ),
+        (
+            vec!["render".into(), p.clone(), "--size".into(), "8x8".into()],
+            under_file("r.png"),
+        ),
+        (vec!["export-vox".into(), p.clone()], taken("e.vox")),
+        (vec!["export-vox".into(), p.clone()], under_file("e.vox")),
+        (vec!["export".into(), p.clone()], taken("g.glb")),
+        (vec!["export".into(), p.clone()], taken("g.gltf")),
+        (vec!["export".into(), p.clone()], under_file("g.gltf")),
+        (vec!["import".into(), v.clone()], taken("i.thicket.json")),
+        (
+            vec!["import".into(), v.clone()],
+            under_file("i.thicket.json"),
+        ),
+        (
+            vec![
+                "enhance".into(),
+                p.clone(),
+                "--object".into(),
+                "row".into(),
+                "--factor".into(),
+                "2".into(),
+            ],
+            taken("f.thicket.json"),
+        ),
+    ];
+    let names = [
+        "afile",
+        "r.png",
+        "e.vox",
+        "g.glb",
+        "g.gltf",
+        "i.thicket.json",
+        "f.thicket.json",
+    ];
+    for (args, output) in &cases {
+        let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+        args.extend(["-o", output.as_str()]);
+        let o = thicket(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
+        let name = Path::new(output).file_name().unwrap().to_string_lossy();
+        // A .gltf's buffer is written first: its failure names OUT.bin.
+        let bin_of_gltf = name.replace(".gltf", ".bin");
+        assert!(
+            err.contains(name.as_ref()) || err.contains(&bin_of_gltf),
+            "{args:?}: names {name}: {err}"
+        );
+        assert!(
+            !err.contains(".tmp-")
+                && !err
+                    .split_whitespace()
+                    .any(|w| w.trim_end_matches(':').ends_with(".tmp")),
+            "{args:?}: names the output, not a temporary: {err}"
+        );
+        assert_eq!(
+            leftovers(out.path(), &names),
+            Vec::<String>::new(),
+            "{args:?}"
+        );
+        assert_eq!(
+            leftovers(dir.path(), &["two.thicket.json", &bin_name, "m.vox"]),
+            Vec::<String>::new(),
+            "{args:?}"
+        );
+    }
+    // The folders standing in for outputs hold only what they held.
+    for name in [
+        "r.png",
+        "e.vox",
+        "g.glb",
+        "g.gltf",
+        "i.thicket.json",
+        "f.thicket.json",
+    ] {
+        assert_eq!(
+            leftovers(&out.path().join(name), &["keep"]),
+            Vec::<String>::new(),
+            "{name}"
+        );
+    }
+}
