@@ -290,10 +290,18 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::io::Skin
             if let Err(file_error) = thicket_core::io::import_gltf_reported(path, &limits) {
                 return Err(file_error.into());
             }
-            Err(anyhow::Error::new(e).context(format!(
-                "{}: the file has a skin that cannot be imported (use --no-skin to import it as a static model)",
-                path.display()
-            )))
+            // One line naming the file once: the skin error's own text starts with the path
+            // (most variants), which the sentence already gives.
+            let shown = path.display().to_string();
+            let text = e.to_string();
+            let detail = text
+                .strip_prefix(&shown)
+                .and_then(|t| t.strip_prefix(": "))
+                .unwrap_or(&text);
+            bail!(
+                "{shown}: the file has a skin that cannot be imported: {detail} (use --no-skin \
+                 to import it as a static model)"
+            )
         }
     }
 }

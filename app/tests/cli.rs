@@ -2098,3 +2098,141 @@ fn failed_writes_remove_their_temporary_files() {
         );
     }
 }
+
+/// Asserts `text` carries no Rust debug output.
+fn assert_no_debug_text(text: &str) {
+    for debug in ["{", "}", "ChunkType", "Some(", "OrbitCamera", "Vec3("] {
+        assert!(!text.contains(debug), "{debug:?} in {text}");
+    }
+}
+
+#[test]
+fn a_damaged_texture_is_refused_in_words_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("tex.png");
+    thicket_core::render::RgbaImage {
+        width: 2,
+        height: 2,
+        pixels: vec![200; 16],
+    }
+    .save_png(&png)
+    .unwrap();
+    // The IDAT chunk's CRC (just before the 12-byte IEND chunk) broken.
+    let mut bytes = std::fs::read(&png).unwrap();
+    let at = bytes.len() - 13;
+    bytes[at] ^= 0xff;
+    std::fs::write(&png, bytes).unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl red\nKd 1 0 0\nmap_Kd tex.png\n",
+    )
+    .unwrap();
+    let obj = dir.path().join("tri.obj");
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    let o = thicket(&["info", obj.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert_eq!(
+        err.matches("tex.png").count(),
+        1,
+        "names the texture once: {err}"
+    );
+    assert!(err.contains("the PNG data is damaged"), "{err}");
+    assert!(err.contains("IDAT"), "names the chunk: {err}");
+    assert_no_debug_text(&err);
+}
+
+#[test]
+fn an_unusable_camera_names_the_field_and_what_set_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("out.png");
+    // --camera on a project with no voxels: the far plane follows the distance, 4 x 1e38.
+    let empty = dir.path().join("empty.thicket.json");
+    assert!(thicket(&["new", empty.to_str().unwrap()]).status.success());
+    let o = thicket(&[
+        "render",
+        empty.to_str().unwrap(),
+        "--camera",
+        "0,0,1e38",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error: --camera 0,0,1e38: it makes camera.far invalid: inf must be"),
+        "the option, not a file, is blamed: {err}"
+    );
+    assert!(
+        !err.contains("empty.thicket.json") && !err.contains("out.png"),
+        "{err}"
+    );
+    assert_no_debug_text(&err);
+    assert!(!png.exists());
+    // A project whose own camera is unusable: the project, the field and its value.
+    let project = sample_project(dir.path());
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    json["camera"]["fov_y_deg"] = 500.0.into();
+    std::fs::write(&project, serde_json::to_vec(&json).unwrap()).unwrap();
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!("error: {}: ", project.display())),
+        "{err}"
+    );
+    assert!(
+        err.contains("camera.fov_y_deg of document is invalid: 500 must be between 0.1 and 179"),
+        "{err}"
+    );
+    assert_eq!(err.matches("two.thicket.json").count(), 1, "{err}");
+    assert_no_debug_text(&err);
+    assert!(!png.exists());
+}
+
+#[test]
+fn a_skin_that_cannot_be_imported_names_the_file_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(format!("{ASSETS}/skinned/SimpleSkin.gltf")).unwrap(),
+    )
+    .unwrap();
+    // The static reader takes the file; the skinned one refuses a joint listed twice.
+    json["skins"][0]["joints"] = serde_json::json!([1, 1]);
+    let gltf = dir.path().join("twice.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
+    let out = dir.path().join("out.thicket.json");
+    let o = thicket(&[
+        "import",
+        gltf.to_str().unwrap(),
+        "--depth",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: the file has a skin that cannot be imported: skin 0 lists node 1 twice \
+             (use --no-skin to import it as a static model)",
+            gltf.display()
+        )
+    );
+    assert_eq!(err.matches("twice.gltf").count(), 1, "{err}");
+    assert!(!out.exists());
+}
