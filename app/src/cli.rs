@@ -1189,12 +1189,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
                 .map(|c| format!(" (playing {:?}, {:.2} s)", c.name, c.duration_secs))
                 .unwrap_or_default()
         ));
-        if skinned.weight_repair.total() > 0 {
-            notes.push_str(&format!(
-                "warning: repaired vertex weights: {:?}\n",
-                skinned.weight_repair
-            ));
-        }
+        // The importer's warnings already say how many vertex weights it repaired.
         for w in &skinned.warnings {
             notes.push_str(&format!("warning: {w}\n"));
         }
