@@ -564,6 +564,14 @@ pub fn transform_bounds(m: &Mat4, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
         })
 }
 
+/// Most lights a document may have. Thicket's lights are directional (suns): a handful light
+/// any scene, while each one costs every shaded pixel a term (and, casting shadows, a shadow
+/// map of up to 1 GiB at the largest `shadow_map_size`). A file can declare thousands for a
+/// few bytes each (glTF `KHR_lights_punctual`, a project's JSON), so validation refuses more
+/// than this instead of letting one small file make every frame thousands of passes long;
+/// 256 is far above what a lit scene uses and small enough that shading stays bounded.
+pub const MAX_LIGHTS: usize = 256;
+
 /// A directional light (the sun).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -999,6 +1007,17 @@ impl Document {
                 },
             })?;
         }
+        if self.lights.len() > MAX_LIGHTS {
+            return Err(invalid(
+                "lights",
+                "document",
+                format!(
+                    "{} lights, more than the {MAX_LIGHTS} a document may have; remove lights \
+                     (a few suns light any scene)",
+                    self.lights.len()
+                ),
+            ));
+        }
         for l in &self.lights {
             l.validate()?;
         }
@@ -1363,6 +1382,49 @@ mod tests {
         };
         let e = doc.validate().unwrap_err().to_string();
         assert!(e.contains("ambient") && e.contains("non-negative"), "{e}");
+    }
+
+    #[test]
+    fn more_lights_than_the_maximum_are_refused_in_one_line() {
+        let mut doc = Document {
+            lights: vec![Light::default(); MAX_LIGHTS],
+            ..Document::default()
+        };
+        doc.validate().expect("the maximum itself is allowed");
+        doc.lights.push(Light::default());
+        let e = doc.validate().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "lights of document is invalid: 257 lights, more than the 256 a document may have; \
+             remove lights (a few suns light any scene)"
+        );
+    }
+
+    #[test]
+    fn an_invalid_camera_names_the_field_and_its_value() {
+        let mut doc = Document::default();
+        doc.camera.fov_y_deg = 500.0;
+        let e = doc.validate().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "camera.fov_y_deg of document is invalid: 500 must be between 0.1 and 179 degrees"
+        );
+        let mut doc = Document::default();
+        doc.camera.far = f32::INFINITY;
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(
+            e.starts_with("camera.far of document is invalid: inf must be finite"),
+            "{e}"
+        );
+        assert!(!e.contains('{') && !e.contains("OrbitCamera"), "{e}");
+        doc.camera.far = 10.0;
+        doc.camera.target.y = f32::NAN;
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(
+            e.starts_with("camera.target of document is invalid: ["),
+            "{e}"
+        );
+        assert!(e.contains("NaN") && !e.contains("Vec3("), "{e}");
     }
 
     #[test]
