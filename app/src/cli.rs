@@ -197,8 +197,9 @@ pub struct BenchArgs {
     /// so the voxel pools are split into more chunks (to measure what chunking costs).
     #[arg(long, value_name = "BYTES")]
     pub binding_limit: Option<u64>,
-    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it allocates, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
     /// Turn the camera's yaw by this many degrees before each timed frame, as when orbiting in
@@ -296,8 +297,9 @@ pub struct EnhanceArgs {
     /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Most memory the enhancement may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it starts, with its estimate.
+    /// Most memory the enhancement may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it starts, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -332,8 +334,9 @@ pub struct TradeoffArgs {
     /// renderer's image, so GPU-only differences count as error).
     #[arg(long)]
     pub gpu: bool,
-    /// The most memory the sweep's CPU frames may need, e.g. 2G or 512MiB (default: half of
-    /// physical memory). A sweep estimated over it is refused before it starts.
+    /// The most memory the sweep's CPU frames may need, e.g. 2G or 512MiB (default: the smallest of
+    /// half this machine's physical memory and this process's address-space and cgroup limits). A
+    /// sweep estimated over it is refused before it starts.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -540,9 +543,9 @@ pub struct ImportArgs {
     /// shipped without its .mtl (OBJ only).
     #[arg(long, value_name = "PATH")]
     pub texture: Option<PathBuf>,
-    /// Most memory the voxelization may need, e.g. 4G or 512M (default: half of this
-    /// machine's physical memory). A larger request is refused before it voxelizes, with its
-    /// estimate.
+    /// Most memory the voxelization may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it voxelizes, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -575,8 +578,9 @@ pub struct RenderArgs {
     /// about the target in N equal steps, written as OUTPUT's stem + `_000.png`, `_001.png`, ...
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
-    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it allocates, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -592,6 +596,16 @@ pub struct ExportVoxArgs {
     /// The .vox file to write (written atomically, only when the export succeeded).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// World length of one .vox voxel (default: the smallest voxel edge among the exported
+    /// objects, so the finest keeps one cell per voxel; objects with larger voxels fill
+    /// several cells each).
+    #[arg(long, value_name = "SIZE")]
+    pub grid_unit: Option<f32>,
+    /// Most memory the export may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before any voxel is placed, with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket info`.
@@ -1060,7 +1074,8 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The memory budget of a CLI request: `--memory-limit`, else half of physical memory.
+/// The memory budget of a CLI request: `--memory-limit`, else the machine's default (the
+/// smallest of half of physical memory and the process's address-space and cgroup limits).
 fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
     limit.map_or_else(
         thicket_core::budget::MemoryBudget::for_this_machine,
@@ -2028,9 +2043,45 @@ pub fn format_skin_report(
 }
 
 fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
+    use thicket_core::io::vox::{VoxExportOptions, estimate_vox_export, export_vox_with};
     files::refuse_overwriting_input(&args.project, &args.output)?;
+    if let Some(unit) = args.grid_unit
+        && !(unit.is_finite() && unit > 0.0)
+    {
+        anyhow::bail!("--grid-unit {unit}: give a positive length");
+    }
     let doc = files::load_document(&args.project)?;
-    let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
+    let options = VoxExportOptions {
+        grid_unit: args.grid_unit,
+        ..VoxExportOptions::default()
+    };
+    // The cost is known from voxel counts and transforms: refused before any cell is built.
+    // Objects the estimate refuses (nothing to export, bad transforms) are left to the
+    // exporter, which says why.
+    if let Ok(e) = estimate_vox_export(&doc.objects, &args.output, &options) {
+        let project = args.project.display();
+        if e.cells > options.max_voxels {
+            // The unit that brings the count under the limit (cells shrink with its cube).
+            let suggested = e.grid_unit * (e.cells as f64 / options.max_voxels as f64).cbrt();
+            anyhow::bail!(
+                "{project}: the export would write about {} .vox voxels at a grid unit of {}, \
+                 more than the limit of {}; give a larger --grid-unit (about {} or more)",
+                thousands(e.cells),
+                short(e.grid_unit as f32),
+                thousands(options.max_voxels),
+                short((suggested * 1.01) as f32)
+            );
+        }
+        memory_budget(args.memory_limit).check(
+            &format!(
+                "{project}: exporting about {} .vox voxels",
+                thousands(e.cells)
+            ),
+            e.peak_bytes,
+            "give a larger --grid-unit, or raise the limit with --memory-limit",
+        )?;
+    }
+    let report = export_vox_with(&doc.objects, &args.output, &options)?;
     let mut text = format!(
         "wrote {}: {} voxels in {} model(s) placed {} time(s), {} palette colours",
         args.output.display(),

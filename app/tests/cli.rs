@@ -2236,3 +2236,148 @@ fn a_skin_that_cannot_be_imported_names_the_file_once() {
     assert_eq!(err.matches("twice.gltf").count(), 1, "{err}");
     assert!(!out.exists());
 }
+
+#[test]
+fn a_project_with_more_lights_than_the_maximum_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    let sun = json["lights"][0].clone();
+    json["lights"] = serde_json::Value::Array(vec![sun; thicket_core::scene::MAX_LIGHTS + 1]);
+    std::fs::write(&project, serde_json::to_vec(&json).unwrap()).unwrap();
+    let png = dir.path().join("out.png");
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!("error: {}: ", project.display())),
+        "{err}"
+    );
+    assert!(
+        err.contains("257 lights, more than the 256 a document may have"),
+        "{err}"
+    );
+    assert!(!png.exists());
+}
+
+#[test]
+fn export_vox_refuses_early_advising_only_options_that_exist() {
+    let dir = tempfile::tempdir().unwrap();
+    // One voxel at scale 1 sets the grid unit; one scaled 400x would fill 400^3 = 64 M cells,
+    // over the .vox export's 2^25.
+    let mut doc = Document::default();
+    for (name, scale, x) in [("fine", 1.0, 0.0), ("coarse", 400.0, 10.0)] {
+        let mut svo = Svo::new(2, false).unwrap();
+        svo.set(UVec3::ZERO, Voxel::new([10, 200, 30, 255], Vec3::Y))
+            .unwrap();
+        doc.add(
+            name,
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                voxel_size: 0.5,
+                ..VoxelModel::default()
+            }),
+        );
+        let o = doc.objects.last_mut().unwrap();
+        o.transform.scale = Vec3::splat(scale);
+        o.transform.translation.x = x;
+    }
+    let project = dir.path().join("scaled.thicket.json");
+    thicket_core::io::project::save(&doc, &project).unwrap();
+    let p = project.to_str().unwrap();
+    let out = dir.path().join("out.vox");
+    let o_path = out.to_str().unwrap();
+    let help = stdout(&thicket(&["export-vox", "--help"]));
+    let exists = |option: &str| {
+        help.contains(&format!("{option} ")) || help.contains(&format!("{option}\n"))
+    };
+    let o = thicket(&["export-vox", p, "-o", o_path]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!(
+            "error: {p}: the export would write about 64,000,001 .vox voxels"
+        )),
+        "{err}"
+    );
+    assert!(err.contains("more than the limit of 33,554,432"), "{err}");
+    let advised: Vec<&str> = err
+        .split_whitespace()
+        .filter(|w| w.starts_with("--"))
+        .collect();
+    assert!(!advised.is_empty(), "{err}");
+    for option in &advised {
+        assert!(
+            exists(option),
+            "{option} is not an export-vox option: {err}"
+        );
+    }
+    assert!(!out.exists());
+    // The unit it suggests brings the count under the limit: the next check, the memory
+    // budget (kept tiny so nothing is built), is the one that refuses.
+    let suggested = err
+        .split("about ")
+        .last()
+        .and_then(|t| t.split_whitespace().next())
+        .unwrap();
+    let o = thicket(&[
+        "export-vox",
+        p,
+        "-o",
+        o_path,
+        "--grid-unit",
+        suggested,
+        "--memory-limit",
+        "1M",
+    ]);
+    let err = stderr(&o);
+    assert!(
+        err.contains(".vox voxels would need about") && err.contains("(--memory-limit)"),
+        "--grid-unit {suggested}: {err}"
+    );
+    assert!(!out.exists());
+    // Under the cell limit but over a memory limit: refused with the estimate, advising
+    // options that exist.
+    let o = thicket(&[
+        "export-vox",
+        p,
+        "-o",
+        o_path,
+        "--grid-unit",
+        "2",
+        "--memory-limit",
+        "1M",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("exporting about 1,000,001 .vox voxels would need about"),
+        "{err}"
+    );
+    assert!(
+        err.contains("over the limit of 1.0 MiB (--memory-limit)"),
+        "{err}"
+    );
+    for option in err.split_whitespace().filter(|w| w.starts_with("--")) {
+        let option = option.trim_end_matches([',', ')', ':']);
+        assert!(
+            exists(option),
+            "{option} is not an export-vox option: {err}"
+        );
+    }
+    assert!(!out.exists());
+    let o = thicket(&["export-vox", p, "-o", o_path, "--grid-unit", "0"]);
+    assert!(
+        stderr(&o).contains("--grid-unit 0: give a positive length"),
+        "{}",
+        stderr(&o)
+    );
+}
