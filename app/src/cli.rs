@@ -197,8 +197,9 @@ pub struct BenchArgs {
     /// so the voxel pools are split into more chunks (to measure what chunking costs).
     #[arg(long, value_name = "BYTES")]
     pub binding_limit: Option<u64>,
-    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it allocates, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
     /// Turn the camera's yaw by this many degrees before each timed frame, as when orbiting in
@@ -296,8 +297,9 @@ pub struct EnhanceArgs {
     /// The project to write (NAME.thicket.json; its payload NAME.thicket.HASH.bin is written beside it).
     #[arg(short, long)]
     pub output: PathBuf,
-    /// Most memory the enhancement may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it starts, with its estimate.
+    /// Most memory the enhancement may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it starts, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -332,8 +334,9 @@ pub struct TradeoffArgs {
     /// renderer's image, so GPU-only differences count as error).
     #[arg(long)]
     pub gpu: bool,
-    /// The most memory the sweep's CPU frames may need, e.g. 2G or 512MiB (default: half of
-    /// physical memory). A sweep estimated over it is refused before it starts.
+    /// The most memory the sweep's CPU frames may need, e.g. 2G or 512MiB (default: the smallest of
+    /// half this machine's physical memory and this process's address-space and cgroup limits). A
+    /// sweep estimated over it is refused before it starts.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -540,9 +543,9 @@ pub struct ImportArgs {
     /// shipped without its .mtl (OBJ only).
     #[arg(long, value_name = "PATH")]
     pub texture: Option<PathBuf>,
-    /// Most memory the voxelization may need, e.g. 4G or 512M (default: half of this
-    /// machine's physical memory). A larger request is refused before it voxelizes, with its
-    /// estimate.
+    /// Most memory the voxelization may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it voxelizes, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -575,8 +578,9 @@ pub struct RenderArgs {
     /// about the target in N equal steps, written as OUTPUT's stem + `_000.png`, `_001.png`, ...
     #[arg(long, value_name = "N")]
     pub turntable: Option<u32>,
-    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: half of this machine's
-    /// physical memory). A larger request is refused before it allocates, with its estimate.
+    /// Most memory one CPU frame may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before it allocates, with its estimate.
     #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
     pub memory_limit: Option<u64>,
 }
@@ -592,6 +596,16 @@ pub struct ExportVoxArgs {
     /// The .vox file to write (written atomically, only when the export succeeded).
     #[arg(short, long)]
     pub output: PathBuf,
+    /// World length of one .vox voxel (default: the smallest voxel edge among the exported
+    /// objects, so the finest keeps one cell per voxel; objects with larger voxels fill
+    /// several cells each).
+    #[arg(long, value_name = "SIZE")]
+    pub grid_unit: Option<f32>,
+    /// Most memory the export may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits). A larger
+    /// request is refused before any voxel is placed, with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket info`.
@@ -744,6 +758,7 @@ fn enhance_settings(
 fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     use thicket_core::enhance::Control;
     use thicket_core::scene::ObjectKind;
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let mut doc = files::load_document(&args.project)?;
     let project = args.project.display();
     let index = rig::voxel_object_index(&doc, &args.project, &args.object, "enhanced")?;
@@ -832,6 +847,15 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             "--resolution {}: must be between 2 and {MAX_RESOLUTION}",
             args.resolution
         );
+    }
+    files::refuse_overwriting_input(&args.project, &args.output)?;
+    // A .gltf brings its buffer, OUT.bin, beside it.
+    if args
+        .output
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf"))
+    {
+        files::refuse_overwriting_input(&args.project, &args.output.with_extension("bin"))?;
     }
     let doc = files::load_document(&args.project)?;
     let options = GltfExportOptions {
@@ -1050,7 +1074,8 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The memory budget of a CLI request: `--memory-limit`, else half of physical memory.
+/// The memory budget of a CLI request: `--memory-limit`, else the machine's default (the
+/// smallest of half of physical memory and the process's address-space and cgroup limits).
 fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
     limit.map_or_else(
         thicket_core::budget::MemoryBudget::for_this_machine,
@@ -1117,6 +1142,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
         memory_limit: args.memory_limit,
         ..files::MeshOptions::default()
     };
+    files::refuse_overwriting_input(&args.input, &args.output)?;
     // Before any branch: the .vox and skinned paths would otherwise ignore the texture.
     files::check_options(&args.input, &options)?;
     let is_vox = args
@@ -1179,12 +1205,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
                 .map(|c| format!(" (playing {:?}, {:.2} s)", c.name, c.duration_secs))
                 .unwrap_or_default()
         ));
-        if skinned.weight_repair.total() > 0 {
-            notes.push_str(&format!(
-                "warning: repaired vertex weights: {:?}\n",
-                skinned.weight_repair
-            ));
-        }
+        // The importer's warnings already say how many vertex weights it repaired.
         for w in &skinned.warnings {
             notes.push_str(&format!("warning: {w}\n"));
         }
@@ -1495,7 +1516,33 @@ pub fn view_options(
     view_args::view_from(doc, &quality, camera)
 }
 
+/// The files `thicket render` writes: OUTPUT, or a turntable's numbered frames beside it.
+fn render_outputs(args: &RenderArgs) -> anyhow::Result<Vec<std::path::PathBuf>> {
+    let Some(frames) = args.turntable else {
+        return Ok(vec![args.output.clone()]);
+    };
+    if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
+        anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
+    }
+    let stem = args
+        .output
+        .file_stem()
+        .and_then(|s| s.to_str())
+        .with_context(|| format!("{}: not a file name", args.output.display()))?;
+    let digits = ((frames - 1).max(1).ilog10() as usize + 1).max(3);
+    Ok((0..frames)
+        .map(|i| {
+            args.output
+                .with_file_name(format!("{stem}_{i:0digits$}.png"))
+        })
+        .collect())
+}
+
 fn render(args: &RenderArgs) -> anyhow::Result<()> {
+    let outputs = render_outputs(args)?;
+    for output in &outputs {
+        files::refuse_overwriting_input(&args.project, output)?;
+    }
     let mut doc = files::load_document(&args.project)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let ImageSize { width, height } = args.view.size;
@@ -1516,33 +1563,10 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
         Some(ctx) => RenderBackend::Gpu(ctx),
         None => RenderBackend::Cpu(Box::default()),
     };
-    let Some(frames) = args.turntable else {
-        return render_one(
-            args,
-            &mut backend,
-            &doc,
-            camera,
-            &quality,
-            (width, height),
-            &args.output,
-        );
-    };
-    if !(1..=MAX_TURNTABLE_FRAMES).contains(&frames) {
-        anyhow::bail!("--turntable {frames}: give 1 to {MAX_TURNTABLE_FRAMES} frames");
-    }
-    let stem = args
-        .output
-        .file_stem()
-        .and_then(|s| s.to_str())
-        .with_context(|| format!("{}: not a file name", args.output.display()))?;
-    let digits = (frames - 1).max(1).ilog10() as usize + 1;
-    let digits = digits.max(3);
-    for i in 0..frames {
+    let frames = outputs.len();
+    for (i, path) in outputs.iter().enumerate() {
         let mut cam = camera;
         cam.yaw_deg = camera.yaw_deg + 360.0 * i as f32 / frames as f32;
-        let path = args
-            .output
-            .with_file_name(format!("{stem}_{i:0digits$}.png"));
         render_one(
             args,
             &mut backend,
@@ -1550,7 +1574,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
             cam,
             &quality,
             (width, height),
-            &path,
+            path,
         )?;
     }
     Ok(())
@@ -1643,13 +1667,8 @@ fn render_one(
             }),
         );
     }
-    // Write through a temporary sibling so a failed write leaves no partial PNG.
-    let tmp = output.with_extension("png.tmp");
-    if let Err(e) = image.save_png(&tmp) {
-        let _ = std::fs::remove_file(&tmp);
-        return Err(e).with_context(|| format!("{}: writing PNG", output.display()));
-    }
-    std::fs::rename(&tmp, output).with_context(|| format!("{}: writing PNG", output.display()))?;
+    // Through a temporary sibling, so a failed write leaves no partial PNG and no `.tmp`.
+    files::write_png(&image, output)?;
     let mut text = format!("wrote {} ({width}x{height})\n", output.display());
     if args.stats {
         text.push_str(
@@ -1762,6 +1781,9 @@ fn remove_rigs(doc: &mut thicket_core::scene::Document) -> anyhow::Result<()> {
 
 fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
     use thicket_core::measure::{SweepSettings, sweep_document};
+    for name in crate::tradeoff::OUTPUT_FILES {
+        files::refuse_overwriting_input(&args.project, &args.output.join(name))?;
+    }
     let doc = files::load_document(&args.project)?;
     let ImageSize { width, height } = args.size;
     let knobs = if args.knobs.is_empty() {
@@ -2023,8 +2045,45 @@ pub fn format_skin_report(
 }
 
 fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
+    use thicket_core::io::vox::{VoxExportOptions, estimate_vox_export, export_vox_with};
+    files::refuse_overwriting_input(&args.project, &args.output)?;
+    if let Some(unit) = args.grid_unit
+        && !(unit.is_finite() && unit > 0.0)
+    {
+        anyhow::bail!("--grid-unit {unit}: give a positive length");
+    }
     let doc = files::load_document(&args.project)?;
-    let report = thicket_core::io::vox::export_vox(&doc.objects, &args.output)?;
+    let options = VoxExportOptions {
+        grid_unit: args.grid_unit,
+        ..VoxExportOptions::default()
+    };
+    // The cost is known from voxel counts and transforms: refused before any cell is built.
+    // Objects the estimate refuses (nothing to export, bad transforms) are left to the
+    // exporter, which says why.
+    if let Ok(e) = estimate_vox_export(&doc.objects, &args.output, &options) {
+        let project = args.project.display();
+        if e.cells > options.max_voxels {
+            // The unit that brings the count under the limit (cells shrink with its cube).
+            let suggested = e.grid_unit * (e.cells as f64 / options.max_voxels as f64).cbrt();
+            anyhow::bail!(
+                "{project}: the export would write about {} .vox voxels at a grid unit of {}, \
+                 more than the limit of {}; give a larger --grid-unit (about {} or more)",
+                thousands(e.cells),
+                short(e.grid_unit as f32),
+                thousands(options.max_voxels),
+                short((suggested * 1.01) as f32)
+            );
+        }
+        memory_budget(args.memory_limit).check(
+            &format!(
+                "{project}: exporting about {} .vox voxels",
+                thousands(e.cells)
+            ),
+            e.peak_bytes,
+            "give a larger --grid-unit, or raise the limit with --memory-limit",
+        )?;
+    }
+    let report = export_vox_with(&doc.objects, &args.output, &options)?;
     let mut text = format!(
         "wrote {}: {} voxels in {} model(s) placed {} time(s), {} palette colours",
         args.output.display(),

@@ -301,10 +301,18 @@ pub fn load_skinned(path: &Path) -> anyhow::Result<Option<thicket_core::io::Skin
             if let Err(file_error) = thicket_core::io::import_gltf_reported(path, &limits) {
                 return Err(file_error.into());
             }
-            Err(anyhow::Error::new(e).context(format!(
-                "{}: the file has a skin that cannot be imported (use --no-skin to import it as a static model)",
-                path.display()
-            )))
+            // One line naming the file once: the skin error's own text starts with the path
+            // (most variants), which the sentence already gives.
+            let shown = path.display().to_string();
+            let text = e.to_string();
+            let detail = text
+                .strip_prefix(&shown)
+                .and_then(|t| t.strip_prefix(": "))
+                .unwrap_or(&text);
+            bail!(
+                "{shown}: the file has a skin that cannot be imported: {detail} (use --no-skin \
+                 to import it as a static model)"
+            )
         }
     }
 }
@@ -418,6 +426,88 @@ fn load_project(path: &Path) -> anyhow::Result<Document> {
 /// The saver's message, naming the file.
 pub fn save_project(doc: &Document, path: &Path) -> anyhow::Result<()> {
     Ok(thicket_core::io::project::save(doc, path)?)
+}
+
+/// `path` as the file system names it: canonical when it exists, else its canonical folder
+/// joined with its name (an output is usually not there yet), else as given.
+fn resolved(path: &Path) -> PathBuf {
+    if let Ok(p) = std::fs::canonicalize(path) {
+        return p;
+    }
+    let parent = path
+        .parent()
+        .filter(|p| !p.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    match (std::fs::canonicalize(parent), path.file_name()) {
+        (Ok(dir), Some(name)) => dir.join(name),
+        _ => path.to_path_buf(),
+    }
+}
+
+/// Refuses an output path that names the input or, for a project, the payload `.bin` the
+/// input's JSON reads: a write there would replace what the command is reading, and a failed
+/// run would leave neither (issue 45). Symbolic links and `./` spellings count as the same
+/// file.
+///
+/// # Errors
+/// One line naming the output and what it would overwrite.
+pub fn refuse_overwriting_input(input: &Path, output: &Path) -> anyhow::Result<()> {
+    let out = resolved(output);
+    let is_project = FileKind::from_path(input) == Some(FileKind::Project);
+    if out == resolved(input) {
+        bail!(
+            "{}: the output is the input {}; write to another file (-o) so the original stays \
+             as it was",
+            output.display(),
+            if is_project { "project" } else { "file" }
+        );
+    }
+    if is_project && out == resolved(&thicket_core::io::project::bin_path_for(input)) {
+        bail!(
+            "{}: the output is the payload of the input project {}; write to another file (-o) \
+             so the project stays loadable",
+            output.display(),
+            input.display()
+        );
+    }
+    Ok(())
+}
+
+/// Writes `path` through a temporary sibling (`NAME.tmp`): `write` fills the temporary, which
+/// is then renamed over `path`. On any failure the temporary is removed, so a failed write
+/// leaves neither a partial `path` nor a stray `.tmp`.
+///
+/// # Errors
+/// `write`'s error, or the rename's, naming `path`.
+pub fn write_through_temporary(
+    path: &Path,
+    write: impl FnOnce(&Path) -> anyhow::Result<()>,
+) -> anyhow::Result<()> {
+    let mut tmp = path.as_os_str().to_owned();
+    tmp.push(".tmp");
+    let tmp = PathBuf::from(tmp);
+    let result = write(&tmp).and_then(|()| {
+        std::fs::rename(&tmp, path)
+            .with_context(|| format!("{}: cannot write the file", path.display()))
+    });
+    if result.is_err() {
+        // Best effort: the error that matters is the one returned.
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Writes `image` as a PNG at `path` through a temporary sibling (see
+/// [`write_through_temporary`]).
+///
+/// # Errors
+/// The encoder or the file system, in one line naming `path`.
+pub fn write_png(image: &thicket_core::render::RgbaImage, path: &Path) -> anyhow::Result<()> {
+    write_through_temporary(path, |tmp| {
+        image.save_png(tmp).map_err(|e| {
+            anyhow::anyhow!("{}: cannot write the PNG: {}", path.display(), e.detail())
+        })
+    })
 }
 
 /// A document holding one mesh object (framed by the camera).

@@ -310,14 +310,13 @@ pub fn plot(report: &SweepReport, title: &str) -> anyhow::Result<RgbaImage> {
 
 /// Writes `bytes` to `path` through a temporary sibling, so a failure leaves no partial file.
 fn write_atomic(path: &Path, bytes: &[u8]) -> anyhow::Result<()> {
-    let tmp = path.with_extension("tmp");
-    std::fs::write(&tmp, bytes)
-        .and_then(|()| std::fs::rename(&tmp, path))
-        .inspect_err(|_| {
-            let _ = std::fs::remove_file(&tmp);
-        })
-        .with_context(|| format!("writing {}", path.display()))
+    crate::files::write_through_temporary(path, |tmp| {
+        std::fs::write(tmp, bytes).with_context(|| format!("writing {}", path.display()))
+    })
 }
+
+/// The files [`write_outputs`] writes into its directory.
+pub const OUTPUT_FILES: [&str; 3] = ["report.json", "report.csv", "tradeoff.png"];
 
 /// Which renderer drew a sweep's settings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -363,8 +362,9 @@ pub fn write_outputs(
     });
     let mut text = serde_json::to_string_pretty(&json).context("encoding report.json")?;
     text.push('\n');
-    write_atomic(&dir.join("report.json"), text.as_bytes())?;
-    write_atomic(&dir.join("report.csv"), report.to_csv().as_bytes())?;
+    let [json_name, csv_name, png_name] = OUTPUT_FILES;
+    write_atomic(&dir.join(json_name), text.as_bytes())?;
+    write_atomic(&dir.join(csv_name), report.to_csv().as_bytes())?;
     let title = format!(
         "{project_name}: {}x{}, {}, median of {} render(s), reference {:.0} ms",
         report.width,
@@ -374,12 +374,7 @@ pub fn write_outputs(
         report.reference_time_ms
     );
     let img = plot(report, &title)?;
-    let png = dir.join("tradeoff.png");
-    let tmp = dir.join("tradeoff.png.tmp");
-    img.save_png(&tmp)
-        .with_context(|| format!("writing {}", png.display()))?;
-    std::fs::rename(&tmp, &png).with_context(|| format!("writing {}", png.display()))?;
-    Ok(())
+    crate::files::write_png(&img, &dir.join(png_name))
 }
 
 /// [`thicket_core::measure::sweep()`] with the GPU renderer drawing every setting, measured against

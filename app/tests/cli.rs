@@ -1859,3 +1859,525 @@ fn forest_refuses_bad_input_once_and_writes_nothing() {
         assert!(!out.exists(), "{extra:?} wrote nothing");
     }
 }
+
+/// Every file in `dir` (not recursing) with its bytes, by name.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.is_file())
+        .map(|p| {
+            let bytes = std::fs::read(&p).unwrap();
+            (p.file_name().unwrap().to_string_lossy().into_owned(), bytes)
+        })
+        .collect();
+    v.sort();
+    v
+}
+
+/// Asserts a refusal in one line that names `output` and says what it would overwrite.
+fn assert_refused_naming(o: &Output, output: &str, what: &str) {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    assert!(err.starts_with(&format!("error: {output}: ")), "{err}");
+    assert!(err.contains(what), "{what:?} in {err}");
+}
+
+#[test]
+fn outputs_never_overwrite_the_input_project_or_its_payload() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let p = project.to_str().unwrap().to_owned();
+    let bin = thicket_core::io::project::bin_path_for(&project);
+    assert!(bin.is_file() && bin != project);
+    let b = bin.to_str().unwrap().to_owned();
+    // Another spelling of the same file, and a link to it.
+    let dotted = format!(
+        "{}/./{}",
+        dir.path().display(),
+        project.file_name().unwrap().to_string_lossy()
+    );
+    let link = dir.path().join("link.thicket.json");
+    std::os::unix::fs::symlink(&project, &link).unwrap();
+    let l = link.to_str().unwrap().to_owned();
+    let before = snapshot(dir.path());
+    let input = "the output is the input project";
+    let payload = "the output is the payload of the input project";
+    let cases: Vec<(Vec<&str>, &str, &str)> = vec![
+        (vec!["render", &p, "--size", "8x8", "-o", &p], &p, input),
+        (
+            vec!["render", &p, "--size", "8x8", "-o", &dotted],
+            &dotted,
+            input,
+        ),
+        (vec!["render", &p, "--size", "8x8", "-o", &l], &l, input),
+        (vec!["render", &p, "--size", "8x8", "-o", &b], &b, payload),
+        (vec!["export-vox", &p, "-o", &p], &p, input),
+        (vec!["export-vox", &p, "-o", &b], &b, payload),
+        (vec!["export", &p, "-o", &b], &b, payload),
+        (
+            vec!["enhance", &p, "--object", "row", "--factor", "2", "-o", &p],
+            &p,
+            input,
+        ),
+    ];
+    for (args, output, what) in &cases {
+        let o = thicket(args);
+        assert_refused_naming(&o, output, what);
+        assert!(
+            stderr(&o).contains(&*p) || *what == input,
+            "the payload refusal names the project: {}",
+            stderr(&o)
+        );
+        assert_eq!(snapshot(dir.path()), before, "{args:?} changed the folder");
+    }
+    // A .gltf brings OUT.bin beside it: refused when that is the project's payload (here a
+    // project whose JSON names its payload `scene.bin`).
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    json["bin"]["file"] = "scene.bin".into();
+    let renamed = dir.path().join("renamed.thicket.json");
+    std::fs::write(&renamed, serde_json::to_vec(&json).unwrap()).unwrap();
+    std::fs::copy(&bin, dir.path().join("scene.bin")).unwrap();
+    assert!(
+        thicket(&["info", renamed.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let gltf = dir.path().join("scene.gltf");
+    let before = snapshot(dir.path());
+    let o = thicket(&[
+        "export",
+        renamed.to_str().unwrap(),
+        "-o",
+        gltf.to_str().unwrap(),
+    ]);
+    assert_refused_naming(
+        &o,
+        &dir.path().join("scene.bin").display().to_string(),
+        payload,
+    );
+    assert_eq!(snapshot(dir.path()), before);
+    // A file imported onto itself.
+    let vox = dir.path().join("m.vox");
+    assert!(
+        thicket(&["export-vox", &p, "-o", vox.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let before = snapshot(dir.path());
+    let v = vox.to_str().unwrap();
+    let o = thicket(&["import", v, "-o", v]);
+    assert_refused_naming(&o, v, "the output is the input file");
+    assert_eq!(snapshot(dir.path()), before);
+}
+
+/// The names in `dir` a failed write may have left: temporaries and half-written payloads.
+fn leftovers(dir: &Path, expected: &[&str]) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| !expected.contains(&n.as_str()))
+        .collect()
+}
+
+#[test]
+fn failed_writes_remove_their_temporary_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let p = project.to_str().unwrap().to_owned();
+    let out = tempfile::tempdir().unwrap();
+    // A folder where the output should be (the temporary is written, the rename fails) and a
+    // plain file where its folder should be (nothing can be created).
+    let taken = |name: &str| {
+        let path = out.path().join(name);
+        std::fs::create_dir(&path).unwrap();
+        std::fs::write(path.join("keep"), b"x").unwrap();
+        path.to_str().unwrap().to_owned()
+    };
+    std::fs::write(out.path().join("afile"), b"x").unwrap();
+    let under_file = |name: &str| format!("{}/afile/{name}", out.path().display());
+    let vox = dir.path().join("m.vox");
+    assert!(
+        thicket(&["export-vox", &p, "-o", vox.to_str().unwrap()])
+            .status
+            .success()
+    );
+    let v = vox.to_str().unwrap().to_owned();
+    let bin_name = thicket_core::io::project::bin_path_for(&project)
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned();
+    let cases: Vec<(Vec<String>, String)> = vec![
+        (
+            vec!["render".into(), p.clone(), "--size".into(), "8x8".into()],
+            taken("r.png"),
+        ),
+        (
+            vec!["render".into(), p.clone(), "--size".into(), "8x8".into()],
+            under_file("r.png"),
+        ),
+        (vec!["export-vox".into(), p.clone()], taken("e.vox")),
+        (vec!["export-vox".into(), p.clone()], under_file("e.vox")),
+        (vec!["export".into(), p.clone()], taken("g.glb")),
+        (vec!["export".into(), p.clone()], taken("g.gltf")),
+        (vec!["export".into(), p.clone()], under_file("g.gltf")),
+        (vec!["import".into(), v.clone()], taken("i.thicket.json")),
+        (
+            vec!["import".into(), v.clone()],
+            under_file("i.thicket.json"),
+        ),
+        (
+            vec![
+                "enhance".into(),
+                p.clone(),
+                "--object".into(),
+                "row".into(),
+                "--factor".into(),
+                "2".into(),
+            ],
+            taken("f.thicket.json"),
+        ),
+    ];
+    let names = [
+        "afile",
+        "r.png",
+        "e.vox",
+        "g.glb",
+        "g.gltf",
+        "i.thicket.json",
+        "f.thicket.json",
+    ];
+    for (args, output) in &cases {
+        let mut args: Vec<&str> = args.iter().map(String::as_str).collect();
+        args.extend(["-o", output.as_str()]);
+        let o = thicket(&args);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line: {err}");
+        let name = Path::new(output).file_name().unwrap().to_string_lossy();
+        // A .gltf's buffer is written first: its failure names OUT.bin.
+        let bin_of_gltf = name.replace(".gltf", ".bin");
+        assert!(
+            err.contains(name.as_ref()) || err.contains(&bin_of_gltf),
+            "{args:?}: names {name}: {err}"
+        );
+        assert!(
+            !err.contains(".tmp-")
+                && !err
+                    .split_whitespace()
+                    .any(|w| w.trim_end_matches(':').ends_with(".tmp")),
+            "{args:?}: names the output, not a temporary: {err}"
+        );
+        assert_eq!(
+            leftovers(out.path(), &names),
+            Vec::<String>::new(),
+            "{args:?}"
+        );
+        assert_eq!(
+            leftovers(dir.path(), &["two.thicket.json", &bin_name, "m.vox"]),
+            Vec::<String>::new(),
+            "{args:?}"
+        );
+    }
+    // The folders standing in for outputs hold only what they held.
+    for name in [
+        "r.png",
+        "e.vox",
+        "g.glb",
+        "g.gltf",
+        "i.thicket.json",
+        "f.thicket.json",
+    ] {
+        assert_eq!(
+            leftovers(&out.path().join(name), &["keep"]),
+            Vec::<String>::new(),
+            "{name}"
+        );
+    }
+}
+
+/// Asserts `text` carries no Rust debug output.
+fn assert_no_debug_text(text: &str) {
+    for debug in ["{", "}", "ChunkType", "Some(", "OrbitCamera", "Vec3("] {
+        assert!(!text.contains(debug), "{debug:?} in {text}");
+    }
+}
+
+#[test]
+fn a_damaged_texture_is_refused_in_words_naming_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("tex.png");
+    thicket_core::render::RgbaImage {
+        width: 2,
+        height: 2,
+        pixels: vec![200; 16],
+    }
+    .save_png(&png)
+    .unwrap();
+    // The IDAT chunk's CRC (just before the 12-byte IEND chunk) broken.
+    let mut bytes = std::fs::read(&png).unwrap();
+    let at = bytes.len() - 13;
+    bytes[at] ^= 0xff;
+    std::fs::write(&png, bytes).unwrap();
+    std::fs::write(
+        dir.path().join("m.mtl"),
+        "newmtl red\nKd 1 0 0\nmap_Kd tex.png\n",
+    )
+    .unwrap();
+    let obj = dir.path().join("tri.obj");
+    std::fs::write(
+        &obj,
+        "mtllib m.mtl\nusemtl red\nv 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nvt 1 0\nvt 0 1\nf 1/1 2/2 3/3\n",
+    )
+    .unwrap();
+    let o = thicket(&["info", obj.to_str().unwrap()]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert_eq!(
+        err.matches("tex.png").count(),
+        1,
+        "names the texture once: {err}"
+    );
+    assert!(err.contains("the PNG data is damaged"), "{err}");
+    assert!(err.contains("IDAT"), "names the chunk: {err}");
+    assert_no_debug_text(&err);
+}
+
+#[test]
+fn an_unusable_camera_names_the_field_and_what_set_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("out.png");
+    // --camera on a project with no voxels: the far plane follows the distance, 4 x 1e38.
+    let empty = dir.path().join("empty.thicket.json");
+    assert!(thicket(&["new", empty.to_str().unwrap()]).status.success());
+    let o = thicket(&[
+        "render",
+        empty.to_str().unwrap(),
+        "--camera",
+        "0,0,1e38",
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with("error: --camera 0,0,1e38: it makes camera.far invalid: inf must be"),
+        "the option, not a file, is blamed: {err}"
+    );
+    assert!(
+        !err.contains("empty.thicket.json") && !err.contains("out.png"),
+        "{err}"
+    );
+    assert_no_debug_text(&err);
+    assert!(!png.exists());
+    // A project whose own camera is unusable: the project, the field and its value.
+    let project = sample_project(dir.path());
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    json["camera"]["fov_y_deg"] = 500.0.into();
+    std::fs::write(&project, serde_json::to_vec(&json).unwrap()).unwrap();
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!("error: {}: ", project.display())),
+        "{err}"
+    );
+    assert!(
+        err.contains("camera.fov_y_deg of document is invalid: 500 must be between 0.1 and 179"),
+        "{err}"
+    );
+    assert_eq!(err.matches("two.thicket.json").count(), 1, "{err}");
+    assert_no_debug_text(&err);
+    assert!(!png.exists());
+}
+
+#[test]
+fn a_skin_that_cannot_be_imported_names_the_file_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut json: serde_json::Value = serde_json::from_slice(
+        &std::fs::read(format!("{ASSETS}/skinned/SimpleSkin.gltf")).unwrap(),
+    )
+    .unwrap();
+    // The static reader takes the file; the skinned one refuses a joint listed twice.
+    json["skins"][0]["joints"] = serde_json::json!([1, 1]);
+    let gltf = dir.path().join("twice.gltf");
+    std::fs::write(&gltf, serde_json::to_vec(&json).unwrap()).unwrap();
+    let out = dir.path().join("out.thicket.json");
+    let o = thicket(&[
+        "import",
+        gltf.to_str().unwrap(),
+        "--depth",
+        "4",
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(
+        err.trim_end(),
+        format!(
+            "error: {}: the file has a skin that cannot be imported: skin 0 lists node 1 twice \
+             (use --no-skin to import it as a static model)",
+            gltf.display()
+        )
+    );
+    assert_eq!(err.matches("twice.gltf").count(), 1, "{err}");
+    assert!(!out.exists());
+}
+
+#[test]
+fn a_project_with_more_lights_than_the_maximum_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample_project(dir.path());
+    let mut json: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&project).unwrap()).unwrap();
+    let sun = json["lights"][0].clone();
+    json["lights"] = serde_json::Value::Array(vec![sun; thicket_core::scene::MAX_LIGHTS + 1]);
+    std::fs::write(&project, serde_json::to_vec(&json).unwrap()).unwrap();
+    let png = dir.path().join("out.png");
+    let o = thicket(&[
+        "render",
+        project.to_str().unwrap(),
+        "-o",
+        png.to_str().unwrap(),
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!("error: {}: ", project.display())),
+        "{err}"
+    );
+    assert!(
+        err.contains("257 lights, more than the 256 a document may have"),
+        "{err}"
+    );
+    assert!(!png.exists());
+}
+
+#[test]
+fn export_vox_refuses_early_advising_only_options_that_exist() {
+    let dir = tempfile::tempdir().unwrap();
+    // One voxel at scale 1 sets the grid unit; one scaled 400x would fill 400^3 = 64 M cells,
+    // over the .vox export's 2^25.
+    let mut doc = Document::default();
+    for (name, scale, x) in [("fine", 1.0, 0.0), ("coarse", 400.0, 10.0)] {
+        let mut svo = Svo::new(2, false).unwrap();
+        svo.set(UVec3::ZERO, Voxel::new([10, 200, 30, 255], Vec3::Y))
+            .unwrap();
+        doc.add(
+            name,
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                voxel_size: 0.5,
+                ..VoxelModel::default()
+            }),
+        );
+        let o = doc.objects.last_mut().unwrap();
+        o.transform.scale = Vec3::splat(scale);
+        o.transform.translation.x = x;
+    }
+    let project = dir.path().join("scaled.thicket.json");
+    thicket_core::io::project::save(&doc, &project).unwrap();
+    let p = project.to_str().unwrap();
+    let out = dir.path().join("out.vox");
+    let o_path = out.to_str().unwrap();
+    let help = stdout(&thicket(&["export-vox", "--help"]));
+    let exists = |option: &str| {
+        help.contains(&format!("{option} ")) || help.contains(&format!("{option}\n"))
+    };
+    let o = thicket(&["export-vox", p, "-o", o_path]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "{err}");
+    assert!(
+        err.starts_with(&format!(
+            "error: {p}: the export would write about 64,000,001 .vox voxels"
+        )),
+        "{err}"
+    );
+    assert!(err.contains("more than the limit of 33,554,432"), "{err}");
+    let advised: Vec<&str> = err
+        .split_whitespace()
+        .filter(|w| w.starts_with("--"))
+        .collect();
+    assert!(!advised.is_empty(), "{err}");
+    for option in &advised {
+        assert!(
+            exists(option),
+            "{option} is not an export-vox option: {err}"
+        );
+    }
+    assert!(!out.exists());
+    // The unit it suggests brings the count under the limit: the next check, the memory
+    // budget (kept tiny so nothing is built), is the one that refuses.
+    let suggested = err
+        .split("about ")
+        .last()
+        .and_then(|t| t.split_whitespace().next())
+        .unwrap();
+    let o = thicket(&[
+        "export-vox",
+        p,
+        "-o",
+        o_path,
+        "--grid-unit",
+        suggested,
+        "--memory-limit",
+        "1M",
+    ]);
+    let err = stderr(&o);
+    assert!(
+        err.contains(".vox voxels would need about") && err.contains("(--memory-limit)"),
+        "--grid-unit {suggested}: {err}"
+    );
+    assert!(!out.exists());
+    // Under the cell limit but over a memory limit: refused with the estimate, advising
+    // options that exist.
+    let o = thicket(&[
+        "export-vox",
+        p,
+        "-o",
+        o_path,
+        "--grid-unit",
+        "2",
+        "--memory-limit",
+        "1M",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("exporting about 1,000,001 .vox voxels would need about"),
+        "{err}"
+    );
+    assert!(
+        err.contains("over the limit of 1.0 MiB (--memory-limit)"),
+        "{err}"
+    );
+    for option in err.split_whitespace().filter(|w| w.starts_with("--")) {
+        let option = option.trim_end_matches([',', ')', ':']);
+        assert!(
+            exists(option),
+            "{option} is not an export-vox option: {err}"
+        );
+    }
+    assert!(!out.exists());
+    let o = thicket(&["export-vox", p, "-o", o_path, "--grid-unit", "0"]);
+    assert!(
+        stderr(&o).contains("--grid-unit 0: give a positive length"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -9,7 +9,6 @@ use clap::Args;
 use thicket_core::krs::forest::ForestParams;
 use thicket_core::scene::Document;
 
-use crate::cli::rig::refuse_overwriting_input;
 use crate::files::{self, thousands};
 
 /// `thicket forest`.
@@ -107,7 +106,7 @@ fn object_id(doc: &Document, project: &std::path::Path, name: &str) -> anyhow::R
 /// Unreadable project, unknown objects, a tree the builder did not make, bad parameters (one
 /// message naming them), an unwritable output.
 pub fn forest(args: &ForestArgs) -> anyhow::Result<()> {
-    refuse_overwriting_input(&args.project, &args.output)?;
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let mut doc = files::load_document(&args.project)?;
     let sources = args
         .objects

@@ -127,23 +127,6 @@ pub fn voxel_object_index(
     Ok(index)
 }
 
-/// Refuses an output path that names the input (it would be overwritten before it is read
-/// again, and a failed run would leave neither).
-pub fn refuse_overwriting_input(input: &Path, output: &Path) -> anyhow::Result<()> {
-    let same = match (std::fs::canonicalize(input), std::fs::canonicalize(output)) {
-        (Ok(a), Ok(b)) => a == b,
-        _ => input == output,
-    };
-    if same {
-        anyhow::bail!(
-            "{}: the output is the input project; write to another file (-o) so the original \
-             stays as it was",
-            output.display()
-        );
-    }
-    Ok(())
-}
-
 fn voxels_mut(doc: &mut Document, index: usize) -> &mut VoxelModel {
     match &mut doc.objects[index].kind {
         ObjectKind::Voxels(v) => v,
@@ -157,7 +140,7 @@ fn voxels_mut(doc: &mut Document, index: usize) -> &mut VoxelModel {
 /// A missing object or file, a bad skeleton (naming the file and the joint), a failed binding
 /// or write; nothing is written then.
 pub fn rig(args: &RigArgs) -> anyhow::Result<()> {
-    refuse_overwriting_input(&args.project, &args.output)?;
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let mut doc = files::load_document(&args.project)?;
     let index = voxel_object_index(&doc, &args.project, &args.object, "rigged")?;
     let spec: SkeletonSpec = read_spec(&args.skeleton, "skeleton")?;
@@ -256,7 +239,7 @@ pub fn bind_notes(report: &BindReport) -> String {
 /// A missing object or file, a model without a skeleton, a bad clip (naming the file and the
 /// key), or a failed write; nothing is written then.
 pub fn animate(args: &AnimateArgs) -> anyhow::Result<()> {
-    refuse_overwriting_input(&args.project, &args.output)?;
+    files::refuse_overwriting_input(&args.project, &args.output)?;
     let mut doc = files::load_document(&args.project)?;
     let index = voxel_object_index(&doc, &args.project, &args.object, "animated")?;
     let spec: ClipSpec = read_spec(&args.clip, "clip")?;

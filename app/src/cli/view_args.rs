@@ -48,6 +48,26 @@ impl ImageSize {
     }
 }
 
+impl fmt::Display for CameraArg {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        // As typed: 1e38, not 39 digits.
+        let short = |v: f32| {
+            if v != 0.0 && !(1e-4..1e9).contains(&v.abs()) {
+                format!("{v:e}")
+            } else {
+                v.to_string()
+            }
+        };
+        write!(
+            f,
+            "{},{},{}",
+            short(self.yaw_deg),
+            short(self.pitch_deg),
+            short(self.distance)
+        )
+    }
+}
+
 impl fmt::Display for ImageSize {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}x{}", self.width, self.height)
@@ -169,7 +189,9 @@ impl ViewArgs {
 /// `camera` override (whose near and far planes then enclose the scene).
 ///
 /// # Errors
-/// A quality value [`Quality::set`] refuses.
+/// A quality value [`Quality::set`] refuses, or a `camera` override that leaves the camera
+/// unusable (a distance so large its far plane is not finite): the option is named with the
+/// field it breaks, not the project.
 pub fn view_from(
     doc: &Document,
     quality: &[QualityArg],
@@ -191,6 +213,12 @@ pub fn view_from(
         match doc.bounds() {
             Some((lo, hi)) => orbit.fit_clip(lo, hi),
             None => orbit.far = orbit.far.max(c.distance * 4.0),
+        }
+        if let Err((field, detail)) = orbit.check() {
+            anyhow::bail!(
+                "--camera {c}: it makes camera.{field} invalid: {detail}; give a smaller \
+                 DISTANCE"
+            );
         }
     }
     Ok((q, orbit))

@@ -73,12 +73,11 @@ pub fn write_recovery(dir: &Path, doc: &Document, original: Option<&Path>) -> an
             .map_or(0, |d| d.as_secs()),
     };
     let meta_path = dir.join(META_FILE);
-    let tmp = dir.join(format!("{META_FILE}.tmp"));
     let text = serde_json::to_vec_pretty(&meta)?;
-    std::fs::write(&tmp, text)
-        .and_then(|()| std::fs::rename(&tmp, &meta_path))
-        .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", meta_path.display()))?;
-    Ok(())
+    crate::files::write_through_temporary(&meta_path, |tmp| {
+        std::fs::write(tmp, text)
+            .map_err(|e| anyhow::anyhow!("cannot write {}: {e}", meta_path.display()))
+    })
 }
 
 /// The recovery project in `dir`, if there is one.

@@ -723,9 +723,16 @@ impl Editor {
     /// selects it; returns its index.
     ///
     /// # Errors
-    /// Non-finite or zero direction, negative intensity (the document is left unchanged).
+    /// Non-finite or zero direction, negative intensity, or a scene that already has
+    /// [`thicket_core::scene::MAX_LIGHTS`] lights (the document is left unchanged).
     pub fn add_light(&mut self, light: Light) -> Result<usize, CommandError> {
         validate_light(&light)?;
+        if self.doc.lights.len() >= thicket_core::scene::MAX_LIGHTS {
+            return Err(CommandError::Invalid(format!(
+                "the scene already has {} lights, the most a document may have",
+                thicket_core::scene::MAX_LIGHTS
+            )));
+        }
         let index = self.doc.lights.len();
         self.apply(Edit::InsertLight { index, light }, None);
         self.selection = Some(Selection::Light(index));
@@ -733,11 +740,15 @@ impl Editor {
     }
 
     /// Adds an imported file's lights at the end of the light list (one undo step each),
-    /// leaving the selection alone; lights that do not validate are skipped. Returns how many
-    /// were added.
+    /// leaving the selection alone; lights that do not validate, and those past
+    /// [`thicket_core::scene::MAX_LIGHTS`], are skipped. Returns how many were added.
     pub fn import_lights(&mut self, lights: Vec<Light>) -> usize {
         let mut added = 0;
         for light in lights {
+            // Past the maximum the document would no longer validate: the rest are skipped.
+            if self.doc.lights.len() >= thicket_core::scene::MAX_LIGHTS {
+                break;
+            }
             if validate_light(&light).is_ok() {
                 let index = self.doc.lights.len();
                 self.apply(Edit::InsertLight { index, light }, None);

@@ -172,6 +172,23 @@ fn lights_and_quality_validate_and_undo() {
 }
 
 #[test]
+fn lights_stop_at_the_maximum_a_document_may_have() {
+    use thicket_core::scene::MAX_LIGHTS;
+    let mut ed = Editor::default();
+    let added = ed.import_lights(vec![Light::default(); MAX_LIGHTS + 5]);
+    assert_eq!(
+        added,
+        MAX_LIGHTS - 1,
+        "the default sun plus the imported fill the maximum"
+    );
+    assert_eq!(ed.doc().lights.len(), MAX_LIGHTS);
+    let e = ed.add_light(ed.new_light()).unwrap_err().to_string();
+    assert!(e.contains("already has 256 lights"), "{e}");
+    assert_eq!(ed.doc().lights.len(), MAX_LIGHTS);
+    assert!(ed.doc().validate().is_ok());
+}
+
+#[test]
 fn lights_are_added_and_deleted_validated_undone_and_redone() {
     let mut ed = Editor::default();
     let sun = ed.doc().lights[0].clone();

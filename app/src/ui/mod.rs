@@ -73,8 +73,9 @@ pub struct EditorApp {
     import_offer: Option<crate::editor::ImportPlacement>,
     /// An error shown in a dialog until dismissed (for example a file that would not open).
     pub error_dialog: Option<String>,
-    /// The most memory one background job may need (half of physical memory; an
-    /// enhancement estimated over it is refused before it starts).
+    /// The most memory one background job may need (`MemoryBudget::for_this_machine`: the
+    /// smallest of half of physical memory and the process's address-space and cgroup limits;
+    /// an enhancement estimated over it is refused before it starts).
     pub memory_budget: thicket_core::budget::MemoryBudget,
     /// What the last import left out, shown in the Import report window until closed
     /// (`None`: nothing was left out).

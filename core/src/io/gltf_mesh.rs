@@ -1396,7 +1396,11 @@ pub(crate) fn decode_texture(
         Some(image::ImageFormat::Png | image::ImageFormat::Jpeg) => {}
         Some(other) => {
             return Err(TextureError::Decode(format!(
-                "image format {other:?} is not PNG or JPEG"
+                "the image is {}, not PNG or JPEG",
+                other.extensions_str().first().map_or_else(
+                    || "of another format".to_owned(),
+                    |x| x.to_ascii_uppercase()
+                )
             )));
         }
         None => {
@@ -1407,7 +1411,7 @@ pub(crate) fn decode_texture(
     }
     let (w, h) = reader
         .into_dimensions()
-        .map_err(|e| TextureError::Decode(e.to_string()))?;
+        .map_err(|e| TextureError::Decode(crate::mesh::image_error_text(&e)))?;
     let rgba_bytes = u64::from(w) * u64::from(h) * 4;
     if rgba_bytes > limits.max_texture_bytes {
         return Err(TextureError::TooLarge(format!(
@@ -1424,7 +1428,7 @@ pub(crate) fn decode_texture(
     reader.limits(image_limits);
     let decoded = reader
         .decode()
-        .map_err(|e| TextureError::Decode(e.to_string()))?;
+        .map_err(|e| TextureError::Decode(crate::mesh::image_error_text(&e)))?;
     let rgba = decoded.to_rgba8();
     let (width, height) = rgba.dimensions();
     Ok(Texture {

@@ -338,7 +338,7 @@ fn import_impl(mut file: OpenedGltf<'_>, label: &str) -> Result<SkinnedImport, S
         weight_repair.add(&repair_mesh_weights(part, skeleton.len()));
     }
     if weight_repair.total() > 0 {
-        warnings.push(format!("vertex weights repaired: {weight_repair:?}"));
+        warnings.push(format!("vertex weights repaired: {weight_repair}"));
     }
 
     let clips = read_clips(

@@ -50,6 +50,19 @@ pub enum ProjectError {
         #[source]
         source: std::io::Error,
     },
+    /// A save failed: the file system refused a step. Nothing the save created is left
+    /// behind and the previous save is untouched; `path` is the project named by the caller
+    /// (not a temporary file).
+    #[error("{path}: cannot save ({step}): {source}")]
+    Save {
+        /// The project file being saved.
+        path: PathBuf,
+        /// The step that failed, e.g. "writing the payload".
+        step: &'static str,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
     /// The JSON does not parse (with its line and column).
     #[error("{path}: line {line}, column {column}: {message}")]
     Json {
@@ -179,18 +192,11 @@ fn with_suffix(path: &Path, suffix: &str) -> PathBuf {
     PathBuf::from(s)
 }
 
-fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> ProjectError + '_ {
-    move |source| ProjectError::Io {
-        path: path.to_owned(),
-        source,
-    }
-}
-
 /// Saves a project crash-safely (see the module docs). Validates the document first, so what
 /// is written always loads.
 ///
 /// # Errors
-/// [`ProjectError::Invalid`] for a document that does not validate, [`ProjectError::Io`] when
+/// [`ProjectError::Invalid`] for a document that does not validate, [`ProjectError::Save`] when
 /// the file system refuses; the previous save is untouched in both cases.
 pub fn save(doc: &Document, json_path: &Path) -> Result<(), ProjectError> {
     save_with(doc, json_path, &mut save::RealFs)

@@ -42,7 +42,8 @@ mod tests;
 use std::path::{Path, PathBuf};
 
 pub use export::{
-    VoxExportOptions, VoxExportReport, export_vox, export_vox_bytes, export_vox_with,
+    VOX_EXPORT_BYTES_PER_CELL, VoxExportEstimate, VoxExportOptions, VoxExportReport,
+    estimate_vox_export, export_vox, export_vox_bytes, export_vox_with,
 };
 pub use import::{VoxImportOptions, VoxScene, import_vox, import_vox_bytes, import_vox_with};
 

@@ -515,6 +515,102 @@ pub fn check_png_chunks(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
+/// An image decoder's or encoder's error in words a user can read. The `png` crate writes some
+/// errors with Rust debug text (`CRC error … while decoding ChunkType { type: IDAT, critical:
+/// true, … } chunk`); every message that reaches the user goes through here, so the kind of
+/// failure comes first and the decoder's detail follows with such structures reduced to their
+/// names (`… while decoding IDAT chunk`).
+#[must_use]
+pub fn image_error_text(e: &image::ImageError) -> String {
+    use image::ImageError as E;
+    use image::error::ImageFormatHint;
+    let name = |hint: &ImageFormatHint| match hint {
+        ImageFormatHint::Exact(f) => f
+            .extensions_str()
+            .first()
+            .map_or_else(|| "image".to_owned(), |x| x.to_ascii_uppercase()),
+        _ => "image".to_owned(),
+    };
+    let with_detail = |what: String, detail: Option<String>| match detail {
+        Some(d) if !d.is_empty() => format!("{what} ({d})"),
+        _ => what,
+    };
+    let cause = |e: &dyn std::error::Error| e.source().map(|s| plain_words(&s.to_string()));
+    match e {
+        E::IoError(io) => io.to_string(),
+        E::Limits(_) => "the image needs more memory than the decoder may use".to_owned(),
+        E::Decoding(d) => with_detail(
+            format!(
+                "the {} data is damaged or cut short",
+                name(&d.format_hint())
+            ),
+            cause(d),
+        ),
+        E::Encoding(en) => with_detail(
+            format!("the {} encoder failed", name(&en.format_hint())),
+            cause(en),
+        ),
+        E::Unsupported(u) => format!(
+            "the image uses something the decoder does not support: {}",
+            plain_words(&u.to_string())
+        ),
+        E::Parameter(p) => plain_words(&p.to_string()),
+    }
+}
+
+/// `text` with Rust debug structures reduced to words: `ChunkType { type: IDAT, critical: true }`
+/// becomes `IDAT` (the `type` field, else the structure's name) and `Some(x)` becomes `x`.
+fn plain_words(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    let mut rest = text;
+    while let Some(open) = rest.find('{') {
+        let before = &rest[..open];
+        let close = rest[open..]
+            .char_indices()
+            .scan(0i32, |depth, (i, c)| {
+                *depth += match c {
+                    '{' => 1,
+                    '}' => -1,
+                    _ => 0,
+                };
+                Some((i, *depth))
+            })
+            .find(|&(_, depth)| depth == 0)
+            .map(|(i, _)| open + i);
+        let Some(close) = close else {
+            out.push_str(before);
+            rest = &rest[open + 1..];
+            continue;
+        };
+        let inner = &rest[open + 1..close];
+        let head = before.trim_end();
+        let ident_start = head
+            .rfind(|c: char| !(c.is_alphanumeric() || c == '_'))
+            .map_or(0, |i| i + 1);
+        let ident = &head[ident_start..];
+        let field = inner.split(',').find_map(|f| {
+            let (k, v) = f.split_once(':')?;
+            (k.trim() == "type").then(|| v.trim().to_owned())
+        });
+        out.push_str(&head[..ident_start]);
+        out.push_str(field.as_deref().unwrap_or(ident));
+        rest = &rest[close + 1..];
+    }
+    out.push_str(rest);
+    let mut text = out.replace('}', "");
+    while let Some(at) = text.find("Some(") {
+        let inner_start = at + "Some(".len();
+        match text[inner_start..].find(')') {
+            Some(end) => {
+                let inner = text[inner_start..inner_start + end].to_owned();
+                text.replace_range(at..=inner_start + end, &inner);
+            }
+            None => text.replace_range(at..inner_start, ""),
+        }
+    }
+    text
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
@@ -595,6 +691,36 @@ pub(crate) mod tests {
             "the PLTE header is enough"
         );
         assert!(check_png_chunks(&png[..40]).is_ok());
+    }
+
+    #[test]
+    fn image_errors_read_as_words_without_debug_text() {
+        // The IDAT chunk's CRC (the 4 bytes before the 12-byte IEND chunk) broken: `png`
+        // describes the chunk with its debug text.
+        let mut png = indexed_png(&[1, 2, 3]);
+        let at = png.len() - 13;
+        png[at] ^= 0xff;
+        let raw = image::load_from_memory(&png).expect_err("a broken CRC");
+        let text = image_error_text(&raw);
+        assert!(text.starts_with("the PNG data is damaged"), "{text}");
+        assert!(text.contains("IDAT"), "names the chunk: {text}");
+        for debug in ["{", "}", "ChunkType", "Some(", "critical"] {
+            assert!(!text.contains(debug), "{debug:?} in {text}");
+        }
+        assert_eq!(
+            plain_words(
+                "Chunk length wrong: ChunkType { type: fdAT, critical: false, private: true, \
+                 reserved: false, safecopy: false } at Some(12)"
+            ),
+            "Chunk length wrong: fdAT at 12"
+        );
+        assert_eq!(plain_words("a Limits { max: 3 } b"), "a Limits b");
+        assert_eq!(plain_words("open { never closed"), "open  never closed");
+        let io = image::ImageError::IoError(std::io::Error::new(
+            std::io::ErrorKind::NotFound,
+            "No such file or directory",
+        ));
+        assert_eq!(image_error_text(&io), "No such file or directory");
     }
 
     #[test]

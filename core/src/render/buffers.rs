@@ -326,25 +326,36 @@ impl DepthTarget {
     }
 }
 
-/// Why an image could not be written.
-#[derive(Debug, thiserror::Error)]
+/// Why an image could not be written or read. The detail is in words (see
+/// [`crate::mesh::image_error_text`]), never the decoder's debug text.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum ImageError {
     /// The PNG encoder or the file system failed.
-    #[error("cannot write image {path}: {source}")]
+    #[error("cannot write image {path}: {detail}")]
     Write {
         /// The target path.
         path: String,
-        /// The cause.
-        source: image::ImageError,
+        /// What failed.
+        detail: String,
     },
     /// The PNG decoder or the file system failed.
-    #[error("cannot read image {path}: {source}")]
+    #[error("cannot read image {path}: {detail}")]
     Read {
         /// The source path.
         path: String,
-        /// The cause.
-        source: image::ImageError,
+        /// What failed.
+        detail: String,
     },
+}
+
+impl ImageError {
+    /// What failed, without the path (for a message that names the file its own way).
+    #[must_use]
+    pub fn detail(&self) -> &str {
+        match self {
+            Self::Write { detail, .. } | Self::Read { detail, .. } => detail,
+        }
+    }
 }
 
 /// An 8-bit sRGB RGBA image, rows top to bottom.
@@ -443,9 +454,9 @@ impl RgbaImage {
         let path = path.as_ref();
         self.to_rgba8()
             .save_with_format(path, image::ImageFormat::Png)
-            .map_err(|source| ImageError::Write {
+            .map_err(|e| ImageError::Write {
                 path: path.display().to_string(),
-                source,
+                detail: crate::mesh::image_error_text(&e),
             })
     }
 
@@ -455,20 +466,14 @@ impl RgbaImage {
     /// Decoder or file-system failure, with the path.
     pub fn load_png(path: impl AsRef<Path>) -> Result<Self, ImageError> {
         let path = path.as_ref();
-        let read_error = |source| ImageError::Read {
+        let read_error = |detail| ImageError::Read {
             path: path.display().to_string(),
-            source,
+            detail,
         };
-        let bytes = std::fs::read(path).map_err(|e| read_error(image::ImageError::IoError(e)))?;
-        crate::mesh::check_png_chunks(&bytes).map_err(|e| {
-            read_error(image::ImageError::Decoding(
-                image::error::DecodingError::new(
-                    image::error::ImageFormatHint::Exact(image::ImageFormat::Png),
-                    e,
-                ),
-            ))
-        })?;
-        let img = image::load_from_memory(&bytes).map_err(read_error)?;
+        let bytes = std::fs::read(path).map_err(|e| read_error(e.to_string()))?;
+        crate::mesh::check_png_chunks(&bytes).map_err(read_error)?;
+        let img = image::load_from_memory(&bytes)
+            .map_err(|e| read_error(crate::mesh::image_error_text(&e)))?;
         Ok(Self::from_rgba8(&img.to_rgba8()))
     }
 }

@@ -564,6 +564,14 @@ pub fn transform_bounds(m: &Mat4, lo: Vec3, hi: Vec3) -> (Vec3, Vec3) {
         })
 }
 
+/// Most lights a document may have. Thicket's lights are directional (suns): a handful light
+/// any scene, while each one costs every shaded pixel a term (and, casting shadows, a shadow
+/// map of up to 1 GiB at the largest `shadow_map_size`). A file can declare thousands for a
+/// few bytes each (glTF `KHR_lights_punctual`, a project's JSON), so validation refuses more
+/// than this instead of letting one small file make every frame thousands of passes long;
+/// 256 is far above what a lit scene uses and small enough that shading stays bounded.
+pub const MAX_LIGHTS: usize = 256;
+
 /// A directional light (the sun).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]
@@ -790,28 +798,62 @@ impl OrbitCamera {
     /// Finite values, positive distances, a usable field of view.
     ///
     /// # Errors
-    /// What is wrong.
+    /// [`SceneError::Invalid`] naming the first bad field (`camera.far`, …) and its value.
     pub fn validate(&self) -> Result<(), SceneError> {
-        let ok = self.target.is_finite()
-            && self.yaw_deg.is_finite()
-            && self.pitch_deg.is_finite()
-            && self.distance.is_finite()
-            && self.distance > 0.0
-            && self.fov_y_deg > 0.1
-            && self.fov_y_deg < 179.0
-            && self.near.is_finite()
-            && (self.orthographic || self.near > 0.0)
-            && self.far > self.near
-            && self.far.is_finite();
-        if ok {
-            Ok(())
-        } else {
-            Err(invalid(
-                "camera",
-                "document",
-                format!("{self:?} is not a usable camera"),
-            ))
+        self.check().map_err(|(field, detail)| SceneError::Invalid {
+            what: format!("camera.{field}"),
+            context: "document".to_owned(),
+            detail,
+        })
+    }
+
+    /// The first field a renderer cannot use, by name, and what is wrong with its value: the
+    /// words [`OrbitCamera::validate`] and a command-line option's refusal share.
+    ///
+    /// # Errors
+    /// `(field, detail)`, e.g. `("far", "inf must be finite and beyond near (0.001)")`.
+    pub fn check(&self) -> Result<(), (&'static str, String)> {
+        let finite = |field: &'static str, v: f32| {
+            if v.is_finite() {
+                Ok(())
+            } else {
+                Err((field, format!("{v} must be a finite number")))
+            }
+        };
+        if !self.target.is_finite() {
+            return Err(("target", format!("{} must be finite", self.target)));
         }
+        finite("yaw_deg", self.yaw_deg)?;
+        finite("pitch_deg", self.pitch_deg)?;
+        if !(self.distance.is_finite() && self.distance > 0.0) {
+            return Err((
+                "distance",
+                format!("{} must be finite and above 0", self.distance),
+            ));
+        }
+        if !(self.fov_y_deg > 0.1 && self.fov_y_deg < 179.0) {
+            return Err((
+                "fov_y_deg",
+                format!("{} must be between 0.1 and 179 degrees", self.fov_y_deg),
+            ));
+        }
+        finite("near", self.near)?;
+        if !self.orthographic && self.near <= 0.0 {
+            return Err((
+                "near",
+                format!("{} must be above 0 for a perspective camera", self.near),
+            ));
+        }
+        if !(self.far.is_finite() && self.far > self.near) {
+            return Err((
+                "far",
+                format!(
+                    "{} must be finite and beyond near ({})",
+                    self.far, self.near
+                ),
+            ));
+        }
+        Ok(())
     }
 }
 
@@ -964,6 +1006,17 @@ impl Document {
                     detail,
                 },
             })?;
+        }
+        if self.lights.len() > MAX_LIGHTS {
+            return Err(invalid(
+                "lights",
+                "document",
+                format!(
+                    "{} lights, more than the {MAX_LIGHTS} a document may have; remove lights \
+                     (a few suns light any scene)",
+                    self.lights.len()
+                ),
+            ));
         }
         for l in &self.lights {
             l.validate()?;
@@ -1329,6 +1382,49 @@ mod tests {
         };
         let e = doc.validate().unwrap_err().to_string();
         assert!(e.contains("ambient") && e.contains("non-negative"), "{e}");
+    }
+
+    #[test]
+    fn more_lights_than_the_maximum_are_refused_in_one_line() {
+        let mut doc = Document {
+            lights: vec![Light::default(); MAX_LIGHTS],
+            ..Document::default()
+        };
+        doc.validate().expect("the maximum itself is allowed");
+        doc.lights.push(Light::default());
+        let e = doc.validate().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "lights of document is invalid: 257 lights, more than the 256 a document may have; \
+             remove lights (a few suns light any scene)"
+        );
+    }
+
+    #[test]
+    fn an_invalid_camera_names_the_field_and_its_value() {
+        let mut doc = Document::default();
+        doc.camera.fov_y_deg = 500.0;
+        let e = doc.validate().unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "camera.fov_y_deg of document is invalid: 500 must be between 0.1 and 179 degrees"
+        );
+        let mut doc = Document::default();
+        doc.camera.far = f32::INFINITY;
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(
+            e.starts_with("camera.far of document is invalid: inf must be finite"),
+            "{e}"
+        );
+        assert!(!e.contains('{') && !e.contains("OrbitCamera"), "{e}");
+        doc.camera.far = 10.0;
+        doc.camera.target.y = f32::NAN;
+        let e = doc.validate().unwrap_err().to_string();
+        assert!(
+            e.starts_with("camera.target of document is invalid: ["),
+            "{e}"
+        );
+        assert!(e.contains("NaN") && !e.contains("Vec3("), "{e}");
     }
 
     #[test]

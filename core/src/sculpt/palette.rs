@@ -255,7 +255,8 @@ pub fn palette_from_png(bytes: &[u8]) -> Result<Vec<[u8; 4]>, PaletteError> {
         .decode()
         .map_err(|e| {
             binary(format!(
-                "cannot decode the PNG (at most 256×256 pixels): {e}"
+                "cannot decode the PNG (at most 256×256 pixels): {}",
+                crate::mesh::image_error_text(&e)
             ))
         })?
         .to_rgba8();

@@ -137,6 +137,40 @@ pub struct WeightRepair {
     pub renormalised: usize,
 }
 
+/// In words, the causes that occurred: `3 vertices with a negative weight (set to 0), 1 with
+/// no weight (bound to the root joint)`.
+impl std::fmt::Display for WeightRepair {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let causes = [
+            (self.negative, "with a negative weight (set to 0)"),
+            (self.non_finite, "with a NaN or infinite weight (set to 0)"),
+            (
+                self.out_of_range,
+                "weighted on a joint the skeleton does not have (set to 0)",
+            ),
+            (self.all_zero, "with no weight (bound to the root joint)"),
+            (
+                self.renormalised,
+                "whose weights did not sum to 1 (renormalised)",
+            ),
+        ];
+        let mut first = true;
+        for (count, cause) in causes.into_iter().filter(|(n, _)| *n > 0) {
+            if first {
+                let noun = if count == 1 { "vertex" } else { "vertices" };
+                write!(f, "{count} {noun} {cause}")?;
+                first = false;
+            } else {
+                write!(f, ", {count} {cause}")?;
+            }
+        }
+        if first {
+            f.write_str("no vertex")?;
+        }
+        Ok(())
+    }
+}
+
 impl WeightRepair {
     /// Vertices touched by any repair (a vertex may be counted under several causes).
     #[must_use]

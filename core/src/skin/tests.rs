@@ -783,6 +783,22 @@ fn weight_repair_fixes_and_counts() {
     assert_eq!(r.out_of_range, 1);
     assert_eq!((j[0], w), (0, [0.0, 1.0, 0.0, 0.0]));
     assert_eq!(r.total(), 2, "out of range and renormalised");
+    assert_eq!(
+        r.to_string(),
+        "1 vertex weighted on a joint the skeleton does not have (set to 0), 1 whose weights \
+         did not sum to 1 (renormalised)"
+    );
+    let mut many = r;
+    many.add(&WeightRepair {
+        negative: 2,
+        ..WeightRepair::default()
+    });
+    assert_eq!(
+        many.to_string(),
+        "2 vertices with a negative weight (set to 0), 1 weighted on a joint the skeleton does \
+         not have (set to 0), 1 whose weights did not sum to 1 (renormalised)"
+    );
+    assert_eq!(WeightRepair::default().to_string(), "no vertex");
 
     // unorm8 rounding (sum 254/255) is fixed silently.
     let mut w = [127.0 / 255.0, 127.0 / 255.0, 0.0, 0.0];

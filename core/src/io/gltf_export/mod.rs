@@ -470,7 +470,10 @@ fn write_scene(
 
 /// Writes each `(file, bytes)` to a temporary sibling, syncs them all, then renames them into
 /// place in order (the `.bin` before the `.gltf` that names it) and syncs the directory. On any
-/// failure before the renames every temporary file is removed and no target is touched.
+/// failure before the renames every temporary file is removed and no target is touched. A
+/// target that is a folder is refused before the first rename (its rename would fail after the
+/// `.bin`'s); should a later rename still fail, the files this call already renamed into place
+/// are removed too, so a failed export leaves no `.bin` without its `.gltf`.
 fn write_atomic(target: &Path, files: &[(&Path, &[u8])]) -> Result<(), GltfExportError> {
     let io = |path: &Path, action, source| GltfExportError::Io {
         path: path.to_owned(),
@@ -488,6 +491,7 @@ fn write_atomic(target: &Path, files: &[(&Path, &[u8])]) -> Result<(), GltfExpor
         dir.join(format!(".{name}.tmp-{}", std::process::id()))
     };
     let mut written: Vec<PathBuf> = Vec::new();
+    let mut renamed: Vec<PathBuf> = Vec::new();
     let result = (|| {
         for (p, bytes) in files {
             let tmp = tmp_of(p);
@@ -500,14 +504,24 @@ fn write_atomic(target: &Path, files: &[(&Path, &[u8])]) -> Result<(), GltfExpor
                 .map_err(|e| io(p, "syncing the temporary file", e))?;
         }
         for (p, _) in files {
+            if std::fs::symlink_metadata(p).is_ok_and(|m| m.is_dir()) {
+                return Err(io(
+                    p,
+                    "replacing the target",
+                    std::io::Error::new(std::io::ErrorKind::IsADirectory, "it is a folder"),
+                ));
+            }
+        }
+        for (p, _) in files {
             std::fs::rename(tmp_of(p), p).map_err(|e| io(p, "renaming the temporary file", e))?;
+            renamed.push(p.to_path_buf());
         }
         Ok(())
     })();
     if result.is_err() {
         // Best effort: the error that matters is the one returned.
-        for tmp in &written {
-            let _ = std::fs::remove_file(tmp);
+        for file in written.iter().chain(&renamed) {
+            let _ = std::fs::remove_file(file);
         }
         return result;
     }

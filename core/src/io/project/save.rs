@@ -10,7 +10,7 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, Read, Write};
 use std::path::{Path, PathBuf};
 
-use super::{ProjectError, io_err, with_suffix};
+use super::{ProjectError, with_suffix};
 
 /// The file-system operations a save performs, each a point where the process may die.
 pub(crate) trait SaveFs {
@@ -163,6 +163,15 @@ pub(crate) fn write_project(
     let dir = dir_of(json_path);
     let stem = stem_of(json_path);
     let json_tmp = with_suffix(json_path, ".tmp");
+    // Errors name the project the caller named, with the step: a temporary's name means
+    // nothing to the user, and nothing of it is left.
+    let failed = |step: &'static str| {
+        move |source| ProjectError::Save {
+            path: json_path.to_owned(),
+            step,
+            source,
+        }
+    };
     // 1. The payload under its new name: written to a temporary, synced, renamed into place.
     // The name was free, so nothing the JSON on disk refers to is touched.
     let mut created: Option<PathBuf> = None;
@@ -173,24 +182,36 @@ pub(crate) fn write_project(
             if exists {
                 // Same bytes already there (perhaps from a save that died before its JSON
                 // rename, never synced): make sure they are durable.
-                fs_ops.sync_file(&path).map_err(io_err(&path))?;
+                fs_ops
+                    .sync_file(&path)
+                    .map_err(failed("syncing the payload"))?;
             } else {
                 let tmp = with_suffix(&path, ".tmp");
                 bin_tmp = Some(tmp.clone());
-                fs_ops.write(&tmp, bytes).map_err(io_err(&tmp))?;
-                fs_ops.sync_file(&tmp).map_err(io_err(&tmp))?;
-                fs_ops.rename(&tmp, &path).map_err(io_err(&path))?;
+                fs_ops
+                    .write(&tmp, bytes)
+                    .map_err(failed("writing the payload"))?;
+                fs_ops
+                    .sync_file(&tmp)
+                    .map_err(failed("syncing the payload"))?;
+                fs_ops
+                    .rename(&tmp, &path)
+                    .map_err(failed("naming the payload"))?;
                 bin_tmp = None;
                 created = Some(path);
             }
-            fs_ops.sync_dir(dir).map_err(io_err(dir))?;
+            fs_ops.sync_dir(dir).map_err(failed("syncing the folder"))?;
         }
         // 2. The JSON, through a synced temporary, renamed over the old one: the commit point.
-        fs_ops.write(&json_tmp, json).map_err(io_err(&json_tmp))?;
-        fs_ops.sync_file(&json_tmp).map_err(io_err(&json_tmp))?;
+        fs_ops
+            .write(&json_tmp, json)
+            .map_err(failed("writing the project"))?;
+        fs_ops
+            .sync_file(&json_tmp)
+            .map_err(failed("syncing the project"))?;
         fs_ops
             .rename(&json_tmp, json_path)
-            .map_err(io_err(json_path))?;
+            .map_err(failed("replacing the project file"))?;
         Ok(())
     })();
     if let Err(e) = result {

@@ -78,21 +78,18 @@ pub fn export_vox_with(
     Ok(report)
 }
 
-/// Encodes the visible voxel objects as `.vox` bytes; `path` only names the target in errors.
-///
-/// # Errors
-/// See [`export_vox`].
-pub fn export_vox_bytes(
-    objects: &[Object],
+/// The objects an export writes: visible voxel objects with voxels, checked; the others'
+/// names go to `skipped`.
+fn choose_objects<'a>(
+    objects: &'a [Object],
     path: &Path,
-    options: &VoxExportOptions,
-) -> Result<(Vec<u8>, VoxExportReport), VoxError> {
+    skipped: &mut Vec<String>,
+) -> Result<Vec<(&'a Object, &'a VoxelModel)>, VoxError> {
     let object_error = |o: &Object, detail: String| VoxError::Object {
         path: path.to_owned(),
         object: o.name.clone(),
         detail,
     };
-    let mut report = VoxExportReport::default();
     let mut chosen = Vec::new();
     for o in objects {
         match &o.kind {
@@ -116,7 +113,7 @@ pub fn export_vox_bytes(
                 }
                 chosen.push((o, v));
             }
-            _ => report.skipped.push(o.name.clone()),
+            _ => skipped.push(o.name.clone()),
         }
     }
     if chosen.is_empty() {
@@ -124,6 +121,15 @@ pub fn export_vox_bytes(
             path: path.to_owned(),
         });
     }
+    Ok(chosen)
+}
+
+/// The world length of one `.vox` cell: the option's, else the smallest voxel edge.
+fn grid_unit(
+    chosen: &[(&Object, &VoxelModel)],
+    path: &Path,
+    options: &VoxExportOptions,
+) -> Result<f64, VoxError> {
     let unit = options.grid_unit.map_or_else(
         || {
             chosen
@@ -140,6 +146,102 @@ pub fn export_vox_bytes(
             path: path.to_owned(),
             object: "(all)".into(),
             detail: format!("grid unit {unit} must be finite and positive"),
+        });
+    }
+    Ok(unit)
+}
+
+/// Cells the export fills, counted as the writer counts them (before overlapping cells
+/// merge): per voxel, its transformed box's extent in grid cells along each axis, rounded,
+/// at least one.
+fn estimate_cells(chosen: &[(&Object, &VoxelModel)], unit: f64) -> u64 {
+    let mut cells = 0u64;
+    for (o, v) in chosen {
+        let m = o.transform.matrix().as_dmat4();
+        let per_voxel = f64::from(v.voxel_size) / unit;
+        let cells_per_voxel: f64 = (0..3)
+            .map(|axis| {
+                let extent: f64 = (0..3).map(|c| m.col(c)[axis].abs()).sum::<f64>() * per_voxel;
+                extent.round().max(1.0)
+            })
+            .product();
+        let leaves: u64 = (0..v.frame_count())
+            .filter_map(|i| v.frame(i))
+            .map(|(svo, _)| svo.leaf_count())
+            .sum();
+        // Saturating: an absurd scale says "too many", not a wrapped small number.
+        let object_cells = (leaves as f64 * cells_per_voxel).min(u64::MAX as f64) as u64;
+        cells = cells.saturating_add(object_cells);
+    }
+    cells
+}
+
+/// Peak heap per cell of an export: the cell map's entry and hash-table slack while it grows
+/// (about 113 bytes at a resize), the block lists and the models written (4 bytes each, with
+/// growth), and the encoded `XYZI` data.
+pub const VOX_EXPORT_BYTES_PER_CELL: u64 = 144;
+
+/// What an export will cost, known before any cell is built (see [`estimate_vox_export`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VoxExportEstimate {
+    /// The grid unit the export will use.
+    pub grid_unit: f64,
+    /// Cells it will fill (voxels larger than the unit fill several).
+    pub cells: u64,
+    /// Estimated peak heap in bytes.
+    pub peak_bytes: u64,
+}
+
+/// Estimates an export of `objects` with `options` from the voxel counts and transforms alone.
+///
+/// # Errors
+/// As [`export_vox`] for the objects themselves (nothing to export, invalid transforms or
+/// voxel sizes, a bad grid unit); `path` only names the target.
+pub fn estimate_vox_export(
+    objects: &[Object],
+    path: &Path,
+    options: &VoxExportOptions,
+) -> Result<VoxExportEstimate, VoxError> {
+    let chosen = choose_objects(objects, path, &mut Vec::new())?;
+    let unit = grid_unit(&chosen, path, options)?;
+    let cells = estimate_cells(&chosen, unit);
+    Ok(VoxExportEstimate {
+        grid_unit: unit,
+        cells,
+        peak_bytes: cells
+            .saturating_mul(VOX_EXPORT_BYTES_PER_CELL)
+            .saturating_add(1 << 20),
+    })
+}
+
+/// Encodes the visible voxel objects as `.vox` bytes; `path` only names the target in errors.
+///
+/// # Errors
+/// See [`export_vox`].
+pub fn export_vox_bytes(
+    objects: &[Object],
+    path: &Path,
+    options: &VoxExportOptions,
+) -> Result<(Vec<u8>, VoxExportReport), VoxError> {
+    let object_error = |o: &Object, detail: String| VoxError::Object {
+        path: path.to_owned(),
+        object: o.name.clone(),
+        detail,
+    };
+    let mut report = VoxExportReport::default();
+    let chosen = choose_objects(objects, path, &mut report.skipped)?;
+    let unit = grid_unit(&chosen, path, options)?;
+    // Known before any cell is built: refused here, not after millions of cells.
+    let cells = estimate_cells(&chosen, unit);
+    if cells > options.max_voxels {
+        return Err(VoxError::Object {
+            path: path.to_owned(),
+            object: "(all)".into(),
+            detail: format!(
+                "the export would write about {cells} voxels at a grid unit of {unit}, more \
+                 than the limit of {}; choose a larger grid unit",
+                options.max_voxels
+            ),
         });
     }
 

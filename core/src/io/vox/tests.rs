@@ -1007,3 +1007,55 @@ fn fuzzed_real_files_never_panic() {
     // The mutations must actually break files (and leave some loadable).
     assert!(err > cases / 4 && ok > 0, "ok {ok}, err {err}");
 }
+
+#[test]
+fn the_export_estimate_counts_the_cells_before_any_is_built() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("e.vox");
+    // Two voxels scaled 4x next to one at scale 1: the grid unit is the small voxel, so each
+    // large voxel fills 4 x 4 x 4 cells.
+    let mut big = object(
+        "Big",
+        vec![
+            (UVec3::ZERO, solid([200, 0, 0, 255])),
+            (UVec3::X, solid([0, 200, 0, 255])),
+        ],
+        1,
+    );
+    big.transform.scale = Vec3::splat(4.0);
+    big.transform.translation = Vec3::new(10.0, 0.0, 0.0);
+    let small = object("Small", vec![(UVec3::ZERO, solid([0, 0, 200, 255]))], 1);
+    let objects = [big, small];
+    let e = estimate_vox_export(&objects, &path, &VoxExportOptions::default()).unwrap();
+    assert_eq!(e.cells, 2 * 64 + 1);
+    assert!((e.grid_unit - 1.0).abs() < 1e-9, "{e:?}");
+    assert_eq!(
+        e.peak_bytes,
+        e.cells * VOX_EXPORT_BYTES_PER_CELL + (1 << 20)
+    );
+    let report = export_vox(&objects, &path).unwrap();
+    assert_eq!(report.voxels, e.cells, "the estimate is the count written");
+    // A larger grid unit: the small voxel still fills one cell, a large one 2 x 2 x 2.
+    let coarse = VoxExportOptions {
+        grid_unit: Some(2.0),
+        ..VoxExportOptions::default()
+    };
+    assert_eq!(
+        estimate_vox_export(&objects, &path, &coarse).unwrap().cells,
+        2 * 8 + 1
+    );
+    // Over the limit: refused before any cell is built, saying how many and the limit.
+    std::fs::remove_file(&path).unwrap();
+    let tight = VoxExportOptions {
+        max_voxels: 100,
+        ..VoxExportOptions::default()
+    };
+    let msg = export_vox_with(&objects, &path, &tight)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        msg.contains("about 129 voxels") && msg.contains("the limit of 100"),
+        "{msg}"
+    );
+    assert!(!path.exists());
+}
