@@ -23,7 +23,7 @@
 use std::f32::consts::FRAC_PI_2;
 
 use glam::Vec3;
-use rand::{Rng, SeedableRng};
+use rand::SeedableRng;
 use rand_pcg::Pcg32;
 use serde::{Deserialize, Serialize};
 
@@ -32,6 +32,7 @@ use super::distort::Distortion;
 use super::kernel::{Kernel, KernelBound};
 use super::mirror::MirrorPlane;
 use super::object::{KrsError, KrsObject, KrsScene, PreparedObject, Similarity};
+use super::presets::{symmetric, tilted_normal};
 
 /// Most reflection levels a forest adds (2^40 trees: far beyond any view, and the f64 folds
 /// still place them to a millimetre).
@@ -429,27 +430,10 @@ fn draws(
         } else {
             0.25 * params.tilt
         };
-        let azimuth = if axis == 0 { 0.0 } else { FRAC_PI_2 }
-            + if jitter > 0.0 {
-                rng.random_range(-jitter..jitter)
-            } else {
-                0.0
-            };
-        let tilt = if tilt > 0.0 {
-            rng.random_range(-tilt..tilt)
-        } else {
-            0.0
-        };
-        let spread = if params.spread > 0.0 {
-            rng.random_range(-params.spread..params.spread)
-        } else {
-            0.0
-        };
-        let normal = Vec3::new(
-            azimuth.cos() * tilt.cos(),
-            tilt.sin(),
-            azimuth.sin() * tilt.cos(),
-        );
+        let azimuth = if axis == 0 { 0.0 } else { FRAC_PI_2 } + symmetric(&mut rng, jitter);
+        let tilt = symmetric(&mut rng, tilt);
+        let spread = symmetric(&mut rng, params.spread);
+        let normal = tilted_normal(azimuth, tilt);
         let reach = centres
             .iter()
             .map(|c| c.dot(normal))

@@ -211,11 +211,7 @@ pub fn terrain() -> KrsObject {
         let azimuth: f32 = rng.random_range(0.0..TAU);
         let tilt: f32 =
             rng.random_range(0.05..0.14) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = Vec3::new(
-            azimuth.cos() * tilt.cos(),
-            tilt.sin(),
-            azimuth.sin() * tilt.cos(),
-        );
+        let normal = tilted_normal(azimuth, tilt);
         let spacing = 1.5 * 1.45f32.powi(i);
         mirrors.push(MirrorPlane::new(
             normal,
@@ -319,6 +315,26 @@ pub fn sponge() -> KrsObject {
         mirrors,
         ..KrsObject::default()
     }
+}
+
+/// A uniform draw from `−half..half`, or 0 without drawing when `half` is not positive (so a
+/// zero jitter leaves the generator's sequence for the draws after it).
+pub(super) fn symmetric(rng: &mut Pcg32, half: f32) -> f32 {
+    if half > 0.0 {
+        rng.random_range(-half..half)
+    } else {
+        0.0
+    }
+}
+
+/// The unit normal at `azimuth` around y (0 = +x, π/2 = +z), tilted by `tilt` out of the
+/// horizontal (a mirror whose plane leans from the vertical).
+pub(super) fn tilted_normal(azimuth: f32, tilt: f32) -> Vec3 {
+    Vec3::new(
+        azimuth.cos() * tilt.cos(),
+        tilt.sin(),
+        azimuth.sin() * tilt.cos(),
+    )
 }
 
 /// Number of extra reflections the forest preset adds to the tree.
@@ -580,24 +596,10 @@ pub fn scatter_mirrors(ball: (Vec3, f32), scatter: &Scatter) -> Vec<MirrorPlane>
             let sign = if (i / 2) % 2 == 0 { 1.0 } else { -1.0 };
             (base, sign * tilt)
         } else {
-            let azimuth = base
-                + if jitter > 0.0 {
-                    rng.random_range(-jitter..jitter)
-                } else {
-                    0.0
-                };
-            let tilt = if tilt > 0.0 {
-                rng.random_range(-tilt..tilt)
-            } else {
-                0.0
-            };
-            (azimuth, tilt)
+            let azimuth = base + symmetric(&mut rng, jitter);
+            (azimuth, symmetric(&mut rng, tilt))
         };
-        let normal = Vec3::new(
-            azimuth.cos() * tilt.cos(),
-            tilt.sin(),
-            azimuth.sin() * tilt.cos(),
-        );
+        let normal = tilted_normal(azimuth, tilt);
         let reach = centres
             .iter()
             .map(|c| c.dot(normal))
@@ -639,11 +641,7 @@ pub fn folded_ground(ground: Material, fine: usize, radius: f32, seed: u64) -> K
         let azimuth: f32 = rng.random_range(0.0..TAU);
         let tilt: f32 =
             rng.random_range(0.06..0.16) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = Vec3::new(
-            azimuth.cos() * tilt.cos(),
-            tilt.sin(),
-            azimuth.sin() * tilt.cos(),
-        );
+        let normal = tilted_normal(azimuth, tilt);
         // Beyond the trunk or stem (a fifth of the radius), growing per level.
         let offset = radius * rng.random_range(0.2..0.5) * 1.5f32.powi(i as i32);
         mirrors.push(MirrorPlane::new(normal, offset));
