@@ -849,25 +849,7 @@ pub fn info(path: &Path) -> anyhow::Result<DocumentInfo> {
     })
 }
 
-/// `1234567` → `1,234,567`.
-#[must_use]
-pub fn thousands(n: u64) -> String {
-    thousands_u128(u128::from(n))
-}
-
-/// [`thousands`] for counts beyond `u64` (KRS kernel instances).
-#[must_use]
-pub fn thousands_u128(n: u128) -> String {
-    let digits = n.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
-}
+pub use thicket_core::budget::{thousands, thousands_u128};
 
 /// Bytes in a human unit: `1.5 MiB`.
 #[must_use]

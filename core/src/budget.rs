@@ -276,6 +276,26 @@ pub fn parse_bytes(text: &str) -> Result<u64, String> {
     Ok(bytes as u64)
 }
 
+/// `1234567` → "1,234,567".
+#[must_use]
+pub fn thousands(n: u64) -> String {
+    thousands_u128(u128::from(n))
+}
+
+/// [`thousands`] for counts beyond `u64` (KRS kernel instances).
+#[must_use]
+pub fn thousands_u128(n: u128) -> String {
+    let digits = n.to_string();
+    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
 /// `1536` → "1.5 KiB".
 #[must_use]
 pub fn human(bytes: u64) -> String {

@@ -28,6 +28,7 @@ use gltf::json::validation::Checked;
 
 use super::error::IoError;
 use super::gltf_mesh::Importer;
+use crate::budget::thousands;
 
 /// The extension that draws a node's mesh once per instance.
 pub(crate) const INSTANCING: &str = "EXT_mesh_gpu_instancing";
@@ -396,19 +397,6 @@ pub(crate) fn level_of_detail_note(root: &json::Root) -> Option<String> {
              level (the node's own mesh) is imported, the coarser levels are not"
         )
     })
-}
-
-/// `1234567` → "1,234,567".
-fn thousands(n: u64) -> String {
-    let digits = n.to_string();
-    let mut out = String::with_capacity(digits.len() + digits.len() / 3);
-    for (i, c) in digits.chars().enumerate() {
-        if i > 0 && (digits.len() - i).is_multiple_of(3) {
-            out.push(',');
-        }
-        out.push(c);
-    }
-    out
 }
 
 #[cfg(test)]
