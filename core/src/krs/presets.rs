@@ -208,10 +208,7 @@ pub fn terrain() -> KrsObject {
         material: soil,
     })];
     for i in 0..levels {
-        let azimuth: f32 = rng.random_range(0.0..TAU);
-        let tilt: f32 =
-            rng.random_range(0.05..0.14) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = tilted_normal(azimuth, tilt);
+        let normal = random_fold_normal(&mut rng, 0.05..0.14);
         let spacing = 1.5 * 1.45f32.powi(i);
         mirrors.push(MirrorPlane::new(
             normal,
@@ -325,6 +322,14 @@ pub(super) fn symmetric(rng: &mut Pcg32, half: f32) -> f32 {
     } else {
         0.0
     }
+}
+
+/// A ground fold's mirror normal: any azimuth, tilted out of the horizontal by an amount drawn
+/// from `tilt`, up or down.
+fn random_fold_normal(rng: &mut Pcg32, tilt: std::ops::Range<f32>) -> Vec3 {
+    let azimuth: f32 = rng.random_range(0.0..TAU);
+    let tilt: f32 = rng.random_range(tilt) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    tilted_normal(azimuth, tilt)
 }
 
 /// The unit normal at `azimuth` around y (0 = +x, π/2 = +z), tilted by `tilt` out of the
@@ -638,10 +643,7 @@ pub fn folded_ground(ground: Material, fine: usize, radius: f32, seed: u64) -> K
     let mut rng = Pcg32::seed_from_u64(seed ^ 0x9e37_79b9);
     let mut mirrors = Vec::with_capacity(fine);
     for i in 0..fine {
-        let azimuth: f32 = rng.random_range(0.0..TAU);
-        let tilt: f32 =
-            rng.random_range(0.06..0.16) * if rng.random_bool(0.5) { 1.0 } else { -1.0 };
-        let normal = tilted_normal(azimuth, tilt);
+        let normal = random_fold_normal(&mut rng, 0.06..0.16);
         // Beyond the trunk or stem (a fifth of the radius), growing per level.
         let offset = radius * rng.random_range(0.2..0.5) * 1.5f32.powi(i as i32);
         mirrors.push(MirrorPlane::new(normal, offset));
