@@ -338,6 +338,8 @@ pub struct FuzzReport {
     pub over_budget: Vec<(u64, u64)>,
     /// Largest peak heap of any case, in bytes.
     pub max_peak_bytes: u64,
+    /// The slowest case and its wall time (a loader must not spin on a small input).
+    pub slowest: (u64, Duration),
     /// Wall time.
     pub elapsed: Duration,
 }
@@ -346,13 +348,15 @@ impl std::fmt::Display for FuzzReport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         write!(
             f,
-            "{} cases: {} accepted, {} refused, {} panics, {} over memory budget, max peak heap {} bytes, {:.2} s",
+            "{} cases: {} accepted, {} refused, {} panics, {} over memory budget, max peak heap {} bytes, slowest case {} in {:.3} s, {:.2} s",
             self.cases,
             self.accepted,
             self.refused,
             self.panics.len(),
             self.over_budget.len(),
             self.max_peak_bytes,
+            self.slowest.0,
+            self.slowest.1.as_secs_f64(),
             self.elapsed.as_secs_f64()
         )
     }
@@ -373,8 +377,13 @@ pub fn run<T, E>(
     for case in 0..cases {
         let input = mutate(corpus, &mut case_rng(seed, case));
         let budget = budget_bytes(input.len());
+        let began = Instant::now();
         let (outcome, peak) =
             peak_heap_bytes(|| catch_unwind(AssertUnwindSafe(|| load(&input).is_ok())));
+        let took = began.elapsed();
+        if took > report.slowest.1 {
+            report.slowest = (case, took);
+        }
         report.cases += 1;
         report.max_peak_bytes = report.max_peak_bytes.max(peak);
         if peak > budget {
@@ -615,6 +624,94 @@ mod loaders {
         assert_eq!(report.cases, cases);
         assert!(report.accepted > cases / 50, "{report}");
         assert!(report.refused > cases / 50, "{report}");
+    }
+
+    /// Encodes `img` in `format`.
+    fn encoded(img: &image::DynamicImage, format: image::ImageFormat) -> Vec<u8> {
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, format).expect("encodes");
+        out.into_inner()
+    }
+
+    /// PNG and JPEG textures, mutated, through every path that decodes one: the texture
+    /// decoder itself, an OBJ's `map_Kd`, a GLB's embedded image and the palette loader. The
+    /// seeds are an indexed PNG with a full palette (the malformed `PLTE` chunk of issue 45 is
+    /// one mutation away), an RGBA PNG, a 16-bit grey-and-alpha PNG and a baseline JPEG.
+    #[test]
+    fn images_survive_mutated_files_on_every_decoding_path() {
+        let palette: Vec<u8> = (0..=255u8).flat_map(|i| [i, 255 - i, i / 2]).collect();
+        let grey16 =
+            image::DynamicImage::ImageLumaA16(image::ImageBuffer::from_fn(7, 5, |x, y| {
+                image::LumaA([(x * 9000 + y * 300) as u16, 60_000])
+            }));
+        let rgb = image::DynamicImage::ImageRgb8(image::ImageBuffer::from_fn(16, 8, |x, y| {
+            image::Rgb([(x * 15) as u8, (y * 30) as u8, 128])
+        }));
+        let corpus = vec![
+            crate::mesh::tests::indexed_png(&palette),
+            obj::tests::png_2x1(),
+            encoded(&grey16, image::ImageFormat::Png),
+            encoded(&rgb, image::ImageFormat::Jpeg),
+        ];
+        // Small enough that a header claiming a huge image is refused before decoding, and
+        // the budget below holds for every accepted one.
+        let limits = ImportLimits {
+            max_texture_bytes: 1 << 20,
+            ..ImportLimits::default()
+        };
+        for file in &corpus {
+            assert!(
+                gltf_mesh::decode_texture(file, &limits).is_ok(),
+                "every seed image decodes before mutation"
+            );
+        }
+        let mtl = obj::tests::CUBE_MTL.as_bytes();
+        let options = obj::ObjOptions::default();
+        let paths: RefCell<[u64; 4]> = RefCell::default();
+        let cases = cases_from_env(10_000);
+        let report = run(&corpus, cases, SEED ^ 0x1A6E, budget, |bytes| {
+            let mut accepted = paths.borrow_mut();
+            let texture = gltf_mesh::decode_texture(bytes, &limits);
+            accepted[0] += u64::from(texture.is_ok());
+            let files = obj::tests::cube_files_with(mtl, bytes.to_vec());
+            let cube = obj::tests::CUBE_OBJ.as_bytes();
+            let from_obj =
+                obj::import_obj_slice_with(cube, &files, Path::new("fuzz.obj"), &options, &limits);
+            accepted[1] += u64::from(from_obj.is_ok());
+            let glb = gltf_mesh::tests::textured_glb_with(bytes);
+            let from_glb =
+                gltf_mesh::import_gltf_slice_with(&glb, None, Path::new("fuzz.glb"), &limits);
+            accepted[2] += u64::from(from_glb.is_ok());
+            accepted[3] += u64::from(crate::sculpt::palette_from_png(bytes).is_ok());
+            // One decoder behind every path: they accept the same images.
+            assert_eq!(
+                texture.is_ok(),
+                from_glb.is_ok(),
+                "GLB and decoder disagree"
+            );
+            texture.map(|_| ()).map_err(|_| ())
+        });
+        let paths = paths.into_inner();
+        eprintln!("image fuzz: {report}; accepted by decoder / OBJ / GLB / palette {paths:?}");
+        assert!(
+            report.panics.is_empty(),
+            "seed {:#x}: panics {:?}",
+            SEED ^ 0x1A6E,
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(
+            report.over_budget.is_empty(),
+            "over budget {:?}",
+            &report.over_budget[..report.over_budget.len().min(10)]
+        );
+        assert_eq!(report.cases, cases);
+        // Mutations reach the decoders' insides: some images still decode, most do not.
+        assert!(report.accepted > cases / 50, "{report}");
+        assert!(report.refused > cases / 50, "{report}");
+        assert!(
+            paths.iter().all(|&n| n > 0),
+            "a path accepted nothing: {paths:?}"
+        );
     }
 
     #[cfg(unix)]

@@ -1500,7 +1500,12 @@ pub(crate) mod tests {
     /// A small textured, vertex-coloured, indexed GLB with a strip, a node hierarchy and an
     /// unlit material: a fuzz seed that reaches every reader in this module.
     pub(crate) fn textured_glb() -> Vec<u8> {
-        let png = png_2x1();
+        textured_glb_with(&png_2x1())
+    }
+
+    /// [`textured_glb`] with `png` (any bytes: the image fuzz target puts mutated PNGs and
+    /// JPEGs here) as its embedded image.
+    pub(crate) fn textured_glb_with(png: &[u8]) -> Vec<u8> {
         let mut doc = Doc::default();
         let pos = doc.floats(&QUAD, "VEC3", 3);
         let uv = doc.floats(&[0.0, 0.0, 1.0, 0.0, 1.0, 1.0, 0.0, 1.0], "VEC2", 2);
@@ -1527,7 +1532,7 @@ pub(crate) mod tests {
         );
         let indices = doc.accessor(&[0, 0, 1, 0, 3, 0, 2, 0], "SCALAR", 5123, 4);
         doc.accessors[colors]["normalized"] = json!(true);
-        doc.accessor(&png, "SCALAR", 5121, png.len());
+        doc.accessor(png, "SCALAR", 5121, png.len());
         let image_view = doc.views.len() - 1;
         doc.accessors.pop();
         doc.glb(json!({

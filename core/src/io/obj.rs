@@ -479,10 +479,18 @@ map_Kd tex.png
 
     /// Side files for [`CUBE_OBJ`] from memory.
     pub(crate) fn cube_files(mtl: &[u8]) -> impl Fn(&str) -> Result<Option<Vec<u8>>, IoError> + '_ {
+        cube_files_with(mtl, png_2x1())
+    }
+
+    /// [`cube_files`] with `texture` (any bytes) as the `map_Kd` image.
+    pub(crate) fn cube_files_with(
+        mtl: &[u8],
+        texture: Vec<u8>,
+    ) -> impl Fn(&str) -> Result<Option<Vec<u8>>, IoError> + '_ {
         move |name: &str| {
             Ok(match name {
                 "cube.mtl" => Some(mtl.to_vec()),
-                "tex.png" => Some(png_2x1()),
+                "tex.png" => Some(texture.clone()),
                 _ => None,
             })
         }

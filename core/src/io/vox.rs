@@ -66,6 +66,11 @@ pub const MAX_INSTANCES: usize = 1 << 16;
 /// Most frames one animated shape may have (a frame index `_f` is below it).
 pub const MAX_FRAMES: u32 = 4096;
 
+/// Largest voxel coordinate magnitude a `.vox` scene may place: world positions stay exact in
+/// `f32` up to 2^24. The importer refuses voxels beyond it and the exporter refuses to write
+/// them, so every file Thicket writes, Thicket reads.
+pub const MAX_COORD: i64 = 1 << 24;
+
 /// Deepest scene graph followed (MagicaVoxel nests a few levels; cycles hit this limit).
 pub const MAX_SCENE_DEPTH: usize = 64;
 

@@ -1154,6 +1154,7 @@ fn uniform_scale(scale: Vec3) -> Option<f32> {
 fn validate_object(o: &Object) -> Result<(), SceneError> {
     let ctx = "the object";
     o.transform.validate(ctx)?;
+    check_world_extent(o, ctx)?;
     if let Some(m) = &o.motion {
         m.validate().map_err(|e| invalid("motion", ctx, e))?;
     }
@@ -1242,7 +1243,71 @@ fn validate_krs(o: &Object, k: &KrsObject, ctx: &str) -> Result<(), SceneError> 
 /// Largest coordinate or length a placed KRS may hold. The tracer squares differences of
 /// positions and sums three of them (`length_squared`, dot products): with |x| ≤ 1e18 that is at
 /// most 3 × (2e18)² ≈ 1.2e37, below `f32::MAX` (3.4e38), so no distance overflows to infinity.
-pub const MAX_KRS_MAGNITUDE: f32 = 1e18;
+/// The same bound as every other world coordinate ([`MAX_WORLD_COORDINATE`]).
+pub const MAX_KRS_MAGNITUDE: f32 = MAX_WORLD_COORDINATE;
+
+/// Largest coordinate any object may reach in the world: the bound the mesh and glTF readers
+/// enforce on positions ([`crate::mesh::MAX_POSITION`]). Checking it here, where the project
+/// loader and every editor command validate, means nothing valid exports a coordinate that a
+/// reader (Thicket's or another's) refuses; the glTF writer checks its output against it too.
+pub const MAX_WORLD_COORDINATE: f32 = crate::mesh::MAX_POSITION;
+
+/// The object's reach within ±[`MAX_WORLD_COORDINATE`]: a voxel model's whole canvas (so any
+/// voxel painted into it stays in range) and every frame's, a mesh's vertices, each moved by the
+/// transform. O(1) for voxels, one pass over the vertices for a mesh (as its own validation).
+fn check_world_extent(o: &Object, ctx: &str) -> Result<(), SceneError> {
+    let m = o.transform.matrix();
+    let fits = |(lo, hi): (Vec3, Vec3)| {
+        let within = |v: Vec3| v.is_finite() && v.abs().max_element() <= MAX_WORLD_COORDINATE;
+        within(lo) && within(hi)
+    };
+    let refuse = |what: &str, (lo, hi): (Vec3, Vec3)| {
+        invalid(
+            what,
+            ctx,
+            format!(
+                "the object reaches {lo} to {hi} in the world, beyond ±{MAX_WORLD_COORDINATE:e} \
+                 units, which glTF readers (Thicket's included) refuse and where squared \
+                 distances overflow; move it nearer the origin or make it smaller"
+            ),
+        )
+    };
+    if !fits((o.transform.translation, o.transform.translation)) {
+        let t = o.transform.translation;
+        return Err(refuse("transform.translation", (t, t)));
+    }
+    match &o.kind {
+        ObjectKind::Voxels(v) => {
+            let canvas = |origin: Vec3, extent: u32| {
+                let far = origin + Vec3::splat(extent as f32 * v.voxel_size);
+                transform_bounds(&m, origin, far)
+            };
+            let own = canvas(v.origin, v.svo.extent());
+            if !fits(own) {
+                return Err(refuse("origin/voxel_size", own));
+            }
+            if let Some(f) = &v.frames {
+                for fr in &f.frames {
+                    let b = canvas(fr.origin, fr.svo.extent().max(v.svo.extent()));
+                    if !fits(b) {
+                        return Err(refuse("frames.origin", b));
+                    }
+                }
+            }
+        }
+        ObjectKind::Mesh(mesh) => {
+            if let Some((lo, hi)) = mesh.model.bounds() {
+                let b = transform_bounds(&m, lo, hi);
+                if !fits(b) {
+                    return Err(refuse("transform", b));
+                }
+            }
+        }
+        // Checked after the transform by `check_krs_magnitudes`, kernel by kernel.
+        ObjectKind::Krs(_) => {}
+    }
+    Ok(())
+}
 
 /// Every position and length of the placed KRS (kernels, mirror offsets) within
 /// ±[`MAX_KRS_MAGNITUDE`].
@@ -1490,6 +1555,74 @@ mod tests {
             ..Transform::default()
         };
         assert!(doc.validate().unwrap_err().to_string().contains("scale"));
+    }
+
+    /// The readers' coordinate bound is the documents' bound: an object that reaches past
+    /// ±1e18 in the world is refused however it gets there (translation, origin, voxel size,
+    /// scale of a mesh, a frame's origin), and one just inside is accepted.
+    #[test]
+    fn objects_stay_within_the_coordinates_readers_accept() {
+        let mut doc = Document::default();
+        let svo = Svo::new(4, false).unwrap();
+        doc.add(
+            "Rock",
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                ..VoxelModel::default()
+            }),
+        );
+        // 16 voxels of 1e16 from 1e17: the canvas ends at 2.6e17, inside.
+        if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+            v.voxel_size = 1e16;
+            v.origin = Vec3::splat(1e17);
+        }
+        doc.validate().unwrap();
+        let refused = |doc: &Document, what: &str| {
+            let e = doc.validate().unwrap_err().to_string();
+            assert!(
+                e.contains("Rock") && e.contains(what) && e.contains("beyond ±1e18"),
+                "{e}"
+            );
+        };
+        // A voxel size that carries the far corner of the canvas past the bound.
+        if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+            v.voxel_size = 1e17;
+        }
+        refused(&doc, "origin/voxel_size");
+        if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+            v.voxel_size = 1.0;
+            v.origin = Vec3::new(0.0, -2e18, 0.0);
+        }
+        refused(&doc, "origin/voxel_size");
+        if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
+            v.origin = Vec3::ZERO;
+        }
+        doc.objects[0].transform.translation = Vec3::new(0.0, 0.0, 1e19);
+        refused(&doc, "translation");
+        doc.objects[0].transform.translation = Vec3::ZERO;
+        doc.objects[0].transform.scale = Vec3::splat(1e17);
+        refused(&doc, "origin/voxel_size");
+
+        // A mesh whose vertices are fine alone but not once scaled.
+        let mut mesh = Document::default();
+        let mut model = crate::mesh::MeshModel::default();
+        model.parts.push(crate::mesh::TriangleMesh {
+            positions: vec![Vec3::ZERO, Vec3::X * 1e4, Vec3::Y * 1e4],
+            indices: vec![0, 1, 2],
+            ..crate::mesh::TriangleMesh::default()
+        });
+        model.materials.push(crate::mesh::Material::default());
+        mesh.add(
+            "Rock",
+            ObjectKind::Mesh(MeshObject {
+                model,
+                casts_shadows: true,
+            }),
+        );
+        mesh.objects[0].transform.scale = Vec3::splat(1e13);
+        mesh.validate().unwrap();
+        mesh.objects[0].transform.scale = Vec3::splat(1e15);
+        refused(&mesh, "transform");
     }
 
     #[test]

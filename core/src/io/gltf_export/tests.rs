@@ -1685,3 +1685,39 @@ fn impostor_texels_show_what_lies_behind_them_on_the_quads() {
         assert!(covered > 50, "view {view}: {covered} texels");
     }
 }
+
+/// The writer checks its output against the reader's limits: a non-finite number anywhere in
+/// the JSON (serde would write `null`, invalid glTF) or a number beyond ±1e18 is
+/// refused naming where it is, and the unchanged scene still encodes and reads back.
+#[test]
+fn the_writer_refuses_what_readers_refuse() {
+    let mut svo = Svo::new(2, false).unwrap();
+    svo.set(UVec3::new(1, 1, 1), Voxel::new([200, 10, 10, 255], Vec3::Y))
+        .unwrap();
+    let doc = doc_with("Dot", svo, 1.0, Vec3::ZERO);
+    let path = Path::new("dot.glb");
+    let (scene, _) = build_scene(&doc, path, &GltfExportOptions::default(), NO_PROGRESS).unwrap();
+    let glb = encode_glb(&scene, path).unwrap();
+    crate::io::gltf_mesh::import_gltf_slice(&glb, None).expect("a valid scene reads back");
+
+    let mut nan = scene.clone();
+    nan.nodes[0].transform.translation.y = f32::NAN;
+    let e = encode_glb(&nan, path).unwrap_err().to_string();
+    assert!(
+        e.contains("null") && e.contains("nodes[0].translation[1]"),
+        "{e}"
+    );
+
+    let mut far = scene.clone();
+    far.nodes[0].transform.translation.x = 3e18;
+    let e = encode_glb(&far, path).unwrap_err().to_string();
+    assert!(
+        e.contains("nodes[0].translation[0]") && e.contains("1e18"),
+        "{e}"
+    );
+
+    let mut huge = scene;
+    huge.nodes[0].primitives[0].positions[2].z = 5e18;
+    let e = encode_glb(&huge, path).unwrap_err().to_string();
+    assert!(e.contains("element 2") && e.contains("1e18"), "{e}");
+}

@@ -985,6 +985,7 @@ impl Builder {
         type_: Type,
         with_bounds: bool,
     ) -> Result<json::Index<json::Accessor>, EncodeError> {
+        check_floats(data, dims)?;
         let bytes: &[u8] = bytemuck::cast_slice(data);
         let view = self.view(bytes, Some(json::buffer::Target::ArrayBuffer))?;
         let bounds = with_bounds.then(|| {
@@ -1283,11 +1284,82 @@ impl Builder {
             .root
             .to_vec()
             .map_err(|e| EncodeError::Encoding(format!("glTF JSON: {e}")))?;
+        // Read back as a reader will: a non-finite float was written as `null`.
+        let value: serde_json::Value = serde_json::from_slice(&json)
+            .map_err(|e| EncodeError::Encoding(format!("glTF JSON: {e}")))?;
+        check_json_numbers(&value, &mut String::new())?;
         Ok(Encoded {
             json,
             bin: self.bin,
         })
     }
+}
+
+/// The largest number the writer puts in a float accessor or the JSON: what the glTF reader
+/// accepts for a position ([`crate::mesh::MAX_POSITION`]), so Thicket reads every file it writes.
+const MAX_WRITTEN: f32 = crate::mesh::MAX_POSITION;
+
+/// Every value of a float accessor finite and within ±[`MAX_WRITTEN`]: `NaN` or infinity would
+/// make an invalid file, a larger value one that readers refuse.
+fn check_floats(data: &[f32], dims: usize) -> Result<(), EncodeError> {
+    match data
+        .iter()
+        .position(|v| !(v.is_finite() && v.abs() <= MAX_WRITTEN))
+    {
+        None => Ok(()),
+        Some(i) => Err(EncodeError::Invalid(format!(
+            "element {} of a {dims}-component float attribute is {}, which glTF readers refuse \
+             (values must be finite and within ±{MAX_WRITTEN:e})",
+            i / dims.max(1),
+            data[i]
+        ))),
+    }
+}
+
+/// Every number in the JSON finite and within ±[`MAX_WRITTEN`], and no `null` where a number
+/// was meant: serde writes a non-finite float as `null`, which makes the file invalid glTF.
+/// `path` is the JSON path so far, for the message (`nodes[3].translation[0]`).
+fn check_json_numbers(value: &serde_json::Value, path: &mut String) -> Result<(), EncodeError> {
+    use serde_json::Value;
+    let refuse = |path: &str, what: String| {
+        Err(EncodeError::Invalid(format!(
+            "the glTF JSON would hold {what} at {path}, which glTF readers refuse (numbers must \
+             be finite and within ±{MAX_WRITTEN:e}); the scene has a value out of range there"
+        )))
+    };
+    match value {
+        Value::Null => return refuse(path, "null (a NaN or infinite value)".to_owned()),
+        Value::Number(n) => {
+            if let Some(f) = n.as_f64()
+                && !(f.is_finite() && f.abs() <= f64::from(MAX_WRITTEN))
+                // Byte lengths and offsets are integers well below 1e18; only floats matter.
+                && !n.is_u64()
+            {
+                return refuse(path, f.to_string());
+            }
+        }
+        Value::Array(items) => {
+            for (i, item) in items.iter().enumerate() {
+                let len = path.len();
+                path.push_str(&format!("[{i}]"));
+                check_json_numbers(item, path)?;
+                path.truncate(len);
+            }
+        }
+        Value::Object(fields) => {
+            for (key, item) in fields {
+                let len = path.len();
+                if !path.is_empty() {
+                    path.push('.');
+                }
+                path.push_str(key);
+                check_json_numbers(item, path)?;
+                path.truncate(len);
+            }
+        }
+        Value::Bool(_) | Value::String(_) => {}
+    }
+    Ok(())
 }
 
 /// Packs JSON and binary chunks into a GLB container (both padded to 4 bytes: JSON with

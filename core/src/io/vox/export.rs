@@ -8,7 +8,9 @@ use std::path::{Path, PathBuf};
 use glam::{DMat4, DVec3};
 
 use super::chunks::{write_chunk, write_dict};
-use super::{IMat3, MAX_MODEL_EDGE, VoxError, decode_rotation, imat_apply, mv_cell_from_yup};
+use super::{
+    IMat3, MAX_COORD, MAX_MODEL_EDGE, VoxError, decode_rotation, imat_apply, mv_cell_from_yup,
+};
 use crate::scene::{Object, ObjectKind, VoxelModel};
 
 /// MagicaVoxel-space cell → (sRGB colour, index into the export's material table).
@@ -484,14 +486,22 @@ pub fn export_vox_bytes(
     Ok((out, report))
 }
 
-/// `_t` must fit the file's 32-bit integers.
+/// `_t` with the model's voxels around it within ±[`MAX_COORD`], where the importer (and
+/// MagicaVoxel's float positions) stay exact: what is written can be read back.
 fn check_translation(key: &Keyframe, name: &str, path: &Path) -> Result<(), VoxError> {
-    if key.translation.iter().any(|t| i32::try_from(*t).is_err()) {
+    let reach = i64::from(MAX_MODEL_EDGE);
+    if key
+        .translation
+        .iter()
+        .any(|t| t.saturating_abs().saturating_add(reach) > MAX_COORD)
+    {
         return Err(VoxError::Object {
             path: path.to_owned(),
             object: name.to_owned(),
             detail: format!(
-                "translation {:?} does not fit .vox's 32-bit range",
+                "translation {:?} voxels would place voxels beyond ±{MAX_COORD}, where .vox \
+                 positions stop being exact and readers (Thicket's included) refuse them; move \
+                 the object nearer the origin or export with a larger grid unit (--grid-unit)",
                 key.translation
             ),
         });

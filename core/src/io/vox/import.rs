@@ -7,7 +7,7 @@ use glam::{UVec3, Vec3};
 
 use super::chunks::{Layout, validate};
 use super::{
-    DEFAULT_MAX_VOXELS, IDENTITY, IMat3, MAX_FILE_BYTES, MAX_FRAMES, MAX_INSTANCES,
+    DEFAULT_MAX_VOXELS, IDENTITY, IMat3, MAX_COORD, MAX_FILE_BYTES, MAX_FRAMES, MAX_INSTANCES,
     MAX_SCENE_DEPTH, VoxError, decode_rotation, imat_apply, imat_mul, malformed, scene_error,
     yup_cell_from_mv, yup_from_mv,
 };
@@ -721,9 +721,6 @@ fn shape_frames(
         })
         .collect()
 }
-
-/// Largest coordinate magnitude accepted: world positions stay exact in `f32`.
-const MAX_COORD: i64 = 1 << 24;
 
 /// Places one instance's voxels in Y-up world cells; returns its octree (coordinates relative
 /// to the minimum cell) and that minimum cell.

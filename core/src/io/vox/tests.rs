@@ -1059,3 +1059,27 @@ fn the_export_estimate_counts_the_cells_before_any_is_built() {
     );
     assert!(!path.exists());
 }
+
+/// The exporter writes only what the importer reads: a model placed so far from the origin
+/// that its voxels pass ±2^24 is refused with the object named (before, its `_t` fitted 32 bits
+/// and the file was written, then refused on reading); one just inside round-trips exactly.
+#[test]
+fn export_refuses_positions_the_importer_refuses() {
+    let voxels = vec![(UVec3::new(0, 0, 0), solid([1, 2, 3, 255]))];
+    let mut near = object("near", voxels.clone(), 1);
+    let inside = (MAX_COORD - 512) as f32;
+    near.transform.translation = Vec3::new(inside, 0.0, 0.0);
+    let back = bytes_round_trip(std::slice::from_ref(&near));
+    assert_eq!(back.len(), 1);
+    assert_eq!(back[0].0[0], MAX_COORD - 512);
+
+    let mut far = object("far", voxels, 1);
+    far.transform.translation = Vec3::new(0.0, 0.0, -((MAX_COORD * 4) as f32));
+    let e = export_vox_bytes(&[far], Path::new("far.vox"), &VoxExportOptions::default())
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("far.vox") && e.contains("far") && e.contains("16777216"),
+        "{e}"
+    );
+}
