@@ -292,6 +292,7 @@ fn mutated_project_files_never_panic() {
     let (mut accepted, mut refused) = (0u64, 0u64);
     let mut panics: Vec<u64> = Vec::new();
     let mut max_peak = 0u64;
+    let mut slowest = std::time::Duration::ZERO;
     for case in 0..cases {
         let (mut j, mut b) = (json.clone(), bin.clone());
         let target = if case % 2 == 0 { &mut j } else { &mut b };
@@ -315,6 +316,7 @@ fn mutated_project_files_never_panic() {
             }
         }
         let bin_for_case = b.clone();
+        let began = std::time::Instant::now();
         // The loader proper (JSON, checksums, payloads), and the payload decoder fed the raw
         // mutated bytes directly (past the checksum, so its own checks run).
         let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
@@ -325,6 +327,7 @@ fn mutated_project_files_never_panic() {
             }))
         });
         max_peak = max_peak.max(peak);
+        slowest = slowest.max(began.elapsed());
         match result {
             Ok(true) => accepted += 1,
             Ok(false) => refused += 1,
@@ -333,8 +336,9 @@ fn mutated_project_files_never_panic() {
     }
     eprintln!(
         "project fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
-         max peak heap per case {max_peak} bytes, {:.1} s",
+         max peak heap per case {max_peak} bytes, slowest case {:.3} s, {:.1} s",
         panics.len(),
+        slowest.as_secs_f64(),
         start.elapsed().as_secs_f64()
     );
     // Declared sizes are checked before allocating: no case may hold much more than its input.
@@ -952,6 +956,7 @@ fn structurally_mutated_projects_never_panic_or_amplify() {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(0x6A4F);
     let (mut accepted, mut refused, mut max_peak, mut max_input) = (0u64, 0u64, 0u64, 0u64);
     let mut panics = Vec::new();
+    let mut slowest = std::time::Duration::ZERO;
     let start = std::time::Instant::now();
     for case in 0..cases {
         let mut j = json.clone();
@@ -1016,6 +1021,7 @@ fn structurally_mutated_projects_never_panic_or_amplify() {
         let text = serde_json::to_vec(&j).unwrap();
         let input = (text.len() + bin.len()) as u64;
         max_input = max_input.max(input);
+        let began = std::time::Instant::now();
         let (outcome, peak) = crate::io::fuzz::peak_heap_bytes(|| {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
                 load_from_parts(&path, &text, |_| Ok(bin.clone())).is_ok()
@@ -1026,6 +1032,7 @@ fn structurally_mutated_projects_never_panic_or_amplify() {
             "case {case}: {peak} bytes for {input} bytes of input"
         );
         max_peak = max_peak.max(peak);
+        slowest = slowest.max(began.elapsed());
         match outcome {
             Ok(true) => accepted += 1,
             Ok(false) => refused += 1,
@@ -1034,8 +1041,10 @@ fn structurally_mutated_projects_never_panic_or_amplify() {
     }
     eprintln!(
         "project graph fuzz: {cases} cases: {accepted} accepted, {refused} refused, {} panics, \
-         max peak heap {max_peak} bytes (largest input {max_input}), {:.1} s",
+         max peak heap {max_peak} bytes (largest input {max_input}), slowest case {:.3} s, \
+         {:.1} s",
         panics.len(),
+        slowest.as_secs_f64(),
         start.elapsed().as_secs_f64()
     );
     assert!(
@@ -1191,6 +1200,7 @@ fn mutated_frame_payloads_never_panic() {
     let mut rng = rand_pcg::Pcg64::seed_from_u64(23);
     let cases = crate::io::fuzz::cases_from_env(10_000);
     let (mut ok, mut refused) = (0u64, 0u64);
+    let mut slowest = std::time::Duration::ZERO;
     for _ in 0..cases {
         let mut b = bin.clone();
         match rng.random_range(0..3) {
@@ -1206,9 +1216,11 @@ fn mutated_frame_payloads_never_panic() {
                 b[i..i + 4].fill(0xff);
             }
         }
+        let began = std::time::Instant::now();
         let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
             std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| decode_frames(&b).is_ok()))
         });
+        slowest = slowest.max(began.elapsed());
         assert!(peak < 1 << 20, "a case held {peak} bytes");
         match result {
             Ok(true) => ok += 1,
@@ -1216,5 +1228,9 @@ fn mutated_frame_payloads_never_panic() {
             Err(_) => panic!("decode_frames panicked"),
         }
     }
+    eprintln!(
+        "frames fuzz: {cases} cases: {ok} decoded, {refused} refused, slowest case {:.3} s",
+        slowest.as_secs_f64()
+    );
     assert!(refused > cases / 2 && ok > 0, "ok {ok}, refused {refused}");
 }

@@ -952,6 +952,7 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
         max_voxels: 1 << 20,
     };
     let (mut ok, mut err, mut panics) = (0, 0, 0);
+    let mut slowest = std::time::Duration::ZERO;
     let start = Instant::now();
     for case in 0..cases {
         if case > 0 && case % 100_000 == 0 {
@@ -963,7 +964,10 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
         let k = (case % files.len() as u64) as usize;
         let data = mutate(&mut rng, &files[k].1, &headers[k]);
         let name = Path::new(&files[k].0);
-        match catch_unwind(AssertUnwindSafe(|| import_vox_bytes(&data, name, &options))) {
+        let began = Instant::now();
+        let outcome = catch_unwind(AssertUnwindSafe(|| import_vox_bytes(&data, name, &options)));
+        slowest = slowest.max(began.elapsed());
+        match outcome {
             Ok(Ok(_)) => ok += 1,
             Ok(Err(e)) => {
                 let msg = e.to_string();
@@ -982,6 +986,7 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
             }
         }
     }
+    eprintln!("vox fuzz: slowest case {:.3} s", slowest.as_secs_f64());
     (ok, err, panics)
 }
 
