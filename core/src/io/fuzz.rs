@@ -714,6 +714,76 @@ mod loaders {
         );
     }
 
+    /// The palette files (`.gpl` text, PNG strips, a `.vox` palette) and the rig files of
+    /// `thicket rig` / `thicket animate` (skeleton and clip specs, JSON), mutated, through the
+    /// parsers and the checks that turn them into a skeleton and a clip.
+    #[test]
+    fn palettes_and_rig_files_survive_mutated_files() {
+        use crate::sculpt::{palette_from_png, palette_from_vox, palette_to_png, parse_gpl};
+        use crate::skin::{ClipSpec, SkeletonSpec};
+        let colors: Vec<[u8; 4]> = (0..40u8).map(|i| [i * 6, 255 - i, i, 255]).collect();
+        let gpl =
+            b"GIMP Palette\nName: fuzz\nColumns: 8\n#\n255 0 0\tred\n  0 128 255 sky\n12 34 56\n"
+                .to_vec();
+        let skeleton = br#"{"joints": [
+            {"name": "hips", "parent": null, "position": [0.0, 1.0, 0.0]},
+            {"name": "spine", "parent": "hips", "position": [0.0, 1.5, 0.0]},
+            {"name": "arm.L", "parent": "spine", "position": [0.5, 1.6, 0.0]},
+            {"name": "arm.R", "parent": "spine", "position": [-0.5, 1.6, 0.0]}]}"#
+            .to_vec();
+        let clip = br#"{"name": "wave", "length": 1.0, "loop": true, "keys": [
+            {"joint": "arm.L", "time": 0.0, "rotation_deg": [0, 0, 10]},
+            {"joint": "arm.L", "time": 0.5, "rotation_deg": [0, 0, 80], "translation": [0, 0.1, 0]},
+            {"joint": "spine", "time": 1.0, "rotation_deg": [5, 0, 0]}]}"#
+            .to_vec();
+        let vox = asset("vox/dot_vox/placeholder.vox");
+        let corpus = vec![gpl, palette_to_png(&colors), vox, skeleton.clone(), clip];
+        let bones = serde_json::from_slice::<SkeletonSpec>(&skeleton)
+            .expect("the seed skeleton parses")
+            .to_skeleton(None)
+            .expect("the seed skeleton is valid");
+        let cases = cases_from_env(10_000);
+        let counts: RefCell<[u64; 5]> = RefCell::default();
+        let report = run(&corpus, cases, SEED ^ 0x9A1E, budget, |bytes| {
+            let mut ok = counts.borrow_mut();
+            let gpl = std::str::from_utf8(bytes)
+                .ok()
+                .is_some_and(|t| parse_gpl(t).is_ok());
+            let png = palette_from_png(bytes).is_ok();
+            let vox = palette_from_vox(bytes).is_ok();
+            let skeleton = serde_json::from_slice::<SkeletonSpec>(bytes)
+                .ok()
+                .is_some_and(|s| s.to_skeleton(None).is_ok());
+            let clip = serde_json::from_slice::<ClipSpec>(bytes)
+                .ok()
+                .is_some_and(|c| c.to_clip(&bones).is_ok());
+            for (n, accepted) in ok.iter_mut().zip([gpl, png, vox, skeleton, clip]) {
+                *n += u64::from(accepted);
+            }
+            if gpl || png || vox || skeleton || clip {
+                Ok(())
+            } else {
+                Err(())
+            }
+        });
+        let counts = counts.into_inner();
+        eprintln!(
+            "palette and rig fuzz: {report}; accepted as gpl/png/vox/skeleton/clip {counts:?}"
+        );
+        assert!(
+            report.panics.is_empty(),
+            "seed {:#x}: panics {:?}",
+            SEED ^ 0x9A1E,
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(report.over_budget.is_empty(), "{report}");
+        assert!(report.refused > cases / 50, "{report}");
+        assert!(
+            counts.iter().all(|&n| n > 0),
+            "a parser accepted nothing: {counts:?}"
+        );
+    }
+
     #[cfg(unix)]
     #[test]
     fn obj_references_outside_the_folder_are_never_read() {

@@ -45,7 +45,10 @@ pub use export::{
     VOX_EXPORT_BYTES_PER_CELL, VoxExportEstimate, VoxExportOptions, VoxExportReport,
     estimate_vox_export, export_vox, export_vox_bytes, export_vox_with,
 };
-pub use import::{VoxImportOptions, VoxScene, import_vox, import_vox_bytes, import_vox_with};
+pub use import::{
+    VOX_IMPORT_BYTES_PER_VOXEL, VoxImportOptions, VoxScene, estimate_vox_import, import_vox,
+    import_vox_bytes, import_vox_with,
+};
 
 #[allow(unused_imports, reason = "named in the module docs")]
 use crate::scene::{Object, VoxelModel};

@@ -1234,3 +1234,64 @@ fn mutated_frame_payloads_never_panic() {
     );
     assert!(refused > cases / 2 && ok > 0, "ok {ok}, refused {refused}");
 }
+
+/// The load estimate is above the measured peak heap of loading every sample with a `.bin`
+/// or KRS content, and not so far above that it refuses projects that would fit (at most
+/// twice the peak plus 1 MiB); a budget below the estimate refuses the load before the `.bin`
+/// is read, naming the file and the limit.
+#[test]
+fn the_load_estimate_covers_the_samples() {
+    let dir = std::path::PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/../projects"));
+    let (mut checked, mut large) = (0, 0);
+    for name in [
+        "cesiumman",
+        "critter",
+        "house",
+        "mixed",
+        "terrain",
+        "tree",
+        "woodland",
+    ] {
+        let path = dir.join(format!("{name}.thicket.json"));
+        let json = fs::metadata(&path).unwrap().len();
+        let bin: u64 = fs::read_dir(&dir)
+            .unwrap()
+            .filter_map(Result::ok)
+            .filter(|e| {
+                let n = e.file_name().to_string_lossy().into_owned();
+                n.starts_with(&format!("{name}.thicket.")) && n.ends_with(".bin")
+            })
+            .map(|e| e.metadata().unwrap().len())
+            .sum();
+        let (doc, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&path).unwrap());
+        drop(doc);
+        let estimate = estimate_load_bytes(json, bin);
+        assert!(
+            estimate >= peak,
+            "{name}: estimate {estimate} < peak {peak}"
+        );
+        assert!(
+            estimate <= 2 * peak + (1 << 20),
+            "{name}: estimate {estimate} is far above the peak {peak}"
+        );
+        checked += 1;
+        if bin > 0 {
+            // Refused between the JSON and the .bin: the JSON fits, the whole does not.
+            let budget = crate::budget::MemoryBudget::given(estimate_load_bytes(json, 0) + 1);
+            let (result, refused_peak) =
+                crate::io::fuzz::peak_heap_bytes(|| load_within(&path, &budget));
+            let e = result.unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{name}.thicket.json")) && e.contains("memory"),
+                "{e}"
+            );
+            // The JSON was parsed, the .bin never read: for the large payloads (cesiumman,
+            // house, terrain) that is less than half the .bin.
+            if bin > 1 << 20 {
+                large += 1;
+                assert!(refused_peak < bin / 2, "{name}: {refused_peak} bytes held");
+            }
+        }
+    }
+    assert_eq!((checked, large), (7, 3));
+}

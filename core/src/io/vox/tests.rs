@@ -613,7 +613,10 @@ fn inflated_counts_are_refused_with_where_and_what() {
     let e = import_vox_bytes(
         &bytes,
         Path::new("army.vox"),
-        &VoxImportOptions { max_voxels: 100 },
+        &VoxImportOptions {
+            max_voxels: 100,
+            ..VoxImportOptions::default()
+        },
     )
     .unwrap_err();
     assert!(matches!(e, VoxError::TooLarge { .. }), "{e}");
@@ -950,6 +953,7 @@ fn fuzz(cases: u64, seed: u64) -> (u64, u64, u64) {
     let mut rng = Pcg64::seed_from_u64(seed);
     let options = VoxImportOptions {
         max_voxels: 1 << 20,
+        ..VoxImportOptions::default()
     };
     let (mut ok, mut err, mut panics) = (0, 0, 0);
     let mut slowest = std::time::Duration::ZERO;
@@ -1087,4 +1091,55 @@ fn export_refuses_positions_the_importer_refuses() {
         e.contains("far.vox") && e.contains("far") && e.contains("16777216"),
         "{e}"
     );
+}
+
+/// The import's memory is estimated from the voxels the scene graph places before any model is
+/// built: the estimate covers the measured peak of every sample file (and is within 4× of it
+/// plus 1 MiB, so it does not refuse what fits), and a budget below it refuses the file naming
+/// the instances and the limit, having allocated little.
+#[test]
+fn import_memory_is_estimated_before_building() {
+    let mut checked = 0;
+    for rel in [ARMY, PLACEHOLDER, METAL, AXES, SCENE, "mmmm/obj_house4.vox"] {
+        let bytes = read(rel);
+        let name = Path::new(rel);
+        let (scene, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            import_vox_bytes(&bytes, name, &VoxImportOptions::default()).unwrap()
+        });
+        let placed: u64 = scene
+            .objects
+            .iter()
+            .map(|o| {
+                let v = voxels_of(o);
+                v.svo.leaf_count()
+                    + v.frames
+                        .as_ref()
+                        .map_or(0, |f| f.frames.iter().map(|fr| fr.svo.leaf_count()).sum())
+            })
+            .sum();
+        drop(scene);
+        let estimate = estimate_vox_import(placed, bytes.len() as u64);
+        eprintln!("{rel}: {placed} voxels, peak {peak}, estimate {estimate}");
+        assert!(estimate >= peak, "{rel}: estimate {estimate} < peak {peak}");
+        assert!(
+            estimate <= 4 * peak + (1 << 20),
+            "{rel}: {estimate} vs {peak}"
+        );
+        if placed > 10_000 {
+            let tight = VoxImportOptions {
+                memory: crate::budget::MemoryBudget::given(estimate / 2),
+                ..VoxImportOptions::default()
+            };
+            let (result, refused_peak) =
+                crate::io::fuzz::peak_heap_bytes(|| import_vox_bytes(&bytes, name, &tight));
+            let e = result.unwrap_err().to_string();
+            assert!(
+                e.contains("instance(s) holding") && e.contains("memory"),
+                "{e}"
+            );
+            assert!(refused_peak < peak, "{rel}: {refused_peak} of {peak} held");
+            checked += 1;
+        }
+    }
+    assert!(checked >= 2, "only {checked} files large enough");
 }
