@@ -157,6 +157,11 @@ pub struct SkinReportArgs {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Most memory the report may need, e.g. 4G or 512M (default: the smallest of half this
+    /// machine's physical memory and this process's address-space and cgroup limits): loading
+    /// the project and one frame at --size, each estimated before the work.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket bench`.
@@ -415,6 +420,11 @@ pub struct ExportArgs {
     /// them); `auto`, nodes up to 4,096 placements, else gpu.
     #[arg(long, value_enum, default_value = "gpu")]
     pub instancing: InstancingArg,
+    /// Most memory reading the input may need, e.g. 4G or 512M (default: the smallest of half
+    /// this machine's physical memory and this process's address-space and cgroup limits),
+    /// estimated before it is read; the meshing is bounded by --max-triangles.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// `thicket export --instancing`.
@@ -622,6 +632,12 @@ pub struct InfoArgs {
     /// List each rigged model's joints with the voxels each is the strongest influence of.
     #[arg(long)]
     pub joints: bool,
+    /// Most memory reading the file may need, e.g. 4G or 512M (default: the smallest of half
+    /// this machine's physical memory and this process's address-space and cgroup limits). It
+    /// is estimated before the work (a mesh's vertices with every instance, a .vox scene
+    /// graph's copies, a project's payload) and a larger request is refused with its estimate.
+    #[arg(long, value_name = "SIZE", value_parser = thicket_core::budget::parse_bytes)]
+    pub memory_limit: Option<u64>,
 }
 
 /// Runs a parsed command line.
@@ -857,7 +873,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
     {
         files::refuse_overwriting_input(&args.project, &args.output.with_extension("bin"))?;
     }
-    let doc = files::load_document(&args.project)?;
+    let doc = files::load_document_within(&args.project, args.memory_limit)?;
     let options = GltfExportOptions {
         mode: match args.mode {
             ExportModeArg::Cubes => ExportMode::Cubes,
@@ -1918,12 +1934,19 @@ fn skin_report(args: &SkinReportArgs) -> anyhow::Result<()> {
             format!("bending cylinder at depth {depth}"),
         ),
         (None, Some(project)) => (
-            files::load_document(project)?,
+            files::load_document_within(project, args.memory_limit)?,
             project.display().to_string(),
         ),
         (None, None) => anyhow::bail!("give a project or --cylinder DEPTH"),
     };
     let ImageSize { width, height } = args.size;
+    check_render_budget(
+        &doc,
+        (width, height),
+        doc.camera,
+        &doc.quality,
+        args.memory_limit,
+    )?;
     let strategies = [
         StretchStrategy::Off,
         StretchStrategy::Thesis,
@@ -2109,7 +2132,7 @@ fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
 }
 
 fn info(args: &InfoArgs) -> anyhow::Result<()> {
-    let info = files::info(&args.file)?;
+    let info = files::info(&args.file, args.memory_limit)?;
     let text = if args.json {
         let mut s = serde_json::to_string_pretty(&info).context("encoding the report as JSON")?;
         s.push('\n');

@@ -121,8 +121,10 @@ pub struct MeshOptions {
     pub nodes: Option<Vec<String>>,
     /// A skinned glTF's octree depth in the editor's import (`None`: 7, as `thicket import`).
     pub skinned_depth: Option<u8>,
-    /// The memory the meshes read may fill, every instance of an instanced glTF mesh counted
-    /// (`--memory-limit`; `None`: half of this machine's physical memory).
+    /// The memory reading the file may fill, estimated before the work: a mesh's vertices
+    /// with every instance of an instanced glTF mesh counted, a `.vox` file's voxels with every
+    /// scene-graph copy counted, a project's decoded payload (`--memory-limit`; `None`: the
+    /// machine's default, [`thicket_core::budget::MemoryBudget::for_this_machine`]).
     pub memory_limit: Option<u64>,
 }
 
@@ -330,6 +332,23 @@ pub fn load_document(path: &Path) -> anyhow::Result<Document> {
     Ok(doc)
 }
 
+/// [`load_document`] within a memory budget (`--memory-limit`; `None`: the machine's
+/// default), estimated before the work as [`MeshOptions::memory_limit`] says.
+///
+/// # Errors
+/// See [`load_document`]; a file over the budget is refused with the estimate and the limit.
+pub fn load_document_within(path: &Path, memory_limit: Option<u64>) -> anyhow::Result<Document> {
+    let options = MeshOptions {
+        memory_limit,
+        ..MeshOptions::default()
+    };
+    let (doc, _, notes, _) = load_document_noted(path, &options)?;
+    for line in &notes {
+        log::warn!("{}: {line}", path.display());
+    }
+    Ok(doc)
+}
+
 /// What a source file held beyond the document (for `info`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct SourceCounts {
@@ -385,8 +404,12 @@ fn load_document_noted(
     let mut view = GltfView::default();
     let kind = kind_of(path)?;
     check_options(path, options)?;
+    let budget = options.memory_limit.map_or_else(
+        thicket_core::budget::MemoryBudget::for_this_machine,
+        thicket_core::budget::MemoryBudget::given,
+    );
     let doc = match kind {
-        FileKind::Project => load_project(path)?,
+        FileKind::Project => thicket_core::io::project::load_within(path, &budget)?,
         FileKind::Gltf | FileKind::Obj => {
             let import = load_mesh_imported(path, options)?;
             if import.instancing.instances > 0 {
@@ -400,7 +423,11 @@ fn load_document_noted(
             doc
         }
         FileKind::Vox => {
-            let scene = thicket_core::io::vox::import_vox(path)?;
+            let options = thicket_core::io::vox::VoxImportOptions {
+                memory: budget,
+                ..thicket_core::io::vox::VoxImportOptions::default()
+            };
+            let scene = thicket_core::io::vox::import_vox_with(path, &options)?;
             counts.stored_models = Some(scene.model_count);
             counts.stored_voxels = Some(scene.stored_voxels);
             let mut doc = Document::default();
@@ -414,10 +441,6 @@ fn load_document_noted(
     doc.validate()
         .with_context(|| format!("{}: invalid document", path.display()))?;
     Ok((doc, counts, notes, view))
-}
-
-fn load_project(path: &Path) -> anyhow::Result<Document> {
-    Ok(thicket_core::io::project::load(path)?)
 }
 
 /// Saves a project atomically (the previous save stays readable until the new one is whole).
@@ -840,9 +863,13 @@ pub fn document_info(doc: &Document, file: &Path, format: FileKind) -> DocumentI
 ///
 /// # Errors
 /// See [`load_document`].
-pub fn info(path: &Path) -> anyhow::Result<DocumentInfo> {
+pub fn info(path: &Path, memory_limit: Option<u64>) -> anyhow::Result<DocumentInfo> {
     let kind = kind_of(path)?;
-    let (doc, source) = load_document_with_source(path)?;
+    let options = MeshOptions {
+        memory_limit,
+        ..MeshOptions::default()
+    };
+    let (doc, source, _, _) = load_document_noted(path, &options)?;
     Ok(DocumentInfo {
         source,
         ..document_info(&doc, path, kind)

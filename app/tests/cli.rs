@@ -2381,3 +2381,76 @@ fn export_vox_refuses_early_advising_only_options_that_exist() {
         stderr(&o)
     );
 }
+
+/// `info`, `export` and `skin-report` take `--memory-limit` and refuse before the work: the
+/// house project (2.7 MB payload) and the house .vox (180,202 voxels) are refused under 4 MiB
+/// with the estimate and the limit, in one line naming the file, and read under the default.
+#[test]
+fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
+    let dir = tempfile::tempdir().unwrap();
+    let project = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
+    let vox = format!("{ASSETS}/vox/mmmm/obj_house4.vox");
+    let glb = dir.path().join("house.glb");
+    let refused = |o: &Output, file: &str, what: &str| {
+        let err = stderr(o);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(
+            err.starts_with("error: ")
+                && err.contains(file)
+                && err.contains(what)
+                && err.contains("over the limit of 4.0 MiB (--memory-limit)"),
+            "{err}"
+        );
+        assert_eq!(err.lines().count(), 1, "said once: {err}");
+        assert_eq!(err.matches(file).count(), 1, "the file named once: {err}");
+    };
+    let o = thicket(&["info", project, "--memory-limit", "4M"]);
+    refused(
+        &o,
+        "house.thicket.json",
+        "loading the project would need about",
+    );
+    let o = thicket(&["info", &vox, "--memory-limit", "4M"]);
+    refused(
+        &o,
+        "obj_house4.vox",
+        "holding 180,202 voxels would need about",
+    );
+    let o = thicket(&[
+        "export",
+        project,
+        "-o",
+        glb.to_str().unwrap(),
+        "--memory-limit",
+        "4M",
+    ]);
+    refused(&o, "house.thicket.json", "loading the project");
+    assert!(!glb.exists(), "nothing written");
+    let o = thicket(&["skin-report", project, "--memory-limit", "4M"]);
+    refused(&o, "house.thicket.json", "loading the project");
+    // The same files within the default budget.
+    for file in [project, vox.as_str()] {
+        let o = thicket(&["info", file]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains("voxels"), "{}", stdout(&o));
+    }
+    // skin-report also estimates its frame: a project that loads, at a size that does not fit.
+    let o = thicket(&[
+        "skin-report",
+        "--cylinder",
+        "4",
+        "--size",
+        "16384x16384",
+        "--memory-limit",
+        "256M",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.starts_with("error: rendering 16384x16384 would need about "),
+        "{err}"
+    );
+}

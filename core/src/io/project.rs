@@ -106,7 +106,6 @@ pub enum ProjectError {
         /// The limit.
         limit: u64,
     },
-    /// The document parses but holds values a renderer must not see.
     /// Loading it would need more memory than the budget allows (estimated before reading).
     #[error("{path}: {source}")]
     OverBudget {
@@ -115,6 +114,7 @@ pub enum ProjectError {
         /// The estimate, the limit and where the limit comes from.
         source: crate::budget::OverBudget,
     },
+    /// The document parses but holds values a renderer must not see.
     #[error("{path}: {source}")]
     Invalid {
         /// The file.

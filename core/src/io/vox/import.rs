@@ -188,8 +188,7 @@ pub fn import_vox_bytes(
         .memory
         .check(
             &format!(
-                "{}: importing {} instance(s) holding {} voxels",
-                path.display(),
+                "importing {} instance(s) holding {} voxels",
                 instances.len(),
                 crate::budget::thousands(planned)
             ),
