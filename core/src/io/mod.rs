@@ -19,6 +19,8 @@ pub(crate) mod gltf_report;
 pub mod gltf_skinned;
 pub mod gltf_view;
 pub mod obj;
+#[cfg(test)]
+mod round_trip_tests;
 pub mod skinned_voxels;
 
 pub use error::{ImportLimits, IoError};
