@@ -1426,9 +1426,8 @@ pub(crate) fn decode_texture(
     // The decoder's own working memory on top of the RGBA8 result.
     image_limits.max_alloc = Some(limits.max_texture_bytes.saturating_mul(2));
     reader.limits(image_limits);
-    let decoded = reader
-        .decode()
-        .map_err(|e| TextureError::Decode(crate::mesh::image_error_text(&e)))?;
+    let decoded =
+        crate::mesh::decode_contained(|| reader.decode()).map_err(TextureError::Decode)?;
     let rgba = decoded.to_rgba8();
     let (width, height) = rgba.dimensions();
     Ok(Texture {

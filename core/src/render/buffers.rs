@@ -472,8 +472,8 @@ impl RgbaImage {
         };
         let bytes = std::fs::read(path).map_err(|e| read_error(e.to_string()))?;
         crate::mesh::check_png_chunks(&bytes).map_err(read_error)?;
-        let img = image::load_from_memory(&bytes)
-            .map_err(|e| read_error(crate::mesh::image_error_text(&e)))?;
+        let img = crate::mesh::decode_contained(|| image::load_from_memory(&bytes))
+            .map_err(read_error)?;
         Ok(Self::from_rgba8(&img.to_rgba8()))
     }
 }

@@ -251,12 +251,10 @@ pub fn palette_from_png(bytes: &[u8]) -> Result<Vec<[u8; 4]>, PaletteError> {
     limits.max_image_height = Some(256);
     limits.max_alloc = Some(16 << 20);
     reader.limits(limits);
-    let img = reader
-        .decode()
+    let img = crate::mesh::decode_contained(|| reader.decode())
         .map_err(|e| {
             binary(format!(
-                "cannot decode the PNG (at most 256×256 pixels): {}",
-                crate::mesh::image_error_text(&e)
+                "cannot decode the PNG (at most 256×256 pixels): {e}"
             ))
         })?
         .to_rgba8();
