@@ -515,11 +515,6 @@ pub fn check_png_chunks(bytes: &[u8]) -> Result<(), String> {
     Ok(())
 }
 
-/// An image decoder's or encoder's error in words a user can read. The `png` crate writes some
-/// errors with Rust debug text (`CRC error … while decoding ChunkType { type: IDAT, critical:
-/// true, … } chunk`); every message that reaches the user goes through here, so the kind of
-/// failure comes first and the decoder's detail follows with such structures reduced to their
-/// names (`… while decoding IDAT chunk`).
 /// Runs an image decode with a panic in the decoder contained: the checks before decoding
 /// ([`check_png_chunks`], the header's size against the limit) cover every panic the fuzz
 /// targets have found, and should a decoder still panic on a file nobody has tried, the image
@@ -541,6 +536,11 @@ pub fn decode_contained<T>(
     }
 }
 
+/// An image decoder's or encoder's error in words a user can read. The `png` crate writes some
+/// errors with Rust debug text (`CRC error … while decoding ChunkType { type: IDAT, critical:
+/// true, … } chunk`); every message that reaches the user goes through here, so the kind of
+/// failure comes first and the decoder's detail follows with such structures reduced to their
+/// names (`… while decoding IDAT chunk`).
 #[must_use]
 pub fn image_error_text(e: &image::ImageError) -> String {
     use image::ImageError as E;
@@ -682,11 +682,13 @@ pub(crate) mod tests {
     /// further; a decoder error keeps its own words.
     #[test]
     fn a_panicking_decoder_refuses_the_image_instead_of_crashing() {
-        let e = decode_contained::<()>(|| panic!("index out of bounds in a decoder"))
-            .unwrap_err();
-        assert!(e.starts_with("the image decoder failed on this file"), "{e}");
-        let e = decode_contained(|| image::load_from_memory(b"\x89PNG\r\n\x1a\nshort"))
-            .unwrap_err();
+        let e = decode_contained::<()>(|| panic!("index out of bounds in a decoder")).unwrap_err();
+        assert!(
+            e.starts_with("the image decoder failed on this file"),
+            "{e}"
+        );
+        let e =
+            decode_contained(|| image::load_from_memory(b"\x89PNG\r\n\x1a\nshort")).unwrap_err();
         assert!(e.contains("end of file") && !e.contains("ChunkType"), "{e}");
         let png = indexed_png(&[1, 2, 3]);
         assert!(decode_contained(|| image::load_from_memory(&png)).is_ok());
