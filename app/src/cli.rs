@@ -909,13 +909,50 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         },
         ..GltfExportOptions::default()
     };
+    // The memory budget becomes a triangle limit, checked before meshing as --max-triangles is.
+    let budget = memory_budget(args.memory_limit);
+    let fixed = thicket_core::io::gltf_export::export_fixed_bytes(&doc, &options);
+    budget.check(
+        "exporting the voxel models",
+        fixed,
+        "export fewer objects (--object), or raise the limit with --memory-limit",
+    )?;
+    let by_memory = thicket_core::io::gltf_export::triangle_limit_for_memory(
+        &doc,
+        &options,
+        budget.limit_bytes,
+    )
+    .unwrap_or(0);
+    let memory_bound = by_memory < options.max_triangles;
+    let options = GltfExportOptions {
+        max_triangles: by_memory,
+        ..options
+    };
     let bar = progress_bar(1000, "exporting");
     let result = export_gltf(&doc, &args.output, &options, &|f| {
         bar.set_position((f.clamp(0.0, 1.0) * 1000.0) as u64);
         true
     });
     bar.finish_and_clear();
-    let report = result?;
+    let report = match result {
+        Err(e @ thicket_core::io::gltf_export::GltfExportError::TooLarge { .. })
+            if memory_bound =>
+        {
+            // The core's advice names --max-triangles, which cannot help here.
+            let said = e
+                .to_string()
+                .replace(" or raise the limit (--max-triangles)", "");
+            anyhow::bail!(
+                "{said}; the limit is {} triangles here because each needs about {} bytes and \
+                 the memory limit is {} ({}): raise it with --memory-limit",
+                thousands(by_memory),
+                thicket_core::io::gltf_export::EXPORT_BYTES_PER_TRIANGLE,
+                human_bytes(budget.limit_bytes),
+                budget.source
+            )
+        }
+        other => other?,
+    };
     let mut text = format!(
         "wrote {}: {} object(s), {} triangles, {} vertices, {}\n",
         report

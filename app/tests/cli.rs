@@ -2437,6 +2437,30 @@ fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
         assert!(o.status.success(), "{}", stderr(&o));
         assert!(stdout(&o).contains("voxels"), "{}", stdout(&o));
     }
+    // export turns the budget into a triangle limit checked before meshing: the tree's
+    // smooth mesh at resolution 512 does not fit 64 MiB, and the message says why.
+    let tree = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects/tree.thicket.json");
+    let o = thicket(&[
+        "export",
+        tree,
+        "-o",
+        glb.to_str().unwrap(),
+        "--mode",
+        "smooth",
+        "--resolution",
+        "512",
+        "--memory-limit",
+        "64M",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("triangles here because each needs about 320 bytes")
+            && err.contains("memory limit is 64.0 MiB (--memory-limit)")
+            && !err.contains("--max-triangles"),
+        "{err}"
+    );
+    assert!(!glb.exists(), "nothing written");
     // skin-report also estimates its frame: a project that loads, at a size that does not fit.
     let o = thicket(&[
         "skin-report",

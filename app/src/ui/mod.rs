@@ -387,7 +387,23 @@ impl EditorApp {
     pub fn start_export_gltf(&mut self, path: PathBuf) {
         let doc = self.editor.doc().clone();
         let selected = self.editor.selected_object().map(|o| o.name.clone());
-        let options = self.gltf_export.options_for(selected.as_deref());
+        let mut options = self.gltf_export.options_for(selected.as_deref());
+        // The memory budget bounds the triangles as `thicket export` does, before meshing.
+        match thicket_core::io::gltf_export::triangle_limit_for_memory(
+            &doc,
+            &options,
+            self.memory_budget.limit_bytes,
+        ) {
+            Some(limit) => options.max_triangles = limit,
+            None => {
+                self.error_dialog = Some(format!(
+                    "Exporting the voxel models would need more memory than the limit of {} ({})",
+                    thicket_core::budget::human(self.memory_budget.limit_bytes),
+                    self.memory_budget.source
+                ));
+                return;
+            }
+        }
         self.job = Some(Job::export_gltf(doc, path, options));
     }
 

@@ -391,14 +391,25 @@ pub fn mesh_distance_field(
     if !progress(0.3) {
         return Err(FieldError::Cancelled);
     }
+    // Counted while they are made: once past the limit the remaining blocks are skipped, so
+    // a hopeless request stops at about the limit's memory instead of collecting every cell.
+    let cell_limit = max_triangles / 2 + 1;
+    let made = std::sync::atomic::AtomicU64::new(0);
     let cells: Vec<(IVec3, [f32; 8])> = blocks
         .par_iter()
-        .flat_map_iter(|&b| block_cells(b, &lattice, &value))
+        .flat_map_iter(|&b| {
+            if made.load(std::sync::atomic::Ordering::Relaxed) > cell_limit {
+                return Vec::new();
+            }
+            let block: Vec<(IVec3, [f32; 8])> = block_cells(b, &lattice, &value);
+            made.fetch_add(block.len() as u64, std::sync::atomic::Ordering::Relaxed);
+            block
+        })
         .collect();
-    if cells.len() as u64 > max_triangles / 2 + 1 {
+    if made.into_inner() > cell_limit {
         return Err(FieldError::TooManyTriangles {
             limit: max_triangles,
-            what: format!("{} surface cells", cells.len()),
+            what: format!("more than {} surface cells", cell_limit),
         });
     }
     if !progress(0.6) {

@@ -194,6 +194,51 @@ impl Default for GltfExportOptions {
     }
 }
 
+/// Peak heap of an export per triangle written, the largest measured with a counting allocator
+/// (`the_export_estimate_holds_the_measured_peak`): 108-125 bytes in smooth mode and for KRS
+/// meshes, up to 312 in cubes mode (greedy quads keep their faces, colours and normals).
+pub const EXPORT_BYTES_PER_TRIANGLE: u64 = 320;
+
+/// Peak heap of an export per voxel of the exported voxel models, on top of the triangles: the
+/// exposed-face pass walks every voxel (37 bytes each measured on the house, whose 180,202
+/// voxels become 2,586 triangles).
+pub const EXPORT_BYTES_PER_VOXEL: u64 = 40;
+
+/// The fixed part of an export's memory: [`EXPORT_BYTES_PER_VOXEL`] for every voxel of the
+/// objects `options` exports, plus 1 MiB. The triangles add [`EXPORT_BYTES_PER_TRIANGLE`] each.
+#[must_use]
+pub fn export_fixed_bytes(doc: &Document, options: &GltfExportOptions) -> u64 {
+    let voxels: u64 = doc
+        .objects
+        .iter()
+        .filter(|o| match &options.object {
+            Some(name) => o.name == *name,
+            None => o.visible,
+        })
+        .filter_map(|o| match &o.kind {
+            ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
+            _ => None,
+        })
+        .sum();
+    voxels
+        .saturating_mul(EXPORT_BYTES_PER_VOXEL)
+        .saturating_add(1 << 20)
+}
+
+/// The most triangles an export may write within `budget_bytes` of memory:
+/// `(budget − fixed) / EXPORT_BYTES_PER_TRIANGLE`, at most `options.max_triangles`; `None`
+/// when the fixed part alone is over the budget.
+#[must_use]
+pub fn triangle_limit_for_memory(
+    doc: &Document,
+    options: &GltfExportOptions,
+    budget_bytes: u64,
+) -> Option<u64> {
+    let fixed = export_fixed_bytes(doc, options);
+    (fixed <= budget_bytes)
+        .then(|| ((budget_bytes - fixed) / EXPORT_BYTES_PER_TRIANGLE).min(options.max_triangles))
+}
+
 /// Placements per cell [`auto_cell_count`] aims at.
 pub const PLACEMENTS_PER_CELL: u64 = 512;
 

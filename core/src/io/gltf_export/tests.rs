@@ -1721,3 +1721,44 @@ fn the_writer_refuses_what_readers_refuse() {
     let e = encode_glb(&huge, path).unwrap_err().to_string();
     assert!(e.contains("element 2") && e.contains("1e18"), "{e}");
 }
+
+/// The export's memory estimate (`export_fixed_bytes` + `EXPORT_BYTES_PER_TRIANGLE` per
+/// triangle written) holds the measured peak of exporting four samples in both modes, and is
+/// not more than 4 × the peak plus 1 MiB, so a budget derived from it does not refuse what fits.
+#[test]
+fn the_export_estimate_holds_the_measured_peak() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects");
+    let mut checked = 0;
+    for name in ["house", "cesiumman", "tree", "mixed"] {
+        let doc =
+            crate::io::project::load(Path::new(&format!("{dir}/{name}.thicket.json"))).unwrap();
+        for mode in [ExportMode::Cubes, ExportMode::Smooth] {
+            let tmp = tempfile::tempdir().unwrap();
+            let out = tmp.path().join("x.glb");
+            let options = GltfExportOptions {
+                mode,
+                resolution: 128,
+                ..GltfExportOptions::default()
+            };
+            let (report, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+                export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap()
+            });
+            let estimate =
+                export_fixed_bytes(&doc, &options) + EXPORT_BYTES_PER_TRIANGLE * report.triangles;
+            assert!(
+                estimate >= peak,
+                "{name} {mode:?}: estimate {estimate} < peak {peak} ({} triangles)",
+                report.triangles
+            );
+            assert!(
+                estimate <= 4 * peak + (1 << 20),
+                "{name} {mode:?}: estimate {estimate} far above peak {peak}"
+            );
+            // The limit a budget of that peak allows never refuses this export.
+            let limit = triangle_limit_for_memory(&doc, &options, estimate).unwrap();
+            assert!(limit >= report.triangles, "{name} {mode:?}");
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 8);
+}
