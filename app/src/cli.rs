@@ -775,7 +775,7 @@ fn enhance(args: &EnhanceArgs) -> anyhow::Result<()> {
     use thicket_core::enhance::Control;
     use thicket_core::scene::ObjectKind;
     files::refuse_overwriting_input(&args.project, &args.output)?;
-    let mut doc = files::load_document(&args.project)?;
+    let mut doc = files::load_document_within(&args.project, args.memory_limit)?;
     let project = args.project.display();
     let index = rig::voxel_object_index(&doc, &args.project, &args.object, "enhanced")?;
     let ObjectKind::Voxels(model) = &doc.objects[index].kind else {
@@ -1223,7 +1223,7 @@ fn import(args: &ImportArgs) -> anyhow::Result<()> {
     };
     let mut notes = String::new();
     let doc = if is_vox {
-        files::load_document(&args.input)?
+        files::load_document_within(&args.input, args.memory_limit)?
     } else if let Some(skinned) = (!args.no_skin)
         .then(|| files::load_skinned(&args.input))
         .transpose()?
@@ -1596,7 +1596,7 @@ fn render(args: &RenderArgs) -> anyhow::Result<()> {
     for output in &outputs {
         files::refuse_overwriting_input(&args.project, output)?;
     }
-    let mut doc = files::load_document(&args.project)?;
+    let mut doc = files::load_document_within(&args.project, args.memory_limit)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     let ImageSize { width, height } = args.view.size;
     let (quality, camera) = args.view.apply(&doc)?;
@@ -1734,7 +1734,7 @@ fn render_one(
 
 fn bench(args: &BenchArgs) -> anyhow::Result<()> {
     use crate::bench::{BenchSetup, bench_cpu, bench_gpu, format_report};
-    let mut doc = files::load_document(&args.project)?;
+    let mut doc = files::load_document_within(&args.project, args.memory_limit)?;
     set_playback(&mut doc, args.time, args.clip.as_deref())?;
     if args.no_rig {
         remove_rigs(&mut doc)?;
@@ -1837,7 +1837,7 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
     for name in crate::tradeoff::OUTPUT_FILES {
         files::refuse_overwriting_input(&args.project, &args.output.join(name))?;
     }
-    let doc = files::load_document(&args.project)?;
+    let doc = files::load_document_within(&args.project, args.memory_limit)?;
     let ImageSize { width, height } = args.size;
     let knobs = if args.knobs.is_empty() {
         thicket_core::measure::default_knobs()
@@ -2112,7 +2112,7 @@ fn export_vox(args: &ExportVoxArgs) -> anyhow::Result<()> {
     {
         anyhow::bail!("--grid-unit {unit}: give a positive length");
     }
-    let doc = files::load_document(&args.project)?;
+    let doc = files::load_document_within(&args.project, args.memory_limit)?;
     let options = VoxExportOptions {
         grid_unit: args.grid_unit,
         ..VoxExportOptions::default()

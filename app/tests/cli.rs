@@ -2431,6 +2431,32 @@ fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
     assert!(!glb.exists(), "nothing written");
     let o = thicket(&["skin-report", project, "--memory-limit", "4M"]);
     refused(&o, "house.thicket.json", "loading the project");
+    // Every command that reads a file reads it within its budget.
+    let png = dir.path().join("house.png");
+    let o = thicket(&[
+        "render",
+        project,
+        "-o",
+        png.to_str().unwrap(),
+        "--memory-limit",
+        "4M",
+    ]);
+    refused(&o, "house.thicket.json", "loading the project");
+    let imported = dir.path().join("house.thicket.json");
+    let o = thicket(&[
+        "import",
+        &vox,
+        "-o",
+        imported.to_str().unwrap(),
+        "--memory-limit",
+        "4M",
+    ]);
+    refused(
+        &o,
+        "obj_house4.vox",
+        "holding 180,202 voxels would need about",
+    );
+    assert!(!png.exists() && !imported.exists(), "nothing written");
     // The same files within the default budget.
     for file in [project, vox.as_str()] {
         let o = thicket(&["info", file]);
