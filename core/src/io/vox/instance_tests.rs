@@ -338,3 +338,58 @@ fn many_similar_shapes_are_told_apart_and_copies_found() {
     assert_eq!(back.model_count, distinct);
     assert_eq!(world_set(&back.objects), world_set(&objects));
 }
+
+/// A file of a few kilobytes whose scene graph places one 16³ model 4,096 times (two levels of
+/// 64 transforms sharing their child) would become 16.8 M voxels: the import estimates that
+/// from the graph and refuses it under its memory budget before building any model, holding
+/// little more than the file; with a budget that fits, the same file imports every copy.
+#[test]
+fn a_scene_graph_that_multiplies_a_model_is_refused_before_building() {
+    let full: Vec<[u8; 4]> = (0..16u8)
+        .flat_map(|x| (0..16u8).flat_map(move |y| (0..16u8).map(move |z| [x, y, z, 1])))
+        .collect();
+    let mut main = Vec::new();
+    model_chunks(&mut main, [16, 16, 16], &full);
+    transform(&mut main, 0, 1, &[&[]]);
+    let outer: Vec<u32> = (2..66).collect();
+    group(&mut main, 1, &outer);
+    for (k, id) in outer.iter().enumerate() {
+        let t = format!("{} 0 0", 32 * k);
+        transform(&mut main, *id, 66, &[&[("_t", t.as_str())]]);
+    }
+    let inner: Vec<u32> = (67..131).collect();
+    group(&mut main, 66, &inner);
+    for (k, id) in inner.iter().enumerate() {
+        let t = format!("0 {} 0", 32 * k);
+        transform(&mut main, *id, 131, &[&[("_t", t.as_str())]]);
+    }
+    shape(&mut main, 131, &[(0, &[])]);
+    let file = wrap_main(&main);
+    assert!(file.len() < 40_000, "a small file: {} bytes", file.len());
+    let tight = VoxImportOptions {
+        memory: crate::budget::MemoryBudget::given(64 << 20),
+        ..VoxImportOptions::default()
+    };
+    let (result, peak) =
+        crate::io::fuzz::peak_heap_bytes(|| import_vox_bytes(&file, Path::new("many.vox"), &tight));
+    let e = result.unwrap_err().to_string();
+    assert!(
+        e.starts_with("many.vox")
+            && e.contains("4096 instance(s) holding 16,777,216 voxels")
+            && e.contains("over the limit of 64.0 MiB"),
+        "{e}"
+    );
+    assert!(peak < 8 << 20, "refused holding {peak} bytes");
+    // A model placed 64 times (one level) fits the same budget and imports every copy.
+    let mut one_level = Vec::new();
+    model_chunks(&mut one_level, [16, 16, 16], &full);
+    transform(&mut one_level, 0, 1, &[&[]]);
+    group(&mut one_level, 1, &outer);
+    for (k, id) in outer.iter().enumerate() {
+        let t = format!("{} 0 0", 32 * k);
+        transform(&mut one_level, *id, 66, &[&[("_t", t.as_str())]]);
+    }
+    shape(&mut one_level, 66, &[(0, &[])]);
+    let scene = import_vox_bytes(&wrap_main(&one_level), Path::new("few.vox"), &tight).unwrap();
+    assert_eq!(scene.objects.len(), 64);
+}
