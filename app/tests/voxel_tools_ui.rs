@@ -1032,3 +1032,102 @@ fn a_turn_past_the_canvas_edge_asks_and_grows_and_an_arrow_at_the_edge_keeps_eve
     );
     assert_eq!(h.state().editor.volume_of(id), Some(UVec3::splat(8)));
 }
+
+/// File → Export .vox with a mesh in the scene says, before the file is chosen, that the mesh
+/// would be left out, and offers to voxelize it: the voxel model it makes is the one `thicket
+/// import` makes at that depth, the export's file prompt follows, and the written file holds
+/// both voxel models. "Export without them" goes straight to the prompt; Cancel does nothing.
+#[test]
+fn export_vox_with_a_mesh_in_the_scene_reports_it_and_can_voxelize_it() {
+    use thicket_core::sculpt::model_ops::InitialFill;
+    let spot = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../../shared/assets/static/spot/spot_triangulated.obj"
+    );
+    let (doc, _, _) = thicket::files::load_document_imported(
+        std::path::Path::new(spot),
+        &thicket::files::MeshOptions::default(),
+    )
+    .unwrap();
+    let ObjectKind::Mesh(mesh) = &doc.objects[0].kind else {
+        panic!("a mesh object");
+    };
+    let settings = thicket_core::voxelize::VoxelizeSettings {
+        resolution: thicket_core::voxelize::Resolution::Depth(5),
+        ..thicket_core::voxelize::VoxelizeSettings::default()
+    };
+    let expected = thicket_core::voxelize::voxelize(&mesh.model, &settings, &|_| true).unwrap();
+    let mut ed = Editor::new(doc, None);
+    ed.add_voxel_model(&thicket::editor::NewModelSpec {
+        name: "Slab".into(),
+        size: UVec3::new(6, 4, 6),
+        // The spot's voxel size, so the .vox grid holds both at one cell per voxel.
+        voxel_size: expected.voxel_size,
+        fill: InitialFill::GroundSlab { height: 1 },
+        ..thicket::editor::NewModelSpec::default()
+    })
+    .unwrap();
+    let mut h = harness_sized(ed, egui::vec2(1280.0, 800.0));
+    let open_offer = |h: &mut Harness<'static, EditorApp>| {
+        h.get_by_label("File").click();
+        h.run_steps(2);
+        h.get_by_label("Export .vox...").click();
+        h.run_steps(2);
+    };
+    open_offer(&mut h);
+    h.get_by_label_contains("1 mesh object(s) would be left out: \"spot_triangulated\"");
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+    assert!(h.state().vox_export.offer.is_none());
+    assert_eq!(
+        h.state().editor.doc().objects.len(),
+        2,
+        "Cancel changes nothing"
+    );
+
+    open_offer(&mut h);
+    h.get_by_label("Export without them").click();
+    h.run_steps(4);
+    h.get_by_label("Export MagicaVoxel (.vox)");
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+
+    open_offer(&mut h);
+    h.state_mut().voxelize.depth = 5;
+    h.run_steps(1);
+    h.get_by_label("Voxelize the meshes, then export").click();
+    h.run_steps(1);
+    let ctx = h.ctx.clone();
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(4);
+    let doc = h.state().editor.doc();
+    let made = doc
+        .objects
+        .iter()
+        .find(|o| o.name == "spot_triangulated voxels")
+        .expect("the mesh voxelized");
+    let ObjectKind::Voxels(v) = &made.kind else {
+        panic!("a voxel model");
+    };
+    assert!(expected.svo.leaf_count() > 1_000);
+    assert_eq!(
+        v.svo.leaves(),
+        expected.svo.leaves(),
+        "thicket import's voxels"
+    );
+    // The export's file prompt follows; the file holds both voxel models.
+    h.get_by_label("Export MagicaVoxel (.vox)");
+    h.get_by_label("Cancel").click();
+    h.run_steps(2);
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("both.vox");
+    h.state_mut().start_export_vox(out.clone());
+    h.state_mut().wait_for_job(&ctx);
+    h.run_steps(2);
+    let back = thicket_core::io::vox::import_vox(&out).unwrap();
+    assert_eq!(
+        back.voxel_count(),
+        expected.svo.leaf_count() + 36,
+        "the slab's 36 voxels and the voxelized mesh"
+    );
+}

@@ -76,7 +76,7 @@ pub fn vox_left_out(objects: &[Object], skipped: &[String]) -> String {
                 Some(o) if !o.visible => "hidden",
                 Some(o) => match &o.kind {
                     ObjectKind::Mesh(_) => {
-                        "a mesh: .vox holds voxels only; Model → Voxelize mesh makes a voxel model of it"
+                        "a mesh: .vox holds voxels only; Model > Voxelize mesh makes a voxel model of it"
                     }
                     ObjectKind::Krs(_) => "a KRS object: .vox holds voxels only",
                     ObjectKind::Voxels(_) => "empty",

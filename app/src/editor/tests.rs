@@ -1787,7 +1787,7 @@ fn a_vox_export_names_what_it_leaves_out_and_why() {
     let text = super::jobs::vox_left_out(&objects, &["Rock".into(), "Old".into()]);
     assert_eq!(
         text,
-        "; left out: \"Rock\" (a mesh: .vox holds voxels only; Model → Voxelize mesh makes a voxel model of it), \"Old\" (hidden)"
+        "; left out: \"Rock\" (a mesh: .vox holds voxels only; Model > Voxelize mesh makes a voxel model of it), \"Old\" (hidden)"
     );
     assert_eq!(super::jobs::vox_left_out(&objects, &[]), "");
 }

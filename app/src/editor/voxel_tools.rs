@@ -648,7 +648,7 @@ impl Editor {
             .map(|s| (s.object, s.cells.clone()))
             .ok_or_else(|| {
                 CommandError::Invalid(
-                    "no voxels are selected: use the Select tool (B) or Select → All".into(),
+                    "no voxels are selected: use the Select tool (M) or Select > All".into(),
                 )
             })
     }

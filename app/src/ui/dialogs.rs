@@ -165,6 +165,7 @@ impl EditorApp {
             self.status = format!("Baked the pose of {keyed} joint(s) into the playing clip");
         }
         self.transform_prompt(ctx);
+        self.vox_export_offer(ctx);
         if self.show_shortcuts {
             // Never taller than the window (the list is longer than a 720-pixel screen): it
             // scrolls, and the search field filters it by key or action.

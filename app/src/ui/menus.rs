@@ -106,11 +106,12 @@ impl EditorApp {
         if ui
             .add_enabled(!busy, egui::Button::new("Export .vox..."))
             .on_hover_text(
-                "Write the visible voxel models as a MagicaVoxel file (on a worker thread)",
+                "Write the visible voxel models as a MagicaVoxel file (on a worker thread); \
+                 meshes in the scene can be voxelized first",
             )
             .clicked()
         {
-            self.ask_path(PathPurpose::ExportVox);
+            self.request_export_vox();
         }
         if ui
             .add_enabled(!busy, egui::Button::new("Export glTF..."))

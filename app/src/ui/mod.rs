@@ -24,6 +24,7 @@ pub mod sculpt;
 mod shortcuts;
 pub mod tradeoff;
 pub mod view;
+pub mod vox_export;
 mod voxel_menus;
 pub mod voxel_tools;
 
@@ -134,6 +135,8 @@ pub struct EditorApp {
     canvas: voxel_menus::CanvasForm,
     /// Model → Voxelize mesh's fields.
     pub voxelize: voxel_menus::VoxelizeForm,
+    /// File → Export .vox's offer to voxelize the meshes it would leave out, and its queue.
+    pub vox_export: vox_export::VoxExportFlow,
 }
 
 impl Default for EditorApp {
@@ -184,6 +187,7 @@ impl EditorApp {
             palette: palette::PalettePanel::default(),
             canvas: voxel_menus::CanvasForm::default(),
             voxelize: voxel_menus::VoxelizeForm::default(),
+            vox_export: vox_export::VoxExportFlow::default(),
         }
     }
 
@@ -440,6 +444,8 @@ impl EditorApp {
             job.cancel();
             self.toast(ctx, format!("Cancelled: {}", job.label), false);
         }
+        // A cancelled voxelize cancels the rest of File → Export .vox's queue too.
+        self.stop_export_voxelizing();
     }
 
     /// Whether a background job is running.
@@ -541,8 +547,13 @@ impl EditorApp {
                         );
                         self.toast(ctx, text, !note.is_empty());
                     }
-                    Err(e) => self.error_dialog = Some(format!("Voxelize mesh: {e}")),
+                    Err(e) => {
+                        self.stop_export_voxelizing();
+                        self.error_dialog = Some(format!("Voxelize mesh: {e}"));
+                    }
                 }
+                // File → Export .vox's queue: the next mesh, or the file prompt.
+                self.voxelize_next_for_export();
             }
             JobResult::Exported(Ok(text)) => self.toast(ctx, text, false),
             JobResult::Swept(revision, Ok(report)) => {

@@ -48,6 +48,22 @@ pub struct VoxelizeForm {
     pub solid: bool,
 }
 
+impl VoxelizeForm {
+    /// The voxelizer's settings for this form: `thicket import --depth` (and `--solid`).
+    #[must_use]
+    pub fn settings(&self) -> thicket_core::voxelize::VoxelizeSettings {
+        thicket_core::voxelize::VoxelizeSettings {
+            resolution: thicket_core::voxelize::Resolution::Depth(self.depth),
+            mode: if self.solid {
+                thicket_core::voxelize::Mode::Solid
+            } else {
+                thicket_core::voxelize::Mode::Surface
+            },
+            ..thicket_core::voxelize::VoxelizeSettings::default()
+        }
+    }
+}
+
 impl Default for VoxelizeForm {
     fn default() -> Self {
         // `thicket import`'s default depth.
@@ -162,7 +178,7 @@ impl EditorApp {
                     if ui
                         .button("Grow the canvas")
                         .on_hover_text(
-                            "Grow the volume just enough to keep every voxel (the model keeps its                              place); one undo step",
+                            "Grow the volume just enough to keep every voxel (the model keeps its place); one undo step",
                         )
                         .clicked()
                     {
@@ -416,15 +432,7 @@ impl EditorApp {
                     "Fill closed meshes (an open one falls back to its surface, and says so)",
                 );
         });
-        let settings = thicket_core::voxelize::VoxelizeSettings {
-            resolution: thicket_core::voxelize::Resolution::Depth(self.voxelize.depth),
-            mode: if self.voxelize.solid {
-                thicket_core::voxelize::Mode::Solid
-            } else {
-                thicket_core::voxelize::Mode::Surface
-            },
-            ..thicket_core::voxelize::VoxelizeSettings::default()
-        };
+        let settings = self.voxelize.settings();
         let estimate = thicket_core::voxelize::estimate(&m.model, &settings);
         match &estimate {
             Ok(e) => ui.weak(format!(
