@@ -1155,13 +1155,29 @@ fn the_shortcut_sheet_lists_every_key_and_searches() {
         "shortcut_sheet_720",
         &egui_kittest::SnapshotOptions::new().max_failed_pixels(200),
     );
+    // The sheet is the binding table the handlers read, then the mouse gestures: every bound
+    // key is listed with what it does.
     let all = thicket::ui::shortcut_rows("");
-    assert!(all.len() > 20, "{all:?}");
-    for (_, what) in &all {
+    assert_eq!(
+        all.len(),
+        thicket::ui::BINDINGS.len() + thicket::ui::GESTURES.len()
+    );
+    assert!(thicket::ui::BINDINGS.len() > 50, "{all:?}");
+    for b in thicket::ui::BINDINGS {
+        let keys = thicket::ui::keys_text(b);
         assert!(
-            h.query_all_by_label(what).next().is_some(),
-            "{what:?} is listed"
+            h.query_all_by_label(&keys).next().is_some(),
+            "{keys:?} is listed"
         );
+        assert!(
+            h.query_all_by_label(b.what).next().is_some(),
+            "{:?} is listed",
+            b.what
+        );
+    }
+    for (keys, what) in thicket::ui::GESTURES {
+        assert!(h.query_all_by_label(keys).next().is_some(), "{keys:?}");
+        assert!(h.query_all_by_label(what).next().is_some(), "{what:?}");
     }
     // Search "undo": the undo row stays, F1's own row ("This list") goes.
     h.get_by_role_and_label(egui::accesskit::Role::TextInput, "Search")

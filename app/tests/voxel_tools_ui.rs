@@ -419,7 +419,7 @@ fn tool_bar_swatches_stay_put_and_hex_and_grid_set_the_colour() {
     let row = h.query_all_by_label("Navigate").next().unwrap().rect();
     assert!(row.top() < 60.0, "{row:?}");
     let mut modes: Vec<(String, Vec<(String, egui::Rect)>)> = Vec::new();
-    for (tool, label, _, _) in ToolKind::ALL {
+    for (tool, label, _) in ToolKind::ALL {
         h.state_mut().sculpt.choose(tool);
         h.run_steps(2);
         modes.push((label.to_owned(), swatches(&h)));

@@ -4,9 +4,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use super::EditorApp;
+use super::keys;
 use super::path_prompt::{PathPurpose, PromptOutcome};
-use super::shortcuts::SHORTCUTS;
-use super::{EditorApp, voxel_menus};
 use crate::files;
 
 impl EditorApp {
@@ -410,18 +410,19 @@ fn human_age(secs: u64) -> String {
 }
 
 /// The rows of the shortcut sheet whose keys or action contain `search` (any case; all rows for
-/// an empty search): the editor's shortcuts, then the voxel tools'.
+/// an empty search): the binding table ([`super::keys::BINDINGS`], the keys the handlers
+/// bind), then what the mouse and trackpad do.
 #[must_use]
-pub fn shortcut_rows(search: &str) -> Vec<(&'static str, &'static str)> {
+pub fn shortcut_rows(search: &str) -> Vec<(String, &'static str)> {
     let needle = search.trim().to_lowercase();
-    SHORTCUTS
+    keys::BINDINGS
         .iter()
-        .chain(voxel_menus::TOOL_SHORTCUTS)
+        .map(|b| (keys::keys_text(b), b.what))
+        .chain(keys::GESTURES.iter().map(|&(k, w)| (k.to_owned(), w)))
         .filter(|(keys, what)| {
             needle.is_empty()
                 || keys.to_lowercase().contains(&needle)
                 || what.to_lowercase().contains(&needle)
         })
-        .copied()
         .collect()
 }

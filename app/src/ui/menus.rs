@@ -1,5 +1,6 @@
 //! The menu bar, one function per menu. (Select and Model are in `voxel_menus`.)
 
+use super::keys::{Act, shortcut};
 use super::path_prompt::{PathPurpose, readable_list};
 use super::{EditorApp, PRESETS, native_dialogs_available};
 use crate::editor::Selection;
@@ -25,7 +26,7 @@ impl EditorApp {
         if ui
             .add_enabled(
                 !busy,
-                egui::Button::new("New project…").shortcut_text("Ctrl+N"),
+                egui::Button::new("New project…").shortcut_text(shortcut(Act::New)),
             )
             .on_hover_text("Start a new project with a new voxel model (Cancel: an empty project)")
             .clicked()
@@ -33,7 +34,10 @@ impl EditorApp {
             self.request_new();
         }
         if ui
-            .add_enabled(!busy, egui::Button::new("Open…").shortcut_text("Ctrl+O"))
+            .add_enabled(
+                !busy,
+                egui::Button::new("Open…").shortcut_text(shortcut(Act::Open)),
+            )
             .on_hover_text("Open a project (.thicket.json) or a model to start a new project from")
             .clicked()
         {
@@ -78,7 +82,7 @@ impl EditorApp {
         });
         ui.separator();
         if ui
-            .add(egui::Button::new("Save").shortcut_text("Ctrl+S"))
+            .add(egui::Button::new("Save").shortcut_text(shortcut(Act::Save)))
             .on_hover_text("Save the project (atomically: the previous save stays readable until this one is complete)")
             .clicked()
         {
@@ -86,7 +90,7 @@ impl EditorApp {
             self.save(&ctx);
         }
         if ui
-            .add(egui::Button::new("Save As…").shortcut_text("Ctrl+Shift+S"))
+            .add(egui::Button::new("Save As…").shortcut_text(shortcut(Act::SaveAs)))
             .on_hover_text("Save the project under a new name")
             .clicked()
         {
@@ -94,7 +98,10 @@ impl EditorApp {
         }
         ui.separator();
         if ui
-            .add_enabled(!busy, egui::Button::new("Import…").shortcut_text("Ctrl+I"))
+            .add_enabled(
+                !busy,
+                egui::Button::new("Import…").shortcut_text(shortcut(Act::Import)),
+            )
             .on_hover_text(format!(
                 "Add the objects of another file to this project ({})",
                 readable_list()
@@ -154,7 +161,10 @@ impl EditorApp {
         let h = self.editor.history();
         let (can_undo, can_redo) = (h.undo_len() > 0, h.redo_len() > 0);
         if ui
-            .add_enabled(can_undo, egui::Button::new("Undo").shortcut_text("Ctrl+Z"))
+            .add_enabled(
+                can_undo,
+                egui::Button::new("Undo").shortcut_text(shortcut(Act::Undo)),
+            )
             .on_hover_text("Undo the last edit")
             .clicked()
         {
@@ -163,7 +173,7 @@ impl EditorApp {
         if ui
             .add_enabled(
                 can_redo,
-                egui::Button::new("Redo").shortcut_text("Ctrl+Shift+Z"),
+                egui::Button::new("Redo").shortcut_text(shortcut(Act::Redo)),
             )
             .on_hover_text("Redo the last undone edit")
             .clicked()
@@ -186,7 +196,7 @@ impl EditorApp {
         if ui
             .add_enabled(
                 selected.is_some(),
-                egui::Button::new("Duplicate").shortcut_text("Ctrl+D"),
+                egui::Button::new("Duplicate").shortcut_text(shortcut(Act::Duplicate)),
             )
             .on_hover_text("Copy the selected object")
             .clicked()
@@ -228,7 +238,7 @@ impl EditorApp {
         if ui
             .add_enabled(
                 selected.is_some() || selected_light.is_some(),
-                egui::Button::new("Delete").shortcut_text("Del"),
+                egui::Button::new("Delete").shortcut_text(shortcut(Act::Delete)),
             )
             .on_hover_text("Delete the selected object or light (undoable)")
             .clicked()
@@ -240,14 +250,14 @@ impl EditorApp {
             }
         }
         if ui
-            .add_enabled(selected.is_some(), egui::Button::new("Drop to surface").shortcut_text("End"))
+            .add_enabled(selected.is_some(), egui::Button::new("Drop to surface").shortcut_text(shortcut(Act::Drop)))
             .on_hover_text("Move the selected object straight down until it rests on the voxels, mesh or KRS surface below it (undoable)")
             .clicked()
         {
             self.drop_selected(ui.ctx());
         }
         if ui
-            .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
+            .add(egui::Button::new("Add voxel model…").shortcut_text(shortcut(Act::AddModel)))
             .on_hover_text(
                 "A new voxel model standing where the view looks: extent, voxel size, initial fill",
             )
@@ -274,7 +284,7 @@ impl EditorApp {
             .on_hover_text("Show the properties of the selection");
         ui.separator();
         if ui
-            .add(egui::Button::new("Frame selection").shortcut_text("F"))
+            .add(egui::Button::new("Frame selection").shortcut_text(shortcut(Act::Frame)))
             .on_hover_text("Point the camera at the selection, or at everything")
             .clicked()
         {
@@ -333,7 +343,7 @@ impl EditorApp {
     /// Help: shortcuts and about.
     fn help_menu_ui(&mut self, ui: &mut egui::Ui) {
         if ui
-            .add(egui::Button::new("Keyboard shortcuts").shortcut_text("F1"))
+            .add(egui::Button::new("Keyboard shortcuts").shortcut_text(shortcut(Act::Help)))
             .clicked()
         {
             self.show_shortcuts = true;

@@ -11,6 +11,7 @@ pub mod export_gltf;
 mod forest_panel;
 mod history;
 mod inspector;
+pub mod keys;
 pub mod krs_panel;
 mod menus;
 mod new_model;
@@ -57,7 +58,7 @@ enum Pending {
 }
 
 pub use crate::editor::jobs::{IMPORT_KEEPS_VIEW, ImportReport};
-pub use shortcuts::SHORTCUTS;
+pub use keys::{Act, BINDINGS, Binding, GESTURES, keys_text};
 
 /// A native dialog running on its own thread.
 struct NativeDialog {

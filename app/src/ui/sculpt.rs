@@ -345,7 +345,8 @@ impl SculptTool {
                 self.active = false;
                 self.voxel.cancel();
             }
-            for (tool, label, key, tip) in ToolKind::ALL {
+            for (tool, label, tip) in ToolKind::ALL {
+                let key = super::keys::shortcut(super::keys::Act::Tool(tool));
                 if ui
                     .selectable_label(self.active && self.tool == tool, label)
                     .on_hover_text(format!("{tip} ({key}); Alt+drag orbits"))

@@ -2498,7 +2498,7 @@ mod tests {
         use super::{ToolKind, nav_hint};
         let hints: Vec<String> = ToolKind::ALL
             .iter()
-            .map(|(t, _, _, _)| nav_hint(Some((*t, false)), false))
+            .map(|(t, _, _)| nav_hint(Some((*t, false)), false))
             .collect();
         // Each tool says something of its own, and none says the generic "sculpt".
         for (i, h) in hints.iter().enumerate() {

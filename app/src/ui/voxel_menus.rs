@@ -2,14 +2,14 @@
 //! invert, grow, shrink, copy, cut, paste, delete, fill, flip, rotate, crop, to new object) and
 //! whole-model operations (resize canvas, shift, mirror, hollow, fill interior).
 
-use egui::{Key, KeyboardShortcut, Modifiers};
 use glam::{IVec3, UVec3};
 use thicket_core::sculpt::model_ops::Anchor;
 use thicket_core::sculpt::select::SelTransform;
 use thicket_core::sculpt::shapes::ShapeOp;
 
 use super::EditorApp;
-use super::shortcuts::{consume_escape, count_presses};
+use super::keys::{Act, pressed, presses, shortcut};
+use super::shortcuts::consume_escape;
 use super::voxel_tools::ToolKind;
 use crate::editor::jobs::Job;
 use crate::editor::{CommandError, ModelOp, ToolOutcome};
@@ -73,57 +73,6 @@ impl Default for VoxelizeForm {
         }
     }
 }
-
-/// Tool keys (listed in Help → Keyboard shortcuts).
-pub const TOOL_SHORTCUTS: &[(&str, &str)] = &[
-    (
-        "S / V / B / L / U / P / M",
-        "Brush / Voxel / Box / Line / Extrude / Fill / Select tool",
-    ),
-    ("A / D / C", "Add / Remove / Paint mode of the tool"),
-    (
-        "Shift+X / Shift+Y / Shift+Z",
-        "Mirror the tool across X / Y / Z",
-    ),
-    (
-        "Alt+click",
-        "Pick the colour under the pointer (eyedropper)",
-    ),
-    (
-        "Ctrl+A / Ctrl+Shift+A",
-        "Select all voxels of the model / select none",
-    ),
-    ("Ctrl+Shift+I", "Invert the voxel selection"),
-    (
-        "Ctrl+C / Ctrl+X / Ctrl+V",
-        "Copy / cut / paste voxels (the paste floats; with the pointer over the model it lands there)",
-    ),
-    (
-        "Arrows, PageUp / PageDown",
-        "Move the floating paste or the selection (X, Z / Y)",
-    ),
-    (
-        "Drag the floating paste",
-        "Slide it by whole voxels in the model plane facing you",
-    ),
-    (
-        "Drag a selected voxel (Select tool)",
-        "Move the selection by whole voxels (one undo step; Esc puts it back)",
-    ),
-    (
-        "Enter / Esc",
-        "Place the floating paste / cancel it (Esc also cancels a box)",
-    ),
-    (
-        "Shift+Enter",
-        "Place the floating paste, growing the canvas to keep what reaches outside it",
-    ),
-    (
-        "Delete (with a voxel selection)",
-        "Delete the selected voxels",
-    ),
-    ("Ctrl+Shift+N", "Add a voxel model"),
-];
 
 impl EditorApp {
     /// Shows a command's outcome in the status bar (errors as a toast).
@@ -246,7 +195,7 @@ impl EditorApp {
         let model = self.editor.selected_voxel_model();
         let has_sel = self.editor.voxel_selection().is_some();
         let has_clip = self.editor.clipboard().is_some();
-        let item = |ui: &mut egui::Ui, enabled: bool, label: &str, key: &str, tip: &str| {
+        let item = |ui: &mut egui::Ui, enabled: bool, label: &str, key: String, tip: &str| {
             ui.add_enabled(enabled, egui::Button::new(label).shortcut_text(key))
                 .on_hover_text(tip)
                 .clicked()
@@ -255,7 +204,7 @@ impl EditorApp {
             ui,
             true,
             "Select tool",
-            "M",
+            shortcut(Act::Tool(ToolKind::Select)),
             "Drag a rectangle in the view; click a colour",
         ) {
             self.sculpt.choose(ToolKind::Select);
@@ -265,7 +214,7 @@ impl EditorApp {
             ui,
             model.is_some(),
             "All",
-            "Ctrl+A",
+            shortcut(Act::SelectAll),
             "Every voxel of the selected model",
         ) && let Some(id) = model
         {
@@ -276,7 +225,7 @@ impl EditorApp {
             ui,
             has_sel,
             "None",
-            "Ctrl+Shift+A",
+            shortcut(Act::SelectNone),
             "Clear the voxel selection",
         ) {
             self.editor.clear_voxel_selection();
@@ -285,7 +234,7 @@ impl EditorApp {
             ui,
             model.is_some(),
             "Invert",
-            "Ctrl+Shift+I",
+            shortcut(Act::InvertSelection),
             "Select the other voxels",
         ) {
             let r = self.editor.invert_voxel_selection();
@@ -295,7 +244,7 @@ impl EditorApp {
             ui,
             has_sel,
             "Grow",
-            "",
+            String::new(),
             "Add the solid voxels next to the selection",
         ) {
             let r = self.editor.grow_voxel_selection(true);
@@ -305,14 +254,20 @@ impl EditorApp {
             ui,
             has_sel,
             "Shrink",
-            "",
+            String::new(),
             "Drop the selection's outer layer",
         ) {
             let r = self.editor.grow_voxel_selection(false);
             self.report_count(&ctx, "Selected", r);
         }
         ui.separator();
-        if item(ui, has_sel, "Copy", "Ctrl+C", "Copy the selected voxels") {
+        if item(
+            ui,
+            has_sel,
+            "Copy",
+            shortcut(Act::Copy),
+            "Copy the selected voxels",
+        ) {
             let r = self.editor.copy_voxels();
             self.report_count(&ctx, "Copied", r);
         }
@@ -320,7 +275,7 @@ impl EditorApp {
             ui,
             has_sel,
             "Cut",
-            "Ctrl+X",
+            shortcut(Act::Cut),
             "Copy, then delete the selected voxels",
         ) {
             let r = self.editor.cut_voxels();
@@ -330,12 +285,18 @@ impl EditorApp {
             ui,
             has_clip && model.is_some(),
             "Paste",
-            "Ctrl+V",
+            shortcut(Act::Paste),
             "Paste the copied voxels as a floating selection (Ctrl+V: at the pointer when it is over the model): drag it or use the arrow keys, Enter places it",
         ) {
             self.paste_voxels(&ctx);
         }
-        if item(ui, has_sel, "Delete", "Del", "Delete the selected voxels") {
+        if item(
+            ui,
+            has_sel,
+            "Delete",
+            shortcut(Act::Delete),
+            "Delete the selected voxels",
+        ) {
             let r = self.editor.delete_selected_voxels();
             self.report_voxels(&ctx, "Delete", r);
         }
@@ -343,7 +304,7 @@ impl EditorApp {
             ui,
             has_sel,
             "Fill with colour",
-            "",
+            String::new(),
             "Paint the selected voxels with the tool colour",
         ) {
             let ink = self.sculpt.ink();
@@ -386,7 +347,7 @@ impl EditorApp {
             ui,
             has_sel,
             "Crop model to selection",
-            "",
+            String::new(),
             "Delete every voxel outside the selection",
         ) {
             let r = self.editor.crop_to_selection();
@@ -396,7 +357,7 @@ impl EditorApp {
             ui,
             has_sel,
             "Selection to new object",
-            "",
+            String::new(),
             "Copy the selected voxels into a new voxel model at the same place",
         ) {
             match self.editor.selection_to_new_object() {
@@ -464,7 +425,7 @@ impl EditorApp {
     pub(super) fn model_menu_ui(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
         if ui
-            .add(egui::Button::new("Add voxel model…").shortcut_text("Ctrl+Shift+N"))
+            .add(egui::Button::new("Add voxel model…").shortcut_text(shortcut(Act::AddModel)))
             .on_hover_text("A new, empty (or filled) voxel model standing where the view looks")
             .clicked()
         {
@@ -594,26 +555,22 @@ impl EditorApp {
     /// The voxel tools' keys. Runs before the object keys so Delete, arrows and Esc act on the
     /// voxel selection and the floating paste first.
     pub(super) fn voxel_shortcuts(&mut self, ctx: &egui::Context) {
-        let consume = |m: Modifiers, k: Key| {
-            ctx.input_mut(|i| i.consume_shortcut(&KeyboardShortcut::new(m, k)))
-        };
-        let cmd_shift = Modifiers::COMMAND | Modifiers::SHIFT;
         if self.keyboard_taken(ctx) {
             return;
         }
-        if consume(cmd_shift, Key::N) {
+        if pressed(ctx, Act::AddModel) {
             self.new_model.show(&self.editor);
         }
-        if consume(cmd_shift, Key::A) {
+        if pressed(ctx, Act::SelectNone) {
             self.editor.clear_voxel_selection();
         }
-        if consume(cmd_shift, Key::I) {
+        if pressed(ctx, Act::InvertSelection) {
             let r = self.editor.invert_voxel_selection();
             self.report_count(ctx, "Selected", r);
         }
         if self.sculpt.active
             && let Some(id) = self.editor.selected_voxel_model()
-            && consume(Modifiers::COMMAND, Key::A)
+            && pressed(ctx, Act::SelectAll)
         {
             let r = self.editor.select_all_voxels(id);
             self.report_count(ctx, "Selected", r);
@@ -621,42 +578,42 @@ impl EditorApp {
         // Copy / cut / paste of voxels when the voxel tools are in use.
         let voxel_mode = self.sculpt.active || self.editor.voxel_selection().is_some();
         if voxel_mode && self.editor.voxel_selection().is_some() {
-            if consume(Modifiers::COMMAND, Key::C) {
+            if pressed(ctx, Act::Copy) {
                 let r = self.editor.copy_voxels();
                 self.report_count(ctx, "Copied", r);
             }
-            if consume(Modifiers::COMMAND, Key::X) {
+            if pressed(ctx, Act::Cut) {
                 let r = self.editor.cut_voxels();
                 self.report_voxels(ctx, "Cut", r);
             }
         }
-        if voxel_mode && self.editor.clipboard().is_some() && consume(Modifiers::COMMAND, Key::V) {
+        if voxel_mode && self.editor.clipboard().is_some() && pressed(ctx, Act::Paste) {
             self.paste_voxels(ctx);
         }
         if ctx.egui_wants_keyboard_input() {
             return;
         }
         let moves = [
-            (Key::ArrowLeft, IVec3::NEG_X),
-            (Key::ArrowRight, IVec3::X),
-            (Key::ArrowUp, IVec3::NEG_Z),
-            (Key::ArrowDown, IVec3::Z),
-            (Key::PageUp, IVec3::Y),
-            (Key::PageDown, IVec3::NEG_Y),
+            IVec3::NEG_X,
+            IVec3::X,
+            IVec3::NEG_Z,
+            IVec3::Z,
+            IVec3::Y,
+            IVec3::NEG_Y,
         ];
         // Every press moves one voxel, also when a burst of presses lands in one frame.
         if self.editor.floating().is_some() {
-            for (key, by) in moves {
-                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
+            for by in moves {
+                for _ in 0..presses(ctx, Act::Move(by)) {
                     self.editor.move_floating(by);
                 }
             }
-            let grow = consume(Modifiers::SHIFT, Key::Enter)
-                || (self.sculpt.voxel.grow_canvas_on_paste && consume(Modifiers::NONE, Key::Enter));
+            let grow = pressed(ctx, Act::PlacePasteGrowing)
+                || (self.sculpt.voxel.grow_canvas_on_paste && pressed(ctx, Act::PlacePaste));
             if grow {
                 let r = self.editor.commit_floating_growing();
                 self.report_voxels(ctx, "Paste", r);
-            } else if consume(Modifiers::NONE, Key::Enter) {
+            } else if pressed(ctx, Act::PlacePaste) {
                 let r = self.editor.commit_floating();
                 self.report_voxels(ctx, "Paste", r);
             }
@@ -665,8 +622,8 @@ impl EditorApp {
                 self.status = "Paste cancelled".into();
             }
         } else if self.editor.voxel_selection().is_some() {
-            for (key, by) in moves {
-                for _ in 0..count_presses(ctx, Modifiers::NONE, key) {
+            for by in moves {
+                for _ in 0..presses(ctx, Act::Move(by)) {
                     let t = SelTransform::Move(by);
                     let outside = self.editor.transform_outside(t).map_or(0, |o| o.0);
                     if outside == 0 {
@@ -687,7 +644,7 @@ impl EditorApp {
                     }
                 }
             }
-            if consume(Modifiers::NONE, Key::Delete) {
+            if pressed(ctx, Act::Delete) {
                 let r = self.editor.delete_selected_voxels();
                 self.report_voxels(ctx, "Delete", r);
             }
@@ -695,32 +652,23 @@ impl EditorApp {
         if self.sculpt.voxel.busy() && consume_escape(ctx) {
             self.sculpt.voxel.cancel();
         }
-        for (tool, _, key, _) in ToolKind::ALL {
-            let k = match key {
-                "S" => Key::S,
-                "V" => Key::V,
-                "B" => Key::B,
-                "L" => Key::L,
-                "U" => Key::U,
-                "P" => Key::P,
-                _ => Key::M,
-            };
-            if consume(Modifiers::NONE, k) {
+        for (tool, _, _) in ToolKind::ALL {
+            if pressed(ctx, Act::Tool(tool)) {
                 self.sculpt.choose(tool);
             }
         }
         if self.sculpt.active {
-            for (key, op) in [
-                (Key::A, ShapeOp::Add),
-                (Key::D, ShapeOp::Remove),
-                (Key::C, ShapeOp::Paint),
+            for (act, op) in [
+                (Act::AddMode, ShapeOp::Add),
+                (Act::RemoveMode, ShapeOp::Remove),
+                (Act::PaintMode, ShapeOp::Paint),
             ] {
-                if consume(Modifiers::NONE, key) {
+                if pressed(ctx, act) {
                     self.sculpt.set_op(op);
                 }
             }
-            for (axis, key) in [Key::X, Key::Y, Key::Z].into_iter().enumerate() {
-                if consume(Modifiers::SHIFT, key) {
+            for axis in 0..3 {
+                if pressed(ctx, Act::Mirror(axis)) {
                     self.sculpt.brush.symmetry[axis] = !self.sculpt.brush.symmetry[axis];
                 }
             }

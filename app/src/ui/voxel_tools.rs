@@ -46,48 +46,42 @@ pub enum ToolKind {
 }
 
 impl ToolKind {
-    /// Every tool with its tool-bar label, key and tooltip.
-    pub const ALL: [(ToolKind, &'static str, &'static str, &'static str); 7] = [
+    /// Every tool with its tool-bar label and tooltip (its key is in the binding table,
+    /// [`super::keys::BINDINGS`]).
+    pub const ALL: [(ToolKind, &'static str, &'static str); 7] = [
         (
             ToolKind::Brush,
             "Brush",
-            "S",
             "Sphere / cube brush strokes: add, remove, paint, smooth",
         ),
         (
             ToolKind::Voxel,
             "Voxel",
-            "V",
             "Single voxels; drag to paint a run on one plane",
         ),
         (
             ToolKind::Box,
             "Box",
-            "B",
             "Drag a rectangle on a face, release, move the pointer to set the height, click to commit (Esc cancels)",
         ),
         (
             ToolKind::Line,
             "Line",
-            "L",
             "Press at one end and release at the other",
         ),
         (
             ToolKind::Extrude,
             "Extrude",
-            "U",
             "Push / pull: drag a flat same-colour face region out or in",
         ),
         (
             ToolKind::Fill,
             "Fill",
-            "P",
             "Flood fill: Paint recolours the connected region of one colour, Remove deletes it, Add puts a layer on its face",
         ),
         (
             ToolKind::Select,
             "Select",
-            "M",
             "Drag a rectangle to select (Shift adds, Ctrl removes); click selects a colour or a connected part",
         ),
     ];
