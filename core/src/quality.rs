@@ -84,12 +84,11 @@ pub struct Quality {
     pub stretch_strategy: Option<StretchStrategy>,
     /// Enhancement: probe count for direct resampling.
     pub enhancement_samples: u32,
-    /// Antialiasing: the CPU renderer draws `supersample`² samples per pixel (a grid of
+    /// Antialiasing: both renderers draw `supersample`² samples per pixel (a grid of
     /// `supersample` × `supersample`) and averages them in linear light, for `supersample`² the
     /// work. Sub-pixel detail (KRS grass, leaves, far voxels' edges) then shows as the part of
     /// the pixel it covers instead of all or nothing. Every knob counted in pixels (LOD, exact
-    /// cubes, KRS epsilon) is counted in samples. 1 = one sample per pixel. The GPU renderer
-    /// draws one sample per pixel whatever this is.
+    /// cubes, KRS epsilon) is counted in samples. 1 = one sample per pixel.
     pub supersample: u32,
 }
 

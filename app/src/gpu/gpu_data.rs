@@ -302,6 +302,23 @@ pub struct ShadowMapGpu {
 const _: () = assert!(std::mem::size_of::<ShadowMapGpu>() == 256);
 const _: () = assert!(std::mem::offset_of!(ShadowMapGpu, key_word_offset) == 240);
 
+/// Supersampling's resolve: samples per pixel side and the target's size.
+///
+/// Keep in sync with `shaders/supersample.wgsl` (`Supersample`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct SupersampleUniform {
+    /// Samples per pixel side (the frame was drawn `k` times the target's size).
+    pub k: u32,
+    /// Target width in pixels.
+    pub width: u32,
+    /// Target height in pixels.
+    pub height: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<SupersampleUniform>() == 16);
+
 /// Deferred-shading constants.
 ///
 /// Keep in sync with `shaders/common/types.wgsl` (`Shading`).
