@@ -1004,7 +1004,7 @@ pub(crate) fn shade(
         let footprint = krs_px.map_or(receiver, |px| px.epsilon.max(receiver));
         // Screen-space AO (every surface in the depth buffer) times the KRS distance AO
         // (occlusion by KRS geometry, also outside the screen).
-        let (krs_open, krs_evals) = lighting.krs.ambient(p, n);
+        let (krs_open, krs_evals) = lighting.krs.ambient(p, n, i as u32);
         count.krs_ao_evals += u64::from(krs_evals);
         let mut light = lighting.ambient * (open * krs_open);
         let mut spec = Vec3::ZERO;
