@@ -392,9 +392,9 @@ pub const KNOB_SPECS: &[KnobSpec] = &[
     knob!(u32 enhancement_samples, 1, 1024, "probes", "Enhancement samples",
         "Detail enhancement: probes per fragment", &[]),
     knob!(u32 supersample, 1, MAX_SUPERSAMPLE, "samples per pixel side", "Supersampling",
-        "CPU renderer (preview, renders, image exports): draw k × k samples per pixel and \
-         average them, so grass, leaves and far edges thinner than a pixel show as the part of \
-         it they cover; k² the work. 1 = off. The GPU view draws one sample per pixel.",
+        "Both renderers (preview, GPU view, renders, image exports): draw k × k samples per \
+         pixel and average them, so grass, leaves and far edges thinner than a pixel show as \
+         the part of it they cover; k² the work. 1 = off.",
         &["1", "2", "3"]),
 ];
 
