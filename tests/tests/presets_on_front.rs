@@ -119,8 +119,9 @@ const RISES: &[(&str, &str, &str)] = &[
     // The KRS samples' sub-pixel detail (blades, leaves, twigs) is drawn whole at one sample
     // per pixel with balanced's 0.5 px cone epsilon, so the frame without AO is already darker
     // than the 4 × 4 reference (grassland's mean luminance −0.040, tree's −0.013) and AO's
-    // darkening (−0.014, −0.001; about what it does at the reference's sampling) adds to it. At the
-    // reference's sampling (4 × 4, epsilon 0.125) AO lowers the error on all five KRS samples.
+    // darkening (−0.014, −0.001; about what it does at the reference's sampling) adds to it.
+    // At the reference's sampling (4 × 4, epsilon 0.125) AO lowers the error on all five KRS
+    // samples.
     (
         "tree",
         "ao_samples",

@@ -899,7 +899,8 @@ fn ambient_occlusion_has_the_same_mean_for_every_sample_count() {
             "x = {x}: the ball must occlude ({integral})"
         );
         eprintln!(
-            "x = {x}: integral {integral:.4}, mean (spread) at 4 samples {m4:.4} ({sd4:.4}), at 64 {m64:.4} ({sd64:.4}), fixed heights at 4 {:.4}",
+            "x = {x}: integral {integral:.4}; mean (spread) at 4: {m4:.4} ({sd4:.4}), \
+             at 64: {m64:.4} ({sd64:.4}); fixed heights at 4: {:.4}",
             at(p, 4, 0.0)
         );
         assert!(

@@ -905,7 +905,7 @@ impl AoKernel {
     /// flicker with the sub-pixel foliage of a tree.
     #[allow(
         clippy::too_many_arguments,
-        reason = "the frame's buffers and camera, the point, its pixel, its tolerance and the KRS mask"
+        reason = "frame buffers, camera, point, pixel, tolerance and the KRS mask"
     )]
     fn openness(
         &self,
