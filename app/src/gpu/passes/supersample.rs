@@ -47,7 +47,8 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
     ]]
 }
 
-/// The samples target (kept while its size holds), layout, pipeline and bind group.
+/// The samples target (kept while its size holds, freed by a one-sample frame), layout,
+/// pipeline and bind group.
 pub(in crate::gpu) struct SupersamplePass {
     bgl: wgpu::BindGroupLayout,
     pipeline: wgpu::ComputePipeline,
@@ -94,7 +95,11 @@ impl SupersamplePass {
         target: &wgpu::TextureView,
     ) -> Option<wgpu::TextureView> {
         if k <= 1 {
+            // A one-sample frame frees the samples target (k² times the image's texels).
             self.workgroups = None;
+            self.samples = None;
+            // The bind group holds the target's view too.
+            self.groups.truncate(0);
             return None;
         }
         let size = (target_size.0 * k, target_size.1 * k);
