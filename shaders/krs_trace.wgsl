@@ -765,29 +765,40 @@ fn krs_shadow(origin: vec3<f32>, dir: vec3<f32>, start: f32, max_t: f32, eps: f3
     return vec2<f32>(clamp(visibility, 0.0, 1.0), f32(steps));
 }
 
-// Ambient accessibility from distance samples along the normal (core's `ambient_occlusion`).
-fn krs_ambient(p: vec3<f32>, n_in: vec3<f32>) -> f32 {
+// The AO jitter of pixel `pixel` in [0, 1): core's `krs::ao_jitter` (lowbias32, 24 bits).
+fn ao_jitter(pixel: u32) -> f32 {
+    var x = pixel;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return f32(x >> 8u) / 16777216.0;
+}
+
+// Ambient accessibility from distance samples along the normal (core's `ambient_occlusion`):
+// one sample per stratum of the reach at `(i + 1 - jitter) * spacing`, weights 2^(-4h/R)
+// normalised by their integral over the reach R, so the mean over the jitter is the same for
+// every sample count.
+fn krs_ambient(p: vec3<f32>, n_in: vec3<f32>, jitter: f32) -> f32 {
     let n = normalize_or_zero(n_in);
     if all(n == vec3<f32>(0.0)) || krs.ao_samples == 0u || !(krs.ao_spacing > 0.0) {
         return 1.0;
     }
+    let reach = f32(krs.ao_samples) * krs.ao_spacing;
+    let weight_integral = reach * (15.0 / 16.0) / (4.0 * 0.6931472);
+    let offset = 1.0 - clamp(jitter, 0.0, 1.0);
     var occlusion = 0.0;
-    var total = 0.0;
-    var weight = 1.0;
-    // Weights halve every quarter of the reach, whatever the sample count (as the CPU).
-    let decay = pow(0.5, 4.0 / f32(krs.ao_samples));
-    for (var i = 1u; i <= krs.ao_samples; i++) {
-        let h = f32(i) * krs.ao_spacing;
+    for (var i = 0u; i < krs.ao_samples; i++) {
+        let h = max(f32(i) + offset, 1e-3) * krs.ao_spacing;
         let d = scene_distance(p + n * h);
         var shortfall = 0.0;
         if d < KRS_FAR {
             shortfall = clamp((h - d) / h, 0.0, 1.0);
         }
-        occlusion += weight * shortfall;
-        total += weight;
-        weight *= decay;
+        occlusion += exp2(-4.0 * h / reach) * shortfall;
     }
-    return clamp(1.0 - occlusion / total, 0.0, 1.0);
+    return clamp(1.0 - occlusion * krs.ao_spacing / weight_integral, 0.0, 1.0);
 }
 
 // ---- primary rays ----
@@ -1136,7 +1147,7 @@ fn light_pixel(px: vec2<u32>) {
         p = e0.xyz;
         footprint = max(e0.w, receiver);
     }
-    let open = krs_ambient(p, n);
+    let open = krs_ambient(p, n, ao_jitter(pixel));
     atomicAdd(&wg_ao, krs.ao_samples);
     krs_light[base] = vec4<f32>(p, select(open, open + 2.0, e0.w >= 0.0));
     for (var l = 0u; l < krs.light_count; l++) {

@@ -55,10 +55,28 @@ fn visibility(map: u32, p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: 
     return f32(lit) / f32(taps);
 }
 
+// core's `krs::ao_jitter` (lowbias32, 24 bits; the same hash as krs_trace.wgsl's).
+fn ao_hash(seed: u32) -> f32 {
+    var x = seed;
+    x ^= x >> 16u;
+    x *= 0x7feb352du;
+    x ^= x >> 15u;
+    x *= 0x846ca68bu;
+    x ^= x >> 16u;
+    return f32(x >> 8u) / 16777216.0;
+}
+
+// core's `ao_pixel_jitter`: three values in [0, 1) from seeds 3·pixel + 1 ..= 3·pixel + 3.
+fn ao_pixel_jitter(pixel: u32) -> vec3<f32> {
+    let seed = pixel * 3u;
+    return vec3<f32>(ao_hash(seed + 1u), ao_hash(seed + 2u), ao_hash(seed + 3u));
+}
+
 // Screen-space ambient occlusion, the CPU's `AoKernel::openness` (docs/rendering.md "Ambient
-// occlusion"): fraction of the fixed samples around p not occluded by a depth-buffer surface
-// nearer the eye than the sample by more than eps_world and less than the radius.
-fn ao_openness(p: vec3<f32>, n: vec3<f32>, eps_world: f32) -> f32 {
+// occlusion"): fraction of the samples around p (the kernel's phases plus the pixel's jitter)
+// not occluded by a depth-buffer surface nearer the eye than the sample by more than eps_world
+// and less than the radius.
+fn ao_openness(p: vec3<f32>, n: vec3<f32>, pixel: u32, eps_world: f32) -> f32 {
     if shading.ao_count == 0u || all(n == vec3<f32>(0.0)) {
         return 1.0;
     }
@@ -71,8 +89,17 @@ fn ao_openness(p: vec3<f32>, n: vec3<f32>, eps_world: f32) -> f32 {
     let w = f32(view.size.x);
     let h = f32(view.size.y);
     var occluded = 0u;
+    let count = f32(shading.ao_count);
+    let jitter = ao_pixel_jitter(pixel);
     for (var i = 0u; i < shading.ao_count; i++) {
-        let s = shading.ao_kernel[i].xyz;
+        // core's `ao_sample_offset`: the sample's phases plus this pixel's jitter.
+        let phases = shading.ao_kernel[i].xyz;
+        let u = min(phases.x + jitter.x / count, 1.0);
+        let cos_t = sqrt(1.0 - u);
+        let sin_t = sqrt(u);
+        let phi = 6.2831855 * fract(phases.y + jitter.y);
+        let dist = shading.ao_radius * (0.25 + 0.75 * fract(phases.z + jitter.z));
+        let s = vec3<f32>(sin_t * cos(phi), sin_t * sin(phi), cos_t) * dist;
         let q = p + t * s.x + b * s.y + n * s.z;
         let qv = (view.view_from_world * vec4<f32>(q, 1.0)).xyz;
         let d_q = -qv.z;
@@ -133,7 +160,7 @@ fn shade(@builtin(global_invocation_id) gid: vec3<u32>) {
         let v = toward_eye(view, p);
         let receiver = pixel_world_size(view, view_depth_of(view, depth)) * shading.receiver_px;
         // The AO staircase tolerance: the receiver term of the shadow bias.
-        let open = ao_openness(p, n, 1.5 * receiver);
+        let open = ao_openness(p, n, gid.y * view.size.x + gid.x, 1.5 * receiver);
         var light = shading.ambient.xyz * (open * krs_open);
         var spec = vec3<f32>(0.0);
         for (var i = 0u; i < shading.light_count; i++) {

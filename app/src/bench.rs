@@ -68,6 +68,9 @@ pub struct BenchReport {
     /// GPU: chunks the voxel pools were split into to fit the storage binding limit (1 for a
     /// scene under the limit); 0 for the CPU.
     pub pool_chunks: usize,
+    /// GPU: bytes of the per-frame buffers and textures after the last frame
+    /// (`Renderer::frame_bytes`: grows with the image and with `supersample`²); 0 for the CPU.
+    pub frame_bytes: u64,
     /// Degrees the camera's yaw turned before each timed frame (0: one fixed view).
     pub orbit_deg: f32,
     /// CPU: shadow maps taken from the shadow cache instead of rendered, over the timed frames
@@ -220,6 +223,7 @@ pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
         orbit_deg: setup.orbit_deg,
         shadow_maps_reused,
         pool_chunks: 0,
+        frame_bytes: 0,
         renderer: "cpu",
         device: format!("CPU, {} threads (rayon)", rayon_threads()),
         width: setup.width,
@@ -348,6 +352,7 @@ pub fn bench_gpu(
         orbit_deg,
         shadow_maps_reused: 0,
         pool_chunks: r.pool_chunks(),
+        frame_bytes: r.frame_bytes(),
         renderer: "gpu",
         device: ctx.describe(),
         width,
@@ -407,8 +412,10 @@ pub fn format_report(project: &str, r: &BenchReport) -> String {
     if !r.atomic_path.is_empty() {
         let _ = writeln!(
             s,
-            "  splat path: {}; voxel pools in {} chunk(s)",
-            r.atomic_path, r.pool_chunks
+            "  splat path: {}; voxel pools in {} chunk(s); frame buffers {}",
+            r.atomic_path,
+            r.pool_chunks,
+            thicket_core::budget::human(r.frame_bytes)
         );
     }
     let source = match (r.renderer, r.gpu_timestamps) {

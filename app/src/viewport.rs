@@ -249,6 +249,9 @@ pub struct FrameKey {
     pub camera: OrbitCamera,
     /// Target size in pixels.
     pub size_px: [u32; 2],
+    /// Samples per pixel side to draw: the document's `supersample`, or 1 while the view keeps
+    /// changing (an orbit, a stroke, playback), as the CPU preview's moving frames.
+    pub supersample: u32,
 }
 
 /// A voxel edit between two document states: only voxels of `object` inside `lo..=hi`
@@ -359,7 +362,17 @@ impl Resources {
         };
         let full = region.is_none() && !unchanged;
         let result = regions_upload.and_then(|regions_up| {
-            let (doc, camera, quality) = (&cb.doc, &cb.key.camera, &cb.doc.quality);
+            let (doc, camera) = (&cb.doc, &cb.key.camera);
+            let moving_quality;
+            let quality = if cb.key.supersample == doc.quality.supersample {
+                &doc.quality
+            } else {
+                moving_quality = thicket_core::quality::Quality {
+                    supersample: cb.key.supersample,
+                    ..doc.quality.clone()
+                };
+                &moving_quality
+            };
             let stats = if full {
                 renderer.render(device, queue, doc, camera, quality, &frame.target)
             } else {

@@ -55,6 +55,56 @@ fn render_gpu_writes_the_same_picture_as_the_cpu() {
 }
 
 #[test]
+fn render_gpu_supersample_changes_the_picture_and_matches_the_cpu() {
+    // `--quality supersample=3` on the GPU: not the one-sample bytes, and the CPU's 3 × 3
+    // picture within the parity tolerance.
+    let dir = tempfile::tempdir().unwrap();
+    let project = sample("house");
+    let render = |name: &str, gpu: bool, k: &str| {
+        let png = dir.path().join(name);
+        let mut args = vec![
+            "render",
+            project.to_str().unwrap(),
+            "-o",
+            png.to_str().unwrap(),
+            "--size",
+            "72x56",
+            "--quality",
+            k,
+        ];
+        if gpu {
+            args.push("--gpu");
+        }
+        let o = thicket(&args);
+        assert!(o.status.success(), "{}", stderr(&o));
+        png
+    };
+    let gpu1 = render("gpu1.png", true, "supersample=1");
+    let gpu3 = render("gpu3.png", true, "supersample=3");
+    let cpu3 = render("cpu3.png", false, "supersample=3");
+    assert_ne!(
+        std::fs::read(&gpu1).unwrap(),
+        std::fs::read(&gpu3).unwrap(),
+        "supersample=3 wrote the one-sample picture"
+    );
+    let gpu = thicket_core::render::RgbaImage::load_png(&gpu3).unwrap();
+    let cpu = thicket_core::render::RgbaImage::load_png(&cpu3).unwrap();
+    let one = thicket_core::render::RgbaImage::load_png(&gpu1).unwrap();
+    let tol = thicket_core::measure::image::Tolerance::GPU_PARITY;
+    let count = |a, b| thicket_core::measure::image::count_differing(a, b, tol.channel).unwrap();
+    let (vs_cpu, vs_one) = (count(&gpu, &cpu), count(&gpu, &one));
+    assert!(
+        vs_cpu as f64 <= tol.max_differing_fraction * f64::from(72 * 56),
+        "{vs_cpu} pixels differ from the CPU's 3 × 3 picture"
+    );
+    // Supersampling moves far more pixels than the tolerance lets differ.
+    assert!(
+        vs_one as f64 > 10.0 * tol.max_differing_fraction * f64::from(72 * 56),
+        "only {vs_one} pixels moved from one sample to 3 × 3"
+    );
+}
+
+#[test]
 fn render_gpu_bad_size_fails_cleanly() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.png");

@@ -84,12 +84,11 @@ pub struct Quality {
     pub stretch_strategy: Option<StretchStrategy>,
     /// Enhancement: probe count for direct resampling.
     pub enhancement_samples: u32,
-    /// Antialiasing: the CPU renderer draws `supersample`² samples per pixel (a grid of
+    /// Antialiasing: both renderers draw `supersample`² samples per pixel (a grid of
     /// `supersample` × `supersample`) and averages them in linear light, for `supersample`² the
     /// work. Sub-pixel detail (KRS grass, leaves, far voxels' edges) then shows as the part of
     /// the pixel it covers instead of all or nothing. Every knob counted in pixels (LOD, exact
-    /// cubes, KRS epsilon) is counted in samples. 1 = one sample per pixel. The GPU renderer
-    /// draws one sample per pixel whatever this is.
+    /// cubes, KRS epsilon) is counted in samples. 1 = one sample per pixel.
     pub supersample: u32,
 }
 
@@ -393,9 +392,9 @@ pub const KNOB_SPECS: &[KnobSpec] = &[
     knob!(u32 enhancement_samples, 1, 1024, "probes", "Enhancement samples",
         "Detail enhancement: probes per fragment", &[]),
     knob!(u32 supersample, 1, MAX_SUPERSAMPLE, "samples per pixel side", "Supersampling",
-        "CPU renderer (preview, renders, image exports): draw k × k samples per pixel and \
-         average them, so grass, leaves and far edges thinner than a pixel show as the part of \
-         it they cover; k² the work. 1 = off. The GPU view draws one sample per pixel.",
+        "Both renderers (preview, GPU view, renders, image exports): draw k × k samples per \
+         pixel and average them, so grass, leaves and far edges thinner than a pixel show as \
+         the part of it they cover; k² the work. 1 = off.",
         &["1", "2", "3"]),
 ];
 

@@ -147,7 +147,8 @@ struct Shading {
     pcf_radius: u32,
     // max(1, lod pixel threshold): the receiver's splat size in pixels, for the shadow bias.
     receiver_px: f32,
-    // Ambient occlusion: sample count (0 = off), world radius, tangent-frame offsets.
+    // Ambient occlusion: sample count (0 = off), world radius, per-sample phases (core's
+    // `ao_sample_phases`: elevation stratum start, azimuth phase, distance phase).
     ao_count: u32,
     ao_radius: f32,
     // Entries per pixel of the KRS lighting buffer (0: no KRS this frame; krs_trace.wgsl).

@@ -302,6 +302,23 @@ pub struct ShadowMapGpu {
 const _: () = assert!(std::mem::size_of::<ShadowMapGpu>() == 256);
 const _: () = assert!(std::mem::offset_of!(ShadowMapGpu, key_word_offset) == 240);
 
+/// Supersampling's resolve: samples per pixel side and the target's size.
+///
+/// Keep in sync with `shaders/supersample.wgsl` (`Supersample`).
+#[repr(C)]
+#[derive(Debug, Clone, Copy, Pod, Zeroable)]
+pub struct SupersampleUniform {
+    /// Samples per pixel side (the frame was drawn `k` times the target's size).
+    pub k: u32,
+    /// Target width in pixels.
+    pub width: u32,
+    /// Target height in pixels.
+    pub height: u32,
+    /// Padding to 16 bytes.
+    pub pad: u32,
+}
+const _: () = assert!(std::mem::size_of::<SupersampleUniform>() == 16);
+
 /// Deferred-shading constants.
 ///
 /// Keep in sync with `shaders/common/types.wgsl` (`Shading`).
@@ -327,8 +344,10 @@ pub struct ShadingUniform {
     pub krs_stride: u32,
     /// Padding.
     pub pad: [u32; 2],
-    /// Ambient-occlusion sample offsets in the tangent frame (xyz; w unused), computed on the
-    /// CPU with the reference's formulas so both renderers use bit-identical offsets.
+    /// Ambient-occlusion sample phases (xyz: elevation stratum start, azimuth phase, distance
+    /// phase; w unused), computed on the CPU with the reference's formulas
+    /// (`render::shade::ao_sample_phases`); the shader adds each pixel's jitter as the CPU's
+    /// `ao_sample_offset` does.
     pub ao_kernel: [[f32; 4]; MAX_AO_SAMPLES],
 }
 const _: () = assert!(std::mem::size_of::<ShadingUniform>() == 64 + 16 * MAX_AO_SAMPLES);
@@ -417,8 +436,8 @@ pub const TEXTURE_ENTRY_WORDS: usize = 4;
 /// Bit marking triangle ids.
 pub const MESH_ID_FLAG: u32 = 1 << 31;
 
-/// The ambient-occlusion sample offsets of the CPU reference
-/// ([`thicket_core::render::shade::ao_sample_offsets`], specified in docs/rendering.md "Ambient
+/// The ambient-occlusion sample phases of the CPU reference
+/// ([`thicket_core::render::shade::ao_sample_phases`], specified in docs/rendering.md "Ambient
 /// occlusion"), packed for the shader's uniform. `count` is clamped to [`MAX_AO_SAMPLES`];
 /// returns the count used.
 #[must_use]
@@ -432,12 +451,9 @@ pub fn ao_kernel(count: u32, radius_world: f32) -> (u32, [[f32; 4]; MAX_AO_SAMPL
     let mut out = [[0.0; 4]; MAX_AO_SAMPLES];
     for (slot, v) in out
         .iter_mut()
-        .zip(thicket_core::render::shade::ao_sample_offsets(
-            count,
-            radius_world,
-        ))
+        .zip(thicket_core::render::shade::ao_sample_phases(count))
     {
-        *slot = [v.x, v.y, v.z, 0.0];
+        *slot = [v[0], v[1], v[2], 0.0];
     }
     (count, out)
 }

@@ -19,6 +19,7 @@ use super::passes::mesh::MeshPass;
 use super::passes::plan::{FramePlan, PlanLimits, PlanScene};
 use super::passes::resolve::ResolvePass;
 use super::passes::shade::{ShadeInputs, ShadePass};
+use super::passes::supersample::{SupersamplePass, samples_per_side};
 use super::passes::traverse::{TraversePass, Views};
 use super::passes::{BufferPool, FrameBuffers, Gpu, MAX_TIMED_PASSES, Timestamps};
 use super::scene::{SceneCache, UploadStats};
@@ -135,6 +136,33 @@ pub fn read_rgba8(
     Ok(out)
 }
 
+/// A supersampled frame's G-buffer at its image's size: per pixel, the sample nearest the
+/// pixel's centre, as the CPU's `FrameBuffers::decimate`.
+fn decimate(g: GBuffer, k: u32) -> GBuffer {
+    if k <= 1 {
+        return g;
+    }
+    let (w, h) = (g.width / k, g.height / k);
+    let (big_w, k, c) = (g.width as usize, k as usize, (k / 2) as usize);
+    let at = |x: usize, y: usize| (y * k + c) * big_w + x * k + c;
+    let pick = |v: &[Vec3]| -> Vec<Vec3> {
+        (0..h as usize)
+            .flat_map(|y| (0..w as usize).map(move |x| (x, y)))
+            .map(|(x, y)| v[at(x, y)])
+            .collect()
+    };
+    GBuffer {
+        width: w,
+        height: h,
+        depth: (0..h as usize)
+            .flat_map(|y| (0..w as usize).map(move |x| (x, y)))
+            .map(|(x, y)| g.depth[at(x, y)])
+            .collect(),
+        normal: pick(&g.normal),
+        albedo: pick(&g.albedo),
+    }
+}
+
 /// Maps a `MAP_READ` buffer, waits, copies its bytes out and unmaps it.
 pub(super) fn map_read(device: &wgpu::Device, buffer: &wgpu::Buffer) -> Result<Vec<u8>, GpuError> {
     let slice = buffer.slice(..);
@@ -186,6 +214,7 @@ pub struct Renderer {
     mesh: MeshPass,
     resolve: ResolvePass,
     shade: ShadePass,
+    supersample: SupersamplePass,
     /// The KRS pass (trace and lighting), built with the first frame that has KRS objects (its
     /// shader is the largest; frames without KRS never pay for compiling it).
     krs: Option<super::krs::KrsPipelines>,
@@ -197,7 +226,9 @@ pub struct Renderer {
     shadow_slot: u64,
     /// The pass timestamps' query set (created with the first frame on a device that has them).
     timestamps: Option<wgpu::QuerySet>,
+    /// The last frame's drawn size (the samples' when supersampled) and samples per side.
     last_size: (u32, u32),
+    last_samples_per_side: u32,
     /// The scene on the GPU (`None` until the first upload).
     scene: Option<SceneCache>,
     /// Counters and timestamps read back through a ring of staging buffers.
@@ -240,12 +271,14 @@ impl Renderer {
             mesh: MeshPass::new(device, caps.int64_atomics)?,
             resolve: ResolvePass::new(device)?,
             shade: ShadePass::new(device)?,
+            supersample: SupersamplePass::new(device)?,
             krs: None,
             pool: BufferPool::default(),
             created: Arc::new(AtomicU64::new(0)),
             shadow_slot: 0,
             timestamps: None,
             last_size: (0, 0),
+            last_samples_per_side: 1,
             scene: None,
             readback: ReadbackRing::default(),
             async_readback: false,
@@ -441,7 +474,7 @@ impl Renderer {
             doc,
             camera,
             quality,
-            target,
+            target: _,
         } = *inputs;
         doc.validate()?;
         camera.validate()?;
@@ -484,7 +517,6 @@ impl Renderer {
         }
         let mut stats = result?;
         stats.total_ms = t_start.elapsed().as_secs_f64() * 1e3;
-        self.last_size = (target.width, target.height);
         Ok(stats)
     }
 
@@ -533,6 +565,15 @@ impl Renderer {
             GpuError::Device("the frame ended before its voxel pass was measured".into())
         })??;
         Ok((stats, measured))
+    }
+
+    /// Bytes of the per-frame buffers and textures held (key buffers, G-buffer, queues,
+    /// shadow maps, the supersampled frame's samples target; not the scene's pools): what a
+    /// larger image or [`Quality::supersample`] costs in device memory.
+    #[must_use]
+    pub fn frame_bytes(&self) -> u64 {
+        // The samples target is RGBA8.
+        self.pool.bytes() + 4 * self.supersample.samples_texels()
     }
 
     /// Reads the last frame's G-buffer back.
@@ -594,7 +635,7 @@ impl Renderer {
             g.normal.push(Vec3::new(nx, ny, nz * 2.0 - 1.0));
             g.albedo.push(Vec3::new(r, gr, b));
         }
-        Ok(g)
+        Ok(decimate(g, self.last_samples_per_side))
     }
 
     /// One frame after the scene and skin are up to date: plan, prepare, encode, submit and
@@ -661,9 +702,18 @@ impl Renderer {
         skin.apply(scene, &mut frame_objects);
         // KRS objects: traced after resolve into the same G-buffer (see gpu/krs.rs).
         let krs_scene = super::krs::prepared_krs(doc)?;
+        // Supersampled, every pass draws an image k times the target's size (the same view),
+        // which the supersample pass then filters down: the CPU's `render_supersampled`.
+        let k = samples_per_side(
+            target.width,
+            target.height,
+            quality.supersample,
+            gpu.device.limits().max_texture_dimension_2d,
+        );
+        let drawn = (target.width * k, target.height * k);
         let plan = FramePlan::new(
             camera,
-            (target.width, target.height),
+            drawn,
             quality,
             &PlanScene {
                 lights: &doc.lights,
@@ -724,14 +774,19 @@ impl Renderer {
             Some(k) => thicket_core::render::with_krs_bounds(frame_objects.bounds, k),
             None => frame_objects.bounds,
         });
+        let samples =
+            self.supersample
+                .prepare(gpu, pool, k, (target.width, target.height), &target.view);
         let shade_inputs = ShadeInputs {
             doc,
             quality,
             ao_radius,
             krs: krs.as_ref().map(|k| (&k.light_buf, k.stride)),
-            target: &target.view,
+            target: samples.as_ref().unwrap_or(&target.view),
         };
         self.shade.prepare(gpu, pool, &plan, &bufs, &shade_inputs);
+        self.last_size = drawn;
+        self.last_samples_per_side = k;
         Ok(Prepared {
             plan,
             counters: bufs.counters.clone(),
@@ -776,6 +831,7 @@ impl Renderer {
             }
         }
         self.shade.encode(enc, ts);
+        self.supersample.encode(enc, ts);
     }
 
     /// The splat-bandwidth measurement of the view's voxel pass (see [`super::splat_bw`]).

@@ -35,6 +35,7 @@ pub const SOURCES: &[(&str, &str)] = &[
     shader!("resolve.wgsl"),
     shader!("shade.wgsl"),
     shader!("krs_trace.wgsl"),
+    shader!("supersample.wgsl"),
     shader!("viewport_blit.wgsl"),
 ];
 

@@ -389,6 +389,17 @@ fn render_key(editor: &Editor) -> RenderKey {
     (editor.content_key(), editor.animation_key())
 }
 
+/// Samples per pixel side the GPU view draws with the document's `supersample` when what it
+/// draws last changed at `moved_at`: one while that is under [`PREVIEW_STILL`] ago (a moving
+/// frame, as the CPU preview's), else the document's.
+fn gpu_view_supersample(moved_at: Option<Instant>, now: Instant, supersample: u32) -> u32 {
+    if moved_at.is_some_and(|t| now.saturating_duration_since(t) < PREVIEW_STILL) {
+        1
+    } else {
+        supersample
+    }
+}
+
 /// The content key the CPU preview gives its shadow cache for a render key.
 fn preview_content_hash(key: RenderKey) -> u64 {
     let mut h = std::hash::DefaultHasher::new();
@@ -516,6 +527,9 @@ pub struct View {
     /// What the CPU preview last saw drawn (camera, content and animation keys) and when it
     /// changed (`None`: still, e.g. at start).
     preview_motion: Option<((OrbitCamera, RenderKey), Instant)>,
+    /// What the GPU view last saw drawn (camera, content and animation keys) and when it
+    /// changed: while that is under [`PREVIEW_STILL`] ago it draws one sample per pixel.
+    gpu_motion: Option<((OrbitCamera, RenderKey), Option<Instant>)>,
     /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
     regions: Vec<RegionHint>,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
@@ -582,6 +596,7 @@ impl Default for View {
             snapshot: None,
             cpu: CpuPreview::default(),
             preview_motion: None,
+            gpu_motion: None,
             regions: Vec::new(),
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
@@ -1584,6 +1599,20 @@ impl View {
         if self.regions.last().is_some_and(|last| last.to != key) {
             self.regions.clear();
         }
+        // Supersampling only once the view is still, as the CPU preview: a moving frame draws
+        // one sample per pixel, and the still frame follows PREVIEW_STILL later.
+        let drawn = (editor.doc().camera, render_key(editor));
+        let now = Instant::now();
+        let moved_at = match self.gpu_motion {
+            Some((d, t)) if d == drawn => t,
+            Some(_) => Some(now),
+            None => None,
+        };
+        self.gpu_motion = Some((drawn, moved_at));
+        let supersample = gpu_view_supersample(moved_at, now, editor.doc().quality.supersample);
+        if supersample != editor.doc().quality.supersample {
+            ui.ctx().request_repaint_after(PREVIEW_STILL);
+        }
         let doc = self.snapshot(editor);
         let ppp = ui.ctx().pixels_per_point();
         let size = rect.size() * ppp * self.render_scale;
@@ -1599,6 +1628,7 @@ impl View {
                     animation: editor.animation_key(),
                     camera: editor.doc().camera,
                     size_px,
+                    supersample,
                 },
                 doc,
                 regions: self.regions.clone(),
@@ -2383,6 +2413,20 @@ fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_gpu_view_draws_one_sample_while_moving_and_the_documents_when_still() {
+        let t0 = Instant::now();
+        let soon = t0 + PREVIEW_STILL / 2;
+        let later = t0 + PREVIEW_STILL;
+        // Never moved (just opened), or still for PREVIEW_STILL: the document's samples.
+        assert_eq!(gpu_view_supersample(None, t0, 3), 3);
+        assert_eq!(gpu_view_supersample(Some(t0), later, 3), 3);
+        // Moved this frame or a moment ago: one sample.
+        assert_eq!(gpu_view_supersample(Some(t0), t0, 3), 1);
+        assert_eq!(gpu_view_supersample(Some(t0), soon, 3), 1);
+        assert_eq!(gpu_view_supersample(Some(t0), soon, 1), 1);
+    }
 
     #[test]
     fn a_moving_preview_drops_below_half_only_when_half_would_miss_the_budget() {

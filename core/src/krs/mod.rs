@@ -51,8 +51,8 @@ pub use shade::{
     triplanar_colour,
 };
 pub use trace::{
-    AoSettings, SampleGrid, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, shadow,
-    shadow_counted, tile_cone, tile_start_distance, tile_start_distance_counted, trace,
+    AoSettings, SampleGrid, ShadowSettings, TraceHit, TraceSettings, ambient_occlusion, ao_jitter,
+    shadow, shadow_counted, tile_cone, tile_start_distance, tile_start_distance_counted, trace,
 };
 pub use tree::{LeafParams, TreeError, TreeParams, spiral_route};
 

@@ -556,10 +556,15 @@ pub fn shadow_counted(
 pub struct AoSettings {
     /// Number of distance samples along the normal.
     pub samples: u32,
-    /// Spacing of the samples in world units.
+    /// Spacing of the samples in world units: the reach is `samples · spacing`.
     pub spacing: f32,
     /// Strength multiplier.
     pub strength: f32,
+    /// Where each sample lies in its stratum, in [0, 1): sample i (from 0) is at height
+    /// `(i + 1 − jitter) · spacing`. The renderers draw it per pixel ([`ao_jitter`]), which
+    /// makes the estimate unbiased: its mean over the jitter is the same integral for every
+    /// sample count, and only its noise falls as the count grows. 0.5 is the midpoint rule.
+    pub jitter: f32,
 }
 
 impl Default for AoSettings {
@@ -568,17 +573,35 @@ impl Default for AoSettings {
             samples: 5,
             spacing: 0.05,
             strength: 1.0,
+            jitter: 0.5,
         }
     }
 }
 
-/// Ambient accessibility in [0, 1] (1 = open) at surface point `p` with normal `n`: at heights
-/// h_i = i·spacing (i = 1..=samples) the free distance should be h_i on an open surface; the
-/// shortfall (h_i − d)/h_i is averaged with weights that halve every quarter of the reach
-/// `samples·spacing` (w_i = 2^(−4(i−1)/samples)). At 4 samples that is the classic halving per
-/// sample; with more samples over the same reach the sum refines towards one integral instead
-/// of the weights shrinking the reach (halving per sample, 16 samples over a reach would look
-/// only at its first quarter).
+/// The AO jitter of pixel `pixel` (its index in the image drawn, row-major): a fixed hash
+/// (Wellons' `lowbias32`) of the index, in [0, 1) with 24 bits, so the CPU and GPU renderers
+/// draw the same value for the same pixel and a frame is deterministic.
+/// Keep in sync with `shaders/krs_trace.wgsl` (`ao_jitter`).
+#[must_use]
+pub fn ao_jitter(pixel: u32) -> f32 {
+    let mut x = pixel;
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    (x >> 8) as f32 / 16_777_216.0
+}
+
+/// Ambient accessibility in [0, 1] (1 = open) at surface point `p` with normal `n`: the
+/// occlusion is the weighted mean over heights h in (0, R] (R = `samples · spacing`, the
+/// reach) of the shortfall `(h − d(p + h·n)) / h` clamped to [0, 1] (0 on an open surface, where
+/// the free distance is h), with weights `w(h) = 2^(−4h/R)` (halving every quarter of the
+/// reach, whatever the count) normalised by their integral over the reach. It is estimated by
+/// stratified sampling: one sample per stratum of width `spacing`, at `(i + 1 − jitter) ·
+/// spacing`, so the estimate's mean over the jitter is the integral itself for every sample
+/// count (the earlier fixed heights `i · spacing` were a quadrature whose value moved with the
+/// count: 4 samples looked past the first quarter of the reach).
 pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoSettings) -> f32 {
     let Some(n) = n.try_normalize() else {
         return 1.0;
@@ -586,21 +609,21 @@ pub fn ambient_occlusion(scene: &PreparedScene, p: Vec3, n: Vec3, settings: &AoS
     if settings.samples == 0 || !(settings.spacing.is_finite() && settings.spacing > 0.0) {
         return 1.0;
     }
+    let reach = settings.samples as f32 * settings.spacing;
+    // ∫₀^R 2^(−4h/R) dh = R · (1 − 2^−4) / (4 ln 2).
+    let weight_integral = reach * (15.0 / 16.0) / (4.0 * std::f32::consts::LN_2);
+    let offset = 1.0 - settings.jitter.clamp(0.0, 1.0);
     let mut occlusion = 0.0f32;
-    let mut total = 0.0f32;
-    let mut weight = 1.0f32;
-    let decay = 0.5f32.powf(4.0 / settings.samples as f32);
-    for i in 1..=settings.samples {
-        let h = i as f32 * settings.spacing;
+    for i in 0..settings.samples {
+        let h = (i as f32 + offset).max(1e-3) * settings.spacing;
         let d = scene.distance(p + n * h);
         let shortfall = if d.is_finite() {
             ((h - d) / h).clamp(0.0, 1.0)
         } else {
             0.0
         };
-        occlusion += weight * shortfall;
-        total += weight;
-        weight *= decay;
+        occlusion += (-4.0 * h / reach).exp2() * shortfall;
     }
-    (1.0 - settings.strength * occlusion / total).clamp(0.0, 1.0)
+    let occlusion = occlusion * settings.spacing / weight_integral;
+    (1.0 - settings.strength * occlusion).clamp(0.0, 1.0)
 }

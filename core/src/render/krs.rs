@@ -19,8 +19,8 @@ use super::MESH_ID_FLAG;
 use super::buffers::{DepthTarget, EMPTY_KEY, key_depth, pack_key};
 use super::camera::Camera;
 use crate::krs::{
-    AoSettings, PreparedScene, ShadowSettings, TraceSettings, ambient_occlusion, shade_colour,
-    shading_threshold, shadow_counted, tile_cone, tile_start_distance_counted, trace,
+    AoSettings, PreparedScene, ShadowSettings, TraceSettings, ambient_occlusion, ao_jitter,
+    shade_colour, shading_threshold, shadow_counted, tile_cone, tile_start_distance_counted, trace,
 };
 use crate::quality::Quality;
 use crate::scene::Light;
@@ -427,9 +427,10 @@ impl<'a> KrsLighting<'a> {
         )
     }
 
-    /// Ambient accessibility from the KRS around `p` (1 when AO is off), and the distance
-    /// evaluations it took (one per sample).
-    pub(crate) fn ambient(&self, p: Vec3, n: Vec3) -> (f32, u32) {
+    /// Ambient accessibility from the KRS around `p` (1 when AO is off) for pixel `pixel` of
+    /// the image drawn (its index picks the samples' jitter, `krs::ao_jitter`), and the
+    /// distance evaluations it took (one per sample).
+    pub(crate) fn ambient(&self, p: Vec3, n: Vec3, pixel: u32) -> (f32, u32) {
         if self.ao_samples == 0 {
             return (1.0, 0);
         }
@@ -441,6 +442,7 @@ impl<'a> KrsLighting<'a> {
                 samples: self.ao_samples,
                 spacing: self.ao_spacing,
                 strength: 1.0,
+                jitter: ao_jitter(pixel),
             },
         );
         (open, self.ao_samples)

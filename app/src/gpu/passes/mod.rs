@@ -16,7 +16,8 @@
 //! | [`mesh`] | triangle meshes rasterised into the keys | `mesh{32,64}.wgsl` |
 //! | [`resolve`] | keys → G-buffer | `resolve.wgsl` |
 //! | `super::krs` | KRS trace and lighting | `krs_trace.wgsl` |
-//! | [`shade`] | deferred Phong, shadows, AO → target | `shade.wgsl` |
+//! | [`shade`] | deferred Phong, shadows, AO → target (or the samples target) | `shade.wgsl` |
+//! | [`supersample`] | the samples target box-filtered to the target (`supersample` > 1) | `supersample.wgsl` |
 //!
 //! Skinning has no pass of its own: `super::skin` prepares the skin data and joint matrices
 //! that the traversal and resolve bind.
@@ -30,6 +31,7 @@ pub(super) mod mesh;
 pub(super) mod plan;
 pub(super) mod resolve;
 pub(super) mod shade;
+pub(super) mod supersample;
 pub(super) mod traverse;
 
 /// The device and queue of a frame, creating through counted calls.
@@ -136,6 +138,11 @@ impl BufferPool {
             gpu.queue.write_buffer(&b, 0, data);
         }
         b
+    }
+
+    /// Bytes of every buffer held.
+    pub(super) fn bytes(&self) -> u64 {
+        self.buffers.values().map(wgpu::Buffer::size).sum()
     }
 
     /// The buffer last returned under `name` and `index`, if any.
@@ -541,6 +548,11 @@ mod tests {
             ("mesh64.wgsl", super::mesh::bind_group_entries(), true),
             ("resolve.wgsl", super::resolve::bind_group_entries(), true),
             ("shade.wgsl", super::shade::bind_group_entries(), true),
+            (
+                "supersample.wgsl",
+                super::supersample::bind_group_entries(),
+                true,
+            ),
             ("asvo_splat32.wgsl", splat.clone(), true),
             ("asvo_splat64.wgsl", splat, true),
             ("asvo_queue.wgsl", traverse, false),
@@ -566,6 +578,14 @@ mod tests {
                     class: naga::ImageClass::Storage { access, .. },
                     ..
                 } if !access.contains(StorageAccess::LOAD) => "storage texture write".into(),
+                naga::TypeInner::Image {
+                    class:
+                        naga::ImageClass::Sampled {
+                            kind: naga::ScalarKind::Float,
+                            multi: false,
+                        },
+                    ..
+                } => "texture float".into(),
                 other => format!("{other:?}"),
             },
             other => format!("{other:?}"),
@@ -591,6 +611,11 @@ mod tests {
                 access: wgpu::StorageTextureAccess::WriteOnly,
                 ..
             } => "storage texture write".into(),
+            wgpu::BindingType::Texture {
+                sample_type: wgpu::TextureSampleType::Float { .. },
+                multisampled: false,
+                ..
+            } => "texture float".into(),
             ref other => format!("{other:?}"),
         }
     }
