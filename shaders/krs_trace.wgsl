@@ -765,16 +765,6 @@ fn krs_shadow(origin: vec3<f32>, dir: vec3<f32>, start: f32, max_t: f32, eps: f3
     return vec2<f32>(clamp(visibility, 0.0, 1.0), f32(steps));
 }
 
-// The AO jitter of pixel `pixel` in [0, 1): core's `krs::ao_jitter` (lowbias32, 24 bits).
-fn ao_jitter(pixel: u32) -> f32 {
-    var x = pixel;
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return f32(x >> 8u) / 16777216.0;
-}
 
 // Ambient accessibility from distance samples along the normal (core's `ambient_occlusion`):
 // one sample per stratum of the reach at `(i + 1 - jitter) * spacing`, weights 2^(-4h/R)

@@ -55,21 +55,10 @@ fn visibility(map: u32, p_world: vec3<f32>, n_world: vec3<f32>, receiver_world: 
     return f32(lit) / f32(taps);
 }
 
-// core's `krs::ao_jitter` (lowbias32, 24 bits; the same hash as krs_trace.wgsl's).
-fn ao_hash(seed: u32) -> f32 {
-    var x = seed;
-    x ^= x >> 16u;
-    x *= 0x7feb352du;
-    x ^= x >> 15u;
-    x *= 0x846ca68bu;
-    x ^= x >> 16u;
-    return f32(x >> 8u) / 16777216.0;
-}
-
 // core's `ao_pixel_jitter`: three values in [0, 1) from seeds 3·pixel + 1 ..= 3·pixel + 3.
 fn ao_pixel_jitter(pixel: u32) -> vec3<f32> {
     let seed = pixel * 3u;
-    return vec3<f32>(ao_hash(seed + 1u), ao_hash(seed + 2u), ao_hash(seed + 3u));
+    return vec3<f32>(ao_jitter(seed + 1u), ao_jitter(seed + 2u), ao_jitter(seed + 3u));
 }
 
 // Screen-space ambient occlusion, the CPU's `AoKernel::openness` (docs/rendering.md "Ambient

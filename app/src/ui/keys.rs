@@ -1,5 +1,5 @@
 //! The key binding table: every key the editor binds, what it does, and the keys' names. The
-//! handlers ask for presses by action ([`presses`], [`pressed`]), never by key, and the
+//! handlers ask for presses by action (`presses`, `pressed`), never by key, and the
 //! shortcut sheet (Help → Keyboard shortcuts, F1) lists this table, so a key is bound here or
 //! not at all and the sheet cannot drift from what the keys do.
 

@@ -485,6 +485,22 @@ mod loaders {
         }
     }
 
+    /// What every loader's run must show: no panic, no case over the memory rule, and every
+    /// case run (the failures print the seed and the first cases, to replay with `case_rng`).
+    fn assert_clean(report: &super::FuzzReport, seed: u64, cases: u64) {
+        assert!(
+            report.panics.is_empty(),
+            "seed {seed:#x}: panics {:?}",
+            &report.panics[..report.panics.len().min(10)]
+        );
+        assert!(
+            report.over_budget.is_empty(),
+            "seed {seed:#x}: over budget {:?}",
+            &report.over_budget[..report.over_budget.len().min(10)]
+        );
+        assert_eq!(report.cases, cases);
+    }
+
     fn asset(relative: &str) -> Vec<u8> {
         let path =
             concat!(env!("CARGO_MANIFEST_DIR"), "/../../shared/assets/").to_owned() + relative;
@@ -530,17 +546,7 @@ mod loaders {
                 "no {k} refusals: {kinds:?}"
             );
         }
-        assert!(
-            report.panics.is_empty(),
-            "seed {SEED:#x}: panics {:?}",
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(
-            report.over_budget.is_empty(),
-            "seed {SEED:#x}: over budget {:?}",
-            &report.over_budget[..report.over_budget.len().min(10)]
-        );
-        assert_eq!(report.cases, cases);
+        assert_clean(&report, SEED, cases);
         // The mutations must not all be rejected at the door, or the deep checks go untested.
         assert!(report.accepted > cases / 50, "{report}");
     }
@@ -559,16 +565,7 @@ mod loaders {
         let cases = cases_from_env(10_000);
         let report = run(&corpus, cases, SEED, budget, load);
         eprintln!("OBJ fuzz: {report}");
-        assert!(
-            report.panics.is_empty(),
-            "seed {SEED:#x}: panics {:?}",
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(
-            report.over_budget.is_empty(),
-            "seed {SEED:#x}: over budget {:?}",
-            &report.over_budget[..report.over_budget.len().min(10)]
-        );
+        assert_clean(&report, SEED, cases);
         assert!(report.accepted > cases / 50, "{report}");
 
         // The material library mutated, the OBJ fixed.
@@ -585,12 +582,7 @@ mod loaders {
             )
         });
         eprintln!("MTL fuzz: {report}");
-        assert!(
-            report.panics.is_empty(),
-            "seed {SEED:#x}: panics {:?}",
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(report.over_budget.is_empty(), "{report}");
+        assert_clean(&report, SEED, mtl_cases);
     }
 
     #[test]
@@ -610,18 +602,7 @@ mod loaders {
             crate::io::import_skinned_slice(bytes, "fuzz.glb")
         });
         eprintln!("skinned glTF fuzz: {report}");
-        assert!(
-            report.panics.is_empty(),
-            "seed {:#x}: panics {:?}",
-            SEED ^ 0x5C1,
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(
-            report.over_budget.is_empty(),
-            "over budget {:?}",
-            &report.over_budget[..report.over_budget.len().min(10)]
-        );
-        assert_eq!(report.cases, cases);
+        assert_clean(&report, SEED ^ 0x5C1, cases);
         assert!(report.accepted > cases / 50, "{report}");
         assert!(report.refused > cases / 50, "{report}");
     }
@@ -693,18 +674,7 @@ mod loaders {
         });
         let paths = paths.into_inner();
         eprintln!("image fuzz: {report}; accepted by decoder / OBJ / GLB / palette {paths:?}");
-        assert!(
-            report.panics.is_empty(),
-            "seed {:#x}: panics {:?}",
-            SEED ^ 0x1A6E,
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(
-            report.over_budget.is_empty(),
-            "over budget {:?}",
-            &report.over_budget[..report.over_budget.len().min(10)]
-        );
-        assert_eq!(report.cases, cases);
+        assert_clean(&report, SEED ^ 0x1A6E, cases);
         // Mutations reach the decoders' insides: some images still decode, most do not.
         assert!(report.accepted > cases / 50, "{report}");
         assert!(report.refused > cases / 50, "{report}");
@@ -770,13 +740,7 @@ mod loaders {
         eprintln!(
             "palette and rig fuzz: {report}; accepted as gpl/png/vox/skeleton/clip {counts:?}"
         );
-        assert!(
-            report.panics.is_empty(),
-            "seed {:#x}: panics {:?}",
-            SEED ^ 0x9A1E,
-            &report.panics[..report.panics.len().min(10)]
-        );
-        assert!(report.over_budget.is_empty(), "{report}");
+        assert_clean(&report, SEED ^ 0x9A1E, cases);
         assert!(report.refused > cases / 50, "{report}");
         assert!(
             counts.iter().all(|&n| n > 0),
