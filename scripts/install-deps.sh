@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # System packages Thicket needs on Debian: the software Vulkan driver (GPU tests run on
 # llvmpipe/lavapipe), X11/Wayland client libraries for the editor window, Xvfb for screenshots,
-# Goxel (the .vox round trip of models made with the voxel tools runs it under Xvfb).
+# Goxel (the .vox round trip of models made with the voxel tools runs it under Xvfb), Blender
+# with numpy (tests/tests/blender.rs imports the glTF exports headless, as artists would).
 set -euo pipefail
 pkgs=(mesa-vulkan-drivers libvulkan1 vulkan-tools libx11-6 libxcursor1 libxrandr2 libxi6
       libxkbcommon0 libxkbcommon-x11-0 libwayland-client0 libwayland-cursor0 libwayland-egl1
-      libegl1 libgl1 xvfb xauth fonts-dejavu-core goxel)
+      libegl1 libgl1 xvfb xauth fonts-dejavu-core goxel blender python3-numpy)
 missing=()
 for p in "${pkgs[@]}"; do
   dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
