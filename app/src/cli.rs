@@ -946,7 +946,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
                 "{said}; the limit is {} triangles here because each needs about {} bytes and \
                  the memory limit is {} ({}): raise it with --memory-limit",
                 thousands(by_memory),
-                thicket_core::io::gltf_export::EXPORT_BYTES_PER_TRIANGLE,
+                thicket_core::io::gltf_export::export_triangle_bytes(&doc, &options),
                 human_bytes(budget.limit_bytes),
                 budget.source
             )

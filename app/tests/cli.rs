@@ -2481,7 +2481,7 @@ fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(
-        err.contains("triangles here because each needs about 320 bytes")
+        err.contains("triangles here because each needs about 160 bytes")
             && err.contains("memory limit is 64.0 MiB (--memory-limit)")
             && !err.contains("--max-triangles"),
         "{err}"

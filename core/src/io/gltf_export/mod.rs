@@ -194,10 +194,39 @@ impl Default for GltfExportOptions {
     }
 }
 
-/// Peak heap of an export per triangle written, the largest measured with a counting allocator
-/// (`the_export_estimate_holds_the_measured_peak`): 108-125 bytes in smooth mode and for KRS
-/// meshes, up to 312 in cubes mode (greedy quads keep their faces, colours and normals).
-pub const EXPORT_BYTES_PER_TRIANGLE: u64 = 320;
+/// Peak heap per triangle written of voxel models exported as cubes: greedy quads with
+/// their faces, colours and normals, then welding's table of equal vertices. Measured with a
+/// counting allocator (`the_export_estimate_holds_the_measured_peak`): up to 410 bytes a
+/// triangle past the fixed part (CesiumMan).
+pub const EXPORT_BYTES_PER_CUBES_TRIANGLE: u64 = 480;
+
+/// Peak heap per triangle written of smooth surfaces and KRS meshes (the distance field's
+/// surface cells, the mesh, welding): 81-125 bytes measured.
+pub const EXPORT_BYTES_PER_SMOOTH_TRIANGLE: u64 = 160;
+
+/// Peak heap per triangle of exporting `doc` with `options`: the cubes figure when voxel
+/// models are written as cubes, else the smooth one (smooth voxels, KRS and mesh objects).
+#[must_use]
+pub fn export_triangle_bytes(doc: &Document, options: &GltfExportOptions) -> u64 {
+    let cubes = matches!(options.mode, ExportMode::Cubes | ExportMode::Instances)
+        && exported(doc, options).any(|o| matches!(o.kind, ObjectKind::Voxels(_)));
+    if cubes {
+        EXPORT_BYTES_PER_CUBES_TRIANGLE
+    } else {
+        EXPORT_BYTES_PER_SMOOTH_TRIANGLE
+    }
+}
+
+/// The objects an export with `options` writes: the named one, or every visible one.
+fn exported<'a>(
+    doc: &'a Document,
+    options: &'a GltfExportOptions,
+) -> impl Iterator<Item = &'a Object> + 'a {
+    doc.objects.iter().filter(|o| match &options.object {
+        Some(name) => o.name == *name,
+        None => o.visible,
+    })
+}
 
 /// Peak heap of an export per voxel of the exported voxel models, on top of the triangles: the
 /// exposed-face pass walks every voxel (37 bytes each measured on the house, whose 180,202
@@ -205,16 +234,10 @@ pub const EXPORT_BYTES_PER_TRIANGLE: u64 = 320;
 pub const EXPORT_BYTES_PER_VOXEL: u64 = 40;
 
 /// The fixed part of an export's memory: [`EXPORT_BYTES_PER_VOXEL`] for every voxel of the
-/// objects `options` exports, plus 1 MiB. The triangles add [`EXPORT_BYTES_PER_TRIANGLE`] each.
+/// objects `options` exports, plus 1 MiB. The triangles add [`export_triangle_bytes`] each.
 #[must_use]
 pub fn export_fixed_bytes(doc: &Document, options: &GltfExportOptions) -> u64 {
-    let voxels: u64 = doc
-        .objects
-        .iter()
-        .filter(|o| match &options.object {
-            Some(name) => o.name == *name,
-            None => o.visible,
-        })
+    let voxels: u64 = exported(doc, options)
         .filter_map(|o| match &o.kind {
             ObjectKind::Voxels(v) => Some(v.svo.leaf_count()),
             _ => None,
@@ -226,7 +249,7 @@ pub fn export_fixed_bytes(doc: &Document, options: &GltfExportOptions) -> u64 {
 }
 
 /// The most triangles an export may write within `budget_bytes` of memory:
-/// `(budget − fixed) / EXPORT_BYTES_PER_TRIANGLE`, at most `options.max_triangles`; `None`
+/// `(budget − fixed) / export_triangle_bytes`, at most `options.max_triangles`; `None`
 /// when the fixed part alone is over the budget.
 #[must_use]
 pub fn triangle_limit_for_memory(
@@ -235,8 +258,9 @@ pub fn triangle_limit_for_memory(
     budget_bytes: u64,
 ) -> Option<u64> {
     let fixed = export_fixed_bytes(doc, options);
-    (fixed <= budget_bytes)
-        .then(|| ((budget_bytes - fixed) / EXPORT_BYTES_PER_TRIANGLE).min(options.max_triangles))
+    (fixed <= budget_bytes).then(|| {
+        ((budget_bytes - fixed) / export_triangle_bytes(doc, options)).min(options.max_triangles)
+    })
 }
 
 /// Placements per cell [`auto_cell_count`] aims at.
@@ -871,6 +895,7 @@ pub fn build_scene(
         }
     }
     out.finish_palette();
+    out.scene.weld();
     report.triangles = out.scene.triangle_count();
     report.vertices = out.scene.vertex_count();
     Ok((out.scene, report))

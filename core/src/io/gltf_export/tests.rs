@@ -1722,7 +1722,7 @@ fn the_writer_refuses_what_readers_refuse() {
     assert!(e.contains("element 2") && e.contains("1e18"), "{e}");
 }
 
-/// The export's memory estimate (`export_fixed_bytes` + `EXPORT_BYTES_PER_TRIANGLE` per
+/// The export's memory estimate (`export_fixed_bytes` + `export_triangle_bytes` per
 /// triangle written) holds the measured peak of exporting four samples in both modes, and is
 /// not more than 4 × the peak plus 1 MiB, so a budget derived from it does not refuse what fits.
 #[test]
@@ -1743,8 +1743,14 @@ fn the_export_estimate_holds_the_measured_peak() {
             let (report, peak) = crate::io::fuzz::peak_heap_bytes(|| {
                 export_gltf(&doc, &out, &options, NO_PROGRESS).unwrap()
             });
-            let estimate =
-                export_fixed_bytes(&doc, &options) + EXPORT_BYTES_PER_TRIANGLE * report.triangles;
+            let fixed = export_fixed_bytes(&doc, &options);
+            let estimate = fixed + export_triangle_bytes(&doc, &options) * report.triangles;
+            eprintln!(
+                "{name} {mode:?}: {} triangles, peak {peak}, {:.0} bytes a triangle past the \
+                 fixed part",
+                report.triangles,
+                peak.saturating_sub(fixed) as f64 / report.triangles as f64
+            );
             assert!(
                 estimate >= peak,
                 "{name} {mode:?}: estimate {estimate} < peak {peak} ({} triangles)",
@@ -1761,4 +1767,97 @@ fn the_export_estimate_holds_the_measured_peak() {
         }
     }
     assert_eq!(checked, 8);
+}
+
+/// One vertex per triangle corner, or none for an absent attribute.
+fn expand<T: Copy>(v: &[T], indices: &[u32]) -> Vec<T> {
+    if v.is_empty() {
+        return Vec::new();
+    }
+    indices.iter().map(|&i| v[i as usize]).collect()
+}
+
+/// Welding shares equal vertices without moving a triangle: each exported primitive, expanded
+/// to one vertex per triangle corner and welded again, has the same corners (position, normal,
+/// colour, texture coordinate, weights, bit for bit) in the same triangles, and exactly one
+/// vertex per distinct corner: as many as the export wrote.
+#[test]
+fn welding_shares_equal_vertices_and_keeps_every_triangle() {
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../projects");
+    let corners = |p: &ExportPrimitive| -> Vec<[u32; 14]> {
+        p.indices
+            .iter()
+            .map(|&i| {
+                let i = i as usize;
+                let v = p.positions[i];
+                let n = p.normals.get(i).copied().unwrap_or_default();
+                let c = p.colors.get(i).copied().unwrap_or_default();
+                let t = p.uvs.get(i).copied().unwrap_or_default();
+                let s = p.skin.get(i).copied().unwrap_or_default();
+                [
+                    v.x.to_bits(),
+                    v.y.to_bits(),
+                    v.z.to_bits(),
+                    n.x.to_bits(),
+                    n.y.to_bits(),
+                    n.z.to_bits(),
+                    c.x.to_bits(),
+                    c.y.to_bits(),
+                    c.z.to_bits(),
+                    c.w.to_bits(),
+                    t.x.to_bits(),
+                    t.y.to_bits(),
+                    u32::from_le_bytes(s.joints),
+                    u32::from_le_bytes(s.weights),
+                ]
+            })
+            .collect()
+    };
+    let mut shared = 0;
+    for (name, mode) in [
+        ("house", ExportMode::Cubes),
+        ("critter", ExportMode::Cubes),
+        ("mixed", ExportMode::Cubes),
+        ("tree", ExportMode::Smooth),
+    ] {
+        let doc =
+            crate::io::project::load(Path::new(&format!("{dir}/{name}.thicket.json"))).unwrap();
+        let options = GltfExportOptions {
+            mode,
+            resolution: 64,
+            ..GltfExportOptions::default()
+        };
+        let (scene, _) = build_scene(&doc, Path::new("x.glb"), &options, NO_PROGRESS).unwrap();
+        for p in scene.nodes.iter().flat_map(|n| &n.primitives) {
+            let mut flat = ExportPrimitive {
+                positions: expand(&p.positions, &p.indices),
+                normals: expand(&p.normals, &p.indices),
+                colors: expand(&p.colors, &p.indices),
+                uvs: expand(&p.uvs, &p.indices),
+                skin: expand(&p.skin, &p.indices),
+                indices: (0..p.indices.len() as u32).collect(),
+                material: p.material,
+            };
+            let before = corners(&flat);
+            flat.weld();
+            assert_eq!(
+                corners(&flat),
+                before,
+                "{name}: the triangles are unchanged"
+            );
+            let distinct: std::collections::HashSet<[u32; 14]> = before.iter().copied().collect();
+            assert_eq!(
+                flat.positions.len(),
+                distinct.len(),
+                "{name}: one vertex per corner"
+            );
+            assert_eq!(
+                p.positions.len(),
+                distinct.len(),
+                "{name}: as the export wrote"
+            );
+            shared += before.len() - distinct.len();
+        }
+    }
+    assert!(shared > 10_000, "corners shared: {shared}");
 }

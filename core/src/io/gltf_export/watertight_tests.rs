@@ -296,7 +296,7 @@ impl FileSkin {
 /// How far a posed export is from closed.
 #[derive(Debug, Default)]
 struct Cracks {
-    /// Distinct bind-pose positions held by two or more vertices.
+    /// Distinct bind-pose positions where two or more triangle corners meet.
     shared: usize,
     /// Of them, those whose vertices end up more than one (posed) voxel apart.
     over_one_voxel: usize,
@@ -349,13 +349,19 @@ fn cracks(file: &FileSkin, t: f32) -> Cracks {
         voxel,
         ..Cracks::default()
     };
-    let mut at: HashMap<[u32; 3], Vec<usize>> = HashMap::new();
-    for (i, p) in file.positions.iter().enumerate() {
-        at.entry(p.to_array().map(f32::to_bits))
-            .or_default()
-            .push(i);
+    // Triangle corners by bind-pose position: (corners, the distinct vertices they use). A
+    // welded export holds one vertex where equal ones met, so the corners count the meeting.
+    let mut at: HashMap<[u32; 3], (usize, Vec<usize>)> = HashMap::new();
+    for &i in file.triangles.iter().flatten() {
+        let entry = at
+            .entry(file.positions[i].to_array().map(f32::to_bits))
+            .or_default();
+        entry.0 += 1;
+        if !entry.1.contains(&i) {
+            entry.1.push(i);
+        }
     }
-    for group in at.values().filter(|g| g.len() > 1) {
+    for (_, group) in at.values().filter(|g| g.0 > 1) {
         out.shared += 1;
         let mut spread = 0.0f32;
         for (k, &a) in group.iter().enumerate() {

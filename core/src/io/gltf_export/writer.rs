@@ -160,7 +160,81 @@ pub struct ExportScene {
     pub instance_nodes: bool,
 }
 
+impl ExportPrimitive {
+    /// Shares vertices whose every attribute is equal (position, normal, colour, texture
+    /// coordinate, joints and weights, bit for bit) and drops vertices no triangle uses: each
+    /// is written once, in the order the triangles first use them, and the indices point at it. Positions do not move, so no T-junction appears or goes and the skinned export's
+    /// corner rule holds; greedy quads of one colour and normal that meet at a corner share it.
+    pub fn weld(&mut self) {
+        use std::collections::HashMap;
+        let n = self.positions.len();
+        let key = |i: usize| {
+            let mut k = [0u32; 14];
+            let bits = |v: f32| v.to_bits();
+            let p = self.positions[i];
+            k[..3].copy_from_slice(&[bits(p.x), bits(p.y), bits(p.z)]);
+            if let Some(v) = self.normals.get(i) {
+                k[3..6].copy_from_slice(&[bits(v.x), bits(v.y), bits(v.z)]);
+            }
+            if let Some(c) = self.colors.get(i) {
+                k[6..10].copy_from_slice(&[bits(c.x), bits(c.y), bits(c.z), bits(c.w)]);
+            }
+            if let Some(t) = self.uvs.get(i) {
+                k[10..12].copy_from_slice(&[bits(t.x), bits(t.y)]);
+            }
+            if let Some(s) = self.skin.get(i) {
+                k[12] = u32::from_le_bytes(s.joints);
+                k[13] = u32::from_le_bytes(s.weights);
+            }
+            k
+        };
+        let mut first: HashMap<[u32; 14], u32> = HashMap::with_capacity(n);
+        let mut remap = vec![u32::MAX; n];
+        let mut kept = Vec::with_capacity(n);
+        for index in &mut self.indices {
+            let i = *index as usize;
+            // An index past the vertices stays as it is: the encoder refuses the primitive.
+            if i >= n {
+                continue;
+            }
+            if remap[i] == u32::MAX {
+                let next = kept.len() as u32;
+                let at = *first.entry(key(i)).or_insert(next);
+                if at == next {
+                    kept.push(i);
+                }
+                remap[i] = at;
+            }
+            *index = remap[i];
+        }
+        drop(first);
+        fn pick<T: Copy>(v: &mut Vec<T>, kept: &[usize]) {
+            if !v.is_empty() {
+                *v = kept.iter().map(|&i| v[i]).collect();
+            }
+        }
+        pick(&mut self.positions, &kept);
+        pick(&mut self.normals, &kept);
+        pick(&mut self.colors, &kept);
+        pick(&mut self.uvs, &kept);
+        pick(&mut self.skin, &kept);
+    }
+}
+
 impl ExportScene {
+    /// Shares equal vertices in every primitive and level of detail ([`ExportPrimitive::weld`]).
+    pub fn weld(&mut self) {
+        for node in &mut self.nodes {
+            for p in node
+                .primitives
+                .iter_mut()
+                .chain(node.lods.iter_mut().flatten())
+            {
+                p.weld();
+            }
+        }
+    }
+
     /// Total triangles.
     #[must_use]
     pub fn triangle_count(&self) -> u64 {
