@@ -669,6 +669,53 @@ pub(crate) mod tests {
         }))
     }
 
+    /// A small file whose scene draws one mesh from many nodes (no extension): every node's
+    /// copy is counted before the first is built, so 65,553 nodes × 4,095 vertices (just past
+    /// the 2^28 limit) are refused holding little more than the file, and a memory budget
+    /// refuses a smaller amplification the vertex limit allows.
+    #[test]
+    fn many_nodes_sharing_a_mesh_are_counted_before_they_are_expanded() {
+        let file = |nodes: usize| {
+            let mut doc = Doc::default();
+            let positions: Vec<f32> = (0..4095 * 3).map(|i| (i % 11) as f32).collect();
+            let pos = doc.floats(&positions, "VEC3", 3);
+            let children: Vec<usize> = (1..=nodes).collect();
+            let mut all = vec![json!({"children": children})];
+            all.extend((0..nodes).map(|i| json!({"mesh": 0, "translation": [i as f32, 0.0, 0.0]})));
+            doc.glb(json!({
+                "scenes": [{"nodes": [0]}],
+                "nodes": all,
+                "meshes": [{"primitives": [{"attributes": {"POSITION": pos}}]}]
+            }))
+        };
+        let big = file(65_553);
+        assert!(big.len() < 4 << 20, "a small file: {} bytes", big.len());
+        let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            import_gltf_slice_imported(&big, Path::new("nodes.glb"), &ImportLimits::default())
+        });
+        let e = result.expect_err("over the vertex limit").to_string();
+        assert!(
+            e.starts_with("nodes.glb: too large") && e.contains("268,439,535 vertices"),
+            "{e}"
+        );
+        assert!(peak < 64 << 20, "refused holding {peak} bytes");
+        // 1,024 copies (4.2 M vertices) fit the vertex limit; a 64 MiB budget refuses them.
+        let small = file(1024);
+        let tight = ImportLimits {
+            memory: crate::budget::MemoryBudget::given(64 << 20),
+            ..ImportLimits::default()
+        };
+        let e = import_gltf_slice_imported(&small, Path::new("nodes.glb"), &tight)
+            .expect_err("over the memory budget")
+            .to_string();
+        assert!(e.contains("memory") && e.contains("64.0 MiB"), "{e}");
+        let roomy = ImportLimits::default();
+        let model = import_gltf_slice_imported(&small, Path::new("nodes.glb"), &roomy)
+            .expect("within the default budget")
+            .model;
+        assert_eq!(model.vertex_count(), 1024 * 4095);
+    }
+
     #[test]
     fn instances_over_the_limits_are_refused_before_they_are_expanded() {
         // Within the vertex limit, the count is exact.
