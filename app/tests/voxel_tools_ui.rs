@@ -1131,3 +1131,69 @@ fn export_vox_with_a_mesh_in_the_scene_reports_it_and_can_voxelize_it() {
         "the slab's 36 voxels and the voxelized mesh"
     );
 }
+
+/// The main layout with each tool (and Navigate) at a laptop's 1280×720 and a desktop's
+/// 1600×1000: the tool bar stays on one row, the swatches keep their places, the view keeps its
+/// size whatever the tool, and a snapshot of each is kept (looked at).
+#[test]
+fn the_main_layout_with_each_tool_at_1280x720_and_1600x1000() {
+    use egui_kittest::kittest::NodeT as _;
+    use thicket::editor::NewModelSpec;
+    use thicket::ui::voxel_tools::ToolKind;
+    use thicket_core::sculpt::model_ops::InitialFill;
+    let mut results = egui_kittest::SnapshotResults::new();
+    for (w, h_px) in [(1280.0, 720.0), (1600.0, 1000.0)] {
+        let mut ed = Editor::new(Document::default(), None);
+        let id = ed
+            .add_voxel_model(&NewModelSpec {
+                name: "Block".into(),
+                size: UVec3::new(12, 6, 12),
+                fill: InitialFill::GroundSlab { height: 3 },
+                color: [150, 110, 70, 255],
+                ..NewModelSpec::default()
+            })
+            .unwrap();
+        ed.selection = Some(thicket::editor::Selection::Object(id));
+        ed.frame_selection();
+        let mut h = harness_sized(ed, egui::vec2(w, h_px));
+        h.run_steps(2);
+        let layout = |h: &Harness<'static, EditorApp>| -> Vec<egui::Rect> {
+            h.query_all_by_label_contains("Swatch ")
+                .map(|n| n.rect())
+                .collect()
+        };
+        let mut first: Option<Vec<egui::Rect>> = None;
+        let mut states: Vec<(String, Option<ToolKind>)> = vec![("navigate".into(), None)];
+        states.extend(
+            ToolKind::ALL
+                .iter()
+                .map(|(t, label, _)| (label.to_lowercase(), Some(*t))),
+        );
+        for (name, tool) in states {
+            match tool {
+                Some(t) => h.state_mut().sculpt.choose(t),
+                None => h.state_mut().sculpt.active = false,
+            }
+            h.run_steps(2);
+            for _ in 0..4 {
+                h.state_mut().view.wait_for_cpu_preview();
+                h.run_steps(1);
+            }
+            let swatches = layout(&h);
+            assert!(!swatches.is_empty());
+            assert!(
+                swatches.iter().all(|r| r.right() <= w),
+                "{name} at {w}: the tool bar fits"
+            );
+            match &first {
+                None => first = Some(swatches),
+                Some(f) => assert_eq!(&swatches, f, "{name} at {w}: the swatches stay put"),
+            }
+            results.add(h.try_snapshot_options(
+                format!("layout_{w}x{h_px}_{name}"),
+                &egui_kittest::SnapshotOptions::new().max_failed_pixels(400),
+            ));
+        }
+    }
+    results.unwrap();
+}
