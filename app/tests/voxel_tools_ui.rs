@@ -1137,7 +1137,6 @@ fn export_vox_with_a_mesh_in_the_scene_reports_it_and_can_voxelize_it() {
 /// size whatever the tool, and a snapshot of each is kept (looked at).
 #[test]
 fn the_main_layout_with_each_tool_at_1280x720_and_1600x1000() {
-    use egui_kittest::kittest::NodeT as _;
     use thicket::editor::NewModelSpec;
     use thicket::ui::voxel_tools::ToolKind;
     use thicket_core::sculpt::model_ops::InitialFill;
