@@ -420,6 +420,11 @@ pub struct ExportArgs {
     /// them); `auto`, nodes up to 4,096 placements, else gpu.
     #[arg(long, value_enum, default_value = "gpu")]
     pub instancing: InstancingArg,
+    /// No instancing at all: bake every placement's copy into plain meshes, for tools that
+    /// read neither EXT_mesh_gpu_instancing nor shared meshes; refused before meshing the
+    /// copies when they would pass --max-triangles (overrides --instancing).
+    #[arg(long)]
+    pub flatten: bool,
     /// Most memory reading the input may need, e.g. 4G or 512M (default: the smallest of half
     /// this machine's physical memory and this process's address-space and cgroup limits),
     /// estimated before it is read; the meshing is bounded by --max-triangles.
@@ -903,6 +908,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             LightsCameraArg::Off => false,
         },
         instancing: match args.instancing {
+            _ if args.flatten => thicket_core::io::gltf_export::Instancing::Flatten,
             InstancingArg::Gpu => thicket_core::io::gltf_export::Instancing::Gpu,
             InstancingArg::Nodes => thicket_core::io::gltf_export::Instancing::Nodes,
             InstancingArg::Auto => thicket_core::io::gltf_export::Instancing::Auto,
@@ -1001,10 +1007,9 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         }
         text.push('\n');
     }
-    let as_nodes = matches!(
-        report.placements,
-        Some((thicket_core::io::gltf_export::Instancing::Nodes, _))
-    );
+    let how = report.placements.map(|(how, _)| how);
+    let as_nodes = how == Some(thicket_core::io::gltf_export::Instancing::Nodes);
+    let flat = how == Some(thicket_core::io::gltf_export::Instancing::Flatten);
     for k in &report.instanced {
         text.push_str(&format!(
             "  {:?}: prototype (reflection levels 0..={}) of {} triangles drawn {} times \
@@ -1015,7 +1020,9 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             thousands(k.prototype_triangles),
             thousands(k.instances),
             thousands(k.mirrored),
-            if as_nodes {
+            if flat {
+                "baked into plain meshes"
+            } else if as_nodes {
                 "a node per placement"
             } else {
                 "EXT_mesh_gpu_instancing"
@@ -1024,7 +1031,7 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
             k.cells[0],
             k.cells[1],
             k.cell_nodes,
-            if k.impostor && !as_nodes {
+            if k.impostor && !as_nodes && !flat {
                 "; coarsest level: an impostor"
             } else {
                 ""
@@ -1035,6 +1042,11 @@ fn export(args: &ExportArgs) -> anyhow::Result<()> {
         Some((thicket_core::io::gltf_export::Instancing::Nodes, n)) => text.push_str(&format!(
             "  {} placements written as a node each (every glTF reader; no levels of detail \
              for them)\n",
+            thousands(n as u64)
+        )),
+        Some((thicket_core::io::gltf_export::Instancing::Flatten, n)) => text.push_str(&format!(
+            "  {} placements baked into plain meshes (--flatten: every tool reads them; no \
+             levels of detail)\n",
             thousands(n as u64)
         )),
         Some((_, n)) => text.push_str(&format!(

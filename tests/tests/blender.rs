@@ -167,8 +167,8 @@ fn skinned_exports_pose_in_blender_without_cracks() {
 }
 
 /// The forest with `--instancing nodes`: every placement a linked duplicate of the prototype
-/// (or its mirrored copy) in Blender; with `gpu`, Blender 3.4 refuses the file and says why,
-/// as the export's own report warns.
+/// (or its mirrored copy) in Blender; with `--flatten`, plain meshes holding every copy; with
+/// `gpu`, Blender 3.4 refuses the file and says why, as the export's own report warns.
 #[test]
 fn a_forest_imports_as_linked_duplicates_and_gpu_instancing_is_refused_by_blender_3_4() {
     let dir = tempfile::tempdir().unwrap();
@@ -208,6 +208,25 @@ fn a_forest_imports_as_linked_duplicates_and_gpu_instancing_is_refused_by_blende
         count(&seen, "object_triangles"),
         proto * placements as u64 + (report.triangles - 2 * proto),
         "{seen}"
+    );
+
+    // --flatten: plain meshes only (no shared mesh, no extension), every copy's triangles.
+    let flat = GltfExportOptions {
+        instancing: Instancing::Flatten,
+        ..options.clone()
+    };
+    let (glb, flat_report) = export(&doc, dir.path(), "forest-flat", &flat);
+    let seen = inspect(&glb);
+    assert!(seen.get("error").is_none(), "{seen}");
+    assert_eq!(count(&seen, "linked_duplicates"), 0, "{seen}");
+    assert_eq!(
+        count(&seen, "object_triangles"),
+        flat_report.triangles,
+        "{seen}"
+    );
+    assert_eq!(
+        flat_report.triangles,
+        proto * placements as u64 + (report.triangles - 2 * proto)
     );
 
     let gpu = GltfExportOptions {

@@ -34,6 +34,9 @@ pub fn instancing_consequence(choice: thicket_core::io::gltf_export::Instancing)
         Instancing::Auto => {
             "A node each for a small forest (every viewer); GPU instancing for a large one"
         }
+        Instancing::Flatten => {
+            "Every copy baked into plain meshes (any tool); large, within the triangle limit"
+        }
     }
 }
 
@@ -81,6 +84,11 @@ fn krs_rows(ui: &mut egui::Ui, options: &mut GltfExportOptions) {
                 .on_hover_text("One node per placement sharing the mesh: every glTF reader");
             ui.radio_value(&mut options.instancing, Instancing::Auto, "By count")
                 .on_hover_text("A node each up to 4,096 placements, else GPU instancing");
+            ui.radio_value(&mut options.instancing, Instancing::Flatten, "Flatten")
+                .on_hover_text(
+                    "No instancing: every placement's copy written as plain triangles, for \
+                     tools without instancing (refused past the triangle limit)",
+                );
         });
         ui.weak(instancing_consequence(options.instancing));
     });

@@ -106,6 +106,10 @@ pub enum Instancing {
     Nodes,
     /// `Nodes` up to [`AUTO_INSTANCE_NODES`] placements in the file, else `Gpu`.
     Auto,
+    /// No instancing at all: every placement's copy baked into plain meshes (one per cell
+    /// node), for tools that read neither extension nor shared meshes well. Refused before
+    /// any copy is made when the copies would pass the triangle limit.
+    Flatten,
 }
 
 /// Most placements [`Instancing::Auto`] writes as nodes.
@@ -303,7 +307,8 @@ pub struct GltfExportReport {
     pub lights: usize,
     /// Whether the document's camera was written.
     pub camera: bool,
-    /// How placements were written ([`Instancing::Gpu`] or [`Instancing::Nodes`]), with their
+    /// How placements were written ([`Instancing::Gpu`], [`Instancing::Nodes`] or
+    /// [`Instancing::Flatten`]), with their
     /// count; `None` when nothing was instanced.
     pub placements: Option<(Instancing, usize)>,
     /// Objects written with their keyed transforms as a node animation.
@@ -814,9 +819,22 @@ pub fn build_scene(
         });
     }
     let placements: usize = out.scene.nodes.iter().map(|n| n.instances.len()).sum();
-    if placements > 0 {
+    if placements > 0 && options.instancing == Instancing::Flatten {
+        flatten_instances(&mut out.scene, options.max_triangles).map_err(|detail| {
+            GltfExportError::TooLarge {
+                path: path.to_owned(),
+                detail,
+            }
+        })?;
+        // The copies are plain meshes now: no levels of detail, no impostor.
+        let instanced = &report.instanced;
+        report
+            .levels_of_detail
+            .retain(|l| !instanced.iter().any(|k| k.object == l.object));
+        report.placements = Some((Instancing::Flatten, placements));
+    } else if placements > 0 {
         let nodes = match options.instancing {
-            Instancing::Gpu => false,
+            Instancing::Gpu | Instancing::Flatten => false,
             Instancing::Nodes => true,
             Instancing::Auto => placements <= AUTO_INSTANCE_NODES,
         };
@@ -899,6 +917,87 @@ pub fn build_scene(
     report.triangles = out.scene.triangle_count();
     report.vertices = out.scene.vertex_count();
     Ok((out.scene, report))
+}
+
+/// Bakes every node's placements into its own primitives ([`Instancing::Flatten`]): each
+/// placement's copy of the node's mesh (or of the mesh it draws from another node) moved by
+/// the placement, merged per primitive; the node's placements and levels of detail go. The
+/// triangles of all copies are counted against `max_triangles` before any is made.
+///
+/// # Errors
+/// The count and the limit, with what would lower it.
+fn flatten_instances(scene: &mut ExportScene, max_triangles: u64) -> Result<(), String> {
+    let source = |scene: &ExportScene, i: usize| -> Vec<ExportPrimitive> {
+        let from = scene.nodes[i].mesh_from.unwrap_or(i);
+        scene.nodes[from].primitives.clone()
+    };
+    let tris = |prims: &[ExportPrimitive]| -> u64 {
+        prims.iter().map(|p| p.indices.len() as u64 / 3).sum()
+    };
+    let sources: Vec<Option<Vec<ExportPrimitive>>> = (0..scene.nodes.len())
+        .map(|i| (!scene.nodes[i].instances.is_empty()).then(|| source(scene, i)))
+        .collect();
+    let mut total: u64 = 0;
+    for (i, node) in scene.nodes.iter().enumerate() {
+        let copies = match &sources[i] {
+            Some(prims) => tris(prims).saturating_mul(node.instances.len() as u64),
+            None => tris(&source(scene, i)),
+        };
+        total = total.saturating_add(copies);
+    }
+    if total > max_triangles {
+        return Err(format!(
+            "flattening writes every placement's copy: {} triangles, over the limit of {}; \
+             export fewer placements (a higher --instance-level), a coarser mesh \
+             (--resolution), or keep the placements instanced (--instancing nodes or gpu)",
+            crate::budget::thousands(total),
+            crate::budget::thousands(max_triangles)
+        ));
+    }
+    // Nodes drawing a flattened node's mesh get their own copy of the plain mesh first.
+    for i in 0..scene.nodes.len() {
+        if let Some(j) = scene.nodes[i].mesh_from
+            && sources[j].is_some()
+            && sources[i].is_none()
+        {
+            scene.nodes[i].primitives = sources[j].clone().unwrap_or_default();
+            scene.nodes[i].mesh_from = None;
+        }
+    }
+    for (i, prims) in sources.into_iter().enumerate() {
+        let Some(prims) = prims else {
+            continue;
+        };
+        let node = &mut scene.nodes[i];
+        let placements = std::mem::take(&mut node.instances);
+        node.primitives = prims
+            .iter()
+            .map(|p| {
+                let mut out = ExportPrimitive {
+                    material: p.material,
+                    ..ExportPrimitive::default()
+                };
+                for t in &placements {
+                    let base = out.positions.len() as u32;
+                    out.positions
+                        .extend(p.positions.iter().map(|&v| t.transform_point(v)));
+                    out.normals.extend(
+                        p.normals
+                            .iter()
+                            .map(|&n| (t.rotation * n).normalize_or_zero()),
+                    );
+                    out.colors.extend_from_slice(&p.colors);
+                    out.uvs.extend_from_slice(&p.uvs);
+                    out.skin.extend_from_slice(&p.skin);
+                    out.indices.extend(p.indices.iter().map(|&k| base + k));
+                }
+                out
+            })
+            .collect();
+        node.lods.clear();
+        node.mesh_from = None;
+    }
+    Ok(())
 }
 
 /// The (x, z) area an unbounded object's patch covers and a height above the scene:

@@ -1861,3 +1861,69 @@ fn welding_shares_equal_vertices_and_keeps_every_triangle() {
     }
     assert!(shared > 10_000, "corners shared: {shared}");
 }
+
+/// `Instancing::Flatten` bakes every placement into plain meshes: the file has no instancing
+/// extension and no shared meshes, its triangles are the prototype's at every placement plus
+/// the rest, Thicket's reader reads exactly those, and the mirrored copies keep their outward
+/// winding (the mesh is as closed as the instanced one: same triangle count read back). An
+/// export whose copies pass the triangle limit is refused before any copy is made.
+#[test]
+fn flatten_bakes_every_placement_into_plain_meshes() {
+    let doc = crate::io::project::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/forest.thicket.json"
+    )))
+    .unwrap();
+    let options = GltfExportOptions {
+        resolution: 32,
+        instance_level: Some(14),
+        instancing: Instancing::Flatten,
+        ..GltfExportOptions::default()
+    };
+    let (scene, report) = build_scene(&doc, Path::new("flat.glb"), &options, NO_PROGRESS).unwrap();
+    assert!(
+        scene
+            .nodes
+            .iter()
+            .all(|n| n.instances.is_empty() && n.mesh_from.is_none())
+    );
+    assert!(scene.nodes.iter().all(|n| n.lods.is_empty()));
+    assert_eq!(report.placements, Some((Instancing::Flatten, 1024)));
+    let k = &report.instanced[0];
+    assert_eq!(
+        report.triangles,
+        k.prototype_triangles * k.instances
+            + scene
+                .nodes
+                .iter()
+                .filter(|n| n.name.contains("Ground"))
+                .map(|n| n
+                    .primitives
+                    .iter()
+                    .map(|p| p.indices.len() as u64 / 3)
+                    .sum::<u64>())
+                .sum::<u64>(),
+        "{report:?}"
+    );
+    let glb = encode_glb(&scene, Path::new("flat.glb")).unwrap();
+    let root = glb_json(&glb);
+    assert!(
+        root.get("extensionsUsed")
+            .is_none_or(|e| !e.to_string().contains("EXT_mesh_gpu_instancing"))
+    );
+    let back = crate::io::gltf_mesh::import_gltf_slice(&glb, None).unwrap();
+    assert_eq!(back.triangle_count() as u64, report.triangles);
+
+    let tight = GltfExportOptions {
+        max_triangles: report.triangles - 1,
+        ..options
+    };
+    let e = build_scene(&doc, Path::new("flat.glb"), &tight, NO_PROGRESS)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("flattening writes every placement's copy")
+            && e.contains(&crate::budget::thousands(report.triangles)),
+        "{e}"
+    );
+}
