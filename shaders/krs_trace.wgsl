@@ -317,14 +317,8 @@ fn kernel_param_coords(k: KrsKernel, p: vec3<f32>) -> vec2<f32> {
 // ---- distortion (value noise warp, core::krs::distort) ----
 
 fn krs_hash(x: i32, y: i32, z: i32, seed: u32) -> u32 {
-    var h = (bitcast<u32>(x) * 0x8da6b343u) ^ (bitcast<u32>(y) * 0xd8163841u)
-        ^ (bitcast<u32>(z) * 0xcb1ab31fu) ^ (seed * 0x9e3779b9u);
-    h ^= h >> 16u;
-    h *= 0x7feb352du;
-    h ^= h >> 15u;
-    h *= 0x846ca68bu;
-    h ^= h >> 16u;
-    return h;
+    return lowbias32((bitcast<u32>(x) * 0x8da6b343u) ^ (bitcast<u32>(y) * 0xd8163841u)
+        ^ (bitcast<u32>(z) * 0xcb1ab31fu) ^ (seed * 0x9e3779b9u));
 }
 
 fn unit_value(h: u32) -> f32 {

@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use anyhow::Context as _;
 use clap::{Args, Parser, Subcommand};
 
-use crate::files::{self, DocumentInfo, human_bytes, thousands, thousands_u128};
+use crate::files::{self, DocumentInfo, human_bytes, memory_budget, thousands, thousands_u128};
 
 pub mod forest;
 pub mod rig;
@@ -1137,15 +1137,6 @@ fn new_project(args: &NewArgs) -> anyhow::Result<()> {
         files::thousands(voxels)
     );
     Ok(())
-}
-
-/// The memory budget of a CLI request: `--memory-limit`, else the machine's default (the
-/// smallest of half of physical memory and the process's address-space and cgroup limits).
-fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
-    limit.map_or_else(
-        thicket_core::budget::MemoryBudget::for_this_machine,
-        thicket_core::budget::MemoryBudget::given,
-    )
 }
 
 /// Refuses a CPU frame whose estimated peak memory is over the budget, before it allocates.

@@ -164,10 +164,10 @@ pub struct MeshImport {
 pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<MeshImport> {
     let kind = kind_of(path)?;
     check_options(path, options)?;
-    let mut limits = thicket_core::io::ImportLimits::default();
-    if let Some(bytes) = options.memory_limit {
-        limits.memory = thicket_core::budget::MemoryBudget::given(bytes);
-    }
+    let limits = thicket_core::io::ImportLimits {
+        memory: memory_budget(options.memory_limit),
+        ..thicket_core::io::ImportLimits::default()
+    };
     let (model, notes) = match kind {
         FileKind::Gltf => {
             let i = thicket_core::io::import_gltf_imported(path, &limits)?;
@@ -349,6 +349,16 @@ pub fn load_document_within(path: &Path, memory_limit: Option<u64>) -> anyhow::R
     Ok(doc)
 }
 
+/// The memory budget of a request: `--memory-limit`, else the machine's default (the smallest
+/// of half of physical memory and the process's address-space and cgroup limits).
+#[must_use]
+pub fn memory_budget(limit: Option<u64>) -> thicket_core::budget::MemoryBudget {
+    limit.map_or_else(
+        thicket_core::budget::MemoryBudget::for_this_machine,
+        thicket_core::budget::MemoryBudget::given,
+    )
+}
+
 /// What a source file held beyond the document (for `info`).
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
 pub struct SourceCounts {
@@ -404,10 +414,7 @@ fn load_document_noted(
     let mut view = GltfView::default();
     let kind = kind_of(path)?;
     check_options(path, options)?;
-    let budget = options.memory_limit.map_or_else(
-        thicket_core::budget::MemoryBudget::for_this_machine,
-        thicket_core::budget::MemoryBudget::given,
-    );
+    let budget = memory_budget(options.memory_limit);
     let doc = match kind {
         FileKind::Project => thicket_core::io::project::load_within(path, &budget)?,
         FileKind::Gltf | FileKind::Obj => {

@@ -24,6 +24,14 @@ fn assert_fails_naming(o: &Output, file: &Path) {
     assert!(!err.contains("panicked"), "{err}");
 }
 
+/// The message of a clean refusal: exit code 1 (not a crash) and exactly one line.
+fn one_error_line(o: &Output) -> String {
+    let err = stderr(o);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert_eq!(err.lines().count(), 1, "said once: {err}");
+    err
+}
+
 fn files_in(dir: &Path) -> Vec<PathBuf> {
     let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
         .unwrap()
@@ -1877,9 +1885,7 @@ fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
 
 /// Asserts a refusal in one line that names `output` and says what it would overwrite.
 fn assert_refused_naming(o: &Output, output: &str, what: &str) {
-    let err = stderr(o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "one line: {err}");
+    let err = one_error_line(o);
     assert!(err.starts_with(&format!("error: {output}: ")), "{err}");
     assert!(err.contains(what), "{what:?} in {err}");
 }
@@ -2134,9 +2140,7 @@ fn a_damaged_texture_is_refused_in_words_naming_the_file() {
     )
     .unwrap();
     let o = thicket(&["info", obj.to_str().unwrap()]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_error_line(&o);
     assert_eq!(
         err.matches("tex.png").count(),
         1,
@@ -2162,9 +2166,7 @@ fn an_unusable_camera_names_the_field_and_what_set_it() {
         "-o",
         png.to_str().unwrap(),
     ]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_error_line(&o);
     assert!(
         err.starts_with("error: --camera 0,0,1e38: it makes camera.far invalid: inf must be"),
         "the option, not a file, is blamed: {err}"
@@ -2187,9 +2189,7 @@ fn an_unusable_camera_names_the_field_and_what_set_it() {
         "-o",
         png.to_str().unwrap(),
     ]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_error_line(&o);
     assert!(
         err.starts_with(&format!("error: {}: ", project.display())),
         "{err}"
@@ -2253,9 +2253,7 @@ fn a_project_with_more_lights_than_the_maximum_is_refused() {
         "-o",
         png.to_str().unwrap(),
     ]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_error_line(&o);
     assert!(
         err.starts_with(&format!("error: {}: ", project.display())),
         "{err}"
@@ -2299,9 +2297,7 @@ fn export_vox_refuses_early_advising_only_options_that_exist() {
         help.contains(&format!("{option} ")) || help.contains(&format!("{option}\n"))
     };
     let o = thicket(&["export-vox", p, "-o", o_path]);
-    let err = stderr(&o);
-    assert_eq!(o.status.code(), Some(1), "{err}");
-    assert_eq!(err.lines().count(), 1, "{err}");
+    let err = one_error_line(&o);
     assert!(
         err.starts_with(&format!(
             "error: {p}: the export would write about 64,000,001 .vox voxels"
@@ -2395,8 +2391,7 @@ fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
     let vox = format!("{ASSETS}/vox/mmmm/obj_house4.vox");
     let glb = dir.path().join("house.glb");
     let refused = |o: &Output, file: &str, what: &str| {
-        let err = stderr(o);
-        assert_eq!(o.status.code(), Some(1), "{err}");
+        let err = one_error_line(o);
         assert!(
             err.starts_with("error: ")
                 && err.contains(file)
@@ -2404,7 +2399,6 @@ fn info_export_and_skin_report_refuse_over_the_memory_limit_before_reading() {
                 && err.contains("over the limit of 4.0 MiB (--memory-limit)"),
             "{err}"
         );
-        assert_eq!(err.lines().count(), 1, "said once: {err}");
         assert_eq!(err.matches(file).count(), 1, "the file named once: {err}");
     };
     let o = thicket(&["info", project, "--memory-limit", "4M"]);

@@ -260,14 +260,19 @@ fn normalize_or_zero(v: vec3<f32>) -> vec3<f32> {
     return vec3<f32>(0.0);
 }
 
-// A jitter in [0, 1) from a seed (a pixel index): core's `krs::ao_jitter` (lowbias32, top 24
-// bits), shared by the KRS AO (krs_trace.wgsl) and the screen-space AO (shade.wgsl).
-fn ao_jitter(seed: u32) -> f32 {
+// Wellons' lowbias32 finaliser: core's `krs::lowbias32`, bit for bit.
+fn lowbias32(seed: u32) -> u32 {
     var x = seed;
     x ^= x >> 16u;
     x *= 0x7feb352du;
     x ^= x >> 15u;
     x *= 0x846ca68bu;
     x ^= x >> 16u;
-    return f32(x >> 8u) / 16777216.0;
+    return x;
+}
+
+// A jitter in [0, 1) from a seed (a pixel index): core's `krs::ao_jitter` (lowbias32, top 24
+// bits), shared by the KRS AO (krs_trace.wgsl) and the screen-space AO (shade.wgsl).
+fn ao_jitter(seed: u32) -> f32 {
+    return f32(lowbias32(seed) >> 8u) / 16777216.0;
 }

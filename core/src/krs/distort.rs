@@ -82,17 +82,13 @@ impl Distortion {
 
 #[inline]
 fn hash(x: i64, y: i64, z: i64, seed: u32) -> u32 {
-    // Wrapping integer mix (lowbias32-style); any lattice point maps to a stable value.
-    let mut h = (x as u32).wrapping_mul(0x8da6_b343)
-        ^ (y as u32).wrapping_mul(0xd816_3841)
-        ^ (z as u32).wrapping_mul(0xcb1a_b31f)
-        ^ seed.wrapping_mul(0x9e37_79b9);
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7feb_352d);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x846c_a68b);
-    h ^= h >> 16;
-    h
+    // Wrapping integer mix, then lowbias32; any lattice point maps to a stable value.
+    super::lowbias32(
+        (x as u32).wrapping_mul(0x8da6_b343)
+            ^ (y as u32).wrapping_mul(0xd816_3841)
+            ^ (z as u32).wrapping_mul(0xcb1a_b31f)
+            ^ seed.wrapping_mul(0x9e37_79b9),
+    )
 }
 
 #[inline]

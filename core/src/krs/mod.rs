@@ -61,5 +61,18 @@ pub use tree::{LeafParams, TreeError, TreeParams, spiral_route};
 /// it is far above anything the paper needs (a forest of 2^17 trees of 2^8 leaves is 25 levels).
 pub const MAX_KRS_LEVELS: usize = 4096;
 
+/// Wellons' `lowbias32` finaliser: a cheap, well-mixed 32-bit hash, shared by the distortion
+/// lattice and the AO jitter (and by `lowbias32` in `shaders/common/types.wgsl`, bit for bit).
+#[inline]
+#[must_use]
+pub(crate) fn lowbias32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^= x >> 16;
+    x
+}
+
 #[cfg(test)]
 mod tests;

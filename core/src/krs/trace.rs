@@ -581,16 +581,10 @@ impl Default for AoSettings {
 /// The AO jitter of pixel `pixel` (its index in the image drawn, row-major): a fixed hash
 /// (Wellons' `lowbias32`) of the index, in [0, 1) with 24 bits, so the CPU and GPU renderers
 /// draw the same value for the same pixel and a frame is deterministic.
-/// Keep in sync with `shaders/krs_trace.wgsl` (`ao_jitter`).
+/// Keep in sync with `shaders/common/types.wgsl` (`ao_jitter`).
 #[must_use]
 pub fn ao_jitter(pixel: u32) -> f32 {
-    let mut x = pixel;
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^= x >> 16;
-    (x >> 8) as f32 / 16_777_216.0
+    (super::lowbias32(pixel) >> 8) as f32 / 16_777_216.0
 }
 
 /// Ambient accessibility in [0, 1] (1 = open) at surface point `p` with normal `n`: the

@@ -293,6 +293,23 @@ pub(super) fn uniform(
     }
 }
 
+/// A layout entry for a write-only RGBA8 storage texture (a pass's output image).
+pub(super) fn storage_texture_rgba8(
+    binding: u32,
+    visibility: wgpu::ShaderStages,
+) -> wgpu::BindGroupLayoutEntry {
+    wgpu::BindGroupLayoutEntry {
+        binding,
+        visibility,
+        ty: wgpu::BindingType::StorageTexture {
+            access: wgpu::StorageTextureAccess::WriteOnly,
+            format: wgpu::TextureFormat::Rgba8Unorm,
+            view_dimension: wgpu::TextureViewDimension::D2,
+        },
+        count: None,
+    }
+}
+
 /// A shader module from an embedded WGSL file.
 pub(super) fn module(
     device: &wgpu::Device,

@@ -42,16 +42,7 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
         storage(3, true, cs),
         storage(4, true, cs),
         storage(5, true, cs),
-        wgpu::BindGroupLayoutEntry {
-            binding: 6,
-            visibility: cs,
-            ty: wgpu::BindingType::StorageTexture {
-                access: wgpu::StorageTextureAccess::WriteOnly,
-                format: wgpu::TextureFormat::Rgba8Unorm,
-                view_dimension: wgpu::TextureViewDimension::D2,
-            },
-            count: None,
-        },
+        super::storage_texture_rgba8(6, cs),
         storage(7, true, cs),
     ]]
 }

@@ -34,16 +34,7 @@ pub(in crate::gpu) fn bind_group_entries() -> Vec<Vec<wgpu::BindGroupLayoutEntry
             },
             count: None,
         },
-        wgpu::BindGroupLayoutEntry {
-            binding: 2,
-            visibility: cs,
-            ty: wgpu::BindingType::StorageTexture {
-                access: wgpu::StorageTextureAccess::WriteOnly,
-                format: wgpu::TextureFormat::Rgba8Unorm,
-                view_dimension: wgpu::TextureViewDimension::D2,
-            },
-            count: None,
-        },
+        super::storage_texture_rgba8(2, cs),
     ]]
 }
 

@@ -927,24 +927,20 @@ pub fn build_scene(
 /// # Errors
 /// The count and the limit, with what would lower it.
 fn flatten_instances(scene: &mut ExportScene, max_triangles: u64) -> Result<(), String> {
-    let source = |scene: &ExportScene, i: usize| -> Vec<ExportPrimitive> {
-        let from = scene.nodes[i].mesh_from.unwrap_or(i);
-        scene.nodes[from].primitives.clone()
-    };
-    let tris = |prims: &[ExportPrimitive]| -> u64 {
-        prims.iter().map(|p| p.indices.len() as u64 / 3).sum()
-    };
-    let sources: Vec<Option<Vec<ExportPrimitive>>> = (0..scene.nodes.len())
-        .map(|i| (!scene.nodes[i].instances.is_empty()).then(|| source(scene, i)))
-        .collect();
-    let mut total: u64 = 0;
-    for (i, node) in scene.nodes.iter().enumerate() {
-        let copies = match &sources[i] {
-            Some(prims) => tris(prims).saturating_mul(node.instances.len() as u64),
-            None => tris(&source(scene, i)),
-        };
-        total = total.saturating_add(copies);
-    }
+    // The primitives node `i` draws: its own, or those of the node it shares a mesh with.
+    let drawn = |scene: &ExportScene, i: usize| -> usize { scene.nodes[i].mesh_from.unwrap_or(i) };
+    let total = scene
+        .nodes
+        .iter()
+        .enumerate()
+        .fold(0u64, |total, (i, node)| {
+            let tris: u64 = scene.nodes[drawn(scene, i)]
+                .primitives
+                .iter()
+                .map(|p| p.indices.len() as u64 / 3)
+                .sum();
+            total.saturating_add(tris.saturating_mul(node.instances.len().max(1) as u64))
+        });
     if total > max_triangles {
         return Err(format!(
             "flattening writes every placement's copy: {} triangles, over the limit of {}; \
@@ -954,6 +950,12 @@ fn flatten_instances(scene: &mut ExportScene, max_triangles: u64) -> Result<(), 
             crate::budget::thousands(max_triangles)
         ));
     }
+    let sources: Vec<Option<Vec<ExportPrimitive>>> = (0..scene.nodes.len())
+        .map(|i| {
+            (!scene.nodes[i].instances.is_empty())
+                .then(|| scene.nodes[drawn(scene, i)].primitives.clone())
+        })
+        .collect();
     // Nodes drawing a flattened node's mesh get their own copy of the plain mesh first.
     for i in 0..scene.nodes.len() {
         if let Some(j) = scene.nodes[i].mesh_from
