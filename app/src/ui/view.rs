@@ -23,7 +23,9 @@ use super::pose::PoseTool;
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
 use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
-use crate::viewport::{FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback};
+use crate::viewport::{
+    FrameDepth, FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback,
+};
 
 /// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
 /// changing (an orbit, a stroke, playback, a KRS parameter dragged: a quarter of the pixels
@@ -214,6 +216,8 @@ struct PreviewFrame {
     labels: Vec<u32>,
     /// Node id per pixel (`(level << 32) | index`, see `PixelId::node`).
     nodes: Vec<u64>,
+    /// NDC depth per pixel, for hiding overlay lines ([`FrameDepth`]).
+    depth: Arc<[f32]>,
     ms: f64,
     /// The hole / bloat overlay and its counts, when asked for and a rigged model shows.
     holes: Option<(egui::ColorImage, HoleCounts)>,
@@ -281,6 +285,8 @@ struct CpuPreview {
     labels: Vec<u32>,
     /// Node ids of the shown image, row by row.
     nodes: Vec<u64>,
+    /// The shown image's depth.
+    depth: Option<FrameDepth>,
     /// The selection outline drawn from `labels`: for which render and label, and whether it
     /// is drawn (not when it would be clutter, see [`outline_is_clutter`]).
     outline: Option<((u64, u32), egui::TextureHandle, bool)>,
@@ -551,31 +557,45 @@ pub struct View {
     overlay_depth: OverlayDepth,
 }
 
-/// Overlay lines split into their parts in front of the voxels, for one camera, view
-/// rectangle and scene (content and pose): a still view casts no rays.
+/// What decides where overlay lines are hidden: content and animation keys, camera, view
+/// rectangle and the shown frame's [`FrameDepth::serial`].
+type OverlayKey = ((u64, u64), u64, OrbitCamera, egui::Rect, Option<u64>);
+
+/// Overlay lines split into their parts in front of what is drawn, for one camera, view
+/// rectangle, scene (content and pose) and shown frame: a still view tests nothing again.
 #[derive(Debug, Default)]
 struct OverlayDepth {
-    key: Option<((u64, u64), u64, OrbitCamera, egui::Rect)>,
+    key: Option<OverlayKey>,
     parts: HashMap<[u32; 6], Vec<(Vec3, Vec3)>>,
 }
 
 impl OverlayDepth {
-    /// The unhidden parts of segment `a`–`b` (see [`unhidden_parts`]), cached.
-    fn parts(&mut self, proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> &[(Vec3, Vec3)] {
+    /// The parts of segment `a`–`b` not hidden behind the shown `frame`'s depth
+    /// ([`FrameDepth::hides`]) or, without one, behind voxels ([`unhidden_parts`]), cached.
+    fn parts(
+        &mut self,
+        proj: &Projector,
+        editor: &Editor,
+        frame: Option<&FrameDepth>,
+        a: Vec3,
+        b: Vec3,
+    ) -> &[(Vec3, Vec3)] {
         let key = (
             editor.content_key(),
             editor.animation_key(),
             proj.camera,
             proj.rect,
+            frame.map(|f| f.serial),
         );
         if self.key != Some(key) {
             self.key = Some(key);
             self.parts.clear();
         }
         let bits = [a.x, a.y, a.z, b.x, b.y, b.z].map(f32::to_bits);
-        self.parts
-            .entry(bits)
-            .or_insert_with(|| unhidden_parts(proj, editor, a, b))
+        self.parts.entry(bits).or_insert_with(|| match frame {
+            Some(f) => unhidden_parts_by(proj, |p| f.hides(p), a, b),
+            None => unhidden_parts(proj, editor, a, b),
+        })
     }
 }
 
@@ -901,10 +921,11 @@ impl View {
         let painter = ui.painter_at(rect);
         painter.rect_filled(rect, 0.0, srgb_color(editor.doc().background));
         let cpu = self.uses_cpu(editor);
+        let volume = sculpt.active && sculpt.tool != ToolKind::Brush;
         let silhouette = if cpu {
             self.cpu_image(ui, rect, editor)
         } else {
-            self.gpu_image(ui, rect, editor);
+            self.gpu_image(ui, rect, editor, self.show_grid || volume);
             // The preview's shadow maps (up to 64 MiB each at the final preset's 4096²) and
             // frame buffers are of no use while the GPU draws; a render still running holds
             // the lock and they go on the next frame.
@@ -923,18 +944,22 @@ impl View {
         };
         let to_screen = |p: Vec3| proj.to_screen(p);
         {
-            // The grid, the axes and the volume box go behind the voxels in front of them.
+            // The grid, the axes and the volume box go behind what is drawn in front of them.
+            let frame = self.shown_depth(editor, cpu);
             let depth = std::cell::RefCell::new(std::mem::take(&mut self.overlay_depth));
-            let behind_voxels = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
-                for &(p, q) in depth.borrow_mut().parts(&proj, editor, a, b) {
+            let unhidden = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
+                for &(p, q) in depth
+                    .borrow_mut()
+                    .parts(&proj, editor, frame.as_ref(), a, b)
+                {
                     line(p, q, stroke);
                 }
             };
             if self.show_grid {
-                grid(&camera, &behind_voxels);
+                grid(&camera, &unhidden);
             }
-            if sculpt.active && sculpt.tool != ToolKind::Brush {
-                paint_volume(editor, &behind_voxels);
+            if volume {
+                paint_volume(editor, &unhidden);
             }
             self.overlay_depth = depth.into_inner();
         }
@@ -1265,11 +1290,19 @@ impl View {
                     image,
                     labels,
                     nodes,
+                    depth,
                     ms,
                     holes,
                     stretch,
                     shadows,
                 }) => {
+                    self.cpu.depth = Some(FrameDepth::new(
+                        k.content,
+                        k.animation,
+                        k.camera,
+                        [image.size[0] as u32, image.size[1] as u32],
+                        depth,
+                    ));
                     self.cpu.last_shadows = shadows;
                     self.cpu.labels = labels;
                     self.cpu.nodes = nodes;
@@ -1305,6 +1338,7 @@ impl View {
                 }
                 Err(e) => {
                     log::warn!("CPU preview: {e}");
+                    self.cpu.depth = None;
                     self.cpu.error = Some(e);
                 }
             }
@@ -1349,6 +1383,7 @@ impl View {
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
                         let labels = buffers.ids.iter().map(|id| id.object).collect();
                         let nodes = buffers.ids.iter().map(|id| id.node).collect();
+                        let depth = buffers.depth.as_slice().into();
                         let stretch = if stretch {
                             stretch_overlay(&doc, &request, &buffers.ids, size)
                         } else {
@@ -1359,6 +1394,7 @@ impl View {
                             image: color,
                             labels,
                             nodes,
+                            depth,
                             ms,
                             holes: if holes {
                                 hole_overlay(&doc, &request)
@@ -1572,10 +1608,34 @@ impl View {
         }
     }
 
-    fn gpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &mut Editor) {
-        if self.gpu.is_none() {
+    /// The depth of the frame shown, when it shows the editor's scene (content and pose):
+    /// the CPU preview's image (drawn from its own camera, which lags an orbit by a frame),
+    /// or the GPU viewport's once read back for the current camera. `None` while the frame
+    /// shows an older scene (a stroke in progress); the overlays then test voxels by rays.
+    #[must_use]
+    pub fn shown_depth(&self, editor: &Editor, cpu: bool) -> Option<FrameDepth> {
+        let camera = editor.doc().camera;
+        let frame = if cpu {
+            self.cpu.depth.clone()
+        } else {
+            self.gpu
+                .as_ref()
+                .and_then(|link| link.lock().depth.clone())
+                .filter(|d| d.camera == camera)
+        };
+        frame.filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
+    }
+
+    fn gpu_image(
+        &mut self,
+        ui: &egui::Ui,
+        rect: egui::Rect,
+        editor: &mut Editor,
+        want_depth: bool,
+    ) {
+        let Some(link) = self.gpu.clone() else {
             return;
-        }
+        };
         let key = editor.content_key();
         // Voxel edits since the last frame extend the chain the renderer may upload from;
         // anything else breaks it. `prepare` may not run every frame, so the chain is kept
@@ -1620,18 +1680,25 @@ impl View {
             (size.x.round() as u32).max(1),
             (size.y.round() as u32).max(1),
         ];
+        let key = FrameKey {
+            content: key,
+            animation: editor.animation_key(),
+            camera: editor.doc().camera,
+            size_px,
+            supersample,
+        };
+        // The depth is read on the frame after the one that drew it: one more paint when
+        // the view stands still.
+        if want_depth && link.lock().depth_read.as_ref() != Some(&key) {
+            ui.ctx().request_repaint_after(PREVIEW_STILL);
+        }
         ui.painter().add(paint_callback(
             rect,
             ViewportCallback {
-                key: FrameKey {
-                    content: key,
-                    animation: editor.animation_key(),
-                    camera: editor.doc().camera,
-                    size_px,
-                    supersample,
-                },
+                key,
                 doc,
                 regions: self.regions.clone(),
+                want_depth,
             },
         ));
     }
@@ -2006,9 +2073,11 @@ fn oriented_box_lines(
 }
 
 /// Whether a voxel of a visible voxel model lies between the viewer and world point `p`: an
-/// overlay line there is hidden. A point on a voxel's surface is not hidden by it. Rigged
-/// models hide nothing: a ray through a posed model costs milliseconds (the pose is worked out
-/// for every ray), too slow for the hundreds of rays a moving view casts each frame.
+/// overlay line there is hidden. A point on a voxel's surface is not hidden by it. The
+/// overlays use this only while no shown frame's depth matches the scene
+/// ([`View::shown_depth`]). Rigged models hide nothing here: a ray through a posed model costs
+/// milliseconds (the pose is worked out for every ray), too slow for the hundreds of rays a
+/// moving view casts each frame.
 #[must_use]
 pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
     let camera = &proj.camera;
@@ -2037,12 +2106,24 @@ pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
 /// View points between the samples of an overlay line (finer where visibility changes).
 const OVERLAY_SAMPLE_POINTS: f32 = 12.0;
 
-/// The parts of world segment `a`–`b` not hidden behind voxels ([`behind_voxels`]), in order:
-/// sampled every `OVERLAY_SAMPLE_POINTS` view points, and where two samples disagree the
-/// edge is found by bisection to about a view point. Empty when the segment is all behind
-/// the camera or all hidden.
+/// The parts of world segment `a`–`b` not hidden behind voxels ([`behind_voxels`]): see
+/// [`unhidden_parts_by`]. The overlays use this while no frame's depth matches the scene.
 #[must_use]
 pub fn unhidden_parts(proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> Vec<(Vec3, Vec3)> {
+    unhidden_parts_by(proj, |p| behind_voxels(proj, editor, p), a, b)
+}
+
+/// The parts of world segment `a`–`b` where `hidden` is false, in order: sampled every
+/// `OVERLAY_SAMPLE_POINTS` view points, and where two samples disagree the edge is found by
+/// bisection to about a view point. Empty when the segment is all behind the camera or all
+/// hidden.
+#[must_use]
+pub fn unhidden_parts_by(
+    proj: &Projector,
+    hidden: impl Fn(Vec3) -> bool,
+    a: Vec3,
+    b: Vec3,
+) -> Vec<(Vec3, Vec3)> {
     let Some([sa, sb]) = proj.segment(a, b) else {
         return Vec::new();
     };
@@ -2053,7 +2134,7 @@ pub fn unhidden_parts(proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> Ve
     // Points outside the view are not drawn: no ray for them.
     let shown = |s: f32| {
         let p = point(s);
-        proj.to_screen(p).is_none_or(|q| !proj.rect.contains(q)) || !behind_voxels(proj, editor, p)
+        proj.to_screen(p).is_none_or(|q| !proj.rect.contains(q)) || !hidden(p)
     };
     let mut parts = Vec::new();
     let (mut prev_s, mut prev_shown) = (0.0, shown(0.0));
