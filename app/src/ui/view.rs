@@ -1956,7 +1956,10 @@ fn hole_overlay(
 /// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).
 /// The view corner's navigation hint for the active tool.
 fn nav_hint(tool: Option<(ToolKind, bool)>, rigged: bool) -> String {
-    const ACTIVE: &str = "Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   Esc: navigate";
+    use super::keys::{Act, shortcut};
+    // Keys from the binding table, so the hint names the keys that act.
+    let frame = shortcut(Act::Frame);
+    let stats = shortcut(Act::Perf);
     let what = match tool {
         Some((_, true)) => "Drag: paint stretch",
         Some((ToolKind::Brush, false)) => "Drag: brush",
@@ -1969,15 +1972,21 @@ fn nav_hint(tool: Option<(ToolKind, bool)>, rigged: bool) -> String {
             "Drag: select (on the selection: move it)   Click: colour"
         }
         None if rigged => {
-            return "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   F: frame   F3: stats"
-                .to_owned();
+            return format!(
+                "Drag: orbit   Click a joint dot: pose   Shift/right-drag: pan   {frame}: frame   \
+                 {stats}: stats"
+            );
         }
         None => {
-            return "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   F: frame   S: sculpt   F3: stats"
-                .to_owned();
+            let brush = shortcut(Act::Tool(ToolKind::Brush));
+            return format!(
+                "Drag: orbit   Shift/right-drag: pan   Scroll: zoom   {frame}: frame   \
+                 {brush}: brush   {stats}: stats"
+            );
         }
     };
-    format!("{what}   {ACTIVE}")
+    let navigate = shortcut(Act::Escape);
+    format!("{what}   Alt/middle-drag: orbit   Shift: pan   Scroll: zoom   {navigate}: navigate")
 }
 
 /// "Front orthographic", "User perspective", …: which axis view (if the camera looks along
