@@ -2204,6 +2204,10 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
     use std::fmt::Write as _;
     let mut s = String::new();
     let _ = writeln!(s, "{} ({})", info.file, info.format);
+    if let Some(count) = &info.counted {
+        format_counted(&mut s, count);
+        return s;
+    }
     let _ = writeln!(
         s,
         "  {} object(s), {} voxels, {} triangles, {} light(s), {} in memory",
@@ -2329,6 +2333,51 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
         }
     }
     s
+}
+
+/// The report of a glTF file too large to import: what it holds, counted without building.
+fn format_counted(s: &mut String, count: &thicket_core::io::GltfCount) {
+    use std::fmt::Write as _;
+    let _ = writeln!(
+        s,
+        "  counted from the file, not built: {} triangles, {} vertices in {} mesh(es); an \
+         import would need up to {}",
+        thousands(count.triangles),
+        thousands(count.vertices),
+        count.meshes.len(),
+        human_bytes(count.bytes)
+    );
+    if count.instances > 0 {
+        let _ = writeln!(
+            s,
+            "  the file places {} instance(s) on {} node(s) with EXT_mesh_gpu_instancing",
+            thousands(count.instances),
+            thousands(count.instanced_nodes)
+        );
+    }
+    if let Some(why) = &count.refused {
+        let _ = writeln!(s, "  not imported: {why}");
+    }
+    for m in &count.meshes {
+        let name = if m.name.is_empty() {
+            String::new()
+        } else {
+            format!(" {:?}", m.name)
+        };
+        let _ = writeln!(
+            s,
+            "  mesh {}{name}: {} triangles, {} vertices; {} node(s) draw {} cop{}",
+            m.index,
+            thousands(m.triangles),
+            thousands(m.vertices),
+            thousands(m.nodes),
+            thousands(m.copies),
+            if m.copies == 1 { "y" } else { "ies" }
+        );
+    }
+    for line in &count.report {
+        let _ = writeln!(s, "  note: {line}");
+    }
 }
 
 /// `["Sphere", "Capsule", "Capsule"]` → `Sphere, 2 x Capsule` (first-seen order).

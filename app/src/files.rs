@@ -731,6 +731,11 @@ pub struct DocumentInfo {
     pub world_size: Option<[f32; 3]>,
     /// Counts from the source file (stored `.vox` models and voxels before instancing).
     pub source: SourceCounts,
+    /// For a glTF file too large to import with the memory budget (an exported forest's
+    /// instances expanded): what it holds, counted from the file without building it. The
+    /// object list is empty then.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub counted: Option<thicket_core::io::GltfCount>,
 }
 
 fn mesh_memory(model: &MeshModel) -> MemoryInfo {
@@ -862,6 +867,7 @@ pub fn document_info(doc: &Document, file: &Path, format: FileKind) -> DocumentI
         lights: doc.lights.len(),
         world_size: doc.bounds().map(|(lo, hi)| (hi - lo).to_array()),
         source: SourceCounts::default(),
+        counted: None,
         objects,
     }
 }
@@ -876,11 +882,40 @@ pub fn info(path: &Path, memory_limit: Option<u64>) -> anyhow::Result<DocumentIn
         memory_limit,
         ..MeshOptions::default()
     };
-    let (doc, source, _, _) = load_document_noted(path, &options)?;
-    Ok(DocumentInfo {
-        source,
-        ..document_info(&doc, path, kind)
-    })
+    match load_document_noted(path, &options) {
+        Ok((doc, source, _, _)) => Ok(DocumentInfo {
+            source,
+            ..document_info(&doc, path, kind)
+        }),
+        Err(e)
+            if kind == FileKind::Gltf
+                && matches!(
+                    e.downcast_ref::<thicket_core::io::IoError>(),
+                    Some(thicket_core::io::IoError::TooLarge { .. })
+                ) =>
+        {
+            // Too large to build: count what the file holds instead.
+            let limits = thicket_core::io::ImportLimits {
+                memory: memory_budget(memory_limit),
+                ..thicket_core::io::ImportLimits::default()
+            };
+            let count = thicket_core::io::count_gltf(path, &limits)?;
+            if count.refused.is_none() {
+                // Refused for a reason the count does not see: the import's own words.
+                return Err(e);
+            }
+            Ok(DocumentInfo {
+                source: SourceCounts {
+                    instanced_nodes: (count.instances > 0).then_some(count.instanced_nodes),
+                    instances: (count.instances > 0).then_some(count.instances),
+                    ..SourceCounts::default()
+                },
+                counted: Some(count),
+                ..document_info(&Document::default(), path, kind)
+            })
+        }
+        Err(e) => Err(e),
+    }
 }
 
 pub use thicket_core::budget::{thousands, thousands_u128};

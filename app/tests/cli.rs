@@ -1705,6 +1705,71 @@ fn export_instancing_nodes_writes_a_node_per_placement_and_says_which_readers_ne
     );
 }
 
+/// `thicket info` on the default forest's export, in both instancing modes, reports what the
+/// file holds, counted without expanding its 131,072 placements (44.5 billion triangles), and
+/// says why an import refuses it; `thicket import` refuses it in one line.
+#[test]
+fn info_counts_an_exported_forest_too_large_to_import() {
+    let dir = tempfile::tempdir().unwrap();
+    let forest = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/forest.thicket.json"
+    );
+    for instancing in ["gpu", "nodes"] {
+        let glb = dir.path().join(format!("forest-{instancing}.glb"));
+        let glb_arg = glb.to_str().unwrap();
+        let o = thicket(&["export", forest, "-o", glb_arg, "--instancing", instancing]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let o = thicket(&["info", glb_arg]);
+        assert!(o.status.success(), "{instancing}: {}", stderr(&o));
+        let text = stdout(&o);
+        assert!(
+            text.contains("counted from the file, not built: 44,525,498,368 triangles"),
+            "{instancing}: {text}"
+        );
+        assert!(
+            text.contains("not imported: ") && text.contains("the limit is 268,435,456 vertices"),
+            "{instancing}: {text}"
+        );
+        let o = thicket(&["info", glb_arg, "--json"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+        let counted = &json["counted"];
+        let meshes = counted["meshes"].as_array().unwrap();
+        // Two cell meshes (the tree and its mirror image) drawn 65,536 times each, the ground once.
+        let copies: Vec<u64> = meshes
+            .iter()
+            .map(|m| m["copies"].as_u64().unwrap())
+            .collect();
+        assert_eq!(copies, [65_536, 65_536, 1], "{instancing}");
+        let sum: u64 = meshes
+            .iter()
+            .map(|m| m["triangles"].as_u64().unwrap() * m["copies"].as_u64().unwrap())
+            .sum();
+        assert_eq!(counted["triangles"].as_u64(), Some(sum), "{instancing}");
+        let (nodes, instances) = if instancing == "gpu" {
+            (504, 131_072)
+        } else {
+            (0, 0)
+        };
+        assert_eq!(
+            counted["instanced_nodes"].as_u64(),
+            Some(nodes),
+            "{instancing}"
+        );
+        assert_eq!(
+            counted["instances"].as_u64(),
+            Some(instances),
+            "{instancing}"
+        );
+        assert_eq!(json["objects"].as_array().map(Vec::len), Some(0));
+        let out = dir.path().join("forest.thicket.json");
+        let o = thicket(&["import", glb_arg, "-o", out.to_str().unwrap()]);
+        assert!(one_error_line(&o).contains("too large"), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+}
+
 /// A project with three trees from the builder (their parameters saved with them), a KRS
 /// terrain and a rock (a KRS object the builder did not make).
 fn forest_project(dir: &Path) -> PathBuf {

@@ -464,7 +464,7 @@ mod tests {
 /// The loaders in this crate under the harness: ≥ 10,000 cases each by default.
 #[cfg(test)]
 mod loaders {
-    use std::cell::RefCell;
+    use std::cell::{Cell, RefCell};
     use std::collections::BTreeMap;
     use std::path::Path;
 
@@ -529,14 +529,36 @@ mod loaders {
         let cases = cases_from_env(10_000);
         let limits = ImportLimits::default();
         let kinds: RefCell<BTreeMap<&'static str, u64>> = RefCell::default();
+        let counted_too_large = Cell::new(0u64);
         let report = run(&corpus, cases, SEED, budget, |bytes| {
-            let result =
-                gltf_mesh::import_gltf_slice_with(bytes, None, Path::new("fuzz.glb"), &limits);
+            let name = Path::new("fuzz.glb");
+            let result = gltf_mesh::import_gltf_slice_with(bytes, None, name, &limits);
             if let Err(e) = &result {
                 *kinds.borrow_mut().entry(kind(e)).or_default() += 1;
             }
+            // `thicket info`'s count reads the same files: it never panics, and counts every
+            // file the import builds as importable, with at least the triangles built. (Files
+            // the import refuses as too large are counted where the scene, not a declared
+            // size, is what is too large; the figure is printed.)
+            let count = gltf_mesh::count_gltf_slice(bytes, name, &limits);
+            match (&result, &count) {
+                (Ok(model), count) => {
+                    let count = count.as_ref().expect("an imported file is counted");
+                    assert_eq!(count.refused, None, "an imported file is not refused");
+                    let built: usize = model.parts.iter().map(|p| p.indices.len() / 3).sum();
+                    assert!(count.triangles >= built as u64, "{count:?} < {built}");
+                }
+                (Err(IoError::TooLarge { .. }), Ok(c)) if c.refused.is_some() => {
+                    counted_too_large.set(counted_too_large.get() + 1);
+                }
+                _ => {}
+            }
             result
         });
+        eprintln!(
+            "glTF fuzz: {} too-large file(s) counted without building",
+            counted_too_large.get()
+        );
         let kinds = kinds.into_inner();
         eprintln!("glTF fuzz: {report}; refusals by kind {kinds:?}");
         // Every layer of checks is reached: container, JSON, accessor bounds, declared sizes.

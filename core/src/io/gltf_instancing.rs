@@ -527,6 +527,74 @@ pub(crate) mod tests {
         assert!(!import.report.iter().any(|l| l.contains("not supported")));
     }
 
+    /// `count_gltf` counts what the import builds, mesh by mesh, without building it, and
+    /// still counts a file whose import the limits refuse (saying why).
+    #[test]
+    fn the_count_equals_the_import_and_survives_a_refusal() {
+        let (doc, root) = instanced();
+        let bytes = doc.glb(root);
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("inst.glb");
+        std::fs::write(&path, &bytes).unwrap();
+        let import = crate::io::import_gltf_imported(&path, &ImportLimits::default()).unwrap();
+        let count = crate::io::count_gltf(&path, &ImportLimits::default()).unwrap();
+        let triangles: usize = import.model.parts.iter().map(|p| p.indices.len() / 3).sum();
+        let vertices: usize = import.model.parts.iter().map(|p| p.positions.len()).sum();
+        assert_eq!(count.triangles, triangles as u64);
+        assert_eq!(count.vertices, vertices as u64);
+        assert_eq!((count.instanced_nodes, count.instances), (1, 3));
+        assert_eq!(count.refused, None);
+        assert_eq!(count.meshes.len(), 1);
+        let tri = &count.meshes[0];
+        assert_eq!(
+            (
+                tri.name.as_str(),
+                tri.triangles,
+                tri.vertices,
+                tri.nodes,
+                tri.copies
+            ),
+            ("Tri", 1, 3, 2, 4),
+            "one triangle drawn by the instanced node's 3 instances and the plain node"
+        );
+        assert!(
+            count
+                .report
+                .iter()
+                .any(|l| l.contains("place 3 instance(s)"))
+        );
+        // Limits that refuse the import: the count is the same and says why.
+        let tight = ImportLimits {
+            max_vertices: 11,
+            ..ImportLimits::default()
+        };
+        let refused = crate::io::import_gltf_imported(&path, &tight).expect_err("over 11");
+        assert!(matches!(refused, IoError::TooLarge { .. }), "{refused}");
+        let counted = crate::io::count_gltf(&path, &tight).unwrap();
+        let why = counted.refused.clone().expect("refused");
+        assert!(why.contains("has 12 vertices; the limit is 11"), "{why}");
+        assert_eq!(
+            CountedWithoutWhy::of(&counted),
+            CountedWithoutWhy::of(&count)
+        );
+        // A malformed file is still an error, not a count.
+        std::fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+        assert!(crate::io::count_gltf(&path, &ImportLimits::default()).is_err());
+    }
+
+    /// A count less its refusal, to compare counts made under different limits.
+    #[derive(Debug, PartialEq, Eq)]
+    struct CountedWithoutWhy(crate::io::GltfCount);
+
+    impl CountedWithoutWhy {
+        fn of(c: &crate::io::GltfCount) -> Self {
+            Self(crate::io::GltfCount {
+                refused: None,
+                ..c.clone()
+            })
+        }
+    }
+
     #[test]
     fn normalised_short_and_byte_rotations_read_as_the_float_ones() {
         let (doc, root) = instanced();

@@ -121,6 +121,84 @@ pub struct GltfNode {
     pub skinned: bool,
 }
 
+/// A scene node with a mesh, as planned before anything is built: its index, its world
+/// transform and, with `EXT_mesh_gpu_instancing`, its instance transforms.
+type PlannedNode = (usize, Mat4, Option<Vec<Mat4>>);
+
+/// One mesh a counted glTF scene draws ([`GltfCount`]).
+#[derive(Debug, Clone, PartialEq, Eq, serde::Serialize)]
+pub struct CountedMesh {
+    /// Its index in the file's `meshes`.
+    pub index: usize,
+    /// Its name in the file (empty without one).
+    pub name: String,
+    /// Triangles of one copy (an upper bound for strips and fans).
+    pub triangles: u64,
+    /// Vertices of one copy.
+    pub vertices: u64,
+    /// Scene nodes that draw it.
+    pub nodes: u64,
+    /// Copies the scene draws: one per plain node, one per instance of an instanced node.
+    pub copies: u64,
+}
+
+/// What a glTF file's scene would build, counted from its checked accessors without building
+/// anything: how `thicket info` reports a file too large to import (a forest exported with
+/// `EXT_mesh_gpu_instancing` places billions of triangles from a few megabytes).
+#[derive(Debug, Clone, Default, PartialEq, Eq, serde::Serialize)]
+pub struct GltfCount {
+    /// The meshes the scene draws, by index.
+    pub meshes: Vec<CountedMesh>,
+    /// Vertices over every copy.
+    pub vertices: u64,
+    /// Triangles over every copy (an upper bound, as [`CountedMesh::triangles`]).
+    pub triangles: u64,
+    /// Bytes an import would build.
+    pub bytes: u64,
+    /// Scene nodes with `EXT_mesh_gpu_instancing`.
+    pub instanced_nodes: u64,
+    /// The instances they place.
+    pub instances: u64,
+    /// Why importing the file would be refused with these limits (the figures and the
+    /// limit), `None` when it imports.
+    pub refused: Option<String>,
+    /// What an import leaves out or changes (the import report's lines, less the view's).
+    pub report: Vec<String>,
+}
+
+/// Counts what importing `path` would build, every instance included, without building it:
+/// the file, its buffers and its instance transforms are read and checked as the import checks
+/// them; no vertex, index or image is decoded.
+///
+/// # Errors
+/// An [`IoError`] for a file that cannot be read or is malformed; a scene over `limits` is
+/// not an error here ([`GltfCount::refused`] says why an import would refuse it).
+pub fn count_gltf(path: &Path, limits: &ImportLimits) -> Result<GltfCount, IoError> {
+    let bytes = read_file_limited(path, limits)?;
+    let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
+    Importer {
+        path,
+        base_dir: Some(base_dir),
+        limits,
+    }
+    .count(&bytes)
+}
+
+/// [`count_gltf`] on a file's bytes (external buffers are not read; the fuzz tests).
+#[cfg(test)]
+pub(crate) fn count_gltf_slice(
+    bytes: &[u8],
+    name: &Path,
+    limits: &ImportLimits,
+) -> Result<GltfCount, IoError> {
+    Importer {
+        path: name,
+        base_dir: None,
+        limits,
+    }
+    .count(bytes)
+}
+
 /// [`import_gltf_reported`], plus the file's camera and directional lights.
 ///
 /// # Errors
@@ -445,6 +523,92 @@ impl<'a> Importer<'a> {
         Ok(import.model)
     }
 
+    /// What the scene's mesh nodes will build, every instance counted from the checked
+    /// accessor counts (nothing is built), and the nodes in scene order with their world
+    /// transforms and instance transforms.
+    fn plan_scene(
+        &self,
+        root: &json::Root,
+        buffers: &[Cow<'_, [u8]>],
+        scene_nodes: Vec<(usize, Mat4)>,
+    ) -> Result<(SceneSize, Vec<PlannedNode>), IoError> {
+        let mut size = SceneSize::default();
+        let mut planned: Vec<PlannedNode> = Vec::new();
+        for (node_index, world_from_node) in scene_nodes {
+            let Some(node) = root.nodes.get(node_index) else {
+                continue;
+            };
+            let Some(mesh_index) = node.mesh.map(|m| m.value()) else {
+                continue;
+            };
+            let instances = self.node_instances(root, buffers, node_index, node)?;
+            let copies = instances.as_ref().map_or(1, |v| v.len() as u64);
+            if instances.is_some() {
+                size.instanced_nodes += 1;
+                size.instances = size.instances.saturating_add(copies);
+            }
+            self.count_mesh(root, buffers, mesh_index, copies, &mut size)?;
+            planned.push((node_index, world_from_node, instances));
+        }
+        Ok((size, planned))
+    }
+
+    /// [`count_gltf`] on the file's bytes.
+    fn count(&self, bytes: &[u8]) -> Result<GltfCount, IoError> {
+        let container = self.split_container(bytes)?;
+        let root = self.parse_root(container.json)?;
+        let mut report =
+            super::gltf_report::dropped_features(&root, super::gltf_report::Reader::Static);
+        let scene_nodes = self.scene_nodes(&root)?;
+        let buffers = self.load_buffers(&root, container.bin)?;
+        let (size, planned) = self.plan_scene(&root, &buffers, scene_nodes)?;
+        report.extend(super::gltf_instancing::instancing_note(&size));
+        let mut meshes: Vec<CountedMesh> = Vec::new();
+        for (node_index, _, instances) in &planned {
+            let Some(mesh_index) = root.nodes.get(*node_index).and_then(|n| n.mesh) else {
+                continue;
+            };
+            let mesh_index = mesh_index.value();
+            let copies = instances.as_ref().map_or(1, |v| v.len() as u64);
+            let at = match meshes.iter().position(|m| m.index == mesh_index) {
+                Some(at) => at,
+                None => {
+                    let mut one = SceneSize::default();
+                    self.count_mesh(&root, &buffers, mesh_index, 1, &mut one)?;
+                    meshes.push(CountedMesh {
+                        index: mesh_index,
+                        name: root
+                            .meshes
+                            .get(mesh_index)
+                            .and_then(|m| m.name.clone())
+                            .unwrap_or_default(),
+                        triangles: one.triangles(),
+                        vertices: one.vertices,
+                        nodes: 0,
+                        copies: 0,
+                    });
+                    meshes.len() - 1
+                }
+            };
+            meshes[at].nodes += 1;
+            meshes[at].copies = meshes[at].copies.saturating_add(copies);
+        }
+        meshes.sort_by_key(|m| m.index);
+        Ok(GltfCount {
+            meshes,
+            vertices: size.vertices,
+            triangles: size.triangles(),
+            bytes: size.bytes,
+            instanced_nodes: size.instanced_nodes,
+            instances: size.instances,
+            refused: self.check_scene_size(&size).err().map(|e| match e {
+                IoError::TooLarge { detail, .. } => detail,
+                other => other.to_string(),
+            }),
+            report,
+        })
+    }
+
     /// The model, what the file holds that it leaves out ([`super::gltf_report`]) and its
     /// view ([`super::gltf_view`]).
     fn run_imported(&self, bytes: &[u8]) -> Result<GltfImport, IoError> {
@@ -469,24 +633,7 @@ impl<'a> Importer<'a> {
         };
         // Count everything the import will build, every instance included, before building
         // any of it: a small file that places a mesh a million times is refused here.
-        let mut size = SceneSize::default();
-        let mut planned: Vec<(usize, Mat4, Option<Vec<Mat4>>)> = Vec::new();
-        for (node_index, world_from_node) in scene_nodes {
-            let Some(node) = root.nodes.get(node_index) else {
-                continue;
-            };
-            let Some(mesh_index) = node.mesh.map(|m| m.value()) else {
-                continue;
-            };
-            let instances = self.node_instances(&root, &buffers, node_index, node)?;
-            let copies = instances.as_ref().map_or(1, |v| v.len() as u64);
-            if instances.is_some() {
-                size.instanced_nodes += 1;
-                size.instances = size.instances.saturating_add(copies);
-            }
-            self.count_mesh(&root, &buffers, mesh_index, copies, &mut size)?;
-            planned.push((node_index, world_from_node, instances));
-        }
+        let (size, planned) = self.plan_scene(&root, &buffers, scene_nodes)?;
         self.check_scene_size(&size)?;
         dropped.extend(super::gltf_instancing::instancing_note(&size));
 

@@ -25,8 +25,8 @@ pub mod skinned_voxels;
 
 pub use error::{ImportLimits, IoError};
 pub use gltf_mesh::{
-    GltfImport, GltfNode, InstanceCounts, import_gltf, import_gltf_imported, import_gltf_reported,
-    import_gltf_slice,
+    CountedMesh, GltfCount, GltfImport, GltfNode, InstanceCounts, count_gltf, import_gltf,
+    import_gltf_imported, import_gltf_reported, import_gltf_slice,
 };
 pub use gltf_skinned::{SkinnedImport, import_skinned, import_skinned_slice, import_skinned_with};
 pub use gltf_view::{GltfCamera, GltfView};
