@@ -242,13 +242,19 @@ fn import_of_an_instanced_export_matches_the_node_per_placement_one() {
 }
 
 /// The forest with all of its 131,072 trees as placements would expand far past the import
-/// limits even at resolution 32: `thicket info` refuses it at once, in one line naming the
-/// file, the instances and the limit.
+/// limits even at resolution 32: `thicket import` refuses it at once, in one line naming the
+/// file, the instances and the limit, and `thicket info` counts it instead of building it.
 #[test]
 fn an_export_too_large_to_expand_is_refused_in_one_line() {
     let dir = tempfile::tempdir().unwrap();
     let file = export(dir.path(), "forest", "gpu", &[]);
-    let o = thicket(&["info", file.to_str().unwrap()]);
+    let out = dir.path().join("x.thicket.json");
+    let o = thicket(&[
+        "import",
+        file.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert_eq!(err.lines().count(), 1, "{err}");
@@ -260,5 +266,20 @@ fn an_export_too_large_to_expand_is_refused_in_one_line() {
             )
             && err.contains("the limit is 805,306,368 indices"),
         "{err}"
+    );
+    assert!(!out.exists());
+    let counted = &info(&file)["counted"];
+    assert_eq!(counted["instances"].as_u64(), Some(131_072));
+    let json = glb_json(&file);
+    assert_eq!(
+        counted["triangles"].as_u64(),
+        Some(drawn_triangles(&json).0),
+        "the count equals what the file's JSON draws"
+    );
+    assert!(
+        counted["refused"]
+            .as_str()
+            .is_some_and(|r| r.contains("the limit is 805,306,368 indices")),
+        "{counted}"
     );
 }
