@@ -95,6 +95,38 @@ fn every_sample_export_passes_the_khronos_validator() {
             .unwrap_or_else(|e| panic!("{name} with default options: {e}"));
         let visible = doc.objects.iter().filter(|o| o.visible).count();
         assert_eq!(report.objects, visible, "{name}: every visible object");
+        // Thicket reads its own export back: `thicket info`'s count, and the import where
+        // the expanded scene fits the limits (the forest's 2^17 trees and the woodland's 2^14
+        // do not: counted only).
+        let limits = thicket_core::io::ImportLimits::default();
+        let count = thicket_core::io::count_gltf(&out, &limits)
+            .unwrap_or_else(|e| panic!("{name}: the count reads the export: {e}"));
+        println!(
+            "{name}: read back {} triangles, {} vertices{}",
+            count.triangles,
+            count.vertices,
+            if count.refused.is_some() {
+                " (counted, too large to import)"
+            } else {
+                ""
+            }
+        );
+        match &count.refused {
+            None => {
+                let import = thicket_core::io::import_gltf_imported(&out, &limits)
+                    .unwrap_or_else(|e| panic!("{name}: the import reads the export: {e}"));
+                let triangles: usize = import.model.parts.iter().map(|p| p.indices.len() / 3).sum();
+                assert_eq!(triangles as u64, count.triangles, "{name}");
+                assert_eq!(
+                    count.triangles, report.triangles,
+                    "{name}: read back as written"
+                );
+            }
+            Some(why) => assert!(
+                ["forest", "woodland"].contains(&name) && count.instances > 10_000,
+                "{name}: refused: {why}"
+            ),
+        }
         assert!(report.triangles > 100, "{name}: {report:?}");
         assert!(report.camera && report.lights == doc.lights.len(), "{name}");
         match name {
