@@ -160,7 +160,10 @@ fn skinned_exports_pose_in_blender_without_cracks() {
         let gaps = seen["skin_gaps"].as_array().unwrap();
         assert_eq!(gaps.len(), 3 * actions.len(), "{name}: {gaps:?}");
         for g in gaps {
-            assert!(count(g, "shared") > 1000, "{name}: {g}");
+            // Positions held by several vertices (where colours differ: corners of one colour
+            // are one welded vertex, which cannot crack): 230 on the critter, thousands on
+            // CesiumMan; enough that the check is not vacuous.
+            assert!(count(g, "shared") > 200, "{name}: {g}");
             assert_eq!(g["max_gap"].as_f64(), Some(0.0), "{name}: a crack {g}");
         }
     }

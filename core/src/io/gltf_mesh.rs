@@ -2,7 +2,8 @@
 //!
 //! What is read: every node of the default scene (or, without scenes, every root node) with
 //! its accumulated transform; every triangle primitive (lists, strips and fans; points and lines
-//! are skipped with a warning), indexed or not; `POSITION`, `NORMAL` (computed when absent), the
+//! are skipped with a warning), indexed or not; `POSITION`, `NORMAL` (flat normals when absent,
+//! as the specification asks: a vertex between faces facing different ways is split), the
 //! base-colour texture's UV set (normally `TEXCOORD_0`), `COLOR_0`, `JOINTS_0` and `WEIGHTS_0`;
 //! materials' base colour factor, base-colour texture (PNG or JPEG, from a `.glb` buffer view, a
 //! data URI or a file beside the `.gltf`) decoded to RGBA8, and the `KHR_materials_unlit` flag.
@@ -1433,7 +1434,9 @@ impl<'a> Importer<'a> {
             Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip => Vec::new(),
         };
         if part.normals.is_empty() {
-            part.compute_normals();
+            // The glTF specification: "When normals are not specified, client
+            // implementations MUST calculate flat normals." (Blender and three.js do.)
+            part.compute_flat_normals();
         }
         Ok(Some(part))
     }
@@ -1858,20 +1861,83 @@ pub(crate) mod tests {
         assert!((lo.y + 0.05).abs() < 1e-6, "{lo}");
     }
 
+    /// The Spot GLB has no `NORMAL`: the reader computes flat normals, as the glTF
+    /// specification asks (Blender and three.js shade it faceted too), splitting its 2,930
+    /// shared vertices where faces meet; by position it is as watertight as before.
     #[test]
-    fn spot_glb_is_watertight_with_computed_normals() {
+    fn spot_glb_is_watertight_with_computed_flat_normals() {
         let path = asset("static/spot/spot_triangulated.derived.glb");
         let model = import_gltf(&path).expect("spot");
-        check_counts(&model, &path);
-        assert_eq!((model.vertex_count(), model.triangle_count()), (2930, 5856));
-        assert!(is_watertight(&model.parts[0]));
-        assert!(model.parts[0].signed_volume() > 0.0);
-        assert!(
-            model.parts[0]
-                .normals
+        assert!(model.validate().is_ok());
+        assert_eq!(model.triangle_count(), 5856);
+        let part = &model.parts[0];
+        assert_eq!(part.normals.len(), part.positions.len());
+        // A smooth mesh's triangles face different ways: its vertices are split.
+        assert!(model.vertex_count() > 2 * 2930, "{}", model.vertex_count());
+        let mut by_position: HashMap<[u32; 3], u32> = HashMap::new();
+        let welded = TriangleMesh {
+            indices: part
+                .indices
                 .iter()
-                .all(|n| (n.length() - 1.0).abs() < 1e-4)
-        );
+                .map(|&i| {
+                    let p = part.positions[i as usize].to_array().map(f32::to_bits);
+                    let next = by_position.len() as u32;
+                    *by_position.entry(p).or_insert(next)
+                })
+                .collect(),
+            positions: vec![Vec3::ZERO; 2930],
+            ..TriangleMesh::default()
+        };
+        assert_eq!(by_position.len(), 2930, "the file's vertices, by position");
+        assert!(is_watertight(&welded));
+        assert!(part.signed_volume() > 0.0);
+        for t in 0..part.triangle_count() {
+            let [a, b, c] = part.triangle(t);
+            let face = (part.positions[b] - part.positions[a])
+                .cross(part.positions[c] - part.positions[a])
+                .normalize_or_zero();
+            for v in [a, b, c] {
+                assert!(part.normals[v].dot(face) > 0.9999, "triangle {t}");
+            }
+        }
+    }
+
+    /// Flat normals keep the vertices that faces facing the same way share: a cube of 8
+    /// shared corners becomes 24 vertices (4 a face), its 12 triangles unchanged.
+    #[test]
+    fn flat_normals_split_only_where_faces_turn() {
+        let mut cube = crate::mesh::unit_cube();
+        let shared: Vec<Vec3> = {
+            let mut p = cube.positions.clone();
+            p.sort_by(|a, b| a.to_array().partial_cmp(&b.to_array()).unwrap());
+            p.dedup();
+            p
+        };
+        assert_eq!(shared.len(), 8, "the cube shares its corners");
+        let triangles = cube.indices.clone();
+        cube.normals.clear();
+        cube.compute_flat_normals();
+        assert_eq!(cube.positions.len(), 24);
+        assert_eq!(cube.normals.len(), 24);
+        assert_eq!(cube.triangle_count(), 12);
+        for t in 0..12 {
+            let [a, b, c] = cube.triangle(t);
+            let n = cube.normals[a];
+            assert!(
+                n == cube.normals[b] && n == cube.normals[c],
+                "one normal a face"
+            );
+            assert_eq!(n.abs().max_element(), 1.0, "an axis: {n}");
+            // Same corners as before, in the same order.
+            let old: Vec<Vec3> = triangles[3 * t..3 * t + 3]
+                .iter()
+                .map(|&i| crate::mesh::unit_cube().positions[i as usize])
+                .collect();
+            assert_eq!(
+                old,
+                [cube.positions[a], cube.positions[b], cube.positions[c]]
+            );
+        }
     }
 
     #[test]

@@ -312,6 +312,67 @@ impl TriangleMesh {
             .collect();
     }
 
+    /// Flat normals, as glTF asks of a reader when a primitive has no `NORMAL`: every corner
+    /// gets its triangle's face normal, and a vertex whose triangles face different ways is
+    /// split: the first way keeps the vertex, each other way gets a copy appended (its other
+    /// attributes copied). Triangles that face the same way (to 1e-4) keep sharing their
+    /// vertices, so a mesh of flat faces, such as Thicket's cube export, gains copies only where
+    /// faces meet at an edge, and a mesh whose vertices each lie on one face keeps its vertices
+    /// as they are. Degenerate triangles and vertices no triangle uses take +Y. Replaces
+    /// `normals`; positions and triangles are unchanged. Indices must be in range (readers
+    /// check them first); a triangle with one out of range is left as it is.
+    pub fn compute_flat_normals(&mut self) {
+        use std::collections::HashMap;
+        let n = self.positions.len();
+        let mut normals = vec![Vec3::Y; n];
+        // The way each vertex faces first, and the copies made for other ways.
+        let mut first: Vec<Option<[i32; 3]>> = vec![None; n];
+        let mut copies: HashMap<(u32, [i32; 3]), u32> = HashMap::new();
+        let mut source: Vec<usize> = Vec::new();
+        for t in 0..self.triangle_count() {
+            let [a, b, c] = self.triangle(t);
+            if a >= n || b >= n || c >= n {
+                continue;
+            }
+            let face = (self.positions[b] - self.positions[a])
+                .cross(self.positions[c] - self.positions[a])
+                .try_normalize()
+                .unwrap_or(Vec3::Y);
+            let way = (face * 1e4).round().as_ivec3().to_array();
+            for at in 3 * t..3 * t + 3 {
+                let v = self.indices[at];
+                match first[v as usize] {
+                    None => {
+                        first[v as usize] = Some(way);
+                        normals[v as usize] = face;
+                    }
+                    Some(w) if w == way => {}
+                    Some(_) => {
+                        let next = (n + source.len()) as u32;
+                        let copy = *copies.entry((v, way)).or_insert(next);
+                        if copy == next {
+                            source.push(v as usize);
+                            normals.push(face);
+                        }
+                        self.indices[at] = copy;
+                    }
+                }
+            }
+        }
+        fn extend<T: Copy>(v: &mut Vec<T>, source: &[usize]) {
+            if !v.is_empty() {
+                let copies: Vec<T> = source.iter().map(|&i| v[i]).collect();
+                v.extend(copies);
+            }
+        }
+        extend(&mut self.positions, &source);
+        extend(&mut self.uvs, &source);
+        extend(&mut self.colors, &source);
+        extend(&mut self.joints, &source);
+        extend(&mut self.weights, &source);
+        self.normals = normals;
+    }
+
     /// Applies `world_from_mesh` to positions and its inverse transpose to normals.
     pub fn transform(&mut self, world_from_mesh: Mat4) {
         for p in &mut self.positions {

@@ -1212,10 +1212,10 @@ impl SceneBuilder<'_> {
                     let i = prim_for(q.key.1, &mut by_material);
                     let (_, prim, pal) = &mut by_material[i];
                     let base = prim.positions.len() as u32;
-                    for c in q.corners() {
-                        prim.positions.push(to_object(c));
-                        prim.normals.push(q.normal());
-                    }
+                    // No NORMAL: readers compute the flat normals cube faces have (the glTF
+                    // specification requires it), so quads of one colour share corners across
+                    // the faces' edges too (`ExportPrimitive::weld`).
+                    prim.positions.extend(q.corners().map(to_object));
                     if v.rig.is_some() {
                         // One weight set per lattice corner: every vertex at a position agrees.
                         prim.skin.extend(q.corner_skins());
@@ -1308,10 +1308,8 @@ impl SceneBuilder<'_> {
                     };
                     let prim = &mut level[i].1;
                     let base = prim.positions.len() as u32;
-                    for c in q.corners() {
-                        prim.positions.push(v.origin + c * size);
-                        prim.normals.push(q.normal());
-                    }
+                    prim.positions
+                        .extend(q.corners().map(|c| v.origin + c * size));
                     prim.colors.extend([linear(q.key.0); 4]);
                     prim.indices
                         .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
