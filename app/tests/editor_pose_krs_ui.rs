@@ -1766,3 +1766,68 @@ fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
         );
     }
 }
+
+/// During playback the CPU preview's image lags the playhead by its render time: the skeleton
+/// is drawn posed as that image, not as the playhead, so the bones stay inside the limbs the
+/// image shows; once the preview catches up, the skeleton is the playhead's pose again.
+#[test]
+fn the_skeleton_is_drawn_with_the_pose_of_the_image_shown() {
+    let path = std::path::Path::new("../projects/critter.thicket.json");
+    let doc = thicket::files::load_document(path).expect("the sample loads");
+    let mut h = harness(doc);
+    h.state_mut().view.renderer = thicket::ui::view::ViewRenderer::Cpu;
+    settle_preview(&mut h);
+    let id = h.state().editor.doc().objects[0].id;
+    let positions = |f: &thicket::editor::JointFrames| -> Vec<Vec3> {
+        (0..f.world_from_joint.len())
+            .filter_map(|j| f.position(j))
+            .collect()
+    };
+    let painted = |h: &Harness<'static, EditorApp>| {
+        h.state()
+            .pose
+            .painted
+            .iter()
+            .find(|(o, _)| *o == id)
+            .map(|(_, p)| p.clone())
+            .expect("the skeleton is drawn")
+    };
+    let editor_pose =
+        |h: &Harness<'static, EditorApp>| positions(&h.state().editor.joint_frames(id).unwrap());
+    let image_pose = |h: &Harness<'static, EditorApp>| {
+        let doc = h
+            .state()
+            .view
+            .shown_pose_document(true)
+            .expect("the image's document");
+        positions(&thicket::editor::joint_frames_in(&doc, id).unwrap())
+    };
+    assert_eq!(
+        painted(&h),
+        editor_pose(&h),
+        "still: the image is the playhead's"
+    );
+    h.state_mut().pose.step_every_frame = true;
+    h.get_by_label("Play").click();
+    let mut lagging = 0;
+    for _ in 0..6 {
+        // A frame: the playhead moves on, the preview's next image is still being drawn.
+        h.run_steps(1);
+        assert_eq!(
+            painted(&h),
+            image_pose(&h),
+            "the skeleton is the image's pose"
+        );
+        if painted(&h) != editor_pose(&h) {
+            lagging += 1;
+        }
+    }
+    assert!(lagging > 0, "the image lagged the playhead in some frame");
+    h.get_by_label("Pause").click();
+    settle_preview(&mut h);
+    assert_eq!(
+        painted(&h),
+        editor_pose(&h),
+        "caught up: the playhead's pose"
+    );
+}

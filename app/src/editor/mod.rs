@@ -29,7 +29,7 @@ pub use dope::KeyClipboard;
 pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use forest::ForestReport;
 pub use pick::{Landing, PickKind, SurfacePick};
-pub use pose::JointFrames;
+pub use pose::{JointFrames, joint_frames_in};
 pub use pose_keys::{KEY_EPSILON_SECS, MIN_JOINT_SCALE};
 pub use rig::{SkeletonTemplate, WeightsOnEdit, bind_job};
 pub use sculpt::{VoxelPick, ray_through};

@@ -32,6 +32,42 @@ impl JointFrames {
     }
 }
 
+/// The joint frames of rigged object `id` in `doc`, posed as `doc` stands (see
+/// [`Editor::joint_frames`]; the view draws the skeleton from the document its image shows).
+#[must_use]
+pub fn joint_frames_in(doc: &thicket_core::scene::Document, id: u64) -> Option<JointFrames> {
+    let o = doc.objects.iter().find(|o| o.id == id)?;
+    let ObjectKind::Voxels(v) = &o.kind else {
+        return None;
+    };
+    let rig = v.rig.as_ref()?;
+    let world_from_object = o.transform.matrix();
+    let mut m = JointMatrices::default();
+    rig.skeleton.compute_matrices(&rig.current_pose(), &mut m);
+    let joints = &rig.skeleton.joints;
+    let world_from_joint: Vec<Mat4> = m
+        .world_from_joint
+        .iter()
+        .map(|w| world_from_object * *w)
+        .collect();
+    let world_from_parent = joints
+        .iter()
+        .map(|j| {
+            let parent = j
+                .parent
+                .and_then(|p| m.world_from_joint.get(p).copied())
+                .unwrap_or(Mat4::IDENTITY);
+            world_from_object * parent * j.parent_from_attachment
+        })
+        .collect();
+    Some(JointFrames {
+        world_from_joint,
+        world_from_parent,
+        parents: joints.iter().map(|j| j.parent).collect(),
+        world_from_object,
+    })
+}
+
 impl Editor {
     /// The rig of object `id`, when it is a rigged voxel model.
     #[must_use]
@@ -62,33 +98,7 @@ impl Editor {
     /// The joint frames of object `id` as the document shows it now (clip, time, overrides).
     #[must_use]
     pub fn joint_frames(&self, id: u64) -> Option<JointFrames> {
-        let o = self.object(id)?;
-        let rig = self.rig(id)?;
-        let world_from_object = o.transform.matrix();
-        let mut m = JointMatrices::default();
-        rig.skeleton.compute_matrices(&rig.current_pose(), &mut m);
-        let joints = &rig.skeleton.joints;
-        let world_from_joint: Vec<Mat4> = m
-            .world_from_joint
-            .iter()
-            .map(|w| world_from_object * *w)
-            .collect();
-        let world_from_parent = joints
-            .iter()
-            .map(|j| {
-                let parent = j
-                    .parent
-                    .and_then(|p| m.world_from_joint.get(p).copied())
-                    .unwrap_or(Mat4::IDENTITY);
-                world_from_object * parent * j.parent_from_attachment
-            })
-            .collect();
-        Some(JointFrames {
-            world_from_joint,
-            world_from_parent,
-            parents: joints.iter().map(|j| j.parent).collect(),
-            world_from_object,
-        })
+        joint_frames_in(self.doc(), id)
     }
 
     /// The override of `joint` on object `id`, if any.

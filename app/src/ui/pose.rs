@@ -145,6 +145,9 @@ pub struct PoseTool {
     pub ik_pole: IkPole,
     /// Whether the last IK drag's target was within reach.
     pub ik_reached: Option<bool>,
+    /// The joints the last paint drew, per object (world positions): what the view showed,
+    /// for the tests that check the skeleton follows the image's pose.
+    pub painted: Vec<(u64, Vec<Vec3>)>,
 }
 
 impl Default for PoseTool {
@@ -166,6 +169,7 @@ impl Default for PoseTool {
             ik: false,
             ik_pole: IkPole::AsNow,
             ik_reached: None,
+            painted: Vec::new(),
         }
     }
 }
@@ -556,15 +560,38 @@ impl PoseTool {
     }
 
     /// Draws every visible skeleton and the selected joint's gizmo.
-    pub fn paint(&self, painter: &egui::Painter, editor: &Editor, proj: &Projector) {
+    ///
+    /// Bones and joint dots are drawn posed as `shown` (the document the view's image was drawn
+    /// from, which lags the editor's pose while the CPU preview catches up with playback),
+    /// else as the editor's document; the selected joint's gizmo follows the editor's pose.
+    pub fn paint(
+        &mut self,
+        painter: &egui::Painter,
+        editor: &Editor,
+        shown: Option<&thicket_core::scene::Document>,
+        proj: &Projector,
+    ) {
+        self.painted.clear();
         if !self.show_skeleton {
             return;
         }
         let selected = self.valid_joint(editor);
         for o in editor.doc().objects.iter().filter(|o| o.visible) {
-            let Some(frames) = editor.joint_frames(o.id) else {
+            let Some(current) = editor.joint_frames(o.id) else {
                 continue;
             };
+            // The image's pose, unless its skeleton has other joints (one was added or deleted
+            // since it was drawn: the dots must stay clickable as the editor numbers them).
+            let frames = shown
+                .and_then(|doc| crate::editor::joint_frames_in(doc, o.id))
+                .filter(|f| f.parents == current.parents)
+                .unwrap_or(current);
+            self.painted.push((
+                o.id,
+                (0..frames.world_from_joint.len())
+                    .filter_map(|j| frames.position(j))
+                    .collect(),
+            ));
             let is_selected_object = editor.selection == Some(Selection::Object(o.id));
             let bone = if is_selected_object {
                 egui::Color32::from_rgb(255, 200, 120)

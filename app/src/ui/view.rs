@@ -276,7 +276,12 @@ struct CpuPreview {
     shown: Option<PreviewKey>,
     texture: Option<egui::TextureHandle>,
     job: Option<(PreviewKey, mpsc::Receiver<PreviewResult>)>,
+    /// The document the running job draws.
+    job_doc: Option<Arc<Document>>,
     ready: Option<(PreviewKey, PreviewResult)>,
+    /// The document the shown image was drawn from: overlays that follow the pose (the
+    /// skeleton) are drawn from it, so they match the image while it lags the playhead.
+    shown_doc: Option<Arc<Document>>,
     error: Option<String>,
     last_ms: f64,
     last_shadows: ShadowWork,
@@ -975,7 +980,8 @@ impl View {
         paint_mirrors(&painter, editor, krs, &proj);
         paint_zones(&painter, editor, krs, &proj);
         paint_route(&painter, editor, krs, &proj);
-        pose.paint(&painter, editor, &proj);
+        let shown = self.shown_pose_document(cpu);
+        pose.paint(&painter, editor, shown.as_deref(), &proj);
         if let Some((generation, pick)) = self.last_click
             && generation == editor.generation()
         {
@@ -1285,6 +1291,7 @@ impl View {
             }
         }
         if let Some((k, result)) = self.cpu.ready.take() {
+            self.cpu.shown_doc = self.cpu.job_doc.take();
             match result {
                 Ok(PreviewFrame {
                     image,
@@ -1347,6 +1354,7 @@ impl View {
         // One render at a time; when it lands, the newest key starts the next.
         if self.cpu.job.is_none() && self.cpu.shown.as_ref() != Some(&key) {
             let doc = self.snapshot(editor);
+            let job_doc = Arc::clone(&doc);
             // The snapshot's key: it changes whenever the content or the playhead does.
             let content_key = preview_content_hash(render_key(editor));
             let changes = std::mem::take(&mut self.cpu.changes);
@@ -1410,6 +1418,7 @@ impl View {
                 let _ = tx.send(result);
             });
             self.cpu.job = Some((key, rx));
+            self.cpu.job_doc = Some(job_doc);
             ui.ctx().request_repaint_after(Duration::from_millis(30));
         }
         let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
@@ -1606,6 +1615,18 @@ impl View {
             camera.orthographic = false;
             self.auto_ortho = false;
         }
+    }
+
+    /// The document the CPU preview's shown image was drawn from: the skeleton overlay is
+    /// drawn posed as it, so bones stay inside the limbs of the image while the preview lags
+    /// playback (or a joint drag, or the object's keyed motion). `None` with the GPU viewport
+    /// (it draws the current document in the same frame) and while the preview shows an
+    /// error; the skeleton then shows the editor's pose.
+    #[must_use]
+    pub fn shown_pose_document(&self, cpu: bool) -> Option<Arc<Document>> {
+        (cpu && self.cpu.error.is_none() && self.cpu.shown.is_some())
+            .then(|| self.cpu.shown_doc.clone())
+            .flatten()
     }
 
     /// The depth of the frame shown, when it shows the editor's scene (content and pose):
