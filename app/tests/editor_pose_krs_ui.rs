@@ -1831,3 +1831,43 @@ fn the_skeleton_is_drawn_with_the_pose_of_the_image_shown() {
         "caught up: the playhead's pose"
     );
 }
+
+/// F3's Performance overlay shows the CPU preview's time per stage and its KRS rays when the
+/// CPU preview draws the view, as it shows the GPU's per pass.
+#[test]
+fn the_performance_overlay_shows_the_cpu_preview_per_stage() {
+    let path = std::path::Path::new("../projects/tree.thicket.json");
+    let doc = thicket::files::load_document(path).expect("the sample loads");
+    let mut h = harness(doc);
+    h.state_mut().view.renderer = thicket::ui::view::ViewRenderer::Cpu;
+    settle_preview(&mut h);
+    h.key_press(egui::Key::F3);
+    h.run_steps(2);
+    h.get_by_label("Performance");
+    let stats = h
+        .state()
+        .view
+        .cpu_preview_frame_stats()
+        .expect("a render's statistics")
+        .clone();
+    assert!(stats.times.krs_ms > 0.0 && stats.krs.rays > 0, "{stats:?}");
+    for stage in [
+        "Shadow maps",
+        "Octree traversal",
+        "Splats",
+        "Triangles",
+        "KRS sphere tracing",
+        "Resolve",
+        "Shade",
+        "Frame",
+    ] {
+        h.get_by_label(stage);
+    }
+    // The KRS pass's time, as the overlay prints it, and its rays.
+    let krs_ms = format!("{:.3}", stats.times.krs_ms);
+    assert!(h.query_all_by_label(&krs_ms).count() >= 1, "{krs_ms}");
+    h.get_by_label_contains(&format!(
+        "KRS: {} rays",
+        thicket::files::thousands(stats.krs.rays)
+    ));
+}

@@ -956,9 +956,12 @@ impl EditorApp {
             self.view
                 .cpu_preview_stats()
                 .filter(|_| self.view.uses_cpu(&self.editor))
-                .map(|(ms, size)| {
-                    let shadows = self.view.cpu_preview_shadows().unwrap_or_default();
-                    (ms, size, shadows, self.view.cpu_reason_text(&self.editor))
+                .map(|(ms, size)| perf::CpuPreviewFigures {
+                    ms,
+                    size,
+                    shadows: self.view.cpu_preview_shadows().unwrap_or_default(),
+                    stats: self.view.cpu_preview_frame_stats(),
+                    why: self.view.cpu_reason_text(&self.editor),
                 }),
         );
         self.tradeoff_ui(&ctx);

@@ -50,7 +50,7 @@ impl PerfOverlay {
         ctx: &egui::Context,
         editor: &Editor,
         link: Option<&ViewportLink>,
-        cpu_preview: Option<(f64, [u32; 2], super::view::ShadowWork, &str)>,
+        cpu_preview: Option<CpuPreviewFigures<'_>>,
     ) {
         if !self.open {
             return;
@@ -61,11 +61,8 @@ impl PerfOverlay {
             .default_width(420.0)
             .default_pos(egui::pos2(300.0, 80.0))
             .show(ctx, |ui| {
-                if let Some((ms, [w, h], shadows, why)) = cpu_preview {
-                    ui.label(format!(
-                        "The CPU preview draws the view ({why}): last render {ms:.1} ms at {w} x {h} px"
-                    ));
-                    ui.label(shadow_work_text(&shadows));
+                if let Some(cpu) = cpu_preview {
+                    cpu_preview_ui(ui, &cpu);
                 }
                 self.contents_ui(ui, editor, link);
             });
@@ -231,6 +228,77 @@ impl PerfOverlay {
             });
         });
     }
+}
+
+/// What the Performance overlay shows of the CPU preview when it draws the view.
+#[derive(Debug, Clone)]
+pub struct CpuPreviewFigures<'a> {
+    /// Wall-clock milliseconds of the last render (on the preview's worker thread).
+    pub ms: f64,
+    /// Its size in pixels.
+    pub size: [u32; 2],
+    /// What its shadow pass did with the kept maps.
+    pub shadows: super::view::ShadowWork,
+    /// Its statistics: time per stage, nodes per level, KRS rays.
+    pub stats: Option<&'a thicket_core::render::FrameStats>,
+    /// Why the CPU preview draws the view.
+    pub why: &'a str,
+}
+
+/// The CPU preview's figures: the last render, its time per stage, its KRS rays and its nodes
+/// per level, as the GPU's are shown below.
+fn cpu_preview_ui(ui: &mut egui::Ui, cpu: &CpuPreviewFigures<'_>) {
+    let [w, h] = cpu.size;
+    ui.label(format!(
+        "The CPU preview draws the view ({}): last render {:.1} ms at {w} x {h} px",
+        cpu.why, cpu.ms
+    ));
+    ui.label(shadow_work_text(&cpu.shadows));
+    let Some(stats) = cpu.stats else { return };
+    let t = &stats.times;
+    egui::Grid::new("cpu_stage_ms")
+        .striped(true)
+        .show(ui, |ui| {
+            ui.strong("Stage");
+            ui.strong("CPU ms");
+            ui.end_row();
+            for (name, ms) in [
+                ("Shadow maps", t.shadow_ms),
+                ("Octree traversal", t.traversal_ms),
+                ("Splats", t.splat_ms),
+                ("Triangles", t.triangles_ms),
+                ("KRS sphere tracing", t.krs_ms),
+                ("Resolve", t.resolve_ms),
+                ("Shade", t.shade_ms),
+                ("Frame", t.total_ms),
+            ] {
+                ui.label(name);
+                ui.label(format!("{ms:.3}"));
+                ui.end_row();
+            }
+        });
+    if stats.krs.rays > 0 {
+        ui.label(krs_text(&stats.krs));
+    }
+    ui.collapsing("Nodes per level (CPU view)", |ui| {
+        level_grid_ui(ui, "cpu_levels", &stats.levels);
+    });
+    ui.separator();
+}
+
+/// A CPU frame's KRS sphere tracing in one line.
+fn krs_text(k: &thicket_core::render::KrsStats) -> String {
+    format!(
+        "KRS: {} rays, {} hits, {:.1} steps per ray (+ {} in tile cones), {} ran out of steps; \
+         {} shadow rays, {} AO evaluations",
+        thousands(k.rays),
+        thousands(k.hits),
+        k.steps as f64 / k.rays.max(1) as f64,
+        thousands(k.tile_steps),
+        thousands(k.exhausted),
+        thousands(k.shadow_rays),
+        thousands(k.ao_evals)
+    )
 }
 
 fn push_bounded<T>(q: &mut VecDeque<T>, v: T) {

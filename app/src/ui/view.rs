@@ -219,6 +219,8 @@ struct PreviewFrame {
     /// NDC depth per pixel, for hiding overlay lines ([`FrameDepth`]).
     depth: Arc<[f32]>,
     ms: f64,
+    /// The render's statistics (stage times, nodes per level, KRS rays).
+    stats: thicket_core::render::FrameStats,
     /// The hole / bloat overlay and its counts, when asked for and a rigged model shows.
     holes: Option<(egui::ColorImage, HoleCounts)>,
     /// The stretch heat map and its statistics, when asked for and a rigged model shows.
@@ -285,6 +287,8 @@ struct CpuPreview {
     error: Option<String>,
     last_ms: f64,
     last_shadows: ShadowWork,
+    /// The last render's statistics, for the Performance overlay.
+    last_stats: Option<thicket_core::render::FrameStats>,
     renders: u64,
     /// Object labels of the shown image, row by row.
     labels: Vec<u32>,
@@ -1151,6 +1155,12 @@ impl View {
         self.cpu.shown.as_ref().map(|k| k.supersample)
     }
 
+    /// The last CPU preview render's statistics: time per stage, nodes per level, KRS rays.
+    #[must_use]
+    pub fn cpu_preview_frame_stats(&self) -> Option<&thicket_core::render::FrameStats> {
+        self.cpu.last_stats.as_ref()
+    }
+
     /// What the last CPU preview render's shadow pass did with the kept maps.
     #[must_use]
     pub fn cpu_preview_shadows(&self) -> Option<ShadowWork> {
@@ -1299,10 +1309,12 @@ impl View {
                     nodes,
                     depth,
                     ms,
+                    stats,
                     holes,
                     stretch,
                     shadows,
                 }) => {
+                    self.cpu.last_stats = Some(stats);
                     self.cpu.depth = Some(FrameDepth::new(
                         k.content,
                         k.animation,
@@ -1387,6 +1399,7 @@ impl View {
                     .map(|frame| {
                         let (image, buffers) = (frame.image, frame.buffers);
                         let shadows = ShadowWork::of(frame.stats);
+                        let stats = frame.stats.clone();
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
                         let labels = buffers.ids.iter().map(|id| id.object).collect();
@@ -1404,6 +1417,7 @@ impl View {
                             nodes,
                             depth,
                             ms,
+                            stats,
                             holes: if holes {
                                 hole_overlay(&doc, &request)
                             } else {
