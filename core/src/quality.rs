@@ -98,7 +98,32 @@ impl Default for Quality {
     }
 }
 
+/// The widest shadow PCF radius any renderer filters with (texels): the knob's maximum, also
+/// applied to values read from files.
+pub const MAX_PCF_RADIUS: u32 = 8;
+
+/// The rules both renderers derive from a [`Quality`], in one place
+/// ([`Quality::frame_settings`]): each renderer reads these instead of re-applying the rules.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrameSettings {
+    /// Shadow PCF radius in texels, at most [`MAX_PCF_RADIUS`].
+    pub pcf_radius: u32,
+    /// Pixels a shadow receiver's depth bias spans: the LOD threshold, at least one pixel (a
+    /// splat at the cut covers that much of the surface, so a receiver within it must not
+    /// shadow itself).
+    pub receiver_px: f32,
+}
+
 impl Quality {
+    /// The settings both renderers derive from these knobs.
+    #[must_use]
+    pub fn frame_settings(&self) -> FrameSettings {
+        FrameSettings {
+            pcf_radius: self.shadow_pcf_radius.min(MAX_PCF_RADIUS),
+            receiver_px: self.lod_pixel_threshold.max(1.0),
+        }
+    }
+
     /// Knob names accepted by [`Quality::set`], in [`KNOB_SPECS`] order.
     pub const KNOBS: [&'static str; KNOB_SPECS.len()] = {
         let mut names = [""; KNOB_SPECS.len()];
@@ -363,7 +388,7 @@ pub const KNOB_SPECS: &[KnobSpec] = &[
     knob!(bool shadows, "Shadows", "Shadow maps on/off"),
     knob!(u32 shadow_map_size, 16, 16384, "texels", "Shadow map", "Shadow map edge in texels",
         &["256", "512", "1024", "2048", "4096"]),
-    knob!(u32 shadow_pcf_radius, 0, 8, "texels", "Shadow PCF radius",
+    knob!(u32 shadow_pcf_radius, 0, MAX_PCF_RADIUS, "texels", "Shadow PCF radius",
         "Shadow filter radius in texels (0 = hard)", &["0", "1", "2", "3"]),
     knob!(u32 ao_samples, 0, 64, "samples", "AO samples", "Ambient-occlusion samples (0 = off)",
         &["0", "4", "8", "16"]),

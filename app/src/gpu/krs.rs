@@ -306,7 +306,7 @@ fn frame_uniform(
         flags,
         ao_samples,
         ao_spacing: AO_REACH_OBJECT_UNITS * min_scale / ao_samples.max(1) as f32,
-        receiver_px: quality.lod_pixel_threshold.max(1.0),
+        receiver_px: quality.frame_settings().receiver_px,
         stride: 1 + lights.len() as u32,
         smoothing_px: SMOOTHING_PX,
         soft_k: SOFT_SHADOW_K,

@@ -384,7 +384,7 @@ pub(crate) fn sampled_texels(
 ) {
     let texel_world = ShadowMap::texel_world(cam);
     let l = -light.direction.normalize_or_zero();
-    let pcf = quality.shadow_pcf_radius.min(8) as i32;
+    let pcf = quality.frame_settings().pcf_radius as i32;
     let (w, h) = (cam.width as i32, cam.height as i32);
     let windows = (0..fb.ids.len()).into_par_iter().filter_map(|i| {
         if fb.ids[i].object == 0 {
@@ -416,7 +416,7 @@ fn shading_point(
     let (x, y) = ((i as u32 % w) as f32 + 0.5, (i as u32 / w) as f32 + 0.5);
     let p = krs.map_or_else(|| cam.unproject(x, y, fb.depth[i]), |px| px.position);
     let receiver =
-        cam.pixel_world_size(cam.view_depth(fb.depth[i])) * quality.lod_pixel_threshold.max(1.0);
+        cam.pixel_world_size(cam.view_depth(fb.depth[i])) * quality.frame_settings().receiver_px;
     (p, receiver)
 }
 
@@ -985,7 +985,7 @@ pub(crate) fn shade(
     img.height = fb.height;
     img.pixels.clear();
     img.pixels.resize(w as usize * fb.height as usize * 4, 0);
-    let pcf = quality.shadow_pcf_radius.min(8) as i32;
+    let pcf = quality.frame_settings().pcf_radius as i32;
     let to8 = linear_to_srgb8;
     let bg = [
         to8(lighting.background.x),
