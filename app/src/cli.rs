@@ -2338,10 +2338,18 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
 /// The report of a glTF file too large to import: what it holds, counted without building.
 fn format_counted(s: &mut String, count: &thicket_core::io::GltfCount) {
     use std::fmt::Write as _;
+    let split = if count.flat_normal_vertices > 0 {
+        format!(
+            " (and up to {} more where flat normals split them)",
+            thousands(count.flat_normal_vertices)
+        )
+    } else {
+        String::new()
+    };
     let _ = writeln!(
         s,
-        "  counted from the file, not built: {} triangles, {} vertices in {} mesh(es); an \
-         import would need up to {}",
+        "  counted from the file, not built: {} triangles, {} vertices{split} in {} mesh(es); \
+         an import would need up to {}",
         thousands(count.triangles),
         thousands(count.vertices),
         count.meshes.len(),

@@ -157,6 +157,15 @@ pub struct MeshImport {
     pub instancing: thicket_core::io::InstanceCounts,
 }
 
+/// The limits a mesh file is read with: the defaults, within the memory budget (one source
+/// for the import and `info`'s count, so both refuse the same files).
+fn mesh_limits(memory_limit: Option<u64>) -> thicket_core::io::ImportLimits {
+    thicket_core::io::ImportLimits {
+        memory: memory_budget(memory_limit),
+        ..thicket_core::io::ImportLimits::default()
+    }
+}
+
 /// [`load_mesh_reported_with`], plus a glTF file's camera and directional lights.
 ///
 /// # Errors
@@ -164,10 +173,7 @@ pub struct MeshImport {
 pub fn load_mesh_imported(path: &Path, options: &MeshOptions) -> anyhow::Result<MeshImport> {
     let kind = kind_of(path)?;
     check_options(path, options)?;
-    let limits = thicket_core::io::ImportLimits {
-        memory: memory_budget(options.memory_limit),
-        ..thicket_core::io::ImportLimits::default()
-    };
+    let limits = mesh_limits(options.memory_limit);
     let (model, notes) = match kind {
         FileKind::Gltf => {
             let i = thicket_core::io::import_gltf_imported(path, &limits)?;
@@ -895,11 +901,7 @@ pub fn info(path: &Path, memory_limit: Option<u64>) -> anyhow::Result<DocumentIn
                 ) =>
         {
             // Too large to build: count what the file holds instead.
-            let limits = thicket_core::io::ImportLimits {
-                memory: memory_budget(memory_limit),
-                ..thicket_core::io::ImportLimits::default()
-            };
-            let count = thicket_core::io::count_gltf(path, &limits)?;
+            let count = thicket_core::io::count_gltf(path, &mesh_limits(memory_limit))?;
             if count.refused.is_none() {
                 // Refused for a reason the count does not see: the import's own words.
                 return Err(e);

@@ -20,6 +20,7 @@ pub mod bench;
 pub mod cli;
 pub mod editor;
 pub mod files;
+pub mod frame_depth;
 pub mod gpu;
 pub mod tradeoff;
 pub mod ui;

@@ -13,13 +13,12 @@
 //! - A failure (no adapter features, invalid document, device loss) is logged once and handed
 //!   to the UI through the [`ViewportLink`]; it never panics and the document stays editable.
 
-use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
 
-use glam::Vec3;
-use thicket_core::render::Camera;
 use thicket_core::scene::{Document, OrbitCamera};
+
+pub use crate::frame_depth::FrameDepth;
 
 use crate::gpu::context::{install_error_handlers, wanted_features, wanted_limits};
 use crate::gpu::{
@@ -56,97 +55,6 @@ pub struct ViewportStatus {
     pub depth: Option<FrameDepth>,
     /// The frame whose depth was last read (or tried): it is not read again.
     pub depth_read: Option<FrameKey>,
-}
-
-/// The depth of a frame the view shows and what it was drawn from. The view hides its overlay
-/// lines (the ground grid, the world axes, the volume box) where this depth lies in front of
-/// them, so every kind of object hides them as it is drawn: voxels, meshes, KRS surfaces and
-/// posed rigged models alike (CPU preview and GPU viewport).
-#[derive(Debug, Clone, PartialEq)]
-pub struct FrameDepth {
-    /// Tells frames apart (a new number for every frame read).
-    pub serial: u64,
-    /// The document's content key ([`crate::editor::Editor::content_key`]) drawn.
-    pub content: (u64, u64),
-    /// Its animation key ([`crate::editor::Editor::animation_key`]).
-    pub animation: u64,
-    /// The camera drawn with.
-    pub camera: OrbitCamera,
-    /// Width in pixels.
-    pub width: u32,
-    /// Height in pixels.
-    pub height: u32,
-    /// NDC depth per pixel, row by row from the top (0 near, 1 far; 1 or more, or not
-    /// finite, where nothing was drawn).
-    pub depth: Arc<[f32]>,
-}
-
-/// Depth-test tolerance in pixel footprints at the point's depth: a line lying on a surface
-/// (the volume box on a model's faces, the ground grid under a model standing on it) shows.
-const DEPTH_TOLERANCE_PX: f32 = 1.5;
-
-impl FrameDepth {
-    /// A frame's depth (`depth.len()` must be `width × height`; anything else hides nothing).
-    #[must_use]
-    pub fn new(
-        content: (u64, u64),
-        animation: u64,
-        camera: OrbitCamera,
-        [width, height]: [u32; 2],
-        depth: Arc<[f32]>,
-    ) -> Self {
-        static SERIAL: AtomicU64 = AtomicU64::new(0);
-        Self {
-            serial: SERIAL.fetch_add(1, Ordering::Relaxed),
-            content,
-            animation,
-            camera,
-            width,
-            height,
-            depth,
-        }
-    }
-
-    /// Whether something the frame drew lies between its eye and world point `p`, by more
-    /// than [`DEPTH_TOLERANCE_PX`] pixel footprints. The farthest of the 3×3 pixels around
-    /// `p`'s is compared, so a line along a silhouette or on the surface it lies on shows.
-    /// Points outside the frame, behind its eye or not finite are not hidden.
-    #[must_use]
-    pub fn hides(&self, p: Vec3) -> bool {
-        let (w, h) = (self.width as usize, self.height as usize);
-        if w == 0 || h == 0 || self.depth.len() != w * h {
-            return false;
-        }
-        let cam = Camera::from_orbit(&self.camera, self.width, self.height);
-        let p_view = self.camera.view_from_world().transform_point3(p);
-        let d = -p_view.z;
-        if !d.is_finite() || (cam.is_perspective() && d <= cam.near()) {
-            return false;
-        }
-        let s = cam.project_view(p_view);
-        // Also false for NaN.
-        if !(s.x >= 0.0 && s.y >= 0.0 && s.x < w as f32 && s.y < h as f32) {
-            return false;
-        }
-        let (x, y) = (s.x as usize, s.y as usize);
-        let mut farthest = f32::NEG_INFINITY;
-        for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
-            for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
-                let v = self.depth[yy * w + xx];
-                farthest = if v.is_finite() {
-                    farthest.max(v)
-                } else {
-                    f32::INFINITY
-                };
-            }
-        }
-        // Never NaN: finite, or infinite where a pixel drew nothing.
-        if farthest >= 1.0 {
-            return false;
-        }
-        let surface = cam.view_depth(farthest);
-        surface < d - (cam.pixel_world_size(d) * DEPTH_TOLERANCE_PX + d * 1e-4)
-    }
 }
 
 /// A handle to the [`ViewportStatus`] (cloning shares it).
@@ -227,6 +135,7 @@ pub fn install(render_state: &egui_wgpu::RenderState) -> ViewportLink {
             frame: None,
             last_key: None,
             uploaded: None,
+            depth_error: None,
             link: link.clone(),
         });
     link
@@ -333,6 +242,8 @@ struct Resources {
     /// The content key of the document the GPU buffers hold (after a successful render).
     uploaded: Option<(u64, u64)>,
     link: ViewportLink,
+    /// The last depth readback's failure, logged once.
+    depth_error: Option<String>,
 }
 
 /// Everything that decides the image: when it equals the last one, nothing is rendered.
@@ -386,25 +297,33 @@ pub struct ViewportCallback {
 }
 
 impl Resources {
-    /// Reads the shown frame's depth into the status, once per frame drawn.
+    /// Reads the shown frame's depth into the status, once per frame drawn: tried once for
+    /// each key, whatever happens (no frame, a failed frame, a failed readback), so the view
+    /// never waits for a depth that will not come.
     fn read_depth(&mut self, device: &wgpu::Device, queue: &wgpu::Queue, key: &FrameKey) {
-        let (Some(renderer), Some(frame)) = (self.renderer.as_mut(), self.frame.as_ref()) else {
-            return;
-        };
-        if !frame.valid || self.link.lock().depth_read.as_ref() == Some(key) {
+        if self.link.lock().depth_read.as_ref() == Some(key) {
             return;
         }
-        let depth = match renderer.read_gbuffer(device, queue) {
-            Ok(g) => Some(FrameDepth::new(
+        let read = match (self.renderer.as_mut(), self.frame.as_ref()) {
+            (Some(renderer), Some(frame)) if frame.valid => renderer
+                .read_depth(device, queue)
+                .map_err(|e| e.to_string()),
+            _ => Err("no frame is shown".to_owned()),
+        };
+        let depth = match read {
+            Ok((w, h, depth)) => Some(FrameDepth::new(
                 key.content,
                 key.animation,
                 key.camera,
-                [g.width, g.height],
-                g.depth.into(),
+                [w, h],
+                depth.into(),
             )),
             Err(e) => {
-                // Overlays are then hidden by voxels only (the view's ray picks).
-                log::warn!("viewport: the frame's depth for the overlays: {e}");
+                // Overlays are then hidden by voxels only (the view's ray picks). Said once.
+                if self.depth_error.as_deref() != Some(e.as_str()) {
+                    log::warn!("viewport: the frame's depth for the overlays: {e}");
+                    self.depth_error = Some(e);
+                }
                 None
             }
         };
@@ -532,6 +451,8 @@ impl Resources {
             }
             (Err(e), _) | (Ok(_), Some(e)) => {
                 frame.valid = false;
+                // Nothing valid is shown: no depth hides anything.
+                self.link.lock().depth = None;
                 // What the GPU holds is unknown now: the next frame uploads everything.
                 self.uploaded = None;
                 self.report(&e);

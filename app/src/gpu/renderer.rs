@@ -576,6 +576,60 @@ impl Renderer {
         self.pool.bytes() + 4 * self.supersample.samples_texels()
     }
 
+    /// Reads the last frame's depth back at its image size: for a supersampled frame only the
+    /// rows holding each pixel's kept sample (the one [`Renderer::read_gbuffer`] keeps) are
+    /// copied, so the staging buffer is `k` times the image's texels, not `k²`; only depth is
+    /// decoded. NDC depth per pixel, row by row from the top; `INFINITY` where nothing was
+    /// drawn. The editor hides its overlay lines behind it.
+    ///
+    /// # Errors
+    /// [`GpuError::Readback`] when nothing was rendered yet or mapping fails.
+    pub fn read_depth(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+    ) -> Result<(u32, u32, Vec<f32>), GpuError> {
+        let (big_w, big_h) = self.last_size;
+        let k = self.last_samples_per_side.max(1);
+        let gbuf = self
+            .pool
+            .peek("gbuffer", 0)
+            .cloned()
+            .filter(|_| big_w > 0)
+            .ok_or_else(|| GpuError::Readback("no frame rendered yet".into()))?;
+        let (w, h) = (big_w / k, big_h / k);
+        let row_bytes = u64::from(big_w) * GBUFFER_TEXEL_BYTES;
+        let staging = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("depth readback"),
+            size: (row_bytes * u64::from(h)).max(GBUFFER_TEXEL_BYTES),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let mut enc = device.create_command_encoder(&wgpu::CommandEncoderDescriptor::default());
+        for y in 0..u64::from(h) {
+            let big_row = y * u64::from(k) + u64::from(k / 2);
+            enc.copy_buffer_to_buffer(
+                &gbuf,
+                big_row * row_bytes,
+                &staging,
+                y * row_bytes,
+                row_bytes,
+            );
+        }
+        queue.submit([enc.finish()]);
+        let raw = map_read(device, &staging)?;
+        let texels: &[[u32; 4]] = bytemuck::cast_slice(&raw);
+        let (big_w, k) = (big_w as usize, k as usize);
+        let depth = (0..h as usize)
+            .flat_map(|y| (0..w as usize).map(move |x| y * big_w + x * k + k / 2))
+            .map(|i| match texels.get(i) {
+                Some(t) if t[3] != u32::MAX => f32::from_bits(t[3]),
+                _ => f32::INFINITY,
+            })
+            .collect();
+        Ok((w, h, depth))
+    }
+
     /// Reads the last frame's G-buffer back.
     ///
     /// # Errors

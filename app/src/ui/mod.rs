@@ -956,9 +956,9 @@ impl EditorApp {
             self.view
                 .cpu_preview_stats()
                 .filter(|_| self.view.uses_cpu(&self.editor))
-                .map(|(ms, size)| perf::CpuPreviewFigures {
+                .map(|(ms, size_px)| perf::CpuPreviewFigures {
                     ms,
-                    size,
+                    size_px,
                     shadows: self.view.cpu_preview_shadows().unwrap_or_default(),
                     stats: self.view.cpu_preview_frame_stats(),
                     why: self.view.cpu_reason_text(&self.editor),

@@ -236,7 +236,7 @@ pub struct CpuPreviewFigures<'a> {
     /// Wall-clock milliseconds of the last render (on the preview's worker thread).
     pub ms: f64,
     /// Its size in pixels.
-    pub size: [u32; 2],
+    pub size_px: [u32; 2],
     /// What its shadow pass did with the kept maps.
     pub shadows: super::view::ShadowWork,
     /// Its statistics: time per stage, nodes per level, KRS rays.
@@ -248,7 +248,7 @@ pub struct CpuPreviewFigures<'a> {
 /// The CPU preview's figures: the last render, its time per stage, its KRS rays and its nodes
 /// per level, as the GPU's are shown below.
 fn cpu_preview_ui(ui: &mut egui::Ui, cpu: &CpuPreviewFigures<'_>) {
-    let [w, h] = cpu.size;
+    let [w, h] = cpu.size_px;
     ui.label(format!(
         "The CPU preview draws the view ({}): last render {:.1} ms at {w} x {h} px",
         cpu.why, cpu.ms

@@ -145,8 +145,9 @@ pub struct PoseTool {
     pub ik_pole: IkPole,
     /// Whether the last IK drag's target was within reach.
     pub ik_reached: Option<bool>,
-    /// The joints the last paint drew, per object (world positions): what the view showed,
-    /// for the tests that check the skeleton follows the image's pose.
+    /// The joints the last paint drew, per object (world positions, every joint in order):
+    /// clicks pick the dots where they were drawn, and tests check the skeleton follows the
+    /// image's pose.
     pub painted: Vec<(u64, Vec<Vec3>)>,
 }
 
@@ -533,8 +534,18 @@ impl PoseTool {
             let Some(frames) = editor.joint_frames(o.id) else {
                 continue;
             };
-            for j in 0..frames.world_from_joint.len() {
-                let Some(s) = frames.position(j).and_then(|p| proj.to_screen(p)) else {
+            // Where the last paint drew the dots (the shown image's pose), else the editor's.
+            let n = frames.world_from_joint.len();
+            let positions: Vec<Vec3> = self
+                .painted
+                .iter()
+                .find(|(id, p)| *id == o.id && p.len() == n)
+                .map_or_else(
+                    || (0..n).filter_map(|j| frames.position(j)).collect(),
+                    |(_, p)| p.clone(),
+                );
+            for (j, p) in positions.into_iter().enumerate() {
+                let Some(s) = proj.to_screen(p) else {
                     continue;
                 };
                 let d = s.distance(pointer);

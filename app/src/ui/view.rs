@@ -564,6 +564,9 @@ pub struct View {
     auto_ortho: bool,
     /// The ground grid's, world axes' and volume box's lines split where voxels hide them.
     overlay_depth: OverlayDepth,
+    /// The size in pixels the GPU view last asked for (a depth read back at another size is
+    /// of an older frame: the view was resized).
+    gpu_size_px: [u32; 2],
 }
 
 /// What decides where overlay lines are hidden: content and animation keys, camera, view
@@ -634,6 +637,7 @@ impl Default for View {
             last_pixels_per_point: 1.0,
             last_click: None,
             overlay_depth: OverlayDepth::default(),
+            gpu_size_px: [0, 0],
         }
     }
 }
@@ -1644,8 +1648,9 @@ impl View {
     }
 
     /// The depth of the frame shown, when it shows the editor's scene (content and pose):
-    /// the CPU preview's image (drawn from its own camera, which lags an orbit by a frame),
-    /// or the GPU viewport's once read back for the current camera. `None` while the frame
+    /// the CPU preview's image (drawn from its own camera, which lags an orbit by the time a
+    /// preview render takes, as the image itself does), or the GPU viewport's once read back
+    /// for the current camera and view size. `None` while the frame
     /// shows an older scene (a stroke in progress); the overlays then test voxels by rays.
     #[must_use]
     pub fn shown_depth(&self, editor: &Editor, cpu: bool) -> Option<FrameDepth> {
@@ -1656,7 +1661,7 @@ impl View {
             self.gpu
                 .as_ref()
                 .and_then(|link| link.lock().depth.clone())
-                .filter(|d| d.camera == camera)
+                .filter(|d| d.camera == camera && [d.width, d.height] == self.gpu_size_px)
         };
         frame.filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
     }
@@ -1723,10 +1728,15 @@ impl View {
             supersample,
         };
         // The depth is read on the frame after the one that drew it: one more paint when
-        // the view stands still.
-        if want_depth && link.lock().depth_read.as_ref() != Some(&key) {
+        // the view stands still (once per frame key; none when the GPU renderer failed).
+        let waiting = {
+            let status = link.lock();
+            status.error.is_none() && status.depth_read.as_ref() != Some(&key)
+        };
+        if want_depth && waiting {
             ui.ctx().request_repaint_after(PREVIEW_STILL);
         }
+        self.gpu_size_px = size_px;
         ui.painter().add(paint_callback(
             rect,
             ViewportCallback {

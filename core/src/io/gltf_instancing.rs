@@ -91,8 +91,11 @@ fn instance_attributes(node: &json::Node) -> Result<Option<InstanceAttributes>, 
 /// What an import will build, every instance counted: checked before anything is built.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(crate) struct SceneSize {
-    /// Vertices over all parts.
+    /// Vertices over all parts, as the file holds them.
     pub(crate) vertices: u64,
+    /// At most this many more: the copies of vertices split where the reader computes flat
+    /// normals for a primitive without `NORMAL` (one per triangle corner at worst).
+    pub(crate) flat_normal_vertices: u64,
     /// Triangle-list indices over all parts (an upper bound for strips and fans).
     pub(crate) indices: u64,
     /// Bytes of vertex attributes and indices: the parts, plus one template per primitive.
@@ -285,6 +288,13 @@ impl Importer<'_> {
                 Mode::TriangleStrip | Mode::TriangleFan => drawn.saturating_sub(2) * 3,
                 _ => drawn,
             };
+            // Without NORMAL the reader computes flat normals, splitting a vertex where the
+            // faces around it turn: at most one more vertex per triangle corner.
+            let split = if attr(Semantic::Normals).is_none() {
+                indices
+            } else {
+                0
+            };
             let mut vertex_bytes = BASE_VERTEX_BYTES;
             if primitive
                 .attributes
@@ -300,11 +310,15 @@ impl Importer<'_> {
                 vertex_bytes += 8 + 16;
             }
             let one = vertices
+                .saturating_add(split)
                 .saturating_mul(vertex_bytes)
                 .saturating_add(indices.saturating_mul(4));
             size.vertices = size
                 .vertices
                 .saturating_add(vertices.saturating_mul(copies));
+            size.flat_normal_vertices = size
+                .flat_normal_vertices
+                .saturating_add(split.saturating_mul(copies));
             size.indices = size.indices.saturating_add(indices.saturating_mul(copies));
             // The copies, plus the template they are cloned from.
             size.bytes = size
@@ -334,11 +348,21 @@ impl Importer<'_> {
         };
         // Indices are u32, so whatever the limits say, vertices must fit in one.
         let max_vertices = l.max_vertices.min(u64::from(u32::MAX));
-        if size.vertices > max_vertices {
+        let built = size.vertices.saturating_add(size.flat_normal_vertices);
+        if built > max_vertices {
+            let split = if size.flat_normal_vertices > 0 {
+                format!(
+                    " (up to {} with the copies flat normals split off, for primitives \
+                     without NORMAL)",
+                    thousands(built)
+                )
+            } else {
+                String::new()
+            };
             return Err(IoError::too_large(
                 self.path,
                 format!(
-                    "{scene} has {} vertices; the limit is {} vertices: {advice}",
+                    "{scene} has {} vertices{split}; the limit is {} vertices: {advice}",
                     thousands(size.vertices),
                     thousands(max_vertices)
                 ),
@@ -572,7 +596,12 @@ pub(crate) mod tests {
         assert!(matches!(refused, IoError::TooLarge { .. }), "{refused}");
         let counted = crate::io::count_gltf(&path, &tight).unwrap();
         let why = counted.refused.clone().expect("refused");
-        assert!(why.contains("has 12 vertices; the limit is 11"), "{why}");
+        // The triangle has no NORMAL: flat normals may split each of its 12 corners off.
+        assert!(
+            why.contains("has 12 vertices (up to 24 with the copies flat normals split off"),
+            "{why}"
+        );
+        assert_eq!(count.flat_normal_vertices, 12);
         assert_eq!(
             CountedWithoutWhy::of(&counted),
             CountedWithoutWhy::of(&count)
@@ -786,27 +815,29 @@ pub(crate) mod tests {
 
     #[test]
     fn instances_over_the_limits_are_refused_before_they_are_expanded() {
-        // Within the vertex limit, the count is exact.
+        // Within the vertex limit, the count is exact: 300 vertices, and as the triangle has
+        // no NORMAL, up to 300 more where flat normals split them (none here: one triangle).
         let bytes = amplifying(3, 100);
         let limits = ImportLimits {
-            max_vertices: 299,
+            max_vertices: 599,
             ..ImportLimits::default()
         };
         let err = import_gltf_slice_imported(&bytes, Path::new("inst.glb"), &limits)
-            .expect_err("300 vertices");
+            .expect_err("up to 600 vertices");
         assert_eq!(
             err.to_string(),
             "inst.glb: too large: the scene with its 100 instance(s) expanded \
-             (EXT_mesh_gpu_instancing on 1 node(s)) has 300 vertices; the limit is 299 \
-             vertices: export fewer placements (thicket export --instance-level) or coarser \
-             meshes (--resolution)"
+             (EXT_mesh_gpu_instancing on 1 node(s)) has 300 vertices (up to 600 with the copies \
+             flat normals split off, for primitives without NORMAL); the limit is 599 vertices: \
+             export fewer placements (thicket export --instance-level) or coarser meshes \
+             (--resolution)"
         );
         assert_eq!(
             import_gltf_slice_imported(
                 &bytes,
                 Path::new("inst.glb"),
                 &ImportLimits {
-                    max_vertices: 300,
+                    max_vertices: 600,
                     ..limits
                 }
             )
@@ -822,7 +853,8 @@ pub(crate) mod tests {
         assert_refused(
             result,
             "too large",
-            "has 399,960,000 vertices; the limit is 268,435,456 vertices",
+            "has 399,960,000 vertices (up to 799,920,000 with the copies flat normals split \
+             off, for primitives without NORMAL); the limit is 268,435,456 vertices",
         );
         assert!(
             peak < 4 * bytes.len() as u64 + (1 << 20),

@@ -150,8 +150,11 @@ pub struct CountedMesh {
 pub struct GltfCount {
     /// The meshes the scene draws, by index.
     pub meshes: Vec<CountedMesh>,
-    /// Vertices over every copy.
+    /// Vertices over every copy, as the file holds them.
     pub vertices: u64,
+    /// At most this many more an import makes: the copies split off where it computes flat
+    /// normals for primitives without `NORMAL` (Thicket's cube exports have none).
+    pub flat_normal_vertices: u64,
     /// Triangles over every copy (an upper bound, as [`CountedMesh::triangles`]).
     pub triangles: u64,
     /// Bytes an import would build.
@@ -598,6 +601,7 @@ impl<'a> Importer<'a> {
         Ok(GltfCount {
             meshes,
             vertices: size.vertices,
+            flat_normal_vertices: size.flat_normal_vertices,
             triangles: size.triangles(),
             bytes: size.bytes,
             instanced_nodes: size.instanced_nodes,

@@ -319,8 +319,10 @@ impl TriangleMesh {
     /// vertices, so a mesh of flat faces, such as Thicket's cube export, gains copies only where
     /// faces meet at an edge, and a mesh whose vertices each lie on one face keeps its vertices
     /// as they are. Degenerate triangles and vertices no triangle uses take +Y. Replaces
-    /// `normals`; positions and triangles are unchanged. Indices must be in range (readers
-    /// check them first); a triangle with one out of range is left as it is.
+    /// `normals`; positions and triangles are unchanged. At most one vertex per triangle corner
+    /// is added (what the glTF reader's up-front count allows for). Indices must be in range
+    /// and every non-empty attribute as long as `positions` ([`TriangleMesh::validate`];
+    /// readers check both first); a triangle with an index out of range is left as it is.
     pub fn compute_flat_normals(&mut self) {
         use std::collections::HashMap;
         let n = self.positions.len();
