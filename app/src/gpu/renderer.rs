@@ -576,6 +576,15 @@ impl Renderer {
         self.pool.bytes() + 4 * self.supersample.samples_texels()
     }
 
+    /// The last frame's G-buffer (at the supersampled size, `last_size`).
+    fn last_gbuffer(&self) -> Result<wgpu::Buffer, GpuError> {
+        self.pool
+            .peek("gbuffer", 0)
+            .cloned()
+            .filter(|_| self.last_size.0 > 0)
+            .ok_or_else(|| GpuError::Readback("no frame rendered yet".into()))
+    }
+
     /// Reads the last frame's depth back at its image size: for a supersampled frame only the
     /// rows holding each pixel's kept sample (the one [`Renderer::read_gbuffer`] keeps) are
     /// copied, so the staging buffer is `k` times the image's texels, not `k²`; only depth is
@@ -591,12 +600,7 @@ impl Renderer {
     ) -> Result<(u32, u32, Vec<f32>), GpuError> {
         let (big_w, big_h) = self.last_size;
         let k = self.last_samples_per_side.max(1);
-        let gbuf = self
-            .pool
-            .peek("gbuffer", 0)
-            .cloned()
-            .filter(|_| big_w > 0)
-            .ok_or_else(|| GpuError::Readback("no frame rendered yet".into()))?;
+        let gbuf = self.last_gbuffer()?;
         let (w, h) = (big_w / k, big_h / k);
         let row_bytes = u64::from(big_w) * GBUFFER_TEXEL_BYTES;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
@@ -640,12 +644,7 @@ impl Renderer {
         queue: &wgpu::Queue,
     ) -> Result<GBuffer, GpuError> {
         let (w, h) = self.last_size;
-        let gbuf = self
-            .pool
-            .peek("gbuffer", 0)
-            .cloned()
-            .filter(|_| w > 0)
-            .ok_or_else(|| GpuError::Readback("no frame rendered yet".into()))?;
+        let gbuf = self.last_gbuffer()?;
         let bytes = u64::from(w) * u64::from(h) * GBUFFER_TEXEL_BYTES;
         let staging = device.create_buffer(&wgpu::BufferDescriptor {
             label: Some("gbuffer readback"),

@@ -179,13 +179,7 @@ pub struct GltfCount {
 /// not an error here ([`GltfCount::refused`] says why an import would refuse it).
 pub fn count_gltf(path: &Path, limits: &ImportLimits) -> Result<GltfCount, IoError> {
     let bytes = read_file_limited(path, limits)?;
-    let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
-    Importer {
-        path,
-        base_dir: Some(base_dir),
-        limits,
-    }
-    .count(&bytes)
+    Importer::of_file(path, limits).count(&bytes)
 }
 
 /// [`count_gltf`] on a file's bytes (external buffers are not read; the fuzz tests).
@@ -209,13 +203,7 @@ pub(crate) fn count_gltf_slice(
 /// See [`import_gltf`].
 pub fn import_gltf_imported(path: &Path, limits: &ImportLimits) -> Result<GltfImport, IoError> {
     let bytes = read_file_limited(path, limits)?;
-    let base_dir = path.parent().unwrap_or_else(|| Path::new("."));
-    Importer {
-        path,
-        base_dir: Some(base_dir),
-        limits,
-    }
-    .run_imported(&bytes)
+    Importer::of_file(path, limits).run_imported(&bytes)
 }
 
 /// [`import_gltf_imported`] on bytes named `name` in messages, with no base folder (external
@@ -525,6 +513,15 @@ impl<'a> Importer<'a> {
             log::warn!("{}: {line}", self.path.display());
         }
         Ok(import.model)
+    }
+
+    /// The importer of the file at `path`: external buffers and images resolve beside it.
+    fn of_file(path: &'a Path, limits: &'a ImportLimits) -> Self {
+        Self {
+            path,
+            base_dir: Some(path.parent().unwrap_or_else(|| Path::new("."))),
+            limits,
+        }
     }
 
     /// What the scene's mesh nodes will build, every instance counted from the checked
