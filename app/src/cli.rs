@@ -85,7 +85,8 @@ pub enum Command {
     /// where strokes change the coarse one. See docs/enhance.md for the rules and options.
     Enhance(EnhanceArgs),
     /// Measure the speed/accuracy trade: render a high-quality reference, then each setting of
-    /// the given quality knobs; write report.json, report.csv and tradeoff.png to a directory.
+    /// the given quality knobs, varied from the project's own quality (as the editor's sweep
+    /// does); write report.json, report.csv and tradeoff.png to a directory.
     Tradeoff(TradeoffArgs),
     /// Export a project (or any supported file) as glTF 2.0: OUT.glb, or OUT.gltf + OUT.bin.
     ///
@@ -1848,11 +1849,13 @@ fn tradeoff(args: &TradeoffArgs) -> anyhow::Result<()> {
         args.knobs.clone()
     };
     let settings = SweepSettings {
+        // From the project's own quality, as the editor's sweep: a project saved at the final
+        // preset is swept from there (every sample is saved at balanced).
+        base: doc.quality.clone(),
         knobs,
         grid: args.grid,
         presets: !args.no_presets,
         repeats: args.frames,
-        ..SweepSettings::default()
     };
     if let Ok(bytes) =
         thicket_core::measure::estimate_sweep_peak_bytes(&doc, width, height, &settings)
