@@ -6,7 +6,7 @@
 use egui::{Key, KeyboardShortcut, Modifiers};
 use glam::IVec3;
 
-use super::view::AxisView;
+use super::projector::AxisView;
 use super::voxel_tools::ToolKind;
 
 /// What a bound key does. Context decides where one key has several meanings (Delete deletes

@@ -11,7 +11,7 @@ use thicket_core::krs::{
 };
 
 use super::pose::distance_to_polyline;
-use super::view::Projector;
+use super::projector::Projector;
 use crate::editor::{Editor, Selection};
 
 /// What the preset picker was matched against: the object id and the document's content key.

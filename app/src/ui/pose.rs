@@ -6,7 +6,7 @@ use glam::{Quat, Vec3};
 use thicket_core::scene::ObjectKind;
 use thicket_core::skin::{JointOverride, OverrideMode, StretchStrategy, Wrap};
 
-use super::view::Projector;
+use super::projector::Projector;
 use crate::editor::{Editor, JointFrames, Selection};
 
 /// Gizmo ring radius / arrow length in view points.

@@ -471,7 +471,7 @@ pub fn view_input(
     response: &egui::Response,
     editor: &mut Editor,
     tool: &mut PoseTool,
-    proj: &super::view::Projector,
+    proj: &super::projector::Projector,
     pointer_ray: Option<(Vec3, Vec3)>,
     pick: Option<&crate::editor::VoxelPick>,
 ) -> bool {

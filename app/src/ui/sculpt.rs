@@ -181,7 +181,7 @@ impl SculptTool {
         editor: &mut Editor,
         ray: Option<(Vec3, Vec3)>,
         brush_pick: Option<VoxelPick>,
-        proj: &super::view::Projector,
+        proj: &super::projector::Projector,
     ) {
         let alt_click = response.clicked() && response.ctx.input(|i| i.modifiers.alt);
         if alt_click {

@@ -15,11 +15,14 @@ use std::hash::{Hash, Hasher};
 use std::sync::{Arc, Mutex, mpsc};
 use std::time::{Duration, Instant};
 
-use glam::{Mat4, Vec2, Vec3};
+use glam::{Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera, transform_bounds};
 
 use super::krs_panel::{KrsPanel, paint_mirrors, paint_route, paint_zones, pick_mirror};
+use super::overlay_lines::{OverlayDepth, grid};
+pub use super::overlay_lines::{behind_voxels, unhidden_parts, unhidden_parts_by};
 use super::pose::PoseTool;
+pub use super::projector::{AxisView, Projector};
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
 use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
@@ -86,101 +89,6 @@ pub enum ViewRenderer {
     Gpu,
     /// Always core's CPU reference renderer on a worker thread.
     Cpu,
-}
-
-/// Maps world points to view points for the overlays.
-#[derive(Debug, Clone, Copy)]
-pub struct Projector {
-    /// The camera's `clip_from_world` for the view's aspect ratio.
-    pub clip_from_world: Mat4,
-    /// The view rectangle.
-    pub rect: egui::Rect,
-    /// The camera.
-    pub camera: OrbitCamera,
-}
-
-impl Projector {
-    /// The projector of `camera` into `rect`.
-    #[must_use]
-    pub fn new(camera: OrbitCamera, rect: egui::Rect) -> Self {
-        Self {
-            clip_from_world: camera.clip_from_world(rect.aspect_ratio().max(1e-3)),
-            rect,
-            camera,
-        }
-    }
-
-    /// The view point of a world point, `None` behind the camera.
-    #[must_use]
-    pub fn to_screen(&self, p: Vec3) -> Option<egui::Pos2> {
-        let clip = self.clip_from_world * p.extend(1.0);
-        // A parallel view has no behind: every point projects (clip w is 1).
-        if !self.camera.orthographic && clip.w <= self.camera.near * 0.5 {
-            return None;
-        }
-        let ndc = clip.truncate() / clip.w;
-        let pos = egui::pos2(
-            self.rect.left() + (ndc.x * 0.5 + 0.5) * self.rect.width(),
-            self.rect.top() + (0.5 - ndc.y * 0.5) * self.rect.height(),
-        );
-        (pos.x.is_finite() && pos.y.is_finite()).then_some(pos)
-    }
-
-    /// The visible part of a world segment in view points: clipped at the near plane (a
-    /// perspective segment reaching behind the eye keeps the part in front instead of
-    /// vanishing), `None` when all of it is behind.
-    #[must_use]
-    pub fn segment(&self, a: Vec3, b: Vec3) -> Option<[egui::Pos2; 2]> {
-        if self.camera.orthographic {
-            return Some([self.to_screen(a)?, self.to_screen(b)?]);
-        }
-        let (ca, cb) = (
-            self.clip_from_world * a.extend(1.0),
-            self.clip_from_world * b.extend(1.0),
-        );
-        let w_min = self.camera.near * 0.5;
-        let (ta, tb) = (ca.w - w_min, cb.w - w_min);
-        if ta <= 0.0 && tb <= 0.0 {
-            return None;
-        }
-        // Move the end behind the plane onto it (w is linear along the segment).
-        let cut = |behind: Vec3, front: Vec3, t_behind: f32, t_front: f32| {
-            behind + (front - behind) * (t_behind / (t_behind - t_front)) * 1.0001
-        };
-        let (a, b) = if ta <= 0.0 {
-            (cut(a, b, ta, tb), b)
-        } else if tb <= 0.0 {
-            (a, cut(b, a, tb, ta))
-        } else {
-            (a, b)
-        };
-        Some([self.to_screen(a)?, self.to_screen(b)?])
-    }
-
-    /// World units per view point at the depth of `p` (to keep handles a constant size).
-    #[must_use]
-    pub fn world_per_point(&self, p: Vec3) -> f32 {
-        if self.camera.orthographic {
-            return 2.0 * self.camera.ortho_half_height() / self.rect.height().max(1.0);
-        }
-        let eye = self.camera.eye();
-        let forward = (self.camera.target - eye).normalize_or_zero();
-        let depth = (p - eye).dot(forward).max(self.camera.near);
-        2.0 * depth * (self.camera.fov_y_deg.to_radians() * 0.5).tan() / self.rect.height().max(1.0)
-    }
-
-    /// The camera position.
-    #[must_use]
-    pub fn eye(&self) -> Vec3 {
-        self.camera.eye()
-    }
-
-    /// Unit direction from a world point towards the viewer (the view axis in an
-    /// orthographic view): which side of a face or handle the camera sees.
-    #[must_use]
-    pub fn toward_eye(&self, p: Vec3) -> Vec3 {
-        self.camera.toward_eye(p)
-    }
 }
 
 /// What decides a CPU preview image.
@@ -465,48 +373,6 @@ fn shadow_change(
 /// Degrees of orbit per dragged point.
 const ORBIT_DEG_PER_POINT: f32 = 0.4;
 
-/// A named axis view.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum AxisView {
-    /// Looking along -Z (from +Z).
-    Front,
-    /// Looking along +Z.
-    Back,
-    /// Looking along -X (from +X).
-    Right,
-    /// Looking along +X.
-    Left,
-    /// Looking down.
-    Top,
-    /// Looking up.
-    Bottom,
-}
-
-impl AxisView {
-    /// All views with their menu labels and keys.
-    pub const ALL: [(AxisView, &'static str, &'static str); 6] = [
-        (AxisView::Front, "Front", "1"),
-        (AxisView::Back, "Back", "Ctrl+1"),
-        (AxisView::Right, "Right", "3"),
-        (AxisView::Left, "Left", "Ctrl+3"),
-        (AxisView::Top, "Top", "7"),
-        (AxisView::Bottom, "Bottom", "Ctrl+7"),
-    ];
-
-    /// (yaw, pitch) in degrees.
-    #[must_use]
-    pub fn angles(self) -> (f32, f32) {
-        match self {
-            AxisView::Front => (0.0, 0.0),
-            AxisView::Back => (180.0, 0.0),
-            AxisView::Right => (90.0, 0.0),
-            AxisView::Left => (270.0, 0.0),
-            AxisView::Top => (0.0, 90.0),
-            AxisView::Bottom => (0.0, -90.0),
-        }
-    }
-}
-
 /// The view's state.
 pub struct View {
     /// Draw the ground grid and world axes.
@@ -567,48 +433,6 @@ pub struct View {
     /// The size in pixels the GPU view last asked for (a depth read back at another size is
     /// of an older frame: the view was resized).
     gpu_size_px: [u32; 2],
-}
-
-/// What decides where overlay lines are hidden: content and animation keys, camera, view
-/// rectangle and the shown frame's [`FrameDepth::serial`].
-type OverlayKey = ((u64, u64), u64, OrbitCamera, egui::Rect, Option<u64>);
-
-/// Overlay lines split into their parts in front of what is drawn, for one camera, view
-/// rectangle, scene (content and pose) and shown frame: a still view tests nothing again.
-#[derive(Debug, Default)]
-struct OverlayDepth {
-    key: Option<OverlayKey>,
-    parts: HashMap<[u32; 6], Vec<(Vec3, Vec3)>>,
-}
-
-impl OverlayDepth {
-    /// The parts of segment `a`–`b` not hidden behind the shown `frame`'s depth
-    /// ([`FrameDepth::hides`]) or, without one, behind voxels ([`unhidden_parts`]), cached.
-    fn parts(
-        &mut self,
-        proj: &Projector,
-        editor: &Editor,
-        frame: Option<&FrameDepth>,
-        a: Vec3,
-        b: Vec3,
-    ) -> &[(Vec3, Vec3)] {
-        let key = (
-            editor.content_key(),
-            editor.animation_key(),
-            proj.camera,
-            proj.rect,
-            frame.map(|f| f.serial),
-        );
-        if self.key != Some(key) {
-            self.key = Some(key);
-            self.parts.clear();
-        }
-        let bits = [a.x, a.y, a.z, b.x, b.y, b.z].map(f32::to_bits);
-        self.parts.entry(bits).or_insert_with(|| match frame {
-            Some(f) => unhidden_parts_by(proj, |p| f.hides(p), a, b),
-            None => unhidden_parts(proj, editor, a, b),
-        })
-    }
 }
 
 impl Default for View {
@@ -2123,132 +1947,6 @@ fn oriented_box_lines(
                 line(corner(k), corner(k | bit), stroke);
             }
         }
-    }
-}
-
-/// Whether a voxel of a visible voxel model lies between the viewer and world point `p`: an
-/// overlay line there is hidden. A point on a voxel's surface is not hidden by it. The
-/// overlays use this only while no shown frame's depth matches the scene
-/// ([`View::shown_depth`]). Rigged models hide nothing here: a ray through a posed model costs
-/// milliseconds (the pose is worked out for every ray), too slow for the hundreds of rays a
-/// moving view casts each frame.
-#[must_use]
-pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
-    let camera = &proj.camera;
-    let eye = camera.eye();
-    let (origin, dist) = if camera.orthographic {
-        // Parallel rays from the eye's plane.
-        let forward = (camera.target - eye).normalize_or_zero();
-        let depth = (p - eye).dot(forward);
-        (p - forward * depth, depth)
-    } else {
-        (eye, eye.distance(p))
-    };
-    let ahead = dist > 0.0; // false for NaN as well
-    if !ahead || !dist.is_finite() {
-        return false;
-    }
-    let unrigged = |o: &Object| match &o.kind {
-        ObjectKind::Voxels(v) => v.rig.is_none() && editor.voxel_pickable(o),
-        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => false,
-    };
-    editor
-        .pick_voxel_where(origin, (p - origin) / dist, unrigged)
-        .is_some_and(|hit| hit.t < dist - (dist * 1e-4 + hit.voxel_size_world * 0.01))
-}
-
-/// View points between the samples of an overlay line (finer where visibility changes).
-const OVERLAY_SAMPLE_POINTS: f32 = 12.0;
-
-/// The parts of world segment `a`–`b` not hidden behind voxels ([`behind_voxels`]): see
-/// [`unhidden_parts_by`]. The overlays use this while no frame's depth matches the scene.
-#[must_use]
-pub fn unhidden_parts(proj: &Projector, editor: &Editor, a: Vec3, b: Vec3) -> Vec<(Vec3, Vec3)> {
-    unhidden_parts_by(proj, |p| behind_voxels(proj, editor, p), a, b)
-}
-
-/// The parts of world segment `a`–`b` where `hidden` is false, in order: sampled every
-/// `OVERLAY_SAMPLE_POINTS` view points, and where two samples disagree the edge is found by
-/// bisection to about a view point. Empty when the segment is all behind the camera or all
-/// hidden.
-#[must_use]
-pub fn unhidden_parts_by(
-    proj: &Projector,
-    hidden: impl Fn(Vec3) -> bool,
-    a: Vec3,
-    b: Vec3,
-) -> Vec<(Vec3, Vec3)> {
-    let Some([sa, sb]) = proj.segment(a, b) else {
-        return Vec::new();
-    };
-    let length = sa.distance(sb);
-    let n = (length / OVERLAY_SAMPLE_POINTS).ceil().clamp(1.0, 256.0) as u32;
-    let bisections = (length / n as f32).max(1.0).log2().ceil() as u32;
-    let point = |s: f32| a + (b - a) * s;
-    // Points outside the view are not drawn: no ray for them.
-    let shown = |s: f32| {
-        let p = point(s);
-        proj.to_screen(p).is_none_or(|q| !proj.rect.contains(q)) || !hidden(p)
-    };
-    let mut parts = Vec::new();
-    let (mut prev_s, mut prev_shown) = (0.0, shown(0.0));
-    let mut start = prev_shown.then_some(0.0);
-    for i in 1..=n {
-        let s = i as f32 / n as f32;
-        let now = shown(s);
-        if now != prev_shown {
-            let (mut lo, mut hi) = (prev_s, s);
-            for _ in 0..bisections {
-                let mid = 0.5 * (lo + hi);
-                if shown(mid) == prev_shown {
-                    lo = mid;
-                } else {
-                    hi = mid;
-                }
-            }
-            let edge = 0.5 * (lo + hi);
-            match start.take() {
-                Some(s0) => parts.push((point(s0), point(edge))),
-                None => start = Some(edge),
-            }
-        }
-        (prev_s, prev_shown) = (s, now);
-    }
-    if let Some(s0) = start {
-        parts.push((point(s0), b));
-    }
-    parts
-}
-
-/// A ground grid on y = 0 around the camera target, spaced by a power of ten that suits the
-/// viewing distance, and the world axes.
-fn grid(camera: &OrbitCamera, line: &impl Fn(Vec3, Vec3, egui::Stroke)) {
-    let spacing = 10f32.powf((camera.distance * 0.2).max(1e-6).log10().floor());
-    let n = 10i32;
-    let cx = (camera.target.x / spacing).round() * spacing;
-    let cz = (camera.target.z / spacing).round() * spacing;
-    let stroke = egui::Stroke::new(1.0, egui::Color32::from_white_alpha(28));
-    let half = n as f32 * spacing;
-    for i in -n..=n {
-        let o = i as f32 * spacing;
-        line(
-            Vec3::new(cx + o, 0.0, cz - half),
-            Vec3::new(cx + o, 0.0, cz + half),
-            stroke,
-        );
-        line(
-            Vec3::new(cx - half, 0.0, cz + o),
-            Vec3::new(cx + half, 0.0, cz + o),
-            stroke,
-        );
-    }
-    let axis_len = spacing * 2.0;
-    for (dir, color) in [
-        (Vec3::X, egui::Color32::from_rgb(220, 70, 70)),
-        (Vec3::Y, egui::Color32::from_rgb(70, 200, 70)),
-        (Vec3::Z, egui::Color32::from_rgb(70, 120, 230)),
-    ] {
-        line(Vec3::ZERO, dir * axis_len, egui::Stroke::new(2.0, color));
     }
 }
 

@@ -13,7 +13,7 @@ use thicket_core::scene::ObjectKind;
 use thicket_core::sculpt::select::{SurfaceView, select_in_rect};
 use thicket_core::sculpt::shapes::{self, Ink, Mirror, ShapeOp};
 
-use super::view::Projector;
+use super::projector::Projector;
 use crate::editor::{Editor, SelectMode};
 
 /// Most voxels a preview draws one by one (beyond it: their bounding box).
