@@ -58,9 +58,9 @@ impl OverlayDepth {
 /// Whether a voxel of a visible voxel model lies between the viewer and world point `p`: an
 /// overlay line there is hidden. A point on a voxel's surface is not hidden by it. The
 /// overlays use this only while no shown frame's depth matches the scene
-/// ([`View::shown_depth`]). Rigged models hide nothing here: a ray through a posed model costs
-/// milliseconds (the pose is worked out for every ray), too slow for the hundreds of rays a
-/// moving view casts each frame.
+/// ([`super::view::View::shown_depth`]). Rigged models hide nothing here: a ray through a
+/// posed model costs milliseconds (the pose is worked out for every ray), too slow for the
+/// hundreds of rays a moving view casts each frame.
 #[must_use]
 pub fn behind_voxels(proj: &Projector, editor: &Editor, p: Vec3) -> bool {
     let camera = &proj.camera;
