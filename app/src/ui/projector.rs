@@ -118,14 +118,14 @@ pub enum AxisView {
 }
 
 impl AxisView {
-    /// All views with their menu labels and keys.
-    pub const ALL: [(AxisView, &'static str, &'static str); 6] = [
-        (AxisView::Front, "Front", "1"),
-        (AxisView::Back, "Back", "Ctrl+1"),
-        (AxisView::Right, "Right", "3"),
-        (AxisView::Left, "Left", "Ctrl+3"),
-        (AxisView::Top, "Top", "7"),
-        (AxisView::Bottom, "Bottom", "Ctrl+7"),
+    /// All views with their menu labels (their keys are in `ui::keys`' binding table).
+    pub const ALL: [(AxisView, &'static str); 6] = [
+        (AxisView::Front, "Front"),
+        (AxisView::Back, "Back"),
+        (AxisView::Right, "Right"),
+        (AxisView::Left, "Left"),
+        (AxisView::Top, "Top"),
+        (AxisView::Bottom, "Bottom"),
     ];
 
     /// (yaw, pitch) in degrees.

@@ -496,15 +496,18 @@ impl View {
         let mut ortho = editor.doc().camera.orthographic;
         if ui
             .add(egui::Checkbox::new(&mut ortho, "Orthographic (5)"))
-            .on_hover_text(
-                "Parallel projection: voxels line up on screen, sizes do not shrink with distance (key 5 toggles)",
-            )
+            .on_hover_text(format!(
+                "Parallel projection: voxels line up on screen, sizes do not shrink with \
+                     distance (key {} toggles)",
+                super::keys::shortcut(super::keys::Act::ToggleOrtho)
+            ))
             .changed()
         {
             self.set_orthographic(editor, ortho);
         }
         ui.label("Axis views (orthographic)");
-        for (view, label, key) in AxisView::ALL {
+        for (view, label) in AxisView::ALL {
+            let key = super::keys::shortcut(super::keys::Act::View(view));
             if ui
                 .add(egui::Button::new(label).shortcut_text(key))
                 .on_hover_text(format!(
@@ -1862,7 +1865,7 @@ fn nav_hint(tool: Option<(ToolKind, bool)>, rigged: bool) -> String {
 /// one) and which projection, as Blender names its views.
 #[must_use]
 pub fn view_name(camera: &OrbitCamera) -> String {
-    let axis = AxisView::ALL.iter().find(|(v, _, _)| {
+    let axis = AxisView::ALL.iter().find(|(v, _)| {
         let (yaw, pitch) = v.angles();
         let dy = (camera.yaw_deg - yaw).rem_euclid(360.0);
         // Top and bottom views look along Y whatever the yaw.
@@ -1874,10 +1877,7 @@ pub fn view_name(camera: &OrbitCamera) -> String {
     } else {
         "perspective"
     };
-    format!(
-        "{} {projection}",
-        axis.map_or("User", |(_, label, _)| *label)
-    )
+    format!("{} {projection}", axis.map_or("User", |(_, label)| *label))
 }
 
 fn has_rig(doc: &Document) -> bool {
