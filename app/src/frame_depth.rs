@@ -30,6 +30,9 @@ pub struct FrameDepth {
     /// NDC depth per pixel, row by row from the top (0 near, 1 far; 1 or more, or not
     /// finite, where nothing was drawn).
     pub depth: Arc<[f32]>,
+    /// `camera` at this size, made once: [`FrameDepth::hides`] runs for every sample of every
+    /// overlay line.
+    projection: Camera,
 }
 
 /// Depth-test tolerance in pixel footprints at the point's depth: a line lying on a surface
@@ -69,6 +72,7 @@ impl FrameDepth {
             width,
             height,
             depth,
+            projection: Camera::from_orbit(&camera, width, height),
         }
     }
 
@@ -82,8 +86,8 @@ impl FrameDepth {
         if w == 0 || h == 0 || self.depth.len() != w * h {
             return false;
         }
-        let cam = Camera::from_orbit(&self.camera, self.width, self.height);
-        let p_view = self.camera.view_from_world().transform_point3(p);
+        let cam = &self.projection;
+        let p_view = cam.view_from_world.transform_point3(p);
         let d = -p_view.z;
         if !d.is_finite() || (cam.is_perspective() && d <= cam.near()) {
             return false;

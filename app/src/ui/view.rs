@@ -133,7 +133,6 @@ struct PreviewFrame {
     holes: Option<(egui::ColorImage, HoleCounts)>,
     /// The stretch heat map and its statistics, when asked for and a rigged model shows.
     stretch: Option<(egui::ColorImage, StretchStats)>,
-    shadows: ShadowWork,
 }
 
 /// What a CPU preview render's shadow pass did with the kept maps.
@@ -194,8 +193,7 @@ struct CpuPreview {
     shown_doc: Option<Arc<Document>>,
     error: Option<String>,
     last_ms: f64,
-    last_shadows: ShadowWork,
-    /// The last render's statistics, for the Performance overlay.
+    /// The last render's statistics, for the Performance overlay (its shadow work too).
     last_stats: Option<thicket_core::render::FrameStats>,
     renders: u64,
     /// Object labels of the shown image, row by row.
@@ -995,7 +993,7 @@ impl View {
     /// What the last CPU preview render's shadow pass did with the kept maps.
     #[must_use]
     pub fn cpu_preview_shadows(&self) -> Option<ShadowWork> {
-        (self.cpu.renders > 0).then_some(self.cpu.last_shadows)
+        self.cpu.last_stats.as_ref().map(ShadowWork::of)
     }
 
     /// The size of the CPU preview render in flight, if any (tests: low resolution while the
@@ -1143,7 +1141,6 @@ impl View {
                     stats,
                     holes,
                     stretch,
-                    shadows,
                 }) => {
                     self.cpu.last_stats = Some(stats);
                     self.cpu.depth = Some(FrameDepth::new(
@@ -1153,7 +1150,6 @@ impl View {
                         [image.size[0] as u32, image.size[1] as u32],
                         depth,
                     ));
-                    self.cpu.last_shadows = shadows;
                     self.cpu.labels = labels;
                     self.cpu.nodes = nodes;
                     self.cpu.stretch = stretch.map(|(overlay, stats)| {
@@ -1229,7 +1225,6 @@ impl View {
                     .render_document_cached(&doc, &request, shadows, content_key)
                     .map(|frame| {
                         let (image, buffers) = (frame.image, frame.buffers);
-                        let shadows = ShadowWork::of(frame.stats);
                         let stats = frame.stats.clone();
                         let size = [image.width as usize, image.height as usize];
                         let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
@@ -1255,7 +1250,6 @@ impl View {
                                 None
                             },
                             stretch,
-                            shadows,
                         }
                     })
                     .map_err(|e| e.to_string());
