@@ -18,6 +18,8 @@ use std::time::Instant;
 
 use thicket_core::scene::{Document, OrbitCamera};
 
+use crate::editor::VoxelRegion;
+
 pub use crate::frame_depth::FrameDepth;
 
 use crate::gpu::context::{install_error_handlers, wanted_features, wanted_limits};
@@ -264,22 +266,6 @@ pub struct FrameKey {
     pub supersample: u32,
 }
 
-/// A voxel edit between two document states: only voxels of `object` inside `lo..=hi`
-/// (inclusive voxel coordinates) changed from state `from` to state `to`.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct RegionHint {
-    /// The content key before the edit.
-    pub from: (u64, u64),
-    /// The content key after it.
-    pub to: (u64, u64),
-    /// The edited voxel object.
-    pub object: u64,
-    /// Minimum changed voxel.
-    pub lo: glam::UVec3,
-    /// Maximum changed voxel.
-    pub hi: glam::UVec3,
-}
-
 /// The per-frame paint callback: plain values and a shared document snapshot.
 pub struct ViewportCallback {
     /// What decides the image.
@@ -289,7 +275,7 @@ pub struct ViewportCallback {
     /// A chain of voxel edits ending at `key.content` (each starts where the one before ends).
     /// When the GPU holds the document at one of their `from` states, uploading the regions
     /// from there on brings it to `doc`.
-    pub regions: Vec<RegionHint>,
+    pub regions: Vec<VoxelRegion>,
     /// The view hides overlay lines behind what is drawn: once a frame is shown a second
     /// time (the view stood still on it), its depth is read back into
     /// [`ViewportStatus::depth`]. Frames drawn once, while the view moves, are not read.
@@ -401,6 +387,7 @@ impl Resources {
         let regions_upload = match region {
             Some(regions) => regions
                 .iter()
+                .filter(|r| !r.is_empty())
                 .try_fold(UploadStats::default(), |acc, r| {
                     renderer
                         .update_voxel_region(device, queue, &cb.doc, r.object, r.lo, r.hi)

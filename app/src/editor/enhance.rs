@@ -19,7 +19,7 @@ use glam::{IVec3, UVec3};
 use thicket_core::enhance::{Control, EnhanceSettings, Enhancer};
 use thicket_core::scene::{Document, EnhancementLink, ObjectKind, VoxelModel};
 
-use super::{CommandError, Edit, Editor, Selection};
+use super::{Change, CommandError, Edit, Editor, Selection};
 
 /// The live enhancers of the linked models, by source id.
 #[derive(Default)]
@@ -196,7 +196,6 @@ impl Editor {
         });
         self.history.seal();
         self.apply(Edit::Group(edits), None);
-        self.voxel_region = None;
         self.enhancers.by_source.remove(&source);
         if let Some(e) = enhancer {
             self.enhancers.by_source.insert(source, e);
@@ -238,7 +237,6 @@ impl Editor {
             ]),
             None,
         );
-        self.voxel_region = None;
         self.enhancers.by_source.remove(&source);
         if let Some(e) = enhancer {
             self.enhancers.by_source.insert(source, e);
@@ -331,12 +329,18 @@ impl Editor {
                     && fine.svo != *e.fine()
                 {
                     fine.svo = e.fine().clone();
-                    self.voxel_region = None;
-                    self.revision += 1;
                     // Not an edit (no history step), but what is drawn changed: a renderer or
                     // cache keyed on the content key must not keep the old fine model, even
                     // when the edit that follows writes nothing or is undone.
+                    let before = self.content_key();
                     self.generation += 1;
+                    self.record(
+                        before,
+                        Change::Voxels {
+                            object: link.target,
+                            region: None,
+                        },
+                    );
                 }
                 self.enhancers.by_source.insert(source, e);
             }

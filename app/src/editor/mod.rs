@@ -3,6 +3,7 @@
 //! the same commands as the buttons.
 
 pub mod autosave;
+mod changes;
 mod dope;
 mod enhance;
 mod forest;
@@ -25,6 +26,9 @@ use glam::{Vec2, Vec3};
 use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::scene::{Document, Light, Object, ObjectKind, Transform};
 
+pub use changes::{
+    Change, ChangeCursor, ChangeEntry, ChangeFeed, ChangesRead, Redo, RegionChain, VoxelRegion,
+};
 pub use dope::KeyClipboard;
 pub use enhance::{EnhanceUpdate, PreparedDocument};
 pub use forest::ForestReport;
@@ -78,16 +82,15 @@ pub struct Editor {
     history: History,
     /// Files opened or saved, most recent first.
     pub recent: Vec<PathBuf>,
-    /// Increases whenever the document changes in a way a renderer sees (edits, undo, camera).
-    revision: u64,
+    /// Every change of what a renderer draws (edits, undo, camera, playheads), typed, for the
+    /// consumers that redo work after one (see [`ChangeFeed`]).
+    changes: ChangeFeed,
     /// Increases whenever the whole document is replaced (New, Open), and whenever content
     /// changes outside the history (a linked enhancement's stale fine model rebuilt): history
     /// state ids may repeat across generations.
     generation: u64,
     /// Increases whenever a rig's playback (clip, time) changes: not an edit, but drawn.
     anim_revision: u64,
-    /// Voxel edits since the view last took them (see [`Editor::take_voxel_region`]).
-    voxel_region: Option<VoxelRegion>,
     /// Live enhancers of the linked models (derived state, rebuilt when missing).
     enhancers: enhance::Enhancers,
     /// Why the last incremental re-enhancement failed, if it did.
@@ -106,21 +109,22 @@ pub struct Editor {
 /// A box of voxels an edit wrote: object id and inclusive voxel bounds.
 type VoxelBox = (u64, glam::UVec3, glam::UVec3);
 
-/// Consecutive voxel edits of one object: the document went from state `from` to state `to`
-/// by changing only voxels inside `lo..=hi` (inclusive voxel coordinates), and, when the box is
-/// empty (`lo > hi` on some axis), the object's rig.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub struct VoxelRegion {
-    /// Content key before the first edit.
-    pub from: (u64, u64),
-    /// Content key after the last edit.
-    pub to: (u64, u64),
-    /// The voxel object.
-    pub object: u64,
-    /// Minimum changed voxel.
-    pub lo: glam::UVec3,
-    /// Maximum changed voxel.
-    pub hi: glam::UVec3,
+/// What an undo or redo is about to apply: whether it only writes voxels, the boxes it
+/// writes and what it changes.
+struct HistoryStep {
+    only_voxels: bool,
+    boxes: Vec<VoxelBox>,
+    change: Change,
+}
+
+impl HistoryStep {
+    fn of(edit: &Edit) -> Self {
+        Self {
+            only_voxels: edit.only_voxels(),
+            boxes: edit.voxel_boxes(),
+            change: Change::of(edit),
+        }
+    }
 }
 
 impl Default for Editor {
@@ -141,10 +145,9 @@ impl Editor {
             selection,
             history: History::default(),
             recent: Vec::new(),
-            revision: 0,
+            changes: ChangeFeed::default(),
             generation: 0,
             anim_revision: 0,
-            voxel_region: None,
             enhancers: enhance::Enhancers::default(),
             enhance_error: None,
             voxel_selection: None,
@@ -186,7 +189,13 @@ impl Editor {
     /// Changes whenever what a renderer would draw changes.
     #[must_use]
     pub fn revision(&self) -> u64 {
-        self.revision
+        self.changes.len()
+    }
+
+    /// Every change of what a renderer draws, for consumers to read with their own cursor.
+    #[must_use]
+    pub fn changes(&self) -> &ChangeFeed {
+        &self.changes
     }
 
     /// Changes whenever the whole document is replaced (New / Open) or its content changes
@@ -202,38 +211,11 @@ impl Editor {
         (self.generation, self.history.state_id())
     }
 
-    /// The voxel edits since the last call, when the document changed only by them (a renderer
-    /// that holds the document at `from` can upload just the region). `None` when there were
-    /// none.
-    pub fn take_voxel_region(&mut self) -> Option<VoxelRegion> {
-        self.voxel_region.take()
-    }
-
-    /// Records a voxel edit from state `from` to the current state.
-    fn note_voxel_edit(&mut self, from: (u64, u64), object: u64, lo: glam::UVec3, hi: glam::UVec3) {
+    /// Records that the document went from content key `from` to the current one by
+    /// `change`.
+    fn record(&mut self, from: (u64, u64), change: Change) {
         let to = self.content_key();
-        self.voxel_region = Some(match self.voxel_region {
-            Some(r) if r.to == from && r.object == object => VoxelRegion {
-                to,
-                lo: r.lo.min(lo),
-                hi: r.hi.max(hi),
-                ..r
-            },
-            _ => VoxelRegion {
-                from,
-                to,
-                object,
-                lo,
-                hi,
-            },
-        });
-    }
-
-    /// Records an edit of object `id`'s rig (pose overrides, stretch settings) from state
-    /// `from`: a voxel edit of an empty box, since no voxel changed. A renderer that reads rigs
-    /// every frame (the GPU renderer uploads only the joint matrices) keeps its upload.
-    fn note_rig_edit(&mut self, from: (u64, u64), id: u64) {
-        self.note_voxel_edit(from, id, glam::UVec3::MAX, glam::UVec3::ZERO);
+        self.changes.push(from, to, change);
     }
 
     /// The undo history.
@@ -244,14 +226,16 @@ impl Editor {
 
     /// Replaces the document (New / Open); the history starts afresh.
     pub fn replace_document(&mut self, doc: Document, path: Option<PathBuf>) {
+        let before = self.content_key();
         *self = Self {
             recent: std::mem::take(&mut self.recent),
             clipboard: self.clipboard.take(),
-            revision: self.revision + 1,
+            changes: std::mem::take(&mut self.changes),
             generation: self.generation + 1,
             anim_revision: self.anim_revision + 1,
             ..Self::new(doc, path)
         };
+        self.record(before, Change::Content);
         if let Some(p) = self.path.clone() {
             self.push_recent(p);
         }
@@ -313,9 +297,10 @@ impl Editor {
 
     /// [`Editor::apply`] under a name for Edit → History.
     fn apply_named(&mut self, edit: Edit, merge: Option<MergeKey>, label: String) {
+        let (before, change) = (self.content_key(), Change::of(&edit));
         let inverse = edit.apply(&mut self.doc);
         self.history.push_named(inverse, merge, label);
-        self.revision += 1;
+        self.record(before, change);
         self.fix_selection();
     }
 
@@ -393,10 +378,7 @@ impl Editor {
             self.cancel_floating();
             return true;
         }
-        let next = self
-            .history
-            .next_undo()
-            .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        let next = self.history.next_undo().map(HistoryStep::of);
         self.ensure_enhancers_for(next.as_ref());
         let before = self.content_key();
         let done = self.history.undo(&mut self.doc);
@@ -408,10 +390,7 @@ impl Editor {
 
     /// Redoes the last undone step; false when there is none.
     pub fn redo(&mut self) -> bool {
-        let next = self
-            .history
-            .next_redo()
-            .map(|e| (e.only_voxels(), e.voxel_boxes()));
+        let next = self.history.next_redo().map(HistoryStep::of);
         self.ensure_enhancers_for(next.as_ref());
         let before = self.content_key();
         let done = self.history.redo(&mut self.doc);
@@ -435,34 +414,59 @@ impl Editor {
     }
 
     /// Before undo / redo writes voxels: the linked enhancements of those models are live.
-    fn ensure_enhancers_for(&mut self, edit: Option<&(bool, Vec<VoxelBox>)>) {
-        if let Some((_, boxes)) = edit {
-            for &(id, _, _) in boxes {
+    fn ensure_enhancers_for(&mut self, step: Option<&HistoryStep>) {
+        if let Some(step) = step {
+            for &(id, _, _) in &step.boxes {
                 self.ensure_enhancer(id);
             }
         }
     }
 
-    /// After undo / redo applied an edit: linked enhancements follow the voxels it wrote;
-    /// any other edit may have changed links or models wholesale, so the live enhancers are
-    /// rebuilt when next needed.
-    fn after_history_step(&mut self, before: (u64, u64), edit: Option<(bool, Vec<VoxelBox>)>) {
-        self.revision += 1;
+    /// After undo / redo applied a step: records what it changed (the boxes it wrote, when it
+    /// only wrote voxels of still models: a frame sequence's step first shows the frame it
+    /// was made on); linked enhancements follow the voxels it wrote; any other edit may have
+    /// changed links or models wholesale, so the live enhancers are rebuilt when next needed.
+    fn after_history_step(&mut self, before: (u64, u64), step: Option<HistoryStep>) {
         self.fix_selection();
-        self.voxel_region = None;
-        let Some((only_voxels, boxes)) = edit else {
+        let Some(HistoryStep {
+            only_voxels,
+            boxes,
+            change,
+        }) = step
+        else {
+            self.record(before, Change::Content);
             return;
         };
         if !only_voxels {
             self.drop_enhancers();
         }
+        let regions = matches!(change, Change::Voxels { .. })
+            && boxes.iter().all(|&(id, ..)| !self.has_frames(id));
+        let mut from = before;
+        if !regions {
+            self.record(from, change);
+            from = self.content_key();
+        }
         for (id, lo, hi) in boxes {
             if self.doc.enhancement_of(id).is_some() {
-                self.after_voxel_write(before, id, lo, hi);
-                // Regions of several objects do not chain: upload in full.
-                self.voxel_region = None;
+                self.after_voxel_write(from, id, lo, hi, regions);
+            } else if regions {
+                self.record(
+                    from,
+                    Change::Voxels {
+                        object: id,
+                        region: Some((lo, hi)),
+                    },
+                );
             }
+            from = self.content_key();
         }
+    }
+
+    /// Whether object `id` is a frame sequence.
+    fn has_frames(&self, id: u64) -> bool {
+        self.object(id)
+            .is_some_and(|o| matches!(&o.kind, ObjectKind::Voxels(v) if v.frames.is_some()))
     }
 
     /// Adds an object at the end of the outliner and selects it; returns its id.
@@ -808,7 +812,7 @@ impl Editor {
     pub fn set_camera(&mut self, camera: thicket_core::scene::OrbitCamera) {
         if camera.validate().is_ok() && camera != self.doc.camera {
             self.doc.camera = camera;
-            self.revision += 1;
+            self.record(self.content_key(), Change::Camera);
         }
     }
 

@@ -6,7 +6,7 @@
 use thicket_core::scene::ObjectMotion;
 use thicket_core::skin::{KeyRef, Wrap};
 
-use super::{CommandError, Edit, Editor};
+use super::{Change, CommandError, Edit, Editor};
 
 impl Editor {
     /// The keyed transforms of object `id`, if any.
@@ -138,10 +138,10 @@ impl Editor {
             o.transform = at;
             // Content changed outside the history (as a frame sequence's shown frame): the
             // renderers see a new content key and take the object where it is now.
+            let before = self.content_key();
             self.anim_revision += 1;
-            self.revision += 1;
             self.generation += 1;
-            self.voxel_region = None;
+            self.record(before, Change::Content);
         }
     }
 }

@@ -8,7 +8,7 @@ use thicket_core::skin::{
     JointMatrices, JointOverride, OverrideMode, Playback, Rig, StretchSettings,
 };
 
-use super::{CommandError, Edit, Editor, MergeKey};
+use super::{Change, CommandError, Edit, Editor, MergeKey};
 
 /// The joint frames of a rigged object in world space, for drawing and dragging.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -143,9 +143,7 @@ impl Editor {
             .collect();
         overrides.push(o);
         if overrides != rig.pose_overrides {
-            let before = self.content_key();
             self.apply(Edit::SetPose { id, overrides }, Some(MergeKey::Pose(id)));
-            self.note_rig_edit(before, id);
         }
         Ok(())
     }
@@ -214,9 +212,7 @@ impl Editor {
             .collect();
         if overrides != rig.pose_overrides {
             self.history.seal();
-            let before = self.content_key();
             self.apply(Edit::SetPose { id, overrides }, None);
-            self.note_rig_edit(before, id);
         }
         Ok(())
     }
@@ -313,7 +309,7 @@ impl Editor {
         {
             rig.playback = playback;
             self.anim_revision += 1;
-            self.revision += 1;
+            self.record(self.content_key(), Change::Pose { object: id });
         }
         self.follow_motion(id);
         Ok(())
@@ -356,14 +352,22 @@ impl Editor {
             };
         }
         let swapped = v.set_frame_time(time_secs);
+        let before = self.content_key();
         self.anim_revision += 1;
-        self.revision += 1;
         if swapped {
             self.generation += 1;
-            self.voxel_region = None;
+            self.record(
+                before,
+                Change::Voxels {
+                    object: id,
+                    region: None,
+                },
+            );
             // A live enhancer follows the octree it was built from: the next edit rebuilds it
             // from the frame now shown.
             self.drop_enhancers();
+        } else {
+            self.record(before, Change::Pose { object: id });
         }
         Ok(())
     }
@@ -379,12 +383,10 @@ impl Editor {
             .validate()
             .map_err(|e| CommandError::Invalid(format!("stretch: {e}")))?;
         if rig.stretch != stretch {
-            let before = self.content_key();
             self.apply(
                 Edit::SetStretch { id, stretch },
                 Some(MergeKey::Stretch(id)),
             );
-            self.note_rig_edit(before, id);
         }
         Ok(())
     }

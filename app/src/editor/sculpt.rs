@@ -5,7 +5,7 @@ use glam::{IVec3, Mat4, UVec3, Vec3};
 use thicket_core::scene::ObjectKind;
 use thicket_core::sculpt::{Brush, BrushOp, apply_dab};
 
-use super::{CommandError, Edit, Editor, MergeKey};
+use super::{Change, CommandError, Edit, Editor, MergeKey};
 
 /// What a ray hit.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -268,45 +268,61 @@ impl Editor {
             Some(MergeKey::Stroke(id)),
             "Brush stroke".into(),
         );
-        self.revision += 1;
-        if let Some((lo, hi)) = dab.changed {
-            self.after_voxel_write(before, id, lo, hi);
-        } else {
-            // A delta without a region: no renderer may take the shortcut.
-            self.voxel_region = None;
+        match dab.changed {
+            Some((lo, hi)) => self.after_voxel_write(before, id, lo, hi, true),
+            None => self.record(
+                before,
+                Change::Voxels {
+                    object: id,
+                    region: None,
+                },
+            ),
         }
         Ok(dab.changed)
     }
 
     /// After the voxels `lo..=hi` of object `id` were written (a dab, an undo or a redo of
-    /// one): keeps a linked enhancement in step and records what a renderer must upload.
-    pub(super) fn after_voxel_write(&mut self, before: (u64, u64), id: u64, lo: UVec3, hi: UVec3) {
+    /// one) from content key `before`: keeps a linked enhancement in step and records what
+    /// changed: the written box (when `record_source`: an undo of a step that was more than
+    /// voxels has recorded it already) and the enhancement's box.
+    pub(super) fn after_voxel_write(
+        &mut self,
+        before: (u64, u64),
+        id: u64,
+        lo: UVec3,
+        hi: UVec3,
+        record_source: bool,
+    ) {
+        let source = Change::Voxels {
+            object: id,
+            region: Some((lo, hi)),
+        };
         let fine = match self.sync_enhancement(id, lo, hi) {
             Ok(f) => f,
             Err(e) => {
+                // The enhancement may be half-written: all may have changed.
                 self.enhance_error = Some(e.to_string());
-                self.voxel_region = None;
+                self.record(before, Change::Content);
                 return;
             }
         };
+        let mut from = before;
+        if record_source {
+            self.record(from, source);
+            from = self.content_key();
+        }
         let Some((fine_lo, fine_hi)) = fine else {
-            self.note_voxel_edit(before, id, lo, hi);
             return;
         };
         self.enhance_error = None;
-        let target = self.doc.enhancement_of(id).map(|l| l.target);
-        let visible =
-            |ed: &Self, id: Option<u64>| id.and_then(|id| ed.object(id)).is_some_and(|o| o.visible);
-        // A renderer holds only visible objects: the region shortcut fits when just one of
-        // the two changed objects is drawn.
-        match (visible(self, Some(id)), visible(self, target)) {
-            (true, true) => self.voxel_region = None,
-            (false, true) => {
-                if let Some(t) = target {
-                    self.note_voxel_edit(before, t, fine_lo, fine_hi);
-                }
-            }
-            _ => self.note_voxel_edit(before, id, lo, hi),
+        if let Some(target) = self.doc.enhancement_of(id).map(|l| l.target) {
+            self.record(
+                from,
+                Change::Voxels {
+                    object: target,
+                    region: Some((fine_lo, fine_hi)),
+                },
+            );
         }
     }
 

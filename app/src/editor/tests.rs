@@ -740,6 +740,13 @@ fn krs_edits_are_validated_normalised_and_undoable() {
     assert_eq!(ed.krs(id).unwrap(), &original);
 }
 
+/// What a GPU-like consumer reading `chain` holds now: the regions ending at the editor's
+/// content key.
+fn upload_regions(ed: &Editor, chain: &mut RegionChain) -> Vec<VoxelRegion> {
+    chain.read(ed.changes(), |c| Redo::for_upload(ed.doc(), c));
+    chain.ending_at(ed.content_key()).to_vec()
+}
+
 #[test]
 fn voxel_edits_report_their_region_for_incremental_uploads() {
     let (mut ed, id) = slab_editor();
@@ -749,15 +756,25 @@ fn voxel_edits_report_their_region_for_incremental_uploads() {
         ..Default::default()
     };
     let start = ed.content_key();
+    let (mut gpu, mut other) = (
+        RegionChain::from_end(ed.changes()),
+        RegionChain::from_end(ed.changes()),
+    );
     ed.begin_stroke();
     ed.sculpt_dab(id, &brush, Vec3::new(2.5, 3.5, 3.5), Vec3::ZERO)
         .unwrap();
+    // A consumer reading between the dabs and one reading after both see the same region.
+    assert_eq!(upload_regions(&ed, &mut gpu).len(), 1);
     ed.sculpt_dab(id, &brush, Vec3::new(6.5, 3.5, 3.5), Vec3::ZERO)
         .unwrap();
-    let r = ed.take_voxel_region().expect("a region");
+    let r = upload_regions(&ed, &mut gpu)[0];
     assert_eq!((r.from, r.to, r.object), (start, ed.content_key(), id));
     assert!(r.lo.x <= 2 && r.hi.x >= 6, "{r:?}");
-    assert!(ed.take_voxel_region().is_none(), "taken");
+    assert_eq!(
+        upload_regions(&ed, &mut other),
+        vec![r],
+        "reading takes nothing"
+    );
     // After another kind of edit the next dab starts a new region from there.
     ed.end_interaction();
     ed.rename(id, "Slab 2").unwrap();
@@ -765,7 +782,140 @@ fn voxel_edits_report_their_region_for_incremental_uploads() {
     ed.begin_stroke();
     ed.sculpt_dab(id, &brush, Vec3::new(2.5, 2.5, 6.5), Vec3::ZERO)
         .unwrap();
-    assert_eq!(ed.take_voxel_region().unwrap().from, renamed);
+    assert_eq!(upload_regions(&ed, &mut gpu)[0].from, renamed);
+}
+
+/// The changes a consumer reads from `cursor`, in order.
+fn read_changes(ed: &Editor, cursor: &mut ChangeCursor) -> Vec<ChangeEntry> {
+    match ed.changes().read(cursor) {
+        ChangesRead::Changes(entries) => entries.copied().collect(),
+        ChangesRead::Lagged => panic!("nothing was dropped"),
+    }
+}
+
+#[test]
+fn each_consumer_sees_each_change_once_typed_and_undo_as_its_own_change() {
+    let (mut ed, slab) = slab_editor();
+    let ObjectKind::Voxels(figure) = rigged_editor().0.doc().objects[0].kind.clone() else {
+        unreachable!()
+    };
+    let figure = ed.add_object("Figure", ObjectKind::Voxels(figure));
+    let rock = ed.add_object("Rock", ObjectKind::Krs(thicket_core::krs::presets::rock()));
+    ed.end_interaction();
+    // Three consumers: a raw reader after every action, one that reads once at the end, and
+    // the two renderers' region chains.
+    let mut each = ed.changes().cursor_at_end();
+    let mut at_end = ed.changes().cursor_at_end();
+    let mut gpu = RegionChain::from_end(ed.changes());
+    let mut shadows = RegionChain::from_end(ed.changes());
+    let shadow_regions = |ed: &Editor, chain: &mut RegionChain| {
+        chain.read(ed.changes(), |c| Redo::for_shadow_maps(ed.doc(), c));
+        chain.ending_at(ed.content_key()).to_vec()
+    };
+    let brush = thicket_core::sculpt::Brush {
+        op: thicket_core::sculpt::BrushOp::Remove,
+        radius: 1.5,
+        ..Default::default()
+    };
+    let kinds = |entries: &[ChangeEntry]| entries.iter().map(|e| e.change).collect::<Vec<_>>();
+    let mut seen = Vec::new();
+
+    // A brush stroke: one change per dab, each with its box.
+    let start = ed.content_key();
+    ed.begin_stroke();
+    for x in [2.5, 5.5] {
+        ed.sculpt_dab(slab, &brush, Vec3::new(x, 3.5, 3.5), Vec3::ZERO)
+            .unwrap();
+    }
+    ed.end_interaction();
+    let stroke = read_changes(&ed, &mut each);
+    assert_eq!(stroke.len(), 2, "{stroke:?}");
+    assert!(
+        stroke.iter().all(
+            |e| matches!(e.change, Change::Voxels { object, region: Some(_) } if object == slab)
+        ),
+        "{stroke:?}"
+    );
+    assert_eq!((stroke[0].from, stroke[1].to), (start, ed.content_key()));
+    assert_eq!(stroke[0].to, stroke[1].from, "the changes chain");
+    assert_eq!(
+        upload_regions(&ed, &mut gpu).len(),
+        1,
+        "merged into one box"
+    );
+    assert_eq!(shadow_regions(&ed, &mut shadows).len(), 1);
+    seen.extend(stroke);
+
+    // A rig edit: the pose; the GPU keeps its upload, the shadow maps are drawn again.
+    ed.rotate_joint(figure, 0, None, glam::Quat::from_rotation_z(0.5))
+        .unwrap();
+    ed.end_interaction();
+    let pose = read_changes(&ed, &mut each);
+    assert_eq!(kinds(&pose), [Change::Pose { object: figure }]);
+    assert_eq!(upload_regions(&ed, &mut gpu)[0].from, start);
+    assert!(shadow_regions(&ed, &mut shadows).is_empty());
+    seen.extend(pose);
+
+    // A KRS edit and a light move: each once, each breaking the GPU's chain.
+    let mut k = ed.krs(rock).unwrap().clone();
+    k.mirrors[0].offset += 0.25;
+    ed.set_krs(rock, &k).unwrap();
+    ed.end_interaction();
+    let krs = read_changes(&ed, &mut each);
+    assert_eq!(kinds(&krs), [Change::Krs { object: rock }]);
+    assert!(upload_regions(&ed, &mut gpu).is_empty());
+    seen.extend(krs);
+    let mut light = ed.doc().lights[0].clone();
+    light.direction = Vec3::new(0.3, -1.0, 0.2);
+    ed.set_light(0, light).unwrap();
+    ed.end_interaction();
+    let lights = read_changes(&ed, &mut each);
+    assert_eq!(kinds(&lights), [Change::Lights]);
+    seen.extend(lights);
+
+    // Undo of each, newest first: the same kinds; the stroke's undo as its written box.
+    for expected in [
+        Change::Lights,
+        Change::Krs { object: rock },
+        Change::Pose { object: figure },
+    ] {
+        let before = ed.content_key();
+        assert!(ed.undo());
+        let undone = read_changes(&ed, &mut each);
+        assert_eq!(kinds(&undone), [expected]);
+        assert_eq!((undone[0].from, undone[0].to), (before, ed.content_key()));
+        seen.extend(undone);
+    }
+    let mut shadows = RegionChain::from_end(ed.changes());
+    assert!(ed.undo());
+    let undone = read_changes(&ed, &mut each);
+    let [
+        ChangeEntry {
+            change:
+                Change::Voxels {
+                    object,
+                    region: Some((lo, hi)),
+                },
+            ..
+        },
+    ] = undone[..]
+    else {
+        panic!("{undone:?}");
+    };
+    assert_eq!(object, slab);
+    assert!(lo.x <= 1 && hi.x >= 6, "the whole stroke's box: {lo} {hi}");
+    assert_eq!(
+        shadow_regions(&ed, &mut shadows).len(),
+        1,
+        "an undone stroke patches the shadow maps"
+    );
+    seen.extend(undone);
+
+    // The reader that waited sees the same changes, once each, in order.
+    assert_eq!(read_changes(&ed, &mut at_end), seen);
+    assert!(read_changes(&ed, &mut at_end).is_empty());
+    let seqs: Vec<u64> = seen.iter().map(|e| e.seq).collect();
+    assert!(seqs.windows(2).all(|w| w[1] == w[0] + 1), "{seqs:?}");
 }
 
 #[test]
@@ -866,6 +1016,8 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
         assert_eq!(pick.object, id);
 
         let steps = ed.history().undo_len();
+        let mut chain = RegionChain::from_end(ed.changes());
+        let before_stroke = ed.content_key();
         ed.begin_stroke();
         for (i, op) in [
             thicket_core::sculpt::BrushOp::Remove,
@@ -892,8 +1044,13 @@ fn strokes_on_an_enhanced_model_keep_its_enhancement_equal_to_a_fresh_one() {
         ed.end_interaction();
         assert_eq!(ed.history().undo_len(), steps + 1, "one step per stroke");
         // Only the fine model is drawn: a renderer uploads its changed box.
-        let region = ed.take_voxel_region().expect("a region");
-        assert_eq!(region.object, fine_id);
+        let regions = upload_regions(&ed, &mut chain);
+        assert_eq!(regions.len(), 1, "{regions:?}");
+        assert_eq!(regions[0].object, fine_id);
+        assert_eq!(
+            regions[0].from, before_stroke,
+            "the coarse model's edit breaks nothing"
+        );
         let coarse = svo_of(&ed, id);
         assert_ne!(coarse, original);
         let t0 = std::time::Instant::now();
@@ -1058,9 +1215,25 @@ fn replacing_a_stale_enhancement_changes_the_content_key() {
     assert_eq!(plain.enhancer_rebuilds(), 1, "the dab built the enhancer");
     assert_eq!(svo_of(&plain, fine_id), enhance(&stale, &settings).unwrap());
     assert_ne!(plain.content_key(), key, "the fine model changed");
+    let mut from_key = RegionChain::default();
     assert!(
-        plain.take_voxel_region().is_none(),
+        upload_regions(&plain, &mut from_key).is_empty(),
         "no region to patch: upload it all"
+    );
+    let last = plain.changes().len() - 1;
+    let mut cursor = ChangeCursor::default();
+    let ChangesRead::Changes(entries) = plain.changes().read(&mut cursor) else {
+        panic!("nothing dropped");
+    };
+    let rebuilt = entries.last().unwrap();
+    assert_eq!(rebuilt.seq, last);
+    assert_eq!(
+        rebuilt.change,
+        Change::Voxels {
+            object: fine_id,
+            region: None
+        },
+        "the rebuilt fine model"
     );
 }
 
@@ -1440,6 +1613,7 @@ fn a_slab_model_stands_on_the_ground_and_every_tool_edit_is_one_undo_step() {
     let (lo, hi) = o.world_bounds().unwrap();
     assert!(lo.y.abs() < 1e-6 && (hi.y - 0.2).abs() < 1e-5, "{lo} {hi}");
     let steps = ed.history().undo_len();
+    let mut chain = RegionChain::from_end(ed.changes());
     let box_edit = ed
         .shape_box(
             id,
@@ -1453,7 +1627,7 @@ fn a_slab_model_stands_on_the_ground_and_every_tool_edit_is_one_undo_step() {
     assert_eq!(svo_of(&ed, id).leaf_count(), 512 + 3 * 4 * 5);
     assert_eq!(ed.history().undo_len(), steps + 1);
     // The renderer is told the region, not the whole model.
-    let region = ed.take_voxel_region().expect("a region");
+    let region = upload_regions(&ed, &mut chain)[0];
     assert_eq!(region.object, id);
     assert!(region.lo.cmple(UVec3::new(2, 2, 2)).all());
     let (lo, hi) = box_edit.changed.expect("a changed box");

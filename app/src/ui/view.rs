@@ -25,10 +25,10 @@ use super::pose::PoseTool;
 pub use super::projector::{AxisView, Projector};
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
-use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
-use crate::viewport::{
-    FrameDepth, FrameKey, RegionHint, ViewportCallback, ViewportLink, paint_callback,
+use crate::editor::{
+    Editor, Redo, RegionChain, Selection, SurfacePick, VoxelPick, VoxelRegion, ray_through,
 };
+use crate::viewport::{FrameDepth, FrameKey, ViewportCallback, ViewportLink, paint_callback};
 
 /// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
 /// changing (an orbit, a stroke, playback, a KRS parameter dragged: a quarter of the pixels
@@ -73,9 +73,6 @@ pub fn moving_scale(last: Option<(f64, u64)>, full_px: f64, budget_ms: f64) -> f
 /// How long what the CPU preview draws must stay the same before it refines to full
 /// resolution.
 pub const PREVIEW_STILL: Duration = Duration::from_millis(150);
-
-/// Most voxel edits kept for the GPU's incremental upload (older ones cost a full upload).
-const MAX_REGION_CHAIN: usize = 64;
 
 /// Which renderer draws the view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -214,7 +211,7 @@ struct CpuPreview {
     renderer: Arc<Mutex<PreviewRenderer>>,
     /// Voxel edits since the last render started, for its shadow maps to redraw only where
     /// they changed (see [`shadow_change`]).
-    changes: Vec<thicket_core::render::ContentChange>,
+    changes: RegionChain,
 }
 
 /// What the CPU preview keeps from one render to the next.
@@ -328,24 +325,21 @@ fn preview_content_hash(key: RenderKey) -> u64 {
     h.finish()
 }
 
-/// A voxel edit as a change of the preview's content inside a world box, when its box is
-/// known: a rigid model's changed voxels, through its transform (the editor gives a region
-/// only when nothing else drawn changed, see [`Editor::take_voxel_region`]). `None` for a
-/// skinned model, whose voxels are drawn elsewhere than their box and whose rig edits come as
-/// empty regions; the shadow maps are then drawn whole.
+/// A voxel region as a change of the preview's content inside a world box: a rigid model's
+/// changed voxels, through its transform (an empty box: nothing drawn changed). `None` when the
+/// model is gone.
 fn shadow_change(
     doc: &Document,
     animation: u64,
-    r: &crate::editor::VoxelRegion,
+    r: &VoxelRegion,
 ) -> Option<thicket_core::render::ContentChange> {
-    let o = doc.objects.iter().find(|o| o.id == r.object)?;
-    let ObjectKind::Voxels(v) = &o.kind else {
-        return None;
-    };
-    if v.rig.is_some() {
-        return None;
-    }
-    let (lo, hi) = if r.lo.cmple(r.hi).all() {
+    let (lo, hi) = if r.is_empty() {
+        (Vec3::ONE, Vec3::ZERO)
+    } else {
+        let o = doc.objects.iter().find(|o| o.id == r.object)?;
+        let ObjectKind::Voxels(v) = &o.kind else {
+            return None;
+        };
         let m = o.transform.matrix() * v.object_from_voxel();
         let (a, b) = (r.lo.as_vec3(), (r.hi + 1).as_vec3());
         (0..8).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), k| {
@@ -356,9 +350,6 @@ fn shadow_change(
             ));
             (lo.min(p), hi.max(p))
         })
-    } else {
-        // Nothing drawn changed: an empty box.
-        (Vec3::ONE, Vec3::ZERO)
     };
     Some(thicket_core::render::ContentChange {
         from: preview_content_hash((r.from, animation)),
@@ -410,7 +401,7 @@ pub struct View {
     /// changed: while that is under [`PREVIEW_STILL`] ago it draws one sample per pixel.
     gpu_motion: Option<((OrbitCamera, RenderKey), Option<Instant>)>,
     /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
-    regions: Vec<RegionHint>,
+    regions: RegionChain,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The empty cell in front of the voxel face under the pointer (model, voxel
@@ -451,7 +442,7 @@ impl Default for View {
             cpu: CpuPreview::default(),
             preview_motion: None,
             gpu_motion: None,
-            regions: Vec::new(),
+            regions: RegionChain::default(),
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
@@ -1037,12 +1028,10 @@ impl View {
         let ppp = ui.ctx().pixels_per_point();
         // Voxel edits since the last frame, for the shadow maps to patch; one that cannot be
         // described breaks the chain (the maps are drawn whole).
-        if let Some(r) = editor.take_voxel_region() {
-            match shadow_change(editor.doc(), editor.animation_key(), &r) {
-                Some(c) => self.cpu.changes.push(c),
-                None => self.cpu.changes.clear(),
-            }
-        }
+        let doc = editor.doc();
+        self.cpu
+            .changes
+            .read(editor.changes(), |c| Redo::for_shadow_maps(doc, c));
         // Low resolution while what is drawn keeps changing (an orbit, a stroke, playback); the
         // full resolution setting once it has been still for a moment. A drag that changes
         // nothing drawn (placing a box, a selection) keeps the full image.
@@ -1196,7 +1185,13 @@ impl View {
             let job_doc = Arc::clone(&doc);
             // The snapshot's key: it changes whenever the content or the playhead does.
             let content_key = preview_content_hash(render_key(editor));
-            let changes = std::mem::take(&mut self.cpu.changes);
+            let changes: Vec<_> = self
+                .cpu
+                .changes
+                .take()
+                .iter()
+                .map_while(|r| shadow_change(&doc, editor.animation_key(), r))
+                .collect();
             let kept = Arc::clone(&self.cpu.renderer);
             let (tx, rx) = mpsc::channel();
             let request = thicket_core::render::RenderRequest {
@@ -1501,25 +1496,10 @@ impl View {
         // Voxel edits since the last frame extend the chain the renderer may upload from;
         // anything else breaks it. `prepare` may not run every frame, so the chain is kept
         // (bounded) until the document changes in another way.
-        if let Some(r) = editor.take_voxel_region() {
-            let hint = RegionHint {
-                from: r.from,
-                to: r.to,
-                object: r.object,
-                lo: r.lo,
-                hi: r.hi,
-            };
-            if self.regions.last().is_none_or(|last| last.to != hint.from) {
-                self.regions.clear();
-            }
-            self.regions.push(hint);
-            if self.regions.len() > MAX_REGION_CHAIN {
-                self.regions.remove(0);
-            }
-        }
-        if self.regions.last().is_some_and(|last| last.to != key) {
-            self.regions.clear();
-        }
+        let doc = editor.doc();
+        self.regions
+            .read(editor.changes(), |c| Redo::for_upload(doc, c));
+        let regions = self.regions.ending_at(key).to_vec();
         // Supersampling only once the view is still, as the CPU preview: a moving frame draws
         // one sample per pixel, and the still frame follows PREVIEW_STILL later.
         let drawn = (editor.doc().camera, render_key(editor));
@@ -1563,7 +1543,7 @@ impl View {
             ViewportCallback {
                 key,
                 doc,
-                regions: self.regions.clone(),
+                regions,
                 want_depth,
             },
         ));
