@@ -36,11 +36,11 @@ fn parse_size(s: &str) -> anyhow::Result<egui::Vec2> {
 
 fn measure(path: &Path, frames: usize, size: egui::Vec2) -> anyhow::Result<()> {
     let render_state = create_render_state(
-        thicket::viewport::wgpu_setup(),
+        thicket::preview::viewport::wgpu_setup(),
         egui_wgpu::RendererOptions::PREDICTABLE,
     );
     let device = render_state.device.clone();
-    let link = thicket::viewport::install(&render_state);
+    let link = thicket::preview::viewport::install(&render_state);
     let doc = thicket::files::load_document(path)?;
     let mut app = EditorApp::new(Editor::new(doc, Some(path.to_path_buf())));
     app.autosave_secs = 0;

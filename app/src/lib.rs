@@ -7,7 +7,8 @@
 //! | [`files`] | opening any supported file as a document; `info` summaries |
 //! | [`editor`] | editor state, commands, undo/redo (no UI) |
 //! | [`gpu`] | the wgpu renderer (headless-capable) |
-//! | [`viewport`] | the one bridge between egui and the GPU renderer (paint callback) |
+//! | [`preview`] | the view's image: GPU view, egui-wgpu bridge, CPU preview, analysis overlays |
+//! | [`preview::viewport`] | the one bridge between egui and the GPU renderer (paint callback) |
 //! | [`tradeoff`] | `thicket tradeoff`: quality sweep reports and plots |
 //! | [`ui`] | the eframe app: menu bar, tool bar, outliner, inspector, 3D view, perf overlay |
 
@@ -20,8 +21,7 @@ pub mod bench;
 pub mod cli;
 pub mod editor;
 pub mod files;
-pub mod frame_depth;
 pub mod gpu;
+pub mod preview;
 pub mod tradeoff;
 pub mod ui;
-pub mod viewport;

@@ -12,9 +12,9 @@ use egui_kittest::kittest::Queryable as _;
 use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state};
 use egui_kittest::{Harness, SnapshotOptions};
 use thicket::editor::{Editor, Selection};
+use thicket::preview::viewport::ViewportLink;
 use thicket::ui::EditorApp;
 use thicket::ui::view::ViewRenderer;
-use thicket::viewport::ViewportLink;
 use thicket_core::scene::ObjectKind;
 
 /// Small enough to keep software rendering quick, large enough for every panel.
@@ -48,10 +48,10 @@ fn gpu_harness_with(
     renderer: ViewRenderer,
 ) -> (Harness<'static, EditorApp>, ViewportLink) {
     let render_state = create_render_state(
-        thicket::viewport::wgpu_setup(),
+        thicket::preview::viewport::wgpu_setup(),
         egui_wgpu::RendererOptions::PREDICTABLE,
     );
-    let link = thicket::viewport::install(&render_state);
+    let link = thicket::preview::viewport::install(&render_state);
     let path = sample(name);
     let mut doc = thicket::files::load_document(&path).expect("the sample loads");
     // Shadow maps are the slow part on a software rasteriser (the 2048² shadow splats take
@@ -423,7 +423,10 @@ fn auto_draws_with_the_cpu_preview_when_the_gpu_is_a_software_rasteriser() {
         h.run_steps(1);
     }
     h.render().expect("render");
-    let (cpu_frames, gpu_frames) = (h.state().view.cpu_renders(), link.lock().frames_rendered);
+    let (cpu_frames, gpu_frames) = (
+        h.state().view.cpu_preview().renders(),
+        link.lock().frames_rendered,
+    );
     if software {
         assert!(
             cpu_frames >= 1 && gpu_frames == 0,

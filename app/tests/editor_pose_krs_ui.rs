@@ -144,7 +144,7 @@ fn pose_a_joint_with_the_gizmo_undo_redo_and_play_the_timeline() {
     let posed_tip = ed.joint_frames(id).unwrap().position(joint + 1);
     assert!(ed.is_dirty());
     settle_preview(&mut h);
-    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview().stats() {
         eprintln!("CPU preview of the posed figure: {ms:.1} ms at {w} x {hh} px");
     }
     snapshot(&mut h, "pose_rigged_figure");
@@ -446,7 +446,7 @@ fn change_a_krs_mirror_plane_through_its_arrow_and_normal_fields_undo_redo() {
     assert!((now.normal - Vec3::NEG_Y).length() < 1e-6, "{now:?}");
     assert!(h.state().krs.error.is_none());
     settle_preview(&mut h);
-    if let Some((ms, [w, hh])) = h.state().view.cpu_preview_stats() {
+    if let Some((ms, [w, hh])) = h.state().view.cpu_preview().stats() {
         eprintln!("CPU preview of the coral: {ms:.1} ms at {w} x {hh} px");
     }
     snapshot(&mut h, "krs_mirror_edited");
@@ -880,7 +880,12 @@ fn the_hole_overlay_counts_fewer_holes_with_corner_stretch_than_without() {
         s.strategy = strategy;
         h.state_mut().editor.set_stretch(id, s).unwrap();
         settle_preview(&mut h);
-        let c = h.state().view.hole_counts().expect("hole counts");
+        let c = h
+            .state()
+            .view
+            .cpu_preview()
+            .hole_counts()
+            .expect("hole counts");
         eprintln!("{strategy:?}: {c:?}");
         counts.push(c);
     }
@@ -909,7 +914,7 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     h.state_mut().editor.set_stretch(id, s).unwrap();
     h.state_mut().editor.end_interaction();
     settle_preview(&mut h);
-    let plain_ms = h.state().view.cpu_preview_stats().map(|(ms, _)| ms);
+    let plain_ms = h.state().view.cpu_preview().stats().map(|(ms, _)| ms);
     h.get_by_label("View").click();
     h.run_steps(2);
     h.get_by_label("Stretch heat map").click();
@@ -918,11 +923,16 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     assert!(h.state().view.show_stretch);
     settle_preview(&mut h);
     // No stretch: every splat has its voxel's own size.
-    let off = h.state().view.stretch_stats().expect("heat map statistics");
+    let off = h
+        .state()
+        .view
+        .cpu_preview()
+        .stretch_stats()
+        .expect("heat map statistics");
     // Figures for the report (no timing assert).
     eprintln!(
         "CPU preview without / with the heat map: {plain_ms:?} / {:?} ms",
-        h.state().view.cpu_preview_stats().map(|(ms, _)| ms)
+        h.state().view.cpu_preview().stats().map(|(ms, _)| ms)
     );
     assert!(off.pixels > 500, "{off:?}");
     assert!(
@@ -934,7 +944,7 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     h.state_mut().editor.set_stretch(id, s).unwrap();
     h.state_mut().editor.end_interaction();
     settle_preview(&mut h);
-    let base = h.state().view.stretch_stats().unwrap();
+    let base = h.state().view.cpu_preview().stretch_stats().unwrap();
     eprintln!("Thesis x1: {base:?}");
     assert!(base.min >= 1.0 - 1e-4 && base.max <= 2.0 + 1e-4, "{base:?}");
     assert!(base.mean > 1.0, "blended voxels stretch: {base:?}");
@@ -944,7 +954,7 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     h.state_mut().editor.set_stretch(id, s).unwrap();
     h.state_mut().editor.end_interaction();
     settle_preview(&mut h);
-    let scaled = h.state().view.stretch_stats().unwrap();
+    let scaled = h.state().view.cpu_preview().stretch_stats().unwrap();
     assert!(
         (scaled.max - 1.5 * base.max).abs() < 1e-3,
         "{scaled:?} vs {base:?}"
@@ -976,7 +986,11 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
         .unwrap();
     let proj = Projector::new(h.state().editor.doc().camera, rect);
     let mid = proj.to_screen((lo + hi) * 0.5).expect("on screen");
-    let hit = h.state().view.preview_hit(&h.state().editor, rect, mid);
+    let hit = h
+        .state()
+        .view
+        .cpu_preview()
+        .hit(&h.state().editor, rect, mid);
     assert!(
         hit.is_some_and(|(o, _)| o == id),
         "the figure is under the brush"
@@ -996,7 +1010,7 @@ fn the_stretch_heat_map_follows_the_multiplier_and_painted_overrides() {
     assert!(painted > 0, "the stroke painted overrides");
     assert_eq!(h.state().editor.history().undo_len(), steps + 1, "one step");
     settle_preview(&mut h);
-    let with = h.state().view.stretch_stats().unwrap();
+    let with = h.state().view.cpu_preview().stretch_stats().unwrap();
     // Leaves drawn as leaves show the painted 3.5; LOD may draw some as their parents.
     assert!(
         with.max > 2.1 && with.max <= 3.5 + 0.02,
@@ -1162,7 +1176,8 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
     let (_, shown) = h
         .state()
         .view
-        .cpu_preview_stats()
+        .cpu_preview()
+        .stats()
         .expect("a preview was shown");
     assert_eq!(
         shown, full,
@@ -1179,7 +1194,7 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
     for k in 1..=6 {
         h.hover_at(c + egui::vec2(12.0 * k as f32, 0.0));
         h.step();
-        draft = draft.or(h.state().view.cpu_preview_in_flight());
+        draft = draft.or(h.state().view.cpu_preview().in_flight());
     }
     let draft = draft.expect("orbiting started a preview render");
     assert!(
@@ -1189,7 +1204,7 @@ fn the_cpu_preview_halves_its_resolution_while_orbiting_and_refines_to_full_when
     h.drop_at(c + egui::vec2(72.0, 0.0));
     // Still again: the next renders refine to full resolution.
     settle_preview(&mut h);
-    let (_, shown) = h.state().view.cpu_preview_stats().unwrap();
+    let (_, shown) = h.state().view.cpu_preview().stats().unwrap();
     assert_eq!(shown, full);
 }
 
@@ -1210,7 +1225,8 @@ fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
         let (_, shown) = h
             .state()
             .view
-            .cpu_preview_stats()
+            .cpu_preview()
+            .stats()
             .expect("a preview was shown");
         assert_eq!(shown, full(h), "a still view renders at full resolution");
         h.get_by_role_and_label(Role::SpinButton, "Amplitude")
@@ -1218,7 +1234,12 @@ fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
         let mut started = None;
         for _ in 0..3 {
             h.step();
-            started = started.or(h.state().view.cpu_preview_in_flight().map(|s| (full(h), s)));
+            started = started.or(h
+                .state()
+                .view
+                .cpu_preview()
+                .in_flight()
+                .map(|s| (full(h), s)));
         }
         started.expect("the edit started a preview render")
     };
@@ -1245,7 +1266,7 @@ fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
     let budget = thicket::ui::view::PREVIEW_MOTION_BUDGET_MS;
     h.state_mut().view.motion_budget_ms = Some(budget);
     settle_preview(&mut h);
-    let (ms, [w, hh]) = h.state().view.cpu_preview_stats().unwrap();
+    let (ms, [w, hh]) = h.state().view.cpu_preview().stats().unwrap();
     let (f, drawn) = edit(&mut h, 0.3);
     let full_px = f64::from(f[0]) * f64::from(f[1]);
     let expected = moving_scale(Some((ms, u64::from(w) * u64::from(hh))), full_px, budget);
@@ -1255,7 +1276,7 @@ fn a_krs_edit_previews_at_the_scale_that_fits_the_motion_budget_then_refines() {
     );
     // Still again: full resolution.
     settle_preview(&mut h);
-    assert_eq!(h.state().view.cpu_preview_stats().unwrap().1, full(&h));
+    assert_eq!(h.state().view.cpu_preview().stats().unwrap().1, full(&h));
 }
 
 #[test]
@@ -1274,9 +1295,10 @@ fn a_supersampled_preview_refines_at_one_sample_first_then_at_all_of_them() {
         let (_, size) = h
             .state()
             .view
-            .cpu_preview_stats()
+            .cpu_preview()
+            .stats()
             .expect("a preview was shown");
-        (size, h.state().view.cpu_preview_supersample().unwrap())
+        (size, h.state().view.cpu_preview().supersample().unwrap())
     };
     assert_eq!(
         shown(&h),
@@ -1592,7 +1614,7 @@ fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
     cam.yaw_deg += 2.0;
     h.state_mut().editor.set_camera(cam);
     settle_preview(&mut h);
-    let kept = h.state().view.cpu_preview_shadows().expect("a render");
+    let kept = h.state().view.cpu_preview().shadows().expect("a render");
     assert_eq!((kept.reused, kept.patched), (1, 0), "{kept:?}");
 
     let id = h.state().editor.doc().objects[0].id;
@@ -1617,13 +1639,13 @@ fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
     h.run_steps(1);
     h.state_mut().view.wait_for_cpu_preview();
     h.run_steps(1);
-    let patched = h.state().view.cpu_preview_shadows().expect("a render");
+    let patched = h.state().view.cpu_preview().shadows().expect("a render");
     eprintln!("after a dab: {patched:?} (kept before: {kept:?})");
     assert_eq!((patched.patched, patched.reused), (1, 0), "{patched:?}");
     assert!(patched.texels_patched > 0, "{patched:?}");
     // The full-resolution frame after it uses the patched map as it is.
     settle_preview(&mut h);
-    let refined = h.state().view.cpu_preview_shadows().expect("a render");
+    let refined = h.state().view.cpu_preview().shadows().expect("a render");
     assert_eq!((refined.patched, refined.reused), (0, 1), "{refined:?}");
 
     // A move is no voxel region: the maps are drawn whole.
@@ -1632,7 +1654,7 @@ fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
     h.state_mut().editor.set_transform(id, t).expect("a move");
     h.state_mut().editor.end_interaction();
     settle_preview(&mut h);
-    let moved = h.state().view.cpu_preview_shadows().expect("a render");
+    let moved = h.state().view.cpu_preview().shadows().expect("a render");
     eprintln!("after a move: {moved:?}");
     assert_eq!((moved.patched, moved.reused), (0, 0), "{moved:?}");
 }
@@ -1692,7 +1714,13 @@ fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
             let p = rect.min + egui::vec2(6.0 * i as f32 + 3.0, 6.0 * j as f32 + 3.0);
             let editor = &h.state().editor;
             // The preview draws the figure there.
-            if h.state().view.preview_hit(editor, rect, p).map(|hit| hit.0) != Some(id) {
+            if h.state()
+                .view
+                .cpu_preview()
+                .hit(editor, rect, p)
+                .map(|hit| hit.0)
+                != Some(id)
+            {
                 continue;
             }
             let ndc = glam::Vec2::new(
@@ -1731,7 +1759,8 @@ fn the_brush_adds_where_a_posed_figure_is_drawn_not_at_its_bind_pose() {
     let (_, node) = h
         .state()
         .view
-        .preview_hit(&h.state().editor, rect, p)
+        .cpu_preview()
+        .hit(&h.state().editor, rect, p)
         .expect("the figure is drawn there");
     let drawn = h
         .state()
@@ -1847,7 +1876,8 @@ fn the_performance_overlay_shows_the_cpu_preview_per_stage() {
     let stats = h
         .state()
         .view
-        .cpu_preview_frame_stats()
+        .cpu_preview()
+        .frame_stats()
         .expect("a render's statistics")
         .clone();
     assert!(stats.times.krs_ms > 0.0 && stats.krs.rays > 0, "{stats:?}");

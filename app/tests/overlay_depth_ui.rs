@@ -6,9 +6,9 @@ use egui_kittest::Harness;
 use egui_kittest::wgpu::{WgpuTestRenderer, create_render_state};
 use glam::{Quat, Vec3};
 use thicket::editor::Editor;
+use thicket::preview::viewport::FrameDepth;
 use thicket::ui::EditorApp;
 use thicket::ui::view::{Projector, ViewRenderer, behind_voxels};
-use thicket::viewport::FrameDepth;
 use thicket_core::quality::Quality;
 use thicket_core::render::{Camera, RenderRequest, render_document};
 use thicket_core::scene::{Document, MeshObject, ObjectKind, OrbitCamera, Transform};
@@ -268,10 +268,10 @@ fn the_grid_is_hidden_behind_a_mesh_in_the_cpu_preview() {
 #[test]
 fn the_grid_is_hidden_behind_a_mesh_in_the_gpu_viewport() {
     let render_state = create_render_state(
-        thicket::viewport::wgpu_setup(),
+        thicket::preview::viewport::wgpu_setup(),
         egui_wgpu::RendererOptions::PREDICTABLE,
     );
-    let link = thicket::viewport::install(&render_state);
+    let link = thicket::preview::viewport::install(&render_state);
     let mut app = EditorApp::new(Editor::new(cube_scene(), None));
     app.autosave_secs = 0;
     app.native_dialogs = false;

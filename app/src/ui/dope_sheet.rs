@@ -491,7 +491,7 @@ fn tracks_ui(
             k
         };
         let Some(c) = key_pos(k) else { continue };
-        super::pose::key_diamond(
+        key_diamond(
             &painter,
             c,
             5.0,
@@ -512,4 +512,18 @@ fn tracks_ui(
         [egui::pos2(x, rect.top()), egui::pos2(x, rect.bottom())],
         egui::Stroke::new(1.5, PLAYHEAD_COLOR),
     );
+}
+
+/// A key drawn as a diamond of half-diagonal `r` at `c`.
+pub(super) fn key_diamond(painter: &egui::Painter, c: egui::Pos2, r: f32, fill: egui::Color32) {
+    painter.add(egui::Shape::convex_polygon(
+        vec![
+            c + egui::vec2(0.0, -r),
+            c + egui::vec2(r, 0.0),
+            c + egui::vec2(0.0, r),
+            c + egui::vec2(-r, 0.0),
+        ],
+        fill,
+        egui::Stroke::new(1.0, egui::Color32::BLACK),
+    ));
 }

@@ -23,6 +23,7 @@ mod perf;
 pub mod pose;
 pub mod projector;
 pub mod rig_panel;
+pub mod rig_setup;
 pub mod sculpt;
 mod shortcuts;
 pub mod tradeoff;
@@ -956,13 +957,14 @@ impl EditorApp {
             &self.editor,
             self.view.gpu(),
             self.view
-                .cpu_preview_stats()
+                .cpu_preview()
+                .stats()
                 .filter(|_| self.view.uses_cpu(&self.editor))
                 .map(|(ms, size_px)| perf::CpuPreviewFigures {
                     ms,
                     size_px,
-                    shadows: self.view.cpu_preview_shadows().unwrap_or_default(),
-                    stats: self.view.cpu_preview_frame_stats(),
+                    shadows: self.view.cpu_preview().shadows().unwrap_or_default(),
+                    stats: self.view.cpu_preview().frame_stats(),
                     why: self.view.cpu_reason_text(&self.editor),
                 }),
         );
@@ -1002,8 +1004,8 @@ impl EditorApp {
         }
     }
 
-    /// Connects the GPU viewport (see [`crate::viewport::install`]).
-    pub fn attach_gpu(&mut self, link: crate::viewport::ViewportLink) {
+    /// Connects the GPU viewport (see [`crate::preview::viewport::install`]).
+    pub fn attach_gpu(&mut self, link: crate::preview::viewport::ViewportLink) {
         self.view.attach_gpu(link);
     }
 
@@ -1206,7 +1208,7 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
     let options = eframe::NativeOptions {
         renderer: eframe::Renderer::Wgpu,
         wgpu_options: egui_wgpu::WgpuConfiguration {
-            wgpu_setup: crate::viewport::wgpu_setup(),
+            wgpu_setup: crate::preview::viewport::wgpu_setup(),
             ..Default::default()
         },
         viewport: egui::ViewportBuilder::default()
@@ -1223,7 +1225,7 @@ pub fn run_editor(project: Option<PathBuf>) -> anyhow::Result<()> {
             cc.egui_ctx.set_theme(egui::Theme::Dark);
             let mut app = EditorApp::open_startup(project);
             if let Some(rs) = cc.wgpu_render_state.as_ref() {
-                app.attach_gpu(crate::viewport::install(rs));
+                app.attach_gpu(crate::preview::viewport::install(rs));
             }
             if let Some(storage) = cc.storage
                 && let Some(recent) = eframe::get_value::<Vec<PathBuf>>(storage, RECENT_KEY)

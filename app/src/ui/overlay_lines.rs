@@ -11,7 +11,7 @@ use thicket_core::scene::{Object, ObjectKind, OrbitCamera};
 
 use super::projector::Projector;
 use crate::editor::Editor;
-use crate::frame_depth::FrameDepth;
+use crate::preview::frame_depth::FrameDepth;
 
 /// What decides where overlay lines are hidden: content and animation keys, camera, view
 /// rectangle and the shown frame's [`FrameDepth::serial`].

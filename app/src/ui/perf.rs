@@ -7,7 +7,7 @@ use egui_plot::{Legend, Line, Plot, PlotPoints};
 
 use crate::editor::Editor;
 use crate::files::{human_bytes, object_info, thousands};
-use crate::viewport::ViewportLink;
+use crate::preview::viewport::ViewportLink;
 
 /// Frames kept in the graph.
 const HISTORY: usize = 300;

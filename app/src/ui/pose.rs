@@ -132,7 +132,7 @@ pub struct PoseTool {
     /// scrolled into the list once, and the list is then free to scroll.
     listed: Option<JointRef>,
     /// Rig setup (skeleton authoring, binding, weights, clips): see `ui::rig_panel`.
-    pub rig: super::rig_panel::RigSetup,
+    pub rig: super::rig_setup::RigSetup,
     /// The last binding's summary, shown in the Rig section.
     pub rig_report: Option<String>,
     /// Auto-key: every finished gizmo drag keys the joint at the playhead.
@@ -163,7 +163,7 @@ impl Default for PoseTool {
             drag: None,
             error: None,
             listed: None,
-            rig: super::rig_panel::RigSetup::default(),
+            rig: super::rig_setup::RigSetup::default(),
             rig_report: None,
             auto_key: false,
             dope: super::dope_sheet::DopeSheet::default(),
@@ -1165,20 +1165,6 @@ fn advance_playhead(
     ui.ctx().request_repaint();
 }
 
-/// A key drawn as a diamond of half-diagonal `r` at `c`.
-pub(super) fn key_diamond(painter: &egui::Painter, c: egui::Pos2, r: f32, fill: egui::Color32) {
-    painter.add(egui::Shape::convex_polygon(
-        vec![
-            c + egui::vec2(0.0, -r),
-            c + egui::vec2(r, 0.0),
-            c + egui::vec2(0.0, r),
-            c + egui::vec2(-r, 0.0),
-        ],
-        fill,
-        egui::Stroke::new(1.0, egui::Color32::BLACK),
-    ));
-}
-
 /// The timeline of an unrigged object's keyed transform: play / pause, start, loop, a scrub
 /// slider with the keys as diamonds, and the time. A rigged model's keys follow its clip's
 /// timeline instead.
@@ -1226,7 +1212,7 @@ fn motion_timeline_ui(ui: &mut egui::Ui, editor: &mut Editor, tool: &mut PoseToo
             let inset = rail.height() / 2.5;
             for k in &keys {
                 let x = rail.left() + inset + (k / duration).clamp(0.0, 1.0) * (rail.width() - 2.0 * inset);
-                key_diamond(
+                super::dope_sheet::key_diamond(
                     ui.painter(),
                     egui::pos2(x, rail.center().y),
                     4.5,
@@ -1411,7 +1397,7 @@ fn paint_keys(
     }
     if let Some(j) = selected {
         for t in editor.joint_key_times(id, j) {
-            key_diamond(
+            super::dope_sheet::key_diamond(
                 painter,
                 egui::pos2(x_of(t), y),
                 5.0,

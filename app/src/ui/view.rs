@@ -1,4 +1,4 @@
-//! The central 3D view: the GPU image through [`crate::viewport`], camera navigation (orbit,
+//! The central 3D view: the GPU image through [`crate::preview::viewport`], camera navigation (orbit,
 //! pan, zoom with mouse and trackpad; axis views; frame selection), overlays (ground grid,
 //! world axes, the selected object's outline box, the brush preview, skeletons and the pose
 //! gizmo, KRS mirror planes) and sculpt strokes.
@@ -11,9 +11,7 @@
 //! chooses.
 
 use std::collections::HashMap;
-use std::hash::{Hash, Hasher};
-use std::sync::{Arc, Mutex, mpsc};
-use std::time::{Duration, Instant};
+use std::sync::Arc;
 
 use glam::{Vec2, Vec3};
 use thicket_core::scene::{Document, Object, ObjectKind, OrbitCamera, transform_bounds};
@@ -25,54 +23,12 @@ use super::pose::PoseTool;
 pub use super::projector::{AxisView, Projector};
 use super::sculpt::SculptTool;
 use super::voxel_tools::{ToolKind, paint_volume};
-use crate::editor::{
-    Editor, Redo, RegionChain, Selection, SurfacePick, VoxelPick, VoxelRegion, ray_through,
-};
-use crate::viewport::{FrameDepth, FrameKey, ViewportCallback, ViewportLink, paint_callback};
-
-/// Linear fraction of the view's pixels the CPU preview renders while what it draws keeps
-/// changing (an orbit, a stroke, playback, a KRS parameter dragged: a quarter of the pixels
-/// keeps it interactive on a laptop CPU), unless that would miss the motion budget (see
-/// [`moving_scale`]); once still for [`PREVIEW_STILL`] it refines to the full resolution
-/// setting.
-pub const CPU_PREVIEW_SCALE: f32 = 0.5;
-
-/// The least linear fraction a moving CPU preview frame drops to when half resolution would miss
-/// its budget (a sixteenth of the pixels: a KRS forest still reads as one).
-pub const CPU_PREVIEW_MIN_SCALE: f32 = 0.25;
-
-/// The default time budget of one CPU preview frame while what it draws keeps changing: an edit
-/// shows within it (issue 26: a KRS parameter edit in the next preview frame within 100 ms).
-pub const PREVIEW_MOTION_BUDGET_MS: f64 = 100.0;
-
-/// The linear scale of a CPU preview frame drawn while the view keeps changing: half the view's
-/// resolution, or less when the last frame's time per sample (`last`: its milliseconds and the
-/// samples it drew, pixels times supersampling) says half, at one sample per pixel, would take
-/// longer than `budget_ms` at `full_px` pixels; never under
-/// [`CPU_PREVIEW_MIN_SCALE`]. Time is taken as proportional to pixels (the KRS trace, shading
-/// and splatting of a pixel-size cut all are); the scale is rounded down to sixteenths so that
-/// noise in the measured time does not change the frame size every frame.
-#[must_use]
-pub fn moving_scale(last: Option<(f64, u64)>, full_px: f64, budget_ms: f64) -> f32 {
-    let Some((ms, px)) = last.filter(|&(ms, px)| ms.is_finite() && ms > 0.0 && px > 0) else {
-        return CPU_PREVIEW_SCALE;
-    };
-    if !(full_px.is_finite() && full_px > 0.0) {
-        return CPU_PREVIEW_SCALE;
-    }
-    if !(budget_ms.is_finite() && budget_ms > 0.0) {
-        return CPU_PREVIEW_MIN_SCALE;
-    }
-    let per_px = ms / px as f64;
-    // Scale s draws s² of the pixels: s = √(budget / full-size time).
-    let fit = (budget_ms / (per_px * full_px)).sqrt();
-    let fit = ((fit * 16.0).floor() / 16.0) as f32;
-    fit.clamp(CPU_PREVIEW_MIN_SCALE, CPU_PREVIEW_SCALE)
-}
-
-/// How long what the CPU preview draws must stay the same before it refines to full
-/// resolution.
-pub const PREVIEW_STILL: Duration = Duration::from_millis(150);
+use crate::editor::{Editor, Selection, SurfacePick, VoxelPick, ray_through};
+use crate::preview::cpu::{CpuStatus, SELECTION_COLOR};
+use crate::preview::frame_depth::FrameDepth;
+use crate::preview::viewport::ViewportLink;
+use crate::preview::{CpuPreview, Preview, PreviewSettings, RenderKey, render_key};
+pub use crate::preview::{PREVIEW_MOTION_BUDGET_MS, ShadowWork, moving_scale};
 
 /// Which renderer draws the view.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -88,276 +44,8 @@ pub enum ViewRenderer {
     Cpu,
 }
 
-/// What decides a CPU preview image.
-#[derive(Debug, Clone, PartialEq)]
-struct PreviewKey {
-    content: (u64, u64),
-    animation: u64,
-    camera: OrbitCamera,
-    size_px: [u32; 2],
-    /// Samples per pixel side ([`thicket_core::quality::Quality::supersample`]): the
-    /// document's for a still frame, 1 while the view keeps changing.
-    supersample: u32,
-    holes: bool,
-    stretch: bool,
-}
-
-/// Silhouette counts of the rigged models in the view against their skinned reference
-/// surfaces ([`thicket_core::measure::skin::reference_surface`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
-pub struct HoleCounts {
-    /// Pixels inside the skinned meshes' silhouettes.
-    pub mesh_pixels: u64,
-    /// Mesh pixels no voxel covers.
-    pub holes: u64,
-    /// Voxel pixels outside the meshes.
-    pub bloat: u64,
-}
-
-/// A finished preview frame.
-struct PreviewFrame {
-    image: egui::ColorImage,
-    /// Object label per pixel (1-based document index, 0 for the background).
-    labels: Vec<u32>,
-    /// Node id per pixel (`(level << 32) | index`, see `PixelId::node`).
-    nodes: Vec<u64>,
-    /// NDC depth per pixel, for hiding overlay lines ([`FrameDepth`]).
-    depth: Arc<[f32]>,
-    ms: f64,
-    /// The render's statistics (stage times, nodes per level, KRS rays).
-    stats: thicket_core::render::FrameStats,
-    /// The hole / bloat overlay and its counts, when asked for and a rigged model shows.
-    holes: Option<(egui::ColorImage, HoleCounts)>,
-    /// The stretch heat map and its statistics, when asked for and a rigged model shows.
-    stretch: Option<(egui::ColorImage, StretchStats)>,
-}
-
-/// What a CPU preview render's shadow pass did with the kept maps.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ShadowWork {
-    /// Shadow pass milliseconds.
-    pub ms: f64,
-    /// Maps kept from an earlier render unchanged (only the camera or the render size changed since).
-    pub reused: u32,
-    /// Maps kept and drawn again only where voxel edits changed them.
-    pub patched: u32,
-    /// Texels those patches drew.
-    pub texels_patched: u64,
-}
-
-impl ShadowWork {
-    fn of(stats: &thicket_core::render::FrameStats) -> Self {
-        Self {
-            ms: stats.times.shadow_ms,
-            reused: stats.shadow_maps_reused,
-            patched: stats.shadow_maps_patched,
-            texels_patched: stats.shadow_texels_patched,
-        }
-    }
-}
-
-/// Stretch factors of the rigged-model pixels of the shown CPU preview (the heat map's).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct StretchStats {
-    /// Pixels of rigged models.
-    pub pixels: u64,
-    /// Smallest factor seen.
-    pub min: f32,
-    /// Mean factor over the pixels.
-    pub mean: f32,
-    /// Largest factor seen.
-    pub max: f32,
-}
-
-/// Factor at the blue end of the heat map's scale.
-pub const STRETCH_SCALE_MIN: f32 = 0.5;
-/// Factor at the red end of the heat map's scale.
-pub const STRETCH_SCALE_MAX: f32 = 2.5;
-
-type PreviewResult = Result<PreviewFrame, String>;
-
-/// The CPU preview: one render at a time on a worker thread; the newest key wins.
-#[derive(Default)]
-struct CpuPreview {
-    shown: Option<PreviewKey>,
-    texture: Option<egui::TextureHandle>,
-    job: Option<(PreviewKey, mpsc::Receiver<PreviewResult>)>,
-    /// The document the running job draws.
-    job_doc: Option<Arc<Document>>,
-    ready: Option<(PreviewKey, PreviewResult)>,
-    /// The document the shown image was drawn from: overlays that follow the pose (the
-    /// skeleton) are drawn from it, so they match the image while it lags the playhead.
-    shown_doc: Option<Arc<Document>>,
-    error: Option<String>,
-    last_ms: f64,
-    /// The last render's statistics, for the Performance overlay (its shadow work too).
-    last_stats: Option<thicket_core::render::FrameStats>,
-    renders: u64,
-    /// Object labels of the shown image, row by row.
-    labels: Vec<u32>,
-    /// Node ids of the shown image, row by row.
-    nodes: Vec<u64>,
-    /// The shown image's depth.
-    depth: Option<FrameDepth>,
-    /// The selection outline drawn from `labels`: for which render and label, and whether it
-    /// is drawn (not when it would be clutter, see [`outline_is_clutter`]).
-    outline: Option<((u64, u32), egui::TextureHandle, bool)>,
-    /// The hole / bloat overlay of the shown image and its counts.
-    holes: Option<(egui::TextureHandle, HoleCounts)>,
-    /// The stretch heat map of the shown image and its statistics.
-    stretch: Option<(egui::TextureHandle, StretchStats)>,
-    /// The renderer (its frame buffers) and the shadow maps kept while only the camera moves
-    /// (one render at a time uses them).
-    renderer: Arc<Mutex<PreviewRenderer>>,
-    /// Voxel edits since the last render started, for its shadow maps to redraw only where
-    /// they changed (see [`shadow_change`]).
-    changes: RegionChain,
-}
-
-/// What the CPU preview keeps from one render to the next.
-struct PreviewRenderer {
-    /// Frame buffers, queues and shadow-map targets, reused while the view size holds.
-    renderer: thicket_core::render::Renderer,
-    /// Shadow maps kept while only the camera moves, and patched after voxel edits.
-    shadows: thicket_core::render::ShadowCache,
-}
-
-impl Default for PreviewRenderer {
-    fn default() -> Self {
-        Self {
-            renderer: thicket_core::render::Renderer::default(),
-            // The low-resolution frames of a motion use the full-resolution frames' maps (and
-            // patch them after an edit) instead of drawing coarser ones in turn with them.
-            shadows: thicket_core::render::ShadowCache::new().with_max_finer(
-                thicket_core::render::SHADOW_CACHE_MAX_FINER / CPU_PREVIEW_MIN_SCALE,
-            ),
-        }
-    }
-}
-
-/// Outline colour of the selection.
-const SELECTION_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 170, 60);
-
-/// Hole overlay colours, chosen against the selection outline's orange and against models'
-/// own colours (skin tones, blue textures): magenta where the skinned mesh shows and no voxel
-/// does, yellow where voxels cover more.
-const HOLE_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 0, 255);
-const BLOAT_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 230, 0);
-
-/// An image that is transparent except on the border pixels of the region labelled `label`
-/// (pixels of the region with a 4-neighbour outside it or on the image edge), and how many
-/// border pixels it has.
-fn outline_image(labels: &[u32], size: [usize; 2], label: u32) -> (egui::ColorImage, usize) {
-    let [w, h] = size;
-    let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
-    let mut count = 0;
-    let at = |x: usize, y: usize| labels.get(y * w + x).copied().unwrap_or(0);
-    for y in 0..h {
-        for x in 0..w {
-            if at(x, y) != label {
-                continue;
-            }
-            let edge = x == 0
-                || y == 0
-                || x + 1 == w
-                || y + 1 == h
-                || at(x - 1, y) != label
-                || at(x + 1, y) != label
-                || at(x, y - 1) != label
-                || at(x, y + 1) != label;
-            if edge {
-                image.pixels[y * w + x] = SELECTION_COLOR;
-                count += 1;
-            }
-        }
-    }
-    (image, count)
-}
-
-/// Above this share of the view's pixels, a selection's border is no longer an outline but a
-/// texture over the object (a forest's thousands of trees, grass): the selection box is drawn
-/// instead. One compact model's border is well under 1 % (a 350-px-wide blob in a 700 × 700
-/// view: about 0.3 %).
-const OUTLINE_CLUTTER_SHARE: f64 = 0.02;
-
-/// Whether an outline of `border_px` pixels in an image of `size` would clutter the view.
-fn outline_is_clutter(border_px: usize, size: [usize; 2]) -> bool {
-    border_px as f64 > OUTLINE_CLUTTER_SHARE * (size[0] * size[1]) as f64
-}
-
-/// Pixels of an image size.
-fn pixels(size: [u32; 2]) -> u64 {
-    u64::from(size[0]) * u64::from(size[1])
-}
-
-/// Samples a preview render draws: its pixels times its samples per pixel.
-fn samples_drawn(key: &PreviewKey) -> u64 {
-    pixels(key.size_px) * u64::from(key.supersample).pow(2)
-}
-
 /// Minimum and maximum corners.
 type Aabb = (Vec3, Vec3);
-
-/// What a renderer draws: the document's content key and its animation key.
-type RenderKey = ((u64, u64), u64);
-
-/// What the renderers draw of the editor's document: its content and its playheads (the camera
-/// is not in it: orbiting draws the same document).
-fn render_key(editor: &Editor) -> RenderKey {
-    (editor.content_key(), editor.animation_key())
-}
-
-/// Samples per pixel side the GPU view draws with the document's `supersample` when what it
-/// draws last changed at `moved_at`: one while that is under [`PREVIEW_STILL`] ago (a moving
-/// frame, as the CPU preview's), else the document's.
-fn gpu_view_supersample(moved_at: Option<Instant>, now: Instant, supersample: u32) -> u32 {
-    if moved_at.is_some_and(|t| now.saturating_duration_since(t) < PREVIEW_STILL) {
-        1
-    } else {
-        supersample
-    }
-}
-
-/// The content key the CPU preview gives its shadow cache for a render key.
-fn preview_content_hash(key: RenderKey) -> u64 {
-    let mut h = std::hash::DefaultHasher::new();
-    key.hash(&mut h);
-    h.finish()
-}
-
-/// A voxel region as a change of the preview's content inside a world box: a rigid model's
-/// changed voxels, through its transform (an empty box: nothing drawn changed). `None` when the
-/// model is gone.
-fn shadow_change(
-    doc: &Document,
-    animation: u64,
-    r: &VoxelRegion,
-) -> Option<thicket_core::render::ContentChange> {
-    let (lo, hi) = if r.is_empty() {
-        (Vec3::ONE, Vec3::ZERO)
-    } else {
-        let o = doc.objects.iter().find(|o| o.id == r.object)?;
-        let ObjectKind::Voxels(v) = &o.kind else {
-            return None;
-        };
-        let m = o.transform.matrix() * v.object_from_voxel();
-        let (a, b) = (r.lo.as_vec3(), (r.hi + 1).as_vec3());
-        (0..8).fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), k| {
-            let p = m.transform_point3(Vec3::select(
-                glam::BVec3::new(k & 1 != 0, k & 2 != 0, k & 4 != 0),
-                b,
-                a,
-            ));
-            (lo.min(p), hi.max(p))
-        })
-    };
-    Some(thicket_core::render::ContentChange {
-        from: preview_content_hash((r.from, animation)),
-        to: preview_content_hash((r.to, animation)),
-        lo,
-        hi,
-    })
-}
 
 /// Degrees of orbit per dragged point.
 const ORBIT_DEG_PER_POINT: f32 = 0.4;
@@ -387,21 +75,8 @@ pub struct View {
     /// Show (object, joint)'s weights as a heat map over the CPU preview (the Rig section's
     /// Show weights, and while weights are painted); set every frame.
     pub show_weights: Option<(u64, usize)>,
-    /// The weight heat map of the shown preview: for which render, object and joint.
-    weights: Option<((u64, u64, usize), egui::TextureHandle)>,
-    gpu: Option<ViewportLink>,
-    /// The document as the renderer sees it, for one content and animation key (cloned when
-    /// either changes).
-    snapshot: Option<(RenderKey, Arc<Document>)>,
-    cpu: CpuPreview,
-    /// What the CPU preview last saw drawn (camera, content and animation keys) and when it
-    /// changed (`None`: still, e.g. at start).
-    preview_motion: Option<((OrbitCamera, RenderKey), Instant)>,
-    /// What the GPU view last saw drawn (camera, content and animation keys) and when it
-    /// changed: while that is under [`PREVIEW_STILL`] ago it draws one sample per pixel.
-    gpu_motion: Option<((OrbitCamera, RenderKey), Option<Instant>)>,
-    /// Voxel edits since the GPU may last have uploaded (see [`ViewportCallback::regions`]).
-    regions: RegionChain,
+    /// The image: the GPU view or the CPU preview.
+    preview: Preview,
     /// Object-space bounds by object id, for one content key (bounds visit every voxel).
     bounds_cache: (RenderKey, HashMap<u64, Option<Aabb>>),
     /// The empty cell in front of the voxel face under the pointer (model, voxel
@@ -419,9 +94,6 @@ pub struct View {
     auto_ortho: bool,
     /// The ground grid's, world axes' and volume box's lines split where voxels hide them.
     overlay_depth: OverlayDepth,
-    /// The size in pixels the GPU view last asked for (a depth read back at another size is
-    /// of an older frame: the view was resized).
-    gpu_size_px: [u32; 2],
 }
 
 impl Default for View {
@@ -435,14 +107,8 @@ impl Default for View {
             show_holes: false,
             stretch_painting: false,
             show_weights: None,
-            weights: None,
             show_stretch: false,
-            gpu: None,
-            snapshot: None,
-            cpu: CpuPreview::default(),
-            preview_motion: None,
-            gpu_motion: None,
-            regions: RegionChain::default(),
+            preview: Preview::default(),
             bounds_cache: (((u64::MAX, u64::MAX), u64::MAX), HashMap::new()),
             auto_ortho: false,
             last_rect: egui::Rect::NOTHING,
@@ -450,7 +116,6 @@ impl Default for View {
             last_pixels_per_point: 1.0,
             last_click: None,
             overlay_depth: OverlayDepth::default(),
-            gpu_size_px: [0, 0],
         }
     }
 }
@@ -458,13 +123,37 @@ impl Default for View {
 impl View {
     /// Connects the GPU viewport.
     pub fn attach_gpu(&mut self, link: ViewportLink) {
-        self.gpu = Some(link);
+        self.preview.gpu.attach(link);
     }
 
     /// The GPU viewport's link, when one is attached.
     #[must_use]
     pub fn gpu(&self) -> Option<&ViewportLink> {
-        self.gpu.as_ref()
+        self.preview.gpu.link()
+    }
+
+    /// The CPU preview (its last render's statistics, the shown image's counts).
+    #[must_use]
+    pub fn cpu_preview(&self) -> &CpuPreview {
+        &self.preview.cpu
+    }
+
+    /// Waits for the CPU preview render in flight, if any (tests; the UI polls instead); see
+    /// [`CpuPreview::wait`].
+    pub fn wait_for_cpu_preview(&mut self) {
+        self.preview.cpu.wait();
+    }
+
+    /// The depth of the frame shown (see [`Preview::shown_depth`]).
+    #[must_use]
+    pub fn shown_depth(&self, editor: &Editor, cpu: bool) -> Option<FrameDepth> {
+        self.preview.shown_depth(editor, cpu)
+    }
+
+    /// The document the shown image was drawn from (see [`Preview::shown_pose_document`]).
+    #[must_use]
+    pub fn shown_pose_document(&self, cpu: bool) -> Option<Arc<Document>> {
+        self.preview.shown_pose_document(cpu)
     }
 
     /// Entries for the View menu.
@@ -721,7 +410,7 @@ impl View {
         } else if sculpt.active && !navigating && sculpt.stretch_paint {
             let hit = response
                 .hover_pos()
-                .and_then(|p| self.preview_hit(editor, rect, p));
+                .and_then(|p| self.preview.cpu.hit(editor, rect, p));
             sculpt.handle_stretch(&response, editor, hit);
         } else if sculpt.active && !navigating && !paste_drag {
             sculpt.handle_tools(&response, editor, pointer_ray, hover_pick, &proj);
@@ -751,18 +440,15 @@ impl View {
         painter.rect_filled(rect, 0.0, srgb_color(editor.doc().background));
         let cpu = self.uses_cpu(editor);
         let volume = sculpt.active && sculpt.tool != ToolKind::Brush;
-        let silhouette = if cpu {
-            self.cpu_image(ui, rect, editor)
-        } else {
-            self.gpu_image(ui, rect, editor, self.show_grid || volume);
-            // The preview's shadow maps (up to 64 MiB each at the final preset's 4096²) and
-            // frame buffers are of no use while the GPU draws; a render still running holds
-            // the lock and they go on the next frame.
-            if let Ok(mut kept) = self.cpu.renderer.try_lock() {
-                *kept = PreviewRenderer::default();
-            }
-            false
+        let settings = PreviewSettings {
+            render_scale: self.render_scale,
+            motion_budget_ms: self.motion_budget_ms,
+            holes: self.show_holes,
+            stretch: self.show_stretch,
+            weights: self.show_weights,
+            want_depth: self.show_grid || volume,
         };
+        let silhouette = self.preview.show(ui, rect, editor, cpu, &settings);
 
         let proj = Projector::new(editor.doc().camera, rect);
         let camera = proj.camera;
@@ -774,7 +460,7 @@ impl View {
         let to_screen = |p: Vec3| proj.to_screen(p);
         {
             // The grid, the axes and the volume box go behind what is drawn in front of them.
-            let frame = self.shown_depth(editor, cpu);
+            let frame = self.preview.shown_depth(editor, cpu);
             let depth = std::cell::RefCell::new(std::mem::take(&mut self.overlay_depth));
             let unhidden = |a: Vec3, b: Vec3, stroke: egui::Stroke| {
                 for &(p, q) in depth
@@ -804,7 +490,7 @@ impl View {
         paint_mirrors(&painter, editor, krs, &proj);
         paint_zones(&painter, editor, krs, &proj);
         paint_route(&painter, editor, krs, &proj);
-        let shown = self.shown_pose_document(cpu);
+        let shown = self.preview.shown_pose_document(cpu);
         pose.paint(&painter, editor, shown.as_deref(), &proj);
         if let Some((generation, pick)) = self.last_click
             && generation == editor.generation()
@@ -843,7 +529,7 @@ impl View {
     }
 
     fn cpu_reason(&self, editor: &Editor) -> Option<&'static str> {
-        let Some(gpu) = &self.gpu else {
+        let Some(gpu) = self.preview.gpu.link() else {
             return Some("no GPU renderer in this window");
         };
         match self.renderer {
@@ -868,39 +554,6 @@ impl View {
         }
     }
 
-    /// CPU preview renders finished so far (tests and the perf overlay).
-    #[must_use]
-    pub fn cpu_renders(&self) -> u64 {
-        self.cpu.renders
-    }
-
-    /// The rigged voxel model and the node id the shown CPU preview draws at `pos` (a point in
-    /// `rect`, the view), when the preview shows the current document's objects.
-    #[must_use]
-    pub fn preview_hit(
-        &self,
-        editor: &Editor,
-        rect: egui::Rect,
-        pos: egui::Pos2,
-    ) -> Option<(u64, u64)> {
-        let shown = self.cpu.shown.as_ref()?;
-        // Labels are document indices: only valid while the object list is the same one.
-        if shown.content.0 != editor.content_key().0 || !rect.contains(pos) {
-            return None;
-        }
-        let [w, h] = shown.size_px;
-        let x = (((pos.x - rect.left()) / rect.width()) * w as f32) as usize;
-        let y = (((pos.y - rect.top()) / rect.height()) * h as f32) as usize;
-        let i = y.min(h as usize - 1) * w as usize + x.min(w as usize - 1);
-        let label = *self.cpu.labels.get(i)?;
-        let node = *self.cpu.nodes.get(i)?;
-        let o = editor.doc().objects.get((label as usize).checked_sub(1)?)?;
-        match &o.kind {
-            ObjectKind::Voxels(v) if v.rig.is_some() => Some((o.id, node)),
-            _ => None,
-        }
-    }
-
     /// The stretch brush over the rigged model under the pointer: a circle of the brush's
     /// radius (sized at the node's bind-pose place, which the pose moves but hardly scales),
     /// in the heat map's colour of the factor it paints (grey when erasing).
@@ -913,7 +566,7 @@ impl View {
         pos: egui::Pos2,
         sculpt: &SculptTool,
     ) {
-        let Some((id, node)) = self.preview_hit(editor, rect, pos) else {
+        let Some((id, node)) = self.preview.cpu.hit(editor, rect, pos) else {
             return;
         };
         let (Some(o), Some(c)) = (editor.object(id), editor.node_center(id, node)) else {
@@ -932,7 +585,7 @@ impl View {
         let color = if sculpt.stretch_erase {
             egui::Color32::from_gray(200)
         } else {
-            stretch_color(sculpt.stretch_factor)
+            crate::preview::analysis::stretch_color(sculpt.stretch_factor)
         };
         painter.circle_stroke(
             pos,
@@ -941,421 +594,12 @@ impl View {
         );
     }
 
-    /// Stretch-factor statistics of the shown CPU preview (with [`View::show_stretch`]).
-    #[must_use]
-    pub fn stretch_stats(&self) -> Option<StretchStats> {
-        self.cpu.stretch.as_ref().map(|(_, s)| *s)
-    }
-
-    /// Hole and bloat counts of the shown CPU preview (with [`View::show_holes`]).
-    #[must_use]
-    pub fn hole_counts(&self) -> Option<HoleCounts> {
-        self.cpu.holes.as_ref().map(|(_, c)| *c)
-    }
-
     /// The size in pixels the view renders at (its last rectangle, the display's scale and the
     /// render scale): what the Trade-off sweep measures by default. Not finite before the view
     /// was first drawn.
     #[must_use]
     pub fn render_size_px(&self) -> egui::Vec2 {
         self.last_rect.size() * self.last_pixels_per_point * self.render_scale
-    }
-
-    /// Wall-clock milliseconds of the last CPU preview render, and its size in pixels.
-    #[must_use]
-    pub fn cpu_preview_stats(&self) -> Option<(f64, [u32; 2])> {
-        let size = self.cpu.shown.as_ref()?.size_px;
-        (self.cpu.renders > 0).then_some((self.cpu.last_ms, size))
-    }
-
-    /// Samples per pixel side of the shown CPU preview image (1 while moving, then the
-    /// document's supersampling once refined).
-    #[must_use]
-    pub fn cpu_preview_supersample(&self) -> Option<u32> {
-        self.cpu.shown.as_ref().map(|k| k.supersample)
-    }
-
-    /// The last CPU preview render's statistics: time per stage, nodes per level, KRS rays.
-    #[must_use]
-    pub fn cpu_preview_frame_stats(&self) -> Option<&thicket_core::render::FrameStats> {
-        self.cpu.last_stats.as_ref()
-    }
-
-    /// What the last CPU preview render's shadow pass did with the kept maps.
-    #[must_use]
-    pub fn cpu_preview_shadows(&self) -> Option<ShadowWork> {
-        self.cpu.last_stats.as_ref().map(ShadowWork::of)
-    }
-
-    /// The size of the CPU preview render in flight, if any (tests: low resolution while the
-    /// camera moves).
-    #[must_use]
-    pub fn cpu_preview_in_flight(&self) -> Option<[u32; 2]> {
-        self.cpu.job.as_ref().map(|(k, _)| k.size_px)
-    }
-
-    /// Waits for the CPU preview render in flight, if any (tests; the UI polls instead). Its
-    /// image is shown from the next frame, and the camera counts as still from now on, so the
-    /// next frames refine it to full resolution whatever the test's timing.
-    pub fn wait_for_cpu_preview(&mut self) {
-        self.preview_motion = None;
-        if let Some((key, rx)) = self.cpu.job.take() {
-            let result = rx
-                .recv()
-                .unwrap_or_else(|_| Err("the preview worker stopped".to_owned()));
-            self.cpu.ready = Some((key, result));
-        }
-    }
-
-    fn snapshot(&mut self, editor: &Editor) -> Arc<Document> {
-        let key = render_key(editor);
-        match &self.snapshot {
-            Some((k, doc)) if *k == key => Arc::clone(doc),
-            _ => {
-                // The renderer reads the document after this frame's UI (in `prepare`, or on
-                // the preview's worker): it gets its own copy, made only when the content
-                // changed (a dab, an edit, undo, a new playhead time).
-                let doc = Arc::new(editor.doc().clone());
-                self.snapshot = Some((key, Arc::clone(&doc)));
-                doc
-            }
-        }
-    }
-
-    /// Shows the CPU preview (starting a render when the document, camera or size changed);
-    /// returns whether the selection's outline was drawn from its pixels.
-    fn cpu_image(&mut self, ui: &egui::Ui, rect: egui::Rect, editor: &mut Editor) -> bool {
-        let ppp = ui.ctx().pixels_per_point();
-        // Voxel edits since the last frame, for the shadow maps to patch; one that cannot be
-        // described breaks the chain (the maps are drawn whole).
-        let doc = editor.doc();
-        self.cpu
-            .changes
-            .read(editor.changes(), |c| Redo::for_shadow_maps(doc, c));
-        // Low resolution while what is drawn keeps changing (an orbit, a stroke, playback); the
-        // full resolution setting once it has been still for a moment. A drag that changes
-        // nothing drawn (placing a box, a selection) keeps the full image.
-        let drawn = (editor.doc().camera, render_key(editor));
-        let now = Instant::now();
-        let moved_at =
-            match self.preview_motion {
-                Some((d, t)) if d == drawn => Some(t),
-                Some(_) => Some(now),
-                None if self.cpu.shown.as_ref().is_some_and(|k| {
-                    k.camera != drawn.0 || (k.content, k.animation) != drawn.1
-                }) =>
-                {
-                    Some(now)
-                }
-                None => None,
-            };
-        self.preview_motion = moved_at.map(|t| (drawn, t));
-        let moving = moved_at.is_some_and(|t| now - t < PREVIEW_STILL);
-        if moving {
-            ui.ctx().request_repaint_after(PREVIEW_STILL);
-        }
-        let full = rect.size() * ppp * self.render_scale;
-        let scale = match (moving, self.motion_budget_ms) {
-            (false, _) => 1.0,
-            (true, None) => CPU_PREVIEW_SCALE,
-            (true, Some(budget)) => {
-                // Time per sample of the last frame: a still frame may have drawn several
-                // samples per pixel; a moving one draws one.
-                let last = self
-                    .cpu
-                    .shown
-                    .as_ref()
-                    .filter(|_| self.cpu.renders > 0)
-                    .map(|k| (self.cpu.last_ms, samples_drawn(k)));
-                moving_scale(last, f64::from(full.x) * f64::from(full.y), budget)
-            }
-        };
-        let size = full * scale;
-        let size_px = [
-            (size.x.round() as u32).clamp(1, 4096),
-            (size.y.round() as u32).clamp(1, 4096),
-        ];
-        let mut key = PreviewKey {
-            content: editor.content_key(),
-            animation: editor.animation_key(),
-            camera: editor.doc().camera,
-            size_px,
-            supersample: 1,
-            holes: self.show_holes,
-            stretch: self.show_stretch,
-        };
-        // A still view with supersampling refines in two steps: the full resolution at one
-        // sample per pixel first (quick and sharp), then all the samples (Render → Final draws
-        // 9 per pixel), so the full-size image never waits for them.
-        let samples = thicket_core::render::supersample_factor(
-            size_px[0],
-            size_px[1],
-            editor.doc().quality.supersample,
-        );
-        if !moving
-            && samples > 1
-            && self.cpu.shown.as_ref().is_some_and(|s| {
-                PreviewKey {
-                    supersample: 1,
-                    ..s.clone()
-                } == key
-            })
-        {
-            key.supersample = samples;
-        }
-        if let Some((k, rx)) = &self.cpu.job {
-            match rx.try_recv() {
-                Ok(result) => {
-                    self.cpu.ready = Some((k.clone(), result));
-                    self.cpu.job = None;
-                }
-                Err(mpsc::TryRecvError::Empty) => {
-                    ui.ctx().request_repaint_after(Duration::from_millis(30));
-                }
-                Err(mpsc::TryRecvError::Disconnected) => {
-                    self.cpu.ready = Some((k.clone(), Err("the preview worker stopped".into())));
-                    self.cpu.job = None;
-                }
-            }
-        }
-        if let Some((k, result)) = self.cpu.ready.take() {
-            self.cpu.shown_doc = self.cpu.job_doc.take();
-            match result {
-                Ok(PreviewFrame {
-                    image,
-                    labels,
-                    nodes,
-                    depth,
-                    ms,
-                    stats,
-                    holes,
-                    stretch,
-                }) => {
-                    self.cpu.last_stats = Some(stats);
-                    self.cpu.depth = Some(FrameDepth::new(
-                        k.content,
-                        k.animation,
-                        k.camera,
-                        [image.size[0] as u32, image.size[1] as u32],
-                        depth,
-                    ));
-                    self.cpu.labels = labels;
-                    self.cpu.nodes = nodes;
-                    self.cpu.stretch = stretch.map(|(overlay, stats)| {
-                        let t = ui.ctx().load_texture(
-                            "stretch_overlay",
-                            overlay,
-                            egui::TextureOptions::NEAREST,
-                        );
-                        (t, stats)
-                    });
-                    self.cpu.holes = holes.map(|(overlay, counts)| {
-                        let t = ui.ctx().load_texture(
-                            "hole_overlay",
-                            overlay,
-                            egui::TextureOptions::NEAREST,
-                        );
-                        (t, counts)
-                    });
-                    match &mut self.cpu.texture {
-                        Some(t) => t.set(image, egui::TextureOptions::LINEAR),
-                        None => {
-                            self.cpu.texture = Some(ui.ctx().load_texture(
-                                "cpu_preview",
-                                image,
-                                egui::TextureOptions::LINEAR,
-                            ));
-                        }
-                    }
-                    self.cpu.last_ms = ms;
-                    self.cpu.renders += 1;
-                    self.cpu.error = None;
-                }
-                Err(e) => {
-                    log::warn!("CPU preview: {e}");
-                    self.cpu.depth = None;
-                    self.cpu.error = Some(e);
-                }
-            }
-            self.cpu.shown = Some(k);
-        }
-        // One render at a time; when it lands, the newest key starts the next.
-        if self.cpu.job.is_none() && self.cpu.shown.as_ref() != Some(&key) {
-            let doc = self.snapshot(editor);
-            let job_doc = Arc::clone(&doc);
-            // The snapshot's key: it changes whenever the content or the playhead does.
-            let content_key = preview_content_hash(render_key(editor));
-            let changes: Vec<_> = self
-                .cpu
-                .changes
-                .take()
-                .iter()
-                .map_while(|r| shadow_change(&doc, editor.animation_key(), r))
-                .collect();
-            let kept = Arc::clone(&self.cpu.renderer);
-            let (tx, rx) = mpsc::channel();
-            let request = thicket_core::render::RenderRequest {
-                width: size_px[0],
-                height: size_px[1],
-                camera: Some(key.camera),
-                quality: thicket_core::quality::Quality {
-                    supersample: key.supersample,
-                    ..doc.quality.clone()
-                },
-            };
-            let holes = key.holes;
-            let stretch = key.stretch;
-            std::thread::spawn(move || {
-                let t0 = Instant::now();
-                // A panicked render left nothing half-written that matters: a map is stored
-                // whole or not at all.
-                let mut kept = kept
-                    .lock()
-                    .unwrap_or_else(std::sync::PoisonError::into_inner);
-                let PreviewRenderer { renderer, shadows } = &mut *kept;
-                for c in changes {
-                    shadows.note_change(c);
-                }
-                let result = renderer
-                    .render_document_cached(&doc, &request, shadows, content_key)
-                    .map(|frame| {
-                        let (image, buffers) = (frame.image, frame.buffers);
-                        let stats = frame.stats.clone();
-                        let size = [image.width as usize, image.height as usize];
-                        let color = egui::ColorImage::from_rgba_unmultiplied(size, &image.pixels);
-                        let labels = buffers.ids.iter().map(|id| id.object).collect();
-                        let nodes = buffers.ids.iter().map(|id| id.node).collect();
-                        let depth = buffers.depth.as_slice().into();
-                        let stretch = if stretch {
-                            stretch_overlay(&doc, &request, &buffers.ids, size)
-                        } else {
-                            None
-                        };
-                        let ms = t0.elapsed().as_secs_f64() * 1e3;
-                        PreviewFrame {
-                            image: color,
-                            labels,
-                            nodes,
-                            depth,
-                            ms,
-                            stats,
-                            holes: if holes {
-                                hole_overlay(&doc, &request)
-                            } else {
-                                None
-                            },
-                            stretch,
-                        }
-                    })
-                    .map_err(|e| e.to_string());
-                // The view may be gone (window closed): nothing to hand back then.
-                let _ = tx.send(result);
-            });
-            self.cpu.job = Some((key, rx));
-            self.cpu.job_doc = Some(job_doc);
-            ui.ctx().request_repaint_after(Duration::from_millis(30));
-        }
-        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
-        if let Some(t) = &self.cpu.texture {
-            ui.painter_at(rect)
-                .image(t.id(), rect, uv, egui::Color32::WHITE);
-        }
-        // The outline first: the diagnostic overlays are drawn above it (holes at the
-        // silhouette would otherwise hide under the orange line).
-        let outlined = match self.selection_outline(ui, editor) {
-            Some(t) => {
-                ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
-                true
-            }
-            None => false,
-        };
-        if self.show_holes
-            && let Some((t, _)) = &self.cpu.holes
-        {
-            ui.painter_at(rect)
-                .image(t.id(), rect, uv, egui::Color32::WHITE);
-            hole_legend_ui(ui, rect);
-        }
-        if self.show_stretch
-            && let Some((t, stats)) = &self.cpu.stretch
-        {
-            ui.painter_at(rect)
-                .image(t.id(), rect, uv, egui::Color32::WHITE);
-            stretch_legend_ui(ui, rect, *stats);
-        }
-        if let Some(t) = self.weight_heat_map(ui, editor) {
-            ui.painter_at(rect).image(t, rect, uv, egui::Color32::WHITE);
-        }
-        outlined
-    }
-
-    /// The selected joint's weight heat map over the shown preview, when asked for and the
-    /// preview shows the current document (its labels are document indices).
-    fn weight_heat_map(&mut self, ui: &egui::Ui, editor: &Editor) -> Option<egui::TextureId> {
-        let (id, joint) = self.show_weights?;
-        let shown = self.cpu.shown.as_ref()?;
-        if shown.content != editor.content_key() || self.cpu.error.is_some() {
-            return None;
-        }
-        let key = (self.cpu.renders, id, joint);
-        if self.weights.as_ref().is_none_or(|(k, _)| *k != key) {
-            let size = [shown.size_px[0] as usize, shown.size_px[1] as usize];
-            let image = super::rig_panel::weight_overlay(
-                editor.doc(),
-                &self.cpu.labels,
-                &self.cpu.nodes,
-                size,
-                id,
-                joint,
-            )?;
-            let t = ui
-                .ctx()
-                .load_texture("weight_overlay", image, egui::TextureOptions::NEAREST);
-            self.weights = Some((key, t));
-        }
-        self.weights.as_ref().map(|(_, t)| t.id())
-    }
-
-    /// The selection's outline from the shown preview's object labels, when the preview shows
-    /// the current document (labels are document indices).
-    fn selection_outline(&mut self, ui: &egui::Ui, editor: &Editor) -> Option<egui::TextureId> {
-        let shown = self.cpu.shown.as_ref()?;
-        if shown.content != editor.content_key() || self.cpu.error.is_some() {
-            return None;
-        }
-        let Some(Selection::Object(id)) = editor.selection else {
-            return None;
-        };
-        let label = editor.doc().objects.iter().position(|o| o.id == id)? as u32 + 1;
-        let size = [shown.size_px[0] as usize, shown.size_px[1] as usize];
-        if self.cpu.labels.len() != size[0] * size[1] {
-            return None;
-        }
-        let key = (self.cpu.renders, label);
-        if self.cpu.outline.as_ref().is_none_or(|(k, _, _)| *k != key) {
-            let (image, border_px) = outline_image(&self.cpu.labels, size, label);
-            let shown = !outline_is_clutter(border_px, size);
-            match &mut self.cpu.outline {
-                Some((k, t, s)) => {
-                    t.set(image, egui::TextureOptions::NEAREST);
-                    *k = key;
-                    *s = shown;
-                }
-                None => {
-                    let t = ui.ctx().load_texture(
-                        "selection_outline",
-                        image,
-                        egui::TextureOptions::NEAREST,
-                    );
-                    self.cpu.outline = Some((key, t, shown));
-                }
-            }
-        }
-        self.cpu
-            .outline
-            .as_ref()
-            .filter(|(_, _, shown)| *shown)
-            .map(|(_, t, _)| t.id())
     }
 
     /// Orbit / pan / zoom. Returns whether the pointer is navigating (not sculpting).
@@ -1451,104 +695,6 @@ impl View {
         }
     }
 
-    /// The document the CPU preview's shown image was drawn from: the skeleton overlay is
-    /// drawn posed as it, so bones stay inside the limbs of the image while the preview lags
-    /// playback (or a joint drag, or the object's keyed motion). `None` with the GPU viewport
-    /// (it draws the current document in the same frame) and while the preview shows an
-    /// error; the skeleton then shows the editor's pose.
-    #[must_use]
-    pub fn shown_pose_document(&self, cpu: bool) -> Option<Arc<Document>> {
-        (cpu && self.cpu.error.is_none() && self.cpu.shown.is_some())
-            .then(|| self.cpu.shown_doc.clone())
-            .flatten()
-    }
-
-    /// The depth of the frame shown, when it shows the editor's scene (content and pose):
-    /// the CPU preview's image (drawn from its own camera, which lags an orbit by the time a
-    /// preview render takes, as the image itself does), or the GPU viewport's once read back
-    /// for the current camera and view size. `None` while the frame
-    /// shows an older scene (a stroke in progress); the overlays then test voxels by rays.
-    #[must_use]
-    pub fn shown_depth(&self, editor: &Editor, cpu: bool) -> Option<FrameDepth> {
-        let camera = editor.doc().camera;
-        let frame = if cpu {
-            self.cpu.depth.clone()
-        } else {
-            self.gpu
-                .as_ref()
-                .and_then(|link| link.lock().depth.clone())
-                .filter(|d| d.camera == camera && [d.width, d.height] == self.gpu_size_px)
-        };
-        frame.filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
-    }
-
-    fn gpu_image(
-        &mut self,
-        ui: &egui::Ui,
-        rect: egui::Rect,
-        editor: &mut Editor,
-        want_depth: bool,
-    ) {
-        let Some(link) = self.gpu.clone() else {
-            return;
-        };
-        let key = editor.content_key();
-        // Voxel edits since the last frame extend the chain the renderer may upload from;
-        // anything else breaks it. `prepare` may not run every frame, so the chain is kept
-        // (bounded) until the document changes in another way.
-        let doc = editor.doc();
-        self.regions
-            .read(editor.changes(), |c| Redo::for_upload(doc, c));
-        let regions = self.regions.ending_at(key).to_vec();
-        // Supersampling only once the view is still, as the CPU preview: a moving frame draws
-        // one sample per pixel, and the still frame follows PREVIEW_STILL later.
-        let drawn = (editor.doc().camera, render_key(editor));
-        let now = Instant::now();
-        let moved_at = match self.gpu_motion {
-            Some((d, t)) if d == drawn => t,
-            Some(_) => Some(now),
-            None => None,
-        };
-        self.gpu_motion = Some((drawn, moved_at));
-        let supersample = gpu_view_supersample(moved_at, now, editor.doc().quality.supersample);
-        if supersample != editor.doc().quality.supersample {
-            ui.ctx().request_repaint_after(PREVIEW_STILL);
-        }
-        let doc = self.snapshot(editor);
-        let ppp = ui.ctx().pixels_per_point();
-        let size = rect.size() * ppp * self.render_scale;
-        let size_px = [
-            (size.x.round() as u32).max(1),
-            (size.y.round() as u32).max(1),
-        ];
-        let key = FrameKey {
-            content: key,
-            animation: editor.animation_key(),
-            camera: editor.doc().camera,
-            size_px,
-            supersample,
-        };
-        // The depth is read on the frame after the one that drew it: one more paint when
-        // the view stands still (once per frame key; none when the GPU renderer failed).
-        let waiting = {
-            let status = link.lock();
-            status.error.is_none() && status.depth_read.as_ref() != Some(&key)
-        };
-        if want_depth && waiting {
-            ui.ctx().request_repaint_after(PREVIEW_STILL);
-        }
-        self.gpu_size_px = size_px;
-        ui.painter().add(paint_callback(
-            rect,
-            ViewportCallback {
-                key,
-                doc,
-                regions,
-                want_depth,
-            },
-        ));
-    }
-
     fn outlines(
         &mut self,
         editor: &Editor,
@@ -1603,33 +749,28 @@ impl View {
         let hint = nav_hint(tool, has_rig(editor.doc()));
         let view_name = view_name(&editor.doc().camera);
         if cpu {
-            let (text, color) = match (&self.cpu.error, &self.cpu.shown) {
-                (Some(e), _) => (
+            let (text, color) = match self.preview.cpu.status() {
+                CpuStatus::Error(e) => (
                     format!("CPU preview: {e}\nThe document is still editable and saveable."),
                     ui.visuals().error_fg_color,
                 ),
-                (None, Some(k)) => (
+                CpuStatus::Shown {
+                    size_px,
+                    supersample,
+                    refining,
+                } => (
                     format!(
                         "{view_name}   CPU preview {} x {} px{}{} ({}){}\n{hint}",
-                        k.size_px[0],
-                        k.size_px[1],
-                        if k.supersample > 1 {
-                            format!(", {0}×{0} samples", k.supersample)
+                        size_px[0],
+                        size_px[1],
+                        if supersample > 1 {
+                            format!(", {supersample}×{supersample} samples")
                         } else {
                             String::new()
                         },
-                        if self
-                            .cpu
-                            .job
-                            .as_ref()
-                            .is_some_and(|(j, _)| samples_drawn(j) > samples_drawn(k))
-                        {
-                            ", refining"
-                        } else {
-                            ""
-                        },
+                        if refining { ", refining" } else { "" },
                         self.cpu_reason_text(editor),
-                        match (self.show_holes, self.hole_counts()) {
+                        match (self.show_holes, self.preview.cpu.hole_counts()) {
                             (true, Some(c)) => format!(
                                 "\nHoles {} px ({:.2} % of the mesh), bloat {} px (magenta / yellow)",
                                 c.holes,
@@ -1643,7 +784,7 @@ impl View {
                     ),
                     egui::Color32::from_gray(220),
                 ),
-                (None, None) => (
+                CpuStatus::Rendering => (
                     "Rendering (CPU preview)...".to_owned(),
                     egui::Color32::from_gray(220),
                 ),
@@ -1654,7 +795,7 @@ impl View {
             painter.galley(origin, galley, weak);
             return;
         }
-        let Some(link) = &self.gpu else {
+        let Some(link) = self.preview.gpu.link() else {
             painter.text(
                 origin,
                 egui::Align2::LEFT_TOP,
@@ -1695,108 +836,6 @@ impl View {
         painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(140));
         painter.galley(origin, galley, weak);
     }
-}
-
-/// Renders every visible rigged voxel model alone and its skinned reference surface alone with the
-/// preview's camera and compares the silhouettes (as `thicket skin-report` does): magenta where
-/// the mesh shows and no voxel does (holes), yellow where voxels cover more (bloat). Occluders
-/// are left out on purpose: they would hide holes.
-fn hole_overlay(
-    doc: &Document,
-    req: &thicket_core::render::RenderRequest,
-) -> Option<(egui::ColorImage, HoleCounts)> {
-    use thicket_core::render::{
-        Camera, MeshInstance, RenderScene, VoxelInstance, document_deforms, render_scene,
-    };
-    let (w, h) = (req.width as usize, req.height as usize);
-    let cam = Camera::from_orbit(&req.camera.unwrap_or(doc.camera), req.width, req.height);
-    let quality = thicket_core::quality::Quality {
-        shadows: false,
-        ao_samples: 0,
-        ..req.quality.clone()
-    };
-    let deforms = document_deforms(doc, &quality);
-    let mut mesh_cov = vec![false; w * h];
-    let mut voxel_cov = vec![false; w * h];
-    let mut any = false;
-    for (o, d) in doc.objects.iter().zip(&deforms) {
-        let (ObjectKind::Voxels(v), Some(d)) = (&o.kind, d) else {
-            continue;
-        };
-        let Some(rig) = v.rig.as_ref().filter(|_| o.visible) else {
-            continue;
-        };
-        let Some((reference, _)) = thicket_core::measure::skin::reference_surface(v) else {
-            continue;
-        };
-        let skinning = rig.current_skinning();
-        let mesh = thicket_core::mesh::MeshModel {
-            parts: reference
-                .parts
-                .iter()
-                .map(|p| thicket_core::skin::lbs::skin_mesh(&skinning, p))
-                .collect(),
-            materials: reference.materials.clone(),
-        };
-        let scene = |voxels: Vec<VoxelInstance<'_>>, meshes: Vec<MeshInstance<'_>>| {
-            let s = RenderScene {
-                voxels,
-                meshes,
-                lights: &doc.lights,
-                ambient: doc.ambient,
-                background: doc.background,
-            };
-            render_scene(&s, &cam, &quality)
-                .ok()
-                .map(|(_, fb, _)| fb.coverage())
-        };
-        let mesh_only = scene(
-            Vec::new(),
-            vec![MeshInstance {
-                model: &mesh,
-                world_from_object: o.transform.matrix(),
-                casts_shadows: false,
-                label: 1,
-            }],
-        )?;
-        let voxels_only = scene(
-            vec![VoxelInstance {
-                svo: &v.svo,
-                deform: d.as_ref(),
-                casts_shadows: false,
-                label: 1,
-            }],
-            Vec::new(),
-        )?;
-        for (acc, c) in mesh_cov.iter_mut().zip(mesh_only) {
-            *acc |= c;
-        }
-        for (acc, c) in voxel_cov.iter_mut().zip(voxels_only) {
-            *acc |= c;
-        }
-        any = true;
-    }
-    if !any {
-        return None;
-    }
-    let mut counts = HoleCounts::default();
-    let mut image = egui::ColorImage::filled([w, h], egui::Color32::TRANSPARENT);
-    for (i, (&m, &v)) in mesh_cov.iter().zip(&voxel_cov).enumerate() {
-        counts.mesh_pixels += u64::from(m);
-        if m && !v {
-            counts.holes += 1;
-            image.pixels[i] = HOLE_COLOR;
-        } else if v && !m {
-            counts.bloat += 1;
-            image.pixels[i] = egui::Color32::from_rgba_unmultiplied(
-                BLOAT_COLOR.r(),
-                BLOAT_COLOR.g(),
-                BLOAT_COLOR.b(),
-                170,
-            );
-        }
-    }
-    Some((image, counts))
 }
 
 /// Whether a visible voxel model has a rig (the hole / bloat overlay needs the CPU preview).
@@ -1985,307 +1024,9 @@ fn brush_preview(
     }
 }
 
-/// Heat-map colour of a stretch factor: blue at [`STRETCH_SCALE_MIN`], green at 1, yellow,
-/// red at [`STRETCH_SCALE_MAX`] and above.
-#[must_use]
-pub fn stretch_color(factor: f32) -> egui::Color32 {
-    let stops: [(f32, [u8; 3]); 4] = [
-        (STRETCH_SCALE_MIN, [40, 90, 255]),
-        (1.0, [40, 200, 80]),
-        (1.75, [250, 220, 40]),
-        (STRETCH_SCALE_MAX, [240, 40, 30]),
-    ];
-    let f = if factor.is_finite() {
-        factor
-    } else {
-        STRETCH_SCALE_MAX
-    };
-    let f = f.clamp(STRETCH_SCALE_MIN, STRETCH_SCALE_MAX);
-    let k = stops
-        .windows(2)
-        .position(|w| f <= w[1].0)
-        .unwrap_or(stops.len() - 2);
-    let ((a, ca), (b, cb)) = (stops[k], stops[k + 1]);
-    let t = ((f - a) / (b - a)).clamp(0.0, 1.0);
-    let mix =
-        |i: usize| (f32::from(ca[i]) + t * (f32::from(cb[i]) - f32::from(ca[i]))).round() as u8;
-    egui::Color32::from_rgb(mix(0), mix(1), mix(2))
-}
-
-/// The stretch factor of every node of rigged model `v` that the preview shows, by its pixel
-/// id: the size of the node's splat this frame (strategy, multiplier, overrides) over the size
-/// of the same node placed with no stretch. Both are the renderer's own `NodeDeform`.
-fn node_stretch_factors(
-    o: &thicket_core::scene::Object,
-    v: &thicket_core::scene::VoxelModel,
-    quality: &thicket_core::quality::Quality,
-    wanted: &std::collections::HashSet<u64>,
-) -> HashMap<u64, f32> {
-    use thicket_core::deform::{NodeDeform as _, NodeInfo};
-    use thicket_core::skin::{SkinDeform, StretchStrategy};
-    let mut out = HashMap::new();
-    let Some(rig) = &v.rig else {
-        return out;
-    };
-    let settings = thicket_core::render::effective_stretch(rig, quality);
-    let deform = |s| thicket_core::render::skin_deform(o, v, rig, quality).with_settings(s);
-    let actual = deform(settings);
-    let no_overrides = thicket_core::skin::StretchOverrides::default();
-    let plain = {
-        let mut s = settings;
-        s.strategy = StretchStrategy::Off;
-        s.multiplier = 1.0;
-        // Overrides are part of the stretch: the reference ignores them.
-        SkinDeform::new(
-            o.transform.matrix(),
-            v.object_from_voxel(),
-            &rig.skinning_at(rig.playback.clip, rig.playback.time_secs),
-            s,
-            &no_overrides,
-            rig.tables(&v.svo),
-        )
-    };
-    // Half extent of a splat's world box along its largest axis.
-    let extent = |d: thicket_core::deform::DeformedNode| {
-        let m = d.half_axes_world;
-        let rows = m.x_axis.abs() + m.y_axis.abs() + m.z_axis.abs();
-        rows.max_element()
-    };
-    if v.svo.is_empty() {
-        return out;
-    }
-    let mut stack = vec![v.svo.root()];
-    while let Some(node) = stack.pop() {
-        let id = (u64::from(node.level) << 32) | u64::from(node.index);
-        if wanted.contains(&id) {
-            let info = NodeInfo { svo: &v.svo, node };
-            let base = extent(plain.deform(&info));
-            let f = if base > 0.0 {
-                extent(actual.deform(&info)) / base
-            } else {
-                1.0
-            };
-            out.insert(id, f);
-        }
-        if !v.svo.is_leaf(&node) {
-            stack.extend((0..8).filter_map(|k| v.svo.child(&node, k)));
-        }
-    }
-    out
-}
-
-/// The stretch heat map of a preview frame: each pixel of a visible rigged model coloured by
-/// its node's stretch factor (see [`node_stretch_factors`]); other pixels transparent.
-fn stretch_overlay(
-    doc: &Document,
-    req: &thicket_core::render::RenderRequest,
-    ids: &[thicket_core::render::PixelId],
-    size: [usize; 2],
-) -> Option<(egui::ColorImage, StretchStats)> {
-    let mut wanted: HashMap<u32, std::collections::HashSet<u64>> = HashMap::new();
-    for id in ids {
-        let Some(o) = (id.object as usize)
-            .checked_sub(1)
-            .and_then(|i| doc.objects.get(i))
-        else {
-            continue;
-        };
-        if let ObjectKind::Voxels(v) = &o.kind
-            && v.rig.is_some()
-        {
-            wanted.entry(id.object).or_default().insert(id.node);
-        }
-    }
-    if wanted.is_empty() {
-        return None;
-    }
-    let factors: HashMap<u32, HashMap<u64, f32>> = wanted
-        .iter()
-        .filter_map(|(&label, nodes)| {
-            let o = &doc.objects[label as usize - 1];
-            let ObjectKind::Voxels(v) = &o.kind else {
-                return None;
-            };
-            Some((label, node_stretch_factors(o, v, &req.quality, nodes)))
-        })
-        .collect();
-    let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
-    let mut stats = StretchStats {
-        min: f32::INFINITY,
-        max: f32::NEG_INFINITY,
-        ..StretchStats::default()
-    };
-    let mut sum = 0.0f64;
-    for (px, id) in image.pixels.iter_mut().zip(ids) {
-        let Some(f) = factors.get(&id.object).and_then(|m| m.get(&id.node)) else {
-            continue;
-        };
-        let c = stretch_color(*f);
-        *px = egui::Color32::from_rgba_unmultiplied(c.r(), c.g(), c.b(), 200);
-        stats.pixels += 1;
-        stats.min = stats.min.min(*f);
-        stats.max = stats.max.max(*f);
-        sum += f64::from(*f);
-    }
-    if stats.pixels == 0 {
-        return None;
-    }
-    stats.mean = (sum / stats.pixels as f64) as f32;
-    Some((image, stats))
-}
-
-/// The heat map's colour legend in the view's lower left corner, with the frame's range.
-/// The hole overlay's legend, at the view's bottom right (the stretch legend sits at its
-/// bottom left).
-fn hole_legend_ui(ui: &egui::Ui, rect: egui::Rect) {
-    let painter = ui.painter_at(rect);
-    let font = egui::FontId::proportional(11.0);
-    let rows = [
-        (HOLE_COLOR, "Hole: mesh shows, no voxel"),
-        (BLOAT_COLOR, "Bloat: voxel beyond the mesh"),
-    ];
-    let width = 190.0;
-    let origin = rect.right_bottom() + egui::vec2(-width - 12.0, -52.0);
-    let backdrop = egui::Rect::from_min_size(origin, egui::vec2(width, 42.0));
-    painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(160));
-    for (i, (color, text)) in rows.into_iter().enumerate() {
-        let y = origin.y + 8.0 + 16.0 * i as f32;
-        let swatch =
-            egui::Rect::from_min_size(egui::pos2(origin.x + 8.0, y), egui::vec2(12.0, 12.0));
-        painter.rect_filled(swatch, 2.0, color);
-        painter.text(
-            egui::pos2(swatch.max.x + 6.0, y + 6.0),
-            egui::Align2::LEFT_CENTER,
-            text,
-            font.clone(),
-            egui::Color32::from_gray(220),
-        );
-    }
-}
-
-fn stretch_legend_ui(ui: &egui::Ui, rect: egui::Rect, stats: StretchStats) {
-    let painter = ui.painter_at(rect);
-    let bar = egui::Rect::from_min_size(
-        rect.left_bottom() + egui::vec2(12.0, -58.0),
-        egui::vec2(180.0, 12.0),
-    );
-    let backdrop = egui::Rect::from_min_max(
-        bar.min - egui::vec2(6.0, 22.0),
-        bar.max + egui::vec2(84.0, 26.0),
-    );
-    painter.rect_filled(backdrop, 3.0, egui::Color32::from_black_alpha(160));
-    let steps = 36;
-    for i in 0..steps {
-        let t0 = i as f32 / steps as f32;
-        let t1 = (i + 1) as f32 / steps as f32;
-        let f = STRETCH_SCALE_MIN + (t0 + t1) * 0.5 * (STRETCH_SCALE_MAX - STRETCH_SCALE_MIN);
-        let r = egui::Rect::from_min_max(
-            egui::pos2(bar.min.x + t0 * bar.width(), bar.min.y),
-            egui::pos2(bar.min.x + t1 * bar.width(), bar.max.y),
-        );
-        painter.rect_filled(r, 0.0, stretch_color(f));
-    }
-    let font = egui::FontId::proportional(11.0);
-    let text = egui::Color32::from_gray(220);
-    painter.text(
-        bar.left_top() - egui::vec2(0.0, 4.0),
-        egui::Align2::LEFT_BOTTOM,
-        "Stretch factor",
-        font.clone(),
-        text,
-    );
-    for f in [STRETCH_SCALE_MIN, 1.0, 2.0, STRETCH_SCALE_MAX] {
-        let x = bar.min.x
-            + (f - STRETCH_SCALE_MIN) / (STRETCH_SCALE_MAX - STRETCH_SCALE_MIN) * bar.width();
-        painter.text(
-            egui::pos2(x, bar.max.y + 2.0),
-            egui::Align2::CENTER_TOP,
-            format!("{f:.1}"),
-            font.clone(),
-            text,
-        );
-    }
-    painter.text(
-        egui::pos2(bar.max.x + 18.0, bar.center().y),
-        egui::Align2::LEFT_CENTER,
-        format!(
-            "min {:.2}\nmean {:.2}\nmax {:.2}",
-            stats.min, stats.mean, stats.max
-        ),
-        font,
-        text,
-    );
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn the_gpu_view_draws_one_sample_while_moving_and_the_documents_when_still() {
-        let t0 = Instant::now();
-        let soon = t0 + PREVIEW_STILL / 2;
-        let later = t0 + PREVIEW_STILL;
-        // Never moved (just opened), or still for PREVIEW_STILL: the document's samples.
-        assert_eq!(gpu_view_supersample(None, t0, 3), 3);
-        assert_eq!(gpu_view_supersample(Some(t0), later, 3), 3);
-        // Moved this frame or a moment ago: one sample.
-        assert_eq!(gpu_view_supersample(Some(t0), t0, 3), 1);
-        assert_eq!(gpu_view_supersample(Some(t0), soon, 3), 1);
-        assert_eq!(gpu_view_supersample(Some(t0), soon, 1), 1);
-    }
-
-    #[test]
-    fn a_moving_preview_drops_below_half_only_when_half_would_miss_the_budget() {
-        let full = 600.0 * 708.0;
-        // The tree at 600×708 in a debug build: ~2 µs per pixel, 850 ms whole, 212 ms at half.
-        let slow = Some((850.0, 600 * 708));
-        let s = moving_scale(slow, full, 100.0);
-        assert!((CPU_PREVIEW_MIN_SCALE..0.5).contains(&s), "{s}");
-        // The scale found meets the budget by the same estimate, and a sixteenth more would not.
-        let at = |s: f64| 850.0 * s * s;
-        assert!(
-            at(f64::from(s)) <= 100.0 && at(f64::from(s) + 1.0 / 16.0) > 100.0,
-            "{s}"
-        );
-        // A cheap frame keeps half (not more: the still frame refines anyway).
-        assert_eq!(moving_scale(Some((20.0, 600 * 708)), full, 100.0), 0.5);
-        // Measured on a quarter-size frame, the same per-pixel cost gives the same answer.
-        assert_eq!(
-            moving_scale(Some((850.0 / 16.0, 150 * 177)), full, 100.0),
-            s
-        );
-        // Far over budget: never under the floor.
-        assert_eq!(
-            moving_scale(Some((1e6, 1)), full, 100.0),
-            CPU_PREVIEW_MIN_SCALE
-        );
-    }
-
-    #[test]
-    fn a_moving_preview_without_a_usable_measurement_draws_half() {
-        let full = 640.0 * 480.0;
-        for last in [
-            None,
-            Some((0.0, 1000)),
-            Some((f64::NAN, 1000)),
-            Some((f64::INFINITY, 1000)),
-            Some((-5.0, 1000)),
-            Some((50.0, 0)),
-        ] {
-            assert_eq!(moving_scale(last, full, 100.0), 0.5, "{last:?}");
-        }
-        for full in [0.0, -1.0, f64::NAN] {
-            assert_eq!(moving_scale(Some((50.0, 1000)), full, 100.0), 0.5, "{full}");
-        }
-        // A budget of nothing (or not a number) asks for the least.
-        for budget in [0.0, -1.0, f64::NAN] {
-            assert_eq!(
-                moving_scale(Some((50.0, 1000)), full, budget),
-                CPU_PREVIEW_MIN_SCALE
-            );
-        }
-    }
 
     #[test]
     fn a_segment_reaching_behind_the_eye_keeps_its_part_in_front() {
@@ -2321,30 +1062,6 @@ mod tests {
     }
 
     #[test]
-    fn the_outline_is_the_border_of_the_selected_label_only() {
-        // A 3x3 block of label 2 inside a 5x5 image of label 1 (another object).
-        let mut labels = vec![1u32; 25];
-        for y in 1..4 {
-            for x in 1..4 {
-                labels[y * 5 + x] = 2;
-            }
-        }
-        let (image, border_px) = outline_image(&labels, [5, 5], 2);
-        assert_eq!(border_px, 8);
-        let lit: Vec<(usize, usize)> = (0..25)
-            .filter(|&i| image.pixels[i] == SELECTION_COLOR)
-            .map(|i| (i % 5, i / 5))
-            .collect();
-        assert_eq!(
-            lit.len(),
-            8,
-            "the ring of the block, not its centre: {lit:?}"
-        );
-        assert!(!lit.contains(&(2, 2)));
-        assert!(lit.iter().all(|&(x, y)| labels[y * 5 + x] == 2));
-    }
-
-    #[test]
     fn the_view_corner_names_what_a_drag_does_with_each_tool() {
         use super::{ToolKind, nav_hint};
         let hints: Vec<String> = ToolKind::ALL
@@ -2361,51 +1078,5 @@ mod tests {
         assert!(nav_hint(Some((ToolKind::Brush, true)), true).starts_with("Drag: paint stretch"));
         assert!(nav_hint(None, true).contains("Click a joint dot: pose"));
         assert!(!nav_hint(None, false).contains("joint"));
-    }
-
-    #[test]
-    fn a_forest_of_small_parts_is_boxed_not_outlined() {
-        use super::outline_is_clutter;
-        let size = [200, 200];
-        // One 100 x 100 block: a compact model (396 border pixels, 1 % of the view).
-        let mut one = vec![0u32; 200 * 200];
-        for y in 50..150 {
-            for x in 50..150 {
-                one[y * 200 + x] = 1;
-            }
-        }
-        let (_, border) = outline_image(&one, size, 1);
-        assert_eq!(border, 396);
-        assert!(!outline_is_clutter(border, size));
-        // The same area as 400 separate 5 x 5 "trees" on a 10-px grid: 16 border pixels each.
-        let mut forest = vec![0u32; 200 * 200];
-        for ty in 0..20 {
-            for tx in 0..20 {
-                for y in 0..5 {
-                    for x in 0..5 {
-                        forest[(ty * 10 + y) * 200 + tx * 10 + x] = 1;
-                    }
-                }
-            }
-        }
-        let (_, border) = outline_image(&forest, size, 1);
-        assert_eq!(border, 400 * 16);
-        assert!(outline_is_clutter(border, size));
-    }
-
-    #[test]
-    fn stretch_colours_run_blue_green_red_and_clamp() {
-        use super::{STRETCH_SCALE_MAX, STRETCH_SCALE_MIN, stretch_color};
-        let blue = stretch_color(STRETCH_SCALE_MIN);
-        let green = stretch_color(1.0);
-        let red = stretch_color(STRETCH_SCALE_MAX);
-        assert!(blue.b() > blue.r() && blue.b() > blue.g());
-        assert!(green.g() > green.r() && green.g() > green.b());
-        assert!(red.r() > red.g() && red.r() > red.b());
-        assert_eq!(stretch_color(0.01), blue);
-        assert_eq!(stretch_color(99.0), red);
-        assert_eq!(stretch_color(f32::NAN), red);
-        // Between stops the colour moves monotonically toward the next one.
-        assert!(stretch_color(1.4).r() > green.r());
     }
 }

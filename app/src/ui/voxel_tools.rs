@@ -47,7 +47,7 @@ pub enum ToolKind {
 
 impl ToolKind {
     /// Every tool with its tool-bar label and tooltip (its key is in the binding table,
-    /// [`super::keys::BINDINGS`]).
+    /// `keys::BINDINGS`, which refers to these tools).
     pub const ALL: [(ToolKind, &'static str, &'static str); 7] = [
         (
             ToolKind::Brush,

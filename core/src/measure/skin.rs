@@ -495,6 +495,149 @@ fn max_scale(m: Mat4) -> f32 {
         .max(m.z_axis.truncate().length())
 }
 
+/// The silhouettes of the visible rigged voxel models of `doc` seen by `cam`, per pixel: where
+/// their reference meshes, skinned with the current pose, cover (first) and where their voxels
+/// drawn under `quality` cover (second), without shadows or ambient occlusion (coverage does
+/// not depend on them). [`Silhouette::from_coverage`] counts them. `None` when no visible rigged
+/// model has a reference mesh, or a render fails.
+#[must_use]
+pub fn posed_silhouettes(
+    doc: &Document,
+    cam: &Camera,
+    quality: &Quality,
+) -> Option<(Vec<bool>, Vec<bool>)> {
+    let quality = Quality {
+        shadows: false,
+        ao_samples: 0,
+        ..quality.clone()
+    };
+    let deforms = crate::render::document_deforms(doc, &quality);
+    let pixels = cam.width as usize * cam.height as usize;
+    let mut mesh_cov = vec![false; pixels];
+    let mut voxel_cov = vec![false; pixels];
+    let mut any = false;
+    for (o, d) in doc.objects.iter().zip(&deforms) {
+        let (ObjectKind::Voxels(v), Some(d)) = (&o.kind, d) else {
+            continue;
+        };
+        let Some(rig) = v.rig.as_ref().filter(|_| o.visible) else {
+            continue;
+        };
+        let Some((reference, _)) = reference_surface(v) else {
+            continue;
+        };
+        let skinning = rig.current_skinning();
+        let mesh = MeshModel {
+            parts: reference
+                .parts
+                .iter()
+                .map(|p| skin_mesh(&skinning, p))
+                .collect(),
+            materials: reference.materials.clone(),
+        };
+        let scene = |voxels: Vec<VoxelInstance<'_>>, meshes: Vec<MeshInstance<'_>>| {
+            let s = RenderScene {
+                voxels,
+                meshes,
+                lights: &doc.lights,
+                ambient: doc.ambient,
+                background: doc.background,
+            };
+            render_scene(&s, cam, &quality)
+                .ok()
+                .map(|(_, fb, _)| fb.coverage())
+        };
+        let mesh_only = scene(
+            Vec::new(),
+            vec![MeshInstance {
+                model: &mesh,
+                world_from_object: o.transform.matrix(),
+                casts_shadows: false,
+                label: 1,
+            }],
+        )?;
+        let voxels_only = scene(
+            vec![VoxelInstance {
+                svo: &v.svo,
+                deform: d.as_ref(),
+                casts_shadows: false,
+                label: 1,
+            }],
+            Vec::new(),
+        )?;
+        for (acc, c) in mesh_cov.iter_mut().zip(mesh_only) {
+            *acc |= c;
+        }
+        for (acc, c) in voxel_cov.iter_mut().zip(voxels_only) {
+            *acc |= c;
+        }
+        any = true;
+    }
+    any.then_some((mesh_cov, voxel_cov))
+}
+
+/// The stretch factor of every node of rigged model `v` (in object `o`) whose pixel id is in
+/// `wanted` (the nodes a frame shows): the size of the node's splat this frame (strategy, multiplier, overrides) over the size
+/// of the same node placed with no stretch. Both are the renderer's own `NodeDeform`.
+pub fn node_stretch_factors(
+    o: &crate::scene::Object,
+    v: &crate::scene::VoxelModel,
+    quality: &crate::quality::Quality,
+    wanted: &std::collections::HashSet<u64>,
+) -> std::collections::HashMap<u64, f32> {
+    use crate::deform::{NodeDeform as _, NodeInfo};
+    use crate::skin::{SkinDeform, StretchStrategy};
+    let mut out = std::collections::HashMap::new();
+    let Some(rig) = &v.rig else {
+        return out;
+    };
+    let settings = crate::render::effective_stretch(rig, quality);
+    let deform = |s| crate::render::skin_deform(o, v, rig, quality).with_settings(s);
+    let actual = deform(settings);
+    let no_overrides = crate::skin::StretchOverrides::default();
+    let plain = {
+        let mut s = settings;
+        s.strategy = StretchStrategy::Off;
+        s.multiplier = 1.0;
+        // Overrides are part of the stretch: the reference ignores them.
+        SkinDeform::new(
+            o.transform.matrix(),
+            v.object_from_voxel(),
+            &rig.skinning_at(rig.playback.clip, rig.playback.time_secs),
+            s,
+            &no_overrides,
+            rig.tables(&v.svo),
+        )
+    };
+    // Half extent of a splat's world box along its largest axis.
+    let extent = |d: crate::deform::DeformedNode| {
+        let m = d.half_axes_world;
+        let rows = m.x_axis.abs() + m.y_axis.abs() + m.z_axis.abs();
+        rows.max_element()
+    };
+    if v.svo.is_empty() {
+        return out;
+    }
+    let mut stack = vec![v.svo.root()];
+    while let Some(node) = stack.pop() {
+        let id = (u64::from(node.level) << 32) | u64::from(node.index);
+        if wanted.contains(&id) {
+            let info = NodeInfo { svo: &v.svo, node };
+            let base = extent(plain.deform(&info));
+            let f = if base > 0.0 {
+                extent(actual.deform(&info)) / base
+            } else {
+                1.0
+            };
+            out.insert(id, f);
+        }
+        if !v.svo.is_leaf(&node) {
+            stack.extend((0..8).filter_map(|k| v.svo.child(&node, k)));
+        }
+    }
+    out
+}
+
 /// Measures the first visible skinned voxel model of `doc` that has a reference mesh: for each
 /// of `views` orthographic views around it, at the rest pose and at every sampled frame, the
 /// reference mesh skinned with the frame's pose against the voxels drawn with each strategy,

@@ -20,7 +20,7 @@ use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::editor::VoxelRegion;
 
-pub use crate::frame_depth::FrameDepth;
+pub use crate::preview::frame_depth::FrameDepth;
 
 use crate::gpu::context::{install_error_handlers, wanted_features, wanted_limits};
 use crate::gpu::{
