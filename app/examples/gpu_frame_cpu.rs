@@ -45,7 +45,13 @@ fn main() -> anyhow::Result<()> {
         let doc = thicket::files::load_document(&path)?;
         let mut r = Renderer::new(&ctx.device, &ctx.queue)?;
         let target = RenderTarget::new(&ctx.device, w, h)?;
-        r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)?;
+        r.render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )?;
         r.set_async_readback(true);
         let mut times = Vec::with_capacity(frames);
         for i in 0..frames {
@@ -54,7 +60,13 @@ fn main() -> anyhow::Result<()> {
                 ..doc.camera
             };
             let t0 = Instant::now();
-            r.render_uploaded(&ctx.device, &ctx.queue, &doc, &cam, &q, &target)?;
+            r.render_uploaded(
+                &ctx.device,
+                &ctx.queue,
+                &doc,
+                &target.view(&cam, &q),
+                &target,
+            )?;
             times.push(t0.elapsed().as_secs_f64() * 1e3);
             ctx.device
                 .poll(wgpu::PollType::wait_indefinitely())

@@ -12,7 +12,7 @@ use std::time::Instant;
 
 use serde::Serialize;
 use thicket_core::quality::Quality;
-use thicket_core::render::{RenderRequest, Renderer as CpuRenderer, ShadowCache};
+use thicket_core::render::{Renderer as CpuRenderer, ShadowCache, View};
 use thicket_core::scene::{Document, OrbitCamera};
 
 use crate::gpu::splat_bw::SplatBandwidth;
@@ -145,7 +145,7 @@ fn summarise(times_ms: &mut [f64]) -> (f64, f64, f64) {
 /// # Errors
 /// When the document cannot be rendered.
 pub fn bench_cpu(setup: &BenchSetup<'_>) -> anyhow::Result<BenchReport> {
-    let req = |i: u32| RenderRequest {
+    let req = |i: u32| View {
         width: setup.width,
         height: setup.height,
         camera: Some(setup.camera_at(i)),
@@ -306,14 +306,20 @@ pub fn bench_gpu(
     let mut r = Renderer::new(&ctx.device, &ctx.queue)?;
     r.set_force_two_pass(force_two_pass);
     let target = RenderTarget::new(&ctx.device, width, height)?;
-    r.render(&ctx.device, &ctx.queue, doc, &camera, quality, &target)?;
+    let view = |camera: OrbitCamera| View {
+        width,
+        height,
+        camera: Some(camera),
+        quality: quality.clone(),
+    };
+    r.render(&ctx.device, &ctx.queue, doc, &view(camera), &target)?;
     let mut times = Vec::with_capacity(frames as usize);
     let mut pass: Vec<(String, f64)> = Vec::new();
     let mut last = None;
     for i in 1..=frames.max(1) {
         let cam = setup.camera_at(i);
         let t0 = Instant::now();
-        let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &cam, quality, &target)?;
+        let stats = r.render_uploaded(&ctx.device, &ctx.queue, doc, &view(cam), &target)?;
         times.push(t0.elapsed().as_secs_f64() * 1e3);
         for (name, ms) in &stats.pass_ms {
             match pass.iter_mut().find(|(n, _)| n == name) {

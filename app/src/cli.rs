@@ -1148,7 +1148,7 @@ fn check_render_budget(
     quality: &thicket_core::quality::Quality,
     limit: Option<u64>,
 ) -> anyhow::Result<()> {
-    let request = thicket_core::render::RenderRequest {
+    let request = thicket_core::render::View {
         width,
         height,
         camera: Some(camera),
@@ -1655,12 +1655,18 @@ fn render_one(
     output: &std::path::Path,
 ) -> anyhow::Result<()> {
     use std::borrow::Cow;
-    use thicket_core::render::{RenderRequest, RgbaImage};
+    use thicket_core::render::{RgbaImage, View};
+    // One view for either renderer.
+    let view = View {
+        width,
+        height,
+        camera: Some(camera),
+        quality: quality.clone(),
+    };
     let (image, stats_json) = match backend {
         RenderBackend::Gpu(ctx) => {
-            let (pixels, stats) =
-                crate::gpu::render_with_context(ctx, doc, &camera, width, height, quality)
-                    .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
+            let (pixels, stats) = crate::gpu::render_with_context(ctx, doc, &view)
+                .with_context(|| format!("{}: rendering on the GPU", args.project.display()))?;
             let json = serde_json::json!({
                 "device": ctx.describe(),
                 "atomic_path": format!("{:?}", stats.atomic_path),
@@ -1691,12 +1697,7 @@ fn render_one(
             )
         }
         RenderBackend::Cpu(renderer) => {
-            let request = RenderRequest {
-                width,
-                height,
-                camera: Some(camera),
-                quality: quality.clone(),
-            };
+            let request = view;
             let frame = renderer
                 .render_document(doc, &request)
                 .with_context(|| format!("{}: rendering", args.project.display()))?;

@@ -13,7 +13,7 @@ use plotters::prelude::*;
 use thicket_core::measure::{SweepPoint, SweepReport, SweepSettings, reference_quality, sweep};
 use thicket_core::quality::QualityPreset;
 use thicket_core::render::{
-    Camera, FrameBuffers, FrameStats, PixelId, RenderError, RenderRequest, RgbaImage,
+    Camera, FrameBuffers, FrameStats, PixelId, RenderError, RgbaImage, View,
 };
 use thicket_core::scene::Document;
 
@@ -413,13 +413,19 @@ pub fn gpu_sweep(
         shadow_lights,
         |q| {
             if *q == reference {
-                let mut req = RenderRequest::new(width, height);
+                let mut req = View::new(width, height);
                 req.quality = q.clone();
                 cpu.render_document(doc, &req)?;
                 return Ok(cpu.take_frame());
             }
+            let view = View {
+                width,
+                height,
+                camera: None,
+                quality: q.clone(),
+            };
             let stats = renderer
-                .render(&ctx.device, &ctx.queue, doc, &doc.camera, q, &target)
+                .render(&ctx.device, &ctx.queue, doc, &view, &target)
                 .map_err(backend)?;
             let pixels = read_rgba8(&ctx.device, &ctx.queue, &target).map_err(backend)?;
             let g = renderer

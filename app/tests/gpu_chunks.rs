@@ -6,7 +6,7 @@
 
 use glam::{UVec3, Vec3};
 use thicket::gpu::{GpuContext, GpuError, Renderer, voxel_pool_bytes};
-use thicket_core::render::{RenderRequest, render_document, scenes};
+use thicket_core::render::{View, render_document, scenes};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::{Svo, Voxel};
 
@@ -98,7 +98,7 @@ fn pools_split_across_bindings_draw_as_one_binding_does() {
     let normal = context();
     let low = low_limit_context(limit);
     let q = doc.quality.clone();
-    let req = RenderRequest {
+    let req = View {
         width: SIZE.0,
         height: SIZE.1,
         camera: Some(doc.camera),
@@ -207,8 +207,7 @@ fn assert_uploaded_frame_is(
             &ctx.device,
             &ctx.queue,
             doc,
-            &doc.camera,
-            &doc.quality,
+            &target.view(&doc.camera, &doc.quality),
             &target,
         )
         .expect("frame");

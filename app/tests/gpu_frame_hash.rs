@@ -53,9 +53,9 @@ fn hashes(doc: &Document, size: (u32, u32), two_pass: bool) -> [u64; 2] {
     let mut out = [0; 2];
     for (i, cam) in [doc.camera, moved(&doc.camera)].iter().enumerate() {
         if i == 0 {
-            r.render(&ctx.device, &ctx.queue, doc, cam, &q, &target)
+            r.render(&ctx.device, &ctx.queue, doc, &target.view(cam, &q), &target)
         } else {
-            r.render_uploaded(&ctx.device, &ctx.queue, doc, cam, &q, &target)
+            r.render_uploaded(&ctx.device, &ctx.queue, doc, &target.view(cam, &q), &target)
         }
         .expect("GPU frame");
         let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");

@@ -22,13 +22,13 @@ fn creations(doc: &Document, two_pass: bool, yaw_deg: f32) -> (u64, u64, u64) {
         ..doc.camera
     };
     let (dev, queue) = (&ctx.device, &ctx.queue);
-    r.render(dev, queue, doc, &doc.camera, &q, &small)
+    r.render(dev, queue, doc, &small.view(&doc.camera, &q), &small)
         .expect("first frame");
     let first = r.resource_creations();
-    r.render_uploaded(dev, queue, doc, &turned, &q, &small)
+    r.render_uploaded(dev, queue, doc, &small.view(&turned, &q), &small)
         .expect("turned frame");
     let turned_frame = r.resource_creations() - first;
-    r.render_uploaded(dev, queue, doc, &turned, &q, &large)
+    r.render_uploaded(dev, queue, doc, &large.view(&turned, &q), &large)
         .expect("larger frame");
     let larger = r.resource_creations() - first - turned_frame;
     assert!(ctx.errors.take().is_none(), "uncaptured GPU error");

@@ -12,7 +12,7 @@ use thicket_core::krs::{
 };
 use thicket_core::measure::image::Parity;
 use thicket_core::quality::Quality;
-use thicket_core::render::{RenderRequest, render_document, scenes};
+use thicket_core::render::{View, render_document, scenes};
 use thicket_core::scene::{Document, Light, ObjectKind};
 
 mod common;
@@ -28,7 +28,7 @@ fn compare(
 ) -> (Parity, GpuFrameStats, Renderer) {
     let quality = doc.quality.clone();
     let cam = doc.camera;
-    let req = RenderRequest {
+    let req = View {
         width: size.0,
         height: size.1,
         camera: Some(cam),
@@ -121,7 +121,7 @@ fn ambient_occlusion_on_krs_matches_the_cpu_reference() {
         let cpu = |ao: u32| {
             let mut q = doc.quality.clone();
             q.ao_samples = ao;
-            let req = thicket_core::render::RenderRequest {
+            let req = thicket_core::render::View {
                 width: 96,
                 height: 96,
                 camera: None,

@@ -10,7 +10,7 @@ use glam::{Quat, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
 use thicket_core::measure::image::{Parity, Tolerance};
 use thicket_core::quality::Quality;
-use thicket_core::render::{RenderRequest, RgbaImage, render_document, scenes};
+use thicket_core::render::{RgbaImage, View, render_document, scenes};
 use thicket_core::scene::{Document, Light, ObjectKind};
 use thicket_core::skin::StretchStrategy;
 
@@ -34,7 +34,7 @@ fn compare(
     two_pass: bool,
 ) -> Comparison {
     let cam = doc.camera;
-    let req = RenderRequest {
+    let req = View {
         width: size.0,
         height: size.1,
         camera: Some(cam),
@@ -200,8 +200,14 @@ fn ambient_occlusion_darkens_on_the_gpu_as_on_the_cpu() {
     let gpu_image = |q: &Quality| {
         let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
         let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
-        r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, q, &target)
-            .expect("GPU frame");
+        r.render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, q),
+            &target,
+        )
+        .expect("GPU frame");
         read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback")
     };
     let with = Quality {
@@ -297,7 +303,7 @@ fn the_second_light_shadows_through_its_own_map() {
     );
     let q = on.quality.clone();
     let cpu = |doc: &Document| {
-        let req = RenderRequest {
+        let req = View {
             width: size.0,
             height: size.1,
             camera: Some(doc.camera),
@@ -533,7 +539,13 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
     let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let first = r
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("first frame");
     assert!(first.upload.full && first.upload.skin_data);
     let joints = rig_mut(&mut doc).skeleton.joints.len() as u64;
@@ -541,7 +553,13 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
     assert_eq!(first.upload.joint_bytes, joints * 64);
     rig_mut(&mut doc).playback.time_secs = 0.7;
     let moved = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("moved frame");
     assert!(
         !moved.upload.full && !moved.upload.skin_data,
@@ -553,18 +571,36 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
     assert_eq!(moved.upload.writes, 1);
     let incremental = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     let same = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("same frame");
     assert_eq!(same.upload.bytes, 0, "{:?}", same.upload);
     let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     fresh
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("full frame");
     let full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     let first_image = {
         let d0 = cesiumman_at(0.0);
         fresh
-            .render(&ctx.device, &ctx.queue, &d0, &d0.camera, &q, &target)
+            .render(
+                &ctx.device,
+                &ctx.queue,
+                &d0,
+                &target.view(&d0.camera, &q),
+                &target,
+            )
             .expect("t = 0 frame");
         read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback")
     };
@@ -588,7 +624,13 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
     // and the frame still equals a fresh full upload.
     rig_mut(&mut doc).stretch.strategy = StretchStrategy::Thesis;
     let switched = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("switched frame");
     assert!(
         switched.upload.skin_data && !switched.upload.full,
@@ -607,7 +649,13 @@ fn a_new_clip_time_uploads_only_the_joint_matrices() {
     );
     let thesis = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     fresh
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("full frame");
     let thesis_full = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     assert_eq!(differing(&thesis, &thesis_full), 0);
@@ -624,8 +672,14 @@ fn sculpting_a_rigged_model_rebuilds_its_skin_data_and_matches_a_full_upload() {
     let q = doc.quality.clone();
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
-    r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
-        .expect("first frame");
+    r.render(
+        &ctx.device,
+        &ctx.queue,
+        &doc,
+        &target.view(&doc.camera, &q),
+        &target,
+    )
+    .expect("first frame");
     let before = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     let (id, svo) = doc
         .objects
@@ -649,7 +703,13 @@ fn sculpting_a_rigged_model_rebuilds_its_skin_data_and_matches_a_full_upload() {
         .expect("region upload");
     assert!(!up.full, "{up:?}");
     let s = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("edited frame");
     assert!(s.upload.skin_data && !s.upload.full, "{:?}", s.upload);
     let full = assert_same_as_full_upload(&ctx, &doc, &q, &target);

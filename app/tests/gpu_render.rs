@@ -112,7 +112,13 @@ fn render(
     r.set_force_two_pass(force_two_pass);
     let target = RenderTarget::new(&ctx.device, size, size).expect("target");
     let stats = r
-        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            doc,
+            &target.view(&doc.camera, quality),
+            &target,
+        )
         .expect("frame renders");
     let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
     let gbuffer = r.read_gbuffer(&ctx.device, &ctx.queue).expect("gbuffer");
@@ -409,15 +415,33 @@ fn incremental_upload_equals_a_full_upload() {
     let target = RenderTarget::new(&ctx.device, size, size).expect("target");
     let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     let first = r
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("frame");
     assert!(first.upload.full);
     let full_bytes = first.upload.bytes;
     let image = |r: &mut Renderer, incremental: bool, doc: &Document| {
         let stats = if incremental {
-            r.render_uploaded(&ctx.device, &ctx.queue, doc, &doc.camera, &q, &target)
+            r.render_uploaded(
+                &ctx.device,
+                &ctx.queue,
+                doc,
+                &target.view(&doc.camera, &q),
+                &target,
+            )
         } else {
-            r.render(&ctx.device, &ctx.queue, doc, &doc.camera, &q, &target)
+            r.render(
+                &ctx.device,
+                &ctx.queue,
+                doc,
+                &target.view(&doc.camera, &q),
+                &target,
+            )
         }
         .expect("frame");
         let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
@@ -522,7 +546,13 @@ fn counters_arrive_asynchronously_and_match_a_waiting_frame() {
     let target = RenderTarget::new(&ctx.device, 64, 64).expect("target");
     let mut waiting = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     let expect = waiting
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("frame");
     assert_eq!(expect.counters_frame, Some(expect.frame));
 
@@ -531,7 +561,13 @@ fn counters_arrive_asynchronously_and_match_a_waiting_frame() {
     let mut last_frame = 0;
     for _ in 0..3 {
         let s = r
-            .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+            .render_uploaded(
+                &ctx.device,
+                &ctx.queue,
+                &doc,
+                &target.view(&doc.camera, &q),
+                &target,
+            )
             .expect("frame");
         // Counters, when present, come from this or an earlier frame, never a later one.
         assert!(s.counters_frame.is_none_or(|f| f <= s.frame), "{s:?}");
@@ -698,7 +734,13 @@ fn bad_inputs_are_errors_not_panics() {
         ..Quality::default()
     };
     assert!(matches!(
-        r.render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target),
+        r.render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target
+        ),
         Err(GpuError::InvalidQuality(_))
     ));
     let mut cam = doc.camera;
@@ -708,8 +750,7 @@ fn bad_inputs_are_errors_not_panics() {
             &ctx.device,
             &ctx.queue,
             &doc,
-            &cam,
-            &Quality::default(),
+            &target.view(&cam, &Quality::default()),
             &target
         ),
         Err(GpuError::InvalidDocument(_))
@@ -721,8 +762,7 @@ fn bad_inputs_are_errors_not_panics() {
             &ctx.device,
             &ctx.queue,
             &empty,
-            &empty.camera,
-            &Quality::default(),
+            &target.view(&empty.camera, &Quality::default()),
             &target,
         )
         .expect("empty frame");
@@ -736,10 +776,46 @@ fn bad_inputs_are_errors_not_panics() {
 fn render_document_to_image_works_headless() {
     let doc = sphere_doc(6);
     let (img, stats) =
-        thicket::gpu::render_document_to_image(&doc, 64, 48, &Quality::default()).expect("frame");
+        thicket::gpu::render_document_to_image(&doc, &thicket_core::render::View::new(64, 48))
+            .expect("frame");
     assert_eq!(img.len(), 64 * 48 * 4);
     assert!(stats.splats > 0);
     assert!(stats.total_ms > 0.0);
+}
+
+/// Both renderers take a document and a view: the GPU draws the view's camera (or the
+/// document's) and refuses a target of another size than the view's.
+#[test]
+fn the_gpu_renders_a_view_of_its_targets_size() {
+    let ctx = context();
+    let doc = sphere_doc(6);
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let target = RenderTarget::new(&ctx.device, 64, 48).expect("target");
+    let wrong = thicket_core::render::View::new(48, 64);
+    let err = r
+        .render(&ctx.device, &ctx.queue, &doc, &wrong, &target)
+        .expect_err("a view of another size");
+    assert_eq!(
+        err.to_string(),
+        "the view is 48×64 pixels but its target 64×48"
+    );
+    // No camera: the document's, the same image as naming it.
+    let own = thicket_core::render::View::new(64, 48);
+    r.render(&ctx.device, &ctx.queue, &doc, &own, &target)
+        .expect("frame");
+    let a = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    r.render(
+        &ctx.device,
+        &ctx.queue,
+        &doc,
+        &target.view(&doc.camera, &own.quality),
+        &target,
+    )
+    .expect("frame");
+    let b = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    assert_eq!(a, b);
+    assert!(a.chunks(4).any(|p| p != &a[..4]), "the sphere is drawn");
+    assert!(ctx.errors.take().is_none());
 }
 
 /// `thicket bench`'s splat-bandwidth measurement on this adapter: it runs, gives positive
@@ -818,8 +894,7 @@ fn splat_bandwidth_is_measured_with_the_frames_byte_count() {
             &ctx.device,
             &ctx.queue,
             &doc,
-            &doc.camera,
-            &quality,
+            &target.view(&doc.camera, &quality),
             &target,
         )
         .expect("frame");

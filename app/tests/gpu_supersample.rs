@@ -7,7 +7,7 @@
 
 use thicket::gpu::{GpuContext, Renderer};
 use thicket_core::quality::{Quality, QualityPreset};
-use thicket_core::render::{RenderRequest, render_document};
+use thicket_core::render::{View, render_document};
 use thicket_core::scene::{Document, ObjectKind};
 
 mod common;
@@ -31,7 +31,7 @@ fn final_preset_matches(ctx: &GpuContext, name: &str, doc: &Document, size: (u32
         supersample: 1,
         ..fin.clone()
     };
-    let req = RenderRequest {
+    let req = View {
         width: size.0,
         height: size.1,
         camera: Some(doc.camera),

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use glam::{Quat, Vec2, Vec3, Vec4};
 use thicket::gpu::{GBuffer, GpuContext, RenderTarget, Renderer};
 use thicket_core::mesh::{Material, MeshModel, Texture, TriangleMesh};
-use thicket_core::render::{FrameBuffers, RenderRequest, render_document};
+use thicket_core::render::{FrameBuffers, View, render_document};
 use thicket_core::scene::{Document, Light, MeshObject, ObjectKind};
 
 mod common;
@@ -63,7 +63,7 @@ fn untextured(doc: &Document) -> Document {
 }
 
 fn cpu_frame(doc: &Document, size: (u32, u32)) -> (thicket_core::render::RgbaImage, FrameBuffers) {
-    let req = RenderRequest {
+    let req = View {
         width: size.0,
         height: size.1,
         camera: Some(doc.camera),
@@ -332,7 +332,13 @@ fn moving_a_textured_mesh_uploads_only_its_triangles() {
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let q = doc.quality.clone();
     let first = r
-        .render(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("first frame");
     assert!(first.upload.full);
     let tris: u64 = meshes_mut(&mut doc)
@@ -341,7 +347,13 @@ fn moving_a_textured_mesh_uploads_only_its_triangles() {
     doc.objects[0].transform.translation.y = 0.2;
     doc.objects[0].transform.rotation = Quat::from_rotation_z(0.1);
     let moved = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("moved frame");
     assert!(!moved.upload.full, "{:?}", moved.upload);
     assert_eq!(moved.upload.writes, 1, "{:?}", moved.upload);
@@ -357,7 +369,13 @@ fn moving_a_textured_mesh_uploads_only_its_triangles() {
         m.materials[0].base_color_texture = Some(texture(6, 5, 11));
     }
     let retextured = r
-        .render_uploaded(&ctx.device, &ctx.queue, &doc, &doc.camera, &q, &target)
+        .render_uploaded(
+            &ctx.device,
+            &ctx.queue,
+            &doc,
+            &target.view(&doc.camera, &q),
+            &target,
+        )
         .expect("retextured frame");
     assert!(retextured.upload.full, "{:?}", retextured.upload);
     assert!(ctx.errors.take().is_none(), "uncaptured GPU error");

@@ -10,7 +10,7 @@ use thicket::preview::viewport::FrameDepth;
 use thicket::ui::EditorApp;
 use thicket::ui::view::{Projector, ViewRenderer, behind_voxels};
 use thicket_core::quality::Quality;
-use thicket_core::render::{Camera, RenderRequest, render_document};
+use thicket_core::render::{Camera, View, render_document};
 use thicket_core::scene::{Document, MeshObject, ObjectKind, OrbitCamera, Transform};
 
 /// A 2 m wide, 2.5 m tall box mesh standing on the ground at the origin (the world axes, 2 m
@@ -50,7 +50,7 @@ fn cube_scene() -> Document {
 
 /// The CPU renderer's depth of `doc` at `w`×`h`, as the preview hands it to the view.
 fn frame_depth(doc: &Document, [w, h]: [u32; 2]) -> FrameDepth {
-    let request = RenderRequest {
+    let request = View {
         width: w,
         height: h,
         camera: Some(doc.camera),

@@ -21,7 +21,7 @@ use thicket_core::krs::{
     TraceSettings, presets, tile_cone, tile_start_distance, trace,
 };
 use thicket_core::quality::Quality;
-use thicket_core::render::{RenderRequest, render_document};
+use thicket_core::render::{View, render_document};
 use thicket_core::scene::{Document, ObjectKind, OrbitCamera};
 
 fn unit(rng: &mut Pcg32) -> Vec3 {
@@ -423,14 +423,14 @@ fn frames_800(c: &mut Criterion) {
     group.throughput(Throughput::Elements(800 * 800));
     for (name, doc) in [("tree", &tree), ("forest", &forest)] {
         for tiles in [false, true] {
-            let req = RenderRequest {
+            let req = View {
                 quality: Quality {
                     shadows: false,
                     ao_samples: 0,
                     krs_tile_acceleration: tiles,
                     ..Quality::default()
                 },
-                ..RenderRequest::new(800, 800)
+                ..View::new(800, 800)
             };
             if let Ok((_, fb, st)) = pool.install(|| render_document(doc, &req)) {
                 eprintln!(
@@ -476,7 +476,7 @@ fn rocks_800(c: &mut Criterion) {
             far: 100.0,
             ..OrbitCamera::default()
         };
-        let req = RenderRequest::new(800, 800);
+        let req = View::new(800, 800);
         if let Ok((_, _, st)) = render_document(&doc, &req) {
             eprintln!(
                 "{name} rock 800x800: {} rays, {} hits, {:.2} steps per ray, {} exhausted, {:.2} shadow steps per shadow ray, KRS pass {:.0} ms",
@@ -554,7 +554,7 @@ fn forest_regrow(c: &mut Criterion) {
             black_box(doc.forests.len())
         });
     });
-    let req = RenderRequest::new(294, 354);
+    let req = View::new(294, 354);
     group.bench_function("regrow_and_preview_294x354", |b| {
         let mut doc = base.clone();
         b.iter(|| {
@@ -565,9 +565,9 @@ fn forest_regrow(c: &mut Criterion) {
     // The quarter-size frame a moving preview drops to, without shadows.
     let mut quality = base.quality.clone();
     quality.shadows = false;
-    let quarter = RenderRequest {
+    let quarter = View {
         quality,
-        ..RenderRequest::new(147, 177)
+        ..View::new(147, 177)
     };
     group.bench_function("regrow_and_preview_147x177_unshadowed", |b| {
         let mut doc = base.clone();

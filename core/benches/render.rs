@@ -9,9 +9,7 @@ use std::hint::black_box;
 use criterion::{Criterion, criterion_group, criterion_main};
 use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
-use thicket_core::render::{
-    RenderRequest, Renderer, ShadowCache, render_document, render_document_cached,
-};
+use thicket_core::render::{Renderer, ShadowCache, View, render_document, render_document_cached};
 use thicket_core::scene::{Document, OrbitCamera};
 
 /// A sphere shell of world radius 1 whose voxel radius is `fraction` of half the octree.
@@ -22,8 +20,8 @@ fn sphere_doc(depth: u8, fraction: f32) -> Document {
     doc
 }
 
-fn request(distance: f32, quality: Quality) -> RenderRequest {
-    RenderRequest {
+fn request(distance: f32, quality: Quality) -> View {
+    View {
         width: 800,
         height: 800,
         camera: Some(OrbitCamera {
@@ -34,7 +32,7 @@ fn request(distance: f32, quality: Quality) -> RenderRequest {
     }
 }
 
-fn report(name: &str, doc: &Document, req: &RenderRequest) {
+fn report(name: &str, doc: &Document, req: &View) {
     if let Ok((_, fb, st)) = render_document(doc, req) {
         let leaves = doc
             .objects
@@ -109,7 +107,7 @@ fn benches(c: &mut Criterion) {
     // Orbiting as the editor's CPU preview does: the camera turns 2° a frame around the model,
     // without and with a shadow cache (its maps serve while only the camera moves).
     for (name, q) in [("balanced", &shaded), ("draft", &draft_preset)] {
-        let orbit = |yaw: f32| RenderRequest {
+        let orbit = |yaw: f32| View {
             camera: Some(OrbitCamera {
                 distance: near,
                 yaw_deg: yaw,
@@ -186,7 +184,7 @@ fn benches(c: &mut Criterion) {
         };
         for (view, cam) in [("close_up", close), ("project_view", house.camera)] {
             for (name, q) in [("cubes", Quality::default()), ("rectangles", rects.clone())] {
-                let req = RenderRequest {
+                let req = View {
                     width: 800,
                     height: 600,
                     camera: Some(cam),
@@ -216,7 +214,7 @@ fn benches(c: &mut Criterion) {
         // by one `Renderer` reused frame after frame.
         let mut g = c.benchmark_group("reuse");
         g.sample_size(10);
-        let house_req = RenderRequest {
+        let house_req = View {
             width: 800,
             height: 800,
             camera: Some(house.camera),
@@ -248,7 +246,7 @@ fn benches(c: &mut Criterion) {
             ("view_605x725", [605, 725]),
             ("window_1280x800", [1280, 800]),
         ] {
-            let req = RenderRequest {
+            let req = View {
                 width,
                 height,
                 camera: Some(house.camera),

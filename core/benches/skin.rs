@@ -160,7 +160,7 @@ fn bench_stretch(c: &mut Criterion) {
 /// transform) against skinned mid-stride with each strategy, same model and view: the paper's
 /// claim is that skinning is nearly free because node positions are computed anyway.
 fn bench_frames(c: &mut Criterion) {
-    use thicket_core::render::{RenderRequest, render_document};
+    use thicket_core::render::{View, render_document};
     use thicket_core::scene::{Document, ObjectKind};
     use thicket_core::voxelize::{Resolution, VoxelizeSettings};
     let import = import_skinned(CESIUM_MAN).expect("CesiumMan imports");
@@ -184,7 +184,7 @@ fn bench_frames(c: &mut Criterion) {
     }
     // The static model shows the bind pose; orient it as the skinned one (the rig's Z-up root).
     rigid.objects[0].transform.rotation = glam::Quat::from_mat4(&import.world_from_skinned_node);
-    let mut req = RenderRequest::new(800, 800);
+    let mut req = View::new(800, 800);
     req.quality.shadows = false;
     let mut g = c.benchmark_group("frame_cesium_man_800");
     g.sample_size(10);

@@ -6,7 +6,7 @@
 //! `cargo run --release -p thicket-core --example cube_profile -- [close|project]
 //! [cubes|rectangles]`
 
-use thicket_core::render::{RenderRequest, render_document};
+use thicket_core::render::{View, render_document};
 
 use thicket_core::quality::Quality;
 
@@ -46,7 +46,7 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let req = RenderRequest {
+    let req = View {
         width: 800,
         height: 600,
         camera: Some(camera),

@@ -15,8 +15,8 @@
 use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::render::scenes::{sphere_shell, voxel_object};
 use thicket_core::render::{
-    FrameBuffers, FrameStats, RenderError, RenderRequest, Renderer, RgbaImage, ShadowCache,
-    render_document, render_document_cached,
+    FrameBuffers, FrameStats, RenderError, Renderer, RgbaImage, ShadowCache, View, render_document,
+    render_document_cached,
 };
 use thicket_core::scene::{Document, OrbitCamera};
 
@@ -59,7 +59,7 @@ fn main() {
             std::process::exit(2);
         }
     };
-    let mut req = RenderRequest {
+    let mut req = View {
         width: 800,
         height: 800,
         camera: Some(OrbitCamera {
@@ -114,7 +114,7 @@ fn main() {
 /// (its frame borrowed) or the free functions.
 fn draw<'a>(
     doc: &Document,
-    req: &RenderRequest,
+    req: &View,
     key: Option<u64>,
     cache: &mut ShadowCache,
     renderer: Option<&'a mut Renderer>,

@@ -13,7 +13,7 @@ use thicket_core::enhance::{
 use thicket_core::krs::{
     Kernel, KrsObject, KrsScene, MirrorPlane, SphereKernel, TraceHit, TraceSettings, trace,
 };
-use thicket_core::render::{RenderRequest, render_document, scenes};
+use thicket_core::render::{View, render_document, scenes};
 use thicket_core::scene::{Document, ObjectKind, OrbitCamera, VoxelModel};
 use thicket_core::skin::{Joint, Pose, Skeleton, Transform, lbs};
 use thicket_core::svo::{MAX_DEPTH, Svo, Voxel};
@@ -99,7 +99,7 @@ fn depth_21_model_renders_without_nan() {
     );
     let (lo, hi) = doc.bounds().unwrap();
     doc.camera.frame(lo, hi);
-    let (img, fb, stats) = render_document(&doc, &RenderRequest::new(64, 64)).unwrap();
+    let (img, fb, stats) = render_document(&doc, &View::new(64, 64)).unwrap();
     assert!(all_finite(&fb.depth) && fb.depth.iter().all(|d| (0.0..=1.0).contains(d)));
     assert!(fb.normal.iter().all(|n| n.is_finite()));
     assert_eq!(img.pixels.len(), 64 * 64 * 4);
@@ -124,9 +124,9 @@ fn camera_a_million_units_away() {
         far: 4e6,
         ..doc.camera
     };
-    let req = RenderRequest {
+    let req = View {
         camera: Some(camera),
-        ..RenderRequest::new(64, 64)
+        ..View::new(64, 64)
     };
     let (img, fb, stats) = render_document(&doc, &req).unwrap();
     assert!(all_finite(&fb.depth) && fb.normal.iter().all(|n| n.is_finite()));
@@ -140,9 +140,9 @@ fn camera_a_million_units_away() {
     };
     let (_, fb, stats) = render_document(
         &doc,
-        &RenderRequest {
+        &View {
             camera: Some(zoom),
-            ..RenderRequest::new(64, 64)
+            ..View::new(64, 64)
         },
     )
     .unwrap();
@@ -168,9 +168,9 @@ fn camera_a_ten_thousandth_from_the_surface() {
         far: 10.0,
         ..view
     };
-    let req = RenderRequest {
+    let req = View {
         camera: Some(camera),
-        ..RenderRequest::new(48, 48)
+        ..View::new(48, 48)
     };
     let (img, fb, stats) = render_document(&doc, &req).unwrap();
     assert!(all_finite(&fb.depth) && fb.depth.iter().all(|d| (0.0..=1.0).contains(d)));
@@ -515,12 +515,12 @@ fn enhancement_factor_64() {
 #[test]
 fn one_by_one_image() {
     let doc = scenes::mixed_document(5).unwrap();
-    let (img, fb, _) = render_document(&doc, &RenderRequest::new(1, 1)).unwrap();
+    let (img, fb, _) = render_document(&doc, &View::new(1, 1)).unwrap();
     assert_eq!((img.width, img.height, img.pixels.len()), (1, 1, 4));
     assert!(all_finite(&fb.depth) && (0.0..=1.0).contains(&fb.depth[0]));
     // The centre of the framed scene is the object.
     assert_ne!(fb.ids[0].object, 0);
-    assert!(render_document(&doc, &RenderRequest::new(0, 1)).is_err());
+    assert!(render_document(&doc, &View::new(0, 1)).is_err());
 }
 
 /// Peak resident memory of this process in bytes (Linux), for the memory limit below.
@@ -541,7 +541,7 @@ fn image_8192_by_8192_of_a_tiny_scene() {
     let doc = scenes::sphere_document(4, 0.4).unwrap();
     let (w, h) = (8192u32, 8192u32);
     let pixels = u64::from(w) * u64::from(h);
-    let (img, fb, stats) = render_document(&doc, &RenderRequest::new(w, h)).unwrap();
+    let (img, fb, stats) = render_document(&doc, &View::new(w, h)).unwrap();
     assert_eq!(img.pixels.len() as u64, pixels * 4);
     // Retained buffers within the stated bytes per pixel.
     let retained = (img.pixels.capacity()

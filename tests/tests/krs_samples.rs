@@ -7,7 +7,7 @@
 use thicket_core::io::project;
 use thicket_core::krs::{Kernel, KrsObject, KrsScene, TextureMode};
 use thicket_core::measure::image::{Tolerance, assert_images_match};
-use thicket_core::render::{RenderRequest, RgbaImage, render_document};
+use thicket_core::render::{RgbaImage, View, render_document};
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_tests::samples::SAMPLES;
 
@@ -35,9 +35,9 @@ fn render_sample(name: &str) -> (RgbaImage, u128, usize) {
     quality.shadow_map_size = 512;
     let (img, fb, stats) = render_document(
         &doc,
-        &RenderRequest {
+        &View {
             quality,
-            ..RenderRequest::new(SIZE, SIZE)
+            ..View::new(SIZE, SIZE)
         },
     )
     .unwrap_or_else(|e| panic!("{name}: {e}"));
@@ -288,9 +288,9 @@ fn repetition_of(doc: &Document) -> thicket_core::krs::repetition::Repetition {
     quality.shadow_map_size = 512;
     let (img, _, _) = render_document(
         doc,
-        &RenderRequest {
+        &View {
             quality,
-            ..RenderRequest::new(128, 128)
+            ..View::new(128, 128)
         },
     )
     .expect("frame");

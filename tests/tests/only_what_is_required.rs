@@ -5,7 +5,7 @@
 
 use glam::{UVec3, Vec3};
 use thicket_core::io::gltf_mesh::import_gltf;
-use thicket_core::render::{RenderRequest, render_document, scenes};
+use thicket_core::render::{View, render_document, scenes};
 use thicket_core::svo::{Svo, Voxel};
 use thicket_core::voxelize::{Mode, Resolution, VoxelizeSettings, voxelize};
 
@@ -83,7 +83,7 @@ fn render_work_follows_the_pixels_not_the_resolution() {
     // splitting at a pixel, so the nodes visited grow far less than the model (x4 and x16).
     let visited = |d: u8| {
         let doc = scenes::sphere_document(d, 0.4).unwrap();
-        let (_, _, stats) = render_document(&doc, &RenderRequest::new(64, 64)).unwrap();
+        let (_, _, stats) = render_document(&doc, &View::new(64, 64)).unwrap();
         stats.nodes_visited()
     };
     let (a, b, c) = (visited(7), visited(8), visited(9));

@@ -5,15 +5,15 @@
 
 use thicket_core::io::project;
 use thicket_core::measure::image::{Tolerance, assert_images_match};
-use thicket_core::render::{RenderRequest, render_document};
+use thicket_core::render::{View, render_document};
 use thicket_tests::samples::SAMPLES;
 
 fn render_sample(name: &str) {
     let root = thicket_tests::repo_root();
     let doc = project::load(&root.join("projects").join(format!("{name}.thicket.json")))
         .unwrap_or_else(|e| panic!("{e}"));
-    let (img, fb, stats) = render_document(&doc, &RenderRequest::new(256, 256))
-        .unwrap_or_else(|e| panic!("{name}: {e}"));
+    let (img, fb, stats) =
+        render_document(&doc, &View::new(256, 256)).unwrap_or_else(|e| panic!("{name}: {e}"));
     // Not a blank frame: a good part of the image shows the scene (mixed covers about 17 %).
     assert!(
         fb.covered_pixels() > 256 * 256 / 10,

@@ -38,7 +38,7 @@ fn house_has_the_exact_voxel_count() {
 fn terrain_sample_renders_as_its_golden_image() {
     use thicket_core::measure::image::{Tolerance, assert_images_match};
     use thicket_core::quality::Quality;
-    use thicket_core::render::{RenderRequest, render_document};
+    use thicket_core::render::{View, render_document};
 
     let path = thicket_tests::repo_root().join("projects/terrain.thicket.json");
     let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -52,7 +52,7 @@ fn terrain_sample_renders_as_its_golden_image() {
             .visible,
         "the coarse source is hidden"
     );
-    let request = RenderRequest {
+    let request = View {
         width: 200,
         height: 200,
         camera: None,
@@ -81,7 +81,7 @@ fn terrain_sample_renders_as_its_golden_image() {
 fn cesium_man_sample_walks_and_matches_its_golden_mid_stride() {
     use thicket_core::measure::image::{Tolerance, assert_images_match};
     use thicket_core::quality::Quality;
-    use thicket_core::render::{RenderRequest, render_document};
+    use thicket_core::render::{View, render_document};
     use thicket_core::scene::ObjectKind;
     let path = thicket_tests::repo_root().join("projects/cesiumman.thicket.json");
     let doc = project::load(&path).unwrap_or_else(|e| panic!("{e}"));
@@ -92,12 +92,12 @@ fn cesium_man_sample_walks_and_matches_its_golden_mid_stride() {
     assert_eq!(rig.skeleton.len(), 19);
     assert_eq!(rig.clips.len(), 1);
     assert!(rig.reference_mesh.is_some());
-    let req = RenderRequest {
+    let req = View {
         quality: Quality {
             shadow_map_size: 512,
             ..Quality::default()
         },
-        ..RenderRequest::new(160, 160)
+        ..View::new(160, 160)
     };
     let (img, fb, _) = render_document(&doc, &req).unwrap();
     assert!(fb.covered_pixels() > 1500, "{}", fb.covered_pixels());

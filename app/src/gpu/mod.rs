@@ -26,8 +26,9 @@ pub use context::{Capabilities, ErrorSlot, GpuContext};
 pub use renderer::{GBuffer, RenderTarget, Renderer, read_rgba8};
 pub use scene::{UploadStats, voxel_pool_bytes};
 
-use thicket_core::quality::{Quality, QualityError};
-use thicket_core::scene::{Document, OrbitCamera, SceneError};
+use thicket_core::quality::QualityError;
+use thicket_core::render::View;
+use thicket_core::scene::{Document, SceneError};
 
 /// Why the GPU could not render.
 #[derive(Debug, Clone, PartialEq)]
@@ -80,6 +81,13 @@ pub enum GpuError {
     InvalidDocument(SceneError),
     /// A quality knob is out of range.
     InvalidQuality(QualityError),
+    /// The view's size is not the target's.
+    ViewSize {
+        /// The view's size.
+        view: [u32; 2],
+        /// The target's size.
+        target: [u32; 2],
+    },
 }
 
 // Written out because the app crate does not depend on `thiserror`.
@@ -117,6 +125,11 @@ impl std::fmt::Display for GpuError {
             ),
             Self::InvalidDocument(e) => write!(f, "cannot render the document: {e}"),
             Self::InvalidQuality(e) => write!(f, "cannot render with these quality settings: {e}"),
+            Self::ViewSize { view, target } => write!(
+                f,
+                "the view is {}×{} pixels but its target {}×{}",
+                view[0], view[1], target[0], target[1]
+            ),
         }
     }
 }
@@ -218,12 +231,10 @@ impl GpuFrameStats {
 /// [`GpuError`] when there is no adapter, the document or quality is invalid, or the GPU fails.
 pub fn render_document_to_image(
     doc: &Document,
-    width: u32,
-    height: u32,
-    quality: &Quality,
+    view: &View,
 ) -> Result<(Vec<u8>, GpuFrameStats), GpuError> {
     let ctx = GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)?;
-    render_with_context(&ctx, doc, &doc.camera, width, height, quality)
+    render_with_context(&ctx, doc, view)
 }
 
 /// Renders a document with an existing context (tests and benches reuse one device).
@@ -233,14 +244,11 @@ pub fn render_document_to_image(
 pub fn render_with_context(
     ctx: &GpuContext,
     doc: &Document,
-    camera: &OrbitCamera,
-    width: u32,
-    height: u32,
-    quality: &Quality,
+    view: &View,
 ) -> Result<(Vec<u8>, GpuFrameStats), GpuError> {
     let mut renderer = Renderer::new(&ctx.device, &ctx.queue)?;
-    let target = RenderTarget::new(&ctx.device, width, height)?;
-    let stats = renderer.render(&ctx.device, &ctx.queue, doc, camera, quality, &target)?;
+    let target = RenderTarget::new(&ctx.device, view.width, view.height)?;
+    let stats = renderer.render(&ctx.device, &ctx.queue, doc, view, &target)?;
     let image = read_rgba8(&ctx.device, &ctx.queue, &target)?;
     if let Some(e) = ctx.errors.take() {
         return Err(e);

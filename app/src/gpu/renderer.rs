@@ -6,6 +6,7 @@ use std::time::Instant;
 
 use glam::{UVec3, Vec3};
 use thicket_core::quality::Quality;
+use thicket_core::render::View;
 use thicket_core::scene::{Document, OrbitCamera};
 
 use super::context::Capabilities;
@@ -40,6 +41,17 @@ pub struct RenderTarget {
 }
 
 impl RenderTarget {
+    /// A view of this target's size through `camera` with `quality`.
+    #[must_use]
+    pub fn view(&self, camera: &OrbitCamera, quality: &Quality) -> View {
+        View {
+            width: self.width,
+            height: self.height,
+            camera: Some(*camera),
+            quality: quality.clone(),
+        }
+    }
+
     /// A target of `width × height` pixels.
     ///
     /// # Errors
@@ -318,7 +330,8 @@ impl Renderer {
         self.created.load(Ordering::Relaxed)
     }
 
-    /// Renders `doc` from `camera` into `target`. Uploads the whole scene first (any change to
+    /// Renders `doc` as `view` sees it (its camera, or the document's; its quality) into
+    /// `target`, which must be the view's size. Uploads the whole scene first (any change to
     /// the document shows); an editor that knows what changed uploads with
     /// [`Renderer::update_voxel_region`] and draws with [`Renderer::render_uploaded`].
     ///
@@ -326,25 +339,21 @@ impl Renderer {
     /// them), unless [`Renderer::set_async_readback`] is on.
     ///
     /// # Errors
-    /// [`GpuError`] for an invalid document, camera or quality, scene data over the device's
-    /// binding limit, or a validation / out-of-memory error raised while encoding the frame.
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the frame's inputs: device, queue, scene, view, knobs, target"
-    )]
+    /// [`GpuError`] for an invalid document, camera or quality, a target of another size than
+    /// the view's, scene data over the device's binding limit, or a validation / out-of-memory error raised while encoding the frame.
     pub fn render(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         doc: &Document,
-        camera: &OrbitCamera,
-        quality: &Quality,
+        view: &View,
         target: &RenderTarget,
     ) -> Result<GpuFrameStats, GpuError> {
+        let camera = view_camera(doc, view, target)?;
         let inputs = FrameInputs {
             doc,
-            camera,
-            quality,
+            camera: &camera,
+            quality: &view.quality,
             target,
         };
         self.frame(device, queue, &inputs, SceneUpload::Full)
@@ -358,23 +367,19 @@ impl Renderer {
     ///
     /// # Errors
     /// As [`Renderer::render`].
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the frame's inputs: device, queue, scene, view, knobs, target"
-    )]
     pub fn render_uploaded(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         doc: &Document,
-        camera: &OrbitCamera,
-        quality: &Quality,
+        view: &View,
         target: &RenderTarget,
     ) -> Result<GpuFrameStats, GpuError> {
+        let camera = view_camera(doc, view, target)?;
         let inputs = FrameInputs {
             doc,
-            camera,
-            quality,
+            camera: &camera,
+            quality: &view.quality,
             target,
         };
         self.frame(device, queue, &inputs, SceneUpload::Changed)
@@ -1198,4 +1203,19 @@ fn decode_counters(raw: &[u8], meta: &FrameMeta) -> GpuFrameStats {
         stats.gpu_timestamps = true;
     }
     stats
+}
+
+/// The camera `view` looks through, once its size is checked against `target`'s.
+fn view_camera(
+    doc: &Document,
+    view: &View,
+    target: &RenderTarget,
+) -> Result<OrbitCamera, GpuError> {
+    if [view.width, view.height] != [target.width, target.height] {
+        return Err(GpuError::ViewSize {
+            view: [view.width, view.height],
+            target: [target.width, target.height],
+        });
+    }
+    Ok(view.orbit_camera(doc))
 }

@@ -5,7 +5,7 @@
 use std::collections::HashMap;
 
 use thicket_core::measure::skin::{Silhouette, node_stretch_factors, posed_silhouettes};
-use thicket_core::render::{Camera, PixelId, RenderRequest};
+use thicket_core::render::{Camera, PixelId, View};
 use thicket_core::scene::{Document, ObjectKind};
 
 /// Stretch factors of the rigged-model pixels of the shown CPU preview (the heat map's).
@@ -36,8 +36,8 @@ const BLOAT_COLOR: egui::Color32 = egui::Color32::from_rgb(255, 230, 0);
 /// The hole / bloat overlay of a preview frame drawn for `req`: magenta where the skinned
 /// reference meshes of the visible rigged models cover and their voxels do not, yellow where
 /// the voxels cover more ([`posed_silhouettes`]), and the counts.
-pub fn hole_overlay(doc: &Document, req: &RenderRequest) -> Option<(egui::ColorImage, Silhouette)> {
-    let cam = Camera::from_orbit(&req.camera.unwrap_or(doc.camera), req.width, req.height);
+pub fn hole_overlay(doc: &Document, req: &View) -> Option<(egui::ColorImage, Silhouette)> {
+    let cam = Camera::from_orbit(&req.orbit_camera(doc), req.width, req.height);
     let (mesh, voxels) = posed_silhouettes(doc, &cam, &req.quality)?;
     let size = [req.width as usize, req.height as usize];
     let mut image = egui::ColorImage::filled(size, egui::Color32::TRANSPARENT);
@@ -61,7 +61,7 @@ pub fn hole_overlay(doc: &Document, req: &RenderRequest) -> Option<(egui::ColorI
 /// its node's stretch factor ([`node_stretch_factors`]); other pixels transparent.
 pub fn stretch_overlay(
     doc: &Document,
-    req: &RenderRequest,
+    req: &View,
     ids: &[PixelId],
     size: [usize; 2],
 ) -> Option<(egui::ColorImage, StretchStats)> {

@@ -485,7 +485,7 @@ impl CpuPreview {
                 .collect();
             let kept = Arc::clone(&self.renderer);
             let (tx, rx) = mpsc::channel();
-            let request = thicket_core::render::RenderRequest {
+            let request = thicket_core::render::View {
                 width: size_px[0],
                 height: size_px[1],
                 camera: Some(key.camera),

@@ -398,21 +398,21 @@ impl Resources {
         };
         let full = region.is_none() && !unchanged;
         let result = regions_upload.and_then(|regions_up| {
-            let (doc, camera) = (&cb.doc, &cb.key.camera);
-            let moving_quality;
-            let quality = if cb.key.supersample == doc.quality.supersample {
-                &doc.quality
-            } else {
-                moving_quality = thicket_core::quality::Quality {
+            let doc = &cb.doc;
+            // The document's quality, with one sample per pixel while the view moves.
+            let view = thicket_core::render::View {
+                width: frame.target.width,
+                height: frame.target.height,
+                camera: Some(cb.key.camera),
+                quality: thicket_core::quality::Quality {
                     supersample: cb.key.supersample,
                     ..doc.quality.clone()
-                };
-                &moving_quality
+                },
             };
             let stats = if full {
-                renderer.render(device, queue, doc, camera, quality, &frame.target)
+                renderer.render(device, queue, doc, &view, &frame.target)
             } else {
-                renderer.render_uploaded(device, queue, doc, camera, quality, &frame.target)
+                renderer.render_uploaded(device, queue, doc, &view, &frame.target)
             }?;
             // The regions' upload plus what the frame itself uploaded (a pool that changed
             // length, a rig's joint matrices).

@@ -39,7 +39,13 @@ pub fn gpu_frame(
 ) -> (RgbaImage, GBuffer, GpuFrameStats) {
     let target = RenderTarget::new(&ctx.device, size.0, size.1).expect("target");
     let stats = r
-        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, &target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            doc,
+            &target.view(&doc.camera, quality),
+            &target,
+        )
         .expect("GPU frame");
     let img = RgbaImage {
         width: size.0,
@@ -115,7 +121,13 @@ pub fn assert_same_as_full_upload(
     let incremental = read_rgba8(&ctx.device, &ctx.queue, target).expect("readback");
     let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
     fresh
-        .render(&ctx.device, &ctx.queue, doc, &doc.camera, quality, target)
+        .render(
+            &ctx.device,
+            &ctx.queue,
+            doc,
+            &target.view(&doc.camera, quality),
+            target,
+        )
         .expect("full frame");
     let full = read_rgba8(&ctx.device, &ctx.queue, target).expect("readback");
     assert!(

@@ -11,9 +11,7 @@ use super::compare::{Frame, FrameError, compare_frames};
 use super::image::MeasureError;
 use super::pareto::{Dominance, pareto_front};
 use crate::quality::{KNOB_SPECS, Quality, QualityError, QualityPreset};
-use crate::render::{
-    Camera, FrameBuffers, FrameStats, RenderError, RenderRequest, Renderer, RgbaImage,
-};
+use crate::render::{Camera, FrameBuffers, FrameStats, RenderError, Renderer, RgbaImage, View};
 use crate::scene::Document;
 
 /// Most settings one sweep may render (a grid over many knobs grows fast).
@@ -873,7 +871,7 @@ pub fn estimate_sweep_peak_bytes(
         k.check()?;
     }
     let frame = |q: &Quality| {
-        let mut req = RenderRequest::new(width, height);
+        let mut req = View::new(width, height);
         req.quality = q.clone();
         crate::render::estimate_peak_bytes(doc, &req)
     };
@@ -934,7 +932,7 @@ pub fn sweep_document_with_cancel(
         &camera,
         shadow_lights,
         |q| {
-            let mut req = RenderRequest::new(width, height);
+            let mut req = View::new(width, height);
             req.quality = q.clone();
             renderer.render_document(doc, &req)?;
             Ok(renderer.take_frame())
@@ -1043,7 +1041,7 @@ mod tests {
     fn work_counts_what_the_shading_knobs_cost() {
         let doc = crate::render::scenes::mixed_document(5).unwrap();
         let frame = |ao: u32, pcf: u32| {
-            let mut req = RenderRequest::new(48, 48);
+            let mut req = View::new(48, 48);
             req.quality.ao_samples = ao;
             req.quality.shadow_pcf_radius = pcf;
             let (_, _, stats) = render_document(&doc, &req).unwrap();

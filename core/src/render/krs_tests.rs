@@ -27,8 +27,8 @@ fn quality() -> Quality {
     }
 }
 
-fn request(size: u32, quality: Quality) -> RenderRequest {
-    RenderRequest {
+fn request(size: u32, quality: Quality) -> View {
+    View {
         width: size,
         height: size,
         camera: None,
@@ -387,7 +387,7 @@ fn extremes_give_finite_buffers() {
         },
     ];
     for camera in cameras {
-        let req = RenderRequest {
+        let req = View {
             camera: Some(camera),
             ..request(24, q.clone())
         };
@@ -396,7 +396,7 @@ fn extremes_give_finite_buffers() {
         assert!(stats.krs.rays > 0, "{camera:?}");
     }
     // The grazing view sees the huge ball's horizon.
-    let req = RenderRequest {
+    let req = View {
         camera: Some(cameras[1]),
         ..request(24, q)
     };

@@ -131,9 +131,10 @@ pub enum RenderError {
     },
 }
 
-/// What to render.
+/// A view of a document: image size, camera and quality. Both renderers take one (the CPU
+/// renderer here, the GPU renderer in the app): `(document, &View, target)`.
 #[derive(Debug, Clone, PartialEq)]
-pub struct RenderRequest {
+pub struct View {
     /// Image width in pixels (1..=16384).
     pub width: u32,
     /// Image height in pixels (1..=16384).
@@ -144,8 +145,8 @@ pub struct RenderRequest {
     pub quality: Quality,
 }
 
-impl RenderRequest {
-    /// A request at a size with the document's camera and the default quality.
+impl View {
+    /// A view at a size with the document's camera and the default quality.
     #[must_use]
     pub fn new(width: u32, height: u32) -> Self {
         Self {
@@ -154,6 +155,12 @@ impl RenderRequest {
             camera: None,
             quality: Quality::default(),
         }
+    }
+
+    /// The camera it looks through: its own, or the document's.
+    #[must_use]
+    pub fn orbit_camera(&self, doc: &Document) -> OrbitCamera {
+        self.camera.unwrap_or(doc.camera)
     }
 }
 
@@ -191,13 +198,13 @@ const SHADOW_TEXEL_MARGIN: f32 = 1.25;
 /// is already in memory. An invalid camera or size gives the image buffers alone (the render
 /// refuses those anyway).
 #[must_use]
-pub fn estimate_peak_bytes(doc: &Document, req: &RenderRequest) -> u64 {
+pub fn estimate_peak_bytes(doc: &Document, req: &View) -> u64 {
     let quality = &req.quality;
     // A supersampled frame draws its samples as an image k times the size.
     let k = supersample_factor(req.width, req.height, quality.supersample);
     let (width, height) = (req.width.saturating_mul(k), req.height.saturating_mul(k));
     let pixels = u64::from(width) * u64::from(height);
-    let orbit = req.camera.unwrap_or(doc.camera);
+    let orbit = req.orbit_camera(doc);
     let mut texels = 0u64;
     if quality.shadows && orbit.validate().is_ok() && width > 0 && height > 0 {
         let cam = Camera::from_orbit(&orbit, width, height);
@@ -256,7 +263,7 @@ fn check_size(width: u32, height: u32) -> Result<(), RenderError> {
 /// [`RenderError`] for an empty or oversized image, an invalid document, camera or quality.
 pub fn render_document(
     doc: &Document,
-    req: &RenderRequest,
+    req: &View,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     let mut r = Renderer::new();
     r.render_document_inner(doc, req, None, true)?;
@@ -273,7 +280,7 @@ pub fn render_document(
 /// As [`render_document`].
 pub fn render_document_cached(
     doc: &Document,
-    req: &RenderRequest,
+    req: &View,
     cache: &mut ShadowCache,
     content_key: u64,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
@@ -461,7 +468,7 @@ impl Renderer {
     pub fn render_document(
         &mut self,
         doc: &Document,
-        req: &RenderRequest,
+        req: &View,
     ) -> Result<Frame<'_>, RenderError> {
         self.render_document_inner(doc, req, None, true)?;
         Ok(self.frame())
@@ -474,7 +481,7 @@ impl Renderer {
     pub fn render_document_cached(
         &mut self,
         doc: &Document,
-        req: &RenderRequest,
+        req: &View,
         cache: &mut ShadowCache,
         content_key: u64,
     ) -> Result<Frame<'_>, RenderError> {
@@ -523,14 +530,14 @@ impl Renderer {
     fn render_document_inner(
         &mut self,
         doc: &Document,
-        req: &RenderRequest,
+        req: &View,
         cache: Option<(&mut ShadowCache, u64)>,
         sampled_only: bool,
     ) -> Result<(), RenderError> {
         check_size(req.width, req.height)?;
         doc.validate()?;
         req.quality.validate()?;
-        let orbit = req.camera.unwrap_or(doc.camera);
+        let orbit = req.orbit_camera(doc);
         orbit.validate()?;
         let cam = Camera::from_orbit(&orbit, req.width, req.height);
 
@@ -641,7 +648,7 @@ pub fn skin_deform<'a>(
 #[cfg(test)]
 pub(crate) fn render_document_full_shadow_maps(
     doc: &Document,
-    req: &RenderRequest,
+    req: &View,
 ) -> Result<(RgbaImage, FrameBuffers, FrameStats), RenderError> {
     let mut r = Renderer::new();
     r.render_document_inner(doc, req, None, false)?;

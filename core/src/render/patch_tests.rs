@@ -13,8 +13,8 @@ fn house() -> Document {
     crate::io::project::load(&path).expect("the house sample")
 }
 
-fn request(doc: &Document, quality: &Quality) -> RenderRequest {
-    RenderRequest {
+fn request(doc: &Document, quality: &Quality) -> View {
+    View {
         width: 200,
         height: 160,
         camera: Some(doc.camera),
@@ -117,7 +117,7 @@ fn note(cache: &mut ShadowCache, boxes: &[(Vec3, Vec3)], from: u64, to: u64) {
 }
 
 /// Renders `doc` twice with a fresh cache under `key`, so that it holds full maps; returns it.
-fn primed(doc: &Document, req: &RenderRequest, key: u64) -> ShadowCache {
+fn primed(doc: &Document, req: &View, key: u64) -> ShadowCache {
     let mut cache = ShadowCache::new();
     for _ in 0..2 {
         render_document_cached(doc, req, &mut cache, key).expect("renders");

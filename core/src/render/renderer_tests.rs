@@ -19,14 +19,8 @@ fn house() -> Document {
 }
 
 /// `doc`'s camera turned by `yaw_deg`, at a size, with a quality.
-fn orbit(
-    doc: &Document,
-    yaw_deg: f32,
-    width: u32,
-    height: u32,
-    quality: &Quality,
-) -> RenderRequest {
-    RenderRequest {
+fn orbit(doc: &Document, yaw_deg: f32, width: u32, height: u32, quality: &Quality) -> View {
+    View {
         width,
         height,
         camera: Some(OrbitCamera {
@@ -163,7 +157,7 @@ fn a_steady_state_orbit_frame_makes_no_heap_allocation() {
         ("tree", &tree, tree.quality.clone()),
         ("forest", &forest, forest.quality.clone()),
     ] {
-        let reqs: Vec<RenderRequest> = (0..4)
+        let reqs: Vec<View> = (0..4)
             .map(|step| orbit(doc, 2.0 * step as f32, 200, 150, &quality))
             .collect();
         pool.install(|| {

@@ -8,8 +8,8 @@ use crate::krs::presets;
 use crate::measure::image::rmse;
 use crate::quality::QualityPreset;
 
-fn request(w: u32, h: u32, quality: Quality) -> RenderRequest {
-    RenderRequest {
+fn request(w: u32, h: u32, quality: Quality) -> View {
+    View {
         width: w,
         height: h,
         camera: None,

@@ -13,8 +13,8 @@ fn golden(name: &str) -> String {
     format!("{}/tests/golden/{name}.png", env!("CARGO_MANIFEST_DIR"))
 }
 
-fn req(w: u32, h: u32, quality: Quality) -> RenderRequest {
-    RenderRequest {
+fn req(w: u32, h: u32, quality: Quality) -> View {
+    View {
         width: w,
         height: h,
         camera: None,
@@ -177,7 +177,7 @@ fn lod_matches_split_to_leaves() {
     let r = |q: Quality| {
         render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(lod_camera()),
                 ..req(128, 128, q)
             },
@@ -233,7 +233,7 @@ fn lod_splats_stay_within_four_per_covered_pixel_on_a_facing_surface() {
     };
     let (_, fb, st) = render_document(
         &doc,
-        &RenderRequest {
+        &View {
             camera: Some(cam),
             ..req(128, 128, q)
         },
@@ -270,7 +270,7 @@ fn lod_splats_stay_within_four_per_covered_pixel_on_a_closed_sphere() {
         };
         let (img, fb, st) = render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(camera),
                 ..req(size, size, q.clone())
             },
@@ -286,7 +286,7 @@ fn lod_splats_stay_within_four_per_covered_pixel_on_a_closed_sphere() {
         // The culling is exact: the same picture without any occlusion culling.
         let (plain, _, st_plain) = render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(camera),
                 ..req(
                     size,
@@ -320,7 +320,7 @@ fn splat_count_is_bound_by_resolution_not_depth() {
         let doc = sphere_document(depth, 1.0 / 8.0).unwrap();
         let (_, fb, st) = render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(far),
                 ..req(128, 128, q.clone())
             },
@@ -505,7 +505,7 @@ fn camera_inside_a_model_renders_its_inside() {
         };
         let (img, fb, st) = render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(cam),
                 ..req(64, 64, test_quality())
             },
@@ -723,7 +723,7 @@ fn ambient_occlusion_darkens_a_concave_corner_and_nothing_at_zero_samples() {
 fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
     let doc = mixed_document(7).unwrap();
     let q = test_quality();
-    let at = |distance: f32, quality: &Quality| RenderRequest {
+    let at = |distance: f32, quality: &Quality| View {
         camera: Some(OrbitCamera {
             distance,
             ..doc.camera
@@ -734,7 +734,7 @@ fn shadow_cache_reuses_only_an_equal_or_finer_map_of_the_same_scene() {
     // Renders with the cache; checks the image against the uncached frame; returns the image,
     // how many maps were reused, the shadow traversal's visits and whether the cache holds a
     // map.
-    let mut frame = |d: &Document, r: &RenderRequest, key: u64| {
+    let mut frame = |d: &Document, r: &View, key: u64| {
         let (img, _, st) = render_document_cached(d, r, &mut cache, key).unwrap();
         let plain = render_document(d, r).unwrap().0;
         let differing = count_differing(&img, &plain, 8).unwrap();
@@ -913,7 +913,7 @@ fn orthographic_view_draws_equal_cubes_equally_and_the_scene_behind_the_eye() {
     let render = |cam: OrbitCamera| {
         render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(cam),
                 ..req(160, 80, test_quality())
             },
@@ -1074,7 +1074,7 @@ fn exact_cubes_draw_straight_edges_true_depth_and_face_normals_up_close() {
         };
         let (_, fb, stats) = render_document(
             &doc,
-            &RenderRequest {
+            &View {
                 camera: Some(orbit),
                 ..req(w, h, q)
             },
@@ -1140,7 +1140,7 @@ fn exact_cubes_draw_straight_edges_true_depth_and_face_normals_up_close() {
 
 /// The peak heap bytes of one render, measured on a one-thread pool so the per-thread counting
 /// allocator of the test binary sees every allocation (rayon runs the work on the pool's thread).
-fn measured_peak(doc: &Document, r: &RenderRequest) -> u64 {
+fn measured_peak(doc: &Document, r: &View) -> u64 {
     crate::io::fuzz::peak_heap_bytes_on_one_thread(|| render_document(doc, r).map(|_| ())).1
 }
 
@@ -1151,7 +1151,7 @@ fn the_render_estimate_holds_the_measured_peak_without_overstating_it() {
     let house = crate::io::project::load(&house_path).expect("the house sample");
     let mixed = mixed_document(7).unwrap();
     let close = scenes::house_close_up(&house).unwrap();
-    let request = |w, h, camera, quality| RenderRequest {
+    let request = |w, h, camera, quality| View {
         width: w,
         height: h,
         camera,

@@ -10,9 +10,7 @@ use crate::deform::{NodeDeform, NodeInfo};
 use crate::io::{import_skinned, voxelize_skinned};
 use crate::measure::skin::{ReportSettings, Silhouette, skin_report};
 use crate::quality::Quality;
-use crate::render::{
-    Camera, RenderRequest, RenderScene, VoxelInstance, render_document, render_scene,
-};
+use crate::render::{Camera, RenderScene, View, VoxelInstance, render_document, render_scene};
 use crate::scene::{Document, ObjectKind, VoxelModel};
 use crate::voxelize::{Resolution, VoxelizeSettings};
 
@@ -94,9 +92,9 @@ fn identity_skinning_with_s_one_draws_exactly_the_rigid_model() {
     skinned.objects[0].transform.translation = Vec3::new(0.1, 0.0, 0.0);
     let mut rigid = rigid;
     rigid.objects[0].transform.translation = Vec3::new(0.1, 0.0, 0.0);
-    let req = RenderRequest {
+    let req = View {
         quality: quality(),
-        ..RenderRequest::new(96, 96)
+        ..View::new(96, 96)
     };
     let (a, fa, _) = render_document(&rigid, &req).expect("rigid");
     let (b, fb, _) = render_document(&skinned, &req).expect("skinned");
@@ -248,9 +246,9 @@ fn occlusion_culling_never_removes_a_visible_skinned_voxel() {
     };
     v.rig.as_mut().expect("rig").playback.time_secs = 0.6;
     let mut q = quality();
-    let req = |q: &Quality| RenderRequest {
+    let req = |q: &Quality| View {
         quality: q.clone(),
-        ..RenderRequest::new(160, 160)
+        ..View::new(160, 160)
     };
     let (_, culled, stats) = render_document(&doc, &req(&q)).expect("render");
     q.occlusion_culling = false;

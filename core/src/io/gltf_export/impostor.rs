@@ -17,7 +17,7 @@ use glam::{Vec2, Vec3};
 use crate::krs::KrsObject;
 use crate::mesh::{Texture, linear_to_srgb_byte};
 use crate::quality::Quality;
-use crate::render::{RenderRequest, render_document};
+use crate::render::{View, render_document};
 use crate::scene::{Document, ObjectKind, OrbitCamera};
 
 /// Texels along each side of one view of an impostor's texture (the texture holds two views,
@@ -106,10 +106,10 @@ pub fn krs_impostor(
             far: distance + 2.0 * half,
             orthographic: true,
         };
-        let request = RenderRequest {
+        let request = View {
             camera: Some(camera),
             quality: quality.clone(),
-            ..RenderRequest::new(texels, texels)
+            ..View::new(texels, texels)
         };
         let (_, buffers, _) = render_document(&doc, &request).map_err(|e| e.to_string())?;
         for y in 0..texels {

@@ -6,7 +6,7 @@ use std::path::Path;
 use super::import::world_cells;
 use super::instance_tests::{chunk_ids, count, group, model_chunks, shape, transform, wrap_main};
 use super::*;
-use crate::render::{RenderRequest, render_document};
+use crate::render::{View, render_document};
 use crate::scene::{DEFAULT_FRAME_SECS, Document, Object, ObjectKind, VoxelModel};
 
 fn import(bytes: &[u8]) -> VoxScene {
@@ -270,7 +270,7 @@ fn renderers_see_only_the_shown_frame() {
     let mut cam = doc.camera;
     cam.frame(glam::Vec3::splat(-3.0), glam::Vec3::splat(3.0));
     doc.camera = cam;
-    let req = RenderRequest::new(48, 48);
+    let req = View::new(48, 48);
     let mut images = Vec::new();
     for t in [0.0, 0.1, 0.2] {
         if let ObjectKind::Voxels(v) = &mut doc.objects[0].kind {
