@@ -314,6 +314,15 @@ fn panels_sculpt_stroke_undo_redo_and_snapshot() {
     h.get_by_label_contains("Undo").click();
     h.run_steps(2);
     assert_eq!(leaves(&h), before);
+    // The undo is the stroke's box again (the change feed records it): uploaded as a region.
+    let region_uploads = link.lock().region_uploads;
+    h.render().expect("render");
+    let upload = link.lock().last_upload.expect("an upload");
+    assert!(
+        !upload.full,
+        "the undo uploaded its region only: {upload:?}"
+    );
+    assert_eq!(link.lock().region_uploads, region_uploads + 1);
     h.key_press_modifiers(
         egui::Modifiers::COMMAND | egui::Modifiers::SHIFT,
         egui::Key::Z,

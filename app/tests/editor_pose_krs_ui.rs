@@ -1648,6 +1648,18 @@ fn the_preview_redraws_only_the_shadow_texels_a_stroke_changed() {
     let refined = h.state().view.cpu_preview().shadows().expect("a render");
     assert_eq!((refined.patched, refined.reused), (0, 1), "{refined:?}");
 
+    // Undoing the stroke is a change of the same box (the change feed records it so): the
+    // maps are patched again, not drawn whole.
+    assert!(h.state_mut().editor.undo());
+    h.run_steps(1);
+    h.state_mut().view.wait_for_cpu_preview();
+    h.run_steps(1);
+    let undone = h.state().view.cpu_preview().shadows().expect("a render");
+    eprintln!("after undo: {undone:?}");
+    assert_eq!((undone.patched, undone.reused), (1, 0), "{undone:?}");
+    assert!(undone.texels_patched > 0, "{undone:?}");
+    settle_preview(&mut h);
+
     // A move is no voxel region: the maps are drawn whole.
     let mut t = h.state().editor.doc().objects[0].transform;
     t.translation.x += 0.5;

@@ -317,7 +317,8 @@ impl RegionChain {
     }
 
     /// Reads the changes since the last read, asking `redo` what each means to the consumer.
-    /// Consecutive regions of one model merge into one box.
+    /// Consecutive regions of one model read together merge into one box; a region already
+    /// read stays as it is, since the consumer may hold the document at its end state.
     pub fn read(&mut self, feed: &ChangeFeed, mut redo: impl FnMut(&Change) -> Redo) {
         let entries = match feed.read(&mut self.cursor) {
             ChangesRead::Changes(entries) => entries,
@@ -326,10 +327,13 @@ impl RegionChain {
                 return;
             }
         };
+        // Regions before this index were read earlier: never merged into.
+        let mut fresh = self.regions.len();
         for e in entries {
             let (object, lo, hi) = match redo(&e.change) {
                 Redo::All => {
                     self.regions.clear();
+                    fresh = 0;
                     continue;
                 }
                 Redo::Nothing if e.from == e.to => continue,
@@ -343,11 +347,12 @@ impl RegionChain {
                 lo,
                 hi,
             };
+            let mergeable = self.regions.len() > fresh;
             match self.regions.last_mut() {
                 Some(last) if last.to == e.from => {
-                    if next.is_empty() {
+                    if mergeable && next.is_empty() {
                         last.to = next.to;
-                    } else if last.is_empty() || last.object == next.object {
+                    } else if mergeable && (last.is_empty() || last.object == next.object) {
                         *last = VoxelRegion {
                             from: last.from,
                             lo: last.lo.min(next.lo),
@@ -360,11 +365,13 @@ impl RegionChain {
                 }
                 _ => {
                     self.regions.clear();
+                    fresh = 0;
                     self.regions.push(next);
                 }
             }
             if self.regions.len() > Self::MAX_LEN {
                 self.regions.remove(0);
+                fresh = fresh.saturating_sub(1);
             }
         }
     }
@@ -481,6 +488,18 @@ mod tests {
         chain.read(&feed, gpu_redo);
         assert_eq!(chain.take().len(), 1);
         assert!(chain.take().is_empty());
+        // A region read earlier is not merged into: a consumer may hold its end state (the
+        // GPU drew the stroke, then the stroke is undone).
+        feed.push((0, 8), (0, 9), region(1, 2, 2));
+        chain.read(&feed, gpu_redo);
+        feed.push((0, 9), (0, 10), region(1, 3, 3));
+        feed.push((0, 10), (0, 11), Change::Pose { object: 1 });
+        chain.read(&feed, gpu_redo);
+        let read = chain.ending_at((0, 11)).to_vec();
+        assert_eq!(
+            read.iter().map(|r| (r.from, r.to)).collect::<Vec<_>>(),
+            [((0, 8), (0, 9)), ((0, 9), (0, 11))]
+        );
     }
 
     #[test]
