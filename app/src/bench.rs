@@ -336,8 +336,7 @@ pub fn bench_gpu(
             &ctx.device,
             &ctx.queue,
             doc,
-            &camera,
-            quality,
+            &view(camera),
             &target,
             splat_repeats,
         )?;

@@ -838,8 +838,7 @@ fn splat_bandwidth_is_measured_with_the_frames_byte_count() {
         &ctx.device,
         &ctx.queue,
         &doc,
-        &doc.camera,
-        &quality,
+        &target.view(&doc.camera, &quality),
         &target,
         2,
     );

@@ -22,9 +22,9 @@ use super::Edit;
 /// What one change did, as precisely as the code that made it knows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Change {
-    /// Voxels of a model changed and nothing else: inside `region` (inclusive voxel bounds)
-    /// when it is known, anywhere in the model otherwise (a frame sequence's shown frame
-    /// swapped, an enhancement rebuilt).
+    /// Voxels of a model changed: inside `region` (inclusive voxel bounds) and nothing else
+    /// when it is known; anywhere in the model otherwise (a frame sequence's shown frame
+    /// swapped, with its origin; an enhancement rebuilt).
     Voxels {
         /// The voxel model.
         object: u64,
@@ -319,7 +319,23 @@ impl RegionChain {
     /// Reads the changes since the last read, asking `redo` what each means to the consumer.
     /// Consecutive regions of one model read together merge into one box; a region already
     /// read stays as it is, since the consumer may hold the document at its end state.
-    pub fn read(&mut self, feed: &ChangeFeed, mut redo: impl FnMut(&Change) -> Redo) {
+    pub fn read(&mut self, feed: &ChangeFeed, redo: impl FnMut(&Change) -> Redo) {
+        self.read_merging(feed, redo, false);
+    }
+
+    /// [`RegionChain::read`] for a consumer that [takes](RegionChain::take) the regions each
+    /// time it redoes its work and holds no state in between (a shadow cache patched when a
+    /// render starts): every region since the last take may merge.
+    pub fn read_until_taken(&mut self, feed: &ChangeFeed, redo: impl FnMut(&Change) -> Redo) {
+        self.read_merging(feed, redo, true);
+    }
+
+    fn read_merging(
+        &mut self,
+        feed: &ChangeFeed,
+        mut redo: impl FnMut(&Change) -> Redo,
+        across_reads: bool,
+    ) {
         let entries = match feed.read(&mut self.cursor) {
             ChangesRead::Changes(entries) => entries,
             ChangesRead::Lagged => {
@@ -328,7 +344,7 @@ impl RegionChain {
             }
         };
         // Regions before this index were read earlier: never merged into.
-        let mut fresh = self.regions.len();
+        let mut fresh = if across_reads { 0 } else { self.regions.len() };
         for e in entries {
             let (object, lo, hi) = match redo(&e.change) {
                 Redo::All => {
@@ -499,6 +515,18 @@ mod tests {
         assert_eq!(
             read.iter().map(|r| (r.from, r.to)).collect::<Vec<_>>(),
             [((0, 8), (0, 9)), ((0, 9), (0, 11))]
+        );
+        // A consumer that holds no state between takes merges across reads.
+        let mut taken = RegionChain::from_end(&feed);
+        feed.push((0, 11), (0, 12), region(1, 2, 2));
+        taken.read_until_taken(&feed, gpu_redo);
+        feed.push((0, 12), (0, 13), region(1, 4, 4));
+        taken.read_until_taken(&feed, gpu_redo);
+        let merged = taken.take();
+        assert_eq!(merged.len(), 1, "{merged:?}");
+        assert_eq!(
+            (merged[0].from, merged[0].to, merged[0].lo, merged[0].hi),
+            ((0, 11), (0, 13), UVec3::splat(2), UVec3::splat(4))
         );
     }
 

@@ -441,6 +441,7 @@ impl Editor {
             self.drop_enhancers();
         }
         let regions = matches!(change, Change::Voxels { .. })
+            && !boxes.is_empty()
             && boxes.iter().all(|&(id, ..)| !self.has_frames(id));
         let mut from = before;
         if !regions {

@@ -268,7 +268,20 @@ impl Editor {
             Some(MergeKey::Stroke(id)),
             "Brush stroke".into(),
         );
-        match dab.changed {
+        self.after_voxel_edit(before, id, dab.changed);
+        Ok(dab.changed)
+    }
+
+    /// After a voxel edit of object `id` from content key `before` that changed the voxels in
+    /// `changed` (inclusive bounds; `None`: unknown, the whole model): keeps a linked
+    /// enhancement in step and records the change.
+    pub(super) fn after_voxel_edit(
+        &mut self,
+        before: (u64, u64),
+        id: u64,
+        changed: Option<(UVec3, UVec3)>,
+    ) {
+        match changed {
             Some((lo, hi)) => self.after_voxel_write(before, id, lo, hi, true),
             None => self.record(
                 before,
@@ -278,13 +291,13 @@ impl Editor {
                 },
             ),
         }
-        Ok(dab.changed)
     }
 
     /// After the voxels `lo..=hi` of object `id` were written (a dab, an undo or a redo of
     /// one) from content key `before`: keeps a linked enhancement in step and records what
-    /// changed: the written box (when `record_source`: an undo of a step that was more than
-    /// voxels has recorded it already) and the enhancement's box.
+    /// changed: the written box (when `record_source`; an undo that recorded its step's change
+    /// already, a step that was more than voxels or of a frame sequence, passes false) and the
+    /// enhancement's box.
     pub(super) fn after_voxel_write(
         &mut self,
         before: (u64, u64),

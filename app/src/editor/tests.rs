@@ -2133,3 +2133,42 @@ fn binding_weights_is_named_in_the_history() {
         .unwrap();
     assert_eq!(ed.history().labels().0.last(), Some(&"Bind weights"));
 }
+
+#[test]
+fn a_stroke_delta_on_another_frame_starts_a_step_instead_of_being_dropped() {
+    // A stroke is one step while its dabs write one model's one frame; a dab on another frame
+    // (the playhead moved mid-stroke) keeps its own old values in a step of its own.
+    let delta = |x: u32| thicket_core::svo::UndoDelta {
+        entries: vec![(UVec3::new(x, 0, 0), None)],
+    };
+    let mut h = History::default();
+    let key = Some(MergeKey::Stroke(1));
+    let voxels = |x: u32, frame: usize| Edit::Voxels {
+        id: 1,
+        delta: delta(x),
+        frame,
+    };
+    h.push_named(voxels(0, 0), key, "Brush stroke".into());
+    h.push_named(voxels(1, 0), key, "Brush stroke".into());
+    assert_eq!(h.undo_len(), 1, "same frame: one step");
+    h.push_named(voxels(2, 3), key, "Brush stroke".into());
+    assert_eq!(h.undo_len(), 2, "another frame: a step of its own");
+    assert_eq!(
+        h.next_undo().map(Edit::voxel_boxes),
+        Some(vec![(1, UVec3::new(2, 0, 0), UVec3::new(2, 0, 0))])
+    );
+    // A snapshot edit of a drag still merges by keeping the first revert.
+    let mut h = History::default();
+    let pose = Some(MergeKey::Pose(1));
+    for _ in 0..3 {
+        h.push_named(
+            Edit::SetPose {
+                id: 1,
+                overrides: Vec::new(),
+            },
+            pose,
+            "Pose".into(),
+        );
+    }
+    assert_eq!(h.undo_len(), 1);
+}

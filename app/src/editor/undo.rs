@@ -534,6 +534,29 @@ impl Edit {
     }
 }
 
+/// Whether `newer` (a revert pushed under the open step's merge key) merges into the open
+/// step's revert `older`. Deltas (voxels, stretch overrides) restore only what their own dab
+/// changed, so they merge only into a delta of the same model (and frame): the merged step
+/// then holds both. Every other edit restores a whole value, and the older revert already
+/// restores the value from before the drag, so the newer one merges by being dropped.
+fn merges_into(newer: &Edit, older: &Edit) -> bool {
+    match (newer, older) {
+        (
+            Edit::Voxels { id, frame, .. },
+            Edit::Voxels {
+                id: older_id,
+                frame: older_frame,
+                ..
+            },
+        ) => id == older_id && frame == older_frame,
+        (Edit::StretchOverrides { id, .. }, Edit::StretchOverrides { id: older_id, .. }) => {
+            id == older_id
+        }
+        (Edit::Voxels { .. } | Edit::StretchOverrides { .. }, _) => false,
+        _ => true,
+    }
+}
+
 /// The edit a group is named after: its first one that is not a side effect (visibility,
 /// the playhead).
 pub(crate) fn main_edit<'a>(mut edits: impl Iterator<Item = &'a Edit>) -> Option<&'a Edit> {
@@ -632,13 +655,16 @@ impl History {
     }
 
     /// [`History::push`] with the step's name for Edit → History (a merged step keeps the
-    /// name of its first edit).
+    /// name of its first edit). A voxel or stretch-override delta of another model or frame
+    /// than the open step's starts a new step instead: its old values are kept, not dropped.
     pub fn push_named(&mut self, revert: Edit, merge: Option<MergeKey>, label: String) {
         self.redo.clear();
         let new_state = self.next_state;
         self.next_state += 1;
         match (merge, self.open, self.undo.last_mut()) {
-            (Some(key), Some(open), Some(top)) if key == open => {
+            (Some(key), Some(open), Some(top))
+                if key == open && merges_into(&revert, &top.revert) =>
+            {
                 // Voxel deltas only restore what their own dab changed, so a stroke keeps all
                 // of them: the later dab's old values go first, so undo ends at the values
                 // from before the whole stroke.

@@ -15,7 +15,7 @@ use thicket_core::sculpt::select::{self, Clipboard, SelTransform, VoxelSelection
 use thicket_core::sculpt::shapes::{self, Ink, Mirror, ShapeOp, ToolEdit};
 use thicket_core::svo::{MAX_DEPTH, Svo};
 
-use super::{Change, CommandError, Edit, Editor, MergeKey, Selection};
+use super::{CommandError, Edit, Editor, MergeKey, Selection};
 
 /// Most voxels a new model may start with (a solid box or slab is built in memory at once).
 pub const MAX_INITIAL_VOXELS: u64 = 1 << 27;
@@ -331,16 +331,7 @@ impl Editor {
             merge,
             label.to_owned(),
         );
-        match edit.changed {
-            Some((lo, hi)) => self.after_voxel_write(before, id, lo, hi, true),
-            None => self.record(
-                before,
-                Change::Voxels {
-                    object: id,
-                    region: None,
-                },
-            ),
-        }
+        self.after_voxel_edit(before, id, edit.changed);
         Ok(outcome)
     }
 

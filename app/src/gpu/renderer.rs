@@ -533,17 +533,12 @@ impl Renderer {
     /// # Errors
     /// As [`Renderer::render`]; [`GpuError::Device`] on the two-pass 32-bit path or with
     /// asynchronous readback (the measurement needs the 64-bit splat and waited counters).
-    #[allow(
-        clippy::too_many_arguments,
-        reason = "the frame's inputs plus the repeat count"
-    )]
     pub fn measure_splat_bandwidth(
         &mut self,
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         doc: &Document,
-        camera: &OrbitCamera,
-        quality: &Quality,
+        view: &View,
         target: &RenderTarget,
         repeats: u32,
     ) -> Result<(GpuFrameStats, super::splat_bw::SplatBandwidth), GpuError> {
@@ -554,12 +549,13 @@ impl Renderer {
                     .into(),
             ));
         }
+        let camera = view_camera(doc, view, target)?;
         self.splat_probe = Some(repeats);
         self.splat_probe_result = None;
         let inputs = FrameInputs {
             doc,
-            camera,
-            quality,
+            camera: &camera,
+            quality: &view.quality,
             target,
         };
         let stats = self.frame(device, queue, &inputs, SceneUpload::Changed);

@@ -324,7 +324,7 @@ impl CpuPreview {
         // described breaks the chain (the maps are drawn whole).
         let doc = editor.doc();
         self.changes
-            .read(editor.changes(), |c| Redo::for_shadow_maps(doc, c));
+            .read_until_taken(editor.changes(), |c| Redo::for_shadow_maps(doc, c));
         // Low resolution while what is drawn keeps changing (an orbit, a stroke, playback); the
         // full resolution setting once it has been still for a moment. A drag that changes
         // nothing drawn (placing a box, a selection) keeps the full image.

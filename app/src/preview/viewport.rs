@@ -6,10 +6,12 @@
 //!   snapshot (shared, not copied), the content key, camera and target size.
 //! - `prepare` renders only when that key differs from the last rendered one (the camera, the
 //!   document or its quality settings changed, or the view was resized); otherwise the last
-//!   image is composited again. When the only change since the last upload is a voxel edit
-//!   (a sculpt dab), the callback carries its region and `prepare` uploads just that region
-//!   ([`Renderer::update_voxel_region`]) instead of the whole scene. `paint` only draws the
-//!   image into the view rectangle.
+//!   image is composited again. The callback carries the chain of voxel regions the view read
+//!   from the editor's change feed (dabs, tool edits, their undo and redo, a linked
+//!   enhancement's fine model; empty ones for changes that upload nothing, such as a pose):
+//!   when the GPU holds the document at one of their start states, `prepare` uploads just
+//!   those regions ([`Renderer::update_voxel_region`]) instead of the whole scene. `paint`
+//!   only draws the image into the view rectangle.
 //! - A failure (no adapter features, invalid document, device loss) is logged once and handed
 //!   to the UI through the [`ViewportLink`]; it never panics and the document stays editable.
 
