@@ -300,6 +300,12 @@ impl Editor {
         self.enhancers.by_source.clear();
     }
 
+    /// Forgets the live enhancer of linked model `source` (its octree was swapped: a frame
+    /// sequence's undo shows the frame the edit was made on).
+    pub(super) fn drop_enhancer(&mut self, source: u64) {
+        self.enhancers.by_source.remove(&source);
+    }
+
     /// Builds the live enhancer of linked model `source` from its coarse model when there is
     /// none, *before* an edit, so the edit's update is incremental; a stored fine model that
     /// differs from what the link's settings make of the coarse model is replaced (it was made

@@ -413,11 +413,15 @@ impl Editor {
         steps
     }
 
-    /// Before undo / redo writes voxels: the linked enhancements of those models are live.
+    /// Before undo / redo writes voxels: the linked enhancements of those models are live
+    /// (not for a frame sequence: the step first shows the frame it was made on, and its
+    /// enhancer is built from that one afterwards).
     fn ensure_enhancers_for(&mut self, step: Option<&HistoryStep>) {
         if let Some(step) = step {
             for &(id, _, _) in &step.boxes {
-                self.ensure_enhancer(id);
+                if !self.has_frames(id) {
+                    self.ensure_enhancer(id);
+                }
             }
         }
     }
@@ -447,6 +451,12 @@ impl Editor {
         if !regions {
             self.record(from, change);
             from = self.content_key();
+        }
+        for &(id, ..) in &boxes {
+            if self.has_frames(id) {
+                // Built from the frame shown before the step: the step may have shown another.
+                self.drop_enhancer(id);
+            }
         }
         for (id, lo, hi) in boxes {
             if self.doc.enhancement_of(id).is_some() {

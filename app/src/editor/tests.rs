@@ -2172,3 +2172,59 @@ fn a_stroke_delta_on_another_frame_starts_a_step_instead_of_being_dropped() {
     }
     assert_eq!(h.undo_len(), 1);
 }
+
+#[test]
+fn undoing_an_edit_of_another_frame_keeps_the_enhancement_equal_to_a_fresh_one() {
+    let mut ed = Editor::default();
+    let id = ed.add_object("walk", frame_sequence());
+    ed.end_interaction();
+    let settings = thicket_core::enhance::EnhanceSettings::default();
+    let fine_id = enhance_linked(&mut ed, id, settings.clone());
+    let fresh = |ed: &Editor| {
+        let ObjectKind::Voxels(v) = &ed.object(id).unwrap().kind else {
+            panic!("voxels")
+        };
+        v.enhanced(&settings, thicket_core::enhance::Control::default())
+            .unwrap()
+            .0
+            .svo
+    };
+    // An edit of frame 1, then the playhead moves to frame 2, where another edit builds the
+    // enhancer from frame 2.
+    ed.set_frame_time(id, 0.15).unwrap();
+    ed.shape_box(
+        id,
+        IVec3::new(0, 1, 0),
+        IVec3::new(1, 1, 0),
+        ShapeOp::Add,
+        RED,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.end_interaction();
+    assert_eq!(svo_of(&ed, fine_id), fresh(&ed));
+    ed.set_frame_time(id, 0.25).unwrap();
+    ed.shape_box(
+        id,
+        IVec3::new(0, 3, 0),
+        IVec3::new(0, 3, 0),
+        ShapeOp::Add,
+        RED,
+        Mirror::default(),
+    )
+    .unwrap();
+    ed.end_interaction();
+    assert_eq!(svo_of(&ed, fine_id), fresh(&ed));
+    // Undo twice: the second undo shows frame 1 again; the enhancement follows frame 1.
+    assert!(ed.undo());
+    assert_eq!(svo_of(&ed, fine_id), fresh(&ed), "frame 2's edit undone");
+    assert!(ed.undo());
+    assert_eq!(ed.frames(id).unwrap().shown, 1);
+    assert_eq!(
+        svo_of(&ed, fine_id),
+        fresh(&ed),
+        "frame 1's edit undone, with frame 1 shown again"
+    );
+    assert!(ed.redo());
+    assert_eq!(svo_of(&ed, fine_id), fresh(&ed), "frame 1's edit redone");
+}
