@@ -17,8 +17,12 @@ fn main() {
         eprintln!("usage: reprojection_reuse PROJECT [SIZE] [YAW_STEP_DEG]");
         std::process::exit(2);
     };
-    let size: u32 = args.next().map_or(800, |s| s.parse().expect("a size in pixels"));
-    let step: f32 = args.next().map_or(2.0, |s| s.parse().expect("a yaw step in degrees"));
+    let size: u32 = args
+        .next()
+        .map_or(800, |s| s.parse().expect("a size in pixels"));
+    let step: f32 = args
+        .next()
+        .map_or(2.0, |s| s.parse().expect("a yaw step in degrees"));
     let doc = match thicket_core::io::project::load(std::path::Path::new(&path)) {
         Ok(d) => d,
         Err(e) => {
@@ -48,7 +52,10 @@ fn main() {
         if a.ids[i].object == 0 {
             continue;
         }
-        let (x, y) = ((i as u32 % size) as f32 + 0.5, (i as u32 / size) as f32 + 0.5);
+        let (x, y) = (
+            (i as u32 % size) as f32 + 0.5,
+            (i as u32 / size) as f32 + 0.5,
+        );
         let world = cam_a.unproject(x, y, a.depth[i]);
         let s = cam_b.world_to_screen(world);
         if !(s.x >= 0.0 && s.y >= 0.0 && s.x < size as f32 && s.y < size as f32) {
