@@ -68,17 +68,17 @@ fn main() {
         }
     }
     let (mut surface, mut reused, mut missing, mut other) = (0u64, 0u64, 0u64, 0u64);
-    for j in 0..n {
-        if b.ids[j].object == 0 {
+    for ((id, &depth), held) in b.ids.iter().zip(&b.depth).zip(&held) {
+        if id.object == 0 {
             continue;
         }
         surface += 1;
-        let d = cam_b.view_depth(b.depth[j]);
-        match held[j] {
+        let d = cam_b.view_depth(depth);
+        match *held {
             None => missing += 1,
             Some((h, object)) => {
                 let tolerance = (0.01 * d).max(cam_b.pixel_world_size(d));
-                if object == b.ids[j].object && (h - d).abs() <= tolerance {
+                if object == id.object && (h - d).abs() <= tolerance {
                     reused += 1;
                 } else {
                     other += 1;
