@@ -193,10 +193,11 @@ impl ChangeFeed {
         let first = self.entries.front().map_or(self.next_seq, |e| e.seq);
         let start = cursor.next;
         cursor.next = self.next_seq;
-        if start < first {
+        // Before the oldest change kept, or past the newest: a cursor of another feed (an
+        // editor replaced wholesale) knows nothing of this one either.
+        if start < first || start > self.next_seq {
             return ChangesRead::Lagged;
         }
-        // `start` is at most `next_seq`: cursors only come from this feed's reads.
         let skip = usize::try_from(start - first).unwrap_or(usize::MAX);
         let mut it = self.entries.iter();
         if skip > 0 {
@@ -440,6 +441,12 @@ mod tests {
         feed.push((9, 9), (9, 9), Change::Camera);
         let last = feed.len() - 1;
         assert_eq!(seqs(&feed, &mut b), Some(vec![last]));
+        // A cursor from a longer feed is told it lagged, then reads on from here.
+        let mut ahead = ChangeCursor {
+            next: feed.len() + 5,
+        };
+        assert_eq!(seqs(&feed, &mut ahead), None);
+        assert_eq!(seqs(&feed, &mut ahead), Some(vec![]));
         // A cursor exactly at the oldest kept change reads them all.
         let mut c = ChangeCursor {
             next: feed.entries.front().map(|e| e.seq).unwrap(),
