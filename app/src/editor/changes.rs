@@ -198,12 +198,9 @@ impl ChangeFeed {
         if start < first || start > self.next_seq {
             return ChangesRead::Lagged;
         }
-        let skip = usize::try_from(start - first).unwrap_or(usize::MAX);
-        let mut it = self.entries.iter();
-        if skip > 0 {
-            it.nth(skip - 1);
-        }
-        ChangesRead::Changes(it)
+        // At most the entries' length: `start` lies in `first..=next_seq`.
+        let skip = usize::try_from(start - first).unwrap_or(self.entries.len());
+        ChangesRead::Changes(self.entries.range(skip..))
     }
 }
 

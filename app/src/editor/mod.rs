@@ -452,24 +452,12 @@ impl Editor {
             self.record(from, change);
             from = self.content_key();
         }
-        for &(id, ..) in &boxes {
+        for (id, lo, hi) in boxes {
             if self.has_frames(id) {
                 // Built from the frame shown before the step: the step may have shown another.
                 self.drop_enhancer(id);
             }
-        }
-        for (id, lo, hi) in boxes {
-            if self.doc.enhancement_of(id).is_some() {
-                self.after_voxel_write(from, id, lo, hi, regions);
-            } else if regions {
-                self.record(
-                    from,
-                    Change::Voxels {
-                        object: id,
-                        region: Some((lo, hi)),
-                    },
-                );
-            }
+            self.after_voxel_write(from, id, lo, hi, regions);
             from = self.content_key();
         }
     }

@@ -750,12 +750,10 @@ impl CpuPreview {
         self.job.as_ref().map(|(k, _)| k.size_px)
     }
 
-    /// The shown image's depth, when it shows the editor's scene (content and pose).
+    /// The shown image's depth (drawn from its own camera, which lags an orbit).
     #[must_use]
-    pub fn shown_depth(&self, editor: &Editor) -> Option<FrameDepth> {
-        self.depth
-            .clone()
-            .filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
+    pub fn shown_depth(&self) -> Option<FrameDepth> {
+        self.depth.clone()
     }
 
     /// Drops the frame buffers and shadow maps (up to 64 MiB each at the final preset's 4096²)

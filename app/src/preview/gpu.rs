@@ -119,8 +119,8 @@ impl GpuView {
         ));
     }
 
-    /// The depth of the shown frame once read back, when it shows the editor's scene (content
-    /// and pose) from the current camera at the size last asked for.
+    /// The depth of the shown frame once read back, when it was drawn from the current camera
+    /// at the size last asked for.
     #[must_use]
     pub fn shown_depth(&self, editor: &Editor) -> Option<FrameDepth> {
         let camera = editor.doc().camera;
@@ -128,7 +128,6 @@ impl GpuView {
             .as_ref()
             .and_then(|link| link.lock().depth.clone())
             .filter(|d| d.camera == camera && [d.width, d.height] == self.size_px)
-            .filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
     }
 }
 

@@ -135,11 +135,12 @@ impl Preview {
     /// stroke in progress); the overlays then test voxels by rays.
     #[must_use]
     pub fn shown_depth(&self, editor: &Editor, cpu: bool) -> Option<FrameDepth> {
-        if cpu {
-            self.cpu.shown_depth(editor)
+        let frame = if cpu {
+            self.cpu.shown_depth()
         } else {
             self.gpu.shown_depth(editor)
-        }
+        };
+        frame.filter(|d| d.content == editor.content_key() && d.animation == editor.animation_key())
     }
 
     /// The document the shown image was drawn from, for overlays that follow the pose (the
