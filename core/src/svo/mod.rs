@@ -19,14 +19,27 @@
 //! the previous value of each voxel it changed; applying it restores the octree exactly
 //! ([`Svo`]'s `PartialEq` compares the logical tree: structure, leaf and internal attributes,
 //! not pool layout). [`Svo::compact`] rebuilds the pools tightly.
+//!
+//! # Tiles
+//! An octree built with tiles ([`Svo::with_tiles`]) stores a full, uniform region once: an
+//! inner node with no child block (mask 0, first child [`TILE`]) whose attributes are those of
+//! every voxel below it (OpenVDB's tiles). An edit inside a tile splits only the path to what
+//! it edits, the new children starting with the tile's value, and the touched nodes collapse
+//! back into tiles when their eight children are equal tiles or leaves. Traversal sees a tile's
+//! voxels through virtual nodes ([`NodeRef::in_tile`]); equality, [`Svo::get`],
+//! [`Svo::for_each_leaf`] and undo deltas are those of the voxels, so a tiled octree and a
+//! leaf-only one holding the same voxels compare equal. See `docs/svo.md`.
 
 mod build;
 mod morton;
 mod query;
+mod tile;
 mod voxel;
 
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tile_tests;
 
 pub use morton::{morton_decode, morton_encode};
 pub use query::{RayHit, front_to_back_order};
@@ -113,15 +126,35 @@ impl Attrs {
 
 /// A node handle during traversal: its level (0 = root), its index in the pool of its level
 /// kind (inner or leaf), and the voxel coordinate of its minimum corner.
+///
+/// A node strictly inside a tile has no storage of its own: its index is the tile's inner
+/// index with [`IN_TILE`] set ([`NodeRef::in_tile`]), whatever its level.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct NodeRef {
     /// 0 at the root, `depth` at the leaves.
     pub level: u8,
-    /// Index into the inner pool (level < depth) or the leaf pool (level == depth).
+    /// Index into the inner pool (level < depth) or the leaf pool (level == depth); for a node
+    /// inside a tile, the tile's inner index with [`IN_TILE`] set.
     pub index: u32,
     /// Minimum corner in voxel coordinates.
     pub origin: UVec3,
 }
+
+impl NodeRef {
+    /// Whether this node lies strictly inside a tile (it is then one of the tile's virtual
+    /// nodes, and its index names the tile's inner slot, not a slot of its own).
+    #[inline]
+    #[must_use]
+    pub fn in_tile(&self) -> bool {
+        self.index & IN_TILE != 0
+    }
+}
+
+/// `inner_first` of a tile: an inner node with no child block, standing for every voxel below it.
+pub const TILE: u32 = u32::MAX;
+
+/// Bit of [`NodeRef::index`] marking a virtual node inside a tile.
+pub const IN_TILE: u32 = 1 << 31;
 
 /// The old value of every voxel an edit changed; applying it undoes the edit.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -156,19 +189,25 @@ pub struct EditResult {
 /// Memory used by an octree, by part.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Serialize, Deserialize)]
 pub struct MemoryStats {
-    /// Live internal nodes.
+    /// Live internal nodes (tiles included).
     pub inner_nodes: u64,
-    /// Live leaf voxels.
+    /// Solid voxels, those that tiles stand for included.
     pub leaves: u64,
+    /// Tiles: internal nodes standing for a full region of equal voxels, stored once.
+    #[serde(default)]
+    pub tiles: u64,
+    /// Voxels those tiles stand for (part of `leaves`, with no leaf storage of their own).
+    #[serde(default)]
+    pub tile_voxels: u64,
     /// Bytes of internal node structure (mask + child index) and their LOD attributes.
     pub inner_bytes: u64,
-    /// Bytes of leaf attributes.
+    /// Bytes of stored leaf attributes (voxels that tiles stand for cost none).
     pub leaf_bytes: u64,
     /// Allocated slots not holding a live node (freed by edits, reusable).
     pub free_slots: u64,
     /// Everything allocated, live or free.
     pub total_bytes: u64,
-    /// `total_bytes / leaves` (0 for an empty octree).
+    /// `total_bytes / leaves`, voxels of tiles counted (0 for an empty octree).
     pub bytes_per_leaf: f64,
 }
 
@@ -186,6 +225,12 @@ pub struct Svo {
     leaf_free: [Vec<u32>; 9],
     leaf_count: u64,
     inner_count: u64,
+    /// Whether edits and builds store full uniform regions as tiles.
+    tiling: bool,
+    /// Live tiles (inner nodes standing for a full uniform region).
+    tile_count: u64,
+    /// Voxels those tiles stand for (counted in `leaf_count` too).
+    tile_voxels: u64,
 }
 
 /// Number of children before octant `k` (`0..8`) in `mask`: the offset of child `k` in its
@@ -242,6 +287,9 @@ impl Svo {
             leaf_free: Default::default(),
             leaf_count: 0,
             inner_count: 1,
+            tiling: false,
+            tile_count: 0,
+            tile_voxels: 0,
         };
         svo.inner_attr.push_empty(1, has_skin);
         Ok(svo)
@@ -307,42 +355,74 @@ impl Svo {
         node.level == self.depth
     }
 
-    /// Child mask of a node (0 for leaves).
+    /// Child mask of a node (0 for leaves, all eight for a tile and the nodes inside one).
     #[inline]
     #[must_use]
     pub fn child_mask(&self, node: &NodeRef) -> u8 {
         if self.is_leaf(node) {
             0
+        } else if node.in_tile() || self.is_tile_slot(node.index as usize) {
+            0xff
         } else {
             self.inner_mask[node.index as usize]
         }
+    }
+
+    /// Whether `node` is a tile or lies inside one: an inner node standing for a full region of
+    /// voxels all equal to [`Self::node_voxel`].
+    #[inline]
+    #[must_use]
+    pub fn is_tile(&self, node: &NodeRef) -> bool {
+        !self.is_leaf(node) && (node.in_tile() || self.is_tile_slot(node.index as usize))
     }
 
     /// Child `k` of `node`, if present.
     #[inline]
     #[must_use]
     pub fn child(&self, node: &NodeRef, k: u8) -> Option<NodeRef> {
-        let mask = self.child_mask(node);
-        if mask & (1 << k) == 0 {
+        if self.is_leaf(node) {
             return None;
         }
         let half = self.node_size(node.level) / 2;
+        let origin = node.origin + octant_offset(k, half);
+        let level = node.level + 1;
+        if node.in_tile() || self.is_tile_slot(node.index as usize) {
+            return Some(NodeRef {
+                level,
+                index: node.index | IN_TILE,
+                origin,
+            });
+        }
+        let mask = self.inner_mask[node.index as usize];
+        if mask & (1 << k) == 0 {
+            return None;
+        }
         Some(NodeRef {
-            level: node.level + 1,
+            level,
             index: self.inner_first[node.index as usize] + child_rank(mask, k),
-            origin: node.origin + octant_offset(k, half),
+            origin,
         })
     }
 
-    /// Attributes of a node: a leaf's own, or an internal node's average over its subtree.
+    /// The pool and slot holding `node`'s attributes: its own, or its tile's.
+    #[inline]
+    fn attrs_of(&self, node: &NodeRef) -> (&Attrs, usize) {
+        if node.in_tile() {
+            (&self.inner_attr, (node.index & !IN_TILE) as usize)
+        } else if self.is_leaf(node) {
+            (&self.leaf_attr, node.index as usize)
+        } else {
+            (&self.inner_attr, node.index as usize)
+        }
+    }
+
+    /// Attributes of a node: a leaf's own, an internal node's average over its subtree, or, for
+    /// a tile and the nodes inside it, the tile's value (the average of equal voxels).
     #[inline]
     #[must_use]
     pub fn node_voxel(&self, node: &NodeRef) -> Voxel {
-        if self.is_leaf(node) {
-            self.leaf_attr.get(node.index as usize)
-        } else {
-            self.inner_attr.get(node.index as usize)
-        }
+        let (a, i) = self.attrs_of(node);
+        a.get(i)
     }
 
     /// A node's colour (sRGB RGBA8) and octahedral normal, as [`Self::node_voxel`] gives them,
@@ -350,11 +430,7 @@ impl Svo {
     #[inline]
     #[must_use]
     pub fn node_color_and_normal(&self, node: &NodeRef) -> ([u8; 4], u16) {
-        let (a, i) = if self.is_leaf(node) {
-            (&self.leaf_attr, node.index as usize)
-        } else {
-            (&self.inner_attr, node.index as usize)
-        };
+        let (a, i) = self.attrs_of(node);
         (a.color[i], a.normal[i])
     }
 
@@ -376,6 +452,9 @@ impl Svo {
         }
         let mut node = self.root();
         while !self.is_leaf(&node) {
+            if self.is_tile(&node) {
+                return Some(self.node_voxel(&node));
+            }
             let half = self.node_size(node.level) / 2;
             let local = coord - node.origin;
             let k = u8::from(local.x >= half)
@@ -383,7 +462,7 @@ impl Svo {
                 | u8::from(local.z >= half) << 2;
             node = self.child(&node, k)?;
         }
-        Some(self.leaf_attr.get(node.index as usize))
+        Some(self.node_voxel(&node))
     }
 
     /// Sets one voxel; returns its previous value.
@@ -598,6 +677,19 @@ impl Svo {
     /// ([`Self::build_missing`]), and only where it does: a brush's empty corners cost callback
     /// calls, not nodes.
     fn edit_inner(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) -> bool {
+        let half = self.node_size(level) / 2;
+        let split = self.is_tile_slot(i as usize)
+            && Self::overlapping(origin, half, ctx.lo, ctx.hi) != 0
+            && self.split_tile(level, i);
+        let changed = self.edit_node(level, i, origin, ctx);
+        if split || changed {
+            self.collapse(level, i);
+        }
+        changed
+    }
+
+    /// [`Self::edit_inner`] on a node that is not a tile.
+    fn edit_node(&mut self, level: u8, i: u32, origin: UVec3, ctx: &mut EditCtx<'_, '_>) -> bool {
         let iu = i as usize;
         let half = self.node_size(level) / 2;
         let child_is_leaf = level + 1 == self.depth;
@@ -661,7 +753,7 @@ impl Svo {
                 if old_mask & (1 << k) != 0 {
                     let slot = old_first + child_rank(old_mask, k);
                     changed |= self.edit_inner(level + 1, slot, c_origin, ctx);
-                    if self.inner_mask[slot as usize] != 0 {
+                    if self.is_live_inner(slot as usize) {
                         present |= 1 << k;
                     } else {
                         self.inner_count -= 1;
@@ -728,6 +820,16 @@ impl Svo {
             if n == 0 {
                 return None;
             }
+            if n == 8 && self.can_tile(&leaves) {
+                self.leaf_count += 8;
+                self.tile_count += 1;
+                self.tile_voxels += 8;
+                return Some(Built {
+                    mask: 0,
+                    first: TILE,
+                    attrs: leaves[0],
+                });
+            }
             let first = self.alloc_block(true, n as u32);
             for (j, v) in leaves[..n].iter().enumerate() {
                 self.leaf_attr.set(first as usize + j, v);
@@ -751,6 +853,20 @@ impl Svo {
         }
         if n == 0 {
             return None;
+        }
+        if n == 8
+            && self.tiling
+            && children
+                .iter()
+                .all(|b| b.first == TILE && b.mask == 0 && b.attrs == children[0].attrs)
+        {
+            // Eight equal tiles are one: their own count gives way to the parent's.
+            self.tile_count -= 7;
+            return Some(Built {
+                mask: 0,
+                first: TILE,
+                attrs: children[0].attrs,
+            });
         }
         let first = self.alloc_block(false, n as u32);
         let mut attrs = [Voxel::default(); 8];
@@ -835,6 +951,23 @@ impl Svo {
     /// the subtree of inner node `i`; returns whether anything changed. Records undo entries
     /// into `record` when given.
     fn apply_sorted(
+        &mut self,
+        level: u8,
+        i: u32,
+        origin: UVec3,
+        items: &[(UVec3, Option<Voxel>)],
+        record: Option<&mut EditResult>,
+    ) -> bool {
+        let split = !items.is_empty() && self.is_tile_slot(i as usize) && self.split_tile(level, i);
+        let changed = self.apply_sorted_node(level, i, origin, items, record);
+        if split || changed {
+            self.collapse(level, i);
+        }
+        changed
+    }
+
+    /// [`Self::apply_sorted`] on a node that is not a tile.
+    fn apply_sorted_node(
         &mut self,
         level: u8,
         i: u32,
@@ -946,7 +1079,7 @@ impl Svo {
                     &items[s..e],
                     record.as_deref_mut(),
                 );
-                if self.inner_mask[slot as usize] == 0 {
+                if !self.is_live_inner(slot as usize) {
                     present &= !(1 << k);
                     self.inner_count -= 1;
                 }
@@ -965,7 +1098,7 @@ impl Svo {
     /// Calls `f(coord, voxel)` for every solid voxel in the inclusive box `lo..=hi`, in Morton
     /// order, visiting only nodes that overlap the box.
     pub fn for_each_leaf_in(&self, lo: UVec3, hi: UVec3, mut f: impl FnMut(UVec3, Voxel)) {
-        if lo.cmpgt(hi).any() || self.inner_mask[0] == 0 {
+        if lo.cmpgt(hi).any() || self.is_empty() {
             return;
         }
         self.leaves_in(&self.root(), lo, hi, &mut f);
@@ -973,12 +1106,11 @@ impl Svo {
 
     fn leaves_in(&self, node: &NodeRef, lo: UVec3, hi: UVec3, f: &mut impl FnMut(UVec3, Voxel)) {
         if self.is_leaf(node) {
-            f(node.origin, self.leaf_attr.get(node.index as usize));
+            f(node.origin, self.node_voxel(node));
             return;
         }
         let half = self.node_size(node.level) / 2;
-        let touched =
-            Self::overlapping(node.origin, half, lo, hi) & self.inner_mask[node.index as usize];
+        let touched = Self::overlapping(node.origin, half, lo, hi) & self.child_mask(node);
         for k in 0..8u8 {
             if touched & (1 << k) != 0
                 && let Some(child) = self.child(node, k)
@@ -1069,16 +1201,16 @@ impl Svo {
 
     /// Calls `f(coord, voxel)` for every solid voxel, in Morton order.
     pub fn for_each_leaf(&self, mut f: impl FnMut(UVec3, Voxel)) {
-        if self.inner_mask[0] == 0 {
+        if self.is_empty() {
             return;
         }
         let mut stack = vec![(self.root(), 0u8)];
         while let Some((node, next_k)) = stack.pop() {
             if self.is_leaf(&node) {
-                f(node.origin, self.leaf_attr.get(node.index as usize));
+                f(node.origin, self.node_voxel(&node));
                 continue;
             }
-            let mask = self.inner_mask[node.index as usize];
+            let mask = self.child_mask(&node);
             if let Some(k) = (next_k..8).find(|k| mask & (1 << k) != 0) {
                 stack.push((node, k + 1));
                 if let Some(child) = self.child(&node, k) {
@@ -1104,11 +1236,17 @@ impl Svo {
         }
         let mut lo = UVec3::MAX;
         let mut hi = UVec3::ZERO;
-        // Every leaf is visited; cheap next to anything that needs bounds.
-        self.for_each_leaf(|c, _| {
-            lo = lo.min(c);
-            hi = hi.max(c);
-        });
+        // Every stored node is visited (a tile as its box); cheap next to anything that needs
+        // bounds.
+        let mut stack = vec![self.root()];
+        while let Some(node) = stack.pop() {
+            if self.is_leaf(&node) || self.is_tile(&node) {
+                lo = lo.min(node.origin);
+                hi = hi.max(node.origin + (self.node_size(node.level) - 1));
+                continue;
+            }
+            stack.extend((0..8).filter_map(|k| self.child(&node, k)));
+        }
         Some((lo, hi))
     }
 
@@ -1120,12 +1258,15 @@ impl Svo {
         let inner_entry = (1 + 4 + self.inner_attr.bytes_per_entry()) as u64;
         let leaf_entry = self.leaf_attr.bytes_per_entry() as u64;
         let total = inner_slots * inner_entry + leaf_slots * leaf_entry;
+        let stored_leaves = self.leaf_count - self.tile_voxels;
         MemoryStats {
             inner_nodes: self.inner_count,
             leaves: self.leaf_count,
+            tiles: self.tile_count,
+            tile_voxels: self.tile_voxels,
             inner_bytes: self.inner_count * inner_entry,
-            leaf_bytes: self.leaf_count * leaf_entry,
-            free_slots: (inner_slots - self.inner_count) + (leaf_slots - self.leaf_count),
+            leaf_bytes: stored_leaves * leaf_entry,
+            free_slots: (inner_slots - self.inner_count) + (leaf_slots - stored_leaves),
             total_bytes: total,
             bytes_per_leaf: if self.leaf_count == 0 {
                 0.0
@@ -1135,8 +1276,13 @@ impl Svo {
         }
     }
 
-    /// Rebuilds the pools tightly in Morton order (drops free slots left by edits).
+    /// Rebuilds the pools tightly in Morton order (drops free slots left by edits); tiles stay
+    /// tiles.
     pub fn compact(&mut self) {
+        if self.tiling {
+            self.repack();
+            return;
+        }
         let rebuilt = Self::from_voxels(self.depth, self.has_skin, self.leaves());
         if let Ok(r) = rebuilt {
             *self = r;
@@ -1246,7 +1392,8 @@ fn record_change(result: &mut EditResult, coord: UVec3, old: Option<Voxel>) {
 
 impl PartialEq for Svo {
     /// Logical equality: same depth, skin flag, structure and attributes (leaf and internal),
-    /// whatever the pool layout.
+    /// whatever the pool layout, and whether or not a region is stored as a tile (a tile equals
+    /// the full subtree of equal voxels it stands for).
     fn eq(&self, other: &Self) -> bool {
         if self.depth != other.depth
             || self.has_skin != other.has_skin
@@ -1259,10 +1406,12 @@ impl PartialEq for Svo {
             if self.child_mask(&a) != other.child_mask(&b) {
                 return false;
             }
-            if (a.level > 0 || self.inner_mask[0] != 0)
-                && self.node_voxel(&a) != other.node_voxel(&b)
-            {
+            if (a.level > 0 || !self.is_empty()) && self.node_voxel(&a) != other.node_voxel(&b) {
                 return false;
+            }
+            if self.is_tile(&a) && other.is_tile(&b) {
+                // Two full regions of the same voxel.
+                continue;
             }
             for k in 0..8 {
                 if let (Some(ca), Some(cb)) = (self.child(&a, k), other.child(&b, k)) {
