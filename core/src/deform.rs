@@ -47,14 +47,7 @@ impl NodeInfo<'_> {
     #[inline]
     #[must_use]
     pub fn skin(&self) -> crate::svo::Skin4 {
-        let pool = if self.svo.is_leaf(&self.node) {
-            self.svo.leaf_skin()
-        } else {
-            self.svo.inner_skin()
-        };
-        pool.get(self.node.index as usize)
-            .copied()
-            .unwrap_or_default()
+        self.svo.node_skin(&self.node)
     }
 
     /// The node's attributes (a leaf's own or an internal node's LOD average, incl. skin).

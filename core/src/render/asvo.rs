@@ -21,7 +21,7 @@ use super::camera::Camera;
 use super::sampled::SampledTexels;
 use super::stats::LevelStats;
 use crate::deform::{NodeDeform, NodeInfo};
-use crate::svo::{NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
+use crate::svo::{IN_TILE, NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
 
 /// One voxel object to draw.
 #[derive(Clone, Copy)]
@@ -1280,13 +1280,7 @@ fn faces_away(
     c_view: Vec3,
     perspective: bool,
 ) -> bool {
-    let svo = obj.svo;
-    let i = q.node.index as usize;
-    let e = if svo.is_leaf(&q.node) {
-        svo.leaf_normals()[i]
-    } else {
-        svo.inner_normals()[i]
-    };
+    let e = obj.svo.node_color_and_normal(&q.node).1;
     // The octahedral decoding of `decode_normal` without its normalisation (a sign test).
     let (px, py) = (
         f32::from(e & 0xff) / 255.0 * 2.0 - 1.0,
@@ -1390,14 +1384,27 @@ fn children_front_to_back(
     if mask == 0 {
         return 0;
     }
+    let half = svo.node_size(q.node.level) / 2;
+    let level = q.node.level + 1;
+    if svo.is_tile(&q.node) {
+        // A tile's eight children are its virtual nodes (`Svo::child`), all present.
+        let index = q.node.index | IN_TILE;
+        for (slot, k) in out.iter_mut().zip(front_to_back_order(dir_voxel)) {
+            *slot = NodeRef {
+                level,
+                index,
+                origin: q.node.origin + octant_offset(k, half),
+            };
+        }
+        return 8;
+    }
     // `Svo::child` for each octant, with the node's mask and first child read once.
     let first = svo.inner_first_children()[q.node.index as usize];
-    let half = svo.node_size(q.node.level) / 2;
     let mut n = 0;
     for k in front_to_back_order(dir_voxel) {
         if mask & (1 << k) != 0 {
             out[n] = NodeRef {
-                level: q.node.level + 1,
+                level,
                 index: first + child_rank(mask, k),
                 origin: q.node.origin + octant_offset(k, half),
             };

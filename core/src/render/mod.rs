@@ -31,6 +31,8 @@ mod renderer_tests;
 #[cfg(test)]
 mod supersample_tests;
 #[cfg(test)]
+mod tile_tests;
+#[cfg(test)]
 mod tests;
 
 use std::sync::Arc;

@@ -434,6 +434,15 @@ impl Svo {
         (a.color[i], a.normal[i])
     }
 
+    /// A node's skin weights alone, as [`Self::node_voxel`] gives them (the default skin for
+    /// an octree without skin).
+    #[inline]
+    #[must_use]
+    pub fn node_skin(&self, node: &NodeRef) -> Skin4 {
+        let (a, i) = self.attrs_of(node);
+        a.skin.get(i).copied().unwrap_or_default()
+    }
+
     fn check(&self, c: UVec3) -> Result<(), SvoError> {
         if c.max_element() >= self.extent() {
             return Err(SvoError::OutOfBounds {
