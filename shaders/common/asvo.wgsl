@@ -187,9 +187,35 @@ fn count_splat_pixels(v: Visit) {
     }
 }
 
+// Bit of a queue entry's node index marking a virtual node inside a tile (core's
+// `svo::IN_TILE`): the rest of the index is then the tile's inner index.
+const IN_TILE: u32 = 0x80000000u;
+// The first-child word of a tile (core's `svo::TILE`), whose child mask is empty: an inner node
+// standing for a full region of equal voxels, its attributes theirs.
+const TILE_FIRST: u32 = 0xffffffffu;
+
+// The attribute id of a queued node: an inner node's (and a tile's virtual nodes', whose index
+// is the tile's), or a leaf's.
+fn node_attr_id(x: u32, has_children: bool) -> u32 {
+    if has_children || (x & IN_TILE) != 0u {
+        return (params.attr_inner_base + (x & ~IN_TILE)) << FACE_BITS;
+    }
+    return (params.attr_leaf_base + x) << FACE_BITS;
+}
+
 fn push_children(entry: vec4<u32>) {
-    let node = inner_nodes[params.inner_base + entry.x];
-    let mask = node.y & 0xffu;
+    // A tile and its virtual nodes have all eight children, each a virtual node of the tile.
+    var in_tile = (entry.x & IN_TILE) != 0u;
+    var mask = 0xffu;
+    var first = 0u;
+    if !in_tile {
+        let node = inner_nodes[params.inner_base + entry.x];
+        in_tile = node.x == TILE_FIRST && (node.y & 0xffu) == 0u;
+        if !in_tile {
+            mask = node.y & 0xffu;
+            first = node.x;
+        }
+    }
     let n = countOneBits(mask);
     let base = atomicAdd(&counters[QUEUE_COUNTS + params.level + 1u], n);
     let half = params.node_size / 2u;
@@ -201,7 +227,7 @@ fn push_children(entry: vec4<u32>) {
         let slot = base + r;
         if slot < params.queue_capacity {
             let offset = vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u) * half;
-            queue_out[slot] = vec4<u32>(node.x + r, entry.yzw + offset);
+            queue_out[slot] = vec4<u32>(select(first + r, entry.x | IN_TILE, in_tile), entry.yzw + offset);
         } else {
             atomicAdd(&counters[OVERFLOW_COUNTER], 1u);
         }
@@ -296,11 +322,7 @@ fn visit(i: u32) -> Visit {
     out.kind = VISIT_SPLAT;
     out.rect = vec4<u32>(xs.x, ys.x, xs.y, ys.y);
     out.depth_bits = depth_bits;
-    if has_children {
-        out.id = (params.attr_inner_base + entry.x) << FACE_BITS;
-    } else {
-        out.id = (params.attr_leaf_base + entry.x) << FACE_BITS;
-    }
+    out.id = node_attr_id(entry.x, has_children);
     let linear = mat3x3<f32>(params.linear_x.xyz, params.linear_y.xyz, params.linear_z.xyz);
     make_cube(&out, CUBE_FACES, max(sx1 - sx0, sy1 - sy0), c, linear * (0.5 * size));
     if out.cube != 0u {
@@ -462,11 +484,7 @@ fn visit_skinned(entry: vec4<u32>) -> Visit {
     out.kind = VISIT_SPLAT;
     out.rect = vec4<u32>(splat.xs.x, splat.ys.x, splat.xs.y, splat.ys.y);
     out.depth_bits = splat.depth_bits;
-    if has_children {
-        out.id = (params.attr_inner_base + entry.x) << FACE_BITS;
-    } else {
-        out.id = (params.attr_leaf_base + entry.x) << FACE_BITS;
-    }
+    out.id = node_attr_id(entry.x, has_children);
     make_cube(&out, CUBE_DEPTH, splat.extent_px, c, view_rot * placed.half_axes);
     if out.cube != 0u {
         count_stat(5u);
