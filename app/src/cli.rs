@@ -2334,6 +2334,14 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
                 human_bytes(m.texture_bytes),
                 human_bytes(m.free_bytes)
             );
+            if m.tiles > 0 {
+                let _ = writeln!(
+                    s,
+                    "      tiles: {} stand for {} voxels stored once each",
+                    thousands(m.tiles),
+                    thousands(m.tile_voxels)
+                );
+            }
         }
     }
     s

@@ -614,6 +614,10 @@ pub struct MemoryInfo {
     pub free_bytes: u64,
     /// Everything.
     pub total_bytes: u64,
+    /// Tiles: full regions of equal voxels stored once, as one internal node (voxels).
+    pub tiles: u64,
+    /// Voxels those tiles stand for, with no storage of their own.
+    pub tile_voxels: u64,
 }
 
 /// One object of a document, as `thicket info` reports it.
@@ -767,6 +771,7 @@ fn mesh_memory(model: &MeshModel) -> MemoryInfo {
         texture_bytes: texture as u64,
         free_bytes: 0,
         total_bytes: (payload + texture) as u64,
+        ..MemoryInfo::default()
     }
 }
 
@@ -824,6 +829,8 @@ pub fn object_info(o: &Object) -> ObjectInfo {
                 texture_bytes: 0,
                 free_bytes: stats.total_bytes.saturating_sub(live),
                 total_bytes: stats.total_bytes,
+                tiles: stats.tiles,
+                tile_voxels: stats.tile_voxels,
             };
         }
         ObjectKind::Mesh(m) => {

@@ -503,7 +503,9 @@ fn incremental_upload_equals_a_full_upload() {
                 if c.x < cut_x {
                     None
                 } else if c.z >= slab_z {
-                    Some(Voxel::new([240, 240, 20, 255], Vec3::Z))
+                    // Varied, so the slab is stored voxel by voxel (one colour would be tiles
+                    // and never outgrow the pools).
+                    Some(Voxel::new([240, 240, (c.x * 4) as u8, 255], Vec3::Z))
                 } else {
                     old
                 }

@@ -20,19 +20,21 @@ fn sample(name: &str) -> Document {
     thicket_core::io::project::load(&path).expect("a sample project")
 }
 
-/// `doc` with every rigid voxel model stored with tiles; and how many tiles they hold.
-fn tiled(doc: &Document) -> (Document, u64) {
-    let mut out = doc.clone();
+/// `doc` with every rigid voxel model stored leaf-only, the same stored with tiles, and how
+/// many tiles those hold.
+fn both(doc: &Document) -> (Document, Document, u64) {
+    let (mut leaf_only, mut tiled) = (doc.clone(), doc.clone());
     let mut tiles = 0;
-    for o in &mut out.objects {
-        if let ObjectKind::Voxels(v) = &mut o.kind
-            && v.rig.is_none()
+    for (a, b) in leaf_only.objects.iter_mut().zip(&mut tiled.objects) {
+        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind)
+            && a.rig.is_none()
         {
-            v.svo = std::mem::take(&mut v.svo).with_tiles();
-            tiles += v.svo.tile_count();
+            a.svo = std::mem::take(&mut a.svo).without_tiles();
+            b.svo = std::mem::take(&mut b.svo).with_tiles();
+            tiles += b.svo.tile_count();
         }
     }
-    (out, tiles)
+    (leaf_only, tiled, tiles)
 }
 
 /// A solid ball: one colour inside, a shell of many.
@@ -96,18 +98,14 @@ fn a_tiled_octree_renders_on_the_gpu_as_its_leaf_only_octree() {
         .collect();
     docs.push(("solid ball".into(), solid_ball()));
     for (name, doc) in docs {
-        let (tiled_doc, tiles) = tiled(&doc);
+        let (doc, tiled_doc, tiles) = both(&doc);
         assert!(tiles > 0, "{name}: no tiles");
         for preset in [QualityPreset::Draft, QualityPreset::Balanced] {
             let q = Quality::preset(preset);
             let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
             let (a, na) = draw(&ctx, &mut r, &doc, &q);
             let (b, nb) = draw(&ctx, &mut r, &tiled_doc, &q);
-            let differ = a
-                .chunks(4)
-                .zip(b.chunks(4))
-                .filter(|(p, q)| p != q)
-                .count();
+            let differ = a.chunks(4).zip(b.chunks(4)).filter(|(p, q)| p != q).count();
             eprintln!("{name} {preset:?}: {differ} pixels differ, nodes {na} / {nb}");
             assert_eq!(differ, 0, "{name} {preset:?}");
             assert_eq!(na, nb, "{name} {preset:?}: nodes visited");

@@ -169,6 +169,18 @@ fn object_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState,
                             human_bytes(info.memory.free_bytes)
                         ),
                     );
+                    if info.memory.tiles > 0 {
+                        row(
+                            ui,
+                            "Tiles",
+                            format!(
+                                "{} ({} voxels)",
+                                thousands(info.memory.tiles),
+                                thousands(info.memory.tile_voxels)
+                            ),
+                            "Full regions of one voxel value stored once (their voxels cost no memory of their own)",
+                        );
+                    }
                     row(
                         ui,
                         "Skin weights",

@@ -471,7 +471,8 @@ fn load_from_parts(
             supported: FORMAT_VERSION,
         });
     }
-    // Migration: a version-1 document is a version-2 document without frame sequences, so
+    // Migration: a version-1 document is a version-2 document without frame sequences, and a
+    // version-2 one a version-3 one whose payloads are `SVO1` (which `decode_svo` reads), so
     // nothing changes but the number; the document in memory is always the current format.
     doc.format_version = FORMAT_VERSION;
     let payload_err = |detail: String| ProjectError::Payload {
@@ -606,7 +607,14 @@ fn check_object_graph(doc: &Document, payloads: &[PayloadRef]) -> Result<(), Str
 
 // ---- binary encoding -------------------------------------------------------------------------
 
+/// The first octree payload: every voxel, one record each.
 const SVO_MAGIC: &[u8; 4] = b"SVO1";
+/// The octree payload with tiles ([`encode_svo`]).
+const SVO2_MAGIC: &[u8; 4] = b"SVO2";
+
+/// Most voxels one octree payload may stand for (2^31): a few tiles can stand for more than
+/// any file could list, and tools that visit every voxel (exports) must still finish.
+pub const MAX_PAYLOAD_VOXELS: u64 = 1 << 31;
 const MESH_MAGIC: &[u8; 4] = b"MSH1";
 /// The skin payload; `SKN2` adds each clip's frame rate after its duration. `SKN1` (no frame
 /// rate: clips get the default) is still read.
@@ -697,23 +705,37 @@ fn put_len(out: &mut Vec<u8>, n: usize) {
     put_u32(out, u32::try_from(n).unwrap_or(u32::MAX));
 }
 
-/// Canonical octree payload: header, then every leaf in Morton order.
+/// Canonical octree payload (`SVO2`): header (magic, depth, skin flag, two zero bytes, the
+/// number of voxels, the number of runs), then every stored run in Morton order
+/// ([`Svo::for_each_run`]): its origin's Morton code, its height (0: one voxel; h: a tile of
+/// `2^h` voxels a side) and its attributes. A solid's interior costs one record per tile, so
+/// the file follows the surface.
 fn encode_svo(svo: &Svo, out: &mut Vec<u8>) {
-    out.extend_from_slice(SVO_MAGIC);
+    out.extend_from_slice(SVO2_MAGIC);
     out.push(svo.depth());
     out.push(u8::from(svo.has_skin()));
     out.extend_from_slice(&[0, 0]);
     out.extend_from_slice(&svo.leaf_count().to_le_bytes());
-    svo.for_each_leaf(|c, v| {
+    let count_at = out.len();
+    out.extend_from_slice(&0u64.to_le_bytes());
+    let mut runs = 0u64;
+    svo.for_each_run(|c, height, v| {
+        runs += 1;
         out.extend_from_slice(&morton_encode(c).to_le_bytes());
-        out.extend_from_slice(&v.color);
-        out.extend_from_slice(&v.normal.to_le_bytes());
-        out.push(v.material);
-        if svo.has_skin() {
-            out.extend_from_slice(&v.skin.joints);
-            out.extend_from_slice(&v.skin.weights);
-        }
+        out.push(height);
+        put_voxel(out, &v, svo.has_skin());
     });
+    out[count_at..count_at + 8].copy_from_slice(&runs.to_le_bytes());
+}
+
+fn put_voxel(out: &mut Vec<u8>, v: &Voxel, skin: bool) {
+    out.extend_from_slice(&v.color);
+    out.extend_from_slice(&v.normal.to_le_bytes());
+    out.push(v.material);
+    if skin {
+        out.extend_from_slice(&v.skin.joints);
+        out.extend_from_slice(&v.skin.weights);
+    }
 }
 
 const FRAMES_MAGIC: &[u8; 4] = b"FRM1";
@@ -766,9 +788,12 @@ fn decode_frames(bytes: &[u8]) -> Result<Vec<crate::scene::VoxelFrame>, String> 
 
 fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
     let mut r = Reader { bytes, at: 0 };
-    if r.take(4)? != SVO_MAGIC {
-        return Err("bad magic (expected SVO1)".into());
-    }
+    let magic = r.take(4)?;
+    let runs = match magic {
+        m if m == SVO_MAGIC => false,
+        m if m == SVO2_MAGIC => true,
+        _ => return Err("bad magic (expected SVO1 or SVO2)".into()),
+    };
     let depth = r.u8()?;
     let has_skin = match r.u8()? {
         0 => false,
@@ -776,27 +801,48 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         other => return Err(format!("skin flag {other} is not 0 or 1")),
     };
     r.take(2)?;
-    let count = r.u64()?;
-    let record = 8 + 4 + 2 + 1 + if has_skin { 8 } else { 0 };
+    let voxels = r.u64()?;
+    let count = if runs { r.u64()? } else { voxels };
+    let record = 8 + u64::from(runs) + 4 + 2 + 1 + if has_skin { 8 } else { 0 };
     if count.checked_mul(record) != Some(r.remaining() as u64) {
         return Err(format!(
-            "declares {count} voxels of {record} bytes but {} bytes follow",
+            "declares {count} records of {record} bytes but {} bytes follow",
             r.remaining()
         ));
     }
     // Checks the depth before anything is allocated.
-    Svo::new(depth, has_skin).map_err(|e| e.to_string())?;
+    let mut svo = Svo::new(depth, has_skin).map_err(|e| e.to_string())?;
     let limit = 1u64 << (3 * u32::from(depth));
-    let mut leaves = Vec::with_capacity(count as usize);
-    let mut prev: Option<u64> = None;
+    let mut leaves = Vec::new();
+    let mut tiles = Vec::new();
+    // End (exclusive) of the last run's Morton range.
+    let mut end = 0u64;
+    let mut total = 0u64;
     for i in 0..count {
         let code = r.u64()?;
-        if code >= limit || prev.is_some_and(|p| p >= code) {
+        let height = if runs { r.u8()? } else { 0 };
+        let span = (height <= depth).then(|| 1u64 << (3 * u32::from(height)));
+        let Some(span) = span.filter(|s| code % s == 0) else {
             return Err(format!(
-                "voxel {i}: code {code} is out of order or outside the depth-{depth} octree"
+                "record {i}: a run of height {height} at code {code} is not a node of the \
+                 depth-{depth} octree"
+            ));
+        };
+        if code >= limit || (i > 0 && code < end) {
+            return Err(format!(
+                "record {i}: code {code} is out of order, overlaps the run before it or lies \
+                 outside the depth-{depth} octree"
             ));
         }
-        prev = Some(code);
+        end = code + span;
+        total += span;
+        if total > MAX_PAYLOAD_VOXELS {
+            return Err(format!(
+                "record {i}: the runs so far hold {total} voxels, more than the \
+                 {MAX_PAYLOAD_VOXELS} a model may hold (tools that visit every voxel, such as \
+                 exports, would not finish)"
+            ));
+        }
         let color: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
         let normal = r.u16()?;
         let material = r.u8()?;
@@ -807,17 +853,39 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         } else {
             Skin4::default()
         };
-        leaves.push((
-            morton_decode(code),
-            Voxel {
-                color,
-                normal,
-                material,
-                skin,
-            },
+        let v = Voxel {
+            color,
+            normal,
+            material,
+            skin,
+        };
+        if height == 0 {
+            leaves.push((morton_decode(code), v));
+        } else if !svo.tile_value_ok(&v) {
+            return Err(format!(
+                "record {i}: a tile of height {height} holds a value this octree cannot store \
+                 as a tile (a skinned octree, or one whose eight copies do not average to itself)"
+            ));
+        } else {
+            tiles.push((morton_decode(code), height, v));
+        }
+    }
+    if total != voxels {
+        return Err(format!(
+            "declares {voxels} voxels but its runs hold {total}"
         ));
     }
-    Svo::from_voxels(depth, has_skin, leaves).map_err(|e| e.to_string())
+    if !leaves.is_empty() {
+        svo = Svo::from_voxels(depth, has_skin, leaves).map_err(|e| e.to_string())?;
+    }
+    if !tiles.is_empty() {
+        for (origin, height, v) in tiles {
+            svo.put_tile(origin, height, v);
+        }
+        // Paths built tile by tile leave freed blocks behind.
+        svo.compact();
+    }
+    Ok(svo)
 }
 
 /// A skinned voxel model's clips (key arrays) and per-voxel stretch overrides; the skeleton and

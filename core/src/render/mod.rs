@@ -31,9 +31,9 @@ mod renderer_tests;
 #[cfg(test)]
 mod supersample_tests;
 #[cfg(test)]
-mod tile_tests;
-#[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod tile_tests;
 
 use std::sync::Arc;
 use std::time::Instant;

@@ -15,19 +15,21 @@ fn sample(name: &str) -> Document {
     crate::io::project::load(&path).expect("a sample project")
 }
 
-/// `doc` with every rigid voxel model stored with tiles; and how many tiles they hold.
-fn tiled(doc: &Document) -> (Document, u64) {
-    let mut out = doc.clone();
+/// `doc` with every rigid voxel model stored leaf-only, the same stored with tiles, and how
+/// many tiles those hold.
+fn both(doc: &Document) -> (Document, Document, u64) {
+    let (mut leaf_only, mut tiled) = (doc.clone(), doc.clone());
     let mut tiles = 0;
-    for o in &mut out.objects {
-        if let ObjectKind::Voxels(v) = &mut o.kind
-            && v.rig.is_none()
+    for (a, b) in leaf_only.objects.iter_mut().zip(&mut tiled.objects) {
+        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind)
+            && a.rig.is_none()
         {
-            v.svo = std::mem::take(&mut v.svo).with_tiles();
-            tiles += v.svo.tile_count();
+            a.svo = std::mem::take(&mut a.svo).without_tiles();
+            b.svo = std::mem::take(&mut b.svo).with_tiles();
+            tiles += b.svo.tile_count();
         }
     }
-    (out, tiles)
+    (leaf_only, tiled, tiles)
 }
 
 /// A document holding one solid ball: one colour inside, a shell of many.
@@ -74,7 +76,7 @@ fn a_tiled_octree_renders_as_its_leaf_only_octree() {
         .collect();
     docs.push(("solid ball".into(), solid_ball()));
     for (name, doc) in docs {
-        let (tiled_doc, tiles) = tiled(&doc);
+        let (doc, tiled_doc, tiles) = both(&doc);
         // Surface-only samples (terrain) may have none; the house's walls and the ball do.
         if name == "house" || name == "solid ball" {
             assert!(tiles > 50, "{name}: {tiles} tiles");

@@ -30,7 +30,10 @@ use crate::svo::Svo;
 /// * 1: the first format.
 /// * 2: voxel models may hold a frame sequence ([`VoxelModel::frames`], with a `"frames"`
 ///   payload in the `.bin`). Version 1 files load unchanged (they have no frames).
-pub const FORMAT_VERSION: u32 = 2;
+/// * 3: octree payloads store tiles (`SVO2`: one record per stored leaf or tile, see
+///   `io::project`). Older files (`SVO1`, one record per voxel) load unchanged, their uniform
+///   regions becoming tiles in memory.
+pub const FORMAT_VERSION: u32 = 3;
 
 /// A value in the document that a renderer must not see.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -122,7 +122,11 @@ impl Svo {
         svo.inner_first = inner_first;
         svo.inner_attr = inner_attr;
         svo.leaf_attr = leaf_attr;
-        Ok(svo)
+        if svo.tiling {
+            Ok(svo.with_tiles())
+        } else {
+            Ok(svo)
+        }
     }
 
     /// Builds an octree from a callback. `may_contain(origin, size)` prunes whole cubes that hold

@@ -287,7 +287,7 @@ impl Svo {
             leaf_free: Default::default(),
             leaf_count: 0,
             inner_count: 1,
-            tiling: false,
+            tiling: !has_skin,
             tile_count: 0,
             tile_voxels: 0,
         };

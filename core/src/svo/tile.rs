@@ -9,7 +9,9 @@
 //! as explicit children, so a tiled and a leaf-only octree agree on every node's attributes.
 
 use super::voxel::merge;
-use super::{Attrs, Svo, TILE, Voxel};
+use glam::UVec3;
+
+use super::{Attrs, Skin4, Svo, TILE, Voxel, child_rank, octant_offset};
 
 impl Svo {
     /// This octree storing its full uniform regions as tiles, and keeping them so through
@@ -17,10 +19,14 @@ impl Svo {
     #[must_use]
     pub fn with_tiles(mut self) -> Self {
         self.tiling = true;
+        let before = self.tile_count;
         if !self.is_empty() {
             self.collapse_subtree(0, 0);
         }
-        self.repack();
+        if self.tile_count != before {
+            // The collapsed children's slots are free: drop them.
+            self.repack();
+        }
         self
     }
 
@@ -46,6 +52,104 @@ impl Svo {
     #[must_use]
     pub fn tile_count(&self) -> u64 {
         self.tile_count
+    }
+
+    /// Calls `f(origin, height, voxel)` for every stored run of voxels, in Morton order: each
+    /// leaf (height 0) and each tile (a cube of `2^height` voxels a side, all equal to `voxel`,
+    /// whose Morton codes are one contiguous range from its origin's). What a file stores.
+    pub fn for_each_run(&self, mut f: impl FnMut(UVec3, u8, Voxel)) {
+        if self.is_empty() {
+            return;
+        }
+        let mut stack = vec![(self.root(), 0u8)];
+        while let Some((node, next_k)) = stack.pop() {
+            if self.is_leaf(&node) || self.is_tile(&node) {
+                f(node.origin, self.depth - node.level, self.node_voxel(&node));
+                continue;
+            }
+            let mask = self.child_mask(&node);
+            if let Some(k) = (next_k..8).find(|k| mask & (1 << k) != 0) {
+                stack.push((node, k + 1));
+                if let Some(child) = self.child(&node, k) {
+                    stack.push((child, 0));
+                }
+            }
+        }
+    }
+
+    /// Makes the empty cube of `2^height` voxels a side at `origin` (aligned to its size, with
+    /// `1 <= height <= depth`) one tile of `voxel`, building the path to it; the caller has
+    /// checked that nothing is stored there and that `voxel` may be a tile
+    /// ([`Self::tile_value_ok`]). Building only: no undo record.
+    pub(crate) fn put_tile(&mut self, origin: UVec3, height: u8, voxel: Voxel) {
+        let target = self.depth - height;
+        // Counted first: a collapse on the way back up takes this tile with seven others.
+        let voxels = 1u64 << (3 * u32::from(height));
+        self.leaf_count += voxels;
+        self.tile_voxels += voxels;
+        self.tile_count += 1;
+        let v = self.stored_value(voxel);
+        self.put_tile_below(0, 0, UVec3::ZERO, (target, origin), v);
+    }
+
+    fn stored_value(&self, v: Voxel) -> Voxel {
+        if self.has_skin {
+            v
+        } else {
+            Voxel {
+                skin: Skin4::default(),
+                ..v
+            }
+        }
+    }
+
+    fn put_tile_below(
+        &mut self,
+        level: u8,
+        i: u32,
+        at: UVec3,
+        (target, origin): (u8, UVec3),
+        v: Voxel,
+    ) {
+        let iu = i as usize;
+        if level == target {
+            self.inner_mask[iu] = 0;
+            self.inner_first[iu] = TILE;
+            self.inner_attr.set(iu, &v);
+            return;
+        }
+        let half = self.node_size(level) / 2;
+        let local = origin - at;
+        let k = u8::from(local.x >= half)
+            | u8::from(local.y >= half) << 1
+            | u8::from(local.z >= half) << 2;
+        let mask = self.inner_mask[iu];
+        if mask & (1 << k) == 0 {
+            // The child is new: an empty inner node, made a tile or given children below.
+            self.rebuild_block(iu, false, mask | (1 << k));
+            let slot = (self.inner_first[iu] + child_rank(mask | (1 << k), k)) as usize;
+            self.inner_mask[slot] = 0;
+            self.inner_first[slot] = 0;
+            self.inner_count += 1;
+        }
+        let mask = self.inner_mask[iu];
+        let slot = self.inner_first[iu] + child_rank(mask, k);
+        self.put_tile_below(
+            level + 1,
+            slot,
+            at + octant_offset(k, half),
+            (target, origin),
+            v,
+        );
+        self.update_inner_attrs(level, i);
+        self.collapse(level, i);
+    }
+
+    /// Whether `voxel` may be stored as a tile in this octree: tiling is on and eight copies of
+    /// it average to itself (what every tile this octree makes holds).
+    #[must_use]
+    pub fn tile_value_ok(&self, voxel: &Voxel) -> bool {
+        self.tiling && self.averages_to_itself(&self.stored_value(*voxel))
     }
 
     /// Whether inner slot `i` is a tile.
@@ -128,9 +232,8 @@ impl Svo {
             v[0]
         } else {
             let v = self.inner_attr.get(first);
-            if !(0..8).all(|j| {
-                self.is_tile_slot(first + j) && self.inner_attr.get(first + j) == v
-            }) {
+            if !(0..8).all(|j| self.is_tile_slot(first + j) && self.inner_attr.get(first + j) == v)
+            {
                 return false;
             }
             v

@@ -73,7 +73,12 @@ fn assert_collapsed_and_counted(svo: &Svo) {
     let (inner, leaves, tiles, tile_voxels) = walk_counts(svo);
     let m = svo.memory_stats();
     assert_eq!(
-        (m.inner_nodes, m.leaves - m.tile_voxels, m.tiles, m.tile_voxels),
+        (
+            m.inner_nodes,
+            m.leaves - m.tile_voxels,
+            m.tiles,
+            m.tile_voxels
+        ),
         (inner, leaves, tiles, tile_voxels),
         "counters against a walk"
     );
@@ -99,7 +104,9 @@ fn assert_collapsed_and_counted(svo: &Svo) {
 #[test]
 fn a_solid_ball_keeps_its_voxels_and_attributes_as_tiles() {
     for skin in [false, true] {
-        let leaf_only = Svo::from_voxels(6, skin, ball(6, 27.0, skin)).unwrap();
+        let leaf_only = Svo::from_voxels(6, skin, ball(6, 27.0, skin))
+            .unwrap()
+            .without_tiles();
         let tiled = leaf_only.clone().with_tiles();
         assert!(tiled.tile_count() > 100, "{} tiles", tiled.tile_count());
         assert_eq!(tiled, leaf_only);
@@ -165,7 +172,10 @@ fn carving_one_voxel_from_a_full_octree_splits_only_its_path() {
     // split further; the last split leaves seven leaves.
     assert_eq!(svo.inner_count(), 1 + 8 * (d - 1));
     assert_eq!(svo.tile_count(), 7 * (d - 1));
-    assert_eq!(svo.memory_stats().leaves - svo.memory_stats().tile_voxels, 7);
+    assert_eq!(
+        svo.memory_stats().leaves - svo.memory_stats().tile_voxels,
+        7
+    );
     assert_collapsed_and_counted(&svo);
     svo.set(hole, v).unwrap();
     assert_eq!((svo.tile_count(), svo.inner_count()), (1, 1));
@@ -191,7 +201,7 @@ fn a_value_whose_average_differs_from_itself_is_not_tiled() {
         ..paint(0, false)
     };
     let mut tiled = Svo::new(3, true).unwrap().with_tiles();
-    let mut leaf_only = Svo::new(3, true).unwrap();
+    let mut leaf_only = Svo::new(3, true).unwrap().without_tiles();
     for svo in [&mut tiled, &mut leaf_only] {
         svo.edit_region(UVec3::ZERO, UVec3::splat(7), |_, _| Some(v))
             .unwrap();
@@ -202,7 +212,9 @@ fn a_value_whose_average_differs_from_itself_is_not_tiled() {
 
 #[test]
 fn rays_and_boxes_read_tiles_as_their_voxels() {
-    let leaf_only = Svo::from_voxels(6, false, ball(6, 25.0, false)).unwrap();
+    let leaf_only = Svo::from_voxels(6, false, ball(6, 25.0, false))
+        .unwrap()
+        .without_tiles();
     let tiled = leaf_only.clone().with_tiles();
     for (o, d) in [
         (DVec3::new(-5.0, 31.2, 30.7), DVec3::new(1.0, 0.01, 0.02)),
@@ -275,22 +287,19 @@ fn apply(svo: &mut Svo, op: &Op, undo: &mut Vec<UndoDelta>, skin: bool) -> EditR
                 ..v
             })
         }),
-        Op::Scatter(items, k) => svo.apply_changes(
-            items
-                .iter()
-                .map(|&(c, s)| (c, s.then(|| paint(*k, skin)))),
-        ),
+        Op::Scatter(items, k) => {
+            svo.apply_changes(items.iter().map(|&(c, s)| (c, s.then(|| paint(*k, skin)))))
+        }
         Op::Undo => {
             return EditResult {
                 changed: None,
-                delta: undo.pop().map_or_else(UndoDelta::default, |d| svo.apply_delta(&d)),
+                delta: undo
+                    .pop()
+                    .map_or_else(UndoDelta::default, |d| svo.apply_delta(&d)),
             };
         }
     }
-    .map(|r| {
-        undo.push(r.delta.clone());
-        r
-    })
+    .inspect(|r| undo.push(r.delta.clone()))
     .unwrap_or_default()
 }
 
@@ -305,7 +314,7 @@ proptest! {
         skin in any::<bool>(),
     ) {
         let start = Svo::from_voxels(5, skin, ball(5, 13.0, skin)).unwrap();
-        let mut leaf_only = start.clone();
+        let mut leaf_only = start.clone().without_tiles();
         let mut tiled = start.clone().with_tiles();
         let (mut undo_a, mut undo_b) = (Vec::new(), Vec::new());
         for op in &ops {

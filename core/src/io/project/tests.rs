@@ -277,9 +277,160 @@ fn old_style_projects_and_their_crash_states_still_load() {
     assert_eq!(load(&other).unwrap(), new);
 }
 
+/// A rigid model whose inside is tiles: a solid box of one colour with a shell of many.
+fn solid_block() -> Svo {
+    let mut voxels = Vec::new();
+    for z in 3..29u32 {
+        for y in 3..29u32 {
+            for x in 3..29u32 {
+                let shell = [x, y, z].iter().any(|&a| a == 3 || a == 28);
+                let v = if shell {
+                    Voxel::new([x as u8 * 9, y as u8 * 9, z as u8 * 9, 255], Vec3::Y)
+                } else {
+                    Voxel::new([90, 60, 30, 255], Vec3::Z)
+                };
+                voxels.push((UVec3::new(x, y, z), v));
+            }
+        }
+    }
+    Svo::from_voxels(5, false, voxels).unwrap()
+}
+
+/// The version-2 octree payload (`SVO1`): every voxel, one record each.
+fn encode_svo1(svo: &Svo) -> Vec<u8> {
+    let mut out = b"SVO1".to_vec();
+    out.push(svo.depth());
+    out.push(u8::from(svo.has_skin()));
+    out.extend_from_slice(&[0, 0]);
+    out.extend_from_slice(&svo.leaf_count().to_le_bytes());
+    svo.for_each_leaf(|c, v| {
+        out.extend_from_slice(&crate::svo::morton_encode(c).to_le_bytes());
+        put_voxel(&mut out, &v, svo.has_skin());
+    });
+    out
+}
+
+#[test]
+fn tiled_payloads_follow_the_surface_and_older_payloads_still_load() {
+    let svo = solid_block();
+    assert!(svo.tile_count() > 0);
+    let mut tiled = Vec::new();
+    encode_svo(&svo, &mut tiled);
+    let flat = encode_svo1(&svo);
+    let back = decode_svo(&tiled).unwrap();
+    assert_eq!(back, svo);
+    assert_eq!(back.tile_count(), svo.tile_count());
+    assert_eq!(back.memory_stats(), svo.memory_stats());
+    // The same voxels from the older payload: equal, and tiled in memory as well.
+    let old = decode_svo(&flat).unwrap();
+    assert_eq!(old, svo);
+    assert_eq!(old.tile_count(), svo.tile_count());
+    // 26³ voxels of which the 24³ inside are one colour: the file holds the shell.
+    assert!(
+        tiled.len() * 3 < flat.len(),
+        "{} bytes tiled against {} one voxel a record",
+        tiled.len(),
+        flat.len()
+    );
+    // A skinned octree keeps its voxels one by one and round-trips too.
+    let doc = sample_doc(5, true);
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        unreachable!("the sample's first object is voxels")
+    };
+    let mut bytes = Vec::new();
+    encode_svo(&v.svo, &mut bytes);
+    assert_eq!(decode_svo(&bytes).unwrap(), v.svo);
+}
+
+#[test]
+fn tiles_a_file_lists_apart_are_joined_where_they_fill_a_node() {
+    // Eight tiles of height 1 filling the 4³ corner node, listed one by one (a writer need not
+    // join them): loaded, they are one tile of height 2, equal to the same voxels built.
+    let v = Voxel::new([10, 200, 30, 255], Vec3::Z);
+    let mut b = b"SVO2".to_vec();
+    b.extend_from_slice(&[4, 0, 0, 0]);
+    b.extend_from_slice(&64u64.to_le_bytes());
+    b.extend_from_slice(&8u64.to_le_bytes());
+    for k in 0..8u64 {
+        b.extend_from_slice(&(8 * k).to_le_bytes());
+        b.push(1);
+        put_voxel(&mut b, &v, false);
+    }
+    let svo = decode_svo(&b).unwrap();
+    assert_eq!(svo.tile_count(), 1);
+    assert_eq!(svo.leaf_count(), 64);
+    let built =
+        Svo::from_voxels(4, false, (0..64).map(|m| (crate::svo::morton_decode(m), v))).unwrap();
+    assert_eq!(svo, built);
+    assert_eq!(svo.memory_stats(), built.memory_stats());
+}
+
+#[test]
+fn bad_tile_records_are_refused_with_their_reason() {
+    let svo = solid_block();
+    let mut good = Vec::new();
+    encode_svo(&svo, &mut good);
+    // Header: magic 4, depth, skin, 2 zero bytes, voxels u64, runs u64 = 24 bytes; a rigid
+    // record is code u64, height u8, colour 4, normal 2, material 1 = 16 bytes.
+    let record = |i: usize| 24 + 16 * i;
+    let runs = u64::from_le_bytes(good[16..24].try_into().unwrap()) as usize;
+    let tile = (0..runs).find(|&i| good[record(i) + 8] > 0).unwrap();
+    let expect = |bytes: &[u8], needle: &str| {
+        let e = decode_svo(bytes).unwrap_err();
+        assert!(e.contains(needle), "{e}");
+    };
+    // A tile whose origin is not a node of its height.
+    let mut b = good.clone();
+    b[record(tile)] += 1;
+    expect(&b, "is not a node");
+    // A height above the octree's depth.
+    let mut b = good.clone();
+    b[record(tile) + 8] = 6;
+    expect(&b, "is not a node");
+    // Runs out of order (overlapping).
+    let mut b = good.clone();
+    let (a, c) = (record(tile), record(tile + 1));
+    let first: Vec<u8> = b[a..a + 16].to_vec();
+    let second: Vec<u8> = b[c..c + 16].to_vec();
+    b[a..a + 16].copy_from_slice(&second);
+    b[c..c + 16].copy_from_slice(&first);
+    expect(&b, "out of order");
+    // A voxel count that the runs do not add up to.
+    let mut b = good.clone();
+    b[8] ^= 1;
+    expect(&b, "its runs hold");
+    // A tile value eight copies of which do not average to itself (an octahedral normal code
+    // that decoding and encoding again does not give back).
+    let v = svo.get(UVec3::splat(10)).unwrap();
+    let bad = (0..=u16::MAX)
+        .find(|&n| !svo.tile_value_ok(&Voxel { normal: n, ..v }))
+        .expect("some normal code is not its own average");
+    let mut b = good.clone();
+    let at = record(tile) + 9 + 4;
+    b[at..at + 2].copy_from_slice(&bad.to_le_bytes());
+    expect(&b, "cannot store");
+    // More voxels than a model may hold: one tile of the whole depth-21 octree.
+    let mut b = b"SVO2".to_vec();
+    b.extend_from_slice(&[21, 0, 0, 0]);
+    b.extend_from_slice(&(1u64 << 63).to_le_bytes());
+    b.extend_from_slice(&1u64.to_le_bytes());
+    b.extend_from_slice(&0u64.to_le_bytes());
+    b.push(21);
+    b.extend_from_slice(&[1, 2, 3, 255, 0, 0, 0]);
+    expect(&b, "more than");
+    assert!(decode_svo(&good).is_ok());
+}
+
 #[test]
 fn mutated_project_files_never_panic() {
-    let doc = sample_doc(8, true);
+    let mut doc = sample_doc(8, true);
+    doc.add(
+        "Block",
+        ObjectKind::Voxels(VoxelModel {
+            svo: solid_block(),
+            ..VoxelModel::default()
+        }),
+    );
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("f.thicket.json");
     save(&doc, &path).unwrap();
@@ -1103,7 +1254,10 @@ fn frame_sequences_save_and_load_with_every_frame() {
     let path = dir.path().join("anim.thicket.json");
     save(&doc, &path).unwrap();
     let text = fs::read_to_string(&path).unwrap();
-    assert!(text.contains("\"format_version\": 2"), "{text}");
+    assert!(
+        text.contains(&format!("\"format_version\": {FORMAT_VERSION}")),
+        "{text}"
+    );
     assert!(text.contains("\"part\": \"frames\""), "{text}");
     let back = load(&path).unwrap();
     assert_eq!(back, doc);
@@ -1131,19 +1285,23 @@ fn frame_sequences_save_and_load_with_every_frame() {
 }
 
 #[test]
-fn version_1_projects_load_and_save_as_version_2() {
-    // A version-1 file is a version-2 file without frames: set the version back and load it.
+fn version_1_projects_load_and_save_as_the_current_version() {
+    // A version-1 file is a current file without frames (its payloads SVO1, which still load):
+    // set the version back and load it.
     let doc = sample_doc(3, false);
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("old.thicket.json");
     save(&doc, &path).unwrap();
     let text = fs::read_to_string(&path).unwrap();
-    let old = text.replace("\"format_version\": 2", "\"format_version\": 1");
+    let old = text.replace(
+        &format!("\"format_version\": {FORMAT_VERSION}"),
+        "\"format_version\": 1",
+    );
     assert_ne!(old, text);
     fs::write(&path, &old).unwrap();
     let loaded = load(&path).unwrap();
     // Migrated on load: the document in memory is the current version.
-    assert_eq!(loaded.format_version, 2);
+    assert_eq!(loaded.format_version, FORMAT_VERSION);
     assert!(loaded.objects.iter().all(|o| match &o.kind {
         ObjectKind::Voxels(v) => v.frames.is_none(),
         _ => true,
@@ -1153,7 +1311,7 @@ fn version_1_projects_load_and_save_as_version_2() {
     assert!(
         fs::read_to_string(&path)
             .unwrap()
-            .contains("\"format_version\": 2")
+            .contains(&format!("\"format_version\": {FORMAT_VERSION}"))
     );
 }
 
