@@ -112,3 +112,74 @@ fn a_tiled_octree_renders_on_the_gpu_as_its_leaf_only_octree() {
         }
     }
 }
+
+fn svo_mut(d: &mut Document) -> &mut Svo {
+    match &mut d.objects[0].kind {
+        ObjectKind::Voxels(v) => &mut v.svo,
+        ObjectKind::Mesh(_) | ObjectKind::Krs(_) => unreachable!("the first object is voxels"),
+    }
+}
+
+#[test]
+fn edits_that_split_and_join_tiles_upload_incrementally_as_a_full_upload_would() {
+    let ctx = context();
+    let q = Quality::preset(QualityPreset::Balanced);
+    let (mut leaf_doc, mut doc, tiles) = both(&solid_ball());
+    assert!(tiles > 1000, "{tiles} tiles");
+    let id = doc.objects[0].id;
+    let target = RenderTarget::new(&ctx.device, 160, 120).expect("target");
+    let mut r = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+    let view = target.view(&doc.camera, &q);
+    r.render(&ctx.device, &ctx.queue, &doc, &view, &target)
+        .expect("frame");
+    let mut before = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+    // 1. Carve a sphere out of the front (splits the tiles it reaches); 2. fill a box with one
+    // value (new tiles, blocks joined into them); 3. paint by position inside it (splits them).
+    let centre = UVec3::new(32, 40, 52);
+    let carve =
+        move |c: UVec3, v: Voxel| (c.as_vec3().distance(centre.as_vec3()) > 14.0).then_some(v);
+    let fill = |_: UVec3, _: Option<Voxel>| Some(Voxel::new([20, 220, 240, 255], Vec3::Y));
+    let paint = |c: UVec3, v: Voxel| {
+        Some(Voxel {
+            color: [(c.x * 8) as u8, 30, 30, 255],
+            ..v
+        })
+    };
+    for step in 0..3 {
+        let mut changed = None;
+        for d in [&mut doc, &mut leaf_doc] {
+            let svo = svo_mut(d);
+            let e = match step {
+                0 => svo.edit_existing(UVec3::splat(10), UVec3::splat(63), carve),
+                1 => svo.edit_region(UVec3::new(8, 8, 40), UVec3::new(39, 23, 55), fill),
+                _ => svo.edit_existing(UVec3::new(8, 8, 40), UVec3::new(39, 23, 55), paint),
+            }
+            .expect("edit");
+            changed = e.changed;
+        }
+        let (lo, hi) = changed.expect("voxels changed");
+        let up = r
+            .update_voxel_region(&ctx.device, &ctx.queue, &doc, id, lo, hi)
+            .expect("update");
+        assert!(!up.full, "step {step}: {up:?}");
+        let stats = r
+            .render_uploaded(&ctx.device, &ctx.queue, &doc, &view, &target)
+            .expect("frame");
+        assert!(!stats.upload.full, "step {step}");
+        let inc = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
+        let mut fresh = Renderer::new(&ctx.device, &ctx.queue).expect("renderer");
+        let (full, _) = draw(&ctx, &mut fresh, &doc, &q);
+        let (leaf, _) = draw(&ctx, &mut fresh, &leaf_doc, &q);
+        assert!(
+            inc == full,
+            "step {step}: incremental differs from a full upload"
+        );
+        assert!(full == leaf, "step {step}: tiled differs from leaf-only");
+        assert!(
+            full != before,
+            "step {step}: the edit shows (else this proves nothing)"
+        );
+        before = full;
+    }
+    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
+}
