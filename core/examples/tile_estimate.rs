@@ -127,7 +127,7 @@ fn main() {
     let mut memo = std::collections::HashMap::new();
     walk(&solid, &solid.root(), &mut memo, &mut kept);
     let per_inner = d_mem.inner_bytes as f64 / d_mem.inner_nodes.max(1) as f64;
-    let per_leaf = d_mem.leaf_bytes as f64 / d_mem.leaves.max(1) as f64;
+    let per_leaf = d_mem.leaf_bytes as f64 / (d_mem.leaves - d_mem.tile_voxels).max(1) as f64;
     let tiled = (kept.inner + kept.tiles) as f64 * per_inner + kept.leaves as f64 * per_leaf;
     let mib = |b: f64| b / (1024.0 * 1024.0);
     println!(
@@ -146,5 +146,13 @@ fn main() {
         kept.leaves,
         mib(tiled),
         tiled / s_mem.total_bytes as f64
+    );
+    println!(
+        "the solid import as built (uniform tiles only): {} tiles standing for {} voxels, {:.1} \
+         MiB = {:.2}x the surface import",
+        d_mem.tiles,
+        d_mem.tile_voxels,
+        mib(d_mem.total_bytes as f64),
+        d_mem.total_bytes as f64 / s_mem.total_bytes as f64
     );
 }
