@@ -3,6 +3,9 @@
 //! 128³ model). Goals: box, fill and paste of 10^6 and their undo within 100 ms, the flood
 //! within 200 ms (release, 2 cores).
 //!
+//! The `tiles` group runs the box, its undo, a recolour and a sphere carve on tiled and on
+//! voxel-by-voxel octrees side by side.
+//!
 //! `cargo bench -p thicket-core --bench sculpt -- --warm-up-time 1 --measurement-time 3`
 
 use std::hint::black_box;
@@ -140,5 +143,84 @@ fn region(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, million, region);
+/// Tiles against voxel-by-voxel storage (issue 43), side by side in one run: the 10^6 box add
+/// and its undo, its recolour, and a sphere of radius 32 carved out of it (the issue's bar: a
+/// carve into a tiled solid within 1.5× of the same carve voxel by voxel).
+fn tiles(c: &mut Criterion) {
+    let size = UVec3::splat(128);
+    let (lo, hi) = (IVec3::splat(10), IVec3::splat(109));
+    let mut g = c.benchmark_group("tiles");
+    g.sample_size(10);
+    for (storage, empty) in [
+        ("tiled", Svo::new(7, false).expect("depth 7")),
+        (
+            "voxel_by_voxel",
+            Svo::new(7, false).expect("depth 7").without_tiles(),
+        ),
+    ] {
+        let add = |svo: &mut Svo| {
+            apply_box(
+                svo,
+                size,
+                lo,
+                hi,
+                ShapeOp::Add,
+                INK,
+                Mirror::default(),
+                None,
+            )
+        };
+        g.bench_function(format!("box_add_1M/{storage}"), |b| {
+            b.iter_batched(
+                || empty.clone(),
+                |mut svo| {
+                    let e = add(&mut svo);
+                    black_box((svo, e))
+                },
+                BatchSize::LargeInput,
+            );
+        });
+        let mut added = empty.clone();
+        let edit = add(&mut added);
+        g.bench_function(format!("box_add_1M_undo/{storage}"), |b| {
+            b.iter_batched(
+                || added.clone(),
+                |mut svo| {
+                    let redo = svo.apply_delta(&edit.delta);
+                    black_box((svo, redo))
+                },
+                BatchSize::LargeInput,
+            );
+        });
+        let sel = select_box(&added, lo.as_uvec3(), hi.as_uvec3());
+        g.bench_function(format!("recolour_1M/{storage}"), |b| {
+            b.iter_batched(
+                || added.clone(),
+                |mut svo| {
+                    let e = fill(&mut svo, &sel, OTHER);
+                    black_box((svo, e))
+                },
+                BatchSize::LargeInput,
+            );
+        });
+        let centre = glam::Vec3::splat(60.0);
+        g.bench_function(format!("carve_sphere_r32/{storage}"), |b| {
+            b.iter_batched(
+                || added.clone(),
+                |mut svo| {
+                    let e = svo
+                        .edit_existing(UVec3::splat(28), UVec3::splat(92), |c, v| {
+                            (c.as_vec3().distance(centre) > 32.0).then_some(v)
+                        })
+                        .expect("inside");
+                    black_box((svo, e))
+                },
+                BatchSize::LargeInput,
+            );
+        });
+    }
+    g.finish();
+}
+
+criterion_group!(benches, million, region, tiles);
 criterion_main!(benches);
