@@ -207,6 +207,27 @@ fn benches(c: &mut Criterion) {
         }
         g.finish();
 
+        // Issue 43: the house with its uniform regions as tiles (as loaded) and voxel by voxel,
+        // side by side: both visit the same nodes, so the frames should cost the same.
+        let mut g = c.benchmark_group("tiles");
+        g.sample_size(10);
+        let mut flat = house.clone();
+        for o in &mut flat.objects {
+            if let thicket_core::scene::ObjectKind::Voxels(v) = &mut o.kind {
+                v.svo = std::mem::take(&mut v.svo).without_tiles();
+            }
+        }
+        let req = View {
+            width: 800,
+            height: 600,
+            camera: Some(house.camera),
+            quality: Quality::default(),
+        };
+        for (name, doc) in [("house_tiled", &house), ("house_voxel_by_voxel", &flat)] {
+            g.bench_function(name, |b| b.iter(|| black_box(render_document(doc, &req))));
+        }
+        g.finish();
+
         // Issue 25: a frame that keeps its buffers. The house (octree depth 6, a small model
         // whose frame was dominated by making its buffers) from its project camera at 800×800
         // with its own quality, and the near 3M-voxel sphere balanced: each drawn by the free
