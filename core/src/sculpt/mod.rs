@@ -16,6 +16,8 @@ pub mod shapes;
 #[cfg(test)]
 mod fast_path_tests;
 #[cfg(test)]
+mod tile_tests;
+#[cfg(test)]
 mod tool_tests;
 
 pub use model_ops::{

@@ -1,0 +1,169 @@
+//! The voxel tools on tiled octrees (issue 43): brushes, boxes, fills, flood fills, paste,
+//! rotation, hollowing, interior fill and colour replacement give, step by step, the same
+//! voxels, node attributes and undo deltas on a tiled octree as on a voxel-by-voxel one, and
+//! undoing every step restores the start.
+
+use glam::{IVec3, UVec3, Vec3};
+use proptest::prelude::*;
+
+use super::*;
+
+const SIZE: UVec3 = UVec3::splat(32);
+
+fn ink(k: u8) -> Ink {
+    Ink {
+        color: [40 + 60 * k, 200 - 50 * k, 90, 255],
+        material: k % 2,
+    }
+}
+
+/// A 32³ model holding a solid box of one colour with a differently coloured slab through it.
+fn start() -> Svo {
+    let mut svo = Svo::new(5, false).expect("depth 5");
+    apply_box(
+        &mut svo,
+        SIZE,
+        IVec3::new(2, 3, 1),
+        IVec3::new(27, 29, 24),
+        ShapeOp::Add,
+        ink(0),
+        Mirror::default(),
+        None,
+    );
+    apply_box(
+        &mut svo,
+        SIZE,
+        IVec3::new(0, 12, 0),
+        IVec3::new(31, 15, 31),
+        ShapeOp::Paint,
+        ink(1),
+        Mirror::default(),
+        None,
+    );
+    svo
+}
+
+#[derive(Debug, Clone)]
+enum Tool {
+    Dab(BrushOp, Vec3, f32, u8),
+    Box(ShapeOp, IVec3, IVec3, u8),
+    FillBox(UVec3, UVec3, u8),
+    Flood(UVec3, u8),
+    CopyPaste(UVec3, UVec3, IVec3),
+    Rotate(UVec3, UVec3, usize, i32),
+    Hollow(u32),
+    FillInterior(u8),
+    Replace(u8, u8),
+}
+
+fn arb_point() -> impl Strategy<Value = UVec3> {
+    (0u32..32, 0u32..32, 0u32..32).prop_map(|(x, y, z)| UVec3::new(x, y, z))
+}
+
+fn arb_tool() -> impl Strategy<Value = Tool> {
+    let op = prop_oneof![
+        Just(BrushOp::Add),
+        Just(BrushOp::Remove),
+        Just(BrushOp::Paint),
+        Just(BrushOp::Smooth)
+    ];
+    let shape = prop_oneof![
+        Just(ShapeOp::Add),
+        Just(ShapeOp::Remove),
+        Just(ShapeOp::Paint)
+    ];
+    prop_oneof![
+        (op, arb_point(), 0.5f32..7.0, 0u8..3).prop_map(|(o, c, r, k)| Tool::Dab(
+            o,
+            c.as_vec3() + 0.5,
+            r,
+            k
+        )),
+        (shape, arb_point(), arb_point(), 0u8..3).prop_map(|(o, a, b, k)| Tool::Box(
+            o,
+            a.as_ivec3(),
+            b.as_ivec3(),
+            k
+        )),
+        (arb_point(), arb_point(), 0u8..3).prop_map(|(a, b, k)| Tool::FillBox(a, b, k)),
+        (arb_point(), 0u8..3).prop_map(|(c, k)| Tool::Flood(c, k)),
+        (arb_point(), arb_point(), (-8i32..8, -8i32..8, -8i32..8))
+            .prop_map(|(a, b, (x, y, z))| { Tool::CopyPaste(a, b, IVec3::new(x, y, z)) }),
+        (arb_point(), arb_point(), 0usize..3, 1i32..4)
+            .prop_map(|(a, b, axis, q)| Tool::Rotate(a, b, axis, q)),
+        (1u32..3).prop_map(Tool::Hollow),
+        (0u8..3).prop_map(Tool::FillInterior),
+        (0u8..3, 0u8..3).prop_map(|(a, b)| Tool::Replace(a, b)),
+    ]
+}
+
+/// Runs one tool; returns its undo delta and changed box.
+fn run(svo: &mut Svo, tool: &Tool) -> (UndoDelta, Option<(UVec3, UVec3)>) {
+    let edit = match tool {
+        Tool::Dab(op, c, r, k) => {
+            let brush = Brush {
+                op: *op,
+                radius: *r,
+                color: ink(*k).color,
+                strength: 0.6,
+                ..Brush::default()
+            };
+            let d = apply_dab(svo, &brush, *c, Vec3::splat(16.0)).expect("valid dab");
+            return (d.delta, d.changed);
+        }
+        Tool::Box(op, a, b, k) => {
+            apply_box(svo, SIZE, *a, *b, *op, ink(*k), Mirror::default(), None)
+        }
+        Tool::FillBox(a, b, k) => fill(svo, &select_box(svo, *a, *b), ink(*k)),
+        Tool::Flood(c, k) => fill(svo, &select_connected(svo, *c, true), ink(*k)),
+        Tool::CopyPaste(a, b, at) => {
+            let clip = copy(svo, &select_box(svo, *a, *b));
+            paste(svo, SIZE, &clip, a.min(*b).as_ivec3() + *at, false)
+        }
+        Tool::Rotate(a, b, axis, q) => {
+            let sel = select_box(svo, *a, *b);
+            let pivot = rotation_pivot(a.min(*b), a.max(*b), *axis);
+            let t = SelTransform::Rotate {
+                axis: *axis,
+                quarter_turns: *q,
+            };
+            transform_selection(svo, SIZE, &sel, t, pivot).0
+        }
+        Tool::Hollow(shell) => hollow(svo, SIZE, *shell),
+        Tool::FillInterior(k) => fill_interior(svo, SIZE, Some(ink(*k))),
+        Tool::Replace(a, b) => replace_color(svo, ink(*a).color, ink(*b).color, None),
+    };
+    (edit.delta, edit.changed)
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+    /// Property: every tool does the same to a tiled octree as to a voxel-by-voxel one, and
+    /// the undo deltas it returns restore the start on both.
+    #[test]
+    fn the_tools_treat_tiled_and_voxel_by_voxel_octrees_alike(
+        tools in proptest::collection::vec(arb_tool(), 1..8),
+    ) {
+        let tiled_start = start();
+        prop_assert!(tiled_start.tile_count() > 0);
+        let flat_start = tiled_start.clone().without_tiles();
+        let (mut tiled, mut flat) = (tiled_start.clone(), flat_start.clone());
+        let (mut undo_tiled, mut undo_flat) = (Vec::new(), Vec::new());
+        for tool in &tools {
+            let a = run(&mut tiled, tool);
+            let b = run(&mut flat, tool);
+            prop_assert_eq!(&a, &b, "{:?}", tool);
+            prop_assert_eq!(&tiled, &flat, "{:?}", tool);
+            prop_assert_eq!(flat.tile_count(), 0);
+            undo_tiled.push(a.0);
+            undo_flat.push(b.0);
+        }
+        for (a, b) in undo_tiled.iter().rev().zip(undo_flat.iter().rev()) {
+            tiled.apply_delta(a);
+            flat.apply_delta(b);
+        }
+        prop_assert_eq!(&tiled, &tiled_start);
+        prop_assert_eq!(&flat, &flat_start);
+        prop_assert_eq!(tiled.tile_count(), tiled_start.tile_count());
+    }
+}
