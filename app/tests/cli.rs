@@ -487,9 +487,8 @@ fn import_names_a_texture_for_an_obj_shipped_without_its_mtl() {
         let thicket_core::scene::ObjectKind::Voxels(v) = &doc.objects[0].kind else {
             panic!("voxels")
         };
-        let mut seen: Vec<[u8; 4]> = v.svo.leaf_colors().to_vec();
-        seen.sort_unstable();
-        seen.dedup();
+        // Every voxel's colour, those of tiles included.
+        let seen = thicket_core::sculpt::model_colors(&v.svo);
         (seen.len(), stdout(&o))
     };
     let (flat, out) = colours(&[]);

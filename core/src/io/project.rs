@@ -221,6 +221,10 @@ pub(crate) fn save_with(
         path: json_path.to_owned(),
         source,
     })?;
+    check_voxel_total(doc).map_err(|detail| ProjectError::Payload {
+        path: json_path.to_owned(),
+        detail: format!("not saved: {detail}"),
+    })?;
     let (bin, payloads) = encode_payloads(doc);
     let bin_name = if payloads.is_empty() {
         None
@@ -555,6 +559,7 @@ fn load_from_parts(
             ObjectKind::Krs(_) => {}
         }
     }
+    check_voxel_total(&doc).map_err(payload_err)?;
     doc.validate().map_err(|source| ProjectError::Invalid {
         path: json_path.to_owned(),
         source,
@@ -612,9 +617,30 @@ const SVO_MAGIC: &[u8; 4] = b"SVO1";
 /// The octree payload with tiles ([`encode_svo`]).
 const SVO2_MAGIC: &[u8; 4] = b"SVO2";
 
-/// Most voxels one octree payload may stand for (2^31): a few tiles can stand for more than
-/// any file could list, and tools that visit every voxel (exports) must still finish.
-pub const MAX_PAYLOAD_VOXELS: u64 = 1 << 31;
+/// Most voxels a project may stand for, every model and frame together (2^31): a few tiles can
+/// stand for more than any file could list, and tools that visit every voxel (exports) must
+/// still finish. Loading and saving both refuse more.
+pub const MAX_DOCUMENT_VOXELS: u64 = 1 << 31;
+
+/// The voxels of every model and frame of `doc`; an error past [`MAX_DOCUMENT_VOXELS`].
+fn check_voxel_total(doc: &Document) -> Result<u64, String> {
+    let mut total = 0u64;
+    for o in &doc.objects {
+        if let ObjectKind::Voxels(v) = &o.kind {
+            let frames = (0..v.frame_count()).filter_map(|i| v.frame(i));
+            for (svo, _) in frames {
+                total = total.saturating_add(svo.leaf_count());
+            }
+        }
+    }
+    if total > MAX_DOCUMENT_VOXELS {
+        return Err(format!(
+            "its models hold {total} voxels, more than the {MAX_DOCUMENT_VOXELS} a project may \
+             (tools that visit every voxel, such as exports, would not finish)"
+        ));
+    }
+    Ok(total)
+}
 const MESH_MAGIC: &[u8; 4] = b"MSH1";
 /// The skin payload; `SKN2` adds each clip's frame rate after its duration. `SKN1` (no frame
 /// rate: clips get the default) is still read.
@@ -836,10 +862,10 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         }
         end = code + span;
         total += span;
-        if total > MAX_PAYLOAD_VOXELS {
+        if total > MAX_DOCUMENT_VOXELS {
             return Err(format!(
                 "record {i}: the runs so far hold {total} voxels, more than the \
-                 {MAX_PAYLOAD_VOXELS} a model may hold (tools that visit every voxel, such as \
+                 {MAX_DOCUMENT_VOXELS} a project may hold (tools that visit every voxel, such as \
                  exports, would not finish)"
             ));
         }

@@ -81,7 +81,10 @@ fn binary(detail: impl Into<String>) -> PaletteError {
 #[must_use]
 pub fn model_colors(svo: &Svo) -> Vec<([u8; 4], u64)> {
     let mut counts: HashMap<[u8; 4], u64> = HashMap::new();
-    svo.for_each_leaf(|_, v| *counts.entry(v.color).or_insert(0) += 1);
+    // A tile counts all its voxels at once (the palette panel runs this after each edit).
+    svo.for_each_run(|_, height, v| {
+        *counts.entry(v.color).or_insert(0) += 1 << (3 * u32::from(height));
+    });
     let mut out: Vec<([u8; 4], u64)> = counts.into_iter().collect();
     out.sort_unstable_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
     out

@@ -88,6 +88,9 @@ impl SkinTables {
         if !svo.has_skin() || svo.is_empty() {
             return t;
         }
+        // Skinned octrees are built without tiles (`Svo::new`), and a loaded one with tiles is
+        // refused: these tables index stored nodes, which a tile's voxels are not.
+        debug_assert_eq!(svo.tile_count(), 0, "skinning tables of a tiled octree");
         // Lattice point → merged weights of the leaves touching it: every (point, leaf skin)
         // touch, sorted by point (stably, so each point merges its leaves' skins in leaf
         // order), then merged per point. Sorting a flat list is several times cheaper than a

@@ -529,6 +529,9 @@ impl Svo {
         (changes, new_leaves): (usize, usize),
         mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
+        // With tiles, a fill of one value mostly makes tiles: reserving a leaf per voxel would
+        // keep memory the octree never uses.
+        let new_leaves = if self.tiling { 0 } else { new_leaves };
         let a = &mut self.leaf_attr;
         a.color.reserve(new_leaves);
         a.normal.reserve(new_leaves);
@@ -1229,10 +1232,26 @@ impl Svo {
         }
     }
 
+    /// The first solid voxel in Morton order, without visiting the others.
+    #[must_use]
+    pub fn first_voxel(&self) -> Option<Voxel> {
+        let mut node = self.root();
+        if self.is_empty() {
+            return None;
+        }
+        while !self.is_leaf(&node) && !self.is_tile(&node) {
+            let mask = self.child_mask(&node);
+            node = self.child(&node, mask.trailing_zeros() as u8)?;
+        }
+        Some(self.node_voxel(&node))
+    }
+
     /// Every solid voxel in Morton order.
     #[must_use]
     pub fn leaves(&self) -> Vec<(UVec3, Voxel)> {
-        let mut out = Vec::with_capacity(self.leaf_count as usize);
+        // Reserved up to 2^24 entries: tiles can stand for more voxels than memory holds, and
+        // the caller should learn that from a failed growth, not an up-front reservation.
+        let mut out = Vec::with_capacity(self.leaf_count.min(1 << 24) as usize);
         self.for_each_leaf(|c, v| out.push((c, v)));
         out
     }
@@ -1286,16 +1305,9 @@ impl Svo {
     }
 
     /// Rebuilds the pools tightly in Morton order (drops free slots left by edits); tiles stay
-    /// tiles.
+    /// tiles, and tiling stays as it was.
     pub fn compact(&mut self) {
-        if self.tiling {
-            self.repack();
-            return;
-        }
-        let rebuilt = Self::from_voxels(self.depth, self.has_skin, self.leaves());
-        if let Ok(r) = rebuilt {
-            *self = r;
-        }
+        self.repack();
     }
 
     /// Raw pools for GPU upload: inner child masks.

@@ -1243,7 +1243,7 @@ impl SceneBuilder<'_> {
                 )?;
                 // Smooth surfaces blend across materials; one primitive, material of the first
                 // voxel's id.
-                let id = v.svo.leaves().first().map_or(0, |l| l.1.material);
+                let id = v.svo.first_voxel().map_or(0, |l| l.material);
                 let i = prim_for(id, &mut by_material);
                 let (_, prim, pal) = &mut by_material[i];
                 prim.positions = mesh.positions.iter().map(|&p| to_object(p)).collect();

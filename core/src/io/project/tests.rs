@@ -422,6 +422,109 @@ fn bad_tile_records_are_refused_with_their_reason() {
 }
 
 #[test]
+fn projects_standing_for_more_voxels_than_tools_can_visit_are_neither_saved_nor_loaded() {
+    // Two models of 2^30 + 2^27 voxels each (a tile of height 10 and one of height 9): each
+    // under the cap, together over it.
+    let v = Voxel::new([10, 200, 30, 255], Vec3::Z);
+    let mut doc = Document::default();
+    for name in ["a", "b"] {
+        let mut svo = Svo::new(11, false).unwrap();
+        svo.put_tile(UVec3::ZERO, 10, v);
+        svo.put_tile(UVec3::new(1024, 0, 0), 9, v);
+        assert_eq!(svo.leaf_count(), (1 << 30) + (1 << 27));
+        doc.add(
+            name,
+            ObjectKind::Voxels(VoxelModel {
+                svo,
+                ..VoxelModel::default()
+            }),
+        );
+    }
+    let e = check_voxel_total(&doc).unwrap_err();
+    assert!(e.contains("more than the 2147483648"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("huge.thicket.json");
+    let e = save(&doc, &path).unwrap_err().to_string();
+    assert!(e.contains("not saved") && e.contains("voxels"), "{e}");
+    assert!(!path.exists(), "nothing is written");
+    // One model alone is saved and loads back, its tiles stored once.
+    doc.objects.truncate(1);
+    save(&doc, &path).unwrap();
+    assert!(fs::metadata(bin_path_for(&path)).unwrap().len() < 1024);
+    assert_eq!(load(&path).unwrap(), doc);
+}
+
+/// Mutated tiled payloads fed to the decoder itself (the loader's checksums would refuse most
+/// of them before it): no panic, memory bounded by the input, and what is accepted is a
+/// consistent octree.
+#[test]
+fn mutated_tiled_payloads_never_panic() {
+    let mut good = Vec::new();
+    encode_svo(&solid_block(), &mut good);
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(43);
+    let cases = crate::io::fuzz::cases_from_env(3_000);
+    let (mut accepted, mut refused, mut max_peak) = (0u64, 0u64, 0u64);
+    for case in 0..cases {
+        let mut b = good.clone();
+        match rng.random_range(0..4) {
+            0 => {
+                for _ in 0..rng.random_range(1..4) {
+                    let i = rng.random_range(0..b.len());
+                    b[i] ^= 1 << rng.random_range(0..8);
+                }
+            }
+            1 => {
+                // A height byte of a record: taller, shorter or out of range.
+                let runs = (b.len() - 24) / 16;
+                let i = 24 + 16 * rng.random_range(0..runs) + 8;
+                b[i] = rng.random_range(0..24);
+            }
+            2 => b.truncate(rng.random_range(0..b.len())),
+            _ => {
+                // A code of a record moved to another node.
+                let runs = (b.len() - 24) / 16;
+                let i = 24 + 16 * rng.random_range(0..runs);
+                let code: u64 = rng.random_range(0..1 << 15);
+                b[i..i + 8].copy_from_slice(&code.to_le_bytes());
+            }
+        }
+        let (result, peak) = crate::io::fuzz::peak_heap_bytes(|| {
+            std::panic::catch_unwind(|| {
+                decode_svo(&b).map(|svo| {
+                    let mut sum = 0u64;
+                    svo.for_each_run(|_, h, _| sum += 1 << (3 * u32::from(h)));
+                    (svo.leaf_count(), sum, svo.memory_stats().leaves)
+                })
+            })
+        });
+        max_peak = max_peak.max(peak);
+        match result {
+            Ok(Ok((count, sum, stats))) => {
+                assert_eq!(
+                    (count, stats),
+                    (sum, sum),
+                    "case {case}: inconsistent counts"
+                );
+                accepted += 1;
+            }
+            Ok(Err(_)) => refused += 1,
+            Err(_) => panic!("case {case}: the decoder panicked"),
+        }
+    }
+    eprintln!(
+        "tiled payload fuzz: {cases} cases, {accepted} accepted, {refused} refused, max peak {max_peak} B"
+    );
+    assert!(
+        refused > 0 && accepted > 0,
+        "{accepted} accepted, {refused} refused"
+    );
+    assert!(
+        max_peak < 64 * good.len() as u64 + (1 << 20),
+        "peak {max_peak} B"
+    );
+}
+
+#[test]
 fn mutated_project_files_never_panic() {
     let mut doc = sample_doc(8, true);
     doc.add(
