@@ -4,73 +4,13 @@
 
 use glam::{UVec3, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
+
+mod common;
+use common::gpu::{context, project};
 use thicket_core::quality::{Quality, QualityPreset};
-use thicket_core::scene::{Document, ObjectKind, VoxelModel};
+use thicket_core::render::scenes;
+use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::{Svo, Voxel};
-
-fn context() -> GpuContext {
-    GpuContext::new_headless(wgpu::PowerPreference::HighPerformance)
-        .expect("a GPU adapter (install mesa-vulkan-drivers for lavapipe)")
-}
-
-fn sample(name: &str) -> Document {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../projects")
-        .join(format!("{name}.thicket.json"));
-    thicket_core::io::project::load(&path).expect("a sample project")
-}
-
-/// `doc` with every rigid voxel model stored leaf-only, the same stored with tiles, and how
-/// many tiles those hold.
-fn both(doc: &Document) -> (Document, Document, u64) {
-    let (mut leaf_only, mut tiled) = (doc.clone(), doc.clone());
-    let mut tiles = 0;
-    for (a, b) in leaf_only.objects.iter_mut().zip(&mut tiled.objects) {
-        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind)
-            && a.rig.is_none()
-        {
-            a.svo = std::mem::take(&mut a.svo).without_tiles();
-            b.svo = std::mem::take(&mut b.svo).with_tiles();
-            tiles += b.svo.tile_count();
-        }
-    }
-    (leaf_only, tiled, tiles)
-}
-
-/// A solid ball: one colour inside, a shell of many.
-fn solid_ball() -> Document {
-    let (depth, r) = (6u8, 27.0f32);
-    let e = 1u32 << depth;
-    let c = e as f32 / 2.0;
-    let mut voxels = Vec::new();
-    for z in 0..e {
-        for y in 0..e {
-            for x in 0..e {
-                let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
-                let d = p.length();
-                if d <= r {
-                    let v = if d > r - 1.5 {
-                        Voxel::new([(x * 4) as u8, (y * 4) as u8, 90, 255], p)
-                    } else {
-                        Voxel::new([200, 60, 20, 255], Vec3::Z)
-                    };
-                    voxels.push((UVec3::new(x, y, z), v));
-                }
-            }
-        }
-    }
-    let mut doc = Document::default();
-    doc.add(
-        "Ball",
-        ObjectKind::Voxels(VoxelModel {
-            svo: Svo::from_voxels(depth, false, voxels).expect("in range"),
-            voxel_size: 0.05,
-            ..VoxelModel::default()
-        }),
-    );
-    doc.camera.frame(Vec3::ZERO, Vec3::splat(3.2));
-    doc
-}
 
 fn draw(ctx: &GpuContext, r: &mut Renderer, doc: &Document, q: &Quality) -> (Vec<u8>, u64) {
     let target = RenderTarget::new(&ctx.device, 160, 120).expect("target");
@@ -94,11 +34,11 @@ fn a_tiled_octree_renders_on_the_gpu_as_its_leaf_only_octree() {
     let ctx = context();
     let mut docs: Vec<(String, Document)> = ["house", "mixed"]
         .iter()
-        .map(|n| (n.to_string(), sample(n)))
+        .map(|n| (n.to_string(), project(n)))
         .collect();
-    docs.push(("solid ball".into(), solid_ball()));
+    docs.push(("solid ball".into(), scenes::solid_ball()));
     for (name, doc) in docs {
-        let (doc, tiled_doc, tiles) = both(&doc);
+        let (doc, tiled_doc, tiles) = scenes::without_and_with_tiles(&doc);
         assert!(tiles > 0, "{name}: no tiles");
         for preset in [QualityPreset::Draft, QualityPreset::Balanced] {
             let q = Quality::preset(preset);
@@ -124,7 +64,7 @@ fn svo_mut(d: &mut Document) -> &mut Svo {
 fn edits_that_split_and_join_tiles_upload_incrementally_as_a_full_upload_would() {
     let ctx = context();
     let q = Quality::preset(QualityPreset::Balanced);
-    let (mut leaf_doc, mut doc, tiles) = both(&solid_ball());
+    let (mut leaf_doc, mut doc, tiles) = scenes::without_and_with_tiles(&scenes::solid_ball());
     assert!(tiles > 1000, "{tiles} tiles");
     let id = doc.objects[0].id;
     let target = RenderTarget::new(&ctx.device, 160, 120).expect("target");

@@ -247,3 +247,61 @@ pub fn house_close_up(house: &Document) -> Option<crate::scene::OrbitCamera> {
     c.fit_clip(lo, hi);
     Some(c)
 }
+
+/// A document holding one solid ball of radius 27 voxels in a 64³ octree (0.05 world units a
+/// voxel), its camera framing it: one colour inside and a shell of many, so its inside is
+/// tiles and its surface is not (tile tests of both renderers).
+#[must_use]
+pub fn solid_ball() -> Document {
+    let (depth, r) = (6u8, 27.0f32);
+    let e = 1u32 << depth;
+    let c = e as f32 / 2.0;
+    let mut voxels = Vec::new();
+    for z in 0..e {
+        for y in 0..e {
+            for x in 0..e {
+                let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
+                let d = p.length();
+                if d <= r {
+                    let v = if d > r - 1.5 {
+                        Voxel::new([(x * 4) as u8, (y * 4) as u8, 90, 255], p)
+                    } else {
+                        Voxel::new([200, 60, 20, 255], Vec3::Z)
+                    };
+                    voxels.push((UVec3::new(x, y, z), v));
+                }
+            }
+        }
+    }
+    let mut doc = Document::default();
+    let svo = Svo::from_voxels(depth, false, voxels)
+        .unwrap_or_else(|_| unreachable!("every voxel is inside the 64³ octree"));
+    doc.add(
+        "Ball",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: 0.05,
+            ..VoxelModel::default()
+        }),
+    );
+    doc.camera.frame(Vec3::ZERO, Vec3::splat(3.2));
+    doc
+}
+
+/// `doc` with every rigid voxel model stored voxel by voxel, the same stored with tiles, and
+/// how many tiles those hold (the pair the tile tests render and compare).
+#[must_use]
+pub fn without_and_with_tiles(doc: &Document) -> (Document, Document, u64) {
+    let (mut flat, mut tiled) = (doc.clone(), doc.clone());
+    let mut tiles = 0;
+    for (a, b) in flat.objects.iter_mut().zip(&mut tiled.objects) {
+        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind)
+            && a.rig.is_none()
+        {
+            a.svo = std::mem::take(&mut a.svo).without_tiles();
+            b.svo = std::mem::take(&mut b.svo).with_tiles();
+            tiles += b.svo.tile_count();
+        }
+    }
+    (flat, tiled, tiles)
+}

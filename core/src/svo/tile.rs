@@ -11,7 +11,7 @@
 use super::voxel::merge;
 use glam::UVec3;
 
-use super::{Attrs, Skin4, Svo, TILE, Voxel, child_rank, octant_offset};
+use super::{Attrs, Svo, TILE, Voxel, child_rank, octant_offset};
 
 impl Svo {
     /// This octree storing its full uniform regions as tiles, and keeping them so through
@@ -88,19 +88,8 @@ impl Svo {
         self.leaf_count += voxels;
         self.tile_voxels += voxels;
         self.tile_count += 1;
-        let v = self.stored_value(voxel);
+        let v = self.stored(voxel);
         self.put_tile_below(0, 0, UVec3::ZERO, (target, origin), v);
-    }
-
-    fn stored_value(&self, v: Voxel) -> Voxel {
-        if self.has_skin {
-            v
-        } else {
-            Voxel {
-                skin: Skin4::default(),
-                ..v
-            }
-        }
     }
 
     fn put_tile_below(
@@ -149,7 +138,7 @@ impl Svo {
     /// it average to itself (what every tile this octree makes holds).
     #[must_use]
     pub fn tile_value_ok(&self, voxel: &Voxel) -> bool {
-        self.tiling && self.averages_to_itself(&self.stored_value(*voxel))
+        self.tiling && self.averages_to_itself(&self.stored(*voxel))
     }
 
     /// Whether inner slot `i` is a tile.
