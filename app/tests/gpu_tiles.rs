@@ -6,27 +6,15 @@ use glam::{UVec3, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
 
 mod common;
-use common::gpu::{context, project};
+use common::gpu::{context, gpu_frame, project};
 use thicket_core::quality::{Quality, QualityPreset};
 use thicket_core::render::scenes;
 use thicket_core::scene::{Document, ObjectKind};
 use thicket_core::svo::{Svo, Voxel};
 
 fn draw(ctx: &GpuContext, r: &mut Renderer, doc: &Document, q: &Quality) -> (Vec<u8>, u64) {
-    let target = RenderTarget::new(&ctx.device, 160, 120).expect("target");
-    let stats = r
-        .render(
-            &ctx.device,
-            &ctx.queue,
-            doc,
-            &target.view(&doc.camera, q),
-            &target,
-        )
-        .expect("frame renders");
-    let rgba = read_rgba8(&ctx.device, &ctx.queue, &target).expect("readback");
-    assert!(ctx.errors.take().is_none(), "uncaptured GPU error");
-    let visited = stats.levels.iter().map(|l| l.visited).sum();
-    (rgba, visited)
+    let (img, _, stats) = gpu_frame(ctx, r, doc, (160, 120), q);
+    (img.pixels, stats.levels.iter().map(|l| l.visited).sum())
 }
 
 #[test]

@@ -1213,13 +1213,19 @@ impl Svo {
 
     /// Calls `f(coord, voxel)` for every solid voxel, in Morton order.
     pub fn for_each_leaf(&self, mut f: impl FnMut(UVec3, Voxel)) {
+        self.walk_morton(|n| self.is_leaf(n), |n| f(n.origin, self.node_voxel(n)));
+    }
+
+    /// Visits the nodes where `stop` holds, in Morton order, descending everywhere else (into
+    /// a tile's virtual nodes too).
+    fn walk_morton(&self, stop: impl Fn(&NodeRef) -> bool, mut f: impl FnMut(&NodeRef)) {
         if self.is_empty() {
             return;
         }
         let mut stack = vec![(self.root(), 0u8)];
         while let Some((node, next_k)) = stack.pop() {
-            if self.is_leaf(&node) {
-                f(node.origin, self.node_voxel(&node));
+            if stop(&node) {
+                f(&node);
                 continue;
             }
             let mask = self.child_mask(&node);

@@ -58,23 +58,10 @@ impl Svo {
     /// leaf (height 0) and each tile (a cube of `2^height` voxels a side, all equal to `voxel`,
     /// whose Morton codes are one contiguous range from its origin's). What a file stores.
     pub fn for_each_run(&self, mut f: impl FnMut(UVec3, u8, Voxel)) {
-        if self.is_empty() {
-            return;
-        }
-        let mut stack = vec![(self.root(), 0u8)];
-        while let Some((node, next_k)) = stack.pop() {
-            if self.is_leaf(&node) || self.is_tile(&node) {
-                f(node.origin, self.depth - node.level, self.node_voxel(&node));
-                continue;
-            }
-            let mask = self.child_mask(&node);
-            if let Some(k) = (next_k..8).find(|k| mask & (1 << k) != 0) {
-                stack.push((node, k + 1));
-                if let Some(child) = self.child(&node, k) {
-                    stack.push((child, 0));
-                }
-            }
-        }
+        self.walk_morton(
+            |n| self.is_leaf(n) || self.is_tile(n),
+            |n| f(n.origin, self.depth - n.level, self.node_voxel(n)),
+        );
     }
 
     /// Makes the empty cube of `2^height` voxels a side at `origin` (aligned to its size, with
