@@ -1553,6 +1553,28 @@ fn the_load_estimate_covers_the_samples() {
                 assert!(refused_peak < bin / 2, "{name}: {refused_peak} bytes held");
             }
         }
+        // The same sample saved by this build (tiled payloads, a smaller `.bin` for the house):
+        // the estimate still covers what loading it takes.
+        let doc = load(&path).unwrap();
+        let tmp = tempfile::tempdir().unwrap();
+        let saved = tmp.path().join(format!("{name}.thicket.json"));
+        save(&doc, &saved).unwrap();
+        drop(doc);
+        let had_bin = bin > 0;
+        let json = fs::metadata(&saved).unwrap().len();
+        let bin = fs::metadata(bin_path_for(&saved)).map_or(0, |m| m.len());
+        assert_eq!(
+            bin > 0,
+            had_bin,
+            "{name}: a payload saved where there was one"
+        );
+        let (doc, peak) = crate::io::fuzz::peak_heap_bytes(|| load(&saved).unwrap());
+        drop(doc);
+        let estimate = estimate_load_bytes(json, bin);
+        assert!(
+            estimate >= peak,
+            "{name} as saved now: estimate {estimate} < peak {peak}"
+        );
     }
     assert_eq!((checked, large), (7, 3));
 }
