@@ -123,6 +123,29 @@ fn info_on_a_project_reports_counts_and_sizes() {
     assert!(stdout(&o).contains("memory:"), "{}", stdout(&o));
 }
 
+/// `info --memory` names the tiles of a model with solid walls and the voxels they stand for,
+/// in words and in JSON.
+#[test]
+fn info_reports_the_tiles_of_the_house() {
+    let house = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../projects/house.thicket.json"
+    );
+    let o = thicket(&["info", "--memory", house]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = stdout(&o);
+    assert!(
+        text.contains("tiles: 4,108 stand for 141,840 voxels stored once each"),
+        "{text}"
+    );
+    let o = thicket(&["info", "--json", "--memory", house]);
+    let json: serde_json::Value = serde_json::from_str(&stdout(&o)).unwrap();
+    let memory = &json["objects"][0]["memory"];
+    assert_eq!(memory["tiles"], 4108);
+    assert_eq!(memory["tile_voxels"], 141_840);
+    assert_eq!(json["objects"][0]["voxels"], 180_202);
+}
+
 #[test]
 fn missing_file_fails_naming_it() {
     let o = thicket(&["info", "/nonexistent/dir/ghost.thicket.json"]);
