@@ -361,7 +361,7 @@ impl Svo {
     pub fn child_mask(&self, node: &NodeRef) -> u8 {
         if self.is_leaf(node) {
             0
-        } else if node.in_tile() || self.is_tile_slot(node.index as usize) {
+        } else if self.is_tile(node) {
             0xff
         } else {
             self.inner_mask[node.index as usize]
@@ -386,7 +386,7 @@ impl Svo {
         let half = self.node_size(node.level) / 2;
         let origin = node.origin + octant_offset(k, half);
         let level = node.level + 1;
-        if node.in_tile() || self.is_tile_slot(node.index as usize) {
+        if self.is_tile(node) {
             return Some(NodeRef {
                 level,
                 index: node.index | IN_TILE,
@@ -832,7 +832,13 @@ impl Svo {
             if n == 0 {
                 return None;
             }
-            if n == 8 && self.can_tile(&leaves) {
+            // Eight equal voxels are a tile when their average (memoised for a uniform node, as
+            // below) is the value itself: `Svo::can_tile` without a fresh merge per node.
+            if n == 8
+                && self.tiling
+                && leaves.iter().all(|v| *v == leaves[0])
+                && self.merge_built(level, &leaves, ctx) == leaves[0]
+            {
                 self.leaf_count += 8;
                 self.tile_count += 1;
                 self.tile_voxels += 8;
@@ -1272,15 +1278,13 @@ impl Svo {
         let mut hi = UVec3::ZERO;
         // Every stored node is visited (a tile as its box); cheap next to anything that needs
         // bounds.
-        let mut stack = vec![self.root()];
-        while let Some(node) = stack.pop() {
-            if self.is_leaf(&node) || self.is_tile(&node) {
-                lo = lo.min(node.origin);
-                hi = hi.max(node.origin + (self.node_size(node.level) - 1));
-                continue;
-            }
-            stack.extend((0..8).filter_map(|k| self.child(&node, k)));
-        }
+        self.walk_morton(
+            |n| self.is_leaf(n) || self.is_tile(n),
+            |n| {
+                lo = lo.min(n.origin);
+                hi = hi.max(n.origin + (self.node_size(n.level) - 1));
+            },
+        );
         Some((lo, hi))
     }
 

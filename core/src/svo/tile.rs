@@ -8,9 +8,9 @@
 //! every colour, of encoded normals and of canonical skins); values for which it is not stay
 //! as explicit children, so a tiled and a leaf-only octree agree on every node's attributes.
 
-use super::voxel::merge;
 use glam::UVec3;
 
+use super::voxel::merge;
 use super::{Attrs, Svo, TILE, Voxel, child_rank, octant_offset};
 
 impl Svo {
@@ -31,7 +31,7 @@ impl Svo {
     }
 
     /// This octree with every tile split into explicit nodes, and no new tiles made by edits
-    /// (the layout every consumer of the raw pools reads today).
+    /// (the layout the skinning tables need).
     #[must_use]
     pub fn without_tiles(mut self) -> Self {
         self.tiling = false;
