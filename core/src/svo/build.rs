@@ -52,6 +52,7 @@ impl Svo {
             } else {
                 Vec::new()
             },
+            interior: unique.iter().any(|e| e.1.is_interior()),
         };
 
         // levels[l] for l in 0..depth: (code, mask, first child index within level l + 1).

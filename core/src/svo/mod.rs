@@ -31,11 +31,14 @@
 //! leaf-only one holding the same voxels compare equal. See `docs/svo.md`.
 
 mod build;
+mod interior;
 mod morton;
 mod query;
 mod tile;
 mod voxel;
 
+#[cfg(test)]
+mod interior_tests;
 #[cfg(test)]
 mod tests;
 #[cfg(test)]
@@ -43,7 +46,9 @@ mod tile_tests;
 
 pub use morton::{morton_decode, morton_encode};
 pub use query::{RayHit, front_to_back_order};
-pub use voxel::{MAX_SKIN_JOINTS, Skin4, Voxel, decode_normal, encode_normal};
+pub use voxel::{
+    INTERIOR_NORMAL, MAX_SKIN_JOINTS, Skin4, Voxel, decode_normal, encode_normal, is_interior_value,
+};
 
 use glam::UVec3;
 use serde::{Deserialize, Serialize};
@@ -75,6 +80,9 @@ pub(crate) struct Attrs {
     pub(crate) material: Vec<u8>,
     /// Empty unless the octree carries skin weights.
     pub(crate) skin: Vec<Skin4>,
+    /// Whether an interior value ([`Voxel::is_interior`]) was ever written here: edits look for
+    /// the interior voxels they expose only in octrees that may have some.
+    pub(crate) interior: bool,
 }
 
 impl Attrs {
@@ -102,6 +110,7 @@ impl Attrs {
     }
 
     fn set(&mut self, i: usize, v: &Voxel) {
+        self.interior |= v.is_interior();
         self.color[i] = v.color;
         self.normal[i] = v.normal;
         self.material[i] = v.material;
@@ -480,7 +489,11 @@ impl Svo {
     /// [`SvoError::OutOfBounds`].
     pub fn set(&mut self, coord: UVec3, voxel: Voxel) -> Result<Option<Voxel>, SvoError> {
         let r = self.edit_region(coord, coord, |_, _| Some(voxel))?;
-        Ok(r.delta.entries.first().map_or(Some(voxel), |e| e.1))
+        Ok(r.delta
+            .entries
+            .iter()
+            .find(|e| e.0 == coord)
+            .map_or(Some(voxel), |e| e.1))
     }
 
     /// Removes one voxel; returns its previous value.
@@ -489,7 +502,11 @@ impl Svo {
     /// [`SvoError::OutOfBounds`].
     pub fn remove(&mut self, coord: UVec3) -> Result<Option<Voxel>, SvoError> {
         let r = self.edit_existing(coord, coord, |_, _| None)?;
-        Ok(r.delta.entries.first().and_then(|e| e.1))
+        Ok(r.delta
+            .entries
+            .iter()
+            .find(|e| e.0 == coord)
+            .and_then(|e| e.1))
     }
 
     /// Recolours one voxel if it is solid; returns whether it was.
@@ -582,7 +599,7 @@ impl Svo {
             .iter()
             .copied()
             .filter(|e| e.0.max_element() < extent);
-        self.apply_changes(entries)
+        self.apply_changes_exact(entries)
             .map(|r| r.delta)
             .unwrap_or_default()
     }
@@ -621,16 +638,30 @@ impl Svo {
             });
         }
         let hi = hi.min(max);
+        // A value carrying the interior mark's normal is the mark (a recolour of an interior
+        // voxel, `Voxel { color, ..old }`, leaves it interior: it has no colour to show).
+        let mut marked = |c: UVec3, old: Option<Voxel>| f(c, old).map(Self::interior_or);
         let mut ctx = EditCtx {
             lo,
             hi,
             create,
-            f,
+            f: &mut marked,
             result: &mut result,
             uniform: [None; MAX_DEPTH as usize + 1],
         };
         self.edit_inner(0, 0, UVec3::ZERO, &mut ctx);
+        self.reveal_exposed(&mut result);
         Ok(result)
+    }
+
+    /// `v`, or [`Voxel::INTERIOR`] when `v` carries its normal code (module `interior`).
+    #[inline]
+    fn interior_or(v: Voxel) -> Voxel {
+        if v.normal == INTERIOR_NORMAL {
+            Voxel::INTERIOR
+        } else {
+            v
+        }
     }
 
     /// Strips skin weights the octree does not store, so comparisons see what is stored.
@@ -936,6 +967,21 @@ impl Svo {
     /// # Errors
     /// [`SvoError::OutOfBounds`] for the first coordinate outside; nothing is changed then.
     pub fn apply_changes(
+        &mut self,
+        changes: impl IntoIterator<Item = (UVec3, Option<Voxel>)>,
+    ) -> Result<EditResult, SvoError> {
+        let mut result = self.apply_changes_exact(
+            changes
+                .into_iter()
+                .map(|(c, v)| (c, v.map(Self::interior_or))),
+        )?;
+        self.reveal_exposed(&mut result);
+        Ok(result)
+    }
+
+    /// [`Svo::apply_changes`] without resolving what it exposes: undo, which restores states
+    /// exactly.
+    fn apply_changes_exact(
         &mut self,
         changes: impl IntoIterator<Item = (UVec3, Option<Voxel>)>,
     ) -> Result<EditResult, SvoError> {

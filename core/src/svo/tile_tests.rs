@@ -36,7 +36,7 @@ fn ball(depth: u8, r: f32, skin: bool) -> Vec<(UVec3, Voxel)> {
     out
 }
 
-fn paint(k: u32, skin: bool) -> Voxel {
+pub(super) fn paint(k: u32, skin: bool) -> Voxel {
     let mut v = Voxel::new([k as u8 * 50, 90, 200, 255], Vec3::X);
     if skin {
         v.skin = Skin4::from_influences(&[(k as u16 % 3, 1.0)]);
@@ -69,7 +69,7 @@ fn walk_counts(svo: &Svo) -> (u64, u64, u64, u64) {
 
 /// No stored node has eight equal children that could be one tile, and the counters match a
 /// walk of the tree.
-fn assert_collapsed_and_counted(svo: &Svo) {
+pub(super) fn assert_collapsed_and_counted(svo: &Svo) {
     let (inner, leaves, tiles, tile_voxels) = walk_counts(svo);
     let m = svo.memory_stats();
     assert_eq!(
@@ -236,7 +236,7 @@ fn rays_and_boxes_read_tiles_as_their_voxels() {
 
 /// One edit of the sequences below.
 #[derive(Debug, Clone)]
-enum Op {
+pub(super) enum Op {
     /// Fill a box with one value (tiles form).
     Fill(UVec3, UVec3, u32),
     /// Carve a box.
@@ -249,7 +249,7 @@ enum Op {
     Undo,
 }
 
-fn arb_box() -> impl Strategy<Value = (UVec3, UVec3)> {
+pub(super) fn arb_box() -> impl Strategy<Value = (UVec3, UVec3)> {
     (0u32..32, 0u32..32, 0u32..32, 0u32..20, 0u32..20, 0u32..20).prop_map(
         |(x, y, z, dx, dy, dz)| {
             let lo = UVec3::new(x, y, z);
@@ -258,7 +258,7 @@ fn arb_box() -> impl Strategy<Value = (UVec3, UVec3)> {
     )
 }
 
-fn arb_op() -> impl Strategy<Value = Op> {
+pub(super) fn arb_op() -> impl Strategy<Value = Op> {
     prop_oneof![
         (arb_box(), 0u32..3).prop_map(|((lo, hi), k)| Op::Fill(lo, hi, k)),
         arb_box().prop_map(|(lo, hi)| Op::Carve(lo, hi)),
@@ -277,7 +277,7 @@ fn arb_op() -> impl Strategy<Value = Op> {
     ]
 }
 
-fn apply(svo: &mut Svo, op: &Op, undo: &mut Vec<UndoDelta>, skin: bool) -> EditResult {
+pub(super) fn apply(svo: &mut Svo, op: &Op, undo: &mut Vec<UndoDelta>, skin: bool) -> EditResult {
     match op {
         Op::Fill(lo, hi, k) => svo.edit_region(*lo, *hi, |_, _| Some(paint(*k, skin))),
         Op::Carve(lo, hi) => svo.edit_existing(*lo, *hi, |_, _| None),

@@ -226,7 +226,40 @@ pub struct Voxel {
     pub skin: Skin4,
 }
 
+/// Normal code of the interior mark: one [`encode_normal`] never produces (it decodes to
+/// −Z, which encodes as `0xffff`), so no surface voxel carries it.
+pub const INTERIOR_NORMAL: u16 = 0x00ff;
+
+/// Whether a colour and normal code are the interior mark's.
+#[inline]
+#[must_use]
+pub fn is_interior_value(color: [u8; 4], normal: u16) -> bool {
+    normal == INTERIOR_NORMAL && color == [0; 4]
+}
+
 impl Voxel {
+    /// An interior voxel: solid, enclosed on all six faces, with no attributes of its own
+    /// until an edit exposes it; it then takes those of the nearest voxel that is not interior
+    /// (the rule is in `docs/svo.md`, "Interior"). A solid import's inside is made of these, so
+    /// it is stored as a few tiles; renderers skip interior nodes, which are never visible.
+    pub const INTERIOR: Self = Self {
+        color: [0; 4],
+        normal: INTERIOR_NORMAL,
+        material: 0,
+        skin: Skin4 {
+            joints: [0; 4],
+            weights: [0; 4],
+        },
+    };
+
+    /// Whether this is an interior voxel (colour and normal of [`Self::INTERIOR`]; its
+    /// material and skin are not looked at).
+    #[inline]
+    #[must_use]
+    pub fn is_interior(&self) -> bool {
+        is_interior_value(self.color, self.normal)
+    }
+
     /// A voxel of the given colour and normal, material 0, no skin.
     #[must_use]
     pub fn new(color: [u8; 4], normal: Vec3) -> Self {
@@ -281,6 +314,9 @@ pub fn decode_normal(e: u16) -> Vec3 {
 /// Averages children into an internal node's LOD attributes: colour averaged in linear space,
 /// normals summed and renormalised, the most common material (ties: first child), skin weights
 /// summed per joint and cut to the strongest four.
+///
+/// Interior children ([`Voxel::is_interior`]) are never seen, so they are left out of the
+/// average (and of the skin); a node whose children are all interior is interior itself.
 pub(crate) fn merge(
     children: impl Iterator<Item = ([u8; 4], u16, u8)>,
     skins: Option<&[Skin4]>,
@@ -291,7 +327,20 @@ pub(crate) fn merge(
     let mut materials = [(0u8, 0u8); 8];
     let mut n_materials = 0usize;
     let mut count = 0.0f32;
-    for (color, n, m) in children {
+    let mut seen_skins = [Skin4::default(); 8];
+    let mut n_seen = 0usize;
+    let mut interior = 0usize;
+    for (i, (color, n, m)) in children.enumerate() {
+        if is_interior_value(color, n) {
+            interior += 1;
+            continue;
+        }
+        if let Some(s) = skins.and_then(|s| s.get(i))
+            && n_seen < seen_skins.len()
+        {
+            seen_skins[n_seen] = *s;
+            n_seen += 1;
+        }
         rgb += Vec3::new(
             srgb_byte_to_linear(color[0]),
             srgb_byte_to_linear(color[1]),
@@ -308,7 +357,11 @@ pub(crate) fn merge(
         count += 1.0;
     }
     if count == 0.0 {
-        return Voxel::default();
+        return if interior > 0 {
+            Voxel::INTERIOR
+        } else {
+            Voxel::default()
+        };
     }
     rgb /= count;
     alpha /= count;
@@ -319,7 +372,13 @@ pub(crate) fn merge(
             best = e;
         }
     }
-    let skin = skins.map_or(Skin4::default(), Skin4::merge);
+    let skin = skins.map_or(Skin4::default(), |all| {
+        if interior == 0 {
+            Skin4::merge(all)
+        } else {
+            Skin4::merge(&seen_skins[..n_seen])
+        }
+    });
     Voxel {
         color: [
             to8(rgb.x),

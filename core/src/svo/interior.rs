@@ -1,0 +1,225 @@
+//! Interior voxels ([`Voxel::INTERIOR`]): solid voxels enclosed on all six faces whose
+//! attributes are not stored. A solid import's inside is made of them, so it is a few tiles
+//! instead of one leaf per voxel.
+//!
+//! The rule (docs/svo.md, "Interior"): an edit that leaves an interior voxel with an empty face
+//! neighbour (or on the octree's boundary) gives it the attributes of the nearest voxel that is
+//! not interior, among the voxels after the edit and those the edit removed; distance between
+//! voxel centres, ties to the smaller Morton code. All voxels an edit exposes are resolved
+//! against the octree as the edit left it (the exposed ones still interior), so the result does
+//! not depend on their order. The resolved voxels are part of the edit's undo delta: undo puts
+//! the interior back.
+
+use std::cmp::Reverse;
+use std::collections::BinaryHeap;
+
+use glam::{IVec3, UVec3};
+
+use super::{EditResult, NodeRef, Svo, Voxel, morton_encode};
+
+/// The six face directions.
+const FACES: [IVec3; 6] = [
+    IVec3::X,
+    IVec3::NEG_X,
+    IVec3::Y,
+    IVec3::NEG_Y,
+    IVec3::Z,
+    IVec3::NEG_Z,
+];
+
+/// A candidate of the nearest search: squared distance, then Morton code (the tie-break).
+type Key = (u64, u64);
+
+/// A node waiting in the nearest search: its distance bound, level, index and origin.
+type Pending = Reverse<(u64, u8, u32, [u32; 3])>;
+
+impl Svo {
+    /// Whether this octree may hold interior voxels (one was written into it at some point).
+    #[must_use]
+    pub fn may_have_interior(&self) -> bool {
+        self.leaf_attr.interior || self.inner_attr.interior
+    }
+
+    /// The voxel nearest to `p` that is not interior: its coordinate and value. Distance
+    /// between voxel centres; among equally near voxels the smallest Morton code wins. `None`
+    /// when every voxel is interior or the octree is empty.
+    ///
+    /// Best-first over the octree, skipping interior subtrees; a tile's nearest voxel is the
+    /// clamp of `p` into its box (unique), so tiled and voxel-by-voxel octrees answer alike.
+    #[must_use]
+    pub fn nearest_surface(&self, p: UVec3) -> Option<(UVec3, Voxel)> {
+        self.nearest_keyed(p).map(|(_, c, v)| (c, v))
+    }
+
+    fn nearest_keyed(&self, p: UVec3) -> Option<(Key, UVec3, Voxel)> {
+        if self.is_empty() {
+            return None;
+        }
+        let mut best: Option<(Key, UVec3, Voxel)> = None;
+        let mut heap: BinaryHeap<Pending> = BinaryHeap::new();
+        let root = self.root();
+        heap.push(Reverse((0, root.level, root.index, root.origin.to_array())));
+        while let Some(Reverse((bound, level, index, origin))) = heap.pop() {
+            if best.as_ref().is_some_and(|b| bound > b.0.0) {
+                break;
+            }
+            let node = NodeRef {
+                level,
+                index,
+                origin: UVec3::from_array(origin),
+            };
+            let v = self.node_voxel(&node);
+            if v.is_interior() {
+                continue;
+            }
+            if self.is_leaf(&node) || self.is_tile(&node) || node.in_tile() {
+                let size = self.node_size(level);
+                let q = p.clamp(node.origin, node.origin + UVec3::splat(size - 1));
+                let key = (dist2(p, q), morton_encode(q));
+                if best.as_ref().is_none_or(|b| key < b.0) {
+                    best = Some((key, q, v));
+                }
+                continue;
+            }
+            for k in 0..8 {
+                if let Some(c) = self.child(&node, k) {
+                    let size = self.node_size(c.level);
+                    let q = p.clamp(c.origin, c.origin + UVec3::splat(size - 1));
+                    heap.push(Reverse((
+                        dist2(p, q),
+                        c.level,
+                        c.index,
+                        c.origin.to_array(),
+                    )));
+                }
+            }
+        }
+        best
+    }
+
+    /// Resolves the interior voxels the edit in `result` exposed (module docs), adding them to
+    /// its undo delta and changed box. Nothing to do in an octree without interior voxels.
+    pub(super) fn reveal_exposed(&mut self, result: &mut EditResult) {
+        if !self.may_have_interior() || result.delta.entries.is_empty() {
+            return;
+        }
+        let extent = self.extent() as i32;
+        let inside = |c: IVec3| c.cmpge(IVec3::ZERO).all() && c.cmplt(IVec3::splat(extent)).all();
+        let mut exposed: Vec<(u64, UVec3)> = Vec::new();
+        // Voxels the edit removed that were not interior: candidates too.
+        let mut removed: Vec<(UVec3, Voxel)> = Vec::new();
+        for &(p, old) in &result.delta.entries {
+            let now = self.get(p);
+            match now {
+                None => {
+                    for f in FACES {
+                        let q = p.as_ivec3() + f;
+                        if inside(q) && self.get(q.as_uvec3()).is_some_and(|v| v.is_interior()) {
+                            exposed.push((morton_encode(q.as_uvec3()), q.as_uvec3()));
+                        }
+                    }
+                }
+                Some(v) if v.is_interior() => {
+                    let open = FACES.iter().any(|&f| {
+                        let q = p.as_ivec3() + f;
+                        !inside(q) || self.get(q.as_uvec3()).is_none()
+                    });
+                    if open {
+                        exposed.push((morton_encode(p), p));
+                    }
+                }
+                Some(_) => {}
+            }
+            if let Some(o) = old
+                && !o.is_interior()
+                && now.is_none_or(|v| v.is_interior())
+            {
+                removed.push((p, o));
+            }
+        }
+        if exposed.is_empty() {
+            return;
+        }
+        exposed.sort_unstable_by_key(|e| e.0);
+        exposed.dedup_by_key(|e| e.0);
+        let gone = if removed.is_empty() {
+            None
+        } else {
+            // Leaf-only: only a lookup structure, never edited.
+            Svo::from_voxels(self.depth, self.has_skin, removed)
+                .ok()
+                .map(Svo::without_tiles)
+        };
+        let resolved: Vec<(UVec3, Option<Voxel>)> = exposed
+            .iter()
+            .map(|&(_, c)| {
+                let here = self.nearest_keyed(c);
+                let there = gone.as_ref().and_then(|g| g.nearest_keyed(c));
+                let v = match (here, there) {
+                    (Some(a), Some(b)) => {
+                        if b.0 < a.0 {
+                            b.2
+                        } else {
+                            a.2
+                        }
+                    }
+                    (Some(a), None) | (None, Some(a)) => a.2,
+                    // Nothing but interior left anywhere: cannot happen for an exposed voxel
+                    // (something was removed to expose it), kept total anyway.
+                    (None, None) => Voxel::default(),
+                };
+                (c, Some(v))
+            })
+            .collect();
+        let mut more = EditResult::default();
+        self.apply_sorted(0, 0, UVec3::ZERO, &resolved, Some(&mut more));
+        merge_results(result, more);
+    }
+}
+
+/// Adds `more` (a later edit) to `first`: the union of their changed boxes, and one undo entry
+/// per voxel in Morton order, the earlier edit's kept where both list it (it holds the value
+/// from before both).
+fn merge_results(first: &mut EditResult, more: EditResult) {
+    first.changed = match (first.changed, more.changed) {
+        (Some((a0, a1)), Some((b0, b1))) => Some((a0.min(b0), a1.max(b1))),
+        (a, b) => a.or(b),
+    };
+    if more.delta.entries.is_empty() {
+        return;
+    }
+    let a = std::mem::take(&mut first.delta.entries);
+    let b = more.delta.entries;
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        let ka = a.get(i).map(|e| morton_encode(e.0));
+        let kb = b.get(j).map(|e| morton_encode(e.0));
+        match (ka, kb) {
+            (Some(x), Some(y)) if x == y => {
+                out.push(a[i]);
+                i += 1;
+                j += 1;
+            }
+            (Some(x), Some(y)) if y < x => {
+                out.push(b[j]);
+                j += 1;
+            }
+            (Some(_), _) => {
+                out.push(a[i]);
+                i += 1;
+            }
+            (None, _) => {
+                out.push(b[j]);
+                j += 1;
+            }
+        }
+    }
+    first.delta.entries = out;
+}
+
+/// Squared distance between two voxel coordinates.
+fn dist2(a: UVec3, b: UVec3) -> u64 {
+    let d = a.as_i64vec3() - b.as_i64vec3();
+    (d.x * d.x + d.y * d.y + d.z * d.z) as u64
+}
