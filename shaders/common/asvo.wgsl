@@ -193,6 +193,8 @@ const IN_TILE: u32 = 0x80000000u;
 // The first-child word of a tile (core's `svo::TILE`), whose child mask is empty: an inner node
 // standing for a full region of equal voxels, its attributes theirs.
 const TILE_FIRST: u32 = 0xffffffffu;
+// Bit of an inner node's mask word marking it interior (app's `NODE_INTERIOR_BIT`).
+const NODE_INTERIOR: u32 = 0x100u;
 
 // The attribute id of a queued node: an inner node's (and a tile's virtual nodes', whose index
 // is the tile's), or a leaf's.
@@ -216,20 +218,38 @@ fn push_children(entry: vec4<u32>) {
             first = node.x;
         }
     }
-    let n = countOneBits(mask);
+    // Interior inner children (every voxel below them enclosed) can never show: they are not
+    // queued, as on the CPU. A tile is never interior here (it would not have been queued).
+    var shown = mask;
+    if !in_tile && params.level + 1u < params.leaf_level {
+        var r = 0u;
+        for (var k = 0u; k < 8u; k++) {
+            if (mask & (1u << k)) != 0u {
+                if (inner_nodes[params.inner_base + first + r].y & NODE_INTERIOR) != 0u {
+                    shown &= ~(1u << k);
+                }
+                r++;
+            }
+        }
+    }
+    let n = countOneBits(shown);
     let base = atomicAdd(&counters[QUEUE_COUNTS + params.level + 1u], n);
     let half = params.node_size / 2u;
     var r = 0u;
+    var w = 0u;
     for (var k = 0u; k < 8u; k++) {
         if (mask & (1u << k)) == 0u {
             continue;
         }
-        let slot = base + r;
-        if slot < params.queue_capacity {
-            let offset = vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u) * half;
-            queue_out[slot] = vec4<u32>(select(first + r, entry.x | IN_TILE, in_tile), entry.yzw + offset);
-        } else {
-            atomicAdd(&counters[OVERFLOW_COUNTER], 1u);
+        if (shown & (1u << k)) != 0u {
+            let slot = base + w;
+            if slot < params.queue_capacity {
+                let offset = vec3<u32>(k & 1u, (k >> 1u) & 1u, (k >> 2u) & 1u) * half;
+                queue_out[slot] = vec4<u32>(select(first + r, entry.x | IN_TILE, in_tile), entry.yzw + offset);
+            } else {
+                atomicAdd(&counters[OVERFLOW_COUNTER], 1u);
+            }
+            w++;
         }
         r++;
     }

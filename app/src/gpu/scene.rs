@@ -16,7 +16,7 @@ use bytemuck::Zeroable;
 use glam::{Mat3, Mat4, UVec3, Vec2, Vec3, Vec4};
 use thicket_core::mesh::{MeshModel, Texture, srgb_byte_to_linear};
 use thicket_core::scene::{Document, ObjectKind};
-use thicket_core::svo::Svo;
+use thicket_core::svo::{Svo, is_interior_value};
 use wgpu::util::DeviceExt;
 
 use super::GpuError;
@@ -222,6 +222,21 @@ fn layout_of(doc: &Document) -> Vec<(u64, bool)> {
 fn with_room(len: usize) -> u32 {
     (len + len / 4 + 256).min(u32::MAX as usize) as u32
 }
+
+/// An inner node's GPU word pair: first child, then the child mask with
+/// [`NODE_INTERIOR_BIT`] set when the node is interior (`Voxel::INTERIOR`: every voxel below it
+/// enclosed), so the traversal never queues it (`shaders/common/asvo.wgsl`).
+fn node_word(first: u32, mask: u8, color: [u8; 4], normal: u16) -> [u32; 2] {
+    let interior = if is_interior_value(color, normal) {
+        NODE_INTERIOR_BIT
+    } else {
+        0
+    };
+    [first, u32::from(mask) | interior]
+}
+
+/// Bit of an inner node's mask word marking an interior node (`NODE_INTERIOR` in WGSL).
+pub(super) const NODE_INTERIOR_BIT: u32 = 1 << 8;
 
 fn pack_attr(color: [u8; 4], normal: u16, obj: u32) -> [u32; 2] {
     [u32::from_le_bytes(color), u32::from(normal) | (obj << 16)]
@@ -529,7 +544,8 @@ impl SceneCache {
                 svo.inner_first_children()
                     .iter()
                     .zip(svo.inner_masks())
-                    .map(|(&f, &m)| [f, u32::from(m)]),
+                    .zip(svo.inner_colors().iter().zip(svo.inner_normals()))
+                    .map(|((&f, &m), (&c, &n))| node_word(f, m, c, n)),
             );
             inner.resize(inner_base + inner_cap as usize, [0, 0]);
             let attr_inner_base = attrs.len();
@@ -886,7 +902,7 @@ impl SceneCache {
             }
             let nodes: Vec<[u32; 2]> = r
                 .clone()
-                .map(|k| [firsts[k], u32::from(masks[k])])
+                .map(|k| node_word(firsts[k], masks[k], ic[k], inn[k]))
                 .collect();
             let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(ic[k], inn[k], obj)).collect();
             queue.write_buffer(

@@ -21,7 +21,9 @@ use super::camera::Camera;
 use super::sampled::SampledTexels;
 use super::stats::LevelStats;
 use crate::deform::{NodeDeform, NodeInfo};
-use crate::svo::{IN_TILE, NodeRef, Svo, child_rank, front_to_back_order, octant_offset};
+use crate::svo::{
+    IN_TILE, NodeRef, Svo, child_rank, front_to_back_order, is_interior_value, octant_offset,
+};
 
 /// One voxel object to draw.
 #[derive(Clone, Copy)]
@@ -1400,12 +1402,21 @@ fn children_front_to_back(
     }
     // `Svo::child` for each octant, with the node's mask and first child read once.
     let first = svo.inner_first_children()[q.node.index as usize];
+    // Interior inner nodes (every voxel below them enclosed, `Voxel::INTERIOR`) can never
+    // show: they are not queued. Interior leaves are drawn, behind the surface, as the GPU
+    // traversal (which does not read leaf attributes) draws them.
+    let inner = level < svo.depth() && svo.may_have_interior();
+    let (colors, normals) = (svo.inner_colors(), svo.inner_normals());
     let mut n = 0;
     for k in front_to_back_order(dir_voxel) {
         if mask & (1 << k) != 0 {
+            let index = first + child_rank(mask, k);
+            if inner && is_interior_value(colors[index as usize], normals[index as usize]) {
+                continue;
+            }
             out[n] = NodeRef {
                 level,
-                index: first + child_rank(mask, k),
+                index,
                 origin: q.node.origin + octant_offset(k, half),
             };
             n += 1;

@@ -253,23 +253,63 @@ pub fn house_close_up(house: &Document) -> Option<crate::scene::OrbitCamera> {
 /// tiles and its surface is not (tile tests of both renderers).
 #[must_use]
 pub fn solid_ball() -> Document {
+    ball(BallInside::Coloured)
+}
+
+/// What fills [`ball`]'s inside.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BallInside {
+    /// One colour.
+    Coloured,
+    /// Voxels enclosed on all six faces are interior ([`Voxel::INTERIOR`]), as a solid
+    /// import's; the rest is the coloured shell.
+    Interior,
+    /// Nothing: the shell of [`Self::Interior`] alone (what the renderers should draw of it).
+    Hollow,
+}
+
+/// [`solid_ball`] with its inside as `inside` says.
+#[must_use]
+pub fn ball(inside: BallInside) -> Document {
     let (depth, r) = (6u8, 27.0f32);
     let e = 1u32 << depth;
     let c = e as f32 / 2.0;
+    let in_ball = |x: i64, y: i64, z: i64| {
+        let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
+        p.length() <= r
+    };
     let mut voxels = Vec::new();
     for z in 0..e {
         for y in 0..e {
             for x in 0..e {
                 let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
                 let d = p.length();
-                if d <= r {
-                    let v = if d > r - 1.5 {
-                        Voxel::new([(x * 4) as u8, (y * 4) as u8, 90, 255], p)
-                    } else {
-                        Voxel::new([200, 60, 20, 255], Vec3::Z)
-                    };
-                    voxels.push((UVec3::new(x, y, z), v));
+                if d > r {
+                    continue;
                 }
+                let (xi, yi, zi) = (i64::from(x), i64::from(y), i64::from(z));
+                let enclosed = [
+                    (1, 0, 0),
+                    (-1, 0, 0),
+                    (0, 1, 0),
+                    (0, -1, 0),
+                    (0, 0, 1),
+                    (0, 0, -1),
+                ]
+                .iter()
+                .all(|&(dx, dy, dz)| in_ball(xi + dx, yi + dy, zi + dz));
+                let v = if d > r - 1.5 {
+                    Voxel::new([(x * 4) as u8, (y * 4) as u8, 90, 255], p)
+                } else {
+                    Voxel::new([200, 60, 20, 255], Vec3::Z)
+                };
+                let v = match inside {
+                    BallInside::Coloured => v,
+                    BallInside::Interior if enclosed => Voxel::INTERIOR,
+                    BallInside::Hollow if enclosed => continue,
+                    BallInside::Interior | BallInside::Hollow => v,
+                };
+                voxels.push((UVec3::new(x, y, z), v));
             }
         }
     }

@@ -179,7 +179,11 @@ fn the_interior_mark_is_no_normal_a_surface_can_have() {
         let t = i as f32 * 0.618_034;
         let z = (i as f32 / 2000.0) - 1.0;
         let r = (1.0 - z * z).max(0.0).sqrt();
-        let n = Vec3::new(r * (t * std::f32::consts::TAU).cos(), r * (t * std::f32::consts::TAU).sin(), z);
+        let n = Vec3::new(
+            r * (t * std::f32::consts::TAU).cos(),
+            r * (t * std::f32::consts::TAU).sin(),
+            z,
+        );
         assert_ne!(encode_normal(n), INTERIOR_NORMAL, "{n}");
     }
     for n in [

@@ -13,7 +13,7 @@ use super::geometry::GridTriangle;
 use super::solid::{self, Crossing, Interval};
 use super::surface::Budget;
 use super::{FillRule, Triangles, VoxelizeError, for_triangles};
-use crate::svo::{Voxel, morton_decode, morton_encode};
+use crate::svo::{Voxel, morton_encode};
 
 /// A ray axis of the interior fill.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -178,15 +178,6 @@ impl Interior {
     /// Whether voxel `c` is interior.
     pub(crate) fn contains(&self, c: UVec3) -> bool {
         self.keys.binary_search(&morton_encode(c)).is_ok()
-    }
-
-    /// The interior voxels with their coordinates.
-    pub(crate) fn into_voxels(self) -> Vec<(UVec3, Voxel)> {
-        self.keys
-            .into_par_iter()
-            .map(morton_decode)
-            .zip(self.voxels)
-            .collect()
     }
 }
 

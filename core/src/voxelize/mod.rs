@@ -21,7 +21,7 @@ mod surface;
 #[cfg(test)]
 mod tests;
 
-use glam::{DVec3, UVec3, Vec3};
+use glam::{DVec3, IVec3, UVec3, Vec3};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
@@ -196,6 +196,10 @@ pub struct VoxelizeStats {
     /// bounds them along the three axes (the sparse fill of larger grids).
     #[serde(default)]
     pub interior_from_nearest_surface: bool,
+    /// Solid mode: interior voxels enclosed on all six faces, stored as the interior mark
+    /// ([`Voxel::INTERIOR`], attributes found when an edit exposes them).
+    #[serde(default)]
+    pub interior_marked: u64,
 }
 
 /// The result of [`voxelize`].
@@ -670,15 +674,50 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    let interior_voxels = match interior {
-        Some(Interior::Sparse(inside)) => inside.into_voxels(),
+    // An interior voxel enclosed on all six faces by voxels of the solid is stored as the
+    // interior mark (`Voxel::INTERIOR`: its attributes are found when an edit exposes it, so
+    // the inside is a few tiles); one that is not keeps the attributes found for it here.
+    let surface_codes: Vec<u64> = surface_voxels
+        .iter()
+        .map(|e| crate::svo::morton_encode(e.0))
+        .collect();
+    let enclosed = |inside: &dyn Fn(UVec3) -> bool, c: UVec3| {
+        FACES.iter().all(|&f| {
+            let q = c.as_ivec3() + f;
+            if q.cmplt(IVec3::ZERO).any() || q.as_uvec3().cmpge(dims).any() {
+                return false;
+            }
+            let q = q.as_uvec3();
+            inside(q)
+                || surface_codes
+                    .binary_search(&crate::svo::morton_encode(q))
+                    .is_ok()
+        })
+    };
+    let interior_voxels = match &interior {
+        Some(Interior::Sparse(inside)) => inside
+            .keys
+            .par_iter()
+            .zip(&inside.voxels)
+            .map(|(&code, &v)| {
+                let c = morton_decode(code);
+                let sealed = enclosed(&|q| inside.contains(q), c);
+                (c, if sealed { Voxel::INTERIOR } else { v })
+            })
+            .collect(),
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
+            if enclosed(&|q| inside.contains(q), c) {
+                return Some((c, Voxel::INTERIOR));
+            }
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
             Some((c, record_voxels[i].0))
         }),
         None => Vec::new(),
     };
+    stats.interior_marked = interior_voxels.iter().filter(|e| e.1.is_interior()).count() as u64;
+    drop(interior);
+    drop(surface_codes);
     drop(record_voxels);
     drop(records);
     if !progress(0.9) {
@@ -701,6 +740,16 @@ pub fn voxelize(
         stats,
     })
 }
+
+/// The six face directions.
+const FACES: [IVec3; 6] = [
+    IVec3::X,
+    IVec3::NEG_X,
+    IVec3::Y,
+    IVec3::NEG_Y,
+    IVec3::Z,
+    IVec3::NEG_Z,
+];
 
 /// Edges used by an odd number of non-degenerate triangles, with vertices welded by exact
 /// position over all parts (so UV seams and part boundaries that meet are closed). Zero for a

@@ -989,7 +989,7 @@ fn the_voxelize_estimate_holds_the_measured_peak() {
 }
 
 #[test]
-fn interior_voxels_take_the_weights_of_the_nearest_wall_not_the_column_end() {
+fn interior_voxels_reveal_the_weights_of_the_nearest_wall_not_the_column_end() {
     // A closed 8 × 8 × 64 bar along z whose skin blends from joint 0 at z = 0 to joint 1 at
     // z = 64: the surface's joint-1 weight at height z is z / 64. An interior voxel's nearest
     // surface is the side wall at its own height (at most 4 voxels away), never an end cap.
@@ -1024,7 +1024,9 @@ fn interior_voxels_take_the_weights_of_the_nearest_wall_not_the_column_end() {
         let along = turn.transform_vector3(Vec3::Z);
         let (lo, _) = v.svo.bounds().unwrap();
         let (mut interior, mut worst) = (0, 0.0f32);
+        assert!(v.stats.interior_marked > 0, "axis {axis}");
         for (c, vox) in v.svo.leaves() {
+            let vox = revealed(&v.svo, c, vox);
             let local = c.as_ivec3() - lo.as_ivec3();
             let across: Vec<f32> = (0..3)
                 .filter(|&i| along.abs()[i] < 0.5)
@@ -1079,8 +1081,9 @@ fn interior_voxels_take_the_weights_of_the_nearest_wall_not_the_column_end() {
 
 #[test]
 fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
-    // CesiumMan filled solid: every interior voxel, skinned with its own weights at mid-stride,
-    // lands near where the weights of its nearest surface voxel put it. The fill along one
+    // CesiumMan filled solid: every interior voxel, skinned at mid-stride with its own weights
+    // (or, marked interior, with what exposing it would reveal), lands near where the weights
+    // of its nearest surface voxel put it. The fill along one
     // axis gave the torso the weights of the head or the feet (the ends of its columns).
     let import = crate::io::import_skinned(asset("skinned/CesiumMan.glb")).unwrap();
     let s = |mode| settings(Resolution::Depth(7), mode);
@@ -1104,10 +1107,12 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
         )
     };
     let mut moved = Vec::new();
+    assert!(solid.stats.interior_marked > 1000, "{:?}", solid.stats);
     for (c, v) in solid.svo.leaves() {
         if shell.contains_key(&c) {
             continue;
         }
+        let v = revealed(&solid.svo, c, v);
         // The nearest surface voxels, by centre distance (searched in growing cubes; every
         // one at the least distance, since any of them is the nearest).
         let mut nearest: Option<(u32, Vec<UVec3>)> = None;
@@ -1158,14 +1163,32 @@ fn a_solid_rigged_character_moves_with_its_nearest_surface_when_posed() {
         moved[n - 1]
     );
     assert!(n > 1000, "{n} interior voxels");
-    // The dense fill takes one of the nearest surface voxels exactly, so the weights are
-    // equal: measured max 0 (8-bit weights, identical voxels). The nearest bounding crossing
-    // along the axes (the sparse fill) gave median 0.007, 99 % 1.46, max 3.20 voxels, 652 of
-    // 25,938 over one voxel; the fill along z alone, median 0.42, max 24.6, 10,282 over one.
+    // Enclosed voxels are marked interior and reveal the nearest voxel the solid stores, not
+    // the nearest of the surface import: where the solid dropped an outer surface voxel (it
+    // lies outside the mesh) the next one in is taken. Measured: median 0, 99 % 1.17, max 3.31
+    // voxels, 371 of 25,938 over one voxel. Before interior marks the dense fill stored one of
+    // the surface import's nearest voxels itself (max 0); the nearest bounding crossing along
+    // the axes (the sparse fill) gave median 0.007, 99 % 1.46, max 3.20, 652 over one; the fill
+    // along z alone, median 0.42, max 24.6, 10,282 over one.
     assert!(solid.stats.interior_from_nearest_surface);
-    assert_eq!(
-        over, 0,
-        "no interior voxel over one voxel from its nearest surface's place"
+    assert!(
+        over * 50 <= n,
+        "{over} of {n} interior voxels over one voxel from their nearest surface's place"
     );
-    assert!(moved[n - 1] <= 1e-3, "max {} voxels", moved[n - 1]);
+    assert!(
+        moved[n * 99 / 100] <= 1.5,
+        "99 % {} voxels",
+        moved[n * 99 / 100]
+    );
+    assert!(moved[n - 1] <= 4.0, "max {} voxels", moved[n - 1]);
+}
+
+/// What voxel `c` of `svo` shows once exposed: its own value, or for an interior voxel the
+/// value the interior rule gives it (its nearest voxel that is not interior).
+fn revealed(svo: &crate::svo::Svo, c: UVec3, v: crate::svo::Voxel) -> crate::svo::Voxel {
+    if v.is_interior() {
+        svo.nearest_surface(c).expect("a surface to reveal from").1
+    } else {
+        v
+    }
 }
