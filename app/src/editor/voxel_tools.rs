@@ -1099,8 +1099,10 @@ impl Editor {
         let (lo, _) = cells.bounds().unwrap_or((UVec3::ZERO, UVec3::ZERO));
         let depth = model_ops::depth_for(clip.size.max(UVec3::ONE))
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
-        let svo = Svo::from_voxels(depth, v.svo.has_skin(), clip.voxels.iter().copied())
+        let mut svo = Svo::from_voxels(depth, v.svo.has_skin(), clip.voxels.iter().copied())
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        // Where the selection cut through an interior, its nearest surface shows.
+        svo.settle_interior();
         let model = VoxelModel {
             svo,
             voxel_size: v.voxel_size,

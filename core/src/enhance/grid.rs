@@ -55,6 +55,8 @@ const BRICK_VOXELS: usize = 512;
 #[derive(Clone)]
 struct Brick {
     occ: [u64; 8],
+    /// Interior voxels (`Voxel::is_interior`): solid, but with no colour to give.
+    interior: [u64; 8],
     color: [[u8; 4]; BRICK_VOXELS],
     material: [u8; BRICK_VOXELS],
 }
@@ -106,6 +108,7 @@ impl CoarseGrid {
                 }
                 self.bricks.push(Brick {
                     occ: [0; 8],
+                    interior: [0; 8],
                     color: [[0; 4]; BRICK_VOXELS],
                     material: [0; BRICK_VOXELS],
                 });
@@ -118,11 +121,17 @@ impl CoarseGrid {
         match v {
             Some(v) => {
                 b.occ[l >> 6] |= 1 << (l & 63);
+                if v.is_interior() {
+                    b.interior[l >> 6] |= 1 << (l & 63);
+                } else {
+                    b.interior[l >> 6] &= !(1 << (l & 63));
+                }
                 b.color[l] = v.color;
                 b.material[l] = v.material;
             }
             None => {
                 b.occ[l >> 6] &= !(1 << (l & 63));
+                b.interior[l >> 6] &= !(1 << (l & 63));
                 b.color[l] = [0; 4];
                 b.material[l] = 0;
             }
@@ -188,6 +197,8 @@ impl CoarseGrid {
         w.color.resize(n, [0; 4]);
         w.material.clear();
         w.material.resize(n, 0);
+        w.interior.clear();
+        w.interior.resize(n, false);
         w.solid_count = 0;
         // Remember the last brick: a window crosses at most a few bricks.
         let mut last: Option<(u64, Option<u32>)> = None;
@@ -212,6 +223,7 @@ impl CoarseGrid {
                                 w.occ[i] = true;
                                 w.color[i] = b.color[l];
                                 w.material[i] = b.material[l];
+                                w.interior[i] = b.interior[l >> 6] >> (l & 63) & 1 == 1;
                                 w.solid_count += 1;
                             }
                         }
@@ -233,6 +245,8 @@ pub(crate) struct Window {
     pub(crate) occ: Vec<bool>,
     pub(crate) color: Vec<[u8; 4]>,
     pub(crate) material: Vec<u8>,
+    /// Interior voxels: solid, but they give fragments no colour.
+    pub(crate) interior: Vec<bool>,
     pub(crate) solid_count: usize,
 }
 

@@ -524,7 +524,8 @@ impl Engine {
                         for dx in range(u.x) {
                             let d = IVec3::new(dx, dy, dz);
                             let i = win.idx(d);
-                            if !win.occ[i] {
+                            // Interior voxels are solid but have no colour to give.
+                            if !win.occ[i] || win.interior[i] {
                                 continue;
                             }
                             let t = (Vec3::ONE - (u - d.as_vec3()).abs()).max(Vec3::ZERO);
@@ -544,7 +545,8 @@ impl Engine {
                                 let d = IVec3::new(dx, dy, dz);
                                 let i = win.idx(d);
                                 let dist = (u - d.as_vec3()).length_squared();
-                                if win.occ[i] && best.is_none_or(|b| dist < b.0) {
+                                if win.occ[i] && !win.interior[i] && best.is_none_or(|b| dist < b.0)
+                                {
                                     best = Some((dist, i));
                                 }
                             }
@@ -564,7 +566,7 @@ impl Engine {
                         pat.cell_offset(2, j, local.z as usize),
                     );
                     let i = win.idx(d);
-                    if win.occ[i] {
+                    if win.occ[i] && !win.interior[i] {
                         match contrib.iter_mut().find(|e| e.0 == i) {
                             Some(e) => e.1 += 1.0,
                             None => contrib.push((i, 1.0)),

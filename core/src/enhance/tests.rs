@@ -172,6 +172,7 @@ fn window_from(cells: &[(IVec3, bool)], r: i32) -> Window {
         occ: vec![false; n],
         color: vec![[200, 200, 200, 255]; n],
         material: vec![0; n],
+        interior: vec![false; n],
         solid_count: 0,
     };
     for &(d, s) in cells {

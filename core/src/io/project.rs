@@ -32,7 +32,7 @@ use crate::budget::MemoryBudget;
 use crate::mesh::{Material, MeshModel, Texture, TriangleMesh};
 use crate::scene::{Document, FORMAT_VERSION, ObjectKind, SceneError};
 use crate::skin::{AnimationClip, Channel, Interpolation, Property, Rig, StretchOverrides};
-use crate::svo::{Skin4, Svo, Voxel, morton_decode, morton_encode};
+use crate::svo::{INTERIOR_NORMAL, Skin4, Svo, Voxel, morton_decode, morton_encode};
 
 /// Largest project JSON we read (the JSON holds parameters only; payloads are in the `.bin`).
 const MAX_JSON_BYTES: u64 = 256 << 20;
@@ -475,9 +475,11 @@ fn load_from_parts(
             supported: FORMAT_VERSION,
         });
     }
-    // Migration: a version-1 document is a version-2 document without frame sequences, and a
-    // version-2 one a version-3 one whose payloads are `SVO1` (which `decode_svo` reads), so
-    // nothing changes but the number; the document in memory is always the current format.
+    // Migration: a version-1 document is a version-2 document without frame sequences, a
+    // version-2 one a version-3 one whose payloads are `SVO1`, and a version-3 one a version-4
+    // one whose payloads are `SVO2` (`decode_svo` reads all three, mapping their normal codes
+    // to this build's), so nothing changes but the number; the document in memory is always
+    // the current format.
     doc.format_version = FORMAT_VERSION;
     let payload_err = |detail: String| ProjectError::Payload {
         path: json_path.to_owned(),
@@ -614,8 +616,11 @@ fn check_object_graph(doc: &Document, payloads: &[PayloadRef]) -> Result<(), Str
 
 /// The first octree payload: every voxel, one record each.
 const SVO_MAGIC: &[u8; 4] = b"SVO1";
-/// The octree payload with tiles ([`encode_svo`]).
+/// The octree payload with tiles, before interior voxels existed: a record may carry the
+/// interior mark's normal code as a plain −Z normal.
 const SVO2_MAGIC: &[u8; 4] = b"SVO2";
+/// The octree payload with tiles and interior voxels ([`encode_svo`]; the layout of `SVO2`).
+const SVO3_MAGIC: &[u8; 4] = b"SVO3";
 
 /// Most voxels a project may stand for, every model and frame together (2^31): a few tiles can
 /// stand for more than any file could list, and tools that visit every voxel (exports) must
@@ -737,7 +742,7 @@ fn put_len(out: &mut Vec<u8>, n: usize) {
 /// `2^h` voxels a side) and its attributes. A solid's interior costs one record per tile, so
 /// the file follows the surface.
 fn encode_svo(svo: &Svo, out: &mut Vec<u8>) {
-    out.extend_from_slice(SVO2_MAGIC);
+    out.extend_from_slice(SVO3_MAGIC);
     out.push(svo.depth());
     out.push(u8::from(svo.has_skin()));
     out.extend_from_slice(&[0, 0]);
@@ -815,10 +820,11 @@ fn decode_frames(bytes: &[u8]) -> Result<Vec<crate::scene::VoxelFrame>, String> 
 fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
     let mut r = Reader { bytes, at: 0 };
     let magic = r.take(4)?;
-    let runs = match magic {
-        m if m == SVO_MAGIC => false,
-        m if m == SVO2_MAGIC => true,
-        _ => return Err("bad magic (expected SVO1 or SVO2)".into()),
+    let (runs, legacy) = match magic {
+        m if m == SVO_MAGIC => (false, true),
+        m if m == SVO2_MAGIC => (true, true),
+        m if m == SVO3_MAGIC => (true, false),
+        _ => return Err("bad magic (expected SVO1, SVO2 or SVO3)".into()),
     };
     let depth = r.u8()?;
     let has_skin = match r.u8()? {
@@ -870,7 +876,11 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
             ));
         }
         let color: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
-        let normal = r.u16()?;
+        let mut normal = r.u16()?;
+        if legacy && normal == INTERIOR_NORMAL {
+            // Written before the interior mark: the same −Z normal under its other code.
+            normal = 0xffff;
+        }
         let material = r.u8()?;
         let skin = if has_skin {
             let joints: [u8; 4] = r.take(4)?.try_into().unwrap_or_default();
@@ -885,6 +895,12 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
             material,
             skin,
         };
+        if normal == INTERIOR_NORMAL && !v.is_interior() {
+            return Err(format!(
+                "record {i}: carries the interior mark's normal code with colour {color:?} (an \
+                 interior voxel has no colour)"
+            ));
+        }
         if height == 0 {
             leaves.push((morton_decode(code), v));
         } else if !svo.tile_value_ok(&v) {
@@ -910,6 +926,13 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         }
         // Paths built tile by tile leave freed blocks behind.
         svo.compact();
+    }
+    if let Some(p) = svo.exposed_interior() {
+        return Err(format!(
+            "interior voxel ({}, {}, {}) has an empty face neighbour (interior voxels must be \
+             enclosed: nothing would draw it)",
+            p.x, p.y, p.z
+        ));
     }
     Ok(svo)
 }

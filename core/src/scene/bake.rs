@@ -25,10 +25,15 @@ pub fn bake_shown_pose(model: &VoxelModel) -> Option<VoxelModel> {
         let p = crate::skin::lbs::skin_point(&skinning, joints, weights, bind);
         let n = crate::skin::lbs::skin_normal(&skinning, joints, weights, decode_normal(v.normal));
         finite &= p.is_finite();
-        let voxel = Voxel {
-            normal: encode_normal(n),
-            skin: Skin4::default(),
-            ..v
+        let voxel = if v.is_interior() {
+            // No normal to pose; exposed ones are settled below.
+            Voxel::INTERIOR
+        } else {
+            Voxel {
+                normal: encode_normal(n),
+                skin: Skin4::default(),
+                ..v
+            }
         };
         posed.push((p, voxel));
     });
@@ -47,7 +52,9 @@ pub fn bake_shown_pose(model: &VoxelModel) -> Option<VoxelModel> {
         .collect();
     let extent = cells.iter().map(|(c, _)| c.max_element()).max()? + 1;
     let depth = (1..=MAX_DEPTH).find(|&d| (1u64 << d) >= u64::from(extent))?;
-    let svo = Svo::from_voxels(depth, false, cells).ok()?;
+    let mut svo = Svo::from_voxels(depth, false, cells).ok()?;
+    // Where the pose pulled the surface apart, interior voxels show.
+    svo.settle_interior();
     Some(VoxelModel {
         svo,
         voxel_size: size,

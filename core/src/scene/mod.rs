@@ -33,7 +33,10 @@ use crate::svo::Svo;
 /// * 3: octree payloads store tiles (`SVO2`: one record per stored leaf or tile, see
 ///   `io::project`). Older files (`SVO1`, one record per voxel) load unchanged, their uniform
 ///   regions becoming tiles in memory.
-pub const FORMAT_VERSION: u32 = 3;
+/// * 4: octree payloads may hold interior voxels (`SVO3`, the layout of `SVO2`; a record with
+///   the interior mark's normal code and no colour is `Voxel::INTERIOR`). Older payloads load
+///   with that code read as the −Z normal it decodes to.
+pub const FORMAT_VERSION: u32 = 4;
 
 /// A value in the document that a renderer must not see.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]

@@ -98,6 +98,9 @@ pub fn resize_canvas(
             size: new_size.to_array(),
             limit: 1 << MAX_DEPTH,
         })?;
+    // The crop may cut through an interior: what it opens shows its nearest surface.
+    let mut svo = svo;
+    svo.settle_interior();
     Ok(Resized {
         svo,
         offset,
@@ -145,6 +148,11 @@ pub fn mirror_model(svo: &mut Svo, size: UVec3, axis: usize) -> ToolEdit {
     for (c, v) in moved {
         let mut p = c;
         p[axis] = size[axis] - 1 - c[axis];
+        if v.is_interior() {
+            // No normal to mirror.
+            changes.push((p, Some(v)));
+            continue;
+        }
         let mut n = decode_normal(v.normal);
         n[axis] = -n[axis];
         changes.push((

@@ -82,8 +82,11 @@ fn binary(detail: impl Into<String>) -> PaletteError {
 pub fn model_colors(svo: &Svo) -> Vec<([u8; 4], u64)> {
     let mut counts: HashMap<[u8; 4], u64> = HashMap::new();
     // A tile counts all its voxels at once (the palette panel runs this after each edit).
+    // Interior voxels have no colour of their own (they show their nearest surface's).
     svo.for_each_run(|_, height, v| {
-        *counts.entry(v.color).or_insert(0) += 1 << (3 * u32::from(height));
+        if !v.is_interior() {
+            *counts.entry(v.color).or_insert(0) += 1 << (3 * u32::from(height));
+        }
     });
     let mut out: Vec<([u8; 4], u64)> = counts.into_iter().collect();
     out.sort_unstable_by(|a, b| b.1.cmp(&a.1).then(a.0.cmp(&b.0)));
@@ -91,6 +94,7 @@ pub fn model_colors(svo: &Svo) -> Vec<([u8; 4], u64)> {
 }
 
 /// Recolours every voxel of colour `from` (RGBA) to `to`; with a mask only selected voxels.
+/// Interior voxels are never recoloured (they take their colour when exposed).
 /// Normals and occupancy are untouched.
 pub fn replace_color(svo: &mut Svo, from: [u8; 4], to: [u8; 4], mask: Mask) -> ToolEdit {
     let mut edit = ToolEdit::default();

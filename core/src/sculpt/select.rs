@@ -586,7 +586,8 @@ pub fn transform_selection(
     for &(c, v) in &moved {
         match i64_in_volume(place(c), size) {
             Some(p) => {
-                let normal = if matches!(t, SelTransform::Move(_)) {
+                // An interior voxel has no normal to turn.
+                let normal = if matches!(t, SelTransform::Move(_)) || v.is_interior() {
                     v.normal
                 } else {
                     encode_normal(turn(decode_normal(v.normal)))

@@ -569,8 +569,10 @@ fn commit_dense(
         } else {
             old
         };
+        // Interior voxels have no normal until exposed (`svo::interior`).
         if cell & BrickPlan::NORMAL != 0
             && let Some(v) = v.as_mut()
+            && !v.is_interior()
         {
             v.normal = cell as u16;
         }
@@ -728,10 +730,13 @@ pub(super) fn commit_sparse(
             });
             updates.push((d, encode_normal(n)));
         }
+        // Interior voxels have no normal until exposed (`svo::interior`).
         for (d, nrm) in updates {
             if let Some(Some(v)) = map.get_mut(&d) {
-                v.normal = nrm;
-            } else if let Some(old) = svo.get(d) {
+                if !v.is_interior() {
+                    v.normal = nrm;
+                }
+            } else if let Some(old) = svo.get(d).filter(|v| !v.is_interior()) {
                 extra.push((d, Some(Voxel { normal: nrm, ..old })));
             }
         }

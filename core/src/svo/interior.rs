@@ -97,6 +97,91 @@ impl Svo {
         best
     }
 
+    /// Gives every exposed interior voxel (an empty face neighbour, or on the boundary) the
+    /// attributes of its nearest voxel that is not interior, all resolved against the octree as
+    /// it is (module docs): for octrees built rather than edited into shape (a crop, a
+    /// selection made an object, a baked pose). Returns how many were exposed.
+    pub fn settle_interior(&mut self) -> usize {
+        let exposed = self.all_exposed_interior();
+        if exposed.is_empty() {
+            return 0;
+        }
+        let resolved: Vec<(UVec3, Option<Voxel>)> = exposed
+            .iter()
+            .map(|&c| {
+                let v = self.nearest_keyed(c).map_or(Voxel::default(), |n| n.2);
+                (c, Some(v))
+            })
+            .collect();
+        self.apply_sorted(0, 0, UVec3::ZERO, &resolved, None);
+        exposed.len()
+    }
+
+    /// Every exposed interior voxel, in Morton order.
+    fn all_exposed_interior(&self) -> Vec<UVec3> {
+        let mut out = Vec::new();
+        self.scan_exposed_interior(|p| {
+            out.push(p);
+            true
+        });
+        out.sort_unstable_by_key(|&p| morton_encode(p));
+        out.dedup();
+        out
+    }
+
+    /// The first interior voxel (in Morton order of the runs holding them) with an empty face
+    /// neighbour or on the octree's boundary: one that breaks the rule that interior voxels
+    /// are enclosed. `None` when every interior voxel is enclosed. Visits each interior run's
+    /// six neighbouring slabs, so the cost follows the runs' surface, not their volume.
+    #[must_use]
+    pub fn exposed_interior(&self) -> Option<UVec3> {
+        let mut found = None;
+        self.scan_exposed_interior(|p| {
+            found = Some(p);
+            false
+        });
+        found
+    }
+
+    /// Calls `f` with exposed interior voxels (a voxel may come more than once, once per open
+    /// face) until it returns `false`.
+    fn scan_exposed_interior(&self, mut f: impl FnMut(UVec3) -> bool) {
+        if !self.may_have_interior() {
+            return;
+        }
+        let extent = self.extent();
+        let mut done = false;
+        self.for_each_run(|origin, height, v| {
+            if done || !v.is_interior() {
+                return;
+            }
+            let size = 1u32 << height;
+            for axis in 0..3 {
+                let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
+                for side in [false, true] {
+                    for a in 0..size {
+                        for b in 0..size {
+                            let mut p = origin;
+                            p[u] += a;
+                            p[w] += b;
+                            let mut q = p;
+                            if side {
+                                p[axis] += size - 1;
+                                q[axis] = p[axis] + 1;
+                            } else {
+                                q[axis] = q[axis].wrapping_sub(1);
+                            }
+                            if (q[axis] >= extent || self.get(q).is_none()) && !f(p) {
+                                done = true;
+                                return;
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    }
+
     /// Resolves the interior voxels the edit in `result` exposed (module docs), adding them to
     /// its undo delta and changed box. Nothing to do in an octree without interior voxels.
     pub(super) fn reveal_exposed(&mut self, result: &mut EditResult) {

@@ -196,6 +196,17 @@ fn the_interior_mark_is_no_normal_a_surface_can_have() {
     ] {
         assert_ne!(encode_normal(n), INTERIOR_NORMAL, "{n}");
     }
+    // Around −Z, where the four corners of the octahedral square meet (one of them is the
+    // mark), in every quadrant and down to the smallest tilts.
+    for sx in [-1.0f32, 1.0] {
+        for sy in [-1.0f32, 1.0] {
+            for k in 0..200 {
+                let t = 1e-7 * 1.1f32.powi(k);
+                let n = Vec3::new(sx * t, sy * t * 0.7, -1.0);
+                assert_ne!(encode_normal(n), INTERIOR_NORMAL, "{n}");
+            }
+        }
+    }
     assert!(Voxel::INTERIOR.is_interior());
     assert!(!Voxel::default().is_interior());
 }

@@ -640,7 +640,8 @@ impl Svo {
         let hi = hi.min(max);
         // A value carrying the interior mark's normal is the mark (a recolour of an interior
         // voxel, `Voxel { color, ..old }`, leaves it interior: it has no colour to show).
-        let mut marked = |c: UVec3, old: Option<Voxel>| f(c, old).map(Self::interior_or);
+        let mut marked =
+            |c: UVec3, old: Option<Voxel>| f(c, old).map(|v| Self::still_interior(v, old));
         let mut ctx = EditCtx {
             lo,
             hi,
@@ -654,11 +655,18 @@ impl Svo {
         Ok(result)
     }
 
-    /// `v`, or [`Voxel::INTERIOR`] when `v` carries its normal code (module `interior`).
+    /// `v` written over `old`, or the interior mark when `v` is derived from it: it carries the
+    /// mark's normal code, or it replaces an interior voxel keeping its (absent) colour, as a
+    /// normal re-estimated or turned by a tool does. An interior voxel stays interior, keeping
+    /// the skin written.
     #[inline]
-    fn interior_or(v: Voxel) -> Voxel {
-        if v.normal == INTERIOR_NORMAL {
-            Voxel::INTERIOR
+    fn still_interior(v: Voxel, old: Option<Voxel>) -> Voxel {
+        let from_old = old.is_some_and(|o| o.is_interior() && v.color == o.color);
+        if v.normal == INTERIOR_NORMAL || from_old {
+            Voxel {
+                skin: v.skin,
+                ..Voxel::INTERIOR
+            }
         } else {
             v
         }
@@ -970,11 +978,21 @@ impl Svo {
         &mut self,
         changes: impl IntoIterator<Item = (UVec3, Option<Voxel>)>,
     ) -> Result<EditResult, SvoError> {
-        let mut result = self.apply_changes_exact(
-            changes
-                .into_iter()
-                .map(|(c, v)| (c, v.map(Self::interior_or))),
-        )?;
+        let interior = self.may_have_interior();
+        let changes: Vec<(UVec3, Option<Voxel>)> = changes
+            .into_iter()
+            .map(|(c, v)| {
+                let v = v.map(|v| {
+                    // Only a colourless value can be derived from an interior voxel.
+                    let old = (interior && v.color == [0; 4])
+                        .then(|| self.get(c))
+                        .flatten();
+                    Self::still_interior(v, old)
+                });
+                (c, v)
+            })
+            .collect();
+        let mut result = self.apply_changes_exact(changes)?;
         self.reveal_exposed(&mut result);
         Ok(result)
     }

@@ -226,8 +226,10 @@ pub struct Voxel {
     pub skin: Skin4,
 }
 
-/// Normal code of the interior mark: one [`encode_normal`] never produces (it decodes to
-/// −Z, which encodes as `0xffff`), so no surface voxel carries it.
+/// Normal code of the interior mark: one [`encode_normal`] never produces (a corner of the
+/// octahedral square: it decodes to −Z, which encodes as `0xffff`), so no surface voxel made
+/// by this build carries it. Files written before the mark existed are mapped to `0xffff` on
+/// load (`io::project`).
 pub const INTERIOR_NORMAL: u16 = 0x00ff;
 
 /// Whether a colour and normal code are the interior mark's.
@@ -299,7 +301,14 @@ pub fn encode_normal(n: Vec3) -> u16 {
     let q = ((p * 0.5 + 0.5) * 255.0)
         .round()
         .clamp(Vec2::ZERO, Vec2::splat(255.0));
-    (q.x as u16) | ((q.y as u16) << 8)
+    let code = (q.x as u16) | ((q.y as u16) << 8);
+    // The four corners of the square all decode to −Z; the interior mark keeps one of them,
+    // the others give −Z as the one corner it encodes exactly.
+    if code == INTERIOR_NORMAL {
+        0xffff
+    } else {
+        code
+    }
 }
 
 /// Inverse of [`encode_normal`]; always a unit vector.
@@ -358,7 +367,11 @@ pub(crate) fn merge(
     }
     if count == 0.0 {
         return if interior > 0 {
-            Voxel::INTERIOR
+            // Skinned interior nodes keep their children's joints, so posed bounds hold them.
+            Voxel {
+                skin: skins.map_or(Skin4::default(), Skin4::merge),
+                ..Voxel::INTERIOR
+            }
         } else {
             Voxel::default()
         };

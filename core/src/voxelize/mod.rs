@@ -702,16 +702,17 @@ pub fn voxelize(
             .map(|(&code, &v)| {
                 let c = morton_decode(code);
                 let sealed = enclosed(&|q| inside.contains(q), c);
-                (c, if sealed { Voxel::INTERIOR } else { v })
+                (c, if sealed { interior_with_skin(v) } else { v })
             })
             .collect(),
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
-            if enclosed(&|q| inside.contains(q), c) {
-                return Some((c, Voxel::INTERIOR));
-            }
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
-            Some((c, record_voxels[i].0))
+            let v = record_voxels[i].0;
+            if enclosed(&|q| inside.contains(q), c) {
+                return Some((c, interior_with_skin(v)));
+            }
+            Some((c, v))
         }),
         None => Vec::new(),
     };
@@ -739,6 +740,15 @@ pub fn voxelize(
         origin: plan.origin,
         stats,
     })
+}
+
+/// The interior mark carrying `v`'s skin: a skinned solid's interior leaves drawn beside its
+/// shell move with it (`Voxel::is_interior` does not look at skin).
+fn interior_with_skin(v: Voxel) -> Voxel {
+    Voxel {
+        skin: v.skin,
+        ..Voxel::INTERIOR
+    }
 }
 
 /// The six face directions.

@@ -1578,3 +1578,78 @@ fn the_load_estimate_covers_the_samples() {
     }
     assert_eq!((checked, large), (7, 3));
 }
+
+#[test]
+fn a_solid_with_an_interior_round_trips_and_an_exposed_interior_is_refused() {
+    let doc = crate::render::scenes::ball(crate::render::scenes::BallInside::Interior);
+    let ObjectKind::Voxels(model) = &doc.objects[0].kind else {
+        unreachable!("the ball is voxels")
+    };
+    let svo = &model.svo;
+    assert!(svo.may_have_interior() && svo.exposed_interior().is_none());
+    let mut bytes = Vec::new();
+    encode_svo(svo, &mut bytes);
+    let back = decode_svo(&bytes).unwrap();
+    assert_eq!(&back, svo);
+    assert_eq!(back.tile_count(), svo.tile_count());
+    assert!(back.tile_count() > 20);
+    let expect = |svo: &Svo, needle: &str| {
+        let mut bytes = Vec::new();
+        encode_svo(svo, &mut bytes);
+        let e = decode_svo(&bytes).unwrap_err();
+        assert!(e.contains(needle), "{e}");
+    };
+    // One interior voxel alone, and one on the octree's boundary inside a full block.
+    let lone = Svo::from_voxels(3, false, [(UVec3::new(3, 4, 5), Voxel::INTERIOR)]).unwrap();
+    expect(
+        &lone,
+        "interior voxel (3, 4, 5) has an empty face neighbour",
+    );
+    let edge = Svo::from_voxels(
+        2,
+        false,
+        (0..64u32).map(|i| {
+            let c = UVec3::new(i % 4, i / 4 % 4, i / 16);
+            let v = if c == UVec3::ZERO {
+                Voxel::INTERIOR
+            } else {
+                Voxel::new([9, 9, 9, 255], Vec3::X)
+            };
+            (c, v)
+        }),
+    )
+    .unwrap();
+    expect(&edge, "interior voxel (0, 0, 0)");
+    // A colour with the interior mark's normal code.
+    let odd = Voxel {
+        color: [1, 2, 3, 255],
+        ..Voxel::INTERIOR
+    };
+    let mut bytes = Vec::new();
+    encode_svo(
+        &Svo::from_voxels(3, false, [(UVec3::ONE, odd)]).unwrap(),
+        &mut bytes,
+    );
+    let e = decode_svo(&bytes).unwrap_err();
+    assert!(e.contains("interior mark's normal code"), "{e}");
+    // Written before the mark (SVO2): the code is the −Z normal it decodes to, even with no
+    // colour, and an exposed voxel with it is an ordinary voxel.
+    for color in [[1, 2, 3, 255], [0; 4]] {
+        let v = Voxel {
+            color,
+            ..Voxel::INTERIOR
+        };
+        let mut bytes = Vec::new();
+        encode_svo(
+            &Svo::from_voxels(3, false, [(UVec3::ONE, v)]).unwrap(),
+            &mut bytes,
+        );
+        bytes[..4].copy_from_slice(b"SVO2");
+        let back = decode_svo(&bytes).unwrap();
+        let got = back.get(UVec3::ONE).unwrap();
+        assert_eq!(got.normal, 0xffff);
+        assert_eq!(got.color, color);
+        assert!(!got.is_interior() && !back.may_have_interior());
+        assert_eq!(got.normal_vec(), Vec3::NEG_Z);
+    }
+}

@@ -284,6 +284,13 @@ pub fn export_vox_bytes(
                 if failure.is_some() {
                     return;
                 }
+                // MagicaVoxel has no interior voxels: each is written with the colour exposing
+                // it would give (its nearest voxel that is not interior).
+                let vox = if vox.is_interior() {
+                    svo.nearest_surface(c).map_or(vox, |(_, v)| v)
+                } else {
+                    vox
+                };
                 let base = c.as_dvec3();
                 let mut lo = DVec3::INFINITY;
                 let mut hi = DVec3::NEG_INFINITY;
