@@ -2342,6 +2342,14 @@ pub fn format_info(info: &DocumentInfo, memory: bool, joints: bool) -> String {
                     thousands(m.tile_voxels)
                 );
             }
+            if m.interior_voxels > 0 {
+                let _ = writeln!(
+                    s,
+                    "      interior: {} voxels enclosed, their attributes found when an edit \
+                     exposes them",
+                    thousands(m.interior_voxels)
+                );
+            }
         }
     }
     s

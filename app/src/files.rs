@@ -618,6 +618,9 @@ pub struct MemoryInfo {
     pub tiles: u64,
     /// Voxels those tiles stand for, with no storage of their own.
     pub tile_voxels: u64,
+    /// Interior voxels: enclosed, attributes found when an edit exposes them (a solid
+    /// import's inside).
+    pub interior_voxels: u64,
 }
 
 /// One object of a document, as `thicket info` reports it.
@@ -831,6 +834,7 @@ pub fn object_info(o: &Object) -> ObjectInfo {
                 total_bytes: stats.total_bytes,
                 tiles: stats.tiles,
                 tile_voxels: stats.tile_voxels,
+                interior_voxels: v.svo.interior_voxels(),
             };
         }
         ObjectKind::Mesh(m) => {

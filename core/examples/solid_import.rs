@@ -168,7 +168,7 @@ fn main() {
     let (fs, ns) = frame(&ds);
     let (fd, nd) = frame(&dd);
     println!(
-        "  CPU frame 800x600 (document quality): surface {:.1} ms ({ns} nodes), solid {:.1} ms \
+        "  CPU frame 800x600 (balanced): surface {:.1} ms ({ns} nodes), solid {:.1} ms \
          ({nd} nodes), {:.2}x",
         fs.as_secs_f64() * 1e3,
         fd.as_secs_f64() * 1e3,

@@ -181,6 +181,14 @@ fn object_ui(ui: &mut egui::Ui, editor: &mut Editor, state: &mut InspectorState,
                             "Full regions of one voxel value stored once (their voxels cost no memory of their own)",
                         );
                     }
+                    if info.memory.interior_voxels > 0 {
+                        row(
+                            ui,
+                            "Interior",
+                            format!("{} voxels", thousands(info.memory.interior_voxels)),
+                            "Enclosed voxels of a solid: never seen, so they store no colour; a carve that opens them shows the nearest surface's",
+                        );
+                    }
                     row(
                         ui,
                         "Skin weights",

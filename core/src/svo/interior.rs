@@ -40,6 +40,20 @@ impl Svo {
         self.leaf_attr.interior || self.inner_attr.interior
     }
 
+    /// How many voxels are interior (counted by runs: a tile at once).
+    #[must_use]
+    pub fn interior_voxels(&self) -> u64 {
+        let mut n = 0;
+        if self.may_have_interior() {
+            self.for_each_run(|_, height, v| {
+                if v.is_interior() {
+                    n += 1u64 << (3 * u32::from(height));
+                }
+            });
+        }
+        n
+    }
+
     /// The voxel nearest to `p` that is not interior: its coordinate and value. Distance
     /// between voxel centres; among equally near voxels the smallest Morton code wins. `None`
     /// when every voxel is interior or the octree is empty.

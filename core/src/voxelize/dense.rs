@@ -30,7 +30,7 @@ pub(crate) const DENSE_MAX_CELLS: u64 = 1 << 28;
 const NONE: u16 = u16::MAX;
 
 /// Vote bit for "a surface voxel is here" (the low bits count the axes that say inside).
-const SEED: u8 = 0x80;
+pub(crate) const SEED: u8 = 0x80;
 
 /// The interior as a dense grid of votes, with each cell's nearest seed.
 pub(crate) struct DenseFill {
@@ -43,6 +43,27 @@ pub(crate) struct DenseFill {
     fy: Vec<u16>,
     /// Nearest 3-D seed's z (index `z + Z·(y + Y·x)`).
     fz: Vec<u16>,
+}
+
+/// One byte per cell of `dims` (x fastest, then y, then z): how many of the three axes' inside
+/// runs hold it (interior at two or more).
+pub(crate) fn vote_grid(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
+    let cells = dims.x as usize * dims.y as usize * dims.z as usize;
+    let mut votes = vec![0u8; cells];
+    for f in fills {
+        let turned = f.axis.turn_dims(dims);
+        for iv in &f.intervals {
+            let x = (iv.column & 0x1f_ffff) as u32;
+            let y = (iv.column >> 21) as u32;
+            if x >= turned.x || y >= turned.y {
+                continue;
+            }
+            for k in iv.k_lo..=iv.k_hi.min(turned.z.saturating_sub(1)) {
+                votes[cell(dims, f.axis.unturn(UVec3::new(x, y, k)))] += 1;
+            }
+        }
+    }
+    votes
 }
 
 /// Whether a grid of `dims` is small enough for the dense fill (every side must also fit the
@@ -58,20 +79,7 @@ impl DenseFill {
     pub(crate) fn new(dims: UVec3, fills: &[AxisFill; 3], seeds: &[UVec3]) -> Self {
         let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
         let cells = nx * ny * nz;
-        let mut votes = vec![0u8; cells];
-        for f in fills {
-            let turned = f.axis.turn_dims(dims);
-            for iv in &f.intervals {
-                let x = (iv.column & 0x1f_ffff) as u32;
-                let y = (iv.column >> 21) as u32;
-                if x >= turned.x || y >= turned.y {
-                    continue;
-                }
-                for k in iv.k_lo..=iv.k_hi.min(turned.z.saturating_sub(1)) {
-                    votes[cell(dims, f.axis.unturn(UVec3::new(x, y, k)))] += 1;
-                }
-            }
-        }
+        let mut votes = vote_grid(dims, fills);
         for s in seeds {
             if s.cmplt(dims).all() {
                 votes[cell(dims, *s)] |= SEED;
@@ -223,7 +231,7 @@ impl DenseFill {
 }
 
 /// Index of cell `c` in `votes` and `fx` (x fastest, then y, then z).
-fn cell(dims: UVec3, c: UVec3) -> usize {
+pub(crate) fn cell(dims: UVec3, c: UVec3) -> usize {
     c.x as usize + dims.x as usize * (c.y as usize + dims.y as usize * c.z as usize)
 }
 

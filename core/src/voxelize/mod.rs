@@ -15,6 +15,7 @@
 mod dense;
 mod fill;
 mod geometry;
+mod sealed;
 mod solid;
 mod surface;
 
@@ -469,9 +470,24 @@ pub fn estimate(
     } else {
         0.0
     };
-    let voxels = surface.min(grid) + interior;
+    let has_skin = model
+        .parts
+        .iter()
+        .any(|p| !p.joints.is_empty() && !p.weights.is_empty());
+    let dense = settings.mode == Mode::Solid && dense::fits(UVec3::from_array(plan.dims));
+    // A rigid solid on the dense grid lists no interior voxel (`sealed`): what grows with the
+    // result is its surface, held about twice (the kept voxels, and the seeds searched for
+    // the interior beside them), and the grid's votes and flags.
+    let rigid_dense = dense && !has_skin;
+    let voxels = if rigid_dense {
+        2.0 * surface.min(grid)
+    } else {
+        surface.min(grid) + interior
+    };
     // The dense fill's grid (see `dense`), on top of the voxels.
-    let dense_bytes = if settings.mode == Mode::Solid && dense::fits(UVec3::from_array(plan.dims)) {
+    let dense_bytes = if rigid_dense {
+        grid * sealed::BYTES_PER_CELL
+    } else if dense {
         grid * dense::DENSE_BYTES_PER_CELL as f64
     } else {
         0.0
@@ -618,6 +634,12 @@ pub fn voxelize(
     // The dense fill when the grid is small enough: interior voxels take the attributes of
     // their nearest surface voxel. Otherwise the sparse fill: the nearest bounding crossing's.
     let interior = match fills {
+        // A rigid solid needs no transform: its enclosed interior is the interior mark, and
+        // the octree is built from the votes (`sealed`).
+        Some(fills) if dense::fits(dims) && !has_skin => Some(Interior::Votes {
+            dims,
+            votes: dense::vote_grid(dims, &fills),
+        }),
         Some(fills) if dense::fits(dims) => {
             let seeds: Vec<UVec3> = records.par_iter().map(|r| morton_decode(r.0)).collect();
             Some(Interior::Dense(dense::DenseFill::new(dims, &fills, &seeds)))
@@ -630,7 +652,7 @@ pub fn voxelize(
     };
     if let Some(inside) = &interior {
         stats.interior_voxels = inside.len();
-        stats.interior_from_nearest_surface = matches!(inside, Interior::Dense(_));
+        stats.interior_from_nearest_surface = !matches!(inside, Interior::Sparse(_));
         if stats.interior_voxels.saturating_add(stats.surface_voxels) > settings.max_voxels {
             return Err(VoxelizeError::TooManyVoxels {
                 limit: settings.max_voxels,
@@ -674,6 +696,38 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
+    if let Some(Interior::Votes { dims, mut votes }) = interior {
+        // Interior voxels that are not enclosed take their nearest surface voxel's attributes,
+        // among all the surface voxels (those solid mode dropped too), as the transform does.
+        let seeds = Svo::from_voxels(
+            plan.depth,
+            false,
+            records
+                .iter()
+                .zip(&record_voxels)
+                .map(|(r, (v, _))| (morton_decode(r.0), *v)),
+        )?;
+        drop(record_voxels);
+        drop(records);
+        if !progress(0.9) {
+            return Err(VoxelizeError::Cancelled);
+        }
+        let (svo, counts) = sealed::build(plan.depth, dims, &mut votes, &surface_voxels, |c| {
+            seeds
+                .nearest_surface(c)
+                .map_or(Voxel::default(), |(_, v)| v)
+        })?;
+        stats.interior_marked = counts.marked;
+        stats.voxels = svo.leaf_count();
+        progress(1.0);
+        return Ok(Voxelized {
+            svo,
+            voxel_size: plan.voxel_size,
+            origin: plan.origin,
+            stats,
+        });
+    }
+
     // An interior voxel enclosed on all six faces by voxels of the solid is stored as the
     // interior mark (`Voxel::INTERIOR`: its attributes are found when an edit exposes it, so
     // the inside is a few tiles); one that is not keeps the attributes found for it here.
@@ -705,6 +759,7 @@ pub fn voxelize(
                 (c, if sealed { interior_with_skin(v) } else { v })
             })
             .collect(),
+        Some(Interior::Votes { .. }) => unreachable!("built above"),
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
@@ -828,8 +883,10 @@ fn represented_inside(
     interior.contains(probe.as_uvec3())
 }
 
-/// The interior of a solid: dense (every cell's nearest surface voxel known) or sparse.
+/// The interior of a solid: the dense votes alone (a rigid solid, built by `sealed`), dense
+/// with every cell's nearest surface voxel known (a skinned one), or sparse.
 enum Interior {
+    Votes { dims: UVec3, votes: Vec<u8> },
     Dense(dense::DenseFill),
     Sparse(fill::Interior),
 }
@@ -837,6 +894,9 @@ enum Interior {
 impl Interior {
     fn contains(&self, c: UVec3) -> bool {
         match self {
+            Self::Votes { dims, votes } => {
+                c.cmplt(*dims).all() && (votes[dense::cell(*dims, c)] & !dense::SEED) >= 2
+            }
             Self::Dense(d) => d.contains(c),
             Self::Sparse(s) => s.contains(c),
         }
@@ -844,6 +904,10 @@ impl Interior {
 
     fn len(&self) -> u64 {
         match self {
+            Self::Votes { votes, .. } => votes
+                .par_iter()
+                .filter(|&&v| (v & !dense::SEED) >= 2)
+                .count() as u64,
             Self::Dense(d) => d.len(),
             Self::Sparse(s) => s.keys.len() as u64,
         }
