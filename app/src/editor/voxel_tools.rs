@@ -1101,8 +1101,8 @@ impl Editor {
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
         let mut svo = Svo::from_voxels(depth, v.svo.has_skin(), clip.voxels.iter().copied())
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
-        // Where the selection cut through an interior, its nearest surface shows.
-        svo.settle_interior();
+        // Where the selection cut through an interior, what cutting it out would show.
+        svo.settle_interior_from(Some((&v.svo, lo.as_ivec3())));
         let model = VoxelModel {
             svo,
             voxel_size: v.voxel_size,

@@ -46,8 +46,12 @@ pub fn bake_shown_pose(model: &VoxelModel) -> Option<VoxelModel> {
         .fold(Vec3::splat(f32::INFINITY), |a, (p, _)| a.min(*p));
     // Leaf centres sit at cell centres: the posed minimum is the centre of cell (0,0,0).
     let origin = lo - Vec3::splat(0.5 * size);
-    let cells: Vec<(UVec3, Voxel)> = posed
+    // Interior voxels first: where one lands in a cell with a shell voxel, the shell's (the
+    // later duplicate) is kept.
+    let (inside, shell): (Vec<_>, Vec<_>) = posed.into_iter().partition(|(_, v)| v.is_interior());
+    let cells: Vec<(UVec3, Voxel)> = inside
         .into_iter()
+        .chain(shell)
         .map(|(p, v)| (((p - origin) / size).floor().max(Vec3::ZERO).as_uvec3(), v))
         .collect();
     let extent = cells.iter().map(|(c, _)| c.max_element()).max()? + 1;

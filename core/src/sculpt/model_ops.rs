@@ -93,16 +93,15 @@ pub fn resize_canvas(
         }
     });
     // Every kept coordinate is inside new_size <= the new extent.
-    let svo =
+    let mut built =
         Svo::from_voxels(depth, svo.has_skin(), kept).map_err(|_| ToolError::ExtentTooLarge {
             size: new_size.to_array(),
             limit: 1 << MAX_DEPTH,
         })?;
-    // The crop may cut through an interior: what it opens shows its nearest surface.
-    let mut svo = svo;
-    svo.settle_interior();
+    // The crop may cut through an interior: what it opens shows what carving it would.
+    built.settle_interior_from(Some((svo, -offset)));
     Ok(Resized {
-        svo,
+        svo: built,
         offset,
         dropped,
     })

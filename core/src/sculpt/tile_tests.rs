@@ -275,4 +275,19 @@ fn a_crop_through_an_interior_shows_its_nearest_surface() {
         })
         .count();
     assert!(shown > 200, "{shown} interior voxels on the cut");
+    // A crop wholly inside the interior: every voxel of its outer layer shows what carving the
+    // crop out of the ball would, the ball's nearest shell voxel (the ball's shell is all
+    // outside the crop, so nothing nearer exists).
+    let core = resize_canvas(&ball, SIZE, UVec3::splat(8), [Anchor::Center; 3]).expect("crop");
+    assert_interior_sound(&core.svo, &Tool::Hollow(0));
+    let mut checked = 0;
+    core.svo.for_each_leaf(|c, v| {
+        if v.is_interior() {
+            return;
+        }
+        let at = (c.as_ivec3() - core.offset).as_uvec3();
+        assert_eq!(Some(v), ball.nearest_surface(at).map(|n| n.1), "{c}");
+        checked += 1;
+    });
+    assert!(checked > 200, "{checked} voxels on the crop's faces");
 }

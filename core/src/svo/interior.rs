@@ -27,6 +27,18 @@ const FACES: [IVec3; 6] = [
     IVec3::NEG_Z,
 ];
 
+/// What an exposed interior voxel shows when no voxel anywhere has attributes to give (a cut
+/// wholly inside an interior): neutral grey, facing up.
+const NOTHING_TO_SHOW: Voxel = Voxel {
+    color: [128, 128, 128, 255],
+    normal: 0x8080,
+    material: 0,
+    skin: super::Skin4 {
+        joints: [0; 4],
+        weights: [0; 4],
+    },
+};
+
 /// A candidate of the nearest search: squared distance, then Morton code (the tie-break).
 type Key = (u64, u64);
 
@@ -116,6 +128,14 @@ impl Svo {
     /// it is (module docs): for octrees built rather than edited into shape (a crop, a
     /// selection made an object, a baked pose). Returns how many were exposed.
     pub fn settle_interior(&mut self) -> usize {
+        self.settle_interior_from(None)
+    }
+
+    /// [`Self::settle_interior`] for an octree cut out of `source` (a crop, a selection made an
+    /// object): voxel `c` here is `c + offset` there, and the source's voxels the cut left out
+    /// count as removed by it (as the edit rule counts them), so a cut face shows what carving
+    /// the same cut would.
+    pub fn settle_interior_from(&mut self, source: Option<(&Svo, IVec3)>) -> usize {
         let exposed = self.all_exposed_interior();
         if exposed.is_empty() {
             return 0;
@@ -123,7 +143,36 @@ impl Svo {
         let resolved: Vec<(UVec3, Option<Voxel>)> = exposed
             .iter()
             .map(|&c| {
-                let v = self.nearest_keyed(c).map_or(Voxel::default(), |n| n.2);
+                let here = self.nearest_keyed(c);
+                let there = source.and_then(|(s, offset)| {
+                    let p = c.as_ivec3() + offset;
+                    if p.cmplt(IVec3::ZERO).any() {
+                        return None;
+                    }
+                    // Keyed in this octree's coordinates, so ties break alike.
+                    s.nearest_keyed(p.as_uvec3()).map(|(_, q, v)| {
+                        let q = q.as_ivec3() - offset;
+                        let d = (c.as_ivec3() - q).as_i64vec3();
+                        let code = if q.cmpge(IVec3::ZERO).all() {
+                            morton_encode(q.as_uvec3())
+                        } else {
+                            u64::MAX
+                        };
+                        (((d.x * d.x + d.y * d.y + d.z * d.z) as u64, code), v)
+                    })
+                });
+                let v = match (here, there) {
+                    (Some(a), Some(b)) => {
+                        if b.0 < a.0 {
+                            b.1
+                        } else {
+                            a.2
+                        }
+                    }
+                    (Some(a), None) => a.2,
+                    (None, Some(b)) => b.1,
+                    (None, None) => NOTHING_TO_SHOW,
+                };
                 (c, Some(v))
             })
             .collect();
@@ -265,7 +314,7 @@ impl Svo {
                     (Some(a), None) | (None, Some(a)) => a.2,
                     // Nothing but interior left anywhere: cannot happen for an exposed voxel
                     // (something was removed to expose it), kept total anyway.
-                    (None, None) => Voxel::default(),
+                    (None, None) => NOTHING_TO_SHOW,
                 };
                 (c, Some(v))
             })
