@@ -193,8 +193,8 @@ const IN_TILE: u32 = 0x80000000u;
 // The first-child word of a tile (core's `svo::TILE`), whose child mask is empty: an inner node
 // standing for a full region of equal voxels, its attributes theirs.
 const TILE_FIRST: u32 = 0xffffffffu;
-// Bit of an inner node's mask word marking it interior (app's `NODE_INTERIOR_BIT`).
-const NODE_INTERIOR: u32 = 0x100u;
+// Where an inner node's mask word lists its interior children (app's `node_word`).
+const INTERIOR_CHILDREN_SHIFT: u32 = 8u;
 
 // The attribute id of a queued node: an inner node's (and a tile's virtual nodes', whose index
 // is the tile's), or a leaf's.
@@ -210,27 +210,22 @@ fn push_children(entry: vec4<u32>) {
     var in_tile = (entry.x & IN_TILE) != 0u;
     var mask = 0xffu;
     var first = 0u;
+    var interior_children = 0u;
     if !in_tile {
         let node = inner_nodes[params.inner_base + entry.x];
         in_tile = node.x == TILE_FIRST && (node.y & 0xffu) == 0u;
         if !in_tile {
             mask = node.y & 0xffu;
             first = node.x;
+            interior_children = (node.y >> INTERIOR_CHILDREN_SHIFT) & 0xffu;
         }
     }
-    // Interior inner children (every voxel below them enclosed) can never show: they are not
-    // queued, as on the CPU. A tile is never interior here (it would not have been queued).
+    // Interior children (every voxel below them enclosed) can never show: they are not
+    // queued, as on the CPU; the node's word lists them. A tile's children are never interior
+    // (an interior tile is not queued).
     var shown = mask;
-    if !in_tile && params.level + 1u < params.leaf_level {
-        var r = 0u;
-        for (var k = 0u; k < 8u; k++) {
-            if (mask & (1u << k)) != 0u {
-                if (inner_nodes[params.inner_base + first + r].y & NODE_INTERIOR) != 0u {
-                    shown &= ~(1u << k);
-                }
-                r++;
-            }
-        }
+    if !in_tile {
+        shown = mask & ~(interior_children);
     }
     let n = countOneBits(shown);
     let base = atomicAdd(&counters[QUEUE_COUNTS + params.level + 1u], n);

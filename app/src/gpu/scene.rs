@@ -16,7 +16,7 @@ use bytemuck::Zeroable;
 use glam::{Mat3, Mat4, UVec3, Vec2, Vec3, Vec4};
 use thicket_core::mesh::{MeshModel, Texture, srgb_byte_to_linear};
 use thicket_core::scene::{Document, ObjectKind};
-use thicket_core::svo::{Svo, is_interior_value};
+use thicket_core::svo::Svo;
 use wgpu::util::DeviceExt;
 
 use super::GpuError;
@@ -223,20 +223,12 @@ fn with_room(len: usize) -> u32 {
     (len + len / 4 + 256).min(u32::MAX as usize) as u32
 }
 
-/// An inner node's GPU word pair: first child, then the child mask with
-/// [`NODE_INTERIOR_BIT`] set when the node is interior (`Voxel::INTERIOR`: every voxel below it
-/// enclosed), so the traversal never queues it (`shaders/common/asvo.wgsl`).
-fn node_word(first: u32, mask: u8, color: [u8; 4], normal: u16) -> [u32; 2] {
-    let interior = if is_interior_value(color, normal) {
-        NODE_INTERIOR_BIT
-    } else {
-        0
-    };
-    [first, u32::from(mask) | interior]
+/// An inner node's GPU word pair: first child, then the child mask with, in bits 8–15, which
+/// of those children are interior (`Voxel::INTERIOR`: every voxel below them enclosed), so
+/// the traversal never queues them (`shaders/common/asvo.wgsl`, `Svo::interior_child_masks`).
+fn node_word(first: u32, mask: u8, interior_children: u8) -> [u32; 2] {
+    [first, u32::from(mask) | u32::from(interior_children) << 8]
 }
-
-/// Bit of an inner node's mask word marking an interior node (`NODE_INTERIOR` in WGSL).
-pub(super) const NODE_INTERIOR_BIT: u32 = 1 << 8;
 
 fn pack_attr(color: [u8; 4], normal: u16, obj: u32) -> [u32; 2] {
     [u32::from_le_bytes(color), u32::from(normal) | (obj << 16)]
@@ -540,12 +532,13 @@ impl SceneCache {
             let leaf_len = svo.leaf_colors().len();
             let (inner_cap, leaf_cap) = (with_room(inner_len), with_room(leaf_len));
             let inner_base = inner.len();
+            let interior = svo.interior_child_masks();
             inner.extend(
                 svo.inner_first_children()
                     .iter()
                     .zip(svo.inner_masks())
-                    .zip(svo.inner_colors().iter().zip(svo.inner_normals()))
-                    .map(|((&f, &m), (&c, &n))| node_word(f, m, c, n)),
+                    .enumerate()
+                    .map(|(k, (&f, &m))| node_word(f, m, interior.get(k).copied().unwrap_or(0))),
             );
             inner.resize(inner_base + inner_cap as usize, [0, 0]);
             let attr_inner_base = attrs.len();
@@ -895,6 +888,7 @@ impl SceneCache {
         let masks = svo.inner_masks();
         let (ic, inn) = (svo.inner_colors(), svo.inner_normals());
         let (lc, ln) = (svo.leaf_colors(), svo.leaf_normals());
+        let interior = svo.interior_child_masks();
         for r in inner {
             let r = r.start as usize..(r.end as usize).min(masks.len());
             if r.is_empty() {
@@ -902,7 +896,7 @@ impl SceneCache {
             }
             let nodes: Vec<[u32; 2]> = r
                 .clone()
-                .map(|k| node_word(firsts[k], masks[k], ic[k], inn[k]))
+                .map(|k| node_word(firsts[k], masks[k], interior.get(k).copied().unwrap_or(0)))
                 .collect();
             let a: Vec<[u32; 2]> = r.clone().map(|k| pack_attr(ic[k], inn[k], obj)).collect();
             queue.write_buffer(

@@ -1402,16 +1402,20 @@ fn children_front_to_back(
     }
     // `Svo::child` for each octant, with the node's mask and first child read once.
     let first = svo.inner_first_children()[q.node.index as usize];
-    // Interior inner nodes (every voxel below them enclosed, `Voxel::INTERIOR`) can never
-    // show: they are not queued. Interior leaves are drawn, behind the surface, as the GPU
-    // traversal (which does not read leaf attributes) draws them.
-    let inner = level < svo.depth() && svo.may_have_interior();
-    let (colors, normals) = (svo.inner_colors(), svo.inner_normals());
+    // Interior children (every voxel below them enclosed, `Voxel::INTERIOR`) can never show,
+    // and drawn as conservative splats one could win a pixel at the shell's edge: they are
+    // not queued, leaves or inner nodes (the GPU reads the same from the parent's word).
+    let interior = svo.may_have_interior();
+    let (colors, normals) = if level < svo.depth() {
+        (svo.inner_colors(), svo.inner_normals())
+    } else {
+        (svo.leaf_colors(), svo.leaf_normals())
+    };
     let mut n = 0;
     for k in front_to_back_order(dir_voxel) {
         if mask & (1 << k) != 0 {
             let index = first + child_rank(mask, k);
-            if inner && is_interior_value(colors[index as usize], normals[index as usize]) {
+            if interior && is_interior_value(colors[index as usize], normals[index as usize]) {
                 continue;
             }
             out[n] = NodeRef {

@@ -15,7 +15,7 @@ use std::collections::BinaryHeap;
 
 use glam::{IVec3, UVec3};
 
-use super::{EditResult, NodeRef, Svo, Voxel, morton_encode};
+use super::{EditResult, NodeRef, Svo, Voxel, is_interior_value, morton_encode};
 
 /// The six face directions.
 const FACES: [IVec3; 6] = [
@@ -50,6 +50,46 @@ impl Svo {
     #[must_use]
     pub fn may_have_interior(&self) -> bool {
         self.leaf_attr.interior || self.inner_attr.interior
+    }
+
+    /// For each inner slot, the octants of its children that are interior (bit k: octant k;
+    /// free slots and tiles 0): what the GPU traversal reads instead of the children's
+    /// attributes to leave them unqueued. Empty when the octree has no interior voxels.
+    #[must_use]
+    pub fn interior_child_masks(&self) -> Vec<u8> {
+        if !self.may_have_interior() || self.is_empty() {
+            return Vec::new();
+        }
+        let mut out = vec![0u8; self.inner_mask.len()];
+        let mut stack: Vec<(u32, u8)> = vec![(0, 0)];
+        while let Some((i, level)) = stack.pop() {
+            let iu = i as usize;
+            let mask = self.inner_mask[iu];
+            if mask == 0 {
+                continue;
+            }
+            let first = self.inner_first[iu] as usize;
+            let leaves = level + 1 == self.depth;
+            let pool = if leaves {
+                &self.leaf_attr
+            } else {
+                &self.inner_attr
+            };
+            let mut r = 0;
+            for k in 0..8u8 {
+                if mask & (1 << k) == 0 {
+                    continue;
+                }
+                let c = first + r;
+                r += 1;
+                if is_interior_value(pool.color[c], pool.normal[c]) {
+                    out[iu] |= 1 << k;
+                } else if !leaves {
+                    stack.push((c as u32, level + 1));
+                }
+            }
+        }
+        out
     }
 
     /// How many voxels are interior (counted by runs: a tile at once).
