@@ -274,10 +274,7 @@ pub fn ball(inside: BallInside) -> Document {
     let (depth, r) = (6u8, 27.0f32);
     let e = 1u32 << depth;
     let c = e as f32 / 2.0;
-    let in_ball = |x: i64, y: i64, z: i64| {
-        let p = Vec3::new(x as f32, y as f32, z as f32) + 0.5 - c;
-        p.length() <= r
-    };
+    let in_ball = |p: glam::IVec3| (p.as_vec3() + 0.5 - c).length() <= r;
     let mut voxels = Vec::new();
     for z in 0..e {
         for y in 0..e {
@@ -287,17 +284,8 @@ pub fn ball(inside: BallInside) -> Document {
                 if d > r {
                     continue;
                 }
-                let (xi, yi, zi) = (i64::from(x), i64::from(y), i64::from(z));
-                let enclosed = [
-                    (1, 0, 0),
-                    (-1, 0, 0),
-                    (0, 1, 0),
-                    (0, -1, 0),
-                    (0, 0, 1),
-                    (0, 0, -1),
-                ]
-                .iter()
-                .all(|&(dx, dy, dz)| in_ball(xi + dx, yi + dy, zi + dz));
+                let at = UVec3::new(x, y, z).as_ivec3();
+                let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&f| in_ball(at + f));
                 let v = if d > r - 1.5 {
                     Voxel::new([(x * 4) as u8, (y * 4) as u8, 90, 255], p)
                 } else {

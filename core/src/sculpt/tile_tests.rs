@@ -188,16 +188,7 @@ fn interior_ball() -> Svo {
                 if !inside(p) {
                     continue;
                 }
-                let enclosed = [
-                    IVec3::X,
-                    IVec3::NEG_X,
-                    IVec3::Y,
-                    IVec3::NEG_Y,
-                    IVec3::Z,
-                    IVec3::NEG_Z,
-                ]
-                .iter()
-                .all(|&f| inside(p + f));
+                let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&f| inside(p + f));
                 let v = if enclosed {
                     Voxel::INTERIOR
                 } else {

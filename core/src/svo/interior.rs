@@ -17,8 +17,8 @@ use glam::{IVec3, UVec3};
 
 use super::{EditResult, NodeRef, Svo, Voxel, is_interior_value, morton_encode};
 
-/// The six face directions.
-const FACES: [IVec3; 6] = [
+/// The six face neighbours' offsets (+x, −x, +y, −y, +z, −z): what "enclosed" looks at.
+pub const FACE_NEIGHBOURS: [IVec3; 6] = [
     IVec3::X,
     IVec3::NEG_X,
     IVec3::Y,
@@ -300,7 +300,7 @@ impl Svo {
             let now = self.get(p);
             match now {
                 None => {
-                    for f in FACES {
+                    for f in FACE_NEIGHBOURS {
                         let q = p.as_ivec3() + f;
                         if inside(q) && self.get(q.as_uvec3()).is_some_and(|v| v.is_interior()) {
                             exposed.push((morton_encode(q.as_uvec3()), q.as_uvec3()));
@@ -308,7 +308,7 @@ impl Svo {
                     }
                 }
                 Some(v) if v.is_interior() => {
-                    let open = FACES.iter().any(|&f| {
+                    let open = FACE_NEIGHBOURS.iter().any(|&f| {
                         let q = p.as_ivec3() + f;
                         !inside(q) || self.get(q.as_uvec3()).is_none()
                     });

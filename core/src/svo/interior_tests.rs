@@ -28,7 +28,7 @@ fn solid_ball(depth: u8, r: f32) -> Vec<(UVec3, Voxel)> {
                 if !inside(p) {
                     continue;
                 }
-                let enclosed = FACES6.iter().all(|&f| inside(p + f));
+                let enclosed = FACE_NEIGHBOURS.iter().all(|&f| inside(p + f));
                 let v = if enclosed {
                     Voxel::INTERIOR
                 } else {
@@ -44,15 +44,6 @@ fn solid_ball(depth: u8, r: f32) -> Vec<(UVec3, Voxel)> {
     out
 }
 
-const FACES6: [IVec3; 6] = [
-    IVec3::X,
-    IVec3::NEG_X,
-    IVec3::Y,
-    IVec3::NEG_Y,
-    IVec3::Z,
-    IVec3::NEG_Z,
-];
-
 type Model = HashMap<UVec3, Voxel>;
 
 /// The rule by brute force: every interior voxel of `after` with an empty face neighbour (or on
@@ -60,7 +51,7 @@ type Model = HashMap<UVec3, Voxel>;
 /// `before` held that `after` removed or made interior (distance, then Morton code).
 fn reveal_by_brute_force(before: &Model, after: &mut Model, extent: i32) {
     let open = |m: &Model, p: UVec3| {
-        FACES6.iter().any(|&f| {
+        FACE_NEIGHBOURS.iter().any(|&f| {
             let q = p.as_ivec3() + f;
             q.cmplt(IVec3::ZERO).any()
                 || q.cmpge(IVec3::splat(extent)).any()
@@ -155,7 +146,7 @@ fn assert_enclosed(svo: &Svo) {
         if !v.is_interior() {
             continue;
         }
-        for f in FACES6 {
+        for f in FACE_NEIGHBOURS {
             let q = p.as_ivec3() + f;
             assert!(
                 q.cmpge(IVec3::ZERO).all() && q.cmplt(IVec3::splat(e)).all(),

@@ -44,6 +44,7 @@ mod tests;
 #[cfg(test)]
 mod tile_tests;
 
+pub use interior::FACE_NEIGHBOURS;
 pub use morton::{morton_decode, morton_encode};
 pub use query::{RayHit, front_to_back_order};
 pub use voxel::{

@@ -27,7 +27,9 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::mesh::{MeshError, MeshModel, TriangleMesh, linear_to_srgb};
-use crate::svo::{MAX_DEPTH, Skin4, Svo, SvoError, Voxel, encode_normal, morton_decode};
+use crate::svo::{
+    FACE_NEIGHBOURS, MAX_DEPTH, Skin4, Svo, SvoError, Voxel, encode_normal, morton_decode,
+};
 use geometry::GridTriangle;
 use surface::{Budget, SurfaceRecord};
 
@@ -736,7 +738,7 @@ pub fn voxelize(
         .map(|e| crate::svo::morton_encode(e.0))
         .collect();
     let enclosed = |inside: &dyn Fn(UVec3) -> bool, c: UVec3| {
-        FACES.iter().all(|&f| {
+        FACE_NEIGHBOURS.iter().all(|&f| {
             let q = c.as_ivec3() + f;
             if q.cmplt(IVec3::ZERO).any() || q.as_uvec3().cmpge(dims).any() {
                 return false;
@@ -805,16 +807,6 @@ fn interior_with_skin(v: Voxel) -> Voxel {
         ..Voxel::INTERIOR
     }
 }
-
-/// The six face directions.
-const FACES: [IVec3; 6] = [
-    IVec3::X,
-    IVec3::NEG_X,
-    IVec3::Y,
-    IVec3::NEG_Y,
-    IVec3::Z,
-    IVec3::NEG_Z,
-];
 
 /// Edges used by an odd number of non-degenerate triangles, with vertices welded by exact
 /// position over all parts (so UV seams and part boundaries that meet are closed). Zero for a

@@ -304,16 +304,7 @@ mod tests {
                     let h = (x * 73 + y * 151 + z * 37 + salt).wrapping_mul(2_654_435_761) >> 24;
                     if inside(c) {
                         votes[cell(dims, c)] = 2 + (h % 2) as u8;
-                        let edge = [
-                            IVec3::X,
-                            IVec3::NEG_X,
-                            IVec3::Y,
-                            IVec3::NEG_Y,
-                            IVec3::Z,
-                            IVec3::NEG_Z,
-                        ]
-                        .iter()
-                        .any(|&f| {
+                        let edge = crate::svo::FACE_NEIGHBOURS.iter().any(|&f| {
                             let q = c.as_ivec3() + f;
                             q.cmplt(IVec3::ZERO).any()
                                 || q.cmpge(dims.as_ivec3()).any()
