@@ -17,7 +17,7 @@
 use glam::UVec3;
 use rayon::prelude::*;
 
-use super::fill::AxisFill;
+use super::fill::{Axis, AxisFill};
 use crate::svo::morton_encode;
 
 /// Bytes per grid cell: the votes (1) and the three passes' nearest indices (2 each).
@@ -48,6 +48,55 @@ pub(crate) struct DenseFill {
 /// One byte per cell of `dims` (x fastest, then y, then z): how many of the three axes' inside
 /// runs hold it (interior at two or more).
 pub(crate) fn vote_grid(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
+    let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
+    let mut votes = vec![0u8; nx * ny * nz];
+    if votes.is_empty() {
+        return votes;
+    }
+    // In slabs of z, in parallel: a run along z is clipped to the slab; a run along x or y
+    // lies at one z (`Axis::unturn`: x's turned y, y's turned x).
+    let slab = nz.div_ceil(4 * rayon::current_num_threads()).max(1);
+    votes
+        .par_chunks_mut(nx * ny * slab)
+        .enumerate()
+        .for_each(|(s, out)| {
+            let (z0, z1) = ((s * slab) as u32, ((s + 1) * slab).min(nz) as u32);
+            let local = |c: UVec3| c.x as usize + nx * (c.y as usize + ny * (c.z - z0) as usize);
+            for f in fills {
+                let turned = f.axis.turn_dims(dims);
+                let last = turned.z.saturating_sub(1);
+                for iv in &f.intervals {
+                    let x = (iv.column & 0x1f_ffff) as u32;
+                    let y = (iv.column >> 21) as u32;
+                    if x >= turned.x || y >= turned.y || iv.k_lo > last {
+                        continue;
+                    }
+                    let (lo, hi) = (iv.k_lo, iv.k_hi.min(last));
+                    match f.axis {
+                        Axis::Z => {
+                            for k in lo.max(z0)..=hi.min(z1 - 1) {
+                                out[local(UVec3::new(x, y, k))] += 1;
+                            }
+                        }
+                        Axis::X | Axis::Y => {
+                            let at = f.axis.unturn(UVec3::new(x, y, lo));
+                            if at.z < z0 || at.z >= z1 {
+                                continue;
+                            }
+                            for k in lo..=hi {
+                                out[local(f.axis.unturn(UVec3::new(x, y, k)))] += 1;
+                            }
+                        }
+                    }
+                }
+            }
+        });
+    votes
+}
+
+/// [`vote_grid`] one run at a time, on one thread: the reference the tests hold it to.
+#[cfg(test)]
+pub(crate) fn vote_grid_serial(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
     let cells = dims.x as usize * dims.y as usize * dims.z as usize;
     let mut votes = vec![0u8; cells];
     for f in fills {
@@ -390,5 +439,40 @@ mod tests {
             "a side that needs the NONE index"
         );
         assert!(fits(UVec3::new(65_534, 1, 1)));
+    }
+}
+
+#[cfg(test)]
+mod vote_tests {
+    use proptest::prelude::*;
+
+    use super::super::fill::{Axis, AxisFill};
+    use super::super::solid::Interval;
+    use super::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Property: the votes written in parallel by z slab equal those written run by run,
+        /// for runs along every axis, clipped at the grid's far side or not.
+        #[test]
+        fn votes_by_slab_equal_votes_run_by_run(
+            (dx, dy, dz) in (1u32..40, 1u32..40, 1u32..70),
+            runs in proptest::collection::vec((0usize..3, 0u32..45, 0u32..45, 0u32..75, 0u32..30), 0..60),
+        ) {
+            let dims = UVec3::new(dx, dy, dz);
+            let mut fills = [AxisFill::empty(Axis::Z), AxisFill::empty(Axis::X), AxisFill::empty(Axis::Y)];
+            for (a, x, y, k, len) in runs {
+                fills[a].intervals.push(Interval {
+                    column: u64::from(y) << 21 | u64::from(x),
+                    k_lo: k,
+                    k_hi: k + len,
+                    z_in: 0.0,
+                    z_out: 0.0,
+                    entry: 0,
+                    exit: 0,
+                });
+            }
+            prop_assert_eq!(vote_grid(dims, &fills), vote_grid_serial(dims, &fills));
+        }
     }
 }
