@@ -141,7 +141,7 @@ impl Svo {
             if self.is_leaf(&node) || self.is_tile(&node) || node.in_tile() {
                 let size = self.node_size(level);
                 let q = p.clamp(node.origin, node.origin + UVec3::splat(size - 1));
-                let key = (dist2(p, q), morton_encode(q));
+                let key = (dist2(p.as_ivec3(), q.as_ivec3()), morton_encode(q));
                 if best.as_ref().is_none_or(|b| key < b.0) {
                     best = Some((key, q, v));
                 }
@@ -152,7 +152,7 @@ impl Svo {
                     let size = self.node_size(c.level);
                     let q = p.clamp(c.origin, c.origin + UVec3::splat(size - 1));
                     heap.push(Reverse((
-                        dist2(p, q),
+                        dist2(p.as_ivec3(), q.as_ivec3()),
                         c.level,
                         c.index,
                         c.origin.to_array(),
@@ -183,7 +183,7 @@ impl Svo {
         let resolved: Vec<(UVec3, Option<Voxel>)> = exposed
             .iter()
             .map(|&c| {
-                let here = self.nearest_keyed(c);
+                let here = self.nearest_keyed(c).map(|(k, _, v)| (k, v));
                 let there = source.and_then(|(s, offset)| {
                     let p = c.as_ivec3() + offset;
                     if p.cmplt(IVec3::ZERO).any() {
@@ -192,28 +192,15 @@ impl Svo {
                     // Keyed in this octree's coordinates, so ties break alike.
                     s.nearest_keyed(p.as_uvec3()).map(|(_, q, v)| {
                         let q = q.as_ivec3() - offset;
-                        let d = (c.as_ivec3() - q).as_i64vec3();
                         let code = if q.cmpge(IVec3::ZERO).all() {
                             morton_encode(q.as_uvec3())
                         } else {
                             u64::MAX
                         };
-                        (((d.x * d.x + d.y * d.y + d.z * d.z) as u64, code), v)
+                        ((dist2(c.as_ivec3(), q), code), v)
                     })
                 });
-                let v = match (here, there) {
-                    (Some(a), Some(b)) => {
-                        if b.0 < a.0 {
-                            b.1
-                        } else {
-                            a.2
-                        }
-                    }
-                    (Some(a), None) => a.2,
-                    (None, Some(b)) => b.1,
-                    (None, None) => NOTHING_TO_SHOW,
-                };
-                (c, Some(v))
+                (c, Some(nearer(here, there)))
             })
             .collect();
         self.apply_sorted(0, 0, UVec3::ZERO, &resolved, None);
@@ -333,30 +320,18 @@ impl Svo {
         let gone = if removed.is_empty() {
             None
         } else {
-            // Leaf-only: only a lookup structure, never edited.
-            Svo::from_voxels(self.depth, self.has_skin, removed)
-                .ok()
-                .map(Svo::without_tiles)
+            // A lookup structure only (tiles or not, the search answers alike).
+            Svo::from_voxels(self.depth, self.has_skin, removed).ok()
         };
         let resolved: Vec<(UVec3, Option<Voxel>)> = exposed
             .iter()
             .map(|&(_, c)| {
-                let here = self.nearest_keyed(c);
-                let there = gone.as_ref().and_then(|g| g.nearest_keyed(c));
-                let v = match (here, there) {
-                    (Some(a), Some(b)) => {
-                        if b.0 < a.0 {
-                            b.2
-                        } else {
-                            a.2
-                        }
-                    }
-                    (Some(a), None) | (None, Some(a)) => a.2,
-                    // Nothing but interior left anywhere: cannot happen for an exposed voxel
-                    // (something was removed to expose it), kept total anyway.
-                    (None, None) => NOTHING_TO_SHOW,
-                };
-                (c, Some(v))
+                let here = self.nearest_keyed(c).map(|(k, _, v)| (k, v));
+                let there = gone
+                    .as_ref()
+                    .and_then(|g| g.nearest_keyed(c))
+                    .map(|(k, _, v)| (k, v));
+                (c, Some(nearer(here, there)))
             })
             .collect();
         let mut more = EditResult::default();
@@ -407,7 +382,24 @@ fn merge_results(first: &mut EditResult, more: EditResult) {
 }
 
 /// Squared distance between two voxel coordinates.
-fn dist2(a: UVec3, b: UVec3) -> u64 {
+fn dist2(a: IVec3, b: IVec3) -> u64 {
     let d = a.as_i64vec3() - b.as_i64vec3();
     (d.x * d.x + d.y * d.y + d.z * d.z) as u64
+}
+
+/// The value of the nearer of two keyed candidates (ties to `a`: their keys never tie, the
+/// Morton code settles them), or [`NOTHING_TO_SHOW`] when there is neither: an exposed voxel
+/// always has one where an edit exposed it (something was removed), a cut may not.
+fn nearer(a: Option<(Key, Voxel)>, b: Option<(Key, Voxel)>) -> Voxel {
+    match (a, b) {
+        (Some(a), Some(b)) => {
+            if b.0 < a.0 {
+                b.1
+            } else {
+                a.1
+            }
+        }
+        (Some(x), None) | (None, Some(x)) => x.1,
+        (None, None) => NOTHING_TO_SHOW,
+    }
 }

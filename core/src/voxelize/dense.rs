@@ -115,6 +115,17 @@ pub(crate) fn vote_grid_serial(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
     votes
 }
 
+/// Whether cell `c` of a [`vote_grid`] of `dims` is interior (inside along at least two axes;
+/// [`SEED`] set or not).
+pub(crate) fn voted_inside(dims: UVec3, votes: &[u8], c: UVec3) -> bool {
+    c.cmplt(dims).all() && (votes[cell(dims, c)] & !SEED) >= 2
+}
+
+/// Interior cells of a [`vote_grid`].
+pub(crate) fn voted_count(votes: &[u8]) -> u64 {
+    votes.par_iter().filter(|&&v| (v & !SEED) >= 2).count() as u64
+}
+
 /// Whether a grid of `dims` is small enough for the dense fill (every side must also fit the
 /// 16-bit indices).
 pub(crate) fn fits(dims: UVec3) -> bool {
@@ -209,7 +220,7 @@ impl DenseFill {
 
     /// Whether cell `c` is interior (inside along at least two axes).
     pub(crate) fn contains(&self, c: UVec3) -> bool {
-        c.cmplt(self.dims).all() && (self.votes[cell(self.dims, c)] & !SEED) >= 2
+        voted_inside(self.dims, &self.votes, c)
     }
 
     /// The surface voxel nearest cell `c` (`None` when there is no surface at all).
@@ -232,7 +243,7 @@ impl DenseFill {
 
     /// Interior cells.
     pub(crate) fn len(&self) -> u64 {
-        self.votes.par_iter().filter(|&&v| (v & !SEED) >= 2).count() as u64
+        voted_count(&self.votes)
     }
 
     /// `each(cell, nearest surface voxel)` for every interior cell, in Morton order of the

@@ -886,9 +886,7 @@ enum Interior {
 impl Interior {
     fn contains(&self, c: UVec3) -> bool {
         match self {
-            Self::Votes { dims, votes } => {
-                c.cmplt(*dims).all() && (votes[dense::cell(*dims, c)] & !dense::SEED) >= 2
-            }
+            Self::Votes { dims, votes } => dense::voted_inside(*dims, votes, c),
             Self::Dense(d) => d.contains(c),
             Self::Sparse(s) => s.contains(c),
         }
@@ -896,10 +894,7 @@ impl Interior {
 
     fn len(&self) -> u64 {
         match self {
-            Self::Votes { votes, .. } => votes
-                .par_iter()
-                .filter(|&&v| (v & !dense::SEED) >= 2)
-                .count() as u64,
+            Self::Votes { votes, .. } => dense::voted_count(votes),
             Self::Dense(d) => d.len(),
             Self::Sparse(s) => s.keys.len() as u64,
         }

@@ -28,6 +28,11 @@ const ALL: u8 = 1;
 /// Pyramid flag: some cell of the block is solid.
 const ANY: u8 = 2;
 
+/// Whether a cell with vote byte `v` is solid: a kept surface voxel or interior.
+fn solid_vote(v: u8) -> bool {
+    v & KEPT != 0 || v & COUNT >= 2
+}
+
 /// What the build found.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub(crate) struct SolidCounts {
@@ -46,8 +51,7 @@ struct Cells<'a> {
 
 impl Cells<'_> {
     fn solid_at(&self, i: usize) -> bool {
-        let v = self.votes[i];
-        v & KEPT != 0 || v & COUNT >= 2
+        solid_vote(self.votes[i])
     }
 
     /// The pyramid flags of cell `c` (inside the grid).
@@ -75,10 +79,7 @@ fn classify<'a>(dims: UVec3, votes: &'a mut [u8], surface: &[(UVec3, Voxel)]) ->
     let row_words = nx.div_ceil(64);
     let mut sealed = vec![0u64; row_words * ny * nz];
     let votes: &'a [u8] = votes;
-    let solid = |x: usize, y: usize, z: usize| {
-        let v = votes[x + nx * (y + ny * z)];
-        v & KEPT != 0 || v & COUNT >= 2
-    };
+    let solid = |x: usize, y: usize, z: usize| solid_vote(votes[x + nx * (y + ny * z)]);
     sealed
         .par_chunks_mut(row_words)
         .enumerate()
