@@ -49,7 +49,7 @@ fn track(delta: i64) {
     });
 }
 
-// The only unsafe code in the crate, and test-only: `GlobalAlloc` is an unsafe trait. Every
+// The only unsafe code in the library, and test-only: `GlobalAlloc` is an unsafe trait. Every
 // call is forwarded unchanged to the system allocator; only counters are added.
 #[allow(unsafe_code)]
 unsafe impl GlobalAlloc for CountingAllocator {

@@ -845,8 +845,8 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
     // Checks the depth before anything is allocated.
     let mut svo = Svo::new(depth, has_skin).map_err(|e| e.to_string())?;
     let limit = 1u64 << (3 * u32::from(depth));
-    let mut leaves = Vec::new();
-    let mut tiles = Vec::new();
+    // Leaves and tiles, in Morton order (checked below).
+    let mut stored = Vec::new();
     // End (exclusive) of the last run's Morton range.
     let mut end = 0u64;
     let mut total = 0u64;
@@ -901,31 +901,21 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
                  interior voxel has no colour)"
             ));
         }
-        if height == 0 {
-            leaves.push((morton_decode(code), v));
-        } else if !svo.tile_value_ok(&v) {
+        if height > 0 && !svo.tile_value_ok(&v) {
             return Err(format!(
                 "record {i}: a tile of height {height} holds a value this octree cannot store \
                  as a tile (a skinned octree, or one whose eight copies do not average to itself)"
             ));
-        } else {
-            tiles.push((morton_decode(code), height, v));
         }
+        stored.push((morton_decode(code), height, v));
     }
     if total != voxels {
         return Err(format!(
             "declares {voxels} voxels but its runs hold {total}"
         ));
     }
-    if !leaves.is_empty() {
-        svo = Svo::from_voxels(depth, has_skin, leaves).map_err(|e| e.to_string())?;
-    }
-    if !tiles.is_empty() {
-        for (origin, height, v) in tiles {
-            svo.put_tile(origin, height, v);
-        }
-        // Paths built tile by tile leave freed blocks behind.
-        svo.compact();
+    if !stored.is_empty() {
+        svo = Svo::from_runs(depth, has_skin, stored).map_err(|e| e.to_string())?;
     }
     if let Some(p) = svo.exposed_interior() {
         return Err(format!(

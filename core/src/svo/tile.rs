@@ -11,7 +11,9 @@
 use glam::UVec3;
 
 use super::voxel::merge;
-use super::{Attrs, Svo, TILE, Voxel, child_rank, octant_offset};
+use super::{Attrs, Svo, TILE, Voxel};
+#[cfg(test)]
+use super::{child_rank, octant_offset};
 
 impl Svo {
     /// This octree storing its full uniform regions as tiles, and keeping them so through
@@ -67,7 +69,9 @@ impl Svo {
     /// Makes the empty cube of `2^height` voxels a side at `origin` (aligned to its size, with
     /// `1 <= height <= depth`) one tile of `voxel`, building the path to it; the caller has
     /// checked that nothing is stored there and that `voxel` may be a tile
-    /// ([`Self::tile_value_ok`]). Building only: no undo record.
+    /// ([`Self::tile_value_ok`]). Building only: no undo record. The path-by-path reference
+    /// that [`Self::from_runs`] is held to.
+    #[cfg(test)]
     pub(crate) fn put_tile(&mut self, origin: UVec3, height: u8, voxel: Voxel) {
         let target = self.depth - height;
         // Counted first: a collapse on the way back up takes this tile with seven others.
@@ -79,6 +83,7 @@ impl Svo {
         self.put_tile_below(0, 0, UVec3::ZERO, (target, origin), v);
     }
 
+    #[cfg(test)]
     fn put_tile_below(
         &mut self,
         level: u8,

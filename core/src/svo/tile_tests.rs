@@ -337,3 +337,84 @@ proptest! {
         assert_collapsed_and_counted(&tiled);
     }
 }
+
+/// Random runs of a depth-`depth` octree: each node is left empty, made a tile or a leaf, or
+/// split, by a hash of `seed` and its place; values from a few colours and the interior mark,
+/// so that some neighbours collapse into bigger tiles and some do not.
+fn random_runs(depth: u8, seed: u64) -> Vec<(UVec3, u8, Voxel)> {
+    fn visit(origin: UVec3, h: u8, seed: u64, out: &mut Vec<(UVec3, u8, Voxel)>) {
+        let code = super::morton_encode(origin) ^ (u64::from(h) << 58);
+        let r = (code ^ seed)
+            .wrapping_mul(0x9e37_79b9_7f4a_7c15)
+            .rotate_left(29)
+            .wrapping_mul(0xbf58_476d_1ce4_e5b9)
+            >> 40;
+        let value = match r % 5 {
+            0 => Voxel::INTERIOR,
+            k => Voxel::new([k as u8 * 60, 20, 200, 255], Vec3::Z),
+        };
+        match (r >> 4) % 8 {
+            0 | 1 => {}
+            2 | 3 if h > 0 => out.push((origin, h, value)),
+            _ if h == 0 => out.push((origin, 0, value)),
+            _ => {
+                for k in 0..8 {
+                    visit(origin + octant_offset(k, 1 << (h - 1)), h - 1, seed, out);
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    visit(UVec3::ZERO, depth, seed, &mut out);
+    out
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Property: building from runs in one pass equals building the leaves and putting each
+    /// tile in along its path: the same voxels, node attributes, counts and node layout.
+    #[test]
+    fn building_from_runs_equals_putting_each_tile_in(depth in 1u8..6, seed in any::<u64>()) {
+        let runs = random_runs(depth, seed);
+        let fast = Svo::from_runs(depth, false, runs.clone()).unwrap();
+        let mut slow = Svo::from_voxels(
+            depth,
+            false,
+            runs.iter().filter(|r| r.1 == 0).map(|r| (r.0, r.2)),
+        )
+        .unwrap();
+        for &(origin, h, v) in runs.iter().filter(|r| r.1 > 0) {
+            slow.put_tile(origin, h, v);
+        }
+        slow.compact();
+        prop_assert_eq!(&fast, &slow);
+        prop_assert_eq!(
+            (fast.leaf_count(), fast.tile_count(), fast.inner_count()),
+            (slow.leaf_count(), slow.tile_count(), slow.inner_count())
+        );
+        prop_assert_eq!(&fast.inner_mask, &slow.inner_mask);
+        prop_assert_eq!(&fast.inner_first, &slow.inner_first);
+        prop_assert_eq!(&fast.inner_attr.color, &slow.inner_attr.color);
+        prop_assert_eq!(&fast.inner_attr.normal, &slow.inner_attr.normal);
+        prop_assert_eq!(&fast.leaf_attr.color, &slow.leaf_attr.color);
+        prop_assert_eq!(fast.may_have_interior(), slow.may_have_interior());
+        assert_collapsed_and_counted(&fast);
+    }
+}
+
+#[test]
+fn a_root_tile_and_no_runs_build_from_runs() {
+    let v = Voxel::new([9, 9, 9, 255], Vec3::Z);
+    let whole = Svo::from_runs(4, false, [(UVec3::ZERO, 4, v)]).unwrap();
+    assert_eq!((whole.tile_count(), whole.leaf_count()), (1, 4096));
+    assert_eq!(whole.get(UVec3::new(15, 3, 7)), Some(v));
+    let empty = Svo::from_runs(4, false, []).unwrap();
+    assert!(empty.is_empty());
+    assert_eq!(
+        Svo::from_runs(4, false, [(UVec3::new(16, 0, 0), 0, v)]),
+        Err(SvoError::OutOfBounds {
+            coord: [16, 0, 0],
+            extent: 16
+        })
+    );
+}

@@ -12,6 +12,7 @@
 //! code, then distance to the voxel centre, then triangle index) and sorted before use, so the
 //! octree is identical whatever the thread count.
 
+mod bits;
 mod dense;
 mod fill;
 mod geometry;
@@ -476,11 +477,13 @@ pub fn estimate(
         .parts
         .iter()
         .any(|p| !p.joints.is_empty() && !p.weights.is_empty());
-    let dense = settings.mode == Mode::Solid && dense::fits(UVec3::from_array(plan.dims));
-    // A rigid solid on the dense grid lists no interior voxel (`sealed`): what grows with the
-    // result is its surface, held about twice (the kept voxels, and the seeds searched for
-    // the interior beside them), and the grid's votes and flags.
-    let rigid_dense = dense && !has_skin;
+    let dims = UVec3::from_array(plan.dims);
+    let solid = settings.mode == Mode::Solid;
+    // A rigid solid on the grid's bits lists no interior voxel (`sealed`): what grows with the
+    // result is its surface, held about twice (the kept voxels, and the surface voxels'
+    // attributes searched for the interior beside them), and the grid's bits and flags.
+    let rigid_dense = solid && !has_skin && bits::fits(dims);
+    let dense = solid && !rigid_dense && dense::fits(dims);
     let voxels = if rigid_dense {
         2.0 * surface.min(grid)
     } else {
@@ -638,10 +641,9 @@ pub fn voxelize(
     let interior = match fills {
         // A rigid solid needs no transform: its enclosed interior is the interior mark, and
         // the octree is built from the votes (`sealed`).
-        Some(fills) if dense::fits(dims) && !has_skin => Some(Interior::Votes {
-            dims,
-            votes: dense::vote_grid(dims, &fills),
-        }),
+        Some(fills) if bits::fits(dims) && !has_skin => {
+            Some(Interior::Votes(bits::inside_bits(dims, &fills)))
+        }
         Some(fills) if dense::fits(dims) => {
             let seeds: Vec<UVec3> = records.par_iter().map(|r| morton_decode(r.0)).collect();
             Some(Interior::Dense(dense::DenseFill::new(dims, &fills, &seeds)))
@@ -698,27 +700,59 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    if let Some(Interior::Votes { dims, mut votes }) = interior {
+    if let Some(Interior::Votes(inside)) = interior {
         // Interior voxels that are not enclosed take their nearest surface voxel's attributes,
-        // among all the surface voxels (those solid mode dropped too), as the transform does.
-        let seeds = Svo::from_voxels(
-            plan.depth,
-            false,
-            records
-                .iter()
-                .zip(&record_voxels)
-                .map(|(r, (v, _))| (morton_decode(r.0), *v)),
-        )?;
+        // among all the surface voxels (those solid mode dropped too), as the transform does:
+        // found on the surface voxels' bits within a few voxels (where nearly all are), by the
+        // octree search beyond.
+        let mut seed_bits = bits::CellBits::new(inside.dims());
+        for r in &records {
+            let c = morton_decode(r.0);
+            if c.cmplt(inside.dims()).all() {
+                seed_bits.set(c);
+            }
+        }
+        let dropped: Vec<(UVec3, Voxel)> = records
+            .iter()
+            .zip(&record_voxels)
+            .filter(|(_, (_, keep))| !keep)
+            .map(|(r, (v, _))| (morton_decode(r.0), *v))
+            .collect();
         drop(record_voxels);
         drop(records);
         if !progress(0.9) {
             return Err(VoxelizeError::Cancelled);
         }
-        let (svo, counts) = sealed::build(plan.depth, dims, &mut votes, &surface_voxels, |c| {
-            seeds
+        let far = std::sync::OnceLock::new();
+        let seed = |q: UVec3| {
+            let code = crate::svo::morton_encode(q);
+            [&surface_voxels, &dropped].into_iter().find_map(|list| {
+                let i = list
+                    .binary_search_by_key(&code, |e| crate::svo::morton_encode(e.0))
+                    .ok()?;
+                Some(list[i].1)
+            })
+        };
+        let nearest = |c: UVec3| {
+            let near = seed_bits
+                .nearest_within(c, sealed::NEAR_SEARCH_RADIUS)
+                .and_then(seed);
+            near.or_else(|| {
+                far.get_or_init(|| {
+                    Svo::from_voxels(
+                        plan.depth,
+                        false,
+                        surface_voxels.iter().chain(&dropped).copied(),
+                    )
+                    .ok()
+                })
+                .as_ref()?
                 .nearest_surface(c)
-                .map_or(Voxel::default(), |(_, v)| v)
-        })?;
+                .map(|(_, v)| v)
+            })
+            .unwrap_or_default()
+        };
+        let (svo, counts) = sealed::build(plan.depth, inside, &surface_voxels, nearest)?;
         stats.interior_marked = counts.marked;
         stats.voxels = svo.leaf_count();
         progress(1.0);
@@ -761,7 +795,7 @@ pub fn voxelize(
                 (c, if sealed { interior_with_skin(v) } else { v })
             })
             .collect(),
-        Some(Interior::Votes { .. }) => unreachable!("built above"),
+        Some(Interior::Votes(_)) => unreachable!("built above"),
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
@@ -875,10 +909,10 @@ fn represented_inside(
     interior.contains(probe.as_uvec3())
 }
 
-/// The interior of a solid: the dense votes alone (a rigid solid, built by `sealed`), dense
+/// The interior of a solid: the dense interior bits alone (a rigid solid, built by `sealed`), dense
 /// with every cell's nearest surface voxel known (a skinned one), or sparse.
 enum Interior {
-    Votes { dims: UVec3, votes: Vec<u8> },
+    Votes(bits::CellBits),
     Dense(dense::DenseFill),
     Sparse(fill::Interior),
 }
@@ -886,7 +920,7 @@ enum Interior {
 impl Interior {
     fn contains(&self, c: UVec3) -> bool {
         match self {
-            Self::Votes { dims, votes } => dense::voted_inside(*dims, votes, c),
+            Self::Votes(inside) => inside.get(c),
             Self::Dense(d) => d.contains(c),
             Self::Sparse(s) => s.contains(c),
         }
@@ -894,7 +928,7 @@ impl Interior {
 
     fn len(&self) -> u64 {
         match self {
-            Self::Votes { votes, .. } => dense::voted_count(votes),
+            Self::Votes(inside) => inside.count_ones(),
             Self::Dense(d) => d.len(),
             Self::Sparse(s) => s.keys.len() as u64,
         }

@@ -3,6 +3,8 @@ use std::f32::consts::{PI, TAU};
 
 use glam::{Mat4, UVec3, Vec2, Vec3, Vec4};
 
+use crate::svo::Voxel;
+
 use super::*;
 use crate::mesh::{Material, unit_cube};
 
@@ -531,6 +533,45 @@ fn torus_solid_keeps_its_hole() {
     );
     // Interior voxels take the colour-bearing attributes of a surface, never the default.
     assert!(v.stats.interior_voxels > v.stats.surface_voxels);
+}
+
+/// The open interior voxels of a rigid solid (inside, not enclosed, not a surface voxel) take
+/// exactly the attributes of their nearest surface voxel among all of the surface import's
+/// (centre distance, ties to the smaller Morton code), the outer ones solid mode dropped
+/// included: the octree search over the surface import is the reference.
+#[test]
+fn a_rigid_solids_open_interior_takes_its_nearest_surface_voxel_exactly() {
+    let mut cube = unit_cube();
+    cube.transform(Mat4::from_rotation_y(0.3) * Mat4::from_rotation_x(0.2));
+    for (name, mesh) in [("torus", torus(0.7, 0.25, 64, 32)), ("turned cube", cube)] {
+        let m = model(vec![mesh]);
+        let run = |mode| {
+            voxelize(&m, &settings(Resolution::Depth(6), mode), &all_progress).expect("voxelize")
+        };
+        let (solid, surface) = (run(Mode::Solid), run(Mode::Surface));
+        assert_eq!(solid.origin, surface.origin, "{name}: one grid");
+        assert!(solid.stats.interior_marked > 0, "{name}");
+        let shell: std::collections::HashMap<UVec3, Voxel> =
+            surface.svo.leaves().into_iter().collect();
+        let dropped = shell
+            .keys()
+            .filter(|c| solid.svo.get(**c).is_none())
+            .count();
+        let mut open = 0;
+        for (c, v) in solid.svo.leaves() {
+            if v.is_interior() || shell.contains_key(&c) {
+                continue;
+            }
+            open += 1;
+            let (_, want) = surface.svo.nearest_surface(c).expect("a surface");
+            assert_eq!(v, want, "{name}: open interior voxel {c}");
+        }
+        eprintln!("{name}: {open} open interior voxels, {dropped} surface voxels dropped");
+        assert!(
+            open > 0 && dropped > 0,
+            "{name}: {open} open, {dropped} dropped"
+        );
+    }
 }
 
 #[test]

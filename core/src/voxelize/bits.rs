@@ -1,0 +1,347 @@
+//! One bit per cell of the solid import's grid, rows padded to whole 64-bit words, so that the
+//! vote, the enclosure test and the first pyramid level of a rigid solid ([`super::sealed`]) run
+//! 64 cells at a time. The interior is the majority of three axes' inside bits (at least two of
+//! three, as [`super::dense::vote_grid`] counts them).
+
+use glam::UVec3;
+use rayon::prelude::*;
+
+use super::fill::{Axis, AxisFill};
+
+/// A grid of bits: cell `(x, y, z)` is bit `x % 64` of word `x / 64` of row `y + Y·z`.
+#[derive(Clone, PartialEq, Eq)]
+pub(crate) struct CellBits {
+    dims: UVec3,
+    row_words: usize,
+    words: Vec<u64>,
+}
+
+impl std::fmt::Debug for CellBits {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("CellBits")
+            .field("dims", &self.dims)
+            .field("ones", &self.count_ones())
+            .finish_non_exhaustive()
+    }
+}
+
+/// Bytes per grid cell of a [`CellBits`] (rows padding aside).
+pub(crate) const BYTES_PER_CELL: f64 = 0.125;
+
+/// Largest grid a rigid solid is built on from bits (2^30 cells: any grid of depth 10; about
+/// 0.65 bytes a cell in all, see `sealed::BYTES_PER_CELL`).
+pub(crate) const MAX_CELLS: u64 = 1 << 30;
+
+/// Whether a grid of `dims` is small enough for the bits of a rigid solid.
+pub(crate) fn fits(dims: UVec3) -> bool {
+    u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z) <= MAX_CELLS
+}
+
+impl CellBits {
+    /// All clear.
+    pub(crate) fn new(dims: UVec3) -> Self {
+        let row_words = (dims.x as usize).div_ceil(64);
+        Self {
+            dims,
+            row_words,
+            words: vec![0; row_words * dims.y as usize * dims.z as usize],
+        }
+    }
+
+    pub(crate) fn dims(&self) -> UVec3 {
+        self.dims
+    }
+
+    /// Words per row.
+    pub(crate) fn row_words(&self) -> usize {
+        self.row_words
+    }
+
+    /// Whether cell `c` is set (false outside the grid).
+    pub(crate) fn get(&self, c: UVec3) -> bool {
+        c.cmplt(self.dims).all() && {
+            let i = self.row_index(c.y, c.z) * self.row_words + c.x as usize / 64;
+            self.words[i] >> (c.x % 64) & 1 == 1
+        }
+    }
+
+    /// Sets cell `c` (inside the grid).
+    pub(crate) fn set(&mut self, c: UVec3) {
+        let i = self.row_index(c.y, c.z) * self.row_words + c.x as usize / 64;
+        self.words[i] |= 1 << (c.x % 64);
+    }
+
+    fn row_index(&self, y: u32, z: u32) -> usize {
+        y as usize + self.dims.y as usize * z as usize
+    }
+
+    /// Row `(y, z)`'s words, or `None` outside the grid.
+    pub(crate) fn row(&self, y: u32, z: u32) -> Option<&[u64]> {
+        (y < self.dims.y && z < self.dims.z).then(|| {
+            let r = self.row_index(y, z) * self.row_words;
+            &self.words[r..r + self.row_words]
+        })
+    }
+
+    /// Cells set.
+    pub(crate) fn count_ones(&self) -> u64 {
+        self.words
+            .par_iter()
+            .map(|w| u64::from(w.count_ones()))
+            .sum()
+    }
+
+    /// Every row's words, mutably, with the row's `(y, z)`, in parallel.
+    pub(crate) fn par_rows_mut(
+        &mut self,
+    ) -> impl IndexedParallelIterator<Item = (u32, u32, &mut [u64])> {
+        let ny = self.dims.y.max(1);
+        self.words
+            .par_chunks_mut(self.row_words.max(1))
+            .enumerate()
+            .map(move |(r, w)| ((r as u32) % ny, (r as u32) / ny, w))
+    }
+}
+
+impl CellBits {
+    /// The set cell nearest `c` by centre distance (ties to the smaller Morton code) when one
+    /// lies within distance `r_max` of it, else `None`: cubes of radius 1, 2, … `r_max` around
+    /// `c` are read a row at a time, and a cube's nearest is the answer once its distance is at
+    /// most the radius (every cell outside the cube is farther).
+    pub(crate) fn nearest_within(&self, c: UVec3, r_max: u32) -> Option<UVec3> {
+        let (ci, hi) = (c.as_ivec3(), self.dims.as_ivec3() - 1);
+        for r in 1..=r_max as i32 {
+            let lo = (ci - r).max(glam::IVec3::ZERO);
+            let up = (ci + r).min(hi);
+            let mut best: Option<(i32, u64, UVec3)> = None;
+            for z in lo.z..=up.z {
+                for y in lo.y..=up.y {
+                    let Some(row) = self.row(y as u32, z as u32) else {
+                        continue;
+                    };
+                    let dyz = (y - ci.y).pow(2) + (z - ci.z).pow(2);
+                    for w in (lo.x / 64)..=(up.x / 64) {
+                        let base = w * 64;
+                        let from = (lo.x - base).max(0);
+                        let to = (up.x - base).min(63);
+                        let mut bits = row[w as usize] >> from << from;
+                        bits &= u64::MAX >> (63 - to);
+                        while bits != 0 {
+                            let x = base + bits.trailing_zeros() as i32;
+                            bits &= bits - 1;
+                            let q = UVec3::new(x as u32, y as u32, z as u32);
+                            let key = (dyz + (x - ci.x).pow(2), crate::svo::morton_encode(q));
+                            if best.is_none_or(|b| key < (b.0, b.1)) {
+                                best = Some((key.0, key.1, q));
+                            }
+                        }
+                    }
+                }
+            }
+            if let Some((d2, _, q)) = best
+                && d2 <= r * r
+            {
+                return Some(q);
+            }
+        }
+        None
+    }
+}
+
+/// Sets bits `lo..=hi` of a row.
+fn set_span(row: &mut [u64], lo: u32, hi: u32) {
+    let (w0, w1) = ((lo / 64) as usize, (hi / 64) as usize);
+    let first = u64::MAX << (lo % 64);
+    let last = u64::MAX >> (63 - hi % 64);
+    if w0 == w1 {
+        row[w0] |= first & last;
+        return;
+    }
+    row[w0] |= first;
+    for w in &mut row[w0 + 1..w1] {
+        *w = u64::MAX;
+    }
+    row[w1] |= last;
+}
+
+/// The interior of three axes' inside runs: cells inside along at least two axes (the majority
+/// of the three axes' bits, computed 64 cells at a time). Written in parallel by z slab, each
+/// slab holding its three axes' bits only while it is voted.
+pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
+    let mut out = CellBits::new(dims);
+    let (ny, nz) = (dims.y as usize, dims.z as usize);
+    let row_words = out.row_words;
+    if out.words.is_empty() {
+        return out;
+    }
+    let slab = nz.div_ceil(4 * rayon::current_num_threads()).max(1);
+    out.words
+        .par_chunks_mut(row_words * ny * slab)
+        .enumerate()
+        .for_each(|(s, words)| {
+            let (z0, z1) = ((s * slab) as u32, ((s + 1) * slab).min(nz) as u32);
+            let row = |y: u32, z: u32| (y as usize + ny * (z - z0) as usize) * row_words;
+            let mut axes = [vec![0u64; words.len()], vec![0u64; words.len()]];
+            for f in fills {
+                let turned = f.axis.turn_dims(dims);
+                let last = turned.z.saturating_sub(1);
+                let bits: &mut [u64] = match f.axis {
+                    Axis::Z => &mut axes[0],
+                    Axis::Y => &mut axes[1],
+                    Axis::X => words,
+                };
+                for iv in &f.intervals {
+                    let x = (iv.column & 0x1f_ffff) as u32;
+                    let y = (iv.column >> 21) as u32;
+                    if x >= turned.x || y >= turned.y || iv.k_lo > last {
+                        continue;
+                    }
+                    let (lo, hi) = (iv.k_lo, iv.k_hi.min(last));
+                    match f.axis {
+                        // Along x at row (turned x, turned y) = (y, z).
+                        Axis::X => {
+                            if (z0..z1).contains(&y) {
+                                let r = row(x, y);
+                                set_span(&mut bits[r..r + row_words], lo, hi);
+                            }
+                        }
+                        // Along y at (x, z) = (turned y, turned x).
+                        Axis::Y => {
+                            if (z0..z1).contains(&x) {
+                                let (w, b) = (y as usize / 64, y % 64);
+                                for k in lo..=hi {
+                                    bits[row(k, x) + w] |= 1 << b;
+                                }
+                            }
+                        }
+                        Axis::Z => {
+                            let (w, b) = (x as usize / 64, x % 64);
+                            for k in lo.max(z0)..=hi.min(z1.saturating_sub(1)) {
+                                bits[row(y, k) + w] |= 1 << b;
+                            }
+                        }
+                    }
+                }
+            }
+            let [a, b] = &axes;
+            for ((w, &a), &b) in words.iter_mut().zip(a).zip(b) {
+                *w = (*w & a) | (*w & b) | (a & b);
+            }
+        });
+    out
+}
+
+/// Cell bits shifted so that bit `x` holds cell `x - 1`'s (`down`) or cell `x + 1`'s (`up`),
+/// across word boundaries; cells outside the row read clear.
+pub(crate) fn neighbours(row: &[u64], w: usize) -> (u64, u64) {
+    let down = (row[w] << 1) | w.checked_sub(1).map_or(0, |p| row[p] >> 63);
+    let up = (row[w] >> 1) | row.get(w + 1).map_or(0, |n| n << 63);
+    (down, up)
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::super::dense::{vote_grid_serial, voted_inside};
+    use super::super::solid::Interval;
+    use super::*;
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Property: the majority of the three axes' bits, written by slab, is the cells that the
+        /// run-by-run byte votes count inside along two or more axes; rows wider than a word
+        /// included.
+        #[test]
+        fn inside_bits_are_the_cells_voted_inside(
+            (dx, dy, dz) in (1u32..140, 1u32..30, 1u32..40),
+            runs in proptest::collection::vec((0usize..3, 0u32..145, 0u32..145, 0u32..145, 0u32..140), 0..80),
+        ) {
+            let dims = UVec3::new(dx, dy, dz);
+            let mut fills = [AxisFill::empty(Axis::Z), AxisFill::empty(Axis::X), AxisFill::empty(Axis::Y)];
+            for (a, x, y, k, len) in runs {
+                fills[a].intervals.push(Interval {
+                    column: u64::from(y) << 21 | u64::from(x),
+                    k_lo: k,
+                    k_hi: k + len,
+                    z_in: 0.0,
+                    z_out: 0.0,
+                    entry: 0,
+                    exit: 0,
+                });
+            }
+            let votes = vote_grid_serial(dims, &fills);
+            let bits = inside_bits(dims, &fills);
+            let mut count = 0;
+            for z in 0..dz {
+                for y in 0..dy {
+                    for x in 0..dx {
+                        let c = UVec3::new(x, y, z);
+                        prop_assert_eq!(bits.get(c), voted_inside(dims, &votes, c), "cell {}", c);
+                        count += u64::from(bits.get(c));
+                    }
+                }
+            }
+            prop_assert_eq!(bits.count_ones(), count, "no bit set in a row's padding");
+        }
+
+        /// Property: a row's neighbour shifts read each cell's left and right neighbour.
+        #[test]
+        fn neighbour_shifts_read_the_cells_beside(row in proptest::collection::vec(any::<u64>(), 1..4)) {
+            let n = row.len() * 64;
+            let bit = |x: usize| row[x / 64] >> (x % 64) & 1 == 1;
+            for w in 0..row.len() {
+                let (down, up) = neighbours(&row, w);
+                for b in 0..64 {
+                    let x = w * 64 + b;
+                    prop_assert_eq!(down >> b & 1 == 1, x > 0 && bit(x - 1));
+                    prop_assert_eq!(up >> b & 1 == 1, x + 1 < n && bit(x + 1));
+                }
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Property: the nearest set cell within a radius is the brute-force nearest (centre
+        /// distance, ties to the smaller Morton code) when that lies within the radius, and
+        /// none otherwise; rows wider than a word and cells at the grid's faces included.
+        #[test]
+        fn the_nearest_set_cell_within_a_radius_is_the_brute_force_nearest(
+            (dx, dy, dz) in (1u32..150, 1u32..12, 1u32..12),
+            set in proptest::collection::vec((0u32..150, 0u32..12, 0u32..12), 0..40),
+            probes in proptest::collection::vec((0u32..150, 0u32..12, 0u32..12), 1..20),
+            r_max in 1u32..5,
+        ) {
+            let dims = UVec3::new(dx, dy, dz);
+            let mut bits = CellBits::new(dims);
+            let mut cells = Vec::new();
+            for (x, y, z) in set {
+                let c = UVec3::new(x % dx, y % dy, z % dz);
+                bits.set(c);
+                cells.push(c);
+            }
+            for (x, y, z) in probes {
+                let c = UVec3::new(x % dx, y % dy, z % dz);
+                let brute = cells
+                    .iter()
+                    .map(|&q| ((q.as_ivec3() - c.as_ivec3()).length_squared(), crate::svo::morton_encode(q), q))
+                    .min_by_key(|b| (b.0, b.1));
+                let want = brute.filter(|b| b.0 <= (r_max * r_max) as i32).map(|b| b.2);
+                prop_assert_eq!(bits.nearest_within(c, r_max), want, "probe {}", c);
+            }
+        }
+    }
+
+    #[test]
+    fn spans_set_exactly_their_bits() {
+        for (lo, hi) in [(0, 0), (0, 63), (63, 64), (5, 200), (64, 127), (191, 191)] {
+            let mut row = vec![0u64; 4];
+            set_span(&mut row, lo, hi);
+            for x in 0..256u32 {
+                let on = row[(x / 64) as usize] >> (x % 64) & 1 == 1;
+                assert_eq!(on, (lo..=hi).contains(&x), "span {lo}..={hi}, bit {x}");
+            }
+        }
+    }
+}
