@@ -65,6 +65,12 @@ impl CellBits {
         }
     }
 
+    /// Makes these bits a copy of `other`'s (of the same dims), keeping this allocation.
+    pub(crate) fn copy_from(&mut self, other: &CellBits) {
+        debug_assert_eq!(self.dims, other.dims);
+        self.words.copy_from_slice(&other.words);
+    }
+
     /// Sets cell `c` (inside the grid).
     pub(crate) fn set(&mut self, c: UVec3) {
         let i = self.row_index(c.y, c.z) * self.row_words + c.x as usize / 64;
@@ -116,15 +122,13 @@ impl CellBits {
             let mut best: Option<(i32, u64, UVec3)> = None;
             for z in lo.z..=up.z {
                 for y in lo.y..=up.y {
-                    let Some(row) = self.row(y as u32, z as u32) else {
-                        continue;
-                    };
+                    let row = self.row_index(y as u32, z as u32) * self.row_words;
                     let dyz = (y - ci.y).pow(2) + (z - ci.z).pow(2);
                     for w in (lo.x / 64)..=(up.x / 64) {
                         let base = w * 64;
                         let from = (lo.x - base).max(0);
                         let to = (up.x - base).min(63);
-                        let mut bits = row[w as usize] >> from << from;
+                        let mut bits = self.words[row + w as usize] >> from << from;
                         bits &= u64::MAX >> (63 - to);
                         while bits != 0 {
                             let x = base + bits.trailing_zeros() as i32;
@@ -146,6 +150,52 @@ impl CellBits {
         }
         None
     }
+}
+
+/// The even bits of `w` (bits 0, 2, … 62) packed into its low 32 bits.
+fn even_bits(w: u64) -> u64 {
+    let mut x = w & 0x5555_5555_5555_5555;
+    x = (x | x >> 1) & 0x3333_3333_3333_3333;
+    x = (x | x >> 2) & 0x0f0f_0f0f_0f0f_0f0f;
+    x = (x | x >> 4) & 0x00ff_00ff_00ff_00ff;
+    x = (x | x >> 8) & 0x0000_ffff_0000_ffff;
+    (x | x >> 16) & 0x0000_0000_ffff_ffff
+}
+
+/// The 2×2×2 blocks of a grid of `dims` as bits, 32 blocks a word: with `all`, a block is set
+/// when all eight of its cells are set and inside the grid; without, when any of its cells is
+/// set. `row(y, z, out)` gives row `(y, z)` of the grid (its words, padding clear); rows outside
+/// the grid are read clear.
+pub(crate) fn halve(dims: UVec3, all: bool, row: impl Fn(u32, u32, &mut [u64]) + Sync) -> CellBits {
+    let mut out = CellBits::new((dims + 1) / 2);
+    let n = (dims.x as usize).div_ceil(64);
+    out.par_rows_mut().for_each_init(
+        || vec![0u64; 2 * n],
+        |scratch, (by, bz, words)| {
+            let (acc, read) = scratch.split_at_mut(n);
+            acc.fill(if all { u64::MAX } else { 0 });
+            for (dy, dz) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                let (y, z) = (2 * by + dy, 2 * bz + dz);
+                if y < dims.y && z < dims.z {
+                    row(y, z, read);
+                } else {
+                    read.fill(0);
+                }
+                for (a, r) in acc.iter_mut().zip(read.iter()) {
+                    *a = if all { *a & r } else { *a | r };
+                }
+            }
+            let pairs = |i: usize| {
+                acc.get(i).map_or(0, |&a| {
+                    even_bits(if all { a & (a >> 1) } else { a | (a >> 1) })
+                })
+            };
+            for (w, o) in words.iter_mut().enumerate() {
+                *o = pairs(2 * w) | (pairs(2 * w + 1) << 32);
+            }
+        },
+    );
+    out
 }
 
 /// Sets bits `lo..=hi` of a row.
@@ -185,6 +235,10 @@ pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
             for f in fills {
                 let turned = f.axis.turn_dims(dims);
                 let last = turned.z.saturating_sub(1);
+                if f.axis == Axis::Z {
+                    sweep_z(f, turned, (z0, z1), row_words * ny, &mut axes[0]);
+                    continue;
+                }
                 let bits: &mut [u64] = match f.axis {
                     Axis::Z => &mut axes[0],
                     Axis::Y => &mut axes[1],
@@ -214,12 +268,7 @@ pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
                                 }
                             }
                         }
-                        Axis::Z => {
-                            let (w, b) = (x as usize / 64, x % 64);
-                            for k in lo.max(z0)..=hi.min(z1.saturating_sub(1)) {
-                                bits[row(y, k) + w] |= 1 << b;
-                            }
-                        }
+                        Axis::Z => unreachable!("swept above"),
                     }
                 }
             }
@@ -229,6 +278,35 @@ pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
             }
         });
     out
+}
+
+/// Sets the bits of the runs along z that lie in the slab `z0..z1` (`slice` words a z slice),
+/// one z slice at a time: the runs open at a slice are kept in a list, so each slice's words
+/// are written together instead of each run striding through the whole slab.
+fn sweep_z(f: &AxisFill, dims: UVec3, (z0, z1): (u32, u32), slice: usize, bits: &mut [u64]) {
+    let row_words = (dims.x as usize).div_ceil(64);
+    let last = dims.z.saturating_sub(1).min(z1 - 1);
+    // Runs by the slice they start at: (word within the slice, bit, last slice).
+    let mut starts: Vec<Vec<(usize, u64, u32)>> = vec![Vec::new(); (z1 - z0) as usize];
+    for iv in &f.intervals {
+        let x = (iv.column & 0x1f_ffff) as u32;
+        let y = (iv.column >> 21) as u32;
+        let (lo, hi) = (iv.k_lo.max(z0), iv.k_hi.min(last));
+        if x >= dims.x || y >= dims.y || lo > hi {
+            continue;
+        }
+        let word = y as usize * row_words + x as usize / 64;
+        starts[(lo - z0) as usize].push((word, 1 << (x % 64), hi));
+    }
+    let mut open: Vec<(usize, u64, u32)> = Vec::new();
+    for (z, starting) in (z0..z1).zip(&mut starts) {
+        open.append(starting);
+        let words = &mut bits[(z - z0) as usize * slice..][..slice];
+        open.retain(|&(w, bit, hi)| {
+            words[w] |= bit;
+            hi > z
+        });
+    }
 }
 
 /// Cell bits shifted so that bit `x` holds cell `x - 1`'s (`down`) or cell `x + 1`'s (`up`),
@@ -329,6 +407,57 @@ mod tests {
                     .min_by_key(|b| (b.0, b.1));
                 let want = brute.filter(|b| b.0 <= (r_max * r_max) as i32).map(|b| b.2);
                 prop_assert_eq!(bits.nearest_within(c, r_max), want, "probe {}", c);
+            }
+        }
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(64))]
+        /// Property: a halved grid's block is set exactly when any (or, with `all`, every) one
+        /// of its eight cells is set inside the grid, for odd sides and rows of several words.
+        #[test]
+        fn halving_takes_any_or_all_of_each_block(
+            (dx, dy, dz) in (1u32..300, 1u32..9, 1u32..9),
+            density in 0u32..4,
+            seed in any::<u64>(),
+        ) {
+            let dims = UVec3::new(dx, dy, dz);
+            let mut bits = CellBits::new(dims);
+            for z in 0..dz {
+                for y in 0..dy {
+                    for x in 0..dx {
+                        let h = (u64::from(x) << 20 ^ u64::from(y) << 10 ^ u64::from(z) ^ seed)
+                            .wrapping_mul(0x9e37_79b9_7f4a_7c15) >> 61;
+                        // Dense grids too, so that whole blocks are set.
+                        if h < 2 * u64::from(density) {
+                            bits.set(UVec3::new(x, y, z));
+                        }
+                    }
+                }
+            }
+            let row = |y: u32, z: u32, out: &mut [u64]| {
+                out.copy_from_slice(bits.row(y, z).unwrap_or_else(|| unreachable!("in the grid")));
+            };
+            for all in [false, true] {
+                let half = halve(dims, all, row);
+                prop_assert_eq!(half.dims(), (dims + 1) / 2);
+                let mut ones = 0;
+                for z in 0..half.dims().z {
+                    for y in 0..half.dims().y {
+                        for x in 0..half.dims().x {
+                            let b = UVec3::new(x, y, z);
+                            let cells = (0..8u32).map(|o| b * 2 + UVec3::new(o & 1, (o >> 1) & 1, o >> 2));
+                            let want = if all {
+                                cells.into_iter().all(|c| bits.get(c))
+                            } else {
+                                cells.into_iter().any(|c| bits.get(c))
+                            };
+                            prop_assert_eq!(half.get(b), want, "block {} all {}", b, all);
+                            ones += u64::from(want);
+                        }
+                    }
+                }
+                prop_assert_eq!(half.count_ones(), ones, "no bit set in a row's padding");
             }
         }
     }

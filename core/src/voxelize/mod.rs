@@ -703,15 +703,8 @@ pub fn voxelize(
     if let Some(Interior::Votes(inside)) = interior {
         // Interior voxels that are not enclosed take their nearest surface voxel's attributes,
         // among all the surface voxels (those solid mode dropped too), as the transform does:
-        // found on the surface voxels' bits within a few voxels (where nearly all are), by the
-        // octree search beyond.
-        let mut seed_bits = bits::CellBits::new(inside.dims());
-        for r in &records {
-            let c = morton_decode(r.0);
-            if c.cmplt(inside.dims()).all() {
-                seed_bits.set(c);
-            }
-        }
+        // found on the surface voxels' bits within a few voxels, where nearly all are, and by
+        // the octree search beyond.
         let dropped: Vec<(UVec3, Voxel)> = records
             .iter()
             .zip(&record_voxels)
@@ -723,36 +716,13 @@ pub fn voxelize(
         if !progress(0.9) {
             return Err(VoxelizeError::Cancelled);
         }
-        let far = std::sync::OnceLock::new();
-        let seed = |q: UVec3| {
-            let code = crate::svo::morton_encode(q);
-            [&surface_voxels, &dropped].into_iter().find_map(|list| {
-                let i = list
-                    .binary_search_by_key(&code, |e| crate::svo::morton_encode(e.0))
-                    .ok()?;
-                Some(list[i].1)
-            })
-        };
-        let nearest = |c: UVec3| {
-            let near = seed_bits
-                .nearest_within(c, sealed::NEAR_SEARCH_RADIUS)
-                .and_then(seed);
-            near.or_else(|| {
-                far.get_or_init(|| {
-                    Svo::from_voxels(
-                        plan.depth,
-                        false,
-                        surface_voxels.iter().chain(&dropped).copied(),
-                    )
-                    .ok()
-                })
-                .as_ref()?
-                .nearest_surface(c)
-                .map(|(_, v)| v)
-            })
-            .unwrap_or_default()
-        };
-        let (svo, counts) = sealed::build(plan.depth, inside, &surface_voxels, nearest)?;
+        let (svo, counts) = sealed::build(
+            plan.depth,
+            inside,
+            &surface_voxels,
+            &dropped,
+            sealed::NEAR_SEARCH_RADIUS,
+        )?;
         stats.interior_marked = counts.marked;
         stats.voxels = svo.leaf_count();
         progress(1.0);

@@ -14,12 +14,12 @@ use rayon::prelude::*;
 use super::bits::{self, CellBits};
 use crate::svo::{Svo, SvoError, Voxel, morton_decode, morton_encode};
 
-/// Heap bytes per grid cell of [`build`] and its caller: the interior, kept-surface, enclosed
-/// and all-surface (seeds) bits, and the pyramid of flags (1/8 + 1/64 + …).
-pub(crate) const BYTES_PER_CELL: f64 = 4.0 * bits::BYTES_PER_CELL + 0.15;
+/// Heap bytes per grid cell of [`build`]: the interior, kept-surface and enclosed bits, and
+/// the pyramid's two bits a block (1/8 + 1/64 + … of them).
+pub(crate) const BYTES_PER_CELL: f64 = (3.0 + 2.0 / 7.0) * bits::BYTES_PER_CELL;
 
 /// How far (in voxels) an open interior cell's nearest surface voxel is looked for on the
-/// grid's bits before the octree search takes over.
+/// grid's bits before the octree search takes over ([`build`]).
 pub(crate) const NEAR_SEARCH_RADIUS: u32 = 3;
 
 /// A stored run: origin, height (0 for a leaf) and value.
@@ -115,88 +115,40 @@ fn classify(inside: CellBits, surface: &[(UVec3, Voxel)]) -> Cells {
     cells
 }
 
-/// Level 1 of the pyramid: the flags of the 2×2×2 blocks (x fastest) and their dims, from the
-/// cells' bits, 32 blocks at a time.
-fn first_level(cells: &Cells) -> (UVec3, Vec<u8>) {
-    const EVEN: u64 = 0x5555_5555_5555_5555;
+/// The pyramid of `2^k` blocks for k = 1..=depth (`levels[k - 1]`): which blocks hold a solid
+/// cell, and which are all enclosed interior cells inside the grid, as bits. Level 0 is the
+/// cells themselves ([`Cells::flags`]).
+fn pyramid(cells: &Cells, depth: u8) -> Vec<(CellBits, CellBits)> {
+    let mut levels: Vec<(CellBits, CellBits)> = Vec::with_capacity(usize::from(depth));
     let dims = cells.inside.dims();
-    let up = (dims + 1) / 2;
-    let n = cells.inside.row_words();
-    let ux = up.x as usize;
-    let mut flags = vec![0u8; ux * up.y as usize * up.z as usize];
-    flags.par_chunks_mut(ux.max(1)).enumerate().for_each_init(
-        || vec![0u64; 3 * n],
-        |scratch, (r, out)| {
-            let (by, bz) = ((r % up.y as usize) as u32, (r / up.y as usize) as u32);
-            let (any, rest) = scratch.split_at_mut(n);
-            let (all, row) = rest.split_at_mut(n);
-            any.fill(0);
-            all.fill(u64::MAX);
-            for (y, z) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
-                let (y, z) = (2 * by + y, 2 * bz + z);
-                cells.solid_row(y, z, row);
-                let sealed = cells.sealed.row(y, z);
-                for w in 0..n {
-                    any[w] |= row[w];
-                    all[w] &= sealed.map_or(0, |s| s[w]);
-                }
-            }
-            for (bx, o) in out.iter_mut().enumerate() {
-                let (w, b) = (bx / 32, 2 * (bx % 32));
-                let any = (any[w] | any[w] >> 1) & EVEN;
-                let all = all[w] & all[w] >> 1 & EVEN;
-                *o = (u8::from(any >> b & 1 == 1) * ANY) | (u8::from(all >> b & 1 == 1) * ALL);
-            }
-        },
-    );
-    (up, flags)
-}
-
-/// Flags of the `2^k` blocks for k = 1..=depth (`levels[k - 1]`, x fastest), with their dims.
-/// Level 0 is read from the cells themselves ([`Cells::flags`]), not stored.
-fn pyramid(cells: &Cells, depth: u8) -> Vec<(UVec3, Vec<u8>)> {
-    let mut levels: Vec<(UVec3, Vec<u8>)> = Vec::with_capacity(usize::from(depth));
-    if depth == 0 {
-        return levels;
-    }
-    levels.push(first_level(cells));
-    for _ in 2..=depth {
-        let (d, below) = levels
-            .last()
-            .unwrap_or_else(|| unreachable!("level 1 is pushed"));
-        let up = (*d + 1) / 2;
-        let (ux, uy) = (up.x as usize, up.y as usize);
-        let flags: Vec<u8> = (0..ux * uy * up.z as usize)
-            .into_par_iter()
-            .map(|i| {
-                let b = UVec3::new(
-                    (i % ux) as u32,
-                    ((i / ux) % uy) as u32,
-                    (i / (ux * uy)) as u32,
-                );
-                let (mut all, mut any) = (true, false);
-                for o in 0..8u32 {
-                    let c = b * 2 + UVec3::new(o & 1, (o >> 1) & 1, o >> 2);
-                    if c.cmplt(*d).all() {
-                        let f = below[c.x as usize
-                            + d.x as usize * (c.y as usize + d.y as usize * c.z as usize)];
-                        all &= f & ALL != 0;
-                        any |= f & ANY != 0;
-                    } else {
-                        all = false;
-                    }
-                }
-                (u8::from(all) * ALL) | (u8::from(any) * ANY)
-            })
-            .collect();
-        levels.push((up, flags));
+    let copy = |bits: &CellBits, y: u32, z: u32, out: &mut [u64]| {
+        if let Some(r) = bits.row(y, z) {
+            out.copy_from_slice(r);
+        }
+    };
+    for k in 1..=depth {
+        let level = match levels.last() {
+            None => (
+                bits::halve(dims, false, |y, z, out| cells.solid_row(y, z, out)),
+                bits::halve(dims, true, |y, z, out| copy(&cells.sealed, y, z, out)),
+            ),
+            Some((any, all)) => (
+                bits::halve(any.dims(), false, |y, z, out| copy(any, y, z, out)),
+                bits::halve(all.dims(), true, |y, z, out| copy(all, y, z, out)),
+            ),
+        };
+        debug_assert_eq!(level.0.dims(), (dims + (1 << k) - 1) >> k);
+        levels.push(level);
     }
     levels
 }
 
 /// The octree of a rigid solid: `surface` (kept surface voxels with their attributes, Morton
 /// order) and the `inside` cells (see [`bits::inside_bits`]), enclosed ones as the interior
-/// mark and the others `open(cell)`.
+/// mark. The others (open) take the attributes of their nearest surface voxel among `surface`
+/// and `dropped` (those solid mode left out, lying outside the mesh; Morton order), by centre
+/// distance with ties to the smaller Morton code: looked for on the surface voxels' bits within
+/// `near_radius` voxels, where nearly all are, and by the octree search beyond.
 ///
 /// # Errors
 /// [`SvoError`] from the octree (a depth out of range).
@@ -204,25 +156,17 @@ pub(crate) fn build(
     depth: u8,
     inside: CellBits,
     surface: &[(UVec3, Voxel)],
-    open: impl Fn(UVec3) -> Voxel + Sync,
+    dropped: &[(UVec3, Voxel)],
+    near_radius: u32,
 ) -> Result<(Svo, SolidCounts), SvoError> {
-    let dims = inside.dims();
     let cells = classify(inside, surface);
     let levels = pyramid(&cells, depth);
     let flags = |k: u8, b: UVec3| {
         if k == 0 {
-            return if b.cmplt(dims).all() {
-                cells.flags(b)
-            } else {
-                0
-            };
+            return cells.flags(b);
         }
-        let (d, f) = &levels[usize::from(k) - 1];
-        if b.cmplt(*d).all() {
-            f[b.x as usize + d.x as usize * (b.y as usize + d.y as usize * b.z as usize)]
-        } else {
-            0
-        }
+        let (any, all) = &levels[usize::from(k) - 1];
+        (u8::from(any.get(b)) * ANY) | (u8::from(all.get(b)) * ALL)
     };
     // Depth-first in octant order, each subtree at level `split` on its own thread: runs come
     // out in Morton order, beside the surface's.
@@ -281,27 +225,67 @@ pub(crate) fn build(
         opens.extend(o.into_iter().map(|i| i + runs.len()));
         runs.extend(r);
     }
+    let marked = cells.sealed.count_ones();
+    drop(levels);
+    // The enclosed bits are done with: their words become every surface voxel's bits, the
+    // kept and the `dropped` ones, for the open cells' search.
+    let Cells {
+        inside,
+        kept,
+        sealed: mut seeds,
+    } = cells;
+    drop(inside);
+    seeds.copy_from(&kept);
+    drop(kept);
+    for (c, _) in dropped {
+        if c.cmplt(seeds.dims()).all() {
+            seeds.set(*c);
+        }
+    }
+    let far = std::sync::OnceLock::new();
+    let attributes = |q: UVec3| {
+        let code = morton_encode(q);
+        [surface, dropped].into_iter().find_map(|list| {
+            let i = list
+                .binary_search_by_key(&code, |e| morton_encode(e.0))
+                .ok()?;
+            Some(list[i].1)
+        })
+    };
+    let open = |c: UVec3| {
+        let near = seeds.nearest_within(c, near_radius).and_then(attributes);
+        near.or_else(|| {
+            far.get_or_init(|| {
+                Svo::from_voxels(depth, false, surface.iter().chain(dropped).copied()).ok()
+            })
+            .as_ref()?
+            .nearest_surface(c)
+            .map(|(_, v)| v)
+        })
+        .unwrap_or_default()
+    };
     let resolved: Vec<Voxel> = opens.par_iter().map(|&i| open(runs[i].0)).collect();
+    drop(seeds);
     for (&i, v) in opens.iter().zip(resolved) {
         runs[i].2 = v;
     }
-    let marked = cells.sealed.count_ones();
-    drop(cells);
     let svo = Svo::from_runs(depth, false, runs)?;
     Ok((svo, SolidCounts { marked }))
 }
 
-/// [`build`] the plain way: every solid cell listed, each tested for enclosure on its own, the
-/// octree builder collapsing the interior into tiles. The same octree; for tests.
+/// [`build`] the plain way: every solid cell listed, each tested for enclosure on its own and
+/// each open one given its nearest surface voxel by the octree search, the octree builder
+/// collapsing the interior into tiles. The same octree; for tests.
 #[cfg(test)]
 pub(crate) fn build_reference(
     depth: u8,
     inside: &CellBits,
     surface: &[(UVec3, Voxel)],
-    open: impl Fn(UVec3) -> Voxel,
+    dropped: &[(UVec3, Voxel)],
 ) -> Result<Svo, SvoError> {
     let dims = inside.dims();
     let kept: std::collections::HashMap<UVec3, Voxel> = surface.iter().copied().collect();
+    let seeds = Svo::from_voxels(depth, false, surface.iter().chain(dropped).copied())?;
     let solid = |q: glam::IVec3| {
         q.cmpge(glam::IVec3::ZERO).all()
             && q.cmplt(dims.as_ivec3()).all()
@@ -318,7 +302,8 @@ pub(crate) fn build_reference(
                     let enclosed = crate::svo::FACE_NEIGHBOURS
                         .iter()
                         .all(|&f| solid(c.as_ivec3() + f));
-                    all.push((c, if enclosed { Voxel::INTERIOR } else { open(c) }));
+                    let open = || seeds.nearest_surface(c).map_or(Voxel::default(), |s| s.1);
+                    all.push((c, if enclosed { Voxel::INTERIOR } else { open() }));
                 }
             }
         }
@@ -334,15 +319,21 @@ mod tests {
     use super::*;
 
     /// A grid of `dims` whose interior is the union of `balls` (centre, radius), with a kept
-    /// surface voxel on some of the interior's boundary cells and on a few cells outside it.
-    fn scene(dims: UVec3, balls: &[(Vec3, f32)], salt: u32) -> (CellBits, Vec<(UVec3, Voxel)>) {
+    /// surface voxel on some of the interior's boundary cells and on a few cells outside it,
+    /// and (third) a few dropped surface voxels outside it.
+    #[allow(clippy::type_complexity)]
+    fn scene(
+        dims: UVec3,
+        balls: &[(Vec3, f32)],
+        salt: u32,
+    ) -> (CellBits, Vec<(UVec3, Voxel)>, Vec<(UVec3, Voxel)>) {
         let inside = |c: UVec3| {
             balls
                 .iter()
                 .any(|&(o, r)| (c.as_vec3() + 0.5 - o).length() <= r)
         };
         let mut votes = CellBits::new(dims);
-        let mut surface = Vec::new();
+        let (mut surface, mut dropped) = (Vec::new(), Vec::new());
         for z in 0..dims.z {
             for y in 0..dims.y {
                 for x in 0..dims.x {
@@ -362,38 +353,36 @@ mod tests {
                         }
                     } else if h.is_multiple_of(41) {
                         surface.push((c, Voxel::new([10, h as u8, 90, 255], Vec3::Y)));
+                    } else if h.is_multiple_of(43) {
+                        dropped.push((c, Voxel::new([90, h as u8, 10, 255], Vec3::NEG_Y)));
                     }
                 }
             }
         }
         surface.sort_by_key(|e| morton_encode(e.0));
-        (votes, surface)
-    }
-
-    fn open(c: UVec3) -> Voxel {
-        Voxel::new(
-            [(c.x * 9) as u8, (c.y * 9) as u8, (c.z * 9) as u8, 255],
-            Vec3::Z,
-        )
+        dropped.sort_by_key(|e| morton_encode(e.0));
+        (votes, surface, dropped)
     }
 
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(24))]
-        /// Property: the octree built from the votes (maximal interior tiles from the pyramid)
-        /// equals the one built by listing every voxel, tile for tile.
+        /// Property: the octree built from the bits (maximal interior tiles from the pyramid,
+        /// open cells' nearest surface voxel on the bits within a radius, by the octree search
+        /// beyond) equals the one built by listing every voxel, tile for tile.
         #[test]
         fn the_tiled_build_equals_listing_every_voxel(
             (dx, dy, dz) in (9u32..140, 9u32..40, 9u32..40),
             balls in proptest::collection::vec(((0f32..140.0, 0f32..40.0, 0f32..40.0), 2f32..30.0), 1..4),
             salt in 0u32..1000,
+            near_radius in 1u32..4,
         ) {
             let dims = UVec3::new(dx, dy, dz);
             // Rows wider than one 64-cell word.
             let depth = 8;
             let balls: Vec<(Vec3, f32)> = balls.into_iter().map(|((x, y, z), r)| (Vec3::new(x, y, z), r)).collect();
-            let (votes, surface) = scene(dims, &balls, salt);
-            let (fast, counts) = build(depth, votes.clone(), &surface, open).unwrap();
-            let slow = build_reference(depth, &votes, &surface, open).unwrap();
+            let (votes, surface, dropped) = scene(dims, &balls, salt);
+            let (fast, counts) = build(depth, votes.clone(), &surface, &dropped, near_radius).unwrap();
+            let slow = build_reference(depth, &votes, &surface, &dropped).unwrap();
             prop_assert_eq!(&fast, &slow);
             prop_assert_eq!(fast.tile_count(), slow.tile_count());
             prop_assert_eq!(fast.leaf_count(), slow.leaf_count());
@@ -407,8 +396,8 @@ mod tests {
     #[test]
     fn a_big_ball_is_a_few_tiles() {
         let dims = UVec3::new(60, 50, 64);
-        let (votes, surface) = scene(dims, &[(Vec3::new(30.0, 25.0, 32.0), 24.0)], 7);
-        let (svo, counts) = build(6, votes, &surface, open).unwrap();
+        let (votes, surface, dropped) = scene(dims, &[(Vec3::new(30.0, 25.0, 32.0), 24.0)], 7);
+        let (svo, counts) = build(6, votes, &surface, &dropped, NEAR_SEARCH_RADIUS).unwrap();
         assert!(counts.marked > 40_000, "{counts:?}");
         assert!(svo.tile_count() > 100, "{} tiles", svo.tile_count());
         assert_eq!(svo.interior_voxels(), counts.marked);
