@@ -215,97 +215,124 @@ fn set_span(row: &mut [u64], lo: u32, hi: u32) {
 }
 
 /// The interior of three axes' inside runs: cells inside along at least two axes (the majority
-/// of the three axes' bits, computed 64 cells at a time). Written in parallel by z slab, each
-/// slab holding its three axes' bits only while it is voted.
+/// of the three axes' bits, 64 cells a word). Written in parallel by slabs of at most 64 z
+/// slices. Every axis's runs are set as word spans: along x in the rows themselves, along y in
+/// columns of y bits and along z in one word of z bits a column, the last two turned into rows
+/// by transposing 64 × 64 bit blocks.
 pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
     let mut out = CellBits::new(dims);
-    let (ny, nz) = (dims.y as usize, dims.z as usize);
+    let (nx, ny, nz) = (dims.x as usize, dims.y as usize, dims.z as usize);
     let row_words = out.row_words;
     if out.words.is_empty() {
         return out;
     }
-    let slab = nz.div_ceil(4 * rayon::current_num_threads()).max(1);
+    let slab = nz.div_ceil(4 * rayon::current_num_threads()).clamp(1, 64);
+    // Words of a column of y bits.
+    let col_words = ny.div_ceil(64);
     out.words
         .par_chunks_mut(row_words * ny * slab)
         .enumerate()
         .for_each(|(s, words)| {
             let (z0, z1) = ((s * slab) as u32, ((s + 1) * slab).min(nz) as u32);
-            let row = |y: u32, z: u32| (y as usize + ny * (z - z0) as usize) * row_words;
-            let mut axes = [vec![0u64; words.len()], vec![0u64; words.len()]];
+            let h = (z1 - z0) as usize;
+            let row = |y: usize, dz: usize| (y + ny * dz) * row_words;
+            // Runs along y: slice dz, column x holds y bits (`col_words` words).
+            let mut ys = vec![0u64; h * nx * col_words];
+            // Runs along z: column (x, y) holds its slab's z bits in one word.
+            let mut zs = vec![0u64; nx * ny];
             for f in fills {
                 let turned = f.axis.turn_dims(dims);
                 let last = turned.z.saturating_sub(1);
-                if f.axis == Axis::Z {
-                    sweep_z(f, turned, (z0, z1), row_words * ny, &mut axes[0]);
-                    continue;
-                }
-                let bits: &mut [u64] = match f.axis {
-                    Axis::Z => &mut axes[0],
-                    Axis::Y => &mut axes[1],
-                    Axis::X => words,
-                };
                 for iv in &f.intervals {
-                    let x = (iv.column & 0x1f_ffff) as u32;
-                    let y = (iv.column >> 21) as u32;
-                    if x >= turned.x || y >= turned.y || iv.k_lo > last {
+                    let a = (iv.column & 0x1f_ffff) as u32;
+                    let b = (iv.column >> 21) as u32;
+                    if a >= turned.x || b >= turned.y || iv.k_lo > last {
                         continue;
                     }
                     let (lo, hi) = (iv.k_lo, iv.k_hi.min(last));
                     match f.axis {
-                        // Along x at row (turned x, turned y) = (y, z).
+                        // Along x in row (y, z) = (a, b).
                         Axis::X => {
-                            if (z0..z1).contains(&y) {
-                                let r = row(x, y);
-                                set_span(&mut bits[r..r + row_words], lo, hi);
+                            if (z0..z1).contains(&b) {
+                                let r = row(a as usize, (b - z0) as usize);
+                                set_span(&mut words[r..r + row_words], lo, hi);
                             }
                         }
-                        // Along y at (x, z) = (turned y, turned x).
+                        // Along y in column (x, z) = (b, a).
                         Axis::Y => {
-                            if (z0..z1).contains(&x) {
-                                let (w, b) = (y as usize / 64, y % 64);
-                                for k in lo..=hi {
-                                    bits[row(k, x) + w] |= 1 << b;
-                                }
+                            if (z0..z1).contains(&a) {
+                                let c = ((a - z0) as usize * nx + b as usize) * col_words;
+                                set_span(&mut ys[c..c + col_words], lo, hi);
                             }
                         }
-                        Axis::Z => unreachable!("swept above"),
+                        // Along z in column (x, y) = (a, b).
+                        Axis::Z => {
+                            let (lo, hi) = (lo.max(z0), hi.min(z1 - 1));
+                            if lo <= hi {
+                                let c = a as usize + nx * b as usize;
+                                set_span(&mut zs[c..=c], lo - z0, hi - z0);
+                            }
+                        }
                     }
                 }
             }
-            let [a, b] = &axes;
-            for ((w, &a), &b) in words.iter_mut().zip(a).zip(b) {
-                *w = (*w & a) | (*w & b) | (a & b);
+            // The y runs as rows.
+            let mut yx = vec![0u64; words.len()];
+            let mut block = [0u64; 64];
+            for dz in 0..h {
+                for by in 0..col_words {
+                    for bx in 0..row_words {
+                        for (i, w) in block.iter_mut().enumerate() {
+                            let x = bx * 64 + i;
+                            *w = if x < nx {
+                                ys[(dz * nx + x) * col_words + by]
+                            } else {
+                                0
+                            };
+                        }
+                        transpose(&mut block);
+                        let rows = ny.saturating_sub(by * 64);
+                        for (j, &w) in block.iter().enumerate().take(rows) {
+                            yx[row(by * 64 + j, dz) + bx] = w;
+                        }
+                    }
+                }
+            }
+            drop(ys);
+            // The z runs as rows, each word voted with its x and y words as it comes.
+            for y in 0..ny {
+                for bx in 0..row_words {
+                    for (i, w) in block.iter_mut().enumerate() {
+                        let x = bx * 64 + i;
+                        *w = if x < nx { zs[x + nx * y] } else { 0 };
+                    }
+                    transpose(&mut block);
+                    for (dz, &z) in block.iter().enumerate().take(h) {
+                        let i = row(y, dz) + bx;
+                        let (x, y) = (words[i], yx[i]);
+                        words[i] = (x & y) | (x & z) | (y & z);
+                    }
+                }
             }
         });
     out
 }
 
-/// Sets the bits of the runs along z that lie in the slab `z0..z1` (`slice` words a z slice),
-/// one z slice at a time: the runs open at a slice are kept in a list, so each slice's words
-/// are written together instead of each run striding through the whole slab.
-fn sweep_z(f: &AxisFill, dims: UVec3, (z0, z1): (u32, u32), slice: usize, bits: &mut [u64]) {
-    let row_words = (dims.x as usize).div_ceil(64);
-    let last = dims.z.saturating_sub(1).min(z1 - 1);
-    // Runs by the slice they start at: (word within the slice, bit, last slice).
-    let mut starts: Vec<Vec<(usize, u64, u32)>> = vec![Vec::new(); (z1 - z0) as usize];
-    for iv in &f.intervals {
-        let x = (iv.column & 0x1f_ffff) as u32;
-        let y = (iv.column >> 21) as u32;
-        let (lo, hi) = (iv.k_lo.max(z0), iv.k_hi.min(last));
-        if x >= dims.x || y >= dims.y || lo > hi {
-            continue;
+/// Transposes a 64 × 64 bit matrix in place: bit `j` of word `i` becomes bit `i` of word `j`
+/// (the off-diagonal halves swapped, then their quarters, … down to single bits).
+fn transpose(a: &mut [u64; 64]) {
+    let mut j = 32;
+    let mut m: u64 = 0x0000_0000_ffff_ffff;
+    while j != 0 {
+        for k in 0..64 {
+            if k & j == 0 {
+                let t = ((a[k] >> j) ^ a[k + j]) & m;
+                a[k] ^= t << j;
+                a[k + j] ^= t;
+            }
         }
-        let word = y as usize * row_words + x as usize / 64;
-        starts[(lo - z0) as usize].push((word, 1 << (x % 64), hi));
-    }
-    let mut open: Vec<(usize, u64, u32)> = Vec::new();
-    for (z, starting) in (z0..z1).zip(&mut starts) {
-        open.append(starting);
-        let words = &mut bits[(z - z0) as usize * slice..][..slice];
-        open.retain(|&(w, bit, hi)| {
-            words[w] |= bit;
-            hi > z
-        });
+        j >>= 1;
+        m ^= m << j;
     }
 }
 
@@ -328,11 +355,11 @@ mod tests {
     proptest! {
         #![proptest_config(ProptestConfig::with_cases(64))]
         /// Property: the majority of the three axes' bits, written by slab, is the cells that the
-        /// run-by-run byte votes count inside along two or more axes; rows wider than a word
-        /// included.
+        /// run-by-run byte votes count inside along two or more axes; rows and y columns wider
+        /// than a word included.
         #[test]
         fn inside_bits_are_the_cells_voted_inside(
-            (dx, dy, dz) in (1u32..140, 1u32..30, 1u32..40),
+            (dx, dy, dz) in (1u32..140, 1u32..90, 1u32..70),
             runs in proptest::collection::vec((0usize..3, 0u32..145, 0u32..145, 0u32..145, 0u32..140), 0..80),
         ) {
             let dims = UVec3::new(dx, dy, dz);
@@ -458,6 +485,21 @@ mod tests {
                     }
                 }
                 prop_assert_eq!(half.count_ones(), ones, "no bit set in a row's padding");
+            }
+        }
+    }
+
+    #[test]
+    fn a_transposed_block_swaps_rows_and_columns() {
+        let mut a = [0u64; 64];
+        for (i, w) in a.iter_mut().enumerate() {
+            *w = (i as u64 + 1).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ (1 << i);
+        }
+        let before = a;
+        transpose(&mut a);
+        for (i, row) in before.iter().enumerate() {
+            for (j, column) in a.iter().enumerate() {
+                assert_eq!(column >> i & 1, row >> j & 1, "bit {j} of word {i}");
             }
         }
     }
