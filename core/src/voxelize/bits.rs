@@ -28,13 +28,37 @@ impl std::fmt::Debug for CellBits {
 /// Bytes per grid cell of a [`CellBits`] (rows padding aside).
 pub(crate) const BYTES_PER_CELL: f64 = 0.125;
 
-/// Largest grid a rigid solid is built on from bits (2^30 cells: any grid of depth 10; about
-/// 0.65 bytes a cell in all, see `sealed::BYTES_PER_CELL`).
+/// Largest grid a rigid solid is built on from bits, counting each row padded to whole words
+/// (2^30 cells: any grid of depth 10; about 0.41 bytes a cell in all, see
+/// `sealed::BYTES_PER_CELL`).
 pub(crate) const MAX_CELLS: u64 = 1 << 30;
+
+/// Cells of a grid of `dims` with each row padded to whole words: what its bits cost.
+pub(crate) fn padded_cells(dims: UVec3) -> u64 {
+    u64::from(dims.x).div_ceil(64) * 64 * u64::from(dims.y) * u64::from(dims.z)
+}
 
 /// Whether a grid of `dims` is small enough for the bits of a rigid solid.
 pub(crate) fn fits(dims: UVec3) -> bool {
-    u64::from(dims.x) * u64::from(dims.y) * u64::from(dims.z) <= MAX_CELLS
+    padded_cells(dims) <= MAX_CELLS
+}
+
+/// z slices a slab of [`inside_bits`] holds, and how many slabs it writes at once.
+fn slabs(dims: UVec3) -> (usize, usize) {
+    let nz = dims.z as usize;
+    let slab = nz.div_ceil(4 * rayon::current_num_threads()).clamp(1, 64);
+    (slab, nz.div_ceil(slab).min(rayon::current_num_threads()))
+}
+
+/// Heap bytes [`inside_bits`] holds for a moment beside its result: each slab in flight keeps
+/// its y runs as columns and as rows (about twice its own bits) and one word of z bits a
+/// column of the grid (whatever the slab's height).
+pub(crate) fn inside_bits_scratch_bytes(dims: UVec3) -> u64 {
+    let (slab, in_flight) = slabs(dims);
+    let (nx, ny) = (u64::from(dims.x), u64::from(dims.y));
+    let slab_words = nx.div_ceil(64) * ny * slab as u64;
+    let column_words = nx * u64::from(dims.y).div_ceil(64) * slab as u64;
+    in_flight as u64 * 8 * (nx * ny + slab_words + column_words)
 }
 
 impl CellBits {
@@ -226,7 +250,7 @@ pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
     if out.words.is_empty() {
         return out;
     }
-    let slab = nz.div_ceil(4 * rayon::current_num_threads()).clamp(1, 64);
+    let (slab, _) = slabs(dims);
     // Words of a column of y bits.
     let col_words = ny.div_ceil(64);
     out.words
@@ -360,20 +384,46 @@ mod tests {
         #[test]
         fn inside_bits_are_the_cells_voted_inside(
             (dx, dy, dz) in (1u32..140, 1u32..90, 1u32..70),
-            runs in proptest::collection::vec((0usize..3, 0u32..145, 0u32..145, 0u32..145, 0u32..140), 0..80),
+            runs in proptest::collection::vec((0usize..3, any::<u32>(), any::<u32>(), any::<u32>(), 0u32..140), 0..400),
+            full in 0usize..4,
         ) {
             let dims = UVec3::new(dx, dy, dz);
             let mut fills = [AxisFill::empty(Axis::Z), AxisFill::empty(Axis::X), AxisFill::empty(Axis::Y)];
-            for (a, x, y, k, len) in runs {
+            // Runs in the grid (some clipped at its far side); one axis, when `full` < 3, inside
+            // along every column, so that the interior is the union of the other two axes'.
+            let mut taken: Vec<std::collections::HashSet<(u32, u32, u32)>> = vec![Default::default(); 3];
+            let mut push = |a: usize, x: u32, y: u32, k_lo: u32, k_hi: u32| {
+                let t = fills[a].axis.turn_dims(dims);
+                // Runs of one axis never overlap in a column (a fill's runs do not); the full
+                // axis has no other runs.
+                if a != full && (k_lo..=k_hi.min(t.z - 1)).any(|k| !taken[a].insert((x, y, k))) {
+                    return;
+                }
                 fills[a].intervals.push(Interval {
                     column: u64::from(y) << 21 | u64::from(x),
-                    k_lo: k,
-                    k_hi: k + len,
+                    k_lo,
+                    k_hi,
                     z_in: 0.0,
                     z_out: 0.0,
                     entry: 0,
                     exit: 0,
                 });
+            };
+            if full < 3 {
+                let t = [Axis::Z, Axis::X, Axis::Y][full].turn_dims(dims);
+                for y in 0..t.y {
+                    for x in 0..t.x {
+                        push(full, x, y, 0, t.z - 1);
+                    }
+                }
+            }
+            for (a, x, y, k, len) in runs {
+                if a == full {
+                    continue;
+                }
+                let t = [Axis::Z, Axis::X, Axis::Y][a].turn_dims(dims);
+                let k = k % t.z;
+                push(a, x % t.x, y % t.y, k, k + len);
             }
             let votes = vote_grid_serial(dims, &fills);
             let bits = inside_bits(dims, &fills);
@@ -487,6 +537,22 @@ mod tests {
                 prop_assert_eq!(half.count_ones(), ones, "no bit set in a row's padding");
             }
         }
+    }
+
+    #[test]
+    fn grids_are_measured_with_their_rows_padded_to_words() {
+        assert_eq!(padded_cells(UVec3::new(1, 3, 5)), 64 * 15);
+        assert_eq!(padded_cells(UVec3::new(65, 2, 2)), 128 * 4);
+        assert!(fits(UVec3::splat(1024)), "any depth-10 grid");
+        // 2^28 cells, but a word a cell: 8 bytes each.
+        assert!(!fits(UVec3::new(1, 1 << 14, 1 << 14)));
+        assert!(fits(UVec3::new(1 << 14, 1 << 14, 1)));
+        let flat = UVec3::new(1 << 14, 1 << 14, 1);
+        assert!(
+            inside_bits_scratch_bytes(flat) >= 8 << 28,
+            "a column word each: {}",
+            inside_bits_scratch_bytes(flat)
+        );
     }
 
     #[test]

@@ -491,7 +491,8 @@ pub fn estimate(
     };
     // The dense fill's grid (see `dense`), on top of the voxels.
     let dense_bytes = if rigid_dense {
-        grid * sealed::BYTES_PER_CELL
+        bits::padded_cells(dims) as f64 * sealed::BYTES_PER_CELL
+            + bits::inside_bits_scratch_bytes(dims) as f64
     } else if dense {
         grid * dense::DENSE_BYTES_PER_CELL as f64
     } else {
