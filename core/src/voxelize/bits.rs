@@ -265,15 +265,7 @@ pub(crate) fn inside_bits(dims: UVec3, fills: &[AxisFill; 3]) -> CellBits {
             // Runs along z: column (x, y) holds its slab's z bits in one word.
             let mut zs = vec![0u64; nx * ny];
             for f in fills {
-                let turned = f.axis.turn_dims(dims);
-                let last = turned.z.saturating_sub(1);
-                for iv in &f.intervals {
-                    let a = (iv.column & 0x1f_ffff) as u32;
-                    let b = (iv.column >> 21) as u32;
-                    if a >= turned.x || b >= turned.y || iv.k_lo > last {
-                        continue;
-                    }
-                    let (lo, hi) = (iv.k_lo, iv.k_hi.min(last));
+                for (a, b, lo, hi) in f.runs_in(dims) {
                     match f.axis {
                         // Along x in row (y, z) = (a, b).
                         Axis::X => {

@@ -63,15 +63,7 @@ pub(crate) fn vote_grid(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
             let (z0, z1) = ((s * slab) as u32, ((s + 1) * slab).min(nz) as u32);
             let local = |c: UVec3| c.x as usize + nx * (c.y as usize + ny * (c.z - z0) as usize);
             for f in fills {
-                let turned = f.axis.turn_dims(dims);
-                let last = turned.z.saturating_sub(1);
-                for iv in &f.intervals {
-                    let x = (iv.column & 0x1f_ffff) as u32;
-                    let y = (iv.column >> 21) as u32;
-                    if x >= turned.x || y >= turned.y || iv.k_lo > last {
-                        continue;
-                    }
-                    let (lo, hi) = (iv.k_lo, iv.k_hi.min(last));
+                for (x, y, lo, hi) in f.runs_in(dims) {
                     match f.axis {
                         Axis::Z => {
                             for k in lo.max(z0)..=hi.min(z1 - 1) {

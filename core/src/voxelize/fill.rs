@@ -104,6 +104,20 @@ pub(crate) fn cast(
 }
 
 impl AxisFill {
+    /// This axis's runs in a grid of `dims`, in turned coordinates ([`Axis::turn_dims`]):
+    /// `(column x, column y, first, last)`, clipped at the grid's far side; runs whose column
+    /// or start lies outside are left out.
+    pub(crate) fn runs_in(&self, dims: UVec3) -> impl Iterator<Item = (u32, u32, u32, u32)> + '_ {
+        let turned = self.axis.turn_dims(dims);
+        let last = turned.z.saturating_sub(1);
+        self.intervals.iter().filter_map(move |iv| {
+            let x = (iv.column & 0x1f_ffff) as u32;
+            let y = (iv.column >> 21) as u32;
+            (x < turned.x && y < turned.y && iv.k_lo <= last)
+                .then(|| (x, y, iv.k_lo, iv.k_hi.min(last)))
+        })
+    }
+
     /// An axis with no crossings (tests).
     #[cfg(test)]
     pub(crate) fn empty(axis: Axis) -> Self {
