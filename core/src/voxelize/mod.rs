@@ -641,9 +641,9 @@ pub fn voxelize(
     // their nearest surface voxel. Otherwise the sparse fill: the nearest bounding crossing's.
     let interior = match fills {
         // A rigid solid needs no transform: its enclosed interior is the interior mark, and
-        // the octree is built from the votes (`sealed`).
+        // the octree is built from the interior's bits (`sealed`).
         Some(fills) if bits::fits(dims) && !has_skin => {
-            Some(Interior::Votes(bits::inside_bits(dims, &fills)))
+            Some(Interior::Bits(bits::inside_bits(dims, &fills)))
         }
         Some(fills) if dense::fits(dims) => {
             let seeds: Vec<UVec3> = records.par_iter().map(|r| morton_decode(r.0)).collect();
@@ -701,7 +701,7 @@ pub fn voxelize(
         return Err(VoxelizeError::Cancelled);
     }
 
-    if let Some(Interior::Votes(inside)) = interior {
+    if let Some(Interior::Bits(inside)) = interior {
         // Interior voxels that are not enclosed take their nearest surface voxel's attributes,
         // among all the surface voxels (those solid mode dropped too), as the transform does:
         // found on the surface voxels' bits within a few voxels, where nearly all are, and by
@@ -766,7 +766,7 @@ pub fn voxelize(
                 (c, if sealed { interior_with_skin(v) } else { v })
             })
             .collect(),
-        Some(Interior::Votes(_)) => unreachable!("built above"),
+        Some(Interior::Bits(_)) => unreachable!("built above"),
         Some(Interior::Dense(inside)) => inside.interior(|c, seed| {
             let code = crate::svo::morton_encode(seed);
             let i = records.binary_search_by_key(&code, |r| r.0).ok()?;
@@ -883,7 +883,7 @@ fn represented_inside(
 /// The interior of a solid: the dense interior bits alone (a rigid solid, built by `sealed`), dense
 /// with every cell's nearest surface voxel known (a skinned one), or sparse.
 enum Interior {
-    Votes(bits::CellBits),
+    Bits(bits::CellBits),
     Dense(dense::DenseFill),
     Sparse(fill::Interior),
 }
@@ -891,7 +891,7 @@ enum Interior {
 impl Interior {
     fn contains(&self, c: UVec3) -> bool {
         match self {
-            Self::Votes(inside) => inside.get(c),
+            Self::Bits(inside) => inside.get(c),
             Self::Dense(d) => d.contains(c),
             Self::Sparse(s) => s.contains(c),
         }
@@ -899,7 +899,7 @@ impl Interior {
 
     fn len(&self) -> u64 {
         match self {
-            Self::Votes(inside) => inside.count_ones(),
+            Self::Bits(inside) => inside.count_ones(),
             Self::Dense(d) => d.len(),
             Self::Sparse(s) => s.keys.len() as u64,
         }
