@@ -90,3 +90,97 @@ fn render_work_follows_the_pixels_not_the_resolution() {
     assert!((b as f64) < 1.5 * a as f64, "{a} -> {b}");
     assert!((c as f64) < 1.5 * a as f64, "{a} -> {c}");
 }
+
+/// What an artist exports does not depend on how the octree stores it: a tiled octree and the
+/// leaf-only octree holding the same voxels write the same bytes, in every export mode, on the
+/// voxel samples and on a solid Spot (whose enclosed inside is interior tiles: a `.vox` cell
+/// there takes its nearest surface voxel's colour, tile or leaf).
+#[test]
+fn a_tiled_octree_exports_the_same_bytes_as_its_leaf_only_octree() {
+    use thicket_core::io::gltf_export::{
+        ColorMode, ExportMode, GltfExportOptions, build_scene, encode_glb,
+    };
+    use thicket_core::io::vox::{VoxExportOptions, export_vox_bytes};
+    use thicket_core::scene::{Document, ObjectKind, VoxelModel};
+
+    let mut docs: Vec<(String, Document)> = ["house", "mixed"]
+        .iter()
+        .map(|n| {
+            let path = thicket_tests::repo_root().join(format!("projects/{n}.thicket.json"));
+            (
+                n.to_string(),
+                thicket_core::io::project::load(&path).unwrap(),
+            )
+        })
+        .collect();
+    let spot =
+        thicket_core::io::import_obj(&thicket_tests::asset("static/spot/spot_triangulated.obj"))
+            .unwrap();
+    let settings = VoxelizeSettings {
+        resolution: Resolution::Depth(7),
+        mode: Mode::Solid,
+        ..VoxelizeSettings::default()
+    };
+    let v = voxelize(&spot, &settings, &|_| true).unwrap();
+    let mut doc = Document::default();
+    doc.add(
+        "Spot",
+        ObjectKind::Voxels(VoxelModel {
+            svo: v.svo,
+            voxel_size: v.voxel_size,
+            origin: v.origin,
+            ..VoxelModel::default()
+        }),
+    );
+    docs.push(("solid Spot".into(), doc));
+
+    let path = std::path::Path::new("same.glb");
+    for (name, doc) in docs {
+        let (flat, tiled, tiles) = scenes::without_and_with_tiles(&doc);
+        // Each document has tiles to compare: the house's walls, Spot's inside, a few in mixed.
+        let least = if name == "mixed" { 1 } else { 50 };
+        assert!(tiles >= least, "{name}: {tiles} tiles");
+        let glb = |d: &Document, options: &GltfExportOptions| {
+            let (scene, report) = build_scene(d, path, options, &|_| true).unwrap();
+            (encode_glb(&scene, path).unwrap(), report.triangles)
+        };
+        for (mode, colors, lod_levels) in [
+            (ExportMode::Cubes, ColorMode::VertexColors, 0),
+            (ExportMode::Cubes, ColorMode::PaletteTexture, 0),
+            (ExportMode::Cubes, ColorMode::VertexColors, 2),
+            (ExportMode::Smooth, ColorMode::VertexColors, 0),
+        ] {
+            let options = GltfExportOptions {
+                mode,
+                colors,
+                lod_levels,
+                ..GltfExportOptions::default()
+            };
+            let (a, triangles) = glb(&flat, &options);
+            let (b, _) = glb(&tiled, &options);
+            assert!(triangles > 500, "{name} {mode:?}: {triangles} triangles");
+            assert!(
+                a == b,
+                "{name} {mode:?} {colors:?} lod {lod_levels}: {} and {} bytes differ",
+                a.len(),
+                b.len()
+            );
+        }
+        let vox = |d: &Document| {
+            export_vox_bytes(
+                &d.objects,
+                std::path::Path::new("same.vox"),
+                &VoxExportOptions::default(),
+            )
+            .unwrap()
+            .0
+        };
+        let (a, b) = (vox(&flat), vox(&tiled));
+        assert!(
+            a == b,
+            "{name} .vox: {} and {} bytes differ",
+            a.len(),
+            b.len()
+        );
+    }
+}
