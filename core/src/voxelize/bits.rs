@@ -365,7 +365,7 @@ mod tests {
     use proptest::prelude::*;
 
     use super::super::dense::{vote_grid_serial, voted_inside};
-    use super::super::solid::Interval;
+    use super::super::solid::ColumnRun;
     use super::*;
 
     proptest! {
@@ -391,14 +391,10 @@ mod tests {
                 if a != full && (k_lo..=k_hi.min(t.z - 1)).any(|k| !taken[a].insert((x, y, k))) {
                     return;
                 }
-                fills[a].intervals.push(Interval {
+                fills[a].runs.push(ColumnRun {
                     column: u64::from(y) << 21 | u64::from(x),
                     k_lo,
                     k_hi,
-                    z_in: 0.0,
-                    z_out: 0.0,
-                    entry: 0,
-                    exit: 0,
                 });
             };
             if full < 3 {

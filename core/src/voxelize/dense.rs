@@ -93,7 +93,7 @@ pub(crate) fn vote_grid_serial(dims: UVec3, fills: &[AxisFill; 3]) -> Vec<u8> {
     let mut votes = vec![0u8; cells];
     for f in fills {
         let turned = f.axis.turn_dims(dims);
-        for iv in &f.intervals {
+        for iv in &f.runs {
             let x = (iv.column & 0x1f_ffff) as u32;
             let y = (iv.column >> 21) as u32;
             if x >= turned.x || y >= turned.y {
@@ -450,7 +450,7 @@ mod vote_tests {
     use proptest::prelude::*;
 
     use super::super::fill::{Axis, AxisFill};
-    use super::super::solid::Interval;
+    use super::super::solid::ColumnRun;
     use super::*;
 
     proptest! {
@@ -465,14 +465,10 @@ mod vote_tests {
             let dims = UVec3::new(dx, dy, dz);
             let mut fills = [AxisFill::empty(Axis::Z), AxisFill::empty(Axis::X), AxisFill::empty(Axis::Y)];
             for (a, x, y, k, len) in runs {
-                fills[a].intervals.push(Interval {
+                fills[a].runs.push(ColumnRun {
                     column: u64::from(y) << 21 | u64::from(x),
                     k_lo: k,
                     k_hi: k + len,
-                    z_in: 0.0,
-                    z_out: 0.0,
-                    entry: 0,
-                    exit: 0,
                 });
             }
             prop_assert_eq!(vote_grid(dims, &fills), vote_grid_serial(dims, &fills));

@@ -10,7 +10,7 @@ use glam::{DVec3, UVec3};
 use rayon::prelude::*;
 
 use super::geometry::GridTriangle;
-use super::solid::{self, Crossing, Interval};
+use super::solid::{self, Bounds, ColumnRun, Crossing, CrossingKey};
 use super::surface::Budget;
 use super::{FillRule, Triangles, VoxelizeError, for_triangles};
 use crate::svo::{Voxel, morton_encode};
@@ -55,50 +55,87 @@ impl Axis {
     }
 }
 
-/// One axis's crossings (sorted by column, then position) and the inside runs they bound.
+/// One axis's inside runs, and (when kept) its crossings sorted by column, then position,
+/// with the two that bound each run.
 pub(crate) struct AxisFill {
     pub(crate) axis: Axis,
+    pub(crate) runs: Vec<ColumnRun>,
+    /// Empty when only the runs were asked for.
     pub(crate) crossings: Vec<Crossing>,
-    pub(crate) intervals: Vec<Interval>,
+    /// Per run, when the crossings are kept.
+    pub(crate) bounds: Vec<Bounds>,
     /// Columns that do not close under the fill rule (the mesh is open along this axis).
     pub(crate) open_columns: u64,
+}
+
+/// What a fill keeps of its crossings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Keep {
+    /// The inside runs only (a rigid solid's interior bits): each crossing cast as an 8-byte
+    /// [`CrossingKey`]. Falls back to [`Keep::Crossings`] on a grid too large for the keys.
+    Runs,
+    /// The crossings too, with their triangles and barycentrics, for attributes.
+    Crossings,
 }
 
 /// Casts `axis`'s column rays through every triangle and turns the crossings into inside runs.
 ///
 /// # Errors
 /// [`VoxelizeError::TooManyVoxels`] when the crossings exceed `limit`, or a cancel.
+#[allow(
+    clippy::too_many_arguments,
+    reason = "the triangles, grid, axis, rule, what to keep, budget and progress range"
+)]
 pub(crate) fn cast(
     tris: &Triangles<'_>,
     dims: UVec3,
     axis: Axis,
     rule: FillRule,
+    keep: Keep,
     limit: u64,
     progress: &dyn Fn(f32) -> bool,
     range: (f32, f32),
 ) -> Result<AxisFill, VoxelizeError> {
     let turned_dims = axis.turn_dims(dims);
     let budget = Budget::new(limit);
-    let mut crossings: Vec<Crossing> = for_triangles(tris, progress, range, |g, tri, out| {
-        if axis == Axis::Z {
-            solid::emit_crossings(tri, g, turned_dims, &budget, out);
-        } else {
-            let turned = GridTriangle::new(tri.v.map(|v| axis.turn(v)));
-            solid::emit_crossings(&turned, g, turned_dims, &budget, out);
+    let turn = |tri: &GridTriangle| {
+        (axis != Axis::Z).then(|| GridTriangle::new(tri.v.map(|v| axis.turn(v))))
+    };
+    let over_budget = || VoxelizeError::TooManyVoxels {
+        limit,
+        what: "column crossings",
+    };
+    if keep == Keep::Runs && CrossingKey::fits(turned_dims) {
+        let mut keys: Vec<u64> = for_triangles(tris, progress, range, |_, tri, out| {
+            let turned = turn(tri);
+            solid::emit_crossing_keys(turned.as_ref().unwrap_or(tri), turned_dims, &budget, out);
+        })?;
+        if budget.is_exceeded() {
+            return Err(over_budget());
         }
-    })?;
-    if budget.is_exceeded() {
-        return Err(VoxelizeError::TooManyVoxels {
-            limit,
-            what: "column crossings",
+        let (runs, open_columns) = solid::key_runs(&mut keys, turned_dims, rule);
+        return Ok(AxisFill {
+            axis,
+            runs,
+            crossings: Vec::new(),
+            bounds: Vec::new(),
+            open_columns,
         });
     }
-    let intervals = solid::intervals(&mut crossings, turned_dims.z, rule);
+    let mut crossings: Vec<Crossing> = for_triangles(tris, progress, range, |g, tri, out| {
+        let turned = turn(tri);
+        solid::emit_crossings(turned.as_ref().unwrap_or(tri), g, turned_dims, &budget, out);
+    })?;
+    if budget.is_exceeded() {
+        return Err(over_budget());
+    }
+    let (runs, bounds) = solid::intervals(&mut crossings, turned_dims.z, rule);
     let open_columns = solid::unbalanced_columns(&crossings, rule);
     Ok(AxisFill {
         axis,
+        runs,
         crossings,
-        intervals,
+        bounds,
         open_columns,
     })
 }
@@ -110,7 +147,7 @@ impl AxisFill {
     pub(crate) fn runs_in(&self, dims: UVec3) -> impl Iterator<Item = (u32, u32, u32, u32)> + '_ {
         let turned = self.axis.turn_dims(dims);
         let last = turned.z.saturating_sub(1);
-        self.intervals.iter().filter_map(move |iv| {
+        self.runs.iter().filter_map(move |iv| {
             let x = (iv.column & 0x1f_ffff) as u32;
             let y = (iv.column >> 21) as u32;
             (x < turned.x && y < turned.y && iv.k_lo <= last)
@@ -123,15 +160,16 @@ impl AxisFill {
     pub(crate) fn empty(axis: Axis) -> Self {
         Self {
             axis,
+            runs: Vec::new(),
             crossings: Vec::new(),
-            intervals: Vec::new(),
+            bounds: Vec::new(),
             open_columns: 0,
         }
     }
 
     /// Voxels inside along this axis.
     pub(crate) fn inside_count(&self) -> u64 {
-        self.intervals
+        self.runs
             .iter()
             .map(|iv| u64::from(iv.k_hi - iv.k_lo) + 1)
             .sum()
@@ -141,18 +179,19 @@ impl AxisFill {
     /// nearer of the two crossings bounding its run and that crossing.
     fn inside(&self, slot: u32) -> Vec<Inside> {
         let mut out: Vec<Inside> = self
-            .intervals
+            .runs
             .par_iter()
-            .flat_map_iter(|iv| {
+            .zip(&self.bounds)
+            .flat_map_iter(|(iv, b)| {
                 let x = (iv.column & 0x1f_ffff) as u32;
                 let y = (iv.column >> 21) as u32;
                 (iv.k_lo..=iv.k_hi).map(move |k| {
                     let zc = f64::from(k) + 0.5;
-                    let (before, after) = (zc - iv.z_in, iv.z_out - zc);
+                    let (before, after) = (zc - b.z_in, b.z_out - zc);
                     let (dist, crossing) = if before <= after {
-                        (before, iv.entry)
+                        (before, b.entry)
                     } else {
-                        (after, iv.exit)
+                        (after, b.exit)
                     };
                     Inside {
                         key: morton_encode(self.axis.unturn(UVec3::new(x, y, k))),
@@ -204,6 +243,10 @@ pub(crate) fn vote(
     fills: &[AxisFill; 3],
     attributes: impl Fn(&Crossing) -> Voxel + Sync,
 ) -> Result<Interior, VoxelizeError> {
+    debug_assert!(
+        fills.iter().all(|f| f.bounds.len() == f.runs.len()),
+        "the sparse fill needs the crossings kept"
+    );
     if fills.iter().any(|f| f.crossings.len() >= 1 << SLOT_SHIFT) {
         return Err(VoxelizeError::TooManyVoxels {
             limit: 1 << SLOT_SHIFT,

@@ -602,6 +602,13 @@ pub fn voxelize(
         // at this resolution when a column along any axis enters it and does not leave (three
         // axes: a hole facing x is missed by every z column). Then only its surface is kept.
         let mut open = 0;
+        // The interior bits and the dense transform need only the inside runs; the sparse
+        // fill takes attributes from the crossings.
+        let keep = if (bits::fits(dims) && !has_skin) || dense::fits(dims) {
+            fill::Keep::Runs
+        } else {
+            fill::Keep::Crossings
+        };
         for (i, axis) in fill::Axis::ALL.into_iter().enumerate() {
             let from = 0.55 + 0.05 * i as f32;
             let f = fill::cast(
@@ -609,6 +616,7 @@ pub fn voxelize(
                 dims,
                 axis,
                 settings.fill_rule,
+                keep,
                 overlap_limit,
                 progress,
                 (from, from + 0.05),

@@ -143,6 +143,26 @@ fn pyramid(cells: &Cells, depth: u8) -> Vec<(CellBits, CellBits)> {
     levels
 }
 
+/// An iterator of a known number of items, so that its consumer allocates once.
+struct Counted<I> {
+    runs: I,
+    left: usize,
+}
+
+impl<I: Iterator<Item = Run>> Iterator for Counted<I> {
+    type Item = Run;
+
+    fn next(&mut self) -> Option<Run> {
+        let run = self.runs.next()?;
+        self.left = self.left.saturating_sub(1);
+        Some(run)
+    }
+
+    fn size_hint(&self) -> (usize, Option<usize>) {
+        (self.left, Some(self.left))
+    }
+}
+
 /// The octree of a rigid solid: `surface` (kept surface voxels with their attributes, Morton
 /// order) and the `inside` cells (see [`bits::inside_bits`]), enclosed ones as the interior
 /// mark. The others (open) take the attributes of their nearest surface voxel among `surface`
@@ -174,7 +194,7 @@ pub(crate) fn build(
     let roots: Vec<UVec3> = (0..1u64 << (3 * u32::from(split)))
         .map(|code| morton_decode(code) << u32::from(depth - split))
         .collect();
-    let parts: Vec<(Vec<Run>, Vec<usize>)> = roots
+    let mut parts: Vec<(Vec<Run>, Vec<usize>)> = roots
         .par_iter()
         .map(|&root| {
             let mut runs: Vec<Run> = Vec::new();
@@ -219,12 +239,6 @@ pub(crate) fn build(
             (runs, opens)
         })
         .collect();
-    let mut runs: Vec<Run> = Vec::with_capacity(parts.iter().map(|p| p.0.len()).sum());
-    let mut opens: Vec<usize> = Vec::new();
-    for (r, o) in parts {
-        opens.extend(o.into_iter().map(|i| i + runs.len()));
-        runs.extend(r);
-    }
     let marked = cells.sealed.count_ones();
     drop(levels);
     // The enclosed bits are done with: their words become every surface voxel's bits, the
@@ -264,12 +278,17 @@ pub(crate) fn build(
         })
         .unwrap_or_default()
     };
-    let resolved: Vec<Voxel> = opens.par_iter().map(|&i| open(runs[i].0)).collect();
-    drop(seeds);
-    for (&i, v) in opens.iter().zip(resolved) {
-        runs[i].2 = v;
+    for (runs, opens) in &mut parts {
+        let resolved: Vec<Voxel> = opens.par_iter().map(|&i| open(runs[i].0)).collect();
+        for (&i, v) in opens.iter().zip(resolved) {
+            runs[i].2 = v;
+        }
     }
-    let svo = Svo::from_runs(depth, false, runs)?;
+    drop(seeds);
+    // The parts in order, not copied into one list; counted, so the build sizes its lists once.
+    let count = parts.iter().map(|p| p.0.len()).sum();
+    let runs = parts.into_iter().flat_map(|p| p.0);
+    let svo = Svo::from_runs(depth, false, Counted { runs, left: count })?;
     Ok((svo, SolidCounts { marked }))
 }
 

@@ -36,6 +36,39 @@ pub(crate) fn emit_crossings(
     budget: &Budget,
     out: &mut Vec<Crossing>,
 ) -> bool {
+    for_each_crossing(tri, dims, budget, |x, y, sign, bary| {
+        out.push(Crossing {
+            column: column_key(x, y),
+            z: tri.point(bary).z,
+            gtri,
+            sign,
+            bary,
+        });
+    })
+}
+
+/// Appends the column crossings of `tri` to `out` as [`CrossingKey`]s: what a rigid solid's
+/// inside runs need (column, the first voxel centre at or past the crossing, sign), 8 bytes
+/// instead of a 56-byte [`Crossing`]. Returns false when the budget ran out.
+pub(crate) fn emit_crossing_keys(
+    tri: &GridTriangle,
+    dims: UVec3,
+    budget: &Budget,
+    out: &mut Vec<u64>,
+) -> bool {
+    for_each_crossing(tri, dims, budget, |x, y, sign, bary| {
+        out.push(CrossingKey::new(x, y, tri.point(bary).z, sign, dims).0);
+    })
+}
+
+/// Calls `f(x, y, sign, barycentrics)` for each column of `dims` whose centre the xy
+/// projection of `tri` owns. Returns false when the budget ran out.
+fn for_each_crossing(
+    tri: &GridTriangle,
+    dims: UVec3,
+    budget: &Budget,
+    mut f: impl FnMut(u32, u32, i8, DVec3),
+) -> bool {
     if budget.is_exceeded() {
         return false;
     }
@@ -70,13 +103,7 @@ pub(crate) fn emit_crossings(
             for (slot, &vi) in order.iter().enumerate() {
                 bary[vi] = w_ccw[slot];
             }
-            out.push(Crossing {
-                column: column_key(x, y),
-                z: tri.point(bary).z,
-                gtri,
-                sign,
-                bary,
-            });
+            f(x, y, sign, bary);
             row += 1;
         }
         if !budget.charge(row) {
@@ -86,12 +113,101 @@ pub(crate) fn emit_crossings(
     true
 }
 
-/// A run of interior voxels `k_lo..=k_hi` in one column, with the crossings that bound it.
-#[derive(Debug, Clone, Copy)]
-pub(crate) struct Interval {
+/// A crossing as one sortable word: `column << 32 | first << 1 | entering`, where the column
+/// is `y · dims.x + x` and `first` the first voxel whose centre is at or past the crossing
+/// (`⌈z − ½⌉` clamped to `0..=dims.z`). Whether a centre is inside depends only on the sum of
+/// the signs (or the count) of the crossings at or before it, never on their order, so these
+/// words give exactly the voxels the full crossings give, in a closed mesh; an open column's
+/// unfinished run would depend on the order of crossings between two centres, and a rigid
+/// solid with an open column is not filled. Holds for grids of at most 2^30 cells.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord)]
+pub(crate) struct CrossingKey(pub(crate) u64);
+
+impl CrossingKey {
+    /// Grids whose crossings fit a key: at most 2^30 columns and 2^30 voxels along them.
+    pub(crate) fn fits(dims: UVec3) -> bool {
+        u64::from(dims.x) * u64::from(dims.y) <= 1 << 30 && dims.z <= 1 << 30
+    }
+
+    fn new(x: u32, y: u32, z: f64, sign: i8, dims: UVec3) -> Self {
+        let column = u64::from(y) * u64::from(dims.x) + u64::from(x);
+        let first = (z - 0.5).ceil().clamp(0.0, f64::from(dims.z)) as u64;
+        Self(column << 32 | first << 1 | u64::from(sign > 0))
+    }
+
+    fn column(self) -> u64 {
+        self.0 >> 32
+    }
+
+    fn first(self) -> u32 {
+        ((self.0 >> 1) & 0x7fff_ffff) as u32
+    }
+
+    fn sign(self) -> i64 {
+        if self.0 & 1 == 1 { 1 } else { -1 }
+    }
+}
+
+/// Sorts crossing keys and turns each column into inside runs (columns as [`column_key`]),
+/// with the number of columns that do not close under `rule`. An open column's runs are left
+/// out from its last entry on (see [`CrossingKey`]: callers fill no solid with one).
+pub(crate) fn key_runs(keys: &mut [u64], dims: UVec3, rule: FillRule) -> (Vec<ColumnRun>, u64) {
+    use rayon::prelude::*;
+    keys.par_sort_unstable();
+    let inside = |winding: i64, count: u64| match rule {
+        FillRule::NonZero => winding != 0,
+        FillRule::EvenOdd => count % 2 == 1,
+    };
+    let mut runs = Vec::new();
+    let mut open_columns = 0;
+    let mut i = 0;
+    while i < keys.len() {
+        let column = CrossingKey(keys[i]).column();
+        let key = column_key(
+            (column % u64::from(dims.x)) as u32,
+            (column / u64::from(dims.x)) as u32,
+        );
+        let (mut winding, mut count) = (0i64, 0u64);
+        let mut start: Option<u32> = None;
+        while i < keys.len() && CrossingKey(keys[i]).column() == column {
+            let k = CrossingKey(keys[i]);
+            winding += k.sign();
+            count += 1;
+            match (start, inside(winding, count)) {
+                (None, true) => start = Some(k.first()),
+                (Some(k_lo), false) => {
+                    // Centres k_lo..first, clipped to the grid.
+                    if k_lo < k.first() && k_lo < dims.z {
+                        runs.push(ColumnRun {
+                            column: key,
+                            k_lo,
+                            k_hi: k.first().min(dims.z) - 1,
+                        });
+                    }
+                    start = None;
+                }
+                _ => {}
+            }
+            i += 1;
+        }
+        if start.is_some() {
+            open_columns += 1;
+        }
+    }
+    (runs, open_columns)
+}
+
+/// A run of interior voxels `k_lo..=k_hi` in one column ([`column_key`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) struct ColumnRun {
     pub(crate) column: u64,
     pub(crate) k_lo: u32,
     pub(crate) k_hi: u32,
+}
+
+/// The crossings that bound a [`ColumnRun`].
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Bounds {
     pub(crate) z_in: f64,
     pub(crate) z_out: f64,
     /// Indices into the sorted crossing list.
@@ -100,9 +216,13 @@ pub(crate) struct Interval {
 }
 
 /// Sorts crossings (column, z, triangle — a total order, so the result does not depend on the
-/// order threads produced them) and turns each column into inside intervals. A column that ends
-/// inside (an open mesh) drops its unfinished interval.
-pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule) -> Vec<Interval> {
+/// order threads produced them) and turns each column into inside runs and their bounding
+/// crossings. A column that ends inside (an open mesh) drops its unfinished run.
+pub(crate) fn intervals(
+    crossings: &mut [Crossing],
+    dims_z: u32,
+    rule: FillRule,
+) -> (Vec<ColumnRun>, Vec<Bounds>) {
     use rayon::prelude::*;
     crossings.par_sort_unstable_by(|a, b| {
         a.column
@@ -114,7 +234,7 @@ pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule)
         FillRule::NonZero => winding != 0,
         FillRule::EvenOdd => count % 2 == 1,
     };
-    let mut out = Vec::new();
+    let (mut runs, mut bounds) = (Vec::new(), Vec::new());
     let mut i = 0;
     while i < crossings.len() {
         let column = crossings[i].column;
@@ -134,10 +254,12 @@ pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule)
                     let k_lo = (z_in - 0.5).ceil().max(0.0);
                     let k_hi = ((z_out - 0.5).ceil() - 1.0).min(f64::from(dims_z) - 1.0);
                     if k_lo <= k_hi {
-                        out.push(Interval {
+                        runs.push(ColumnRun {
                             column,
                             k_lo: k_lo as u32,
                             k_hi: k_hi as u32,
+                        });
+                        bounds.push(Bounds {
                             z_in,
                             z_out,
                             entry,
@@ -151,7 +273,7 @@ pub(crate) fn intervals(crossings: &mut [Crossing], dims_z: u32, rule: FillRule)
             i += 1;
         }
     }
-    out
+    (runs, bounds)
 }
 
 /// Columns of `crossings` (sorted by column) that do not close under `rule`: a non-zero
