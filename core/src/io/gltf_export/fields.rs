@@ -574,10 +574,11 @@ pub fn mesh_voxels_smooth(
     if svo.is_empty() {
         return Err(FieldError::Empty);
     }
-    let mut codes: Vec<(u64, [u8; 4])> = Vec::with_capacity(svo.leaf_count() as usize);
+    // (Morton code, colour, interior mark) of every voxel.
+    let mut codes: Vec<(u64, [u8; 4], bool)> = Vec::with_capacity(svo.leaf_count() as usize);
     let mut hi = UVec3::ZERO;
     svo.for_each_leaf(|c, v| {
-        codes.push((morton_encode(c), v.color));
+        codes.push((morton_encode(c), v.color, v.is_interior()));
         hi = hi.max(c);
     });
     // Lattice point p is voxel p − 1's centre; the shift leaves room for the empty layer below.
@@ -585,7 +586,8 @@ pub fn mesh_voxels_smooth(
         return Err(FieldError::BadResolution(hi.max_element() + 1));
     }
     codes.sort_unstable_by_key(|e| e.0);
-    let solid = |p: IVec3| -> Option<[u8; 4]> {
+    // The voxel at lattice point p: its colour and whether it is interior.
+    let solid_voxel = |p: IVec3| -> Option<([u8; 4], bool)> {
         let v = p - 1;
         if v.min_element() < 0 {
             return None;
@@ -594,8 +596,9 @@ pub fn mesh_voxels_smooth(
         codes
             .binary_search_by_key(&code, |e| e.0)
             .ok()
-            .map(|i| codes[i].1)
+            .map(|i| (codes[i].1, codes[i].2))
     };
+    let solid = |p: IVec3| solid_voxel(p).map(|v| v.0);
     // Every solid voxel touches the 8 cells that have its centre (lattice point c + 1) as a
     // corner: cells c .. c + 1.
     let bound = (codes.len() as u64).saturating_mul(16);
@@ -639,12 +642,20 @@ pub fn mesh_voxels_smooth(
     // Lattice point p is the centre of voxel p − 1: world (voxel units) = p − 0.5.
     let positions: Vec<Vec3> = pos.iter().map(|p| (*p - 0.5).as_vec3()).collect();
     let normals = vertex_normals(&positions, &iso.indices);
+    // A vertex takes its edge's solid voxel's colour; an interior voxel (a solid's enclosed
+    // inside, which has none) the colour exposing it would give: its nearest surface voxel's.
     let colors = iso
         .edges
-        .iter()
+        .par_iter()
         .map(|&key| {
             let (a, b) = edge_ends(key);
-            let c = solid(a).or_else(|| solid(b)).unwrap_or([255; 4]);
+            let c = match [a, b].into_iter().find_map(|p| Some((p, solid_voxel(p)?))) {
+                Some((p, (_, true))) => svo
+                    .nearest_surface((p - 1).as_uvec3())
+                    .map_or([255; 4], |(_, v)| v.color),
+                Some((_, (color, false))) => color,
+                None => [255; 4],
+            };
             Vec4::new(
                 srgb_to_linear(f32::from(c[0]) / 255.0),
                 srgb_to_linear(f32::from(c[1]) / 255.0),

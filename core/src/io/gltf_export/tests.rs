@@ -1928,3 +1928,41 @@ fn flatten_bakes_every_placement_into_plain_meshes() {
         "{e}"
     );
 }
+
+#[test]
+fn a_smooth_solid_takes_its_surface_colours_where_an_interior_voxel_ends_an_edge() {
+    // A solid whose enclosed inside is the interior mark (no colour): where a marching edge
+    // runs from an interior voxel to an empty one (across a diagonal of the staircase), the
+    // vertex takes the colour exposing that voxel would give, its nearest surface voxel's. The
+    // reference settles every interior voxel to that colour first: same occupancy, same mesh,
+    // so the colours must be equal vertex for vertex.
+    let doc = crate::render::scenes::ball(crate::render::scenes::BallInside::Interior);
+    let ObjectKind::Voxels(model) = &doc.objects[0].kind else {
+        panic!("a voxel ball");
+    };
+    let svo = &model.svo;
+    let mut settled = Vec::new();
+    let mut interior = 0;
+    svo.for_each_leaf(|c, v| {
+        if v.is_interior() {
+            interior += 1;
+            settled.push((c, svo.nearest_surface(c).unwrap().1));
+        } else {
+            settled.push((c, v));
+        }
+    });
+    assert!(interior > 10_000, "{interior} interior voxels");
+    let reference = Svo::from_voxels(svo.depth(), false, settled).unwrap();
+    let (a, b) = (
+        fields::mesh_voxels_smooth(svo, 2, u64::MAX).unwrap(),
+        fields::mesh_voxels_smooth(&reference, 2, u64::MAX).unwrap(),
+    );
+    assert_eq!(a.indices, b.indices);
+    assert_eq!(a.positions, b.positions);
+    // None has the mark's transparent black.
+    assert!(
+        a.colors.iter().all(|c| c.w > 0.5),
+        "a vertex took the interior mark's colour"
+    );
+    assert!(a.colors == b.colors, "vertex colours differ");
+}
