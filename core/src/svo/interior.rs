@@ -46,6 +46,95 @@ type Key = (u64, u64);
 type Pending = Reverse<(u64, u8, u32, [u32; 3])>;
 
 impl Svo {
+    /// Whether every voxel of the box `lo..=hi` is solid (false for a box reaching past the
+    /// octree). Work: the nodes the box's region touches, stopping at leaves and tiles.
+    #[must_use]
+    pub fn box_is_solid(&self, lo: UVec3, hi: UVec3) -> bool {
+        if self.is_empty() || lo.cmpgt(hi).any() || hi.cmpge(UVec3::splat(self.extent())).any() {
+            return false;
+        }
+        let mut stack = vec![self.root()];
+        while let Some(node) = stack.pop() {
+            if self.is_leaf(&node) || self.is_tile(&node) || node.in_tile() {
+                continue;
+            }
+            let half = self.node_size(node.level + 1);
+            for k in 0..8u8 {
+                let o = node.origin
+                    + UVec3::new(u32::from(k & 1), u32::from((k >> 1) & 1), u32::from(k >> 2))
+                        * half;
+                if (o + UVec3::splat(half - 1)).cmplt(lo).any() || o.cmpgt(hi).any() {
+                    continue;
+                }
+                match self.child(&node, k) {
+                    Some(c) => stack.push(c),
+                    None => return false,
+                }
+            }
+        }
+        true
+    }
+
+    /// Calls `f(voxel, value)` for every voxel except those of interior tiles enclosed on all
+    /// six sides (each face's neighbouring slab solid), and returns those tiles as Morton
+    /// ranges `[first, end)`, sorted. No voxel of such a tile has an empty face neighbour, so a
+    /// mesher that leaves them out sees sealed cavities there, which it never meshes: an
+    /// export of a solid then walks its surface and its tiles, not its volume. Each interior
+    /// tile costs six [`Self::box_is_solid`] queries; a tile beside an empty voxel (which a
+    /// well-formed octree never has: edits expose such voxels) is walked voxel by voxel.
+    pub fn for_each_voxel_but_enclosed(&self, mut f: impl FnMut(UVec3, Voxel)) -> Vec<(u64, u64)> {
+        let mut enclosed = Vec::new();
+        self.for_each_run(|origin, height, v| {
+            if height == 0 {
+                f(origin, v);
+                return;
+            }
+            let size = 1u32 << height;
+            let hi = origin + UVec3::splat(size - 1);
+            if v.is_interior() && self.tile_is_enclosed(origin, hi) {
+                let first = morton_encode(origin);
+                enclosed.push((first, first + (1u64 << (3 * u32::from(height)))));
+                return;
+            }
+            for z in origin.z..=hi.z {
+                for y in origin.y..=hi.y {
+                    for x in origin.x..=hi.x {
+                        f(UVec3::new(x, y, z), v);
+                    }
+                }
+            }
+        });
+        enclosed
+    }
+
+    /// How many voxels [`Self::for_each_voxel_but_enclosed`] visits: what an export of a
+    /// static model walks.
+    #[must_use]
+    pub fn voxels_but_enclosed(&self) -> u64 {
+        let enclosed: u64 = self
+            .for_each_voxel_but_enclosed(|_, _| {})
+            .iter()
+            .map(|r| r.1 - r.0)
+            .sum();
+        self.leaf_count().saturating_sub(enclosed)
+    }
+
+    /// Whether the slab beside each of the six faces of the box `lo..=hi` is solid.
+    fn tile_is_enclosed(&self, lo: UVec3, hi: UVec3) -> bool {
+        (0..3).all(|axis| {
+            let (mut below_lo, mut below_hi) = (lo, hi);
+            let (mut above_lo, mut above_hi) = (lo, hi);
+            if lo[axis] == 0 || hi[axis] + 1 >= self.extent() {
+                return false;
+            }
+            below_lo[axis] = lo[axis] - 1;
+            below_hi[axis] = lo[axis] - 1;
+            above_lo[axis] = hi[axis] + 1;
+            above_hi[axis] = hi[axis] + 1;
+            self.box_is_solid(below_lo, below_hi) && self.box_is_solid(above_lo, above_hi)
+        })
+    }
+
     /// Whether this octree may hold interior voxels (one was written into it at some point).
     #[must_use]
     pub fn may_have_interior(&self) -> bool {

@@ -374,3 +374,94 @@ proptest! {
         prop_assert_eq!(tiled.tile_count(), start.clone().with_tiles().tile_count());
     }
 }
+
+/// Checks [`Svo::for_each_voxel_but_enclosed`] on `svo` against brute force: the visited
+/// voxels and the skipped ranges' voxels are every voxel once, each visited with its value;
+/// every skipped voxel is interior with six solid face neighbours; and the count agrees.
+/// Returns how many voxels were skipped.
+fn check_enclosed_walk(svo: &Svo) -> u64 {
+    let all = model_of(svo);
+    let mut seen: HashMap<UVec3, Voxel> = HashMap::new();
+    let ranges = svo.for_each_voxel_but_enclosed(|c, v| {
+        assert!(seen.insert(c, v).is_none(), "{c} visited twice");
+    });
+    assert!(
+        ranges.windows(2).all(|w| w[0].1 <= w[1].0),
+        "ranges sorted, apart"
+    );
+    let mut skipped = 0u64;
+    for &(first, end) in &ranges {
+        for code in first..end {
+            let c = super::morton_decode(code);
+            let v = all.get(&c).copied();
+            assert!(v.is_some_and(|v| v.is_interior()), "{c} skipped but {v:?}");
+            for f in FACE_NEIGHBOURS {
+                let q = c.as_ivec3() + f;
+                assert!(
+                    q.min_element() >= 0 && all.contains_key(&q.as_uvec3()),
+                    "{c} skipped beside an empty {q}"
+                );
+            }
+            assert!(!seen.contains_key(&c), "{c} both visited and skipped");
+            skipped += 1;
+        }
+    }
+    assert_eq!(
+        seen.len() as u64 + skipped,
+        all.len() as u64,
+        "every voxel once"
+    );
+    assert!(
+        seen.iter().all(|(c, v)| all.get(c) == Some(v)),
+        "values as stored"
+    );
+    assert_eq!(svo.voxels_but_enclosed(), seen.len() as u64);
+    skipped
+}
+
+#[test]
+fn a_solids_enclosed_interior_tiles_are_left_out_of_its_walk_and_nothing_else() {
+    let solid = Svo::from_voxels(5, false, solid_ball(5, 13.0))
+        .unwrap()
+        .with_tiles();
+    assert!(solid.tile_count() > 20);
+    let skipped = check_enclosed_walk(&solid);
+    assert!(skipped > 4_000, "{skipped} voxels skipped");
+    // Voxel by voxel: no tiles, nothing skipped.
+    assert_eq!(check_enclosed_walk(&solid.clone().without_tiles()), 0);
+    // An interior tile with empty neighbours (a file may hold one; edits never leave one) is
+    // walked voxel by voxel, as is a tile at the octree's edge.
+    for origin in [UVec3::new(8, 8, 8), UVec3::ZERO, UVec3::new(24, 0, 8)] {
+        let lone = Svo::from_runs(5, false, [(origin, 3, Voxel::INTERIOR)]).unwrap();
+        assert_eq!(lone.tile_count(), 1);
+        assert_eq!(check_enclosed_walk(&lone), 0, "{origin}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(32))]
+    /// Property: after any edits into a solid (carves, fills, paint, undo-able), the walk that
+    /// leaves out enclosed interior tiles leaves out only enclosed interior voxels and visits
+    /// every other voxel once; `box_is_solid` says what testing each voxel says.
+    #[test]
+    fn the_walk_skips_only_enclosed_interior_and_boxes_are_solid_as_their_voxels(
+        ops in proptest::collection::vec(arb_op(), 0..6),
+        boxes in proptest::collection::vec(((0u32..34, 0u32..34, 0u32..34), (0u32..12, 0u32..12, 0u32..12)), 1..24),
+    ) {
+        let mut svo = Svo::from_voxels(5, false, solid_ball(5, 13.0)).unwrap().with_tiles();
+        let mut undo = Vec::new();
+        for op in &ops {
+            apply(&mut svo, op, &mut undo, false);
+        }
+        check_enclosed_walk(&svo);
+        let all = model_of(&svo);
+        for ((x, y, z), (dx, dy, dz)) in boxes {
+            let (lo, hi) = (UVec3::new(x, y, z), UVec3::new(x + dx, y + dy, z + dz));
+            let brute = hi.cmplt(UVec3::splat(32)).all()
+                && (lo.z..=hi.z).all(|z| {
+                    (lo.y..=hi.y).all(|y| (lo.x..=hi.x).all(|x| all.contains_key(&UVec3::new(x, y, z))))
+                });
+            prop_assert_eq!(svo.box_is_solid(lo, hi), brute, "{} {}", lo, hi);
+        }
+    }
+}

@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use super::iso::{IsoMesh, MAX_LATTICE, edge_ends, march, vertex_normals};
 use crate::krs::PreparedObject;
 use crate::mesh::srgb_to_linear;
-use crate::svo::{Svo, morton_encode};
+use crate::svo::{Svo, morton_decode, morton_encode};
 
 /// A mesh ready for export: positions, unit normals, linear RGBA colours, triangle indices.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -574,10 +574,13 @@ pub fn mesh_voxels_smooth(
     if svo.is_empty() {
         return Err(FieldError::Empty);
     }
-    // (Morton code, colour, interior mark) of every voxel.
-    let mut codes: Vec<(u64, [u8; 4], bool)> = Vec::with_capacity(svo.leaf_count() as usize);
+    // (Morton code, colour, interior mark) of every voxel but those of enclosed interior
+    // tiles, which are solid and interior (`enclosed`, Morton ranges) and corner no cell the
+    // surface crosses: every such cell has a solid corner with an empty face neighbour. So the
+    // work follows the surface, not a solid's volume.
+    let mut codes: Vec<(u64, [u8; 4], bool)> = Vec::new();
     let mut hi = UVec3::ZERO;
-    svo.for_each_leaf(|c, v| {
+    let enclosed = svo.for_each_voxel_but_enclosed(|c, v| {
         codes.push((morton_encode(c), v.color, v.is_interior()));
         hi = hi.max(c);
     });
@@ -593,10 +596,14 @@ pub fn mesh_voxels_smooth(
             return None;
         }
         let code = morton_encode(v.as_uvec3());
-        codes
-            .binary_search_by_key(&code, |e| e.0)
-            .ok()
-            .map(|i| (codes[i].1, codes[i].2))
+        if let Ok(i) = codes.binary_search_by_key(&code, |e| e.0) {
+            return Some((codes[i].1, codes[i].2));
+        }
+        let t = enclosed.partition_point(|r| r.1 <= code);
+        enclosed
+            .get(t)
+            .is_some_and(|r| r.0 <= code)
+            .then_some((crate::svo::Voxel::INTERIOR.color, true))
     };
     let solid = |p: IVec3| solid_voxel(p).map(|v| v.0);
     // Every solid voxel touches the 8 cells that have its centre (lattice point c + 1) as a
@@ -609,12 +616,12 @@ pub fn mesh_voxels_smooth(
         });
     }
     let mut cell_ids: Vec<IVec3> = Vec::with_capacity(codes.len() * 8);
-    svo.for_each_leaf(|c, _| {
-        let c = c.as_ivec3();
+    for &(code, _, _) in &codes {
+        let c = morton_decode(code).as_ivec3();
         for k in 0..8 {
             cell_ids.push(c + IVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1));
         }
-    });
+    }
     cell_ids.par_sort_unstable_by_key(|c| morton_encode(c.as_uvec3()));
     cell_ids.dedup();
     let cells: Vec<(IVec3, [f32; 8])> = cell_ids

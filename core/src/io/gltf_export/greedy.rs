@@ -189,9 +189,18 @@ impl Sets {
 impl Solids {
     fn new(svo: &Svo) -> Self {
         let with_skin = svo.has_skin();
-        let mut voxels: Vec<(u32, u32, u32, FaceKey, Skin4)> =
-            Vec::with_capacity(svo.leaf_count() as usize);
-        svo.for_each_leaf(|c, v| voxels.push((c.x, c.y, c.z, (v.color, v.material), v.skin)));
+        let mut voxels: Vec<(u32, u32, u32, FaceKey, Skin4)> = Vec::new();
+        let push = |c: UVec3, v: crate::svo::Voxel| {
+            voxels.push((c.x, c.y, c.z, (v.color, v.material), v.skin));
+        };
+        if with_skin {
+            // Every voxel touching a corner gives it weights.
+            svo.for_each_leaf(push);
+        } else {
+            // A static solid's enclosed interior tiles write no face, and left out they are
+            // sealed cavities, which write none either: the same quads from the surface alone.
+            svo.for_each_voxel_but_enclosed(push);
+        }
         voxels.sort_unstable_by_key(|v| (v.0, v.1, v.2));
         let mut columns: Vec<(u32, u32)> = Vec::new();
         let mut starts = Vec::new();
