@@ -33,6 +33,7 @@
 mod build;
 mod interior;
 mod morton;
+mod nearest;
 mod query;
 mod tile;
 mod voxel;
@@ -46,6 +47,7 @@ mod tile_tests;
 
 pub use interior::FACE_NEIGHBOURS;
 pub use morton::{morton_decode, morton_encode};
+pub use nearest::NearestSurfaces;
 pub use query::{RayHit, front_to_back_order};
 pub use voxel::{
     INTERIOR_NORMAL, MAX_SKIN_JOINTS, Skin4, Voxel, decode_normal, encode_normal, is_interior_value,

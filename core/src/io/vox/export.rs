@@ -207,11 +207,19 @@ pub fn estimate_vox_export(
     let chosen = choose_objects(objects, path, &mut Vec::new())?;
     let unit = grid_unit(&chosen, path, options)?;
     let cells = estimate_cells(&chosen, unit);
+    // One frame's interior search at a time (`Svo::nearest_surfaces`).
+    let nearest = chosen
+        .iter()
+        .flat_map(|(_, v)| (0..v.frame_count()).filter_map(|i| v.frame(i)))
+        .filter_map(|(svo, _)| svo.nearest_surfaces_bytes())
+        .max()
+        .unwrap_or(0);
     Ok(VoxExportEstimate {
         grid_unit: unit,
         cells,
         peak_bytes: cells
             .saturating_mul(VOX_EXPORT_BYTES_PER_CELL)
+            .saturating_add(nearest)
             .saturating_add(1 << 20),
     })
 }
@@ -280,14 +288,20 @@ pub fn export_vox_bytes(
                 * object_from_voxel.as_dmat4();
             let mut cells = CellMap::new();
             let mut failure = None;
+            // MagicaVoxel has no interior voxels: each is written with the colour exposing it
+            // would give (its nearest voxel that is not interior), found for all of them at
+            // once (`Svo::nearest_surfaces`), or one by one past its size.
+            let nearest = svo.nearest_surfaces();
             svo.for_each_leaf(|c, vox| {
                 if failure.is_some() {
                     return;
                 }
-                // MagicaVoxel has no interior voxels: each is written with the colour exposing
-                // it would give (its nearest voxel that is not interior).
                 let vox = if vox.is_interior() {
-                    svo.nearest_surface(c).map_or(vox, |(_, v)| v)
+                    match &nearest {
+                        Some(n) => n.get(c).and_then(|q| svo.get(q)),
+                        None => svo.nearest_surface(c).map(|(_, v)| v),
+                    }
+                    .unwrap_or(vox)
                 } else {
                     vox
                 };

@@ -1,0 +1,466 @@
+//! Every interior voxel's nearest surface voxel at once ([`Svo::nearest_surfaces`]): what
+//! [`Svo::nearest_surface`] gives each one (distance between voxel centres, ties to the smaller
+//! Morton code), for exports that must write a colour into every voxel of a solid (`.vox`).
+//!
+//! One search per voxel costs what the shell near it costs: about 28 µs a voxel deep inside
+//! Spot, a minute for a depth-8 solid. Here instead:
+//! 1. an exact squared Euclidean distance transform over the octree's bounds, sites the voxels
+//!    that are not interior (three separable passes, each the lower envelope of parabolas of
+//!    Felzenszwalb and Huttenlocher; integers, so exact);
+//! 2. each interior voxel's squared distance `N` then names its nearest voxels exactly: they
+//!    are the sites at the offsets `v` with `|v|² = N`, enumerated once per `N` that occurs;
+//!    the smallest Morton code among them wins, as in the search.
+//!
+//! Memory: 4 bytes a cell of the bounds (the squared distance, then in place the nearest
+//! site) plus two bits; bounds over [`MAX_CELLS`] cells or [`MAX_SIDE`] a side are declined (the
+//! caller then searches voxel by voxel).
+
+use glam::{IVec3, UVec3};
+use rayon::prelude::*;
+
+use super::{Svo, morton_encode};
+
+/// The most cells of an octree's bounds the transform takes: cell indices fit 32 bits beside
+/// [`NONE`] (16 GiB of distances).
+pub const MAX_CELLS: u64 = (1 << 32) - 1;
+
+/// The longest side of the bounds the transform takes: every squared distance then fits 32
+/// bits (3 · 2^30).
+pub const MAX_SIDE: u32 = 1 << 15;
+
+/// Bytes [`Svo::nearest_surfaces`] holds per cell of the octree's bounds.
+pub const BYTES_PER_CELL: f64 = 4.25;
+
+/// No site: the octree has no voxel that is not interior.
+const NONE: u32 = u32::MAX;
+
+/// The nearest surface voxel of every interior voxel ([`Svo::nearest_surfaces`]).
+#[derive(Debug, Clone)]
+pub struct NearestSurfaces {
+    lo: UVec3,
+    dims: UVec3,
+    /// Per cell of the bounds: the nearest site's cell index for interior voxels.
+    site: Vec<u32>,
+}
+
+impl NearestSurfaces {
+    /// The nearest voxel that is not interior to interior voxel `c`, as
+    /// [`Svo::nearest_surface`] gives it; `None` for a voxel outside the bounds or when every
+    /// voxel is interior. Meaningless for a voxel that is not interior.
+    #[must_use]
+    pub fn get(&self, c: UVec3) -> Option<UVec3> {
+        let p = c.checked_sub(self.lo)?;
+        if p.cmpge(self.dims).any() {
+            return None;
+        }
+        let s = *self.site.get(index(self.dims, p))?;
+        (s != NONE).then(|| self.lo + position(self.dims, s as usize))
+    }
+}
+
+fn index(dims: UVec3, p: UVec3) -> usize {
+    p.x as usize + dims.x as usize * (p.y as usize + dims.y as usize * p.z as usize)
+}
+
+fn position(dims: UVec3, i: usize) -> UVec3 {
+    let (dx, dy) = (dims.x as usize, dims.y as usize);
+    UVec3::new(
+        (i % dx) as u32,
+        (i / dx % dy) as u32,
+        (i / (dx * dy)) as u32,
+    )
+}
+
+/// Squared distance standing for "no site" during a line's transform: larger than any.
+const FAR: i64 = 1 << 40;
+
+/// "No site" as stored between passes: larger than any squared distance under [`MAX_SIDE`].
+const FAR32: u32 = u32::MAX;
+
+/// The 1-D squared distance transform of `f` into `d` (Felzenszwalb and Huttenlocher): `d[q]`
+/// is the minimum over `p` of `f[p] + (q − p)²`. `v` and `z` are scratch of `f`'s length and
+/// one more.
+fn transform_line(f: &[i64], d: &mut [i64], v: &mut [usize], z: &mut [f64]) {
+    let n = f.len();
+    let mut k = 0usize;
+    let mut started = false;
+    for q in 0..n {
+        if f[q] >= FAR {
+            continue;
+        }
+        if !started {
+            v[0] = q;
+            z[0] = f64::NEG_INFINITY;
+            z[1] = f64::INFINITY;
+            started = true;
+            continue;
+        }
+        // Pop the parabolas q's hides; z[0] = −∞ stops at the first.
+        let mut s;
+        loop {
+            let p = v[k];
+            // Where the parabolas from p and q cross (exact in f64 below 2^52).
+            s = ((f[q] + (q * q) as i64) - (f[p] + (p * p) as i64)) as f64 / (2 * (q - p)) as f64;
+            if s > z[k] {
+                break;
+            }
+            k -= 1;
+        }
+        k += 1;
+        v[k] = q;
+        z[k] = s;
+        z[k + 1] = f64::INFINITY;
+    }
+    if !started {
+        d.fill(FAR);
+        return;
+    }
+    let mut k = 0usize;
+    for (q, out) in d.iter_mut().enumerate() {
+        while z[k + 1] < q as f64 {
+            k += 1;
+        }
+        let p = v[k];
+        let dq = q as i64 - p as i64;
+        *out = (dq * dq + f[p]).min(FAR);
+    }
+}
+
+/// Lattice offsets of squared length `n`, each once.
+fn offsets_of(n: i64) -> Vec<IVec3> {
+    let r = (n as f64).sqrt() as i64 + 1;
+    let mut out = Vec::new();
+    for a in -r..=r {
+        for b in -r..=r {
+            let rest = n - a * a - b * b;
+            if rest < 0 {
+                continue;
+            }
+            let c = (rest as f64).sqrt().round() as i64;
+            for c in [c, c - 1, c + 1] {
+                if c >= 0 && c * c == rest {
+                    out.push(IVec3::new(a as i32, b as i32, c as i32));
+                    if c > 0 {
+                        out.push(IVec3::new(a as i32, b as i32, -c as i32));
+                    }
+                }
+            }
+        }
+    }
+    out.sort_unstable_by_key(|v| v.to_array());
+    out.dedup();
+    out
+}
+
+impl Svo {
+    /// Bytes [`Self::nearest_surfaces`] needs, or `None` when it declines (no interior, or
+    /// bounds over [`MAX_CELLS`] or [`MAX_SIDE`]).
+    #[must_use]
+    pub fn nearest_surfaces_bytes(&self) -> Option<u64> {
+        if !self.may_have_interior() {
+            return None;
+        }
+        let (lo, hi) = self.bounds()?;
+        let cells = (hi - lo + UVec3::ONE).as_u64vec3().element_product();
+        (cells <= MAX_CELLS && (hi - lo).max_element() < MAX_SIDE)
+            .then_some((cells as f64 * BYTES_PER_CELL) as u64)
+    }
+
+    /// The nearest surface voxel of every interior voxel, computed together (module docs):
+    /// `None` when the octree has no interior voxels or its bounds exceed [`MAX_CELLS`] or
+    /// [`MAX_SIDE`].
+    #[must_use]
+    pub fn nearest_surfaces(&self) -> Option<NearestSurfaces> {
+        self.nearest_surfaces_bytes()?;
+        let (lo, hi) = self.bounds()?;
+        let dims = hi - lo + UVec3::ONE;
+        let cells = dims.as_u64vec3().element_product() as usize;
+        let words = cells.div_ceil(64);
+        let (mut sites, mut interior) = (vec![0u64; words], vec![0u64; words]);
+        self.for_each_run(|origin, height, v| {
+            let bits = if v.is_interior() {
+                &mut interior
+            } else {
+                &mut sites
+            };
+            let size = 1u32 << height;
+            for z in 0..size {
+                for y in 0..size {
+                    for x in 0..size {
+                        let i = index(dims, origin + UVec3::new(x, y, z) - lo);
+                        bits[i / 64] |= 1 << (i % 64);
+                    }
+                }
+            }
+        });
+        let bit = |bits: &[u64], i: usize| bits[i / 64] >> (i % 64) & 1 == 1;
+        let (dx, dy, dz) = (dims.x as usize, dims.y as usize, dims.z as usize);
+        // Squared distances (i64 within a line's transform; one line of scratch per thread).
+        let mut dist: Vec<u32> = (0..cells)
+            .into_par_iter()
+            .map(|i| if bit(&sites, i) { 0 } else { FAR32 })
+            .collect();
+        let scratch = |n: usize| {
+            (
+                vec![0i64; n],
+                vec![0i64; n],
+                vec![0usize; n],
+                vec![0f64; n + 1],
+            )
+        };
+        let load = |d: u32| if d == FAR32 { FAR } else { i64::from(d) };
+        let store = |d: i64| u32::try_from(d).unwrap_or(FAR32);
+        // Along x: rows are contiguous.
+        dist.par_chunks_mut(dx).for_each_init(
+            || scratch(dx),
+            |(f, d, v, z), row| {
+                for (f, r) in f.iter_mut().zip(row.iter()) {
+                    *f = load(*r);
+                }
+                transform_line(f, d, v, z);
+                for (r, d) in row.iter_mut().zip(d.iter()) {
+                    *r = store(*d);
+                }
+            },
+        );
+        // Along y: within each z slab.
+        dist.par_chunks_mut(dx * dy).for_each_init(
+            || scratch(dy),
+            |(f, d, v, z), slab| {
+                for x in 0..dx {
+                    for y in 0..dy {
+                        f[y] = load(slab[x + dx * y]);
+                    }
+                    transform_line(f, d, v, z);
+                    for y in 0..dy {
+                        slab[x + dx * y] = store(d[y]);
+                    }
+                }
+            },
+        );
+        // Along z: lines cross every slab, so one thread walks them.
+        let (mut f, mut d, mut v, mut z) = scratch(dz);
+        for y in 0..dy {
+            for x in 0..dx {
+                for k in 0..dz {
+                    f[k] = load(dist[x + dx * (y + dy * k)]);
+                }
+                transform_line(&f, &mut d, &mut v, &mut z);
+                for k in 0..dz {
+                    dist[x + dx * (y + dy * k)] = store(d[k]);
+                }
+            }
+        }
+        // The offsets of each squared distance an interior voxel has.
+        let mut needed: Vec<u32> = dist
+            .par_iter()
+            .enumerate()
+            .filter(|(i, d)| **d != FAR32 && bit(&interior, *i))
+            .map(|(_, d)| *d)
+            .collect();
+        needed.par_sort_unstable();
+        needed.dedup();
+        let offsets: Vec<Vec<IVec3>> = needed
+            .par_iter()
+            .map(|&n| offsets_of(i64::from(n)))
+            .collect();
+        // Each interior cell's nearest site among the offsets of its squared distance `n`. A
+        // nearest site at offset `v` bounds each face neighbour's distance, |v − e|² ≥ its
+        // squared distance, so `v·e ≤ (n + 1 − d(p + e)) / 2` for each unit step `e`: only
+        // the offsets in that box are looked at (sorted by x, the x range is two searches).
+        let site_of = |dist: &[u32], i: usize| -> u32 {
+            let n = dist[i];
+            if n == FAR32 || !bit(&interior, i) {
+                return NONE;
+            }
+            let Ok(slot) = needed.binary_search(&n) else {
+                return NONE;
+            };
+            let p = position(dims, i).as_ivec3();
+            let (mut lo_v, mut hi_v) = (IVec3::splat(i32::MIN), IVec3::splat(i32::MAX));
+            for axis in 0..3 {
+                for step in [-1i32, 1] {
+                    let mut q = p;
+                    q[axis] += step;
+                    if q[axis] < 0 || q[axis] >= dims.as_ivec3()[axis] {
+                        continue;
+                    }
+                    let dq = dist[index(dims, q.as_uvec3())];
+                    if dq == FAR32 {
+                        continue;
+                    }
+                    let bound = ((i64::from(n) + 1 - i64::from(dq)).div_euclid(2)) as i32;
+                    if step > 0 {
+                        hi_v[axis] = hi_v[axis].min(bound);
+                    } else {
+                        lo_v[axis] = lo_v[axis].max(-bound);
+                    }
+                }
+            }
+            let all = &offsets[slot];
+            let from = all.partition_point(|o| o.x < lo_v.x);
+            let to = all.partition_point(|o| o.x <= hi_v.x);
+            all[from..to.max(from)]
+                .iter()
+                .filter(|o| o.cmpge(lo_v).all() && o.cmple(hi_v).all())
+                .map(|o| p + *o)
+                .filter(|q| {
+                    q.cmpge(IVec3::ZERO).all()
+                        && q.cmplt(dims.as_ivec3()).all()
+                        && bit(&sites, index(dims, q.as_uvec3()))
+                })
+                .min_by_key(|q| morton_encode(q.as_uvec3() + lo))
+                .map_or(NONE, |q| index(dims, q.as_uvec3()) as u32)
+        };
+        // In place, a z slab at a time: a slab's sites are written once the next slab, whose
+        // cells read its distances, is done.
+        let slab = dx * dy;
+        let mut pending: Option<(usize, Vec<u32>)> = None;
+        for k in 0..dz {
+            let out: Vec<u32> = (k * slab..(k + 1) * slab)
+                .into_par_iter()
+                .map(|i| site_of(&dist, i))
+                .collect();
+            if let Some((done, sites_of)) = pending.replace((k, out)) {
+                dist[done * slab..(done + 1) * slab].copy_from_slice(&sites_of);
+            }
+        }
+        if let Some((done, sites_of)) = pending {
+            dist[done * slab..(done + 1) * slab].copy_from_slice(&sites_of);
+        }
+        let site = dist;
+        Some(NearestSurfaces { lo, dims, site })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::{IVec3, UVec3, Vec3};
+    use proptest::prelude::*;
+
+    use super::*;
+    use crate::svo::Voxel;
+
+    /// Brute force of the 1-D transform.
+    fn line_by_brute_force(f: &[i64]) -> Vec<i64> {
+        (0..f.len())
+            .map(|q| {
+                (0..f.len())
+                    .filter(|&p| f[p] < FAR)
+                    .map(|p| (q as i64 - p as i64).pow(2) + f[p])
+                    .min()
+                    .unwrap_or(FAR)
+            })
+            .collect()
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(256))]
+        /// Property: the lower envelope gives the brute-force minimum on any line, sites or
+        /// distances from an earlier pass, none at all, or one.
+        #[test]
+        fn a_line_transform_is_the_brute_force_minimum(
+            f in proptest::collection::vec(prop_oneof![Just(FAR), 0i64..3000], 1..60),
+        ) {
+            let n = f.len();
+            let (mut d, mut v, mut z) = (vec![0; n], vec![0; n], vec![0.0; n + 1]);
+            transform_line(&f, &mut d, &mut v, &mut z);
+            prop_assert_eq!(d, line_by_brute_force(&f));
+        }
+    }
+
+    #[test]
+    fn offsets_are_every_lattice_vector_of_their_length() {
+        for n in [0i64, 1, 2, 3, 25, 50, 77, 169, 1001] {
+            let got = offsets_of(n);
+            let r = (n as f64).sqrt() as i32 + 1;
+            let mut want = Vec::new();
+            for a in -r..=r {
+                for b in -r..=r {
+                    for c in -r..=r {
+                        if i64::from(a * a + b * b + c * c) == n {
+                            want.push(IVec3::new(a, b, c));
+                        }
+                    }
+                }
+            }
+            want.sort_unstable_by_key(|v| v.to_array());
+            assert_eq!(got, want, "n = {n}");
+        }
+    }
+
+    /// Checks every interior voxel of `svo` against the search.
+    fn check(svo: &Svo) -> usize {
+        let near = svo.nearest_surfaces().expect("an interior");
+        let mut n = 0;
+        svo.for_each_leaf(|c, v| {
+            if v.is_interior() {
+                assert_eq!(near.get(c), svo.nearest_surface(c).map(|s| s.0), "{c}");
+                n += 1;
+            }
+        });
+        n
+    }
+
+    /// A solid ball in a 32³ octree, its enclosed voxels interior, tiled.
+    fn ball(r: f32, centre: Vec3) -> Svo {
+        let inside = |p: IVec3| {
+            p.cmpge(IVec3::ZERO).all()
+                && p.cmplt(IVec3::splat(32)).all()
+                && (p.as_vec3() + 0.5 - centre).length() <= r
+        };
+        let mut voxels = Vec::new();
+        for z in 0..32 {
+            for y in 0..32 {
+                for x in 0..32 {
+                    let p = IVec3::new(x, y, z);
+                    if inside(p) {
+                        let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&f| inside(p + f));
+                        let v = if enclosed {
+                            Voxel::INTERIOR
+                        } else {
+                            Voxel::new([x as u8 * 7, y as u8 * 7, z as u8 * 7, 255], Vec3::Y)
+                        };
+                        voxels.push((p.as_uvec3(), v));
+                    }
+                }
+            }
+        }
+        Svo::from_voxels(5, false, voxels).unwrap().with_tiles()
+    }
+
+    #[test]
+    fn every_interior_voxel_gets_what_the_search_gives() {
+        // Ties are everywhere in a ball (its symmetry): the smaller Morton code must win.
+        let solid = ball(13.0, Vec3::splat(16.0));
+        assert!(check(&solid) > 5_000);
+        // Off centre, then with boxes carved out (edits reveal, so the interior changes) and a
+        // box of one colour filled in (its voxels are sites, as a tile).
+        let mut solid = ball(12.5, Vec3::new(15.3, 16.7, 15.9));
+        solid
+            .edit_existing(UVec3::new(10, 10, 0), UVec3::new(31, 14, 31), |_, _| None)
+            .unwrap();
+        solid
+            .edit_region(UVec3::new(14, 16, 14), UVec3::new(21, 23, 21), |_, _| {
+                Some(Voxel::new([9, 9, 9, 255], Vec3::X))
+            })
+            .unwrap();
+        assert!(check(&solid) > 1_000);
+        // No interior: declined.
+        let shell = Svo::from_voxels(
+            5,
+            false,
+            [(UVec3::ONE, Voxel::new([1, 2, 3, 255], Vec3::Y))],
+        )
+        .unwrap();
+        assert!(shell.nearest_surfaces().is_none());
+    }
+
+    #[test]
+    fn with_no_surface_voxel_no_interior_voxel_has_a_nearest() {
+        let lone = Svo::from_runs(5, false, [(UVec3::new(8, 8, 8), 3, Voxel::INTERIOR)]).unwrap();
+        let near = lone.nearest_surfaces().expect("an interior");
+        assert_eq!(near.get(UVec3::new(9, 10, 11)), None);
+        assert_eq!(lone.nearest_surface(UVec3::new(9, 10, 11)), None);
+    }
+}
