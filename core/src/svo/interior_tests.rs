@@ -12,7 +12,7 @@ use super::*;
 
 /// A solid ball of radius `r` in a `2^depth` octree: voxels with all six face neighbours in the
 /// ball are interior, the others a shell of colours and normals varying by position.
-fn solid_ball(depth: u8, r: f32) -> Vec<(UVec3, Voxel)> {
+pub(super) fn solid_ball(depth: u8, r: f32) -> Vec<(UVec3, Voxel)> {
     let e = 1i32 << depth;
     let c = e as f32 / 2.0;
     let inside = |p: IVec3| {

@@ -403,40 +403,20 @@ mod tests {
     }
 
     /// A solid ball in a 32³ octree, its enclosed voxels interior, tiled.
-    fn ball(r: f32, centre: Vec3) -> Svo {
-        let inside = |p: IVec3| {
-            p.cmpge(IVec3::ZERO).all()
-                && p.cmplt(IVec3::splat(32)).all()
-                && (p.as_vec3() + 0.5 - centre).length() <= r
-        };
-        let mut voxels = Vec::new();
-        for z in 0..32 {
-            for y in 0..32 {
-                for x in 0..32 {
-                    let p = IVec3::new(x, y, z);
-                    if inside(p) {
-                        let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&f| inside(p + f));
-                        let v = if enclosed {
-                            Voxel::INTERIOR
-                        } else {
-                            Voxel::new([x as u8 * 7, y as u8 * 7, z as u8 * 7, 255], Vec3::Y)
-                        };
-                        voxels.push((p.as_uvec3(), v));
-                    }
-                }
-            }
-        }
-        Svo::from_voxels(5, false, voxels).unwrap().with_tiles()
+    fn ball(r: f32) -> Svo {
+        Svo::from_voxels(5, false, crate::svo::interior_tests::solid_ball(5, r))
+            .unwrap()
+            .with_tiles()
     }
 
     #[test]
     fn every_interior_voxel_gets_what_the_search_gives() {
         // Ties are everywhere in a ball (its symmetry): the smaller Morton code must win.
-        let solid = ball(13.0, Vec3::splat(16.0));
+        let solid = ball(13.0);
         assert!(check(&solid) > 5_000);
-        // Off centre, then with boxes carved out (edits reveal, so the interior changes) and a
-        // box of one colour filled in (its voxels are sites, as a tile).
-        let mut solid = ball(12.5, Vec3::new(15.3, 16.7, 15.9));
+        // With a box carved out (edits reveal, so the interior changes and the symmetry breaks)
+        // and a box of one colour filled in (its voxels are sites, as a tile).
+        let mut solid = ball(12.5);
         solid
             .edit_existing(UVec3::new(10, 10, 0), UVec3::new(31, 14, 31), |_, _| None)
             .unwrap();
