@@ -6,14 +6,20 @@
 //! Spot, a minute for a depth-8 solid. Here instead:
 //! 1. an exact squared Euclidean distance transform over the octree's bounds, sites the voxels
 //!    that are not interior (three separable passes, each the lower envelope of parabolas of
-//!    Felzenszwalb and Huttenlocher; integers, so exact);
+//!    Felzenszwalb and Huttenlocher). The distances are integers; the parabolas' crossings are
+//!    f64 quotients of integers below 2^53, whose rounding cannot change which parabola is
+//!    lowest at an integer position;
 //! 2. each interior voxel's squared distance `N` then names its nearest voxels exactly: they
-//!    are the sites at the offsets `v` with `|v|² = N`, enumerated once per `N` that occurs;
-//!    the smallest Morton code among them wins, as in the search.
+//!    are the sites at the offsets `v` with `|v|² = N`. A nearest site bounds each face
+//!    neighbour's distance (`|v − e|² ≥ d(p + e)`), so only the offsets in the box
+//!    `v·e ≤ (N + 1 − d(p + e)) / 2` are enumerated, usually a handful; the smallest Morton code
+//!    among the sites there wins, as in the search.
 //!
 //! Memory: 4 bytes a cell of the bounds (the squared distance, then in place the nearest
-//! site) plus two bits; bounds over [`MAX_CELLS`] cells or [`MAX_SIDE`] a side are declined (the
-//! caller then searches voxel by voxel).
+//! site) plus two bits. Declined (the caller then searches voxel by voxel) for bounds over
+//! `MAX_CELLS` cells or `MAX_SIDE` a side, and where interior voxels are under
+//! 1/`MIN_INTERIOR_SHARE` of the bounds: there the transform's cost, which follows the bounds,
+//! exceeds the searches'.
 
 use glam::{IVec3, UVec3};
 use rayon::prelude::*;
@@ -30,6 +36,10 @@ pub const MAX_SIDE: u32 = 1 << 15;
 
 /// Bytes [`Svo::nearest_surfaces`] holds per cell of the octree's bounds.
 pub const BYTES_PER_CELL: f64 = 4.25;
+
+/// The transform runs when at least one cell of the bounds in this many is interior: a
+/// search costs about what the transform costs for 100 to 300 cells.
+pub const MIN_INTERIOR_SHARE: u64 = 64;
 
 /// No site: the octree has no voxel that is not interior.
 const NONE: u32 = u32::MAX;
@@ -74,7 +84,7 @@ fn position(dims: UVec3, i: usize) -> UVec3 {
 /// Squared distance standing for "no site" during a line's transform: larger than any.
 const FAR: i64 = 1 << 40;
 
-/// "No site" as stored between passes: larger than any squared distance under [`MAX_SIDE`].
+/// "No site" as stored between passes: larger than any squared distance under `MAX_SIDE`.
 const FAR32: u32 = u32::MAX;
 
 /// The 1-D squared distance transform of `f` into `d` (Felzenszwalb and Huttenlocher): `d[q]`
@@ -126,35 +136,43 @@ fn transform_line(f: &[i64], d: &mut [i64], v: &mut [usize], z: &mut [f64]) {
     }
 }
 
-/// Lattice offsets of squared length `n`, each once.
-fn offsets_of(n: i64) -> Vec<IVec3> {
-    let r = (n as f64).sqrt() as i64 + 1;
-    let mut out = Vec::new();
-    for a in -r..=r {
-        for b in -r..=r {
-            let rest = n - a * a - b * b;
-            if rest < 0 {
+/// The integer square root: the largest `r` with `r² ≤ n`.
+fn isqrt(n: i64) -> i64 {
+    let mut r = (n.max(0) as f64).sqrt() as i64;
+    while r * r > n {
+        r -= 1;
+    }
+    while (r + 1) * (r + 1) <= n {
+        r += 1;
+    }
+    r
+}
+
+/// Calls `f` with every lattice offset `v` of squared length `n` inside the box `lo..=hi`.
+fn offsets_within(n: i64, lo: IVec3, hi: IVec3, mut f: impl FnMut(IVec3)) {
+    let r = isqrt(n);
+    for a in i64::from(lo.x).max(-r)..=i64::from(hi.x).min(r) {
+        let rest_a = n - a * a;
+        let rb = isqrt(rest_a);
+        for b in i64::from(lo.y).max(-rb)..=i64::from(hi.y).min(rb) {
+            let rest = rest_a - b * b;
+            let c = isqrt(rest);
+            if c * c != rest {
                 continue;
             }
-            let c = (rest as f64).sqrt().round() as i64;
-            for c in [c, c - 1, c + 1] {
-                if c >= 0 && c * c == rest {
-                    out.push(IVec3::new(a as i32, b as i32, c as i32));
-                    if c > 0 {
-                        out.push(IVec3::new(a as i32, b as i32, -c as i32));
-                    }
+            for c in if c == 0 { vec![0] } else { vec![-c, c] } {
+                if (i64::from(lo.z)..=i64::from(hi.z)).contains(&c) {
+                    f(IVec3::new(a as i32, b as i32, c as i32));
                 }
             }
         }
     }
-    out.sort_unstable_by_key(|v| v.to_array());
-    out.dedup();
-    out
 }
 
 impl Svo {
-    /// Bytes [`Self::nearest_surfaces`] needs, or `None` when it declines (no interior, or
-    /// bounds over [`MAX_CELLS`] or [`MAX_SIDE`]).
+    /// Bytes [`Self::nearest_surfaces`] needs, or `None` when it declines (module docs): no
+    /// interior, bounds over 2^32 − 1 cells or 2^15 voxels a side, or interior voxels under
+    /// 1/64 of the bounds.
     #[must_use]
     pub fn nearest_surfaces_bytes(&self) -> Option<u64> {
         if !self.may_have_interior() {
@@ -162,13 +180,13 @@ impl Svo {
         }
         let (lo, hi) = self.bounds()?;
         let cells = (hi - lo + UVec3::ONE).as_u64vec3().element_product();
-        (cells <= MAX_CELLS && (hi - lo).max_element() < MAX_SIDE)
+        let worth_it = self.interior_voxels().saturating_mul(MIN_INTERIOR_SHARE) >= cells;
+        (cells <= MAX_CELLS && (hi - lo).max_element() < MAX_SIDE && worth_it)
             .then_some((cells as f64 * BYTES_PER_CELL) as u64)
     }
 
     /// The nearest surface voxel of every interior voxel, computed together (module docs):
-    /// `None` when the octree has no interior voxels or its bounds exceed [`MAX_CELLS`] or
-    /// [`MAX_SIDE`].
+    /// `None` where [`Self::nearest_surfaces_bytes`] declines.
     #[must_use]
     pub fn nearest_surfaces(&self) -> Option<NearestSurfaces> {
         self.nearest_surfaces_bytes()?;
@@ -251,31 +269,15 @@ impl Svo {
                 }
             }
         }
-        // The offsets of each squared distance an interior voxel has.
-        let mut needed: Vec<u32> = dist
-            .par_iter()
-            .enumerate()
-            .filter(|(i, d)| **d != FAR32 && bit(&interior, *i))
-            .map(|(_, d)| *d)
-            .collect();
-        needed.par_sort_unstable();
-        needed.dedup();
-        let offsets: Vec<Vec<IVec3>> = needed
-            .par_iter()
-            .map(|&n| offsets_of(i64::from(n)))
-            .collect();
         // Each interior cell's nearest site among the offsets of its squared distance `n`. A
         // nearest site at offset `v` bounds each face neighbour's distance, |v − e|² ≥ its
         // squared distance, so `v·e ≤ (n + 1 − d(p + e)) / 2` for each unit step `e`: only
-        // the offsets in that box are looked at (sorted by x, the x range is two searches).
+        // the offsets in that box are enumerated (usually a handful of cells).
         let site_of = |dist: &[u32], i: usize| -> u32 {
             let n = dist[i];
             if n == FAR32 || !bit(&interior, i) {
                 return NONE;
             }
-            let Ok(slot) = needed.binary_search(&n) else {
-                return NONE;
-            };
             let p = position(dims, i).as_ivec3();
             let (mut lo_v, mut hi_v) = (IVec3::splat(i32::MIN), IVec3::splat(i32::MAX));
             for axis in 0..3 {
@@ -297,20 +299,21 @@ impl Svo {
                     }
                 }
             }
-            let all = &offsets[slot];
-            let from = all.partition_point(|o| o.x < lo_v.x);
-            let to = all.partition_point(|o| o.x <= hi_v.x);
-            all[from..to.max(from)]
-                .iter()
-                .filter(|o| o.cmpge(lo_v).all() && o.cmple(hi_v).all())
-                .map(|o| p + *o)
-                .filter(|q| {
-                    q.cmpge(IVec3::ZERO).all()
-                        && q.cmplt(dims.as_ivec3()).all()
-                        && bit(&sites, index(dims, q.as_uvec3()))
-                })
-                .min_by_key(|q| morton_encode(q.as_uvec3() + lo))
-                .map_or(NONE, |q| index(dims, q.as_uvec3()) as u32)
+            // Within the bounds, too.
+            lo_v = lo_v.max(-p);
+            hi_v = hi_v.min(dims.as_ivec3() - IVec3::ONE - p);
+            let mut best: Option<(u64, usize)> = None;
+            offsets_within(i64::from(n), lo_v, hi_v, |o| {
+                let q = (p + o).as_uvec3();
+                let j = index(dims, q);
+                if bit(&sites, j) {
+                    let code = morton_encode(q + lo);
+                    if best.is_none_or(|b| code < b.0) {
+                        best = Some((code, j));
+                    }
+                }
+            });
+            best.map_or(NONE, |b| b.1 as u32)
         };
         // In place, a z slab at a time: a slab's sites are written once the next slab, whose
         // cells read its distances, is done.
@@ -370,23 +373,33 @@ mod tests {
     }
 
     #[test]
-    fn offsets_are_every_lattice_vector_of_their_length() {
+    fn offsets_are_every_lattice_vector_of_their_length_in_the_box() {
         for n in [0i64, 1, 2, 3, 25, 50, 77, 169, 1001] {
-            let got = offsets_of(n);
-            let r = (n as f64).sqrt() as i32 + 1;
-            let mut want = Vec::new();
-            for a in -r..=r {
-                for b in -r..=r {
-                    for c in -r..=r {
-                        if i64::from(a * a + b * b + c * c) == n {
-                            want.push(IVec3::new(a, b, c));
+            for (lo, hi) in [
+                (IVec3::splat(-40), IVec3::splat(40)),
+                (IVec3::new(-3, 0, -40), IVec3::new(5, 40, 2)),
+                (IVec3::new(2, -1, 0), IVec3::new(2, 30, 0)),
+            ] {
+                let mut got = Vec::new();
+                offsets_within(n, lo, hi, |v| got.push(v));
+                got.sort_unstable_by_key(|v| v.to_array());
+                let mut want = Vec::new();
+                for a in lo.x..=hi.x {
+                    for b in lo.y..=hi.y {
+                        for c in lo.z..=hi.z {
+                            if i64::from(a * a + b * b + c * c) == n {
+                                want.push(IVec3::new(a, b, c));
+                            }
                         }
                     }
                 }
+                assert_eq!(got, want, "n = {n}, {lo}..={hi}");
             }
-            want.sort_unstable_by_key(|v| v.to_array());
-            assert_eq!(got, want, "n = {n}");
         }
+        assert_eq!(
+            (isqrt(0), isqrt(15), isqrt(16), isqrt(1 << 40)),
+            (0, 3, 4, 1 << 20)
+        );
     }
 
     /// Checks every interior voxel of `svo` against the search.
@@ -442,5 +455,29 @@ mod tests {
         let near = lone.nearest_surfaces().expect("an interior");
         assert_eq!(near.get(UVec3::new(9, 10, 11)), None);
         assert_eq!(lone.nearest_surface(UVec3::new(9, 10, 11)), None);
+    }
+
+    #[test]
+    fn a_few_interior_voxels_in_large_bounds_are_left_to_the_search() {
+        // A 3³ block with an interior centre, and a voxel at the far corner: 1 interior voxel
+        // in 32³ bounds, where the transform would cost what 30,000 searches do.
+        let mut voxels = vec![(UVec3::splat(31), Voxel::new([1, 2, 3, 255], Vec3::Y))];
+        for z in 1..4 {
+            for y in 1..4 {
+                for x in 1..4 {
+                    let c = UVec3::new(x, y, z);
+                    let v = if c == UVec3::splat(2) {
+                        Voxel::INTERIOR
+                    } else {
+                        Voxel::new([9, 8, 7, 255], Vec3::X)
+                    };
+                    voxels.push((c, v));
+                }
+            }
+        }
+        let sparse = Svo::from_voxels(5, false, voxels).unwrap();
+        assert_eq!(sparse.interior_voxels(), 1);
+        assert!(sparse.nearest_surfaces_bytes().is_none());
+        assert!(sparse.nearest_surfaces().is_none());
     }
 }

@@ -31,7 +31,7 @@ use std::ops::Range;
 
 use glam::{UVec3, Vec3};
 
-use crate::svo::{Skin4, Svo};
+use crate::svo::{Skin4, Svo, morton_encode};
 
 /// One outward face: the voxel it belongs to faces outside air across `axis` in direction
 /// `positive`.
@@ -162,6 +162,9 @@ struct Solids {
     /// `gap_outside[i]`: whether the empty run just above voxel `i` (up to the next solid voxel
     /// of its column) is joined to the outside. Unused where there is no such run.
     gap_outside: Vec<bool>,
+    /// Enclosed interior tiles left out of the lists (Morton ranges, sorted): solid, so a face
+    /// toward one is toward a solid voxel, not a cavity.
+    enclosed: Vec<(u64, u64)>,
     extent: u32,
 }
 
@@ -193,14 +196,16 @@ impl Solids {
         let push = |c: UVec3, v: crate::svo::Voxel| {
             voxels.push((c.x, c.y, c.z, (v.color, v.material), v.skin));
         };
-        if with_skin {
+        let enclosed = if with_skin {
             // Every voxel touching a corner gives it weights.
             svo.for_each_leaf(push);
+            Vec::new()
         } else {
-            // A static solid's enclosed interior tiles write no face, and left out they are
-            // sealed cavities, which write none either: the same quads from the surface alone.
-            svo.for_each_voxel_but_enclosed(push);
-        }
+            // A static solid's enclosed interior tiles write no face, and left out of the
+            // lists they read as sealed cavities, which write none either: the same quads
+            // from the surface alone ([`Self::for_each_face`] still calls them solid).
+            svo.for_each_voxel_but_enclosed(push)
+        };
         voxels.sort_unstable_by_key(|v| (v.0, v.1, v.2));
         let mut columns: Vec<(u32, u32)> = Vec::new();
         let mut starts = Vec::new();
@@ -222,6 +227,7 @@ impl Solids {
                 Vec::new()
             },
             gap_outside: Vec::new(),
+            enclosed,
             extent: svo.extent(),
         };
         drop(voxels);
@@ -309,6 +315,27 @@ impl Solids {
     /// once per column and the side ones walked with a cursor (z only grows), so a face costs
     /// O(1) beyond eight binary searches per column.
     fn for_each_face(&self, mut f: impl FnMut(UVec3, usize, usize, bool, Across, &Around)) {
+        // A "cavity" that is a left-out enclosed tile is solid.
+        let mut f = |c: UVec3, i: usize, axis: usize, positive: bool, across, around: &Around| {
+            let across = if across == Across::Sealed && !self.enclosed.is_empty() {
+                let mut q = c;
+                q[axis] = if positive {
+                    q[axis] + 1
+                } else {
+                    q[axis].saturating_sub(1)
+                };
+                let code = morton_encode(q);
+                let t = self.enclosed.partition_point(|r| r.1 <= code);
+                if q != c && self.enclosed.get(t).is_some_and(|r| r.0 <= code) {
+                    Across::Solid
+                } else {
+                    across
+                }
+            } else {
+                across
+            };
+            f(c, i, axis, positive, across, around);
+        };
         for (ci, &(x, y)) in self.columns.iter().enumerate() {
             let r = self.starts[ci]..self.starts[ci + 1];
             let around = self.neighbourhood(x, y);

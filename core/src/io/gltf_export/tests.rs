@@ -1966,3 +1966,45 @@ fn a_smooth_solid_takes_its_surface_colours_where_an_interior_voxel_ends_an_edge
     );
     assert!(a.colors == b.colors, "vertex colours differ");
 }
+
+#[test]
+fn left_out_interior_tiles_are_counted_as_solid_not_as_cavities() {
+    // The face report of a solid is the same tiled or voxel by voxel: faces toward an enclosed
+    // interior tile (left out of the mesher's lists) are toward solid voxels, not a cavity.
+    let doc = crate::render::scenes::ball(crate::render::scenes::BallInside::Interior);
+    let (flat, tiled, tiles) = crate::render::scenes::without_and_with_tiles(&doc);
+    assert!(tiles > 20, "{tiles} tiles");
+    let svo = |d: &Document| match &d.objects[0].kind {
+        ObjectKind::Voxels(m) => m.svo.clone(),
+        _ => panic!("a voxel ball"),
+    };
+    let (a, b) = (
+        super::greedy::count_faces(&svo(&flat)),
+        super::greedy::count_faces(&svo(&tiled)),
+    );
+    assert_eq!(a, b);
+    assert!(a.exposed > 1_000 && a.sealed == 0, "{a:?}");
+    // A small case: a 6³ solid box whose 4³ inside is interior, eight 2³ tiles.
+    let mut voxels = Vec::new();
+    for z in 1..=6u32 {
+        for y in 1..=6u32 {
+            for x in 1..=6u32 {
+                let inside = [x, y, z].iter().all(|v| (2..=5).contains(v));
+                let v = if inside {
+                    Voxel::INTERIOR
+                } else {
+                    Voxel::new([200, 10, 10, 255], Vec3::Y)
+                };
+                voxels.push((UVec3::new(x, y, z), v));
+            }
+        }
+    }
+    let boxed = Svo::from_voxels(3, false, voxels).unwrap().with_tiles();
+    assert_eq!(boxed.tile_count(), 8);
+    let counts = super::greedy::count_faces(&boxed);
+    assert_eq!(counts.sealed, 0, "{counts:?}");
+    assert_eq!(
+        counts,
+        super::greedy::count_faces(&boxed.clone().without_tiles())
+    );
+}
