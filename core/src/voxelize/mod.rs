@@ -138,8 +138,8 @@ pub enum VoxelizeError {
     },
     /// The result would exceed [`VoxelizeSettings::max_voxels`].
     #[error(
-        "voxelization would produce more than {limit} voxels ({what}); use a larger voxel size or \
-         raise max_voxels"
+        "voxelization would produce more than {limit} voxels ({what}); use a larger voxel size \
+         (a smaller depth)"
     )]
     TooManyVoxels {
         /// The limit.

@@ -832,16 +832,24 @@ fn bad_settings_and_huge_requests_are_refused() {
         }),
         Some(VoxelizeError::TooManyVoxels { .. })
     ));
+    let too_many = err(VoxelizeSettings {
+        max_voxels: 30_000,
+        ..settings(Resolution::Depth(6), Mode::Solid)
+    });
     assert!(matches!(
-        err(VoxelizeSettings {
-            max_voxels: 30_000,
-            ..settings(Resolution::Depth(6), Mode::Solid)
-        }),
+        too_many,
         Some(VoxelizeError::TooManyVoxels {
             what: "interior voxels",
             ..
         })
     ));
+    // The advice names what the import dialog and `thicket import` offer (voxel size,
+    // depth), not the API's limit, which neither exposes.
+    let text = too_many.map(|e| e.to_string()).unwrap_or_default();
+    assert!(
+        text.contains("larger voxel size (a smaller depth)") && !text.contains("max_voxels"),
+        "{text}"
+    );
 }
 
 #[test]
