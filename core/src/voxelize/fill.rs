@@ -129,8 +129,7 @@ pub(crate) fn cast(
     if budget.is_exceeded() {
         return Err(over_budget());
     }
-    let (runs, bounds) = solid::intervals(&mut crossings, turned_dims.z, rule);
-    let open_columns = solid::unbalanced_columns(&crossings, rule);
+    let (runs, bounds, open_columns) = solid::intervals(&mut crossings, turned_dims.z, rule);
     Ok(AxisFill {
         axis,
         runs,

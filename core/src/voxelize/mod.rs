@@ -65,6 +65,16 @@ pub enum FillRule {
     EvenOdd,
 }
 
+impl FillRule {
+    /// Whether a point is inside after crossings whose signs sum to `winding`, `count` of them.
+    pub(crate) fn inside(self, winding: i64, count: u64) -> bool {
+        match self {
+            FillRule::NonZero => winding != 0,
+            FillRule::EvenOdd => count % 2 == 1,
+        }
+    }
+}
+
 /// Parameters of [`voxelize`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default)]

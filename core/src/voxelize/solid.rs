@@ -154,10 +154,6 @@ impl CrossingKey {
 pub(crate) fn key_runs(keys: &mut [u64], dims: UVec3, rule: FillRule) -> (Vec<ColumnRun>, u64) {
     use rayon::prelude::*;
     keys.par_sort_unstable();
-    let inside = |winding: i64, count: u64| match rule {
-        FillRule::NonZero => winding != 0,
-        FillRule::EvenOdd => count % 2 == 1,
-    };
     let mut runs = Vec::new();
     let mut open_columns = 0;
     let mut i = 0;
@@ -173,7 +169,7 @@ pub(crate) fn key_runs(keys: &mut [u64], dims: UVec3, rule: FillRule) -> (Vec<Co
             let k = CrossingKey(keys[i]);
             winding += k.sign();
             count += 1;
-            match (start, inside(winding, count)) {
+            match (start, rule.inside(winding, count)) {
                 (None, true) => start = Some(k.first()),
                 (Some(k_lo), false) => {
                     // Centres k_lo..first, clipped to the grid.
@@ -217,12 +213,14 @@ pub(crate) struct Bounds {
 
 /// Sorts crossings (column, z, triangle — a total order, so the result does not depend on the
 /// order threads produced them) and turns each column into inside runs and their bounding
-/// crossings. A column that ends inside (an open mesh) drops its unfinished run.
+/// crossings, with the number of columns that do not close under `rule` (a non-zero winding
+/// number, or an odd number of crossings, after the last one). Such a column (an open mesh)
+/// drops its unfinished run.
 pub(crate) fn intervals(
     crossings: &mut [Crossing],
     dims_z: u32,
     rule: FillRule,
-) -> (Vec<ColumnRun>, Vec<Bounds>) {
+) -> (Vec<ColumnRun>, Vec<Bounds>, u64) {
     use rayon::prelude::*;
     crossings.par_sort_unstable_by(|a, b| {
         a.column
@@ -230,11 +228,8 @@ pub(crate) fn intervals(
             .then(a.z.total_cmp(&b.z))
             .then(a.gtri.cmp(&b.gtri))
     });
-    let inside = |winding: i64, count: u64| match rule {
-        FillRule::NonZero => winding != 0,
-        FillRule::EvenOdd => count % 2 == 1,
-    };
     let (mut runs, mut bounds) = (Vec::new(), Vec::new());
+    let mut open_columns = 0;
     let mut i = 0;
     while i < crossings.len() {
         let column = crossings[i].column;
@@ -244,7 +239,7 @@ pub(crate) fn intervals(
         while i < crossings.len() && crossings[i].column == column {
             winding += i64::from(crossings[i].sign);
             count += 1;
-            let now = inside(winding, count);
+            let now = rule.inside(winding, count);
             match (open, now) {
                 (None, true) => open = Some(i),
                 (Some(entry), false) => {
@@ -272,30 +267,9 @@ pub(crate) fn intervals(
             }
             i += 1;
         }
-    }
-    (runs, bounds)
-}
-
-/// Columns of `crossings` (sorted by column) that do not close under `rule`: a non-zero
-/// winding number, or an odd number of crossings, after the last one.
-pub(crate) fn unbalanced_columns(crossings: &[Crossing], rule: FillRule) -> u64 {
-    let mut open = 0u64;
-    let mut i = 0;
-    while i < crossings.len() {
-        let column = crossings[i].column;
-        let (mut winding, mut count) = (0i64, 0u64);
-        while i < crossings.len() && crossings[i].column == column {
-            winding += i64::from(crossings[i].sign);
-            count += 1;
-            i += 1;
-        }
-        let closed = match rule {
-            FillRule::NonZero => winding == 0,
-            FillRule::EvenOdd => count.is_multiple_of(2),
-        };
-        if !closed {
-            open += 1;
+        if open.is_some() {
+            open_columns += 1;
         }
     }
-    open
+    (runs, bounds, open_columns)
 }
