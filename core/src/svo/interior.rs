@@ -39,6 +39,33 @@ const NOTHING_TO_SHOW: Voxel = Voxel {
     },
 };
 
+/// Interior tiles enclosed on all six sides, as sorted Morton ranges `[first, end)`: what
+/// [`Svo::for_each_voxel_but_enclosed`] left out. Every voxel in them is solid and interior.
+#[derive(Debug, Clone, Default, PartialEq, Eq)]
+pub struct EnclosedTiles(Vec<(u64, u64)>);
+
+impl EnclosedTiles {
+    /// Whether voxel `c` lies in one of the tiles.
+    #[must_use]
+    pub fn contains(&self, c: UVec3) -> bool {
+        let code = morton_encode(c);
+        let t = self.0.partition_point(|r| r.1 <= code);
+        self.0.get(t).is_some_and(|r| r.0 <= code)
+    }
+
+    /// Voxels in the tiles.
+    #[must_use]
+    pub fn voxels(&self) -> u64 {
+        self.0.iter().map(|r| r.1 - r.0).sum()
+    }
+
+    /// The Morton ranges, sorted.
+    #[must_use]
+    pub fn ranges(&self) -> &[(u64, u64)] {
+        &self.0
+    }
+}
+
 /// A candidate of the nearest search: squared distance, then Morton code (the tie-break).
 type Key = (u64, u64);
 
@@ -76,13 +103,12 @@ impl Svo {
     }
 
     /// Calls `f(voxel, value)` for every voxel except those of interior tiles enclosed on all
-    /// six sides (each face's neighbouring slab solid), and returns those tiles as Morton
-    /// ranges `[first, end)`, sorted. No voxel of such a tile has an empty face neighbour, so a
+    /// six sides (each face's neighbouring slab solid), and returns those tiles. No voxel of such a tile has an empty face neighbour, so a
     /// mesher that leaves them out sees sealed cavities there, which it never meshes: an
     /// export of a solid then walks its surface and its tiles, not its volume. Each interior
     /// tile costs six [`Self::box_is_solid`] queries; a tile beside an empty voxel (which a
     /// well-formed octree never has: edits expose such voxels) is walked voxel by voxel.
-    pub fn for_each_voxel_but_enclosed(&self, mut f: impl FnMut(UVec3, Voxel)) -> Vec<(u64, u64)> {
+    pub fn for_each_voxel_but_enclosed(&self, mut f: impl FnMut(UVec3, Voxel)) -> EnclosedTiles {
         let mut enclosed = Vec::new();
         self.for_each_run(|origin, height, v| {
             if height == 0 {
@@ -104,18 +130,14 @@ impl Svo {
                 }
             }
         });
-        enclosed
+        EnclosedTiles(enclosed)
     }
 
     /// How many voxels [`Self::for_each_voxel_but_enclosed`] visits: what an export of a
     /// static model walks.
     #[must_use]
     pub fn voxels_but_enclosed(&self) -> u64 {
-        let enclosed: u64 = self
-            .for_each_voxel_but_enclosed(|_, _| {})
-            .iter()
-            .map(|r| r.1 - r.0)
-            .sum();
+        let enclosed = self.for_each_voxel_but_enclosed(|_, _| {}).voxels();
         self.leaf_count().saturating_sub(enclosed)
     }
 
@@ -335,6 +357,9 @@ impl Svo {
                 return;
             }
             let size = 1u32 << height;
+            if height > 0 && self.tile_is_enclosed(origin, origin + UVec3::splat(size - 1)) {
+                return;
+            }
             for axis in 0..3 {
                 let (u, w) = ((axis + 1) % 3, (axis + 2) % 3);
                 for side in [false, true] {

@@ -386,11 +386,11 @@ fn check_enclosed_walk(svo: &Svo) -> u64 {
         assert!(seen.insert(c, v).is_none(), "{c} visited twice");
     });
     assert!(
-        ranges.windows(2).all(|w| w[0].1 <= w[1].0),
+        ranges.ranges().windows(2).all(|w| w[0].1 <= w[1].0),
         "ranges sorted, apart"
     );
     let mut skipped = 0u64;
-    for &(first, end) in &ranges {
+    for &(first, end) in ranges.ranges() {
         for code in first..end {
             let c = super::morton_decode(code);
             let v = all.get(&c).copied();

@@ -45,7 +45,7 @@ mod tests;
 #[cfg(test)]
 mod tile_tests;
 
-pub use interior::FACE_NEIGHBOURS;
+pub use interior::{EnclosedTiles, FACE_NEIGHBOURS};
 pub use morton::{morton_decode, morton_encode};
 pub use nearest::NearestSurfaces;
 pub use query::{RayHit, front_to_back_order};

@@ -175,22 +175,27 @@ impl Svo {
     /// 1/64 of the bounds.
     #[must_use]
     pub fn nearest_surfaces_bytes(&self) -> Option<u64> {
+        let (lo, hi) = self.nearest_surfaces_bounds()?;
+        let cells = (hi - lo + UVec3::ONE).as_u64vec3().element_product();
+        Some((cells as f64 * BYTES_PER_CELL) as u64)
+    }
+
+    /// The bounds the transform covers, or `None` where it declines.
+    fn nearest_surfaces_bounds(&self) -> Option<(UVec3, UVec3)> {
         if !self.may_have_interior() {
             return None;
         }
         let (lo, hi) = self.bounds()?;
         let cells = (hi - lo + UVec3::ONE).as_u64vec3().element_product();
         let worth_it = self.interior_voxels().saturating_mul(MIN_INTERIOR_SHARE) >= cells;
-        (cells <= MAX_CELLS && (hi - lo).max_element() < MAX_SIDE && worth_it)
-            .then_some((cells as f64 * BYTES_PER_CELL) as u64)
+        (cells <= MAX_CELLS && (hi - lo).max_element() < MAX_SIDE && worth_it).then_some((lo, hi))
     }
 
     /// The nearest surface voxel of every interior voxel, computed together (module docs):
     /// `None` where [`Self::nearest_surfaces_bytes`] declines.
     #[must_use]
     pub fn nearest_surfaces(&self) -> Option<NearestSurfaces> {
-        self.nearest_surfaces_bytes()?;
-        let (lo, hi) = self.bounds()?;
+        let (lo, hi) = self.nearest_surfaces_bounds()?;
         let dims = hi - lo + UVec3::ONE;
         let cells = dims.as_u64vec3().element_product() as usize;
         let words = cells.div_ceil(64);

@@ -575,7 +575,7 @@ pub fn mesh_voxels_smooth(
         return Err(FieldError::Empty);
     }
     // (Morton code, colour, interior mark) of every voxel but those of enclosed interior
-    // tiles, which are solid and interior (`enclosed`, Morton ranges) and corner no cell the
+    // tiles, which are solid and interior (`enclosed`) and corner no cell the
     // surface crosses: every such cell has a solid corner with an empty face neighbour. So the
     // work follows the surface, not a solid's volume.
     let mut codes: Vec<(u64, [u8; 4], bool)> = Vec::new();
@@ -599,10 +599,8 @@ pub fn mesh_voxels_smooth(
         if let Ok(i) = codes.binary_search_by_key(&code, |e| e.0) {
             return Some((codes[i].1, codes[i].2));
         }
-        let t = enclosed.partition_point(|r| r.1 <= code);
         enclosed
-            .get(t)
-            .is_some_and(|r| r.0 <= code)
+            .contains(v.as_uvec3())
             .then_some((crate::svo::Voxel::INTERIOR.color, true))
     };
     let solid = |p: IVec3| solid_voxel(p).map(|v| v.0);

@@ -31,7 +31,7 @@ use std::ops::Range;
 
 use glam::{UVec3, Vec3};
 
-use crate::svo::{Skin4, Svo, morton_encode};
+use crate::svo::{EnclosedTiles, Skin4, Svo};
 
 /// One outward face: the voxel it belongs to faces outside air across `axis` in direction
 /// `positive`.
@@ -162,9 +162,9 @@ struct Solids {
     /// `gap_outside[i]`: whether the empty run just above voxel `i` (up to the next solid voxel
     /// of its column) is joined to the outside. Unused where there is no such run.
     gap_outside: Vec<bool>,
-    /// Enclosed interior tiles left out of the lists (Morton ranges, sorted): solid, so a face
-    /// toward one is toward a solid voxel, not a cavity.
-    enclosed: Vec<(u64, u64)>,
+    /// Enclosed interior tiles left out of the lists: solid, so a face toward one is toward a
+    /// solid voxel, not a cavity.
+    enclosed: EnclosedTiles,
     extent: u32,
 }
 
@@ -199,7 +199,7 @@ impl Solids {
         let enclosed = if with_skin {
             // Every voxel touching a corner gives it weights.
             svo.for_each_leaf(push);
-            Vec::new()
+            EnclosedTiles::default()
         } else {
             // A static solid's enclosed interior tiles write no face, and left out of the
             // lists they read as sealed cavities, which write none either: the same quads
@@ -317,20 +317,14 @@ impl Solids {
     fn for_each_face(&self, mut f: impl FnMut(UVec3, usize, usize, bool, Across, &Around)) {
         // A "cavity" that is a left-out enclosed tile is solid.
         let mut f = |c: UVec3, i: usize, axis: usize, positive: bool, across, around: &Around| {
-            let across = if across == Across::Sealed && !self.enclosed.is_empty() {
-                let mut q = c;
-                q[axis] = if positive {
-                    q[axis] + 1
-                } else {
-                    q[axis].saturating_sub(1)
-                };
-                let code = morton_encode(q);
-                let t = self.enclosed.partition_point(|r| r.1 <= code);
-                if q != c && self.enclosed.get(t).is_some_and(|r| r.0 <= code) {
-                    Across::Solid
-                } else {
-                    across
-                }
+            let mut q = c;
+            q[axis] = if positive {
+                q[axis] + 1
+            } else {
+                q[axis].saturating_sub(1)
+            };
+            let across = if across == Across::Sealed && q != c && self.enclosed.contains(q) {
+                Across::Solid
             } else {
                 across
             };
