@@ -1,6 +1,7 @@
 //! The GPU renderer draws a tiled octree (core's `svo` tiles) as the leaf-only octree holding
 //! the same voxels, on lavapipe in CI: a tile's virtual nodes are queued with the tile's index
-//! and read its attributes. Never skipped: no adapter is a failure.
+//! and read its attributes; a skinned model's interior tiles are never queued, and its skin
+//! pass reads their slots. Never skipped: no adapter is a failure.
 
 use glam::{UVec3, Vec3};
 use thicket::gpu::{GpuContext, RenderTarget, Renderer, read_rgba8};
@@ -29,6 +30,9 @@ fn a_tiled_octree_renders_on_the_gpu_as_its_leaf_only_octree() {
         "interior ball".into(),
         scenes::ball(scenes::BallInside::Interior),
     ));
+    // Skinned and posed: interior tiles carrying their joint's weights (the skin pass reads
+    // their slots' subtree joints and corner weights, and never queues them).
+    docs.push(("rigid solid figure".into(), scenes::rigid_solid_figure()));
     for (name, doc) in docs {
         let (doc, tiled_doc, tiles) = scenes::without_and_with_tiles(&doc);
         assert!(tiles > 0, "{name}: no tiles");

@@ -93,8 +93,8 @@ fn render_work_follows_the_pixels_not_the_resolution() {
 
 /// What an artist exports does not depend on how the octree stores it: a tiled octree and the
 /// leaf-only octree holding the same voxels write the same bytes, in every export mode, on the
-/// voxel samples and on a solid Spot (whose enclosed inside is interior tiles: a `.vox` cell
-/// there takes its nearest surface voxel's colour, tile or leaf).
+/// voxel samples, on a solid Spot (whose enclosed inside is interior tiles: a `.vox` cell
+/// there takes its nearest surface voxel's colour, tile or leaf) and on a rigged solid.
 #[test]
 fn a_tiled_octree_exports_the_same_bytes_as_its_leaf_only_octree() {
     use thicket_core::io::gltf_export::{
@@ -133,6 +133,9 @@ fn a_tiled_octree_exports_the_same_bytes_as_its_leaf_only_octree() {
         }),
     );
     docs.push(("solid Spot".into(), doc));
+    // Skinned: the limbs' insides are interior tiles with their joint's weights; the export
+    // walks every voxel of a skinned model (each lends its weights to its corners).
+    docs.push(("rigid solid figure".into(), scenes::rigid_solid_figure()));
 
     let path = std::path::Path::new("same.glb");
     for (name, doc) in docs {

@@ -196,6 +196,10 @@ fn append_object(
                     }
                     continue;
                 }
+                if svo.is_tile(&n) {
+                    // Interior voxels (`Svo::tiles_value`): never drawn, no leaf slot.
+                    continue;
+                }
                 stack.extend((0..8).filter_map(|k| svo.child(&n, k)));
             }
         }

@@ -904,7 +904,8 @@ fn decode_svo(bytes: &[u8]) -> Result<Svo, String> {
         if height > 0 && !svo.tile_value_ok(&v) {
             return Err(format!(
                 "record {i}: a tile of height {height} holds a value this octree cannot store \
-                 as a tile (a skinned octree, or one whose eight copies do not average to itself)"
+                 as a tile (one whose eight copies do not average to itself, or in a skinned \
+                 octree one that is not interior)"
             ));
         }
         stored.push((morton_decode(code), height, v));

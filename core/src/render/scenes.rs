@@ -316,16 +316,132 @@ pub fn ball(inside: BallInside) -> Document {
     doc
 }
 
-/// `doc` with every rigid voxel model stored voxel by voxel, the same stored with tiles, and
-/// how many tiles those hold (the pair the tile tests render and compare).
+/// A solid blocky figure, rigidly bound and posed mid-stride: legs, a torso, an arm and a head
+/// of 8 to 24 voxels a side in a 64³ octree, each voxel following one joint, the enclosed
+/// voxels [`Voxel::INTERIOR`] (so each limb's inside is interior tiles carrying its joint's
+/// weights), with a looping clip played at 0.35 s.
+///
+/// # Panics
+/// Never: the figure fits its octree and the skeleton and clip are valid.
+#[must_use]
+pub fn rigid_solid_figure() -> Document {
+    use crate::skin::Rig;
+    use crate::skin::author::{ClipSpec, JointSpec, KeyInterpolation, KeySpec, SkeletonSpec};
+    use crate::skin::bind::{BindControl, BindMethod, bind};
+    let boxes = [
+        ([18u32, 2, 24], [26u32, 22, 32]),
+        ([34, 2, 24], [42, 22, 32]),
+        ([14, 22, 20], [46, 46, 36]),
+        ([46, 36, 24], [62, 44, 32]),
+        ([24, 46, 22], [36, 58, 34]),
+    ];
+    let solid = |p: glam::IVec3| {
+        boxes.iter().any(|(lo, hi)| {
+            p.cmpge(UVec3::from(*lo).as_ivec3()).all() && p.cmplt(UVec3::from(*hi).as_ivec3()).all()
+        })
+    };
+    let mut voxels = Vec::new();
+    for (lo, hi) in boxes {
+        for z in lo[2]..hi[2] {
+            for y in lo[1]..hi[1] {
+                for x in lo[0]..hi[0] {
+                    let p = glam::IVec3::new(x as i32, y as i32, z as i32);
+                    let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&d| solid(p + d));
+                    let v = if enclosed {
+                        Voxel::INTERIOR
+                    } else {
+                        Voxel::new([120 + (y * 2) as u8, 90, (x * 3) as u8, 255], Vec3::Y)
+                    };
+                    voxels.push((UVec3::new(x, y, z), v));
+                }
+            }
+        }
+    }
+    let svo = Svo::from_voxels(6, false, voxels)
+        .unwrap_or_else(|_| unreachable!("the figure fits the 64³ octree"));
+    let size = 0.05;
+    let origin = Vec3::new(-1.6, 0.0, -1.4);
+    let j = |name: &str, parent: Option<&str>, p: [f32; 3]| JointSpec {
+        name: name.into(),
+        parent: parent.map(Into::into),
+        position: (origin + Vec3::from(p) * size).to_array(),
+    };
+    let skeleton = SkeletonSpec {
+        joints: vec![
+            j("hip", None, [30.0, 24.0, 28.0]),
+            j("chest", Some("hip"), [30.0, 44.0, 28.0]),
+            j("head", Some("chest"), [30.0, 52.0, 28.0]),
+            j("arm", Some("chest"), [46.0, 40.0, 28.0]),
+            j("hand", Some("arm"), [60.0, 40.0, 28.0]),
+            j("leg.R", Some("hip"), [22.0, 22.0, 28.0]),
+            j("shin.R", Some("leg.R"), [22.0, 10.0, 28.0]),
+            j("leg.L", Some("hip"), [38.0, 22.0, 28.0]),
+            j("shin.L", Some("leg.L"), [38.0, 10.0, 28.0]),
+        ],
+    }
+    .to_skeleton(None)
+    .unwrap_or_else(|e| unreachable!("a valid skeleton: {e}"));
+    let (svo, _) = bind(
+        &svo,
+        origin,
+        size,
+        &skeleton,
+        BindMethod::Rigid,
+        BindControl::default(),
+    )
+    .unwrap_or_else(|e| unreachable!("the figure binds: {e}"));
+    let key = |joint: &str, time: f32, deg: [f32; 3]| KeySpec {
+        joint: joint.into(),
+        time,
+        rotation_deg: Some(deg),
+        translation: None,
+    };
+    let clip = ClipSpec {
+        name: "walk".into(),
+        length: 1.0,
+        interpolation: KeyInterpolation::Linear,
+        looping: true,
+        keys: vec![
+            key("leg.R", 0.0, [35.0, 0.0, 0.0]),
+            key("leg.R", 0.5, [-35.0, 0.0, 0.0]),
+            key("leg.L", 0.0, [-35.0, 0.0, 0.0]),
+            key("leg.L", 0.5, [35.0, 0.0, 0.0]),
+            key("shin.R", 0.25, [50.0, 0.0, 0.0]),
+            key("arm", 0.5, [0.0, 25.0, -70.0]),
+            key("head", 0.5, [0.0, 40.0, 10.0]),
+        ],
+        frame_rate: 24.0,
+    }
+    .to_clip(&skeleton)
+    .unwrap_or_else(|e| unreachable!("a valid clip: {e}"));
+    let mut rig = Rig::new(skeleton, vec![clip]);
+    rig.playback.time_secs = 0.35;
+    let mut doc = Document::default();
+    doc.add(
+        "Figure",
+        ObjectKind::Voxels(VoxelModel {
+            svo,
+            voxel_size: size,
+            origin,
+            rig: Some(rig),
+            ..VoxelModel::default()
+        }),
+    );
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
+/// `doc` with every voxel model stored voxel by voxel, the same stored with tiles (in a
+/// skinned model, only its interior tiles), and how many tiles those hold (the pair the tile
+/// tests render and compare).
 #[must_use]
 pub fn without_and_with_tiles(doc: &Document) -> (Document, Document, u64) {
     let (mut flat, mut tiled) = (doc.clone(), doc.clone());
     let mut tiles = 0;
     for (a, b) in flat.objects.iter_mut().zip(&mut tiled.objects) {
-        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind)
-            && a.rig.is_none()
-        {
+        if let (ObjectKind::Voxels(a), ObjectKind::Voxels(b)) = (&mut a.kind, &mut b.kind) {
             a.svo = std::mem::take(&mut a.svo).without_tiles();
             b.svo = std::mem::take(&mut b.svo).with_tiles();
             tiles += b.svo.tile_count();

@@ -22,10 +22,12 @@ fn a_tiled_octree_renders_as_its_leaf_only_octree() {
         "interior ball".into(),
         scenes::ball(scenes::BallInside::Interior),
     ));
+    // Skinned and posed: its limbs' insides are interior tiles carrying their joint's weights.
+    docs.push(("rigid solid figure".into(), scenes::rigid_solid_figure()));
     for (name, doc) in docs {
         let (doc, tiled_doc, tiles) = scenes::without_and_with_tiles(&doc);
         // Surface-only samples (terrain) may have none; the house's walls and the ball do.
-        if name == "house" || name.ends_with("ball") {
+        if name == "house" || name.ends_with("ball") || name.ends_with("figure") {
             assert!(tiles > 50, "{name}: {tiles} tiles");
         }
         for quality in [

@@ -174,6 +174,12 @@ proptest! {
 /// A solid ball of radius 13 in the 32³ model, as a solid import makes it: voxels enclosed on
 /// all six faces are interior, the shell coloured by position.
 fn interior_ball() -> Svo {
+    interior_ball_with(false)
+}
+
+/// [`interior_ball`], with `skin` rigidly bound to two joints: the half below x = 16 follows
+/// joint 0, the rest joint 1, interior voxels included (a rigged solid: its insides tile).
+fn interior_ball_with(skin: bool) -> Svo {
     let c = Vec3::splat(16.0);
     let inside = |p: IVec3| {
         p.cmpge(IVec3::ZERO).all()
@@ -197,11 +203,15 @@ fn interior_ball() -> Svo {
                         p.as_vec3() + 0.5 - c,
                     )
                 };
-                voxels.push((p.as_uvec3(), v));
+                let skin = crate::svo::Skin4 {
+                    joints: [u8::from(skin && x >= 16), 0, 0, 0],
+                    weights: [if skin { 255 } else { 0 }, 0, 0, 0],
+                };
+                voxels.push((p.as_uvec3(), Voxel { skin, ..v }));
             }
         }
     }
-    Svo::from_voxels(5, false, voxels).expect("inside the octree")
+    Svo::from_voxels(5, skin, voxels).expect("inside the octree")
 }
 
 /// No interior voxel is exposed, and none of the mark's parts (its colour, its normal code)
@@ -242,6 +252,42 @@ proptest! {
             prop_assert_eq!(&a, &b, "{:?}", tool);
             prop_assert_eq!(&tiled, &flat, "{:?}", tool);
             assert_interior_sound(&tiled, tool);
+            undo.push(a.0);
+        }
+        for d in undo.iter().rev() {
+            tiled.apply_delta(d);
+        }
+        prop_assert_eq!(&tiled, &tiled_start);
+        prop_assert_eq!(tiled.tile_count(), tiled_start.tile_count());
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+    /// Property: in a skinned solid (its interior tiles carry their joint's weights) every
+    /// tool does the same to the tiled and the voxel-by-voxel octree, keeps the interior
+    /// sound, and leaves no tile that is drawn (a skinned octree tiles only its interior);
+    /// the undo deltas restore the start.
+    #[test]
+    fn the_tools_keep_a_skinned_solids_tiles_interior(
+        tools in proptest::collection::vec(arb_tool(), 1..8),
+    ) {
+        let tiled_start = interior_ball_with(true);
+        prop_assert!(tiled_start.has_skin() && tiled_start.tile_count() > 0);
+        let flat_start = tiled_start.clone().without_tiles();
+        let (mut tiled, mut flat) = (tiled_start.clone(), flat_start.clone());
+        let mut undo = Vec::new();
+        for tool in &tools {
+            let a = run(&mut tiled, tool);
+            let b = run(&mut flat, tool);
+            prop_assert_eq!(&a, &b, "{:?}", tool);
+            prop_assert_eq!(&tiled, &flat, "{:?}", tool);
+            assert_interior_sound(&tiled, tool);
+            let mut drawn_tiles = 0;
+            tiled.for_each_run(|_, height, v| {
+                drawn_tiles += usize::from(height > 0 && !v.is_interior());
+            });
+            prop_assert_eq!(drawn_tiles, 0, "{:?}", tool);
             undo.push(a.0);
         }
         for d in undo.iter().rev() {

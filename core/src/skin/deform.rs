@@ -40,7 +40,10 @@ use crate::deform::{DeformedNode, NodeDeform, NodeInfo};
 use crate::svo::{Skin4, Svo};
 
 /// Derived per-octree data for skinned drawing: weights at every node's eight corners and the
-/// joints used in every internal node's subtree. Built in one pass over the octree.
+/// joints used in every internal node's subtree. Built in one pass over the octree. Every
+/// stored node gets what the leaf-only octree of the same voxels gives it: a tile (interior
+/// voxels sharing one weight set, the only kind a skinned octree stores) counts as its voxels,
+/// touching the lattice on its boundary with their number there.
 #[derive(Debug, Clone, Default)]
 pub struct SkinTables {
     /// Every distinct `(lattice point, weights)` a node corner is skinned from: a corner shared
@@ -88,54 +91,67 @@ impl SkinTables {
         if !svo.has_skin() || svo.is_empty() {
             return t;
         }
-        // Skinned octrees are built without tiles (`Svo::new`), and a loaded one with tiles is
-        // refused: these tables index stored nodes, which a tile's voxels are not.
-        debug_assert_eq!(svo.tile_count(), 0, "skinning tables of a tiled octree");
-        // Lattice point → merged weights of the leaves touching it: every (point, leaf skin)
-        // touch, sorted by point (stably, so each point merges its leaves' skins in leaf
-        // order), then merged per point. Sorting a flat list is several times cheaper than a
-        // hash map of lists, and the points come out in Morton order (neighbouring nodes read
-        // neighbouring entries).
-        let leaf_skin = svo.leaf_skin();
-        let mut touches: Vec<(u128, u32)> = Vec::with_capacity(leaf_skin.len() * 8);
+        // Lattice point → merged weights of the voxels touching it: every (point, voxel skin)
+        // touch, sorted by point, then merged per point. Sorting a flat list is several times
+        // cheaper than a hash map of lists, and the points come out in Morton order
+        // (neighbouring nodes read neighbouring entries). A tile (interior voxels sharing one
+        // weight set, `Svo::tiles_value`) touches only the points on its boundary, each once
+        // with the number of its voxels there: its inner points merge eight copies of its own
+        // weights, which is those weights, and are the corner of no stored node.
+        let (leaf_skin, inner_skin) = (svo.leaf_skin(), svo.inner_skin());
+        let mut touches: Vec<(u128, u64)> = Vec::with_capacity(leaf_skin.len() * 8);
         let mut stack = vec![svo.root()];
         while let Some(node) = stack.pop() {
             if svo.is_leaf(&node) {
                 for k in 0..8u32 {
                     let p = node.origin + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                    touches.push((lattice_key(p), node.index * 8 + k));
+                    touches.push((lattice_key(p), u64::from(node.index * 8 + k)));
                 }
+            } else if svo.is_tile(&node) {
+                let size = svo.node_size(node.level);
+                tile_boundary(node.origin, size, |p, voxels| {
+                    touches.push((lattice_key(p), tile_touch(node.index, voxels)));
+                });
             } else {
                 stack.extend((0..8).filter_map(|k| svo.child(&node, k)));
             }
         }
-        // Merging sums integer weights, so the order of a point's leaves does not matter.
+        // Merging sums integer weights, so the order of a point's voxels does not matter.
         touches.sort_unstable_by_key(|e| e.0);
         t.leaf_corner_points = vec![[0; 8]; leaf_skin.len()];
         let mut merged: Vec<(UVec3, Skin4)> = Vec::new();
         let mut keys: Vec<u128> = Vec::new();
+        // (tile's inner index, entry) for each point on a tile's boundary.
+        let mut tile_points: Vec<(u32, u32)> = Vec::new();
         let mut skins: Vec<Skin4> = Vec::with_capacity(8);
         for group in touches.chunk_by(|a, b| a.0 == b.0) {
             skins.clear();
-            skins.extend(
-                group
-                    .iter()
-                    .filter_map(|e| leaf_skin.get((e.1 / 8) as usize).copied()),
-            );
+            for &(_, slot) in group {
+                match tile_of_touch(slot) {
+                    Some((tile, voxels)) => skins.extend(std::iter::repeat_n(
+                        inner_skin.get(tile as usize).copied().unwrap_or_default(),
+                        voxels,
+                    )),
+                    None => skins.extend(leaf_skin.get((slot / 8) as usize).copied()),
+                }
+            }
             let skin = Skin4::merge(&skins);
             let id = merged.len() as u32;
             for &(_, slot) in group {
-                let (leaf, k) = ((slot / 8) as usize, (slot % 8) as usize);
-                if let Some(i) = t.leaf_corner_points.get_mut(leaf) {
-                    i[k] = id;
+                if let Some((tile, _)) = tile_of_touch(slot) {
+                    tile_points.push((tile, id));
+                } else if let Some(i) = t.leaf_corner_points.get_mut((slot / 8) as usize) {
+                    i[(slot % 8) as usize] = id;
                 }
             }
             keys.push(group[0].0);
             merged.push((lattice_point(group[0].0), skin));
         }
+        tile_points.sort_unstable();
         let mut points = CornerPoints {
             keys,
             own: HashMap::new(),
+            tile_points,
         };
         t.corner_points = merged;
         t.inner_corner_points = vec![[0; 8]; svo.inner_skin().len()];
@@ -257,6 +273,39 @@ struct CornerPoints {
     /// `corner_points[i]`.
     keys: Vec<u128>,
     own: HashMap<(UVec3, Skin4), u32>,
+    /// `(tile's inner index, entry)` of every lattice point on a tile's boundary, sorted.
+    tile_points: Vec<(u32, u32)>,
+}
+
+/// Bit of a [`SkinTables::build`] touch marking a tile's voxels (the rest: their count at the
+/// point above bit 32, the tile's inner index below); a leaf's touch is `index * 8 + corner`.
+const TILE_TOUCH: u64 = 1 << 63;
+
+fn tile_touch(tile: u32, voxels: usize) -> u64 {
+    TILE_TOUCH | (voxels as u64) << 32 | u64::from(tile)
+}
+
+/// `(tile's inner index, voxels)` of a tile's touch; `None` for a leaf's.
+fn tile_of_touch(slot: u64) -> Option<(u32, usize)> {
+    (slot & TILE_TOUCH != 0).then_some((slot as u32, ((slot >> 32) & 0xff) as usize))
+}
+
+/// Calls `f(point, voxels)` for every lattice point on the boundary of the cube of `size`
+/// voxels a side (`size >= 2`) at `origin`, with how many of the cube's voxels touch it: 1 at
+/// a corner, 2 along an edge, 4 on a face. The cube's voxels touch each inner point eight
+/// times.
+fn tile_boundary(origin: UVec3, size: u32, mut f: impl FnMut(UVec3, usize)) {
+    let on = |v: u32| v == 0 || v == size;
+    let count = |v: u32| if on(v) { 1 } else { 2 };
+    for x in 0..=size {
+        for y in 0..=size {
+            let all_z = on(x) || on(y);
+            let step = if all_z { 1 } else { size };
+            for z in (0..=size).step_by(step as usize) {
+                f(origin + UVec3::new(x, y, z), count(x) * count(y) * count(z));
+            }
+        }
+    }
 }
 
 /// A Morton-order key of a lattice point (coordinates up to 2²¹ inclusive, one bit more than a
@@ -328,9 +377,24 @@ fn walk(
     if let Some(slot) = t.inner_corner_points.get_mut(node.index as usize) {
         *slot = ids;
     }
-    for k in 0..8 {
-        if let Some(child) = svo.child(&node, k) {
-            walk(svo, child, points, t, joints);
+    if svo.is_tile(&node) {
+        // A tile's voxels and the nodes between it and them are not stored, but their weights
+        // count as a leaf-only subtree's would: their own are the tile's, and their corners
+        // are the tile's inner points (the tile's weights again) and its boundary points.
+        let at = points.tile_points.partition_point(|e| e.0 < node.index);
+        for &(_, id) in points.tile_points[at..]
+            .iter()
+            .take_while(|e| e.0 == node.index)
+        {
+            if let Some((_, skin)) = t.corner_points.get(id as usize) {
+                joints.extend(used_influences(skin));
+            }
+        }
+    } else {
+        for k in 0..8 {
+            if let Some(child) = svo.child(&node, k) {
+                walk(svo, child, points, t, joints);
+            }
         }
     }
     merge_max(joints, start);

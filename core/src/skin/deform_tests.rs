@@ -620,3 +620,93 @@ fn corner_tables_hold_the_merged_weights_of_the_leaves_touching_each_corner() {
     );
     assert!(own_corners > 0, "some internal corner touches no leaf");
 }
+
+/// The stored nodes of an octree, a tile's virtual nodes left out.
+fn stored_nodes(svo: &crate::svo::Svo) -> Vec<crate::svo::NodeRef> {
+    let mut out = Vec::new();
+    let mut stack = vec![svo.root()];
+    while let Some(nd) = stack.pop() {
+        if !svo.is_tile(&nd) {
+            stack.extend((0..8).filter_map(|k| svo.child(&nd, k)));
+        }
+        out.push(nd);
+    }
+    out
+}
+
+#[test]
+fn a_skinned_solids_interior_tiles_leave_every_stored_nodes_tables_as_voxel_by_voxel() {
+    // A tile touches the lattice only on its boundary, with the count of its voxels there, and
+    // lends its subtree joints the weights of those points: every node the tiled octree stores
+    // gets the corner weights and subtree joints its node in the leaf-only octree gets. On a
+    // rigidly bound solid (limbs' insides tile) and a solid CesiumMan (interior voxels carry
+    // their nearest surface's weights, so fewer tile).
+    let cesium = {
+        let import = import_skinned(concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shared/assets/skinned/CesiumMan.glb"
+        ))
+        .expect("asset imports");
+        let v = voxelize_skinned(
+            &import,
+            &VoxelizeSettings {
+                resolution: Resolution::Depth(6),
+                mode: crate::voxelize::Mode::Solid,
+                ..VoxelizeSettings::default()
+            },
+            &|_| true,
+        )
+        .expect("voxelizes");
+        v.model.svo
+    };
+    let figure = model_of(&crate::render::scenes::rigid_solid_figure())
+        .0
+        .svo
+        .clone();
+    for (name, tiled, least) in [("figure", figure, 100), ("CesiumMan", cesium, 5)] {
+        assert!(
+            tiled.tile_count() >= least,
+            "{name}: {} tiles",
+            tiled.tile_count()
+        );
+        let flat = tiled.clone().without_tiles();
+        assert_eq!(flat.tile_count(), 0);
+        assert!(flat == tiled, "{name}: the same voxels");
+        let (a, b) = (SkinTables::build(&flat), SkinTables::build(&tiled));
+        let by_place: std::collections::HashMap<_, _> = all_nodes(&flat)
+            .into_iter()
+            .map(|n| ((n.level, n.origin), n))
+            .collect();
+        let mut checked = 0;
+        for n in stored_nodes(&tiled) {
+            let m = by_place[&(n.level, n.origin)];
+            if tiled.is_leaf(&n) {
+                assert_eq!(
+                    b.leaf_corner_skins(n.index),
+                    a.leaf_corner_skins(m.index),
+                    "{name} {n:?}"
+                );
+            } else {
+                assert_eq!(
+                    b.inner_corner_skins(n.index),
+                    a.inner_corner_skins(m.index),
+                    "{name} {n:?}"
+                );
+                assert_eq!(
+                    b.subtree_joint_weights(n.index),
+                    a.subtree_joint_weights(m.index),
+                    "{name} {n:?}"
+                );
+            }
+            checked += 1;
+        }
+        eprintln!(
+            "{name}: {} tiles for {} voxels; corner points {} -> {}, {checked} nodes",
+            tiled.tile_count(),
+            tiled.memory_stats().tile_voxels,
+            a.corner_points.len(),
+            b.corner_points.len()
+        );
+        assert!(b.corner_points.len() < a.corner_points.len(), "{name}");
+    }
+}

@@ -299,7 +299,7 @@ impl Svo {
             leaf_free: Default::default(),
             leaf_count: 0,
             inner_count: 1,
-            tiling: !has_skin,
+            tiling: true,
             tile_count: 0,
             tile_voxels: 0,
         };
@@ -549,9 +549,13 @@ impl Svo {
         (changes, new_leaves): (usize, usize),
         mut f: impl FnMut(UVec3, Option<Voxel>) -> Option<Voxel>,
     ) -> Result<EditResult, SvoError> {
-        // With tiles, a fill of one value mostly makes tiles: reserving a leaf per voxel would
-        // keep memory the octree never uses.
-        let new_leaves = if self.tiling { 0 } else { new_leaves };
+        // With tiles, a fill of one value mostly makes tiles (in a skinned octree only an
+        // interior fill does): reserving a leaf per voxel would keep memory never used.
+        let new_leaves = if self.tiling && !self.has_skin {
+            0
+        } else {
+            new_leaves
+        };
         let a = &mut self.leaf_attr;
         a.color.reserve(new_leaves);
         a.normal.reserve(new_leaves);
@@ -879,6 +883,7 @@ impl Svo {
             if n == 8
                 && self.tiling
                 && leaves.iter().all(|v| *v == leaves[0])
+                && (!self.has_skin || leaves[0].is_interior())
                 && self.merge_built(level, &leaves, ctx) == leaves[0]
             {
                 self.leaf_count += 8;

@@ -33,7 +33,7 @@ impl Svo {
     }
 
     /// This octree with every tile split into explicit nodes, and no new tiles made by edits
-    /// (the layout the skinning tables need).
+    /// (the voxel-by-voxel reference the tile tests compare against).
     #[must_use]
     pub fn without_tiles(mut self) -> Self {
         self.tiling = false;
@@ -126,11 +126,12 @@ impl Svo {
         self.collapse(level, i);
     }
 
-    /// Whether `voxel` may be stored as a tile in this octree: tiling is on and eight copies of
-    /// it average to itself (what every tile this octree makes holds).
+    /// Whether `voxel` may be stored as a tile in this octree: tiling is on, eight copies of it
+    /// average to itself, and in a skinned octree it is interior (what every tile this octree
+    /// makes holds; [`Self::tiles_value`]).
     #[must_use]
     pub fn tile_value_ok(&self, voxel: &Voxel) -> bool {
-        self.tiling && self.averages_to_itself(&self.stored(*voxel))
+        self.tiling && self.tiles_value(&self.stored(*voxel))
     }
 
     /// Whether inner slot `i` is a tile.
@@ -149,7 +150,17 @@ impl Svo {
     /// and their average is the value itself (so the tile's record is also the average a
     /// leaf-only octree would hold).
     pub(super) fn can_tile(&self, v: &[Voxel; 8]) -> bool {
-        self.tiling && v.iter().all(|x| *x == v[0]) && self.averages_to_itself(&v[0])
+        self.tiling && v.iter().all(|x| *x == v[0]) && self.tiles_value(&v[0])
+    }
+
+    /// Whether a region of voxels `v` may be one tile (tiling aside): eight copies of `v`
+    /// average to `v` itself, and a skinned octree tiles only interior voxels. Interior nodes
+    /// are never drawn, while the skinning tables and the GPU skin pass place a drawn node by
+    /// its stored slot (its corner weights and subtree joints), which a tile's virtual nodes
+    /// do not have; so in a skinned model the inside of a solid is stored once per tile,
+    /// with the weight set its voxels share, and everything drawn stays explicit.
+    pub(super) fn tiles_value(&self, v: &Voxel) -> bool {
+        (!self.has_skin || v.is_interior()) && self.averages_to_itself(v)
     }
 
     fn averages_to_itself(&self, v: &Voxel) -> bool {

@@ -8,7 +8,9 @@ use proptest::prelude::*;
 use super::*;
 
 /// A solid ball of radius `r` in a `2^depth` octree: one colour inside, a shell of varying
-/// colours on its surface (so some regions tile and some do not), skin weights by octant.
+/// colours on its surface (so some regions tile and some do not); with `skin`, weights by half
+/// (x below or above the centre) and an interior inside, as a rigged solid holds it (a skinned
+/// octree tiles only its interior).
 fn ball(depth: u8, r: f32, skin: bool) -> Vec<(UVec3, Voxel)> {
     let e = 1u32 << depth;
     let c = e as f32 / 2.0;
@@ -23,6 +25,8 @@ fn ball(depth: u8, r: f32, skin: bool) -> Vec<(UVec3, Voxel)> {
                 }
                 let mut v = if d > r - 1.5 {
                     Voxel::new([(x * 8 % 256) as u8, (y * 8 % 256) as u8, 40, 255], p)
+                } else if skin {
+                    Voxel::INTERIOR
                 } else {
                     Voxel::new([200, 180, 20, 255], Vec3::Z)
                 };

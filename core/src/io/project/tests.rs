@@ -332,7 +332,7 @@ fn tiled_payloads_follow_the_surface_and_older_payloads_still_load() {
         tiled.len(),
         flat.len()
     );
-    // A skinned octree keeps its voxels one by one and round-trips too.
+    // A skinned surface keeps its voxels one by one and round-trips too.
     let doc = sample_doc(5, true);
     let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
         unreachable!("the sample's first object is voxels")
@@ -340,6 +340,46 @@ fn tiled_payloads_follow_the_surface_and_older_payloads_still_load() {
     let mut bytes = Vec::new();
     encode_svo(&v.svo, &mut bytes);
     assert_eq!(decode_svo(&bytes).unwrap(), v.svo);
+}
+
+#[test]
+fn a_skinned_solids_interior_tiles_round_trip_and_a_coloured_skinned_tile_is_refused() {
+    let doc = crate::render::scenes::rigid_solid_figure();
+    let ObjectKind::Voxels(v) = &doc.objects[0].kind else {
+        unreachable!("the figure is voxels")
+    };
+    let svo = &v.svo;
+    assert!(
+        svo.has_skin() && svo.tile_count() > 100,
+        "{}",
+        svo.tile_count()
+    );
+    let mut bytes = Vec::new();
+    encode_svo(svo, &mut bytes);
+    let back = decode_svo(&bytes).unwrap();
+    assert_eq!(&back, svo);
+    assert_eq!(back.tile_count(), svo.tile_count());
+    assert_eq!(back.memory_stats(), svo.memory_stats());
+    // Smaller than one record a voxel.
+    let flat = encode_svo1(svo);
+    assert!(
+        bytes.len() < flat.len(),
+        "{} >= {}",
+        bytes.len(),
+        flat.len()
+    );
+    // A skinned record is code 8, height 1, colour 4, normal 2, material 1, skin 8 = 24 bytes
+    // after the 24-byte header. A tile given a colour (a drawn tile) is refused: skinned
+    // octrees tile only their interior.
+    let runs = u64::from_le_bytes(bytes[16..24].try_into().unwrap()) as usize;
+    let record = |i: usize| 24 + 24 * i;
+    let tile = (0..runs).find(|&i| bytes[record(i) + 8] > 0).unwrap();
+    let mut b = bytes.clone();
+    let at = record(tile) + 9;
+    b[at..at + 4].copy_from_slice(&[200, 40, 40, 255]);
+    b[at + 4..at + 6].copy_from_slice(&crate::svo::encode_normal(Vec3::Y).to_le_bytes());
+    let e = decode_svo(&b).unwrap_err();
+    assert!(e.contains("cannot store") && e.contains("skinned"), "{e}");
 }
 
 #[test]
