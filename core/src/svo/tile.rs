@@ -128,7 +128,7 @@ impl Svo {
 
     /// Whether `voxel` may be stored as a tile in this octree: tiling is on, eight copies of it
     /// average to itself, and in a skinned octree it is interior (what every tile this octree
-    /// makes holds; [`Self::tiles_value`]).
+    /// makes holds; see `tiles_value`).
     #[must_use]
     pub fn tile_value_ok(&self, voxel: &Voxel) -> bool {
         self.tiling && self.tiles_value(&self.stored(*voxel))
