@@ -319,7 +319,8 @@ pub fn ball(inside: BallInside) -> Document {
 /// A solid blocky figure, rigidly bound and posed mid-stride: legs, a torso, an arm and a head
 /// of 8 to 24 voxels a side in a 64³ octree, each voxel following one joint, the enclosed
 /// voxels [`Voxel::INTERIOR`] (so each limb's inside is interior tiles carrying its joint's
-/// weights), with a looping clip played at 0.35 s.
+/// weights), with a looping clip played at 0.35 s and boxes stretched to their skinned corners
+/// (`StretchStrategy::Corners`).
 ///
 /// # Panics
 /// Never: the figure fits its octree and the skeleton and clip are valid.
@@ -416,6 +417,9 @@ pub fn rigid_solid_figure() -> Document {
     .unwrap_or_else(|e| unreachable!("a valid clip: {e}"));
     let mut rig = Rig::new(skeleton, vec![clip]);
     rig.playback.time_secs = 0.35;
+    // Boxes from the corner weights: they close a rigid joint's gaps, and the renderers then
+    // read every drawn node's corner weights from the skinning tables.
+    rig.stretch.strategy = crate::skin::StretchStrategy::Corners;
     let mut doc = Document::default();
     doc.add(
         "Figure",

@@ -11,6 +11,31 @@ fn sample(name: &str) -> Document {
     crate::io::project::load(&path).expect("a sample project")
 }
 
+/// CesiumMan voxelized solid at depth 7, mid-stride, boxes from their skinned corners.
+fn solid_cesium_man() -> Document {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../shared/assets/skinned/CesiumMan.glb");
+    let import = crate::io::import_skinned(&path).expect("CesiumMan imports");
+    let settings = crate::voxelize::VoxelizeSettings {
+        resolution: crate::voxelize::Resolution::Depth(7),
+        mode: crate::voxelize::Mode::Solid,
+        ..crate::voxelize::VoxelizeSettings::default()
+    };
+    let mut model = crate::io::voxelize_skinned(&import, &settings, &|_| true)
+        .expect("voxelizes")
+        .model;
+    if let Some(rig) = &mut model.rig {
+        rig.playback.time_secs = 0.6;
+        rig.stretch.strategy = crate::skin::StretchStrategy::Corners;
+    }
+    let mut doc = Document::default();
+    doc.add("CesiumMan", crate::scene::ObjectKind::Voxels(model));
+    if let Some((lo, hi)) = doc.bounds() {
+        doc.camera.frame(lo, hi);
+    }
+    doc
+}
+
 #[test]
 fn a_tiled_octree_renders_as_its_leaf_only_octree() {
     let mut docs: Vec<(String, Document)> = ["house", "mixed", "terrain", "tree"]
@@ -24,11 +49,17 @@ fn a_tiled_octree_renders_as_its_leaf_only_octree() {
     ));
     // Skinned and posed: its limbs' insides are interior tiles carrying their joint's weights.
     docs.push(("rigid solid figure".into(), scenes::rigid_solid_figure()));
+    // Skinned with smooth weights: its interior tiles border voxels of other weights, so the
+    // shell's corners merge a tile's weights with theirs.
+    docs.push(("solid CesiumMan".into(), solid_cesium_man()));
     for (name, doc) in docs {
         let (doc, tiled_doc, tiles) = scenes::without_and_with_tiles(&doc);
         // Surface-only samples (terrain) may have none; the house's walls and the ball do.
         if name == "house" || name.ends_with("ball") || name.ends_with("figure") {
             assert!(tiles > 50, "{name}: {tiles} tiles");
+        }
+        if name == "solid CesiumMan" {
+            assert!(tiles > 20, "{name}: {tiles} tiles");
         }
         for quality in [
             Quality::preset(QualityPreset::Draft),

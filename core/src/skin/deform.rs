@@ -105,7 +105,7 @@ impl SkinTables {
             if svo.is_leaf(&node) {
                 for k in 0..8u32 {
                     let p = node.origin + UVec3::new(k & 1, (k >> 1) & 1, (k >> 2) & 1);
-                    touches.push((lattice_key(p), u64::from(node.index * 8 + k)));
+                    touches.push((lattice_key(p), u64::from(node.index) * 8 + u64::from(k)));
                 }
             } else if svo.is_tile(&node) {
                 let size = svo.node_size(node.level);

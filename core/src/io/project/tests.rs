@@ -376,10 +376,34 @@ fn a_skinned_solids_interior_tiles_round_trip_and_a_coloured_skinned_tile_is_ref
     let tile = (0..runs).find(|&i| bytes[record(i) + 8] > 0).unwrap();
     let mut b = bytes.clone();
     let at = record(tile) + 9;
-    b[at..at + 4].copy_from_slice(&[200, 40, 40, 255]);
-    b[at + 4..at + 6].copy_from_slice(&crate::svo::encode_normal(Vec3::Y).to_le_bytes());
+    let (color, normal) = ([200, 40, 40, 255], crate::svo::encode_normal(Vec3::Y));
+    b[at..at + 4].copy_from_slice(&color);
+    b[at + 4..at + 6].copy_from_slice(&normal.to_le_bytes());
     let e = decode_svo(&b).unwrap_err();
-    assert!(e.contains("cannot store") && e.contains("skinned"), "{e}");
+    assert!(
+        e.contains(&format!("record {tile}:")) && e.contains("cannot store"),
+        "{e}"
+    );
+    // Refused for being drawn, not for its value: the same record is a tile a rigid octree
+    // stores, and the skinned octree stores its weights in a tile when it is interior.
+    let drawn = Voxel {
+        color,
+        normal,
+        ..Voxel::default()
+    };
+    assert!(Svo::new(svo.depth(), false).unwrap().tile_value_ok(&drawn));
+    let mut skin = None;
+    svo.for_each_run(|_, height, v| {
+        if height > 0 && skin.is_none() {
+            skin = Some(v.skin);
+        }
+    });
+    let skin = skin.expect("a tile");
+    assert!(!svo.tile_value_ok(&Voxel { skin, ..drawn }));
+    assert!(svo.tile_value_ok(&Voxel {
+        skin,
+        ..Voxel::INTERIOR
+    }));
 }
 
 #[test]
