@@ -2228,3 +2228,27 @@ fn undoing_an_edit_of_another_frame_keeps_the_enhancement_equal_to_a_fresh_one()
     assert!(ed.redo());
     assert_eq!(svo_of(&ed, fine_id), fresh(&ed), "frame 1's edit redone");
 }
+
+#[test]
+fn a_tool_that_refuses_says_why_and_changes_nothing() {
+    // A box of 400³ cells is more than one undo step may write: the tool refuses, and the
+    // editor passes its reason on (it used to report an edit of no voxels).
+    let (mut ed, id) = new_model_editor(512, InitialFill::Empty);
+    let before = svo_of(&ed, id);
+    let e = ed
+        .shape_box(
+            id,
+            IVec3::ZERO,
+            IVec3::splat(399),
+            ShapeOp::Add,
+            RED,
+            Mirror::default(),
+        )
+        .expect_err("refused");
+    let text = e.to_string();
+    assert!(
+        text.contains("64000000") && text.contains("edit a smaller region"),
+        "{text}"
+    );
+    assert!(svo_of(&ed, id) == before);
+}

@@ -313,6 +313,10 @@ impl Editor {
         let volume = v.volume_size();
         let frame = v.frames.as_ref().map_or(0, |f| f.shown);
         let edit = f(&mut v.svo, volume)?;
+        // A refused tool changed nothing; its reason is the user's to read.
+        if let Some(e) = &edit.refused {
+            return Err(tool_refused(e));
+        }
         let outcome = ToolOutcome {
             changed: edit.changed,
             voxels: edit.delta.entries.len(),
@@ -550,7 +554,7 @@ impl Editor {
     /// Unknown id or not a voxel model.
     pub fn select_all_voxels(&mut self, id: u64) -> Result<usize, CommandError> {
         let svo = self.svo_of(id)?;
-        let all = select::invert(svo, &VoxelSelection::default());
+        let all = select::invert(svo, &VoxelSelection::default()).map_err(|e| tool_refused(&e))?;
         self.select_voxels(id, all, SelectMode::Replace)
     }
 
@@ -568,7 +572,7 @@ impl Editor {
         let v = svo
             .get(at)
             .ok_or_else(|| CommandError::Invalid(format!("voxel {at} is empty")))?;
-        let cells = select::select_color(svo, v.color);
+        let cells = select::select_color(svo, v.color).map_err(|e| tool_refused(&e))?;
         self.select_voxels(id, cells, mode)
     }
 
@@ -587,7 +591,7 @@ impl Editor {
         if svo.get(at).is_none() {
             return Err(CommandError::Invalid(format!("voxel {at} is empty")));
         }
-        let cells = select::select_connected(svo, at, same_color);
+        let cells = select::select_connected(svo, at, same_color).map_err(|e| tool_refused(&e))?;
         self.select_voxels(id, cells, mode)
     }
 
@@ -603,7 +607,7 @@ impl Editor {
     pub fn invert_voxel_selection(&mut self) -> Result<usize, CommandError> {
         let id = self.selection_model()?;
         let current = self.current_cells(id);
-        let cells = select::invert(self.svo_of(id)?, &current);
+        let cells = select::invert(self.svo_of(id)?, &current).map_err(|e| tool_refused(&e))?;
         self.select_voxels(id, cells, SelectMode::Replace)
     }
 
@@ -1279,4 +1283,9 @@ fn op_word(op: ShapeOp) -> &'static str {
         ShapeOp::Remove => "Remove",
         ShapeOp::Paint => "Paint",
     }
+}
+
+/// A tool's refusal as the editor's error (shown in the status line as it reads).
+fn tool_refused(e: &thicket_core::sculpt::ToolError) -> CommandError {
+    CommandError::Invalid(e.to_string())
 }

@@ -35,7 +35,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::mesh::{linear_to_srgb_byte, srgb_byte_to_linear};
-use crate::svo::{EditResult, MAX_DEPTH, Svo, SvoError, Voxel, encode_normal};
+use crate::svo::{EditResult, MAX_DEPTH, MAX_LISTED_VOXELS, Svo, SvoError, Voxel, encode_normal};
 
 use grid::{CoarseGrid, FastMap, Window, cell_key};
 use resample::{ConfigCache, Needs, ProbePattern, Resampler};
@@ -91,6 +91,30 @@ pub enum EnhanceError {
     /// An octree operation failed.
     #[error(transparent)]
     Svo(#[from] SvoError),
+    /// The coarse map stands for more voxels than enhancement copies one by one
+    /// ([`MAX_LISTED_VOXELS`]; a solid's inside is stored as tiles).
+    #[error(
+        "detail enhancement copies every coarse voxel, and this model stands for {voxels} voxels \
+         (its inside stored as tiles), more than {limit}; enhance a model at a larger voxel size"
+    )]
+    TooManyVoxels {
+        /// Voxels the coarse map stands for.
+        voxels: u64,
+        /// [`MAX_LISTED_VOXELS`].
+        limit: u64,
+    },
+}
+
+/// [`EnhanceError::TooManyVoxels`] when `coarse` stands for more than [`MAX_LISTED_VOXELS`].
+fn check_listable(coarse: &Svo) -> Result<(), EnhanceError> {
+    let voxels = coarse.leaf_count();
+    if voxels > MAX_LISTED_VOXELS {
+        return Err(EnhanceError::TooManyVoxels {
+            voxels,
+            limit: MAX_LISTED_VOXELS,
+        });
+    }
+    Ok(())
 }
 
 /// Progress reporting and cancellation for long runs.
@@ -170,9 +194,11 @@ pub const ENHANCE_BYTES_PER_FINE_VOXEL: u64 = 130;
 /// coarse map only.
 ///
 /// # Errors
-/// As [`Enhancer::new`] for bad settings or a fine octree deeper than [`MAX_DEPTH`].
+/// As [`Enhancer::new`] for bad settings, a fine octree deeper than [`MAX_DEPTH`] or too many
+/// coarse voxels.
 pub fn estimate(coarse: &Svo, settings: &EnhanceSettings) -> Result<EnhanceEstimate, EnhanceError> {
     let engine = Engine::new(settings, coarse.extent())?;
+    check_listable(coarse)?;
     let grid = CoarseGrid::from_svo(coarse);
     let (surface, _) = candidates(&grid, engine.r_out);
     let f = f64::from(settings.factor);
@@ -718,7 +744,8 @@ impl Enhancer {
     ///
     /// # Errors
     /// [`EnhanceError::Invalid`] for bad settings, [`EnhanceError::TooDeep`] when the fine
-    /// octree would exceed [`MAX_DEPTH`].
+    /// octree would exceed [`MAX_DEPTH`], [`EnhanceError::TooManyVoxels`] for a coarse map
+    /// standing for more than [`MAX_LISTED_VOXELS`] voxels.
     pub fn new(coarse: &Svo, settings: &EnhanceSettings) -> Result<Self, EnhanceError> {
         Self::with_control(coarse, settings, Control::default())
     }
@@ -734,6 +761,7 @@ impl Enhancer {
     ) -> Result<Self, EnhanceError> {
         let start = Instant::now();
         let engine = Engine::new(settings, coarse.extent())?;
+        check_listable(coarse)?;
         let grid = CoarseGrid::from_svo(coarse);
         let (surface, candidates) = candidates(&grid, engine.r_out);
         let mut stats = EnhanceStats {

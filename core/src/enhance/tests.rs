@@ -953,3 +953,22 @@ fn the_enhance_estimate_holds_the_measured_peak() {
         }
     }
 }
+
+#[test]
+fn a_map_standing_for_more_voxels_than_enhancement_lists_is_refused_before_copying() {
+    // One 512³ tile and a voxel: 2^27 + 1 voxels in two records.
+    let v = Voxel::new([90, 160, 60, 255], Vec3::Y);
+    let map = Svo::from_runs(
+        10,
+        false,
+        [(UVec3::ZERO, 9, v), (UVec3::new(512, 0, 0), 0, v)],
+    )
+    .expect("two runs");
+    let settings = EnhanceSettings::default();
+    let want = EnhanceError::TooManyVoxels {
+        voxels: crate::svo::MAX_LISTED_VOXELS + 1,
+        limit: crate::svo::MAX_LISTED_VOXELS,
+    };
+    assert_eq!(estimate(&map, &settings).err(), Some(want.clone()));
+    assert_eq!(Enhancer::new(&map, &settings).err(), Some(want));
+}

@@ -34,8 +34,8 @@ pub use select::{
     select_in_rect, shrink, transform_selection,
 };
 pub use shapes::{
-    Ink, MAX_EDIT_CELLS, Mask, Mirror, ShapeOp, ToolEdit, ToolError, apply_box, apply_cells,
-    extrude, extrude_cells, face_region, flood_region, line_cells,
+    Ink, MAX_EDIT_CELLS, MAX_LISTED_VOXELS, Mask, Mirror, ShapeOp, ToolEdit, ToolError, apply_box,
+    apply_cells, check_listable, extrude, extrude_cells, face_region, flood_region, line_cells,
 };
 
 use std::collections::HashMap;

@@ -9,8 +9,8 @@ use serde::{Deserialize, Serialize};
 use super::nearest_skin;
 use super::normal_from;
 use super::shapes::{
-    DENSE_LIMIT, Grid, Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, box_cells, clamp_size,
-    commit,
+    DENSE_LIMIT, Grid, Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, box_cells,
+    check_listable, clamp_size, commit,
 };
 use crate::svo::{MAX_DEPTH, Svo, Voxel, decode_normal, encode_normal};
 
@@ -64,7 +64,7 @@ pub fn depth_for(size: UVec3) -> Result<u8, ToolError> {
 /// Whole-model replacement (the editor keeps the old octree for undo).
 ///
 /// # Errors
-/// See [`depth_for`].
+/// See [`depth_for`]; [`ToolError::TooManyVoxels`] past [`super::MAX_LISTED_VOXELS`].
 pub fn resize_canvas(
     svo: &Svo,
     size: UVec3,
@@ -72,6 +72,7 @@ pub fn resize_canvas(
     anchor: [Anchor; 3],
 ) -> Result<Resized, ToolError> {
     let depth = depth_for(new_size)?;
+    check_listable(svo, "Resize canvas")?;
     let size = clamp_size(svo, size);
     let mut offset = IVec3::ZERO;
     for a in 0..3 {
@@ -115,6 +116,9 @@ pub fn shift_content(svo: &mut Svo, size: UVec3, offset: IVec3, wrap: bool) -> T
     if size.min_element() == 0 {
         return ToolEdit::default();
     }
+    if let Err(e) = check_listable(svo, "Shift content") {
+        return ToolEdit::refused(e, 0);
+    }
     let s = size.as_i64vec3();
     let mut clipped = 0u64;
     let mut moved = Vec::new();
@@ -140,6 +144,9 @@ pub fn mirror_model(svo: &mut Svo, size: UVec3, axis: usize) -> ToolEdit {
     let size = clamp_size(svo, size);
     if axis >= 3 || size.min_element() == 0 {
         return ToolEdit::default();
+    }
+    if let Err(e) = check_listable(svo, "Mirror model") {
+        return ToolEdit::refused(e, 0);
     }
     let mut moved = Vec::new();
     svo.for_each_leaf_in(UVec3::ZERO, size - 1, |c, v| moved.push((c, v)));

@@ -9,8 +9,8 @@ use rayon::prelude::*;
 
 use super::nearest_skin;
 use super::shapes::{
-    Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, clamp_size, commit, commit_shifted,
-    flood_solid,
+    Ink, MAX_EDIT_CELLS, Normals, ToolEdit, ToolError, check_listable, clamp_size, commit,
+    commit_shifted, flood_solid,
 };
 use crate::svo::{
     MAX_DEPTH, Svo, Voxel, decode_normal, encode_normal, morton_decode, morton_encode,
@@ -239,43 +239,57 @@ pub fn select_in_rect(
 }
 
 /// Solid voxels of exactly `color` (RGBA).
-#[must_use]
-pub fn select_color(svo: &Svo, color: [u8; 4]) -> VoxelSelection {
+///
+/// # Errors
+/// [`ToolError::TooManyVoxels`] past [`super::MAX_LISTED_VOXELS`].
+pub fn select_color(svo: &Svo, color: [u8; 4]) -> Result<VoxelSelection, ToolError> {
+    check_listable(svo, "Select by colour")?;
     let mut codes = Vec::new();
     svo.for_each_leaf(|c, v| {
         if v.color == color {
             codes.push(morton_encode(c));
         }
     });
-    VoxelSelection::from_sorted(codes)
+    Ok(VoxelSelection::from_sorted(codes))
 }
 
 /// Solid voxels 6-connected to `seed`; `same_color`: only through voxels of seed's colour and
 /// material. Empty when the seed is empty.
-#[must_use]
-pub fn select_connected(svo: &Svo, seed: UVec3, same_color: bool) -> VoxelSelection {
+///
+/// # Errors
+/// [`ToolError::TooManyVoxels`] past [`super::MAX_LISTED_VOXELS`] (the flood may reach them
+/// all).
+pub fn select_connected(
+    svo: &Svo,
+    seed: UVec3,
+    same_color: bool,
+) -> Result<VoxelSelection, ToolError> {
     let Some(sv) = svo.get(seed) else {
-        return VoxelSelection::default();
+        return Ok(VoxelSelection::default());
     };
     let Some((lo, hi)) = svo.bounds() else {
-        return VoxelSelection::default();
+        return Ok(VoxelSelection::default());
     };
+    check_listable(svo, "Select connected")?;
     let cells = flood_solid(svo, lo, hi, seed, |_, v| {
         !same_color || (v.color == sv.color && v.material == sv.material)
     });
-    VoxelSelection::from_cells(cells)
+    Ok(VoxelSelection::from_cells(cells))
 }
 
-/// Solid voxels not in `sel`.
-#[must_use]
-pub fn invert(svo: &Svo, sel: &VoxelSelection) -> VoxelSelection {
+/// Solid voxels not in `sel` (with an empty `sel`, every solid voxel: select all).
+///
+/// # Errors
+/// [`ToolError::TooManyVoxels`] past [`super::MAX_LISTED_VOXELS`].
+pub fn invert(svo: &Svo, sel: &VoxelSelection) -> Result<VoxelSelection, ToolError> {
+    check_listable(svo, "Select all / Invert")?;
     let mut codes = Vec::new();
     svo.for_each_leaf(|c, _| {
         if !sel.contains(c) {
             codes.push(morton_encode(c));
         }
     });
-    VoxelSelection::from_sorted(codes)
+    Ok(VoxelSelection::from_sorted(codes))
 }
 
 const FACES: [IVec3; 6] = [
@@ -617,8 +631,11 @@ pub fn rotation_pivot(lo: UVec3, hi: UVec3, axis: usize) -> IVec3 {
     p
 }
 
-/// Deletes every solid voxel not in `sel`.
+/// Deletes every solid voxel not in `sel` (refused past [`super::MAX_LISTED_VOXELS`]).
 pub fn crop_to(svo: &mut Svo, sel: &VoxelSelection) -> ToolEdit {
+    if let Err(e) = check_listable(svo, "Crop to selection") {
+        return ToolEdit::refused(e, 0);
+    }
     let mut changes = Vec::new();
     svo.for_each_leaf(|c, _| {
         if !sel.contains(c) {

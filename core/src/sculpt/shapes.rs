@@ -42,7 +42,7 @@ impl ToolEdit {
         }
     }
 
-    fn refused(err: ToolError, clipped: u64) -> Self {
+    pub(crate) fn refused(err: ToolError, clipped: u64) -> Self {
         Self {
             clipped,
             refused: Some(err),
@@ -107,6 +107,43 @@ pub enum ToolError {
     /// A face normal that is not one of the six unit axis vectors.
     #[error("face normal {0:?} is not a unit axis vector (±X, ±Y or ±Z)")]
     BadNormal([i32; 3]),
+    /// A tool that goes through every voxel of the model one by one, on a model standing for
+    /// more voxels than [`MAX_LISTED_VOXELS`] (a solid whose inside is stored once per tile).
+    #[error(
+        "{what} lists the model's voxels one by one, and this model stands for {voxels} voxels \
+         (its inside stored as tiles), more than the {limit} it can list; brushes, boxes and \
+         carving still work, or import the model at a larger voxel size"
+    )]
+    TooManyVoxels {
+        /// The tool.
+        what: &'static str,
+        /// Voxels the model stands for.
+        voxels: u64,
+        /// [`MAX_LISTED_VOXELS`].
+        limit: u64,
+    },
+}
+
+/// Here: resize, shift and mirror the model, select all, by colour or connected, invert, crop
+/// to the selection refuse ([`ToolError::TooManyVoxels`]); the tools whose work follows the
+/// edit (brushes, boxes, carving) still work.
+pub use crate::svo::MAX_LISTED_VOXELS;
+
+/// [`ToolError::TooManyVoxels`] for `what` when `svo` stands for more than
+/// [`MAX_LISTED_VOXELS`] voxels.
+///
+/// # Errors
+/// As above.
+pub fn check_listable(svo: &Svo, what: &'static str) -> Result<(), ToolError> {
+    let voxels = svo.leaf_count();
+    if voxels > MAX_LISTED_VOXELS {
+        return Err(ToolError::TooManyVoxels {
+            what,
+            voxels,
+            limit: MAX_LISTED_VOXELS,
+        });
+    }
+    Ok(())
 }
 
 /// Most cells one edit may write (one undo step): 2^25, a 322³ box.

@@ -117,7 +117,11 @@ fn run(svo: &mut Svo, tool: &Tool) -> (UndoDelta, Option<(UVec3, UVec3)>) {
             apply_box(svo, SIZE, *a, *b, *op, ink(*k), Mirror::default(), None)
         }
         Tool::FillBox(a, b, k) => fill(svo, &select_box(svo, *a, *b), ink(*k)),
-        Tool::Flood(c, k) => fill(svo, &select_connected(svo, *c, true), ink(*k)),
+        Tool::Flood(c, k) => fill(
+            svo,
+            &select_connected(svo, *c, true).expect("under the listing limit"),
+            ink(*k),
+        ),
         Tool::CopyPaste(a, b, at) => {
             let clip = copy(svo, &select_box(svo, *a, *b));
             paste(svo, SIZE, &clip, a.min(*b).as_ivec3() + *at, false)
@@ -327,4 +331,77 @@ fn a_crop_through_an_interior_shows_its_nearest_surface() {
         checked += 1;
     });
     assert!(checked > 200, "{checked} voxels on the crop's faces");
+}
+
+#[test]
+fn tools_that_list_every_voxel_refuse_a_model_standing_for_more_and_edits_still_work() {
+    // A 1024³ volume holding one tile of 512³ voxels and one voxel beside it: 2^27 + 1 voxels
+    // in two records. The tools that go through every voxel refuse it, naming the limit, and
+    // change nothing; a box carved into the tile splits only the path to it.
+    let v = Voxel::new([90, 160, 60, 255], Vec3::Y);
+    let mut svo = Svo::from_runs(
+        10,
+        false,
+        [(UVec3::ZERO, 9, v), (UVec3::new(512, 0, 0), 0, v)],
+    )
+    .expect("two runs");
+    assert!(svo.tile_value_ok(&v));
+    assert_eq!(svo.leaf_count(), MAX_LISTED_VOXELS + 1);
+    let size = UVec3::splat(1024);
+    let start = svo.clone();
+    let refused = |e: Option<ToolError>, what: &str| match e {
+        Some(ToolError::TooManyVoxels {
+            what: w,
+            voxels,
+            limit,
+        }) => {
+            assert_eq!(
+                (w, voxels, limit),
+                (what, MAX_LISTED_VOXELS + 1, MAX_LISTED_VOXELS)
+            );
+            let text = ToolError::TooManyVoxels {
+                what: w,
+                voxels,
+                limit,
+            }
+            .to_string();
+            assert!(
+                text.contains("134217729") && text.contains("brushes"),
+                "{text}"
+            );
+        }
+        other => panic!("{what}: {other:?}"),
+    };
+    refused(
+        resize_canvas(&svo, size, UVec3::splat(600), [Anchor::Min; 3]).err(),
+        "Resize canvas",
+    );
+    refused(
+        shift_content(&mut svo, size, IVec3::X, false).refused,
+        "Shift content",
+    );
+    refused(mirror_model(&mut svo, size, 0).refused, "Mirror model");
+    refused(select_color(&svo, v.color).err(), "Select by colour");
+    refused(
+        select_connected(&svo, UVec3::ZERO, false).err(),
+        "Select connected",
+    );
+    let none = VoxelSelection::default();
+    refused(invert(&svo, &none).err(), "Select all / Invert");
+    refused(crop_to(&mut svo, &none).refused, "Crop to selection");
+    assert!(svo == start, "a refused tool changed the model");
+    // Edits that follow what they touch still work on it.
+    let carve = apply_box(
+        &mut svo,
+        size,
+        IVec3::splat(100),
+        IVec3::splat(103),
+        ShapeOp::Remove,
+        ink(0),
+        Mirror::default(),
+        None,
+    );
+    assert!(carve.refused.is_none(), "{:?}", carve.refused);
+    assert_eq!(svo.leaf_count(), MAX_LISTED_VOXELS + 1 - 64);
+    assert!(svo.get(UVec3::splat(101)).is_none());
 }

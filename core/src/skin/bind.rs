@@ -193,8 +193,9 @@ pub fn segment_distance(p: Vec3, a: Vec3, b: Vec3) -> f32 {
 /// and what was done. Colours, normals and materials are unchanged.
 ///
 /// # Errors
-/// [`SkinError::Rig`] for an empty octree or skeleton, more than [`MAX_SKIN_JOINTS`] joints or a
-/// non-finite placement; [`SkinError::Cancelled`] when cancelled.
+/// [`SkinError::Rig`] for an empty octree or skeleton, more than [`MAX_SKIN_JOINTS`] joints, a
+/// model standing for more than [`crate::svo::MAX_LISTED_VOXELS`] voxels or a non-finite
+/// placement; [`SkinError::Cancelled`] when cancelled.
 pub fn bind(
     svo: &Svo,
     origin: Vec3,
@@ -206,6 +207,16 @@ pub fn bind(
     let rig = |problem: String| SkinError::Rig { problem };
     if skeleton.is_empty() {
         return Err(rig("cannot bind: the skeleton has no joints".into()));
+    }
+    // Binding weighs every voxel one by one (and a skinned model stores every drawn voxel).
+    if svo.leaf_count() > crate::svo::MAX_LISTED_VOXELS {
+        return Err(rig(format!(
+            "cannot bind: binding weighs every voxel one by one, and this model stands for {} \
+             voxels (its inside stored as tiles), more than {}; bind a model at a larger voxel \
+             size",
+            svo.leaf_count(),
+            crate::svo::MAX_LISTED_VOXELS
+        )));
     }
     if skeleton.len() > MAX_SKIN_JOINTS {
         return Err(rig(format!(

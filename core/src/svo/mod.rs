@@ -59,6 +59,13 @@ use serde::{Deserialize, Serialize};
 /// Deepest supported octree: 2^21 voxels per axis, so x, y, z fit in a 63-bit Morton code.
 pub const MAX_DEPTH: u8 = 21;
 
+/// Most voxels a tool that goes through every voxel of a model one by one will list: 2^27. A
+/// model may stand for more ([`Svo::leaf_count`] counts the voxels its tiles stand for: a
+/// solid's inside is stored once per tile); such tools refuse it, naming this limit, rather
+/// than list it (the voxel tools that rebuild or select the whole model, detail enhancement,
+/// rig binding).
+pub const MAX_LISTED_VOXELS: u64 = 1 << 27;
+
 /// Why an octree operation was refused.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum SvoError {

@@ -92,10 +92,19 @@ pub struct VoxelizeSettings {
     /// (the whole conservative shell). Off by default: those voxels add about half a voxel
     /// layer of volume; thin parts are kept either way.
     pub keep_outer_surface: bool,
-    /// Refuse (with [`VoxelizeError::TooManyVoxels`]) rather than produce more voxels than
-    /// this. Working memory is about 16 bytes per voxel–triangle overlap, capped at 4× this.
+    /// Refuse (with [`VoxelizeError::TooManyVoxels`]) rather than produce more voxels stored
+    /// one by one than this: the surface, and a solid's interior where it is listed voxel by
+    /// voxel (skinned solids, grids too large for the interior bits). A rigid solid whose
+    /// interior goes through the bits is stored as its surface and interior tiles, and may
+    /// stand for up to [`MAX_TILED_SOLID_VOXELS`] (or this, if larger). Working memory is
+    /// about 16 bytes per voxel–triangle overlap, capped at 4× this.
     pub max_voxels: u64,
 }
+
+/// Most voxels a rigid solid's import may stand for when its interior is stored as tiles
+/// (2^31, what a project holds): its memory and file follow its surface, which
+/// [`VoxelizeSettings::max_voxels`] counts, and [`estimate`] gives the memory it needs.
+pub const MAX_TILED_SOLID_VOXELS: u64 = 1 << 31;
 
 impl Default for VoxelizeSettings {
     fn default() -> Self {
@@ -516,6 +525,17 @@ pub fn estimate(
     })
 }
 
+/// Most voxels a solid of grid `dims` may stand for: [`MAX_TILED_SOLID_VOXELS`] where its
+/// interior goes through the grid's bits into tiles (a rigid solid), else what
+/// [`VoxelizeSettings::max_voxels`] allows one by one.
+fn interior_limit(settings: &VoxelizeSettings, dims: UVec3, has_skin: bool) -> u64 {
+    if bits::fits(dims) && !has_skin {
+        settings.max_voxels.max(MAX_TILED_SOLID_VOXELS)
+    } else {
+        settings.max_voxels
+    }
+}
+
 /// Voxelizes `model` (in its object space) into an octree.
 ///
 /// `progress(fraction)` is called from the calling thread now and then; returning `false`
@@ -619,6 +639,7 @@ pub fn voxelize(
         } else {
             fill::Keep::Crossings
         };
+        let inside_limit = interior_limit(settings, dims, has_skin);
         for (i, axis) in fill::Axis::ALL.into_iter().enumerate() {
             let from = 0.55 + 0.05 * i as f32;
             let f = fill::cast(
@@ -636,9 +657,9 @@ pub fn voxelize(
                 break;
             }
             // Refused before the runs are expanded into voxels.
-            if f.inside_count().saturating_add(stats.surface_voxels) > settings.max_voxels {
+            if f.inside_count().saturating_add(stats.surface_voxels) > inside_limit {
                 return Err(VoxelizeError::TooManyVoxels {
-                    limit: settings.max_voxels,
+                    limit: inside_limit,
                     what: "interior voxels",
                 });
             }
@@ -676,9 +697,10 @@ pub fn voxelize(
     if let Some(inside) = &interior {
         stats.interior_voxels = inside.len();
         stats.interior_from_nearest_surface = !matches!(inside, Interior::Sparse(_));
-        if stats.interior_voxels.saturating_add(stats.surface_voxels) > settings.max_voxels {
+        let limit = interior_limit(settings, dims, has_skin);
+        if stats.interior_voxels.saturating_add(stats.surface_voxels) > limit {
             return Err(VoxelizeError::TooManyVoxels {
-                limit: settings.max_voxels,
+                limit,
                 what: "interior voxels",
             });
         }

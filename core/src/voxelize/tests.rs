@@ -832,10 +832,25 @@ fn bad_settings_and_huge_requests_are_refused() {
         }),
         Some(VoxelizeError::TooManyVoxels { .. })
     ));
-    let too_many = err(VoxelizeSettings {
+    // A rigid solid's interior is stored as tiles: the limit counts its surface (24,192 voxels
+    // here), and the 64³ cube stands for eight times the limit. What is stored one by one is
+    // the surface and the interior layer beside it (a tile is a whole aligned block).
+    let small = VoxelizeSettings {
         max_voxels: 30_000,
         ..settings(Resolution::Depth(6), Mode::Solid)
-    });
+    };
+    let rigid = voxelize(&cube, &small, &all_progress).expect("a tiled solid");
+    assert_eq!(rigid.svo.leaf_count(), 64 * 64 * 64);
+    let stored = rigid.svo.leaf_count() - rigid.svo.memory_stats().tile_voxels;
+    assert!(stored < 2 * 30_000, "{stored} voxels stored one by one");
+    assert!(rigid.svo.tile_count() > 0);
+    // A skinned solid lists its interior voxel by voxel (each with its own weights): refused.
+    let mut skinned = cube.clone();
+    for part in &mut skinned.parts {
+        part.joints = vec![[0; 4]; part.positions.len()];
+        part.weights = vec![[1.0, 0.0, 0.0, 0.0]; part.positions.len()];
+    }
+    let too_many = voxelize(&skinned, &small, &all_progress).err();
     assert!(matches!(
         too_many,
         Some(VoxelizeError::TooManyVoxels {
