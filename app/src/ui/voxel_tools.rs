@@ -869,12 +869,13 @@ impl VoxelTools {
                     };
                     select_in_rect(&v.svo, frame.size, clip_from_voxel, a, b, surface)
                 };
-                Some(
-                    editor
+                Some(match cells {
+                    Ok(cells) => editor
                         .select_voxels(frame.object, cells, mode)
                         .map(|n| format!("{n} voxels selected"))
                         .map_err(|e| e.to_string()),
-                )
+                    Err(e) => Err(e.to_string()),
+                })
             }
             _ => None,
         }

@@ -94,8 +94,10 @@ pub enum EnhanceError {
     /// The coarse map stands for more voxels than enhancement copies one by one
     /// ([`MAX_LISTED_VOXELS`]; a solid's inside is stored as tiles).
     #[error(
-        "detail enhancement copies every coarse voxel, and this model stands for {voxels} voxels \
-         (its inside stored as tiles), more than {limit}; enhance a model at a larger voxel size"
+        "detail enhancement copies the coarse voxels one by one, and this model stands for {} \
+         voxels, more than {}; enhance the model at a larger voxel size",
+        crate::budget::thousands(*.voxels),
+        crate::budget::thousands(*.limit)
     )]
     TooManyVoxels {
         /// Voxels the coarse map stands for.

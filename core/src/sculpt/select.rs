@@ -190,7 +190,10 @@ pub enum SurfaceView {
 /// `w > 0`). `surface_only`: only those visible from the camera (a ray cast from
 /// `eye_in_voxel` — or, for an orthographic camera, along `view_dir_in_voxel` from far outside —
 /// hits that voxel first). A non-finite matrix selects nothing.
-#[must_use]
+///
+/// # Errors
+/// [`ToolError::TooManyVoxels`] past [`super::MAX_LISTED_VOXELS`]: every voxel of the volume
+/// is projected.
 pub fn select_in_rect(
     svo: &Svo,
     size: UVec3,
@@ -198,11 +201,12 @@ pub fn select_in_rect(
     ndc_min: Vec2,
     ndc_max: Vec2,
     surface_only: Option<SurfaceView>,
-) -> VoxelSelection {
+) -> Result<VoxelSelection, ToolError> {
     let size = clamp_size(svo, size);
     if size.min_element() == 0 || !clip_from_voxel.is_finite() {
-        return VoxelSelection::default();
+        return Ok(VoxelSelection::default());
     }
+    check_listable(svo, "Select (rectangle)")?;
     let (rmin, rmax) = (ndc_min.min(ndc_max), ndc_min.max(ndc_max));
     let mut cells = Vec::new();
     svo.for_each_leaf_in(UVec3::ZERO, size - 1, |c, _| cells.push(c));
@@ -235,7 +239,7 @@ pub fn select_in_rect(
         })
         .map(|&c| morton_encode(c))
         .collect();
-    VoxelSelection::from_sorted(keep)
+    Ok(VoxelSelection::from_sorted(keep))
 }
 
 /// Solid voxels of exactly `color` (RGBA).

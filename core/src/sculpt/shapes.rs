@@ -110,9 +110,11 @@ pub enum ToolError {
     /// A tool that goes through every voxel of the model one by one, on a model standing for
     /// more voxels than [`MAX_LISTED_VOXELS`] (a solid whose inside is stored once per tile).
     #[error(
-        "{what} lists the model's voxels one by one, and this model stands for {voxels} voxels \
-         (its inside stored as tiles), more than the {limit} it can list; brushes, boxes and \
-         carving still work, or import the model at a larger voxel size"
+        "{what} goes through the model's voxels one by one, and this model stands for {} \
+         voxels, more than the {} it can go through; brushes, boxes and carving still work \
+         (they follow what they touch), or use the model at a larger voxel size",
+        crate::budget::thousands(*.voxels),
+        crate::budget::thousands(*.limit)
     )]
     TooManyVoxels {
         /// The tool.
@@ -1064,6 +1066,23 @@ pub fn apply_box(
         let bx = (p.min(q), p.max(q));
         if !boxes.contains(&bx) {
             boxes.push(bx);
+        }
+    }
+    if op != ShapeOp::Add {
+        // Remove and Paint write each solid voxel in the box, one undo entry each: counted
+        // first (a tile at once), so a box over a solid's inside is refused, not listed.
+        let solid = boxes
+            .iter()
+            .map(|(l, h)| svo.voxels_in(*l, *h))
+            .fold(0u64, u64::saturating_add);
+        if solid > MAX_EDIT_CELLS {
+            return ToolEdit::refused(
+                ToolError::TooManyCells {
+                    cells: solid,
+                    limit: MAX_EDIT_CELLS,
+                },
+                clipped,
+            );
         }
     }
     match op {

@@ -366,7 +366,7 @@ fn tools_that_list_every_voxel_refuse_a_model_standing_for_more_and_edits_still_
             }
             .to_string();
             assert!(
-                text.contains("134217729") && text.contains("brushes"),
+                text.contains("134,217,729") && text.contains("brushes"),
                 "{text}"
             );
         }
@@ -389,6 +389,31 @@ fn tools_that_list_every_voxel_refuse_a_model_standing_for_more_and_edits_still_
     let none = VoxelSelection::default();
     refused(invert(&svo, &none).err(), "Select all / Invert");
     refused(crop_to(&mut svo, &none).refused, "Crop to selection");
+    // A box that removes or paints the tile's voxels would write one undo entry each: counted
+    // first (the tile at once) and refused like an Add box of as many cells.
+    for op in [ShapeOp::Remove, ShapeOp::Paint] {
+        let e = apply_box(
+            &mut svo,
+            size,
+            IVec3::ZERO,
+            IVec3::splat(400),
+            op,
+            ink(1),
+            Mirror::default(),
+            None,
+        );
+        assert!(
+            matches!(
+                e.refused,
+                Some(ToolError::TooManyCells {
+                    cells: 64_481_201, // 401³ solid voxels in the box
+                    ..
+                })
+            ),
+            "{op:?}: {:?}",
+            e.refused
+        );
+    }
     assert!(svo == start, "a refused tool changed the model");
     // Edits that follow what they touch still work on it.
     let carve = apply_box(

@@ -619,7 +619,8 @@ fn select_in_rect_orthographic_and_perspective() {
     let size = UVec3::splat(64);
     // Orthographic, looking down -Z: ndc x = (x - 8) / 8.
     let ortho = Mat4::orthographic_rh(0.0, 16.0, 0.0, 16.0, -100.0, 100.0);
-    let sel = select_in_rect(&svo, size, ortho, Vec2::new(-1.0, -1.0), Vec2::ZERO, None);
+    let sel = select_in_rect(&svo, size, ortho, Vec2::new(-1.0, -1.0), Vec2::ZERO, None)
+        .expect("under the listing limit");
     assert_eq!(
         set_of(&sel.iter().collect::<Vec<_>>()),
         box_set([6, 6, 6], [7, 7, 9])
@@ -631,7 +632,8 @@ fn select_in_rect_orthographic_and_perspective() {
         Vec2::ZERO,
         Vec2::new(-1.0, -1.0),
         Some(SurfaceView::Direction(Vec3::NEG_Z)),
-    );
+    )
+    .expect("under the listing limit");
     assert_eq!(
         set_of(&front.iter().collect::<Vec<_>>()),
         box_set([6, 6, 9], [7, 7, 9])
@@ -644,7 +646,8 @@ fn select_in_rect_orthographic_and_perspective() {
     let view = Mat4::look_at_rh(eye, eye - Vec3::Z, Vec3::Y);
     let proj = Mat4::perspective_rh(std::f32::consts::FRAC_PI_2, 1.0, 0.1, 100.0);
     let clip = proj * view;
-    let sel = select_in_rect(&svo, size, clip, Vec2::ZERO, Vec2::ONE, None);
+    let sel = select_in_rect(&svo, size, clip, Vec2::ZERO, Vec2::ONE, None)
+        .expect("under the listing limit");
     assert_eq!(
         set_of(&sel.iter().collect::<Vec<_>>()),
         box_set([8, 8, 6], [9, 9, 9])
@@ -656,12 +659,17 @@ fn select_in_rect_orthographic_and_perspective() {
         Vec2::ZERO,
         Vec2::ONE,
         Some(SurfaceView::Eye(eye)),
-    );
+    )
+    .expect("under the listing limit");
     assert_eq!(
         set_of(&visible.iter().collect::<Vec<_>>()),
         box_set([8, 8, 9], [9, 9, 9])
     );
-    assert!(select_in_rect(&svo, size, Mat4::NAN, Vec2::splat(-1.0), Vec2::ONE, None).is_empty());
+    assert!(
+        select_in_rect(&svo, size, Mat4::NAN, Vec2::splat(-1.0), Vec2::ONE, None)
+            .expect("under the listing limit")
+            .is_empty()
+    );
 }
 
 #[test]

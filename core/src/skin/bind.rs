@@ -211,11 +211,10 @@ pub fn bind(
     // Binding weighs every voxel one by one (and a skinned model stores every drawn voxel).
     if svo.leaf_count() > crate::svo::MAX_LISTED_VOXELS {
         return Err(rig(format!(
-            "cannot bind: binding weighs every voxel one by one, and this model stands for {} \
-             voxels (its inside stored as tiles), more than {}; bind a model at a larger voxel \
-             size",
-            svo.leaf_count(),
-            crate::svo::MAX_LISTED_VOXELS
+            "cannot bind: binding computes each voxel's weights one by one, and this model \
+             stands for {} voxels, more than {}; bind the model at a larger voxel size",
+            crate::budget::thousands(svo.leaf_count()),
+            crate::budget::thousands(crate::svo::MAX_LISTED_VOXELS)
         )));
     }
     if skeleton.len() > MAX_SKIN_JOINTS {

@@ -508,7 +508,7 @@ fn binding_a_model_standing_for_more_voxels_than_it_weighs_is_refused() {
     };
     let text = e.to_string();
     assert!(
-        text.contains("134217729") && text.contains("larger voxel size"),
+        text.contains("134,217,729") && text.contains("larger voxel size"),
         "{text}"
     );
 }

@@ -1192,6 +1192,39 @@ impl Svo {
         changed
     }
 
+    /// Solid voxels in the inclusive box `lo..=hi`, a tile counting the part of its cube in the
+    /// box at once: the cost follows the stored nodes the box overlaps, not its volume (what a
+    /// tool checks before listing them).
+    #[must_use]
+    pub fn voxels_in(&self, lo: UVec3, hi: UVec3) -> u64 {
+        let hi = hi.min(UVec3::splat(self.extent() - 1));
+        if lo.cmpgt(hi).any() || self.is_empty() {
+            return 0;
+        }
+        let mut n = 0u64;
+        let mut stack = vec![self.root()];
+        while let Some(node) = stack.pop() {
+            if self.is_leaf(&node) {
+                n += 1;
+                continue;
+            }
+            let size = self.node_size(node.level);
+            if self.is_tile(&node) {
+                let a = node.origin.max(lo);
+                let b = (node.origin + UVec3::splat(size - 1)).min(hi);
+                n += (b - a + UVec3::ONE).as_u64vec3().element_product();
+                continue;
+            }
+            let touched = Self::overlapping(node.origin, size / 2, lo, hi) & self.child_mask(&node);
+            stack.extend((0..8u8).filter_map(|k| {
+                (touched & (1 << k) != 0)
+                    .then(|| self.child(&node, k))
+                    .flatten()
+            }));
+        }
+        n
+    }
+
     /// Calls `f(coord, voxel)` for every solid voxel in the inclusive box `lo..=hi`, in Morton
     /// order, visiting only nodes that overlap the box.
     pub fn for_each_leaf_in(&self, lo: UVec3, hi: UVec3, mut f: impl FnMut(UVec3, Voxel)) {

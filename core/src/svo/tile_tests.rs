@@ -422,3 +422,23 @@ fn a_root_tile_and_no_runs_build_from_runs() {
         })
     );
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+    /// Property: `voxels_in` counts what `for_each_leaf_in` visits, a tile's part of the box at
+    /// once, on a tiled ball and boxes anywhere (partly or wholly outside the octree too).
+    #[test]
+    fn voxels_in_a_box_count_what_a_walk_of_the_box_visits(
+        a in (0u32..40, 0u32..40, 0u32..40),
+        b in (0u32..40, 0u32..40, 0u32..40),
+    ) {
+        let svo = Svo::from_voxels(5, false, ball(5, 13.0, false)).unwrap();
+        prop_assert!(svo.tile_count() > 0);
+        let (a, b) = (UVec3::new(a.0, a.1, a.2), UVec3::new(b.0, b.1, b.2));
+        let (lo, hi) = (a.min(b), a.max(b));
+        let mut walked = 0u64;
+        svo.for_each_leaf_in(lo, hi, |_, _| walked += 1);
+        prop_assert_eq!(svo.voxels_in(lo, hi), walked);
+        prop_assert_eq!(svo.voxels_in(hi, lo), u64::from(hi == lo) * walked);
+    }
+}
