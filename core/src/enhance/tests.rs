@@ -958,12 +958,7 @@ fn the_enhance_estimate_holds_the_measured_peak() {
 fn a_map_standing_for_more_voxels_than_enhancement_lists_is_refused_before_copying() {
     // One 512³ tile and a voxel: 2^27 + 1 voxels in two records.
     let v = Voxel::new([90, 160, 60, 255], Vec3::Y);
-    let map = Svo::from_runs(
-        10,
-        false,
-        [(UVec3::ZERO, 9, v), (UVec3::new(512, 0, 0), 0, v)],
-    )
-    .expect("two runs");
+    let map = Svo::over_listing_limit(v);
     let settings = EnhanceSettings::default();
     let want = EnhanceError::TooManyVoxels {
         voxels: crate::svo::MAX_LISTED_VOXELS + 1,

@@ -316,121 +316,179 @@ pub fn ball(inside: BallInside) -> Document {
     doc
 }
 
-/// A solid blocky figure, rigidly bound and posed mid-stride: legs, a torso, an arm and a head
-/// of 8 to 24 voxels a side in a 64³ octree, each voxel following one joint, the enclosed
-/// voxels [`Voxel::INTERIOR`] (so each limb's inside is interior tiles carrying its joint's
-/// weights), with a looping clip played at 0.35 s and boxes stretched to their skinned corners
-/// (`StretchStrategy::Corners`).
+/// A figure made of voxel boxes and rigged natively (a skeleton spec, a binding, a clip of
+/// Euler keys, as `thicket rig` and `thicket animate` make it): the tests' rigged models.
+/// Positions are in voxels.
+pub struct BoxFigure<'a> {
+    /// The object's name.
+    pub name: &'a str,
+    /// Half-open voxel boxes `(lo, hi)`.
+    pub boxes: &'a [([u32; 3], [u32; 3])],
+    /// Octree depth.
+    pub depth: u8,
+    /// Voxel size in the model's units.
+    pub voxel_size: f32,
+    /// Where voxel (0, 0, 0)'s corner lies.
+    pub origin: Vec3,
+    /// Whether voxels enclosed on all six faces are [`Voxel::INTERIOR`] (a solid import's
+    /// inside) rather than coloured.
+    pub interior: bool,
+    /// Colour of a voxel.
+    pub color: fn(UVec3) -> [u8; 4],
+    /// `(name, parent, position in voxels)`.
+    pub joints: &'a [(&'a str, Option<&'a str>, [f32; 3])],
+    /// How the skeleton is bound.
+    pub method: crate::skin::bind::BindMethod,
+    /// The looping 1 s clip "walk": `(joint, time, rotation in degrees)`.
+    pub keys: &'a [(&'a str, f32, [f32; 3])],
+    /// How its keys interpolate.
+    pub interpolation: crate::skin::author::KeyInterpolation,
+}
+
+/// The document holding `f` as its one object, playing its clip from 0 s.
 ///
 /// # Panics
-/// Never: the figure fits its octree and the skeleton and clip are valid.
+/// When the figure does not fit its octree, or its skeleton or keys are invalid (a test's
+/// own mistake).
 #[must_use]
-pub fn rigid_solid_figure() -> Document {
+pub fn box_figure(f: &BoxFigure<'_>) -> Document {
     use crate::skin::Rig;
-    use crate::skin::author::{ClipSpec, JointSpec, KeyInterpolation, KeySpec, SkeletonSpec};
-    use crate::skin::bind::{BindControl, BindMethod, bind};
-    let boxes = [
-        ([18u32, 2, 24], [26u32, 22, 32]),
-        ([34, 2, 24], [42, 22, 32]),
-        ([14, 22, 20], [46, 46, 36]),
-        ([46, 36, 24], [62, 44, 32]),
-        ([24, 46, 22], [36, 58, 34]),
-    ];
+    use crate::skin::author::{ClipSpec, JointSpec, KeySpec, SkeletonSpec};
+    use crate::skin::bind::{BindControl, bind};
     let solid = |p: glam::IVec3| {
-        boxes.iter().any(|(lo, hi)| {
+        f.boxes.iter().any(|(lo, hi)| {
             p.cmpge(UVec3::from(*lo).as_ivec3()).all() && p.cmplt(UVec3::from(*hi).as_ivec3()).all()
         })
     };
     let mut voxels = Vec::new();
-    for (lo, hi) in boxes {
+    for &(lo, hi) in f.boxes {
         for z in lo[2]..hi[2] {
             for y in lo[1]..hi[1] {
                 for x in lo[0]..hi[0] {
-                    let p = glam::IVec3::new(x as i32, y as i32, z as i32);
-                    let enclosed = crate::svo::FACE_NEIGHBOURS.iter().all(|&d| solid(p + d));
+                    let c = UVec3::new(x, y, z);
+                    let enclosed = f.interior
+                        && crate::svo::FACE_NEIGHBOURS
+                            .iter()
+                            .all(|&d| solid(c.as_ivec3() + d));
                     let v = if enclosed {
                         Voxel::INTERIOR
                     } else {
-                        Voxel::new([120 + (y * 2) as u8, 90, (x * 3) as u8, 255], Vec3::Y)
+                        Voxel::new((f.color)(c), Vec3::Y)
                     };
-                    voxels.push((UVec3::new(x, y, z), v));
+                    voxels.push((c, v));
                 }
             }
         }
     }
-    let svo = Svo::from_voxels(6, false, voxels)
-        .unwrap_or_else(|_| unreachable!("the figure fits the 64³ octree"));
-    let size = 0.05;
-    let origin = Vec3::new(-1.6, 0.0, -1.4);
-    let j = |name: &str, parent: Option<&str>, p: [f32; 3]| JointSpec {
-        name: name.into(),
-        parent: parent.map(Into::into),
-        position: (origin + Vec3::from(p) * size).to_array(),
-    };
+    let svo = Svo::from_voxels(f.depth, false, voxels)
+        .unwrap_or_else(|e| unreachable!("the figure fits its octree: {e}"));
     let skeleton = SkeletonSpec {
-        joints: vec![
-            j("hip", None, [30.0, 24.0, 28.0]),
-            j("chest", Some("hip"), [30.0, 44.0, 28.0]),
-            j("head", Some("chest"), [30.0, 52.0, 28.0]),
-            j("arm", Some("chest"), [46.0, 40.0, 28.0]),
-            j("hand", Some("arm"), [60.0, 40.0, 28.0]),
-            j("leg.R", Some("hip"), [22.0, 22.0, 28.0]),
-            j("shin.R", Some("leg.R"), [22.0, 10.0, 28.0]),
-            j("leg.L", Some("hip"), [38.0, 22.0, 28.0]),
-            j("shin.L", Some("leg.L"), [38.0, 10.0, 28.0]),
-        ],
+        joints: f
+            .joints
+            .iter()
+            .map(|&(name, parent, p)| JointSpec {
+                name: name.into(),
+                parent: parent.map(Into::into),
+                position: (f.origin + Vec3::from(p) * f.voxel_size).to_array(),
+            })
+            .collect(),
     }
     .to_skeleton(None)
     .unwrap_or_else(|e| unreachable!("a valid skeleton: {e}"));
     let (svo, _) = bind(
         &svo,
-        origin,
-        size,
+        f.origin,
+        f.voxel_size,
         &skeleton,
-        BindMethod::Rigid,
+        f.method,
         BindControl::default(),
     )
     .unwrap_or_else(|e| unreachable!("the figure binds: {e}"));
-    let key = |joint: &str, time: f32, deg: [f32; 3]| KeySpec {
-        joint: joint.into(),
-        time,
-        rotation_deg: Some(deg),
-        translation: None,
-    };
     let clip = ClipSpec {
         name: "walk".into(),
         length: 1.0,
-        interpolation: KeyInterpolation::Linear,
+        interpolation: f.interpolation,
         looping: true,
-        keys: vec![
-            key("leg.R", 0.0, [35.0, 0.0, 0.0]),
-            key("leg.R", 0.5, [-35.0, 0.0, 0.0]),
-            key("leg.L", 0.0, [-35.0, 0.0, 0.0]),
-            key("leg.L", 0.5, [35.0, 0.0, 0.0]),
-            key("shin.R", 0.25, [50.0, 0.0, 0.0]),
-            key("arm", 0.5, [0.0, 25.0, -70.0]),
-            key("head", 0.5, [0.0, 40.0, 10.0]),
-        ],
+        keys: f
+            .keys
+            .iter()
+            .map(|&(joint, time, deg)| KeySpec {
+                joint: joint.into(),
+                time,
+                rotation_deg: Some(deg),
+                translation: None,
+            })
+            .collect(),
         frame_rate: 24.0,
     }
     .to_clip(&skeleton)
     .unwrap_or_else(|e| unreachable!("a valid clip: {e}"));
-    let mut rig = Rig::new(skeleton, vec![clip]);
-    rig.playback.time_secs = 0.35;
-    // Boxes from the corner weights: they close a rigid joint's gaps, and the renderers then
-    // read every drawn node's corner weights from the skinning tables.
-    rig.stretch.strategy = crate::skin::StretchStrategy::Corners;
     let mut doc = Document::default();
     doc.add(
-        "Figure",
+        f.name,
         ObjectKind::Voxels(VoxelModel {
             svo,
-            voxel_size: size,
-            origin,
-            rig: Some(rig),
+            voxel_size: f.voxel_size,
+            origin: f.origin,
+            rig: Some(Rig::new(skeleton, vec![clip])),
             ..VoxelModel::default()
         }),
     );
+    doc
+}
+
+/// A solid blocky figure, rigidly bound and posed mid-stride: legs, a torso, an arm and a head
+/// of 8 to 24 voxels a side in a 64³ octree, each voxel following one joint, the enclosed
+/// voxels [`Voxel::INTERIOR`] (so each limb's inside is interior tiles carrying its joint's
+/// weights), with a looping clip played at 0.35 s and boxes stretched to their skinned corners
+/// (`StretchStrategy::Corners`).
+#[must_use]
+pub fn rigid_solid_figure() -> Document {
+    let mut doc = box_figure(&BoxFigure {
+        name: "Figure",
+        boxes: &[
+            ([18, 2, 24], [26, 22, 32]),
+            ([34, 2, 24], [42, 22, 32]),
+            ([14, 22, 20], [46, 46, 36]),
+            ([46, 36, 24], [62, 44, 32]),
+            ([24, 46, 22], [36, 58, 34]),
+        ],
+        depth: 6,
+        voxel_size: 0.05,
+        origin: Vec3::new(-1.6, 0.0, -1.4),
+        interior: true,
+        color: |c| [120 + (c.y * 2) as u8, 90, (c.x * 3) as u8, 255],
+        joints: &[
+            ("hip", None, [30.0, 24.0, 28.0]),
+            ("chest", Some("hip"), [30.0, 44.0, 28.0]),
+            ("head", Some("chest"), [30.0, 52.0, 28.0]),
+            ("arm", Some("chest"), [46.0, 40.0, 28.0]),
+            ("hand", Some("arm"), [60.0, 40.0, 28.0]),
+            ("leg.R", Some("hip"), [22.0, 22.0, 28.0]),
+            ("shin.R", Some("leg.R"), [22.0, 10.0, 28.0]),
+            ("leg.L", Some("hip"), [38.0, 22.0, 28.0]),
+            ("shin.L", Some("leg.L"), [38.0, 10.0, 28.0]),
+        ],
+        method: crate::skin::bind::BindMethod::Rigid,
+        keys: &[
+            ("leg.R", 0.0, [35.0, 0.0, 0.0]),
+            ("leg.R", 0.5, [-35.0, 0.0, 0.0]),
+            ("leg.L", 0.0, [-35.0, 0.0, 0.0]),
+            ("leg.L", 0.5, [35.0, 0.0, 0.0]),
+            ("shin.R", 0.25, [50.0, 0.0, 0.0]),
+            ("arm", 0.5, [0.0, 25.0, -70.0]),
+            ("head", 0.5, [0.0, 40.0, 10.0]),
+        ],
+        interpolation: crate::skin::author::KeyInterpolation::Linear,
+    });
+    if let Some(ObjectKind::Voxels(v)) = doc.objects.first_mut().map(|o| &mut o.kind)
+        && let Some(rig) = &mut v.rig
+    {
+        rig.playback.time_secs = 0.35;
+        // Boxes from the corner weights: they close a rigid joint's gaps, and the renderers
+        // then read every drawn node's corner weights from the skinning tables.
+        rig.stretch.strategy = crate::skin::StretchStrategy::Corners;
+    }
     if let Some((lo, hi)) = doc.bounds() {
         doc.camera.frame(lo, hi);
     }

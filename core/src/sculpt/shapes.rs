@@ -151,6 +151,19 @@ pub fn check_listable(svo: &Svo, what: &'static str) -> Result<(), ToolError> {
 /// Most cells one edit may write (one undo step): 2^25, a 322³ box.
 pub const MAX_EDIT_CELLS: u64 = 1 << 25;
 
+/// The refused edit when `asked` cells exceed [`MAX_EDIT_CELLS`] (one undo step).
+fn over_edit_limit(asked: u64, clipped: u64) -> Option<ToolEdit> {
+    (asked > MAX_EDIT_CELLS).then(|| {
+        ToolEdit::refused(
+            ToolError::TooManyCells {
+                cells: asked,
+                limit: MAX_EDIT_CELLS,
+            },
+            clipped,
+        )
+    })
+}
+
 /// Largest flat grid (cells) a commit or flood builds; beyond it they fall back to hashing.
 pub(crate) const DENSE_LIMIT: u64 = 1 << 26;
 
@@ -983,14 +996,8 @@ pub fn apply_cells(
         }
     }
     let asked = (inside.len() as u64).saturating_mul(mirror_count(mirror));
-    if asked > MAX_EDIT_CELLS {
-        return ToolEdit::refused(
-            ToolError::TooManyCells {
-                cells: asked,
-                limit: MAX_EDIT_CELLS,
-            },
-            clipped,
-        );
+    if let Some(refused) = over_edit_limit(asked, clipped) {
+        return refused;
     }
     let targets: Vec<UVec3> = inside
         .iter()
@@ -1068,38 +1075,21 @@ pub fn apply_box(
             boxes.push(bx);
         }
     }
-    if op != ShapeOp::Add {
-        // Remove and Paint write each solid voxel in the box, one undo entry each: counted
-        // first (a tile at once), so a box over a solid's inside is refused, not listed.
-        let solid = boxes
-            .iter()
-            .map(|(l, h)| svo.voxels_in(*l, *h))
-            .fold(0u64, u64::saturating_add);
-        if solid > MAX_EDIT_CELLS {
-            return ToolEdit::refused(
-                ToolError::TooManyCells {
-                    cells: solid,
-                    limit: MAX_EDIT_CELLS,
-                },
-                clipped,
-            );
-        }
+    // What the box writes, one undo entry each: Add, every cell; Remove and Paint, every solid
+    // voxel in it (counted a tile at once, so a box over a solid's inside is refused, not
+    // listed).
+    let asked = boxes
+        .iter()
+        .map(|(l, h)| match op {
+            ShapeOp::Add => box_cells(*h - *l + 1),
+            ShapeOp::Remove | ShapeOp::Paint => svo.voxels_in(*l, *h),
+        })
+        .fold(0u64, u64::saturating_add);
+    if let Some(refused) = over_edit_limit(asked, clipped) {
+        return refused;
     }
     match op {
         ShapeOp::Add => {
-            let asked = boxes
-                .iter()
-                .map(|(l, h)| box_cells(*h - *l + 1))
-                .fold(0u64, u64::saturating_add);
-            if asked > MAX_EDIT_CELLS {
-                return ToolEdit::refused(
-                    ToolError::TooManyCells {
-                        cells: asked,
-                        limit: MAX_EDIT_CELLS,
-                    },
-                    clipped,
-                );
-            }
             let base = Voxel {
                 color: ink.color,
                 normal: encode_normal(Vec3::Y),
@@ -1389,14 +1379,8 @@ pub fn extrude(
         return ToolEdit::default();
     }
     let asked = (face.len() as u64).saturating_mul(u64::from(distance.unsigned_abs()));
-    if asked > MAX_EDIT_CELLS {
-        return ToolEdit::refused(
-            ToolError::TooManyCells {
-                cells: asked,
-                limit: MAX_EDIT_CELLS,
-            },
-            0,
-        );
+    if let Some(refused) = over_edit_limit(asked, 0) {
+        return refused;
     }
     let size = clamp_size(svo, size);
     let mut clipped = 0u64;

@@ -481,12 +481,7 @@ fn clip_specs_refuse_bad_input_naming_the_key() {
 fn binding_a_model_standing_for_more_voxels_than_it_weighs_is_refused() {
     // One 512³ tile and a voxel: 2^27 + 1 voxels in two records; binding weighs each.
     let v = Voxel::new([90, 160, 60, 255], Vec3::Y);
-    let svo = Svo::from_runs(
-        10,
-        false,
-        [(UVec3::ZERO, 9, v), (UVec3::new(512, 0, 0), 0, v)],
-    )
-    .unwrap();
+    let svo = Svo::over_listing_limit(v);
     let skeleton = SkeletonSpec {
         joints: vec![JointSpec {
             name: "root".into(),

@@ -126,6 +126,19 @@ impl Svo {
         self.collapse(level, i);
     }
 
+    /// A 1024³ octree holding one tile of 512³ voxels at the origin and one voxel beside it
+    /// (at x = 512): [`super::MAX_LISTED_VOXELS`] + 1 voxels in two records, for the tests of
+    /// the tools that refuse to list that many.
+    #[cfg(test)]
+    pub(crate) fn over_listing_limit(voxel: Voxel) -> Self {
+        Self::from_runs(
+            10,
+            false,
+            [(UVec3::ZERO, 9, voxel), (UVec3::new(512, 0, 0), 0, voxel)],
+        )
+        .unwrap_or_else(|e| unreachable!("two runs inside the octree: {e}"))
+    }
+
     /// Whether `voxel` may be stored as a tile in this octree: tiling is on, eight copies of it
     /// average to itself, and in a skinned octree it is interior (what every tile this octree
     /// makes holds; see `tiles_value`).

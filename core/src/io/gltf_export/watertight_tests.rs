@@ -577,90 +577,42 @@ fn a_hinged_bar_bends_without_tearing_at_the_hinge() {
 /// Euler keys, as `thicket rig` and `thicket animate` make it): two legs swinging and bending
 /// under a body with arms.
 fn natively_rigged_figure() -> Document {
-    use crate::skin::author::{ClipSpec, JointSpec, KeyInterpolation, KeySpec, SkeletonSpec};
-    use crate::skin::bind::{BindControl, BindMethod, bind};
-    let mut voxels = Vec::new();
-    for (lo, hi) in [
-        ([2u32, 0, 2], [6u32, 12, 6]),
-        ([9, 0, 2], [13, 12, 6]),
-        ([1, 12, 1], [14, 26, 7]),
-        ([14, 14, 3], [22, 17, 5]),
-    ] {
-        for z in lo[2]..hi[2] {
-            for y in lo[1]..hi[1] {
-                for x in lo[0]..hi[0] {
-                    voxels.push((UVec3::new(x, y, z), Voxel::new([180, 90, 60, 255], Vec3::Y)));
-                }
-            }
-        }
-    }
-    let svo = Svo::from_voxels(5, false, voxels).expect("figure");
-    let size = 0.05;
-    let origin = Vec3::new(-0.35, 0.0, -0.2);
-    let j = |name: &str, parent: Option<&str>, p: [f32; 3]| JointSpec {
-        name: name.into(),
-        parent: parent.map(Into::into),
-        position: (origin + Vec3::from(p) * size).to_array(),
-    };
-    let skeleton = SkeletonSpec {
-        joints: vec![
-            j("hip", None, [7.5, 12.0, 4.0]),
-            j("chest", Some("hip"), [7.5, 22.0, 4.0]),
-            j("arm", Some("chest"), [14.0, 15.5, 4.0]),
-            j("hand", Some("arm"), [21.0, 15.5, 4.0]),
-            j("leg.R", Some("hip"), [4.0, 11.0, 4.0]),
-            j("shin.R", Some("leg.R"), [4.0, 6.0, 4.0]),
-            j("leg.L", Some("hip"), [11.0, 11.0, 4.0]),
-            j("shin.L", Some("leg.L"), [11.0, 6.0, 4.0]),
+    use crate::render::scenes::{BoxFigure, box_figure};
+    box_figure(&BoxFigure {
+        name: "figure",
+        boxes: &[
+            ([2, 0, 2], [6, 12, 6]),
+            ([9, 0, 2], [13, 12, 6]),
+            ([1, 12, 1], [14, 26, 7]),
+            ([14, 14, 3], [22, 17, 5]),
         ],
-    }
-    .to_skeleton(None)
-    .expect("skeleton");
-    let (svo, _) = bind(
-        &svo,
-        origin,
-        size,
-        &skeleton,
-        BindMethod::Geodesic,
-        BindControl::default(),
-    )
-    .expect("binds");
-    let key = |joint: &str, time: f32, deg: [f32; 3]| KeySpec {
-        joint: joint.into(),
-        time,
-        rotation_deg: Some(deg),
-        translation: None,
-    };
-    let clip = ClipSpec {
-        name: "walk".into(),
-        length: 1.0,
-        interpolation: KeyInterpolation::Cubic,
-        looping: true,
-        keys: vec![
-            key("leg.R", 0.0, [30.0, 0.0, 0.0]),
-            key("leg.R", 0.5, [-30.0, 0.0, 0.0]),
-            key("leg.L", 0.0, [-30.0, 0.0, 0.0]),
-            key("leg.L", 0.5, [30.0, 0.0, 0.0]),
-            key("shin.R", 0.25, [45.0, 0.0, 0.0]),
-            key("shin.L", 0.75, [45.0, 0.0, 0.0]),
-            key("arm", 0.5, [0.0, 20.0, -60.0]),
+        depth: 5,
+        voxel_size: 0.05,
+        origin: Vec3::new(-0.35, 0.0, -0.2),
+        interior: false,
+        color: |_| [180, 90, 60, 255],
+        joints: &[
+            ("hip", None, [7.5, 12.0, 4.0]),
+            ("chest", Some("hip"), [7.5, 22.0, 4.0]),
+            ("arm", Some("chest"), [14.0, 15.5, 4.0]),
+            ("hand", Some("arm"), [21.0, 15.5, 4.0]),
+            ("leg.R", Some("hip"), [4.0, 11.0, 4.0]),
+            ("shin.R", Some("leg.R"), [4.0, 6.0, 4.0]),
+            ("leg.L", Some("hip"), [11.0, 11.0, 4.0]),
+            ("shin.L", Some("leg.L"), [11.0, 6.0, 4.0]),
         ],
-        frame_rate: 24.0,
-    }
-    .to_clip(&skeleton)
-    .expect("clip");
-    let mut doc = Document::default();
-    doc.add(
-        "figure",
-        ObjectKind::Voxels(crate::scene::VoxelModel {
-            svo,
-            voxel_size: size,
-            origin,
-            rig: Some(Rig::new(skeleton, vec![clip])),
-            ..crate::scene::VoxelModel::default()
-        }),
-    );
-    doc
+        method: crate::skin::bind::BindMethod::Geodesic,
+        keys: &[
+            ("leg.R", 0.0, [30.0, 0.0, 0.0]),
+            ("leg.R", 0.5, [-30.0, 0.0, 0.0]),
+            ("leg.L", 0.0, [-30.0, 0.0, 0.0]),
+            ("leg.L", 0.5, [30.0, 0.0, 0.0]),
+            ("shin.R", 0.25, [45.0, 0.0, 0.0]),
+            ("shin.L", 0.75, [45.0, 0.0, 0.0]),
+            ("arm", 0.5, [0.0, 20.0, -60.0]),
+        ],
+        interpolation: crate::skin::author::KeyInterpolation::Cubic,
+    })
 }
 
 #[test]
