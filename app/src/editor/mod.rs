@@ -70,6 +70,13 @@ pub enum CommandError {
     Invalid(String),
 }
 
+/// A voxel tool's refusal, shown as it reads.
+impl From<thicket_core::sculpt::ToolError> for CommandError {
+    fn from(e: thicket_core::sculpt::ToolError) -> Self {
+        Self::Invalid(e.to_string())
+    }
+}
+
 /// The editor's document state.
 #[derive(Debug)]
 pub struct Editor {

@@ -951,14 +951,12 @@ fn map_voxels(
 ) -> Result<thicket_core::svo::Svo, CommandError> {
     // Every voxel is rebuilt with its new weights: refused, as binding is, for a model standing
     // for more voxels than the tools go through one by one.
-    let voxels = svo.leaf_count();
-    let limit = thicket_core::svo::MAX_LISTED_VOXELS;
-    if voxels > limit {
+    if let Some(voxels) = svo.too_many_to_list() {
         return Err(CommandError::Invalid(format!(
             "changing the rig rewrites each voxel's weights one by one, and this model stands \
              for {} voxels, more than {}; rig the model at a larger voxel size",
             crate::files::thousands(voxels),
-            crate::files::thousands(limit)
+            crate::files::thousands(thicket_core::svo::MAX_LISTED_VOXELS)
         )));
     }
     thicket_core::svo::Svo::from_voxels(

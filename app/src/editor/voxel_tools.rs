@@ -110,8 +110,7 @@ impl NewModelSpec {
             color: self.color,
             material: 0,
         };
-        let svo = model_ops::new_model(self.size, self.fill, ink)
-            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        let svo = model_ops::new_model(self.size, self.fill, ink)?;
         let half = (self.size.as_vec3() * 0.5).floor() * self.voxel_size;
         let snap = |v: f32| (v / self.voxel_size).round() * self.voxel_size;
         let origin = Vec3::new(snap(center_xz.x) - half.x, 0.0, snap(center_xz.z) - half.z);
@@ -314,8 +313,8 @@ impl Editor {
         let frame = v.frames.as_ref().map_or(0, |f| f.shown);
         let edit = f(&mut v.svo, volume)?;
         // A refused tool changed nothing; its reason is the user's to read.
-        if let Some(e) = &edit.refused {
-            return Err(tool_refused(e));
+        if let Some(e) = edit.refused {
+            return Err(e.into());
         }
         let outcome = ToolOutcome {
             changed: edit.changed,
@@ -554,7 +553,7 @@ impl Editor {
     /// Unknown id or not a voxel model.
     pub fn select_all_voxels(&mut self, id: u64) -> Result<usize, CommandError> {
         let svo = self.svo_of(id)?;
-        let all = select::invert(svo, &VoxelSelection::default()).map_err(|e| tool_refused(&e))?;
+        let all = select::invert(svo, &VoxelSelection::default())?;
         self.select_voxels(id, all, SelectMode::Replace)
     }
 
@@ -572,7 +571,7 @@ impl Editor {
         let v = svo
             .get(at)
             .ok_or_else(|| CommandError::Invalid(format!("voxel {at} is empty")))?;
-        let cells = select::select_color(svo, v.color).map_err(|e| tool_refused(&e))?;
+        let cells = select::select_color(svo, v.color)?;
         self.select_voxels(id, cells, mode)
     }
 
@@ -591,7 +590,7 @@ impl Editor {
         if svo.get(at).is_none() {
             return Err(CommandError::Invalid(format!("voxel {at} is empty")));
         }
-        let cells = select::select_connected(svo, at, same_color).map_err(|e| tool_refused(&e))?;
+        let cells = select::select_connected(svo, at, same_color)?;
         self.select_voxels(id, cells, mode)
     }
 
@@ -607,7 +606,7 @@ impl Editor {
     pub fn invert_voxel_selection(&mut self) -> Result<usize, CommandError> {
         let id = self.selection_model()?;
         let current = self.current_cells(id);
-        let cells = select::invert(self.svo_of(id)?, &current).map_err(|e| tool_refused(&e))?;
+        let cells = select::invert(self.svo_of(id)?, &current)?;
         self.select_voxels(id, cells, SelectMode::Replace)
     }
 
@@ -1101,8 +1100,7 @@ impl Editor {
         };
         let clip = select::copy(&v.svo, &cells);
         let (lo, _) = cells.bounds().unwrap_or((UVec3::ZERO, UVec3::ZERO));
-        let depth = model_ops::depth_for(clip.size.max(UVec3::ONE))
-            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        let depth = model_ops::depth_for(clip.size.max(UVec3::ONE))?;
         let mut svo = Svo::from_voxels(depth, v.svo.has_skin(), clip.voxels.iter().copied())
             .map_err(|e| CommandError::Invalid(e.to_string()))?;
         // Where the selection cut through an interior, what cutting it out would show.
@@ -1249,8 +1247,7 @@ impl Editor {
                 new_size.x, new_size.y, new_size.z
             )));
         }
-        let resized = model_ops::resize_canvas(&v.svo, v.volume_size(), new_size, anchor)
-            .map_err(|e| CommandError::Invalid(e.to_string()))?;
+        let resized = model_ops::resize_canvas(&v.svo, v.volume_size(), new_size, anchor)?;
         let model = VoxelModel {
             svo: resized.svo,
             voxel_size: v.voxel_size,
@@ -1283,9 +1280,4 @@ fn op_word(op: ShapeOp) -> &'static str {
         ShapeOp::Remove => "Remove",
         ShapeOp::Paint => "Paint",
     }
-}
-
-/// A tool's refusal as the editor's error (shown in the status line as it reads).
-fn tool_refused(e: &thicket_core::sculpt::ToolError) -> CommandError {
-    CommandError::Invalid(e.to_string())
 }

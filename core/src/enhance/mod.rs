@@ -109,14 +109,13 @@ pub enum EnhanceError {
 
 /// [`EnhanceError::TooManyVoxels`] when `coarse` stands for more than [`MAX_LISTED_VOXELS`].
 fn check_listable(coarse: &Svo) -> Result<(), EnhanceError> {
-    let voxels = coarse.leaf_count();
-    if voxels > MAX_LISTED_VOXELS {
-        return Err(EnhanceError::TooManyVoxels {
+    match coarse.too_many_to_list() {
+        Some(voxels) => Err(EnhanceError::TooManyVoxels {
             voxels,
             limit: MAX_LISTED_VOXELS,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Progress reporting and cancellation for long runs.

@@ -13,25 +13,19 @@ fn sample(name: &str) -> Document {
 
 /// CesiumMan voxelized solid at depth 7, mid-stride, boxes from their skinned corners.
 fn solid_cesium_man() -> Document {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/assets/skinned/CesiumMan.glb");
-    let import = crate::io::import_skinned(&path).expect("CesiumMan imports");
-    let settings = crate::voxelize::VoxelizeSettings {
-        resolution: crate::voxelize::Resolution::Depth(7),
-        mode: crate::voxelize::Mode::Solid,
-        ..crate::voxelize::VoxelizeSettings::default()
-    };
-    let mut model = crate::io::voxelize_skinned(&import, &settings, &|_| true)
-        .expect("voxelizes")
-        .model;
-    if let Some(rig) = &mut model.rig {
+    let mut doc = crate::skin::deform_tests::skinned_doc_in(
+        concat!(
+            env!("CARGO_MANIFEST_DIR"),
+            "/../../shared/assets/skinned/CesiumMan.glb"
+        ),
+        7,
+        crate::voxelize::Mode::Solid,
+    );
+    if let Some(crate::scene::ObjectKind::Voxels(v)) = doc.objects.first_mut().map(|o| &mut o.kind)
+        && let Some(rig) = &mut v.rig
+    {
         rig.playback.time_secs = 0.6;
         rig.stretch.strategy = crate::skin::StretchStrategy::Corners;
-    }
-    let mut doc = Document::default();
-    doc.add("CesiumMan", crate::scene::ObjectKind::Voxels(model));
-    if let Some((lo, hi)) = doc.bounds() {
-        doc.camera.frame(lo, hi);
     }
     doc
 }

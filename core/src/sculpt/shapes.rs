@@ -137,15 +137,14 @@ pub use crate::svo::MAX_LISTED_VOXELS;
 /// # Errors
 /// As above.
 pub fn check_listable(svo: &Svo, what: &'static str) -> Result<(), ToolError> {
-    let voxels = svo.leaf_count();
-    if voxels > MAX_LISTED_VOXELS {
-        return Err(ToolError::TooManyVoxels {
+    match svo.too_many_to_list() {
+        Some(voxels) => Err(ToolError::TooManyVoxels {
             what,
             voxels,
             limit: MAX_LISTED_VOXELS,
-        });
+        }),
+        None => Ok(()),
     }
-    Ok(())
 }
 
 /// Most cells one edit may write (one undo step): 2^25, a 322³ box.

@@ -209,11 +209,11 @@ pub fn bind(
         return Err(rig("cannot bind: the skeleton has no joints".into()));
     }
     // Binding weighs every voxel one by one (and a skinned model stores every drawn voxel).
-    if svo.leaf_count() > crate::svo::MAX_LISTED_VOXELS {
+    if let Some(voxels) = svo.too_many_to_list() {
         return Err(rig(format!(
             "cannot bind: binding computes each voxel's weights one by one, and this model \
              stands for {} voxels, more than {}; bind the model at a larger voxel size",
-            crate::budget::thousands(svo.leaf_count()),
+            crate::budget::thousands(voxels),
             crate::budget::thousands(crate::svo::MAX_LISTED_VOXELS)
         )));
     }

@@ -21,11 +21,17 @@ const RIGGED_FIGURE: &str = concat!(
 /// A skinned voxel document of an asset at octree `depth`, framed by its camera (also used by
 /// the skinned-export tests).
 pub(crate) fn skinned_doc(path: &str, depth: u8) -> Document {
+    skinned_doc_in(path, depth, crate::voxelize::Mode::Surface)
+}
+
+/// [`skinned_doc`] voxelized in `mode` (a solid fills the inside).
+pub(crate) fn skinned_doc_in(path: &str, depth: u8, mode: crate::voxelize::Mode) -> Document {
     let import = import_skinned(path).expect("asset imports");
     let v = voxelize_skinned(
         &import,
         &VoxelizeSettings {
             resolution: Resolution::Depth(depth),
+            mode,
             ..VoxelizeSettings::default()
         },
         &|_| true,
@@ -641,24 +647,17 @@ fn a_skinned_solids_interior_tiles_leave_every_stored_nodes_tables_as_voxel_by_v
     // gets the corner weights and subtree joints its node in the leaf-only octree gets. On a
     // rigidly bound solid (limbs' insides tile) and a solid CesiumMan (interior voxels carry
     // their nearest surface's weights, so fewer tile).
-    let cesium = {
-        let import = import_skinned(concat!(
+    let cesium = model_of(&skinned_doc_in(
+        concat!(
             env!("CARGO_MANIFEST_DIR"),
             "/../../shared/assets/skinned/CesiumMan.glb"
-        ))
-        .expect("asset imports");
-        let v = voxelize_skinned(
-            &import,
-            &VoxelizeSettings {
-                resolution: Resolution::Depth(6),
-                mode: crate::voxelize::Mode::Solid,
-                ..VoxelizeSettings::default()
-            },
-            &|_| true,
-        )
-        .expect("voxelizes");
-        v.model.svo
-    };
+        ),
+        6,
+        crate::voxelize::Mode::Solid,
+    ))
+    .0
+    .svo
+    .clone();
     let figure = model_of(&crate::render::scenes::rigid_solid_figure())
         .0
         .svo

@@ -890,7 +890,7 @@ impl Svo {
             if n == 8
                 && self.tiling
                 && leaves.iter().all(|v| *v == leaves[0])
-                && (!self.has_skin || leaves[0].is_interior())
+                && self.skin_allows_tile(&leaves[0])
                 && self.merge_built(level, &leaves, ctx) == leaves[0]
             {
                 self.leaf_count += 8;
@@ -1190,6 +1190,14 @@ impl Svo {
             self.update_inner_attrs(level, i);
         }
         changed
+    }
+
+    /// The voxels this octree stands for when they are more than [`MAX_LISTED_VOXELS`], which
+    /// a tool that lists voxels one by one then refuses; `None` otherwise.
+    #[must_use]
+    pub fn too_many_to_list(&self) -> Option<u64> {
+        let voxels = self.leaf_count();
+        (voxels > MAX_LISTED_VOXELS).then_some(voxels)
     }
 
     /// Solid voxels in the inclusive box `lo..=hi`, a tile counting the part of its cube in the

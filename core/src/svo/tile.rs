@@ -173,7 +173,14 @@ impl Svo {
     /// do not have; so in a skinned model the inside of a solid is stored once per tile,
     /// with the weight set its voxels share, and everything drawn stays explicit.
     pub(super) fn tiles_value(&self, v: &Voxel) -> bool {
-        (!self.has_skin || v.is_interior()) && self.averages_to_itself(v)
+        self.skin_allows_tile(v) && self.averages_to_itself(v)
+    }
+
+    /// The skin half of [`Self::tiles_value`]: without skin any value, with skin only the
+    /// interior (for a caller that has the average already).
+    #[inline]
+    pub(super) fn skin_allows_tile(&self, v: &Voxel) -> bool {
+        !self.has_skin || v.is_interior()
     }
 
     fn averages_to_itself(&self, v: &Voxel) -> bool {

@@ -525,17 +525,6 @@ pub fn estimate(
     })
 }
 
-/// Most voxels a solid of grid `dims` may stand for: [`MAX_TILED_SOLID_VOXELS`] where its
-/// interior goes through the grid's bits into tiles (a rigid solid), else what
-/// [`VoxelizeSettings::max_voxels`] allows one by one.
-fn interior_limit(settings: &VoxelizeSettings, dims: UVec3, has_skin: bool) -> u64 {
-    if bits::fits(dims) && !has_skin {
-        settings.max_voxels.max(MAX_TILED_SOLID_VOXELS)
-    } else {
-        settings.max_voxels
-    }
-}
-
 /// Voxelizes `model` (in its object space) into an octree.
 ///
 /// `progress(fraction)` is called from the calling thread now and then; returning `false`
@@ -625,7 +614,16 @@ pub fn voxelize(
         });
     }
 
-    // Solid: column crossings along three axes → inside runs, voted into the interior.
+    // Solid: column crossings along three axes → inside runs, voted into the interior. A
+    // rigid solid's interior goes through the grid's bits into tiles when the grid fits them:
+    // it may then stand for up to `MAX_TILED_SOLID_VOXELS`; one listed voxel by voxel answers
+    // to `max_voxels`.
+    let on_bits = !has_skin && bits::fits(dims);
+    let inside_limit = if on_bits {
+        settings.max_voxels.max(MAX_TILED_SOLID_VOXELS)
+    } else {
+        settings.max_voxels
+    };
     let fills = if settings.mode == Mode::Solid {
         let mut fills = Vec::with_capacity(3);
         // An open mesh has no inside: filling it gives slabs, or the whole grid. It is open
@@ -634,12 +632,11 @@ pub fn voxelize(
         let mut open = 0;
         // The interior bits and the dense transform need only the inside runs; the sparse
         // fill takes attributes from the crossings.
-        let keep = if (bits::fits(dims) && !has_skin) || dense::fits(dims) {
+        let keep = if on_bits || dense::fits(dims) {
             fill::Keep::Runs
         } else {
             fill::Keep::Crossings
         };
-        let inside_limit = interior_limit(settings, dims, has_skin);
         for (i, axis) in fill::Axis::ALL.into_iter().enumerate() {
             let from = 0.55 + 0.05 * i as f32;
             let f = fill::cast(
@@ -681,9 +678,7 @@ pub fn voxelize(
     let interior = match fills {
         // A rigid solid needs no transform: its enclosed interior is the interior mark, and
         // the octree is built from the interior's bits (`sealed`).
-        Some(fills) if bits::fits(dims) && !has_skin => {
-            Some(Interior::Bits(bits::inside_bits(dims, &fills)))
-        }
+        Some(fills) if on_bits => Some(Interior::Bits(bits::inside_bits(dims, &fills))),
         Some(fills) if dense::fits(dims) => {
             let seeds: Vec<UVec3> = records.par_iter().map(|r| morton_decode(r.0)).collect();
             Some(Interior::Dense(dense::DenseFill::new(dims, &fills, &seeds)))
@@ -697,10 +692,9 @@ pub fn voxelize(
     if let Some(inside) = &interior {
         stats.interior_voxels = inside.len();
         stats.interior_from_nearest_surface = !matches!(inside, Interior::Sparse(_));
-        let limit = interior_limit(settings, dims, has_skin);
-        if stats.interior_voxels.saturating_add(stats.surface_voxels) > limit {
+        if stats.interior_voxels.saturating_add(stats.surface_voxels) > inside_limit {
             return Err(VoxelizeError::TooManyVoxels {
-                limit,
+                limit: inside_limit,
                 what: "interior voxels",
             });
         }
